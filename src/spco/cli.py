@@ -1,0 +1,128 @@
+"""The ``spco`` command line.
+
+Every command validates its input at the boundary; an :class:`~spco.errors.SpcoError` (bad file,
+bad argument) is printed as one line ``error: ...`` and the command exits with status 2, without a
+traceback.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import click
+
+from spco import __version__
+from spco.errors import SpcoError
+
+
+def _friendly_errors(func: Callable[..., Any]) -> Callable[..., Any]:
+    """Turn spco's own errors into a one-line message and exit status 2."""
+
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return func(*args, **kwargs)
+        except SpcoError as exc:
+            click.echo(f"error: {exc}", err=True)
+            sys.exit(2)
+        except KeyboardInterrupt:
+            click.echo("interrupted", err=True)
+            sys.exit(130)
+
+    return wrapper
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="spco")
+def main() -> None:
+    """spco: spatial concepts for home robots, learnt across homes and transferred to new ones.
+
+    Start with `spco demo` (synthetic homes, no dataset needed), or point `spco inspect` at a
+    folder of homes (the authors' SIGVerse layout or spco's plain format).
+    """
+
+
+@main.command()
+@click.argument("path", type=click.Path(path_type=Path))
+@click.option("--teaching-rate", "-r", default=100, show_default=True, type=click.IntRange(0, 100),
+              help="Percentage of taught samples to load (SIGVerse: the sentence/per_XX folder).")
+@click.option("--json", "as_json", is_flag=True, help="Print a JSON list instead of a table.")
+@_friendly_errors
+def inspect(path: Path, teaching_rate: int, as_json: bool) -> None:
+    """Summarise the homes in PATH (a home, a folder of homes or a cache file)."""
+    from spco.data.loading import load
+
+    corpus = load(path, teaching_rate=teaching_rate, progress=not as_json)
+    rows = []
+    for env in corpus:
+        gt = env.ground_truth
+        places = len(gt.places) if gt is not None and gt.labels is not None else None
+        rows.append({
+            "home": env.name,
+            "samples": env.n_samples,
+            "train": env.n_train,
+            "test": env.n_test,
+            "taught": env.n_taught,
+            "places": places,
+            "vocabulary": len(_home_vocabulary(env)),
+        })
+    if as_json:
+        click.echo(json.dumps(rows, indent=1))
+        return
+    header = ["home", "samples", "train", "test", "taught", "places", "vocabulary"]
+    table = [[str(r[h]) if r[h] is not None else "-" for h in header] for r in rows]
+    widths = [max(len(h), *(len(t[i]) for t in table)) for i, h in enumerate(header)]
+    click.echo("  ".join(h.ljust(w) for h, w in zip(header, widths, strict=True)))
+    for t in table:
+        click.echo("  ".join(c.ljust(w) for c, w in zip(t, widths, strict=True)))
+    total = sum(r["samples"] for r in rows)
+    click.echo(f"{len(rows)} homes, {total} samples, {len(corpus.vocabulary)} words in the shared "
+               f"vocabulary (teaching rate {teaching_rate}%)")
+
+
+def _home_vocabulary(env: Any) -> set[str]:
+    from spco.data.language import tokenize
+
+    return {w for s in env.training_data().sentences for w in tokenize(s)}
+
+
+@main.command(name="import")
+@click.argument("src", type=click.Path(path_type=Path))
+@click.argument("out", type=click.Path(path_type=Path))
+@click.option("--teaching-rate", "-r", default=None, type=click.IntRange(0, 100),
+              help="Keep only this teaching rate (default: every rate the source holds).")
+@click.option("--force", is_flag=True, help="Overwrite OUT if it exists.")
+@_friendly_errors
+def import_(src: Path, out: Path, teaching_rate: int | None, force: bool) -> None:
+    """Convert the homes in SRC (either layout) into one compact cache file OUT."""
+    from spco.data.cache import write_cache
+
+    summary = write_cache(src, out, teaching_rate=teaching_rate, overwrite=force, progress=True)
+    click.echo(summary)
+
+
+@main.command()
+@click.argument("out", type=click.Path(path_type=Path))
+@click.option("--homes", "-n", default=8, show_default=True, type=click.IntRange(1, 10000),
+              help="Number of homes to generate.")
+@click.option("--seed", default=0, show_default=True, type=int, help="Random seed.")
+@click.option("--force", is_flag=True, help="Write into OUT even if it holds homes already.")
+@_friendly_errors
+def synth(out: Path, homes: int, seed: int, force: bool) -> None:
+    """Generate synthetic homes into folder OUT (plain format, with ground-truth regions)."""
+    from spco.data.plain import write_corpus
+    from spco.data.synthetic import generate_homes
+
+    corpus = generate_homes(homes, seed=seed)
+    write_corpus(corpus, out, overwrite=force)
+    click.echo(f"wrote {len(corpus)} synthetic homes ({sum(e.n_samples for e in corpus)} samples) "
+               f"to {out}")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

@@ -1,0 +1,19 @@
+"""Data layer: environments, corpora, language, loaders, the cache and synthetic homes."""
+
+from spco.data.environment import Corpus, Environment, GroundTruth, TrainingData, make_ground_truth
+from spco.data.language import DEFAULT_WORD_INCREMENT, Vocabulary, normalize_name, tokenize
+from spco.data.regions import PlaceRegions, load_region_file
+
+__all__ = [
+    "DEFAULT_WORD_INCREMENT",
+    "Corpus",
+    "Environment",
+    "GroundTruth",
+    "PlaceRegions",
+    "TrainingData",
+    "Vocabulary",
+    "load_region_file",
+    "make_ground_truth",
+    "normalize_name",
+    "tokenize",
+]

@@ -1,0 +1,44 @@
+"""Exceptions that carry a message meant for the person who runs spco.
+
+Every error a user can cause by what they pass in (a file, a folder, an argument) is raised as a
+subclass of :class:`SpcoError`; the command line prints its message and exits with status 2, without
+a traceback.
+"""
+
+from __future__ import annotations
+
+from os import PathLike
+
+
+class SpcoError(Exception):
+    """Base class of the errors spco raises for bad input or bad configuration."""
+
+
+class DataFormatError(SpcoError, ValueError):
+    """A data file or folder is missing or malformed.
+
+    Parameters
+    ----------
+    path:
+        The file or folder at fault (shown first in the message).
+    problem:
+        What is wrong, and where possible what to do about it.
+    """
+
+    def __init__(self, path: str | PathLike[str] | None, problem: str) -> None:
+        self.path = None if path is None else str(path)
+        self.problem = problem
+        super().__init__(problem if path is None else f"{path}: {problem}")
+
+
+class ConfigurationError(SpcoError, ValueError):
+    """An argument or hyperparameter is out of its valid range."""
+
+
+class ModelFileError(SpcoError, ValueError):
+    """A saved model or knowledge file cannot be read (truncated, edited, wrong version)."""
+
+    def __init__(self, path: str | PathLike[str], problem: str) -> None:
+        self.path = str(path)
+        self.problem = problem
+        super().__init__(f"{path}: {problem}")

@@ -1,0 +1,66 @@
+"""The learnt parameters of the spatial-concept model: one posterior sample, all homes stacked.
+
+This is the interface between learning (:mod:`spco.model`) and use (:mod:`spco.prediction`,
+:mod:`spco.evaluation`, model files): every model — the transfer model and the SpCoA baselines —
+produces a :class:`ConceptParameters`, and prediction needs nothing else. Positions are in metres
+whatever units the sampler used internally.
+
+Shapes use E homes, L concepts, K regions, V words, D visual features.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+
+@dataclass(frozen=True, eq=False)
+class ConceptParameters:
+    """One sample (or a summary) of the model's parameters.
+
+    Attributes
+    ----------
+    concept_weights: (E, L) G_e, the concept distribution of each home.
+    region_weights: (E, L, K) π_{e,l}, the region distribution of each concept in each home.
+    region_means: (E, K, 4) μ_{e,m} in metres (x, y, sin θ, cos θ).
+    region_covariances: (E, K, 4, 4) Σ_{e,m} in metres².
+    word_probabilities: (E, L, V) θ^w_{e,l}; pruned words have probability 0.
+    visual_probabilities: (E, L, D) θ^v_{e,l}, strictly positive.
+    shared_word_probabilities: (L, V) φ^w_l, home-independent.
+    shared_visual_probabilities: (L, D) φ^v_l, home-independent.
+    global_concept_weights: (L,) G_0.
+    word_mask: (V,) bool, False for words removed by mutual-information pruning.
+    region_counts: (E, K) int, training samples assigned to each region (0 = unused region).
+    """
+
+    concept_weights: np.ndarray
+    region_weights: np.ndarray
+    region_means: np.ndarray
+    region_covariances: np.ndarray
+    word_probabilities: np.ndarray
+    visual_probabilities: np.ndarray
+    shared_word_probabilities: np.ndarray
+    shared_visual_probabilities: np.ndarray
+    global_concept_weights: np.ndarray
+    word_mask: np.ndarray
+    region_counts: np.ndarray
+
+    @property
+    def n_environments(self) -> int:
+        """Number of homes E."""
+        return int(self.concept_weights.shape[0])
+
+    @property
+    def n_concepts(self) -> int:
+        """Number of concepts L."""
+        return int(self.concept_weights.shape[1])
+
+    @property
+    def n_regions(self) -> int:
+        """Number of regions K."""
+        return int(self.region_means.shape[1])
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """All fields as a name -> array mapping (for saving)."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}
