@@ -1,0 +1,283 @@
+"""The paper's accuracies: A_n (name prediction) and A_p (position prediction), and their chance levels.
+
+- **A_n** of place ``l``: the fraction of the test samples labelled ``l`` whose predicted name is
+  ``l``. The mean over places is the score of a home.
+- **A_p** of name ``l``: the fraction of the positions sampled for ``l`` that fall inside the
+  ground-truth area of ``l`` (a union of rectangles, bounds inclusive).
+- Chance: ``1/|V|`` for names (a uniformly random word) and ``1/|places|`` for positions.
+
+A place with no test sample (or no ground-truth area) has accuracy NaN, which
+:func:`mean_over_places` leaves out of the mean.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from spco.data.environment import Environment
+from spco.data.language import Vocabulary, normalize_name
+from spco.data.regions import PlaceRegions
+from spco.errors import ConfigurationError, DataFormatError
+from spco.model.parameters import ConceptParameters
+from spco.prediction import (
+    NamePrediction,
+    PositionMode,
+    PositionPrediction,
+    UnknownNameError,
+    Weighting,
+    predict_names,
+    predict_positions,
+)
+
+__all__ = [
+    "HomeScores",
+    "evaluate_home",
+    "mean_over_places",
+    "name_accuracy",
+    "name_chance",
+    "position_accuracy",
+    "position_chance",
+]
+
+
+def _norm(label: str | None) -> str | None:
+    if label is None:
+        return None
+    return normalize_name(str(label)) or None
+
+
+def name_accuracy(
+    predicted: Sequence[str | None],
+    labels: Sequence[str | None],
+    places: Sequence[str] | None = None,
+) -> dict[str, float]:
+    """A_n per place: the fraction of the samples labelled ``l`` whose predicted name is ``l``.
+
+    Parameters
+    ----------
+    predicted: (n,) predicted name of each test sample (``None`` = no prediction, counts as wrong).
+    labels: (n,) true place of each sample; samples labelled ``None`` are ignored.
+    places: the places to score (default: the labels, in order of first appearance).
+
+    Names and labels are compared after :func:`~spco.data.language.normalize_name`. A place with
+    no sample gets NaN (excluded by :func:`mean_over_places`).
+    """
+    if len(predicted) != len(labels):
+        raise ConfigurationError(f"{len(predicted)} predictions for {len(labels)} labels")
+    pred = np.array([_norm(p) or "" for p in predicted], dtype=object)
+    lab = np.array([_norm(lab) for lab in labels], dtype=object)
+    if places is None:
+        order = list(dict.fromkeys(lab_ for lab_ in lab if lab_ is not None))
+    else:
+        order = list(dict.fromkeys(_norm(p) for p in places if _norm(p) is not None))
+    out: dict[str, float] = {}
+    for place in order:  # loop over places (a handful), vectorised over samples
+        rows = lab == place
+        count = int(rows.sum())
+        out[place] = float((pred[rows] == place).sum() / count) if count else math.nan
+    return out
+
+
+def mean_over_places(scores: Mapping[str, float]) -> float:
+    """Mean of the per-place accuracies, NaN entries left out; NaN if every entry is NaN (or none)."""
+    values = np.asarray(list(scores.values()), dtype=np.float64)
+    if values.size == 0 or np.isnan(values).all():
+        return math.nan
+    return float(np.nanmean(values))
+
+
+def position_accuracy(
+    samples_by_name: Mapping[str, np.ndarray], regions: PlaceRegions
+) -> dict[str, float]:
+    """A_p per name: the fraction of its sampled positions inside its ground-truth area.
+
+    Parameters
+    ----------
+    samples_by_name: name -> (P, 2) or (P, 3) positions in metres (only x, y are used).
+    regions: the ground-truth areas; a point on a rectangle's edge is inside.
+
+    A name with no sample (P = 0) gets NaN. A name without a ground-truth area raises
+    :class:`~spco.errors.ConfigurationError`. NaN coordinates are outside.
+    """
+    out: dict[str, float] = {}
+    for name, samples in samples_by_name.items():
+        key = normalize_name(name)
+        if key not in regions.places:
+            raise ConfigurationError(f"no ground-truth area for place {name!r}; places with one: "
+                                     f"{', '.join(regions.places)}")
+        xy = np.asarray(samples, dtype=np.float64)
+        if xy.size == 0:
+            out[key] = math.nan
+            continue
+        xy = np.atleast_2d(xy)
+        if xy.shape[1] < 2:
+            raise ConfigurationError(f"positions for {name!r} must have shape (P, 2) or (P, 3)")
+        out[key] = float(regions.contains(key, xy[:, :2]).mean())
+    return out
+
+
+def name_chance(vocabulary_size: int) -> float:
+    """Chance level of A_n: 1/|V| (a word drawn uniformly from the vocabulary)."""
+    if vocabulary_size < 1:
+        raise ConfigurationError(f"the vocabulary size must be >= 1, got {vocabulary_size}")
+    return 1.0 / vocabulary_size
+
+
+def position_chance(n_places: int) -> float:
+    """Chance level of A_p: 1/|places| (a position drawn uniformly among the places)."""
+    if n_places < 1:
+        raise ConfigurationError(f"the number of places must be >= 1, got {n_places}")
+    return 1.0 / n_places
+
+
+@dataclass(frozen=True, eq=False)
+class HomeScores:
+    """Name and position accuracy of one home.
+
+    Attributes
+    ----------
+    home: the home's name.
+    places: the places scored (normalised names).
+    name_accuracy: place -> A_n (NaN: no test sample of that place).
+    position_accuracy: place -> A_p (NaN: no ground-truth area; 0: the name cannot be predicted).
+    mean_name_accuracy, mean_position_accuracy: NaN-excluding means over places.
+    name_chance: 1/|V| (NaN for an empty vocabulary); position_chance: 1/|places|.
+    labels: (n,) true place of each scored sample.
+    predicted_names: (n,) predicted name of each scored sample (``None``: no word survived).
+    name_predictions: the full :class:`~spco.prediction.NamePrediction` of the scored samples.
+    test_positions: (n, 4) poses of the scored samples.
+    position_predictions: place -> :class:`~spco.prediction.PositionPrediction` (names that could
+        be predicted only).
+    """
+
+    home: str
+    places: tuple[str, ...]
+    name_accuracy: dict[str, float]
+    position_accuracy: dict[str, float]
+    mean_name_accuracy: float
+    mean_position_accuracy: float
+    name_chance: float
+    position_chance: float
+    labels: tuple[str | None, ...]
+    predicted_names: tuple[str | None, ...]
+    name_predictions: NamePrediction
+    test_positions: np.ndarray
+    position_predictions: dict[str, PositionPrediction] = field(default_factory=dict)
+
+    @property
+    def predicted_positions(self) -> dict[str, np.ndarray]:
+        """place -> (P, 3) sampled poses ``(x, y, θ)``, for :func:`spco.plots.plot_home_map`."""
+        return {name: pred.samples for name, pred in self.position_predictions.items()}
+
+    def summary(self) -> dict[str, object]:
+        """A JSON-ready summary (NaN written as ``None``)."""
+
+        def clean(v: float) -> float | None:
+            return None if math.isnan(v) else round(float(v), 6)
+
+        return {
+            "home": self.home,
+            "name_accuracy": {k: clean(v) for k, v in self.name_accuracy.items()},
+            "position_accuracy": {k: clean(v) for k, v in self.position_accuracy.items()},
+            "mean_name_accuracy": clean(self.mean_name_accuracy),
+            "mean_position_accuracy": clean(self.mean_position_accuracy),
+            "name_chance": clean(self.name_chance),
+            "position_chance": clean(self.position_chance),
+        }
+
+
+def evaluate_home(
+    params: ConceptParameters,
+    e: int,
+    environment: Environment,
+    vocabulary: Vocabulary,
+    places: Sequence[str] | None = None,
+    specific: bool = False,
+    n_positions: int = 10,
+    rng: np.random.Generator | int | None = None,
+    weighting: Weighting = "mi",
+    position_mode: PositionMode = "argmax",
+    xy_only: bool = False,
+) -> HomeScores:
+    """Score name and position prediction in home ``e`` (the paper's A_n and A_p).
+
+    Parameters
+    ----------
+    params, e: the model and the index of ``environment`` among its homes.
+    environment: the home, with ground truth (labels, and regions for A_p).
+    vocabulary: the corpus vocabulary the model was learnt with.
+    places: the places to score. Default: general — every labelled place of the home;
+        specific — the places of the home-specific test samples.
+    specific: the home-specific experiment: score the samples of ``ground_truth.specific_test``
+        against ``ground_truth.specific_labels`` instead of the test samples against the labels.
+    n_positions: positions sampled per name for A_p.
+    rng: Generator or seed for the position samples.
+    weighting: name weighting (see :func:`spco.prediction.predict_names`).
+    position_mode, xy_only: see :func:`spco.prediction.predict_positions`.
+
+    Conventions: a place with no scored sample has A_n = NaN, left out of the mean. A place whose
+    name the model cannot predict (never taught, or pruned) gets A_n = 0 (it is never predicted)
+    and A_p = 0 (no position can be proposed). A place without a ground-truth area has A_p = NaN,
+    and if the home has no regions at all every A_p is NaN.
+    """
+    gt = environment.ground_truth
+    if gt is None:
+        raise DataFormatError(environment.source or environment.name, "this home has no ground truth "
+                              "to evaluate against")
+    all_labels = environment.labels(specific)
+    if specific:
+        if gt.specific_test is None:
+            raise DataFormatError(environment.source or environment.name,
+                                  "this home has no home-specific test samples")
+        rows = np.flatnonzero(np.asarray(gt.specific_test, dtype=bool))
+    else:
+        rows = np.flatnonzero(environment.is_test)
+    labels = tuple(all_labels[i] for i in rows)
+    if places is None:
+        source = labels if specific else all_labels
+        place_list = list(dict.fromkeys(p for p in source if p is not None))
+    else:
+        place_list = list(dict.fromkeys(n for n in (_norm(p) for p in places) if n is not None))
+
+    positions = environment.positions[rows]
+    visual = environment.visual[rows]
+    prediction = predict_names(params, e, vocabulary, positions, visual, top_k=3, weighting=weighting)
+    predicted = tuple(prediction.best)
+    name_scores = name_accuracy(predicted, labels, place_list)
+
+    gen = np.random.default_rng(rng)
+    pos_scores: dict[str, float] = {}
+    pos_predictions: dict[str, PositionPrediction] = {}
+    regions = gt.regions
+    for place in place_list:  # a handful of names
+        if regions is None or place not in regions.places:
+            pos_scores[place] = math.nan
+            continue
+        try:
+            pred = predict_positions(params, e, vocabulary, place, n=n_positions, rng=gen,
+                                     mode=position_mode, xy_only=xy_only)
+        except UnknownNameError:
+            pos_scores[place] = 0.0
+            continue
+        pos_predictions[place] = pred
+        pos_scores[place] = position_accuracy({place: pred.samples}, regions)[place]
+
+    return HomeScores(
+        home=environment.name,
+        places=tuple(place_list),
+        name_accuracy=name_scores,
+        position_accuracy=pos_scores,
+        mean_name_accuracy=mean_over_places(name_scores),
+        mean_position_accuracy=mean_over_places(pos_scores),
+        name_chance=name_chance(len(vocabulary)) if len(vocabulary) else math.nan,
+        position_chance=position_chance(len(place_list)) if place_list else math.nan,
+        labels=labels,
+        predicted_names=predicted,
+        name_predictions=prediction,
+        test_positions=positions,
+        position_predictions=pos_predictions,
+    )

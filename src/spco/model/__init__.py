@@ -1,0 +1,25 @@
+"""The spatial-concept models and their Gibbs samplers.
+
+- :mod:`spco.model.hyperparameters` — the paper's hyperparameters and their validation;
+- :mod:`spco.model.random` — batched Dirichlet, NIW, CRT and categorical draws;
+- :mod:`spco.model.allocation` — concepts (HDP over homes) and regions (per concept);
+- :mod:`spco.model.observations` — positions (Gaussian–NIW), words and vision (hierarchical
+  Dirichlet–multinomial);
+- :mod:`spco.model.pruning` — mutual-information word pruning;
+- :mod:`spco.model.gibbs` — state, sweeps (exact, reference, SpCoA) and the log joint;
+- :mod:`spco.model.transfer` — the estimators :class:`SpCoTransfer` and :class:`SpCoA`;
+- :mod:`spco.model.io` — saving and loading fitted models.
+"""
+
+from spco.model.hyperparameters import SpCoAHyperparameters, TransferHyperparameters
+from spco.model.parameters import ConceptParameters
+from spco.model.transfer import SpatialConceptModel, SpCoA, SpCoTransfer
+
+__all__ = [
+    "ConceptParameters",
+    "SpCoA",
+    "SpCoAHyperparameters",
+    "SpCoTransfer",
+    "SpatialConceptModel",
+    "TransferHyperparameters",
+]

@@ -1,0 +1,477 @@
+"""The blocked Gibbs sampler: prepared data, sampler state, initialisation, sweeps, log joint.
+
+One sweep follows bnpy's cycle: a **local step** (per-sample assignments C_t, R_t, all homes at
+once) → **sufficient statistics** → a **global step** (shared φ^v, φ^w, G_0) → the **home step**
+(θ, G_e, π, μ, Σ of every home). The conditionals themselves live in
+:mod:`spco.model.allocation` (concepts and regions) and :mod:`spco.model.observations`
+(positions, words, vision).
+
+Three samplers share this machinery:
+
+``exact`` — the generative model as written (``../docs/model.md`` of the project):
+    joint (C, R) draw; φ | table counts (CRT auxiliary variables) then θ | φ (partially collapsed
+    Gibbs, in that order); G_0 | concept table counts; G_e ~ Dir(γ G_0 + n); π ~ Dir(β/K + n);
+    NIW regions; positions in metres with μ0 = map centre; pruning score = true mutual information.
+``reference`` — what the authors' published code does, to reproduce their numbers:
+    R block then C block; θ given the previous φ, then φ ~ Dir(α + counts pooled over homes);
+    G_0 ~ Dir(γ0 + Σ_e n_e); G_e ~ Dir(n + γ G_0 + 50); π ~ Dir(n + β); positions in centimetres
+    with μ0 = 0; k-means initialisation with Σ = 100·I; empty regions re-seeded uniformly in a
+    ±6 cm box around the origin with Σ = 100·I; pruning score = Bernoulli KL with threshold 0.1
+    (pruned words get probability 1e-100 in their code, i.e. they are ignored, as here).
+``spcoa`` — the SpCoA baseline: no environment plate, θ_l ~ Dir(α + n) directly, G ~ Dir(γ/L + n).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.cluster.vq import kmeans2
+from scipy.optimize import linear_sum_assignment
+from scipy.special import logsumexp
+
+from spco.model import allocation
+from spco.model.hyperparameters import TransferHyperparameters
+from spco.model.moves import concept_swap_step
+from spco.model.observations import GaussianRegions, HierarchicalMultinomial, NIWPrior
+from spco.model.pruning import words_to_keep
+from spco.model.random import dirichlet_log_density, log_dirichlet
+
+VARIANTS = ("exact", "reference", "spcoa")
+
+#: Reference variant: positions in centimetres.
+CM_PER_M = 100.0
+
+
+@dataclass(frozen=True, eq=False)
+class PreparedData:
+    """All homes' training samples stacked, in the sampler's units.
+
+    positions (N, 4), homes (N,) home index of each sample, visual (N, D) CSR int64 counts,
+    words (N, V) CSR int64 counts (empty rows for untaught samples), n_homes E, offsets (E+1,)
+    so that home e holds rows offsets[e]:offsets[e+1], position_scale (1 for metres, 100 for cm).
+    """
+
+    positions: np.ndarray
+    homes: np.ndarray
+    visual: sp.csr_array
+    words: sp.csr_array
+    n_homes: int
+    offsets: np.ndarray
+    position_scale: float
+    map_centres: np.ndarray  # (E, 4) in sampler units
+
+    @property
+    def n_samples(self) -> int:
+        """N."""
+        return int(self.homes.size)
+
+
+@dataclass
+class GibbsState:
+    """Assignments and parameters after a sweep (log-probabilities, sampler units).
+
+    concepts (N,), regions (N,); log_g (E, L) G_e; log_g0 (L,) G_0; log_pi (E, L, K) π;
+    means (E, K, 4), covariances (E, K, 4, 4); log_theta_v (E, L, D), log_theta_w (E, L, V);
+    log_phi_v (L, D), log_phi_w (L, V); word_mask (V,) words kept by pruning.
+    """
+
+    concepts: np.ndarray
+    regions: np.ndarray
+    log_g: np.ndarray
+    log_g0: np.ndarray
+    log_pi: np.ndarray
+    means: np.ndarray
+    covariances: np.ndarray
+    log_theta_v: np.ndarray
+    log_theta_w: np.ndarray
+    log_phi_v: np.ndarray
+    log_phi_w: np.ndarray
+    word_mask: np.ndarray
+    region_counts: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), dtype=np.int64))
+
+
+@dataclass(frozen=True)
+class SamplerSettings:
+    """What distinguishes the samplers (derived from the variant name)."""
+
+    variant: str
+    prune: bool
+    hierarchical: bool
+    joint_assignment: bool
+    pruning_score: str
+
+    @classmethod
+    def create(cls, variant: str, prune: bool) -> SamplerSettings:
+        """Settings of ``variant`` (``exact``, ``reference`` or ``spcoa``)."""
+        if variant not in VARIANTS:
+            raise ValueError(f"unknown sampler variant {variant!r}; choose one of {VARIANTS}")
+        return cls(variant=variant, prune=prune, hierarchical=variant != "spcoa",
+                   joint_assignment=variant != "reference",
+                   pruning_score="kl" if variant == "reference" else "mi")
+
+
+def niw_prior(data: PreparedData, hyper: TransferHyperparameters, settings: SamplerSettings) -> NIWPrior:
+    """The NIW prior in the sampler's units (μ0 = map centre, or 0 in the reference variant)."""
+    scale = np.array([data.position_scale, data.position_scale, 1.0, 1.0])
+    psi0 = hyper.psi0_matrix_m2() * np.outer(scale, scale)
+    if settings.variant == "reference":
+        mu0 = np.zeros((data.n_homes, 4))
+    elif hyper.mu0 is not None:
+        mu0 = np.tile(np.asarray(hyper.mu0, dtype=float) * scale, (data.n_homes, 1))
+    else:
+        mu0 = data.map_centres
+    return NIWPrior(mu0=mu0, kappa0=hyper.kappa0, psi0=psi0, nu0=hyper.nu0)
+
+
+# ----------------------------------------------------------------------------- initialisation
+
+
+def initialize(data: PreparedData, n_words: int, hyper: TransferHyperparameters,
+               settings: SamplerSettings, rng: np.random.Generator) -> GibbsState:
+    """A starting state, then the first sweep starts with the local step.
+
+    Regions are assigned by k-means on each home's positions and their Gaussians drawn given that
+    assignment (the reference variant sets the k-means centres as means with Σ = 100·I, as the
+    authors do); π is drawn from its prior; concepts are uniform at random; the word and visual
+    distributions θ, φ start uniform, as in the authors' code, and so do G_0 and G_e (the
+    reference variant draws those as the authors do).
+
+    Why uniform θ: with ~7,000 visual and S^w = 5000 word counts per sample the likelihood is so
+    peaked that the chain keeps whatever partition its first sweep makes. With uniform θ that
+    first partition follows the regions (p(C, R) ∝ G π N(x | R)), i.e. concepts start as groups of
+    nearby samples, which words and vision then refine. Drawing θ from the prior or from counts of
+    random concepts instead starts from a random partition that the chain does not leave.
+    """
+    L, K, E = hyper.n_concepts, hyper.n_regions, data.n_homes
+    D, V = data.visual.shape[1], n_words
+    concepts = rng.integers(0, L, size=data.n_samples)
+    regions = np.zeros(data.n_samples, dtype=np.int64)
+    means = np.empty((E, K, 4))
+    for e in range(E):
+        rows = slice(data.offsets[e], data.offsets[e + 1])
+        x = data.positions[rows]
+        k = min(K, x.shape[0])
+        restarts = 10 if settings.variant == "reference" else 1  # the authors keep the best of 10
+        best = np.inf
+        for _ in range(restarts):
+            centres, labels = kmeans2(x, k, minit="++", seed=int(rng.integers(0, 2**31 - 1)))
+            cost = ((x - centres[labels]) ** 2).sum()
+            if cost < best:
+                best, best_centres, best_labels = cost, centres, labels
+        regions[rows] = best_labels
+        means[e, :k] = best_centres
+        means[e, k:] = best_centres[rng.integers(0, k, size=K - k)]
+    reference = settings.variant == "reference"
+    # Word and visual distributions start uniform (as in the authors' code), so the first local
+    # step groups samples by region: concepts start spatially coherent within each home.
+    log_phi_v = np.full((L, D), -np.log(D))
+    log_phi_w = np.full((L, V), -np.log(V)) if V else np.zeros((L, 0))
+    log_theta_v = np.broadcast_to(log_phi_v, (E, L, D)).copy()
+    log_theta_w = np.broadcast_to(log_phi_w, (E, L, V)).copy()
+    if reference:  # the authors: G_0 by stick breaking, G_e ~ Dir(G_0 + γ)
+        log_g0 = log_dirichlet(np.full(L, hyper.gamma0), rng)
+        log_g = log_dirichlet(np.exp(log_g0)[None, :] + hyper.gamma + np.zeros((E, L)), rng)
+    else:  # uniform: the sparse prior draws of G_0 would put every sample in one or two concepts
+        log_g0 = np.full(L, -np.log(L))
+        log_g = np.full((E, L), -np.log(L))
+    log_pi = allocation.sample_region_weights(np.zeros((E, L, K)), hyper.beta if reference else hyper.beta / K,
+                                              rng)
+    state = GibbsState(
+        concepts=concepts, regions=regions, log_g=log_g, log_g0=log_g0, log_pi=log_pi, means=means,
+        covariances=np.tile(100.0 * np.eye(4), (E, K, 1, 1)), log_theta_v=log_theta_v,
+        log_theta_w=log_theta_w, log_phi_v=log_phi_v, log_phi_w=log_phi_w,
+        word_mask=np.ones(V, dtype=bool),
+    )
+    count, total, scatter = GaussianRegions.statistics(data.positions, data.homes, regions, E, K)
+    state.region_counts = count.astype(np.int64)
+    if not reference:
+        state.means, state.covariances = GaussianRegions.sample_posterior(
+            count, total, scatter, niw_prior(data, hyper, settings), rng)
+    if settings.variant == "exact":
+        warm_start(data, state, hyper, settings, rng)
+    return state
+
+
+def warm_start(data: PreparedData, state: GibbsState, hyper: TransferHyperparameters,
+               settings: SamplerSettings, rng: np.random.Generator, n_sweeps: int = 3) -> None:
+    """Start the hierarchical sampler from homes whose concept labels agree.
+
+    Each home is first learnt on its own for ``n_sweeps`` sweeps (θ_{e,l} ~ Dir(α + n), the SpCoA
+    conditionals), which makes its concepts place-pure within the home; then the homes' labels
+    are aligned progressively — taught homes first — by matching each home's concepts to the
+    pooled word and visual counts of the homes aligned before it (Hungarian algorithm); finally
+    φ and G_0 are set from the aligned counts and θ, G_e, π, μ, Σ drawn given them.
+
+    This is only an initialisation (the chain is valid MCMC from its end on, whatever state it
+    starts from); it matters because label switching between homes is the sampler's hardest move:
+    see :mod:`spco.model.moves`.
+    """
+    independent = SamplerSettings(variant="spcoa", prune=False, hierarchical=False, joint_assignment=True,
+                                  pruning_score="mi")
+    for _ in range(n_sweeps):
+        _local_step(data, state, independent, rng)
+        stats = _statistics(data, state, hyper)
+        _home_step(data, state, stats, hyper, independent, rng)
+    stats = _statistics(data, state, hyper)
+    perms = align_homes(stats.visual, stats.words, hyper.alpha_visual, hyper.alpha_word)
+    _apply_permutations(data, state, perms)
+    stats = _statistics(data, state, hyper)
+    state.log_phi_v = log_dirichlet(hyper.alpha_visual + stats.visual.sum(0), rng)
+    state.log_phi_w = log_dirichlet(hyper.alpha_word + stats.words.sum(0), rng)
+    state.log_g0 = log_dirichlet(hyper.gamma0 / hyper.n_concepts + stats.concepts.sum(0), rng)
+    _home_step(data, state, stats, hyper, settings, rng)
+
+
+def align_homes(visual: np.ndarray, words: np.ndarray, alpha_visual: float, alpha_word: float) -> np.ndarray:
+    """Permutations that make the homes' concept labels agree.
+
+    Parameters
+    ----------
+    visual: (E, L, D) visual counts per home and concept; words: (E, L, V) word counts.
+
+    Returns
+    -------
+    perms: (E, L); slot j of home e should hold its current concept perms[e, j]. Homes are
+    aligned in order of decreasing word counts; each is matched to the pooled counts of those
+    aligned before it by maximising Σ_j log p(counts of its concept perms[e, j] | pooled profile j).
+    """
+    n_homes, n_concepts, _ = visual.shape
+    order = np.argsort(-words.sum(axis=(1, 2)), kind="stable")
+    perms = np.tile(np.arange(n_concepts), (n_homes, 1))
+    pooled_v = visual[order[0]].astype(float)
+    pooled_w = words[order[0]].astype(float)
+    for e in order[1:]:
+        log_pv = np.log(pooled_v + alpha_visual) - np.log((pooled_v + alpha_visual).sum(1, keepdims=True))
+        score = visual[e] @ log_pv.T  # (own concept, label)
+        if words.shape[2]:
+            log_pw = np.log(pooled_w + alpha_word) - np.log((pooled_w + alpha_word).sum(1, keepdims=True))
+            score = score + words[e] @ log_pw.T
+        own, label = linear_sum_assignment(score, maximize=True)
+        perms[e, label] = own
+        pooled_v += visual[e][perms[e]]
+        pooled_w += words[e][perms[e]]
+    return perms
+
+
+def _apply_permutations(data: PreparedData, state: GibbsState, perms: np.ndarray) -> None:
+    """Relabel concepts within each home: slot j of home e takes its old concept perms[e, j]."""
+    if (perms == np.arange(perms.shape[1])).all():
+        return
+    homes = np.arange(perms.shape[0])[:, None]
+    state.log_theta_v = state.log_theta_v[homes, perms]
+    state.log_theta_w = state.log_theta_w[homes, perms]
+    state.log_g = state.log_g[homes, perms]
+    state.log_pi = state.log_pi[homes, perms]
+    inverse = np.argsort(perms, axis=1)  # old concept -> new slot
+    state.concepts = inverse[data.homes, state.concepts]
+
+
+# ----------------------------------------------------------------------------- statistics
+
+
+@dataclass
+class Statistics:
+    """Sufficient statistics of the assignments: concept counts (E, L), region-by-concept counts
+    (E, L, K), Gaussian statistics per region, and visual/word counts per concept (E, L, D/V)."""
+
+    concepts: np.ndarray
+    regions_by_concept: np.ndarray
+    region_count: np.ndarray
+    region_total: np.ndarray
+    region_scatter: np.ndarray
+    visual: np.ndarray
+    words: np.ndarray
+
+
+def _statistics(data: PreparedData, state: GibbsState, hyper: TransferHyperparameters) -> Statistics:
+    E, L, K = data.n_homes, hyper.n_concepts, hyper.n_regions
+    count, total, scatter = GaussianRegions.statistics(data.positions, data.homes, state.regions, E, K)
+    return Statistics(
+        concepts=allocation.concept_counts(data.homes, state.concepts, E, L),
+        regions_by_concept=allocation.region_counts(data.homes, state.concepts, state.regions, E, L, K),
+        region_count=count, region_total=total, region_scatter=scatter,
+        visual=HierarchicalMultinomial.statistics(data.visual, data.homes, state.concepts, E, L),
+        words=HierarchicalMultinomial.statistics(data.words, data.homes, state.concepts, E, L),
+    )
+
+
+# ----------------------------------------------------------------------------- the steps
+
+
+def _concept_loglik(data: PreparedData, state: GibbsState) -> np.ndarray:
+    """Visual + word log-likelihood of every sample under every concept of its home: (N, L)."""
+    loglik = HierarchicalMultinomial.log_likelihood(data.visual, data.homes, state.log_theta_v)
+    if data.words.nnz:
+        log_theta_w = np.where(state.word_mask, state.log_theta_w, 0.0)  # pruned words are ignored
+        loglik += HierarchicalMultinomial.log_likelihood(data.words, data.homes, log_theta_w)
+    return loglik
+
+
+def _local_step(data: PreparedData, state: GibbsState, settings: SamplerSettings,
+                rng: np.random.Generator) -> None:
+    concept_ll = _concept_loglik(data, state)
+    if settings.joint_assignment:
+        region_ll = GaussianRegions.log_likelihood(data.positions, data.homes, state.means, state.covariances)
+        state.concepts, state.regions = allocation.sample_assignments_joint(
+            state.log_g, state.log_pi, data.homes, concept_ll, region_ll, rng)
+    else:  # the authors' two blocks: R | C, then C | R
+        region_ll = GaussianRegions.log_likelihood(data.positions, data.homes, state.means, state.covariances)
+        state.regions = allocation.sample_regions_given_concepts(state.log_pi, data.homes, state.concepts,
+                                                                 region_ll, rng)
+        state.concepts = allocation.sample_concepts_given_regions(state.log_g, state.log_pi, data.homes,
+                                                                  state.regions, concept_ll, rng)
+
+
+def _global_step(stats: Statistics, state: GibbsState, hyper: TransferHyperparameters,
+                 rng: np.random.Generator) -> None:
+    """Exact: φ^v, φ^w and G_0 given CRT table counts (θ and G_e integrated out)."""
+    tables_v = HierarchicalMultinomial.sample_tables(stats.visual, state.log_phi_v, hyper.delta_visual, rng)
+    state.log_phi_v = HierarchicalMultinomial.sample_shared(tables_v, hyper.alpha_visual, rng)
+    tables_w = HierarchicalMultinomial.sample_tables(stats.words, state.log_phi_w, hyper.delta_word, rng)
+    state.log_phi_w = HierarchicalMultinomial.sample_shared(tables_w, hyper.alpha_word, rng)
+    state.log_g0 = allocation.sample_global_concept_weights(stats.concepts, state.log_g0, hyper.gamma,
+                                                            hyper.gamma0, rng)
+
+
+def _home_step(data: PreparedData, state: GibbsState, stats: Statistics, hyper: TransferHyperparameters,
+               settings: SamplerSettings, rng: np.random.Generator) -> None:
+    """θ^v, θ^w, G_e, π and the region Gaussians of every home, given φ, G_0 and the assignments."""
+    K, L = hyper.n_regions, hyper.n_concepts
+    if settings.hierarchical:
+        state.log_theta_v = HierarchicalMultinomial.sample_specific(stats.visual, state.log_phi_v,
+                                                                    hyper.delta_visual, rng)
+        state.log_theta_w = HierarchicalMultinomial.sample_specific(stats.words, state.log_phi_w,
+                                                                    hyper.delta_word, rng)
+        state.log_g = allocation.sample_home_concept_weights(stats.concepts, state.log_g0, hyper.gamma, rng)
+    else:  # SpCoA: θ_l ~ Dir(α + n), G ~ Dir(γ/L + n)
+        state.log_theta_v = log_dirichlet(hyper.alpha_visual + stats.visual, rng)
+        state.log_theta_w = log_dirichlet(hyper.alpha_word + stats.words, rng)
+        state.log_g = log_dirichlet(hyper.gamma / L + stats.concepts, rng)
+        state.log_phi_v = _log_mean(state.log_theta_v)  # exported as the shared part
+        state.log_phi_w = _log_mean(state.log_theta_w)
+        state.log_g0 = _log_mean(state.log_g)
+    state.log_pi = allocation.sample_region_weights(stats.regions_by_concept, hyper.beta / K, rng)
+    state.means, state.covariances = GaussianRegions.sample_posterior(
+        stats.region_count, stats.region_total, stats.region_scatter, niw_prior(data, hyper, settings), rng)
+    state.region_counts = stats.region_count.astype(np.int64)
+
+
+def _swap_labels(data: PreparedData, state: GibbsState, hyper: TransferHyperparameters,
+                 rng: np.random.Generator) -> None:
+    """Metropolis–Hastings label swaps within each home (see :mod:`spco.model.moves`)."""
+    perms = concept_swap_step(state.log_theta_v, state.log_phi_v, hyper.delta_visual, state.log_theta_w,
+                              state.log_phi_w, hyper.delta_word, state.log_g, state.log_g0, hyper.gamma,
+                              state.word_mask, rng)
+    _apply_permutations(data, state, perms)
+
+
+def _log_mean(log_p: np.ndarray) -> np.ndarray:
+    return logsumexp(log_p, axis=0) - np.log(log_p.shape[0])
+
+
+def _home_step_reference(data: PreparedData, state: GibbsState, stats: Statistics,
+                         hyper: TransferHyperparameters, settings: SamplerSettings,
+                         rng: np.random.Generator, regions_too: bool = True) -> None:
+    """The authors' per-home updates: NIW (empty regions re-seeded), θ | previous φ, π, G_e."""
+    if regions_too:
+        means, covs = GaussianRegions.sample_posterior(stats.region_count, stats.region_total,
+                                                       stats.region_scatter, niw_prior(data, hyper, settings),
+                                                       rng)
+        empty = stats.region_count == 0
+        n_empty = int(empty.sum())
+        if n_empty:
+            box = np.array([6.0, 6.0, 1.0, 1.0])
+            means[empty] = rng.uniform(-box, box, size=(n_empty, 4))
+            covs[empty] = 100.0 * np.eye(4)
+        state.means, state.covariances = means, covs
+    state.log_theta_v = HierarchicalMultinomial.sample_specific(stats.visual, state.log_phi_v,
+                                                                hyper.delta_visual, rng)
+    state.log_theta_w = HierarchicalMultinomial.sample_specific(stats.words, state.log_phi_w,
+                                                                hyper.delta_word, rng)
+    state.log_pi = allocation.sample_region_weights(stats.regions_by_concept, hyper.beta, rng)
+    state.log_g = allocation.sample_home_concept_weights(stats.concepts, state.log_g0, hyper.gamma, rng,
+                                                         extra=50.0)
+    state.region_counts = stats.region_count.astype(np.int64)
+
+
+def _global_step_reference(stats: Statistics, state: GibbsState, hyper: TransferHyperparameters,
+                           rng: np.random.Generator) -> None:
+    """The authors' shared updates: φ ~ Dir(α + pooled counts), G_0 ~ Dir(γ0 + Σ_e n_e)."""
+    state.log_phi_v = log_dirichlet(hyper.alpha_visual + stats.visual.sum(0), rng)
+    state.log_phi_w = log_dirichlet(hyper.alpha_word + stats.words.sum(0), rng)
+    state.log_g0 = log_dirichlet(hyper.gamma0 + stats.concepts.sum(0), rng)
+
+
+def _prune(state: GibbsState, hyper: TransferHyperparameters, settings: SamplerSettings) -> None:
+    """Remove uninformative words from φ^w and every θ^w (their probability set to 0)."""
+    if state.log_phi_w.shape[1] == 0:
+        return
+    if settings.hierarchical:
+        phi_w, weights = np.exp(state.log_phi_w), np.exp(state.log_g0)
+    else:  # SpCoA+MI: the single home's θ^w and G
+        phi_w, weights = np.exp(state.log_theta_w[0]), np.exp(state.log_g[0])
+    keep = words_to_keep(phi_w, weights, hyper.mi_threshold, settings.pruning_score)
+    if not keep.any():  # never remove every word: keep the most informative one
+        keep[np.argmax(phi_w.max(0))] = True
+    state.word_mask = keep
+    for name in ("log_phi_w", "log_theta_w"):
+        values = getattr(state, name)
+        values = np.where(keep, values, -np.inf)
+        setattr(state, name, values - logsumexp(values, axis=-1, keepdims=True))
+
+
+def sweep(data: PreparedData, state: GibbsState, hyper: TransferHyperparameters, settings: SamplerSettings,
+          rng: np.random.Generator) -> None:
+    """One Gibbs sweep, in place."""
+    _local_step(data, state, settings, rng)
+    stats = _statistics(data, state, hyper)
+    if settings.variant == "reference":
+        _home_step_reference(data, state, stats, hyper, settings, rng)
+        _global_step_reference(stats, state, hyper, rng)
+    else:
+        if settings.hierarchical:
+            _global_step(stats, state, hyper, rng)
+        _home_step(data, state, stats, hyper, settings, rng)
+        if settings.hierarchical and data.n_homes > 1:
+            _swap_labels(data, state, hyper, rng)
+    if settings.prune:
+        _prune(state, hyper, settings)
+
+
+# ----------------------------------------------------------------------------- log joint
+
+
+def log_joint(data: PreparedData, state: GibbsState, hyper: TransferHyperparameters,
+              settings: SamplerSettings) -> float:
+    """log p(data, C, R, parameters) of the model (up to the multinomial coefficients, which do
+    not depend on the state), in the sampler's units. With word pruning, pruned words are left
+    out of every term."""
+    E, L, K = data.n_homes, hyper.n_concepts, hyper.n_regions
+    homes, c, r = data.homes, state.concepts, state.regions
+    region_ll = GaussianRegions.log_likelihood(data.positions, homes, state.means, state.covariances)
+    concept_ll = _concept_loglik(data, state)
+    n = data.n_samples
+    total = float((state.log_g[homes, c] + state.log_pi[homes, c, r] + region_ll[np.arange(n), r]
+                   + concept_ll[np.arange(n), c]).sum())
+    mask = state.word_mask
+    if settings.hierarchical:
+        total += HierarchicalMultinomial.log_prior_specific(state.log_theta_v, state.log_phi_v, hyper.delta_visual)
+        if mask.any():
+            total += HierarchicalMultinomial.log_prior_specific(state.log_theta_w, state.log_phi_w,
+                                                                hyper.delta_word, mask)
+            total += HierarchicalMultinomial.log_prior_shared(state.log_phi_w, hyper.alpha_word, mask)
+        total += HierarchicalMultinomial.log_prior_shared(state.log_phi_v, hyper.alpha_visual)
+        total += float(dirichlet_log_density(state.log_g, hyper.gamma * np.exp(state.log_g0)).sum())
+        total += float(dirichlet_log_density(state.log_g0, np.full(L, hyper.gamma0 / L)))
+    else:
+        total += HierarchicalMultinomial.log_prior_shared(state.log_theta_v.reshape(E * L, -1),
+                                                          hyper.alpha_visual)
+        if mask.any():
+            total += HierarchicalMultinomial.log_prior_shared(state.log_theta_w.reshape(E * L, -1),
+                                                              hyper.alpha_word, mask)
+        total += float(dirichlet_log_density(state.log_g, np.full(L, hyper.gamma / L)).sum())
+    total += float(dirichlet_log_density(state.log_pi, np.full(K, hyper.beta / K)).sum())
+    total += GaussianRegions.log_prior(state.means, state.covariances, niw_prior(data, hyper, settings))
+    return total

@@ -1,0 +1,129 @@
+"""Hyperparameters of the spatial-concept models, with the paper's values as defaults.
+
+Units: positions are in metres everywhere in spco's API. The paper states Ψ0 in cm² for x and y
+(``diag(10, 10, 0.5, 0.5)``); :class:`TransferHyperparameters` takes it that way (``psi0`` in the
+paper's units, ``position_unit_cm=True``) and the sampler converts it to metres, which leaves the
+model unchanged (``../docs`` of the project: a change of units with μ0 and Ψ0 changed with it is
+the same model).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+
+from spco.errors import ConfigurationError
+
+#: The paper's Ψ0 for (x, y, sin θ, cos θ), x and y in cm².
+PAPER_PSI0_CM = (10.0, 10.0, 0.5, 0.5)
+
+
+def _positive(name: str, value: float) -> None:
+    if not (np.isfinite(value) and value > 0):
+        raise ConfigurationError(f"{name} must be a positive number, got {value!r}")
+
+
+@dataclass(frozen=True)
+class TransferHyperparameters:
+    """Hyperparameters of the transfer model (Hagiwara et al., 2021); defaults are the paper's.
+
+    Attributes
+    ----------
+    n_concepts: L, weak-limit truncation of the concept HDP (15).
+    n_regions: K, regions per home (20).
+    alpha_visual, alpha_word: α^v = 3, α^w = 0.01, Dirichlet priors of the shared φ^v, φ^w.
+    delta_visual, delta_word: δ^v = 3e5, δ^w = 1e4, concentrations of the home-specific θ around φ.
+    gamma: γ = 10, concentration of G_e ~ DP(γ, G_0).
+    gamma0: γ0 = 0.2, concentration of G_0 ~ GEM(γ0) (weak limit Dir(γ0/L)).
+    beta: β = 3, concentration of the region weights π_{e,l} (weak limit Dir(β/K)).
+    kappa0, nu0: κ0 = 0.05, ν0 = 10 of the Normal–inverse-Wishart prior.
+    psi0: diagonal of Ψ0 (4 values) or a full 4×4 matrix, x and y in cm² when
+        ``psi0_in_cm2`` (the paper's convention, default ``diag(10, 10, 0.5, 0.5)``), else metres².
+    mu0: prior mean of the region means in metres (4 values), or ``None`` for the map centre
+        with heading (0, 0).
+    mi_threshold: ε = 0.1, words whose mutual information with every concept is below ε are
+        pruned (models "+MI" only).
+    """
+
+    n_concepts: int = 15
+    n_regions: int = 20
+    alpha_visual: float = 3.0
+    alpha_word: float = 0.01
+    delta_visual: float = 3e5
+    delta_word: float = 1e4
+    gamma: float = 10.0
+    gamma0: float = 0.2
+    beta: float = 3.0
+    kappa0: float = 0.05
+    nu0: float = 10.0
+    psi0: tuple[float, ...] | tuple[tuple[float, ...], ...] = PAPER_PSI0_CM
+    psi0_in_cm2: bool = True
+    mu0: tuple[float, float, float, float] | None = None
+    mi_threshold: float = 0.1
+
+    def __post_init__(self) -> None:
+        for name in ("n_concepts", "n_regions"):
+            value = getattr(self, name)
+            if not isinstance(value, int | np.integer) or value < 1:
+                raise ConfigurationError(f"{name} must be an integer >= 1, got {value!r}")
+        for name in ("alpha_visual", "alpha_word", "delta_visual", "delta_word", "gamma", "gamma0",
+                     "beta", "kappa0"):
+            _positive(name, float(getattr(self, name)))
+        if not (np.isfinite(self.nu0) and self.nu0 > 3):
+            raise ConfigurationError(f"nu0 must exceed the dimension minus one (3), got {self.nu0!r}")
+        if not (np.isfinite(self.mi_threshold) and self.mi_threshold >= 0):
+            raise ConfigurationError(f"mi_threshold must be >= 0, got {self.mi_threshold!r}")
+        psi = self.psi0_matrix_m2()
+        try:
+            np.linalg.cholesky(psi)
+        except np.linalg.LinAlgError:
+            raise ConfigurationError(f"psi0 must be symmetric positive definite, got {self.psi0!r}") from None
+        if self.mu0 is not None and (len(self.mu0) != 4 or not np.isfinite(self.mu0).all()):
+            raise ConfigurationError(f"mu0 must be 4 finite numbers (x, y, sin θ, cos θ), got {self.mu0!r}")
+
+    def psi0_matrix_m2(self) -> np.ndarray:
+        """Ψ0 as a 4×4 matrix with x and y in metres²."""
+        psi = np.asarray(self.psi0, dtype=float)
+        if psi.shape == (4,):
+            psi = np.diag(psi)
+        if psi.shape != (4, 4) or not np.isfinite(psi).all() or not np.allclose(psi, psi.T):
+            raise ConfigurationError(f"psi0 must be 4 positive values or a symmetric 4×4 matrix, got {self.psi0!r}")
+        if self.psi0_in_cm2:
+            scale = np.array([0.01, 0.01, 1.0, 1.0])
+            psi = psi * np.outer(scale, scale)
+        return psi
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dictionary."""
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> TransferHyperparameters:
+        """Inverse of :meth:`to_dict`."""
+        data = dict(data)
+        for key in ("psi0", "mu0"):
+            if data.get(key) is not None:
+                data[key] = _to_tuple(data[key])
+        return cls(**data)
+
+
+def _to_tuple(value: Any) -> Any:
+    if isinstance(value, list | tuple):
+        return tuple(_to_tuple(v) for v in value)
+    return value
+
+
+@dataclass(frozen=True)
+class SpCoAHyperparameters(TransferHyperparameters):
+    """Hyperparameters of the SpCoA baseline (one home, no environment plate).
+
+    SpCoA draws θ^v_l ~ Dir(α), θ^w_l ~ Dir(α) directly (``alpha_visual = alpha_word = 0.1``),
+    G ~ Dir(γ/L) with γ = 10, π_l ~ Dir(β/K) with β = 1 (the authors' code used 0.4), and the same
+    Normal–inverse-Wishart prior. The δ's and γ0 are unused.
+    """
+
+    alpha_visual: float = 0.1
+    alpha_word: float = 0.1
+    beta: float = 1.0

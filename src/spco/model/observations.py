@@ -1,0 +1,181 @@
+"""Observation models, one per modality: where each conditional of the sampler lives.
+
+- :class:`GaussianRegions` — positions x = (x, y, sin θ, cos θ) from per-home Gaussian regions
+  with a Normal–inverse-Wishart prior: sufficient statistics, posterior draws, log-likelihood.
+- :class:`HierarchicalMultinomial` — bags of counts (words or visual features) from per-home
+  θ_{e,l} ~ Dir(δ φ_l) around shared φ_l ~ Dir(α): log-likelihood, count statistics, the
+  auxiliary table counts that make φ | counts conjugate, and the draws of φ and θ.
+
+All functions work on every home at once (stacked arrays); shapes use N samples, E homes,
+L concepts, K regions and D dimensions (words or visual features).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.special import gammaln, multigammaln
+
+from spco.model.random import (
+    gaussian_log_density,
+    grouped_row_sums,
+    grouped_sparse_dot,
+    log_dirichlet,
+    niw_posterior,
+    sample_crt,
+    sample_niw,
+)
+
+#: Log-probabilities below this are clipped in likelihoods: a count times it is still finite
+#: (no -inf, hence no NaN after normalisation) and still means "impossible".
+LOG_FLOOR = -1e100
+
+
+@dataclass(frozen=True)
+class NIWPrior:
+    """Normal–inverse-Wishart prior of the region Gaussians, in the sampler's position units.
+
+    mu0: (E, 4) prior mean per home (the map centre, or the origin in the reference variant).
+    kappa0, nu0: scalars; psi0: (4, 4).
+    """
+
+    mu0: np.ndarray
+    kappa0: float
+    psi0: np.ndarray
+    nu0: float
+
+
+class GaussianRegions:
+    """Positions from Gaussian regions: x_t ~ N(μ_{e,R_t}, Σ_{e,R_t}), (μ, Σ) ~ NIW."""
+
+    @staticmethod
+    def statistics(positions: np.ndarray, homes: np.ndarray, regions: np.ndarray, n_homes: int,
+                   n_regions: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Sufficient statistics of every region of every home.
+
+        Returns count (E, K), total Σx (E, K, 4) and scatter Σxxᵀ (E, K, 4, 4).
+        """
+        n, d = positions.shape
+        groups = homes * n_regions + regions
+        features = np.empty((n, 1 + d + d * d))
+        features[:, 0] = 1.0
+        features[:, 1:1 + d] = positions
+        features[:, 1 + d:] = (positions[:, :, None] * positions[:, None, :]).reshape(n, d * d)
+        onehot = sp.csr_array((np.ones(n), (groups, np.arange(n))), shape=(n_homes * n_regions, n))
+        stats = onehot @ features
+        count = stats[:, 0].reshape(n_homes, n_regions)
+        total = stats[:, 1:1 + d].reshape(n_homes, n_regions, d)
+        scatter = stats[:, 1 + d:].reshape(n_homes, n_regions, d, d)
+        return count, total, scatter
+
+    @staticmethod
+    def sample_posterior(count: np.ndarray, total: np.ndarray, scatter: np.ndarray, prior: NIWPrior,
+                         rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        """(μ, Σ)_{e,m} ~ NIW(μ_n, κ_n, Ψ_n, ν_n) for every region: μ (E, K, 4), Σ (E, K, 4, 4)."""
+        mu0 = np.broadcast_to(prior.mu0[:, None, :], total.shape)
+        mu_n, kappa_n, psi_n, nu_n = niw_posterior(count, total, scatter, mu0, prior.kappa0, prior.psi0,
+                                                   prior.nu0)
+        return sample_niw(mu_n, kappa_n, psi_n, nu_n, rng)
+
+    @staticmethod
+    def log_likelihood(positions: np.ndarray, homes: np.ndarray, means: np.ndarray,
+                       covariances: np.ndarray) -> np.ndarray:
+        """log N(x_t | μ_{e_t,m}, Σ_{e_t,m}) for every sample and region of its home: (N, K)."""
+        out = np.empty((positions.shape[0], means.shape[1]))
+        for e in np.unique(homes):  # a loop over homes (E ≪ N), each step vectorised
+            rows = homes == e
+            out[rows] = gaussian_log_density(positions[rows], means[e], covariances[e])
+        return out
+
+    @staticmethod
+    def log_prior(means: np.ndarray, covariances: np.ndarray, prior: NIWPrior) -> float:
+        """Σ_{e,m} log NIW(μ_{e,m}, Σ_{e,m} | μ0, κ0, Ψ0, ν0)."""
+        d = means.shape[-1]
+        chol = np.linalg.cholesky(covariances)
+        log_det_sigma = 2.0 * np.log(np.diagonal(chol, axis1=-2, axis2=-1)).sum(-1)
+        inv_sigma = np.linalg.inv(covariances)
+        nu0 = prior.nu0
+        _, log_det_psi = np.linalg.slogdet(prior.psi0)
+        log_iw = (0.5 * nu0 * log_det_psi - 0.5 * nu0 * d * np.log(2.0) - multigammaln(0.5 * nu0, d)
+                  - 0.5 * (nu0 + d + 1) * log_det_sigma
+                  - 0.5 * np.einsum("ij,ekji->ek", prior.psi0, inv_sigma))
+        diff = means - prior.mu0[:, None, :]
+        quad = np.einsum("eki,ekij,ekj->ek", diff, inv_sigma, diff) * prior.kappa0
+        log_normal = -0.5 * (quad + log_det_sigma - d * np.log(prior.kappa0) + d * np.log(2 * np.pi))
+        return float((log_iw + log_normal).sum())
+
+
+class HierarchicalMultinomial:
+    """Bags of counts: c_t ~ Mult(θ_{e,C_t}), θ_{e,l} ~ Dir(δ φ_l), φ_l ~ Dir(α).
+
+    The conditionals of φ given counts are not conjugate; the exact sampler introduces table
+    counts m_{e,l,k} ~ CRT(n_{e,l,k}, δ φ_{l,k}) (Teh et al. 2006), after which
+    φ_l | m ~ Dir(α + Σ_e m_{e,l,·}).
+    """
+
+    @staticmethod
+    def log_likelihood(counts: sp.csr_array, homes: np.ndarray, log_theta: np.ndarray) -> np.ndarray:
+        """Σ_k c_tk log θ_{e_t,l,k} for every sample and concept: (N, L).
+
+        ``log_theta`` (E, L, D); entries below :data:`LOG_FLOOR` are clipped to it. The
+        multinomial coefficient, the same for every concept, is left out.
+        """
+        table = np.ascontiguousarray(np.maximum(log_theta, LOG_FLOOR).transpose(0, 2, 1))
+        return grouped_sparse_dot(counts, homes, table)
+
+    @staticmethod
+    def statistics(counts: sp.csr_array, homes: np.ndarray, concepts: np.ndarray, n_homes: int,
+                   n_concepts: int) -> np.ndarray:
+        """n_{e,l,k} = Σ_{t in e: C_t = l} c_tk, shape (E, L, D), int64."""
+        sums = grouped_row_sums(counts, homes * n_concepts + concepts, n_homes * n_concepts)
+        return sums.reshape(n_homes, n_concepts, counts.shape[1])
+
+    @staticmethod
+    def sample_tables(n: np.ndarray, log_phi: np.ndarray, delta: float,
+                      rng: np.random.Generator) -> np.ndarray:
+        """Table counts summed over homes: Σ_e m_{e,l,k}, m ~ CRT(n_{e,l,k}, δ φ_{l,k}); (L, D)."""
+        concentration = delta * np.exp(log_phi)
+        return sample_crt(n, concentration[None, :, :], rng).sum(axis=0)
+
+    @staticmethod
+    def sample_shared(pseudo_counts: np.ndarray, alpha: float, rng: np.random.Generator) -> np.ndarray:
+        """log φ_l ~ Dir(α + pseudo_counts_l) for every concept; (L, D)."""
+        return log_dirichlet(alpha + pseudo_counts, rng)
+
+    @staticmethod
+    def sample_specific(n: np.ndarray, log_phi: np.ndarray, delta: float,
+                        rng: np.random.Generator) -> np.ndarray:
+        """log θ_{e,l} ~ Dir(δ φ_l + n_{e,l}) for every home and concept; (E, L, D)."""
+        return log_dirichlet(delta * np.exp(log_phi)[None, :, :] + n, rng)
+
+    @staticmethod
+    def log_prior_specific(log_theta: np.ndarray, log_phi: np.ndarray, delta: float,
+                           mask: np.ndarray | None = None) -> float:
+        """Σ_{e,l} log Dir(θ_{e,l} | δ φ_l), over the dimensions in ``mask`` (all by default)."""
+        if mask is not None:
+            log_theta = log_theta[..., mask]
+            log_phi = log_phi[..., mask]
+            log_theta = log_theta - _logsumexp_last(log_theta)
+            log_phi = log_phi - _logsumexp_last(log_phi)
+        a = delta * np.exp(log_phi)  # (L, D)
+        normaliser = gammaln(a.sum(-1)) - np.where(a > 0, gammaln(np.where(a > 0, a, 1.0)), 0.0).sum(-1)
+        weighted = np.where(a[None] > 0, (a[None] - 1.0) * np.maximum(log_theta, LOG_FLOOR), 0.0)
+        return float(log_theta.shape[0] * normaliser.sum() + weighted.sum())
+
+    @staticmethod
+    def log_prior_shared(log_phi: np.ndarray, alpha: float, mask: np.ndarray | None = None) -> float:
+        """Σ_l log Dir(φ_l | α) over the dimensions in ``mask`` (all by default)."""
+        if mask is not None:
+            log_phi = log_phi[..., mask]
+            log_phi = log_phi - _logsumexp_last(log_phi)
+        d = log_phi.shape[-1]
+        return float(log_phi.shape[0] * (gammaln(alpha * d) - d * gammaln(alpha))
+                     + (alpha - 1.0) * np.maximum(log_phi, LOG_FLOOR).sum())
+
+
+def _logsumexp_last(x: np.ndarray) -> np.ndarray:
+    from scipy.special import logsumexp
+
+    return logsumexp(x, axis=-1, keepdims=True)

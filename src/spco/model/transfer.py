@@ -1,0 +1,277 @@
+"""Estimators: the transfer model (SpCoTransfer) and the single-home baselines (SpCoA, SpCoA+MI).
+
+In the style of scikit-learn's ``sklearn.mixture``: hyperparameters in the constructor,
+``fit(corpus)`` returns the model, learnt state in trailing-underscore attributes, validation at
+the boundary, ``random_state`` for reproducibility. Positions in and out are in metres.
+
+Example
+-------
+>>> from spco.data.synthetic import generate_homes            # doctest: +SKIP
+>>> corpus = generate_homes(5, seed=0, new_homes=1)           # doctest: +SKIP
+>>> model = SpCoTransfer(n_iterations=50, random_state=0).fit(corpus)   # doctest: +SKIP
+>>> model.predict_names(corpus[-1].name, *corpus[-1].test_observations())  # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from spco.data.environment import Corpus
+from spco.data.language import Vocabulary
+from spco.errors import ConfigurationError
+from spco.model import gibbs
+from spco.model.hyperparameters import SpCoAHyperparameters, TransferHyperparameters
+from spco.model.parameters import ConceptParameters
+
+
+def _as_generator(random_state: int | np.random.Generator | None) -> np.random.Generator:
+    if isinstance(random_state, np.random.Generator):
+        return random_state
+    return np.random.default_rng(random_state)
+
+
+class SpatialConceptModel:
+    """Common machinery of the spatial-concept models; use :class:`SpCoTransfer` or :class:`SpCoA`.
+
+    Parameters
+    ----------
+    hyperparameters:
+        A :class:`TransferHyperparameters` (defaults: the paper's values).
+    variant:
+        ``"exact"`` (the model's conditionals) or ``"reference"`` (the authors' code); see
+        :mod:`spco.model.gibbs`.
+    prune_words:
+        Mutual-information word pruning after every sweep (the "+MI" models).
+    n_iterations:
+        Gibbs sweeps (200 in the paper).
+    random_state:
+        Seed or Generator; the same seed gives the same result.
+    progress:
+        Show a progress bar (stderr).
+    record_log_joint:
+        Record log p(data, C, R, parameters) after every sweep in ``log_joint_``.
+    """
+
+    _sampler = "exact"
+
+    def __init__(self, hyperparameters: TransferHyperparameters | None = None, *, variant: str = "exact",
+                 prune_words: bool = False, n_iterations: int = 200,
+                 random_state: int | np.random.Generator | None = None, progress: bool = False,
+                 record_log_joint: bool = True) -> None:
+        self.hyperparameters = hyperparameters
+        self.variant = variant
+        self.prune_words = prune_words
+        self.n_iterations = n_iterations
+        self.random_state = random_state
+        self.progress = progress
+        self.record_log_joint = record_log_joint
+
+    # ------------------------------------------------------------------ configuration
+    def _default_hyperparameters(self) -> TransferHyperparameters:
+        return TransferHyperparameters()
+
+    def _settings(self) -> gibbs.SamplerSettings:
+        if self.variant not in ("exact", "reference"):
+            raise ConfigurationError(f"variant must be 'exact' or 'reference', got {self.variant!r}")
+        return gibbs.SamplerSettings.create(self.variant, bool(self.prune_words))
+
+    def _validate(self) -> TransferHyperparameters:
+        hyper = self.hyperparameters if self.hyperparameters is not None else self._default_hyperparameters()
+        if not isinstance(hyper, TransferHyperparameters):
+            raise ConfigurationError("hyperparameters must be a TransferHyperparameters instance")
+        if not isinstance(self.n_iterations, int | np.integer) or self.n_iterations < 1:
+            raise ConfigurationError(f"n_iterations must be an integer >= 1, got {self.n_iterations!r}")
+        return hyper
+
+    # ------------------------------------------------------------------ data
+    @staticmethod
+    def _prepare(corpus: Corpus, position_scale: float) -> gibbs.PreparedData:
+        if not isinstance(corpus, Corpus):
+            raise ConfigurationError("fit() expects a spco.data.Corpus")
+        training = corpus.training_set()
+        for env, train in zip(corpus, training, strict=True):
+            if train.n_samples == 0:
+                raise ConfigurationError(
+                    f"home {env.name!r} has no training samples: all {env.n_samples} samples are in its "
+                    "test split, and test samples are never used for training")
+        positions = np.concatenate([t.positions for t in training]) * np.array(
+            [position_scale, position_scale, 1.0, 1.0])
+        sizes = np.array([t.n_samples for t in training])
+        offsets = np.concatenate([[0], np.cumsum(sizes)])
+        homes = np.repeat(np.arange(len(training)), sizes)
+        visual = sp.csr_array(sp.vstack([t.visual for t in training], format="csr"), dtype=np.int64)
+        words = corpus.word_counts([s for t in training for s in t.sentences])
+        centres = np.zeros((len(training), 4))
+        for e, t in enumerate(training):
+            if t.extent is not None:
+                x0, x1, y0, y1 = t.extent
+                centres[e, :2] = ((x0 + x1) / 2, (y0 + y1) / 2)
+            else:
+                centres[e, :2] = t.positions[:, :2].mean(0)
+        centres[:, :2] *= position_scale
+        return gibbs.PreparedData(positions=positions, homes=homes, visual=visual,
+                                  words=sp.csr_array(words), n_homes=len(training), offsets=offsets,
+                                  position_scale=position_scale, map_centres=centres)
+
+    # ------------------------------------------------------------------ fitting
+    def fit(self, corpus: Corpus) -> SpatialConceptModel:
+        """Learn from every home of ``corpus`` (their training samples) and return ``self``.
+
+        Sets ``parameters_`` (:class:`ConceptParameters`, metres), ``vocabulary_``,
+        ``home_names_``, ``concepts_`` and ``regions_`` (per home, for its training samples),
+        ``log_joint_`` (per sweep), ``n_iter_`` and ``fit_seconds_``.
+        """
+        hyper = self._validate()
+        settings = self._settings()
+        rng = _as_generator(self.random_state)
+        scale = gibbs.CM_PER_M if settings.variant == "reference" else 1.0
+        data = self._prepare(corpus, scale)
+        start = time.perf_counter()
+        state = gibbs.initialize(data, len(corpus.vocabulary), hyper, settings, rng)
+        trace = []
+        iterator = range(int(self.n_iterations))
+        bar = None
+        if self.progress:
+            from tqdm.auto import tqdm
+
+            bar = tqdm(iterator, desc=f"{type(self).__name__} ({settings.variant})", unit="sweep",
+                       leave=False)
+            iterator = bar
+        for _ in iterator:
+            gibbs.sweep(data, state, hyper, settings, rng)
+            if self.record_log_joint:
+                trace.append(gibbs.log_joint(data, state, hyper, settings))
+                if bar is not None:
+                    bar.set_postfix(log_joint=f"{trace[-1]:.4g}", refresh=False)
+        self.fit_seconds_ = time.perf_counter() - start
+        self.hyperparameters_ = hyper
+        self.settings_ = settings
+        self.vocabulary_: Vocabulary = corpus.vocabulary
+        self.word_increment_ = corpus.word_increment
+        self.home_names_ = corpus.names
+        self.state_ = state
+        self.data_ = data
+        self.log_joint_ = np.asarray(trace, dtype=float)
+        self.n_iter_ = int(self.n_iterations)
+        self.parameters_ = export_parameters(state, data)
+        splits = np.split(np.arange(data.n_samples), data.offsets[1:-1])
+        self.concepts_ = [state.concepts[s].copy() for s in splits]
+        self.regions_ = [state.regions[s].copy() for s in splits]
+        self.training_ids_ = [t.ids for t in corpus.training_set()]
+        return self
+
+    # ------------------------------------------------------------------ use
+    def _check_fitted(self) -> None:
+        if not hasattr(self, "parameters_"):
+            raise ConfigurationError(f"this {type(self).__name__} is not fitted yet: call fit(corpus) first")
+
+    def home_index(self, home: str | int) -> int:
+        """Index of a home by name (or pass an index through)."""
+        self._check_fitted()
+        if isinstance(home, int | np.integer):
+            if not 0 <= home < len(self.home_names_):
+                raise ConfigurationError(f"home index {home} out of range (0..{len(self.home_names_) - 1})")
+            return int(home)
+        if home not in self.home_names_:
+            raise ConfigurationError(f"the model knows no home {home!r}; it learnt {', '.join(self.home_names_)}")
+        return self.home_names_.index(home)
+
+    def predict_names(self, home: str | int, positions: np.ndarray, visual: Any, top_k: int = 3,
+                      weighting: str = "mi"):
+        """Top-``top_k`` place names for observations of ``home`` (see :mod:`spco.prediction`)."""
+        from spco import prediction
+
+        e = self.home_index(home)
+        return prediction.predict_names(self.parameters_, e, self.vocabulary_, np.asarray(positions),
+                                        visual, top_k=top_k, weighting=weighting)
+
+    def predict_positions(self, home: str | int, name: str, n: int = 10,
+                          random_state: int | np.random.Generator | None = None):
+        """Positions (x, y, θ) to go to for place ``name`` in ``home`` (see :mod:`spco.prediction`)."""
+        from spco import prediction
+
+        e = self.home_index(home)
+        return prediction.predict_positions(self.parameters_, e, self.vocabulary_, name, n=n,
+                                            rng=_as_generator(random_state))
+
+    def save(self, path) -> None:
+        """Write the fitted model to ``path`` atomically (see :mod:`spco.model.io`)."""
+        from spco.model.io import save_model
+
+        self._check_fitted()
+        save_model(self, path)
+
+
+def export_parameters(state: gibbs.GibbsState, data: gibbs.PreparedData) -> ConceptParameters:
+    """The state's parameters as probabilities, positions converted back to metres."""
+    s = data.position_scale
+    scale = np.array([s, s, 1.0, 1.0])
+    means = state.means / scale
+    covariances = state.covariances / np.outer(scale, scale)
+    return ConceptParameters(
+        concept_weights=np.exp(state.log_g), region_weights=np.exp(state.log_pi),
+        region_means=means, region_covariances=covariances,
+        word_probabilities=np.exp(state.log_theta_w), visual_probabilities=np.exp(state.log_theta_v),
+        shared_word_probabilities=np.exp(state.log_phi_w),
+        shared_visual_probabilities=np.exp(state.log_phi_v),
+        global_concept_weights=np.exp(state.log_g0), word_mask=state.word_mask.copy(),
+        region_counts=state.region_counts.copy(),
+    )
+
+
+class SpCoTransfer(SpatialConceptModel):
+    """The hierarchical transfer model of Hagiwara et al. (2021), learnt from several homes at once.
+
+    Homes that were fully taught, partly taught and not taught at all (the new home) are learnt
+    jointly; the shared φ^v, φ^w and G_0 carry knowledge from experienced homes to the new one.
+    ``prune_words=True`` gives the "+MI" model. See :class:`SpatialConceptModel` for parameters.
+    """
+
+
+class SpCoA(SpatialConceptModel):
+    """The SpCoA baseline: one home, no environment plate, no transfer.
+
+    Fits only the home given to :meth:`fit` (a corpus of exactly one home, or ``home=`` to pick one).
+    ``prune_words=True`` gives SpCoA+MI. Default hyperparameters: :class:`SpCoAHyperparameters`.
+    """
+
+    def __init__(self, hyperparameters: TransferHyperparameters | None = None, *, prune_words: bool = False,
+                 n_iterations: int = 200, random_state: int | np.random.Generator | None = None,
+                 progress: bool = False, record_log_joint: bool = True) -> None:
+        super().__init__(hyperparameters, variant="exact", prune_words=prune_words,
+                         n_iterations=n_iterations, random_state=random_state, progress=progress,
+                         record_log_joint=record_log_joint)
+
+    def _default_hyperparameters(self) -> TransferHyperparameters:
+        return SpCoAHyperparameters()
+
+    def _settings(self) -> gibbs.SamplerSettings:
+        return gibbs.SamplerSettings.create("spcoa", bool(self.prune_words))
+
+    def fit(self, corpus: Corpus, home: str | None = None) -> SpCoA:  # type: ignore[override]
+        """Learn the single home ``home`` of ``corpus`` (or its only home) and return ``self``."""
+        if not isinstance(corpus, Corpus):
+            raise ConfigurationError("fit() expects a spco.data.Corpus")
+        if home is None:
+            if len(corpus) != 1:
+                raise ConfigurationError(f"SpCoA learns one home; the corpus holds {len(corpus)} — pass home=NAME")
+            home = corpus.names[0]
+        if home not in corpus.names:
+            raise ConfigurationError(f"no home named {home!r} in the corpus")
+        single = Corpus([corpus[home]], vocabulary=corpus.vocabulary, word_increment=corpus.word_increment)
+        super().fit(single)
+        return self
+
+
+def with_hyperparameters(model: SpatialConceptModel, **changes: Any) -> SpatialConceptModel:
+    """A copy of an unfitted model with some hyperparameters changed."""
+    hyper = model.hyperparameters or model._default_hyperparameters()
+    clone = type(model).__new__(type(model))
+    clone.__dict__.update({k: v for k, v in model.__dict__.items() if not k.endswith("_")})
+    clone.hyperparameters = replace(hyper, **changes)
+    return clone

@@ -1,0 +1,316 @@
+"""Figures: a home's map with its learnt spatial concepts, accuracy curves and the log-joint trace.
+
+All functions draw on :class:`matplotlib.figure.Figure` objects created without ``pyplot`` (no
+display, no global figure registry, safe in threads and batch jobs) and save PNGs with
+``fig.savefig(path, dpi=120)`` when a ``path`` is given; a bare Figure renders with the Agg canvas,
+so importing this module never changes the pyplot backend of the caller. Each returns the Figure.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import matplotlib
+import matplotlib.image
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+from matplotlib.patches import Ellipse, Rectangle
+from scipy.stats import chi2
+
+from spco.data.environment import Environment
+from spco.data.language import Vocabulary
+from spco.errors import ConfigurationError
+from spco.model.parameters import ConceptParameters
+from spco.prediction import NamePrediction, mutual_information_weights
+
+__all__ = ["concept_labels", "plot_accuracy_curve", "plot_home_map", "plot_log_joint"]
+
+DPI = 120
+_CHI2_95_2D = float(chi2.ppf(0.95, df=2))  # ≈ 5.991
+_MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*", "<", ">", "h", "p")
+
+PathLike = str | Path
+
+
+def _new_axes(ax: Axes | None, figsize: tuple[float, float]) -> tuple[Figure, Axes]:
+    if ax is not None:
+        return ax.figure, ax  # type: ignore[return-value]
+    fig = Figure(figsize=figsize, layout="constrained")
+    return fig, fig.add_subplot()
+
+
+def _save(fig: Figure, path: PathLike | None) -> None:
+    if path is not None:
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(path, dpi=DPI)
+
+
+def concept_labels(params: ConceptParameters, e: int, vocabulary: Vocabulary, n_words: int = 2) -> list[str]:
+    """A short label per concept: ``"c3: kitchen, dining"``.
+
+    The words shown are those with the highest θ^w_{e,l,w} · I(w) (the mutual-information weight
+    used for name prediction), so carrier words such as "this" are skipped; if no word of the
+    concept is informative, its most probable unpruned words are shown. Returns L strings (``"c3"``
+    alone if the concept has no word with positive probability).
+    """
+    theta = np.asarray(params.word_probabilities[e], dtype=float) * np.asarray(params.word_mask)[None, :]
+    weighted = theta * mutual_information_weights(params, e)[None, :]
+    informative = (weighted > 0).any(axis=1, keepdims=True)
+    score = np.where(informative, weighted, theta)
+    order = np.argsort(-score, axis=1, kind="stable")[:, :n_words]
+    labels = []
+    for c in range(theta.shape[0]):
+        words = [vocabulary.words[k] for k in order[c] if score[c, k] > 0] if len(vocabulary) else []
+        labels.append(f"c{c}: " + ", ".join(words) if words else f"c{c}")
+    return labels
+
+
+def _default_colors(n: int) -> list[tuple[float, float, float, float]]:
+    """n distinguishable colours: tab10, or tab20 with its dark shades first when n > 10."""
+    if n <= 10:
+        cmap = matplotlib.colormaps["tab10"]
+        return [cmap(i) for i in range(n)]
+    cmap = matplotlib.colormaps["tab20"]
+    order = [*range(0, 20, 2), *range(1, 20, 2)]
+    return [cmap(order[i % 20]) for i in range(n)]
+
+
+def _ellipse_geometry(cov2: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Widths, heights and angles (degrees) of 95% ellipses of a stack (K, 2, 2) of covariances."""
+    cov2 = 0.5 * (cov2 + np.swapaxes(cov2, -1, -2))
+    eigval, eigvec = np.linalg.eigh(cov2)  # ascending
+    eigval = np.maximum(eigval, 0.0)
+    width = 2.0 * np.sqrt(_CHI2_95_2D * eigval[:, 1])
+    height = 2.0 * np.sqrt(_CHI2_95_2D * eigval[:, 0])
+    angle = np.degrees(np.arctan2(eigvec[:, 1, 1], eigvec[:, 0, 1]))
+    return width, height, angle
+
+
+def plot_home_map(
+    params: ConceptParameters,
+    e: int,
+    environment: Environment | None,
+    vocabulary: Vocabulary,
+    ax: Axes | None = None,
+    map_image: np.ndarray | PathLike | None = None,
+    map_extent: Sequence[float] | None = None,
+    predicted_positions: Mapping[str, np.ndarray] | None = None,
+    poses: np.ndarray | None = None,
+    pose_names: NamePrediction | Sequence[Sequence[tuple[str, float]]] | None = None,
+    concept_colors: Sequence[object] | None = None,
+    show_ground_truth: bool | None = None,
+    show_samples: bool = True,
+    title: str | None = None,
+    path: PathLike | None = None,
+) -> Figure:
+    """Draw home ``e``: floor plan, learnt regions, predicted positions and named poses.
+
+    Parameters
+    ----------
+    params, e, vocabulary: the model, the home index and the corpus vocabulary.
+    environment: the home (its samples, extent and ground-truth regions), or ``None``.
+    ax: draw into these axes (default: a new 8×7 inch figure).
+    map_image: floor-plan image (array or file path) drawn with ``imshow(extent=map_extent)``.
+    map_extent: ``(x_min, x_max, y_min, y_max)`` in metres covered by the image (default: the
+        environment's extent).
+    predicted_positions: name -> (P, 2 or 3) sampled positions, drawn as markers with a legend.
+    poses: (n, 4) poses ``(x, y, sin θ, cos θ)`` drawn as arrows.
+    pose_names: for each pose, its top names with probabilities — a
+        :class:`~spco.prediction.NamePrediction` of those poses or lists of ``(word, p)``.
+    concept_colors: one colour per concept (default: ``tab10``, or ``tab20`` for more than 10).
+    show_ground_truth: outline and label the ground-truth rectangles (default: when no image).
+    show_samples: draw the home's training positions as small grey dots.
+    title: axes title (default: the home's name).
+    path: save the figure there as PNG.
+
+    Each learnt region with training samples (``region_counts > 0``) is a 95% ellipse of the x–y
+    marginal of Σ, coloured by its most probable concept argmax_l π_{e,l,m} G_{e,l}, with its mean
+    marked ``+``.
+    """
+    fig, ax = _new_axes(ax, (8.0, 7.0))
+    n_concepts = params.n_concepts
+    if concept_colors is None:
+        concept_colors = _default_colors(n_concepts)
+    elif len(concept_colors) < n_concepts:
+        raise ConfigurationError(f"{len(concept_colors)} colours for {n_concepts} concepts")
+
+    extent = tuple(map_extent) if map_extent is not None else (
+        environment.extent if environment is not None else None)
+    if map_image is not None:
+        image = matplotlib.image.imread(str(map_image)) if isinstance(map_image, str | Path) \
+            else np.asarray(map_image)
+        ax.imshow(image, extent=extent, origin="upper", zorder=0, alpha=0.9)
+    if show_ground_truth is None:
+        show_ground_truth = map_image is None
+    gt = environment.ground_truth if environment is not None else None
+    if show_ground_truth and gt is not None and gt.regions is not None:
+        for name, rects in gt.regions.places.items():
+            for i, (x0, x1, y0, y1) in enumerate(rects):
+                ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, edgecolor="0.35",
+                                       linewidth=1.0, linestyle="-", zorder=1))
+                if i == 0:  # label inside the first rectangle, kept within the map
+                    tx = x0 if extent is None else min(max(x0, extent[0]), extent[1])
+                    ty = y1 if extent is None else max(min(y1, extent[3]), extent[2])
+                    ax.text(tx + 0.08, ty - 0.08, name, fontsize=8, color="0.15", ha="left", va="top",
+                            zorder=2, clip_on=True,
+                            bbox={"boxstyle": "square,pad=0.15", "fc": "white", "ec": "none",
+                                  "alpha": 0.6})
+    if show_samples and environment is not None:
+        train = ~environment.is_test
+        ax.scatter(environment.positions[train, 0], environment.positions[train, 1], s=4,
+                   color="0.6", alpha=0.6, linewidths=0, zorder=2, label="_nolegend_")
+
+    # learnt regions
+    counts = np.asarray(params.region_counts[e])
+    used = np.flatnonzero(counts > 0)
+    means = np.asarray(params.region_means[e], dtype=float)
+    covs = np.asarray(params.region_covariances[e], dtype=float)[:, :2, :2]
+    joint = np.asarray(params.region_weights[e], dtype=float) * np.asarray(
+        params.concept_weights[e], dtype=float)[:, None]  # (L, K)
+    owner = np.argmax(joint, axis=0)  # (K,)
+    labels = concept_labels(params, e, vocabulary)
+    if used.size:
+        width, height, angle = _ellipse_geometry(covs[used])
+        shown: set[int] = set()
+        for j, m in enumerate(used):  # one patch per region (K ≤ a few tens)
+            c = int(owner[m])
+            colour = concept_colors[c]
+            ax.add_patch(Ellipse((means[m, 0], means[m, 1]), width[j], height[j], angle=angle[j],
+                                 facecolor=colour, alpha=0.25, edgecolor=colour, linewidth=2.0,
+                                 zorder=3, label=labels[c] if c not in shown else "_nolegend_"))
+            shown.add(c)
+        ax.scatter(means[used, 0], means[used, 1], marker="+", s=60, color="k", linewidths=1.2,
+                   zorder=4, label="_nolegend_")
+
+    # predicted positions
+    if predicted_positions:
+        cmap = matplotlib.colormaps["Dark2"]
+        for i, (name, pts) in enumerate(predicted_positions.items()):
+            xy = np.atleast_2d(np.asarray(pts, dtype=float))
+            if xy.size == 0:
+                continue
+            ax.scatter(xy[:, 0], xy[:, 1], marker=_MARKERS[i % len(_MARKERS)], s=36,
+                       color=cmap(i % 8), edgecolors="k", linewidths=0.5, zorder=5,
+                       label=f"predicted: {name}")
+
+    # poses with their top names
+    if poses is not None:
+        p = np.atleast_2d(np.asarray(poses, dtype=float))
+        if p.shape[1] != 4:
+            raise ConfigurationError(f"poses must have shape (n, 4), got {p.shape}")
+        ax.quiver(p[:, 0], p[:, 1], p[:, 3], p[:, 2], angles="xy", scale_units="xy", scale=2.5,
+                  width=0.006, color="crimson", zorder=6)
+        if pose_names is not None:
+            if isinstance(pose_names, NamePrediction):
+                entries = [list(zip(w, pr, strict=True)) for w, pr in
+                           zip(pose_names.words.tolist(), pose_names.probabilities.tolist(), strict=True)]
+            else:
+                entries = [list(row) for row in pose_names]
+            if len(entries) != p.shape[0]:
+                raise ConfigurationError(f"{len(entries)} name lists for {p.shape[0]} poses")
+            for (x, y, _, _), row in zip(p, entries, strict=True):
+                text = "\n".join(f"{w} ({float(pr):.2f})" for w, pr in row[:3]) or "(no name)"
+                ax.annotate(text, (x, y), xytext=(12, 12), textcoords="offset points", fontsize=7,
+                            zorder=7, bbox={"boxstyle": "round,pad=0.3", "fc": "white", "ec": "crimson",
+                                            "alpha": 0.85},
+                            arrowprops={"arrowstyle": "-", "color": "crimson", "lw": 0.6})
+
+    if extent is not None:
+        ax.set_xlim(extent[0], extent[1])
+        ax.set_ylim(extent[2], extent[3])
+    else:
+        ax.autoscale_view()
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_title(title if title is not None else (environment.name if environment is not None
+                                                  else f"home {e}"))
+    handles, _ = ax.get_legend_handles_labels()
+    if handles:
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
+    _save(fig, path)
+    return fig
+
+
+def plot_accuracy_curve(
+    settings: Sequence[float],
+    means: Sequence[float] | Mapping[str, Sequence[float]],
+    stds: Sequence[float] | Mapping[str, Sequence[float]] | None,
+    chance: float | None,
+    xlabel: str,
+    title: str,
+    path: PathLike | None = None,
+    ylabel: str = "accuracy",
+) -> Figure:
+    """Accuracy against a setting (number of experienced homes, teaching rate), mean ± std bands.
+
+    Parameters
+    ----------
+    settings: (S,) the x values.
+    means: (S,) one curve, or method name -> (S,) several curves.
+    stds: the same shape as ``means`` (or ``None`` for no band).
+    chance: the chance level, drawn as a dashed line (``None``: not drawn).
+    """
+    x = np.asarray(settings, dtype=float)
+    curves = dict(means) if isinstance(means, Mapping) else {"": means}
+    if stds is None:
+        spreads: dict[str, Sequence[float] | None] = dict.fromkeys(curves)
+    elif isinstance(stds, Mapping):
+        spreads = {k: stds.get(k) for k in curves}
+    else:
+        spreads = {k: stds for k in curves}
+    fig, ax = _new_axes(None, (6.0, 4.0))
+    for i, (label, mean) in enumerate(curves.items()):
+        m = np.asarray(mean, dtype=float)
+        if m.shape != x.shape:
+            raise ConfigurationError(f"curve {label!r} has {m.size} values for {x.size} settings")
+        line = ax.plot(x, m, marker=_MARKERS[i % len(_MARKERS)], label=label or None)[0]
+        if spreads[label] is not None:
+            s = np.asarray(spreads[label], dtype=float)
+            ax.fill_between(x, m - s, m + s, color=line.get_color(), alpha=0.2, linewidth=0)
+    if chance is not None:
+        ax.axhline(chance, color="0.3", linestyle="--", linewidth=1.0, label="chance")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.set_ylim(0.0, 1.02)
+    ax.set_xticks(x)
+    ax.grid(alpha=0.3)
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=8)
+    _save(fig, path)
+    return fig
+
+
+def plot_log_joint(
+    trace: Sequence[float] | np.ndarray | Mapping[str, Sequence[float]],
+    path: PathLike | None = None,
+    title: str = "log joint probability",
+) -> Figure:
+    """The sampler's log joint probability per iteration.
+
+    ``trace``: (T,) one chain, (C, T) several chains, or label -> (T,) traces.
+    """
+    if isinstance(trace, Mapping):
+        chains = {k: np.asarray(v, dtype=float).ravel() for k, v in trace.items()}
+    else:
+        arr = np.asarray(trace, dtype=float)
+        if arr.ndim == 1:
+            chains = {"": arr}
+        elif arr.ndim == 2:
+            chains = {f"chain {i}": row for i, row in enumerate(arr)}
+        else:
+            raise ConfigurationError(f"trace must be 1-D or 2-D, got shape {arr.shape}")
+    fig, ax = _new_axes(None, (6.0, 3.5))
+    for label, values in chains.items():
+        ax.plot(np.arange(1, values.size + 1), values, linewidth=1.0, label=label or None)
+    ax.set_xlabel("iteration")
+    ax.set_ylabel("log p(data, parameters)")
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=8)
+    _save(fig, path)
+    return fig

@@ -1,0 +1,592 @@
+"""Prediction in a learnt home: place names from observations, positions from place names.
+
+Everything here is a pure function of a :class:`~spco.model.parameters.ConceptParameters` sample,
+a home index ``e`` and the corpus :class:`~spco.data.language.Vocabulary` (column ``k`` of the word
+distributions is ``vocabulary.words[k]``). Shapes: ``n`` observations, ``L`` concepts, ``K``
+regions, ``V`` words, ``D`` visual features.
+
+Names (Hagiwara et al. 2021, "Prediction in home e" of ``docs/model.md``)::
+
+    p(w | x, v) ∝ Σ_l Σ_m θ^w_{e,l,w} · p(v | θ^v_{e,l}) · G_{e,l} · N(x | μ_{e,m}, Σ_{e,m}) · π_{e,l,m}
+    predicted name = argmax_w p(w | x, v) · I(w)
+
+where ``I(w)`` is the mutual information between the indicator "word = w" and the concept under
+``(G_e, θ^w_e)`` (:func:`mutual_information_weights`). The authors' published code instead weights
+each concept's word probability by a per-concept KL score (``weighting="reference"``,
+:func:`kl_scores_reference`).
+
+Positions::
+
+    p(m | w) ∝ Σ_l π_{e,l,m} θ^w_{e,l,w} G_{e,l},   m̂ = argmax_m p(m | w),   x ~ N(μ_{e,m̂}, Σ_{e,m̂}).
+
+Numerics: all likelihoods are combined in log space. The visual term ``v · log θ^vᵀ`` is one
+(sparse) matrix product; with ~7,000 counts its gaps between concepts are thousands of nats, so the
+concept posterior is normalised with ``logsumexp``. Logarithms of probabilities are floored at
+``log(tiny)`` (≈ −708) instead of −∞, so a zero entry of θ, π or G makes a term negligible but never
+produces NaN; a near-singular covariance is repaired (eigenvalues clamped) before its Cholesky
+factor is taken.
+"""
+
+from __future__ import annotations
+
+import difflib
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.special import logsumexp, xlogy
+
+from spco.data.language import Vocabulary, normalize_name
+from spco.errors import ConfigurationError, SpcoError
+from spco.model.parameters import ConceptParameters
+
+__all__ = [
+    "NamePrediction",
+    "PositionPrediction",
+    "UnknownNameError",
+    "concept_posterior",
+    "gaussian_log_density",
+    "kl_scores_reference",
+    "mutual_information_weights",
+    "predict_names",
+    "predict_positions",
+    "reference_kl_weights",
+    "region_posterior_for_name",
+    "word_posterior",
+]
+
+Weighting = Literal["mi", "none", "reference"]
+PositionMode = Literal["argmax", "mixture"]
+
+_TINY = np.finfo(np.float64).tiny
+_LOG_FLOOR = float(np.log(_TINY))  # ≈ -708.4: the log of "zero", finite on purpose
+_LOG_2PI = float(np.log(2.0 * np.pi))
+
+
+class UnknownNameError(SpcoError, LookupError):
+    """A place name that the model cannot use: never taught, or pruned as uninformative.
+
+    Attributes
+    ----------
+    name: the name as given.
+    suggestions: close matches among the known names (possibly empty).
+    """
+
+    def __init__(self, name: str, known: list[str], reason: str | None = None) -> None:
+        self.name = name
+        normalised = normalize_name(name)
+        self.suggestions = difflib.get_close_matches(normalised, known, n=3, cutoff=0.6)
+        parts = [reason or f"unknown place name {name!r}: it was never taught in any home"]
+        if self.suggestions:
+            parts.append("did you mean " + " or ".join(repr(s) for s in self.suggestions) + "?")
+        if known:
+            shown = ", ".join(known[:10]) + (", …" if len(known) > 10 else "")
+            parts.append(f"known names: {shown}")
+        else:
+            parts.append("the model knows no names (nothing was taught)")
+        super().__init__("; ".join(parts))
+
+
+# ---------------------------------------------------------------------------------- dataclasses
+@dataclass(frozen=True, eq=False)
+class NamePrediction:
+    """Names predicted for ``n`` observations.
+
+    Attributes
+    ----------
+    words: (n, k) str, the ``k`` best words of each observation, best first.
+    indices: (n, k) int, their vocabulary columns.
+    scores: (n, k) the ranking scores (``p(w|x,v)·I(w)`` for ``"mi"``, ``p(w|x,v)`` for ``"none"``,
+        the authors' KL-weighted score for ``"reference"``); not normalised.
+    probabilities: (n, k) ``p(w | x, v)`` of those words (normalised over the vocabulary).
+    word_probabilities: (n, V) the full ``p(w | x, v)``.
+    weighting: the weighting used.
+    """
+
+    words: np.ndarray
+    indices: np.ndarray
+    scores: np.ndarray
+    probabilities: np.ndarray
+    word_probabilities: np.ndarray
+    weighting: str
+
+    @property
+    def best(self) -> list[str | None]:
+        """The predicted name of each observation (``None`` if the model knows no words)."""
+        if self.words.shape[1] == 0:
+            return [None] * self.words.shape[0]
+        return [str(w) for w in self.words[:, 0]]
+
+    def __len__(self) -> int:
+        return int(self.words.shape[0])
+
+
+@dataclass(frozen=True, eq=False)
+class PositionPrediction:
+    """Positions predicted for one place name.
+
+    Attributes
+    ----------
+    name: the normalised name (a vocabulary word).
+    region: m̂ = argmax_m p(m | w).
+    region_probabilities: (K,) p(m | w).
+    samples: (n, 3) sampled poses ``(x, y, θ)``, metres and radians; ``θ = atan2(sin, cos)`` of
+        the sampled 4-D vector, NaN when ``xy_only``.
+    regions: (n,) int, the region each sample was drawn from.
+    log_density: (n,) log-density of each raw draw (4-D, or x–y when ``xy_only``) under the
+        whole mixture Σ_m p(m | w) N(· | μ_m, Σ_m).
+    weights: (n,) that density normalised over the ``n`` samples (sums to 1).
+    mode: ``"argmax"`` or ``"mixture"``.
+    xy_only: whether only the x–y marginal was sampled.
+    """
+
+    name: str
+    region: int
+    region_probabilities: np.ndarray
+    samples: np.ndarray
+    regions: np.ndarray
+    log_density: np.ndarray
+    weights: np.ndarray
+    mode: str
+    xy_only: bool
+
+    @property
+    def xy(self) -> np.ndarray:
+        """(n, 2) sampled x, y in metres."""
+        return self.samples[:, :2]
+
+
+# ---------------------------------------------------------------------------------- helpers
+def _safe_log(a: np.ndarray) -> np.ndarray:
+    """log(a) with entries ≤ 0 (and underflows) mapped to the finite floor ``log(tiny)``."""
+    a = np.asarray(a, dtype=np.float64)
+    return np.log(np.maximum(a, _TINY))
+
+
+def _check_home(params: ConceptParameters, e: int) -> int:
+    n_env = params.n_environments
+    if not -n_env <= int(e) < n_env:
+        raise ConfigurationError(f"home index {e} is out of range: the model holds {n_env} homes")
+    return int(e) % n_env
+
+
+def _check_vocabulary(params: ConceptParameters, vocabulary: Vocabulary) -> None:
+    n_words = params.word_probabilities.shape[-1]
+    if len(vocabulary) != n_words:
+        raise ConfigurationError(f"the vocabulary has {len(vocabulary)} words but the model was "
+                                 f"learnt with {n_words}; use the corpus vocabulary of the model")
+
+
+def _cholesky(covariances: np.ndarray) -> np.ndarray:
+    """Lower Cholesky factors of a stack ``(K, d, d)`` of covariances, repairing bad ones.
+
+    A covariance that is not numerically positive definite (near-singular, slightly asymmetric) has
+    its eigenvalues clamped at ``1e-10 × (largest eigenvalue)`` (at least ``1e-12``) first.
+    """
+    cov = np.asarray(covariances, dtype=np.float64)
+    if not np.isfinite(cov).all():
+        raise ConfigurationError("a region covariance holds NaN or inf; the model parameters are corrupt")
+    cov = 0.5 * (cov + np.swapaxes(cov, -1, -2))
+    try:
+        chol = np.linalg.cholesky(cov)
+        diag = np.diagonal(chol, axis1=-2, axis2=-1)
+        if np.isfinite(chol).all() and (diag > 1e-150).all():
+            return chol
+    except np.linalg.LinAlgError:
+        pass
+    eigval, eigvec = np.linalg.eigh(cov)
+    top = np.maximum(np.abs(eigval).max(axis=-1, keepdims=True), 1e-12)
+    floor = np.maximum(1e-10 * top, 1e-12)
+    bad = (eigval < floor).any(axis=-1)
+    clamped = np.maximum(eigval, floor)
+    repaired = (eigvec * clamped[..., None, :]) @ np.swapaxes(eigvec, -1, -2)
+    repaired = 0.5 * (repaired + np.swapaxes(repaired, -1, -2))
+    cov = np.where(bad[..., None, None], repaired, cov)
+    jitter = np.zeros_like(top)
+    for _ in range(8):  # at most a few tries; each adds a little more to the diagonal
+        try:
+            return np.linalg.cholesky(cov + jitter[..., None] * np.eye(cov.shape[-1]))
+        except np.linalg.LinAlgError:
+            jitter = np.where(jitter == 0, floor, jitter * 100.0)
+    raise ConfigurationError("a region covariance could not be made positive definite")
+
+
+def gaussian_log_density(points: np.ndarray, means: np.ndarray, covariances: np.ndarray) -> np.ndarray:
+    """log N(x_i | μ_m, Σ_m) for every point and component.
+
+    Parameters
+    ----------
+    points: (n, d)
+    means: (K, d)
+    covariances: (K, d, d)
+
+    Returns
+    -------
+    (n, K) float64, finite (near-singular covariances are repaired, see :func:`_cholesky`).
+    """
+    x = np.asarray(points, dtype=np.float64)
+    mu = np.asarray(means, dtype=np.float64)
+    chol = _cholesky(covariances)
+    d = mu.shape[-1]
+    inv_chol = np.linalg.inv(chol)  # (K, d, d), lower triangular
+    diff = x[:, None, :] - mu[None, :, :]  # (n, K, d)
+    z = np.einsum("kij,nkj->nki", inv_chol, diff)
+    maha = np.einsum("nki,nki->nk", z, z)
+    log_det = 2.0 * np.log(np.diagonal(chol, axis1=-2, axis2=-1)).sum(axis=-1)  # (K,)
+    return -0.5 * (maha + log_det[None, :] + d * _LOG_2PI)
+
+
+def _visual_log_likelihood(theta_v: np.ndarray, visual: object) -> np.ndarray:
+    """(n, L) ``v · log θ^vᵀ`` for sparse or dense counts ``visual`` (n, D)."""
+    log_theta = _safe_log(theta_v)  # (L, D), finite
+    if sp.issparse(visual):
+        counts = sp.csr_array(visual, dtype=np.float64)
+        if counts.shape[1] != log_theta.shape[1]:
+            raise ConfigurationError(f"visual features have {counts.shape[1]} dimensions, the model "
+                                     f"{log_theta.shape[1]}")
+        return np.asarray(counts @ log_theta.T)
+    dense = np.asarray(visual, dtype=np.float64)
+    if dense.ndim == 1:
+        dense = dense[None, :]
+    if dense.ndim != 2 or dense.shape[1] != log_theta.shape[1]:
+        raise ConfigurationError(f"visual features must have shape (n, {log_theta.shape[1]}), "
+                                 f"got {dense.shape}")
+    if not np.isfinite(dense).all():
+        raise ConfigurationError("visual features hold NaN or inf")
+    return dense @ log_theta.T
+
+
+def _as_positions(positions: object) -> np.ndarray:
+    x = np.asarray(positions, dtype=np.float64)
+    if x.ndim == 1:
+        x = x[None, :]
+    if x.ndim != 2 or x.shape[1] != 4:
+        raise ConfigurationError(f"positions must have shape (n, 4) (x, y, sin θ, cos θ), got {x.shape}")
+    if not np.isfinite(x).all():
+        raise ConfigurationError("positions hold NaN or inf")
+    return x
+
+
+def _n_rows(positions: object, visual: object) -> int:
+    if positions is not None:
+        return _as_positions(positions).shape[0]
+    if visual is not None:
+        return int(visual.shape[0]) if sp.issparse(visual) else np.atleast_2d(np.asarray(visual)).shape[0]
+    raise ConfigurationError("give positions, visual features or both")
+
+
+def _log_concept_posterior(
+    params: ConceptParameters,
+    e: int,
+    positions: np.ndarray | None,
+    visual: object,
+    use_position: bool,
+    use_vision: bool,
+    active_regions_only: bool,
+) -> np.ndarray:
+    """(n, L) normalised log P(l | x, v)."""
+    e = _check_home(params, e)
+    if use_position or use_vision:
+        n = _n_rows(positions if use_position else None, visual if use_vision else None)
+    else:  # neither modality: the prior G_e, one row per observation
+        n = _n_rows(positions, visual)
+    log_post = np.broadcast_to(_safe_log(params.concept_weights[e])[None, :],
+                               (n, params.n_concepts)).copy()
+    if use_vision:
+        if visual is None:
+            raise ConfigurationError("use_vision=True needs visual features")
+        vis = _visual_log_likelihood(params.visual_probabilities[e], visual)
+        if vis.shape[0] != n:
+            raise ConfigurationError(f"{n} positions but {vis.shape[0]} visual feature rows")
+        log_post += vis
+    if use_position:
+        if positions is None:
+            raise ConfigurationError("use_position=True needs positions")
+        x = _as_positions(positions)
+        log_n = gaussian_log_density(x, params.region_means[e], params.region_covariances[e])  # (n, K)
+        if active_regions_only:
+            active = np.asarray(params.region_counts[e]) > 0
+            if active.any():
+                log_n = np.where(active[None, :], log_n, -np.inf)
+        log_pi = _safe_log(params.region_weights[e])  # (L, K)
+        log_post += logsumexp(log_pi[None, :, :] + log_n[:, None, :], axis=2)
+    return log_post - logsumexp(log_post, axis=1, keepdims=True)
+
+
+# ---------------------------------------------------------------------------------- names
+def concept_posterior(
+    params: ConceptParameters,
+    e: int,
+    positions: np.ndarray | None,
+    visual: object,
+    use_position: bool = True,
+    use_vision: bool = True,
+    active_regions_only: bool = False,
+) -> np.ndarray:
+    """P(l | x, v) ∝ G_{e,l} · p(v | θ^v_{e,l}) · Σ_m π_{e,l,m} N(x | μ_{e,m}, Σ_{e,m}).
+
+    Parameters
+    ----------
+    params, e: the model and the home index.
+    positions: (n, 4) poses ``(x, y, sin θ, cos θ)`` in metres (may be ``None`` without position).
+    visual: (n, D) visual counts, SciPy sparse or dense (may be ``None`` without vision).
+    use_position, use_vision: drop a modality from the likelihood.
+    active_regions_only: sum only over regions with training samples (``region_counts > 0``), as
+        the authors' code does; ignored if no region has any.
+
+    Returns
+    -------
+    (n, L) float64, rows sum to 1, never NaN.
+    """
+    return np.exp(_log_concept_posterior(params, e, positions, visual, use_position, use_vision,
+                                         active_regions_only))
+
+
+def _word_matrix(params: ConceptParameters, e: int) -> np.ndarray:
+    """(L, V) θ^w_e with pruned words (word_mask False) set to 0."""
+    theta = np.clip(np.asarray(params.word_probabilities[e], dtype=np.float64), 0.0, 1.0)
+    return theta * np.asarray(params.word_mask, dtype=bool)[None, :]
+
+
+def _words_from_concepts(concepts: np.ndarray, theta_w: np.ndarray) -> np.ndarray:
+    probs = concepts @ theta_w  # (n, V)
+    total = probs.sum(axis=1, keepdims=True)
+    return np.divide(probs, total, out=np.zeros_like(probs), where=total > 0)
+
+
+def word_posterior(
+    params: ConceptParameters,
+    e: int,
+    positions: np.ndarray | None,
+    visual: object,
+    use_position: bool = True,
+    use_vision: bool = True,
+    active_regions_only: bool = False,
+) -> np.ndarray:
+    """p(w | x, v) ∝ Σ_l θ^w_{e,l,w} P(l | x, v) (= the double sum over l and m of the model).
+
+    Arguments as :func:`concept_posterior`. Returns (n, V) float64; each row sums to 1 (a row is all
+    zeros only if every word was pruned). Pruned words have probability 0.
+    """
+    e = _check_home(params, e)
+    concepts = concept_posterior(params, e, positions, visual, use_position, use_vision,
+                                 active_regions_only)
+    return _words_from_concepts(concepts, _word_matrix(params, e))
+
+
+def _binary_entropy(p: np.ndarray) -> np.ndarray:
+    p = np.clip(p, 0.0, 1.0)
+    return -(xlogy(p, p) + xlogy(1.0 - p, 1.0 - p))
+
+
+def mutual_information_weights(params: ConceptParameters, e: int) -> np.ndarray:
+    """I(w): mutual information (nats) between the indicator "word = w" and the concept C.
+
+    Under p(c) = G_{e,c} and p(word = w | c) = θ^w_{e,c,w}:
+    ``I(w) = h(Σ_c G_c θ_{c,w}) − Σ_c G_c h(θ_{c,w})`` with h the binary entropy (0·log 0 = 0).
+    Returns (V,) float64 ≥ 0; a word whose θ is the same in every concept, and a pruned word, get 0.
+    """
+    e = _check_home(params, e)
+    theta = _word_matrix(params, e)  # (L, V)
+    g = np.clip(np.asarray(params.concept_weights[e], dtype=np.float64), 0.0, None)
+    g = g / g.sum() if g.sum() > 0 else np.full_like(g, 1.0 / g.size)
+    marginal = g @ theta  # (V,)
+    info = _binary_entropy(marginal) - g @ _binary_entropy(theta)
+    info = np.maximum(info, 0.0)
+    info[np.ptp(theta, axis=0) == 0] = 0.0  # exactly uninformative: avoid round-off residue
+    info[~np.asarray(params.word_mask, dtype=bool)] = 0.0
+    return info
+
+
+def reference_kl_weights(params: ConceptParameters, e: int) -> np.ndarray:
+    """KL_l(w) = KL(Bern(θ^w_{e,l,w}) ‖ Bern(Σ_c G_{e,c} θ^w_{e,c,w})), as in the authors' code.
+
+    Returns (L, V) float64, finite and ≥ 0 (logs floored at log(tiny)); 0 for pruned words.
+    """
+    e = _check_home(params, e)
+    theta = _word_matrix(params, e)  # (L, V)
+    g = np.clip(np.asarray(params.concept_weights[e], dtype=np.float64), 0.0, None)
+    marginal = (g @ theta)[None, :]  # (1, V)
+    kl = (xlogy(theta, theta) - theta * _safe_log(marginal)
+          + xlogy(1.0 - theta, 1.0 - theta) - (1.0 - theta) * _safe_log(1.0 - marginal))
+    kl = np.maximum(kl, 0.0)
+    kl[:, ~np.asarray(params.word_mask, dtype=bool)] = 0.0
+    return kl
+
+
+def kl_scores_reference(
+    params: ConceptParameters,
+    e: int,
+    positions: np.ndarray | None,
+    visual: object,
+    use_position: bool = True,
+    use_vision: bool = True,
+) -> np.ndarray:
+    """The authors' name score: score(w) = Σ_l P(l | x, v) θ^w_{e,l,w} KL_l(w).
+
+    P(l | x, v) is :func:`concept_posterior` over the regions with training samples only, as in the
+    authors' ``predict_name.py``; KL_l(w) is :func:`reference_kl_weights`. Returns (n, V), not
+    normalised (the argmax is what matters).
+    """
+    e = _check_home(params, e)
+    concepts = concept_posterior(params, e, positions, visual, use_position, use_vision,
+                                 active_regions_only=True)
+    return concepts @ (_word_matrix(params, e) * reference_kl_weights(params, e))
+
+
+def predict_names(
+    params: ConceptParameters,
+    e: int,
+    vocabulary: Vocabulary,
+    positions: np.ndarray | None,
+    visual: object,
+    top_k: int = 3,
+    weighting: Weighting = "mi",
+    use_position: bool = True,
+    use_vision: bool = True,
+) -> NamePrediction:
+    """Rank the place names of ``n`` observations in home ``e``.
+
+    Parameters
+    ----------
+    params, e, vocabulary: the model, the home and the corpus vocabulary (length V).
+    positions: (n, 4) poses in metres; visual: (n, D) counts (sparse or dense).
+    top_k: how many words to return per observation (fewer if fewer words survive pruning).
+    weighting: ``"mi"`` — p(w|x,v)·I(w) (the paper); ``"none"`` — p(w|x,v);
+        ``"reference"`` — the authors' KL-weighted score (:func:`kl_scores_reference`), with the
+        concept posterior over used regions only.
+    use_position, use_vision: drop a modality.
+
+    Words with ``word_mask`` False are never returned. Ties in the score are broken by p(w|x,v),
+    then by vocabulary order. A word with I(w) = 0 scores 0 and is ranked after every word with a
+    positive score.
+    """
+    if top_k < 1:
+        raise ConfigurationError(f"top_k must be >= 1, got {top_k}")
+    if weighting not in ("mi", "none", "reference"):
+        raise ConfigurationError(f"weighting must be 'mi', 'none' or 'reference', got {weighting!r}")
+    e = _check_home(params, e)
+    _check_vocabulary(params, vocabulary)
+    concepts = concept_posterior(params, e, positions, visual, use_position, use_vision,
+                                 active_regions_only=weighting == "reference")
+    theta_w = _word_matrix(params, e)
+    probs = _words_from_concepts(concepts, theta_w)  # (n, V)
+    if weighting == "mi":
+        scores = probs * mutual_information_weights(params, e)[None, :]
+    elif weighting == "none":
+        scores = probs.copy()
+    else:
+        scores = concepts @ (theta_w * reference_kl_weights(params, e))
+    mask = np.asarray(params.word_mask, dtype=bool)
+    k = min(int(top_k), int(mask.sum()))
+    ranked = np.where(mask[None, :], scores, -np.inf)
+    tie = np.where(mask[None, :], probs, -np.inf)
+    order = np.lexsort((-tie, -ranked), axis=-1)[:, :k]  # primary key last
+    words = np.asarray(vocabulary.words, dtype=str)
+    return NamePrediction(
+        words=words[order],
+        indices=order,
+        scores=np.take_along_axis(scores, order, axis=1),
+        probabilities=np.take_along_axis(probs, order, axis=1),
+        word_probabilities=probs,
+        weighting=weighting,
+    )
+
+
+# ---------------------------------------------------------------------------------- positions
+def _word_index(params: ConceptParameters, vocabulary: Vocabulary, name: str) -> int:
+    _check_vocabulary(params, vocabulary)
+    mask = np.asarray(params.word_mask, dtype=bool)
+    known = [w for w, keep in zip(vocabulary.words, mask, strict=True) if keep]
+    index = vocabulary.index(name)
+    if index is None:
+        raise UnknownNameError(name, known)
+    if not mask[index]:
+        raise UnknownNameError(name, known, reason=f"the word {vocabulary.words[index]!r} was pruned "
+                               "as uninformative (it names no place)")
+    return index
+
+
+def region_posterior_for_name(
+    params: ConceptParameters, e: int, vocabulary: Vocabulary, name: str
+) -> np.ndarray:
+    """p(m | w) ∝ Σ_l π_{e,l,m} θ^w_{e,l,w} G_{e,l} for the place name ``name``.
+
+    ``name`` is normalised like a vocabulary word (``"Living room"`` → ``"living-room"``). Returns
+    (K,) float64 summing to 1. Raises :class:`UnknownNameError` if the name is not in the vocabulary,
+    was pruned, or has probability 0 in every concept of home ``e``.
+    """
+    e = _check_home(params, e)
+    w = _word_index(params, vocabulary, name)
+    theta_w = _word_matrix(params, e)[:, w]  # (L,)
+    g = np.clip(np.asarray(params.concept_weights[e], dtype=np.float64), 0.0, None)
+    pi = np.clip(np.asarray(params.region_weights[e], dtype=np.float64), 0.0, None)  # (L, K)
+    weights = (g * theta_w) @ pi  # (K,)
+    total = weights.sum()
+    if not total > 0:
+        mask = np.asarray(params.word_mask, dtype=bool)
+        known = [v for v, keep in zip(vocabulary.words, mask, strict=True) if keep]
+        raise UnknownNameError(name, known, reason=f"the name {vocabulary.words[w]!r} has "
+                               f"probability 0 in every concept of home {e}")
+    return weights / total
+
+
+def predict_positions(
+    params: ConceptParameters,
+    e: int,
+    vocabulary: Vocabulary,
+    name: str,
+    n: int = 10,
+    rng: np.random.Generator | int | None = None,
+    mode: PositionMode = "argmax",
+    xy_only: bool = False,
+) -> PositionPrediction:
+    """Sample ``n`` poses where the place ``name`` is, in home ``e``.
+
+    Parameters
+    ----------
+    mode: ``"argmax"`` — draw from N(μ_m̂, Σ_m̂) with m̂ = argmax p(m | w) (the paper);
+        ``"mixture"`` — draw each sample's region from p(m | w) first.
+    xy_only: draw from the x–y marginal only (the authors' code); θ is then NaN.
+    rng: a Generator or a seed.
+
+    Returns a :class:`PositionPrediction` with samples (n, 3) = (x, y, θ).
+    """
+    if n < 0:
+        raise ConfigurationError(f"the number of positions must be >= 0, got {n}")
+    if mode not in ("argmax", "mixture"):
+        raise ConfigurationError(f"mode must be 'argmax' or 'mixture', got {mode!r}")
+    e = _check_home(params, e)
+    probs = region_posterior_for_name(params, e, vocabulary, name)
+    best = int(np.argmax(probs))
+    gen = np.random.default_rng(rng)
+    d = 2 if xy_only else 4
+    means = np.asarray(params.region_means[e], dtype=np.float64)[:, :d]
+    covs = np.asarray(params.region_covariances[e], dtype=np.float64)[:, :d, :d]
+    chol = _cholesky(covs)
+    if mode == "argmax":
+        regions = np.full(n, best, dtype=np.int64)
+    else:
+        regions = gen.choice(probs.size, size=n, p=probs).astype(np.int64)
+    z = gen.standard_normal((n, d))
+    draws = means[regions] + np.einsum("nij,nj->ni", chol[regions], z)
+    theta = np.full(n, np.nan) if xy_only else np.arctan2(draws[:, 2], draws[:, 3])
+    samples = np.column_stack([draws[:, 0], draws[:, 1], theta]) if n else np.empty((0, 3))
+    if n:
+        log_density = logsumexp(_safe_log(probs)[None, :] + gaussian_log_density(draws, means, covs),
+                                axis=1)
+        weights = np.exp(log_density - logsumexp(log_density))
+    else:
+        log_density = weights = np.empty(0)
+    return PositionPrediction(
+        name=vocabulary.words[vocabulary.index(name)],  # type: ignore[index]
+        region=best,
+        region_probabilities=probs,
+        samples=samples,
+        regions=regions,
+        log_density=log_density,
+        weights=weights,
+        mode=mode,
+        xy_only=bool(xy_only),
+    )
