@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from spco.model.random import log_dirichlet, sample_categorical_log, sample_crt
+from spco.model.random import log_dirichlet, sample_categorical_log, sample_crt, sample_joint_assignment
 
 
 def concept_counts(homes: np.ndarray, concepts: np.ndarray, n_homes: int, n_concepts: int) -> np.ndarray:
@@ -60,11 +60,8 @@ def sample_assignments_joint(
     Shapes: log_g (E, L), log_pi (E, L, K), homes (N,), concept_loglik (N, L) (visual + word
     log-likelihood), region_loglik (N, K). Returns C (N,) and R (N,).
     """
-    n = homes.shape[0]
-    n_concepts, n_regions = log_pi.shape[1:]
-    logp = (log_g[homes][:, :, None] + log_pi[homes] + concept_loglik[:, :, None]
-            + region_loglik[:, None, :])
-    flat = sample_categorical_log(logp.reshape(n, n_concepts * n_regions), rng)
+    n_regions = log_pi.shape[2]
+    flat = sample_joint_assignment(log_g, log_pi, homes, concept_loglik, region_loglik, rng)
     return flat // n_regions, flat % n_regions
 
 

@@ -23,6 +23,7 @@ Three samplers share this machinery:
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -202,7 +203,9 @@ def warm_start(data: PreparedData, state: GibbsState, hyper: TransferHyperparame
     conditionals), which makes its concepts place-pure within the home; then the homes' labels
     are aligned progressively — taught homes first — by matching each home's concepts to the
     pooled word and visual counts of the homes aligned before it (Hungarian algorithm); finally
-    φ and G_0 are set from the aligned counts and θ, G_e, π, μ, Σ drawn given them.
+    φ and G_0 are set from the aligned counts of the homes taught at least half of their samples,
+    and θ, G_e, π, μ, Σ drawn given them — for the other homes (a new home) from the priors given
+    φ and G_0, so that their samples are first assigned by the transferred knowledge.
 
     This is only an initialisation (the chain is valid MCMC from its end on, whatever state it
     starts from); it matters because label switching between homes is the sampler's hardest move:
@@ -218,6 +221,15 @@ def warm_start(data: PreparedData, state: GibbsState, hyper: TransferHyperparame
     perms = align_homes(stats.visual, stats.words, hyper.alpha_visual, hyper.alpha_word)
     _apply_permutations(data, state, perms)
     stats = _statistics(data, state, hyper)
+    # Homes taught little (a new home) start from the transferred knowledge instead: their
+    # concept statistics are dropped, so their θ, G_e and π are drawn from the priors given the
+    # φ and G_0 of the taught homes, and the next local step assigns their samples by it.
+    taught = np.bincount(data.homes, weights=np.diff(data.words.indptr) > 0, minlength=data.n_homes)
+    sizes = np.diff(data.offsets)
+    reset = taught < 0.5 * sizes
+    if reset.any() and not reset.all():
+        for name in ("visual", "words", "concepts", "regions_by_concept"):
+            getattr(stats, name)[reset] = 0
     state.log_phi_v = log_dirichlet(hyper.alpha_visual + stats.visual.sum(0), rng)
     state.log_phi_w = log_dirichlet(hyper.alpha_word + stats.words.sum(0), rng)
     state.log_g0 = log_dirichlet(hyper.gamma0 / hyper.n_concepts + stats.concepts.sum(0), rng)
@@ -358,13 +370,27 @@ def _home_step(data: PreparedData, state: GibbsState, stats: Statistics, hyper: 
     state.region_counts = stats.region_count.astype(np.int64)
 
 
-def _swap_labels(data: PreparedData, state: GibbsState, hyper: TransferHyperparameters,
-                 rng: np.random.Generator) -> None:
-    """Metropolis–Hastings label swaps within each home (see :mod:`spco.model.moves`)."""
-    perms = concept_swap_step(state.log_theta_v, state.log_phi_v, hyper.delta_visual, state.log_theta_w,
+def _swap_labels(data: PreparedData, state: GibbsState, stats: Statistics, hyper: TransferHyperparameters,
+                 settings: SamplerSettings, rng: np.random.Generator) -> None:
+    """Metropolis–Hastings label swaps within each home, θ marginalised (see
+    :mod:`spco.model.moves`), then θ of the homes that changed redrawn from its conditional."""
+    perms = concept_swap_step(stats.visual, state.log_phi_v, hyper.delta_visual, stats.words,
                               state.log_phi_w, hyper.delta_word, state.log_g, state.log_g0, hyper.gamma,
                               state.word_mask, rng)
+    changed = np.flatnonzero((perms != np.arange(perms.shape[1])).any(axis=1))
+    if changed.size == 0:
+        return
     _apply_permutations(data, state, perms)
+    homes = np.arange(perms.shape[0])[:, None]
+    visual, words = stats.visual[homes, perms][changed], stats.words[homes, perms][changed]
+    state.log_theta_v[changed] = HierarchicalMultinomial.sample_specific(visual, state.log_phi_v,
+                                                                         hyper.delta_visual, rng)
+    state.log_theta_w[changed] = HierarchicalMultinomial.sample_specific(words, state.log_phi_w,
+                                                                         hyper.delta_word, rng)
+    if settings.prune:
+        keep = state.word_mask
+        values = np.where(keep, state.log_theta_w[changed], -np.inf)
+        state.log_theta_w[changed] = values - logsumexp(values, axis=-1, keepdims=True)
 
 
 def _log_mean(log_p: np.ndarray) -> np.ndarray:
@@ -422,32 +448,68 @@ def _prune(state: GibbsState, hyper: TransferHyperparameters, settings: SamplerS
         setattr(state, name, values - logsumexp(values, axis=-1, keepdims=True))
 
 
+class StepTimer:
+    """Accumulates wall time per sampler step (for ``spco bench``): ``timer.seconds[name]``."""
+
+    def __init__(self) -> None:
+        self.seconds: dict[str, float] = {}
+
+    def __call__(self, name: str):
+        return _Timed(self, name)
+
+
+class _Timed:
+    def __init__(self, timer: StepTimer | None, name: str) -> None:
+        self.timer, self.name = timer, name
+
+    def __enter__(self) -> None:
+        self.start = time.perf_counter()
+
+    def __exit__(self, *exc: object) -> None:
+        if self.timer is not None:
+            elapsed = time.perf_counter() - self.start
+            self.timer.seconds[self.name] = self.timer.seconds.get(self.name, 0.0) + elapsed
+
+
 def sweep(data: PreparedData, state: GibbsState, hyper: TransferHyperparameters, settings: SamplerSettings,
-          rng: np.random.Generator) -> None:
-    """One Gibbs sweep, in place."""
-    _local_step(data, state, settings, rng)
-    stats = _statistics(data, state, hyper)
+          rng: np.random.Generator, timer: StepTimer | None = None) -> None:
+    """One Gibbs sweep, in place. ``timer`` (optional) accumulates the time of each step."""
+    with _Timed(timer, "assignments"):
+        _local_step(data, state, settings, rng)
+    with _Timed(timer, "statistics"):
+        stats = _statistics(data, state, hyper)
     if settings.variant == "reference":
-        _home_step_reference(data, state, stats, hyper, settings, rng)
-        _global_step_reference(stats, state, hyper, rng)
+        with _Timed(timer, "home parameters"):
+            _home_step_reference(data, state, stats, hyper, settings, rng)
+        with _Timed(timer, "shared parameters"):
+            _global_step_reference(stats, state, hyper, rng)
     else:
         if settings.hierarchical:
-            _global_step(stats, state, hyper, rng)
-        _home_step(data, state, stats, hyper, settings, rng)
+            with _Timed(timer, "shared parameters"):
+                _global_step(stats, state, hyper, rng)
+        with _Timed(timer, "home parameters"):
+            _home_step(data, state, stats, hyper, settings, rng)
         if settings.hierarchical and data.n_homes > 1:
-            _swap_labels(data, state, hyper, rng)
+            with _Timed(timer, "label swaps"):
+                _swap_labels(data, state, stats, hyper, settings, rng)
     if settings.prune:
-        _prune(state, hyper, settings)
+        with _Timed(timer, "word pruning"):
+            _prune(state, hyper, settings)
 
 
 # ----------------------------------------------------------------------------- log joint
 
 
 def log_joint(data: PreparedData, state: GibbsState, hyper: TransferHyperparameters,
-              settings: SamplerSettings) -> float:
-    """log p(data, C, R, parameters) of the model (up to the multinomial coefficients, which do
-    not depend on the state), in the sampler's units. With word pruning, pruned words are left
-    out of every term."""
+              settings: SamplerSettings, include_parameter_priors: bool = False) -> float:
+    """log p(data, C, R | parameters), or with ``include_parameter_priors`` the full
+    log p(data, C, R, parameters), in the sampler's units, up to the multinomial coefficients
+    (which do not depend on the state). With word pruning, pruned words are left out.
+
+    The default leaves out the parameters' prior densities because, with α^w = 0.01 and
+    δ^w φ^w ≪ 1, the Dirichlet density of a word distribution with near-zero entries reaches
+    1e100 and more, which swamps every change of fit; the conditional log joint is the
+    trace to watch for convergence."""
     E, L, K = data.n_homes, hyper.n_concepts, hyper.n_regions
     homes, c, r = data.homes, state.concepts, state.regions
     region_ll = GaussianRegions.log_likelihood(data.positions, homes, state.means, state.covariances)
@@ -455,6 +517,8 @@ def log_joint(data: PreparedData, state: GibbsState, hyper: TransferHyperparamet
     n = data.n_samples
     total = float((state.log_g[homes, c] + state.log_pi[homes, c, r] + region_ll[np.arange(n), r]
                    + concept_ll[np.arange(n), c]).sum())
+    if not include_parameter_priors:
+        return total
     mask = state.word_mask
     if settings.hierarchical:
         total += HierarchicalMultinomial.log_prior_specific(state.log_theta_v, state.log_phi_v, hyper.delta_visual)

@@ -1,35 +1,74 @@
 """Label-swap moves: Metropolis–Hastings steps that exchange two concept labels within one home.
 
 Why: with ~7,000 visual and S^w = 5000 word counts per sample, a Gibbs sweep cannot move a whole
-place from one concept to another; each home quickly settles into its own labelling, and homes
+place from one concept to another; each home keeps the labelling it settles into early, and homes
 that call the kitchen "concept 3" and "concept 7" never agree, so the shared φ^w, φ^v mix places
-and nothing transfers. Swapping the labels of concepts a and b inside home e — its samples' C_t,
-θ^v_{e,·}, θ^w_{e,·}, G_e and π_{e,·} together — leaves the likelihood and the symmetric priors of
-C and π unchanged, so the acceptance ratio involves only
+and nothing transfers.
 
-    log Dir(θ_{e,b} | δ φ_a) + log Dir(θ_{e,a} | δ φ_b) − log Dir(θ_{e,a} | δ φ_a) − log Dir(θ_{e,b} | δ φ_b)
-    + (γ G_{0,a} − γ G_{0,b}) (log G_{e,b} − log G_{e,a})
+The move proposes, for a pair of concept slots (a, b) of home e, to exchange everything that
+belongs to them in that home: the samples' C_t, G_{e,a} ↔ G_{e,b} and π_{e,a} ↔ π_{e,b}, with the
+home's θ^v, θ^w integrated out (they are redrawn from their conditional afterwards). The
+likelihood of the data given the concepts is then a product of Dirichlet–multinomials
+DM(n_{e,l} | δ φ_l), whose normalisers Γ(δ)/Γ(δ + N) do not change under a swap; the priors of C
+given G and of R given π are unchanged, and so is the symmetric prior of π. The log acceptance
+ratio is therefore
 
-(visual and word terms alike). The proposal (a uniformly ordered pass over all pairs) is
-symmetric and the move is a permutation (Jacobian 1), so each accepted or rejected swap is an
-exact Metropolis–Hastings step: the sampler stays a valid MCMC for the model as written.
+    F(b ← data of a) + F(a ← data of b) − F(a ← a) − F(b ← b)
+    + (γ G_{0,a} − γ G_{0,b}) (log G_{e,b} − log G_{e,a}),
+
+with F(i ← data of j) = Σ_k [ln Γ(δ φ_{i,k} + n_{e,j,k}) − ln Γ(δ φ_{i,k})] over visual and word
+dimensions. Every proposal of a pass over all pairs (in random order) is a symmetric
+Metropolis–Hastings step on (C, G_e, π_e) with θ_e marginalised, followed by a draw of θ_e from
+its conditional: together an exact block update of (C, G_e, π_e, θ_e), so the sampler stays a
+valid MCMC for the model as written.
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
-from numba import njit
-
-from spco.model.observations import LOG_FLOOR
+from numba import njit, prange
 
 
-def _scores(log_theta: np.ndarray, log_phi: np.ndarray, delta: float) -> np.ndarray:
-    """S[e, i, j] = δ Σ_k φ_{i,k} log θ_{e,j,k}: θ of concept j scored under the prior of concept i.
+@njit(cache=True, inline="always")
+def _lgamma(x: float) -> float:
+    # Stirling series after shifting x above 8: accurate to ~1e-12 for x > 0
+    shift = 0.0
+    while x < 8.0:
+        shift -= math.log(x)
+        x += 1.0
+    inv = 1.0 / x
+    inv2 = inv * inv
+    return (shift + (x - 0.5) * math.log(x) - x + 0.9189385332046727
+            + inv * (1.0 / 12 - inv2 * (1.0 / 360 - inv2 * (1.0 / 1260 - inv2 / 1680))))
 
-    The −1 of the Dirichlet exponent and the normalisers cancel in every swap ratio."""
-    phi = np.exp(log_phi)  # (L, D)
-    theta = np.maximum(log_theta, LOG_FLOOR)  # (E, L, D)
-    return delta * np.einsum("id,ejd->eij", phi, theta)
+
+@njit(parallel=True, cache=True)
+def _dm_scores(alpha: np.ndarray, counts: np.ndarray, used: np.ndarray) -> np.ndarray:
+    """F[e, i, j] = Σ_k lnΓ(α_{i,k} + n_{e,j,k}) − lnΓ(α_{i,k}) for used concepts j (else 0)."""
+    n_homes, n_concepts, dim = counts.shape
+    out = np.zeros((n_homes, n_concepts, n_concepts))
+    lg_alpha = np.empty((n_concepts, dim))
+    for i in range(n_concepts):
+        for k in range(dim):
+            lg_alpha[i, k] = _lgamma(alpha[i, k]) if alpha[i, k] > 0 else 0.0
+    for job in prange(n_homes * n_concepts):
+        e = job // n_concepts
+        j = job % n_concepts
+        if not used[e, j]:
+            continue
+        for k in range(dim):
+            n = counts[e, j, k]
+            if n == 0:
+                continue
+            for i in range(n_concepts):
+                a = alpha[i, k]
+                if a > 0:
+                    out[e, i, j] += _lgamma(a + n) - lg_alpha[i, k]
+                else:  # a concept that gives this dimension probability 0 cannot hold these data
+                    out[e, i, j] += -1e300
+    return out
 
 
 @njit(cache=True)
@@ -38,7 +77,7 @@ def _swap_pass(scores: np.ndarray, g_term: np.ndarray, log_g: np.ndarray, pairs:
     n_homes, n_concepts = log_g.shape
     perms = np.empty((n_homes, n_concepts), dtype=np.int64)
     for e in range(n_homes):
-        # slot j currently holds the parameters of old concept perm[j]
+        # slot j currently holds what was concept perm[j]
         perm = np.arange(n_concepts)
         for p in range(pairs.shape[1]):
             a = pairs[e, p, 0]
@@ -54,23 +93,34 @@ def _swap_pass(scores: np.ndarray, g_term: np.ndarray, log_g: np.ndarray, pairs:
     return perms
 
 
-def concept_swap_step(log_theta_v: np.ndarray, log_phi_v: np.ndarray, delta_v: float,
-                      log_theta_w: np.ndarray, log_phi_w: np.ndarray, delta_w: float,
+def collapsed_scores(counts: np.ndarray, log_phi: np.ndarray, delta: float) -> np.ndarray:
+    """F[e, i, j]: log Dirichlet–multinomial weight (up to swap-invariant terms) of the counts of
+    concept j of home e under the prior Dir(δ φ_i). Shapes: counts (E, L, D), log_phi (L, D);
+    returns (E, L, L)."""
+    used = counts.sum(axis=2) > 0
+    alpha = delta * np.exp(log_phi)
+    return _dm_scores(np.ascontiguousarray(alpha), np.ascontiguousarray(counts, dtype=np.int64), used)
+
+
+def concept_swap_step(visual_counts: np.ndarray, log_phi_v: np.ndarray, delta_v: float,
+                      word_counts: np.ndarray, log_phi_w: np.ndarray, delta_w: float,
                       log_g: np.ndarray, log_g0: np.ndarray, gamma: float, word_mask: np.ndarray,
                       rng: np.random.Generator) -> np.ndarray:
-    """One pass of pairwise label-swap proposals in every home.
+    """One pass of pairwise label-swap proposals in every home (θ marginalised).
 
-    Shapes: log_theta_v (E, L, D), log_phi_v (L, D), log_theta_w (E, L, V), log_phi_w (L, V),
-    log_g (E, L), log_g0 (L,), word_mask (V,).
+    Shapes: visual_counts (E, L, D) and word_counts (E, L, V) per home and concept, log_phi_v
+    (L, D), log_phi_w (L, V), log_g (E, L), log_g0 (L,), word_mask (V,).
 
     Returns
     -------
     perms: (E, L) int; after the pass, concept slot j of home e holds what was concept perms[e, j].
     """
     n_homes, n_concepts = log_g.shape
-    scores = _scores(log_theta_v, log_phi_v, delta_v)
-    if word_mask.any():
-        scores += _scores(log_theta_w[:, :, word_mask], log_phi_w[:, word_mask], delta_w)
+    scores = collapsed_scores(visual_counts, log_phi_v, delta_v)
+    if word_mask.any() and word_counts.sum() > 0:
+        log_phi = log_phi_w[:, word_mask]
+        log_phi = log_phi - np.log(np.exp(log_phi).sum(axis=1, keepdims=True))
+        scores += collapsed_scores(word_counts[:, :, word_mask], log_phi, delta_w)
     g_term = gamma * np.exp(log_g0)
     first, second = np.triu_indices(n_concepts, 1)
     all_pairs = np.stack([first, second], axis=1)

@@ -19,7 +19,7 @@ import scipy.sparse as sp
 from scipy.special import gammaln, multigammaln
 
 from spco.model.random import (
-    gaussian_log_density,
+    grouped_gaussian_log_density,
     grouped_row_sums,
     grouped_sparse_dot,
     log_dirichlet,
@@ -83,11 +83,7 @@ class GaussianRegions:
     def log_likelihood(positions: np.ndarray, homes: np.ndarray, means: np.ndarray,
                        covariances: np.ndarray) -> np.ndarray:
         """log N(x_t | μ_{e_t,m}, Σ_{e_t,m}) for every sample and region of its home: (N, K)."""
-        out = np.empty((positions.shape[0], means.shape[1]))
-        for e in np.unique(homes):  # a loop over homes (E ≪ N), each step vectorised
-            rows = homes == e
-            out[rows] = gaussian_log_density(positions[rows], means[e], covariances[e])
-        return out
+        return grouped_gaussian_log_density(positions, homes, means, covariances)
 
     @staticmethod
     def log_prior(means: np.ndarray, covariances: np.ndarray, prior: NIWPrior) -> float:

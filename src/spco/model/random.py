@@ -14,11 +14,41 @@ number of threads.
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 from numba import njit, prange
-from scipy.special import logsumexp
 
 # ----------------------------------------------------------------------------- Dirichlet
+
+
+#: Arrays at least this large are drawn in two halves on two threads (NumPy releases the GIL).
+_THREADED_SIZE = 200_000
+_POOL: ThreadPoolExecutor | None = None
+
+
+def _log_standard_gamma(shape: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """``log(rng.standard_gamma(shape))`` for shapes ≥ 1; large arrays are split in two fixed
+    halves drawn (and logged) in parallel by two generators seeded from ``rng``, so the result
+    depends on the seed only, never on timing or on the number of cores."""
+    if shape.size < _THREADED_SIZE:
+        return np.log(rng.standard_gamma(shape))
+    global _POOL
+    if _POOL is None:
+        _POOL = ThreadPoolExecutor(max_workers=2, thread_name_prefix="spco-gamma")
+    flat = shape.ravel()
+    half = flat.size // 2
+    children = [np.random.default_rng(s) for s in rng.integers(0, 2**63 - 1, size=2)]
+
+    def draw(i: int) -> np.ndarray:
+        part = flat[:half] if i == 0 else flat[half:]
+        return np.log(children[i].standard_gamma(part))
+
+    return np.concatenate(list(_POOL.map(draw, range(2)))).reshape(shape.shape)
+
+
+#: log Gamma(a) variates below this are clipped (they arise for a < 1e-298 and mean "zero").
+_LOG_GAMMA_FLOOR = -1e300
 
 
 def log_gamma_variates(shape: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -30,14 +60,14 @@ def log_gamma_variates(shape: np.ndarray, rng: np.random.Generator) -> np.ndarra
     """
     shape = np.asarray(shape, dtype=np.float64)
     small = shape < 1.0
-    draws = rng.standard_gamma(np.where(small, shape + 1.0, shape))
     with np.errstate(divide="ignore"):
-        out = np.log(draws)
+        out = _log_standard_gamma(np.where(small, shape + 1.0, shape), rng)
         if small.any():
             a = shape[small]
             log_u = np.log(rng.random(a.shape))
             with np.errstate(invalid="ignore"):
-                out[small] += np.where(a > 0, log_u / np.where(a > 0, a, 1.0), -np.inf)
+                out[small] += np.where(a > 0, np.maximum(log_u / np.maximum(a, 1e-300), _LOG_GAMMA_FLOOR),
+                                       -np.inf)
     return out
 
 
@@ -54,7 +84,15 @@ def log_dirichlet(alpha: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     (..., D) log-probabilities; ``exp`` of each row sums to 1.
     """
     log_g = log_gamma_variates(alpha, rng)
-    return log_g - logsumexp(log_g, axis=-1, keepdims=True)
+    return log_g - log_normaliser(log_g)
+
+
+def log_normaliser(log_values: np.ndarray) -> np.ndarray:
+    """log Σ exp along the last axis (keepdims), stable; rows of all -inf give -inf."""
+    top = log_values.max(axis=-1, keepdims=True)
+    safe_top = np.where(np.isfinite(top), top, 0.0)
+    with np.errstate(divide="ignore"):
+        return np.log(np.exp(log_values - safe_top).sum(axis=-1, keepdims=True)) + safe_top
 
 
 def dirichlet(alpha: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -148,13 +186,47 @@ def gaussian_log_density(x: np.ndarray, mean: np.ndarray, cov: np.ndarray) -> np
 
     Shapes: x (n, d); mean (K, d); cov (K, d, d). Returns (n, K).
     """
-    chol = np.linalg.cholesky(cov)
-    diff = x[:, None, :] - mean[None, :, :]  # (n, K, d)
-    # solve L y = diff for each component: move K first
-    sol = np.linalg.solve(chol[None, :, :, :], diff[..., None])[..., 0]
-    log_det = 2.0 * np.log(np.diagonal(chol, axis1=-2, axis2=-1)).sum(-1)
+    return grouped_gaussian_log_density(x, np.zeros(x.shape[0], dtype=np.int64), mean[None], cov[None])
+
+
+@njit(parallel=True, cache=True)
+def _grouped_gaussian(x: np.ndarray, groups: np.ndarray, means: np.ndarray, inv_chol: np.ndarray,
+                      constant: np.ndarray) -> np.ndarray:
+    n, d = x.shape
+    n_components = means.shape[1]
+    out = np.empty((n, n_components))
+    diff = np.empty(d)
+    for t in prange(n):
+        g = groups[t]
+        diff = np.empty(d)
+        for m in range(n_components):
+            for i in range(d):
+                diff[i] = x[t, i] - means[g, m, i]
+            quad = 0.0
+            for i in range(d):
+                acc = 0.0
+                for j in range(i + 1):
+                    acc += inv_chol[g, m, i, j] * diff[j]
+                quad += acc * acc
+            out[t, m] = constant[g, m] - 0.5 * quad
+    return out
+
+
+def grouped_gaussian_log_density(x: np.ndarray, groups: np.ndarray, means: np.ndarray,
+                                 covariances: np.ndarray) -> np.ndarray:
+    """log N(x_t | μ_{g_t,m}, Σ_{g_t,m}) for every point and every component of its group.
+
+    Shapes: x (n, d); groups (n,) int; means (G, K, d); covariances (G, K, d, d). Returns (n, K).
+    Uses the inverse Cholesky factor, so the quadratic form is a triangular product.
+    """
+    chol = np.linalg.cholesky(covariances)
     d = x.shape[1]
-    return -0.5 * (np.einsum("nki,nki->nk", sol, sol) + log_det[None, :] + d * np.log(2.0 * np.pi))
+    inv_chol = np.linalg.inv(chol)
+    log_det = 2.0 * np.log(np.diagonal(chol, axis1=-2, axis2=-1)).sum(-1)
+    constant = -0.5 * (log_det + d * np.log(2.0 * np.pi))
+    return _grouped_gaussian(np.ascontiguousarray(x, dtype=np.float64),
+                             np.ascontiguousarray(groups, dtype=np.int64), np.ascontiguousarray(means),
+                             np.ascontiguousarray(inv_chol), constant)
 
 
 # ----------------------------------------------------------------------------- CRT (Antoniak)
@@ -307,17 +379,132 @@ def sample_crt(
 # ----------------------------------------------------------------------------- categorical
 
 
+@njit(parallel=True, cache=True)
+def _categorical_rows(log_p: np.ndarray, u: np.ndarray) -> np.ndarray:
+    n, width = log_p.shape
+    out = np.empty(n, dtype=np.int64)
+    for t in prange(n):
+        top = -np.inf
+        for j in range(width):
+            if log_p[t, j] > top:
+                top = log_p[t, j]
+        total = 0.0
+        for j in range(width):
+            total += np.exp(log_p[t, j] - top)
+        target = u[t] * total
+        acc = 0.0
+        choice = width - 1
+        for j in range(width):
+            acc += np.exp(log_p[t, j] - top)
+            if acc > target:
+                choice = j
+                break
+        out[t] = choice
+    return out
+
+
 def sample_categorical_log(log_p: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """One draw per row from unnormalised log-probabilities ``log_p`` of shape (n, J).
 
     Subtracts the row maximum before exponentiating, so gaps of thousands of nats are safe. Rows
     must hold at least one finite entry. Returns int64 indices of shape (n,).
     """
-    shifted = log_p - log_p.max(axis=1, keepdims=True)
-    cumulative = np.cumsum(np.exp(shifted), axis=1)
-    u = rng.random(log_p.shape[0]) * cumulative[:, -1]
-    idx = (cumulative < u[:, None]).sum(axis=1)
-    return np.minimum(idx, log_p.shape[1] - 1)
+    u = rng.random(log_p.shape[0])
+    return _categorical_rows(np.ascontiguousarray(log_p, dtype=np.float64), u)
+
+
+@njit(parallel=True, cache=True)
+def _joint_assignment(log_g: np.ndarray, log_pi: np.ndarray, pi_scaled: np.ndarray, pi_row_max: np.ndarray,
+                      homes: np.ndarray, concept_ll: np.ndarray, region_ll: np.ndarray, u_concept: np.ndarray,
+                      u_region: np.ndarray) -> np.ndarray:
+    n = homes.size
+    n_concepts = log_pi.shape[1]
+    n_regions = log_pi.shape[2]
+    out = np.empty(n, dtype=np.int64)
+    for t in prange(n):
+        e = homes[t]
+        r_max = -np.inf
+        for m in range(n_regions):
+            if region_ll[t, m] > r_max:
+                r_max = region_ll[t, m]
+        r = np.empty(n_regions)
+        for m in range(n_regions):
+            r[m] = np.exp(region_ll[t, m] - r_max)
+        # marginal of C: log G + loglik + log Σ_m π_{c,m} N(x | m), Σ_m by a dot product when safe
+        log_c = np.empty(n_concepts)
+        top = -np.inf
+        for c in range(n_concepts):
+            total = 0.0
+            for m in range(n_regions):
+                total += pi_scaled[e, c, m] * r[m]
+            if total > 1e-250:
+                log_sum = np.log(total)
+            else:  # too small for the dot product: exact log-sum-exp
+                inner_top = -np.inf
+                for m in range(n_regions):
+                    v = log_pi[e, c, m] - pi_row_max[e, c] + region_ll[t, m] - r_max
+                    if v > inner_top:
+                        inner_top = v
+                acc = 0.0
+                for m in range(n_regions):
+                    acc += np.exp(log_pi[e, c, m] - pi_row_max[e, c] + region_ll[t, m] - r_max - inner_top)
+                log_sum = inner_top + np.log(acc)
+            log_c[c] = log_g[e, c] + concept_ll[t, c] + pi_row_max[e, c] + log_sum
+            if log_c[c] > top:
+                top = log_c[c]
+        total = 0.0
+        for c in range(n_concepts):
+            log_c[c] = np.exp(log_c[c] - top)
+            total += log_c[c]
+        target = u_concept[t] * total
+        acc = 0.0
+        chosen = n_concepts - 1
+        for c in range(n_concepts):
+            acc += log_c[c]
+            if acc > target:
+                chosen = c
+                break
+        # R | C
+        top = -np.inf
+        for m in range(n_regions):
+            v = log_pi[e, chosen, m] + region_ll[t, m]
+            if v > top:
+                top = v
+        total = 0.0
+        for m in range(n_regions):
+            r[m] = np.exp(log_pi[e, chosen, m] + region_ll[t, m] - top)
+            total += r[m]
+        target = u_region[t] * total
+        acc = 0.0
+        region = n_regions - 1
+        for m in range(n_regions):
+            acc += r[m]
+            if acc > target:
+                region = m
+                break
+        out[t] = chosen * n_regions + region
+    return out
+
+
+def sample_joint_assignment(log_g: np.ndarray, log_pi: np.ndarray, homes: np.ndarray,
+                            concept_ll: np.ndarray, region_ll: np.ndarray,
+                            rng: np.random.Generator) -> np.ndarray:
+    """Flat index C·K + R of one draw per sample from
+    p(C=l, R=m) ∝ exp(log_g[e,l] + log_pi[e,l,m] + concept_ll[t,l] + region_ll[t,m]), e = homes[t].
+
+    Shapes: log_g (E, L), log_pi (E, L, K), homes (N,), concept_ll (N, L), region_ll (N, K).
+    Drawn as C from its marginal (Σ over regions), then R | C, row by row without materialising
+    the (N, L, K) table; the sum over regions is a dot product of exp-scaled factors, with an
+    exact log-sum-exp wherever that product would underflow.
+    """
+    u = rng.random((2, homes.shape[0]))
+    log_pi = np.ascontiguousarray(log_pi, dtype=np.float64)
+    pi_row_max = log_pi.max(axis=2)
+    pi_scaled = np.exp(log_pi - pi_row_max[:, :, None])
+    return _joint_assignment(np.ascontiguousarray(log_g, dtype=np.float64), log_pi, pi_scaled, pi_row_max,
+                             np.ascontiguousarray(homes, dtype=np.int64),
+                             np.ascontiguousarray(concept_ll, dtype=np.float64),
+                             np.ascontiguousarray(region_ll, dtype=np.float64), u[0], u[1])
 
 
 # ----------------------------------------------------------------------------- sparse helpers
@@ -345,9 +532,14 @@ def grouped_sparse_dot(matrix, groups: np.ndarray, table: np.ndarray) -> np.ndar
     ``table`` has shape (G, D, W) (C-contiguous, float64). Returns (n, W). This is the visual and
     word log-likelihood of every sample under every concept of its own home: counts · log θᵀ.
     """
-    return _grouped_sparse_dot(matrix.indptr.astype(np.int64), matrix.indices.astype(np.int64),
-                               matrix.data.astype(np.float64), groups.astype(np.int64),
+    return _grouped_sparse_dot(_as(matrix.indptr, np.int64), _as(matrix.indices, np.int64),
+                               _as(matrix.data, np.float64), _as(groups, np.int64),
                                np.ascontiguousarray(table, dtype=np.float64))
+
+
+def _as(array: np.ndarray, dtype: type) -> np.ndarray:
+    """``array`` as a contiguous array of ``dtype``, without a copy when it already is one."""
+    return np.ascontiguousarray(array, dtype=dtype)
 
 
 @njit(cache=True)
@@ -356,7 +548,7 @@ def _grouped_row_sums(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray,
     for t in range(indptr.size - 1):
         g = groups[t]
         for p in range(indptr[t], indptr[t + 1]):
-            out[g, indices[p]] += data[p]
+            out[g, indices[p]] += np.int64(data[p])
 
 
 def grouped_row_sums(matrix, groups: np.ndarray, n_groups: int) -> np.ndarray:
@@ -365,6 +557,6 @@ def grouped_row_sums(matrix, groups: np.ndarray, n_groups: int) -> np.ndarray:
     Used for the count statistics n^v_{e,l,·} and n^w_{e,l,·} (group = e·L + l).
     """
     out = np.zeros((n_groups, matrix.shape[1]), dtype=np.int64)
-    _grouped_row_sums(matrix.indptr.astype(np.int64), matrix.indices.astype(np.int64),
-                      matrix.data.astype(np.int64), groups.astype(np.int64), out)
+    _grouped_row_sums(_as(matrix.indptr, np.int64), _as(matrix.indices, np.int64),
+                      np.ascontiguousarray(matrix.data), _as(groups, np.int64), out)
     return out

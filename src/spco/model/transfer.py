@@ -54,7 +54,8 @@ class SpatialConceptModel:
     progress:
         Show a progress bar (stderr).
     record_log_joint:
-        Record log p(data, C, R, parameters) after every sweep in ``log_joint_``.
+        Record log p(data, C, R | parameters) after every sweep in ``log_joint_`` (see
+        :func:`spco.model.gibbs.log_joint`).
     """
 
     _sampler = "exact"
@@ -104,8 +105,8 @@ class SpatialConceptModel:
         sizes = np.array([t.n_samples for t in training])
         offsets = np.concatenate([[0], np.cumsum(sizes)])
         homes = np.repeat(np.arange(len(training)), sizes)
-        visual = sp.csr_array(sp.vstack([t.visual for t in training], format="csr"), dtype=np.int64)
-        words = corpus.word_counts([s for t in training for s in t.sentences])
+        visual = _compute_ready(sp.vstack([t.visual for t in training], format="csr"))
+        words = _compute_ready(corpus.word_counts([s for t in training for s in t.sentences]))
         centres = np.zeros((len(training), 4))
         for e, t in enumerate(training):
             if t.extent is not None:
@@ -115,7 +116,7 @@ class SpatialConceptModel:
                 centres[e, :2] = t.positions[:, :2].mean(0)
         centres[:, :2] *= position_scale
         return gibbs.PreparedData(positions=positions, homes=homes, visual=visual,
-                                  words=sp.csr_array(words), n_homes=len(training), offsets=offsets,
+                                  words=words, n_homes=len(training), offsets=offsets,
                                   position_scale=position_scale, map_centres=centres)
 
     # ------------------------------------------------------------------ fitting
@@ -205,6 +206,15 @@ class SpatialConceptModel:
 
         self._check_fitted()
         save_model(self, path)
+
+
+def _compute_ready(counts: sp.sparray) -> sp.csr_array:
+    """CSR counts with float64 values and int64 indices, the layout the compiled kernels use
+    (so no conversion happens inside a sweep). Counts stay whole numbers."""
+    out = sp.csr_array(counts, dtype=np.float64)
+    out.indices = out.indices.astype(np.int64)
+    out.indptr = out.indptr.astype(np.int64)
+    return out
 
 
 def export_parameters(state: gibbs.GibbsState, data: gibbs.PreparedData) -> ConceptParameters:
