@@ -213,9 +213,11 @@ def warm_start(data: PreparedData, state: GibbsState, hyper: TransferHyperparame
     """
     independent = SamplerSettings(variant="spcoa", prune=False, hierarchical=False, joint_assignment=True,
                                   pruning_score="mi")
-    for _ in range(n_sweeps):
+    for sweep_index in range(n_sweeps):
         _local_step(data, state, independent, rng)
         stats = _statistics(data, state, hyper)
+        if sweep_index == 0 and settings.prune:
+            state.word_mask = _initial_word_mask(stats, hyper, settings)
         _home_step(data, state, stats, hyper, independent, rng)
     stats = _statistics(data, state, hyper)
     perms = align_homes(stats.visual, stats.words, hyper.alpha_visual, hyper.alpha_word)
@@ -234,6 +236,31 @@ def warm_start(data: PreparedData, state: GibbsState, hyper: TransferHyperparame
     state.log_phi_w = log_dirichlet(hyper.alpha_word + stats.words.sum(0), rng)
     state.log_g0 = log_dirichlet(hyper.gamma0 / hyper.n_concepts + stats.concepts.sum(0), rng)
     _home_step(data, state, stats, hyper, settings, rng)
+
+
+def _initial_word_mask(stats: Statistics, hyper: TransferHyperparameters,
+                       settings: SamplerSettings) -> np.ndarray:
+    """Words to keep, judged on the first, spatial partition of each home.
+
+    Concepts then hold every sentence said in a few neighbouring rooms, so a word of the sentence
+    templates ("this", "is", "here") is spread evenly over concepts and scores ~0, while a place
+    name scores high. Judging later would be circular: with S^w = 5000 the sampler soon splits a
+    place into one concept per sentence template, which makes the template words look
+    informative too.
+    """
+    n_words = stats.words.shape[2]
+    keep = np.zeros(n_words, dtype=bool)
+    L = hyper.n_concepts
+    for e in range(stats.words.shape[0]):  # a loop over homes, each step vectorised
+        if stats.words[e].sum() == 0:
+            continue
+        theta = stats.words[e] + hyper.alpha_word
+        theta = theta / theta.sum(axis=1, keepdims=True)
+        weights = stats.concepts[e] + hyper.gamma / L
+        keep |= words_to_keep(theta, weights / weights.sum(), hyper.mi_threshold, settings.pruning_score)
+    if not keep.any():
+        keep[:] = True
+    return keep
 
 
 def align_homes(visual: np.ndarray, words: np.ndarray, alpha_visual: float, alpha_word: float) -> np.ndarray:
@@ -387,10 +414,6 @@ def _swap_labels(data: PreparedData, state: GibbsState, stats: Statistics, hyper
                                                                          hyper.delta_visual, rng)
     state.log_theta_w[changed] = HierarchicalMultinomial.sample_specific(words, state.log_phi_w,
                                                                          hyper.delta_word, rng)
-    if settings.prune:
-        keep = state.word_mask
-        values = np.where(keep, state.log_theta_w[changed], -np.inf)
-        state.log_theta_w[changed] = values - logsumexp(values, axis=-1, keepdims=True)
 
 
 def _log_mean(log_p: np.ndarray) -> np.ndarray:
@@ -431,7 +454,14 @@ def _global_step_reference(stats: Statistics, state: GibbsState, hyper: Transfer
 
 
 def _prune(state: GibbsState, hyper: TransferHyperparameters, settings: SamplerSettings) -> None:
-    """Remove uninformative words from φ^w and every θ^w (their probability set to 0)."""
+    """Recompute which words are informative enough to keep (``state.word_mask``).
+
+    Pruned words are left out of the word likelihood of the next sweep and get probability 0 in
+    the exported θ^w, φ^w (rows renormalised), as in the paper. The sampler itself keeps their
+    φ^w and θ^w, so the pruning is re-decided after every sweep: a word pruned while concepts are
+    still forming can come back once they separate (with φ^w set to 0, its table counts and hence
+    its φ^w would stay 0 for ever).
+    """
     if state.log_phi_w.shape[1] == 0:
         return
     if settings.hierarchical:
@@ -442,10 +472,6 @@ def _prune(state: GibbsState, hyper: TransferHyperparameters, settings: SamplerS
     if not keep.any():  # never remove every word: keep the most informative one
         keep[np.argmax(phi_w.max(0))] = True
     state.word_mask = keep
-    for name in ("log_phi_w", "log_theta_w"):
-        values = getattr(state, name)
-        values = np.where(keep, values, -np.inf)
-        setattr(state, name, values - logsumexp(values, axis=-1, keepdims=True))
 
 
 class StepTimer:

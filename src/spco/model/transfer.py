@@ -217,17 +217,29 @@ def _compute_ready(counts: sp.sparray) -> sp.csr_array:
     return out
 
 
+def _masked_rows(log_p: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """Probabilities with the pruned words (mask False) set to 0 and rows renormalised."""
+    if mask.all() or not mask.any():
+        return np.exp(log_p)
+    kept = np.where(mask, log_p, -np.inf)
+    top = kept.max(axis=-1, keepdims=True)
+    p = np.exp(kept - top)
+    return p / p.sum(axis=-1, keepdims=True)
+
+
 def export_parameters(state: gibbs.GibbsState, data: gibbs.PreparedData) -> ConceptParameters:
     """The state's parameters as probabilities, positions converted back to metres."""
     s = data.position_scale
     scale = np.array([s, s, 1.0, 1.0])
     means = state.means / scale
     covariances = state.covariances / np.outer(scale, scale)
+    mask = state.word_mask
     return ConceptParameters(
         concept_weights=np.exp(state.log_g), region_weights=np.exp(state.log_pi),
         region_means=means, region_covariances=covariances,
-        word_probabilities=np.exp(state.log_theta_w), visual_probabilities=np.exp(state.log_theta_v),
-        shared_word_probabilities=np.exp(state.log_phi_w),
+        word_probabilities=_masked_rows(state.log_theta_w, mask),
+        visual_probabilities=np.exp(state.log_theta_v),
+        shared_word_probabilities=_masked_rows(state.log_phi_w, mask),
         shared_visual_probabilities=np.exp(state.log_phi_v),
         global_concept_weights=np.exp(state.log_g0), word_mask=state.word_mask.copy(),
         region_counts=state.region_counts.copy(),

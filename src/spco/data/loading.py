@@ -1,0 +1,192 @@
+"""One entry point for every data layout: :func:`load` finds out what a path holds and reads it.
+
+A path may be
+
+- an spco cache file (a ``.npz`` written by :func:`spco.data.cache.write_cache` / ``spco import``);
+- one home in the authors' SIGVerse layout (a folder with ``position/``);
+- one home in spco's plain format (a folder with ``samples.csv`` or ``samples.jsonl``);
+- a folder of homes in either layout (mixed is fine): every subfolder that is a home, sorted by
+  name; other files and folders (``.DS_Store``, ``maps/``, hidden folders) are ignored.
+
+The teaching rate selects the sentences: SIGVerse homes read ``sentence/per_<rate>``; plain homes keep
+a seeded random ``rate`` percent of their taught samples (:meth:`Environment.with_teaching_rate`).
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TypeVar
+
+from spco.data.environment import Corpus, Environment
+from spco.data.plain import is_plain_home, plain_home_name, read_home
+from spco.data.sigverse import RatesMap, is_sigverse_home, read_sigverse_home, select_rate
+from spco.errors import ConfigurationError, DataFormatError
+
+T = TypeVar("T")
+_EXPECTED = ("expected an spco cache file (.npz), a SIGVerse home (a folder with position/ and "
+             "vision_fc7_normalized/), a plain home (a folder with samples.csv or samples.jsonl and "
+             "visual.npz), or a folder of such homes")
+
+
+@dataclass(frozen=True)
+class HomeRecord:
+    """A home with the sentences of every teaching rate it can give (used by loaders and the cache).
+
+    ``rates`` maps a teaching rate to the sentences taught at that rate (SIGVerse homes; empty when
+    nothing was taught at all); ``None`` means the home has one set of sentences, ``environment``'s,
+    of which :meth:`at_rate` keeps a seeded random subset.
+    """
+
+    environment: Environment
+    rates: RatesMap | None
+    where: str
+
+    def at_rate(self, teaching_rate: int) -> Environment:
+        """The home as taught at ``teaching_rate`` percent."""
+        if self.rates is None:
+            env = self.environment
+            return env if teaching_rate == 100 else env.with_teaching_rate(teaching_rate, seed=0)
+        return select_rate(self.environment, self.rates, teaching_rate, self.where)
+
+
+def _check_rate(teaching_rate: int) -> None:
+    if isinstance(teaching_rate, bool) or not isinstance(teaching_rate, int) \
+            or not 0 <= teaching_rate <= 100:
+        raise ConfigurationError(f"teaching rate must be an integer percentage within 0..100, got "
+                                 f"{teaching_rate!r}")
+
+
+def home_kind(path: str | os.PathLike[str]) -> str | None:
+    """``"sigverse"`` or ``"plain"`` if ``path`` is a home folder of that layout, else ``None``."""
+    if is_sigverse_home(path):
+        return "sigverse"
+    if is_plain_home(path):
+        return "plain"
+    return None
+
+
+def find_homes(path: str | os.PathLike[str]) -> list[Path]:
+    """The home folders of folder ``path`` (subfolders of either layout), sorted by name."""
+    folder = Path(path)
+    try:
+        names = sorted(os.listdir(folder))
+    except OSError as exc:
+        raise DataFormatError(folder, f"cannot be listed ({exc.strerror})") from None
+    return [folder / n for n in names
+            if not n.startswith(".") and (folder / n).is_dir() and home_kind(folder / n) is not None]
+
+
+def _no_homes(folder: Path) -> DataFormatError:
+    """The error for a folder that holds no home, saying what seems to be missing."""
+    from spco.data.plain import SAMPLES_CSV, SAMPLES_JSONL, VISUAL_NPY, VISUAL_NPZ
+
+    if any((folder / f).exists() for f in (VISUAL_NPZ, VISUAL_NPY, "home.json", "test.txt")):
+        return DataFormatError(folder / SAMPLES_CSV, f"missing: a plain home needs {SAMPLES_CSV} or "
+                               f"{SAMPLES_JSONL} (one row per sample)")
+    if (folder / "vision_fc7_normalized").is_dir() or (folder / "Environment_parameter.txt").exists():
+        return DataFormatError(folder / "position", "missing: a SIGVerse home needs position/<i>.txt")
+    return DataFormatError(folder, f"holds no homes; {_EXPECTED}")
+
+
+def _read_record(home: Path) -> HomeRecord:
+    if home_kind(home) == "sigverse":
+        env, rates = read_sigverse_home(home)
+        return HomeRecord(env, rates, str(home / "sentence"))
+    return HomeRecord(read_home(home), None, str(home))
+
+
+def _home_name(home: Path) -> str:
+    """A home's name without reading it (plain homes may rename themselves in home.json)."""
+    return plain_home_name(home) if home_kind(home) == "plain" else home.resolve().name
+
+
+def read_records(
+    path: str | os.PathLike[str],
+    names: Sequence[str] | None = None,
+    progress: bool = False,
+) -> list[HomeRecord]:
+    """Read the homes at ``path`` (any layout) with the sentences of every teaching rate.
+
+    ``names`` restricts (and orders) the homes. This is what :func:`load_homes` and the cache use.
+    """
+    from tqdm import tqdm
+
+    from spco.data.cache import read_cache_records
+
+    src = Path(path)
+    if not src.exists():
+        raise DataFormatError(src, "no such file or folder")
+    if src.is_file():
+        try:
+            with open(src, "rb") as fh:
+                is_zip = fh.read(2) == b"PK"
+        except OSError as exc:
+            raise DataFormatError(src, f"cannot be read ({exc.strerror})") from None
+        if not is_zip:
+            raise DataFormatError(src, f"not an spco cache file; {_EXPECTED}")
+        records = read_cache_records(src)  # explains a damaged or foreign .npz
+        return _select([(r.environment.name, r) for r in records], names, src)
+    if not src.is_dir():
+        raise DataFormatError(src, f"neither a file nor a folder; {_EXPECTED}")
+    if home_kind(src) is not None:
+        homes = [src]
+    else:
+        homes = find_homes(src)
+        if not homes:
+            raise _no_homes(src)
+    if names is not None:
+        homes = _select([(_home_name(h), h) for h in homes], names, src)
+    # the bar shows on a terminal only, and is wiped when done (or when a home fails to load)
+    with tqdm(homes, desc="reading homes", unit="home", file=sys.stderr, leave=False,
+              disable=None if progress else True) as bar:
+        return [_read_record(h) for h in bar]
+
+
+def _select(items: list[tuple[str, T]], names: Sequence[str] | None, src: Path) -> list[T]:
+    if names is None:
+        return [item for _, item in items]
+    by_name = dict(items)
+    unknown = [n for n in names if n not in by_name]
+    if unknown:
+        raise DataFormatError(src, f"no home named {', '.join(map(repr, unknown))}; homes: "
+                              f"{', '.join(by_name)}")
+    return [by_name[n] for n in names]
+
+
+def load_homes(
+    path: str | os.PathLike[str],
+    names: Sequence[str] | None = None,
+    teaching_rate: int = 100,
+    progress: bool = False,
+) -> list[Environment]:
+    """The homes at ``path`` (any layout, see the module docstring) as taught at ``teaching_rate``.
+
+    ``names`` restricts the result to those homes, in that order (an unknown name is an error listing
+    the homes there are). For callers that build their own :class:`Corpus`.
+    """
+    _check_rate(teaching_rate)
+    return [r.at_rate(teaching_rate) for r in read_records(path, names=names, progress=progress)]
+
+
+def load_home(path: str | os.PathLike[str], teaching_rate: int = 100) -> Environment:
+    """The single home at ``path`` (a home folder, or a cache holding exactly one home)."""
+    homes = load_homes(path, teaching_rate=teaching_rate)
+    if len(homes) != 1:
+        raise DataFormatError(path, f"holds {len(homes)} homes, expected one: "
+                              f"{', '.join(e.name for e in homes[:10])}")
+    return homes[0]
+
+
+def load(path: str | os.PathLike[str], teaching_rate: int = 100, progress: bool = False) -> Corpus:
+    """Load the homes at ``path`` — a cache file, a home, or a folder of homes — as a :class:`Corpus`.
+
+    ``progress=True`` shows a progress bar on standard error when it is a terminal.
+
+    Raises :class:`~spco.errors.DataFormatError` naming the file at fault when something is missing
+    or malformed, and :class:`~spco.errors.ConfigurationError` for a teaching rate outside 0..100.
+    """
+    return Corpus(load_homes(path, teaching_rate=teaching_rate, progress=progress))

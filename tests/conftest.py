@@ -1,0 +1,70 @@
+"""Shared fixtures: where the SIGVerse data set is, and a builder of tiny homes in its layout."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+SIGVERSE_DEFAULT = Path(__file__).resolve().parents[1] / ".." / "shared" / "datasets" / "sigverse"
+
+
+def sigverse_path() -> Path:
+    """The SIGVerse data set: ``$SPCO_SIGVERSE``, else ``../shared/datasets/sigverse``."""
+    return Path(os.environ.get("SPCO_SIGVERSE") or SIGVERSE_DEFAULT)
+
+
+@pytest.fixture(scope="session")
+def sigverse_dir() -> Path:
+    """The authors' SIGVerse data set; tests using it are skipped when it is absent."""
+    path = sigverse_path()
+    if not (path / "3LDK_9" / "position").is_dir():
+        pytest.skip(f"SIGVerse dataset not found at {path} (clone is0314px/transferlearning_spco and "
+                    "point SPCO_SIGVERSE at its source/gibbs_dataset/sigverse folder)")
+    return path
+
+
+SigverseBuilder = Callable[..., Path]
+
+
+@pytest.fixture
+def make_sigverse_home(tmp_path: Path) -> SigverseBuilder:
+    """Factory writing a tiny home in the SIGVerse layout under ``tmp_path``; returns its folder.
+
+    ``make_sigverse_home("home", n=6, test=(4, 5), rates={100: range(4)})`` writes 6 samples with
+    4,096-line visual files, sentences at the given rates for the given samples, name labels, a test
+    list and an Environment_parameter.txt.
+    """
+
+    def build(name: str = "home", n: int = 6, test: tuple[int, ...] = (4, 5),
+              rates: dict[int, range | tuple[int, ...]] | None = None, params: bool = True,
+              dim: int = 4096, root: Path | None = None) -> Path:
+        home = (root or tmp_path) / name
+        rng = np.random.default_rng(len(name) + n)
+        for sub in ("position", "vision_fc7_normalized", "name_label"):
+            (home / sub).mkdir(parents=True)
+        for i in range(n):
+            theta = rng.uniform(-np.pi, np.pi)
+            (home / "position" / f"{i}.txt").write_text(
+                f"{rng.uniform(-3, 3):.4f} {rng.uniform(-2, 2):.4f}\n{np.sin(theta):.4f} {np.cos(theta):.4f}")
+            counts = np.where(rng.random(dim) < 0.2, rng.integers(1, 300, dim), 0)
+            (home / "vision_fc7_normalized" / f"{i}.csv").write_text("\n".join(map(str, counts)) + "\n")
+            (home / "name_label" / f"word{i}.txt").write_text("kitchen " if i % 2 else "living-room ")
+        for rate, samples in (rates if rates is not None else {100: range(n - len(test))}).items():
+            folder = home / "sentence" / f"per_{rate}"
+            folder.mkdir(parents=True)
+            for i in samples:
+                place = "kitchen" if i % 2 else "living-room"
+                (folder / f"sentence{i}.txt").write_text(f"this is the {place}")
+        (home / "test_num.txt").write_text("".join(f"{i}," for i in test) if test else "999")
+        if params:
+            (home / "Environment_parameter.txt").write_text(
+                "Max_x_value_of_map 4.0\nMax_y_value_of_map 3.0\nMin_x_value_of_map -4.0\n"
+                f"Min_y_value_of_map -3.0\nNumber_of_place 40\nInitial_data_number 0\n"
+                f"Last_data_number {n - 1} #comment\n")
+        return home
+
+    return build
