@@ -257,7 +257,8 @@ def _initial_word_mask(stats: Statistics, hyper: TransferHyperparameters,
         theta = stats.words[e] + hyper.alpha_word
         theta = theta / theta.sum(axis=1, keepdims=True)
         weights = stats.concepts[e] + hyper.gamma / L
-        keep |= words_to_keep(theta, weights / weights.sum(), hyper.mi_threshold, settings.pruning_score)
+        keep |= words_to_keep(theta, weights / weights.sum(), hyper.pruning_threshold(settings.pruning_score),
+                              settings.pruning_score)
     if not keep.any():
         keep[:] = True
     return keep
@@ -468,7 +469,7 @@ def _prune(state: GibbsState, hyper: TransferHyperparameters, settings: SamplerS
         phi_w, weights = np.exp(state.log_phi_w), np.exp(state.log_g0)
     else:  # SpCoA+MI: the single home's θ^w and G
         phi_w, weights = np.exp(state.log_theta_w[0]), np.exp(state.log_g[0])
-    keep = words_to_keep(phi_w, weights, hyper.mi_threshold, settings.pruning_score)
+    keep = words_to_keep(phi_w, weights, hyper.pruning_threshold(settings.pruning_score), settings.pruning_score)
     if not keep.any():  # never remove every word: keep the most informative one
         keep[np.argmax(phi_w.max(0))] = True
     state.word_mask = keep

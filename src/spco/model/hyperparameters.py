@@ -16,6 +16,9 @@ import numpy as np
 
 from spco.errors import ConfigurationError
 
+#: Default ε per pruning score (see ``TransferHyperparameters.mi_threshold``).
+DEFAULT_PRUNING_THRESHOLDS = {"kl": 0.1, "mi": 0.01}
+
 #: The paper's Ψ0 for (x, y, sin θ, cos θ), x and y in cm².
 PAPER_PSI0_CM = (10.0, 10.0, 0.5, 0.5)
 
@@ -43,8 +46,14 @@ class TransferHyperparameters:
         ``psi0_in_cm2`` (the paper's convention, default ``diag(10, 10, 0.5, 0.5)``), else metres².
     mu0: prior mean of the region means in metres (4 values), or ``None`` for the map centre
         with heading (0, 0).
-    mi_threshold: ε = 0.1, words whose mutual information with every concept is below ε are
-        pruned (models "+MI" only).
+    mi_threshold: ε, words whose score with every concept is below ε are pruned (models "+MI"
+        only). ``None`` (default) picks the threshold for the sampler's score: 0.1 for the
+        authors' Bernoulli-KL score (reference variant, the paper's ε), 0.01 nats for the true
+        mutual information of the exact variant. The two scores live on different scales: a place
+        name said in one of L ≈ 10 equally likely concepts with P(name | concept) ≈ 0.2 has a
+        2×2 mutual information of about 0.02–0.06 nats (a KL score of 0.2–0.4), the template
+        words "this", "is", "the" about 0.001–0.005; with ε = 0.1 the true MI would prune every
+        word.
     """
 
     n_concepts: int = 15
@@ -61,7 +70,7 @@ class TransferHyperparameters:
     psi0: tuple[float, ...] | tuple[tuple[float, ...], ...] = PAPER_PSI0_CM
     psi0_in_cm2: bool = True
     mu0: tuple[float, float, float, float] | None = None
-    mi_threshold: float = 0.1
+    mi_threshold: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("n_concepts", "n_regions"):
@@ -73,7 +82,7 @@ class TransferHyperparameters:
             _positive(name, float(getattr(self, name)))
         if not (np.isfinite(self.nu0) and self.nu0 > 3):
             raise ConfigurationError(f"nu0 must exceed the dimension minus one (3), got {self.nu0!r}")
-        if not (np.isfinite(self.mi_threshold) and self.mi_threshold >= 0):
+        if self.mi_threshold is not None and not (np.isfinite(self.mi_threshold) and self.mi_threshold >= 0):
             raise ConfigurationError(f"mi_threshold must be >= 0, got {self.mi_threshold!r}")
         psi = self.psi0_matrix_m2()
         try:
@@ -82,6 +91,12 @@ class TransferHyperparameters:
             raise ConfigurationError(f"psi0 must be symmetric positive definite, got {self.psi0!r}") from None
         if self.mu0 is not None and (len(self.mu0) != 4 or not np.isfinite(self.mu0).all()):
             raise ConfigurationError(f"mu0 must be 4 finite numbers (x, y, sin θ, cos θ), got {self.mu0!r}")
+
+    def pruning_threshold(self, score: str) -> float:
+        """ε for the pruning score ``"mi"`` (exact variant) or ``"kl"`` (reference variant)."""
+        if self.mi_threshold is not None:
+            return float(self.mi_threshold)
+        return DEFAULT_PRUNING_THRESHOLDS[score]
 
     def psi0_matrix_m2(self) -> np.ndarray:
         """Ψ0 as a 4×4 matrix with x and y in metres²."""
