@@ -498,9 +498,23 @@ class _Timed:
             self.timer.seconds[self.name] = self.timer.seconds.get(self.name, 0.0) + elapsed
 
 
+#: Label swaps run on every one of the first sweeps, then on every SWAP_EVERY-th sweep.
+SWAP_BURN_IN = 20
+SWAP_EVERY = 5
+
+
+def swaps_due(iteration: int) -> bool:
+    """Whether sweep number ``iteration`` (0-based) includes the label-swap moves.
+
+    The moves are exact Metropolis–Hastings steps, so any fixed schedule keeps the chain valid;
+    they matter most while the homes' labellings settle, and cost about as much as a sweep."""
+    return iteration < SWAP_BURN_IN or iteration % SWAP_EVERY == 0
+
+
 def sweep(data: PreparedData, state: GibbsState, hyper: TransferHyperparameters, settings: SamplerSettings,
-          rng: np.random.Generator, timer: StepTimer | None = None) -> None:
-    """One Gibbs sweep, in place. ``timer`` (optional) accumulates the time of each step."""
+          rng: np.random.Generator, timer: StepTimer | None = None, swaps: bool = True) -> None:
+    """One Gibbs sweep, in place. ``timer`` (optional) accumulates the time of each step;
+    ``swaps`` includes the label-swap moves (see :func:`swaps_due`)."""
     with _Timed(timer, "assignments"):
         _local_step(data, state, settings, rng)
     with _Timed(timer, "statistics"):
@@ -516,7 +530,7 @@ def sweep(data: PreparedData, state: GibbsState, hyper: TransferHyperparameters,
                 _global_step(stats, state, hyper, rng)
         with _Timed(timer, "home parameters"):
             _home_step(data, state, stats, hyper, settings, rng)
-        if settings.hierarchical and data.n_homes > 1:
+        if swaps and settings.hierarchical and data.n_homes > 1:
             with _Timed(timer, "label swaps"):
                 _swap_labels(data, state, stats, hyper, settings, rng)
     if settings.prune:

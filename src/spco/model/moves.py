@@ -17,7 +17,7 @@ ratio is therefore
     + (γ G_{0,a} − γ G_{0,b}) (log G_{e,b} − log G_{e,a}),
 
 with F(i ← data of j) = Σ_k [ln Γ(δ φ_{i,k} + n_{e,j,k}) − ln Γ(δ φ_{i,k})] over visual and word
-dimensions. Every proposal of a pass over all pairs (in random order) is a symmetric
+dimensions. Every proposal of a pass (the slots paired by a random perfect matching) is a symmetric
 Metropolis–Hastings step on (C, G_e, π_e) with θ_e marginalised, followed by a draw of θ_e from
 its conditional: together an exact block update of (C, G_e, π_e, θ_e), so the sampler stays a
 valid MCMC for the model as written.
@@ -72,23 +72,59 @@ def _dm_scores(alpha: np.ndarray, counts: np.ndarray, used: np.ndarray) -> np.nd
 
 
 @njit(cache=True)
-def _swap_pass(scores: np.ndarray, g_term: np.ndarray, log_g: np.ndarray, pairs: np.ndarray,
-               log_u: np.ndarray) -> np.ndarray:
+def _lgamma_table(alpha: np.ndarray) -> np.ndarray:
+    out = np.zeros(alpha.shape)
+    for i in range(alpha.shape[0]):
+        for k in range(alpha.shape[1]):
+            if alpha[i, k] > 0:
+                out[i, k] = _lgamma(alpha[i, k])
+    return out
+
+
+@njit(cache=True, inline="always")
+def _dm_score(alpha: np.ndarray, lg_alpha: np.ndarray, counts: np.ndarray, e: int, prior: int,
+              data: int) -> float:
+    """Σ_k lnΓ(α_{prior,k} + n_{e,data,k}) − lnΓ(α_{prior,k}) over the non-zero counts."""
+    total = 0.0
+    for k in range(counts.shape[2]):
+        n = counts[e, data, k]
+        if n == 0:
+            continue
+        a = alpha[prior, k]
+        if a > 0:
+            total += _lgamma(a + n) - lg_alpha[prior, k]
+        else:  # a concept that gives this dimension probability 0 cannot hold these data
+            total -= 1e300
+    return total
+
+
+@njit(parallel=True, cache=True)
+def _matching_pass(alpha_v: np.ndarray, counts_v: np.ndarray, alpha_w: np.ndarray, counts_w: np.ndarray,
+                   g_term: np.ndarray, log_g: np.ndarray, pairs: np.ndarray, log_u: np.ndarray) -> np.ndarray:
     n_homes, n_concepts = log_g.shape
+    lg_v = _lgamma_table(alpha_v)
+    lg_w = _lgamma_table(alpha_w)
     perms = np.empty((n_homes, n_concepts), dtype=np.int64)
-    for e in range(n_homes):
-        # slot j currently holds what was concept perm[j]
+    for e in prange(n_homes):
         perm = np.arange(n_concepts)
+        used = np.empty(n_concepts, dtype=np.bool_)
+        for j in range(n_concepts):
+            used[j] = counts_v[e, j].sum() > 0 or counts_w[e, j].sum() > 0
         for p in range(pairs.shape[1]):
             a = pairs[e, p, 0]
             b = pairs[e, p, 1]
-            ca = perm[a]
-            cb = perm[b]
-            delta = (scores[e, a, cb] + scores[e, b, ca] - scores[e, a, ca] - scores[e, b, cb]
-                     + (g_term[a] - g_term[b]) * (log_g[e, cb] - log_g[e, ca]))
+            if not used[a] and not used[b]:
+                continue  # swapping two empty concepts changes nothing but G_e
+            delta = (g_term[a] - g_term[b]) * (log_g[e, b] - log_g[e, a])
+            for data, stay, move in ((a, a, b), (b, b, a)):
+                if used[data]:
+                    delta += (_dm_score(alpha_v, lg_v, counts_v, e, move, data)
+                              - _dm_score(alpha_v, lg_v, counts_v, e, stay, data)
+                              + _dm_score(alpha_w, lg_w, counts_w, e, move, data)
+                              - _dm_score(alpha_w, lg_w, counts_w, e, stay, data))
             if log_u[e, p] < delta:
-                perm[a] = cb
-                perm[b] = ca
+                perm[a] = b
+                perm[b] = a
         perms[e] = perm
     return perms
 
@@ -106,7 +142,11 @@ def concept_swap_step(visual_counts: np.ndarray, log_phi_v: np.ndarray, delta_v:
                       word_counts: np.ndarray, log_phi_w: np.ndarray, delta_w: float,
                       log_g: np.ndarray, log_g0: np.ndarray, gamma: float, word_mask: np.ndarray,
                       rng: np.random.Generator) -> np.ndarray:
-    """One pass of pairwise label-swap proposals in every home (θ marginalised).
+    """One pass of label-swap proposals in every home (θ marginalised).
+
+    The proposals of a pass pair the home's concept slots by a uniformly random perfect matching,
+    so they touch disjoint slots and are independent symmetric Metropolis–Hastings steps; each
+    needs only the Dirichlet–multinomial scores of its two concepts' data under their two priors.
 
     Shapes: visual_counts (E, L, D) and word_counts (E, L, V) per home and concept, log_phi_v
     (L, D), log_phi_w (L, V), log_g (E, L), log_g0 (L,), word_mask (V,).
@@ -116,15 +156,20 @@ def concept_swap_step(visual_counts: np.ndarray, log_phi_v: np.ndarray, delta_v:
     perms: (E, L) int; after the pass, concept slot j of home e holds what was concept perms[e, j].
     """
     n_homes, n_concepts = log_g.shape
-    scores = collapsed_scores(visual_counts, log_phi_v, delta_v)
-    if word_mask.any() and word_counts.sum() > 0:
+    alpha_v = delta_v * np.exp(log_phi_v)
+    if word_mask.any():
         log_phi = log_phi_w[:, word_mask]
-        log_phi = log_phi - np.log(np.exp(log_phi).sum(axis=1, keepdims=True))
-        scores += collapsed_scores(word_counts[:, :, word_mask], log_phi, delta_w)
+        alpha_w = delta_w * np.exp(log_phi - np.log(np.exp(log_phi).sum(axis=1, keepdims=True)))
+        counts_w = word_counts[:, :, word_mask]
+    else:
+        alpha_w = np.zeros((n_concepts, 0))
+        counts_w = np.zeros((n_homes, n_concepts, 0), dtype=np.int64)
     g_term = gamma * np.exp(log_g0)
-    first, second = np.triu_indices(n_concepts, 1)
-    all_pairs = np.stack([first, second], axis=1)
-    order = np.argsort(rng.random((n_homes, all_pairs.shape[0])), axis=1)
-    pairs = all_pairs[order]  # (E, P, 2), an independent random order per home
-    log_u = np.log(rng.random((n_homes, all_pairs.shape[0])))
-    return _swap_pass(scores, g_term, log_g, np.ascontiguousarray(pairs, dtype=np.int64), log_u)
+    order = np.argsort(rng.random((n_homes, n_concepts)), axis=1)  # a random matching per home
+    n_pairs = n_concepts // 2
+    pairs = order[:, : 2 * n_pairs].reshape(n_homes, n_pairs, 2)
+    log_u = np.log(rng.random((n_homes, n_pairs)))
+    return _matching_pass(np.ascontiguousarray(alpha_v), np.ascontiguousarray(visual_counts, dtype=np.int64),
+                          np.ascontiguousarray(alpha_w), np.ascontiguousarray(counts_w, dtype=np.int64),
+                          g_term, np.ascontiguousarray(log_g), np.ascontiguousarray(pairs, dtype=np.int64),
+                          log_u)

@@ -143,8 +143,8 @@ class SpatialConceptModel:
             bar = tqdm(iterator, desc=f"{type(self).__name__} ({settings.variant})", unit="sweep",
                        leave=False)
             iterator = bar
-        for _ in iterator:
-            gibbs.sweep(data, state, hyper, settings, rng)
+        for iteration in iterator:
+            gibbs.sweep(data, state, hyper, settings, rng, swaps=gibbs.swaps_due(iteration))
             if self.record_log_joint:
                 trace.append(gibbs.log_joint(data, state, hyper, settings))
                 if bar is not None:
