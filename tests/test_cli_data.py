@@ -52,11 +52,23 @@ def test_import_refuses_to_overwrite(tmp_path: Path, make_sigverse_home) -> None
     assert rows(tmp_path / "c0.npz", "-r", "0")[0]["taught"] == 0
 
 
-def test_missing_teaching_rate_is_a_clean_error(make_sigverse_home) -> None:
+def test_missing_teaching_rate_is_shown_not_fatal(make_sigverse_home) -> None:
     home = make_sigverse_home("flat")
-    result = CliRunner().invoke(main, ["inspect", str(home), "-r", "40"])
-    assert result.exit_code == 2
-    assert result.stderr.startswith("error: ") and "available rates: 100" in result.stderr
+    result = CliRunner().invoke(main, ["inspect", str(home), "-r", "40", "--json"])
+    assert result.exit_code == 0
+    (row,) = json.loads(result.stdout)
+    assert row["taught"] is None and row["samples"] > 0
+    table = CliRunner().invoke(main, ["inspect", str(home), "-r", "40"])
+    assert "hold no sentences for 40%" in table.stdout
+
+
+def test_missing_teaching_rate_is_a_clean_error_when_loading(make_sigverse_home) -> None:
+    from spco.data.loading import load
+    from spco.errors import DataFormatError
+
+    home = make_sigverse_home("flat")
+    with pytest.raises(DataFormatError, match="available rates: 100"):
+        load(home, teaching_rate=40)
 
 
 @pytest.mark.sigverse

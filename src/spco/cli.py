@@ -54,22 +54,39 @@ def main() -> None:
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON list instead of a table.")
 @_friendly_errors
 def inspect(path: Path, teaching_rate: int, as_json: bool) -> None:
-    """Summarise the homes in PATH (a home, a folder of homes or a cache file)."""
-    from spco.data.loading import load
+    """Summarise the homes in PATH (a home, a folder of homes or a cache file).
 
-    corpus = load(path, teaching_rate=teaching_rate, progress=not as_json)
+    A home that holds no sentences for the chosen teaching rate (the SIGVerse experienced homes
+    have only per_100) is listed with its taught count as "-" (null in JSON).
+    """
+    from spco.data.language import Vocabulary
+    from spco.data.loading import read_records
+    from spco.errors import DataFormatError
+
+    records = read_records(path, progress=not as_json)
     rows = []
-    for env in corpus:
+    missing = []
+    vocabulary_sentences: list[str | None] = []
+    for record in records:
+        try:
+            env = record.at_rate(teaching_rate)
+            taught: int | None = env.n_taught
+        except DataFormatError:
+            env, taught = record.environment, None
+            missing.append(env.name)
         gt = env.ground_truth
         places = len(gt.places) if gt is not None and gt.labels is not None else None
+        words = _home_vocabulary(env) if taught is not None else set()
+        if taught is not None:
+            vocabulary_sentences.extend(env.training_data().sentences)
         rows.append({
             "home": env.name,
             "samples": env.n_samples,
             "train": env.n_train,
             "test": env.n_test,
-            "taught": env.n_taught,
+            "taught": taught,
             "places": places,
-            "vocabulary": len(_home_vocabulary(env)),
+            "vocabulary": len(words) if taught is not None else None,
         })
     if as_json:
         click.echo(json.dumps(rows, indent=1))
@@ -81,8 +98,12 @@ def inspect(path: Path, teaching_rate: int, as_json: bool) -> None:
     for t in table:
         click.echo("  ".join(c.ljust(w) for c, w in zip(t, widths, strict=True)))
     total = sum(r["samples"] for r in rows)
-    click.echo(f"{len(rows)} homes, {total} samples, {len(corpus.vocabulary)} words in the shared "
-               f"vocabulary (teaching rate {teaching_rate}%)")
+    shared = len(Vocabulary.from_sentences(vocabulary_sentences))
+    click.echo(f"{len(rows)} homes, {total} samples, {shared} words in the shared vocabulary "
+               f"(teaching rate {teaching_rate}%)")
+    if missing:
+        click.echo(f"{len(missing)} homes hold no sentences for {teaching_rate}% (taught: -): "
+                   f"{', '.join(missing)}")
 
 
 def _home_vocabulary(env: Any) -> set[str]:
