@@ -177,8 +177,8 @@ def initialize(data: PreparedData, n_words: int, hyper: TransferHyperparameters,
     else:  # uniform: the sparse prior draws of G_0 would put every sample in one or two concepts
         log_g0 = np.full(L, -np.log(L))
         log_g = np.full((E, L), -np.log(L))
-    log_pi = allocation.sample_region_weights(np.zeros((E, L, K)), hyper.beta if reference else hyper.beta / K,
-                                              rng)
+    region_prior = hyper.beta if reference else hyper.beta / K
+    log_pi = allocation.sample_region_weights(np.zeros((E, L, K)), region_prior, rng)
     state = GibbsState(
         concepts=concepts, regions=regions, log_g=log_g, log_g0=log_g0, log_pi=log_pi, means=means,
         covariances=np.tile(100.0 * np.eye(4), (E, K, 1, 1)), log_theta_v=log_theta_v,
@@ -469,7 +469,8 @@ def _prune(state: GibbsState, hyper: TransferHyperparameters, settings: SamplerS
         phi_w, weights = np.exp(state.log_phi_w), np.exp(state.log_g0)
     else:  # SpCoA+MI: the single home's θ^w and G
         phi_w, weights = np.exp(state.log_theta_w[0]), np.exp(state.log_g[0])
-    keep = words_to_keep(phi_w, weights, hyper.pruning_threshold(settings.pruning_score), settings.pruning_score)
+    score = settings.pruning_score
+    keep = words_to_keep(phi_w, weights, hyper.pruning_threshold(score), score)
     if not keep.any():  # never remove every word: keep the most informative one
         keep[np.argmax(phi_w.max(0))] = True
     state.word_mask = keep
@@ -562,7 +563,8 @@ def log_joint(data: PreparedData, state: GibbsState, hyper: TransferHyperparamet
         return total
     mask = state.word_mask
     if settings.hierarchical:
-        total += HierarchicalMultinomial.log_prior_specific(state.log_theta_v, state.log_phi_v, hyper.delta_visual)
+        total += HierarchicalMultinomial.log_prior_specific(state.log_theta_v, state.log_phi_v,
+                                                            hyper.delta_visual)
         if mask.any():
             total += HierarchicalMultinomial.log_prior_specific(state.log_theta_w, state.log_phi_w,
                                                                 hyper.delta_word, mask)

@@ -104,7 +104,8 @@ class TransferHyperparameters:
         if psi.shape == (4,):
             psi = np.diag(psi)
         if psi.shape != (4, 4) or not np.isfinite(psi).all() or not np.allclose(psi, psi.T):
-            raise ConfigurationError(f"psi0 must be 4 positive values or a symmetric 4×4 matrix, got {self.psi0!r}")
+            raise ConfigurationError(
+                f"psi0 must be 4 positive values or a symmetric 4×4 matrix, got {self.psi0!r}")
         if self.psi0_in_cm2:
             scale = np.array([0.01, 0.01, 1.0, 1.0])
             psi = psi * np.outer(scale, scale)

@@ -19,7 +19,8 @@ def _xlogy_ratio(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     return out
 
 
-def concept_word_mutual_information(word_probabilities: np.ndarray, concept_weights: np.ndarray) -> np.ndarray:
+def concept_word_mutual_information(word_probabilities: np.ndarray,
+                                    concept_weights: np.ndarray) -> np.ndarray:
     """MI of the indicator pair (word = k, concept = l) for every concept and word.
 
     Parameters
@@ -46,7 +47,8 @@ def concept_word_mutual_information(word_probabilities: np.ndarray, concept_weig
     return np.maximum(mi, 0.0)
 
 
-def word_concept_mutual_information(word_probabilities: np.ndarray, concept_weights: np.ndarray) -> np.ndarray:
+def word_concept_mutual_information(word_probabilities: np.ndarray,
+                                    concept_weights: np.ndarray) -> np.ndarray:
     """I(1[word = k]; C): MI between the indicator of word k and the whole concept variable; (V,).
 
     Used to weight name predictions so that words that carry no place information ("the", "is")

@@ -250,6 +250,24 @@ def _uniform(seed: np.uint64, j: np.uint64, i: np.uint64) -> float:
     return (h >> np.uint64(11)) * (1.0 / 9007199254740992.0)
 
 
+_XORSHIFT_MULT = np.uint64(0x2545F4914F6CDD1D)
+
+
+@njit(cache=True, inline="always")
+def _stream_start(seed: np.uint64, j: np.uint64) -> np.uint64:
+    """Start of the random stream of entry ``j``: a counter-based seed, never zero."""
+    return _splitmix(seed ^ _splitmix(j)) | np.uint64(1)
+
+
+@njit(cache=True, inline="always")
+def _stream_next(state: np.uint64) -> tuple[np.uint64, float]:
+    """xorshift64* step: the next state and a uniform in [0, 1)."""
+    state ^= state >> np.uint64(12)
+    state ^= state << np.uint64(25)
+    state ^= state >> np.uint64(27)
+    return state, ((state * _XORSHIFT_MULT) >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+
+
 @njit(cache=True, inline="always")
 def _digamma_large(x: float) -> float:
     # asymptotic series, accurate to ~1e-12 for x >= 6
@@ -267,7 +285,7 @@ def _trigamma_large(x: float) -> float:
 
 
 @njit(cache=True)
-def _crt_tail(n: int, a: float, head: int, seed: np.uint64, ju: np.uint64) -> int:
+def _crt_tail(n: int, a: float, head: int, u1: float, u2: float) -> int:
     """Tables opened by customers head..n-1, a sum of independent Bernoulli(a/(a+i)).
 
     Exact mean and variance from the digamma/trigamma series; the draw is a rounded normal when
@@ -281,11 +299,9 @@ def _crt_tail(n: int, a: float, head: int, seed: np.uint64, ju: np.uint64) -> in
         var = 0.0
     if mean > terms:
         mean = float(terms)
-    u1 = _uniform(seed, ju, np.uint64(n + 1))
     rare_is_table = mean <= terms - mean
     rare_mean = mean if rare_is_table else terms - mean
     if var >= 25.0 or rare_mean > 50.0:
-        u2 = _uniform(seed, ju, np.uint64(n + 2))
         z = np.sqrt(-2.0 * np.log(1.0 - u1)) * np.cos(2.0 * np.pi * u2)
         extra = np.floor(mean + np.sqrt(var) * z + 0.5)
         if extra < 0.0:
@@ -336,12 +352,15 @@ def _crt_kernel(counts: np.ndarray, conc: np.ndarray, seed: np.uint64, exact_max
             continue
         m = 1
         limit = n if n <= exact_max else head
-        ju = np.uint64(j)
+        state = _stream_start(seed, np.uint64(j))
         for i in range(1, limit):
-            if _uniform(seed, ju, np.uint64(i)) * (a + i) < a:
+            state, u = _stream_next(state)
+            if u * (a + i) < a:
                 m += 1
         if n > exact_max:
-            m += _crt_tail(n, a, head, seed, ju)
+            state, u1 = _stream_next(state)
+            state, u2 = _stream_next(state)
+            m += _crt_tail(n, a, head, u1, u2)
         out[j] = m
     return out
 
@@ -521,8 +540,8 @@ def _grouped_sparse_dot(indptr: np.ndarray, indices: np.ndarray, data: np.ndarra
         for p in range(indptr[t], indptr[t + 1]):
             k = indices[p]
             v = data[p]
-            for l in range(width):
-                out[t, l] += v * table[g, k, l]
+            for c in range(width):
+                out[t, c] += v * table[g, k, c]
     return out
 
 

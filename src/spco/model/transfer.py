@@ -179,7 +179,8 @@ class SpatialConceptModel:
                 raise ConfigurationError(f"home index {home} out of range (0..{len(self.home_names_) - 1})")
             return int(home)
         if home not in self.home_names_:
-            raise ConfigurationError(f"the model knows no home {home!r}; it learnt {', '.join(self.home_names_)}")
+            raise ConfigurationError(
+                f"the model knows no home {home!r}; it learnt {', '.join(self.home_names_)}")
         return self.home_names_.index(home)
 
     def predict_names(self, home: str | int, positions: np.ndarray, visual: Any, top_k: int = 3,
@@ -281,7 +282,8 @@ class SpCoA(SpatialConceptModel):
             raise ConfigurationError("fit() expects a spco.data.Corpus")
         if home is None:
             if len(corpus) != 1:
-                raise ConfigurationError(f"SpCoA learns one home; the corpus holds {len(corpus)} — pass home=NAME")
+                raise ConfigurationError(
+                    f"SpCoA learns one home; the corpus holds {len(corpus)} — pass home=NAME")
             home = corpus.names[0]
         if home not in corpus.names:
             raise ConfigurationError(f"no home named {home!r} in the corpus")
