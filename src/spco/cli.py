@@ -169,5 +169,15 @@ def demo(seed: int, out: Path, homes: int, iterations: int) -> None:
     click.echo("\nWrote " + ", ".join(str(p) for p in result.files))
 
 
+def _register_commands() -> None:
+    """Add the command groups that live in their own modules."""
+    from spco.commands_experiment import experiment
+
+    main.add_command(experiment)
+
+
+_register_commands()
+
+
 if __name__ == "__main__":  # pragma: no cover
     main()

@@ -83,6 +83,9 @@ def log_dirichlet(alpha: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     -------
     (..., D) log-probabilities; ``exp`` of each row sums to 1.
     """
+    alpha = np.asarray(alpha, dtype=np.float64)
+    if alpha.shape[-1] == 0:  # no dimension at all (e.g. no word was ever taught)
+        return np.zeros(alpha.shape)
     log_g = log_gamma_variates(alpha, rng)
     return log_g - log_normaliser(log_g)
 

@@ -1,0 +1,151 @@
+"""``spco experiment general|specific``: the paper's experiments from the command line.
+
+Registered in :mod:`spco.cli` with ``main.add_command(experiment)``. The heavy imports (numpy, the
+model) happen only when a command runs, so ``spco --help`` stays fast; errors are reported by the
+command line's ``_friendly_errors`` (one line, exit status 2).
+"""
+
+from __future__ import annotations
+
+import functools
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import click
+
+__all__ = ["experiment"]
+
+_MODEL_NAMES = ("spcotransfer", "spcotransfer+mi", "spcotransfer-ref", "spcotransfer-ref+mi", "spcoa",
+                "spcoa+mi")
+
+
+def _friendly(func: Callable[..., Any]) -> Callable[..., Any]:
+    """Report spco's errors like every other command (``spco.cli._friendly_errors``), imported
+    when the command runs so that this module and :mod:`spco.cli` can import each other."""
+
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        from spco.cli import _friendly_errors
+
+        return _friendly_errors(func)(*args, **kwargs)
+
+    return wrapper
+
+
+def _common(func: Callable[..., Any]) -> Callable[..., Any]:
+    """The options both experiments share."""
+    options = [
+        click.option("--data", "data", default="synthetic", show_default=True,
+                     help="A folder of homes (SIGVerse or plain layout), an `spco import` cache file, "
+                          "or 'synthetic' (homes generated from --seed)."),
+        click.option("--regions", type=click.Path(path_type=Path), default=None,
+                     help="Ground-truth place regions of the new homes (sigverse_regions.json format). "
+                          "Default: the regions the homes carry (synthetic homes, a "
+                          "sigverse_regions.json beside the data)."),
+        click.option("--maps", type=click.Path(path_type=Path), default=None,
+                     help="Folder of floor plans <home>.PNG (+ extents.json) for the map figures. "
+                          "Default: a maps/ folder beside the region file or the data."),
+        click.option("--trials", default=20, show_default=True, type=click.IntRange(1),
+                     help="Runs per model, setting and new home, each with its own seed."),
+        click.option("--models", default="all", show_default=True,
+                     help="Comma-separated models: " + ", ".join(_MODEL_NAMES) + " (or 'all')."),
+        click.option("--iterations", default=200, show_default=True, type=click.IntRange(1),
+                     help="Gibbs sweeps per fit."),
+        click.option("--seed", default=0, show_default=True, type=click.IntRange(0),
+                     help="Master seed: trial seeds, synthetic homes, position samples."),
+        click.option("--jobs", "-j", default=1, show_default=True, type=click.IntRange(1),
+                     help="Runs in parallel (worker processes; results do not depend on it)."),
+        click.option("--out", "-o", required=True, type=click.Path(path_type=Path),
+                     help="Output folder: results.json, runs.jsonl, tables.md, PNG figures."),
+        click.option("--resume", is_flag=True,
+                     help="Continue the experiment in --out (same options; --trials may grow)."),
+        click.option("--force", is_flag=True, help="Delete a previous experiment's outputs in --out."),
+        click.option("--quiet", "-q", is_flag=True, help="No progress bar and no tables on stdout."),
+    ]
+    for option in reversed(options):
+        func = option(func)
+    return func
+
+
+@click.group()
+def experiment() -> None:
+    """Reproduce the experiments of Hagiwara et al. (2021): `general` and `specific` places.
+
+    Results go to --out: results.json (every run and the summary), runs.jsonl (one line per finished
+    run, so an interrupted experiment continues with --resume), tables.md, and PNG figures.
+    """
+
+
+def _split(text: str | None) -> tuple[str, ...] | None:
+    if text is None:
+        return None
+    return tuple(p.strip() for p in text.split(",") if p.strip()) or None
+
+
+def _run(config_kwargs: dict[str, Any], out: Path, resume: bool, force: bool, quiet: bool) -> None:
+    from spco.evaluation.experiments import ExperimentConfig, run_experiment
+
+    config = ExperimentConfig(**config_kwargs)
+    start = time.perf_counter()
+    result = run_experiment(config, out, resume=resume, force=force, progress=not quiet,
+                            log=lambda msg: click.echo(msg, err=True))
+    elapsed = time.perf_counter() - start
+    if not quiet:
+        click.echo(result.tables)
+    timing = result.results["timing"]
+    click.echo(f"{timing['runs']} runs ({timing['runs_this_session']} this session) in {elapsed:.1f} s "
+               f"(run time {timing['run_wall_seconds_total']:.1f} s); wrote {out / 'results.json'}, "
+               f"{out / 'tables.md'} and {len(result.figures)} figures")
+
+
+@experiment.command()
+@_common
+@click.option("--envs", default="0,1,2,4,8,16", show_default=True,
+              help="Numbers of experienced homes (the first n of the paper's fixed list).")
+@click.option("--experienced-homes", default=None,
+              help="Comma-separated experienced homes, in the order they are added (default: the "
+                   "paper's 3LDK_1, 1LDK_8, 2LDK_8, …).")
+@click.option("--new-homes", default=None,
+              help="Comma-separated new homes (default: 1LDK_9, 2LDK_9, 3LDK_9, or the synthetic ones).")
+@_friendly
+def general(data: str, regions: Path | None, maps: Path | None, trials: int, models: str, iterations: int,
+            seed: int, jobs: int, out: Path, resume: bool, force: bool, quiet: bool, envs: str,
+            experienced_homes: str | None, new_homes: str | None) -> None:
+    """General places: accuracy in new homes, taught nothing, vs. number of experienced homes."""
+    from spco.evaluation.experiments import parse_int_list
+
+    _run({"experiment": "general", "settings": parse_int_list(envs, "--envs", 0), "data": data,
+          "regions": regions, "maps": maps, "trials": trials, "models": models, "iterations": iterations,
+          "seed": seed, "jobs": jobs, "experienced_homes": _split(experienced_homes),
+          "new_homes": _split(new_homes)}, out, resume, force, quiet)
+
+
+@experiment.command()
+@_common
+@click.option("--rates", default="0,20,40,60,80,100", show_default=True,
+              help="Teaching rates (percent) of the home-specific rooms of the new home.")
+@click.option("--experienced-homes", default=None,
+              help="Comma-separated experienced homes (default: the paper's 16).")
+@click.option("--new-home", default=None,
+              help="The new home with home-specific rooms (default: 3LDK_9, or the synthetic one).")
+@_friendly
+def specific(data: str, regions: Path | None, maps: Path | None, trials: int, models: str, iterations: int,
+             seed: int, jobs: int, out: Path, resume: bool, force: bool, quiet: bool, rates: str,
+             experienced_homes: str | None, new_home: str | None) -> None:
+    """Home-specific places: accuracy on the new home's own room names vs. their teaching rate."""
+    from spco.evaluation.experiments import parse_int_list
+
+    _run({"experiment": "specific", "settings": parse_int_list(rates, "--rates", 0, 100), "data": data,
+          "regions": regions, "maps": maps, "trials": trials, "models": models, "iterations": iterations,
+          "seed": seed, "jobs": jobs, "experienced_homes": _split(experienced_homes),
+          "specific_home": new_home.strip() if new_home else None}, out, resume, force, quiet)
+
+
+@experiment.command(name="models")
+def list_models() -> None:
+    """List the models an experiment can compare (--models)."""
+    from spco.evaluation.experiments import describe_models
+
+    click.echo(describe_models())

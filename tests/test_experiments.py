@@ -1,0 +1,234 @@
+"""The experiment runner: a short general experiment on synthetic homes (CLI and library), resume,
+refusal to mix configurations, bad input, the specific experiment, and a SIGVerse smoke test."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+from typing import Any
+
+import pytest
+from click.testing import CliRunner
+
+from spco.commands_experiment import _MODEL_NAMES, experiment
+from spco.errors import ConfigurationError, DataFormatError, SpcoError
+from spco.evaluation.experiments import (
+    MODELS,
+    PAPER_EXPERIENCED_HOMES,
+    ExperimentConfig,
+    load_experiment_data,
+    parse_int_list,
+    parse_models,
+    read_runs,
+    run_experiment,
+    trial_seed,
+)
+from spco.evaluation.report import format_cell, summarize
+
+SMALL = {"experiment": "general", "settings": (0, 2), "trials": 2, "iterations": 10,
+         "models": ("spcotransfer", "spcoa")}
+RUN_KEYS = {"experiment", "model", "setting", "home", "trial", "place", "name_accuracy",
+            "position_accuracy", "seed", "iterations", "wall_seconds"}
+SUMMARY_KEYS = {"experiment", "model", "setting", "place", "name_accuracy_mean", "name_accuracy_std",
+                "position_accuracy_mean", "position_accuracy_std", "n"}
+
+
+@pytest.fixture(scope="module")
+def new_home() -> str:
+    """One synthetic new home (seed 0), to keep the experiments short."""
+    return load_experiment_data(ExperimentConfig(**SMALL)).new_homes[0]
+
+
+@pytest.fixture(scope="module")
+def general_out(tmp_path_factory: pytest.TempPathFactory, new_home: str) -> Path:
+    """A short general experiment on synthetic homes, run through the command line."""
+    out = tmp_path_factory.mktemp("general") / "out"
+    result = CliRunner().invoke(experiment, [
+        "general", "--envs", "0,2", "--trials", "2", "--iterations", "10",
+        "--models", "spcotransfer,spcoa", "--new-homes", new_home, "--out", str(out), "--quiet",
+    ])
+    assert result.exit_code == 0, result.output
+    assert "8 runs" in result.output
+    return out
+
+
+def _stable(results: dict[str, Any]) -> dict[str, Any]:
+    """results.json without timings (everything else must be reproducible)."""
+    runs = [{k: v for k, v in row.items() if k != "wall_seconds"} for row in results["runs"]]
+    config = {k: v for k, v in results["config"].items()}
+    return {"runs": runs, "summary": results["summary"], "summary_by_home": results["summary_by_home"],
+            "chance": results["chance"], "config": config}
+
+
+# ------------------------------------------------------------------------------------ outputs
+def test_results_schema(general_out: Path, new_home: str) -> None:
+    results = json.loads((general_out / "results.json").read_text())
+    assert {"runs", "summary", "config", "chance", "timing"} <= set(results)
+    runs = results["runs"]
+    assert all(set(row) == RUN_KEYS for row in runs)
+    per_run = {(r["model"], r["setting"], r["trial"]) for r in runs}
+    assert len(per_run) == 2 * 2 * 2
+    assert {r["home"] for r in runs} == {new_home}
+    means = [r for r in runs if r["place"] == "mean"]
+    assert len(means) == 8
+    for m in means:  # a run's mean is the mean of its places
+        places = [r["name_accuracy"] for r in runs if r["place"] != "mean" and
+                  (r["model"], r["setting"], r["trial"]) == (m["model"], m["setting"], m["trial"])]
+        assert m["name_accuracy"] == pytest.approx(sum(places) / len(places))
+    assert all(set(row) == SUMMARY_KEYS for row in results["summary"])
+    mean_rows = [s for s in results["summary"] if s["place"] == "mean"]
+    assert {(s["model"], s["setting"]) for s in mean_rows} == {(m, s) for m in SMALL["models"]
+                                                              for s in (0, 2)}
+    assert all(s["n"] == 2 for s in mean_rows)
+    assert all(0 <= s["name_accuracy_mean"] <= 1 for s in mean_rows)
+    # seeds: one per trial, shared by models and settings
+    assert {r["seed"] for r in runs} == {trial_seed(0, 0), trial_seed(0, 1)}
+    assert results["timing"]["runs"] == 8 and results["timing"]["run_wall_seconds_total"] > 0
+    vocabulary = results["config"]["data"]["vocabulary"]
+    assert results["chance"]["name_accuracy"] == pytest.approx(1 / len(vocabulary))
+    config = json.loads((general_out / "config.json").read_text())
+    assert config["fingerprint"] == results["config"]["fingerprint"]
+
+
+def test_tables_and_figures(general_out: Path) -> None:
+    tables = (general_out / "tables.md").read_text()
+    assert "## spcotransfer: name accuracy A_n" in tables and "| chance |" in tables
+    assert "| experienced homes |" in tables
+    pngs = ["general_name_accuracy.png", "general_position_accuracy.png",
+            "general_log_joint_spcotransfer.png", "general_log_joint_spcoa.png"]
+    for name in pngs:
+        assert (general_out / name).stat().st_size > 1000, name
+    maps = sorted((general_out / "maps").glob("*.png"))
+    assert len(maps) == 2 and all(p.stat().st_size > 1000 for p in maps)
+    assert sum(1 for _ in (general_out / "runs.jsonl").open()) == 8
+
+
+# ------------------------------------------------------------------------------------ resume
+def test_resume_after_interruption_gives_the_same_results(general_out: Path, tmp_path: Path,
+                                                          new_home: str) -> None:
+    out = tmp_path / "out"
+    shutil.copytree(general_out, out)
+    full = json.loads((out / "results.json").read_text())
+    lines = (out / "runs.jsonl").read_text().splitlines(keepends=True)
+    # killed: six runs recorded, the seventh line half-written, no results yet
+    (out / "runs.jsonl").write_text("".join(lines[:6]) + lines[6][: len(lines[6]) // 2])
+    (out / "results.json").unlink()
+    config = ExperimentConfig(**SMALL, new_homes=(new_home,), jobs=2)  # workers must agree, too
+    result = run_experiment(config, out, resume=True)
+    assert result.results["timing"]["runs_this_session"] == 2
+    assert _stable(result.results) == _stable(full)
+    assert len(read_runs(out)) == 8
+
+
+def test_resume_with_more_trials_keeps_finished_runs(general_out: Path, tmp_path: Path,
+                                                     new_home: str) -> None:
+    out = tmp_path / "out"
+    shutil.copytree(general_out, out)
+    config = ExperimentConfig(**{**SMALL, "trials": 1}, new_homes=(new_home,))
+    result = run_experiment(config, out, resume=True)  # fewer trials: nothing to run
+    assert result.results["timing"]["runs_this_session"] == 0
+    assert {r["trial"] for r in result.runs} == {0}
+
+
+def test_mixing_configurations_is_refused(general_out: Path, tmp_path: Path, new_home: str) -> None:
+    out = tmp_path / "out"
+    shutil.copytree(general_out, out)
+    other = ExperimentConfig(**{**SMALL, "iterations": 5}, new_homes=(new_home,))
+    with pytest.raises(ConfigurationError, match=r"another configuration.*iterations: 10 -> 5"):
+        run_experiment(other, out, resume=True)
+    with pytest.raises(ConfigurationError, match="--resume"):
+        run_experiment(other, out)  # not empty, no --resume
+    runner = CliRunner()
+    res = runner.invoke(experiment, ["general", "--envs", "0,2", "--trials", "2", "--iterations", "10",
+                                     "--models", "spcotransfer", "--new-homes", new_home,
+                                     "--out", str(out), "--resume", "-q"])
+    assert res.exit_code == 2 and "models" in res.output and "Traceback" not in res.output
+    # --force starts over
+    result = run_experiment(other, out, force=True, max_runs=1)  # trial 0, 0 homes: no map
+    assert result.results["timing"]["runs"] == 1
+    assert all(r["iterations"] == 5 for r in result.runs)
+
+
+def test_foreign_runs_are_refused(general_out: Path, tmp_path: Path, new_home: str) -> None:
+    out = tmp_path / "out"
+    shutil.copytree(general_out, out)
+    with (out / "runs.jsonl").open("a") as fh:
+        fh.write(json.dumps({"fingerprint": "x", "model": "spcoa", "setting": 0, "trial": 5,
+                             "home": new_home}) + "\n")
+    with pytest.raises(ConfigurationError, match="another configuration"):
+        run_experiment(ExperimentConfig(**SMALL, new_homes=(new_home,)), out, resume=True)
+
+
+# ------------------------------------------------------------------------------------ specific
+def test_specific_experiment_on_synthetic_homes(tmp_path: Path) -> None:
+    config = ExperimentConfig("specific", settings=(0, 100), trials=1, iterations=5, models=("spcoa",))
+    result = run_experiment(config, tmp_path / "out")
+    places = {r["place"] for r in result.runs} - {"mean"}
+    assert places == {"emma's-room", "mother's-room", "father's-room"}
+    untaught = [r for r in result.runs if r["setting"] == 0 and r["place"] != "mean"]
+    assert all(r["name_accuracy"] == 0.0 and r["position_accuracy"] == 0.0 for r in untaught)
+    assert (tmp_path / "out" / "specific_name_accuracy.png").stat().st_size > 1000
+    assert "teaching rate [%]" in result.tables
+
+
+# ------------------------------------------------------------------------------------ bad input
+@pytest.mark.parametrize(("args", "message"), [
+    (["--models", "spcotransfer,nope"], "unknown model"),
+    (["--envs", "0,x"], "--envs must be a comma-separated list"),
+    (["--envs", "1,1"], "repeated"),
+    (["--envs", "-1"], "out of range"),
+    (["--data", "/no/such/folder"], "no such data folder"),
+    (["--regions", "/no/such/regions.json"], "region file not found"),
+])
+def test_bad_input_gives_a_clear_error(tmp_path: Path, args: list[str], message: str) -> None:
+    res = CliRunner().invoke(experiment, ["general", "--out", str(tmp_path / "o"), "-q", *args])
+    assert res.exit_code == 2, res.output
+    assert message in res.output and "Traceback" not in res.output
+
+
+def test_regions_file_must_cover_the_new_homes(tmp_path: Path) -> None:
+    regions = tmp_path / "regions.json"
+    regions.write_text(json.dumps({"homes": {"elsewhere": {"kitchen": [[0, 1, 0, 1]]}}}))
+    config = ExperimentConfig(**SMALL, regions=regions)
+    with pytest.raises(DataFormatError, match="no regions for new home"):
+        run_experiment(config, tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+
+
+def test_parsers_and_registry() -> None:
+    assert parse_int_list("16, 0,2", "--envs", 0) == (0, 2, 16)
+    assert parse_models(None) == tuple(MODELS) == parse_models("all")
+    assert _MODEL_NAMES == tuple(MODELS)  # the --help text lists the registry
+    with pytest.raises(SpcoError):
+        parse_int_list("", "--envs", 0)
+    with pytest.raises(ConfigurationError, match="listed twice"):
+        parse_models("spcoa,spcoa")
+    assert trial_seed(3, 1) == trial_seed(3, 1) != trial_seed(3, 2)
+    assert format_cell(0.5, None) == "0.500" and format_cell(None, None) == "-"
+    rows = [{"k": 1, "name_accuracy": 0.5, "position_accuracy": None},
+            {"k": 1, "name_accuracy": 1.0, "position_accuracy": 0.25}]
+    (summary,) = summarize(rows, ("k",))
+    assert summary["name_accuracy_mean"] == 0.75 and summary["n"] == 2
+    assert summary["name_accuracy_std"] == pytest.approx(0.3535534)
+    assert summary["position_accuracy_mean"] == 0.25 and summary["position_accuracy_std"] is None
+
+
+# ------------------------------------------------------------------------------------ SIGVerse
+@pytest.mark.sigverse
+def test_sigverse_smoke(sigverse_dir: Path, tmp_path: Path) -> None:
+    regions = sigverse_dir.parent / "sigverse_regions.json"
+    if not regions.is_file():
+        pytest.skip(f"region file {regions} not found")
+    out = tmp_path / "out"
+    res = CliRunner().invoke(experiment, [
+        "general", "--data", str(sigverse_dir), "--regions", str(regions), "--envs", "1",
+        "--trials", "1", "--iterations", "3", "--models", "spcotransfer", "--new-homes", "1LDK_9",
+        "--out", str(out), "-q",
+    ])
+    assert res.exit_code == 0, res.output
+    results = json.loads((out / "results.json").read_text())
+    assert results["config"]["data"]["experienced_homes"] == list(PAPER_EXPERIENCED_HOMES)
+    places = {r["place"] for r in results["runs"]} - {"mean"}
+    assert len(places) == 8
+    assert (out / "maps" / "general_spcotransfer_1_1LDK_9.png").stat().st_size > 1000
