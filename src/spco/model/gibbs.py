@@ -102,15 +102,19 @@ class SamplerSettings:
     hierarchical: bool
     joint_assignment: bool
     pruning_score: str
+    learn_shared: bool = True
 
     @classmethod
-    def create(cls, variant: str, prune: bool) -> SamplerSettings:
-        """Settings of ``variant`` (``exact``, ``reference`` or ``spcoa``)."""
+    def create(cls, variant: str, prune: bool, learn_shared: bool = True) -> SamplerSettings:
+        """Settings of ``variant`` (``exact``, ``reference`` or ``spcoa``).
+
+        ``learn_shared=False`` keeps φ^v, φ^w and G_0 fixed (adapting to a new home with
+        knowledge learnt elsewhere): sweeps then update only the homes' own variables."""
         if variant not in VARIANTS:
             raise ValueError(f"unknown sampler variant {variant!r}; choose one of {VARIANTS}")
         return cls(variant=variant, prune=prune, hierarchical=variant != "spcoa",
                    joint_assignment=variant != "reference",
-                   pruning_score="kl" if variant == "reference" else "mi")
+                   pruning_score="kl" if variant == "reference" else "mi", learn_shared=learn_shared)
 
 
 def niw_prior(data: PreparedData, hyper: TransferHyperparameters, settings: SamplerSettings) -> NIWPrior:
@@ -523,10 +527,11 @@ def sweep(data: PreparedData, state: GibbsState, hyper: TransferHyperparameters,
     if settings.variant == "reference":
         with _Timed(timer, "home parameters"):
             _home_step_reference(data, state, stats, hyper, settings, rng)
-        with _Timed(timer, "shared parameters"):
-            _global_step_reference(stats, state, hyper, rng)
+        if settings.learn_shared:
+            with _Timed(timer, "shared parameters"):
+                _global_step_reference(stats, state, hyper, rng)
     else:
-        if settings.hierarchical:
+        if settings.hierarchical and settings.learn_shared:
             with _Timed(timer, "shared parameters"):
                 _global_step(stats, state, hyper, rng)
         with _Timed(timer, "home parameters"):
@@ -534,7 +539,7 @@ def sweep(data: PreparedData, state: GibbsState, hyper: TransferHyperparameters,
         if swaps and settings.hierarchical and data.n_homes > 1:
             with _Timed(timer, "label swaps"):
                 _swap_labels(data, state, stats, hyper, settings, rng)
-    if settings.prune:
+    if settings.prune and settings.learn_shared:
         with _Timed(timer, "word pruning"):
             _prune(state, hyper, settings)
 
