@@ -12,6 +12,7 @@
 """
 
 from spco.model.hyperparameters import SpCoAHyperparameters, TransferHyperparameters
+from spco.model.io import load_model, save_model
 from spco.model.parameters import ConceptParameters
 from spco.model.transfer import SpatialConceptModel, SpCoA, SpCoTransfer
 
@@ -22,4 +23,6 @@ __all__ = [
     "SpCoTransfer",
     "SpatialConceptModel",
     "TransferHyperparameters",
+    "load_model",
+    "save_model",
 ]

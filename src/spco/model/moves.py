@@ -29,6 +29,7 @@ import math
 
 import numpy as np
 from numba import njit, prange
+from scipy.special import logsumexp
 
 
 @njit(cache=True, inline="always")
@@ -159,7 +160,7 @@ def concept_swap_step(visual_counts: np.ndarray, log_phi_v: np.ndarray, delta_v:
     alpha_v = delta_v * np.exp(log_phi_v)
     if word_mask.any():
         log_phi = log_phi_w[:, word_mask]
-        alpha_w = delta_w * np.exp(log_phi - np.log(np.exp(log_phi).sum(axis=1, keepdims=True)))
+        alpha_w = delta_w * np.exp(log_phi - logsumexp(log_phi, axis=1, keepdims=True))
         counts_w = word_counts[:, :, word_mask]
     else:
         alpha_w = np.zeros((n_concepts, 0))

@@ -201,12 +201,13 @@ class SpatialConceptModel:
         return prediction.predict_positions(self.parameters_, e, self.vocabulary_, name, n=n,
                                             rng=_as_generator(random_state))
 
-    def save(self, path) -> None:
-        """Write the fitted model to ``path`` atomically (see :mod:`spco.model.io`)."""
+    def save(self, path, overwrite: bool = False) -> None:
+        """Write the fitted model to ``path`` atomically (see :mod:`spco.model.io`); an existing
+        file is replaced only with ``overwrite=True``."""
         from spco.model.io import save_model
 
         self._check_fitted()
-        save_model(self, path)
+        save_model(self, path, overwrite=overwrite)
 
 
 def _compute_ready(counts: sp.sparray) -> sp.csr_array:

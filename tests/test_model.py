@@ -1,0 +1,309 @@
+"""The estimators end to end: recovery on synthetic homes, numerical soundness, reproducibility,
+argument validation, and every variant and baseline fitting a small corpus."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.special import comb
+
+from spco.data import Corpus, Environment
+from spco.data.loading import load
+from spco.data.synthetic import SyntheticConfig, generate_homes
+from spco.errors import ConfigurationError
+from spco.evaluation import evaluate_home
+from spco.model import ConceptParameters, SpCoA, SpCoAHyperparameters, SpCoTransfer, TransferHyperparameters
+
+
+def adjusted_rand_index(a: np.ndarray, b: np.ndarray) -> float:
+    """Adjusted Rand index of two labellings (Hubert & Arabie 1985)."""
+    _, ai = np.unique(np.asarray(a), return_inverse=True)
+    _, bi = np.unique(np.asarray(b), return_inverse=True)
+    table = np.zeros((ai.max() + 1, bi.max() + 1))
+    np.add.at(table, (ai, bi), 1)
+    pairs = comb(table, 2).sum()
+    rows, cols = comb(table.sum(1), 2).sum(), comb(table.sum(0), 2).sum()
+    expected = rows * cols / comb(len(ai), 2)
+    top = 0.5 * (rows + cols)
+    return 1.0 if top == expected else float((pairs - expected) / (top - expected))
+
+
+def test_adjusted_rand_index_helper() -> None:
+    assert adjusted_rand_index([0, 0, 1, 1], [5, 5, 2, 2]) == pytest.approx(1.0)
+    assert adjusted_rand_index([0, 0, 1, 1, 2, 2], [0, 1, 0, 1, 0, 1]) < 0
+    # the textbook example: ARI of {a,a,a,b,b,b} vs {x,x,y,y,z,z}
+    assert adjusted_rand_index(list("aaabbb"), list("xxyyzz")) == pytest.approx(0.24242424, abs=1e-6)
+
+
+def check_parameters(params: ConceptParameters, n_homes: int, n_concepts: int, n_regions: int, n_words: int,
+                     n_features: int) -> None:
+    """Shapes, finiteness and normalisation of a fitted model's parameters."""
+    E, L, K, V, D = n_homes, n_concepts, n_regions, n_words, n_features
+    expected = {
+        "concept_weights": (E, L), "region_weights": (E, L, K), "region_means": (E, K, 4),
+        "region_covariances": (E, K, 4, 4), "word_probabilities": (E, L, V),
+        "visual_probabilities": (E, L, D),
+        "shared_word_probabilities": (L, V), "shared_visual_probabilities": (L, D),
+        "global_concept_weights": (L,), "word_mask": (V,), "region_counts": (E, K),
+    }
+    for name, array in params.arrays().items():
+        assert array.shape == expected[name], name
+        assert np.isfinite(array).all(), f"{name} holds NaN or inf"
+    for name in ("concept_weights", "region_weights", "visual_probabilities", "shared_visual_probabilities",
+                 "global_concept_weights"):
+        array = getattr(params, name)
+        assert (array >= 0).all() and np.allclose(array.sum(-1), 1.0), name
+    if V:
+        for name in ("word_probabilities", "shared_word_probabilities"):
+            array = getattr(params, name)
+            assert (array >= 0).all() and np.allclose(array.sum(-1), 1.0), name
+            assert (array[..., ~params.word_mask] == 0).all(), f"{name}: pruned words keep probability"
+    assert (np.linalg.eigvalsh(params.region_covariances) > 0).all()
+
+
+# ----------------------------------------------------------------------------- recovery
+
+
+def synthetic_corpus(seed: int = 0, word_increment: int = 5000) -> Corpus:
+    """6 experienced homes (all taught) and 1 new home (nothing taught), D = 256."""
+    return generate_homes(7, seed=seed, new_homes=1, config=SyntheticConfig(n_features=256),
+                          specific_rooms=False, word_increment=word_increment)
+
+
+def taught_home_ari(model: SpCoTransfer, corpus: Corpus) -> list[float]:
+    """ARI between the concepts and the true place labels of each taught home's training samples."""
+    out = []
+    for e, env in enumerate(corpus):
+        if env.n_taught == 0:
+            continue
+        labels = np.array(env.ground_truth.labels, dtype=object)[~env.is_test]
+        out.append(adjusted_rand_index(labels, model.concepts_[e]))
+    return out
+
+
+@pytest.mark.xfail(strict=True, raises=AssertionError, reason=(
+    "Model property, not a sampler bug: with S^w = 5000 every word of a sentence counts 5000 times, so "
+    "the posterior splits each place into one concept per sentence template ('this location is the X' vs "
+    "'the X is here'): the sampler's partition has a collapsed word likelihood ~2.2e6 nats above the "
+    "place partition (seed 0). Observed ARI 0.45-0.63 per home (mean 0.52), new-home A_n 0.56. The +MI "
+    "model (template words pruned) recovers the places: see the next test."))
+def test_exact_model_recovers_places_of_taught_homes() -> None:
+    corpus = synthetic_corpus(seed=0)
+    model = SpCoTransfer(n_iterations=30, random_state=0).fit(corpus)
+    aris = taught_home_ari(model, corpus)
+    assert np.mean(aris) >= 0.9, aris
+    scores = evaluate_home(model.parameters_, len(corpus) - 1, corpus[-1], corpus.vocabulary, rng=0)
+    assert scores.mean_name_accuracy >= 0.6, scores.name_accuracy
+
+
+def test_exact_model_with_word_pruning_recovers_places_of_taught_homes() -> None:
+    corpus = synthetic_corpus(seed=0)
+    model = SpCoTransfer(n_iterations=30, random_state=0, prune_words=True).fit(corpus)
+    aris = taught_home_ari(model, corpus)
+    assert np.mean(aris) >= 0.9 and min(aris) >= 0.8, aris  # observed: 0.99-1.0 in every home
+    # the template words are pruned, the place names kept
+    kept = {w for w, keep in zip(corpus.vocabulary.words, model.parameters_.word_mask, strict=True) if keep}
+    assert {"kitchen", "bath", "toilet", "entrance", "bedroom"} <= kept
+    assert not {"the", "is"} & kept
+
+
+@pytest.mark.xfail(strict=True, raises=AssertionError, reason=(
+    "Transfer to the new home is unreliable (exact + MI, D = 256): A_n = 0.70, 0.27, 0.00 for data seeds "
+    "0, 1, 2 (mean 0.32; chance 1/15). The new home's samples move into concepts that no taught home "
+    "uses: their φ^v is fit to the new home alone and beats the transferred concepts by 200-600 nats per "
+    "image (θ^v is tied to φ^v by δ^v = 3e5, so a transferred concept cannot adapt to the new home's "
+    "visual style), and their φ^w is a draw from the Dir(α^w = 0.01) prior — a random word."))
+def test_transfer_names_the_places_of_a_new_home() -> None:
+    accuracies = []
+    for seed in (0, 1, 2):
+        corpus = synthetic_corpus(seed=seed)
+        model = SpCoTransfer(n_iterations=30, random_state=0, prune_words=True).fit(corpus)
+        scores = evaluate_home(model.parameters_, len(corpus) - 1, corpus[-1], corpus.vocabulary, rng=0)
+        assert scores.name_chance < 0.1
+        accuracies.append(scores.mean_name_accuracy)
+    assert np.mean(accuracies) >= 0.6, accuracies
+
+
+# ----------------------------------------------------------------------------- numerical soundness
+
+
+@pytest.fixture(scope="module")
+def realistic_counts() -> Corpus:
+    """S^w = 5000 and D = 4096 with ~7,000 visual counts per image; few samples, so that most of
+    the L = 15 concepts and K = 20 regions are empty."""
+    config = SyntheticConfig(n_features=4096, n_train=4, n_test=2)
+    corpus = generate_homes(3, seed=0, new_homes=1, config=config, specific_rooms=False)
+    per_image = np.concatenate([np.asarray(env.visual.sum(1)).ravel() for env in corpus])
+    assert 6000 < per_image.mean() < 8500
+    return corpus
+
+
+@pytest.mark.parametrize(("variant", "prune"), [("exact", False), ("exact", True), ("reference", False),
+                                                ("reference", True)])
+def test_large_counts_stay_finite(realistic_counts: Corpus, variant: str, prune: bool) -> None:
+    corpus = realistic_counts
+    model = SpCoTransfer(n_iterations=6, random_state=1, variant=variant, prune_words=prune).fit(corpus)
+    check_parameters(model.parameters_, len(corpus), 15, 20, len(corpus.vocabulary), 4096)
+    assert model.log_joint_.shape == (6,) and np.isfinite(model.log_joint_).all()
+    for name, value in vars(model.state_).items():
+        if isinstance(value, np.ndarray) and value.dtype.kind == "f":
+            assert not np.isnan(value).any(), name
+            assert not np.isposinf(value).any(), name
+
+
+def test_large_counts_stay_finite_spcoa(realistic_counts: Corpus) -> None:
+    for prune in (False, True):
+        model = SpCoA(n_iterations=6, random_state=2, prune_words=prune).fit(realistic_counts,
+                                                                            home=realistic_counts.names[0])
+        check_parameters(model.parameters_, 1, 15, 20, len(realistic_counts.vocabulary), 4096)
+        assert np.isfinite(model.log_joint_).all()
+
+
+def test_empty_concepts_and_regions() -> None:
+    """A tiny home (12 training samples) with L = 15, K = 20: most concepts and regions are empty."""
+    config = SyntheticConfig(n_features=64, n_train=2, n_test=1)
+    corpus = generate_homes(2, seed=1, new_homes=1, config=config, specific_rooms=False)
+    assert min(env.n_train for env in corpus) < 20
+    for model in (SpCoTransfer(n_iterations=8, random_state=3),
+                  SpCoTransfer(n_iterations=8, random_state=3, variant="reference", prune_words=True)):
+        model.fit(corpus)
+        params = model.parameters_
+        check_parameters(params, 2, 15, 20, len(corpus.vocabulary), 64)
+        assert (params.region_counts == 0).any()
+        used = {int(c) for concepts in model.concepts_ for c in concepts}
+        assert len(used) < 15
+        assert np.isfinite(model.log_joint_).all()
+    spcoa = SpCoA(n_iterations=8, random_state=3).fit(corpus, home=corpus.names[0])
+    check_parameters(spcoa.parameters_, 1, 15, 20, len(corpus.vocabulary), 64)
+
+
+# ----------------------------------------------------------------------------- reproducibility
+
+
+@pytest.fixture(scope="module")
+def small_corpus() -> Corpus:
+    return generate_homes(3, seed=4, new_homes=1, config=SyntheticConfig(n_features=64, n_train=5, n_test=2),
+                          specific_rooms=False)
+
+
+SMALL = TransferHyperparameters(n_concepts=6, n_regions=8)
+
+
+def test_same_seed_same_model_different_seed_different_model(small_corpus: Corpus) -> None:
+    first = SpCoTransfer(SMALL, n_iterations=5, random_state=7).fit(small_corpus)
+    again = SpCoTransfer(SMALL, n_iterations=5, random_state=7).fit(small_corpus)
+    other = SpCoTransfer(SMALL, n_iterations=5, random_state=8).fit(small_corpus)
+    for name, array in first.parameters_.arrays().items():
+        np.testing.assert_array_equal(array, getattr(again.parameters_, name), err_msg=name)
+    np.testing.assert_array_equal(first.log_joint_, again.log_joint_)
+    for a, b in zip(first.concepts_, again.concepts_, strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(first.parameters_.visual_probabilities, other.parameters_.visual_probabilities)
+    assert not np.array_equal(first.log_joint_, other.log_joint_)
+    # a Generator is used as given (and advanced), an int seeds a fresh one
+    gen = SpCoTransfer(SMALL, n_iterations=5, random_state=np.random.default_rng(7)).fit(small_corpus)
+    np.testing.assert_array_equal(gen.parameters_.concept_weights, first.parameters_.concept_weights)
+
+
+# ----------------------------------------------------------------------------- bad arguments
+
+
+@pytest.mark.parametrize(("changes", "message"), [
+    ({"alpha_visual": 0.0}, "alpha_visual must be a positive number"),
+    ({"alpha_word": -0.01}, "alpha_word must be a positive number"),
+    ({"delta_visual": float("nan")}, "delta_visual must be a positive number"),
+    ({"gamma": 0}, "gamma must be a positive number"),
+    ({"gamma0": float("inf")}, "gamma0 must be a positive number"),
+    ({"beta": -3.0}, "beta must be a positive number"),
+    ({"kappa0": 0.0}, "kappa0 must be a positive number"),
+    ({"psi0": (10.0, -10.0, 0.5, 0.5)}, "psi0 must be symmetric positive definite"),
+    ({"psi0": ((1.0, 2.0, 0, 0), (2.0, 1.0, 0, 0), (0, 0, 1.0, 0), (0, 0, 0, 1.0))},
+     "psi0 must be symmetric positive definite"),
+    ({"psi0": (1.0, 2.0)}, "psi0 must be 4 positive values"),
+    ({"n_concepts": 0}, "n_concepts must be an integer >= 1"),
+    ({"n_regions": 0}, "n_regions must be an integer >= 1"),
+    ({"n_concepts": 2.5}, "n_concepts must be an integer >= 1"),
+    ({"nu0": 3.0}, "nu0 must exceed"),
+    ({"nu0": 2.0}, "nu0 must exceed"),
+    ({"mi_threshold": -0.1}, "mi_threshold must be >= 0"),
+])
+def test_bad_hyperparameters(changes: dict, message: str) -> None:
+    with pytest.raises(ConfigurationError, match=message):
+        TransferHyperparameters(**changes)
+
+
+def test_bad_fit_arguments(small_corpus: Corpus) -> None:
+    with pytest.raises(ConfigurationError, match="n_iterations must be an integer >= 1"):
+        SpCoTransfer(SMALL, n_iterations=0).fit(small_corpus)
+    with pytest.raises(ConfigurationError, match="n_iterations must be an integer >= 1"):
+        SpCoTransfer(SMALL, n_iterations=2.5).fit(small_corpus)
+    with pytest.raises(ConfigurationError, match="variant must be 'exact' or 'reference'"):
+        SpCoTransfer(SMALL, variant="fast", n_iterations=1).fit(small_corpus)
+    with pytest.raises(ConfigurationError, match=r"expects a spco\.data\.Corpus"):
+        SpCoTransfer(SMALL, n_iterations=1).fit(list(small_corpus))
+    with pytest.raises(ConfigurationError, match=r"expects a spco\.data\.Corpus"):
+        SpCoA(n_iterations=1).fit("homes/")
+    with pytest.raises(ConfigurationError, match="TransferHyperparameters"):
+        SpCoTransfer({"n_concepts": 3}, n_iterations=1).fit(small_corpus)
+    with pytest.raises(ConfigurationError, match="pass home=NAME"):
+        SpCoA(n_iterations=1).fit(small_corpus)
+    with pytest.raises(ConfigurationError, match="no home named"):
+        SpCoA(n_iterations=1).fit(small_corpus, home="nowhere")
+    with pytest.raises(ConfigurationError, match="not fitted"):
+        SpCoTransfer().predict_names(0, np.zeros((1, 4)), np.zeros((1, 64)))
+
+
+def test_corpus_without_training_data(small_corpus: Corpus) -> None:
+    env = small_corpus[0]
+    all_test = Environment(name="all-test", ids=env.ids, positions=env.positions, visual=env.visual,
+                           sentences=env.sentences, is_test=np.ones(env.n_samples, dtype=bool))
+    corpus = Corpus([small_corpus[1], all_test], vocabulary=small_corpus.vocabulary)
+    with pytest.raises(ConfigurationError, match="'all-test' has no training samples"):
+        SpCoTransfer(SMALL, n_iterations=1).fit(corpus)
+    with pytest.raises(ConfigurationError, match="no training samples"):
+        SpCoA(n_iterations=1).fit(corpus, home="all-test")
+
+
+# ----------------------------------------------------------------------------- every variant fits
+
+
+@pytest.mark.parametrize(("variant", "prune"), [("exact", False), ("exact", True), ("reference", False),
+                                                ("reference", True)])
+def test_transfer_variants_fit(small_corpus: Corpus, variant: str, prune: bool) -> None:
+    model = SpCoTransfer(SMALL, variant=variant, prune_words=prune, n_iterations=4, random_state=0)
+    model.fit(small_corpus)
+    V, D = len(small_corpus.vocabulary), small_corpus.n_features
+    check_parameters(model.parameters_, len(small_corpus), 6, 8, V, D)
+    assert model.settings_.variant == variant and model.settings_.prune == prune
+    assert model.home_names_ == small_corpus.names and model.n_iter_ == 4
+    assert model.log_joint_.shape == (4,) and np.isfinite(model.log_joint_).all()
+    for env, concepts, regions, ids in zip(small_corpus, model.concepts_, model.regions_, model.training_ids_,
+                                           strict=True):
+        assert concepts.shape == regions.shape == (env.n_train,)
+        assert concepts.min() >= 0 and concepts.max() < 6 and regions.min() >= 0 and regions.max() < 8
+        np.testing.assert_array_equal(ids, env.ids[~env.is_test])
+
+
+@pytest.mark.parametrize("prune", [False, True])
+def test_spcoa_baselines_fit(small_corpus: Corpus, prune: bool) -> None:
+    home = small_corpus.names[1]
+    model = SpCoA(SpCoAHyperparameters(n_concepts=5, n_regions=7), prune_words=prune, n_iterations=4,
+                  random_state=0).fit(small_corpus, home=home)
+    check_parameters(model.parameters_, 1, 5, 7, len(small_corpus.vocabulary), small_corpus.n_features)
+    assert model.home_names_ == [home] and model.settings_.variant == "spcoa"
+    assert isinstance(SpCoA()._default_hyperparameters(), SpCoAHyperparameters)
+
+
+# ----------------------------------------------------------------------------- the real data, if present
+
+
+@pytest.mark.sigverse
+def test_sigverse_homes_fit_finite(sigverse_dir: Path) -> None:
+    """Two taught SIGVerse homes and an untaught one (the real fc7 × 5 counts, S^w = 5000)."""
+    homes = [load(sigverse_dir / name)[name] for name in ("1LDK_1", "1LDK_2", "1DK_8")]
+    corpus = Corpus(homes)
+    model = SpCoTransfer(n_iterations=5, random_state=0, prune_words=True).fit(corpus)
+    check_parameters(model.parameters_, 3, 15, 20, len(corpus.vocabulary), 4096)
+    assert np.isfinite(model.log_joint_).all()

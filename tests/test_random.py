@@ -1,0 +1,509 @@
+"""The sampler's random primitives against their exact distributions (spco.model.random).
+
+Every statistical test runs at a fixed seed, so it is deterministic; thresholds (p > 1e-3, |z| < 4)
+are loose enough for a correct sampler and tight enough to catch a wrong formula (a wrong mean,
+variance, degrees of freedom or normalisation moves these statistics by tens of standard errors
+at the sample sizes used).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from numpy.testing import assert_allclose, assert_array_equal
+from scipy import stats
+from scipy.special import gammainc, gammaln, logsumexp, softmax
+
+from spco.model.random import (
+    dirichlet_log_density,
+    grouped_gaussian_log_density,
+    grouped_row_sums,
+    grouped_sparse_dot,
+    log_dirichlet,
+    log_gamma_variates,
+    niw_posterior,
+    sample_categorical_log,
+    sample_crt,
+    sample_joint_assignment,
+    sample_niw,
+)
+
+P_MIN = 1e-3
+Z_MAX = 4.0
+
+
+# ----------------------------------------------------------------------------- helpers
+
+
+def z_mean(samples: np.ndarray, mean: np.ndarray | float, var: np.ndarray | float,
+           axis: int = 0) -> np.ndarray:
+    """z-scores of sample means against exact means and variances."""
+    n = samples.shape[axis]
+    return (samples.mean(axis=axis) - mean) / np.sqrt(np.asarray(var) / n)
+
+
+def z_variance(samples: np.ndarray, var: np.ndarray | float, axis: int = 0) -> np.ndarray:
+    """z-scores of sample variances against exact variances (SE from the sample fourth moment)."""
+    n = samples.shape[axis]
+    centred = samples - samples.mean(axis=axis, keepdims=True)
+    m2 = (centred**2).mean(axis=axis)
+    m4 = (centred**4).mean(axis=axis)
+    se = np.sqrt(np.maximum(m4 - m2**2, 1e-300) / n)
+    return (samples.var(axis=axis, ddof=1) - var) / se
+
+
+def chisquare_counts(observed: np.ndarray, probs: np.ndarray, min_expected: float = 5.0) -> float:
+    """p-value of a chi-square goodness-of-fit test, pooling cells with small expected counts."""
+    observed = np.asarray(observed, dtype=float)
+    expected = np.asarray(probs, dtype=float) * observed.sum()
+    # anything observed where the probability is 0 is an outright failure
+    assert observed[expected == 0].sum() == 0, "draws in a cell of probability 0"
+    keep = expected >= min_expected
+    obs = list(observed[keep])
+    exp = list(expected[keep])
+    if (~keep).any():
+        obs.append(observed[~keep].sum())
+        exp.append(expected[~keep].sum())
+    obs_a, exp_a = np.array(obs), np.array(exp)
+    if exp_a[-1] < min_expected and len(exp_a) > 1:  # fold a small pooled cell into the smallest other
+        obs_a[-2] += obs_a[-1]
+        exp_a[-2] += exp_a[-1]
+        obs_a, exp_a = obs_a[:-1], exp_a[:-1]
+    if len(obs_a) < 2:
+        return 1.0
+    return float(stats.chisquare(obs_a, exp_a * obs_a.sum() / exp_a.sum()).pvalue)
+
+
+def poisson_binomial_pmf(probs: np.ndarray) -> np.ndarray:
+    """Exact pmf of a sum of independent Bernoulli(p_i) (dynamic programming)."""
+    pmf = np.zeros(probs.size + 1)
+    pmf[0] = 1.0
+    for i, p in enumerate(probs):
+        pmf[1:i + 2] = pmf[1:i + 2] * (1 - p) + pmf[:i + 1] * p
+        pmf[0] *= 1 - p
+    return pmf
+
+
+def crt_probs(n: int, a: float) -> np.ndarray:
+    """Success probabilities a/(a+i), i = 0..n-1, of the CRT(n, a) Bernoulli sum."""
+    return a / (a + np.arange(n))
+
+
+def log_gamma_cdf(y: np.ndarray, a: float) -> np.ndarray:
+    """P(log G <= y) for G ~ Gamma(a, 1), exact also where exp(y) underflows.
+
+    For x = exp(y) < 1e-250, P(G <= x) = x^a / Γ(a + 1) · (1 + O(x)), computed in log space.
+    """
+    y = np.asarray(y, dtype=float)
+    out = np.empty_like(y)
+    tiny = y < np.log(1e-250)
+    out[tiny] = np.exp(a * y[tiny] - gammaln(a + 1.0))
+    out[~tiny] = gammainc(a, np.exp(y[~tiny]))
+    return out
+
+
+def random_spd(rng: np.random.Generator, d: int, scale: float = 1.0) -> np.ndarray:
+    a = rng.normal(size=(d, d))
+    return scale * (a @ a.T / d + 0.5 * np.eye(d))
+
+
+# ----------------------------------------------------------------------------- gamma and Dirichlet
+
+
+@pytest.mark.parametrize("shape", [1e-3, 0.05, 0.7, 1.0, 3.5, 50.0])
+def test_log_gamma_variates_match_gamma_distribution(shape: float) -> None:
+    rng = np.random.default_rng(1)
+    draws = log_gamma_variates(np.full(20_000, shape), rng)
+    assert np.isfinite(draws).all()
+    result = stats.kstest(draws, lambda y: log_gamma_cdf(y, shape))
+    assert result.pvalue > P_MIN, result
+
+
+def test_log_gamma_variates_mixed_shapes_and_zero() -> None:
+    rng = np.random.default_rng(2)
+    shapes = np.tile([1e-4, 0.3, 2.0, 0.0], 10_000).reshape(10_000, 4)
+    draws = log_gamma_variates(shapes, rng)
+    assert draws.shape == shapes.shape
+    assert np.isneginf(draws[:, 3]).all()
+    for j, a in enumerate([1e-4, 0.3, 2.0]):
+        assert np.isfinite(draws[:, j]).all()
+        assert stats.kstest(draws[:, j], lambda y, a=a: log_gamma_cdf(y, a)).pvalue > P_MIN
+
+
+def test_log_gamma_variates_threaded_path_is_correct_and_seeded() -> None:
+    shape = np.full((400, 600), 2.5)  # 240,000 entries: drawn in two halves on two threads
+    first = log_gamma_variates(shape, np.random.default_rng(3))
+    again = log_gamma_variates(shape, np.random.default_rng(3))
+    assert_array_equal(first, again)
+    assert not np.array_equal(first, log_gamma_variates(shape, np.random.default_rng(4)))
+    flat = first.ravel()
+    for part in (flat[:120_000:6], flat[120_000::6]):  # both halves, 20,000 draws each
+        assert stats.kstest(part, lambda y: log_gamma_cdf(y, 2.5)).pvalue > P_MIN
+    # the two halves are independent streams
+    assert abs(np.corrcoef(flat[:120_000], flat[120_000:])[0, 1]) < 0.02
+
+
+def dirichlet_moments(alpha: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    a0 = alpha.sum()
+    mean = alpha / a0
+    var = alpha * (a0 - alpha) / (a0**2 * (a0 + 1))
+    return mean, var
+
+
+@pytest.mark.parametrize("alpha", [
+    [0.5, 1.0, 2.0, 5.0],
+    [30.0, 0.2, 7.0],
+    [1e-3, 2e-3, 3e-3, 4e-3],  # plain gamma variates underflow to 0 for about half of these
+    [1e-2] * 12,
+])
+def test_log_dirichlet_moments(alpha: list[float]) -> None:
+    alpha_a = np.asarray(alpha)
+    n = 40_000
+    log_p = log_dirichlet(np.tile(alpha_a, (n, 1)), np.random.default_rng(5))
+    assert not np.isnan(log_p).any()
+    assert not np.isposinf(log_p).any()
+    assert np.isfinite(log_p).all(), "every entry with α > 0 must have a finite log-probability"
+    assert_allclose(logsumexp(log_p, axis=1), 0.0, atol=1e-12)
+    p = np.exp(log_p)
+    mean, var = dirichlet_moments(alpha_a)
+    assert np.abs(z_mean(p, mean, var)).max() < Z_MAX
+    if alpha_a.min() > 0.1:  # variance z-tests need a not-too-heavy fourth moment
+        assert np.abs(z_variance(p, var)).max() < Z_MAX
+
+
+def test_log_dirichlet_marginals_are_beta() -> None:
+    alpha = np.array([0.3, 1.5, 4.0])
+    p = np.exp(log_dirichlet(np.tile(alpha, (20_000, 1)), np.random.default_rng(6)))
+    for k in range(3):
+        dist = stats.beta(alpha[k], alpha.sum() - alpha[k])
+        assert stats.kstest(p[:, k], dist.cdf).pvalue > P_MIN
+
+
+def test_log_dirichlet_tiny_concentrations_pick_vertices_by_weight() -> None:
+    """As α0 → 0 a Dirichlet draw concentrates on vertex k with probability α_k/α0."""
+    alpha = np.array([1e-6, 2e-6, 3e-6, 4e-6])
+    log_p = log_dirichlet(np.tile(alpha, (20_000, 1)), np.random.default_rng(7))
+    assert np.isfinite(log_p).all()
+    winner = log_p.argmax(axis=1)
+    assert (log_p.max(axis=1) > -1e-3).mean() > 0.995  # one entry holds (nearly) all the mass
+    assert chisquare_counts(np.bincount(winner, minlength=4), alpha / alpha.sum()) > P_MIN
+
+
+def test_log_dirichlet_zero_entries_and_batch_shape() -> None:
+    alpha = np.array([[[2.0, 0.0, 1.0], [0.0, 0.0, 5.0]]])
+    log_p = log_dirichlet(alpha, np.random.default_rng(8))
+    assert log_p.shape == alpha.shape
+    assert np.isneginf(log_p[alpha == 0]).all()
+    assert_allclose(log_p[0, 1, 2], 0.0)
+    assert_allclose(logsumexp(log_p, axis=-1), 0.0, atol=1e-12)
+
+
+def test_dirichlet_log_density_matches_scipy() -> None:
+    rng = np.random.default_rng(9)
+    alpha = np.array([0.7, 2.0, 3.5, 1.0])
+    p = rng.dirichlet(alpha, size=5)
+    expected = [stats.dirichlet.logpdf(row, alpha) for row in p]
+    assert_allclose(dirichlet_log_density(np.log(p), alpha), expected, rtol=1e-10)
+
+
+# ----------------------------------------------------------------------------- Normal–inverse-Wishart
+
+
+def test_niw_posterior_matches_textbook_formula() -> None:
+    rng = np.random.default_rng(10)
+    d = 4
+    mu0 = rng.normal(size=d) * 3
+    kappa0, nu0 = 0.05, 10.0
+    psi0 = random_spd(rng, d, 0.1)
+    groups = [rng.normal(loc=5.0, scale=2.0, size=(n, d)) for n in (0, 1, 2, 7, 50)]
+    count = np.array([g.shape[0] for g in groups], dtype=float)
+    total = np.stack([g.sum(0) for g in groups])
+    scatter = np.stack([g.T @ g for g in groups])
+    mu_n, kappa_n, psi_n, nu_n = niw_posterior(count, total, scatter, mu0, kappa0, psi0, nu0)
+    for i, x in enumerate(groups):
+        n = x.shape[0]
+        k_n = kappa0 + n
+        assert kappa_n[i] == pytest.approx(k_n)
+        assert nu_n[i] == pytest.approx(nu0 + n)
+        if n == 0:
+            assert_allclose(mu_n[i], mu0)
+            assert_allclose(psi_n[i], psi0, atol=1e-12)
+            continue
+        xbar = x.mean(0)
+        centred = x - xbar
+        s = centred.T @ centred
+        expected_mu = (kappa0 * mu0 + n * xbar) / k_n
+        expected_psi = psi0 + s + kappa0 * n / k_n * np.outer(xbar - mu0, xbar - mu0)
+        assert_allclose(mu_n[i], expected_mu, rtol=1e-10, atol=1e-12)
+        assert_allclose(psi_n[i], expected_psi, rtol=1e-9, atol=1e-9)
+        assert_allclose(psi_n[i], psi_n[i].T)
+
+
+def test_niw_posterior_batched_prior_mean() -> None:
+    rng = np.random.default_rng(11)
+    mu0 = rng.normal(size=(2, 3, 4))  # per-group prior means (the sampler's per-home μ0)
+    x = rng.normal(size=(2, 3, 5, 4))
+    count = np.full((2, 3), 5.0)
+    mu_n, _, psi_n, _ = niw_posterior(count, x.sum(2), np.einsum("abni,abnj->abij", x, x), mu0, 1.0,
+                                      np.eye(4), 6.0)
+    for a in range(2):
+        for b in range(3):
+            single = niw_posterior(np.array(5.0), x[a, b].sum(0), x[a, b].T @ x[a, b], mu0[a, b], 1.0,
+                                   np.eye(4), 6.0)
+            assert_allclose(mu_n[a, b], single[0])
+            assert_allclose(psi_n[a, b], single[2])
+
+
+def test_sample_niw_moments_and_bartlett_distribution() -> None:
+    rng = np.random.default_rng(12)
+    d = 4
+    n = 30_000
+    mu_n = np.array([1.0, -2.0, 0.5, 3.0])
+    psi = random_spd(rng, d, 2.0)
+    kappa, nu = 3.0, 9.0
+    mu, sigma = sample_niw(np.tile(mu_n, (n, 1)), np.full(n, kappa), np.tile(psi, (n, 1, 1)), np.full(n, nu),
+                           np.random.default_rng(13))
+    assert mu.shape == (n, d) and sigma.shape == (n, d, d)
+    assert_allclose(sigma, np.swapaxes(sigma, 1, 2))
+    assert (np.linalg.eigvalsh(sigma) > 0).all()
+    # E[μ] = μ_n, Cov[μ] = E[Σ]/κ
+    mean_sigma = psi / (nu - d - 1)
+    assert np.abs(z_mean(mu, mu_n, np.diag(mean_sigma) / kappa)).max() < Z_MAX
+    # E[Σ] = Ψ/(ν − d − 1): z-test of every entry with its sample standard error
+    entries = sigma.reshape(n, -1)
+    z = (entries.mean(0) - mean_sigma.ravel()) / (entries.std(0) / np.sqrt(n))
+    assert np.abs(z).max() < Z_MAX
+    # Bartlett correctness: Σ^{-1} ~ W(Ψ^{-1}, ν), so aᵀΣ^{-1}a / aᵀΨ^{-1}a ~ χ²(ν) for any fixed a
+    inv_sigma = np.linalg.inv(sigma)
+    inv_psi = np.linalg.inv(psi)
+    for a in (np.eye(d)[0], np.eye(d)[3], np.array([1.0, -1.0, 2.0, 0.5])):
+        ratio = np.einsum("i,nij,j->n", a, inv_sigma, a) / (a @ inv_psi @ a)
+        assert stats.kstest(ratio, stats.chi2(nu).cdf).pvalue > P_MIN
+    # the diagonal of an inverse-Wishart: Σ_ii ~ InvGamma((ν − d + 1)/2, Ψ_ii/2)
+    for i in range(d):
+        dist = stats.invgamma((nu - d + 1) / 2, scale=psi[i, i] / 2)
+        assert stats.kstest(sigma[:, i, i], dist.cdf).pvalue > P_MIN
+    # μ | Σ ~ N(μ_n, Σ/κ): the Mahalanobis distance is χ²(d)
+    diff = mu - mu_n
+    maha = kappa * np.einsum("ni,nij,nj->n", diff, inv_sigma, diff)
+    assert stats.kstest(maha, stats.chi2(d).cdf).pvalue > P_MIN
+
+
+def test_sample_niw_batch_uses_each_elements_parameters() -> None:
+    rng = np.random.default_rng(14)
+    d = 4
+    psis = np.stack([random_spd(rng, d, 0.5), random_spd(rng, d, 5.0)])
+    nus = np.array([7.0, 30.0])
+    mus = np.array([[0.0, 0.0, 0.0, 0.0], [10.0, -5.0, 1.0, 2.0]])
+    n = 20_000
+    idx = np.tile([0, 1], n)
+    mu, sigma = sample_niw(mus[idx], np.full(idx.size, 2.0), psis[idx], nus[idx], np.random.default_rng(15))
+    for g in (0, 1):
+        sig = sigma[idx == g]
+        expected = psis[g] / (nus[g] - d - 1)
+        z = (sig.reshape(n, -1).mean(0) - expected.ravel()) / (sig.reshape(n, -1).std(0) / np.sqrt(n))
+        assert np.abs(z).max() < Z_MAX
+        assert np.abs(z_mean(mu[idx == g], mus[g], np.diag(expected) / 2.0)).max() < Z_MAX
+
+
+# ----------------------------------------------------------------------------- CRT
+
+
+def crt_draws(n: int, a: float, size: int, seed: int) -> np.ndarray:
+    return sample_crt(np.full(size, n), np.full(size, a), np.random.default_rng(seed))
+
+
+@pytest.mark.parametrize("n", [1, 2, 5, 17, 40])
+@pytest.mark.parametrize("a", [1e-3, 0.3, 1.0, 12.0, 1e4])
+def test_crt_exact_region_pmf(n: int, a: float) -> None:
+    draws = crt_draws(n, a, 20_000, seed=n * 1000 + int(a * 10))
+    assert draws.min() >= 1 and draws.max() <= n
+    pmf = poisson_binomial_pmf(crt_probs(n, a))
+    assert chisquare_counts(np.bincount(draws, minlength=n + 1), pmf) > P_MIN
+
+
+@pytest.mark.parametrize("n", [41, 50, 120, 400, 1000, 5000])
+@pytest.mark.parametrize("a", [1e-3, 0.05, 1.0, 7.0, 100.0, 1e4])
+def test_crt_tail_mean_and_variance(n: int, a: float) -> None:
+    size = 20_000
+    draws = crt_draws(n, a, size, seed=n + int(a * 1000) % 7919)
+    assert draws.min() >= 1 and draws.max() <= n
+    p = crt_probs(n, a)
+    mean, var = p.sum(), (p * (1 - p)).sum()
+    assert abs(z_mean(draws.astype(float), mean, var)) < Z_MAX
+    if var > 0.05:
+        # the rounded normal of the tail adds at most 1/12 to the variance (rounding)
+        assert abs(z_variance(draws.astype(float), var)) < Z_MAX + (1 / 12) / (var * np.sqrt(2.0 / size))
+
+
+@pytest.mark.parametrize(("n", "a"), [(45, 0.5), (60, 3.0), (120, 20.0), (250, 1.0), (300, 500.0),
+                                      (80, 0.02)])
+def test_crt_tail_whole_pmf_close_to_exact(n: int, a: float) -> None:
+    """The moment-matched tail against the exact pmf: a chi-square test at a moderate sample size
+    (what the sampler needs: indistinguishable from exact sums at that size), and a small total
+    variation distance at a large one."""
+    exact = poisson_binomial_pmf(crt_probs(n, a))
+    moderate = crt_draws(n, a, 4_000, seed=n * 7 + 1)
+    assert chisquare_counts(np.bincount(moderate, minlength=n + 1), exact) > P_MIN
+    large = crt_draws(n, a, 200_000, seed=n * 7 + 2)
+    empirical = np.bincount(large, minlength=n + 1) / large.size
+    assert 0.5 * np.abs(empirical - exact).sum() < 0.02
+
+
+def test_crt_against_simulated_exact_sums() -> None:
+    """Two-sample chi-square: sample_crt in its approximated range against explicit Bernoulli sums."""
+    rng = np.random.default_rng(16)
+    n, a, size = 200, 4.0, 5_000
+    exact = (rng.random((size, n)) < crt_probs(n, a)).sum(1)
+    approx = crt_draws(n, a, size, seed=17)
+    values = np.arange(n + 1)
+    table = np.stack([np.bincount(exact, minlength=n + 1), np.bincount(approx, minlength=n + 1)])
+    keep = table.sum(0) >= 10
+    lumped = np.column_stack([table[:, keep], table[:, ~keep].sum(1)]) if (~keep).any() else table[:, keep]
+    lumped = lumped[:, lumped.sum(0) > 0]
+    assert values.size == n + 1
+    assert stats.chi2_contingency(lumped).pvalue > P_MIN
+
+
+def test_crt_edge_cases_shapes_and_independence() -> None:
+    rng = np.random.default_rng(18)
+    counts = np.array([[0, 3, 5], [100, 0, 1]])
+    conc = np.array([[1.0, 0.0, 2.0], [3.0, 5.0, 1e-9]])
+    out = sample_crt(counts, conc, rng)
+    assert out.shape == counts.shape and out.dtype == np.int64
+    assert out[0, 0] == 0 and out[0, 1] == 0 and out[1, 1] == 0  # n = 0 or a = 0
+    assert out[1, 2] == 1  # n = 1: the first customer always opens a table
+    # broadcasting of the concentration
+    b = sample_crt(np.full((3, 4), 30), np.array([0.5, 1.0, 2.0, 4.0]), rng)
+    assert b.shape == (3, 4)
+    # consecutive calls differ, neighbouring entries are uncorrelated
+    first = crt_draws(30, 2.0, 20_000, seed=19)
+    second = sample_crt(np.full(20_000, 30), np.full(20_000, 2.0), np.random.default_rng(20))
+    assert not np.array_equal(first, second)
+    assert abs(np.corrcoef(first[:-1], first[1:])[0, 1]) < Z_MAX / np.sqrt(first.size)
+    # same seed, same draws (counter-based uniforms, independent of threads)
+    assert_array_equal(first, crt_draws(30, 2.0, 20_000, seed=19))
+    with pytest.raises(ValueError):
+        sample_crt(counts, conc, rng, head=3)
+
+
+# ----------------------------------------------------------------------------- categorical draws
+
+
+def test_sample_categorical_log_matches_softmax() -> None:
+    rows = np.array([
+        [np.log(0.2), np.log(0.5), np.log(0.3), -1e100],
+        [-3000.0, -3000.0 + np.log(2.0), -1e100, -6000.0],  # gaps of thousands of nats
+        [5000.0, 5000.0 - 1.0, 5000.0 - 2.0, 5000.0 - 0.5],
+        [-np.inf, 0.0, 0.0, -np.inf],
+    ])
+    n = 20_000
+    log_p = np.repeat(rows, n, axis=0)
+    draws = sample_categorical_log(log_p, np.random.default_rng(21)).reshape(len(rows), n)
+    for r, row in enumerate(rows):
+        probs = softmax(row)
+        assert chisquare_counts(np.bincount(draws[r], minlength=4), probs) > P_MIN
+
+
+def test_sample_categorical_log_degenerate_rows() -> None:
+    log_p = np.array([[1000.0, -1000.0, -1e100], [-1e100, -1e100, 0.0], [-745.0, -745.0, -2e4]])
+    draws = np.stack([sample_categorical_log(log_p, np.random.default_rng(s)) for s in range(200)])
+    assert (draws[:, 0] == 0).all()
+    assert (draws[:, 1] == 2).all()
+    assert set(np.unique(draws[:, 2])) == {0, 1}
+
+
+def joint_probabilities(log_g: np.ndarray, log_pi: np.ndarray, concept_ll: np.ndarray,
+                        region_ll: np.ndarray, e: int, t: int) -> np.ndarray:
+    """Brute force p(C = l, R = m) of sample t of home e, flattened as l·K + m."""
+    table = log_g[e][:, None] + log_pi[e] + concept_ll[t][:, None] + region_ll[t][None, :]
+    return softmax(table.ravel())
+
+
+def test_sample_joint_assignment_matches_enumeration() -> None:
+    rng = np.random.default_rng(22)
+    E, L, K = 2, 3, 4
+    log_g = np.log(rng.dirichlet(np.ones(L), size=E))
+    log_pi = np.log(rng.dirichlet(np.ones(K), size=(E, L)))
+    log_pi[0, 1, :2] = -1e100  # concept 1 of home 0 never uses regions 0, 1
+    log_pi[1, 2] = [-1e100, -1e100, -1e100, 0.0]
+    # distinct samples: ordinary, gaps of thousands of nats, and a concept whose Σ_m π N underflows
+    concept_ll = np.array([
+        [-10.0, -11.0, -9.5],
+        [-4000.0, -4001.0, -4000.5],
+        [-5.0, -3.0, -4.0],
+        [-20000.0, -20001.5, -20000.2],
+    ])
+    region_ll = np.array([
+        [-2.0, -1.0, -3.0, -2.5],
+        [-1500.0, -1502.0, -1501.0, -1499.0],
+        [0.0, -1000.0, -2.0, -0.5],  # region 0 dominates; concept 1 of home 0 cannot use it
+        [-800.0, -800.0, -2000.0, -30.0],  # region 3 dominates: home 1 concept 2 lives there
+    ])
+    homes_of = np.array([0, 1, 0, 1])
+    # the exact log-sum-exp fallback: every region the concept can use is ~1000 nats below the best
+    region_ll[2] = [0.0, -1000.0, -1001.0, -1002.0]
+    n = 20_000
+    homes = np.repeat(homes_of, n)
+    flat = sample_joint_assignment(log_g, log_pi, homes, np.repeat(concept_ll, n, axis=0),
+                                   np.repeat(region_ll, n, axis=0), np.random.default_rng(23))
+    assert flat.shape == (4 * n,)
+    for t in range(4):
+        probs = joint_probabilities(log_g, log_pi, concept_ll, region_ll, homes_of[t], t)
+        observed = np.bincount(flat[t * n:(t + 1) * n], minlength=L * K)
+        assert chisquare_counts(observed, probs) > P_MIN, t
+
+
+def test_sample_joint_assignment_underflow_fallback_is_exact() -> None:
+    """A concept whose region mass lies only where the position is thousands of nats unlikely must
+    keep its exact (tiny but comparable) weight against another equally unlikely concept."""
+    log_g = np.log(np.array([[0.5, 0.5]]))
+    log_pi = np.array([[[-1e100, 0.0, -1e100], [-1e100, -1e100, 0.0]]])  # concept 0 → region 1, 1 → 2
+    region_ll = np.array([[0.0, -1000.0, -1000.0 + np.log(3.0)]])  # region 0 is unused by both
+    concept_ll = np.zeros((1, 2))
+    n = 20_000
+    flat = sample_joint_assignment(log_g, log_pi, np.zeros(n, dtype=np.int64), np.repeat(concept_ll, n, 0),
+                                   np.repeat(region_ll, n, 0), np.random.default_rng(24))
+    probs = joint_probabilities(log_g, log_pi, concept_ll, region_ll, 0, 0)
+    assert_allclose(probs.reshape(2, 3)[:, 0], 0.0, atol=1e-300)
+    assert chisquare_counts(np.bincount(flat, minlength=6), probs) > P_MIN
+    assert abs((flat == 5).mean() - 0.75) < 0.02  # 3 : 1 for concept 1 (region 2)
+
+
+# ----------------------------------------------------------------------------- densities and sparse helpers
+
+
+def test_grouped_gaussian_log_density_matches_scipy() -> None:
+    rng = np.random.default_rng(25)
+    G, K, d, n = 3, 4, 4, 50
+    means = rng.normal(size=(G, K, d)) * 3
+    covs = np.stack([[random_spd(rng, d, s) for s in (0.01, 0.5, 2.0, 10.0)] for _ in range(G)])
+    x = rng.normal(size=(n, d)) * 3
+    groups = rng.integers(0, G, size=n)
+    out = grouped_gaussian_log_density(x, groups, means, covs)
+    assert out.shape == (n, K)
+    expected = np.array([[stats.multivariate_normal.logpdf(x[t], means[groups[t], m], covs[groups[t], m])
+                          for m in range(K)] for t in range(n)])
+    assert_allclose(out, expected, rtol=1e-9, atol=1e-8)
+
+
+def test_grouped_sparse_dot_and_row_sums_match_dense() -> None:
+    rng = np.random.default_rng(26)
+    n, D, G, W = 40, 30, 3, 5
+    dense = np.where(rng.random((n, D)) < 0.3, rng.integers(1, 400, size=(n, D)), 0)
+    dense[5] = 0  # an empty row
+    matrix = sp.csr_array(dense.astype(np.float64))
+    groups = rng.integers(0, G, size=n)
+    table = rng.normal(size=(G, D, W))
+    out = grouped_sparse_dot(matrix, groups, table)
+    expected = np.stack([dense[t] @ table[groups[t]] for t in range(n)])
+    assert_allclose(out, expected, rtol=1e-12, atol=1e-9)
+    sums = grouped_row_sums(sp.csr_array(dense), groups, G + 1)
+    assert sums.dtype == np.int64
+    expected_sums = np.stack([dense[groups == g].sum(0) for g in range(G + 1)])
+    assert_array_equal(sums, expected_sums)
+    # int32 index arrays and int64 data give the same results
+    as_int = sp.csr_array(dense)
+    as_int.indices = as_int.indices.astype(np.int32)
+    assert_allclose(grouped_sparse_dot(as_int, groups, table), expected, rtol=1e-12, atol=1e-9)
