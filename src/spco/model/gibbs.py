@@ -30,7 +30,6 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.cluster.vq import kmeans2
 from scipy.optimize import linear_sum_assignment
-from scipy.special import logsumexp
 from scipy.stats import chi2
 
 from spco.model import allocation
@@ -379,18 +378,30 @@ def _concept_loglik(data: PreparedData, state: GibbsState) -> np.ndarray:
 
 
 def _local_step(data: PreparedData, state: GibbsState, settings: SamplerSettings,
-                rng: np.random.Generator) -> None:
+                rng: np.random.Generator) -> float:
+    """Draw the assignments; returns log p(data, C, R | parameters) of the state it started from
+    (computed from the likelihoods the draw needs anyway)."""
     concept_ll = _concept_loglik(data, state)
+    region_ll = GaussianRegions.log_likelihood(data.positions, data.homes, state.means, state.covariances)
+    before = _conditional_log_joint(data, state, concept_ll, region_ll)
     if settings.joint_assignment:
-        region_ll = GaussianRegions.log_likelihood(data.positions, data.homes, state.means, state.covariances)
         state.concepts, state.regions = allocation.sample_assignments_joint(
             state.log_g, state.log_pi, data.homes, concept_ll, region_ll, rng)
     else:  # the authors' two blocks: R | C, then C | R
-        region_ll = GaussianRegions.log_likelihood(data.positions, data.homes, state.means, state.covariances)
         state.regions = allocation.sample_regions_given_concepts(state.log_pi, data.homes, state.concepts,
                                                                  region_ll, rng)
         state.concepts = allocation.sample_concepts_given_regions(state.log_g, state.log_pi, data.homes,
                                                                   state.regions, concept_ll, rng)
+    return before
+
+
+def _conditional_log_joint(data: PreparedData, state: GibbsState, concept_ll: np.ndarray,
+                           region_ll: np.ndarray) -> float:
+    """Σ_t log G_{e,C_t} + log π_{e,C_t,R_t} + log N(x_t | R_t) + log p(v_t, w_t | C_t)."""
+    homes, c, r = data.homes, state.concepts, state.regions
+    rows = np.arange(data.n_samples)
+    return float((state.log_g[homes, c] + state.log_pi[homes, c, r] + region_ll[rows, r]
+                  + concept_ll[rows, c]).sum())
 
 
 def _global_step(stats: Statistics, state: GibbsState, hyper: TransferHyperparameters,
@@ -447,7 +458,11 @@ def _swap_labels(data: PreparedData, state: GibbsState, stats: Statistics, hyper
 
 
 def _log_mean(log_p: np.ndarray) -> np.ndarray:
-    return logsumexp(log_p, axis=0) - np.log(log_p.shape[0])
+    """log of the mean over the first axis of exp(log_p)."""
+    if log_p.shape[0] == 1:
+        return log_p[0].copy()
+    top = log_p.max(axis=0)
+    return np.log(np.exp(log_p - top).mean(axis=0)) + top
 
 
 def _home_step_reference(data: PreparedData, state: GibbsState, stats: Statistics,
@@ -544,11 +559,14 @@ def swaps_due(iteration: int) -> bool:
 
 
 def sweep(data: PreparedData, state: GibbsState, hyper: TransferHyperparameters, settings: SamplerSettings,
-          rng: np.random.Generator, timer: StepTimer | None = None, swaps: bool = True) -> None:
+          rng: np.random.Generator, timer: StepTimer | None = None, swaps: bool = True) -> float:
     """One Gibbs sweep, in place. ``timer`` (optional) accumulates the time of each step;
-    ``swaps`` includes the label-swap moves (see :func:`swaps_due`)."""
+    ``swaps`` includes the label-swap moves (see :func:`swaps_due`).
+
+    Returns log p(data, C, R | parameters) of the state the sweep started from (the previous
+    sweep's result), which costs nothing extra: the assignment step needs those likelihoods."""
     with _Timed(timer, "assignments"):
-        _local_step(data, state, settings, rng)
+        previous_log_joint = _local_step(data, state, settings, rng)
     with _Timed(timer, "statistics"):
         stats = _statistics(data, state, hyper)
     if settings.variant == "reference":
@@ -569,6 +587,7 @@ def sweep(data: PreparedData, state: GibbsState, hyper: TransferHyperparameters,
     if settings.prune and settings.learn_shared:
         with _Timed(timer, "word pruning"):
             _prune(state, hyper, settings)
+    return previous_log_joint
 
 
 # ----------------------------------------------------------------------------- log joint
@@ -585,12 +604,8 @@ def log_joint(data: PreparedData, state: GibbsState, hyper: TransferHyperparamet
     1e100 and more, which swamps every change of fit; the conditional log joint is the
     trace to watch for convergence."""
     E, L, K = data.n_homes, hyper.n_concepts, hyper.n_regions
-    homes, c, r = data.homes, state.concepts, state.regions
-    region_ll = GaussianRegions.log_likelihood(data.positions, homes, state.means, state.covariances)
-    concept_ll = _concept_loglik(data, state)
-    n = data.n_samples
-    total = float((state.log_g[homes, c] + state.log_pi[homes, c, r] + region_ll[np.arange(n), r]
-                   + concept_ll[np.arange(n), c]).sum())
+    region_ll = GaussianRegions.log_likelihood(data.positions, data.homes, state.means, state.covariances)
+    total = _conditional_log_joint(data, state, _concept_loglik(data, state), region_ll)
     if not include_parameter_priors:
         return total
     mask = state.word_mask

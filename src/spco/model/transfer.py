@@ -144,11 +144,14 @@ class SpatialConceptModel:
                        leave=False)
             iterator = bar
         for iteration in iterator:
-            gibbs.sweep(data, state, hyper, settings, rng, swaps=gibbs.swaps_due(iteration))
-            if self.record_log_joint:
-                trace.append(gibbs.log_joint(data, state, hyper, settings))
+            # each sweep reports the log joint of the state it started from: the previous sweep's
+            previous = gibbs.sweep(data, state, hyper, settings, rng, swaps=gibbs.swaps_due(iteration))
+            if iteration > 0 and self.record_log_joint:
+                trace.append(previous)
                 if bar is not None:
-                    bar.set_postfix(log_joint=f"{trace[-1]:.4g}", refresh=False)
+                    bar.set_postfix(log_joint=f"{previous:.4g}", refresh=False)
+        if self.record_log_joint:
+            trace.append(gibbs.log_joint(data, state, hyper, settings))
         self.fit_seconds_ = time.perf_counter() - start
         self.hyperparameters_ = hyper
         self.settings_ = settings
