@@ -35,11 +35,12 @@ from typing import Literal
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.special import logsumexp, xlogy
+from scipy.special import logsumexp
 
 from spco.data.language import Vocabulary, normalize_name
 from spco.errors import ConfigurationError, SpcoError
 from spco.model.parameters import ConceptParameters
+from spco.model.pruning import bernoulli_kl_scores, word_concept_mutual_information
 
 __all__ = [
     "NamePrediction",
@@ -375,11 +376,6 @@ def word_posterior(
     return _words_from_concepts(concepts, _word_matrix(params, e))
 
 
-def _binary_entropy(p: np.ndarray) -> np.ndarray:
-    p = np.clip(p, 0.0, 1.0)
-    return -(xlogy(p, p) + xlogy(1.0 - p, 1.0 - p))
-
-
 def mutual_information_weights(params: ConceptParameters, e: int) -> np.ndarray:
     """I(w): mutual information (nats) between the indicator "word = w" and the concept C.
 
@@ -391,9 +387,7 @@ def mutual_information_weights(params: ConceptParameters, e: int) -> np.ndarray:
     theta = _word_matrix(params, e)  # (L, V)
     g = np.clip(np.asarray(params.concept_weights[e], dtype=np.float64), 0.0, None)
     g = g / g.sum() if g.sum() > 0 else np.full_like(g, 1.0 / g.size)
-    marginal = g @ theta  # (V,)
-    info = _binary_entropy(marginal) - g @ _binary_entropy(theta)
-    info = np.maximum(info, 0.0)
+    info = word_concept_mutual_information(theta, g)
     info[np.ptp(theta, axis=0) == 0] = 0.0  # exactly uninformative: avoid round-off residue
     info[~np.asarray(params.word_mask, dtype=bool)] = 0.0
     return info
@@ -407,10 +401,7 @@ def reference_kl_weights(params: ConceptParameters, e: int) -> np.ndarray:
     e = _check_home(params, e)
     theta = _word_matrix(params, e)  # (L, V)
     g = np.clip(np.asarray(params.concept_weights[e], dtype=np.float64), 0.0, None)
-    marginal = (g @ theta)[None, :]  # (1, V)
-    kl = (xlogy(theta, theta) - theta * _safe_log(marginal)
-          + xlogy(1.0 - theta, 1.0 - theta) - (1.0 - theta) * _safe_log(1.0 - marginal))
-    kl = np.maximum(kl, 0.0)
+    kl = bernoulli_kl_scores(theta, g)
     kl[:, ~np.asarray(params.word_mask, dtype=bool)] = 0.0
     return kl
 

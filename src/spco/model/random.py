@@ -401,27 +401,34 @@ def sample_crt(
 # ----------------------------------------------------------------------------- categorical
 
 
+@njit(cache=True)
+def _draw_log(log_p: np.ndarray, u: float) -> int:
+    """Index drawn from unnormalised log-probabilities ``log_p`` (1-D) with the uniform ``u``;
+    overwrites ``log_p`` with the shifted weights."""
+    width = log_p.size
+    top = -np.inf
+    for j in range(width):
+        if log_p[j] > top:
+            top = log_p[j]
+    total = 0.0
+    for j in range(width):
+        log_p[j] = np.exp(log_p[j] - top)
+        total += log_p[j]
+    target = u * total
+    acc = 0.0
+    for j in range(width):
+        acc += log_p[j]
+        if acc > target:
+            return j
+    return width - 1
+
+
 @njit(parallel=True, cache=True)
 def _categorical_rows(log_p: np.ndarray, u: np.ndarray) -> np.ndarray:
-    n, width = log_p.shape
+    n = log_p.shape[0]
     out = np.empty(n, dtype=np.int64)
     for t in prange(n):
-        top = -np.inf
-        for j in range(width):
-            if log_p[t, j] > top:
-                top = log_p[t, j]
-        total = 0.0
-        for j in range(width):
-            total += np.exp(log_p[t, j] - top)
-        target = u[t] * total
-        acc = 0.0
-        choice = width - 1
-        for j in range(width):
-            acc += np.exp(log_p[t, j] - top)
-            if acc > target:
-                choice = j
-                break
-        out[t] = choice
+        out[t] = _draw_log(log_p[t].copy(), u[t])
     return out
 
 
@@ -454,7 +461,6 @@ def _joint_assignment(log_g: np.ndarray, log_pi: np.ndarray, pi_scaled: np.ndarr
             r[m] = np.exp(region_ll[t, m] - r_max)
         # marginal of C: log G + loglik + log Σ_m π_{c,m} N(x | m), Σ_m by a dot product when safe
         log_c = np.empty(n_concepts)
-        top = -np.inf
         for c in range(n_concepts):
             total = 0.0
             for m in range(n_regions):
@@ -472,39 +478,11 @@ def _joint_assignment(log_g: np.ndarray, log_pi: np.ndarray, pi_scaled: np.ndarr
                     acc += np.exp(log_pi[e, c, m] - pi_row_max[e, c] + region_ll[t, m] - r_max - inner_top)
                 log_sum = inner_top + np.log(acc)
             log_c[c] = log_g[e, c] + concept_ll[t, c] + pi_row_max[e, c] + log_sum
-            if log_c[c] > top:
-                top = log_c[c]
-        total = 0.0
-        for c in range(n_concepts):
-            log_c[c] = np.exp(log_c[c] - top)
-            total += log_c[c]
-        target = u_concept[t] * total
-        acc = 0.0
-        chosen = n_concepts - 1
-        for c in range(n_concepts):
-            acc += log_c[c]
-            if acc > target:
-                chosen = c
-                break
+        chosen = _draw_log(log_c, u_concept[t])
         # R | C
-        top = -np.inf
         for m in range(n_regions):
-            v = log_pi[e, chosen, m] + region_ll[t, m]
-            if v > top:
-                top = v
-        total = 0.0
-        for m in range(n_regions):
-            r[m] = np.exp(log_pi[e, chosen, m] + region_ll[t, m] - top)
-            total += r[m]
-        target = u_region[t] * total
-        acc = 0.0
-        region = n_regions - 1
-        for m in range(n_regions):
-            acc += r[m]
-            if acc > target:
-                region = m
-                break
-        out[t] = chosen * n_regions + region
+            r[m] = log_pi[e, chosen, m] + region_ll[t, m]
+        out[t] = chosen * n_regions + _draw_log(r, u_region[t])
     return out
 
 

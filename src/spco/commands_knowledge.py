@@ -1,0 +1,411 @@
+"""``spco fit | adapt | where | what | teach | show``: knowledge that travels, from the command line.
+
+Learn once from experienced homes (``fit`` writes a knowledge file), adapt to a new home in
+seconds (``adapt`` writes a home file), ask the robot (``where``, ``what``), teach it more
+(``teach``) and draw what it knows (``show``). See :mod:`spco.knowledge` for the model and the
+file formats.
+
+Registered in :mod:`spco.cli` (``for command in KNOWLEDGE_COMMANDS: main.add_command(command)``).
+Heavy imports happen when a command runs, so ``spco --help`` stays fast; spco's errors are
+reported by the command line's ``_friendly_errors`` (one line, exit status 2).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import json
+import math
+import os
+import sys
+import tempfile
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import click
+
+__all__ = ["KNOWLEDGE_COMMANDS", "adapt", "fit", "show", "teach", "what", "where"]
+
+_MODEL_NAMES = ("spcotransfer+mi", "spcotransfer", "spcotransfer-ref+mi", "spcotransfer-ref")
+
+
+def _friendly(func: Callable[..., Any]) -> Callable[..., Any]:
+    """Report spco's errors like every other command (``spco.cli._friendly_errors``), imported
+    when the command runs so that this module and :mod:`spco.cli` can import each other."""
+
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        from spco.cli import _friendly_errors
+
+        return _friendly_errors(func)(*args, **kwargs)
+
+    return wrapper
+
+
+def _progress() -> bool:
+    return sys.stderr.isatty()
+
+
+def _check_out(path: Path, force: bool) -> None:
+    """Refuse early (before any long computation) to write where the user would lose a file."""
+    from spco.errors import ConfigurationError
+
+    if path.is_dir():
+        raise ConfigurationError(f"{path} is a folder; give the name of the file to write (--out)")
+    if not path.expanduser().resolve().parent.is_dir():
+        raise ConfigurationError(f"cannot write {path}: the folder {str(path.parent)!r} does not exist")
+    if path.exists() and not force:
+        raise ConfigurationError(f"{path} already exists; pass --force to replace it")
+
+
+def _names(text: str | None) -> list[str] | None:
+    if text is None:
+        return None
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    if not names:
+        from spco.errors import ConfigurationError
+
+        raise ConfigurationError("--homes lists no home; give comma-separated home names")
+    return names
+
+
+def _extent(text: str | None) -> tuple[float, float, float, float] | None:
+    if text is None:
+        return None
+    from spco.errors import ConfigurationError
+
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != 4 or not all(math.isfinite(v) for v in values) or values[0] >= values[1] \
+            or values[2] >= values[3]:
+        raise ConfigurationError(f"--extent must be x_min,x_max,y_min,y_max in metres (increasing), "
+                                 f"got {text!r}")
+    return values  # type: ignore[return-value]
+
+
+def _seconds(value: float) -> str:
+    return f"{value * 1000:.0f} ms" if value < 1 else f"{value:.1f} s"
+
+
+# ------------------------------------------------------------------------------------ fit
+@click.command(name="fit")
+@click.option("--data", "data", required=True, type=click.Path(path_type=Path),
+              help="The experienced homes: a folder of homes (SIGVerse or plain layout) or an "
+                   "`spco import` cache file.")
+@click.option("--homes", default=None,
+              help="Comma-separated names of the homes to learn from (default: every home in --data).")
+@click.option("--teaching-rate", "-r", default=100, show_default=True, type=click.IntRange(0, 100),
+              help="Percentage of taught samples to use in each home.")
+@click.option("--model", default="spcotransfer+mi", show_default=True, type=click.Choice(_MODEL_NAMES),
+              help="The transfer model (exact or the authors' reference sampler, with or without "
+                   "mutual-information word pruning).")
+@click.option("--iterations", default=200, show_default=True, type=click.IntRange(1),
+              help="Gibbs sweeps.")
+@click.option("--seed", default=0, show_default=True, type=click.IntRange(0), help="Random seed.")
+@click.option("--out", "-o", required=True, type=click.Path(path_type=Path),
+              help="The knowledge file to write (e.g. knowledge.spco).")
+@click.option("--force", is_flag=True, help="Replace --out if it exists.")
+@_friendly
+def fit(data: Path, homes: str | None, teaching_rate: int, model: str, iterations: int, seed: int,
+        out: Path, force: bool) -> None:
+    """Learn knowledge from experienced homes and write a knowledge file.
+
+    The knowledge is the shared, home-independent part of the transfer model — the concepts'
+    visual and word distributions, their global weights, the vocabulary, the hyperparameters —
+    averaged over the posterior samples of the last quarter of the chain, with its provenance.
+    Give it to `spco adapt` to learn a new home.
+    """
+    from spco.data.environment import Corpus
+    from spco.data.loading import load_homes
+    from spco.knowledge import fit_knowledge
+
+    _check_out(out, force)
+    envs = load_homes(data, names=_names(homes), teaching_rate=teaching_rate, progress=_progress())
+    corpus = Corpus(envs)
+    n_samples = sum(e.n_train for e in envs)
+    click.echo(f"Learning from {len(envs)} homes ({n_samples} training samples, "
+               f"{sum(e.n_taught for e in envs)} taught, {len(corpus.vocabulary)} words) with {model}, "
+               f"{iterations} sweeps...", err=True)
+    start = time.perf_counter()
+    knowledge = fit_knowledge(corpus, model=model, n_iterations=iterations, random_state=seed,
+                              progress=_progress(),
+                              provenance={"data": str(Path(data).expanduser().resolve()),
+                                          "teaching_rate": teaching_rate})
+    knowledge.save(out, overwrite=force)
+    click.echo(knowledge.describe())
+    click.echo(f"Wrote {out} in {_seconds(time.perf_counter() - start)}.")
+
+
+# ------------------------------------------------------------------------------------ adapt
+@click.command(name="adapt")
+@click.argument("knowledge_file", metavar="KNOWLEDGE", type=click.Path(path_type=Path))
+@click.option("--home", "home_path", required=True, type=click.Path(path_type=Path),
+              help="The new home: a home folder (SIGVerse or plain layout), or a folder/cache with --name.")
+@click.option("--name", default=None, help="Which home of --home to use when it holds several.")
+@click.option("--teaching-rate", "-r", default=100, show_default=True, type=click.IntRange(0, 100),
+              help="Percentage of the home's taught samples to use (a new home may have none).")
+@click.option("--iterations", default=100, show_default=True, type=click.IntRange(1), help="Gibbs sweeps.")
+@click.option("--seed", default=0, show_default=True, type=click.IntRange(0), help="Random seed.")
+@click.option("--joint", is_flag=True,
+              help="Refine the shared part too, with the knowledge as its prior (default: keep it fixed).")
+@click.option("--out", "-o", required=True, type=click.Path(path_type=Path),
+              help="The home file to write (e.g. home.spco).")
+@click.option("--force", is_flag=True, help="Replace --out if it exists.")
+@_friendly
+def adapt(knowledge_file: Path, home_path: Path, name: str | None, teaching_rate: int, iterations: int,
+          seed: int, joint: bool, out: Path, force: bool) -> None:
+    """Learn a new home with the knowledge of KNOWLEDGE as its prior; write a home file.
+
+    Learns the home's regions, concept weights, visual and word distributions and the concepts
+    and regions of its samples. Words the knowledge never heard are added to the vocabulary.
+    """
+    from spco.data.loading import load_home, load_homes
+    from spco.knowledge import adapt as adapt_home
+    from spco.knowledge import load_knowledge
+
+    _check_out(out, force)
+    knowledge = load_knowledge(knowledge_file)
+    if name is not None:
+        env = load_homes(home_path, names=[name], teaching_rate=teaching_rate)[0]
+    else:
+        env = load_home(home_path, teaching_rate=teaching_rate)
+    home = adapt_home(knowledge, env, n_iterations=iterations, random_state=seed, joint=joint,
+                      progress=_progress(),
+                      provenance={"knowledge_file": str(Path(knowledge_file).expanduser().resolve()),
+                                  "home_path": str(Path(home_path).expanduser().resolve()),
+                                  "teaching_rate": teaching_rate})
+    home.save(out, overwrite=force)
+    seconds = home.provenance["adapt"]["seconds"]
+    click.echo(home.describe())
+    new_words = home.provenance["adapt"]["new_words"]
+    if new_words:
+        click.echo(f"New words learnt in this home: {', '.join(new_words)}")
+    click.echo(f"Adapted in {_seconds(seconds)} ({iterations} sweeps); wrote {out}.")
+
+
+# ------------------------------------------------------------------------------------ where
+@click.command(name="where")
+@click.argument("home_file", metavar="HOME", type=click.Path(path_type=Path))
+@click.argument("name")
+@click.option("--n", "n", default=10, show_default=True, type=click.IntRange(1, 10000),
+              help="Number of positions.")
+@click.option("--seed", default=0, show_default=True, type=click.IntRange(0), help="Random seed.")
+@click.option("--json", "as_json", is_flag=True,
+              help="Print a JSON object whose `positions` lists {x, y, theta, probability}.")
+@_friendly
+def where(home_file: Path, name: str, n: int, seed: int, as_json: bool) -> None:
+    """Positions (x, y, θ) to go to for the place NAME in the home of HOME.
+
+    Draws N poses from the region most probable for NAME; each pose's probability is its share of
+    the density p(pose | NAME) among the N poses. A name the robot never heard is answered with
+    the names it knows (exit status 2).
+    """
+    from spco.knowledge import load_home_model
+    from spco.knowledge import where as where_name
+
+    home = load_home_model(home_file)
+    pred = where_name(home, name, n=n, random_state=seed)
+    order = sorted(range(pred.samples.shape[0]), key=lambda i: -float(pred.weights[i]))
+    positions = [{"x": float(pred.samples[i, 0]), "y": float(pred.samples[i, 1]),
+                  "theta": float(pred.samples[i, 2]), "probability": float(pred.weights[i])} for i in order]
+    if as_json:
+        click.echo(json.dumps({"home": home.name, "name": pred.name, "region": int(pred.region),
+                               "region_probability": float(pred.region_probabilities[pred.region]),
+                               "positions": positions}, indent=1))
+        return
+    click.echo(f"{pred.name} in home {home.name}: region {pred.region} "
+               f"(p = {pred.region_probabilities[pred.region]:.2f})")
+    click.echo(f"{'x':>8} {'y':>8} {'theta':>7}  probability")
+    for p in positions:
+        click.echo(f"{p['x']:8.3f} {p['y']:8.3f} {p['theta']:7.3f}  {p['probability']:.3f}")
+
+
+# ------------------------------------------------------------------------------------ what
+@click.command(name="what")
+@click.argument("home_file", metavar="HOME", type=click.Path(path_type=Path))
+@click.option("--x", "x", required=True, type=float, help="x on the map, metres.")
+@click.option("--y", "y", required=True, type=float, help="y on the map, metres.")
+@click.option("--theta", "theta", required=True, type=float, help="Heading, radians.")
+@click.option("--visual", type=click.Path(path_type=Path), default=None,
+              help="The current view's features (.csv/.txt numbers, .npy or .npz); default: position only.")
+@click.option("--visual-scale", type=float, default=None,
+              help="Turn real-valued CNN features into counts: floor(max(f, 0) × scale) (the authors: 5).")
+@click.option("--top", default=3, show_default=True, type=click.IntRange(1, 100), help="Names to list.")
+@click.option("--json", "as_json", is_flag=True, help="Print a JSON object.")
+@_friendly
+def what(home_file: Path, x: float, y: float, theta: float, visual: Path | None, visual_scale: float | None,
+         top: int, as_json: bool) -> None:
+    """The most probable place names at a pose of the home of HOME, with their probabilities.
+
+    With --visual the view's features are used too; without, the position alone. The probability
+    is p(name | pose, view); names are ranked by it times the name's mutual information with the
+    concepts (so that "this" or "is" are never answered).
+    """
+    from spco.knowledge import load_home_model, read_visual_vector
+    from spco.knowledge import what as what_names
+
+    home = load_home_model(home_file)
+    counts = None if visual is None else read_visual_vector(visual, home.knowledge.n_features, visual_scale)
+    pred = what_names(home, x, y, theta, visual=counts, top_k=top)
+    names = [{"name": str(w), "probability": float(p), "score": float(s)}
+             for w, p, s in zip(pred.words[0], pred.probabilities[0], pred.scores[0], strict=True)]
+    if as_json:
+        click.echo(json.dumps({"home": home.name, "pose": {"x": x, "y": y, "theta": theta},
+                               "vision": counts is not None, "names": names}, indent=1))
+        return
+    click.echo(f"At ({x:g}, {y:g}, θ={theta:g}) in home {home.name} "
+               f"({'position and view' if counts is not None else 'position only'}):")
+    if not names:
+        click.echo("  the robot knows no place names yet (nothing was taught); teach it with `spco teach`")
+    width = max((len(n["name"]) for n in names), default=0)
+    for rank, n in enumerate(names, 1):
+        click.echo(f"  {rank}. {n['name']:<{width}}  {n['probability']:.3f}")
+
+
+# ------------------------------------------------------------------------------------ teach
+@click.command(name="teach")
+@click.argument("home_file", metavar="HOME", type=click.Path(path_type=Path))
+@click.option("--id", "ids", type=int, multiple=True,
+              help="A sample of the home to (re)name; repeat with --sentence for several.")
+@click.option("--sentence", "sentences", multiple=True,
+              help="What the user said there (\"\" forgets the sample's sentence).")
+@click.option("--x", "x", type=float, default=None, help="New observation: x on the map, metres.")
+@click.option("--y", "y", type=float, default=None, help="New observation: y, metres.")
+@click.option("--theta", "theta", type=float, default=None, help="New observation: heading, radians.")
+@click.option("--visual", type=click.Path(path_type=Path), default=None,
+              help="New observation: the view's features (.csv/.txt numbers, .npy or .npz).")
+@click.option("--visual-scale", type=float, default=None,
+              help="Turn real-valued CNN features into counts: floor(max(f, 0) × scale).")
+@click.option("--sweeps", default=10, show_default=True, type=click.IntRange(0, 10000),
+              help="Gibbs sweeps from the home's current state.")
+@click.option("--seed", default=0, show_default=True, type=click.IntRange(0), help="Random seed.")
+@click.option("--out", "-o", type=click.Path(path_type=Path), default=None,
+              help="Write the updated home here instead of updating HOME in place.")
+@click.option("--force", is_flag=True, help="Replace --out if it exists.")
+@_friendly
+def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: float | None, y: float | None,
+          theta: float | None, visual: Path | None, visual_scale: float | None, sweeps: int, seed: int,
+          out: Path | None, force: bool) -> None:
+    """Teach the robot in the home of HOME: a sentence for a sample, or a new observation.
+
+    \b
+    spco teach home.spco --id 12 --sentence "this is Emma's room"
+    spco teach home.spco --x 1.2 --y -0.4 --theta 1.57 --visual view.csv --sentence "the study is here"
+
+    An incremental update (a few sweeps from the current state; everything learnt so far is
+    kept); new words grow the vocabulary. HOME is updated in place (atomically) unless --out is given.
+    """
+    from spco.errors import ConfigurationError
+    from spco.knowledge import Observation, load_home_model, read_visual_vector
+    from spco.knowledge import teach as teach_home
+
+    pose = (x, y, theta)
+    new_observation = any(v is not None for v in (*pose, visual))
+    if new_observation:
+        if ids:
+            raise ConfigurationError("give either --id with --sentence (a known sample) or --x/--y/--theta/"
+                                     "--visual (a new observation), not both")
+        if any(v is None for v in pose) or visual is None:
+            raise ConfigurationError("a new observation needs --x, --y, --theta and --visual")
+        if len(sentences) > 1:
+            raise ConfigurationError("a new observation takes at most one --sentence")
+    elif not ids:
+        raise ConfigurationError("nothing to teach: give --id ID --sentence TEXT, or a new observation "
+                                 "(--x, --y, --theta, --visual)")
+    elif len(ids) != len(sentences):
+        raise ConfigurationError(f"{len(ids)} --id but {len(sentences)} --sentence: give one sentence per id")
+    target = out if out is not None else home_file
+    if out is not None:
+        _check_out(out, force)
+    home = load_home_model(home_file)
+    if new_observation:
+        counts = read_visual_vector(visual, home.knowledge.n_features, visual_scale)  # type: ignore[arg-type]
+        obs = Observation(x=x, y=y, theta=theta, visual=counts,  # type: ignore[arg-type]
+                          sentence=sentences[0] if sentences else None)
+        updated = teach_home(home, observations=[obs], n_sweeps=sweeps, random_state=seed)
+    else:
+        updated = teach_home(home, dict(zip(ids, sentences, strict=True)), n_sweeps=sweeps, random_state=seed)
+    updated.save(target, overwrite=True if out is None else force)
+    last = updated.provenance["last_teach"]
+    if new_observation:
+        click.echo(f"Added sample {int(updated.ids[-1])} at ({x:g}, {y:g}, θ={theta:g})"
+                   + (f": {sentences[0]!r}" if sentences and sentences[0].strip() else ""))
+    else:
+        for i, s in zip(ids, sentences, strict=True):
+            click.echo(f"Sample {i}: {s!r}" if s.strip() else f"Sample {i}: sentence forgotten")
+    if last["new_words"]:
+        click.echo(f"New words: {', '.join(last['new_words'])}")
+    click.echo(f"Updated home {updated.name} in {_seconds(last['seconds'])} ({sweeps} sweeps): "
+               f"{updated.n_samples} samples, {updated.n_taught} taught; wrote {target}.")
+
+
+# ------------------------------------------------------------------------------------ show
+@click.command(name="show")
+@click.argument("home_file", metavar="HOME", type=click.Path(path_type=Path))
+@click.option("--out", "-o", required=True, type=click.Path(path_type=Path), help="The PNG to write.")
+@click.option("--map", "map_image", type=click.Path(path_type=Path), default=None,
+              help="Floor-plan image drawn under the concepts.")
+@click.option("--extent", default=None,
+              help="x_min,x_max,y_min,y_max in metres covered by --map (default: the home's map extent).")
+@click.option("--name", "names", multiple=True, help="Also draw positions for this place name (repeatable).")
+@click.option("--seed", default=0, show_default=True, type=click.IntRange(0), help="Random seed.")
+@click.option("--force", is_flag=True, help="Replace --out if it exists.")
+@_friendly
+def show(home_file: Path, out: Path, map_image: Path | None, extent: str | None, names: Sequence[str],
+         seed: int, force: bool) -> None:
+    """Draw the home's concepts on its floor plan: regions (95 % ellipses coloured by concept)
+    labelled with their names, the home's samples, and positions for the names given."""
+    import numpy as np
+
+    from spco import plots
+    from spco.errors import ConfigurationError
+    from spco.knowledge import load_home_model
+    from spco.knowledge import where as where_name
+
+    _check_out(out, force)
+    if map_image is not None and not Path(map_image).is_file():
+        raise ConfigurationError(f"{map_image}: no such map image (--map)")
+    home = load_home_model(home_file)
+    rng = np.random.default_rng(seed)
+    predicted = {}
+    for name in names:
+        pred = where_name(home, name, n=10, random_state=rng)
+        predicted[pred.name] = pred.samples
+    bounds = _extent(extent)
+    if bounds is None and map_image is not None and home.extent is None:
+        raise ConfigurationError("the home has no map extent: give --extent x_min,x_max,y_min,y_max "
+                                 "for --map")
+    try:
+        fig = plots.plot_home_map(home.parameters, 0, home.environment(), home.vocabulary,
+                                  map_image=map_image, map_extent=bounds,
+                                  predicted_positions=predicted or None,
+                                  title=f"{home.name}: {home.n_samples} samples, {home.n_taught} taught")
+    except (OSError, ValueError, SyntaxError) as exc:  # an unreadable image
+        if isinstance(exc, ConfigurationError):
+            raise
+        raise ConfigurationError(f"{map_image}: cannot draw the map image ({exc})") from None
+    _save_png(fig, out)
+    click.echo(f"Wrote {out}")
+
+
+def _save_png(fig: Any, out: Path) -> None:
+    """Save a figure atomically (temporary file in the same folder, then renamed)."""
+    folder = out.expanduser().resolve().parent
+    fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{out.name}.", suffix=".png")
+    os.close(fd)
+    try:
+        fig.savefig(tmp, dpi=120, format="png")
+        os.replace(tmp, out)
+        tmp = ""
+    finally:
+        if tmp:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+
+
+#: The commands to register in :mod:`spco.cli`.
+KNOWLEDGE_COMMANDS = (fit, adapt, where, what, teach, show)
