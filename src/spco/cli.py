@@ -171,9 +171,11 @@ def demo(seed: int, out: Path, homes: int, iterations: int) -> None:
 
 def _register_commands() -> None:
     """Add the command groups that live in their own modules."""
+    from spco.commands_bench import bench
     from spco.commands_experiment import experiment
 
     main.add_command(experiment)
+    main.add_command(bench)
 
 
 _register_commands()
