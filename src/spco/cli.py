@@ -173,9 +173,12 @@ def _register_commands() -> None:
     """Add the command groups that live in their own modules."""
     from spco.commands_bench import bench
     from spco.commands_experiment import experiment
+    from spco.commands_knowledge import KNOWLEDGE_COMMANDS
 
     main.add_command(experiment)
     main.add_command(bench)
+    for command in KNOWLEDGE_COMMANDS:  # fit, adapt, where, what, teach, show
+        main.add_command(command)
 
 
 _register_commands()

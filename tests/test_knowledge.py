@@ -1,0 +1,443 @@
+"""Knowledge that travels: spco fit / adapt / where / what / teach / show and their files.
+
+Everything runs on a few small synthetic homes (128 visual features, a handful of sweeps): these
+tests check the workflow, the file formats and the handling of bad input, not accuracy (the
+accuracy bars are measured on the SIGVerse data, see the README).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from spco import knowledge as kn
+from spco.commands_knowledge import adapt, fit, show, teach, what, where
+from spco.data.environment import Corpus
+from spco.data.plain import write_corpus
+from spco.data.synthetic import SyntheticConfig, generate_homes
+from spco.errors import ConfigurationError, DataFormatError, ModelFileError
+from spco.prediction import UnknownNameError
+
+CONFIG = SyntheticConfig(n_features=128)
+
+
+def _invoke(command, args: list[str]):
+    result = CliRunner().invoke(command, [str(a) for a in args], catch_exceptions=False)
+    return result
+
+
+@pytest.fixture(scope="module")
+def homes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """Three experienced synthetic homes and one new home (nothing taught), in the plain format."""
+    root = tmp_path_factory.mktemp("knowledge")
+    corpus = generate_homes(4, seed=3, config=CONFIG, new_homes=1, specific_rooms=False)
+    write_corpus(list(corpus)[:3], root / "experienced")
+    write_corpus(list(corpus)[3:], root / "new")
+    return {"root": root, "experienced": root / "experienced", "new": root / "new" / corpus.names[3],
+            "new_name": corpus.names[3]}
+
+
+@pytest.fixture(scope="module")
+def knowledge_file(homes: dict[str, Path]) -> Path:
+    out = homes["root"] / "knowledge.spco"
+    result = _invoke(fit, ["--data", homes["experienced"], "--iterations", 12, "--seed", 1, "--out", out])
+    assert result.exit_code == 0, result.output
+    return out
+
+
+@pytest.fixture(scope="module")
+def home_file(homes: dict[str, Path], knowledge_file: Path) -> Path:
+    out = homes["root"] / "home.spco"
+    result = _invoke(adapt, [knowledge_file, "--home", homes["new"], "--iterations", 15, "--out", out])
+    assert result.exit_code == 0, result.output
+    return out
+
+
+def _copy(src: Path, dst: Path) -> Path:
+    dst.write_bytes(src.read_bytes())
+    return dst
+
+
+# ----------------------------------------------------------------------------------- fit
+def test_fit_writes_knowledge_with_provenance(knowledge_file: Path, homes: dict[str, Path]) -> None:
+    k = kn.load_knowledge(knowledge_file)
+    assert k.model == "spcotransfer+mi"
+    assert len(k.provenance["homes"]) == 3
+    assert k.provenance["seed"] == 1 and k.provenance["n_iterations"] == 12
+    assert k.provenance["summary"]["n_samples"] == 3
+    assert k.provenance["spco_version"]
+    assert k.provenance["data"] == str(homes["experienced"].resolve())
+    assert k.n_features == 128 and k.log_phi_words.shape == (k.n_concepts, k.n_words)
+    assert np.allclose(np.exp(k.log_phi_visual).sum(1), 1.0)
+    assert "kitchen" in k.vocabulary
+
+
+def test_fit_refuses_to_overwrite_without_force(knowledge_file: Path, homes: dict[str, Path]) -> None:
+    before = knowledge_file.read_bytes()
+    result = _invoke(fit, ["--data", homes["experienced"], "--iterations", 2, "--out", knowledge_file])
+    assert result.exit_code == 2
+    assert "already exists" in result.output and "--force" in result.output
+    assert knowledge_file.read_bytes() == before
+
+
+def test_fit_force_and_home_selection(tmp_path: Path, homes: dict[str, Path]) -> None:
+    out = tmp_path / "k.spco"
+    out.write_text("old")
+    names = sorted(p.name for p in homes["experienced"].iterdir())[:2]
+    result = _invoke(fit, ["--data", homes["experienced"], "--homes", ",".join(names), "--iterations", 2,
+                           "--model", "spcotransfer", "--out", out, "--force"])
+    assert result.exit_code == 0, result.output
+    k = kn.load_knowledge(out)
+    assert k.provenance["homes"] == names and not k.prune_words and k.word_mask.all()
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--homes", "no_such_home"], "no home named"),
+    (["--teaching-rate", "101"], "101"),
+])
+def test_fit_bad_input(tmp_path: Path, homes: dict[str, Path], args: list[str], message: str) -> None:
+    result = _invoke(fit, ["--data", homes["experienced"], "--iterations", 2, "--out", tmp_path / "k.spco",
+                           *args])
+    assert result.exit_code == 2 and message in result.output
+    assert "Traceback" not in result.output and not (tmp_path / "k.spco").exists()
+
+
+def test_fit_missing_data(tmp_path: Path) -> None:
+    result = _invoke(fit, ["--data", tmp_path / "nowhere", "--out", tmp_path / "k.spco"])
+    assert result.exit_code == 2 and "no such file or folder" in result.output
+
+
+# ----------------------------------------------------------------------------------- adapt
+def test_adapt_writes_home(home_file: Path, knowledge_file: Path, homes: dict[str, Path]) -> None:
+    home = kn.load_home_model(home_file)
+    k = kn.load_knowledge(knowledge_file)
+    assert home.name == homes["new_name"]
+    assert home.provenance["knowledge_checksum"] == k.checksum
+    assert home.provenance["adapt"]["n_iterations"] == 15
+    assert home.parameters.n_environments == 1
+    assert home.n_taught == 0 and home.n_samples == home.state.concepts.size
+    # the shared part is the knowledge's (kept fixed)
+    assert np.array_equal(home.state.log_phi_v, k.log_phi_visual)
+    assert np.array_equal(home.state.log_g0, k.log_g0)
+
+
+def test_adapt_joint_refines_shared_part(tmp_path: Path, knowledge_file: Path,
+                                         homes: dict[str, Path]) -> None:
+    k = kn.load_knowledge(knowledge_file)
+    env = next(iter(Corpus([_load(homes["new"])])))
+    home = kn.adapt(k, env, n_iterations=3, random_state=0, joint=True)
+    assert home.joint and not np.array_equal(home.state.log_phi_v, k.log_phi_visual)
+    home.save(tmp_path / "h.spco")
+    assert kn.load_home_model(tmp_path / "h.spco").joint
+
+
+def _load(path: Path):
+    from spco.data.loading import load_home
+
+    return load_home(path)
+
+
+@pytest.mark.parametrize("case", ["missing home", "missing knowledge", "truncated", "tampered", "home file",
+                                  "out exists"])
+def test_adapt_bad_input(case: str, tmp_path: Path, knowledge_file: Path, home_file: Path,
+                         homes: dict[str, Path]) -> None:
+    k_path, home_path, out = knowledge_file, homes["new"], tmp_path / "h.spco"
+    expected = {"missing home": "no such file or folder", "missing knowledge": "no such knowledge file",
+                "truncated": "truncated", "tampered": "checksum mismatch",
+                "home file": "not a knowledge file", "out exists": "already exists"}[case]
+    if case == "missing home":
+        home_path = tmp_path / "absent"
+    elif case == "missing knowledge":
+        k_path = tmp_path / "absent.spco"
+    elif case == "truncated":
+        k_path = tmp_path / "cut.spco"
+        k_path.write_bytes(knowledge_file.read_bytes()[: knowledge_file.stat().st_size // 2])
+    elif case == "tampered":
+        k_path = _tamper_array(knowledge_file, tmp_path / "bad.spco", "log_g0")
+    elif case == "home file":
+        k_path = home_file
+    else:
+        out.write_text("precious")
+    result = _invoke(adapt, [k_path, "--home", home_path, "--iterations", 2, "--out", out])
+    assert result.exit_code == 2, result.output
+    assert expected in result.output and "Traceback" not in result.output
+    if case == "out exists":
+        assert out.read_text() == "precious"
+    else:
+        assert not out.exists()
+
+
+def _tamper_array(src: Path, dst: Path, name: str) -> Path:
+    """Rewrite ``src`` with one array changed but the header (and its checksums) kept."""
+    with np.load(src, allow_pickle=False) as archive:
+        arrays = {k: archive[k] for k in archive.files}
+    arrays[name] = arrays[name] + 1e-3
+    with open(dst, "wb") as handle:  # a handle: np.savez would add ".npz" to the name
+        np.savez(handle, **arrays)
+    return dst
+
+
+def _rewrite_header(src: Path, dst: Path, change) -> Path:
+    with np.load(src, allow_pickle=False) as archive:
+        arrays = {k: archive[k] for k in archive.files}
+    header = json.loads(arrays.pop("header").tobytes().decode())
+    change(header)
+    raw = np.frombuffer(json.dumps(header).encode(), dtype=np.uint8)
+    with open(dst, "wb") as handle:
+        np.savez(handle, header=raw, **arrays)
+    return dst
+
+
+# ----------------------------------------------------------------------------------- files
+def test_knowledge_round_trip(tmp_path: Path, knowledge_file: Path) -> None:
+    k = kn.load_knowledge(knowledge_file)
+    k.save(tmp_path / "again.spco")
+    k2 = kn.load_knowledge(tmp_path / "again.spco")
+    assert k2.checksum == k.checksum
+    for name in ("log_phi_visual", "log_phi_words", "log_g0", "word_mask", "concentration_visual"):
+        assert np.array_equal(getattr(k, name), getattr(k2, name), equal_nan=name.startswith("conc"))
+    assert k2.vocabulary == k.vocabulary and k2.hyperparameters == k.hyperparameters
+    with pytest.raises(ModelFileError, match="already exists"):
+        k.save(tmp_path / "again.spco")
+
+
+def test_home_round_trip_predicts_the_same(tmp_path: Path, home_file: Path) -> None:
+    home = kn.load_home_model(home_file)
+    home.save(tmp_path / "again.spco")
+    again = kn.load_home_model(tmp_path / "again.spco")
+    for name, value in home.parameters.arrays().items():
+        assert np.array_equal(value, getattr(again.parameters, name)), name
+    assert again.sentences == home.sentences and np.array_equal(again.ids, home.ids)
+    assert (again.visual != home.visual).nnz == 0
+    a = kn.what(home, 0.0, 0.0, 0.5)
+    b = kn.what(again, 0.0, 0.0, 0.5)
+    assert np.array_equal(a.words, b.words) and np.allclose(a.probabilities, b.probabilities)
+
+
+def test_files_from_a_newer_version_or_edited_header_are_refused(tmp_path: Path, knowledge_file: Path,
+                                                                  home_file: Path) -> None:
+    newer = _rewrite_header(knowledge_file, tmp_path / "newer.spco",
+                            lambda h: h.update(format_version=kn.FORMAT_VERSION + 1))
+    with pytest.raises(ModelFileError, match="newer spco"):
+        kn.load_knowledge(newer)
+    edited = _rewrite_header(knowledge_file, tmp_path / "edited.spco",
+                             lambda h: h.update(vocabulary=list(reversed(h["vocabulary"]))))
+    with pytest.raises(ModelFileError, match="checksum mismatch of the header"):
+        kn.load_knowledge(edited)
+    with pytest.raises(ModelFileError, match="checksum mismatch"):
+        kn.load_home_model(_tamper_array(home_file, tmp_path / "h.spco", "positions"))
+    with pytest.raises(ModelFileError, match="not a home file"):
+        kn.load_home_model(knowledge_file)
+    (tmp_path / "text.spco").write_text("hello")
+    with pytest.raises(ModelFileError, match="truncated or corrupted"):
+        kn.load_home_model(tmp_path / "text.spco")
+
+
+def test_no_pickle_in_files(knowledge_file: Path, home_file: Path) -> None:
+    for path in (knowledge_file, home_file):
+        with np.load(path, allow_pickle=False) as archive:
+            for name in archive.files:
+                assert archive[name].dtype != object
+
+
+# ----------------------------------------------------------------------------------- where
+def test_where_text_and_json(home_file: Path) -> None:
+    result = _invoke(where, [home_file, "kitchen", "--n", 4])
+    assert result.exit_code == 0, result.output
+    assert result.output.startswith("kitchen in home") and len(result.output.strip().splitlines()) == 6
+    result = _invoke(where, [home_file, "Kitchen", "--n", 5, "--json"])
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.output)
+    assert data["name"] == "kitchen" and len(data["positions"]) == 5
+    for p in data["positions"]:
+        assert set(p) == {"x", "y", "theta", "probability"}
+        assert -np.pi <= p["theta"] <= np.pi and 0 <= p["probability"] <= 1
+    assert abs(sum(p["probability"] for p in data["positions"]) - 1) < 1e-9
+
+
+def test_where_unknown_name_is_a_clear_answer(home_file: Path) -> None:
+    result = _invoke(where, [home_file, "kitchn"])
+    assert result.exit_code == 2
+    assert "unknown place name 'kitchn'" in result.output and "did you mean 'kitchen'" in result.output
+    assert "Traceback" not in result.output
+    with pytest.raises(UnknownNameError):
+        kn.where(kn.load_home_model(home_file), "garage")
+
+
+# ----------------------------------------------------------------------------------- what
+def test_what_with_and_without_vision(tmp_path: Path, home_file: Path) -> None:
+    home = kn.load_home_model(home_file)
+    x, y, s, c = home.positions[0]
+    theta = float(np.arctan2(s, c))
+    result = _invoke(what, [home_file, "--x", x, "--y", y, "--theta", theta, "--json"])
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.output)
+    assert data["vision"] is False and len(data["names"]) == 3
+    assert all(0 <= n["probability"] <= 1 for n in data["names"])
+    view = tmp_path / "view.csv"
+    view.write_text("\n".join(str(int(v)) for v in home.visual[[0]].toarray()[0]))
+    result = _invoke(what, [home_file, "--x", x, "--y", y, "--theta", theta, "--visual", view, "--json"])
+    assert result.exit_code == 0, result.output
+    assert json.loads(result.output)["vision"] is True
+    result = _invoke(what, [home_file, "--x", x, "--y", y, "--theta", theta, "--visual", view])
+    assert result.exit_code == 0 and "1. " in result.output and "position and view" in result.output
+
+
+def test_what_bad_visual_file(tmp_path: Path, home_file: Path) -> None:
+    view = tmp_path / "short.csv"
+    view.write_text("1\n2\n3\n")
+    result = _invoke(what, [home_file, "--x", 0, "--y", 0, "--theta", 0, "--visual", view])
+    assert result.exit_code == 2 and "has 3 values" in result.output
+    view.write_text("0.5\n" * 128)
+    result = _invoke(what, [home_file, "--x", 0, "--y", 0, "--theta", 0, "--visual", view])
+    assert result.exit_code == 2 and "visual scale" in result.output
+    result = _invoke(what, [home_file, "--x", 0, "--y", 0, "--theta", 0, "--visual", view,
+                            "--visual-scale", 5])
+    assert result.exit_code == 0, result.output
+
+
+# ----------------------------------------------------------------------------------- teach
+def test_teach_a_new_word_in_place(tmp_path: Path, home_file: Path) -> None:
+    path = _copy(home_file, tmp_path / "home.spco")
+    before = kn.load_home_model(path)
+    sample = int(before.ids[7])
+    start = time.perf_counter()
+    result = _invoke(teach, [path, "--id", sample, "--sentence", "this is Emma's-room"])
+    elapsed = time.perf_counter() - start
+    assert result.exit_code == 0, result.output
+    assert elapsed < 5.0  # well under a second in practice; loose on a loaded machine
+    assert "New words: emma's-room" in result.output
+    after = kn.load_home_model(path)
+    assert after.vocabulary.words[: len(before.vocabulary)] == before.vocabulary.words
+    assert after.vocabulary.words[-1] == "emma's-room"
+    assert after.sentences[7] == "this is Emma's-room" and after.n_taught == 1
+    assert np.array_equal(after.ids, before.ids)
+    assert after.provenance["teach_updates"] == 1
+    assert after.provenance["knowledge_checksum"] == before.provenance["knowledge_checksum"]
+    # the new word can be learnt: its column has prior mass and the taught concept holds it
+    theta = after.parameters.word_probabilities[0, :, -1]
+    assert theta[after.state.concepts[7]] > 0.05
+    pred = kn.where(after, "emma's-room", n=3, random_state=0)
+    assert pred.samples.shape == (3, 3)
+
+
+def test_teach_a_new_observation(tmp_path: Path, home_file: Path) -> None:
+    path = _copy(home_file, tmp_path / "home.spco")
+    home = kn.load_home_model(path)
+    view = tmp_path / "view.npy"
+    np.save(view, home.visual[[3]].toarray()[0])
+    out = tmp_path / "taught.spco"
+    result = _invoke(teach, [path, "--x", 0.5, "--y", -0.5, "--theta", 1.0, "--visual", view,
+                             "--sentence", "the study is here", "--out", out])
+    assert result.exit_code == 0, result.output
+    new_id = int(home.ids.max()) + 1
+    assert f"Added sample {new_id}" in result.output
+    taught = kn.load_home_model(out)
+    assert taught.n_samples == home.n_samples + 1 and taught.ids[-1] == new_id
+    assert "study" in taught.vocabulary and taught.sentences[-1] == "the study is here"
+    assert kn.load_home_model(path).n_samples == home.n_samples  # --out leaves HOME as it was
+
+
+def test_teach_library_keeps_what_was_learnt(home_file: Path) -> None:
+    home = kn.load_home_model(home_file)
+    start = time.perf_counter()
+    taught = kn.teach(home, {int(home.ids[0]): "this is the kitchen"}, random_state=0)
+    assert time.perf_counter() - start < 5.0
+    assert taught.vocabulary == home.vocabulary  # no new word
+    assert np.array_equal(taught.state.log_phi_v, home.state.log_phi_v)  # shared part fixed
+    # a few sweeps from the current state: most samples keep their concept
+    assert (taught.state.concepts == home.state.concepts).mean() > 0.5
+    forgotten = kn.teach(taught, {int(home.ids[0]): ""}, n_sweeps=1, random_state=0)
+    assert forgotten.sentences[0] is None
+    with pytest.raises(ConfigurationError, match="nothing to teach"):
+        kn.teach(home)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--id", 999999, "--sentence", "this is the kitchen"], "no sample with id 999999"),
+    (["--id", 1, "--id", 2, "--sentence", "kitchen"], "one sentence per id"),
+    ([], "nothing to teach"),
+    (["--x", 0, "--y", 0, "--theta", 0], "needs --x, --y, --theta and --visual"),
+    (["--x", 0, "--y", 0, "--theta", 0, "--visual", "absent.csv", "--id", 1], "not both"),
+])
+def test_teach_bad_input(tmp_path: Path, home_file: Path, args: list, message: str) -> None:
+    path = _copy(home_file, tmp_path / "home.spco")
+    before = path.read_bytes()
+    result = _invoke(teach, [path, *args])
+    assert result.exit_code == 2, result.output
+    assert message in result.output and "Traceback" not in result.output
+    assert path.read_bytes() == before
+
+
+def test_teach_refuses_existing_out(tmp_path: Path, home_file: Path) -> None:
+    out = tmp_path / "mine.spco"
+    out.write_text("precious")
+    result = _invoke(teach, [home_file, "--id", 0, "--sentence", "this is the bath", "--out", out])
+    assert result.exit_code == 2 and "already exists" in result.output
+    assert out.read_text() == "precious"
+
+
+# ----------------------------------------------------------------------------------- show
+def test_show_writes_a_map(tmp_path: Path, home_file: Path) -> None:
+    out = tmp_path / "map.png"
+    result = _invoke(show, [home_file, "--out", out, "--name", "kitchen"])
+    assert result.exit_code == 0, result.output
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    result = _invoke(show, [home_file, "--out", out])
+    assert result.exit_code == 2 and "already exists" in result.output
+    image = tmp_path / "plan.png"
+    image.write_bytes(out.read_bytes())
+    result = _invoke(show, [home_file, "--out", out, "--map", image, "--extent", "-6,6,-5,5", "--force"])
+    assert result.exit_code == 0, result.output
+    result = _invoke(show, [home_file, "--out", tmp_path / "x.png", "--extent", "1,0,0,1"])
+    assert result.exit_code == 2 and "--extent" in result.output
+    result = _invoke(show, [home_file, "--out", tmp_path / "x.png", "--name", "garage"])
+    assert result.exit_code == 2 and "unknown place name" in result.output
+
+
+# ----------------------------------------------------------------------------------- library
+def test_summary_iterations() -> None:
+    assert kn.summary_iterations(200) == list(range(154, 200, 5))
+    assert kn.summary_iterations(12) == [9, 10, 11]
+    assert kn.summary_iterations(1) == [0]
+
+
+def test_knowledge_extended_gives_new_words_prior_mass(knowledge_file: Path) -> None:
+    k = kn.load_knowledge(knowledge_file)
+    grown = k.extended(["this is the sauna", "this is the kitchen"])
+    assert grown.vocabulary.words == (*k.vocabulary.words, "sauna")
+    assert np.allclose(np.exp(grown.log_phi_words).sum(1), 1.0)
+    hyper = k.hyperparameters
+    assert np.allclose(np.exp(grown.log_phi_words[:, -1]) * hyper.delta_word, hyper.alpha_word, rtol=0.01)
+    assert grown.word_mask[-1] and k.extended(["kitchen"]) is k
+
+
+def test_adapt_rejects_other_visual_dimension(knowledge_file: Path) -> None:
+    k = kn.load_knowledge(knowledge_file)
+    other = generate_homes(1, seed=5, config=SyntheticConfig(n_features=64), new_homes=1,
+                           specific_rooms=False)[0]
+    with pytest.raises(DataFormatError, match="64 dimensions"):
+        kn.adapt(k, other, n_iterations=1)
+
+
+def test_reference_sampler_and_short_chains(homes: dict[str, Path]) -> None:
+    from spco.data.loading import load
+
+    k = kn.fit_knowledge(load(homes["experienced"]), model="spcotransfer-ref+mi", n_iterations=4,
+                         random_state=0)
+    assert k.variant == "reference" and k.provenance["summary"]["n_samples"] == 1
+    assert np.isnan(k.concentration_visual).all()  # one sample has no spread: joint uses δ, γ
+    env = _load(homes["new"])
+    for joint in (False, True):
+        home = kn.adapt(k, env, n_iterations=3, random_state=0, joint=joint)
+        assert home.weighting == "reference" and home.position_scale == 100
+        taught = kn.teach(home, {int(home.ids[0]): "this is the sauna"}, n_sweeps=2, random_state=0)
+        assert "sauna" in taught.vocabulary
+        means = taught.parameters.region_means[0, :, :2]  # metres, whatever the sampler's units
+        assert np.abs(means).max() < 50
+        assert kn.what(taught, 0.0, 0.0, 0.0).words.shape == (1, 3)
