@@ -252,8 +252,10 @@ def place_words(data: PreparedData, groups: np.ndarray, p_value: float = 1e-3) -
     run). A word of the sentence templates ("this", "is", "here") occurs in every part of a home at
     the same rate; a place name only in the parts that cover its room. For each home, the
     sentences' word presence × group table gives G_e = 2 Σ O log(O / E); under independence
-    Σ_e G_e ~ χ²(Σ_e (m_e − 1)) (m_e: groups with taught samples). Words with p ≥ ``p_value`` are
-    removed from the candidates of mutual-information pruning for the whole run.
+    Σ_e G_e ~ χ²(Σ_e (m_e − 1)) over the homes where the word was said (m_e: groups with taught
+    samples), so a name said in one home only ("Emma's-room") is judged on that home. Words with
+    p ≥ ``p_value`` are removed from the candidates of mutual-information pruning for the whole
+    run.
 
     Why not the paper's rule at this point: the mutual information of a place name depends on how
     finely the partition splits its room (0.01–0.03 nats), while the templates' sampling noise
@@ -266,7 +268,7 @@ def place_words(data: PreparedData, groups: np.ndarray, p_value: float = 1e-3) -
     present.data[:] = 1.0
     taught = np.diff(data.words.indptr) > 0
     g_stat = np.zeros(n_words)
-    dof = 0
+    dof = np.zeros(n_words)
     for e in range(data.n_homes):  # a loop over homes; each step is one sparse product
         rows = np.flatnonzero(taught & (data.homes == e))
         if rows.size == 0:
@@ -283,10 +285,10 @@ def place_words(data: PreparedData, groups: np.ndarray, p_value: float = 1e-3) -
         with np.errstate(divide="ignore", invalid="ignore"):
             terms = np.where(observed > 0, observed * np.log(observed / expected), 0.0)
         g_stat += 2.0 * terms.sum(axis=(0, 1))
-        dof += labels.size - 1
-    if dof == 0:
+        dof += (labels.size - 1) * (with_word.sum(0) > 0)  # only homes where the word was said
+    if not dof.any():
         return np.ones(n_words, dtype=bool)
-    keep = chi2.sf(g_stat, dof) < p_value
+    keep = (dof > 0) & (chi2.sf(g_stat, np.maximum(dof, 1)) < p_value)
     if not keep.any():
         keep[:] = True
     return keep
@@ -501,6 +503,10 @@ def _global_step_reference(stats: Statistics, state: GibbsState, hyper: Transfer
 def _prune(state: GibbsState, hyper: TransferHyperparameters, settings: SamplerSettings) -> None:
     """Recompute which words are informative enough to keep (``state.word_mask``).
 
+    Exact variant: a word is kept if its mutual information with some concept of the shared model
+    (φ^w, G_0) reaches ε and it passed :func:`place_words`; reference variant: the authors' rule
+    (KL score on φ^w, G_0).
+
     Pruned words are left out of the word likelihood of the next sweep and get probability 0 in
     the exported θ^w, φ^w (rows renormalised), as in the paper. The sampler itself keeps their
     φ^w and θ^w, so the pruning is re-decided after every sweep: a word pruned while concepts are
@@ -514,7 +520,8 @@ def _prune(state: GibbsState, hyper: TransferHyperparameters, settings: SamplerS
     else:  # SpCoA+MI: the single home's θ^w and G
         phi_w, weights = np.exp(state.log_theta_w[0]), np.exp(state.log_g[0])
     score = settings.pruning_score
-    keep = words_to_keep(phi_w, weights, hyper.pruning_threshold(score), score)
+    threshold = hyper.pruning_threshold(score)
+    keep = words_to_keep(phi_w, weights, threshold, score)
     if state.candidate_words is not None:
         keep &= state.candidate_words
     if not keep.any():  # never remove every word: keep the most informative one
