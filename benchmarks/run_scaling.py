@@ -2,7 +2,7 @@
 
 For each size N (default 16, 64, 256) this generates N fully taught synthetic homes plus one new
 home (nothing taught) at the paper's visual dimension (D = 4096 unless ``--features``), runs spco's
-sampler for a few warm-up sweeps, times ``--sweeps`` more (median, per step), and finally fits
+sampler for a few warm-up sweeps, times ``--sweeps`` more (mean, per step), and finally fits
 ``seconds per sweep = a + b · homes`` by least squares and prints b (time per home) and R².
 
     python benchmarks/run_scaling.py                      # 16, 64, 256 homes, D = 4096
@@ -47,11 +47,11 @@ def measure(n_homes: int, args: argparse.Namespace) -> dict[str, Any]:
     config = benchmark.configuration(corpus, TransferHyperparameters(), "synthetic")
     timings = benchmark.time_spco(corpus, args.variant, args.sweeps, args.warmup, args.seed, log=log)
     row: dict[str, Any] = {"homes": config["homes"], "samples": config["samples"],
-                           "sweep_seconds": timings.median, "steps": timings.median_steps(),
+                           "sweep_seconds": timings.per_sweep, "steps": timings.per_step(),
                            "all_sweep_seconds": timings.totals}
     if args.with_reference:
         ref = benchmark.time_reference(corpus, args.reference_sweeps, warmup=1, seed=args.seed, log=log)
-        row["reference_sweep_seconds"] = ref.median
+        row["reference_sweep_seconds"] = ref.per_sweep
     return row
 
 
@@ -61,7 +61,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--homes", type=int, nargs="+", default=[16, 64, 256],
                         help="numbers of experienced homes (one new home is added to each)")
     parser.add_argument("--features", type=int, default=4096, help="visual dimension D")
-    parser.add_argument("--sweeps", type=int, default=5, help="timed sweeps per size (median)")
+    parser.add_argument("--sweeps", type=int, default=5, help="timed sweeps per size (mean)")
     parser.add_argument("--warmup", type=int, default=2, help="untimed sweeps first")
     parser.add_argument("--variant", default="exact", choices=["exact", "reference"], help="spco sampler")
     parser.add_argument("--with-reference", action="store_true",
@@ -98,7 +98,7 @@ def main(argv: list[str] | None = None) -> int:
         table.append(line)
     widths = [max(len(h), *(len(t[i]) for t in table)) for i, h in enumerate(header)]
     print(f"spco {args.variant} sampler, synthetic homes, D = {args.features}, L = 15, K = 20; "
-          f"median of {args.sweeps} sweeps (step columns in ms per sweep)")
+          f"mean of {args.sweeps} sweeps (step columns in ms per sweep)")
     print(f"machine: {machine['cores']} cores, numpy {machine['numpy']}, numba {machine['numba']}, "
           f"load average {machine['load_average']} before, {machine['load_average_after']} after")
     print("  ".join(h.rjust(w) for h, w in zip(header, widths, strict=True)))
