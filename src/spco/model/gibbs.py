@@ -76,7 +76,8 @@ class GibbsState:
     concepts (N,), regions (N,); log_g (E, L) G_e; log_g0 (L,) G_0; log_pi (E, L, K) π;
     means (E, K, 4), covariances (E, K, 4, 4); log_theta_v (E, L, D), log_theta_w (E, L, V);
     log_phi_v (L, D), log_phi_w (L, V); word_mask (V,) words kept by pruning; candidate_words
-    (V,) words that pruning may keep at all (``None``: every word), see :func:`warm_start`.
+    (V,) words that pruning may keep at all (``None``: every word), see :func:`warm_start`;
+    home_specific_words (V,) candidates said in one home only, never pruned (see :func:`_prune`).
     """
 
     concepts: np.ndarray
@@ -93,6 +94,7 @@ class GibbsState:
     word_mask: np.ndarray
     region_counts: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), dtype=np.int64))
     candidate_words: np.ndarray | None = None
+    home_specific_words: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -224,6 +226,7 @@ def warm_start(data: PreparedData, state: GibbsState, hyper: TransferHyperparame
         stats = _statistics(data, state, hyper)
         if sweep_index == 0 and settings.prune:
             state.candidate_words = place_words(data, state.regions)
+            state.home_specific_words = state.candidate_words & words_of_one_home(data)
             state.word_mask = state.candidate_words.copy()
         _home_step(data, state, stats, hyper, independent, rng)
     stats = _statistics(data, state, hyper)
@@ -292,6 +295,21 @@ def place_words(data: PreparedData, groups: np.ndarray, p_value: float = 1e-3) -
     if not keep.any():
         keep[:] = True
     return keep
+
+
+def words_of_one_home(data: PreparedData) -> np.ndarray:
+    """(V,) bool: words taught in exactly one home while at least two homes were taught.
+
+    Such a word ("Emma's-room") names a place of its own home; its mutual information with the
+    concepts of all homes is small by construction (its concept has a small G_0 weight), so the
+    shared-model pruning rule would remove it before its concept forms."""
+    taught = np.diff(data.words.indptr) > 0
+    per_home = np.zeros((data.n_homes, data.words.shape[1]), dtype=bool)
+    rows = np.flatnonzero(taught)
+    coo = data.words[rows].tocoo()
+    per_home[data.homes[rows][coo.row], coo.col] = True
+    n_taught_homes = int(per_home.any(axis=1).sum())
+    return (per_home.sum(axis=0) == 1) & (n_taught_homes >= 2)
 
 
 def align_homes(visual: np.ndarray, words: np.ndarray, alpha_visual: float, alpha_word: float) -> np.ndarray:
@@ -503,9 +521,10 @@ def _global_step_reference(stats: Statistics, state: GibbsState, hyper: Transfer
 def _prune(state: GibbsState, hyper: TransferHyperparameters, settings: SamplerSettings) -> None:
     """Recompute which words are informative enough to keep (``state.word_mask``).
 
-    Exact variant: a word is kept if its mutual information with some concept of the shared model
-    (φ^w, G_0) reaches ε and it passed :func:`place_words`; reference variant: the authors' rule
-    (KL score on φ^w, G_0).
+    Exact variant: a word is kept if it passed :func:`place_words` and either its mutual
+    information with some concept of the shared model (φ^w, G_0) reaches ε or it was taught in one
+    home only (:func:`words_of_one_home`); reference variant: the authors' rule (KL score on φ^w,
+    G_0).
 
     Pruned words are left out of the word likelihood of the next sweep and get probability 0 in
     the exported θ^w, φ^w (rows renormalised), as in the paper. The sampler itself keeps their
@@ -522,6 +541,8 @@ def _prune(state: GibbsState, hyper: TransferHyperparameters, settings: SamplerS
     score = settings.pruning_score
     threshold = hyper.pruning_threshold(score)
     keep = words_to_keep(phi_w, weights, threshold, score)
+    if state.home_specific_words is not None:
+        keep |= state.home_specific_words
     if state.candidate_words is not None:
         keep &= state.candidate_words
     if not keep.any():  # never remove every word: keep the most informative one
