@@ -7,34 +7,17 @@ traceback.
 
 from __future__ import annotations
 
-import functools
 import json
 import sys
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import click
 
 from spco import __version__
-from spco.errors import SpcoError
+from spco.cli_errors import friendly_errors
 
-
-def _friendly_errors(func: Callable[..., Any]) -> Callable[..., Any]:
-    """Turn spco's own errors into a one-line message and exit status 2."""
-
-    @functools.wraps(func)
-    def wrapper(*args: Any, **kwargs: Any) -> Any:
-        try:
-            return func(*args, **kwargs)
-        except SpcoError as exc:
-            click.echo(f"error: {exc}", err=True)
-            sys.exit(2)
-        except KeyboardInterrupt:
-            click.echo("interrupted", err=True)
-            sys.exit(130)
-
-    return wrapper
+_friendly_errors = friendly_errors
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})

@@ -6,30 +6,20 @@ Registered in :mod:`spco.cli` with ``main.add_command(bench)``. Progress goes to
 
 from __future__ import annotations
 
-import functools
 import json
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import click
+
+from spco.cli_errors import friendly_errors
 
 __all__ = ["bench", "format_result"]
 
 _SYNTHETIC = "synthetic"
 
 
-def _friendly(func: Callable[..., Any]) -> Callable[..., Any]:
-    """Report spco's errors like every other command (``spco.cli._friendly_errors``), imported
-    when the command runs so that this module and :mod:`spco.cli` can import each other."""
-
-    @functools.wraps(func)
-    def wrapper(*args: Any, **kwargs: Any) -> Any:
-        from spco.cli import _friendly_errors
-
-        return _friendly_errors(func)(*args, **kwargs)
-
-    return wrapper
+_friendly = friendly_errors
 
 
 def _echo_err(message: str) -> None:

@@ -7,7 +7,6 @@ command line's ``_friendly_errors`` (one line, exit status 2).
 
 from __future__ import annotations
 
-import functools
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -15,23 +14,15 @@ from typing import Any
 
 import click
 
+from spco.cli_errors import friendly_errors
+
 __all__ = ["experiment"]
 
 _MODEL_NAMES = ("spcotransfer", "spcotransfer+mi", "spcotransfer-ref", "spcotransfer-ref+mi", "spcoa",
                 "spcoa+mi")
 
 
-def _friendly(func: Callable[..., Any]) -> Callable[..., Any]:
-    """Report spco's errors like every other command (``spco.cli._friendly_errors``), imported
-    when the command runs so that this module and :mod:`spco.cli` can import each other."""
-
-    @functools.wraps(func)
-    def wrapper(*args: Any, **kwargs: Any) -> Any:
-        from spco.cli import _friendly_errors
-
-        return _friendly_errors(func)(*args, **kwargs)
-
-    return wrapper
+_friendly = friendly_errors
 
 
 def _common(func: Callable[..., Any]) -> Callable[..., Any]:

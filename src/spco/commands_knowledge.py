@@ -13,35 +13,26 @@ reported by the command line's ``_friendly_errors`` (one line, exit status 2).
 from __future__ import annotations
 
 import contextlib
-import functools
 import json
 import math
 import os
 import sys
 import tempfile
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import click
+
+from spco.cli_errors import friendly_errors
 
 __all__ = ["KNOWLEDGE_COMMANDS", "adapt", "fit", "show", "teach", "what", "where"]
 
 _MODEL_NAMES = ("spcotransfer+mi", "spcotransfer", "spcotransfer-ref+mi", "spcotransfer-ref")
 
 
-def _friendly(func: Callable[..., Any]) -> Callable[..., Any]:
-    """Report spco's errors like every other command (``spco.cli._friendly_errors``), imported
-    when the command runs so that this module and :mod:`spco.cli` can import each other."""
-
-    @functools.wraps(func)
-    def wrapper(*args: Any, **kwargs: Any) -> Any:
-        from spco.cli import _friendly_errors
-
-        return _friendly_errors(func)(*args, **kwargs)
-
-    return wrapper
+_friendly = friendly_errors
 
 
 def _progress() -> bool:

@@ -1,0 +1,34 @@
+"""How every ``spco`` command reports the errors a user can cause.
+
+An :class:`~spco.errors.SpcoError` (bad file, bad argument) becomes one line ``error: ...`` on
+standard error and exit status 2, without a traceback; Ctrl-C exits with 130. Kept apart from
+:mod:`spco.cli` so that the command modules can use it without importing the command line.
+"""
+
+from __future__ import annotations
+
+import functools
+import sys
+from collections.abc import Callable
+from typing import Any
+
+import click
+
+from spco.errors import SpcoError
+
+
+def friendly_errors(func: Callable[..., Any]) -> Callable[..., Any]:
+    """Decorate a click command so that spco's own errors end it with a one-line message."""
+
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return func(*args, **kwargs)
+        except SpcoError as exc:
+            click.echo(f"error: {exc}", err=True)
+            sys.exit(2)
+        except KeyboardInterrupt:
+            click.echo("interrupted", err=True)
+            sys.exit(130)
+
+    return wrapper
