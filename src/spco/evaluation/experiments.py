@@ -103,7 +103,9 @@ import json
 import math
 import multiprocessing
 import os
+import signal
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -839,7 +841,7 @@ def _run_pending(pending: Sequence[RunKey], data: ExperimentData, spec: _DataSpe
         return
     jobs = min(jobs, len(pending))
     threads = max(1, (os.cpu_count() or 1) // jobs)
-    with _child_threads(threads):
+    with _child_threads(threads), _sigterm_as_interrupt():
         pool = ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn"),
                                    initializer=_init_worker, initargs=(spec, settings, ctx, threads))
         try:
@@ -849,9 +851,30 @@ def _run_pending(pending: Sequence[RunKey], data: ExperimentData, spec: _DataSpe
                 for fut in done:
                     on_result(fut.result())
         except BaseException:
+            # stop the workers too: a killed experiment must not leave runs computing in the background
+            workers = list((getattr(pool, "_processes", None) or {}).values())
+            for process in workers:
+                process.terminate()
             pool.shutdown(wait=False, cancel_futures=True)
             raise
         pool.shutdown(wait=True)
+
+
+@contextlib.contextmanager
+def _sigterm_as_interrupt() -> Iterator[None]:
+    """Treat SIGTERM (``kill``) like Ctrl-C while worker processes run, so they are stopped too."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def interrupt(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 # ------------------------------------------------------------------------------------ output dir
