@@ -58,13 +58,10 @@ a newer spco, raises :class:`~spco.errors.ModelFileError` naming the file and th
 
 from __future__ import annotations
 
-import contextlib
 import functools
 import hashlib
 import json
 import math
-import os
-import tempfile
 import time
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
@@ -84,7 +81,7 @@ from spco.data.language import Vocabulary
 from spco.errors import ConfigurationError, DataFormatError, ModelFileError
 from spco.model import gibbs
 from spco.model.hyperparameters import TransferHyperparameters
-from spco.model.io import _checksum, _fsync_folder
+from spco.model.io import _checksum, write_npz_atomic
 from spco.model.observations import HierarchicalMultinomial
 from spco.model.parameters import ConceptParameters
 from spco.model.pruning import words_to_keep
@@ -183,51 +180,8 @@ def _content_checksum(header: Mapping[str, Any]) -> str:
 
 def _write_archive(path: str | PathLike[str], arrays: Mapping[str, np.ndarray], header: dict[str, Any],
                    overwrite: bool, what: str) -> Path:
-    """Write ``arrays`` and ``header`` (+ checksums) to ``path`` atomically; returns the path."""
-    target = Path(path).expanduser()
-    if target.is_dir():
-        raise ModelFileError(target, f"is a folder; give the name of the {what} to write")
-    folder = target.parent
-    if not folder.is_dir():
-        raise ModelFileError(target, f"cannot write the {what}: the folder {str(folder)!r} does not exist")
-    if target.exists() and not overwrite:
-        raise ModelFileError(target, "the file already exists; pass overwrite=True (--force on the command "
-                             "line) to replace it")
-    header = dict(header)
-    header["array_checksums"] = {name: _checksum(np.asarray(a)) for name, a in arrays.items()}
-    header["checksum"] = _content_checksum(header)
-    encoded = np.frombuffer(json.dumps(header, ensure_ascii=False, allow_nan=True).encode("utf-8"),
-                            dtype=np.uint8)
-    tmp_name: str | None = None
-    try:
-        with tempfile.NamedTemporaryFile(mode="wb", delete=False, dir=folder, prefix=f".{target.name}.",
-                                         suffix=".tmp") as handle:
-            tmp_name = handle.name
-            np.savez(handle, header=encoded, **{k: np.asarray(v) for k, v in arrays.items()})
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.chmod(tmp_name, _file_mode(target))
-        os.replace(tmp_name, target)
-        tmp_name = None
-    except OSError as exc:
-        raise ModelFileError(target, f"cannot write the {what}: {exc.strerror or exc}") from exc
-    finally:
-        if tmp_name is not None:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp_name)
-    _fsync_folder(folder)
-    return target
-
-
-def _file_mode(target: Path) -> int:
-    """Permissions for a file written to ``target``: those of the file it replaces, else the
-    usual ones (0o666 less the umask; temporary files are created 0o600)."""
-    try:
-        return target.stat().st_mode & 0o777
-    except OSError:
-        mask = os.umask(0)
-        os.umask(mask)
-        return 0o666 & ~mask
+    """Write ``arrays`` and ``header`` (+ array and content checksums) to ``path`` atomically."""
+    return write_npz_atomic(path, header, arrays, overwrite, what, seal=_content_checksum)
 
 
 def _read_archive(path: str | PathLike[str],

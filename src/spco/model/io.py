@@ -37,6 +37,7 @@ import hashlib
 import json
 import os
 import tempfile
+from collections.abc import Callable, Mapping
 from datetime import UTC, datetime
 from os import PathLike
 from pathlib import Path
@@ -150,17 +151,36 @@ def save_model(model: SpatialConceptModel, path: str | PathLike[str], overwrite:
     The file is first written to a temporary file in the same folder, flushed to disk, then renamed
     over ``path``; on any error the temporary file is removed and ``path`` is left as it was.
     """
-    target = Path(path).expanduser()
     arrays, header = _arrays_and_header(model)
+    return write_npz_atomic(path, header, arrays, overwrite, "model file")
+
+
+def write_npz_atomic(path: str | PathLike[str], header: dict[str, Any], arrays: Mapping[str, np.ndarray],
+                     overwrite: bool, what: str,
+                     seal: Callable[[dict[str, Any]], str] | None = None) -> Path:
+    """Write ``arrays`` and a JSON ``header`` as one ``.npz`` (no pickle), atomically.
+
+    Adds ``header["array_checksums"]`` (sha256 per array) and, with ``seal``, ``header["checksum"]
+    = seal(header)``. The data go to a temporary file in the same folder, flushed to disk, then
+    renamed over ``path`` (permissions: those of the file replaced, else the usual ones); on any
+    error the temporary file is removed and ``path`` is left as it was. An existing ``path`` is
+    replaced only with ``overwrite``; problems raise :class:`~spco.errors.ModelFileError` naming
+    the ``what`` ("model file", "knowledge file", …).
+    """
+    target = Path(path).expanduser()
     if target.is_dir():
-        raise ModelFileError(target, "is a folder; give the name of the model file to write")
+        raise ModelFileError(target, f"is a folder; give the name of the {what} to write")
     folder = target.parent
     if not folder.is_dir():
-        raise ModelFileError(target, f"cannot write the model: the folder {str(folder)!r} does not exist")
+        raise ModelFileError(target, f"cannot write the {what}: the folder {str(folder)!r} does not exist")
     if target.exists() and not overwrite:
         raise ModelFileError(target, "the file already exists; pass overwrite=True (or --force on the "
                              "command line) to replace it")
+    arrays = {name: np.asarray(a) for name, a in arrays.items()}
+    header = dict(header)
     header["array_checksums"] = {name: _checksum(a) for name, a in arrays.items()}
+    if seal is not None:
+        header["checksum"] = seal(header)
     encoded = np.frombuffer(json.dumps(header, ensure_ascii=False, allow_nan=True).encode("utf-8"),
                             dtype=np.uint8)
     tmp_name: str | None = None
@@ -171,16 +191,28 @@ def save_model(model: SpatialConceptModel, path: str | PathLike[str], overwrite:
             np.savez(handle, header=encoded, **arrays)
             handle.flush()
             os.fsync(handle.fileno())
+        os.chmod(tmp_name, _file_mode(target))
         os.replace(tmp_name, target)
         tmp_name = None
     except OSError as exc:
-        raise ModelFileError(target, f"cannot write the model file: {exc.strerror or exc}") from exc
+        raise ModelFileError(target, f"cannot write the {what}: {exc.strerror or exc}") from exc
     finally:
         if tmp_name is not None:
             with contextlib.suppress(OSError):
                 os.unlink(tmp_name)
     _fsync_folder(folder)
     return target
+
+
+def _file_mode(target: Path) -> int:
+    """Permissions for a file written to ``target``: those of the file it replaces, else the
+    usual ones (0o666 less the umask; temporary files are created 0o600)."""
+    try:
+        return target.stat().st_mode & 0o777
+    except OSError:
+        mask = os.umask(0)
+        os.umask(mask)
+        return 0o666 & ~mask
 
 
 def _fsync_folder(folder: Path) -> None:
