@@ -8,6 +8,7 @@ at the sample sizes used).
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -131,17 +132,48 @@ def test_log_gamma_variates_mixed_shapes_and_zero() -> None:
         assert stats.kstest(draws[:, j], lambda y, a=a: log_gamma_cdf(y, a)).pvalue > P_MIN
 
 
-def test_log_gamma_variates_threaded_path_is_correct_and_seeded() -> None:
-    shape = np.full((400, 600), 2.5)  # 240,000 entries: drawn in two halves on two threads
+def test_log_gamma_variates_blocks_are_correct_seeded_and_thread_independent() -> None:
+    shape = np.full((400, 600), 2.5)  # 240,000 entries: 59 blocks, each its own random stream
     first = log_gamma_variates(shape, np.random.default_rng(3))
     again = log_gamma_variates(shape, np.random.default_rng(3))
     assert_array_equal(first, again)
     assert not np.array_equal(first, log_gamma_variates(shape, np.random.default_rng(4)))
+    threads = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        assert_array_equal(first, log_gamma_variates(shape, np.random.default_rng(3)))
+        assert_array_equal(log_dirichlet(shape, np.random.default_rng(3)),
+                           log_dirichlet(shape, np.random.default_rng(3)))
+    finally:
+        numba.set_num_threads(threads)
     flat = first.ravel()
-    for part in (flat[:120_000:6], flat[120_000::6]):  # both halves, 20,000 draws each
+    for part in (flat[:120_000:6], flat[120_000::6]):  # 20,000 draws from each half
         assert stats.kstest(part, lambda y: log_gamma_cdf(y, 2.5)).pvalue > P_MIN
-    # the two halves are independent streams
-    assert abs(np.corrcoef(flat[:120_000], flat[120_000:])[0, 1]) < 0.02
+    # neighbouring blocks are independent streams
+    assert abs(np.corrcoef(flat[:4096 * 29], flat[4096:4096 * 30])[0, 1]) < 0.02
+
+
+def test_standard_normals_of_the_compiled_streams() -> None:
+    """The ziggurat normals behind the gamma kernel: distribution, tails, independence."""
+    from spco.model.random import _stream_normal, _stream_start
+
+    @numba.njit
+    def normals(seed, rows, width):
+        out = np.empty((rows, width))
+        for r in range(rows):
+            state = _stream_start(seed, np.uint64(r))
+            for j in range(width):
+                state, out[r, j] = _stream_normal(state)
+        return out
+
+    z = normals(np.uint64(2024), 1000, 1000)
+    assert stats.kstest(z.ravel(), "norm").pvalue > P_MIN
+    for t in (2.0, 3.0, 4.0):  # tails, including the ziggurat's tail beyond r = 3.65
+        expected = 2 * stats.norm.sf(t)
+        observed = (np.abs(z) > t).mean()
+        assert abs(observed - expected) < 5 * np.sqrt(expected / z.size), t
+    assert abs(np.corrcoef(z[:, :-1].ravel(), z[:, 1:].ravel())[0, 1]) < 0.005  # within a stream
+    assert abs(np.corrcoef(z[:-1].ravel(), z[1:].ravel())[0, 1]) < 0.005  # across streams
 
 
 def dirichlet_moments(alpha: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -507,3 +539,66 @@ def test_grouped_sparse_dot_and_row_sums_match_dense() -> None:
     as_int = sp.csr_array(dense)
     as_int.indices = as_int.indices.astype(np.int32)
     assert_allclose(grouped_sparse_dot(as_int, groups, table), expected, rtol=1e-12, atol=1e-9)
+
+
+# ----------------------------------------------------------------------------- summed CRT, θ draws
+
+
+@pytest.mark.parametrize(("counts", "a"), [
+    ((3, 5, 0, 7), 0.5),  # exact Bernoulli sums (13 terms)
+    ((20, 30, 1, 50), 2.0),  # moment-matched, small concentration
+    ((100, 200, 5), 73.0),  # the visual regime: a = δ^v φ^v of tens
+    ((400,) * 10, 14.0),  # normal range
+    ((2, 3, 4) * 5 + (5,), 300.0),  # many homes, few customers each, large a
+])
+def test_crt_totals_match_explicit_bernoulli_sums(counts: tuple[int, ...], a: float) -> None:
+    """Σ_e CRT(n_e, a), drawn in one go, against explicit sums of the Bernoulli(a/(a+i)) terms."""
+    from spco.model.random import sample_crt_totals
+
+    size = 20_000
+    n = np.array(counts)
+    grid = np.tile(n[:, None, None], (1, 1, size))
+    drawn = sample_crt_totals(grid, np.full((1, size), a), np.random.default_rng(31))[0]
+    rng = np.random.default_rng(32)
+    exact = sum((rng.random((size, k)) < a / (a + np.arange(k))).sum(1) for k in n if k > 0)
+    p = np.concatenate([a / (a + np.arange(k)) for k in n if k > 0])
+    mean, var = p.sum(), (p * (1 - p)).sum()
+    assert abs(z_mean(drawn.astype(float), mean, var)) < Z_MAX
+    assert stats.ks_2samp(drawn, exact).pvalue > P_MIN
+    assert drawn.min() >= (n > 0).sum() and drawn.max() <= n.sum()
+
+
+def test_crt_totals_edge_cases() -> None:
+    from spco.model.random import sample_crt_totals
+
+    counts = np.array([[[0, 3, 1]], [[0, 0, 1]]])
+    out = sample_crt_totals(counts, np.array([[1.0, 0.0, 2.0]]), np.random.default_rng(33))
+    assert out.shape == (1, 3) and out.dtype == np.int64
+    assert out[0, 0] == 0 and out[0, 1] == 0  # n = 0, or a = 0
+    assert out[0, 2] == 2  # one customer in each of two homes: one table each
+    with pytest.raises(ValueError, match="groups, rows, width"):
+        sample_crt_totals(np.zeros((2, 3)), np.ones(3), np.random.default_rng(0))
+
+
+def test_hierarchical_dirichlet_matches_dirichlet_of_the_sum() -> None:
+    """log θ_{g,r} ~ Dir(base_r + counts_{g,r}) without forming the sum: moments per entry, rows
+    normalised, and tiny concentrations (stored as logarithms in the kernel) finite."""
+    from spco.model.random import log_dirichlet_hierarchical
+
+    base = np.array([[0.5, 1e-3, 3.0, 20.0], [2e-4, 1e-4, 0.3, 0.05]])
+    counts = np.array([[[0, 0, 2, 5], [0, 0, 0, 0]], [[4, 0, 0, 1], [0, 3, 0, 0]]])
+    reps = 20_000
+    tiled = np.tile(counts, (reps, 1, 1))
+    log_p = log_dirichlet_hierarchical(base, tiled, np.random.default_rng(34))
+    assert log_p.shape == tiled.shape and np.isfinite(log_p).all()
+    assert_allclose(logsumexp(log_p, axis=-1), 0.0, atol=1e-12)
+    p = np.exp(log_p).reshape(reps, 2, 2, 4)
+    for g in range(2):
+        for r in range(2):
+            alpha = base[r] + counts[g, r]
+            mean, var = dirichlet_moments(alpha)
+            assert np.abs(z_mean(p[:, g, r], mean, var)).max() < Z_MAX, (g, r)
+    out = np.empty(tiled.shape)
+    again = log_dirichlet_hierarchical(base, tiled, np.random.default_rng(34), out=out)
+    assert again is out
+    assert_array_equal(again, log_p)

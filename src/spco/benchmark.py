@@ -17,7 +17,7 @@ This module backs ``spco bench`` and ``benchmarks/run_scaling.py``. It measures,
 
 Timings exclude compilation (Numba compiles on the first call): a few warm-up sweeps run first,
 and the mean over the timed sweeps (the slowest tenth dropped) is reported; spco's sweeps follow
-the steady state of a fit (label swaps on every fifth sweep).
+the steady state of a fit (label swaps on every tenth sweep).
 
 The paper's largest configuration is :data:`PAPER_EXPERIENCED_HOMES` (16 SIGVerse homes, 2,660
 samples, all taught) plus one new home (:data:`PAPER_NEW_HOME`, nothing taught), D = 4096,

@@ -67,7 +67,8 @@ class TrainingData:
     name: the home's name.
     ids: (n,) sample ids of the training samples.
     positions: (n, 4) float64 poses ``(x, y, sin θ, cos θ)`` in metres.
-    visual: (n, D) sparse int64 visual counts.
+    visual: (n, D) sparse int64 visual counts (the home's own array when it has no test samples:
+        read it, do not modify it).
     sentences: length-n taught sentences (``None`` where nothing was taught).
     extent: map extent ``(x_min, x_max, y_min, y_max)`` or ``None``.
     """
@@ -103,7 +104,8 @@ class Environment:
     name: the home's name (``"3LDK_9"``).
     ids: (N,) int64 sample ids, unique.
     positions: (N, 4) float64 poses ``(x, y, sin θ, cos θ)``, metres.
-    visual: (N, D) ``scipy.sparse.csr_array`` of non-negative int64 counts.
+    visual: (N, D) ``scipy.sparse.csr_array`` of non-negative int64 counts (int32 index arrays
+        whenever they fit).
     sentences: length-N taught sentence of each sample, or ``None``.
     is_test: (N,) bool, True for test samples (never learnt from).
     extent: ``(x_min, x_max, y_min, y_max)`` of the map in metres, or ``None``.
@@ -169,6 +171,11 @@ class Environment:
         visual = sp.csr_array(visual, dtype=np.int64)
         visual.eliminate_zeros()
         visual.sort_indices()
+        # 32-bit index arrays (as SciPy itself chooses): the counts then take 12 bytes per non-zero,
+        # not 16 (a loader may hand over int64 ones); the kernels get their own layout at fit time
+        if max(visual.nnz, visual.shape[1]) < 2**31:
+            visual.indices = visual.indices.astype(np.int32, copy=False)
+            visual.indptr = visual.indptr.astype(np.int32, copy=False)
         sentences = tuple(None if (s is None or not str(s).strip()) else str(s) for s in self.sentences)
         if len(sentences) != n:
             raise DataFormatError(where, f"{len(sentences)} sentences for {n} samples")
@@ -228,11 +235,14 @@ class Environment:
     def training_data(self) -> TrainingData:
         """The training samples' observations and sentences — all a learner may see."""
         train = ~self.is_test
+        # a home without test samples lends its visual counts as they are (the largest array of a
+        # home, read only by learners); otherwise its training rows are copied
+        visual = self.visual if train.all() else self.visual[np.flatnonzero(train)]
         return TrainingData(
             name=self.name,
             ids=self.ids[train].copy(),
             positions=self.positions[train].copy(),
-            visual=self.visual[np.flatnonzero(train)],
+            visual=visual,
             sentences=tuple(s for s, t in zip(self.sentences, train, strict=True) if t),
             extent=self.extent,
         )

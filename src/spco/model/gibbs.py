@@ -30,7 +30,6 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.cluster.vq import kmeans2
 from scipy.optimize import linear_sum_assignment
-from scipy.stats import chi2
 
 from spco.model import allocation
 from spco.model.hyperparameters import TransferHyperparameters
@@ -177,8 +176,6 @@ def initialize(data: PreparedData, n_words: int, hyper: TransferHyperparameters,
     # step groups samples by region: concepts start spatially coherent within each home.
     log_phi_v = np.full((L, D), -np.log(D))
     log_phi_w = np.full((L, V), -np.log(V)) if V else np.zeros((L, 0))
-    log_theta_v = np.broadcast_to(log_phi_v, (E, L, D)).copy()
-    log_theta_w = np.broadcast_to(log_phi_w, (E, L, V)).copy()
     if reference:  # the authors: G_0 by stick breaking, G_e ~ Dir(G_0 + γ)
         log_g0 = log_dirichlet(np.full(L, hyper.gamma0), rng)
         log_g = log_dirichlet(np.exp(log_g0)[None, :] + hyper.gamma + np.zeros((E, L)), rng)
@@ -189,8 +186,11 @@ def initialize(data: PreparedData, n_words: int, hyper: TransferHyperparameters,
     log_pi = allocation.sample_region_weights(np.zeros((E, L, K)), region_prior, rng)
     state = GibbsState(
         concepts=concepts, regions=regions, log_g=log_g, log_g0=log_g0, log_pi=log_pi, means=means,
-        covariances=np.tile(100.0 * np.eye(4), (E, K, 1, 1)), log_theta_v=log_theta_v,
-        log_theta_w=log_theta_w, log_phi_v=log_phi_v, log_phi_w=log_phi_w,
+        covariances=np.tile(100.0 * np.eye(4), (E, K, 1, 1)),
+        # θ only in the state, not in local names too: when the first sweep (or warm_start)
+        # replaces the uniform (E, L, D) θ^v, it is freed at once
+        log_theta_v=np.broadcast_to(log_phi_v, (E, L, D)).copy(),
+        log_theta_w=np.broadcast_to(log_phi_w, (E, L, V)).copy(), log_phi_v=log_phi_v, log_phi_w=log_phi_w,
         word_mask=np.ones(V, dtype=bool),
     )
     count, total, scatter = GaussianRegions.statistics(data.positions, data.homes, regions, E, K)
@@ -267,8 +267,9 @@ def place_words(data: PreparedData, groups: np.ndarray, p_value: float = 1e-3) -
     makes the template words look informative too.
     """
     n_words = data.words.shape[1]
-    present = sp.csr_array(data.words, dtype=np.float64)
-    present.data[:] = 1.0
+    # A new matrix: ``sp.csr_array(data.words, dtype=float64)`` would share the data array of the
+    # (already float64) word counts, and setting it to 1 would replace S^w by 1 for the whole run.
+    present = sp.csr_array(data.words > 0, dtype=np.float64)
     taught = np.diff(data.words.indptr) > 0
     g_stat = np.zeros(n_words)
     dof = np.zeros(n_words)
@@ -291,6 +292,8 @@ def place_words(data: PreparedData, groups: np.ndarray, p_value: float = 1e-3) -
         dof += (labels.size - 1) * (with_word.sum(0) > 0)  # only homes where the word was said
     if not dof.any():
         return np.ones(n_words, dtype=bool)
+    from scipy.stats import chi2  # here, not at the top: scipy.stats adds ~24 MB to every fit
+
     keep = (dof > 0) & (chi2.sf(g_stat, np.maximum(dof, 1)) < p_value)
     if not keep.any():
         keep[:] = True
@@ -440,8 +443,9 @@ def _home_step(data: PreparedData, state: GibbsState, stats: Statistics, hyper: 
     """θ^v, θ^w, G_e, π and the region Gaussians of every home, given φ, G_0 and the assignments."""
     K, L = hyper.n_regions, hyper.n_concepts
     if settings.hierarchical:
-        state.log_theta_v = HierarchicalMultinomial.sample_specific(stats.visual, state.log_phi_v,
-                                                                    hyper.delta_visual, rng)
+        # drawn into the previous θ^v's memory: no new (E, L, D) array per sweep
+        state.log_theta_v = HierarchicalMultinomial.sample_specific(
+            stats.visual, state.log_phi_v, hyper.delta_visual, rng, out=state.log_theta_v)
         state.log_theta_w = HierarchicalMultinomial.sample_specific(stats.words, state.log_phi_w,
                                                                     hyper.delta_word, rng)
         state.log_g = allocation.sample_home_concept_weights(stats.concepts, state.log_g0, hyper.gamma, rng)
@@ -500,8 +504,8 @@ def _home_step_reference(data: PreparedData, state: GibbsState, stats: Statistic
             means[empty] = rng.uniform(-box, box, size=(n_empty, 4))
             covs[empty] = 100.0 * np.eye(4)
         state.means, state.covariances = means, covs
-    state.log_theta_v = HierarchicalMultinomial.sample_specific(stats.visual, state.log_phi_v,
-                                                                hyper.delta_visual, rng)
+    state.log_theta_v = HierarchicalMultinomial.sample_specific(
+        stats.visual, state.log_phi_v, hyper.delta_visual, rng, out=state.log_theta_v)
     state.log_theta_w = HierarchicalMultinomial.sample_specific(stats.words, state.log_phi_w,
                                                                 hyper.delta_word, rng)
     state.log_pi = allocation.sample_region_weights(stats.regions_by_concept, hyper.beta, rng)
@@ -575,7 +579,7 @@ class _Timed:
 
 #: Label swaps run on every one of the first sweeps, then on every SWAP_EVERY-th sweep.
 SWAP_BURN_IN = 20
-SWAP_EVERY = 5
+SWAP_EVERY = 10
 
 
 def swaps_due(iteration: int) -> bool:

@@ -19,12 +19,14 @@ import scipy.sparse as sp
 from scipy.special import gammaln, multigammaln
 
 from spco.model.random import (
+    floored_transpose,
     grouped_gaussian_log_density,
     grouped_row_sums,
     grouped_sparse_dot,
     log_dirichlet,
+    log_dirichlet_hierarchical,
     niw_posterior,
-    sample_crt,
+    sample_crt_totals,
     sample_niw,
 )
 
@@ -118,22 +120,21 @@ class HierarchicalMultinomial:
         ``log_theta`` (E, L, D); entries below :data:`LOG_FLOOR` are clipped to it. The
         multinomial coefficient, the same for every concept, is left out.
         """
-        table = np.ascontiguousarray(np.maximum(log_theta, LOG_FLOOR).transpose(0, 2, 1))
+        table = floored_transpose(log_theta, LOG_FLOOR)
         return grouped_sparse_dot(counts, homes, table)
 
     @staticmethod
     def statistics(counts: sp.csr_array, homes: np.ndarray, concepts: np.ndarray, n_homes: int,
                    n_concepts: int) -> np.ndarray:
         """n_{e,l,k} = Σ_{t in e: C_t = l} c_tk, shape (E, L, D), int64."""
-        sums = grouped_row_sums(counts, homes * n_concepts + concepts, n_homes * n_concepts)
+        sums = grouped_row_sums(counts, homes * n_concepts + concepts, n_homes * n_concepts, blocks=homes)
         return sums.reshape(n_homes, n_concepts, counts.shape[1])
 
     @staticmethod
     def sample_tables(n: np.ndarray, log_phi: np.ndarray, delta: float,
                       rng: np.random.Generator) -> np.ndarray:
         """Table counts summed over homes: Σ_e m_{e,l,k}, m ~ CRT(n_{e,l,k}, δ φ_{l,k}); (L, D)."""
-        concentration = delta * np.exp(log_phi)
-        return sample_crt(n, concentration[None, :, :], rng).sum(axis=0)
+        return sample_crt_totals(n, delta * np.exp(log_phi), rng)
 
     @staticmethod
     def sample_shared(pseudo_counts: np.ndarray, alpha: float, rng: np.random.Generator) -> np.ndarray:
@@ -141,10 +142,11 @@ class HierarchicalMultinomial:
         return log_dirichlet(alpha + pseudo_counts, rng)
 
     @staticmethod
-    def sample_specific(n: np.ndarray, log_phi: np.ndarray, delta: float,
-                        rng: np.random.Generator) -> np.ndarray:
-        """log θ_{e,l} ~ Dir(δ φ_l + n_{e,l}) for every home and concept; (E, L, D)."""
-        return log_dirichlet(delta * np.exp(log_phi)[None, :, :] + n, rng)
+    def sample_specific(n: np.ndarray, log_phi: np.ndarray, delta: float, rng: np.random.Generator,
+                        out: np.ndarray | None = None) -> np.ndarray:
+        """log θ_{e,l} ~ Dir(δ φ_l + n_{e,l}) for every home and concept; (E, L, D). ``out``
+        (optional): an array of that shape to draw into, such as the previous draw."""
+        return log_dirichlet_hierarchical(delta * np.exp(log_phi), n, rng, out=out)
 
     @staticmethod
     def log_prior_specific(log_theta: np.ndarray, log_phi: np.ndarray, delta: float,

@@ -1,54 +1,167 @@
 """Batched random draws used by the Gibbs sampler, all vectorised or compiled.
 
-- :func:`log_dirichlet` — many Dirichlet draws at once, returned as log-probabilities, exact even
-  for tiny concentrations (α^w = 0.01, δ^w φ^w ≪ 1) where plain gamma variates underflow to 0.
+- :func:`log_gamma_variates`, :func:`log_dirichlet` — many gamma and Dirichlet draws at once,
+  returned as logarithms, exact even for tiny concentrations (α^w = 0.01, δ^w φ^w ≪ 1) where plain
+  gamma variates underflow to 0; a compiled Marsaglia–Tsang kernel with ziggurat normals.
 - :func:`sample_niw` — a batch of Normal–inverse-Wishart draws by the Bartlett decomposition.
 - :func:`sample_crt` — table counts m ~ CRT(n, a) of the Chinese restaurant process (Antoniak),
-  exact Bernoulli sums for small n, moment-matched normal for the tail of large n.
+  exact Bernoulli sums for small n, moment-matched normal for the tail of large n;
+  :func:`sample_crt_totals` draws their sums over homes directly, as the shared parameters need.
 - :func:`sample_categorical_log` — one categorical draw per row of a log-probability matrix.
 
-Every function takes a :class:`numpy.random.Generator`; the compiled CRT kernel draws its own
-uniforms from a counter-based hash seeded by that generator, so results do not depend on the
-number of threads.
+Every function takes a :class:`numpy.random.Generator`; the compiled kernels draw their own
+random numbers from counter-seeded streams (a seed taken from that generator), so results do not
+depend on the number of threads.
 """
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
-
 import numpy as np
 from numba import njit, prange
 
-# ----------------------------------------------------------------------------- Dirichlet
+# ----------------------------------------------------------------------------- random streams
+#
+# The compiled kernels draw their own random numbers: xorshift64* streams whose starting states
+# are counter-based hashes (splitmix64) of a seed taken from the caller's Generator and of the
+# block (or entry) index. Results therefore depend on the seed only — never on the number of
+# threads or on how Numba schedules the blocks.
+
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+_MIX1 = np.uint64(0xBF58476D1CE4E5B9)
+_MIX2 = np.uint64(0x94D049BB133111EB)
+_XORSHIFT_MULT = np.uint64(0x2545F4914F6CDD1D)
 
 
-#: Arrays at least this large are drawn in two halves on two threads (NumPy releases the GIL).
-_THREADED_SIZE = 200_000
-_POOL: ThreadPoolExecutor | None = None
+@njit(cache=True, inline="always")
+def _splitmix(x: np.uint64) -> np.uint64:
+    z = x + _GOLDEN
+    z = (z ^ (z >> np.uint64(30))) * _MIX1
+    z = (z ^ (z >> np.uint64(27))) * _MIX2
+    return z ^ (z >> np.uint64(31))
 
 
-def _log_standard_gamma(shape: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """``log(rng.standard_gamma(shape))`` for shapes ≥ 1; large arrays are split in two fixed
-    halves drawn (and logged) in parallel by two generators seeded from ``rng``, so the result
-    depends on the seed only, never on timing or on the number of cores."""
-    if shape.size < _THREADED_SIZE:
-        return np.log(rng.standard_gamma(shape))
-    global _POOL
-    if _POOL is None:
-        _POOL = ThreadPoolExecutor(max_workers=2, thread_name_prefix="spco-gamma")
-    flat = shape.ravel()
-    half = flat.size // 2
-    children = [np.random.default_rng(s) for s in rng.integers(0, 2**63 - 1, size=2)]
+@njit(cache=True, inline="always")
+def _stream_start(seed: np.uint64, j: np.uint64) -> np.uint64:
+    """Start of the random stream of block or entry ``j``: a counter-based seed, never zero."""
+    return _splitmix(seed ^ _splitmix(j)) | np.uint64(1)
 
-    def draw(i: int) -> np.ndarray:
-        part = flat[:half] if i == 0 else flat[half:]
-        return np.log(children[i].standard_gamma(part))
 
-    return np.concatenate(list(_POOL.map(draw, range(2)))).reshape(shape.shape)
+@njit(cache=True, inline="always")
+def _stream_bits(state: np.uint64) -> tuple[np.uint64, np.uint64]:
+    """xorshift64* step: the next state and 64 output bits."""
+    state ^= state >> np.uint64(12)
+    state ^= state << np.uint64(25)
+    state ^= state >> np.uint64(27)
+    return state, state * _XORSHIFT_MULT
+
+
+@njit(cache=True, inline="always")
+def _stream_next(state: np.uint64) -> tuple[np.uint64, float]:
+    """The next state and a uniform in [0, 1) (53 bits)."""
+    state, bits = _stream_bits(state)
+    return state, (bits >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+
+
+@njit(cache=True, inline="always")
+def _stream_open(state: np.uint64) -> tuple[np.uint64, float]:
+    """The next state and a uniform in (0, 1): never exactly 0, so its logarithm is finite."""
+    state, bits = _stream_bits(state)
+    return state, ((bits >> np.uint64(11)) + 0.5) * (1.0 / 9007199254740992.0)
+
+
+def _ziggurat_tables(layers: int = 256, r: float = 3.6541528853610088,
+                     area: float = 4.92867323399e-3) -> tuple[np.ndarray, ...]:
+    """Tables of the ziggurat method for the standard normal (Marsaglia & Tsang 2000).
+
+    Layer 0 is the base strip [0, area/f(r)] × [0, f(r)] plus the tail beyond ``r``; layer i ≥ 1
+    is the box [0, e_{i-1}] × [f(e_{i-1}), f(e_i)] with edges r = e_0 > e_1 > … > e_255 = 0 and
+    f(x) = exp(−x²/2), every layer of the same ``area``. Returns the scale turning 52 random bits
+    into an abscissa, the 52-bit threshold below which that abscissa is under the curve, and
+    f at the layer's bottom and top edges.
+    """
+    f = lambda x: np.exp(-0.5 * x * x)  # noqa: E731
+    edges = np.zeros(layers)
+    edges[0] = r
+    for i in range(layers - 2):
+        edges[i + 1] = np.sqrt(-2.0 * np.log(area / edges[i] + f(edges[i])))
+    width = np.concatenate([[area / f(r)], edges[:-1]])
+    threshold = np.floor(edges / width * 2.0**52).astype(np.uint64)
+    bottom = np.concatenate([[0.0], f(edges[:-1])])
+    return width / 2.0**52, threshold, bottom, f(edges)
+
+
+_ZIG_SCALE, _ZIG_THRESHOLD, _ZIG_BOTTOM, _ZIG_TOP = _ziggurat_tables()
+_ZIG_R = 3.6541528853610088
+
+
+@njit(cache=True, inline="always")
+def _stream_normal(state: np.uint64) -> tuple[np.uint64, float]:
+    """The next state and a standard normal variate (ziggurat; ~99 % of draws take one step)."""
+    while True:
+        state, bits = _stream_bits(state)
+        layer = np.int64(bits & np.uint64(255))
+        negative = (bits >> np.uint64(8)) & np.uint64(1)
+        u = bits >> np.uint64(12)
+        x = u * _ZIG_SCALE[layer]
+        if u < _ZIG_THRESHOLD[layer]:
+            return state, -x if negative else x
+        if layer == 0:  # the tail beyond r (Marsaglia 1964)
+            while True:
+                state, u1 = _stream_open(state)
+                state, u2 = _stream_open(state)
+                xx = -np.log(u1) / _ZIG_R
+                if -2.0 * np.log(u2) > xx * xx:
+                    return state, -(_ZIG_R + xx) if negative else _ZIG_R + xx
+        state, u1 = _stream_next(state)
+        if _ZIG_BOTTOM[layer] + u1 * (_ZIG_TOP[layer] - _ZIG_BOTTOM[layer]) < np.exp(-0.5 * x * x):
+            return state, -x if negative else x
 
 
 #: log Gamma(a) variates below this are clipped (they arise for a < 1e-298 and mean "zero").
 _LOG_GAMMA_FLOOR = -1e300
+
+
+@njit(cache=True, inline="always")
+def _stream_gamma(state: np.uint64, a: float) -> tuple[np.uint64, float]:
+    """The next state and a Gamma(a, 1) variate, a ≥ 1 (Marsaglia & Tsang 2000)."""
+    d = a - 1.0 / 3.0
+    c = 1.0 / np.sqrt(9.0 * d)
+    while True:
+        state, x = _stream_normal(state)
+        v = 1.0 + c * x
+        if v <= 0.0:
+            continue
+        v = v * v * v
+        state, u = _stream_open(state)
+        x2 = x * x
+        if u < 1.0 - 0.0331 * x2 * x2 or np.log(u) < 0.5 * x2 + d * (1.0 - v + np.log(v)):
+            return state, d * v
+
+
+#: Entries per random stream in :func:`log_gamma_variates` (blocks run in parallel).
+_GAMMA_BLOCK = 4096
+
+
+@njit(parallel=True, cache=True)
+def _gamma_kernel(shape: np.ndarray, seed: np.uint64, block: int) -> np.ndarray:
+    """Gamma(a) variates for a ≥ 1, Gamma(a + 1) for 0 < a < 1 (the caller applies the boost),
+    0 for a ≤ 0; one random stream per block of entries."""
+    n = shape.size
+    out = np.empty(n)
+    for b in prange((n + block - 1) // block):
+        state = _stream_start(seed, np.uint64(b))
+        for j in range(b * block, min(n, (b + 1) * block)):
+            a = shape[j]
+            if a >= 1.0:
+                state, out[j] = _stream_gamma(state, a)
+            elif a > 0.0:
+                state, out[j] = _stream_gamma(state, a + 1.0)
+            else:
+                out[j] = 0.0
+    return out
+
+
+# ----------------------------------------------------------------------------- gamma and Dirichlet
 
 
 def log_gamma_variates(shape: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -57,22 +170,113 @@ def log_gamma_variates(shape: np.ndarray, rng: np.random.Generator) -> np.ndarra
     For shape < 1 uses G(a) = G(a + 1) · U^{1/a}, i.e. log G(a) = log G(a + 1) + log(U)/a, which
     stays finite where G(a) itself underflows to 0 (a = 1e-3 gives G < 1e-300 with probability
     ~0.5). A shape of exactly 0 gives -inf (a point mass at 0).
+
+    The variates come from a compiled kernel (Marsaglia–Tsang with ziggurat normals) in parallel
+    blocks of 4,096 entries, each with its own random stream seeded from ``rng``: the result
+    depends on the seed only.
     """
+    return _gamma_draw(shape, rng)[1]
+
+
+def _gamma_draw(shape: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Gamma(shape) variates as (linear values, logarithms, flat indices of the boosted shapes < 1).
+
+    The linear value of a boosted entry is exp of its logarithm (it may underflow to 0: use the
+    logarithm wherever that matters)."""
     shape = np.asarray(shape, dtype=np.float64)
-    small = shape < 1.0
+    flat = np.ascontiguousarray(shape).ravel()
+    seed = np.uint64(rng.integers(0, 2**63 - 1, dtype=np.int64))
+    values = _gamma_kernel(flat, seed, _GAMMA_BLOCK)
     with np.errstate(divide="ignore"):
-        out = _log_standard_gamma(np.where(small, shape + 1.0, shape), rng)
-        if small.any():
-            a = shape[small]
-            log_u = np.log(rng.random(a.shape))
-            with np.errstate(invalid="ignore"):
-                out[small] += np.where(a > 0, np.maximum(log_u / np.maximum(a, 1e-300), _LOG_GAMMA_FLOOR),
-                                       -np.inf)
-    return out
+        logs = np.log(values)  # vectorised; a = 0 gives log 0 = -inf
+    boosted = np.flatnonzero((flat < 1.0) & (flat > 0.0))
+    if boosted.size:
+        a = flat[boosted]
+        log_u = np.log(rng.random(boosted.size) + 0.5 / 2**53)  # U in (0, 1)
+        with np.errstate(over="ignore"):
+            logs[boosted] += np.maximum(log_u / a, _LOG_GAMMA_FLOOR)
+        values[boosted] = np.exp(logs[boosted])
+    return values.reshape(shape.shape), logs.reshape(shape.shape), boosted
+
+
+#: A boosted gamma variate with log below this is stored as its (negative) logarithm instead of
+#: its linear value, which would underflow: linear values are never negative, so the sign tells
+#: the two apart.
+_LOG_STORE_BELOW = -690.0
+
+
+@njit(cache=True)
+def _gamma_row(shape: np.ndarray, out: np.ndarray, state: np.uint64) -> tuple[np.uint64, float, int]:
+    """Fill ``out`` with Gamma(shape) variates, linear values except that a variate below
+    exp(−690) is written as its logarithm (a negative number). Returns the stream's next state,
+    the sum of the linear values and the number of logarithms written."""
+    total = 0.0
+    n_logs = 0
+    for j in range(shape.size):
+        a = shape[j]
+        if a <= 0.0:
+            out[j] = 0.0
+            continue
+        if a >= 1.0:
+            state, g = _stream_gamma(state, a)
+            out[j] = g
+            total += g
+            continue
+        state, g = _stream_gamma(state, a + 1.0)
+        state, u = _stream_open(state)
+        y = np.log(g) + max(np.log(u) / a, _LOG_GAMMA_FLOOR)  # the boost G(a) = G(a + 1) U^{1/a}
+        if y > _LOG_STORE_BELOW:
+            g = np.exp(y)
+            out[j] = g
+            total += g
+        else:
+            out[j] = y
+            n_logs += 1
+    return state, total, n_logs
+
+
+@njit(parallel=True, cache=True)
+def _dirichlet_gamma_kernel(shape: np.ndarray, seed: np.uint64, out: np.ndarray,
+                            totals: np.ndarray, n_logs: np.ndarray) -> None:
+    for r in prange(shape.shape[0]):
+        _, totals[r], n_logs[r] = _gamma_row(shape[r], out[r], _stream_start(seed, np.uint64(r)))
+
+
+@njit(parallel=True, cache=True)
+def _hierarchical_gamma_kernel(base: np.ndarray, counts: np.ndarray, seed: np.uint64, out: np.ndarray,
+                               totals: np.ndarray, n_logs: np.ndarray) -> None:
+    groups, rows, width = counts.shape
+    for i in prange(groups * rows):
+        g, r = i // rows, i % rows
+        shape = np.empty(width)
+        for k in range(width):
+            shape[k] = base[r, k] + counts[g, r, k]
+        _, totals[i], n_logs[i] = _gamma_row(shape, out[g, r], _stream_start(seed, np.uint64(i)))
+
+
+def _normalise_gamma_rows(values: np.ndarray, totals: np.ndarray, n_logs: np.ndarray) -> np.ndarray:
+    """Turn rows of gamma variates written by :func:`_gamma_row` into log-Dirichlet draws, in
+    place: log g − log Σ g along the last axis."""
+    flat = values.reshape(-1, values.shape[-1])
+    special = np.flatnonzero((n_logs > 0) | ~(totals > 1e-280))
+    saved = flat[special]  # rows holding logarithms, or whose sum is tiny: done in log space below
+    with np.errstate(divide="ignore", invalid="ignore"):
+        np.log(flat, out=flat)  # log 0 = -inf for zero concentrations
+        flat -= np.log(totals)[:, None]
+    if special.size:
+        with np.errstate(divide="ignore"):
+            logs = np.where(saved >= 0.0, np.log(np.maximum(saved, 0.0)), saved)
+        flat[special] = logs - log_normaliser(logs)
+    return values
 
 
 def log_dirichlet(alpha: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """Draw Dirichlet vectors along the last axis and return their logarithms.
+
+    Each row is a set of gamma variates (compiled Marsaglia–Tsang, one random stream per row,
+    rows in parallel) divided by their sum. A variate that would underflow (tiny concentrations:
+    α^w = 0.01, δ^w φ^w ≪ 1) is kept as its logarithm, so every entry with α > 0 gets a finite
+    log-probability.
 
     Parameters
     ----------
@@ -86,8 +290,41 @@ def log_dirichlet(alpha: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     alpha = np.asarray(alpha, dtype=np.float64)
     if alpha.shape[-1] == 0:  # no dimension at all (e.g. no word was ever taught)
         return np.zeros(alpha.shape)
-    log_g = log_gamma_variates(alpha, rng)
-    return log_g - log_normaliser(log_g)
+    rows = np.ascontiguousarray(alpha).reshape(-1, alpha.shape[-1])
+    out = np.empty(rows.shape)
+    totals, n_logs = np.empty(rows.shape[0]), np.empty(rows.shape[0], dtype=np.int64)
+    seed = np.uint64(rng.integers(0, 2**63 - 1, dtype=np.int64))
+    _dirichlet_gamma_kernel(rows, seed, out, totals, n_logs)
+    return _normalise_gamma_rows(out, totals, n_logs).reshape(alpha.shape)
+
+
+def log_dirichlet_hierarchical(base: np.ndarray, counts: np.ndarray, rng: np.random.Generator,
+                               out: np.ndarray | None = None) -> np.ndarray:
+    """log θ_{g,r} ~ Dir(base_r + counts_{g,r}) for every group g and row r, without forming the
+    concentrations: the draw of θ_{e,l} ~ Dir(δ φ_l + n_{e,l}) for all homes at once.
+
+    Parameters
+    ----------
+    base: (R, D) non-negative concentrations shared by the groups (δ φ).
+    counts: (G, R, D) non-negative integer counts (n).
+    out: optional (G, R, D) float64 C-contiguous array to write into (e.g. the previous draw).
+
+    Returns
+    -------
+    (G, R, D) log-probabilities, the same as :func:`log_dirichlet` of ``base + counts`` in
+    distribution.
+    """
+    counts = np.ascontiguousarray(counts, dtype=np.int64)
+    base = np.ascontiguousarray(np.broadcast_to(base, counts.shape[1:]), dtype=np.float64)
+    if counts.shape[-1] == 0:
+        return np.zeros(counts.shape)
+    if out is None or out.shape != counts.shape or out.dtype != np.float64 or not out.flags.c_contiguous:
+        out = np.empty(counts.shape)
+    n_rows = counts.shape[0] * counts.shape[1]
+    totals, n_logs = np.empty(n_rows), np.empty(n_rows, dtype=np.int64)
+    seed = np.uint64(rng.integers(0, 2**63 - 1, dtype=np.int64))
+    _hierarchical_gamma_kernel(base, counts, seed, out, totals, n_logs)
+    return _normalise_gamma_rows(out, totals, n_logs)
 
 
 def log_normaliser(log_values: np.ndarray) -> np.ndarray:
@@ -234,43 +471,6 @@ def grouped_gaussian_log_density(x: np.ndarray, groups: np.ndarray, means: np.nd
 
 # ----------------------------------------------------------------------------- CRT (Antoniak)
 
-_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
-_MIX1 = np.uint64(0xBF58476D1CE4E5B9)
-_MIX2 = np.uint64(0x94D049BB133111EB)
-
-
-@njit(cache=True, inline="always")
-def _splitmix(x: np.uint64) -> np.uint64:
-    z = x + _GOLDEN
-    z = (z ^ (z >> np.uint64(30))) * _MIX1
-    z = (z ^ (z >> np.uint64(27))) * _MIX2
-    return z ^ (z >> np.uint64(31))
-
-
-@njit(cache=True, inline="always")
-def _uniform(seed: np.uint64, j: np.uint64, i: np.uint64) -> float:
-    h = _splitmix(seed ^ _splitmix(j * _GOLDEN + i))
-    return (h >> np.uint64(11)) * (1.0 / 9007199254740992.0)
-
-
-_XORSHIFT_MULT = np.uint64(0x2545F4914F6CDD1D)
-
-
-@njit(cache=True, inline="always")
-def _stream_start(seed: np.uint64, j: np.uint64) -> np.uint64:
-    """Start of the random stream of entry ``j``: a counter-based seed, never zero."""
-    return _splitmix(seed ^ _splitmix(j)) | np.uint64(1)
-
-
-@njit(cache=True, inline="always")
-def _stream_next(state: np.uint64) -> tuple[np.uint64, float]:
-    """xorshift64* step: the next state and a uniform in [0, 1)."""
-    state ^= state >> np.uint64(12)
-    state ^= state << np.uint64(25)
-    state ^= state >> np.uint64(27)
-    return state, ((state * _XORSHIFT_MULT) >> np.uint64(11)) * (1.0 / 9007199254740992.0)
-
-
 @njit(cache=True, inline="always")
 def _digamma_large(x: float) -> float:
     # asymptotic series, accurate to ~1e-12 for x >= 6
@@ -287,36 +487,51 @@ def _trigamma_large(x: float) -> float:
     return inv + 0.5 * inv2 + inv * inv2 * (1.0 / 6 - inv2 * (1.0 / 30 - inv2 * (1.0 / 42 - inv2 / 30)))
 
 
-@njit(cache=True)
-def _crt_tail(n: int, a: float, head: int, u1: float, u2: float) -> int:
-    """Tables opened by customers head..n-1, a sum of independent Bernoulli(a/(a+i)).
+@njit(cache=True, inline="always")
+def _digamma(x: float) -> float:
+    """ψ(x) for x > 0: the recurrence ψ(x) = ψ(x + 1) − 1/x up to x ≥ 6, then the series."""
+    shift = 0.0
+    while x < 6.0:
+        shift -= 1.0 / x
+        x += 1.0
+    return shift + _digamma_large(x)
 
-    Exact mean and variance from the digamma/trigamma series; the draw is a rounded normal when
-    the variance is large (>= 25), otherwise the rarer outcome (tables or non-tables) is drawn from
-    the binomial with the same mean and variance (a Poisson when they coincide).
-    """
-    terms = n - head
-    mean = a * (_digamma_large(a + n) - _digamma_large(a + head))
-    var = mean - a * a * (_trigamma_large(a + head) - _trigamma_large(a + n))
+
+@njit(cache=True, inline="always")
+def _trigamma(x: float) -> float:
+    """ψ′(x) for x > 0, the same way."""
+    shift = 0.0
+    while x < 6.0:
+        shift += 1.0 / (x * x)
+        x += 1.0
+    return shift + _trigamma_large(x)
+
+
+@njit(cache=True)
+def _bernoulli_sum_moment_matched(terms: int, mean: float, var: float,
+                                  state: np.uint64) -> tuple[np.uint64, int]:
+    """A draw of a sum of ``terms`` independent Bernoulli variables with the given mean and
+    variance: a rounded normal when the variance is large (>= 25), otherwise the rarer outcome
+    (successes or failures) from the binomial with the same mean and variance (a Poisson when
+    they coincide). Returns the next state of the random stream and the count, in 0..terms."""
     if var < 0.0:
         var = 0.0
     if mean > terms:
         mean = float(terms)
-    rare_is_table = mean <= terms - mean
-    rare_mean = mean if rare_is_table else terms - mean
+    rare_is_success = mean <= terms - mean
+    rare_mean = mean if rare_is_success else terms - mean
     if var >= 25.0 or rare_mean > 50.0:
-        z = np.sqrt(-2.0 * np.log(1.0 - u1)) * np.cos(2.0 * np.pi * u2)
+        state, z = _stream_normal(state)
         extra = np.floor(mean + np.sqrt(var) * z + 0.5)
         if extra < 0.0:
             extra = 0.0
         if extra > terms:
             extra = float(terms)
-        return int(extra)
-    if rare_mean <= 0.0:
-        rare = 0
-    else:
+        return state, int(extra)
+    rare = 0
+    if rare_mean > 0.0:
+        state, u1 = _stream_next(state)
         p = 1.0 - var / rare_mean
-        rare = 0
         if p < 1e-6:  # Poisson(rare_mean)
             pmf = np.exp(-rare_mean)
             cdf = pmf
@@ -341,7 +556,17 @@ def _crt_tail(n: int, a: float, head: int, u1: float, u2: float) -> int:
                     cdf += pmf
         if rare > terms:
             rare = terms
-    return rare if rare_is_table else terms - rare
+    return state, rare if rare_is_success else terms - rare
+
+
+@njit(cache=True)
+def _crt_tail(n: int, a: float, head: int, state: np.uint64) -> tuple[np.uint64, int]:
+    """Tables opened by customers head..n-1, a sum of independent Bernoulli(a/(a+i)), drawn by
+    :func:`_bernoulli_sum_moment_matched` with the exact mean and variance (digamma/trigamma
+    series, a + head >= 6)."""
+    mean = a * (_digamma_large(a + n) - _digamma_large(a + head))
+    var = mean - a * a * (_trigamma_large(a + head) - _trigamma_large(a + n))
+    return _bernoulli_sum_moment_matched(n - head, mean, var, state)
 
 
 @njit(parallel=True, cache=True)
@@ -353,17 +578,18 @@ def _crt_kernel(counts: np.ndarray, conc: np.ndarray, seed: np.uint64, exact_max
         a = conc[j]
         if n <= 0 or a <= 0.0:
             continue
-        m = 1
-        limit = n if n <= exact_max else head
+        m = 1  # the first customer always opens a table
+        # customers 1..start-1 exactly; the series of the tail need a + start >= 6
+        start = 1 if a >= 5.0 else head
+        limit = n if n <= exact_max else start
         state = _stream_start(seed, np.uint64(j))
         for i in range(1, limit):
             state, u = _stream_next(state)
             if u * (a + i) < a:
                 m += 1
         if n > exact_max:
-            state, u1 = _stream_next(state)
-            state, u2 = _stream_next(state)
-            m += _crt_tail(n, a, head, u1, u2)
+            state, extra = _crt_tail(n, a, start, state)
+            m += extra
         out[j] = m
     return out
 
@@ -375,9 +601,11 @@ def sample_crt(
     """Number of tables m ~ CRT(n, a) for each entry (Chinese restaurant table distribution).
 
     m = Σ_{i=0}^{n-1} Bernoulli(a / (a + i)). For n ≤ ``exact_max`` the sum is drawn exactly; for
-    larger n the first ``head`` terms are drawn exactly and the remaining ones by a normal with the
-    exact mean a(ψ(a+n) − ψ(a+head)) and variance (mean − a²(ψ′(a+head) − ψ′(a+n))), rounded and
-    clipped to its range. With ``head >= 6`` the digamma series used is accurate to 1e-12.
+    larger n the first ``head`` terms (only the first one when a ≥ 5) are drawn exactly and the
+    remaining ones by a normal with the exact mean a(ψ(a+n) − ψ(a+h)) and variance
+    (mean − a²(ψ′(a+h) − ψ′(a+n))), h the number of exact terms, rounded and clipped to its range
+    (by the binomial or Poisson with that mean and variance when the variance is small). With
+    a + h ≥ 6 the digamma series used is accurate to 1e-12.
 
     Parameters
     ----------
@@ -396,6 +624,81 @@ def sample_crt(
     flat_a = np.ascontiguousarray(conc, dtype=np.float64).ravel()
     seed = np.uint64(rng.integers(0, 2**63 - 1, dtype=np.int64))
     return _crt_kernel(flat_n, flat_a, seed, int(exact_max), int(head)).reshape(counts.shape)
+
+
+@njit(parallel=True, cache=True)
+def _crt_totals_kernel(counts: np.ndarray, conc: np.ndarray, seed: np.uint64, exact_max: int) -> np.ndarray:
+    n_groups, n_rows, width = counts.shape
+    out = np.zeros((n_rows, width), dtype=np.int64)
+    for r in prange(n_rows):
+        # Σ_g ψ(a + n_g), Σ_g ψ′(a + n_g) and the number of groups with n_g > 1, per column
+        digamma_sum = np.zeros(width)
+        trigamma_sum = np.zeros(width)
+        several = np.zeros(width, dtype=np.int64)
+        terms = np.zeros(width, dtype=np.int64)
+        for g in range(n_groups):
+            for k in range(width):
+                n = counts[g, r, k]
+                a = conc[r, k]
+                if n <= 0 or a <= 0.0:
+                    continue
+                out[r, k] += 1  # the first customer of each group opens a table
+                if n > 1:
+                    terms[k] += n - 1
+                    several[k] += 1
+                    digamma_sum[k] += _digamma(a + n)
+                    trigamma_sum[k] += _trigamma(a + n)
+        mean = np.empty(width)
+        var = np.empty(width)
+        for k in range(width):
+            if terms[k] > 0:
+                a = conc[r, k]
+                mean[k] = a * (digamma_sum[k] - several[k] * _digamma(a + 1.0))
+                var[k] = mean[k] - a * a * (several[k] * _trigamma(a + 1.0) - trigamma_sum[k])
+        for k in range(width):
+            if terms[k] == 0:
+                continue
+            state = _stream_start(seed, np.uint64(r * width + k))
+            a = conc[r, k]
+            if terms[k] <= exact_max:  # few terms: the exact Bernoulli sum
+                for g in range(n_groups):
+                    for i in range(1, counts[g, r, k]):
+                        state, u = _stream_next(state)
+                        if u * (a + i) < a:
+                            out[r, k] += 1
+            else:
+                state, extra = _bernoulli_sum_moment_matched(terms[k], mean[k], var[k], state)
+                out[r, k] += extra
+    return out
+
+
+def sample_crt_totals(counts: np.ndarray, concentration: np.ndarray, rng: np.random.Generator,
+                      exact_max: int = 40) -> np.ndarray:
+    """Σ_g m_g for independent m_g ~ CRT(n_g, a): table counts summed over the first axis.
+
+    This is what the shared parameters need (φ_l | tables ~ Dir(α + Σ_e m_{e,l,·})), drawn in one
+    go instead of one CRT draw per home: the sum is itself a sum of independent Bernoulli
+    variables, Σ_g [n_g > 0] + Σ_g Σ_{i=1}^{n_g−1} Bernoulli(a/(a+i)). When the Bernoulli terms
+    number at most ``exact_max`` they are drawn one by one (exact); otherwise the sum is drawn
+    from the normal (variance ≥ 25) or binomial/Poisson with its exact mean
+    Σ_g a(ψ(a+n_g) − ψ(a+1)) and variance (mean − Σ_g a²(ψ′(a+1) − ψ′(a+n_g))), as in
+    :func:`sample_crt`'s tail.
+
+    Parameters
+    ----------
+    counts: (G, R, W) integer counts n ≥ 0 (e.g. homes × concepts × dimensions).
+    concentration: (R, W) a ≥ 0; a = 0 or n = 0 contributes no table.
+
+    Returns
+    -------
+    (R, W) int64 table counts summed over the G groups.
+    """
+    counts = np.ascontiguousarray(counts, dtype=np.int64)
+    if counts.ndim != 3:
+        raise ValueError("sample_crt_totals needs counts of shape (groups, rows, width)")
+    conc = np.ascontiguousarray(np.broadcast_to(concentration, counts.shape[1:]), dtype=np.float64)
+    seed = np.uint64(rng.integers(0, 2**63 - 1, dtype=np.int64))
+    return _crt_totals_kernel(counts, conc, seed, int(exact_max))
 
 
 # ----------------------------------------------------------------------------- categorical
@@ -526,6 +829,24 @@ def _grouped_sparse_dot(indptr: np.ndarray, indices: np.ndarray, data: np.ndarra
     return out
 
 
+@njit(parallel=True, cache=True)
+def _floored_transpose(values: np.ndarray, floor: float) -> np.ndarray:
+    groups, rows, width = values.shape
+    out = np.empty((groups, width, rows))
+    for g in prange(groups):
+        for r in range(rows):
+            for k in range(width):
+                v = values[g, r, k]
+                out[g, k, r] = v if v > floor else floor
+    return out
+
+
+def floored_transpose(values: np.ndarray, floor: float) -> np.ndarray:
+    """``max(values, floor)`` with the last two axes swapped: (G, R, W) -> (G, W, R), in one pass
+    (the likelihood table of :func:`grouped_sparse_dot` from log θ of shape (E, L, D))."""
+    return _floored_transpose(np.ascontiguousarray(values, dtype=np.float64), float(floor))
+
+
 def grouped_sparse_dot(matrix, groups: np.ndarray, table: np.ndarray) -> np.ndarray:
     """Row t of a CSR ``matrix`` (n, D) times ``table[groups[t]]`` (D, W), for every row.
 
@@ -542,21 +863,31 @@ def _as(array: np.ndarray, dtype: type) -> np.ndarray:
     return np.ascontiguousarray(array, dtype=dtype)
 
 
-@njit(cache=True)
+@njit(parallel=True, cache=True)
 def _grouped_row_sums(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, groups: np.ndarray,
-                      out: np.ndarray) -> None:
-    for t in range(indptr.size - 1):
-        g = groups[t]
-        for p in range(indptr[t], indptr[t + 1]):
-            out[g, indices[p]] += np.int64(data[p])
+                      chunks: np.ndarray, out: np.ndarray) -> None:
+    # rows chunks[i]:chunks[i+1] write to groups no other chunk writes to, so chunks run in parallel
+    for i in prange(chunks.size - 1):
+        for t in range(chunks[i], chunks[i + 1]):
+            g = groups[t]
+            for p in range(indptr[t], indptr[t + 1]):
+                out[g, indices[p]] += np.int64(data[p])
 
 
-def grouped_row_sums(matrix, groups: np.ndarray, n_groups: int) -> np.ndarray:
+def grouped_row_sums(matrix, groups: np.ndarray, n_groups: int,
+                     blocks: np.ndarray | None = None) -> np.ndarray:
     """Sum of the rows of a CSR ``matrix`` (n, D) within each group: returns (n_groups, D) int64.
 
-    Used for the count statistics n^v_{e,l,·} and n^w_{e,l,·} (group = e·L + l).
+    Used for the count statistics n^v_{e,l,·} and n^w_{e,l,·} (group = e·L + l). ``blocks``
+    (optional, (n,) non-decreasing) splits the rows into runs such that no two runs share a group
+    (e.g. the home of each row, rows sorted by home); the runs are summed in parallel.
     """
     out = np.zeros((n_groups, matrix.shape[1]), dtype=np.int64)
+    n = matrix.shape[0]
+    if blocks is not None and n > 1 and np.all(blocks[1:] >= blocks[:-1]):
+        chunks = np.concatenate([[0], np.flatnonzero(blocks[1:] != blocks[:-1]) + 1, [n]]).astype(np.int64)
+    else:
+        chunks = np.array([0, n], dtype=np.int64)
     _grouped_row_sums(_as(matrix.indptr, np.int64), _as(matrix.indices, np.int64),
-                      np.ascontiguousarray(matrix.data), _as(groups, np.int64), out)
+                      np.ascontiguousarray(matrix.data), _as(groups, np.int64), chunks, out)
     return out
