@@ -401,3 +401,24 @@ def test_sigverse_homes_fit_finite(sigverse_dir: Path) -> None:
     model = SpCoTransfer(n_iterations=5, random_state=0, prune_words=True).fit(corpus)
     check_parameters(model.parameters_, 3, 15, 20, len(corpus.vocabulary), 4096)
     assert np.isfinite(model.log_joint_).all()
+
+
+def test_visual_counts_follow_the_assignments_exactly() -> None:
+    """The sampler keeps n^v between sweeps and moves only the rows of samples that changed
+    concept; whatever the change (a few samples, many, a relabelling), the counts equal a recount
+    and cannot be modified by the steps that read them."""
+    from spco.model.observations import HierarchicalMultinomial
+
+    corpus = generate_homes(4, seed=0, new_homes=1, config=SyntheticConfig(n_features=32, n_train=6))
+    model = SpCoTransfer(n_iterations=3, random_state=0).fit(corpus)
+    data, state, hyper = model.data_, model.state_, model.hyperparameters_
+    E, L = data.n_homes, hyper.n_concepts
+    rng = np.random.default_rng(0)
+    for n_changed in (0, 1, 3, data.n_samples // 2, data.n_samples):
+        rows = rng.choice(data.n_samples, size=n_changed, replace=False)
+        state.concepts = state.concepts.copy()
+        state.concepts[rows] = rng.integers(0, L, size=n_changed)
+        counts = gibbs._statistics(data, state, hyper).visual
+        assert np.array_equal(counts, HierarchicalMultinomial.statistics(data.visual, data.homes,
+                                                                         state.concepts, E, L))
+        assert not counts.flags.writeable

@@ -974,7 +974,7 @@ def _initial_state(data: gibbs.PreparedData, knowledge: Knowledge, settings: gib
     )
     stats = gibbs._statistics(data, state, hyper)
     for name in ("visual", "words", "concepts", "regions_by_concept"):
-        getattr(stats, name)[...] = 0
+        setattr(stats, name, np.zeros_like(getattr(stats, name)))  # new arrays: the sampler caches n^v
     if settings.variant == "reference":
         gibbs._home_step_reference(data, state, stats, hyper, settings, rng)
     else:

@@ -94,6 +94,18 @@ class GibbsState:
     region_counts: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), dtype=np.int64))
     candidate_words: np.ndarray | None = None
     home_specific_words: np.ndarray | None = None
+    visual_cache: VisualCountCache | None = field(default=None, repr=False)
+
+
+@dataclass
+class VisualCountCache:
+    """n^v_{e,l,·} of the last sweep and the assignments they were counted for, so that the next
+    sweep only moves the rows of the samples whose concept changed (exact integer updates: the
+    counts are identical to a recount). Valid only for the same ``visual`` matrix object."""
+
+    visual: sp.csr_array
+    concepts: np.ndarray
+    counts: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -241,7 +253,9 @@ def warm_start(data: PreparedData, state: GibbsState, hyper: TransferHyperparame
     reset = taught < 0.5 * sizes
     if reset.any() and not reset.all():
         for name in ("visual", "words", "concepts", "regions_by_concept"):
-            getattr(stats, name)[reset] = 0
+            dropped = getattr(stats, name).copy()  # (the visual counts are the sampler's cache)
+            dropped[reset] = 0
+            setattr(stats, name, dropped)
     state.log_phi_v = log_dirichlet(hyper.alpha_visual + stats.visual.sum(0), rng)
     state.log_phi_w = log_dirichlet(hyper.alpha_word + stats.words.sum(0), rng)
     state.log_g0 = log_dirichlet(hyper.gamma0 / hyper.n_concepts + stats.concepts.sum(0), rng)
@@ -383,9 +397,32 @@ def _statistics(data: PreparedData, state: GibbsState, hyper: TransferHyperparam
         concepts=allocation.concept_counts(data.homes, state.concepts, E, L),
         regions_by_concept=allocation.region_counts(data.homes, state.concepts, state.regions, E, L, K),
         region_count=count, region_total=total, region_scatter=scatter,
-        visual=HierarchicalMultinomial.statistics(data.visual, data.homes, state.concepts, E, L),
+        visual=_visual_counts(data, state, E, L),
         words=HierarchicalMultinomial.statistics(data.words, data.homes, state.concepts, E, L),
     )
+
+
+def _visual_counts(data: PreparedData, state: GibbsState, n_homes: int, n_concepts: int) -> np.ndarray:
+    """n^v (E, L, D), updated from the previous sweep's counts when few samples changed concept
+    (after burn-in most do not), recounted otherwise. Read-only for callers."""
+    cache = state.visual_cache
+    usable = (cache is not None and cache.visual is data.visual
+              and cache.concepts.shape == state.concepts.shape
+              and cache.counts.shape == (n_homes, n_concepts, data.visual.shape[1]))
+    if usable:
+        changed = np.flatnonzero(cache.concepts != state.concepts)
+        if changed.size <= data.n_samples // 4:
+            counts = cache.counts
+            counts.flags.writeable = True
+            HierarchicalMultinomial.move_counts(counts, data.visual, changed, data.homes[changed],
+                                                cache.concepts[changed], state.concepts[changed])
+            counts.flags.writeable = False
+            cache.concepts = state.concepts.copy()
+            return counts
+    counts = HierarchicalMultinomial.statistics(data.visual, data.homes, state.concepts, n_homes, n_concepts)
+    counts.flags.writeable = False
+    state.visual_cache = VisualCountCache(visual=data.visual, concepts=state.concepts.copy(), counts=counts)
+    return counts
 
 
 # ----------------------------------------------------------------------------- the steps
@@ -395,9 +432,28 @@ def _concept_loglik(data: PreparedData, state: GibbsState) -> np.ndarray:
     """Visual + word log-likelihood of every sample under every concept of its home: (N, L)."""
     loglik = HierarchicalMultinomial.log_likelihood(data.visual, data.homes, state.log_theta_v)
     if data.words.nnz:
-        log_theta_w = np.where(state.word_mask, state.log_theta_w, 0.0)  # pruned words are ignored
-        loglik += HierarchicalMultinomial.log_likelihood(data.words, data.homes, log_theta_w)
+        loglik += HierarchicalMultinomial.log_likelihood(data.words, data.homes,
+                                                         kept_word_log_theta(state.log_theta_w, state.word_mask))
     return loglik
+
+
+def kept_word_log_theta(log_theta_w: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """log θ^w with the pruned words removed: rows renormalised over the kept words, 0 (ignored)
+    at the pruned ones; shape as ``log_theta_w`` (…, V).
+
+    Pruning removes word k from every θ^w and renormalises the rows (``docs/model.md``, as in the
+    exported parameters and the label-swap moves). Leaving the rows unnormalised instead would
+    score a kept word by its share of *all* words: a place name holds ~0.2 of its concept's θ^w
+    (the sentence templates hold the rest), while a concept empty in a home, whose θ^w is a draw
+    around a sparse prior φ^w, can hold ~1.0 of it — with S^w = 5000 counts per word that is
+    5000 · log 5 ≈ 8,000 nats in favour of the empty concept, so whole places jumped into empty
+    concepts sweep after sweep and nothing stayed aligned across homes."""
+    if mask.all():
+        return log_theta_w
+    kept = log_theta_w[..., mask]
+    top = kept.max(axis=-1, keepdims=True)
+    log_norm = np.log(np.exp(kept - top).sum(axis=-1, keepdims=True)) + top
+    return np.where(mask, log_theta_w - log_norm, 0.0)
 
 
 def _local_step(data: PreparedData, state: GibbsState, settings: SamplerSettings,

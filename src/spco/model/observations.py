@@ -25,6 +25,7 @@ from spco.model.random import (
     grouped_sparse_dot,
     log_dirichlet,
     log_dirichlet_hierarchical,
+    move_rows,
     niw_posterior,
     sample_crt_totals,
     sample_niw,
@@ -129,6 +130,16 @@ class HierarchicalMultinomial:
         """n_{e,l,k} = Σ_{t in e: C_t = l} c_tk, shape (E, L, D), int64."""
         sums = grouped_row_sums(counts, homes * n_concepts + concepts, n_homes * n_concepts, blocks=homes)
         return sums.reshape(n_homes, n_concepts, counts.shape[1])
+
+    @staticmethod
+    def move_counts(n: np.ndarray, counts: sp.csr_array, rows: np.ndarray, homes: np.ndarray,
+                    old: np.ndarray, new: np.ndarray) -> None:
+        """Update n (E, L, D) in place for samples ``rows`` (of the CSR ``counts``) that moved from
+        concept ``old`` to concept ``new`` in their home: n_{e,old} −= c_t, n_{e,new} += c_t."""
+        if rows.size:
+            move_rows(n, counts.indptr, counts.indices, counts.data, np.asarray(rows, dtype=np.int64),
+                      np.asarray(homes, dtype=np.int64), np.asarray(old, dtype=np.int64),
+                      np.asarray(new, dtype=np.int64))
 
     @staticmethod
     def sample_tables(n: np.ndarray, log_phi: np.ndarray, delta: float,

@@ -891,3 +891,19 @@ def grouped_row_sums(matrix, groups: np.ndarray, n_groups: int,
     _grouped_row_sums(_as(matrix.indptr, np.int64), _as(matrix.indices, np.int64),
                       np.ascontiguousarray(matrix.data), _as(groups, np.int64), chunks, out)
     return out
+
+
+@njit(cache=True)
+def move_rows(n: np.ndarray, indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, rows: np.ndarray,
+              homes: np.ndarray, old: np.ndarray, new: np.ndarray) -> None:
+    """n[homes[i], old[i], :] −= row rows[i] of a CSR matrix and n[homes[i], new[i], :] += it, for
+    every i (integer counts, exact). ``n`` has shape (E, L, D), int64."""
+    for i in range(rows.size):
+        t, e, a, b = rows[i], homes[i], old[i], new[i]
+        if a == b:
+            continue
+        for p in range(indptr[t], indptr[t + 1]):
+            k = indices[p]
+            v = np.int64(data[p])
+            n[e, a, k] -= v
+            n[e, b, k] += v
