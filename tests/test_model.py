@@ -202,8 +202,11 @@ def test_word_pruning_learns_home_specific_names() -> None:
         scores = evaluate_home(model.parameters_, len(corpus) - 1, taught, corpus.vocabulary, specific=True,
                                rng=0)
         accuracies.append(scores.mean_name_accuracy)
-    # observed: A_n 1.00, 1.00, 0.97; 0.00 at every seed when S^w was lost (see the test above)
-    assert np.mean(accuracies) >= 0.8, accuracies
+    # observed: A_n 0.33, 0.70, 0.70 (chance 1/18); 0.00 at every seed when S^w was lost (see the
+    # test above). It was 1.00, 1.00, 0.97 while the local step scored kept words by their share of
+    # all words (pruned ones included); with the rows renormalised over the kept words, as the
+    # model has it, the untaught samples of a bedroom often stay in another concept (open problem)
+    assert np.mean(accuracies) >= 0.4, accuracies
 
 
 def test_transfer_names_the_places_of_a_new_home() -> None:
@@ -213,11 +216,43 @@ def test_transfer_names_the_places_of_a_new_home() -> None:
         model = SpCoTransfer(n_iterations=30, random_state=0, prune_words=True).fit(corpus)
         scores = evaluate_home(model.parameters_, len(corpus) - 1, corpus[-1], corpus.vocabulary, rng=0)
         assert scores.name_chance < 0.1
-        accuracies.append(scores.mean_name_accuracy)
-    # observed: A_n 0.61, 0.36, 0.39 at 30 sweeps, 0.56, 0.53, 0.41 at 100 (chance 1/15): far above
-    # chance, but synthetic homes are harder than SIGVerse, where the same model names every place
-    # of a new home (see the README's results)
-    assert np.mean(accuracies) >= 0.35, accuracies
+        accuracies.append((scores.mean_name_accuracy, scores.mean_position_accuracy))
+    # observed: A_n 1.00, 0.83, 0.74 and A_p 0.71, 0.83, 0.61 at 30 sweeps (chance 1/15 and 1/6).
+    # A_n 0.67, 0.33, 0.38 and A_p 0.40, 0.14, 0.26 while the sampler scored the kept words by
+    # unnormalised θ^w (see test_pruned_words_leave_the_kept_words_renormalised)
+    name, position = np.mean(accuracies, axis=0)
+    assert name >= 0.7 and position >= 0.5, accuracies
+
+
+def test_pruned_words_leave_the_kept_words_renormalised() -> None:
+    """With pruning, the word likelihood of a sample is taken over the kept words with θ^w
+    renormalised over them (docs/model.md: pruned words set to 0, rows renormalised).
+
+    Concept 0 is the kitchen of this home (θ^w: "kitchen" 0.2, the template word "this" 0.8);
+    concept 1 is empty here, its θ^w a draw around a sparse prior with all its mass on "kitchen".
+    With "this" pruned both give the sentence's kept words probability 1, so words must not tell
+    them apart; scoring by the unnormalised θ^w gave concept 1 5000 · log 5 ≈ 8,000 nats more, and
+    whole places jumped into empty concepts on every sweep (new-home A_n 0.46 in the test above)."""
+    from types import SimpleNamespace
+
+    import scipy.sparse as sp
+
+    from spco.model.gibbs import _concept_loglik
+
+    words = sp.csr_array(np.array([[5000.0, 5000.0]]))  # "kitchen", "this": S^w = 5000 each
+    data = SimpleNamespace(visual=sp.csr_array(np.array([[3.0, 1.0]])), homes=np.zeros(1, dtype=np.int64),
+                           words=words)
+    log_theta_w = np.log(np.array([[[0.2, 0.8], [1.0 - 1e-12, 1e-12]]]))
+    log_theta_v = np.log(np.full((1, 2, 2), 0.5))
+    state = SimpleNamespace(log_theta_v=log_theta_v, log_theta_w=log_theta_w,
+                            word_mask=np.array([True, False]))
+    loglik = _concept_loglik(data, state)
+    assert loglik.shape == (1, 2)
+    assert abs(loglik[0, 0] - loglik[0, 1]) < 1e-6, loglik
+    state.word_mask = np.array([True, True])  # nothing pruned: the full θ^w, unchanged
+    loglik = _concept_loglik(data, state)
+    expected = 4.0 * np.log(0.5) + 5000.0 * log_theta_w[0].sum(axis=1)
+    np.testing.assert_allclose(loglik[0], expected, rtol=1e-9)
 
 
 # ----------------------------------------------------------------------------- numerical soundness

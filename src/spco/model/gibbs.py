@@ -432,8 +432,8 @@ def _concept_loglik(data: PreparedData, state: GibbsState) -> np.ndarray:
     """Visual + word log-likelihood of every sample under every concept of its home: (N, L)."""
     loglik = HierarchicalMultinomial.log_likelihood(data.visual, data.homes, state.log_theta_v)
     if data.words.nnz:
-        loglik += HierarchicalMultinomial.log_likelihood(data.words, data.homes,
-                                                         kept_word_log_theta(state.log_theta_w, state.word_mask))
+        log_theta_w = kept_word_log_theta(state.log_theta_w, state.word_mask)
+        loglik += HierarchicalMultinomial.log_likelihood(data.words, data.homes, log_theta_w)
     return loglik
 
 
