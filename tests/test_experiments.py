@@ -29,7 +29,7 @@ from spco.evaluation.report import format_cell, summarize
 SMALL = {"experiment": "general", "settings": (0, 2), "trials": 2, "iterations": 10,
          "models": ("spcotransfer", "spcoa")}
 RUN_KEYS = {"experiment", "model", "setting", "home", "trial", "place", "name_accuracy",
-            "position_accuracy", "seed", "iterations", "wall_seconds"}
+            "position_accuracy", "seed", "iterations", "wall_seconds", "reused_from_setting"}
 SUMMARY_KEYS = {"experiment", "model", "setting", "place", "name_accuracy_mean", "name_accuracy_std",
                 "position_accuracy_mean", "position_accuracy_std", "n"}
 
@@ -85,6 +85,12 @@ def test_results_schema(general_out: Path, new_home: str) -> None:
     # seeds: one per trial, shared by models and settings
     assert {r["seed"] for r in runs} == {trial_seed(0, 0), trial_seed(0, 1)}
     assert results["timing"]["runs"] == 8 and results["timing"]["run_wall_seconds_total"] > 0
+    # SpCoA learns the new home alone: computed at 2 experienced homes, recorded for 0 as well
+    assert results["timing"]["runs_reused"] == 2
+    for r in runs:
+        reused = r["model"] == "spcoa" and r["setting"] == 0
+        assert r["reused_from_setting"] == (2 if reused else None)
+        assert (r["wall_seconds"] == 0) == reused
     vocabulary = results["config"]["data"]["vocabulary"]
     assert results["chance"]["name_accuracy"] == pytest.approx(1 / len(vocabulary))
     config = json.loads((general_out / "config.json").read_text())
@@ -116,9 +122,25 @@ def test_resume_after_interruption_gives_the_same_results(general_out: Path, tmp
     (out / "results.json").unlink()
     config = ExperimentConfig(**SMALL, new_homes=(new_home,), jobs=2)  # workers must agree, too
     result = run_experiment(config, out, resume=True)
-    assert result.results["timing"]["runs_this_session"] == 2
+    assert result.results["timing"]["runs_this_session"] == sum(
+        r.get("reused_from_setting") is None for r in [json.loads(line) for line in lines[6:]])
     assert _stable(result.results) == _stable(full)
     assert len(read_runs(out)) == 8
+
+
+def test_a_reused_run_is_the_run_itself(general_out: Path, new_home: str) -> None:
+    """The copy of SpCoA's run at 0 experienced homes equals that run computed at 0 homes."""
+    from spco.evaluation.experiments import RunKey, _RunContext, execute_run
+
+    config = ExperimentConfig(**SMALL, new_homes=(new_home,))
+    data = load_experiment_data(config)
+    ctx = _RunContext("general", SMALL["iterations"], 0, 10, None, "x", str(general_out), None, 2)
+    computed = execute_run(data, ctx, RunKey(0, 1, new_home, "spcoa"))
+    recorded = next(r for r in read_runs(general_out)
+                    if (r["model"], r["setting"], r["trial"]) == ("spcoa", 0, 1))
+    assert recorded["reused_from_setting"] == 2
+    for field in ("name_accuracy", "position_accuracy", "seed"):
+        assert recorded[field] == computed[field]
 
 
 def test_resume_with_more_trials_keeps_finished_runs(general_out: Path, tmp_path: Path,

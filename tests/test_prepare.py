@@ -12,7 +12,8 @@ import scipy.sparse as sp
 
 from spco.data.environment import Corpus
 from spco.data.synthetic import SyntheticConfig, generate_homes
-from spco.model.transfer import SpCoTransfer, _compute_ready
+from spco.model.random import grouped_row_sums, grouped_sparse_dot, stack_counts
+from spco.model.transfer import SpCoTransfer
 
 
 @pytest.fixture(scope="module")
@@ -31,13 +32,13 @@ def _blocks() -> list:
     return blocks
 
 
-def test_compute_ready_stacks_like_vstack_in_the_kernels_layout() -> None:
+def test_stack_counts_stacks_like_vstack_in_the_compact_layout() -> None:
     blocks = _blocks()
     before = [sp.csr_array(b).copy() for b in blocks]
-    out = _compute_ready(*blocks)
+    out = stack_counts(*blocks)
     expected = sp.csr_array(sp.vstack(blocks, format="csr"), dtype=np.float64)
     assert isinstance(out, sp.csr_array) and out.shape == expected.shape
-    assert (out.data.dtype, out.indices.dtype, out.indptr.dtype) == (np.float64, np.int64, np.int64)
+    assert (out.data.dtype, out.indices.dtype, out.indptr.dtype) == (np.float32, np.int32, np.int64)
     np.testing.assert_array_equal(out.data, expected.data)
     np.testing.assert_array_equal(out.indices, expected.indices)
     np.testing.assert_array_equal(out.indptr, expected.indptr)
@@ -48,13 +49,37 @@ def test_compute_ready_stacks_like_vstack_in_the_kernels_layout() -> None:
             assert not any(np.shares_memory(a, b) for b in (out.data, out.indices, out.indptr))
 
 
-def test_compute_ready_of_one_matrix() -> None:
+def test_stack_counts_of_one_matrix() -> None:
     counts = sp.csr_array(np.array([[0, 3, 0], [5000, 0, 5000]]))
-    out = _compute_ready(counts)
+    out = stack_counts(counts)
     np.testing.assert_array_equal(out.toarray(), counts.toarray())
-    assert out.indices.dtype == np.int64 and out.data.dtype == np.float64
+    assert out.indices.dtype == np.int32 and out.data.dtype == np.float32
     with pytest.raises(ValueError, match="columns"):
-        _compute_ready(counts, sp.csr_array(np.ones((1, 4))))
+        stack_counts(counts, sp.csr_array(np.ones((1, 4))))
+
+
+def test_stack_counts_keeps_float64_for_counts_float32_cannot_hold() -> None:
+    counts = sp.csr_array(np.array([[2**24 + 1, 0, 1]], dtype=np.int64))
+    out = stack_counts(counts)
+    assert out.data.dtype == np.float64
+    assert out.data[0] == 2**24 + 1
+
+
+def test_compact_layout_gives_the_same_kernel_results_bit_for_bit() -> None:
+    """The kernels multiply in float64: float32 counts with int32 indices give exactly what the
+    float64 / int64 layout gives (likelihoods and count statistics)."""
+    rng = np.random.default_rng(3)
+    dense = np.where(rng.random((40, 300)) < 0.4, rng.integers(1, 7000, (40, 300)), 0)
+    compact = stack_counts(sp.csr_array(dense))
+    wide = sp.csr_array(dense, dtype=np.float64)
+    wide.indices, wide.indptr = wide.indices.astype(np.int64), wide.indptr.astype(np.int64)
+    groups = rng.integers(0, 3, 40)
+    table = np.log(rng.dirichlet(np.full(300, 0.1), size=(3, 5))).transpose(0, 2, 1).copy()
+    np.testing.assert_array_equal(grouped_sparse_dot(compact, groups, table),
+                                  grouped_sparse_dot(wide, groups, table))
+    sums = grouped_row_sums(wide, groups, 3)
+    np.testing.assert_array_equal(grouped_row_sums(compact, groups, 3), sums)
+    np.testing.assert_array_equal(sums, np.stack([dense[groups == g].sum(0) for g in range(3)]))
 
 
 def test_prepared_visual_counts_are_the_training_rows(corpus: Corpus) -> None:
@@ -63,7 +88,7 @@ def test_prepared_visual_counts_are_the_training_rows(corpus: Corpus) -> None:
     training = corpus.training_set()
     expected = sp.vstack([t.visual for t in training], format="csr")
     np.testing.assert_array_equal(data.visual.toarray(), expected.toarray())
-    assert data.visual.indices.dtype == np.int64 and data.visual.data.dtype == np.float64
+    assert data.visual.indices.dtype == np.int32 and data.visual.data.dtype == np.float32
     assert data.offsets[-1] == data.n_samples == sum(e.n_train for e in corpus)
 
 

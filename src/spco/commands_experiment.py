@@ -86,7 +86,10 @@ def _run(config_kwargs: dict[str, Any], out: Path, resume: bool, force: bool, qu
     if not quiet:
         click.echo(result.tables)
     timing = result.results["timing"]
-    click.echo(f"{timing['runs']} runs ({timing['runs_this_session']} this session) in {elapsed:.1f} s "
+    reused = f", {timing['runs_reused']} of them copies of a run at another setting" \
+        if timing.get("runs_reused") else ""
+    click.echo(f"{timing['runs']} runs ({timing['runs_this_session']} computed this session{reused}) "
+               f"in {elapsed:.1f} s "
                f"(run time {timing['run_wall_seconds_total']:.1f} s); wrote {out / 'results.json'}, "
                f"{out / 'tables.md'} and {len(result.figures)} figures")
 

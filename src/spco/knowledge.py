@@ -85,7 +85,7 @@ from spco.model.io import _checksum, write_npz_atomic
 from spco.model.observations import HierarchicalMultinomial
 from spco.model.parameters import ConceptParameters
 from spco.model.pruning import words_to_keep
-from spco.model.random import log_dirichlet, sample_crt
+from spco.model.random import log_dirichlet, sample_crt, stack_counts
 from spco.model.transfer import SpatialConceptModel, SpCoTransfer, export_parameters
 from spco.prediction import NamePrediction, PositionPrediction, predict_names, predict_positions
 
@@ -862,14 +862,6 @@ def load_home_model(path: str | PathLike[str]) -> HomeModel:
 # ---------------------------------------------------------------------------- adapting
 
 
-def _compute_ready(counts: sp.sparray) -> sp.csr_array:
-    """CSR float64 counts with int64 indices (the layout of the compiled kernels)."""
-    out = sp.csr_array(counts, dtype=np.float64)
-    out.indices = out.indices.astype(np.int64)
-    out.indptr = out.indptr.astype(np.int64)
-    return out
-
-
 def _prepare(positions: np.ndarray, visual: sp.csr_array, sentences: Sequence[str | None],
              vocabulary: Vocabulary, word_increment: int, scale: float,
              centre: np.ndarray) -> gibbs.PreparedData:
@@ -879,8 +871,8 @@ def _prepare(positions: np.ndarray, visual: sp.csr_array, sentences: Sequence[st
     return gibbs.PreparedData(
         positions=np.asarray(positions, dtype=np.float64) * factor,
         homes=np.zeros(n, dtype=np.int64),
-        visual=_compute_ready(visual),
-        words=_compute_ready(vocabulary.encode(list(sentences), word_increment)),
+        visual=stack_counts(visual),
+        words=stack_counts(vocabulary.encode(list(sentences), word_increment)),
         n_homes=1, offsets=np.array([0, n], dtype=np.int64), position_scale=scale,
         map_centres=(np.asarray(centre, dtype=np.float64) * factor)[None, :],
     )

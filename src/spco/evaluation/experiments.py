@@ -26,6 +26,12 @@ Models (:data:`MODELS`, a registry name -> :class:`ModelSpec`): ``spcotransfer``
 ``spcoa`` and ``spcoa+mi`` (SpCoA on the new home alone: in the general experiment nothing is
 taught there, so they are expected near chance; their result does not depend on ``n``).
 
+*Runs computed once.* In the general experiment a single-home model (SpCoA) learns the new home
+alone, with the trial's seed, whatever the number of experienced homes: its run is the same at every
+setting. It is computed once per (trial, new home), at the largest setting (where trial 0's map is
+drawn), and its record is copied to the other settings with ``reused_from_setting`` set and
+``wall_seconds`` 0 (:func:`shared_runs`). The paper's protocol thus costs 600 SpCoA fits fewer.
+
 Data
 ----
 ``data="synthetic"`` generates ``max(16, n_max) + 3`` homes with
@@ -77,7 +83,8 @@ results.json schema (version 1)
          "trial": int, "place": str,   # a normalised place name, or "mean" (mean over the places)
          "name_accuracy": float | null, "position_accuracy": float | null,   # null: not scored
          "seed": int,             # the run's random_state
-         "iterations": int, "wall_seconds": float}   # fit + evaluation time of the run
+         "iterations": int, "wall_seconds": float,   # fit + evaluation time of the run
+         "reused_from_setting": int | null}   # the run was computed at that setting (see above)
       ],
       "summary": [   # over new homes and trials
         {"experiment", "model", "setting", "place",          # place "mean": mean of per-run means
@@ -87,9 +94,9 @@ results.json schema (version 1)
       "summary_by_home": [ same keys as "summary" plus "home" ],
       "chance": {"name_accuracy": 1/|V|, "position_accuracy": mean over new homes of 1/|places|,
                  "by_home": {home: {"name_accuracy": float, "position_accuracy": float}}},
-      "timing": {"runs": int, "runs_this_session": int, "run_wall_seconds_total": float,
-                 "session_wall_seconds": float}
-    }
+      "timing": {"runs": int, "runs_reused": int, "runs_this_session": int,
+                 "run_wall_seconds_total": float, "session_wall_seconds": float}
+    }   # runs_this_session: runs computed by this call; runs_reused: records copied from another
 
 Accuracies are fractions in [0, 1]; a place without scored samples (or without a ground-truth area)
 is ``null`` and left out of the means.
@@ -145,6 +152,7 @@ __all__ = [
     "plan_runs",
     "read_runs",
     "run_experiment",
+    "shared_runs",
     "trial_seed",
 ]
 
@@ -1039,6 +1047,7 @@ class ExperimentResults:
 def _run_rows(record: Mapping[str, Any]) -> list[dict[str, Any]]:
     base = {k: record[k] for k in ("experiment", "model", "setting", "home", "trial")}
     tail = {k: record[k] for k in ("seed", "iterations", "wall_seconds")}
+    tail["reused_from_setting"] = record.get("reused_from_setting")
     places = report.place_order([*record["name_accuracy"], *record["position_accuracy"]])
     rows = [{**base, "place": p, "name_accuracy": record["name_accuracy"].get(p),
              "position_accuracy": record["position_accuracy"].get(p), **tail} for p in places]
@@ -1085,6 +1094,7 @@ def _assemble(config: ExperimentConfig, identity: Mapping[str, Any], fingerprint
         "chance": chance,
         "timing": {
             "runs": len(records),
+            "runs_reused": sum(r.get("reused_from_setting") is not None for r in records),
             "runs_this_session": session_runs,
             "run_wall_seconds_total": round(sum(r["wall_seconds"] for r in records), 3),
             "session_wall_seconds": round(session_seconds, 3),
@@ -1165,6 +1175,27 @@ def plan_runs(config: ExperimentConfig, data: ExperimentData) -> list[RunKey]:
             for model in config.models or ()]
 
 
+def shared_runs(config: ExperimentConfig, planned: Sequence[RunKey]) -> dict[RunKey, RunKey]:
+    """Runs whose result is that of another run: ``{run: the run it is copied from}``.
+
+    In the general experiment a single-home model (:attr:`ModelSpec.single_home`) fits the new
+    home alone with the trial's seed, so its run at any number of experienced homes is its run at
+    the largest one. Empty for the specific experiment (the teaching rate changes the new home).
+    """
+    config = config.validated()
+    if config.experiment != "general" or not config.settings:
+        return {}
+    top = max(config.settings)
+    return {k: replace(k, setting=top) for k in planned
+            if MODELS[k.model].single_home and k.setting != top}
+
+
+def _reused_record(source: Mapping[str, Any], key: RunKey) -> dict[str, Any]:
+    """The record of run ``key``, copied from the record of the run it shares its result with."""
+    return {**source, "setting": key.setting, "wall_seconds": 0.0, "log_joint": None,
+            "reused_from_setting": source["setting"]}
+
+
 def run_experiment(
     config: ExperimentConfig,
     out: str | os.PathLike[str],
@@ -1211,12 +1242,18 @@ def run_experiment(
         "spco_version": __version__,
     })
     planned = plan_runs(config, data)
+    sources = shared_runs(config, planned)
     done = {}
     for rec in read_runs(out_path, fingerprint):
         done[RunKey(rec["setting"], rec["trial"], rec["home"], rec["model"])] = rec
     pending = [k for k in planned if k not in done]
     if done:
         say(f"resuming: {sum(k in done for k in planned)} of {len(planned)} runs already done")
+    copies: dict[RunKey, list[RunKey]] = {}  # a run to compute -> the runs recorded from its result
+    for key in pending:
+        if key in sources:
+            copies.setdefault(sources[key], []).append(key)
+    pending = [k for k in pending if k not in sources]
     if max_runs is not None:
         pending = pending[:max(0, int(max_runs))]
     ctx = _RunContext(config.experiment, config.iterations, config.seed, config.n_positions,
@@ -1228,10 +1265,21 @@ def run_experiment(
                disable=not progress or not pending, dynamic_ncols=True)
     finished = 0
 
+    def store(record: dict[str, Any]) -> RunKey:
+        _append_run(runs_file, record)
+        key = RunKey(record["setting"], record["trial"], record["home"], record["model"])
+        done[key] = record
+        for copy in copies.pop(key, []):
+            store(_reused_record(record, copy))
+        return key
+
+    for source in [k for k in copies if k in done]:  # computed before an interruption
+        for copy in copies.pop(source):
+            store(_reused_record(done[source], copy))
+
     def on_result(record: dict[str, Any]) -> None:
         nonlocal finished
-        _append_run(runs_file, record)
-        done[RunKey(record["setting"], record["trial"], record["home"], record["model"])] = record
+        store(record)
         finished += 1
         bar.set_postfix_str(f"{record['model']} {record['setting']} {record['home']}: "
                             f"A_n={_fmt(record['mean_name_accuracy'])} "

@@ -17,6 +17,7 @@ depend on the number of threads.
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 from numba import njit, prange
 
 # ----------------------------------------------------------------------------- random streams
@@ -853,14 +854,62 @@ def grouped_sparse_dot(matrix, groups: np.ndarray, table: np.ndarray) -> np.ndar
     ``table`` has shape (G, D, W) (C-contiguous, float64). Returns (n, W). This is the visual and
     word log-likelihood of every sample under every concept of its own home: counts · log θᵀ.
     """
-    return _grouped_sparse_dot(_as(matrix.indptr, np.int64), _as(matrix.indices, np.int64),
-                               _as(matrix.data, np.float64), _as(groups, np.int64),
+    return _grouped_sparse_dot(_as(matrix.indptr, np.int64), _index_array(matrix.indices),
+                               _value_array(matrix.data), _as(groups, np.int64),
                                np.ascontiguousarray(table, dtype=np.float64))
 
 
 def _as(array: np.ndarray, dtype: type) -> np.ndarray:
     """``array`` as a contiguous array of ``dtype``, without a copy when it already is one."""
     return np.ascontiguousarray(array, dtype=dtype)
+
+
+def _index_array(indices: np.ndarray) -> np.ndarray:
+    """CSR column indices as the kernels take them: int32 kept as it is, anything else int64."""
+    return indices if indices.dtype == np.int32 and indices.flags.c_contiguous else _as(indices, np.int64)
+
+
+def _value_array(values: np.ndarray) -> np.ndarray:
+    """CSR values as the kernels take them: float32 kept as it is (:func:`stack_counts`),
+    anything else float64. The kernels multiply in float64, so both give the same results."""
+    return values if values.dtype == np.float32 and values.flags.c_contiguous else _as(values, np.float64)
+
+
+#: Counts up to this value are exact in float32 (2^24), the value type of :func:`stack_counts`.
+FLOAT32_EXACT = 2**24
+
+
+def stack_counts(*blocks) -> sp.csr_array:
+    """The row blocks ``blocks`` (sparse or dense counts with equal numbers of columns) stacked
+    into one CSR array in the compact layout of the compiled kernels: float32 values (whole
+    numbers below 2^24, exact in float32; larger counts keep float64), int32 column indices,
+    int64 row pointers. The kernels multiply in float64, so the layout changes no result; it
+    halves the memory of the visual counts of a fit (2.5 M non-zeros for 16 SIGVerse homes).
+
+    Each output array is allocated once at its final size and filled block by block: no stacked
+    intermediate, no second converted copy. The result shares no memory with the blocks, which are
+    not modified.
+    """
+    blocks_csr = [b if isinstance(b, sp.csr_array) else sp.csr_array(b) for b in blocks]
+    n_columns = blocks_csr[0].shape[1]
+    if any(b.shape[1] != n_columns for b in blocks_csr):
+        raise ValueError("the blocks of counts have different numbers of columns")
+    n_rows = sum(b.shape[0] for b in blocks_csr)
+    nnz = sum(int(b.indptr[-1]) for b in blocks_csr)
+    largest = max((float(np.abs(b.data).max()) for b in blocks_csr if b.nnz), default=0.0)
+    data = np.empty(nnz, dtype=np.float32 if largest < FLOAT32_EXACT else np.float64)
+    indices = np.empty(nnz, dtype=np.int32 if n_columns < 2**31 else np.int64)
+    indptr = np.empty(n_rows + 1, dtype=np.int64)
+    indptr[0] = row = start = 0
+    for b in blocks_csr:
+        n, stop = b.shape[0], start + int(b.indptr[-1])
+        data[start:stop] = b.data[: stop - start]
+        indices[start:stop] = b.indices[: stop - start]
+        np.add(b.indptr[1:], start, out=indptr[row + 1: row + 1 + n])
+        row, start = row + n, stop
+    out = sp.csr_array((n_rows, n_columns), dtype=data.dtype)  # empty; its arrays are replaced (the
+    out.data, out.indices, out.indptr = data, indices, indptr  # constructor would choose the types)
+    return out
 
 
 @njit(parallel=True, cache=True)
@@ -888,8 +937,8 @@ def grouped_row_sums(matrix, groups: np.ndarray, n_groups: int,
         chunks = np.concatenate([[0], np.flatnonzero(blocks[1:] != blocks[:-1]) + 1, [n]]).astype(np.int64)
     else:
         chunks = np.array([0, n], dtype=np.int64)
-    _grouped_row_sums(_as(matrix.indptr, np.int64), _as(matrix.indices, np.int64),
-                      np.ascontiguousarray(matrix.data), _as(groups, np.int64), chunks, out)
+    _grouped_row_sums(_as(matrix.indptr, np.int64), _index_array(matrix.indices),
+                      _value_array(matrix.data), _as(groups, np.int64), chunks, out)
     return out
 
 

@@ -19,7 +19,6 @@ from dataclasses import replace
 from typing import Any
 
 import numpy as np
-import scipy.sparse as sp
 
 from spco.data.environment import Corpus
 from spco.data.language import Vocabulary
@@ -27,6 +26,7 @@ from spco.errors import ConfigurationError
 from spco.model import gibbs
 from spco.model.hyperparameters import SpCoAHyperparameters, TransferHyperparameters
 from spco.model.parameters import ConceptParameters
+from spco.model.random import stack_counts
 
 
 def _as_generator(random_state: int | np.random.Generator | None) -> np.random.Generator:
@@ -105,8 +105,8 @@ class SpatialConceptModel:
         sizes = np.array([t.n_samples for t in training])
         offsets = np.concatenate([[0], np.cumsum(sizes)])
         homes = np.repeat(np.arange(len(training)), sizes)
-        visual = _compute_ready(*(t.visual for t in training))  # stacked, converted once, no copies between
-        words = _compute_ready(corpus.word_counts([s for t in training for s in t.sentences]))
+        visual = stack_counts(*(t.visual for t in training))  # stacked once, in the kernels' layout
+        words = stack_counts(corpus.word_counts([s for t in training for s in t.sentences]))
         centres = np.zeros((len(training), 4))
         for e, t in enumerate(training):
             if t.extent is not None:
@@ -211,36 +211,6 @@ class SpatialConceptModel:
 
         self._check_fitted()
         save_model(self, path, overwrite=overwrite)
-
-
-def _compute_ready(*blocks: sp.sparray | sp.spmatrix) -> sp.csr_array:
-    """The row blocks ``blocks`` (sparse counts with equal numbers of columns) stacked into one CSR
-    array with float64 values and int64 indices, the layout the compiled kernels use (so no
-    conversion happens inside a sweep). Counts stay whole numbers.
-
-    Each output array is allocated once at its final size and filled block by block: no stacked
-    intermediate, no second converted copy (for the visual counts of 16 homes either would be as
-    large as the result). The result shares no memory with the blocks, which are not modified.
-    """
-    blocks_csr = [b if isinstance(b, sp.csr_array) else sp.csr_array(b) for b in blocks]
-    n_columns = blocks_csr[0].shape[1]
-    if any(b.shape[1] != n_columns for b in blocks_csr):
-        raise ValueError("the blocks of counts have different numbers of columns")
-    n_rows = sum(b.shape[0] for b in blocks_csr)
-    nnz = sum(int(b.indptr[-1]) for b in blocks_csr)
-    data = np.empty(nnz, dtype=np.float64)
-    indices = np.empty(nnz, dtype=np.int64)
-    indptr = np.empty(n_rows + 1, dtype=np.int64)
-    indptr[0] = row = start = 0
-    for b in blocks_csr:
-        n, stop = b.shape[0], start + int(b.indptr[-1])
-        data[start:stop] = b.data[: stop - start]
-        indices[start:stop] = b.indices[: stop - start]
-        np.add(b.indptr[1:], start, out=indptr[row + 1: row + 1 + n])
-        row, start = row + n, stop
-    out = sp.csr_array((n_rows, n_columns), dtype=np.float64)  # empty; its arrays are replaced (the
-    out.data, out.indices, out.indptr = data, indices, indptr  # constructor may narrow them to int32)
-    return out
 
 
 def _masked_rows(log_p: np.ndarray, mask: np.ndarray) -> np.ndarray:
