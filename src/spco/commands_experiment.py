@@ -86,7 +86,7 @@ def _run(config_kwargs: dict[str, Any], out: Path, resume: bool, force: bool, qu
     if not quiet:
         click.echo(result.tables)
     timing = result.results["timing"]
-    reused = f", {timing['runs_reused']} of them copies of a run at another setting" \
+    reused = f"; {timing['runs_reused']} recorded as copies of a run at another setting" \
         if timing.get("runs_reused") else ""
     click.echo(f"{timing['runs']} runs ({timing['runs_this_session']} computed this session{reused}) "
                f"in {elapsed:.1f} s "
