@@ -132,9 +132,11 @@ def test_a_reused_run_is_the_run_itself(general_out: Path, new_home: str) -> Non
     """The copy of SpCoA's run at 0 experienced homes equals that run computed at 0 homes."""
     from spco.evaluation.experiments import RunKey, _RunContext, execute_run
 
-    config = ExperimentConfig(**SMALL, new_homes=(new_home,))
+    config = ExperimentConfig(**SMALL, new_homes=(new_home,)).validated()
     data = load_experiment_data(config)
-    ctx = _RunContext("general", SMALL["iterations"], 0, 10, None, "x", str(general_out), None, 2)
+    ctx = _RunContext(config.experiment, config.iterations, config.seed, config.n_positions,
+                      config.hyperparameters, "no fingerprint", str(general_out), None,
+                      map_setting=max(SMALL["settings"]))
     computed = execute_run(data, ctx, RunKey(0, 1, new_home, "spcoa"))
     recorded = next(r for r in read_runs(general_out)
                     if (r["model"], r["setting"], r["trial"]) == ("spcoa", 0, 1))

@@ -1265,13 +1265,12 @@ def run_experiment(
                disable=not progress or not pending, dynamic_ncols=True)
     finished = 0
 
-    def store(record: dict[str, Any]) -> RunKey:
+    def store(record: dict[str, Any]) -> None:
         _append_run(runs_file, record)
         key = RunKey(record["setting"], record["trial"], record["home"], record["model"])
         done[key] = record
         for copy in copies.pop(key, []):
             store(_reused_record(record, copy))
-        return key
 
     for source in [k for k in copies if k in done]:  # computed before an interruption
         for copy in copies.pop(source):
