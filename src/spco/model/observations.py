@@ -19,10 +19,10 @@ import scipy.sparse as sp
 from scipy.special import gammaln, multigammaln
 
 from spco.model.random import (
-    floored_transpose,
+    blocked_sparse_dot,
     grouped_gaussian_log_density,
     grouped_row_sums,
-    grouped_sparse_dot,
+    likelihood_table,
     log_dirichlet,
     log_dirichlet_hierarchical,
     move_rows,
@@ -121,8 +121,8 @@ class HierarchicalMultinomial:
         ``log_theta`` (E, L, D); entries below :data:`LOG_FLOOR` are clipped to it. The
         multinomial coefficient, the same for every concept, is left out.
         """
-        table = floored_transpose(log_theta, LOG_FLOOR)
-        return grouped_sparse_dot(counts, homes, table)
+        table = likelihood_table(log_theta, LOG_FLOOR)
+        return blocked_sparse_dot(counts, homes, table, log_theta.shape[1])
 
     @staticmethod
     def statistics(counts: sp.csr_array, homes: np.ndarray, concepts: np.ndarray, n_homes: int,

@@ -60,14 +60,15 @@ def _stream_bits(state: np.uint64) -> tuple[np.uint64, np.uint64]:
 def _stream_next(state: np.uint64) -> tuple[np.uint64, float]:
     """The next state and a uniform in [0, 1) (53 bits)."""
     state, bits = _stream_bits(state)
-    return state, (bits >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+    # through int64 (exact for 53 bits): x86 converts signed integers in one instruction
+    return state, np.int64(bits >> np.uint64(11)) * (1.0 / 9007199254740992.0)
 
 
 @njit(cache=True, inline="always")
 def _stream_open(state: np.uint64) -> tuple[np.uint64, float]:
     """The next state and a uniform in (0, 1): never exactly 0, so its logarithm is finite."""
     state, bits = _stream_bits(state)
-    return state, ((bits >> np.uint64(11)) + 0.5) * (1.0 / 9007199254740992.0)
+    return state, (np.int64(bits >> np.uint64(11)) + 0.5) * (1.0 / 9007199254740992.0)
 
 
 def _ziggurat_tables(layers: int = 256, r: float = 3.6541528853610088,
@@ -103,9 +104,9 @@ def _stream_normal(state: np.uint64) -> tuple[np.uint64, float]:
         layer = np.int64(bits & np.uint64(255))
         negative = (bits >> np.uint64(8)) & np.uint64(1)
         u = bits >> np.uint64(12)
-        x = u * _ZIG_SCALE[layer]
-        if u < _ZIG_THRESHOLD[layer]:
-            return state, -x if negative else x
+        x = np.int64(u) * _ZIG_SCALE[layer]
+        if u < _ZIG_THRESHOLD[layer]:  # the sign by arithmetic: a branch on a random bit mispredicts
+            return state, x * (1.0 - 2.0 * np.int64(negative))
         if layer == 0:  # the tail beyond r (Marsaglia 1964)
             while True:
                 state, u1 = _stream_open(state)
@@ -236,39 +237,53 @@ def _gamma_row(shape: np.ndarray, out: np.ndarray, state: np.uint64) -> tuple[np
     return state, total, n_logs
 
 
+@njit(cache=True)
+def _dirichlet_row(shape: np.ndarray, out: np.ndarray, state: np.uint64) -> None:
+    """Fill ``out`` with the logarithm of a Dir(shape) draw: gamma variates (:func:`_gamma_row`)
+    divided by their sum, in linear space when no variate underflowed (one log per entry),
+    otherwise in log space (log-sum-exp over the row). Zero concentrations give -inf."""
+    _, total, n_logs = _gamma_row(shape, out, state)
+    if n_logs == 0 and total > 1e-280:
+        log_total = np.log(total)
+        for j in range(out.size):
+            g = out[j]
+            out[j] = np.log(g) - log_total if g > 0.0 else -np.inf
+        return
+    # some variates are stored as their logarithms (negative), or the sum itself is tiny
+    top = -np.inf
+    for j in range(out.size):
+        g = out[j]
+        if g > 0.0:
+            g = np.log(g)
+        elif g == 0.0:
+            g = -np.inf
+        out[j] = g
+        if g > top:
+            top = g
+    acc = 0.0
+    for j in range(out.size):
+        acc += np.exp(out[j] - top)
+    log_total = top + np.log(acc)
+    for j in range(out.size):
+        out[j] -= log_total
+
+
 @njit(parallel=True, cache=True)
-def _dirichlet_gamma_kernel(shape: np.ndarray, seed: np.uint64, out: np.ndarray,
-                            totals: np.ndarray, n_logs: np.ndarray) -> None:
+def _dirichlet_kernel(shape: np.ndarray, seed: np.uint64, out: np.ndarray) -> None:
     for r in prange(shape.shape[0]):
-        _, totals[r], n_logs[r] = _gamma_row(shape[r], out[r], _stream_start(seed, np.uint64(r)))
+        _dirichlet_row(shape[r], out[r], _stream_start(seed, np.uint64(r)))
 
 
 @njit(parallel=True, cache=True)
-def _hierarchical_gamma_kernel(base: np.ndarray, counts: np.ndarray, seed: np.uint64, out: np.ndarray,
-                               totals: np.ndarray, n_logs: np.ndarray) -> None:
+def _hierarchical_dirichlet_kernel(base: np.ndarray, counts: np.ndarray, seed: np.uint64,
+                                   out: np.ndarray) -> None:
     groups, rows, width = counts.shape
     for i in prange(groups * rows):
         g, r = i // rows, i % rows
         shape = np.empty(width)
         for k in range(width):
             shape[k] = base[r, k] + counts[g, r, k]
-        _, totals[i], n_logs[i] = _gamma_row(shape, out[g, r], _stream_start(seed, np.uint64(i)))
-
-
-def _normalise_gamma_rows(values: np.ndarray, totals: np.ndarray, n_logs: np.ndarray) -> np.ndarray:
-    """Turn rows of gamma variates written by :func:`_gamma_row` into log-Dirichlet draws, in
-    place: log g − log Σ g along the last axis."""
-    flat = values.reshape(-1, values.shape[-1])
-    special = np.flatnonzero((n_logs > 0) | ~(totals > 1e-280))
-    saved = flat[special]  # rows holding logarithms, or whose sum is tiny: done in log space below
-    with np.errstate(divide="ignore", invalid="ignore"):
-        np.log(flat, out=flat)  # log 0 = -inf for zero concentrations
-        flat -= np.log(totals)[:, None]
-    if special.size:
-        with np.errstate(divide="ignore"):
-            logs = np.where(saved >= 0.0, np.log(np.maximum(saved, 0.0)), saved)
-        flat[special] = logs - log_normaliser(logs)
-    return values
+        _dirichlet_row(shape, out[g, r], _stream_start(seed, np.uint64(i)))
 
 
 def log_dirichlet(alpha: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -293,10 +308,9 @@ def log_dirichlet(alpha: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         return np.zeros(alpha.shape)
     rows = np.ascontiguousarray(alpha).reshape(-1, alpha.shape[-1])
     out = np.empty(rows.shape)
-    totals, n_logs = np.empty(rows.shape[0]), np.empty(rows.shape[0], dtype=np.int64)
     seed = np.uint64(rng.integers(0, 2**63 - 1, dtype=np.int64))
-    _dirichlet_gamma_kernel(rows, seed, out, totals, n_logs)
-    return _normalise_gamma_rows(out, totals, n_logs).reshape(alpha.shape)
+    _dirichlet_kernel(rows, seed, out)
+    return out.reshape(alpha.shape)
 
 
 def log_dirichlet_hierarchical(base: np.ndarray, counts: np.ndarray, rng: np.random.Generator,
@@ -321,11 +335,9 @@ def log_dirichlet_hierarchical(base: np.ndarray, counts: np.ndarray, rng: np.ran
         return np.zeros(counts.shape)
     if out is None or out.shape != counts.shape or out.dtype != np.float64 or not out.flags.c_contiguous:
         out = np.empty(counts.shape)
-    n_rows = counts.shape[0] * counts.shape[1]
-    totals, n_logs = np.empty(n_rows), np.empty(n_rows, dtype=np.int64)
     seed = np.uint64(rng.integers(0, 2**63 - 1, dtype=np.int64))
-    _hierarchical_gamma_kernel(base, counts, seed, out, totals, n_logs)
-    return _normalise_gamma_rows(out, totals, n_logs)
+    _hierarchical_dirichlet_kernel(base, counts, seed, out)
+    return out
 
 
 def log_normaliser(log_values: np.ndarray) -> np.ndarray:
@@ -632,44 +644,69 @@ def _crt_totals_kernel(counts: np.ndarray, conc: np.ndarray, seed: np.uint64, ex
     n_groups, n_rows, width = counts.shape
     out = np.zeros((n_rows, width), dtype=np.int64)
     for r in prange(n_rows):
-        # Σ_g ψ(a + n_g), Σ_g ψ′(a + n_g) and the number of groups with n_g > 1, per column
+        a_row = conc[r]
+        opened = out[r]
+        # pass 1 (branch-free): tables opened by first customers, Bernoulli terms per column
+        terms = np.zeros(width, dtype=np.int64)
+        for g in range(n_groups):
+            n_row = counts[g, r]
+            for k in range(width):
+                n = n_row[k]
+                active = np.int64(n > 0) * np.int64(a_row[k] > 0.0)
+                opened[k] += active
+                terms[k] += active * (n - 1)
+        # pass 2, groups in memory order, only the entries with n > 1 (gathered without branches
+        # first): the exact Bernoulli draws of the columns with few terms (each column continues
+        # its own random stream from group to group) and the moments of the others: Σ_i p_i and
+        # Σ_i p_i (1 − p_i), p_i = a/(a + i), term by term where a + n < 6, otherwise through
+        # Σ_g ψ(a + n_g) and Σ_g ψ′(a + n_g) (series), with ψ(a + 1) once per column
+        states = np.empty(width, dtype=np.uint64)
+        for k in range(width):
+            states[k] = _stream_start(seed, np.uint64(r * width + k))
+        exact_mean = np.zeros(width)
+        exact_var = np.zeros(width)
         digamma_sum = np.zeros(width)
         trigamma_sum = np.zeros(width)
         several = np.zeros(width, dtype=np.int64)
-        terms = np.zeros(width, dtype=np.int64)
+        several_columns = np.empty(width, dtype=np.int64)
         for g in range(n_groups):
+            n_row = counts[g, r]
+            m = 0
             for k in range(width):
-                n = counts[g, r, k]
-                a = conc[r, k]
-                if n <= 0 or a <= 0.0:
-                    continue
-                out[r, k] += 1  # the first customer of each group opens a table
-                if n > 1:
-                    terms[k] += n - 1
-                    several[k] += 1
-                    digamma_sum[k] += _digamma(a + n)
-                    trigamma_sum[k] += _trigamma(a + n)
-        mean = np.empty(width)
-        var = np.empty(width)
-        for k in range(width):
-            if terms[k] > 0:
-                a = conc[r, k]
-                mean[k] = a * (digamma_sum[k] - several[k] * _digamma(a + 1.0))
-                var[k] = mean[k] - a * a * (several[k] * _trigamma(a + 1.0) - trigamma_sum[k])
-        for k in range(width):
-            if terms[k] == 0:
-                continue
-            state = _stream_start(seed, np.uint64(r * width + k))
-            a = conc[r, k]
-            if terms[k] <= exact_max:  # few terms: the exact Bernoulli sum
-                for g in range(n_groups):
-                    for i in range(1, counts[g, r, k]):
+                several_columns[m] = k
+                m += np.int64(n_row[k] > 1) * np.int64(terms[k] > 0)
+            for j in range(m):
+                k = several_columns[j]
+                n = n_row[k]
+                a = a_row[k]
+                if terms[k] > exact_max:
+                    if a + n >= 6.0:
+                        digamma_sum[k] += _digamma_large(a + n)  # (inlined: one 1/x for both)
+                        trigamma_sum[k] += _trigamma_large(a + n)
+                        several[k] += 1
+                    else:
+                        for i in range(1, n):
+                            p = a / (a + i)
+                            exact_mean[k] += p
+                            exact_var[k] += p * (1.0 - p)
+                else:
+                    state = states[k]
+                    for i in range(1, n):
                         state, u = _stream_next(state)
-                        if u * (a + i) < a:
-                            out[r, k] += 1
-            else:
-                state, extra = _bernoulli_sum_moment_matched(terms[k], mean[k], var[k], state)
-                out[r, k] += extra
+                        opened[k] += np.int64(u * (a + i) < a)
+                    states[k] = state
+        for k in range(width):
+            if terms[k] <= exact_max:
+                continue
+            a = a_row[k]
+            mean = exact_mean[k]
+            var = exact_var[k]
+            if several[k] > 0:
+                series_mean = a * (digamma_sum[k] - several[k] * _digamma(a + 1.0))
+                mean += series_mean
+                var += series_mean - a * a * (several[k] * _trigamma(a + 1.0) - trigamma_sum[k])
+            _, extra = _bernoulli_sum_moment_matched(terms[k], mean, var, states[k])
+            opened[k] += extra
     return out
 
 
@@ -814,49 +851,118 @@ def sample_joint_assignment(log_g: np.ndarray, log_pi: np.ndarray, homes: np.nda
 # ----------------------------------------------------------------------------- sparse helpers
 
 
+#: Columns of a likelihood table are processed in blocks of this many lanes (4 AVX2 registers).
+LANES = 16
+
+
 @njit(parallel=True, cache=True)
-def _grouped_sparse_dot(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, groups: np.ndarray,
-                        table: np.ndarray) -> np.ndarray:
+def _blocked_sparse_dot(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, groups: np.ndarray,
+                        table: np.ndarray, width: int) -> np.ndarray:
+    # table (G, B, D, 16): sixteen independent accumulators per block of columns, each summed in
+    # the order of the row's entries (the same sums as a column-by-column loop, bit for bit);
+    # written out lane by lane so that LLVM's SLP vectoriser turns them into 4-wide operations
     n = indptr.size - 1
-    width = table.shape[2]
-    out = np.zeros((n, width))
+    out = np.empty((n, width))
     for t in prange(n):
         g = groups[t]
-        for p in range(indptr[t], indptr[t + 1]):
-            k = indices[p]
-            v = data[p]
-            for c in range(width):
-                out[t, c] += v * table[g, k, c]
+        for b in range(table.shape[1]):
+            block = table[g, b]
+            a0 = a1 = a2 = a3 = a4 = a5 = a6 = a7 = 0.0
+            a8 = a9 = a10 = a11 = a12 = a13 = a14 = a15 = 0.0
+            for p in range(indptr[t], indptr[t + 1]):
+                row = block[indices[p]]
+                v = np.float64(data[p])
+                a0 += v * row[0]
+                a1 += v * row[1]
+                a2 += v * row[2]
+                a3 += v * row[3]
+                a4 += v * row[4]
+                a5 += v * row[5]
+                a6 += v * row[6]
+                a7 += v * row[7]
+                a8 += v * row[8]
+                a9 += v * row[9]
+                a10 += v * row[10]
+                a11 += v * row[11]
+                a12 += v * row[12]
+                a13 += v * row[13]
+                a14 += v * row[14]
+                a15 += v * row[15]
+            sums = (a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15)
+            for c in range(LANES):
+                if b * LANES + c < width:
+                    out[t, b * LANES + c] = sums[c]
     return out
 
 
 @njit(parallel=True, cache=True)
-def _floored_transpose(values: np.ndarray, floor: float) -> np.ndarray:
+def _likelihood_table(values: np.ndarray, floor: float) -> np.ndarray:
     groups, rows, width = values.shape
-    out = np.empty((groups, width, rows))
-    for g in prange(groups):
-        for r in range(rows):
-            for k in range(width):
-                v = values[g, r, k]
-                out[g, k, r] = v if v > floor else floor
+    n_blocks = (rows + LANES - 1) // LANES
+    out = np.empty((groups, n_blocks, width, LANES))
+    for i in prange(groups * n_blocks):
+        g, b = i // n_blocks, i % n_blocks
+        block = out[g, b]
+        for k in range(width):
+            for lane in range(LANES):
+                r = b * LANES + lane
+                if r < rows:
+                    v = values[g, r, k]
+                    block[k, lane] = v if v > floor else floor
+                else:
+                    block[k, lane] = 0.0
     return out
 
 
-def floored_transpose(values: np.ndarray, floor: float) -> np.ndarray:
-    """``max(values, floor)`` with the last two axes swapped: (G, R, W) -> (G, W, R), in one pass
-    (the likelihood table of :func:`grouped_sparse_dot` from log θ of shape (E, L, D))."""
-    return _floored_transpose(np.ascontiguousarray(values, dtype=np.float64), float(floor))
+def likelihood_table(log_probabilities: np.ndarray, floor: float) -> np.ndarray:
+    """The table :func:`blocked_sparse_dot` reads, from log-probabilities of shape (G, R, W) (log θ
+    of shape (E, L, D)): entries clipped below at ``floor``, the last two axes swapped, and the R
+    rows split into blocks of :data:`LANES` (zero-padded): shape (G, ⌈R/16⌉, W, 16)."""
+    return _likelihood_table(np.ascontiguousarray(log_probabilities, dtype=np.float64), float(floor))
+
+
+def blocked_sparse_dot(matrix, groups: np.ndarray, table: np.ndarray, width: int) -> np.ndarray:
+    """Row t of a CSR ``matrix`` (n, D) times the table of its group, for every row: (n, ``width``).
+
+    ``table`` comes from :func:`likelihood_table` (``width`` its number of rows R). This is the
+    visual and word log-likelihood of every sample under every concept of its own home:
+    counts · log θᵀ, in float64."""
+    args = (_as(matrix.indptr, np.int64), _index_array(matrix.indices), _value_array(matrix.data),
+            _as(groups, np.int64), np.ascontiguousarray(table, dtype=np.float64), int(width))
+    return _call_vectorised(_blocked_sparse_dot, args)
 
 
 def grouped_sparse_dot(matrix, groups: np.ndarray, table: np.ndarray) -> np.ndarray:
-    """Row t of a CSR ``matrix`` (n, D) times ``table[groups[t]]`` (D, W), for every row.
+    """Row t of a CSR ``matrix`` (n, D) times ``table[groups[t]]`` (D, W), for every row: (n, W).
 
-    ``table`` has shape (G, D, W) (C-contiguous, float64). Returns (n, W). This is the visual and
-    word log-likelihood of every sample under every concept of its own home: counts · log θᵀ.
-    """
-    return _grouped_sparse_dot(_as(matrix.indptr, np.int64), _index_array(matrix.indices),
-                               _value_array(matrix.data), _as(groups, np.int64),
-                               np.ascontiguousarray(table, dtype=np.float64))
+    ``table`` has shape (G, D, W). The same kernel as :func:`blocked_sparse_dot`, which the
+    sampler calls with a table it builds once per sweep."""
+    table = np.asarray(table, dtype=np.float64)
+    blocked = likelihood_table(np.swapaxes(table, 1, 2), -np.inf)
+    return blocked_sparse_dot(matrix, groups, blocked, table.shape[2])
+
+
+def _call_vectorised(kernel, args: tuple):
+    """Call a compiled kernel whose code is written for LLVM's SLP vectoriser (independent scalar
+    accumulators over adjacent memory), compiling it first with that vectoriser switched on.
+
+    Numba leaves the SLP vectoriser off by default because it has miscompiled some code
+    (numba#8852); it is switched on here only while compiling the kernels passed in, whose
+    results the tests compare with NumPy. Without it the same code runs, at scalar speed. A
+    kernel already compiled (or loaded from Numba's cache) for these argument types is called
+    directly."""
+    from numba import typeof
+    from numba.core import config
+
+    signature = tuple(typeof(a) for a in args)
+    if signature not in kernel.signatures:
+        previous = config.SLP_VECTORIZE
+        config.SLP_VECTORIZE = 1
+        try:
+            kernel.compile(signature)
+        finally:
+            config.SLP_VECTORIZE = previous
+    return kernel(*args)
 
 
 def _as(array: np.ndarray, dtype: type) -> np.ndarray:
