@@ -541,6 +541,32 @@ def test_grouped_sparse_dot_and_row_sums_match_dense() -> None:
     assert_allclose(grouped_sparse_dot(as_int, groups, table), expected, rtol=1e-12, atol=1e-9)
 
 
+def test_blocked_sparse_dot_over_several_blocks_of_lanes_matches_dense() -> None:
+    """More rows than one 16-lane block (L = 20 concepts): the likelihood table is split in two
+    zero-padded blocks, entries below the floor are clipped, and the result is the dense product
+    (the kernel is compiled with the SLP vectoriser, which must not change any sum)."""
+    from numba.core import config
+
+    from spco.model.random import LANES, blocked_sparse_dot, likelihood_table, stack_counts
+
+    rng = np.random.default_rng(27)
+    n, D, G, L = 60, 50, 2, 20
+    dense = np.where(rng.random((n, D)) < 0.3, rng.integers(1, 7000, size=(n, D)), 0)
+    groups = rng.integers(0, G, size=n)
+    log_theta = np.log(rng.dirichlet(np.full(D, 0.5), size=(G, L)))
+    log_theta[0, 3, :5] = -1e305  # below the floor
+    slp_before = config.SLP_VECTORIZE
+    table = likelihood_table(log_theta, -1e300)
+    assert table.shape == (G, 2, D, LANES)
+    assert_array_equal(table[:, 1, :, L - LANES:], 0.0)  # padding lanes
+    out = blocked_sparse_dot(stack_counts(sp.csr_array(dense)), groups, table, L)
+    assert config.SLP_VECTORIZE == slp_before  # switched on only while compiling the kernel
+    floored = np.maximum(log_theta, -1e300)
+    expected = np.stack([dense[t] @ floored[groups[t]].T for t in range(n)])
+    assert out.shape == (n, L)
+    assert_allclose(out, expected, rtol=1e-12)
+
+
 # ----------------------------------------------------------------------------- summed CRT, θ draws
 
 

@@ -340,14 +340,6 @@ def log_dirichlet_hierarchical(base: np.ndarray, counts: np.ndarray, rng: np.ran
     return out
 
 
-def log_normaliser(log_values: np.ndarray) -> np.ndarray:
-    """log Σ exp along the last axis (keepdims), stable; rows of all -inf give -inf."""
-    top = log_values.max(axis=-1, keepdims=True)
-    safe_top = np.where(np.isfinite(top), top, 0.0)
-    with np.errstate(divide="ignore"):
-        return np.log(np.exp(log_values - safe_top).sum(axis=-1, keepdims=True)) + safe_top
-
-
 def dirichlet(alpha: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """Draw Dirichlet vectors along the last axis (probabilities, see :func:`log_dirichlet`)."""
     return np.exp(log_dirichlet(alpha, rng))
@@ -783,6 +775,10 @@ def sample_categorical_log(log_p: np.ndarray, rng: np.random.Generator) -> np.nd
     return _categorical_rows(np.ascontiguousarray(log_p, dtype=np.float64), u)
 
 
+#: Samples per task of :func:`_joint_assignment` (scratch arrays are allocated once per task).
+_ASSIGNMENT_CHUNK = 64
+
+
 @njit(parallel=True, cache=True)
 def _joint_assignment(log_g: np.ndarray, log_pi: np.ndarray, pi_scaled: np.ndarray, pi_row_max: np.ndarray,
                       homes: np.ndarray, concept_ll: np.ndarray, region_ll: np.ndarray, u_concept: np.ndarray,
@@ -791,40 +787,66 @@ def _joint_assignment(log_g: np.ndarray, log_pi: np.ndarray, pi_scaled: np.ndarr
     n_concepts = log_pi.shape[1]
     n_regions = log_pi.shape[2]
     out = np.empty(n, dtype=np.int64)
-    for t in prange(n):
-        e = homes[t]
-        r_max = -np.inf
-        for m in range(n_regions):
-            if region_ll[t, m] > r_max:
-                r_max = region_ll[t, m]
+    n_chunks = (n + _ASSIGNMENT_CHUNK - 1) // _ASSIGNMENT_CHUNK
+    for chunk in prange(n_chunks):
         r = np.empty(n_regions)
-        for m in range(n_regions):
-            r[m] = np.exp(region_ll[t, m] - r_max)
-        # marginal of C: log G + loglik + log Σ_m π_{c,m} N(x | m), Σ_m by a dot product when safe
+        weights = np.empty(n_regions)
         log_c = np.empty(n_concepts)
-        for c in range(n_concepts):
-            total = 0.0
+        sums = np.empty(n_concepts)
+        for t in range(chunk * _ASSIGNMENT_CHUNK, min(n, (chunk + 1) * _ASSIGNMENT_CHUNK)):
+            e = homes[t]
+            r_max = -np.inf
             for m in range(n_regions):
-                total += pi_scaled[e, c, m] * r[m]
-            if total > 1e-250:
-                log_sum = np.log(total)
-            else:  # too small for the dot product: exact log-sum-exp
-                inner_top = -np.inf
+                if region_ll[t, m] > r_max:
+                    r_max = region_ll[t, m]
+            for m in range(n_regions):
+                r[m] = np.exp(region_ll[t, m] - r_max)
+            # marginal of C: log G + loglik + log Σ_m π_{c,m} N(x | m), Σ_m by a dot product when safe
+            for c in range(n_concepts):
+                total = 0.0
                 for m in range(n_regions):
-                    v = log_pi[e, c, m] - pi_row_max[e, c] + region_ll[t, m] - r_max
-                    if v > inner_top:
-                        inner_top = v
-                acc = 0.0
+                    total += pi_scaled[e, c, m] * r[m]
+                sums[c] = total
+                if total > 1e-250:
+                    log_sum = np.log(total)
+                else:  # too small for the dot product: exact log-sum-exp
+                    for m in range(n_regions):  # (the weights array is free until R | C)
+                        weights[m] = log_pi[e, c, m] - pi_row_max[e, c] + region_ll[t, m] - r_max
+                    inner_top = weights.max()
+                    acc = 0.0
+                    for m in range(n_regions):
+                        acc += np.exp(weights[m] - inner_top)
+                    log_sum = inner_top + np.log(acc)
+                log_c[c] = log_g[e, c] + concept_ll[t, c] + pi_row_max[e, c] + log_sum
+            chosen = _draw_log(log_c, u_concept[t])
+            # R | C: the weights π_{C,m} N(x | m) of the dot product above, or in log space when it
+            # underflowed
+            if sums[chosen] > 1e-250:
                 for m in range(n_regions):
-                    acc += np.exp(log_pi[e, c, m] - pi_row_max[e, c] + region_ll[t, m] - r_max - inner_top)
-                log_sum = inner_top + np.log(acc)
-            log_c[c] = log_g[e, c] + concept_ll[t, c] + pi_row_max[e, c] + log_sum
-        chosen = _draw_log(log_c, u_concept[t])
-        # R | C
-        for m in range(n_regions):
-            r[m] = log_pi[e, chosen, m] + region_ll[t, m]
-        out[t] = chosen * n_regions + _draw_log(r, u_region[t])
+                    weights[m] = pi_scaled[e, chosen, m] * r[m]
+                region = _draw_linear(weights, sums[chosen], u_region[t])
+            else:
+                for m in range(n_regions):
+                    weights[m] = log_pi[e, chosen, m] + region_ll[t, m]
+                region = _draw_log(weights, u_region[t])
+            out[t] = chosen * n_regions + region
     return out
+
+
+@njit(cache=True)
+def _draw_linear(weights: np.ndarray, total: float, u: float) -> int:
+    """Index drawn from non-negative ``weights`` summing to ``total`` with the uniform ``u``
+    (never an index of weight 0)."""
+    target = u * total
+    acc = 0.0
+    last = 0
+    for j in range(weights.size):
+        if weights[j] > 0.0:
+            acc += weights[j]
+            last = j
+            if acc > target:
+                return j
+    return last
 
 
 def sample_joint_assignment(log_g: np.ndarray, log_pi: np.ndarray, homes: np.ndarray,
