@@ -392,6 +392,67 @@ def niw_posterior(
     return mu_n, kappa_n, psi_n, nu_n
 
 
+@njit(cache=True, inline="always")
+def _stream_gamma_any(state: np.uint64, a: float) -> tuple[np.uint64, float]:
+    """The next state and a Gamma(a, 1) variate for any a > 0 (boosted below 1: G(a + 1) U^{1/a})."""
+    if a >= 1.0:
+        return _stream_gamma(state, a)
+    state, g = _stream_gamma(state, a + 1.0)
+    state, u = _stream_open(state)
+    return state, g * u ** (1.0 / a)
+
+
+@njit(parallel=True, cache=True)
+def _niw_kernel(mu_n: np.ndarray, kappa_n: np.ndarray, psi_n: np.ndarray, nu_n: np.ndarray, seed: np.uint64,
+                mu: np.ndarray, sigma: np.ndarray, failed: np.ndarray) -> None:
+    batch, d = mu_n.shape
+    for b in prange(batch):
+        state = _stream_start(seed, np.uint64(b))
+        chol = np.zeros((d, d))  # C = chol(Ψ_n), lower
+        for j in range(d):
+            s = psi_n[b, j, j]
+            for k in range(j):
+                s -= chol[j, k] * chol[j, k]
+            if not s > 0.0:
+                failed[b] = True
+                s = 1.0
+            chol[j, j] = np.sqrt(s)
+            for i in range(j + 1, d):
+                t = psi_n[b, i, j]
+                for k in range(j):
+                    t -= chol[i, k] * chol[j, k]
+                chol[i, j] = t / chol[j, j]
+        bartlett = np.zeros((d, d))  # A: A_ii = sqrt(χ²(ν − i)), A_ij ~ N(0, 1) below the diagonal
+        for i in range(d):
+            state, g = _stream_gamma_any(state, 0.5 * (nu_n[b] - i))
+            bartlett[i, i] = np.sqrt(2.0 * g)
+            for j in range(i):
+                state, bartlett[i, j] = _stream_normal(state)
+        factor = np.zeros((d, d))  # F = C A^{-T}: F Aᵀ = C, forward substitution along each row
+        for r in range(d):
+            for k in range(d):
+                t = chol[r, k]
+                for j in range(k):
+                    t -= factor[r, j] * bartlett[k, j]
+                factor[r, k] = t / bartlett[k, k]
+        for i in range(d):  # Σ = F Fᵀ
+            for j in range(i + 1):
+                t = 0.0
+                for k in range(d):
+                    t += factor[i, k] * factor[j, k]
+                sigma[b, i, j] = t
+                sigma[b, j, i] = t
+        scale = 1.0 / np.sqrt(kappa_n[b])  # μ = μ_n + F z / √κ_n
+        z = np.empty(d)
+        for i in range(d):
+            state, z[i] = _stream_normal(state)
+        for i in range(d):
+            t = 0.0
+            for k in range(d):
+                t += factor[i, k] * z[k]
+            mu[b, i] = mu_n[b, i] + t * scale
+
+
 def sample_niw(
     mu_n: np.ndarray, kappa_n: np.ndarray, psi_n: np.ndarray, nu_n: np.ndarray,
     rng: np.random.Generator,
@@ -400,30 +461,28 @@ def sample_niw(
 
     Σ ~ IW(Ψ_n, ν_n) is drawn as Σ = (C A^{-T})(C A^{-T})ᵀ with C = chol(Ψ_n) and A the lower
     triangular Bartlett factor (A_ii = sqrt(χ²(ν − i)), A_ij ~ N(0, 1) below the diagonal), since
-    Σ^{-1} = C^{-T} A Aᵀ C^{-1} ~ W(Ψ_n^{-1}, ν_n). Then μ ~ N(μ_n, Σ/κ_n).
+    Σ^{-1} = C^{-T} A Aᵀ C^{-1} ~ W(Ψ_n^{-1}, ν_n). Then μ ~ N(μ_n, Σ/κ_n). One compiled kernel
+    for the whole batch (in parallel), each element with its own random stream seeded from ``rng``.
 
     Shapes: mu_n (..., d), kappa_n (...,), psi_n (..., d, d), nu_n (...,). Returns μ (..., d) and
     Σ (..., d, d).
     """
-    batch = psi_n.shape[:-2]
-    d = psi_n.shape[-1]
-    nu_n = np.broadcast_to(np.asarray(nu_n, dtype=np.float64), batch)
-    chol_psi = np.linalg.cholesky(psi_n)
-    dof = nu_n[..., None] - np.arange(d)  # χ² degrees of freedom ν − i, i = 0..d-1
-    bartlett = np.zeros((*batch, d, d))
-    diag = np.sqrt(rng.chisquare(dof))
-    idx = np.arange(d)
-    bartlett[..., idx, idx] = diag
-    lower = np.tril_indices(d, -1)
-    bartlett[..., lower[0], lower[1]] = rng.standard_normal((*batch, lower[0].size))
-    # factor F = C A^{-T}:  solve A F' = Cᵀ  ->  F = (A^{-1} Cᵀ)ᵀ
-    inv_a = np.linalg.inv(bartlett)
-    factor = chol_psi @ np.swapaxes(inv_a, -1, -2)
-    sigma = factor @ np.swapaxes(factor, -1, -2)
-    sigma = 0.5 * (sigma + np.swapaxes(sigma, -1, -2))
-    z = rng.standard_normal((*batch, d))
-    mu = mu_n + np.einsum("...ij,...j->...i", factor, z) / np.sqrt(np.asarray(kappa_n))[..., None]
-    return mu, sigma
+    psi_n = np.asarray(psi_n, dtype=np.float64)
+    batch, d = psi_n.shape[:-2], psi_n.shape[-1]
+    flat_mu = np.ascontiguousarray(np.broadcast_to(mu_n, (*batch, d)), dtype=np.float64).reshape(-1, d)
+    flat_kappa = np.ascontiguousarray(np.broadcast_to(kappa_n, batch), dtype=np.float64).ravel()
+    flat_nu = np.ascontiguousarray(np.broadcast_to(nu_n, batch), dtype=np.float64).ravel()
+    flat_psi = np.ascontiguousarray(psi_n).reshape(-1, d, d)
+    if (flat_nu <= d - 1).any():
+        raise ValueError(f"sample_niw needs ν > d − 1 = {d - 1}; got min ν = {flat_nu.min()}")
+    mu = np.empty(flat_mu.shape)
+    sigma = np.empty(flat_psi.shape)
+    failed = np.zeros(flat_mu.shape[0], dtype=np.bool_)
+    seed = np.uint64(rng.integers(0, 2**63 - 1, dtype=np.int64))
+    _niw_kernel(flat_mu, flat_kappa, flat_psi, flat_nu, seed, mu, sigma, failed)
+    if failed.any():
+        raise ValueError(f"sample_niw: Ψ_n of {int(failed.sum())} batch element(s) is not positive definite")
+    return mu.reshape(*batch, d), sigma.reshape(*batch, d, d)
 
 
 def gaussian_log_density(x: np.ndarray, mean: np.ndarray, cov: np.ndarray) -> np.ndarray:
@@ -464,14 +523,57 @@ def grouped_gaussian_log_density(x: np.ndarray, groups: np.ndarray, means: np.nd
     Shapes: x (n, d); groups (n,) int; means (G, K, d); covariances (G, K, d, d). Returns (n, K).
     Uses the inverse Cholesky factor, so the quadratic form is a triangular product.
     """
-    chol = np.linalg.cholesky(covariances)
-    d = x.shape[1]
-    inv_chol = np.linalg.inv(chol)
-    log_det = 2.0 * np.log(np.diagonal(chol, axis1=-2, axis2=-1)).sum(-1)
-    constant = -0.5 * (log_det + d * np.log(2.0 * np.pi))
+    covariances = np.ascontiguousarray(covariances, dtype=np.float64)
+    inv_chol = np.empty(covariances.shape)
+    constant = np.empty(covariances.shape[:-2])
+    failed = np.zeros(covariances.shape[:-2], dtype=np.bool_)
+    _inverse_cholesky(covariances, inv_chol, constant, failed)
+    if failed.any():
+        raise ValueError(f"{int(failed.sum())} covariance matri{'x is' if failed.sum() == 1 else 'ces are'} "
+                         "not positive definite")
     return _grouped_gaussian(np.ascontiguousarray(x, dtype=np.float64),
                              np.ascontiguousarray(groups, dtype=np.int64), np.ascontiguousarray(means),
-                             np.ascontiguousarray(inv_chol), constant)
+                             inv_chol, constant)
+
+
+@njit(cache=True)
+def _inverse_cholesky(covariances: np.ndarray, inv_chol: np.ndarray, constant: np.ndarray,
+                      failed: np.ndarray) -> None:
+    """For each (G, K) covariance: the inverse of its lower Cholesky factor and the Gaussian's log
+    normaliser −(log det Σ + d log 2π)/2; ``failed`` marks matrices that are not positive definite."""
+    groups, n_components, d, _ = covariances.shape
+    chol = np.zeros((d, d))
+    for g in range(groups):
+        for m in range(n_components):
+            cov = covariances[g, m]
+            log_det = 0.0
+            for j in range(d):
+                s = cov[j, j]
+                for k in range(j):
+                    s -= chol[j, k] * chol[j, k]
+                if not s > 0.0:
+                    failed[g, m] = True
+                    s = 1.0
+                chol[j, j] = np.sqrt(s)
+                log_det += np.log(s)
+                for i in range(j + 1, d):
+                    t = cov[i, j]
+                    for k in range(j):
+                        t -= chol[i, k] * chol[j, k]
+                    chol[i, j] = t / chol[j, j]
+            inv = inv_chol[g, m]  # L^{-1}, lower triangular, column by column
+            for j in range(d):
+                for i in range(d):
+                    if i < j:
+                        inv[i, j] = 0.0
+                    elif i == j:
+                        inv[i, j] = 1.0 / chol[i, i]
+                    else:
+                        t = 0.0
+                        for k in range(j, i):
+                            t -= chol[i, k] * inv[k, j]
+                        inv[i, j] = t / chol[i, i]
+            constant[g, m] = -0.5 * (log_det + d * np.log(2.0 * np.pi))
 
 
 # ----------------------------------------------------------------------------- CRT (Antoniak)
@@ -479,10 +581,17 @@ def grouped_gaussian_log_density(x: np.ndarray, groups: np.ndarray, means: np.nd
 @njit(cache=True, inline="always")
 def _digamma_large(x: float) -> float:
     # asymptotic series, accurate to ~1e-12 for x >= 6
+    return np.log(x) + _digamma_large_minus_log(x)
+
+
+@njit(cache=True, inline="always")
+def _digamma_large_minus_log(x: float) -> float:
+    """ψ(x) − log x by the asymptotic series (x ≥ 6): sums of ψ can then take one logarithm of
+    the product of their arguments instead of one per term."""
     inv = 1.0 / x
     inv2 = inv * inv
-    return (np.log(x) - 0.5 * inv
-            - inv2 * (1.0 / 12 - inv2 * (1.0 / 120 - inv2 * (1.0 / 252 - inv2 * (1.0 / 240 - inv2 / 132)))))
+    return -0.5 * inv - inv2 * (1.0 / 12 - inv2 * (1.0 / 120 - inv2 * (1.0 / 252 - inv2 * (1.0 / 240
+                                                                           - inv2 / 132))))
 
 
 @njit(cache=True, inline="always")
@@ -659,6 +768,7 @@ def _crt_totals_kernel(counts: np.ndarray, conc: np.ndarray, seed: np.uint64, ex
         exact_var = np.zeros(width)
         digamma_sum = np.zeros(width)
         trigamma_sum = np.zeros(width)
+        product = np.ones(width)  # Π (a + n_g) of the series terms: Σ log = log Π, one log per column
         several = np.zeros(width, dtype=np.int64)
         several_columns = np.empty(width, dtype=np.int64)
         for g in range(n_groups):
@@ -673,8 +783,13 @@ def _crt_totals_kernel(counts: np.ndarray, conc: np.ndarray, seed: np.uint64, ex
                 a = a_row[k]
                 if terms[k] > exact_max:
                     if a + n >= 6.0:
-                        digamma_sum[k] += _digamma_large(a + n)  # (inlined: one 1/x for both)
-                        trigamma_sum[k] += _trigamma_large(a + n)
+                        x = a + n
+                        digamma_sum[k] += _digamma_large_minus_log(x)  # (inlined: one 1/x for both)
+                        trigamma_sum[k] += _trigamma_large(x)
+                        product[k] *= x
+                        if product[k] > 1e280:  # x < 2^63: the next product cannot overflow
+                            digamma_sum[k] += np.log(product[k])
+                            product[k] = 1.0
                         several[k] += 1
                     else:
                         for i in range(1, n):
@@ -694,6 +809,7 @@ def _crt_totals_kernel(counts: np.ndarray, conc: np.ndarray, seed: np.uint64, ex
             mean = exact_mean[k]
             var = exact_var[k]
             if several[k] > 0:
+                digamma_sum[k] += np.log(product[k])
                 series_mean = a * (digamma_sum[k] - several[k] * _digamma(a + 1.0))
                 mean += series_mean
                 var += series_mean - a * a * (several[k] * _trigamma(a + 1.0) - trigamma_sum[k])
