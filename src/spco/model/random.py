@@ -3,13 +3,20 @@
 - :func:`log_gamma_variates`, :func:`log_dirichlet` — many gamma and Dirichlet draws at once,
   returned as logarithms, exact even for tiny concentrations (α^w = 0.01, δ^w φ^w ≪ 1) where plain
   gamma variates underflow to 0; a compiled Marsaglia–Tsang kernel with ziggurat normals.
-- :func:`sample_niw` — a batch of Normal–inverse-Wishart draws by the Bartlett decomposition.
+- :func:`sample_niw` — a batch of Normal–inverse-Wishart draws by the Bartlett decomposition
+  (compiled, one random stream per batch element).
 - :func:`sample_crt` — table counts m ~ CRT(n, a) of the Chinese restaurant process (Antoniak),
   exact Bernoulli sums for small n, moment-matched normal for the tail of large n;
   :func:`sample_crt_totals` draws their sums over homes directly, as the shared parameters need.
-- :func:`sample_categorical_log` — one categorical draw per row of a log-probability matrix.
+- :func:`sample_categorical_log` — one categorical draw per row of a log-probability matrix;
+  :func:`sample_joint_assignment` — the joint (C, R) draw of every sample.
 
-Every function takes a :class:`numpy.random.Generator`; the compiled kernels draw their own
+Deterministic kernels of the likelihoods live here too: :func:`likelihood_table` and
+:func:`blocked_sparse_dot` (counts · log θᵀ for every sample and concept of its home),
+:func:`grouped_gaussian_log_density`, and the count statistics (:func:`grouped_row_sums`,
+:func:`move_rows`).
+
+Every random draw takes a :class:`numpy.random.Generator`; the compiled kernels draw their own
 random numbers from counter-seeded streams (a seed taken from that generator), so results do not
 depend on the number of threads.
 """
@@ -499,7 +506,6 @@ def _grouped_gaussian(x: np.ndarray, groups: np.ndarray, means: np.ndarray, inv_
     n, d = x.shape
     n_components = means.shape[1]
     out = np.empty((n, n_components))
-    diff = np.empty(d)
     for t in prange(n):
         g = groups[t]
         diff = np.empty(d)
