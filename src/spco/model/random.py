@@ -130,7 +130,7 @@ def _stream_normal(state: np.uint64) -> tuple[np.uint64, float]:
 _LOG_GAMMA_FLOOR = -1e300
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _stream_gamma(state: np.uint64, a: float) -> tuple[np.uint64, float]:
     """The next state and a Gamma(a, 1) variate, a ≥ 1 (Marsaglia & Tsang 2000)."""
     d = a - 1.0 / 3.0
@@ -151,7 +151,7 @@ def _stream_gamma(state: np.uint64, a: float) -> tuple[np.uint64, float]:
 _GAMMA_BLOCK = 4096
 
 
-@njit(parallel=True, cache=True)
+@njit(parallel=True, cache=True, error_model="numpy")
 def _gamma_kernel(shape: np.ndarray, seed: np.uint64, block: int) -> np.ndarray:
     """Gamma(a) variates for a ≥ 1, Gamma(a + 1) for 0 < a < 1 (the caller applies the boost),
     0 for a ≤ 0; one random stream per block of entries."""
@@ -214,7 +214,7 @@ def _gamma_draw(shape: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray
 _LOG_STORE_BELOW = -690.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _gamma_row(shape: np.ndarray, out: np.ndarray, state: np.uint64) -> tuple[np.uint64, float, int]:
     """Fill ``out`` with Gamma(shape) variates, linear values except that a variate below
     exp(−690) is written as its logarithm (a negative number). Returns the stream's next state,
@@ -244,17 +244,18 @@ def _gamma_row(shape: np.ndarray, out: np.ndarray, state: np.uint64) -> tuple[np
     return state, total, n_logs
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _dirichlet_row(shape: np.ndarray, out: np.ndarray, state: np.uint64) -> None:
     """Fill ``out`` with the logarithm of a Dir(shape) draw: gamma variates (:func:`_gamma_row`)
     divided by their sum, in linear space when no variate underflowed (one log per entry),
     otherwise in log space (log-sum-exp over the row). Zero concentrations give -inf."""
     _, total, n_logs = _gamma_row(shape, out, state)
     if n_logs == 0 and total > 1e-280:
-        log_total = np.log(total)
+        # every entry is 0 (concentration 0) or a normal positive number (≥ e^−690)
+        _log_minus(out, np.log(total), np.empty(out.size))
         for j in range(out.size):
-            g = out[j]
-            out[j] = np.log(g) - log_total if g > 0.0 else -np.inf
+            if shape[j] <= 0.0:
+                out[j] = -np.inf
         return
     # some variates are stored as their logarithms (negative), or the sum itself is tiny
     top = -np.inf
@@ -275,13 +276,49 @@ def _dirichlet_row(shape: np.ndarray, out: np.ndarray, state: np.uint64) -> None
         out[j] -= log_total
 
 
-@njit(parallel=True, cache=True)
+# fdlibm's log (Sun Microsystems, 1993; as in musl): x = 2^k (1 + f) with 1 + f in [√2/2, √2),
+# log(1 + f) = f − f²/2 + s (f²/2 + R(s²)), s = f/(2 + f), R a degree-7 polynomial; error < 1 ulp
+_LN2_HI = 6.93147180369123816490e-01
+_LN2_LO = 1.90821492927058770002e-10
+_LG1, _LG2, _LG3 = 6.666666666666735130e-01, 3.999999999940941908e-01, 2.857142874366239149e-01
+_LG4, _LG5, _LG6 = 2.222219843214978396e-01, 1.818357216161805012e-01, 1.531383769920937332e-01
+_LG7 = 1.479819860511658591e-01
+
+
+@njit(cache=True, fastmath={"contract"}, error_model="numpy")
+def _log_minus(values: np.ndarray, shift: float, exponents: np.ndarray) -> None:
+    """values[j] ← log(values[j]) − shift in place, for positive normal (not subnormal) finite
+    values; other entries get meaningless finite numbers that the caller overwrites.
+
+    The same arithmetic as the C library's log (fdlibm), written as two branch-free loops —
+    integer bit operations, then a polynomial — that LLVM vectorises (4 doubles per AVX2
+    instruction; NumPy's error model, so no zero-division check per element). About twice as fast
+    as one ``np.log`` call per element; within 1 ulp of it (a test checks 1 M values over the whole
+    double range). ``exponents``: scratch of the size of ``values``."""
+    bits = values.view(np.int64)
+    for j in range(values.size):
+        b = bits[j]
+        high = (b >> 32) + (0x3FF00000 - 0x3FE6A09E)  # 1 + f in [√2/2, √2): shift the exponent
+        exponents[j] = np.float64((high >> 20) - 0x3FF)
+        bits[j] = (((high & 0x000FFFFF) + 0x3FE6A09E) << 32) | (b & 0xFFFFFFFF)
+    for j in range(values.size):
+        f = values[j] - 1.0
+        half_f2 = 0.5 * f * f
+        s = f / (2.0 + f)
+        z = s * s
+        w = z * z
+        r = w * (_LG2 + w * (_LG4 + w * _LG6)) + z * (_LG1 + w * (_LG3 + w * (_LG5 + w * _LG7)))
+        k = exponents[j]
+        values[j] = s * (half_f2 + r) + k * _LN2_LO - half_f2 + f + k * _LN2_HI - shift
+
+
+@njit(parallel=True, cache=True, error_model="numpy")
 def _dirichlet_kernel(shape: np.ndarray, seed: np.uint64, out: np.ndarray) -> None:
     for r in prange(shape.shape[0]):
         _dirichlet_row(shape[r], out[r], _stream_start(seed, np.uint64(r)))
 
 
-@njit(parallel=True, cache=True)
+@njit(parallel=True, cache=True, error_model="numpy")
 def _hierarchical_dirichlet_kernel(base: np.ndarray, counts: np.ndarray, seed: np.uint64,
                                    out: np.ndarray) -> None:
     groups, rows, width = counts.shape
@@ -584,13 +621,13 @@ def _inverse_cholesky(covariances: np.ndarray, inv_chol: np.ndarray, constant: n
 
 # ----------------------------------------------------------------------------- CRT (Antoniak)
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _digamma_large(x: float) -> float:
     # asymptotic series, accurate to ~1e-12 for x >= 6
     return np.log(x) + _digamma_large_minus_log(x)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _digamma_large_minus_log(x: float) -> float:
     """ψ(x) − log x by the asymptotic series (x ≥ 6): sums of ψ can then take one logarithm of
     the product of their arguments instead of one per term."""
@@ -600,14 +637,14 @@ def _digamma_large_minus_log(x: float) -> float:
                                                                            - inv2 / 132))))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _trigamma_large(x: float) -> float:
     inv = 1.0 / x
     inv2 = inv * inv
     return inv + 0.5 * inv2 + inv * inv2 * (1.0 / 6 - inv2 * (1.0 / 30 - inv2 * (1.0 / 42 - inv2 / 30)))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _digamma(x: float) -> float:
     """ψ(x) for x > 0: the recurrence ψ(x) = ψ(x + 1) − 1/x up to x ≥ 6, then the series."""
     shift = 0.0
@@ -617,7 +654,7 @@ def _digamma(x: float) -> float:
     return shift + _digamma_large(x)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _trigamma(x: float) -> float:
     """ψ′(x) for x > 0, the same way."""
     shift = 0.0
@@ -627,7 +664,7 @@ def _trigamma(x: float) -> float:
     return shift + _trigamma_large(x)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _bernoulli_sum_moment_matched(terms: int, mean: float, var: float,
                                   state: np.uint64) -> tuple[np.uint64, int]:
     """A draw of a sum of ``terms`` independent Bernoulli variables with the given mean and
@@ -679,7 +716,7 @@ def _bernoulli_sum_moment_matched(terms: int, mean: float, var: float,
     return state, rare if rare_is_success else terms - rare
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _crt_tail(n: int, a: float, head: int, state: np.uint64) -> tuple[np.uint64, int]:
     """Tables opened by customers head..n-1, a sum of independent Bernoulli(a/(a+i)), drawn by
     :func:`_bernoulli_sum_moment_matched` with the exact mean and variance (digamma/trigamma
@@ -689,7 +726,7 @@ def _crt_tail(n: int, a: float, head: int, state: np.uint64) -> tuple[np.uint64,
     return _bernoulli_sum_moment_matched(n - head, mean, var, state)
 
 
-@njit(parallel=True, cache=True)
+@njit(parallel=True, cache=True, error_model="numpy")
 def _crt_kernel(counts: np.ndarray, conc: np.ndarray, seed: np.uint64, exact_max: int,
                 head: int) -> np.ndarray:
     out = np.zeros(counts.size, dtype=np.int64)
@@ -746,7 +783,7 @@ def sample_crt(
     return _crt_kernel(flat_n, flat_a, seed, int(exact_max), int(head)).reshape(counts.shape)
 
 
-@njit(parallel=True, cache=True)
+@njit(parallel=True, cache=True, error_model="numpy")
 def _crt_totals_kernel(counts: np.ndarray, conc: np.ndarray, seed: np.uint64, exact_max: int) -> np.ndarray:
     n_groups, n_rows, width = counts.shape
     out = np.zeros((n_rows, width), dtype=np.int64)
@@ -901,7 +938,7 @@ def sample_categorical_log(log_p: np.ndarray, rng: np.random.Generator) -> np.nd
 _ASSIGNMENT_CHUNK = 64
 
 
-@njit(parallel=True, cache=True)
+@njit(parallel=True, cache=True, error_model="numpy")
 def _joint_assignment(log_g: np.ndarray, log_pi: np.ndarray, pi_scaled: np.ndarray, pi_row_max: np.ndarray,
                       homes: np.ndarray, concept_ll: np.ndarray, region_ll: np.ndarray, u_concept: np.ndarray,
                       u_region: np.ndarray) -> np.ndarray:
