@@ -151,6 +151,17 @@ def test_time_spco_and_reference_record_every_sweep(corpus) -> None:
     assert len(ref.totals) == 1 and len(ref.per_step()) == 5
 
 
+def test_interleaved_schedule_spreads_every_sampler_over_the_run() -> None:
+    order = benchmark.interleaved_schedule(20, 5)
+    assert order.count("exact") == order.count("reference") == 20 and order.count("authors") == 5
+    # one authors'-style sweep per round, each after that round's four sweeps of each spco sampler
+    rounds = " ".join(order).split("authors")
+    assert [r.split().count("exact") for r in rounds[:5]] == [4, 4, 4, 4, 4]
+    assert order[-1] == "authors"
+    few = benchmark.interleaved_schedule(3, 5)
+    assert few.count("exact") == 3 and few.count("authors") == 5
+
+
 def test_configuration_counts_homes_and_samples(corpus) -> None:
     config = benchmark.configuration(corpus, HYPER, "synthetic")
     assert config["homes"] == 3 and config["experienced_homes"] == 2

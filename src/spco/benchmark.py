@@ -17,7 +17,9 @@ This module backs ``spco bench`` and ``benchmarks/run_scaling.py``. It measures,
 
 Timings exclude compilation (Numba compiles on the first call): a few warm-up sweeps run first,
 and the mean over the timed sweeps (the slowest tenth dropped) is reported; spco's sweeps follow
-the steady state of a fit (label swaps on every tenth sweep).
+the steady state of a fit (label swaps on every tenth sweep). The timed sweeps of the three
+samplers are interleaved (:func:`interleaved_schedule`), so that the ratios compare timings taken
+in the same minutes of the machine's life.
 
 The paper's largest configuration is :data:`PAPER_EXPERIENCED_HOMES` (16 SIGVerse homes, 2,660
 samples, all taught) plus one new home (:data:`PAPER_NEW_HOME`, nothing taught), D = 4096,
@@ -221,54 +223,106 @@ class SweepTimings:
                 "all_sweep_seconds": [round(t, 6) for t in self.totals], "steps": self.per_step()}
 
 
+class SpcoRunner:
+    """spco's sampler on ``corpus``, initialised and warmed up, timed one sweep at a time
+    (:meth:`sweep`) into :attr:`timings`. No word pruning. The sweeps follow the steady state of a
+    fit: label swaps on every :data:`~spco.model.gibbs.SWAP_EVERY`-th sweep."""
+
+    def __init__(self, corpus: Corpus, variant: str = "exact", warmup: int = 2, seed: int = 0,
+                 hyper: TransferHyperparameters | None = None, log: Log = _quiet) -> None:
+        from spco.model.transfer import SpCoTransfer
+
+        self.variant = variant
+        self.hyper = hyper or TransferHyperparameters()
+        self.settings = gibbs.SamplerSettings.create(variant, prune=False)
+        self.data = SpCoTransfer._prepare(corpus, gibbs.CM_PER_M if variant == "reference" else 1.0)
+        self.rng = np.random.default_rng(seed)
+        start = time.perf_counter()
+        self.state = gibbs.initialize(self.data, len(corpus.vocabulary), self.hyper, self.settings, self.rng)
+        for _ in range(warmup):
+            gibbs.sweep(self.data, self.state, self.hyper, self.settings, self.rng)
+        seconds = time.perf_counter() - start
+        log(f"  spco {variant}: initialised and {warmup} warm-up sweeps in {seconds:.1f} s")
+        self.timings = SweepTimings()
+
+    def sweep(self) -> float:
+        """Run and record one timed sweep; returns its wall time in seconds."""
+        timer = gibbs.StepTimer()
+        swaps = gibbs.swaps_due(gibbs.SWAP_BURN_IN + len(self.timings.totals))
+        t0 = time.perf_counter()
+        gibbs.sweep(self.data, self.state, self.hyper, self.settings, self.rng, timer=timer, swaps=swaps)
+        elapsed = time.perf_counter() - t0
+        self.timings.add(elapsed, timer.seconds)
+        return elapsed
+
+
+class ReferenceRunner:
+    """:func:`reference_sweep` on ``corpus`` (the same training data spco learns from),
+    initialised and warmed up, timed one sweep at a time (:meth:`sweep`) into :attr:`timings`."""
+
+    def __init__(self, corpus: Corpus, warmup: int = 1, seed: int = 0,
+                 hyper: TransferHyperparameters | None = None, log: Log = _quiet) -> None:
+        from spco.model.transfer import SpCoTransfer
+
+        self.hyper = hyper or TransferHyperparameters()
+        self.data = ReferenceData.from_prepared(SpCoTransfer._prepare(corpus, 1.0))
+        self.random_state = np.random.RandomState(seed)
+        self.state = reference_initialize(self.data, self.hyper, self.random_state)
+        for i in range(warmup):
+            t0 = time.perf_counter()
+            reference_sweep(self.data, self.state, self.hyper, self.random_state)
+            log(f"  reference sweep (warm-up {i + 1}/{warmup}): {(time.perf_counter() - t0) * 1e3:.0f} ms")
+        self.timings = SweepTimings()
+
+    def sweep(self) -> float:
+        """Run and record one timed sweep; returns its wall time in seconds."""
+        timer = gibbs.StepTimer()
+        t0 = time.perf_counter()
+        reference_sweep(self.data, self.state, self.hyper, self.random_state, timer=timer)
+        elapsed = time.perf_counter() - t0
+        self.timings.add(elapsed, timer.seconds)
+        return elapsed
+
+
 def time_spco(corpus: Corpus, variant: str = "exact", sweeps: int = 20, warmup: int = 2, seed: int = 0,
               hyper: TransferHyperparameters | None = None, log: Log = _quiet) -> SweepTimings:
     """Time spco's sweeps on ``corpus``: initialise, ``warmup`` untimed sweeps, then ``sweeps``
     timed ones, each with a :class:`~spco.model.gibbs.StepTimer`. No word pruning."""
-    from spco.model.transfer import SpCoTransfer
-
-    hyper = hyper or TransferHyperparameters()
-    settings = gibbs.SamplerSettings.create(variant, prune=False)
-    data = SpCoTransfer._prepare(corpus, gibbs.CM_PER_M if variant == "reference" else 1.0)
-    rng = np.random.default_rng(seed)
-    start = time.perf_counter()
-    state = gibbs.initialize(data, len(corpus.vocabulary), hyper, settings, rng)
-    for _ in range(warmup):
-        gibbs.sweep(data, state, hyper, settings, rng)
-    log(f"  spco {variant}: initialised and {warmup} warm-up sweeps in {time.perf_counter() - start:.1f} s")
-    timings = SweepTimings()
+    runner = SpcoRunner(corpus, variant, warmup, seed, hyper, log)
     for i in range(sweeps):
-        timer = gibbs.StepTimer()
-        t0 = time.perf_counter()
-        # the steady state of a fit: label swaps on every SWAP_EVERY-th sweep (gibbs.swaps_due)
-        swaps = gibbs.swaps_due(gibbs.SWAP_BURN_IN + i)
-        gibbs.sweep(data, state, hyper, settings, rng, timer=timer, swaps=swaps)
-        timings.add(time.perf_counter() - t0, timer.seconds)
+        runner.sweep()
         if (i + 1) % 10 == 0 or i + 1 == sweeps:
-            log(f"  spco {variant}: {i + 1}/{sweeps} sweeps, {timings.per_sweep * 1e3:.0f} ms per sweep")
-    return timings
+            per_sweep = runner.timings.per_sweep * 1e3
+            log(f"  spco {variant}: {i + 1}/{sweeps} sweeps, {per_sweep:.0f} ms per sweep")
+    return runner.timings
 
 
 def time_reference(corpus: Corpus, sweeps: int = 3, warmup: int = 1, seed: int = 0,
                    hyper: TransferHyperparameters | None = None, log: Log = _quiet) -> SweepTimings:
     """Time :func:`reference_sweep` on ``corpus`` (the same training data spco learns from)."""
-    from spco.model.transfer import SpCoTransfer
+    runner = ReferenceRunner(corpus, warmup, seed, hyper, log)
+    for i in range(sweeps):
+        elapsed = runner.sweep()
+        log(f"  reference sweep {i + 1}/{sweeps}: {elapsed * 1e3:.0f} ms")
+    return runner.timings
 
-    hyper = hyper or TransferHyperparameters()
-    data = ReferenceData.from_prepared(SpCoTransfer._prepare(corpus, 1.0))
-    rs = np.random.RandomState(seed)
-    state = reference_initialize(data, hyper, rs)
-    timings = SweepTimings()
-    for i in range(warmup + sweeps):
-        timer = gibbs.StepTimer()
-        t0 = time.perf_counter()
-        reference_sweep(data, state, hyper, rs, timer=timer)
-        elapsed = time.perf_counter() - t0
-        if i >= warmup:
-            timings.add(elapsed, timer.seconds)
-        log(f"  reference sweep {i + 1}/{warmup + sweeps}{' (warm-up)' if i < warmup else ''}: "
-            f"{elapsed * 1e3:.0f} ms")
-    return timings
+
+def interleaved_schedule(spco_sweeps: int, reference_sweeps: int) -> list[str]:
+    """The order of the timed sweeps in :func:`run_benchmark`: ``reference_sweeps`` rounds, each
+    with its share of spco's exact and reference-variant sweeps and then one authors'-style sweep,
+    so that all three samplers are timed in the same minutes (the speed of a shared or virtual
+    machine drifts over minutes, and a ratio of timings taken minutes apart would carry that drift).
+    Entries are ``"exact"``, ``"reference"`` (spco's variant) and ``"authors"``."""
+    rounds = max(reference_sweeps, 1)
+    order: list[str] = []
+    done = 0
+    for r in range(rounds):
+        share = (spco_sweeps * (r + 1)) // rounds - done
+        done += share
+        order += ["exact", "reference"] * share
+        if r < reference_sweeps:
+            order.append("authors")
+    return order
 
 
 # ----------------------------------------------------------------------------- peak memory
@@ -353,12 +407,22 @@ def run_benchmark(corpus: Corpus, source: str, sweeps: int = 20, reference_sweep
     log(f"benchmarking on {config['homes']} homes, {config['samples']} samples, D = {config['D']}, "
         f"L = {config['L']}, K = {config['K']}")
     machine = machine_info()
-    variants = {}
-    for variant in ("exact", "reference"):
-        log(f"timing spco's {variant} sampler ({sweeps} sweeps after {warmup} warm-up)")
-        variants[variant] = time_spco(corpus, variant, sweeps, warmup, seed, hyper, log).summary()
-    log(f"timing the authors'-style reference sweep ({reference_sweeps} sweeps after 1 warm-up)")
-    reference = time_reference(corpus, reference_sweeps, warmup=1, seed=seed, hyper=hyper, log=log).summary()
+    log(f"preparing spco's exact and reference samplers ({warmup} warm-up sweeps each) and the "
+        "authors'-style sweep (1 warm-up)")
+    runners: dict[str, SpcoRunner | ReferenceRunner] = {
+        variant: SpcoRunner(corpus, variant, warmup, seed, hyper, log) for variant in ("exact", "reference")}
+    runners["authors"] = ReferenceRunner(corpus, warmup=1, seed=seed, hyper=hyper, log=log)
+    log(f"timing {sweeps} sweeps of each spco sampler and {reference_sweeps} authors'-style sweeps, "
+        "interleaved")
+    for name in interleaved_schedule(sweeps, reference_sweeps):
+        elapsed = runners[name].sweep()
+        if name == "authors":
+            done = len(runners["authors"].timings.totals)
+            log(f"  authors'-style sweep {done}/{reference_sweeps}: {elapsed * 1e3:.0f} ms; spco exact so "
+                f"far {runners['exact'].timings.per_sweep * 1e3:.0f} ms per sweep")
+    variants = {variant: runners[variant].timings.summary() for variant in ("exact", "reference")}
+    reference = runners["authors"].timings.summary()
+    del runners
     peak = None
     if memory:
         log(f"measuring the peak memory of an exact fit ({memory_sweeps} sweeps) in a child process")

@@ -54,8 +54,9 @@ def bench(data: str | None, sweeps: int, reference_sweeps: int, warmup: int, see
 
     Measures spco's exact sampler and its reference variant (the authors' conditionals, vectorised),
     and, in the same run, a sweep written the way the authors wrote theirs (per-sample Python loops,
-    one categorical draw per data point); reports the seconds per sweep, the speed-up and the peak memory of a
-    fit (whole-process RSS, measured in a child process).
+    one categorical draw per data point), the three samplers' timed sweeps interleaved; reports the
+    seconds per sweep, the speed-up and the peak memory of a fit (whole-process RSS, measured in a
+    child process).
 
     \b
     --json keys: sweep_seconds (spco exact, per sweep), reference_sweep_seconds, speedup,
