@@ -271,7 +271,8 @@ class ReferenceRunner:
         for i in range(warmup):
             t0 = time.perf_counter()
             reference_sweep(self.data, self.state, self.hyper, self.random_state)
-            log(f"  reference sweep (warm-up {i + 1}/{warmup}): {(time.perf_counter() - t0) * 1e3:.0f} ms")
+            milliseconds = (time.perf_counter() - t0) * 1e3
+            log(f"  authors'-style sweep (warm-up {i + 1}/{warmup}): {milliseconds:.0f} ms")
         self.timings = SweepTimings()
 
     def sweep(self) -> float:
@@ -303,7 +304,7 @@ def time_reference(corpus: Corpus, sweeps: int = 3, warmup: int = 1, seed: int =
     runner = ReferenceRunner(corpus, warmup, seed, hyper, log)
     for i in range(sweeps):
         elapsed = runner.sweep()
-        log(f"  reference sweep {i + 1}/{sweeps}: {elapsed * 1e3:.0f} ms")
+        log(f"  authors'-style sweep {i + 1}/{sweeps}: {elapsed * 1e3:.0f} ms")
     return runner.timings
 
 
