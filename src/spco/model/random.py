@@ -106,8 +106,15 @@ _ZIG_R = 3.6541528853610088
 @njit(cache=True, inline="always")
 def _stream_normal(state: np.uint64) -> tuple[np.uint64, float]:
     """The next state and a standard normal variate (ziggurat; ~99 % of draws take one step)."""
+    state, bits = _stream_bits(state)
+    return _normal_from_bits(state, bits)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _normal_from_bits(state: np.uint64, bits: np.uint64) -> tuple[np.uint64, float]:
+    """A ziggurat normal whose first 64 random bits are ``bits``, further ones (if the first step
+    does not return) from the stream ``state``: returns the stream's next state and the variate."""
     while True:
-        state, bits = _stream_bits(state)
         layer = np.int64(bits & np.uint64(255))
         negative = (bits >> np.uint64(8)) & np.uint64(1)
         u = bits >> np.uint64(12)
@@ -124,6 +131,7 @@ def _stream_normal(state: np.uint64) -> tuple[np.uint64, float]:
         state, u1 = _stream_next(state)
         if _ZIG_BOTTOM[layer] + u1 * (_ZIG_TOP[layer] - _ZIG_BOTTOM[layer]) < np.exp(-0.5 * x * x):
             return state, -x if negative else x
+        state, bits = _stream_bits(state)
 
 
 #: log Gamma(a) variates below this are clipped (they arise for a < 1e-298 and mean "zero").
@@ -217,70 +225,237 @@ def _gamma_draw(shape: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray
     return values.reshape(shape.shape), logs.reshape(shape.shape), boosted
 
 
-#: A boosted gamma variate with log below this is stored as its (negative) logarithm instead of
-#: its linear value, which would underflow: linear values are never negative, so the sign tells
-#: the two apart.
-_LOG_STORE_BELOW = -690.0
+#: Random streams per row in the Dirichlet kernels: eight xorshift64* streams advanced side by side
+#: (LLVM's SLP vectoriser runs them in AVX2 lanes) fill the row's random words in one pass.
+_ROW_STREAMS = 8
+_U53 = 1.0 / 9007199254740992.0
+_ZIG_THRESHOLD_SIGNED = _ZIG_THRESHOLD.astype(np.int64)  # thresholds < 2^52: signed compares
+
+
+@njit(cache=True, inline="always")
+def _fill_stream_words(states: np.ndarray, words: np.ndarray) -> None:
+    """words[8i + k] ← output i of stream k (xorshift64*) for the eight streams of ``states``,
+    which are advanced in place; ``words.size`` is a multiple of 8. Written as eight scalar
+    streams so that the SLP vectoriser packs them into vector lanes."""
+    s0, s1, s2, s3 = states[0], states[1], states[2], states[3]
+    s4, s5, s6, s7 = states[4], states[5], states[6], states[7]
+    a, b, c, m = np.uint64(12), np.uint64(25), np.uint64(27), _XORSHIFT_MULT
+    for i in range(words.size // 8):
+        s0 ^= s0 >> a
+        s1 ^= s1 >> a
+        s2 ^= s2 >> a
+        s3 ^= s3 >> a
+        s4 ^= s4 >> a
+        s5 ^= s5 >> a
+        s6 ^= s6 >> a
+        s7 ^= s7 >> a
+        s0 ^= s0 << b
+        s1 ^= s1 << b
+        s2 ^= s2 << b
+        s3 ^= s3 << b
+        s4 ^= s4 << b
+        s5 ^= s5 << b
+        s6 ^= s6 << b
+        s7 ^= s7 << b
+        s0 ^= s0 >> c
+        s1 ^= s1 >> c
+        s2 ^= s2 >> c
+        s3 ^= s3 >> c
+        s4 ^= s4 >> c
+        s5 ^= s5 >> c
+        s6 ^= s6 >> c
+        s7 ^= s7 >> c
+        j = 8 * i
+        words[j] = s0 * m
+        words[j + 1] = s1 * m
+        words[j + 2] = s2 * m
+        words[j + 3] = s3 * m
+        words[j + 4] = s4 * m
+        words[j + 5] = s5 * m
+        words[j + 6] = s6 * m
+        words[j + 7] = s7 * m
+    states[0], states[1], states[2], states[3] = s0, s1, s2, s3
+    states[4], states[5], states[6], states[7] = s4, s5, s6, s7
 
 
 @njit(cache=True, error_model="numpy")
-def _gamma_row(shape: np.ndarray, out: np.ndarray, state: np.uint64) -> tuple[np.uint64, float, int]:
-    """Fill ``out`` with Gamma(shape) variates, linear values except that a variate below
-    exp(−690) is written as its logarithm (a negative number). Returns the stream's next state,
-    the sum of the linear values and the number of logarithms written."""
-    total = 0.0
-    n_logs = 0
+def _ziggurat_first_step(words: np.ndarray, x: np.ndarray, fast: np.ndarray) -> None:
+    """The first step of :func:`_stream_normal` for every word, without branches: the abscissa
+    x[j] and fast[j] = 1 where that step already returns it (≈ 98 % of words), else 0 (the draw
+    continues in :func:`_normal_from_bits`)."""
+    for j in range(x.size):
+        bits = words[j]
+        layer = np.int64(bits & np.uint64(255))
+        sign = 1.0 - 2.0 * np.float64(np.int64((bits >> np.uint64(8)) & np.uint64(1)))
+        u = np.int64(bits >> np.uint64(12))
+        x[j] = u * _ZIG_SCALE[layer] * sign
+        fast[j] = np.float64(u < _ZIG_THRESHOLD_SIGNED[layer])
+
+
+@njit(cache=True, error_model="numpy")
+def _marsaglia_tsang_first(shape: np.ndarray, x: np.ndarray, fast: np.ndarray, words: np.ndarray,
+                           g: np.ndarray, accepted: np.ndarray) -> None:
+    """The first Marsaglia–Tsang proposal of every entry, vectorised: g[j] = d (1 + c x_j)³ for
+    the shape a (a + 1 below 1, boosted later), and accepted[j] = 1 where the normal is complete
+    and the squeeze u < 1 − 0.0331 x⁴ accepts it (u from ``words``; ≈ 90 % of entries)."""
     for j in range(shape.size):
         a = shape[j]
-        if a <= 0.0:
-            out[j] = 0.0
-            continue
-        if a >= 1.0:
-            state, g = _stream_gamma(state, a)
-            out[j] = g
-            total += g
-            continue
-        state, y = _stream_log_gamma_small(state, a)
-        if y > _LOG_STORE_BELOW:
-            g = np.exp(y)
-            out[j] = g
-            total += g
-        else:
-            out[j] = y
-            n_logs += 1
-    return state, total, n_logs
+        d = a + np.float64(a < 1.0) - 1.0 / 3.0
+        xj = x[j]
+        v = 1.0 + xj / np.sqrt(9.0 * d)
+        u = (np.int64(words[j] >> np.uint64(11)) + 0.5) * _U53
+        x2 = xj * xj
+        accepted[j] = fast[j] * np.float64(v > 0.0) * np.float64(u < 1.0 - 0.0331 * x2 * x2)
+        g[j] = d * v * v * v
 
 
 @njit(cache=True, error_model="numpy")
-def _dirichlet_row(shape: np.ndarray, out: np.ndarray, state: np.uint64) -> None:
-    """Fill ``out`` with the logarithm of a Dir(shape) draw: gamma variates (:func:`_gamma_row`)
-    divided by their sum, in linear space when no variate underflowed (one log per entry),
-    otherwise in log space (log-sum-exp over the row). Zero concentrations give -inf."""
-    _, total, n_logs = _gamma_row(shape, out, state)
-    if n_logs == 0 and total > 1e-280:
-        # every entry is 0 (concentration 0) or a normal positive number (≥ e^−690)
-        _log_minus(out, np.log(total), np.empty(out.size))
-        for j in range(out.size):
-            if shape[j] <= 0.0:
-                out[j] = -np.inf
-        return
-    # some variates are stored as their logarithms (negative), or the sum itself is tiny
+def _marsaglia_tsang_rest(shape: np.ndarray, x: np.ndarray, fast: np.ndarray, first_words: np.ndarray,
+                          second_words: np.ndarray, g: np.ndarray, accepted: np.ndarray, todo: np.ndarray,
+                          log_u: np.ndarray, log_v: np.ndarray, scratch: np.ndarray,
+                          state: np.uint64) -> np.uint64:
+    """Finish the gamma variates that the squeeze did not accept: first Marsaglia–Tsang's
+    logarithmic test on the same proposal (its two logarithms vectorised over the entries
+    concerned), then, for the few left (≈ 3 %), the rest of the ziggurat draw if its first step
+    did not return, and fresh proposals from the random stream ``state`` while rejected — each
+    entry gets exactly the variate of :func:`_stream_gamma`'s loop. Returns the stream's state."""
+    m = 0
+    for j in range(shape.size):  # compaction without branches
+        todo[m] = j
+        m += np.int64(accepted[j] == 0.0)
+    for i in range(m):
+        j = todo[i]
+        a = shape[j]
+        d = a + np.float64(a < 1.0) - 1.0 / 3.0
+        log_u[i] = (np.int64(second_words[j] >> np.uint64(11)) + 0.5) * _U53
+        v3 = g[j] / d
+        log_v[i] = v3 if v3 > 1e-300 else 1.0  # (v ≤ 0 is rejected below; keep the log finite)
+    _log_minus(log_u[:m], 0.0, scratch[:m])
+    _log_minus(log_v[:m], 0.0, scratch[:m])
+    left = 0
+    for i in range(m):
+        j = todo[i]
+        a = shape[j]
+        d = a + np.float64(a < 1.0) - 1.0 / 3.0
+        xj = x[j]
+        v = 1.0 + xj / np.sqrt(9.0 * d)
+        v3 = g[j] / d
+        passes = log_u[i] < 0.5 * xj * xj + d * (1.0 - v3 + log_v[i])
+        ok = (fast[j] > 0.0) & (v > 0.0) & (v3 > 1e-300) & passes
+        todo[left] = j
+        left += np.int64(not ok)
+    for i in range(left):
+        j = todo[i]
+        a = shape[j]
+        if a <= 0.0:
+            g[j] = 0.0
+            continue
+        shifted = a + np.float64(a < 1.0)
+        d = shifted - 1.0 / 3.0
+        if fast[j] == 0.0:  # complete this normal, then the same test as in _stream_gamma
+            state, xj = _normal_from_bits(state, first_words[j])
+            v = 1.0 + xj / np.sqrt(9.0 * d)
+            if v > 0.0:
+                v = v * v * v
+                u = (np.int64(second_words[j] >> np.uint64(11)) + 0.5) * _U53
+                x2 = xj * xj
+                if u < 1.0 - 0.0331 * x2 * x2 or np.log(u) < 0.5 * x2 + d * (1.0 - v + np.log(v)):
+                    g[j] = d * v
+                    continue
+        state, g[j] = _stream_gamma(state, shifted)
+    return state
+
+
+@njit(cache=True, error_model="numpy")
+def _log_gamma_row(shape: np.ndarray, out: np.ndarray, seed: np.uint64, stream: int,
+                   normalise: bool) -> None:
+    """out[j] ← log G_j for independent G_j ~ Gamma(shape[j], 1) (−inf where shape ≤ 0), minus
+    log Σ_j G_j when ``normalise`` (then ``out`` is the logarithm of a Dirichlet draw).
+
+    The row's random words come from eight streams numbered 8·stream + k (k < 8) of ``seed``.
+    Marsaglia–Tsang in vectorised passes: the ziggurat's first step, the proposal and its squeeze
+    for every entry; the logarithmic test for those the squeeze leaves; the few still rejected
+    continue one by one. A shape a < 1 is boosted, G(a) = G(a + 1) U^{1/a}, in log space: finite
+    even where G underflows (clipped at −1e300). The normaliser Σ_j G_j sums linear values (an
+    exp only for the boosted entries) unless the row has no entry with a ≥ 1 or a variate below
+    1e-300, where it is a log-sum-exp."""
+    width = shape.size
+    padded = (width + _ROW_STREAMS - 1) // _ROW_STREAMS * _ROW_STREAMS
+    states = np.empty(_ROW_STREAMS, dtype=np.uint64)
+    for k in range(_ROW_STREAMS):
+        states[k] = _stream_start(seed, np.uint64(stream * _ROW_STREAMS + k))
+    words = np.empty(3 * padded, dtype=np.uint64)
+    _fill_stream_words(states, words)
+    first, second, third = words[:width], words[padded:padded + width], words[2 * padded:2 * padded + width]
+    x = np.empty(width)
+    fast = np.empty(width)
+    accepted = np.empty(width)
+    todo = np.empty(width, dtype=np.int64)
+    buffer_1 = np.empty(width)
+    buffer_2 = np.empty(width)
+    g = out
+    _ziggurat_first_step(first, x, fast)
+    _marsaglia_tsang_first(shape, x, fast, second, g, accepted)
+    _marsaglia_tsang_rest(shape, x, fast, first, second, g, accepted, todo, buffer_1, buffer_2, accepted,
+                          states[0])
+    # sums and the boosted entries (a < 1) in log space: log G(a + 1) + log(U)/a
+    total = 0.0
+    n_tiny = 0
+    n_boosted = 0
+    boosted = todo
+    for j in range(width):
+        a = shape[j]
+        plain = np.float64(a >= 1.0)
+        total += g[j] * plain
+        n_tiny += np.int64(g[j] < 1e-300) * np.int64(a > 0.0)
+        boosted[n_boosted] = j
+        n_boosted += np.int64(a < 1.0) * np.int64(a > 0.0)
+    log_boosted = buffer_1[:n_boosted]
+    log_u = buffer_2[:n_boosted]
+    for i in range(n_boosted):
+        j = boosted[i]
+        log_boosted[i] = g[j]
+        log_u[i] = (np.int64(third[j] >> np.uint64(11)) + 0.5) * _U53
+    _log_minus(log_u, 0.0, x[:n_boosted])
+    if n_tiny == 0:
+        _log_minus(log_boosted, 0.0, x[:n_boosted])
+    else:  # (the vectorised log needs normal numbers)
+        for i in range(n_boosted):
+            log_boosted[i] = np.log(log_boosted[i])
     top = -np.inf
-    for j in range(out.size):
-        g = out[j]
-        if g > 0.0:
-            g = np.log(g)
-        elif g == 0.0:
-            g = -np.inf
-        out[j] = g
-        if g > top:
-            top = g
-    acc = 0.0
-    for j in range(out.size):
-        acc += np.exp(out[j] - top)
-    log_total = top + np.log(acc)
-    for j in range(out.size):
-        out[j] -= log_total
+    for i in range(n_boosted):
+        y = log_boosted[i] + max(log_u[i] / shape[boosted[i]], _LOG_GAMMA_FLOOR)
+        log_boosted[i] = y
+        top = max(top, y)
+    if not normalise:
+        log_total = 0.0
+    elif total > 1e-280 and n_tiny == 0:
+        for i in range(n_boosted):
+            total += np.exp(log_boosted[i])  # underflow to 0 is harmless next to total
+        x[0] = total  # the same logarithm as the entries' (a single entry then gives exactly 0)
+        _log_minus(x[:1], 0.0, fast[:1])
+        log_total = x[0]
+    else:  # log-sum-exp: no entry with a ≥ 1, or tiny variates
+        for j in range(width):
+            if shape[j] >= 1.0:
+                top = max(top, np.log(g[j]))
+        acc = 0.0
+        for j in range(width):
+            if shape[j] >= 1.0:
+                acc += np.exp(np.log(g[j]) - top)
+        for i in range(n_boosted):
+            acc += np.exp(log_boosted[i] - top)
+        log_total = top + np.log(acc) if acc > 0.0 else 0.0
+    if n_tiny == 0:
+        _log_minus(g, log_total, x)  # (entries with a < 1 are overwritten below)
+    else:
+        for j in range(width):
+            out[j] = np.log(g[j]) - log_total if shape[j] >= 1.0 else 0.0
+    for i in range(n_boosted):
+        out[boosted[i]] = log_boosted[i] - log_total
+    for j in range(width):
+        if shape[j] <= 0.0:
+            out[j] = -np.inf
 
 
 # fdlibm's log (Sun Microsystems, 1993; as in musl): x = 2^k (1 + f) with 1 + f in [√2/2, √2),
@@ -322,7 +497,7 @@ def _log_minus(values: np.ndarray, shift: float, exponents: np.ndarray) -> None:
 @njit(parallel=True, cache=True, error_model="numpy")
 def _dirichlet_kernel(shape: np.ndarray, seed: np.uint64, out: np.ndarray) -> None:
     for r in prange(shape.shape[0]):
-        _dirichlet_row(shape[r], out[r], _stream_start(seed, np.uint64(r)))
+        _log_gamma_row(shape[r], out[r], seed, r, True)
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
@@ -334,7 +509,7 @@ def _hierarchical_dirichlet_kernel(base: np.ndarray, counts: np.ndarray, seed: n
         shape = np.empty(width)
         for k in range(width):
             shape[k] = base[r, k] + counts[g, r, k]
-        _dirichlet_row(shape, out[g, r], _stream_start(seed, np.uint64(i)))
+        _log_gamma_row(shape, out[g, r], seed, i, True)
 
 
 def log_dirichlet(alpha: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -360,7 +535,7 @@ def log_dirichlet(alpha: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     rows = np.ascontiguousarray(alpha).reshape(-1, alpha.shape[-1])
     out = np.empty(rows.shape)
     seed = np.uint64(rng.integers(0, 2**63 - 1, dtype=np.int64))
-    _dirichlet_kernel(rows, seed, out)
+    _call_vectorised(_dirichlet_kernel, (rows, seed, out))
     return out.reshape(alpha.shape)
 
 
@@ -387,7 +562,7 @@ def log_dirichlet_hierarchical(base: np.ndarray, counts: np.ndarray, rng: np.ran
     if out is None or out.shape != counts.shape or out.dtype != np.float64 or not out.flags.c_contiguous:
         out = np.empty(counts.shape)
     seed = np.uint64(rng.integers(0, 2**63 - 1, dtype=np.int64))
-    _hierarchical_dirichlet_kernel(base, counts, seed, out)
+    _call_vectorised(_hierarchical_dirichlet_kernel, (base, counts, seed, out))
     return out
 
 
@@ -817,38 +992,55 @@ def _crt_totals_kernel(counts: np.ndarray, conc: np.ndarray, seed: np.uint64, ex
         trigamma_sum = np.zeros(width)
         product = np.ones(width)  # Π (a + n_g) of the series terms: Σ log = log Π, one log per column
         several = np.zeros(width, dtype=np.int64)
-        several_columns = np.empty(width, dtype=np.int64)
+        series_columns = np.empty(width, dtype=np.int64)
+        exact_columns = np.empty(width, dtype=np.int64)
+        x_buffer = np.empty(width)
+        digamma_buffer = np.empty(width)
+        trigamma_buffer = np.empty(width)
         for g in range(n_groups):
             n_row = counts[g, r]
-            m = 0
-            for k in range(width):
-                several_columns[m] = k
-                m += np.int64(n_row[k] > 1) * np.int64(terms[k] > 0)
-            for j in range(m):
-                k = several_columns[j]
+            n_series = 0
+            n_exact = 0
+            for k in range(width):  # the columns of this group in the two regimes, without branches
+                active = np.int64(n_row[k] > 1) * np.int64(terms[k] > 0)
+                tail = np.int64(terms[k] > exact_max)
+                series_columns[n_series] = k
+                n_series += active * tail
+                exact_columns[n_exact] = k
+                n_exact += active * (1 - tail)
+            for j in range(n_series):
+                k = series_columns[j]
+                x_buffer[j] = a_row[k] + n_row[k]
+            for j in range(n_series):  # vectorised; used where a + n ≥ 6
+                x = x_buffer[j]
+                digamma_buffer[j] = _digamma_large_minus_log(x)
+                trigamma_buffer[j] = _trigamma_large(x)
+            for j in range(n_series):
+                k = series_columns[j]
+                x = x_buffer[j]
+                if x >= 6.0:
+                    digamma_sum[k] += digamma_buffer[j]
+                    trigamma_sum[k] += trigamma_buffer[j]
+                    product[k] *= x
+                    if product[k] > 1e280:  # x < 2^63: the next product cannot overflow
+                        digamma_sum[k] += np.log(product[k])
+                        product[k] = 1.0
+                    several[k] += 1
+                else:
+                    a = a_row[k]
+                    for i in range(1, n_row[k]):
+                        p = a / (a + i)
+                        exact_mean[k] += p
+                        exact_var[k] += p * (1.0 - p)
+            for j in range(n_exact):
+                k = exact_columns[j]
                 n = n_row[k]
                 a = a_row[k]
-                if terms[k] > exact_max:
-                    if a + n >= 6.0:
-                        x = a + n
-                        digamma_sum[k] += _digamma_large_minus_log(x)  # (inlined: one 1/x for both)
-                        trigamma_sum[k] += _trigamma_large(x)
-                        product[k] *= x
-                        if product[k] > 1e280:  # x < 2^63: the next product cannot overflow
-                            digamma_sum[k] += np.log(product[k])
-                            product[k] = 1.0
-                        several[k] += 1
-                    else:
-                        for i in range(1, n):
-                            p = a / (a + i)
-                            exact_mean[k] += p
-                            exact_var[k] += p * (1.0 - p)
-                else:
-                    state = states[k]
-                    for i in range(1, n):
-                        state, u = _stream_next(state)
-                        opened[k] += np.int64(u * (a + i) < a)
-                    states[k] = state
+                state = states[k]
+                for i in range(1, n):
+                    state, u = _stream_next(state)
+                    opened[k] += np.int64(u * (a + i) < a)
+                states[k] = state
         for k in range(width):
             if terms[k] <= exact_max:
                 continue
