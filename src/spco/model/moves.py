@@ -25,77 +25,90 @@ valid MCMC for the model as written.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit, prange
 from scipy.special import logsumexp
 
+from spco.model.random import _log_minus
 
-@njit(cache=True, inline="always")
-def _lgamma(x: float) -> float:
-    # Stirling series after shifting x above 8: accurate to ~1e-12 for x > 0
-    shift = 0.0
-    while x < 8.0:
-        shift -= math.log(x)
-        x += 1.0
-    inv = 1.0 / x
-    inv2 = inv * inv
-    return (shift + (x - 0.5) * math.log(x) - x + 0.9189385332046727
-            + inv * (1.0 / 12 - inv2 * (1.0 / 360 - inv2 * (1.0 / 1260 - inv2 / 1680))))
+_HALF_LOG_2PI = 0.9189385332046727
+#: Arguments at or above this are not shifted (the product of the shift would overflow near 1e38).
+_NO_SHIFT = 1e30
 
 
-@njit(parallel=True, cache=True)
-def _dm_scores(alpha: np.ndarray, counts: np.ndarray, used: np.ndarray) -> np.ndarray:
-    """F[e, i, j] = Σ_k lnΓ(α_{i,k} + n_{e,j,k}) − lnΓ(α_{i,k}) for used concepts j (else 0)."""
-    n_homes, n_concepts, dim = counts.shape
-    out = np.zeros((n_homes, n_concepts, n_concepts))
-    lg_alpha = np.empty((n_concepts, dim))
-    for i in range(n_concepts):
-        for k in range(dim):
-            lg_alpha[i, k] = _lgamma(alpha[i, k]) if alpha[i, k] > 0 else 0.0
-    for job in prange(n_homes * n_concepts):
-        e = job // n_concepts
-        j = job % n_concepts
-        if not used[e, j]:
-            continue
-        for k in range(dim):
-            n = counts[e, j, k]
-            if n == 0:
-                continue
-            for i in range(n_concepts):
-                a = alpha[i, k]
-                if a > 0:
-                    out[e, i, j] += _lgamma(a + n) - lg_alpha[i, k]
-                else:  # a concept that gives this dimension probability 0 cannot hold these data
-                    out[e, i, j] += -1e300
-    return out
+@njit(cache=True, error_model="numpy")
+def _log_gamma_values(x: np.ndarray, out: np.ndarray, work: np.ndarray) -> None:
+    """out[j] ← ln Γ(x[j]) for x > 0, in vectorised passes (``work``: (3, ≥ n) scratch).
+
+    ln Γ(x) = ln Γ(x + 8) − ln(x (x + 1) ⋯ (x + 7)), with Stirling's series at y = x + 8 ≥ 8
+    (error below 1e-12 relative) and both logarithms from the vectorised log of
+    :func:`spco.model.random._log_minus`: no branch and no library call per entry."""
+    n = x.size
+    log_y, log_p, scratch = work[0, :n], work[1, :n], work[2, :n]
+    for j in range(n):
+        xj = x[j]
+        shifted = np.float64(xj < _NO_SHIFT)
+        log_y[j] = xj + 8.0 * shifted
+        p = xj * (xj + 1.0) * (xj + 2.0) * (xj + 3.0) * (xj + 4.0) * (xj + 5.0) * (xj + 6.0) * (xj + 7.0)
+        log_p[j] = p * shifted + (1.0 - shifted)
+    _log_minus(log_y, 0.0, scratch)
+    _log_minus(log_p, 0.0, scratch)
+    for j in range(n):
+        y = x[j] + 8.0 * np.float64(x[j] < _NO_SHIFT)
+        inv = 1.0 / y
+        inv2 = inv * inv
+        out[j] = ((y - 0.5) * log_y[j] - y + _HALF_LOG_2PI - log_p[j]
+                  + inv * (1.0 / 12 - inv2 * (1.0 / 360 - inv2 * (1.0 / 1260 - inv2 / 1680))))
+    tiny = 0
+    for j in range(n):
+        tiny += np.int64(x[j] < 1e-290)
+    if tiny:  # the product would be subnormal: ln Γ(x) = −ln x − γ x + O(x²) there
+        for j in range(n):
+            if x[j] < 1e-290:
+                out[j] = -np.log(x[j])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _lgamma_table(alpha: np.ndarray) -> np.ndarray:
-    out = np.zeros(alpha.shape)
-    for i in range(alpha.shape[0]):
-        for k in range(alpha.shape[1]):
-            if alpha[i, k] > 0:
-                out[i, k] = _lgamma(alpha[i, k])
-    return out
+    """ln Γ(α) for every entry of a 2-D array (0 where α ≤ 0)."""
+    flat = alpha.ravel()
+    positive = np.where(flat > 0.0, flat, 1.0)
+    out = np.empty(flat.size)
+    _log_gamma_values(positive, out, np.empty((3, flat.size)))
+    for j in range(flat.size):
+        if flat[j] <= 0.0:
+            out[j] = 0.0
+    return out.reshape(alpha.shape)
 
 
-@njit(cache=True, inline="always")
-def _dm_score(alpha: np.ndarray, lg_alpha: np.ndarray, counts: np.ndarray, e: int, prior: int,
-              data: int) -> float:
-    """Σ_k lnΓ(α_{prior,k} + n_{e,data,k}) − lnΓ(α_{prior,k}) over the non-zero counts."""
+@njit(cache=True, error_model="numpy")
+def _score_difference(alpha: np.ndarray, lg_alpha: np.ndarray, counts: np.ndarray, move: int, stay: int,
+                      columns: np.ndarray, values: np.ndarray, work: np.ndarray) -> float:
+    """F(move ← counts) − F(stay ← counts), F(i ← n) = Σ_k [ln Γ(α_{i,k} + n_k) − ln Γ(α_{i,k})] over
+    the non-zero counts n_k of one concept of one home; a prior with α_{i,k} = 0 where n_k > 0
+    cannot hold these data (−1e300). The non-zero columns are gathered once (without branches)
+    and both sums use :func:`_log_gamma_values`. ``columns``, ``values``: scratch of size ≥ D;
+    ``work``: (4, ≥ D) scratch."""
+    m = 0
+    for k in range(counts.size):
+        columns[m] = k
+        m += np.int64(counts[k] != 0)
     total = 0.0
-    for k in range(counts.shape[2]):
-        n = counts[e, data, k]
-        if n == 0:
-            continue
-        a = alpha[prior, k]
-        if a > 0:
-            total += _lgamma(a + n) - lg_alpha[prior, k]
-        else:  # a concept that gives this dimension probability 0 cannot hold these data
-            total -= 1e300
+    for prior, sign in ((move, 1.0), (stay, -1.0)):
+        impossible = 0
+        for j in range(m):
+            k = columns[j]
+            a = alpha[prior, k]
+            impossible += np.int64(a <= 0.0)
+            values[j] = max(a, 0.0) + counts[k]
+        out = work[3, :m]
+        _log_gamma_values(values[:m], out, work)
+        score = 0.0
+        for j in range(m):
+            score += out[j] - lg_alpha[prior, columns[j]]
+        if impossible:
+            score = -1e300
+        total += sign * score
     return total
 
 
@@ -105,9 +118,13 @@ def _matching_pass(alpha_v: np.ndarray, counts_v: np.ndarray, alpha_w: np.ndarra
     n_homes, n_concepts = log_g.shape
     lg_v = _lgamma_table(alpha_v)
     lg_w = _lgamma_table(alpha_w)
+    width = max(counts_v.shape[2], counts_w.shape[2], 1)
     perms = np.empty((n_homes, n_concepts), dtype=np.int64)
     for e in prange(n_homes):
         perm = np.arange(n_concepts)
+        columns = np.empty(width, dtype=np.int64)
+        values = np.empty(width)
+        work = np.empty((4, width))
         used = np.empty(n_concepts, dtype=np.bool_)
         for j in range(n_concepts):
             used[j] = counts_v[e, j].sum() > 0 or counts_w[e, j].sum() > 0
@@ -119,24 +136,15 @@ def _matching_pass(alpha_v: np.ndarray, counts_v: np.ndarray, alpha_w: np.ndarra
             delta = (g_term[a] - g_term[b]) * (log_g[e, b] - log_g[e, a])
             for data, stay, move in ((a, a, b), (b, b, a)):
                 if used[data]:
-                    delta += (_dm_score(alpha_v, lg_v, counts_v, e, move, data)
-                              - _dm_score(alpha_v, lg_v, counts_v, e, stay, data)
-                              + _dm_score(alpha_w, lg_w, counts_w, e, move, data)
-                              - _dm_score(alpha_w, lg_w, counts_w, e, stay, data))
+                    delta += _score_difference(alpha_v, lg_v, counts_v[e, data], move, stay, columns,
+                                               values, work)
+                    delta += _score_difference(alpha_w, lg_w, counts_w[e, data], move, stay, columns,
+                                               values, work)
             if log_u[e, p] < delta:
                 perm[a] = b
                 perm[b] = a
         perms[e] = perm
     return perms
-
-
-def collapsed_scores(counts: np.ndarray, log_phi: np.ndarray, delta: float) -> np.ndarray:
-    """F[e, i, j]: log Dirichlet–multinomial weight (up to swap-invariant terms) of the counts of
-    concept j of home e under the prior Dir(δ φ_i). Shapes: counts (E, L, D), log_phi (L, D);
-    returns (E, L, L)."""
-    used = counts.sum(axis=2) > 0
-    alpha = delta * np.exp(log_phi)
-    return _dm_scores(np.ascontiguousarray(alpha), np.ascontiguousarray(counts, dtype=np.int64), used)
 
 
 def concept_swap_step(visual_counts: np.ndarray, log_phi_v: np.ndarray, delta_v: float,
