@@ -8,6 +8,8 @@ at the sample sizes used).
 
 from __future__ import annotations
 
+import math
+
 import numba
 import numpy as np
 import pytest
@@ -140,6 +142,24 @@ def test_vectorised_log_is_within_one_ulp_of_numpy() -> None:
     shifted = values.copy()
     _log_minus(shifted, 3.25, np.empty(shifted.size))
     assert_allclose(shifted, expected - 3.25, rtol=0, atol=4 * np.spacing(np.abs(expected).max()))
+
+
+def test_vectorised_exp_sum_matches_numpy() -> None:
+    """The Dirichlet rows' sum of exponentials (boosted entries) against np.exp: values over the
+    whole range used, including ones that underflow (counted as 0) and large positive ones."""
+    from spco.model.random import _sum_exp
+
+    rng = np.random.default_rng(36)
+    for values in (rng.uniform(-30.0, 5.0, 100_000), rng.uniform(-800.0, 700.0, 100_000),
+                   np.array([0.0, np.log(2.0), -708.5, -1e300, 709.0, -0.5 * np.log(2.0)])):
+        expected = math.fsum(np.exp(values[values >= -708.0]))  # exact sum of the exact terms
+        got = _sum_exp(values, np.empty(values.size), np.empty(values.size))
+        assert got == pytest.approx(expected, rel=1e-11)  # each term within 1 ulp, summed in order
+        head = values[:200]
+        singles = np.array([_sum_exp(head[j:j + 1], np.empty(1), np.empty(1)) for j in range(head.size)])
+        reference = np.where(head >= -708.0, np.exp(head), 0.0)
+        assert (np.abs(singles - reference) <= np.spacing(reference)).all()
+    assert _sum_exp(np.array([0.0]), np.empty(1), np.empty(1)) == 1.0
 
 
 def _row_log_gammas(shape: np.ndarray, seed: int, normalise: bool = False) -> np.ndarray:

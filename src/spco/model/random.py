@@ -294,10 +294,11 @@ def _ziggurat_first_step(words: np.ndarray, x: np.ndarray, fast: np.ndarray) -> 
 
 @njit(cache=True, error_model="numpy")
 def _marsaglia_tsang_first(shape: np.ndarray, x: np.ndarray, fast: np.ndarray, words: np.ndarray,
-                           g: np.ndarray, accepted: np.ndarray) -> None:
+                           g: np.ndarray, accepted: np.ndarray, v_out: np.ndarray) -> None:
     """The first Marsaglia–Tsang proposal of every entry, vectorised: g[j] = d (1 + c x_j)³ for
-    the shape a (a + 1 below 1, boosted later), and accepted[j] = 1 where the normal is complete
-    and the squeeze u < 1 − 0.0331 x⁴ accepts it (u from ``words``; ≈ 90 % of entries)."""
+    the shape a (a + 1 below 1, boosted later), v_out[j] = 1 + c x_j, and accepted[j] = 1 where
+    the normal is complete and the squeeze u < 1 − 0.0331 x⁴ accepts it (u from ``words``; ≈ 90 %
+    of entries)."""
     for j in range(shape.size):
         a = shape[j]
         d = a + np.float64(a < 1.0) - 1.0 / 3.0
@@ -307,13 +308,14 @@ def _marsaglia_tsang_first(shape: np.ndarray, x: np.ndarray, fast: np.ndarray, w
         x2 = xj * xj
         accepted[j] = fast[j] * np.float64(v > 0.0) * np.float64(u < 1.0 - 0.0331 * x2 * x2)
         g[j] = d * v * v * v
+        v_out[j] = v
 
 
 @njit(cache=True, error_model="numpy")
-def _marsaglia_tsang_rest(shape: np.ndarray, x: np.ndarray, fast: np.ndarray, first_words: np.ndarray,
-                          second_words: np.ndarray, g: np.ndarray, accepted: np.ndarray, todo: np.ndarray,
-                          log_u: np.ndarray, log_v: np.ndarray, scratch: np.ndarray,
-                          state: np.uint64) -> np.uint64:
+def _marsaglia_tsang_rest(shape: np.ndarray, x: np.ndarray, fast: np.ndarray, v_first: np.ndarray,
+                          first_words: np.ndarray, second_words: np.ndarray, g: np.ndarray,
+                          accepted: np.ndarray, todo: np.ndarray, log_u: np.ndarray, log_v: np.ndarray,
+                          scratch: np.ndarray, state: np.uint64) -> np.uint64:
     """Finish the gamma variates that the squeeze did not accept: first Marsaglia–Tsang's
     logarithmic test on the same proposal (its two logarithms vectorised over the entries
     concerned), then, for the few left (≈ 3 %), the rest of the ziggurat draw if its first step
@@ -325,10 +327,9 @@ def _marsaglia_tsang_rest(shape: np.ndarray, x: np.ndarray, fast: np.ndarray, fi
         m += np.int64(accepted[j] == 0.0)
     for i in range(m):
         j = todo[i]
-        a = shape[j]
-        d = a + np.float64(a < 1.0) - 1.0 / 3.0
         log_u[i] = (np.int64(second_words[j] >> np.uint64(11)) + 0.5) * _U53
-        v3 = g[j] / d
+        v = v_first[j]
+        v3 = v * v * v
         log_v[i] = v3 if v3 > 1e-300 else 1.0  # (v ≤ 0 is rejected below; keep the log finite)
     _log_minus(log_u[:m], 0.0, scratch[:m])
     _log_minus(log_v[:m], 0.0, scratch[:m])
@@ -338,8 +339,8 @@ def _marsaglia_tsang_rest(shape: np.ndarray, x: np.ndarray, fast: np.ndarray, fi
         a = shape[j]
         d = a + np.float64(a < 1.0) - 1.0 / 3.0
         xj = x[j]
-        v = 1.0 + xj / np.sqrt(9.0 * d)
-        v3 = g[j] / d
+        v = v_first[j]
+        v3 = v * v * v
         passes = log_u[i] < 0.5 * xj * xj + d * (1.0 - v3 + log_v[i])
         ok = (fast[j] > 0.0) & (v > 0.0) & (v3 > 1e-300) & passes
         todo[left] = j
@@ -395,9 +396,10 @@ def _log_gamma_row(shape: np.ndarray, out: np.ndarray, seed: np.uint64, stream: 
     buffer_2 = np.empty(width)
     g = out
     _ziggurat_first_step(first, x, fast)
-    _marsaglia_tsang_first(shape, x, fast, second, g, accepted)
-    _marsaglia_tsang_rest(shape, x, fast, first, second, g, accepted, todo, buffer_1, buffer_2, accepted,
-                          states[0])
+    v_first = np.empty(width)
+    _marsaglia_tsang_first(shape, x, fast, second, g, accepted, v_first)
+    _marsaglia_tsang_rest(shape, x, fast, v_first, first, second, g, accepted, todo, buffer_1, buffer_2,
+                          accepted, states[0])
     # sums and the boosted entries (a < 1) in log space: log G(a + 1) + log(U)/a
     total = 0.0
     n_tiny = 0
@@ -430,8 +432,7 @@ def _log_gamma_row(shape: np.ndarray, out: np.ndarray, seed: np.uint64, stream: 
     if not normalise:
         log_total = 0.0
     elif total > 1e-280 and n_tiny == 0:
-        for i in range(n_boosted):
-            total += np.exp(log_boosted[i])  # underflow to 0 is harmless next to total
+        total += _sum_exp(log_boosted, x[:n_boosted], fast[:n_boosted])  # (below e^−708: 0, harmless)
         x[0] = total  # the same logarithm as the entries' (a single entry then gives exactly 0)
         _log_minus(x[:1], 0.0, fast[:1])
         log_total = x[0]
@@ -492,6 +493,47 @@ def _log_minus(values: np.ndarray, shift: float, exponents: np.ndarray) -> None:
         r = w * (_LG2 + w * (_LG4 + w * _LG6)) + z * (_LG1 + w * (_LG3 + w * (_LG5 + w * _LG7)))
         k = exponents[j]
         values[j] = s * (half_f2 + r) + k * _LN2_LO - half_f2 + f + k * _LN2_HI - shift
+
+
+_INV_LN2 = 1.44269504088896338700e+00
+#: 1/i! for the Taylor polynomial of exp on |r| ≤ ln 2 / 2 (degree 13: truncation error < 2e-16)
+_EXP_TAYLOR = tuple(1.0 / float(np.prod(np.arange(1, i + 1))) for i in range(14))
+
+
+@njit(cache=True, fastmath={"contract"}, error_model="numpy")
+def _sum_exp(values: np.ndarray, poly: np.ndarray, scale: np.ndarray) -> float:
+    """Σ_j exp(values[j]) for values ≤ 709, in two branch-free loops that LLVM vectorises:
+    exp(y) = 2^k exp(r), k = round(y / ln 2), r = y − k ln 2 (ln 2 split in two as in fdlibm), exp(r)
+    by its degree-13 Taylor polynomial, 2^k written into the exponent bits; terms with y < −708
+    (below 3e-308) count as 0. Within 2 ulp of summing np.exp. ``poly``, ``scale``: scratch of
+    the size of ``values``."""
+    n = values.size
+    bits = scale.view(np.int64)
+    c = _EXP_TAYLOR
+    for j in range(n):
+        y = max(values[j], -708.0)
+        k = np.floor(y * _INV_LN2 + 0.5)
+        r = (y - k * _LN2_HI) - k * _LN2_LO
+        p = c[13]
+        p = p * r + c[12]
+        p = p * r + c[11]
+        p = p * r + c[10]
+        p = p * r + c[9]
+        p = p * r + c[8]
+        p = p * r + c[7]
+        p = p * r + c[6]
+        p = p * r + c[5]
+        p = p * r + c[4]
+        p = p * r + c[3]
+        p = p * r + c[2]
+        p = p * r + c[1]
+        p = p * r + c[0]
+        poly[j] = p * np.float64(values[j] >= -708.0)
+        bits[j] = (np.int64(k) + 1023) << 52
+    total = 0.0
+    for j in range(n):
+        total += poly[j] * scale[j]
+    return total
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
