@@ -238,10 +238,12 @@ def test_pruned_words_leave_the_kept_words_renormalised() -> None:
     import scipy.sparse as sp
 
     from spco.model.gibbs import _concept_loglik
+    from spco.model.random import dimension_major
 
     words = sp.csr_array(np.array([[5000.0, 5000.0]]))  # "kitchen", "this": S^w = 5000 each
-    data = SimpleNamespace(visual=sp.csr_array(np.array([[3.0, 1.0]])), homes=np.zeros(1, dtype=np.int64),
-                           words=words)
+    visual = sp.csr_array(np.array([[3.0, 1.0]]))
+    data = SimpleNamespace(visual=visual, homes=np.zeros(1, dtype=np.int64), words=words,
+                           visual_by_dimension=dimension_major(visual, np.array([0, 1])))
     log_theta_w = np.log(np.array([[[0.2, 0.8], [1.0 - 1e-12, 1e-12]]]))
     log_theta_v = np.log(np.full((1, 2, 2), 0.5))
     state = SimpleNamespace(log_theta_v=log_theta_v, log_theta_w=log_theta_w,

@@ -660,6 +660,39 @@ def test_blocked_sparse_dot_over_several_blocks_of_lanes_matches_dense() -> None
     assert_allclose(out, expected, rtol=1e-12)
 
 
+@pytest.mark.parametrize("sizes", [(13, 0, 21, 8), (70_000, 3)])
+def test_dimension_major_dot_equals_blocked_dot_bit_for_bit(sizes: tuple[int, ...]) -> None:
+    """The sampler's visual likelihood (the counts regrouped by home and dimension) gives exactly
+    the row-major kernel's sums: over two blocks of lanes (L = 20), with an empty home, columns
+    no sample uses, and a home of more than 65,535 rows (row numbers stored in int64)."""
+    from spco.model.random import (
+        blocked_sparse_dot,
+        dimension_major,
+        dimension_major_dot,
+        likelihood_table,
+        stack_counts,
+    )
+
+    rng = np.random.default_rng(37)
+    D, L = 40, 20
+    offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    n = int(offsets[-1])
+    dense = np.where(rng.random((n, D)) < 0.25, rng.integers(1, 7000, size=(n, D)), 0)
+    dense[:, 7] = 0  # a dimension no sample uses
+    counts = stack_counts(sp.csr_array(dense))
+    homes = np.repeat(np.arange(len(sizes)), sizes)
+    log_theta = np.log(rng.dirichlet(np.full(D, 0.5), size=(len(sizes), L)))
+    table = likelihood_table(log_theta, -1e300)
+    layout = dimension_major(counts, offsets)
+    assert layout.rows.dtype == (np.uint16 if max(sizes) < 65_536 else np.int64)
+    assert layout.colptr.shape == (len(sizes), D + 1) and layout.colptr[-1, -1] == counts.nnz
+    assert_array_equal(dimension_major_dot(layout, table, L), blocked_sparse_dot(counts, homes, table, L))
+    with pytest.raises(ValueError, match="offsets"):
+        dimension_major(counts, offsets[:-1])
+    with pytest.raises(ValueError, match="does not fit"):
+        dimension_major_dot(layout, table[:, :, :-1], L)
+
+
 # ----------------------------------------------------------------------------- summed CRT, θ draws
 
 

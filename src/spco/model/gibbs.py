@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
@@ -36,7 +37,7 @@ from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.moves import concept_swap_step
 from spco.model.observations import GaussianRegions, HierarchicalMultinomial, NIWPrior
 from spco.model.pruning import words_to_keep
-from spco.model.random import dirichlet_log_density, log_dirichlet
+from spco.model.random import DimensionMajorCounts, dimension_major, dirichlet_log_density, log_dirichlet
 
 VARIANTS = ("exact", "reference", "spcoa")
 
@@ -66,6 +67,12 @@ class PreparedData:
     def n_samples(self) -> int:
         """N."""
         return int(self.homes.size)
+
+    @cached_property
+    def visual_by_dimension(self) -> DimensionMajorCounts:
+        """The visual counts by home and dimension (:func:`~spco.model.random.dimension_major`),
+        built at the first sweep: the layout of the visual likelihood's kernel."""
+        return dimension_major(self.visual, self.offsets)
 
 
 @dataclass
@@ -430,7 +437,8 @@ def _visual_counts(data: PreparedData, state: GibbsState, n_homes: int, n_concep
 
 def _concept_loglik(data: PreparedData, state: GibbsState) -> np.ndarray:
     """Visual + word log-likelihood of every sample under every concept of its home: (N, L)."""
-    loglik = HierarchicalMultinomial.log_likelihood(data.visual, data.homes, state.log_theta_v)
+    loglik = HierarchicalMultinomial.log_likelihood(data.visual, data.homes, state.log_theta_v,
+                                                    by_dimension=data.visual_by_dimension)
     if data.words.nnz:
         log_theta_w = kept_word_log_theta(state.log_theta_w, state.word_mask)
         loglik += HierarchicalMultinomial.log_likelihood(data.words, data.homes, log_theta_w)

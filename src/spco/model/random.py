@@ -23,6 +23,8 @@ depend on the number of threads.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import scipy.sparse as sp
 from numba import njit, prange
@@ -1349,6 +1351,134 @@ def blocked_sparse_dot(matrix, groups: np.ndarray, table: np.ndarray, width: int
     args = (_as(matrix.indptr, np.int64), _index_array(matrix.indices), _value_array(matrix.data),
             _as(groups, np.int64), np.ascontiguousarray(table, dtype=np.float64), int(width))
     return _call_vectorised(_blocked_sparse_dot, args)
+
+
+@dataclass(frozen=True, eq=False)
+class DimensionMajorCounts:
+    """A CSR count matrix whose rows come in blocks (the homes: block e holds rows
+    offsets[e]:offsets[e+1]) regrouped by block and then by column: the entries of column k in
+    block e are ``rows``/``values``[colptr[e, k]:colptr[e, k + 1]], rows ascending and numbered
+    within their block (row offsets[e] + rows[p] of the matrix). The layout of
+    :func:`dimension_major_dot`; built once per fit by :func:`dimension_major`."""
+
+    colptr: np.ndarray  # (E, D + 1) int64, positions in rows/values
+    rows: np.ndarray  # (nnz,) row numbers within the block: uint16 (blocks below 65,536 rows) or int64
+    values: np.ndarray  # (nnz,) the counts, float32 (exact below 2^24) or float64 as in the CSR
+    offsets: np.ndarray  # (E + 1,) int64
+
+    @property
+    def n_rows(self) -> int:
+        """The number of rows of the matrix."""
+        return int(self.offsets[-1])
+
+
+@njit(cache=True)
+def _dimension_major(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, offsets: np.ndarray,
+                     colptr: np.ndarray, rows: np.ndarray, values: np.ndarray) -> None:
+    n_blocks = offsets.size - 1
+    width = colptr.shape[1] - 1
+    for e in range(n_blocks):  # entries per (block, column)
+        for t in range(offsets[e], offsets[e + 1]):
+            for p in range(indptr[t], indptr[t + 1]):
+                colptr[e, indices[p] + 1] += 1
+    running = 0
+    for e in range(n_blocks):  # positions: blocks one after the other, columns within each
+        colptr[e, 0] = running
+        for k in range(width):
+            running += colptr[e, k + 1]
+            colptr[e, k + 1] = running
+    free = colptr[:, :width].copy()
+    for e in range(n_blocks):  # rows in increasing order: ascending within every column
+        for t in range(offsets[e], offsets[e + 1]):
+            for p in range(indptr[t], indptr[t + 1]):
+                k = indices[p]
+                q = free[e, k]
+                rows[q] = t - offsets[e]
+                values[q] = data[p]
+                free[e, k] = q + 1
+
+
+def dimension_major(matrix: sp.csr_array, offsets: np.ndarray) -> DimensionMajorCounts:
+    """The :class:`DimensionMajorCounts` of a CSR ``matrix`` (n, D) whose rows are in blocks
+    ``offsets`` (E + 1 increasing row numbers from 0 to n). The values keep the matrix's type
+    (float32 from :func:`stack_counts`); the row numbers, within each block, take two bytes when
+    every block has fewer than 65,536 rows: 6 bytes per non-zero with float32 counts (14 MB for
+    the 2.4 M visual non-zeros of 16 + 1 SIGVerse homes)."""
+    offsets = _as(offsets, np.int64)
+    n, width = matrix.shape
+    if offsets.ndim != 1 or offsets.size < 1 or offsets[0] != 0 or offsets[-1] != n or np.any(
+            np.diff(offsets) < 0):
+        raise ValueError(f"offsets must rise from 0 to the matrix's {n} rows")
+    values_in = _value_array(matrix.data)
+    nnz = int(matrix.indptr[-1])
+    colptr = np.zeros((offsets.size - 1, width + 1), dtype=np.int64)
+    largest_block = int(np.diff(offsets).max()) if offsets.size > 1 else 0
+    rows = np.empty(nnz, dtype=np.uint16 if largest_block <= np.iinfo(np.uint16).max + 1 else np.int64)
+    values = np.empty(nnz, dtype=values_in.dtype)
+    _dimension_major(_as(matrix.indptr, np.int64), _index_array(matrix.indices), values_in, offsets, colptr,
+                     rows, values)
+    return DimensionMajorCounts(colptr=colptr, rows=rows, values=values, offsets=offsets)
+
+
+@njit(parallel=True, cache=True)
+def _dimension_major_dot(colptr: np.ndarray, rows: np.ndarray, values: np.ndarray, offsets: np.ndarray,
+                         table: np.ndarray, width: int) -> np.ndarray:
+    # block by block (home by home, in parallel): for each column, its table row (16 lanes) is
+    # read once and added, times each entry's count, to that entry's row of sixteen accumulators
+    # (a home's accumulators stay in the L1 cache). Each sum runs over the row's entries in
+    # column order, as in _blocked_sparse_dot: the same results, bit for bit.
+    n_homes = offsets.size - 1
+    n_columns = colptr.shape[1] - 1
+    out = np.empty((offsets[-1], width))
+    for e in prange(n_homes):
+        start = offsets[e]
+        acc = np.empty((offsets[e + 1] - start, LANES))
+        for b in range(table.shape[1]):
+            block = table[e, b]
+            acc[:] = 0.0
+            for k in range(n_columns):
+                row = block[k]
+                r0, r1, r2, r3 = row[0], row[1], row[2], row[3]
+                r4, r5, r6, r7 = row[4], row[5], row[6], row[7]
+                r8, r9, r10, r11 = row[8], row[9], row[10], row[11]
+                r12, r13, r14, r15 = row[12], row[13], row[14], row[15]
+                for p in range(colptr[e, k], colptr[e, k + 1]):
+                    o = acc[np.int64(rows[p])]
+                    v = np.float64(values[p])
+                    o[0] += v * r0
+                    o[1] += v * r1
+                    o[2] += v * r2
+                    o[3] += v * r3
+                    o[4] += v * r4
+                    o[5] += v * r5
+                    o[6] += v * r6
+                    o[7] += v * r7
+                    o[8] += v * r8
+                    o[9] += v * r9
+                    o[10] += v * r10
+                    o[11] += v * r11
+                    o[12] += v * r12
+                    o[13] += v * r13
+                    o[14] += v * r14
+                    o[15] += v * r15
+            for t in range(acc.shape[0]):
+                for c in range(LANES):
+                    if b * LANES + c < width:
+                        out[start + t, b * LANES + c] = acc[t, c]
+    return out
+
+
+def dimension_major_dot(counts: DimensionMajorCounts, table: np.ndarray, width: int) -> np.ndarray:
+    """What :func:`blocked_sparse_dot` computes — row t of the counts times the table of its
+    block (home), for every row: (n, ``width``) — from the :class:`DimensionMajorCounts` layout,
+    with the same results bit for bit. Faster and steadier: each table row is read once per home
+    instead of once per entry."""
+    if table.shape[0] != counts.colptr.shape[0] or table.shape[2] != counts.colptr.shape[1] - 1:
+        raise ValueError(f"a table of shape {table.shape} does not fit counts of {counts.colptr.shape[0]} "
+                         f"blocks and {counts.colptr.shape[1] - 1} columns")
+    args = (counts.colptr, counts.rows, counts.values, counts.offsets,
+            np.ascontiguousarray(table, dtype=np.float64), int(width))
+    return _call_vectorised(_dimension_major_dot, args)
 
 
 def grouped_sparse_dot(matrix, groups: np.ndarray, table: np.ndarray) -> np.ndarray:
