@@ -164,11 +164,11 @@ def test_vectorised_exp_sum_matches_numpy() -> None:
 
 def _row_log_gammas(shape: np.ndarray, seed: int, normalise: bool = False) -> np.ndarray:
     """The Dirichlet kernels' row function on one row (compiled as the kernels compile it)."""
-    from spco.model.random import _call_vectorised, _log_gamma_row
+    from spco.model.random import _call_vectorised, _log_gamma_row, _row_scratch
 
     out = np.empty(shape.size)
     _call_vectorised(_log_gamma_row, (np.ascontiguousarray(shape, dtype=np.float64), out, np.uint64(seed),
-                                      0, normalise))
+                                      0, normalise, _row_scratch(shape.size)))
     return out
 
 
@@ -194,6 +194,17 @@ def test_dirichlet_rows_large_shapes_match_gamma_distribution(shape: float) -> N
     assert stats.kstest(logs, lambda y: log_gamma_cdf(y, shape)).pvalue > P_MIN
     values = np.exp(logs)
     assert abs(values.mean() - shape) < 5 * np.sqrt(shape / values.size)
+
+
+@pytest.mark.parametrize("shape", [1e-3, 0.3, 2.5])
+def test_short_dirichlet_rows_match_gamma_distribution(shape: float) -> None:
+    """Rows of at most 64 entries (words, π, G: drawn entry by entry on one stream): 2,000 rows of
+    ten variates, each row from its own seed, follow the gamma law; normalised, they sum to 1."""
+    draws = np.concatenate([_row_log_gammas(np.full(10, shape), seed) for seed in range(2_000)])
+    assert np.isfinite(draws).all()
+    assert stats.kstest(draws, lambda y: log_gamma_cdf(y, shape)).pvalue > P_MIN
+    normalised = _row_log_gammas(np.array([shape, 0.0, 2.0 * shape]), 3, normalise=True)
+    assert np.isneginf(normalised[1]) and abs(logsumexp(normalised)) < 1e-12
 
 
 def test_dirichlet_rows_mixed_shapes_normalise_exactly() -> None:

@@ -369,36 +369,89 @@ def _marsaglia_tsang_rest(shape: np.ndarray, x: np.ndarray, fast: np.ndarray, v_
     return state
 
 
+#: Scratch of :func:`_log_gamma_row` (:func:`_row_scratch`): random words, uint64 (8 + 3·padded);
+#: work rows, float64 (7, width), the last one free for the caller; compaction indices, int64.
+RowScratch = tuple
+
+
+@njit(cache=True)
+def _row_scratch(width: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Scratch of :func:`_log_gamma_row` for rows of up to ``width`` entries: allocated once per
+    row of a parallel batch, once for a whole batch on one thread."""
+    padded = (width + _ROW_STREAMS - 1) // _ROW_STREAMS * _ROW_STREAMS
+    return (np.empty(_ROW_STREAMS + 3 * padded, dtype=np.uint64), np.empty((7, width)),
+            np.empty(width, dtype=np.int64))
+
+
+#: Rows up to this length are drawn entry by entry (:func:`_log_gamma_short_row`): the passes of
+#: :func:`_log_gamma_row` cost ~1 µs per row whatever its length.
+_SHORT_ROW = 64
+
+
 @njit(cache=True, error_model="numpy")
-def _log_gamma_row(shape: np.ndarray, out: np.ndarray, seed: np.uint64, stream: int,
-                   normalise: bool) -> None:
+def _log_gamma_short_row(shape: np.ndarray, out: np.ndarray, state: np.uint64, normalise: bool) -> None:
+    """:func:`_log_gamma_row` for a short row, one entry after the other on the random stream
+    ``state``: Marsaglia–Tsang (:func:`_stream_gamma`), boosted in log space below 1
+    (:func:`_stream_log_gamma_small`), normalised by a log-sum-exp."""
+    top = -np.inf
+    for j in range(shape.size):
+        a = shape[j]
+        if a <= 0.0:
+            out[j] = -np.inf
+            continue
+        if a >= 1.0:
+            state, g = _stream_gamma(state, a)
+            out[j] = np.log(g)
+        else:
+            state, out[j] = _stream_log_gamma_small(state, a)
+        top = max(top, out[j])
+    if not normalise or top == -np.inf:
+        return
+    acc = 0.0
+    for j in range(shape.size):
+        acc += np.exp(out[j] - top)
+    log_total = top + np.log(acc)
+    for j in range(shape.size):
+        out[j] -= log_total
+
+
+@njit(cache=True, error_model="numpy")
+def _log_gamma_row(shape: np.ndarray, out: np.ndarray, seed: np.uint64, stream: int, normalise: bool,
+                   scratch: RowScratch) -> None:
     """out[j] ← log G_j for independent G_j ~ Gamma(shape[j], 1) (−inf where shape ≤ 0), minus
     log Σ_j G_j when ``normalise`` (then ``out`` is the logarithm of a Dirichlet draw).
+    ``scratch``: from :func:`_row_scratch` for at least ``shape.size`` entries.
 
-    The row's random words come from eight streams numbered 8·stream + k (k < 8) of ``seed``.
-    Marsaglia–Tsang in vectorised passes: the ziggurat's first step, the proposal and its squeeze
-    for every entry; the logarithmic test for those the squeeze leaves; the few still rejected
-    continue one by one. A shape a < 1 is boosted, G(a) = G(a + 1) U^{1/a}, in log space: finite
-    even where G underflows (clipped at −1e300). The normaliser Σ_j G_j sums linear values (an
-    exp only for the boosted entries) unless the row has no entry with a ≥ 1 or a variate below
-    1e-300, where it is a log-sum-exp."""
+    A row of at most :data:`_SHORT_ROW` entries is drawn by :func:`_log_gamma_short_row` (stream
+    8·stream of ``seed``). A longer row's random words come from eight streams numbered
+    8·stream + k (k < 8) of ``seed``, and Marsaglia–Tsang runs in vectorised passes: the
+    ziggurat's first step, the proposal and its squeeze for every entry; the logarithmic test for
+    those the squeeze leaves; the few still rejected continue one by one. A shape a < 1 is
+    boosted, G(a) = G(a + 1) U^{1/a}, in log space: finite even where G underflows (clipped at
+    −1e300). The normaliser Σ_j G_j sums linear values (an exp only for the boosted entries)
+    unless the row has no entry with a ≥ 1 or a variate below 1e-300, where it is a
+    log-sum-exp."""
     width = shape.size
+    if width <= _SHORT_ROW:
+        _log_gamma_short_row(shape, out, _stream_start(seed, np.uint64(stream * _ROW_STREAMS)), normalise)
+        return
     padded = (width + _ROW_STREAMS - 1) // _ROW_STREAMS * _ROW_STREAMS
-    states = np.empty(_ROW_STREAMS, dtype=np.uint64)
+    all_words, work, todo = scratch
+    states = all_words[:_ROW_STREAMS]
     for k in range(_ROW_STREAMS):
         states[k] = _stream_start(seed, np.uint64(stream * _ROW_STREAMS + k))
-    words = np.empty(3 * padded, dtype=np.uint64)
+    words = all_words[_ROW_STREAMS:_ROW_STREAMS + 3 * padded]
     _fill_stream_words(states, words)
     first, second, third = words[:width], words[padded:padded + width], words[2 * padded:2 * padded + width]
-    x = np.empty(width)
-    fast = np.empty(width)
-    accepted = np.empty(width)
-    todo = np.empty(width, dtype=np.int64)
-    buffer_1 = np.empty(width)
-    buffer_2 = np.empty(width)
+    x = work[0, :width]
+    fast = work[1, :width]
+    accepted = work[2, :width]
+    buffer_1 = work[3, :width]
+    buffer_2 = work[4, :width]
+    v_first = work[5, :width]
+    todo = todo[:width]
     g = out
     _ziggurat_first_step(first, x, fast)
-    v_first = np.empty(width)
     _marsaglia_tsang_first(shape, x, fast, second, g, accepted, v_first)
     _marsaglia_tsang_rest(shape, x, fast, v_first, first, second, g, accepted, todo, buffer_1, buffer_2,
                           accepted, states[0])
@@ -538,22 +591,50 @@ def _sum_exp(values: np.ndarray, poly: np.ndarray, scale: np.ndarray) -> float:
     return total
 
 
+#: Entries below which a batch of draws runs on one thread: waking Numba's worker threads costs
+#: ~60–90 µs, more than such a batch takes.
+_PARALLEL_MIN = 32_768
+
+
 @njit(parallel=True, cache=True, error_model="numpy")
 def _dirichlet_kernel(shape: np.ndarray, seed: np.uint64, out: np.ndarray) -> None:
     for r in prange(shape.shape[0]):
-        _log_gamma_row(shape[r], out[r], seed, r, True)
+        _log_gamma_row(shape[r], out[r], seed, r, True, _row_scratch(shape.shape[1]))
+
+
+@njit(cache=True, error_model="numpy")
+def _dirichlet_serial(shape: np.ndarray, seed: np.uint64, out: np.ndarray) -> None:
+    # _dirichlet_kernel on one thread, for small batches: the same draws
+    scratch = _row_scratch(shape.shape[1])
+    for r in range(shape.shape[0]):
+        _log_gamma_row(shape[r], out[r], seed, r, True, scratch)
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
 def _hierarchical_dirichlet_kernel(base: np.ndarray, counts: np.ndarray, seed: np.uint64,
                                    out: np.ndarray) -> None:
-    groups, rows, width = counts.shape
-    for i in prange(groups * rows):
-        g, r = i // rows, i % rows
-        shape = np.empty(width)
-        for k in range(width):
-            shape[k] = base[r, k] + counts[g, r, k]
-        _log_gamma_row(shape, out[g, r], seed, i, True)
+    for i in prange(counts.shape[0] * counts.shape[1]):
+        _hierarchical_dirichlet_row(base, counts, seed, out, i, _row_scratch(counts.shape[2]))
+
+
+@njit(cache=True, error_model="numpy")
+def _hierarchical_dirichlet_serial(base: np.ndarray, counts: np.ndarray, seed: np.uint64,
+                                   out: np.ndarray) -> None:
+    # _hierarchical_dirichlet_kernel on one thread, for small batches: the same draws
+    scratch = _row_scratch(counts.shape[2])
+    for i in range(counts.shape[0] * counts.shape[1]):
+        _hierarchical_dirichlet_row(base, counts, seed, out, i, scratch)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _hierarchical_dirichlet_row(base: np.ndarray, counts: np.ndarray, seed: np.uint64, out: np.ndarray,
+                                i: int, scratch: RowScratch) -> None:
+    rows, width = counts.shape[1], counts.shape[2]
+    g, r = i // rows, i % rows
+    shape = scratch[1][6, :width]  # (rows 0-5 are the row function's own scratch)
+    for k in range(width):
+        shape[k] = base[r, k] + counts[g, r, k]
+    _log_gamma_row(shape, out[g, r], seed, i, True, scratch)
 
 
 def log_dirichlet(alpha: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -579,7 +660,8 @@ def log_dirichlet(alpha: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     rows = np.ascontiguousarray(alpha).reshape(-1, alpha.shape[-1])
     out = np.empty(rows.shape)
     seed = np.uint64(rng.integers(0, 2**63 - 1, dtype=np.int64))
-    _call_vectorised(_dirichlet_kernel, (rows, seed, out))
+    kernel = _dirichlet_kernel if rows.size >= _PARALLEL_MIN else _dirichlet_serial
+    _call_vectorised(kernel, (rows, seed, out))
     return out.reshape(alpha.shape)
 
 
@@ -606,7 +688,9 @@ def log_dirichlet_hierarchical(base: np.ndarray, counts: np.ndarray, rng: np.ran
     if out is None or out.shape != counts.shape or out.dtype != np.float64 or not out.flags.c_contiguous:
         out = np.empty(counts.shape)
     seed = np.uint64(rng.integers(0, 2**63 - 1, dtype=np.int64))
-    _call_vectorised(_hierarchical_dirichlet_kernel, (base, counts, seed, out))
+    parallel = counts.size >= _PARALLEL_MIN
+    kernel = _hierarchical_dirichlet_kernel if parallel else _hierarchical_dirichlet_serial
+    _call_vectorised(kernel, (base, counts, seed, out))
     return out
 
 
@@ -696,40 +780,54 @@ def _stream_gamma_any(state: np.uint64, a: float) -> tuple[np.uint64, float]:
 @njit(parallel=True, cache=True)
 def _niw_kernel(mu_n: np.ndarray, kappa_n: np.ndarray, psi_n: np.ndarray, nu_n: np.ndarray, seed: np.uint64,
                 mu: np.ndarray, sigma: np.ndarray, failed: np.ndarray) -> None:
-    batch, d = mu_n.shape
-    for b in prange(batch):
-        state = _stream_start(seed, np.uint64(b))
-        chol = np.zeros((d, d))  # C = chol(Ψ_n), lower
-        failed[b] = not _cholesky_into(psi_n[b], chol)
-        bartlett = np.zeros((d, d))  # A: A_ii = sqrt(χ²(ν − i)), A_ij ~ N(0, 1) below the diagonal
-        for i in range(d):
-            state, g = _stream_gamma_any(state, 0.5 * (nu_n[b] - i))
-            bartlett[i, i] = np.sqrt(2.0 * g)
-            for j in range(i):
-                state, bartlett[i, j] = _stream_normal(state)
-        factor = np.zeros((d, d))  # F = C A^{-T}: F Aᵀ = C, forward substitution along each row
-        for r in range(d):
-            for k in range(d):
-                t = chol[r, k]
-                for j in range(k):
-                    t -= factor[r, j] * bartlett[k, j]
-                factor[r, k] = t / bartlett[k, k]
-        for i in range(d):  # Σ = F Fᵀ
-            for j in range(i + 1):
-                t = 0.0
-                for k in range(d):
-                    t += factor[i, k] * factor[j, k]
-                sigma[b, i, j] = t
-                sigma[b, j, i] = t
-        scale = 1.0 / np.sqrt(kappa_n[b])  # μ = μ_n + F z / √κ_n
-        z = np.empty(d)
-        for i in range(d):
-            state, z[i] = _stream_normal(state)
-        for i in range(d):
+    for b in prange(mu_n.shape[0]):
+        _niw_element(mu_n, kappa_n, psi_n, nu_n, seed, mu, sigma, failed, b)
+
+
+@njit(cache=True)
+def _niw_serial(mu_n: np.ndarray, kappa_n: np.ndarray, psi_n: np.ndarray, nu_n: np.ndarray, seed: np.uint64,
+                mu: np.ndarray, sigma: np.ndarray, failed: np.ndarray) -> None:
+    # _niw_kernel on one thread, for small batches: the same draws
+    for b in range(mu_n.shape[0]):
+        _niw_element(mu_n, kappa_n, psi_n, nu_n, seed, mu, sigma, failed, b)
+
+
+@njit(cache=True, inline="always")
+def _niw_element(mu_n: np.ndarray, kappa_n: np.ndarray, psi_n: np.ndarray, nu_n: np.ndarray, seed: np.uint64,
+                 mu: np.ndarray, sigma: np.ndarray, failed: np.ndarray, b: int) -> None:
+    d = mu_n.shape[1]
+    state = _stream_start(seed, np.uint64(b))
+    chol = np.zeros((d, d))  # C = chol(Ψ_n), lower
+    failed[b] = not _cholesky_into(psi_n[b], chol)
+    bartlett = np.zeros((d, d))  # A: A_ii = sqrt(χ²(ν − i)), A_ij ~ N(0, 1) below the diagonal
+    for i in range(d):
+        state, g = _stream_gamma_any(state, 0.5 * (nu_n[b] - i))
+        bartlett[i, i] = np.sqrt(2.0 * g)
+        for j in range(i):
+            state, bartlett[i, j] = _stream_normal(state)
+    factor = np.zeros((d, d))  # F = C A^{-T}: F Aᵀ = C, forward substitution along each row
+    for r in range(d):
+        for k in range(d):
+            t = chol[r, k]
+            for j in range(k):
+                t -= factor[r, j] * bartlett[k, j]
+            factor[r, k] = t / bartlett[k, k]
+    for i in range(d):  # Σ = F Fᵀ
+        for j in range(i + 1):
             t = 0.0
             for k in range(d):
-                t += factor[i, k] * z[k]
-            mu[b, i] = mu_n[b, i] + t * scale
+                t += factor[i, k] * factor[j, k]
+            sigma[b, i, j] = t
+            sigma[b, j, i] = t
+    scale = 1.0 / np.sqrt(kappa_n[b])  # μ = μ_n + F z / √κ_n
+    z = np.empty(d)
+    for i in range(d):
+        state, z[i] = _stream_normal(state)
+    for i in range(d):
+        t = 0.0
+        for k in range(d):
+            t += factor[i, k] * z[k]
+        mu[b, i] = mu_n[b, i] + t * scale
 
 
 def sample_niw(
@@ -758,7 +856,8 @@ def sample_niw(
     sigma = np.empty(flat_psi.shape)
     failed = np.zeros(flat_mu.shape[0], dtype=np.bool_)
     seed = np.uint64(rng.integers(0, 2**63 - 1, dtype=np.int64))
-    _niw_kernel(flat_mu, flat_kappa, flat_psi, flat_nu, seed, mu, sigma, failed)
+    kernel = _niw_kernel if flat_mu.shape[0] >= _PARALLEL_MIN // 16 else _niw_serial  # (~1 µs each)
+    kernel(flat_mu, flat_kappa, flat_psi, flat_nu, seed, mu, sigma, failed)
     if failed.any():
         raise ValueError(f"sample_niw: Ψ_n of {int(failed.sum())} batch element(s) is not positive definite")
     return mu.reshape(*batch, d), sigma.reshape(*batch, d, d)
@@ -954,24 +1053,37 @@ def _crt_kernel(counts: np.ndarray, conc: np.ndarray, seed: np.uint64, exact_max
                 head: int) -> np.ndarray:
     out = np.zeros(counts.size, dtype=np.int64)
     for j in prange(counts.size):
-        n = counts[j]
-        a = conc[j]
-        if n <= 0 or a <= 0.0:
-            continue
-        m = 1  # the first customer always opens a table
-        # customers 1..start-1 exactly; the series of the tail need a + start >= 6
-        start = 1 if a >= 5.0 else head
-        limit = n if n <= exact_max else start
-        state = _stream_start(seed, np.uint64(j))
-        for i in range(1, limit):
-            state, u = _stream_next(state)
-            if u * (a + i) < a:
-                m += 1
-        if n > exact_max:
-            state, extra = _crt_tail(n, a, start, state)
-            m += extra
-        out[j] = m
+        out[j] = _crt_entry(counts[j], conc[j], seed, exact_max, head, j)
     return out
+
+
+@njit(cache=True, error_model="numpy")
+def _crt_serial(counts: np.ndarray, conc: np.ndarray, seed: np.uint64, exact_max: int,
+                head: int) -> np.ndarray:
+    # _crt_kernel on one thread, for small inputs: the same draws
+    out = np.zeros(counts.size, dtype=np.int64)
+    for j in range(counts.size):
+        out[j] = _crt_entry(counts[j], conc[j], seed, exact_max, head, j)
+    return out
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _crt_entry(n: int, a: float, seed: np.uint64, exact_max: int, head: int, j: int) -> int:
+    if n <= 0 or a <= 0.0:
+        return 0
+    m = 1  # the first customer always opens a table
+    # customers 1..start-1 exactly; the series of the tail need a + start >= 6
+    start = 1 if a >= 5.0 else head
+    limit = n if n <= exact_max else start
+    state = _stream_start(seed, np.uint64(j))
+    for i in range(1, limit):
+        state, u = _stream_next(state)
+        if u * (a + i) < a:
+            m += 1
+    if n > exact_max:
+        state, extra = _crt_tail(n, a, start, state)
+        m += extra
+    return m
 
 
 def sample_crt(
@@ -1003,102 +1115,117 @@ def sample_crt(
     flat_n = np.ascontiguousarray(counts, dtype=np.int64).ravel()
     flat_a = np.ascontiguousarray(conc, dtype=np.float64).ravel()
     seed = np.uint64(rng.integers(0, 2**63 - 1, dtype=np.int64))
-    return _crt_kernel(flat_n, flat_a, seed, int(exact_max), int(head)).reshape(counts.shape)
+    kernel = _crt_kernel if flat_n.size >= _PARALLEL_MIN // 8 else _crt_serial
+    return kernel(flat_n, flat_a, seed, int(exact_max), int(head)).reshape(counts.shape)
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
 def _crt_totals_kernel(counts: np.ndarray, conc: np.ndarray, seed: np.uint64, exact_max: int) -> np.ndarray:
-    n_groups, n_rows, width = counts.shape
-    out = np.zeros((n_rows, width), dtype=np.int64)
-    for r in prange(n_rows):
-        a_row = conc[r]
-        opened = out[r]
-        # pass 1 (branch-free): tables opened by first customers, Bernoulli terms per column
-        terms = np.zeros(width, dtype=np.int64)
-        for g in range(n_groups):
-            n_row = counts[g, r]
-            for k in range(width):
-                n = n_row[k]
-                active = np.int64(n > 0) * np.int64(a_row[k] > 0.0)
-                opened[k] += active
-                terms[k] += active * (n - 1)
-        # pass 2, groups in memory order, only the entries with n > 1 (gathered without branches
-        # first): the exact Bernoulli draws of the columns with few terms (each column continues
-        # its own random stream from group to group) and the moments of the others: Σ_i p_i and
-        # Σ_i p_i (1 − p_i), p_i = a/(a + i), term by term where a + n < 6, otherwise through
-        # Σ_g ψ(a + n_g) and Σ_g ψ′(a + n_g) (series), with ψ(a + 1) once per column
-        states = np.empty(width, dtype=np.uint64)
-        for k in range(width):
-            states[k] = _stream_start(seed, np.uint64(r * width + k))
-        exact_mean = np.zeros(width)
-        exact_var = np.zeros(width)
-        digamma_sum = np.zeros(width)
-        trigamma_sum = np.zeros(width)
-        product = np.ones(width)  # Π (a + n_g) of the series terms: Σ log = log Π, one log per column
-        several = np.zeros(width, dtype=np.int64)
-        series_columns = np.empty(width, dtype=np.int64)
-        exact_columns = np.empty(width, dtype=np.int64)
-        x_buffer = np.empty(width)
-        digamma_buffer = np.empty(width)
-        trigamma_buffer = np.empty(width)
-        for g in range(n_groups):
-            n_row = counts[g, r]
-            n_series = 0
-            n_exact = 0
-            for k in range(width):  # the columns of this group in the two regimes, without branches
-                active = np.int64(n_row[k] > 1) * np.int64(terms[k] > 0)
-                tail = np.int64(terms[k] > exact_max)
-                series_columns[n_series] = k
-                n_series += active * tail
-                exact_columns[n_exact] = k
-                n_exact += active * (1 - tail)
-            for j in range(n_series):
-                k = series_columns[j]
-                x_buffer[j] = a_row[k] + n_row[k]
-            for j in range(n_series):  # vectorised; used where a + n ≥ 6
-                x = x_buffer[j]
-                digamma_buffer[j] = _digamma_large_minus_log(x)
-                trigamma_buffer[j] = _trigamma_large(x)
-            for j in range(n_series):
-                k = series_columns[j]
-                x = x_buffer[j]
-                if x >= 6.0:
-                    digamma_sum[k] += digamma_buffer[j]
-                    trigamma_sum[k] += trigamma_buffer[j]
-                    product[k] *= x
-                    if product[k] > 1e280:  # x < 2^63: the next product cannot overflow
-                        digamma_sum[k] += np.log(product[k])
-                        product[k] = 1.0
-                    several[k] += 1
-                else:
-                    a = a_row[k]
-                    for i in range(1, n_row[k]):
-                        p = a / (a + i)
-                        exact_mean[k] += p
-                        exact_var[k] += p * (1.0 - p)
-            for j in range(n_exact):
-                k = exact_columns[j]
-                n = n_row[k]
-                a = a_row[k]
-                state = states[k]
-                for i in range(1, n):
-                    state, u = _stream_next(state)
-                    opened[k] += np.int64(u * (a + i) < a)
-                states[k] = state
-        for k in range(width):
-            if terms[k] <= exact_max:
-                continue
-            a = a_row[k]
-            mean = exact_mean[k]
-            var = exact_var[k]
-            if several[k] > 0:
-                digamma_sum[k] += np.log(product[k])
-                series_mean = a * (digamma_sum[k] - several[k] * _digamma(a + 1.0))
-                mean += series_mean
-                var += series_mean - a * a * (several[k] * _trigamma(a + 1.0) - trigamma_sum[k])
-            _, extra = _bernoulli_sum_moment_matched(terms[k], mean, var, states[k])
-            opened[k] += extra
+    out = np.zeros((counts.shape[1], counts.shape[2]), dtype=np.int64)
+    for r in prange(counts.shape[1]):
+        _crt_totals_row(counts, conc, seed, exact_max, r, out[r])
     return out
+
+
+@njit(cache=True, error_model="numpy")
+def _crt_totals_serial(counts: np.ndarray, conc: np.ndarray, seed: np.uint64, exact_max: int) -> np.ndarray:
+    # _crt_totals_kernel on one thread, for small inputs: the same draws
+    out = np.zeros((counts.shape[1], counts.shape[2]), dtype=np.int64)
+    for r in range(counts.shape[1]):
+        _crt_totals_row(counts, conc, seed, exact_max, r, out[r])
+    return out
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _crt_totals_row(counts: np.ndarray, conc: np.ndarray, seed: np.uint64, exact_max: int, r: int,
+                    opened: np.ndarray) -> None:
+    n_groups, width = counts.shape[0], counts.shape[2]
+    a_row = conc[r]
+    # pass 1 (branch-free): tables opened by first customers, Bernoulli terms per column
+    terms = np.zeros(width, dtype=np.int64)
+    for g in range(n_groups):
+        n_row = counts[g, r]
+        for k in range(width):
+            n = n_row[k]
+            active = np.int64(n > 0) * np.int64(a_row[k] > 0.0)
+            opened[k] += active
+            terms[k] += active * (n - 1)
+    # pass 2, groups in memory order, only the entries with n > 1 (gathered without branches
+    # first): the exact Bernoulli draws of the columns with few terms (each column continues
+    # its own random stream from group to group) and the moments of the others: Σ_i p_i and
+    # Σ_i p_i (1 − p_i), p_i = a/(a + i), term by term where a + n < 6, otherwise through
+    # Σ_g ψ(a + n_g) and Σ_g ψ′(a + n_g) (series), with ψ(a + 1) once per column
+    states = np.empty(width, dtype=np.uint64)
+    for k in range(width):
+        states[k] = _stream_start(seed, np.uint64(r * width + k))
+    exact_mean = np.zeros(width)
+    exact_var = np.zeros(width)
+    digamma_sum = np.zeros(width)
+    trigamma_sum = np.zeros(width)
+    product = np.ones(width)  # Π (a + n_g) of the series terms: Σ log = log Π, one log per column
+    several = np.zeros(width, dtype=np.int64)
+    series_columns = np.empty(width, dtype=np.int64)
+    exact_columns = np.empty(width, dtype=np.int64)
+    x_buffer = np.empty(width)
+    digamma_buffer = np.empty(width)
+    trigamma_buffer = np.empty(width)
+    for g in range(n_groups):
+        n_row = counts[g, r]
+        n_series = 0
+        n_exact = 0
+        for k in range(width):  # the columns of this group in the two regimes, without branches
+            active = np.int64(n_row[k] > 1) * np.int64(terms[k] > 0)
+            tail = np.int64(terms[k] > exact_max)
+            series_columns[n_series] = k
+            n_series += active * tail
+            exact_columns[n_exact] = k
+            n_exact += active * (1 - tail)
+        for j in range(n_series):
+            k = series_columns[j]
+            x_buffer[j] = a_row[k] + n_row[k]
+        for j in range(n_series):  # vectorised; used where a + n ≥ 6
+            x = x_buffer[j]
+            digamma_buffer[j] = _digamma_large_minus_log(x)
+            trigamma_buffer[j] = _trigamma_large(x)
+        for j in range(n_series):
+            k = series_columns[j]
+            x = x_buffer[j]
+            if x >= 6.0:
+                digamma_sum[k] += digamma_buffer[j]
+                trigamma_sum[k] += trigamma_buffer[j]
+                product[k] *= x
+                if product[k] > 1e280:  # x < 2^63: the next product cannot overflow
+                    digamma_sum[k] += np.log(product[k])
+                    product[k] = 1.0
+                several[k] += 1
+            else:
+                a = a_row[k]
+                for i in range(1, n_row[k]):
+                    p = a / (a + i)
+                    exact_mean[k] += p
+                    exact_var[k] += p * (1.0 - p)
+        for j in range(n_exact):
+            k = exact_columns[j]
+            n = n_row[k]
+            a = a_row[k]
+            state = states[k]
+            for i in range(1, n):
+                state, u = _stream_next(state)
+                opened[k] += np.int64(u * (a + i) < a)
+            states[k] = state
+    for k in range(width):
+        if terms[k] <= exact_max:
+            continue
+        a = a_row[k]
+        mean = exact_mean[k]
+        var = exact_var[k]
+        if several[k] > 0:
+            digamma_sum[k] += np.log(product[k])
+            series_mean = a * (digamma_sum[k] - several[k] * _digamma(a + 1.0))
+            mean += series_mean
+            var += series_mean - a * a * (several[k] * _trigamma(a + 1.0) - trigamma_sum[k])
+        _, extra = _bernoulli_sum_moment_matched(terms[k], mean, var, states[k])
+        opened[k] += extra
 
 
 def sample_crt_totals(counts: np.ndarray, concentration: np.ndarray, rng: np.random.Generator,
@@ -1127,7 +1254,8 @@ def sample_crt_totals(counts: np.ndarray, concentration: np.ndarray, rng: np.ran
         raise ValueError("sample_crt_totals needs counts of shape (groups, rows, width)")
     conc = np.ascontiguousarray(np.broadcast_to(concentration, counts.shape[1:]), dtype=np.float64)
     seed = np.uint64(rng.integers(0, 2**63 - 1, dtype=np.int64))
-    return _crt_totals_kernel(counts, conc, seed, int(exact_max))
+    kernel = _crt_totals_kernel if counts.size >= _PARALLEL_MIN else _crt_totals_serial
+    return kernel(counts, conc, seed, int(exact_max))
 
 
 # ----------------------------------------------------------------------------- categorical
@@ -1491,6 +1619,21 @@ def grouped_sparse_dot(matrix, groups: np.ndarray, table: np.ndarray) -> np.ndar
     return blocked_sparse_dot(matrix, groups, blocked, table.shape[2])
 
 
+#: (kernel, argument kinds) already compiled by :func:`_call_vectorised`: later calls go straight
+#: to the kernel (``numba.typeof`` of every argument costs ~12 µs per array).
+_VECTORISED_READY: set = set()
+
+
+def _argument_kind(value) -> tuple:
+    """What decides Numba's type of an argument: for arrays dtype, dimensions, layout, whether
+    writeable and aligned; for scalars their Python type."""
+    if isinstance(value, np.ndarray):
+        flags = value.flags
+        return (value.dtype.str, value.ndim, flags.c_contiguous, flags.f_contiguous, flags.writeable,
+                flags.aligned)
+    return (type(value),)
+
+
 def _call_vectorised(kernel, args: tuple):
     """Call a compiled kernel whose code is written for LLVM's SLP vectoriser (independent scalar
     accumulators over adjacent memory), compiling it first with that vectoriser switched on.
@@ -1500,17 +1643,20 @@ def _call_vectorised(kernel, args: tuple):
     results the tests compare with NumPy. Without it the same code runs, at scalar speed. A
     kernel already compiled (or loaded from Numba's cache) for these argument types is called
     directly."""
-    from numba import typeof
-    from numba.core import config
+    key = (kernel, tuple(_argument_kind(a) for a in args))
+    if key not in _VECTORISED_READY:
+        from numba import typeof
+        from numba.core import config
 
-    signature = tuple(typeof(a) for a in args)
-    if signature not in kernel.signatures:
-        previous = config.SLP_VECTORIZE
-        config.SLP_VECTORIZE = 1
-        try:
-            kernel.compile(signature)
-        finally:
-            config.SLP_VECTORIZE = previous
+        signature = tuple(typeof(a) for a in args)
+        if signature not in kernel.signatures:
+            previous = config.SLP_VECTORIZE
+            config.SLP_VECTORIZE = 1
+            try:
+                kernel.compile(signature)
+            finally:
+                config.SLP_VECTORIZE = previous
+        _VECTORISED_READY.add(key)
     return kernel(*args)
 
 
