@@ -645,6 +645,35 @@ def test_grouped_sparse_dot_and_row_sums_match_dense() -> None:
     assert_allclose(grouped_sparse_dot(as_int, groups, table), expected, rtol=1e-12, atol=1e-9)
 
 
+def test_grouped_row_sums_one_thread_and_parallel_agree() -> None:
+    """Below 32,768 non-zeros the row sums run on one thread, above in parallel over runs of
+    rows: both equal the dense sums."""
+    from spco.model.random import grouped_row_sums
+
+    rng = np.random.default_rng(38)
+    for n in (50, 2_000):  # ~750 and ~40,000 non-zeros
+        dense = np.where(rng.random((n, 40)) < 0.5, rng.integers(1, 50, size=(n, 40)), 0)
+        blocks = np.sort(rng.integers(0, 6, size=n))
+        groups = blocks * 3 + rng.integers(0, 3, size=n)  # runs of blocks write disjoint groups
+        expected = np.stack([dense[groups == g].sum(0) for g in range(18)])
+        assert_array_equal(grouped_row_sums(sp.csr_array(dense), groups, 18, blocks=blocks), expected)
+        assert_array_equal(grouped_row_sums(sp.csr_array(dense), groups, 18), expected)
+
+
+def test_grouped_moments_match_numpy() -> None:
+    from spco.model.random import grouped_moments
+
+    rng = np.random.default_rng(39)
+    x = rng.normal(size=(300, 4)) * [100.0, 50.0, 1.0, 1.0]
+    groups = rng.integers(0, 7, size=300)
+    count, total, scatter = grouped_moments(x, groups, 8)  # group 7 is empty
+    for g in range(8):
+        rows = x[groups == g]
+        assert count[g] == rows.shape[0]
+        assert_allclose(total[g], rows.sum(0), rtol=1e-12, atol=1e-12)
+        assert_allclose(scatter[g], rows.T @ rows, rtol=1e-12, atol=1e-9)
+
+
 def test_blocked_sparse_dot_over_several_blocks_of_lanes_matches_dense() -> None:
     """More rows than one 16-lane block (L = 20 concepts): the likelihood table is split in two
     zero-padded blocks, entries below the floor are clipped, and the result is the dense product

@@ -23,6 +23,7 @@ from spco.model.random import (
     blocked_sparse_dot,
     dimension_major_dot,
     grouped_gaussian_log_density,
+    grouped_moments,
     grouped_row_sums,
     likelihood_table,
     log_dirichlet,
@@ -62,18 +63,10 @@ class GaussianRegions:
 
         Returns count (E, K), total Σx (E, K, 4) and scatter Σxxᵀ (E, K, 4, 4).
         """
-        n, d = positions.shape
-        groups = homes * n_regions + regions
-        features = np.empty((n, 1 + d + d * d))
-        features[:, 0] = 1.0
-        features[:, 1:1 + d] = positions
-        features[:, 1 + d:] = (positions[:, :, None] * positions[:, None, :]).reshape(n, d * d)
-        onehot = sp.csr_array((np.ones(n), (groups, np.arange(n))), shape=(n_homes * n_regions, n))
-        stats = onehot @ features
-        count = stats[:, 0].reshape(n_homes, n_regions)
-        total = stats[:, 1:1 + d].reshape(n_homes, n_regions, d)
-        scatter = stats[:, 1 + d:].reshape(n_homes, n_regions, d, d)
-        return count, total, scatter
+        d = positions.shape[1]
+        count, total, scatter = grouped_moments(positions, homes * n_regions + regions, n_homes * n_regions)
+        return (count.reshape(n_homes, n_regions), total.reshape(n_homes, n_regions, d),
+                scatter.reshape(n_homes, n_regions, d, d))
 
     @staticmethod
     def sample_posterior(count: np.ndarray, total: np.ndarray, scatter: np.ndarray, prior: NIWPrior,

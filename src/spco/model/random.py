@@ -1713,15 +1713,52 @@ def stack_counts(*blocks) -> sp.csr_array:
     return out
 
 
+@njit(cache=True)
+def _grouped_moments(x: np.ndarray, groups: np.ndarray, count: np.ndarray, total: np.ndarray,
+                     scatter: np.ndarray) -> None:
+    for t in range(x.shape[0]):
+        g = groups[t]
+        count[g] += 1.0
+        for i in range(x.shape[1]):
+            total[g, i] += x[t, i]
+            for j in range(x.shape[1]):
+                scatter[g, i, j] += x[t, i] * x[t, j]
+
+
+def grouped_moments(x: np.ndarray, groups: np.ndarray,
+                    n_groups: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Count, Σ x and Σ x xᵀ of the rows of ``x`` (n, d) in each group (``groups`` (n,) in
+    0..n_groups−1): shapes (G,), (G, d), (G, d, d); summed in row order, one pass."""
+    x = _as(x, np.float64)
+    count = np.zeros(n_groups)
+    total = np.zeros((n_groups, x.shape[1]))
+    scatter = np.zeros((n_groups, x.shape[1], x.shape[1]))
+    _grouped_moments(x, _as(groups, np.int64), count, total, scatter)
+    return count, total, scatter
+
+
 @njit(parallel=True, cache=True)
 def _grouped_row_sums(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, groups: np.ndarray,
                       chunks: np.ndarray, out: np.ndarray) -> None:
     # rows chunks[i]:chunks[i+1] write to groups no other chunk writes to, so chunks run in parallel
     for i in prange(chunks.size - 1):
-        for t in range(chunks[i], chunks[i + 1]):
-            g = groups[t]
-            for p in range(indptr[t], indptr[t + 1]):
-                out[g, indices[p]] += np.int64(data[p])
+        _add_rows(indptr, indices, data, groups, chunks[i], chunks[i + 1], out)
+
+
+@njit(cache=True, inline="always")
+def _add_rows(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, groups: np.ndarray, first: int,
+              stop: int, out: np.ndarray) -> None:
+    for t in range(first, stop):
+        g = groups[t]
+        for p in range(indptr[t], indptr[t + 1]):
+            out[g, indices[p]] += np.int64(data[p])
+
+
+@njit(cache=True)
+def _row_sums_serial(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, groups: np.ndarray,
+                     out: np.ndarray) -> None:
+    # _grouped_row_sums on one thread, for few non-zeros
+    _add_rows(indptr, indices, data, groups, 0, indptr.size - 1, out)
 
 
 def grouped_row_sums(matrix, groups: np.ndarray, n_groups: int,
@@ -1734,6 +1771,10 @@ def grouped_row_sums(matrix, groups: np.ndarray, n_groups: int,
     """
     out = np.zeros((n_groups, matrix.shape[1]), dtype=np.int64)
     n = matrix.shape[0]
+    if matrix.nnz < _PARALLEL_MIN:
+        _row_sums_serial(_as(matrix.indptr, np.int64), _index_array(matrix.indices),
+                         _value_array(matrix.data), _as(groups, np.int64), out)
+        return out
     if blocks is not None and n > 1 and np.all(blocks[1:] >= blocks[:-1]):
         chunks = np.concatenate([[0], np.flatnonzero(blocks[1:] != blocks[:-1]) + 1, [n]]).astype(np.int64)
     else:
