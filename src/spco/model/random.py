@@ -230,7 +230,6 @@ def _gamma_draw(shape: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray
 #: Random streams per row in the Dirichlet kernels: eight xorshift64* streams advanced side by side
 #: (LLVM's SLP vectoriser runs them in AVX2 lanes) fill the row's random words in one pass.
 _ROW_STREAMS = 8
-_U53 = 1.0 / 9007199254740992.0
 _ZIG_THRESHOLD_SIGNED = _ZIG_THRESHOLD.astype(np.int64)  # thresholds < 2^52: signed compares
 
 
@@ -280,22 +279,44 @@ def _fill_stream_words(states: np.ndarray, words: np.ndarray) -> None:
     states[4], states[5], states[6], states[7] = s4, s5, s6, s7
 
 
+_ONE_BITS = np.uint64(0x3FF0000000000000)
+#: 1 − 2^-53: (1 + m 2^-52) minus this is the open uniform (m + 1/2) 2^-52 in (0, 1), exactly.
+_ONE_MINUS_HALF_ULP = 1.0 - 2.0**-53
+
+
+@njit(cache=True, inline="always")
+def _words_to_uniforms(words: np.ndarray) -> np.ndarray:
+    """Turn 64-bit random words into open uniforms (m + 1/2) 2^-52, m their top 52 bits, in place,
+    and return them as float64: the words become the bit patterns of 1 + m 2^-52 in [1, 2) (an
+    integer operation that vectorises, where converting a 64-bit integer to a double does not on
+    AVX2), from which the consumer subtracts :data:`_ONE_MINUS_HALF_ULP`."""
+    for j in range(words.size):
+        words[j] = (words[j] >> np.uint64(12)) | _ONE_BITS
+    return words.view(np.float64)
+
+
+_TWO52_BITS = np.uint64(0x4330000000000000)  # the bit pattern of 2^52
+
+
 @njit(cache=True, error_model="numpy")
 def _ziggurat_first_step(words: np.ndarray, x: np.ndarray, fast: np.ndarray) -> None:
     """The first step of :func:`_stream_normal` for every word, without branches: the abscissa
     x[j] and fast[j] = 1 where that step already returns it (≈ 98 % of words), else 0 (the draw
-    continues in :func:`_normal_from_bits`)."""
+    continues in :func:`_normal_from_bits`). The 52-bit integer becomes a double through the bit
+    pattern of 2^52 + u (no integer conversion, which AVX2 lacks for 64-bit integers)."""
+    patterns = x.view(np.uint64)
+    for j in range(x.size):
+        patterns[j] = (words[j] >> np.uint64(12)) | _TWO52_BITS
     for j in range(x.size):
         bits = words[j]
         layer = np.int64(bits & np.uint64(255))
         sign = 1.0 - 2.0 * np.float64(np.int64((bits >> np.uint64(8)) & np.uint64(1)))
-        u = np.int64(bits >> np.uint64(12))
-        x[j] = u * _ZIG_SCALE[layer] * sign
-        fast[j] = np.float64(u < _ZIG_THRESHOLD_SIGNED[layer])
+        x[j] = (x[j] - 4503599627370496.0) * _ZIG_SCALE[layer] * sign
+        fast[j] = np.float64(np.int64(bits >> np.uint64(12)) < _ZIG_THRESHOLD_SIGNED[layer])
 
 
 @njit(cache=True, error_model="numpy")
-def _marsaglia_tsang_first(shape: np.ndarray, x: np.ndarray, fast: np.ndarray, words: np.ndarray,
+def _marsaglia_tsang_first(shape: np.ndarray, x: np.ndarray, fast: np.ndarray, uniforms: np.ndarray,
                            g: np.ndarray, accepted: np.ndarray, v_out: np.ndarray) -> None:
     """The first Marsaglia–Tsang proposal of every entry, vectorised: g[j] = d (1 + c x_j)³ for
     the shape a (a + 1 below 1, boosted later), v_out[j] = 1 + c x_j, and accepted[j] = 1 where
@@ -306,7 +327,7 @@ def _marsaglia_tsang_first(shape: np.ndarray, x: np.ndarray, fast: np.ndarray, w
         d = a + np.float64(a < 1.0) - 1.0 / 3.0
         xj = x[j]
         v = 1.0 + xj / np.sqrt(9.0 * d)
-        u = (np.int64(words[j] >> np.uint64(11)) + 0.5) * _U53
+        u = uniforms[j] - _ONE_MINUS_HALF_ULP
         x2 = xj * xj
         accepted[j] = fast[j] * np.float64(v > 0.0) * np.float64(u < 1.0 - 0.0331 * x2 * x2)
         g[j] = d * v * v * v
@@ -315,7 +336,7 @@ def _marsaglia_tsang_first(shape: np.ndarray, x: np.ndarray, fast: np.ndarray, w
 
 @njit(cache=True, error_model="numpy")
 def _marsaglia_tsang_rest(shape: np.ndarray, x: np.ndarray, fast: np.ndarray, v_first: np.ndarray,
-                          first_words: np.ndarray, second_words: np.ndarray, g: np.ndarray,
+                          first_words: np.ndarray, second_uniforms: np.ndarray, g: np.ndarray,
                           accepted: np.ndarray, todo: np.ndarray, log_u: np.ndarray, log_v: np.ndarray,
                           scratch: np.ndarray, state: np.uint64) -> np.uint64:
     """Finish the gamma variates that the squeeze did not accept: first Marsaglia–Tsang's
@@ -329,7 +350,7 @@ def _marsaglia_tsang_rest(shape: np.ndarray, x: np.ndarray, fast: np.ndarray, v_
         m += np.int64(accepted[j] == 0.0)
     for i in range(m):
         j = todo[i]
-        log_u[i] = (np.int64(second_words[j] >> np.uint64(11)) + 0.5) * _U53
+        log_u[i] = second_uniforms[j] - _ONE_MINUS_HALF_ULP
         v = v_first[j]
         v3 = v * v * v
         log_v[i] = v3 if v3 > 1e-300 else 1.0  # (v ≤ 0 is rejected below; keep the log finite)
@@ -360,7 +381,7 @@ def _marsaglia_tsang_rest(shape: np.ndarray, x: np.ndarray, fast: np.ndarray, v_
             v = 1.0 + xj / np.sqrt(9.0 * d)
             if v > 0.0:
                 v = v * v * v
-                u = (np.int64(second_words[j] >> np.uint64(11)) + 0.5) * _U53
+                u = second_uniforms[j] - _ONE_MINUS_HALF_ULP
                 x2 = xj * xj
                 if u < 1.0 - 0.0331 * x2 * x2 or np.log(u) < 0.5 * x2 + d * (1.0 - v + np.log(v)):
                     g[j] = d * v
@@ -442,7 +463,9 @@ def _log_gamma_row(shape: np.ndarray, out: np.ndarray, seed: np.uint64, stream: 
         states[k] = _stream_start(seed, np.uint64(stream * _ROW_STREAMS + k))
     words = all_words[_ROW_STREAMS:_ROW_STREAMS + 3 * padded]
     _fill_stream_words(states, words)
-    first, second, third = words[:width], words[padded:padded + width], words[2 * padded:2 * padded + width]
+    first = words[:width]
+    second = _words_to_uniforms(words[padded:padded + width])
+    third = _words_to_uniforms(words[2 * padded:2 * padded + width])
     x = work[0, :width]
     fast = work[1, :width]
     accepted = work[2, :width]
@@ -472,7 +495,7 @@ def _log_gamma_row(shape: np.ndarray, out: np.ndarray, seed: np.uint64, stream: 
     for i in range(n_boosted):
         j = boosted[i]
         log_boosted[i] = g[j]
-        log_u[i] = (np.int64(third[j] >> np.uint64(11)) + 0.5) * _U53
+        log_u[i] = third[j] - _ONE_MINUS_HALF_ULP
     _log_minus(log_u, 0.0, x[:n_boosted])
     if n_tiny == 0:
         _log_minus(log_boosted, 0.0, x[:n_boosted])
