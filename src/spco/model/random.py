@@ -391,7 +391,8 @@ def _marsaglia_tsang_rest(shape: np.ndarray, x: np.ndarray, fast: np.ndarray, v_
 
 
 #: Scratch of :func:`_log_gamma_row` (:func:`_row_scratch`): random words, uint64 (8 + 3·padded);
-#: work rows, float64 (7, width), the last one free for the caller; compaction indices, int64.
+#: work rows, float64 (7, width), the last one free for the caller; compaction indices, int64
+#: (2, width).
 RowScratch = tuple
 
 
@@ -401,7 +402,7 @@ def _row_scratch(width: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     row of a parallel batch, once for a whole batch on one thread."""
     padded = (width + _ROW_STREAMS - 1) // _ROW_STREAMS * _ROW_STREAMS
     return (np.empty(_ROW_STREAMS + 3 * padded, dtype=np.uint64), np.empty((7, width)),
-            np.empty(width, dtype=np.int64))
+            np.empty((2, width), dtype=np.int64))
 
 
 #: Rows up to this length are drawn entry by entry (:func:`_log_gamma_short_row`): the passes of
@@ -461,41 +462,45 @@ def _log_gamma_row(shape: np.ndarray, out: np.ndarray, seed: np.uint64, stream: 
     states = all_words[:_ROW_STREAMS]
     for k in range(_ROW_STREAMS):
         states[k] = _stream_start(seed, np.uint64(stream * _ROW_STREAMS + k))
-    words = all_words[_ROW_STREAMS:_ROW_STREAMS + 3 * padded]
+    words = all_words[_ROW_STREAMS:_ROW_STREAMS + 2 * padded]
     _fill_stream_words(states, words)
     first = words[:width]
     second = _words_to_uniforms(words[padded:padded + width])
-    third = _words_to_uniforms(words[2 * padded:2 * padded + width])
+    # the boosted entries (0 < a < 1) and the uniforms of their boost (the next words)
+    boosted = todo[1, :width]
+    n_boosted = 0
+    for j in range(width):
+        a = shape[j]
+        boosted[n_boosted] = j
+        n_boosted += np.int64(a < 1.0) * np.int64(a > 0.0)
+    boosted = boosted[:n_boosted]
+    boost_words = all_words[_ROW_STREAMS + 2 * padded:]
+    boost_words = boost_words[:(n_boosted + _ROW_STREAMS - 1) // _ROW_STREAMS * _ROW_STREAMS]
+    _fill_stream_words(states, boost_words)
+    boost_uniforms = _words_to_uniforms(boost_words[:n_boosted])
     x = work[0, :width]
     fast = work[1, :width]
     accepted = work[2, :width]
     buffer_1 = work[3, :width]
     buffer_2 = work[4, :width]
     v_first = work[5, :width]
-    todo = todo[:width]
     g = out
     _ziggurat_first_step(first, x, fast)
     _marsaglia_tsang_first(shape, x, fast, second, g, accepted, v_first)
-    _marsaglia_tsang_rest(shape, x, fast, v_first, first, second, g, accepted, todo, buffer_1, buffer_2,
-                          accepted, states[0])
-    # sums and the boosted entries (a < 1) in log space: log G(a + 1) + log(U)/a
+    _marsaglia_tsang_rest(shape, x, fast, v_first, first, second, g, accepted, todo[0, :width], buffer_1,
+                          buffer_2, accepted, states[0])
+    # sums, and the boosted entries in log space: log G(a + 1) + log(U)/a
     total = 0.0
     n_tiny = 0
-    n_boosted = 0
-    boosted = todo
     for j in range(width):
         a = shape[j]
-        plain = np.float64(a >= 1.0)
-        total += g[j] * plain
+        total += g[j] * np.float64(a >= 1.0)
         n_tiny += np.int64(g[j] < 1e-300) * np.int64(a > 0.0)
-        boosted[n_boosted] = j
-        n_boosted += np.int64(a < 1.0) * np.int64(a > 0.0)
     log_boosted = buffer_1[:n_boosted]
     log_u = buffer_2[:n_boosted]
     for i in range(n_boosted):
-        j = boosted[i]
-        log_boosted[i] = g[j]
-        log_u[i] = third[j] - _ONE_MINUS_HALF_ULP
+        log_boosted[i] = g[boosted[i]]
+        log_u[i] = boost_uniforms[i] - _ONE_MINUS_HALF_ULP
     _log_minus(log_u, 0.0, x[:n_boosted])
     if n_tiny == 0:
         _log_minus(log_boosted, 0.0, x[:n_boosted])
