@@ -1435,41 +1435,56 @@ LANES = 16
 @njit(parallel=True, cache=True)
 def _blocked_sparse_dot(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, groups: np.ndarray,
                         table: np.ndarray, width: int) -> np.ndarray:
+    out = np.empty((indptr.size - 1, width))
+    for t in prange(indptr.size - 1):
+        _blocked_sparse_row(indptr, indices, data, groups, table, width, t, out)
+    return out
+
+
+@njit(cache=True)
+def _blocked_sparse_dot_serial(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, groups: np.ndarray,
+                               table: np.ndarray, width: int) -> np.ndarray:
+    # _blocked_sparse_dot on one thread, for few non-zeros (the word counts)
+    out = np.empty((indptr.size - 1, width))
+    for t in range(indptr.size - 1):
+        _blocked_sparse_row(indptr, indices, data, groups, table, width, t, out)
+    return out
+
+
+@njit(cache=True, inline="always")
+def _blocked_sparse_row(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, groups: np.ndarray,
+                        table: np.ndarray, width: int, t: int, out: np.ndarray) -> None:
     # table (G, B, D, 16): sixteen independent accumulators per block of columns, each summed in
     # the order of the row's entries (the same sums as a column-by-column loop, bit for bit);
     # written out lane by lane so that LLVM's SLP vectoriser turns them into 4-wide operations
-    n = indptr.size - 1
-    out = np.empty((n, width))
-    for t in prange(n):
-        g = groups[t]
-        for b in range(table.shape[1]):
-            block = table[g, b]
-            a0 = a1 = a2 = a3 = a4 = a5 = a6 = a7 = 0.0
-            a8 = a9 = a10 = a11 = a12 = a13 = a14 = a15 = 0.0
-            for p in range(indptr[t], indptr[t + 1]):
-                row = block[indices[p]]
-                v = np.float64(data[p])
-                a0 += v * row[0]
-                a1 += v * row[1]
-                a2 += v * row[2]
-                a3 += v * row[3]
-                a4 += v * row[4]
-                a5 += v * row[5]
-                a6 += v * row[6]
-                a7 += v * row[7]
-                a8 += v * row[8]
-                a9 += v * row[9]
-                a10 += v * row[10]
-                a11 += v * row[11]
-                a12 += v * row[12]
-                a13 += v * row[13]
-                a14 += v * row[14]
-                a15 += v * row[15]
-            sums = (a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15)
-            for c in range(LANES):
-                if b * LANES + c < width:
-                    out[t, b * LANES + c] = sums[c]
-    return out
+    g = groups[t]
+    for b in range(table.shape[1]):
+        block = table[g, b]
+        a0 = a1 = a2 = a3 = a4 = a5 = a6 = a7 = 0.0
+        a8 = a9 = a10 = a11 = a12 = a13 = a14 = a15 = 0.0
+        for p in range(indptr[t], indptr[t + 1]):
+            row = block[indices[p]]
+            v = np.float64(data[p])
+            a0 += v * row[0]
+            a1 += v * row[1]
+            a2 += v * row[2]
+            a3 += v * row[3]
+            a4 += v * row[4]
+            a5 += v * row[5]
+            a6 += v * row[6]
+            a7 += v * row[7]
+            a8 += v * row[8]
+            a9 += v * row[9]
+            a10 += v * row[10]
+            a11 += v * row[11]
+            a12 += v * row[12]
+            a13 += v * row[13]
+            a14 += v * row[14]
+            a15 += v * row[15]
+        sums = (a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15)
+        for c in range(LANES):
+            if b * LANES + c < width:
+                out[t, b * LANES + c] = sums[c]
 
 
 @njit(parallel=True, cache=True)
@@ -1478,24 +1493,44 @@ def _likelihood_table(values: np.ndarray, floor: float) -> np.ndarray:
     n_blocks = (rows + LANES - 1) // LANES
     out = np.empty((groups, n_blocks, width, LANES))
     for i in prange(groups * n_blocks):
-        g, b = i // n_blocks, i % n_blocks
-        block = out[g, b]
-        for k in range(width):
-            for lane in range(LANES):
-                r = b * LANES + lane
-                if r < rows:
-                    v = values[g, r, k]
-                    block[k, lane] = v if v > floor else floor
-                else:
-                    block[k, lane] = 0.0
+        _table_block(values, floor, out, i)
     return out
+
+
+@njit(cache=True)
+def _likelihood_table_serial(values: np.ndarray, floor: float) -> np.ndarray:
+    # _likelihood_table on one thread, for small tables (the words)
+    groups, rows, width = values.shape
+    n_blocks = (rows + LANES - 1) // LANES
+    out = np.empty((groups, n_blocks, width, LANES))
+    for i in range(groups * n_blocks):
+        _table_block(values, floor, out, i)
+    return out
+
+
+@njit(cache=True, inline="always")
+def _table_block(values: np.ndarray, floor: float, out: np.ndarray, i: int) -> None:
+    rows, width = values.shape[1], values.shape[2]
+    n_blocks = out.shape[1]
+    g, b = i // n_blocks, i % n_blocks
+    block = out[g, b]
+    for k in range(width):
+        for lane in range(LANES):
+            r = b * LANES + lane
+            if r < rows:
+                v = values[g, r, k]
+                block[k, lane] = v if v > floor else floor
+            else:
+                block[k, lane] = 0.0
 
 
 def likelihood_table(log_probabilities: np.ndarray, floor: float) -> np.ndarray:
     """The table :func:`blocked_sparse_dot` reads, from log-probabilities of shape (G, R, W) (log θ
     of shape (E, L, D)): entries clipped below at ``floor``, the last two axes swapped, and the R
     rows split into blocks of :data:`LANES` (zero-padded): shape (G, ⌈R/16⌉, W, 16)."""
-    return _likelihood_table(np.ascontiguousarray(log_probabilities, dtype=np.float64), float(floor))
+    values = np.ascontiguousarray(log_probabilities, dtype=np.float64)
+    kernel = _likelihood_table if values.size >= _PARALLEL_MIN else _likelihood_table_serial
+    return kernel(values, float(floor))
 
 
 def blocked_sparse_dot(matrix, groups: np.ndarray, table: np.ndarray, width: int) -> np.ndarray:
@@ -1506,7 +1541,8 @@ def blocked_sparse_dot(matrix, groups: np.ndarray, table: np.ndarray, width: int
     counts · log θᵀ, in float64."""
     args = (_as(matrix.indptr, np.int64), _index_array(matrix.indices), _value_array(matrix.data),
             _as(groups, np.int64), np.ascontiguousarray(table, dtype=np.float64), int(width))
-    return _call_vectorised(_blocked_sparse_dot, args)
+    kernel = _blocked_sparse_dot if matrix.nnz >= _PARALLEL_MIN else _blocked_sparse_dot_serial
+    return _call_vectorised(kernel, args)
 
 
 @dataclass(frozen=True, eq=False)
