@@ -726,11 +726,14 @@ def test_dimension_major_dot_equals_blocked_dot_bit_for_bit(sizes: tuple[int, ..
     layout = dimension_major(counts, offsets)
     assert layout.rows.dtype == (np.uint16 if max(sizes) < 65_536 else np.int64)
     assert layout.colptr.shape == (len(sizes), D + 1) and layout.colptr[-1, -1] == counts.nnz
-    assert_array_equal(dimension_major_dot(layout, table, L), blocked_sparse_dot(counts, homes, table, L))
+    log_theta[0, 4, :3] = -1e305  # below the floor
+    table = likelihood_table(log_theta, -1e300)
+    assert_array_equal(dimension_major_dot(layout, log_theta, -1e300),
+                       blocked_sparse_dot(counts, homes, table, L))
     with pytest.raises(ValueError, match="offsets"):
         dimension_major(counts, offsets[:-1])
-    with pytest.raises(ValueError, match="does not fit"):
-        dimension_major_dot(layout, table[:, :, :-1], L)
+    with pytest.raises(ValueError, match="do not fit"):
+        dimension_major_dot(layout, log_theta[:, :, :-1], -1e300)
 
 
 # ----------------------------------------------------------------------------- summed CRT, θ draws

@@ -120,10 +120,9 @@ class HierarchicalMultinomial:
         blocks), which the sampler builds once per fit for the visual counts; the result is the
         same, faster.
         """
-        table = likelihood_table(log_theta, LOG_FLOOR)
         if by_dimension is not None:
-            return dimension_major_dot(by_dimension, table, log_theta.shape[1])
-        return blocked_sparse_dot(counts, homes, table, log_theta.shape[1])
+            return dimension_major_dot(by_dimension, log_theta, LOG_FLOOR)
+        return blocked_sparse_dot(counts, homes, likelihood_table(log_theta, LOG_FLOOR), log_theta.shape[1])
 
     @staticmethod
     def statistics(counts: sp.csr_array, homes: np.ndarray, concepts: np.ndarray, n_homes: int,

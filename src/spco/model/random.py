@@ -1614,62 +1614,105 @@ def dimension_major(matrix: sp.csr_array, offsets: np.ndarray) -> DimensionMajor
 
 @njit(parallel=True, cache=True)
 def _dimension_major_dot(colptr: np.ndarray, rows: np.ndarray, values: np.ndarray, offsets: np.ndarray,
-                         table: np.ndarray, width: int) -> np.ndarray:
-    # block by block (home by home, in parallel): for each column, its table row (16 lanes) is
-    # read once and added, times each entry's count, to that entry's row of sixteen accumulators
-    # (a home's accumulators stay in the L1 cache). Each sum runs over the row's entries in
-    # column order, as in _blocked_sparse_dot: the same results, bit for bit.
-    n_homes = offsets.size - 1
-    n_columns = colptr.shape[1] - 1
-    out = np.empty((offsets[-1], width))
-    for e in prange(n_homes):
-        start = offsets[e]
-        acc = np.empty((offsets[e + 1] - start, LANES))
-        for b in range(table.shape[1]):
-            block = table[e, b]
-            acc[:] = 0.0
-            for k in range(n_columns):
-                row = block[k]
-                r0, r1, r2, r3 = row[0], row[1], row[2], row[3]
-                r4, r5, r6, r7 = row[4], row[5], row[6], row[7]
-                r8, r9, r10, r11 = row[8], row[9], row[10], row[11]
-                r12, r13, r14, r15 = row[12], row[13], row[14], row[15]
-                for p in range(colptr[e, k], colptr[e, k + 1]):
-                    o = acc[np.int64(rows[p])]
-                    v = np.float64(values[p])
-                    o[0] += v * r0
-                    o[1] += v * r1
-                    o[2] += v * r2
-                    o[3] += v * r3
-                    o[4] += v * r4
-                    o[5] += v * r5
-                    o[6] += v * r6
-                    o[7] += v * r7
-                    o[8] += v * r8
-                    o[9] += v * r9
-                    o[10] += v * r10
-                    o[11] += v * r11
-                    o[12] += v * r12
-                    o[13] += v * r13
-                    o[14] += v * r14
-                    o[15] += v * r15
-            for t in range(acc.shape[0]):
-                for c in range(LANES):
-                    if b * LANES + c < width:
-                        out[start + t, b * LANES + c] = acc[t, c]
+                         log_p: np.ndarray, floor: float, home_order: np.ndarray,
+                         part_starts: np.ndarray) -> np.ndarray:
+    # home by home, in parallel: the home's log-probabilities (R, D) are first laid out as a
+    # table of sixteen lanes per column (clipped at the floor, zero-padded; what
+    # likelihood_table builds for all homes, here one home at a time in the thread's cache);
+    # then, for each column, its table row is read once and added, times each entry's count, to
+    # that entry's row of sixteen accumulators (a home's accumulators stay in the L1 cache). Each
+    # sum runs over the row's entries in column order, as in _blocked_sparse_dot: the same
+    # results, bit for bit.
+    n_rows = log_p.shape[1]
+    n_blocks = (n_rows + LANES - 1) // LANES
+    out = np.empty((offsets[-1], n_rows))
+    for part in prange(part_starts.size - 1):  # one part per thread, homes balanced by non-zeros
+        for position in range(part_starts[part], part_starts[part + 1]):
+            _dimension_major_home(colptr, rows, values, offsets, log_p, floor, home_order[position], n_blocks,
+                                  out)
     return out
 
 
-def dimension_major_dot(counts: DimensionMajorCounts, table: np.ndarray, width: int) -> np.ndarray:
-    """What :func:`blocked_sparse_dot` computes — row t of the counts times the table of its
-    block (home), for every row: (n, ``width``) — from the :class:`DimensionMajorCounts` layout,
-    with the same results bit for bit. Faster and steadier: each table row is read once per home
-    instead of once per entry."""
-    if table.shape[0] != counts.colptr.shape[0] or table.shape[2] != counts.colptr.shape[1] - 1:
-        raise ValueError(f"a table of shape {table.shape} does not fit counts of {counts.colptr.shape[0]} "
-                         f"blocks and {counts.colptr.shape[1] - 1} columns")
-    args = (counts.colptr, counts.rows, counts.values, counts.offsets,
-            np.ascontiguousarray(table, dtype=np.float64), int(width))
+@njit(cache=True, inline="always")
+def _dimension_major_home(colptr: np.ndarray, rows: np.ndarray, values: np.ndarray, offsets: np.ndarray,
+                          log_p: np.ndarray, floor: float, e: int, n_blocks: int, out: np.ndarray) -> None:
+    # one home: its table of sixteen lanes per column, then the column-by-column accumulation
+    n_rows, n_columns = log_p.shape[1], log_p.shape[2]
+    start = offsets[e]
+    acc = np.empty((offsets[e + 1] - start, LANES))
+    block = np.empty((n_columns, LANES))
+    for b in range(n_blocks):
+        for k in range(n_columns):
+            for lane in range(LANES):
+                r = b * LANES + lane
+                if r < n_rows:
+                    v = log_p[e, r, k]
+                    block[k, lane] = v if v > floor else floor
+                else:
+                    block[k, lane] = 0.0
+        acc[:] = 0.0
+        for k in range(n_columns):
+            row = block[k]
+            r0, r1, r2, r3 = row[0], row[1], row[2], row[3]
+            r4, r5, r6, r7 = row[4], row[5], row[6], row[7]
+            r8, r9, r10, r11 = row[8], row[9], row[10], row[11]
+            r12, r13, r14, r15 = row[12], row[13], row[14], row[15]
+            for p in range(colptr[e, k], colptr[e, k + 1]):
+                o = acc[np.int64(rows[p])]
+                v = np.float64(values[p])
+                o[0] += v * r0
+                o[1] += v * r1
+                o[2] += v * r2
+                o[3] += v * r3
+                o[4] += v * r4
+                o[5] += v * r5
+                o[6] += v * r6
+                o[7] += v * r7
+                o[8] += v * r8
+                o[9] += v * r9
+                o[10] += v * r10
+                o[11] += v * r11
+                o[12] += v * r12
+                o[13] += v * r13
+                o[14] += v * r14
+                o[15] += v * r15
+        for t in range(acc.shape[0]):
+            for c in range(LANES):
+                if b * LANES + c < n_rows:
+                    out[start + t, b * LANES + c] = acc[t, c]
+
+
+def _balanced_parts(loads: np.ndarray, n_parts: int) -> tuple[np.ndarray, np.ndarray]:
+    """Items split into ``n_parts`` parts of nearly equal total load (largest first, each to the
+    least loaded part): the items in part order and the parts' start positions."""
+    n_parts = max(1, min(n_parts, loads.size))
+    totals = np.zeros(n_parts)
+    members: list[list[int]] = [[] for _ in range(n_parts)]
+    for item in np.argsort(-loads, kind="stable"):
+        part = int(np.argmin(totals))
+        members[part].append(int(item))
+        totals[part] += loads[item]
+    order = np.array([i for m in members for i in sorted(m)], dtype=np.int64)
+    starts = np.concatenate([[0], np.cumsum([len(m) for m in members])]).astype(np.int64)
+    return order, starts
+
+
+def dimension_major_dot(counts: DimensionMajorCounts, log_probabilities: np.ndarray,
+                        floor: float) -> np.ndarray:
+    """Row t of the counts times the log-probabilities of its block (home), clipped below at
+    ``floor``, for every row: (n, R) from ``log_probabilities`` (E, R, D) — what
+    :func:`blocked_sparse_dot` computes from :func:`likelihood_table`, bit for bit, from the
+    :class:`DimensionMajorCounts` layout: each home's table is built in the thread's cache and
+    each of its rows read once per home instead of once per entry."""
+    log_p = np.ascontiguousarray(log_probabilities, dtype=np.float64)
+    n_blocks, n_columns = counts.colptr.shape[0], counts.colptr.shape[1] - 1
+    if log_p.ndim != 3 or log_p.shape[0] != n_blocks or log_p.shape[2] != n_columns:
+        raise ValueError(f"log-probabilities of shape {log_p.shape} do not fit counts of {n_blocks} blocks "
+                         f"and {n_columns} columns")
+    from numba import get_num_threads
+
+    order, starts = _balanced_parts(counts.colptr[:, -1] - counts.colptr[:, 0], get_num_threads())
+    args = (counts.colptr, counts.rows, counts.values, counts.offsets, log_p, float(floor), order, starts)
     return _call_vectorised(_dimension_major_dot, args)
 
 
