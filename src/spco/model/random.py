@@ -1356,24 +1356,37 @@ def _joint_assignment(log_g: np.ndarray, log_pi: np.ndarray, pi_scaled: np.ndarr
                     r_max = region_ll[t, m]
             for m in range(n_regions):
                 r[m] = np.exp(region_ll[t, m] - r_max)
-            # marginal of C: log G + loglik + log Σ_m π_{c,m} N(x | m), Σ_m by a dot product when safe
+            # marginal of C: G · lik · Σ_m π_{c,m} N(x | m), the sum over regions a dot product
+            linear = True
+            top = -np.inf
             for c in range(n_concepts):
                 total = 0.0
                 for m in range(n_regions):
                     total += pi_scaled[e, c, m] * r[m]
                 sums[c] = total
-                if total > 1e-250:
-                    log_sum = np.log(total)
-                else:  # too small for the dot product: exact log-sum-exp
-                    for m in range(n_regions):  # (the weights array is free until R | C)
-                        weights[m] = log_pi[e, c, m] - pi_row_max[e, c] + region_ll[t, m] - r_max
-                    inner_top = weights.max()
-                    acc = 0.0
-                    for m in range(n_regions):
-                        acc += np.exp(weights[m] - inner_top)
-                    log_sum = inner_top + np.log(acc)
-                log_c[c] = log_g[e, c] + concept_ll[t, c] + pi_row_max[e, c] + log_sum
-            chosen = _draw_log(log_c, u_concept[t])
+                linear &= total > 1e-250
+                log_c[c] = log_g[e, c] + concept_ll[t, c] + pi_row_max[e, c]
+                top = max(top, log_c[c])
+            if linear:  # weights exp(log G + loglik + max log π − top) · sum: no logarithm
+                acc = 0.0  # (the largest weight is ≥ 1e-250 times the largest sum: no underflow)
+                for c in range(n_concepts):
+                    log_c[c] = np.exp(log_c[c] - top) * sums[c]
+                    acc += log_c[c]
+                chosen = _draw_linear(log_c, acc, u_concept[t])
+            else:  # some sum too small for the dot product: exact log-sum-exps
+                for c in range(n_concepts):
+                    if sums[c] > 1e-250:
+                        log_sum = np.log(sums[c])
+                    else:
+                        for m in range(n_regions):  # (the weights array is free until R | C)
+                            weights[m] = log_pi[e, c, m] - pi_row_max[e, c] + region_ll[t, m] - r_max
+                        inner_top = weights.max()
+                        inner = 0.0
+                        for m in range(n_regions):
+                            inner += np.exp(weights[m] - inner_top)
+                        log_sum = inner_top + np.log(inner)
+                    log_c[c] += log_sum
+                chosen = _draw_log(log_c, u_concept[t])
             # R | C: the weights π_{C,m} N(x | m) of the dot product above, or in log space when it
             # underflowed
             if sums[chosen] > 1e-250:
