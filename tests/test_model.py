@@ -440,6 +440,40 @@ def test_sigverse_homes_fit_finite(sigverse_dir: Path) -> None:
     assert np.isfinite(model.log_joint_).all()
 
 
+def test_label_swaps_relabel_state_and_count_cache_consistently(monkeypatch: pytest.MonkeyPatch) -> None:
+    """An accepted swap relabels the samples, G_e and π of its home, redraws that home's θ only,
+    and carries the visual count cache along: the next counts equal a recount."""
+    from spco.model import moves
+    from spco.model.observations import HierarchicalMultinomial
+
+    corpus = generate_homes(4, seed=2, new_homes=1, config=SyntheticConfig(n_features=32, n_train=6))
+    model = SpCoTransfer(n_iterations=2, random_state=0).fit(corpus)
+    data, state, hyper = model.data_, model.state_, model.hyperparameters_
+    E, L = data.n_homes, hyper.n_concepts
+    settings = gibbs.SamplerSettings.create("exact", prune=False)
+    perms = np.tile(np.arange(L), (E, 1))
+    perms[1, [0, 1]] = [1, 0]  # home 1: concepts 0 and 1 trade places
+    monkeypatch.setattr(gibbs, "concept_swap_step", lambda *args, **kwargs: perms.copy())
+    stats = gibbs._statistics(data, state, hyper)
+    concepts, log_g = state.concepts.copy(), state.log_g.copy()
+    theta_v, theta_w = state.log_theta_v.copy(), state.log_theta_w.copy()
+    gibbs._swap_labels(data, state, stats, hyper, settings, np.random.default_rng(3))
+    home1 = data.homes == 1
+    swapped = {0: 1, 1: 0}
+    expected = np.array([swapped.get(c, c) if h else c for c, h in zip(concepts, home1, strict=True)])
+    assert np.array_equal(state.concepts, expected)
+    assert np.array_equal(state.log_g[1, [0, 1]], log_g[1, [1, 0]])
+    others = np.arange(E) != 1
+    assert np.array_equal(state.log_theta_v[others], theta_v[others])
+    assert np.array_equal(state.log_theta_w[others], theta_w[others])
+    assert not np.array_equal(state.log_theta_v[1], theta_v[1]) and np.isfinite(state.log_theta_v[1]).all()
+    counts = gibbs._statistics(data, state, hyper).visual
+    recount = HierarchicalMultinomial.statistics(data.visual, data.homes, state.concepts, E, L)
+    assert np.array_equal(counts, recount)
+    assert not counts.flags.writeable
+    assert moves.concept_swap_step is not gibbs.concept_swap_step  # (only the sampler's reference patched)
+
+
 def test_visual_counts_follow_the_assignments_exactly() -> None:
     """The sampler keeps n^v between sweeps and moves only the rows of samples that changed
     concept; whatever the change (a few samples, many, a relabelling), the counts equal a recount

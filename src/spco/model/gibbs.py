@@ -367,13 +367,15 @@ def align_homes(visual: np.ndarray, words: np.ndarray, alpha_visual: float, alph
     return perms
 
 
-def _apply_permutations(data: PreparedData, state: GibbsState, perms: np.ndarray) -> None:
-    """Relabel concepts within each home: slot j of home e takes its old concept perms[e, j]."""
+def _apply_permutations(data: PreparedData, state: GibbsState, perms: np.ndarray, theta: bool = True) -> None:
+    """Relabel concepts within each home: slot j of home e takes its old concept perms[e, j].
+    ``theta=False`` leaves θ^v, θ^w as they are (for a caller that redraws them)."""
     if (perms == np.arange(perms.shape[1])).all():
         return
     homes = np.arange(perms.shape[0])[:, None]
-    state.log_theta_v = state.log_theta_v[homes, perms]
-    state.log_theta_w = state.log_theta_w[homes, perms]
+    if theta:
+        state.log_theta_v = state.log_theta_v[homes, perms]
+        state.log_theta_w = state.log_theta_w[homes, perms]
     state.log_g = state.log_g[homes, perms]
     state.log_pi = state.log_pi[homes, perms]
     inverse = np.argsort(perms, axis=1)  # old concept -> new slot
@@ -536,13 +538,30 @@ def _swap_labels(data: PreparedData, state: GibbsState, stats: Statistics, hyper
     changed = np.flatnonzero((perms != np.arange(perms.shape[1])).any(axis=1))
     if changed.size == 0:
         return
-    _apply_permutations(data, state, perms)
-    homes = np.arange(perms.shape[0])[:, None]
-    visual, words = stats.visual[homes, perms][changed], stats.words[homes, perms][changed]
+    # θ of the homes that changed is redrawn below and the others keep theirs: no need to permute it
+    _apply_permutations(data, state, perms, theta=False)
+    slots = (changed[:, None], perms[changed])
+    visual, words = stats.visual[slots], stats.words[slots]
+    _relabel_visual_cache(data, state, perms, changed, visual)
     state.log_theta_v[changed] = HierarchicalMultinomial.sample_specific(visual, state.log_phi_v,
                                                                          hyper.delta_visual, rng)
     state.log_theta_w[changed] = HierarchicalMultinomial.sample_specific(words, state.log_phi_w,
                                                                          hyper.delta_word, rng)
+
+
+def _relabel_visual_cache(data: PreparedData, state: GibbsState, perms: np.ndarray, changed: np.ndarray,
+                          visual: np.ndarray) -> None:
+    """Carry the visual count cache through a relabelling (``visual``: the changed homes' counts in
+    their new slot order), so that the next sweep moves only the rows of samples that change
+    concept again instead of recounting the relabelled homes."""
+    cache = state.visual_cache
+    if cache is None or cache.visual is not data.visual or cache.concepts.shape != state.concepts.shape:
+        return
+    inverse = np.argsort(perms, axis=1)
+    cache.concepts = inverse[data.homes, cache.concepts]
+    cache.counts.flags.writeable = True
+    cache.counts[changed] = visual
+    cache.counts.flags.writeable = False
 
 
 def _log_mean(log_p: np.ndarray) -> np.ndarray:
