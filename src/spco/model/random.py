@@ -2,7 +2,8 @@
 
 - :func:`log_gamma_variates`, :func:`log_dirichlet` — many gamma and Dirichlet draws at once,
   returned as logarithms, exact even for tiny concentrations (α^w = 0.01, δ^w φ^w ≪ 1) where plain
-  gamma variates underflow to 0; a compiled Marsaglia–Tsang kernel with ziggurat normals.
+  gamma variates underflow to 0; Marsaglia–Tsang with ziggurat normals, each Dirichlet row in
+  vectorised passes (:func:`_log_gamma_row`), small batches on one thread.
 - :func:`sample_niw` — a batch of Normal–inverse-Wishart draws by the Bartlett decomposition
   (compiled, one random stream per batch element).
 - :func:`sample_crt` — table counts m ~ CRT(n, a) of the Chinese restaurant process (Antoniak),
@@ -11,10 +12,11 @@
 - :func:`sample_categorical_log` — one categorical draw per row of a log-probability matrix;
   :func:`sample_joint_assignment` — the joint (C, R) draw of every sample.
 
-Deterministic kernels of the likelihoods live here too: :func:`likelihood_table` and
-:func:`blocked_sparse_dot` (counts · log θᵀ for every sample and concept of its home),
-:func:`grouped_gaussian_log_density`, and the count statistics (:func:`grouped_row_sums`,
-:func:`move_rows`).
+Deterministic kernels of the likelihoods live here too: counts · log θᵀ for every sample and
+concept of its home, row by row (:func:`likelihood_table`, :func:`blocked_sparse_dot`) or home by
+home and dimension by dimension (:func:`dimension_major`, :func:`dimension_major_dot`, the
+sampler's visual likelihood; the same sums bit for bit), :func:`grouped_gaussian_log_density`, and
+the statistics (:func:`grouped_row_sums`, :func:`grouped_moments`, :func:`move_rows`).
 
 Every random draw takes a :class:`numpy.random.Generator`; the compiled kernels draw their own
 random numbers from counter-seeded streams (a seed taken from that generator), so results do not
