@@ -901,25 +901,38 @@ def gaussian_log_density(x: np.ndarray, mean: np.ndarray, cov: np.ndarray) -> np
     return grouped_gaussian_log_density(x, np.zeros(x.shape[0], dtype=np.int64), mean[None], cov[None])
 
 
+#: Points per task of :func:`_grouped_gaussian` (their scratch allocated once per task).
+_GAUSSIAN_CHUNK = 64
+
+
 @njit(parallel=True, cache=True)
-def _grouped_gaussian(x: np.ndarray, groups: np.ndarray, means: np.ndarray, inv_chol: np.ndarray,
+def _grouped_gaussian(x: np.ndarray, groups: np.ndarray, means_t: np.ndarray, inv_chol_t: np.ndarray,
                       constant: np.ndarray) -> np.ndarray:
+    # means_t (G, d, K) and inv_chol_t (G, d, d, K): the components last, so that every inner loop
+    # runs over the K components of a point at once (vectorised); each quadratic form is summed in
+    # the same order as one component at a time
     n, d = x.shape
-    n_components = means.shape[1]
+    n_components = means_t.shape[2]
     out = np.empty((n, n_components))
-    for t in prange(n):
-        g = groups[t]
-        diff = np.empty(d)
-        for m in range(n_components):
+    for chunk in prange((n + _GAUSSIAN_CHUNK - 1) // _GAUSSIAN_CHUNK):
+        diff = np.empty((d, n_components))
+        acc = np.empty(n_components)
+        quad = np.empty(n_components)
+        for t in range(chunk * _GAUSSIAN_CHUNK, min(n, (chunk + 1) * _GAUSSIAN_CHUNK)):
+            g = groups[t]
+            for j in range(d):
+                for m in range(n_components):
+                    diff[j, m] = x[t, j] - means_t[g, j, m]
+            quad[:] = 0.0
             for i in range(d):
-                diff[i] = x[t, i] - means[g, m, i]
-            quad = 0.0
-            for i in range(d):
-                acc = 0.0
+                acc[:] = 0.0
                 for j in range(i + 1):
-                    acc += inv_chol[g, m, i, j] * diff[j]
-                quad += acc * acc
-            out[t, m] = constant[g, m] - 0.5 * quad
+                    for m in range(n_components):
+                        acc[m] += inv_chol_t[g, i, j, m] * diff[j, m]
+                for m in range(n_components):
+                    quad[m] += acc[m] * acc[m]
+            for m in range(n_components):
+                out[t, m] = constant[g, m] - 0.5 * quad[m]
     return out
 
 
@@ -939,8 +952,9 @@ def grouped_gaussian_log_density(x: np.ndarray, groups: np.ndarray, means: np.nd
         raise ValueError(f"{int(failed.sum())} covariance matri{'x is' if failed.sum() == 1 else 'ces are'} "
                          "not positive definite")
     return _grouped_gaussian(np.ascontiguousarray(x, dtype=np.float64),
-                             np.ascontiguousarray(groups, dtype=np.int64), np.ascontiguousarray(means),
-                             inv_chol, constant)
+                             np.ascontiguousarray(groups, dtype=np.int64),
+                             np.ascontiguousarray(np.moveaxis(np.asarray(means, dtype=np.float64), 1, 2)),
+                             np.ascontiguousarray(np.moveaxis(inv_chol, 1, 3)), constant)
 
 
 @njit(cache=True)
