@@ -1539,10 +1539,16 @@ def _likelihood_table_serial(values: np.ndarray, floor: float) -> np.ndarray:
 
 @njit(cache=True, inline="always")
 def _table_block(values: np.ndarray, floor: float, out: np.ndarray, i: int) -> None:
-    rows, width = values.shape[1], values.shape[2]
     n_blocks = out.shape[1]
     g, b = i // n_blocks, i % n_blocks
-    block = out[g, b]
+    _fill_table_block(values, floor, g, b, out[g, b])
+
+
+@njit(cache=True, inline="always")
+def _fill_table_block(values: np.ndarray, floor: float, g: int, b: int, block: np.ndarray) -> None:
+    # block (W, 16) ← rows 16b..16b+15 of values[g] (R, W), transposed, clipped below at the floor,
+    # zero past the last row: one block of the likelihood table
+    rows, width = values.shape[1], values.shape[2]
     for k in range(width):
         for lane in range(LANES):
             r = b * LANES + lane
@@ -1671,14 +1677,7 @@ def _dimension_major_home(colptr: np.ndarray, rows: np.ndarray, values: np.ndarr
     acc = np.empty((offsets[e + 1] - start, LANES))
     block = np.empty((n_columns, LANES))
     for b in range(n_blocks):
-        for k in range(n_columns):
-            for lane in range(LANES):
-                r = b * LANES + lane
-                if r < n_rows:
-                    v = log_p[e, r, k]
-                    block[k, lane] = v if v > floor else floor
-                else:
-                    block[k, lane] = 0.0
+        _fill_table_block(log_p, floor, e, b, block)
         acc[:] = 0.0
         for k in range(n_columns):
             row = block[k]
