@@ -74,6 +74,12 @@ class PreparedData:
         built at the first sweep: the layout of the visual likelihood's kernel."""
         return dimension_major(self.visual, self.offsets)
 
+    @cached_property
+    def niw_priors(self) -> dict:
+        """The NIW priors already built for this data (:func:`niw_prior`), by hyperparameters and
+        variant: built once per fit instead of once per sweep."""
+        return {}
+
 
 @dataclass
 class GibbsState:
@@ -140,7 +146,20 @@ class SamplerSettings:
 
 
 def niw_prior(data: PreparedData, hyper: TransferHyperparameters, settings: SamplerSettings) -> NIWPrior:
-    """The NIW prior in the sampler's units (μ0 = map centre, or 0 in the reference variant)."""
+    """The NIW prior in the sampler's units (μ0 = map centre, or 0 in the reference variant);
+    its arrays are read-only."""
+    key = (hyper, settings.variant)
+    try:
+        prior = data.niw_priors.get(key)
+    except TypeError:  # hyperparameters holding lists (unhashable): no cache
+        return _build_niw_prior(data, hyper, settings)
+    if prior is None:
+        prior = data.niw_priors[key] = _build_niw_prior(data, hyper, settings)
+    return prior
+
+
+def _build_niw_prior(data: PreparedData, hyper: TransferHyperparameters,
+                     settings: SamplerSettings) -> NIWPrior:
     scale = np.array([data.position_scale, data.position_scale, 1.0, 1.0])
     psi0 = hyper.psi0_matrix_m2() * np.outer(scale, scale)
     if settings.variant == "reference":
@@ -148,7 +167,9 @@ def niw_prior(data: PreparedData, hyper: TransferHyperparameters, settings: Samp
     elif hyper.mu0 is not None:
         mu0 = np.tile(np.asarray(hyper.mu0, dtype=float) * scale, (data.n_homes, 1))
     else:
-        mu0 = data.map_centres
+        mu0 = data.map_centres.copy()
+    mu0.flags.writeable = False
+    psi0.flags.writeable = False
     return NIWPrior(mu0=mu0, kappa0=hyper.kappa0, psi0=psi0, nu0=hyper.nu0)
 
 

@@ -29,7 +29,7 @@ import numpy as np
 from numba import njit, prange
 from scipy.special import logsumexp
 
-from spco.model.random import _log_minus
+from spco.model.random import _log_minus, scaled_exp
 
 _HALF_LOG_2PI = 0.9189385332046727
 #: Arguments at or above this are not shifted (the product of the shift would overflow near 1e38).
@@ -165,7 +165,7 @@ def concept_swap_step(visual_counts: np.ndarray, log_phi_v: np.ndarray, delta_v:
     perms: (E, L) int; after the pass, concept slot j of home e holds what was concept perms[e, j].
     """
     n_homes, n_concepts = log_g.shape
-    alpha_v = delta_v * np.exp(log_phi_v)
+    alpha_v = scaled_exp(log_phi_v, delta_v)
     if word_mask.any():
         log_phi = log_phi_w[:, word_mask]
         alpha_w = delta_w * np.exp(log_phi - logsumexp(log_phi, axis=1, keepdims=True))

@@ -32,6 +32,7 @@ from spco.model.random import (
     niw_posterior,
     sample_crt_totals,
     sample_niw,
+    scaled_exp,
 )
 
 #: Log-probabilities below this are clipped in likelihoods: a count times it is still finite
@@ -145,7 +146,7 @@ class HierarchicalMultinomial:
     def sample_tables(n: np.ndarray, log_phi: np.ndarray, delta: float,
                       rng: np.random.Generator) -> np.ndarray:
         """Table counts summed over homes: Σ_e m_{e,l,k}, m ~ CRT(n_{e,l,k}, δ φ_{l,k}); (L, D)."""
-        return sample_crt_totals(n, delta * np.exp(log_phi), rng)
+        return sample_crt_totals(n, scaled_exp(log_phi, delta), rng)
 
     @staticmethod
     def sample_shared(pseudo_counts: np.ndarray, alpha: float, rng: np.random.Generator) -> np.ndarray:
@@ -157,7 +158,7 @@ class HierarchicalMultinomial:
                         out: np.ndarray | None = None) -> np.ndarray:
         """log θ_{e,l} ~ Dir(δ φ_l + n_{e,l}) for every home and concept; (E, L, D). ``out``
         (optional): an array of that shape to draw into, such as the previous draw."""
-        return log_dirichlet_hierarchical(delta * np.exp(log_phi), n, rng, out=out)
+        return log_dirichlet_hierarchical(scaled_exp(log_phi, delta), n, rng, out=out)
 
     @staticmethod
     def log_prior_specific(log_theta: np.ndarray, log_phi: np.ndarray, delta: float,
