@@ -85,6 +85,30 @@ def test_plot_home_map(tmp_path: Path) -> None:
         plot_home_map(params, 0, env, vocab, poses=poses, pose_names=[[("kitchen", 1.0)]])
 
 
+def test_pose_callouts_stay_inside_the_map() -> None:
+    """Callouts of poses near every edge of the map point inwards: none leaves the axes, where it
+    would cover the legend drawn to their right."""
+    params, env, vocab = home_params(), home(), Vocabulary(WORDS)
+    x0, x1, y0, y1 = env.extent
+    corners = np.array([[x0 + 0.1, y0 + 0.1, 0.0, 1.0], [x1 - 0.1, y0 + 0.1, 0.0, 1.0],
+                        [x0 + 0.1, y1 - 0.1, 0.0, 1.0], [x1 - 0.1, y1 - 0.1, 0.0, 1.0]])
+    names = [[("bedroom", 0.93), ("bath", 0.05), ("kitchen", 0.02)]] * len(corners)
+    fig = plot_home_map(params, 0, env, vocab, poses=corners, pose_names=names)
+    ax = fig.axes[0]
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    inside = ax.get_window_extent(renderer)
+    callouts = [child for child in ax.get_children() if type(child).__name__ == "Annotation"]
+    assert len(callouts) == len(corners)
+    for callout in callouts:
+        box = callout.get_bbox_patch().get_window_extent(renderer)
+        assert inside.x0 - 1 <= box.x0 and box.x1 <= inside.x1 + 1, callout.get_text()
+        assert inside.y0 - 1 <= box.y0 and box.y1 <= inside.y1 + 1, callout.get_text()
+
+
 def test_concept_labels() -> None:
     labels = concept_labels(home_params(), 0, Vocabulary(WORDS))
     assert labels == ["c0: kitchen", "c1: bath", "c2: bedroom"]  # carrier words are skipped

@@ -210,11 +210,20 @@ def plot_home_map(
                 entries = [list(row) for row in pose_names]
             if len(entries) != p.shape[0]:
                 raise ConfigurationError(f"{len(entries)} name lists for {p.shape[0]} poses")
+            # each callout points towards the middle of the map, so that none leaves the axes
+            # (where it would cover the legend)
+            if extent is not None:
+                middle_x, middle_y = 0.5 * (extent[0] + extent[1]), 0.5 * (extent[2] + extent[3])
+            else:
+                bounds = ax.dataLim
+                middle_x, middle_y = 0.5 * (bounds.x0 + bounds.x1), 0.5 * (bounds.y0 + bounds.y1)
             for (x, y, _, _), row in zip(p, entries, strict=True):
                 text = "\n".join(f"{w} ({float(pr):.2f})" for w, pr in row[:3]) or "(no name)"
-                ax.annotate(text, (x, y), xytext=(12, 12), textcoords="offset points", fontsize=7,
-                            zorder=7, bbox={"boxstyle": "round,pad=0.3", "fc": "white", "ec": "crimson",
-                                            "alpha": 0.85},
+                right, top = x > middle_x, y > middle_y
+                ax.annotate(text, (x, y), xytext=(-12 if right else 12, -12 if top else 12),
+                            textcoords="offset points", ha="right" if right else "left",
+                            va="top" if top else "bottom", fontsize=7, zorder=7,
+                            bbox={"boxstyle": "round,pad=0.3", "fc": "white", "ec": "crimson", "alpha": 0.85},
                             arrowprops={"arrowstyle": "-", "color": "crimson", "lw": 0.6})
 
     if extent is not None:
