@@ -29,6 +29,7 @@ depend on the number of threads.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
@@ -588,36 +589,52 @@ _INV_LN2 = 1.44269504088896338700e+00
 _EXP_TAYLOR = tuple(1.0 / float(np.prod(np.arange(1, i + 1))) for i in range(14))
 
 
+@njit(cache=True, inline="always")
+def _exp_parts(y: float) -> tuple[float, float]:
+    """exp(y) = p · 2^k for y in [−708, 709]: k = round(y / ln 2), r = y − k ln 2 (ln 2 split in
+    two as in fdlibm), p = exp(r) by its degree-13 Taylor polynomial; returns p and k + 1023 +
+    2^52, whose bit pattern :func:`_powers_of_two` turns into 2^k (AVX2 has no vector conversion
+    from double to 64-bit integer). Inlined into branch-free loops that LLVM vectorises."""
+    c = _EXP_TAYLOR
+    k = np.floor(y * _INV_LN2 + 0.5)
+    r = (y - k * _LN2_HI) - k * _LN2_LO
+    p = c[13]
+    p = p * r + c[12]
+    p = p * r + c[11]
+    p = p * r + c[10]
+    p = p * r + c[9]
+    p = p * r + c[8]
+    p = p * r + c[7]
+    p = p * r + c[6]
+    p = p * r + c[5]
+    p = p * r + c[4]
+    p = p * r + c[3]
+    p = p * r + c[2]
+    p = p * r + c[1]
+    p = p * r + c[0]
+    return p, k + (1023.0 + 4503599627370496.0)
+
+
+@njit(cache=True, inline="always")
+def _powers_of_two(powers: np.ndarray) -> None:
+    """powers[j] ← 2^k from the k + 1023 + 2^52 of :func:`_exp_parts`, in place: the integer
+    k + 1023 sits in the low mantissa bits and moves into the exponent field."""
+    bits = powers.view(np.int64)
+    for j in range(powers.size):
+        bits[j] = bits[j] << 52
+
+
 @njit(cache=True, fastmath={"contract"}, error_model="numpy")
 def _sum_exp(values: np.ndarray, poly: np.ndarray, scale: np.ndarray) -> float:
-    """Σ_j exp(values[j]) for values ≤ 709, in two branch-free loops that LLVM vectorises:
-    exp(y) = 2^k exp(r), k = round(y / ln 2), r = y − k ln 2 (ln 2 split in two as in fdlibm), exp(r)
-    by its degree-13 Taylor polynomial, 2^k written into the exponent bits; terms with y < −708
-    (below 3e-308) count as 0. Within 2 ulp of summing np.exp. ``poly``, ``scale``: scratch of
-    the size of ``values``."""
+    """Σ_j exp(values[j]) for values ≤ 709 by :func:`_exp_parts`, in branch-free loops that LLVM
+    vectorises; terms with y < −708 (below 3e-308) count as 0. Within 2 ulp of summing np.exp.
+    ``poly``, ``scale``: scratch of the size of ``values``."""
     n = values.size
-    bits = scale.view(np.int64)
-    c = _EXP_TAYLOR
     for j in range(n):
-        y = max(values[j], -708.0)
-        k = np.floor(y * _INV_LN2 + 0.5)
-        r = (y - k * _LN2_HI) - k * _LN2_LO
-        p = c[13]
-        p = p * r + c[12]
-        p = p * r + c[11]
-        p = p * r + c[10]
-        p = p * r + c[9]
-        p = p * r + c[8]
-        p = p * r + c[7]
-        p = p * r + c[6]
-        p = p * r + c[5]
-        p = p * r + c[4]
-        p = p * r + c[3]
-        p = p * r + c[2]
-        p = p * r + c[1]
-        p = p * r + c[0]
+        p, power = _exp_parts(max(values[j], -708.0))
         poly[j] = p * np.float64(values[j] >= -708.0)
-        bits[j] = (np.int64(k) + 1023) << 52
+        scale[j] = power
+    _powers_of_two(scale)
     total = 0.0
     for j in range(n):
         total += poly[j] * scale[j]
@@ -627,37 +644,17 @@ def _sum_exp(values: np.ndarray, poly: np.ndarray, scale: np.ndarray) -> float:
 @njit(cache=True, fastmath={"contract"}, error_model="numpy")
 def _scaled_exp(values: np.ndarray, scale: float, out: np.ndarray, powers: np.ndarray) -> None:
     """out[j] ← scale · exp(values[j]) for 1-D contiguous arrays (``powers``: scratch of the same
-    size): the polynomial of :func:`_sum_exp` and the power of two 2^k, written into the exponent
-    bits from the bit pattern of k + 1023 + 2^52 (AVX2 has no vector conversion from double to
-    64-bit integer), in branch-free passes that LLVM vectorises; 0 below −745.2 (where exp rounds
-    to 0); np.exp for the rare entries in [−745.2, −708) (subnormal results), above 709 or NaN."""
-    c = _EXP_TAYLOR
+    size), by :func:`_exp_parts` in branch-free passes that LLVM vectorises; 0 below −745.2
+    (where exp rounds to 0); np.exp for the rare entries in [−745.2, −708) (subnormal results),
+    above 709 or NaN."""
     outside = 0
     for j in range(values.size):
         x = values[j]
         outside += np.int64(not (((x >= -708.0) & (x <= 709.0)) | (x < -745.2)))
-        y = min(max(x, -708.0), 709.0)
-        k = np.floor(y * _INV_LN2 + 0.5)
-        r = (y - k * _LN2_HI) - k * _LN2_LO
-        p = c[13]
-        p = p * r + c[12]
-        p = p * r + c[11]
-        p = p * r + c[10]
-        p = p * r + c[9]
-        p = p * r + c[8]
-        p = p * r + c[7]
-        p = p * r + c[6]
-        p = p * r + c[5]
-        p = p * r + c[4]
-        p = p * r + c[3]
-        p = p * r + c[2]
-        p = p * r + c[1]
-        p = p * r + c[0]
+        p, power = _exp_parts(min(max(x, -708.0), 709.0))
         out[j] = p * scale * np.float64(x >= -708.0)
-        powers[j] = k + (1023.0 + 4503599627370496.0)
-    bits = powers.view(np.int64)
-    for j in range(values.size):
-        bits[j] = bits[j] << 52
+        powers[j] = power
+    _powers_of_two(powers)
     for j in range(values.size):
         out[j] *= powers[j]
     if outside:
@@ -1763,13 +1760,16 @@ class DimensionMajorCounts:
         """The number of rows of the matrix."""
         return int(self.offsets[-1])
 
+    @cached_property
+    def _parts_by_count(self) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+        return {}
+
     def parts(self, n_parts: int) -> tuple[np.ndarray, np.ndarray]:
         """The blocks split into ``n_parts`` parts of nearly equal non-zeros
         (:func:`_balanced_parts`), computed once per number of parts."""
-        cache = self.__dict__.setdefault("_parts", {})
-        if n_parts not in cache:
-            cache[n_parts] = _balanced_parts(self.colptr[:, -1] - self.colptr[:, 0], n_parts)
-        return cache[n_parts]
+        if n_parts not in self._parts_by_count:
+            self._parts_by_count[n_parts] = _balanced_parts(self.colptr[:, -1] - self.colptr[:, 0], n_parts)
+        return self._parts_by_count[n_parts]
 
 
 @njit(cache=True)
