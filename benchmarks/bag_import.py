@@ -30,7 +30,11 @@ CASES = (  # name, ros, storage, pose
 
 
 def _size(path: Path) -> int:
-    return path.stat().st_size if path.is_file() else sum(p.stat().st_size for p in path.rglob("*") if p.is_file())
+    return (
+        path.stat().st_size
+        if path.is_file()
+        else sum(p.stat().st_size for p in path.rglob("*") if p.is_file())
+    )
 
 
 def main() -> None:
@@ -41,15 +45,28 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     args = parser.parse_args()
     args.dir.mkdir(parents=True, exist_ok=True)
-    print(f"{'bag':<28} {'messages':>8} {'MB':>6} {'samples':>7} {'seconds':>7} {'messages/s':>10} {'MB/s':>6}")
+    print(
+        f"{'bag':<28} {'messages':>8} {'MB':>6} {'samples':>7} {'seconds':>7} {'messages/s':>10} {'MB/s':>6}"
+    )
     for name, ros, storage, pose in CASES:
         stem = f"tour_{int(args.seconds)}s_ros{ros}_{storage if ros == 2 else 'bag'}_{pose}"
         bag = args.dir / (stem + ".bag" if ros == 1 else stem)
         if not bag.exists():
-            write_tour(bag, ros=ros, storage=storage, seconds=args.seconds, pose_hz=10.0, image_hz=5.0,
-                       size=(640, 480), pose=pose)
-        settings = BagImportSettings(pose_topic="/tf" if pose == "tf" else "/global_pose",
-                                     image_topic="/camera/image/compressed", speech_topic="/speech")
+            write_tour(
+                bag,
+                ros=ros,
+                storage=storage,
+                seconds=args.seconds,
+                pose_hz=10.0,
+                image_hz=5.0,
+                size=(640, 480),
+                pose=pose,
+            )
+        settings = BagImportSettings(
+            pose_topic="/tf" if pose == "tf" else "/global_pose",
+            image_topic="/camera/image/compressed",
+            speech_topic="/speech",
+        )
         times, summary = [], None
         for _ in range(args.repeats):
             out = args.dir / "home"
@@ -59,8 +76,10 @@ def main() -> None:
         assert summary is not None
         seconds = statistics.median(times)
         mb = _size(bag) / 1e6
-        print(f"{name:<28} {summary.messages:>8,} {mb:>6.1f} {summary.samples:>7} {seconds:>7.2f} "
-              f"{summary.messages / seconds:>10,.0f} {mb / seconds:>6.1f}")
+        print(
+            f"{name:<28} {summary.messages:>8,} {mb:>6.1f} {summary.samples:>7} {seconds:>7.2f} "
+            f"{summary.messages / seconds:>10,.0f} {mb / seconds:>6.1f}"
+        )
 
 
 if __name__ == "__main__":

@@ -68,6 +68,8 @@ def test_ros1_bag_with_compressed_images(tmp_path: Path) -> None:
     assert "messages/s" in result.output and f"{len(rows)} samples ({info['speech']} taught)" in result.output
     summary = json.loads((tmp_path / "home" / "import.json").read_text())
     assert summary["messages"] == info["pose"] + info["image"] + info["speech"]
+    assert summary["settings"]["speech_topic"] == "/speech" and summary["settings"]["every_metres"] == 0.5
+    assert summary["settings"]["speech_topic"] == "/speech" and summary["settings"]["every_metres"] == 0.5
     # images are the bag's JPEG bytes, decodable, of the camera's size
     image = cv2.imread(str(tmp_path / "home" / "images" / "0.jpg"))
     assert image.shape == (SMALL[1], SMALL[0], 3)
@@ -201,8 +203,8 @@ def test_unknown_message_type_is_refused(tmp_path: Path) -> None:
         )
     with pytest.raises(
         DataFormatError,
-        match="/voice carries my_msgs/msg/Recognition, which spco cannot read "
-        "as speech; expected std_msgs/msg/String",
+        match="/voice carries my_msgs/msg/Recognition, which is not a speech message spco reads; "
+        "expected std_msgs/msg/String",
     ):
         import_bags(
             [bag],
@@ -354,3 +356,19 @@ def test_every_seconds_and_tolerance(tmp_path: Path) -> None:
             [bag], tmp_path / "home2", BagImportSettings(every_metres=0, every_seconds=2.0, tolerance=0.001)
         )
     assert not (tmp_path / "home2").exists()
+
+
+def test_header_stamps_off_the_record_times_are_warned_about(tmp_path: Path) -> None:
+    bag = tmp_path / "sim.bag"
+    with BagWriter(bag) as w:  # a robot on simulated time, a recorder on the wall clock
+        for k in range(40):
+            t = T0 + k * S // 4
+            w.pose("/pose", t, 0.1 * k, 0.0, 0.0, stamp=k * S // 4 + S)
+            w.compressed_image("/cam", t, np.full((8, 8, 3), 100, np.uint8), stamp=k * S // 4 + S)
+        w.text("/speech", T0 + 2 * S, "this is the hall")
+    summary = import_bags([bag], tmp_path / "home", BagImportSettings(speech_topic="/speech"))
+    assert summary.skipped == {"utterance: no pose within 0.5 s": 1} and summary.taught == 0
+    assert any("/pose: header stamps are" in w and "--clock bag" in w for w in summary.warnings)
+    assert "warning: /cam: header stamps are" in summary.format()
+    fixed = import_bags([bag], tmp_path / "home2", BagImportSettings(speech_topic="/speech", clock="bag"))
+    assert fixed.taught == 1 and not fixed.warnings

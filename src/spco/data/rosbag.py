@@ -207,6 +207,12 @@ class _Bag:
             ) from None
 
 
+def _version() -> str:
+    from spco import __version__
+
+    return __version__
+
+
 def _unreadable(path: Path, exc: Exception) -> DataFormatError:
     text = str(exc).strip() or type(exc).__name__
     return DataFormatError(
@@ -385,8 +391,8 @@ def _choose(
         if msgtype not in types:
             raise DataFormatError(
                 names,
-                f"{given} carries {msgtype or 'an unknown message type'}, which spco "
-                f"cannot read as {role}; expected {', '.join(types)}",
+                f"{given} carries {msgtype or 'an unknown message type'}, which is not a "
+                f"{role} message spco reads; expected {', '.join(types)}",
             )
         return given
     candidates = sorted(t for t, m in seen.items() if m in types)
@@ -405,12 +411,12 @@ def _pose_source(bags: list[_Bag], settings: BagImportSettings) -> str:
             bags,
             settings.pose_topic,
             (*POSE_TYPES, *TF_TYPES),
-            "the robot's pose",  # type: ignore[return-value]
+            "pose",  # type: ignore[return-value]
             "--pose-topic",
             True,
         )
     try:
-        return _choose(bags, None, tuple(POSE_TYPES), "the robot's pose", "--pose-topic", True)  # type: ignore[return-value]
+        return _choose(bags, None, tuple(POSE_TYPES), "pose", "--pose-topic", True)  # type: ignore[return-value]
     except DataFormatError as exc:
         if "several" in str(exc):
             raise
@@ -418,7 +424,7 @@ def _pose_source(bags: list[_Bag], settings: BagImportSettings) -> str:
             bags,
             "/tf" if any("/tf" in b.topics for b in bags) else None,
             TF_TYPES,  # type: ignore[return-value]
-            "the robot's pose",
+            "pose",
             "--pose-topic",
             True,
         )
@@ -807,8 +813,9 @@ def import_bags(
             _add_clock_warnings(streams, summary)
             summary.dropped = dict(dropped)
             summary.seconds = time.perf_counter() - start
+            record = {**asdict(summary), "settings": asdict(settings), "spco_version": _version()}
             (tmp / "import.json").write_text(
-                json.dumps(asdict(summary), indent=1, ensure_ascii=False) + "\n", encoding="utf-8"
+                json.dumps(record, indent=1, ensure_ascii=False) + "\n", encoding="utf-8"
             )
             _move_into_place(tmp, target)
         finally:
