@@ -372,3 +372,34 @@ def test_header_stamps_off_the_record_times_are_warned_about(tmp_path: Path) -> 
     assert "warning: /cam: header stamps are" in summary.format()
     fixed = import_bags([bag], tmp_path / "home2", BagImportSettings(speech_topic="/speech", clock="bag"))
     assert fixed.taught == 1 and not fixed.warnings
+
+
+def _se2(x: float, y: float, yaw: float) -> np.ndarray:
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.array([[c, -s, x], [s, c, y], [0, 0, 1]])
+
+
+def test_tf_chain_through_a_common_parent_matches_matrix_products(tmp_path: Path) -> None:
+    """map and odom both children of world: map→base = inv(world→map) · world→odom · odom→base."""
+    bag = tmp_path / "tree.bag"
+    rng = np.random.default_rng(3)
+    world_map = (1.0, -2.0, 0.7)
+    truth = []
+    with BagWriter(bag) as w:
+        w.transforms("/tf_static", T0, [("world", "map", *world_map)])
+        for k in range(30):
+            world_odom = (0.1 * k, 0.05 * k, 0.02 * k)
+            odom_base = tuple(rng.uniform(-1, 1, 3))
+            w.transforms(
+                "/tf",
+                T0 + k * S // 5,
+                [("world", "odom", *world_odom), ("odom", "base_footprint", *odom_base)],
+            )
+            w.compressed_image("/cam", T0 + k * S // 5, np.full((8, 8, 3), 8 * k, np.uint8))
+            m = np.linalg.inv(_se2(*world_map)) @ _se2(*world_odom) @ _se2(*odom_base)
+            truth.append((m[0, 2], m[1, 2], math.atan2(m[1, 0], m[0, 0])))
+    summary = import_bags([bag], tmp_path / "home", BagImportSettings(every_metres=0, every_seconds=0.2))
+    assert summary.topics["pose"] == "/tf" and summary.samples == 30
+    for r, (x, y, theta) in zip(_rows(tmp_path / "home"), truth, strict=True):
+        assert float(r["x"]) == pytest.approx(x, abs=1e-3) and float(r["y"]) == pytest.approx(y, abs=1e-3)
+        assert math.remainder(float(r["theta"]) - theta, 2 * math.pi) == pytest.approx(0, abs=1e-3)

@@ -406,28 +406,22 @@ def _choose(
 
 
 def _pose_source(bags: list[_Bag], settings: BagImportSettings) -> str:
-    if settings.pose_topic is not None:
-        return _choose(
-            bags,
-            settings.pose_topic,
-            (*POSE_TYPES, *TF_TYPES),
-            "pose",  # type: ignore[return-value]
-            "--pose-topic",
-            True,
-        )
-    try:
-        return _choose(bags, None, tuple(POSE_TYPES), "pose", "--pose-topic", True)  # type: ignore[return-value]
-    except DataFormatError as exc:
-        if "several" in str(exc):
-            raise
-        return _choose(
-            bags,
-            "/tf" if any("/tf" in b.topics for b in bags) else None,
-            TF_TYPES,  # type: ignore[return-value]
-            "pose",
-            "--pose-topic",
-            True,
-        )
+    """The pose topic: the one given, else the only pose topic, else ``/tf``."""
+    if settings.pose_topic is None:
+        candidates = {t for b in bags for t, m in b.topics.items() if m in POSE_TYPES}
+        if not candidates and any(b.topics.get("/tf") in TF_TYPES for b in bags):
+            return "/tf"
+        types = tuple(POSE_TYPES) if candidates else (*POSE_TYPES, *TF_TYPES)
+    else:
+        types = (*POSE_TYPES, *TF_TYPES)
+    return _required(bags, settings.pose_topic, types, "pose", "--pose-topic")
+
+
+def _required(bags: list[_Bag], given: str | None, types: Sequence[str], role: str, option: str) -> str:
+    """:func:`_choose` for a stream that must be found."""
+    topic = _choose(bags, given, types, role, option, required=True)
+    assert topic is not None  # _choose raises when a required topic is not found
+    return topic
 
 
 def _read_streams(
@@ -752,27 +746,16 @@ def import_bags(
         opened = sorted((_Bag(p, stack) for p in paths), key=lambda b: b.start)
         topics: dict[str, str] = {"pose": _pose_source(opened, settings)}
         if settings.speech_topic is not None:
-            topics["speech"] = _choose(
-                opened, settings.speech_topic, SPEECH_TYPES, "speech", "--speech-topic", True
-            )  # type: ignore[assignment]
-        if settings.visual_topic is not None:
-            topics["visual"] = _choose(
-                opened, settings.visual_topic, VISUAL_TYPES, "visual features", "--visual-topic", True
-            )  # type: ignore[assignment]
-        image = (
-            _choose(
-                opened,
-                settings.image_topic,
-                IMAGE_TYPES,
-                "image",
-                "--image-topic",
-                required=settings.visual_topic is None,
+            topics["speech"] = _required(
+                opened, settings.speech_topic, SPEECH_TYPES, "speech", "--speech-topic"
             )
-            if settings.image_topic is not None or settings.visual_topic is None
-            else None
-        )
-        if image is not None:
-            topics["image"] = image
+        if settings.visual_topic is not None:
+            topics["visual"] = _required(
+                opened, settings.visual_topic, VISUAL_TYPES, "visual features", "--visual-topic"
+            )
+        if settings.image_topic is not None or settings.visual_topic is None:
+            # with ready-made features, views are read only from a topic given
+            topics["image"] = _required(opened, settings.image_topic, IMAGE_TYPES, "image", "--image-topic")
         where = ", ".join(str(b.path) for b in opened)
         streams, n_messages = _read_streams(opened, topics, settings, dropped, progress)
         tf_mode = any(b.topics.get(topics["pose"]) in TF_TYPES for b in opened)
@@ -859,9 +842,10 @@ def _make_samples(
         if "visual" in topics
         else np.full(times.size, -1)
     )
-    used_images: set[int] = {int(i) for i, k in zip(image_idx, kinds, strict=True) if k == 0 and i >= 0}
+    used_images: set[int] = set()
     samples: list[_Sample] = []
-    for row in np.argsort(times, kind="stable"):
+    # utterances first (a sample along the way never takes an utterance's view), then in time order
+    for row in np.lexsort((times, kinds)):
         kind = "utterance" if kinds[row] == 0 else "along the way"
         if not has_pose[row]:
             skipped[f"{kind}: no pose within {tol}"] += 1
@@ -872,8 +856,8 @@ def _make_samples(
         if "visual" in topics and visual_idx[row] < 0:
             skipped[f"{kind}: no visual features within {tol}"] += 1
             continue
-        if kinds[row] == 1 and "image" in topics:
-            if int(image_idx[row]) in used_images:
+        if "image" in topics:
+            if kinds[row] == 1 and int(image_idx[row]) in used_images:
                 skipped[f"{kind}: same camera image as another sample"] += 1
                 continue
             used_images.add(int(image_idx[row]))
@@ -882,6 +866,7 @@ def _make_samples(
         samples.append(
             _Sample(int(times[row]), x, y, theta, sentence, int(image_idx[row]), int(visual_idx[row]))
         )
+    samples.sort(key=lambda sample: sample.time)  # stable: an utterance stays before a sample at its time
     summary.skipped = dict(skipped)
     return samples
 
