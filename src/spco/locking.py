@@ -14,7 +14,10 @@ not block the next one. A writer that cannot get the lock within ``timeout`` sec
 ``$SPCO_LOCK_TIMEOUT``) gives up with :class:`LockTimeoutError` naming the file and the holder.
 
 Locks are re-entrant within a thread: ``Knowledge.save`` inside ``with locked(path):`` does not wait
-for itself. Needs ``fcntl`` (Linux, macOS, the BSDs); flock on NFS depends on the server.
+for itself. On Linux, macOS and the BSDs the lock is ``fcntl.flock`` (on NFS it depends on the
+server); on Windows, where there is no ``fcntl``, it is ``msvcrt.locking`` of the lock file's first
+byte (also released by the system when the holder dies; not exercised by the tests, which run on
+Linux).
 
 Usage (what ``spco teach`` does)::
 
@@ -27,7 +30,6 @@ Usage (what ``spco teach`` does)::
 from __future__ import annotations
 
 import contextlib
-import fcntl
 import os
 import threading
 import time
@@ -36,6 +38,12 @@ from os import PathLike
 from pathlib import Path
 
 from spco.errors import SpcoError
+
+try:
+    import fcntl
+except ImportError:  # Windows
+    fcntl = None  # type: ignore[assignment]
+    import msvcrt
 
 __all__ = ["DEFAULT_TIMEOUT", "LockTimeoutError", "lock_path", "locked"]
 
@@ -70,10 +78,35 @@ def _timeout(timeout: float | None) -> float:
     return value
 
 
+def _try_lock(fd: int) -> bool:
+    """Take the exclusive lock of the open lock file ``fd`` if it is free; whether it was taken."""
+    if fcntl is not None:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return False
+        return True
+    os.lseek(fd, 0, os.SEEK_SET)
+    try:
+        msvcrt.locking(fd, msvcrt.LK_NBLCK, 1)
+    except OSError:
+        return False
+    return True
+
+
+def _unlock(fd: int) -> None:
+    if fcntl is not None:
+        fcntl.flock(fd, fcntl.LOCK_UN)
+    else:
+        os.lseek(fd, 0, os.SEEK_SET)
+        msvcrt.locking(fd, msvcrt.LK_UNLCK, 1)
+
+
 def _holder(fd: int) -> str:
     """The process id written by the current holder (best effort, for messages)."""
     with contextlib.suppress(OSError, ValueError):
-        text = os.pread(fd, 32, 0).decode("ascii", "replace").strip()
+        os.lseek(fd, 0, os.SEEK_SET)
+        text = os.read(fd, 32).decode("ascii", "replace").strip()
         if text.isdigit():
             return f"process {text}"
     return "another process"
@@ -106,25 +139,22 @@ def locked(path: str | PathLike[str], timeout: float | None = None) -> Iterator[
                         f"{exc.strerror or exc}") from None
     try:
         deadline = time.monotonic() + wait
-        while True:
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-                break
-            except BlockingIOError:
-                if time.monotonic() >= deadline:
-                    raise LockTimeoutError(
-                        f"{Path(path)}: {_holder(fd)} has been writing this file for more than {wait:g} s "
-                        f"(lock file {sidecar}); try again when it is done, or wait longer with "
-                        "SPCO_LOCK_TIMEOUT=SECONDS") from None
-                time.sleep(_POLL_SECONDS)
+        while not _try_lock(fd):
+            if time.monotonic() >= deadline:
+                raise LockTimeoutError(
+                    f"{Path(path)}: {_holder(fd)} has been writing this file for more than {wait:g} s "
+                    f"(lock file {sidecar}); try again when it is done, or wait longer with "
+                    "SPCO_LOCK_TIMEOUT=SECONDS")
+            time.sleep(_POLL_SECONDS)
         with contextlib.suppress(OSError):
             os.ftruncate(fd, 0)
-            os.pwrite(fd, f"{os.getpid()}\n".encode("ascii"), 0)
+            os.lseek(fd, 0, os.SEEK_SET)
+            os.write(fd, f"{os.getpid()}\n".encode("ascii"))
         held[key] = [fd, 1]
         try:
             yield sidecar
         finally:
             del held[key]
-            fcntl.flock(fd, fcntl.LOCK_UN)
+            _unlock(fd)
     finally:
         os.close(fd)
