@@ -403,3 +403,16 @@ def test_tf_chain_through_a_common_parent_matches_matrix_products(tmp_path: Path
     for r, (x, y, theta) in zip(_rows(tmp_path / "home"), truth, strict=True):
         assert float(r["x"]) == pytest.approx(x, abs=1e-3) and float(r["y"]) == pytest.approx(y, abs=1e-3)
         assert math.remainder(float(r["theta"]) - theta, 2 * math.pi) == pytest.approx(0, abs=1e-3)
+
+
+@pytest.mark.parametrize("ros", [1, 2])
+def test_compressed_bags(tmp_path: Path, ros: int) -> None:
+    """LZ4-chunked ROS 1 bags and zstd-compressed ROS 2 messages, as recorders write them."""
+    bag = tmp_path / ("lz4.bag" if ros == 1 else "zstd")
+    with BagWriter(bag, ros=ros, compress=True) as w:
+        for k in range(10):
+            w.pose("/pose", T0 + k * S, 0.6 * k, 0.0, 0.0, kind="PoseStamped")
+            w.compressed_image("/cam", T0 + k * S, np.full((8, 8, 3), 20 * k, np.uint8))
+        w.text("/speech", T0 + 3 * S, "this is the hall")
+    summary = import_bags([bag], tmp_path / "home", BagImportSettings(speech_topic="/speech"))
+    assert summary.messages == 21 and summary.samples == 10 and summary.taught == 1

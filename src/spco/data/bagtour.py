@@ -34,7 +34,10 @@ class BagWriter:
     """A ROS 1 (``ros=1``, a ``.bag`` file) or ROS 2 (``ros=2``, a folder; ``storage`` "sqlite3" or
     "mcap") bag being written. Times are nanoseconds; ``stamp`` (header) defaults to the record time."""
 
-    def __init__(self, path: str | Path, ros: int = 1, storage: str = "sqlite3") -> None:
+    def __init__(
+        self, path: str | Path, ros: int = 1, storage: str = "sqlite3", compress: bool = False
+    ) -> None:
+        """``compress``: LZ4 chunks (ROS 1) or zstd messages (ROS 2), as recorders can write them."""
         from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
         self.ros = ros
@@ -46,6 +49,8 @@ class BagWriter:
                 get_types_from_msg("geometry_msgs/TransformStamped[] transforms", "tf2_msgs/msg/TFMessage")
             )
             self.writer: Any = Writer1(Path(path))
+            if compress:
+                self.writer.set_compression(Writer1.CompressionFormat.LZ4)
         else:
             from rosbags.rosbag2 import StoragePlugin
             from rosbags.rosbag2 import Writer as Writer2
@@ -53,6 +58,10 @@ class BagWriter:
             self.store = get_typestore(Stores.ROS2_HUMBLE)
             plugin = {"sqlite3": StoragePlugin.SQLITE3, "mcap": StoragePlugin.MCAP}[storage]
             self.writer = Writer2(Path(path), version=9, storage_plugin=plugin)
+            if compress:
+                from rosbags.rosbag2 import CompressionFormat, CompressionMode
+
+                self.writer.set_compression(CompressionMode.MESSAGE, CompressionFormat.ZSTD)
         self.types = self.store.types
         self._connections: dict[str, Any] = {}
 
