@@ -416,3 +416,20 @@ def test_compressed_bags(tmp_path: Path, ros: int) -> None:
         w.text("/speech", T0 + 3 * S, "this is the hall")
     summary = import_bags([bag], tmp_path / "home", BagImportSettings(speech_topic="/speech"))
     assert summary.messages == 21 and summary.samples == 10 and summary.taught == 1
+
+
+def test_ros2_bag_without_message_definitions(tmp_path: Path) -> None:
+    """Bags recorded before ROS 2 Iron store no message definitions: the standard types are known."""
+    import sqlite3
+
+    bag = tmp_path / "humble"
+    write_tour(bag, ros=2, seconds=10, size=SMALL)
+    database = next(bag.glob("*.db3"))
+    with sqlite3.connect(database) as db:
+        db.execute("DELETE FROM message_definitions")
+    from rosbags.highlevel import AnyReader, AnyReaderError
+
+    with pytest.raises(AnyReaderError, match="no type definitions"), AnyReader([bag]):
+        pass
+    summary = import_bags([bag], tmp_path / "home", BagImportSettings(speech_topic="/speech"))
+    assert summary.taught == 1 and summary.samples >= 6
