@@ -119,7 +119,7 @@ def test_killed_lock_holder_does_not_block_the_next_writer(tmp_path: Path, home_
         waiting = _teach(path, 0, "this is the kitchen", SPCO_LOCK_TIMEOUT="0.5")
         out, err = waiting.communicate(timeout=120)
         assert waiting.returncode == 2, out + err
-        assert f"process {holder.pid} has been writing this file" in err and "SPCO_LOCK_TIMEOUT" in err
+        assert f"process {holder.pid} is still writing this file" in err and "SPCO_LOCK_TIMEOUT" in err
         assert "Traceback" not in err
         assert kn.load_home_model(path).n_taught == 0
         # killed (no chance to clean up): the kernel drops its lock, the next writer goes ahead
@@ -180,7 +180,7 @@ def test_adapt_force_waits_for_the_lock(home_file: Path) -> None:
              "--teaching-rate", "0", "--iterations", "1", "--out", str(home_file), "--force"],
             capture_output=True, text=True, env=_env(SPCO_LOCK_TIMEOUT="0.3"), timeout=300)
         assert result.returncode == 2, result.stdout + result.stderr
-        assert f"process {holder.pid} has been writing this file" in result.stderr
+        assert f"process {holder.pid} is still writing this file" in result.stderr
         assert "Traceback" not in result.stderr
         assert home_file.read_bytes() == before
     finally:

@@ -142,7 +142,7 @@ def locked(path: str | PathLike[str], timeout: float | None = None) -> Iterator[
         while not _try_lock(fd):
             if time.monotonic() >= deadline:
                 raise LockTimeoutError(
-                    f"{Path(path)}: {_holder(fd)} has been writing this file for more than {wait:g} s "
+                    f"{Path(path)}: {_holder(fd)} is still writing this file after {wait:g} s of waiting "
                     f"(lock file {sidecar}); try again when it is done, or wait longer with "
                     "SPCO_LOCK_TIMEOUT=SECONDS")
             time.sleep(_POLL_SECONDS)
