@@ -144,17 +144,22 @@ class BagImportSummary:
         lines += [f"  {role:<7} {topic}" for role, topic in self.topics.items()]
         lines.append(
             f"Wrote {self.samples} samples ({self.taught} taught) to {self.out}: "
-            f"{self.utterances} utterances and {self.periodic} samples along the way considered"
+            f"{_count(self.utterances, 'utterance')} and {_count(self.periodic, 'sample')} along the way "
+            "considered"
         )
         skipped = sum(self.skipped.values())
         if skipped:
-            lines.append(f"Skipped {skipped} samples:")
+            lines.append(f"Skipped {_count(skipped, 'sample')}:")
             lines += [f"  {n:>6}  {why}" for why, n in sorted(self.skipped.items(), key=lambda kv: -kv[1])]
         if self.dropped:
             lines.append("Dropped messages:")
             lines += [f"  {n:>6}  {why}" for why, n in sorted(self.dropped.items(), key=lambda kv: -kv[1])]
         lines += [f"warning: {w}" for w in self.warnings]
         return "\n".join(lines)
+
+
+def _count(n: int, noun: str) -> str:
+    return f"{n:,} {noun}{'' if n == 1 else 's'}"
 
 
 # ------------------------------------------------------------------------------------ reading bags
