@@ -154,12 +154,14 @@ def demo(seed: int, out: Path, homes: int, iterations: int) -> None:
 
 def _register_commands() -> None:
     """Add the command groups that live in their own modules."""
+    from spco.commands_bag import import_bag
     from spco.commands_bench import bench
     from spco.commands_experiment import experiment
     from spco.commands_knowledge import KNOWLEDGE_COMMANDS
 
     main.add_command(experiment)
     main.add_command(bench)
+    main.add_command(import_bag)
     for command in KNOWLEDGE_COMMANDS:  # fit, adapt, where, what, teach, show
         main.add_command(command)
 

@@ -289,10 +289,13 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
 
     An incremental update (a few sweeps from the current state; everything learnt so far is
     kept); new words grow the vocabulary. HOME is updated in place (atomically) unless --out is given.
+    The file is locked while it is read, updated and replaced: concurrent `teach` runs on the same
+    home wait for each other (at most $SPCO_LOCK_TIMEOUT seconds, default 60) and every teaching is kept.
     """
     from spco.errors import ConfigurationError
     from spco.knowledge import Observation, load_home_model, read_visual_vector
     from spco.knowledge import teach as teach_home
+    from spco.locking import locked
 
     pose = (x, y, theta)
     new_observation = any(v is not None for v in (*pose, visual))
@@ -312,15 +315,19 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
     target = out if out is not None else home_file
     if out is not None:
         _check_out(out, force)
-    home = load_home_model(home_file)
-    if new_observation:
-        counts = read_visual_vector(visual, home.knowledge.n_features, visual_scale)  # type: ignore[arg-type]
-        obs = Observation(x=x, y=y, theta=theta, visual=counts,  # type: ignore[arg-type]
-                          sentence=sentences[0] if sentences else None)
-        updated = teach_home(home, observations=[obs], n_sweeps=sweeps, random_state=seed)
-    else:
-        updated = teach_home(home, dict(zip(ids, sentences, strict=True)), n_sweeps=sweeps, random_state=seed)
-    updated.save(target, overwrite=True if out is None else force)
+    # read, update and replace under the file's write lock: a concurrent `teach` waits, then
+    # builds on this one's result (no teaching is lost)
+    with locked(target):
+        home = load_home_model(home_file)
+        if new_observation:
+            counts = read_visual_vector(visual, home.knowledge.n_features, visual_scale)  # type: ignore[arg-type]
+            obs = Observation(x=x, y=y, theta=theta, visual=counts,  # type: ignore[arg-type]
+                              sentence=sentences[0] if sentences else None)
+            updated = teach_home(home, observations=[obs], n_sweeps=sweeps, random_state=seed)
+        else:
+            updated = teach_home(home, dict(zip(ids, sentences, strict=True)), n_sweeps=sweeps,
+                                 random_state=seed)
+        updated.save(target, overwrite=True if out is None else force)
     last = updated.provenance["last_teach"]
     if new_observation:
         click.echo(f"Added sample {int(updated.ids[-1])} at ({x:g}, {y:g}, θ={theta:g})"

@@ -54,6 +54,9 @@ the whole content (header and arrays). They are written to a temporary file in t
 flushed and renamed into place (atomic), and never replace an existing file unless asked
 (``overwrite=True``, ``--force``). A missing, truncated, edited or foreign file, or one written by
 a newer spco, raises :class:`~spco.errors.ModelFileError` naming the file and the problem.
+Every save holds the file's write lock (:func:`spco.locking.locked`, a ``flock`` on ``<file>.lock``);
+to read, update and replace a file without losing another process's update, hold it around all
+three (``with locked(path): home = load_home_model(path); …; home.save(path, overwrite=True)``).
 """
 
 from __future__ import annotations
@@ -79,6 +82,7 @@ from scipy.special import logsumexp
 from spco.data.environment import Corpus, Environment, Extent
 from spco.data.language import Vocabulary
 from spco.errors import ConfigurationError, DataFormatError, ModelFileError
+from spco.locking import locked
 from spco.model import gibbs
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.io import _checksum, write_npz_atomic
@@ -180,8 +184,14 @@ def _content_checksum(header: Mapping[str, Any]) -> str:
 
 def _write_archive(path: str | PathLike[str], arrays: Mapping[str, np.ndarray], header: dict[str, Any],
                    overwrite: bool, what: str) -> Path:
-    """Write ``arrays`` and ``header`` (+ array and content checksums) to ``path`` atomically."""
-    return write_npz_atomic(path, header, arrays, overwrite, what, seal=_content_checksum)
+    """Write ``arrays`` and ``header`` (+ array and content checksums) to ``path`` atomically,
+    holding the file's write lock (:func:`spco.locking.locked`; re-entrant, so a caller may hold it
+    already while it reads and updates the file)."""
+    target = Path(path).expanduser()
+    if target.is_dir() or not target.parent.is_dir():  # no lock to take: the writer says what is wrong
+        return write_npz_atomic(path, header, arrays, overwrite, what, seal=_content_checksum)
+    with locked(target):
+        return write_npz_atomic(path, header, arrays, overwrite, what, seal=_content_checksum)
 
 
 def _read_archive(path: str | PathLike[str],

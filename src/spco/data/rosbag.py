@@ -1,0 +1,965 @@
+"""From a robot's ROS bags to a home folder in the plain format (``spco import-bag``).
+
+Reads ROS 1 ``.bag`` files and ROS 2 bags (sqlite3 or mcap; the bag folder, or its ``.db3`` /
+``.mcap`` file) with `rosbags <https://gitlab.com/ternaris/rosbags>`_ — pure Python, no ROS
+installation. Three streams make a home:
+
+- the robot's **pose** on the map: a topic of ``geometry_msgs/PoseWithCovarianceStamped``,
+  ``geometry_msgs/PoseStamped`` or ``nav_msgs/Odometry``, or the transform from ``map_frame`` to
+  ``robot_frame`` on ``/tf`` (+ ``/tf_static``), composed along the tree (e.g. map → odom →
+  base_footprint), each transform taken nearest in time;
+- the **view**: ``sensor_msgs/Image`` (rgb8, bgr8, mono8) or ``sensor_msgs/CompressedImage``
+  (JPEG, PNG), written as ``images/<id>.jpg|png`` (compressed images are copied byte for byte once
+  OpenCV has decoded them; raw ones are encoded as ``image_format``); or, with ``visual_topic``, a
+  ready-made feature vector (``std_msgs/Float32MultiArray`` & co.) written to ``visual.npz``;
+- **speech** as text: ``std_msgs/String``.
+
+A sample is made at every utterance (taught: its sentence is what was said) and along the way every
+``every_seconds`` seconds or ``every_metres`` metres of travel, whichever comes first (not taught).
+Each modality is taken nearest in time to the sample within ``tolerance`` seconds; a sample missing
+one is skipped and counted by reason, as is a periodic sample that would repeat another sample's
+camera image. Times are the messages' header stamps (``clock="header"``; a zero stamp and messages
+without a header, such as ``std_msgs/String``, use the bag's record time) or the bag's record times
+throughout (``clock="bag"``). A message whose time goes backwards on its topic (or tf edge) is
+dropped and counted.
+
+The home folder is written into a temporary folder beside ``out`` and renamed into place; an
+existing non-empty ``out`` is replaced only with ``overwrite`` and only if it is a home folder.
+Every problem with a bag (missing, truncated, an unknown or unsupported message type, a missing
+topic, an unsupported image encoding) raises :class:`~spco.errors.DataFormatError` naming the bag.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import shutil
+import struct
+import time
+import uuid
+from collections import Counter, defaultdict
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import ExitStack
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from spco.errors import ConfigurationError, DataFormatError
+
+__all__ = ["BagImportSettings", "BagImportSummary", "import_bags"]
+
+POSE_TYPES = {  # message type -> how to reach its geometry_msgs/Pose
+    "geometry_msgs/msg/PoseWithCovarianceStamped": lambda m: m.pose.pose,
+    "geometry_msgs/msg/PoseStamped": lambda m: m.pose,
+    "nav_msgs/msg/Odometry": lambda m: m.pose.pose,
+}
+TF_TYPES = ("tf2_msgs/msg/TFMessage", "tf/msg/tfMessage")
+IMAGE_TYPES = ("sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage")
+SPEECH_TYPES = ("std_msgs/msg/String",)
+VISUAL_TYPES = tuple(
+    f"std_msgs/msg/{k}MultiArray"
+    for k in ("Float32", "Float64", "Int8", "Int16", "Int32", "Int64", "UInt8", "UInt16", "UInt32", "UInt64")
+)
+RAW_ENCODINGS = ("rgb8", "bgr8", "mono8")
+_NS = 1_000_000_000
+_HEADER_OFFSET_WARNING_S = 5.0
+
+
+@dataclass(frozen=True)
+class BagImportSettings:
+    """What to read from the bags and how to make samples (see the module docstring).
+
+    A topic left ``None`` is found by its type when the bags hold exactly one candidate (pose:
+    one pose topic, else ``/tf``; image: one image topic); speech is never guessed (a robot's own
+    text-to-speech is a ``String`` too): without ``speech_topic`` nothing is taught.
+    """
+
+    pose_topic: str | None = None
+    map_frame: str = "map"
+    robot_frame: str = "base_footprint"
+    image_topic: str | None = None
+    speech_topic: str | None = None
+    visual_topic: str | None = None
+    visual_scale: float | None = None
+    every_seconds: float = 0.0
+    every_metres: float = 0.5
+    tolerance: float = 0.5
+    clock: str = "header"
+    image_format: str = "jpg"
+    name: str | None = None
+
+    def check(self) -> None:
+        """Raise :class:`ConfigurationError` for an out-of-range setting."""
+        for label, value in (("--every-seconds", self.every_seconds), ("--every-metres", self.every_metres)):
+            if not (math.isfinite(value) and value >= 0):
+                raise ConfigurationError(f"{label} must be ≥ 0 (0: off), got {value}")
+        if not (math.isfinite(self.tolerance) and self.tolerance > 0):
+            raise ConfigurationError(f"--tolerance must be > 0 seconds, got {self.tolerance}")
+        if self.clock not in ("header", "bag"):
+            raise ConfigurationError(f"--clock must be header or bag, got {self.clock!r}")
+        if self.image_format not in ("jpg", "png"):
+            raise ConfigurationError(f"--image-format must be jpg or png, got {self.image_format!r}")
+        if self.visual_scale is not None and not (math.isfinite(self.visual_scale) and self.visual_scale > 0):
+            raise ConfigurationError(f"--visual-scale must be > 0, got {self.visual_scale}")
+        if self.every_seconds == 0 and self.every_metres == 0 and not self.speech_topic:
+            raise ConfigurationError(
+                "no sample to make: give --speech-topic, --every-seconds or --every-metres"
+            )
+        if not self.map_frame.strip("/") or not self.robot_frame.strip("/"):
+            raise ConfigurationError("--map-frame and --robot-frame must name frames")
+
+
+@dataclass
+class BagImportSummary:
+    """What an import read and wrote (also saved as ``import.json`` in the home folder)."""
+
+    bags: list[str]
+    out: str
+    topics: dict[str, str]  # role -> topic ("pose", "image", "speech", …)
+    messages: int = 0  # messages read on those topics
+    seconds: float = 0.0
+    samples: int = 0
+    taught: int = 0
+    utterances: int = 0
+    periodic: int = 0
+    skipped: dict[str, int] = field(default_factory=dict)  # "utterance: no image within 0.5 s" -> n
+    dropped: dict[str, int] = field(default_factory=dict)  # "/topic: time went backwards" -> n
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def messages_per_second(self) -> float:
+        """Messages read per second of the whole import (reading, decoding, writing)."""
+        return self.messages / self.seconds if self.seconds > 0 else float("inf")
+
+    def format(self) -> str:
+        """A few lines for people."""
+        lines = [
+            f"Read {len(self.bags)} bag{'s' if len(self.bags) != 1 else ''}: {self.messages:,} messages "
+            f"in {self.seconds:.1f} s ({self.messages_per_second:,.0f} messages/s)"
+        ]
+        lines += [f"  {role:<7} {topic}" for role, topic in self.topics.items()]
+        lines.append(
+            f"Wrote {self.samples} samples ({self.taught} taught) to {self.out}: "
+            f"{_count(self.utterances, 'utterance')} and {_count(self.periodic, 'sample')} along the way "
+            "considered"
+        )
+        skipped = sum(self.skipped.values())
+        if skipped:
+            lines.append(f"Skipped {_count(skipped, 'sample')}:")
+            lines += [f"  {n:>6}  {why}" for why, n in sorted(self.skipped.items(), key=lambda kv: -kv[1])]
+        if self.dropped:
+            lines.append("Dropped messages:")
+            lines += [f"  {n:>6}  {why}" for why, n in sorted(self.dropped.items(), key=lambda kv: -kv[1])]
+        lines += [f"warning: {w}" for w in self.warnings]
+        return "\n".join(lines)
+
+
+def _count(n: int, noun: str) -> str:
+    return f"{n:,} {noun}{'' if n == 1 else 's'}"
+
+
+# ------------------------------------------------------------------------------------ reading bags
+class _Bag:
+    """One open bag: its path, rosbags reader and topics (topic -> message type)."""
+
+    def __init__(self, path: Path, stack: ExitStack) -> None:
+        from rosbags.highlevel import AnyReader
+        from rosbags.typesys import Stores, get_typestore
+
+        self.path = path
+        if not path.exists():
+            raise DataFormatError(
+                path, "no such bag (a ROS 1 .bag file, or a ROS 2 bag folder, .db3 or .mcap)"
+            )
+        try:
+            reader = AnyReader([path], default_typestore=get_typestore(Stores.LATEST))
+            stack.enter_context(reader)
+            self.topics = {name: info.msgtype or "" for name, info in reader.topics.items()}
+            self.start = reader.start_time if reader.message_count else 0
+        except Exception as exc:  # rosbags, sqlite and the OS raise many kinds; all mean "unreadable"
+            raise _unreadable(path, exc) from None
+        self.reader = reader
+        self.is2 = reader.is2
+
+    def connections(self, topic: str) -> list[Any]:
+        return [c for c in self.reader.connections if c.topic == topic]
+
+    def messages(self, topics: Sequence[str]) -> Iterator[tuple[Any, int, bytes]]:
+        """(connection, bag time ns, raw bytes) of ``topics`` in record order; errors name the bag."""
+        connections = [c for t in topics for c in self.connections(t)]
+        if not connections:
+            return
+        stream = self.reader.messages(connections=connections)
+        while True:
+            try:
+                item = next(stream)
+            except StopIteration:
+                return
+            except Exception as exc:
+                raise _unreadable(self.path, exc) from None
+            yield item
+
+    def deserialize(self, raw: bytes, connection: Any) -> Any:
+        try:
+            return self.reader.deserialize(raw, connection.msgtype)
+        except Exception as exc:
+            raise DataFormatError(
+                self.path, f"{connection.topic}: cannot decode a {connection.msgtype} message ({exc})"
+            ) from None
+
+
+def _version() -> str:
+    from spco import __version__
+
+    return __version__
+
+
+def _unreadable(path: Path, exc: Exception) -> DataFormatError:
+    text = str(exc).strip() or type(exc).__name__
+    return DataFormatError(
+        path,
+        f"cannot read the bag: {text}. If the recording was cut short, reindex it "
+        "(ROS 1: `rosbag reindex`; ROS 2: `ros2 bag reindex`)",
+    )
+
+
+def _raw_stamp(raw: bytes, is2: bool) -> int:
+    """Header stamp (ns) of a serialized message whose first field is a std_msgs/Header.
+
+    ROS 1: ``uint32 seq, uint32 sec, uint32 nsec``; ROS 2 CDR: a 4-byte encapsulation header, then
+    ``int32 sec, uint32 nanosec`` (byte order given by the encapsulation). 0 when too short.
+    """
+    if len(raw) < 12:
+        return 0
+    if not is2:
+        sec, nsec = struct.unpack_from("<II", raw, 4)
+    else:
+        sec, nsec = struct.unpack_from("<iI" if raw[1] == 1 else ">iI", raw, 4)
+    return int(sec) * _NS + int(nsec)
+
+
+def _stamp(header: Any) -> int:
+    return int(header.stamp.sec) * _NS + int(header.stamp.nanosec)
+
+
+def _frame(name: str) -> str:
+    return name.strip().lstrip("/")
+
+
+class _Series:
+    """Times (ns) and values of one stream, in order; a time going backwards is dropped and counted."""
+
+    def __init__(self, label: str, dropped: Counter[str]) -> None:
+        self.label = label
+        self.times: list[int] = []
+        self.values: list[Any] = []
+        self._dropped = dropped
+
+    def add(self, t: int, value: Any) -> None:
+        if self.times and t < self.times[-1]:
+            self._dropped[f"{self.label}: time went backwards"] += 1
+            return
+        self.times.append(t)
+        self.values.append(value)
+
+    def array(self) -> np.ndarray:
+        return np.asarray(self.times, dtype=np.int64)
+
+
+def _nearest(times: np.ndarray, queries: np.ndarray, tolerance_ns: int) -> np.ndarray:
+    """Index of the element of sorted ``times`` nearest to each query, -1 if none within tolerance."""
+    if times.size == 0:
+        return np.full(queries.shape, -1, dtype=np.int64)
+    right = np.clip(np.searchsorted(times, queries), 0, times.size - 1)
+    left = np.clip(right - 1, 0, times.size - 1)
+    pick = np.where(np.abs(times[left] - queries) <= np.abs(times[right] - queries), left, right)
+    return np.where(np.abs(times[pick] - queries) <= tolerance_ns, pick, -1)
+
+
+# ------------------------------------------------------------------------------------ geometry
+def _yaw(q: np.ndarray) -> np.ndarray:
+    """Heading (rad) of quaternions (..., 4) as x, y, z, w."""
+    x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    return np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+
+
+def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    ax, ay, az, aw = np.moveaxis(a, -1, 0)
+    bx, by, bz, bw = np.moveaxis(b, -1, 0)
+    return np.stack(
+        [
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+            aw * bw - ax * bx - ay * by - az * bz,
+        ],
+        axis=-1,
+    )
+
+
+def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rotate vectors v (..., 3) by unit quaternions q (..., 4)."""
+    u, w = q[..., :3], q[..., 3:]
+    t = 2 * np.cross(u, v)
+    return v + w * t + np.cross(u, t)
+
+
+def _compose(ta: np.ndarray, qa: np.ndarray, tb: np.ndarray, qb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """T_a ∘ T_b (translation, quaternion)."""
+    return ta + _rotate(qa, tb), _quat_mul(qa, qb)
+
+
+def _invert(t: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    qi = q * np.array([-1.0, -1.0, -1.0, 1.0])
+    return -_rotate(qi, t), qi
+
+
+class _TfTree:
+    """Transforms parent -> child from /tf (time series) and /tf_static, and chains between frames."""
+
+    def __init__(self, dropped: Counter[str]) -> None:
+        self.dynamic: dict[tuple[str, str], _Series] = {}
+        self.static: dict[tuple[str, str], np.ndarray] = {}
+        self._dropped = dropped
+
+    def add(self, transform: Any, t: int | None, static: bool) -> None:
+        parent, child = _frame(transform.header.frame_id), _frame(transform.child_frame_id)
+        tr, rot = transform.transform.translation, transform.transform.rotation
+        value = np.array([tr.x, tr.y, tr.z, rot.x, rot.y, rot.z, rot.w], dtype=np.float64)
+        if not np.isfinite(value).all():
+            self._dropped[f"/tf {parent}→{child}: not finite"] += 1
+            return
+        if static:
+            self.static[(parent, child)] = value
+        else:
+            key = (parent, child)
+            if key not in self.dynamic:
+                self.dynamic[key] = _Series(f"/tf {parent}→{child}", self._dropped)
+            self.dynamic[key].add(int(t or 0), value)
+
+    def chain(self, source: str, target: str) -> list[tuple[tuple[str, str], bool]]:
+        """Edges (parent, child) and whether each is walked forwards, from ``source`` to ``target``."""
+        parent_of: dict[str, str] = {}
+        for parent, child in [*self.dynamic, *self.static]:
+            parent_of[child] = parent
+
+        def up(frame: str) -> list[str]:
+            path = [frame]
+            while path[-1] in parent_of and parent_of[path[-1]] not in path:
+                path.append(parent_of[path[-1]])
+            return path
+
+        from_source, from_target = up(source), up(target)
+        common = next((f for f in from_target if f in from_source), None)
+        if common is None:
+            return []
+        down = from_target[: from_target.index(common) + 1][::-1]  # common ... target
+        rise = from_source[: from_source.index(common) + 1]  # source ... common
+        steps = [((parent_of[child], child), False) for child in rise[:-1]]
+        steps += [((down[i], down[i + 1]), True) for i in range(len(down) - 1)]
+        return steps
+
+    def frames(self) -> list[str]:
+        return sorted({f for edge in [*self.dynamic, *self.static] for f in edge})
+
+
+# ------------------------------------------------------------------------------------ the import
+@dataclass
+class _Streams:
+    """Everything read in the first pass."""
+
+    pose: _Series
+    tf: _TfTree
+    speech: _Series
+    images: _Series  # values: (bag index, ordinal among the topic's messages in that bag)
+    visual: _Series
+    header_offsets: dict[str, list[int]] = field(default_factory=lambda: defaultdict(list))
+
+
+def _choose(
+    bags: list[_Bag], given: str | None, types: Sequence[str], role: str, option: str, required: bool
+) -> str | None:
+    """The topic for ``role``: the one given (checked), else the only one of ``types``."""
+    names = ", ".join(str(b.path) for b in bags)
+    seen: dict[str, str] = {}
+    for bag in bags:
+        seen.update(bag.topics)
+    listing = "; ".join(f"{t} ({m})" for t, m in sorted(seen.items())) or "none"
+    if given is not None:
+        if given not in seen:
+            raise DataFormatError(names, f"no topic {given} ({option}); the bag holds: {listing}")
+        msgtype = seen[given]
+        if msgtype not in types:
+            raise DataFormatError(
+                names,
+                f"{given} carries {msgtype or 'an unknown message type'}, which is not a "
+                f"{role} message spco reads; expected {', '.join(types)}",
+            )
+        return given
+    candidates = sorted(t for t, m in seen.items() if m in types)
+    if len(candidates) == 1:
+        return candidates[0]
+    if not required:
+        return None
+    if not candidates:
+        raise DataFormatError(names, f"no {role} topic ({', '.join(types)}); the bag holds: {listing}")
+    raise DataFormatError(names, f"several {role} topics: {', '.join(candidates)}; choose one with {option}")
+
+
+def _pose_source(bags: list[_Bag], settings: BagImportSettings) -> str:
+    """The pose topic: the one given, else the only pose topic, else ``/tf``."""
+    if settings.pose_topic is None:
+        candidates = {t for b in bags for t, m in b.topics.items() if m in POSE_TYPES}
+        if not candidates and any(b.topics.get("/tf") in TF_TYPES for b in bags):
+            return "/tf"
+        types = tuple(POSE_TYPES) if candidates else (*POSE_TYPES, *TF_TYPES)
+    else:
+        types = (*POSE_TYPES, *TF_TYPES)
+    return _required(bags, settings.pose_topic, types, "pose", "--pose-topic")
+
+
+def _required(bags: list[_Bag], given: str | None, types: Sequence[str], role: str, option: str) -> str:
+    """:func:`_choose` for a stream that must be found."""
+    topic = _choose(bags, given, types, role, option, required=True)
+    assert topic is not None  # _choose raises when a required topic is not found
+    return topic
+
+
+def _read_streams(
+    bags: list[_Bag],
+    topics: dict[str, str],
+    settings: BagImportSettings,
+    dropped: Counter[str],
+    progress: bool,
+) -> tuple[_Streams, int]:
+    """First pass: poses, transforms, speech, image times and feature vectors; returns the message count."""
+    streams = _Streams(
+        pose=_Series(topics["pose"], dropped),
+        tf=_TfTree(dropped),
+        speech=_Series(topics.get("speech", "speech"), dropped),
+        images=_Series(topics.get("image", "image"), dropped),
+        visual=_Series(topics.get("visual", "visual"), dropped),
+    )
+    pose_topic = topics["pose"]
+    tf_mode = any(b.topics.get(pose_topic) in TF_TYPES for b in bags)
+    wanted = [t for t in topics.values()]
+    if tf_mode and any("/tf_static" in b.topics for b in bags):
+        wanted.append("/tf_static")
+    use_header = settings.clock == "header"
+    frame = _frame(settings.map_frame)
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(desc="reading", unit=" msg", leave=False)
+    count = 0
+    for index, bag in enumerate(bags):
+        ordinal = 0
+        for connection, bag_time, raw in bag.messages(wanted):
+            count += 1
+            if bar is not None:
+                bar.update()
+            topic = connection.topic
+            if topic == topics.get("image"):
+                stamp = _raw_stamp(raw, bag.is2) if use_header else 0
+                if stamp:
+                    streams.header_offsets[topic].append(bag_time - stamp)
+                streams.images.add(stamp or bag_time, (index, ordinal))
+                ordinal += 1
+                continue
+            msg = bag.deserialize(raw, connection)
+            if topic == pose_topic and not tf_mode:
+                stamp = _stamp(msg.header) if use_header else 0
+                if stamp:
+                    streams.header_offsets[topic].append(bag_time - stamp)
+                source = _frame(msg.header.frame_id)
+                if source and source != frame:
+                    raise DataFormatError(
+                        bag.path,
+                        f"{topic}: poses are in frame {source!r}, not the map frame "
+                        f"{frame!r}; pass --map-frame {source} if that is the map",
+                    )
+                pose = POSE_TYPES[connection.msgtype](msg)
+                p, q = pose.position, pose.orientation
+                value = (float(p.x), float(p.y), float(_yaw(np.array([q.x, q.y, q.z, q.w]))))
+                if not all(math.isfinite(v) for v in value):
+                    dropped[f"{topic}: pose not finite"] += 1
+                    continue
+                streams.pose.add(stamp or bag_time, value)
+            elif topic in (pose_topic, "/tf_static") and tf_mode:
+                static = topic == "/tf_static"
+                for transform in msg.transforms:
+                    stamp = _stamp(transform.header) if use_header else 0
+                    streams.tf.add(transform, stamp or bag_time, static)
+            elif topic == topics.get("speech"):
+                text = str(msg.data).strip()
+                if text:
+                    streams.speech.add(bag_time, text)
+                else:
+                    dropped[f"{topic}: empty utterance"] += 1
+            elif topic == topics.get("visual"):
+                streams.visual.add(bag_time, np.asarray(msg.data, dtype=np.float64).ravel())
+    if bar is not None:
+        bar.close()
+    return streams, count
+
+
+@dataclass
+class _Trajectory:
+    """Robot poses over time: times (ns), x, y, yaw, and a lookup at other times."""
+
+    times: np.ndarray
+    xy: np.ndarray
+    yaw: np.ndarray
+    lookup: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]  # -> valid, xy, yaw
+
+
+def _pose_trajectory(series: _Series, tolerance_ns: int) -> _Trajectory:
+    times = series.array()
+    values = np.asarray(series.values, dtype=np.float64).reshape(-1, 3)
+
+    def lookup(queries: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        idx = _nearest(times, queries, tolerance_ns)
+        safe = np.maximum(idx, 0)
+        return idx >= 0, values[safe, :2], values[safe, 2]
+
+    return _Trajectory(times, values[:, :2], values[:, 2], lookup)
+
+
+def _tf_trajectory(tree: _TfTree, settings: BagImportSettings, tolerance_ns: int, where: str) -> _Trajectory:
+    source, target = _frame(settings.map_frame), _frame(settings.robot_frame)
+    steps = tree.chain(source, target)
+    if not steps:
+        raise DataFormatError(
+            where,
+            f"/tf holds no chain of transforms from {source!r} to {target!r} (frames "
+            f"seen: {', '.join(tree.frames()) or 'none'}); check --map-frame and --robot-frame",
+        )
+    dynamic = [edge for edge, _ in steps if edge in tree.dynamic]
+    if not dynamic:
+        raise DataFormatError(where, f"the transform {source}→{target} is static: the robot never moves")
+    edge_times = {edge: tree.dynamic[edge].array() for edge in dynamic}
+    edge_values = {edge: np.asarray(tree.dynamic[edge].values) for edge in dynamic}
+    times = edge_times[max(dynamic, key=lambda e: edge_times[e].size)]
+
+    def lookup(queries: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        n = queries.size
+        valid = np.ones(n, dtype=bool)
+        t = np.zeros((n, 3))
+        q = np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))
+        for edge, forwards in steps:
+            if edge in tree.static:
+                value = np.broadcast_to(tree.static[edge], (n, 7))
+            else:
+                idx = _nearest(edge_times[edge], queries, tolerance_ns)
+                valid &= idx >= 0
+                value = edge_values[edge][np.maximum(idx, 0)]
+            et, eq = value[:, :3], value[:, 3:] / np.linalg.norm(value[:, 3:], axis=1, keepdims=True)
+            if not forwards:
+                et, eq = _invert(et, eq)
+            t, q = _compose(t, q, et, eq)
+        return valid, t[:, :2], _yaw(q)
+
+    valid, xy, yaw = lookup(times)
+    return _Trajectory(times[valid], xy[valid], yaw[valid], lookup)
+
+
+def _periodic_indices(traj: _Trajectory, every_seconds: float, every_metres: float) -> np.ndarray:
+    """Indices into the trajectory: its start, then each point ``every_seconds`` or ``every_metres``
+    after the previous one, whichever comes first."""
+    n = traj.times.size
+    if n == 0 or (every_seconds <= 0 and every_metres <= 0):
+        return np.zeros(0, dtype=np.int64)
+    travelled = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(traj.xy, axis=0).T))])
+    chosen = [0]
+    while True:  # one step per sample, each a binary search
+        i = chosen[-1]
+        nxt = n
+        if every_metres > 0:
+            nxt = min(nxt, int(np.searchsorted(travelled, travelled[i] + every_metres)))
+        if every_seconds > 0:
+            nxt = min(nxt, int(np.searchsorted(traj.times, traj.times[i] + round(every_seconds * _NS))))
+        if nxt >= n:
+            return np.asarray(chosen, dtype=np.int64)
+        chosen.append(max(nxt, i + 1))
+
+
+@dataclass
+class _Sample:
+    time: int
+    x: float
+    y: float
+    theta: float
+    sentence: str | None
+    image: int  # index into streams.images, -1 if none
+    visual: int  # index into streams.visual, -1 if none
+
+
+def _check_out(out: Path, bags: Sequence[Path], overwrite: bool) -> None:
+    if out.exists() and not out.is_dir():
+        raise ConfigurationError(f"{out} exists and is not a folder (--out names the home folder to write)")
+    resolved = out.resolve()
+    for bag in bags:
+        b = bag.resolve()
+        if b == resolved or resolved in b.parents:
+            raise ConfigurationError(
+                f"--out {out} would hold or replace the bag {bag}; choose another folder"
+            )
+    if out.is_dir() and any(out.iterdir()):
+        if not overwrite:
+            raise ConfigurationError(f"{out} is not empty; pass --force to replace the home folder it holds")
+        if not ((out / "samples.csv").is_file() or (out / "samples.jsonl").is_file()):
+            raise ConfigurationError(
+                f"{out} holds files but no home (samples.csv); spco replaces only a home "
+                "folder, even with --force: choose another --out"
+            )
+    if not resolved.parent.is_dir():
+        raise ConfigurationError(f"cannot write {out}: the folder {str(out.parent)!r} does not exist")
+
+
+def _move_into_place(tmp: Path, out: Path) -> None:
+    """Rename the finished folder ``tmp`` to ``out`` (replacing an old home folder there)."""
+    if not out.exists():
+        os.replace(tmp, out)
+        return
+    if out.is_dir() and not any(out.iterdir()):
+        out.rmdir()
+        os.replace(tmp, out)
+        return
+    old = out.parent / f".{out.name}.old.{uuid.uuid4().hex[:8]}"
+    os.replace(out, old)
+    try:
+        os.replace(tmp, out)
+    except OSError:
+        os.replace(old, out)
+        raise
+    shutil.rmtree(old, ignore_errors=True)
+
+
+def _decode_image(bag: _Bag, connection: Any, msg: Any, image_format: str) -> tuple[bytes, str] | str:
+    """(file bytes, extension) of an image message, or the reason it cannot be used."""
+    import cv2
+
+    if connection.msgtype == "sensor_msgs/msg/CompressedImage":
+        data = np.asarray(msg.data, dtype=np.uint8)
+        fmt = str(msg.format).lower()
+        if "compresseddepth" in fmt:
+            raise DataFormatError(
+                bag.path,
+                f"{connection.topic}: depth images ({msg.format!r}) are not views; "
+                "give a colour image topic (--image-topic)",
+            )
+        head = bytes(data[:8])
+        if head.startswith(b"\xff\xd8"):
+            ext = "jpg"
+        elif head.startswith(b"\x89PNG"):
+            ext = "png"
+        elif data.size == 0:
+            return "empty image"
+        else:
+            raise DataFormatError(
+                bag.path,
+                f"{connection.topic}: compressed image format {msg.format!r} is not supported (JPEG or PNG)",
+            )
+        if cv2.imdecode(data, cv2.IMREAD_UNCHANGED) is None:
+            return "image could not be decoded"
+        return data.tobytes(), ext
+    encoding = str(msg.encoding).lower()
+    if encoding not in RAW_ENCODINGS:
+        raise DataFormatError(
+            bag.path,
+            f"{connection.topic}: image encoding {msg.encoding!r} is not supported "
+            f"({', '.join(RAW_ENCODINGS)}); record a colour or grey 8-bit image",
+        )
+    channels = 1 if encoding == "mono8" else 3
+    height, width, step = int(msg.height), int(msg.width), int(msg.step)
+    data = np.asarray(msg.data, dtype=np.uint8)
+    if height <= 0 or width <= 0 or step < width * channels or data.size < height * step:
+        return "image data do not match its size"
+    pixels = (
+        data[: height * step].reshape(height, step)[:, : width * channels].reshape(height, width, channels)
+    )
+    if encoding == "rgb8":
+        pixels = pixels[:, :, ::-1]
+    ok, encoded = cv2.imencode(
+        f".{image_format}",
+        np.ascontiguousarray(pixels),
+        [cv2.IMWRITE_JPEG_QUALITY, 95] if image_format == "jpg" else [],
+    )
+    if not ok:
+        return "image could not be encoded"
+    return encoded.tobytes(), image_format
+
+
+def _write_images(
+    bags: list[_Bag], topic: str, streams: _Streams, samples: list[_Sample], folder: Path, image_format: str
+) -> dict[int, str]:
+    """Second pass: decode the chosen images, write ``folder/images/<row>.<ext>``; returns failures."""
+    wanted: dict[tuple[int, int], list[int]] = defaultdict(list)  # (bag, ordinal) -> sample rows
+    for row, sample in enumerate(samples):
+        if sample.image >= 0:
+            wanted[streams.images.values[sample.image]].append(row)
+    images = folder / "images"
+    images.mkdir()
+    failures: dict[int, str] = {}
+    for index, bag in enumerate(bags):
+        todo = {ordinal for b, ordinal in wanted if b == index}
+        if not todo:
+            continue
+        last = max(todo)
+        for ordinal, (connection, _, raw) in enumerate(bag.messages([topic])):
+            if ordinal in todo:
+                result = _decode_image(bag, connection, bag.deserialize(raw, connection), image_format)
+                for row in wanted[(index, ordinal)]:
+                    if isinstance(result, str):
+                        failures[row] = result
+                    else:
+                        (images / f"{row}.{result[1]}").write_bytes(result[0])
+            if ordinal >= last:
+                break
+    return failures
+
+
+def import_bags(
+    bags: Sequence[str | os.PathLike[str]],
+    out: str | os.PathLike[str],
+    settings: BagImportSettings | None = None,
+    overwrite: bool = False,
+    progress: bool = False,
+) -> BagImportSummary:
+    """Make a plain-format home folder ``out`` from ROS bags; returns what was read and written.
+
+    See the module docstring for what is read and how samples are made. Raises
+    :class:`~spco.errors.DataFormatError` (a bag's problem, naming it) or
+    :class:`~spco.errors.ConfigurationError` (a setting, or ``out`` cannot be written).
+    """
+    settings = settings or BagImportSettings()
+    settings.check()
+    start = time.perf_counter()
+    paths = [Path(b).expanduser() for b in bags]
+    if not paths:
+        raise ConfigurationError("give at least one bag")
+    target = Path(out).expanduser()
+    _check_out(target, paths, overwrite)
+    tolerance_ns = round(settings.tolerance * _NS)
+    dropped: Counter[str] = Counter()
+    with ExitStack() as stack:
+        opened = sorted((_Bag(p, stack) for p in paths), key=lambda b: b.start)
+        topics: dict[str, str] = {"pose": _pose_source(opened, settings)}
+        if settings.speech_topic is not None:
+            topics["speech"] = _required(
+                opened, settings.speech_topic, SPEECH_TYPES, "speech", "--speech-topic"
+            )
+        if settings.visual_topic is not None:
+            topics["visual"] = _required(
+                opened, settings.visual_topic, VISUAL_TYPES, "visual features", "--visual-topic"
+            )
+        if settings.image_topic is not None or settings.visual_topic is None:
+            # with ready-made features, views are read only from a topic given
+            topics["image"] = _required(opened, settings.image_topic, IMAGE_TYPES, "image", "--image-topic")
+        where = ", ".join(str(b.path) for b in opened)
+        streams, n_messages = _read_streams(opened, topics, settings, dropped, progress)
+        tf_mode = any(b.topics.get(topics["pose"]) in TF_TYPES for b in opened)
+        traj = (
+            _tf_trajectory(streams.tf, settings, tolerance_ns, where)
+            if tf_mode
+            else _pose_trajectory(streams.pose, tolerance_ns)
+        )
+        if traj.times.size == 0:
+            raise DataFormatError(where, f"no usable pose on {topics['pose']}")
+        summary = BagImportSummary(
+            bags=[str(p) for p in paths], out=str(target), topics=topics, messages=n_messages
+        )
+        samples = _make_samples(traj, streams, topics, settings, tolerance_ns, summary)
+        if not samples:
+            raise DataFormatError(
+                where,
+                "no sample has every modality: "
+                + ("; ".join(f"{n} {why}" for why, n in summary.skipped.items()) or "nothing to sample"),
+            )
+        tmp = target.resolve().parent / f".{target.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp"
+        tmp.mkdir()
+        try:
+            if "image" in topics:
+                failures = _write_images(
+                    opened, topics["image"], streams, samples, tmp, settings.image_format
+                )
+                samples = _drop_failed_images(samples, failures, tmp, summary)
+                if not samples:
+                    raise DataFormatError(
+                        where,
+                        "no image could be used: "
+                        + "; ".join(f"{n} {why}" for why, n in summary.skipped.items()),
+                    )
+            _write_home_files(tmp, samples, streams, settings, target, summary, where)
+            summary.samples = len(samples)
+            summary.taught = sum(s.sentence is not None for s in samples)
+            _add_clock_warnings(streams, summary)
+            summary.dropped = dict(dropped)
+            summary.seconds = time.perf_counter() - start
+            record = {**asdict(summary), "settings": asdict(settings), "spco_version": _version()}
+            (tmp / "import.json").write_text(
+                json.dumps(record, indent=1, ensure_ascii=False) + "\n", encoding="utf-8"
+            )
+            _move_into_place(tmp, target)
+        finally:
+            if tmp.exists():
+                shutil.rmtree(tmp, ignore_errors=True)
+    summary.seconds = time.perf_counter() - start
+    return summary
+
+
+def _make_samples(
+    traj: _Trajectory,
+    streams: _Streams,
+    topics: dict[str, str],
+    settings: BagImportSettings,
+    tolerance_ns: int,
+    summary: BagImportSummary,
+) -> list[_Sample]:
+    """Utterance and periodic samples with every modality, in time order (skips counted in ``summary``)."""
+    skipped: Counter[str] = Counter()
+    tol = f"{settings.tolerance:g} s"
+    speech_t = streams.speech.array()
+    periodic = _periodic_indices(traj, settings.every_seconds, settings.every_metres)
+    summary.utterances, summary.periodic = int(speech_t.size), int(periodic.size)
+    # candidates: (time, kind, sentence, pose) with kind 0 = utterance, 1 = along the way
+    valid, xy, yaw = (
+        traj.lookup(speech_t) if speech_t.size else (np.zeros(0, bool), np.zeros((0, 2)), np.zeros(0))
+    )
+    times = np.concatenate([speech_t, traj.times[periodic]])
+    kinds = np.concatenate([np.zeros(speech_t.size, np.int8), np.ones(periodic.size, np.int8)])
+    poses = np.concatenate(
+        [np.column_stack([xy, yaw]), np.column_stack([traj.xy[periodic], traj.yaw[periodic]])]
+    )
+    has_pose = np.concatenate([valid, np.ones(periodic.size, bool)])
+    image_idx = (
+        _nearest(streams.images.array(), times, tolerance_ns)
+        if "image" in topics
+        else np.full(times.size, -1)
+    )
+    visual_idx = (
+        _nearest(streams.visual.array(), times, tolerance_ns)
+        if "visual" in topics
+        else np.full(times.size, -1)
+    )
+    used_images: set[int] = set()
+    samples: list[_Sample] = []
+    # utterances first (a sample along the way never takes an utterance's view), then in time order
+    for row in np.lexsort((times, kinds)):
+        kind = "utterance" if kinds[row] == 0 else "along the way"
+        if not has_pose[row]:
+            skipped[f"{kind}: no pose within {tol}"] += 1
+            continue
+        if "image" in topics and image_idx[row] < 0:
+            skipped[f"{kind}: no image within {tol}"] += 1
+            continue
+        if "visual" in topics and visual_idx[row] < 0:
+            skipped[f"{kind}: no visual features within {tol}"] += 1
+            continue
+        if "image" in topics:
+            if kinds[row] == 1 and int(image_idx[row]) in used_images:
+                skipped[f"{kind}: same camera image as another sample"] += 1
+                continue
+            used_images.add(int(image_idx[row]))
+        sentence = streams.speech.values[row] if kinds[row] == 0 else None
+        x, y, theta = (float(v) for v in poses[row])
+        samples.append(
+            _Sample(int(times[row]), x, y, theta, sentence, int(image_idx[row]), int(visual_idx[row]))
+        )
+    samples.sort(key=lambda sample: sample.time)  # stable: an utterance stays before a sample at its time
+    summary.skipped = dict(skipped)
+    return samples
+
+
+def _drop_failed_images(
+    samples: list[_Sample], failures: dict[int, str], folder: Path, summary: BagImportSummary
+) -> list[_Sample]:
+    """Remove samples whose image could not be used and renumber the image files to the new rows."""
+    if not failures:
+        return samples
+    skipped = Counter(summary.skipped)
+    kept: list[_Sample] = []
+    images = folder / "images"
+    for row, sample in enumerate(samples):
+        if row in failures:
+            kind = "utterance" if sample.sentence is not None else "along the way"
+            skipped[f"{kind}: {failures[row]}"] += 1
+            continue
+        if row != len(kept):
+            for ext in ("jpg", "png"):
+                if (images / f"{row}.{ext}").exists():
+                    os.replace(images / f"{row}.{ext}", images / f"{len(kept)}.{ext}")
+        kept.append(sample)
+    summary.skipped = dict(skipped)
+    return kept
+
+
+def _write_home_files(
+    folder: Path,
+    samples: list[_Sample],
+    streams: _Streams,
+    settings: BagImportSettings,
+    target: Path,
+    summary: BagImportSummary,
+    where: str,
+) -> None:
+    """samples.csv, home.json and (with a visual topic) visual.npz."""
+    with open(folder / "samples.csv", "w", encoding="utf-8", newline="") as fh:
+        fh.write("id,x,y,theta,sentence\n")
+        writer = csv.writer(fh, lineterminator="\n", quoting=csv.QUOTE_NONNUMERIC)
+        for row, s in enumerate(samples):
+            writer.writerow([row, round(s.x, 4), round(s.y, 4), round(s.theta, 4), s.sentence or ""])
+    xy = np.array([[s.x, s.y] for s in samples])
+    margin = 0.5
+    meta: dict[str, Any] = {
+        "name": settings.name or target.resolve().name,
+        "extent": [
+            round(float(xy[:, 0].min()) - margin, 3),
+            round(float(xy[:, 0].max()) + margin, 3),
+            round(float(xy[:, 1].min()) - margin, 3),
+            round(float(xy[:, 1].max()) + margin, 3),
+        ],
+    }
+    if "visual" in summary.topics:
+        import scipy.sparse as sp
+
+        vectors = [streams.visual.values[s.visual] for s in samples]
+        sizes = Counter(v.size for v in vectors)
+        if len(sizes) > 1:
+            raise DataFormatError(
+                where,
+                f"{summary.topics['visual']}: feature vectors of different lengths "
+                f"({', '.join(map(str, sorted(sizes)))})",
+            )
+        matrix = np.vstack(vectors)
+        if not np.isfinite(matrix).all():
+            raise DataFormatError(where, f"{summary.topics['visual']}: feature vectors hold NaN or infinity")
+        if settings.visual_scale is None:
+            if (matrix < 0).any() or (matrix != np.round(matrix)).any():
+                raise DataFormatError(
+                    where,
+                    f"{summary.topics['visual']}: features are not counts (negative or "
+                    "fractional values); give --visual-scale (the authors used 5)",
+                )
+            matrix = matrix.astype(np.int64)
+        else:
+            meta["visual_scale"] = settings.visual_scale
+        sp.save_npz(folder / "visual.npz", sp.csr_array(matrix), compressed=True)
+    (folder / "home.json").write_text(json.dumps(meta, indent=1, ensure_ascii=False) + "\n", encoding="utf-8")
+
+
+def _add_clock_warnings(streams: _Streams, summary: BagImportSummary) -> None:
+    for topic, offsets in streams.header_offsets.items():
+        if offsets:
+            median = float(np.median(np.asarray(offsets, dtype=np.float64))) / _NS
+            if abs(median) > _HEADER_OFFSET_WARNING_S:
+                summary.warnings.append(
+                    f"{topic}: header stamps are {median:+.1f} s away from the bag's record times (a clock "
+                    "not synchronised with the recorder, or simulated time?); if samples are skipped for a "
+                    "missing modality, try --clock bag"
+                )
