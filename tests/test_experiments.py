@@ -189,7 +189,7 @@ def test_specific_experiment_on_synthetic_homes(tmp_path: Path) -> None:
     config = ExperimentConfig("specific", settings=(0, 100), trials=1, iterations=5, models=("spcoa",))
     result = run_experiment(config, tmp_path / "out")
     places = {r["place"] for r in result.runs} - {"mean"}
-    assert places == {"emma's-room", "mother's-room", "father's-room"}
+    assert places == {"emma's room", "mother's room", "father's room"}
     untaught = [r for r in result.runs if r["setting"] == 0 and r["place"] != "mean"]
     # rate 0: SpCoA never heard the names; its θ^w for them are prior draws (Dir(0.1)), so what it
     # predicts for them is chance, not necessarily 0 (see the README's notes on SpCoA)
