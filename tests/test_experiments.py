@@ -199,6 +199,20 @@ def test_specific_experiment_on_synthetic_homes(tmp_path: Path) -> None:
     assert "teaching rate [%]" in result.tables
 
 
+# ------------------------------------------------------------------------------------ free sentences
+def test_general_experiment_on_free_sentences(tmp_path: Path, new_home: str) -> None:
+    config = ExperimentConfig("general", settings=(2,), trials=1, iterations=5, models=("spcotransfer+mi",),
+                              new_homes=(new_home,), language="free")
+    result = run_experiment(config, tmp_path / "out")
+    data = result.results["config"]["data"]
+    assert data["language"] == "free" and data["source"] == "synthetic"
+    assert {"living room", "bathroom"} <= set(data["vocabulary"])  # a term and a synonym
+    places = {r["place"] for r in result.runs} - {"mean"}
+    assert "living room" in places or "dining" in places
+    with pytest.raises(ConfigurationError, match="synthetic homes only"):
+        load_experiment_data(ExperimentConfig(**SMALL, data=tmp_path, language="free"))
+
+
 # ------------------------------------------------------------------------------------ bad input
 @pytest.mark.parametrize(("args", "message"), [
     (["--models", "spcotransfer,nope"], "unknown model"),
@@ -243,19 +257,25 @@ def test_parsers_and_registry() -> None:
 
 # ------------------------------------------------------------------------------------ SIGVerse
 @pytest.mark.sigverse
-def test_sigverse_smoke(sigverse_dir: Path, tmp_path: Path) -> None:
+def test_sigverse_smoke(sigverse_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     regions = sigverse_dir.parent / "sigverse_regions.json"
     if not regions.is_file():
         pytest.skip(f"region file {regions} not found")
     out = tmp_path / "out"
+    monkeypatch.chdir(sigverse_dir.parent)  # paths as a user types them, relative
     res = CliRunner().invoke(experiment, [
-        "general", "--data", str(sigverse_dir), "--regions", str(regions), "--envs", "1",
+        "general", "--data", sigverse_dir.name, "--regions", regions.name, "--envs", "1",
         "--trials", "1", "--iterations", "3", "--models", "spcotransfer", "--new-homes", "1LDK_9",
         "--out", str(out), "-q",
     ])
     assert res.exit_code == 0, res.output
     results = json.loads((out / "results.json").read_text())
     assert results["config"]["data"]["experienced_homes"] == list(PAPER_EXPERIENCED_HOMES)
+    # result files name the data as given, never as an absolute path of this machine
+    assert results["config"]["data"]["source"] == sigverse_dir.name
+    assert results["config"]["data"]["regions"] == regions.name
+    assert f"data: {sigverse_dir.name}." in (out / "tables.md").read_text()
+    assert str(sigverse_dir.parent) not in (out / "results.json").read_text()
     places = {r["place"] for r in results["runs"]} - {"mean"}
     assert len(places) == 8
     assert (out / "maps" / "general_spcotransfer_1_1LDK_9.png").stat().st_size > 1000

@@ -260,6 +260,16 @@ def test_where_text_and_json(home_file: Path) -> None:
     assert abs(sum(p["probability"] for p in data["positions"]) - 1) < 1e-9
 
 
+def test_where_finds_a_name_however_it_is_written(home_file: Path) -> None:
+    answers = []
+    for name in ("living room", "Living Room", "living-room", "LIVING–ROOM"):
+        result = _invoke(where, [home_file, name, "--n", 3, "--json"])
+        assert result.exit_code == 0, result.output
+        answers.append(json.loads(result.output))
+    assert answers[0]["name"] == "living room"
+    assert all(a == answers[0] for a in answers[1:])
+
+
 def test_where_unknown_name_is_a_clear_answer(home_file: Path) -> None:
     result = _invoke(where, [home_file, "kitchn"])
     assert result.exit_code == 2

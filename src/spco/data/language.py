@@ -151,13 +151,18 @@ def normalize_text(text: str) -> str:
     return unicodedata.normalize("NFKC", text).casefold().translate(_PUNCTUATION)
 
 
-def _cut(atom: str) -> str:
-    if len(atom) > MAX_TOKEN_CHARS:
-        warnings.warn(f"a word longer than {MAX_TOKEN_CHARS} characters was cut to its first "
-                      f"{MAX_TOKEN_CHARS} (spco.data.language.MAX_TOKEN_CHARS)", LanguageWarning,
-                      stacklevel=4)
-        atom = atom[:MAX_TOKEN_CHARS].rstrip("'- ")
-    return atom
+@functools.lru_cache(maxsize=1 << 16)
+def _atoms(sentence: str) -> tuple[tuple[str, ...], bool, bool, bool]:
+    """Atoms of a sentence, and whether a word was cut, text without spaces was seen, the sentence was
+    cut (cached: sentences and labels repeat; the warnings are issued by :func:`tokenize`)."""
+    text = normalize_text(sentence)
+    atoms = [a.replace("-", " ") for a in _atom_pattern(text).findall(text)]
+    long_word = any(len(a) > MAX_TOKEN_CHARS for a in atoms)
+    if long_word:
+        atoms = [a[:MAX_TOKEN_CHARS].rstrip("' ") if len(a) > MAX_TOKEN_CHARS else a for a in atoms]
+    no_space = any(len(a) > 1 and _NO_SPACE.search(a) for a in atoms)
+    long_sentence = len(atoms) > MAX_SENTENCE_TOKENS
+    return tuple(atoms[:MAX_SENTENCE_TOKENS]), long_word, no_space, long_sentence
 
 
 def tokenize(sentence: str | None) -> list[str]:
@@ -170,19 +175,21 @@ def tokenize(sentence: str | None) -> list[str]:
     """
     if not sentence:
         return []
-    text = normalize_text(sentence)
-    atoms = [_cut(a.replace("-", " ")) for a in _atom_pattern(text).findall(text)]
-    if any(len(a) > 1 and _NO_SPACE.search(a) for a in atoms):
+    atoms, long_word, no_space, long_sentence = _atoms(str(sentence))
+    if long_word:
+        warnings.warn(f"a word longer than {MAX_TOKEN_CHARS} characters was cut to its first "
+                      f"{MAX_TOKEN_CHARS} (spco.data.language.MAX_TOKEN_CHARS)", LanguageWarning,
+                      stacklevel=2)
+    if no_space:
         warnings.warn("text in a script written without spaces (Chinese, Japanese, Thai, …) is kept as one "
                       "token per space-separated chunk, not cut into characters; segment such sentences "
                       "into words separated by spaces (e.g. with MeCab or jieba) before giving them to spco",
                       LanguageWarning, stacklevel=2)
-    if len(atoms) > MAX_SENTENCE_TOKENS:
+    if long_sentence:
         warnings.warn(f"a sentence of more than {MAX_SENTENCE_TOKENS} words was cut to its first "
                       f"{MAX_SENTENCE_TOKENS} (spco.data.language.MAX_SENTENCE_TOKENS)", LanguageWarning,
                       stacklevel=2)
-        atoms = atoms[:MAX_SENTENCE_TOKENS]
-    return atoms
+    return list(atoms)
 
 
 def normalize_name(name: str) -> str:
