@@ -50,7 +50,10 @@ its own name-keyed stream, so adding a place type leaves the others unchanged.
 *Sentences.* Taught training samples get one of the five templates of the paper ("this is the X",
 "the X is here", "this place is the X", "this space is the X", "this location is the X"; no article
 before possessive names: "this is Emma's-room"). Optionally a fraction of free-form sentences
-("hey robot, we call this area the kitchen") and of sentences naming a wrong place.
+("hey robot, we call this area the kitchen") and of sentences naming a wrong place. With
+``SyntheticConfig(language="free")`` a household of one to three people speaks instead, as people do
+(:mod:`spco.data.speech`: synonyms, multi-word names, objects, fillers, typos, the room next door),
+and the ground truth lists each place's accepted names.
 
 Everything is driven by :class:`numpy.random.Generator` streams: the same seed gives bitwise
 identical homes (with the same NumPy and BLAS: image profiles go through a matrix product).

@@ -34,7 +34,8 @@ drawn), and its record is copied to the other settings with ``reused_from_settin
 
 Data
 ----
-``data="synthetic"`` generates ``max(16, n_max) + 3`` homes with
+``data="synthetic"`` (sentences: ``language``, the paper's templates or ``"free"``) generates
+``max(16, n_max) + 3`` homes with
 :func:`spco.data.synthetic.generate_homes` (``seed`` = the experiment's seed): the first are the
 experienced homes, the last three the new homes, the very last has the home-specific bedrooms
 (taught with :func:`spco.data.synthetic.teach`, the same seed). A path (a folder of homes in either
