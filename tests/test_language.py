@@ -135,6 +135,21 @@ def test_term_rule_thresholds() -> None:
     assert "front door" in terms and not any("the" in t.split() for t in terms)  # "the": 4 of 6 sentences
 
 
+def test_a_grown_vocabulary_learns_terms_of_new_words_only() -> None:
+    vocab = Vocabulary.from_sentences(["this is the living room", "the kitchen", "a room"] * 2)
+    assert "living room" not in vocab.terms and "room" in vocab  # said twice: no term yet
+    grown = vocab.extended(["this is the study room", "my study room", "the study room is here",
+                            "study room", "we work in the study room",
+                            "the living room", "our living room", "living room here", "the kitchen",
+                            "kitchen", "the hall", "a hall", "hall here", "by the stove", "the stove",
+                            "the bath", "bath here", "a toilet"])
+    assert grown.words[: len(vocab)] == vocab.words
+    assert "study room" in grown.terms  # "study" is new
+    assert "living room" not in grown  # both words known: their columns keep their occurrences
+    assert grown.tokenize("this is the living room") == vocab.tokenize("this is the living room")
+    assert vocab.extended(["the study room"] * 5, learn=False).tokenize("study room") == ["study", "room"]
+
+
 def test_old_vocabularies_with_hyphens_read_as_terms() -> None:
     vocab = Vocabulary(("this", "living-room", "Emma's-Room"))
     assert vocab.words == ("this", "living room", "emma's room")

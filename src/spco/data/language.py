@@ -396,15 +396,25 @@ class Vocabulary:
         """Tokens of ``sentence`` that are not in the vocabulary."""
         return [w for w in self.tokenize(sentence) if w not in self._index]
 
-    def extended(self, sentences: Iterable[str | None]) -> Vocabulary:
+    def extended(self, sentences: Iterable[str | None], learn: bool = True) -> Vocabulary:
         """A vocabulary with the new tokens of ``sentences`` appended (existing columns kept).
 
-        The terms are those of this vocabulary (no new term is learnt: a new sentence is tokenised
-        as the knowledge's own sentences were); hyphenated compounds are new tokens as any word.
+        The known terms apply. With ``learn``, terms learnt from ``sentences`` alone
+        (:func:`learn_terms`) are added too, but only those holding a word this vocabulary does not
+        know ("study room" said often in a new home, when "study" is new): a term made of known
+        tokens would take their occurrences away from the columns that carry what was learnt
+        before. So sentences tokenised before are tokenised the same way after.
         """
+        texts = [s for s in sentences if s]
+        base = self
+        if learn:
+            new_terms = tuple(t for t in learn_terms(texts) if t not in self._index
+                              and any(tok not in self._index for tok in self.tokenize(t)))
+            if new_terms:
+                base = Vocabulary((*self.words, *new_terms))
         words = dict.fromkeys(self.words)
-        for sentence in sentences:
-            for word in self.tokenize(sentence):
+        for sentence in texts:
+            for word in base.tokenize(sentence):
                 words.setdefault(word, None)
         return Vocabulary(tuple(words))
 
