@@ -285,6 +285,25 @@ def test_region_posterior_matches_brute_force() -> None:
                     region_posterior_for_name(params, 0, VOCAB, "living room"))
 
 
+def test_a_name_of_several_known_words_combines_them() -> None:
+    params = make_params()
+    words = [VOCAB.index("this"), VOCAB.index("kitchen")]
+    expected = np.zeros(3)
+    for m in range(3):
+        for c in range(3):
+            theta = params.word_probabilities[0, c]
+            expected[m] += (params.region_weights[0, c, m] * params.concept_weights[0, c]
+                            * theta[words[0]] * theta[words[1]])
+    expected /= expected.sum()
+    assert_allclose(region_posterior_for_name(params, 0, VOCAB, "this kitchen"), expected)
+    assert predict_positions(params, 0, VOCAB, "This Kitchen", n=2, rng=0).name == "this + kitchen"
+    # unknown words of the name are left out; a name of unknown words only is unknown
+    assert_allclose(region_posterior_for_name(params, 0, VOCAB, "kitchen corner"),
+                    region_posterior_for_name(params, 0, VOCAB, "kitchen"))
+    with pytest.raises(UnknownNameError, match="never taught"):
+        region_posterior_for_name(params, 0, VOCAB, "garden shed")
+
+
 def test_positions_concentrate_at_the_named_region() -> None:
     params = make_params()
     pred = predict_positions(params, 0, VOCAB, "Bath", n=4000, rng=0)

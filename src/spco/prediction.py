@@ -52,6 +52,7 @@ __all__ = [
     "mutual_information_weights",
     "predict_names",
     "predict_positions",
+    "query_name",
     "reference_kl_weights",
     "region_posterior_for_name",
     "word_posterior",
@@ -486,14 +487,6 @@ def predict_names(
 
 
 # ---------------------------------------------------------------------------------- positions
-def _word_index(params: ConceptParameters, vocabulary: Vocabulary, name: str) -> int:
-    indices = _query_indices(params, vocabulary, name)
-    if len(indices) != 1:
-        raise UnknownNameError(name, [w for w, keep in zip(vocabulary.words, params.word_mask, strict=True)
-                                      if keep], reason=f"{name!r} is not one known word")
-    return indices[0]
-
-
 def _query_indices(params: ConceptParameters, vocabulary: Vocabulary, name: str) -> list[int]:
     """Columns of the usable tokens of a name asked for (see :func:`region_posterior_for_name`)."""
     _check_vocabulary(params, vocabulary)
