@@ -189,7 +189,7 @@ def test_specific_experiment_on_synthetic_homes(tmp_path: Path) -> None:
     config = ExperimentConfig("specific", settings=(0, 100), trials=1, iterations=5, models=("spcoa",))
     result = run_experiment(config, tmp_path / "out")
     places = {r["place"] for r in result.runs} - {"mean"}
-    assert places == {"emma's-room", "mother's-room", "father's-room"}
+    assert places == {"emma's room", "mother's room", "father's room"}
     untaught = [r for r in result.runs if r["setting"] == 0 and r["place"] != "mean"]
     # rate 0: SpCoA never heard the names; its θ^w for them are prior draws (Dir(0.1)), so what it
     # predicts for them is chance, not necessarily 0 (see the README's notes on SpCoA)
@@ -197,6 +197,20 @@ def test_specific_experiment_on_synthetic_homes(tmp_path: Path) -> None:
     assert all(0.0 <= r["name_accuracy"] <= 1.0 and 0.0 <= r["position_accuracy"] <= 1.0 for r in untaught)
     assert (tmp_path / "out" / "specific_name_accuracy.png").stat().st_size > 1000
     assert "teaching rate [%]" in result.tables
+
+
+# ------------------------------------------------------------------------------------ free sentences
+def test_general_experiment_on_free_sentences(tmp_path: Path, new_home: str) -> None:
+    config = ExperimentConfig("general", settings=(2,), trials=1, iterations=5, models=("spcotransfer+mi",),
+                              new_homes=(new_home,), language="free")
+    result = run_experiment(config, tmp_path / "out")
+    data = result.results["config"]["data"]
+    assert data["language"] == "free" and data["source"] == "synthetic"
+    assert {"living room", "bathroom"} <= set(data["vocabulary"])  # a term and a synonym
+    places = {r["place"] for r in result.runs} - {"mean"}
+    assert "living room" in places or "dining" in places
+    with pytest.raises(ConfigurationError, match="synthetic homes only"):
+        load_experiment_data(ExperimentConfig(**SMALL, data=tmp_path, language="free"))
 
 
 # ------------------------------------------------------------------------------------ bad input
@@ -243,19 +257,25 @@ def test_parsers_and_registry() -> None:
 
 # ------------------------------------------------------------------------------------ SIGVerse
 @pytest.mark.sigverse
-def test_sigverse_smoke(sigverse_dir: Path, tmp_path: Path) -> None:
+def test_sigverse_smoke(sigverse_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     regions = sigverse_dir.parent / "sigverse_regions.json"
     if not regions.is_file():
         pytest.skip(f"region file {regions} not found")
     out = tmp_path / "out"
+    monkeypatch.chdir(sigverse_dir.parent)  # paths as a user types them, relative
     res = CliRunner().invoke(experiment, [
-        "general", "--data", str(sigverse_dir), "--regions", str(regions), "--envs", "1",
+        "general", "--data", sigverse_dir.name, "--regions", regions.name, "--envs", "1",
         "--trials", "1", "--iterations", "3", "--models", "spcotransfer", "--new-homes", "1LDK_9",
         "--out", str(out), "-q",
     ])
     assert res.exit_code == 0, res.output
     results = json.loads((out / "results.json").read_text())
     assert results["config"]["data"]["experienced_homes"] == list(PAPER_EXPERIENCED_HOMES)
+    # result files name the data as given, never as an absolute path of this machine
+    assert results["config"]["data"]["source"] == sigverse_dir.name
+    assert results["config"]["data"]["regions"] == regions.name
+    assert f"data: {sigverse_dir.name}." in (out / "tables.md").read_text()
+    assert str(sigverse_dir.parent) not in (out / "results.json").read_text()
     places = {r["place"] for r in results["runs"]} - {"mean"}
     assert len(places) == 8
     assert (out / "maps" / "general_spcotransfer_1_1LDK_9.png").stat().st_size > 1000

@@ -260,6 +260,16 @@ def test_where_text_and_json(home_file: Path) -> None:
     assert abs(sum(p["probability"] for p in data["positions"]) - 1) < 1e-9
 
 
+def test_where_finds_a_name_however_it_is_written(home_file: Path) -> None:
+    answers = []
+    for name in ("living room", "Living Room", "living-room", "LIVING–ROOM"):
+        result = _invoke(where, [home_file, name, "--n", 3, "--json"])
+        assert result.exit_code == 0, result.output
+        answers.append(json.loads(result.output))
+    assert answers[0]["name"] == "living room"
+    assert all(a == answers[0] for a in answers[1:])
+
+
 def test_where_unknown_name_is_a_clear_answer(home_file: Path) -> None:
     result = _invoke(where, [home_file, "kitchn"])
     assert result.exit_code == 2
@@ -311,10 +321,10 @@ def test_teach_a_new_word_in_place(tmp_path: Path, home_file: Path) -> None:
     elapsed = time.perf_counter() - start
     assert result.exit_code == 0, result.output
     assert elapsed < 5.0  # well under a second in practice; loose on a loaded machine
-    assert "New words: emma's-room" in result.output
+    assert "New words: emma's room" in result.output
     after = kn.load_home_model(path)
     assert after.vocabulary.words[: len(before.vocabulary)] == before.vocabulary.words
-    assert after.vocabulary.words[-1] == "emma's-room"
+    assert after.vocabulary.words[-1] == "emma's room"
     assert after.sentences[7] == "this is Emma's-room" and after.n_taught == 1
     assert np.array_equal(after.ids, before.ids)
     assert after.provenance["teach_updates"] == 1

@@ -10,19 +10,29 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from spco.data.language import Vocabulary, normalize_name, tokenize
+from spco.data.language import (
+    MAX_SENTENCE_TOKENS,
+    MAX_TOKEN_CHARS,
+    LanguageWarning,
+    Vocabulary,
+    learn_terms,
+    normalize_name,
+    tokenize,
+)
 from spco.errors import ConfigurationError
+
+pytestmark = pytest.mark.filterwarnings("ignore::spco.data.language.LanguageWarning")  # "ダイニング"
 
 WORDS = ["kitchen", "emma's-room", "living-room", "this", "is", "the", "bath", "father's", "ダイニング"]
 
 
 def test_examples() -> None:
-    assert tokenize("This is Emma's-room!") == ["this", "is", "emma's-room"]
-    assert tokenize("Emma’s room, the LIVING-ROOM.") == ["emma's", "room", "the", "living-room"]
+    assert tokenize("This is Emma's-room!") == ["this", "is", "emma's room"]
+    assert tokenize("Emma’s room, the LIVING-ROOM.") == ["emma's", "room", "the", "living room"]
     assert tokenize("kitchen – bath -- 'quoted' toilet's") == ["kitchen", "bath", "quoted", "toilet's"]
     assert tokenize("snake_case x2") == ["snake", "case", "x2"]
     assert tokenize(None) == [] and tokenize("") == [] and tokenize(" ,.! ") == []
-    assert normalize_name("Emma's Room") == "emma's-room"
+    assert normalize_name("Emma's Room") == normalize_name("emma's-room") == "emma's room"
 
 
 @settings(max_examples=300)
@@ -30,23 +40,22 @@ def test_examples() -> None:
 def test_tokens_are_clean_words(sentence: str) -> None:
     for token in tokenize(sentence):
         assert token and token == token.lower()
-        assert not any(ch.isspace() for ch in token)
-        assert all(ch.isalnum() or ch in "'-" for ch in token)
-        assert token[0] not in "'-" and token[-1] not in "'-"
-        assert not any(a in "'-" and b in "'-" for a, b in pairwise(token))
+        assert token == token.strip() and "  " not in token and "-" not in token
+        assert token[0] not in "' " and token[-1] not in "' "
+        assert not any(a in "' " and b in "' " for a, b in pairwise(token))
 
 
 @settings(max_examples=300)
 @given(st.text(max_size=80))
 def test_tokenize_is_idempotent(sentence: str) -> None:
     tokens = tokenize(sentence)
-    assert tokenize(" ".join(tokens)) == tokens
+    assert tokenize(" ".join(t.replace(" ", "-") for t in tokens)) == tokens
 
 
 @given(st.lists(st.sampled_from(WORDS), max_size=12), st.sampled_from([" ", "  ", "\t", ", ", "! "]))
 def test_possessive_and_hyphenated_names_stay_whole(words: list[str], sep: str) -> None:
     sentence = sep.join(w.upper() if i % 2 else w for i, w in enumerate(words))
-    assert tokenize(sentence) == words
+    assert tokenize(sentence) == [w.replace("-", " ") for w in words]
 
 
 sentences = st.lists(st.one_of(st.none(), st.lists(st.sampled_from([*WORDS, "unknown", "zebra"]),
@@ -61,20 +70,20 @@ def test_encode_counts_increment_times_occurrences(texts: list[str | None], voca
     assert counts.shape == (len(texts), len(vocab_words)) and counts.dtype == np.int64
     dense = counts.toarray()
     for row, text in enumerate(texts):
-        occurrences = Counter(tokenize(text))
-        expected = [increment * occurrences[w] for w in vocab_words]
+        occurrences = Counter(vocab.tokenize(text))
+        expected = [increment * occurrences[w] for w in vocab.words]
         assert dense[row].tolist() == expected  # unknown words contribute nothing
-        assert vocab.unknown_words(text) == [w for w in tokenize(text) if w not in vocab_words]
+        assert vocab.unknown_words(text) == [w for w in vocab.tokenize(text) if w not in vocab.words]
 
 
 @given(sentences)
 def test_vocabulary_from_sentences_in_order_of_first_appearance(texts: list[str | None]) -> None:
-    vocab = Vocabulary.from_sentences(texts)
+    vocab = Vocabulary.from_sentences(texts, learn=False)
     expected = list(dict.fromkeys(w for t in texts for w in tokenize(t)))
     assert list(vocab.words) == expected
     assert all(vocab.index(w) == k for k, w in enumerate(expected))
     extended = vocab.extended(["a brand-new word"])
-    assert extended.words[: len(vocab)] == vocab.words and "brand-new" in extended
+    assert extended.words[: len(vocab)] == vocab.words and "brand new" in extended
 
 
 def test_vocabulary_errors() -> None:
@@ -82,3 +91,95 @@ def test_vocabulary_errors() -> None:
         Vocabulary(("a", "a"))
     with pytest.raises(ConfigurationError):
         Vocabulary(("a",)).encode(["a"], 0)
+
+
+# ------------------------------------------------------------------------------ terms
+def _speech(rng: np.random.Generator, n: int) -> list[str]:
+    """Sentences in which people say multi-word names, with varied frames around them."""
+    frames = ["this is the {}", "the {} is here", "we are in the {}", "welcome to our {}", "{} here",
+              "okay so this is the {} right", "look the {}"]
+    names = ["living room", "dining room", "kitchen", "front door", "bathroom", "emma's room", "toilet",
+             "bedroom"]
+    return [frames[rng.integers(len(frames))].format(names[rng.integers(len(names))]) for _ in range(n)]
+
+
+def test_terms_are_learnt_from_the_sentences() -> None:
+    sentences = _speech(np.random.default_rng(0), 300)
+    vocab = Vocabulary.from_sentences(sentences)
+    for term in ("living room", "dining room", "front door", "emma's room"):
+        assert term in vocab.terms
+    assert "room" not in vocab  # "room" never stands alone in these sentences
+    assert not any(w == "the" for t in vocab.terms for w in t.split())  # a frame word: in > 50 % of sentences
+    assert not any(t.startswith(("living room ", "kitchen ")) for t in vocab.terms)  # names end sentences
+    assert vocab.tokenize("The Living-Room is here") == ["the", "living room", "is here"]
+    k = vocab.index("living room")
+    assert k is not None and vocab.index("Living Room") == vocab.index("living-room") == k
+    assert vocab.words[k] == "living room"
+
+
+def test_once_said_pairs_are_not_terms_but_queries_of_several_words_find_their_tokens() -> None:
+    sentences = [*_speech(np.random.default_rng(1), 200), "this is the study room"]
+    vocab = Vocabulary.from_sentences(sentences)
+    assert "study room" not in vocab and "study" in vocab and "room" in vocab
+    tokens, columns = vocab.query("Study-Room")
+    assert tokens == ["study", "room"] and columns == [vocab.index("study"), vocab.index("room")]
+    assert vocab.index("study room") is None
+
+
+def test_term_rule_thresholds() -> None:
+    assert learn_terms(["the big house"] * 2) == []  # under the minimum count
+    # "big" is followed by several words: no cohesion
+    assert learn_terms(["a big house", "the big house", "a big tree", "big cat"] * 3) == []
+    terms = learn_terms(["open the front door", "the front door is red", "we left by the front door",
+                         "the hall", "a cellar", "my cellar is cold"] * 3)
+    assert "front door" in terms and not any("the" in t.split() for t in terms)  # "the": 4 of 6 sentences
+
+
+def test_a_grown_vocabulary_learns_terms_of_new_words_only() -> None:
+    vocab = Vocabulary.from_sentences(["this is the living room", "the kitchen", "a room"] * 2)
+    assert "living room" not in vocab.terms and "room" in vocab  # said twice: no term yet
+    grown = vocab.extended(["this is the study room", "my study room", "the study room is here",
+                            "study room", "we work in the study room",
+                            "the living room", "our living room", "living room here", "the kitchen",
+                            "kitchen", "the hall", "a hall", "hall here", "by the stove", "the stove",
+                            "the bath", "bath here", "a toilet"])
+    assert grown.words[: len(vocab)] == vocab.words
+    assert "study room" in grown.terms  # "study" is new
+    assert "living room" not in grown  # both words known: their columns keep their occurrences
+    assert grown.tokenize("this is the living room") == vocab.tokenize("this is the living room")
+    assert vocab.extended(["the study room"] * 5, learn=False).tokenize("study room") == ["study", "room"]
+
+
+def test_old_vocabularies_with_hyphens_read_as_terms() -> None:
+    vocab = Vocabulary(("this", "living-room", "Emma's-Room"))
+    assert vocab.words == ("this", "living room", "emma's room")
+    assert vocab.tokenize("this living room, EMMA’S ROOM") == ["this", "living room", "emma's room"]
+    counts = vocab.encode(["this is the living room", "living-room"], 2).toarray()
+    assert counts.tolist() == [[2, 2, 0], [0, 2, 0]]
+
+
+# ------------------------------------------------------------------------------ any text
+def test_unicode_is_normalised_and_kept() -> None:
+    assert tokenize("ＬＩＶＩＮＧ Straße CAFÉ") == ["living", "strasse", "café"]
+    assert tokenize("cafe\u0301") == ["café"]  # NFKC composes the accent
+    assert tokenize("हिन्दी कमरा") == ["हिन्दी", "कमरा"]  # combining marks stay in the word
+    assert tokenize("the 🛁 room 👍🏽!") == ["the", "🛁", "room", "👍🏽"]
+    assert tokenize("гостиная комната") == ["гостиная", "комната"]
+    vocab = Vocabulary.from_sentences(["это гостиная 🛋️"] * 4)
+    assert vocab.index("Гостиная") is not None and vocab.index("🛋️") is not None
+
+
+def test_text_without_spaces_is_one_token_with_a_warning() -> None:
+    with pytest.warns(LanguageWarning, match="without spaces"):
+        assert tokenize("ここはリビングです") == ["ここはリビングです"]
+    with pytest.warns(LanguageWarning, match="without spaces"):
+        assert tokenize("这是 厨房") == ["这是", "厨房"]
+
+
+def test_over_long_input_is_cut_with_a_warning() -> None:
+    with pytest.warns(LanguageWarning, match="cut"):
+        tokens = tokenize(" ".join(["word"] * (MAX_SENTENCE_TOKENS + 50)))
+    assert len(tokens) == MAX_SENTENCE_TOKENS
+    with pytest.warns(LanguageWarning, match="cut"):
+        (token,) = tokenize("a" * (MAX_TOKEN_CHARS * 3))
+    assert len(token) == MAX_TOKEN_CHARS

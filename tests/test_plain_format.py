@@ -73,6 +73,18 @@ def test_round_trip(tmp_path: Path) -> None:
     assert not (tmp_path / "bare" / "labels.csv").exists()
 
 
+def test_accepted_names_round_trip(tmp_path: Path) -> None:
+    from spco.data.synthetic import SyntheticConfig, generate_home
+
+    env = generate_home(0, layout="1LDK", config=SyntheticConfig(n_features=64, language="free"))
+    back = read_home(write_home(env, tmp_path / "h"))
+    assert back.ground_truth.accepted_names == env.ground_truth.accepted_names
+    assert "bathroom" in back.ground_truth.accepted("bath")
+    (tmp_path / "h" / "accepted_names.json").write_text('{"bath": "bathroom"}')
+    with pytest.raises(DataFormatError, match=r"accepted_names\.json"):
+        read_home(tmp_path / "h")
+
+
 def test_written_csv_is_documented_format(tmp_path: Path) -> None:
     folder = write_home(tiny_env(), tmp_path / "flat")
     lines = (folder / "samples.csv").read_text(encoding="utf-8").splitlines()

@@ -27,7 +27,7 @@ from spco.prediction import (
     word_posterior,
 )
 
-WORDS = ("this", "is", "kitchen", "bath", "living-room")
+WORDS = ("this", "is", "kitchen", "bath", "living room")
 VOCAB = Vocabulary(WORDS)
 MEANS_XY = np.array([[0.0, 0.0], [3.0, 0.0], [0.0, 3.0]])  # region m of concept m
 
@@ -235,7 +235,7 @@ def region_observation(params: ConceptParameters, m: int, scale: int = 50) -> tu
 @pytest.mark.parametrize("weighting", ["mi", "reference"])
 def test_observation_in_a_concepts_region_predicts_its_name(weighting: str) -> None:
     params = make_params()
-    for m, word in enumerate(("kitchen", "bath", "living-room")):
+    for m, word in enumerate(("kitchen", "bath", "living room")):
         pos, vis = region_observation(params, m)
         pred = predict_names(params, 0, VOCAB, pos, vis, top_k=3, weighting=weighting)  # type: ignore[arg-type]
         assert isinstance(pred, NamePrediction)
@@ -271,7 +271,7 @@ def test_empty_batch() -> None:
 # ------------------------------------------------------------------------- positions
 def test_region_posterior_matches_brute_force() -> None:
     params = make_params()
-    for word in ("kitchen", "bath", "living-room", "this"):
+    for word in ("kitchen", "bath", "living room", "this"):
         w = VOCAB.index(word)
         expected = np.zeros(3)
         for m in range(3):
@@ -282,7 +282,26 @@ def test_region_posterior_matches_brute_force() -> None:
         assert_allclose(region_posterior_for_name(params, 0, VOCAB, word), expected)
     # names are normalised like vocabulary words
     assert_allclose(region_posterior_for_name(params, 0, VOCAB, "Living Room"),
-                    region_posterior_for_name(params, 0, VOCAB, "living-room"))
+                    region_posterior_for_name(params, 0, VOCAB, "living room"))
+
+
+def test_a_name_of_several_known_words_combines_them() -> None:
+    params = make_params()
+    words = [VOCAB.index("this"), VOCAB.index("kitchen")]
+    expected = np.zeros(3)
+    for m in range(3):
+        for c in range(3):
+            theta = params.word_probabilities[0, c]
+            expected[m] += (params.region_weights[0, c, m] * params.concept_weights[0, c]
+                            * theta[words[0]] * theta[words[1]])
+    expected /= expected.sum()
+    assert_allclose(region_posterior_for_name(params, 0, VOCAB, "this kitchen"), expected)
+    assert predict_positions(params, 0, VOCAB, "This Kitchen", n=2, rng=0).name == "this + kitchen"
+    # unknown words of the name are left out; a name of unknown words only is unknown
+    assert_allclose(region_posterior_for_name(params, 0, VOCAB, "kitchen corner"),
+                    region_posterior_for_name(params, 0, VOCAB, "kitchen"))
+    with pytest.raises(UnknownNameError, match="never taught"):
+        region_posterior_for_name(params, 0, VOCAB, "garden shed")
 
 
 def test_positions_concentrate_at_the_named_region() -> None:

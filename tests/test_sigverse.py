@@ -31,7 +31,7 @@ def test_new_home_1ldk_9(sigverse_dir: Path) -> None:
     assert (env.name, env.n_samples, env.n_test, env.n_taught) == ("1LDK_9", 240, 80, 0)
     assert env.n_features == 4096
     assert env.ground_truth is not None and env.ground_truth.regions is not None  # sigverse_regions.json
-    assert set(env.ground_truth.places) == {"entrance", "toilet", "bedroom", "bath", "living-room",
+    assert set(env.ground_truth.places) == {"entrance", "toilet", "bedroom", "bath", "living room",
                                            "dining", "kitchen", "washroom"}
 
 
@@ -48,7 +48,7 @@ def test_3ldk_9_teaching_rates_and_ground_truth(sigverse_dir: Path) -> None:
     assert gt.labels[0] == "entrance"
     assert gt.specific_test is not None and gt.specific_test.sum() == 30
     assert {gt.specific_labels[i] for i in np.flatnonzero(gt.specific_test)} == {
-        "emma's-room", "mother's-room", "father's-room"}
+        "emma's room", "mother's room", "father's room"}
     with pytest.raises(DataFormatError, match=r"available rates: 20, 40, 60, 80, 100") as err:
         load_sigverse_home(home, teaching_rate=30)
     assert "sentence" in str(err.value)

@@ -40,8 +40,8 @@ def corpus() -> Corpus:
 def _rooms(env: Environment) -> list[tuple[str, tuple[float, float, float, float]]]:
     """(general place, rectangle) of every room of a synthetic home."""
     regions = env.ground_truth.regions.places
-    return [(place, rect) for place, rects in regions.items() if place in GENERAL_PLACES
-            for rect in rects]
+    general = {normalize_name(p) for p in GENERAL_PLACES}
+    return [(place, rect) for place, rects in regions.items() if place in general for rect in rects]
 
 
 def _same(a: Environment, b: Environment) -> bool:
@@ -132,8 +132,8 @@ def test_any_home_is_consistent(seed: int, layout: Layout) -> None:
     for place in set(labels):
         assert env.ground_truth.regions.contains(place, env.positions[labels == place, :2]).all()
     assert len(rooms) * SMALL.n_train == env.n_train
-    assert sorted(p for p, _ in rooms) == sorted(normalize_name(r) for r in layout.rooms
-                                                 + tuple(p for p in layout.optional if p in labels))
+    present = tuple(p for p in layout.optional if normalize_name(p) in labels)
+    assert sorted(p for p, _ in rooms) == sorted(normalize_name(r) for r in layout.rooms + present)
 
 
 # ------------------------------------------------------------------------------ samples
@@ -143,7 +143,8 @@ def test_blocks_split_and_sentences(corpus: Corpus) -> None:
         assert env.n_test == 0 and env.n_taught == env.n_train
         labels = env.labels(specific=env.ground_truth.specific_labels is not None)
         for sentence, label in zip(env.sentences, labels, strict=True):
-            assert sentence in {t.format(the="the ", name=label) for t in SENTENCE_TEMPLATES}
+            assert normalize_name(sentence) in {normalize_name(t.format(the="the ", name=label))
+                                                for t in SENTENCE_TEMPLATES}
             assert label in tokenize(sentence)
     for env in new:
         assert all(s is None for s in env.sentences) and env.n_taught == 0
@@ -184,8 +185,8 @@ def test_specific_rooms_can_be_renamed_or_left_out() -> None:
     plain = generate_homes(3, seed=2, config=SMALL, specific_rooms=False)
     assert all(env.ground_truth.specific_labels is None for env in plain)
     named = generate_homes(2, seed=2, config=SMALL, specific_rooms=["Kenji's-room", "study-room"])
-    assert set(named[-1].ground_truth.specific_labels) >= {"kenji's-room", "study-room"}
-    assert "kenji's-room" in named.vocabulary  # experienced home: taught with the names
+    assert set(named[-1].ground_truth.specific_labels) >= {"kenji's room", "study room"}
+    assert "kenji's room" in named.vocabulary  # experienced home: taught with the names
     with pytest.raises(ConfigurationError):
         generate_home(0, layout="1K", config=SMALL, specific_names=["a", "b"])
 
@@ -202,7 +203,7 @@ def test_teach_reproduces_the_home_specific_experiment(corpus: Corpus) -> None:
     specific = np.array(env.ground_truth.specific_labels)
     said = [(s, lab) for s, lab in zip(taught.sentences, specific, strict=True) if s is not None]
     assert len(said) == 3 * 8
-    assert all(lab in tokenize(s) and lab.split("-")[0].endswith("'s") for s, lab in said)
+    assert all(lab in tokenize(s) and lab.split(" ")[0].endswith("'s") for s, lab in said)
     assert all(not s.startswith("this is the") for s, _ in said)  # no article before a possessive
     assert not any(s for s, t in zip(taught.sentences, taught.is_test, strict=True) if t)
     full = teach(env, 100, specific=False)
@@ -220,6 +221,28 @@ def test_free_form_and_wrong_names() -> None:
     wrong = generate_home(1, layout="2LDK", config=replace(SMALL, wrong_name_rate=1.0))
     for sentence, label in zip(wrong.sentences, wrong.ground_truth.labels, strict=True):
         assert label not in tokenize(sentence)
+
+
+def test_free_language_varies_as_people_speak() -> None:
+    free = replace(SMALL, language="free")
+    corpus = generate_homes(6, seed=0, config=free, specific_rooms=False)
+    again = generate_homes(6, seed=0, config=free, specific_rooms=False)
+    assert [e.sentences for e in corpus] == [e.sentences for e in again]  # same seed, same speech
+    templates = generate_homes(6, seed=0, config=SMALL, specific_rooms=False)
+    assert [e.positions.tolist() for e in corpus] == [e.positions.tolist() for e in templates]
+    said = [(s, lab) for e in corpus for s, lab in zip(e.sentences, e.ground_truth.labels, strict=True) if s]
+    assert len({s for s, _ in said}) > 0.4 * len(said)  # many phrasings
+    vocab = corpus.vocabulary
+    assert {"living room", "dining room", "front door"} <= set(vocab.terms)  # learnt multi-word names
+    assert {"bathroom", "shower", "fridge"} <= set(vocab.words)  # synonyms and objects
+    gt = corpus[0].ground_truth
+    assert gt.accepted("bath")[:2] == ("bath", "bathroom") and "shower" in gt.accepted("bath")
+    assert "living room" in gt.accepted("living-room")
+    # most sentences name the place, or one of its synonyms, as a token
+    named = sum(any(t in gt.accepted(lab) for t in vocab.tokenize(s)) for s, lab in said)
+    assert 0.5 < named / len(said) < 0.95
+    with pytest.raises(ConfigurationError, match="language"):
+        SyntheticConfig(language="klingon")
 
 
 # ------------------------------------------------------------------------------ vision

@@ -90,9 +90,9 @@ def inspect(path: Path, teaching_rate: int, as_json: bool) -> None:
 
 
 def _home_vocabulary(env: Any) -> set[str]:
-    from spco.data.language import tokenize
+    from spco.data.language import Vocabulary
 
-    return {w for s in env.training_data().sentences for w in tokenize(s)}
+    return set(Vocabulary.from_sentences(env.training_data().sentences).words)
 
 
 @main.command(name="import")
@@ -116,13 +116,17 @@ def import_(src: Path, out: Path, teaching_rate: int | None, force: bool) -> Non
               help="Number of homes to generate.")
 @click.option("--seed", default=0, show_default=True, type=int, help="Random seed.")
 @click.option("--force", is_flag=True, help="Write into OUT even if it holds homes already.")
+@click.option("--language", type=click.Choice(["templates", "free"]), default="templates", show_default=True,
+              help="Sentences: the paper's five templates, or 'free' (people talking freely: synonyms, "
+                   "multi-word names, objects, fillers, typos; accepted_names.json lists each place's "
+                   "accepted names).")
 @_friendly_errors
-def synth(out: Path, homes: int, seed: int, force: bool) -> None:
+def synth(out: Path, homes: int, seed: int, force: bool, language: str) -> None:
     """Generate synthetic homes into folder OUT (plain format, with ground-truth regions)."""
     from spco.data.plain import write_corpus
-    from spco.data.synthetic import generate_homes
+    from spco.data.synthetic import SyntheticConfig, generate_homes
 
-    corpus = generate_homes(homes, seed=seed)
+    corpus = generate_homes(homes, seed=seed, config=SyntheticConfig(language=language))
     write_corpus(corpus, out, overwrite=force)
     click.echo(f"wrote {len(corpus)} synthetic homes ({sum(e.n_samples for e in corpus)} samples) "
                f"to {out}")

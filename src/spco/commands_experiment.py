@@ -31,6 +31,11 @@ def _common(func: Callable[..., Any]) -> Callable[..., Any]:
         click.option("--data", "data", default="synthetic", show_default=True,
                      help="A folder of homes (SIGVerse or plain layout), an `spco import` cache file, "
                           "or 'synthetic' (homes generated from --seed)."),
+        click.option("--language", type=click.Choice(["templates", "free"]), default="templates",
+                     show_default=True,
+                     help="Sentences of synthetic homes: the paper's five templates, or 'free' (people "
+                          "talking freely: synonyms, multi-word names, objects, typos; each place has "
+                          "a set of accepted names)."),
         click.option("--regions", type=click.Path(path_type=Path), default=None,
                      help="Ground-truth place regions of the new homes (sigverse_regions.json format). "
                           "Default: the regions the homes carry (synthetic homes, a "
@@ -104,16 +109,16 @@ def _run(config_kwargs: dict[str, Any], out: Path, resume: bool, force: bool, qu
 @click.option("--new-homes", default=None,
               help="Comma-separated new homes (default: 1LDK_9, 2LDK_9, 3LDK_9, or the synthetic ones).")
 @_friendly
-def general(data: str, regions: Path | None, maps: Path | None, trials: int, models: str, iterations: int,
-            seed: int, jobs: int, out: Path, resume: bool, force: bool, quiet: bool, envs: str,
-            experienced_homes: str | None, new_homes: str | None) -> None:
+def general(data: str, language: str, regions: Path | None, maps: Path | None, trials: int, models: str,
+            iterations: int, seed: int, jobs: int, out: Path, resume: bool, force: bool, quiet: bool,
+            envs: str, experienced_homes: str | None, new_homes: str | None) -> None:
     """General places: accuracy in new homes, taught nothing, vs. number of experienced homes."""
     from spco.evaluation.experiments import parse_int_list
 
     _run({"experiment": "general", "settings": parse_int_list(envs, "--envs", 0), "data": data,
           "regions": regions, "maps": maps, "trials": trials, "models": models, "iterations": iterations,
           "seed": seed, "jobs": jobs, "experienced_homes": _split(experienced_homes),
-          "new_homes": _split(new_homes)}, out, resume, force, quiet)
+          "new_homes": _split(new_homes), "language": language}, out, resume, force, quiet)
 
 
 @experiment.command()
@@ -125,16 +130,17 @@ def general(data: str, regions: Path | None, maps: Path | None, trials: int, mod
 @click.option("--new-home", default=None,
               help="The new home with home-specific rooms (default: 3LDK_9, or the synthetic one).")
 @_friendly
-def specific(data: str, regions: Path | None, maps: Path | None, trials: int, models: str, iterations: int,
-             seed: int, jobs: int, out: Path, resume: bool, force: bool, quiet: bool, rates: str,
-             experienced_homes: str | None, new_home: str | None) -> None:
+def specific(data: str, language: str, regions: Path | None, maps: Path | None, trials: int, models: str,
+             iterations: int, seed: int, jobs: int, out: Path, resume: bool, force: bool, quiet: bool,
+             rates: str, experienced_homes: str | None, new_home: str | None) -> None:
     """Home-specific places: accuracy on the new home's own room names vs. their teaching rate."""
     from spco.evaluation.experiments import parse_int_list
 
     _run({"experiment": "specific", "settings": parse_int_list(rates, "--rates", 0, 100), "data": data,
           "regions": regions, "maps": maps, "trials": trials, "models": models, "iterations": iterations,
           "seed": seed, "jobs": jobs, "experienced_homes": _split(experienced_homes),
-          "specific_home": new_home.strip() if new_home else None}, out, resume, force, quiet)
+          "specific_home": new_home.strip() if new_home else None, "language": language}, out, resume,
+         force, quiet)
 
 
 @experiment.command(name="models")

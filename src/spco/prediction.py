@@ -52,6 +52,7 @@ __all__ = [
     "mutual_information_weights",
     "predict_names",
     "predict_positions",
+    "query_name",
     "reference_kl_weights",
     "region_posterior_for_name",
     "word_posterior",
@@ -486,17 +487,27 @@ def predict_names(
 
 
 # ---------------------------------------------------------------------------------- positions
-def _word_index(params: ConceptParameters, vocabulary: Vocabulary, name: str) -> int:
+def _query_indices(params: ConceptParameters, vocabulary: Vocabulary, name: str) -> list[int]:
+    """Columns of the usable tokens of a name asked for (see :func:`region_posterior_for_name`)."""
     _check_vocabulary(params, vocabulary)
     mask = np.asarray(params.word_mask, dtype=bool)
     known = [w for w, keep in zip(vocabulary.words, mask, strict=True) if keep]
-    index = vocabulary.index(name)
-    if index is None:
+    _, indices = vocabulary.query(name)
+    usable = list(dict.fromkeys(k for k in indices if mask[k]))
+    if usable:
+        return usable
+    if not indices:
         raise UnknownNameError(name, known)
-    if not mask[index]:
-        raise UnknownNameError(name, known, reason=f"the word {vocabulary.words[index]!r} was pruned "
-                               "as uninformative (it names no place)")
-    return index
+    pruned = ", ".join(repr(vocabulary.words[k]) for k in dict.fromkeys(indices))
+    raise UnknownNameError(name, known, reason=f"the word {pruned} was pruned as uninformative (it names "
+                           "no place)" if len(set(indices)) == 1 else
+                           f"the words {pruned} were pruned as uninformative (they name no place)")
+
+
+def query_name(vocabulary: Vocabulary, params: ConceptParameters, name: str) -> str:
+    """How a name asked for is understood: its usable tokens joined by ``" + "`` (``"living room"``,
+    or ``"study + room"`` for a name never learnt as one term)."""
+    return " + ".join(vocabulary.words[k] for k in _query_indices(params, vocabulary, name))
 
 
 def region_posterior_for_name(
@@ -504,13 +515,20 @@ def region_posterior_for_name(
 ) -> np.ndarray:
     """p(m | w) ∝ Σ_l π_{e,l,m} θ^w_{e,l,w} G_{e,l} for the place name ``name``.
 
-    ``name`` is normalised like a vocabulary word (``"Living room"`` → ``"living-room"``). Returns
-    (K,) float64 summing to 1. Raises :class:`UnknownNameError` if the name is not in the vocabulary,
-    was pruned, or has probability 0 in every concept of home ``e``.
+    ``name`` is tokenised like a sentence (:meth:`~spco.data.language.Vocabulary.tokenize`:
+    ``"Living Room"``, ``"living-room"`` → the token ``"living room"``). A name of several tokens
+    (``"study room"`` never learnt as one term) is understood as all its known, unpruned tokens said
+    together: p(m | w_1 … w_n) ∝ Σ_l π_{e,l,m} G_{e,l} Π_i θ^w_{e,l,w_i}; its unknown or pruned tokens
+    are left out. Returns (K,) float64 summing to 1. Raises :class:`UnknownNameError` if no token of
+    the name is known and unpruned, or the name has probability 0 in every concept of home ``e``.
     """
     e = _check_home(params, e)
-    w = _word_index(params, vocabulary, name)
-    theta_w = _word_matrix(params, e)[:, w]  # (L,)
+    ws = _query_indices(params, vocabulary, name)
+    log_theta = _safe_log(_word_matrix(params, e)[:, ws]).sum(axis=1)  # (L,)
+    # scaled by the largest concept's value (several small θ multiply); a concept in which a token
+    # has probability 0 keeps weight 0
+    top = float(log_theta.max())
+    theta_w = np.exp(log_theta - top) if top > _LOG_FLOOR else np.zeros_like(log_theta)
     g = np.clip(np.asarray(params.concept_weights[e], dtype=np.float64), 0.0, None)
     pi = np.clip(np.asarray(params.region_weights[e], dtype=np.float64), 0.0, None)  # (L, K)
     weights = (g * theta_w) @ pi  # (K,)
@@ -518,7 +536,8 @@ def region_posterior_for_name(
     if not total > 0:
         mask = np.asarray(params.word_mask, dtype=bool)
         known = [v for v, keep in zip(vocabulary.words, mask, strict=True) if keep]
-        raise UnknownNameError(name, known, reason=f"the name {vocabulary.words[w]!r} has "
+        shown = " + ".join(vocabulary.words[w] for w in ws)
+        raise UnknownNameError(name, known, reason=f"the name {shown!r} has "
                                f"probability 0 in every concept of home {e}")
     return weights / total
 
@@ -571,7 +590,7 @@ def predict_positions(
     else:
         log_density = weights = np.empty(0)
     return PositionPrediction(
-        name=vocabulary.words[vocabulary.index(name)],  # type: ignore[index]
+        name=query_name(vocabulary, params, name),
         region=best,
         region_probabilities=probs,
         samples=samples,

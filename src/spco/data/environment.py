@@ -45,12 +45,21 @@ class GroundTruth:
         Boolean mask (N,) of the samples scored in the home-specific experiment, or ``None``.
     regions:
         Ground-truth area of each place, or ``None``.
+    accepted_names:
+        place -> the names counted right for it (``"bath"`` → ``("bath", "bathroom", "shower")``),
+        normalised; ``None`` (or a place not listed): only the place's own name.
     """
 
     labels: tuple[str | None, ...] | None = None
     specific_labels: tuple[str | None, ...] | None = None
     specific_test: np.ndarray | None = None
     regions: PlaceRegions | None = None
+    accepted_names: dict[str, tuple[str, ...]] | None = None
+
+    def accepted(self, place: str) -> tuple[str, ...]:
+        """The names counted right for ``place``: its own name first, then its accepted synonyms."""
+        key = normalize_name(place)
+        return tuple(dict.fromkeys([key, *(self.accepted_names or {}).get(key, ())]))
 
     @property
     def places(self) -> list[str]:
@@ -297,13 +306,22 @@ def make_ground_truth(
     specific_labels: Sequence[str | None] | None = None,
     specific_test: np.ndarray | None = None,
     regions: PlaceRegions | None = None,
+    accepted_names: dict[str, Sequence[str]] | None = None,
 ) -> GroundTruth:
-    """Build a :class:`GroundTruth` with labels normalised like vocabulary words."""
+    """Build a :class:`GroundTruth` with labels (and accepted names) normalised like vocabulary words."""
+    accepted = None
+    if accepted_names is not None:
+        accepted = {}
+        for place, names in accepted_names.items():
+            key = normalize_name(place)
+            accepted[key] = tuple(dict.fromkeys([*accepted.get(key, ()),
+                                                 *(n for n in map(normalize_name, names) if n)]))
     return GroundTruth(
         labels=_normalised_labels(labels),
         specific_labels=_normalised_labels(specific_labels),
         specific_test=None if specific_test is None else np.asarray(specific_test, dtype=bool),
         regions=regions,
+        accepted_names=accepted,
     )
 
 

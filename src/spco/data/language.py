@@ -1,15 +1,72 @@
-"""Tokenizer and vocabulary: from taught sentences to bags of words.
+"""Tokenizer and vocabulary: from taught sentences to bags of *tokens* (words and multi-word terms).
 
-A sentence such as ``"This is Emma's room!"`` is lower-cased, stripped of punctuation and split into
-words; a word may hold inner apostrophes and hyphens, so possessive and hyphenated place names stay
-whole (``"emma's-room"``, ``"living-room"``). The vocabulary is built from the training sentences
-themselves, never from a fixed word list. Each occurrence of a word counts ``word_increment``
-(S^w, 5000 by default, as in the paper).
+Normalisation (any text)
+------------------------
+A sentence is normalised with Unicode NFKC and case-folded (``"Ｌｉｖｉｎｇ"`` → ``"living"``,
+``"STRASSE"`` and ``"Straße"`` → ``"strasse"``), typographic apostrophes and hyphens become ``'`` and
+``-``, then it is split into *atoms*:
+
+- a word: letters, digits and combining marks (so accents and scripts such as Devanagari stay whole),
+  optionally joined by single apostrophes or hyphens. A hyphenated compound is one atom written with
+  spaces: ``"Emma's-room"`` → ``"emma's room"``, ``"living-room"`` → ``"living room"`` (the writer
+  declared it one name);
+- an emoji (with its modifiers and zero-width-joiner sequences) on its own;
+- punctuation and other symbols are dropped.
+
+*Scripts written without spaces* (Chinese, Japanese, Thai, Lao, Khmer, Myanmar) are **not** cut into
+single characters: a run of such text between spaces is one atom (``"ここはリビングです"`` is one
+token), and :class:`LanguageWarning` says so, recommending to segment the sentences with a word
+segmenter for that language (e.g. MeCab or SudachiPy for Japanese, jieba for Chinese) before they are
+given to spco, with the words separated by spaces.
+
+*Over-long input* is cut, with a :class:`LanguageWarning`: an atom longer than
+:data:`MAX_TOKEN_CHARS` characters keeps its first :data:`MAX_TOKEN_CHARS`, a sentence of more than
+:data:`MAX_SENTENCE_TOKENS` atoms keeps its first :data:`MAX_SENTENCE_TOKENS`. Nothing already learnt
+is touched (a cut sentence is still learnt from, just shorter).
+
+Terms (multi-word names)
+------------------------
+People say "living room", "front door", "emma's room": names of several words.
+:meth:`Vocabulary.from_sentences` learns such *terms* from the training sentences themselves, with no
+list of names (:func:`learn_terms`): two adjacent atoms ``a b`` become the term ``"a b"`` when
+
+1. they occur together at least ``min_count`` (3) times;
+2. Dunning's log-likelihood ratio G² of the 2 × 2 table (``a`` first or not × ``b`` second or not,
+   over all adjacent pairs) is at least ``min_g2`` = 10.83 (p < 0.001, one degree of freedom) and
+   they occur together more often than chance;
+3. ``a`` is followed by ``b`` in at least ``min_follow`` = 50 % of its occurrences ("living" is
+   almost always followed by "room"; "the" is followed by many words, "kitchen" often ends the
+   sentence);
+4. neither atom is a *frame word*: one that occurs in more than ``max_sentence_share`` = 50 % of the
+   sentences ("this", "is", "the" in "this is the kitchen"). Names are specific to a place, so none
+   is in half of all sentences.
+
+A second pass over the sentences with the learnt pairs joined finds longer terms ("walk in closet").
+The rule also joins set phrases that are not names ("this is", "welcome to" when people say them in
+fewer than half of the sentences): they are tokens like any other, spread over all places, and the
+model's own rule keeps them from being answered as names.
+
+The interface for the rest of spco
+----------------------------------
+A *token* is a string; a term is one token whose words are separated by single spaces
+(``"living room"``). :meth:`Vocabulary.tokenize` turns a sentence into tokens: at every atom it
+takes the longest run of atoms (up to :data:`MAX_TERM_WORDS` words) whose words, joined by spaces, are
+a token of the vocabulary. The vocabulary's multi-word tokens therefore *are* its term list: it
+travels with the vocabulary (in knowledge and model files) and every command tokenises the same way.
+So ``"Living Room"``, ``"living-room"`` and ``"living room"`` are all the token ``"living room"``.
+Column ``k`` of every word-count matrix is ``vocabulary.words[k]``; each occurrence of a token counts
+``word_increment`` (S^w, 5000 by default, as in the paper).
 """
 
 from __future__ import annotations
 
+import functools
+import itertools
+import math
 import re
+import unicodedata
+import warnings
+from collections import Counter
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
@@ -20,55 +77,258 @@ from spco.errors import ConfigurationError
 
 #: Default count added per word occurrence (S^w in the paper).
 DEFAULT_WORD_INCREMENT = 5000
+#: Longest atom kept whole (characters); longer ones are cut, with a warning.
+MAX_TOKEN_CHARS = 100
+#: Most atoms kept of one sentence; the rest is cut, with a warning.
+MAX_SENTENCE_TOKENS = 200
+#: Longest term, in words.
+MAX_TERM_WORDS = 4
 
-# A word: letters/digits, optionally joined by single apostrophes or hyphens ("emma's-room").
-_WORD = re.compile(r"[^\W_]+(?:['\-][^\W_]+)*")
-_APOSTROPHES = str.maketrans({"\u2019": "'", "\u2018": "'", "\u02bc": "'", "`": "'",
-                              "\u2010": "-", "\u2011": "-", "\u2013": "-"})
+#: Term learning: minimum count, G² threshold (p < 0.001, 1 d.o.f.), minimum share of the first
+#: atom's occurrences followed by the second, maximum share of sentences holding either atom.
+TERM_MIN_COUNT = 3
+TERM_MIN_G2 = 10.83
+TERM_MIN_FOLLOW = 0.5
+TERM_MAX_SENTENCE_SHARE = 0.5
+
+
+class LanguageWarning(UserWarning):
+    """Text that spco can learn from only in part (cut, or written without spaces)."""
+
+
+_PUNCTUATION = str.maketrans({"\u2019": "'", "\u2018": "'", "\u02bc": "'", "`": "'", "\u00b4": "'",
+                              "\u2010": "-", "\u2011": "-", "\u2013": "-", "\u2012": "-"})
+_EMOJI_CHARS = "\u2600-\u27bf\U0001f000-\U0001faff"
+_EMOJI_TAIL = "\ufe0f\U0001f3fb-\U0001f3ff"
+# scripts usually written without spaces between words
+_NO_SPACE = re.compile("[\u0e00-\u0eff\u1000-\u109f\u1780-\u17ff\u3040-\u30ff\u3400-\u4dbf"
+                       "\u4e00-\u9fff\uf900-\ufaff\uff66-\uff9f]")
+
+
+def _ranges(codes: list[int]) -> str:
+    out, start, prev = [], None, None
+    for c in codes:
+        if start is None:
+            start = prev = c
+        elif c == prev + 1:
+            prev = c
+        else:
+            out.append((start, prev))
+            start = prev = c
+    if start is not None:
+        out.append((start, prev))
+    return "".join(re.escape(chr(a)) if a == b else f"{re.escape(chr(a))}-{re.escape(chr(b))}"
+                   for a, b in out)
+
+
+def _pattern(marks: str) -> re.Pattern[str]:
+    letter = rf"(?:[^\W_]|[{marks}])" if marks else r"[^\W_]"
+    word = rf"{letter}+(?:['\-]{letter}+)*"
+    emoji = rf"[{_EMOJI_CHARS}][{_EMOJI_TAIL}]*(?:\u200d[{_EMOJI_CHARS}][{_EMOJI_TAIL}]*)*"
+    return re.compile(f"{emoji}|{word}")
+
+
+_PLAIN_ATOMS = _pattern("")
+
+
+@functools.cache
+def _atoms_with_marks() -> re.Pattern[str]:
+    """Like ``_PLAIN_ATOMS``, with combining marks (Unicode categories M*) as letters; built on first
+    need (a scan of the code points with marks, under a second)."""
+    codes = [c for r in (range(0x300, 0x1E950), range(0xE0100, 0xE01F0)) for c in r
+             if unicodedata.category(chr(c))[0] == "M"]
+    return _pattern(_ranges(codes))
+
+
+def _atom_pattern(text: str) -> re.Pattern[str]:
+    if text.isascii() or not any(unicodedata.category(c)[0] == "M" for c in text):
+        return _PLAIN_ATOMS
+    return _atoms_with_marks()
+
+
+def normalize_text(text: str) -> str:
+    """NFKC, case-folded, with typographic apostrophes and hyphens made plain."""
+    return unicodedata.normalize("NFKC", text).casefold().translate(_PUNCTUATION)
+
+
+@functools.lru_cache(maxsize=1 << 16)
+def _atoms(sentence: str) -> tuple[tuple[str, ...], bool, bool, bool]:
+    """Atoms of a sentence, and whether a word was cut, text without spaces was seen, the sentence was
+    cut (cached: sentences and labels repeat; the warnings are issued by :func:`tokenize`)."""
+    text = normalize_text(sentence)
+    atoms = [a.replace("-", " ") for a in _atom_pattern(text).findall(text)]
+    long_word = any(len(a) > MAX_TOKEN_CHARS for a in atoms)
+    if long_word:
+        atoms = [a[:MAX_TOKEN_CHARS].rstrip("' ") if len(a) > MAX_TOKEN_CHARS else a for a in atoms]
+    no_space = any(len(a) > 1 and _NO_SPACE.search(a) for a in atoms)
+    long_sentence = len(atoms) > MAX_SENTENCE_TOKENS
+    return tuple(atoms[:MAX_SENTENCE_TOKENS]), long_word, no_space, long_sentence
 
 
 def tokenize(sentence: str | None) -> list[str]:
-    """Split a sentence into lower-case words.
+    """Split a sentence into atoms: normalised words, hyphenated compounds and emoji (no learnt terms).
 
-    Punctuation is dropped; apostrophes and hyphens inside a word are kept, so ``"Emma's-room"`` is
-    one word ``"emma's-room"``. Typographic apostrophes are normalised to ``'``. ``None`` or an
-    empty string gives an empty list.
+    ``"This is Emma's-room!"`` → ``["this", "is", "emma's room"]``: a hyphenated compound is one atom
+    whose words are separated by spaces. ``None`` or an empty string gives an empty list. See the
+    module docstring for scripts without spaces and over-long input (cut, with a
+    :class:`LanguageWarning`). Use :meth:`Vocabulary.tokenize` to also join learnt terms.
     """
     if not sentence:
         return []
-    return _WORD.findall(sentence.translate(_APOSTROPHES).lower())
+    atoms, long_word, no_space, long_sentence = _atoms(str(sentence))
+    if long_word:
+        warnings.warn(f"a word longer than {MAX_TOKEN_CHARS} characters was cut to its first "
+                      f"{MAX_TOKEN_CHARS} (spco.data.language.MAX_TOKEN_CHARS)", LanguageWarning,
+                      stacklevel=2)
+    if no_space:
+        warnings.warn("text in a script written without spaces (Chinese, Japanese, Thai, …) is kept as one "
+                      "token per space-separated chunk, not cut into characters; segment such sentences "
+                      "into words separated by spaces (e.g. with MeCab or jieba) before giving them to spco",
+                      LanguageWarning, stacklevel=2)
+    if long_sentence:
+        warnings.warn(f"a sentence of more than {MAX_SENTENCE_TOKENS} words was cut to its first "
+                      f"{MAX_SENTENCE_TOKENS} (spco.data.language.MAX_SENTENCE_TOKENS)", LanguageWarning,
+                      stacklevel=2)
+    return list(atoms)
 
 
 def normalize_name(name: str) -> str:
-    """Normalise a place name the way the tokenizer normalises words (``"Emma's-room"`` →
-    ``"emma's-room"``); a name of several words is joined with hyphens."""
-    return "-".join(tokenize(name))
+    """A place name as a token without learnt terms: its atoms joined by single spaces
+    (``"Emma's-room"``, ``"EMMA'S ROOM"`` → ``"emma's room"``)."""
+    return " ".join(tokenize(name))
 
 
+# ------------------------------------------------------------------------------------- terms
+def _g2(k11: int, k12: int, k21: int, k22: int) -> float:
+    """Dunning's log-likelihood ratio G² of a 2 × 2 contingency table."""
+    n = k11 + k12 + k21 + k22
+    rows, cols = (k11 + k12, k21 + k22), (k11 + k21, k12 + k22)
+    total = 0.0
+    for k, r, c in ((k11, rows[0], cols[0]), (k12, rows[0], cols[1]),
+                    (k21, rows[1], cols[0]), (k22, rows[1], cols[1])):
+        if k > 0:
+            total += k * math.log(k * n / (r * c))
+    return 2.0 * total
+
+
+def _term_pass(sentences: list[list[str]], min_count: int, min_g2: float, min_follow: float,
+               max_sentence_share: float) -> set[tuple[str, str]]:
+    pairs: Counter[tuple[str, str]] = Counter()
+    first: Counter[str] = Counter()
+    second: Counter[str] = Counter()
+    in_sentences: Counter[str] = Counter()
+    occurrences: Counter[str] = Counter()
+    for atoms in sentences:
+        in_sentences.update(set(atoms))
+        occurrences.update(atoms)
+        for a, b in itertools.pairwise(atoms):
+            pairs[(a, b)] += 1
+            first[a] += 1
+            second[b] += 1
+    n_pairs = sum(pairs.values())
+    frame = max_sentence_share * len(sentences)
+    out = set()
+    for (a, b), k11 in pairs.items():
+        if k11 < min_count or a == b or in_sentences[a] > frame or in_sentences[b] > frame:
+            continue
+        if k11 / occurrences[a] < min_follow:
+            continue
+        k12, k21 = first[a] - k11, second[b] - k11
+        k22 = n_pairs - k11 - k12 - k21
+        if k11 * n_pairs <= first[a] * second[b]:  # not more often than chance
+            continue
+        if _g2(k11, k12, k21, k22) >= min_g2:
+            out.add((a, b))
+    return out
+
+
+def _join(atoms: list[str], pairs: set[tuple[str, str]]) -> list[str]:
+    out: list[str] = []
+    i = 0
+    while i < len(atoms):
+        if i + 1 < len(atoms) and (atoms[i], atoms[i + 1]) in pairs:
+            out.append(f"{atoms[i]} {atoms[i + 1]}")
+            i += 2
+        else:
+            out.append(atoms[i])
+            i += 1
+    return out
+
+
+def learn_terms(
+    sentences: Iterable[str | None],
+    min_count: int = TERM_MIN_COUNT,
+    min_g2: float = TERM_MIN_G2,
+    min_follow: float = TERM_MIN_FOLLOW,
+    max_sentence_share: float = TERM_MAX_SENTENCE_SHARE,
+    passes: int = 2,
+) -> list[str]:
+    """The multi-word terms of ``sentences`` (the rule of the module docstring), sorted.
+
+    Hyphenated compounds of the text are terms already (one atom each) and are not listed unless a
+    pass joins them with a neighbour. Each pass joins the pairs it finds (left to right) before the
+    next pass looks for longer terms; terms longer than :data:`MAX_TERM_WORDS` words are not formed.
+    """
+    streams = [tokenize(s) for s in sentences if s]
+    streams = [s for s in streams if s]
+    terms: set[str] = set()
+    for _ in range(passes):
+        pairs = {(a, b) for a, b in _term_pass(streams, min_count, min_g2, min_follow, max_sentence_share)
+                 if len(a.split()) + len(b.split()) <= MAX_TERM_WORDS}
+        if not pairs:
+            break
+        streams = [_join(s, pairs) for s in streams]
+        terms |= {f"{a} {b}" for a, b in pairs}
+    return sorted(terms)
+
+
+def _canonical(word: str) -> str:
+    return " ".join(normalize_text(word).replace("-", " ").split())
+
+
+# ------------------------------------------------------------------------------------- vocabulary
 @dataclass(frozen=True)
 class Vocabulary:
-    """An ordered set of words; word ``k`` is column ``k`` of every word-count matrix.
+    """An ordered set of tokens; token ``k`` is column ``k`` of every word-count matrix.
 
-    Build one with :meth:`from_sentences`. Words unknown to the vocabulary are ignored by
+    A token of several words (``"living room"``) is a term: :meth:`tokenize` joins those words into
+    it wherever they appear in a sentence. Words are stored in canonical form (NFKC, case-folded,
+    hyphens as spaces: a vocabulary written by an older spco with ``"living-room"`` reads as
+    ``"living room"``).
+
+    Build one with :meth:`from_sentences`. Tokens unknown to the vocabulary are ignored by
     :meth:`encode` (and reported by :meth:`unknown_words`), never an error: at prediction time the
     robot may hear a word it has never learnt.
     """
 
     words: tuple[str, ...]
     _index: dict[str, int] = field(init=False, repr=False, compare=False)
+    _longest: int = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        index = {word: k for k, word in enumerate(self.words)}
-        if len(index) != len(self.words):
+        words = tuple(_canonical(str(w)) for w in self.words)
+        index = {word: k for k, word in enumerate(words)}
+        if len(index) != len(words):
             raise ConfigurationError("a vocabulary cannot hold the same word twice")
+        if any(not w for w in words):
+            raise ConfigurationError("a vocabulary cannot hold an empty word")
+        object.__setattr__(self, "words", words)
         object.__setattr__(self, "_index", index)
+        object.__setattr__(self, "_longest", min(MAX_TERM_WORDS, max((len(w.split()) for w in words),
+                                                                     default=1)))
 
     @classmethod
-    def from_sentences(cls, sentences: Iterable[str | None]) -> Vocabulary:
-        """The vocabulary of all words in ``sentences``, in order of first appearance."""
+    def from_sentences(cls, sentences: Iterable[str | None], learn: bool = True) -> Vocabulary:
+        """The vocabulary of all tokens in ``sentences``, in order of first appearance.
+
+        With ``learn`` (the default) the multi-word terms of :func:`learn_terms` are learnt first, so
+        ``"living room"`` said often enough is one token; without, the tokens are the atoms.
+        """
+        texts = [s for s in sentences if s]
+        base = cls(tuple(learn_terms(texts))) if learn else cls(())
         seen: dict[str, None] = {}
-        for sentence in sentences:
-            for word in tokenize(sentence):
+        for sentence in texts:
+            for word in base.tokenize(sentence):
                 seen.setdefault(word, None)
         return cls(tuple(seen))
 
@@ -78,28 +338,92 @@ class Vocabulary:
     def __contains__(self, word: object) -> bool:
         return isinstance(word, str) and word in self._index
 
+    @property
+    def terms(self) -> tuple[str, ...]:
+        """The multi-word tokens (terms), in vocabulary order."""
+        return tuple(w for w in self.words if " " in w)
+
+    def tokenize(self, sentence: str | None) -> list[str]:
+        """Tokens of ``sentence``: its atoms (:func:`tokenize`), with every run of words that forms a
+        multi-word token of this vocabulary joined into that token (longest run first)."""
+        atoms = tokenize(sentence)
+        if self._longest < 2 or len(atoms) < 2:
+            return atoms
+        words = [a.split() for a in atoms]
+        out: list[str] = []
+        i = 0
+        while i < len(atoms):
+            taken = None
+            n_words = 0
+            for j in range(i, len(atoms)):  # candidate spans end at atom boundaries
+                n_words += len(words[j])
+                if n_words > self._longest:
+                    break
+                if j > i:
+                    joined = " ".join(atoms[i:j + 1])
+                    if joined in self._index:
+                        taken = (joined, j + 1)
+            if taken is None:
+                out.append(atoms[i])
+                i += 1
+            else:
+                out.append(taken[0])
+                i = taken[1]
+        return out
+
     def index(self, word: str) -> int | None:
-        """Column of ``word`` (normalised like the tokenizer), or ``None`` if it is unknown."""
-        return self._index.get(normalize_name(word))
+        """Column of ``word`` (a name, normalised and tokenised like a sentence), or ``None`` if it is
+        unknown or does not form a single token."""
+        tokens = self.tokenize(word)
+        return self._index.get(tokens[0]) if len(tokens) == 1 else None
+
+    def query(self, name: str) -> tuple[list[str], list[int]]:
+        """The tokens of a name asked for, and the columns of those that are known.
+
+        ``"Living Room"`` → ``(["living room"], [k])`` when the term is known; ``"study room"`` →
+        ``(["study", "room"], [k_study, k_room])`` when only the words are (also for
+        ``"study-room"``: an unknown compound is split into its words).
+        """
+        tokens: list[str] = []
+        for token in self.tokenize(name):
+            if token in self._index or " " not in token:
+                tokens.append(token)
+            else:  # an unknown hyphenated compound ("study-room"): its words
+                tokens += self.tokenize(token)
+        return tokens, [self._index[t] for t in tokens if t in self._index]
 
     def unknown_words(self, sentence: str | None) -> list[str]:
-        """Words of ``sentence`` that are not in the vocabulary."""
-        return [w for w in tokenize(sentence) if w not in self._index]
+        """Tokens of ``sentence`` that are not in the vocabulary."""
+        return [w for w in self.tokenize(sentence) if w not in self._index]
 
-    def extended(self, sentences: Iterable[str | None]) -> Vocabulary:
-        """A vocabulary with the new words of ``sentences`` appended (existing columns kept)."""
+    def extended(self, sentences: Iterable[str | None], learn: bool = True) -> Vocabulary:
+        """A vocabulary with the new tokens of ``sentences`` appended (existing columns kept).
+
+        The known terms apply. With ``learn``, terms learnt from ``sentences`` alone
+        (:func:`learn_terms`) are added too, but only those holding a word this vocabulary does not
+        know ("study room" said often in a new home, when "study" is new): a term made of known
+        tokens would take their occurrences away from the columns that carry what was learnt
+        before. So sentences tokenised before are tokenised the same way after.
+        """
+        texts = [s for s in sentences if s]
+        base = self
+        if learn:
+            new_terms = tuple(t for t in learn_terms(texts) if t not in self._index
+                              and any(tok not in self._index for tok in self.tokenize(t)))
+            if new_terms:
+                base = Vocabulary((*self.words, *new_terms))
         words = dict.fromkeys(self.words)
-        for sentence in sentences:
-            for word in tokenize(sentence):
+        for sentence in texts:
+            for word in base.tokenize(sentence):
                 words.setdefault(word, None)
         return Vocabulary(tuple(words))
 
     def encode(
         self, sentences: Sequence[str | None], word_increment: int = DEFAULT_WORD_INCREMENT
     ) -> sp.csr_array:
-        """Bag-of-words counts, shape ``(len(sentences), len(self))``, int64.
+        """Bag-of-tokens counts, shape ``(len(sentences), len(self))``, int64.
 
-        Each occurrence of a known word adds ``word_increment``; unknown words and ``None``
+        Each occurrence of a known token adds ``word_increment``; unknown tokens and ``None``
         sentences contribute nothing.
         """
         if word_increment < 1:
@@ -107,7 +431,7 @@ class Vocabulary:
         rows: list[int] = []
         cols: list[int] = []
         for row, sentence in enumerate(sentences):
-            for word in tokenize(sentence):
+            for word in self.tokenize(sentence):
                 col = self._index.get(word)
                 if col is not None:
                     rows.append(row)

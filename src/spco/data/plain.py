@@ -10,6 +10,7 @@ One folder per home::
       labels.csv                          optional, evaluation only: true place names
       specific_test.txt                   optional, evaluation only: home-specific test samples
       regions.json                        optional, evaluation only: true place areas
+      accepted_names.json                 optional, evaluation only: synonyms counted right
 
 ``samples.csv``
     UTF-8 CSV with the header ``id,x,y,theta,sentence`` (column order free; other columns are ignored;
@@ -61,6 +62,10 @@ One folder per home::
     ``{"kitchen": [[x_min, x_max, y_min, y_max], ...], ...}``: each place a union of axis-aligned
     rectangles in metres, as the inner mapping of ``sigverse_regions.json``.
 
+``accepted_names.json`` (evaluation only)
+    ``{"bath": ["bath", "bathroom", "shower"], ...}``: for a place, every name counted right when it is
+    predicted (A_n) and asked for with ``where`` (A_p). Without the file only the place's own name.
+
 :func:`read_home` reads a home, :func:`write_home` writes one (every field, ground truth included;
 the heading is stored as ``theta = atan2(sin θ, cos θ)``, so it is read back as a unit vector), and
 :func:`write_corpus` writes a folder of homes. Writing never replaces existing files unless asked.
@@ -98,9 +103,10 @@ HOME_JSON = "home.json"
 LABELS_CSV = "labels.csv"
 SPECIFIC_TEST_TXT = "specific_test.txt"
 REGIONS_JSON = "regions.json"
+ACCEPTED_NAMES_JSON = "accepted_names.json"
 #: Every file name of the plain format (what :func:`write_home` may create or replace).
 PLAIN_FILES = (SAMPLES_CSV, SAMPLES_JSONL, VISUAL_NPZ, VISUAL_NPY, TEST_TXT, HOME_JSON, LABELS_CSV,
-               SPECIFIC_TEST_TXT, REGIONS_JSON)
+               SPECIFIC_TEST_TXT, REGIONS_JSON, ACCEPTED_NAMES_JSON)
 _HOME_KEYS = ("name", "extent", "visual_scale")
 
 
@@ -373,6 +379,17 @@ def _read_regions(path: Path) -> PlaceRegions:
         raise DataFormatError(path, f"rectangles must be lists of 4 numbers ({exc})") from None
 
 
+def _read_accepted_names(path: Path) -> dict[str, list[str]]:
+    try:
+        raw = json.loads(_read_text(path))
+    except json.JSONDecodeError as exc:
+        raise DataFormatError(path, f"not valid JSON ({exc.msg}, line {exc.lineno})") from None
+    if not isinstance(raw, dict) or not all(isinstance(v, list) and all(isinstance(n, str) for n in v)
+                                            for v in raw.values()):
+        raise DataFormatError(path, "expected an object place -> list of accepted names (strings)")
+    return {str(k): list(v) for k, v in raw.items()}
+
+
 def read_home(folder: str | os.PathLike[str], teaching_rate: int = 100) -> Environment:
     """Read one home in the plain format (see the module docstring).
 
@@ -421,9 +438,12 @@ def read_home(folder: str | os.PathLike[str], teaching_rate: int = 100) -> Envir
         specific_test = _read_id_list(home / SPECIFIC_TEST_TXT, index)
     if (home / REGIONS_JSON).is_file():
         regions = _read_regions(home / REGIONS_JSON)
+    accepted = None
+    if (home / ACCEPTED_NAMES_JSON).is_file():
+        accepted = _read_accepted_names(home / ACCEPTED_NAMES_JSON)
     ground_truth = None
     if labels is not None or specific is not None or specific_test is not None or regions is not None:
-        ground_truth = make_ground_truth(labels, specific, specific_test, regions)
+        ground_truth = make_ground_truth(labels, specific, specific_test, regions, accepted)
     extent = meta.get("extent")
     env = Environment(
         name=str(meta["name"]).strip() if meta.get("name") else home.resolve().name,
@@ -490,6 +510,10 @@ def _write_files(env: Environment, folder: Path) -> None:
     if gt.regions is not None:
         (folder / REGIONS_JSON).write_text(json.dumps(gt.regions.to_json(), indent=1) + "\n",
                                            encoding="utf-8")
+    if gt.accepted_names is not None:
+        (folder / ACCEPTED_NAMES_JSON).write_text(
+            json.dumps({k: list(v) for k, v in gt.accepted_names.items()}, indent=1, ensure_ascii=False)
+            + "\n", encoding="utf-8")
 
 
 def write_home(env: Environment, folder: str | os.PathLike[str], overwrite: bool = False) -> Path:

@@ -50,7 +50,10 @@ its own name-keyed stream, so adding a place type leaves the others unchanged.
 *Sentences.* Taught training samples get one of the five templates of the paper ("this is the X",
 "the X is here", "this place is the X", "this space is the X", "this location is the X"; no article
 before possessive names: "this is Emma's-room"). Optionally a fraction of free-form sentences
-("hey robot, we call this area the kitchen") and of sentences naming a wrong place.
+("hey robot, we call this area the kitchen") and of sentences naming a wrong place. With
+``SyntheticConfig(language="free")`` a household of one to three people speaks instead, as people do
+(:mod:`spco.data.speech`: synonyms, multi-word names, objects, fillers, typos, the room next door),
+and the ground truth lists each place's accepted names.
 
 Everything is driven by :class:`numpy.random.Generator` streams: the same seed gives bitwise
 identical homes (with the same NumPy and BLAS: image profiles go through a matrix product).
@@ -68,6 +71,7 @@ import scipy.sparse as sp
 from spco.data.environment import Corpus, Environment, Extent, make_ground_truth
 from spco.data.language import DEFAULT_WORD_INCREMENT, normalize_name
 from spco.data.regions import PlaceRegions, Rectangle
+from spco.data.speech import Household, accepted_names
 from spco.errors import ConfigurationError
 
 __all__ = [
@@ -133,6 +137,9 @@ FREE_FORM_TEMPLATES: tuple[str, ...] = (
     "robot, {the}{name} is right here",
     "we are standing in {the}{name}",
 )
+
+#: Sentence styles of :attr:`SyntheticConfig.language`.
+LANGUAGES: tuple[str, ...] = ("templates", "free")
 
 #: Visual counts per feature of the SIGVerse data (~7,300 counts over 4,096 features per image).
 _COUNTS_PER_FEATURE = 7300.0 / 4096.0
@@ -226,7 +233,12 @@ class SyntheticConfig:
 
     Language
     --------
-    free_form_rate: fraction of taught sentences that are free-form instead of templates (0–1).
+    language: ``"templates"`` — the paper's five templates (default); ``"free"`` — sentences as people
+        speak (:mod:`spco.data.speech`: synonyms, multi-word names, objects and activities instead of
+        names, fillers, typos, neighbouring places, one to three people per home with their own
+        habits); the ground truth then lists each place's accepted names.
+    free_form_rate: fraction of template sentences replaced by one of :data:`FREE_FORM_TEMPLATES`
+        (0–1; ``language="templates"`` only).
     wrong_name_rate: fraction of taught sentences naming another place of the home (0–1).
 
     World
@@ -263,6 +275,7 @@ class SyntheticConfig:
     free_form_rate: float = 0.0
     wrong_name_rate: float = 0.0
     world_seed: int | None = 0
+    language: str = "templates"
 
     def __post_init__(self) -> None:
         def fail(message: str) -> None:
@@ -331,6 +344,8 @@ class SyntheticConfig:
             fail("place_distinctness + group_similarity must be at most 1")
         if self.view_mixing >= 1:
             fail("view_mixing must be below 1")
+        if self.language not in LANGUAGES:
+            fail(f"language must be one of {', '.join(LANGUAGES)}, got {self.language!r}")
         if self.world_seed is not None and not _is_seed(self.world_seed):
             fail(f"world_seed must be a non-negative integer or None, got {self.world_seed!r}")
 
@@ -540,9 +555,15 @@ def make_sentence(name: str, rng: np.random.Generator, free_form: bool = False) 
 
 
 def _sentences(rng: np.random.Generator, names: Sequence[str], candidates: Sequence[str],
-               config: SyntheticConfig) -> list[str]:
-    """One sentence per entry of ``names``; wrong names are drawn from ``candidates``."""
+               config: SyntheticConfig, neighbours: Sequence[Sequence[str]] | None = None) -> list[str]:
+    """One sentence per entry of ``names``; wrong names are drawn from ``candidates``. With
+    ``config.language == "free"`` a :class:`~spco.data.speech.Household` speaks, and may name one of
+    ``neighbours[i]`` (the places next to sample ``i``) instead."""
     n = len(names)
+    if config.language == "free":
+        household = Household(rng)
+        return [household.sentence(name, () if neighbours is None else neighbours[i])
+                for i, name in enumerate(names)]
     free = rng.random(n) < config.free_form_rate
     wrong = rng.random(n) < config.wrong_name_rate
     pick = rng.integers(0, max(len(candidates) - 1, 1), size=n)
@@ -727,7 +748,12 @@ def generate_home(
         train_rows = np.flatnonzero(~is_test)
         chosen = np.sort(rng.permutation(train_rows)[: round(train_rows.size * teaching_rate / 100)])
         candidates = list(dict.fromkeys(display.values()))
-        said = _sentences(rng, [display[int(room_of[i])] for i in chosen], candidates, config)
+        next_door = None
+        if config.language == "free":
+            adjacent = _adjacent(rects)
+            next_door = [[display[j] for j in adjacent[int(room_of[i])] if rooms[j] != rooms[int(room_of[i])]]
+                         for i in chosen]
+        said = _sentences(rng, [display[int(room_of[i])] for i in chosen], candidates, config, next_door)
         for i, sentence in zip(chosen, said, strict=True):
             sentences[int(i)] = sentence
 
@@ -742,9 +768,12 @@ def generate_home(
         regions.setdefault(t, []).append(rects[r])
     for r, special in specific_rooms.items():
         regions[normalize_name(special)] = [rects[r]]
+    accepted = None
+    if config.language == "free":
+        accepted = {normalize_name(p): accepted_names(p) for p in (*display.values(), *rooms)}
     ground_truth = make_ground_truth(
         labels, specific_labels, specific_test,
-        PlaceRegions({p: tuple(rs) for p, rs in regions.items()}),
+        PlaceRegions({p: tuple(rs) for p, rs in regions.items()}), accepted_names=accepted,
     )
     return Environment(
         name=name, ids=np.arange(n, dtype=np.int64), positions=positions, visual=visual,
@@ -845,7 +874,9 @@ def teach(
     home-specific experiment: ``teach(home, 20, places=SPECIFIC_ROOM_NAMES)`` teaches 8 of each
     bedroom's 40 training samples, as 3LDK_9's ``per_20``.
 
-    ``config`` gives the free-form and wrong-name rates (default: templates only, correct names).
+    ``config`` gives the sentence style (``language``) and the free-form and wrong-name rates
+    (default: templates only, correct names). Free sentences said here never name a neighbouring place
+    (the home's floor plan is not known here).
     """
     if not 0 <= rate <= 100:
         raise ConfigurationError(f"teaching rate must be within 0..100, got {rate}")
@@ -867,7 +898,10 @@ def teach(
         chosen += rng.permutation(rows)[: round(rows.size * rate / 100)].tolist()
     chosen.sort()
     candidates = list(dict.fromkeys(p for p in labels if p))
-    said = _sentences(rng, [labels[i] or "" for i in chosen], candidates, config)
+    # labels are normalised ("emma's room"); a template sentence writes a name of several words
+    # hyphenated, as generate_home does ("this is emma's-room"), so that it is one token
+    candidates = ["-".join(c.split()) for c in candidates]
+    said = _sentences(rng, ["-".join((labels[i] or "").split()) for i in chosen], candidates, config)
     sentences: list[str | None] = [None] * environment.n_samples
     for i, sentence in zip(chosen, said, strict=True):
         sentences[i] = sentence

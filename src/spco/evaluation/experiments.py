@@ -34,7 +34,8 @@ drawn), and its record is copied to the other settings with ``reused_from_settin
 
 Data
 ----
-``data="synthetic"`` generates ``max(16, n_max) + 3`` homes with
+``data="synthetic"`` (sentences: ``language``, the paper's templates or ``"free"``) generates
+``max(16, n_max) + 3`` homes with
 :func:`spco.data.synthetic.generate_homes` (``seed`` = the experiment's seed): the first are the
 experienced homes, the last three the new homes, the very last has the home-specific bedrooms
 (taught with :func:`spco.data.synthetic.teach`, the same seed). A path (a folder of homes in either
@@ -70,9 +71,10 @@ results.json schema (version 1)
       "format": "spco-experiment-results", "version": 1,
       "config": {"experiment": "general" | "specific", "models": [str], "settings": [int],
                  "trials": int, "iterations": int, "seed": int, "n_positions": int,
-                 "data": {"source": "synthetic" | absolute path, "experienced_homes": [str],
-                          "new_homes": [str], "specific_home": str | null,
-                          "regions": path | null, "regions_sha256": str | null, "maps": path | null,
+                 "data": {"source": "synthetic" | path as given, "language": "templates" | "free",
+                          "experienced_homes": [str], "new_homes": [str], "specific_home": str | null,
+                          "regions": path as given | null, "regions_sha256": str | null,
+                          "maps": path as given | null,
                           "vocabulary": [str]},
                  "hyperparameters": {model: {name: value}}, "fingerprint": str,
                  "spco_version": str},
@@ -326,6 +328,8 @@ class ExperimentConfig:
         also restrict the synthetic new homes.
     specific_home: override the new home of the specific experiment.
     hyperparameters: of the transfer models (``None``: the paper's); SpCoA keeps its own.
+    language: sentences of synthetic homes, ``"templates"`` (the paper's) or ``"free"`` (people
+        talking freely, :mod:`spco.data.speech`; their places have several accepted names).
     """
 
     experiment: Experiment = "general"
@@ -343,6 +347,7 @@ class ExperimentConfig:
     new_homes: tuple[str, ...] | None = None
     specific_home: str | None = None
     hyperparameters: TransferHyperparameters | None = None
+    language: str = "templates"
 
     def validated(self) -> ExperimentConfig:
         """A copy with defaults filled in and every field checked (raises ConfigurationError)."""
@@ -354,6 +359,8 @@ class ExperimentConfig:
                 raise ConfigurationError(f"{name} must be an integer >= {low}, got {value!r}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int | np.integer) or self.seed < 0:
             raise ConfigurationError(f"seed must be a non-negative integer, got {self.seed!r}")
+        if self.language not in ("templates", "free"):
+            raise ConfigurationError(f"language must be 'templates' or 'free', got {self.language!r}")
         if self.hyperparameters is not None and not isinstance(self.hyperparameters, TransferHyperparameters):
             raise ConfigurationError("hyperparameters must be a TransferHyperparameters instance")
         if self.settings is None:
@@ -393,6 +400,9 @@ class _DataSpec:
     experienced_homes: tuple[str, ...] | None
     new_homes: tuple[str, ...] | None
     specific_home: str | None
+    language: str = "templates"  # sentences of synthetic homes
+    shown_source: str | None = None  # --data as given (for result files; no absolute path)
+    shown_regions: str | None = None  # --regions as given
 
 
 class _HomeSource:
@@ -496,13 +506,15 @@ def _read_path_sources(spec: _DataSpec) -> tuple[tuple[str, ...], tuple[str, ...
 
 def _synthetic_sources(spec: _DataSpec) -> tuple[tuple[str, ...], tuple[str, ...], str | None,
                                                     dict[str, _HomeSource], dict[str, PlaceRegions]]:
-    from spco.data.synthetic import generate_homes, teach
+    from spco.data.synthetic import SyntheticConfig, generate_homes, teach
 
     if spec.experienced_homes is not None:
         raise ConfigurationError("experienced_homes cannot be chosen for synthetic data (they are "
                                  "the first generated homes)")
     n_exp = max(len(PAPER_EXPERIENCED_HOMES), spec.n_needed)
-    corpus = generate_homes(n_exp + SYNTHETIC_NEW_HOMES, seed=spec.seed, new_homes=SYNTHETIC_NEW_HOMES)
+    language = SyntheticConfig(language=spec.language)
+    corpus = generate_homes(n_exp + SYNTHETIC_NEW_HOMES, seed=spec.seed, new_homes=SYNTHETIC_NEW_HOMES,
+                            config=language)
     names = corpus.names
     experienced, all_new = tuple(names[:n_exp]), tuple(names[n_exp:])
     sources: dict[str, _HomeSource] = {}
@@ -520,7 +532,8 @@ def _synthetic_sources(spec: _DataSpec) -> tuple[tuple[str, ...], tuple[str, ...
                                      if gt.specific_labels[i] is not None})
 
             def taught(rate: int, env: Environment = env, places: list[str] = specific_names) -> Environment:
-                return teach(env, rate, places=places, seed=spec.seed) if rate > 0 else _untaught(env)
+                return (teach(env, rate, places=places, seed=spec.seed, config=language) if rate > 0
+                        else _untaught(env))
         else:
             def taught(rate: int, env: Environment = env) -> Environment:
                 return _untaught(env)
@@ -570,11 +583,12 @@ def _build_data(spec: _DataSpec, settings: Sequence[int]) -> ExperimentData:
         raise DataFormatError(spec.source, "no taught sentence in any experienced home: there are no "
                               "place names to learn")
     data.description = {
-        "source": spec.source,
+        "source": spec.shown_source or spec.source,
+        "language": spec.language,
         "experienced_homes": list(experienced),
         "new_homes": list(new),
         "specific_home": specific,
-        "regions": spec.regions,
+        "regions": spec.shown_regions or spec.regions,
         "regions_sha256": _file_digest(Path(spec.regions)) if spec.regions else None,
         "vocabulary": list(data.vocabulary.words),
     }
@@ -640,8 +654,13 @@ def _data_spec(config: ExperimentConfig) -> _DataSpec:
         regions = str(rpath.resolve())
     settings = config.settings or ()
     n_needed = max(settings) if config.experiment == "general" and settings else 0
+    if config.language != "templates" and source != "synthetic":
+        raise ConfigurationError(f"--language {config.language} applies to synthetic homes only (--data "
+                                 "synthetic); a data set's sentences are what its people said")
     return _DataSpec(config.experiment, source, regions, config.seed, n_needed,
-                     config.experienced_homes, config.new_homes, config.specific_home)
+                     config.experienced_homes, config.new_homes, config.specific_home, config.language,
+                     shown_source=str(config.data),
+                     shown_regions=None if config.regions is None else str(config.regions))
 
 
 def load_experiment_data(config: ExperimentConfig) -> ExperimentData:
@@ -654,27 +673,29 @@ def load_experiment_data(config: ExperimentConfig) -> ExperimentData:
 
 # ------------------------------------------------------------------------------------ maps
 def _find_maps(config: ExperimentConfig, spec: _DataSpec) -> str | None:
+    """The folder of floor plans, written as given (or found beside --regions or --data as given),
+    so that result files hold no absolute path of the machine that ran them."""
     if config.maps is not None:
         folder = Path(config.maps).expanduser()
         if not folder.is_dir():
             raise DataFormatError(folder, "no such folder of floor plans (--maps)")
-        return str(folder.resolve())
+        return str(config.maps)
     candidates = []
     if spec.regions is not None:
-        candidates.append(Path(spec.regions).parent / MAPS_DIR)
+        candidates.append(Path(spec.shown_regions or spec.regions).parent / MAPS_DIR)
     if spec.source != "synthetic":
-        src = Path(spec.source)
+        src = Path(spec.shown_source or spec.source)
         candidates += [src / MAPS_DIR, src.parent / MAPS_DIR]
     for folder in candidates:
-        if folder.is_dir():
-            return str(folder.resolve())
+        if folder.expanduser().is_dir():
+            return str(folder)
     return None
 
 
 def _map_image(maps: str | None, home: str) -> tuple[Path | None, tuple[float, ...] | None]:
     if maps is None:
         return None, None
-    folder = Path(maps)
+    folder = Path(maps).expanduser()
     image = next((folder / f"{home}{ext}" for ext in (".PNG", ".png")
                   if (folder / f"{home}{ext}").is_file()), None)
     extent = None

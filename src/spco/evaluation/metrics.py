@@ -1,9 +1,13 @@
 """The paper's accuracies: A_n (name prediction) and A_p (position prediction), and their chance levels.
 
 - **A_n** of place ``l``: the fraction of the test samples labelled ``l`` whose predicted name is
-  ``l``. The mean over places is the score of a home.
+  ``l`` — or one of ``l``'s accepted names when the ground truth lists synonyms
+  (:attr:`~spco.data.environment.GroundTruth.accepted_names`: "bathroom" is right at the bath). The
+  mean over places is the score of a home.
 - **A_p** of name ``l``: the fraction of the positions sampled for ``l`` that fall inside the
-  ground-truth area of ``l`` (a union of rectangles, bounds inclusive).
+  ground-truth area of ``l`` (a union of rectangles, bounds inclusive). With accepted names, ``where``
+  is asked for each of them that the vocabulary holds and A_p of ``l`` is the mean over those
+  names (a name the model pruned scores 0; a name never said in any home is not asked).
 - Chance: ``1/|V|`` for names (a uniformly random word) and ``1/|places|`` for positions.
 
 A place with no test sample (or no ground-truth area) has accuracy NaN, which
@@ -54,14 +58,17 @@ def name_accuracy(
     predicted: Sequence[str | None],
     labels: Sequence[str | None],
     places: Sequence[str] | None = None,
+    accepted: Mapping[str, Sequence[str]] | None = None,
 ) -> dict[str, float]:
-    """A_n per place: the fraction of the samples labelled ``l`` whose predicted name is ``l``.
+    """A_n per place: the fraction of the samples labelled ``l`` whose predicted name is ``l`` (or
+    one of ``accepted[l]``).
 
     Parameters
     ----------
     predicted: (n,) predicted name of each test sample (``None`` = no prediction, counts as wrong).
     labels: (n,) true place of each sample; samples labelled ``None`` are ignored.
     places: the places to score (default: the labels, in order of first appearance).
+    accepted: place -> names also counted right for it (default: none).
 
     Names and labels are compared after :func:`~spco.data.language.normalize_name`. A place with
     no sample gets NaN (excluded by :func:`mean_over_places`).
@@ -74,11 +81,13 @@ def name_accuracy(
         order = list(dict.fromkeys(lab_ for lab_ in lab if lab_ is not None))
     else:
         order = list(dict.fromkeys(_norm(p) for p in places if _norm(p) is not None))
+    synonyms = {_norm(k): {_norm(n) for n in v} for k, v in (accepted or {}).items()}
     out: dict[str, float] = {}
     for place in order:  # loop over places (a handful), vectorised over samples
         rows = lab == place
         count = int(rows.sum())
-        out[place] = float((pred[rows] == place).sum() / count) if count else math.nan
+        right = np.isin(pred[rows], sorted({place, *synonyms.get(place, set())} - {None}))
+        out[place] = float(right.sum() / count) if count else math.nan
     return out
 
 
@@ -247,7 +256,8 @@ def evaluate_home(
     visual = environment.visual[rows]
     prediction = predict_names(params, e, vocabulary, positions, visual, top_k=3, weighting=weighting)
     predicted = tuple(prediction.best)
-    name_scores = name_accuracy(predicted, labels, place_list)
+    accepted = {place: gt.accepted(place) for place in place_list}
+    name_scores = name_accuracy(predicted, labels, place_list, accepted)
 
     gen = np.random.default_rng(rng)
     pos_scores: dict[str, float] = {}
@@ -257,14 +267,21 @@ def evaluate_home(
         if regions is None or place not in regions.places:
             pos_scores[place] = math.nan
             continue
-        try:
-            pred = predict_positions(params, e, vocabulary, place, n=n_positions, rng=gen,
-                                     mode=position_mode, xy_only=xy_only)
-        except UnknownNameError:
-            pos_scores[place] = 0.0
-            continue
-        pos_predictions[place] = pred
-        pos_scores[place] = position_accuracy({place: pred.samples}, regions)[place]
+        # the place's own name, and every accepted synonym the vocabulary holds as one token
+        names = [n for i, n in enumerate(accepted[place]) if i == 0 or vocabulary.index(n) is not None]
+        scores: list[float] = []
+        for name in names:
+            try:
+                pred = predict_positions(params, e, vocabulary, name, n=n_positions, rng=gen,
+                                         mode=position_mode, xy_only=xy_only)
+            except UnknownNameError:
+                scores.append(0.0)
+                continue
+            pos_predictions.setdefault(place, pred)
+            scores.append(position_accuracy({place: pred.samples}, regions)[place])
+        if len(names) > 1 and vocabulary.index(place) is None:
+            scores.pop(0)  # the label itself was never said (people use its synonyms)
+        pos_scores[place] = float(np.mean(scores))
 
     return HomeScores(
         home=environment.name,

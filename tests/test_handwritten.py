@@ -1,0 +1,74 @@
+"""Sentences written by hand, as people speak, for two SIGVerse homes: the method is not tuned to
+the sentences of its own generator (:mod:`spco.data.speech`).
+
+``tests/data/handwritten_sigverse.csv`` gives 34 sentences for ``1LDK_9`` and 36 for ``2LDK_9``
+(four or five per place, said at training samples; the test samples stay untaught), written freely
+by a person: multi-word names ("living room", "front door", "dining room") next to one-word ones,
+synonyms ("loo", "bathroom"), objects and activities, punctuation and capitals.
+"""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from spco.data import Corpus, Environment
+from spco.data.language import normalize_name
+from spco.data.loading import load
+from spco.evaluation import evaluate_home
+from spco.model import SpCoTransfer
+from spco.prediction import predict_positions, region_posterior_for_name
+
+SENTENCES = Path(__file__).parent / "data" / "handwritten_sigverse.csv"
+#: Names the writer used for each place besides the place's own (accepted as right answers).
+ACCEPTED = {"entrance": ("front door",), "toilet": ("loo", "restroom"), "bath": ("bathroom", "bathtub"),
+            "dining": ("dining room",), "bedroom": ("master bedroom", "kids bedroom")}
+
+
+def handwritten_homes(sigverse_dir: Path) -> list[Environment]:
+    """1LDK_9 and 2LDK_9 taught the hand-written sentences (nothing else), with accepted names."""
+    with open(SENTENCES, encoding="utf-8", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    homes = []
+    for name in ("1LDK_9", "2LDK_9"):
+        env = load(sigverse_dir / name)[name]
+        said = {int(r["id"]): r["sentence"] for r in rows if r["home"] == name}
+        assert not any(env.is_test[env.index_of(i)] for i in said)
+        gt = env.ground_truth
+        assert gt is not None
+        accepted = {normalize_name(p): tuple(map(normalize_name, names)) for p, names in ACCEPTED.items()}
+        homes.append(replace(env.with_sentences([said.get(int(i)) for i in env.ids]),
+                             ground_truth=replace(gt, accepted_names=accepted)))
+    return homes
+
+
+@pytest.mark.sigverse
+def test_handwritten_sentences_name_and_find_the_places(sigverse_dir: Path) -> None:
+    corpus = Corpus(handwritten_homes(sigverse_dir))
+    vocab = corpus.vocabulary
+    assert {"living room", "front door", "dining room"} <= set(vocab.terms)  # learnt, not listed
+    model = SpCoTransfer(n_iterations=40, random_state=0, prune_words=True).fit(corpus)
+    params = model.parameters_
+    for e, env in enumerate(corpus):
+        # one place however the name is written
+        same = [region_posterior_for_name(params, e, vocab, n) for n in ("living room", "Living Room",
+                                                                          "living-room")]
+        assert all(np.array_equal(same[0], s) for s in same[1:])
+        regions = env.ground_truth.regions  # type: ignore[union-attr]
+        where = predict_positions(params, e, vocab, "Living Room", n=50, rng=0)
+        assert where.name == "living room"
+        assert regions.contains("living room", where.samples[:, :2]).mean() >= 0.8
+        scores = evaluate_home(params, e, env, vocab, rng=0)
+        # the living room's test samples are named "living room" (the term), never "room"
+        living = [p for p, lab in zip(scores.predicted_names, scores.labels, strict=True)
+                  if lab == "living room"]
+        assert living.count("living room") >= 0.6 * len(living) and "room" not in living
+        # observed (40 sweeps, seed 0): A_n 0.46 / 0.60, A_p 0.73 / 0.81 (1LDK_9 / 2LDK_9). The
+        # kitchen, dining room, living room and bedrooms are named right; at the entrance, toilet,
+        # bath and washroom the model answers frame words ("the", "here", "this is") and prunes
+        # "toilet" — the naming rule of issue 13 (what counts as a name), not the language
+        assert scores.mean_name_accuracy >= 0.4 and scores.mean_position_accuracy >= 0.6, scores.summary()
