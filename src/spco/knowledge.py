@@ -58,6 +58,7 @@ a newer spco, raises :class:`~spco.errors.ModelFileError` naming the file and th
 
 from __future__ import annotations
 
+import copy
 import functools
 import hashlib
 import json
@@ -84,10 +85,17 @@ from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.io import _checksum, write_npz_atomic
 from spco.model.observations import HierarchicalMultinomial
 from spco.model.parameters import ConceptParameters
+from spco.model.posterior import ParameterAverage, thinned_sweeps
 from spco.model.pruning import words_to_keep
 from spco.model.random import log_dirichlet, sample_crt, stack_counts
 from spco.model.transfer import SpatialConceptModel, SpCoTransfer, export_parameters
-from spco.prediction import NamePrediction, PositionPrediction, predict_names, predict_positions
+from spco.prediction import (
+    NamePrediction,
+    PositionPrediction,
+    predict_names,
+    predict_positions,
+    validate_visual_counts,
+)
 
 __all__ = [
     "DEFAULT_ADAPT_ITERATIONS",
@@ -142,8 +150,9 @@ def _model_name(variant: str, prune: bool) -> str:
 
 
 def _as_generator(random_state: int | np.random.Generator | None) -> np.random.Generator:
+    """A new Generator from a seed, or a copy of a Generator: the caller's is never advanced."""
     if isinstance(random_state, np.random.Generator):
-        return random_state
+        return copy.deepcopy(random_state)
     return np.random.default_rng(random_state)
 
 
@@ -664,6 +673,9 @@ class HomeModel:
         first heard in this home).
     joint: whether the shared part is learnt with the home (``adapt(..., joint=True)``).
     provenance: the knowledge's checksum and provenance, the adaptation and teaching history.
+    posterior: the home's parameters averaged over thinned sweeps of the last adaptation or
+        teaching (:mod:`spco.model.posterior`), which prediction uses; ``None``: the state's
+        own draw is used (no sweep was run).
     """
 
     name: str
@@ -678,6 +690,7 @@ class HomeModel:
     n_knowledge_words: int
     joint: bool = False
     provenance: dict[str, Any] = field(default_factory=dict)
+    posterior: ConceptParameters | None = None
 
     # ------------------------------------------------------------------ views
     @property
@@ -718,7 +731,10 @@ class HomeModel:
 
     @functools.cached_property
     def parameters(self) -> ConceptParameters:
-        """The home's parameters (one home, metres), as prediction uses them."""
+        """The home's parameters (one home, metres), as prediction uses them: the posterior
+        average of the last sweeps (``posterior``), or the state's draw if there is none."""
+        if self.posterior is not None:
+            return self.posterior
         return export_parameters(self.state, self.data)
 
     @property
@@ -759,6 +775,8 @@ class HomeModel:
         })
         for name in _STATE_ARRAYS:
             arrays["state." + name] = np.asarray(getattr(s, name))
+        if self.posterior is not None:
+            arrays.update({"posterior." + k: np.asarray(v) for k, v in self.posterior.arrays().items()})
         header = {
             "format": HOME_FORMAT,
             "format_version": FORMAT_VERSION,
@@ -797,11 +815,14 @@ class HomeModel:
             state = gibbs.GibbsState(**{name: arrays["state." + name] for name in _STATE_ARRAYS})
             sentences = tuple(None if s is None else str(s) for s in header["sentences"])
             extent = None if header["extent"] is None else tuple(float(v) for v in header["extent"])
+            posterior_arrays = {k.removeprefix("posterior."): v for k, v in arrays.items()
+                                if k.startswith("posterior.")}
+            posterior = ConceptParameters(**posterior_arrays) if posterior_arrays else None
             home = cls(name=str(header["name"]), knowledge=knowledge, state=state, ids=arrays["ids"],
                        positions=arrays["positions"], visual=visual, sentences=sentences,
                        extent=extent, map_centre=arrays["map_centre"],
                        n_knowledge_words=int(header["n_knowledge_words"]), joint=bool(header.get("joint")),
-                       provenance=dict(header.get("provenance") or {}))
+                       provenance=dict(header.get("provenance") or {}), posterior=posterior)
         except (TypeError, ValueError, IndexError, KeyError) as exc:
             raise ModelFileError(file, f"inconsistent home file: {exc}") from exc
         problems = _check_home(home)
@@ -844,6 +865,12 @@ def _check_home(home: HomeModel) -> list[str]:
         problems.append(f"visual counts have {home.visual.shape[1]} features, the knowledge {D}")
     if not 0 <= home.n_knowledge_words <= V:
         problems.append(f"n_knowledge_words {home.n_knowledge_words} out of range")
+    if home.posterior is not None:
+        p = home.posterior
+        for name, shape in (("word_probabilities", (1, L, V)), ("visual_probabilities", (1, L, D)),
+                            ("region_weights", (1, L, K)), ("region_means", (1, K, 4))):
+            if np.shape(getattr(p, name)) != shape:
+                problems.append(f"posterior.{name} has shape {np.shape(getattr(p, name))}, expected {shape}")
     if n and ((s.concepts < 0).any() or (s.concepts >= L).any()
               or (s.regions < 0).any() or (s.regions >= K).any()):
         problems.append("assignments out of range")
@@ -1073,8 +1100,12 @@ def adapt(
         from tqdm.auto import tqdm
 
         iterator = tqdm(iterator, desc=f"adapt {home.name}", unit="sweep", leave=False)
-    for _ in iterator:
+    averaged = set(thinned_sweeps(int(n_iterations)))
+    average = ParameterAverage(data.homes, data.position_scale)
+    for iteration in iterator:
         _sweep(data, state, hyper, settings, rng, prior, n_known)
+        if iteration in averaged:
+            average.add(state)
     _judge_new_words(state, extended, n_known)
     seconds = time.perf_counter() - start
     record: dict[str, Any] = {
@@ -1090,7 +1121,8 @@ def adapt(
     return HomeModel(name=home.name, knowledge=extended, state=state, ids=train.ids,
                      positions=train.positions, visual=sp.csr_array(train.visual, dtype=np.int64),
                      sentences=tuple(train.sentences), extent=home.extent, map_centre=centre,
-                     n_knowledge_words=n_known, joint=bool(joint), provenance=record)
+                     n_knowledge_words=n_known, joint=bool(joint), provenance=record,
+                     posterior=average.result(state))
 
 
 # ---------------------------------------------------------------------------- teaching
@@ -1110,7 +1142,6 @@ def _visual_row(visual: Any, n_features: int) -> sp.csr_array:
         raise ConfigurationError("a new observation needs its visual counts (the view's features)")
     if sp.issparse(visual):
         row = sp.csr_array(visual)
-        values = row.data
     else:
         dense = np.asarray(visual)
         if dense.ndim == 2 and dense.shape[0] == 1:
@@ -1121,15 +1152,9 @@ def _visual_row(visual: Any, n_features: int) -> sp.csr_array:
         if not np.issubdtype(dense.dtype, np.number):
             raise ConfigurationError("visual counts must be numbers")
         row = sp.csr_array(dense[None, :])
-        values = dense
     if row.shape != (1, n_features):
         raise ConfigurationError(f"visual counts have {row.shape[1]} values, the home's views {n_features}")
-    values = np.asarray(values, dtype=np.float64)
-    bad = not np.isfinite(values).all() or (values < 0).any() or (values != np.floor(values)).any()
-    if values.size and bad:
-        raise ConfigurationError("visual counts must be non-negative whole numbers (for real-valued CNN "
-                                 "features give a visual scale: counts = floor(max(f, 0) × scale))")
-    out = sp.csr_array(row, dtype=np.int64)
+    out = sp.csr_array(validate_visual_counts(row, n_features), dtype=np.int64)  # the library's checks
     out.eliminate_zeros()
     return out
 
@@ -1156,7 +1181,8 @@ def teach(
     sentences: sample id -> sentence (``None`` or ``""`` forgets the sentence of that sample).
     observations: new samples (:class:`Observation`), appended with new ids.
     n_sweeps: Gibbs sweeps run from the home's current state (10 by default, a few tens of
-        milliseconds for a home of 300 samples).
+        milliseconds for a home of 300 samples); prediction then uses the average of the last
+        of them (:func:`~spco.model.posterior.thinned_sweeps`), with 0 the state's own draw.
     random_state: seed or Generator.
 
     New words grow the vocabulary (:meth:`Knowledge.extended`); everything learnt so far is kept:
@@ -1233,8 +1259,12 @@ def teach(
         state.candidate_words = np.concatenate([state.candidate_words,
                                                 np.ones(knowledge.n_words - home.n_knowledge_words, bool)])
     rng = _as_generator(random_state)
-    for _ in range(int(n_sweeps)):
+    averaged = set(thinned_sweeps(int(n_sweeps))) if n_sweeps else set()
+    average = ParameterAverage(data.homes, data.position_scale)
+    for iteration in range(int(n_sweeps)):
         _sweep(data, state, knowledge.hyperparameters, settings, rng, prior, home.n_knowledge_words)
+        if iteration in averaged:
+            average.add(state)
     _judge_new_words(state, knowledge, home.n_knowledge_words)
     provenance = dict(home.provenance)
     provenance["teach_updates"] = int(provenance.get("teach_updates", 0)) + 1
@@ -1243,8 +1273,10 @@ def teach(
                                 "new_words": list(knowledge.vocabulary.words[home.knowledge.n_words:]),
                                 "n_sweeps": int(n_sweeps), "seed": _seed_of(random_state),
                                 "seconds": round(time.perf_counter() - start, 4)}
+    posterior = average.result(state) if average.n_samples else None
     return replace(home, knowledge=knowledge, state=state, ids=np.asarray(ids, dtype=np.int64),
-                   positions=positions, visual=visual, sentences=tuple(new_sentences), provenance=provenance)
+                   positions=positions, visual=visual, sentences=tuple(new_sentences), provenance=provenance,
+                   posterior=posterior)
 
 
 def _copy_state(state: gibbs.GibbsState) -> gibbs.GibbsState:
@@ -1259,9 +1291,12 @@ def where(home: HomeModel, name: str, n: int = 10,
     """Poses ``(x, y, θ)`` to go to for the place ``name`` in ``home``.
 
     The region m̂ = argmax_m p(m | name) and ``n`` poses drawn from its Gaussian
-    (:func:`spco.prediction.predict_positions`); each pose's ``weights`` entry is its share of the
-    density p(x | name) among the ``n`` poses. Raises :class:`~spco.prediction.UnknownNameError`
-    (with suggestions) for a name the home cannot use: never heard, or pruned as uninformative.
+    (:func:`spco.prediction.predict_positions`), from the home's posterior-averaged parameters;
+    each pose's ``weights`` entry is its share of the density p(x | name) among the ``n`` poses.
+    ``learnt`` is False (and ``support`` low) when no such place was learnt in this home: the name's
+    probability there comes from concepts that hold none of the home's samples. Raises
+    :class:`~spco.prediction.UnknownNameError` (with suggestions) for a name the home cannot use:
+    never heard, or pruned as uninformative.
     """
     return predict_positions(home.parameters, 0, home.vocabulary, name, n=n, rng=_as_generator(random_state))
 
