@@ -26,9 +26,12 @@ is learnt too, with the knowledge as its prior: the posterior of φ_l given the 
 approximated by a Dirichlet with the knowledge's mean and a concentration A_l moment-matched to the
 spread of the averaged posterior samples (``A_l + 1 = Σ_k φ̄_k(1 − φ̄_k) / Σ_k Var φ_k``), so
 ``φ_l | new home ~ Dir(A_l φ̄_l + table counts of the new home)`` (the same for G_0). This is
-assumed-density filtering: exact if that posterior were Dirichlet. A knowledge summarising fewer
-than three samples has no spread; its concentration then defaults to δ^v, δ^w and γ (the knowledge
-weighs as much as one home).
+assumed-density filtering: exact if that posterior were Dirichlet. With few samples the spread is
+poorly known, so it is shrunk towards the spread of Dir(δ φ̄_l) — the spread of one home's θ_{e,l}
+around φ_l, concentration δ^v, δ^w (γ for G_0) — with the weight of
+:data:`CONCENTRATION_PRIOR_SAMPLES` samples (:func:`_concentration`): one sample gives exactly
+δ, many give the moment-matched value, and every number of samples in between lies between them
+(no cliff).
 
 *New words* (a word no experienced home used, such as ``emma's-room``) are appended to the
 vocabulary; their φ^w_{l,k} is α^w/δ^w in every concept (rows renormalised), so a home's
@@ -286,8 +289,9 @@ class Knowledge:
     log_g0: (L,) log G_0, the global concept weights.
     word_mask: (V,) bool, False for words removed by pruning.
     concentration_visual, concentration_words: (L,) Dirichlet concentration A_l of the posterior
-        of φ^v_l, φ^w_l (moment-matched over the averaged samples; NaN: unknown).
-    concentration_g0: the same for G_0 (NaN: unknown).
+        of φ^v_l, φ^w_l (moment-matched over the averaged samples, shrunk towards δ: see
+        :func:`_concentration`; NaN: unknown, in files written before, read as δ).
+    concentration_g0: the same for G_0 (shrunk towards γ; NaN: unknown).
     vocabulary: the words of φ^w's columns.
     word_increment: S^w, the count of each word occurrence.
     hyperparameters: the model's hyperparameters.
@@ -480,22 +484,36 @@ def load_knowledge(path: str | PathLike[str]) -> Knowledge:
 def summary_iterations(n_iterations: int, fraction: float = 0.25, every: int = 5) -> list[int]:
     """The sweeps (0-based) whose samples the knowledge averages: every ``every``-th of the last
     ``fraction`` of the chain, ending with the last sweep, with the step shortened so that a short
-    chain still gives up to three samples."""
-    window = max(1, int(n_iterations * fraction))
-    step = max(1, min(every, window // 3))
-    return sorted(range(n_iterations - 1, n_iterations - 1 - window, -step))
+    chain still gives up to three samples (:func:`spco.model.posterior.thinned_sweeps`)."""
+    return thinned_sweeps(n_iterations, fraction, every)
 
 
-def _concentration(samples: np.ndarray) -> np.ndarray:
-    """Moment-matched Dirichlet concentration of each row: samples (S, L, D) -> (L,) (NaN if S < 3)."""
-    if samples.shape[0] < 3:
-        return np.full(samples.shape[1], np.nan)
+#: Weight, in samples (degrees of freedom), of the default spread Dir(δ φ̄) in :func:`_concentration`.
+CONCENTRATION_PRIOR_SAMPLES = 2.0
+
+
+def _concentration(samples: np.ndarray, default: float) -> np.ndarray:
+    """Dirichlet concentration A_l of each row, moment-matched to the samples' spread, shrunk
+    towards ``default``: samples (S, L, D) -> (L,).
+
+    With φ̄ the mean and s² = Σ_k Var φ_k (ddof 1) of the S samples, the spread of Dir(A φ̄) is
+    Σ_k φ̄_k(1 − φ̄_k) / (A + 1). The variance used pools the samples' S − 1 degrees of freedom
+    with :data:`CONCENTRATION_PRIOR_SAMPLES` of the spread at A = ``default``::
+
+        v = ((S − 1) s² + ν Σ_k φ̄_k(1 − φ̄_k) / (default + 1)) / (S − 1 + ν),   A = Σ_k φ̄_k(1 − φ̄_k) / v − 1
+
+    so S = 1 gives ``default``, large S the moment-matched value, and A changes smoothly with S
+    and the samples. Rows with no spread at all (φ̄ one-hot) get ``default``.
+    """
+    n = samples.shape[0]
     mean = samples.mean(axis=0)
-    var = samples.var(axis=0, ddof=1).sum(axis=-1)
     spread = (mean * (1.0 - mean)).sum(axis=-1)
+    sample_var = samples.var(axis=0, ddof=1).sum(axis=-1) if n > 1 else np.zeros_like(spread)
+    nu = CONCENTRATION_PRIOR_SAMPLES
+    var = ((n - 1) * sample_var + nu * spread / (default + 1.0)) / (n - 1 + nu)
     with np.errstate(divide="ignore", invalid="ignore"):
         a = spread / var - 1.0
-    return np.where(np.isfinite(a) & (a > 0), a, np.nan)
+    return np.where(np.isfinite(a) & (a > 0), a, default)
 
 
 def _align_to(reference_v: np.ndarray, reference_w: np.ndarray, phi_v: np.ndarray,
@@ -607,7 +625,7 @@ def fit_knowledge(
             word_mask &= state.candidate_words
         if not word_mask.any():
             word_mask[np.argmax(np.exp(log_phi_w).max(0))] = True
-    conc_g = _concentration(np.exp(stack_g)[:, None, :])[0]
+    conc_g = _concentration(np.exp(stack_g)[:, None, :], hyper.gamma)[0]
     record: dict[str, Any] = {
         "homes": list(corpus.names),
         "n_samples": int(data.n_samples),
@@ -626,8 +644,8 @@ def fit_knowledge(
     record.update(provenance or {})
     return Knowledge(
         log_phi_visual=log_phi_v, log_phi_words=log_phi_w, log_g0=log_g0, word_mask=word_mask,
-        concentration_visual=_concentration(phi_v_samples),
-        concentration_words=(_concentration(np.exp(stack_w)) if has_words
+        concentration_visual=_concentration(phi_v_samples, hyper.delta_visual),
+        concentration_words=(_concentration(np.exp(stack_w), hyper.delta_word) if has_words
                              else np.full(hyper.n_concepts, np.nan)),
         concentration_g0=float(conc_g), vocabulary=corpus.vocabulary, word_increment=corpus.word_increment,
         hyperparameters=hyper, variant=variant, prune_words=prune, provenance=record,

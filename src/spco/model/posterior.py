@@ -42,7 +42,8 @@ from spco.model.parameters import ConceptParameters
 def thinned_sweeps(n_iterations: int, fraction: float = 0.25, every: int = 5) -> list[int]:
     """The sweeps (0-based) whose samples are averaged: every ``every``-th of the last
     ``fraction`` of the chain, ending with the last sweep, with the step shortened so that a short
-    chain still gives up to three samples (1 sweep: that sweep; 3: all three; 200: 150, 155, …, 199)."""
+    chain still gives up to three samples (1 sweep: that sweep; 3: the last; 12: the last three;
+    200: 154, 159, …, 199)."""
     window = max(1, int(n_iterations * fraction))
     step = max(1, min(every, window // 3))
     return sorted(range(n_iterations - 1, n_iterations - 1 - window, -step))
