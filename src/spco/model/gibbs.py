@@ -8,10 +8,12 @@ once) → **sufficient statistics** → a **global step** (shared φ^v, φ^w, G_
 
 Three samplers share this machinery:
 
-``exact`` — the generative model as written (``../docs/model.md`` of the project):
-    joint (C, R) draw; φ | table counts (CRT auxiliary variables) then θ | φ (partially collapsed
-    Gibbs, in that order); G_0 | concept table counts; G_e ~ Dir(γ G_0 + n); π ~ Dir(β/K + n);
-    NIW regions; positions in metres with μ0 = map centre; pruning score = true mutual information.
+``exact`` — the generative model as written (``../docs/model.md`` of the project), an MCMC for
+    its posterior without word pruning (with pruning, see :func:`_prune`: a heuristic, the chain
+    then has no stated target); joint (C, R) draw; φ | table counts (CRT auxiliary variables)
+    then θ | φ (partially collapsed Gibbs, in that order); G_0 | concept table counts;
+    G_e ~ Dir(γ G_0 + n); π ~ Dir(β/K + n); NIW regions; positions in metres with μ0 = map
+    centre; pruning score = true mutual information.
 ``reference`` — what the authors' published code does, to reproduce their numbers:
     R block then C block; θ given the previous φ, then φ ~ Dir(α + counts pooled over homes);
     G_0 ~ Dir(γ0 + Σ_e n_e); G_e ~ Dir(n + γ G_0 + 50); π ~ Dir(n + β); positions in centimetres
@@ -658,6 +660,12 @@ def _prune(state: GibbsState, hyper: TransferHyperparameters, settings: SamplerS
     φ^w and θ^w, so the pruning is re-decided after every sweep: a word pruned while concepts are
     still forming can come back once they separate (with φ^w set to 0, its table counts and hence
     its φ^w would stay 0 for ever).
+
+    This makes pruning a heuristic outside the model: θ^w and φ^w are drawn from counts that
+    include the pruned words while the likelihood renormalises θ^w over the kept ones, and the
+    mask changes between sweeps, so a chain with pruning ("+MI") has no stated stationary
+    distribution and its log joint jumps when the mask changes. Without pruning the exact
+    sampler is an MCMC for the model's posterior.
     """
     if state.log_phi_w.shape[1] == 0:
         return
@@ -752,7 +760,9 @@ def log_joint(data: PreparedData, state: GibbsState, hyper: TransferHyperparamet
               settings: SamplerSettings, include_parameter_priors: bool = False) -> float:
     """log p(data, C, R | parameters), or with ``include_parameter_priors`` the full
     log p(data, C, R, parameters), in the sampler's units, up to the multinomial coefficients
-    (which do not depend on the state). With word pruning, pruned words are left out.
+    (which do not depend on the state). With word pruning, pruned words are left out, so the
+    value jumps when the mask changes between sweeps (the "+MI" chain has no stated target; see
+    :func:`_prune`).
 
     The default leaves out the parameters' prior densities because, with α^w = 0.01 and
     δ^w φ^w ≪ 1, the Dirichlet density of a word distribution with near-zero entries reaches
