@@ -369,7 +369,7 @@ def show(home_file: Path, out: Path, map_image: Path | None, extent: str | None,
     rng = np.random.default_rng(seed)
     predicted = {}
     for name in names:
-        pred = where_name(home, name, n=10, random_state=rng)
+        pred = where_name(home, name, n=10, random_state=int(rng.integers(2**63 - 1)))  # a Generator is copied
         predicted[pred.name] = pred.samples
     bounds = _extent(extent)
     if bounds is None and map_image is not None and home.extent is None:
