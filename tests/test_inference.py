@@ -348,3 +348,22 @@ def test_predicted_poses_use_the_input_convention() -> None:
     assert_allclose(np.arctan2(pred.poses[:, 2], pred.poses[:, 3]), pred.samples[:, 2])
     names = predict_names(_params(), 0, VOCAB, pred.poses, None, use_vision=False)  # round trip
     assert len(names) == 6
+
+
+def test_home_model_predicts_from_its_posterior_average_and_keeps_it_in_its_file(small_corpus,
+                                                                                 tmp_path) -> None:
+    from spco.knowledge import adapt, fit_knowledge, load_home_model, teach
+
+    knowledge = fit_knowledge(small_corpus, n_iterations=6, random_state=0, hyperparameters=SMALL)
+    home = adapt(knowledge, small_corpus[-1], n_iterations=8, random_state=0)
+    assert home.posterior is not None and home.parameters is home.posterior
+    assert home.parameters.concept_counts.sum() == pytest.approx(home.n_samples)
+    path = home.save(tmp_path / "home.spco")
+    loaded = load_home_model(path)
+    for name, array in home.posterior.arrays().items():
+        np.testing.assert_array_equal(array, getattr(loaded.parameters, name), err_msg=name)
+    sample = int(home.ids[0])
+    taught = teach(home, {sample: "this is the kitchen"}, n_sweeps=4, random_state=1)
+    assert taught.posterior is not None
+    assert taught.posterior.word_probabilities.shape[-1] == len(taught.vocabulary)
+    assert teach(home, {sample: "this is the kitchen"}, n_sweeps=0).posterior is None

@@ -369,7 +369,8 @@ def show(home_file: Path, out: Path, map_image: Path | None, extent: str | None,
     rng = np.random.default_rng(seed)
     predicted = {}
     for name in names:
-        pred = where_name(home, name, n=10, random_state=int(rng.integers(2**63 - 1)))  # a Generator is copied
+        seed_of_name = int(rng.integers(2**63 - 1))  # (a Generator passed on would be copied, not advanced)
+        pred = where_name(home, name, n=10, random_state=seed_of_name)
         predicted[pred.name] = pred.samples
     bounds = _extent(extent)
     if bounds is None and map_image is not None and home.extent is None:

@@ -61,12 +61,13 @@ def _match_labels(reference: np.ndarray, current: np.ndarray, n_labels: int) -> 
     return perm
 
 
-def _masked_mean_rows(p: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """Probabilities with pruned words (mask False) set to 0 and rows renormalised."""
-    if mask.all() or not mask.any():
-        return p / p.sum(axis=-1, keepdims=True)
-    kept = np.where(mask, p, 0.0)
-    return kept / kept.sum(axis=-1, keepdims=True)
+def _masked_rows(log_p: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """Probabilities from log-probabilities (rows of any scale), pruned words (mask False) set
+    to 0 and rows renormalised in log space: never NaN, even if every kept entry underflows."""
+    kept = log_p if mask.all() or not mask.any() else np.where(mask, log_p, -np.inf)
+    top = kept.max(axis=-1, keepdims=True)
+    p = np.exp(kept - top)
+    return p / p.sum(axis=-1, keepdims=True)
 
 
 class ParameterAverage:
@@ -82,6 +83,7 @@ class ParameterAverage:
         self.scale = np.array([position_scale, position_scale, 1.0, 1.0])
         self.n_samples = 0
         self._sums: dict[str, np.ndarray] = {}
+        self._log_sums: dict[str, np.ndarray] = {}  # θ: summed in log space (entries underflow)
         self._reference: tuple[np.ndarray, np.ndarray] | None = None
         self._perms: tuple[np.ndarray, np.ndarray] | None = None
 
@@ -115,8 +117,6 @@ class ParameterAverage:
             "region_weights": pi,
             "region_means": mu,
             "region_second_moments": covariances[homes, perm_r] + mu[..., :, None] * mu[..., None, :],
-            "word_probabilities": np.exp(state.log_theta_w)[homes, perm_c],
-            "visual_probabilities": np.exp(state.log_theta_v)[homes, perm_c],
             "concept_counts": concept_counts[homes, perm_c],
             "region_counts": np.asarray(state.region_counts, dtype=np.float64)[homes, perm_r],
         }
@@ -125,6 +125,12 @@ class ParameterAverage:
                 self._sums[name] += value
             else:
                 self._sums[name] = np.array(value, dtype=np.float64)
+        for name, log_value in (("word_probabilities", state.log_theta_w[homes, perm_c]),
+                                ("visual_probabilities", state.log_theta_v[homes, perm_c])):
+            if name in self._log_sums:
+                np.logaddexp(self._log_sums[name], log_value, out=self._log_sums[name])
+            else:
+                self._log_sums[name] = np.array(log_value, dtype=np.float64)
         self.n_samples += 1
         self._perms = (perm_c, perm_r)
 
@@ -150,16 +156,17 @@ class ParameterAverage:
         covariances = second - mu[..., :, None] * mu[..., None, :]
         covariances = 0.5 * (covariances + np.swapaxes(covariances, -1, -2))
         mask = np.asarray(state.word_mask, dtype=bool)
-        theta_w = to_current(mean["word_probabilities"], perm_c)
+        log_theta_w = to_current(self._log_sums["word_probabilities"], perm_c)  # rows renormalised below
+        log_theta_v = to_current(self._log_sums["visual_probabilities"], perm_c) - np.log(self.n_samples)
         return ConceptParameters(
             concept_weights=to_current(mean["concept_weights"], perm_c),
             region_weights=pi_out,
             region_means=mu,
             region_covariances=covariances,
-            word_probabilities=_masked_mean_rows(theta_w, mask) if theta_w.shape[-1] else theta_w,
-            visual_probabilities=to_current(mean["visual_probabilities"], perm_c),
-            shared_word_probabilities=(_masked_mean_rows(np.exp(state.log_phi_w), mask)
-                                       if mask.size else np.exp(state.log_phi_w)),
+            word_probabilities=_masked_rows(log_theta_w, mask) if mask.size else np.exp(log_theta_w),
+            visual_probabilities=np.exp(log_theta_v),
+            shared_word_probabilities=(_masked_rows(state.log_phi_w, mask) if mask.size
+                                       else np.exp(state.log_phi_w)),
             shared_visual_probabilities=np.exp(state.log_phi_v),
             global_concept_weights=np.exp(state.log_g0),
             word_mask=mask.copy(),
