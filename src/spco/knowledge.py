@@ -47,6 +47,12 @@ adaptation or teaching: a home-specific name that no other home uses would score
 of the same sampler, starting from the home's current state: everything learnt so far is kept
 (about 0.1 s for a SIGVerse home of 260–370 samples).
 
+*Answers* (:func:`where`, :func:`what`) come from the home's parameters averaged over thinned
+sweeps of the last adaptation or teaching (``HomeModel.posterior``, :mod:`spco.model.posterior`),
+not from the last draw; ``where`` reports ``learnt`` False and a low ``support`` when the name's
+probability in the home comes from concepts that hold none of its samples (no such place learnt
+in this home).
+
 Files
 -----
 Knowledge (``.spco``, format ``spco-knowledge``) and home (``.spco``, format ``spco-home``) files
