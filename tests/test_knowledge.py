@@ -447,7 +447,9 @@ def test_reference_sampler_and_short_chains(homes: dict[str, Path]) -> None:
     k = kn.fit_knowledge(load(homes["experienced"]), model="spcotransfer-ref+mi", n_iterations=4,
                          random_state=0)
     assert k.variant == "reference" and k.provenance["summary"]["n_samples"] == 1
-    assert np.isnan(k.concentration_visual).all()  # one sample has no spread: joint uses δ, γ
+    # one sample has no spread: the concentrations are the defaults δ, γ (knowledge._concentration)
+    np.testing.assert_allclose(k.concentration_visual, k.hyperparameters.delta_visual)
+    assert k.concentration_g0 == k.hyperparameters.gamma
     env = _load(homes["new"])
     for joint in (False, True):
         home = kn.adapt(k, env, n_iterations=3, random_state=0, joint=joint)

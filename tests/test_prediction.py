@@ -371,6 +371,7 @@ def test_posteriors_are_finite_and_normalised(seed: int, scale: int, zero_fracti
                                theta_w[None], theta_v[None], theta_w, theta_v, g,
                                np.ones(n_words, dtype=bool), np.ones((1, n_regions), dtype=int))
     positions = rng.normal(size=(8, 4)) * 5
+    positions[:, 2:] /= np.linalg.norm(positions[:, 2:], axis=1, keepdims=True)  # (sin θ, cos θ)
     visual = rng.integers(0, scale + 1, size=(8, d))
     post = concept_posterior(params, 0, positions, visual)
     assert np.isfinite(post).all()

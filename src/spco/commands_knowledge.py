@@ -206,8 +206,13 @@ def where(home_file: Path, name: str, n: int, seed: int, as_json: bool) -> None:
     if as_json:
         click.echo(json.dumps({"home": home.name, "name": pred.name, "region": int(pred.region),
                                "region_probability": float(pred.region_probabilities[pred.region]),
+                               "learnt": bool(pred.learnt), "support": float(pred.support),
                                "positions": positions}, indent=1))
         return
+    if not pred.learnt:
+        click.echo(f"warning: no such place learnt in this home: only {pred.support:.0%} of the probability "
+                   f"of {pred.name!r} comes from concepts holding its samples; the poses below are a guess",
+                   err=True)
     click.echo(f"{pred.name} in home {home.name}: region {pred.region} "
                f"(p = {pred.region_probabilities[pred.region]:.2f})")
     click.echo(f"{'x':>8} {'y':>8} {'theta':>7}  probability")
@@ -371,7 +376,8 @@ def show(home_file: Path, out: Path, map_image: Path | None, extent: str | None,
     rng = np.random.default_rng(seed)
     predicted = {}
     for name in names:
-        pred = where_name(home, name, n=10, random_state=rng)
+        seed_of_name = int(rng.integers(2**63 - 1))  # (a Generator passed on would be copied, not advanced)
+        pred = where_name(home, name, n=10, random_state=seed_of_name)
         predicted[pred.name] = pred.samples
     bounds = _extent(extent)
     if bounds is None and map_image is not None and home.extent is None:

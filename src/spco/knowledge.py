@@ -26,9 +26,12 @@ is learnt too, with the knowledge as its prior: the posterior of φ_l given the 
 approximated by a Dirichlet with the knowledge's mean and a concentration A_l moment-matched to the
 spread of the averaged posterior samples (``A_l + 1 = Σ_k φ̄_k(1 − φ̄_k) / Σ_k Var φ_k``), so
 ``φ_l | new home ~ Dir(A_l φ̄_l + table counts of the new home)`` (the same for G_0). This is
-assumed-density filtering: exact if that posterior were Dirichlet. A knowledge summarising fewer
-than three samples has no spread; its concentration then defaults to δ^v, δ^w and γ (the knowledge
-weighs as much as one home).
+assumed-density filtering: exact if that posterior were Dirichlet. With few samples the spread is
+poorly known, so it is shrunk towards the spread of Dir(δ φ̄_l) — the spread of one home's θ_{e,l}
+around φ_l, concentration δ^v, δ^w (γ for G_0) — with the weight of
+:data:`CONCENTRATION_PRIOR_SAMPLES` samples (:func:`_concentration`): one sample gives exactly
+δ, many give the moment-matched value, and every number of samples in between lies between them
+(no cliff).
 
 *New words* (a word no experienced home used, such as ``emma's-room``) are appended to the
 vocabulary; their φ^w_{l,k} is α^w/δ^w in every concept (rows renormalised), so a home's
@@ -43,6 +46,12 @@ adaptation or teaching: a home-specific name that no other home uses would score
 *Teaching* appends or replaces sentences and observations and runs a few sweeps (10 by default)
 of the same sampler, starting from the home's current state: everything learnt so far is kept
 (about 0.1 s for a SIGVerse home of 260–370 samples).
+
+*Answers* (:func:`where`, :func:`what`) come from the home's parameters averaged over thinned
+sweeps of the last adaptation or teaching (``HomeModel.posterior``, :mod:`spco.model.posterior`),
+not from the last draw; ``where`` reports ``learnt`` False and a low ``support`` when the name's
+probability in the home comes from concepts that hold none of its samples (no such place learnt
+in this home).
 
 Files
 -----
@@ -61,6 +70,7 @@ three (``with locked(path): home = load_home_model(path); …; home.save(path, o
 
 from __future__ import annotations
 
+import copy
 import functools
 import hashlib
 import json
@@ -88,10 +98,17 @@ from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.io import _checksum, write_npz_atomic
 from spco.model.observations import HierarchicalMultinomial
 from spco.model.parameters import ConceptParameters
+from spco.model.posterior import ParameterAverage, thinned_sweeps
 from spco.model.pruning import words_to_keep
 from spco.model.random import log_dirichlet, sample_crt, stack_counts
 from spco.model.transfer import SpatialConceptModel, SpCoTransfer, export_parameters
-from spco.prediction import NamePrediction, PositionPrediction, predict_names, predict_positions
+from spco.prediction import (
+    NamePrediction,
+    PositionPrediction,
+    predict_names,
+    predict_positions,
+    validate_visual_counts,
+)
 
 __all__ = [
     "DEFAULT_ADAPT_ITERATIONS",
@@ -146,8 +163,9 @@ def _model_name(variant: str, prune: bool) -> str:
 
 
 def _as_generator(random_state: int | np.random.Generator | None) -> np.random.Generator:
+    """A new Generator from a seed, or a copy of a Generator: the caller's is never advanced."""
     if isinstance(random_state, np.random.Generator):
-        return random_state
+        return copy.deepcopy(random_state)
     return np.random.default_rng(random_state)
 
 
@@ -287,8 +305,9 @@ class Knowledge:
     log_g0: (L,) log G_0, the global concept weights.
     word_mask: (V,) bool, False for words removed by pruning.
     concentration_visual, concentration_words: (L,) Dirichlet concentration A_l of the posterior
-        of φ^v_l, φ^w_l (moment-matched over the averaged samples; NaN: unknown).
-    concentration_g0: the same for G_0 (NaN: unknown).
+        of φ^v_l, φ^w_l (moment-matched over the averaged samples, shrunk towards δ: see
+        :func:`_concentration`; NaN: unknown, in files written before, read as δ).
+    concentration_g0: the same for G_0 (shrunk towards γ; NaN: unknown).
     vocabulary: the words of φ^w's columns.
     word_increment: S^w, the count of each word occurrence.
     hyperparameters: the model's hyperparameters.
@@ -481,22 +500,36 @@ def load_knowledge(path: str | PathLike[str]) -> Knowledge:
 def summary_iterations(n_iterations: int, fraction: float = 0.25, every: int = 5) -> list[int]:
     """The sweeps (0-based) whose samples the knowledge averages: every ``every``-th of the last
     ``fraction`` of the chain, ending with the last sweep, with the step shortened so that a short
-    chain still gives up to three samples."""
-    window = max(1, int(n_iterations * fraction))
-    step = max(1, min(every, window // 3))
-    return sorted(range(n_iterations - 1, n_iterations - 1 - window, -step))
+    chain still gives up to three samples (:func:`spco.model.posterior.thinned_sweeps`)."""
+    return thinned_sweeps(n_iterations, fraction, every)
 
 
-def _concentration(samples: np.ndarray) -> np.ndarray:
-    """Moment-matched Dirichlet concentration of each row: samples (S, L, D) -> (L,) (NaN if S < 3)."""
-    if samples.shape[0] < 3:
-        return np.full(samples.shape[1], np.nan)
+#: Weight, in samples (degrees of freedom), of the default spread Dir(δ φ̄) in :func:`_concentration`.
+CONCENTRATION_PRIOR_SAMPLES = 2.0
+
+
+def _concentration(samples: np.ndarray, default: float) -> np.ndarray:
+    """Dirichlet concentration A_l of each row, moment-matched to the samples' spread, shrunk
+    towards ``default``: samples (S, L, D) -> (L,).
+
+    With φ̄ the mean and s² = Σ_k Var φ_k (ddof 1) of the S samples, the spread of Dir(A φ̄) is
+    Σ_k φ̄_k(1 − φ̄_k) / (A + 1). The variance used pools the samples' S − 1 degrees of freedom
+    with :data:`CONCENTRATION_PRIOR_SAMPLES` of the spread at A = ``default``::
+
+        v = ((S − 1) s² + ν Σ_k φ̄_k(1 − φ̄_k) / (default + 1)) / (S − 1 + ν),   A = Σ_k φ̄_k(1 − φ̄_k) / v − 1
+
+    so S = 1 gives ``default``, large S the moment-matched value, and A changes smoothly with S
+    and the samples. Rows with no spread at all (φ̄ one-hot) get ``default``.
+    """
+    n = samples.shape[0]
     mean = samples.mean(axis=0)
-    var = samples.var(axis=0, ddof=1).sum(axis=-1)
     spread = (mean * (1.0 - mean)).sum(axis=-1)
+    sample_var = samples.var(axis=0, ddof=1).sum(axis=-1) if n > 1 else np.zeros_like(spread)
+    nu = CONCENTRATION_PRIOR_SAMPLES
+    var = ((n - 1) * sample_var + nu * spread / (default + 1.0)) / (n - 1 + nu)
     with np.errstate(divide="ignore", invalid="ignore"):
         a = spread / var - 1.0
-    return np.where(np.isfinite(a) & (a > 0), a, np.nan)
+    return np.where(np.isfinite(a) & (a > 0), a, default)
 
 
 def _align_to(reference_v: np.ndarray, reference_w: np.ndarray, phi_v: np.ndarray,
@@ -608,7 +641,7 @@ def fit_knowledge(
             word_mask &= state.candidate_words
         if not word_mask.any():
             word_mask[np.argmax(np.exp(log_phi_w).max(0))] = True
-    conc_g = _concentration(np.exp(stack_g)[:, None, :])[0]
+    conc_g = _concentration(np.exp(stack_g)[:, None, :], hyper.gamma)[0]
     record: dict[str, Any] = {
         "homes": list(corpus.names),
         "n_samples": int(data.n_samples),
@@ -627,8 +660,8 @@ def fit_knowledge(
     record.update(provenance or {})
     return Knowledge(
         log_phi_visual=log_phi_v, log_phi_words=log_phi_w, log_g0=log_g0, word_mask=word_mask,
-        concentration_visual=_concentration(phi_v_samples),
-        concentration_words=(_concentration(np.exp(stack_w)) if has_words
+        concentration_visual=_concentration(phi_v_samples, hyper.delta_visual),
+        concentration_words=(_concentration(np.exp(stack_w), hyper.delta_word) if has_words
                              else np.full(hyper.n_concepts, np.nan)),
         concentration_g0=float(conc_g), vocabulary=corpus.vocabulary, word_increment=corpus.word_increment,
         hyperparameters=hyper, variant=variant, prune_words=prune, provenance=record,
@@ -674,6 +707,9 @@ class HomeModel:
         first heard in this home).
     joint: whether the shared part is learnt with the home (``adapt(..., joint=True)``).
     provenance: the knowledge's checksum and provenance, the adaptation and teaching history.
+    posterior: the home's parameters averaged over thinned sweeps of the last adaptation or
+        teaching (:mod:`spco.model.posterior`), which prediction uses; ``None``: the state's
+        own draw is used (no sweep was run).
     """
 
     name: str
@@ -688,6 +724,7 @@ class HomeModel:
     n_knowledge_words: int
     joint: bool = False
     provenance: dict[str, Any] = field(default_factory=dict)
+    posterior: ConceptParameters | None = None
 
     # ------------------------------------------------------------------ views
     @property
@@ -728,7 +765,10 @@ class HomeModel:
 
     @functools.cached_property
     def parameters(self) -> ConceptParameters:
-        """The home's parameters (one home, metres), as prediction uses them."""
+        """The home's parameters (one home, metres), as prediction uses them: the posterior
+        average of the last sweeps (``posterior``), or the state's draw if there is none."""
+        if self.posterior is not None:
+            return self.posterior
         return export_parameters(self.state, self.data)
 
     @property
@@ -769,6 +809,8 @@ class HomeModel:
         })
         for name in _STATE_ARRAYS:
             arrays["state." + name] = np.asarray(getattr(s, name))
+        if self.posterior is not None:
+            arrays.update({"posterior." + k: np.asarray(v) for k, v in self.posterior.arrays().items()})
         header = {
             "format": HOME_FORMAT,
             "format_version": FORMAT_VERSION,
@@ -807,11 +849,14 @@ class HomeModel:
             state = gibbs.GibbsState(**{name: arrays["state." + name] for name in _STATE_ARRAYS})
             sentences = tuple(None if s is None else str(s) for s in header["sentences"])
             extent = None if header["extent"] is None else tuple(float(v) for v in header["extent"])
+            posterior_arrays = {k.removeprefix("posterior."): v for k, v in arrays.items()
+                                if k.startswith("posterior.")}
+            posterior = ConceptParameters(**posterior_arrays) if posterior_arrays else None
             home = cls(name=str(header["name"]), knowledge=knowledge, state=state, ids=arrays["ids"],
                        positions=arrays["positions"], visual=visual, sentences=sentences,
                        extent=extent, map_centre=arrays["map_centre"],
                        n_knowledge_words=int(header["n_knowledge_words"]), joint=bool(header.get("joint")),
-                       provenance=dict(header.get("provenance") or {}))
+                       provenance=dict(header.get("provenance") or {}), posterior=posterior)
         except (TypeError, ValueError, IndexError, KeyError) as exc:
             raise ModelFileError(file, f"inconsistent home file: {exc}") from exc
         problems = _check_home(home)
@@ -854,6 +899,12 @@ def _check_home(home: HomeModel) -> list[str]:
         problems.append(f"visual counts have {home.visual.shape[1]} features, the knowledge {D}")
     if not 0 <= home.n_knowledge_words <= V:
         problems.append(f"n_knowledge_words {home.n_knowledge_words} out of range")
+    if home.posterior is not None:
+        p = home.posterior
+        for name, shape in (("word_probabilities", (1, L, V)), ("visual_probabilities", (1, L, D)),
+                            ("region_weights", (1, L, K)), ("region_means", (1, K, 4))):
+            if np.shape(getattr(p, name)) != shape:
+                problems.append(f"posterior.{name} has shape {np.shape(getattr(p, name))}, expected {shape}")
     if n and ((s.concepts < 0).any() or (s.concepts >= L).any()
               or (s.regions < 0).any() or (s.regions >= K).any()):
         problems.append("assignments out of range")
@@ -1083,8 +1134,12 @@ def adapt(
         from tqdm.auto import tqdm
 
         iterator = tqdm(iterator, desc=f"adapt {home.name}", unit="sweep", leave=False)
-    for _ in iterator:
+    averaged = set(thinned_sweeps(int(n_iterations)))
+    average = ParameterAverage(data.homes, data.position_scale)
+    for iteration in iterator:
         _sweep(data, state, hyper, settings, rng, prior, n_known)
+        if iteration in averaged:
+            average.add(state)
     _judge_new_words(state, extended, n_known)
     seconds = time.perf_counter() - start
     record: dict[str, Any] = {
@@ -1100,7 +1155,8 @@ def adapt(
     return HomeModel(name=home.name, knowledge=extended, state=state, ids=train.ids,
                      positions=train.positions, visual=sp.csr_array(train.visual, dtype=np.int64),
                      sentences=tuple(train.sentences), extent=home.extent, map_centre=centre,
-                     n_knowledge_words=n_known, joint=bool(joint), provenance=record)
+                     n_knowledge_words=n_known, joint=bool(joint), provenance=record,
+                     posterior=average.result(state))
 
 
 # ---------------------------------------------------------------------------- teaching
@@ -1120,7 +1176,6 @@ def _visual_row(visual: Any, n_features: int) -> sp.csr_array:
         raise ConfigurationError("a new observation needs its visual counts (the view's features)")
     if sp.issparse(visual):
         row = sp.csr_array(visual)
-        values = row.data
     else:
         dense = np.asarray(visual)
         if dense.ndim == 2 and dense.shape[0] == 1:
@@ -1131,15 +1186,9 @@ def _visual_row(visual: Any, n_features: int) -> sp.csr_array:
         if not np.issubdtype(dense.dtype, np.number):
             raise ConfigurationError("visual counts must be numbers")
         row = sp.csr_array(dense[None, :])
-        values = dense
     if row.shape != (1, n_features):
         raise ConfigurationError(f"visual counts have {row.shape[1]} values, the home's views {n_features}")
-    values = np.asarray(values, dtype=np.float64)
-    bad = not np.isfinite(values).all() or (values < 0).any() or (values != np.floor(values)).any()
-    if values.size and bad:
-        raise ConfigurationError("visual counts must be non-negative whole numbers (for real-valued CNN "
-                                 "features give a visual scale: counts = floor(max(f, 0) × scale))")
-    out = sp.csr_array(row, dtype=np.int64)
+    out = sp.csr_array(validate_visual_counts(row, n_features), dtype=np.int64)  # the library's checks
     out.eliminate_zeros()
     return out
 
@@ -1166,7 +1215,8 @@ def teach(
     sentences: sample id -> sentence (``None`` or ``""`` forgets the sentence of that sample).
     observations: new samples (:class:`Observation`), appended with new ids.
     n_sweeps: Gibbs sweeps run from the home's current state (10 by default, a few tens of
-        milliseconds for a home of 300 samples).
+        milliseconds for a home of 300 samples); prediction then uses the average of the last
+        of them (:func:`~spco.model.posterior.thinned_sweeps`), with 0 the state's own draw.
     random_state: seed or Generator.
 
     New words grow the vocabulary (:meth:`Knowledge.extended`); everything learnt so far is kept:
@@ -1243,8 +1293,12 @@ def teach(
         state.candidate_words = np.concatenate([state.candidate_words,
                                                 np.ones(knowledge.n_words - home.n_knowledge_words, bool)])
     rng = _as_generator(random_state)
-    for _ in range(int(n_sweeps)):
+    averaged = set(thinned_sweeps(int(n_sweeps))) if n_sweeps else set()
+    average = ParameterAverage(data.homes, data.position_scale)
+    for iteration in range(int(n_sweeps)):
         _sweep(data, state, knowledge.hyperparameters, settings, rng, prior, home.n_knowledge_words)
+        if iteration in averaged:
+            average.add(state)
     _judge_new_words(state, knowledge, home.n_knowledge_words)
     provenance = dict(home.provenance)
     provenance["teach_updates"] = int(provenance.get("teach_updates", 0)) + 1
@@ -1253,8 +1307,10 @@ def teach(
                                 "new_words": list(knowledge.vocabulary.words[home.knowledge.n_words:]),
                                 "n_sweeps": int(n_sweeps), "seed": _seed_of(random_state),
                                 "seconds": round(time.perf_counter() - start, 4)}
+    posterior = average.result(state) if average.n_samples else None
     return replace(home, knowledge=knowledge, state=state, ids=np.asarray(ids, dtype=np.int64),
-                   positions=positions, visual=visual, sentences=tuple(new_sentences), provenance=provenance)
+                   positions=positions, visual=visual, sentences=tuple(new_sentences), provenance=provenance,
+                   posterior=posterior)
 
 
 def _copy_state(state: gibbs.GibbsState) -> gibbs.GibbsState:
@@ -1269,9 +1325,12 @@ def where(home: HomeModel, name: str, n: int = 10,
     """Poses ``(x, y, θ)`` to go to for the place ``name`` in ``home``.
 
     The region m̂ = argmax_m p(m | name) and ``n`` poses drawn from its Gaussian
-    (:func:`spco.prediction.predict_positions`); each pose's ``weights`` entry is its share of the
-    density p(x | name) among the ``n`` poses. Raises :class:`~spco.prediction.UnknownNameError`
-    (with suggestions) for a name the home cannot use: never heard, or pruned as uninformative.
+    (:func:`spco.prediction.predict_positions`), from the home's posterior-averaged parameters;
+    each pose's ``weights`` entry is its share of the density p(x | name) among the ``n`` poses.
+    ``learnt`` is False (and ``support`` low) when no such place was learnt in this home: the name's
+    probability there comes from concepts that hold none of the home's samples. Raises
+    :class:`~spco.prediction.UnknownNameError` (with suggestions) for a name the home cannot use:
+    never heard, or pruned as uninformative.
     """
     return predict_positions(home.parameters, 0, home.vocabulary, name, n=n, rng=_as_generator(random_state))
 

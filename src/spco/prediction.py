@@ -19,6 +19,19 @@ Positions::
 
     p(m | w) ∝ Σ_l π_{e,l,m} θ^w_{e,l,w} G_{e,l},   m̂ = argmax_m p(m | w),   x ~ N(μ_{e,m̂}, Σ_{e,m̂}).
 
+The sum runs over the concepts that hold training samples of home e (``concept_counts`` ≥ 1): a
+concept with no sample there has π drawn from its sparse prior, which says nothing about the
+home's map. The share of Σ_l θ^w_{e,l,w} G_{e,l} that those concepts hold is the name's
+``support`` in the home; below :data:`LEARNT_SUPPORT` the place is reported as not learnt in this
+home (``PositionPrediction.learnt`` False): its name is explained mostly by concepts of other
+homes, e.g. ``dining`` in a home without a dining room.
+
+Input: every function validates its input the same way, and so does the CLI, which calls them:
+poses are ``(x, y, sin θ, cos θ)`` rows with sin² + cos² = 1 (:func:`validate_poses`); visual
+features are counts, whole numbers ≥ 0, sparse or dense (:func:`validate_visual_counts`; real
+CNN features must first be turned into counts with a visual scale,
+:func:`spco.data.plain.features_to_counts`); the home index is 0 … E − 1.
+
 Numerics: all likelihoods are combined in log space. The visual term ``v · log θ^vᵀ`` is one
 (sparse) matrix product; with ~7,000 counts its gaps between concepts are thousands of nats, so the
 concept posterior is normalised with ``logsumexp``. Logarithms of probabilities are floored at
@@ -43,6 +56,7 @@ from spco.model.parameters import ConceptParameters
 from spco.model.pruning import bernoulli_kl_scores, word_concept_mutual_information
 
 __all__ = [
+    "LEARNT_SUPPORT",
     "NamePrediction",
     "PositionPrediction",
     "UnknownNameError",
@@ -50,11 +64,14 @@ __all__ = [
     "gaussian_log_density",
     "kl_scores_reference",
     "mutual_information_weights",
+    "name_support",
     "predict_names",
     "predict_positions",
     "query_name",
     "reference_kl_weights",
     "region_posterior_for_name",
+    "validate_poses",
+    "validate_visual_counts",
     "word_posterior",
 ]
 
@@ -64,6 +81,12 @@ PositionMode = Literal["argmax", "mixture"]
 _TINY = np.finfo(np.float64).tiny
 _LOG_FLOOR = float(np.log(_TINY))  # ≈ -708.4: the log of "zero", finite on purpose
 _LOG_2PI = float(np.log(2.0 * np.pi))
+
+#: A place name is *learnt* in a home when at least this share of its probability there comes
+#: from concepts that hold samples of the home (see :func:`name_support`).
+LEARNT_SUPPORT = 0.5
+#: Tolerance on sin² θ + cos² θ = 1 for the pose columns 3–4.
+_UNIT_TOLERANCE = 1e-3
 
 
 class UnknownNameError(SpcoError, LookupError):
@@ -134,13 +157,19 @@ class PositionPrediction:
     region: m̂ = argmax_m p(m | w).
     region_probabilities: (K,) p(m | w).
     samples: (n, 3) sampled poses ``(x, y, θ)``, metres and radians; ``θ = atan2(sin, cos)`` of
-        the sampled 4-D vector, NaN when ``xy_only``.
+        the sampled 4-D vector, NaN when ``xy_only``. The same draws in the input convention
+        ``(x, y, sin θ, cos θ)`` are :attr:`poses`.
     regions: (n,) int, the region each sample was drawn from.
     log_density: (n,) log-density of each raw draw (4-D, or x–y when ``xy_only``) under the
         whole mixture Σ_m p(m | w) N(· | μ_m, Σ_m).
     weights: (n,) that density normalised over the ``n`` samples (sums to 1).
     mode: ``"argmax"`` or ``"mixture"``.
     xy_only: whether only the x–y marginal was sampled.
+    support: the share of the name's probability in the home that comes from concepts holding
+        samples of the home (:func:`name_support`); 1.0 when the parameters carry no concept
+        counts.
+    learnt: ``support >= LEARNT_SUPPORT``; False means "no such place learnt in this home": the
+        region and samples are then the best the model can say, but not knowledge of this home.
     """
 
     name: str
@@ -152,11 +181,20 @@ class PositionPrediction:
     weights: np.ndarray
     mode: str
     xy_only: bool
+    support: float = 1.0
+    learnt: bool = True
 
     @property
     def xy(self) -> np.ndarray:
         """(n, 2) sampled x, y in metres."""
         return self.samples[:, :2]
+
+    @property
+    def poses(self) -> np.ndarray:
+        """(n, 4) the samples as ``(x, y, sin θ, cos θ)``, the convention of the inputs (NaN
+        columns 3–4 when ``xy_only``)."""
+        theta = self.samples[:, 2]
+        return np.column_stack([self.samples[:, :2], np.sin(theta), np.cos(theta)])
 
 
 # ---------------------------------------------------------------------------------- helpers
@@ -168,9 +206,10 @@ def _safe_log(a: np.ndarray) -> np.ndarray:
 
 def _check_home(params: ConceptParameters, e: int) -> int:
     n_env = params.n_environments
-    if not -n_env <= int(e) < n_env:
-        raise ConfigurationError(f"home index {e} is out of range: the model holds {n_env} homes")
-    return int(e) % n_env
+    if isinstance(e, bool) or not isinstance(e, int | np.integer) or not 0 <= int(e) < n_env:
+        raise ConfigurationError(f"home index {e!r} is out of range: the model holds {n_env} homes, "
+                                 f"indices 0 to {n_env - 1}")
+    return int(e)
 
 
 def _check_vocabulary(params: ConceptParameters, vocabulary: Vocabulary) -> None:
@@ -239,42 +278,83 @@ def gaussian_log_density(points: np.ndarray, means: np.ndarray, covariances: np.
     return -0.5 * (maha + log_det[None, :] + d * _LOG_2PI)
 
 
-def _visual_log_likelihood(theta_v: np.ndarray, visual: object) -> np.ndarray:
-    """(n, L) ``v · log θ^vᵀ`` for sparse or dense counts ``visual`` (n, D)."""
-    log_theta = _safe_log(theta_v)  # (L, D), finite
+def validate_visual_counts(visual: object, n_features: int | None = None) -> sp.csr_array:
+    """Visual features of ``n`` views as an (n, D) float64 CSR array of counts, or an error.
+
+    ``visual``: SciPy sparse or dense (n, D), or a (D,) vector for one view. The values must be
+    finite whole numbers ≥ 0 (the model's visual likelihood is a multinomial over counts); real
+    CNN features are refused with a hint to convert them with a visual scale. ``n_features``:
+    the model's D, checked if given. Raises :class:`~spco.errors.ConfigurationError`.
+    """
     if sp.issparse(visual):
-        counts = sp.csr_array(visual, dtype=np.float64)
-        if counts.shape[1] != log_theta.shape[1]:
-            raise ConfigurationError(f"visual features have {counts.shape[1]} dimensions, the model "
-                                     f"{log_theta.shape[1]}")
-        return np.asarray(counts @ log_theta.T)
-    dense = np.asarray(visual, dtype=np.float64)
-    if dense.ndim == 1:
-        dense = dense[None, :]
-    if dense.ndim != 2 or dense.shape[1] != log_theta.shape[1]:
-        raise ConfigurationError(f"visual features must have shape (n, {log_theta.shape[1]}), "
-                                 f"got {dense.shape}")
-    if not np.isfinite(dense).all():
+        counts = sp.csr_array(visual)
+        values = counts.data
+    else:
+        dense = np.asarray(visual)
+        if dense.dtype == object or not (np.issubdtype(dense.dtype, np.number)
+                                         or dense.dtype == np.bool_):
+            raise ConfigurationError(f"visual features must be numbers, got an array of {dense.dtype}")
+        if dense.ndim == 1:
+            dense = dense[None, :]
+        if dense.ndim != 2:
+            raise ConfigurationError(f"visual features must have shape (n, D), got {dense.shape}")
+        counts = sp.csr_array(dense)
+        values = dense
+    if n_features is not None and counts.shape[1] != n_features:
+        raise ConfigurationError(f"visual features have {counts.shape[1]} dimensions, the model "
+                                 f"{n_features}")
+    values = np.asarray(values, dtype=np.float64)
+    if not np.isfinite(values).all():
         raise ConfigurationError("visual features hold NaN or inf")
-    return dense @ log_theta.T
+    if (values < 0).any() or (values != np.floor(values)).any():
+        raise ConfigurationError("visual features must be counts, whole numbers >= 0; for real-valued CNN "
+                                 "features convert them first: counts = floor(max(f, 0) × scale) "
+                                 "(spco.data.plain.features_to_counts, or a visual scale on the CLI)")
+    return sp.csr_array(counts, dtype=np.float64)
 
 
-def _as_positions(positions: object) -> np.ndarray:
-    x = np.asarray(positions, dtype=np.float64)
+def validate_poses(positions: object) -> np.ndarray:
+    """Poses as an (n, 4) float64 array ``(x, y, sin θ, cos θ)``, or an error.
+
+    A (4,) vector is one pose. Columns 3–4 must be sin θ and cos θ (sin² + cos² = 1 within 1e-3):
+    a pose given as (x, y, θ, …) is refused. Raises :class:`~spco.errors.ConfigurationError`.
+    """
+    try:
+        x = np.asarray(positions, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ConfigurationError(f"positions must be numbers: {exc}") from None
     if x.ndim == 1:
         x = x[None, :]
     if x.ndim != 2 or x.shape[1] != 4:
         raise ConfigurationError(f"positions must have shape (n, 4) (x, y, sin θ, cos θ), got {x.shape}")
     if not np.isfinite(x).all():
         raise ConfigurationError("positions hold NaN or inf")
+    norm = x[:, 2] ** 2 + x[:, 3] ** 2
+    bad = np.flatnonzero(np.abs(norm - 1.0) > _UNIT_TOLERANCE)
+    if bad.size:
+        i = int(bad[0])
+        raise ConfigurationError(f"positions: columns 3–4 must be sin θ and cos θ (sin² + cos² = 1), but row "
+                                 f"{i} has sin² + cos² = {norm[i]:.6g} ({bad.size} such rows); give poses "
+                                 "as (x, y, sin θ, cos θ)")
     return x
+
+
+def _visual_log_likelihood(theta_v: np.ndarray, visual: object) -> np.ndarray:
+    """(n, L) ``v · log θ^vᵀ`` for counts ``visual`` (n, D), sparse or dense (validated)."""
+    log_theta = _safe_log(theta_v)  # (L, D), finite
+    counts = validate_visual_counts(visual, log_theta.shape[1])
+    return np.asarray(counts @ log_theta.T)
+
+
+def _as_positions(positions: object) -> np.ndarray:
+    return validate_poses(positions)
 
 
 def _n_rows(positions: object, visual: object) -> int:
     if positions is not None:
         return _as_positions(positions).shape[0]
     if visual is not None:
-        return int(visual.shape[0]) if sp.issparse(visual) else np.atleast_2d(np.asarray(visual)).shape[0]
+        return validate_visual_counts(visual).shape[0]
     raise ConfigurationError("give positions, visual features or both")
 
 
@@ -510,6 +590,39 @@ def query_name(vocabulary: Vocabulary, params: ConceptParameters, name: str) -> 
     return " + ".join(vocabulary.words[k] for k in _query_indices(params, vocabulary, name))
 
 
+def _occupied_concepts(params: ConceptParameters, e: int) -> np.ndarray:
+    """(L,) bool: concepts holding training samples of home ``e`` (mean count ≥ 1); all True when
+    the parameters carry no concept counts."""
+    if params.concept_counts is None:
+        return np.ones(params.n_concepts, dtype=bool)
+    return np.asarray(params.concept_counts[e], dtype=np.float64) >= 1.0
+
+
+def _name_concept_weights(params: ConceptParameters, e: int, words: list[int]) -> np.ndarray:
+    """(L,) G_{e,l} Π_i θ^w_{e,l,w_i}: how much each concept of home e explains the words said together,
+    scaled by the largest concept's Π_i θ (several small θ multiply); a concept in which a word has
+    probability 0 keeps weight 0."""
+    log_theta = _safe_log(_word_matrix(params, e)[:, words]).sum(axis=1)  # (L,)
+    top = float(log_theta.max())
+    theta_w = np.exp(log_theta - top) if top > _LOG_FLOOR else np.zeros_like(log_theta)
+    g = np.clip(np.asarray(params.concept_weights[e], dtype=np.float64), 0.0, None)
+    return g * theta_w
+
+
+def name_support(params: ConceptParameters, e: int, vocabulary: Vocabulary, name: str) -> float:
+    """Share of p(name | home e) = Σ_l G_{e,l} θ^w_{e,l,w} held by concepts with samples of home e.
+
+    Near 1: the name belongs to places the home's samples were assigned to. Near 0: the name is
+    explained by concepts that hold no sample of this home (their θ^w and π come from the prior,
+    i.e. from the other homes): no such place was learnt in this home. Returns a float in [0, 1]
+    (0 if the name has probability 0 in every concept).
+    """
+    e = _check_home(params, e)
+    weights = _name_concept_weights(params, e, _query_indices(params, vocabulary, name))
+    total = weights.sum()
+    return float(weights[_occupied_concepts(params, e)].sum() / total) if total > 0 else 0.0
+
+
 def region_posterior_for_name(
     params: ConceptParameters, e: int, vocabulary: Vocabulary, name: str
 ) -> np.ndarray:
@@ -519,19 +632,19 @@ def region_posterior_for_name(
     ``"Living Room"``, ``"living-room"`` → the token ``"living room"``). A name of several tokens
     (``"study room"`` never learnt as one term) is understood as all its known, unpruned tokens said
     together: p(m | w_1 … w_n) ∝ Σ_l π_{e,l,m} G_{e,l} Π_i θ^w_{e,l,w_i}; its unknown or pruned tokens
-    are left out. Returns (K,) float64 summing to 1. Raises :class:`UnknownNameError` if no token of
-    the name is known and unpruned, or the name has probability 0 in every concept of home ``e``.
+    are left out. The sum runs over the concepts holding samples of home ``e`` (``concept_counts``
+    ≥ 1), or over all concepts if the name has no probability in those (see :func:`name_support`).
+    Returns (K,) float64 summing to 1. Raises :class:`UnknownNameError` if no token of the name is
+    known and unpruned, or the name has probability 0 in every concept of home ``e``.
     """
     e = _check_home(params, e)
     ws = _query_indices(params, vocabulary, name)
-    log_theta = _safe_log(_word_matrix(params, e)[:, ws]).sum(axis=1)  # (L,)
-    # scaled by the largest concept's value (several small θ multiply); a concept in which a token
-    # has probability 0 keeps weight 0
-    top = float(log_theta.max())
-    theta_w = np.exp(log_theta - top) if top > _LOG_FLOOR else np.zeros_like(log_theta)
-    g = np.clip(np.asarray(params.concept_weights[e], dtype=np.float64), 0.0, None)
+    concept_weights = _name_concept_weights(params, e, ws)  # (L,)
+    occupied = _occupied_concepts(params, e)
+    if (concept_weights[occupied] > 0).any():
+        concept_weights = np.where(occupied, concept_weights, 0.0)
     pi = np.clip(np.asarray(params.region_weights[e], dtype=np.float64), 0.0, None)  # (L, K)
-    weights = (g * theta_w) @ pi  # (K,)
+    weights = concept_weights @ pi  # (K,)
     total = weights.sum()
     if not total > 0:
         mask = np.asarray(params.word_mask, dtype=bool)
@@ -559,9 +672,11 @@ def predict_positions(
     mode: ``"argmax"`` — draw from N(μ_m̂, Σ_m̂) with m̂ = argmax p(m | w) (the paper);
         ``"mixture"`` — draw each sample's region from p(m | w) first.
     xy_only: draw from the x–y marginal only (the authors' code); θ is then NaN.
-    rng: a Generator or a seed.
+    rng: a Generator (advanced by the draws) or a seed.
 
-    Returns a :class:`PositionPrediction` with samples (n, 3) = (x, y, θ).
+    Returns a :class:`PositionPrediction` with samples (n, 3) = (x, y, θ) (``poses``: the same
+    as (x, y, sin θ, cos θ)), the name's ``support`` in the home and ``learnt`` (see the module
+    docstring: False means no such place was learnt in this home).
     """
     if n < 0:
         raise ConfigurationError(f"the number of positions must be >= 0, got {n}")
@@ -569,6 +684,7 @@ def predict_positions(
         raise ConfigurationError(f"mode must be 'argmax' or 'mixture', got {mode!r}")
     e = _check_home(params, e)
     probs = region_posterior_for_name(params, e, vocabulary, name)
+    support = name_support(params, e, vocabulary, name)
     best = int(np.argmax(probs))
     gen = np.random.default_rng(rng)
     d = 2 if xy_only else 4
@@ -599,4 +715,6 @@ def predict_positions(
         weights=weights,
         mode=mode,
         xy_only=bool(xy_only),
+        support=support,
+        learnt=support >= LEARNT_SUPPORT,
     )

@@ -8,10 +8,12 @@ once) → **sufficient statistics** → a **global step** (shared φ^v, φ^w, G_
 
 Three samplers share this machinery:
 
-``exact`` — the generative model as written (``../docs/model.md`` of the project):
-    joint (C, R) draw; φ | table counts (CRT auxiliary variables) then θ | φ (partially collapsed
-    Gibbs, in that order); G_0 | concept table counts; G_e ~ Dir(γ G_0 + n); π ~ Dir(β/K + n);
-    NIW regions; positions in metres with μ0 = map centre; pruning score = true mutual information.
+``exact`` — the generative model as written (``../docs/model.md`` of the project), an MCMC for
+    its posterior without word pruning (with pruning, see :func:`_prune`: a heuristic, the chain
+    then has no stated target); joint (C, R) draw; φ | table counts (CRT auxiliary variables)
+    then θ | φ (partially collapsed Gibbs, in that order); G_0 | concept table counts;
+    G_e ~ Dir(γ G_0 + n); π ~ Dir(β/K + n); NIW regions; positions in metres with μ0 = map
+    centre; pruning score = true mutual information.
 ``reference`` — what the authors' published code does, to reproduce their numbers:
     R block then C block; θ given the previous φ, then φ ~ Dir(α + counts pooled over homes);
     G_0 ~ Dir(γ0 + Σ_e n_e); G_e ~ Dir(n + γ G_0 + 50); π ~ Dir(n + β); positions in centimetres
@@ -251,9 +253,11 @@ def warm_start(data: PreparedData, state: GibbsState, hyper: TransferHyperparame
     conditionals), which makes its concepts place-pure within the home; then the homes' labels
     are aligned progressively — taught homes first — by matching each home's concepts to the
     pooled word and visual counts of the homes aligned before it (Hungarian algorithm); finally
-    φ and G_0 are set from the aligned counts of the homes taught at least half of their samples,
-    and θ, G_e, π, μ, Σ drawn given them — for the other homes (a new home) from the priors given
-    φ and G_0, so that their samples are first assigned by the transferred knowledge.
+    φ and G_0 are set from the aligned counts, each home's weighted by how much it was taught
+    (:func:`initial_home_weights`: the most taught homes count fully, a home taught nothing among
+    taught homes ~2 %), and θ, G_e, π, μ, Σ drawn given them — for a new home essentially from
+    the priors given φ and G_0, so that its samples are first assigned by the transferred
+    knowledge.
 
     This is only an initialisation (the chain is valid MCMC from its end on, whatever state it
     starts from); it matters because label switching between homes is the sampler's hardest move:
@@ -274,20 +278,37 @@ def warm_start(data: PreparedData, state: GibbsState, hyper: TransferHyperparame
     _apply_permutations(data, state, perms)
     stats = _statistics(data, state, hyper)
     # Homes taught little (a new home) start from the transferred knowledge instead: their
-    # concept statistics are dropped, so their θ, G_e and π are drawn from the priors given the
-    # φ and G_0 of the taught homes, and the next local step assigns their samples by it.
+    # concept statistics are scaled down, so their θ, G_e and π are drawn from (nearly) the priors
+    # given the φ and G_0 of the taught homes, and the next local step assigns their samples by it.
     taught = np.bincount(data.homes, weights=np.diff(data.words.indptr) > 0, minlength=data.n_homes)
-    sizes = np.diff(data.offsets)
-    reset = taught < 0.5 * sizes
-    if reset.any() and not reset.all():
+    weights = initial_home_weights(taught / np.maximum(np.diff(data.offsets), 1))
+    if (weights < 1.0).any():
         for name in ("visual", "words", "concepts", "regions_by_concept"):
-            dropped = getattr(stats, name).copy()  # (the visual counts are the sampler's cache)
-            dropped[reset] = 0
-            setattr(stats, name, dropped)
+            counts = getattr(stats, name)  # (the visual counts are the sampler's cache: not in place)
+            scale = weights.reshape((-1,) + (1,) * (counts.ndim - 1))
+            setattr(stats, name, np.rint(counts * scale).astype(np.int64))
     state.log_phi_v = log_dirichlet(hyper.alpha_visual + stats.visual.sum(0), rng)
     state.log_phi_w = log_dirichlet(hyper.alpha_word + stats.words.sum(0), rng)
     state.log_g0 = log_dirichlet(hyper.gamma0 / hyper.n_concepts + stats.concepts.sum(0), rng)
     _home_step(data, state, stats, hyper, settings, rng)
+
+
+#: Smoothing of :func:`initial_home_weights` (a taught fraction): keeps the weights continuous
+#: when no home is taught.
+TAUGHT_SMOOTHING = 0.02
+
+
+def initial_home_weights(taught_fraction: np.ndarray) -> np.ndarray:
+    """Weight of each home's statistics in the initial shared part: (E,) in (0, 1].
+
+    ``taught_fraction`` (E,) is the share of each home's samples with a sentence; the weight is
+    (f_e + ε) / (max_e f_e + ε) with ε = :data:`TAUGHT_SMOOTHING`: the most taught homes count
+    fully, the others in proportion (a home taught nothing among fully taught homes ≈ 0.02, i.e.
+    it starts from the knowledge of the others), every home fully when all are taught alike
+    (also when none is). Continuous in every fraction: no threshold decides the first partition.
+    """
+    f = np.clip(np.asarray(taught_fraction, dtype=np.float64), 0.0, 1.0)
+    return (f + TAUGHT_SMOOTHING) / (f.max() + TAUGHT_SMOOTHING)
 
 
 def place_words(data: PreparedData, groups: np.ndarray, p_value: float = 1e-3) -> np.ndarray:
@@ -639,6 +660,12 @@ def _prune(state: GibbsState, hyper: TransferHyperparameters, settings: SamplerS
     φ^w and θ^w, so the pruning is re-decided after every sweep: a word pruned while concepts are
     still forming can come back once they separate (with φ^w set to 0, its table counts and hence
     its φ^w would stay 0 for ever).
+
+    This makes pruning a heuristic outside the model: θ^w and φ^w are drawn from counts that
+    include the pruned words while the likelihood renormalises θ^w over the kept ones, and the
+    mask changes between sweeps, so a chain with pruning ("+MI") has no stated stationary
+    distribution and its log joint jumps when the mask changes. Without pruning the exact
+    sampler is an MCMC for the model's posterior.
     """
     if state.log_phi_w.shape[1] == 0:
         return
@@ -733,7 +760,9 @@ def log_joint(data: PreparedData, state: GibbsState, hyper: TransferHyperparamet
               settings: SamplerSettings, include_parameter_priors: bool = False) -> float:
     """log p(data, C, R | parameters), or with ``include_parameter_priors`` the full
     log p(data, C, R, parameters), in the sampler's units, up to the multinomial coefficients
-    (which do not depend on the state). With word pruning, pruned words are left out.
+    (which do not depend on the state). With word pruning, pruned words are left out, so the
+    value jumps when the mask changes between sweeps (the "+MI" chain has no stated target; see
+    :func:`_prune`).
 
     The default leaves out the parameters' prior densities because, with α^w = 0.01 and
     δ^w φ^w ≪ 1, the Dirichlet density of a word distribution with near-zero entries reaches

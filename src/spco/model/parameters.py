@@ -1,4 +1,4 @@
-"""The learnt parameters of the spatial-concept model: one posterior sample, all homes stacked.
+"""The learnt parameters of the spatial-concept model: a posterior summary, all homes stacked.
 
 This is the interface between learning (:mod:`spco.model`) and use (:mod:`spco.prediction`,
 :mod:`spco.evaluation`, model files): every model — the transfer model and the SpCoA baselines —
@@ -17,7 +17,8 @@ import numpy as np
 
 @dataclass(frozen=True, eq=False)
 class ConceptParameters:
-    """One sample (or a summary) of the model's parameters.
+    """A summary of the model's parameters (an average over thinned sweeps, see
+    :mod:`spco.model.posterior`) or one sample of them.
 
     Attributes
     ----------
@@ -32,6 +33,9 @@ class ConceptParameters:
     global_concept_weights: (L,) G_0.
     word_mask: (V,) bool, False for words removed by mutual-information pruning.
     region_counts: (E, K) int, training samples assigned to each region (0 = unused region).
+    concept_counts: (E, L) float, mean number of training samples assigned to each concept over
+        the averaged sweeps (< 1: the concept holds no sample of the home), or ``None`` (model
+        files written before it existed: no concept is then known to be empty).
     """
 
     concept_weights: np.ndarray
@@ -45,6 +49,7 @@ class ConceptParameters:
     global_concept_weights: np.ndarray
     word_mask: np.ndarray
     region_counts: np.ndarray
+    concept_counts: np.ndarray | None = None
 
     @property
     def n_environments(self) -> int:
@@ -63,4 +68,4 @@ class ConceptParameters:
 
     def arrays(self) -> dict[str, np.ndarray]:
         """All fields as a name -> array mapping (for saving)."""
-        return {f.name: getattr(self, f.name) for f in fields(self)}
+        return {f.name: getattr(self, f.name) for f in fields(self) if getattr(self, f.name) is not None}

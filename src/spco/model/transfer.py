@@ -2,7 +2,22 @@
 
 In the style of scikit-learn's ``sklearn.mixture``: hyperparameters in the constructor,
 ``fit(corpus)`` returns the model, learnt state in trailing-underscore attributes, validation at
-the boundary, ``random_state`` for reproducibility. Positions in and out are in metres.
+the boundary, ``random_state`` for reproducibility, and scikit-learn's parameter protocol
+(``get_params``, ``set_params``; ``sklearn.base.clone`` and :func:`clone` work without
+scikit-learn being a dependency). Positions in and out are in metres.
+
+``random_state``: an int seeds a new Generator; a :class:`numpy.random.Generator` is *copied*
+before use, never advanced, so the same Generator gives the same fit every time, as an int does
+(draw a seed from it to get a different fit: ``random_state=int(gen.integers(2**63))``).
+
+Poses: observations are given as ``(x, y, sin θ, cos θ)`` rows (the model's 4-D region space);
+:meth:`~SpatialConceptModel.predict_positions` returns a
+:class:`~spco.prediction.PositionPrediction` whose ``samples`` are ``(x, y, θ)`` (θ in radians,
+for a robot's goal) and whose ``poses`` are the same draws as ``(x, y, sin θ, cos θ)``, the input
+convention, ready for :meth:`~SpatialConceptModel.predict_names`.
+
+The parameters used for prediction (``parameters_``) are a posterior summary, the average over
+thinned sweeps of the last quarter of the chain (:mod:`spco.model.posterior`), not the last draw.
 
 Example
 -------
@@ -14,6 +29,8 @@ Example
 
 from __future__ import annotations
 
+import copy
+import inspect
 import time
 from dataclasses import replace
 from typing import Any
@@ -26,13 +43,26 @@ from spco.errors import ConfigurationError
 from spco.model import gibbs
 from spco.model.hyperparameters import SpCoAHyperparameters, TransferHyperparameters
 from spco.model.parameters import ConceptParameters
+from spco.model.posterior import ParameterAverage, thinned_sweeps
 from spco.model.random import stack_counts
 
 
 def _as_generator(random_state: int | np.random.Generator | None) -> np.random.Generator:
+    """A Generator for ``random_state``: a new one from a seed, or a copy of a Generator (the
+    caller's Generator is never advanced)."""
     if isinstance(random_state, np.random.Generator):
-        return random_state
+        return copy.deepcopy(random_state)
     return np.random.default_rng(random_state)
+
+
+def clone(estimator: SpatialConceptModel) -> SpatialConceptModel:
+    """A new unfitted estimator with the same parameters (``sklearn.base.clone`` without
+    scikit-learn): ``type(estimator)(**estimator.get_params())``; hyperparameters are immutable
+    and shared, a Generator ``random_state`` is copied."""
+    params = estimator.get_params()
+    if isinstance(params.get("random_state"), np.random.Generator):
+        params["random_state"] = copy.deepcopy(params["random_state"])
+    return type(estimator)(**params)
 
 
 class SpatialConceptModel:
@@ -46,11 +76,15 @@ class SpatialConceptModel:
         ``"exact"`` (the model's conditionals) or ``"reference"`` (the authors' code); see
         :mod:`spco.model.gibbs`.
     prune_words:
-        Mutual-information word pruning after every sweep (the "+MI" models).
+        Mutual-information word pruning after every sweep (the "+MI" models). A heuristic outside
+        the model: with it the chain has no stated stationary distribution and ``log_joint_``
+        jumps when the mask changes (see :func:`spco.model.gibbs._prune`); without it the exact
+        sampler is an MCMC for the model's posterior.
     n_iterations:
         Gibbs sweeps (200 in the paper).
     random_state:
-        Seed or Generator; the same seed gives the same result.
+        Seed or Generator; the same seed gives the same result. A Generator is copied, not
+        advanced (the same Generator gives the same result too).
     progress:
         Show a progress bar (stderr).
     record_log_joint:
@@ -71,6 +105,39 @@ class SpatialConceptModel:
         self.random_state = random_state
         self.progress = progress
         self.record_log_joint = record_log_joint
+
+    # ------------------------------------------------------------------ scikit-learn protocol
+    @classmethod
+    def _get_param_names(cls) -> list[str]:
+        """The constructor's parameter names (scikit-learn's convention)."""
+        signature = inspect.signature(cls.__init__)
+        return sorted(p.name for p in signature.parameters.values()
+                      if p.name != "self" and p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD))
+
+    def get_params(self, deep: bool = True) -> dict[str, Any]:
+        """The constructor parameters as a dict (``deep`` is accepted for scikit-learn; the
+        hyperparameters are one immutable value, not a nested estimator)."""
+        return {name: getattr(self, name) for name in self._get_param_names()}
+
+    def set_params(self, **params: Any) -> SpatialConceptModel:
+        """Set constructor parameters (scikit-learn's convention); returns ``self``. An unknown
+        name raises :class:`~spco.errors.ConfigurationError`. Values are checked at ``fit``."""
+        valid = self._get_param_names()
+        for name, value in params.items():
+            if name not in valid:
+                raise ConfigurationError(f"invalid parameter {name!r} for {type(self).__name__}; "
+                                         f"valid: {', '.join(valid)}")
+            setattr(self, name, value)
+        return self
+
+    def __repr__(self) -> str:
+        changed = []
+        defaults = inspect.signature(type(self).__init__).parameters
+        for name, value in self.get_params().items():
+            default = defaults[name].default
+            if default is inspect.Parameter.empty or (value is not default and value != default):
+                changed.append(f"{name}={value!r}")
+        return f"{type(self).__name__}({', '.join(changed)})"
 
     # ------------------------------------------------------------------ configuration
     def _default_hyperparameters(self) -> TransferHyperparameters:
@@ -123,7 +190,9 @@ class SpatialConceptModel:
     def fit(self, corpus: Corpus) -> SpatialConceptModel:
         """Learn from every home of ``corpus`` (their training samples) and return ``self``.
 
-        Sets ``parameters_`` (:class:`ConceptParameters`, metres), ``vocabulary_``,
+        Sets ``parameters_`` (:class:`ConceptParameters`, metres: the average over the thinned
+        sweeps of :func:`~spco.model.posterior.thinned_sweeps`, see :mod:`spco.model.posterior`),
+        ``vocabulary_``,
         ``home_names_``, ``concepts_`` and ``regions_`` (per home, for its training samples),
         ``log_joint_`` (per sweep), ``n_iter_`` and ``fit_seconds_``.
         """
@@ -135,6 +204,8 @@ class SpatialConceptModel:
         start = time.perf_counter()
         state = gibbs.initialize(data, len(corpus.vocabulary), hyper, settings, rng)
         trace = []
+        averaged = set(thinned_sweeps(int(self.n_iterations)))
+        average = ParameterAverage(data.homes, data.position_scale)
         iterator = range(int(self.n_iterations))
         bar = None
         if self.progress:
@@ -150,6 +221,8 @@ class SpatialConceptModel:
                 trace.append(previous)
                 if bar is not None:
                     bar.set_postfix(log_joint=f"{previous:.4g}", refresh=False)
+            if iteration in averaged:
+                average.add(state)
         if self.record_log_joint:
             trace.append(gibbs.log_joint(data, state, hyper, settings))
         self.fit_seconds_ = time.perf_counter() - start
@@ -162,7 +235,7 @@ class SpatialConceptModel:
         self.data_ = data
         self.log_joint_ = np.asarray(trace, dtype=float)
         self.n_iter_ = int(self.n_iterations)
-        self.parameters_ = export_parameters(state, data)
+        self.parameters_ = average.result(state)
         splits = np.split(np.arange(data.n_samples), data.offsets[1:-1])
         self.concepts_ = [state.concepts[s].copy() for s in splits]
         self.regions_ = [state.regions[s].copy() for s in splits]
@@ -197,7 +270,9 @@ class SpatialConceptModel:
 
     def predict_positions(self, home: str | int, name: str, n: int = 10,
                           random_state: int | np.random.Generator | None = None):
-        """Positions (x, y, θ) to go to for place ``name`` in ``home`` (see :mod:`spco.prediction`)."""
+        """Positions to go to for place ``name`` in ``home`` (see :mod:`spco.prediction`): the
+        result's ``samples`` are (x, y, θ), its ``poses`` (x, y, sin θ, cos θ); ``learnt`` is False
+        when the name's probability in this home comes from concepts that hold none of its samples."""
         from spco import prediction
 
         e = self.home_index(home)
@@ -224,7 +299,7 @@ def _masked_rows(log_p: np.ndarray, mask: np.ndarray) -> np.ndarray:
 
 
 def export_parameters(state: gibbs.GibbsState, data: gibbs.PreparedData) -> ConceptParameters:
-    """The state's parameters as probabilities, positions converted back to metres."""
+    """One state's parameters (a single draw) as probabilities, positions converted back to metres."""
     s = data.position_scale
     scale = np.array([s, s, 1.0, 1.0])
     means = state.means / scale
@@ -239,6 +314,8 @@ def export_parameters(state: gibbs.GibbsState, data: gibbs.PreparedData) -> Conc
         shared_visual_probabilities=np.exp(state.log_phi_v),
         global_concept_weights=np.exp(state.log_g0), word_mask=state.word_mask.copy(),
         region_counts=state.region_counts.copy(),
+        concept_counts=np.stack([np.bincount(state.concepts[data.homes == e], minlength=state.log_g.shape[1])
+                                 for e in range(data.n_homes)]).astype(np.float64),
     )
 
 

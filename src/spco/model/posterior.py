@@ -1,0 +1,175 @@
+"""Posterior summaries of the home parameters: an average over thinned sweeps, not the last draw.
+
+Predictions (``predict_names``, ``predict_positions``, ``where``, ``what``) use the parameters of
+every home — θ^v, θ^w, G_e, π, μ, Σ. One Gibbs draw of them carries the draw's noise: a concept
+with no sample in a home has its π drawn from the sparse prior Dir(β/K), and one such draw can
+send a place name to an arbitrary region. The estimators therefore export a summary of the chain:
+
+- which sweeps: :func:`thinned_sweeps` — every ``every``-th of the last ``fraction`` of the chain
+  (default the last quarter, every 5th sweep, ending with the last sweep; the step is shortened so
+  that a short chain still gives up to three samples), as :func:`spco.knowledge.fit_knowledge`
+  does for the shared part;
+- alignment: a Gibbs chain may relabel a home's concepts (the label-swap moves) or regions between
+  sweeps, which leaves predictions unchanged but would mix different concepts in an average. Each
+  sample's labels are matched, home by home, to those of the first averaged sample by the overlap
+  of their assignments (Hungarian algorithm on the table of samples with reference label j and
+  current label l; unused labels keep their number), and the result is expressed in the labels of
+  the last sample, so that it agrees with the exported assignments and φ, G_0;
+- probabilities (θ^v, θ^w, G_e, π) are averaged as probabilities (the Monte Carlo estimate of
+  their posterior mean); pruned words (the mask of the last sweep) get 0 and rows are
+  renormalised afterwards;
+- each region's Gaussian is the Gaussian with the mean and covariance of the mixture of the
+  sampled Gaussians (μ̄ = mean of μ^(s), Σ̄ = mean of Σ^(s) + μ^(s)μ^(s)ᵀ − μ̄μ̄ᵀ), i.e. the
+  moments of the posterior predictive density of a new pose in that region, estimated from the
+  samples;
+- ``concept_counts`` (E, L) and ``region_counts`` (E, K) are the mean numbers of training
+  samples assigned (region counts rounded to whole samples); a concept with a mean count below 1
+  holds no sample of that home: prediction treats a name whose probability comes from such
+  concepts as not learnt there (see :func:`spco.prediction.region_posterior_for_name`).
+
+The shared φ^v, φ^w and G_0 exported with the home parameters are those of the last sample (they
+are not used for prediction; :func:`spco.knowledge.fit_knowledge` averages them for transfer).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from spco.model.parameters import ConceptParameters
+
+
+def thinned_sweeps(n_iterations: int, fraction: float = 0.25, every: int = 5) -> list[int]:
+    """The sweeps (0-based) whose samples are averaged: every ``every``-th of the last
+    ``fraction`` of the chain, ending with the last sweep, with the step shortened so that a short
+    chain still gives up to three samples (1 sweep: that sweep; 3: the last; 12: the last three;
+    200: 154, 159, …, 199)."""
+    window = max(1, int(n_iterations * fraction))
+    step = max(1, min(every, window // 3))
+    return sorted(range(n_iterations - 1, n_iterations - 1 - window, -step))
+
+
+def _match_labels(reference: np.ndarray, current: np.ndarray, n_labels: int) -> np.ndarray:
+    """perm (n_labels,): reference slot j takes current label perm[j], maximising the number of
+    samples whose labels agree (ties — labels used by no sample — keep their number)."""
+    overlap = np.zeros((n_labels, n_labels))
+    np.add.at(overlap, (reference, current), 1.0)
+    overlap[np.diag_indices(n_labels)] += 0.5  # less than one sample: only breaks ties
+    rows, cols = linear_sum_assignment(overlap, maximize=True)
+    perm = np.empty(n_labels, dtype=np.int64)
+    perm[rows] = cols
+    return perm
+
+
+def _masked_rows(log_p: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """Probabilities from log-probabilities (rows of any scale), pruned words (mask False) set
+    to 0 and rows renormalised in log space: never NaN, even if every kept entry underflows."""
+    kept = log_p if mask.all() or not mask.any() else np.where(mask, log_p, -np.inf)
+    top = kept.max(axis=-1, keepdims=True)
+    p = np.exp(kept - top)
+    return p / p.sum(axis=-1, keepdims=True)
+
+
+class ParameterAverage:
+    """Accumulates the home parameters of thinned sweeps (see the module docstring).
+
+    ``add(state)`` after each sweep to average; ``result(state)`` (the state of the last sweep)
+    gives the :class:`ConceptParameters` in metres. ``homes`` (N,) home of each sample,
+    ``position_scale`` sampler units per metre.
+    """
+
+    def __init__(self, homes: np.ndarray, position_scale: float) -> None:
+        self.homes = np.asarray(homes)
+        self.scale = np.array([position_scale, position_scale, 1.0, 1.0])
+        self.n_samples = 0
+        self._sums: dict[str, np.ndarray] = {}
+        self._log_sums: dict[str, np.ndarray] = {}  # θ: summed in log space (entries underflow)
+        self._reference: tuple[np.ndarray, np.ndarray] | None = None
+        self._perms: tuple[np.ndarray, np.ndarray] | None = None
+
+    def _permutations(self, concepts: np.ndarray, regions: np.ndarray, n_homes: int, n_concepts: int,
+                      n_regions: int) -> tuple[np.ndarray, np.ndarray]:
+        if self._reference is None:
+            self._reference = (concepts.copy(), regions.copy())
+        ref_c, ref_r = self._reference
+        perm_c = np.tile(np.arange(n_concepts), (n_homes, 1))
+        perm_r = np.tile(np.arange(n_regions), (n_homes, 1))
+        for e in range(n_homes):  # a loop over homes; each step is one small assignment problem
+            rows = self.homes == e
+            perm_c[e] = _match_labels(ref_c[rows], concepts[rows], n_concepts)
+            perm_r[e] = _match_labels(ref_r[rows], regions[rows], n_regions)
+        return perm_c, perm_r
+
+    def add(self, state) -> None:
+        """Add the parameters of ``state`` (a :class:`~spco.model.gibbs.GibbsState`), aligned."""
+        E, L, K = state.log_pi.shape
+        perm_c, perm_r = self._permutations(state.concepts, state.regions, E, L, K)
+        homes = np.arange(E)[:, None]
+        means = state.means / self.scale
+        covariances = state.covariances / np.outer(self.scale, self.scale)
+        concept_counts = np.zeros((E, L))
+        np.add.at(concept_counts, (self.homes, state.concepts), 1.0)
+        pi = np.exp(state.log_pi)[homes, perm_c]  # concepts to reference slots
+        pi = np.take_along_axis(pi, perm_r[:, None, :], axis=2)  # regions to reference slots
+        mu = means[homes, perm_r]
+        terms = {
+            "concept_weights": np.exp(state.log_g)[homes, perm_c],
+            "region_weights": pi,
+            "region_means": mu,
+            "region_second_moments": covariances[homes, perm_r] + mu[..., :, None] * mu[..., None, :],
+            "concept_counts": concept_counts[homes, perm_c],
+            "region_counts": np.asarray(state.region_counts, dtype=np.float64)[homes, perm_r],
+        }
+        for name, value in terms.items():
+            if name in self._sums:
+                self._sums[name] += value
+            else:
+                self._sums[name] = np.array(value, dtype=np.float64)
+        for name, log_value in (("word_probabilities", state.log_theta_w[homes, perm_c]),
+                                ("visual_probabilities", state.log_theta_v[homes, perm_c])):
+            if name in self._log_sums:
+                np.logaddexp(self._log_sums[name], log_value, out=self._log_sums[name])
+            else:
+                self._log_sums[name] = np.array(log_value, dtype=np.float64)
+        self.n_samples += 1
+        self._perms = (perm_c, perm_r)
+
+    def result(self, state) -> ConceptParameters:
+        """The averaged parameters in the labels of ``state``, the last sample added."""
+        if self.n_samples == 0 or self._perms is None:
+            raise ValueError("no sample was added to the average")
+        perm_c, perm_r = self._perms
+        E = perm_c.shape[0]
+        homes = np.arange(E)[:, None]
+        mean = {name: total / self.n_samples for name, total in self._sums.items()}
+
+        def to_current(a: np.ndarray, perm: np.ndarray) -> np.ndarray:
+            out = np.empty_like(a)
+            out[homes, perm] = a  # reference slot j holds current label perm[j]
+            return out
+
+        pi = to_current(mean["region_weights"], perm_c)
+        pi_out = np.empty_like(pi)
+        np.put_along_axis(pi_out, np.broadcast_to(perm_r[:, None, :], pi.shape), pi, axis=2)
+        mu = to_current(mean["region_means"], perm_r)
+        second = to_current(mean["region_second_moments"], perm_r)
+        covariances = second - mu[..., :, None] * mu[..., None, :]
+        covariances = 0.5 * (covariances + np.swapaxes(covariances, -1, -2))
+        mask = np.asarray(state.word_mask, dtype=bool)
+        log_theta_w = to_current(self._log_sums["word_probabilities"], perm_c)  # rows renormalised below
+        log_theta_v = to_current(self._log_sums["visual_probabilities"], perm_c) - np.log(self.n_samples)
+        return ConceptParameters(
+            concept_weights=to_current(mean["concept_weights"], perm_c),
+            region_weights=pi_out,
+            region_means=mu,
+            region_covariances=covariances,
+            word_probabilities=_masked_rows(log_theta_w, mask) if mask.size else np.exp(log_theta_w),
+            visual_probabilities=np.exp(log_theta_v),
+            shared_word_probabilities=(_masked_rows(state.log_phi_w, mask) if mask.size
+                                       else np.exp(state.log_phi_w)),
+            shared_visual_probabilities=np.exp(state.log_phi_v),
+            global_concept_weights=np.exp(state.log_g0),
+            word_mask=mask.copy(),
+            region_counts=np.rint(to_current(mean["region_counts"], perm_r)).astype(np.int64),
+            concept_counts=to_current(mean["concept_counts"], perm_c),
+        )
