@@ -118,11 +118,15 @@ def import_(src: Path, out: Path, teaching_rate: int | None, force: bool) -> Non
 @click.option("--force", is_flag=True, help="Write into OUT even if it holds homes already.")
 @_friendly_errors
 def synth(out: Path, homes: int, seed: int, force: bool) -> None:
-    """Generate synthetic homes into folder OUT (plain format, with ground-truth regions)."""
+    """Generate synthetic homes into folder OUT (plain format, with ground-truth regions).
+
+    Homes are named synthetic_<layout>_<i> for seed 0 and synthetic_s<seed>_<layout>_<i> otherwise,
+    so that homes generated with different seeds (experienced and new ones) never share a name.
+    """
     from spco.data.plain import write_corpus
     from spco.data.synthetic import generate_homes
 
-    corpus = generate_homes(homes, seed=seed)
+    corpus = generate_homes(homes, seed=seed, name_prefix="synthetic" if seed == 0 else f"synthetic_s{seed}")
     write_corpus(corpus, out, overwrite=force)
     click.echo(f"wrote {len(corpus)} synthetic homes ({sum(e.n_samples for e in corpus)} samples) "
                f"to {out}")
@@ -139,13 +143,17 @@ def synth(out: Path, homes: int, seed: int, force: bool) -> None:
 @_friendly_errors
 def demo(seed: int, out: Path, homes: int, iterations: int) -> None:
     """Learn from synthetic homes and transfer to a new home taught nothing (no dataset needed)."""
-    from spco.demo import format_table, run_demo
+    from spco.demo import format_table, kernels_compiled, run_demo
 
+    if kernels_compiled() is False:
+        click.echo("Compiling the sampler's Numba kernels (first run only, about 1–2 min on 2 cores)...",
+                   err=True)
     click.echo(f"Generating {homes} experienced synthetic homes and 1 new home (seed {seed})...", err=True)
     result = run_demo(seed=seed, out=out, n_experienced=homes, n_iterations=iterations,
                       progress=sys.stderr.isatty())
     t = result.transfer
-    click.echo(f"Learnt {result.n_homes} homes ({result.n_samples} samples) in {result.fit_seconds:.1f} s.")
+    click.echo(f"Learnt {result.n_homes} homes ({result.n_samples} samples) in {result.fit_seconds:.1f} s "
+               f"(after {result.warm_up_seconds:.1f} s compiling or loading the kernels).")
     click.echo(f"New home {t.home}: nothing taught there; names and positions come from the other homes.\n")
     click.echo("SpCoTransfer+MI (A_n: name accuracy, A_p: position accuracy) beside the SpCoA+MI baseline:")
     click.echo(format_table(result))

@@ -182,7 +182,7 @@ def adapt(knowledge_file: Path, home_path: Path, name: str | None, teaching_rate
 @click.command(name="where")
 @click.argument("home_file", metavar="HOME", type=click.Path(path_type=Path))
 @click.argument("name")
-@click.option("--n", "n", default=10, show_default=True, type=click.IntRange(1, 10000),
+@click.option("--n", "-n", "n", default=10, show_default=True, type=click.IntRange(1, 10000),
               help="Number of positions.")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(0), help="Random seed.")
 @click.option("--json", "as_json", is_flag=True,
@@ -208,8 +208,11 @@ def where(home_file: Path, name: str, n: int, seed: int, as_json: bool) -> None:
                                "region_probability": float(pred.region_probabilities[pred.region]),
                                "positions": positions}, indent=1))
         return
-    click.echo(f"{pred.name} in home {home.name}: region {pred.region} "
-               f"(p = {pred.region_probabilities[pred.region]:.2f})")
+    click.echo(f"{pred.name} in home {home.name}: region {pred.region} of the home's map, "
+               f"p(region | {pred.name}) = {pred.region_probabilities[pred.region]:.2f} (the most probable "
+               f"region; the rest is spread over others)")
+    click.echo(f"{len(positions)} poses drawn from the region's Gaussian; probability: each pose's share of "
+               f"p(pose | {pred.name}) among them")
     click.echo(f"{'x':>8} {'y':>8} {'theta':>7}  probability")
     for p in positions:
         click.echo(f"{p['x']:8.3f} {p['y']:8.3f} {p['theta']:7.3f}  {p['probability']:.3f}")
@@ -232,29 +235,45 @@ def what(home_file: Path, x: float, y: float, theta: float, visual: Path | None,
          top: int, as_json: bool) -> None:
     """The most probable place names at a pose of the home of HOME, with their probabilities.
 
-    With --visual the view's features are used too; without, the position alone. The probability
-    is p(name | pose, view); names are ranked by it times the name's mutual information with the
-    concepts (so that "this" or "is" are never answered).
+    With --visual the view's features are used too; without, the position alone. Names are ranked
+    by p(name | pose, view) × I(name), I the name's mutual information with the concepts (so that
+    "this" or "is", said everywhere, are never answered); `score` is that product as a share of its
+    sum over the usable names, `p` is p(name | pose, view) itself (its sum over all words, template
+    words included, is 1). A pose off the home's map is answered with a warning, one far off it is
+    refused.
     """
     from spco.knowledge import load_home_model, read_visual_vector
     from spco.knowledge import what as what_names
 
     home = load_home_model(home_file)
     counts = None if visual is None else read_visual_vector(visual, home.knowledge.n_features, visual_scale)
-    pred = what_names(home, x, y, theta, visual=counts, top_k=top)
-    names = [{"name": str(w), "probability": float(p), "score": float(s)}
-             for w, p, s in zip(pred.words[0], pred.probabilities[0], pred.scores[0], strict=True)]
+    pred = what_names(home, x, y, theta, visual=counts, top_k=max(len(home.vocabulary), 1))
+    total = float(pred.scores[0].sum())
+    names = [{"name": str(w), "probability": float(p), "score": float(s),
+              "score_share": float(s) / total if total > 0 else 0.0}
+             for w, p, s in zip(pred.words[0], pred.probabilities[0], pred.scores[0], strict=True)][:top]
     if as_json:
         click.echo(json.dumps({"home": home.name, "pose": {"x": x, "y": y, "theta": theta},
-                               "vision": counts is not None, "names": names}, indent=1))
+                               "vision": counts is not None, "ranked_by": _RANKED_BY[pred.weighting],
+                               "names": names}, indent=1))
         return
     click.echo(f"At ({x:g}, {y:g}, θ={theta:g}) in home {home.name} "
-               f"({'position and view' if counts is not None else 'position only'}):")
+               f"({'position and view' if counts is not None else 'position only'}), ranked by score:")
     if not names:
         click.echo("  the robot knows no place names yet (nothing was taught); teach it with `spco teach`")
-    width = max((len(n["name"]) for n in names), default=0)
+        return
+    width = max(max(len(n["name"]) for n in names), len("name"))
+    click.echo(f"     {'name':<{width}}  score      p")
     for rank, n in enumerate(names, 1):
-        click.echo(f"  {rank}. {n['name']:<{width}}  {n['probability']:.3f}")
+        click.echo(f"  {rank}. {n['name']:<{width}}  {n['score_share']:.3f}  {n['probability']:.3f}")
+    click.echo(f"score: {_RANKED_BY[pred.weighting]}, as a share of its sum over the usable names; "
+               f"p: p(name | {'pose, view' if counts is not None else 'pose'}) over all words")
+
+
+#: What ``what``'s score is, per weighting of the home's model.
+_RANKED_BY = {"mi": "p(name | pose, view) × I(name), I = the name's mutual information with the concepts",
+              "none": "p(name | pose, view)",
+              "reference": "the authors' score Σ_l p(l | pose, view) θ^w_l(name) KL_l(name)"}
 
 
 # ------------------------------------------------------------------------------------ teach

@@ -63,6 +63,7 @@ import hashlib
 import json
 import math
 import time
+import warnings
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from datetime import UTC, datetime
@@ -77,7 +78,7 @@ from scipy.optimize import linear_sum_assignment
 from scipy.special import logsumexp
 
 from spco.data.environment import Corpus, Environment, Extent
-from spco.data.language import Vocabulary
+from spco.data.language import Vocabulary, tokenize
 from spco.errors import ConfigurationError, DataFormatError, ModelFileError
 from spco.model import gibbs
 from spco.model.hyperparameters import TransferHyperparameters
@@ -87,7 +88,13 @@ from spco.model.parameters import ConceptParameters
 from spco.model.pruning import words_to_keep
 from spco.model.random import log_dirichlet, sample_crt, stack_counts
 from spco.model.transfer import SpatialConceptModel, SpCoTransfer, export_parameters
-from spco.prediction import NamePrediction, PositionPrediction, predict_names, predict_positions
+from spco.prediction import (
+    NamePrediction,
+    PositionPrediction,
+    UnknownNameError,
+    predict_names,
+    predict_positions,
+)
 
 __all__ = [
     "DEFAULT_ADAPT_ITERATIONS",
@@ -1136,9 +1143,42 @@ def _visual_row(visual: Any, n_features: int) -> sp.csr_array:
 
 def _pose(x: float, y: float, theta: float) -> np.ndarray:
     pose = np.array([x, y, math.sin(theta), math.cos(theta)], dtype=np.float64)
-    if not np.isfinite(pose).all():
+    if not (np.isfinite(pose).all() and math.isfinite(theta)):
         raise ConfigurationError(f"the pose must be finite numbers, got x={x!r}, y={y!r}, theta={theta!r}")
+    if abs(theta) > 2 * math.pi + 1e-9:
+        raise ConfigurationError(f"theta = {theta:g} is more than a full turn: the heading is in radians "
+                                 f"(degrees? {theta:g}° = {math.radians(theta):.4f} rad)")
     return pose
+
+
+#: How far beyond its map (in map sizes) a pose is still answered (with a warning) by :func:`what`.
+FAR_OUTSIDE_MAP = 1.0
+
+
+def map_bounds(home: HomeModel) -> tuple[float, float, float, float]:
+    """``(x_min, x_max, y_min, y_max)`` of the home's map: its extent, or the box around its samples."""
+    if home.extent is not None:
+        return tuple(float(v) for v in home.extent)  # type: ignore[return-value]
+    xy = home.positions[:, :2]
+    return float(xy[:, 0].min()), float(xy[:, 0].max()), float(xy[:, 1].min()), float(xy[:, 1].max())
+
+
+def pose_outside_map(home: HomeModel, x: float, y: float) -> str | None:
+    """``None`` if ``(x, y)`` lies on the home's map (:func:`map_bounds`), else a sentence saying how far
+    outside it is. Raises :class:`ConfigurationError` when the pose is more than
+    :data:`FAR_OUTSIDE_MAP` map sizes beyond the map: the robot has learnt nothing about such a place,
+    and the region Gaussians' densities there are all zero in floating point."""
+    x0, x1, y0, y1 = map_bounds(home)
+    size = max(x1 - x0, y1 - y0, 1.0)
+    beyond = max(x0 - x, x - x1, y0 - y, y - y1, 0.0)
+    if beyond == 0.0:
+        return None
+    where = (f"the pose ({x:g}, {y:g}) is {beyond:.3g} m outside the map of home {home.name!r} "
+             f"(x {x0:g}…{x1:g}, y {y0:g}…{y1:g} m)")
+    if beyond > FAR_OUTSIDE_MAP * size:
+        raise ConfigurationError(f"{where}: the robot has learnt nothing there; give a pose on the map, "
+                                 f"in metres, in the map frame the home was recorded in")
+    return where
 
 
 def teach(
@@ -1263,18 +1303,60 @@ def where(home: HomeModel, name: str, n: int = 10,
     density p(x | name) among the ``n`` poses. Raises :class:`~spco.prediction.UnknownNameError`
     (with suggestions) for a name the home cannot use: never heard, or pruned as uninformative.
     """
-    return predict_positions(home.parameters, 0, home.vocabulary, name, n=n, rng=_as_generator(random_state))
+    try:
+        return predict_positions(home.parameters, 0, home.vocabulary, name, n=n,
+                                 rng=_as_generator(random_state))
+    except UnknownNameError:
+        hint = unused_word_hint(home, name)
+        if hint is None:
+            raise
+        raise UnknownNameError(name, home.known_names, reason=hint) from None
+
+
+def unused_word_hint(home: HomeModel, word: str) -> str | None:
+    """Why a word of the home's vocabulary is not used (pruned as uninformative) and what to do about
+    it, or ``None`` if the word is unknown or used.
+
+    A name taught at only a few samples of this home usually has too little mutual information with
+    the concepts to pass the pruning threshold yet: teaching it at a few more samples of the same
+    place (the nearest untaught samples are suggested) makes it a place name.
+    """
+    index = home.vocabulary.index(word)
+    if index is None or bool(home.state.word_mask[index]):
+        return None
+    w = home.vocabulary.words[index]
+    taught = [k for k, sentence in enumerate(home.sentences) if w in tokenize(sentence)]
+    if (index < home.n_knowledge_words and not bool(home.knowledge.word_mask[index])) or not taught:
+        return (f"the word {w!r} was pruned as uninformative in the experienced homes: it is said at "
+                f"every kind of place (or too rarely) to tell places apart, so it names no place")
+    xy = home.positions[:, :2]
+    distance = np.linalg.norm(xy - xy[taught].mean(0), axis=1)
+    untaught = [k for k in np.argsort(distance, kind="stable") if home.sentences[k] is None][:3]
+    ids = [int(home.ids[k]) for k in untaught]
+    shown = ", ".join(str(int(home.ids[k])) for k in taught[:5]) + (", …" if len(taught) > 5 else "")
+    return (f"the word {w!r} is not used as a place name yet: it is taught at {len(taught)} sample(s) of "
+            f"this home (id {shown}), too few to tell its place from the others (pruned as "
+            f"uninformative); teach it at a few more samples of that place"
+            + (", e.g. the nearest untaught ones: spco teach HOME "
+               + " ".join(f'--id {i} --sentence "this is {w}"' for i in ids) if ids else ""))
 
 
 def what(home: HomeModel, x: float, y: float, theta: float, visual: Any = None,
          top_k: int = 3) -> NamePrediction:
     """The ``top_k`` place names at pose ``(x, y, θ)``, with the view's visual counts if given.
 
+    A pose off the home's map is answered with a :class:`UserWarning`, one more than
+    :data:`FAR_OUTSIDE_MAP` map sizes off it is refused (:func:`pose_outside_map`); ``θ`` must be in
+    radians (``|θ| ≤ 2π``).
+
     Without ``visual`` the names come from the position alone (``use_vision=False``). The returned
     :class:`~spco.prediction.NamePrediction` holds one row: ``words[0]``, ``probabilities[0]``
     (p(w | x, v)) and ``scores[0]`` (the ranking score).
     """
     pose = _pose(x, y, theta)[None, :]
+    outside = pose_outside_map(home, x, y)
+    if outside is not None:
+        warnings.warn(f"{outside}; the names are extrapolated from the nearest regions", stacklevel=2)
     row = None if visual is None else _visual_row(visual, home.knowledge.n_features)
     return predict_names(home.parameters, 0, home.vocabulary, pose, row, top_k=top_k,
                          weighting=home.weighting, use_vision=row is not None)  # type: ignore[arg-type]
