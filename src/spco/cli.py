@@ -37,7 +37,8 @@ def main() -> None:
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON list instead of a table.")
 @_friendly_errors
 def inspect(path: Path, teaching_rate: int, as_json: bool) -> None:
-    """Summarise the homes in PATH (a home, a folder of homes or a cache file).
+    """Summarise the homes in PATH (a home, a folder of homes or a cache file), or a knowledge or
+    home file (visual dimension, extractor, vocabulary, kept names, homes, provenance).
 
     A home that holds no sentences for the chosen teaching rate (the SIGVerse experienced homes
     have only per_100) is listed with its taught count as "-" (null in JSON).
@@ -45,7 +46,11 @@ def inspect(path: Path, teaching_rate: int, as_json: bool) -> None:
     from spco.data.language import Vocabulary
     from spco.data.loading import read_records
     from spco.errors import DataFormatError
+    from spco.knowledge import model_file_format
 
+    if model_file_format(path) is not None:
+        _inspect_model_file(path, as_json)
+        return
     records = read_records(path, progress=not as_json)
     rows = []
     missing = []
@@ -87,6 +92,45 @@ def inspect(path: Path, teaching_rate: int, as_json: bool) -> None:
     if missing:
         click.echo(f"{len(missing)} homes hold no sentences for {teaching_rate}% (taught: -): "
                    f"{', '.join(missing)}")
+
+
+def _inspect_model_file(path: Path, as_json: bool) -> None:
+    """``spco inspect`` of a knowledge or home file."""
+    from spco.knowledge import describe_model_file, view_fit_warning
+
+    info = describe_model_file(path)
+    if as_json:
+        click.echo(json.dumps(info, indent=1, default=str))
+        return
+    p = info["provenance"]
+    if info["kind"] == "home":
+        click.echo(f"{path}: home file of home {info['home']}: {info['samples']} samples, {info['taught']} "
+                   f"taught, model {info['model']}")
+    else:
+        click.echo(f"{path}: knowledge file, model {info['model']}")
+    extractor = info["extractor"]
+    click.echo(f"views: {info['visual_dimension']} features per view; extractor: "
+               f"{json.dumps(extractor) if extractor else 'none recorded (count vectors given as they are)'}")
+    click.echo(f"vocabulary ({len(info['vocabulary'])} words): {', '.join(info['vocabulary'])}")
+    click.echo(f"place names (kept by pruning, {len(info['kept_names'])}): {', '.join(info['kept_names'])}")
+    click.echo(f"experienced homes ({len(info['homes'])}): {', '.join(info['homes'])}")
+    view = info["view_fit"]
+    if info["kind"] == "knowledge" and view:
+        values = [v for v in view["homes"].values() if v is not None]
+        if values:
+            click.echo(f"fit of the views: {min(values):.2f}…{max(values):.2f} nats per count above a "
+                       f"uniform guess in the experienced homes; a new home below {view['warn_below']:.2f} "
+                       f"is warned about")
+    elif info["kind"] == "home" and view:
+        low, high = view["experienced_range"]
+        click.echo(f"fit of the views: {view['value']:.2f} nats per count above a uniform guess "
+                   f"(experienced homes {low:.2f}…{high:.2f})")
+        if not view["fits"]:
+            click.echo(f"warning: {view_fit_warning(info['home'], view)}", err=True)
+    keys = ("seed", "n_iterations", "created", "updated", "spco_version", "data", "teaching_rate",
+            "knowledge_file", "home_path", "teach_updates", "adapt")
+    shown = {k: p[k] for k in keys if k in p}
+    click.echo("provenance: " + json.dumps(shown, default=str))
 
 
 def _home_vocabulary(env: Any) -> set[str]:

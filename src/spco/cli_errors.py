@@ -27,7 +27,7 @@ def friendly_errors(func: Callable[..., Any]) -> Callable[..., Any]:
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         try:
             with warnings.catch_warnings():
-                warnings.simplefilter("default")
+                warnings.filterwarnings("default", category=UserWarning)
                 warnings.showwarning = _show_warning
                 return func(*args, **kwargs)
         except SpcoError as exc:
@@ -42,5 +42,8 @@ def friendly_errors(func: Callable[..., Any]) -> Callable[..., Any]:
 
 def _show_warning(message: Warning | str, category: type[Warning], filename: str, lineno: int,
                   file: Any = None, line: str | None = None) -> None:
-    """Print a warning as one line ``warning: ...`` on standard error (no source location)."""
-    click.echo(f"warning: {message}", err=True)
+    """Print a user warning as one line ``warning: ...`` on standard error (no source location)."""
+    if issubclass(category, UserWarning):
+        click.echo(f"warning: {message}", err=True)
+    else:
+        warnings._showwarnmsg_impl(warnings.WarningMessage(message, category, filename, lineno, file, line))

@@ -172,6 +172,12 @@ def adapt(knowledge_file: Path, home_path: Path, name: str | None, teaching_rate
     home.save(out, overwrite=force)
     seconds = home.provenance["adapt"]["seconds"]
     click.echo(home.describe())
+    view = home.provenance.get("view_fit")
+    if view and view.get("value") is not None and view.get("experienced_range"):
+        low, high = view["experienced_range"]
+        click.echo(f"The knowledge explains this home's views by {view['value']:.2f} nats per count better "
+                   f"than a uniform guess (experienced homes: {low:.2f}…{high:.2f}); "
+                   f"{'it fits' if view['fits'] else 'IT DOES NOT FIT (see the warning)'}.")
     new_words = home.provenance["adapt"]["new_words"]
     if new_words:
         click.echo(f"New words learnt in this home: {', '.join(new_words)}")
@@ -199,6 +205,7 @@ def where(home_file: Path, name: str, n: int, seed: int, as_json: bool) -> None:
     from spco.knowledge import where as where_name
 
     home = load_home_model(home_file)
+    _warn_if_knowledge_does_not_fit(home)
     pred = where_name(home, name, n=n, random_state=seed)
     order = sorted(range(pred.samples.shape[0]), key=lambda i: -float(pred.weights[i]))
     positions = [{"x": float(pred.samples[i, 0]), "y": float(pred.samples[i, 1]),
@@ -246,6 +253,7 @@ def what(home_file: Path, x: float, y: float, theta: float, visual: Path | None,
     from spco.knowledge import what as what_names
 
     home = load_home_model(home_file)
+    _warn_if_knowledge_does_not_fit(home)
     counts = None if visual is None else read_visual_vector(visual, home.knowledge.n_features, visual_scale)
     pred = what_names(home, x, y, theta, visual=counts, top_k=max(len(home.vocabulary), 1))
     total = float(pred.scores[0].sum())
@@ -274,6 +282,15 @@ def what(home_file: Path, x: float, y: float, theta: float, visual: Path | None,
 _RANKED_BY = {"mi": "p(name | pose, view) × I(name), I = the name's mutual information with the concepts",
               "none": "p(name | pose, view)",
               "reference": "the authors' score Σ_l p(l | pose, view) θ^w_l(name) KL_l(name)"}
+
+
+def _warn_if_knowledge_does_not_fit(home: Any) -> None:
+    """One ``warning:`` line when ``adapt`` found that the knowledge does not fit the home's views."""
+    from spco.knowledge import view_fit_warning
+
+    view = home.provenance.get("view_fit")
+    if view and not view.get("fits", True):
+        click.echo(f"warning: {view_fit_warning(home.name, view)}", err=True)
 
 
 # ------------------------------------------------------------------------------------ teach
