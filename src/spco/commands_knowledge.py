@@ -379,13 +379,17 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
 @click.option("--extent", default=None,
               help="x_min,x_max,y_min,y_max in metres covered by --map (default: the home's map extent).")
 @click.option("--name", "names", multiple=True, help="Also draw positions for this place name (repeatable).")
+@click.option("--regions", "regions_file", type=click.Path(path_type=Path), default=None,
+              help="Room outlines to draw: a plain home's regions.json, or a file of every home's "
+                   "(sigverse_regions.json). Default: the regions.json of the home folder adapted from.")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(0), help="Random seed.")
 @click.option("--force", is_flag=True, help="Replace --out if it exists.")
 @_friendly
 def show(home_file: Path, out: Path, map_image: Path | None, extent: str | None, names: Sequence[str],
-         seed: int, force: bool) -> None:
+         regions_file: Path | None, seed: int, force: bool) -> None:
     """Draw the home's concepts on its floor plan: regions (95 % ellipses coloured by concept)
-    labelled with their names, the home's samples, and positions for the names given."""
+    labelled with the names that describe them, the room outlines when the home has regions, the
+    home's samples, and positions for the names given."""
     import numpy as np
 
     from spco import plots
@@ -406,10 +410,18 @@ def show(home_file: Path, out: Path, map_image: Path | None, extent: str | None,
     if bounds is None and map_image is not None and home.extent is None:
         raise ConfigurationError("the home has no map extent: give --extent x_min,x_max,y_min,y_max "
                                  "for --map")
+    environment = home.environment()
+    rooms = _room_outlines(home, regions_file)
+    if rooms is not None:
+        from dataclasses import replace
+
+        from spco.data.environment import make_ground_truth
+
+        environment = replace(environment, ground_truth=make_ground_truth(regions=rooms))
     try:
-        fig = plots.plot_home_map(home.parameters, 0, home.environment(), home.vocabulary,
+        fig = plots.plot_home_map(home.parameters, 0, environment, home.vocabulary,
                                   map_image=map_image, map_extent=bounds,
-                                  predicted_positions=predicted or None,
+                                  predicted_positions=predicted or None, show_ground_truth=rooms is not None,
                                   title=f"{home.name}: {home.n_samples} samples, {home.n_taught} taught")
     except (OSError, ValueError, SyntaxError) as exc:  # an unreadable image
         if isinstance(exc, ConfigurationError):
@@ -417,6 +429,28 @@ def show(home_file: Path, out: Path, map_image: Path | None, extent: str | None,
         raise ConfigurationError(f"{map_image}: cannot draw the map image ({exc})") from None
     _save_png(fig, out)
     click.echo(f"Wrote {out}")
+
+
+def _room_outlines(home: Any, regions_file: Path | None) -> Any:
+    """The home's room rectangles (:class:`~spco.data.regions.PlaceRegions`) from ``--regions``, or
+    from the regions.json of the home folder it was adapted from; ``None`` if there are none."""
+    from spco.data.plain import REGIONS_JSON, _read_regions
+    from spco.data.regions import load_region_file
+    from spco.errors import ConfigurationError
+
+    if regions_file is None:
+        folder = home.provenance.get("home_path")
+        candidate = Path(folder) / REGIONS_JSON if folder else None
+        return _read_regions(candidate) if candidate is not None and candidate.is_file() else None
+    if not Path(regions_file).is_file():
+        raise ConfigurationError(f"{regions_file}: no such region file (--regions)")
+    if '"homes"' in Path(regions_file).read_text(encoding="utf-8", errors="replace")[:4096]:
+        every = load_region_file(regions_file)
+        if home.name not in every:
+            raise ConfigurationError(f"{regions_file}: no regions for home {home.name!r} (it has "
+                                     f"{', '.join(sorted(every)[:8])}{', …' if len(every) > 8 else ''})")
+        return every[home.name]
+    return _read_regions(Path(regions_file))
 
 
 def _save_png(fig: Any, out: Path) -> None:

@@ -1433,6 +1433,12 @@ def unused_word_hint(home: HomeModel, word: str) -> str | None:
     w = home.vocabulary.words[index]
     taught = [k for k, sentence in enumerate(home.sentences) if w in tokenize(sentence)]
     if (index < home.n_knowledge_words and not bool(home.knowledge.word_mask[index])) or not taught:
+        if taught:
+            return (f"the word {w!r} was pruned as uninformative by the knowledge: in its experienced "
+                    f"homes it did not tell places apart (a word said everywhere, or a name said in one "
+                    f"home only), so a home adapted from it does not use it as a place name, even where "
+                    f"taught; to name a place, teach a name the knowledge never heard (it is judged in "
+                    f"this home), or fit the knowledge with --model spcotransfer (no pruning)")
         return (f"the word {w!r} was pruned as uninformative in the experienced homes: it is said at "
                 f"every kind of place (or too rarely) to tell places apart, so it names no place")
     xy = home.positions[:, :2]
