@@ -271,3 +271,23 @@ def test_demo_knows_whether_its_kernels_are_compiled() -> None:
 
     warm_up()  # the kernels are in memory now
     assert kernels_compiled() is True
+
+
+# ------------------------------------------------------------------ point 10: room outlines in spco show
+
+
+def test_show_draws_the_rooms_of_the_home(files: dict[str, Path], tmp_path: Path) -> None:
+    from spco.commands_knowledge import _room_outlines
+
+    home = kn.load_home_model(files["home"])
+    rooms = _room_outlines(home, None)  # the regions.json of the folder the home was adapted from
+    assert rooms is not None and set(rooms.places) >= set(home.known_names) - {"emma's-room"}
+    every = tmp_path / "regions.json"
+    every.write_text(json.dumps({"homes": {home.name: {"kitchen": [[0, 1, 0, 1]]}}}))
+    assert set(_room_outlines(home, every).places) == {"kitchen"}
+    result = _run(["show", files["home"], "--out", tmp_path / "map.png", "--regions", every])
+    assert result.exit_code == 0 and (tmp_path / "map.png").stat().st_size > 1000
+    other = tmp_path / "other.json"
+    other.write_text(json.dumps({"homes": {"elsewhere": {"kitchen": [[0, 1, 0, 1]]}}}))
+    result = _run(["show", files["home"], "--out", tmp_path / "map2.png", "--regions", other])
+    assert result.exit_code == 2 and f"no regions for home {home.name!r}" in result.output
