@@ -255,6 +255,10 @@ def test_a_word_taught_once_says_what_to_do(files: dict[str, Path], tmp_path: Pa
         updated, "this")
     asked = _run(["where", taught, "zorblax"])
     assert asked.exit_code == 2 and "teach it at a few more samples" in asked.output
+    drawn = _run(["show", taught, "--out", tmp_path / "map.png", "--name", "zorblax"])
+    assert drawn.exit_code == 0 and "warning: no positions drawn for 'zorblax'" in drawn.output
+    assert (tmp_path / "map.png").is_file()
+    assert _run(["show", taught, "--out", tmp_path / "map2.png", "--name", "garage"]).exit_code == 2
 
 
 def test_synth_with_another_seed_does_not_reuse_names(tmp_path: Path) -> None:

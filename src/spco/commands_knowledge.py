@@ -368,6 +368,14 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
         click.echo(f"New words: {', '.join(last['new_words'])}")
     click.echo(f"Updated home {updated.name} in {_seconds(last['seconds'])} ({sweeps} sweeps): "
                f"{updated.n_samples} samples, {updated.n_taught} taught; wrote {target}.")
+    from spco.data.language import tokenize
+    from spco.knowledge import unused_word_hint
+
+    for word in dict.fromkeys(w for s in sentences for w in tokenize(s)):
+        index = updated.vocabulary.index(word)
+        hint = unused_word_hint(updated, word)
+        if hint is not None and index is not None and index >= updated.n_knowledge_words:  # a home's own word
+            click.echo(f"note: {hint}".replace("spco teach HOME", f"spco teach {target}"))
 
 
 # ------------------------------------------------------------------------------------ show
@@ -403,8 +411,17 @@ def show(home_file: Path, out: Path, map_image: Path | None, extent: str | None,
     home = load_home_model(home_file)
     rng = np.random.default_rng(seed)
     predicted = {}
+    from spco.knowledge import unused_word_hint
+    from spco.prediction import UnknownNameError
+
     for name in names:
-        pred = where_name(home, name, n=10, random_state=rng)
+        try:
+            pred = where_name(home, name, n=10, random_state=rng)
+        except UnknownNameError as exc:  # a name taught but not usable yet: draw the map without it
+            if unused_word_hint(home, name) is None:
+                raise
+            click.echo(f"warning: no positions drawn for {name!r}: {exc}", err=True)
+            continue
         predicted[pred.name] = pred.samples
     bounds = _extent(extent)
     if bounds is None and map_image is not None and home.extent is None:
