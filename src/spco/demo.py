@@ -39,7 +39,7 @@ def run_demo(seed: int = 0, out: Path | str = "spco-demo", n_experienced: int = 
              n_iterations: int = 100, progress: bool = True) -> DemoResult:
     """Run the demo and write its figures and ``results.json`` into ``out``.
 
-    A tiny warm-up fit runs first, so that ``fit_seconds`` times the learning alone, not the
+    A small warm-up fit runs first, so that ``fit_seconds`` times the learning alone, not the
     compilation (or loading from Numba's cache) of the kernels: ``warm_up_seconds``.
     """
     out = Path(out)
@@ -111,13 +111,13 @@ def kernels_compiled() -> bool | None:
 
 
 def warm_up() -> float:
-    """Compile (or load from Numba's cache) the kernels with a tiny fit; returns the seconds taken."""
-    from spco.data.synthetic import SyntheticConfig
-
+    """Compile (or load from Numba's cache) the kernels with a small fit (3 sweeps on 4 homes, every
+    kernel a demo-sized fit uses, checked by their signatures); returns the seconds taken."""
     start = time.perf_counter()
-    tiny = generate_homes(2, seed=0, new_homes=1, specific_rooms=False, config=SyntheticConfig(n_features=16))
+    # four homes of 1,024 features: batches large enough for the threaded variants of the kernels too
+    tiny = generate_homes(4, seed=0, new_homes=1, specific_rooms=False)
     SpCoTransfer(prune_words=True, n_iterations=3, random_state=0, progress=False).fit(tiny)
-    SpCoA(prune_words=True, n_iterations=3, random_state=0, progress=False).fit(tiny, home=tiny[1].name)
+    SpCoA(prune_words=True, n_iterations=3, random_state=0, progress=False).fit(tiny, home=tiny[3].name)
     return time.perf_counter() - start
 
 
