@@ -249,7 +249,7 @@ def test_no_pickle_in_files(knowledge_file: Path, home_file: Path) -> None:
 def test_where_text_and_json(home_file: Path) -> None:
     result = _invoke(where, [home_file, "kitchen", "--n", 4])
     assert result.exit_code == 0, result.output
-    assert result.output.startswith("kitchen in home") and len(result.output.strip().splitlines()) == 6
+    assert result.output.startswith("kitchen in home") and len(result.output.strip().splitlines()) == 7
     result = _invoke(where, [home_file, "Kitchen", "--n", 5, "--json"])
     assert result.exit_code == 0, result.output
     data = json.loads(result.output)

@@ -122,7 +122,69 @@ def test_concept_labels() -> None:
     flat[0, :, 1] = 0.4
     flat[0, :, 0] = 0.0
     same = type(params)(**{**params.arrays(), "word_probabilities": flat})
-    assert concept_labels(same, 0, Vocabulary(WORDS), n_words=2)[0] == "c0: is, kitchen"
+    # words said alike in every concept describe none of them
+    assert concept_labels(same, 0, Vocabulary(WORDS), n_words=2) == ["c0", "c1", "c2"]
+
+
+def test_a_name_taught_in_one_place_labels_only_its_concept() -> None:
+    """A new name keeps a small prior probability in every concept; only the concept where it was
+    taught is labelled with it (before, every concept's label ended with it)."""
+    params = home_params()
+    words = (*WORDS, "grandma's-room")
+    theta = np.concatenate([params.word_probabilities[0], np.full((3, 1), 1e-4)], axis=1)
+    theta[2, -1] = 0.05  # taught in the bedroom's concept
+    theta /= theta.sum(axis=1, keepdims=True)
+    taught = type(params)(**{**params.arrays(), "word_probabilities": theta[None],
+                             "word_mask": np.ones(6, dtype=bool)})
+    assert concept_labels(taught, 0, Vocabulary(words)) == ["c0: kitchen", "c1: bath",
+                                                            "c2: bedroom, grandma's room"]
+
+
+def test_map_legend_has_samples_and_region_centres() -> None:
+    params, env, vocab = home_params(), home(), Vocabulary(WORDS)
+    fig = plot_home_map(params, 0, env, vocab)
+    labels = fig.axes[0].get_legend_handles_labels()[1]
+    assert "samples (robot positions)" in labels and "region centres (+)" in labels
+
+
+def _boxes_overlap(a, b) -> bool:
+    return min(a.x1, b.x1) - max(a.x0, b.x0) > 0 and min(a.y1, b.y1) - max(a.y0, b.y0) > 0
+
+
+def test_callouts_cover_no_room_label_marker_or_other_callout() -> None:
+    """Six poses close together, with the room labels and region centres around them: measured with
+    the renderer's bounding boxes, no callout overlaps a room label, a marker (region centre, pose,
+    predicted position) or another callout, and each stays inside the axes."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.transforms import Bbox
+
+    params, env, vocab = home_params(), home(), Vocabulary(WORDS)
+    rng = np.random.default_rng(3)
+    xy = np.array([[1.0, 1.2], [1.3, 0.9], [0.8, 0.7], [4.0, 0.9], [3.7, 1.1], [2.5, 4.5]])
+    poses = np.column_stack([xy, np.zeros(6), np.ones(6)])
+    names = [[("kitchen", 0.91), ("bath", 0.06), ("bedroom", 0.03)]] * len(poses)
+    predicted = {"kitchen": np.array([1.0, 1.0]) + rng.normal(scale=0.2, size=(10, 2))}
+    fig = plot_home_map(params, 0, env, vocab, poses=poses, pose_names=names, predicted_positions=predicted)
+    ax = fig.axes[0]
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    frame = ax.get_window_extent(renderer)
+    callouts = [c for c in ax.get_children() if type(c).__name__ == "Annotation"]
+    assert len(callouts) == len(poses)
+    boxes = [c.get_bbox_patch().get_window_extent(renderer) for c in callouts]
+    room_labels = [t.get_window_extent(renderer) for t in ax.texts if t.get_text() in REGIONS.places]
+    assert len(room_labels) == 3
+    half = 3.0 * fig.dpi / 72.0  # a marker's half size (points -> pixels)
+    points = np.concatenate([params.region_means[0][:3, :2], xy, predicted["kitchen"]])
+    markers = [Bbox.from_extents(x - half, y - half, x + half, y + half)
+               for x, y in ax.transData.transform(points)]
+    for i, box in enumerate(boxes):
+        assert frame.x0 - 1 <= box.x0 and box.x1 <= frame.x1 + 1 and frame.y0 - 1 <= box.y0 \
+            and box.y1 <= frame.y1 + 1
+        assert not any(_boxes_overlap(box, other) for other in boxes[:i] + boxes[i + 1:]), i
+        assert not any(_boxes_overlap(box, label) for label in room_labels), i
+        assert not any(_boxes_overlap(box, marker) for marker in markers), i
 
 
 def test_plot_accuracy_curve(tmp_path: Path) -> None:

@@ -37,7 +37,8 @@ def main() -> None:
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON list instead of a table.")
 @_friendly_errors
 def inspect(path: Path, teaching_rate: int, as_json: bool) -> None:
-    """Summarise the homes in PATH (a home, a folder of homes or a cache file).
+    """Summarise the homes in PATH (a home, a folder of homes or a cache file), or a knowledge or
+    home file (visual dimension, extractor, vocabulary, kept names, homes, provenance).
 
     A home that holds no sentences for the chosen teaching rate (the SIGVerse experienced homes
     have only per_100) is listed with its taught count as "-" (null in JSON).
@@ -45,7 +46,11 @@ def inspect(path: Path, teaching_rate: int, as_json: bool) -> None:
     from spco.data.language import Vocabulary
     from spco.data.loading import read_records
     from spco.errors import DataFormatError
+    from spco.knowledge import model_file_format
 
+    if model_file_format(path) is not None:
+        _inspect_model_file(path, as_json)
+        return
     records = read_records(path, progress=not as_json)
     rows = []
     missing = []
@@ -89,6 +94,45 @@ def inspect(path: Path, teaching_rate: int, as_json: bool) -> None:
                    f"{', '.join(missing)}")
 
 
+def _inspect_model_file(path: Path, as_json: bool) -> None:
+    """``spco inspect`` of a knowledge or home file."""
+    from spco.knowledge import describe_model_file, view_fit_warning
+
+    info = describe_model_file(path)
+    if as_json:
+        click.echo(json.dumps(info, indent=1, default=str))
+        return
+    p = info["provenance"]
+    if info["kind"] == "home":
+        click.echo(f"{path}: home file of home {info['home']}: {info['samples']} samples, {info['taught']} "
+                   f"taught, model {info['model']}")
+    else:
+        click.echo(f"{path}: knowledge file, model {info['model']}")
+    extractor = info["extractor"]
+    click.echo(f"views: {info['visual_dimension']} features per view; extractor: "
+               f"{json.dumps(extractor) if extractor else 'none recorded (count vectors given as they are)'}")
+    click.echo(f"vocabulary ({len(info['vocabulary'])} words): {', '.join(info['vocabulary'])}")
+    click.echo(f"place names (kept by pruning, {len(info['kept_names'])}): {', '.join(info['kept_names'])}")
+    click.echo(f"experienced homes ({len(info['homes'])}): {', '.join(info['homes'])}")
+    view = info["view_fit"]
+    if info["kind"] == "knowledge" and view:
+        values = [v for v in view["homes"].values() if v is not None]
+        if values:
+            click.echo(f"fit of the views: {min(values):.2f}…{max(values):.2f} nats per count above a "
+                       f"uniform guess in the experienced homes; a new home below {view['warn_below']:.2f} "
+                       f"is warned about")
+    elif info["kind"] == "home" and view:
+        low, high = view["experienced_range"]
+        click.echo(f"fit of the views: {view['value']:.2f} nats per count above a uniform guess "
+                   f"(experienced homes {low:.2f}…{high:.2f})")
+        if not view["fits"]:
+            click.echo(f"warning: {view_fit_warning(info['home'], view)}", err=True)
+    keys = ("seed", "n_iterations", "created", "updated", "spco_version", "data", "teaching_rate",
+            "knowledge_file", "home_path", "teach_updates", "adapt")
+    shown = {k: p[k] for k in keys if k in p}
+    click.echo("provenance: " + json.dumps(shown, default=str))
+
+
 def _home_vocabulary(env: Any) -> set[str]:
     from spco.data.language import Vocabulary
 
@@ -122,11 +166,16 @@ def import_(src: Path, out: Path, teaching_rate: int | None, force: bool) -> Non
                    "accepted names).")
 @_friendly_errors
 def synth(out: Path, homes: int, seed: int, force: bool, language: str) -> None:
-    """Generate synthetic homes into folder OUT (plain format, with ground-truth regions)."""
+    """Generate synthetic homes into folder OUT (plain format, with ground-truth regions).
+
+    Homes are named synthetic_<layout>_<i> for seed 0 and synthetic_s<seed>_<layout>_<i> otherwise,
+    so that homes generated with different seeds (experienced and new ones) never share a name.
+    """
     from spco.data.plain import write_corpus
     from spco.data.synthetic import SyntheticConfig, generate_homes
 
-    corpus = generate_homes(homes, seed=seed, config=SyntheticConfig(language=language))
+    corpus = generate_homes(homes, seed=seed, config=SyntheticConfig(language=language),
+                            name_prefix="synthetic" if seed == 0 else f"synthetic_s{seed}")
     write_corpus(corpus, out, overwrite=force)
     click.echo(f"wrote {len(corpus)} synthetic homes ({sum(e.n_samples for e in corpus)} samples) "
                f"to {out}")
@@ -143,13 +192,17 @@ def synth(out: Path, homes: int, seed: int, force: bool, language: str) -> None:
 @_friendly_errors
 def demo(seed: int, out: Path, homes: int, iterations: int) -> None:
     """Learn from synthetic homes and transfer to a new home taught nothing (no dataset needed)."""
-    from spco.demo import format_table, run_demo
+    from spco.demo import format_table, kernels_compiled, run_demo
 
+    if kernels_compiled() is False:
+        click.echo("Compiling the sampler's Numba kernels (first run only, about 1–2 min on 2 cores)...",
+                   err=True)
     click.echo(f"Generating {homes} experienced synthetic homes and 1 new home (seed {seed})...", err=True)
     result = run_demo(seed=seed, out=out, n_experienced=homes, n_iterations=iterations,
                       progress=sys.stderr.isatty())
     t = result.transfer
-    click.echo(f"Learnt {result.n_homes} homes ({result.n_samples} samples) in {result.fit_seconds:.1f} s.")
+    click.echo(f"Learnt {result.n_homes} homes ({result.n_samples} samples) in {result.fit_seconds:.1f} s "
+               f"(after {result.warm_up_seconds:.1f} s compiling or loading the kernels).")
     click.echo(f"New home {t.home}: nothing taught there; names and positions come from the other homes.\n")
     click.echo("SpCoTransfer+MI (A_n: name accuracy, A_p: position accuracy) beside the SpCoA+MI baseline:")
     click.echo(format_table(result))

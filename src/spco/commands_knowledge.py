@@ -172,6 +172,12 @@ def adapt(knowledge_file: Path, home_path: Path, name: str | None, teaching_rate
     home.save(out, overwrite=force)
     seconds = home.provenance["adapt"]["seconds"]
     click.echo(home.describe())
+    view = home.provenance.get("view_fit")
+    if view and view.get("value") is not None and view.get("experienced_range"):
+        low, high = view["experienced_range"]
+        click.echo(f"The knowledge explains this home's views by {view['value']:.2f} nats per count better "
+                   f"than a uniform guess (experienced homes: {low:.2f}…{high:.2f}); "
+                   f"{'it fits' if view['fits'] else 'IT DOES NOT FIT (see the warning)'}.")
     new_words = home.provenance["adapt"]["new_words"]
     if new_words:
         click.echo(f"New words learnt in this home: {', '.join(new_words)}")
@@ -182,7 +188,7 @@ def adapt(knowledge_file: Path, home_path: Path, name: str | None, teaching_rate
 @click.command(name="where")
 @click.argument("home_file", metavar="HOME", type=click.Path(path_type=Path))
 @click.argument("name")
-@click.option("--n", "n", default=10, show_default=True, type=click.IntRange(1, 10000),
+@click.option("--n", "-n", "n", default=10, show_default=True, type=click.IntRange(1, 10000),
               help="Number of positions.")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(0), help="Random seed.")
 @click.option("--json", "as_json", is_flag=True,
@@ -199,6 +205,7 @@ def where(home_file: Path, name: str, n: int, seed: int, as_json: bool) -> None:
     from spco.knowledge import where as where_name
 
     home = load_home_model(home_file)
+    _warn_if_knowledge_does_not_fit(home)
     pred = where_name(home, name, n=n, random_state=seed)
     order = sorted(range(pred.samples.shape[0]), key=lambda i: -float(pred.weights[i]))
     positions = [{"x": float(pred.samples[i, 0]), "y": float(pred.samples[i, 1]),
@@ -213,8 +220,11 @@ def where(home_file: Path, name: str, n: int, seed: int, as_json: bool) -> None:
         click.echo(f"warning: no such place learnt in this home: only {pred.support:.0%} of the probability "
                    f"of {pred.name!r} comes from concepts holding its samples; the poses below are a guess",
                    err=True)
-    click.echo(f"{pred.name} in home {home.name}: region {pred.region} "
-               f"(p = {pred.region_probabilities[pred.region]:.2f})")
+    click.echo(f"{pred.name} in home {home.name}: region {pred.region} of the home's map, "
+               f"p(region | {pred.name}) = {pred.region_probabilities[pred.region]:.2f} (the most probable "
+               f"region; the rest is spread over others)")
+    click.echo(f"{len(positions)} poses drawn from the region's Gaussian; probability: each pose's share of "
+               f"p(pose | {pred.name}) among them")
     click.echo(f"{'x':>8} {'y':>8} {'theta':>7}  probability")
     for p in positions:
         click.echo(f"{p['x']:8.3f} {p['y']:8.3f} {p['theta']:7.3f}  {p['probability']:.3f}")
@@ -237,29 +247,55 @@ def what(home_file: Path, x: float, y: float, theta: float, visual: Path | None,
          top: int, as_json: bool) -> None:
     """The most probable place names at a pose of the home of HOME, with their probabilities.
 
-    With --visual the view's features are used too; without, the position alone. The probability
-    is p(name | pose, view); names are ranked by it times the name's mutual information with the
-    concepts (so that "this" or "is" are never answered).
+    With --visual the view's features are used too; without, the position alone. Names are ranked
+    by p(name | pose, view) × I(name), I the name's mutual information with the concepts (so that
+    "this" or "is", said everywhere, are never answered); `score` is that product as a share of its
+    sum over the usable names, `p` is p(name | pose, view) itself (its sum over all words, template
+    words included, is 1). A pose off the home's map is answered with a warning, one far off it is
+    refused.
     """
     from spco.knowledge import load_home_model, read_visual_vector
     from spco.knowledge import what as what_names
 
     home = load_home_model(home_file)
+    _warn_if_knowledge_does_not_fit(home)
     counts = None if visual is None else read_visual_vector(visual, home.knowledge.n_features, visual_scale)
-    pred = what_names(home, x, y, theta, visual=counts, top_k=top)
-    names = [{"name": str(w), "probability": float(p), "score": float(s)}
-             for w, p, s in zip(pred.words[0], pred.probabilities[0], pred.scores[0], strict=True)]
+    pred = what_names(home, x, y, theta, visual=counts, top_k=max(len(home.vocabulary), 1))
+    total = float(pred.scores[0].sum())
+    names = [{"name": str(w), "probability": float(p), "score": float(s),
+              "score_share": float(s) / total if total > 0 else 0.0}
+             for w, p, s in zip(pred.words[0], pred.probabilities[0], pred.scores[0], strict=True)][:top]
     if as_json:
         click.echo(json.dumps({"home": home.name, "pose": {"x": x, "y": y, "theta": theta},
-                               "vision": counts is not None, "names": names}, indent=1))
+                               "vision": counts is not None, "ranked_by": _RANKED_BY[pred.weighting],
+                               "names": names}, indent=1))
         return
     click.echo(f"At ({x:g}, {y:g}, θ={theta:g}) in home {home.name} "
-               f"({'position and view' if counts is not None else 'position only'}):")
+               f"({'position and view' if counts is not None else 'position only'}), ranked by score:")
     if not names:
         click.echo("  the robot knows no place names yet (nothing was taught); teach it with `spco teach`")
-    width = max((len(n["name"]) for n in names), default=0)
+        return
+    width = max(max(len(n["name"]) for n in names), len("name"))
+    click.echo(f"     {'name':<{width}}  score      p")
     for rank, n in enumerate(names, 1):
-        click.echo(f"  {rank}. {n['name']:<{width}}  {n['probability']:.3f}")
+        click.echo(f"  {rank}. {n['name']:<{width}}  {n['score_share']:.3f}  {n['probability']:.3f}")
+    click.echo(f"score: {_RANKED_BY[pred.weighting]}, as a share of its sum over the usable names; "
+               f"p: p(name | {'pose, view' if counts is not None else 'pose'}) over all words")
+
+
+#: What ``what``'s score is, per weighting of the home's model.
+_RANKED_BY = {"mi": "p(name | pose, view) × I(name), I = the name's mutual information with the concepts",
+              "none": "p(name | pose, view)",
+              "reference": "the authors' score Σ_l p(l | pose, view) θ^w_l(name) KL_l(name)"}
+
+
+def _warn_if_knowledge_does_not_fit(home: Any) -> None:
+    """One ``warning:`` line when ``adapt`` found that the knowledge does not fit the home's views."""
+    from spco.knowledge import view_fit_warning
+
+    view = home.provenance.get("view_fit")
+    if view and not view.get("fits", True):
+        click.echo(f"warning: {view_fit_warning(home.name, view)}", err=True)
 
 
 # ------------------------------------------------------------------------------------ teach
@@ -344,6 +380,14 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
         click.echo(f"New words: {', '.join(last['new_words'])}")
     click.echo(f"Updated home {updated.name} in {_seconds(last['seconds'])} ({sweeps} sweeps): "
                f"{updated.n_samples} samples, {updated.n_taught} taught; wrote {target}.")
+    from spco.data.language import tokenize
+    from spco.knowledge import unused_word_hint
+
+    for word in dict.fromkeys(w for s in sentences for w in tokenize(s)):
+        index = updated.vocabulary.index(word)
+        hint = unused_word_hint(updated, word)
+        if hint is not None and index is not None and index >= updated.n_knowledge_words:  # a home's own word
+            click.echo(f"note: {hint}".replace("spco teach HOME", f"spco teach {target}"))
 
 
 # ------------------------------------------------------------------------------------ show
@@ -355,13 +399,17 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
 @click.option("--extent", default=None,
               help="x_min,x_max,y_min,y_max in metres covered by --map (default: the home's map extent).")
 @click.option("--name", "names", multiple=True, help="Also draw positions for this place name (repeatable).")
+@click.option("--regions", "regions_file", type=click.Path(path_type=Path), default=None,
+              help="Room outlines to draw: a plain home's regions.json, or a file of every home's "
+                   "(sigverse_regions.json). Default: the regions.json of the home folder adapted from.")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(0), help="Random seed.")
 @click.option("--force", is_flag=True, help="Replace --out if it exists.")
 @_friendly
 def show(home_file: Path, out: Path, map_image: Path | None, extent: str | None, names: Sequence[str],
-         seed: int, force: bool) -> None:
+         regions_file: Path | None, seed: int, force: bool) -> None:
     """Draw the home's concepts on its floor plan: regions (95 % ellipses coloured by concept)
-    labelled with their names, the home's samples, and positions for the names given."""
+    labelled with the names that describe them, the room outlines when the home has regions, the
+    home's samples, and positions for the names given."""
     import numpy as np
 
     from spco import plots
@@ -375,18 +423,35 @@ def show(home_file: Path, out: Path, map_image: Path | None, extent: str | None,
     home = load_home_model(home_file)
     rng = np.random.default_rng(seed)
     predicted = {}
+    from spco.knowledge import unused_word_hint
+    from spco.prediction import UnknownNameError
+
     for name in names:
         seed_of_name = int(rng.integers(2**63 - 1))  # (a Generator passed on would be copied, not advanced)
-        pred = where_name(home, name, n=10, random_state=seed_of_name)
+        try:
+            pred = where_name(home, name, n=10, random_state=seed_of_name)
+        except UnknownNameError as exc:  # a name taught but not usable yet: draw the map without it
+            if unused_word_hint(home, name) is None:
+                raise
+            click.echo(f"warning: no positions drawn for {name!r}: {exc}", err=True)
+            continue
         predicted[pred.name] = pred.samples
     bounds = _extent(extent)
     if bounds is None and map_image is not None and home.extent is None:
         raise ConfigurationError("the home has no map extent: give --extent x_min,x_max,y_min,y_max "
                                  "for --map")
+    environment = home.environment()
+    rooms = _room_outlines(home, regions_file)
+    if rooms is not None:
+        from dataclasses import replace
+
+        from spco.data.environment import make_ground_truth
+
+        environment = replace(environment, ground_truth=make_ground_truth(regions=rooms))
     try:
-        fig = plots.plot_home_map(home.parameters, 0, home.environment(), home.vocabulary,
+        fig = plots.plot_home_map(home.parameters, 0, environment, home.vocabulary,
                                   map_image=map_image, map_extent=bounds,
-                                  predicted_positions=predicted or None,
+                                  predicted_positions=predicted or None, show_ground_truth=rooms is not None,
                                   title=f"{home.name}: {home.n_samples} samples, {home.n_taught} taught")
     except (OSError, ValueError, SyntaxError) as exc:  # an unreadable image
         if isinstance(exc, ConfigurationError):
@@ -394,6 +459,28 @@ def show(home_file: Path, out: Path, map_image: Path | None, extent: str | None,
         raise ConfigurationError(f"{map_image}: cannot draw the map image ({exc})") from None
     _save_png(fig, out)
     click.echo(f"Wrote {out}")
+
+
+def _room_outlines(home: Any, regions_file: Path | None) -> Any:
+    """The home's room rectangles (:class:`~spco.data.regions.PlaceRegions`) from ``--regions``, or
+    from the regions.json of the home folder it was adapted from; ``None`` if there are none."""
+    from spco.data.plain import REGIONS_JSON, _read_regions
+    from spco.data.regions import load_region_file
+    from spco.errors import ConfigurationError
+
+    if regions_file is None:
+        folder = home.provenance.get("home_path")
+        candidate = Path(folder) / REGIONS_JSON if folder else None
+        return _read_regions(candidate) if candidate is not None and candidate.is_file() else None
+    if not Path(regions_file).is_file():
+        raise ConfigurationError(f"{regions_file}: no such region file (--regions)")
+    if '"homes"' in Path(regions_file).read_text(encoding="utf-8", errors="replace")[:4096]:
+        every = load_region_file(regions_file)
+        if home.name not in every:
+            raise ConfigurationError(f"{regions_file}: no regions for home {home.name!r} (it has "
+                                     f"{', '.join(sorted(every)[:8])}{', …' if len(every) > 8 else ''})")
+        return every[home.name]
+    return _read_regions(Path(regions_file))
 
 
 def _save_png(fig: Any, out: Path) -> None:

@@ -76,6 +76,7 @@ import hashlib
 import json
 import math
 import time
+import warnings
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from datetime import UTC, datetime
@@ -105,6 +106,7 @@ from spco.model.transfer import SpatialConceptModel, SpCoTransfer, export_parame
 from spco.prediction import (
     NamePrediction,
     PositionPrediction,
+    UnknownNameError,
     predict_names,
     predict_positions,
     validate_visual_counts,
@@ -657,6 +659,7 @@ def fit_knowledge(
             "max_visual_distance_from_mean": round(float(0.5 * spread.max()) if spread.size else 0.0, 6),
         },
     }
+    record["view_fit"] = _experienced_view_fit(log_phi_v, log_g0, data, state.concepts, corpus.names)
     record.update(provenance or {})
     return Knowledge(
         log_phi_visual=log_phi_v, log_phi_words=log_phi_w, log_g0=log_g0, word_mask=word_mask,
@@ -666,6 +669,105 @@ def fit_knowledge(
         concentration_g0=float(conc_g), vocabulary=corpus.vocabulary, word_increment=corpus.word_increment,
         hyperparameters=hyper, variant=variant, prune_words=prune, provenance=record,
     )
+
+
+# ============================================================================ fit of the views
+
+#: What :func:`view_fit` measures (stored with the figures in knowledge and home files).
+VIEW_FIT_MEASURE = ("median over a home's views v of log(Σ_l G_0,l Π_d φ^v_l,d ^ v_d) / Σ_d v_d + log D: "
+                    "nats per count by which the knowledge's visual mixture explains the views better "
+                    "than a uniform guess")
+
+#: A home whose :func:`view_fit` is below this fraction of the lowest of the experienced homes' is
+#: warned about: the knowledge has lost more than half its advantage over a uniform guess there.
+VIEW_FIT_WARN_FRACTION = 0.5
+
+
+class KnowledgeMismatchWarning(UserWarning):
+    """The knowledge explains a home's views much worse than its experienced homes' (:func:`view_fit`)."""
+
+
+def view_fit(log_phi_visual: np.ndarray, log_g0: np.ndarray, visual: Any) -> float | None:
+    """How well a knowledge's visual distributions explain a home's views: :data:`VIEW_FIT_MEASURE`.
+
+    Parameters
+    ----------
+    log_phi_visual: (L, D) log φ^v; log_g0: (L,) log G_0; visual: (n, D) counts (sparse or dense).
+
+    Returns the median over the views with at least one count of their per-count log-likelihood under
+    the mixture Σ_l G_0,l Mult(v | φ^v_l) (without the multinomial coefficient), plus log D; ``None``
+    if no view has a count. About 0.6–0.8 (synthetic homes) and 0.9–1.4 (SIGVerse fc7) for homes
+    like the experienced ones; negative for views from another feature extractor or distribution.
+    """
+    counts = sp.csr_array(visual, dtype=np.float64)
+    totals = np.asarray(counts.sum(axis=1)).ravel()
+    seen = totals > 0
+    if not seen.any():
+        return None
+    log_phi = np.maximum(np.asarray(log_phi_visual, dtype=np.float64), np.log(np.finfo(float).tiny))
+    per_concept = np.asarray(counts[seen] @ log_phi.T)  # (n, L): Σ_d v_d log φ_l,d
+    mixture = logsumexp(per_concept + np.asarray(log_g0, dtype=np.float64)[None, :], axis=1)
+    return float(np.median(mixture / totals[seen]) + math.log(log_phi.shape[1]))
+
+
+def _experienced_view_fit(log_phi_v: np.ndarray, log_g0: np.ndarray, data: gibbs.PreparedData,
+                          concepts: np.ndarray, names: Sequence[str]) -> dict[str, Any]:
+    """The :func:`view_fit` of every experienced home, each held out, and the level below which a new
+    home is warned about.
+
+    A home's views helped to learn φ^v, so their fit under φ^v itself flatters them. Each home is
+    scored instead under φ^v without its own counts: φ^v_l × (N_l + D) − n_{e,l} (N_l the counts
+    of concept l over all homes, n_{e,l} home e's, with the concepts of the chain's last sweep, to
+    which φ^v is aligned), floored at 1 % of φ^v_l × (N_l + D) and renormalised.
+    """
+    L, D = log_phi_v.shape
+    counts = sp.csr_array(data.visual, dtype=np.float64)
+    per_home = []
+    for e in range(data.n_homes):
+        rows = slice(int(data.offsets[e]), int(data.offsets[e + 1]))
+        n = rows.stop - rows.start
+        onehot = sp.csr_array((np.ones(n), (concepts[rows], np.arange(n))), shape=(L, n))
+        per_home.append(np.asarray((onehot @ counts[rows]).todense()))  # (L, D) n_{e,l,d}
+    mass = np.exp(log_phi_v) * (sum(n.sum(1) for n in per_home) + D)[:, None]
+    homes = {}
+    for e, name in enumerate(names):
+        held_out = np.maximum(mass - per_home[e], 0.01 * mass)
+        log_held_out = np.log(held_out / held_out.sum(1, keepdims=True))
+        rows = slice(int(data.offsets[e]), int(data.offsets[e + 1]))
+        homes[name] = view_fit(log_held_out, log_g0, counts[rows])
+    values = [v for v in homes.values() if v is not None]
+    return {"measure": VIEW_FIT_MEASURE,
+            "homes": {name: None if v is None else round(v, 4) for name, v in homes.items()},
+            "warn_below": round(VIEW_FIT_WARN_FRACTION * min(values), 4) if values else None}
+
+
+def check_view_fit(knowledge: Knowledge, visual: Any, home_name: str) -> dict[str, Any] | None:
+    """The home's :func:`view_fit` against the experienced homes' (``None`` if the knowledge file
+    predates the measure); warns with :class:`KnowledgeMismatchWarning` when it is below the level
+    recorded at fit time."""
+    recorded = knowledge.provenance.get("view_fit")
+    if not isinstance(recorded, Mapping) or recorded.get("warn_below") is None:
+        return None
+    value = view_fit(knowledge.log_phi_visual, knowledge.log_g0, visual)
+    experienced = [float(v) for v in (recorded.get("homes") or {}).values() if v is not None]
+    warn_below = float(recorded["warn_below"])
+    fits = value is not None and value >= warn_below
+    result = {"value": None if value is None else round(value, 4), "warn_below": warn_below,
+              "experienced_range": [min(experienced), max(experienced)] if experienced else None,
+              "fits": bool(fits)}
+    if not fits:
+        warnings.warn(view_fit_warning(home_name, result), KnowledgeMismatchWarning, stacklevel=3)
+    return result
+
+
+def view_fit_warning(home_name: str, result: Mapping[str, Any]) -> str:
+    """The sentence that says a knowledge does not fit a home (``result``: :func:`check_view_fit`)."""
+    span = result.get("experienced_range") or [float("nan")] * 2
+    value = "no view has a count" if result.get("value") is None else f"{result['value']:.2f}"
+    return (f"the knowledge does not fit home {home_name!r}: it explains its views by {value} nats per "
+            f"count better than a uniform guess, against {span[0]:.2f}…{span[1]:.2f} in its experienced "
+            f"homes (warned below {result['warn_below']:.2f}); the views probably come from another "
+            f"feature extractor or another kind of place, and answers here may be confidently wrong")
 
 
 # ============================================================================ home models
@@ -1082,7 +1184,11 @@ def _map_centre(home: Environment) -> np.ndarray:
 def _check_visual_dimension(knowledge: Knowledge, n_features: int, where: str) -> None:
     if n_features != knowledge.n_features:
         raise DataFormatError(where, f"visual features have {n_features} dimensions but the knowledge "
-                              f"was learnt with {knowledge.n_features}: it comes from other data")
+                              f"needs {knowledge.n_features}: knowledge transfers only between homes whose "
+                              f"views come from the same feature extractor; compute this home's views with "
+                              f"the extractor of the experienced homes (e.g. CaffeNet fc7, 4096 values per "
+                              f"view, for the SIGVerse knowledge), or fit knowledge on homes recorded like "
+                              f"this one (spco fit)")
 
 
 def adapt(
@@ -1115,6 +1221,7 @@ def adapt(
     if train.n_samples == 0:
         raise ConfigurationError(f"home {home.name!r} has no training samples to adapt to")
     _check_visual_dimension(knowledge, train.visual.shape[1], home.source or home.name)
+    fit_of_views = check_view_fit(knowledge, train.visual, home.name)
     extended = knowledge.extended(train.sentences)
     n_known = knowledge.n_words
     hyper = extended.hyperparameters
@@ -1148,6 +1255,7 @@ def adapt(
         "adapt": {"seed": _seed_of(random_state), "n_iterations": int(n_iterations), "joint": bool(joint),
                   "seconds": round(seconds, 3), "new_words": list(extended.vocabulary.words[n_known:])},
         "teach_updates": 0,
+        "view_fit": fit_of_views,
         "spco_version": _version(),
         "created": _now(),
     }
@@ -1195,9 +1303,42 @@ def _visual_row(visual: Any, n_features: int) -> sp.csr_array:
 
 def _pose(x: float, y: float, theta: float) -> np.ndarray:
     pose = np.array([x, y, math.sin(theta), math.cos(theta)], dtype=np.float64)
-    if not np.isfinite(pose).all():
+    if not (np.isfinite(pose).all() and math.isfinite(theta)):
         raise ConfigurationError(f"the pose must be finite numbers, got x={x!r}, y={y!r}, theta={theta!r}")
+    if abs(theta) > 2 * math.pi + 1e-9:
+        raise ConfigurationError(f"theta = {theta:g} is more than a full turn: the heading is in radians "
+                                 f"(degrees? {theta:g}° = {math.radians(theta):.4f} rad)")
     return pose
+
+
+#: How far beyond its map (in map sizes) a pose is still answered (with a warning) by :func:`what`.
+FAR_OUTSIDE_MAP = 1.0
+
+
+def map_bounds(home: HomeModel) -> tuple[float, float, float, float]:
+    """``(x_min, x_max, y_min, y_max)`` of the home's map: its extent, or the box around its samples."""
+    if home.extent is not None:
+        return tuple(float(v) for v in home.extent)  # type: ignore[return-value]
+    xy = home.positions[:, :2]
+    return float(xy[:, 0].min()), float(xy[:, 0].max()), float(xy[:, 1].min()), float(xy[:, 1].max())
+
+
+def pose_outside_map(home: HomeModel, x: float, y: float) -> str | None:
+    """``None`` if ``(x, y)`` lies on the home's map (:func:`map_bounds`), else a sentence saying how far
+    outside it is. Raises :class:`ConfigurationError` when the pose is more than
+    :data:`FAR_OUTSIDE_MAP` map sizes beyond the map: the robot has learnt nothing about such a place,
+    and the region Gaussians' densities there are all zero in floating point."""
+    x0, x1, y0, y1 = map_bounds(home)
+    size = max(x1 - x0, y1 - y0, 1.0)
+    beyond = max(x0 - x, x - x1, y0 - y, y - y1, 0.0)
+    if beyond == 0.0:
+        return None
+    where = (f"the pose ({x:g}, {y:g}) is {beyond:.3g} m outside the map of home {home.name!r} "
+             f"(x {x0:g}…{x1:g}, y {y0:g}…{y1:g} m)")
+    if beyond > FAR_OUTSIDE_MAP * size:
+        raise ConfigurationError(f"{where}: the robot has learnt nothing there; give a pose on the map, "
+                                 f"in metres, in the map frame the home was recorded in")
+    return where
 
 
 def teach(
@@ -1332,18 +1473,66 @@ def where(home: HomeModel, name: str, n: int = 10,
     :class:`~spco.prediction.UnknownNameError` (with suggestions) for a name the home cannot use:
     never heard, or pruned as uninformative.
     """
-    return predict_positions(home.parameters, 0, home.vocabulary, name, n=n, rng=_as_generator(random_state))
+    try:
+        return predict_positions(home.parameters, 0, home.vocabulary, name, n=n,
+                                 rng=_as_generator(random_state))
+    except UnknownNameError:
+        hint = unused_word_hint(home, name)
+        if hint is None:
+            raise
+        raise UnknownNameError(name, home.known_names, reason=hint) from None
+
+
+def unused_word_hint(home: HomeModel, word: str) -> str | None:
+    """Why a word of the home's vocabulary is not used (pruned as uninformative) and what to do about
+    it, or ``None`` if the word is unknown or used.
+
+    A name taught at only a few samples of this home usually has too little mutual information with
+    the concepts to pass the pruning threshold yet: teaching it at a few more samples of the same
+    place (the nearest untaught samples are suggested) makes it a place name.
+    """
+    index = home.vocabulary.index(word)
+    if index is None or bool(home.state.word_mask[index]):
+        return None
+    w = home.vocabulary.words[index]
+    taught = [k for k, sentence in enumerate(home.sentences) if w in home.vocabulary.tokenize(sentence)]
+    if (index < home.n_knowledge_words and not bool(home.knowledge.word_mask[index])) or not taught:
+        if taught:
+            return (f"the word {w!r} was pruned as uninformative by the knowledge: in its experienced "
+                    f"homes it did not tell places apart (a word said everywhere, or a name said in one "
+                    f"home only), so a home adapted from it does not use it as a place name, even where "
+                    f"taught; to name a place, teach a name the knowledge never heard (it is judged in "
+                    f"this home), or fit the knowledge with --model spcotransfer (no pruning)")
+        return (f"the word {w!r} was pruned as uninformative in the experienced homes: it is said at "
+                f"every kind of place (or too rarely) to tell places apart, so it names no place")
+    xy = home.positions[:, :2]
+    distance = np.linalg.norm(xy - xy[taught].mean(0), axis=1)
+    untaught = [k for k in np.argsort(distance, kind="stable") if home.sentences[k] is None][:3]
+    ids = [int(home.ids[k]) for k in untaught]
+    shown = ", ".join(str(int(home.ids[k])) for k in taught[:5]) + (", …" if len(taught) > 5 else "")
+    return (f"the word {w!r} is not used as a place name yet: it is taught at {len(taught)} sample(s) of "
+            f"this home (id {shown}), too few to tell its place from the others (pruned as "
+            f"uninformative); teach it at a few more samples of that place"
+            + (", e.g. the nearest untaught ones: spco teach HOME "
+               + " ".join(f'--id {i} --sentence "this is {w}"' for i in ids) if ids else ""))
 
 
 def what(home: HomeModel, x: float, y: float, theta: float, visual: Any = None,
          top_k: int = 3) -> NamePrediction:
     """The ``top_k`` place names at pose ``(x, y, θ)``, with the view's visual counts if given.
 
+    A pose off the home's map is answered with a :class:`UserWarning`, one more than
+    :data:`FAR_OUTSIDE_MAP` map sizes off it is refused (:func:`pose_outside_map`); ``θ`` must be in
+    radians (``|θ| ≤ 2π``).
+
     Without ``visual`` the names come from the position alone (``use_vision=False``). The returned
     :class:`~spco.prediction.NamePrediction` holds one row: ``words[0]``, ``probabilities[0]``
     (p(w | x, v)) and ``scores[0]`` (the ranking score).
     """
     pose = _pose(x, y, theta)[None, :]
+    outside = pose_outside_map(home, x, y)
+    if outside is not None:
+        warnings.warn(f"{outside}; the names are extrapolated from the nearest regions", stacklevel=2)
     row = None if visual is None else _visual_row(visual, home.knowledge.n_features)
     return predict_names(home.parameters, 0, home.vocabulary, pose, row, top_k=top_k,
                          weighting=home.weighting, use_vision=row is not None)  # type: ignore[arg-type]
@@ -1395,4 +1584,57 @@ def read_visual_vector(path: str | PathLike[str], n_features: int | None = None,
         raise DataFormatError(file, "holds negative or non-integer values; visual counts must be whole "
                               "numbers >= 0 (for real-valued CNN features pass a visual scale, e.g. 5)")
     return values.astype(np.int64)
+
+
+# ---------------------------------------------------------------------------- inspecting files
+
+
+def model_file_format(path: str | PathLike[str]) -> str | None:
+    """:data:`KNOWLEDGE_FORMAT` or :data:`HOME_FORMAT` if ``path`` is such a file (by its header), else
+    ``None`` (a folder, a cache file, another program's file: not verified here)."""
+    file = Path(path).expanduser()
+    if not file.is_file():
+        return None
+    try:
+        with np.load(file, allow_pickle=False) as archive:
+            if "header" not in archive.files:
+                return None
+            header = json.loads(archive["header"].tobytes().decode("utf-8"))
+    except Exception:  # not an .npz archive with a JSON header: not a model file
+        return None
+    found = header.get("format") if isinstance(header, dict) else None
+    return found if found in (KNOWLEDGE_FORMAT, HOME_FORMAT) else None
+
+
+def describe_model_file(path: str | PathLike[str]) -> dict[str, Any]:
+    """What a knowledge or home file holds, for people and scripts (``spco inspect FILE``).
+
+    Keys: ``file``, ``kind`` (``"knowledge"`` or ``"home"``), ``model``, ``visual_dimension``,
+    ``extractor`` (the feature extractor recorded with the views, or ``None``), ``vocabulary``,
+    ``kept_names`` (the words usable as place names), ``homes`` (the experienced homes), the view fit
+    (:func:`view_fit`) and the ``provenance``; a home file adds ``home``, ``samples``, ``taught`` and
+    ``extent``. Raises :class:`~spco.errors.ModelFileError` for a file that is neither (or broken).
+    """
+    kind = model_file_format(path)
+    if kind == HOME_FORMAT:
+        home = load_home_model(path)
+        knowledge, names = home.knowledge, home.known_names
+        provenance = dict(home.provenance)
+        homes = list(provenance.get("knowledge_homes") or [])
+    else:
+        knowledge = load_knowledge(path)  # also the error for a file that is neither
+        names, provenance = knowledge.known_names, dict(knowledge.provenance)
+        homes = list(provenance.get("homes") or [])
+    view = provenance.pop("view_fit", None)
+    info: dict[str, Any] = {
+        "file": str(Path(path)), "kind": "home" if kind == HOME_FORMAT else "knowledge",
+        "model": knowledge.model, "visual_dimension": knowledge.n_features,
+        "extractor": provenance.get("extractor") or knowledge.provenance.get("extractor"),
+        "vocabulary": list(knowledge.vocabulary.words), "kept_names": list(names), "homes": homes,
+        "view_fit": view, "provenance": provenance,
+    }
+    if kind == HOME_FORMAT:
+        info.update({"home": home.name, "samples": home.n_samples, "taught": home.n_taught,
+                     "extent": None if home.extent is None else list(home.extent)})
+    return info
 

@@ -48,17 +48,24 @@ def _save(fig: Figure, path: PathLike | None) -> None:
 
 
 def concept_labels(params: ConceptParameters, e: int, vocabulary: Vocabulary, n_words: int = 2) -> list[str]:
-    """A short label per concept: ``"c3: kitchen, dining"``.
+    """A short label per concept: ``"c3: kitchen, dining"``, with only words that describe it.
 
-    The words shown are those with the highest θ^w_{e,l,w} · I(w) (the mutual-information weight
-    used for name prediction), so carrier words such as "this" are skipped; if no word of the
-    concept is informative, its most probable unpruned words are shown. Returns L strings (``"c3"``
-    alone if the concept has no word with positive probability).
+    A word w describes concept l when it is informative (I(w) > 0, the mutual-information weight of
+    name prediction, so carrier words such as "this" never do) and said more in l than in the home
+    on average, θ^w_{e,l,w} ≥ 1.2 Σ_c G_{e,c} θ^w_{e,c,w}, and by a factor 2 or reaching half its
+    largest θ^w over the concepts (a name of a concept that holds most of the home). So a name
+    taught in one place labels that place's concept only, not every concept in which it keeps its
+    small prior probability. Of those words, the ``n_words`` with the
+    highest θ^w · I(w) are shown. Returns L strings (``"c3"`` alone if no word describes it).
     """
     theta = np.asarray(params.word_probabilities[e], dtype=float) * np.asarray(params.word_mask)[None, :]
-    weighted = theta * mutual_information_weights(params, e)[None, :]
-    informative = (weighted > 0).any(axis=1, keepdims=True)
-    score = np.where(informative, weighted, theta)
+    info = mutual_information_weights(params, e)
+    g = np.clip(np.asarray(params.concept_weights[e], dtype=float), 0.0, None)
+    g = g / g.sum() if g.sum() > 0 else np.full(theta.shape[0], 1.0 / theta.shape[0])
+    average = g @ theta  # (V,) Σ_c G_c θ_{c,w}
+    describes = ((info[None, :] > 0) & (theta >= 1.2 * average[None, :])
+                 & ((theta >= 2.0 * average[None, :]) | (theta >= 0.5 * theta.max(axis=0, keepdims=True))))
+    score = np.where(describes, theta * info[None, :], 0.0)
     order = np.argsort(-score, axis=1, kind="stable")[:, :n_words]
     labels = []
     for c in range(theta.shape[0]):
@@ -145,22 +152,30 @@ def plot_home_map(
     if show_ground_truth is None:
         show_ground_truth = map_image is None
     gt = environment.ground_truth if environment is not None else None
+    room_labels = []
     if show_ground_truth and gt is not None and gt.regions is not None:
+        # each rectangle drawn once; labelled (inside, kept within the map) with the names of the
+        # places it is the first rectangle of: "bedroom / emma's-room" where both share it
+        first_of: dict[tuple[float, ...], list[str]] = {}
         for name, rects in gt.regions.places.items():
-            for i, (x0, x1, y0, y1) in enumerate(rects):
-                ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, edgecolor="0.35",
-                                       linewidth=1.0, linestyle="-", zorder=1))
-                if i == 0:  # label inside the first rectangle, kept within the map
-                    tx = x0 if extent is None else min(max(x0, extent[0]), extent[1])
-                    ty = y1 if extent is None else max(min(y1, extent[3]), extent[2])
-                    ax.text(tx + 0.08, ty - 0.08, name, fontsize=8, color="0.15", ha="left", va="top",
-                            zorder=2, clip_on=True,
-                            bbox={"boxstyle": "square,pad=0.15", "fc": "white", "ec": "none",
-                                  "alpha": 0.6})
+            for i, rect in enumerate(rects):
+                names_here = first_of.setdefault(tuple(rect), [])
+                if i == 0:
+                    names_here.append(name)
+        for (x0, x1, y0, y1), names_here in first_of.items():
+            ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, edgecolor="0.35",
+                                   linewidth=1.0, linestyle="-", zorder=1))
+            if names_here:
+                tx = x0 if extent is None else min(max(x0, extent[0]), extent[1])
+                ty = y1 if extent is None else max(min(y1, extent[3]), extent[2])
+                room_labels.append(ax.text(
+                        tx + 0.08, ty - 0.08, " / ".join(names_here), fontsize=8, color="0.15", ha="left",
+                        va="top", zorder=4.5, clip_on=True,
+                        bbox={"boxstyle": "square,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.7}))
     if show_samples and environment is not None:
         train = ~environment.is_test
         ax.scatter(environment.positions[train, 0], environment.positions[train, 1], s=4,
-                   color="0.6", alpha=0.6, linewidths=0, zorder=2, label="_nolegend_")
+                   color="0.6", alpha=0.6, linewidths=0, zorder=2, label="samples (robot positions)")
 
     # learnt regions
     counts = np.asarray(params.region_counts[e])
@@ -182,26 +197,30 @@ def plot_home_map(
                                  zorder=3, label=labels[c] if c not in shown else "_nolegend_"))
             shown.add(c)
         ax.scatter(means[used, 0], means[used, 1], marker="+", s=60, color="k", linewidths=1.2,
-                   zorder=4, label="_nolegend_")
+                   zorder=4, label="region centres (+)")
 
     # predicted positions
+    marker_points = [means[used, :2]] if used.size else []
     if predicted_positions:
         cmap = matplotlib.colormaps["Dark2"]
         for i, (name, pts) in enumerate(predicted_positions.items()):
             xy = np.atleast_2d(np.asarray(pts, dtype=float))
             if xy.size == 0:
                 continue
+            marker_points.append(xy[:, :2])
             ax.scatter(xy[:, 0], xy[:, 1], marker=_MARKERS[i % len(_MARKERS)], s=36,
                        color=cmap(i % 8), edgecolors="k", linewidths=0.5, zorder=5,
                        label=f"predicted: {name}")
 
     # poses with their top names
+    callouts: list[tuple[float, float, str]] = []
     if poses is not None:
         p = np.atleast_2d(np.asarray(poses, dtype=float))
         if p.shape[1] != 4:
             raise ConfigurationError(f"poses must have shape (n, 4), got {p.shape}")
         ax.quiver(p[:, 0], p[:, 1], p[:, 3], p[:, 2], angles="xy", scale_units="xy", scale=2.5,
                   width=0.006, color="crimson", zorder=6)
+        marker_points.append(p[:, :2])
         if pose_names is not None:
             if isinstance(pose_names, NamePrediction):
                 entries = [list(zip(w, pr, strict=True)) for w, pr in
@@ -210,21 +229,8 @@ def plot_home_map(
                 entries = [list(row) for row in pose_names]
             if len(entries) != p.shape[0]:
                 raise ConfigurationError(f"{len(entries)} name lists for {p.shape[0]} poses")
-            # each callout points towards the middle of the map, so that none leaves the axes
-            # (where it would cover the legend)
-            if extent is not None:
-                middle_x, middle_y = 0.5 * (extent[0] + extent[1]), 0.5 * (extent[2] + extent[3])
-            else:
-                bounds = ax.dataLim
-                middle_x, middle_y = 0.5 * (bounds.x0 + bounds.x1), 0.5 * (bounds.y0 + bounds.y1)
-            for (x, y, _, _), row in zip(p, entries, strict=True):
-                text = "\n".join(f"{w} ({float(pr):.2f})" for w, pr in row[:3]) or "(no name)"
-                right, top = x > middle_x, y > middle_y
-                ax.annotate(text, (x, y), xytext=(-12 if right else 12, -12 if top else 12),
-                            textcoords="offset points", ha="right" if right else "left",
-                            va="top" if top else "bottom", fontsize=7, zorder=7,
-                            bbox={"boxstyle": "round,pad=0.3", "fc": "white", "ec": "crimson", "alpha": 0.85},
-                            arrowprops={"arrowstyle": "-", "color": "crimson", "lw": 0.6})
+            callouts = [(float(x), float(y), "\n".join(f"{w} ({float(pr):.2f})" for w, pr in row[:3])
+                         or "(no name)") for (x, y, _, _), row in zip(p, entries, strict=True)]
 
     if extent is not None:
         ax.set_xlim(extent[0], extent[1])
@@ -239,8 +245,84 @@ def plot_home_map(
     handles, _ = ax.get_legend_handles_labels()
     if handles:
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
+    if callouts:
+        points = np.concatenate(marker_points) if marker_points else np.zeros((0, 2))
+        _place_callouts(fig, ax, callouts, room_labels, points)
     _save(fig, path)
     return fig
+
+
+#: Offsets (points) tried for a callout, nearest first; 8 directions at each distance.
+_CALLOUT_DISTANCES = (12.0, 24.0, 40.0, 60.0, 85.0)
+_CALLOUT_DIRECTIONS = ((1, 1), (-1, 1), (1, -1), (-1, -1), (1, 0), (-1, 0), (0, 1), (0, -1))
+
+
+def _place_callouts(fig: Figure, ax: Axes, callouts: Sequence[tuple[float, float, str]],
+                    room_labels: Sequence[object], points: np.ndarray) -> None:
+    """Put each pose's callout where it covers no room label, marker or earlier callout and stays
+    inside the axes: the first free offset of :data:`_CALLOUT_DISTANCES` × :data:`_CALLOUT_DIRECTIONS`
+    (directions towards the middle of the map first), or the one overlapping least.
+
+    The layout is computed first and then frozen, so that the boxes measured are the ones drawn.
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.transforms import Bbox
+
+    if not isinstance(fig.canvas, FigureCanvasAgg):
+        FigureCanvasAgg(fig)
+    fig.draw_without_rendering()
+    if fig.get_layout_engine() is not None:
+        fig.set_layout_engine("none")  # freeze the positions measured below
+    renderer = fig.canvas.get_renderer()
+    frame = ax.get_window_extent(renderer)
+    scale = fig.dpi / 72.0
+    obstacles = [label.get_window_extent(renderer).padded(2 * scale) for label in room_labels]  # type: ignore[attr-defined]
+    marker_size = 5.0 * scale
+    for x, y in ax.transData.transform(points) if points.size else []:
+        obstacles.append(Bbox.from_extents(x - marker_size, y - marker_size,
+                                           x + marker_size, y + marker_size))
+    x_mid, y_mid = frame.x0 + 0.5 * frame.width, frame.y0 + 0.5 * frame.height
+
+    def cost(box: Bbox) -> float:
+        outside = (max(frame.x0 - box.x0, 0) + max(box.x1 - frame.x1, 0) + max(frame.y0 - box.y0, 0)
+                   + max(box.y1 - frame.y1, 0))
+        overlap = 0.0
+        for other in obstacles:
+            w = min(box.x1, other.x1) - max(box.x0, other.x0)
+            h = min(box.y1, other.y1) - max(box.y0, other.y0)
+            if w > 0 and h > 0:
+                overlap += w * h
+        return 1e6 * outside + overlap
+
+    for x, y, text in callouts:
+        px, py = ax.transData.transform((x, y))
+        towards = (1 if px < x_mid else -1, 1 if py < y_mid else -1)
+        directions = sorted(_CALLOUT_DIRECTIONS, key=lambda d: -(d[0] * towards[0] + d[1] * towards[1]))
+        best: tuple[float, object, Bbox] | None = None
+        for distance in _CALLOUT_DISTANCES:
+            for dx, dy in directions:
+                callout = ax.annotate(
+                    text, (x, y), xytext=(dx * distance, dy * distance), textcoords="offset points",
+                    ha={1: "left", -1: "right", 0: "center"}[dx],
+                    va={1: "bottom", -1: "top", 0: "center"}[dy],
+                    fontsize=7, zorder=7,
+                    bbox={"boxstyle": "round,pad=0.3", "fc": "white", "ec": "crimson", "alpha": 0.85},
+                    arrowprops={"arrowstyle": "-", "color": "crimson", "lw": 0.6})
+                callout.draw(renderer)  # sizes the box around the text
+                box = callout.get_bbox_patch().get_window_extent(renderer).padded(1.5 * scale)
+                score = cost(box)
+                if best is None or score < best[0]:
+                    if best is not None:
+                        best[1].remove()  # type: ignore[attr-defined]
+                    best = (score, callout, box)
+                else:
+                    callout.remove()
+                if score == 0.0:
+                    break
+            if best is not None and best[0] == 0.0:
+                break
+        assert best is not None
+        obstacles.append(best[2])
 
 
 def plot_accuracy_curve(

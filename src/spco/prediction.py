@@ -386,13 +386,22 @@ def _log_concept_posterior(
         if positions is None:
             raise ConfigurationError("use_position=True needs positions")
         x = _as_positions(positions)
-        log_n = gaussian_log_density(x, params.region_means[e], params.region_covariances[e])  # (n, K)
+        with np.errstate(over="ignore", invalid="ignore"):  # far positions: checked below
+            log_n = gaussian_log_density(x, params.region_means[e], params.region_covariances[e])  # (n, K)
         if active_regions_only:
             active = np.asarray(params.region_counts[e]) > 0
             if active.any():
                 log_n = np.where(active[None, :], log_n, -np.inf)
         log_pi = _safe_log(params.region_weights[e])  # (L, K)
-        log_post += logsumexp(log_pi[None, :, :] + log_n[:, None, :], axis=2)
+        with np.errstate(invalid="ignore"):
+            log_post += logsumexp(log_pi[None, :, :] + log_n[:, None, :], axis=2)
+    undefined = np.isnan(log_post).any(axis=1) | ~np.isfinite(log_post).any(axis=1)
+    if undefined.any():  # e.g. a position ~1e308 m away: every density is 0 (or inf - inf) in float64
+        i = int(np.flatnonzero(undefined)[0])
+        where = f" at {tuple(float(v) for v in x[i, :2])}" if use_position else ""
+        raise ConfigurationError(f"observation {i}{where}: every concept's likelihood is 0 in floating "
+                                 f"point, so p(concept | observation) is undefined; is the position on "
+                                 f"the home's map, in metres?")
     return log_post - logsumexp(log_post, axis=1, keepdims=True)
 
 

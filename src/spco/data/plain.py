@@ -195,7 +195,11 @@ def _read_samples_csv(path: Path) -> tuple[list[int], list[tuple[float, float, f
     for row in reader:
         where = f"line {reader.line_num}"
         if None in row:
-            raise DataFormatError(path, f"{where}: more fields than the header has columns")
+            hint = ""
+            if header and header[-1] == "sentence":
+                hint = (f"; a sentence holding a comma must be quoted: "
+                        f"\"{','.join([row['sentence'] or '', *row[None]])}\"")
+            raise DataFormatError(path, f"{where}: more fields than the header has columns{hint}")
         if all((v or "").strip() == "" for v in row.values()):
             continue
         ids.append(_integer(path, where, (row["id"] or "").strip()))

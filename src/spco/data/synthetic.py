@@ -791,6 +791,7 @@ def generate_homes(
     specific_rooms: bool | Sequence[str] = True,
     teaching_rate: float = 100.0,
     word_increment: int = DEFAULT_WORD_INCREMENT,
+    name_prefix: str = "synthetic",
 ) -> Corpus:
     """A corpus of ``n_homes`` synthetic homes; the last ``new_homes`` are *new* homes.
 
@@ -813,11 +814,13 @@ def generate_homes(
         Percent of each experienced home's training samples that carry a sentence (0–100).
     word_increment:
         S^w of the corpus.
+    name_prefix:
+        The start of every home's name.
 
     Returns
     -------
-    A :class:`~spco.data.environment.Corpus`; homes are named ``synthetic_<layout>_<i>`` (``i`` from 1,
-    zero-padded to two digits or more).
+    A :class:`~spco.data.environment.Corpus`; homes are named ``<name_prefix>_<layout>_<i>`` (``i`` from
+    1, zero-padded to two digits or more), e.g. ``synthetic_3LDK_01``.
     """
     config = config or SyntheticConfig()
     if not _is_seed(seed):
@@ -849,7 +852,7 @@ def generate_homes(
         if special:
             layout = roomiest
         homes.append(generate_home(
-            rng, layout=layout, name=f"synthetic_{layout.name}_{i + 1:0{width}d}", config=config,
+            rng, layout=layout, name=f"{name_prefix}_{layout.name}_{i + 1:0{width}d}", config=config,
             world=world, new=i >= n_homes - new_homes, specific_names=special,
             teaching_rate=teaching_rate,
         ))
