@@ -156,9 +156,11 @@ def _register_commands() -> None:
     """Add the command groups that live in their own modules."""
     from spco.commands_bench import bench
     from spco.commands_experiment import experiment
+    from spco.commands_features import features
     from spco.commands_knowledge import KNOWLEDGE_COMMANDS
 
     main.add_command(experiment)
+    main.add_command(features)
     main.add_command(bench)
     for command in KNOWLEDGE_COMMANDS:  # fit, adapt, where, what, teach, show
         main.add_command(command)

@@ -326,6 +326,11 @@ class ExperimentConfig:
         also restrict the synthetic new homes.
     specific_home: override the new home of the specific experiment.
     hyperparameters: of the transfer models (``None``: the paper's); SpCoA keeps its own.
+    images: a folder ``<home>/<id>.jpg|png`` of the homes' camera images (``sigverse_images``): the
+        views are then computed from them by ``extractor`` instead of read as count vectors.
+    extractor: the image extractor's name (:mod:`spco.features`; default
+        :data:`~spco.features.DEFAULT_EXTRACTOR` when ``images`` is given). A codebook it needs is
+        learnt from the experienced homes' training images (seed ``seed``).
     """
 
     experiment: Experiment = "general"
@@ -343,6 +348,8 @@ class ExperimentConfig:
     new_homes: tuple[str, ...] | None = None
     specific_home: str | None = None
     hyperparameters: TransferHyperparameters | None = None
+    images: str | os.PathLike[str] | None = None
+    extractor: str | None = None
 
     def validated(self) -> ExperimentConfig:
         """A copy with defaults filled in and every field checked (raises ConfigurationError)."""
@@ -393,6 +400,8 @@ class _DataSpec:
     experienced_homes: tuple[str, ...] | None
     new_homes: tuple[str, ...] | None
     specific_home: str | None
+    images: str | None = None
+    extractor: str | None = None
 
 
 class _HomeSource:
@@ -480,8 +489,9 @@ def _read_path_sources(spec: _DataSpec) -> tuple[tuple[str, ...], tuple[str, ...
     if overlap:
         raise ConfigurationError(f"home(s) {', '.join(overlap)} listed both as experienced and as new")
     names = list(dict.fromkeys([*experienced, *new]))
+    extractor = _image_extractor(spec, experienced)
     try:
-        records = read_records(spec.source, names=names)
+        records = read_records(spec.source, names=names, extractor=extractor, images=spec.images)
     except DataFormatError as exc:
         if "no home named" in exc.problem and spec.experienced_homes is None:
             raise DataFormatError(exc.path, f"{exc.problem}. The experiments use the homes of the "
@@ -492,6 +502,21 @@ def _read_path_sources(spec: _DataSpec) -> tuple[tuple[str, ...], tuple[str, ...
     for name, rec in zip(names, records, strict=True):
         sources[name] = _HomeSource(rec.at_rate)
     return tuple(experienced), tuple(new), specific, sources
+
+
+def _image_extractor(spec: _DataSpec, experienced: Sequence[str]) -> Any:
+    """The extractor of views given as images (``None`` for count vectors); a codebook it needs is
+    learnt from the experienced homes' training images."""
+    if spec.images is None and spec.extractor is None:
+        return None
+    from spco.data.loading import training_image_files
+    from spco.features import DEFAULT_EXTRACTOR, build_extractor
+
+    extractor = build_extractor(spec.extractor or DEFAULT_EXTRACTOR)
+    if extractor.needs_fit:
+        files = training_image_files(spec.source, list(experienced), spec.images)
+        extractor = extractor.fitted(files, random_state=spec.seed)
+    return extractor
 
 
 def _synthetic_sources(spec: _DataSpec) -> tuple[tuple[str, ...], tuple[str, ...], str | None,
@@ -578,6 +603,8 @@ def _build_data(spec: _DataSpec, settings: Sequence[int]) -> ExperimentData:
         "regions_sha256": _file_digest(Path(spec.regions)) if spec.regions else None,
         "vocabulary": list(data.vocabulary.words),
     }
+    if spec.images is not None or spec.extractor is not None:
+        data.description["views"] = {"images": spec.images, "extractor": spec.extractor}
     return data
 
 
@@ -640,8 +667,17 @@ def _data_spec(config: ExperimentConfig) -> _DataSpec:
         regions = str(rpath.resolve())
     settings = config.settings or ()
     n_needed = max(settings) if config.experiment == "general" and settings else 0
+    images = None
+    if config.images is not None:
+        ipath = Path(config.images).expanduser()
+        if not ipath.is_dir():
+            raise DataFormatError(ipath, "no such folder of images (--images)")
+        images = str(ipath.resolve())
+    if source == "synthetic" and (images is not None or config.extractor is not None):
+        raise ConfigurationError("synthetic homes have no images; --images and --extractor need --data")
     return _DataSpec(config.experiment, source, regions, config.seed, n_needed,
-                     config.experienced_homes, config.new_homes, config.specific_home)
+                     config.experienced_homes, config.new_homes, config.specific_home, images,
+                     config.extractor)
 
 
 def load_experiment_data(config: ExperimentConfig) -> ExperimentData:
