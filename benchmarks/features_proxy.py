@@ -32,7 +32,8 @@ def labels_of(home: str, n: int) -> list[str]:
             for i in range(n)]
 
 
-def scores(train: np.ndarray, y_train: np.ndarray, test: np.ndarray, y_test: np.ndarray) -> tuple[float, float]:
+def scores(train: np.ndarray, y_train: np.ndarray, test: np.ndarray,
+           y_test: np.ndarray) -> tuple[float, float]:
     def unit(a: np.ndarray) -> np.ndarray:
         a = a / np.maximum(a.sum(1, keepdims=True), 1e-12)
         return a / np.maximum(np.linalg.norm(a, axis=1, keepdims=True), 1e-12)

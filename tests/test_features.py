@@ -207,7 +207,8 @@ def test_features_command_writes_counts_and_reports_speed(tmp_path: Path) -> Non
     assert not (tmp_path / "w.npz").exists()
     pytest.importorskip("onnxruntime")
     _tiny_onnx(tmp_path / "tiny.onnx")
-    result = _invoke(features, [folder / "0.jpg", "--out", tmp_path / "o.npz", "--model", tmp_path / "tiny.onnx"])
+    result = _invoke(features, [folder / "0.jpg", "--out", tmp_path / "o.npz",
+                                "--model", tmp_path / "tiny.onnx"])
     assert result.exit_code == 0, result.output
     assert sp.load_npz(tmp_path / "o.npz").shape == (1, 5)
 
@@ -258,7 +259,8 @@ def test_fit_adapt_what_teach_with_images(image_homes: dict[str, Path], tmp_path
     assert result.exit_code == 2 and "fitted on images" in result.output and "--image" in result.output
     broken = tmp_path / "broken.jpg"
     broken.write_bytes(b"nope")
-    result = CliRunner().invoke(what, [str(hfile), "--x", "0", "--y", "0", "--theta", "0", "--image", str(broken)])
+    result = CliRunner().invoke(what, [str(hfile), "--x", "0", "--y", "0", "--theta", "0",
+                                       "--image", str(broken)])
     assert result.exit_code == 2 and "broken.jpg: not a readable image" in result.output
 
 
@@ -272,7 +274,8 @@ def test_count_vector_knowledge_refuses_images(image_homes: dict[str, Path], tmp
     assert _invoke(adapt, [kfile, "--home", home_dir, "--iterations", 3, "--out", hfile]).exit_code == 0
     view = tmp_path / "view.png"
     cv2.imwrite(str(view), _view("kitchen", np.random.default_rng(9)))
-    result = CliRunner().invoke(what, [str(hfile), "--x", "0", "--y", "0", "--theta", "0", "--image", str(view)])
+    result = CliRunner().invoke(what, [str(hfile), "--x", "0", "--y", "0", "--theta", "0",
+                                       "--image", str(view)])
     assert result.exit_code == 2 and "fitted on visual count vectors" in result.output
     result = CliRunner().invoke(teach, [str(hfile), "--x", "0", "--y", "0", "--theta", "0", "--image",
                                         str(view)])

@@ -118,7 +118,8 @@ def general(data: str, regions: Path | None, maps: Path | None, trials: int, mod
     _run({"experiment": "general", "settings": parse_int_list(envs, "--envs", 0), "data": data,
           "regions": regions, "maps": maps, "trials": trials, "models": models, "iterations": iterations,
           "seed": seed, "jobs": jobs, "experienced_homes": _split(experienced_homes),
-          "new_homes": _split(new_homes), "images": images, "extractor": extractor}, out, resume, force, quiet)
+          "new_homes": _split(new_homes), "images": images, "extractor": extractor},
+         out, resume, force, quiet)
 
 
 @experiment.command()

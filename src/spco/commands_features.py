@@ -113,7 +113,8 @@ def features(images: Sequence[Path], out: Path, extractor: str | None, model: Pa
         ext = build_extractor(ExtractorSpec(name, settings=parse_settings(settings)),
                               model_path=None if model is None else str(model))
         if ext.needs_fit:
-            click.echo(f"Learning the {ext.name} codebook from {len(files)} images (seed {seed})...", err=True)
+            click.echo(f"Learning the {ext.name} codebook from {len(files)} images (seed {seed})...",
+                       err=True)
             ext = ext.fitted(files, random_state=seed)
     start = time.perf_counter()
     counts = ext.extract_many(files, jobs=jobs)

@@ -84,7 +84,8 @@ def _image_options(func: Any) -> Any:
                         help="The .onnx network of the onnx extractor (fit: with --extractor onnx; adapt: "
                              "where the knowledge's model file is now).")(func)
     return click.option("--images", type=click.Path(path_type=Path), default=None,
-                        help="Folder of the homes' camera images, <home>/<id>.jpg|png (e.g. sigverse_images), "
+                        help="Folder of the homes' camera images, <home>/<id>.jpg|png (e.g. "
+                             "sigverse_images), "
                              "used as the views in place of the homes' visual counts.")(func)
 
 
@@ -112,8 +113,8 @@ def _view_counts(home: Any, knowledge_file: Path, visual: Path | None, image: Pa
         raise ConfigurationError("give the view either as --visual features or as an --image, not both")
     if image is not None:
         if not knowledge.fitted_on_images:
-            raise ConfigurationError(f"{knowledge_file}: its knowledge was fitted on visual count vectors, not "
-                                     "on images: give the view's features with --visual (or fit the "
+            raise ConfigurationError(f"{knowledge_file}: its knowledge was fitted on visual count vectors, "
+                                     "not on images: give the view's features with --visual (or fit the "
                                      "knowledge on homes with images)")
         return knowledge.image_extractor(model_path=model).extract(image)
     if visual is not None:
@@ -209,7 +210,8 @@ def _fit_extractor(data: Path, names: list[str] | None, images: Path | None, nam
     extractor = build_extractor(chosen, model_path=None if model_file is None else str(model_file))
     if extractor.needs_fit:
         files = training_image_files(data, names, images)
-        click.echo(f"Learning the {chosen} codebook from {len(files)} training images (seed {seed})...", err=True)
+        click.echo(f"Learning the {chosen} codebook from {len(files)} training images (seed {seed})...",
+                   err=True)
         extractor = extractor.fitted(files, random_state=seed)
     return extractor
 
@@ -232,17 +234,17 @@ def _fit_extractor(data: Path, names: list[str] | None, images: Path | None, nam
 @_image_options
 @_friendly
 def adapt(knowledge_file: Path, home_path: Path, name: str | None, teaching_rate: int, iterations: int,
-          seed: int, joint: bool, out: Path, force: bool, images: Path | None, model_file: Path | None) -> None:
+          seed: int, joint: bool, out: Path, force: bool, images: Path | None,
+          model_file: Path | None) -> None:
     """Learn a new home with the knowledge of KNOWLEDGE as its prior; write a home file.
 
     Learns the home's regions, concept weights, visual and word distributions and the concepts
     and regions of its samples. Words the knowledge never heard are added to the vocabulary.
     """
     from spco.data.loading import load_home, load_homes
+    from spco.errors import ConfigurationError
     from spco.knowledge import adapt as adapt_home
     from spco.knowledge import load_knowledge
-
-    from spco.errors import ConfigurationError
 
     _check_out(out, force)
     knowledge = load_knowledge(knowledge_file)
@@ -250,9 +252,9 @@ def adapt(knowledge_file: Path, home_path: Path, name: str | None, teaching_rate
     if knowledge.fitted_on_images:
         extractor = knowledge.image_extractor(model_path=model_file)
     elif images is not None or _views_are_images(Path(home_path), None if name is None else [name]):
-        raise ConfigurationError(f"{knowledge_file}: its knowledge was fitted on visual count vectors, not on "
-                                 "images, so it cannot use a home whose views are images: fit a knowledge "
-                                 "on homes with images (spco fit), or give the home's visual.npz")
+        raise ConfigurationError(f"{knowledge_file}: its knowledge was fitted on visual count vectors, "
+                                 "not on images, so it cannot use a home whose views are images: fit a "
+                                 "knowledge on homes with images (spco fit), or give the home's visual.npz")
     if name is not None:
         env = load_homes(home_path, names=[name], teaching_rate=teaching_rate, extractor=extractor,
                          images=images)[0]

@@ -603,8 +603,8 @@ def fit_knowledge(
     if not (0 < summary_fraction <= 1) or summary_every < 1:
         raise ConfigurationError("summary_fraction must be within (0, 1] and summary_every >= 1")
     if extractor is not None and extractor.n_features != corpus[0].n_features:
-        raise ConfigurationError(f"the extractor gives {extractor.n_features} features, the homes' views have "
-                                 f"{corpus[0].n_features}")
+        raise ConfigurationError(f"the extractor gives {extractor.n_features} features, the homes' views "
+                                 f"have {corpus[0].n_features}")
     if len(corpus.vocabulary) == 0:
         raise DataFormatError(None, f"no taught sentence in the {len(corpus)} experienced home(s) "
                               f"({', '.join(corpus.names[:5])}): there are no place names to learn")
@@ -1170,7 +1170,8 @@ def _clean_sentence(sentence: str | None) -> str | None:
 def _visual_row(visual: Any, n_features: int) -> sp.csr_array:
     """One observation's visual counts as a (1, D) int64 CSR row, validated."""
     if visual is None:
-        raise ConfigurationError("a new observation needs its view: visual counts (the view's features) or an image")
+        raise ConfigurationError("a new observation needs its view: visual counts (the view's features) or "
+                                 "an image")
     if sp.issparse(visual):
         row = sp.csr_array(visual)
         values = row.data

@@ -349,7 +349,8 @@ def plain_training_images(folder: str | os.PathLike[str]) -> list[Path]:
 
     home = Path(folder)
     csv_path = home / SAMPLES_CSV
-    ids = (_read_samples_csv(csv_path) if csv_path.is_file() else _read_samples_jsonl(home / SAMPLES_JSONL))[0]
+    read = _read_samples_csv if csv_path.is_file() else _read_samples_jsonl
+    ids = read(csv_path if csv_path.is_file() else home / SAMPLES_JSONL)[0]
     index = {sample: row for row, sample in enumerate(ids)}
     test = (_read_id_list(home / TEST_TXT, index) if (home / TEST_TXT).is_file()
             else np.zeros(len(ids), dtype=bool))

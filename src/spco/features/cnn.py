@@ -71,7 +71,8 @@ class OnnxExtractor(Extractor):
         try:
             self._session = ort.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
         except Exception as exc:  # onnxruntime raises its own exception types for a bad model
-            raise DataFormatError(path, f"not a usable ONNX model ({str(exc).splitlines()[0][:200]})") from None
+            first = (str(exc).splitlines() or [""])[0][:200]
+            raise DataFormatError(path, f"not a usable ONNX model ({first})") from None
         self._path = path
         self._checksum = file_sha256(path)
         inputs = self._session.get_inputs()
