@@ -300,3 +300,18 @@ def test_version_1_knowledge_files_are_read_as_count_vectors(image_homes: dict[s
     assert loaded.extractor is None and not loaded.fitted_on_images
     with pytest.raises(ConfigurationError, match="count vectors"):
         loaded.image_extractor()
+
+
+def test_sigverse_home_with_its_images(sigverse_dir: Path) -> None:
+    """The SIGVerse loader takes the views from sigverse_images/<home>/<i>.jpg in place of fc7."""
+    images = sigverse_dir.parent / "sigverse_images"
+    if not (images / "1DK_8").is_dir():
+        pytest.skip(f"sigverse_images not found at {images}")
+    ext = build_extractor(DEFAULT_EXTRACTOR)
+    env = load_home(sigverse_dir / "1DK_8", extractor=ext, images=images)
+    fc7 = load_home(sigverse_dir / "1DK_8")
+    assert env.n_samples == fc7.n_samples and env.n_features == ext.n_features
+    assert np.array_equal(env.positions, fc7.positions) and env.sentences == fc7.sentences
+    assert np.array_equal(env.visual[[3]].toarray()[0], ext.extract(images / "1DK_8" / "3.jpg"))
+    with pytest.raises(DataFormatError, match="--images"):
+        load_home(sigverse_dir / "1DK_8", extractor=ext)
