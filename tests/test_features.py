@@ -315,3 +315,37 @@ def test_sigverse_home_with_its_images(sigverse_dir: Path) -> None:
     assert np.array_equal(env.visual[[3]].toarray()[0], ext.extract(images / "1DK_8" / "3.jpg"))
     with pytest.raises(DataFormatError, match="--images"):
         load_home(sigverse_dir / "1DK_8", extractor=ext)
+
+
+def test_fit_learns_a_codebook_for_sigverse_homes_with_images(make_sigverse_home, tmp_path: Path) -> None:
+    """--images DIR gives SIGVerse-layout homes their views; bovw-orb's codebook goes into the knowledge."""
+    data, images = tmp_path / "data", tmp_path / "img"
+    rng = np.random.default_rng(6)
+    for name in ("home_a", "home_b"):
+        make_sigverse_home(name, n=8, test=(6, 7), root=data)
+        (images / name).mkdir(parents=True)
+        for i in range(8):
+            texture = cv2.resize(rng.integers(0, 256, (30, 40, 3), dtype=np.uint8), (160, 120),
+                                 interpolation=cv2.INTER_NEAREST)
+            cv2.imwrite(str(images / name / f"{i}.jpg"), texture)
+    kfile, hfile = tmp_path / "k.spco", tmp_path / "h.spco"
+    result = _invoke(fit, ["--data", data, "--images", images, "--extractor", "bovw-orb", "--iterations", 2,
+                           "--seed", 3, "--out", kfile])
+    assert result.exit_code == 0, result.output
+    knowledge = kn.load_knowledge(kfile)
+    assert knowledge.extractor["name"] == "bovw-orb" and knowledge.n_features == 512
+    assert knowledge.extractor_arrays["codebook"].shape == (512, 256)
+    assert knowledge.image_extractor().checksum == knowledge.extractor["checksum"]
+    result = _invoke(adapt, [kfile, "--home", data / "home_b", "--images", images, "--iterations", 2,
+                             "--out", hfile])
+    assert result.exit_code == 0, result.output
+    result = CliRunner().invoke(adapt, [str(kfile), "--home", str(data / "home_b"), "--out",
+                                        str(tmp_path / "h2.spco")])
+    assert result.exit_code == 2 and "--images" in result.output
+
+
+def test_experiment_images_need_real_homes(tmp_path: Path) -> None:
+    from spco.evaluation.experiments import ExperimentConfig, load_experiment_data
+
+    with pytest.raises(ConfigurationError, match="synthetic homes have no images"):
+        load_experiment_data(ExperimentConfig(data="synthetic", images=tmp_path, trials=1))

@@ -604,7 +604,9 @@ def _build_data(spec: _DataSpec, settings: Sequence[int]) -> ExperimentData:
         "vocabulary": list(data.vocabulary.words),
     }
     if spec.images is not None or spec.extractor is not None:
-        data.description["views"] = {"images": spec.images, "extractor": spec.extractor}
+        from spco.features import DEFAULT_EXTRACTOR
+
+        data.description["views"] = {"images": spec.images, "extractor": spec.extractor or DEFAULT_EXTRACTOR}
     return data
 
 

@@ -8,9 +8,9 @@
     (rounded); so every image gives about ``colour_counts + hog_counts`` counts.
 ``bovw-orb`` / ``bovw-sift``
     A bag of visual words: ORB (or SIFT) keypoints of the image resized to ``width`` pixels wide,
-    each descriptor assigned to its nearest of ``words`` codebook words (k-means on descriptors of
-    training images, :meth:`BagOfWords.fitted`), counts = how many keypoints fell on each word,
-    repeated ``repeat`` times (the count mass per image).
+    each descriptor assigned to its nearest of ``words`` codebook words (k-means on up to
+    ``training_descriptors`` descriptors of training images, :meth:`BagOfWords.fitted`); counts =
+    how many keypoints fell on each word, times ``repeat`` (the count mass per image).
 """
 
 from __future__ import annotations
@@ -62,6 +62,31 @@ def _hog(grey: np.ndarray) -> np.ndarray:
     return blocks.ravel()
 
 
+def _nearest(points: np.ndarray, centres: np.ndarray) -> np.ndarray:
+    """(n,) index of the nearest centre (squared Euclidean distance) of each of (n, d) points."""
+    d2 = (centres * centres).sum(1)[None, :] - 2.0 * points @ centres.T
+    return d2.argmin(1)
+
+
+def _kmeans(points: np.ndarray, k: int, rng: np.random.Generator, iterations: int = 20) -> np.ndarray:
+    """(k, d) float32 centres by Lloyd's k-means from k distinct random points (seeded by ``rng``);
+    a centre left empty is moved to a random point. Distances by matrix products (BLAS)."""
+    x = np.ascontiguousarray(points, dtype=np.float32)
+    centres = x[rng.choice(x.shape[0], k, replace=False)].copy()
+    for _ in range(iterations):
+        labels = _nearest(x, centres)
+        counts = np.bincount(labels, minlength=k)
+        sums = np.zeros_like(centres)
+        np.add.at(sums, labels, x)
+        empty = counts == 0
+        new = sums / np.maximum(counts, 1)[:, None]
+        new[empty] = x[rng.choice(x.shape[0], int(empty.sum()), replace=False)]
+        if np.array_equal(new, centres):
+            break
+        centres = new
+    return centres
+
+
 @register
 class ColourHog(Extractor):
     """HSV colour histograms on a two-level spatial pyramid + HOG (module docstring)."""
@@ -110,7 +135,7 @@ class BagOfWords(Extractor):
 
     learns: ClassVar[bool] = True
     defaults: ClassVar[dict[str, Any]] = {"width": 336, "keypoints": 500, "words": 512, "repeat": 4,
-                                          "training_descriptors": 100000}
+                                          "training_descriptors": 50000}
 
     def __init__(self, codebook: np.ndarray | None = None, **settings: Any) -> None:
         super().__init__(**settings)
@@ -163,8 +188,6 @@ class BagOfWords(Extractor):
 
     def fitted(self, images: Sequence[ImageInput], random_state: int | None = 0) -> Extractor:
         """This extractor with a codebook learnt by k-means on descriptors of ``images``."""
-        from scipy.cluster.vq import kmeans2
-
         rng = np.random.default_rng(random_state)
         chunks = [self._descriptors(read_image(im)) for im in images]
         desc = np.vstack([c for c in chunks if c.size] or [np.zeros((0, self._descriptor_size), np.float32)])
@@ -175,18 +198,14 @@ class BagOfWords(Extractor):
         limit = self.settings["training_descriptors"]
         if desc.shape[0] > limit:
             desc = desc[np.sort(rng.choice(desc.shape[0], limit, replace=False))]
-        centres, _ = kmeans2(desc.astype(np.float64), words, iter=20, minit="++",
-                             seed=int(rng.integers(2**31 - 1)))
-        return type(self)(codebook=centres.astype(np.float32), **self.settings)
+        return type(self)(codebook=_kmeans(desc, words, rng), **self.settings)
 
     def _counts(self, image: np.ndarray) -> np.ndarray:
         desc = self._descriptors(image)
         if desc.shape[0] == 0:
             return np.zeros(self.n_features, dtype=np.int64)
         assert self.codebook is not None
-        c = self.codebook
-        d2 = (desc * desc).sum(1)[:, None] - 2.0 * desc @ c.T + (c * c).sum(1)[None, :]
-        nearest = d2.argmin(1)
+        nearest = _nearest(desc, self.codebook)
         return np.bincount(nearest, minlength=self.n_features).astype(np.int64) * self.settings["repeat"]
 
 

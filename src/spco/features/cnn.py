@@ -8,7 +8,8 @@ fixed in the model), converted to RGB floats in [0, 1], normalised with ``mean``
 ``floor(max(a, 0) × scale)`` with ``scale`` = 5 by default (S^v = 5 of the authors).
 
 Needs the ``onnx`` extra (``pip install "spco[onnx]"``: onnxruntime). The model file's sha256 is
-the extractor's checksum: a knowledge file fitted with one network refuses another.
+the extractor's checksum (with its ``<file>.data`` external weights, if any): a knowledge file
+fitted with one network refuses another.
 """
 
 from __future__ import annotations
@@ -75,6 +76,9 @@ class OnnxExtractor(Extractor):
             raise DataFormatError(path, f"not a usable ONNX model ({first})") from None
         self._path = path
         self._checksum = file_sha256(path)
+        external = path.with_name(path.name + ".data")  # torch.onnx.export's external weights
+        if external.is_file():
+            self._checksum = hashlib.sha256((self._checksum + file_sha256(external)).encode()).hexdigest()
         inputs = self._session.get_inputs()
         if len(inputs) != 1 or len(inputs[0].shape) != 4:
             raise DataFormatError(path, "the model must take one image input of shape (N, 3, H, W)")
