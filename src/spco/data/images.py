@@ -14,8 +14,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from spco.data.environment import Environment
 from spco.errors import DataFormatError
 from spco.features import IMAGE_SUFFIXES
@@ -59,8 +57,3 @@ def with_image_features(env: Environment, files: Sequence[Path], extractor: Any,
         raise DataFormatError(env.source or env.name, f"{len(files)} images for {env.n_samples} samples")
     visual = extractor.extract_many(files, jobs=jobs)
     return dataclasses.replace(env, visual=visual)
-
-
-def training_mask(env: Environment) -> np.ndarray:
-    """(n,) bool: the samples a learner may see (not test samples)."""
-    return ~np.asarray(env.is_test, dtype=bool)

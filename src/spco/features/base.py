@@ -234,12 +234,8 @@ def register(cls: type[Extractor]) -> type[Extractor]:
 
 def registered_extractors() -> dict[str, type[Extractor]]:
     """Name -> extractor class of every registered extractor."""
-    from spco.features import classic  # noqa: F401  (registers the built-in extractors)
+    from spco.features import classic, cnn  # noqa: F401  (register the built-in extractors)
 
-    try:
-        from spco.features import cnn  # noqa: F401
-    except ImportError:  # pragma: no cover - cnn imports onnxruntime lazily; this never fails
-        pass
     return dict(_REGISTRY)
 
 
