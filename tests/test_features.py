@@ -339,6 +339,12 @@ def test_fit_learns_a_codebook_for_sigverse_homes_with_images(make_sigverse_home
     result = _invoke(adapt, [kfile, "--home", data / "home_b", "--images", images, "--iterations", 2,
                              "--out", hfile])
     assert result.exit_code == 0, result.output
+    home = kn.load_home_model(hfile)  # the home file carries the codebook too
+    assert home.knowledge.image_extractor().checksum == knowledge.extractor["checksum"]
+    view = images / "home_b" / "7.jpg"
+    counts = knowledge.image_extractor().extract(view)
+    assert np.array_equal(kn.what(home, 0.0, 0.0, 0.0, image=view).probabilities,
+                          kn.what(home, 0.0, 0.0, 0.0, visual=counts).probabilities)
     result = CliRunner().invoke(adapt, [str(kfile), "--home", str(data / "home_b"), "--out",
                                         str(tmp_path / "h2.spco")])
     assert result.exit_code == 2 and "--images" in result.output
