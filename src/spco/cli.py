@@ -214,9 +214,11 @@ def _register_commands() -> None:
     from spco.commands_bag import import_bag
     from spco.commands_bench import bench
     from spco.commands_experiment import experiment
+    from spco.commands_features import features
     from spco.commands_knowledge import KNOWLEDGE_COMMANDS
 
     main.add_command(experiment)
+    main.add_command(features)
     main.add_command(bench)
     main.add_command(import_bag)
     for command in KNOWLEDGE_COMMANDS:  # fit, adapt, where, what, teach, show

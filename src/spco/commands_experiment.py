@@ -59,6 +59,11 @@ def _common(func: Callable[..., Any]) -> Callable[..., Any]:
                      help="Continue the experiment in --out (same options; --trials may grow)."),
         click.option("--force", is_flag=True, help="Delete a previous experiment's outputs in --out."),
         click.option("--quiet", "-q", is_flag=True, help="No progress bar and no tables on stdout."),
+        click.option("--images", type=click.Path(path_type=Path), default=None,
+                     help="Folder of the homes' camera images, <home>/<id>.jpg (e.g. sigverse_images): "
+                          "compute the views from them instead of using the homes' visual counts."),
+        click.option("--extractor", default=None,
+                     help="Image extractor for --images (default: colour-hog; see `spco features --help`)."),
     ]
     for option in reversed(options):
         func = option(func)
@@ -111,14 +116,16 @@ def _run(config_kwargs: dict[str, Any], out: Path, resume: bool, force: bool, qu
 @_friendly
 def general(data: str, language: str, regions: Path | None, maps: Path | None, trials: int, models: str,
             iterations: int, seed: int, jobs: int, out: Path, resume: bool, force: bool, quiet: bool,
-            envs: str, experienced_homes: str | None, new_homes: str | None) -> None:
+            images: Path | None, extractor: str | None, envs: str, experienced_homes: str | None,
+            new_homes: str | None) -> None:
     """General places: accuracy in new homes, taught nothing, vs. number of experienced homes."""
     from spco.evaluation.experiments import parse_int_list
 
     _run({"experiment": "general", "settings": parse_int_list(envs, "--envs", 0), "data": data,
           "regions": regions, "maps": maps, "trials": trials, "models": models, "iterations": iterations,
           "seed": seed, "jobs": jobs, "experienced_homes": _split(experienced_homes),
-          "new_homes": _split(new_homes), "language": language}, out, resume, force, quiet)
+          "new_homes": _split(new_homes), "language": language, "images": images, "extractor": extractor},
+         out, resume, force, quiet)
 
 
 @experiment.command()
@@ -132,15 +139,16 @@ def general(data: str, language: str, regions: Path | None, maps: Path | None, t
 @_friendly
 def specific(data: str, language: str, regions: Path | None, maps: Path | None, trials: int, models: str,
              iterations: int, seed: int, jobs: int, out: Path, resume: bool, force: bool, quiet: bool,
-             rates: str, experienced_homes: str | None, new_home: str | None) -> None:
+             images: Path | None, extractor: str | None, rates: str, experienced_homes: str | None,
+             new_home: str | None) -> None:
     """Home-specific places: accuracy on the new home's own room names vs. their teaching rate."""
     from spco.evaluation.experiments import parse_int_list
 
     _run({"experiment": "specific", "settings": parse_int_list(rates, "--rates", 0, 100), "data": data,
           "regions": regions, "maps": maps, "trials": trials, "models": models, "iterations": iterations,
           "seed": seed, "jobs": jobs, "experienced_homes": _split(experienced_homes),
-          "specific_home": new_home.strip() if new_home else None, "language": language}, out, resume,
-         force, quiet)
+          "specific_home": new_home.strip() if new_home else None, "language": language, "images": images,
+          "extractor": extractor}, out, resume, force, quiet)
 
 
 @experiment.command(name="models")

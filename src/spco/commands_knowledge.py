@@ -78,6 +78,56 @@ def _extent(text: str | None) -> tuple[float, float, float, float] | None:
     return values  # type: ignore[return-value]
 
 
+def _image_options(func: Any) -> Any:
+    """--images and --model: views as images (fit, adapt)."""
+    func = click.option("--onnx-model", "model_file", type=click.Path(path_type=Path), default=None,
+                        help="The .onnx network of the onnx extractor (fit: with --extractor onnx; adapt: "
+                             "where the knowledge's model file is now).")(func)
+    return click.option("--images", type=click.Path(path_type=Path), default=None,
+                        help="Folder of the homes' camera images, <home>/<id>.jpg|png (e.g. "
+                             "sigverse_images), "
+                             "used as the views in place of the homes' visual counts.")(func)
+
+
+def _views_are_images(path: Path, names: list[str] | None) -> bool:
+    """Whether the plain homes at ``path`` give their views as images only (images/, no visual.npz)."""
+    from spco.data.loading import find_homes, home_kind
+    from spco.data.plain import VISUAL_NPY, VISUAL_NPZ, has_images
+
+    if not path.is_dir():
+        return False
+    homes = [path] if home_kind(path) is not None else find_homes(path)
+    return any(home_kind(h) == "plain" and has_images(h) and not (h / VISUAL_NPZ).exists()
+               and not (h / VISUAL_NPY).exists() for h in homes)
+
+
+def _view_counts(home: Any, knowledge_file: Path, visual: Path | None, image: Path | None,
+                 visual_scale: float | None, model: Path | None) -> Any:
+    """The view's counts for what/teach: --visual features, or --image through the knowledge's
+    extractor; each refused for knowledge fitted on the other kind of view."""
+    from spco.errors import ConfigurationError
+    from spco.knowledge import read_visual_vector
+
+    knowledge = home.knowledge
+    if visual is not None and image is not None:
+        raise ConfigurationError("give the view either as --visual features or as an --image, not both")
+    if image is not None:
+        if not knowledge.fitted_on_images:
+            raise ConfigurationError(f"{knowledge_file}: its knowledge was fitted on visual count vectors, "
+                                     "not on images: give the view's features with --visual (or fit the "
+                                     "knowledge on homes with images)")
+        return knowledge.image_extractor(model_path=model).extract(image)
+    if visual is not None:
+        if knowledge.fitted_on_images:
+            from spco.features import ExtractorSpec
+
+            raise ConfigurationError(f"{knowledge_file}: its knowledge was fitted on images (extractor "
+                                     f"{ExtractorSpec.from_dict(knowledge.extractor).describe()}): give the "
+                                     "view as --image, not as --visual features")
+        return read_visual_vector(visual, knowledge.n_features, visual_scale)
+    return None
+
+
 def _seconds(value: float) -> str:
     return f"{value * 1000:.0f} ms" if value < 1 else f"{value:.1f} s"
 
@@ -100,22 +150,40 @@ def _seconds(value: float) -> str:
 @click.option("--out", "-o", required=True, type=click.Path(path_type=Path),
               help="The knowledge file to write (e.g. knowledge.spco).")
 @click.option("--force", is_flag=True, help="Replace --out if it exists.")
+@_image_options
+@click.option("--extractor", default=None,
+              help="Image extractor when the views are images (default: colour-hog; bovw-orb, bovw-sift "
+                   "learn their codebook here, from the homes' training images; onnx needs --onnx-model).")
 @_friendly
 def fit(data: Path, homes: str | None, teaching_rate: int, model: str, iterations: int, seed: int,
-        out: Path, force: bool) -> None:
+        out: Path, force: bool, images: Path | None, model_file: Path | None, extractor: str | None) -> None:
     """Learn knowledge from experienced homes and write a knowledge file.
 
     The knowledge is the shared, home-independent part of the transfer model — the concepts'
     visual and word distributions, their global weights, the vocabulary, the hyperparameters —
     averaged over the posterior samples of the last quarter of the chain, with its provenance.
-    Give it to `spco adapt` to learn a new home.
+    Give it to `spco adapt` to learn a new home. Homes whose views are images (a plain home's
+    images/, or --images) are turned into counts by an image extractor, which the knowledge file
+    keeps, so that adapt, teach and what compute views the same way.
     """
     from spco.data.environment import Corpus
     from spco.data.loading import load_homes
     from spco.knowledge import fit_knowledge
 
     _check_out(out, force)
-    envs = load_homes(data, names=_names(homes), teaching_rate=teaching_rate, progress=_progress())
+    names = _names(homes)
+    image_extractor = None
+    if images is not None or extractor is not None or model_file is not None \
+            or _views_are_images(Path(data), names):
+        image_extractor = _fit_extractor(data, names, images, extractor, model_file, seed)
+    start_views = time.perf_counter()
+    envs = load_homes(data, names=names, teaching_rate=teaching_rate, progress=_progress(),
+                      extractor=image_extractor, images=images)
+    if image_extractor is not None:
+        n_views = sum(e.n_samples for e in envs)
+        seconds = time.perf_counter() - start_views
+        click.echo(f"Views from {n_views} images with {image_extractor.spec().describe()}: "
+                   f"{n_views / max(seconds, 1e-9):.0f} images/s (reading the homes included)", err=True)
     corpus = Corpus(envs)
     n_samples = sum(e.n_train for e in envs)
     click.echo(f"Learning from {len(envs)} homes ({n_samples} training samples, "
@@ -125,10 +193,27 @@ def fit(data: Path, homes: str | None, teaching_rate: int, model: str, iteration
     knowledge = fit_knowledge(corpus, model=model, n_iterations=iterations, random_state=seed,
                               progress=_progress(),
                               provenance={"data": str(Path(data).expanduser().resolve()),
-                                          "teaching_rate": teaching_rate})
+                                          "teaching_rate": teaching_rate},
+                              extractor=image_extractor)
     knowledge.save(out, overwrite=force)
     click.echo(knowledge.describe())
     click.echo(f"Wrote {out} in {_seconds(time.perf_counter() - start)}.")
+
+
+def _fit_extractor(data: Path, names: list[str] | None, images: Path | None, name: str | None,
+                   model_file: Path | None, seed: int) -> Any:
+    """The image extractor of ``spco fit``; a codebook is learnt from the homes' training images."""
+    from spco.data.loading import training_image_files
+    from spco.features import DEFAULT_EXTRACTOR, build_extractor
+
+    chosen = name or ("onnx" if model_file is not None else DEFAULT_EXTRACTOR)
+    extractor = build_extractor(chosen, model_path=None if model_file is None else str(model_file))
+    if extractor.needs_fit:
+        files = training_image_files(data, names, images)
+        click.echo(f"Learning the {chosen} codebook from {len(files)} training images (seed {seed})...",
+                   err=True)
+        extractor = extractor.fitted(files, random_state=seed)
+    return extractor
 
 
 # ------------------------------------------------------------------------------------ adapt
@@ -146,24 +231,35 @@ def fit(data: Path, homes: str | None, teaching_rate: int, model: str, iteration
 @click.option("--out", "-o", required=True, type=click.Path(path_type=Path),
               help="The home file to write (e.g. home.spco).")
 @click.option("--force", is_flag=True, help="Replace --out if it exists.")
+@_image_options
 @_friendly
 def adapt(knowledge_file: Path, home_path: Path, name: str | None, teaching_rate: int, iterations: int,
-          seed: int, joint: bool, out: Path, force: bool) -> None:
+          seed: int, joint: bool, out: Path, force: bool, images: Path | None,
+          model_file: Path | None) -> None:
     """Learn a new home with the knowledge of KNOWLEDGE as its prior; write a home file.
 
     Learns the home's regions, concept weights, visual and word distributions and the concepts
     and regions of its samples. Words the knowledge never heard are added to the vocabulary.
     """
     from spco.data.loading import load_home, load_homes
+    from spco.errors import ConfigurationError
     from spco.knowledge import adapt as adapt_home
     from spco.knowledge import load_knowledge
 
     _check_out(out, force)
     knowledge = load_knowledge(knowledge_file)
+    extractor = None
+    if knowledge.fitted_on_images:
+        extractor = knowledge.image_extractor(model_path=model_file)
+    elif images is not None or _views_are_images(Path(home_path), None if name is None else [name]):
+        raise ConfigurationError(f"{knowledge_file}: its knowledge was fitted on visual count vectors, "
+                                 "not on images, so it cannot use a home whose views are images: fit a "
+                                 "knowledge on homes with images (spco fit), or give the home's visual.npz")
     if name is not None:
-        env = load_homes(home_path, names=[name], teaching_rate=teaching_rate)[0]
+        env = load_homes(home_path, names=[name], teaching_rate=teaching_rate, extractor=extractor,
+                         images=images)[0]
     else:
-        env = load_home(home_path, teaching_rate=teaching_rate)
+        env = load_home(home_path, teaching_rate=teaching_rate, extractor=extractor, images=images)
     home = adapt_home(knowledge, env, n_iterations=iterations, random_state=seed, joint=joint,
                       progress=_progress(),
                       provenance={"knowledge_file": str(Path(knowledge_file).expanduser().resolve()),
@@ -240,26 +336,30 @@ def where(home_file: Path, name: str, n: int, seed: int, as_json: bool) -> None:
               help="The current view's features (.csv/.txt numbers, .npy or .npz); default: position only.")
 @click.option("--visual-scale", type=float, default=None,
               help="Turn real-valued CNN features into counts: floor(max(f, 0) × scale) (the authors: 5).")
+@click.option("--image", type=click.Path(path_type=Path), default=None,
+              help="The current view as a camera image (PNG/JPEG), for knowledge fitted on images.")
+@click.option("--onnx-model", "model_file", type=click.Path(path_type=Path), default=None,
+              help="Where the knowledge's .onnx model file is now (onnx extractor), if it moved.")
 @click.option("--top", default=3, show_default=True, type=click.IntRange(1, 100), help="Names to list.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON object.")
 @_friendly
 def what(home_file: Path, x: float, y: float, theta: float, visual: Path | None, visual_scale: float | None,
-         top: int, as_json: bool) -> None:
+         image: Path | None, model_file: Path | None, top: int, as_json: bool) -> None:
     """The most probable place names at a pose of the home of HOME, with their probabilities.
 
-    With --visual the view's features are used too; without, the position alone. Names are ranked
+    With --visual (or --image) the view is used too; without, the position alone. Names are ranked
     by p(name | pose, view) × I(name), I the name's mutual information with the concepts (so that
     "this" or "is", said everywhere, are never answered); `score` is that product as a share of its
     sum over the usable names, `p` is p(name | pose, view) itself (its sum over all words, template
     words included, is 1). A pose off the home's map is answered with a warning, one far off it is
     refused.
     """
-    from spco.knowledge import load_home_model, read_visual_vector
+    from spco.knowledge import load_home_model
     from spco.knowledge import what as what_names
 
     home = load_home_model(home_file)
     _warn_if_knowledge_does_not_fit(home)
-    counts = None if visual is None else read_visual_vector(visual, home.knowledge.n_features, visual_scale)
+    counts = _view_counts(home, home_file, visual, image, visual_scale, model_file)
     pred = what_names(home, x, y, theta, visual=counts, top_k=max(len(home.vocabulary), 1))
     total = float(pred.scores[0].sum())
     names = [{"name": str(w), "probability": float(p), "score": float(s),
@@ -312,6 +412,10 @@ def _warn_if_knowledge_does_not_fit(home: Any) -> None:
               help="New observation: the view's features (.csv/.txt numbers, .npy or .npz).")
 @click.option("--visual-scale", type=float, default=None,
               help="Turn real-valued CNN features into counts: floor(max(f, 0) × scale).")
+@click.option("--image", type=click.Path(path_type=Path), default=None,
+              help="New observation: the view as a camera image (PNG/JPEG), for knowledge fitted on images.")
+@click.option("--onnx-model", "model_file", type=click.Path(path_type=Path), default=None,
+              help="Where the knowledge's .onnx model file is now (onnx extractor), if it moved.")
 @click.option("--sweeps", default=10, show_default=True, type=click.IntRange(0, 10000),
               help="Gibbs sweeps from the home's current state.")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(0), help="Random seed.")
@@ -320,13 +424,14 @@ def _warn_if_knowledge_does_not_fit(home: Any) -> None:
 @click.option("--force", is_flag=True, help="Replace --out if it exists.")
 @_friendly
 def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: float | None, y: float | None,
-          theta: float | None, visual: Path | None, visual_scale: float | None, sweeps: int, seed: int,
-          out: Path | None, force: bool) -> None:
+          theta: float | None, visual: Path | None, visual_scale: float | None, image: Path | None,
+          model_file: Path | None, sweeps: int, seed: int, out: Path | None, force: bool) -> None:
     """Teach the robot in the home of HOME: a sentence for a sample, or a new observation.
 
     \b
     spco teach home.spco --id 12 --sentence "this is Emma's room"
     spco teach home.spco --x 1.2 --y -0.4 --theta 1.57 --visual view.csv --sentence "the study is here"
+    spco teach home.spco --x 1.2 --y -0.4 --theta 1.57 --image view.jpg --sentence "the study is here"
 
     An incremental update (a few sweeps from the current state; everything learnt so far is
     kept); new words grow the vocabulary. HOME is updated in place (atomically) unless --out is given.
@@ -334,18 +439,18 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
     home wait for each other (at most $SPCO_LOCK_TIMEOUT seconds, default 60) and every teaching is kept.
     """
     from spco.errors import ConfigurationError
-    from spco.knowledge import Observation, load_home_model, read_visual_vector
+    from spco.knowledge import Observation, load_home_model
     from spco.knowledge import teach as teach_home
     from spco.locking import locked
 
     pose = (x, y, theta)
-    new_observation = any(v is not None for v in (*pose, visual))
+    new_observation = any(v is not None for v in (*pose, visual, image))
     if new_observation:
         if ids:
             raise ConfigurationError("give either --id with --sentence (a known sample) or --x/--y/--theta/"
-                                     "--visual (a new observation), not both")
-        if any(v is None for v in pose) or visual is None:
-            raise ConfigurationError("a new observation needs --x, --y, --theta and --visual")
+                                     "--visual or --image (a new observation), not both")
+        if any(v is None for v in pose) or (visual is None and image is None):
+            raise ConfigurationError("a new observation needs --x, --y, --theta and --visual (or --image)")
         if len(sentences) > 1:
             raise ConfigurationError("a new observation takes at most one --sentence")
     elif not ids:
@@ -361,7 +466,7 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
     with locked(target):
         home = load_home_model(home_file)
         if new_observation:
-            counts = read_visual_vector(visual, home.knowledge.n_features, visual_scale)  # type: ignore[arg-type]
+            counts = _view_counts(home, home_file, visual, image, visual_scale, model_file)
             obs = Observation(x=x, y=y, theta=theta, visual=counts,  # type: ignore[arg-type]
                               sentence=sentences[0] if sentences else None)
             updated = teach_home(home, observations=[obs], n_sweeps=sweeps, random_state=seed)

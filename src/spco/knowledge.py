@@ -57,8 +57,11 @@ Files
 -----
 Knowledge (``.spco``, format ``spco-knowledge``) and home (``.spco``, format ``spco-home``) files
 are NumPy ``.npz`` archives read with ``allow_pickle=False``: arrays plus a ``header`` array holding
-a UTF-8 JSON document with the format name, ``format_version`` (1), the spco version, the
-hyperparameters, the vocabulary, provenance, a sha256 checksum of every array and a ``checksum`` of
+a UTF-8 JSON document with the format name, ``format_version`` (2), the spco version, the
+hyperparameters, the vocabulary, provenance, the image extractor (``extractor``: name, version,
+settings and checksum of its weights, ``null`` for knowledge fitted on count vectors; its weights,
+such as a codebook, as arrays ``extractor.<name>``; version 1 files, which predate it, are read
+as fitted on count vectors), a sha256 checksum of every array and a ``checksum`` of
 the whole content (header and arrays). They are written to a temporary file in the target's folder,
 flushed and renamed into place (atomic), and never replace an existing file unless asked
 (``overwrite=True``, ``--force``). A missing, truncated, edited or foreign file, or one written by
@@ -136,8 +139,9 @@ __all__ = [
 #: Header ``format`` of knowledge files and home files.
 KNOWLEDGE_FORMAT = "spco-knowledge"
 HOME_FORMAT = "spco-home"
-#: Version of both file layouts written by this module; newer files are refused.
-FORMAT_VERSION = 1
+#: Version of both file layouts written by this module; newer files are refused. Version 2 added
+#: the image extractor (``extractor`` in the header); version 1 files are read as count-vector ones.
+FORMAT_VERSION = 2
 
 #: The transfer models whose shared part can be learnt: name -> (sampler variant, word pruning).
 MODELS: dict[str, tuple[str, bool]] = {
@@ -315,6 +319,9 @@ class Knowledge:
     hyperparameters: the model's hyperparameters.
     variant: the sampler (``"exact"`` or ``"reference"``); prune_words: "+MI".
     provenance: homes, seed, iterations, samples averaged, spco version, time of the fit, ...
+    extractor: the image extractor the visual counts come from
+        (:meth:`spco.features.ExtractorSpec.to_dict`), or ``None`` if fitted on count vectors.
+    extractor_arrays: its weights (e.g. ``{"codebook": (W, d)}``), stored in the file.
     """
 
     log_phi_visual: np.ndarray
@@ -330,6 +337,8 @@ class Knowledge:
     variant: str
     prune_words: bool
     provenance: dict[str, Any] = field(default_factory=dict)
+    extractor: dict[str, Any] | None = None
+    extractor_arrays: dict[str, np.ndarray] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         L = self.log_g0.shape[0] if np.ndim(self.log_g0) == 1 else -1
@@ -386,6 +395,29 @@ class Knowledge:
         header["array_checksums"] = {n: _checksum(np.asarray(a)) for n, a in arrays.items()}
         return _content_checksum(header)
 
+    @property
+    def fitted_on_images(self) -> bool:
+        """Whether the visual counts come from images through an extractor (:attr:`extractor`)."""
+        return self.extractor is not None
+
+    def image_extractor(self, model_path: str | PathLike[str] | None = None) -> Any:
+        """The :class:`~spco.features.Extractor` this knowledge was fitted with, rebuilt and checked.
+
+        ``model_path``: where the ONNX model file is now, if it moved (its checksum must match).
+        Raises ConfigurationError for knowledge fitted on count vectors, or weights that differ.
+        """
+        from spco.features import build_extractor
+
+        if self.extractor is None:
+            raise ConfigurationError("this knowledge was fitted on visual count vectors, not on images: "
+                                     "give views as features (--visual), or fit a knowledge on homes "
+                                     "with images")
+        extractor = build_extractor(self.extractor, self.extractor_arrays, model_path=model_path)
+        if extractor.n_features != self.n_features:
+            raise ConfigurationError(f"the extractor gives {extractor.n_features} features, the knowledge "
+                                     f"has {self.n_features}")
+        return extractor
+
     def used_concepts(self, threshold: float = 0.01) -> int:
         """Number of concepts with G_0 above ``threshold``."""
         return int((np.exp(self.log_g0) > threshold).sum())
@@ -421,6 +453,8 @@ class Knowledge:
             "concentration_words": np.asarray(self.concentration_words, dtype=np.float64),
             "concentration_g0": np.asarray([self.concentration_g0], dtype=np.float64),
         }
+        for name, value in self.extractor_arrays.items():
+            arrays["extractor." + name] = np.asarray(value)
         header = {
             "format": KNOWLEDGE_FORMAT,
             "format_version": FORMAT_VERSION,
@@ -432,6 +466,7 @@ class Knowledge:
             "vocabulary": list(self.vocabulary.words),
             "word_increment": int(self.word_increment),
             "provenance": self.provenance,
+            "extractor": self.extractor,
         }
         return arrays, header
 
@@ -468,6 +503,9 @@ class Knowledge:
                 variant=str(header["variant"]),
                 prune_words=bool(header["prune_words"]),
                 provenance=dict(header.get("provenance") or {}),
+                extractor=_extractor_of(header),
+                extractor_arrays={name[len(prefix) + len("extractor."):]: a for name, a in arrays.items()
+                                  if name.startswith(prefix + "extractor.")},
             )
         except (ConfigurationError, TypeError, ValueError, IndexError) as exc:
             raise ModelFileError(file, f"inconsistent file: {exc}") from exc
@@ -484,7 +522,19 @@ class Knowledge:
             f"in {p.get('n_iterations', '?')} sweeps, seed {p.get('seed')}; averaged over "
             f"{summary.get('n_samples', '?')} posterior samples",
         ]
+        if self.extractor is not None:
+            from spco.features import ExtractorSpec
+
+            lines.append(f"views: images, extractor {ExtractorSpec.from_dict(self.extractor).describe()}")
         return "\n".join(lines)
+
+
+def _extractor_of(header: Mapping[str, Any]) -> dict[str, Any] | None:
+    """The extractor description of a header (``None``: count vectors; absent in version 1)."""
+    from spco.features import ExtractorSpec
+
+    value = header.get("extractor")
+    return None if value is None else ExtractorSpec.from_dict(value).to_dict()
 
 
 def load_knowledge(path: str | PathLike[str]) -> Knowledge:
@@ -556,6 +606,7 @@ def fit_knowledge(
     summary_fraction: float = 0.25,
     summary_every: int = 5,
     provenance: Mapping[str, Any] | None = None,
+    extractor: Any = None,
 ) -> Knowledge:
     """Learn the shared part of the transfer model from the experienced homes of ``corpus``.
 
@@ -577,6 +628,9 @@ def fit_knowledge(
     hyperparameters: default: the paper's.
     summary_fraction, summary_every: which sweeps are averaged (see :func:`summary_iterations`).
     provenance: extra entries for the knowledge's provenance (e.g. the data path).
+    extractor: the :class:`~spco.features.Extractor` that computed the homes' visual counts from
+        images (stored in the knowledge, so that adapt, teach and what use it); ``None`` for
+        count vectors given as such.
 
     Returns
     -------
@@ -593,6 +647,9 @@ def fit_knowledge(
     hyper = estimator._validate()
     if not (0 < summary_fraction <= 1) or summary_every < 1:
         raise ConfigurationError("summary_fraction must be within (0, 1] and summary_every >= 1")
+    if extractor is not None and extractor.n_features != corpus[0].n_features:
+        raise ConfigurationError(f"the extractor gives {extractor.n_features} features, the homes' views "
+                                 f"have {corpus[0].n_features}")
     if len(corpus.vocabulary) == 0:
         raise DataFormatError(None, f"no taught sentence in the {len(corpus)} experienced home(s) "
                               f"({', '.join(corpus.names[:5])}): there are no place names to learn")
@@ -668,6 +725,8 @@ def fit_knowledge(
                              else np.full(hyper.n_concepts, np.nan)),
         concentration_g0=float(conc_g), vocabulary=corpus.vocabulary, word_increment=corpus.word_increment,
         hyperparameters=hyper, variant=variant, prune_words=prune, provenance=record,
+        extractor=None if extractor is None else extractor.spec().to_dict(),
+        extractor_arrays={} if extractor is None else dict(extractor.arrays),
     )
 
 
@@ -779,15 +838,17 @@ class Observation:
 
     x, y in metres on the home's map, theta (heading) in radians; visual: (D,) counts (dense array
     or a 1-row sparse matrix); sentence: the user's words, or ``None``; id: the sample id (default:
-    one more than the largest id of the home).
+    one more than the largest id of the home); image: the view as an image (path or array) in place
+    of ``visual``, for a home whose knowledge was fitted on images (its extractor computes the counts).
     """
 
     x: float
     y: float
     theta: float
-    visual: Any
+    visual: Any = None
     sentence: str | None = None
     id: int | None = None
+    image: Any = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -890,9 +951,10 @@ class HomeModel:
         """Positions for the place ``name``; see :func:`where`."""
         return where(self, name, n=n, random_state=random_state)
 
-    def what(self, x: float, y: float, theta: float, visual: Any = None, top_k: int = 3) -> NamePrediction:
+    def what(self, x: float, y: float, theta: float, visual: Any = None, top_k: int = 3,
+             image: Any = None) -> NamePrediction:
         """Place names at a pose; see :func:`what`."""
-        return what(self, x, y, theta, visual=visual, top_k=top_k)
+        return what(self, x, y, theta, visual=visual, top_k=top_k, image=image)
 
     # ------------------------------------------------------------------ files
     def save(self, path: str | PathLike[str], overwrite: bool = False) -> Path:
@@ -931,6 +993,7 @@ class HomeModel:
             "word_increment": k_header["word_increment"],
             "knowledge_provenance": k_header["provenance"],
             "provenance": self.provenance,
+            "extractor": k_header["extractor"],
         }
         return _write_archive(path, arrays, header, overwrite, "home file")
 
@@ -1281,7 +1344,8 @@ def _clean_sentence(sentence: str | None) -> str | None:
 def _visual_row(visual: Any, n_features: int) -> sp.csr_array:
     """One observation's visual counts as a (1, D) int64 CSR row, validated."""
     if visual is None:
-        raise ConfigurationError("a new observation needs its visual counts (the view's features)")
+        raise ConfigurationError("a new observation needs its view: visual counts (the view's features) or "
+                                 "an image")
     if sp.issparse(visual):
         row = sp.csr_array(visual)
     else:
@@ -1396,7 +1460,8 @@ def teach(
         taken.add(new_id)
         ids.append(new_id)
         poses.append(_pose(obs.x, obs.y, obs.theta))
-        rows.append(_visual_row(obs.visual, home.knowledge.n_features))
+        rows.append(_visual_row(_view_counts(home.knowledge, obs.visual, obs.image),
+                                home.knowledge.n_features))
         new_sentences.append(_clean_sentence(obs.sentence))
     positions = np.vstack([home.positions, *poses]) if poses else home.positions
     visual = home.visual
@@ -1517,15 +1582,29 @@ def unused_word_hint(home: HomeModel, word: str) -> str | None:
                + " ".join(f'--id {i} --sentence "this is {w}"' for i in ids) if ids else ""))
 
 
+def _view_counts(knowledge: Knowledge, visual: Any, image: Any) -> Any:
+    """A view's counts: ``visual`` as given, or ``image`` through the knowledge's extractor."""
+    if image is None:
+        return visual
+    if visual is not None:
+        raise ConfigurationError("give a view either as visual counts or as an image, not both")
+    if not knowledge.fitted_on_images:
+        raise ConfigurationError("the knowledge of this home was fitted on visual count vectors, not on "
+                                 "images: give the view's features (--visual), not an image")
+    return knowledge.image_extractor().extract(image)
+
+
 def what(home: HomeModel, x: float, y: float, theta: float, visual: Any = None,
-         top_k: int = 3) -> NamePrediction:
+         top_k: int = 3, image: Any = None) -> NamePrediction:
     """The ``top_k`` place names at pose ``(x, y, θ)``, with the view's visual counts if given.
 
     A pose off the home's map is answered with a :class:`UserWarning`, one more than
     :data:`FAR_OUTSIDE_MAP` map sizes off it is refused (:func:`pose_outside_map`); ``θ`` must be in
     radians (``|θ| ≤ 2π``).
 
-    Without ``visual`` the names come from the position alone (``use_vision=False``). The returned
+    ``image`` (a path or an array) gives the view as an image instead, for a home whose knowledge
+    was fitted on images: its extractor computes the counts.
+    Without a view the names come from the position alone (``use_vision=False``). The returned
     :class:`~spco.prediction.NamePrediction` holds one row: ``words[0]``, ``probabilities[0]``
     (p(w | x, v)) and ``scores[0]`` (the ranking score).
     """
@@ -1533,6 +1612,7 @@ def what(home: HomeModel, x: float, y: float, theta: float, visual: Any = None,
     outside = pose_outside_map(home, x, y)
     if outside is not None:
         warnings.warn(f"{outside}; the names are extrapolated from the nearest regions", stacklevel=2)
+    visual = _view_counts(home.knowledge, visual, image)
     row = None if visual is None else _visual_row(visual, home.knowledge.n_features)
     return predict_names(home.parameters, 0, home.vocabulary, pose, row, top_k=top_k,
                          weighting=home.weighting, use_vision=row is not None)  # type: ignore[arg-type]

@@ -8,6 +8,9 @@ A path may be
 - a folder of homes in either layout (mixed is fine): every subfolder that is a home, sorted by
   name; other files and folders (``.DS_Store``, ``maps/``, hidden folders) are ignored.
 
+Views given as images (plain homes' ``images/``, or ``images=`` a folder ``<home>/<id>.jpg`` such
+as ``sigverse_images``) are turned into counts by an ``extractor`` (:mod:`spco.features`).
+
 The teaching rate selects the sentences: SIGVerse homes read ``sentence/per_<rate>``; plain homes keep
 a seeded random ``rate`` percent of their taught samples (:meth:`Environment.with_teaching_rate`).
 """
@@ -19,10 +22,10 @@ import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TypeVar
+from typing import Any, TypeVar
 
 from spco.data.environment import Corpus, Environment
-from spco.data.plain import is_plain_home, plain_home_name, read_home
+from spco.data.plain import has_images, is_plain_home, plain_home_name, read_home
 from spco.data.sigverse import RatesMap, is_sigverse_home, read_sigverse_home, select_rate
 from spco.errors import ConfigurationError, DataFormatError
 
@@ -92,11 +95,56 @@ def _no_homes(folder: Path) -> DataFormatError:
     return DataFormatError(folder, f"holds no homes; {_EXPECTED}")
 
 
-def _read_record(home: Path) -> HomeRecord:
+def _read_record(home: Path, extractor: Any = None, images: Path | None = None) -> HomeRecord:
     if home_kind(home) == "sigverse":
         env, rates = read_sigverse_home(home)
+        if extractor is not None:
+            env = _sigverse_images(env, home, extractor, images)
         return HomeRecord(env, rates, str(home / "sentence"))
-    return HomeRecord(read_home(home), None, str(home))
+    if extractor is not None and images is not None and not has_images(home):
+        from spco.data.images import image_files, with_image_features
+
+        env = read_home(home)  # its images are in the --images folder
+        env = with_image_features(env, image_files(images / env.name, env.ids.tolist()), extractor)
+        return HomeRecord(env, None, str(home))
+    return HomeRecord(read_home(home, extractor=extractor), None, str(home))
+
+
+def _sigverse_images(env: Environment, home: Path, extractor: Any, images: Path | None) -> Environment:
+    """A SIGVerse home with counts computed from ``images/<home>/<i>.jpg`` instead of its fc7 files."""
+    from spco.data.images import image_files, with_image_features
+
+    if images is None:
+        raise DataFormatError(home, f"a SIGVerse home holds CNN features, not images: give the folder of "
+                              f"its images (--images, e.g. sigverse_images) for the extractor "
+                              f"{extractor.name!r}")
+    return with_image_features(env, image_files(images / env.name, env.ids.tolist()), extractor)
+
+
+def training_image_files(path: str | os.PathLike[str], names: Sequence[str] | None = None,
+                         images: str | os.PathLike[str] | None = None) -> list[Path]:
+    """The image files of the training samples of the homes at ``path`` (a folder of homes or a home):
+    plain homes' ``images/``, or ``images/<home>/<id>.jpg`` for the others. For learning a codebook."""
+    from spco.data.images import image_files
+    from spco.data.plain import plain_training_images
+
+    src = Path(path)
+    if not src.is_dir():
+        raise DataFormatError(src, "views as images need a folder of homes (not a cache file)")
+    homes = [src] if home_kind(src) is not None else find_homes(src)
+    if names is not None:
+        homes = _select([(_home_name(h), h) for h in homes], names, src)
+    files: list[Path] = []
+    for home in homes:
+        if home_kind(home) == "plain" and has_images(home):
+            files += plain_training_images(home)
+        elif images is None:
+            raise DataFormatError(home, "holds no images/ folder; give the folder of the homes' images "
+                                  "(--images)")
+        else:
+            env = _read_record(home).environment
+            files += image_files(Path(images) / env.name, env.ids[~env.is_test].tolist())
+    return files
 
 
 def _home_name(home: Path) -> str:
@@ -108,10 +156,14 @@ def read_records(
     path: str | os.PathLike[str],
     names: Sequence[str] | None = None,
     progress: bool = False,
+    extractor: Any = None,
+    images: str | os.PathLike[str] | None = None,
 ) -> list[HomeRecord]:
     """Read the homes at ``path`` (any layout) with the sentences of every teaching rate.
 
     ``names`` restricts (and orders) the homes. This is what :func:`load_homes` and the cache use.
+    With ``extractor`` the views are images (a plain home's ``images/``, else
+    ``images/<home name>/<id>.jpg|png``) turned into counts by it.
     """
     from tqdm import tqdm
 
@@ -128,6 +180,9 @@ def read_records(
             raise DataFormatError(src, f"cannot be read ({exc.strerror})") from None
         if not is_zip:
             raise DataFormatError(src, f"not an spco cache file; {_EXPECTED}")
+        if extractor is not None:
+            raise DataFormatError(src, "a cache file holds count vectors, not images; give the folder of "
+                                  "homes for views as images")
         records = read_cache_records(src)  # explains a damaged or foreign .npz
         return _select([(r.environment.name, r) for r in records], names, src)
     if not src.is_dir():
@@ -143,7 +198,10 @@ def read_records(
     # the bar shows on a terminal only, and is wiped when done (or when a home fails to load)
     with tqdm(homes, desc="reading homes", unit="home", file=sys.stderr, leave=False,
               disable=None if progress else True) as bar:
-        return [_read_record(h) for h in bar]
+        folder = None if images is None else Path(images).expanduser()
+        if folder is not None and not folder.is_dir():
+            raise DataFormatError(folder, "no such folder of images (--images)")
+        return [_read_record(h, extractor, folder) for h in bar]
 
 
 def _select(items: list[tuple[str, T]], names: Sequence[str] | None, src: Path) -> list[T]:
@@ -162,6 +220,8 @@ def load_homes(
     names: Sequence[str] | None = None,
     teaching_rate: int = 100,
     progress: bool = False,
+    extractor: Any = None,
+    images: str | os.PathLike[str] | None = None,
 ) -> list[Environment]:
     """The homes at ``path`` (any layout, see the module docstring) as taught at ``teaching_rate``.
 
@@ -169,12 +229,15 @@ def load_homes(
     the homes there are). For callers that build their own :class:`Corpus`.
     """
     _check_rate(teaching_rate)
-    return [r.at_rate(teaching_rate) for r in read_records(path, names=names, progress=progress)]
+    return [r.at_rate(teaching_rate) for r in read_records(path, names=names, progress=progress,
+                                                           extractor=extractor, images=images)]
 
 
-def load_home(path: str | os.PathLike[str], teaching_rate: int = 100) -> Environment:
-    """The single home at ``path`` (a home folder, or a cache holding exactly one home)."""
-    homes = load_homes(path, teaching_rate=teaching_rate)
+def load_home(path: str | os.PathLike[str], teaching_rate: int = 100, extractor: Any = None,
+              images: str | os.PathLike[str] | None = None) -> Environment:
+    """The single home at ``path`` (a home folder, or a cache holding exactly one home); views as
+    images with ``extractor`` (see :func:`read_records`)."""
+    homes = load_homes(path, teaching_rate=teaching_rate, extractor=extractor, images=images)
     if len(homes) != 1:
         raise DataFormatError(path, f"holds {len(homes)} homes, expected one: "
                               f"{', '.join(e.name for e in homes[:10])}")

@@ -5,6 +5,7 @@ One folder per home::
     my_home/
       samples.csv     (or samples.jsonl)  required: one row per sample
       visual.npz      (or visual.npy)     required: visual features, one row per sample
+      images/<id>.jpg (or .jpeg, .png)    or, in place of visual.npz: the view of each sample
       test.txt                            optional: ids of the test samples
       home.json                           optional: name, map extent, visual_scale
       labels.csv                          optional, evaluation only: true place names
@@ -40,6 +41,13 @@ One folder per home::
     ``home.json`` gives ``visual_scale``: the file is then always converted with
     :func:`features_to_counts`, ``floor(max(f, 0) × visual_scale)`` — what Hagiwara et al. did with
     S^v = 5. Without ``visual_scale`` a non-integer value is an error. Files are read without pickle.
+
+``images/<id>.jpg`` / ``.jpeg`` / ``.png``
+    The camera image of each sample, in place of ``visual.npz``: the views then become counts with
+    an image extractor (:mod:`spco.features`): ``spco fit`` uses the default one (or ``--extractor``)
+    and stores it in the knowledge file; ``adapt`` uses the knowledge's. A home with images and no
+    ``visual.npz`` cannot be read without an extractor; a home read for knowledge fitted on images
+    must have images.
 
 ``test.txt``
     Sample ids of the test samples (never learnt from), separated by commas and/or blanks. Without
@@ -320,6 +328,45 @@ def _read_visual(folder: Path, n: int, scale: float | None) -> sp.csr_array:
     return sp.csr_array(sp.csr_array(raw) if sp.issparse(raw) else values, dtype=np.int64)
 
 
+def has_images(folder: str | os.PathLike[str]) -> bool:
+    """Whether a plain home holds its views as images (an ``images/`` folder)."""
+    return (Path(folder) / "images").is_dir()
+
+
+def _read_views(home: Path, ids: list[int], scale: float | None, extractor: Any) -> Any:
+    """Visual counts of a plain home: from visual.npz/.npy, or its images through ``extractor``."""
+    from spco.data.images import IMAGES_DIR, image_files
+
+    images = home / IMAGES_DIR
+    has_counts = (home / VISUAL_NPZ).exists() or (home / VISUAL_NPY).exists()
+    if extractor is None:
+        if not has_counts and images.is_dir():
+            raise DataFormatError(home, f"holds its views as {IMAGES_DIR}/ (no {VISUAL_NPZ}): they become "
+                                  "features with an image extractor — learn knowledge from it with `spco "
+                                  "fit` (or `spco features`), or use a knowledge file fitted on images")
+        return _read_visual(home, len(ids), scale)
+    if not images.is_dir():
+        found = f" (it holds count vectors, {VISUAL_NPZ}, which that knowledge cannot use)" if has_counts \
+            else ""
+        raise DataFormatError(images, f"missing: the views must be images (<id>.jpg or .png) for the "
+                              f"extractor {extractor.name!r} of knowledge fitted on images{found}")
+    return extractor.extract_many(image_files(images, ids))
+
+
+def plain_training_images(folder: str | os.PathLike[str]) -> list[Path]:
+    """The image files of the training samples of the plain home in ``folder`` (not test.txt's)."""
+    from spco.data.images import IMAGES_DIR, image_files
+
+    home = Path(folder)
+    csv_path = home / SAMPLES_CSV
+    read = _read_samples_csv if csv_path.is_file() else _read_samples_jsonl
+    ids = read(csv_path if csv_path.is_file() else home / SAMPLES_JSONL)[0]
+    index = {sample: row for row, sample in enumerate(ids)}
+    test = (_read_id_list(home / TEST_TXT, index) if (home / TEST_TXT).is_file()
+            else np.zeros(len(ids), dtype=bool))
+    return image_files(home / IMAGES_DIR, [i for i, t in zip(ids, test, strict=True) if not t])
+
+
 def _read_id_list(path: Path, index: dict[int, int]) -> np.ndarray:
     mask = np.zeros(len(index), dtype=bool)
     unknown = []
@@ -394,10 +441,12 @@ def _read_accepted_names(path: Path) -> dict[str, list[str]]:
     return {str(k): list(v) for k, v in raw.items()}
 
 
-def read_home(folder: str | os.PathLike[str], teaching_rate: int = 100) -> Environment:
+def read_home(folder: str | os.PathLike[str], teaching_rate: int = 100, extractor: Any = None) -> Environment:
     """Read one home in the plain format (see the module docstring).
 
-    ``teaching_rate`` below 100 keeps that percentage of the taught training samples' sentences, a
+    ``extractor`` (a :class:`spco.features.Extractor`): compute the visual counts from the home's
+    ``images/`` with it (required for a home whose views are images only, refused for one that
+    has none). ``teaching_rate`` below 100 keeps that percentage of the taught training samples' sentences, a
     seeded random subset (:meth:`Environment.with_teaching_rate` with ``seed=0``). Raises
     :class:`~spco.errors.DataFormatError` naming the file at fault.
     """
@@ -431,7 +480,7 @@ def read_home(folder: str | os.PathLike[str], teaching_rate: int = 100) -> Envir
     meta = _read_home_json(home / HOME_JSON)
     pose = np.asarray(poses, dtype=np.float64)
     positions = np.column_stack([pose[:, 0], pose[:, 1], np.sin(pose[:, 2]), np.cos(pose[:, 2])])
-    visual = _read_visual(home, len(ids), meta.get("visual_scale"))
+    visual = _read_views(home, ids, meta.get("visual_scale"), extractor)
     is_test = (_read_id_list(home / TEST_TXT, index) if (home / TEST_TXT).is_file()
                else np.zeros(len(ids), dtype=bool))
 

@@ -330,6 +330,11 @@ class ExperimentConfig:
     hyperparameters: of the transfer models (``None``: the paper's); SpCoA keeps its own.
     language: sentences of synthetic homes, ``"templates"`` (the paper's) or ``"free"`` (people
         talking freely, :mod:`spco.data.speech`; their places have several accepted names).
+    images: a folder ``<home>/<id>.jpg|png`` of the homes' camera images (``sigverse_images``): the
+        views are then computed from them by ``extractor`` instead of read as count vectors.
+    extractor: the image extractor's name (:mod:`spco.features`; default
+        :data:`~spco.features.DEFAULT_EXTRACTOR` when ``images`` is given). A codebook it needs is
+        learnt from the experienced homes' training images (seed ``seed``).
     """
 
     experiment: Experiment = "general"
@@ -348,6 +353,8 @@ class ExperimentConfig:
     specific_home: str | None = None
     hyperparameters: TransferHyperparameters | None = None
     language: str = "templates"
+    images: str | os.PathLike[str] | None = None
+    extractor: str | None = None
 
     def validated(self) -> ExperimentConfig:
         """A copy with defaults filled in and every field checked (raises ConfigurationError)."""
@@ -403,6 +410,9 @@ class _DataSpec:
     language: str = "templates"  # sentences of synthetic homes
     shown_source: str | None = None  # --data as given (for result files; no absolute path)
     shown_regions: str | None = None  # --regions as given
+    images: str | None = None
+    extractor: str | None = None
+    shown_images: str | None = None  # --images as given
 
 
 class _HomeSource:
@@ -490,8 +500,9 @@ def _read_path_sources(spec: _DataSpec) -> tuple[tuple[str, ...], tuple[str, ...
     if overlap:
         raise ConfigurationError(f"home(s) {', '.join(overlap)} listed both as experienced and as new")
     names = list(dict.fromkeys([*experienced, *new]))
+    extractor = _image_extractor(spec, experienced)
     try:
-        records = read_records(spec.source, names=names)
+        records = read_records(spec.source, names=names, extractor=extractor, images=spec.images)
     except DataFormatError as exc:
         if "no home named" in exc.problem and spec.experienced_homes is None:
             raise DataFormatError(exc.path, f"{exc.problem}. The experiments use the homes of the "
@@ -502,6 +513,21 @@ def _read_path_sources(spec: _DataSpec) -> tuple[tuple[str, ...], tuple[str, ...
     for name, rec in zip(names, records, strict=True):
         sources[name] = _HomeSource(rec.at_rate)
     return tuple(experienced), tuple(new), specific, sources
+
+
+def _image_extractor(spec: _DataSpec, experienced: Sequence[str]) -> Any:
+    """The extractor of views given as images (``None`` for count vectors); a codebook it needs is
+    learnt from the experienced homes' training images."""
+    if spec.images is None and spec.extractor is None:
+        return None
+    from spco.data.loading import training_image_files
+    from spco.features import DEFAULT_EXTRACTOR, build_extractor
+
+    extractor = build_extractor(spec.extractor or DEFAULT_EXTRACTOR)
+    if extractor.needs_fit:
+        files = training_image_files(spec.source, list(experienced), spec.images)
+        extractor = extractor.fitted(files, random_state=spec.seed)
+    return extractor
 
 
 def _synthetic_sources(spec: _DataSpec) -> tuple[tuple[str, ...], tuple[str, ...], str | None,
@@ -592,6 +618,11 @@ def _build_data(spec: _DataSpec, settings: Sequence[int]) -> ExperimentData:
         "regions_sha256": _file_digest(Path(spec.regions)) if spec.regions else None,
         "vocabulary": list(data.vocabulary.words),
     }
+    if spec.images is not None or spec.extractor is not None:
+        from spco.features import DEFAULT_EXTRACTOR
+
+        data.description["views"] = {"images": spec.shown_images or spec.images,
+                                     "extractor": spec.extractor or DEFAULT_EXTRACTOR}
     return data
 
 
@@ -657,10 +688,20 @@ def _data_spec(config: ExperimentConfig) -> _DataSpec:
     if config.language != "templates" and source != "synthetic":
         raise ConfigurationError(f"--language {config.language} applies to synthetic homes only (--data "
                                  "synthetic); a data set's sentences are what its people said")
+    images = None
+    if config.images is not None:
+        ipath = Path(config.images).expanduser()
+        if not ipath.is_dir():
+            raise DataFormatError(ipath, "no such folder of images (--images)")
+        images = str(ipath.resolve())
+    if source == "synthetic" and (images is not None or config.extractor is not None):
+        raise ConfigurationError("synthetic homes have no images; --images and --extractor need --data")
     return _DataSpec(config.experiment, source, regions, config.seed, n_needed,
                      config.experienced_homes, config.new_homes, config.specific_home, config.language,
                      shown_source=str(config.data),
-                     shown_regions=None if config.regions is None else str(config.regions))
+                     shown_regions=None if config.regions is None else str(config.regions),
+                     images=images, extractor=config.extractor,
+                     shown_images=None if config.images is None else str(config.images))
 
 
 def load_experiment_data(config: ExperimentConfig) -> ExperimentData:

@@ -1,0 +1,271 @@
+"""The extractor interface: an image in, a non-negative integer count vector of fixed length out.
+
+An :class:`Extractor` has a ``name`` and a ``version`` (of its algorithm; a change of the version
+means other counts), ``settings`` (JSON values that fix what it computes) and, if it carries
+learnt or downloaded weights (a codebook, a network), their sha256 ``checksum``. Together they
+form its :class:`ExtractorSpec`, which knowledge and home files store so that ``adapt``, ``teach``
+and ``what`` compute a view's counts exactly as ``fit`` did; :func:`build_extractor` rebuilds an
+extractor from a spec (and the arrays stored with it), and refuses one whose weights do not match.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+import scipy.sparse as sp
+
+from spco.errors import ConfigurationError, DataFormatError
+
+__all__ = [
+    "IMAGE_SUFFIXES",
+    "Extractor",
+    "ExtractorSpec",
+    "ImageInput",
+    "array_checksum",
+    "build_extractor",
+    "read_image",
+    "register",
+    "registered_extractors",
+]
+
+#: File name endings read as images.
+IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png")
+
+#: An image: a file path, or an (H, W) grey / (H, W, 3) BGR / (H, W, 4) BGRA uint8 array (OpenCV's order).
+ImageInput = str | os.PathLike[str] | np.ndarray
+
+
+def read_image(image: ImageInput) -> np.ndarray:
+    """The image as an (H, W, 3) uint8 BGR array (grey and BGRA images are converted).
+
+    A path is decoded with OpenCV (PNG, JPEG); an unreadable, empty or corrupt file raises
+    :class:`~spco.errors.DataFormatError` naming it. Arrays may be uint8, or float in [0, 1].
+    """
+    import cv2
+
+    if isinstance(image, np.ndarray):
+        array = image
+        where = "image array"
+        if array.dtype != np.uint8:
+            if not np.issubdtype(array.dtype, np.floating) or not np.isfinite(array).all():
+                raise DataFormatError(None, f"an image array must be uint8 (0-255) or float (0-1), got "
+                                      f"{array.dtype}")
+            array = np.clip(np.rint(array * 255.0), 0, 255).astype(np.uint8)
+    else:
+        path = Path(image).expanduser()
+        where = str(path)
+        if not path.is_file():
+            raise DataFormatError(path, "no such image file")
+        try:
+            raw = np.fromfile(path, dtype=np.uint8)
+        except OSError as exc:
+            raise DataFormatError(path, f"cannot be read ({exc.strerror})") from None
+        array = cv2.imdecode(raw, cv2.IMREAD_UNCHANGED) if raw.size else None
+        if array is None:
+            raise DataFormatError(path, "not a readable image (expected a PNG or JPEG file; is it truncated "
+                                  "or corrupt?)")
+        if array.dtype != np.uint8:  # 16-bit PNG
+            array = (array // 257).astype(np.uint8)
+    if array.ndim == 3 and array.shape[2] == 1:
+        array = array[:, :, 0]
+    if array.ndim == 2:
+        array = cv2.cvtColor(array, cv2.COLOR_GRAY2BGR)
+    elif array.ndim == 3 and array.shape[2] == 4:
+        array = cv2.cvtColor(array, cv2.COLOR_BGRA2BGR)
+    elif array.ndim != 3 or array.shape[2] != 3:
+        raise DataFormatError(None if where == "image array" else where,
+                              f"an image must be grey, RGB or RGBA, got shape {array.shape}")
+    if min(array.shape[:2]) < 8:
+        raise DataFormatError(None if where == "image array" else where,
+                              f"image too small ({array.shape[1]}×{array.shape[0]} pixels; at least 8×8)")
+    return np.ascontiguousarray(array)
+
+
+def array_checksum(arrays: Mapping[str, np.ndarray]) -> str | None:
+    """sha256 of named arrays (names, dtypes, shapes and bytes), or ``None`` for none."""
+    if not arrays:
+        return None
+    digest = hashlib.sha256()
+    for name in sorted(arrays):
+        a = np.ascontiguousarray(arrays[name])
+        digest.update(f"{name}|{a.dtype.str}|{a.shape}|".encode())
+        digest.update(a.tobytes())
+    return digest.hexdigest()
+
+
+@dataclass(frozen=True)
+class ExtractorSpec:
+    """What identifies an extractor: name, version, settings and the checksum of its weights."""
+
+    name: str
+    version: int | None = None
+    settings: dict[str, Any] = field(default_factory=dict)
+    checksum: str | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON form (stored in knowledge and home file headers)."""
+        return {"name": self.name, "version": self.version, "settings": dict(self.settings),
+                "checksum": self.checksum}
+
+    @classmethod
+    def from_dict(cls, value: Any) -> ExtractorSpec:
+        """Inverse of :meth:`to_dict`; raises ConfigurationError for a malformed description."""
+        if not isinstance(value, Mapping) or not isinstance(value.get("name"), str) \
+                or not isinstance(value.get("settings", {}), Mapping):
+            raise ConfigurationError(f"malformed extractor description {value!r}")
+        version = value.get("version")
+        return cls(name=value["name"], version=None if version is None else int(version),
+                   settings=dict(value.get("settings") or {}), checksum=value.get("checksum"))
+
+    def describe(self) -> str:
+        """One line for people."""
+        settings = ", ".join(f"{k}={v}" for k, v in sorted(self.settings.items()) if k != "model_path")
+        checksum = f", weights sha256 {self.checksum[:12]}…" if self.checksum else ""
+        return f"{self.name} v{self.version} ({settings}{checksum})"
+
+
+class Extractor:
+    """Base class: turns images into (D,) int64 counts. Subclasses set ``name``, ``version``,
+    ``defaults`` and implement :meth:`_counts` (one BGR image -> (D,) non-negative integers)."""
+
+    name: ClassVar[str] = ""
+    version: ClassVar[int] = 1
+    defaults: ClassVar[dict[str, Any]] = {}
+    #: True for extractors whose weights are learnt from images (:meth:`fitted`).
+    learns: ClassVar[bool] = False
+
+    def __init__(self, **settings: Any) -> None:
+        unknown = sorted(set(settings) - set(self.defaults))
+        if unknown:
+            raise ConfigurationError(f"extractor {self.name!r} has no setting {', '.join(unknown)}; its "
+                                     f"settings: {', '.join(self.defaults) or 'none'}")
+        self.settings: dict[str, Any] = {**self.defaults, **settings}
+
+    @classmethod
+    def from_parts(cls, settings: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> Extractor:
+        """Rebuild from stored settings and weights (:func:`build_extractor`)."""
+        return cls(**settings)
+
+    # ------------------------------------------------------------------ description
+    @property
+    def n_features(self) -> int:
+        """D, the length of the count vectors."""
+        raise NotImplementedError
+
+    @property
+    def arrays(self) -> dict[str, np.ndarray]:
+        """Weights to store with the description (e.g. a codebook); empty if none."""
+        return {}
+
+    @property
+    def checksum(self) -> str | None:
+        """sha256 of the weights (None without weights)."""
+        return array_checksum(self.arrays)
+
+    @property
+    def needs_fit(self) -> bool:
+        """Whether the weights must first be learnt from images (:meth:`fitted`)."""
+        return False
+
+    def spec(self) -> ExtractorSpec:
+        """The description stored in knowledge and home files."""
+        return ExtractorSpec(self.name, self.version, dict(self.settings), self.checksum)
+
+    def fitted(self, images: Sequence[ImageInput], random_state: int | None = 0) -> Extractor:
+        """An extractor with weights learnt from ``images`` (itself if it learns nothing)."""
+        return self
+
+    # ------------------------------------------------------------------ extraction
+    def _counts(self, image: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def extract(self, image: ImageInput) -> np.ndarray:
+        """The (D,) int64 counts of one image (path or array, any size, grey or colour)."""
+        if self.needs_fit:
+            raise ConfigurationError(f"extractor {self.name!r} has no codebook yet: learn it from images "
+                                     "first (spco fit on homes with images does)")
+        counts = self._counts(read_image(image))
+        return np.asarray(counts, dtype=np.int64)
+
+    def extract_many(self, images: Sequence[ImageInput], jobs: int | None = None,
+                     progress: Callable[[int], None] | None = None) -> sp.csr_array:
+        """(N, D) int64 sparse counts of ``images``, in order; ``jobs`` threads (default: the CPUs)."""
+        images = list(images)
+        if not images:
+            return sp.csr_array((0, self.n_features), dtype=np.int64)
+        jobs = max(1, min(jobs or os.cpu_count() or 1, len(images)))
+        rows: list[np.ndarray]
+        if jobs == 1:
+            rows = []
+            for image in images:
+                rows.append(self.extract(image))
+                if progress is not None:
+                    progress(1)
+        else:
+            with ThreadPoolExecutor(jobs) as pool:  # OpenCV and ONNX Runtime release the GIL
+                rows = []
+                for row in pool.map(self.extract, images):
+                    rows.append(row)
+                    if progress is not None:
+                        progress(1)
+        out = sp.csr_array(np.vstack(rows), dtype=np.int64)
+        out.eliminate_zeros()
+        return out
+
+    def __repr__(self) -> str:
+        return f"<extractor {self.spec().describe()}>"
+
+
+_REGISTRY: dict[str, type[Extractor]] = {}
+
+
+def register(cls: type[Extractor]) -> type[Extractor]:
+    """Class decorator: make an extractor buildable by name (:func:`build_extractor`)."""
+    _REGISTRY[cls.name] = cls
+    return cls
+
+
+def registered_extractors() -> dict[str, type[Extractor]]:
+    """Name -> extractor class of every registered extractor."""
+    from spco.features import classic, cnn  # noqa: F401  (register the built-in extractors)
+
+    return dict(_REGISTRY)
+
+
+def build_extractor(spec: ExtractorSpec | Mapping[str, Any] | str,
+                    arrays: Mapping[str, np.ndarray] | None = None, **overrides: Any) -> Extractor:
+    """Rebuild an extractor from its description (and stored weights); refuse a mismatch.
+
+    ``spec`` may be a name (default settings), a dict (:meth:`ExtractorSpec.to_dict`) or a spec.
+    ``arrays``: the weights stored with it (a codebook). ``overrides``: settings that may differ
+    from the stored ones without changing the counts (e.g. where the ONNX model file now is).
+    Raises ConfigurationError for an unknown name, a newer version, or weights whose checksum
+    differs from the description's.
+    """
+    if isinstance(spec, str):
+        spec = ExtractorSpec(spec)
+    elif not isinstance(spec, ExtractorSpec):
+        spec = ExtractorSpec.from_dict(spec)
+    known = registered_extractors()
+    if spec.name not in known:
+        raise ConfigurationError(f"unknown image extractor {spec.name!r}; known: {', '.join(sorted(known))}")
+    cls = known[spec.name]
+    if spec.version is not None and spec.version != cls.version:
+        raise ConfigurationError(f"the extractor {spec.name!r} was version {spec.version}, this spco has "
+                                 f"version {cls.version}: its counts would differ; fit the knowledge again")
+    settings = {**spec.settings, **{k: v for k, v in overrides.items() if v is not None}}
+    extractor = cls.from_parts(settings, dict(arrays or {}))  # type: ignore[attr-defined]
+    if spec.checksum is not None and extractor.checksum is None:
+        raise ConfigurationError(f"the weights (codebook) of extractor {spec.name!r} are missing")
+    if spec.checksum is not None and extractor.checksum != spec.checksum:
+        raise ConfigurationError(f"the weights of extractor {spec.name!r} do not match its description "
+                                 f"(sha256 {str(extractor.checksum)[:12]}…, expected {spec.checksum[:12]}…): "
+                                 "another codebook or model file than the one the knowledge was fitted with")
+    return extractor
