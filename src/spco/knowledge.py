@@ -591,7 +591,11 @@ def fit_knowledge(
     phi_v_samples = np.exp(stack_v)
     spread = np.abs(phi_v_samples - np.exp(log_phi_v)[None]).sum(-1)[:, used]  # total variation × 2
     word_mask = np.ones(len(corpus.vocabulary), dtype=bool)
-    if prune and word_mask.size:
+    if prune and word_mask.size and variant == "exact":
+        # the naming rule on the last sweep's regions (:func:`gibbs.naming_verdicts`), the mask the
+        # sampler used: it judges a name said in one home on that home, where it is place-bound
+        word_mask = state.word_mask.copy()
+    elif prune and word_mask.size:
         score = settings.pruning_score
         word_mask = words_to_keep(np.exp(log_phi_w), np.exp(log_g0), hyper.pruning_threshold(score), score)
         if state.candidate_words is not None:  # words the sampler found to depend on the place
@@ -929,7 +933,10 @@ def _sweep(data: gibbs.PreparedData, state: gibbs.GibbsState, hyper: TransferHyp
         tables_g = sample_crt(stats.concepts, hyper.gamma * np.exp(state.log_g0)[None, :], rng).sum(axis=0)
         state.log_g0 = log_dirichlet(prior.g0 + tables_g, rng)
         gibbs._home_step(data, state, stats, hyper, settings, rng)
-    if settings.prune:
+    if settings.prune and settings.variant == "exact":
+        known = state.candidate_words if state.candidate_words is not None else state.word_mask
+        state.word_mask = _home_word_mask(gibbs.naming_verdicts(data, state, hyper), known, n_known)
+    elif settings.prune:
         gibbs._prune(state, hyper, settings)
         state.word_mask[n_known:] = True
 
@@ -994,17 +1001,42 @@ def _init_new_words(state: gibbs.GibbsState, n_known: int, word_counts: np.ndarr
     state.log_theta_w[0, :, n_known:] = log_a - np.log(delta_word + np.asarray(word_counts, float))[:, None]
 
 
-def _judge_new_words(state: gibbs.GibbsState, knowledge: Knowledge, n_known: int) -> None:
-    """With pruning, decide about the words first heard in this home on the home's θ^w and G_e
-    (a home-specific name would score low against the global weights G_0: it is said in one home)."""
-    if not knowledge.prune_words or state.log_theta_w.shape[2] <= n_known:
+def _home_word_mask(verdict: np.ndarray, known_mask: np.ndarray, n_known: int) -> np.ndarray:
+    """The words a home may use, (V,) bool: the first ``n_known`` (the knowledge's words) if the
+    knowledge kept them (``known_mask``) or the home names a place with them (``verdict`` NAME);
+    the words first heard in the home unless the home shows they are no name (NOT_A_NAME)."""
+    from spco.model.pruning import NAME, NOT_A_NAME
+
+    mask = verdict != NOT_A_NAME
+    mask[:n_known] = np.asarray(known_mask[:n_known], dtype=bool) | (verdict[:n_known] == NAME)
+    return mask
+
+
+def _judge_new_words(state: gibbs.GibbsState, knowledge: Knowledge, n_known: int,
+                     data: gibbs.PreparedData | None = None) -> None:
+    """With pruning, decide about the home's words.
+
+    Exact variant (given the home's ``data``): the naming rule judged in this home
+    (:func:`gibbs.naming_verdicts` on its samples' regions). A word the knowledge kept stays kept;
+    a word it pruned is kept again if the home says it mostly at one place (a home-specific name
+    such as ``study`` that the experienced homes used differently); a word first heard here is
+    kept unless the home shows that it is said alike everywhere — a name taught once is usable at
+    once. Reference variant: the words first heard here are judged by the authors' score on the
+    home's θ^w and G_e."""
+    if not knowledge.prune_words:
+        return
+    state.word_mask = state.word_mask.copy()
+    if knowledge.variant == "exact" and data is not None:
+        verdict = gibbs.naming_verdicts(data, state, knowledge.hyperparameters)
+        state.word_mask = _home_word_mask(verdict, knowledge.word_mask, n_known)
+        return
+    if state.log_theta_w.shape[2] <= n_known:
         return
     score = "kl" if knowledge.variant == "reference" else "mi"
     theta = np.exp(state.log_theta_w[0])
     weights = np.exp(state.log_g[0])
     threshold = knowledge.hyperparameters.pruning_threshold(score)
     keep = words_to_keep(theta, weights / weights.sum(), threshold, score)
-    state.word_mask = state.word_mask.copy()
     state.word_mask[n_known:] = keep[n_known:]
 
 
@@ -1073,9 +1105,10 @@ def adapt(
         from tqdm.auto import tqdm
 
         iterator = tqdm(iterator, desc=f"adapt {home.name}", unit="sweep", leave=False)
+    _judge_new_words(state, extended, n_known, data)
     for _ in iterator:
         _sweep(data, state, hyper, settings, rng, prior, n_known)
-    _judge_new_words(state, extended, n_known)
+    _judge_new_words(state, extended, n_known, data)
     seconds = time.perf_counter() - start
     record: dict[str, Any] = {
         "knowledge_checksum": knowledge.checksum,
@@ -1233,9 +1266,10 @@ def teach(
         state.candidate_words = np.concatenate([state.candidate_words,
                                                 np.ones(knowledge.n_words - home.n_knowledge_words, bool)])
     rng = _as_generator(random_state)
+    _judge_new_words(state, knowledge, home.n_knowledge_words, data)  # a taught name counts at once
     for _ in range(int(n_sweeps)):
         _sweep(data, state, knowledge.hyperparameters, settings, rng, prior, home.n_knowledge_words)
-    _judge_new_words(state, knowledge, home.n_knowledge_words)
+    _judge_new_words(state, knowledge, home.n_knowledge_words, data)
     provenance = dict(home.provenance)
     provenance["teach_updates"] = int(provenance.get("teach_updates", 0)) + 1
     provenance["updated"] = _now()

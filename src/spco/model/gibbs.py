@@ -36,7 +36,7 @@ from spco.model import allocation
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.moves import concept_swap_step
 from spco.model.observations import GaussianRegions, HierarchicalMultinomial, NIWPrior
-from spco.model.pruning import words_to_keep
+from spco.model.pruning import NOT_A_NAME, colocation, judge_names, words_to_keep
 from spco.model.random import DimensionMajorCounts, dimension_major, dirichlet_log_density, log_dirichlet
 
 VARIANTS = ("exact", "reference", "spcoa")
@@ -88,8 +88,9 @@ class GibbsState:
     concepts (N,), regions (N,); log_g (E, L) G_e; log_g0 (L,) G_0; log_pi (E, L, K) π;
     means (E, K, 4), covariances (E, K, 4, 4); log_theta_v (E, L, D), log_theta_w (E, L, V);
     log_phi_v (L, D), log_phi_w (L, V); word_mask (V,) words kept by pruning; candidate_words
-    (V,) words that pruning may keep at all (``None``: every word), see :func:`warm_start`;
-    home_specific_words (V,) candidates said in one home only, never pruned (see :func:`_prune`).
+    (V,) words that the mutual-information pruning may keep at all (``None``: every word);
+    home_specific_words (V,) candidates it never prunes (the exact variant uses neither: see
+    :func:`naming_verdicts`).
     """
 
     concepts: np.ndarray
@@ -265,9 +266,7 @@ def warm_start(data: PreparedData, state: GibbsState, hyper: TransferHyperparame
         _local_step(data, state, independent, rng)
         stats = _statistics(data, state, hyper)
         if sweep_index == 0 and settings.prune:
-            state.candidate_words = place_words(data, state.regions)
-            state.home_specific_words = state.candidate_words & words_of_one_home(data)
-            state.word_mask = state.candidate_words.copy()
+            _prune(state, hyper, settings, data)
         _home_step(data, state, stats, hyper, independent, rng)
     stats = _statistics(data, state, hyper)
     perms = align_homes(stats.visual, stats.words, hyper.alpha_visual, hyper.alpha_word)
@@ -290,71 +289,14 @@ def warm_start(data: PreparedData, state: GibbsState, hyper: TransferHyperparame
     _home_step(data, state, stats, hyper, settings, rng)
 
 
-def place_words(data: PreparedData, groups: np.ndarray, p_value: float = 1e-3) -> np.ndarray:
-    """Words whose occurrence depends on where they were said: a G-test pooled over homes, (V,) bool.
+def naming_verdicts(data: PreparedData, state: GibbsState, hyper: TransferHyperparameters) -> np.ndarray:
+    """The naming rule's verdict on every word (:func:`spco.model.pruning.judge_names`), judged on
+    the samples' current regions: (V,) int8, NAME / UNDECIDED / NOT_A_NAME.
 
-    ``groups`` is a spatial partition of each home's samples (the regions at the start of the
-    run). A word of the sentence templates ("this", "is", "here") occurs in every part of a home at
-    the same rate; a place name only in the parts that cover its room. For each home, the
-    sentences' word presence × group table gives G_e = 2 Σ O log(O / E); under independence
-    Σ_e G_e ~ χ²(Σ_e (m_e − 1)) over the homes where the word was said (m_e: groups with taught
-    samples), so a name said in one home only ("Emma's-room") is judged on that home. Words with
-    p ≥ ``p_value`` are removed from the candidates of mutual-information pruning for the whole
-    run.
-
-    Why not the paper's rule at this point: the mutual information of a place name depends on how
-    finely the partition splits its room (0.01–0.03 nats), while the templates' sampling noise
-    reaches 0.006; a significance test separates them cleanly. Why not later, on the concepts:
-    with S^w = 5000 the sampler soon splits a place into one concept per sentence template, which
-    makes the template words look informative too.
-    """
-    n_words = data.words.shape[1]
-    # A new matrix: ``sp.csr_array(data.words, dtype=float64)`` would share the data array of the
-    # (already float64) word counts, and setting it to 1 would replace S^w by 1 for the whole run.
-    present = sp.csr_array(data.words > 0, dtype=np.float64)
-    taught = np.diff(data.words.indptr) > 0
-    g_stat = np.zeros(n_words)
-    dof = np.zeros(n_words)
-    for e in range(data.n_homes):  # a loop over homes; each step is one sparse product
-        rows = np.flatnonzero(taught & (data.homes == e))
-        if rows.size == 0:
-            continue
-        labels, index = np.unique(groups[rows], return_inverse=True)
-        if labels.size < 2:
-            continue
-        onehot = sp.csr_array((np.ones(rows.size), (index, np.arange(rows.size))),
-                              shape=(labels.size, rows.size))
-        with_word = np.asarray((onehot @ present[rows]).todense())  # (L_e, V)
-        sizes = np.bincount(index).astype(float)[:, None]
-        observed = np.stack([with_word, sizes - with_word])  # present / absent
-        expected = sizes * np.stack([with_word.sum(0), (sizes - with_word).sum(0)])[:, None, :] / rows.size
-        with np.errstate(divide="ignore", invalid="ignore"):
-            terms = np.where(observed > 0, observed * np.log(observed / expected), 0.0)
-        g_stat += 2.0 * terms.sum(axis=(0, 1))
-        dof += (labels.size - 1) * (with_word.sum(0) > 0)  # only homes where the word was said
-    if not dof.any():
-        return np.ones(n_words, dtype=bool)
-    from scipy.stats import chi2  # here, not at the top: scipy.stats adds ~24 MB to every fit
-
-    keep = (dof > 0) & (chi2.sf(g_stat, np.maximum(dof, 1)) < p_value)
-    if not keep.any():
-        keep[:] = True
-    return keep
-
-
-def words_of_one_home(data: PreparedData) -> np.ndarray:
-    """(V,) bool: words taught in exactly one home while at least two homes were taught.
-
-    Such a word ("Emma's-room") names a place of its own home; its mutual information with the
-    concepts of all homes is small by construction (its concept has a small G_0 weight), so the
-    shared-model pruning rule would remove it before its concept forms."""
-    taught = np.diff(data.words.indptr) > 0
-    per_home = np.zeros((data.n_homes, data.words.shape[1]), dtype=bool)
-    rows = np.flatnonzero(taught)
-    coo = data.words[rows].tocoo()
-    per_home[data.homes[rows][coo.row], coo.col] = True
-    n_taught_homes = int(per_home.any(axis=1).sum())
-    return (per_home.sum(axis=0) == 1) & (n_taught_homes >= 2)
+    Regions, not concepts: with S^w = 5000 the sampler may split one place into one concept per
+    sentence template, which would make the template words look place-bound; the regions are
+    drawn mostly by position and do not split by sentence. Re-evaluated after every sweep."""
+    return judge_names(colocation(data.words, data.homes, state.regions, data.n_homes, hyper.n_regions))
 
 
 def align_homes(visual: np.ndarray, words: np.ndarray, alpha_visual: float, alpha_word: float) -> np.ndarray:
@@ -626,13 +568,14 @@ def _global_step_reference(stats: Statistics, state: GibbsState, hyper: Transfer
     state.log_g0 = log_dirichlet(hyper.gamma0 + stats.concepts.sum(0), rng)
 
 
-def _prune(state: GibbsState, hyper: TransferHyperparameters, settings: SamplerSettings) -> None:
+def _prune(state: GibbsState, hyper: TransferHyperparameters, settings: SamplerSettings,
+           data: PreparedData | None = None) -> None:
     """Recompute which words are informative enough to keep (``state.word_mask``).
 
-    Exact variant: a word is kept if it passed :func:`place_words` and either its mutual
-    information with some concept of the shared model (φ^w, G_0) reaches ε or it was taught in one
-    home only (:func:`words_of_one_home`); reference variant: the authors' rule (KL score on φ^w,
-    G_0).
+    Exact variant (given ``data``): the naming rule (:func:`naming_verdicts`): a word is pruned
+    only when enough pairs of its uses show that it is said alike everywhere in its homes; a word
+    said mostly at one place, and a word heard too rarely to judge, are kept. Reference variant:
+    the authors' rule (KL score on φ^w, G_0); SpCoA+MI: the mutual information on θ^w, G.
 
     Pruned words are left out of the word likelihood of the next sweep and get probability 0 in
     the exported θ^w, φ^w (rows renormalised), as in the paper. The sampler itself keeps their
@@ -641,6 +584,9 @@ def _prune(state: GibbsState, hyper: TransferHyperparameters, settings: SamplerS
     its φ^w would stay 0 for ever).
     """
     if state.log_phi_w.shape[1] == 0:
+        return
+    if settings.variant == "exact" and data is not None:
+        state.word_mask = naming_verdicts(data, state, hyper) != NOT_A_NAME
         return
     if settings.hierarchical:
         phi_w, weights = np.exp(state.log_phi_w), np.exp(state.log_g0)
@@ -722,7 +668,7 @@ def sweep(data: PreparedData, state: GibbsState, hyper: TransferHyperparameters,
                 _swap_labels(data, state, stats, hyper, settings, rng)
     if settings.prune and settings.learn_shared:
         with _Timed(timer, "word pruning"):
-            _prune(state, hyper, settings)
+            _prune(state, hyper, settings, data)
     return previous_log_joint
 
 

@@ -9,7 +9,11 @@ whose score is below ε for every concept are removed.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
+import scipy.sparse as sp
+from scipy.special import gammainc
 
 
 def _xlogy_ratio(p: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -80,3 +84,86 @@ def words_to_keep(word_probabilities: np.ndarray, concept_weights: np.ndarray, t
     else:  # pragma: no cover - validated by the caller
         raise ValueError(f"unknown pruning score {score!r}")
     return scores.max(axis=0) >= threshold
+
+
+# ----------------------------------------------------------------------------- the naming rule
+
+#: The naming rule's thresholds (``docs/model.md``, "What counts as a name"; chosen with
+#: ``benchmarks/naming_rule.py``). A word is a *name* when the pairs of its uses said in the same
+#: home fall in the same region at least NAME_MIN_LIFT times as often as random pairs of that home's
+#: samples, and more often than chance explains (Poisson upper tail below NAME_P_VALUE). It is
+#: *no name* when it misses that with enough pairs to tell — at least NAME_MIN_EXPECTED same-region
+#: pairs expected by chance — and *undecided* (kept: a name taught once must be usable) otherwise.
+NAME_MIN_LIFT = 2.0
+NAME_P_VALUE = 0.01
+NAME_MIN_EXPECTED = 1.0
+
+#: Verdicts of :func:`judge_names`.
+NOT_A_NAME, UNDECIDED, NAME = 0, 1, 2
+
+
+@dataclass(frozen=True)
+class Colocation:
+    """How often pairs of a word's uses, said in the same home, fall in the same region; (V,) each.
+
+    pairs: Σ_e n_e(n_e − 1)/2 over the homes, n_e the taught samples of home e whose sentence holds
+    the word; same: those pairs in the same region; expected: the same-region pairs expected if the
+    word were said alike everywhere in the home (Σ_e pairs_e · q_e, q_e the chance that two samples
+    of home e, taught or not, share a region: a home taught in one room only still has a baseline)."""
+
+    pairs: np.ndarray
+    same: np.ndarray
+    expected: np.ndarray
+
+    @property
+    def lift(self) -> np.ndarray:
+        """same / expected (1 for a word said everywhere alike; NaN without pairs)."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(self.expected > 0, self.same / np.where(self.expected > 0, self.expected, 1.0),
+                            np.nan)
+
+
+def colocation(words: sp.csr_array, homes: np.ndarray, regions: np.ndarray, n_homes: int,
+               n_regions: int) -> Colocation:
+    """:class:`Colocation` of every word: ``words`` (N, V) counts (empty rows: untaught samples),
+    ``homes`` (N,), ``regions`` (N,) the samples' current regions. Two sparse products, no loop."""
+    n_words = words.shape[1]
+    taught = np.flatnonzero(np.diff(words.indptr) > 0)
+    if taught.size == 0:
+        zeros = np.zeros(n_words)
+        return Colocation(zeros, zeros.copy(), zeros.copy())
+    present = sp.csr_array(words[taught] > 0, dtype=np.float64)
+    cell = homes[taught] * n_regions + regions[taught]
+    ones = np.ones(taught.size)
+    by_cell = sp.csr_array((ones, (cell, np.arange(taught.size))), shape=(n_homes * n_regions, taught.size))
+    by_home = sp.csr_array((ones, (homes[taught], np.arange(taught.size))), shape=(n_homes, taught.size))
+    in_cell = (by_cell @ present).tocoo()  # (E·K, V) uses per home and region
+    same = np.bincount(in_cell.col, weights=in_cell.data * (in_cell.data - 1) / 2, minlength=n_words)
+    in_home = (by_home @ present).tocoo()  # (E, V) uses per home
+    home_pairs = in_home.data * (in_home.data - 1) / 2
+    pairs = np.bincount(in_home.col, weights=home_pairs, minlength=n_words)
+    every_cell = homes * n_regions + regions  # all samples, taught or not: where the home's places are
+    cell_sizes = np.bincount(every_cell, minlength=n_homes * n_regions).reshape(n_homes, n_regions)
+    cell_sizes = cell_sizes.astype(float)
+    sizes = cell_sizes.sum(1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        q = np.where(sizes > 1, (cell_sizes * (cell_sizes - 1)).sum(1) / (sizes * (sizes - 1)), 1.0)
+    expected = np.bincount(in_home.col, weights=home_pairs * q[in_home.row], minlength=n_words)
+    return Colocation(pairs=pairs, same=same, expected=expected)
+
+
+def judge_names(stats: Colocation, min_lift: float = NAME_MIN_LIFT, p_value: float = NAME_P_VALUE,
+                min_expected: float = NAME_MIN_EXPECTED) -> np.ndarray:
+    """Verdict of every word, (V,) int8: :data:`NAME` (said mostly at one place: its same-region
+    pairs reach ``min_lift`` × the pairs expected by chance and their Poisson upper tail is below
+    ``p_value``), :data:`NOT_A_NAME` (not a name although at least ``min_expected`` same-region
+    pairs were expected by chance: enough evidence that it is said alike everywhere), or
+    :data:`UNDECIDED` (too few uses to tell, e.g. a word said once or twice per home)."""
+    tail = np.ones(stats.same.shape)
+    hit = stats.same > 0
+    tail[hit] = gammainc(stats.same[hit], stats.expected[hit])  # P(X >= same), X ~ Poisson(expected)
+    named = hit & (stats.same >= min_lift * stats.expected) & (tail < p_value)
+    verdict = np.full(stats.pairs.shape, UNDECIDED, dtype=np.int8)
+    verdict[stats.expected >= min_expected] = NOT_A_NAME
+    verdict[named] = NAME
+    return verdict
