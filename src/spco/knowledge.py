@@ -87,7 +87,7 @@ from spco.model.parameters import ConceptParameters
 from spco.model.pruning import words_to_keep
 from spco.model.random import log_dirichlet, sample_crt, stack_counts
 from spco.model.transfer import SpatialConceptModel, SpCoTransfer, export_parameters
-from spco.prediction import NamePrediction, PositionPrediction, predict_names, predict_positions
+from spco.prediction import NamePrediction, PositionPrediction, predict_names
 
 __all__ = [
     "DEFAULT_ADAPT_ITERATIONS",
@@ -96,6 +96,7 @@ __all__ = [
     "HOME_FORMAT",
     "KNOWLEDGE_FORMAT",
     "MODELS",
+    "WHERE_MODEL_WEIGHT",
     "HomeModel",
     "Knowledge",
     "Observation",
@@ -1288,16 +1289,62 @@ def _copy_state(state: gibbs.GibbsState) -> gibbs.GibbsState:
 # ---------------------------------------------------------------------------- questions
 
 
+#: How many of the home's own teachings the model's p(m | name) weighs as, in :func:`where`.
+WHERE_MODEL_WEIGHT = 1.0
+
+
 def where(home: HomeModel, name: str, n: int = 10,
           random_state: int | np.random.Generator | None = None) -> PositionPrediction:
     """Poses ``(x, y, θ)`` to go to for the place ``name`` in ``home``.
 
-    The region m̂ = argmax_m p(m | name) and ``n`` poses drawn from its Gaussian
-    (:func:`spco.prediction.predict_positions`); each pose's ``weights`` entry is its share of the
-    density p(x | name) among the ``n`` poses. Raises :class:`~spco.prediction.UnknownNameError`
-    (with suggestions) for a name the home cannot use: never heard, or pruned as uninformative.
+    The region probabilities combine the model with the home's own teachings of the name:
+    ``p(m | name) = (c_m + κ · p_model(m | name)) / (c + κ)``, where ``c_m`` counts the home's samples
+    whose sentence holds the name and that sit in region m, ``c`` all of them, κ =
+    :data:`WHERE_MODEL_WEIGHT` and ``p_model(m | name) ∝ Σ_l π_{l,m} θ^w_{l,name} G_l``
+    (:func:`spco.prediction.region_posterior_for_name`). A name taught once is answered with the
+    region of that sample at probability about one half (little evidence), each further teaching
+    there makes it firmer, and a name never taught in this home is answered by the model alone.
+    The poses are drawn from the answer regions — those at least half as probable as the best
+    (a name taught at two places of the home finds both) — in proportion to their probability, at
+    least one per region; each pose's ``weights`` entry is its share of the density p(x | name)
+    among the ``n`` poses. Raises :class:`~spco.prediction.UnknownNameError` (with suggestions)
+    for a name the home cannot use: never heard, or pruned as no name.
     """
-    return predict_positions(home.parameters, 0, home.vocabulary, name, n=n, rng=_as_generator(random_state))
+    from spco.prediction import _cholesky, _safe_log, gaussian_log_density, region_posterior_for_name
+
+    if n < 0:
+        raise ConfigurationError(f"the number of positions must be >= 0, got {n}")
+    params, vocabulary = home.parameters, home.vocabulary
+    model = region_posterior_for_name(params, 0, vocabulary, name)
+    column = vocabulary.index(name)
+    said = np.asarray(home.data.words[:, [column]].toarray()).ravel() > 0  # type: ignore[index]
+    counts = np.bincount(home.state.regions[said], minlength=model.size).astype(np.float64)
+    probs = (counts + WHERE_MODEL_WEIGHT * model) / (counts.sum() + WHERE_MODEL_WEIGHT)
+    answer = np.flatnonzero(probs >= 0.5 * probs.max())
+    answer = answer[np.argsort(-probs[answer], kind="stable")]
+    share = probs[answer] / probs[answer].sum()
+    per_region = np.floor(share * n).astype(np.int64)
+    if n >= answer.size:
+        per_region = np.maximum(per_region, 1)
+    while per_region.sum() > n:
+        per_region[np.argmax(per_region)] -= 1
+    while per_region.sum() < n:
+        per_region[np.argmax(share * n - per_region)] += 1
+    regions = np.repeat(answer, per_region)
+    gen = _as_generator(random_state)
+    means = np.asarray(params.region_means[0], dtype=np.float64)
+    covs = np.asarray(params.region_covariances[0], dtype=np.float64)
+    z = gen.standard_normal((n, 4))
+    draws = means[regions] + np.einsum("nij,nj->ni", _cholesky(covs)[regions], z)
+    samples = np.column_stack([draws[:, 0], draws[:, 1], np.arctan2(draws[:, 2], draws[:, 3])])
+    if n:
+        log_density = logsumexp(_safe_log(probs)[None, :] + gaussian_log_density(draws, means, covs), axis=1)
+        weights = np.exp(log_density - logsumexp(log_density))
+    else:
+        samples, log_density, weights = np.empty((0, 3)), np.empty(0), np.empty(0)
+    return PositionPrediction(name=vocabulary.words[column], region=int(answer[0]),  # type: ignore[index]
+                              region_probabilities=probs, samples=samples, regions=regions,
+                              log_density=log_density, weights=weights, mode="mixture", xy_only=False)
 
 
 def what(home: HomeModel, x: float, y: float, theta: float, visual: Any = None,
