@@ -36,7 +36,7 @@ from spco.model import allocation
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.moves import concept_swap_step
 from spco.model.observations import GaussianRegions, HierarchicalMultinomial, NIWPrior
-from spco.model.pruning import NOT_A_NAME, colocation, judge_names, words_to_keep
+from spco.model.pruning import NAME, NOT_A_NAME, colocation, judge_names, words_to_keep
 from spco.model.random import DimensionMajorCounts, dimension_major, dirichlet_log_density, log_dirichlet
 
 VARIANTS = ("exact", "reference", "spcoa")
@@ -256,12 +256,23 @@ def warm_start(data: PreparedData, state: GibbsState, hyper: TransferHyperparame
     and θ, G_e, π, μ, Σ drawn given them — for the other homes (a new home) from the priors given
     φ and G_0, so that their samples are first assigned by the transferred knowledge.
 
+    With the naming rule ("+MI"), each home starts from the places its names mark
+    (:func:`concepts_by_name`) instead of groups of nearby samples: two rooms of one home that the
+    transferred knowledge sees alike (Emma's and mother's bedrooms) then start as two concepts. The
+    sampler cannot split one concept into two later: a single sample that leaves for an empty
+    concept pays S^w = 5000 counts per word of its sentence under that concept's prior.
+
     This is only an initialisation (the chain is valid MCMC from its end on, whatever state it
     starts from); it matters because label switching between homes is the sampler's hardest move:
     see :mod:`spco.model.moves`.
     """
     independent = SamplerSettings(variant="spcoa", prune=False, hierarchical=False, joint_assignment=True,
                                   pruning_score="mi")
+    names = None
+    if settings.prune and data.words.nnz:  # start from the places the home's names mark
+        names = sample_names(data, state.regions, hyper)
+        state.concepts = concepts_by_name(data, state.regions, hyper, names)
+        _home_step(data, state, _statistics(data, state, hyper), hyper, independent, rng)
     for sweep_index in range(n_sweeps):
         _local_step(data, state, independent, rng)
         stats = _statistics(data, state, hyper)
@@ -278,15 +289,91 @@ def warm_start(data: PreparedData, state: GibbsState, hyper: TransferHyperparame
     taught = np.bincount(data.homes, weights=np.diff(data.words.indptr) > 0, minlength=data.n_homes)
     sizes = np.diff(data.offsets)
     reset = taught < 0.5 * sizes
+    own: dict[int, np.ndarray] = {}
+    if names is not None and reset.any() and not reset.all():
+        # names of such a home alone (Emma's room) start in free concepts of their own, with their
+        # statistics: left to the first local step they would land in the concepts of other places
+        # (every concept gives an unheard name the same tiny mass), whose visual prior of δ^v pseudo-
+        # counts then sends the rest of the room's views to the transferred concept of its kind
+        own = _own_names_to_free_concepts(data, state, names, reset, stats.concepts)
+        if own:
+            stats = _statistics(data, state, hyper)
     if reset.any() and not reset.all():
         for name in ("visual", "words", "concepts", "regions_by_concept"):
             dropped = getattr(stats, name).copy()  # (the visual counts are the sampler's cache)
+            kept = {e: dropped[e, labels].copy() for e, labels in own.items()}
             dropped[reset] = 0
+            for e, labels in own.items():
+                dropped[e, labels] = kept[e]
             setattr(stats, name, dropped)
     state.log_phi_v = log_dirichlet(hyper.alpha_visual + stats.visual.sum(0), rng)
     state.log_phi_w = log_dirichlet(hyper.alpha_word + stats.words.sum(0), rng)
     state.log_g0 = log_dirichlet(hyper.gamma0 / hyper.n_concepts + stats.concepts.sum(0), rng)
     _home_step(data, state, stats, hyper, settings, rng)
+
+
+def sample_names(data: PreparedData, regions: np.ndarray, hyper: TransferHyperparameters) -> np.ndarray:
+    """The place name each sample stands for, (N,) vocabulary column or −1.
+
+    A taught sample whose sentence holds a name (:func:`naming_verdicts` on ``regions``) stands for
+    that name (of its names, the one most bound to one place: the largest lift); any other sample
+    for the name most of the named samples of its region stand for, or none (−1)."""
+    stats = colocation(data.words, data.homes, regions, data.n_homes, hyper.n_regions)
+    named = judge_names(stats) == NAME
+    n_words, n_regions = data.words.shape[1], hyper.n_regions
+    score = np.where(named, np.nan_to_num(stats.lift, nan=0.0) + 1.0, 0.0)  # (V,) > 0 for names
+    best = (sp.csr_array(data.words > 0, dtype=np.float64) @ sp.diags_array(score)).tocsr()
+    has_name = np.asarray(best.max(axis=1).todense()).ravel() > 0
+    name_of = np.asarray(best.argmax(axis=1)).ravel()
+    cell = data.homes * n_regions + regions
+    votes = sp.csr_array((np.ones(int(has_name.sum())), (cell[has_name], name_of[has_name])),
+                         shape=(data.n_homes * n_regions, n_words))
+    voted = np.asarray(votes.sum(axis=1)).ravel() > 0
+    majority = np.asarray(votes.argmax(axis=1)).ravel()
+    return np.where(has_name, name_of, np.where(voted[cell], majority[cell], -1)).astype(np.int64)
+
+
+def concepts_by_name(data: PreparedData, regions: np.ndarray, hyper: TransferHyperparameters,
+                     names: np.ndarray | None = None) -> np.ndarray:
+    """Starting concepts (N,) that follow the homes' place names, per home: one concept per name
+    (:func:`sample_names`, or ``names`` if given) and, for the samples that stand for none, one per
+    region. Names and regions of a home get distinct concepts, up to L (then they share, in
+    order). Labels differ between homes until :func:`align_homes` matches them."""
+    if names is None:
+        names = sample_names(data, regions, hyper)
+    key = np.where(names >= 0, names, data.words.shape[1] + regions)
+    concepts = np.empty(data.n_samples, dtype=np.int64)
+    for e in range(data.n_homes):  # a loop over homes; each step is vectorised
+        rows = slice(data.offsets[e], data.offsets[e + 1])
+        _, label = np.unique(key[rows], return_inverse=True)
+        concepts[rows] = label % hyper.n_concepts
+    return concepts
+
+
+def _own_names_to_free_concepts(data: PreparedData, state: GibbsState, names: np.ndarray,
+                                reset: np.ndarray, concept_counts: np.ndarray) -> dict[int, np.ndarray]:
+    """In each home that starts from the transferred knowledge (``reset``), move the samples that
+    stand for a name of that home alone (said in no home that is kept) to a concept no kept home
+    uses, one per name; returns home -> the concepts so given (their statistics are kept)."""
+    kept_rows = ~reset[data.homes]
+    said_elsewhere = np.zeros(data.words.shape[1], dtype=bool)
+    said_elsewhere[np.unique(data.words[np.flatnonzero(kept_rows)].indices)] = True
+    free = list(np.flatnonzero(concept_counts[~reset].sum(axis=0) == 0))
+    given: dict[int, np.ndarray] = {}
+    for e in np.flatnonzero(reset):  # a loop over homes (and their few own names)
+        rows = np.arange(data.offsets[e], data.offsets[e + 1])
+        own = np.unique(names[rows][names[rows] >= 0])
+        own = own[~said_elsewhere[own]]
+        labels = []
+        for word in own:
+            if not free:
+                break
+            label = free.pop(0)
+            state.concepts[rows[names[rows] == word]] = label
+            labels.append(label)
+        if labels:
+            given[int(e)] = np.array(labels, dtype=np.int64)
+    return given
 
 
 def naming_verdicts(data: PreparedData, state: GibbsState, hyper: TransferHyperparameters) -> np.ndarray:
@@ -310,7 +397,8 @@ def align_homes(visual: np.ndarray, words: np.ndarray, alpha_visual: float, alph
     -------
     perms: (E, L); slot j of home e should hold its current concept perms[e, j]. Homes are
     aligned in order of decreasing word counts; each is matched to the pooled counts of those
-    aligned before it by maximising Σ_j log p(counts of its concept perms[e, j] | pooled profile j).
+    aligned before it by maximising Σ_j log p(counts of its concept perms[e, j] | pooled profile j),
+    the word counts of a concept that has words, the visual counts of one that has none.
     """
     n_homes, n_concepts, _ = visual.shape
     order = np.argsort(-words.sum(axis=(1, 2)), kind="stable")
@@ -322,7 +410,11 @@ def align_homes(visual: np.ndarray, words: np.ndarray, alpha_visual: float, alph
         score = visual[e] @ log_pv.T  # (own concept, label)
         if words.shape[2]:
             log_pw = np.log(pooled_w + alpha_word) - np.log((pooled_w + alpha_word).sum(1, keepdims=True))
-            score = score + words[e] @ log_pw.T
+            said = words[e].sum(axis=1) > 0
+            # a concept with words is matched by its words alone: the names say which place it is,
+            # while every room's views look alike next to them — with the views counted too, a
+            # home's own room (Emma's) took the label of another place instead of a free one
+            score[said] = words[e][said] @ log_pw.T
         own, label = linear_sum_assignment(score, maximize=True)
         perms[e, label] = own
         pooled_v += visual[e][perms[e]]
