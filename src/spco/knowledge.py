@@ -707,8 +707,13 @@ class HomeModel:
 
     @property
     def weighting(self) -> str:
-        """Name weighting for prediction: the authors' KL score for the reference sampler, else MI."""
-        return "reference" if self.knowledge.variant == "reference" else "mi"
+        """Name weighting for prediction: the authors' KL score for the reference sampler; none with
+        the naming rule (exact sampler with pruning: only names are kept, and the name people say
+        most at a place comes first — the MI weight would put a name taught once behind names of
+        the places around); MI without pruning (it keeps "this" and "is" from being answered)."""
+        if self.knowledge.variant == "reference":
+            return "reference"
+        return "none" if self.knowledge.prune_words else "mi"
 
     @property
     def position_scale(self) -> float:
