@@ -1,4 +1,5 @@
-"""Word pruning by mutual information (models "+MI"), a heuristic outside the posterior.
+"""Word pruning (models "+MI"), a heuristic outside the posterior: the naming rule (exact sampler,
+:func:`judge_names`, at the end of this module) and the mutual-information rules below.
 
 After each sweep, word k is kept only if it is informative about some concept: with P(c) the
 concept weights and P(k | c) the word distributions, the score of (k, l) is the mutual information
@@ -92,8 +93,9 @@ def words_to_keep(word_probabilities: np.ndarray, concept_weights: np.ndarray, t
 #: ``benchmarks/naming_rule.py``). A word is a *name* when the pairs of its uses said in the same
 #: home fall in the same region at least NAME_MIN_LIFT times as often as random pairs of that home's
 #: samples, and more often than chance explains (Poisson upper tail below NAME_P_VALUE). It is
-#: *no name* when it misses that with enough pairs to tell — at least NAME_MIN_EXPECTED same-region
-#: pairs expected by chance — and *undecided* (kept: a name taught once must be usable) otherwise.
+#: *no name* when it stays below that lift with enough pairs to tell — at least NAME_MIN_EXPECTED
+#: same-region pairs expected by chance — and *undecided* otherwise (kept: a name taught once must be
+#: usable, and a name with a high lift on few pairs is not refused on thin evidence).
 NAME_MIN_LIFT = 2.0
 NAME_P_VALUE = 0.01
 NAME_MIN_EXPECTED = 1.0
@@ -156,14 +158,15 @@ def judge_names(stats: Colocation, min_lift: float = NAME_MIN_LIFT, p_value: flo
                 min_expected: float = NAME_MIN_EXPECTED) -> np.ndarray:
     """Verdict of every word, (V,) int8: :data:`NAME` (said mostly at one place: its same-region
     pairs reach ``min_lift`` × the pairs expected by chance and their Poisson upper tail is below
-    ``p_value``), :data:`NOT_A_NAME` (not a name although at least ``min_expected`` same-region
-    pairs were expected by chance: enough evidence that it is said alike everywhere), or
-    :data:`UNDECIDED` (too few uses to tell, e.g. a word said once or twice per home)."""
+    ``p_value``), :data:`NOT_A_NAME` (below ``min_lift`` although at least ``min_expected``
+    same-region pairs were expected by chance: enough evidence that it is said alike everywhere),
+    or :data:`UNDECIDED` (too few uses to tell — a word said once or twice per home — or above the
+    lift without significance: kept, a name is not refused on thin evidence)."""
     tail = np.ones(stats.same.shape)
     hit = stats.same > 0
     tail[hit] = gammainc(stats.same[hit], stats.expected[hit])  # P(X >= same), X ~ Poisson(expected)
-    named = hit & (stats.same >= min_lift * stats.expected) & (tail < p_value)
+    lifted = stats.same >= min_lift * stats.expected
     verdict = np.full(stats.pairs.shape, UNDECIDED, dtype=np.int8)
-    verdict[stats.expected >= min_expected] = NOT_A_NAME
-    verdict[named] = NAME
+    verdict[(stats.expected >= min_expected) & ~lifted] = NOT_A_NAME
+    verdict[hit & lifted & (tail < p_value)] = NAME
     return verdict
