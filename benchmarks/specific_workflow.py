@@ -44,9 +44,9 @@ def main() -> None:
     config = ExperimentConfig(experiment="specific", settings=tuple(rates), data=args.data,
                               regions=args.regions, trials=1)
     data = load_experiment_data(config)
-    experienced = Corpus([data.experienced_home(n) for n in data.experienced], vocabulary=data.vocabulary)
+    experienced = Corpus([data.experienced_home(n) for n in data.experienced])
     for seed in args.seeds:
-        knowledge = kn.fit_knowledge(experienced, random_state=seed)
+        knowledge = kn.fit_knowledge(experienced, random_state=seed)  # its own vocabulary, as `spco fit`
         untaught = data.new_home(data.specific_home, 0)
         base = kn.adapt(knowledge, untaught, random_state=seed)
         for rate in rates:

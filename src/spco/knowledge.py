@@ -84,7 +84,7 @@ from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.io import _checksum, write_npz_atomic
 from spco.model.observations import HierarchicalMultinomial
 from spco.model.parameters import ConceptParameters
-from spco.model.pruning import words_to_keep
+from spco.model.pruning import NOT_A_NAME, words_to_keep
 from spco.model.random import log_dirichlet, sample_crt, stack_counts
 from spco.model.transfer import SpatialConceptModel, SpCoTransfer, export_parameters
 from spco.prediction import NamePrediction, PositionPrediction, predict_names
@@ -912,6 +912,69 @@ class _SharedPrior:
                    g0=a_g * np.exp(knowledge.log_g0))
 
 
+#: A concept whose knowledge weight G_0 is below this is one the experienced homes did not use:
+#: the knowledge holds no information about it (its φ is a prior draw), see :func:`_learn_free_concepts`.
+FREE_CONCEPT_WEIGHT = 1e-3
+
+
+def _own_names_to_free_concepts(data: gibbs.PreparedData, state: gibbs.GibbsState, knowledge: Knowledge,
+                                n_known: int) -> bool:
+    """Give each name first heard in this home a concept of its own, one the knowledge does not use.
+
+    The samples standing for such a name (:func:`gibbs.sample_names`: those that say it, and the
+    untaught samples of the regions where it is said most) move together to a free concept, unless
+    they already hold one alone. Left to the sampler, a new name lands in the concept of another
+    place (every concept gives an unheard word the same tiny mass), whose visual distribution —
+    δ^v = 3·10^5 pseudo-counts of that place's views — then sends the rest of the room's views to the
+    transferred concept of its kind ("bedroom"). Returns whether any sample moved."""
+    if knowledge.variant != "exact" or data.words.shape[1] <= n_known:
+        return False
+    hyper = knowledge.hyperparameters
+    verdict = gibbs.naming_verdicts(data, state, hyper)
+    candidate = np.zeros(data.words.shape[1], dtype=bool)
+    candidate[n_known:] = verdict[n_known:] != NOT_A_NAME
+    names = gibbs.sample_names(data, state.regions, hyper, named=candidate)
+    free = np.exp(knowledge.log_g0) < FREE_CONCEPT_WEIGHT
+    moved = False
+    for word in np.unique(names[names >= 0]):  # a loop over the home's few new names
+        rows = names == word
+        held = np.unique(state.concepts[rows])
+        if held.size == 1 and free[held[0]] and not (state.concepts[~rows] == held[0]).any():
+            continue
+        open_slots = np.flatnonzero(free & (np.bincount(state.concepts[~rows], minlength=free.size) == 0))
+        if open_slots.size == 0:
+            break
+        state.concepts[rows] = open_slots[0]
+        moved = True
+    return moved
+
+
+def _learn_free_concepts(data: gibbs.PreparedData, state: gibbs.GibbsState, hyper: TransferHyperparameters,
+                         settings: gibbs.SamplerSettings, rng: np.random.Generator) -> None:
+    """Learn φ of the concepts the knowledge does not use from this home, then redraw the home's θ,
+    G_e, π and regions given them (exact sampler, shared part otherwise fixed).
+
+    The posterior of such a concept's φ given the experienced homes is its prior, so given this home
+    too it is the prior updated by this home: φ_l ~ Dir(α + table counts of this home), tables ~
+    CRT(n, δ φ_l) — the global step of the exact sampler restricted to these concepts. Then θ | φ,
+    as the partially collapsed order requires. G_0 (``state.log_g0``) is the knowledge's.
+    """
+    if settings.variant != "exact":
+        return
+    unused = np.exp(state.log_g0) < FREE_CONCEPT_WEIGHT  # G_0 is the knowledge's: fixed while adapting
+    if not unused[state.concepts].any():
+        return
+    stats = gibbs._statistics(data, state, hyper)
+    free = np.flatnonzero(unused & (stats.concepts[0] > 0))
+    tables_v = HierarchicalMultinomial.sample_tables(stats.visual[:, free], state.log_phi_v[free],
+                                                     hyper.delta_visual, rng)
+    state.log_phi_v[free] = HierarchicalMultinomial.sample_shared(tables_v, hyper.alpha_visual, rng)
+    tables_w = HierarchicalMultinomial.sample_tables(stats.words[:, free], state.log_phi_w[free],
+                                                     hyper.delta_word, rng)
+    state.log_phi_w[free] = HierarchicalMultinomial.sample_shared(tables_w, hyper.alpha_word, rng)
+    gibbs._home_step(data, state, stats, hyper, settings, rng)
+
+
 def _sweep(data: gibbs.PreparedData, state: gibbs.GibbsState, hyper: TransferHyperparameters,
            settings: gibbs.SamplerSettings, rng: np.random.Generator, prior: _SharedPrior | None,
            n_known: int) -> None:
@@ -922,6 +985,7 @@ def _sweep(data: gibbs.PreparedData, state: gibbs.GibbsState, hyper: TransferHyp
     kept during the sweeps and judged in the home afterwards (:func:`_judge_new_words`)."""
     if prior is None:
         gibbs.sweep(data, state, hyper, settings, rng, swaps=False)
+        _learn_free_concepts(data, state, hyper, settings, rng)
         return
     gibbs._local_step(data, state, settings, rng)
     stats = gibbs._statistics(data, state, hyper)
@@ -1112,6 +1176,8 @@ def adapt(
 
         iterator = tqdm(iterator, desc=f"adapt {home.name}", unit="sweep", leave=False)
     _judge_new_words(state, extended, n_known, data)
+    if prior is None and _own_names_to_free_concepts(data, state, extended, n_known):
+        _learn_free_concepts(data, state, hyper, settings, rng)
     for _ in iterator:
         _sweep(data, state, hyper, settings, rng, prior, n_known)
     _judge_new_words(state, extended, n_known, data)
@@ -1273,6 +1339,8 @@ def teach(
                                                 np.ones(knowledge.n_words - home.n_knowledge_words, bool)])
     rng = _as_generator(random_state)
     _judge_new_words(state, knowledge, home.n_knowledge_words, data)  # a taught name counts at once
+    if prior is None and _own_names_to_free_concepts(data, state, knowledge, home.n_knowledge_words):
+        _learn_free_concepts(data, state, knowledge.hyperparameters, settings, rng)
     for _ in range(int(n_sweeps)):
         _sweep(data, state, knowledge.hyperparameters, settings, rng, prior, home.n_knowledge_words)
     _judge_new_words(state, knowledge, home.n_knowledge_words, data)

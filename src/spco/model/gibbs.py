@@ -312,14 +312,17 @@ def warm_start(data: PreparedData, state: GibbsState, hyper: TransferHyperparame
     _home_step(data, state, stats, hyper, settings, rng)
 
 
-def sample_names(data: PreparedData, regions: np.ndarray, hyper: TransferHyperparameters) -> np.ndarray:
+def sample_names(data: PreparedData, regions: np.ndarray, hyper: TransferHyperparameters,
+                 named: np.ndarray | None = None) -> np.ndarray:
     """The place name each sample stands for, (N,) vocabulary column or −1.
 
-    A taught sample whose sentence holds a name (:func:`naming_verdicts` on ``regions``) stands for
-    that name (of its names, the one most bound to one place: the largest lift); any other sample
-    for the name most of the named samples of its region stand for, or none (−1)."""
+    A taught sample whose sentence holds a name (``named``, (V,) bool; default: the words
+    :func:`naming_verdicts` finds to be names on ``regions``) stands for that name (of its names,
+    the one most bound to one place: the largest lift); any other sample for the name most of the
+    named samples of its region stand for, or none (−1)."""
     stats = colocation(data.words, data.homes, regions, data.n_homes, hyper.n_regions)
-    named = judge_names(stats) == NAME
+    if named is None:
+        named = judge_names(stats) == NAME
     n_words, n_regions = data.words.shape[1], hyper.n_regions
     score = np.where(named, np.nan_to_num(stats.lift, nan=0.0) + 1.0, 0.0)  # (V,) > 0 for names
     best = (sp.csr_array(data.words > 0, dtype=np.float64) @ sp.diags_array(score)).tocsr()
