@@ -1364,6 +1364,9 @@ def _copy_state(state: gibbs.GibbsState) -> gibbs.GibbsState:
 
 #: How many of the home's own teachings the model's p(m | name) weighs as, in :func:`where`.
 WHERE_MODEL_WEIGHT = 1.0
+#: ... and the home's regions in proportion to their samples (where a place taught a few times
+#: could still be), once the name was taught in the home.
+WHERE_ANYWHERE_WEIGHT = 1.0
 
 
 def where(home: HomeModel, name: str, n: int = 10,
@@ -1371,12 +1374,13 @@ def where(home: HomeModel, name: str, n: int = 10,
     """Poses ``(x, y, θ)`` to go to for the place ``name`` in ``home``.
 
     The region probabilities combine the model with the home's own teachings of the name:
-    ``p(m | name) = (c_m + κ · p_model(m | name)) / (c + κ)``, where ``c_m`` counts the home's samples
-    whose sentence holds the name and that sit in region m, ``c`` all of them, κ =
-    :data:`WHERE_MODEL_WEIGHT` and ``p_model(m | name) ∝ Σ_l π_{l,m} θ^w_{l,name} G_l``
-    (:func:`spco.prediction.region_posterior_for_name`). A name taught once is answered with the
-    region of that sample at probability about one half (little evidence), each further teaching
-    there makes it firmer, and a name never taught in this home is answered by the model alone.
+    ``p(m | name) = (c_m + κ · p_model(m | name) + λ · u_m) / (c + κ + λ)``, where ``c_m`` counts the
+    home's samples whose sentence holds the name and that sit in region m, ``c`` all of them, κ =
+    :data:`WHERE_MODEL_WEIGHT`, ``p_model(m | name) ∝ Σ_l π_{l,m} θ^w_{l,name} G_l``
+    (:func:`spco.prediction.region_posterior_for_name`), u_m the share of the home's samples in
+    region m and λ = :data:`WHERE_ANYWHERE_WEIGHT` (0 for a name never taught in this home, which is
+    answered by the model alone). A name taught once is answered with the region of that sample at
+    about 0.6–0.65 (little evidence); each further teaching there makes it firmer.
     The poses are drawn from the answer regions — those at least half as probable as the best
     (a name taught at two places of the home finds both) — in proportion to their probability, at
     least one per region; each pose's ``weights`` entry is its share of the density p(x | name)
@@ -1392,7 +1396,11 @@ def where(home: HomeModel, name: str, n: int = 10,
     column = vocabulary.index(name)
     said = np.asarray(home.data.words[:, [column]].toarray()).ravel() > 0  # type: ignore[index]
     counts = np.bincount(home.state.regions[said], minlength=model.size).astype(np.float64)
-    probs = (counts + WHERE_MODEL_WEIGHT * model) / (counts.sum() + WHERE_MODEL_WEIGHT)
+    probs = counts + WHERE_MODEL_WEIGHT * model
+    if counts.sum() > 0:  # a place taught a few times could still be anywhere in the home
+        anywhere = np.bincount(home.state.regions, minlength=model.size) / home.state.regions.size
+        probs = probs + WHERE_ANYWHERE_WEIGHT * anywhere
+    probs = probs / probs.sum()
     answer = np.flatnonzero(probs >= 0.5 * probs.max())
     answer = answer[np.argsort(-probs[answer], kind="stable")]
     share = probs[answer] / probs[answer].sum()
