@@ -3,7 +3,8 @@
 For each data set this runs the exact sampler *without* pruning (so the measurement does not depend
 on the rule it is used to choose) for ``--sweeps`` sweeps, then prints, for every word, its pairs of
 uses said in the same home, the share of those pairs that fall in the same region, the share expected
-for random pairs, and their ratio (the lift). The thresholds of ``spco.model.pruning`` were chosen
+for random pairs of taught samples, their ratio (the lift) and the excess (chance-corrected share).
+The thresholds of ``spco.model.pruning`` were chosen
 from this table (docs/model.md, "What counts as a name").
 
     python benchmarks/naming_rule.py --data synthetic --rate 20
@@ -53,12 +54,14 @@ def main() -> None:
     stats = colocation(prepared.words, prepared.homes, state.regions, prepared.n_homes,
                        model.hyperparameters_.n_regions)
     verdict = judge_names(stats)
-    print(f"{'word':>18} {'pairs':>8} {'same':>7} {'share':>6} {'random':>6} {'lift':>6} verdict")
-    for k in np.argsort(-np.nan_to_num(stats.lift, nan=-1.0)):
+    print(f"{'word':>18} {'pairs':>8} {'same':>7} {'share':>6} {'random':>6} {'lift':>6} {'excess':>6} "
+          "verdict")
+    for k in np.argsort(-np.nan_to_num(stats.excess, nan=-1.0)):
         share = stats.same[k] / stats.pairs[k] if stats.pairs[k] else float("nan")
         rand = stats.expected[k] / stats.pairs[k] if stats.pairs[k] else float("nan")
         print(f"{corpus.vocabulary.words[k]:>18} {stats.pairs[k]:8.0f} {stats.same[k]:7.0f} {share:6.3f} "
-              f"{rand:6.3f} {stats.lift[k]:6.2f} {('not', 'undecided', 'NAME')[verdict[k]]}")
+              f"{rand:6.3f} {stats.lift[k]:6.2f} {stats.excess[k]:6.3f} "
+              f"{('not', 'undecided', 'NAME')[verdict[k]]}")
 
 
 if __name__ == "__main__":

@@ -90,15 +90,16 @@ def words_to_keep(word_probabilities: np.ndarray, concept_weights: np.ndarray, t
 # ----------------------------------------------------------------------------- the naming rule
 
 #: The naming rule's thresholds (``docs/model.md``, "What counts as a name"; chosen with
-#: ``benchmarks/naming_rule.py``). A word is a *name* when the pairs of its uses said in the same
-#: home fall in the same region at least NAME_MIN_LIFT times as often as random pairs of that home's
-#: samples, and more often than chance explains (Poisson upper tail below NAME_P_VALUE). It is
-#: *no name* when it stays below that lift with enough pairs to tell — at least NAME_MIN_EXPECTED
-#: same-region pairs expected by chance — and *undecided* otherwise (kept: a name taught once must be
-#: usable, and a name with a high lift on few pairs is not refused on thin evidence).
-NAME_MIN_LIFT = 2.0
+#: ``benchmarks/naming_rule.py``). A word is a *name* when, of the pairs of its uses said in the same
+#: home that chance (the home's taught samples) would put in different regions, at least
+#: NAME_MIN_EXCESS fall in the same region (:attr:`Colocation.excess`), more than chance explains
+#: (Poisson upper tail below NAME_P_VALUE). It is *no name* when it stays below that with enough pairs
+#: to tell — at least NAME_MIN_EVIDENCE same-region pairs expected by chance and as many pairs chance
+#: would split — and *undecided* otherwise (kept: a name taught once must be usable, and a name with a
+#: high excess on few pairs is not refused on thin evidence).
+NAME_MIN_EXCESS = 0.1
 NAME_P_VALUE = 0.01
-NAME_MIN_EXPECTED = 1.0
+NAME_MIN_EVIDENCE = 1.0
 
 #: Verdicts of :func:`judge_names`.
 NOT_A_NAME, UNDECIDED, NAME = 0, 1, 2
@@ -110,12 +111,23 @@ class Colocation:
 
     pairs: Σ_e n_e(n_e − 1)/2 over the homes, n_e the taught samples of home e whose sentence holds
     the word; same: those pairs in the same region; expected: the same-region pairs expected if the
-    word were said alike everywhere in the home (Σ_e pairs_e · q_e, q_e the chance that two samples
-    of home e, taught or not, share a region: a home taught in one room only still has a baseline)."""
+    word were said like any sentence of the home (Σ_e pairs_e · q_e, q_e the chance that two taught
+    samples of home e share a region: in a home taught in its bedrooms only, "is" is said in the
+    bedrooms only too, which tells nothing)."""
 
     pairs: np.ndarray
     same: np.ndarray
     expected: np.ndarray
+
+    @property
+    def excess(self) -> np.ndarray:
+        """(same − expected) / (pairs − expected): the share of the pairs that chance would put in
+        different regions that the word puts in the same one (a chance-corrected agreement, like
+        Cohen's κ): 1 for a word said at one place only, 0 for a word said like any sentence; NaN
+        when chance leaves no such pair (a home taught in one region only)."""
+        room = self.pairs - self.expected
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(room > 0, (self.same - self.expected) / np.where(room > 0, room, 1.0), np.nan)
 
     @property
     def lift(self) -> np.ndarray:
@@ -144,9 +156,7 @@ def colocation(words: sp.csr_array, homes: np.ndarray, regions: np.ndarray, n_ho
     in_home = (by_home @ present).tocoo()  # (E, V) uses per home
     home_pairs = in_home.data * (in_home.data - 1) / 2
     pairs = np.bincount(in_home.col, weights=home_pairs, minlength=n_words)
-    every_cell = homes * n_regions + regions  # all samples, taught or not: where the home's places are
-    cell_sizes = np.bincount(every_cell, minlength=n_homes * n_regions).reshape(n_homes, n_regions)
-    cell_sizes = cell_sizes.astype(float)
+    cell_sizes = np.bincount(cell, minlength=n_homes * n_regions).reshape(n_homes, n_regions).astype(float)
     sizes = cell_sizes.sum(1)
     with np.errstate(divide="ignore", invalid="ignore"):
         q = np.where(sizes > 1, (cell_sizes * (cell_sizes - 1)).sum(1) / (sizes * (sizes - 1)), 1.0)
@@ -154,19 +164,21 @@ def colocation(words: sp.csr_array, homes: np.ndarray, regions: np.ndarray, n_ho
     return Colocation(pairs=pairs, same=same, expected=expected)
 
 
-def judge_names(stats: Colocation, min_lift: float = NAME_MIN_LIFT, p_value: float = NAME_P_VALUE,
-                min_expected: float = NAME_MIN_EXPECTED) -> np.ndarray:
-    """Verdict of every word, (V,) int8: :data:`NAME` (said mostly at one place: its same-region
-    pairs reach ``min_lift`` × the pairs expected by chance and their Poisson upper tail is below
-    ``p_value``), :data:`NOT_A_NAME` (below ``min_lift`` although at least ``min_expected``
-    same-region pairs were expected by chance: enough evidence that it is said alike everywhere),
-    or :data:`UNDECIDED` (too few uses to tell — a word said once or twice per home — or above the
-    lift without significance: kept, a name is not refused on thin evidence)."""
+def judge_names(stats: Colocation, min_excess: float = NAME_MIN_EXCESS, p_value: float = NAME_P_VALUE,
+                min_evidence: float = NAME_MIN_EVIDENCE) -> np.ndarray:
+    """Verdict of every word, (V,) int8: :data:`NAME` (said mostly at one place: its excess
+    co-location reaches ``min_excess`` and the Poisson upper tail of its same-region pairs is below
+    ``p_value``), :data:`NOT_A_NAME` (below ``min_excess`` with at least ``min_evidence`` same-region
+    pairs expected by chance and as many split by chance: enough evidence that it is said like any
+    sentence), or :data:`UNDECIDED` (too few uses to tell — a word said once or twice per home, or a
+    home taught in one place only — or above the excess without significance: kept)."""
+    excess = stats.excess
     tail = np.ones(stats.same.shape)
     hit = stats.same > 0
     tail[hit] = gammainc(stats.same[hit], stats.expected[hit])  # P(X >= same), X ~ Poisson(expected)
-    lifted = stats.same >= min_lift * stats.expected
+    high = np.nan_to_num(excess, nan=0.0) >= min_excess
+    evidence = (stats.expected >= min_evidence) & (stats.pairs - stats.expected >= min_evidence)
     verdict = np.full(stats.pairs.shape, UNDECIDED, dtype=np.int8)
-    verdict[(stats.expected >= min_expected) & ~lifted] = NOT_A_NAME
-    verdict[hit & lifted & (tail < p_value)] = NAME
+    verdict[evidence & ~high] = NOT_A_NAME
+    verdict[hit & high & (tail < p_value)] = NAME
     return verdict
