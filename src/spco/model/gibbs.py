@@ -34,17 +34,10 @@ from scipy.optimize import linear_sum_assignment
 
 from spco.model import allocation
 from spco.model.hyperparameters import TransferHyperparameters
-from spco.model.moves import concept_swap_step, realign_step
+from spco.model.moves import concept_swap_step
 from spco.model.observations import GaussianRegions, HierarchicalMultinomial, NIWPrior
 from spco.model.pruning import NAME, NOT_A_NAME, colocation, judge_names, words_to_keep
-from spco.model.random import (
-    DimensionMajorCounts,
-    dimension_major,
-    dirichlet_log_density,
-    log_dirichlet,
-    sample_crt,
-    scaled_exp,
-)
+from spco.model.random import DimensionMajorCounts, dimension_major, dirichlet_log_density, log_dirichlet
 
 VARIANTS = ("exact", "reference", "spcoa")
 
@@ -559,30 +552,11 @@ def _conditional_log_joint(data: PreparedData, state: GibbsState, concept_ll: np
 
 
 def _global_step(stats: Statistics, state: GibbsState, hyper: TransferHyperparameters,
-                 rng: np.random.Generator, data: PreparedData | None = None) -> None:
-    """Exact: φ^v, φ^w and G_0 given CRT table counts (θ and G_e integrated out).
-
-    With ``data``, the table counts are drawn per home and the re-alignment move
-    (:func:`spco.model.moves.realign_step`) runs between the tables and φ, with φ integrated out:
-    accepted label swaps relabel the homes' samples and ``stats`` in place."""
-    if data is not None:
-        tables_v = sample_crt(stats.visual, scaled_exp(state.log_phi_v, hyper.delta_visual)[None], rng)
-        tables_w = sample_crt(stats.words, scaled_exp(state.log_phi_w, hyper.delta_word)[None], rng)
-        perms = realign_step(tables_v, tables_w, stats.concepts, hyper.alpha_visual, hyper.alpha_word,
-                             hyper.gamma * np.exp(state.log_g0), rng)
-        changed = np.flatnonzero((perms != np.arange(perms.shape[1])).any(axis=1))
-        if changed.size:
-            homes = np.arange(perms.shape[0])[:, None]
-            _apply_permutations(data, state, perms, theta=False)  # θ, G_e, π: redrawn by the home step
-            for name in ("visual", "words", "concepts", "regions_by_concept"):
-                setattr(stats, name, getattr(stats, name)[homes, perms])
-            _relabel_visual_cache(data, state, perms, changed, stats.visual[changed])
-        tables_v, tables_w = tables_v.sum(axis=0), tables_w.sum(axis=0)
-    else:
-        tables_v = HierarchicalMultinomial.sample_tables(stats.visual, state.log_phi_v, hyper.delta_visual,
-                                                         rng)
-        tables_w = HierarchicalMultinomial.sample_tables(stats.words, state.log_phi_w, hyper.delta_word, rng)
+                 rng: np.random.Generator) -> None:
+    """Exact: φ^v, φ^w and G_0 given CRT table counts (θ and G_e integrated out)."""
+    tables_v = HierarchicalMultinomial.sample_tables(stats.visual, state.log_phi_v, hyper.delta_visual, rng)
     state.log_phi_v = HierarchicalMultinomial.sample_shared(tables_v, hyper.alpha_visual, rng)
+    tables_w = HierarchicalMultinomial.sample_tables(stats.words, state.log_phi_w, hyper.delta_word, rng)
     state.log_phi_w = HierarchicalMultinomial.sample_shared(tables_w, hyper.alpha_word, rng)
     state.log_g0 = allocation.sample_global_concept_weights(stats.concepts, state.log_g0, hyper.gamma,
                                                             hyper.gamma0, rng)
@@ -781,8 +755,7 @@ def sweep(data: PreparedData, state: GibbsState, hyper: TransferHyperparameters,
     else:
         if settings.hierarchical and settings.learn_shared:
             with _Timed(timer, "shared parameters"):
-                realign = swaps and data.n_homes > 1
-                _global_step(stats, state, hyper, rng, data if realign else None)
+                _global_step(stats, state, hyper, rng)
         with _Timed(timer, "home parameters"):
             _home_step(data, state, stats, hyper, settings, rng)
         if swaps and settings.hierarchical and data.n_homes > 1:

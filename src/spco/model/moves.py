@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit, prange
-from scipy.special import gammaln, logsumexp
+from scipy.special import logsumexp
 
 from spco.model.random import _log_minus, scaled_exp
 
@@ -182,79 +182,3 @@ def concept_swap_step(visual_counts: np.ndarray, log_phi_v: np.ndarray, delta_v:
                           np.ascontiguousarray(alpha_w), np.ascontiguousarray(counts_w, dtype=np.int64),
                           g_term, np.ascontiguousarray(log_g), np.ascontiguousarray(pairs, dtype=np.int64),
                           log_u)
-
-
-# ----------------------------------------------------------------------------- re-alignment
-
-
-def _log_beta(x: np.ndarray) -> np.ndarray:
-    """ln B(x) = Σ_k ln Γ(x_k) − ln Γ(Σ_k x_k) over the last axis."""
-    return gammaln(x).sum(axis=-1) - gammaln(x.sum(axis=-1))
-
-
-def swap_log_ratio(totals: tuple[np.ndarray, ...], home_tables: tuple[np.ndarray, ...],
-                   alphas: tuple[float, ...], n_e: np.ndarray, g_term: np.ndarray, a: int, b: int) -> float:
-    """Log acceptance ratio of swapping the labels a, b of one home with φ, θ_e and G_e integrated out.
-
-    ``totals``: per modality (L, D) table counts summed over all homes; ``home_tables``: the home's
-    (L, D) table counts; ``alphas``: the Dirichlet priors α of φ; ``n_e`` (L,): the home's concept
-    counts; ``g_term`` (L,): γ G_0. With φ_l ~ Dir(α) integrated, the tables contribute
-    B(α + M_l) / B(α) per concept, M_l the tables of concept l over all homes; with G_e ~ Dir(γ G_0)
-    integrated, the concept counts contribute Π_l Γ(γ G_{0,l} + n_{e,l}) / Γ(γ G_{0,l}) (times
-    factors a swap leaves alone). Everything else — the Stirling numbers and δ^m of the tables, the
-    Dirichlet–multinomial normalisers of θ_e, the regions' counts given the concepts with π_e
-    integrated — is permuted by the swap and cancels."""
-    delta = 0.0
-    for total, tables, alpha in zip(totals, home_tables, alphas, strict=True):
-        if total.shape[1] == 0:
-            continue
-        rest_a, rest_b = total[a] - tables[a], total[b] - tables[b]
-        delta += float(_log_beta(alpha + rest_a + tables[b]) + _log_beta(alpha + rest_b + tables[a])
-                       - _log_beta(alpha + total[a]) - _log_beta(alpha + total[b]))
-    delta += float(gammaln(g_term[a] + n_e[b]) + gammaln(g_term[b] + n_e[a])
-                   - gammaln(g_term[a] + n_e[a]) - gammaln(g_term[b] + n_e[b]))
-    return delta
-
-
-def realign_step(tables_v: np.ndarray, tables_w: np.ndarray, concept_counts: np.ndarray, alpha_v: float,
-                 alpha_w: float, g_term: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """One pass of label swaps in every home that can re-align homes: φ integrated out.
-
-    The label-swap move above holds φ fixed, so a concept used by one home only — whose φ was
-    learnt from that home — always loses a swap towards the label other homes use for that place.
-    Here the state holds the CRT table counts m_{e,l,k} instead (drawn by the exact global step
-    anyway), φ is integrated out (:func:`swap_log_ratio`) and drawn afterwards from Dir(α + Σ_e m),
-    θ_e, G_e and π_e after it: a Metropolis–Hastings step on (C_e, m_e) inside a partially collapsed
-    Gibbs sweep, valid in that order. Per home, in random order, the concept slots are paired by a
-    random perfect matching and each pair is proposed once; pairs of concepts empty in the home are
-    skipped (nothing moves).
-
-    Shapes: tables_v (E, L, D), tables_w (E, L, V) per-home table counts, swapped in place when a
-    swap is accepted; concept_counts (E, L); g_term (L,) = γ G_0.
-
-    Returns
-    -------
-    perms: (E, L) int; slot j of home e holds what was concept perms[e, j].
-    """
-    n_homes, n_concepts = concept_counts.shape
-    perms = np.tile(np.arange(n_concepts), (n_homes, 1))
-    totals = (tables_v.sum(axis=0).astype(np.float64), tables_w.sum(axis=0).astype(np.float64))
-    counts = concept_counts.astype(np.float64).copy()
-    n_pairs = n_concepts // 2
-    for e in rng.permutation(n_homes):  # a loop over homes and slot pairs; each step is vectorised
-        pairs = rng.permutation(n_concepts)[: 2 * n_pairs].reshape(n_pairs, 2)
-        log_u = np.log(rng.random(n_pairs))
-        for (a, b), threshold in zip(pairs, log_u, strict=True):
-            if counts[e, a] == 0 and counts[e, b] == 0:
-                continue
-            home = (tables_v[e], tables_w[e])
-            if swap_log_ratio(totals, home, (alpha_v, alpha_w), counts[e], g_term, a, b) <= threshold:
-                continue
-            for total, tables in zip(totals, home, strict=True):
-                diff = tables[b] - tables[a]
-                total[a] += diff
-                total[b] -= diff
-                tables[[a, b]] = tables[[b, a]]
-            counts[e, [a, b]] = counts[e, [b, a]]
-            perms[e, [a, b]] = perms[e, [b, a]]
-    return perms
