@@ -480,3 +480,23 @@ def test_reference_sampler_and_short_chains(homes: dict[str, Path]) -> None:
         means = taught.parameters.region_means[0, :, :2]  # metres, whatever the sampler's units
         assert np.abs(means).max() < 50
         assert kn.what(taught, 0.0, 0.0, 0.0).words.shape == (1, 3)
+
+
+def test_synonyms_each_find_the_place_and_the_most_used_comes_first(home_file: Path) -> None:
+    """Several names for one place: each is found by `where` where it was said; `what` puts the
+    name said most first. (Each new name gets a concept of its own, so `what` lists the other name
+    near its own samples, not everywhere in the room: see the README.)"""
+    home = kn.load_home_model(home_file)
+    first = 7
+    region = home.state.regions[first]
+    others = [i for i in np.flatnonzero(home.state.regions == region) if i != first][:3]
+    assert len(others) == 3, "the sample's region holds other samples"
+    taught = {int(home.ids[i]): "this is the tub-room" for i in (first, *others[:2])}
+    taught[int(home.ids[others[2]])] = "this is the shower-room"
+    after = kn.teach(home, taught, random_state=0)
+    for name, said in (("tub-room", [first, *others[:2]]), ("shower-room", [others[2]])):
+        pred = kn.where(after, name, n=4, random_state=0)
+        assert pred.region in set(after.state.regions[said].tolist()), name
+    x, y = home.positions[first, :2]
+    theta = float(np.arctan2(home.positions[first, 2], home.positions[first, 3]))
+    assert kn.what(after, float(x), float(y), theta).words[0][0] == "tub-room"
