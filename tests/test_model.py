@@ -22,6 +22,7 @@ from spco.model import (
     TransferHyperparameters,
     gibbs,
 )
+from spco.model.pruning import colocation
 
 
 def adjusted_rand_index(a: np.ndarray, b: np.ndarray) -> float:
@@ -164,16 +165,15 @@ def test_exact_model_with_word_pruning_recovers_places_of_taught_homes() -> None
     assert not {"the", "is"} & kept
 
 
-def test_choosing_pruning_candidates_leaves_the_word_counts_alone() -> None:
-    """The G-test of :func:`gibbs.place_words` works on word presence; it used to set the data
-    array it shares with the (float64) word counts to 1, i.e. S^w = 1 instead of 5000 for the rest
-    of every +MI run: words then barely moved a sample and home-specific names were never learnt."""
+def test_naming_rule_leaves_the_word_counts_alone() -> None:
+    """The naming rule works on word presence; an earlier G-test set the data array it shared with
+    the (float64) word counts to 1, i.e. S^w = 1 instead of 5000 for the rest of every +MI run."""
     corpus = generate_homes(4, seed=0, new_homes=1, config=SyntheticConfig(n_features=32, n_train=6))
     data = SpCoTransfer._prepare(corpus, 1.0)
     before = data.words.copy()
     assert before.data.min() == corpus.word_increment == 5000
     regions = np.arange(data.n_samples) % 3
-    gibbs.place_words(data, regions)
+    colocation(data.words, data.homes, regions, data.n_homes, 3)
     assert (data.words != before).nnz == 0 and data.words.data.min() == 5000
 
 

@@ -103,7 +103,7 @@ from spco.model.io import _checksum, write_npz_atomic
 from spco.model.observations import HierarchicalMultinomial
 from spco.model.parameters import ConceptParameters
 from spco.model.posterior import ParameterAverage, thinned_sweeps
-from spco.model.pruning import words_to_keep
+from spco.model.pruning import NOT_A_NAME, words_to_keep
 from spco.model.random import log_dirichlet, sample_crt, stack_counts
 from spco.model.transfer import SpatialConceptModel, SpCoTransfer, export_parameters
 from spco.prediction import (
@@ -111,7 +111,6 @@ from spco.prediction import (
     PositionPrediction,
     UnknownNameError,
     predict_names,
-    predict_positions,
     validate_visual_counts,
 )
 
@@ -122,6 +121,7 @@ __all__ = [
     "HOME_FORMAT",
     "KNOWLEDGE_FORMAT",
     "MODELS",
+    "WHERE_MODEL_WEIGHT",
     "HomeModel",
     "Knowledge",
     "Observation",
@@ -693,7 +693,11 @@ def fit_knowledge(
     phi_v_samples = np.exp(stack_v)
     spread = np.abs(phi_v_samples - np.exp(log_phi_v)[None]).sum(-1)[:, used]  # total variation × 2
     word_mask = np.ones(len(corpus.vocabulary), dtype=bool)
-    if prune and word_mask.size:
+    if prune and word_mask.size and variant == "exact":
+        # the naming rule on the last sweep's regions (:func:`gibbs.naming_verdicts`), the mask the
+        # sampler used: it judges a name said in one home on that home, where it is place-bound
+        word_mask = state.word_mask.copy()
+    elif prune and word_mask.size:
         score = settings.pruning_score
         word_mask = words_to_keep(np.exp(log_phi_w), np.exp(log_g0), hyper.pruning_threshold(score), score)
         if state.candidate_words is not None:  # words the sampler found to depend on the place
@@ -912,8 +916,13 @@ class HomeModel:
 
     @property
     def weighting(self) -> str:
-        """Name weighting for prediction: the authors' KL score for the reference sampler, else MI."""
-        return "reference" if self.knowledge.variant == "reference" else "mi"
+        """Name weighting for prediction: the authors' KL score for the reference sampler; none with
+        the naming rule (exact sampler with pruning: only names are kept, and the name people say
+        most at a place comes first — the MI weight would put a name taught once behind names of
+        the places around); MI without pruning (it keeps "this" and "is" from being answered)."""
+        if self.knowledge.variant == "reference":
+            return "reference"
+        return "none" if self.knowledge.prune_words else "mi"
 
     @property
     def position_scale(self) -> float:
@@ -1128,6 +1137,69 @@ class _SharedPrior:
                    g0=a_g * np.exp(knowledge.log_g0))
 
 
+#: A concept whose knowledge weight G_0 is below this is one the experienced homes did not use:
+#: the knowledge holds no information about it (its φ is a prior draw), see :func:`_learn_free_concepts`.
+FREE_CONCEPT_WEIGHT = 1e-3
+
+
+def _own_names_to_free_concepts(data: gibbs.PreparedData, state: gibbs.GibbsState, knowledge: Knowledge,
+                                n_known: int) -> bool:
+    """Give each name first heard in this home a concept of its own, one the knowledge does not use.
+
+    The samples standing for such a name (:func:`gibbs.sample_names`: those that say it, and the
+    untaught samples of the regions where it is said most) move together to a free concept, unless
+    they already hold one alone. Left to the sampler, a new name lands in the concept of another
+    place (every concept gives an unheard word the same tiny mass), whose visual distribution —
+    δ^v = 3·10^5 pseudo-counts of that place's views — then sends the rest of the room's views to the
+    transferred concept of its kind ("bedroom"). Returns whether any sample moved."""
+    if knowledge.variant != "exact" or data.words.shape[1] <= n_known:
+        return False
+    hyper = knowledge.hyperparameters
+    verdict = gibbs.naming_verdicts(data, state, hyper)
+    candidate = np.zeros(data.words.shape[1], dtype=bool)
+    candidate[n_known:] = verdict[n_known:] != NOT_A_NAME
+    names = gibbs.sample_names(data, state.regions, hyper, named=candidate)
+    free = np.exp(knowledge.log_g0) < FREE_CONCEPT_WEIGHT
+    moved = False
+    for word in np.unique(names[names >= 0]):  # a loop over the home's few new names
+        rows = names == word
+        held = np.unique(state.concepts[rows])
+        if held.size == 1 and free[held[0]] and not (state.concepts[~rows] == held[0]).any():
+            continue
+        open_slots = np.flatnonzero(free & (np.bincount(state.concepts[~rows], minlength=free.size) == 0))
+        if open_slots.size == 0:
+            break
+        state.concepts[rows] = open_slots[0]
+        moved = True
+    return moved
+
+
+def _learn_free_concepts(data: gibbs.PreparedData, state: gibbs.GibbsState, hyper: TransferHyperparameters,
+                         settings: gibbs.SamplerSettings, rng: np.random.Generator) -> None:
+    """Learn φ of the concepts the knowledge does not use from this home, then redraw the home's θ,
+    G_e, π and regions given them (exact sampler, shared part otherwise fixed).
+
+    The posterior of such a concept's φ given the experienced homes is its prior, so given this home
+    too it is the prior updated by this home: φ_l ~ Dir(α + table counts of this home), tables ~
+    CRT(n, δ φ_l) — the global step of the exact sampler restricted to these concepts. Then θ | φ,
+    as the partially collapsed order requires. G_0 (``state.log_g0``) is the knowledge's.
+    """
+    if settings.variant != "exact":
+        return
+    unused = np.exp(state.log_g0) < FREE_CONCEPT_WEIGHT  # G_0 is the knowledge's: fixed while adapting
+    if not unused[state.concepts].any():
+        return
+    stats = gibbs._statistics(data, state, hyper)
+    free = np.flatnonzero(unused & (stats.concepts[0] > 0))
+    tables_v = HierarchicalMultinomial.sample_tables(stats.visual[:, free], state.log_phi_v[free],
+                                                     hyper.delta_visual, rng)
+    state.log_phi_v[free] = HierarchicalMultinomial.sample_shared(tables_v, hyper.alpha_visual, rng)
+    tables_w = HierarchicalMultinomial.sample_tables(stats.words[:, free], state.log_phi_w[free],
+                                                     hyper.delta_word, rng)
+    state.log_phi_w[free] = HierarchicalMultinomial.sample_shared(tables_w, hyper.alpha_word, rng)
+    gibbs._home_step(data, state, stats, hyper, settings, rng)
+
+
 def _sweep(data: gibbs.PreparedData, state: gibbs.GibbsState, hyper: TransferHyperparameters,
            settings: gibbs.SamplerSettings, rng: np.random.Generator, prior: _SharedPrior | None,
            n_known: int) -> None:
@@ -1138,6 +1210,7 @@ def _sweep(data: gibbs.PreparedData, state: gibbs.GibbsState, hyper: TransferHyp
     kept during the sweeps and judged in the home afterwards (:func:`_judge_new_words`)."""
     if prior is None:
         gibbs.sweep(data, state, hyper, settings, rng, swaps=False)
+        _learn_free_concepts(data, state, hyper, settings, rng)
         return
     gibbs._local_step(data, state, settings, rng)
     stats = gibbs._statistics(data, state, hyper)
@@ -1155,7 +1228,10 @@ def _sweep(data: gibbs.PreparedData, state: gibbs.GibbsState, hyper: TransferHyp
         tables_g = sample_crt(stats.concepts, hyper.gamma * np.exp(state.log_g0)[None, :], rng).sum(axis=0)
         state.log_g0 = log_dirichlet(prior.g0 + tables_g, rng)
         gibbs._home_step(data, state, stats, hyper, settings, rng)
-    if settings.prune:
+    if settings.prune and settings.variant == "exact":
+        known = state.candidate_words if state.candidate_words is not None else state.word_mask
+        state.word_mask = _home_word_mask(gibbs.naming_verdicts(data, state, hyper), known, n_known)
+    elif settings.prune:
         gibbs._prune(state, hyper, settings)
         state.word_mask[n_known:] = True
 
@@ -1220,17 +1296,42 @@ def _init_new_words(state: gibbs.GibbsState, n_known: int, word_counts: np.ndarr
     state.log_theta_w[0, :, n_known:] = log_a - np.log(delta_word + np.asarray(word_counts, float))[:, None]
 
 
-def _judge_new_words(state: gibbs.GibbsState, knowledge: Knowledge, n_known: int) -> None:
-    """With pruning, decide about the words first heard in this home on the home's θ^w and G_e
-    (a home-specific name would score low against the global weights G_0: it is said in one home)."""
-    if not knowledge.prune_words or state.log_theta_w.shape[2] <= n_known:
+def _home_word_mask(verdict: np.ndarray, known_mask: np.ndarray, n_known: int) -> np.ndarray:
+    """The words a home may use, (V,) bool: the first ``n_known`` (the knowledge's words) if the
+    knowledge kept them (``known_mask``) or the home names a place with them (``verdict`` NAME);
+    the words first heard in the home unless the home shows they are no name (NOT_A_NAME)."""
+    from spco.model.pruning import NAME, NOT_A_NAME
+
+    mask = verdict != NOT_A_NAME
+    mask[:n_known] = np.asarray(known_mask[:n_known], dtype=bool) | (verdict[:n_known] == NAME)
+    return mask
+
+
+def _judge_new_words(state: gibbs.GibbsState, knowledge: Knowledge, n_known: int,
+                     data: gibbs.PreparedData | None = None) -> None:
+    """With pruning, decide about the home's words.
+
+    Exact variant (given the home's ``data``): the naming rule judged in this home
+    (:func:`gibbs.naming_verdicts` on its samples' regions). A word the knowledge kept stays kept;
+    a word it pruned is kept again if the home says it mostly at one place (a home-specific name
+    such as ``study`` that the experienced homes used differently); a word first heard here is
+    kept unless the home shows that it is said alike everywhere — a name taught once is usable at
+    once. Reference variant: the words first heard here are judged by the authors' score on the
+    home's θ^w and G_e."""
+    if not knowledge.prune_words:
+        return
+    state.word_mask = state.word_mask.copy()
+    if knowledge.variant == "exact" and data is not None:
+        verdict = gibbs.naming_verdicts(data, state, knowledge.hyperparameters)
+        state.word_mask = _home_word_mask(verdict, knowledge.word_mask, n_known)
+        return
+    if state.log_theta_w.shape[2] <= n_known:
         return
     score = "kl" if knowledge.variant == "reference" else "mi"
     theta = np.exp(state.log_theta_w[0])
     weights = np.exp(state.log_g[0])
     threshold = knowledge.hyperparameters.pruning_threshold(score)
     keep = words_to_keep(theta, weights / weights.sum(), threshold, score)
-    state.word_mask = state.word_mask.copy()
     state.word_mask[n_known:] = keep[n_known:]
 
 
@@ -1304,13 +1405,16 @@ def adapt(
         from tqdm.auto import tqdm
 
         iterator = tqdm(iterator, desc=f"adapt {home.name}", unit="sweep", leave=False)
+    _judge_new_words(state, extended, n_known, data)
+    if prior is None and _own_names_to_free_concepts(data, state, extended, n_known):
+        _learn_free_concepts(data, state, hyper, settings, rng)
     averaged = set(thinned_sweeps(int(n_iterations)))
     average = ParameterAverage(data.homes, data.position_scale)
     for iteration in iterator:
         _sweep(data, state, hyper, settings, rng, prior, n_known)
         if iteration in averaged:
             average.add(state)
-    _judge_new_words(state, extended, n_known)
+    _judge_new_words(state, extended, n_known, data)
     seconds = time.perf_counter() - start
     record: dict[str, Any] = {
         "knowledge_checksum": knowledge.checksum,
@@ -1499,13 +1603,16 @@ def teach(
         state.candidate_words = np.concatenate([state.candidate_words,
                                                 np.ones(knowledge.n_words - home.n_knowledge_words, bool)])
     rng = _as_generator(random_state)
+    _judge_new_words(state, knowledge, home.n_knowledge_words, data)  # a taught name counts at once
+    if prior is None and _own_names_to_free_concepts(data, state, knowledge, home.n_knowledge_words):
+        _learn_free_concepts(data, state, knowledge.hyperparameters, settings, rng)
     averaged = set(thinned_sweeps(int(n_sweeps))) if n_sweeps else set()
     average = ParameterAverage(data.homes, data.position_scale)
     for iteration in range(int(n_sweeps)):
         _sweep(data, state, knowledge.hyperparameters, settings, rng, prior, home.n_knowledge_words)
         if iteration in averaged:
             average.add(state)
-    _judge_new_words(state, knowledge, home.n_knowledge_words)
+    _judge_new_words(state, knowledge, home.n_knowledge_words, data)
     provenance = dict(home.provenance)
     provenance["teach_updates"] = int(provenance.get("teach_updates", 0)) + 1
     provenance["updated"] = _now()
@@ -1526,26 +1633,98 @@ def _copy_state(state: gibbs.GibbsState) -> gibbs.GibbsState:
 # ---------------------------------------------------------------------------- questions
 
 
+#: How many of the home's own teachings the model's p(m | name) weighs as, in :func:`where`.
+WHERE_MODEL_WEIGHT = 1.0
+#: ... and the home's regions in proportion to their samples (where a place taught a few times
+#: could still be), once the name was taught in the home.
+WHERE_ANYWHERE_WEIGHT = 1.0
+
+
 def where(home: HomeModel, name: str, n: int = 10,
           random_state: int | np.random.Generator | None = None) -> PositionPrediction:
     """Poses ``(x, y, θ)`` to go to for the place ``name`` in ``home``.
 
-    The region m̂ = argmax_m p(m | name) and ``n`` poses drawn from its Gaussian
-    (:func:`spco.prediction.predict_positions`), from the home's posterior-averaged parameters;
-    each pose's ``weights`` entry is its share of the density p(x | name) among the ``n`` poses.
-    ``learnt`` is False (and ``support`` low) when no such place was learnt in this home: the name's
-    probability there comes from concepts that hold none of the home's samples. Raises
-    :class:`~spco.prediction.UnknownNameError` (with suggestions) for a name the home cannot use:
-    never heard, or pruned as uninformative.
+    The region probabilities combine the model with the home's own teachings of the name:
+    ``p(m | name) = (c_m + κ · p_model(m | name) + λ · u_m) / (c + κ + λ)``, where ``c_m`` counts the
+    home's samples whose sentence holds the name and that sit in region m, ``c`` all of them, κ =
+    :data:`WHERE_MODEL_WEIGHT`, ``p_model(m | name) ∝ Σ_l π_{l,m} θ^w_{l,name} G_l``
+    (:func:`spco.prediction.region_posterior_for_name`), u_m the share of the home's samples in
+    region m and λ = :data:`WHERE_ANYWHERE_WEIGHT` (0 for a name never taught in this home, which is
+    answered by the model alone). A name taught once is answered with the region of that sample at
+    about 0.6–0.65 (little evidence); each further teaching there makes it firmer.
+    The poses are drawn from the answer regions — those at least half as probable as the best
+    (a name taught at two places of the home finds both) — in proportion to their probability, at
+    least one per region; each pose's ``weights`` entry is its share of the density p(x | name)
+    among the ``n`` poses. Raises :class:`~spco.prediction.UnknownNameError` (with suggestions)
+    for a name the home cannot use: never heard, or pruned as no name.
+    ``name`` is read like a sentence (``"Living Room"``, ``"living-room"`` → ``living room``); a name
+    never learnt as one term is its known words said together (``study + room``). ``learnt`` is
+    False (and ``support`` low) when no such place was learnt in this home: the name is neither
+    taught in the home nor carried by concepts holding its samples.
     """
     try:
-        return predict_positions(home.parameters, 0, home.vocabulary, name, n=n,
-                                 rng=_as_generator(random_state))
+        return _where(home, name, n, random_state)
     except UnknownNameError:
         hint = unused_word_hint(home, name)
         if hint is None:
             raise
         raise UnknownNameError(name, home.known_names, reason=hint) from None
+
+
+def _where(home: HomeModel, name: str, n: int,
+           random_state: int | np.random.Generator | None) -> PositionPrediction:
+    """:func:`where` without the hint for unusable names."""
+    from spco.prediction import (
+        LEARNT_SUPPORT,
+        _cholesky,
+        _query_indices,
+        _safe_log,
+        gaussian_log_density,
+        name_support,
+        query_name,
+        region_posterior_for_name,
+    )
+
+    if n < 0:
+        raise ConfigurationError(f"the number of positions must be >= 0, got {n}")
+    params, vocabulary = home.parameters, home.vocabulary
+    model = region_posterior_for_name(params, 0, vocabulary, name)
+    columns = _query_indices(params, vocabulary, name)
+    words = home.data.words[:, columns]  # type: ignore[index]
+    said = np.asarray((words > 0).sum(axis=1)).ravel() == len(columns)  # every token of the name said
+    counts = np.bincount(home.state.regions[said], minlength=model.size).astype(np.float64)
+    probs = counts + WHERE_MODEL_WEIGHT * model
+    if counts.sum() > 0:  # a place taught a few times could still be anywhere in the home
+        anywhere = np.bincount(home.state.regions, minlength=model.size) / home.state.regions.size
+        probs = probs + WHERE_ANYWHERE_WEIGHT * anywhere
+    probs = probs / probs.sum()
+    support = 1.0 if counts.sum() > 0 else name_support(params, 0, vocabulary, name)
+    answer = np.flatnonzero(probs >= 0.5 * probs.max())
+    answer = answer[np.argsort(-probs[answer], kind="stable")]
+    share = probs[answer] / probs[answer].sum()
+    per_region = np.floor(share * n).astype(np.int64)
+    if n >= answer.size:
+        per_region = np.maximum(per_region, 1)
+    while per_region.sum() > n:
+        per_region[np.argmax(per_region)] -= 1
+    while per_region.sum() < n:
+        per_region[np.argmax(share * n - per_region)] += 1
+    regions = np.repeat(answer, per_region)
+    gen = _as_generator(random_state)
+    means = np.asarray(params.region_means[0], dtype=np.float64)
+    covs = np.asarray(params.region_covariances[0], dtype=np.float64)
+    z = gen.standard_normal((n, 4))
+    draws = means[regions] + np.einsum("nij,nj->ni", _cholesky(covs)[regions], z)
+    samples = np.column_stack([draws[:, 0], draws[:, 1], np.arctan2(draws[:, 2], draws[:, 3])])
+    if n:
+        log_density = logsumexp(_safe_log(probs)[None, :] + gaussian_log_density(draws, means, covs), axis=1)
+        weights = np.exp(log_density - logsumexp(log_density))
+    else:
+        samples, log_density, weights = np.empty((0, 3)), np.empty(0), np.empty(0)
+    return PositionPrediction(name=query_name(vocabulary, params, name), region=int(answer[0]),
+                              region_probabilities=probs, samples=samples, regions=regions,
+                              log_density=log_density, weights=weights, mode="mixture", xy_only=False,
+                              support=support, learnt=support >= LEARNT_SUPPORT)
 
 
 def unused_word_hint(home: HomeModel, word: str) -> str | None:

@@ -38,7 +38,7 @@ from spco.model import allocation
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.moves import concept_swap_step
 from spco.model.observations import GaussianRegions, HierarchicalMultinomial, NIWPrior
-from spco.model.pruning import words_to_keep
+from spco.model.pruning import NAME, NOT_A_NAME, colocation, judge_names, words_to_keep
 from spco.model.random import DimensionMajorCounts, dimension_major, dirichlet_log_density, log_dirichlet
 
 VARIANTS = ("exact", "reference", "spcoa")
@@ -90,8 +90,9 @@ class GibbsState:
     concepts (N,), regions (N,); log_g (E, L) G_e; log_g0 (L,) G_0; log_pi (E, L, K) π;
     means (E, K, 4), covariances (E, K, 4, 4); log_theta_v (E, L, D), log_theta_w (E, L, V);
     log_phi_v (L, D), log_phi_w (L, V); word_mask (V,) words kept by pruning; candidate_words
-    (V,) words that pruning may keep at all (``None``: every word), see :func:`warm_start`;
-    home_specific_words (V,) candidates said in one home only, never pruned (see :func:`_prune`).
+    (V,) words that the mutual-information pruning may keep at all (``None``: every word);
+    home_specific_words (V,) candidates it never prunes (the exact variant uses neither: see
+    :func:`naming_verdicts`).
     """
 
     concepts: np.ndarray
@@ -259,19 +260,28 @@ def warm_start(data: PreparedData, state: GibbsState, hyper: TransferHyperparame
     the priors given φ and G_0, so that its samples are first assigned by the transferred
     knowledge.
 
+    With the naming rule ("+MI"), each home starts from the places its names mark
+    (:func:`concepts_by_name`) instead of groups of nearby samples: two rooms of one home that the
+    transferred knowledge sees alike (Emma's and mother's bedrooms) then start as two concepts. The
+    sampler cannot split one concept into two later: a single sample that leaves for an empty
+    concept pays S^w = 5000 counts per word of its sentence under that concept's prior.
+
     This is only an initialisation (the chain is valid MCMC from its end on, whatever state it
     starts from); it matters because label switching between homes is the sampler's hardest move:
     see :mod:`spco.model.moves`.
     """
     independent = SamplerSettings(variant="spcoa", prune=False, hierarchical=False, joint_assignment=True,
                                   pruning_score="mi")
+    names = None
+    if settings.prune and data.words.nnz:  # start from the places the home's names mark
+        names = sample_names(data, state.regions, hyper)
+        state.concepts = concepts_by_name(data, state.regions, hyper, names)
+        _home_step(data, state, _statistics(data, state, hyper), hyper, independent, rng)
     for sweep_index in range(n_sweeps):
         _local_step(data, state, independent, rng)
         stats = _statistics(data, state, hyper)
         if sweep_index == 0 and settings.prune:
-            state.candidate_words = place_words(data, state.regions)
-            state.home_specific_words = state.candidate_words & words_of_one_home(data)
-            state.word_mask = state.candidate_words.copy()
+            _prune(state, hyper, settings, data)
         _home_step(data, state, stats, hyper, independent, rng)
     stats = _statistics(data, state, hyper)
     perms = align_homes(stats.visual, stats.words, hyper.alpha_visual, hyper.alpha_word)
@@ -282,11 +292,25 @@ def warm_start(data: PreparedData, state: GibbsState, hyper: TransferHyperparame
     # given the φ and G_0 of the taught homes, and the next local step assigns their samples by it.
     taught = np.bincount(data.homes, weights=np.diff(data.words.indptr) > 0, minlength=data.n_homes)
     weights = initial_home_weights(taught / np.maximum(np.diff(data.offsets), 1))
-    if (weights < 1.0).any():
+    reduced = weights < 1.0
+    own: dict[int, np.ndarray] = {}
+    if names is not None and reduced.any():
+        # names of such a home alone (Emma's room) start in free concepts of their own, with their
+        # statistics kept in full: left to the first local step they would land in the concepts of
+        # other places (every concept gives an unheard name the same tiny mass), whose visual prior
+        # of δ^v pseudo-counts then sends the rest of the room's views to the transferred concept
+        # of its kind
+        own = _own_names_to_free_concepts(data, state, names, reduced, stats.concepts)
+        if own:
+            stats = _statistics(data, state, hyper)
+    if reduced.any():
         for name in ("visual", "words", "concepts", "regions_by_concept"):
             counts = getattr(stats, name)  # (the visual counts are the sampler's cache: not in place)
             scale = weights.reshape((-1,) + (1,) * (counts.ndim - 1))
-            setattr(stats, name, np.rint(counts * scale).astype(np.int64))
+            scaled = np.rint(counts * scale).astype(np.int64)
+            for e, labels in own.items():
+                scaled[e, labels] = counts[e, labels]
+            setattr(stats, name, scaled)
     state.log_phi_v = log_dirichlet(hyper.alpha_visual + stats.visual.sum(0), rng)
     state.log_phi_w = log_dirichlet(hyper.alpha_word + stats.words.sum(0), rng)
     state.log_g0 = log_dirichlet(hyper.gamma0 / hyper.n_concepts + stats.concepts.sum(0), rng)
@@ -311,71 +335,81 @@ def initial_home_weights(taught_fraction: np.ndarray) -> np.ndarray:
     return (f + TAUGHT_SMOOTHING) / (f.max() + TAUGHT_SMOOTHING)
 
 
-def place_words(data: PreparedData, groups: np.ndarray, p_value: float = 1e-3) -> np.ndarray:
-    """Words whose occurrence depends on where they were said: a G-test pooled over homes, (V,) bool.
+def sample_names(data: PreparedData, regions: np.ndarray, hyper: TransferHyperparameters,
+                 named: np.ndarray | None = None) -> np.ndarray:
+    """The place name each sample stands for, (N,) vocabulary column or −1.
 
-    ``groups`` is a spatial partition of each home's samples (the regions at the start of the
-    run). A word of the sentence templates ("this", "is", "here") occurs in every part of a home at
-    the same rate; a place name only in the parts that cover its room. For each home, the
-    sentences' word presence × group table gives G_e = 2 Σ O log(O / E); under independence
-    Σ_e G_e ~ χ²(Σ_e (m_e − 1)) over the homes where the word was said (m_e: groups with taught
-    samples), so a name said in one home only ("Emma's-room") is judged on that home. Words with
-    p ≥ ``p_value`` are removed from the candidates of mutual-information pruning for the whole
-    run.
-
-    Why not the paper's rule at this point: the mutual information of a place name depends on how
-    finely the partition splits its room (0.01–0.03 nats), while the templates' sampling noise
-    reaches 0.006; a significance test separates them cleanly. Why not later, on the concepts:
-    with S^w = 5000 the sampler soon splits a place into one concept per sentence template, which
-    makes the template words look informative too.
-    """
-    n_words = data.words.shape[1]
-    # A new matrix: ``sp.csr_array(data.words, dtype=float64)`` would share the data array of the
-    # (already float64) word counts, and setting it to 1 would replace S^w by 1 for the whole run.
-    present = sp.csr_array(data.words > 0, dtype=np.float64)
-    taught = np.diff(data.words.indptr) > 0
-    g_stat = np.zeros(n_words)
-    dof = np.zeros(n_words)
-    for e in range(data.n_homes):  # a loop over homes; each step is one sparse product
-        rows = np.flatnonzero(taught & (data.homes == e))
-        if rows.size == 0:
-            continue
-        labels, index = np.unique(groups[rows], return_inverse=True)
-        if labels.size < 2:
-            continue
-        onehot = sp.csr_array((np.ones(rows.size), (index, np.arange(rows.size))),
-                              shape=(labels.size, rows.size))
-        with_word = np.asarray((onehot @ present[rows]).todense())  # (L_e, V)
-        sizes = np.bincount(index).astype(float)[:, None]
-        observed = np.stack([with_word, sizes - with_word])  # present / absent
-        expected = sizes * np.stack([with_word.sum(0), (sizes - with_word).sum(0)])[:, None, :] / rows.size
-        with np.errstate(divide="ignore", invalid="ignore"):
-            terms = np.where(observed > 0, observed * np.log(observed / expected), 0.0)
-        g_stat += 2.0 * terms.sum(axis=(0, 1))
-        dof += (labels.size - 1) * (with_word.sum(0) > 0)  # only homes where the word was said
-    if not dof.any():
-        return np.ones(n_words, dtype=bool)
-    from scipy.stats import chi2  # here, not at the top: scipy.stats adds ~24 MB to every fit
-
-    keep = (dof > 0) & (chi2.sf(g_stat, np.maximum(dof, 1)) < p_value)
-    if not keep.any():
-        keep[:] = True
-    return keep
+    A taught sample whose sentence holds a name (``named``, (V,) bool; default: the words
+    :func:`naming_verdicts` finds to be names on ``regions``) stands for that name (of its names,
+    the one most bound to one place: the largest lift); any other sample for the name most of the
+    named samples of its region stand for, or none (−1)."""
+    stats = colocation(data.words, data.homes, regions, data.n_homes, hyper.n_regions)
+    if named is None:
+        named = judge_names(stats) == NAME
+    n_words, n_regions = data.words.shape[1], hyper.n_regions
+    score = np.where(named, np.nan_to_num(stats.lift, nan=0.0) + 1.0, 0.0)  # (V,) > 0 for names
+    best = (sp.csr_array(data.words > 0, dtype=np.float64) @ sp.diags_array(score)).tocsr()
+    has_name = np.asarray(best.max(axis=1).todense()).ravel() > 0
+    name_of = np.asarray(best.argmax(axis=1)).ravel()
+    cell = data.homes * n_regions + regions
+    votes = sp.csr_array((np.ones(int(has_name.sum())), (cell[has_name], name_of[has_name])),
+                         shape=(data.n_homes * n_regions, n_words))
+    voted = np.asarray(votes.sum(axis=1)).ravel() > 0
+    majority = np.asarray(votes.argmax(axis=1)).ravel()
+    return np.where(has_name, name_of, np.where(voted[cell], majority[cell], -1)).astype(np.int64)
 
 
-def words_of_one_home(data: PreparedData) -> np.ndarray:
-    """(V,) bool: words taught in exactly one home while at least two homes were taught.
+def concepts_by_name(data: PreparedData, regions: np.ndarray, hyper: TransferHyperparameters,
+                     names: np.ndarray | None = None) -> np.ndarray:
+    """Starting concepts (N,) that follow the homes' place names, per home: one concept per name
+    (:func:`sample_names`, or ``names`` if given) and, for the samples that stand for none, one per
+    region. Names and regions of a home get distinct concepts, up to L (then they share, in
+    order). Labels differ between homes until :func:`align_homes` matches them."""
+    if names is None:
+        names = sample_names(data, regions, hyper)
+    key = np.where(names >= 0, names, data.words.shape[1] + regions)
+    concepts = np.empty(data.n_samples, dtype=np.int64)
+    for e in range(data.n_homes):  # a loop over homes; each step is vectorised
+        rows = slice(data.offsets[e], data.offsets[e + 1])
+        _, label = np.unique(key[rows], return_inverse=True)
+        concepts[rows] = label % hyper.n_concepts
+    return concepts
 
-    Such a word ("Emma's-room") names a place of its own home; its mutual information with the
-    concepts of all homes is small by construction (its concept has a small G_0 weight), so the
-    shared-model pruning rule would remove it before its concept forms."""
-    taught = np.diff(data.words.indptr) > 0
-    per_home = np.zeros((data.n_homes, data.words.shape[1]), dtype=bool)
-    rows = np.flatnonzero(taught)
-    coo = data.words[rows].tocoo()
-    per_home[data.homes[rows][coo.row], coo.col] = True
-    n_taught_homes = int(per_home.any(axis=1).sum())
-    return (per_home.sum(axis=0) == 1) & (n_taught_homes >= 2)
+
+def _own_names_to_free_concepts(data: PreparedData, state: GibbsState, names: np.ndarray,
+                                reset: np.ndarray, concept_counts: np.ndarray) -> dict[int, np.ndarray]:
+    """In each home that starts from the transferred knowledge (``reset``), move the samples that
+    stand for a name of that home alone (said in no home that is kept) to a concept no kept home
+    uses, one per name; returns home -> the concepts so given (their statistics are kept)."""
+    kept_rows = ~reset[data.homes]
+    said_elsewhere = np.zeros(data.words.shape[1], dtype=bool)
+    said_elsewhere[np.unique(data.words[np.flatnonzero(kept_rows)].indices)] = True
+    free = list(np.flatnonzero(concept_counts[~reset].sum(axis=0) == 0))
+    given: dict[int, np.ndarray] = {}
+    for e in np.flatnonzero(reset):  # a loop over homes (and their few own names)
+        rows = np.arange(data.offsets[e], data.offsets[e + 1])
+        own = np.unique(names[rows][names[rows] >= 0])
+        own = own[~said_elsewhere[own]]
+        labels = []
+        for word in own:
+            if not free:
+                break
+            label = free.pop(0)
+            state.concepts[rows[names[rows] == word]] = label
+            labels.append(label)
+        if labels:
+            given[int(e)] = np.array(labels, dtype=np.int64)
+    return given
+
+
+def naming_verdicts(data: PreparedData, state: GibbsState, hyper: TransferHyperparameters) -> np.ndarray:
+    """The naming rule's verdict on every word (:func:`spco.model.pruning.judge_names`), judged on
+    the samples' current regions: (V,) int8, NAME / UNDECIDED / NOT_A_NAME.
+
+    Regions, not concepts: with S^w = 5000 the sampler may split one place into one concept per
+    sentence template, which would make the template words look place-bound; the regions are
+    drawn mostly by position and do not split by sentence. Re-evaluated after every sweep."""
+    return judge_names(colocation(data.words, data.homes, state.regions, data.n_homes, hyper.n_regions))
 
 
 def align_homes(visual: np.ndarray, words: np.ndarray, alpha_visual: float, alpha_word: float) -> np.ndarray:
@@ -389,7 +423,8 @@ def align_homes(visual: np.ndarray, words: np.ndarray, alpha_visual: float, alph
     -------
     perms: (E, L); slot j of home e should hold its current concept perms[e, j]. Homes are
     aligned in order of decreasing word counts; each is matched to the pooled counts of those
-    aligned before it by maximising Σ_j log p(counts of its concept perms[e, j] | pooled profile j).
+    aligned before it by maximising Σ_j log p(counts of its concept perms[e, j] | pooled profile j),
+    the word counts of a concept that has words, the visual counts of one that has none.
     """
     n_homes, n_concepts, _ = visual.shape
     order = np.argsort(-words.sum(axis=(1, 2)), kind="stable")
@@ -401,7 +436,11 @@ def align_homes(visual: np.ndarray, words: np.ndarray, alpha_visual: float, alph
         score = visual[e] @ log_pv.T  # (own concept, label)
         if words.shape[2]:
             log_pw = np.log(pooled_w + alpha_word) - np.log((pooled_w + alpha_word).sum(1, keepdims=True))
-            score = score + words[e] @ log_pw.T
+            said = words[e].sum(axis=1) > 0
+            # a concept with words is matched by its words alone: the names say which place it is,
+            # while every room's views look alike next to them — with the views counted too, a
+            # home's own room (Emma's) took the label of another place instead of a free one
+            score[said] = words[e][said] @ log_pw.T
         own, label = linear_sum_assignment(score, maximize=True)
         perms[e, label] = own
         pooled_v += visual[e][perms[e]]
@@ -647,13 +686,14 @@ def _global_step_reference(stats: Statistics, state: GibbsState, hyper: Transfer
     state.log_g0 = log_dirichlet(hyper.gamma0 + stats.concepts.sum(0), rng)
 
 
-def _prune(state: GibbsState, hyper: TransferHyperparameters, settings: SamplerSettings) -> None:
+def _prune(state: GibbsState, hyper: TransferHyperparameters, settings: SamplerSettings,
+           data: PreparedData | None = None) -> None:
     """Recompute which words are informative enough to keep (``state.word_mask``).
 
-    Exact variant: a word is kept if it passed :func:`place_words` and either its mutual
-    information with some concept of the shared model (φ^w, G_0) reaches ε or it was taught in one
-    home only (:func:`words_of_one_home`); reference variant: the authors' rule (KL score on φ^w,
-    G_0).
+    Exact variant (given ``data``): the naming rule (:func:`naming_verdicts`): a word is pruned
+    only when enough pairs of its uses show that it is said alike everywhere in its homes; a word
+    said mostly at one place, and a word heard too rarely to judge, are kept. Reference variant:
+    the authors' rule (KL score on φ^w, G_0); SpCoA+MI: the mutual information on θ^w, G.
 
     Pruned words are left out of the word likelihood of the next sweep and get probability 0 in
     the exported θ^w, φ^w (rows renormalised), as in the paper. The sampler itself keeps their
@@ -668,6 +708,9 @@ def _prune(state: GibbsState, hyper: TransferHyperparameters, settings: SamplerS
     sampler is an MCMC for the model's posterior.
     """
     if state.log_phi_w.shape[1] == 0:
+        return
+    if settings.variant == "exact" and data is not None:
+        state.word_mask = naming_verdicts(data, state, hyper) != NOT_A_NAME
         return
     if settings.hierarchical:
         phi_w, weights = np.exp(state.log_phi_w), np.exp(state.log_g0)
@@ -749,7 +792,7 @@ def sweep(data: PreparedData, state: GibbsState, hyper: TransferHyperparameters,
                 _swap_labels(data, state, stats, hyper, settings, rng)
     if settings.prune and settings.learn_shared:
         with _Timed(timer, "word pruning"):
-            _prune(state, hyper, settings)
+            _prune(state, hyper, settings, data)
     return previous_log_joint
 
 
