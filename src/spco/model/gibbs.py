@@ -765,3 +765,17 @@ def log_joint(data: PreparedData, state: GibbsState, hyper: TransferHyperparamet
     total += float(dirichlet_log_density(state.log_pi, np.full(K, hyper.beta / K)).sum())
     total += GaussianRegions.log_prior(state.means, state.covariances, niw_prior(data, hyper, settings))
     return total
+
+
+# ----------------------------------------------------------------------------- public step names
+# The per-home steps under public names, for :mod:`spco.model.shard` and for the callers outside
+# ``spco.model`` (adapting knowledge to a home): nothing outside the package calls a private one.
+
+local_step = _local_step
+sufficient_statistics = _statistics
+global_step = _global_step
+home_step = _home_step
+home_step_reference = _home_step_reference
+global_step_reference = _global_step_reference
+prune = _prune
+swap_labels = _swap_labels
