@@ -13,6 +13,7 @@
 - :mod:`spco.model.io` — saving and loading fitted models.
 """
 
+import spco.model.numba_cache  # noqa: F401 - first: where Numba caches the kernels
 from spco.model.hyperparameters import SpCoAHyperparameters, TransferHyperparameters
 from spco.model.io import load_model, save_model
 from spco.model.parameters import ConceptParameters

@@ -35,6 +35,7 @@ from scipy.optimize import linear_sum_assignment
 from spco.model import allocation
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.moves import concept_swap_step
+from spco.model.numba_cache import announce_compilation
 from spco.model.observations import GaussianRegions, HierarchicalMultinomial, NIWPrior
 from spco.model.pruning import words_to_keep
 from spco.model.random import DimensionMajorCounts, dimension_major, dirichlet_log_density, log_dirichlet
@@ -192,6 +193,7 @@ def initialize(data: PreparedData, n_words: int, hyper: TransferHyperparameters,
     nearby samples, which words and vision then refine. Drawing θ from the prior or from counts of
     random concepts instead starts from a random partition that the chain does not leave.
     """
+    announce_compilation()
     L, K, E = hyper.n_concepts, hyper.n_regions, data.n_homes
     D, V = data.visual.shape[1], n_words
     concepts = rng.integers(0, L, size=data.n_samples)
