@@ -38,6 +38,23 @@ _ZIG_SCALE, _ZIG_THRESHOLD, _ZIG_BOTTOM, _ZIG_TOP = _ziggurat_tables()
 _ZIG_R = 3.6541528853610088
 
 
+#: Where a ziggurat draw takes its random bits from one 64-bit word of xorshift64*: the layer from
+#: the top 8 bits, the sign from bit 55, the 52-bit abscissa from bits 3–54. The low bits of
+#: xorshift64* are its weakest (bit 0 is a linear recurrence of order ≤ 64 over GF(2)); the layer
+#: decides most of a variate's distribution, so it must not come from them.
+_LAYER_SHIFT = np.uint64(56)
+_SIGN_SHIFT = np.uint64(55)
+_ABSCISSA_SHIFT = np.uint64(3)
+_ABSCISSA_MASK = np.uint64(2**52 - 1)
+
+
+@njit(cache=True, inline="always")
+def _ziggurat_parts(bits: np.uint64) -> tuple[np.int64, np.uint64, np.uint64]:
+    """(layer 0–255, sign bit, 52-bit abscissa integer) of a random word."""
+    return (np.int64(bits >> _LAYER_SHIFT), (bits >> _SIGN_SHIFT) & np.uint64(1),
+            (bits >> _ABSCISSA_SHIFT) & _ABSCISSA_MASK)
+
+
 @njit(cache=True, inline="always")
 def _stream_normal(state: np.uint64) -> tuple[np.uint64, float]:
     """The next state and a standard normal variate (ziggurat; ~99 % of draws take one step)."""
@@ -50,9 +67,7 @@ def _normal_from_bits(state: np.uint64, bits: np.uint64) -> tuple[np.uint64, flo
     """A ziggurat normal whose first 64 random bits are ``bits``, further ones (if the first step
     does not return) from the stream ``state``: returns the stream's next state and the variate."""
     while True:
-        layer = np.int64(bits & np.uint64(255))
-        negative = (bits >> np.uint64(8)) & np.uint64(1)
-        u = bits >> np.uint64(12)
+        layer, negative, u = _ziggurat_parts(bits)
         x = np.int64(u) * _ZIG_SCALE[layer]
         if u < _ZIG_THRESHOLD[layer]:  # the sign by arithmetic: a branch on a random bit mispredicts
             return state, x * (1.0 - 2.0 * np.int64(negative))
@@ -81,10 +96,11 @@ def _ziggurat_first_step(words: np.ndarray, x: np.ndarray, fast: np.ndarray) -> 
     pattern of 2^52 + u (no integer conversion, which AVX2 lacks for 64-bit integers)."""
     patterns = x.view(np.uint64)
     for j in range(x.size):
-        patterns[j] = (words[j] >> np.uint64(12)) | _TWO52_BITS
+        patterns[j] = ((words[j] >> _ABSCISSA_SHIFT) & _ABSCISSA_MASK) | _TWO52_BITS
     for j in range(x.size):
         bits = words[j]
-        layer = np.int64(bits & np.uint64(255))
-        sign = 1.0 - 2.0 * np.float64(np.int64((bits >> np.uint64(8)) & np.uint64(1)))
+        layer = np.int64(bits >> _LAYER_SHIFT)
+        sign = 1.0 - 2.0 * np.float64(np.int64((bits >> _SIGN_SHIFT) & np.uint64(1)))
         x[j] = (x[j] - 4503599627370496.0) * _ZIG_SCALE[layer] * sign
-        fast[j] = np.float64(np.int64(bits >> np.uint64(12)) < _ZIG_THRESHOLD_SIGNED[layer])
+        abscissa = np.int64((bits >> _ABSCISSA_SHIFT) & _ABSCISSA_MASK)
+        fast[j] = np.float64(abscissa < _ZIG_THRESHOLD_SIGNED[layer])
