@@ -38,7 +38,10 @@ class _ShardActor:
     """A :class:`~spco.model.shard.HomeShard` in a Ray actor (its data and state stay there)."""
 
     def __init__(self, data: PreparedData, state: GibbsState, hyper: TransferHyperparameters,
-                 settings: SamplerSettings, rng_state: dict) -> None:
+                 settings: SamplerSettings, rng_state: dict, threads: int) -> None:
+        import numba
+
+        numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))  # results do not change
         rng = np.random.default_rng()
         rng.bit_generator.state = rng_state
         self.shard = HomeShard(_writable_data(data), _writable_state(state), hyper, settings, rng)
@@ -120,8 +123,9 @@ class RayRun(ShardedRun):
         if not hasattr(self, "data_refs"):  # the homes' data is put in the object store once
             self.data_refs = [ray.put(d) for d in self.data_parts]
             del self.data_parts
-        self.actors = [actor.remote(d, s, hyper, settings, g) for d, (s, g) in zip(self.data_refs, snapshots,
-                                                                                    strict=True)]
+        threads = max(1, int(cpus // len(snapshots)))  # Numba threads per shard
+        self.actors = [actor.remote(d, s, hyper, settings, g, threads)
+                       for d, (s, g) in zip(self.data_refs, snapshots, strict=True)]
 
     def call(self, method: str, *args) -> list:
         ray = self.ray
