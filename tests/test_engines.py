@@ -163,3 +163,15 @@ def test_experiment_runs_as_ray_tasks_and_resumes(tmp_path, ray_session) -> None
                           sort_keys=True)
 
     assert stable(resumed.results) == stable(full.results)
+
+
+def test_fit_command_refuses_an_address_without_ray(tmp_path) -> None:
+    """`spco fit --address` belongs to `--engine ray`: a one-line usage error, exit 2."""
+    from click.testing import CliRunner
+
+    from spco.cli import main
+
+    result = CliRunner().invoke(main, ["fit", "--data", str(tmp_path), "--out", str(tmp_path / "k.spco"),
+                                       "--address", "auto"])
+    assert result.exit_code == 2
+    assert "--address is for --engine ray" in result.output

@@ -9,6 +9,9 @@
   Dirichlet–multinomial);
 - :mod:`spco.model.pruning` — mutual-information word pruning;
 - :mod:`spco.model.gibbs` — state, sweeps (exact, reference, SpCoA) and the log joint;
+- :mod:`spco.model.shard` — a sweep as map (home shards' local steps) → reduce (summed
+  statistics) → global step; the engines of :mod:`spco.engines` run the shards in process or on Ray;
+- :mod:`spco.model.numba_cache` — where the compiled kernels are cached;
 - :mod:`spco.model.transfer` — the estimators :class:`SpCoTransfer` and :class:`SpCoA`;
 - :mod:`spco.model.io` — saving and loading fitted models.
 """
