@@ -157,7 +157,7 @@ def test_what_ranks_by_the_score_it_prints(files: dict[str, Path]) -> None:
     result = _run(["what", files["home"], "--x", 0.5, "--y", 0.5, "--theta", 0, "--top", 5])
     assert result.exit_code == 0, result.output
     assert "ranked by score" in result.output
-    assert re.search(r"^score: p\(name \| pose, view\)", result.output, flags=re.M)  # the footer says what it is
+    assert re.search(r"^score: p\(name \| pose, view\)", result.output, flags=re.M)
     rows = re.findall(r"^\s+\d\. (\S+)\s+([0-9.]+)\s+([0-9.]+)$", result.output, flags=re.M)
     assert len(rows) >= 2
     scores = [float(r[1]) for r in rows]

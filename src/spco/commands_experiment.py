@@ -55,6 +55,11 @@ def _common(func: Callable[..., Any]) -> Callable[..., Any]:
                      help="Runs in parallel (worker processes; results do not depend on it)."),
         click.option("--out", "-o", required=True, type=click.Path(path_type=Path),
                      help="Output folder: results.json, runs.jsonl, tables.md, PNG figures."),
+        click.option("--engine", default="local", show_default=True, type=click.Choice(["local", "ray"]),
+                     help="Run the runs in worker processes (--jobs) or as Ray tasks "
+                          "(pip install 'spco[ray]'); results do not depend on it."),
+        click.option("--address", default=None,
+                     help="With --engine ray: the Ray cluster to join (default: start Ray locally)."),
         click.option("--resume", is_flag=True,
                      help="Continue the experiment in --out (same options; --trials may grow)."),
         click.option("--force", is_flag=True, help="Delete a previous experiment's outputs in --out."),
@@ -115,15 +120,16 @@ def _run(config_kwargs: dict[str, Any], out: Path, resume: bool, force: bool, qu
               help="Comma-separated new homes (default: 1LDK_9, 2LDK_9, 3LDK_9, or the synthetic ones).")
 @_friendly
 def general(data: str, language: str, regions: Path | None, maps: Path | None, trials: int, models: str,
-            iterations: int, seed: int, jobs: int, out: Path, resume: bool, force: bool, quiet: bool,
-            images: Path | None, extractor: str | None, envs: str, experienced_homes: str | None,
-            new_homes: str | None) -> None:
+            iterations: int, seed: int, jobs: int, engine: str, address: str | None, out: Path, resume: bool,
+            force: bool, quiet: bool, images: Path | None, extractor: str | None, envs: str,
+            experienced_homes: str | None, new_homes: str | None) -> None:
     """General places: accuracy in new homes, taught nothing, vs. number of experienced homes."""
     from spco.evaluation.experiments import parse_int_list
 
     _run({"experiment": "general", "settings": parse_int_list(envs, "--envs", 0), "data": data,
           "regions": regions, "maps": maps, "trials": trials, "models": models, "iterations": iterations,
-          "seed": seed, "jobs": jobs, "experienced_homes": _split(experienced_homes),
+          "seed": seed, "jobs": jobs, "engine": engine, "address": address,
+          "experienced_homes": _split(experienced_homes),
           "new_homes": _split(new_homes), "language": language, "images": images, "extractor": extractor},
          out, resume, force, quiet)
 
@@ -138,15 +144,16 @@ def general(data: str, language: str, regions: Path | None, maps: Path | None, t
               help="The new home with home-specific rooms (default: 3LDK_9, or the synthetic one).")
 @_friendly
 def specific(data: str, language: str, regions: Path | None, maps: Path | None, trials: int, models: str,
-             iterations: int, seed: int, jobs: int, out: Path, resume: bool, force: bool, quiet: bool,
-             images: Path | None, extractor: str | None, rates: str, experienced_homes: str | None,
-             new_home: str | None) -> None:
+             iterations: int, seed: int, jobs: int, engine: str, address: str | None, out: Path, resume: bool,
+             force: bool, quiet: bool, images: Path | None, extractor: str | None, rates: str,
+             experienced_homes: str | None, new_home: str | None) -> None:
     """Home-specific places: accuracy on the new home's own room names vs. their teaching rate."""
     from spco.evaluation.experiments import parse_int_list
 
     _run({"experiment": "specific", "settings": parse_int_list(rates, "--rates", 0, 100), "data": data,
           "regions": regions, "maps": maps, "trials": trials, "models": models, "iterations": iterations,
-          "seed": seed, "jobs": jobs, "experienced_homes": _split(experienced_homes),
+          "seed": seed, "jobs": jobs, "engine": engine, "address": address,
+          "experienced_homes": _split(experienced_homes),
           "specific_home": new_home.strip() if new_home else None, "language": language, "images": images,
           "extractor": extractor}, out, resume, force, quiet)
 

@@ -150,13 +150,23 @@ def _seconds(value: float) -> str:
 @click.option("--out", "-o", required=True, type=click.Path(path_type=Path),
               help="The knowledge file to write (e.g. knowledge.spco).")
 @click.option("--force", is_flag=True, help="Replace --out if it exists.")
+@click.option("--engine", default="local", show_default=True, type=click.Choice(["local", "ray"]),
+              help="Where the homes' shards run: this process, or Ray actors (pip install 'spco[ray]').")
+@click.option("--shards", default=None, type=click.IntRange(1),
+              help="Home shards (default: 1 with the local engine, 2 with Ray). The same seed and "
+                   "shards give the same result on either engine.")
+@click.option("--address", default=None,
+              help="The Ray cluster to join (e.g. 'auto' or HOST:PORT; default: start Ray locally).")
+@click.option("--checkpoint-every", default=10, show_default=True, type=click.IntRange(1),
+              help="Ray engine: sweeps between checkpoints (a lost actor restarts from the last one).")
 @_image_options
 @click.option("--extractor", default=None,
               help="Image extractor when the views are images (default: colour-hog; bovw-orb, bovw-sift "
                    "learn their codebook here, from the homes' training images; onnx needs --onnx-model).")
 @_friendly
 def fit(data: Path, homes: str | None, teaching_rate: int, model: str, iterations: int, seed: int,
-        out: Path, force: bool, images: Path | None, model_file: Path | None, extractor: str | None) -> None:
+        out: Path, force: bool, engine: str, shards: int | None, address: str | None, checkpoint_every: int,
+        images: Path | None, model_file: Path | None, extractor: str | None) -> None:
     """Learn knowledge from experienced homes and write a knowledge file.
 
     The knowledge is the shared, home-independent part of the transfer model — the concepts'
@@ -168,9 +178,18 @@ def fit(data: Path, homes: str | None, teaching_rate: int, model: str, iteration
     """
     from spco.data.environment import Corpus
     from spco.data.loading import load_homes
+    from spco.engines import make_engine
     from spco.knowledge import fit_knowledge
 
     _check_out(out, force)
+    if engine == "ray":
+        try:
+            import ray  # noqa: F401
+        except ImportError:
+            raise click.UsageError("--engine ray needs Ray: pip install 'spco[ray]'") from None
+    elif address is not None:
+        raise click.UsageError("--address is for --engine ray")
+    runner = make_engine(engine, shards, address, checkpoint_every)
     names = _names(homes)
     image_extractor = None
     if images is not None or extractor is not None or model_file is not None \
@@ -191,7 +210,7 @@ def fit(data: Path, homes: str | None, teaching_rate: int, model: str, iteration
                f"{iterations} sweeps...", err=True)
     start = time.perf_counter()
     knowledge = fit_knowledge(corpus, model=model, n_iterations=iterations, random_state=seed,
-                              progress=_progress(),
+                              progress=_progress(), engine=runner,
                               provenance={"data": str(Path(data).expanduser().resolve()),
                                           "teaching_rate": teaching_rate},
                               extractor=image_extractor)

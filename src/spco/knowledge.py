@@ -607,6 +607,7 @@ def fit_knowledge(
     summary_every: int = 5,
     provenance: Mapping[str, Any] | None = None,
     extractor: Any = None,
+    engine: Any = None,
 ) -> Knowledge:
     """Learn the shared part of the transfer model from the experienced homes of ``corpus``.
 
@@ -631,6 +632,8 @@ def fit_knowledge(
     extractor: the :class:`~spco.features.Extractor` that computed the homes' visual counts from
         images (stored in the knowledge, so that adapt, teach and what use it); ``None`` for
         count vectors given as such.
+    engine: where the homes' shards run (:func:`spco.engines.make_engine`): ``None`` in this
+        process, ``"ray"`` or an engine object such as ``RayEngine(shards=4, address="auto")``.
 
     Returns
     -------
@@ -660,16 +663,30 @@ def fit_knowledge(
     keep = set(summary_iterations(n_iterations, summary_fraction, summary_every))
     start = time.perf_counter()
     state = gibbs.initialize(data, len(corpus.vocabulary), hyper, settings, rng)
-    samples: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
-    iterator: Iterable[int] = range(n_iterations)
+    by_iteration: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+    bar = None
     if progress:
         from tqdm.auto import tqdm
 
-        iterator = tqdm(iterator, desc=f"fit ({model})", unit="sweep", leave=False)
-    for iteration in iterator:
-        gibbs.sweep(data, state, hyper, settings, rng, swaps=gibbs.swaps_due(iteration))
+        bar = tqdm(total=n_iterations, desc=f"fit ({model})", unit="sweep", leave=False)
+    from spco.engines import LocalEngine, make_engine
+
+    run = (make_engine(engine) if isinstance(engine, str) else (engine or LocalEngine())).start(
+        data, state, hyper, settings, rng)
+
+    def after_sweep(iteration: int, _: float) -> None:  # (a restarted engine repeats sweeps)
+        if bar is not None:
+            bar.update(1)
         if iteration in keep:
-            samples.append((state.log_phi_v.copy(), state.log_phi_w.copy(), state.log_g0.copy()))
+            shared = run.shared
+            by_iteration[iteration] = (shared.log_phi_v.copy(), shared.log_phi_w.copy(), shared.log_g0.copy())
+
+    run.fit(n_iterations, after_sweep)
+    state = run.state()
+    run.close()
+    if bar is not None:
+        bar.close()
+    samples = [by_iteration[i] for i in sorted(by_iteration)]
     seconds = time.perf_counter() - start
 
     # align every sample to the last (labels are stable late in the chain; check and record it)
@@ -1189,7 +1206,7 @@ def _learn_free_concepts(data: gibbs.PreparedData, state: gibbs.GibbsState, hype
     unused = np.exp(state.log_g0) < FREE_CONCEPT_WEIGHT  # G_0 is the knowledge's: fixed while adapting
     if not unused[state.concepts].any():
         return
-    stats = gibbs._statistics(data, state, hyper)
+    stats = gibbs.sufficient_statistics(data, state, hyper)
     free = np.flatnonzero(unused & (stats.concepts[0] > 0))
     tables_v = HierarchicalMultinomial.sample_tables(stats.visual[:, free], state.log_phi_v[free],
                                                      hyper.delta_visual, rng)
@@ -1197,7 +1214,7 @@ def _learn_free_concepts(data: gibbs.PreparedData, state: gibbs.GibbsState, hype
     tables_w = HierarchicalMultinomial.sample_tables(stats.words[:, free], state.log_phi_w[free],
                                                      hyper.delta_word, rng)
     state.log_phi_w[free] = HierarchicalMultinomial.sample_shared(tables_w, hyper.alpha_word, rng)
-    gibbs._home_step(data, state, stats, hyper, settings, rng)
+    gibbs.home_step(data, state, stats, hyper, settings, rng)
 
 
 def _sweep(data: gibbs.PreparedData, state: gibbs.GibbsState, hyper: TransferHyperparameters,
@@ -1212,10 +1229,10 @@ def _sweep(data: gibbs.PreparedData, state: gibbs.GibbsState, hyper: TransferHyp
         gibbs.sweep(data, state, hyper, settings, rng, swaps=False)
         _learn_free_concepts(data, state, hyper, settings, rng)
         return
-    gibbs._local_step(data, state, settings, rng)
-    stats = gibbs._statistics(data, state, hyper)
+    gibbs.local_step(data, state, settings, rng)
+    stats = gibbs.sufficient_statistics(data, state, hyper)
     if settings.variant == "reference":  # the authors' order: home, then shared from pooled counts
-        gibbs._home_step_reference(data, state, stats, hyper, settings, rng)
+        gibbs.home_step_reference(data, state, stats, hyper, settings, rng)
         state.log_phi_v = log_dirichlet(prior.visual + stats.visual.sum(0), rng)
         state.log_phi_w = log_dirichlet(prior.words + stats.words.sum(0), rng)
         state.log_g0 = log_dirichlet(prior.g0 + stats.concepts.sum(0), rng)
@@ -1227,12 +1244,12 @@ def _sweep(data: gibbs.PreparedData, state: gibbs.GibbsState, hyper: TransferHyp
         state.log_phi_w = log_dirichlet(prior.words + tables_w, rng)
         tables_g = sample_crt(stats.concepts, hyper.gamma * np.exp(state.log_g0)[None, :], rng).sum(axis=0)
         state.log_g0 = log_dirichlet(prior.g0 + tables_g, rng)
-        gibbs._home_step(data, state, stats, hyper, settings, rng)
+        gibbs.home_step(data, state, stats, hyper, settings, rng)
     if settings.prune and settings.variant == "exact":
         known = state.candidate_words if state.candidate_words is not None else state.word_mask
         state.word_mask = _home_word_mask(gibbs.naming_verdicts(data, state, hyper), known, n_known)
     elif settings.prune:
-        gibbs._prune(state, hyper, settings)
+        gibbs.prune(state, hyper, settings)
         state.word_mask[n_known:] = True
 
 
@@ -1266,13 +1283,13 @@ def _initial_state(data: gibbs.PreparedData, knowledge: Knowledge, settings: gib
         log_phi_v=knowledge.log_phi_visual.copy(), log_phi_w=knowledge.log_phi_words.copy(),
         word_mask=knowledge.word_mask.copy(),
     )
-    stats = gibbs._statistics(data, state, hyper)
+    stats = gibbs.sufficient_statistics(data, state, hyper)
     for name in ("visual", "words", "concepts", "regions_by_concept"):
         setattr(stats, name, np.zeros_like(getattr(stats, name)))  # new arrays: the sampler caches n^v
     if settings.variant == "reference":
-        gibbs._home_step_reference(data, state, stats, hyper, settings, rng)
+        gibbs.home_step_reference(data, state, stats, hyper, settings, rng)
     else:
-        gibbs._home_step(data, state, stats, hyper, settings, rng)
+        gibbs.home_step(data, state, stats, hyper, settings, rng)
     state.log_pi = np.full((1, L, K), -math.log(K))
     _init_new_words(state, n_known, np.zeros(L), hyper.delta_word)
     return state

@@ -323,6 +323,8 @@ class ExperimentConfig:
     iterations: Gibbs sweeps per fit.
     seed: the master seed (trial seeds, synthetic homes, position samples).
     jobs: parallel worker processes (results do not depend on it).
+    engine: ``local`` (worker processes) or ``ray`` (every run a Ray task, on this machine or
+        the cluster at ``address``; results do not depend on it).
     n_positions: positions sampled per name for A_p.
     experienced_homes, new_homes: override the home lists (names in the data); ``new_homes`` may
         also restrict the synthetic new homes.
@@ -348,6 +350,8 @@ class ExperimentConfig:
     seed: int = 0
     jobs: int = 1
     n_positions: int = 10
+    engine: str = "local"
+    address: str | None = None
     experienced_homes: tuple[str, ...] | None = None
     new_homes: tuple[str, ...] | None = None
     specific_home: str | None = None
@@ -370,6 +374,8 @@ class ExperimentConfig:
             raise ConfigurationError(f"language must be 'templates' or 'free', got {self.language!r}")
         if self.hyperparameters is not None and not isinstance(self.hyperparameters, TransferHyperparameters):
             raise ConfigurationError("hyperparameters must be a TransferHyperparameters instance")
+        if self.engine not in ("local", "ray"):
+            raise ConfigurationError(f"engine must be 'local' or 'ray', got {self.engine!r}")
         if self.settings is None:
             settings = DEFAULT_SETTINGS if self.experiment == "general" else DEFAULT_RATES
         else:
@@ -902,9 +908,47 @@ def _child_threads(threads: int) -> Iterator[None]:
                 os.environ[k] = v
 
 
+def _ray_run(spec: _DataSpec, settings: tuple[int, ...], ctx: _RunContext, key: RunKey) -> dict[str, Any]:
+    """One run in a Ray worker; the experiment's data is built once per worker process."""
+    global _WORKER, _WORKER_SOURCE
+    if _WORKER is None or _WORKER_SOURCE != (spec, settings):
+        _init_worker(spec, settings, ctx, 1)
+        _WORKER_SOURCE = (spec, settings)
+    return execute_run(_WORKER[0], ctx, key)
+
+
+_WORKER_SOURCE: tuple | None = None
+
+
+def _run_on_ray(pending: Sequence[RunKey], spec: _DataSpec, settings: tuple[int, ...], ctx: _RunContext,
+                address: str | None, on_result: Callable[[dict[str, Any]], None]) -> None:
+    """Every pending run as a Ray task (one CPU each); results are stored as they arrive."""
+    try:
+        import ray
+    except ImportError:
+        raise ConfigurationError("engine 'ray' needs Ray: pip install 'spco[ray]'") from None
+    if not ray.is_initialized():
+        ray.init(address=address, log_to_driver=False)
+    task = ray.remote(num_cpus=1, max_retries=2)(_ray_run)
+    spec_ref, ctx_ref = ray.put(spec), ray.put(ctx)
+    waiting = [task.remote(spec_ref, settings, ctx_ref, key) for key in pending]
+    try:
+        while waiting:
+            done, waiting = ray.wait(waiting, num_returns=1)
+            on_result(ray.get(done[0]))
+    except BaseException:
+        for ref in waiting:  # a stopped experiment leaves no run computing in the background
+            ray.cancel(ref, force=True)
+        raise
+
+
 def _run_pending(pending: Sequence[RunKey], data: ExperimentData, spec: _DataSpec,
                  settings: tuple[int, ...], ctx: _RunContext, jobs: int,
-                 on_result: Callable[[dict[str, Any]], None]) -> None:
+                 on_result: Callable[[dict[str, Any]], None], engine: str = "local",
+                 address: str | None = None) -> None:
+    if engine == "ray" and pending:
+        _run_on_ray(pending, spec, settings, ctx, address, on_result)
+        return
     if jobs == 1 or len(pending) <= 1:
         for key in pending:
             on_result(execute_run(data, ctx, key))
@@ -1348,7 +1392,8 @@ def run_experiment(
         bar.update(1)
 
     try:
-        _run_pending(pending, data, spec, settings, ctx, config.jobs, on_result)
+        _run_pending(pending, data, spec, settings, ctx, config.jobs, on_result, config.engine,
+                     config.address)
     except KeyboardInterrupt:
         bar.close()
         say(f"interrupted after {finished} run(s) of this session; they are saved in {runs_file}: "

@@ -1,16 +1,22 @@
 """The spatial-concept models and their Gibbs samplers.
 
 - :mod:`spco.model.hyperparameters` — the paper's hyperparameters and their validation;
-- :mod:`spco.model.random` — batched Dirichlet, NIW, CRT and categorical draws;
+- :mod:`spco.model.kernels` — the compiled kernels, one module each: random streams, normals,
+  gamma and Dirichlet, CRT, NIW, Gaussian densities, likelihoods (:mod:`spco.model.random`
+  re-exports them under their former names);
 - :mod:`spco.model.allocation` — concepts (HDP over homes) and regions (per concept);
 - :mod:`spco.model.observations` — positions (Gaussian–NIW), words and vision (hierarchical
   Dirichlet–multinomial);
 - :mod:`spco.model.pruning` — mutual-information word pruning;
 - :mod:`spco.model.gibbs` — state, sweeps (exact, reference, SpCoA) and the log joint;
+- :mod:`spco.model.shard` — a sweep as map (home shards' local steps) → reduce (summed
+  statistics) → global step; the engines of :mod:`spco.engines` run the shards in process or on Ray;
+- :mod:`spco.model.numba_cache` — where the compiled kernels are cached;
 - :mod:`spco.model.transfer` — the estimators :class:`SpCoTransfer` and :class:`SpCoA`;
 - :mod:`spco.model.io` — saving and loading fitted models.
 """
 
+import spco.model.numba_cache  # noqa: F401 - first: where Numba caches the kernels
 from spco.model.hyperparameters import SpCoAHyperparameters, TransferHyperparameters
 from spco.model.io import load_model, save_model
 from spco.model.parameters import ConceptParameters

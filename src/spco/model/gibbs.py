@@ -37,6 +37,7 @@ from scipy.optimize import linear_sum_assignment
 from spco.model import allocation
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.moves import concept_swap_step
+from spco.model.numba_cache import announce_compilation
 from spco.model.observations import GaussianRegions, HierarchicalMultinomial, NIWPrior
 from spco.model.pruning import NAME, NOT_A_NAME, colocation, judge_names, words_to_keep
 from spco.model.random import DimensionMajorCounts, dimension_major, dirichlet_log_density, log_dirichlet
@@ -195,6 +196,7 @@ def initialize(data: PreparedData, n_words: int, hyper: TransferHyperparameters,
     nearby samples, which words and vision then refine. Drawing θ from the prior or from counts of
     random concepts instead starts from a random partition that the chain does not leave.
     """
+    announce_compilation()
     L, K, E = hyper.n_concepts, hyper.n_regions, data.n_homes
     D, V = data.visual.shape[1], n_words
     concepts = rng.integers(0, L, size=data.n_samples)
@@ -837,3 +839,17 @@ def log_joint(data: PreparedData, state: GibbsState, hyper: TransferHyperparamet
     total += float(dirichlet_log_density(state.log_pi, np.full(K, hyper.beta / K)).sum())
     total += GaussianRegions.log_prior(state.means, state.covariances, niw_prior(data, hyper, settings))
     return total
+
+
+# ----------------------------------------------------------------------------- public step names
+# The per-home steps under public names, for :mod:`spco.model.shard` and for the callers outside
+# ``spco.model`` (adapting knowledge to a home): nothing outside the package calls a private one.
+
+local_step = _local_step
+sufficient_statistics = _statistics
+global_step = _global_step
+home_step = _home_step
+home_step_reference = _home_step_reference
+global_step_reference = _global_step_reference
+prune = _prune
+swap_labels = _swap_labels

@@ -64,9 +64,13 @@ def _match_labels(reference: np.ndarray, current: np.ndarray, n_labels: int) -> 
 def _masked_rows(log_p: np.ndarray, mask: np.ndarray) -> np.ndarray:
     """Probabilities from log-probabilities (rows of any scale), pruned words (mask False) set
     to 0 and rows renormalised in log space: never NaN, even if every kept entry underflows."""
-    kept = log_p if mask.all() or not mask.any() else np.where(mask, log_p, -np.inf)
+    allowed = np.ones(log_p.shape[-1], dtype=bool) if mask.all() or not mask.any() else mask
+    kept = np.where(allowed, log_p, -np.inf)
     top = kept.max(axis=-1, keepdims=True)
-    p = np.exp(kept - top)
+    p = np.exp(kept - np.where(np.isfinite(top), top, 0.0))  # (a row of -inf: no NaN from -inf − -inf)
+    total = p.sum(axis=-1, keepdims=True)
+    # a row with no finite kept entry (nothing known of it) is uniform over the kept words
+    p = np.where(total > 0, p, np.broadcast_to(allowed, p.shape).astype(np.float64))
     return p / p.sum(axis=-1, keepdims=True)
 
 

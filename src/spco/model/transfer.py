@@ -187,8 +187,12 @@ class SpatialConceptModel:
                                   position_scale=position_scale, map_centres=centres)
 
     # ------------------------------------------------------------------ fitting
-    def fit(self, corpus: Corpus) -> SpatialConceptModel:
+    def fit(self, corpus: Corpus, engine=None) -> SpatialConceptModel:
         """Learn from every home of ``corpus`` (their training samples) and return ``self``.
+
+        ``engine`` runs the homes' shards (:mod:`spco.engines`): ``None`` or ``"local"`` in this
+        process, one shard; ``"ray"`` on Ray actors; or an engine object such as
+        ``RayEngine(shards=4, address="auto")``.
 
         Sets ``parameters_`` (:class:`ConceptParameters`, metres: the average over the thinned
         sweeps of :func:`~spco.model.posterior.thinned_sweeps`, see :mod:`spco.model.posterior`),
@@ -203,26 +207,37 @@ class SpatialConceptModel:
         data = self._prepare(corpus, scale)
         start = time.perf_counter()
         state = gibbs.initialize(data, len(corpus.vocabulary), hyper, settings, rng)
-        trace = []
         averaged = set(thinned_sweeps(int(self.n_iterations)))
         average = ParameterAverage(data.homes, data.position_scale)
-        iterator = range(int(self.n_iterations))
+        added: set[int] = set()
         bar = None
         if self.progress:
             from tqdm.auto import tqdm
 
-            bar = tqdm(iterator, desc=f"{type(self).__name__} ({settings.variant})", unit="sweep",
-                       leave=False)
-            iterator = bar
-        for iteration in iterator:
-            # each sweep reports the log joint of the state it started from: the previous sweep's
-            previous = gibbs.sweep(data, state, hyper, settings, rng, swaps=gibbs.swaps_due(iteration))
-            if iteration > 0 and self.record_log_joint:
-                trace.append(previous)
-                if bar is not None:
-                    bar.set_postfix(log_joint=f"{previous:.4g}", refresh=False)
-            if iteration in averaged:
-                average.add(state)
+            bar = tqdm(total=int(self.n_iterations), desc=f"{type(self).__name__} ({settings.variant})",
+                       unit="sweep", leave=False)
+        from spco.engines import LocalEngine, make_engine
+
+        run = make_engine(engine) if isinstance(engine, str) else (engine or LocalEngine())
+        run = run.start(data, state, hyper, settings, rng)
+
+        def after_sweep(iteration: int, previous: float) -> None:
+            # a restarted engine repeats the sweeps since its checkpoint (the same chain): each
+            # averaged sweep is added once
+            if iteration in averaged and iteration not in added:
+                average.add(run.state())
+                added.add(iteration)
+            if bar is not None:
+                bar.update(1)
+                bar.set_postfix(log_joint=f"{previous:.4g}", refresh=False)
+
+        # each sweep reports the log joint of the state it started from: the previous sweep's
+        log_joints = run.fit(int(self.n_iterations), after_sweep)
+        trace = list(log_joints[1:]) if self.record_log_joint else []
+        state = run.state()
+        run.close()
+        if bar is not None:
+            bar.close()
         if self.record_log_joint:
             trace.append(gibbs.log_joint(data, state, hyper, settings))
         self.fit_seconds_ = time.perf_counter() - start

@@ -1,0 +1,109 @@
+"""The local engine: home shards in this process, and the driver loop every engine shares."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from spco.model import shard as shards_api
+from spco.model.gibbs import GibbsState, PreparedData, SamplerSettings
+from spco.model.hyperparameters import TransferHyperparameters
+from spco.model.shard import GlobalStep, HomeShard, SharedParameters
+
+
+class ShardedRun:
+    """A fit in progress: the driver's shared parameters and global step, and the shards.
+
+    Subclasses say where the shards live (:meth:`_start` and :meth:`call`). With ``share_rng``
+    (one in-process shard only) the shard draws from the driver's generator: the chain of
+    :func:`spco.model.gibbs.sweep`. Otherwise shard i draws from its own generator seeded from
+    the driver's (:func:`~spco.model.shard.shard_seeds`)."""
+
+    def __init__(self, data: PreparedData, state: GibbsState, hyper: TransferHyperparameters,
+                 settings: SamplerSettings, rng: np.random.Generator, n_shards: int,
+                 share_rng: bool = False) -> None:
+        if n_shards > 1 and not settings.hierarchical:
+            raise ValueError("the SpCoA sampler has no shared part to reduce: run it with one shard")
+        if share_rng and n_shards != 1:
+            raise ValueError("only one in-process shard can share the driver's random generator")
+        self.hyper, self.settings, self.rng = hyper, settings, rng
+        self.n_shards = n_shards
+        self.shared = SharedParameters.of(state)
+        self.global_step = GlobalStep(hyper, settings, rng)
+        self.bytes_sent = 0
+        parts = shards_api.split(data, state, n_shards)
+        generators = ([rng] if share_rng
+                      else [np.random.default_rng(s) for s in shards_api.shard_seeds(rng, n_shards)])
+        self._start(parts, generators)
+
+    def _start(self, parts: list[tuple[PreparedData, GibbsState]],
+               generators: list[np.random.Generator]) -> None:
+        """Start one shard per part, drawing from its generator."""
+        raise NotImplementedError
+
+    def call(self, method: str, *args) -> list:
+        """Run the :class:`~spco.model.shard.HomeShard` method on every shard; results in shard order."""
+        raise NotImplementedError
+
+    def sweep(self, iteration: int) -> float:
+        """Sweep number ``iteration`` (0-based); returns the log joint of the state it started from."""
+        log_joint, self.shared = shards_api.sweep(self.call, self.global_step, self.shared, iteration,
+                                                  self.shared.word_mask)
+        return log_joint
+
+    def fit(self, n_iterations: int, after_sweep=None) -> np.ndarray:
+        """Run sweeps 0..n_iterations − 1; returns their log joints (entry i: the state sweep i
+        started from). ``after_sweep(iteration, log_joint)`` (optional) is called after each sweep
+        (a restarted engine calls it again for the sweeps it repeats)."""
+        trace = np.empty(n_iterations)
+        for iteration in range(n_iterations):
+            trace[iteration] = self.sweep(iteration)
+            if after_sweep is not None:
+                after_sweep(iteration, trace[iteration])
+        return trace
+
+    def states(self) -> list[GibbsState]:
+        """Every shard's state (copies where the shards live elsewhere)."""
+        raise NotImplementedError
+
+    def state(self) -> GibbsState:
+        """The shards' states joined: the state of every home, with the word mask of the last
+        sweep's pruning (the shards receive it with the next local step)."""
+        state = shards_api.join_states(self.states())
+        state.word_mask = self.shared.word_mask
+        return state
+
+    def close(self) -> None:
+        """Free the shards."""
+
+
+class LocalRun(ShardedRun):
+    """Shards as :class:`~spco.model.shard.HomeShard` objects in this process."""
+
+    def _start(self, parts, generators) -> None:
+        self.shards = [HomeShard(d, s, self.hyper, self.settings, g) for (d, s), g in zip(parts, generators,
+                                                                                            strict=True)]
+
+    def call(self, method: str, *args) -> list:
+        return [getattr(s, method)(*args) for s in self.shards]
+
+    def states(self) -> list[GibbsState]:
+        return [s.state for s in self.shards]
+
+
+class LocalEngine:
+    """Shards in this process. ``LocalEngine(1)`` is the default fit: one shard sharing the
+    driver's generator (``share_rng``), the chain of :func:`spco.model.gibbs.sweep`; more shards
+    (or ``share_rng=False``) give the chain the Ray engine gives with as many shards."""
+
+    name = "local"
+
+    def __init__(self, shards: int = 1, share_rng: bool | None = None) -> None:
+        if shards < 1:
+            raise ValueError(f"shards must be at least 1, got {shards}")
+        self.shards = shards
+        self.share_rng = shards == 1 if share_rng is None else share_rng
+
+    def start(self, data: PreparedData, state: GibbsState, hyper: TransferHyperparameters,
+              settings: SamplerSettings, rng: np.random.Generator) -> ShardedRun:
+        """Split ``data`` and ``state`` into the shards and return the run."""
+        return LocalRun(data, state, hyper, settings, rng, min(self.shards, data.n_homes), self.share_rng)

@@ -1,0 +1,206 @@
+"""The Ray engine: home shards as Ray actors that keep their homes' data and state between sweeps.
+
+Only statistics (table or pooled counts, (L, D) + (L, V) + (L,) per shard and step) and the shared
+parameters travel; the driver adds the statistics up and takes the global step
+(:mod:`spco.model.shard`). Every ``checkpoint_every`` sweeps the driver keeps a checkpoint (the
+shards' states and random generators, its own generator and the shared parameters); when an actor
+dies, every shard is restarted from the last checkpoint and the sweeps since are run again, so
+the fit ends where a fault-free fit ends.
+
+Needs Ray (``pip install "spco[ray]"``); ``address`` joins a running cluster (``ray start``),
+otherwise a local Ray instance is started.
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass, fields
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from spco.engines.local import ShardedRun
+from spco.model.gibbs import GibbsState, PreparedData, SamplerSettings
+from spco.model.hyperparameters import TransferHyperparameters
+from spco.model.shard import HomeShard, SharedParameters
+
+
+def _require_ray():
+    try:
+        import ray
+    except ImportError as error:  # pragma: no cover - depends on the installation
+        raise ImportError('the Ray engine needs Ray: pip install "spco[ray]"') from error
+    return ray
+
+
+class _ShardActor:
+    """A :class:`~spco.model.shard.HomeShard` in a Ray actor (its data and state stay there)."""
+
+    def __init__(self, data: PreparedData, state: GibbsState, hyper: TransferHyperparameters,
+                 settings: SamplerSettings, rng_state: dict, threads: int) -> None:
+        import numba
+
+        numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))  # results do not change
+        rng = np.random.default_rng()
+        rng.bit_generator.state = rng_state
+        self.shard = HomeShard(_writable_data(data), _writable_state(state), hyper, settings, rng)
+
+    def call(self, method: str, *args) -> Any:
+        # arrays from Ray's object store are read-only: the kernels write into the state's
+        # arrays, and a read-only argument would compile another specialisation of each kernel
+        args = tuple(_writable_shared(a) if isinstance(a, SharedParameters) else a for a in args)
+        return getattr(self.shard, method)(*args)
+
+    def snapshot(self) -> tuple[GibbsState, dict]:
+        """The shard's state (without the count cache, which is rebuilt exactly) and generator."""
+        state = copy.copy(self.shard.state)
+        state.visual_cache = None
+        return state, self.shard.rng.bit_generator.state
+
+    def memory(self) -> int:
+        """Peak resident memory of the actor's process, bytes."""
+        import resource
+        import sys
+
+        peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+        return int(peak if sys.platform == "darwin" else peak * 1024)
+
+
+def _writable(value):
+    if isinstance(value, np.ndarray) and not value.flags.writeable:
+        return value.copy()
+    return value
+
+
+def _writable_data(data: PreparedData) -> PreparedData:
+    def csr(m: sp.csr_array) -> sp.csr_array:
+        return sp.csr_array((_writable(m.data), _writable(m.indices), _writable(m.indptr)), shape=m.shape)
+
+    return PreparedData(positions=_writable(data.positions), homes=_writable(data.homes),
+                        visual=csr(data.visual), words=csr(data.words), n_homes=data.n_homes,
+                        offsets=_writable(data.offsets), position_scale=data.position_scale,
+                        map_centres=_writable(data.map_centres))
+
+
+def _writable_state(state: GibbsState) -> GibbsState:
+    for f in fields(state):
+        setattr(state, f.name, _writable(getattr(state, f.name)))
+    return state
+
+
+def _writable_shared(shared: SharedParameters) -> SharedParameters:
+    return SharedParameters(*(_writable(getattr(shared, f.name)) for f in fields(shared)))
+
+
+@dataclass
+class _Checkpoint:
+    iteration: int
+    shards: list[tuple[GibbsState, dict]]
+    driver_rng: dict
+    shared: SharedParameters
+    trace: np.ndarray
+
+
+class RayRun(ShardedRun):
+    """A fit whose shards are Ray actors."""
+
+    def __init__(self, *args, checkpoint_every: int = 10, **kwargs) -> None:
+        self.checkpoint_every = max(1, int(checkpoint_every))
+        self.restarts = 0
+        super().__init__(*args, **kwargs)
+
+    def _start(self, parts, generators) -> None:
+        self.ray = _require_ray()
+        self.data_parts = [d for d, _ in parts]
+        self._launch([(s, g.bit_generator.state) for (_, s), g in zip(parts, generators, strict=True)])
+
+    def _launch(self, snapshots: list[tuple[GibbsState, dict]]) -> None:
+        ray = self.ray
+        cpus = ray.cluster_resources().get("CPU", 1.0)
+        actor = ray.remote(num_cpus=min(1.0, cpus / len(snapshots)), max_restarts=0)(_ShardActor)
+        hyper, settings = ray.put(self.hyper), ray.put(self.settings)
+        if not hasattr(self, "data_refs"):  # the homes' data is put in the object store once
+            self.data_refs = [ray.put(d) for d in self.data_parts]
+            del self.data_parts
+        threads = max(1, int(cpus // len(snapshots)))  # Numba threads per shard
+        self.actors = [actor.remote(d, s, hyper, settings, g, threads)
+                       for d, (s, g) in zip(self.data_refs, snapshots, strict=True)]
+
+    def call(self, method: str, *args) -> list:
+        ray = self.ray
+        sent = [ray.put(a) if isinstance(a, SharedParameters) else a for a in args]
+        self.bytes_sent += sum(a.nbytes for a in args if isinstance(a, SharedParameters)) * len(self.actors)
+        return ray.get([a.call.remote(method, *sent) for a in self.actors])
+
+    def states(self) -> list[GibbsState]:
+        return [s for s, _ in self.ray.get([a.snapshot.remote() for a in self.actors])]
+
+    def memory(self) -> list[int]:
+        """Peak resident memory of every shard's process, bytes."""
+        return self.ray.get([a.memory.remote() for a in self.actors])
+
+    def _checkpoint(self, iteration: int, trace: np.ndarray) -> _Checkpoint:
+        return _Checkpoint(iteration, self.ray.get([a.snapshot.remote() for a in self.actors]),
+                           copy.deepcopy(self.rng.bit_generator.state), self.shared, trace[:iteration].copy())
+
+    def _restore(self, checkpoint: _Checkpoint, trace: np.ndarray) -> int:
+        for a in self.actors:
+            try:
+                self.ray.kill(a)
+            except Exception:  # already dead
+                pass
+        self.restarts += 1
+        self.rng.bit_generator.state = copy.deepcopy(checkpoint.driver_rng)
+        self.shared = checkpoint.shared
+        trace[:checkpoint.iteration] = checkpoint.trace
+        self._launch(checkpoint.shards)
+        return checkpoint.iteration
+
+    def fit(self, n_iterations: int, after_sweep=None) -> np.ndarray:
+        """As :meth:`ShardedRun.fit`, restarting every shard from the last checkpoint when an actor
+        dies (at most 3 restarts without progress past a checkpoint)."""
+        errors = (self.ray.exceptions.RayActorError, self.ray.exceptions.ActorUnavailableError)
+        trace = np.empty(n_iterations)
+        iteration, checkpoint, failures = 0, None, 0
+        while iteration < n_iterations:
+            try:
+                if iteration % self.checkpoint_every == 0 and (checkpoint is None
+                                                               or checkpoint.iteration != iteration):
+                    checkpoint = self._checkpoint(iteration, trace)
+                    failures = 0
+                trace[iteration] = self.sweep(iteration)
+            except errors:
+                failures += 1
+                if checkpoint is None or failures > 3:
+                    raise
+                iteration = self._restore(checkpoint, trace)
+                continue
+            if after_sweep is not None:
+                after_sweep(iteration, trace[iteration])
+            iteration += 1
+        return trace
+
+    def close(self) -> None:
+        for a in self.actors:
+            self.ray.kill(a)
+
+
+class RayEngine:
+    """Shards as Ray actors: ``RayEngine(shards=2, address=None, checkpoint_every=10)``."""
+
+    name = "ray"
+
+    def __init__(self, shards: int = 2, address: str | None = None, checkpoint_every: int = 10) -> None:
+        if shards < 1:
+            raise ValueError(f"shards must be at least 1, got {shards}")
+        self.shards, self.address, self.checkpoint_every = shards, address, checkpoint_every
+
+    def start(self, data: PreparedData, state: GibbsState, hyper: TransferHyperparameters,
+              settings: SamplerSettings, rng: np.random.Generator) -> RayRun:
+        """Start Ray if needed (joining ``address``), split the homes and start the actors."""
+        ray = _require_ray()
+        if not ray.is_initialized():
+            ray.init(address=self.address, log_to_driver=False)
+        return RayRun(data, state, hyper, settings, rng, min(self.shards, data.n_homes),
+                      checkpoint_every=self.checkpoint_every)

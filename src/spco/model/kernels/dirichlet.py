@@ -1,0 +1,183 @@
+"""Dirichlet rows in log space: :func:`log_dirichlet`, :func:`log_dirichlet_hierarchical`.
+
+Each row is one :func:`~spco.model.kernels.gamma._log_gamma_row` pass normalised; small batches run
+on one thread, many short rows (π over K = 20 regions, θ^w over a few words) as one flat batch.
+:func:`dirichlet_log_density` evaluates the density of log-probability rows.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+from spco.model.kernels.dispatch import _PARALLEL_MIN, _call_vectorised
+from spco.model.kernels.gamma import _SHORT_ROW, RowScratch, _log_gamma_row, _row_scratch
+from spco.model.kernels.special import _scaled_exp
+
+
+@njit(parallel=True, cache=True, error_model="numpy")
+def _dirichlet_kernel(shape: np.ndarray, seed: np.uint64, out: np.ndarray) -> None:
+    for r in prange(shape.shape[0]):
+        _log_gamma_row(shape[r], out[r], seed, r, True, _row_scratch(shape.shape[1]))
+
+
+@njit(cache=True, error_model="numpy")
+def _dirichlet_serial(shape: np.ndarray, seed: np.uint64, out: np.ndarray) -> None:
+    # _dirichlet_kernel on one thread, for small batches: the same draws, except for many short
+    # rows (see _short_rows)
+    if _short_rows(shape.shape[0], shape.shape[1]):
+        _dirichlet_short_rows(shape, seed, out)
+        return
+    scratch = _row_scratch(shape.shape[1])
+    for r in range(shape.shape[0]):
+        _log_gamma_row(shape[r], out[r], seed, r, True, scratch)
+
+
+@njit(cache=True, inline="always")
+def _short_rows(n_rows: int, width: int) -> bool:
+    """Whether a batch of Dirichlet rows is drawn as one flat batch of gamma variates
+    (:func:`_dirichlet_short_rows`): rows short enough for :func:`_log_gamma_row` to take them one
+    entry at a time, and enough of them for the vectorised passes to pay."""
+    return width <= _SHORT_ROW and n_rows * width >= 4 * _SHORT_ROW
+
+
+@njit(cache=True, error_model="numpy")
+def _dirichlet_short_rows(shape: np.ndarray, seed: np.uint64, out: np.ndarray) -> None:
+    """log Dirichlet rows of ``shape`` (R, W) into ``out``, for many short rows (π over K = 20
+    regions, θ^w over a few words): the gamma variates of all rows in one vectorised pass of
+    :func:`_log_gamma_row` (its eight streams of ``seed``), then each row normalised by a
+    log-sum-exp (a row of zero shapes stays −inf)."""
+    n_rows, width = shape.shape
+    size = n_rows * width
+    _log_gamma_row(shape.reshape(-1), out.reshape(-1), seed, 0, False, _row_scratch(size))
+    tops = np.empty(n_rows)
+    shifted = np.empty((n_rows, width))
+    for r in range(n_rows):
+        top = -np.inf
+        for j in range(width):
+            top = max(top, out[r, j])
+        tops[r] = top
+        for j in range(width):
+            shifted[r, j] = out[r, j] - top if top > -np.inf else -np.inf
+    weights = np.empty((n_rows, width))
+    _scaled_exp(shifted.reshape(-1), 1.0, weights.reshape(-1), np.empty(size))
+    for r in range(n_rows):
+        if tops[r] == -np.inf:
+            continue
+        acc = 0.0
+        for j in range(width):
+            acc += weights[r, j]
+        log_total = tops[r] + np.log(acc)
+        for j in range(width):
+            out[r, j] -= log_total
+
+
+@njit(parallel=True, cache=True, error_model="numpy")
+def _hierarchical_dirichlet_kernel(base: np.ndarray, counts: np.ndarray, seed: np.uint64,
+                                   out: np.ndarray) -> None:
+    for i in prange(counts.shape[0] * counts.shape[1]):
+        _hierarchical_dirichlet_row(base, counts, seed, out, i, _row_scratch(counts.shape[2]))
+
+
+@njit(cache=True, error_model="numpy")
+def _hierarchical_dirichlet_serial(base: np.ndarray, counts: np.ndarray, seed: np.uint64,
+                                   out: np.ndarray) -> None:
+    # _hierarchical_dirichlet_kernel on one thread, for small batches: the same draws, except
+    # for many short rows (see _short_rows)
+    rows, width = counts.shape[0] * counts.shape[1], counts.shape[2]
+    if _short_rows(rows, width):
+        shape = np.empty((rows, width))
+        n_concepts = counts.shape[1]
+        for i in range(rows):
+            g, r = i // n_concepts, i % n_concepts
+            for k in range(width):
+                shape[i, k] = base[r, k] + counts[g, r, k]
+        _dirichlet_short_rows(shape, seed, out.reshape(rows, width))
+        return
+    scratch = _row_scratch(counts.shape[2])
+    for i in range(counts.shape[0] * counts.shape[1]):
+        _hierarchical_dirichlet_row(base, counts, seed, out, i, scratch)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _hierarchical_dirichlet_row(base: np.ndarray, counts: np.ndarray, seed: np.uint64, out: np.ndarray,
+                                i: int, scratch: RowScratch) -> None:
+    rows, width = counts.shape[1], counts.shape[2]
+    g, r = i // rows, i % rows
+    shape = scratch[1][6, :width]  # (rows 0-5 are the row function's own scratch)
+    for k in range(width):
+        shape[k] = base[r, k] + counts[g, r, k]
+    _log_gamma_row(shape, out[g, r], seed, i, True, scratch)
+
+
+def log_dirichlet(alpha: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Draw Dirichlet vectors along the last axis and return their logarithms.
+
+    Each row is a set of gamma variates (compiled Marsaglia–Tsang, one random stream per row,
+    rows in parallel) divided by their sum. A variate that would underflow (tiny concentrations:
+    α^w = 0.01, δ^w φ^w ≪ 1) is kept as its logarithm, so every entry with α > 0 gets a finite
+    log-probability.
+
+    Parameters
+    ----------
+    alpha: (..., D) non-negative concentrations; each row needs at least one positive entry.
+        Entries equal to 0 give probability exactly 0 (log = -inf).
+
+    Returns
+    -------
+    (..., D) log-probabilities; ``exp`` of each row sums to 1.
+    """
+    alpha = np.asarray(alpha, dtype=np.float64)
+    if alpha.shape[-1] == 0:  # no dimension at all (e.g. no word was ever taught)
+        return np.zeros(alpha.shape)
+    rows = np.ascontiguousarray(alpha).reshape(-1, alpha.shape[-1])
+    out = np.empty(rows.shape)
+    seed = np.uint64(rng.integers(0, 2**63 - 1, dtype=np.int64))
+    kernel = _dirichlet_kernel if rows.size >= _PARALLEL_MIN else _dirichlet_serial
+    _call_vectorised(kernel, (rows, seed, out))
+    return out.reshape(alpha.shape)
+
+
+def log_dirichlet_hierarchical(base: np.ndarray, counts: np.ndarray, rng: np.random.Generator,
+                               out: np.ndarray | None = None) -> np.ndarray:
+    """log θ_{g,r} ~ Dir(base_r + counts_{g,r}) for every group g and row r, without forming the
+    concentrations: the draw of θ_{e,l} ~ Dir(δ φ_l + n_{e,l}) for all homes at once.
+
+    Parameters
+    ----------
+    base: (R, D) non-negative concentrations shared by the groups (δ φ).
+    counts: (G, R, D) non-negative integer counts (n).
+    out: optional (G, R, D) float64 C-contiguous array to write into (e.g. the previous draw).
+
+    Returns
+    -------
+    (G, R, D) log-probabilities, the same as :func:`log_dirichlet` of ``base + counts`` in
+    distribution.
+    """
+    counts = np.ascontiguousarray(counts, dtype=np.int64)
+    base = np.ascontiguousarray(np.broadcast_to(base, counts.shape[1:]), dtype=np.float64)
+    if counts.shape[-1] == 0:
+        return np.zeros(counts.shape)
+    if out is None or out.shape != counts.shape or out.dtype != np.float64 or not out.flags.c_contiguous:
+        out = np.empty(counts.shape)
+    seed = np.uint64(rng.integers(0, 2**63 - 1, dtype=np.int64))
+    parallel = counts.size >= _PARALLEL_MIN
+    kernel = _hierarchical_dirichlet_kernel if parallel else _hierarchical_dirichlet_serial
+    _call_vectorised(kernel, (base, counts, seed, out))
+    return out
+
+
+def dirichlet(alpha: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Draw Dirichlet vectors along the last axis (probabilities, see :func:`log_dirichlet`)."""
+    return np.exp(log_dirichlet(alpha, rng))
+
+
+def dirichlet_log_density(log_p: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+    """log Dir(p | α) of each row, given log p (shape (..., D)); entries with α = 0 are skipped."""
+    from scipy.special import gammaln
+
+    alpha = np.broadcast_to(alpha, log_p.shape)
+    active = alpha > 0
+    term = np.where(active, (alpha - 1.0) * np.where(active, log_p, 0.0), 0.0)
+    return (gammaln(alpha.sum(-1)) - np.where(active, gammaln(np.where(active, alpha, 1.0)), 0.0).sum(-1)
+            + term.sum(-1))

@@ -1,0 +1,68 @@
+"""How the kernels are called: the one-thread threshold, the SLP-vectorised compilation, and
+the CSR arrays in the dtypes the kernels take.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: Entries below which a batch of draws runs on one thread: waking Numba's worker threads costs
+#: ~60–90 µs, more than such a batch takes.
+_PARALLEL_MIN = 32_768
+
+
+#: (kernel, argument kinds) already compiled by :func:`_call_vectorised`: later calls go straight
+#: to the kernel (``numba.typeof`` of every argument costs ~12 µs per array).
+_VECTORISED_READY: set = set()
+
+
+def _argument_kind(value) -> tuple:
+    """What decides Numba's type of an argument: for arrays dtype, dimensions, layout, whether
+    writeable and aligned; for scalars their Python type."""
+    if isinstance(value, np.ndarray):
+        flags = value.flags
+        return (value.dtype.str, value.ndim, flags.c_contiguous, flags.f_contiguous, flags.writeable,
+                flags.aligned)
+    return (type(value),)
+
+
+def _call_vectorised(kernel, args: tuple):
+    """Call a compiled kernel whose code is written for LLVM's SLP vectoriser (independent scalar
+    accumulators over adjacent memory), compiling it first with that vectoriser switched on.
+
+    Numba leaves the SLP vectoriser off by default because it has miscompiled some code
+    (numba#8852); it is switched on here only while compiling the kernels passed in, whose
+    results the tests compare with NumPy. Without it the same code runs, at scalar speed. A
+    kernel already compiled (or loaded from Numba's cache) for these argument types is called
+    directly."""
+    key = (kernel, tuple(_argument_kind(a) for a in args))
+    if key not in _VECTORISED_READY:
+        from numba import typeof
+        from numba.core import config
+
+        signature = tuple(typeof(a) for a in args)
+        if signature not in kernel.signatures:
+            previous = config.SLP_VECTORIZE
+            config.SLP_VECTORIZE = 1
+            try:
+                kernel.compile(signature)
+            finally:
+                config.SLP_VECTORIZE = previous
+        _VECTORISED_READY.add(key)
+    return kernel(*args)
+
+
+def _as(array: np.ndarray, dtype: type) -> np.ndarray:
+    """``array`` as a contiguous array of ``dtype``, without a copy when it already is one."""
+    return np.ascontiguousarray(array, dtype=dtype)
+
+
+def _index_array(indices: np.ndarray) -> np.ndarray:
+    """CSR column indices as the kernels take them: int32 kept as it is, anything else int64."""
+    return indices if indices.dtype == np.int32 and indices.flags.c_contiguous else _as(indices, np.int64)
+
+
+def _value_array(values: np.ndarray) -> np.ndarray:
+    """CSR values as the kernels take them: float32 kept as it is (:func:`stack_counts`),
+    anything else float64. The kernels multiply in float64, so both give the same results."""
+    return values if values.dtype == np.float32 and values.flags.c_contiguous else _as(values, np.float64)

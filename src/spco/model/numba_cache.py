@@ -1,0 +1,86 @@
+"""Where Numba keeps spco's compiled kernels, and the notice shown while they compile.
+
+The kernels are compiled on first use (about a minute on 2 cores) and cached on disk. The cache
+lives in ``$SPCO_CACHE_DIR`` (default ``~/.cache/spco``, or ``$XDG_CACHE_HOME/spco``) under a
+name made of a digest of the kernels' source files (``numba-<digest>``), not in the package's
+``__pycache__``:
+
+- a kernel inlines the kernels it calls, but Numba checks only the calling file's time stamp, so
+  a change in ``kernels/normal.py`` would leave the already compiled gamma kernels with the old
+  normal; a new digest is a new, empty cache;
+- a new virtual environment or ``pip install -e`` of the same sources finds the cache of the
+  previous one.
+
+``NUMBA_CACHE_DIR``, when set, is respected as it is. Importing this module (``spco.model`` does,
+before any kernel) configures Numba.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import sys
+from pathlib import Path
+
+import numba
+
+#: The measured first compilation of every kernel a fit and an adaptation use (``spco demo`` in a
+#: fresh virtual environment on the 2-core development machine; see the README).
+COMPILE_SECONDS_ESTIMATE = 60
+
+_MODEL_DIR = Path(__file__).resolve().parent
+
+
+def kernel_sources() -> list[Path]:
+    """The source files that hold compiled kernels."""
+    return sorted([*(_MODEL_DIR / "kernels").glob("*.py"), _MODEL_DIR / "moves.py"])
+
+
+def source_digest() -> str:
+    """A digest of the kernels' sources (16 hex digits)."""
+    digest = hashlib.sha256()
+    for path in kernel_sources():
+        digest.update(path.name.encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:16]
+
+
+def cache_dir() -> Path:
+    """The directory of this source version's compiled kernels."""
+    base = os.environ.get("SPCO_CACHE_DIR")
+    if not base:
+        base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "spco"
+    return Path(base) / f"numba-{source_digest()}"
+
+
+def configure() -> None:
+    """Point Numba's cache at :func:`cache_dir` (unless ``NUMBA_CACHE_DIR`` is set or the
+    directory cannot be created, when Numba's default next to the sources is used)."""
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        return
+    path = cache_dir()
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        return
+    numba.config.CACHE_DIR = str(path)
+
+
+_announced = False
+
+
+def announce_compilation() -> None:
+    """Say on stderr, once per process, that the kernels are being compiled, when the cache holds
+    none yet (the first run of these sources)."""
+    global _announced
+    if _announced:
+        return
+    _announced = True
+    directory = Path(numba.config.CACHE_DIR) if numba.config.CACHE_DIR else None
+    if directory is None or any(directory.rglob("*.nbi")):
+        return
+    print(f"spco: compiling the sampler's kernels for this machine, once: about {COMPILE_SECONDS_ESTIMATE} s "
+          f"(cached in {directory})", file=sys.stderr, flush=True)
+
+
+configure()

@@ -1,0 +1,332 @@
+"""A sweep as map → reduce → global step: home shards, the statistics they send, the global step.
+
+A :class:`HomeShard` holds some homes' data and sampler state. One sweep is
+
+1. **map** — every shard's :meth:`HomeShard.local_step` draws its samples' concepts and regions and
+   counts their statistics (kept in the shard);
+2. **reduce** — the shards send what the shared parameters need, summed over their homes:
+   CRT table counts (:meth:`HomeShard.tables`, exact sampler) or pooled counts
+   (:meth:`HomeShard.pooled_counts`, the authors' sampler), (L, D), (L, V) and (L,) arrays whose
+   size does not grow with the homes; the driver adds them up;
+3. **global step** — :class:`GlobalStep` draws φ^v, φ^w and G_0 from the sums
+   (:class:`SharedParameters`), which every shard then receives in :meth:`HomeShard.home_step`
+   (θ, G_e, π, μ, Σ of its homes, label swaps, and the word-pruning mask).
+4. **naming rule** (exact sampler with pruning) — every shard counts how often pairs of each word's
+   uses fall in the same region of its homes (:meth:`HomeShard.colocation`, three (V,) arrays that
+   add up over homes); the driver sums them and judges which words are names
+   (:func:`spco.model.pruning.judge_names`): the mask sent with the next local step.
+
+Only statistics and shared parameters travel, so shards can live in other processes or machines
+(:mod:`spco.engines`). Each shard draws from its own random generator and the driver from its
+own; with one in-process shard that shares the driver's generator, the chain is the one of
+:func:`spco.model.gibbs.sweep` draw for draw (``tests/test_same_chain.py``). With several
+shards the chain depends on the seed and the number of shards, not on the engine that runs them.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from spco.model import gibbs
+from spco.model.gibbs import GibbsState, PreparedData, SamplerSettings
+from spco.model.hyperparameters import TransferHyperparameters
+from spco.model.observations import HierarchicalMultinomial
+from spco.model.pruning import NOT_A_NAME, Colocation, colocation, judge_names
+from spco.model.random import log_dirichlet, sample_crt
+
+#: What a shard's :meth:`HomeShard.tables` can count.
+TABLE_KINDS = ("visual", "words", "concepts")
+
+
+@dataclass
+class SharedParameters:
+    """The parameters every home shares (log-probabilities): φ^v (L, D), φ^w (L, V), G_0 (L,), and
+    the word-pruning mask (V,) bool."""
+
+    log_phi_v: np.ndarray
+    log_phi_w: np.ndarray
+    log_g0: np.ndarray
+    word_mask: np.ndarray
+
+    @classmethod
+    def of(cls, state: GibbsState) -> SharedParameters:
+        """The shared parameters held in ``state``."""
+        return cls(state.log_phi_v, state.log_phi_w, state.log_g0, state.word_mask)
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of the arrays (what a broadcast sends)."""
+        return sum(a.nbytes for a in (self.log_phi_v, self.log_phi_w, self.log_g0, self.word_mask))
+
+
+@dataclass
+class PooledCounts:
+    """The authors' sampler's statistics of a shard, summed over its homes: visual (L, D) and word
+    (L, V) counts per concept, concept counts (L,)."""
+
+    visual: np.ndarray
+    words: np.ndarray
+    concepts: np.ndarray
+
+    def __add__(self, other: PooledCounts) -> PooledCounts:
+        return PooledCounts(self.visual + other.visual, self.words + other.words,
+                            self.concepts + other.concepts)
+
+
+@dataclass
+class HomeStepResult:
+    """What a shard reports after its home step: the new word mask (V,) (``None`` without
+    pruning) and, for the SpCoA sampler (one shard), the shared part it exports."""
+
+    word_mask: np.ndarray | None
+    shared: SharedParameters | None = None
+
+
+class HomeShard:
+    """Some homes' data and sampler state, and the steps that touch only them.
+
+    Parameters
+    ----------
+    data:
+        The shard's homes (:class:`~spco.model.gibbs.PreparedData`, home indices 0..E_s − 1).
+    state:
+        Their state (:class:`~spco.model.gibbs.GibbsState`, arrays over the shard's homes and
+        samples), holding a copy of the shared parameters it last received.
+    hyper, settings:
+        The model's hyperparameters and sampler settings.
+    rng:
+        The shard's random generator (the driver's own with one in-process shard).
+    """
+
+    def __init__(self, data: PreparedData, state: GibbsState, hyper: TransferHyperparameters,
+                 settings: SamplerSettings, rng: np.random.Generator) -> None:
+        self.data, self.state, self.hyper, self.settings, self.rng = data, state, hyper, settings, rng
+        self.stats: gibbs.Statistics | None = None
+
+    @property
+    def n_homes(self) -> int:
+        """Homes in this shard."""
+        return self.data.n_homes
+
+    def local_step(self, word_mask: np.ndarray | None = None) -> float:
+        """Draw every sample's concept and region and count the statistics (kept in the shard).
+
+        ``word_mask`` (V,) is the pruning decision of the previous sweep (``None``: unchanged).
+        Returns this shard's part of log p(data, C, R | parameters) for the state it started from."""
+        if word_mask is not None:
+            self.state.word_mask = word_mask
+        log_joint = gibbs.local_step(self.data, self.state, self.settings, self.rng)
+        self.stats = gibbs.sufficient_statistics(self.data, self.state, self.hyper)
+        return log_joint
+
+    def tables(self, kind: str) -> np.ndarray:
+        """CRT table counts of ``kind`` (``visual`` (L, D), ``words`` (L, V), ``concepts`` (L,)),
+        summed over the shard's homes, given the shared parameters the shard holds."""
+        stats, state, hyper = self._stats(), self.state, self.hyper
+        if kind == "visual":
+            return HierarchicalMultinomial.sample_tables(stats.visual, state.log_phi_v, hyper.delta_visual,
+                                                         self.rng)
+        if kind == "words":
+            return HierarchicalMultinomial.sample_tables(stats.words, state.log_phi_w, hyper.delta_word,
+                                                         self.rng)
+        if kind == "concepts":
+            concentration = hyper.gamma * np.exp(state.log_g0)[None, :]
+            return sample_crt(stats.concepts, concentration, self.rng).sum(axis=0)
+        raise ValueError(f"unknown table kind {kind!r}; choose one of {TABLE_KINDS}")
+
+    def pooled_counts(self) -> PooledCounts:
+        """The shard's visual, word and concept counts summed over its homes (authors' sampler)."""
+        stats = self._stats()
+        return PooledCounts(stats.visual.sum(0), stats.words.sum(0), stats.concepts.sum(0))
+
+    def home_step(self, shared: SharedParameters | None, swaps: bool = False,
+                  prune: bool = False) -> HomeStepResult:
+        """Receive the new shared parameters (``None``: keep them), then draw θ, G_e, π, μ, Σ of
+        the shard's homes (and the label swaps if ``swaps``); with ``prune``, re-decide the
+        word mask from the shared parameters and return it."""
+        data, state, hyper, settings, rng = self.data, self.state, self.hyper, self.settings, self.rng
+        stats = self._stats()
+        if shared is not None:
+            self.receive(shared)
+        if settings.variant == "reference":
+            gibbs.home_step_reference(data, state, stats, hyper, settings, rng)
+        else:
+            gibbs.home_step(data, state, stats, hyper, settings, rng)
+            if swaps and settings.hierarchical and data.n_homes > 1:
+                gibbs.swap_labels(data, state, stats, hyper, settings, rng)
+        if prune and not uses_naming_rule(settings):  # (the naming rule is judged over all shards)
+            gibbs.prune(state, hyper, settings)
+        exported = None if settings.hierarchical else SharedParameters.of(state)
+        return HomeStepResult(state.word_mask if prune else None, exported)
+
+    def receive(self, shared: SharedParameters, prune: bool = False) -> HomeStepResult:
+        """Take the new shared parameters; with ``prune``, re-decide the word mask from them."""
+        self.state.log_phi_v, self.state.log_phi_w = shared.log_phi_v, shared.log_phi_w
+        self.state.log_g0, self.state.word_mask = shared.log_g0, shared.word_mask
+        if prune:
+            gibbs.prune(self.state, self.hyper, self.settings)
+        return HomeStepResult(self.state.word_mask if prune else None)
+
+    def colocation(self) -> Colocation:
+        """The naming rule's statistics of the shard's homes on their current regions: pairs of each
+        word's uses in one home, those in one region, and those expected there by chance, (V,) each
+        (they add up over shards)."""
+        data = self.data
+        return colocation(data.words, data.homes, self.state.regions, data.n_homes, self.hyper.n_regions)
+
+    def _stats(self) -> gibbs.Statistics:
+        if self.stats is None:
+            raise RuntimeError("HomeShard: call local_step() before this step")
+        return self.stats
+
+
+class GlobalStep:
+    """The driver's step: the shared parameters from the shards' summed statistics.
+
+    ``call(method, *args)`` runs a :class:`HomeShard` method on every shard and returns the
+    results in shard order (in process, or on Ray actors); the sums are taken in shard order, so
+    the result does not depend on where the shards run."""
+
+    def __init__(self, hyper: TransferHyperparameters, settings: SamplerSettings,
+                 rng: np.random.Generator) -> None:
+        self.hyper, self.settings, self.rng = hyper, settings, rng
+        self.bytes_received = 0
+
+    def run(self, call, shared: SharedParameters) -> SharedParameters:
+        """New shared parameters given the current ones and the shards' statistics."""
+        hyper, rng = self.hyper, self.rng
+        if self.settings.variant == "reference":
+            counts = self._sum(call("pooled_counts"))
+            return SharedParameters(log_dirichlet(hyper.alpha_visual + counts.visual, rng),
+                                    log_dirichlet(hyper.alpha_word + counts.words, rng),
+                                    log_dirichlet(hyper.gamma0 + counts.concepts, rng), shared.word_mask)
+        log_phi_v = log_dirichlet(hyper.alpha_visual + self._sum(call("tables", "visual")), rng)
+        log_phi_w = log_dirichlet(hyper.alpha_word + self._sum(call("tables", "words")), rng)
+        tables_g = self._sum(call("tables", "concepts"))
+        log_g0 = log_dirichlet(hyper.gamma0 / hyper.n_concepts + tables_g, rng)
+        return SharedParameters(log_phi_v, log_phi_w, log_g0, shared.word_mask)
+
+    def _sum(self, parts: list):
+        total = parts[0]
+        for part in parts[1:]:
+            total = total + part
+        self.bytes_received += sum(_nbytes(p) for p in parts)
+        return total
+
+
+def _nbytes(value) -> int:
+    if isinstance(value, PooledCounts):
+        return value.visual.nbytes + value.words.nbytes + value.concepts.nbytes
+    return int(np.asarray(value).nbytes)
+
+
+def sweep(call, global_step: GlobalStep, shared: SharedParameters, iteration: int,
+          word_mask: np.ndarray | None = None) -> tuple[float, SharedParameters]:
+    """One sweep over the shards reached through ``call`` (see :class:`GlobalStep`): map (local
+    steps), reduce and global step, then every shard's home step.
+
+    ``word_mask`` is the mask decided by the previous sweep's pruning, sent with the local step
+    (``None`` when unchanged). Returns the log joint of the state the sweep started from (the
+    shards' parts summed in shard order) and the new shared parameters (with the new mask)."""
+    settings = global_step.settings
+    log_joint = float(sum(call("local_step", word_mask)))
+    prune = settings.prune and settings.learn_shared
+    swaps = gibbs.swaps_due(iteration)
+    if settings.variant == "reference":
+        results = call("home_step", None, swaps, False)
+        if settings.learn_shared:  # the authors' order: the homes, then the shared part, then pruning
+            shared = global_step.run(call, shared)
+            results = call("receive", shared, prune)
+    elif settings.hierarchical:
+        if settings.learn_shared:
+            shared = global_step.run(call, shared)
+        results = call("home_step", shared, swaps, prune)
+    else:  # SpCoA: no shared part; its one shard exports the mean of its homes' parameters
+        results = call("home_step", None, swaps, prune)
+        shared = results[0].shared
+    if prune:
+        if uses_naming_rule(settings):
+            parts = call("colocation")
+            total = Colocation(*(sum(getattr(c, f) for c in parts) for f in ("pairs", "same", "expected")))
+            global_step.bytes_received += sum(3 * c.pairs.nbytes for c in parts)
+            mask = judge_names(total) != NOT_A_NAME
+        else:
+            mask = results[0].word_mask
+        shared = SharedParameters(shared.log_phi_v, shared.log_phi_w, shared.log_g0, mask)
+    return log_joint, shared
+
+
+def uses_naming_rule(settings: SamplerSettings) -> bool:
+    """Whether pruning follows the naming rule over all homes (exact sampler) rather than a score of
+    the shared parameters every shard can compute alone (the authors' KL, SpCoA+MI)."""
+    return settings.prune and settings.variant == "exact"
+
+
+# ----------------------------------------------------------------------------- splitting homes
+
+
+def shard_bounds(data: PreparedData, n_shards: int) -> list[tuple[int, int]]:
+    """Contiguous home ranges [first, last) for ``n_shards`` shards of about equal samples."""
+    if not 1 <= n_shards <= data.n_homes:
+        raise ValueError(f"the number of shards must be within 1..{data.n_homes} (the homes), got {n_shards}")
+    targets = data.offsets[-1] * np.arange(1, n_shards) / n_shards
+    cuts = np.searchsorted(data.offsets, targets)
+    cuts = np.clip(cuts, np.arange(1, n_shards), data.n_homes - n_shards + np.arange(1, n_shards))
+    cuts = np.maximum.accumulate(cuts)
+    edges = [0, *[int(c) for c in cuts], data.n_homes]
+    for i in range(1, len(edges)):  # every shard at least one home
+        edges[i] = max(edges[i], edges[i - 1] + 1)
+    return list(itertools.pairwise(edges))
+
+
+def data_of_homes(data: PreparedData, first: int, last: int) -> PreparedData:
+    """The homes first..last − 1 of ``data`` as their own :class:`PreparedData` (homes renumbered)."""
+    rows = slice(int(data.offsets[first]), int(data.offsets[last]))
+    return PreparedData(positions=data.positions[rows].copy(), homes=data.homes[rows] - first,
+                        visual=sp.csr_array(data.visual[rows]), words=sp.csr_array(data.words[rows]),
+                        n_homes=last - first, offsets=data.offsets[first:last + 1] - data.offsets[first],
+                        position_scale=data.position_scale, map_centres=data.map_centres[first:last].copy())
+
+
+#: GibbsState fields indexed by home, by sample, and shared by all homes.
+HOME_FIELDS = ("log_g", "log_pi", "means", "covariances", "log_theta_v", "log_theta_w", "region_counts")
+SAMPLE_FIELDS = ("concepts", "regions")
+SHARED_FIELDS = ("log_phi_v", "log_phi_w", "log_g0", "word_mask", "candidate_words", "home_specific_words")
+
+
+def state_of_homes(data: PreparedData, state: GibbsState, first: int, last: int) -> GibbsState:
+    """The part of ``state`` for homes first..last − 1 (copies; the shared part copied too)."""
+    rows = slice(int(data.offsets[first]), int(data.offsets[last]))
+    fields = {name: np.array(getattr(state, name)[first:last]) for name in HOME_FIELDS}
+    fields.update({name: getattr(state, name)[rows].copy() for name in SAMPLE_FIELDS})
+    fields.update({name: None if getattr(state, name) is None else getattr(state, name).copy()
+                   for name in SHARED_FIELDS})
+    return GibbsState(**fields)
+
+
+def join_states(states: list[GibbsState]) -> GibbsState:
+    """The states of consecutive shards as one (the shared part taken from the first)."""
+    if len(states) == 1:
+        return states[0]
+    fields = {name: np.concatenate([getattr(s, name) for s in states])
+              for name in HOME_FIELDS + SAMPLE_FIELDS}
+    fields.update({name: getattr(states[0], name) for name in SHARED_FIELDS})
+    return GibbsState(**fields)
+
+
+def split(data: PreparedData, state: GibbsState, n_shards: int) -> list[tuple[PreparedData, GibbsState]]:
+    """``data`` and ``state`` cut into ``n_shards`` consecutive groups of homes; one shard is the
+    objects themselves (no copy)."""
+    if n_shards == 1:
+        return [(data, state)]
+    return [(data_of_homes(data, a, b), state_of_homes(data, state, a, b))
+            for a, b in shard_bounds(data, n_shards)]
+
+
+def shard_seeds(rng: np.random.Generator, n_shards: int) -> list[int]:
+    """One seed per shard, drawn from the driver's generator (after initialisation)."""
+    return [int(s) for s in rng.integers(0, 2**63 - 1, size=n_shards, dtype=np.int64)]
