@@ -301,3 +301,33 @@ def test_show_draws_the_rooms_of_the_home(files: dict[str, Path], tmp_path: Path
     other.write_text(json.dumps({"homes": {"elsewhere": {"kitchen": [[0, 1, 0, 1]]}}}))
     result = _run(["show", files["home"], "--out", tmp_path / "map2.png", "--regions", other])
     assert result.exit_code == 2 and f"no regions for home {home.name!r}" in result.output
+
+
+def test_a_name_of_two_words_taught_once_is_found_and_answered(files: dict[str, Path],
+                                                               tmp_path: Path) -> None:
+    """Issue 13's check from the command line: one `teach` of "this is the study room", then
+    `where "study room"` answers with poses in that sample's room, and `what` at that sample's pose
+    puts "study room" first (never "room" alone)."""
+    home = kn.load_home_model(files["home"])
+    regions = json.loads((files["new"] / "regions.json").read_text())
+    labels = dict(line.split(",")[:2] for line in (files["new"] / "labels.csv").read_text().splitlines()[1:])
+    k = int(np.flatnonzero(np.array([s is None for s in home.sentences]))[0])
+    sample = int(home.ids[k])
+    room = labels[str(sample)]
+    taught = tmp_path / "taught.spco"
+    result = _run(["teach", files["home"], "--id", sample, "--sentence", "this is the study room",
+                   "--out", taught])
+    assert result.exit_code == 0, result.output
+    where = _run(["where", taught, "study room", "-n", 5, "--json"])
+    assert where.exit_code == 0, where.output
+    answer = json.loads(where.output)
+    assert answer["name"] == "study room"
+    inside = [any(x0 <= p["x"] <= x1 and y0 <= p["y"] <= y1 for x0, x1, y0, y1 in regions[room])
+              for p in answer["positions"]]
+    assert sum(inside) >= 4, (room, answer["positions"])
+    x, y = home.positions[k, :2]
+    theta = float(np.arctan2(home.positions[k, 2], home.positions[k, 3]))
+    what = _run(["what", taught, "--x", float(x), "--y", float(y), "--theta", theta, "--json"])
+    assert what.exit_code == 0, what.output
+    names = [n["name"] for n in json.loads(what.output)["names"]]
+    assert names[0] == "study room" and "room" not in names

@@ -183,3 +183,30 @@ def test_over_long_input_is_cut_with_a_warning() -> None:
     with pytest.warns(LanguageWarning, match="cut"):
         (token,) = tokenize("a" * (MAX_TOKEN_CHARS * 3))
     assert len(token) == MAX_TOKEN_CHARS
+
+
+def test_new_words_said_together_once_form_a_term() -> None:
+    """"this is the study room", the first sentence with "study" and "room", gives the term "study
+    room" at once; a word also said apart, or a run with a known word, does not join."""
+    from spco.data.language import Vocabulary
+
+    known = Vocabulary(("this", "is", "the", "kitchen", "here"))
+    assert known.new_word_runs(["this is the study room"]) == ["study room"]
+    assert known.new_word_runs(["this is the study room", "the study is here"]) == []
+    assert known.new_word_runs(["this is the kitchen"]) == []
+    assert known.new_word_runs(["this is the big kitchen"]) == []  # "big" alone: no run of two
+    grown = known.extended(["this is the study room"])
+    assert grown.words[:5] == known.words and "study room" in grown.words
+    assert "room" not in grown.words and "study" not in grown.words
+    assert grown.tokenize("This is the Study-Room") == ["this", "is", "the", "study room"]
+
+
+def test_a_query_inside_a_longer_term_finds_it() -> None:
+    """A name taught once with a trailing filler ("grandma's room okay") is still found by its words."""
+    from spco.data.language import Vocabulary
+
+    grown = Vocabulary(("this", "is", "the")).extended(["well this is grandma's room okay"])
+    term = "grandma's room okay"
+    assert term in grown.words
+    assert grown.query("Grandma's room") == ([term], [grown.words.index(term)])
+    assert grown.query("grandma") == (["grandma"], [])  # not a whole word of the term: unknown

@@ -282,6 +282,12 @@ def learn_terms(
     return sorted(terms)
 
 
+def _contains_run(words: list[str], run: list[str]) -> bool:
+    """Whether ``run`` occurs in ``words`` as adjacent items."""
+    n = len(run)
+    return 0 < n <= len(words) and any(words[i:i + n] == run for i in range(len(words) - n + 1))
+
+
 def _canonical(word: str) -> str:
     return " ".join(normalize_text(word).replace("-", " ").split())
 
@@ -390,6 +396,15 @@ class Vocabulary:
                 tokens.append(token)
             else:  # an unknown hyphenated compound ("study-room"): its words
                 tokens += self.tokenize(token)
+        if tokens and not any(t in self._index for t in tokens):
+            # no token known: the name may be part of a longer term ("grandma's room" of the term
+            # "grandma's room okay", learnt from one sentence): the shortest term holding its words
+            # in order, side by side
+            words = " ".join(tokens).split()
+            holding = [w for w in self.terms if _contains_run(w.split(), words)]
+            if holding:
+                best = min(holding, key=lambda w: (len(w.split()), self._index[w]))
+                return [best], [self._index[best]]
         return tokens, [self._index[t] for t in tokens if t in self._index]
 
     def unknown_words(self, sentence: str | None) -> list[str]:
@@ -410,6 +425,7 @@ class Vocabulary:
         if learn:
             new_terms = tuple(t for t in learn_terms(texts) if t not in self._index
                               and any(tok not in self._index for tok in self.tokenize(t)))
+            new_terms += tuple(t for t in self.new_word_runs(texts) if t not in new_terms)
             if new_terms:
                 base = Vocabulary((*self.words, *new_terms))
         words = dict.fromkeys(self.words)
@@ -417,6 +433,40 @@ class Vocabulary:
             for word in base.tokenize(sentence):
                 words.setdefault(word, None)
         return Vocabulary(tuple(words))
+
+    def new_word_runs(self, sentences: Iterable[str | None]) -> list[str]:
+        """Names of several new words said together, taught even once: runs of two to
+        :data:`MAX_TERM_WORDS` adjacent tokens that this vocabulary does not know and that are
+        never said apart in ``sentences`` (every use of each of their words is inside the run).
+
+        "this is the study room", the first sentence with "study" and "room", gives the term
+        ``"study room"`` at once — too few uses for :func:`learn_terms`' counts, but a name of
+        several words said once is one name, and its words alone ("room") would be answered as
+        names. A word also said elsewhere ("study" in "the study is here") keeps the run from
+        forming; known tokens never join one, so columns learnt before keep their occurrences.
+        """
+        streams = [self.tokenize(s) for s in sentences if s]
+        uses: dict[str, int] = {}
+        for stream in streams:
+            for token in stream:
+                uses[token] = uses.get(token, 0) + 1
+        runs: dict[tuple[str, ...], int] = {}
+        for stream in streams:
+            i = 0
+            while i < len(stream):
+                j = i
+                while j < len(stream) and stream[j] not in self._index:
+                    j += 1
+                if j - i >= 2 and sum(len(w.split()) for w in stream[i:j]) <= MAX_TERM_WORDS:
+                    run = tuple(stream[i:j])
+                    runs[run] = runs.get(run, 0) + 1
+                i = max(j, i + 1)
+        inside: dict[str, int] = {}
+        for run, count in runs.items():
+            for token in run:
+                inside[token] = inside.get(token, 0) + count
+        return [" ".join(run) for run in runs if all(inside[w] == uses[w] for w in run)
+                and len(set(run)) == len(run)]
 
     def encode(
         self, sentences: Sequence[str | None], word_increment: int = DEFAULT_WORD_INCREMENT
