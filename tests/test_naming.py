@@ -93,3 +93,32 @@ def test_a_new_homes_own_names_start_in_free_concepts() -> None:
         concepts = np.unique(state.concepts[said])
         assert concepts.size == 1, (place, concepts)
         assert concepts[0] not in others, (place, concepts, others)
+
+
+def test_align_homes_matches_a_synonym_by_its_views() -> None:
+    """Home 1 calls the entrance "front door" and the bath "bathroom", names home 0 never says but
+    home 2 does: matched by their words they would tie (unseen words score alike under every
+    label) and may swap places; with the name counts they go by their views."""
+    from spco.model.gibbs import align_homes
+
+    n_concepts, dims = 3, 3  # places: entrance, kitchen, bath; view dimension d is place d's look
+    entrance, kitchen, bath, front_door, bathroom = range(5)
+    visual = np.zeros((3, n_concepts, dims))
+    words = np.zeros((3, n_concepts, 5))
+    # home 0 (most words, aligned first): concept l is place l, named by its name
+    for place, name in ((0, entrance), (1, kitchen), (2, bath)):
+        visual[0, place, place] = 20
+        words[0, place, name] = 6
+    # home 1: concept 0 is the bath ("bathroom"), concept 1 the kitchen, concept 2 the entrance
+    for concept, place, name in ((0, 2, bathroom), (1, 1, kitchen), (2, 0, front_door)):
+        visual[1, concept, place] = 20
+        words[1, concept, name] = 5
+    # home 2 says the synonyms too (so they are no names of home 1 alone), aligned last
+    for concept, place, name in ((0, 0, front_door), (1, 1, kitchen), (2, 2, bathroom)):
+        visual[2, concept, place] = 20
+        words[2, concept, name] = 4
+    name_counts = (words > 0).astype(float)
+    perms = align_homes(visual, words, 0.1, 0.1, name_counts)
+    # slot j of home 1 holds its concept perms[1, j]: the entrance slot 0 its concept 2, the bath's slot 2
+    assert perms[1].tolist() == [2, 1, 0]
+    assert perms[2].tolist() == [0, 1, 2]

@@ -286,7 +286,12 @@ def warm_start(data: PreparedData, state: GibbsState, hyper: TransferHyperparame
             _prune(state, hyper, settings, data)
         _home_step(data, state, stats, hyper, independent, rng)
     stats = _statistics(data, state, hyper)
-    perms = align_homes(stats.visual, stats.words, hyper.alpha_visual, hyper.alpha_word)
+    name_counts = None
+    if names is not None:  # (E, L, V): samples of each home and concept standing for each name
+        named = names >= 0
+        name_counts = np.zeros((data.n_homes, hyper.n_concepts, data.words.shape[1]))
+        np.add.at(name_counts, (data.homes[named], state.concepts[named], names[named]), 1.0)
+    perms = align_homes(stats.visual, stats.words, hyper.alpha_visual, hyper.alpha_word, name_counts)
     _apply_permutations(data, state, perms)
     stats = _statistics(data, state, hyper)
     # Homes taught little (a new home) start from the transferred knowledge instead: their
@@ -414,7 +419,8 @@ def naming_verdicts(data: PreparedData, state: GibbsState, hyper: TransferHyperp
     return judge_names(colocation(data.words, data.homes, state.regions, data.n_homes, hyper.n_regions))
 
 
-def align_homes(visual: np.ndarray, words: np.ndarray, alpha_visual: float, alpha_word: float) -> np.ndarray:
+def align_homes(visual: np.ndarray, words: np.ndarray, alpha_visual: float, alpha_word: float,
+                name_counts: np.ndarray | None = None) -> np.ndarray:
     """Permutations that make the homes' concept labels agree.
 
     Parameters
@@ -427,22 +433,37 @@ def align_homes(visual: np.ndarray, words: np.ndarray, alpha_visual: float, alph
     aligned in order of decreasing word counts; each is matched to the pooled counts of those
     aligned before it by maximising Σ_j log p(counts of its concept perms[e, j] | pooled profile j),
     the word counts of a concept that has words, the visual counts of one that has none.
+
+    ``name_counts`` (E, L, V), optional: how many samples of each concept stand for each place name
+    (:func:`sample_names`). A concept most of whose samples stand for names that none of the homes
+    aligned before it says, but another home does — a synonym ("front door" where the others said
+    "entrance") — is matched by its views instead: its words cannot tell which place it is, and
+    matched by them it would take a label at random and split the place in two across homes. A
+    name said in this home only (Emma's room) still goes by its words (to a free label).
     """
     n_homes, n_concepts, _ = visual.shape
     order = np.argsort(-words.sum(axis=(1, 2)), kind="stable")
     perms = np.tile(np.arange(n_concepts), (n_homes, 1))
     pooled_v = visual[order[0]].astype(float)
     pooled_w = words[order[0]].astype(float)
+    if name_counts is not None:
+        homes_saying = (name_counts.sum(axis=1) > 0).sum(axis=0)  # (V,) homes saying each name
+        seen = name_counts[order[0]].sum(axis=0) > 0  # (V,) names of the aligned homes
     for e in order[1:]:
         log_pv = np.log(pooled_v + alpha_visual) - np.log((pooled_v + alpha_visual).sum(1, keepdims=True))
         score = visual[e] @ log_pv.T  # (own concept, label)
         if words.shape[2]:
             log_pw = np.log(pooled_w + alpha_word) - np.log((pooled_w + alpha_word).sum(1, keepdims=True))
-            said = words[e].sum(axis=1) > 0
+            by_words = words[e].sum(axis=1) > 0
             # a concept with words is matched by its words alone: the names say which place it is,
             # while every room's views look alike next to them — with the views counted too, a
             # home's own room (Emma's) took the label of another place instead of a free one
-            score[said] = words[e][said] @ log_pw.T
+            if name_counts is not None:
+                own_names = name_counts[e]  # (L, V)
+                synonyms = own_names[:, ~seen & (homes_saying > 1)].sum(axis=1)
+                by_words &= ~(synonyms > 0.5 * own_names.sum(axis=1))
+                seen |= own_names.sum(axis=0) > 0
+            score[by_words] = words[e][by_words] @ log_pw.T
         own, label = linear_sum_assignment(score, maximize=True)
         perms[e, label] = own
         pooled_v += visual[e][perms[e]]
