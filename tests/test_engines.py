@@ -85,6 +85,24 @@ def test_statistics_add_up_over_shards(corpus) -> None:
     np.testing.assert_array_equal(total.concepts, stats.concepts.sum(0))
 
 
+def test_naming_rule_adds_up_over_shards(corpus) -> None:
+    """The naming rule's statistics of three shards sum to those of all homes, so the driver's
+    verdicts are the ones one process would reach (gibbs.naming_verdicts)."""
+    from spco.model.pruning import colocation, judge_names
+
+    data, run = start(corpus, LocalEngine(3))
+    run.call("local_step", None)
+    parts = run.call("colocation")
+    state = run.state()
+    hyper = SpatialConceptModel(random_state=0)._validate()
+    whole = colocation(data.words, data.homes, state.regions, data.n_homes, hyper.n_regions)
+    for field in ("pairs", "same", "expected"):
+        np.testing.assert_allclose(sum(getattr(c, field) for c in parts), getattr(whole, field), rtol=1e-12)
+    summed = type(whole)(*(sum(getattr(c, f) for c in parts) for f in ("pairs", "same", "expected")))
+    np.testing.assert_array_equal(judge_names(summed), gibbs.naming_verdicts(data, state, hyper))
+    assert (whole.pairs > 0).any()  # the corpus has words said twice in a home: the test has teeth
+
+
 # ----------------------------------------------------------------------------- Ray
 
 
