@@ -16,6 +16,7 @@ import scipy.sparse as sp
 from click.testing import CliRunner
 
 from spco import knowledge as kn
+from spco.cli import inspect as inspect_command
 from spco.commands_features import features
 from spco.commands_knowledge import adapt, fit, teach, what
 from spco.data.loading import load_home
@@ -238,6 +239,11 @@ def test_fit_adapt_what_teach_with_images(image_homes: dict[str, Path], tmp_path
     assert result.exit_code == 0, result.output
     home = kn.load_home_model(hfile)
     assert home.knowledge.extractor == knowledge.extractor
+    for file in (kfile, hfile):  # spco inspect names the extractor (it once said "none recorded")
+        shown = _invoke(inspect_command, [file])
+        assert shown.exit_code == 0 and f"extractor: images, {DEFAULT_EXTRACTOR}" in shown.output
+        shown = _invoke(inspect_command, [file, "--json"])
+        assert json.loads(shown.output)["extractor"] == knowledge.extractor
     view = tmp_path / "view.png"
     cv2.imwrite(str(view), _view("kitchen", np.random.default_rng(9)))
     result = _invoke(what, [hfile, "--x", 0.5, "--y", 0.5, "--theta", 0, "--image", view, "--json"])

@@ -1905,7 +1905,7 @@ def describe_model_file(path: str | PathLike[str]) -> dict[str, Any]:
     info: dict[str, Any] = {
         "file": str(Path(path)), "kind": "home" if kind == HOME_FORMAT else "knowledge",
         "model": knowledge.model, "visual_dimension": knowledge.n_features,
-        "extractor": provenance.get("extractor") or knowledge.provenance.get("extractor"),
+        "extractor": knowledge.extractor,
         "vocabulary": list(knowledge.vocabulary.words), "kept_names": list(names), "homes": homes,
         "view_fit": view, "provenance": provenance,
     }
