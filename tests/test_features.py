@@ -185,6 +185,15 @@ def test_onnx_extractor_turns_activations_into_counts(tmp_path: Path) -> None:
     _tiny_onnx(w2, n_out=4)
     with pytest.raises(ConfigurationError, match="do not match"):
         build_extractor(spec, model_path=str(w2))
+    # spco features takes the network as --model or, like fit/adapt/what/teach, --onnx-model
+    views = tmp_path / "views"
+    views.mkdir()
+    cv2.imwrite(str(views / "0.png"), image)
+    for option in ("--model", "--onnx-model"):
+        result = _invoke(features, [views, "--extractor", "onnx", option, tmp_path / "tiny.onnx",
+                                    "--out", tmp_path / f"v{option}.npz"])
+        assert result.exit_code == 0, result.output
+        assert np.array_equal(sp.load_npz(tmp_path / f"v{option}.npz").toarray(), counts[None, :])
     (tmp_path / "junk.onnx").write_bytes(b"junk")
     with pytest.raises(DataFormatError, match=r"junk\.onnx: not a usable ONNX model"):
         build_extractor(ExtractorSpec("onnx", settings={"model_path": str(tmp_path / "junk.onnx")}))
