@@ -194,6 +194,8 @@ def test_onnx_extractor_turns_activations_into_counts(tmp_path: Path) -> None:
                                     "--out", tmp_path / f"v{option}.npz"])
         assert result.exit_code == 0, result.output
         assert np.array_equal(sp.load_npz(tmp_path / f"v{option}.npz").toarray(), counts[None, :])
+    with pytest.raises(DataFormatError, match=r"gone\.onnx: no such ONNX model file .*--onnx-model"):
+        build_extractor(spec, model_path=str(tmp_path / "gone.onnx"))  # a moved model: say how to give it
     (tmp_path / "junk.onnx").write_bytes(b"junk")
     with pytest.raises(DataFormatError, match=r"junk\.onnx: not a usable ONNX model"):
         build_extractor(ExtractorSpec("onnx", settings={"model_path": str(tmp_path / "junk.onnx")}))
