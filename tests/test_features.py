@@ -16,6 +16,7 @@ import scipy.sparse as sp
 from click.testing import CliRunner
 
 from spco import knowledge as kn
+from spco.cli import inspect as inspect_command
 from spco.commands_features import features
 from spco.commands_knowledge import adapt, fit, teach, what
 from spco.data.loading import load_home
@@ -184,6 +185,17 @@ def test_onnx_extractor_turns_activations_into_counts(tmp_path: Path) -> None:
     _tiny_onnx(w2, n_out=4)
     with pytest.raises(ConfigurationError, match="do not match"):
         build_extractor(spec, model_path=str(w2))
+    # spco features takes the network as --model or, like fit/adapt/what/teach, --onnx-model
+    views = tmp_path / "views"
+    views.mkdir()
+    cv2.imwrite(str(views / "0.png"), image)
+    for option in ("--model", "--onnx-model"):
+        result = _invoke(features, [views, "--extractor", "onnx", option, tmp_path / "tiny.onnx",
+                                    "--out", tmp_path / f"v{option}.npz"])
+        assert result.exit_code == 0, result.output
+        assert np.array_equal(sp.load_npz(tmp_path / f"v{option}.npz").toarray(), counts[None, :])
+    with pytest.raises(DataFormatError, match=r"gone\.onnx: no such ONNX model file .*--onnx-model"):
+        build_extractor(spec, model_path=str(tmp_path / "gone.onnx"))  # a moved model: say how to give it
     (tmp_path / "junk.onnx").write_bytes(b"junk")
     with pytest.raises(DataFormatError, match=r"junk\.onnx: not a usable ONNX model"):
         build_extractor(ExtractorSpec("onnx", settings={"model_path": str(tmp_path / "junk.onnx")}))
@@ -238,6 +250,11 @@ def test_fit_adapt_what_teach_with_images(image_homes: dict[str, Path], tmp_path
     assert result.exit_code == 0, result.output
     home = kn.load_home_model(hfile)
     assert home.knowledge.extractor == knowledge.extractor
+    for file in (kfile, hfile):  # spco inspect names the extractor (it once said "none recorded")
+        shown = _invoke(inspect_command, [file])
+        assert shown.exit_code == 0 and f"extractor: images, {DEFAULT_EXTRACTOR}" in shown.output
+        shown = _invoke(inspect_command, [file, "--json"])
+        assert json.loads(shown.output)["extractor"] == knowledge.extractor
     view = tmp_path / "view.png"
     cv2.imwrite(str(view), _view("kitchen", np.random.default_rng(9)))
     result = _invoke(what, [hfile, "--x", 0.5, "--y", 0.5, "--theta", 0, "--image", view, "--json"])

@@ -82,7 +82,8 @@ def test_vocabulary_from_sentences_in_order_of_first_appearance(texts: list[str 
     expected = list(dict.fromkeys(w for t in texts for w in tokenize(t)))
     assert list(vocab.words) == expected
     assert all(vocab.index(w) == k for k, w in enumerate(expected))
-    extended = vocab.extended(["a brand-new word"])
+    # "word" said apart too: no run of new words (new_word_runs) glues "a brand new word" together
+    extended = vocab.extended(["a brand-new word", "word"])
     assert extended.words[: len(vocab)] == vocab.words and "brand new" in extended
 
 

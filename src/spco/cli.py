@@ -108,9 +108,13 @@ def _inspect_model_file(path: Path, as_json: bool) -> None:
                    f"taught, model {info['model']}")
     else:
         click.echo(f"{path}: knowledge file, model {info['model']}")
-    extractor = info["extractor"]
-    click.echo(f"views: {info['visual_dimension']} features per view; extractor: "
-               f"{json.dumps(extractor) if extractor else 'none recorded (count vectors given as they are)'}")
+    if info["extractor"]:
+        from spco.features import ExtractorSpec
+
+        extractor = f"images, {ExtractorSpec.from_dict(info['extractor']).describe()}"
+    else:
+        extractor = "none recorded (count vectors given as they are)"
+    click.echo(f"views: {info['visual_dimension']} features per view; extractor: {extractor}")
     click.echo(f"vocabulary ({len(info['vocabulary'])} words): {', '.join(info['vocabulary'])}")
     click.echo(f"place names (kept by pruning, {len(info['kept_names'])}): {', '.join(info['kept_names'])}")
     click.echo(f"experienced homes ({len(info['homes'])}): {', '.join(info['homes'])}")

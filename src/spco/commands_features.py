@@ -69,7 +69,7 @@ def parse_settings(pairs: Sequence[str]) -> dict[str, object]:
                    "image k — usable as a plain home's visual.npz.")
 @click.option("--extractor", default=None,
               help="colour-hog (default), bovw-orb, bovw-sift, or onnx (with --model).")
-@click.option("--model", "model", type=click.Path(path_type=Path), default=None,
+@click.option("--model", "--onnx-model", "model", type=click.Path(path_type=Path), default=None,
               help="The .onnx network of the onnx extractor (needs the [onnx] extra).")
 @click.option("--knowledge", "knowledge_file", type=click.Path(path_type=Path), default=None,
               help="Use the extractor (and codebook) stored in this knowledge file, as adapt/what/teach do.")

@@ -367,10 +367,11 @@ def what(home_file: Path, x: float, y: float, theta: float, visual: Path | None,
     """The most probable place names at a pose of the home of HOME, with their probabilities.
 
     With --visual (or --image) the view is used too; without, the position alone. Names are ranked
-    by p(name | pose, view) × I(name), I the name's mutual information with the concepts (so that
-    "this" or "is", said everywhere, are never answered); `score` is that product as a share of its
-    sum over the usable names, `p` is p(name | pose, view) itself (its sum over all words, template
-    words included, is 1). A pose off the home's map is answered with a warning, one far off it is
+    by a score, printed as a share of its sum over the usable names beside `p` = p(name | pose, view)
+    itself (its sum over all words, template words included, is 1): with the naming rule (the default
+    model, spcotransfer+mi) the score is p; without pruning it is p × I(name), I the name's mutual
+    information with the concepts (so that "this" or "is", said everywhere, are never answered); the
+    output's last line says which. A pose off the home's map is answered with a warning, one far off it is
     refused.
     """
     from spco.knowledge import load_home_model

@@ -1748,34 +1748,37 @@ def unused_word_hint(home: HomeModel, word: str) -> str | None:
     """Why a word of the home's vocabulary is not used (pruned as uninformative) and what to do about
     it, or ``None`` if the word is unknown or used.
 
-    A name taught at only a few samples of this home usually has too little mutual information with
-    the concepts to pass the pruning threshold yet: teaching it at a few more samples of the same
-    place (the nearest untaught samples are suggested) makes it a place name.
+    A word taught at a few samples of this home is pruned when the naming rule finds its uses no
+    more often in one region than chance, and a word the knowledge pruned stays pruned until the
+    home's teachings show it marks a place (:func:`_home_word_mask`): in both cases teaching it at a
+    few more samples of the same place (the nearest untaught samples are suggested) can make it a
+    place name.
     """
     index = home.vocabulary.index(word)
     if index is None or bool(home.state.word_mask[index]):
         return None
     w = home.vocabulary.words[index]
     taught = [k for k, sentence in enumerate(home.sentences) if w in home.vocabulary.tokenize(sentence)]
-    if (index < home.n_knowledge_words and not bool(home.knowledge.word_mask[index])) or not taught:
-        if taught:
-            return (f"the word {w!r} was pruned as uninformative by the knowledge: in its experienced "
-                    f"homes it did not tell places apart (a word said everywhere, or a name said in one "
-                    f"home only), so a home adapted from it does not use it as a place name, even where "
-                    f"taught; to name a place, teach a name the knowledge never heard (it is judged in "
-                    f"this home), or fit the knowledge with --model spcotransfer (no pruning)")
+    if not taught:
         return (f"the word {w!r} was pruned as uninformative in the experienced homes: it is said at "
                 f"every kind of place (or too rarely) to tell places apart, so it names no place")
     xy = home.positions[:, :2]
     distance = np.linalg.norm(xy - xy[taught].mean(0), axis=1)
     untaught = [k for k in np.argsort(distance, kind="stable") if home.sentences[k] is None][:3]
     ids = [int(home.ids[k]) for k in untaught]
+    more = ("teach it at a few more samples of that place"
+            + (", e.g. the nearest untaught ones: spco teach HOME "
+               + " ".join(f'--id {i} --sentence "this is {w}"' for i in ids) if ids else ""))
+    if index < home.n_knowledge_words and not bool(home.knowledge.word_mask[index]):
+        # the home takes such a word back once its own samples show it marks a place (_home_word_mask)
+        return (f"the word {w!r} was pruned as uninformative by the knowledge: in its experienced "
+                f"homes it did not tell places apart (a word said everywhere, or a name said in one "
+                f"home only), and this home's {len(taught)} teaching(s) do not yet show that it marks "
+                f"one place here; {more} (or fit the knowledge with --model spcotransfer: no pruning)")
     shown = ", ".join(str(int(home.ids[k])) for k in taught[:5]) + (", …" if len(taught) > 5 else "")
     return (f"the word {w!r} is not used as a place name yet: it is taught at {len(taught)} sample(s) of "
             f"this home (id {shown}), too few to tell its place from the others (pruned as "
-            f"uninformative); teach it at a few more samples of that place"
-            + (", e.g. the nearest untaught ones: spco teach HOME "
-               + " ".join(f'--id {i} --sentence "this is {w}"' for i in ids) if ids else ""))
+            f"uninformative); {more}")
 
 
 def _view_counts(knowledge: Knowledge, visual: Any, image: Any) -> Any:
@@ -1905,7 +1908,7 @@ def describe_model_file(path: str | PathLike[str]) -> dict[str, Any]:
     info: dict[str, Any] = {
         "file": str(Path(path)), "kind": "home" if kind == HOME_FORMAT else "knowledge",
         "model": knowledge.model, "visual_dimension": knowledge.n_features,
-        "extractor": provenance.get("extractor") or knowledge.provenance.get("extractor"),
+        "extractor": knowledge.extractor,
         "vocabulary": list(knowledge.vocabulary.words), "kept_names": list(names), "homes": homes,
         "view_fit": view, "provenance": provenance,
     }

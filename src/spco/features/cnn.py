@@ -52,10 +52,11 @@ class OnnxExtractor(Extractor):
         super().__init__(**settings)
         s = self.settings
         if s["model_path"] is None:
-            raise ConfigurationError("the onnx extractor needs a model file (--model file.onnx)")
+            raise ConfigurationError("the onnx extractor needs a model file (--onnx-model file.onnx)")
         path = Path(str(s["model_path"])).expanduser()
         if not path.is_file():
-            raise DataFormatError(path, "no such ONNX model file")
+            raise DataFormatError(path, "no such ONNX model file (if it moved, give its new place with "
+                                        "--onnx-model)")
         if not isinstance(s["scale"], int | float) or not s["scale"] > 0:
             raise ConfigurationError(f"onnx: scale must be a positive number, got {s['scale']!r}")
         if not isinstance(s["size"], int) or s["size"] < 8:
