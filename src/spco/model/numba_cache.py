@@ -1,6 +1,6 @@
 """Where Numba keeps spco's compiled kernels, and the notice shown while they compile.
 
-The kernels are compiled on first use (about a minute on 2 cores) and cached on disk. The cache
+The kernels are compiled on first use (about 100 s on 2 cores) and cached on disk. The cache
 lives in ``$SPCO_CACHE_DIR`` (default ``~/.cache/spco``, or ``$XDG_CACHE_HOME/spco``) under a
 name made of a digest of the kernels' source files (``numba-<digest>``), not in the package's
 ``__pycache__``:
@@ -25,8 +25,8 @@ from pathlib import Path
 import numba
 
 #: The measured first compilation of every kernel a fit and an adaptation use (``spco demo`` in a
-#: fresh virtual environment on the 2-core development machine; see the README).
-COMPILE_SECONDS_ESTIMATE = 60
+#: fresh virtual environment on the 2-core development machine: 96–143 s; see the README).
+COMPILE_SECONDS_ESTIMATE = 100
 
 _MODEL_DIR = Path(__file__).resolve().parent
 
@@ -67,6 +67,12 @@ def configure() -> None:
 
 
 _announced = False
+
+
+def mark_announced() -> None:
+    """Note that the caller has told the user about the compilation itself (no second notice)."""
+    global _announced
+    _announced = True
 
 
 def announce_compilation() -> None:
