@@ -372,3 +372,14 @@ def test_experiment_images_need_real_homes(tmp_path: Path) -> None:
 
     with pytest.raises(ConfigurationError, match="synthetic homes have no images"):
         load_experiment_data(ExperimentConfig(data="synthetic", images=tmp_path, trials=1))
+
+
+def test_inspect_reads_homes_whose_views_are_images(image_homes: dict[str, Path]) -> None:
+    """`spco inspect` of a home folder holding images/ (e.g. from spco import-bag) summarises it
+    instead of asking for an extractor (it reads the views with the default one to count them)."""
+    from spco.cli import inspect
+
+    result = CliRunner().invoke(inspect, [str(image_homes["experienced"]), "--json"])
+    assert result.exit_code == 0, result.output
+    rows = json.loads(result.output)  # one object per home
+    assert len(rows) == 2 and all(r["samples"] > 0 and r["taught"] > 0 for r in rows)

@@ -51,7 +51,14 @@ def inspect(path: Path, teaching_rate: int, as_json: bool) -> None:
     if model_file_format(path) is not None:
         _inspect_model_file(path, as_json)
         return
-    records = read_records(path, progress=not as_json)
+    from spco.commands_knowledge import _views_are_images
+
+    extractor = None
+    if _views_are_images(Path(path), None):  # views as images (spco import-bag): read them to count them
+        from spco.features import DEFAULT_EXTRACTOR, build_extractor
+
+        extractor = build_extractor(DEFAULT_EXTRACTOR)
+    records = read_records(path, progress=not as_json, extractor=extractor)
     rows = []
     missing = []
     vocabulary_sentences: list[str | None] = []
