@@ -18,8 +18,13 @@ before any kernel) configures Numba.
 from __future__ import annotations
 
 import hashlib
+import importlib
+import json
 import os
 import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from multiprocessing import get_context
 from pathlib import Path
 
 import numba
@@ -89,4 +94,125 @@ def announce_compilation() -> None:
           f"(cached in {directory})", file=sys.stderr, flush=True)
 
 
+#: The kernels a fit, an adaptation and the SpCoA baseline call from Python, with the argument
+#: types of each call and the seconds each took to compile (``spco demo``, cold cache, 2 cores):
+#: written by ``python -m spco.model.numba_cache`` (:func:`write_signatures`).
+SIGNATURES_FILE = _MODEL_DIR / "kernel_signatures.json"
+
+
+def _numba_type(text: str):
+    """The Numba type written as ``str(type)`` (arrays and scalars, as the kernels take them)."""
+    from numba.core import types
+
+    return eval(text, {"__builtins__": {}}, vars(types))  # our own file; Numba's type names only
+
+
+def _compile_group(entries: list[dict]) -> float:
+    """Compile (or load from the cache) the kernels of ``entries`` for their signatures, saving
+    them to the on-disk cache; returns the seconds taken. Kernels called through
+    :func:`~spco.model.kernels.dispatch._call_vectorised` are compiled with the SLP vectoriser on,
+    as that function does."""
+    from numba.core import config
+
+    start = time.perf_counter()
+    for entry in entries:
+        module_name, _, name = entry["kernel"].rpartition(".")
+        kernel = getattr(importlib.import_module(module_name), name)
+        previous = config.SLP_VECTORIZE
+        config.SLP_VECTORIZE = 1 if entry["vectorised"] else previous
+        try:
+            for text in entry["signatures"]:
+                signature = tuple(_numba_type(t) for t in text)
+                if signature not in kernel.signatures:
+                    kernel.compile(signature)
+        finally:
+            config.SLP_VECTORIZE = previous
+    return time.perf_counter() - start
+
+
+#: Modules whose kernels call the same compiled (not inlined) gamma sampler, ``_log_gamma_row``:
+#: compiled in one process, it is compiled once (about 10 s), not once per process.
+_GAMMA_CALLERS = ("spco.model.kernels.dirichlet", "spco.model.kernels.niw")
+
+
+def _split(entries: list[dict], n_groups: int) -> list[list[dict]]:
+    """``entries`` in ``n_groups`` groups of about equal compile seconds, the heaviest first; the
+    kernels that call the gamma sampler stay together, every other kernel goes alone (longest
+    first, each to the group with the least so far)."""
+    clusters: dict[str, list[dict]] = {}
+    for entry in entries:
+        module = entry["kernel"].rpartition(".")[0]
+        clusters.setdefault("gamma" if module in _GAMMA_CALLERS else entry["kernel"], []).append(entry)
+    groups: list[list[dict]] = [[] for _ in range(n_groups)]
+    load = [0.0] * n_groups
+    for cluster in sorted(clusters.values(), key=lambda c: -sum(e["seconds"] for e in c)):
+        g = load.index(min(load))
+        groups[g].extend(cluster)
+        load[g] += sum(e["seconds"] for e in cluster)
+    return [groups[g] for g in sorted(range(n_groups), key=lambda g: -load[g])]
+
+
+def precompile(processes: int = 2) -> float:
+    """Compile the kernels listed in :data:`SIGNATURES_FILE` in ``processes`` processes at once
+    (this one and ``processes - 1`` others), each a disjoint share, into the on-disk cache; a fit
+    afterwards loads them from there. Returns the seconds taken.
+
+    Numba compiles one function at a time per process; the kernels are independent, so on a
+    multi-core machine the first run takes about 1/``processes`` of the time. A kernel whose
+    signature the file does not list (the file is stale) is compiled by the fit as before."""
+    start = time.perf_counter()
+    try:
+        entries = json.loads(SIGNATURES_FILE.read_text())["kernels"]
+    except (OSError, ValueError, KeyError):  # not installed with the package: the fit compiles as before
+        return 0.0
+    groups = _split(entries, max(1, processes))
+    if processes <= 1 or not numba.config.CACHE_DIR:
+        _compile_group(entries)
+        return time.perf_counter() - start
+    with ProcessPoolExecutor(max_workers=processes - 1, mp_context=get_context("spawn")) as pool:
+        others = [pool.submit(_compile_group, group) for group in groups[1:]]
+        _compile_group(groups[0])
+        for future in others:
+            future.result()
+    # this process now loads the others' kernels from the cache, on first call
+    return time.perf_counter() - start
+
+
+def write_signatures(path: Path = SIGNATURES_FILE) -> None:
+    """Run the demo's warm-up fit (:func:`spco.demo.warm_up`) on a cold cache, note each kernel
+    called from Python with its argument types and compile seconds, and write them to ``path``."""
+    from numba.core import event
+
+    from spco.model.kernels import dispatch
+
+    seconds: dict[str, float] = {}
+    signatures: dict[str, list] = {}
+    started: list[float] = []
+
+    class _Listener(event.Listener):
+        def on_start(self, ev) -> None:
+            started.append(time.perf_counter())
+
+        def on_end(self, ev) -> None:
+            elapsed = time.perf_counter() - started.pop()
+            if started:  # a callee compiled inside another kernel
+                return
+            function = ev.data["dispatcher"].py_func
+            name = f"{function.__module__}.{function.__qualname__}"
+            seconds[name] = seconds.get(name, 0.0) + elapsed
+            signatures.setdefault(name, []).append([repr(t) for t in ev.data["args"]])
+
+    from spco.demo import warm_up
+
+    event.register("numba:compile", _Listener())
+    warm_up()
+    vectorised = {f"{k.py_func.__module__}.{k.py_func.__qualname__}" for k, _ in dispatch._VECTORISED_READY}
+    kernels = [{"kernel": name, "seconds": round(seconds[name], 2), "vectorised": name in vectorised,
+                "signatures": signatures[name]} for name in sorted(seconds)]
+    path.write_text(json.dumps({"kernels": kernels}, indent=1) + "\n")
+
+
 configure()
+
+if __name__ == "__main__":
+    write_signatures()

@@ -161,6 +161,9 @@ def log_dirichlet_hierarchical(base: np.ndarray, counts: np.ndarray, rng: np.ran
     if out is None or out.shape != counts.shape or out.dtype != np.float64 or not out.flags.c_contiguous:
         out = np.empty(counts.shape)
     seed = np.uint64(rng.integers(0, 2**63 - 1, dtype=np.int64))
+    if counts.flags.writeable:  # a read-only view (no copy): one compiled signature, whoever owns counts
+        counts = counts.view()
+        counts.flags.writeable = False
     parallel = counts.size >= _PARALLEL_MIN
     kernel = _hierarchical_dirichlet_kernel if parallel else _hierarchical_dirichlet_serial
     _call_vectorised(kernel, (base, counts, seed, out))
