@@ -8,6 +8,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import settings
+
+# In CI (CI=true, as .ci/run runs) property tests draw the same examples on every run, so a green
+# build stays green; on a developer's machine they keep exploring new examples each run (a failure
+# prints the example and how to reproduce it).
+settings.register_profile("ci", derandomize=True, print_blob=True)
+if os.environ.get("CI"):
+    settings.load_profile("ci")
 
 SIGVERSE_DEFAULT = Path(__file__).resolve().parents[1] / ".." / "shared" / "datasets" / "sigverse"
 
