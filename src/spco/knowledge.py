@@ -1693,11 +1693,9 @@ def _where(home: HomeModel, name: str, n: int,
     """:func:`where` without the hint for unusable names."""
     from spco.prediction import (
         LEARNT_SUPPORT,
-        _cholesky,
-        _query_indices,
-        _safe_log,
-        gaussian_log_density,
+        draw_poses,
         name_support,
+        query_indices,
         query_name,
         region_posterior_for_name,
     )
@@ -1706,7 +1704,7 @@ def _where(home: HomeModel, name: str, n: int,
         raise ConfigurationError(f"the number of positions must be >= 0, got {n}")
     params, vocabulary = home.parameters, home.vocabulary
     model = region_posterior_for_name(params, 0, vocabulary, name)
-    columns = _query_indices(params, vocabulary, name)
+    columns = query_indices(params, vocabulary, name)
     words = home.data.words[:, columns]  # type: ignore[index]
     said = np.asarray((words > 0).sum(axis=1)).ravel() == len(columns)  # every token of the name said
     counts = np.bincount(home.state.regions[said], minlength=model.size).astype(np.float64)
@@ -1727,17 +1725,7 @@ def _where(home: HomeModel, name: str, n: int,
     while per_region.sum() < n:
         per_region[np.argmax(share * n - per_region)] += 1
     regions = np.repeat(answer, per_region)
-    gen = _as_generator(random_state)
-    means = np.asarray(params.region_means[0], dtype=np.float64)
-    covs = np.asarray(params.region_covariances[0], dtype=np.float64)
-    z = gen.standard_normal((n, 4))
-    draws = means[regions] + np.einsum("nij,nj->ni", _cholesky(covs)[regions], z)
-    samples = np.column_stack([draws[:, 0], draws[:, 1], np.arctan2(draws[:, 2], draws[:, 3])])
-    if n:
-        log_density = logsumexp(_safe_log(probs)[None, :] + gaussian_log_density(draws, means, covs), axis=1)
-        weights = np.exp(log_density - logsumexp(log_density))
-    else:
-        samples, log_density, weights = np.empty((0, 3)), np.empty(0), np.empty(0)
+    samples, log_density, weights = draw_poses(params, 0, probs, regions, _as_generator(random_state))
     return PositionPrediction(name=query_name(vocabulary, params, name), region=int(answer[0]),
                               region_probabilities=probs, samples=samples, regions=regions,
                               log_density=log_density, weights=weights, mode="mixture", xy_only=False,

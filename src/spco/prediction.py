@@ -61,12 +61,14 @@ __all__ = [
     "PositionPrediction",
     "UnknownNameError",
     "concept_posterior",
+    "draw_poses",
     "gaussian_log_density",
     "kl_scores_reference",
     "mutual_information_weights",
     "name_support",
     "predict_names",
     "predict_positions",
+    "query_indices",
     "query_name",
     "reference_kl_weights",
     "region_posterior_for_name",
@@ -576,7 +578,7 @@ def predict_names(
 
 
 # ---------------------------------------------------------------------------------- positions
-def _query_indices(params: ConceptParameters, vocabulary: Vocabulary, name: str) -> list[int]:
+def query_indices(params: ConceptParameters, vocabulary: Vocabulary, name: str) -> list[int]:
     """Columns of the usable tokens of a name asked for (see :func:`region_posterior_for_name`)."""
     _check_vocabulary(params, vocabulary)
     mask = np.asarray(params.word_mask, dtype=bool)
@@ -596,7 +598,7 @@ def _query_indices(params: ConceptParameters, vocabulary: Vocabulary, name: str)
 def query_name(vocabulary: Vocabulary, params: ConceptParameters, name: str) -> str:
     """How a name asked for is understood: its usable tokens joined by ``" + "`` (``"living room"``,
     or ``"study + room"`` for a name never learnt as one term)."""
-    return " + ".join(vocabulary.words[k] for k in _query_indices(params, vocabulary, name))
+    return " + ".join(vocabulary.words[k] for k in query_indices(params, vocabulary, name))
 
 
 def _occupied_concepts(params: ConceptParameters, e: int) -> np.ndarray:
@@ -627,7 +629,7 @@ def name_support(params: ConceptParameters, e: int, vocabulary: Vocabulary, name
     (0 if the name has probability 0 in every concept).
     """
     e = _check_home(params, e)
-    weights = _name_concept_weights(params, e, _query_indices(params, vocabulary, name))
+    weights = _name_concept_weights(params, e, query_indices(params, vocabulary, name))
     total = weights.sum()
     return float(weights[_occupied_concepts(params, e)].sum() / total) if total > 0 else 0.0
 
@@ -647,7 +649,7 @@ def region_posterior_for_name(
     known and unpruned, or the name has probability 0 in every concept of home ``e``.
     """
     e = _check_home(params, e)
-    ws = _query_indices(params, vocabulary, name)
+    ws = query_indices(params, vocabulary, name)
     concept_weights = _name_concept_weights(params, e, ws)  # (L,)
     occupied = _occupied_concepts(params, e)
     if (concept_weights[occupied] > 0).any():
@@ -662,6 +664,29 @@ def region_posterior_for_name(
         raise UnknownNameError(name, known, reason=f"the name {shown!r} has "
                                f"probability 0 in every concept of home {e}")
     return weights / total
+
+
+def draw_poses(params: ConceptParameters, e: int, region_probabilities: np.ndarray, regions: np.ndarray,
+               rng: np.random.Generator, xy_only: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Poses drawn from the Gaussians of ``regions`` (n,) of home ``e``, one per entry.
+
+    Returns ``samples`` (n, 3) = (x, y, θ) (θ NaN when ``xy_only``: the x–y marginal is drawn),
+    ``log_density`` (n,) of each raw draw under the mixture Σ_m p(m) N(· | μ_m, Σ_m) with
+    p(m) = ``region_probabilities``, and ``weights`` (n,), that density normalised over the draws.
+    """
+    n = regions.size
+    d = 2 if xy_only else 4
+    means = np.asarray(params.region_means[e], dtype=np.float64)[:, :d]
+    covs = np.asarray(params.region_covariances[e], dtype=np.float64)[:, :d, :d]
+    z = rng.standard_normal((n, d))
+    draws = means[regions] + np.einsum("nij,nj->ni", _cholesky(covs)[regions], z)
+    if not n:
+        return np.empty((0, 3)), np.empty(0), np.empty(0)
+    theta = np.full(n, np.nan) if xy_only else np.arctan2(draws[:, 2], draws[:, 3])
+    samples = np.column_stack([draws[:, 0], draws[:, 1], theta])
+    log_mixture = _safe_log(region_probabilities)[None, :] + gaussian_log_density(draws, means, covs)
+    log_density = logsumexp(log_mixture, axis=1)
+    return samples, log_density, np.exp(log_density - logsumexp(log_density))
 
 
 def predict_positions(
@@ -696,24 +721,11 @@ def predict_positions(
     support = name_support(params, e, vocabulary, name)
     best = int(np.argmax(probs))
     gen = np.random.default_rng(rng)
-    d = 2 if xy_only else 4
-    means = np.asarray(params.region_means[e], dtype=np.float64)[:, :d]
-    covs = np.asarray(params.region_covariances[e], dtype=np.float64)[:, :d, :d]
-    chol = _cholesky(covs)
     if mode == "argmax":
         regions = np.full(n, best, dtype=np.int64)
     else:
         regions = gen.choice(probs.size, size=n, p=probs).astype(np.int64)
-    z = gen.standard_normal((n, d))
-    draws = means[regions] + np.einsum("nij,nj->ni", chol[regions], z)
-    theta = np.full(n, np.nan) if xy_only else np.arctan2(draws[:, 2], draws[:, 3])
-    samples = np.column_stack([draws[:, 0], draws[:, 1], theta]) if n else np.empty((0, 3))
-    if n:
-        log_density = logsumexp(_safe_log(probs)[None, :] + gaussian_log_density(draws, means, covs),
-                                axis=1)
-        weights = np.exp(log_density - logsumexp(log_density))
-    else:
-        log_density = weights = np.empty(0)
+    samples, log_density, weights = draw_poses(params, e, probs, regions, gen, xy_only)
     return PositionPrediction(
         name=query_name(vocabulary, params, name),
         region=best,
