@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
+
 import numpy as np
 
 from spco.model import shard as shards_api
@@ -10,7 +12,7 @@ from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.shard import GlobalStep, HomeShard, SharedParameters
 
 
-class ShardedRun:
+class ShardedRun(ABC):
     """A fit in progress: the driver's shared parameters and global step, and the shards.
 
     Subclasses say where the shards live (:meth:`_start` and :meth:`call`). With ``share_rng``
@@ -35,14 +37,14 @@ class ShardedRun:
                       else [np.random.default_rng(s) for s in shards_api.shard_seeds(rng, n_shards)])
         self._start(parts, generators)
 
+    @abstractmethod
     def _start(self, parts: list[tuple[PreparedData, GibbsState]],
                generators: list[np.random.Generator]) -> None:
         """Start one shard per part, drawing from its generator."""
-        raise NotImplementedError
 
+    @abstractmethod
     def call(self, method: str, *args) -> list:
         """Run the :class:`~spco.model.shard.HomeShard` method on every shard; results in shard order."""
-        raise NotImplementedError
 
     def sweep(self, iteration: int) -> float:
         """Sweep number ``iteration`` (0-based); returns the log joint of the state it started from."""
@@ -61,9 +63,9 @@ class ShardedRun:
                 after_sweep(iteration, trace[iteration])
         return trace
 
+    @abstractmethod
     def states(self) -> list[GibbsState]:
         """Every shard's state (copies where the shards live elsewhere)."""
-        raise NotImplementedError
 
     def state(self) -> GibbsState:
         """The shards' states joined: the state of every home, with the word mask of the last
@@ -72,6 +74,7 @@ class ShardedRun:
         state.word_mask = self.shared.word_mask
         return state
 
+    @abstractmethod
     def close(self) -> None:
         """Free the shards."""
 
@@ -88,6 +91,9 @@ class LocalRun(ShardedRun):
 
     def states(self) -> list[GibbsState]:
         return [s.state for s in self.shards]
+
+    def close(self) -> None:
+        """Nothing to free: the shards are this process's objects, dropped with the run."""
 
 
 class LocalEngine:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -131,7 +132,7 @@ class ExtractorSpec:
         return f"{self.name} v{self.version} ({settings}{checksum})"
 
 
-class Extractor:
+class Extractor(ABC):
     """Base class: turns images into (D,) int64 counts. Subclasses set ``name``, ``version``,
     ``defaults`` and implement :meth:`_counts` (one BGR image -> (D,) non-negative integers)."""
 
@@ -155,9 +156,9 @@ class Extractor:
 
     # ------------------------------------------------------------------ description
     @property
+    @abstractmethod
     def n_features(self) -> int:
         """D, the length of the count vectors."""
-        raise NotImplementedError
 
     @property
     def arrays(self) -> dict[str, np.ndarray]:
@@ -183,8 +184,9 @@ class Extractor:
         return self
 
     # ------------------------------------------------------------------ extraction
+    @abstractmethod
     def _counts(self, image: np.ndarray) -> np.ndarray:
-        raise NotImplementedError
+        """(D,) non-negative integer counts of one BGR image."""
 
     def extract(self, image: ImageInput) -> np.ndarray:
         """The (D,) int64 counts of one image (path or array, any size, grey or colour)."""

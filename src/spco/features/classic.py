@@ -15,6 +15,7 @@
 
 from __future__ import annotations
 
+from abc import abstractmethod
 from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar
 
@@ -165,8 +166,9 @@ class BagOfWords(Extractor):
     def needs_fit(self) -> bool:
         return self.codebook is None
 
+    @abstractmethod
     def _detector(self) -> Any:
-        raise NotImplementedError
+        """The OpenCV keypoint detector and descriptor."""
 
     def _descriptors(self, image: np.ndarray) -> np.ndarray:
         """(n, d) float32 descriptors of one BGR image (ORB bits unpacked to 0/1)."""
