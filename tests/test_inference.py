@@ -372,12 +372,12 @@ def test_home_model_predicts_from_its_posterior_average_and_keeps_it_in_its_file
 def test_masked_rows_never_nan() -> None:
     """A row whose kept entries are all -inf (nothing known of it) becomes uniform over the kept
     words instead of NaN; pruned words stay 0."""
-    from spco.model.posterior import _masked_rows
+    from spco.model.posterior import masked_rows
 
     log_p = np.array([[-1.0, -2.0, -np.inf], [-np.inf, -np.inf, -3.0]])
     mask = np.array([True, True, False])
     with np.errstate(all="raise"):
-        p = _masked_rows(log_p, mask)
+        p = masked_rows(log_p, mask)
     assert np.isfinite(p).all()
     np.testing.assert_allclose(p.sum(axis=1), 1.0)
     np.testing.assert_allclose(p[1], [0.5, 0.5, 0.0])

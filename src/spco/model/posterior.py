@@ -61,9 +61,11 @@ def _match_labels(reference: np.ndarray, current: np.ndarray, n_labels: int) -> 
     return perm
 
 
-def _masked_rows(log_p: np.ndarray, mask: np.ndarray) -> np.ndarray:
+def masked_rows(log_p: np.ndarray, mask: np.ndarray) -> np.ndarray:
     """Probabilities from log-probabilities (rows of any scale), pruned words (mask False) set
     to 0 and rows renormalised in log space: never NaN, even if every kept entry underflows."""
+    if log_p.shape[-1] == 0:  # no words
+        return np.exp(log_p)
     allowed = np.ones(log_p.shape[-1], dtype=bool) if mask.all() or not mask.any() else mask
     kept = np.where(allowed, log_p, -np.inf)
     top = kept.max(axis=-1, keepdims=True)
@@ -167,10 +169,9 @@ class ParameterAverage:
             region_weights=pi_out,
             region_means=mu,
             region_covariances=covariances,
-            word_probabilities=_masked_rows(log_theta_w, mask) if mask.size else np.exp(log_theta_w),
+            word_probabilities=masked_rows(log_theta_w, mask),
             visual_probabilities=np.exp(log_theta_v),
-            shared_word_probabilities=(_masked_rows(state.log_phi_w, mask) if mask.size
-                                       else np.exp(state.log_phi_w)),
+            shared_word_probabilities=masked_rows(state.log_phi_w, mask),
             shared_visual_probabilities=np.exp(state.log_phi_v),
             global_concept_weights=np.exp(state.log_g0),
             word_mask=mask.copy(),

@@ -43,7 +43,7 @@ from spco.errors import ConfigurationError
 from spco.model import gibbs
 from spco.model.hyperparameters import SpCoAHyperparameters, TransferHyperparameters
 from spco.model.parameters import ConceptParameters
-from spco.model.posterior import ParameterAverage, thinned_sweeps
+from spco.model.posterior import ParameterAverage, masked_rows, thinned_sweeps
 from spco.model.random import stack_counts
 
 
@@ -303,16 +303,6 @@ class SpatialConceptModel:
         save_model(self, path, overwrite=overwrite)
 
 
-def _masked_rows(log_p: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """Probabilities with the pruned words (mask False) set to 0 and rows renormalised."""
-    if mask.all() or not mask.any():
-        return np.exp(log_p)
-    kept = np.where(mask, log_p, -np.inf)
-    top = kept.max(axis=-1, keepdims=True)
-    p = np.exp(kept - top)
-    return p / p.sum(axis=-1, keepdims=True)
-
-
 def export_parameters(state: gibbs.GibbsState, data: gibbs.PreparedData) -> ConceptParameters:
     """One state's parameters (a single draw) as probabilities, positions converted back to metres."""
     s = data.position_scale
@@ -323,9 +313,9 @@ def export_parameters(state: gibbs.GibbsState, data: gibbs.PreparedData) -> Conc
     return ConceptParameters(
         concept_weights=np.exp(state.log_g), region_weights=np.exp(state.log_pi),
         region_means=means, region_covariances=covariances,
-        word_probabilities=_masked_rows(state.log_theta_w, mask),
+        word_probabilities=masked_rows(state.log_theta_w, mask),
         visual_probabilities=np.exp(state.log_theta_v),
-        shared_word_probabilities=_masked_rows(state.log_phi_w, mask),
+        shared_word_probabilities=masked_rows(state.log_phi_w, mask),
         shared_visual_probabilities=np.exp(state.log_phi_v),
         global_concept_weights=np.exp(state.log_g0), word_mask=state.word_mask.copy(),
         region_counts=state.region_counts.copy(),
