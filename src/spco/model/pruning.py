@@ -119,6 +119,15 @@ class Colocation:
     same: np.ndarray
     expected: np.ndarray
 
+    def __add__(self, other: Colocation) -> Colocation:
+        """The statistics of two sets of homes together (each count is a sum over homes)."""
+        return Colocation(self.pairs + other.pairs, self.same + other.same, self.expected + other.expected)
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of the three arrays (what a shard sends)."""
+        return self.pairs.nbytes + self.same.nbytes + self.expected.nbytes
+
     @property
     def excess(self) -> np.ndarray:
         """(same − expected) / (pairs − expected): the share of the pairs that chance would put in

@@ -200,17 +200,18 @@ class GlobalStep:
         """New shared parameters given the current ones and the shards' statistics."""
         hyper, rng = self.hyper, self.rng
         if self.settings.variant == "reference":
-            counts = self._sum(call("pooled_counts"))
+            counts = self.reduce(call("pooled_counts"))
             return SharedParameters(log_dirichlet(hyper.alpha_visual + counts.visual, rng),
                                     log_dirichlet(hyper.alpha_word + counts.words, rng),
                                     log_dirichlet(hyper.gamma0 + counts.concepts, rng), shared.word_mask)
-        log_phi_v = log_dirichlet(hyper.alpha_visual + self._sum(call("tables", "visual")), rng)
-        log_phi_w = log_dirichlet(hyper.alpha_word + self._sum(call("tables", "words")), rng)
-        tables_g = self._sum(call("tables", "concepts"))
+        log_phi_v = log_dirichlet(hyper.alpha_visual + self.reduce(call("tables", "visual")), rng)
+        log_phi_w = log_dirichlet(hyper.alpha_word + self.reduce(call("tables", "words")), rng)
+        tables_g = self.reduce(call("tables", "concepts"))
         log_g0 = log_dirichlet(hyper.gamma0 / hyper.n_concepts + tables_g, rng)
         return SharedParameters(log_phi_v, log_phi_w, log_g0, shared.word_mask)
 
-    def _sum(self, parts: list):
+    def reduce(self, parts: list):
+        """The shards' statistics added up in shard order (counting the bytes received)."""
         total = parts[0]
         for part in parts[1:]:
             total = total + part
@@ -221,6 +222,8 @@ class GlobalStep:
 def _nbytes(value) -> int:
     if isinstance(value, PooledCounts):
         return value.visual.nbytes + value.words.nbytes + value.concepts.nbytes
+    if isinstance(value, Colocation):
+        return value.nbytes
     return int(np.asarray(value).nbytes)
 
 
@@ -250,10 +253,7 @@ def sweep(call, global_step: GlobalStep, shared: SharedParameters, iteration: in
         shared = results[0].shared
     if prune:
         if uses_naming_rule(settings):
-            parts = call("colocation")
-            total = Colocation(*(sum(getattr(c, f) for c in parts) for f in ("pairs", "same", "expected")))
-            global_step.bytes_received += sum(3 * c.pairs.nbytes for c in parts)
-            mask = judge_names(total) != NOT_A_NAME
+            mask = judge_names(global_step.reduce(call("colocation"))) != NOT_A_NAME
         else:
             mask = results[0].word_mask
         shared = SharedParameters(shared.log_phi_v, shared.log_phi_w, shared.log_g0, mask)
