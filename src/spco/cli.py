@@ -51,10 +51,10 @@ def inspect(path: Path, teaching_rate: int, as_json: bool) -> None:
     if model_file_format(path) is not None:
         _inspect_model_file(path, as_json)
         return
-    from spco.commands_knowledge import _views_are_images
+    from spco.data.loading import views_are_images
 
     extractor = None
-    if _views_are_images(Path(path), None):  # views as images (spco import-bag): read them to count them
+    if views_are_images(path):  # views as images (spco import-bag): read them to count them
         from spco.features import DEFAULT_EXTRACTOR, build_extractor
 
         extractor = build_extractor(DEFAULT_EXTRACTOR)

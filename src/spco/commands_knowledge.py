@@ -89,18 +89,6 @@ def _image_options(func: Any) -> Any:
                              "used as the views in place of the homes' visual counts.")(func)
 
 
-def _views_are_images(path: Path, names: list[str] | None) -> bool:
-    """Whether the plain homes at ``path`` give their views as images only (images/, no visual.npz)."""
-    from spco.data.loading import find_homes, home_kind
-    from spco.data.plain import VISUAL_NPY, VISUAL_NPZ, has_images
-
-    if not path.is_dir():
-        return False
-    homes = [path] if home_kind(path) is not None else find_homes(path)
-    return any(home_kind(h) == "plain" and has_images(h) and not (h / VISUAL_NPZ).exists()
-               and not (h / VISUAL_NPY).exists() for h in homes)
-
-
 def _view_counts(home: Any, knowledge_file: Path, visual: Path | None, image: Path | None,
                  visual_scale: float | None, model: Path | None) -> Any:
     """The view's counts for what/teach: --visual features, or --image through the knowledge's
@@ -177,7 +165,7 @@ def fit(data: Path, homes: str | None, teaching_rate: int, model: str, iteration
     keeps, so that adapt, teach and what compute views the same way.
     """
     from spco.data.environment import Corpus
-    from spco.data.loading import load_homes
+    from spco.data.loading import load_homes, views_are_images
     from spco.engines import make_engine
     from spco.knowledge import fit_knowledge
 
@@ -193,7 +181,7 @@ def fit(data: Path, homes: str | None, teaching_rate: int, model: str, iteration
     names = _names(homes)
     image_extractor = None
     if images is not None or extractor is not None or model_file is not None \
-            or _views_are_images(Path(data), names):
+            or views_are_images(Path(data)):
         image_extractor = _fit_extractor(data, names, images, extractor, model_file, seed)
     start_views = time.perf_counter()
     envs = load_homes(data, names=names, teaching_rate=teaching_rate, progress=_progress(),
@@ -260,7 +248,7 @@ def adapt(knowledge_file: Path, home_path: Path, name: str | None, teaching_rate
     Learns the home's regions, concept weights, visual and word distributions and the concepts
     and regions of its samples. Words the knowledge never heard are added to the vocabulary.
     """
-    from spco.data.loading import load_home, load_homes
+    from spco.data.loading import load_home, load_homes, views_are_images
     from spco.errors import ConfigurationError
     from spco.knowledge import adapt as adapt_home
     from spco.knowledge import load_knowledge
@@ -270,7 +258,7 @@ def adapt(knowledge_file: Path, home_path: Path, name: str | None, teaching_rate
     extractor = None
     if knowledge.fitted_on_images:
         extractor = knowledge.image_extractor(model_path=model_file)
-    elif images is not None or _views_are_images(Path(home_path), None if name is None else [name]):
+    elif images is not None or views_are_images(Path(home_path)):
         raise ConfigurationError(f"{knowledge_file}: its knowledge was fitted on visual count vectors, "
                                  "not on images, so it cannot use a home whose views are images: fit a "
                                  "knowledge on homes with images (spco fit), or give the home's visual.npz")

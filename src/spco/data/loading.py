@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 from spco.data.environment import Corpus, Environment
-from spco.data.plain import has_images, is_plain_home, plain_home_name, read_home
+from spco.data.plain import VISUAL_NPY, VISUAL_NPZ, has_images, is_plain_home, plain_home_name, read_home
 from spco.data.sigverse import RatesMap, is_sigverse_home, read_sigverse_home, select_rate
 from spco.errors import ConfigurationError, DataFormatError
 
@@ -82,6 +82,17 @@ def find_homes(path: str | os.PathLike[str]) -> list[Path]:
     return [folder / n for n in names
             if not n.startswith(".") and (folder / n).is_dir() and home_kind(folder / n) is not None]
 
+
+
+def views_are_images(path: str | os.PathLike[str]) -> bool:
+    """Whether a plain home at ``path``, or one of the homes in the folder ``path``, gives its views as
+    images only (``images/``, no visual.npz): they need an image extractor to become counts."""
+    path = Path(path)
+    if not path.is_dir():
+        return False
+    homes = [path] if home_kind(path) is not None else find_homes(path)
+    return any(home_kind(h) == "plain" and has_images(h) and not (h / VISUAL_NPZ).exists()
+               and not (h / VISUAL_NPY).exists() for h in homes)
 
 def _no_homes(folder: Path) -> DataFormatError:
     """The error for a folder that holds no home, saying what seems to be missing."""
