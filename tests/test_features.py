@@ -383,3 +383,55 @@ def test_inspect_reads_homes_whose_views_are_images(image_homes: dict[str, Path]
     assert result.exit_code == 0, result.output
     rows = json.loads(result.output)  # one object per home
     assert len(rows) == 2 and all(r["samples"] > 0 and r["taught"] > 0 for r in rows)
+
+
+def test_experiment_with_images_extracts_once_for_its_workers(tmp_path: Path) -> None:
+    """`spco experiment --images --jobs 2`: the workers read the views the parent extracted (a cache
+    file in a temporary folder of the output, removed afterwards) and give the runs of one process;
+    the extractor's full description is part of the experiment's identity."""
+    from spco.evaluation.experiments import ExperimentConfig, run_experiment
+
+    corpus = generate_homes(3, seed=5, config=SyntheticConfig(n_features=16, n_train=6, n_test=2),
+                            new_homes=1, specific_rooms=False)
+    root = tmp_path / "homes"
+    write_corpus(list(corpus), root)
+    rng = np.random.default_rng(0)
+    for env in corpus:
+        _image_home(env, root / env.name, rng)
+    names = [env.name for env in corpus]
+    config = dict(experiment="general", data=root, images=root, settings=(1, 2), trials=2, iterations=3,
+                  models=("spcotransfer+mi",), experienced_homes=tuple(names[:2]), new_homes=(names[2],),
+                  seed=4)
+    serial = run_experiment(ExperimentConfig(**config, jobs=1), tmp_path / "serial")
+    parallel = run_experiment(ExperimentConfig(**config, jobs=2), tmp_path / "parallel")
+    assert not list((tmp_path / "parallel").glob(".views-*"))
+
+    def runs(out: Path) -> list[tuple]:
+        lines = [json.loads(line) for line in (out / "runs.jsonl").read_text().splitlines()]
+        return sorted((r["setting"], r["trial"], r["home"], r["mean_name_accuracy"],
+                       r["mean_position_accuracy"]) for r in lines)
+
+    assert len(runs(tmp_path / "serial")) == 4 and runs(tmp_path / "serial") == runs(tmp_path / "parallel")
+    views = serial.results["config"]["data"]["views"]
+    assert views["extractor_spec"] == build_extractor(DEFAULT_EXTRACTOR).spec().to_dict()
+    assert parallel.results["config"]["fingerprint"] == serial.results["config"]["fingerprint"]
+    # what the workers are given: the counts as a cache file, no images to extract
+    from spco.evaluation.experiments import RunKey, _build_data, _data_spec, _views_for_workers
+
+    full = ExperimentConfig(**config, jobs=2).validated()
+    spec = _data_spec(full)
+    data = _build_data(spec, full.settings)
+    pending = [RunKey(1, 0, names[2], "spcotransfer+mi"), RunKey(2, 0, names[2], "spcotransfer+mi")]
+    with _views_for_workers(data, spec, tmp_path, pending, 2, "local") as worker_spec:
+        assert worker_spec.images is None and worker_spec.extractor is None
+        assert Path(worker_spec.source).name == "views.npz"
+        rebuilt = _build_data(worker_spec, full.settings)
+        pairs = [(data.experienced_home(n), rebuilt.experienced_home(n)) for n in names[:2]]
+        pairs.append((data.new_home(names[2]), rebuilt.new_home(names[2])))
+        for given, read in pairs:
+            assert np.array_equal(given.visual.toarray(), read.visual.toarray())
+            assert given.sentences == read.sentences
+        assert rebuilt.vocabulary.words == data.vocabulary.words
+    assert not list(tmp_path.glob(".views-*"))
+    with _views_for_workers(data, spec, tmp_path, pending, 1, "local") as worker_spec:
+        assert worker_spec is spec  # one process: nothing to hand over

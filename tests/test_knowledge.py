@@ -128,6 +128,21 @@ def test_adapt_writes_home(home_file: Path, knowledge_file: Path, homes: dict[st
     assert np.array_equal(home.state.log_g0, k.log_g0)
 
 
+def test_adapt_warns_when_the_home_is_an_experienced_one(tmp_path: Path, knowledge_file: Path,
+                                                          homes: dict[str, Path]) -> None:
+    """`spco synth` with the same --seed for the experienced and the new homes writes the same homes:
+    adapting to one the knowledge learnt from is said, with what to do, not silently measured."""
+    experienced = sorted(homes["experienced"].iterdir())[0]
+    result = CliRunner().invoke(adapt, [str(knowledge_file), "--home", str(experienced), "--iterations", "2",
+                                        "--out", str(tmp_path / "again.spco")])
+    assert result.exit_code == 0, result.output
+    assert f"warning: home {experienced.name!r} has the name of a home this knowledge was learnt from" \
+        in result.output and "another --seed" in result.output
+    result = CliRunner().invoke(adapt, [str(knowledge_file), "--home", str(homes["new"]), "--iterations", "2",
+                                        "--out", str(tmp_path / "new.spco")])
+    assert result.exit_code == 0 and "learnt from" not in result.output
+
+
 def test_adapt_joint_refines_shared_part(tmp_path: Path, knowledge_file: Path,
                                          homes: dict[str, Path]) -> None:
     k = kn.load_knowledge(knowledge_file)

@@ -6,6 +6,7 @@ import csv
 import json
 import math
 import shutil
+from collections import Counter
 from pathlib import Path
 
 import cv2
@@ -239,6 +240,54 @@ def test_not_a_bag_and_missing_bag(tmp_path: Path) -> None:
     for path, message in ((junk, "cannot read the bag"), (tmp_path / "absent.bag", "no such bag")):
         result = _cli([path, "--out", tmp_path / "home"])
         assert result.exit_code == 2 and message in result.output and str(path) in result.output
+
+
+@pytest.mark.parametrize("pose", ["PoseWithCovarianceStamped", "tf"])
+def test_tours_whose_clocks_overlap_are_read_one_after_the_other(tmp_path: Path, pose: str) -> None:
+    """Two tours recorded with the same clock origin (simulated time, a clock reset) used to lose
+    most of the second one as "time went backwards"; now each is read on its own time line and the
+    home holds every sample of both, the first tour's first."""
+    tours = [tmp_path / "tour_a.bag", tmp_path / "tour_b.bag"]
+    write_tour(tours[0], seconds=30, size=SMALL, pose=pose, seed=1)
+    write_tour(tours[1], seconds=20, size=SMALL, pose=pose, seed=2)  # same start time as the first
+    settings = BagImportSettings(speech_topic="/speech")
+    alone = [import_bags([bag], tmp_path / f"alone_{bag.stem}", settings) for bag in tours]
+    both = import_bags(tours, tmp_path / "both", settings)  # same start: in the order given
+    assert both.tours == 2 and "2 tours whose clocks overlap" in both.format()
+    assert both.dropped == {} and Counter(both.skipped) == sum((Counter(a.skipped) for a in alone), Counter())
+    assert both.samples == sum(a.samples for a in alone) and both.taught == 3 + 2
+    rows = _check_tour_home(tmp_path / "both", n_utterances=5)
+    first = _rows(tmp_path / "alone_tour_a")
+    assert [(r["x"], r["y"], r["sentence"]) for r in rows[:len(first)]] == \
+        [(r["x"], r["y"], r["sentence"]) for r in first]
+    assert filecmp_images(tmp_path / "both", tmp_path / "alone_tour_b", offset=len(first))
+
+
+def filecmp_images(home: Path, alone: Path, offset: int) -> bool:
+    """The views of ``alone``'s samples are those of ``home``'s samples from ``offset`` on."""
+    return all((home / "images" / f"{int(r['id']) + offset}.jpg").read_bytes()
+               == (alone / "images" / f"{r['id']}.jpg").read_bytes() for r in _rows(alone))
+
+
+def test_camera_and_poses_in_separate_bags_at_the_same_time_are_one_tour(tmp_path: Path) -> None:
+    """Bags recording other topics over the same time (a camera bag beside a pose bag) are one
+    tour: the same samples as one bag holding everything."""
+    rng = np.random.default_rng(3)
+    together, poses, camera = tmp_path / "all.bag", tmp_path / "poses.bag", tmp_path / "camera.bag"
+    views = [rng.integers(0, 255, (8, 8, 3), dtype=np.uint8) for _ in range(40)]
+    with BagWriter(together) as everything, BagWriter(poses) as pose_bag, BagWriter(camera) as camera_bag:
+        for k in range(40):
+            for bag in (everything, pose_bag):
+                bag.pose("/pose", T0 + k * S // 4, 0.1 * k, 0.0, 0.0)
+            for bag in (everything, camera_bag):
+                bag.compressed_image("/cam", T0 + k * S // 4 + S // 100, views[k])
+        for bag in (everything, pose_bag):
+            bag.text("/speech", T0 + 2 * S, "this is the hall")
+    settings = BagImportSettings(speech_topic="/speech")
+    one = import_bags([together], tmp_path / "one", settings)
+    two = import_bags([camera, poses], tmp_path / "two", settings)
+    assert two.tours == 1 and two.dropped == {} and two.samples == one.samples and two.taught == 1
+    assert _rows(tmp_path / "one") == _rows(tmp_path / "two")
 
 
 def test_time_going_backwards_is_dropped_and_counted(tmp_path: Path) -> None:

@@ -125,7 +125,8 @@ def import_bag(
 
     A sample at every utterance (taught) and every --every-metres / --every-seconds along the way;
     pose, view and speech each nearest in time within --tolerance. Samples missing one are skipped
-    and counted. The folder is written whole or not at all.
+    and counted. Bags whose clocks overlap on the same topics are separate tours, read one after
+    the other. The folder is written whole or not at all.
     """
     from spco.data.rosbag import BagImportSettings, import_bags
 

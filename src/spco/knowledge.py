@@ -763,6 +763,10 @@ VIEW_FIT_MEASURE = ("median over a home's views v of log(Σ_l G_0,l Π_d φ^v_l,
 VIEW_FIT_WARN_FRACTION = 0.5
 
 
+class ExperiencedHomeWarning(UserWarning):
+    """A home given to :func:`adapt` has the name of one of the knowledge's experienced homes."""
+
+
 class KnowledgeMismatchWarning(UserWarning):
     """The knowledge explains a home's views much worse than its experienced homes' (:func:`view_fit`)."""
 
@@ -1403,6 +1407,11 @@ def adapt(
         raise ConfigurationError(f"home {home.name!r} has no training samples to adapt to")
     _check_visual_dimension(knowledge, train.visual.shape[1], home.source or home.name)
     fit_of_views = check_view_fit(knowledge, train.visual, home.name)
+    if home.name in (knowledge.provenance.get("homes") or []):
+        warnings.warn(f"home {home.name!r} has the name of a home this knowledge was learnt from: if it is "
+                      "that home, it is not new to the knowledge and its answers say little about a new "
+                      "home (spco synth: write new homes with another --seed than the experienced ones)",
+                      ExperiencedHomeWarning, stacklevel=2)
     extended = knowledge.extended(train.sentences)
     n_known = knowledge.n_words
     hyper = extended.hyperparameters

@@ -23,6 +23,14 @@ without a header, such as ``std_msgs/String``, use the bag's record time) or the
 throughout (``clock="bag"``). A message whose time goes backwards on its topic (or tf edge) is
 dropped and counted.
 
+Several bags are several **tours** when their clocks overlap (:func:`_tours`): a bag that starts
+before a bag of the tour so far has ended, and records one of the same topics, is a recording of
+its own whose clock started again (simulated time from 0 at each run, a robot whose clock was
+reset). Each tour is read on its own time line: its times are shifted to start
+:data:`TOUR_GAP_SECONDS` after the previous tour's last time, so nothing of one tour is matched with
+another's or dropped as going backwards. Bags that follow one another (a recording split into files)
+or record other topics at the same time (the camera in one bag, the poses in another) are one tour.
+
 The home folder is written into a temporary folder beside ``out`` and renamed into place; an
 existing non-empty ``out`` is replaced only with ``overwrite`` and only if it is a home folder.
 Every problem with a bag (missing, truncated, an unknown or unsupported message type, a missing
@@ -67,6 +75,9 @@ VISUAL_TYPES = tuple(
 RAW_ENCODINGS = ("rgb8", "bgr8", "mono8")
 _NS = 1_000_000_000
 _HEADER_OFFSET_WARNING_S = 5.0
+#: Seconds between the end of one tour and the start of the next on the import's time line (far
+#: beyond any --tolerance or --every-seconds, so no sample takes a modality from another tour).
+TOUR_GAP_SECONDS = 3600.0
 
 
 @dataclass(frozen=True)
@@ -121,6 +132,7 @@ class BagImportSummary:
     out: str
     topics: dict[str, str]  # role -> topic ("pose", "image", "speech", …)
     messages: int = 0  # messages read on those topics
+    tours: int = 1  # recordings whose clocks overlap, read one after the other
     seconds: float = 0.0
     samples: int = 0
     taught: int = 0
@@ -137,9 +149,12 @@ class BagImportSummary:
 
     def format(self) -> str:
         """A few lines for people."""
+        bags = f"{len(self.bags)} bag{'s' if len(self.bags) != 1 else ''}"
+        if self.tours > 1:
+            bags += f" ({self.tours} tours whose clocks overlap, read one after the other)"
         lines = [
-            f"Read {len(self.bags)} bag{'s' if len(self.bags) != 1 else ''}: {self.messages:,} messages "
-            f"in {self.seconds:.1f} s ({self.messages_per_second:,.0f} messages/s)"
+            f"Read {bags}: {self.messages:,} messages in {self.seconds:.1f} s "
+            f"({self.messages_per_second:,.0f} messages/s)"
         ]
         lines += [f"  {role:<7} {topic}" for role, topic in self.topics.items()]
         lines.append(
@@ -180,6 +195,7 @@ class _Bag:
             stack.enter_context(reader)
             self.topics = {name: info.msgtype or "" for name, info in reader.topics.items()}
             self.start = reader.start_time if reader.message_count else 0
+            self.end = reader.end_time if reader.message_count else 0
         except Exception as exc:  # rosbags, sqlite and the OS raise many kinds; all mean "unreadable"
             raise _unreadable(path, exc) from None
         self.reader = reader
@@ -378,6 +394,7 @@ class _Streams:
     images: _Series  # values: (bag index, ordinal among the topic's messages in that bag)
     visual: _Series
     header_offsets: dict[str, list[int]] = field(default_factory=lambda: defaultdict(list))
+    tours: int = 1  # recordings whose clocks overlap (:func:`_tours`)
 
 
 def _choose(
@@ -429,6 +446,23 @@ def _required(bags: list[_Bag], given: str | None, types: Sequence[str], role: s
     return topic
 
 
+def _tours(bags: Sequence[_Bag], topics: Sequence[str]) -> list[int]:
+    """The tour of each bag (bags sorted by start time): a bag that starts before a bag of the
+    current tour has ended and records one of ``topics`` that bag records too starts a new tour
+    (its clock started again); otherwise it continues the current tour (a recording split into files,
+    or other topics recorded at the same time)."""
+    wanted = set(topics)
+    tours: list[int] = []
+    current: list[_Bag] = []
+    for bag in bags:
+        mine = wanted & set(bag.topics)
+        if any(other.end > bag.start and mine & set(other.topics) for other in current):
+            current = []
+        tours.append(tours[-1] + (not current) if tours else 0)
+        current.append(bag)
+    return tours
+
+
 def _read_streams(
     bags: list[_Bag],
     topics: dict[str, str],
@@ -457,25 +491,32 @@ def _read_streams(
 
         bar = tqdm(desc="reading", unit=" msg", leave=False)
     count = 0
+    tour_of = _tours(bags, wanted)
+    shift, latest = 0, None  # the current tour's shift onto the import's time line; its last time
     for index, bag in enumerate(bags):
+        if index > 0 and tour_of[index] != tour_of[index - 1] and latest is not None:
+            first = min(b.start for b, t in zip(bags, tour_of, strict=True) if t == tour_of[index])
+            shift = latest + round(TOUR_GAP_SECONDS * _NS) - first
         ordinal = 0
-        for connection, bag_time, raw in bag.messages(wanted):
+        for connection, record_time, raw in bag.messages(wanted):
             count += 1
             if bar is not None:
                 bar.update()
+            bag_time = record_time + shift
+            latest = bag_time if latest is None else max(latest, bag_time)
             topic = connection.topic
             if topic == topics.get("image"):
                 stamp = _raw_stamp(raw, bag.is2) if use_header else 0
                 if stamp:
-                    streams.header_offsets[topic].append(bag_time - stamp)
-                streams.images.add(stamp or bag_time, (index, ordinal))
+                    streams.header_offsets[topic].append(record_time - stamp)
+                streams.images.add(stamp + shift if stamp else bag_time, (index, ordinal))
                 ordinal += 1
                 continue
             msg = bag.deserialize(raw, connection)
             if topic == pose_topic and not tf_mode:
                 stamp = _stamp(msg.header) if use_header else 0
                 if stamp:
-                    streams.header_offsets[topic].append(bag_time - stamp)
+                    streams.header_offsets[topic].append(record_time - stamp)
                 source = _frame(msg.header.frame_id)
                 if source and source != frame:
                     raise DataFormatError(
@@ -489,12 +530,12 @@ def _read_streams(
                 if not all(math.isfinite(v) for v in value):
                     dropped[f"{topic}: pose not finite"] += 1
                     continue
-                streams.pose.add(stamp or bag_time, value)
+                streams.pose.add(stamp + shift if stamp else bag_time, value)
             elif topic in (pose_topic, "/tf_static") and tf_mode:
                 static = topic == "/tf_static"
                 for transform in msg.transforms:
                     stamp = _stamp(transform.header) if use_header else 0
-                    streams.tf.add(transform, stamp or bag_time, static)
+                    streams.tf.add(transform, stamp + shift if stamp else bag_time, static)
             elif topic == topics.get("speech"):
                 text = str(msg.data).strip()
                 if text:
@@ -505,6 +546,7 @@ def _read_streams(
                 streams.visual.add(bag_time, np.asarray(msg.data, dtype=np.float64).ravel())
     if bar is not None:
         bar.close()
+    streams.tours = tour_of[-1] + 1 if tour_of else 1
     return streams, count
 
 
@@ -772,7 +814,8 @@ def import_bags(
         if traj.times.size == 0:
             raise DataFormatError(where, f"no usable pose on {topics['pose']}")
         summary = BagImportSummary(
-            bags=[str(p) for p in paths], out=str(target), topics=topics, messages=n_messages
+            bags=[str(p) for p in paths], out=str(target), topics=topics, messages=n_messages,
+            tours=streams.tours,
         )
         samples = _make_samples(traj, streams, topics, settings, tolerance_ns, summary)
         if not samples:

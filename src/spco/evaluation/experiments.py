@@ -112,8 +112,10 @@ import json
 import math
 import multiprocessing
 import os
+import shutil
 import signal
 import sys
+import tempfile
 import threading
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
@@ -456,6 +458,9 @@ class ExperimentData:
     regions: dict[str, PlaceRegions] = field(default_factory=dict)
     description: dict[str, Any] = field(default_factory=dict)
     vocabulary: Vocabulary = field(default_factory=lambda: Vocabulary(()))
+    #: the homes as read, when their views were computed from images (handed to worker processes as
+    #: a cache file, so that the images are not read and extracted again in each of them)
+    view_records: list[Any] = field(default_factory=list, repr=False)
     _evaluated: dict[tuple[str, int], Environment] = field(default_factory=dict)
 
     @property
@@ -489,7 +494,9 @@ class ExperimentData:
 
 
 def _read_path_sources(spec: _DataSpec) -> tuple[tuple[str, ...], tuple[str, ...], str | None,
-                                                     dict[str, _HomeSource]]:
+                                                     dict[str, _HomeSource], list[Any], Any]:
+    """The homes of a data set on disk: experienced, new and specific home names, their sources, the
+    records read and the image extractor (``None`` for count vectors)."""
     from spco.data.loading import read_records
 
     experienced = spec.experienced_homes or PAPER_EXPERIENCED_HOMES
@@ -518,7 +525,7 @@ def _read_path_sources(spec: _DataSpec) -> tuple[tuple[str, ...], tuple[str, ...
     sources: dict[str, _HomeSource] = {}
     for name, rec in zip(names, records, strict=True):
         sources[name] = _HomeSource(rec.at_rate)
-    return tuple(experienced), tuple(new), specific, sources
+    return tuple(experienced), tuple(new), specific, sources, records, extractor
 
 
 def _image_extractor(spec: _DataSpec, experienced: Sequence[str]) -> Any:
@@ -595,10 +602,12 @@ def _file_digest(path: Path) -> str:
 
 def _build_data(spec: _DataSpec, settings: Sequence[int]) -> ExperimentData:
     regions: dict[str, PlaceRegions] = {}
+    records: list[Any] = []
+    extractor = None
     if spec.source == "synthetic":
         experienced, new, specific, sources, regions = _synthetic_sources(spec)
     else:
-        experienced, new, specific, sources = _read_path_sources(spec)
+        experienced, new, specific, sources, records, extractor = _read_path_sources(spec)
     if spec.regions is not None:
         regions = load_region_file(spec.regions)
     data = ExperimentData(experiment=spec.experiment, experienced=experienced, new_homes=new,
@@ -627,8 +636,12 @@ def _build_data(spec: _DataSpec, settings: Sequence[int]) -> ExperimentData:
     if spec.images is not None or spec.extractor is not None:
         from spco.features import DEFAULT_EXTRACTOR
 
+        # the extractor's full description (version, settings, checksum of a learnt codebook): a
+        # resumed experiment whose views would be computed differently is another experiment
         data.description["views"] = {"images": spec.shown_images or spec.images,
-                                     "extractor": spec.extractor or DEFAULT_EXTRACTOR}
+                                     "extractor": spec.extractor or DEFAULT_EXTRACTOR,
+                                     "extractor_spec": extractor.spec().to_dict()}
+        data.view_records = records
     return data
 
 
@@ -972,6 +985,28 @@ def _run_pending(pending: Sequence[RunKey], data: ExperimentData, spec: _DataSpe
             pool.shutdown(wait=False, cancel_futures=True)
             raise
         pool.shutdown(wait=True)
+
+
+@contextlib.contextmanager
+def _views_for_workers(data: ExperimentData, spec: _DataSpec, out: Path, pending: Sequence[RunKey],
+                       jobs: int, engine: str) -> Iterator[_DataSpec]:
+    """The recipe worker processes rebuild the data from. Views computed from images are written
+    once to a cache file in a temporary folder of ``out`` (removed afterwards), so that each worker
+    reads the counts instead of reading and extracting every image again (~30 s per worker on
+    SIGVerse); otherwise ``spec`` itself."""
+    in_workers = engine == "ray" or (jobs > 1 and len(pending) > 1)
+    if not (in_workers and pending and data.view_records):
+        yield spec
+        return
+    from spco.data.cache import write_records
+
+    folder = Path(tempfile.mkdtemp(prefix=".views-", dir=out))
+    try:
+        views = folder / "views.npz"
+        write_records(data.view_records, views)
+        yield replace(spec, source=str(views.resolve()), images=None, extractor=None)
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
 
 
 @contextlib.contextmanager
@@ -1392,8 +1427,9 @@ def run_experiment(
         bar.update(1)
 
     try:
-        _run_pending(pending, data, spec, settings, ctx, config.jobs, on_result, config.engine,
-                     config.address)
+        with _views_for_workers(data, spec, out_path, pending, config.jobs, config.engine) as worker_spec:
+            _run_pending(pending, data, worker_spec, settings, ctx, config.jobs, on_result, config.engine,
+                         config.address)
     except KeyboardInterrupt:
         bar.close()
         say(f"interrupted after {finished} run(s) of this session; they are saved in {runs_file}: "
