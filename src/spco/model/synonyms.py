@@ -11,13 +11,18 @@ to one of them, and ``where`` for the synonyms the others carry lands anywhere (
 free-form synthetic homes: "bath" in concept 8 in 14 homes, "bathroom" in concept 7 in 14 homes,
 "bathtub" in concept 14 in 12 homes; a new home's bath in concept 7 only).
 
-The rule (:func:`same_place_names`): within one home, two names are names of one place when the
-samples that stand for them are mostly in the same regions — their region distributions p_a, p_b
-overlap by Σ_m min(p_a(m), p_b(m)) ≥ ``min_overlap`` — and names linked so (transitively) are one
-group, which starts as one concept. Regions are the home's position clusters, so the rule says:
-words said at the same spots of a home are names of the same place. Names of different rooms are
-said in different regions and stay apart. No list of synonyms is used; the rule is judged per home,
-so two homes may group their names differently, and the labels are then aligned by their words.
+The rule (:func:`same_place_names`): the overlap of two names in one home is
+o_e(a, b) = Σ_m min(p_a(m), p_b(m)), p_a the distribution over the home's regions of the samples
+that stand for name a (1: said at the same spots, 0: apart). It is pooled over the homes that say
+both, weighted by the fewer uses of the two (:func:`pooled_overlaps`): the start's regions are
+k-means clusters, a room spans two or three of them, a name said once overlaps its synonym by
+chance, and an open-plan kitchen-diner puts two places in one region; pooled, a pair is judged on
+every home that says both. Two names said in one home whose pooled overlap exceeds ``min_overlap``
+are one place there; names linked so (transitively) are one group, which starts as one concept.
+Words said at the same spots of the homes are names of the same place; names of different rooms
+are said in different regions and stay apart. No list of synonyms is used; a name said in one home
+only (Emma's room) is judged on that home; homes may group their names differently, and the labels
+are then aligned by their words.
 """
 
 from __future__ import annotations
@@ -28,8 +33,8 @@ from scipy.sparse.csgraph import connected_components
 
 __all__ = ["MIN_OVERLAP", "name_region_overlaps", "pooled_overlaps", "same_place_names"]
 
-#: Least overlap of two names' region distributions in one home for them to be one place (see
-#: :func:`same_place_names`; chosen by the measurement in docs/model.md, "Synonyms").
+#: Pooled region overlap above which two names are one place (see :func:`same_place_names`; chosen
+#: by ``benchmarks/synonyms.py``, docs/model.md "Synonyms").
 MIN_OVERLAP = 0.4
 
 
