@@ -620,6 +620,33 @@ def _name_concept_weights(params: ConceptParameters, e: int, words: list[int]) -
     return g * theta_w
 
 
+def concept_stand_ins(params: ConceptParameters, e: int) -> np.ndarray:
+    """(L,) int: the concept of home ``e`` that stands in for each concept when a name is looked for.
+
+    A concept holding samples of the home (``concept_counts`` ≥ 1) stands for itself. A concept with
+    none has no place in this home (its π there is its prior), yet it may carry a name the other
+    homes say at a place this home has under another concept: people call the bath "bath",
+    "bathroom" or "shower", each household its own way, and the sampler learns one concept per name
+    (a synonym's samples keep to the concept whose θ^w gives it the most). Such a concept is looked
+    for where the home keeps the concept its views would be assigned to: the occupied concept l
+    maximising Σ_d φ^v_{l',d} log θ^v_{e,l,d}, the log-likelihood per count of the concept's shared
+    view profile φ^v_{l'} (a typical view of it). Views carry thousands of counts per sample, so that
+    assignment is a hard choice and this one is too. Identity when no concept is occupied or the
+    parameters carry no concept counts.
+    """
+    e = _check_home(params, e)
+    n_concepts = params.n_concepts
+    occupied = _occupied_concepts(params, e)
+    stand_in = np.arange(n_concepts)
+    if occupied.all() or not occupied.any():
+        return stand_in
+    phi_v = np.clip(np.asarray(params.shared_visual_probabilities, dtype=np.float64), 0.0, None)  # (L, D)
+    log_theta_v = _safe_log(np.asarray(params.visual_probabilities[e], dtype=np.float64))  # (L, D)
+    fit = phi_v[~occupied] @ log_theta_v[occupied].T  # (unoccupied, occupied)
+    stand_in[~occupied] = np.flatnonzero(occupied)[np.argmax(fit, axis=1)]
+    return stand_in
+
+
 def name_support(params: ConceptParameters, e: int, vocabulary: Vocabulary, name: str) -> float:
     """Share of p(name | home e) = Σ_l G_{e,l} θ^w_{e,l,w} held by concepts with samples of home e.
 
@@ -651,6 +678,9 @@ def region_posterior_for_name(
     e = _check_home(params, e)
     ws = query_indices(params, vocabulary, name)
     concept_weights = _name_concept_weights(params, e, ws)  # (L,)
+    # a concept without samples of this home is looked for where its stand-in is (synonyms)
+    concept_weights = np.bincount(concept_stand_ins(params, e), weights=concept_weights,
+                                  minlength=concept_weights.size)
     occupied = _occupied_concepts(params, e)
     if (concept_weights[occupied] > 0).any():
         concept_weights = np.where(occupied, concept_weights, 0.0)

@@ -41,6 +41,7 @@ from spco.model.numba_cache import announce_compilation
 from spco.model.observations import GaussianRegions, HierarchicalMultinomial, NIWPrior
 from spco.model.pruning import NAME, NOT_A_NAME, colocation, judge_names, words_to_keep
 from spco.model.random import DimensionMajorCounts, dimension_major, dirichlet_log_density, log_dirichlet
+from spco.model.synonyms import same_place_names
 
 VARIANTS = ("exact", "reference", "spcoa")
 
@@ -277,7 +278,9 @@ def warm_start(data: PreparedData, state: GibbsState, hyper: TransferHyperparame
     names = None
     if settings.prune and data.words.nnz:  # start from the places the home's names mark
         names = sample_names(data, state.regions, hyper)
-        state.concepts = concepts_by_name(data, state.regions, hyper, names)
+        # synonyms (names a home says at the same spots) start as one concept, not one each
+        places = same_place_names(names, state.regions, data.offsets, hyper.n_regions, data.words.shape[1])
+        state.concepts = concepts_by_name(data, state.regions, hyper, places)
         _home_step(data, state, _statistics(data, state, hyper), hyper, independent, rng)
     for sweep_index in range(n_sweeps):
         _local_step(data, state, independent, rng)
