@@ -205,21 +205,34 @@ def colocation(words: sp.csr_array, homes: np.ndarray, regions: np.ndarray, n_ho
     with np.errstate(divide="ignore", invalid="ignore"):
         q = np.where(sizes > 1, (cell_sizes * (cell_sizes - 1)).sum(1) / (sizes * (sizes - 1)), 1.0)
     expected = np.bincount(in_home.col, weights=home_pairs * q[in_home.row], minlength=n_words)
-    # the urn's likelihood on the grid of κ, from the (home, word) pairs said at least twice
+    # the urn's likelihood on the grid of κ, from the (home, word) pairs said at least twice; each
+    # term depends on the word only through its counts (and the cell's share), so it is evaluated
+    # once per distinct value and summed per word with a sparse product
     alpha = (1.0 - EXCESS_GRID) / EXCESS_GRID  # (G,)
-    log_likelihood = np.zeros((n_words, EXCESS_GRID.size))
     repeated = in_home.data >= 2
-    n_e = in_home.data[repeated]
-    per_home = gammaln(alpha)[None, :] - gammaln(alpha[None, :] + n_e[:, None])  # (pairs said twice+, G)
-    np.add.at(log_likelihood, in_home.col[repeated], per_home)
-    home_of_cell, _ = np.divmod(in_cell.row, n_regions)
-    counted = np.zeros((n_homes, n_words), dtype=bool)
-    counted[in_home.row[repeated], in_home.col[repeated]] = True
-    keep = counted[home_of_cell, in_cell.col]
-    share = (cell_sizes.ravel() / np.maximum(sizes, 1.0).repeat(n_regions))[in_cell.row[keep]]  # s_{e,m}
+    n_e = in_home.data[repeated].astype(np.int64)
+    if n_e.size == 0:
+        return Colocation(pairs=pairs, same=same, expected=expected,
+                          log_likelihood=np.zeros((n_words, EXCESS_GRID.size)))
+    uses = np.arange(n_e.max() + 1)
+    per_home = gammaln(alpha)[None, :] - gammaln(alpha[None, :] + uses[:, None])  # (max n_e + 1, G)
+    by_count = sp.csr_array((np.ones(n_e.size), (in_home.col[repeated], n_e)), shape=(n_words, uses.size))
+    log_likelihood = by_count @ per_home
+    counted = sp.csr_array((np.ones(n_e.size), (in_home.row[repeated], in_home.col[repeated])),
+                           shape=(n_homes, n_words))
+    keep = np.asarray(counted[in_cell.row // n_regions, in_cell.col]).ravel() > 0
+    in_region = cell_sizes.ravel().astype(np.int64)[in_cell.row[keep]]  # c_{e,m}
+    in_home_all = sizes.astype(np.int64)[in_cell.row[keep] // n_regions]  # c_e
+    count = in_cell.data[keep].astype(np.int64)  # n_{e,m}
+    top = int(sizes.max()) + 1
+    key = (in_region * top + in_home_all) * top + count  # one integer per (share, count)
+    values, which = np.unique(key, return_inverse=True)
+    share = (values // top // top) / ((values // top) % top)  # s_{e,m} = c_{e,m} / c_e
     a_s = alpha[None, :] * share[:, None]
-    per_cell = gammaln(a_s + in_cell.data[keep][:, None]) - gammaln(a_s)
-    np.add.at(log_likelihood, in_cell.col[keep], per_cell)
+    per_cell = gammaln(a_s + (values % top)[:, None]) - gammaln(a_s)  # (distinct (share, count), G)
+    by_value = sp.csr_array((np.ones(which.size), (in_cell.col[keep], which.ravel())),
+                            shape=(n_words, values.size))
+    log_likelihood = log_likelihood + by_value @ per_cell
     return Colocation(pairs=pairs, same=same, expected=expected, log_likelihood=log_likelihood)
 
 
