@@ -193,3 +193,11 @@ def test_align_homes_matches_a_synonym_by_its_views() -> None:
     # slot j of home 1 holds its concept perms[1, j]: the entrance slot 0 its concept 2, the bath's slot 2
     assert perms[1].tolist() == [2, 1, 0]
     assert perms[2].tolist() == [0, 1, 2]
+
+
+def test_a_home_where_every_word_is_pruned_still_samples() -> None:
+    """Names said at random positions are spread: the rule may prune every word; the sampler's word
+    term is then empty (no word says anything), not a reduction over zero words."""
+    log_theta = np.log(np.full((1, 2, 3), 1 / 3))
+    kept = gibbs.kept_word_log_theta(log_theta, np.zeros(3, dtype=bool))
+    assert np.array_equal(kept, np.zeros_like(log_theta))
