@@ -67,8 +67,14 @@ def test_handwritten_sentences_name_and_find_the_places(sigverse_dir: Path) -> N
         living = [p for p, lab in zip(scores.predicted_names, scores.labels, strict=True)
                   if lab == "living room"]
         assert living.count("living room") >= 0.6 * len(living) and "room" not in living
-        # observed (40 sweeps, seed 0): A_n 0.46 / 0.60, A_p 0.73 / 0.81 (1LDK_9 / 2LDK_9). The
-        # kitchen, dining room, living room and bedrooms are named right; at the entrance, toilet,
-        # bath and washroom the model answers frame words ("the", "here", "this is") and prunes
-        # "toilet" — the naming rule of issue 13 (what counts as a name), not the language
-        assert scores.mean_name_accuracy >= 0.4 and scores.mean_position_accuracy >= 0.6, scores.summary()
+        # no test sample is named by a word that names no place: not the pronoun "we" said at six places
+        # of seven uses, nor "is", "our" (the naming rule judges them spread; before it, the model
+        # answered "we" at four bath views of 1LDK_9)
+        gt = env.ground_truth
+        assert gt is not None
+        place_names = {name for place in gt.places for name in gt.accepted(place)}
+        assert set(scores.predicted_names) <= place_names, scores.predicted_names
+        # observed (40 sweeps, seed 0): A_n 1.00 / 1.00, A_p 0.92 / 0.94 (1LDK_9 / 2LDK_9); before the
+        # naming rule's Bayes factor 0.83 / 0.88 and 0.92 / 0.94, before the naming rule 0.46 / 0.60
+        print(f"{env.name}: A_n {scores.mean_name_accuracy:.3f}, A_p {scores.mean_position_accuracy:.3f}")
+        assert scores.mean_name_accuracy >= 0.8 and scores.mean_position_accuracy >= 0.8, scores.summary()

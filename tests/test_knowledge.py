@@ -527,3 +527,25 @@ def test_synonyms_each_find_the_place_and_the_most_used_comes_first(home_file: P
     x, y = home.positions[first, :2]
     theta = float(np.arctan2(home.positions[first, 2], home.positions[first, 3]))
     assert kn.what(after, float(x), float(y), theta).words[0][0] == "tub room"
+
+
+def test_a_word_said_at_many_places_of_a_home_is_no_name(home_file: Path) -> None:
+    """Issue 13: a word the home hears at many places ("well", said at each of six rooms) is no name —
+    pruned, never `what`'s answer — while a name said once there stays usable and is answered at its
+    sample. (The earlier rule kept such a word undecided whenever chance expected less than one
+    same-region pair of its uses, e.g. when no two of the home's taught samples share a region.)"""
+    home = kn.load_home_model(home_file)
+    regions = home.state.regions
+    firsts = [int(np.flatnonzero(regions == m)[0]) for m in np.unique(regions)][:6]
+    assert len(firsts) == 6, "the home has six regions"
+    places = ("kitchen", "bath", "toilet", "entrance", "bedroom", "study room")
+    said = {int(home.ids[k]): f"well this is the {place}" for k, place in zip(firsts, places, strict=True)}
+    taught = kn.teach(home, said, random_state=0)
+    assert "well" in taught.vocabulary.words and "well" not in taught.known_names
+    assert "study room" in taught.known_names
+    answers = []
+    for k in firsts:
+        x, y = home.positions[k, :2]
+        theta = float(np.arctan2(home.positions[k, 2], home.positions[k, 3]))
+        answers.append(kn.what(taught, float(x), float(y), theta).best[0])
+    assert "well" not in answers and answers[-1] == "study room", answers

@@ -6,12 +6,21 @@ from __future__ import annotations
 import itertools
 
 import numpy as np
+import pytest
 import scipy.sparse as sp
 
 from spco.data import Corpus
 from spco.data.synthetic import SyntheticConfig, generate_homes, teach
 from spco.model import SpCoTransfer, TransferHyperparameters, gibbs
-from spco.model.pruning import NAME, NOT_A_NAME, UNDECIDED, Colocation, colocation, judge_names
+from spco.model.pruning import (
+    EXCESS_GRID,
+    NAME,
+    NOT_A_NAME,
+    UNDECIDED,
+    Colocation,
+    colocation,
+    judge_names,
+)
 
 
 def _brute_colocation(words: np.ndarray, homes: np.ndarray, regions: np.ndarray) -> tuple:
@@ -44,15 +53,77 @@ def test_colocation_matches_brute_force() -> None:
     assert np.allclose(stats.expected, expected)
 
 
+def _brute_log_likelihood(words: np.ndarray, homes: np.ndarray, regions: np.ndarray, n_regions: int
+                          ) -> np.ndarray:
+    """log p(regions of each word's uses | κ) on EXCESS_GRID, as the Pólya urn's sequence of draws:
+    the i-th use of a home lands in region m with probability (α s_m + n_m)/(α + i), n_m the uses
+    before it there, s_m the home's share of taught samples in m, α = (1 − κ)/κ."""
+    alpha = (1 - EXCESS_GRID) / EXCESS_GRID
+    out = np.zeros((words.shape[1], EXCESS_GRID.size))
+    for e in np.unique(homes):
+        rows = np.flatnonzero((homes == e) & (words.sum(axis=1) > 0))
+        share = np.bincount(regions[rows], minlength=n_regions) / rows.size
+        for k in range(words.shape[1]):
+            seen = np.zeros(n_regions)
+            for i, t in enumerate(t for t in rows if words[t, k] > 0):
+                out[k] += np.log((alpha * share[regions[t]] + seen[regions[t]]) / (alpha + i))
+                seen[regions[t]] += 1
+    return out
+
+
+def test_the_urn_likelihood_matches_brute_force() -> None:
+    rng = np.random.default_rng(3)
+    n, v, n_homes, n_regions = 50, 7, 3, 4
+    words = rng.integers(0, 2, size=(n, v)) * 5000
+    words[:, 0] = np.where(rng.random(n) < 0.5, 5000, 0) * (np.arange(n) % n_regions == 0)  # one place
+    words[rng.random(n) < 0.3] = 0  # untaught samples
+    homes = np.sort(rng.integers(0, n_homes, size=n))
+    regions = rng.integers(0, n_regions, size=n)
+    regions[np.arange(n) % n_regions == 0] = 1
+    stats = colocation(sp.csr_array(words), homes, regions, n_homes, n_regions)
+    brute = _brute_log_likelihood(words, homes, regions, n_regions)
+    # equal up to a constant per word (homes where the word is said once are left out: a constant)
+    np.testing.assert_allclose(stats.log_likelihood - stats.log_likelihood[:, :1], brute - brute[:, :1],
+                               atol=1e-9)
+    assert (np.ptp(brute, axis=1) > 0.1).all()  # every word is said twice in some home: the test has teeth
+
+
+def _one_home(uses: list[list[int]], n_regions: int = 8, per_region: int = 5) -> Colocation:
+    """A home with ``per_region`` taught samples in each region, and word k said at regions uses[k]."""
+    rows, regions = [], []
+    for m in range(n_regions):
+        rows += [[1] + [0] * len(uses)] * per_region
+        regions += [m] * per_region
+    for k, places in enumerate(uses):
+        for m in places:
+            rows.append([1] + [int(j == k) for j in range(len(uses))])
+            regions.append(m)
+    regions_arr = np.array(regions)
+    return colocation(sp.csr_array(np.array(rows) * 5000), np.zeros(len(rows), dtype=np.int64), regions_arr,
+                      1, n_regions)
+
+
 def test_verdicts() -> None:
-    stats = Colocation(pairs=np.array([40.0, 400.0, 18.0, 0.0, 1.0, 3.0, 18.0, 10.0]),
-                       same=np.array([20.0, 30.0, 2.0, 0.0, 1.0, 1.0, 4.0, 10.0]),
-                       expected=np.array([3.0, 30.0, 1.2, 0.0, 0.07, 0.2, 1.23, 10.0]))
-    # a name; a word said like any sentence; a small excess on few pairs; a word said once; a word
-    # said twice at one place; three uses at two places; an excess of 0.17 on 18 pairs (tail 0.036);
-    # a home taught in one region only (chance splits no pair: nothing to tell)
-    assert judge_names(stats).tolist() == [NAME, NOT_A_NAME, NOT_A_NAME, UNDECIDED, UNDECIDED, UNDECIDED,
-                                           UNDECIDED, UNDECIDED]
+    # column 0 is said at every sample (like "the"); then: a name said 8 times at one place; a word
+    # said once; twice at one place; twice at two places and once at three (a name taught at two or
+    # three places); seven uses at seven places (a pronoun); five uses at four places
+    stats = _one_home([[2] * 8, [5], [3, 3], [1, 6], [0, 4, 7], [0, 1, 2, 3, 4, 5, 6], [0, 0, 1, 2, 3]])
+    assert judge_names(stats).tolist() == [NOT_A_NAME, NAME, UNDECIDED, UNDECIDED, UNDECIDED, UNDECIDED,
+                                           NOT_A_NAME, NOT_A_NAME]
+    assert stats.log_bayes_factor()[2] == 0.0  # said once: no evidence either way
+    # a home taught in one region only: chance puts every pair there, nothing to tell
+    alone = colocation(sp.csr_array(np.ones((6, 1)) * 5000), np.zeros(6, dtype=np.int64), np.zeros(6, int),
+                       1, 3)
+    assert judge_names(alone).tolist() == [UNDECIDED]
+    # the hand-written "we": five uses at four regions of one home, two at two of another; fewer
+    # than one same-region pair expected by chance (the earlier rule's minimum evidence: undecided)
+    rows = [[1, 0]] * 40 + [[1, 1]] * 5 + [[1, 0]] * 40 + [[1, 1]] * 2
+    regions = [*(np.arange(40) % 20), 16, 3, 1, 14, 14, *(np.arange(40) % 20), 8, 2]
+    homes = np.repeat([0, 1], [45, 42])
+    we = colocation(sp.csr_array(np.array(rows) * 5000), homes, np.array(regions), 2, 20)
+    assert we.expected[1] < 1 and judge_names(we)[1] == NOT_A_NAME
+    with pytest.raises(ValueError, match="bayes_factor"):
+        judge_names(stats, bayes_factor=1.0)
 
 
 def test_template_words_are_no_names_and_place_names_are() -> None:
@@ -122,3 +193,11 @@ def test_align_homes_matches_a_synonym_by_its_views() -> None:
     # slot j of home 1 holds its concept perms[1, j]: the entrance slot 0 its concept 2, the bath's slot 2
     assert perms[1].tolist() == [2, 1, 0]
     assert perms[2].tolist() == [0, 1, 2]
+
+
+def test_a_home_where_every_word_is_pruned_still_samples() -> None:
+    """Names said at random positions are spread: the rule may prune every word; the sampler's word
+    term is then empty (no word says anything), not a reduction over zero words."""
+    log_theta = np.log(np.full((1, 2, 3), 1 / 3))
+    kept = gibbs.kept_word_log_theta(log_theta, np.zeros(3, dtype=bool))
+    assert np.array_equal(kept, np.zeros_like(log_theta))

@@ -567,6 +567,8 @@ def kept_word_log_theta(log_theta_w: np.ndarray, mask: np.ndarray) -> np.ndarray
     concepts sweep after sweep and nothing stayed aligned across homes."""
     if mask.all():
         return log_theta_w
+    if not mask.any():  # every word pruned (no word names a place): the words say nothing
+        return np.zeros_like(log_theta_w)
     kept = log_theta_w[..., mask]
     top = kept.max(axis=-1, keepdims=True)
     log_norm = np.log(np.exp(kept - top).sum(axis=-1, keepdims=True)) + top

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.special import gammainc
+from scipy.special import gammainc, gammaln, logsumexp
 
 
 def _xlogy_ratio(p: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -93,47 +93,60 @@ def words_to_keep(word_probabilities: np.ndarray, concept_weights: np.ndarray, t
 #: ``benchmarks/naming_rule.py``). A word is a *name* when, of the pairs of its uses said in the same
 #: home that chance (the home's taught samples) would put in different regions, at least
 #: NAME_MIN_EXCESS fall in the same region (:attr:`Colocation.excess`), more than chance explains
-#: (Poisson upper tail below NAME_P_VALUE). It is *no name* when it stays below that with enough pairs
-#: to tell — at least NAME_MIN_EVIDENCE same-region pairs expected by chance and as many pairs chance
-#: would split — and *undecided* otherwise (kept: a name taught once must be usable, and a name with a
-#: high excess on few pairs is not refused on thin evidence).
+#: (Poisson upper tail below NAME_P_VALUE). It is *no name* when it stays below that excess and its
+#: uses favour "said like any sentence" over "a name" by a Bayes factor of at least
+#: NAME_BAYES_FACTOR (:meth:`Colocation.log_bayes_factor`: each home's uses fall in its regions as
+#: a Pólya urn of excess κ, κ < NAME_MIN_EXCESS against κ ≥ NAME_MIN_EXCESS). It is *undecided*
+#: otherwise (kept): a word said once per home has a Bayes factor of exactly 1, so a name taught once
+#: is usable at once, while a word said at many places of a home ("we" at six places of seven uses)
+#: is judged on that evidence however few pairs of its uses chance would put in one region.
 NAME_MIN_EXCESS = 0.1
 NAME_P_VALUE = 0.01
-NAME_MIN_EVIDENCE = 1.0
+NAME_BAYES_FACTOR = 5.0
 
 #: Verdicts of :func:`judge_names`.
 NOT_A_NAME, UNDECIDED, NAME = 0, 1, 2
 
+#: The grid of excess values κ on which each word's likelihood is kept: midpoints of 50 bins of
+#: width 0.02 on [0, 1] (NAME_MIN_EXCESS is a bin edge), κ = 0 and 1 left out (α = ∞, 0).
+EXCESS_GRID = (np.arange(50) + 0.5) / 50
+
 
 @dataclass(frozen=True)
 class Colocation:
-    """How often pairs of a word's uses, said in the same home, fall in the same region; (V,) each.
+    """How a word's uses said in the same home are spread over the home's regions; (V,) each, and
+    the word's log-likelihood on :data:`EXCESS_GRID`, (V, G).
 
     pairs: Σ_e n_e(n_e − 1)/2 over the homes, n_e the taught samples of home e whose sentence holds
     the word; same: those pairs in the same region; expected: the same-region pairs expected if the
     word were said like any sentence of the home (Σ_e pairs_e · q_e, q_e the chance that two taught
     samples of home e share a region: in a home taught in its bedrooms only, "is" is said in the
-    bedrooms only too, which tells nothing)."""
+    bedrooms only too, which tells nothing). log_likelihood[w, j]: log p(regions of w's uses |
+    κ = EXCESS_GRID[j]) under the Pólya urn of :func:`colocation`, summed over the homes (up to a
+    constant per word)."""
 
     pairs: np.ndarray
     same: np.ndarray
     expected: np.ndarray
+    log_likelihood: np.ndarray
 
     def __add__(self, other: Colocation) -> Colocation:
-        """The statistics of two sets of homes together (each count is a sum over homes)."""
-        return Colocation(self.pairs + other.pairs, self.same + other.same, self.expected + other.expected)
+        """The statistics of two sets of homes together (each is a sum over homes)."""
+        return Colocation(self.pairs + other.pairs, self.same + other.same, self.expected + other.expected,
+                          self.log_likelihood + other.log_likelihood)
 
     @property
     def nbytes(self) -> int:
-        """Bytes of the three arrays (what a shard sends)."""
-        return self.pairs.nbytes + self.same.nbytes + self.expected.nbytes
+        """Bytes of the arrays (what a shard sends)."""
+        return self.pairs.nbytes + self.same.nbytes + self.expected.nbytes + self.log_likelihood.nbytes
 
     @property
     def excess(self) -> np.ndarray:
         """(same − expected) / (pairs − expected): the share of the pairs that chance would put in
         different regions that the word puts in the same one (a chance-corrected agreement, like
-        Cohen's κ): 1 for a word said at one place only, 0 for a word said like any sentence; NaN
-        when chance leaves no such pair (a home taught in one region only)."""
+        Cohen's κ; the moment estimate of the urn's κ): 1 for a word said at one place only, 0 for
+        a word said like any sentence; NaN when chance leaves no such pair (a home taught in one
+        region only)."""
         room = self.pairs - self.expected
         with np.errstate(divide="ignore", invalid="ignore"):
             return np.where(room > 0, (self.same - self.expected) / np.where(room > 0, room, 1.0), np.nan)
@@ -145,16 +158,38 @@ class Colocation:
             return np.where(self.expected > 0, self.same / np.where(self.expected > 0, self.expected, 1.0),
                             np.nan)
 
+    def log_bayes_factor(self, min_excess: float = NAME_MIN_EXCESS) -> np.ndarray:
+        """log p(uses | κ ≥ min_excess) − log p(uses | κ < min_excess), (V,), κ uniform within each
+        hypothesis (on :data:`EXCESS_GRID`): > 0 when the uses say "name", < 0 when they say "said
+        like any sentence", exactly 0 for a word said at most once per home (nothing to tell)."""
+        above = EXCESS_GRID >= min_excess
+        if above.all() or not above.any():
+            raise ValueError(f"min_excess must lie inside (0, 1), got {min_excess}")
+        ll = self.log_likelihood
+        ll = ll - ll.max(axis=1, keepdims=True) if ll.size else ll
+        return (logsumexp(ll[:, above], axis=1) - np.log(above.sum())
+                - logsumexp(ll[:, ~above], axis=1) + np.log((~above).sum()))
+
 
 def colocation(words: sp.csr_array, homes: np.ndarray, regions: np.ndarray, n_homes: int,
                n_regions: int) -> Colocation:
     """:class:`Colocation` of every word: ``words`` (N, V) counts (empty rows: untaught samples),
-    ``homes`` (N,), ``regions`` (N,) the samples' current regions. Two sparse products, no loop."""
+    ``homes`` (N,), ``regions`` (N,) the samples' current regions. Sparse products, no loop.
+
+    The likelihood: in home e, with s_{e,m} its share of taught samples in region m, the uses of a
+    word fall in the regions as a Pólya urn (Dirichlet-multinomial) with base s_e and concentration
+    α = (1 − κ)/κ, so that a second use lands in the first one's region with probability
+    κ + (1 − κ) s_{e,m}::
+
+        log p = Σ_e [ln Γ(α) − ln Γ(α + n_e) + Σ_m (ln Γ(α s_{e,m} + n_{e,m}) − ln Γ(α s_{e,m}))]
+
+    (n_{e,m}: the word's uses in region m of home e). Homes where the word is said once contribute
+    a constant (s_{e,m}) and are left out."""
     n_words = words.shape[1]
     taught = np.flatnonzero(np.diff(words.indptr) > 0)
     if taught.size == 0:
         zeros = np.zeros(n_words)
-        return Colocation(zeros, zeros.copy(), zeros.copy())
+        return Colocation(zeros, zeros.copy(), zeros.copy(), np.zeros((n_words, EXCESS_GRID.size)))
     present = sp.csr_array(words[taught] > 0, dtype=np.float64)
     cell = homes[taught] * n_regions + regions[taught]
     ones = np.ones(taught.size)
@@ -170,24 +205,55 @@ def colocation(words: sp.csr_array, homes: np.ndarray, regions: np.ndarray, n_ho
     with np.errstate(divide="ignore", invalid="ignore"):
         q = np.where(sizes > 1, (cell_sizes * (cell_sizes - 1)).sum(1) / (sizes * (sizes - 1)), 1.0)
     expected = np.bincount(in_home.col, weights=home_pairs * q[in_home.row], minlength=n_words)
-    return Colocation(pairs=pairs, same=same, expected=expected)
+    # the urn's likelihood on the grid of κ, from the (home, word) pairs said at least twice; each
+    # term depends on the word only through its counts (and the cell's share), so it is evaluated
+    # once per distinct value and summed per word with a sparse product
+    alpha = (1.0 - EXCESS_GRID) / EXCESS_GRID  # (G,)
+    repeated = in_home.data >= 2
+    n_e = in_home.data[repeated].astype(np.int64)
+    if n_e.size == 0:
+        return Colocation(pairs=pairs, same=same, expected=expected,
+                          log_likelihood=np.zeros((n_words, EXCESS_GRID.size)))
+    uses = np.arange(n_e.max() + 1)
+    per_home = gammaln(alpha)[None, :] - gammaln(alpha[None, :] + uses[:, None])  # (max n_e + 1, G)
+    by_count = sp.csr_array((np.ones(n_e.size), (in_home.col[repeated], n_e)), shape=(n_words, uses.size))
+    log_likelihood = by_count @ per_home
+    counted = sp.csr_array((np.ones(n_e.size), (in_home.row[repeated], in_home.col[repeated])),
+                           shape=(n_homes, n_words))
+    keep = np.asarray(counted[in_cell.row // n_regions, in_cell.col]).ravel() > 0
+    in_region = cell_sizes.ravel().astype(np.int64)[in_cell.row[keep]]  # c_{e,m}
+    in_home_all = sizes.astype(np.int64)[in_cell.row[keep] // n_regions]  # c_e
+    count = in_cell.data[keep].astype(np.int64)  # n_{e,m}
+    top = int(sizes.max()) + 1
+    key = (in_region * top + in_home_all) * top + count  # one integer per (share, count)
+    values, which = np.unique(key, return_inverse=True)
+    share = (values // top // top) / ((values // top) % top)  # s_{e,m} = c_{e,m} / c_e
+    a_s = alpha[None, :] * share[:, None]
+    per_cell = gammaln(a_s + (values % top)[:, None]) - gammaln(a_s)  # (distinct (share, count), G)
+    by_value = sp.csr_array((np.ones(which.size), (in_cell.col[keep], which.ravel())),
+                            shape=(n_words, values.size))
+    log_likelihood = log_likelihood + by_value @ per_cell
+    return Colocation(pairs=pairs, same=same, expected=expected, log_likelihood=log_likelihood)
 
 
 def judge_names(stats: Colocation, min_excess: float = NAME_MIN_EXCESS, p_value: float = NAME_P_VALUE,
-                min_evidence: float = NAME_MIN_EVIDENCE) -> np.ndarray:
+                bayes_factor: float = NAME_BAYES_FACTOR) -> np.ndarray:
     """Verdict of every word, (V,) int8: :data:`NAME` (said mostly at one place: its excess
     co-location reaches ``min_excess`` and the Poisson upper tail of its same-region pairs is below
-    ``p_value``), :data:`NOT_A_NAME` (below ``min_excess`` with at least ``min_evidence`` same-region
-    pairs expected by chance and as many split by chance: enough evidence that it is said like any
-    sentence), or :data:`UNDECIDED` (too few uses to tell — a word said once or twice per home, or a
-    home taught in one place only — or above the excess without significance: kept)."""
-    excess = stats.excess
+    ``p_value``), :data:`NOT_A_NAME` (its excess stays below ``min_excess`` and its uses favour an
+    urn excess κ < ``min_excess`` over κ ≥ ``min_excess`` by a Bayes factor of at least
+    ``bayes_factor``: enough evidence that it is said like any sentence), or :data:`UNDECIDED` (too
+    few uses to tell — a word said once per home, a name taught at one, two or three places, a home
+    taught in one place only — or above the excess without significance: kept)."""
+    if bayes_factor <= 1:
+        raise ValueError(f"bayes_factor must be > 1, got {bayes_factor}")
+    excess = np.nan_to_num(stats.excess, nan=0.0)
     tail = np.ones(stats.same.shape)
     hit = stats.same > 0
     tail[hit] = gammainc(stats.same[hit], stats.expected[hit])  # P(X >= same), X ~ Poisson(expected)
-    high = np.nan_to_num(excess, nan=0.0) >= min_excess
-    evidence = (stats.expected >= min_evidence) & (stats.pairs - stats.expected >= min_evidence)
+    high = excess >= min_excess
+    spread = stats.log_bayes_factor(min_excess) <= -np.log(bayes_factor)
     verdict = np.full(stats.pairs.shape, UNDECIDED, dtype=np.int8)
-    verdict[evidence & ~high] = NOT_A_NAME
+    verdict[spread & ~high] = NOT_A_NAME
     verdict[hit & high & (tail < p_value)] = NAME
     return verdict

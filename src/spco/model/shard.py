@@ -12,8 +12,9 @@ A :class:`HomeShard` holds some homes' data and sampler state. One sweep is
    (:class:`SharedParameters`), which every shard then receives in :meth:`HomeShard.home_step`
    (θ, G_e, π, μ, Σ of its homes, label swaps, and the word-pruning mask).
 4. **naming rule** (exact sampler with pruning) — every shard counts how often pairs of each word's
-   uses fall in the same region of its homes (:meth:`HomeShard.colocation`, three (V,) arrays that
-   add up over homes); the driver sums them and judges which words are names
+   uses fall in the same region of its homes and the log-likelihood of their regions on a grid of
+   excess values (:meth:`HomeShard.colocation`, three (V,) arrays and one (V, 50), all adding up
+   over homes); the driver sums them and judges which words are names
    (:func:`spco.model.pruning.judge_names`): the mask sent with the next local step.
 
 Only statistics and shared parameters travel, so shards can live in other processes or machines
@@ -173,8 +174,9 @@ class HomeShard:
 
     def colocation(self) -> Colocation:
         """The naming rule's statistics of the shard's homes on their current regions: pairs of each
-        word's uses in one home, those in one region, and those expected there by chance, (V,) each
-        (they add up over shards)."""
+        word's uses in one home, those in one region, and those expected there by chance, (V,) each,
+        and the log-likelihood of the uses' regions on the grid of excess values, (V, 50) (they add
+        up over shards)."""
         data = self.data
         return colocation(data.words, data.homes, self.state.regions, data.n_homes, self.hyper.n_regions)
 
