@@ -14,16 +14,18 @@ ENGINES = ("local", "ray")
 
 
 def make_engine(name: str = "local", shards: int | None = None, address: str | None = None,
-                checkpoint_every: int = 10):
+                checkpoint_every: int = 10, checkpoint_dir: str | None = None):
     """The engine called ``name`` (``local`` or ``ray``) with ``shards`` shards (default 1 local,
     2 on Ray); ``address`` is the Ray cluster to join (default: start a local Ray instance);
-    ``checkpoint_every`` sweeps between the Ray engine's checkpoints."""
+    ``checkpoint_every`` sweeps between the Ray engine's checkpoints, kept in ``checkpoint_dir``
+    (default: in the driver's memory)."""
     if name == "local":
         return LocalEngine(shards or 1)
     if name == "ray":
         from spco.engines.ray import RayEngine
 
-        return RayEngine(shards or 2, address=address, checkpoint_every=checkpoint_every)
+        return RayEngine(shards or 2, address=address, checkpoint_every=checkpoint_every,
+                         checkpoint_dir=checkpoint_dir)
     raise ValueError(f"unknown engine {name!r}; choose one of {ENGINES}")
 
 
