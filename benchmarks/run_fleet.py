@@ -113,7 +113,9 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
                  else [shard.setup_seconds for shard in run.shards])
         row.update(vocabulary_seconds=vocabulary_seconds, shard_setup_seconds=setup,
                    initialisation_bytes_received=run.initialisation.bytes_received,
-                   initialisation_bytes_sent=run.initialisation.bytes_sent)
+                   initialisation_bytes_sent=run.initialisation.bytes_sent,
+                   warm_start_seconds=run.initialisation.seconds,
+                   alignment_seconds=run.initialisation.alignment_seconds)
     run.close()
     return row
 
