@@ -39,9 +39,10 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.optimize import linear_sum_assignment
 
-from spco.model import gibbs
+from spco.model import allocation, gibbs
 from spco.model.gibbs import GibbsState, PreparedData, SamplerSettings
 from spco.model.hyperparameters import TransferHyperparameters
+from spco.model.observations import GaussianRegions
 from spco.model.pruning import NOT_A_NAME, Colocation, judge_names
 from spco.model.random import log_dirichlet
 
@@ -108,8 +109,7 @@ class ShardInitialisation:
         data, state, hyper = self.data, self.state, self.hyper
         self._names = gibbs.sample_names(data, state.regions, hyper, stats=naming)
         state.concepts = gibbs.concepts_by_name(data, state.regions, hyper, self._names)
-        gibbs.home_step(data, state, gibbs.sufficient_statistics(data, state, hyper), hyper, INDEPENDENT,
-                        self.rng)
+        independent_home_step(data, state, gibbs.sufficient_statistics(data, state, hyper), hyper, self.rng)
 
     def init_local_step(self) -> None:
         """One local step of the independent warm-start sampler (statistics kept)."""
@@ -120,7 +120,7 @@ class ShardInitialisation:
         """Take ``word_mask`` (if given), then the independent home step."""
         if word_mask is not None:
             self.state.word_mask = word_mask
-        gibbs.home_step(self.data, self.state, self._init_stats, self.hyper, INDEPENDENT, self.rng)
+        independent_home_step(self.data, self.state, self._init_stats, self.hyper, self.rng)
 
     def init_summary(self) -> HomeSummary:
         """Per-home word totals, names said and taught fractions (see :class:`HomeSummary`)."""
@@ -192,10 +192,15 @@ class ShardInitialisation:
 
         stats, own = self._init_stats, getattr(self, "_own", {})
         if scale:
+            # rint(n · w) as gibbs.warm_start scales, computed for the homes with w < 1 only: a
+            # home of weight 1 keeps its counts exactly (rint(n · 1.0) = n), and no (E, L, D)
+            # float temporary is made (the shard's peak memory at D = 4,096)
+            reduced = np.flatnonzero(self._weights < 1.0)
             for name in ("visual", "words", "concepts", "regions_by_concept"):
                 counts = getattr(stats, name)
-                weights = self._weights.reshape((-1,) + (1,) * (counts.ndim - 1))
-                scaled = np.rint(counts * weights).astype(np.int64)
+                scaled = np.array(counts, dtype=np.int64)
+                weights = self._weights[reduced].reshape((-1,) + (1,) * (counts.ndim - 1))
+                scaled[reduced] = np.rint(counts[reduced] * weights).astype(np.int64)
                 for e, labels in own.items():
                     scaled[e, labels] = counts[e, labels]
                 setattr(stats, name, scaled)
@@ -217,6 +222,34 @@ class ShardInitialisation:
         gibbs.home_step(self.data, state, self._init_stats, self.hyper, self.settings, self.rng)
         for name in ("_init_stats", "_names", "_name_counts", "_weights", "_own"):
             self.__dict__.pop(name, None)
+
+
+#: Homes whose θ^v the warm start's home step draws at a time (bounds its temporaries).
+THETA_CHUNK = 64
+
+
+def independent_home_step(data: PreparedData, state: GibbsState, stats: gibbs.Statistics,
+                          hyper: TransferHyperparameters, rng: np.random.Generator) -> None:
+    """The warm start's per-home step (the SpCoA conditionals of ``gibbs.home_step``): θ^v_{e,l} ~
+    Dir(α^v + n^v_{e,l}), θ^w likewise, G_e ~ Dir(γ/L + n_e), π, μ, Σ. θ^v is drawn
+    :data:`THETA_CHUNK` homes at a time into one (E, L, D) array, the old θ^v freed first (the
+    step does not read it), and the SpCoA export of the homes' mean as φ, G_0 is left out (the
+    warm start sets those from the aligned counts): two (E, L, D) arrays fewer at a shard's peak
+    memory than ``gibbs.home_step`` with the SpCoA settings."""
+    E, L, K = data.n_homes, hyper.n_concepts, hyper.n_regions
+    state.log_theta_v = None
+    theta_v = np.empty(stats.visual.shape)
+    for first in range(0, E, THETA_CHUNK):
+        last = min(first + THETA_CHUNK, E)
+        theta_v[first:last] = log_dirichlet(hyper.alpha_visual + stats.visual[first:last], rng)
+    state.log_theta_v = theta_v
+    state.log_theta_w = log_dirichlet(hyper.alpha_word + stats.words, rng)
+    state.log_g = log_dirichlet(hyper.gamma / L + stats.concepts, rng)
+    state.log_pi = allocation.sample_region_weights(stats.regions_by_concept, hyper.beta / K, rng)
+    state.means, state.covariances = GaussianRegions.sample_posterior(
+        stats.region_count, stats.region_total, stats.region_scatter,
+        gibbs.niw_prior(data, hyper, INDEPENDENT), rng)
+    state.region_counts = stats.region_count.astype(np.int64)
 
 
 # ----------------------------------------------------------------------------- the driver's side
