@@ -195,3 +195,15 @@ def test_fit_command_refuses_an_address_without_ray(tmp_path) -> None:
                                        "--address", "auto"])
     assert result.exit_code == 2
     assert "--address is for --engine ray" in result.output
+
+
+def test_fit_command_refuses_a_checkpoint_dir_without_ray(tmp_path) -> None:
+    """`spco fit --checkpoint-dir` belongs to `--engine ray` too."""
+    from click.testing import CliRunner
+
+    from spco.cli import main
+
+    result = CliRunner().invoke(main, ["fit", "--data", str(tmp_path), "--out", str(tmp_path / "k.spco"),
+                                       "--checkpoint-dir", str(tmp_path / "c")])
+    assert result.exit_code == 2
+    assert "--checkpoint-dir is for --engine ray" in result.output

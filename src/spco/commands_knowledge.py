@@ -147,6 +147,9 @@ def _seconds(value: float) -> str:
               help="The Ray cluster to join (e.g. 'auto' or HOST:PORT; default: start Ray locally).")
 @click.option("--checkpoint-every", default=10, show_default=True, type=click.IntRange(1),
               help="Ray engine: sweeps between checkpoints (a lost actor restarts from the last one).")
+@click.option("--checkpoint-dir", default=None, type=click.Path(file_okay=False, path_type=Path),
+              help="Ray engine: keep the checkpoints in this directory (each actor writes its own "
+                   "shard's file) instead of the driver's memory; on a cluster, shared storage.")
 @_image_options
 @click.option("--extractor", default=None,
               help="Image extractor when the views are images (default: colour-hog; bovw-orb, bovw-sift "
@@ -154,7 +157,8 @@ def _seconds(value: float) -> str:
 @_friendly
 def fit(data: Path, homes: str | None, teaching_rate: int, model: str, iterations: int, seed: int,
         out: Path, force: bool, engine: str, shards: int | None, address: str | None, checkpoint_every: int,
-        images: Path | None, model_file: Path | None, extractor: str | None) -> None:
+        checkpoint_dir: Path | None, images: Path | None, model_file: Path | None,
+        extractor: str | None) -> None:
     """Learn knowledge from experienced homes and write a knowledge file.
 
     The knowledge is the shared, home-independent part of the transfer model — the concepts'
@@ -177,7 +181,10 @@ def fit(data: Path, homes: str | None, teaching_rate: int, model: str, iteration
             raise click.UsageError("--engine ray needs Ray: pip install 'spco[ray]'") from None
     elif address is not None:
         raise click.UsageError("--address is for --engine ray")
-    runner = make_engine(engine, shards, address, checkpoint_every)
+    elif checkpoint_dir is not None:
+        raise click.UsageError("--checkpoint-dir is for --engine ray")
+    runner = make_engine(engine, shards, address, checkpoint_every,
+                         None if checkpoint_dir is None else str(checkpoint_dir))
     names = _names(homes)
     image_extractor = None
     if images is not None or extractor is not None or model_file is not None \

@@ -662,17 +662,15 @@ def fit_knowledge(
     data = SpatialConceptModel._prepare(corpus, scale)
     keep = set(summary_iterations(n_iterations, summary_fraction, summary_every))
     start = time.perf_counter()
-    state = gibbs.initialize(data, len(corpus.vocabulary), hyper, settings, rng)
     by_iteration: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
     bar = None
     if progress:
         from tqdm.auto import tqdm
 
         bar = tqdm(total=n_iterations, desc=f"fit ({model})", unit="sweep", leave=False)
-    from spco.engines import LocalEngine, make_engine
+    from spco.engines import start_run
 
-    run = (make_engine(engine) if isinstance(engine, str) else (engine or LocalEngine())).start(
-        data, state, hyper, settings, rng)
+    run = start_run(engine, data, len(corpus.vocabulary), hyper, settings, rng)
 
     def after_sweep(iteration: int, _: float) -> None:  # (a restarted engine repeats sweeps)
         if bar is not None:

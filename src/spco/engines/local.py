@@ -2,14 +2,18 @@
 
 from __future__ import annotations
 
+import itertools
 from abc import ABC, abstractmethod
 
 import numpy as np
 
 from spco.model import shard as shards_api
+from spco.model import shard_init
 from spco.model.gibbs import GibbsState, PreparedData, SamplerSettings
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.shard import GlobalStep, HomeShard, SharedParameters
+from spco.model.shard_init import InitialisationReport
+from spco.model.sources import HomeSource
 
 
 class ShardedRun(ABC):
@@ -20,31 +24,52 @@ class ShardedRun(ABC):
     :func:`spco.model.gibbs.sweep`. Otherwise shard i draws from its own generator seeded from
     the driver's (:func:`~spco.model.shard.shard_seeds`)."""
 
-    def __init__(self, data: PreparedData, state: GibbsState, hyper: TransferHyperparameters,
+    def __init__(self, data: PreparedData | None, state: GibbsState | None, hyper: TransferHyperparameters,
                  settings: SamplerSettings, rng: np.random.Generator, n_shards: int,
-                 share_rng: bool = False) -> None:
+                 share_rng: bool = False, source: HomeSource | None = None) -> None:
         if n_shards > 1 and not settings.hierarchical:
             raise ValueError("the SpCoA sampler has no shared part to reduce: run it with one shard")
-        if share_rng and n_shards != 1:
-            raise ValueError("only one in-process shard can share the driver's random generator")
+        if share_rng and (n_shards != 1 or source is not None):
+            raise ValueError("only one in-process shard started from the driver's state can share the "
+                             "driver's random generator")
         self.hyper, self.settings, self.rng = hyper, settings, rng
         self.n_shards = n_shards
-        self.shared = SharedParameters.of(state)
         self.global_step = GlobalStep(hyper, settings, rng)
         self.bytes_sent = 0
-        parts = shards_api.split(data, state, n_shards)
+        self.initialisation: InitialisationReport | None = None
+        parts: list
+        if source is None:
+            self.shared = SharedParameters.of(state)
+            self.n_words = state.log_phi_w.shape[1]
+            parts = shards_api.split(data, state, n_shards)
+            sizes = [d.n_homes for d, _ in parts]
+        else:
+            self.n_words = source.n_words
+            parts = source.parts(n_shards)
+            sizes = [p.n_homes for p in parts]
+        edges = np.cumsum([0, *sizes])
+        self.bounds = [(int(a), int(b)) for a, b in itertools.pairwise(edges)]
         generators = ([rng] if share_rng
                       else [np.random.default_rng(s) for s in shards_api.shard_seeds(rng, n_shards)])
         self._start(parts, generators)
+        if source is not None:
+            self.shared, self.initialisation = shard_init.initialise(
+                self.call, self.call_each, self.bounds, self.n_words, hyper, settings, rng)
 
     @abstractmethod
-    def _start(self, parts: list[tuple[PreparedData, GibbsState]],
-               generators: list[np.random.Generator]) -> None:
-        """Start one shard per part, drawing from its generator."""
+    def _start(self, parts: list, generators: list[np.random.Generator]) -> None:
+        """Start one shard per part, drawing from its generator: a part is a ``(data, state)`` pair
+        (initialised in the driver) or a :class:`~spco.model.sources.HomesPart` (the shard prepares
+        and starts its homes, :meth:`HomeShard.from_part`)."""
 
     @abstractmethod
     def call(self, method: str, *args) -> list:
         """Run the :class:`~spco.model.shard.HomeShard` method on every shard; results in shard order."""
+
+    @abstractmethod
+    def call_each(self, method: str, args: list[tuple]) -> list:
+        """Run the :class:`~spco.model.shard.HomeShard` method on shard i with ``args[i]``; results
+        in shard order."""
 
     def sweep(self, iteration: int) -> float:
         """Sweep number ``iteration`` (0-based); returns the log joint of the state it started from."""
@@ -83,11 +108,15 @@ class LocalRun(ShardedRun):
     """Shards as :class:`~spco.model.shard.HomeShard` objects in this process."""
 
     def _start(self, parts, generators) -> None:
-        self.shards = [HomeShard(d, s, self.hyper, self.settings, g) for (d, s), g in zip(parts, generators,
-                                                                                            strict=True)]
+        self.shards = [HomeShard(*p, self.hyper, self.settings, g) if isinstance(p, tuple)
+                       else HomeShard.from_part(p, self.n_words, self.hyper, self.settings, g)
+                       for p, g in zip(parts, generators, strict=True)]
 
     def call(self, method: str, *args) -> list:
         return [getattr(s, method)(*args) for s in self.shards]
+
+    def call_each(self, method: str, args: list[tuple]) -> list:
+        return [getattr(s, method)(*a) for s, a in zip(self.shards, args, strict=True)]
 
     def states(self) -> list[GibbsState]:
         return [s.state for s in self.shards]
@@ -113,3 +142,9 @@ class LocalEngine:
               settings: SamplerSettings, rng: np.random.Generator) -> ShardedRun:
         """Split ``data`` and ``state`` into the shards and return the run."""
         return LocalRun(data, state, hyper, settings, rng, min(self.shards, data.n_homes), self.share_rng)
+
+    def start_source(self, source: HomeSource, hyper: TransferHyperparameters, settings: SamplerSettings,
+                     rng: np.random.Generator) -> ShardedRun:
+        """Start the shards from ``source``: each prepares and initialises its own homes
+        (:mod:`spco.model.shard_init`; every shard draws from its own generator, also with one shard)."""
+        return LocalRun(None, None, hyper, settings, rng, min(self.shards, source.n_homes), source=source)

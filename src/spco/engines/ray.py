@@ -3,7 +3,8 @@
 Only statistics (table or pooled counts, (L, D) + (L, V) + (L,) per shard and step) and the shared
 parameters travel; the driver adds the statistics up and takes the global step
 (:mod:`spco.model.shard`). Every ``checkpoint_every`` sweeps the driver keeps a checkpoint (the
-shards' states and random generators, its own generator and the shared parameters); when an actor
+shards' states and random generators, its own generator and the shared parameters; in its memory,
+or on disk with ``checkpoint_dir``: :mod:`spco.engines.checkpoints`); when an actor
 dies, every shard is restarted from the last checkpoint and the sweeps since are run again, so
 the fit ends where a fault-free fit ends.
 
@@ -14,16 +15,19 @@ otherwise a local Ray instance is started.
 from __future__ import annotations
 
 import copy
+import os
 from dataclasses import dataclass, fields
 from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
 
+from spco.engines import checkpoints
 from spco.engines.local import ShardedRun
 from spco.model.gibbs import GibbsState, PreparedData, SamplerSettings
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.shard import HomeShard, SharedParameters
+from spco.model.sources import HomeSource, HomesPart
 
 
 def _require_ray():
@@ -34,16 +38,37 @@ def _require_ray():
     return ray
 
 
-class _ShardActor:
-    """A :class:`~spco.model.shard.HomeShard` in a Ray actor (its data and state stay there)."""
+class _WritablePart(HomesPart):
+    """A part whose prepared arrays are made writable (arrays from Ray's object store are not)."""
 
-    def __init__(self, data: PreparedData, state: GibbsState, hyper: TransferHyperparameters,
-                 settings: SamplerSettings, rng_state: dict, threads: int) -> None:
+    def __init__(self, part: HomesPart) -> None:
+        self.part, self.n_homes = part, part.n_homes
+
+    def prepare(self) -> PreparedData:
+        return _writable_data(self.part.prepare())
+
+
+class _ShardActor:
+    """A :class:`~spco.model.shard.HomeShard` in a Ray actor (its data and state stay there).
+
+    ``homes`` is the shard's :class:`PreparedData` or a :class:`~spco.model.sources.HomesPart` it
+    prepares itself; ``state`` its state, ``None`` (start the homes: :meth:`HomeShard.from_part`)
+    or the path of a checkpoint file (:func:`spco.engines.checkpoints.save_shard`, which also
+    holds the generator's state; ``rng_state`` is then ignored)."""
+
+    def __init__(self, homes, state, hyper: TransferHyperparameters, settings: SamplerSettings,
+                 rng_state: dict | None, threads: int, n_words: int = 0) -> None:
         import numba
 
         numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))  # results do not change
+        if isinstance(state, str):
+            state, rng_state = checkpoints.load_shard(state)
         rng = np.random.default_rng()
         rng.bit_generator.state = rng_state
+        if state is None:
+            self.shard = HomeShard.from_part(_WritablePart(homes), n_words, hyper, settings, rng)
+            return
+        data = homes.prepare() if isinstance(homes, HomesPart) else homes
         self.shard = HomeShard(_writable_data(data), _writable_state(state), hyper, settings, rng)
 
     def call(self, method: str, *args) -> Any:
@@ -57,6 +82,14 @@ class _ShardActor:
         state = copy.copy(self.shard.state)
         state.visual_cache = None
         return state, self.shard.rng.bit_generator.state
+
+    def save(self, path: str) -> int:
+        """Write the shard's checkpoint to ``path`` (atomically); returns the bytes written."""
+        return checkpoints.save_shard(path, self.shard.state, self.shard.rng.bit_generator.state)
+
+    def setup_seconds(self) -> dict[str, float]:
+        """Seconds the shard took to prepare and to start its homes (empty if given its state)."""
+        return self.shard.setup_seconds
 
     def memory(self) -> int:
         """Peak resident memory of the actor's process, bytes."""
@@ -96,42 +129,54 @@ def _writable_shared(shared: SharedParameters) -> SharedParameters:
 @dataclass
 class _Checkpoint:
     iteration: int
-    shards: list[tuple[GibbsState, dict]]
-    driver_rng: dict
-    shared: SharedParameters
-    trace: np.ndarray
+    shards: list[tuple[GibbsState, dict]] | None  # None: on disk
+    driver_rng: dict | None = None
+    shared: SharedParameters | None = None
+    trace: np.ndarray | None = None
 
 
 class RayRun(ShardedRun):
-    """A fit whose shards are Ray actors."""
+    """A fit whose shards are Ray actors.
 
-    def __init__(self, *args, checkpoint_every: int = 10, **kwargs) -> None:
+    Checkpoints (every ``checkpoint_every`` sweeps) are kept in the driver's memory, or, with
+    ``checkpoint_dir``, on disk (:mod:`spco.engines.checkpoints`): each actor writes its own
+    state there, so the driver never holds the shards' states; on a cluster the directory must be
+    reachable from every node (shared storage)."""
+
+    def __init__(self, *args, checkpoint_every: int = 10, checkpoint_dir: str | os.PathLike | None = None,
+                 **kwargs) -> None:
         self.checkpoint_every = max(1, int(checkpoint_every))
+        self.checkpoint_dir = None if checkpoint_dir is None else os.fspath(checkpoint_dir)
         self.restarts = 0
         super().__init__(*args, **kwargs)
 
     def _start(self, parts, generators) -> None:
         self.ray = _require_ray()
-        self.data_parts = [d for d, _ in parts]
-        self._launch([(s, g.bit_generator.state) for (_, s), g in zip(parts, generators, strict=True)])
+        given = isinstance(parts[0], tuple)
+        self._homes = [p[0] if given else p for p in parts]
+        self._launch([(p[1] if given else None, g.bit_generator.state)
+                      for p, g in zip(parts, generators, strict=True)])
 
-    def _launch(self, snapshots: list[tuple[GibbsState, dict]]) -> None:
+    def _launch(self, snapshots: list[tuple[GibbsState | str | None, dict | None]]) -> None:
         ray = self.ray
         cpus = ray.cluster_resources().get("CPU", 1.0)
         actor = ray.remote(num_cpus=min(1.0, cpus / len(snapshots)), max_restarts=0)(_ShardActor)
         hyper, settings = ray.put(self.hyper), ray.put(self.settings)
-        if not hasattr(self, "data_refs"):  # the homes' data is put in the object store once
-            self.data_refs = [ray.put(d) for d in self.data_parts]
-            del self.data_parts
+        if not hasattr(self, "homes_refs"):  # the homes' data (or parts) are put in the object store once
+            self.homes_refs = [ray.put(h) for h in self._homes]
+            del self._homes
         threads = max(1, int(cpus // len(snapshots)))  # Numba threads per shard
-        self.actors = [actor.remote(d, s, hyper, settings, g, threads)
-                       for d, (s, g) in zip(self.data_refs, snapshots, strict=True)]
+        self.actors = [actor.remote(h, s, hyper, settings, g, threads, self.n_words)
+                       for h, (s, g) in zip(self.homes_refs, snapshots, strict=True)]
 
     def call(self, method: str, *args) -> list:
         ray = self.ray
         sent = [ray.put(a) if isinstance(a, SharedParameters) else a for a in args]
         self.bytes_sent += sum(a.nbytes for a in args if isinstance(a, SharedParameters)) * len(self.actors)
         return ray.get([a.call.remote(method, *sent) for a in self.actors])
+
+    def call_each(self, method: str, args: list[tuple]) -> list:
+        return self.ray.get([a.call.remote(method, *x) for a, x in zip(self.actors, args, strict=True)])
 
     def states(self) -> list[GibbsState]:
         return [s for s, _ in self.ray.get([a.snapshot.remote() for a in self.actors])]
@@ -140,9 +185,22 @@ class RayRun(ShardedRun):
         """Peak resident memory of every shard's process, bytes."""
         return self.ray.get([a.memory.remote() for a in self.actors])
 
+    def setup_seconds(self) -> list[dict[str, float]]:
+        """Every shard's seconds to prepare and start its homes."""
+        return self.ray.get([a.setup_seconds.remote() for a in self.actors])
+
     def _checkpoint(self, iteration: int, trace: np.ndarray) -> _Checkpoint:
-        return _Checkpoint(iteration, self.ray.get([a.snapshot.remote() for a in self.actors]),
-                           copy.deepcopy(self.rng.bit_generator.state), self.shared, trace[:iteration].copy())
+        if self.checkpoint_dir is None:
+            return _Checkpoint(iteration, self.ray.get([a.snapshot.remote() for a in self.actors]),
+                               copy.deepcopy(self.rng.bit_generator.state), self.shared,
+                               trace[:iteration].copy())
+        directory = self.checkpoint_dir
+        paths = [os.fspath(checkpoints.shard_path(directory, s, iteration)) for s in range(len(self.actors))]
+        self.ray.get([a.save.remote(p) for a, p in zip(self.actors, paths, strict=True)])
+        checkpoints.save_driver(directory, iteration, self.rng.bit_generator.state, self.shared,
+                                trace[:iteration], len(self.actors))
+        checkpoints.remove_older(directory, iteration)
+        return _Checkpoint(iteration, None)
 
     def _restore(self, checkpoint: _Checkpoint, trace: np.ndarray) -> int:
         for a in self.actors:
@@ -151,11 +209,18 @@ class RayRun(ShardedRun):
             except Exception:  # already dead
                 pass
         self.restarts += 1
-        self.rng.bit_generator.state = copy.deepcopy(checkpoint.driver_rng)
-        self.shared = checkpoint.shared
-        trace[:checkpoint.iteration] = checkpoint.trace
-        self._launch(checkpoint.shards)
-        return checkpoint.iteration
+        if checkpoint.shards is None:  # on disk: the actors read their own files
+            iteration, driver_rng, shared, saved, paths = checkpoints.load_driver(self.checkpoint_dir)
+            snapshots = [(os.fspath(p), None) for p in paths]
+        else:
+            iteration, driver_rng, shared, saved = (checkpoint.iteration, checkpoint.driver_rng,
+                                                    checkpoint.shared, checkpoint.trace)
+            snapshots = checkpoint.shards
+        self.rng.bit_generator.state = copy.deepcopy(driver_rng)
+        self.shared = shared
+        trace[:iteration] = saved
+        self._launch(snapshots)
+        return iteration
 
     def fit(self, n_iterations: int, after_sweep=None) -> np.ndarray:
         """As :meth:`ShardedRun.fit`, restarting every shard from the last checkpoint when an actor
@@ -191,16 +256,31 @@ class RayEngine:
 
     name = "ray"
 
-    def __init__(self, shards: int = 2, address: str | None = None, checkpoint_every: int = 10) -> None:
+    def __init__(self, shards: int = 2, address: str | None = None, checkpoint_every: int = 10,
+                 checkpoint_dir: str | os.PathLike | None = None) -> None:
         if shards < 1:
             raise ValueError(f"shards must be at least 1, got {shards}")
         self.shards, self.address, self.checkpoint_every = shards, address, checkpoint_every
+        self.checkpoint_dir = checkpoint_dir
+
+    def _init_ray(self):
+        ray = _require_ray()
+        if not ray.is_initialized():
+            ray.init(address=self.address, log_to_driver=False)
+        return ray
 
     def start(self, data: PreparedData, state: GibbsState, hyper: TransferHyperparameters,
               settings: SamplerSettings, rng: np.random.Generator) -> RayRun:
         """Start Ray if needed (joining ``address``), split the homes and start the actors."""
-        ray = _require_ray()
-        if not ray.is_initialized():
-            ray.init(address=self.address, log_to_driver=False)
+        self._init_ray()
         return RayRun(data, state, hyper, settings, rng, min(self.shards, data.n_homes),
-                      checkpoint_every=self.checkpoint_every)
+                      checkpoint_every=self.checkpoint_every, checkpoint_dir=self.checkpoint_dir)
+
+    def start_source(self, source: HomeSource, hyper: TransferHyperparameters, settings: SamplerSettings,
+                     rng: np.random.Generator) -> RayRun:
+        """Start Ray if needed and the actors from ``source``: each actor prepares and initialises
+        its own homes (:mod:`spco.model.shard_init`); the same chain as ``LocalEngine(shards)
+        .start_source`` with the same seed."""
+        self._init_ray()
+        return RayRun(None, None, hyper, settings, rng, min(self.shards, source.n_homes), source=source,
+                      checkpoint_every=self.checkpoint_every, checkpoint_dir=self.checkpoint_dir)

@@ -39,7 +39,7 @@ from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.moves import concept_swap_step
 from spco.model.numba_cache import announce_compilation
 from spco.model.observations import GaussianRegions, HierarchicalMultinomial, NIWPrior
-from spco.model.pruning import NAME, NOT_A_NAME, colocation, judge_names, words_to_keep
+from spco.model.pruning import NAME, NOT_A_NAME, Colocation, colocation, judge_names, words_to_keep
 from spco.model.random import DimensionMajorCounts, dimension_major, dirichlet_log_density, log_dirichlet
 from spco.model.synonyms import same_place_names
 
@@ -182,7 +182,7 @@ def _build_niw_prior(data: PreparedData, hyper: TransferHyperparameters,
 
 
 def initialize(data: PreparedData, n_words: int, hyper: TransferHyperparameters,
-               settings: SamplerSettings, rng: np.random.Generator) -> GibbsState:
+               settings: SamplerSettings, rng: np.random.Generator, warm: bool = True) -> GibbsState:
     """A starting state, then the first sweep starts with the local step.
 
     Regions are assigned by k-means on each home's positions and their Gaussians drawn given that
@@ -196,6 +196,9 @@ def initialize(data: PreparedData, n_words: int, hyper: TransferHyperparameters,
     first partition follows the regions (p(C, R) ∝ G π N(x | R)), i.e. concepts start as groups of
     nearby samples, which words and vision then refine. Drawing θ from the prior or from counts of
     random concepts instead starts from a random partition that the chain does not leave.
+
+    ``warm=False`` leaves out the exact variant's :func:`warm_start` (the shards of a fleet fit
+    run it together instead: :mod:`spco.model.shard_init`).
     """
     announce_compilation()
     L, K, E = hyper.n_concepts, hyper.n_regions, data.n_homes
@@ -244,7 +247,7 @@ def initialize(data: PreparedData, n_words: int, hyper: TransferHyperparameters,
     if not reference:
         state.means, state.covariances = GaussianRegions.sample_posterior(
             count, total, scatter, niw_prior(data, hyper, settings), rng)
-    if settings.variant == "exact":
+    if settings.variant == "exact" and warm:
         warm_start(data, state, hyper, settings, rng)
     return state
 
@@ -346,14 +349,16 @@ def initial_home_weights(taught_fraction: np.ndarray) -> np.ndarray:
 
 
 def sample_names(data: PreparedData, regions: np.ndarray, hyper: TransferHyperparameters,
-                 named: np.ndarray | None = None) -> np.ndarray:
+                 named: np.ndarray | None = None, stats: Colocation | None = None) -> np.ndarray:
     """The place name each sample stands for, (N,) vocabulary column or −1.
 
     A taught sample whose sentence holds a name (``named``, (V,) bool; default: the words
     :func:`naming_verdicts` finds to be names on ``regions``) stands for that name (of its names,
     the one most bound to one place: the largest lift); any other sample for the name most of the
-    named samples of its region stand for, or none (−1)."""
-    stats = colocation(data.words, data.homes, regions, data.n_homes, hyper.n_regions)
+    named samples of its region stand for, or none (−1). ``stats``: the naming rule's statistics to
+    judge by (default: those of ``data``'s homes; a shard of a fleet passes those of all homes)."""
+    if stats is None:
+        stats = colocation(data.words, data.homes, regions, data.n_homes, hyper.n_regions)
     if named is None:
         named = judge_names(stats) == NAME
     n_words, n_regions = data.words.shape[1], hyper.n_regions

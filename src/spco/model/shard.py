@@ -27,6 +27,7 @@ shards the chain depends on the seed and the number of shards, not on the engine
 from __future__ import annotations
 
 import itertools
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -38,6 +39,7 @@ from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.observations import HierarchicalMultinomial
 from spco.model.pruning import NOT_A_NAME, Colocation, colocation, judge_names
 from spco.model.random import log_dirichlet, sample_crt
+from spco.model.shard_init import ShardInitialisation
 
 #: What a shard's :meth:`HomeShard.tables` can count.
 TABLE_KINDS = ("visual", "words", "concepts")
@@ -87,8 +89,13 @@ class HomeStepResult:
     shared: SharedParameters | None = None
 
 
-class HomeShard:
+class HomeShard(ShardInitialisation):
     """Some homes' data and sampler state, and the steps that touch only them.
+
+    A shard of a fleet fit starts from its part of the homes (:meth:`from_part`) and finishes its
+    initialisation with the others (the ``init_*`` steps of
+    :class:`~spco.model.shard_init.ShardInitialisation`, run by
+    :func:`spco.model.shard_init.initialise`).
 
     Parameters
     ----------
@@ -107,6 +114,26 @@ class HomeShard:
                  settings: SamplerSettings, rng: np.random.Generator) -> None:
         self.data, self.state, self.hyper, self.settings, self.rng = data, state, hyper, settings, rng
         self.stats: gibbs.Statistics | None = None
+        self.setup_seconds: dict[str, float] = {}
+
+    @classmethod
+    def from_part(cls, part, n_words: int, hyper: TransferHyperparameters, settings: SamplerSettings,
+                  rng: np.random.Generator) -> HomeShard:
+        """A shard that prepares its homes (``part``, a :class:`~spco.model.sources.HomesPart`) and
+        starts them on their own (``gibbs.initialize(..., warm=False)``: k-means regions, their
+        Gaussians, π); :func:`spco.model.shard_init.initialise` then finishes the start with the
+        other shards. ``setup_seconds`` records the time to prepare and to start."""
+        t0 = time.perf_counter()
+        data = part.prepare()
+        t1 = time.perf_counter()
+        state = gibbs.initialize(data, n_words, hyper, settings, rng, warm=False)
+        shard = cls(data, state, hyper, settings, rng)
+        shard.setup_seconds = {"prepare": t1 - t0, "initialise": time.perf_counter() - t1}
+        return shard
+
+    def shared_parameters(self) -> SharedParameters:
+        """The shared parameters the shard holds."""
+        return SharedParameters.of(self.state)
 
     @property
     def n_homes(self) -> int:

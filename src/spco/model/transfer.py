@@ -206,7 +206,6 @@ class SpatialConceptModel:
         scale = gibbs.CM_PER_M if settings.variant == "reference" else 1.0
         data = self._prepare(corpus, scale)
         start = time.perf_counter()
-        state = gibbs.initialize(data, len(corpus.vocabulary), hyper, settings, rng)
         averaged = set(thinned_sweeps(int(self.n_iterations)))
         average = ParameterAverage(data.homes, data.position_scale)
         added: set[int] = set()
@@ -216,10 +215,9 @@ class SpatialConceptModel:
 
             bar = tqdm(total=int(self.n_iterations), desc=f"{type(self).__name__} ({settings.variant})",
                        unit="sweep", leave=False)
-        from spco.engines import LocalEngine, make_engine
+        from spco.engines import start_run
 
-        run = make_engine(engine) if isinstance(engine, str) else (engine or LocalEngine())
-        run = run.start(data, state, hyper, settings, rng)
+        run = start_run(engine, data, len(corpus.vocabulary), hyper, settings, rng)
 
         def after_sweep(iteration: int, previous: float) -> None:
             # a restarted engine repeats the sweeps since its checkpoint (the same chain): each

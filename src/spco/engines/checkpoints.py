@@ -1,0 +1,127 @@
+"""Checkpoints of a sharded fit on disk: one file per shard, written by the shard itself, and one
+driver file that commits them.
+
+A checkpoint of sweep i is the files ``shard-<s>-<i>.npz`` (each shard's
+:class:`~spco.model.gibbs.GibbsState` without its count cache, and its random generator's state)
+and ``driver.npz`` (the sweep i, the driver's generator, the shared parameters and the log-joint
+trace so far). Every file is written to a temporary name in the same directory and renamed into
+place (atomic on POSIX); the driver file is written last, so it always names a complete set of
+shard files. Files carry a format name and version and are read without pickle.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from dataclasses import fields
+from pathlib import Path
+
+import numpy as np
+
+from spco.model.gibbs import GibbsState
+from spco.model.shard import SharedParameters
+
+FORMAT = "spco-checkpoint"
+VERSION = 1
+DRIVER_FILE = "driver.npz"
+
+
+class CheckpointError(ValueError):
+    """A checkpoint file that cannot be read (names the file and the problem)."""
+
+
+def shard_path(directory: str | os.PathLike, shard: int, iteration: int) -> Path:
+    """The file of shard ``shard``'s checkpoint at sweep ``iteration``."""
+    return Path(directory) / f"shard-{shard}-{iteration:07d}.npz"
+
+
+def _write_atomically(path: Path, arrays: dict[str, np.ndarray], meta: dict) -> int:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    arrays = dict(arrays, meta=np.array(json.dumps({"format": FORMAT, "version": VERSION, **meta})))
+    descriptor, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(descriptor, "wb") as f:
+            np.savez(f, **arrays)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(temporary, path)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise
+    return path.stat().st_size
+
+
+def _read(path: Path, kind: str) -> tuple[dict[str, np.ndarray], dict]:
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            arrays = {name: f[name] for name in f.files}
+    except (OSError, ValueError) as error:
+        raise CheckpointError(f"{path}: not a readable checkpoint ({error})") from error
+    try:
+        meta = json.loads(str(arrays.pop("meta")))
+    except (KeyError, ValueError) as error:
+        raise CheckpointError(f"{path}: no checkpoint header") from error
+    if meta.get("format") != FORMAT or meta.get("kind") != kind:
+        raise CheckpointError(f"{path}: not a {kind} checkpoint of spco")
+    if meta.get("version") != VERSION:
+        raise CheckpointError(f"{path}: checkpoint format version {meta.get('version')}, this spco reads "
+                              f"version {VERSION}")
+    return arrays, meta
+
+
+def save_shard(path: str | os.PathLike, state: GibbsState, rng_state: dict) -> int:
+    """Write a shard's state and generator state to ``path`` atomically; returns the bytes written."""
+    arrays, absent = {}, []
+    for f in fields(state):
+        if f.name == "visual_cache":  # rebuilt exactly from the assignments
+            continue
+        value = getattr(state, f.name)
+        if value is None:
+            absent.append(f.name)
+        else:
+            arrays[f.name] = np.asarray(value)
+    return _write_atomically(Path(path), arrays, {"kind": "shard", "rng": rng_state, "absent": absent})
+
+
+def load_shard(path: str | os.PathLike) -> tuple[GibbsState, dict]:
+    """The state and generator state written by :func:`save_shard`."""
+    arrays, meta = _read(Path(path), "shard")
+    values = {f.name: arrays[f.name] if f.name in arrays else None
+              for f in fields(GibbsState) if f.name != "visual_cache"}
+    missing = [name for name, v in values.items() if v is None and name not in meta["absent"]]
+    if missing:
+        raise CheckpointError(f"{path}: the shard checkpoint lacks {', '.join(missing)}")
+    return GibbsState(**values), meta["rng"]
+
+
+def save_driver(directory: str | os.PathLike, iteration: int, rng_state: dict, shared: SharedParameters,
+                trace: np.ndarray, n_shards: int) -> int:
+    """Commit the checkpoint of sweep ``iteration`` (its shard files written before)."""
+    arrays = {f.name: getattr(shared, f.name) for f in fields(shared)} | {"trace": np.asarray(trace)}
+    return _write_atomically(Path(directory) / DRIVER_FILE, arrays,
+                             {"kind": "driver", "iteration": int(iteration), "rng": rng_state,
+                              "shards": int(n_shards)})
+
+
+def load_driver(directory: str | os.PathLike) -> tuple[int, dict, SharedParameters, np.ndarray, list[Path]]:
+    """The last committed checkpoint: sweep, driver generator state, shared parameters, trace, and
+    the shard files (in shard order)."""
+    arrays, meta = _read(Path(directory) / DRIVER_FILE, "driver")
+    shared = SharedParameters(*(arrays[f.name] for f in fields(SharedParameters)))
+    iteration = int(meta["iteration"])
+    paths = [shard_path(directory, s, iteration) for s in range(int(meta["shards"]))]
+    for p in paths:
+        if not p.exists():
+            raise CheckpointError(f"{p}: missing (named by {Path(directory) / DRIVER_FILE})")
+    return iteration, meta["rng"], shared, arrays["trace"], paths
+
+
+def remove_older(directory: str | os.PathLike, iteration: int) -> None:
+    """Delete the shard files of checkpoints before sweep ``iteration`` (superseded)."""
+    for p in Path(directory).glob("shard-*-*.npz"):
+        try:
+            if int(p.stem.rsplit("-", 1)[1]) < iteration:
+                p.unlink(missing_ok=True)
+        except ValueError:
+            continue

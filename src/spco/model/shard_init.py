@@ -1,0 +1,431 @@
+"""Initialisation inside the shards: every shard starts its own homes, the driver only reduces.
+
+A fleet fit cannot initialise in the driver (:func:`spco.model.gibbs.initialize` holds every
+home's data and state in one process). Here each shard prepares its homes
+(:mod:`spco.model.sources`) and runs their per-home start (k-means regions, Gaussians, π:
+``gibbs.initialize(..., warm=False)``); the exact sampler's :func:`~spco.model.gibbs.warm_start`
+then runs as map → reduce steps:
+
+1. with the naming rule, the places the names mark: the naming statistics of all homes
+   (:class:`~spco.model.pruning.Colocation`, (V,) × 3) are summed by the driver and sent back;
+   each shard starts its homes' concepts from them;
+2. ``n_sweeps`` independent (SpCoA) sweeps of every home, the sweep-0 word mask judged by the
+   driver on the summed naming statistics;
+3. the cross-home label alignment: the driver receives per home only its word total, the names it
+   says and its taught fraction, and then aligns the homes one by one in the order of
+   :func:`~spco.model.gibbs.align_homes` (most words first) against a running pooled reference
+   ((L, D) + (L, V), kept in the driver), fetching each home's concept × word and concept × view
+   counts ((L, V) and sparse (L, D)) from its shard in batches (:func:`align_in_order`, the same
+   permutations as ``align_homes`` given the same counts); the shards apply the permutations;
+4. the new homes' own names to free concepts (the driver hands the free labels out in home
+   order), the taught-fraction weights (:func:`~spco.model.gibbs.initial_home_weights`, from the
+   gathered (E,) fractions), and the weighted counts summed over shards: φ^v, φ^w, G_0 drawn by
+   the driver, then every shard's home step.
+
+The driver holds (E,) and (E, V) vectors, the pooled reference and one batch of homes' counts:
+megabytes at D = 4,096, whatever the number of homes. Each shard draws from its own generator
+(seeded from the driver's), so the start differs from the one-process ``gibbs.initialize`` (whose
+single stream runs through every home) but depends only on the seed and the number of shards:
+the local and the Ray engine give the same chain from it (``tests/test_shard_init.py``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.optimize import linear_sum_assignment
+
+from spco.model import allocation, gibbs
+from spco.model.gibbs import GibbsState, PreparedData, SamplerSettings
+from spco.model.hyperparameters import TransferHyperparameters
+from spco.model.observations import GaussianRegions
+from spco.model.pruning import NOT_A_NAME, Colocation, judge_names
+from spco.model.random import log_dirichlet
+
+#: The per-home sampler of the warm start (θ_{e,l} ~ Dir(α + n), as in ``gibbs.warm_start``).
+INDEPENDENT = SamplerSettings(variant="spcoa", prune=False, hierarchical=False, joint_assignment=True,
+                              pruning_score="mi")
+
+#: Homes whose counts the driver fetches at a time during the alignment.
+ALIGNMENT_BATCH = 64
+
+
+@dataclass
+class HomeSummary:
+    """What a shard tells the driver about its homes before the alignment: word totals (E_s,),
+    the names each home says (E_s, V) bool (``None`` without the naming start), taught
+    fractions (E_s,)."""
+
+    word_totals: np.ndarray
+    names_said: np.ndarray | None
+    taught_fraction: np.ndarray
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of the arrays."""
+        said = 0 if self.names_said is None else self.names_said.nbytes
+        return self.word_totals.nbytes + said + self.taught_fraction.nbytes
+
+
+@dataclass
+class HomeCounts:
+    """One home's counts by concept: visual (L, D) sparse, words (L, V), and the samples standing
+    for each name (L, V) (``None`` without the naming start)."""
+
+    visual: sp.csr_array
+    words: np.ndarray
+    names: np.ndarray | None
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes sent."""
+        v = self.visual
+        return (v.data.nbytes + v.indices.nbytes + v.indptr.nbytes + self.words.nbytes
+                + (0 if self.names is None else self.names.nbytes))
+
+
+class ShardInitialisation:
+    """The shard's side of the initialisation (mixed into :class:`~spco.model.shard.HomeShard`,
+    whose ``data``, ``state``, ``hyper``, ``settings`` and ``rng`` it uses). Called in the order
+    of :func:`initialise`."""
+
+    data: PreparedData
+    state: GibbsState
+    hyper: TransferHyperparameters
+    settings: SamplerSettings
+    rng: np.random.Generator
+
+    def init_has_words(self) -> bool:
+        """Whether any of the shard's samples has a sentence."""
+        return bool(self.data.words.nnz)
+
+    def init_names(self, naming: Colocation) -> None:
+        """Start each home's concepts from the places its names mark, judged on ``naming`` (all
+        homes' statistics), then draw its parameters as on its own."""
+        data, state, hyper = self.data, self.state, self.hyper
+        self._names = gibbs.sample_names(data, state.regions, hyper, stats=naming)
+        state.concepts = gibbs.concepts_by_name(data, state.regions, hyper, self._names)
+        independent_home_step(data, state, gibbs.sufficient_statistics(data, state, hyper), hyper, self.rng)
+
+    def init_local_step(self) -> None:
+        """One local step of the independent warm-start sampler (statistics kept)."""
+        gibbs.local_step(self.data, self.state, INDEPENDENT, self.rng)
+        self._init_stats = gibbs.sufficient_statistics(self.data, self.state, self.hyper)
+
+    def init_home_step(self, word_mask: np.ndarray | None = None) -> None:
+        """Take ``word_mask`` (if given), then the independent home step."""
+        if word_mask is not None:
+            self.state.word_mask = word_mask
+        independent_home_step(self.data, self.state, self._init_stats, self.hyper, self.rng)
+
+    def init_summary(self) -> HomeSummary:
+        """Per-home word totals, names said and taught fractions (see :class:`HomeSummary`)."""
+        data, state, hyper = self.data, self.state, self.hyper
+        stats = self._init_stats = gibbs.sufficient_statistics(data, state, hyper)
+        self._name_counts = None
+        names_said = None
+        names = getattr(self, "_names", None)
+        if names is not None:
+            named = names >= 0
+            counts = np.zeros((data.n_homes, hyper.n_concepts, data.words.shape[1]))
+            np.add.at(counts, (data.homes[named], state.concepts[named], names[named]), 1.0)
+            self._name_counts = counts
+            names_said = counts.sum(axis=1) > 0
+        taught = np.bincount(data.homes, weights=np.diff(data.words.indptr) > 0, minlength=data.n_homes)
+        return HomeSummary(stats.words.sum(axis=(1, 2)), names_said,
+                           taught / np.maximum(np.diff(data.offsets), 1))
+
+    def init_home_counts(self, homes: list[int]) -> list[HomeCounts]:
+        """The counts by concept of the shard's homes ``homes`` (local indices)."""
+        stats, names = self._init_stats, self._name_counts
+        return [HomeCounts(sp.csr_array(stats.visual[e]), stats.words[e].copy(),
+                           None if names is None else names[e].copy()) for e in homes]
+
+    def init_align(self, perms: np.ndarray) -> None:
+        """Relabel the homes' concepts by ``perms`` (E_s, L) (slot j takes old concept perms[e, j])."""
+        gibbs._apply_permutations(self.data, self.state, perms)
+        self._name_counts = None
+        self._init_stats = gibbs.sufficient_statistics(self.data, self.state, self.hyper)
+
+    def init_kept(self, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Take the homes' weights (E_s,); return the words said in the kept homes (weight 1), (V,)
+        bool, and their concept counts summed, (L,)."""
+        data = self.data
+        self._weights = weights
+        reduced = weights < 1.0
+        said = np.zeros(data.words.shape[1], dtype=bool)
+        said[np.unique(data.words[np.flatnonzero(~reduced[data.homes])].indices)] = True
+        return said, self._init_stats.concepts[~reduced].sum(axis=0)
+
+    def init_own_names(self, said_elsewhere: np.ndarray) -> dict[int, np.ndarray]:
+        """Names said in a reduced home (weight < 1) and in no kept home: local home -> names."""
+        names, data = self._names, self.data
+        own: dict[int, np.ndarray] = {}
+        for e in np.flatnonzero(self._weights < 1.0):  # a loop over the few new homes
+            rows = slice(data.offsets[e], data.offsets[e + 1])
+            words = np.unique(names[rows][names[rows] >= 0])
+            words = words[~said_elsewhere[words]]
+            if words.size:
+                own[int(e)] = words
+        return own
+
+    def init_give_labels(self, given: dict[int, list[tuple[int, int]]]) -> None:
+        """Move each reduced home's samples standing for an own name to the label the driver gave
+        it: home -> [(name, label), ...]; those labels keep their counts in full."""
+        self._own = {}
+        for e, pairs in given.items():
+            rows = np.arange(self.data.offsets[e], self.data.offsets[e + 1])
+            for word, label in pairs:
+                self.state.concepts[rows[self._names[rows] == word]] = label
+            self._own[e] = np.array([label for _, label in pairs], dtype=np.int64)
+        if given:
+            self._init_stats = gibbs.sufficient_statistics(self.data, self.state, self.hyper)
+
+    def init_weighted_counts(self, scale: bool):
+        """The statistics weighted by the homes' weights (with ``scale``; the kept labels of own
+        names in full), summed over the shard's homes (a :class:`~spco.model.shard.PooledCounts`)."""
+        from spco.model.shard import PooledCounts
+
+        stats, own = self._init_stats, getattr(self, "_own", {})
+        if scale:
+            # rint(n · w) as gibbs.warm_start scales, computed for the homes with w < 1 only: a
+            # home of weight 1 keeps its counts exactly (rint(n · 1.0) = n), and no (E, L, D)
+            # float temporary is made (the shard's peak memory at D = 4,096)
+            reduced = np.flatnonzero(self._weights < 1.0)
+            for name in ("visual", "words", "concepts", "regions_by_concept"):
+                counts = getattr(stats, name)
+                scaled = np.array(counts, dtype=np.int64)
+                weights = self._weights[reduced].reshape((-1,) + (1,) * (counts.ndim - 1))
+                scaled[reduced] = np.rint(counts[reduced] * weights).astype(np.int64)
+                for e, labels in own.items():
+                    scaled[e, labels] = counts[e, labels]
+                setattr(stats, name, scaled)
+        return PooledCounts(stats.visual.sum(0), stats.words.sum(0), stats.concepts.sum(0))
+
+    def init_reference_weights(self, log_g0: np.ndarray) -> None:
+        """Reference variant: take the driver's G_0 and draw the homes' G_e ~ Dir(G_0 + γ)."""
+        state, hyper = self.state, self.hyper
+        state.log_g0 = log_g0
+        state.log_g = log_dirichlet(np.exp(log_g0)[None, :] + hyper.gamma + np.zeros((self.data.n_homes,
+                                                                                     hyper.n_concepts)),
+                                    self.rng)
+
+    def init_finish(self, shared) -> None:
+        """Take the initial shared parameters and draw θ, G_e, π, μ, Σ given them (exact variant)."""
+        state = self.state
+        state.log_phi_v, state.log_phi_w = shared.log_phi_v, shared.log_phi_w
+        state.log_g0, state.word_mask = shared.log_g0, shared.word_mask
+        gibbs.home_step(self.data, state, self._init_stats, self.hyper, self.settings, self.rng)
+        for name in ("_init_stats", "_names", "_name_counts", "_weights", "_own"):
+            self.__dict__.pop(name, None)
+
+
+#: Homes whose θ^v the warm start's home step draws at a time (bounds its temporaries).
+THETA_CHUNK = 64
+
+
+def independent_home_step(data: PreparedData, state: GibbsState, stats: gibbs.Statistics,
+                          hyper: TransferHyperparameters, rng: np.random.Generator) -> None:
+    """The warm start's per-home step (the SpCoA conditionals of ``gibbs.home_step``): θ^v_{e,l} ~
+    Dir(α^v + n^v_{e,l}), θ^w likewise, G_e ~ Dir(γ/L + n_e), π, μ, Σ. θ^v is drawn
+    :data:`THETA_CHUNK` homes at a time into one (E, L, D) array, the old θ^v freed first (the
+    step does not read it), and the SpCoA export of the homes' mean as φ, G_0 is left out (the
+    warm start sets those from the aligned counts): two (E, L, D) arrays fewer at a shard's peak
+    memory than ``gibbs.home_step`` with the SpCoA settings."""
+    E, L, K = data.n_homes, hyper.n_concepts, hyper.n_regions
+    state.log_theta_v = None
+    theta_v = np.empty(stats.visual.shape)
+    for first in range(0, E, THETA_CHUNK):
+        last = min(first + THETA_CHUNK, E)
+        theta_v[first:last] = log_dirichlet(hyper.alpha_visual + stats.visual[first:last], rng)
+    state.log_theta_v = theta_v
+    state.log_theta_w = log_dirichlet(hyper.alpha_word + stats.words, rng)
+    state.log_g = log_dirichlet(hyper.gamma / L + stats.concepts, rng)
+    state.log_pi = allocation.sample_region_weights(stats.regions_by_concept, hyper.beta / K, rng)
+    state.means, state.covariances = GaussianRegions.sample_posterior(
+        stats.region_count, stats.region_total, stats.region_scatter,
+        gibbs.niw_prior(data, hyper, INDEPENDENT), rng)
+    state.region_counts = stats.region_count.astype(np.int64)
+
+
+# ----------------------------------------------------------------------------- the driver's side
+
+
+@dataclass
+class InitialisationReport:
+    """What the initialisation moved (bytes the driver received from the shards and sent to them)
+    and its wall time: the whole warm start, and the driver's streamed alignment within it."""
+
+    bytes_received: int = 0
+    bytes_sent: int = 0
+    seconds: float = 0.0
+    alignment_seconds: float = 0.0
+
+
+def _nbytes(value) -> int:
+    if value is None or isinstance(value, bool | int | float):
+        return 8
+    if hasattr(value, "nbytes"):
+        return int(value.nbytes)
+    if dataclasses.is_dataclass(value):
+        return sum(_nbytes(getattr(value, f.name)) for f in dataclasses.fields(value))
+    if isinstance(value, tuple | list):
+        return sum(_nbytes(v) for v in value)
+    if isinstance(value, dict):
+        return sum(_nbytes(k) + _nbytes(v) for k, v in value.items())
+    raise TypeError(f"cannot size {type(value).__name__}")
+
+
+def initialise(call, call_each, bounds: list[tuple[int, int]], n_words: int, hyper: TransferHyperparameters,
+               settings: SamplerSettings, rng: np.random.Generator, n_sweeps: int = 3,
+               batch: int = ALIGNMENT_BATCH):
+    """Finish the shards' initialisation (their homes already started with
+    ``gibbs.initialize(..., warm=False)``) and return the initial
+    :class:`~spco.model.shard.SharedParameters` and an :class:`InitialisationReport`.
+
+    ``call(method, *args)`` runs a shard method on every shard (results in shard order);
+    ``call_each(method, args)`` runs it on shard i with ``args[i]``; ``bounds`` are the shards'
+    home ranges [first, last). ``rng`` is the driver's generator (the shared draws)."""
+    from spco.model.shard import SharedParameters
+
+    report = InitialisationReport()
+    started = time.perf_counter()
+
+    def gather(results: list) -> list:
+        report.bytes_received += _nbytes(results)
+        return results
+
+    def total(parts: list):
+        gather(parts)
+        out = parts[0]
+        for part in parts[1:]:
+            out = out + part
+        return out
+
+    n_shards = len(bounds)
+    L = hyper.n_concepts
+    word_mask = np.ones(n_words, dtype=bool)
+    if settings.variant != "exact":  # no warm start: φ and G_0 start uniform (reference: G_0 drawn)
+        shared = gather(call("shared_parameters"))[0]  # (the same in every shard but G_0)
+        if settings.variant == "reference":
+            shared.log_g0 = log_dirichlet(np.full(L, hyper.gamma0), rng)
+            call("init_reference_weights", shared.log_g0)
+            report.bytes_sent += shared.log_g0.nbytes * n_shards
+        return shared, report
+
+    naming_start = settings.prune and any(gather(call("init_has_words")))
+    if naming_start:
+        naming = total(call("colocation"))
+        call("init_names", naming)
+        report.bytes_sent += naming.nbytes * n_shards
+    for sweep_index in range(n_sweeps):
+        call("init_local_step")
+        mask = None
+        if sweep_index == 0 and settings.prune and n_words:
+            mask = word_mask = judge_names(total(call("colocation"))) != NOT_A_NAME
+            report.bytes_sent += mask.nbytes * n_shards
+        call("init_home_step", mask)
+
+    summaries = gather(call("init_summary"))
+    word_totals = np.concatenate([s.word_totals for s in summaries])
+    names_said = np.concatenate([s.names_said for s in summaries]) if naming_start else None
+    taught = np.concatenate([s.taught_fraction for s in summaries])
+    starts = np.array([a for a, _ in bounds])
+
+    def fetch(homes: np.ndarray) -> list[HomeCounts]:
+        owner = np.searchsorted(starts, homes, side="right") - 1
+        asked = [[int(h - starts[s]) for h, o in zip(homes, owner, strict=True) if o == s]
+                 for s in range(n_shards)]
+        answers = gather(call_each("init_home_counts", [(a,) for a in asked]))
+        report.bytes_sent += 8 * len(homes)
+        position = [0] * n_shards
+        out = []
+        for o in owner:
+            out.append(answers[o][position[o]])
+            position[o] += 1
+        return out
+
+    aligning = time.perf_counter()
+    perms = align_in_order(fetch, word_totals, names_said, hyper.alpha_visual, hyper.alpha_word, L, batch)
+    report.alignment_seconds = time.perf_counter() - aligning
+    call_each("init_align", [(perms[a:b],) for a, b in bounds])
+    report.bytes_sent += perms.nbytes
+
+    weights = gibbs.initial_home_weights(taught)
+    reduced = weights < 1.0
+    kept = gather(call_each("init_kept", [(weights[a:b],) for a, b in bounds]))
+    report.bytes_sent += weights.nbytes
+    if naming_start and reduced.any():
+        said_elsewhere = np.logical_or.reduce([k[0] for k in kept])
+        free = list(np.flatnonzero(sum(k[1] for k in kept) == 0))
+        owns = gather(call_each("init_own_names", [(said_elsewhere,)] * n_shards))
+        given: list[dict[int, list[tuple[int, int]]]] = []
+        for own in owns:  # in home order, as gibbs.warm_start hands the free labels out
+            pairs_of: dict[int, list[tuple[int, int]]] = {}
+            for e in sorted(own):
+                pairs = []
+                for word in own[e]:
+                    if not free:
+                        break
+                    pairs.append((int(word), int(free.pop(0))))
+                if pairs:
+                    pairs_of[e] = pairs
+            given.append(pairs_of)
+        call_each("init_give_labels", [(g,) for g in given])
+        report.bytes_sent += _nbytes(given) + said_elsewhere.nbytes * n_shards
+    counts = total(call("init_weighted_counts", bool(reduced.any())))
+    shared = SharedParameters(log_dirichlet(hyper.alpha_visual + counts.visual, rng),
+                              log_dirichlet(hyper.alpha_word + counts.words, rng),
+                              log_dirichlet(hyper.gamma0 / hyper.n_concepts + counts.concepts, rng),
+                              word_mask)
+    call("init_finish", shared)
+    report.bytes_sent += shared.nbytes * n_shards
+    report.seconds = time.perf_counter() - started
+    return shared, report
+
+
+def align_in_order(fetch, word_totals: np.ndarray, names_said: np.ndarray | None, alpha_visual: float,
+                   alpha_word: float, n_concepts: int, batch: int = ALIGNMENT_BATCH) -> np.ndarray:
+    """:func:`~spco.model.gibbs.align_homes`, streaming: the same permutations (E, L), with each
+    home's counts fetched when its turn comes instead of all homes' (E, L, D) counts at once.
+
+    ``fetch(homes)`` returns the :class:`HomeCounts` of the global home indices ``homes`` (asked
+    ``batch`` at a time, in alignment order); ``word_totals`` (E,) each home's word count (the
+    order: most first, stable); ``names_said`` (E, V) bool, the names each home says (``None``
+    without names). The pooled reference of the homes aligned so far is the only (L, D) array
+    kept. Keep the scoring in step with ``align_homes`` (``tests/test_shard_init.py`` checks
+    that both give the same permutations)."""
+    n_homes = word_totals.size
+    order = np.argsort(-word_totals, kind="stable")
+    perms = np.tile(np.arange(n_concepts), (n_homes, 1))
+    homes_saying = None if names_said is None else names_said.sum(axis=0)
+    pooled_v = pooled_w = seen = None
+    for start in range(0, n_homes, batch):
+        chunk = order[start:start + batch]
+        for e, home in zip(chunk, fetch(chunk), strict=True):
+            visual, words = home.visual.toarray(), home.words
+            if pooled_v is None:
+                pooled_v, pooled_w = visual.astype(float), words.astype(float)
+                if home.names is not None:
+                    seen = home.names.sum(axis=0) > 0
+                continue
+            log_pv = np.log(pooled_v + alpha_visual) - np.log((pooled_v + alpha_visual).sum(1, keepdims=True))
+            score = visual @ log_pv.T  # (own concept, label)
+            if words.shape[1]:
+                log_pw = np.log(pooled_w + alpha_word) - np.log((pooled_w + alpha_word).sum(1, keepdims=True))
+                by_words = words.sum(axis=1) > 0
+                if home.names is not None:
+                    own_names = home.names
+                    synonyms = own_names[:, ~seen & (homes_saying > 1)].sum(axis=1)
+                    by_words &= ~(synonyms > 0.5 * own_names.sum(axis=1))
+                    seen |= own_names.sum(axis=0) > 0
+                score[by_words] = words[by_words] @ log_pw.T
+            own, label = linear_sum_assignment(score, maximize=True)
+            perms[e, label] = own
+            pooled_v += visual[perms[e]]
+            pooled_w += words[perms[e]]
+    return perms

@@ -1,0 +1,204 @@
+"""Where a fleet fit's shards get their homes: each shard prepares its own homes' data.
+
+A :class:`HomeSource` describes all homes of a fit and cuts them into parts
+(:meth:`HomeSource.parts`), one per shard; a part is small to send and its :meth:`HomesPart.prepare`
+builds the shard's :class:`~spco.model.gibbs.PreparedData` (home indices 0..E_s − 1) where the
+shard runs. So the driver never holds every home's data:
+
+- :class:`PreparedHomes`: data already prepared in the driver (a corpus loaded there), cut into
+  slices of about equal samples;
+- :class:`SyntheticHomes`: synthetic homes that each shard generates itself, home i from its own
+  stream ``SeedSequence(seed).spawn(n_homes)[i]`` (as :func:`spco.data.synthetic.generate_homes`
+  draws it), so a part is a seed and a range of home indices.
+"""
+
+from __future__ import annotations
+
+import itertools
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from spco.model.gibbs import PreparedData
+from spco.model.kernels.counts import stack_counts
+
+
+class HomesPart(ABC):
+    """One shard's homes, to be prepared where the shard runs."""
+
+    n_homes: int
+
+    @abstractmethod
+    def prepare(self) -> PreparedData:
+        """The part's homes as :class:`~spco.model.gibbs.PreparedData` (homes numbered from 0)."""
+
+
+class HomeSource(ABC):
+    """All homes of a fit: ``n_homes`` homes, ``n_words`` words in the shared vocabulary."""
+
+    n_homes: int
+    n_words: int
+
+    @abstractmethod
+    def parts(self, n_shards: int) -> list[HomesPart]:
+        """The homes cut into ``n_shards`` consecutive parts (every part at least one home)."""
+
+
+def even_bounds(n_homes: int, n_shards: int) -> list[tuple[int, int]]:
+    """Consecutive home ranges [first, last) of ``n_shards`` parts whose sizes differ by at most 1."""
+    if not 1 <= n_shards <= n_homes:
+        raise ValueError(f"the number of shards must be within 1..{n_homes} (the homes), got {n_shards}")
+    edges = [round(i * n_homes / n_shards) for i in range(n_shards + 1)]
+    return list(itertools.pairwise(edges))
+
+
+def concatenate_data(parts: list[PreparedData]) -> PreparedData:
+    """Consecutive groups of homes as one :class:`PreparedData` (homes renumbered in order)."""
+    if len(parts) == 1:
+        return parts[0]
+    home_starts = np.cumsum([0, *[p.n_homes for p in parts]])
+    sample_starts = np.cumsum([0, *[p.n_samples for p in parts]])
+    offsets = np.concatenate([parts[0].offsets[:1], *[p.offsets[1:] + s for p, s in zip(parts, sample_starts,
+                                                                                          strict=False)]])
+    return PreparedData(positions=np.concatenate([p.positions for p in parts]),
+                        homes=np.concatenate([p.homes + h for p, h in zip(parts, home_starts, strict=False)]),
+                        visual=stack_counts(*(p.visual for p in parts)),
+                        words=stack_counts(*(p.words for p in parts)),
+                        n_homes=int(home_starts[-1]), offsets=offsets.astype(np.int64),
+                        position_scale=parts[0].position_scale,
+                        map_centres=np.concatenate([p.map_centres for p in parts]))
+
+
+# ----------------------------------------------------------------------------- prepared in the driver
+
+
+@dataclass
+class PreparedPart(HomesPart):
+    """A slice of data prepared in the driver."""
+
+    data: PreparedData
+
+    @property
+    def n_homes(self) -> int:  # type: ignore[override]
+        return self.data.n_homes
+
+    def prepare(self) -> PreparedData:
+        return self.data
+
+
+@dataclass
+class PreparedHomes(HomeSource):
+    """Homes prepared in the driver (``data``, ``n_words`` words): parts of about equal samples."""
+
+    data: PreparedData
+    n_words: int
+
+    @property
+    def n_homes(self) -> int:  # type: ignore[override]
+        return self.data.n_homes
+
+    def parts(self, n_shards: int) -> list[HomesPart]:
+        from spco.model.shard import data_of_homes, shard_bounds
+
+        if n_shards == 1:
+            return [PreparedPart(self.data)]
+        return [PreparedPart(data_of_homes(self.data, a, b)) for a, b in shard_bounds(self.data, n_shards)]
+
+
+# ----------------------------------------------------------------------------- synthetic, made in the shards
+
+#: Homes generated and prepared at a time by :class:`SyntheticPart` (bounds the memory of the
+#: generator's dense intermediate arrays).
+GENERATION_CHUNK = 32
+
+
+@dataclass
+class SyntheticPart(HomesPart):
+    """Synthetic homes first..last − 1 of a :class:`SyntheticHomes` fleet, generated on :meth:`prepare`."""
+
+    source: SyntheticHomes
+    first: int
+    last: int
+
+    @property
+    def n_homes(self) -> int:  # type: ignore[override]
+        return self.last - self.first
+
+    def prepare(self) -> PreparedData:
+        chunks = [self.source.prepare_homes(a, min(a + GENERATION_CHUNK, self.last))
+                  for a in range(self.first, self.last, GENERATION_CHUNK)]
+        return concatenate_data(chunks)
+
+
+@dataclass
+class SyntheticHomes(HomeSource):
+    """``n_homes`` synthetic homes (:func:`spco.data.synthetic.generate_homes` with
+    ``specific_rooms=False``), the last ``new_homes`` new (nothing taught), generated in the shards.
+
+    Home i is the home ``generate_homes(n_homes, seed, config, new_homes, specific_rooms=False)``
+    makes at index i. The vocabulary is learnt from the training sentences of the first
+    ``vocabulary_homes`` homes (the driver generates those once, :meth:`create`); with the template
+    language every home says words of the same small set, so these homes hold them all (a word
+    only later homes said would be left out of their counts, as any word outside a fit's
+    vocabulary is)."""
+
+    n_homes: int
+    seed: int
+    config: object  # SyntheticConfig
+    new_homes: int
+    vocabulary: object  # Vocabulary
+    word_increment: int
+    teaching_rate: float = 100.0
+    _world: object = field(default=None, repr=False, compare=False)
+
+    @classmethod
+    def create(cls, n_homes: int, seed: int = 0, config=None, new_homes: int = 0,
+               teaching_rate: float = 100.0, vocabulary_homes: int = 16) -> SyntheticHomes:
+        """The fleet, with its vocabulary learnt from its first ``vocabulary_homes`` homes."""
+        from spco.data.language import DEFAULT_WORD_INCREMENT, Vocabulary
+        from spco.data.synthetic import SyntheticConfig
+
+        if n_homes < 1 or not 0 <= new_homes <= n_homes:
+            raise ValueError(f"need n_homes >= 1 and 0 <= new_homes <= n_homes, got {n_homes}, {new_homes}")
+        source = cls(n_homes, int(seed), config or SyntheticConfig(), new_homes, None, DEFAULT_WORD_INCREMENT,
+                     teaching_rate)
+        sentences = [s for i in range(min(vocabulary_homes, n_homes))
+                     for s in source.home(i).training_data().sentences]
+        source.vocabulary = Vocabulary.from_sentences(sentences)
+        return source
+
+    @property
+    def n_words(self) -> int:  # type: ignore[override]
+        return len(self.vocabulary)
+
+    def __getstate__(self) -> dict:  # the world is rebuilt where the part is prepared
+        state = dict(self.__dict__)
+        state["_world"] = None
+        return state
+
+    def home(self, index: int):
+        """Home ``index`` (an :class:`~spco.data.environment.Environment`)."""
+        from spco.data.synthetic import generate_home, make_world
+
+        if self._world is None:
+            self._world = make_world(self.config, self.seed)
+        config = self.config
+        rng = np.random.default_rng(np.random.SeedSequence(self.seed, spawn_key=(index,)))
+        layout = config.layouts[int(rng.integers(len(config.layouts)))]
+        width = max(2, len(str(self.n_homes)))
+        return generate_home(rng, layout=layout, name=f"synthetic_{layout.name}_{index + 1:0{width}d}",
+                             config=config, world=self._world, new=index >= self.n_homes - self.new_homes,
+                             teaching_rate=self.teaching_rate)
+
+    def prepare_homes(self, first: int, last: int) -> PreparedData:
+        """Homes first..last − 1 generated and prepared (homes numbered from 0)."""
+        from spco.data.environment import Corpus
+        from spco.model.transfer import SpatialConceptModel
+
+        corpus = Corpus([self.home(i) for i in range(first, last)], vocabulary=self.vocabulary,
+                        word_increment=self.word_increment)
+        return SpatialConceptModel._prepare(corpus, 1.0)
+
+    def parts(self, n_shards: int) -> list[HomesPart]:
+        return [SyntheticPart(self, a, b) for a, b in even_bounds(self.n_homes, n_shards)]
