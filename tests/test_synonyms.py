@@ -14,7 +14,7 @@ from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.evaluation import evaluate_home
 from spco.model import SpCoTransfer
 from spco.model.parameters import ConceptParameters
-from spco.model.synonyms import name_region_overlaps, pooled_overlaps, same_place_names
+from spco.model.synonyms import name_overlaps, name_region_overlaps, pooled_overlaps, same_place_names
 from spco.prediction import concept_stand_ins, predict_names, region_posterior_for_name
 
 
@@ -34,6 +34,29 @@ def test_names_said_at_the_same_regions_are_one_place() -> None:
     # kitchen and dining stay apart, even in the home that says them in one region
     assert list(out[5:9]) == [2, 2, 3, 3] and list(out[17:21]) == [2, 2, 3, 3]
     assert out[16] == -1 and out[21] == 0  # no name stays none; a name alone stays itself
+
+
+def test_the_overlaps_add_up_over_shards() -> None:
+    """A fit whose homes are split over shards (the Ray engine's start, spco.model.shard_init) pools
+    the overlaps over every home: each shard's sums added up give the one-process grouping."""
+    rng = np.random.default_rng(4)
+    sizes = [9, 7, 12, 6, 10]
+    offsets = np.concatenate([[0], np.cumsum(sizes)])
+    names = rng.integers(-1, 5, offsets[-1])
+    regions = rng.integers(0, 4, offsets[-1])
+    whole = name_overlaps(name_region_overlaps(names, regions, offsets, 4), 5)
+    cut = 2  # shards: homes 0-1 and homes 2-4
+    rows = offsets[cut]
+    parts = [name_overlaps(name_region_overlaps(names[:rows], regions[:rows], offsets[:cut + 1], 4), 5),
+             name_overlaps(name_region_overlaps(names[rows:], regions[rows:], offsets[cut:] - rows, 4), 5)]
+    summed = parts[0] + parts[1]
+    assert np.allclose(summed.pooled().toarray(), whole.pooled().toarray())
+    assert summed.nbytes > 0
+    for threshold in (0.2, 0.4, 0.6):
+        one = same_place_names(names, regions, offsets, 4, 5, min_overlap=threshold)
+        first = same_place_names(names[:rows], regions[:rows], offsets[:cut + 1], 4, 5, threshold, summed)
+        second = same_place_names(names[rows:], regions[rows:], offsets[cut:] - rows, 4, 5, threshold, summed)
+        assert np.array_equal(np.concatenate([first, second]), one)
 
 
 def _params(occupied: list[bool]) -> ConceptParameters:

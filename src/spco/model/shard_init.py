@@ -45,6 +45,7 @@ from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.observations import GaussianRegions
 from spco.model.pruning import NOT_A_NAME, Colocation, judge_names
 from spco.model.random import log_dirichlet
+from spco.model.synonyms import NameOverlaps, name_overlaps, name_region_overlaps, same_place_names
 
 #: The per-home sampler of the warm start (θ_{e,l} ~ Dir(α + n), as in ``gibbs.warm_start``).
 INDEPENDENT = SamplerSettings(variant="spcoa", prune=False, hierarchical=False, joint_assignment=True,
@@ -103,12 +104,23 @@ class ShardInitialisation:
         """Whether any of the shard's samples has a sentence."""
         return bool(self.data.words.nnz)
 
-    def init_names(self, naming: Colocation) -> None:
-        """Start each home's concepts from the places its names mark, judged on ``naming`` (all
-        homes' statistics), then draw its parameters as on its own."""
+    def init_names(self, naming: Colocation) -> NameOverlaps:
+        """The name each sample stands for, judged on ``naming`` (all homes' statistics); returns
+        the shard's sums of the names' region overlaps (:class:`~spco.model.synonyms.NameOverlaps`),
+        to be pooled over all homes."""
         data, state, hyper = self.data, self.state, self.hyper
         self._names = gibbs.sample_names(data, state.regions, hyper, stats=naming)
-        state.concepts = gibbs.concepts_by_name(data, state.regions, hyper, self._names)
+        return name_overlaps(name_region_overlaps(self._names, state.regions, data.offsets, hyper.n_regions),
+                             data.words.shape[1])
+
+    def init_places(self, overlaps: NameOverlaps) -> None:
+        """Start each home's concepts from the places its names mark, synonyms (``overlaps``
+        pooled over all homes: :func:`~spco.model.synonyms.same_place_names`) as one, then draw
+        its parameters as on its own (as :func:`spco.model.gibbs.warm_start`)."""
+        data, state, hyper = self.data, self.state, self.hyper
+        places = same_place_names(self._names, state.regions, data.offsets, hyper.n_regions,
+                                  data.words.shape[1], overlaps=overlaps)
+        state.concepts = gibbs.concepts_by_name(data, state.regions, hyper, places)
         independent_home_step(data, state, gibbs.sufficient_statistics(data, state, hyper), hyper, self.rng)
 
     def init_local_step(self) -> None:
@@ -320,7 +332,9 @@ def initialise(call, call_each, bounds: list[tuple[int, int]], n_words: int, hyp
     naming_start = settings.prune and any(gather(call("init_has_words")))
     if naming_start:
         naming = total(call("colocation"))
-        call("init_names", naming)
+        overlaps = total(call("init_names", naming))
+        call("init_places", overlaps)
+        report.bytes_sent += overlaps.nbytes * n_shards
         report.bytes_sent += naming.nbytes * n_shards
     for sweep_index in range(n_sweeps):
         call("init_local_step")

@@ -27,11 +27,14 @@ are then aligned by their words.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-__all__ = ["MIN_OVERLAP", "name_region_overlaps", "pooled_overlaps", "same_place_names"]
+__all__ = ["MIN_OVERLAP", "NameOverlaps", "name_overlaps", "name_region_overlaps", "pooled_overlaps",
+           "same_place_names"]
 
 #: Pooled region overlap above which two names are one place (see :func:`same_place_names`; chosen
 #: by ``benchmarks/synonyms.py``, docs/model.md "Synonyms").
@@ -64,11 +67,36 @@ def name_region_overlaps(names: np.ndarray, regions: np.ndarray, offsets: np.nda
     return out
 
 
-def pooled_overlaps(per_home: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
-                    n_words: int) -> sp.csr_array:
-    """(V, V) the overlap of every pair of names pooled over the homes that say both, weighted by
-    the fewer uses of the two in each home: Σ_e min(n_ea, n_eb) o_e(a, b) / Σ_e min(n_ea, n_eb)
-    (``per_home`` from :func:`name_region_overlaps`; pairs said in no home together are absent)."""
+@dataclass(frozen=True)
+class NameOverlaps:
+    """The sums behind :func:`pooled_overlaps`, which add up over sets of homes (shards):
+    ``weighted`` Σ_e min(n_ea, n_eb) o_e(a, b) and ``weights`` Σ_e min(n_ea, n_eb), (V, V) sparse,
+    one entry per pair a < b said together in some home."""
+
+    weighted: sp.csr_array
+    weights: sp.csr_array
+
+    def __add__(self, other: NameOverlaps) -> NameOverlaps:
+        """The sums of two sets of homes together."""
+        return NameOverlaps(self.weighted + other.weighted, self.weights + other.weights)
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of the two sparse matrices (what a shard sends)."""
+        return sum(m.data.nbytes + m.indices.nbytes + m.indptr.nbytes for m in (self.weighted, self.weights))
+
+    def pooled(self) -> sp.csr_array:
+        """(V, V) symmetric pooled overlaps Σ_e min(n_ea, n_eb) o_e(a, b) / Σ_e min(n_ea, n_eb)."""
+        weights = sp.csr_array(self.weights, copy=True)  # (arrays from Ray's object store are read-only)
+        weights.sum_duplicates()
+        weights.eliminate_zeros()  # a pair said together has weight ≥ 1 (its rarer name's uses)
+        # a pair of overlap 0 may be stored or not in ``weighted`` (sums drop zeros): 0 either way
+        pooled = sp.csr_array(self.weighted, copy=True).multiply(weights.power(-1.0))
+        return sp.csr_array(pooled + pooled.T)
+
+
+def name_overlaps(per_home: list[tuple[np.ndarray, np.ndarray, np.ndarray]], n_words: int) -> NameOverlaps:
+    """:class:`NameOverlaps` of the homes of ``per_home`` (from :func:`name_region_overlaps`)."""
     rows, cols, weighted, weights = [], [], [], []
     for used, totals, overlap in per_home:  # a loop over homes; each step is vectorised
         a, b = np.triu_indices(used.size, k=1)
@@ -77,21 +105,25 @@ def pooled_overlaps(per_home: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
         cols.append(used[b])
         weighted.append(w * overlap[a, b])
         weights.append(w)
-    if not rows:
-        return sp.csr_array((n_words, n_words))
-    r, c = np.concatenate(rows), np.concatenate(cols)
     shape = (n_words, n_words)
-    num = sp.csr_array((np.concatenate(weighted), (r, c)), shape=shape)
-    den = sp.csr_array((np.concatenate(weights), (r, c)), shape=shape)
-    num.sum_duplicates()
-    den.sum_duplicates()
-    pooled = num.copy()
-    pooled.data = num.data / np.maximum(den.data, 1e-300)  # same sparsity pattern (same pairs)
-    return pooled + pooled.T
+    if not rows or not sum(r.size for r in rows):
+        return NameOverlaps(sp.csr_array(shape), sp.csr_array(shape))
+    r, c = np.concatenate(rows), np.concatenate(cols)
+    return NameOverlaps(sp.csr_array((np.concatenate(weighted), (r, c)), shape=shape),
+                        sp.csr_array((np.concatenate(weights), (r, c)), shape=shape))
+
+
+def pooled_overlaps(per_home: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
+                    n_words: int) -> sp.csr_array:
+    """(V, V) the overlap of every pair of names pooled over the homes that say both, weighted by
+    the fewer uses of the two in each home: Σ_e min(n_ea, n_eb) o_e(a, b) / Σ_e min(n_ea, n_eb)
+    (``per_home`` from :func:`name_region_overlaps`; pairs said in no home together are absent)."""
+    return name_overlaps(per_home, n_words).pooled()
 
 
 def same_place_names(names: np.ndarray, regions: np.ndarray, offsets: np.ndarray, n_regions: int,
-                     n_words: int, min_overlap: float = MIN_OVERLAP) -> np.ndarray:
+                     n_words: int, min_overlap: float = MIN_OVERLAP,
+                     overlaps: NameOverlaps | None = None) -> np.ndarray:
     """Each sample's name replaced by the name of its home's group of names said at one place.
 
     Parameters
@@ -103,6 +135,8 @@ def same_place_names(names: np.ndarray, regions: np.ndarray, offsets: np.ndarray
     min_overlap: two names said in one home are one place there when their region overlap pooled
         over the homes that say both (:func:`pooled_overlaps`) exceeds this; groups are the
         connected components of that relation among the home's names.
+    overlaps: the sums pooled over every home of the fit (:func:`name_overlaps`, added up over
+        the shards) when these are only some of them; default: pooled over these homes.
 
     Returns (N,) int64: the group's most said name in that home (ties: the lowest column), −1
     where ``names`` is −1. A name alone in its group is kept as it is.
@@ -110,7 +144,9 @@ def same_place_names(names: np.ndarray, regions: np.ndarray, offsets: np.ndarray
     names = np.asarray(names, dtype=np.int64)
     out = names.copy()
     per_home = name_region_overlaps(names, regions, offsets, n_regions)
-    same_place = pooled_overlaps(per_home, n_words) > min_overlap  # (V, V) sparse bool
+    if overlaps is None:
+        overlaps = name_overlaps(per_home, n_words)
+    same_place = overlaps.pooled() > min_overlap  # (V, V) sparse bool
     for e, (used, totals, _) in enumerate(per_home):
         if used.size < 2:
             continue
