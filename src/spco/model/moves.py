@@ -72,7 +72,9 @@ def _log_gamma_values(x: np.ndarray, out: np.ndarray, work: np.ndarray) -> None:
 def _lgamma_table(alpha: np.ndarray) -> np.ndarray:
     """ln Γ(α) for every entry of a 2-D array (0 where α ≤ 0)."""
     flat = alpha.ravel()
-    positive = np.where(flat > 0.0, flat, 1.0)
+    positive = np.empty(flat.size)  # (a loop, not np.where: its broadcasting costs ~3 s to compile)
+    for j in range(flat.size):
+        positive[j] = flat[j] if flat[j] > 0.0 else 1.0
     out = np.empty(flat.size)
     _log_gamma_values(positive, out, np.empty((3, flat.size)))
     for j in range(flat.size):
@@ -94,7 +96,9 @@ def _score_difference(alpha: np.ndarray, lg_alpha: np.ndarray, counts: np.ndarra
         columns[m] = k
         m += np.int64(counts[k] != 0)
     total = 0.0
-    for prior, sign in ((move, 1.0), (stay, -1.0)):
+    for side in range(2):  # (not a loop over ((move, 1.0), (stay, -1.0)): mixed tuples compile slowly)
+        prior = move if side == 0 else stay
+        sign = 1.0 if side == 0 else -1.0
         impossible = 0
         for j in range(m):
             k = columns[j]
@@ -143,7 +147,8 @@ def _matching_pass(alpha_v: np.ndarray, counts_v: np.ndarray, alpha_w: np.ndarra
             if log_u[e, p] < delta:
                 perm[a] = b
                 perm[b] = a
-        perms[e] = perm
+        for j in range(n_concepts):  # (element by element: an array assignment compiles its shape check)
+            perms[e, j] = perm[j]
     return perms
 
 

@@ -14,11 +14,15 @@ from spco.model.kernels.dispatch import _PARALLEL_MIN, _call_vectorised
 from spco.model.kernels.gamma import _SHORT_ROW, RowScratch, _log_gamma_row, _row_scratch
 from spco.model.kernels.special import _scaled_exp
 
+# Every call of _log_gamma_row passes its stream as an int64 and ``normalise`` as a run-time bool
+# (np.bool_): Numba compiles a callee once per argument type, and a literal True, False or 0 is a
+# type of its own, as is the uint64 index of a prange loop; one type each, one compilation (~5 s).
+
 
 @njit(parallel=True, cache=True, error_model="numpy")
 def _dirichlet_kernel(shape: np.ndarray, seed: np.uint64, out: np.ndarray) -> None:
     for r in prange(shape.shape[0]):
-        _log_gamma_row(shape[r], out[r], seed, r, True, _row_scratch(shape.shape[1]))
+        _log_gamma_row(shape[r], out[r], seed, np.int64(r), np.bool_(True), _row_scratch(shape.shape[1]))
 
 
 @njit(cache=True, error_model="numpy")
@@ -30,7 +34,7 @@ def _dirichlet_serial(shape: np.ndarray, seed: np.uint64, out: np.ndarray) -> No
         return
     scratch = _row_scratch(shape.shape[1])
     for r in range(shape.shape[0]):
-        _log_gamma_row(shape[r], out[r], seed, r, True, scratch)
+        _log_gamma_row(shape[r], out[r], seed, r, np.bool_(True), scratch)
 
 
 @njit(cache=True, inline="always")
@@ -49,7 +53,7 @@ def _dirichlet_short_rows(shape: np.ndarray, seed: np.uint64, out: np.ndarray) -
     log-sum-exp (a row of zero shapes stays −inf)."""
     n_rows, width = shape.shape
     size = n_rows * width
-    _log_gamma_row(shape.reshape(-1), out.reshape(-1), seed, 0, False, _row_scratch(size))
+    _log_gamma_row(shape.reshape(-1), out.reshape(-1), seed, np.int64(0), np.bool_(False), _row_scratch(size))
     tops = np.empty(n_rows)
     shifted = np.empty((n_rows, width))
     for r in range(n_rows):
@@ -107,7 +111,7 @@ def _hierarchical_dirichlet_row(base: np.ndarray, counts: np.ndarray, seed: np.u
     shape = scratch[1][6, :width]  # (rows 0-5 are the row function's own scratch)
     for k in range(width):
         shape[k] = base[r, k] + counts[g, r, k]
-    _log_gamma_row(shape, out[g, r], seed, i, True, scratch)
+    _log_gamma_row(shape, out[g, r], seed, np.int64(i), np.bool_(True), scratch)
 
 
 def log_dirichlet(alpha: np.ndarray, rng: np.random.Generator) -> np.ndarray:
