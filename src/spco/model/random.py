@@ -25,6 +25,7 @@ from spco.model.kernels.categorical import (  # noqa: F401
     _draw_linear,
     _draw_log,
     _joint_assignment,
+    _joint_assignment_chunks,
     sample_categorical_log,
     sample_joint_assignment,
 )
