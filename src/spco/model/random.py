@@ -91,6 +91,7 @@ from spco.model.kernels.gamma import (  # noqa: F401
 from spco.model.kernels.gaussian import (  # noqa: F401
     _GAUSSIAN_CHUNK,
     _grouped_gaussian,
+    _grouped_gaussian_chunks,
     _inverse_cholesky,
     gaussian_log_density,
     grouped_gaussian_log_density,
