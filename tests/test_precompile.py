@@ -37,3 +37,47 @@ def test_split_keeps_each_kernel_once_and_gamma_callers_together():
     assert len(gamma_groups) == 1
     loads = [sum(e["seconds"] for e in group) for group in groups]
     assert loads == sorted(loads, reverse=True)  # this process takes the larger share
+
+
+def test_a_fit_on_an_empty_cache_says_it_compiles_once(tmp_path, monkeypatch, capsys):
+    """The notice on stderr when the cache holds no kernel yet, and none when it does."""
+    import numba
+
+    monkeypatch.setattr(numba.config, "CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(numba_cache, "_announced", False)
+    numba_cache.announce_compilation()
+    err = capsys.readouterr().err
+    assert "compiling the sampler's kernels for this machine, once" in err
+    assert f"about {numba_cache.COMPILE_SECONDS_ESTIMATE} s" in err and str(tmp_path) in err
+    numba_cache.announce_compilation()  # once per process
+    assert capsys.readouterr().err == ""
+    (tmp_path / "kernel.nbi").write_bytes(b"")
+    monkeypatch.setattr(numba_cache, "_announced", False)
+    numba_cache.announce_compilation()
+    assert capsys.readouterr().err == ""
+
+
+def test_demo_on_an_empty_cache_says_it_compiles_in_two_processes(monkeypatch):
+    """``spco demo`` on a cold cache prints its notice, then precompiles in 2 processes (both
+    stubbed here: the notice is what is checked, not the compilation or its time)."""
+    from click.testing import CliRunner
+
+    import spco.demo
+    from spco.cli import main
+
+    calls: list[int] = []
+
+    class Stop(Exception):
+        pass
+
+    def stop(**_: object) -> None:
+        raise Stop
+
+    monkeypatch.setattr(spco.demo, "kernels_compiled", lambda: False)
+    monkeypatch.setattr(numba_cache, "precompile", lambda processes: calls.append(processes) or 0.0)
+    monkeypatch.setattr(spco.demo, "run_demo", stop)
+    result = CliRunner().invoke(main, ["demo", "--out", "unused"])
+    assert isinstance(result.exception, Stop)
+    assert numba_cache.precompile_notice(2) in result.stderr
+    assert f"about {numba_cache.PRECOMPILE_SECONDS_ESTIMATE} s" in result.stderr
+    assert calls == [2]

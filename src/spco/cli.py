@@ -206,10 +206,9 @@ def demo(seed: int, out: Path, homes: int, iterations: int) -> None:
     from spco.demo import format_table, kernels_compiled, run_demo
 
     if kernels_compiled() is False:
-        from spco.model.numba_cache import mark_announced, precompile
+        from spco.model.numba_cache import mark_announced, precompile, precompile_notice
 
-        click.echo("Compiling the sampler's Numba kernels in 2 processes (first run only, about 50 s "
-                   "on 2 cores)...", err=True)
+        click.echo(precompile_notice(2), err=True)
         mark_announced()
         precompile(processes=2)
     click.echo(f"Generating {homes} experienced synthetic homes and 1 new home (seed {seed})...", err=True)

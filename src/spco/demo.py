@@ -87,7 +87,7 @@ def run_demo(seed: int = 0, out: Path | str = "spco-demo", n_experienced: int = 
 def kernels_compiled() -> bool | None:
     """Whether Numba's on-disk cache holds spco's sampler kernels for this source (``None``: unknown).
 
-    ``False`` means the next fit compiles them first (about a minute or two on 2 cores).
+    ``False`` means the next fit compiles them first (about half a minute on 2 cores).
     """
     try:
         from numba.core.registry import CPUDispatcher

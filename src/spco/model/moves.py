@@ -26,10 +26,10 @@ valid MCMC for the model as written.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 from scipy.special import logsumexp
 
-from spco.model.random import _log_minus, scaled_exp
+from spco.model.random import _call_in_parts, _log_minus, scaled_exp
 
 _HALF_LOG_2PI = 0.9189385332046727
 #: Arguments at or above this are not shifted (the product of the shift would overflow near 1e38).
@@ -72,7 +72,9 @@ def _log_gamma_values(x: np.ndarray, out: np.ndarray, work: np.ndarray) -> None:
 def _lgamma_table(alpha: np.ndarray) -> np.ndarray:
     """ln Γ(α) for every entry of a 2-D array (0 where α ≤ 0)."""
     flat = alpha.ravel()
-    positive = np.where(flat > 0.0, flat, 1.0)
+    positive = np.empty(flat.size)  # (a loop, not np.where: its broadcasting costs ~3 s to compile)
+    for j in range(flat.size):
+        positive[j] = flat[j] if flat[j] > 0.0 else 1.0
     out = np.empty(flat.size)
     _log_gamma_values(positive, out, np.empty((3, flat.size)))
     for j in range(flat.size):
@@ -94,7 +96,9 @@ def _score_difference(alpha: np.ndarray, lg_alpha: np.ndarray, counts: np.ndarra
         columns[m] = k
         m += np.int64(counts[k] != 0)
     total = 0.0
-    for prior, sign in ((move, 1.0), (stay, -1.0)):
+    for side in range(2):  # (not a loop over ((move, 1.0), (stay, -1.0)): mixed tuples compile slowly)
+        prior = move if side == 0 else stay
+        sign = 1.0 if side == 0 else -1.0
         impossible = 0
         for j in range(m):
             k = columns[j]
@@ -112,15 +116,26 @@ def _score_difference(alpha: np.ndarray, lg_alpha: np.ndarray, counts: np.ndarra
     return total
 
 
-@njit(parallel=True, cache=True)
 def _matching_pass(alpha_v: np.ndarray, counts_v: np.ndarray, alpha_w: np.ndarray, counts_w: np.ndarray,
                    g_term: np.ndarray, log_g: np.ndarray, pairs: np.ndarray, log_u: np.ndarray) -> np.ndarray:
+    """The permutation of every home after its pass of swap proposals (:func:`_matching_homes`,
+    homes on Numba's thread count)."""
     n_homes, n_concepts = log_g.shape
-    lg_v = _lgamma_table(alpha_v)
-    lg_w = _lgamma_table(alpha_w)
-    width = max(counts_v.shape[2], counts_w.shape[2], 1)
     perms = np.empty((n_homes, n_concepts), dtype=np.int64)
-    for e in prange(n_homes):
+    args = (alpha_v, _lgamma_table(alpha_v), counts_v, alpha_w, _lgamma_table(alpha_w), counts_w, g_term,
+            log_g, pairs, log_u, perms)
+    _call_in_parts(_matching_homes, args, n_homes, parallel=True)
+    return perms
+
+
+@njit(cache=True, nogil=True)
+def _matching_homes(alpha_v: np.ndarray, lg_v: np.ndarray, counts_v: np.ndarray, alpha_w: np.ndarray,
+                    lg_w: np.ndarray, counts_w: np.ndarray, g_term: np.ndarray, log_g: np.ndarray,
+                    pairs: np.ndarray, log_u: np.ndarray, perms: np.ndarray, first: int, stop: int) -> None:
+    # homes first..stop-1 into perms; lg_v, lg_w: _lgamma_table of alpha_v, alpha_w
+    n_concepts = log_g.shape[1]
+    width = max(counts_v.shape[2], counts_w.shape[2], 1)
+    for e in range(first, stop):
         perm = np.arange(n_concepts)
         columns = np.empty(width, dtype=np.int64)
         values = np.empty(width)
@@ -143,8 +158,8 @@ def _matching_pass(alpha_v: np.ndarray, counts_v: np.ndarray, alpha_w: np.ndarra
             if log_u[e, p] < delta:
                 perm[a] = b
                 perm[b] = a
-        perms[e] = perm
-    return perms
+        for j in range(n_concepts):  # (element by element: an array assignment compiles its shape check)
+            perms[e, j] = perm[j]
 
 
 def concept_swap_step(visual_counts: np.ndarray, log_phi_v: np.ndarray, delta_v: float,

@@ -1,6 +1,6 @@
 """Where Numba keeps spco's compiled kernels, and the notice shown while they compile.
 
-The kernels are compiled on first use (about 100 s on 2 cores) and cached on disk. The cache
+The kernels are compiled on first use (about 30 s on 2 cores) and cached on disk. The cache
 lives in ``$SPCO_CACHE_DIR`` (default ``~/.cache/spco``, or ``$XDG_CACHE_HOME/spco``) under a
 name made of a digest of the kernels' source files (``numba-<digest>``), not in the package's
 ``__pycache__``:
@@ -29,9 +29,14 @@ from pathlib import Path
 
 import numba
 
-#: The measured first compilation of every kernel a fit and an adaptation use (``spco demo`` in a
-#: fresh virtual environment on the 2-core development machine: 96–143 s; see the README).
-COMPILE_SECONDS_ESTIMATE = 100
+#: The measured first compilation, in one process, of every kernel a fit and an adaptation use
+#: (``python -m spco.model.numba_cache`` on a cold cache on the 2-core development machine: 27 s
+#: at load 3; see benchmarks/README.md, "First run").
+COMPILE_SECONDS_ESTIMATE = 30
+
+#: The same kernels compiled in 2 processes at once (:func:`precompile`, as ``spco demo`` does on
+#: a cold cache; 2-core machine, see benchmarks/README.md, "First run").
+PRECOMPILE_SECONDS_ESTIMATE = 20
 
 _MODEL_DIR = Path(__file__).resolve().parent
 
@@ -130,8 +135,9 @@ def _compile_group(entries: list[dict]) -> float:
     return time.perf_counter() - start
 
 
-#: Modules whose kernels call the same compiled (not inlined) gamma sampler, ``_log_gamma_row``:
-#: compiled in one process, it is compiled once (about 10 s), not once per process.
+#: Modules whose kernels call the same compiled (not inlined) gamma samplers (``_log_gamma_row``,
+#: ``_stream_gamma``): compiled in one process, they are compiled once (about 5 s), not once per
+#: process.
 _GAMMA_CALLERS = ("spco.model.kernels.dirichlet", "spco.model.kernels.niw")
 
 
@@ -150,6 +156,12 @@ def _split(entries: list[dict], n_groups: int) -> list[list[dict]]:
         groups[g].extend(cluster)
         load[g] += sum(e["seconds"] for e in cluster)
     return [groups[g] for g in sorted(range(n_groups), key=lambda g: -load[g])]
+
+
+def precompile_notice(processes: int = 2) -> str:
+    """What ``spco demo`` says before :func:`precompile` on a cold cache."""
+    return (f"Compiling the sampler's Numba kernels in {processes} processes (first run only, about "
+            f"{PRECOMPILE_SECONDS_ESTIMATE} s on 2 cores)...")
 
 
 def precompile(processes: int = 2) -> float:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from spco.model.kernels.dispatch import _call_in_parts
 from spco.model.kernels.special import _scaled_exp
 
 
@@ -57,18 +58,31 @@ def sample_categorical_log(log_p: np.ndarray, rng: np.random.Generator) -> np.nd
 _ASSIGNMENT_CHUNK = 64
 
 
-@njit(parallel=True, cache=True, error_model="numpy")
 def _joint_assignment(log_g: np.ndarray, log_pi: np.ndarray, pi_scaled: np.ndarray, pi_row_max: np.ndarray,
                       homes: np.ndarray, concept_ll: np.ndarray, region_ll: np.ndarray, u_concept: np.ndarray,
                       u_region: np.ndarray) -> np.ndarray:
-    # pi_scaled: (E, K, L), regions before concepts, so that the sums over regions run for all
-    # concepts side by side (vector lanes); each sum still adds its terms in region order
+    """The flat C·K + R draw of every sample (:func:`_joint_assignment_chunks` over all chunks of
+    :data:`_ASSIGNMENT_CHUNK` samples, on Numba's thread count)."""
+    n = homes.size
+    out = np.empty(n, dtype=np.int64)
+    args = (log_g, log_pi, pi_scaled, pi_row_max, homes, concept_ll, region_ll, u_concept, u_region, out)
+    n_chunks = (n + _ASSIGNMENT_CHUNK - 1) // _ASSIGNMENT_CHUNK
+    _call_in_parts(_joint_assignment_chunks, args, n_chunks, parallel=True)
+    return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _joint_assignment_chunks(log_g: np.ndarray, log_pi: np.ndarray, pi_scaled: np.ndarray,
+                             pi_row_max: np.ndarray, homes: np.ndarray, concept_ll: np.ndarray,
+                             region_ll: np.ndarray, u_concept: np.ndarray, u_region: np.ndarray,
+                             out: np.ndarray, first: int, stop: int) -> None:
+    # the samples of chunks first..stop-1 into out; pi_scaled: (E, K, L), regions before concepts,
+    # so that the sums over regions run for all concepts side by side (vector lanes); each sum
+    # still adds its terms in region order
     n = homes.size
     n_concepts = log_pi.shape[1]
     n_regions = log_pi.shape[2]
-    out = np.empty(n, dtype=np.int64)
-    n_chunks = (n + _ASSIGNMENT_CHUNK - 1) // _ASSIGNMENT_CHUNK
-    for chunk in prange(n_chunks):
+    for chunk in range(first, stop):
         first = chunk * _ASSIGNMENT_CHUNK
         size = min(n, first + _ASSIGNMENT_CHUNK) - first
         # the chunk's exp(region log-likelihood − its row maximum), in one vectorised pass
@@ -149,7 +163,6 @@ def _joint_assignment(log_g: np.ndarray, log_pi: np.ndarray, pi_scaled: np.ndarr
                     weights[m] = log_pi[e, chosen, m] + region_ll[t, m]
                 region = _draw_log(weights, u_region[t])
             out[t] = chosen * n_regions + region
-    return out
 
 
 @njit(cache=True)

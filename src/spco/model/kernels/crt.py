@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from spco.model.kernels.dispatch import _PARALLEL_MIN
+from spco.model.kernels.dispatch import _PARALLEL_MIN, _call_in_parts
 from spco.model.kernels.normal import _stream_normal
 from spco.model.kernels.rng import _stream_next, _stream_start
 from spco.model.kernels.special import (
@@ -155,21 +155,13 @@ def sample_crt(
     return kernel(flat_n, flat_a, seed, int(exact_max), int(head)).reshape(counts.shape)
 
 
-@njit(parallel=True, cache=True, error_model="numpy")
-def _crt_totals_kernel(counts: np.ndarray, conc: np.ndarray, seed: np.uint64, exact_max: int) -> np.ndarray:
-    out = np.zeros((counts.shape[1], counts.shape[2]), dtype=np.int64)
-    for r in prange(counts.shape[1]):
+@njit(cache=True, nogil=True, error_model="numpy")
+def _crt_totals_rows(counts: np.ndarray, conc: np.ndarray, seed: np.uint64, exact_max: int, out: np.ndarray,
+                     first: int, stop: int) -> None:
+    """:func:`sample_crt_totals` of rows first..stop−1 into ``out``, column k of row r on the stream
+    r·width + k: the same draws whichever thread runs which rows (:func:`_call_in_parts`)."""
+    for r in range(first, stop):
         _crt_totals_row(counts, conc, seed, exact_max, r, out[r])
-    return out
-
-
-@njit(cache=True, error_model="numpy")
-def _crt_totals_serial(counts: np.ndarray, conc: np.ndarray, seed: np.uint64, exact_max: int) -> np.ndarray:
-    # _crt_totals_kernel on one thread, for small inputs: the same draws
-    out = np.zeros((counts.shape[1], counts.shape[2]), dtype=np.int64)
-    for r in range(counts.shape[1]):
-        _crt_totals_row(counts, conc, seed, exact_max, r, out[r])
-    return out
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -290,5 +282,10 @@ def sample_crt_totals(counts: np.ndarray, concentration: np.ndarray, rng: np.ran
         raise ValueError("sample_crt_totals needs counts of shape (groups, rows, width)")
     conc = np.ascontiguousarray(np.broadcast_to(concentration, counts.shape[1:]), dtype=np.float64)
     seed = np.uint64(rng.integers(0, 2**63 - 1, dtype=np.int64))
-    kernel = _crt_totals_kernel if counts.size >= _PARALLEL_MIN else _crt_totals_serial
-    return kernel(counts, conc, seed, int(exact_max))
+    if counts.flags.writeable:  # a read-only view (no copy): one compiled signature, whoever owns counts
+        counts = counts.view()
+        counts.flags.writeable = False
+    out = np.zeros((counts.shape[1], counts.shape[2]), dtype=np.int64)
+    _call_in_parts(_crt_totals_rows, (counts, conc, seed, int(exact_max), out), counts.shape[1],
+                   counts.size >= _PARALLEL_MIN)
+    return out

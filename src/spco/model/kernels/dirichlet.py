@@ -8,32 +8,26 @@ on one thread, many short rows (π over K = 20 regions, θ^w over a few words) a
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
-from spco.model.kernels.dispatch import _PARALLEL_MIN, _call_vectorised
-from spco.model.kernels.gamma import _SHORT_ROW, RowScratch, _log_gamma_row, _row_scratch
+from spco.model.kernels.dispatch import _PARALLEL_MIN, _call_in_parts, _call_vectorised
+from spco.model.kernels.gamma import _SHORT_ROW, _log_gamma_row, _row_scratch
 from spco.model.kernels.special import _scaled_exp
 
-
-@njit(parallel=True, cache=True, error_model="numpy")
-def _dirichlet_kernel(shape: np.ndarray, seed: np.uint64, out: np.ndarray) -> None:
-    for r in prange(shape.shape[0]):
-        _log_gamma_row(shape[r], out[r], seed, r, True, _row_scratch(shape.shape[1]))
+# Every call of _log_gamma_row passes its stream as an int64 and ``normalise`` as a run-time bool
+# (np.bool_): Numba compiles a callee once per argument type, and a literal True, False or 0 is a
+# type of its own, as is the uint64 index of a prange loop; one type each, one compilation (~5 s).
 
 
-@njit(cache=True, error_model="numpy")
-def _dirichlet_serial(shape: np.ndarray, seed: np.uint64, out: np.ndarray) -> None:
-    # _dirichlet_kernel on one thread, for small batches: the same draws, except for many short
-    # rows (see _short_rows)
-    if _short_rows(shape.shape[0], shape.shape[1]):
-        _dirichlet_short_rows(shape, seed, out)
-        return
+@njit(cache=True, nogil=True, error_model="numpy")
+def _dirichlet_rows(shape: np.ndarray, seed: np.uint64, out: np.ndarray, first: int, stop: int) -> None:
+    """log Dirichlet rows first..stop−1 of ``shape`` into ``out``, row r on the streams of r: the
+    same draws whichever thread runs which rows (:func:`_call_in_parts`)."""
     scratch = _row_scratch(shape.shape[1])
-    for r in range(shape.shape[0]):
-        _log_gamma_row(shape[r], out[r], seed, r, True, scratch)
+    for r in range(first, stop):
+        _log_gamma_row(shape[r], out[r], seed, r, np.bool_(True), scratch)
 
 
-@njit(cache=True, inline="always")
 def _short_rows(n_rows: int, width: int) -> bool:
     """Whether a batch of Dirichlet rows is drawn as one flat batch of gamma variates
     (:func:`_dirichlet_short_rows`): rows short enough for :func:`_log_gamma_row` to take them one
@@ -49,7 +43,7 @@ def _dirichlet_short_rows(shape: np.ndarray, seed: np.uint64, out: np.ndarray) -
     log-sum-exp (a row of zero shapes stays −inf)."""
     n_rows, width = shape.shape
     size = n_rows * width
-    _log_gamma_row(shape.reshape(-1), out.reshape(-1), seed, 0, False, _row_scratch(size))
+    _log_gamma_row(shape.reshape(-1), out.reshape(-1), seed, np.int64(0), np.bool_(False), _row_scratch(size))
     tops = np.empty(n_rows)
     shifted = np.empty((n_rows, width))
     for r in range(n_rows):
@@ -72,42 +66,19 @@ def _dirichlet_short_rows(shape: np.ndarray, seed: np.uint64, out: np.ndarray) -
             out[r, j] -= log_total
 
 
-@njit(parallel=True, cache=True, error_model="numpy")
-def _hierarchical_dirichlet_kernel(base: np.ndarray, counts: np.ndarray, seed: np.uint64,
-                                   out: np.ndarray) -> None:
-    for i in prange(counts.shape[0] * counts.shape[1]):
-        _hierarchical_dirichlet_row(base, counts, seed, out, i, _row_scratch(counts.shape[2]))
-
-
-@njit(cache=True, error_model="numpy")
-def _hierarchical_dirichlet_serial(base: np.ndarray, counts: np.ndarray, seed: np.uint64,
-                                   out: np.ndarray) -> None:
-    # _hierarchical_dirichlet_kernel on one thread, for small batches: the same draws, except
-    # for many short rows (see _short_rows)
-    rows, width = counts.shape[0] * counts.shape[1], counts.shape[2]
-    if _short_rows(rows, width):
-        shape = np.empty((rows, width))
-        n_concepts = counts.shape[1]
-        for i in range(rows):
-            g, r = i // n_concepts, i % n_concepts
-            for k in range(width):
-                shape[i, k] = base[r, k] + counts[g, r, k]
-        _dirichlet_short_rows(shape, seed, out.reshape(rows, width))
-        return
-    scratch = _row_scratch(counts.shape[2])
-    for i in range(counts.shape[0] * counts.shape[1]):
-        _hierarchical_dirichlet_row(base, counts, seed, out, i, scratch)
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _hierarchical_dirichlet_row(base: np.ndarray, counts: np.ndarray, seed: np.uint64, out: np.ndarray,
-                                i: int, scratch: RowScratch) -> None:
+@njit(cache=True, nogil=True, error_model="numpy")
+def _hierarchical_dirichlet_rows(base: np.ndarray, counts: np.ndarray, seed: np.uint64, out: np.ndarray,
+                                 first: int, stop: int) -> None:
+    """log θ_{g,r} ~ Dir(base_r + counts_{g,r}) for the flat rows i = g R + r in first..stop−1, row i
+    on the streams of i (:func:`_call_in_parts`)."""
     rows, width = counts.shape[1], counts.shape[2]
-    g, r = i // rows, i % rows
+    scratch = _row_scratch(width)
     shape = scratch[1][6, :width]  # (rows 0-5 are the row function's own scratch)
-    for k in range(width):
-        shape[k] = base[r, k] + counts[g, r, k]
-    _log_gamma_row(shape, out[g, r], seed, i, True, scratch)
+    for i in range(first, stop):
+        g, r = i // rows, i % rows
+        for k in range(width):
+            shape[k] = base[r, k] + counts[g, r, k]
+        _log_gamma_row(shape, out[g, r], seed, i, np.bool_(True), scratch)
 
 
 def log_dirichlet(alpha: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -133,8 +104,11 @@ def log_dirichlet(alpha: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     rows = np.ascontiguousarray(alpha).reshape(-1, alpha.shape[-1])
     out = np.empty(rows.shape)
     seed = np.uint64(rng.integers(0, 2**63 - 1, dtype=np.int64))
-    kernel = _dirichlet_kernel if rows.size >= _PARALLEL_MIN else _dirichlet_serial
-    _call_vectorised(kernel, (rows, seed, out))
+    parallel = rows.size >= _PARALLEL_MIN
+    if not parallel and _short_rows(*rows.shape):
+        _call_vectorised(_dirichlet_short_rows, (rows, seed, out))
+    else:
+        _call_in_parts(_dirichlet_rows, (rows, seed, out), rows.shape[0], parallel, vectorised=True)
     return out.reshape(alpha.shape)
 
 
@@ -165,8 +139,13 @@ def log_dirichlet_hierarchical(base: np.ndarray, counts: np.ndarray, rng: np.ran
         counts = counts.view()
         counts.flags.writeable = False
     parallel = counts.size >= _PARALLEL_MIN
-    kernel = _hierarchical_dirichlet_kernel if parallel else _hierarchical_dirichlet_serial
-    _call_vectorised(kernel, (base, counts, seed, out))
+    n_rows, width = counts.shape[0] * counts.shape[1], counts.shape[2]
+    if not parallel and _short_rows(n_rows, width):  # (the same sums base + counts as the kernel's)
+        _call_vectorised(_dirichlet_short_rows, ((base + counts).reshape(n_rows, width), seed,
+                                                 out.reshape(n_rows, width)))
+    else:
+        _call_in_parts(_hierarchical_dirichlet_rows, (base, counts, seed, out), n_rows, parallel,
+                       vectorised=True)
     return out
 
 

@@ -25,7 +25,7 @@ from spco.model.kernels.special import _log_minus, _sum_exp
 _LOG_GAMMA_FLOOR = -1e300
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _stream_gamma(state: np.uint64, a: float) -> tuple[np.uint64, float]:
     """The next state and a Gamma(a, 1) variate, a ≥ 1 (Marsaglia & Tsang 2000)."""
     d = a - 1.0 / 3.0
@@ -42,7 +42,7 @@ def _stream_gamma(state: np.uint64, a: float) -> tuple[np.uint64, float]:
             return state, d * v
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _stream_log_gamma_small(state: np.uint64, a: float) -> tuple[np.uint64, float]:
     """The next state and log G for G ~ Gamma(a, 1), 0 < a < 1, by the boost
     G(a) = G(a + 1) U^{1/a} taken in log space: finite (clipped at −1e300) where G underflows."""
@@ -338,7 +338,7 @@ def _log_gamma_row(shape: np.ndarray, out: np.ndarray, seed: np.uint64, stream: 
             out[j] = -np.inf
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy")
 def _stream_gamma_any(state: np.uint64, a: float) -> tuple[np.uint64, float]:
     """The next state and a Gamma(a, 1) variate for any a > 0 (boosted below 1: G(a + 1) U^{1/a})."""
     if a >= 1.0:

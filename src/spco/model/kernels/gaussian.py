@@ -7,8 +7,9 @@ single-group :func:`gaussian_log_density`.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
+from spco.model.kernels.dispatch import _call_in_parts
 from spco.model.kernels.niw import _cholesky_into
 
 
@@ -24,16 +25,25 @@ def gaussian_log_density(x: np.ndarray, mean: np.ndarray, cov: np.ndarray) -> np
 _GAUSSIAN_CHUNK = 64
 
 
-@njit(parallel=True, cache=True)
 def _grouped_gaussian(x: np.ndarray, groups: np.ndarray, means_t: np.ndarray, inv_chol_t: np.ndarray,
                       constant: np.ndarray) -> np.ndarray:
-    # means_t (G, d, K) and inv_chol_t (G, d, d, K): the components last, so that every inner loop
-    # runs over the K components of a point at once (vectorised); each quadratic form is summed in
-    # the same order as one component at a time
+    """(n, K) log densities: :func:`_grouped_gaussian_chunks` over all chunks of
+    :data:`_GAUSSIAN_CHUNK` points, on Numba's thread count."""
+    out = np.empty((x.shape[0], means_t.shape[2]))
+    n_chunks = (x.shape[0] + _GAUSSIAN_CHUNK - 1) // _GAUSSIAN_CHUNK
+    _call_in_parts(_grouped_gaussian_chunks, (x, groups, means_t, inv_chol_t, constant, out), n_chunks, True)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _grouped_gaussian_chunks(x: np.ndarray, groups: np.ndarray, means_t: np.ndarray, inv_chol_t: np.ndarray,
+                             constant: np.ndarray, out: np.ndarray, first: int, stop: int) -> None:
+    # the points of chunks first..stop-1 into out; means_t (G, d, K) and inv_chol_t (G, d, d, K):
+    # the components last, so that every inner loop runs over the K components of a point at
+    # once (vectorised); each quadratic form is summed in the same order as one component at a time
     n, d = x.shape
     n_components = means_t.shape[2]
-    out = np.empty((n, n_components))
-    for chunk in prange((n + _GAUSSIAN_CHUNK - 1) // _GAUSSIAN_CHUNK):
+    for chunk in range(first, stop):
         diff = np.empty((d, n_components))
         acc = np.empty(n_components)
         quad = np.empty(n_components)
@@ -52,7 +62,6 @@ def _grouped_gaussian(x: np.ndarray, groups: np.ndarray, means_t: np.ndarray, in
                     quad[m] += acc[m] * acc[m]
             for m in range(n_components):
                 out[t, m] = constant[g, m] - 0.5 * quad[m]
-    return out
 
 
 def grouped_gaussian_log_density(x: np.ndarray, groups: np.ndarray, means: np.ndarray,

@@ -14,7 +14,14 @@ import numpy as np
 import scipy.sparse as sp
 from numba import get_num_threads, njit, prange
 
-from spco.model.kernels.dispatch import _PARALLEL_MIN, _as, _call_vectorised, _index_array, _value_array
+from spco.model.kernels.dispatch import (
+    _PARALLEL_MIN,
+    _as,
+    _call_in_parts,
+    _call_vectorised,
+    _index_array,
+    _value_array,
+)
 
 #: Columns of a likelihood table are processed in blocks of this many lanes (4 AVX2 registers).
 LANES = 16
@@ -217,10 +224,10 @@ def dimension_major(matrix: sp.csr_array, offsets: np.ndarray) -> DimensionMajor
     return DimensionMajorCounts(colptr=colptr, rows=rows, values=values, offsets=offsets)
 
 
-@njit(parallel=True, cache=True)
+@njit(cache=True, nogil=True)
 def _dimension_major_dot(colptr: np.ndarray, rows: np.ndarray, values: np.ndarray, offsets: np.ndarray,
-                         log_p: np.ndarray, floor: float, home_order: np.ndarray,
-                         part_starts: np.ndarray) -> np.ndarray:
+                         log_p: np.ndarray, floor: float, home_order: np.ndarray, part_starts: np.ndarray,
+                         out: np.ndarray, first: int, stop: int) -> None:
     # home by home, in parallel: the home's log-probabilities (R, D) are first laid out as a
     # table of sixteen lanes per column (clipped at the floor, zero-padded; what
     # likelihood_table builds for all homes, here one home at a time in the thread's cache);
@@ -228,14 +235,13 @@ def _dimension_major_dot(colptr: np.ndarray, rows: np.ndarray, values: np.ndarra
     # that entry's row of sixteen accumulators (a home's accumulators stay in the L1 cache). Each
     # sum runs over the row's entries in column order, as in _blocked_sparse_dot: the same
     # results, bit for bit.
+    # (parts first..stop-1 here: one part per thread, homes balanced by non-zeros)
     n_rows = log_p.shape[1]
     n_blocks = (n_rows + LANES - 1) // LANES
-    out = np.empty((offsets[-1], n_rows))
-    for part in prange(part_starts.size - 1):  # one part per thread, homes balanced by non-zeros
+    for part in range(first, stop):
         for position in range(part_starts[part], part_starts[part + 1]):
             _dimension_major_home(colptr, rows, values, offsets, log_p, floor, home_order[position], n_blocks,
                                   out)
-    return out
 
 
 @njit(cache=True, inline="always")
@@ -308,8 +314,11 @@ def dimension_major_dot(counts: DimensionMajorCounts, log_probabilities: np.ndar
         raise ValueError(f"log-probabilities of shape {log_p.shape} do not fit counts of {n_blocks} blocks "
                          f"and {n_columns} columns")
     order, starts = counts.parts(get_num_threads())
-    args = (counts.colptr, counts.rows, counts.values, counts.offsets, log_p, float(floor), order, starts)
-    return _call_vectorised(_dimension_major_dot, args)
+    out = np.empty((counts.offsets[-1], log_p.shape[1]))
+    args = (counts.colptr, counts.rows, counts.values, counts.offsets, log_p, float(floor), order, starts,
+            out)
+    _call_in_parts(_dimension_major_dot, args, starts.size - 1, parallel=True, vectorised=True)
+    return out
 
 
 def grouped_sparse_dot(matrix, groups: np.ndarray, table: np.ndarray) -> np.ndarray:

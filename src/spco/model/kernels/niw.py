@@ -111,7 +111,7 @@ def _niw_serial(mu_n: np.ndarray, kappa_n: np.ndarray, psi_n: np.ndarray, nu_n: 
         _niw_element(mu_n, kappa_n, psi_n, nu_n, seed, mu, sigma, failed, b)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _niw_element(mu_n: np.ndarray, kappa_n: np.ndarray, psi_n: np.ndarray, nu_n: np.ndarray, seed: np.uint64,
                  mu: np.ndarray, sigma: np.ndarray, failed: np.ndarray, b: int) -> None:
     d = mu_n.shape[1]

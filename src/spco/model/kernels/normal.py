@@ -55,14 +55,14 @@ def _ziggurat_parts(bits: np.uint64) -> tuple[np.int64, np.uint64, np.uint64]:
             (bits >> _ABSCISSA_SHIFT) & _ABSCISSA_MASK)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy")
 def _stream_normal(state: np.uint64) -> tuple[np.uint64, float]:
     """The next state and a standard normal variate (ziggurat; ~99 % of draws take one step)."""
     state, bits = _stream_bits(state)
     return _normal_from_bits(state, bits)
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _normal_from_bits(state: np.uint64, bits: np.uint64) -> tuple[np.uint64, float]:
     """A ziggurat normal whose first 64 random bits are ``bits``, further ones (if the first step
     does not return) from the stream ``state``: returns the stream's next state and the variate."""
