@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import os
 import threading
+from concurrent.futures import ThreadPoolExecutor, wait
 
 import numpy as np
 
@@ -61,62 +62,28 @@ def _prepare_vectorised(kernel, args: tuple) -> None:
         _VECTORISED_READY.add(key)
 
 
-class _Worker:
-    """A thread that runs one kernel call at a time when told to: two locks as signals (go, done),
-    ~15–20 µs per round trip, where a ThreadPoolExecutor's futures cost ~40 µs (Numba's own
-    threads: ~12 µs)."""
-
-    def __init__(self) -> None:
-        self._go = threading.Lock()
-        self._go.acquire()
-        self._done = threading.Lock()
-        self._done.acquire()
-        self._job: tuple = ()
-        self._error: BaseException | None = None
-        threading.Thread(target=self._loop, name="spco-kernel", daemon=True).start()
-
-    def _loop(self) -> None:
-        while True:
-            self._go.acquire()
-            kernel, args = self._job
-            try:
-                kernel(*args)
-            except BaseException as error:  # returned to the caller by wait()
-                self._error = error
-            finally:
-                self._done.release()
-
-    def start(self, kernel, args: tuple) -> None:
-        """Run ``kernel(*args)`` on this thread."""
-        self._job, self._error = (kernel, args), None
-        self._go.release()
-
-    def wait(self) -> BaseException | None:
-        """Wait for the call started last; returns its exception, if any."""
-        self._done.acquire()
-        return self._error
+#: The threads of :func:`_call_in_parts` (a standard thread pool, made on first use and grown to
+#: Numba's thread count), and the lock of their use: a call from a second Python thread while they
+#: are busy runs on one thread (the same result).
+_pool: ThreadPoolExecutor | None = None
+_pool_size = 0
+_pool_busy = threading.Lock()
 
 
-#: Worker threads of :func:`_call_in_parts` (made on first use), and the lock of their use: a call
-#: from a second Python thread while they are busy runs on one thread (the same result).
-_workers: list[_Worker] = []
-_workers_busy = threading.Lock()
+def _forget_pool() -> None:
+    global _pool, _pool_size, _pool_busy
+    _pool, _pool_size = None, 0  # a forked child has none of the parent's threads: it makes its own
+    _pool_busy = threading.Lock()
 
 
-def _forget_workers() -> None:
-    global _workers_busy
-    _workers.clear()  # a forked child has none of the parent's threads
-    _workers_busy = threading.Lock()
-
-
-os.register_at_fork(after_in_child=_forget_workers)
+os.register_at_fork(after_in_child=_forget_pool)
 
 
 def _call_in_parts(kernel, args: tuple, n_items: int, parallel: bool, vectorised: bool = False) -> None:
     """``kernel(*args, first, stop)`` for contiguous parts [first, stop) of ``range(n_items)``: one
     part on this thread, or, when ``parallel``, one per Numba thread (``numba.get_num_threads()``),
-    run at once. ``kernel`` is compiled with ``nogil=True`` and treats every item on its own (its
-    own random stream), so the result does not depend on the parts.
+    run at once on a standard thread pool. ``kernel`` is compiled with ``nogil=True`` and treats
+    every item on its own (its own random stream), so the result does not depend on the parts.
 
     This is the threaded variant of a serial kernel at no compile cost: a ``parallel=True``
     (prange) twin of the same loop took 2–5 s more to compile per kernel, and here the same
@@ -126,25 +93,27 @@ def _call_in_parts(kernel, args: tuple, n_items: int, parallel: bool, vectorised
 
     if vectorised:
         _prepare_vectorised(kernel, (*args, 0, n_items))  # (compiled here, not by two threads at once)
+    global _pool, _pool_size
     n_parts = max(1, min(get_num_threads(), n_items)) if parallel else 1
-    if n_parts == 1 or not _workers_busy.acquire(blocking=False):
+    if n_parts == 1 or not _pool_busy.acquire(blocking=False):
         kernel(*args, 0, n_items)
         return
     try:
-        while len(_workers) < n_parts - 1:
-            _workers.append(_Worker())
+        if _pool is None or _pool_size < n_parts - 1:
+            if _pool is not None:
+                _pool.shutdown(wait=False)
+            _pool_size = n_parts - 1
+            _pool = ThreadPoolExecutor(_pool_size, thread_name_prefix="spco-kernel")
         bounds = [n_items * i // n_parts for i in range(n_parts + 1)]
-        for i in range(1, n_parts):
-            _workers[i - 1].start(kernel, (*args, bounds[i], bounds[i + 1]))
+        parts = [_pool.submit(kernel, *args, bounds[i], bounds[i + 1]) for i in range(1, n_parts)]
         try:
             kernel(*args, bounds[0], bounds[1])
         finally:
-            errors = [_workers[i - 1].wait() for i in range(1, n_parts)]
-        for error in errors:
-            if error is not None:
-                raise error
+            wait(parts)  # every part ends before the caller goes on (or raises)
+        for part in parts:
+            part.result()  # an error in a part reaches the caller
     finally:
-        _workers_busy.release()
+        _pool_busy.release()
 
 
 def _as(array: np.ndarray, dtype: type) -> np.ndarray:
