@@ -9,10 +9,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
 from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.engines import LocalEngine
-from spco.model import gibbs, shard_init
+from spco.model import alignment, gibbs
 from spco.model.sources import PreparedHomes, SyntheticHomes, concatenate_data
 from spco.model.transfer import SpatialConceptModel
 
@@ -60,8 +61,9 @@ def test_synthetic_source_makes_the_homes_generate_homes_makes(source) -> None:
 
 @pytest.mark.parametrize("with_names", [False, True])
 def test_streaming_alignment_equals_align_homes(with_names: bool) -> None:
-    """align_in_order, fed one home's counts at a time in small batches, gives the permutations of
-    gibbs.align_homes on all homes' counts at once (names: synonyms matched by views included)."""
+    """align_in_order, fed the homes' counts in small batches as the sharded start fetches them,
+    gives the permutations of gibbs.align_homes on all homes' counts in memory (names: synonyms
+    matched by views included)."""
     rng = np.random.default_rng(3)
     E, L, D, V = 9, 6, 40, 12
     visual = rng.poisson(rng.gamma(0.5, 4.0, size=(E, L, D))).astype(np.int64)
@@ -76,11 +78,11 @@ def test_streaming_alignment_equals_align_homes(with_names: bool) -> None:
     expected = gibbs.align_homes(visual, words, 0.1, 0.05, names)
 
     def fetch(homes):
-        return [shard_init.HomeCounts(shard_init.sp.csr_array(visual[e]), words[e],
-                                      None if names is None else names[e]) for e in homes]
+        return [alignment.HomeCounts(sp.csr_array(visual[e]), words[e],
+                                     None if names is None else names[e]) for e in homes]
 
     said = None if names is None else names.sum(axis=1) > 0
-    got = shard_init.align_in_order(fetch, words.sum(axis=(1, 2)), said, 0.1, 0.05, L, batch=2)
+    got = alignment.align_in_order(fetch, words.sum(axis=(1, 2)), said, 0.1, 0.05, L, batch=2)
     np.testing.assert_array_equal(got, expected)
     assert not (expected == np.arange(L)).all()  # the homes were relabelled: the test has teeth
 

@@ -32,9 +32,9 @@ from functools import cached_property
 import numpy as np
 import scipy.sparse as sp
 from scipy.cluster.vq import kmeans2
-from scipy.optimize import linear_sum_assignment
 
 from spco.model import allocation
+from spco.model.alignment import HomeCounts, align_in_order
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.moves import concept_swap_step
 from spco.model.numba_cache import announce_compilation
@@ -450,33 +450,14 @@ def align_homes(visual: np.ndarray, words: np.ndarray, alpha_visual: float, alph
     name said in this home only (Emma's room) still goes by its words (to a free label).
     """
     n_homes, n_concepts, _ = visual.shape
-    order = np.argsort(-words.sum(axis=(1, 2)), kind="stable")
-    perms = np.tile(np.arange(n_concepts), (n_homes, 1))
-    pooled_v = visual[order[0]].astype(float)
-    pooled_w = words[order[0]].astype(float)
-    if name_counts is not None:
-        homes_saying = (name_counts.sum(axis=1) > 0).sum(axis=0)  # (V,) homes saying each name
-        seen = name_counts[order[0]].sum(axis=0) > 0  # (V,) names of the aligned homes
-    for e in order[1:]:
-        log_pv = np.log(pooled_v + alpha_visual) - np.log((pooled_v + alpha_visual).sum(1, keepdims=True))
-        score = visual[e] @ log_pv.T  # (own concept, label)
-        if words.shape[2]:
-            log_pw = np.log(pooled_w + alpha_word) - np.log((pooled_w + alpha_word).sum(1, keepdims=True))
-            by_words = words[e].sum(axis=1) > 0
-            # a concept with words is matched by its words alone: the names say which place it is,
-            # while every room's views look alike next to them — with the views counted too, a
-            # home's own room (Emma's) took the label of another place instead of a free one
-            if name_counts is not None:
-                own_names = name_counts[e]  # (L, V)
-                synonyms = own_names[:, ~seen & (homes_saying > 1)].sum(axis=1)
-                by_words &= ~(synonyms > 0.5 * own_names.sum(axis=1))
-                seen |= own_names.sum(axis=0) > 0
-            score[by_words] = words[e][by_words] @ log_pw.T
-        own, label = linear_sum_assignment(score, maximize=True)
-        perms[e, label] = own
-        pooled_v += visual[e][perms[e]]
-        pooled_w += words[e][perms[e]]
-    return perms
+
+    def fetch(homes: np.ndarray) -> list[HomeCounts]:
+        return [HomeCounts(sp.csr_array(visual[e]), words[e], None if name_counts is None else name_counts[e])
+                for e in homes]
+
+    names_said = None if name_counts is None else name_counts.sum(axis=1) > 0
+    return align_in_order(fetch, words.sum(axis=(1, 2)), names_said, alpha_visual, alpha_word, n_concepts,
+                          batch=max(n_homes, 1))
 
 
 def _apply_permutations(data: PreparedData, state: GibbsState, perms: np.ndarray, theta: bool = True) -> None:

@@ -37,9 +37,9 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.optimize import linear_sum_assignment
 
 from spco.model import allocation, gibbs
+from spco.model.alignment import ALIGNMENT_BATCH, HomeCounts, align_in_order
 from spco.model.gibbs import GibbsState, PreparedData, SamplerSettings
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.observations import GaussianRegions
@@ -51,8 +51,6 @@ from spco.model.synonyms import NameOverlaps, name_overlaps, name_region_overlap
 INDEPENDENT = SamplerSettings(variant="spcoa", prune=False, hierarchical=False, joint_assignment=True,
                               pruning_score="mi")
 
-#: Homes whose counts the driver fetches at a time during the alignment.
-ALIGNMENT_BATCH = 64
 
 
 @dataclass
@@ -70,23 +68,6 @@ class HomeSummary:
         """Bytes of the arrays."""
         said = 0 if self.names_said is None else self.names_said.nbytes
         return self.word_totals.nbytes + said + self.taught_fraction.nbytes
-
-
-@dataclass
-class HomeCounts:
-    """One home's counts by concept: visual (L, D) sparse, words (L, V), and the samples standing
-    for each name (L, V) (``None`` without the naming start)."""
-
-    visual: sp.csr_array
-    words: np.ndarray
-    names: np.ndarray | None
-
-    @property
-    def nbytes(self) -> int:
-        """Bytes sent."""
-        v = self.visual
-        return (v.data.nbytes + v.indices.nbytes + v.indptr.nbytes + self.words.nbytes
-                + (0 if self.names is None else self.names.nbytes))
 
 
 class ShardInitialisation:
@@ -400,46 +381,3 @@ def initialise(call, call_each, bounds: list[tuple[int, int]], n_words: int, hyp
     report.bytes_sent += shared.nbytes * n_shards
     report.seconds = time.perf_counter() - started
     return shared, report
-
-
-def align_in_order(fetch, word_totals: np.ndarray, names_said: np.ndarray | None, alpha_visual: float,
-                   alpha_word: float, n_concepts: int, batch: int = ALIGNMENT_BATCH) -> np.ndarray:
-    """:func:`~spco.model.gibbs.align_homes`, streaming: the same permutations (E, L), with each
-    home's counts fetched when its turn comes instead of all homes' (E, L, D) counts at once.
-
-    ``fetch(homes)`` returns the :class:`HomeCounts` of the global home indices ``homes`` (asked
-    ``batch`` at a time, in alignment order); ``word_totals`` (E,) each home's word count (the
-    order: most first, stable); ``names_said`` (E, V) bool, the names each home says (``None``
-    without names). The pooled reference of the homes aligned so far is the only (L, D) array
-    kept. Keep the scoring in step with ``align_homes`` (``tests/test_shard_init.py`` checks
-    that both give the same permutations)."""
-    n_homes = word_totals.size
-    order = np.argsort(-word_totals, kind="stable")
-    perms = np.tile(np.arange(n_concepts), (n_homes, 1))
-    homes_saying = None if names_said is None else names_said.sum(axis=0)
-    pooled_v = pooled_w = seen = None
-    for start in range(0, n_homes, batch):
-        chunk = order[start:start + batch]
-        for e, home in zip(chunk, fetch(chunk), strict=True):
-            visual, words = home.visual.toarray(), home.words
-            if pooled_v is None:
-                pooled_v, pooled_w = visual.astype(float), words.astype(float)
-                if home.names is not None:
-                    seen = home.names.sum(axis=0) > 0
-                continue
-            log_pv = np.log(pooled_v + alpha_visual) - np.log((pooled_v + alpha_visual).sum(1, keepdims=True))
-            score = visual @ log_pv.T  # (own concept, label)
-            if words.shape[1]:
-                log_pw = np.log(pooled_w + alpha_word) - np.log((pooled_w + alpha_word).sum(1, keepdims=True))
-                by_words = words.sum(axis=1) > 0
-                if home.names is not None:
-                    own_names = home.names
-                    synonyms = own_names[:, ~seen & (homes_saying > 1)].sum(axis=1)
-                    by_words &= ~(synonyms > 0.5 * own_names.sum(axis=1))
-                    seen |= own_names.sum(axis=0) > 0
-                score[by_words] = words[by_words] @ log_pw.T
-            own, label = linear_sum_assignment(score, maximize=True)
-            perms[e, label] = own
-            pooled_v += visual[perms[e]]
-            pooled_w += words[perms[e]]
-    return perms
