@@ -105,6 +105,35 @@ def test_a_broken_home_is_named_before_any_shard_starts(folder, tmp_path) -> Non
         FolderHomes.create(folder, names=["nowhere"])
 
 
+def test_fit_command_reads_homes_in_the_shards_and_names_a_broken_home(folder, tmp_path) -> None:
+    """`spco fit --shards 2` on a folder: the shards read the homes, the knowledge is the Corpus
+    fit's; a broken home is a one-line error naming its file, exit 2, before any sweep."""
+    import shutil
+
+    from click.testing import CliRunner
+
+    from spco.cli import main
+    from spco.knowledge import Knowledge, fit_knowledge
+
+    out = tmp_path / "k.spco"
+    result = CliRunner().invoke(main, ["fit", "--data", str(folder), "--out", str(out), "--iterations", "6",
+                                       "--seed", "2", "--shards", "2"])
+    assert result.exit_code == 0, result.output
+    assert "each shard reads its own homes" in result.output
+    expected = fit_knowledge(Corpus(load_homes(folder)), n_iterations=6, random_state=2,
+                             engine=LocalEngine(2))
+    np.testing.assert_array_equal(Knowledge.load(out).log_phi_visual, expected.log_phi_visual)
+    broken = tmp_path / "homes"
+    shutil.copytree(folder, broken)
+    home = sorted(p for p in broken.iterdir() if p.is_dir())[1]
+    (home / "visual.npz").write_bytes(b"not a zip")
+    result = CliRunner().invoke(main, ["fit", "--data", str(broken), "--out", str(tmp_path / "b.spco"),
+                                       "--shards", "2"])
+    assert result.exit_code == 2
+    assert "error:" in result.output and str(home / "visual.npz") in result.output
+    assert "Traceback" not in result.output and "sweep" not in result.output
+
+
 @pytest.fixture(scope="module")
 def ray_session():
     ray = pytest.importorskip("ray", reason="Ray is not installed (pip install -e '.[ray]')")
@@ -122,3 +151,21 @@ def test_ray_actors_reading_their_folders_give_the_driver_data_chain(folder, ray
     b = chain(FolderHomes.create(folder), RayEngine(2))
     for x, y in zip(a, b, strict=True):
         np.testing.assert_array_equal(x, y)
+
+
+def test_fit_command_on_ray_reads_homes_in_the_actors(folder, tmp_path, ray_session) -> None:
+    """`spco fit --engine ray --shards 2` on a folder: the knowledge of two local shards."""
+    from click.testing import CliRunner
+
+    from spco.cli import main
+    from spco.knowledge import Knowledge, fit_knowledge
+
+    out = tmp_path / "k.spco"
+    result = CliRunner().invoke(main, ["fit", "--data", str(folder), "--out", str(out), "--iterations", "6",
+                                       "--seed", "2", "--engine", "ray", "--shards", "2"])
+    assert result.exit_code == 0, result.output
+    expected = fit_knowledge(Corpus(load_homes(folder)), n_iterations=6, random_state=2,
+                             engine=LocalEngine(2))
+    fitted = Knowledge.load(out)
+    np.testing.assert_array_equal(fitted.log_phi_visual, expected.log_phi_visual)
+    assert fitted.provenance["view_fit"] == expected.provenance["view_fit"]
