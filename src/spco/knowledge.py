@@ -621,7 +621,10 @@ def fit_knowledge(
 
     Parameters
     ----------
-    corpus: the experienced homes (a :class:`~spco.data.Corpus`).
+    corpus: the experienced homes (a :class:`~spco.data.Corpus`), or a
+        :class:`~spco.model.sources.FolderHomes` whose home folders the shards read themselves
+        (with Ray or several local shards the driver never holds the homes' samples; the same
+        result as the :class:`~spco.data.Corpus` of the same homes).
     model: one of :data:`MODELS` (default ``"spcotransfer+mi"``).
     n_iterations: Gibbs sweeps (200 as in the paper).
     random_state: seed or Generator.
