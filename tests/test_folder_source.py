@@ -169,3 +169,16 @@ def test_fit_command_on_ray_reads_homes_in_the_actors(folder, tmp_path, ray_sess
     fitted = Knowledge.load(out)
     np.testing.assert_array_equal(fitted.log_phi_visual, expected.log_phi_visual)
     assert fitted.provenance["view_fit"] == expected.provenance["view_fit"]
+
+
+def test_folder_source_reads_sigverse_homes_as_the_driver_does(sigverse_dir) -> None:
+    """SIGVerse layout (skipped without the data set): the same vocabulary and prepared data."""
+    from spco.data.loading import find_homes
+
+    names = [h.name for h in find_homes(sigverse_dir)][:2]
+    source = FolderHomes.create(sigverse_dir, names=names)
+    corpus = Corpus(load_homes(sigverse_dir, names=names))
+    assert source.names == names and source.vocabulary == corpus.vocabulary
+    whole, expected = source.parts(1)[0].prepare(), SpatialConceptModel._prepare(corpus, 1.0)
+    np.testing.assert_array_equal(whole.positions, expected.positions)
+    assert (whole.visual != expected.visual).nnz == 0 and (whole.words != expected.words).nnz == 0
