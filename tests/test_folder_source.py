@@ -99,6 +99,10 @@ def test_a_broken_home_is_named_before_any_shard_starts(folder, tmp_path) -> Non
     (home / "samples.csv").write_text("id,x,y\n1,oops\n")
     with pytest.raises(DataFormatError, match=r"samples\.csv"):
         FolderHomes.create(broken)
+    (home / "visual.npz").unlink()
+    (home / "images").mkdir()
+    with pytest.raises(DataFormatError, match="views as images"):
+        FolderHomes.create(broken)
     with pytest.raises(DataFormatError, match="no such file"):
         FolderHomes.create(tmp_path / "missing")
     with pytest.raises(DataFormatError, match="no home named"):

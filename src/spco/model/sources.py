@@ -264,10 +264,15 @@ class FolderHomes(HomeSource):
         from tqdm import tqdm
 
         from spco.data.language import DEFAULT_WORD_INCREMENT, Vocabulary
-        from spco.data.loading import home_folders, load_homes
+        from spco.data.loading import home_folders, load_homes, views_are_images
         from spco.errors import DataFormatError
 
         folders = home_folders(path, names)
+        for folder in folders:
+            if views_are_images(folder):
+                raise DataFormatError(folder, "holds its views as images: homes read in the shards must "
+                                      "hold count vectors (visual.npz); load image homes in the driver "
+                                      "with an extractor (spco fit does)")
         sentences: list[str | None] = []
         home_names, sizes, taught, dims = [], [], 0, set()
         for folder in tqdm(folders, desc="reading sentences", unit="home", leave=False,
