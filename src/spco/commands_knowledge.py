@@ -190,6 +190,23 @@ def fit(data: Path, homes: str | None, teaching_rate: int, model: str, iteration
     if images is not None or extractor is not None or model_file is not None \
             or views_are_images(Path(data)):
         image_extractor = _fit_extractor(data, names, images, extractor, model_file, seed)
+    if image_extractor is None and Path(data).is_dir() and (engine == "ray" or (shards or 1) > 1):
+        # the shards read their own homes: the driver reads one home at a time for the vocabulary
+        from spco.model.sources import FolderHomes
+
+        source = FolderHomes.create(data, names, teaching_rate, progress=_progress())
+        click.echo(f"Learning from {source.n_homes} homes ({source.n_samples} training samples, "
+                   f"{source.n_taught} taught, {source.n_words} words; each shard reads its own homes) "
+                   f"with {model}, {iterations} sweeps...", err=True)
+        start = time.perf_counter()
+        knowledge = fit_knowledge(source, model=model, n_iterations=iterations, random_state=seed,
+                                  progress=_progress(), engine=runner,
+                                  provenance={"data": str(Path(data).expanduser().resolve()),
+                                              "teaching_rate": teaching_rate})
+        knowledge.save(out, overwrite=force)
+        click.echo(knowledge.describe())
+        click.echo(f"Wrote {out} in {_seconds(time.perf_counter() - start)}.")
+        return
     start_views = time.perf_counter()
     envs = load_homes(data, names=names, teaching_rate=teaching_rate, progress=_progress(),
                       extractor=image_extractor, images=images)

@@ -621,7 +621,10 @@ def fit_knowledge(
 
     Parameters
     ----------
-    corpus: the experienced homes (a :class:`~spco.data.Corpus`).
+    corpus: the experienced homes (a :class:`~spco.data.Corpus`), or a
+        :class:`~spco.model.sources.FolderHomes` whose home folders the shards read themselves
+        (with Ray or several local shards the driver never holds the homes' samples; the same
+        result as the :class:`~spco.data.Corpus` of the same homes).
     model: one of :data:`MODELS` (default ``"spcotransfer+mi"``).
     n_iterations: Gibbs sweeps (200 as in the paper).
     random_state: seed or Generator.
@@ -642,24 +645,32 @@ def fit_knowledge(
     """
     if model not in MODELS:
         raise ConfigurationError(f"unknown model {model!r}; choose one of {', '.join(MODELS)}")
-    if not isinstance(corpus, Corpus):
-        raise ConfigurationError("fit_knowledge() expects a spco.data.Corpus")
+    from spco.model.sources import FolderHomes
+
+    source = corpus if isinstance(corpus, FolderHomes) else None
+    if not isinstance(corpus, Corpus) and source is None:
+        raise ConfigurationError("fit_knowledge() expects a spco.data.Corpus or a "
+                                 "spco.model.sources.FolderHomes")
     variant, prune = MODELS[model]
     estimator = SpCoTransfer(hyperparameters, variant=variant, prune_words=prune, n_iterations=n_iterations,
                              random_state=random_state)
     hyper = estimator._validate()
     if not (0 < summary_fraction <= 1) or summary_every < 1:
         raise ConfigurationError("summary_fraction must be within (0, 1] and summary_every >= 1")
-    if extractor is not None and extractor.n_features != corpus[0].n_features:
+    n_features = corpus.n_features if source is not None else corpus[0].n_features
+    if extractor is not None and extractor.n_features != n_features:
         raise ConfigurationError(f"the extractor gives {extractor.n_features} features, the homes' views "
-                                 f"have {corpus[0].n_features}")
+                                 f"have {n_features}")
     if len(corpus.vocabulary) == 0:
-        raise DataFormatError(None, f"no taught sentence in the {len(corpus)} experienced home(s) "
-                              f"({', '.join(corpus.names[:5])}): there are no place names to learn")
+        n_homes = source.n_homes if source is not None else len(corpus)
+        raise DataFormatError(None, f"no taught sentence in the {n_homes} experienced home(s) "
+                              f"({', '.join(list(corpus.names)[:5])}): there are no place names to learn")
     settings = estimator._settings()
     rng = _as_generator(random_state)
     scale = gibbs.CM_PER_M if variant == "reference" else 1.0
-    data = SpatialConceptModel._prepare(corpus, scale)
+    if source is not None:
+        source = replace(source, position_scale=scale)
+    data = SpatialConceptModel._prepare(corpus, scale) if source is None else None
     keep = set(summary_iterations(n_iterations, summary_fraction, summary_every))
     start = time.perf_counter()
     by_iteration: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
@@ -668,9 +679,12 @@ def fit_knowledge(
         from tqdm.auto import tqdm
 
         bar = tqdm(total=n_iterations, desc=f"fit ({model})", unit="sweep", leave=False)
-    from spco.engines import start_run
+    from spco.engines import start_run, start_source_run
 
-    run = start_run(engine, data, len(corpus.vocabulary), hyper, settings, rng)
+    if source is not None:  # the shards read their homes (or, one process, the driver reads them)
+        run, data = start_source_run(engine, source, hyper, settings, rng)
+    else:
+        run = start_run(engine, data, len(corpus.vocabulary), hyper, settings, rng)
 
     def after_sweep(iteration: int, _: float) -> None:  # (a restarted engine repeats sweeps)
         if bar is not None:
@@ -680,8 +694,12 @@ def fit_knowledge(
             by_iteration[iteration] = (shared.log_phi_v.copy(), shared.log_phi_w.copy(), shared.log_g0.copy())
 
     run.fit(n_iterations, after_sweep)
-    state = run.state()
-    run.close()
+    if data is None:  # the homes stay in the shards: no joined state
+        word_mask_last, candidate_words = run.shared.word_mask, run.call("candidate_words")[0]
+    else:
+        state = run.state()
+        word_mask_last, candidate_words = state.word_mask, state.candidate_words
+        run.close()
     if bar is not None:
         bar.close()
     samples = [by_iteration[i] for i in sorted(by_iteration)]
@@ -711,18 +729,18 @@ def fit_knowledge(
     if prune and word_mask.size and variant == "exact":
         # the naming rule on the last sweep's regions (:func:`gibbs.naming_verdicts`), the mask the
         # sampler used: it judges a name said in one home on that home, where it is place-bound
-        word_mask = state.word_mask.copy()
+        word_mask = word_mask_last.copy()
     elif prune and word_mask.size:
         score = settings.pruning_score
         word_mask = words_to_keep(np.exp(log_phi_w), np.exp(log_g0), hyper.pruning_threshold(score), score)
-        if state.candidate_words is not None:  # words the sampler found to depend on the place
-            word_mask &= state.candidate_words
+        if candidate_words is not None:  # words the sampler found to depend on the place
+            word_mask &= candidate_words
         if not word_mask.any():
             word_mask[np.argmax(np.exp(log_phi_w).max(0))] = True
     conc_g = _concentration(np.exp(stack_g)[:, None, :], hyper.gamma)[0]
     record: dict[str, Any] = {
         "homes": list(corpus.names),
-        "n_samples": int(data.n_samples),
+        "n_samples": int(source.n_samples if data is None else data.n_samples),
         "seed": _seed_of(random_state),
         "n_iterations": int(n_iterations),
         "fit_seconds": round(seconds, 3),
@@ -735,7 +753,13 @@ def fit_knowledge(
             "max_visual_distance_from_mean": round(float(0.5 * spread.max()) if spread.size else 0.0, 6),
         },
     }
-    record["view_fit"] = _experienced_view_fit(log_phi_v, log_g0, data, state.concepts, corpus.names)
+    if data is None:  # each shard scores its homes (φ^v without their counts: the pooled totals)
+        totals = np.sum(run.call("concept_visual_totals"), axis=0)
+        fits = [v for part in run.call("held_out_view_fits", log_phi_v, log_g0, totals) for v in part]
+        run.close()
+        record["view_fit"] = _view_fit_record(dict(zip(corpus.names, fits, strict=True)))
+    else:
+        record["view_fit"] = _experienced_view_fit(log_phi_v, log_g0, data, state.concepts, corpus.names)
     record.update(provenance or {})
     return Knowledge(
         log_phi_visual=log_phi_v, log_phi_words=log_phi_w, log_g0=log_g0, word_mask=word_mask,
@@ -802,21 +826,44 @@ def _experienced_view_fit(log_phi_v: np.ndarray, log_g0: np.ndarray, data: gibbs
     of concept l over all homes, n_{e,l} home e's, with the concepts of the chain's last sweep, to
     which φ^v is aligned), floored at 1 % of φ^v_l × (N_l + D) and renormalised.
     """
+    totals = concept_visual_totals(data, concepts, log_phi_v.shape[0])
+    fits = held_out_view_fits(log_phi_v, log_g0, totals, data, concepts)
+    return _view_fit_record(dict(zip(names, fits, strict=True)))
+
+
+def _home_concept_counts(data: gibbs.PreparedData, concepts: np.ndarray, e: int,
+                         n_concepts: int) -> np.ndarray:
+    """Home ``e``'s visual counts by concept, (L, D) n_{e,l,d}."""
+    rows = slice(int(data.offsets[e]), int(data.offsets[e + 1]))
+    n = rows.stop - rows.start
+    onehot = sp.csr_array((np.ones(n), (concepts[rows], np.arange(n))), shape=(n_concepts, n))
+    return np.asarray((onehot @ sp.csr_array(data.visual[rows], dtype=np.float64)).todense())
+
+
+def concept_visual_totals(data: gibbs.PreparedData, concepts: np.ndarray, n_concepts: int) -> np.ndarray:
+    """The visual counts of each concept summed over the homes of ``data``, (L,) N_l (summed over
+    shards, the totals of all homes: integers, so the sum is exact in any order)."""
+    return sum((_home_concept_counts(data, concepts, e, n_concepts).sum(1) for e in range(data.n_homes)),
+               np.zeros(n_concepts))
+
+
+def held_out_view_fits(log_phi_v: np.ndarray, log_g0: np.ndarray, totals: np.ndarray,
+                       data: gibbs.PreparedData, concepts: np.ndarray) -> list[float | None]:
+    """The held-out :func:`view_fit` of every home of ``data`` (see :func:`_experienced_view_fit`),
+    ``totals`` the (L,) visual counts by concept of all homes of the fit."""
     L, D = log_phi_v.shape
-    counts = sp.csr_array(data.visual, dtype=np.float64)
-    per_home = []
-    for e in range(data.n_homes):
-        rows = slice(int(data.offsets[e]), int(data.offsets[e + 1]))
-        n = rows.stop - rows.start
-        onehot = sp.csr_array((np.ones(n), (concepts[rows], np.arange(n))), shape=(L, n))
-        per_home.append(np.asarray((onehot @ counts[rows]).todense()))  # (L, D) n_{e,l,d}
-    mass = np.exp(log_phi_v) * (sum(n.sum(1) for n in per_home) + D)[:, None]
-    homes = {}
-    for e, name in enumerate(names):
-        held_out = np.maximum(mass - per_home[e], 0.01 * mass)
+    mass = np.exp(log_phi_v) * (totals + D)[:, None]
+    fits = []
+    for e in range(data.n_homes):  # a loop over homes, each scored as a whole
+        held_out = np.maximum(mass - _home_concept_counts(data, concepts, e, L), 0.01 * mass)
         log_held_out = np.log(held_out / held_out.sum(1, keepdims=True))
         rows = slice(int(data.offsets[e]), int(data.offsets[e + 1]))
-        homes[name] = view_fit(log_held_out, log_g0, counts[rows])
+        fits.append(view_fit(log_held_out, log_g0, data.visual[rows]))
+    return fits
+
+
+def _view_fit_record(homes: dict[str, float | None]) -> dict[str, Any]:
+    """The provenance record of the experienced homes' view fits (home name -> fit)."""
     values = [v for v in homes.values() if v is not None]
     return {"measure": VIEW_FIT_MEASURE,
             "homes": {name: None if v is None else round(v, 4) for name, v in homes.items()},

@@ -158,6 +158,25 @@ def training_image_files(path: str | os.PathLike[str], names: Sequence[str] | No
     return files
 
 
+def home_folders(path: str | os.PathLike[str], names: Sequence[str] | None = None) -> list[Path]:
+    """The home folders at ``path`` (a home folder, or a folder of homes), restricted to and ordered
+    by ``names`` if given, without reading the homes (a cache file is an error: it holds no folders)."""
+    src = Path(path)
+    if not src.exists():
+        raise DataFormatError(src, "no such file or folder")
+    if not src.is_dir():
+        raise DataFormatError(src, f"not a folder of homes; {_EXPECTED}")
+    if home_kind(src) is not None:
+        homes = [src]
+    else:
+        homes = find_homes(src)
+        if not homes:
+            raise _no_homes(src)
+    if names is not None:
+        homes = _select([(_home_name(h), h) for h in homes], names, src)
+    return homes
+
+
 def _home_name(home: Path) -> str:
     """A home's name without reading it (plain homes may rename themselves in home.json)."""
     return plain_home_name(home) if home_kind(home) == "plain" else home.resolve().name

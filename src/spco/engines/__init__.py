@@ -57,4 +57,19 @@ def start_run(engine, data: PreparedData, n_words: int, hyper: TransferHyperpara
     return engine.start_source(PreparedHomes(data, n_words), hyper, settings, rng)
 
 
-__all__ = ["ENGINES", "LocalEngine", "ShardedRun", "make_engine", "start_run"]
+def start_source_run(engine, source, hyper: TransferHyperparameters, settings: SamplerSettings,
+                     rng: np.random.Generator) -> tuple[ShardedRun, PreparedData | None]:
+    """Start a fit of the homes of ``source`` (a :class:`~spco.model.sources.HomeSource`, e.g.
+    :class:`~spco.model.sources.FolderHomes`) on ``engine`` (as :func:`start_run`); returns the
+    run and the data the driver prepared: ``None`` where the shards prepare their own homes (Ray,
+    or local with several shards), so the driver never holds them; all homes for the default
+    one-process engine, which initialises in the driver. The same chain as :func:`start_run`
+    given the same homes prepared in the driver."""
+    engine = make_engine(engine) if isinstance(engine, str) else (engine or LocalEngine())
+    if getattr(engine, "share_rng", False) or not hasattr(engine, "start_source"):
+        data = source.parts(1)[0].prepare()
+        return start_run(engine, data, source.n_words, hyper, settings, rng), data
+    return engine.start_source(source, hyper, settings, rng), None
+
+
+__all__ = ["ENGINES", "LocalEngine", "ShardedRun", "make_engine", "start_run", "start_source_run"]

@@ -131,6 +131,24 @@ class HomeShard(ShardInitialisation):
         shard.setup_seconds = {"prepare": t1 - t0, "initialise": time.perf_counter() - t1}
         return shard
 
+    def candidate_words(self) -> np.ndarray | None:
+        """The words the reference sampler found to depend on the place (V,) bool, or ``None``."""
+        return self.state.candidate_words
+
+    def concept_visual_totals(self) -> np.ndarray:
+        """The shard's visual counts by concept, (L,) (:func:`spco.knowledge.concept_visual_totals`)."""
+        from spco.knowledge import concept_visual_totals
+
+        return concept_visual_totals(self.data, self.state.concepts, self.hyper.n_concepts)
+
+    def held_out_view_fits(self, log_phi_v: np.ndarray, log_g0: np.ndarray,
+                           totals: np.ndarray) -> list[float | None]:
+        """The held-out view fit of each of the shard's homes (:func:`spco.knowledge.held_out_view_fits`;
+        ``totals``: (L,) visual counts by concept over all homes)."""
+        from spco.knowledge import held_out_view_fits
+
+        return held_out_view_fits(log_phi_v, log_g0, totals, self.data, self.state.concepts)
+
     def shared_parameters(self) -> SharedParameters:
         """The shared parameters the shard holds."""
         return SharedParameters.of(self.state)

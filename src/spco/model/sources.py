@@ -9,7 +9,10 @@ shard runs. So the driver never holds every home's data:
   slices of about equal samples;
 - :class:`SyntheticHomes`: synthetic homes that each shard generates itself, home i from its own
   stream ``SeedSequence(seed).spawn(n_homes)[i]`` (as :func:`spco.data.synthetic.generate_homes`
-  draws it), so a part is a seed and a range of home indices.
+  draws it), so a part is a seed and a range of home indices;
+- :class:`FolderHomes`: home folders on disk (plain or SIGVerse layout) that each shard reads
+  itself, so a part is a list of paths; the driver only fixes the vocabulary (from the homes'
+  sentences, one home at a time) so that every shard counts words in the same columns.
 """
 
 from __future__ import annotations
@@ -202,3 +205,125 @@ class SyntheticHomes(HomeSource):
 
     def parts(self, n_shards: int) -> list[HomesPart]:
         return [SyntheticPart(self, a, b) for a, b in even_bounds(self.n_homes, n_shards)]
+
+
+# ----------------------------------------------------------------------------- home folders, read in shards
+
+#: Home folders read and prepared at a time by :class:`FolderPart` (bounds the memory of the
+#: environments held next to their prepared data).
+READING_CHUNK = 32
+
+
+@dataclass
+class FolderPart(HomesPart):
+    """Homes first..last − 1 of a :class:`FolderHomes`, read from disk on :meth:`prepare`."""
+
+    source: FolderHomes
+    first: int
+    last: int
+
+    @property
+    def n_homes(self) -> int:  # type: ignore[override]
+        return self.last - self.first
+
+    def prepare(self) -> PreparedData:
+        chunks = [self.source.prepare_homes(a, min(a + READING_CHUNK, self.last))
+                  for a in range(self.first, self.last, READING_CHUNK)]
+        return concatenate_data(chunks)
+
+
+@dataclass
+class FolderHomes(HomeSource):
+    """Homes in folders on disk (plain or SIGVerse layout, :func:`spco.data.loading.load_homes`),
+    read where the shards run: the driver keeps paths, names, per-home sample counts and the
+    vocabulary, never the homes' samples.
+
+    Made by :meth:`create`, which reads every home once, one at a time, to check it (a missing or
+    broken home is an error naming the file before any shard starts), to learn the vocabulary
+    from the training sentences (as :class:`~spco.data.environment.Corpus` does: the same words in
+    the same columns) and to count each home's training samples (the shards are cut as
+    :class:`PreparedHomes` cuts them, so the chain is the same). Home folders must be reachable
+    at the same paths from every shard (on a cluster: shared storage). Views given as images are
+    not supported here (load them in the driver with an extractor)."""
+
+    paths: list[str]
+    names: list[str]
+    teaching_rate: int
+    vocabulary: object  # Vocabulary
+    word_increment: int
+    n_samples_per_home: np.ndarray  # (E,) training samples
+    n_taught: int
+    n_features: int
+    position_scale: float = 1.0
+
+    @classmethod
+    def create(cls, path, names=None, teaching_rate: int = 100, position_scale: float = 1.0,
+               progress: bool = False) -> FolderHomes:
+        """The homes of folder ``path`` (a home, or a folder of homes; ``names`` selects and orders
+        them, as in :func:`~spco.data.loading.load_homes`) taught at ``teaching_rate`` percent."""
+        from tqdm import tqdm
+
+        from spco.data.language import DEFAULT_WORD_INCREMENT, Vocabulary
+        from spco.data.loading import home_folders, load_homes, views_are_images
+        from spco.errors import DataFormatError
+
+        folders = home_folders(path, names)
+        for folder in folders:
+            if views_are_images(folder):
+                raise DataFormatError(folder, "holds its views as images: homes read in the shards must "
+                                      "hold count vectors (visual.npz); load image homes in the driver "
+                                      "with an extractor (spco fit does)")
+        sentences: list[str | None] = []
+        home_names, sizes, taught, dims = [], [], 0, set()
+        for folder in tqdm(folders, desc="reading sentences", unit="home", leave=False,
+                           disable=None if progress else True):
+            env = load_homes(folder, teaching_rate=teaching_rate)[0]  # one home at a time
+            training = env.training_data()
+            if training.n_samples == 0:
+                raise DataFormatError(folder, f"home {env.name!r} has no training samples: all its "
+                                      f"{env.n_samples} samples are in its test split")
+            sentences += training.sentences
+            home_names.append(env.name)
+            sizes.append(training.n_samples)
+            taught += env.n_taught
+            dims.add(env.n_features)
+            if len(dims) > 1:
+                raise DataFormatError(folder, f"views of {env.n_features} features, the homes before it "
+                                      f"have {min(dims - {env.n_features})}")
+        return cls([str(f) for f in folders], home_names, int(teaching_rate),
+                   Vocabulary.from_sentences(sentences), DEFAULT_WORD_INCREMENT,
+                   np.array(sizes, dtype=np.int64), taught, dims.pop(), float(position_scale))
+
+    @property
+    def n_homes(self) -> int:  # type: ignore[override]
+        return len(self.paths)
+
+    @property
+    def n_words(self) -> int:  # type: ignore[override]
+        return len(self.vocabulary)
+
+    @property
+    def n_samples(self) -> int:
+        """Training samples over all homes."""
+        return int(self.n_samples_per_home.sum())
+
+    def prepare_homes(self, first: int, last: int) -> PreparedData:
+        """Homes first..last − 1 read and prepared (homes numbered from 0)."""
+        from spco.data.environment import Corpus
+        from spco.data.loading import load_homes
+        from spco.model.transfer import SpatialConceptModel
+
+        envs = [load_homes(p, teaching_rate=self.teaching_rate)[0] for p in self.paths[first:last]]
+        corpus = Corpus(envs, vocabulary=self.vocabulary, word_increment=self.word_increment)
+        return SpatialConceptModel._prepare(corpus, self.position_scale)
+
+    def parts(self, n_shards: int) -> list[HomesPart]:
+        from types import SimpleNamespace
+
+        from spco.model.shard import shard_bounds
+
+        # the cuts of PreparedHomes (about equal samples), from the sample counts alone
+        offsets = np.concatenate([[0], np.cumsum(self.n_samples_per_home)])
+        sizes = SimpleNamespace(offsets=offsets, n_homes=self.n_homes)
+        bounds = shard_bounds(sizes, n_shards)  # type: ignore[arg-type]
+        return [FolderPart(self, a, b) for a, b in bounds]
