@@ -116,12 +116,22 @@ def _score_difference(alpha: np.ndarray, lg_alpha: np.ndarray, counts: np.ndarra
     return total
 
 
+def _read_only(array: np.ndarray) -> np.ndarray:
+    """A read-only view of ``array`` (no copy): the kernels get both count arrays as the same
+    Numba type, so :func:`_score_difference` is compiled once, not for read-only and writeable
+    counts apart."""
+    view = array.view()
+    view.flags.writeable = False
+    return view
+
+
 def _matching_pass(alpha_v: np.ndarray, counts_v: np.ndarray, alpha_w: np.ndarray, counts_w: np.ndarray,
                    g_term: np.ndarray, log_g: np.ndarray, pairs: np.ndarray, log_u: np.ndarray) -> np.ndarray:
     """The permutation of every home after its pass of swap proposals (:func:`_matching_homes`,
     homes on Numba's thread count)."""
     n_homes, n_concepts = log_g.shape
     perms = np.empty((n_homes, n_concepts), dtype=np.int64)
+    counts_v, counts_w = _read_only(counts_v), _read_only(counts_w)  # one specialisation of _score_difference
     args = (alpha_v, _lgamma_table(alpha_v), counts_v, alpha_w, _lgamma_table(alpha_w), counts_w, g_term,
             log_g, pairs, log_u, perms)
     _call_in_parts(_matching_homes, args, n_homes, parallel=True)

@@ -7,9 +7,9 @@ region at once, p ∝ G π N(x | R) p(v, w | C)).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
-from spco.model.kernels.dispatch import _call_in_parts
+from spco.model.kernels.dispatch import _PARALLEL_MIN, _call_in_parts
 from spco.model.kernels.special import _scaled_exp
 
 
@@ -35,13 +35,11 @@ def _draw_log(log_p: np.ndarray, u: float) -> int:
     return width - 1
 
 
-@njit(parallel=True, cache=True)
-def _categorical_rows(log_p: np.ndarray, u: np.ndarray) -> np.ndarray:
-    n = log_p.shape[0]
-    out = np.empty(n, dtype=np.int64)
-    for t in prange(n):
+@njit(cache=True, nogil=True)
+def _categorical_rows(log_p: np.ndarray, u: np.ndarray, out: np.ndarray, first: int, stop: int) -> None:
+    """Rows first..stop−1 of :func:`sample_categorical_log` into ``out`` (:func:`_call_in_parts`)."""
+    for t in range(first, stop):
         out[t] = _draw_log(log_p[t].copy(), u[t])
-    return out
 
 
 def sample_categorical_log(log_p: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -51,7 +49,10 @@ def sample_categorical_log(log_p: np.ndarray, rng: np.random.Generator) -> np.nd
     must hold at least one finite entry. Returns int64 indices of shape (n,).
     """
     u = rng.random(log_p.shape[0])
-    return _categorical_rows(np.ascontiguousarray(log_p, dtype=np.float64), u)
+    out = np.empty(log_p.shape[0], dtype=np.int64)
+    log_p = np.ascontiguousarray(log_p, dtype=np.float64)
+    _call_in_parts(_categorical_rows, (log_p, u, out), log_p.shape[0], parallel=log_p.size >= _PARALLEL_MIN)
+    return out
 
 
 #: Samples per task of :func:`_joint_assignment` (scratch arrays are allocated once per task).

@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-from numba import njit, prange
+from numba import njit
 
-from spco.model.kernels.dispatch import _PARALLEL_MIN, _as, _index_array, _value_array
+from spco.model.kernels.dispatch import _PARALLEL_MIN, _as, _call_in_parts, _index_array, _value_array
 
 #: Counts up to this value are exact in float32 (2^24), the value type of :func:`stack_counts`.
 FLOAT32_EXACT = 2**24
@@ -71,12 +71,12 @@ def grouped_moments(x: np.ndarray, groups: np.ndarray,
     return count, total, scatter
 
 
-@njit(parallel=True, cache=True)
+@njit(cache=True, nogil=True)
 def _grouped_row_sums(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, groups: np.ndarray,
-                      chunks: np.ndarray, out: np.ndarray) -> None:
-    # rows chunks[i]:chunks[i+1] write to groups no other chunk writes to, so chunks run in parallel
-    for i in prange(chunks.size - 1):
-        _add_rows(indptr, indices, data, groups, chunks[i], chunks[i + 1], out)
+                      chunks: np.ndarray, out: np.ndarray, first: int, stop: int) -> None:
+    """Rows chunks[first]:chunks[stop] added into ``out`` by group. Rows chunks[i]:chunks[i+1] write
+    to groups no other chunk writes to, so parts of the chunks run at once (:func:`_call_in_parts`)."""
+    _add_rows(indptr, indices, data, groups, chunks[first], chunks[stop], out)
 
 
 @njit(cache=True, inline="always")
@@ -86,13 +86,6 @@ def _add_rows(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, groups:
         g = groups[t]
         for p in range(indptr[t], indptr[t + 1]):
             out[g, indices[p]] += np.int64(data[p])
-
-
-@njit(cache=True)
-def _row_sums_serial(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, groups: np.ndarray,
-                     out: np.ndarray) -> None:
-    # _grouped_row_sums on one thread, for few non-zeros
-    _add_rows(indptr, indices, data, groups, 0, indptr.size - 1, out)
 
 
 def grouped_row_sums(matrix, groups: np.ndarray, n_groups: int,
@@ -105,16 +98,14 @@ def grouped_row_sums(matrix, groups: np.ndarray, n_groups: int,
     """
     out = np.zeros((n_groups, matrix.shape[1]), dtype=np.int64)
     n = matrix.shape[0]
-    if matrix.nnz < _PARALLEL_MIN:
-        _row_sums_serial(_as(matrix.indptr, np.int64), _index_array(matrix.indices),
-                         _value_array(matrix.data), _as(groups, np.int64), out)
-        return out
-    if blocks is not None and n > 1 and np.all(blocks[1:] >= blocks[:-1]):
+    parallel = matrix.nnz >= _PARALLEL_MIN
+    if parallel and blocks is not None and n > 1 and np.all(blocks[1:] >= blocks[:-1]):
         chunks = np.concatenate([[0], np.flatnonzero(blocks[1:] != blocks[:-1]) + 1, [n]]).astype(np.int64)
     else:
         chunks = np.array([0, n], dtype=np.int64)
-    _grouped_row_sums(_as(matrix.indptr, np.int64), _index_array(matrix.indices),
-                      _value_array(matrix.data), _as(groups, np.int64), chunks, out)
+    args = (_as(matrix.indptr, np.int64), _index_array(matrix.indices), _value_array(matrix.data),
+            _as(groups, np.int64), chunks, out)
+    _call_in_parts(_grouped_row_sums, args, chunks.size - 1, parallel=parallel)
     return out
 
 

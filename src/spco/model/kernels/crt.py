@@ -8,7 +8,7 @@ the shared parameters need.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from spco.model.kernels.dispatch import _PARALLEL_MIN, _call_in_parts
 from spco.model.kernels.normal import _stream_normal
@@ -84,23 +84,13 @@ def _crt_tail(n: int, a: float, head: int, state: np.uint64) -> tuple[np.uint64,
     return _bernoulli_sum_moment_matched(n - head, mean, var, state)
 
 
-@njit(parallel=True, cache=True, error_model="numpy")
-def _crt_kernel(counts: np.ndarray, conc: np.ndarray, seed: np.uint64, exact_max: int,
-                head: int) -> np.ndarray:
-    out = np.zeros(counts.size, dtype=np.int64)
-    for j in prange(counts.size):
+@njit(cache=True, nogil=True, error_model="numpy")
+def _crt_entries(counts: np.ndarray, conc: np.ndarray, seed: np.uint64, exact_max: int, head: int,
+                 out: np.ndarray, first: int, stop: int) -> None:
+    """:func:`sample_crt` of entries first..stop−1 into ``out``, entry j on the stream j: the same
+    draws whichever thread runs which entries (:func:`_call_in_parts`)."""
+    for j in range(first, stop):
         out[j] = _crt_entry(counts[j], conc[j], seed, exact_max, head, j)
-    return out
-
-
-@njit(cache=True, error_model="numpy")
-def _crt_serial(counts: np.ndarray, conc: np.ndarray, seed: np.uint64, exact_max: int,
-                head: int) -> np.ndarray:
-    # _crt_kernel on one thread, for small inputs: the same draws
-    out = np.zeros(counts.size, dtype=np.int64)
-    for j in range(counts.size):
-        out[j] = _crt_entry(counts[j], conc[j], seed, exact_max, head, j)
-    return out
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -151,8 +141,10 @@ def sample_crt(
     flat_n = np.ascontiguousarray(counts, dtype=np.int64).ravel()
     flat_a = np.ascontiguousarray(conc, dtype=np.float64).ravel()
     seed = np.uint64(rng.integers(0, 2**63 - 1, dtype=np.int64))
-    kernel = _crt_kernel if flat_n.size >= _PARALLEL_MIN // 8 else _crt_serial
-    return kernel(flat_n, flat_a, seed, int(exact_max), int(head)).reshape(counts.shape)
+    out = np.zeros(flat_n.size, dtype=np.int64)
+    _call_in_parts(_crt_entries, (flat_n, flat_a, seed, int(exact_max), int(head), out), flat_n.size,
+                   parallel=flat_n.size >= _PARALLEL_MIN // 8)
+    return out.reshape(counts.shape)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

@@ -8,8 +8,9 @@ row in vectorised passes, :func:`_log_gamma_short_row` a short one entry by entr
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
+from spco.model.kernels.dispatch import _call_in_parts
 from spco.model.kernels.normal import _normal_from_bits, _stream_normal, _ziggurat_first_step
 from spco.model.kernels.rng import (
     _ONE_MINUS_HALF_ULP,
@@ -55,13 +56,14 @@ def _stream_log_gamma_small(state: np.uint64, a: float) -> tuple[np.uint64, floa
 _GAMMA_BLOCK = 4096
 
 
-@njit(parallel=True, cache=True, error_model="numpy")
-def _gamma_kernel(shape: np.ndarray, seed: np.uint64, block: int) -> np.ndarray:
+@njit(cache=True, nogil=True, error_model="numpy")
+def _gamma_blocks(shape: np.ndarray, seed: np.uint64, block: int, out: np.ndarray, first: int,
+                  stop: int) -> None:
     """Gamma(a) variates for a ≥ 1, Gamma(a + 1) for 0 < a < 1 (the caller applies the boost),
-    0 for a ≤ 0; one random stream per block of entries."""
+    0 for a ≤ 0, into ``out``, for blocks first..stop−1 of ``block`` entries; one random stream
+    per block: the same draws whichever thread runs which blocks (:func:`_call_in_parts`)."""
     n = shape.size
-    out = np.empty(n)
-    for b in prange((n + block - 1) // block):
+    for b in range(first, stop):
         state = _stream_start(seed, np.uint64(b))
         for j in range(b * block, min(n, (b + 1) * block)):
             a = shape[j]
@@ -71,7 +73,6 @@ def _gamma_kernel(shape: np.ndarray, seed: np.uint64, block: int) -> np.ndarray:
                 state, out[j] = _stream_gamma(state, a + 1.0)
             else:
                 out[j] = 0.0
-    return out
 
 
 
@@ -98,7 +99,9 @@ def _gamma_draw(shape: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray
     shape = np.asarray(shape, dtype=np.float64)
     flat = np.ascontiguousarray(shape).ravel()
     seed = np.uint64(rng.integers(0, 2**63 - 1, dtype=np.int64))
-    values = _gamma_kernel(flat, seed, _GAMMA_BLOCK)
+    values = np.empty(flat.size)
+    n_blocks = (flat.size + _GAMMA_BLOCK - 1) // _GAMMA_BLOCK
+    _call_in_parts(_gamma_blocks, (flat, seed, _GAMMA_BLOCK, values), n_blocks, parallel=True)
     with np.errstate(divide="ignore"):
         logs = np.log(values)  # vectorised; a = 0 gives log 0 = -inf
     boosted = np.flatnonzero((flat < 1.0) & (flat > 0.0))

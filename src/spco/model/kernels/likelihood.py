@@ -12,13 +12,12 @@ from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
-from numba import get_num_threads, njit, prange
+from numba import get_num_threads, njit
 
 from spco.model.kernels.dispatch import (
     _PARALLEL_MIN,
     _as,
     _call_in_parts,
-    _call_vectorised,
     _index_array,
     _value_array,
 )
@@ -27,23 +26,12 @@ from spco.model.kernels.dispatch import (
 LANES = 16
 
 
-@njit(parallel=True, cache=True)
-def _blocked_sparse_dot(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, groups: np.ndarray,
-                        table: np.ndarray, width: int) -> np.ndarray:
-    out = np.empty((indptr.size - 1, width))
-    for t in prange(indptr.size - 1):
+@njit(cache=True, nogil=True)
+def _blocked_sparse_rows(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, groups: np.ndarray,
+                         table: np.ndarray, width: int, out: np.ndarray, first: int, stop: int) -> None:
+    """Rows first..stop−1 of :func:`blocked_sparse_dot` into ``out`` (:func:`_call_in_parts`)."""
+    for t in range(first, stop):
         _blocked_sparse_row(indptr, indices, data, groups, table, width, t, out)
-    return out
-
-
-@njit(cache=True)
-def _blocked_sparse_dot_serial(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, groups: np.ndarray,
-                               table: np.ndarray, width: int) -> np.ndarray:
-    # _blocked_sparse_dot on one thread, for few non-zeros (the word counts)
-    out = np.empty((indptr.size - 1, width))
-    for t in range(indptr.size - 1):
-        _blocked_sparse_row(indptr, indices, data, groups, table, width, t, out)
-    return out
 
 
 @njit(cache=True, inline="always")
@@ -82,25 +70,13 @@ def _blocked_sparse_row(indptr: np.ndarray, indices: np.ndarray, data: np.ndarra
                 out[t, b * LANES + c] = sums[c]
 
 
-@njit(parallel=True, cache=True)
-def _likelihood_table(values: np.ndarray, floor: float) -> np.ndarray:
-    groups, rows, width = values.shape
-    n_blocks = (rows + LANES - 1) // LANES
-    out = np.empty((groups, n_blocks, width, LANES))
-    for i in prange(groups * n_blocks):
+@njit(cache=True, nogil=True)
+def _likelihood_table_blocks(values: np.ndarray, floor: float, out: np.ndarray, first: int,
+                             stop: int) -> None:
+    """Blocks first..stop−1 (block i = group i // ⌈R/16⌉, rows block i % ⌈R/16⌉) of
+    :func:`likelihood_table` into ``out`` (:func:`_call_in_parts`)."""
+    for i in range(first, stop):
         _table_block(values, floor, out, i)
-    return out
-
-
-@njit(cache=True)
-def _likelihood_table_serial(values: np.ndarray, floor: float) -> np.ndarray:
-    # _likelihood_table on one thread, for small tables (the words)
-    groups, rows, width = values.shape
-    n_blocks = (rows + LANES - 1) // LANES
-    out = np.empty((groups, n_blocks, width, LANES))
-    for i in range(groups * n_blocks):
-        _table_block(values, floor, out, i)
-    return out
 
 
 @njit(cache=True, inline="always")
@@ -130,8 +106,12 @@ def likelihood_table(log_probabilities: np.ndarray, floor: float) -> np.ndarray:
     of shape (E, L, D)): entries clipped below at ``floor``, the last two axes swapped, and the R
     rows split into blocks of :data:`LANES` (zero-padded): shape (G, ⌈R/16⌉, W, 16)."""
     values = np.ascontiguousarray(log_probabilities, dtype=np.float64)
-    kernel = _likelihood_table if values.size >= _PARALLEL_MIN else _likelihood_table_serial
-    return kernel(values, float(floor))
+    groups, rows, width = values.shape
+    n_blocks = (rows + LANES - 1) // LANES
+    out = np.empty((groups, n_blocks, width, LANES))
+    _call_in_parts(_likelihood_table_blocks, (values, float(floor), out), groups * n_blocks,
+                   parallel=values.size >= _PARALLEL_MIN)
+    return out
 
 
 def blocked_sparse_dot(matrix, groups: np.ndarray, table: np.ndarray, width: int) -> np.ndarray:
@@ -142,8 +122,10 @@ def blocked_sparse_dot(matrix, groups: np.ndarray, table: np.ndarray, width: int
     counts · log θᵀ, in float64."""
     args = (_as(matrix.indptr, np.int64), _index_array(matrix.indices), _value_array(matrix.data),
             _as(groups, np.int64), np.ascontiguousarray(table, dtype=np.float64), int(width))
-    kernel = _blocked_sparse_dot if matrix.nnz >= _PARALLEL_MIN else _blocked_sparse_dot_serial
-    return _call_vectorised(kernel, args)
+    out = np.empty((matrix.shape[0], int(width)))
+    _call_in_parts(_blocked_sparse_rows, (*args, out), matrix.shape[0], parallel=matrix.nnz >= _PARALLEL_MIN,
+                   vectorised=True)
+    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -233,7 +215,7 @@ def _dimension_major_dot(colptr: np.ndarray, rows: np.ndarray, values: np.ndarra
     # likelihood_table builds for all homes, here one home at a time in the thread's cache);
     # then, for each column, its table row is read once and added, times each entry's count, to
     # that entry's row of sixteen accumulators (a home's accumulators stay in the L1 cache). Each
-    # sum runs over the row's entries in column order, as in _blocked_sparse_dot: the same
+    # sum runs over the row's entries in column order, as in _blocked_sparse_rows: the same
     # results, bit for bit.
     # (parts first..stop-1 here: one part per thread, homes balanced by non-zeros)
     n_rows = log_p.shape[1]

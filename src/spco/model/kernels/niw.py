@@ -7,9 +7,9 @@ batch of (μ, Σ), compiled, one random stream per batch element.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
-from spco.model.kernels.dispatch import _PARALLEL_MIN
+from spco.model.kernels.dispatch import _PARALLEL_MIN, _call_in_parts
 from spco.model.kernels.gamma import _stream_gamma_any
 from spco.model.kernels.normal import _stream_normal
 from spco.model.kernels.rng import _stream_start
@@ -96,18 +96,12 @@ def _cholesky_into(matrix: np.ndarray, chol: np.ndarray) -> bool:
     return positive
 
 
-@njit(parallel=True, cache=True)
-def _niw_kernel(mu_n: np.ndarray, kappa_n: np.ndarray, psi_n: np.ndarray, nu_n: np.ndarray, seed: np.uint64,
-                mu: np.ndarray, sigma: np.ndarray, failed: np.ndarray) -> None:
-    for b in prange(mu_n.shape[0]):
-        _niw_element(mu_n, kappa_n, psi_n, nu_n, seed, mu, sigma, failed, b)
-
-
-@njit(cache=True)
-def _niw_serial(mu_n: np.ndarray, kappa_n: np.ndarray, psi_n: np.ndarray, nu_n: np.ndarray, seed: np.uint64,
-                mu: np.ndarray, sigma: np.ndarray, failed: np.ndarray) -> None:
-    # _niw_kernel on one thread, for small batches: the same draws
-    for b in range(mu_n.shape[0]):
+@njit(cache=True, nogil=True)
+def _niw_rows(mu_n: np.ndarray, kappa_n: np.ndarray, psi_n: np.ndarray, nu_n: np.ndarray, seed: np.uint64,
+              mu: np.ndarray, sigma: np.ndarray, failed: np.ndarray, first: int, stop: int) -> None:
+    """Batch elements first..stop−1 of :func:`sample_niw`, element b on the stream b: the same
+    draws whichever thread runs which elements (:func:`_call_in_parts`)."""
+    for b in range(first, stop):
         _niw_element(mu_n, kappa_n, psi_n, nu_n, seed, mu, sigma, failed, b)
 
 
@@ -175,8 +169,9 @@ def sample_niw(
     sigma = np.empty(flat_psi.shape)
     failed = np.zeros(flat_mu.shape[0], dtype=np.bool_)
     seed = np.uint64(rng.integers(0, 2**63 - 1, dtype=np.int64))
-    kernel = _niw_kernel if flat_mu.shape[0] >= _PARALLEL_MIN // 16 else _niw_serial  # (~1 µs each)
-    kernel(flat_mu, flat_kappa, flat_psi, flat_nu, seed, mu, sigma, failed)
+    args = (flat_mu, flat_kappa, flat_psi, flat_nu, seed, mu, sigma, failed)
+    threaded = flat_mu.shape[0] >= _PARALLEL_MIN // 16  # (~1 µs each)
+    _call_in_parts(_niw_rows, args, flat_mu.shape[0], parallel=threaded)
     if failed.any():
         raise ValueError(f"sample_niw: Ψ_n of {int(failed.sum())} batch element(s) is not positive definite")
     return mu.reshape(*batch, d), sigma.reshape(*batch, d, d)
