@@ -282,7 +282,8 @@ def test_synth_with_another_seed_does_not_reuse_names(tmp_path: Path) -> None:
 
 
 def test_demo_knows_whether_its_kernels_are_compiled() -> None:
-    from spco.demo import kernels_compiled, warm_up
+    from spco.demo import warm_up
+    from spco.model.numba_cache import kernels_compiled
 
     warm_up()  # the kernels are in memory now
     assert kernels_compiled() is True

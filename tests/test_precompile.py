@@ -73,7 +73,7 @@ def test_demo_on_an_empty_cache_says_it_compiles_in_two_processes(monkeypatch):
     def stop(**_: object) -> None:
         raise Stop
 
-    monkeypatch.setattr(spco.demo, "kernels_compiled", lambda: False)
+    monkeypatch.setattr(numba_cache, "kernels_compiled", lambda: False)
     monkeypatch.setattr(numba_cache, "precompile", lambda processes: calls.append(processes) or 0.0)
     monkeypatch.setattr(spco.demo, "run_demo", stop)
     result = CliRunner().invoke(main, ["demo", "--out", "unused"])
@@ -81,3 +81,35 @@ def test_demo_on_an_empty_cache_says_it_compiles_in_two_processes(monkeypatch):
     assert numba_cache.precompile_notice(2) in result.stderr
     assert f"about {numba_cache.PRECOMPILE_SECONDS_ESTIMATE} s" in result.stderr
     assert calls == [2]
+
+
+def test_fit_and_adapt_on_an_empty_cache_precompile_in_two_processes(monkeypatch, tmp_path):
+    """``spco fit`` and ``spco adapt`` on a cold cache say so and precompile in 2 processes, as the
+    demo does (stubbed: the notice and the call are checked); with a cache, neither."""
+    from click.testing import CliRunner
+
+    from spco.commands_knowledge import adapt, fit
+    from spco.data.plain import write_corpus
+    from spco.data.synthetic import SyntheticConfig, generate_homes
+
+    corpus = generate_homes(3, seed=2, config=SyntheticConfig(n_features=16, n_train=6, n_test=2),
+                            new_homes=1, specific_rooms=False)
+    write_corpus(list(corpus)[:2], tmp_path / "experienced")
+    write_corpus(list(corpus)[2:], tmp_path / "new")
+    calls: list[int] = []
+    monkeypatch.setattr(numba_cache, "precompile", lambda processes: calls.append(processes) or 0.0)
+    monkeypatch.setattr(numba_cache, "kernels_compiled", lambda: False)
+    kfile = tmp_path / "k.spco"
+    result = CliRunner().invoke(fit, ["--data", str(tmp_path / "experienced"), "--iterations", "2",
+                                      "--out", str(kfile)])
+    assert result.exit_code == 0, result.output
+    assert numba_cache.precompile_notice(2) in result.stderr and calls == [2]
+    home = next((tmp_path / "new").iterdir())
+    result = CliRunner().invoke(adapt, [str(kfile), "--home", str(home), "--iterations", "2",
+                                        "--out", str(tmp_path / "h.spco")])
+    assert result.exit_code == 0, result.output
+    assert calls == [2, 2]
+    monkeypatch.setattr(numba_cache, "kernels_compiled", lambda: True)
+    result = CliRunner().invoke(adapt, [str(kfile), "--home", str(home), "--iterations", "2",
+                                        "--out", str(tmp_path / "h2.spco")])
+    assert result.exit_code == 0 and calls == [2, 2] and "Compiling" not in result.stderr

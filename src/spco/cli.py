@@ -203,14 +203,10 @@ def synth(out: Path, homes: int, seed: int, force: bool, language: str) -> None:
 @_friendly_errors
 def demo(seed: int, out: Path, homes: int, iterations: int) -> None:
     """Learn from synthetic homes and transfer to a new home taught nothing (no dataset needed)."""
-    from spco.demo import format_table, kernels_compiled, run_demo
+    from spco.demo import format_table, run_demo
+    from spco.model.numba_cache import precompile_if_cold
 
-    if kernels_compiled() is False:
-        from spco.model.numba_cache import mark_announced, precompile, precompile_notice
-
-        click.echo(precompile_notice(2), err=True)
-        mark_announced()
-        precompile(processes=2)
+    precompile_if_cold(lambda text: click.echo(text, err=True))
     click.echo(f"Generating {homes} experienced synthetic homes and 1 new home (seed {seed})...", err=True)
     result = run_demo(seed=seed, out=out, n_experienced=homes, n_iterations=iterations,
                       progress=sys.stderr.isatty())

@@ -92,8 +92,11 @@ def _split(text: str | None) -> tuple[str, ...] | None:
 
 def _run(config_kwargs: dict[str, Any], out: Path, resume: bool, force: bool, quiet: bool) -> None:
     from spco.evaluation.experiments import ExperimentConfig, run_experiment
+    from spco.model.numba_cache import precompile_if_cold
 
     config = ExperimentConfig(**config_kwargs)
+    # on an empty kernel cache: compiled once, in 2 processes, before any run or worker needs them
+    precompile_if_cold(lambda text: click.echo(text, err=True))
     start = time.perf_counter()
     result = run_experiment(config, out, resume=resume, force=force, progress=not quiet,
                             log=lambda msg: click.echo(msg, err=True))

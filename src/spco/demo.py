@@ -84,32 +84,6 @@ def run_demo(seed: int = 0, out: Path | str = "spco-demo", n_experienced: int = 
                       warm_up_seconds=warm_up_seconds)
 
 
-def kernels_compiled() -> bool | None:
-    """Whether Numba's on-disk cache holds spco's sampler kernels for this source (``None``: unknown).
-
-    ``False`` means the next fit compiles them first (about half a minute on 2 cores).
-    """
-    try:
-        from numba.core.registry import CPUDispatcher
-
-        from spco.model import allocation, gibbs, moves, observations, random
-
-        found = False
-        for module in (allocation, gibbs, moves, observations, random):
-            kernels = [v for v in vars(module).values()
-                       if isinstance(v, CPUDispatcher) and getattr(v, "_cache", None) is not None]
-            if not kernels:
-                continue
-            found = True
-            # helpers only called from other kernels have no cache entry of their own: a module
-            # counts as compiled when any of its kernels is in memory or in a cache valid for its source
-            if not any(k.signatures or k._cache._cache_file._load_index() for k in kernels):
-                return False
-        return True if found else None
-    except Exception:
-        return None
-
-
 def warm_up() -> float:
     """Compile (or load from Numba's cache) the kernels with a small fit (3 sweeps on 4 homes, every
     kernel a demo-sized fit uses, checked by their signatures); returns the seconds taken."""
