@@ -73,6 +73,40 @@ def concatenate_data(parts: list[PreparedData]) -> PreparedData:
                         map_centres=np.concatenate([p.map_centres for p in parts]))
 
 
+# ----------------------------------------------------------------------------- prepared in the shards
+
+#: Homes prepared at a time by :class:`RangePart` (bounds the memory of the intermediate arrays: a
+#: generator's dense draws, or the environments read next to their prepared data).
+PREPARE_CHUNK = 32
+
+
+class RangeSource(HomeSource):
+    """Homes that a shard prepares itself by index (generated or read where it runs)."""
+
+    @abstractmethod
+    def prepare_homes(self, first: int, last: int) -> PreparedData:
+        """Homes first..last − 1 as :class:`~spco.model.gibbs.PreparedData` (numbered from 0)."""
+
+
+@dataclass
+class RangePart(HomesPart):
+    """Homes first..last − 1 of a :class:`RangeSource`, prepared on :meth:`prepare`,
+    :data:`PREPARE_CHUNK` at a time."""
+
+    source: RangeSource
+    first: int
+    last: int
+
+    @property
+    def n_homes(self) -> int:  # type: ignore[override]
+        return self.last - self.first
+
+    def prepare(self) -> PreparedData:
+        chunks = [self.source.prepare_homes(a, min(a + PREPARE_CHUNK, self.last))
+                  for a in range(self.first, self.last, PREPARE_CHUNK)]
+        return concatenate_data(chunks)
+
+
 # ----------------------------------------------------------------------------- prepared in the driver
 
 
@@ -111,31 +145,8 @@ class PreparedHomes(HomeSource):
 
 # ----------------------------------------------------------------------------- synthetic, made in the shards
 
-#: Homes generated and prepared at a time by :class:`SyntheticPart` (bounds the memory of the
-#: generator's dense intermediate arrays).
-GENERATION_CHUNK = 32
-
-
 @dataclass
-class SyntheticPart(HomesPart):
-    """Synthetic homes first..last − 1 of a :class:`SyntheticHomes` fleet, generated on :meth:`prepare`."""
-
-    source: SyntheticHomes
-    first: int
-    last: int
-
-    @property
-    def n_homes(self) -> int:  # type: ignore[override]
-        return self.last - self.first
-
-    def prepare(self) -> PreparedData:
-        chunks = [self.source.prepare_homes(a, min(a + GENERATION_CHUNK, self.last))
-                  for a in range(self.first, self.last, GENERATION_CHUNK)]
-        return concatenate_data(chunks)
-
-
-@dataclass
-class SyntheticHomes(HomeSource):
+class SyntheticHomes(RangeSource):
     """``n_homes`` synthetic homes (:func:`spco.data.synthetic.generate_homes` with
     ``specific_rooms=False``), the last ``new_homes`` new (nothing taught), generated in the shards.
 
@@ -204,36 +215,13 @@ class SyntheticHomes(HomeSource):
         return SpatialConceptModel._prepare(corpus, 1.0)
 
     def parts(self, n_shards: int) -> list[HomesPart]:
-        return [SyntheticPart(self, a, b) for a, b in even_bounds(self.n_homes, n_shards)]
+        return [RangePart(self, a, b) for a, b in even_bounds(self.n_homes, n_shards)]
 
 
 # ----------------------------------------------------------------------------- home folders, read in shards
 
-#: Home folders read and prepared at a time by :class:`FolderPart` (bounds the memory of the
-#: environments held next to their prepared data).
-READING_CHUNK = 32
-
-
 @dataclass
-class FolderPart(HomesPart):
-    """Homes first..last − 1 of a :class:`FolderHomes`, read from disk on :meth:`prepare`."""
-
-    source: FolderHomes
-    first: int
-    last: int
-
-    @property
-    def n_homes(self) -> int:  # type: ignore[override]
-        return self.last - self.first
-
-    def prepare(self) -> PreparedData:
-        chunks = [self.source.prepare_homes(a, min(a + READING_CHUNK, self.last))
-                  for a in range(self.first, self.last, READING_CHUNK)]
-        return concatenate_data(chunks)
-
-
-@dataclass
-class FolderHomes(HomeSource):
+class FolderHomes(RangeSource):
     """Homes in folders on disk (plain or SIGVerse layout, :func:`spco.data.loading.load_homes`),
     read where the shards run: the driver keeps paths, names, per-home sample counts and the
     vocabulary, never the homes' samples.
@@ -326,4 +314,4 @@ class FolderHomes(HomeSource):
         offsets = np.concatenate([[0], np.cumsum(self.n_samples_per_home)])
         sizes = SimpleNamespace(offsets=offsets, n_homes=self.n_homes)
         bounds = shard_bounds(sizes, n_shards)  # type: ignore[arg-type]
-        return [FolderPart(self, a, b) for a, b in bounds]
+        return [RangePart(self, a, b) for a, b in bounds]
