@@ -217,14 +217,7 @@ def read_records(
         return _select([(r.environment.name, r) for r in records], names, src)
     if not src.is_dir():
         raise DataFormatError(src, f"neither a file nor a folder; {_EXPECTED}")
-    if home_kind(src) is not None:
-        homes = [src]
-    else:
-        homes = find_homes(src)
-        if not homes:
-            raise _no_homes(src)
-    if names is not None:
-        homes = _select([(_home_name(h), h) for h in homes], names, src)
+    homes = home_folders(src, names)
     # the bar shows on a terminal only, and is wiped when done (or when a home fails to load)
     with tqdm(homes, desc="reading homes", unit="home", file=sys.stderr, leave=False,
               disable=None if progress else True) as bar:
