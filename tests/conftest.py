@@ -1,4 +1,5 @@
-"""Shared fixtures: where the SIGVerse data set is, and a builder of tiny homes in its layout."""
+"""Shared fixtures: where the SIGVerse data set is, a builder of tiny homes in its layout, and a
+local Ray instance."""
 
 from __future__ import annotations
 
@@ -33,6 +34,16 @@ def sigverse_dir() -> Path:
         pytest.skip(f"SIGVerse dataset not found at {path} (clone is0314px/transferlearning_spco and "
                     "point SPCO_SIGVERSE at its source/gibbs_dataset/sigverse folder)")
     return path
+
+
+@pytest.fixture(scope="module")
+def ray_session():
+    """A local Ray instance of 2 CPUs for a test module (skipped without Ray), shut down after it."""
+    ray = pytest.importorskip("ray", reason="Ray is not installed (pip install -e '.[ray]')")
+    if not ray.is_initialized():
+        ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    yield ray
+    ray.shutdown()
 
 
 SigverseBuilder = Callable[..., Path]

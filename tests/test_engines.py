@@ -108,15 +108,6 @@ def test_naming_rule_adds_up_over_shards(corpus) -> None:
 # ----------------------------------------------------------------------------- Ray
 
 
-@pytest.fixture(scope="module")
-def ray_session():
-    ray = pytest.importorskip("ray", reason="Ray is not installed (pip install -e '.[ray]')")
-    if not ray.is_initialized():
-        ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
-    yield ray
-    ray.shutdown()
-
-
 def test_ray_gives_the_local_engines_chain(corpus, ray_session) -> None:
     """Two shards as Ray actors: the same log-joint trace and concepts as two in-process shards."""
     from spco.engines.ray import RayEngine

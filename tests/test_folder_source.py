@@ -138,15 +138,6 @@ def test_fit_command_reads_homes_in_the_shards_and_names_a_broken_home(folder, t
     assert "Traceback" not in result.output and "sweep" not in result.output
 
 
-@pytest.fixture(scope="module")
-def ray_session():
-    ray = pytest.importorskip("ray", reason="Ray is not installed (pip install -e '.[ray]')")
-    if not ray.is_initialized():
-        ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
-    yield ray
-    ray.shutdown()
-
-
 def test_ray_actors_reading_their_folders_give_the_driver_data_chain(folder, ray_session) -> None:
     """Ray actors that read their own homes' folders: the chain of the driver-loaded PreparedHomes."""
     from spco.engines.ray import RayEngine

@@ -169,15 +169,6 @@ def test_checkpoint_files_round_trip_and_refuse_bad_files(tmp_path, source) -> N
 # ----------------------------------------------------------------------------- Ray
 
 
-@pytest.fixture(scope="module")
-def ray_session():
-    ray = pytest.importorskip("ray", reason="Ray is not installed (pip install -e '.[ray]')")
-    if not ray.is_initialized():
-        ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
-    yield ray
-    ray.shutdown()
-
-
 def test_ray_actors_start_their_homes_as_local_shards_do(source, ray_session) -> None:
     """Actors that generate and initialise their own homes: the chain of as many local shards."""
     from spco.engines.ray import RayEngine
