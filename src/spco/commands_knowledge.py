@@ -203,34 +203,24 @@ def fit(data: Path, homes: str | None, teaching_rate: int, model: str, iteration
         # the shards read their own homes: the driver reads one home at a time for the vocabulary
         from spco.model.sources import FolderHomes
 
-        source = FolderHomes.create(data, names, teaching_rate, progress=_progress())
-        click.echo(f"Learning from {source.n_homes} homes ({source.n_samples} training samples, "
-                   f"{source.n_taught} taught, {source.n_words} words; each shard reads its own homes) "
-                   f"with {model}, {iterations} sweeps...", err=True)
-        start = time.perf_counter()
-        knowledge = fit_knowledge(source, model=model, n_iterations=iterations, random_state=seed,
-                                  progress=_progress(), engine=runner,
-                                  provenance={"data": str(Path(data).expanduser().resolve()),
-                                              "teaching_rate": teaching_rate})
-        knowledge.save(out, overwrite=force)
-        click.echo(knowledge.describe())
-        click.echo(f"Wrote {out} in {_seconds(time.perf_counter() - start)}.")
-        return
-    start_views = time.perf_counter()
-    envs = load_homes(data, names=names, teaching_rate=teaching_rate, progress=_progress(),
-                      extractor=image_extractor, images=images)
-    if image_extractor is not None:
-        n_views = sum(e.n_samples for e in envs)
-        seconds = time.perf_counter() - start_views
-        click.echo(f"Views from {n_views} images with {image_extractor.spec().describe()}: "
-                   f"{n_views / max(seconds, 1e-9):.0f} images/s (reading the homes included)", err=True)
-    corpus = Corpus(envs)
-    n_samples = sum(e.n_train for e in envs)
-    click.echo(f"Learning from {len(envs)} homes ({n_samples} training samples, "
-               f"{sum(e.n_taught for e in envs)} taught, {len(corpus.vocabulary)} words) with {model}, "
-               f"{iterations} sweeps...", err=True)
+        training: Corpus | FolderHomes = FolderHomes.create(data, names, teaching_rate, progress=_progress())
+        summary = (f"{training.n_homes} homes ({training.n_samples} training samples, {training.n_taught} "
+                   f"taught, {training.n_words} words; each shard reads its own homes)")
+    else:
+        start_views = time.perf_counter()
+        envs = load_homes(data, names=names, teaching_rate=teaching_rate, progress=_progress(),
+                          extractor=image_extractor, images=images)
+        if image_extractor is not None:
+            n_views = sum(e.n_samples for e in envs)
+            seconds = time.perf_counter() - start_views
+            click.echo(f"Views from {n_views} images with {image_extractor.spec().describe()}: "
+                       f"{n_views / max(seconds, 1e-9):.0f} images/s (reading the homes included)", err=True)
+        training = Corpus(envs)
+        summary = (f"{len(envs)} homes ({sum(e.n_train for e in envs)} training samples, "
+                   f"{sum(e.n_taught for e in envs)} taught, {len(training.vocabulary)} words)")
+    click.echo(f"Learning from {summary} with {model}, {iterations} sweeps...", err=True)
     start = time.perf_counter()
-    knowledge = fit_knowledge(corpus, model=model, n_iterations=iterations, random_state=seed,
+    knowledge = fit_knowledge(training, model=model, n_iterations=iterations, random_state=seed,
                               progress=_progress(), engine=runner,
                               provenance={"data": str(Path(data).expanduser().resolve()),
                                           "teaching_rate": teaching_rate},
