@@ -495,8 +495,8 @@ def _read_streams(
     shift, latest = 0, None  # the current tour's shift onto the import's time line; its last time
     for index, bag in enumerate(bags):
         if index > 0 and tour_of[index] != tour_of[index - 1] and latest is not None:
-            first = min(b.start for b, t in zip(bags, tour_of, strict=True) if t == tour_of[index])
-            shift = latest + round(TOUR_GAP_SECONDS * _NS) - first
+            # bags are in order of start time, so a tour starts at its first bag's start
+            shift = latest + round(TOUR_GAP_SECONDS * _NS) - bag.start
         ordinal = 0
         for connection, record_time, raw in bag.messages(wanted):
             count += 1
