@@ -52,6 +52,7 @@ from scipy.special import logsumexp
 
 from spco.data.language import Vocabulary, normalize_name
 from spco.errors import ConfigurationError, SpcoError
+from spco.model.name_evidence import within_concepts
 from spco.model.parameters import ConceptParameters
 from spco.model.pruning import bernoulli_kl_scores, word_concept_mutual_information
 
@@ -555,7 +556,11 @@ def predict_names(
                                  active_regions_only=weighting == "reference")
     theta_w = _word_matrix(params, e)
     probs = _words_from_concepts(concepts, theta_w)  # (n, V)
-    if weighting == "mi":
+    if weighting == "mi" and params.name_prior is not None:
+        # the words said at each place compete by how name-like they are (spco.model.name_evidence)
+        named = within_concepts(theta_w * mutual_information_weights(params, e)[None, :], params.name_prior)
+        scores = concepts @ named
+    elif weighting == "mi":
         scores = probs * mutual_information_weights(params, e)[None, :]
     elif weighting == "none":
         scores = probs.copy()

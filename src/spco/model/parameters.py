@@ -36,6 +36,10 @@ class ConceptParameters:
     concept_counts: (E, L) float, mean number of training samples assigned to each concept over
         the averaged sweeps (< 1: the concept holds no sample of the home), or ``None`` (model
         files written before it existed: no concept is then known to be empty).
+    name_prior: (V,) float in (0, 1), P(name | how the word was said and what it is)
+        (:func:`spco.model.name_evidence.name_prior`), which orders the words of each concept when
+        names are predicted; or ``None`` (models without the naming rule, and files written before
+        it existed: every word alike).
     """
 
     concept_weights: np.ndarray
@@ -50,6 +54,7 @@ class ConceptParameters:
     word_mask: np.ndarray
     region_counts: np.ndarray
     concept_counts: np.ndarray | None = None
+    name_prior: np.ndarray | None = None
 
     @property
     def n_environments(self) -> int:

@@ -42,6 +42,7 @@ from spco.data.language import Vocabulary
 from spco.errors import ConfigurationError
 from spco.model import gibbs
 from spco.model.hyperparameters import SpCoAHyperparameters, TransferHyperparameters
+from spco.model.name_evidence import name_prior
 from spco.model.parameters import ConceptParameters
 from spco.model.posterior import ParameterAverage, masked_rows, thinned_sweeps
 from spco.model.random import stack_counts
@@ -249,6 +250,11 @@ class SpatialConceptModel:
         self.log_joint_ = np.asarray(trace, dtype=float)
         self.n_iter_ = int(self.n_iterations)
         self.parameters_ = average.result(state)
+        if settings.prune and settings.variant == "exact":
+            # the naming rule's linguistic evidence: which of the words said at a place is its name
+            sentences = [s for t in corpus.training_set() for s in t.sentences]
+            self.parameters_ = replace(self.parameters_,
+                                       name_prior=name_prior(corpus.vocabulary, sentences))
         splits = np.split(np.arange(data.n_samples), data.offsets[1:-1])
         self.concepts_ = [state.concepts[s].copy() for s in splits]
         self.regions_ = [state.regions[s].copy() for s in splits]

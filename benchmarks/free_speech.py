@@ -1,0 +1,203 @@
+"""Free speech on SIGVerse: the paper's general experiment taught with sentences of a speech set.
+
+Protocol (docs/model.md "What counts as a name"; benchmarks/README "Free speech on SIGVerse"):
+
+- the paper's 16 experienced homes (:data:`~spco.evaluation.experiments.PAPER_EXPERIENCED_HOMES`)
+  are taught every training sample, each with a sentence of the sample's ground-truth place drawn
+  (with replacement) from the speech set, by seed: ``default_rng([seed, home index])``, so the
+  speakers of one home are mixed;
+- the new homes 1LDK_9, 2LDK_9 and 3LDK_9 are untaught, each fitted with the 16 (SpCoTransfer+MI,
+  as ``spco experiment general --models spcotransfer+mi``, 200 sweeps, trial seed
+  :func:`~spco.evaluation.experiments.trial_seed`) and scored on its test samples;
+- A_n: a test view's predicted name is right when it is one of its place's accepted names
+  (``--accepted``, a JSON object place -> names; keys starting with ``_`` are notes);
+- A_p: for each place, the mean over the place's accepted names that the learnt vocabulary holds
+  as one token (the place label itself only if it was said) of the share of 10 positions drawn for
+  the name that fall inside the place's region (argmax region, as ``spco experiment``);
+- intervals: 95 % percentile bootstrap (2,000 resamples) over the test views (A_n; resampled within
+  each home and place) and over the seeds' position scores of each (home, place) (A_p).
+
+Run (development set)::
+
+    nice -n 10 python benchmarks/free_speech.py --speech benchmarks/development/speech_dev.csv \\
+        --accepted benchmarks/development/accepted_names_dev.json --seeds 0 1 2
+
+``--unheard FILE.json`` also measures ``where`` with names nobody said (A_p of the place found via
+the lexicon, :func:`spco.prediction.resolve_unheard`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import time
+from collections import Counter, defaultdict
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from spco.data import Corpus, Environment
+from spco.data.language import normalize_name
+from spco.data.loading import load
+from spco.data.regions import load_region_file
+from spco.evaluation import evaluate_home
+from spco.evaluation.experiments import PAPER_EXPERIENCED_HOMES, trial_seed
+from spco.evaluation.metrics import position_accuracy
+from spco.model import SpCoTransfer
+
+NEW_HOMES = ("1LDK_9", "2LDK_9", "3LDK_9")
+
+
+def read_speech(path: Path) -> dict[str, list[str]]:
+    """place (normalised) -> its sentences, from a ``place,speaker,sentence`` CSV."""
+    out: dict[str, list[str]] = defaultdict(list)
+    with open(path, encoding="utf-8", newline="") as fh:
+        for row in csv.DictReader(fh):
+            out[normalize_name(row["place"])].append(row["sentence"])
+    return dict(out)
+
+
+def read_names(path: Path) -> dict[str, tuple[str, ...]]:
+    """place (normalised) -> names (normalised), from a JSON object; ``_`` keys are notes."""
+    raw = json.loads(Path(path).read_text(encoding="utf-8"))
+    return {normalize_name(k): tuple(normalize_name(n) for n in v) for k, v in raw.items()
+            if not k.startswith("_")}
+
+
+def taught_homes(sigverse: Path, speech: dict[str, list[str]], seed: int) -> list[Environment]:
+    """The 16 experienced homes, each taught sample given a sentence of its place drawn by seed."""
+    homes = []
+    for index, name in enumerate(PAPER_EXPERIENCED_HOMES):
+        env = load(sigverse / name)[name]
+        labels = env.ground_truth.labels  # type: ignore[union-attr]
+        rng = np.random.default_rng([seed, index])
+        sentences = []
+        for label, old in zip(labels, env.sentences, strict=True):
+            pool = speech.get(normalize_name(label)) if label is not None else None
+            sentences.append(str(pool[rng.integers(len(pool))]) if old is not None and pool else None)
+        homes.append(env.with_sentences(sentences))
+    return homes
+
+
+def new_home(sigverse: Path, regions_file: Path, name: str,
+             accepted: dict[str, tuple[str, ...]]) -> Environment:
+    """A new home, untaught, with its regions and the accepted names."""
+    env = load(sigverse / name)[name]
+    gt = env.ground_truth
+    assert gt is not None
+    regions = load_region_file(regions_file)[name]
+    env = env.with_sentences((None,) * env.n_samples)
+    return replace(env, ground_truth=replace(gt, regions=regions, accepted_names=accepted))
+
+
+def bootstrap(groups: dict[tuple, list[float]], rng: np.random.Generator,
+              n: int = 2000) -> tuple[float, float]:
+    """95 % percentile interval of the mean over groups of the groups' means, each group resampled."""
+    arrays = [np.asarray(v, dtype=float) for v in groups.values() if v]
+    means = np.empty(n)
+    for b in range(n):
+        means[b] = np.mean([a[rng.integers(a.size, size=a.size)].mean() for a in arrays])
+    return float(np.quantile(means, 0.025)), float(np.quantile(means, 0.975))
+
+
+def main() -> None:
+    """Fit, score and print per seed, home and place, then the pooled figures with intervals."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sigverse", type=Path, default=Path("../shared/datasets/sigverse"))
+    parser.add_argument("--regions", type=Path, default=None,
+                        help="region file (default: sigverse_regions.json beside --sigverse)")
+    parser.add_argument("--speech", type=Path, required=True)
+    parser.add_argument("--accepted", type=Path, required=True)
+    parser.add_argument("--unheard", type=Path, default=None)
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    parser.add_argument("--sweeps", type=int, default=200)
+    parser.add_argument("--homes", nargs="+", default=list(NEW_HOMES))
+    parser.add_argument("--json", type=Path, default=None, help="write every figure to this file")
+    args = parser.parse_args()
+    regions_file = args.regions or args.sigverse.parent / "sigverse_regions.json"
+    speech = read_speech(args.speech)
+    accepted = read_names(args.accepted)
+    unheard = read_names(args.unheard) if args.unheard else {}
+    names_right: dict[tuple, list[float]] = defaultdict(list)  # (home, place) -> 0/1 per test view
+    positions: dict[tuple, list[float]] = defaultdict(list)  # (home, place) -> A_p per seed
+    unheard_scores: dict[tuple, list[float]] = defaultdict(list)
+    resolved_as: dict[str, Counter] = defaultdict(Counter)
+    wrong: Counter = Counter()
+    per_seed = []
+    started = time.perf_counter()
+    for seed in args.seeds:
+        experienced = taught_homes(args.sigverse, speech, seed)
+        for h, home in enumerate(args.homes):
+            env = new_home(args.sigverse, regions_file, home, accepted)
+            corpus = Corpus([*experienced, env])
+            model = SpCoTransfer(variant="exact", prune_words=True, n_iterations=args.sweeps,
+                                 random_state=trial_seed(seed, h)).fit(corpus)
+            e = len(corpus) - 1
+            scores = evaluate_home(model.parameters_, e, env, corpus.vocabulary, rng=seed)
+            per_seed.append({"seed": seed, "home": home, "A_n": scores.mean_name_accuracy,
+                             "A_p": scores.mean_position_accuracy,
+                             "A_n_places": scores.name_accuracy, "A_p_places": scores.position_accuracy})
+            gt = env.ground_truth
+            for label, name in zip(scores.labels, scores.predicted_names, strict=True):
+                right = name in gt.accepted(label)  # type: ignore[union-attr]
+                names_right[(home, label)].append(float(right))
+                if not right:
+                    wrong[f"{label} -> {name}"] += 1
+            for place, value in scores.position_accuracy.items():
+                positions[(home, place)].append(value)
+            if unheard:
+                _score_unheard(model.parameters_, e, corpus.vocabulary, env, unheard, seed,
+                               unheard_scores, resolved_as)
+            print(f"seed {seed} {home}: A_n {scores.mean_name_accuracy:.3f} A_p "
+                  f"{scores.mean_position_accuracy:.3f} ({time.perf_counter() - started:.0f} s)", flush=True)
+    rng = np.random.default_rng(0)
+    a_n = float(np.mean([np.mean(v) for v in names_right.values()]))
+    a_p = float(np.mean([np.mean(v) for v in positions.values()]))
+    summary: dict[str, object] = {
+        "seeds": args.seeds, "homes": args.homes, "speech": str(args.speech), "accepted": str(args.accepted),
+        "A_n": a_n, "A_n_interval": bootstrap(names_right, rng),
+        "A_p": a_p, "A_p_interval": bootstrap(positions, rng),
+        "A_n_per_place": _per_place(names_right), "A_p_per_place": _per_place(positions),
+        "wrong": dict(wrong.most_common(25)), "runs": per_seed,
+    }
+    if unheard:
+        summary["unheard_A_p"] = float(np.mean([np.mean(v) for v in unheard_scores.values()]))
+        summary["unheard_A_p_interval"] = bootstrap(unheard_scores, rng)
+        summary["unheard_A_p_per_place"] = _per_place(unheard_scores)
+        summary["unheard_resolved_as"] = {k: dict(v) for k, v in resolved_as.items()}
+    print(json.dumps({k: v for k, v in summary.items() if k != "runs"}, indent=1, default=str))
+    if args.json:
+        args.json.write_text(json.dumps(summary, indent=1, default=str), encoding="utf-8")
+
+
+def _per_place(groups: dict[tuple, list[float]]) -> dict[str, float]:
+    by_place: dict[str, list[float]] = defaultdict(list)
+    for key, values in groups.items():
+        by_place[key[1]].append(float(np.mean(values)))
+    return {p: round(float(np.mean(v)), 3) for p, v in sorted(by_place.items())}
+
+
+def _score_unheard(params, e, vocabulary, env, unheard, seed, out, resolved_as) -> None:
+    """A_p of ``where`` for every unheard name of the home's places (through the lexicon)."""
+    from spco.prediction import UnknownNameError, predict_positions
+
+    regions = env.ground_truth.regions
+    for place, names in unheard.items():
+        if place not in regions.places:
+            continue
+        for name in names:
+            try:
+                pred = predict_positions(params, e, vocabulary, name, n=10, rng=seed, unheard=True)
+            except UnknownNameError:
+                out[(env.name, place, name, seed)].append(0.0)
+                resolved_as[name]["(none)"] += 1
+                continue
+            value = position_accuracy({place: pred.samples}, regions)[place]
+            out[(env.name, place, name, seed)].append(value)
+            resolved_as[name][pred.name] += 1
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,199 @@
+"""Which words are names: linguistic evidence beside the regions (docs/model.md, "What counts as a name").
+
+The naming rule (:func:`spco.model.pruning.judge_names`) tells a word said at one place from a word
+said everywhere. It cannot tell a place's name from another word said consistently at that place:
+"home" in "hi, I'm home!" at the entrance, "table" at the dining area, "towel" in the bath, "sleep"
+in the bedroom, "left" in "the bathroom is to your left". Those words are as place-bound as the
+name, often more (a place's name is split over its synonyms, the greeting is not). What tells them
+apart is how they are said and what they are:
+
+- **Where in the sentence** (:func:`frame_features`, shares over the word's uses): a name heads the
+  noun phrase that names the place — after a determiner or a possessive ("this is *the* kitchen",
+  "*my* room", "*Emma's* room"), in a naming frame ("this is X", "X is here", "we call it X", "X"
+  said alone) — while objects and directions come after prepositions ("*on the* table", "to *the*
+  left"), greetings and activities after pronouns or verbs ("I'm home", "I sleep here").
+- **What the word is** (:func:`lexical_features`, WordNet through :mod:`spco.data.lexicon`): the
+  share of its senses that are nouns, and the share of its noun senses that are places (rooms,
+  areas, passages, structures, locations) rather than furniture, objects, acts or people. A term
+  unknown to WordNet ("emma's room", "kids bedroom") is judged by its head word ("room",
+  "bedroom"); a word WordNet does not know at all (typos, loanwords such as "genkan") is neutral.
+
+The two are combined by a logistic model, P(name | features) = σ(b + w·f), whose weights
+(:data:`WEIGHTS`) were fitted by ``benchmarks/name_evidence.py`` on development data only (the
+tokens of the development speech set, the hand-written SIGVerse sentences, the free-form synthetic
+homes of seeds 0–1 and the SIGVerse templates, labelled by their accepted names). It is *soft*
+evidence: :func:`name_prior` gives each vocabulary word P(name | how it was said) in (0, 1), and
+prediction ranks words by p(w | x, v) · I(w) · P(name | w) (:func:`spco.prediction.predict_names`)
+— "the word said here that is a name" — so a word said everywhere still loses on I(w) and a name
+said only in odd frames still wins where it alone is said.
+
+Without the lexicon (no NLTK or no WordNet database) the lexical features take their "unknown word"
+values, so the prior rests on the sentence frames alone.
+
+The frames use English function words (:data:`DETERMINERS`, :data:`PREPOSITIONS`, :data:`COPULAS`,
+:data:`PRONOUNS`): grammar, not names. In another language none of them occurs and every word gets
+the same frame features: the prior then only scales all words alike (and the lexicon, English
+WordNet, knows none of the words either).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+
+import numpy as np
+
+from spco.data.language import Vocabulary
+
+__all__ = [
+    "COPULAS",
+    "DETERMINERS",
+    "FEATURES",
+    "PREPOSITIONS",
+    "PRONOUNS",
+    "WEIGHTS",
+    "feature_matrix",
+    "frame_features",
+    "lexical_features",
+    "name_prior",
+    "within_concepts",
+]
+
+#: Determiners and possessive pronouns (a word ending in "'s" or "s'" also counts as a possessive).
+DETERMINERS = frozenset({"the", "a", "an", "this", "that", "these", "those", "my", "our", "your", "his",
+                         "her", "their", "its", "whose"})
+#: Prepositions (place and direction phrases: "on the table", "to your left", "next to the bath").
+PREPOSITIONS = frozenset({"to", "in", "on", "at", "by", "from", "into", "onto", "near", "next", "beside",
+                          "behind", "under", "over", "across", "through", "after", "before", "for",
+                          "with", "of", "off", "out", "up", "down", "around", "between", "inside",
+                          "outside", "past", "toward", "towards", "along", "against", "opposite",
+                          "above", "below", "beneath", "underneath", "within", "without", "via"})
+#: Copulas and naming verbs: what comes before a name in "this is X", "we call it X".
+COPULAS = frozenset({"is", "are", "was", "it's", "that's", "here's", "this's", "called", "call",
+                     "named", "name", "be", "it", "s"})
+#: Personal pronouns (subjects and objects: "I'm home", "we eat", "see you").
+PRONOUNS = frozenset({"i", "i'm", "me", "we", "we're", "us", "you", "you're", "he", "she", "they",
+                      "they're", "him", "them", "i've", "we've", "i'll", "we'll"})
+#: Words after a name in "X is here", "X here", "X's here".
+AFTER_NAME = frozenset({"is", "are", "here", "'s"})
+
+#: The features, in the order of :data:`WEIGHTS` (all in [0, 1]).
+FEATURES = ("determiner", "naming_frame", "preposition", "pronoun", "sentence_start", "alone",
+            "known", "noun_share", "place_share", "function_word")
+
+#: Intercept and weights of the logistic model (fitted by ``benchmarks/name_evidence.py`` on
+#: development data, L2 penalty 1; see docs/model.md).
+WEIGHTS: tuple[float, ...] = (-5.805, 2.303, 0.703, -1.110, -0.366, 0.068, -0.140, 0.030, 1.458, 2.641,
+                               -0.434)
+
+
+def _possessive(token: str) -> bool:
+    return token.endswith("'s") or token.endswith("s'")
+
+
+def frame_features(vocabulary: Vocabulary, sentences: Iterable[str | None]) -> np.ndarray:
+    """Where each vocabulary word is said in ``sentences``: (V, 6) shares of its uses that come
+    after a determiner or possessive, in a naming frame, after a preposition (possibly with a
+    determiner between), after a pronoun, at the start of the sentence, and alone (the sentence is
+    the word, possibly after a determiner). A word never said has all shares 0.
+
+    Parameters
+    ----------
+    vocabulary: the corpus vocabulary (tokens as :meth:`Vocabulary.tokenize` gives them).
+    sentences: the taught sentences (``None`` entries are skipped).
+
+    Returns
+    -------
+    (V, 6) float64 in [0, 1].
+    """
+    n_words = len(vocabulary)
+    sums = np.zeros((n_words, 6))
+    uses = np.zeros(n_words)
+    for sentence in sentences:
+        if sentence is None:
+            continue
+        tokens = vocabulary.tokenize(sentence)
+        for i, token in enumerate(tokens):
+            k = vocabulary.index(token)
+            if k is None:
+                continue
+            prev = tokens[i - 1] if i >= 1 else ""
+            prev2 = tokens[i - 2] if i >= 2 else ""
+            after = tokens[i + 1] if i + 1 < len(tokens) else ""
+            det = prev in DETERMINERS or _possessive(prev)
+            before_det = prev2 if det else prev
+            frame = (before_det in COPULAS or (det and prev2 == "") or after in AFTER_NAME
+                     or after == "")
+            prep = before_det in PREPOSITIONS
+            pron = prev in PRONOUNS
+            alone = len(tokens) == 1 or (len(tokens) == 2 and i == 1 and det)
+            sums[k] += (det, frame and not prep, prep, pron, i == 0 or (i == 1 and det), alone)
+            uses[k] += 1
+    return sums / np.maximum(uses, 1.0)[:, None]
+
+
+def lexical_features(words: Sequence[str], lexicon: object | None = None) -> np.ndarray:
+    """What each word is, from WordNet: (V, 4) = known (1: WordNet knows the word or, for a term,
+    its head word), share of noun senses, share of noun senses that are places, function word
+    (one of spco's English function-word lists). Unknown words: (0, 0.5, 0, function word).
+
+    ``lexicon``: a :class:`spco.data.lexicon.Lexicon` (default: :func:`spco.data.lexicon.lexicon`,
+    which may be None: then every word is unknown to it)."""
+    if lexicon is None:
+        from spco.data.lexicon import lexicon as load
+
+        lexicon = load()
+    out = np.zeros((len(words), 4))
+    out[:, 1] = 0.5
+    for k, word in enumerate(words):
+        parts = word.split()
+        out[k, 3] = float(len(parts) == 1 and (word in DETERMINERS or word in PREPOSITIONS
+                                               or word in COPULAS or word in PRONOUNS))
+        if lexicon is None or out[k, 3]:
+            continue
+        for candidate in (word, parts[-1]) if len(parts) > 1 else (word,):
+            if candidate.endswith("'s") or not lexicon.knows(candidate):  # type: ignore[attr-defined]
+                continue
+            noun = lexicon.noun_share(candidate)  # type: ignore[attr-defined]
+            place = lexicon.place_share(candidate)  # type: ignore[attr-defined]
+            out[k] = (1.0, noun, 0.0 if np.isnan(place) else place, 0.0)
+            break
+    return out
+
+
+def feature_matrix(vocabulary: Vocabulary, sentences: Iterable[str | None],
+                   lexicon: object | None = None) -> np.ndarray:
+    """(V, len(FEATURES)): :func:`frame_features` beside :func:`lexical_features`."""
+    return np.hstack([frame_features(vocabulary, sentences), lexical_features(vocabulary.words, lexicon)])
+
+
+def name_prior(vocabulary: Vocabulary, sentences: Iterable[str | None], lexicon: object | None = None,
+               weights: Sequence[float] = WEIGHTS) -> np.ndarray:
+    """P(name | how the word is said and what it is) for every vocabulary word: (V,) in (0, 1).
+
+    Parameters
+    ----------
+    vocabulary, sentences: as :func:`frame_features`.
+    lexicon: as :func:`lexical_features`.
+    weights: intercept, then one weight per feature of :data:`FEATURES`.
+    """
+    features = feature_matrix(vocabulary, sentences, lexicon)
+    w = np.asarray(weights, dtype=np.float64)
+    if w.shape != (features.shape[1] + 1,):
+        raise ValueError(f"expected {features.shape[1] + 1} weights, got {w.shape}")
+    return 1.0 / (1.0 + np.exp(-(w[0] + features @ w[1:])))
+
+
+def within_concepts(weighted: np.ndarray, prior: np.ndarray) -> np.ndarray:
+    """Reorder each concept's words by the name prior without moving weight between concepts.
+
+    ``weighted`` (L, V) ≥ 0: each concept's word scores (θ^w_{e,l,w} · I(w) in prediction);
+    ``prior`` (V,): :func:`name_prior`. Row l becomes ``weighted[l] · prior`` rescaled to the sum
+    of ``weighted[l]``: the words of one place compete by how name-like they are ("dining room"
+    before "table" at the dining area), while the places keep the weight the model gives them, so
+    a place whose only name is weak evidence ("dining", an act in WordNet) is still named where
+    its views are. Rows of zeros stay zeros. Returns (L, V) float64.
+    """
+    weighted = np.asarray(weighted, dtype=np.float64)
+    scaled = weighted * np.asarray(prior, dtype=np.float64)[None, :]
+    total, new_total = weighted.sum(axis=1, keepdims=True), scaled.sum(axis=1, keepdims=True)
+    return np.divide(scaled * total, new_total, out=np.zeros_like(scaled), where=new_total > 0)
