@@ -8,7 +8,8 @@ wordnet-base``). Nothing is downloaded. Debian's package lacks the ``lexnames`` 
 opens (the table of WordNet's 45 lexicographer files, fixed by the format, lexnames(5WN)), so the
 reader is given a private folder (under ``~/.cache/spco``, or ``SPCO_CACHE_DIR``) holding copies of
 the package's files (NLTK reads no linked file) and that table. ``SPCO_WORDNET`` names another
-folder of WordNet database files; ``SPCO_WORDNET=off`` turns the lexicon off (spco then works as without it: see docs/model.md).
+folder of WordNet database files; ``SPCO_WORDNET=off`` turns the lexicon off (spco then works as
+without it: see docs/model.md).
 
 Without the lexicon (:func:`lexicon` returns ``None``) every function of spco that uses it falls
 back to what the data alone say: the naming rule weighs words by their place in the sentences only,
@@ -27,6 +28,7 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import itertools
 import os
 import shutil
 import threading
@@ -100,7 +102,8 @@ def _reader_folder(source: Path) -> Path:
             os.replace(tmp, target)
     lexnames = folder / "lexnames"
     if not lexnames.exists():
-        text = "".join(f"{i:02d}\t{name}\t{_CATEGORY[name.split('.')[0]]}\n" for i, name in enumerate(_LEXNAMES))
+        text = "".join(f"{i:02d}\t{name}\t{_CATEGORY[name.split('.')[0]]}\n"
+                       for i, name in enumerate(_LEXNAMES))
         tmp = folder / f".lexnames.{os.getpid()}"
         tmp.write_text(text, encoding="ascii")
         os.replace(tmp, lexnames)
@@ -247,7 +250,7 @@ class Lexicon:
         """Words and adjacent word pairs of a definition, lower case, in order."""
         words = [w.strip(".,;:()'\"").lower() for w in definition.split()]
         words = [w for w in words if w]
-        return [*(" ".join(p) for p in zip(words, words[1:], strict=False)), *words]
+        return [*(" ".join(p) for p in itertools.pairwise(words)), *words]
 
 
 @functools.lru_cache(maxsize=1)
