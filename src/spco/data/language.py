@@ -41,6 +41,10 @@ list of names (:func:`learn_terms`): two adjacent atoms ``a b`` become the term 
    sentences ("this", "is", "the" in "this is the kitchen"). Names are specific to a place, so none
    is in half of all sentences.
 
+:meth:`Vocabulary.from_sentences` counts each distinct sentence once: a sentence said again word for
+word is one use of its word pairs, so a phrase of one sentence repeated many times ("crash pad bro")
+does not become a term.
+
 A second pass over the sentences with the learnt pairs joined finds longer terms ("walk in closet").
 The rule also joins set phrases that are not names ("this is", "welcome to" when people say them in
 fewer than half of the sentences): they are tokens like any other, spread over all places, and the
@@ -331,7 +335,10 @@ class Vocabulary:
         ``"living room"`` said often enough is one token; without, the tokens are the atoms.
         """
         texts = [s for s in sentences if s]
-        base = cls(tuple(learn_terms(texts))) if learn else cls(())
+        # terms from the distinct sentences: a sentence said again word for word is one use of its
+        # word pairs, not many ("crash pad bro" said 60 times is no term; "living room" in many
+        # different sentences is)
+        base = cls(tuple(learn_terms(dict.fromkeys(texts)))) if learn else cls(())
         seen: dict[str, None] = {}
         for sentence in texts:
             for word in base.tokenize(sentence):

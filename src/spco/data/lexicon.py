@@ -33,7 +33,7 @@ import os
 import shutil
 import threading
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 __all__ = ["PLACE_ROOTS", "Lexicon", "LexiconMatch", "lexicon", "lexicon_unavailable_reason"]
@@ -116,7 +116,8 @@ class LexiconMatch:
 
     name: the known name; score: its similarity in (0, 1] (1: a synonym); how: ``"synonym"``,
     ``"head"`` (same head noun: "kitchen nook" -> "kitchen"), ``"gloss"`` (the known name is in the
-    asked name's definition) or ``"similarity"`` (WordNet's Wu–Palmer similarity of the nouns)."""
+    asked name's definition), ``"definition"`` (the asked name's word is in the known name's
+    definition) or ``"similarity"`` (WordNet's Wu–Palmer similarity of the nouns)."""
 
     name: str
     score: float
@@ -193,57 +194,137 @@ class Lexicon:
         return place / total if total else float("nan")
 
     # ------------------------------------------------------------------ unheard names
+    def _variants(self, words: list[str]) -> list:
+        """Noun senses of a name written with spaces, joined ("guest room" -> "guestroom") or
+        hyphenated."""
+        for text in (" ".join(words), "".join(words), "-".join(words)):
+            senses = self.synsets(text, pos="n")
+            if senses:
+                return senses
+        return []
+
+    def _by_senses(self, senses: list, known: dict[str, str]) -> LexiconMatch | None:
+        """A known name that is a synonym of one of ``senses`` or is in their definitions (or in
+        their hypernyms' definitions)."""
+        for synset in senses:
+            for lemma in synset.lemmas():
+                text = lemma.name().replace("_", " ").lower()
+                if text in known:
+                    return LexiconMatch(known[text], 1.0, "synonym")
+        for synset in senses[:1]:  # the commonest sense, then its hypernyms
+            for depth, layer in enumerate(([synset], synset.hypernyms())):
+                for gloss in layer:
+                    for token in self._gloss_terms(gloss.definition()):
+                        if token in known:
+                            return LexiconMatch(known[token], 0.9 - 0.1 * depth, "gloss")
+        return None
+
+    def _base_forms(self, word: str) -> set[str]:
+        """The word and its WordNet base forms as a noun and a verb ("sitting" -> "sit")."""
+        forms = {word}
+        with self._lock:
+            for pos in ("n", "v"):
+                base = self._wn.morphy(word, pos)
+                if base:
+                    forms.add(base)
+        return forms
+
+    def _defined_by(self, words: str, known: dict[str, str]) -> LexiconMatch | None:
+        """The known name whose commonest sense's definition holds one of ``words`` (in a base
+        form), if exactly one does."""
+        wanted = {f for w in words.split() for f in self._base_forms(w)}
+        hits = []
+        for text, original in known.items():
+            senses = self.synsets(text, pos="n")[:1]
+            if not senses:
+                continue
+            terms = {f for t in self._gloss_terms(senses[0].definition()) if " " not in t
+                     for f in self._base_forms(t)}
+            if terms & wanted:
+                hits.append(original)
+        return LexiconMatch(hits[0], 0.7, "definition") if len(hits) == 1 else None
+
+    def _general(self, word: str, known: dict[str, str]) -> bool:
+        """Whether a head word is more general than the known names ("room", "area": a hypernym of
+        one of their noun senses), so that the word before it says which place is meant."""
+        heads = set(self.synsets(word, pos="n")[:3])
+        if not heads:
+            return True
+        for text in known:
+            for synset in self.synsets(text, pos="n")[:2]:
+                with self._lock:
+                    ancestors = set(synset.closure(lambda s: s.hypernyms()))
+                if heads & ancestors:
+                    return True
+        return False
+
     def closest(self, name: str, known: list[str]) -> LexiconMatch | None:
         """The known name that stands for ``name`` (a name nobody said), or None.
 
-        In order: a known name that is a synonym of ``name`` (shares a noun synset); a known name
-        in a definition (gloss) of ``name``'s noun senses or of their hypernyms (a "powder room" is
-        "a toilet that …"); ``name``'s head noun (its last word) or, for a head such as "room" or
-        "area", its first word, if known ("kitchen nook" -> "kitchen"); else the known name of
-        highest Wu–Palmer similarity between their noun senses (≥ 0.5). Known names are
-        vocabulary tokens (lower case, words separated by spaces)."""
+        In order: a known name that is a synonym of ``name`` (shares a noun synset; "privy" ->
+        "toilet"), or is in a definition of ``name``'s senses or of their hypernyms ("powder room":
+        "a toilet that is available to the public"); for a name of several words, the words before
+        a general head ("room", "area", "corner": a hypernym of known names) or the head itself,
+        when known or found so ("kitchen nook" -> "kitchen", "tub room" -> "tub" -> "bath"); else
+        the known name of highest Wu–Palmer similarity between noun senses (≥ 0.5) of the name or
+        its words. ``known``: candidate names (vocabulary tokens, lower case, words separated by
+        spaces), most name-like first."""
         words = name.lower().split()
         if not words or not known:
             return None
         known_set = {k.lower(): k for k in known}
         if name.lower() in known_set:
             return LexiconMatch(known_set[name.lower()], 1.0, "synonym")
-        senses = self.synsets(name, pos="n")
-        # 1. synonyms: a lemma of one of the name's senses is a known name
-        for synset in senses:
-            for lemma in synset.lemmas():
-                text = lemma.name().replace("_", " ").lower()
-                if text in known_set:
-                    return LexiconMatch(known_set[text], 1.0, "synonym")
-        # 2. glosses: a known name in the definition of a sense or of its hypernyms
-        for depth, group in enumerate(self._gloss_layers(senses)):
-            for synset in group:
-                for token in self._gloss_terms(synset.definition()):
-                    if token in known_set:
-                        return LexiconMatch(known_set[token], 0.9 - 0.1 * depth, "gloss")
-        # 3. the head word, or the modifier of a general head ("nook", "area", "corner")
+        senses = self._variants(words)
+        found = self._by_senses(senses, known_set)
+        if found is not None:
+            return found
+        parts: list[str] = []
         if len(words) > 1:
-            head, first = words[-1], " ".join(words[:-1])
-            if head in known_set:
-                return LexiconMatch(known_set[head], 0.8, "head")
-            if first in known_set:
-                return LexiconMatch(known_set[first], 0.75, "head")
-            senses = senses or self.synsets(head, pos="n")
-        # 4. similarity of the nouns
-        best: LexiconMatch | None = None
-        for text, original in known_set.items():
-            for synset in senses[:4]:
-                for other in self.synsets(text, pos="n")[:4]:
-                    with self._lock:
-                        score = synset.wup_similarity(other) or 0.0
-                    if score >= 0.5 and (best is None or score > best.score):
-                        best = LexiconMatch(original, float(score), "similarity")
-        return best
-
-    @staticmethod
-    def _gloss_layers(senses: list) -> list[list]:
-        """The senses, then their hypernyms (two layers of definitions to read)."""
-        return [senses, [h for s in senses for h in s.hypernyms()]]
+            head, modifier = words[-1], " ".join(words[:-1])
+            general = self._general(head, known_set)
+            parts = [modifier] if general else [head, modifier]
+            for part in parts:
+                if part in known_set:
+                    return LexiconMatch(known_set[part], 0.8, "head")
+            for part in parts:
+                found = self._by_senses(self._variants(part.split()), known_set)
+                if found is not None:
+                    return replace(found, score=found.score * 0.8, how=f"head {found.how}")
+            for part in parts:  # a known name defined by the word: "sleeping quarters" -> bedroom,
+                found = self._defined_by(part, known_set)  # "a room used primarily for sleeping"
+                if found is not None:
+                    return found
+        # similarity of the nouns (the name's, else its words')
+        groups = [g for g in ([senses] if senses else [self._variants(p.split()) for p in parts]) if g]
+        firsts = {text: self.synsets(text, pos="n")[:1] for text in known_set}
+        firsts = {text: f[0] for text, f in firsts.items() if f}
+        if not groups or not firsts:
+            return None
+        # Wu–Palmer similarity of the commonest senses; among near ties (rooms are all siblings
+        # under "room"), the known name whose definition shares most words with the asked name's
+        # definitions (Lesk), words common to many known names' definitions left out
+        scores: dict[str, float] = {}
+        for text, other in firsts.items():
+            with self._lock:
+                scores[text] = max(g[0].wup_similarity(other) or 0.0 for g in groups)
+        top = max(scores.values())
+        if top < 0.5:
+            return None
+        near = [t for t, v in scores.items() if v >= top - 0.05]
+        if len(near) > 1:
+            glosses = {t: set(self._gloss_terms(firsts[t].definition())) for t in firsts}
+            frequency: dict[str, int] = {}
+            for terms in glosses.values():
+                for term in terms:
+                    frequency[term] = frequency.get(term, 0) + 1
+            common = {t for t, c in frequency.items() if c > max(2, len(glosses) // 5)}
+            asked = {w for g in groups for synset in g[:2] for w in self._gloss_terms(synset.definition())}
+            asked |= {w for g in groups for synset in g[:2] for lemma in synset.lemmas()
+                      for w in lemma.name().lower().split("_")}
+            overlap = {t: len((glosses[t] & asked) - common) for t in near}
+            near.sort(key=lambda t: (-overlap[t], -scores[t]))
+        return LexiconMatch(known_set[near[0]], float(scores[near[0]]), "similarity")
 
     @staticmethod
     def _gloss_terms(definition: str) -> list[str]:
