@@ -325,8 +325,10 @@ def where(home_file: Path, name: str, n: int, seed: int, as_json: bool) -> None:
     """Positions (x, y, θ) to go to for the place NAME in the home of HOME.
 
     Draws N poses from the region most probable for NAME; each pose's probability is its share of
-    the density p(pose | NAME) among the N poses. A name the robot never heard is answered with
-    the names it knows (exit status 2).
+    the density p(pose | NAME) among the N poses. A name the robot never heard is looked up in
+    WordNet (with spco[words] and Debian's wordnet-base) and answered for the known name it stands
+    for ("restroom -> toilet"); if none is found, it is answered with the names the robot knows
+    (exit status 2).
     """
     from spco.knowledge import load_home_model
     from spco.knowledge import where as where_name
@@ -338,7 +340,8 @@ def where(home_file: Path, name: str, n: int, seed: int, as_json: bool) -> None:
     positions = [{"x": float(pred.samples[i, 0]), "y": float(pred.samples[i, 1]),
                   "theta": float(pred.samples[i, 2]), "probability": float(pred.weights[i])} for i in order]
     if as_json:
-        click.echo(json.dumps({"home": home.name, "name": pred.name, "region": int(pred.region),
+        click.echo(json.dumps({"home": home.name, "name": pred.name, "asked": pred.asked or pred.name,
+                               "via": pred.via, "region": int(pred.region),
                                "region_probability": float(pred.region_probabilities[pred.region]),
                                "learnt": bool(pred.learnt), "support": float(pred.support),
                                "positions": positions}, indent=1))
@@ -347,6 +350,8 @@ def where(home_file: Path, name: str, n: int, seed: int, as_json: bool) -> None:
         click.echo(f"warning: no such place learnt in this home: only {pred.support:.0%} of the probability "
                    f"of {pred.name!r} comes from concepts holding its samples; the poses below are a guess",
                    err=True)
+    if pred.asked is not None:  # a name nobody said, found through the lexicon
+        click.echo(f"{pred.asked} -> {pred.name} (never said in this home; {pred.via} in WordNet)")
     click.echo(f"{pred.name} in home {home.name}: region {pred.region} of the home's map, "
                f"p(region | {pred.name}) = {pred.region_probabilities[pred.region]:.2f} (the most probable "
                f"region; the rest is spread over others)")

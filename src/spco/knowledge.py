@@ -100,6 +100,7 @@ from spco.locking import locked
 from spco.model import gibbs
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.io import _checksum, write_npz_atomic
+from spco.model.name_evidence import extend_prior, name_prior
 from spco.model.observations import HierarchicalMultinomial
 from spco.model.parameters import ConceptParameters
 from spco.model.posterior import ParameterAverage, thinned_sweeps
@@ -322,6 +323,9 @@ class Knowledge:
     extractor: the image extractor the visual counts come from
         (:meth:`spco.features.ExtractorSpec.to_dict`), or ``None`` if fitted on count vectors.
     extractor_arrays: its weights (e.g. ``{"codebook": (W, d)}``), stored in the file.
+    name_prior: (V,) P(name | how each word was said and what it is)
+        (:func:`spco.model.name_evidence.name_prior`, from the experienced homes' sentences), or
+        ``None`` (models without the naming rule, files written before it existed).
     """
 
     log_phi_visual: np.ndarray
@@ -339,6 +343,7 @@ class Knowledge:
     provenance: dict[str, Any] = field(default_factory=dict)
     extractor: dict[str, Any] | None = None
     extractor_arrays: dict[str, np.ndarray] = field(default_factory=dict)
+    name_prior: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         L = self.log_g0.shape[0] if np.ndim(self.log_g0) == 1 else -1
@@ -455,6 +460,8 @@ class Knowledge:
         }
         for name, value in self.extractor_arrays.items():
             arrays["extractor." + name] = np.asarray(value)
+        if self.name_prior is not None:
+            arrays["name_prior"] = np.asarray(self.name_prior, dtype=np.float64)
         header = {
             "format": KNOWLEDGE_FORMAT,
             "format_version": FORMAT_VERSION,
@@ -506,6 +513,7 @@ class Knowledge:
                 extractor=_extractor_of(header),
                 extractor_arrays={name[len(prefix) + len("extractor."):]: a for name, a in arrays.items()
                                   if name.startswith(prefix + "extractor.")},
+                name_prior=arrays.get(prefix + "name_prior"),
             )
         except (ConfigurationError, TypeError, ValueError, IndexError) as exc:
             raise ModelFileError(file, f"inconsistent file: {exc}") from exc
@@ -535,6 +543,16 @@ def _extractor_of(header: Mapping[str, Any]) -> dict[str, Any] | None:
 
     value = header.get("extractor")
     return None if value is None else ExtractorSpec.from_dict(value).to_dict()
+
+
+def _fitted_name_prior(corpus: Any, naming_rule: bool) -> np.ndarray | None:
+    """The name prior of the experienced homes' words (:mod:`spco.model.name_evidence`), for the
+    naming rule's models; None otherwise."""
+    if not naming_rule:
+        return None
+    if isinstance(corpus, Corpus):
+        return name_prior(corpus.vocabulary, [s for t in corpus.training_set() for s in t.sentences])
+    return getattr(corpus, "name_prior", None)  # FolderHomes: computed when its sentences were read
 
 
 def load_knowledge(path: str | PathLike[str]) -> Knowledge:
@@ -766,6 +784,7 @@ def fit_knowledge(
         concentration_visual=_concentration(phi_v_samples, hyper.delta_visual),
         concentration_words=(_concentration(np.exp(stack_w), hyper.delta_word) if has_words
                              else np.full(hyper.n_concepts, np.nan)),
+        name_prior=_fitted_name_prior(corpus, prune and variant == "exact"),
         concentration_g0=float(conc_g), vocabulary=corpus.vocabulary, word_increment=corpus.word_increment,
         hyperparameters=hyper, variant=variant, prune_words=prune, provenance=record,
         extractor=None if extractor is None else extractor.spec().to_dict(),
@@ -1005,9 +1024,9 @@ class HomeModel:
     def parameters(self) -> ConceptParameters:
         """The home's parameters (one home, metres), as prediction uses them: the posterior
         average of the last sweeps (``posterior``), or the state's draw if there is none."""
-        if self.posterior is not None:
-            return self.posterior
-        return export_parameters(self.state, self.data)
+        params = self.posterior if self.posterior is not None else export_parameters(self.state, self.data)
+        prior = extend_prior(self.knowledge.name_prior, self.vocabulary, self.sentences)
+        return params if prior is None else replace(params, name_prior=prior)
 
     @property
     def known_names(self) -> list[str]:
@@ -1787,8 +1806,15 @@ def where(home: HomeModel, name: str, n: int = 10,
     ``name`` is read like a sentence (``"Living Room"``, ``"living-room"`` → ``living room``); a name
     never learnt as one term is its known words said together (``study + room``). ``learnt`` is
     False (and ``support`` low) when no such place was learnt in this home: the name is neither
-    taught in the home nor carried by concepts holding its samples.
+    taught in the home nor carried by concepts holding its samples. A name nobody said
+    ("restroom") is first looked up in the lexicon (:func:`spco.unheard.resolve_name`): the answer
+    is then for the known name it found (``name``: "toilet"; ``asked``: "restroom"; ``via``: how).
     """
+    from spco.unheard import resolve_name
+
+    resolved = resolve_name(home.vocabulary, home.state.word_mask, name, home.parameters.name_prior)
+    if resolved is not None:  # a name nobody said: the known name the lexicon finds for it
+        return replace(_where(home, resolved.name, n, random_state), asked=resolved.asked, via=resolved.how)
     try:
         return _where(home, name, n, random_state)
     except UnknownNameError:

@@ -43,7 +43,7 @@ factor is taken.
 from __future__ import annotations
 
 import difflib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Literal
 
 import numpy as np
@@ -55,6 +55,7 @@ from spco.errors import ConfigurationError, SpcoError
 from spco.model.name_evidence import within_concepts
 from spco.model.parameters import ConceptParameters
 from spco.model.pruning import bernoulli_kl_scores, word_concept_mutual_information
+from spco.unheard import resolve_name
 
 __all__ = [
     "LEARNT_SUPPORT",
@@ -173,6 +174,9 @@ class PositionPrediction:
         counts.
     learnt: ``support >= LEARNT_SUPPORT``; False means "no such place learnt in this home": the
         region and samples are then the best the model can say, but not knowledge of this home.
+    asked: the name asked for when nobody said it and the lexicon found the known name ``name``
+        for it (:func:`spco.unheard.resolve_name`: "restroom" asked, "toilet" used); else None.
+    via: how the lexicon related them (``"synonym"``, ``"gloss"``, …), or None.
     """
 
     name: str
@@ -186,6 +190,8 @@ class PositionPrediction:
     xy_only: bool
     support: float = 1.0
     learnt: bool = True
+    asked: str | None = None
+    via: str | None = None
 
     @property
     def xy(self) -> np.ndarray:
@@ -733,6 +739,7 @@ def predict_positions(
     rng: np.random.Generator | int | None = None,
     mode: PositionMode = "argmax",
     xy_only: bool = False,
+    unheard: bool = True,
 ) -> PositionPrediction:
     """Sample ``n`` poses where the place ``name`` is, in home ``e``.
 
@@ -742,6 +749,9 @@ def predict_positions(
         ``"mixture"`` — draw each sample's region from p(m | w) first.
     xy_only: draw from the x–y marginal only (the authors' code); θ is then NaN.
     rng: a Generator (advanced by the draws) or a seed.
+    unheard: a name that is not a usable token is first looked up in the lexicon
+        (:func:`spco.unheard.resolve_name`; ``asked`` and ``via`` of the result say so); False:
+        only the name's own known tokens are used.
 
     Returns a :class:`PositionPrediction` with samples (n, 3) = (x, y, θ) (``poses``: the same
     as (x, y, sin θ, cos θ)), the name's ``support`` in the home and ``learnt`` (see the module
@@ -752,6 +762,10 @@ def predict_positions(
     if mode not in ("argmax", "mixture"):
         raise ConfigurationError(f"mode must be 'argmax' or 'mixture', got {mode!r}")
     e = _check_home(params, e)
+    resolved = resolve_name(vocabulary, params.word_mask, name, params.name_prior) if unheard else None
+    if resolved is not None:  # a name nobody said: the known name the lexicon finds for it
+        pred = predict_positions(params, e, vocabulary, resolved.name, n, rng, mode, xy_only, unheard=False)
+        return replace(pred, asked=resolved.asked, via=resolved.how)
     probs = region_posterior_for_name(params, e, vocabulary, name)
     support = name_support(params, e, vocabulary, name)
     best = int(np.argmax(probs))

@@ -36,7 +36,7 @@ import warnings
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-__all__ = ["PLACE_ROOTS", "Lexicon", "LexiconMatch", "lexicon", "lexicon_unavailable_reason"]
+__all__ = ["MIN_SIMILARITY", "PLACE_ROOTS", "Lexicon", "LexiconMatch", "lexicon", "lexicon_unavailable_reason"]
 
 #: Where Debian's wordnet-base puts the database files.
 DEBIAN_WORDNET = Path("/usr/share/wordnet")
@@ -44,6 +44,15 @@ DEBIAN_WORDNET = Path("/usr/share/wordnet")
 #: The WordNet noun concepts that places in a home fall under (see the module docstring).
 PLACE_ROOTS = ("room.n.01", "area.n.05", "building.n.01", "structure.n.01", "location.n.01",
                "housing.n.01", "way.n.06")
+
+#: Least Wu–Palmer similarity for a known name to stand for an asked one: kinds of room are about
+#: 0.85–0.9 apart (siblings under "room"), a room and a garage (an outbuilding) about 0.6.
+MIN_SIMILARITY = 0.8
+
+#: Prepositions of location: a known name after one of them in a definition is where the defined
+#: place is, not what it is.
+_LOCATIVE = frozenset({"off", "near", "in", "inside", "next", "beside", "behind", "at", "on", "from",
+                       "into", "outside", "adjacent", "beyond", "opposite"})
 
 #: WordNet 3.0's lexicographer files by number (lexnames(5WN)); written as the ``lexnames`` file
 #: NLTK's reader needs and Debian's package does not ship.
@@ -196,11 +205,15 @@ class Lexicon:
     # ------------------------------------------------------------------ unheard names
     def _variants(self, words: list[str]) -> list:
         """Noun senses of a name written with spaces, joined ("guest room" -> "guestroom") or
-        hyphenated."""
+        hyphenated; its place senses first (``where`` asks for a place: "lounge" the room before
+        "lounge" the sofa), each group in WordNet's order (commonest first)."""
         for text in (" ".join(words), "".join(words), "-".join(words)):
             senses = self.synsets(text, pos="n")
             if senses:
-                return senses
+                with self._lock:
+                    places = [self._is_place_synset(synset.name()) for synset in senses]
+                return ([sy for sy, p in zip(senses, places, strict=True) if p]
+                        + [sy for sy, p in zip(senses, places, strict=True) if not p])
         return []
 
     def _by_senses(self, senses: list, known: dict[str, str]) -> LexiconMatch | None:
@@ -214,9 +227,25 @@ class Lexicon:
         for synset in senses[:1]:  # the commonest sense, then its hypernyms
             for depth, layer in enumerate(([synset], synset.hypernyms())):
                 for gloss in layer:
-                    for token in self._gloss_terms(gloss.definition()):
+                    for token in self._gloss_terms(gloss.definition(), skip_located=True):
                         if token in known:
                             return LexiconMatch(known[token], 0.9 - 0.1 * depth, "gloss")
+        return None
+
+    def _derived(self, words: str, known: dict[str, str]) -> LexiconMatch | None:
+        """A known name derived from the word (WordNet's derivational links: "bathing" -> "bathe"
+        -> "bath")."""
+        for word in words.split():
+            for base in sorted(self._base_forms(word)):
+                for pos in ("v", "n"):
+                    for synset in self.synsets(base, pos=pos)[:3]:
+                        for lemma in synset.lemmas():
+                            if lemma.name().lower() != base:
+                                continue
+                            for related in lemma.derivationally_related_forms():
+                                text = related.name().replace("_", " ").lower()
+                                if text in known:
+                                    return LexiconMatch(known[text], 0.7, "derivation")
         return None
 
     def _base_forms(self, word: str) -> set[str]:
@@ -266,8 +295,8 @@ class Lexicon:
         "a toilet that is available to the public"); for a name of several words, the words before
         a general head ("room", "area", "corner": a hypernym of known names) or the head itself,
         when known or found so ("kitchen nook" -> "kitchen", "tub room" -> "tub" -> "bath"); else
-        the known name of highest Wu–Palmer similarity between noun senses (≥ 0.5) of the name or
-        its words. ``known``: candidate names (vocabulary tokens, lower case, words separated by
+        the known name of highest Wu–Palmer similarity between noun senses (≥ :data:`MIN_SIMILARITY`)
+        of the name or its words (near ties broken by shared definition words). ``known``: candidate names (vocabulary tokens, lower case, words separated by
         spaces), most name-like first."""
         words = name.lower().split()
         if not words or not known:
@@ -295,6 +324,10 @@ class Lexicon:
                 found = self._defined_by(part, known_set)  # "a room used primarily for sleeping"
                 if found is not None:
                     return found
+            for part in parts:
+                found = self._derived(part, known_set)
+                if found is not None:
+                    return found
         # similarity of the nouns (the name's, else its words')
         groups = [g for g in ([senses] if senses else [self._variants(p.split()) for p in parts]) if g]
         firsts = {text: self.synsets(text, pos="n")[:1] for text in known_set}
@@ -309,7 +342,7 @@ class Lexicon:
             with self._lock:
                 scores[text] = max(g[0].wup_similarity(other) or 0.0 for g in groups)
         top = max(scores.values())
-        if top < 0.5:
+        if top < MIN_SIMILARITY:
             return None
         near = [t for t, v in scores.items() if v >= top - 0.05]
         if len(near) > 1:
@@ -327,10 +360,23 @@ class Lexicon:
         return LexiconMatch(known_set[near[0]], float(scores[near[0]]), "similarity")
 
     @staticmethod
-    def _gloss_terms(definition: str) -> list[str]:
-        """Words and adjacent word pairs of a definition, lower case, in order."""
+    def _gloss_terms(definition: str, skip_located: bool = False) -> list[str]:
+        """Adjacent word pairs, then words of a definition, lower case, in order. ``skip_located``:
+        leave out words in a phrase of location ("a small area off of *a kitchen*": the dinette is
+        beside the kitchen, not the kitchen), i.e. after one of :data:`_LOCATIVE` and any
+        articles."""
         words = [w.strip(".,;:()'\"").lower() for w in definition.split()]
         words = [w for w in words if w]
+        if skip_located:
+            kept, located = [], False
+            for w in words:
+                if w in _LOCATIVE:
+                    located = True
+                elif located:
+                    located = w in ("a", "an", "the", "of")  # the noun located ends the phrase
+                    continue
+                kept.append(w)
+            words = kept
         return [*(" ".join(p) for p in itertools.pairwise(words)), *words]
 
 

@@ -197,3 +197,18 @@ def within_concepts(weighted: np.ndarray, prior: np.ndarray) -> np.ndarray:
     scaled = weighted * np.asarray(prior, dtype=np.float64)[None, :]
     total, new_total = weighted.sum(axis=1, keepdims=True), scaled.sum(axis=1, keepdims=True)
     return np.divide(scaled * total, new_total, out=np.zeros_like(scaled), where=new_total > 0)
+
+
+def extend_prior(prior: np.ndarray | None, vocabulary: Vocabulary,
+                 sentences: Iterable[str | None]) -> np.ndarray | None:
+    """A name prior for a vocabulary that extends the one ``prior`` was computed for (a home's new
+    words after the knowledge's): the known words keep theirs, the new ones get
+    :func:`name_prior` from ``sentences`` (the home's). ``None`` stays ``None`` (knowledge without a
+    prior: every word alike). Returns (len(vocabulary),)."""
+    if prior is None:
+        return None
+    prior = np.asarray(prior, dtype=np.float64)
+    n_known = prior.size
+    if n_known >= len(vocabulary):
+        return prior[: len(vocabulary)]
+    return np.concatenate([prior, name_prior(vocabulary, sentences)[n_known:]])

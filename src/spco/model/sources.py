@@ -243,6 +243,7 @@ class FolderHomes(RangeSource):
     n_taught: int
     n_features: int
     position_scale: float = 1.0
+    name_prior: np.ndarray | None = None  # (V,) spco.model.name_evidence.name_prior of the sentences
 
     @classmethod
     def create(cls, path, names=None, teaching_rate: int = 100, position_scale: float = 1.0,
@@ -278,9 +279,12 @@ class FolderHomes(RangeSource):
             if len(dims) > 1:
                 raise DataFormatError(folder, f"views of {env.n_features} features, the homes before it "
                                       f"have {min(dims - {env.n_features})}")
-        return cls([str(f) for f in folders], home_names, int(teaching_rate),
-                   Vocabulary.from_sentences(sentences), DEFAULT_WORD_INCREMENT,
-                   np.array(sizes, dtype=np.int64), taught, dims.pop(), float(position_scale))
+        from spco.model.name_evidence import name_prior
+
+        vocabulary = Vocabulary.from_sentences(sentences)
+        return cls([str(f) for f in folders], home_names, int(teaching_rate), vocabulary,
+                   DEFAULT_WORD_INCREMENT, np.array(sizes, dtype=np.int64), taught, dims.pop(),
+                   float(position_scale), name_prior(vocabulary, sentences))
 
     @property
     def n_homes(self) -> int:  # type: ignore[override]

@@ -1,0 +1,80 @@
+"""Names never heard: ``where`` with a name no home said finds the learnt place through WordNet.
+
+A user may ask for "the restroom", "the lounge" or "the powder room" in a home whose people said
+"toilet", "living room" and "loo". When the name asked for is not a usable vocabulary token,
+:func:`resolve_name` looks for the known name it stands for with the lexicon
+(:meth:`spco.data.lexicon.Lexicon.closest`: WordNet synonyms, definitions, head words, similarity)
+among the home's usable words that are names (name prior ≥ :data:`MIN_CANDIDATE_PRIOR` when the
+model has a prior, :mod:`spco.model.name_evidence`), and ``where`` answers for that name, saying
+which one it used ("restroom -> toilet": :attr:`spco.prediction.PositionPrediction.asked`).
+
+Without the lexicon (no NLTK or no WordNet database, see :mod:`spco.data.lexicon`), nothing is
+resolved: a name nobody said is an unknown name, or its known words said together, as before.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from spco.data.language import Vocabulary, normalize_name
+
+__all__ = ["MIN_CANDIDATE_PRIOR", "ResolvedName", "resolve_name"]
+
+#: Known words below this name prior are not candidates for a name nobody said (objects, verbs,
+#: function words: "sink", "sleep", "my").
+MIN_CANDIDATE_PRIOR = 0.2
+
+
+@dataclass(frozen=True)
+class ResolvedName:
+    """A name nobody said, and the known name used for it.
+
+    asked: the name asked for (normalised); name: the known vocabulary token used; how: how the
+    lexicon related them (``"synonym"``, ``"gloss"``, ``"definition"``, ``"head"``, ``"head …"``,
+    ``"similarity"``); score: the lexicon's similarity in (0, 1]."""
+
+    asked: str
+    name: str
+    how: str
+    score: float
+
+
+def resolve_name(vocabulary: Vocabulary, word_mask: np.ndarray, name: str,
+                 name_prior: np.ndarray | None = None, lexicon: object | None = None) -> ResolvedName | None:
+    """The known name that ``name`` stands for, when ``name`` is not a usable token; else None.
+
+    Parameters
+    ----------
+    vocabulary: the home's vocabulary; word_mask: (V,) bool, the usable words.
+    name: the name asked for (any spelling: it is normalised like a sentence).
+    name_prior: (V,) the words' name prior, or None (every usable word is a candidate).
+    lexicon: a :class:`spco.data.lexicon.Lexicon` (default: the process's, which may be None).
+
+    Returns
+    -------
+    A :class:`ResolvedName`, or None when ``name`` is usable as it is (every token of it known and
+    usable), the lexicon is missing, or it finds no known name for ``name``.
+    """
+    mask = np.asarray(word_mask, dtype=bool)
+    asked = normalize_name(name)
+    tokens, indices = vocabulary.query(name)
+    if tokens and len(indices) == len(tokens) and all(mask[k] for k in indices):
+        return None  # said: one usable token, or usable words said together ("study + room")
+    if lexicon is None:
+        from spco.data.lexicon import lexicon as load
+
+        lexicon = load()
+        if lexicon is None:
+            return None
+    usable = np.flatnonzero(mask)
+    if name_prior is not None:
+        prior = np.asarray(name_prior, dtype=np.float64)
+        usable = usable[prior[usable] >= MIN_CANDIDATE_PRIOR]
+        usable = usable[np.argsort(-prior[usable], kind="stable")]
+    candidates = [vocabulary.words[k] for k in usable]
+    match = lexicon.closest(asked, candidates)  # type: ignore[attr-defined]
+    if match is None:
+        return None
+    return ResolvedName(asked=asked, name=match.name, how=match.how, score=float(match.score))
