@@ -87,3 +87,17 @@ def make_sigverse_home(tmp_path: Path) -> SigverseBuilder:
         return home
 
     return build
+
+
+@pytest.fixture(scope="session")
+def wordnet():
+    """The WordNet lexicon (spco[words] + Debian's wordnet-base); skipped when missing, except under
+    CI=true, where .ci/run installs both and a missing lexicon is a failure."""
+    from spco.data.lexicon import lexicon, lexicon_unavailable_reason
+
+    reason = lexicon_unavailable_reason()
+    if reason is not None:
+        if os.environ.get("CI"):
+            pytest.fail(f"the lexicon must be available under CI: {reason}")
+        pytest.skip(f"{reason}: pip install -e '.[words]' and apt-get install wordnet-base")
+    return lexicon()

@@ -54,6 +54,12 @@ MIN_SIMILARITY = 0.8
 _LOCATIVE = frozenset({"off", "near", "in", "inside", "next", "beside", "behind", "at", "on", "from",
                        "into", "outside", "adjacent", "beyond", "opposite"})
 
+#: Words of definitions that say nothing of what a place is for (with the words in many known
+#: names' definitions, left out when definitions are compared).
+_FUNCTION_WORDS = frozenset({"a", "an", "the", "or", "and", "of", "for", "in", "with", "to", "on", "at",
+                             "by", "as", "that", "which", "where", "is", "are", "be", "can", "used",
+                             "usually", "one", "more", "some", "any", "etc", "e.g", "especially"})
+
 #: WordNet 3.0's lexicographer files by number (lexnames(5WN)); written as the ``lexnames`` file
 #: NLTK's reader needs and Debian's package does not ship.
 _LEXNAMES = ("adj.all", "adj.pert", "adv.all", "noun.Tops", "noun.act", "noun.animal", "noun.artifact",
@@ -295,15 +301,19 @@ class Lexicon:
         "a toilet that is available to the public"); for a name of several words, the words before
         a general head ("room", "area", "corner": a hypernym of known names) or the head itself,
         when known or found so ("kitchen nook" -> "kitchen", "tub room" -> "tub" -> "bath"); else
-        the known name of highest Wu–Palmer similarity between noun senses (≥ :data:`MIN_SIMILARITY`)
-        of the name or its words (near ties broken by shared definition words). ``known``: candidate names (vocabulary tokens, lower case, words separated by
-        spaces), most name-like first."""
+        the known name of highest Wu–Palmer similarity between noun senses (≥
+        :data:`MIN_SIMILARITY`) of the name or its words, among near ties (kinds of room are all
+        about as similar) the one whose definition shares most words with the name's, and none
+        when they share none. ``known``: candidate names (vocabulary tokens, lower case, words
+        separated by spaces), most name-like first."""
         words = name.lower().split()
         if not words or not known:
             return None
         known_set = {k.lower(): k for k in known}
         if name.lower() in known_set:
             return LexiconMatch(known_set[name.lower()], 1.0, "synonym")
+        # only nouns can be the name of a place ("is" in a definition is no answer)
+        known_set = {k: v for k, v in known_set.items() if self.synsets(k, pos="n")}
         senses = self._variants(words)
         found = self._by_senses(senses, known_set)
         if found is not None:
@@ -345,18 +355,19 @@ class Lexicon:
         if top < MIN_SIMILARITY:
             return None
         near = [t for t, v in scores.items() if v >= top - 0.05]
-        if len(near) > 1:
-            glosses = {t: set(self._gloss_terms(firsts[t].definition())) for t in firsts}
-            frequency: dict[str, int] = {}
-            for terms in glosses.values():
-                for term in terms:
-                    frequency[term] = frequency.get(term, 0) + 1
-            common = {t for t, c in frequency.items() if c > max(2, len(glosses) // 5)}
-            asked = {w for g in groups for synset in g[:2] for w in self._gloss_terms(synset.definition())}
-            asked |= {w for g in groups for synset in g[:2] for lemma in synset.lemmas()
-                      for w in lemma.name().lower().split("_")}
-            overlap = {t: len((glosses[t] & asked) - common) for t in near}
-            near.sort(key=lambda t: (-overlap[t], -scores[t]))
+        glosses = {t: set(self._gloss_terms(firsts[t].definition())) for t in firsts}
+        frequency: dict[str, int] = {}
+        for terms in glosses.values():
+            for term in terms:
+                frequency[term] = frequency.get(term, 0) + 1
+        common = {t for t, c in frequency.items() if c > max(2, len(glosses) // 5)} | _FUNCTION_WORDS
+        asked = {w for g in groups for synset in g[:2] for w in self._gloss_terms(synset.definition())}
+        asked |= {w for g in groups for synset in g[:2] for lemma in synset.lemmas()
+                  for w in lemma.name().lower().split("_")}
+        overlap = {t: len((glosses[t] & asked) - common) for t in near}
+        near.sort(key=lambda t: (-overlap[t], -scores[t]))
+        if overlap[near[0]] == 0:  # similar kinds (all rooms), nothing in common said: no answer
+            return None
         return LexiconMatch(known_set[near[0]], float(scores[near[0]]), "similarity")
 
     @staticmethod

@@ -1,0 +1,174 @@
+"""Which words are names (:mod:`spco.model.name_evidence`) and names never heard (:mod:`spco.unheard`,
+:mod:`spco.data.lexicon`): docs/model.md, "What counts as a name" and "Names never heard"."""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from spco.data.language import Vocabulary
+from spco.data.lexicon import lexicon, lexicon_unavailable_reason
+from spco.model.name_evidence import (
+    DETERMINERS,
+    FEATURES,
+    PREPOSITIONS,
+    frame_features,
+    lexical_features,
+    name_prior,
+    within_concepts,
+)
+from spco.model.parameters import ConceptParameters
+from spco.prediction import UnknownNameError, predict_names, predict_positions
+from spco.unheard import resolve_name
+
+# ------------------------------------------------------------------------------ sentence frames
+
+
+def _frames(sentences: list[str]) -> tuple[Vocabulary, dict[str, np.ndarray]]:
+    vocab = Vocabulary.from_sentences(sentences, learn=False)
+    f = frame_features(vocab, sentences)
+    return vocab, {w: f[k] for k, w in enumerate(vocab.words)}
+
+
+def test_frames_of_hand_made_sentences() -> None:
+    _, f = _frames(["this is the kitchen", "the table is here", "we eat on the table", "i'm home",
+                    "kitchen"])
+    det, frame, prep, pron, start, alone = range(6)
+    assert f["kitchen"][det] == 0.5 and f["kitchen"][frame] == 1.0 and f["kitchen"][alone] == 0.5
+    assert f["table"][det] == 1.0 and f["table"][prep] == 0.5  # "the table is here", "on the table"
+    assert f["table"][frame] == 0.5  # "… is here" frames it, "on the table" does not
+    assert f["home"][pron] == 1.0 and f["home"][det] == 0.0  # "i'm home": a greeting
+    assert f["this"][start] == 1.0
+
+
+@given(st.lists(st.lists(st.sampled_from(["the", "my", "on", "kitchen", "table", "is", "here", "we"]),
+                         min_size=1, max_size=6), min_size=1, max_size=8))
+def test_frame_shares_match_a_brute_force_count(sentences: list[list[str]]) -> None:
+    texts = [" ".join(s) for s in sentences]
+    vocab, f = _frames(texts)
+    for word in vocab.words:
+        uses = [(s, i) for s in sentences for i, t in enumerate(s) if t == word]
+        det = np.mean([i > 0 and (s[i - 1] in DETERMINERS) for s, i in uses])
+        prep = np.mean([(i > 0 and s[i - 1] in PREPOSITIONS)
+                        or (i > 1 and s[i - 1] in DETERMINERS and s[i - 2] in PREPOSITIONS) for s, i in uses])
+        assert f[word][0] == pytest.approx(det) and f[word][2] == pytest.approx(prep)
+        assert np.all((f[word] >= 0) & (f[word] <= 1))
+
+
+@given(st.integers(1, 4), st.integers(2, 6), st.integers(0, 2**31 - 1))
+def test_reweighting_keeps_each_place_s_weight_and_orders_its_words_by_the_prior(
+        n_concepts: int, n_words: int, seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    weighted = rng.random((n_concepts, n_words)) * (rng.random((n_concepts, n_words)) > 0.3)
+    prior = rng.uniform(0.01, 0.99, n_words)
+    out = within_concepts(weighted, prior)
+    assert np.allclose(out.sum(axis=1), weighted.sum(axis=1))
+    assert np.all(out[weighted == 0] == 0)
+    for row_in, row_out in zip(weighted, out, strict=True):
+        for a, b in itertools.combinations(np.flatnonzero(row_in), 2):
+            # the ratio of two words of one place changes by the ratio of their priors, exactly
+            assert row_out[a] * row_in[b] * prior[b] == pytest.approx(row_out[b] * row_in[a] * prior[a])
+
+
+# ------------------------------------------------------------------------------ WordNet
+
+
+def test_wordnet_tells_places_from_furniture_objects_and_acts(wordnet) -> None:
+    for place in ("kitchen", "bedroom", "restroom", "living room", "foyer", "hallway"):
+        assert wordnet.place_share(place) >= 0.99, place
+    for thing in ("table", "sofa", "towel", "fridge", "dining", "sleep"):
+        assert wordnet.place_share(thing) == 0.0, thing
+    assert wordnet.noun_share("greet") == 0.0 and wordnet.noun_share("kitchen") == 1.0
+    assert np.isnan(wordnet.noun_share("genkan"))  # unknown to WordNet: neutral
+    feats = lexical_features(["kitchen", "emma's room", "the", "genkan"], wordnet)
+    assert feats[1, 2] == pytest.approx(wordnet.place_share("room"))  # a term: its head word
+    assert feats[2, 3] == 1.0 and feats[3, 0] == 0.0
+
+
+def test_the_prior_prefers_a_place_s_name_to_what_is_said_there(wordnet) -> None:
+    sentences = ["this is the dining room", "the dining room is here", "our dining room", "dining room",
+                 "we eat on the table", "the table is big", "put it on the table", "i sleep here",
+                 "hi i'm home", "the bath is to your left"]
+    vocab = Vocabulary.from_sentences(sentences)
+    prior = dict(zip(vocab.words, name_prior(vocab, sentences, wordnet), strict=True))
+    assert prior["dining room"] > 3 * max(prior["table"], prior["sleep"], prior["home"], prior["left"])
+    assert prior["dining room"] > 10 * max(prior["our"], prior["i"], prior["we"])
+    assert len(FEATURES) == 10
+
+
+def _two_place_params(theta: np.ndarray) -> ConceptParameters:
+    """One home, two concepts at two regions (x = 0 and x = 5) saying ``theta`` (2, V)."""
+    theta = np.asarray(theta, dtype=float)[None] + 1e-6
+    theta /= theta.sum(axis=2, keepdims=True)
+    return ConceptParameters(
+        concept_weights=np.array([[0.5, 0.5]]), region_weights=np.array([[[0.99, 0.01], [0.01, 0.99]]]),
+        region_means=np.array([[[0.0, 0.0, 0.0, 1.0], [5.0, 0.0, 0.0, 1.0]]]),
+        region_covariances=np.tile(np.eye(4) * 0.1, (1, 2, 1, 1)),
+        word_probabilities=theta, visual_probabilities=np.full((1, 2, 3), 1 / 3),
+        shared_word_probabilities=theta[0], shared_visual_probabilities=np.full((2, 3), 1 / 3),
+        global_concept_weights=np.array([0.5, 0.5]), word_mask=np.ones(theta.shape[2], dtype=bool),
+        region_counts=np.array([[10, 10]]), concept_counts=np.array([[10.0, 10.0]]))
+
+
+def test_a_furniture_word_said_more_often_does_not_name_the_place(wordnet) -> None:
+    # the dining area is called "dining room" in 2 sentences of 5 and "the table" is said in 3: the
+    # model's θ^w gives "table" the most at the dining area (concept 0), the kitchen (concept 1) says
+    # "kitchen"; the naming rule keeps both words (both are said at one place)
+    sentences = (["this is the dining room", "the dining room is here", "we eat at the table",
+                  "the table is here", "put it on the table", "this is the kitchen", "the kitchen is here"])
+    words = ("this", "is", "the", "dining room", "table", "here", "kitchen")
+    vocab = Vocabulary(words)
+    theta = np.array([[0.1, 0.1, 0.2, 0.2, 0.3, 0.1, 0.0],
+                      [0.1, 0.1, 0.2, 0.0, 0.0, 0.1, 0.5]])
+    params = _two_place_params(theta)
+    dining, kitchen = np.array([[0.0, 0.0, 0.0, 1.0]]), np.array([[5.0, 0.0, 0.0, 1.0]])
+    assert predict_names(params, 0, vocab, dining, None, use_vision=False).best == ["table"]  # before
+    with_prior = replace(params, name_prior=name_prior(vocab, sentences, wordnet))
+    assert predict_names(with_prior, 0, vocab, dining, None, use_vision=False).best == ["dining room"]
+    # the other place keeps its name: the evidence moves no weight between places
+    assert predict_names(with_prior, 0, vocab, kitchen, None, use_vision=False).best == ["kitchen"]
+
+
+# ------------------------------------------------------------------------------ names never heard
+
+
+def _toilet_kitchen() -> tuple[ConceptParameters, Vocabulary]:
+    """Concept 0 at x = 0 says "toilet", concept 1 at x = 5 "kitchen"."""
+    theta = np.array([[0.7, 0.3, 0.0], [0.0, 0.3, 0.7]])
+    return _two_place_params(theta), Vocabulary(("toilet", "is", "kitchen"))
+
+
+def test_where_finds_a_name_nobody_said_and_says_which_name_it_used(wordnet) -> None:
+    params, vocab = _toilet_kitchen()
+    for asked in ("restroom", "Powder Room", "loo", "lavatory"):
+        pred = predict_positions(params, 0, vocab, asked, n=5, rng=0)
+        assert (pred.asked, pred.name) == (asked.lower(), "toilet"), (asked, pred.asked, pred.name, pred.via)
+        assert pred.region == 0 and np.all(np.abs(pred.samples[:, 0]) < 2.0)
+    assert predict_positions(params, 0, vocab, "kitchenette", n=3, rng=0).name == "kitchen"
+    said = predict_positions(params, 0, vocab, "toilet", n=3, rng=0)
+    assert said.asked is None and said.via is None
+    with pytest.raises(UnknownNameError):  # a place this home has no name like: still unknown
+        predict_positions(params, 0, vocab, "garage", n=3, rng=0)
+    found = resolve_name(vocab, params.word_mask, "restroom", lexicon=wordnet)
+    assert found is not None and found.name == "toilet" and found.how in ("synonym", "gloss")
+    unusable = resolve_name(vocab, np.array([False, True, True]), "restroom", lexicon=wordnet)
+    assert unusable is None or unusable.name != "toilet"  # a pruned word is never the answer
+
+
+def test_spco_without_wordnet_works_as_before(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("SPCO_WORDNET", "off")
+    assert lexicon() is None and "turned off" in (lexicon_unavailable_reason() or "")
+    params, vocab = _toilet_kitchen()
+    with pytest.raises(UnknownNameError):  # no lexicon: a name nobody said is unknown
+        predict_positions(params, 0, vocab, "restroom", n=3, rng=0)
+    assert predict_positions(params, 0, vocab, "toilet", n=3, rng=0).region == 0
+    sentences = ["this is the toilet", "the toilet is here", "we eat on the table"]
+    v = Vocabulary.from_sentences(sentences)
+    prior = name_prior(v, sentences)  # the frames alone
+    assert prior.shape == (len(v),) and np.all((prior > 0) & (prior < 1))
+    assert prior[v.index("toilet")] > prior[v.index("we")]
