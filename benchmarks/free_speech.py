@@ -13,7 +13,9 @@ Protocol (docs/model.md "What counts as a name"; benchmarks/README "Free speech 
   (``--accepted``, a JSON object place -> names; keys starting with ``_`` are notes);
 - A_p: for each place, the mean over the place's accepted names that the learnt vocabulary holds
   as one token (the place label itself only if it was said) of the share of 10 positions drawn for
-  the name that fall inside the place's region (argmax region, as ``spco experiment``);
+  the name that fall inside the place's region (argmax region, as ``spco experiment``); A_p (main
+  name): the same for the place's *main name* only, its accepted name said in most of the taught
+  sentences (:func:`main_names`);
 - intervals: 95 % percentile bootstrap (2,000 resamples) over the test views (A_n; resampled within
   each home and place) and over the seeds' position scores of each (home, place) (A_p).
 
@@ -46,6 +48,7 @@ from spco.evaluation import evaluate_home
 from spco.evaluation.experiments import PAPER_EXPERIENCED_HOMES, trial_seed
 from spco.evaluation.metrics import position_accuracy
 from spco.model import SpCoTransfer
+from spco.prediction import UnknownNameError, predict_positions
 
 NEW_HOMES = ("1LDK_9", "2LDK_9", "3LDK_9")
 
@@ -121,6 +124,7 @@ def main() -> None:
     accepted = read_names(args.accepted)
     unheard = read_names(args.unheard) if args.unheard else {}
     names_right: dict[tuple, list[float]] = defaultdict(list)  # (home, place) -> 0/1 per test view
+    main_positions: dict[tuple, list[float]] = defaultdict(list)  # (home, place) -> main name's A_p
     positions: dict[tuple, list[float]] = defaultdict(list)  # (home, place) -> A_p per seed
     unheard_scores: dict[tuple, list[float]] = defaultdict(list)
     resolved_as: dict[str, Counter] = defaultdict(Counter)
@@ -147,6 +151,15 @@ def main() -> None:
                     wrong[f"{label} -> {name}"] += 1
             for place, value in scores.position_accuracy.items():
                 positions[(home, place)].append(value)
+            for place, name in main_names(experienced, accepted).items():  # A_p of the main name
+                if place in gt.regions.places:  # type: ignore[union-attr]
+                    try:
+                        pred = predict_positions(model.parameters_, e, corpus.vocabulary, name, n=10,
+                                                 rng=seed)
+                        hit = position_accuracy({place: pred.samples}, gt.regions)[place]  # type: ignore
+                    except UnknownNameError:
+                        hit = 0.0
+                    main_positions[(home, place)].append(hit)
             if unheard:
                 _score_unheard(model.parameters_, e, corpus.vocabulary, env, unheard, seed,
                                unheard_scores, resolved_as)
@@ -159,7 +172,10 @@ def main() -> None:
         "seeds": args.seeds, "homes": args.homes, "speech": str(args.speech), "accepted": str(args.accepted),
         "A_n": a_n, "A_n_interval": bootstrap(names_right, rng),
         "A_p": a_p, "A_p_interval": bootstrap(positions, rng),
+        "A_p_main_name": float(np.mean([np.mean(v) for v in main_positions.values()])),
+        "A_p_main_name_interval": bootstrap(main_positions, rng),
         "A_n_per_place": _per_place(names_right), "A_p_per_place": _per_place(positions),
+        "A_p_main_name_per_place": _per_place(main_positions),
         "wrong": dict(wrong.most_common(25)), "runs": per_seed,
     }
     if unheard:
@@ -172,6 +188,22 @@ def main() -> None:
         args.json.write_text(json.dumps(summary, indent=1, default=str), encoding="utf-8")
 
 
+def main_names(homes: list[Environment], accepted: dict[str, tuple[str, ...]]) -> dict[str, str]:
+    """Each place's main name: its accepted name said in most taught sentences of ``homes`` (as a
+    whole token after :func:`~spco.data.language.tokenize`-style normalisation of the sentence)."""
+    counts: dict[str, Counter] = defaultdict(Counter)
+    for env in homes:
+        for label, sentence in zip(env.ground_truth.labels, env.sentences, strict=True):  # type: ignore[union-attr]
+            if sentence is None or label is None:
+                continue
+            text = f" {' '.join(normalize_name(sentence).split())} "
+            place = normalize_name(label)
+            for name in accepted.get(place, ()):
+                if f" {name} " in text:
+                    counts[place][name] += 1
+    return {place: c.most_common(1)[0][0] for place, c in counts.items() if c}
+
+
 def _per_place(groups: dict[tuple, list[float]]) -> dict[str, float]:
     by_place: dict[str, list[float]] = defaultdict(list)
     for key, values in groups.items():
@@ -181,8 +213,6 @@ def _per_place(groups: dict[tuple, list[float]]) -> dict[str, float]:
 
 def _score_unheard(params, e, vocabulary, env, unheard, seed, out, resolved_as) -> None:
     """A_p of ``where`` for every unheard name of the home's places (through the lexicon)."""
-    from spco.prediction import UnknownNameError, predict_positions
-
     regions = env.ground_truth.regions
     for place, names in unheard.items():
         if place not in regions.places:
