@@ -36,7 +36,8 @@ import warnings
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-__all__ = ["MIN_SIMILARITY", "PLACE_ROOTS", "Lexicon", "LexiconMatch", "lexicon", "lexicon_unavailable_reason"]
+__all__ = ["MIN_SIMILARITY", "PLACE_ROOTS", "Lexicon", "LexiconMatch", "lexicon",
+           "lexicon_unavailable_reason"]
 
 #: Where Debian's wordnet-base puts the database files.
 DEBIAN_WORDNET = Path("/usr/share/wordnet")
