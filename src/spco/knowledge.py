@@ -1810,9 +1810,11 @@ def where(home: HomeModel, name: str, n: int = 10,
     ("restroom") is first looked up in the lexicon (:func:`spco.unheard.resolve_name`): the answer
     is then for the known name it found (``name``: "toilet"; ``asked``: "restroom"; ``via``: how).
     """
+    from spco.prediction import mutual_information_weights
     from spco.unheard import resolve_name
 
-    resolved = resolve_name(home.vocabulary, home.state.word_mask, name, home.parameters.name_prior)
+    resolved = resolve_name(home.vocabulary, home.state.word_mask, name, home.parameters.name_prior,
+                            information=mutual_information_weights(home.parameters, 0))
     if resolved is not None:  # a name nobody said: the known name the lexicon finds for it
         return replace(_where(home, resolved.name, n, random_state), asked=resolved.asked, via=resolved.how)
     try:

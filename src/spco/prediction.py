@@ -762,7 +762,8 @@ def predict_positions(
     if mode not in ("argmax", "mixture"):
         raise ConfigurationError(f"mode must be 'argmax' or 'mixture', got {mode!r}")
     e = _check_home(params, e)
-    resolved = resolve_name(vocabulary, params.word_mask, name, params.name_prior) if unheard else None
+    resolved = (resolve_name(vocabulary, params.word_mask, name, params.name_prior,
+                             information=mutual_information_weights(params, e)) if unheard else None)
     if resolved is not None:  # a name nobody said: the known name the lexicon finds for it
         pred = predict_positions(params, e, vocabulary, resolved.name, n, rng, mode, xy_only, unheard=False)
         return replace(pred, asked=resolved.asked, via=resolved.how)
