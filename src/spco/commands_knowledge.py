@@ -473,7 +473,7 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
     from spco.errors import ConfigurationError
     from spco.knowledge import Observation, load_home_model
     from spco.knowledge import teach as teach_home
-    from spco.locking import locked
+    from spco.knowledge.locking import locked
 
     pose = (x, y, theta)
     new_observation = any(v is not None for v in (*pose, visual, image))
@@ -562,7 +562,7 @@ def show(home_file: Path, out: Path, map_image: Path | None, extent: str | None,
     rng = np.random.default_rng(seed)
     predicted = {}
     from spco.knowledge import unused_word_hint
-    from spco.prediction import UnknownNameError
+    from spco.model.prediction import UnknownNameError
 
     for name in names:
         seed_of_name = int(rng.integers(2**63 - 1))  # (a Generator passed on would be copied, not advanced)
