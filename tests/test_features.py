@@ -17,8 +17,8 @@ from click.testing import CliRunner
 
 from spco import knowledge as kn
 from spco.cli import inspect as inspect_command
-from spco.commands_features import features
-from spco.commands_knowledge import adapt, fit, teach, what
+from spco.cli.features import features
+from spco.cli.knowledge import adapt, fit, teach, what
 from spco.data.loading import load_home
 from spco.data.plain import write_corpus
 from spco.data.synthetic import SyntheticConfig, generate_homes

@@ -19,7 +19,7 @@ import pytest
 from click.testing import CliRunner
 
 from spco import knowledge as kn
-from spco.commands_knowledge import adapt, fit
+from spco.cli.knowledge import adapt, fit
 from spco.data.plain import write_corpus
 from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.knowledge.locking import LockTimeoutError, lock_path, locked

@@ -5,7 +5,7 @@ seconds (``adapt`` writes a home file), ask the robot (``where``, ``what``), tea
 (``teach``) and draw what it knows (``show``). See :mod:`spco.knowledge` for the model and the
 file formats.
 
-Registered in :mod:`spco.cli` (``for command in KNOWLEDGE_COMMANDS: main.add_command(command)``).
+Registered in :mod:`spco.cli.main` (``for command in KNOWLEDGE_COMMANDS: main.add_command(command)``).
 Heavy imports happen when a command runs, so ``spco --help`` stays fast; spco's errors are
 reported by the command line's ``_friendly_errors`` (one line, exit status 2).
 """
@@ -25,7 +25,7 @@ from typing import Any
 
 import click
 
-from spco.cli_errors import friendly_errors
+from spco.cli.errors import friendly_errors
 
 __all__ = ["KNOWLEDGE_COMMANDS", "adapt", "fit", "show", "teach", "what", "where"]
 
@@ -639,5 +639,5 @@ def _save_png(fig: Any, out: Path) -> None:
                 os.unlink(tmp)
 
 
-#: The commands to register in :mod:`spco.cli`.
+#: The commands to register in :mod:`spco.cli.main`.
 KNOWLEDGE_COMMANDS = (fit, adapt, where, what, teach, show)
