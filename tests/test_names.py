@@ -1,4 +1,4 @@
-"""Which words are names (:mod:`spco.model.name_evidence`) and names never heard (:mod:`spco.unheard`,
+"""Which words are names (:mod:`spco.model.name_evidence`) and names never heard (:mod:`spco.model.unheard`,
 :mod:`spco.data.lexicon`): docs/model.md, "What counts as a name" and "Names never heard"."""
 
 from __future__ import annotations
@@ -23,8 +23,8 @@ from spco.model.name_evidence import (
     within_concepts,
 )
 from spco.model.parameters import ConceptParameters
+from spco.model.unheard import resolve_name
 from spco.prediction import UnknownNameError, predict_names, predict_positions
-from spco.unheard import resolve_name
 
 # ------------------------------------------------------------------------------ sentence frames
 
