@@ -24,9 +24,11 @@ from spco.data.language import Vocabulary, normalize_name
 
 __all__ = ["MIN_CANDIDATE_INFORMATION", "MIN_CANDIDATE_PRIOR", "ResolvedName", "resolve_name"]
 
-#: Known words below this name prior are not candidates for a name nobody said (objects, verbs,
-#: function words: "sink", "sleep", "my").
-MIN_CANDIDATE_PRIOR = 0.2
+#: Known words below this name prior are not candidates for a name nobody said (verbs and function
+#: words: "sleep" 0.004, "my" 0.005; names with weak evidence such as "laundry" 0.12 or "bath"
+#: 0.14 stay candidates, and so do objects, which WordNet relates to few names and which stand at
+#: their place anyway).
+MIN_CANDIDATE_PRIOR = 0.05
 #: ... nor words whose mutual information with the home's concepts is below this share of the
 #: largest (said everywhere or nowhere in this home: "house", "corner"; names of places score
 #: 0.01–0.25 nats against 0.24 for the best, such words < 0.0003).
