@@ -221,11 +221,11 @@ def _score_unheard(params, e, vocabulary, env, unheard, seed, out, resolved_as) 
             try:
                 pred = predict_positions(params, e, vocabulary, name, n=10, rng=seed, unheard=True)
             except UnknownNameError:
-                out[(env.name, place, name, seed)].append(0.0)
+                out[(env.name, place)].append(0.0)
                 resolved_as[name]["(none)"] += 1
                 continue
             value = position_accuracy({place: pred.samples}, regions)[place]
-            out[(env.name, place, name, seed)].append(value)
+            out[(env.name, place)].append(value)
             resolved_as[name][pred.name] += 1
 
 
