@@ -11,7 +11,10 @@ accepted name of some place of its corpus and 0 otherwise:
    ``spco experiment general --data synthetic --language free``), labels their accepted names;
 4. the SIGVerse template sentences of the paper's 16 experienced homes, labels the place labels.
 
-Logistic regression with an L2 penalty (``--penalty``, on the weights, not the intercept); prints
+Logistic regression with an L2 penalty (``--penalty``, on the weights, not the intercept). The
+frozen :data:`~spco.model.name_evidence.WEIGHTS` were fitted with ``--terms-from all`` (the
+default: each corpus's terms learnt from all its sentences, as spco did before it counted distinct
+sentences only); ``--terms-from distinct`` fits on today's vocabularies. Prints
 the weights to paste into ``name_evidence.py``, each corpus's tokens ranked by P(name), and the
 leave-one-corpus-out log loss. Never run on held-out data::
 
@@ -31,7 +34,7 @@ from scipy.optimize import minimize
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from spco.data.language import Vocabulary, normalize_name
+from spco.data.language import Vocabulary, learn_terms, normalize_name
 from spco.data.loading import load
 from spco.data.speech import accepted_names
 from spco.data.synthetic import SyntheticConfig, generate_homes
@@ -88,10 +91,18 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sigverse", type=Path, default=Path("../shared/datasets/sigverse"))
     parser.add_argument("--penalty", type=float, default=1.0)
+    parser.add_argument("--terms-from", choices=("all", "distinct"), default="all",
+                        help="learn each corpus's terms from all its sentences (how the frozen WEIGHTS "
+                             "were fitted, before Vocabulary.from_sentences counted distinct sentences "
+                             "only) or from its distinct sentences (as spco does now)")
     args = parser.parse_args()
     data = {}
     for name, (sentences, names) in corpora(args.sigverse).items():
-        vocab = Vocabulary.from_sentences(sentences)
+        if args.terms_from == "all":
+            terms = Vocabulary(tuple(learn_terms(s for s in sentences if s)))
+            vocab = Vocabulary(tuple(dict.fromkeys(t for s in sentences for t in terms.tokenize(s))))
+        else:
+            vocab = Vocabulary.from_sentences(sentences)
         x = feature_matrix(vocab, sentences)
         y = np.array([float(w in names) for w in vocab.words])
         data[name] = (vocab, x, y)
