@@ -288,6 +288,20 @@ def test_where_finds_a_name_however_it_is_written(home_file: Path) -> None:
     assert all(a == answers[0] for a in answers[1:])
 
 
+def test_where_a_name_nobody_said_says_which_known_name_it_used(home_file: Path, wordnet) -> None:
+    # nobody in these homes said "restroom": WordNet finds "toilet" (docs/model.md, "Names never heard")
+    result = _invoke(where, [home_file, "restroom", "--n", 3])
+    assert result.exit_code == 0, result.output
+    assert result.output.startswith("restroom -> toilet (never said in this home;"), result.output
+    said = json.loads(_invoke(where, [home_file, "toilet", "--n", 3, "--json"]).output)
+    data = json.loads(_invoke(where, [home_file, "Restroom", "--n", 3, "--json"]).output)
+    assert (data["asked"], data["name"]) == ("restroom", "toilet") and data["via"] in ("synonym", "gloss")
+    assert data["region"] == said["region"] and said["asked"] == "toilet" and said["via"] is None
+    home = kn.load_home_model(home_file)
+    prior = home.parameters.name_prior  # kept in the knowledge file, extended to the home's words
+    assert prior is not None and prior.shape == (len(home.vocabulary),)
+
+
 def test_where_unknown_name_is_a_clear_answer(home_file: Path) -> None:
     result = _invoke(where, [home_file, "kitchn"])
     assert result.exit_code == 2
