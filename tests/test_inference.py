@@ -357,7 +357,8 @@ def test_home_model_predicts_from_its_posterior_average_and_keeps_it_in_its_file
 
     knowledge = fit_knowledge(small_corpus, n_iterations=6, random_state=0, hyperparameters=SMALL)
     home = adapt(knowledge, small_corpus[-1], n_iterations=8, random_state=0)
-    assert home.posterior is not None and home.parameters is home.posterior
+    # the posterior average, with the knowledge's name prior (spco.model.name_evidence) attached
+    assert home.posterior is not None and home.parameters.concept_weights is home.posterior.concept_weights
     assert home.parameters.concept_counts.sum() == pytest.approx(home.n_samples)
     path = home.save(tmp_path / "home.spco")
     loaded = load_home_model(path)

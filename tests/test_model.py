@@ -79,6 +79,7 @@ def check_parameters(params: ConceptParameters, n_homes: int, n_concepts: int, n
         "visual_probabilities": (E, L, D),
         "shared_word_probabilities": (L, V), "shared_visual_probabilities": (L, D),
         "global_concept_weights": (L,), "word_mask": (V,), "region_counts": (E, K), "concept_counts": (E, L),
+        "name_prior": (V,),
     }
     for name, array in params.arrays().items():
         assert array.shape == expected[name], name

@@ -272,8 +272,9 @@ def evaluate_home(
         scores: list[float] = []
         for name in names:
             try:
+                # A_p scores the names the model learnt: no lexicon look-up of a name never said
                 pred = predict_positions(params, e, vocabulary, name, n=n_positions, rng=gen,
-                                         mode=position_mode, xy_only=xy_only)
+                                         mode=position_mode, xy_only=xy_only, unheard=False)
             except UnknownNameError:
                 scores.append(0.0)
                 continue
