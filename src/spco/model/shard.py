@@ -251,9 +251,8 @@ class HomeShard(ShardInitialisation):
         and the log-likelihood of the uses' regions on the grid of excess values, (V, 50) (they add
         up over shards; the float ones rounded to :data:`SUM_GRID`, so that they add up exactly)."""
         data = self.data
-        stats = colocation(data.words, data.homes, self.state.regions, data.n_homes, self.hyper.n_regions)
-        return Colocation(stats.pairs, stats.same, on_sum_grid(stats.expected),
-                          on_sum_grid(stats.log_likelihood))
+        return colocation(data.words, data.homes, self.state.regions, data.n_homes, self.hyper.n_regions,
+                          grid=SUM_GRID)
 
     def _stats(self) -> gibbs.Statistics:
         if self.stats is None:

@@ -17,10 +17,11 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
 
 from spco.model import shard as shards_api
 from spco.model.hyperparameters import TransferHyperparameters
-from spco.model.pruning import Colocation
+from spco.model.pruning import Colocation, colocation
 from spco.model.shard import HomeShard, HomeStepResult, PooledCounts, SharedParameters
 from spco.model.shard_init import HomeSummary
 from spco.model.state import GibbsState, PreparedData, SamplerSettings
@@ -40,10 +41,13 @@ def _sum(parts: list):
 @dataclass
 class ShardGroup:
     """Consecutive homes ``first``..``first + len(homes) − 1`` of a fit, one
-    :class:`~spco.model.shard.HomeShard` each."""
+    :class:`~spco.model.shard.HomeShard` each; ``words`` (N, V) and ``home_of_sample`` (N,) are their
+    samples' words and homes stacked (the naming rule's statistics are counted for all at once)."""
 
     homes: list[HomeShard]
     first: int = 0
+    words: sp.csr_array | None = None
+    home_of_sample: np.ndarray | None = None
 
     @classmethod
     def start(cls, data: PreparedData, first: int, entropy: list[int], n_words: int, n_fit_homes: int,
@@ -55,7 +59,7 @@ class ShardGroup:
             one = shards_api.data_of_homes(data, e, e + 1) if data.n_homes > 1 else data
             homes.append(HomeShard.start(one, n_words, hyper, settings,
                                          shards_api.home_generator(entropy, first + e), n_fit_homes))
-        return cls(homes, first)
+        return cls(homes, first, data.words, data.homes)
 
     @classmethod
     def from_part(cls, part, first: int, entropy: list[int], n_words: int, n_fit_homes: int,
@@ -81,7 +85,7 @@ class ShardGroup:
             homes.append(HomeShard(shards_api.data_of_homes(data, e, e + 1) if data.n_homes > 1 else data,
                                    shards_api.state_of_homes(data, state, e, e + 1), hyper, settings, rng,
                                    n_fit_homes))
-        return cls(homes, first)
+        return cls(homes, first, data.words, data.homes)
 
     def __post_init__(self) -> None:
         self.setup_seconds: dict[str, float] = {}
@@ -130,8 +134,13 @@ class ShardGroup:
         return self._each("receive", shared, prune)[0]
 
     def colocation(self) -> Colocation:
-        """The naming rule's statistics of the homes, summed (exact on the grid)."""
-        return _sum(self._each("colocation"))
+        """The naming rule's statistics of the homes, counted at once: the sum of the homes' own
+        (:meth:`HomeShard.colocation`), bit for bit (every home's part on the grid)."""
+        if self.words is None:
+            return _sum(self._each("colocation"))
+        regions = np.concatenate([h.state.regions for h in self.homes])
+        return colocation(self.words, self.home_of_sample, regions, len(self.homes),
+                          self.homes[0].hyper.n_regions, grid=shards_api.SUM_GRID)
 
     def candidate_words(self) -> np.ndarray | None:
         """The candidate words (a shared part of the state)."""
