@@ -106,6 +106,14 @@ def _inspect_model_file(path: Path, as_json: bool) -> None:
     from spco.knowledge import describe_model_file, view_fit_warning
 
     info = describe_model_file(path)
+    if info["kind"] == "home":  # a served home: the file, and what its journal holds beyond it
+        from spco.service.teaching import pending_teachings
+
+        pending = pending_teachings(path)
+        if pending:
+            click.echo(f"note: this is the last compacted state of {path}; its journal holds {pending} more "
+                       "teaching(s) (served by spco serve; `spco where`/`what`/`show` answer with them)",
+                       err=True)
     if as_json:
         click.echo(json.dumps(info, indent=1, default=str))
         return
@@ -226,6 +234,7 @@ def _register_commands() -> None:
     from spco.commands_experiment import experiment
     from spco.commands_features import features
     from spco.commands_knowledge import KNOWLEDGE_COMMANDS
+    from spco.commands_serve import serve
 
     main.add_command(experiment)
     main.add_command(features)
@@ -233,6 +242,7 @@ def _register_commands() -> None:
     main.add_command(import_bag)
     for command in KNOWLEDGE_COMMANDS:  # fit, adapt, where, what, teach, show
         main.add_command(command)
+    main.add_command(serve)
 
 
 _register_commands()

@@ -58,6 +58,7 @@ __all__ = [
     "history_of",
     "load_current",
     "observation_record",
+    "pending_teachings",
     "plan_undo",
     "replay",
     "sentence_record",
@@ -344,6 +345,13 @@ def check_journal_matches(home: kn.HomeModel, header: dict[str, Any] | None, rec
                            f"{header['journal']}, the home file's is {ident}): the home file was replaced "
                            "while it had teachings not compacted into it; move the journal away to use the "
                            "file as it is")
+
+
+def pending_teachings(path: str | PathLike[str]) -> int:
+    """How many records of the journal of the home file ``path`` are not compacted into the file yet."""
+    contents = read_journal(journal_path(path), warn=False)
+    last = int(served_info(kn.load_home_model(path)).get("last_seq", 0))
+    return sum(int(r["seq"]) > last for r in contents.records)
 
 
 def load_current(path: str | PathLike[str], attempts: int = 5) -> tuple[kn.HomeModel, int]:

@@ -124,6 +124,14 @@ class HomeWriter:
         self._since_compaction = 0
         self._last_teaching = time.monotonic()
         self.compact()
+        self._warm_up()
+
+    def _warm_up(self) -> None:
+        """Run one throw-away teaching, so that the first real one does not wait for the sampler's
+        compiled kernels to load (about a second)."""
+        home = self.home
+        with contextlib.suppress(SpcoError):
+            kn.teach(home, {int(home.ids[0]): home.sentences[0]}, n_sweeps=1, random_state=0)
 
     # ------------------------------------------------------------------ state
     @property
