@@ -176,7 +176,7 @@ class LiveHome:
                 self._writer: ProcessWriter | ThreadWriter = ProcessWriter(
                     path, self._on_applied, lock_fd=self._lock.fd, holder=self.holder, **options)
             else:
-                self._writer = ThreadWriter(path, self._on_applied, **options)
+                self._writer = ThreadWriter(path, self._on_applied, lock=self._lock, **options)
         except BaseException:
             self._lock.release()
             raise

@@ -8,11 +8,14 @@ app (:func:`spco.service.app.create_app`) on uvicorn until Ctrl-C or SIGTERM, th
 
 from __future__ import annotations
 
+import contextlib
 import ipaddress
 import os
+import signal
 import socket
 import stat
 import sys
+import threading
 from collections.abc import Callable
 from os import PathLike
 from pathlib import Path
@@ -71,6 +74,28 @@ def _bind(host: str, port: int) -> socket.socket:
     return sock
 
 
+def _server_class() -> type:
+    import uvicorn
+
+    class Server(uvicorn.Server):  # type: ignore[misc]
+        """uvicorn's server, stopping in order on SIGINT and SIGTERM without raising the signal again
+        afterwards (uvicorn does, which would end the process before the home is closed)."""
+
+        @contextlib.contextmanager
+        def capture_signals(self) -> Any:
+            if threading.current_thread() is not threading.main_thread():
+                yield
+                return
+            original = {sig: signal.signal(sig, self.handle_exit) for sig in (signal.SIGINT, signal.SIGTERM)}
+            try:
+                yield
+            finally:
+                for sig, handler in original.items():
+                    signal.signal(sig, handler)
+
+    return Server
+
+
 def serve(home: str | PathLike[str], host: str = "127.0.0.1", port: int = 8765, token_file: str | None = None,
           map_image: str | None = None, map_extent: tuple[float, float, float, float] | None = None,
           seed: int | None = None, writer: str = "process", say: Callable[[str], None] | None = None,
@@ -83,6 +108,7 @@ def serve(home: str | PathLike[str], host: str = "127.0.0.1", port: int = 8765, 
     """
     import uvicorn
 
+    _Server = _server_class()
     from spco.service.app import create_app
     from spco.service.live import LiveHome
 
@@ -110,11 +136,11 @@ def serve(home: str | PathLike[str], host: str = "127.0.0.1", port: int = 8765, 
         app = create_app(live, token=token, map_image=map_image, map_extent=map_extent, **app_options)
         config = uvicorn.Config(app, log_level="warning", access_log=False, lifespan="off",
                                 timeout_graceful_shutdown=3, server_header=False, date_header=False)
-        server = uvicorn.Server(config)
+        server = _Server(config)
         h = live.home
         say(f"Serving home {h.name} ({h.n_samples} samples, {h.n_taught} taught) from {home} at {address}/ "
             f"(page), {address}/openapi.json (API); writer process {live.writer_pid}. Ctrl-C to stop.")
-        server.run(sockets=[sock])
+        server.run(sockets=[sock])  # until Ctrl-C or SIGTERM
     finally:
         live.close()
         sock.close()

@@ -55,6 +55,7 @@ __all__ = [
     "batches",
     "check_journal_matches",
     "check_pose",
+    "file_digest",
     "history_of",
     "load_current",
     "observation_record",
@@ -332,15 +333,27 @@ def replay(home: kn.HomeModel, records: list[dict[str, Any]],
     return home
 
 
+def file_digest(path: str | PathLike[str]) -> str:
+    """sha256 of a file's bytes: how a journal started on a never-compacted home file names its base."""
+    import hashlib
+
+    with open(path, "rb") as handle:
+        return hashlib.file_digest(handle, "sha256").hexdigest()
+
+
 def check_journal_matches(home: kn.HomeModel, header: dict[str, Any] | None, records: list[dict[str, Any]],
-                          journal: Any) -> None:
-    """Raise :class:`JournalError` if the journal is not that of ``home``'s file (another home file was put
-    in its place) while it still holds teachings the file lacks."""
+                          journal: Any, path: str | PathLike[str]) -> None:
+    """Raise :class:`JournalError` if the journal is not that of the home file ``path`` (another home file
+    was put in its place) while it still holds teachings the file lacks. A journal belongs to the file
+    whose ``provenance["served"]["journal"]`` is its ID, or, before the first compaction, to the file
+    whose bytes its header's ``base_sha256`` names."""
     if header is None:
         return
     ident = served_info(home).get("journal")
     last = int(served_info(home).get("last_seq", 0))
-    if header["journal"] != ident and any(int(r["seq"]) > last for r in records):
+    if not any(int(r["seq"]) > last for r in records) or header["journal"] == ident:
+        return
+    if header.get("base_sha256") is None or header["base_sha256"] != file_digest(path):
         raise JournalError(f"{journal} holds teachings of another version of {home.name!r} (journal "
                            f"{header['journal']}, the home file's is {ident}): the home file was replaced "
                            "while it had teachings not compacted into it; move the journal away to use the "
@@ -367,7 +380,7 @@ def load_current(path: str | PathLike[str], attempts: int = 5) -> tuple[kn.HomeM
     for attempt in range(attempts):
         home = kn.load_home_model(path)
         contents = read_journal(journal, warn=attempt == 0)
-        check_journal_matches(home, contents.header, contents.records, journal)
+        check_journal_matches(home, contents.header, contents.records, journal, path)
         last = int(served_info(home).get("last_seq", 0))
         pending = [r for r in contents.records if int(r["seq"]) > last]
         if not pending:

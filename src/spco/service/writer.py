@@ -30,6 +30,7 @@ import sys
 import threading
 import time
 import traceback
+import warnings
 from collections.abc import Callable
 from concurrent.futures import Future
 from datetime import UTC, datetime
@@ -48,6 +49,7 @@ from spco.service.teaching import (
     ConflictError,
     apply_batch,
     check_journal_matches,
+    file_digest,
     history_of,
     observation_record,
     plan_undo,
@@ -108,29 +110,37 @@ class HomeWriter:
         self.journal = Journal(journal_path(path))
         home = kn.load_home_model(path)
         contents = read_journal(self.journal.path, warn=False)
-        check_journal_matches(home, contents.header, contents.records, self.journal.path)
+        check_journal_matches(home, contents.header, contents.records, self.journal.path, path)
         history = history_of(home)
         before = int(served_info(home).get("last_seq", 0))
         home = replay(home, contents.records, history)
+        replayed = int(served_info(home).get("last_seq", 0)) - before
         #: what start-up found: records replayed, a torn record dropped
-        self.startup = {"replayed": int(served_info(home).get("last_seq", 0)) - before, "torn": contents.torn}
-        ident = served_info(home).get("journal") or new_journal_id()
-        served = {**served_info(home), "journal": ident}
+        self.startup = {"replayed": replayed, "torn": contents.torn}
+        compacted = served_info(home).get("journal")
+        served = {**served_info(home), "journal": compacted or new_journal_id()}
         served.setdefault("last_seq", 0)
         served.setdefault("teachings", 0)
         self.home = _with_served(home, served)
         self.history = history
         self._base_seed = int(np.random.SeedSequence().entropy if seed is None else seed)  # type: ignore[arg-type]
-        self._since_compaction = 0
+        self._since_compaction = replayed
         self._last_teaching = time.monotonic()
-        self.compact()
+        if replayed:
+            self.compact()
+        else:  # the file is left as it is: a journal anew, tied to the file (by its ID, or by its bytes)
+            header = {"journal": served["journal"], "home": home.name, "base_seq": served["last_seq"]}
+            if compacted is None:
+                header["base_sha256"] = file_digest(self.path)
+            self.journal.rewrite(header, [])
         self._warm_up()
 
     def _warm_up(self) -> None:
         """Run one throw-away teaching, so that the first real one does not wait for the sampler's
         compiled kernels to load (about a second)."""
         home = self.home
-        with contextlib.suppress(SpcoError):
+        with contextlib.suppress(SpcoError), warnings.catch_warnings():
+            warnings.simplefilter("ignore")
             kn.teach(home, {int(home.ids[0]): home.sentences[0]}, n_sweeps=1, random_state=0)
 
     # ------------------------------------------------------------------ state
@@ -293,10 +303,13 @@ Applied = Callable[[list[tuple[dict[str, Any], dict[str, Any]]], "kn.HomeModel |
 
 class ThreadWriter:
     """A :class:`HomeWriter` in a thread of this process; ``on_applied(pairs, snapshot)`` is called
-    in that thread after each round, with (request, result) pairs and the new snapshot (or ``None``)."""
+    in that thread after each round, with (request, result) pairs and the new snapshot (or ``None``).
+    ``lock``: the :class:`spco.locking.HeldLock` of the file, which the thread is permitted to write."""
 
-    def __init__(self, path: str | PathLike[str], on_applied: Applied, **options: Any) -> None:
+    def __init__(self, path: str | PathLike[str], on_applied: Applied, *, lock: Any = None,
+                 **options: Any) -> None:
         self._writer = HomeWriter(path, **options)
+        self._lock_held = lock
         self.startup = dict(self._writer.startup)
         self.first_snapshot = self._writer.snapshot()
         self._on_applied = on_applied
@@ -315,6 +328,8 @@ class ThreadWriter:
         return future
 
     def _run(self) -> None:
+        if self._lock_held is not None:
+            self._lock_held.permit()  # this thread writes the file it holds
         while True:
             try:
                 item = self._queue.get(timeout=self._writer.compact_idle / 2)
