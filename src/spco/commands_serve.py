@@ -30,9 +30,12 @@ __all__ = ["serve"]
               help="x_min,x_max,y_min,y_max in metres covered by --map (default: the home's map extent).")
 @click.option("--seed", default=None, type=click.IntRange(0),
               help="Base seed of the teachings (each is journalled with its own seed; default: random).")
+@click.option("--writer", type=click.Choice(["process", "thread"]), default="process", hidden=True,
+              help="Where teachings run: a writer process (default) or a thread of the server (for the "
+                   "benchmark's comparison: readers then wait for Python's global lock).")
 @friendly_errors
 def serve(home_file: Path, host: str, port: int, token_file: Path | None, map_image: Path | None,
-          extent: str | None, seed: int | None) -> None:
+          extent: str | None, seed: int | None, writer: str) -> None:
     """Serve the home of HOME over HTTP: where, what and teach in milliseconds, and a page at /.
 
     \b
@@ -56,4 +59,4 @@ def serve(home_file: Path, host: str, port: int, token_file: Path | None, map_im
 
     run(home_file, host=host, port=port, token_file=None if token_file is None else str(token_file),
         map_image=None if map_image is None else str(map_image), map_extent=_extent(extent), seed=seed,
-        say=lambda text: click.echo(text, err=True))
+        writer=writer, say=lambda text: click.echo(text, err=True))

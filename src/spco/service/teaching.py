@@ -258,8 +258,8 @@ def apply_batch(home: kn.HomeModel, records: list[dict[str, Any]],
     teachings = int(served.get("teachings", 0))
     stamp = first.get("time") or _now()
     entries: dict[int, dict[str, Any]] = {}  # merged into history once the teaching succeeded
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", kn.OwnNamesSpreadWarning)  # the writer reports the notes itself
+    with warnings.catch_warnings(record=True) as caught:  # said in the answer (notes), not on stderr
+        warnings.simplefilter("always", kn.OwnNamesSpreadWarning)
         if first["op"] == "undo":
             if len(records) != 1:
                 raise JournalError(f"an undo (seq {first['seq']}) must be a batch of its own")
@@ -301,7 +301,11 @@ def apply_batch(home: kn.HomeModel, records: list[dict[str, Any]],
     if history is not None:
         history.update(entries)
     served.update(last_seq=int(records[-1]["seq"]), teachings=teachings)
-    return replace(updated, provenance={**updated.provenance, SERVED: served})
+    provenance = {**updated.provenance, SERVED: served}
+    said = [str(w.message) for w in caught if issubclass(w.category, kn.OwnNamesSpreadWarning)]
+    if said and isinstance(provenance.get("last_teach"), dict):
+        provenance["last_teach"] = {**provenance["last_teach"], "warnings": said}
+    return replace(updated, provenance=provenance)
 
 
 def batches(records: list[dict[str, Any]]) -> list[list[dict[str, Any]]]:

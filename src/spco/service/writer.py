@@ -244,11 +244,13 @@ class HomeWriter:
         seconds = time.perf_counter() - start
         new_words = list(updated.vocabulary.words[words_before:])
         served = served_info(updated)
+        said = list(updated.provenance["last_teach"].get("warnings", []))  # a new name spreading (teach)
         for (index, _), record in zip(batch, records, strict=True):
             result = {k: v for k, v in record.items() if k not in ("view", "seed", "sweeps", "batch")}
             result.update(ok=True, home=updated.name, teachings=served["teachings"],
                           samples=updated.n_samples, taught=updated.n_taught, new_words=new_words,
-                          batch=len(records), seconds=round(seconds, 4), notes=_notes(updated, record))
+                          batch=len(records), seconds=round(seconds, 4),
+                          notes=_notes(updated, record) + said)
             results[index] = result
         if self._since_compaction >= self.compact_records:
             self.compact()
