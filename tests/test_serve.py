@@ -21,8 +21,8 @@ from click.testing import CliRunner
 from serve_helpers import Server, build_home, copy_home, env, wait_unlocked
 
 from spco import knowledge as kn
-from spco.commands_knowledge import what as what_command
-from spco.commands_knowledge import where as where_command
+from spco.cli.knowledge import what as what_command
+from spco.cli.knowledge import where as where_command
 from spco.errors import ConfigurationError
 from spco.locking import HomeServedError, locked, served_by
 from spco.service import LiveHome
@@ -372,7 +372,7 @@ def test_token_covers_the_api_the_page_and_its_event_stream(home: Path) -> None:
 
 
 def test_serve_refuses_other_addresses_without_a_token(home: Path, tmp_path: Path) -> None:
-    from spco.commands_serve import serve
+    from spco.cli.serve import serve
 
     refused = CliRunner().invoke(serve, [str(home), "--host", "0.0.0.0", "--port", "0"])
     assert refused.exit_code == 2 and "refusing to serve on 0.0.0.0 without a token" in refused.output

@@ -1,6 +1,6 @@
 """``spco serve``: a home held in memory, answering over HTTP while the robot runs.
 
-Registered in :mod:`spco.cli`; the web stack is imported when the command runs (``pip install
+Registered in :mod:`spco.cli.main`; the web stack is imported when the command runs (``pip install
 'spco[serve]'``).
 """
 
@@ -10,7 +10,7 @@ from pathlib import Path
 
 import click
 
-from spco.cli_errors import friendly_errors
+from spco.cli.errors import friendly_errors
 
 __all__ = ["serve"]
 
@@ -54,7 +54,7 @@ def serve(home_file: Path, host: str, port: int, token_file: Path | None, map_im
         import uvicorn  # noqa: F401
     except ImportError:
         raise click.UsageError("spco serve needs the web stack: pip install 'spco[serve]'") from None
-    from spco.commands_knowledge import _extent
+    from spco.cli.knowledge import _extent
     from spco.service.server import serve as run
 
     run(home_file, host=host, port=port, token_file=None if token_file is None else str(token_file),
