@@ -59,8 +59,8 @@ from spco.service.teaching import (
     with_history,
 )
 
-__all__ = ["DEFAULT_COMPACT_IDLE", "DEFAULT_COMPACT_RECORDS", "DEFAULT_MAX_BATCH", "HomeWriter",
-           "ProcessWriter", "ThreadWriter", "WriterUnavailableError", "error_result"]
+__all__ = ["DEFAULT_COMPACT_IDLE", "DEFAULT_COMPACT_RECORDS", "DEFAULT_MAX_BATCH", "WRITER_NICENESS",
+           "HomeWriter", "ProcessWriter", "ThreadWriter", "WriterUnavailableError", "error_result"]
 
 #: Records after which the writer compacts the journal into the home file.
 DEFAULT_COMPACT_RECORDS = 100
@@ -68,6 +68,8 @@ DEFAULT_COMPACT_RECORDS = 100
 DEFAULT_COMPACT_IDLE = 2.0
 #: The most teachings applied by one :func:`spco.knowledge.teach` call.
 DEFAULT_MAX_BATCH = 32
+#: How much lower the writer process's scheduling priority is than the server's (``nice``).
+WRITER_NICENESS = 10
 
 
 class WriterUnavailableError(SpcoError):
@@ -374,7 +376,9 @@ class ProcessWriter:
 
     The child inherits the descriptor of the home's lock (held by this process with
     :func:`spco.locking.hold`) and declares it (:func:`spco.locking.adopt`); it is killed when this
-    process dies (``PR_SET_PDEATHSIG`` on Linux; elsewhere it exits when its connection closes).
+    process dies (``PR_SET_PDEATHSIG`` on Linux; elsewhere it exits when its connection closes). It
+    runs the sampler on one thread and at a lower priority (:data:`WRITER_NICENESS`): on a robot's
+    few cores the answers come first.
     ``on_applied`` is called in a receiving thread of this process.
     """
 
@@ -387,7 +391,10 @@ class ProcessWriter:
         for key, value in options.items():
             if value is not None:
                 args += [f"--{key.replace('_', '-')}", str(value)]
-        self._process = subprocess.Popen(args, pass_fds=(lock_fd, theirs.fileno()), stdin=subprocess.DEVNULL)
+        # one sampler thread: the other core stays with the readers (the result does not depend on it)
+        environment = {**os.environ, "NUMBA_NUM_THREADS": "1"}
+        self._process = subprocess.Popen(args, pass_fds=(lock_fd, theirs.fileno()), stdin=subprocess.DEVNULL,
+                                         env=environment)
         theirs.close()
         self._conn = Connection(ours.detach())
         self._on_applied = on_applied
@@ -545,6 +552,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     _die_with_parent(args.parent)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the server, which closes us in order
+    with contextlib.suppress(OSError):
+        os.nice(WRITER_NICENESS)  # the readers' process first: a teaching waits a little, an answer not
     conn = Connection(args.conn_fd)
     try:
         locking.adopt(args.path, args.lock_fd, args.holder)
