@@ -269,6 +269,40 @@ def test_kill_9_during_a_burst_of_200_teachings_loses_no_acknowledged_one(home: 
     assert {a["id"] for a in observations} <= set(final.ids.tolist())
 
 
+def test_client_mirrors_the_library_over_a_real_server(home: Path) -> None:
+    library = kn.load_home_model(home)
+    name = library.known_names[0]
+    server = Server(home)
+    try:
+        robot = Client(server.url)
+        assert robot.where(name, n=3) == json.loads(
+            CliRunner().invoke(where_command, [str(home), name, "-n", "3", "--json"]).stdout)
+        assert robot.what(0.3, -0.2, 0.4)["names"][0]["name"] in library.known_names
+        assert robot.what(0.3, -0.2, 0.4, image=_jpeg(5))["vision"] is True
+        assert robot.what(0.3, -0.2, 0.4, image=_view(5), encoding="bgr8")["names"] == \
+            robot.what(0.3, -0.2, 0.4, image=_jpeg(5))["names"]
+        events = robot.events(types="taught,undone")
+        received: list[dict] = []
+        listener = threading.Thread(target=lambda: received.extend([next(events), next(events)]), daemon=True)
+        listener.start()
+        time.sleep(0.3)
+        taught = robot.teach(id=int(library.ids[2]), sentence="this is the snug")
+        undone = robot.undo(taught["seq"])
+        listener.join(30)
+        assert [e["type"] for e in received] == ["taught", "undone"]
+        assert received[0]["seq"] == taught["seq"]
+        assert received[1]["undoes"] == taught["seq"] == undone["undoes"]
+        with pytest.raises(ClientError) as error:
+            robot.where("kitchn")
+        assert error.value.status == 404 and "did you mean" in error.value.message
+        with pytest.raises(ClientError) as error:
+            robot.undo(taught["seq"])
+        assert error.value.status == 409
+        assert robot.health()["teachings"] == 0
+    finally:
+        assert server.stop() == 0, server.output
+
+
 # ----------------------------------------------------------------------------- HTTP
 @pytest.fixture
 def app_client(home: Path):
