@@ -156,6 +156,27 @@ def _what_loop(url: str, extent: list[float], seconds: float, seed: int, results
     results.put((latencies, errors))
 
 
+def _teach_burst(url: str, ids: list[int], names: list[str], teachers: int, each: int, results: Any) -> None:
+    """``teachers`` clients (threads of this process) teaching ``each`` times back to back."""
+    from spco.client import Client
+
+    taught: list[float] = []
+
+    def teach(offset: int) -> None:
+        client = Client(url)
+        for k in range(offset, offset + each):
+            t = time.perf_counter()
+            client.teach(id=int(ids[(7 * k) % len(ids)]), sentence=f"this is the {names[k % len(names)]}")
+            taught.append(time.perf_counter() - t)
+
+    threads = [threading.Thread(target=teach, args=(1000 * i,)) for i in range(teachers)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    results.put(taught)
+
+
 def _soak_worker(url: str, regions: dict[str, Any], rate: float, seconds: float, seed: int,
                  results: Any) -> None:
     from spco.client import Client
@@ -277,34 +298,22 @@ def main() -> None:
             served = Served(home, args.dir, writer=writer)
             before = load()
             reader = Client(served.url)
-            stop = threading.Event()
-            taught: list[float] = []
-
-            def teacher(offset: int, url: str = served.url, stop: threading.Event = stop,
-                        taught: list[float] = taught) -> None:
-                teaching = Client(url)
-                k = offset
-                while not stop.is_set() and k < offset + 100:
-                    t = time.perf_counter()
-                    teaching.teach(id=int(ids[(7 * k) % len(ids)]),
-                                   sentence=f"this is the {names[k % len(names)]}")
-                    taught.append(time.perf_counter() - t)
-                    k += 1
-
             items = poses(regions, 100000, 4)
             for p in items[:50]:
                 reader.what(*p)
-            teachers = [threading.Thread(target=teacher, args=(o,)) for o in (0, 1000)]
-            for t in teachers:
-                t.start()
+            ctx = mp.get_context("spawn")
+            results = ctx.Queue()
+            burst = ctx.Process(target=_teach_burst, args=(served.url, ids, names, 2, 100, results))
+            burst.start()
             latencies = []
             k = 0
-            while any(t.is_alive() for t in teachers):
+            while results.empty():  # the reader asks while the teachers teach
                 t0 = time.perf_counter()
-                reader.what(*items[k])
+                reader.what(*items[k % len(items)])
                 latencies.append(time.perf_counter() - t0)
                 k += 1
-            stop.set()
+            taught = results.get()
+            burst.join()
             record(f"what during a burst of teachings (writer: {writer})", before, teachings=len(taught),
                    teach_p50_ms=float(np.percentile(np.asarray(taught) * 1000, 50)), **percentiles(latencies))
             served.stop()
