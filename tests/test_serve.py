@@ -303,6 +303,26 @@ def test_client_mirrors_the_library_over_a_real_server(home: Path) -> None:
         assert server.stop() == 0, server.output
 
 
+def test_concurrent_teachings_through_the_writer_process_all_come_back(home: Path) -> None:
+    """Many teachings at once, observations among them (whose snapshots are larger than a socket's
+    buffer): requests and snapshots cross between the server and its writer process both ways at once
+    without waiting for each other."""
+    with LiveHome(home, seed=0) as live:
+        ids = [int(i) for i in live.home.ids[:20]]
+
+        def teach(k: int) -> dict:
+            if k % 4 == 0:
+                return live.teach(x=0.1 * (k % 9), y=-0.1 * (k % 7), theta=0.2, image=_jpeg(k),
+                                  sentence="this is the hall")
+            return live.teach(id=ids[k % len(ids)], sentence="this is the study")
+
+        with ThreadPoolExecutor(8) as pool:
+            answers = list(pool.map(teach, range(48), timeout=300))
+        assert sorted(a["seq"] for a in answers) == list(range(1, 49))
+        assert live.health()["teachings"] == 48 and max(a["batch"] for a in answers) > 1  # batched
+        assert live.home.n_samples == kn.load_home_model(home).n_samples + 12
+
+
 # ----------------------------------------------------------------------------- HTTP
 @pytest.fixture
 def app_client(home: Path):
