@@ -25,7 +25,14 @@ Run (development set)::
         --accepted benchmarks/development/accepted_names_dev.json --seeds 0 1 2
 
 ``--unheard FILE.json`` also measures ``where`` with names nobody said (A_p of the place found via
-the lexicon, :func:`spco.prediction.resolve_unheard`).
+the lexicon, :func:`spco.model.unheard.resolve_name`).
+
+``--name-prior`` chooses how names are predicted: ``off`` (the default, as ``spco experiment``),
+``wordnet`` (the opt-in ordering of each concept's words by the name prior,
+``TransferHyperparameters.name_prior``) or ``both``: each fit scored both ways (only A_n can differ:
+positions do not use the ordering); the figures of ``off`` are then the top-level ones and those
+of ``wordnet`` are under ``name_prior_wordnet``. With ``off`` the script passes no ``name_prior``
+argument, so it also runs on code from before the option (``PYTHONPATH=<other src>``).
 """
 
 from __future__ import annotations
@@ -118,17 +125,21 @@ def main() -> None:
     parser.add_argument("--sweeps", type=int, default=200)
     parser.add_argument("--homes", nargs="+", default=list(NEW_HOMES))
     parser.add_argument("--json", type=Path, default=None, help="write every figure to this file")
+    parser.add_argument("--name-prior", choices=("off", "wordnet", "both"), default="off",
+                        help="name prediction: off (default), the opt-in wordnet ordering, or both")
     args = parser.parse_args()
+    settings = ["off", "wordnet"] if args.name_prior == "both" else [args.name_prior]
     regions_file = args.regions or args.sigverse.parent / "sigverse_regions.json"
     speech = read_speech(args.speech)
     accepted = read_names(args.accepted)
     unheard = read_names(args.unheard) if args.unheard else {}
-    names_right: dict[tuple, list[float]] = defaultdict(list)  # (home, place) -> 0/1 per test view
+    # per name-prior setting: (home, place) -> 0/1 per test view, and the wrong names
+    names_right: dict[str, dict[tuple, list[float]]] = {s: defaultdict(list) for s in settings}
+    wrong: dict[str, Counter] = {s: Counter() for s in settings}
     main_positions: dict[tuple, list[float]] = defaultdict(list)  # (home, place) -> main name's A_p
     positions: dict[tuple, list[float]] = defaultdict(list)  # (home, place) -> A_p per seed
     unheard_scores: dict[tuple, list[float]] = defaultdict(list)
     resolved_as: dict[str, Counter] = defaultdict(Counter)
-    wrong: Counter = Counter()
     per_seed = []
     started = time.perf_counter()
     for seed in args.seeds:
@@ -139,16 +150,21 @@ def main() -> None:
             model = SpCoTransfer(variant="exact", prune_words=True, n_iterations=args.sweeps,
                                  random_state=trial_seed(seed, h)).fit(corpus)
             e = len(corpus) - 1
-            scores = evaluate_home(model.parameters_, e, env, corpus.vocabulary, rng=seed)
-            per_seed.append({"seed": seed, "home": home, "A_n": scores.mean_name_accuracy,
-                             "A_p": scores.mean_position_accuracy,
-                             "A_n_places": scores.name_accuracy, "A_p_places": scores.position_accuracy})
             gt = env.ground_truth
-            for label, name in zip(scores.labels, scores.predicted_names, strict=True):
-                right = name in gt.accepted(label)  # type: ignore[union-attr]
-                names_right[(home, label)].append(float(right))
-                if not right:
-                    wrong[f"{label} -> {name}"] += 1
+            for setting in settings:  # the same draws of positions: only the names can differ
+                option = {} if setting == "off" else {"name_prior": setting}
+                scores = evaluate_home(model.parameters_, e, env, corpus.vocabulary, rng=seed, **option)
+                per_seed.append({"seed": seed, "home": home, "name_prior": setting,
+                                 "A_n": scores.mean_name_accuracy, "A_p": scores.mean_position_accuracy,
+                                 "A_n_places": scores.name_accuracy, "A_p_places": scores.position_accuracy})
+                for label, name in zip(scores.labels, scores.predicted_names, strict=True):
+                    right = name in gt.accepted(label)  # type: ignore[union-attr]
+                    names_right[setting][(home, label)].append(float(right))
+                    if not right:
+                        wrong[setting][f"{label} -> {name}"] += 1
+                print(f"seed {seed} {home} name prior {setting}: A_n {scores.mean_name_accuracy:.3f} "
+                      f"A_p {scores.mean_position_accuracy:.3f} ({time.perf_counter() - started:.0f} s)",
+                      flush=True)
             for place, value in scores.position_accuracy.items():
                 positions[(home, place)].append(value)
             for place, name in main_names(experienced, accepted).items():  # A_p of the main name
@@ -163,21 +179,27 @@ def main() -> None:
             if unheard:
                 _score_unheard(model.parameters_, e, corpus.vocabulary, env, unheard, seed,
                                unheard_scores, resolved_as)
-            print(f"seed {seed} {home}: A_n {scores.mean_name_accuracy:.3f} A_p "
-                  f"{scores.mean_position_accuracy:.3f} ({time.perf_counter() - started:.0f} s)", flush=True)
     rng = np.random.default_rng(0)
-    a_n = float(np.mean([np.mean(v) for v in names_right.values()]))
+    first = settings[0]
+    a_n = float(np.mean([np.mean(v) for v in names_right[first].values()]))
     a_p = float(np.mean([np.mean(v) for v in positions.values()]))
     summary: dict[str, object] = {
         "seeds": args.seeds, "homes": args.homes, "speech": str(args.speech), "accepted": str(args.accepted),
-        "A_n": a_n, "A_n_interval": bootstrap(names_right, rng),
+        "name_prior": first,
+        "A_n": a_n, "A_n_interval": bootstrap(names_right[first], rng),
         "A_p": a_p, "A_p_interval": bootstrap(positions, rng),
         "A_p_main_name": float(np.mean([np.mean(v) for v in main_positions.values()])),
         "A_p_main_name_interval": bootstrap(main_positions, rng),
-        "A_n_per_place": _per_place(names_right), "A_p_per_place": _per_place(positions),
+        "A_n_per_place": _per_place(names_right[first]), "A_p_per_place": _per_place(positions),
         "A_p_main_name_per_place": _per_place(main_positions),
-        "wrong": dict(wrong.most_common(25)), "runs": per_seed,
+        "wrong": dict(wrong[first].most_common(25)), "runs": per_seed,
     }
+    for setting in settings[1:]:  # the other way of predicting names, from the same fits
+        summary[f"name_prior_{setting}"] = {
+            "A_n": float(np.mean([np.mean(v) for v in names_right[setting].values()])),
+            "A_n_interval": bootstrap(names_right[setting], np.random.default_rng(0)),
+            "A_n_per_place": _per_place(names_right[setting]),
+            "wrong": dict(wrong[setting].most_common(25))}
     if unheard:
         summary["unheard_A_p"] = float(np.mean([np.mean(v) for v in unheard_scores.values()]))
         summary["unheard_A_p_interval"] = bootstrap(unheard_scores, rng)

@@ -168,6 +168,11 @@ def test_mixing_configurations_is_refused(general_out: Path, tmp_path: Path, new
                                      "--models", "spcotransfer", "--new-homes", new_home,
                                      "--out", str(out), "--resume", "-q"])
     assert res.exit_code == 2 and "models" in res.output and "Traceback" not in res.output
+    # the opt-in name prior is another configuration too (the default's identity is the one from before)
+    res = runner.invoke(experiment, ["general", "--envs", "0,2", "--trials", "2", "--iterations", "10",
+                                     "--models", "spcotransfer,spcoa", "--new-homes", new_home,
+                                     "--out", str(out), "--resume", "-q", "--name-prior", "wordnet"])
+    assert res.exit_code == 2 and "name_prior" in res.output and "Traceback" not in res.output
     # --force starts over
     result = run_experiment(other, out, force=True, max_runs=1)  # trial 0, 0 homes: no map
     assert result.results["timing"]["runs"] == 1
@@ -209,6 +214,15 @@ def test_general_experiment_on_free_sentences(tmp_path: Path, new_home: str) -> 
     assert {"living room", "bathroom"} <= set(data["vocabulary"])  # a term and a synonym
     places = {r["place"] for r in result.runs} - {"mean"}
     assert "living room" in places or "dining" in places
+    # the same with the opt-in name prior (--name-prior wordnet): recorded in the configuration
+    res = CliRunner().invoke(experiment, ["general", "--envs", "2", "--trials", "1", "--iterations", "5",
+                                          "--models", "spcotransfer+mi", "--new-homes", new_home,
+                                          "--language", "free", "--name-prior", "wordnet",
+                                          "--out", str(tmp_path / "opt-in"), "-q"])
+    assert res.exit_code == 0, res.output
+    opt_in = json.loads((tmp_path / "opt-in" / "results.json").read_text())
+    assert opt_in["config"]["hyperparameters"]["spcotransfer+mi"]["name_prior"] == "wordnet"
+    assert "name_prior" not in result.results["config"]["hyperparameters"]["spcotransfer+mi"]
     with pytest.raises(ConfigurationError, match="synthetic homes only"):
         load_experiment_data(ExperimentConfig(**SMALL, data=tmp_path, language="free"))
 

@@ -13,6 +13,8 @@ from hypothesis import strategies as st
 
 from spco.data.language import Vocabulary
 from spco.data.lexicon import lexicon, lexicon_unavailable_reason
+from spco.errors import ConfigurationError
+from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.name_evidence import (
     DETERMINERS,
     FEATURES,
@@ -129,9 +131,29 @@ def test_a_furniture_word_said_more_often_does_not_name_the_place(wordnet) -> No
     dining, kitchen = np.array([[0.0, 0.0, 0.0, 1.0]]), np.array([[5.0, 0.0, 0.0, 1.0]])
     assert predict_names(params, 0, vocab, dining, None, use_vision=False).best == ["table"]  # before
     with_prior = replace(params, name_prior=name_prior(vocab, sentences, wordnet))
-    assert predict_names(with_prior, 0, vocab, dining, None, use_vision=False).best == ["dining room"]
+    # the prior alone changes nothing: the ordering is opt-in (name_prior="wordnet")
+    default = predict_names(with_prior, 0, vocab, dining, None, use_vision=False)
+    assert default.best == ["table"]
+    np.testing.assert_array_equal(default.scores, predict_names(params, 0, vocab, dining, None,
+                                                                use_vision=False).scores)
+    opt_in = {"use_vision": False, "name_prior": "wordnet"}
+    assert predict_names(with_prior, 0, vocab, dining, None, **opt_in).best == ["dining room"]
     # the other place keeps its name: the evidence moves no weight between places
-    assert predict_names(with_prior, 0, vocab, kitchen, None, use_vision=False).best == ["kitchen"]
+    assert predict_names(with_prior, 0, vocab, kitchen, None, **opt_in).best == ["kitchen"]
+    # without a prior (a model without the naming rule) the opt-in keeps the MI order
+    assert predict_names(params, 0, vocab, dining, None, **opt_in).best == ["table"]
+    with pytest.raises(ConfigurationError, match="name_prior must be one of 'off', 'wordnet'"):
+        predict_names(with_prior, 0, vocab, dining, None, name_prior="on")  # type: ignore[arg-type]
+
+
+def test_the_name_prior_setting_is_off_by_default_and_written_only_when_on() -> None:
+    assert TransferHyperparameters().name_prior == "off"
+    assert "name_prior" not in TransferHyperparameters().to_dict()  # older files and identities unchanged
+    on = TransferHyperparameters(name_prior="wordnet")
+    assert on.to_dict()["name_prior"] == "wordnet" and TransferHyperparameters.from_dict(on.to_dict()) == on
+    assert TransferHyperparameters.from_dict(TransferHyperparameters().to_dict()) == TransferHyperparameters()
+    with pytest.raises(ConfigurationError, match="name_prior must be one of"):
+        TransferHyperparameters(name_prior="WordNet")  # type: ignore[arg-type]
 
 
 # ------------------------------------------------------------------------------ names never heard

@@ -69,6 +69,10 @@ def _common(func: Callable[..., Any]) -> Callable[..., Any]:
                           "compute the views from them instead of using the homes' visual counts."),
         click.option("--extractor", default=None,
                      help="Image extractor for --images (default: colour-hog; see `spco features --help`)."),
+        click.option("--name-prior", default="off", show_default=True, type=click.Choice(["off", "wordnet"]),
+                     help="wordnet: the transfer models order the words said at each concept by how "
+                          "name-like they are (sentence positions and WordNet) when names are predicted. "
+                          "Off by default: it lowered A_n on the held-out speech set (docs/model.md)."),
     ]
     for option in reversed(options):
         func = option(func)
@@ -94,7 +98,13 @@ def _run(config_kwargs: dict[str, Any], out: Path, resume: bool, force: bool, qu
     from spco.evaluation.experiments import ExperimentConfig, run_experiment
     from spco.model.numba_cache import precompile_if_cold
 
-    config = ExperimentConfig(**config_kwargs)
+    kwargs = dict(config_kwargs)
+    name_prior = kwargs.pop("name_prior", "off")
+    if name_prior != "off":
+        from spco.model.hyperparameters import TransferHyperparameters
+
+        kwargs["hyperparameters"] = TransferHyperparameters(name_prior=name_prior)
+    config = ExperimentConfig(**kwargs)
     # on an empty kernel cache: compiled once, in 2 processes, before any run or worker needs them
     precompile_if_cold(lambda text: click.echo(text, err=True))
     start = time.perf_counter()
@@ -124,8 +134,8 @@ def _run(config_kwargs: dict[str, Any], out: Path, resume: bool, force: bool, qu
 @_friendly
 def general(data: str, language: str, regions: Path | None, maps: Path | None, trials: int, models: str,
             iterations: int, seed: int, jobs: int, engine: str, address: str | None, out: Path, resume: bool,
-            force: bool, quiet: bool, images: Path | None, extractor: str | None, envs: str,
-            experienced_homes: str | None, new_homes: str | None) -> None:
+            force: bool, quiet: bool, images: Path | None, extractor: str | None, name_prior: str,
+            envs: str, experienced_homes: str | None, new_homes: str | None) -> None:
     """General places: accuracy in new homes, taught nothing, vs. number of experienced homes."""
     from spco.evaluation.experiments import parse_int_list
 
@@ -133,8 +143,8 @@ def general(data: str, language: str, regions: Path | None, maps: Path | None, t
           "regions": regions, "maps": maps, "trials": trials, "models": models, "iterations": iterations,
           "seed": seed, "jobs": jobs, "engine": engine, "address": address,
           "experienced_homes": _split(experienced_homes),
-          "new_homes": _split(new_homes), "language": language, "images": images, "extractor": extractor},
-         out, resume, force, quiet)
+          "new_homes": _split(new_homes), "language": language, "images": images, "extractor": extractor,
+          "name_prior": name_prior}, out, resume, force, quiet)
 
 
 @experiment.command()
@@ -148,7 +158,8 @@ def general(data: str, language: str, regions: Path | None, maps: Path | None, t
 @_friendly
 def specific(data: str, language: str, regions: Path | None, maps: Path | None, trials: int, models: str,
              iterations: int, seed: int, jobs: int, engine: str, address: str | None, out: Path, resume: bool,
-             force: bool, quiet: bool, images: Path | None, extractor: str | None, rates: str,
+             force: bool, quiet: bool, images: Path | None, extractor: str | None, name_prior: str,
+             rates: str,
              experienced_homes: str | None, new_home: str | None) -> None:
     """Home-specific places: accuracy on the new home's own room names vs. their teaching rate."""
     from spco.evaluation.experiments import parse_int_list
@@ -158,7 +169,7 @@ def specific(data: str, language: str, regions: Path | None, maps: Path | None, 
           "seed": seed, "jobs": jobs, "engine": engine, "address": address,
           "experienced_homes": _split(experienced_homes),
           "specific_home": new_home.strip() if new_home else None, "language": language, "images": images,
-          "extractor": extractor}, out, resume, force, quiet)
+          "extractor": extractor, "name_prior": name_prior}, out, resume, force, quiet)
 
 
 @experiment.command(name="models")

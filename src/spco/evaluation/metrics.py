@@ -26,6 +26,7 @@ from spco.data.environment import Environment
 from spco.data.language import Vocabulary, normalize_name
 from spco.data.regions import PlaceRegions
 from spco.errors import ConfigurationError, DataFormatError
+from spco.model.hyperparameters import NamePrior
 from spco.model.parameters import ConceptParameters
 from spco.model.prediction import (
     NamePrediction,
@@ -211,6 +212,7 @@ def evaluate_home(
     weighting: Weighting = "mi",
     position_mode: PositionMode = "argmax",
     xy_only: bool = False,
+    name_prior: NamePrior = "off",
 ) -> HomeScores:
     """Score name and position prediction in home ``e`` (the paper's A_n and A_p).
 
@@ -227,6 +229,8 @@ def evaluate_home(
     rng: Generator or seed for the position samples.
     weighting: name weighting (see :func:`spco.prediction.predict_names`).
     position_mode, xy_only: see :func:`spco.prediction.predict_positions`.
+    name_prior: ``"wordnet"`` orders each concept's words by the name prior when names are
+        predicted (opt-in; see :func:`spco.prediction.predict_names`).
 
     Conventions: a place with no scored sample has A_n = NaN, left out of the mean. A place whose
     name the model cannot predict (never taught, or pruned) gets A_n = 0 (it is never predicted)
@@ -254,7 +258,8 @@ def evaluate_home(
 
     positions = environment.positions[rows]
     visual = environment.visual[rows]
-    prediction = predict_names(params, e, vocabulary, positions, visual, top_k=3, weighting=weighting)
+    prediction = predict_names(params, e, vocabulary, positions, visual, top_k=3, weighting=weighting,
+                               name_prior=name_prior)
     predicted = tuple(prediction.best)
     accepted = {place: gt.accepted(place) for place in place_list}
     name_scores = name_accuracy(predicted, labels, place_list, accepted)

@@ -37,9 +37,11 @@ class ConceptParameters:
         the averaged sweeps (< 1: the concept holds no sample of the home), or ``None`` (model
         files written before it existed: no concept is then known to be empty).
     name_prior: (V,) float in (0, 1), P(name | how the word was said and what it is)
-        (:func:`spco.model.name_evidence.name_prior`), which orders the words of each concept when
-        names are predicted; or ``None`` (models without the naming rule, and files written before
-        it existed: every word alike).
+        (:func:`spco.model.name_evidence.name_prior`): which known words may stand for a name
+        nobody said (:mod:`spco.model.unheard`), and, only when asked for
+        (``predict_names(..., name_prior="wordnet")``), the order of each concept's words; or
+        ``None`` (models without the naming rule, and files written before it existed: every word
+        alike).
     """
 
     concept_weights: np.ndarray

@@ -251,7 +251,9 @@ class SpatialConceptModel:
         self.n_iter_ = int(self.n_iterations)
         self.parameters_ = average.result(state)
         if settings.prune and settings.variant == "exact":
-            # the naming rule's linguistic evidence: which of the words said at a place is its name
+            # the naming rule's linguistic evidence, how name-like each word is: candidates for names
+            # never heard (spco.model.unheard), and the order of each concept's words with the
+            # opt-in hyperparameters.name_prior = "wordnet"
             sentences = [s for t in corpus.training_set() for s in t.sentences]
             self.parameters_ = replace(self.parameters_,
                                        name_prior=name_prior(corpus.vocabulary, sentences))
@@ -280,12 +282,14 @@ class SpatialConceptModel:
 
     def predict_names(self, home: str | int, positions: np.ndarray, visual: Any, top_k: int = 3,
                       weighting: str = "mi"):
-        """Top-``top_k`` place names for observations of ``home`` (see :mod:`spco.prediction`)."""
+        """Top-``top_k`` place names for observations of ``home`` (see :mod:`spco.prediction`;
+        the hyperparameters' ``name_prior`` setting applies)."""
         from spco.model import prediction
 
         e = self.home_index(home)
         return prediction.predict_names(self.parameters_, e, self.vocabulary_, np.asarray(positions),
-                                        visual, top_k=top_k, weighting=weighting)
+                                        visual, top_k=top_k, weighting=weighting,  # type: ignore[arg-type]
+                                        name_prior=self.hyperparameters_.name_prior)
 
     def predict_positions(self, home: str | int, name: str, n: int = 10,
                           random_state: int | np.random.Generator | None = None):
