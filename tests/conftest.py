@@ -36,6 +36,14 @@ def sigverse_dir() -> Path:
     return path
 
 
+def missing_tool(reason: str) -> None:
+    """A test's tool (a program, a system package) is missing: skip it with ``reason`` — except under
+    ``CI=true``, where every test must run (.ci/run installs the tools), so it fails instead."""
+    if os.environ.get("CI"):
+        pytest.fail(f"{reason} (CI=true: .ci/run should have installed it)", pytrace=False)
+    pytest.skip(reason)
+
+
 @pytest.fixture(scope="module")
 def ray_session():
     """A local Ray instance of 2 CPUs for a test module (skipped without Ray), shut down after it."""
