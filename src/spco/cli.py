@@ -226,11 +226,13 @@ def _register_commands() -> None:
     from spco.commands_experiment import experiment
     from spco.commands_features import features
     from spco.commands_knowledge import KNOWLEDGE_COMMANDS
+    from spco.commands_ros import ros
 
     main.add_command(experiment)
     main.add_command(features)
     main.add_command(bench)
     main.add_command(import_bag)
+    main.add_command(ros)
     for command in KNOWLEDGE_COMMANDS:  # fit, adapt, where, what, teach, show
         main.add_command(command)
 

@@ -42,7 +42,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any
 
 from spco.errors import ConfigurationError, SpcoError
 from spco.ros.messages import (
@@ -53,8 +53,9 @@ from spco.ros.messages import (
     marker_array,
     pose_from_message,
 )
+from spco.service.live import LiveHome
 
-__all__ = ["Home", "NodeCore", "NodeSettings", "QueryError"]
+__all__ = ["NodeCore", "NodeSettings", "QueryError"]
 
 log = logging.getLogger("spco.ros")
 
@@ -62,21 +63,6 @@ log = logging.getLogger("spco.ros")
 HISTORY_SECONDS = 30.0
 #: Ops a query may ask for.
 QUERY_OPS = ("where", "what")
-
-
-class Home(Protocol):
-    """What the node needs of a resident home (:class:`spco.service.live.LiveHome`)."""
-
-    def where(self, name: str, n: int) -> dict[str, Any]: ...
-
-    def what(self, x: float, y: float, theta: float, *, image: Any = None, encoding: str | None = None,
-             visual: Any = None, top: int = 3) -> dict[str, Any]: ...
-
-    def teach(self, *, sentence: str, id: int | None = None, x: float | None = None, y: float | None = None,
-              theta: float | None = None, image: Any = None, encoding: str | None = None,
-              visual: Any = None) -> dict[str, Any]: ...
-
-    def regions(self) -> dict[str, Any]: ...
 
 
 class QueryError(SpcoError, ValueError):
@@ -183,13 +169,16 @@ class NodeCore:
     now: the transport's clock (seconds; ROS time for rospy).
     uses_images: whether the home's views are images (else teachings cannot take a view from the
         camera, and ``what`` answers from the position).
+    n_concepts: the number of concepts of the home's knowledge (chooses the markers' palette, as
+        ``spco show`` does).
     """
 
-    def __init__(self, home: Home, settings: NodeSettings, *,
+    def __init__(self, home: LiveHome, settings: NodeSettings, *,
                  publish_answer: Callable[[dict[str, Any]], None],
                  publish_goal: Callable[[dict[str, Any]], None],
                  publish_markers: Callable[[dict[str, Any]], None],
-                 now: Callable[[], float] = time.time, uses_images: bool = True) -> None:
+                 now: Callable[[], float] = time.time, uses_images: bool = True,
+                 n_concepts: int = 10) -> None:
         self.home = home
         self.settings = settings
         self._publish_answer = publish_answer
@@ -197,6 +186,7 @@ class NodeCore:
         self._publish_markers = publish_markers
         self.now = now
         self.uses_images = uses_images
+        self.n_concepts = n_concepts
         self.poses = _Timeline()
         self.frames = _Timeline()
         self.tf = TfBuffer()
@@ -276,7 +266,10 @@ class NodeCore:
                 return
             try:
                 self._wait_for_frame(utterance.time)
-                self.answer(self.teach_utterance(utterance.time, utterance.sentence))
+                answer = self.teach_utterance(utterance.time, utterance.sentence)
+                if "error" in answer:
+                    log.warning("%s", answer["error"])
+                self.answer(answer)
             except Exception as exc:  # the node stays up whatever one teaching does
                 log.exception("teaching %r failed", utterance.sentence)
                 self.answer({"id": None, "op": "teach", "sentence": utterance.sentence,
@@ -324,7 +317,10 @@ class NodeCore:
             return {**base, "error": f"not taught: {exc}"}
         self.taught += 1
         self.publish_markers()
-        return {**base, **result, "x": pose.x, "y": pose.y, "theta": pose.theta}
+        log.info("taught %r at (%.2f, %.2f, %.2f): sample %s, seq %s", sentence, pose.x, pose.y, pose.theta,
+                 result.get("id"), result.get("seq"))
+        extra = {k: v for k, v in result.items() if k not in ("id", "op", "sentence")}
+        return {**base, "sample": result.get("id"), **extra, "x": pose.x, "y": pose.y, "theta": pose.theta}
 
     # ------------------------------------------------------------------ queries
     def on_query(self, text: str) -> dict[str, Any]:
@@ -422,13 +418,14 @@ class NodeCore:
     # ------------------------------------------------------------------ output
     def answer(self, answer: Mapping[str, Any]) -> None:
         """Publish an answer (a JSON text in a String)."""
+        log.debug("answer %s", answer)
         self._publish_answer({"data": json.dumps(answer, ensure_ascii=False, default=_json_default)})
 
     def publish_markers(self) -> dict[str, Any]:
         """Publish the home's learnt regions as a MarkerArray; return it."""
         with self._home_lock:
             regions = self.home.regions()
-        message = marker_array(regions["regions"], int(regions["n_concepts"]), self.settings.map_frame)
+        message = marker_array(regions["regions"], self.n_concepts, self.settings.map_frame)
         self._publish_markers(message)
         return message
 

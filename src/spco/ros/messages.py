@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from spco.errors import DataFormatError
-from spco.features.pixels import check_encoding, decode_compressed, pixels_from_buffer
+from spco.features.pixels import check_encoding, decode_compressed, pixels_from_buffer, to_bgr
 
 __all__ = [
     "CHI2_95_2D",
@@ -231,13 +231,17 @@ class CameraFrame:
     step: int = 0
 
     def pixels(self) -> tuple[np.ndarray, str]:
-        """``(pixel array, its encoding)``: a raw frame's pixels in its own channel order with its
-        encoding, a compressed one decoded by OpenCV (``bgr8``). Raises
+        """``(pixel array, its encoding)`` with the encoding one of ``rgb8``, ``bgr8`` (H, W, 3) or
+        ``mono8`` (H, W): a raw rgb8, bgr8 or mono8 frame's pixels as they are, in their own channel
+        order; a frame with alpha and a compressed one converted to (decoded into) ``bgr8``. Raises
         :class:`~spco.errors.DataFormatError` for data that do not make an image."""
         raw = _bytes_of(self.data)
         if self.encoding in ("jpeg", "png"):
             return decode_compressed(raw, self.encoding), "bgr8"
-        return pixels_from_buffer(raw, self.height, self.width, self.step, self.encoding), self.encoding
+        pixels = pixels_from_buffer(raw, self.height, self.width, self.step, self.encoding)
+        if self.encoding in ("rgba8", "bgra8"):
+            return to_bgr(pixels, self.encoding), "bgr8"
+        return pixels, self.encoding
 
 
 def frame_from_message(msg: Mapping[str, Any]) -> CameraFrame:

@@ -102,7 +102,8 @@ def _filled(cls: Any, data: dict[str, Any]) -> Any:
 
 
 def run_node(home: Any, topics: Topics, settings: NodeSettings, *, node_name: str = "spco",
-             uses_images: bool = True, ready: Callable[[NodeCore], None] | None = None) -> None:
+             uses_images: bool = True, n_concepts: int = 10,
+             ready: Callable[[NodeCore], None] | None = None) -> None:
     """Run the node until ROS shuts it down (Ctrl-C, ``rosnode kill``, the master gone).
 
     Parameters
@@ -110,7 +111,7 @@ def run_node(home: Any, topics: Topics, settings: NodeSettings, *, node_name: st
     home: the resident home (:class:`~spco.service.live.LiveHome`); not closed here.
     topics: the robot's topics; settings: :class:`~spco.ros.core.NodeSettings`.
     node_name: the node's name on the ROS graph.
-    uses_images: whether the home's views are images (see :class:`~spco.ros.core.NodeCore`).
+    uses_images, n_concepts: see :class:`~spco.ros.core.NodeCore`.
     ready: called with the node's core once every topic is set up (the tests and benchmarks use it).
 
     ``ROS_MASTER_URI`` and ``ROS_IP`` (or ``ROS_HOSTNAME``) come from the environment, as for any
@@ -136,7 +137,8 @@ def run_node(home: Any, topics: Topics, settings: NodeSettings, *, node_name: st
                     publish_answer=lambda d: answers.publish(String(data=d["data"])),
                     publish_goal=lambda d: goals.publish(_filled(PoseStamped, stamp_now(d))),
                     publish_markers=lambda d: markers.publish(_filled(MarkerArray, d)),
-                    now=lambda: rospy.get_rostime().to_sec(), uses_images=uses_images)
+                    now=lambda: rospy.get_rostime().to_sec(), uses_images=uses_images,
+                    n_concepts=n_concepts)
 
     def received() -> float:
         return rospy.get_rostime().to_sec()

@@ -43,6 +43,7 @@ def _roslibpy() -> Any:
 
 def run_rosbridge(home: Any, url: str, topics: Topics, settings: NodeSettings, *,
                   pose_type: str | None = None, image_type: str | None = None, uses_images: bool = True,
+                  n_concepts: int = 10,
                   connect_timeout: float = 10.0, stop: threading.Event | None = None,
                   ready: Callable[[NodeCore], None] | None = None) -> None:
     """Run the node through the rosbridge server at ``url`` until ``stop`` is set (or SIGINT/SIGTERM).
@@ -54,7 +55,7 @@ def run_rosbridge(home: Any, url: str, topics: Topics, settings: NodeSettings, *
     topics, settings: as for :func:`spco.ros.node.run_node`.
     pose_type, image_type: the topics' types when the server should not look them up (e.g.
         ``geometry_msgs/msg/PoseStamped``); default: the types the topics have on the robot.
-    uses_images: whether the home's views are images.
+    uses_images, n_concepts: see :class:`~spco.ros.core.NodeCore`.
     connect_timeout: seconds to wait for the server; a :class:`RosbridgeError` after that.
     stop: an event that ends the node (default: a new one, set by SIGINT and SIGTERM).
     ready: called with the node's core once every topic is set up.
@@ -83,7 +84,7 @@ def run_rosbridge(home: Any, url: str, topics: Topics, settings: NodeSettings, *
                     publish_answer=lambda d: answers.publish(roslibpy.Message(d)),
                     publish_goal=lambda d: goals.publish(roslibpy.Message(d)),
                     publish_markers=lambda d: markers.publish(roslibpy.Message(d)),
-                    now=time.time, uses_images=uses_images)
+                    now=time.time, uses_images=uses_images, n_concepts=n_concepts)
 
     subscriptions = [roslibpy.Topic(ros, QUERY_TOPIC, "std_msgs/String")]
     subscriptions[0].subscribe(lambda m: core.on_query(m.get("data", "")))

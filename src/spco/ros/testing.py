@@ -9,6 +9,7 @@ The processes talk over loopback as a companion computer talks to a robot over i
 from __future__ import annotations
 
 import json
+import math
 import os
 import shutil
 import socket
@@ -27,7 +28,17 @@ from spco.errors import SpcoError
 from spco.ros import import_rospy
 from spco.ros.messages import quaternion_from_yaw
 
-__all__ = ["FakeRobot", "free_port", "ros_environment", "start_master", "start_node", "stop_process"]
+__all__ = [
+    "SWAPPED_ROOM_COLOURS",
+    "FakeRobot",
+    "free_port",
+    "ros_environment",
+    "start_master",
+    "start_node",
+    "stop_process",
+    "tour_home",
+    "tour_pose",
+]
 
 
 def free_port() -> int:
@@ -248,3 +259,64 @@ class FakeRobot:
             sub.unregister()
         for pub in (self.pose_pub, self.image_pub, self.speech_pub, self.query_pub):
             pub.unregister()
+
+
+#: Room colours (BGR) for a home where the colour order of a frame matters: the kitchen orange, the
+#: living room green, the bedroom the kitchen's colour with red and blue swapped — an RGB frame of the
+#: kitchen read as BGR looks like the bedroom.
+SWAPPED_ROOM_COLOURS = ((40, 160, 230), (60, 200, 80), (230, 160, 40))
+
+#: The tour's lap (metres): along y = 1 m from x = 0 to 12 facing +x, back along y = 3 m facing −x.
+LAP_METRES = 24.0
+
+
+def tour_pose(distance: float) -> tuple[float, float, float]:
+    """``(x, y, θ)`` of the robot ``distance`` metres into a lap of the tour of
+    :mod:`spco.data.bagtour` (kitchen, living room, bedroom along x)."""
+    lap = distance % LAP_METRES
+    return (lap, 1.0, 0.0) if lap < 12.0 else (LAP_METRES - lap, 3.0, math.pi)
+
+
+def _tour_environment(name: str, seed: int, taught_every: int, size: tuple[int, int],
+                      extractor: Any, colours: Sequence[tuple[int, int, int]] | None) -> Any:
+    from spco.data.bagtour import ROOMS, room_at, view
+    from spco.data.environment import Environment
+
+    rng = np.random.default_rng(seed)
+    poses, sentences, images = [], [], []
+    for k, distance in enumerate(np.arange(0.15, LAP_METRES, 0.3)):
+        x, y, theta = tour_pose(float(distance))
+        x, y = x + rng.normal(0, 0.05), y + rng.normal(0, 0.05)
+        poses.append([x, y, math.sin(theta), math.cos(theta)])
+        images.append(view(x, y, theta, size, rng, colours))
+        said = taught_every > 0 and k % taught_every == 0
+        sentences.append(f"this is the {ROOMS[room_at(x)][0]}" if said else None)
+    n = len(poses)
+    return Environment(name=name, ids=np.arange(n), positions=np.asarray(poses), sentences=tuple(sentences),
+                       visual=extractor.extract_many(images, jobs=1), is_test=np.zeros(n, dtype=bool),
+                       extent=(-0.5, 12.5, 0.0, 4.0))
+
+
+def tour_home(folder: str | os.PathLike[str], seed: int = 0, experienced: int = 3, taught_every: int = 4,
+              new_taught_every: int = 0, iterations: int = 60, size: tuple[int, int] = (160, 120),
+              colours: Sequence[tuple[int, int, int]] | None = None) -> Path:
+    """A home file to run the node on, made as a robot would: ``experienced`` tours of the three-room
+    home of :mod:`spco.data.bagtour` (80 samples each, "this is the <room>" at every
+    ``taught_every``-th, views drawn by :func:`spco.data.bagtour.view`, ``colour-hog`` features),
+    a knowledge fitted on them, and a new tour adapted with it (taught at every
+    ``new_taught_every``-th sample; 0: nothing taught); ``colours``: the rooms' colours (BGR; default
+    those of :data:`spco.data.bagtour.ROOMS`). Writes ``folder/home.spco`` and returns it.
+    """
+    from spco.data.environment import Corpus
+    from spco.features import DEFAULT_EXTRACTOR, build_extractor
+    from spco.knowledge import adapt, fit_knowledge
+
+    extractor = build_extractor(DEFAULT_EXTRACTOR)
+    homes = [_tour_environment(f"tour{k}", seed * 100 + k, taught_every, size, extractor, colours)
+             for k in range(experienced)]
+    knowledge = fit_knowledge(Corpus(homes), n_iterations=iterations, random_state=seed, extractor=extractor)
+    new = _tour_environment("new_tour", seed * 100 + 99, new_taught_every, size, extractor, colours)
+    home = adapt(knowledge, new, n_iterations=max(iterations // 2, 10), random_state=seed)
+    out = Path(folder) / "home.spco"
+    home.save(out, overwrite=True)
+    return out
