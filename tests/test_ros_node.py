@@ -149,7 +149,7 @@ def test_an_rgb_frame_declared_rgb8_gives_the_names_of_the_bgr_frame_and_of_the_
     """The kitchen is orange and the bedroom the same colour with red and blue swapped: read in the
     wrong order, a kitchen frame is the bedroom (what the issue saw at 41 of 60 poses, at p = 1.0)."""
     robot, home, _ = ros_node
-    from spco.commands_knowledge import what
+    from spco.cli.knowledge import what
     from spco.ros.testing import tour_pose
 
     distance = 2.0  # in the kitchen
