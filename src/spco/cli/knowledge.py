@@ -533,24 +533,30 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
 @click.argument("home_file", metavar="HOME", type=click.Path(path_type=Path))
 @click.option("--out", "-o", required=True, type=click.Path(path_type=Path), help="The PNG to write.")
 @click.option("--map", "map_image", type=click.Path(path_type=Path), default=None,
-              help="Floor-plan image drawn under the concepts.")
+              help="Floor plan drawn under the concepts: a ROS map (map.yaml: its image, origin and "
+                   "resolution give the extent) or an image (PNG, JPEG, PGM; grey drawn in grey).")
 @click.option("--extent", default=None,
-              help="x_min,x_max,y_min,y_max in metres covered by --map (default: the home's map extent).")
+              help="x_min,x_max,y_min,y_max in metres covered by a --map image (default: the home's map "
+                   "extent; a map.yaml gives its own).")
 @click.option("--name", "names", multiple=True, help="Also draw positions for this place name (repeatable).")
 @click.option("--regions", "regions_file", type=click.Path(path_type=Path), default=None,
               help="Room outlines to draw: a plain home's regions.json, or a file of every home's "
                    "(sigverse_regions.json). Default: the regions.json of the home folder adapted from.")
+@click.option("--regions-home", default=None, metavar="KEY",
+              help="The home of --regions to draw, when its key differs from the home's name.")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(0), help="Random seed.")
 @click.option("--force", is_flag=True, help="Replace --out if it exists.")
 @_friendly
 def show(home_file: Path, out: Path, map_image: Path | None, extent: str | None, names: Sequence[str],
-         regions_file: Path | None, seed: int, force: bool) -> None:
+         regions_file: Path | None, regions_home: str | None, seed: int, force: bool) -> None:
     """Draw the home's concepts on its floor plan: regions (95 % ellipses coloured by concept)
-    labelled with the names that describe them, the room outlines when the home has regions, the
-    home's samples, and positions for the names given."""
+    labelled on the map with the names that describe them, the room outlines when the home has
+    regions, the home's samples, and positions for the names given. --map takes a ROS map.yaml
+    (its image placed by its origin and resolution)."""
     import numpy as np
 
     from spco import plots
+    from spco.data.rosmap import MAP_YAML_SUFFIXES, read_ros_map
     from spco.errors import ConfigurationError
     from spco.knowledge import load_home_model
     from spco.knowledge import where as where_name
@@ -558,6 +564,16 @@ def show(home_file: Path, out: Path, map_image: Path | None, extent: str | None,
     _check_out(out, force)
     if map_image is not None and not Path(map_image).is_file():
         raise ConfigurationError(f"{map_image}: no such map image (--map)")
+    bounds = _extent(extent)
+    floor_plan: Any = map_image
+    if map_image is not None and Path(map_image).suffix.lower() in MAP_YAML_SUFFIXES:
+        if bounds is not None:
+            raise ConfigurationError("--extent is given by the map.yaml of --map (origin and resolution); "
+                                     "leave --extent out")
+        ros_map = read_ros_map(map_image)
+        floor_plan, bounds = ros_map.image, ros_map.extent
+    elif map_image is not None and Path(map_image).suffix.lower() == ".pgm":
+        floor_plan = _grey_image(Path(map_image))
     home = load_home_model(home_file)
     rng = np.random.default_rng(seed)
     predicted = {}
@@ -574,12 +590,13 @@ def show(home_file: Path, out: Path, map_image: Path | None, extent: str | None,
             click.echo(f"warning: no positions drawn for {name!r}: {exc}", err=True)
             continue
         predicted[pred.name] = pred.samples
-    bounds = _extent(extent)
     if bounds is None and map_image is not None and home.extent is None:
         raise ConfigurationError("the home has no map extent: give --extent x_min,x_max,y_min,y_max "
                                  "for --map")
     environment = home.environment()
-    rooms = _room_outlines(home, regions_file)
+    if regions_home is not None and regions_file is None:
+        raise ConfigurationError("--regions-home chooses a home of --regions: give --regions too")
+    rooms = _room_outlines(home, regions_file, regions_home)
     if rooms is not None:
         from dataclasses import replace
 
@@ -588,7 +605,7 @@ def show(home_file: Path, out: Path, map_image: Path | None, extent: str | None,
         environment = replace(environment, ground_truth=make_ground_truth(regions=rooms))
     try:
         fig = plots.plot_home_map(home.parameters, 0, environment, home.vocabulary,
-                                  map_image=map_image, map_extent=bounds,
+                                  map_image=floor_plan, map_extent=bounds, label_regions=True,
                                   predicted_positions=predicted or None, show_ground_truth=rooms is not None,
                                   title=f"{home.name}: {home.n_samples} samples, {home.n_taught} taught")
     except (OSError, ValueError, SyntaxError) as exc:  # an unreadable image
@@ -599,9 +616,24 @@ def show(home_file: Path, out: Path, map_image: Path | None, extent: str | None,
     click.echo(f"Wrote {out}")
 
 
-def _room_outlines(home: Any, regions_file: Path | None) -> Any:
-    """The home's room rectangles (:class:`~spco.data.regions.PlaceRegions`) from ``--regions``, or
-    from the regions.json of the home folder it was adapted from; ``None`` if there are none."""
+def _grey_image(path: Path) -> Any:
+    """A PGM (or other grey) image as a (H, W) uint8 array (matplotlib reads only PNG itself)."""
+    import cv2
+    import numpy as np
+
+    from spco.errors import ConfigurationError
+
+    raw = np.fromfile(path, dtype=np.uint8)
+    image = cv2.imdecode(raw, cv2.IMREAD_GRAYSCALE) if raw.size else None
+    if image is None:
+        raise ConfigurationError(f"{path}: not a readable map image (--map)")
+    return image
+
+
+def _room_outlines(home: Any, regions_file: Path | None, key: str | None = None) -> Any:
+    """The home's room rectangles (:class:`~spco.data.regions.PlaceRegions`) from ``--regions`` (the
+    entry ``key``, default the home's name, of a file of every home's), or from the regions.json of the
+    home folder it was adapted from; ``None`` if there are none."""
     from spco.data.plain import REGIONS_JSON, _read_regions
     from spco.data.regions import load_region_file
     from spco.errors import ConfigurationError
@@ -614,10 +646,12 @@ def _room_outlines(home: Any, regions_file: Path | None) -> Any:
         raise ConfigurationError(f"{regions_file}: no such region file (--regions)")
     if '"homes"' in Path(regions_file).read_text(encoding="utf-8", errors="replace")[:4096]:
         every = load_region_file(regions_file)
-        if home.name not in every:
-            raise ConfigurationError(f"{regions_file}: no regions for home {home.name!r} (it has "
-                                     f"{', '.join(sorted(every)[:8])}{', …' if len(every) > 8 else ''})")
-        return every[home.name]
+        wanted = key or home.name
+        if wanted not in every:
+            raise ConfigurationError(f"{regions_file}: no regions for home {wanted!r} (it has "
+                                     f"{', '.join(sorted(every)[:8])}{', …' if len(every) > 8 else ''}); "
+                                     "choose one with --regions-home")
+        return every[wanted]
     return _read_regions(Path(regions_file))
 
 
