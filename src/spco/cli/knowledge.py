@@ -97,10 +97,32 @@ def _image_options(func: Any) -> Any:
                              "used as the views in place of the homes' visual counts.")(func)
 
 
+#: Colour orders of a pixel array given with --image (spco.features.pixels).
+_ENCODINGS = ("rgb8", "bgr8", "mono8", "rgba8", "bgra8")
+
+
+def _pixels(image: Path, encoding: str | None) -> Any:
+    """--image as the extractor takes it: a .npy array of pixels (with --encoding), or the file's path."""
+    import numpy as np
+
+    from spco.errors import ConfigurationError, DataFormatError
+
+    if image.suffix.lower() != ".npy":
+        if encoding is not None:
+            raise ConfigurationError(f"--encoding is the colour order of a .npy array of pixels; {image} "
+                                     "carries its own")
+        return image
+    try:
+        return np.load(image, allow_pickle=False)
+    except (OSError, ValueError) as exc:
+        raise DataFormatError(image, f"not a readable .npy array of pixels ({exc})") from None
+
+
 def _view_counts(home: Any, knowledge_file: Path, visual: Path | None, image: Path | None,
-                 visual_scale: float | None, model: Path | None) -> Any:
-    """The view's counts for what/teach: --visual features, or --image through the knowledge's
-    extractor; each refused for knowledge fitted on the other kind of view."""
+                 visual_scale: float | None, model: Path | None, encoding: str | None = None) -> Any:
+    """The view's counts for what/teach: --visual features, or --image (a file, or a .npy array of
+    pixels in --encoding) through the knowledge's extractor; each refused for knowledge fitted on the
+    other kind of view."""
     from spco.errors import ConfigurationError
     from spco.knowledge import read_visual_vector
 
@@ -112,7 +134,7 @@ def _view_counts(home: Any, knowledge_file: Path, visual: Path | None, image: Pa
             raise ConfigurationError(f"{knowledge_file}: its knowledge was fitted on visual count vectors, "
                                      "not on images: give the view's features with --visual (or fit the "
                                      "knowledge on homes with images)")
-        return knowledge.image_extractor(model_path=model).extract(image)
+        return knowledge.image_extractor(model_path=model).extract(_pixels(image, encoding), encoding)
     if visual is not None:
         if knowledge.fitted_on_images:
             from spco.features import ExtractorSpec
@@ -368,14 +390,18 @@ def where(home_file: Path, name: str, n: int, seed: int, as_json: bool) -> None:
 @click.option("--visual-scale", type=float, default=None,
               help="Turn real-valued CNN features into counts: floor(max(f, 0) × scale) (the authors: 5).")
 @click.option("--image", type=click.Path(path_type=Path), default=None,
-              help="The current view as a camera image (PNG/JPEG), for knowledge fitted on images.")
+              help="The current view as a camera image (PNG/JPEG, or a .npy array of pixels: see "
+                   "--encoding), for knowledge fitted on images.")
+@click.option("--encoding", type=click.Choice(_ENCODINGS), default=None,
+              help="The colour order of an --image .npy array: rgb8 (PIL, matplotlib, cv_bridge rgb8), "
+                   "bgr8 (OpenCV; the default), mono8, rgba8, bgra8.")
 @click.option("--onnx-model", "model_file", type=click.Path(path_type=Path), default=None,
               help="Where the knowledge's .onnx model file is now (onnx extractor), if it moved.")
 @click.option("--top", default=3, show_default=True, type=click.IntRange(1, 100), help="Names to list.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON object.")
 @_friendly
 def what(home_file: Path, x: float, y: float, theta: float, visual: Path | None, visual_scale: float | None,
-         image: Path | None, model_file: Path | None, top: int, as_json: bool) -> None:
+         image: Path | None, encoding: str | None, model_file: Path | None, top: int, as_json: bool) -> None:
     """The most probable place names at a pose of the home of HOME, with their probabilities.
 
     With --visual (or --image) the view is used too; without, the position alone. Names are ranked
@@ -391,7 +417,7 @@ def what(home_file: Path, x: float, y: float, theta: float, visual: Path | None,
 
     home = load_home_model(home_file)
     _warn_if_knowledge_does_not_fit(home)
-    counts = _view_counts(home, home_file, visual, image, visual_scale, model_file)
+    counts = _view_counts(home, home_file, visual, image, visual_scale, model_file, encoding)
     pred = what_names(home, x, y, theta, visual=counts, top_k=max(len(home.vocabulary), 1))
     total = float(pred.scores[0].sum())
     names = [{"name": str(w), "probability": float(p), "score": float(s),
@@ -445,7 +471,11 @@ def _warn_if_knowledge_does_not_fit(home: Any) -> None:
 @click.option("--visual-scale", type=float, default=None,
               help="Turn real-valued CNN features into counts: floor(max(f, 0) × scale).")
 @click.option("--image", type=click.Path(path_type=Path), default=None,
-              help="New observation: the view as a camera image (PNG/JPEG), for knowledge fitted on images.")
+              help="New observation: the view as a camera image (PNG/JPEG, or a .npy array of pixels: see "
+                   "--encoding), for knowledge fitted on images.")
+@click.option("--encoding", type=click.Choice(_ENCODINGS), default=None,
+              help="The colour order of an --image .npy array: rgb8, bgr8 (the default), mono8, rgba8, "
+                   "bgra8.")
 @click.option("--onnx-model", "model_file", type=click.Path(path_type=Path), default=None,
               help="Where the knowledge's .onnx model file is now (onnx extractor), if it moved.")
 @click.option("--sweeps", default=10, show_default=True, type=click.IntRange(0, 10000),
@@ -457,7 +487,8 @@ def _warn_if_knowledge_does_not_fit(home: Any) -> None:
 @_friendly
 def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: float | None, y: float | None,
           theta: float | None, visual: Path | None, visual_scale: float | None, image: Path | None,
-          model_file: Path | None, sweeps: int, seed: int, out: Path | None, force: bool) -> None:
+          encoding: str | None, model_file: Path | None, sweeps: int, seed: int, out: Path | None,
+          force: bool) -> None:
     """Teach the robot in the home of HOME: a sentence for a sample, or a new observation.
 
     \b
@@ -499,7 +530,7 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
     with locked(target):
         home = load_home_model(home_file)
         if new_observation:
-            counts = _view_counts(home, home_file, visual, image, visual_scale, model_file)
+            counts = _view_counts(home, home_file, visual, image, visual_scale, model_file, encoding)
             obs = Observation(x=x, y=y, theta=theta, visual=counts,  # type: ignore[arg-type]
                               sentence=sentences[0] if sentences else None)
             updated = teach_home(home, observations=[obs], n_sweeps=sweeps, random_state=seed)

@@ -292,9 +292,9 @@ def _tour_environment(name: str, seed: int, taught_every: int, size: tuple[int, 
         said = taught_every > 0 and k % taught_every == 0
         sentences.append(f"this is the {ROOMS[room_at(x)][0]}" if said else None)
     n = len(poses)
+    visual = extractor.extract_many(images, jobs=1, encoding="bgr8")  # bagtour.view draws in BGR
     return Environment(name=name, ids=np.arange(n), positions=np.asarray(poses), sentences=tuple(sentences),
-                       visual=extractor.extract_many(images, jobs=1), is_test=np.zeros(n, dtype=bool),
-                       extent=(-0.5, 12.5, 0.0, 4.0))
+                       visual=visual, is_test=np.zeros(n, dtype=bool), extent=(-0.5, 12.5, 0.0, 4.0))
 
 
 def tour_home(folder: str | os.PathLike[str], seed: int = 0, experienced: int = 3, taught_every: int = 4,
