@@ -85,6 +85,7 @@ from spco.data.bagreading import (
     _yaw,
 )
 from spco.errors import ConfigurationError, DataFormatError
+from spco.features.pixels import pixels_from_buffer, to_bgr
 
 __all__ = ["SAMPLING_RULES", "BagImportSettings", "BagImportSummary", "import_bags"]
 
@@ -483,16 +484,12 @@ def _decode_image(bag: _Bag, connection: Any, msg: Any, image_format: str) -> tu
             f"{connection.topic}: image encoding {msg.encoding!r} is not supported "
             f"({', '.join(RAW_ENCODINGS)}); record a colour or grey 8-bit image",
         )
-    channels = 1 if encoding == "mono8" else 3
-    height, width, step = int(msg.height), int(msg.width), int(msg.step)
-    data = np.asarray(msg.data, dtype=np.uint8)
-    if height <= 0 or width <= 0 or step < width * channels or data.size < height * step:
+    try:
+        pixels = pixels_from_buffer(msg.data, msg.height, msg.width, msg.step, encoding)
+    except DataFormatError:
         return "image data do not match its size"
-    pixels = (
-        data[: height * step].reshape(height, step)[:, : width * channels].reshape(height, width, channels)
-    )
     if encoding == "rgb8":
-        pixels = pixels[:, :, ::-1]
+        pixels = to_bgr(pixels, encoding)
     ok, encoded = cv2.imencode(
         f".{image_format}",
         np.ascontiguousarray(pixels),
