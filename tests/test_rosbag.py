@@ -514,19 +514,25 @@ def test_a_throttled_camera_without_speech_imports_with_the_default_options(tmp_
         in result.output
 
 
-def test_utterances_a_throttled_camera_misses_are_listed_with_the_tolerance_to_use(tmp_path: Path) -> None:
+def test_utterances_with_a_throttled_camera_take_the_nearest_image(tmp_path: Path) -> None:
+    """Utterances at 5, 15, 25 … s and images every 2 s: each utterance is 1 s from the nearest image.
+    At each image (the default here), an utterance takes the nearest one; along the way (forced), the
+    tolerance of 0.5 s loses them, and the summary lists them with the tolerance that would keep them."""
     bag = tmp_path / "throttled.bag"
     info = write_tour(bag, seconds=80, size=SMALL, image_hz=0.5, speech_every=10)
     summary = import_bags([bag], tmp_path / "home", BagImportSettings(speech_topic="/speech"))
-    text = summary.format()
-    lost = summary.skipped["utterance: no image within 0.5 s"]
-    assert lost >= 1 and summary.taught == info["speech"] - lost
-    assert f"Not taught: {lost} utterance" in text and "--tolerance 1 takes the nearest one" in text
-    assert "along the way" not in text and "same camera image" not in text  # no noise
-    summary = import_bags([bag], tmp_path / "home", BagImportSettings(speech_topic="/speech", tolerance=1.0),
-                          overwrite=True)
-    assert summary.taught == info["speech"] and "Not taught" not in summary.format()
+    assert summary.sampling == "images" and summary.taught == info["speech"] == 8
+    assert "an utterance takes the nearest image up to 1.2 s away" in summary.format()
     _check_tour_home(tmp_path / "home", info["speech"])
+    forced = import_bags([bag], tmp_path / "travel", BagImportSettings(speech_topic="/speech", at="travel"))
+    text = forced.format()
+    lost = forced.skipped["utterance: no image within 0.5 s"]
+    assert lost == 8 and forced.taught == 0
+    assert "Not taught: 8 utterances:" in text and "--tolerance 1 takes the nearest one" in text
+    assert "same camera image" not in text  # no noise
+    kept = import_bags([bag], tmp_path / "travel", BagImportSettings(speech_topic="/speech", at="travel",
+                                                                     tolerance=1.0), overwrite=True)
+    assert kept.taught == 8 and "Not taught" not in kept.format()
 
 
 def test_a_good_import_prints_no_skipped_samples(tmp_path: Path) -> None:

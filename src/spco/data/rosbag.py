@@ -20,7 +20,9 @@ A sample is made at every utterance (taught: its sentence is what was said) and,
 nowhere else (``"utterances"``). ``"auto"`` (the default) chooses from the data (:func:`_auto_rule`):
 at each image when the camera records fewer images than there would be samples along the way, or
 most of those samples find no image within the tolerance — a camera throttled to one frame every few
-seconds, a robot that stops to look at each place — else along the way. Each
+seconds, a robot that stops to look at each place — else along the way. At each image, an utterance
+takes the image nearest to it up to :data:`UTTERANCE_IMAGE_SHARE` of the camera's interval away
+(the tolerance, if larger). Each
 modality is taken nearest in time to the sample within ``tolerance`` seconds; a sample missing one
 is skipped and counted by reason (the summary shows the utterances lost; ``import.json`` all), as is
 an untaught sample that would repeat another sample's camera image. Times are the messages' header
@@ -92,6 +94,10 @@ __all__ = ["SAMPLING_RULES", "BagImportSettings", "BagImportSummary", "import_ba
 #: Where untaught samples are made (``--at``): chosen from the data, along the way, at each camera
 #: image, or nowhere (only utterances).
 SAMPLING_RULES = ("auto", "travel", "images", "utterances")
+#: At each camera image: an utterance takes the nearest image up to this share of the camera's median
+#: interval away (or the tolerance, if that is larger): a sentence said between two pictures names
+#: the nearer one.
+UTTERANCE_IMAGE_SHARE = 0.6
 #: With ``at="auto"``: samples along the way only if at least this share of them find a camera image.
 TRAVEL_IMAGE_SHARE = 0.5
 
@@ -162,6 +168,7 @@ class BagImportSummary:
     periodic: int = 0  # untaught samples considered (along the way, or at camera images)
     sampling: str = "travel"  # where the untaught samples were made: travel, images or utterances
     image_interval: float | None = None  # median seconds between camera images
+    utterance_image_within: float | None = None  # at images: how far an utterance's image may be (s)
     skipped: dict[str, int] = field(default_factory=dict)  # "utterance: no image within 0.5 s" -> n
     dropped: dict[str, int] = field(default_factory=dict)  # "/topic: time went backwards" -> n
     warnings: list[str] = field(default_factory=list)
@@ -208,7 +215,9 @@ class BagImportSummary:
                 else "no speech topic")
         if self.sampling == "images":
             every = f" (one every {self.image_interval:.1f} s)" if self.image_interval else ""
-            return f"{said}; a sample at each camera image{every}"
+            nearest = (f"; an utterance takes the nearest image up to {self.utterance_image_within:.1f} s "
+                       "away" if self.utterance_image_within and "speech" in self.topics else "")
+            return f"{said}; a sample at each camera image{every}{nearest}"
         if self.sampling == "utterances":
             return f"{said}; samples only where people spoke (--at utterances)"
         return f"{said}; a sample along the way as the robot travelled"
@@ -645,6 +654,12 @@ def _make_samples(
         raise ConfigurationError("--at images makes a sample at each camera image: give --image-topic")
     summary.sampling = rule
     # candidates: utterances (kind 0), then the untaught samples (kind 1)
+    speech_tol = tolerance_ns
+    if rule == "images" and summary.image_interval:
+        # the camera is sparse: an utterance takes the image nearest to it, up to about half the
+        # interval between images away (60 %, for the jitter of a throttled camera)
+        speech_tol = max(tolerance_ns, round(UTTERANCE_IMAGE_SHARE * summary.image_interval * _NS))
+        summary.utterance_image_within = speech_tol / _NS
     if rule == "images":
         at_valid, at_xy, at_yaw = traj.lookup(image_t)
         at_times, at_image = image_t, np.arange(image_t.size)
@@ -665,7 +680,7 @@ def _make_samples(
     poses = np.concatenate([np.column_stack([xy, yaw]), np.column_stack([at_xy, at_yaw])])
     has_pose = np.concatenate([valid, at_valid])
     image_idx = np.concatenate([
-        _nearest(image_t, speech_t, tolerance_ns) if "image" in topics else np.full(speech_t.size, -1),
+        _nearest(image_t, speech_t, speech_tol) if "image" in topics else np.full(speech_t.size, -1),
         at_image,
     ]).astype(np.int64)
     visual_idx = (
@@ -683,7 +698,8 @@ def _make_samples(
             skipped[f"{kind}: no pose within {tol}"] += 1
             continue
         if "image" in topics and image_idx[row] < 0:
-            skipped[f"{kind}: no image within {tol}"] += 1
+            within = tol if kinds[row] == 1 else f"{speech_tol / _NS:g} s"
+            skipped[f"{kind}: no image within {within}"] += 1
             continue
         if "visual" in topics and visual_idx[row] < 0:
             skipped[f"{kind}: no visual features within {tol}"] += 1
