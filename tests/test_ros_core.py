@@ -75,7 +75,7 @@ def test_the_nearest_pose_and_frame_within_the_tolerance_are_taught(home_file: P
         answer = core.teach_utterance(100.3, "this is the study")
         assert "error" not in answer, answer
         assert (answer["x"], answer["theta"]) == (2.0, pytest.approx(0.1))  # the pose 0.05 s away
-        assert np.array_equal(_taught_counts(live), extractor.extract(bedroom))  # the frame 0.1 s away
+        assert np.array_equal(_taught_counts(live), extractor.extract(bedroom, "bgr8"))  # the frame 0.1 s away
         assert answer["op"] == "teach" and answer["sample"] == live.home.ids[-1] and answer["seq"] == 1
         assert len(sent["markers"]) == 1 and sent["markers"][0]["markers"][0]["action"] == 3
         # a camera at 0.5 Hz: a frame every 2 s, none within 0.5 s of an utterance between two
@@ -113,7 +113,7 @@ def test_an_utterance_waits_for_the_frame_that_follows_it(home_file: Path) -> No
             core.stop()
         (answer,) = [a for a in sent["answer"] if a["op"] == "teach"]
         assert "error" not in answer and answer["sentence"] == "this is the scullery"
-        assert np.array_equal(_taught_counts(live), extractor.extract(new))
+        assert np.array_equal(_taught_counts(live), extractor.extract(new, "bgr8"))
 
 
 def test_poses_from_tf_and_answers(home_file: Path) -> None:
@@ -141,3 +141,19 @@ def test_poses_from_tf_and_answers(home_file: Path) -> None:
         assert goal["header"]["frame_id"] == "map" and goal["pose"]["position"]["x"] == where["goal"]["x"]
         assert core.on_query('{"id": 4, "op": "where", "name": "kitchen", "n": 0}')["error"] == \
             "'n' must be at least 1, got 0"
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--tolerance", "0"], "--tolerance must be > 0 seconds"),
+    (["--image-wait", "-1"], "--image-wait must be ≥ 0 seconds"),
+    (["--max-age", "0"], "--max-age must be > 0 seconds"),
+    (["--rosbridge", "http://robot:9090"], "--rosbridge takes a WebSocket URL"),
+])
+def test_spco_ros_refuses_bad_options_before_it_starts(home_file: Path, args: list[str],
+                                                      message: str) -> None:
+    from click.testing import CliRunner
+
+    from spco.cli import main
+
+    result = CliRunner().invoke(main, ["ros", str(home_file), *args])
+    assert result.exit_code == 2 and message in result.output, result.output

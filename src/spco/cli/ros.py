@@ -87,6 +87,11 @@ def ros(home: Path, pose_topic: str, map_frame: str, robot_frame: str, image_top
         from spco.ros import import_rospy
 
         import_rospy()  # before opening the home: a missing rospy is one clear error
+    elif not rosbridge.startswith(("ws://", "wss://")):
+        from spco.errors import ConfigurationError
+
+        raise ConfigurationError(f"--rosbridge takes a WebSocket URL such as ws://robot:9090, got "
+                                 f"{rosbridge!r}")
     where = rosbridge or os.environ.get("ROS_MASTER_URI", "http://localhost:11311 (ROS_MASTER_URI unset)")
     with LiveHome(home, seed=seed, sweeps=sweeps, holder=f"spco ros (process {os.getpid()})") as live:
         model = live.home
