@@ -75,7 +75,7 @@ def test_the_nearest_pose_and_frame_within_the_tolerance_are_taught(home_file: P
         answer = core.teach_utterance(100.3, "this is the study")
         assert "error" not in answer, answer
         assert (answer["x"], answer["theta"]) == (2.0, pytest.approx(0.1))  # the pose 0.05 s away
-        assert np.array_equal(_taught_counts(live), extractor.extract(bedroom, "bgr8"))  # the frame 0.1 s away
+        assert np.array_equal(_taught_counts(live), extractor.extract(bedroom, "bgr8"))  # 0.1 s away
         assert answer["op"] == "teach" and answer["sample"] == live.home.ids[-1] and answer["seq"] == 1
         assert len(sent["markers"]) == 1 and sent["markers"][0]["markers"][0]["action"] == 3
         # a camera at 0.5 Hz: a frame every 2 s, none within 0.5 s of an utterance between two
