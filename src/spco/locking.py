@@ -2,7 +2,6 @@
 path ``spco.locking`` working)."""
 
 from spco.knowledge.locking import (
-    DEFAULT_TIMEOUT,
     HeldLock,
     HomeServedError,
     LockTimeoutError,
@@ -13,5 +12,5 @@ from spco.knowledge.locking import (
     served_by,
 )
 
-__all__ = ["DEFAULT_TIMEOUT", "HeldLock", "HomeServedError", "LockTimeoutError", "adopt", "hold", "lock_path",
-           "locked", "served_by"]
+__all__ = ["HeldLock", "HomeServedError", "LockTimeoutError", "adopt", "hold", "lock_path", "locked",
+           "served_by"]

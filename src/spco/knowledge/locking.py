@@ -186,6 +186,9 @@ def locked(path: str | PathLike[str], timeout: float | None = None) -> Iterator[
     sidecar = lock_path(path)
     key = str(sidecar)
     if key in _held_by_process:  # a resident server of this process holds it (hold, adopt)
+        server = _held_by_process[key]
+        if not server.permits(threading.get_ident()):
+            raise _served_error(path, server.description)
         yield sidecar
         return
     held: dict[str, list[int]] = getattr(_held, "locks", None) or {}
@@ -242,6 +245,18 @@ class HeldLock:
     def __init__(self, path: Path, sidecar: Path, fd: int, description: str, owner: bool) -> None:
         self.path, self.sidecar, self.fd, self.description = path, sidecar, fd, description
         self._owner = owner
+        # the threads of this process that may write the file (None: all, in an adopting writer process)
+        self._threads: set[int] | None = {threading.get_ident()} if owner else None
+
+    def permit(self, thread: int | None = None) -> None:
+        """Let a thread of this process (default: the calling one) write the file: the served home's
+        writer thread. The thread that took the lock may; other threads are refused like other processes."""
+        if self._threads is not None:
+            self._threads.add(threading.get_ident() if thread is None else thread)
+
+    def permits(self, thread: int) -> bool:
+        """Whether ``thread`` may write the file while it is held."""
+        return self._threads is None or thread in self._threads
 
     def release(self) -> None:
         """Give the lock up (the owner unlocks it; an adopter only forgets it) and close the descriptor."""
@@ -269,10 +284,11 @@ def hold(path: str | PathLike[str], description: str, timeout: float | None = No
 
     Writes ``<pid>`` and ``served-by: <description>`` into the lock file: any writer in another
     process (:func:`locked`) is then refused at once with :class:`HomeServedError` naming it, and
-    :func:`served_by` reports it. Every thread of this process passes :func:`locked` on ``path``
-    while it is held. Waits like a writer (``timeout``) for another writer (a ``spco teach``) to
-    finish; refuses at once when another live server holds it; waits at most ``dead_server_grace``
-    seconds for the lock of a killed server to be released (its writer process exits with it).
+    :func:`served_by` reports it; so is every thread of this process but the calling one and those
+    given :meth:`HeldLock.permit` (the served home's writer). Waits like a writer (``timeout``) for
+    another writer (a ``spco teach``) to finish; refuses at once when another live server holds it;
+    waits at most ``dead_server_grace`` seconds for the lock of a killed server to be released (its
+    writer process exits with it).
     """
     sidecar = lock_path(path)
     if str(sidecar) in _held_by_process:

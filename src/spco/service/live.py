@@ -35,6 +35,7 @@ import threading
 import time
 import warnings
 from collections.abc import Callable, Iterator
+from concurrent.futures import Future
 from os import PathLike
 from pathlib import Path
 from typing import Any
@@ -69,14 +70,17 @@ class Subscription:
     """
 
     def __init__(self, owner: LiveHome, callback: Callable[[dict[str, Any]], None] | None,
-                 maxsize: int) -> None:
+                 maxsize: int, types: frozenset[str] | None) -> None:
         self._owner = owner
         self._callback = callback
+        self.types = types
         self._queue: queue.Queue[dict[str, Any] | None] = queue.Queue(maxsize=max(1, maxsize))
         self.dropped = 0
         self.closed = False
 
     def _deliver(self, event: dict[str, Any]) -> None:
+        if self.types is not None and event["type"] not in self.types:
+            return
         if self._callback is not None:
             try:
                 self._callback(event)
@@ -172,7 +176,7 @@ class LiveHome:
                 self._writer: ProcessWriter | ThreadWriter = ProcessWriter(
                     path, self._on_applied, lock_fd=self._lock.fd, holder=self.holder, **options)
             else:
-                self._writer = ThreadWriter(path, self._on_applied, **options)
+                self._writer = ThreadWriter(path, self._on_applied, lock=self._lock, **options)
         except BaseException:
             self._lock.release()
             raise
@@ -207,7 +211,7 @@ class LiveHome:
         if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= MAX_POSES:
             raise ConfigurationError(f"n: expected a number of poses from 1 to {MAX_POSES}, got {n!r}")
         answer = where_answer(self._snapshot, name, n=n, seed=seed)
-        if self._subscribers:
+        if self._listening("answer"):
             self._publish({"type": "answer", "kind": "where", "name": answer["name"],
                            "positions": answer["positions"][:3]})
         return answer
@@ -249,7 +253,7 @@ class LiveHome:
         home = self._snapshot
         check_pose(home, x, y, theta)  # before decoding an image
         answer = what_answer(home, x, y, theta, self.view_counts(image, encoding, visual), top)
-        if self._subscribers:
+        if self._listening("answer"):
             self._publish({"type": "answer", "kind": "what", "pose": answer["pose"],
                            "vision": answer["vision"], "names": answer["names"]})
         return answer
@@ -283,16 +287,47 @@ class LiveHome:
                 "uptime_seconds": round(time.time() - self.started, 1)}
 
     # ------------------------------------------------------------------ teaching
-    def _submit(self, request: dict[str, Any], timeout: float | None) -> dict[str, Any]:
+    def _submit(self, request: dict[str, Any]) -> Future[dict[str, Any]]:
+        """Send ``request`` to the writer; the future gets the answer, or the error it raised."""
+        answer: Future[dict[str, Any]] = Future()
         if self._closed:
-            raise WriterUnavailableError("the served home is closed")
-        result = self._writer.submit(request).result(timeout)
-        if not result.get("ok"):
-            error = _RESULT_ERRORS.get(result.get("kind", ""), SpcoError)
-            if result.get("kind") == "InternalError":
-                raise RuntimeError(result["error"])
-            raise error(result["error"])
-        return {k: v for k, v in result.items() if k != "ok"}
+            answer.set_exception(WriterUnavailableError("the served home is closed"))
+            return answer
+
+        def done(result_future: Future[dict[str, Any]]) -> None:
+            try:
+                result = result_future.result()
+            except BaseException as exc:
+                answer.set_exception(exc)
+                return
+            if result.get("ok"):
+                answer.set_result({k: v for k, v in result.items() if k != "ok"})
+            elif result.get("kind") == "InternalError":
+                answer.set_exception(RuntimeError(result["error"]))
+            else:
+                answer.set_exception(_RESULT_ERRORS.get(result.get("kind", ""), SpcoError)(result["error"]))
+
+        self._writer.submit(request).add_done_callback(done)
+        return answer
+
+    def submit_teach(self, *, sentence: str | None = None, id: int | None = None, x: float | None = None,
+                     y: float | None = None, theta: float | None = None, image: Any = None,
+                     encoding: str | None = None, visual: Any = None) -> Future[dict[str, Any]]:
+        """:meth:`teach` without waiting: a future of its answer (or of its error). The request is
+        checked and its image turned into counts here, in the caller's thread (errors raise at once)."""
+        pose = (x, y, theta)
+        if id is not None:
+            if any(v is not None for v in (*pose, image, visual)):
+                raise ConfigurationError("give either id and sentence (a known sample) or a pose x, y, theta "
+                                         "with an optional image (a new observation), not both")
+            return self._submit({"op": "sentence", "id": id, "sentence": sentence})
+        if any(v is None for v in pose):
+            raise ConfigurationError("a teaching needs id and sentence (a known sample) or x, y and theta "
+                                     "(a new observation)")
+        check_pose(self._snapshot, x, y, theta)
+        counts = self.view_counts(image, encoding, visual)
+        return self._submit({"op": "observation", "x": x, "y": y, "theta": theta, "sentence": sentence,
+                             "visual": counts})
 
     def teach(self, *, sentence: str | None = None, id: int | None = None, x: float | None = None,
               y: float | None = None, theta: float | None = None, image: Any = None,
@@ -310,26 +345,19 @@ class LiveHome:
         :class:`ConfigurationError` (a bad pose, view or sentence) or
         :class:`~spco.service.writer.WriterUnavailableError`.
         """
-        pose = (x, y, theta)
-        if id is not None:
-            if any(v is not None for v in (*pose, image, visual)):
-                raise ConfigurationError("give either id and sentence (a known sample) or a pose x, y, theta "
-                                         "with an optional image (a new observation), not both")
-            return self._submit({"op": "sentence", "id": id, "sentence": sentence}, timeout)
-        if any(v is None for v in pose):
-            raise ConfigurationError("a teaching needs id and sentence (a known sample) or x, y and theta "
-                                     "(a new observation)")
-        check_pose(self._snapshot, x, y, theta)
-        counts = self.view_counts(image, encoding, visual)
-        return self._submit({"op": "observation", "x": x, "y": y, "theta": theta, "sentence": sentence,
-                             "visual": counts}, timeout)
+        return self.submit_teach(sentence=sentence, id=id, x=x, y=y, theta=theta, image=image,
+                                 encoding=encoding, visual=visual).result(timeout)
+
+    def submit_undo(self, seq: int) -> Future[dict[str, Any]]:
+        """:meth:`undo` without waiting: a future of its answer (or of its error)."""
+        return self._submit({"op": "undo", "seq": seq})
 
     def undo(self, seq: int, *, timeout: float | None = None) -> dict[str, Any]:
         """Undo teaching ``seq``: restore the sentence it replaced, or remove the sample it added; as
         durable as a teaching. Returns ``{"seq" (the undo's), "undoes", "teachings", …}``. Raises
         :class:`~spco.service.teaching.NotFoundError` for an unknown seq and
         :class:`~spco.service.teaching.ConflictError` for one undone already or changed since."""
-        return self._submit({"op": "undo", "seq": seq}, timeout)
+        return self.submit_undo(seq).result(timeout)
 
     def _on_applied(self, pairs: list[tuple[dict[str, Any], dict[str, Any]]], snapshot: kn.HomeModel | None
                     ) -> None:
@@ -343,14 +371,15 @@ class LiveHome:
                 self._publish({"type": kind, **{k: v for k, v in result.items() if k != "ok"}})
 
     # ------------------------------------------------------------------ events
-    def subscribe(self, callback: Callable[[dict[str, Any]], None] | None = None,
-                  maxsize: int = 1000) -> Subscription:
-        """Receive the home's events (``taught``, ``undone``, ``answer``; see the module).
+    def subscribe(self, callback: Callable[[dict[str, Any]], None] | None = None, maxsize: int = 1000,
+                  types: set[str] | None = None) -> Subscription:
+        """Receive the home's events (``taught``, ``undone``, ``answer``; see the module), or only
+        those whose type is in ``types``.
 
         With ``callback``, it is called with each event in the thread that publishes it (keep it
         short: hand the event on); without, events wait in the returned :class:`Subscription`.
         """
-        subscription = Subscription(self, callback, maxsize)
+        subscription = Subscription(self, callback, maxsize, None if types is None else frozenset(types))
         with self._subscribers_lock:
             self._subscribers = [*self._subscribers, subscription]
         return subscription
@@ -358,6 +387,9 @@ class LiveHome:
     def _unsubscribe(self, subscription: Subscription) -> None:
         with self._subscribers_lock:
             self._subscribers = [s for s in self._subscribers if s is not subscription]
+
+    def _listening(self, kind: str) -> bool:
+        return any(s.types is None or kind in s.types for s in self._subscribers)
 
     def _publish(self, event: dict[str, Any]) -> None:
         event.setdefault("time", time.time())

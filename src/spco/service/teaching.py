@@ -55,9 +55,11 @@ __all__ = [
     "batches",
     "check_journal_matches",
     "check_pose",
+    "file_digest",
     "history_of",
     "load_current",
     "observation_record",
+    "pending_teachings",
     "plan_undo",
     "replay",
     "sentence_record",
@@ -256,8 +258,8 @@ def apply_batch(home: kn.HomeModel, records: list[dict[str, Any]],
     teachings = int(served.get("teachings", 0))
     stamp = first.get("time") or _now()
     entries: dict[int, dict[str, Any]] = {}  # merged into history once the teaching succeeded
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", kn.OwnNamesSpreadWarning)  # the writer reports the notes itself
+    with warnings.catch_warnings(record=True) as caught:  # said in the answer (notes), not on stderr
+        warnings.simplefilter("always", kn.OwnNamesSpreadWarning)
         if first["op"] == "undo":
             if len(records) != 1:
                 raise JournalError(f"an undo (seq {first['seq']}) must be a batch of its own")
@@ -299,7 +301,11 @@ def apply_batch(home: kn.HomeModel, records: list[dict[str, Any]],
     if history is not None:
         history.update(entries)
     served.update(last_seq=int(records[-1]["seq"]), teachings=teachings)
-    return replace(updated, provenance={**updated.provenance, SERVED: served})
+    provenance = {**updated.provenance, SERVED: served}
+    said = [str(w.message) for w in caught if issubclass(w.category, kn.OwnNamesSpreadWarning)]
+    if said and isinstance(provenance.get("last_teach"), dict):
+        provenance["last_teach"] = {**provenance["last_teach"], "warnings": said}
+    return replace(updated, provenance=provenance)
 
 
 def batches(records: list[dict[str, Any]]) -> list[list[dict[str, Any]]]:
@@ -331,19 +337,38 @@ def replay(home: kn.HomeModel, records: list[dict[str, Any]],
     return home
 
 
+def file_digest(path: str | PathLike[str]) -> str:
+    """sha256 of a file's bytes: how a journal started on a never-compacted home file names its base."""
+    import hashlib
+
+    with open(path, "rb") as handle:
+        return hashlib.file_digest(handle, "sha256").hexdigest()
+
+
 def check_journal_matches(home: kn.HomeModel, header: dict[str, Any] | None, records: list[dict[str, Any]],
-                          journal: Any) -> None:
-    """Raise :class:`JournalError` if the journal is not that of ``home``'s file (another home file was put
-    in its place) while it still holds teachings the file lacks."""
+                          journal: Any, path: str | PathLike[str]) -> None:
+    """Raise :class:`JournalError` if the journal is not that of the home file ``path`` (another home file
+    was put in its place) while it still holds teachings the file lacks. A journal belongs to the file
+    whose ``provenance["served"]["journal"]`` is its ID, or, before the first compaction, to the file
+    whose bytes its header's ``base_sha256`` names."""
     if header is None:
         return
     ident = served_info(home).get("journal")
     last = int(served_info(home).get("last_seq", 0))
-    if header["journal"] != ident and any(int(r["seq"]) > last for r in records):
+    if not any(int(r["seq"]) > last for r in records) or header["journal"] == ident:
+        return
+    if header.get("base_sha256") is None or header["base_sha256"] != file_digest(path):
         raise JournalError(f"{journal} holds teachings of another version of {home.name!r} (journal "
                            f"{header['journal']}, the home file's is {ident}): the home file was replaced "
                            "while it had teachings not compacted into it; move the journal away to use the "
                            "file as it is")
+
+
+def pending_teachings(path: str | PathLike[str]) -> int:
+    """How many records of the journal of the home file ``path`` are not compacted into the file yet."""
+    contents = read_journal(journal_path(path), warn=False)
+    last = int(served_info(kn.load_home_model(path)).get("last_seq", 0))
+    return sum(int(r["seq"]) > last for r in contents.records)
 
 
 def load_current(path: str | PathLike[str], attempts: int = 5) -> tuple[kn.HomeModel, int]:
@@ -359,7 +384,7 @@ def load_current(path: str | PathLike[str], attempts: int = 5) -> tuple[kn.HomeM
     for attempt in range(attempts):
         home = kn.load_home_model(path)
         contents = read_journal(journal, warn=attempt == 0)
-        check_journal_matches(home, contents.header, contents.records, journal)
+        check_journal_matches(home, contents.header, contents.records, journal, path)
         last = int(served_info(home).get("last_seq", 0))
         pending = [r for r in contents.records if int(r["seq"]) > last]
         if not pending:

@@ -21,7 +21,9 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import io
 import os
+import pickle
 import queue
 import signal
 import socket
@@ -30,8 +32,10 @@ import sys
 import threading
 import time
 import traceback
+import warnings
 from collections.abc import Callable
 from concurrent.futures import Future
+from dataclasses import replace
 from datetime import UTC, datetime
 from multiprocessing.connection import Connection
 from os import PathLike
@@ -48,6 +52,7 @@ from spco.service.teaching import (
     ConflictError,
     apply_batch,
     check_journal_matches,
+    file_digest,
     history_of,
     observation_record,
     plan_undo,
@@ -57,8 +62,9 @@ from spco.service.teaching import (
     with_history,
 )
 
-__all__ = ["DEFAULT_COMPACT_IDLE", "DEFAULT_COMPACT_RECORDS", "DEFAULT_MAX_BATCH", "HomeWriter",
-           "ProcessWriter", "ThreadWriter", "WriterUnavailableError", "error_result"]
+__all__ = ["DEFAULT_COMPACT_IDLE", "DEFAULT_COMPACT_RECORDS", "DEFAULT_MAX_BATCH", "WRITER_NICENESS",
+           "HomeWriter", "ProcessWriter", "SnapshotChannel", "ThreadWriter", "WriterUnavailableError",
+           "error_result"]
 
 #: Records after which the writer compacts the journal into the home file.
 DEFAULT_COMPACT_RECORDS = 100
@@ -66,6 +72,8 @@ DEFAULT_COMPACT_RECORDS = 100
 DEFAULT_COMPACT_IDLE = 2.0
 #: The most teachings applied by one :func:`spco.knowledge.teach` call.
 DEFAULT_MAX_BATCH = 32
+#: How much lower the writer process's scheduling priority is than the server's (``nice``).
+WRITER_NICENESS = 10
 
 
 class WriterUnavailableError(SpcoError):
@@ -108,22 +116,39 @@ class HomeWriter:
         self.journal = Journal(journal_path(path))
         home = kn.load_home_model(path)
         contents = read_journal(self.journal.path, warn=False)
-        check_journal_matches(home, contents.header, contents.records, self.journal.path)
+        check_journal_matches(home, contents.header, contents.records, self.journal.path, path)
         history = history_of(home)
         before = int(served_info(home).get("last_seq", 0))
         home = replay(home, contents.records, history)
+        replayed = int(served_info(home).get("last_seq", 0)) - before
         #: what start-up found: records replayed, a torn record dropped
-        self.startup = {"replayed": int(served_info(home).get("last_seq", 0)) - before, "torn": contents.torn}
-        ident = served_info(home).get("journal") or new_journal_id()
-        served = {**served_info(home), "journal": ident}
+        self.startup = {"replayed": replayed, "torn": contents.torn}
+        compacted = served_info(home).get("journal")
+        served = {**served_info(home), "journal": compacted or new_journal_id()}
         served.setdefault("last_seq", 0)
         served.setdefault("teachings", 0)
         self.home = _with_served(home, served)
         self.history = history
         self._base_seed = int(np.random.SeedSequence().entropy if seed is None else seed)  # type: ignore[arg-type]
-        self._since_compaction = 0
+        self._since_compaction = replayed
         self._last_teaching = time.monotonic()
-        self.compact()
+        self._last_snapshot: kn.HomeModel | None = None
+        if replayed:
+            self.compact()
+        else:  # the file is left as it is: a journal anew, tied to the file (by its ID, or by its bytes)
+            header = {"journal": served["journal"], "home": home.name, "base_seq": served["last_seq"]}
+            if compacted is None:
+                header["base_sha256"] = file_digest(self.path)
+            self.journal.rewrite(header, [])
+        self._warm_up()
+
+    def _warm_up(self) -> None:
+        """Run one throw-away teaching, so that the first real one does not wait for the sampler's
+        compiled kernels to load (about a second)."""
+        home = self.home
+        with contextlib.suppress(SpcoError), warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            kn.teach(home, {int(home.ids[0]): home.sentences[0]}, n_sweeps=1, random_state=0)
 
     # ------------------------------------------------------------------ state
     @property
@@ -132,9 +157,17 @@ class HomeWriter:
         return int(served_info(self.home)["last_seq"])
 
     def snapshot(self) -> kn.HomeModel:
-        """The current home for readers: without the teaching history, its derived data computed."""
-        snap = with_history(self.home, None)
-        _ = snap.data, snap.parameters  # computed here, not by the first reader
+        """The current home for readers: without the teaching history and the sampler's cache, its
+        derived data computed (here, not by the first reader). Arrays that did not change since the
+        last snapshot are the same objects (what :class:`SnapshotChannel` does not send again)."""
+        home = with_history(self.home, None)
+        snap = replace(home, state=replace(home.state, visual_cache=None))
+        data = snap.data
+        previous = self._last_snapshot
+        if previous is not None and snap.visual is previous.visual:  # the same views: the same counts
+            snap.__dict__["data"] = replace(data, visual=previous.data.visual)
+        _ = snap.parameters
+        self._last_snapshot = snap
         return snap
 
     def _seed_for(self, first_seq: int) -> int:
@@ -226,11 +259,13 @@ class HomeWriter:
         seconds = time.perf_counter() - start
         new_words = list(updated.vocabulary.words[words_before:])
         served = served_info(updated)
+        said = list(updated.provenance["last_teach"].get("warnings", []))  # a new name spreading (teach)
         for (index, _), record in zip(batch, records, strict=True):
             result = {k: v for k, v in record.items() if k not in ("view", "seed", "sweeps", "batch")}
             result.update(ok=True, home=updated.name, teachings=served["teachings"],
                           samples=updated.n_samples, taught=updated.n_taught, new_words=new_words,
-                          batch=len(records), seconds=round(seconds, 4), notes=_notes(updated, record))
+                          batch=len(records), seconds=round(seconds, 4),
+                          notes=_notes(updated, record) + said)
             results[index] = result
         if self._since_compaction >= self.compact_records:
             self.compact()
@@ -260,9 +295,63 @@ class HomeWriter:
 
 
 def _with_served(home: kn.HomeModel, served: dict[str, Any]) -> kn.HomeModel:
-    from dataclasses import replace
-
     return replace(home, provenance={**home.provenance, SERVED: served})
+
+
+class SnapshotChannel:
+    """Snapshots from the writer process to the server without sending unchanged arrays again.
+
+    A teaching by sample id changes the sampler's state and the posterior, not the home's views or
+    the knowledge: arrays of at least :attr:`MIN_BYTES` that the last snapshot held already (the same
+    objects) travel as a reference, so that the server unpickles about 1 MB instead of 6 (for a
+    SIGVerse home) while readers wait for its global lock. :meth:`pack` (writer side) returns
+    ``(new arrays, snapshot, keys in use)`` as bytes; :meth:`unpack` (server side) rebuilds it.
+    """
+
+    MIN_BYTES = 32 * 1024
+
+    def __init__(self) -> None:
+        self._keys: dict[int, tuple[int, Any]] = {}  # writer: id(array) -> (key, array kept alive)
+        self._objects: dict[int, Any] = {}  # server: key -> array
+        self._next = 0
+
+    def pack(self, snapshot: kn.HomeModel) -> tuple[bytes, bytes, list[int]]:
+        """The snapshot as ``(pickled new arrays, pickled snapshot referring to arrays by key, keys)``."""
+        new: dict[int, Any] = {}
+        used: dict[int, tuple[int, Any]] = {}
+        channel = self
+
+        class Pickler(pickle.Pickler):
+            def persistent_id(self, obj: Any) -> int | None:
+                if not isinstance(obj, np.ndarray) or obj.nbytes < channel.MIN_BYTES:
+                    return None
+                entry = channel._keys.get(id(obj))
+                if entry is None or entry[1] is not obj:
+                    entry = (channel._next, obj)
+                    channel._next += 1
+                    new[entry[0]] = obj
+                used[id(obj)] = entry
+                return entry[0]
+
+        buffer = io.BytesIO()
+        Pickler(buffer, protocol=pickle.HIGHEST_PROTOCOL).dump(snapshot)
+        self._keys = used
+        return (pickle.dumps(new, protocol=pickle.HIGHEST_PROTOCOL), buffer.getvalue(),
+                [key for key, _ in used.values()])
+
+    def unpack(self, packed: tuple[bytes, bytes, list[int]]) -> kn.HomeModel:
+        """The snapshot :meth:`pack` made, with the arrays sent before."""
+        new, data, keys = packed
+        self._objects.update(pickle.loads(new))
+        objects = self._objects
+
+        class Unpickler(pickle.Unpickler):
+            def persistent_load(self, key: Any) -> Any:
+                return objects[key]
+
+        snapshot = Unpickler(io.BytesIO(data)).load()
+        self._objects = {key: objects[key] for key in keys}
+        return snapshot
 
 
 def _notes(home: kn.HomeModel, record: dict[str, Any]) -> list[str]:
@@ -285,10 +374,13 @@ Applied = Callable[[list[tuple[dict[str, Any], dict[str, Any]]], "kn.HomeModel |
 
 class ThreadWriter:
     """A :class:`HomeWriter` in a thread of this process; ``on_applied(pairs, snapshot)`` is called
-    in that thread after each round, with (request, result) pairs and the new snapshot (or ``None``)."""
+    in that thread after each round, with (request, result) pairs and the new snapshot (or ``None``).
+    ``lock``: the :class:`spco.locking.HeldLock` of the file, which the thread is permitted to write."""
 
-    def __init__(self, path: str | PathLike[str], on_applied: Applied, **options: Any) -> None:
+    def __init__(self, path: str | PathLike[str], on_applied: Applied, *, lock: Any = None,
+                 **options: Any) -> None:
         self._writer = HomeWriter(path, **options)
+        self._lock_held = lock
         self.startup = dict(self._writer.startup)
         self.first_snapshot = self._writer.snapshot()
         self._on_applied = on_applied
@@ -307,6 +399,8 @@ class ThreadWriter:
         return future
 
     def _run(self) -> None:
+        if self._lock_held is not None:
+            self._lock_held.permit()  # this thread writes the file it holds
         while True:
             try:
                 item = self._queue.get(timeout=self._writer.compact_idle / 2)
@@ -349,7 +443,9 @@ class ProcessWriter:
 
     The child inherits the descriptor of the home's lock (held by this process with
     :func:`spco.locking.hold`) and declares it (:func:`spco.locking.adopt`); it is killed when this
-    process dies (``PR_SET_PDEATHSIG`` on Linux; elsewhere it exits when its connection closes).
+    process dies (``PR_SET_PDEATHSIG`` on Linux; elsewhere it exits when its connection closes). It
+    runs the sampler on one thread and at a lower priority (:data:`WRITER_NICENESS`): on a robot's
+    few cores the answers come first.
     ``on_applied`` is called in a receiving thread of this process.
     """
 
@@ -362,7 +458,10 @@ class ProcessWriter:
         for key, value in options.items():
             if value is not None:
                 args += [f"--{key.replace('_', '-')}", str(value)]
-        self._process = subprocess.Popen(args, pass_fds=(lock_fd, theirs.fileno()), stdin=subprocess.DEVNULL)
+        # one sampler thread: the other core stays with the readers (the result does not depend on it)
+        environment = {**os.environ, "NUMBA_NUM_THREADS": "1"}
+        self._process = subprocess.Popen(args, pass_fds=(lock_fd, theirs.fileno()), stdin=subprocess.DEVNULL,
+                                         env=environment)
         theirs.close()
         self._conn = Connection(ours.detach())
         self._on_applied = on_applied
@@ -386,7 +485,9 @@ class ProcessWriter:
             self._kill()
             kind, text = message[1], message[2]
             raise (_ERRORS.get(kind, SpcoError))(text)
-        _, self.first_snapshot, self.startup = message
+        self._channel = SnapshotChannel()
+        self.first_snapshot = self._channel.unpack(message[1])
+        self.startup = message[2]
         self.pid = self._process.pid
         self._receiver = threading.Thread(target=self._receive, name="spco-writer-receiver", daemon=True)
         self._receiver.start()
@@ -415,7 +516,8 @@ class ProcessWriter:
             except (EOFError, OSError):
                 message = ("gone",)
             if message[0] == "applied":
-                _, keyed, snapshot = message
+                _, keyed, packed = message
+                snapshot = None if packed is None else self._channel.unpack(packed)
                 with self._lock:
                     done = [(self._pending.pop(key), result) for key, result in keyed]
                 self._on_applied([(request, result) for (request, _), result in done], snapshot)
@@ -473,7 +575,7 @@ def _die_with_parent(parent: int) -> None:
         os._exit(1)
 
 
-def _serve_connection(conn: Connection, writer: HomeWriter) -> None:
+def _serve_connection(conn: Connection, writer: HomeWriter, channel: SnapshotChannel) -> None:
     idle = writer.compact_idle / 2
     while True:
         if not conn.poll(idle):
@@ -492,7 +594,7 @@ def _serve_connection(conn: Connection, writer: HomeWriter) -> None:
             results = writer.handle([request for _, request in work])
             changed = any(r.get("ok") for r in results)
             conn.send(("applied", [(key, result) for (key, _), result in zip(work, results, strict=True)],
-                       writer.snapshot() if changed else None))
+                       channel.pack(writer.snapshot()) if changed else None))
         if any(m[0] == "close" for m in messages):
             writer.close()
             return
@@ -520,6 +622,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     _die_with_parent(args.parent)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the server, which closes us in order
+    with contextlib.suppress(OSError):
+        os.nice(WRITER_NICENESS)  # the readers' process first: a teaching waits a little, an answer not
     conn = Connection(args.conn_fd)
     try:
         locking.adopt(args.path, args.lock_fd, args.holder)
@@ -533,8 +637,9 @@ def main(argv: list[str] | None = None) -> int:
         traceback.print_exc()
         conn.send(("error", "SpcoError", f"the writer could not start: {type(exc).__name__}: {exc}"))
         return 1
-    conn.send(("ready", writer.snapshot(), dict(writer.startup)))
-    _serve_connection(conn, writer)
+    channel = SnapshotChannel()
+    conn.send(("ready", channel.pack(writer.snapshot()), dict(writer.startup)))
+    _serve_connection(conn, writer, channel)
     return 0
 
 
