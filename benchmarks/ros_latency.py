@@ -161,7 +161,7 @@ def main() -> None:
             answer, seconds = robot.query(request)
             errors += "error" in answer
             latencies[op].append(seconds)
-        teach, markers, first = [], [], None
+        teach, markers, writer, first = [], [], [], None
         for k in range(args.utterances):
             time.sleep(2.0)  # the robot drives on
             room = ROOMS[room_at(robot_x := drive.tour_pose(drive.distance)[0])][0]
@@ -179,11 +179,13 @@ def main() -> None:
             else:
                 markers.append(got_markers - sent)
                 teach.append(got_answer - sent)
+                writer.append(float(answer.get("seconds", math.nan)))  # the writer's own time
         load = os.getloadavg()
         result = {"queries": {op: _percentiles(v) for op, v in latencies.items()},
                   "all_queries": _percentiles(latencies["where"] + latencies["what"]),
                   "utterance_to_markers": _percentiles(markers) if markers else None,
                   "utterance_to_teach_answer": _percentiles(teach) if teach else None,
+                  "writer_seconds_per_teaching": _percentiles(writer) if writer else None,
                   "first_teaching": first, "errors": errors, "loadavg": load}
         print(f"query -> answer (ms), {args.queries} queries, loopback:")
         for op, row in [*result["queries"].items(), ("all", result["all_queries"])]:
@@ -191,9 +193,11 @@ def main() -> None:
                   f"max {row['max']:7.2f}  (n={row['n']})")
         if markers:
             m, t = result["utterance_to_markers"], result["utterance_to_teach_answer"]
+            w = result["writer_seconds_per_teaching"]
             print(f"utterance -> updated markers (ms), {len(markers)} teachings after the first: "
                   f"p50 {m['p50']:.1f}  p95 {m['p95']:.1f}  max {m['max']:.1f}; -> teach answer "
-                  f"p50 {t['p50']:.1f} max {t['max']:.1f}")
+                  f"p50 {t['p50']:.1f} max {t['max']:.1f}; of which the writer process p50 {w['p50']:.1f} "
+                  f"max {w['max']:.1f}")
         if first:
             print(f"first teaching of the node: markers {first['markers_ms']:.0f} ms, answer "
                   f"{first['answer_ms']:.0f} ms")

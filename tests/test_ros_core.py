@@ -116,6 +116,25 @@ def test_an_utterance_waits_for_the_frame_that_follows_it(home_file: Path) -> No
         assert np.array_equal(_taught_counts(live), extractor.extract(new, "bgr8"))
 
 
+def test_an_utterance_just_after_a_frame_does_not_wait_for_the_next(home_file: Path) -> None:
+    """A frame 0.02 s before the utterance: a later one could be nearer only within 0.02 s, so the
+    node decides then, not after the tolerance (0.5 s)."""
+    with LiveHome(home_file, seed=0, writer="thread") as live:
+        core, _ = _core(live, tolerance=0.5)
+        now = time.time()
+        core.on_pose(_pose_msg(2.0, 1.0, 0.0), received=now)
+        core.on_image(_image_msg(_room_view(2.0)), received=now - 0.02)
+        started = time.monotonic()
+        core._wait_for_frame(now)
+        assert time.monotonic() - started < 0.25  # not the 0.5 s of the tolerance
+        core, _ = _core(live, tolerance=0.5)
+        now = time.time()
+        core.on_image(_image_msg(_room_view(2.0)), received=now - 0.3)
+        started = time.monotonic()
+        core._wait_for_frame(now)  # the last frame 0.3 s before: waits 0.3 s for a nearer one
+        assert 0.2 < time.monotonic() - started < 0.49
+
+
 def test_poses_from_tf_and_answers(home_file: Path) -> None:
     with LiveHome(home_file, seed=0, writer="thread") as live:
         clock = Clock(50.0)

@@ -5,10 +5,11 @@ streams, how an utterance becomes a teaching, and how a query becomes an answer.
 and camera frame nearest to it in time, each within ``tolerance`` seconds — the rule ``spco
 import-bag`` uses. A frame taken just after the utterance may still be on its way, so the node
 waits for one for at most ``image_wait`` seconds (default: the tolerance): it decides as soon as a
-frame stamped at or after the utterance has arrived (a later one could only be farther), else when
-the wait is over. An utterance with no pose or no frame within the tolerance is not taught: the
-node answers on the answer topic with what is missing and what to change (a throttled camera
-needs a larger ``--tolerance``). Teachings run one after the other on a worker thread, through
+frame stamped at or after the utterance has arrived (a later one could only be farther), or as soon
+as no later frame could be nearer than the last one before it, else when the wait is over. An
+utterance with no pose or no frame within the tolerance is not taught: the node answers on the
+answer topic with what is missing and what to change (a throttled camera needs a larger
+``--tolerance``). Teachings run one after the other on a worker thread, through
 :meth:`LiveHome.teach <spco.service.live.LiveHome.teach>`, which saves each durably (the journal of
 ``spco serve``) before it is acknowledged; the markers are published again after each.
 
@@ -276,9 +277,15 @@ class NodeCore:
                              "error": f"internal error: {exc}"})
 
     def _wait_for_frame(self, t: float) -> None:
+        """Wait until the frame nearest to time ``t`` is known: a frame at or after ``t`` has come, or no
+        later frame could be nearer than the last one before ``t``, or the wait is over."""
         if not self.uses_images:
             return
-        deadline = time.monotonic() + max(0.0, t + self.settings.wait - self.now())
+        wait = self.settings.wait
+        before = self.frames.nearest(t)
+        if before is not None and before[0] <= t:  # a later frame is nearer only until t + (t - before)
+            wait = min(wait, t - before[0])
+        deadline = time.monotonic() + max(0.0, t + wait - self.now())
         with self._frame_arrived:
             while not self.frames.has_at_or_after(t):
                 remaining = deadline - time.monotonic()
