@@ -119,6 +119,8 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0,
                         help="seed of the tour home and of the node's teachings")
     parser.add_argument("--markers-png", type=Path, default=None)
+    parser.add_argument("--writer", choices=("process", "thread"), default="process",
+                        help="spco ros --writer: where the teachings are applied")
     parser.add_argument("--dir", type=Path, default=None,
                         help="folder for the home and the logs (default: a temporary one)")
     args = parser.parse_args()
@@ -141,7 +143,8 @@ def main() -> None:
     master = start_master(port, folder)
     os.environ.update(ros_environment(port, folder))
     node = start_node(home, port, folder, ["--pose-topic", "/global_pose", "--image-topic", "/camera/image",
-                                           "--speech-topic", "/speech", "--seed", str(args.seed)])
+                                           "--speech-topic", "/speech", "--seed", str(args.seed),
+                                           "--writer", args.writer])
     drive = None
     try:
         robot = FakeRobot(compressed=True)
@@ -162,6 +165,7 @@ def main() -> None:
             errors += "error" in answer
             latencies[op].append(seconds)
         teach, markers, writer, first = [], [], [], None
+        parts: dict[str, list[float]] = {}
         for k in range(args.utterances):
             time.sleep(2.0)  # the robot drives on
             room = ROOMS[room_at(robot_x := drive.tour_pose(drive.distance)[0])][0]
@@ -180,14 +184,17 @@ def main() -> None:
                 markers.append(got_markers - sent)
                 teach.append(got_answer - sent)
                 writer.append(float(answer.get("seconds", math.nan)))  # the writer's own time
+                for part, seconds in answer.get("node_seconds", {}).items():
+                    parts.setdefault(part, []).append(seconds)
         load = os.getloadavg()
         result = {"queries": {op: _percentiles(v) for op, v in latencies.items()},
                   "all_queries": _percentiles(latencies["where"] + latencies["what"]),
                   "utterance_to_markers": _percentiles(markers) if markers else None,
                   "utterance_to_teach_answer": _percentiles(teach) if teach else None,
                   "writer_seconds_per_teaching": _percentiles(writer) if writer else None,
-                  "first_teaching": first, "errors": errors, "loadavg": load}
-        print(f"query -> answer (ms), {args.queries} queries, loopback:")
+                  "node_seconds_per_teaching": {part: _percentiles(v) for part, v in parts.items()},
+                  "first_teaching": first, "errors": errors, "loadavg": load, "writer": args.writer}
+        print(f"query -> answer (ms), {args.queries} queries, loopback (writer: {args.writer}):")
         for op, row in [*result["queries"].items(), ("all", result["all_queries"])]:
             print(f"  {op:<6} p50 {row['p50']:6.2f}  p95 {row['p95']:6.2f}  p99 {row['p99']:6.2f}  "
                   f"max {row['max']:7.2f}  (n={row['n']})")
@@ -198,6 +205,9 @@ def main() -> None:
                   f"p50 {m['p50']:.1f}  p95 {m['p95']:.1f}  max {m['max']:.1f}; -> teach answer "
                   f"p50 {t['p50']:.1f} max {t['max']:.1f}; of which the writer process p50 {w['p50']:.1f} "
                   f"max {w['max']:.1f}")
+            print("  in the node (ms, p50 / max): " + ", ".join(
+                f"{part} {row['p50']:.1f} / {row['max']:.1f}"
+                for part, row in result["node_seconds_per_teaching"].items()))
         if first:
             print(f"first teaching of the node: markers {first['markers_ms']:.0f} ms, answer "
                   f"{first['answer_ms']:.0f} ms")

@@ -52,12 +52,15 @@ __all__ = ["ros"]
 @click.option("--node-name", default="spco", show_default=True, help="The node's name (ROS 1).")
 @click.option("--sweeps", default=10, show_default=True, type=click.IntRange(1, 1000),
               help="Gibbs sweeps per teaching (as spco teach).")
+@click.option("--writer", type=click.Choice(["process", "thread"]), default="process", show_default=True,
+              help="Where teachings are applied (spco.service.LiveHome): a writer process of their own (the "
+                   "answers never wait for them), or a thread of the node.")
 @click.option("--seed", default=0, show_default=True, type=int, help="Base seed of the teachings.")
 @friendly_errors
 def ros(home: Path, pose_topic: str, map_frame: str, robot_frame: str, image_topic: str | None,
         speech_topic: str | None, tolerance: float, image_wait: float | None, clock: str, max_age: float,
         goal: bool, rosbridge: str | None, pose_type: str | None, image_type: str | None, node_name: str,
-        sweeps: int, seed: int) -> None:
+        sweeps: int, writer: str, seed: int) -> None:
     """Run HOME (a home file, from spco adapt) as a node on the robot's ROS network: learn from what
     it hears, answer where/what queries, draw its places in RViz.
 
@@ -93,7 +96,8 @@ def ros(home: Path, pose_topic: str, map_frame: str, robot_frame: str, image_top
         raise ConfigurationError(f"--rosbridge takes a WebSocket URL such as ws://robot:9090, got "
                                  f"{rosbridge!r}")
     where = rosbridge or os.environ.get("ROS_MASTER_URI", "http://localhost:11311 (ROS_MASTER_URI unset)")
-    with LiveHome(home, seed=seed, sweeps=sweeps, holder=f"spco ros (process {os.getpid()})") as live:
+    with LiveHome(home, seed=seed, sweeps=sweeps, writer=writer,
+                  holder=f"spco ros (process {os.getpid()})") as live:
         model = live.home
         uses_images = bool(model.knowledge.fitted_on_images)
         if uses_images and speech_topic and not image_topic:

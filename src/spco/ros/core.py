@@ -266,8 +266,10 @@ class NodeCore:
             if utterance is None:
                 return
             try:
+                started = time.perf_counter()
                 self._wait_for_frame(utterance.time)
-                answer = self.teach_utterance(utterance.time, utterance.sentence)
+                answer = self.teach_utterance(utterance.time, utterance.sentence,
+                                              waited=time.perf_counter() - started)
                 if "error" in answer:
                     log.warning("%s", answer["error"])
                 self.answer(answer)
@@ -293,8 +295,12 @@ class NodeCore:
                     return
                 self._frame_arrived.wait(min(remaining, 0.05))
 
-    def teach_utterance(self, t: float, sentence: str) -> dict[str, Any]:
-        """Teach ``sentence`` heard at time ``t`` at the nearest pose and frame; return the answer."""
+    def teach_utterance(self, t: float, sentence: str, waited: float = 0.0) -> dict[str, Any]:
+        """Teach ``sentence`` heard at time ``t`` at the nearest pose and frame; return the answer, with
+        ``node_seconds``: the time the node spent waiting for the frame (``waited``), decoding it,
+        teaching (``LiveHome.teach``: the view's features, the writer, the journal) and publishing
+        the markers."""
+        started = time.perf_counter()
         tol = self.settings.tolerance
         base: dict[str, Any] = {"id": None, "op": "teach", "sentence": sentence}
         pose_entry = self.poses.nearest(t)
@@ -317,17 +323,22 @@ class NodeCore:
             except SpcoError as exc:
                 return {**base, "error": f"not taught: the camera frame cannot be read: {exc}"}
             kwargs.update(image=pixels, encoding=encoding)
+        decoded = time.perf_counter()
         try:
             with self._home_lock:
                 result = self.home.teach(**kwargs)
         except SpcoError as exc:
             return {**base, "error": f"not taught: {exc}"}
         self.taught += 1
+        taught = time.perf_counter()
         self.publish_markers()
+        timing = {"frame_wait": waited, "decode": decoded - started, "teach": taught - decoded,
+                  "markers": time.perf_counter() - taught}
         log.info("taught %r at (%.2f, %.2f, %.2f): sample %s, seq %s", sentence, pose.x, pose.y, pose.theta,
                  result.get("id"), result.get("seq"))
         extra = {k: v for k, v in result.items() if k not in ("id", "op", "sentence")}
-        return {**base, "sample": result.get("id"), **extra, "x": pose.x, "y": pose.y, "theta": pose.theta}
+        return {**base, "sample": result.get("id"), **extra, "x": pose.x, "y": pose.y, "theta": pose.theta,
+                "node_seconds": {k: round(v, 4) for k, v in timing.items()}}
 
     # ------------------------------------------------------------------ queries
     def on_query(self, text: str) -> dict[str, Any]:
