@@ -54,6 +54,24 @@ def ray_session():
     ray.shutdown()
 
 
+@pytest.fixture(scope="session")
+def _tour_home_source(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A home file made as a robot would (spco.ros.testing.tour_home: three tours fitted, a fourth
+    adapted), whose kitchen is the bedroom's colour with red and blue swapped; built once."""
+    from spco.ros.testing import SWAPPED_ROOM_COLOURS, tour_home
+
+    return tour_home(tmp_path_factory.mktemp("tour_home"), seed=0, colours=SWAPPED_ROOM_COLOURS)
+
+
+@pytest.fixture(scope="module")
+def tour_home_file(_tour_home_source: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A copy of the tour home for a test module (nodes and servers teach it and journal beside it)."""
+    import shutil
+
+    folder = tmp_path_factory.mktemp("tour_home_copy")
+    return Path(shutil.copy2(_tour_home_source, folder / "home.spco"))
+
+
 SigverseBuilder = Callable[..., Path]
 
 

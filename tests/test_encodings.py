@@ -23,13 +23,13 @@ from spco.data.bagtour import view
 from spco.errors import DataFormatError
 from spco.features import read_image
 from spco.features.pixels import UndeclaredEncodingWarning
-from spco.ros.testing import SWAPPED_ROOM_COLOURS, tour_home, tour_pose
+from spco.ros.testing import SWAPPED_ROOM_COLOURS, tour_pose
 from spco.service.live import LiveHome
 
 
 @pytest.fixture(scope="module")
-def home_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return tour_home(tmp_path_factory.mktemp("encodings"), seed=4, colours=SWAPPED_ROOM_COLOURS)
+def home_file(tour_home_file: Path) -> Path:
+    return tour_home_file
 
 
 def _frame(distance: float, seed: int = 0) -> tuple[tuple[float, float, float], np.ndarray]:

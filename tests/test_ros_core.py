@@ -15,13 +15,13 @@ import pytest
 from spco.data.bagtour import view
 from spco.ros.core import NodeCore, NodeSettings
 from spco.ros.messages import quaternion_from_yaw
-from spco.ros.testing import SWAPPED_ROOM_COLOURS, tour_home, tour_pose
+from spco.ros.testing import SWAPPED_ROOM_COLOURS, tour_pose
 from spco.service.live import LiveHome
 
 
 @pytest.fixture(scope="module")
-def home_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return tour_home(tmp_path_factory.mktemp("core_home"), seed=1, colours=SWAPPED_ROOM_COLOURS)
+def home_file(tour_home_file: Path) -> Path:
+    return tour_home_file
 
 
 class Clock:

@@ -14,15 +14,14 @@ from spco.cli import main
 from spco.data.rosmap import read_ros_map
 from spco.errors import DataFormatError
 from spco.knowledge import load_home_model
-from spco.ros.testing import tour_home
 
 RES = 0.05
 ORIGIN = (-1.0, -0.5)
 
 
 @pytest.fixture(scope="module")
-def home_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return tour_home(tmp_path_factory.mktemp("show_home"), seed=3)
+def home_file(tour_home_file: Path) -> Path:
+    return tour_home_file
 
 
 def _write_map(folder: Path, negate: int = 0) -> Path:
