@@ -16,21 +16,22 @@ import json
 import threading
 import time
 from collections import defaultdict
-from collections.abc import Callable
 from typing import Any
 
 import websockets
 from websockets.asyncio.server import ServerConnection, serve
 
+from spco.ros.testing import Mailbox
 
-class FakeRosbridge:
+
+class FakeRosbridge(Mailbox):
     """A rosbridge v2 server on ``127.0.0.1:port`` in a thread of its own (``close()`` stops it)."""
 
     def __init__(self, port: int) -> None:
+        super().__init__()
         self.port = port
         self.url = f"ws://127.0.0.1:{port}"
         self._loop = asyncio.new_event_loop()
-        self._lock = threading.Condition()
         self.subscribers: dict[str, dict[ServerConnection, str | None]] = defaultdict(dict)
         self.advertised: dict[str, dict[str, Any]] = {}
         self.latched: dict[str, dict[str, Any]] = {}
@@ -111,19 +112,6 @@ class FakeRosbridge:
     def publish(self, topic: str, msg: dict[str, Any]) -> None:
         """Publish ``msg`` on ``topic`` to the subscribed clients, as the robot's node would."""
         asyncio.run_coroutine_threadsafe(self._forward(topic, msg), self._loop).result(10)
-
-    def wait_for(self, predicate: Callable[[], Any], timeout: float = 10.0) -> Any:
-        """Wait until ``predicate()`` is truthy (checked on every message); return its value."""
-        deadline = time.monotonic() + timeout
-        with self._lock:
-            while True:
-                value = predicate()
-                if value:
-                    return value
-                remaining = deadline - time.monotonic()
-                if remaining <= 0:
-                    raise TimeoutError(f"nothing came within {timeout:g} s")
-                self._lock.wait(min(remaining, 0.1))
 
     def messages(self, topic: str) -> list[dict[str, Any]]:
         """Every message published on ``topic`` so far, oldest first."""

@@ -143,6 +143,18 @@ def run_node(home: Any, topics: Topics, settings: NodeSettings, *, node_name: st
     def received() -> float:
         return rospy.get_rostime().to_sec()
 
+    def any_type(topic: str, expected: tuple[str, ...], handle: Callable[[dict[str, Any], float], None],
+                 **options: Any) -> Any:
+        """A subscriber of any of ``expected`` on ``topic``, decoded with the publisher's class."""
+        decode = _decoder(expected, topic)
+
+        def callback(raw: Any) -> None:
+            msg = decode(raw)
+            if msg is not None:
+                handle(msg, received())
+
+        return rospy.Subscriber(topic, rospy.AnyMsg, callback, tcp_nodelay=True, **options)
+
     subscribers = [rospy.Subscriber(QUERY_TOPIC, String, lambda m: core.on_query(m.data), queue_size=100,
                                     tcp_nodelay=True)]
     if topics.speech:
@@ -157,26 +169,9 @@ def run_node(home: Any, topics: Topics, settings: NodeSettings, *, node_name: st
                                             lambda m: core.on_tf(message_to_dict(m), True, received()),
                                             queue_size=100, tcp_nodelay=True))
     else:
-        decode_pose = _decoder(POSE_TYPES, topics.pose)
-
-        def on_pose(raw: Any) -> None:
-            msg = decode_pose(raw)
-            if msg is not None:
-                core.on_pose(msg, received())
-
-        subscribers.append(rospy.Subscriber(topics.pose, rospy.AnyMsg, on_pose, queue_size=100,
-                                            tcp_nodelay=True))
-    if topics.image:
-        decode_image = _decoder(IMAGE_TYPES, topics.image)
-
-        def on_image(raw: Any) -> None:
-            msg = decode_image(raw)
-            if msg is not None:
-                core.on_image(msg, received())
-
-        # a camera's frames are large: keep the newest few, never a backlog
-        subscribers.append(rospy.Subscriber(topics.image, rospy.AnyMsg, on_image, queue_size=2,
-                                            buff_size=2**24, tcp_nodelay=True))
+        subscribers.append(any_type(topics.pose, POSE_TYPES, core.on_pose, queue_size=100))
+    if topics.image:  # a camera's frames are large: keep the newest few, never a backlog
+        subscribers.append(any_type(topics.image, IMAGE_TYPES, core.on_image, queue_size=2, buff_size=2**24))
     core.start()
     rospy.on_shutdown(core.stop)
     log.info("spco ros: listening to pose %s, image %s, speech %s; queries on %s", topics.pose,

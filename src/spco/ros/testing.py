@@ -31,6 +31,7 @@ from spco.ros.messages import quaternion_from_yaw
 __all__ = [
     "SWAPPED_ROOM_COLOURS",
     "FakeRobot",
+    "Mailbox",
     "free_port",
     "ros_environment",
     "start_master",
@@ -116,7 +117,28 @@ def stop_process(process: subprocess.Popen[Any], timeout: float = 10.0) -> None:
             stream.close()
 
 
-class FakeRobot:
+class Mailbox:
+    """What a stand-in received, guarded by one condition (``self._lock``, notified on every message),
+    and :meth:`wait_for` to wait for something in it."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Condition()
+
+    def wait_for(self, predicate: Any, timeout: float = 10.0) -> Any:
+        """Wait until ``predicate()`` returns something truthy (checked on every message); return it."""
+        deadline = time.monotonic() + timeout
+        with self._lock:
+            while True:
+                value = predicate()
+                if value:
+                    return value
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    raise TimeoutError(f"nothing came within {timeout:g} s")
+                self._lock.wait(min(remaining, 0.1))
+
+
+class FakeRobot(Mailbox):
     """The robot's side, with rospy in this process: publishes a pose (PoseStamped), camera frames
     (Image or CompressedImage) and utterances (String), sends queries and collects answers and the
     latched markers.
@@ -127,6 +149,7 @@ class FakeRobot:
 
     def __init__(self, pose_topic: str = "/global_pose", image_topic: str = "/camera/image",
                  speech_topic: str = "/speech", compressed: bool = False, name: str = "fake_robot") -> None:
+        super().__init__()
         rospy = import_rospy()
         from geometry_msgs.msg import PoseStamped
         from sensor_msgs.msg import CompressedImage, Image
@@ -145,7 +168,6 @@ class FakeRobot:
         self.image_pub = rospy.Publisher(image_topic, CompressedImage if compressed else Image, queue_size=2)
         self.speech_pub = rospy.Publisher(speech_topic, String, queue_size=10)
         self.query_pub = rospy.Publisher(QUERY_TOPIC, String, queue_size=100)
-        self._lock = threading.Condition()
         self.answers: list[tuple[float, dict[str, Any]]] = []
         self.markers: list[tuple[float, Any]] = []
         self.goals: list[tuple[float, Any]] = []
@@ -170,19 +192,6 @@ class FakeRobot:
         with self._lock:
             self.goals.append((time.perf_counter(), msg))
             self._lock.notify_all()
-
-    def wait_for(self, predicate: Any, timeout: float = 10.0) -> Any:
-        """Wait until ``predicate()`` returns something truthy (checked on every message); return it."""
-        deadline = time.monotonic() + timeout
-        with self._lock:
-            while True:
-                value = predicate()
-                if value:
-                    return value
-                remaining = deadline - time.monotonic()
-                if remaining <= 0:
-                    raise TimeoutError(f"nothing came within {timeout:g} s")
-                self._lock.wait(min(remaining, 0.1))
 
     def wait_connected(self, timeout: float = 30.0) -> None:
         """Wait until the node subscribes to every topic this robot publishes and publishes its markers."""
