@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from spco.data.bagreading import _quat_mul, _rotate  # the quaternion algebra of spco import-bag's tf
 from spco.errors import DataFormatError
 from spco.features.pixels import check_encoding, decode_compressed, pixels_from_buffer, to_bgr
 
@@ -187,19 +188,6 @@ class TfBuffer:
         q = _quat_mul(q_inv, q_robot)
         theta = yaw_from_quaternion(dict(zip("xyzw", q.tolist(), strict=True)))
         return PoseReading(float(t[0]), float(t[1]), theta, source, min(stamps) if stamps else None)
-
-
-def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    ax, ay, az, aw = a
-    bx, by, bz, bw = b
-    return np.array([aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
-                     aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz])
-
-
-def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    u, w = q[:3], q[3]
-    t = 2.0 * np.cross(u, v)
-    return v + w * t + np.cross(u, t)
 
 
 # ------------------------------------------------------------------------------------- images
