@@ -17,7 +17,7 @@ needed), :mod:`spco.ros.core` (the node's logic, for either transport), :mod:`sp
 and benchmarks).
 
 rospy and the message packages are not pip packages: they come with the Linux distribution (Debian
-12: ``apt-get install python3-rospy python3-rosmaster python3-std-msgs python3-geometry-msgs
+12: ``apt-get install python3-rospy python3-rosmaster python3-catkin python3-std-msgs python3-geometry-msgs
 python3-sensor-msgs python3-nav-msgs python3-visualization-msgs python3-tf2-msgs``) or a ROS
 installation (``/opt/ros/noetic``). :func:`import_rospy` finds them from a virtual environment
 (see its docstring).
@@ -40,7 +40,7 @@ __all__ = ["ROS_PYTHON_DIRS", "RosUnavailableError", "import_rospy"]
 ROS_PYTHON_DIRS = ("/opt/ros/noetic/lib/python3/dist-packages", "/usr/lib/python3/dist-packages")
 
 #: The Debian 12 packages the ROS 1 node needs.
-DEBIAN_PACKAGES = ("python3-rospy", "python3-rosmaster", "python3-std-msgs", "python3-geometry-msgs",
+DEBIAN_PACKAGES = ("python3-rospy", "python3-rosmaster", "python3-catkin", "python3-std-msgs", "python3-geometry-msgs",
                    "python3-sensor-msgs", "python3-nav-msgs", "python3-visualization-msgs",
                    "python3-tf2-msgs")
 
