@@ -40,9 +40,9 @@ __all__ = ["ROS_PYTHON_DIRS", "RosUnavailableError", "import_rospy"]
 ROS_PYTHON_DIRS = ("/opt/ros/noetic/lib/python3/dist-packages", "/usr/lib/python3/dist-packages")
 
 #: The Debian 12 packages the ROS 1 node needs.
-DEBIAN_PACKAGES = ("python3-rospy", "python3-rosmaster", "python3-catkin", "python3-std-msgs", "python3-geometry-msgs",
-                   "python3-sensor-msgs", "python3-nav-msgs", "python3-visualization-msgs",
-                   "python3-tf2-msgs")
+DEBIAN_PACKAGES = ("python3-rospy", "python3-rosmaster", "python3-catkin", "python3-std-msgs",
+                   "python3-geometry-msgs", "python3-sensor-msgs", "python3-nav-msgs",
+                   "python3-visualization-msgs", "python3-tf2-msgs")
 
 _MESSAGE_MODULES = ("std_msgs.msg", "geometry_msgs.msg", "sensor_msgs.msg", "nav_msgs.msg",
                     "visualization_msgs.msg", "tf2_msgs.msg")
