@@ -13,12 +13,14 @@
 
 Modules: :mod:`spco.ros.messages` (ROS messages as plain dicts, both ways; markers; no ROS
 needed), :mod:`spco.ros.core` (the node's logic, for either transport), :mod:`spco.ros.node`
-(rospy), :mod:`spco.ros.rosbridge` (roslibpy), :mod:`spco.ros.launch` (a ROS master for tests
-and benchmarks).
+(rospy), :mod:`spco.ros.rosbridge` (roslibpy), :mod:`spco.ros.testing` (a ROS master, the node
+in its own process and a stand-in robot, for trying the node without a robot, the tests and the
+benchmark).
 
 rospy and the message packages are not pip packages: they come with the Linux distribution (Debian
-12: ``apt-get install python3-rospy python3-rosmaster python3-catkin python3-std-msgs python3-geometry-msgs
-python3-sensor-msgs python3-nav-msgs python3-visualization-msgs python3-tf2-msgs``) or a ROS
+12: ``apt-get install python3-rospy python3-rosmaster python3-catkin python3-std-msgs
+python3-geometry-msgs python3-sensor-msgs python3-nav-msgs python3-visualization-msgs
+python3-tf2-msgs``) or a ROS
 installation (``/opt/ros/noetic``). :func:`import_rospy` finds them from a virtual environment
 (see its docstring).
 """
