@@ -29,9 +29,11 @@ the numbers.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import multiprocessing as mp
 import os
+import queue
 import re
 import shutil
 import signal
@@ -100,13 +102,13 @@ class Served:
         for _ in self.process.stderr:  # type: ignore[union-attr]
             pass
 
-    def rss_mb(self) -> float:
-        """Resident memory of the server and its writer process, MB."""
-        total = 0
-        for pid in {self.process.pid, self.writer_pid}:
+    def rss_mb(self) -> tuple[float, float]:
+        """Resident memory of the server process and of its writer process, MB."""
+        sizes = []
+        for pid in (self.process.pid, self.writer_pid):
             text = Path(f"/proc/{pid}/status").read_text()
-            total += int(re.search(r"VmRSS:\s+(\d+) kB", text).group(1))  # type: ignore[union-attr]
-        return total / 1024
+            sizes.append(int(re.search(r"VmRSS:\s+(\d+) kB", text).group(1)) / 1024)  # type: ignore[union-attr]
+        return sizes[0], sizes[1]
 
     def stop(self) -> None:
         self.process.send_signal(signal.SIGINT)
@@ -156,14 +158,36 @@ def _what_loop(url: str, extent: list[float], seconds: float, seed: int, results
     results.put((latencies, errors))
 
 
-def _soak_worker(url: str, regions: dict[str, Any], rate: float, seconds: float, seed: int,
-                 results: Any) -> None:
+def _teach_burst(url: str, ids: list[int], names: list[str], teachers: int, each: int, results: Any) -> None:
+    """``teachers`` clients (threads of this process) teaching ``each`` times back to back."""
+    from spco.client import Client
+
+    taught: list[float] = []
+
+    def teach(offset: int) -> None:
+        client = Client(url)
+        for k in range(offset, offset + each):
+            t = time.perf_counter()
+            client.teach(id=int(ids[(7 * k) % len(ids)]), sentence=f"this is the {names[k % len(names)]}")
+            taught.append(time.perf_counter() - t)
+
+    threads = [threading.Thread(target=teach, args=(1000 * i,)) for i in range(teachers)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    results.put(taught)
+
+
+def _soak_worker(url: str, regions: dict[str, Any], labels: dict[int, str], rate: float, seconds: float,
+                 seed: int, results: Any) -> None:
     from spco.client import Client
 
     client = Client(url)
     rng = np.random.default_rng(seed)
     x0, x1, y0, y1 = regions["extent"]
-    names, ids = regions["names"], [s["id"] for s in regions["samples"]]
+    ids, names = list(labels), list(labels.values())
+    usable = sorted(set(names))
     latencies: dict[str, list[float]] = {"what": [], "where": [], "teach": []}
     errors: list[str] = []
     start = time.perf_counter()
@@ -183,11 +207,11 @@ def _soak_worker(url: str, regions: dict[str, Any], rate: float, seconds: float,
                 client.what(float(rng.uniform(x0, x1)), float(rng.uniform(y0, y1)), 0.0)
             elif roll < 0.9:
                 kind = "where"
-                client.where(names[int(rng.integers(len(names)))], n=10)
-            else:
+                client.where(usable[int(rng.integers(len(usable)))], n=10)
+            else:  # a person confirms the name of the place a sample is at (as the home answers it)
                 kind = "teach"
-                client.teach(id=int(ids[int(rng.integers(len(ids)))]),
-                             sentence=f"this is the {names[int(rng.integers(len(names)))]}")
+                sample = int(rng.integers(len(ids)))
+                client.teach(id=ids[sample], sentence=f"this is the {names[sample]}")
         except Exception as exc:
             errors.append(f"{type(exc).__name__}: {exc}")
         latencies[kind].append(time.perf_counter() - t)
@@ -277,77 +301,75 @@ def main() -> None:
             served = Served(home, args.dir, writer=writer)
             before = load()
             reader = Client(served.url)
-            stop = threading.Event()
-            taught: list[float] = []
-
-            def teacher(offset: int, url: str = served.url, stop: threading.Event = stop,
-                        taught: list[float] = taught) -> None:
-                teaching = Client(url)
-                k = offset
-                while not stop.is_set() and k < offset + 100:
-                    t = time.perf_counter()
-                    teaching.teach(id=int(ids[(7 * k) % len(ids)]),
-                                   sentence=f"this is the {names[k % len(names)]}")
-                    taught.append(time.perf_counter() - t)
-                    k += 1
-
             items = poses(regions, 100000, 4)
             for p in items[:50]:
                 reader.what(*p)
-            teachers = [threading.Thread(target=teacher, args=(o,)) for o in (0, 1000)]
-            for t in teachers:
-                t.start()
+            ctx = mp.get_context("spawn")
+            results = ctx.Queue()
+            burst = ctx.Process(target=_teach_burst, args=(served.url, ids, names, 2, 100, results))
+            burst.start()
             latencies = []
             k = 0
-            while any(t.is_alive() for t in teachers):
+            while results.empty():  # the reader asks while the teachers teach
                 t0 = time.perf_counter()
-                reader.what(*items[k])
+                reader.what(*items[k % len(items)])
                 latencies.append(time.perf_counter() - t0)
                 k += 1
-            stop.set()
+            taught = results.get()
+            burst.join()
             record(f"what during a burst of teachings (writer: {writer})", before, teachings=len(taught),
                    teach_p50_ms=float(np.percentile(np.asarray(taught) * 1000, 50)), **percentiles(latencies))
             served.stop()
     if wanted("soak"):
         served = Served(home, args.dir)
         client = Client(served.url)
+        # each sample's name as the home answers it at the sample's pose: what the soak's people confirm
+        labels = {s["id"]: client.what(s["x"], s["y"], s["theta"])["names"][0]["name"]
+                  for s in regions["samples"]}
+        served_rss = served.rss_mb()
         before = load()
         ctx = mp.get_context("spawn")
         results = ctx.Queue()
-        workers = [ctx.Process(target=_soak_worker, args=(served.url, regions, args.rate / 4, args.soak, k,
-                                                          results)) for k in range(4)]
+        workers = [ctx.Process(target=_soak_worker, args=(served.url, regions, labels, args.rate / 4,
+                                                          args.soak, k, results)) for k in range(4)]
         for w in workers:
             w.start()
         memory = []
+        gathered = []
         start = time.perf_counter()
-        while any(w.is_alive() for w in workers) and time.perf_counter() - start < args.soak + 120:
+        while len(gathered) < len(workers):  # memory each second until every worker has reported
+            if time.perf_counter() - start > args.soak + 300:
+                raise SystemExit("the soak's clients did not finish")
             memory.append(served.rss_mb())
-            time.sleep(1.0)
-            if not results.empty() and len(memory) > args.soak + 5:
-                break
-        gathered = [results.get(timeout=180) for _ in workers]
+            with contextlib.suppress(queue.Empty):
+                gathered.append(results.get(timeout=1.0))
         for w in workers:
             w.join()
         errors = [e for _, errs, _ in gathered for e in errs]
         sent = sum(k for _, _, k in gathered)
         by_kind = {kind: [v for lat, _, _ in gathered for v in lat[kind]]
                    for kind in ("what", "where", "teach")}
-        warm = memory[min(5, len(memory) - 1)]
+        total = [a + b for a, b in memory]
+        warm = total[min(10, len(total) - 1)]
         figure = f"soak: {args.rate:g} requests/s for {args.soak:g} s (60 % what, 30 % where, 10 % teach)"
         record(figure, before, requests=sent, rate=sent / args.soak, errors=len(errors),
-               first_errors=errors[:3],
-               rss_mb_after_5s=warm, rss_mb_end=memory[-1], rss_mb_max=max(memory[5:] or memory),
-               rss_growth_percent=100 * (memory[-1] - warm) / warm,
+               first_errors=errors[:3], rss_mb_served=sum(served_rss), rss_mb_at_10s=warm,
+               rss_mb_end=total[-1], rss_mb_max=max(total),
+               rss_growth_percent=100 * (total[-1] - warm) / warm,
+               rss_mb_server_start_10s_end=[served_rss[0], memory[min(10, len(memory) - 1)][0],
+                                            memory[-1][0]],
+               rss_mb_writer_start_10s_end=[served_rss[1], memory[min(10, len(memory) - 1)][1],
+                                            memory[-1][1]],
                teachings=client.health()["teachings"],
                **{f"{kind}_{k}": v for kind, lat in by_kind.items() for k, v in percentiles(lat).items()})
         # the cost of new observations (the home grows by design)
         before = load()
-        rss0, size0 = served.rss_mb(), served.file.stat().st_size
+        rss0, size0 = sum(served.rss_mb()), served.file.stat().st_size
         samples0 = client.health()["samples"]
         for p in poses(regions, 200, 5):
             client.teach(x=p[0], y=p[1], theta=p[2], image=jpeg, sentence="this is the study")
         time.sleep(4)  # compacted when idle
-        rss1, size1 = served.rss_mb(), served.file.stat().st_size
+        rss1, size1 = sum(served.rss_mb()), served.file.stat().st_size
         added = client.health()["samples"] - samples0
         record("cost of a new observation (640x480 JPEG view)", before, observations=added,
                rss_kb_per_observation=1024 * (rss1 - rss0) / added,

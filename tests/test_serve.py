@@ -100,7 +100,8 @@ def test_live_home_answers_as_the_cli_and_teaches(home: Path) -> None:
         assert kinds == ["taught", "taught"]
         with_view = live.what(0.4, -0.4, 0.5, image=_view(1), encoding="bgr8")
         assert with_view["vision"] is True
-        assert live.what(0.4, -0.4, 0.5, image=_jpeg(1))["names"] == with_view["names"]  # same pixels
+        png = cv2.imencode(".png", _view(1))[1].tobytes()  # lossless: the same pixels as the array
+        assert live.what(0.4, -0.4, 0.5, image=png)["names"] == with_view["names"]
         rgb = live.what(0.4, -0.4, 0.5, image=_view(1)[:, :, ::-1].copy(), encoding="rgb8")
         assert rgb["names"] == with_view["names"]
         regions = live.regions()
@@ -267,6 +268,60 @@ def test_kill_9_during_a_burst_of_200_teachings_loses_no_acknowledged_one(home: 
         assert [entry[k] for k in ("op", "id", "sentence")] == [answer[k] for k in ("op", "id", "sentence")]
     observations = [a for a in acknowledged if a["op"] == "observation"]
     assert {a["id"] for a in observations} <= set(final.ids.tolist())
+
+
+def test_client_mirrors_the_library_over_a_real_server(home: Path) -> None:
+    library = kn.load_home_model(home)
+    name = library.known_names[0]
+    server = Server(home)
+    try:
+        robot = Client(server.url)
+        assert robot.where(name, n=3) == json.loads(
+            CliRunner().invoke(where_command, [str(home), name, "-n", "3", "--json"]).stdout)
+        assert robot.what(0.3, -0.2, 0.4)["names"][0]["name"] in library.known_names
+        assert robot.what(0.3, -0.2, 0.4, image=_jpeg(5))["vision"] is True
+        assert robot.what(0.3, -0.2, 0.4, image=_view(5), encoding="bgr8")["names"] == \
+            robot.what(0.3, -0.2, 0.4, image=cv2.imencode(".png", _view(5))[1].tobytes())["names"]  # lossless
+        events = robot.events(types="taught,undone")
+        received: list[dict] = []
+        listener = threading.Thread(target=lambda: received.extend([next(events), next(events)]), daemon=True)
+        listener.start()
+        time.sleep(0.3)
+        taught = robot.teach(id=int(library.ids[2]), sentence="this is the snug")
+        undone = robot.undo(taught["seq"])
+        listener.join(30)
+        assert [e["type"] for e in received] == ["taught", "undone"]
+        assert received[0]["seq"] == taught["seq"]
+        assert received[1]["undoes"] == taught["seq"] == undone["undoes"]
+        with pytest.raises(ClientError) as error:
+            robot.where("kitchn")
+        assert error.value.status == 404 and "did you mean" in error.value.message
+        with pytest.raises(ClientError) as error:
+            robot.undo(taught["seq"])
+        assert error.value.status == 409
+        assert robot.health()["teachings"] == 0
+    finally:
+        assert server.stop() == 0, server.output
+
+
+def test_concurrent_teachings_through_the_writer_process_all_come_back(home: Path) -> None:
+    """Many teachings at once, observations among them (whose snapshots are larger than a socket's
+    buffer): requests and snapshots cross between the server and its writer process both ways at once
+    without waiting for each other."""
+    with LiveHome(home, seed=0) as live:
+        ids = [int(i) for i in live.home.ids[:20]]
+
+        def teach(k: int) -> dict:
+            if k % 4 == 0:
+                return live.teach(x=0.1 * (k % 9), y=-0.1 * (k % 7), theta=0.2, image=_jpeg(k),
+                                  sentence="this is the hall")
+            return live.teach(id=ids[k % len(ids)], sentence="this is the study")
+
+        with ThreadPoolExecutor(8) as pool:
+            answers = list(pool.map(teach, range(48), timeout=300))
+        assert sorted(a["seq"] for a in answers) == list(range(1, 49))
+        assert live.health()["teachings"] == 48 and max(a["batch"] for a in answers) > 1  # batched
+        assert live.home.n_samples == kn.load_home_model(home).n_samples + 12
 
 
 # ----------------------------------------------------------------------------- HTTP

@@ -202,9 +202,19 @@ class LiveHome:
     def where(self, name: str, n: int = 10, *, seed: int = 0) -> dict[str, Any]:
         """Poses for the place ``name``: the payload of ``spco where HOME NAME -n N --json``.
 
-        See :func:`spco.service.answers.where_answer`. Raises
-        :class:`~spco.prediction.UnknownNameError` for a name the home cannot use and
-        :class:`ConfigurationError` for ``n`` outside 1…:data:`MAX_POSES`.
+        Parameters
+        ----------
+        name: a place name (read like a sentence: ``"Living Room"`` → ``living room``).
+        n: how many poses, 1…:data:`MAX_POSES`.
+        seed: the draw's seed (the CLI's default, 0: the same question, the same poses).
+
+        Returns
+        -------
+        ``{"home", "name", "region", "region_probability", "learnt", "support", "positions"}``;
+        ``positions``: ``n`` dicts ``{"x", "y", "theta", "probability"}`` (metres, radians), most
+        probable first (:func:`spco.service.answers.where_answer`). Raises
+        :class:`~spco.prediction.UnknownNameError` for a name the home cannot use,
+        :class:`ConfigurationError` for a bad ``n``.
         """
         if not isinstance(name, str) or not name.strip():
             raise ConfigurationError("name: expected a place name")
@@ -243,10 +253,20 @@ class LiveHome:
              visual: Any = None, top: int = 3) -> dict[str, Any]:
         """The ``top`` place names at pose (x, y, θ): the payload of ``spco what HOME … --json``.
 
-        ``x``, ``y`` in metres on the home's map, ``theta`` in radians. The view (optional) is
-        ``image`` (see :meth:`view_counts`) or its ``visual`` counts. A pose off the map adds
-        ``"warning"`` to the answer; one far off it is refused (:class:`ConfigurationError`), as are
-        non-finite numbers and ``|θ| > 2π``.
+        Parameters
+        ----------
+        x, y: metres on the home's map; theta: heading in radians (``|θ| ≤ 2π``).
+        image, encoding: the camera view (optional): JPEG/PNG bytes, or an (H, W, 3) / (H, W) uint8
+            array in ``encoding`` ``bgr8`` (default for three channels), ``rgb8`` or ``mono8``
+            (:meth:`view_counts`).
+        visual: the view's visual counts (D,) instead of an image.
+        top: how many names, 1…:data:`MAX_TOP`.
+
+        Returns
+        -------
+        ``{"home", "pose", "vision", "ranked_by", "names"}``; ``names``: ``top`` dicts ``{"name",
+        "probability", "score", "score_share"}``, best first; ``"warning"`` too for a pose off the
+        map. A pose far off it, non-finite numbers or a bad view raise :class:`ConfigurationError`.
         """
         if isinstance(top, bool) or not isinstance(top, int) or not 1 <= top <= MAX_TOP:
             raise ConfigurationError(f"top: expected a number of names from 1 to {MAX_TOP}, got {top!r}")
@@ -259,8 +279,14 @@ class LiveHome:
         return answer
 
     def regions(self) -> dict[str, Any]:
-        """The learnt regions, concepts and samples of the current snapshot, for drawing them
-        (:func:`spco.service.answers.regions_answer`); computed once per snapshot."""
+        """The learnt regions, concepts and samples of the current snapshot, for drawing them.
+
+        Returns
+        -------
+        :func:`spco.service.answers.regions_answer` (regions with ``mean`` [x, y], 2×2
+        ``covariance``, 95 % ``ellipse``, ``concept``, ``names`` with ``p``; ``concepts``;
+        ``samples``; ``extent``) plus ``teachings`` and ``seq``. Computed once per snapshot.
+        """
         home = self._snapshot
         cached = self._regions
         if cached is not None and cached[0] == id(home):

@@ -62,9 +62,8 @@ from spco.service.teaching import (
     with_history,
 )
 
-__all__ = ["DEFAULT_COMPACT_IDLE", "DEFAULT_COMPACT_RECORDS", "DEFAULT_MAX_BATCH", "WRITER_NICENESS",
-           "HomeWriter", "ProcessWriter", "SnapshotChannel", "ThreadWriter", "WriterUnavailableError",
-           "error_result"]
+__all__ = ["DEFAULT_COMPACT_IDLE", "DEFAULT_COMPACT_RECORDS", "DEFAULT_MAX_BATCH", "HomeWriter",
+           "ProcessWriter", "SnapshotChannel", "ThreadWriter", "WriterUnavailableError", "error_result"]
 
 #: Records after which the writer compacts the journal into the home file.
 DEFAULT_COMPACT_RECORDS = 100
@@ -72,8 +71,6 @@ DEFAULT_COMPACT_RECORDS = 100
 DEFAULT_COMPACT_IDLE = 2.0
 #: The most teachings applied by one :func:`spco.knowledge.teach` call.
 DEFAULT_MAX_BATCH = 32
-#: How much lower the writer process's scheduling priority is than the server's (``nice``).
-WRITER_NICENESS = 10
 
 
 class WriterUnavailableError(SpcoError):
@@ -444,8 +441,9 @@ class ProcessWriter:
     The child inherits the descriptor of the home's lock (held by this process with
     :func:`spco.locking.hold`) and declares it (:func:`spco.locking.adopt`); it is killed when this
     process dies (``PR_SET_PDEATHSIG`` on Linux; elsewhere it exits when its connection closes). It
-    runs the sampler on one thread and at a lower priority (:data:`WRITER_NICENESS`): on a robot's
-    few cores the answers come first.
+    runs the sampler on one thread, leaving the other cores to the readers. (It keeps the server's
+    scheduling priority: at ``nice`` +10 its teachings took seconds while other programs kept the
+    machine busy.)
     ``on_applied`` is called in a receiving thread of this process.
     """
 
@@ -489,11 +487,17 @@ class ProcessWriter:
         self.first_snapshot = self._channel.unpack(message[1])
         self.startup = message[2]
         self.pid = self._process.pid
+        # requests leave through a sender thread: a caller (the server's event loop) never blocks on a
+        # full socket, and the receiver never waits for a sender (the writer may be sending a snapshot
+        # while requests pile up: both directions must drain independently)
+        self._outbox: queue.Queue[tuple[Any, ...] | None] = queue.Queue()
+        self._sender = threading.Thread(target=self._send, name="spco-writer-sender", daemon=True)
+        self._sender.start()
         self._receiver = threading.Thread(target=self._receive, name="spco-writer-receiver", daemon=True)
         self._receiver.start()
 
     def submit(self, request: dict[str, Any]) -> Future[dict[str, Any]]:
-        """Send a request to the writer; the future gets its result."""
+        """Queue a request for the writer; the future gets its result."""
         future: Future[dict[str, Any]] = Future()
         with self._lock:
             if self._closed or self._dead:
@@ -502,12 +506,18 @@ class ProcessWriter:
             key = self._next
             self._next += 1
             self._pending[key] = (request, future)
-            try:
-                self._conn.send(("teach", key, request))
-            except OSError as exc:
-                del self._pending[key]
-                future.set_exception(WriterUnavailableError(f"the writer process is gone ({exc})"))
+        self._outbox.put(("teach", key, request))
         return future
+
+    def _send(self) -> None:
+        while True:
+            message = self._outbox.get()
+            if message is None:
+                return
+            try:
+                self._conn.send(message)
+            except OSError:  # the writer is gone: the receiver fails what is pending
+                return
 
     def _receive(self) -> None:
         while True:
@@ -542,13 +552,14 @@ class ProcessWriter:
             if self._closed:
                 return
             self._closed = True
-            with contextlib.suppress(OSError):
-                self._conn.send(("close",))
+        self._outbox.put(("close",))  # after every request queued before it
+        self._outbox.put(None)
         try:
             self._process.wait(timeout)
         except subprocess.TimeoutExpired:
             self._kill()
         self._receiver.join(timeout=5)
+        self._sender.join(timeout=5)
         self._conn.close()
 
     def _kill(self) -> None:
@@ -622,8 +633,6 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     _die_with_parent(args.parent)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the server, which closes us in order
-    with contextlib.suppress(OSError):
-        os.nice(WRITER_NICENESS)  # the readers' process first: a teaching waits a little, an answer not
     conn = Connection(args.conn_fd)
     try:
         locking.adopt(args.path, args.lock_fd, args.holder)
