@@ -72,8 +72,9 @@ class Knowledge:
         (:meth:`spco.features.ExtractorSpec.to_dict`), or ``None`` if fitted on count vectors.
     extractor_arrays: its weights (e.g. ``{"codebook": (W, d)}``), stored in the file.
     name_prior: (V,) P(name | how each word was said and what it is)
-        (:func:`spco.model.name_evidence.name_prior`, from the experienced homes' sentences), or
-        ``None`` (models without the naming rule, files written before it existed).
+        (:func:`spco.model.name_evidence.name_prior`, from the experienced homes' sentences; used
+        for names nobody said, :mod:`spco.model.unheard`), or ``None`` (models without the naming
+        rule, files written before it existed).
     """
 
     log_phi_visual: np.ndarray

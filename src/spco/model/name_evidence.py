@@ -22,10 +22,13 @@ The two are combined by a logistic model, P(name | features) = σ(b + w·f), who
 (:data:`WEIGHTS`) were fitted by ``benchmarks/name_evidence.py`` on development data only (the
 tokens of the development speech set, the hand-written SIGVerse sentences, the free-form synthetic
 homes of seeds 0–1 and the SIGVerse templates, labelled by their accepted names). It is *soft*
-evidence: :func:`name_prior` gives each vocabulary word P(name | how it was said) in (0, 1), and
-prediction ranks words by p(w | x, v) · I(w) · P(name | w) (:func:`spco.prediction.predict_names`)
-— "the word said here that is a name" — so a word said everywhere still loses on I(w) and a name
-said only in odd frames still wins where it alone is said.
+evidence: :func:`name_prior` gives each vocabulary word P(name | how it was said) in (0, 1). By
+default it decides which known words may stand for a name nobody said
+(:func:`spco.model.unheard.resolve_name`). Only with the opt-in ``name_prior="wordnet"``
+(:class:`~spco.model.hyperparameters.TransferHyperparameters`,
+:func:`spco.prediction.predict_names`) does prediction reorder each concept's words by it
+(:func:`within_concepts`); it is off by default because on the held-out speech set a place whose
+only name is weak evidence ("dining") lost the views of a concept it shared with "kitchen".
 
 Without the lexicon (no NLTK or no WordNet database) the lexical features take their "unknown word"
 values, so the prior rests on the sentence frames alone.
@@ -189,9 +192,10 @@ def within_concepts(weighted: np.ndarray, prior: np.ndarray) -> np.ndarray:
     ``weighted`` (L, V) ≥ 0: each concept's word scores (θ^w_{e,l,w} · I(w) in prediction);
     ``prior`` (V,): :func:`name_prior`. Row l becomes ``weighted[l] · prior`` rescaled to the sum
     of ``weighted[l]``: the words of one place compete by how name-like they are ("dining room"
-    before "table" at the dining area), while the places keep the weight the model gives them, so
-    a place whose only name is weak evidence ("dining", an act in WordNet) is still named where
-    its views are. Rows of zeros stay zeros. Returns (L, V) float64.
+    before "table" at the dining area), while the concepts keep the weight the model gives them.
+    A place whose only name is weak evidence ("dining", an act in WordNet) keeps a concept of its
+    own, but loses a concept it shares with a stronger name ("kitchen"): why prediction uses this
+    only when asked (``name_prior="wordnet"``). Rows of zeros stay zeros. Returns (L, V) float64.
     """
     weighted = np.asarray(weighted, dtype=np.float64)
     scaled = weighted * np.asarray(prior, dtype=np.float64)[None, :]
