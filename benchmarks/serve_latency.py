@@ -201,43 +201,52 @@ def _teach_burst(url: str, ids: list[int], names: list[str], teachers: int, each
 
 
 def _soak_worker(url: str, regions: dict[str, Any], labels: dict[int, str], rate: float, seconds: float,
-                 seed: int, results: Any) -> None:
+                 seed: int, results: Any, threads: int = 8) -> None:
+    """Requests at ``rate`` per second for ``seconds`` on a fixed schedule (request k at k / rate),
+    sent by ``threads`` clients in turn, so that slow answers do not slow the schedule down."""
     from spco.client import Client
 
-    client = Client(url)
-    rng = np.random.default_rng(seed)
     x0, x1, y0, y1 = regions["extent"]
     ids, names = list(labels), list(labels.values())
     usable = sorted(set(names))
     latencies: dict[str, list[float]] = {"what": [], "where": [], "teach": []}
     errors: list[str] = []
-    start = time.perf_counter()
-    k = 0
-    while True:
-        due = start + k / rate
-        if due - start >= seconds:
-            break
-        pause = due - time.perf_counter()
-        if pause > 0:
-            time.sleep(pause)
-        roll = rng.random()
-        t = time.perf_counter()
-        try:
-            if roll < 0.6:
-                kind = "what"
-                client.what(float(rng.uniform(x0, x1)), float(rng.uniform(y0, y1)), 0.0)
-            elif roll < 0.9:
-                kind = "where"
-                client.where(usable[int(rng.integers(len(usable)))], n=10)
-            else:  # a person confirms the name of the place a sample is at (as the home answers it)
-                kind = "teach"
-                sample = int(rng.integers(len(ids)))
-                client.teach(id=ids[sample], sentence=f"this is the {names[sample]}")
-        except Exception as exc:
-            errors.append(f"{type(exc).__name__}: {exc}")
-        latencies[kind].append(time.perf_counter() - t)
-        k += 1
-    results.put((latencies, errors, k))
+    total = int(rate * seconds)
+    start = time.perf_counter() + 0.5
+    guard = threading.Lock()
+
+    def run(offset: int) -> None:
+        client = Client(url)
+        rng = np.random.default_rng([seed, offset])
+        for k in range(offset, total, threads):
+            pause = start + k / rate - time.perf_counter()
+            if pause > 0:
+                time.sleep(pause)
+            roll = rng.random()
+            t = time.perf_counter()
+            try:
+                if roll < 0.6:
+                    kind = "what"
+                    client.what(float(rng.uniform(x0, x1)), float(rng.uniform(y0, y1)), 0.0)
+                elif roll < 0.9:
+                    kind = "where"
+                    client.where(usable[int(rng.integers(len(usable)))], n=10)
+                else:  # a person confirms the name of the place a sample is at (as the home answers it)
+                    kind = "teach"
+                    sample = int(rng.integers(len(ids)))
+                    client.teach(id=ids[sample], sentence=f"this is the {names[sample]}")
+            except Exception as exc:
+                with guard:
+                    errors.append(f"{type(exc).__name__}: {exc}")
+            with guard:
+                latencies[kind].append(time.perf_counter() - t)
+
+    workers = [threading.Thread(target=run, args=(i,)) for i in range(threads)]
+    for w in workers:
+        w.start()
+    for w in workers:
+        w.join()
+    results.put((latencies, errors, total))
 
 
 def main() -> None:
@@ -359,7 +368,8 @@ def main() -> None:
         gathered = []
         start = time.perf_counter()
         while len(gathered) < len(workers):  # memory each second until every worker has reported
-            if time.perf_counter() - start > args.soak + 300:
+            if time.perf_counter() - start > args.soak + 600:
+                served.stop()
                 raise SystemExit("the soak's clients did not finish")
             memory.append(served.rss_mb())
             with contextlib.suppress(queue.Empty):
