@@ -100,7 +100,8 @@ def test_live_home_answers_as_the_cli_and_teaches(home: Path) -> None:
         assert kinds == ["taught", "taught"]
         with_view = live.what(0.4, -0.4, 0.5, image=_view(1), encoding="bgr8")
         assert with_view["vision"] is True
-        assert live.what(0.4, -0.4, 0.5, image=_jpeg(1))["names"] == with_view["names"]  # same pixels
+        png = cv2.imencode(".png", _view(1))[1].tobytes()  # lossless: the same pixels as the array
+        assert live.what(0.4, -0.4, 0.5, image=png)["names"] == with_view["names"]
         rgb = live.what(0.4, -0.4, 0.5, image=_view(1)[:, :, ::-1].copy(), encoding="rgb8")
         assert rgb["names"] == with_view["names"]
         regions = live.regions()
@@ -280,7 +281,7 @@ def test_client_mirrors_the_library_over_a_real_server(home: Path) -> None:
         assert robot.what(0.3, -0.2, 0.4)["names"][0]["name"] in library.known_names
         assert robot.what(0.3, -0.2, 0.4, image=_jpeg(5))["vision"] is True
         assert robot.what(0.3, -0.2, 0.4, image=_view(5), encoding="bgr8")["names"] == \
-            robot.what(0.3, -0.2, 0.4, image=_jpeg(5))["names"]
+            robot.what(0.3, -0.2, 0.4, image=cv2.imencode(".png", _view(5))[1].tobytes())["names"]  # lossless
         events = robot.events(types="taught,undone")
         received: list[dict] = []
         listener = threading.Thread(target=lambda: received.extend([next(events), next(events)]), daemon=True)

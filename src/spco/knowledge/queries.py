@@ -139,15 +139,17 @@ def unused_word_hint(home: HomeModel, word: str) -> str | None:
 
 
 def what(home: HomeModel, x: float, y: float, theta: float, visual: Any = None,
-         top_k: int = 3, image: Any = None) -> NamePrediction:
+         top_k: int = 3, image: Any = None, encoding: str | None = None) -> NamePrediction:
     """The ``top_k`` place names at pose ``(x, y, θ)``, with the view's visual counts if given.
 
     A pose off the home's map is answered with a :class:`UserWarning`, one more than
     :data:`FAR_OUTSIDE_MAP` map sizes off it is refused (:func:`pose_outside_map`); ``θ`` must be in
     radians (``|θ| ≤ 2π``).
 
-    ``image`` (a path or an array) gives the view as an image instead, for a home whose knowledge
-    was fitted on images: its extractor computes the counts.
+    ``image`` (a path, a JPEG/PNG file's bytes or an array of pixels) gives the view as an image
+    instead, for a home whose knowledge was fitted on images: its extractor computes the counts.
+    ``encoding`` is an array's colour order — ``rgb8`` (PIL, matplotlib, ``cv_bridge``'s rgb8),
+    ``bgr8`` (OpenCV, the default), ``mono8``, ``rgba8``, ``bgra8`` (:mod:`spco.features.pixels`).
     Without a view the names come from the position alone (``use_vision=False``). The returned
     :class:`~spco.prediction.NamePrediction` holds one row: ``words[0]``, ``probabilities[0]``
     (p(w | x, v)) and ``scores[0]`` (the ranking score).
@@ -156,7 +158,7 @@ def what(home: HomeModel, x: float, y: float, theta: float, visual: Any = None,
     outside = pose_outside_map(home, x, y)
     if outside is not None:
         warnings.warn(f"{outside}; the names are extrapolated from the nearest regions", stacklevel=2)
-    visual = _view_counts(home.knowledge, visual, image)
+    visual = _view_counts(home.knowledge, visual, image, encoding)
     row = None if visual is None else _visual_row(visual, home.knowledge.n_features)
     return predict_names(home.parameters, 0, home.vocabulary, pose, row, top_k=top_k,
                          weighting=home.weighting, use_vision=row is not None)  # type: ignore[arg-type]
