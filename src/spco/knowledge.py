@@ -57,15 +57,18 @@ Files
 -----
 Knowledge (``.spco``, format ``spco-knowledge``) and home (``.spco``, format ``spco-home``) files
 are NumPy ``.npz`` archives read with ``allow_pickle=False``: arrays plus a ``header`` array holding
-a UTF-8 JSON document with the format name, ``format_version`` (2), the spco version, the
-hyperparameters, the vocabulary, provenance, the image extractor (``extractor``: name, version,
-settings and checksum of its weights, ``null`` for knowledge fitted on count vectors; its weights,
-such as a codebook, as arrays ``extractor.<name>``; version 1 files, which predate it, are read
-as fitted on count vectors), a sha256 checksum of every array and a ``checksum`` of
-the whole content (header and arrays). They are written to a temporary file in the target's folder,
-flushed and renamed into place (atomic), and never replace an existing file unless asked
-(``overwrite=True``, ``--force``). A missing, truncated, edited or foreign file, or one written by
-a newer spco, raises :class:`~spco.errors.ModelFileError` naming the file and the problem.
+a UTF-8 JSON document with the format name, ``format_version`` (2; 3 when the vocabulary segments
+text written without spaces), the spco version, the hyperparameters, the vocabulary, its
+``segmentation`` (``null``, or how Japanese or Chinese text is cut into words:
+:meth:`spco.data.segmentation.Segmentation.to_dict`), provenance, the image extractor
+(``extractor``: name, version, settings and checksum of its weights, ``null`` for knowledge fitted
+on count vectors; its weights, such as a codebook, as arrays ``extractor.<name>``; version 1 files,
+which predate it, are read as fitted on count vectors), a sha256 checksum of every array and a
+``checksum`` of the whole content (header and arrays). They are written to a temporary file in the
+target's folder, flushed and renamed into place (atomic), and never replace an existing file unless
+asked (``overwrite=True``, ``--force``). A missing, truncated, edited or foreign file, or one
+written by a newer spco, raises :class:`~spco.errors.ModelFileError` naming the file and the
+problem.
 Every save holds the file's write lock (:func:`spco.locking.locked`, a ``flock`` on ``<file>.lock``);
 to read, update and replace a file without losing another process's update, hold it around all
 three (``with locked(path): home = load_home_model(path); …; home.save(path, overwrite=True)``).
@@ -141,7 +144,26 @@ KNOWLEDGE_FORMAT = "spco-knowledge"
 HOME_FORMAT = "spco-home"
 #: Version of both file layouts written by this module; newer files are refused. Version 2 added
 #: the image extractor (``extractor`` in the header); version 1 files are read as count-vector ones.
-FORMAT_VERSION = 2
+#: Version 3 added the segmentation of text written without spaces (``segmentation``): it is
+#: written only by fits whose vocabulary segments such text (older spco would cut it otherwise);
+#: other files stay version 2.
+FORMAT_VERSION = 3
+
+
+def _format_version(vocabulary: Vocabulary) -> int:
+    """3 for a vocabulary that segments text written without spaces, else 2 (readable by older spco)."""
+    seg = vocabulary.segmentation
+    return 3 if seg is not None and seg.segments else 2
+
+
+def _segmentation_of(header: Mapping[str, Any]) -> Any:
+    """The vocabulary's segmentation recorded in a file header (``None`` if none)."""
+    data = header.get("segmentation")
+    if data is None:
+        return None
+    from spco.data.segmentation import Segmentation
+
+    return Segmentation.from_dict(data)
 
 #: The transfer models whose shared part can be learnt: name -> (sampler variant, word pruning).
 MODELS: dict[str, tuple[str, bool]] = {
@@ -457,13 +479,15 @@ class Knowledge:
             arrays["extractor." + name] = np.asarray(value)
         header = {
             "format": KNOWLEDGE_FORMAT,
-            "format_version": FORMAT_VERSION,
+            "format_version": _format_version(self.vocabulary),
             "spco_version": _version(),
             "model": self.model,
             "variant": self.variant,
             "prune_words": bool(self.prune_words),
             "hyperparameters": self.hyperparameters.to_dict(),
             "vocabulary": list(self.vocabulary.words),
+            "segmentation": None if self.vocabulary.segmentation is None
+            else self.vocabulary.segmentation.to_dict(),
             "word_increment": int(self.word_increment),
             "provenance": self.provenance,
             "extractor": self.extractor,
@@ -497,7 +521,7 @@ class Knowledge:
                 concentration_visual=arrays[prefix + "concentration_visual"],
                 concentration_words=arrays[prefix + "concentration_words"],
                 concentration_g0=float(arrays[prefix + "concentration_g0"].reshape(-1)[0]),
-                vocabulary=Vocabulary(tuple(str(w) for w in header["vocabulary"])),
+                vocabulary=Vocabulary(tuple(str(w) for w in header["vocabulary"]), _segmentation_of(header)),
                 word_increment=int(header["word_increment"]),
                 hyperparameters=TransferHyperparameters.from_dict(header["hyperparameters"]),
                 variant=str(header["variant"]),
@@ -526,6 +550,8 @@ class Knowledge:
             from spco.features import ExtractorSpec
 
             lines.append(f"views: images, extractor {ExtractorSpec.from_dict(self.extractor).describe()}")
+        if self.vocabulary.segmentation is not None:
+            lines.append(f"text written without spaces: {self.vocabulary.segmentation.describe()}")
         return "\n".join(lines)
 
 
@@ -1052,7 +1078,7 @@ class HomeModel:
             arrays.update({"posterior." + k: np.asarray(v) for k, v in self.posterior.arrays().items()})
         header = {
             "format": HOME_FORMAT,
-            "format_version": FORMAT_VERSION,
+            "format_version": _format_version(self.vocabulary),
             "spco_version": _version(),
             "name": self.name,
             "sentences": list(self.sentences),
@@ -1065,6 +1091,7 @@ class HomeModel:
             "prune_words": k_header["prune_words"],
             "hyperparameters": k_header["hyperparameters"],
             "vocabulary": k_header["vocabulary"],
+            "segmentation": k_header["segmentation"],
             "word_increment": k_header["word_increment"],
             "knowledge_provenance": k_header["provenance"],
             "provenance": self.provenance,
@@ -1988,7 +2015,9 @@ def describe_model_file(path: str | PathLike[str]) -> dict[str, Any]:
 
     Keys: ``file``, ``kind`` (``"knowledge"`` or ``"home"``), ``model``, ``visual_dimension``,
     ``extractor`` (the feature extractor recorded with the views, or ``None``), ``vocabulary``,
-    ``kept_names`` (the words usable as place names), ``homes`` (the experienced homes), the view fit
+    ``kept_names`` (the words usable as place names), ``text`` (how text written without spaces is
+    cut: :meth:`~spco.data.segmentation.Segmentation.describe`, or ``None``), ``homes`` (the
+    experienced homes), the view fit
     (:func:`view_fit`) and the ``provenance``; a home file adds ``home``, ``samples``, ``taught`` and
     ``extent``. Raises :class:`~spco.errors.ModelFileError` for a file that is neither (or broken).
     """
@@ -2008,6 +2037,8 @@ def describe_model_file(path: str | PathLike[str]) -> dict[str, Any]:
         "model": knowledge.model, "visual_dimension": knowledge.n_features,
         "extractor": knowledge.extractor,
         "vocabulary": list(knowledge.vocabulary.words), "kept_names": list(names), "homes": homes,
+        "text": None if knowledge.vocabulary.segmentation is None
+        else knowledge.vocabulary.segmentation.describe(),
         "view_fit": view, "provenance": provenance,
     }
     if kind == HOME_FORMAT:

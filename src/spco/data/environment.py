@@ -336,6 +336,10 @@ class Corpus(Sequence[Environment]):
         The word list. By default it is built from the *training* sentences of all homes.
     word_increment:
         Count added per word occurrence (S^w, default 5000).
+    language:
+        How a vocabulary built here treats text written without spaces (``"auto"``, ``"ja"``,
+        ``"zh"``, ``"spaced"``; :func:`spco.data.segmentation.resolve`). Kept for the vocabularies
+        of :meth:`subset` and :meth:`replace`.
     """
 
     def __init__(
@@ -343,6 +347,7 @@ class Corpus(Sequence[Environment]):
         environments: Sequence[Environment],
         vocabulary: Vocabulary | None = None,
         word_increment: int = DEFAULT_WORD_INCREMENT,
+        language: str = "auto",
     ) -> None:
         envs = list(environments)
         if not envs:
@@ -359,9 +364,10 @@ class Corpus(Sequence[Environment]):
             raise ConfigurationError(f"word_increment must be >= 1, got {word_increment}")
         self.environments: tuple[Environment, ...] = tuple(envs)
         self.word_increment = int(word_increment)
+        self.language = language
         if vocabulary is None:
             vocabulary = Vocabulary.from_sentences(
-                s for e in envs for s in e.training_data().sentences
+                (s for e in envs for s in e.training_data().sentences), language=language
             )
         self.vocabulary = vocabulary
 
@@ -397,12 +403,12 @@ class Corpus(Sequence[Environment]):
 
     def subset(self, names: Sequence[str]) -> Corpus:
         """The homes named ``names``, in that order (vocabulary rebuilt from their sentences)."""
-        return Corpus([self[n] for n in names], word_increment=self.word_increment)
+        return Corpus([self[n] for n in names], word_increment=self.word_increment, language=self.language)
 
     def replace(self, name: str, environment: Environment) -> Corpus:
         """A corpus with home ``name`` replaced (vocabulary rebuilt)."""
         return Corpus([environment if e.name == name else e for e in self.environments],
-                      word_increment=self.word_increment)
+                      word_increment=self.word_increment, language=self.language)
 
     def word_counts(self, sentences: Sequence[str | None]) -> sp.csr_array:
         """Bag-of-words counts of ``sentences`` in this corpus's vocabulary."""

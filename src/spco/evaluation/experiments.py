@@ -339,6 +339,9 @@ class ExperimentConfig:
     extractor: the image extractor's name (:mod:`spco.features`; default
         :data:`~spco.features.DEFAULT_EXTRACTOR` when ``images`` is given). A codebook it needs is
         learnt from the experienced homes' training images (seed ``seed``).
+    text_language: how the experiment's vocabulary treats text written without spaces:
+        ``"auto"`` (found from the text), ``"ja"``, ``"zh"`` (segmented) or ``"spaced"``
+        (:func:`spco.data.segmentation.resolve`).
     """
 
     experiment: Experiment = "general"
@@ -361,6 +364,7 @@ class ExperimentConfig:
     language: str = "templates"
     images: str | os.PathLike[str] | None = None
     extractor: str | None = None
+    text_language: str = "auto"
 
     def validated(self) -> ExperimentConfig:
         """A copy with defaults filled in and every field checked (raises ConfigurationError)."""
@@ -374,6 +378,11 @@ class ExperimentConfig:
             raise ConfigurationError(f"seed must be a non-negative integer, got {self.seed!r}")
         if self.language not in ("templates", "free"):
             raise ConfigurationError(f"language must be 'templates' or 'free', got {self.language!r}")
+        from spco.data.segmentation import TEXT_LANGUAGES
+
+        if self.text_language not in TEXT_LANGUAGES:
+            raise ConfigurationError(f"text_language must be one of {', '.join(TEXT_LANGUAGES)}, got "
+                                     f"{self.text_language!r}")
         if self.hyperparameters is not None and not isinstance(self.hyperparameters, TransferHyperparameters):
             raise ConfigurationError("hyperparameters must be a TransferHyperparameters instance")
         if self.engine not in ("local", "ray"):
@@ -421,6 +430,7 @@ class _DataSpec:
     images: str | None = None
     extractor: str | None = None
     shown_images: str | None = None  # --images as given
+    text_language: str = "auto"
 
 
 class _HomeSource:
@@ -619,7 +629,7 @@ def _build_data(spec: _DataSpec, settings: Sequence[int]) -> ExperimentData:
     sentences = [s for n in experienced for s in data.experienced_home(n).training_data().sentences]
     if spec.experiment == "specific":
         sentences += data.new_home(specific, max(settings)).training_data().sentences  # type: ignore[arg-type]
-    data.vocabulary = Vocabulary.from_sentences(sentences)
+    data.vocabulary = Vocabulary.from_sentences(sentences, language=spec.text_language)
     if len(data.vocabulary) == 0:
         raise DataFormatError(spec.source, "no taught sentence in any experienced home: there are no "
                               "place names to learn")
@@ -633,6 +643,8 @@ def _build_data(spec: _DataSpec, settings: Sequence[int]) -> ExperimentData:
         "regions_sha256": _file_digest(Path(spec.regions)) if spec.regions else None,
         "vocabulary": list(data.vocabulary.words),
     }
+    if data.vocabulary.segmentation is not None:  # (absent otherwise: earlier results resume)
+        data.description["segmentation"] = data.vocabulary.segmentation.to_dict()
     if spec.images is not None or spec.extractor is not None:
         from spco.features import DEFAULT_EXTRACTOR
 
@@ -720,7 +732,8 @@ def _data_spec(config: ExperimentConfig) -> _DataSpec:
                      shown_source=str(config.data),
                      shown_regions=None if config.regions is None else str(config.regions),
                      images=images, extractor=config.extractor,
-                     shown_images=None if config.images is None else str(config.images))
+                     shown_images=None if config.images is None else str(config.images),
+                     text_language=config.text_language)
 
 
 def load_experiment_data(config: ExperimentConfig) -> ExperimentData:

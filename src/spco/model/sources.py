@@ -246,9 +246,10 @@ class FolderHomes(RangeSource):
 
     @classmethod
     def create(cls, path, names=None, teaching_rate: int = 100, position_scale: float = 1.0,
-               progress: bool = False) -> FolderHomes:
+               progress: bool = False, language: str = "auto") -> FolderHomes:
         """The homes of folder ``path`` (a home, or a folder of homes; ``names`` selects and orders
-        them, as in :func:`~spco.data.loading.load_homes`) taught at ``teaching_rate`` percent."""
+        them, as in :func:`~spco.data.loading.load_homes`) taught at ``teaching_rate`` percent;
+        ``language`` as in :meth:`~spco.data.language.Vocabulary.from_sentences`."""
         from tqdm import tqdm
 
         from spco.data.language import DEFAULT_WORD_INCREMENT, Vocabulary
@@ -279,7 +280,7 @@ class FolderHomes(RangeSource):
                 raise DataFormatError(folder, f"views of {env.n_features} features, the homes before it "
                                       f"have {min(dims - {env.n_features})}")
         return cls([str(f) for f in folders], home_names, int(teaching_rate),
-                   Vocabulary.from_sentences(sentences), DEFAULT_WORD_INCREMENT,
+                   Vocabulary.from_sentences(sentences, language=language), DEFAULT_WORD_INCREMENT,
                    np.array(sizes, dtype=np.int64), taught, dims.pop(), float(position_scale))
 
     @property
