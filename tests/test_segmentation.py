@@ -239,3 +239,15 @@ def _view(folder: Path) -> Path:
     path = folder / "view.npy"
     np.save(path, np.full(16, 3, dtype=np.int64))
     return path
+
+
+def test_maps_warn_once_without_a_font_for_such_names(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    import spco.plots as plots
+
+    monkeypatch.setattr(plots, "_installed_cjk_fonts", lambda: ())
+    with pytest.warns(UserWarning) as caught:
+        plots.plot_accuracy_curve([0, 1], {"台所": [0.2, 0.4], "お風呂": [0.1, 0.3]}, None, 0.1, "homes",
+                                  "ダイニング", path=tmp_path / "curve.png")
+    messages = [str(w.message) for w in caught]
+    assert sum("install one" in m for m in messages) == 1
+    assert not any("missing from font" in m for m in messages)

@@ -59,7 +59,7 @@ def _with_cjk_fonts(func: _F) -> _F:
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         fallback = _installed_cjk_fonts()
         family = [*matplotlib.rcParams["font.sans-serif"][:1], *fallback]
-        with matplotlib.rc_context({"font.family": "sans-serif", "font.sans-serif": family}), \
+        with matplotlib.rc_context({"font.family": family}), \
                 warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             result = func(*args, **kwargs)
