@@ -241,7 +241,8 @@ def _view(folder: Path) -> Path:
     return path
 
 
-def test_maps_warn_once_without_a_font_for_such_names(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+def test_maps_warn_once_without_a_font_for_such_names(monkeypatch: pytest.MonkeyPatch,
+                                                      tmp_path: Path) -> None:
     import spco.plots as plots
 
     monkeypatch.setattr(plots, "_installed_cjk_fonts", lambda: ())

@@ -170,8 +170,9 @@ def describe_model_file(path: str | PathLike[str]) -> dict[str, Any]:
     ``extractor`` (the feature extractor recorded with the views, or ``None``), ``vocabulary``,
     ``kept_names`` (the words usable as place names), ``text`` (how text written without spaces is
     cut: :meth:`~spco.data.segmentation.Segmentation.describe`, or ``None``), ``homes`` (the
-    experienced homes), the view fit (:func:`view_fit`) and the ``provenance``; a home file adds ``home``, ``samples``, ``taught`` and
-    ``extent``. Raises :class:`~spco.errors.ModelFileError` for a file that is neither (or broken).
+    experienced homes), the view fit (:func:`view_fit`) and the ``provenance``; a home file adds
+    ``home``, ``samples``, ``taught`` and ``extent``. Raises :class:`~spco.errors.ModelFileError`
+    for a file that is neither (or broken).
     """
     kind = model_file_format(path)
     if kind == HOME_FORMAT:
