@@ -470,6 +470,7 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
     spco teach home.spco --id 12 --sentence "this is Emma's room"
     spco teach home.spco --x 1.2 --y -0.4 --theta 1.57 --visual view.csv --sentence "the study is here"
     spco teach home.spco --x 1.2 --y -0.4 --theta 1.57 --image view.jpg --sentence "the study is here"
+    spco teach home.spco --x 1.2 --y -0.4 --theta 1.57 --sentence "the study is here"   (no view)
 
     An incremental update (a few sweeps from the current state; everything learnt so far is
     kept); new words grow the vocabulary. HOME is updated in place (atomically) unless --out is given.
@@ -487,8 +488,9 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
         if ids:
             raise ConfigurationError("give either --id with --sentence (a known sample) or --x/--y/--theta/"
                                      "--visual or --image (a new observation), not both")
-        if any(v is None for v in pose) or (visual is None and image is None):
-            raise ConfigurationError("a new observation needs --x, --y, --theta and --visual (or --image)")
+        if any(v is None for v in pose):
+            raise ConfigurationError("a new observation needs --x, --y and --theta (and its view as --visual "
+                                     "or --image, if the camera saw it)")
         if len(sentences) > 1:
             raise ConfigurationError("a new observation takes at most one --sentence")
     elif not ids:
@@ -516,6 +518,7 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
     last = updated.provenance["last_teach"]
     if new_observation:
         click.echo(f"Added sample {int(updated.ids[-1])} at ({x:g}, {y:g}, θ={theta:g})"
+                   + ("" if visual is not None or image is not None else " without a view")
                    + (f": {sentences[0]!r}" if sentences and sentences[0].strip() else ""))
     else:
         for i, s in zip(ids, sentences, strict=True):

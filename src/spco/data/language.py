@@ -470,6 +470,12 @@ class Vocabulary:
         grown = self
         if learn and self.segmentation is not None:  # units for the new text written without spaces
             grown = Vocabulary(self.words, self.segmentation.extended(texts))
+        elif learn and not any(_NO_SPACE.search(w) for w in self.words):
+            from spco.data.segmentation import resolve  # the first text of such a script: as a fit would
+
+            found = resolve("auto", texts)
+            if found is not None:
+                grown = Vocabulary(self.words, found)
         segmentation = grown.segmentation
         base = grown
         if learn:

@@ -336,7 +336,8 @@ def data_of_homes(data: PreparedData, first: int, last: int) -> PreparedData:
     return PreparedData(positions=data.positions[rows].copy(), homes=data.homes[rows] - first,
                         visual=sp.csr_array(data.visual[rows]), words=sp.csr_array(data.words[rows]),
                         n_homes=last - first, offsets=data.offsets[first:last + 1] - data.offsets[first],
-                        position_scale=data.position_scale, map_centres=data.map_centres[first:last].copy())
+                        position_scale=data.position_scale, map_centres=data.map_centres[first:last].copy(),
+                        view_missing=data.view_missing[rows].copy())
 
 
 #: GibbsState fields indexed by home, by sample, and shared by all homes.

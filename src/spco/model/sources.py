@@ -70,7 +70,8 @@ def concatenate_data(parts: list[PreparedData]) -> PreparedData:
                         words=stack_counts(*(p.words for p in parts)),
                         n_homes=int(home_starts[-1]), offsets=offsets.astype(np.int64),
                         position_scale=parts[0].position_scale,
-                        map_centres=np.concatenate([p.map_centres for p in parts]))
+                        map_centres=np.concatenate([p.map_centres for p in parts]),
+                        view_missing=np.concatenate([p.view_missing for p in parts]))
 
 
 # ----------------------------------------------------------------------------- prepared in the shards
