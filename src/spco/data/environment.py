@@ -285,12 +285,12 @@ class Environment:
         return self.positions[rows].copy(), self.visual[rows]
 
     def with_visual_dimension(self, n_features: int) -> Environment:
-        """This home with views of ``n_features`` features: a home without any view (``D = 0``) is
-        widened to that many columns (all zero, every view still missing); a home of that dimension
-        is returned as it is; any other dimension is an error."""
+        """This home with views of ``n_features`` features: a home without any view is given that
+        many columns (all zero, every view still missing: widened from ``D = 0``, or narrowed to
+        it); a home of that dimension is returned as it is; any other dimension is an error."""
         if n_features == self.n_features:
             return self
-        if self.n_features == 0 and self.view_missing.all():
+        if self.view_missing.all():
             return replace(self, visual=sp.csr_array((self.n_samples, int(n_features)), dtype=np.int64))
         raise DataFormatError(self.source or self.name, f"views of {self.n_features} features, not "
                               f"{n_features}")
@@ -370,6 +370,9 @@ def make_ground_truth(
 class Corpus(Sequence[Environment]):
     """Environments that share one vocabulary and one visual dimension.
 
+    A home without any view (every sample's view missing) takes the other homes' dimension; when
+    no home has a view, the dimension is 0 (the homes are learnt from poses and words).
+
     Parameters
     ----------
     environments:
@@ -398,9 +401,10 @@ class Corpus(Sequence[Environment]):
         dup = {n for n in names if names.count(n) > 1}
         if dup:
             raise ConfigurationError(f"home names must be unique in a corpus; repeated: {sorted(dup)}")
-        dims = {e.n_features for e in envs} - {0} or {0}
-        if len(dims) == 1:  # homes without any view take the others' dimension
-            envs = [e.with_visual_dimension(next(iter(dims))) if e.n_features == 0 else e for e in envs]
+        # homes without any view take the others' dimension; without any view anywhere, D = 0
+        dims = {e.n_features for e in envs if not e.view_missing.all()} or {0}
+        if len(dims) == 1:
+            envs = [e.with_visual_dimension(next(iter(dims))) if e.view_missing.all() else e for e in envs]
         dims = {e.n_features for e in envs}
         if len(dims) != 1:
             detail = ", ".join(f"{e.name}: {e.n_features}" for e in envs)

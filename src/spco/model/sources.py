@@ -264,7 +264,7 @@ class FolderHomes(RangeSource):
                                       "hold count vectors (visual.npz); load image homes in the driver "
                                       "with an extractor (spco fit does)")
         sentences: list[str | None] = []
-        home_names, sizes, taught, dims = [], [], 0, set()
+        home_names, sizes, taught, dims, views = [], [], 0, set(), 0
         for folder in tqdm(folders, desc="reading sentences", unit="home", leave=False,
                            disable=None if progress else True):
             env = load_homes(folder, teaching_rate=teaching_rate)[0]  # one home at a time
@@ -276,13 +276,16 @@ class FolderHomes(RangeSource):
             home_names.append(env.name)
             sizes.append(training.n_samples)
             taught += env.n_taught
-            dims.add(env.n_features)
+            views += env.n_views
+            if env.n_features:  # a home without any view takes the others' dimension
+                dims.add(env.n_features)
             if len(dims) > 1:
                 raise DataFormatError(folder, f"views of {env.n_features} features, the homes before it "
                                       f"have {min(dims - {env.n_features})}")
         return cls([str(f) for f in folders], home_names, int(teaching_rate),
                    Vocabulary.from_sentences(sentences, language=language), DEFAULT_WORD_INCREMENT,
-                   np.array(sizes, dtype=np.int64), taught, dims.pop(), float(position_scale))
+                   np.array(sizes, dtype=np.int64), taught, dims.pop() if dims and views else 0,
+                   float(position_scale))
 
     @property
     def n_homes(self) -> int:  # type: ignore[override]
@@ -303,7 +306,8 @@ class FolderHomes(RangeSource):
         from spco.data.loading import load_homes
         from spco.model.transfer import SpatialConceptModel
 
-        envs = [load_homes(p, teaching_rate=self.teaching_rate)[0] for p in self.paths[first:last]]
+        envs = [load_homes(p, teaching_rate=self.teaching_rate)[0].with_visual_dimension(self.n_features)
+                for p in self.paths[first:last]]
         corpus = Corpus(envs, vocabulary=self.vocabulary, word_increment=self.word_increment)
         return SpatialConceptModel._prepare(corpus, self.position_scale)
 
