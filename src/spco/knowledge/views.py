@@ -115,7 +115,7 @@ def read_visual_vector(path: str | PathLike[str], n_features: int | None = None,
         if file.suffix in (".npy", ".npz"):
             from spco.data.plain import _load_visual_file
 
-            raw = _load_visual_file(file)
+            raw, _ = _load_visual_file(file)
             values = np.asarray(raw.toarray() if sp.issparse(raw) else raw, dtype=np.float64)
         else:
             text = file.read_text(encoding="utf-8-sig")
