@@ -172,18 +172,9 @@ def cc4f_home(folder: Path, spaced: bool) -> tuple[Environment, np.ndarray, list
     """CC4F as a home (sentences spaced as recorded, or with the spaces removed), the place of each
     sample and the names (hiragana) of each place. The recording has no camera: every view is
     missing (an all-zero count vector)."""
-    import scipy.sparse as sp
+    from spco.data.loading import load_home
 
-    with open(folder / "samples.csv", encoding="utf-8", newline="") as handle:
-        samples = list(csv.DictReader(handle))
-    theta = np.array([float(r["theta"]) for r in samples])
-    env = Environment(name="CC4F", ids=np.array([int(r["id"]) for r in samples]),
-                      positions=np.column_stack([[float(r["x"]) for r in samples],
-                                                 [float(r["y"]) for r in samples],
-                                                 np.sin(theta), np.cos(theta)]),
-                      visual=sp.csr_array((len(samples), 1), dtype=np.int64),
-                      sentences=tuple(r["sentence"] or None for r in samples),
-                      is_test=np.zeros(len(samples), dtype=bool), source=str(folder))
+    env = load_home(folder)  # no visual file: every view missing
     if not spaced:
         env = env.with_sentences([None if s is None else s.replace(" ", "") for s in env.sentences])
     places, names = cc4f_answers(folder)

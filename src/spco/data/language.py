@@ -41,7 +41,12 @@ list of names (:func:`learn_terms`): two adjacent atoms ``a b`` become the term 
    sentence);
 4. neither atom is a *frame word*: one that occurs in more than ``max_sentence_share`` = 50 % of the
    sentences ("this", "is", "the" in "this is the kitchen"). Names are specific to a place, so none
-   is in half of all sentences.
+   is in half of all sentences;
+5. for two words of a script written without spaces (Japanese, Chinese), they *always* come
+   together on one side: every use of ``a`` is followed by ``b``, or every use of ``b`` is
+   preceded by ``a``. There a name is followed by particles and copulas (台所 です, キッチン だ よ)
+   that no frame rule catches — each style of speech is in fewer than half of the sentences — so a
+   name followed by です in most sentences stays the name ``台所``.
 
 A second pass over the sentences with the learnt pairs joined finds longer terms ("walk in closet").
 The rule also joins set phrases that are not names ("this is", "welcome to" when people say them in
