@@ -271,3 +271,29 @@ def test_import_bag_keeps_an_utterance_without_an_image_when_asked(tmp_path: Pat
     home = read_home(tmp_path / "mixed", extractor=build_extractor(DEFAULT_EXTRACTOR))
     taught = np.array([s is not None for s in home.sentences])
     assert home.view_missing.tolist() == taught.tolist()
+
+
+def test_homes_read_in_the_shards_agree_on_the_visual_dimension(tmp_path: Path) -> None:
+    from spco.model.shard import HomeShard
+    from spco.model.sources import FolderHomes
+
+    home = _home(name="seen")
+    write_home(home, tmp_path / "homes" / "seen")
+    write_home(replace(home, name="blind", visual=sp.csr_array((home.n_samples, 0)),
+                       view_missing=np.ones(home.n_samples, bool)), tmp_path / "homes" / "blind")
+    source = FolderHomes.create(tmp_path / "homes")
+    assert source.n_features == 8
+    parts = [source.prepare_homes(0, 1), source.prepare_homes(1, 2)]
+    assert {p.visual.shape[1] for p in parts} == {8}
+    assert [p.n_views.tolist() for p in parts] == [[0], [24]]  # blind, seen (sorted by name)
+    from spco.model.hyperparameters import TransferHyperparameters
+
+    class Part:
+        def prepare(self) -> gibbs.PreparedData:
+            return source.prepare_homes(0, 2)
+
+    shard = HomeShard.from_part(Part(), len(source.vocabulary), TransferHyperparameters(),
+                                gibbs.SamplerSettings.create("exact", prune=False), np.random.default_rng(0))
+    assert shard.n_views().tolist() == [0, 24]  # the shard API: samples with a view per home
+    blind_only = FolderHomes.create(tmp_path / "homes", names=["blind"])
+    assert blind_only.n_features == 0 and blind_only.prepare_homes(0, 1).visual.shape == (24, 0)

@@ -385,6 +385,10 @@ class Corpus(Sequence[Environment]):
         How a vocabulary built here treats text written without spaces (``"auto"``, ``"ja"``,
         ``"zh"``, ``"spaced"``; :func:`spco.data.segmentation.resolve`). Kept for the vocabularies
         of :meth:`subset` and :meth:`replace`.
+    n_features:
+        The visual dimension of every home (``None``: the homes' own; homes without any view take
+        it). Homes read in shards (:class:`~spco.model.sources.FolderHomes`) pass the dimension of
+        all homes, so that a shard of homes without views keeps it.
     """
 
     def __init__(
@@ -393,6 +397,7 @@ class Corpus(Sequence[Environment]):
         vocabulary: Vocabulary | None = None,
         word_increment: int = DEFAULT_WORD_INCREMENT,
         language: str = "auto",
+        n_features: int | None = None,
     ) -> None:
         envs = list(environments)
         if not envs:
@@ -402,7 +407,8 @@ class Corpus(Sequence[Environment]):
         if dup:
             raise ConfigurationError(f"home names must be unique in a corpus; repeated: {sorted(dup)}")
         # homes without any view take the others' dimension; without any view anywhere, D = 0
-        dims = {e.n_features for e in envs if not e.view_missing.all()} or {0}
+        dims = ({e.n_features for e in envs if not e.view_missing.all()} or {0}) if n_features is None \
+            else {int(n_features)}
         if len(dims) == 1:
             envs = [e.with_visual_dimension(next(iter(dims))) if e.view_missing.all() else e for e in envs]
         dims = {e.n_features for e in envs}

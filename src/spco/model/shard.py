@@ -158,6 +158,11 @@ class HomeShard(ShardInitialisation):
         """Homes in this shard."""
         return self.data.n_homes
 
+    def n_views(self) -> np.ndarray:
+        """(E,) samples with a view in each of the shard's homes (a sample without one has its
+        visual likelihood left out: ``PreparedData.view_missing``)."""
+        return self.data.n_views
+
     def local_step(self, word_mask: np.ndarray | None = None) -> float:
         """Draw every sample's concept and region and count the statistics (kept in the shard).
 

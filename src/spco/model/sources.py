@@ -306,9 +306,9 @@ class FolderHomes(RangeSource):
         from spco.data.loading import load_homes
         from spco.model.transfer import SpatialConceptModel
 
-        envs = [load_homes(p, teaching_rate=self.teaching_rate)[0].with_visual_dimension(self.n_features)
-                for p in self.paths[first:last]]
-        corpus = Corpus(envs, vocabulary=self.vocabulary, word_increment=self.word_increment)
+        envs = [load_homes(p, teaching_rate=self.teaching_rate)[0] for p in self.paths[first:last]]
+        corpus = Corpus(envs, vocabulary=self.vocabulary, word_increment=self.word_increment,
+                        n_features=self.n_features)
         return SpatialConceptModel._prepare(corpus, self.position_scale)
 
     def parts(self, n_shards: int) -> list[HomesPart]:
