@@ -297,3 +297,14 @@ def test_homes_read_in_the_shards_agree_on_the_visual_dimension(tmp_path: Path) 
     assert shard.n_views().tolist() == [0, 24]  # the shard API: samples with a view per home
     blind_only = FolderHomes.create(tmp_path / "homes", names=["blind"])
     assert blind_only.n_features == 0 and blind_only.prepare_homes(0, 1).visual.shape == (24, 0)
+
+
+def test_the_ray_engine_hands_the_mask_to_its_actors() -> None:
+    pytest.importorskip("ray", reason="Ray is not installed (pip install -e '.[ray]')")
+    from spco.engines.ray import _writable_data
+    from spco.model.transfer import SpatialConceptModel
+
+    home = _home().with_views_missing(np.arange(24) % 2 == 0)
+    data = SpatialConceptModel._prepare(Corpus([home]), 1.0)
+    sent = _writable_data(data)
+    assert sent.view_missing.tolist() == data.view_missing.tolist() == home.view_missing.tolist()
