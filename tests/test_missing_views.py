@@ -288,12 +288,8 @@ def test_homes_read_in_the_shards_agree_on_the_visual_dimension(tmp_path: Path) 
     assert [p.n_views.tolist() for p in parts] == [[0], [24]]  # blind, seen (sorted by name)
     from spco.model.hyperparameters import TransferHyperparameters
 
-    class Part:
-        def prepare(self) -> gibbs.PreparedData:
-            return source.prepare_homes(0, 2)
-
-    shard = HomeShard.from_part(Part(), len(source.vocabulary), TransferHyperparameters(),
-                                gibbs.SamplerSettings.create("exact", prune=False), np.random.default_rng(0))
+    shard = HomeShard.start(source.prepare_homes(0, 2), len(source.vocabulary), TransferHyperparameters(),
+                            gibbs.SamplerSettings.create("exact", prune=False), np.random.default_rng(0))
     assert shard.n_views().tolist() == [0, 24]  # the shard API: samples with a view per home
     blind_only = FolderHomes.create(tmp_path / "homes", names=["blind"])
     assert blind_only.n_features == 0 and blind_only.prepare_homes(0, 1).visual.shape == (24, 0)
