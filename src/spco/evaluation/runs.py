@@ -140,10 +140,11 @@ def execute_run(data: ExperimentData, ctx: _RunContext, key: RunKey) -> dict[str
     from spco.data.environment import Corpus
 
     model = spec.build(ctx.iterations, seed, ctx.hyperparameters, traced)
+    vocabulary = data.vocabulary_for(key.setting)
     if spec.single_home:
-        corpus = Corpus([homes[-1]], vocabulary=data.vocabulary)
+        corpus = Corpus([homes[-1]], vocabulary=vocabulary)
     else:
-        corpus = Corpus(homes, vocabulary=data.vocabulary)
+        corpus = Corpus(homes, vocabulary=vocabulary)
     model.fit(corpus)
     e = len(corpus) - 1
     env = homes[-1]

@@ -550,7 +550,8 @@ def _vocabulary(homes: Iterable[Environment]) -> Vocabulary:
 def execute_configured_run(data: ConfiguredData, key: ConfiguredRun, iterations: int, n_positions: int,
                            fingerprint: str = "") -> dict[str, Any]:
     """Fit and score one run; returns its record (a line of ``runs.jsonl``)."""
-    from spco.evaluation.experiments import MODELS, trial_seed
+    from spco.evaluation.config import trial_seed
+    from spco.evaluation.models import MODELS
 
     start = time.perf_counter()
     conf = data.file.configuration(key.configuration)
@@ -786,7 +787,7 @@ def run_specific_config(
     The results mapping written to ``results.json``: ``format``, ``version``, ``config``,
     ``runs`` (the records), ``summary`` and ``overall`` (:func:`summarise`).
     """
-    from spco.evaluation.experiments import parse_models
+    from spco.evaluation.config import parse_models
 
     file = config if isinstance(config, SpecificConfigFile) else load_specific_config(config)
     chosen = file.select(configurations)
