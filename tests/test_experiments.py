@@ -29,9 +29,11 @@ from spco.evaluation.report import format_cell, summarize
 SMALL = {"experiment": "general", "settings": (0, 2), "trials": 2, "iterations": 10,
          "models": ("spcotransfer", "spcoa")}
 RUN_KEYS = {"experiment", "model", "setting", "home", "trial", "place", "name_accuracy",
-            "position_accuracy", "seed", "iterations", "wall_seconds", "reused_from_setting"}
+            "position_accuracy", "position_accuracy_mixture",
+            "seed", "iterations", "wall_seconds", "reused_from_setting"}
 SUMMARY_KEYS = {"experiment", "model", "setting", "place", "name_accuracy_mean", "name_accuracy_std",
-                "position_accuracy_mean", "position_accuracy_std", "n"}
+                "position_accuracy_mean", "position_accuracy_std", "position_accuracy_mixture_mean",
+                "position_accuracy_mixture_std", "n"}
 
 
 @pytest.fixture(scope="module")

@@ -87,7 +87,11 @@ results.json schema (version 1)
          "setting": int,          # general: number of experienced homes; specific: teaching rate
          "home": str,             # the new home
          "trial": int, "place": str,   # a normalised place name, or "mean" (mean over the places)
-         "name_accuracy": float | null, "position_accuracy": float | null,   # null: not scored
+         "name_accuracy": float | null,       # null: not scored
+         "position_accuracy": float | null,   # A_p, positions from the most probable region
+                                              # (the authors' code)
+         "position_accuracy_mixture": float | null,   # A_p, positions sampled from the whole
+                                              # mixture p(x | name) (the paper's text)
          "seed": int,             # the run's random_state
          "iterations": int, "wall_seconds": float,   # fit + evaluation time of the run
          "reused_from_setting": int | null}   # the run was computed at that setting (see above)
@@ -95,10 +99,12 @@ results.json schema (version 1)
       "summary": [   # over new homes and trials
         {"experiment", "model", "setting", "place",          # place "mean": mean of per-run means
          "name_accuracy_mean", "name_accuracy_std",          # std: sample std (ddof=1), null if n < 2
-         "position_accuracy_mean", "position_accuracy_std", "n"}   # n: number of runs
+         "position_accuracy_mean", "position_accuracy_std",
+         "position_accuracy_mixture_mean", "position_accuracy_mixture_std", "n"}   # n: number of runs
       ],
       "summary_by_home": [ same keys as "summary" plus "home" ],
       "chance": {"name_accuracy": 1/|V|, "position_accuracy": mean over new homes of 1/|places|,
+                 "position_accuracy_mixture": the same,
                  "by_home": {home: {"name_accuracy": float, "position_accuracy": float}}},
       "timing": {"runs": int, "runs_reused": int, "runs_this_session": int,
                  "run_wall_seconds_total": float, "session_wall_seconds": float}

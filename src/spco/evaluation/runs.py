@@ -176,6 +176,8 @@ def execute_run(data: ExperimentData, ctx: _RunContext, key: RunKey) -> dict[str
         "position_accuracy": {p: clean(v) for p, v in scores.position_accuracy.items()},
         "mean_name_accuracy": clean(scores.mean_name_accuracy),
         "mean_position_accuracy": clean(scores.mean_position_accuracy),
+        "position_accuracy_mixture": {p: clean(v) for p, v in scores.position_accuracy_mixture.items()},
+        "mean_position_accuracy_mixture": clean(scores.mean_position_accuracy_mixture),
         "name_chance": clean(scores.name_chance),
         "position_chance": clean(scores.position_chance),
         "log_joint": [round(float(v), 3) for v in model.log_joint_] if traced else None,

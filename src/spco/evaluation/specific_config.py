@@ -122,7 +122,7 @@ def taught_count(rate: int, n_train: int) -> int:
     """The file's rule: ``k = max(1, floor(rate * n_train / 100 + 0.5))`` for a rate > 0, 0 at rate 0."""
     if rate <= 0:
         return 0
-    return max(1, min(n_train, int(math.floor(rate * n_train / 100 + 0.5))))
+    return max(1, min(n_train, math.floor(rate * n_train / 100 + 0.5)))
 
 
 # ------------------------------------------------------------------------------------ the file
