@@ -393,6 +393,38 @@ class Statistics:
     words: np.ndarray
 
 
+def sentence_words(data: PreparedData, state: GibbsState) -> sp.csr_array:
+    """The word counts (N, V) that the word likelihood and the word statistics count: one sentence
+    names one place.
+
+    A taught sentence whose words include one the naming rule judges a *name*
+    (``state.name_words``) is counted by its name words only; its other words — a frame the home's
+    people say around names ("look robot, this is …", "we call this …"), undecided because it was
+    heard too rarely to judge — tell nothing about the place the name does not already tell. Left
+    in, each would weigh S^w counts: a frame said in two sentences at two rooms would pull their
+    samples into a concept of its own (one concept per sentence frame), and the room's name would
+    be split over those concepts. A sentence without a judged name keeps all its words (a name
+    taught once is undecided, and usable at once). The naming rule itself still judges every word
+    on all its uses (``data.words``). Without judged names this is ``data.words`` itself.
+    """
+    names = state.name_words
+    words = data.words
+    if names is None or not words.nnz or not names[words.indices].any():
+        return words
+    key = names.tobytes()
+    cache = state.words_cache
+    if cache is not None and cache[0] is words and cache[1] == key:
+        return cache[2]
+    is_name = names[words.indices]
+    rows = np.repeat(np.arange(words.shape[0]), np.diff(words.indptr))
+    named_row = np.bincount(rows, weights=is_name, minlength=words.shape[0]) > 0
+    keep = is_name | ~named_row[rows]
+    kept = sp.csr_array((words.data[keep], (rows[keep], words.indices[keep])), shape=words.shape)
+    kept.sort_indices()
+    state.words_cache = (words, key, kept)
+    return kept
+
+
 def _statistics(data: PreparedData, state: GibbsState, hyper: TransferHyperparameters) -> Statistics:
     E, L, K = data.n_homes, hyper.n_concepts, hyper.n_regions
     count, total, scatter = GaussianRegions.statistics(data.positions, data.homes, state.regions, E, K)
@@ -401,7 +433,8 @@ def _statistics(data: PreparedData, state: GibbsState, hyper: TransferHyperparam
         regions_by_concept=allocation.region_counts(data.homes, state.concepts, state.regions, E, L, K),
         region_count=count, region_total=total, region_scatter=scatter,
         visual=_visual_counts(data, state, E, L),
-        words=HierarchicalMultinomial.statistics(data.words, data.homes, state.concepts, E, L),
+        words=HierarchicalMultinomial.statistics(sentence_words(data, state), data.homes, state.concepts,
+                                                 E, L),
     )
 
 
@@ -437,7 +470,7 @@ def _concept_loglik(data: PreparedData, state: GibbsState) -> np.ndarray:
                                                     by_dimension=data.visual_by_dimension)
     if data.words.nnz:
         log_theta_w = kept_word_log_theta(state.log_theta_w, state.word_mask)
-        loglik += HierarchicalMultinomial.log_likelihood(data.words, data.homes, log_theta_w)
+        loglik += HierarchicalMultinomial.log_likelihood(sentence_words(data, state), data.homes, log_theta_w)
     return loglik
 
 
@@ -625,7 +658,9 @@ def _prune(state: GibbsState, hyper: TransferHyperparameters, settings: SamplerS
     if state.log_phi_w.shape[1] == 0:
         return
     if settings.variant == "exact" and data is not None:
-        state.word_mask = naming_verdicts(data, state, hyper) != NOT_A_NAME
+        verdicts = naming_verdicts(data, state, hyper)
+        state.word_mask = verdicts != NOT_A_NAME
+        state.name_words = verdicts == NAME
         return
     if settings.hierarchical:
         phi_w, weights = np.exp(state.log_phi_w), np.exp(state.log_g0)

@@ -63,7 +63,9 @@ class GibbsState:
     log_phi_v (L, D), log_phi_w (L, V); word_mask (V,) words kept by pruning; candidate_words
     (V,) words that the mutual-information pruning may keep at all (``None``: every word);
     home_specific_words (V,) candidates it never prunes (the exact variant uses neither: see
-    :func:`naming_verdicts`).
+    :func:`naming_verdicts`); name_words (V,) the words the naming rule judges names (exact variant
+    with pruning; ``None``: none judged yet): a taught sample whose sentence holds one is scored by
+    its name words only (:func:`spco.model.gibbs.sentence_words`).
     """
 
     concepts: np.ndarray
@@ -82,6 +84,10 @@ class GibbsState:
     candidate_words: np.ndarray | None = None
     home_specific_words: np.ndarray | None = None
     visual_cache: VisualCountCache | None = field(default=None, repr=False)
+    name_words: np.ndarray | None = None
+    #: the words matrix :func:`spco.model.gibbs.sentence_words` last built: (data.words, name_words
+    #: bytes, matrix)
+    words_cache: tuple | None = field(default=None, repr=False)
 
 
 @dataclass
