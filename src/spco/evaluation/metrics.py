@@ -232,6 +232,7 @@ def evaluate_home(
     weighting: Weighting = "mi",
     position_mode: PositionMode = "argmax",
     xy_only: bool = False,
+    view_counts: float | None = None,
 ) -> HomeScores:
     """Score name and position prediction in home ``e`` (the paper's A_n and A_p).
 
@@ -248,6 +249,8 @@ def evaluate_home(
     rng: Generator or seed for the position draws (the mixture draws use a child stream of it, so
         the most-probable-region draws do not depend on them).
     weighting: name weighting (see :func:`spco.prediction.predict_names`).
+    view_counts: the evidence of one view in counts, as the model learnt (see
+        :func:`spco.prediction.predict_names`; ``None``: every count a draw).
     position_mode, xy_only: see :func:`spco.prediction.predict_positions`; ``position_mode`` is the
         mode of ``position_accuracy``; ``position_accuracy_mixture`` is always ``"mixture"``.
 
@@ -277,7 +280,8 @@ def evaluate_home(
 
     positions = environment.positions[rows]
     visual = environment.visual[rows]
-    prediction = predict_names(params, e, vocabulary, positions, visual, top_k=3, weighting=weighting)
+    prediction = predict_names(params, e, vocabulary, positions, visual, top_k=3, weighting=weighting,
+                               view_counts=view_counts)
     predicted = tuple(prediction.best)
     accepted = {place: gt.accepted(place) for place in place_list}
     name_scores = name_accuracy(predicted, labels, place_list, accepted)

@@ -151,7 +151,7 @@ def execute_run(data: ExperimentData, ctx: _RunContext, key: RunKey) -> dict[str
     specific = ctx.experiment == "specific"
     scores = evaluate_home(model.parameters_, e, env, model.vocabulary_, specific=specific,
                            n_positions=ctx.n_positions, rng=np.random.default_rng([seed, 1]),
-                           weighting=spec.weighting)
+                           weighting=spec.weighting, view_counts=model.settings_.view_counts)
     wall = time.perf_counter() - start
     if traced:
         path = map_path(Path(ctx.out), ctx.experiment, key.model, key.setting, key.home)

@@ -488,7 +488,8 @@ class RoomScores:
 
 def score_rooms(params: Any, e: int, env: Environment, vocabulary: Vocabulary,
                 rooms: Sequence[Room], weighting: str = "mi", n_positions: int = DEFAULT_POSITIONS,
-                rng: np.random.Generator | int | None = None) -> dict[str, RoomScores]:
+                rng: np.random.Generator | int | None = None,
+                view_counts: float | None = None) -> dict[str, RoomScores]:
     """A_n and A_p (both ways) of each room in home ``e`` of a fitted model.
 
     Parameters
@@ -499,6 +500,7 @@ def score_rooms(params: Any, e: int, env: Environment, vocabulary: Vocabulary,
     vocabulary: the model's vocabulary; rooms: the rooms to score.
     weighting: name weighting of :func:`~spco.prediction.predict_names`.
     n_positions: positions drawn per room and mode; rng: Generator or seed of the draws.
+    view_counts: the evidence of one view, as the model learnt (``model.settings_.view_counts``).
 
     Returns
     -------
@@ -512,7 +514,8 @@ def score_rooms(params: Any, e: int, env: Environment, vocabulary: Vocabulary,
     for room in rooms:
         test = np.array([rows[i] for i in room.test_ids], dtype=np.int64)
         prediction = predict_names(params, e, vocabulary, env.positions[test], env.visual[test],
-                                   top_k=1, weighting=weighting)  # type: ignore[arg-type]
+                                   top_k=1, weighting=weighting,  # type: ignore[arg-type]
+                                   view_counts=view_counts)
         predicted = tuple(str(w) for w in prediction.words[:, 0]) if prediction.words.shape[1] else \
             (None,) * test.size
         correct = np.array([room.is_accepted(w) for w in predicted], dtype=bool)
@@ -567,7 +570,7 @@ def execute_configured_run(data: ConfiguredData, key: ConfiguredRun, iterations:
     model.fit(corpus)
     e = len(corpus) - 1
     scores = score_rooms(model.parameters_, e, new, model.vocabulary_, conf.rooms, spec.weighting,
-                         n_positions, np.random.default_rng([key.seed, 1]))
+                         n_positions, np.random.default_rng([key.seed, 1]), model.settings_.view_counts)
     return {
         "fingerprint": fingerprint,
         "configuration": key.configuration,

@@ -42,6 +42,8 @@ are not used for prediction; :func:`spco.knowledge.fit_knowledge` averages them 
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
@@ -231,3 +233,25 @@ class ParameterAverage:
             region_counts=np.rint(to_current(mean["region_counts"], perm_r)).astype(np.int64),
             concept_counts=to_current(mean["concept_counts"], perm_c),
         )
+
+
+def untaught_concepts_name_nothing(params: ConceptParameters, taught: np.ndarray) -> ConceptParameters:
+    """``params`` with the word distribution of every concept that no taught sentence of any home
+    was assigned to (``taught`` (L,) bool False) made uniform over the kept words, in every home.
+
+    Such a concept's θ^w is a draw from the prior around a φ^w no word was ever counted for: with
+    α^w = 0.01 the draw is sparse, and a random word ("bath") can hold half its mass. A home
+    whose room, untaught, sits in such a concept would then be answered "bath" there, and ``where
+    bath`` would send the robot into it. With the distribution uniform the concept names nothing:
+    its views are named by the taught concepts that share them, and a name's regions come from
+    the concepts it was said with. (The posterior mean of θ^w given no word is the prior mean,
+    uniform; one draw is not.)
+    """
+    taught = np.asarray(taught, dtype=bool)
+    if taught.all() or params.word_probabilities.shape[-1] == 0:
+        return params
+    mask = np.asarray(params.word_mask, dtype=bool)
+    uniform = mask / mask.sum() if mask.any() else np.full(mask.size, 1.0 / mask.size)
+    theta = np.array(params.word_probabilities, dtype=np.float64, copy=True)
+    theta[:, ~taught, :] = uniform
+    return replace(params, word_probabilities=theta)

@@ -48,6 +48,11 @@ class PreparedData:
         return dimension_major(self.visual, self.offsets)
 
     @cached_property
+    def view_totals(self) -> np.ndarray:
+        """(N,) float: the visual counts of each sample (``Σ_d v_d``), for a view's weight."""
+        return np.asarray(self.visual.sum(axis=1), dtype=np.float64).ravel()
+
+    @cached_property
     def niw_priors(self) -> dict:
         """The NIW priors already built for this data (:func:`spco.model.gibbs.niw_prior`), by
         hyperparameters and variant: built once per fit instead of once per sweep."""
@@ -111,15 +116,21 @@ class SamplerSettings:
     joint_assignment: bool
     pruning_score: str
     learn_shared: bool = True
+    view_counts: float | None = None
 
     @classmethod
-    def create(cls, variant: str, prune: bool, learn_shared: bool = True) -> SamplerSettings:
+    def create(cls, variant: str, prune: bool, learn_shared: bool = True,
+               view_counts: float | None = None) -> SamplerSettings:
         """Settings of ``variant`` (``exact``, ``reference`` or ``spcoa``).
 
         ``learn_shared=False`` keeps φ^v, φ^w and G_0 fixed (adapting to a new home with
-        knowledge learnt elsewhere): sweeps then update only the homes' own variables."""
+        knowledge learnt elsewhere): sweeps then update only the homes' own variables.
+        ``view_counts``: the evidence of one view in counts
+        (:attr:`~spco.model.hyperparameters.TransferHyperparameters.view_counts`); the exact
+        variant only — the authors' sampler and SpCoA score every count, as published."""
         if variant not in VARIANTS:
             raise ValueError(f"unknown sampler variant {variant!r}; choose one of {VARIANTS}")
         return cls(variant=variant, prune=prune, hierarchical=variant != "spcoa",
                    joint_assignment=variant != "reference",
-                   pruning_score="kl" if variant == "reference" else "mi", learn_shared=learn_shared)
+                   pruning_score="kl" if variant == "reference" else "mi", learn_shared=learn_shared,
+                   view_counts=view_counts if variant == "exact" else None)
