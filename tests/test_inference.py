@@ -120,8 +120,9 @@ def test_average_does_not_mix_empty_concepts() -> None:
     assert_allclose(result.word_probabilities[0, 2], (theta[0][1] + theta[1][2]) / 2)  # the moved place
     assert_allclose(result.word_probabilities[0, 1], theta[1][1])  # empty only in the second sweep
     assert_allclose(result.word_probabilities[0, 3], (theta[0][3] + theta[1][3]) / 2)  # empty in both
-    assert_allclose(result.concept_weights[0], [(g[0][0] + g[1][0]) / 2, g[1][1], (g[0][1] + g[1][2]) / 2,
-                                                (g[0][3] + g[1][3]) / 2])
+    g_expected = np.array([(g[0][0] + g[1][0]) / 2, g[1][1], (g[0][1] + g[1][2]) / 2,
+                           (g[0][3] + g[1][3]) / 2])
+    assert_allclose(result.concept_weights[0], g_expected / g_expected.sum())  # (renormalised)
     pi = [np.exp(s.log_pi[0]) for s in (first, second)]
     assert_allclose(result.region_weights[0, 1], pi[1][1])
     assert_allclose(result.region_weights[0, 3], (pi[0][3] + pi[1][3]) / 2)

@@ -407,7 +407,7 @@ def sentence_words(data: PreparedData, state: GibbsState) -> sp.csr_array:
     taught once is undecided, and usable at once). The naming rule itself still judges every word
     on all its uses (``data.words``). Without judged names this is ``data.words`` itself.
     """
-    names = state.name_words
+    names = getattr(state, "name_words", None)
     words = data.words
     if names is None or not words.nnz or not names[words.indices].any():
         return words

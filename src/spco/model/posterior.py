@@ -219,8 +219,10 @@ class ParameterAverage:
         mask = np.asarray(state.word_mask, dtype=bool)
         log_theta_w = split_log_mean("word_probabilities")  # rows renormalised below
         log_theta_v = split_log_mean("visual_probabilities")
+        g = split_mean("concept_weights")  # occupied and empty parts averaged apart: renormalised
+        g = g / np.maximum(g.sum(axis=-1, keepdims=True), np.finfo(float).tiny)
         return ConceptParameters(
-            concept_weights=split_mean("concept_weights"),
+            concept_weights=g,
             region_weights=pi_out,
             region_means=mu,
             region_covariances=covariances,
