@@ -126,7 +126,7 @@ def main() -> None:
                    "ari_places": adjusted_rand_score(labels, pooled_final),
                    "seconds": round(time.perf_counter() - t0, 1)}
             rows.append(row)
-            chains[start] = pooled_final
+            chains[start if variant == "exact" else f"authors' sampler ({start})"] = pooled_final
             print(json.dumps(row), flush=True)
         for a, b in itertools.combinations(chains, 2):
             ari = adjusted_rand_score(chains[a], chains[b])
