@@ -13,9 +13,12 @@ Protocol (docs/model.md "What counts as a name"; benchmarks/README "Free speech 
   (``--accepted``, a JSON object place -> names; keys starting with ``_`` are notes);
 - A_p: for each place, the mean over the place's accepted names that the learnt vocabulary holds
   as one token (the place label itself only if it was said) of the share of 10 positions drawn for
-  the name that fall inside the place's region (argmax region, as ``spco experiment``); A_p (main
-  name): the same for the place's *main name* only, its accepted name said in most of the taught
-  sentences (:func:`main_names`);
+  the name that fall inside the place's region (argmax region, as ``spco experiment``); A_p
+  (mixture): the same with the positions drawn from the whole mixture p(x | name), the paper's
+  text (``HomeScores.position_accuracy_mixture``); A_p (main name): argmax region, for the place's
+  *main name* only, its accepted name said in most of the taught sentences (:func:`main_names`);
+- names are predicted with the view weight the model learnt with (``model.settings_.view_counts``,
+  as ``spco experiment``);
 - intervals: 95 % percentile bootstrap (2,000 resamples) over the test views (A_n; resampled within
   each home and place) and over the seeds' position scores of each (home, place) (A_p).
 
@@ -138,6 +141,7 @@ def main() -> None:
     wrong: dict[str, Counter] = {s: Counter() for s in settings}
     main_positions: dict[tuple, list[float]] = defaultdict(list)  # (home, place) -> main name's A_p
     positions: dict[tuple, list[float]] = defaultdict(list)  # (home, place) -> A_p per seed
+    positions_mixture: dict[tuple, list[float]] = defaultdict(list)  # the same, drawn from p(x | name)
     unheard_scores: dict[tuple, list[float]] = defaultdict(list)
     resolved_as: dict[str, Counter] = defaultdict(Counter)
     per_seed = []
@@ -151,8 +155,12 @@ def main() -> None:
                                  random_state=trial_seed(seed, h)).fit(corpus)
             e = len(corpus) - 1
             gt = env.ground_truth
+            # names predicted with the view weight the model learnt with, as ``spco experiment``
+            # (code from before the option: no argument)
+            view_counts = getattr(getattr(model, "settings_", None), "view_counts", None)
+            weight = {} if view_counts is None else {"view_counts": view_counts}
             for setting in settings:  # the same draws of positions: only the names can differ
-                option = {} if setting == "off" else {"name_prior": setting}
+                option = dict(weight) if setting == "off" else {"name_prior": setting, **weight}
                 scores = evaluate_home(model.parameters_, e, env, corpus.vocabulary, rng=seed, **option)
                 per_seed.append({"seed": seed, "home": home, "name_prior": setting,
                                  "A_n": scores.mean_name_accuracy, "A_p": scores.mean_position_accuracy,
@@ -167,6 +175,8 @@ def main() -> None:
                       flush=True)
             for place, value in scores.position_accuracy.items():
                 positions[(home, place)].append(value)
+            for place, value in getattr(scores, "position_accuracy_mixture", {}).items():
+                positions_mixture[(home, place)].append(value)
             for place, name in main_names(experienced, accepted).items():  # A_p of the main name
                 if place in gt.regions.places:  # type: ignore[union-attr]
                     try:
@@ -188,6 +198,9 @@ def main() -> None:
         "name_prior": first,
         "A_n": a_n, "A_n_interval": bootstrap(names_right[first], rng),
         "A_p": a_p, "A_p_interval": bootstrap(positions, rng),
+        **({"A_p_mixture": float(np.mean([np.mean(v) for v in positions_mixture.values()])),
+            "A_p_mixture_interval": bootstrap(positions_mixture, rng),
+            "A_p_mixture_per_place": _per_place(positions_mixture)} if positions_mixture else {}),
         "A_p_main_name": float(np.mean([np.mean(v) for v in main_positions.values()])),
         "A_p_main_name_interval": bootstrap(main_positions, rng),
         "A_n_per_place": _per_place(names_right[first]), "A_p_per_place": _per_place(positions),

@@ -45,6 +45,9 @@ def main() -> None:
         for e, env in enumerate(corpus):
             for setting in settings:
                 option = {} if setting == "off" else {"name_prior": setting}
+                view_counts = getattr(getattr(model, "settings_", None), "view_counts", None)
+                if view_counts is not None:  # as the model learnt (and as tests/test_handwritten.py)
+                    option["view_counts"] = view_counts
                 home = evaluate_home(model.parameters_, e, env, corpus.vocabulary, rng=0,
                                      weighting=args.weighting, **option)
                 gt = env.ground_truth

@@ -44,7 +44,12 @@ from spco.model import gibbs
 from spco.model.hyperparameters import SpCoAHyperparameters, TransferHyperparameters
 from spco.model.name_evidence import name_prior
 from spco.model.parameters import ConceptParameters
-from spco.model.posterior import ParameterAverage, masked_rows, thinned_sweeps
+from spco.model.posterior import (
+    ParameterAverage,
+    masked_rows,
+    thinned_sweeps,
+    untaught_concepts_name_nothing,
+)
 from spco.model.random import stack_counts
 
 
@@ -147,7 +152,9 @@ class SpatialConceptModel:
     def _settings(self) -> gibbs.SamplerSettings:
         if self.variant not in ("exact", "reference"):
             raise ConfigurationError(f"variant must be 'exact' or 'reference', got {self.variant!r}")
-        return gibbs.SamplerSettings.create(self.variant, bool(self.prune_words))
+        hyper = self.hyperparameters if self.hyperparameters is not None else self._default_hyperparameters()
+        return gibbs.SamplerSettings.create(self.variant, bool(self.prune_words),
+                                            view_counts=getattr(hyper, "view_counts", None))
 
     def _validate(self) -> TransferHyperparameters:
         hyper = self.hyperparameters if self.hyperparameters is not None else self._default_hyperparameters()
@@ -183,7 +190,8 @@ class SpatialConceptModel:
             else:
                 centres[e, :2] = t.positions[:, :2].mean(0)
         centres[:, :2] *= position_scale
-        return gibbs.PreparedData(positions=positions, homes=homes, visual=visual,
+        missing = np.concatenate([t.view_missing for t in training])
+        return gibbs.PreparedData(positions=positions, homes=homes, visual=visual, view_missing=missing,
                                   words=words, n_homes=len(training), offsets=offsets,
                                   position_scale=position_scale, map_centres=centres)
 
@@ -250,6 +258,10 @@ class SpatialConceptModel:
         self.log_joint_ = np.asarray(trace, dtype=float)
         self.n_iter_ = int(self.n_iterations)
         self.parameters_ = average.result(state)
+        if settings.variant == "exact":  # (the authors' sampler and SpCoA export as published)
+            taught = np.zeros(hyper.n_concepts, dtype=bool)  # concepts holding a taught sample somewhere
+            taught[np.unique(state.concepts[np.diff(data.words.indptr) > 0])] = True
+            self.parameters_ = untaught_concepts_name_nothing(self.parameters_, taught)
         if settings.prune and settings.variant == "exact":
             # the naming rule's linguistic evidence, how name-like each word is: candidates for names
             # never heard (spco.model.unheard), and the order of each concept's words with the
@@ -288,7 +300,8 @@ class SpatialConceptModel:
 
         e = self.home_index(home)
         return prediction.predict_names(self.parameters_, e, self.vocabulary_, np.asarray(positions),
-                                        visual, top_k=top_k, weighting=weighting,  # type: ignore[arg-type]
+                                        visual, top_k=top_k, weighting=weighting,
+                                        view_counts=self.settings_.view_counts,
                                         name_prior=self.hyperparameters_.name_prior)
 
     def predict_positions(self, home: str | int, name: str, n: int = 10,
