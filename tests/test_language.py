@@ -136,6 +136,24 @@ def test_term_rule_thresholds() -> None:
     assert "front door" in terms and not any("the" in t.split() for t in terms)  # "the": 4 of 6 sentences
 
 
+def test_a_sentence_said_again_counts_once_unless_its_words_are_never_said_apart() -> None:
+    """Vocabulary.from_sentences counts each distinct sentence once ("our bedroom" said 10 times is
+    no term while "bedroom" is also said alone), but a robot's teacher saying "this is the living
+    room" at every visit still teaches the term: "living" and "room" are never said apart."""
+    others = ["this is the kitchen", "the kitchen", "a bath", "the bath is here", "the hall", "a toilet",
+              "our toilet"]
+    said_again = ["our bedroom"] * 10 + ["the bedroom", "a bedroom here"] + others * 2
+    assert "our bedroom" in learn_terms(said_again)  # counting repeats, as before
+    assert Vocabulary.from_sentences(said_again).terms == ()
+    tour = (["this is the kitchen"] * 7 + ["this is the living room"] * 6 + ["this is the bedroom"] * 7) * 3
+    vocab = Vocabulary.from_sentences(tour)
+    assert vocab.terms == ("living room",) and "living" not in vocab and "room" not in vocab
+    # said fewer than min_count times: no term
+    twice = ["this is the living room"] * 2 + ["this is the kitchen"] * 4
+    assert Vocabulary.from_sentences(twice).terms == ()
+    assert learn_terms(tour, distinct=True) == ["living room"]
+
+
 def test_a_frame_does_not_swallow_the_first_word_of_a_name() -> None:
     """Where two candidate pairs overlap, the stronger is joined: "in emma's" (3 times) loses to
     "emma's room" (every use of "emma's"), so "we are in emma's room now" keeps the name whole; a

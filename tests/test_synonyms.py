@@ -107,10 +107,11 @@ def test_synonyms_of_free_speech_find_their_places_in_a_new_home() -> None:
                             top_k=3, view_counts=model.settings_.view_counts)
         accepted_in_top += [len(set(gt.accepted(gt.labels[i])) & set(words))
                             for i, words in zip(rows, top.words, strict=True)]
-    # observed: A_p 0.94 / 0.75 / 0.75 (mean 0.81), accepted names in the top 3: 1.31 on average
-    # (fit seeds 0-7: A_p 0.66-0.81, top 3 1.22-1.45, all passing). On main after the held-out merge
-    # (one name per taught sentence) this was a known failure at fit seed 0 (top 3 1.06; seeds 0-7:
-    # 5 of 8 passing); the vocabulary of branch names (terms from distinct sentences) gives it back.
+    # observed: A_p 0.86 / 0.81 / 0.55 (mean 0.74), accepted names in the top 3: 1.36 on average;
+    # fit seeds 0-7: A_p 0.70-0.76, top 3 1.08-1.50, 7 of 8 passing (seed 1: 1.08). On main after the
+    # held-out merge (one name per taught sentence) this was a known failure at fit seed 0 (top 3
+    # 1.06; seeds 0-7: 5 of 8 passing); the vocabulary of branch names (terms from distinct
+    # sentences, words never said apart joined) gives it back.
     # Before one name per taught sentence: A_p 0.83 / 0.49 / 0.72 (mean 0.68), top 3 1.28.
     # Before (one concept per synonym, and `where` looking among the home's concepts only):
     # A_p 0.32 / 0.42 / 0.46 (mean 0.40), 0.92 accepted names in the top 3

@@ -54,8 +54,13 @@ and a pair becomes a term only if it is joined at least ``min_count`` times: a w
 the neighbour it belongs to, so a frame never swallows the first word of a name.
 
 :meth:`Vocabulary.from_sentences` counts each distinct sentence once: a sentence said again word for
-word is one use of its word pairs, so a phrase of one sentence repeated many times ("crash pad bro")
-does not become a term.
+word is one use of its word pairs, so a phrase of one sentence repeated many times ("our bedroom",
+when "bedroom" is also said alone) does not become a term. One exception keeps the terms of a
+speaker who says one sentence per place ("this is the living room" each time, as a robot's teacher
+may): two words that are *never said apart* — every use of ``a`` followed by ``b``, every use of
+``b`` preceded by ``a``, neither a frame word — are a term when said at least ``min_count`` times
+counting repeats. Joining them changes nothing about where they are said (their counts are the
+same), and keeps the place from being answered as "living" or "room".
 
 A second pass over the sentences with the learnt pairs joined finds longer terms ("walk in closet").
 The rule also joins set phrases that are not names ("this is", "welcome to" when people say them in
@@ -322,6 +327,7 @@ def learn_terms(
     max_sentence_share: float = TERM_MAX_SENTENCE_SHARE,
     passes: int = 2,
     segmentation: Segmentation | None = None,
+    distinct: bool = False,
 ) -> list[str]:
     """The multi-word terms of ``sentences`` (the rule of the module docstring), sorted.
 
@@ -329,20 +335,64 @@ def learn_terms(
     pass joins them with a neighbour. Each pass joins the pairs it finds (left to right) before the
     next pass looks for longer terms; terms longer than :data:`MAX_TERM_WORDS` words are not formed.
     Text written without spaces is cut into words by ``segmentation`` first.
+
+    With ``distinct`` the rule counts each distinct sentence once, and a pair whose two words are
+    never said apart (every use of ``a`` followed by ``b``, every use of ``b`` preceded by ``a``;
+    neither a frame word) is a term when it is said at least ``min_count`` times counting repeats
+    (as :meth:`Vocabulary.from_sentences` learns; the module docstring).
     """
     streams = [tokenize(s, segmentation) for s in sentences if s]
     streams = [s for s in streams if s]
+    uses = [1] * len(streams)
+    if distinct:  # each distinct sentence once, with how often it was said
+        said = Counter(tuple(s) for s in streams)
+        streams, uses = [list(s) for s in said], list(said.values())
     terms: set[str] = set()
     for _ in range(passes):
         pairs = {(a, b): score for (a, b), score in
                  _term_pass(streams, min_count, min_g2, min_follow, max_sentence_share).items()
                  if len(a.split()) + len(b.split()) <= MAX_TERM_WORDS}
-        if not pairs:
+        together = {} if not distinct else {
+            pair: score for pair, score in _never_apart(streams, max_sentence_share).items()
+            if pair not in pairs and len(pair[0].split()) + len(pair[1].split()) <= MAX_TERM_WORDS}
+        if not pairs and not together:
             break
         joined: Counter[tuple[str, str]] = Counter()
-        streams = [_join(s, pairs, joined) for s in streams]
-        terms |= {f"{a} {b}" for (a, b), n in joined.items() if n >= min_count}
+        joined_said: Counter[tuple[str, str]] = Counter()  # counting repeats
+        joined_here: Counter[tuple[str, str]] = Counter()
+        out = []
+        for stream, n in zip(streams, uses, strict=True):
+            joined_here.clear()
+            out.append(_join(stream, {**pairs, **together}, joined_here))
+            joined.update(joined_here)
+            joined_said.update({pair: k * n for pair, k in joined_here.items()})
+        streams = out
+        terms |= {f"{a} {b}" for (a, b), n in joined.items() if (a, b) in pairs and n >= min_count}
+        terms |= {f"{a} {b}" for (a, b), n in joined_said.items() if (a, b) in together and n >= min_count}
     return sorted(terms)
+
+
+def _never_apart(sentences: list[list[str]], max_sentence_share: float) -> dict[tuple[str, str], float]:
+    """Adjacent pairs whose words are never said apart in ``sentences`` (every use of ``a`` is
+    followed by ``b`` and every use of ``b`` preceded by ``a``), neither a frame word; -> G²."""
+    pairs: Counter[tuple[str, str]] = Counter()
+    first: Counter[str] = Counter()
+    second: Counter[str] = Counter()
+    in_sentences: Counter[str] = Counter()
+    occurrences: Counter[str] = Counter()
+    for atoms in sentences:
+        in_sentences.update(set(atoms))
+        occurrences.update(atoms)
+        for a, b in itertools.pairwise(atoms):
+            pairs[(a, b)] += 1
+            first[a] += 1
+            second[b] += 1
+    n_pairs = sum(pairs.values())
+    frame = max_sentence_share * len(sentences)
+    return {(a, b): _g2(k11, first[a] - k11, second[b] - k11, n_pairs - first[a] - second[b] + k11)
+            for (a, b), k11 in pairs.items()
+            if a != b and k11 == occurrences[a] == occurrences[b] and in_sentences[a] <= frame
+            and in_sentences[b] <= frame}
 
 
 def _contains_run(words: list[str], run: list[str]) -> bool:
@@ -407,9 +457,10 @@ class Vocabulary:
         texts = [s for s in sentences if s]
         segmentation = resolve(language, texts, learn=learn)
         # terms from the distinct sentences: a sentence said again word for word is one use of its
-        # word pairs, not many ("crash pad bro" said 60 times is no term; "living room" in many
-        # different sentences is)
-        base = cls(tuple(learn_terms(dict.fromkeys(texts), segmentation=segmentation)), segmentation) \
+        # word pairs, not many ("our bedroom" said 60 times is no term; "living room" in many
+        # different sentences is, and so is "living room" of "this is the living room" said again
+        # and again when "living" and "room" are never said apart)
+        base = cls(tuple(learn_terms(texts, segmentation=segmentation, distinct=True)), segmentation) \
             if learn else cls((), segmentation)
         seen: dict[str, None] = {}
         for sentence in texts:
