@@ -93,6 +93,7 @@ from scipy.cluster.vq import kmeans2
 from scipy.optimize import linear_sum_assignment
 from scipy.special import logsumexp
 
+from spco.confidence import UNSURE_BELOW, concept_word_counts, predict_names_honestly
 from spco.data.environment import Corpus, Environment, Extent
 from spco.data.language import Vocabulary
 from spco.errors import ConfigurationError, DataFormatError, ModelFileError
@@ -110,7 +111,6 @@ from spco.prediction import (
     NamePrediction,
     PositionPrediction,
     UnknownNameError,
-    predict_names,
     validate_visual_counts,
 )
 
@@ -1027,9 +1027,9 @@ class HomeModel:
         return where(self, name, n=n, random_state=random_state)
 
     def what(self, x: float, y: float, theta: float, visual: Any = None, top_k: int = 3,
-             image: Any = None) -> NamePrediction:
+             image: Any = None, unsure_below: float = UNSURE_BELOW) -> NamePrediction:
         """Place names at a pose; see :func:`what`."""
-        return what(self, x, y, theta, visual=visual, top_k=top_k, image=image)
+        return what(self, x, y, theta, visual=visual, top_k=top_k, image=image, unsure_below=unsure_below)
 
     # ------------------------------------------------------------------ files
     def save(self, path: str | PathLike[str], overwrite: bool = False) -> Path:
@@ -1892,8 +1892,12 @@ def _view_counts(knowledge: Knowledge, visual: Any, image: Any) -> Any:
 
 
 def what(home: HomeModel, x: float, y: float, theta: float, visual: Any = None,
-         top_k: int = 3, image: Any = None) -> NamePrediction:
+         top_k: int = 3, image: Any = None, unsure_below: float = UNSURE_BELOW) -> NamePrediction:
     """The ``top_k`` place names at pose ``(x, y, θ)``, with the view's visual counts if given.
+
+    The probabilities are honest (:mod:`spco.confidence`): a view counts as
+    :data:`~spco.confidence.VIEW_EFFECTIVE_COUNTS` draws, a concept nobody named has no name; an
+    answer below ``unsure_below`` (default 0.5) is flagged ``unsure``.
 
     A pose off the home's map is answered with a :class:`UserWarning`, one more than
     :data:`FAR_OUTSIDE_MAP` map sizes off it is refused (:func:`pose_outside_map`); ``θ`` must be in
@@ -1903,7 +1907,7 @@ def what(home: HomeModel, x: float, y: float, theta: float, visual: Any = None,
     was fitted on images: its extractor computes the counts.
     Without a view the names come from the position alone (``use_vision=False``). The returned
     :class:`~spco.prediction.NamePrediction` holds one row: ``words[0]``, ``probabilities[0]``
-    (p(w | x, v)) and ``scores[0]`` (the ranking score).
+    (p(w | x, v)), ``scores[0]`` (the ranking score), ``confidence[0]`` and ``unsure[0]``.
     """
     pose = _pose(x, y, theta)[None, :]
     outside = pose_outside_map(home, x, y)
@@ -1911,8 +1915,12 @@ def what(home: HomeModel, x: float, y: float, theta: float, visual: Any = None,
         warnings.warn(f"{outside}; the names are extrapolated from the nearest regions", stacklevel=2)
     visual = _view_counts(home.knowledge, visual, image)
     row = None if visual is None else _visual_row(visual, home.knowledge.n_features)
-    return predict_names(home.parameters, 0, home.vocabulary, pose, row, top_k=top_k,
-                         weighting=home.weighting, use_vision=row is not None)  # type: ignore[arg-type]
+    return predict_names_honestly(
+        home.parameters, 0, home.vocabulary, pose, row, top_k=top_k, use_vision=row is not None,
+        weighting=home.weighting,  # type: ignore[arg-type]
+        free=np.exp(home.knowledge.log_g0) < FREE_CONCEPT_WEIGHT,
+        word_counts=concept_word_counts(home.data.words, home.state.concepts, home.knowledge.n_concepts),
+        alpha_word=home.hyperparameters.alpha_word, unsure_below=unsure_below)
 
 
 # ---------------------------------------------------------------------------- files of features

@@ -129,6 +129,7 @@ class NamePrediction:
     probabilities: (n, k) ``p(w | x, v)`` of those words (normalised over the vocabulary).
     word_probabilities: (n, V) the full ``p(w | x, v)``.
     weighting: the weighting used.
+    unsure_below: the threshold of :attr:`unsure` (``None``: no answer is flagged).
     """
 
     words: np.ndarray
@@ -137,6 +138,23 @@ class NamePrediction:
     probabilities: np.ndarray
     word_probabilities: np.ndarray
     weighting: str
+    unsure_below: float | None = None
+
+    @property
+    def confidence(self) -> np.ndarray:
+        """(n,) the probability ``p(w | x, v)`` of each observation's answer (its best-ranked
+        word); 0 where the model knows no words."""
+        if self.words.shape[1] == 0:
+            return np.zeros(self.words.shape[0])
+        return np.asarray(self.probabilities[:, 0], dtype=np.float64)
+
+    @property
+    def unsure(self) -> np.ndarray:
+        """(n,) bool: the answer's probability is below :attr:`unsure_below` (all False if that is
+        ``None``). See :mod:`spco.confidence`."""
+        if self.unsure_below is None:
+            return np.zeros(self.words.shape[0], dtype=bool)
+        return self.confidence < self.unsure_below
 
     @property
     def best(self) -> list[str | None]:
@@ -341,11 +359,23 @@ def validate_poses(positions: object) -> np.ndarray:
     return x
 
 
-def _visual_log_likelihood(theta_v: np.ndarray, visual: object) -> np.ndarray:
-    """(n, L) ``v · log θ^vᵀ`` for counts ``visual`` (n, D), sparse or dense (validated)."""
+def _visual_log_likelihood(theta_v: np.ndarray, visual: object, view_counts: float | None = None
+                           ) -> np.ndarray:
+    """(n, L) ``v · log θ^vᵀ`` for counts ``visual`` (n, D), sparse or dense (validated).
+
+    ``view_counts``: the evidence of one view, in counts (:mod:`spco.confidence`): a view with more
+    counts is weighted by ``view_counts / Σ_d v_d``, i.e. its proportions are scored as that many
+    draws; ``None``: every count is a draw (the model's multinomial)."""
     log_theta = _safe_log(theta_v)  # (L, D), finite
     counts = validate_visual_counts(visual, log_theta.shape[1])
-    return np.asarray(counts @ log_theta.T)
+    loglik = np.asarray(counts @ log_theta.T)
+    if view_counts is None:
+        return loglik
+    if not view_counts > 0:
+        raise ConfigurationError(f"view_counts must be > 0, got {view_counts!r}")
+    totals = np.asarray(counts.sum(axis=1)).ravel()
+    weight = np.minimum(1.0, float(view_counts) / np.maximum(totals, 1.0))
+    return loglik * weight[:, None]
 
 
 def _as_positions(positions: object) -> np.ndarray:
@@ -368,6 +398,7 @@ def _log_concept_posterior(
     use_position: bool,
     use_vision: bool,
     active_regions_only: bool,
+    view_counts: float | None = None,
 ) -> np.ndarray:
     """(n, L) normalised log P(l | x, v)."""
     e = _check_home(params, e)
@@ -380,7 +411,7 @@ def _log_concept_posterior(
     if use_vision:
         if visual is None:
             raise ConfigurationError("use_vision=True needs visual features")
-        vis = _visual_log_likelihood(params.visual_probabilities[e], visual)
+        vis = _visual_log_likelihood(params.visual_probabilities[e], visual, view_counts)
         if vis.shape[0] != n:
             raise ConfigurationError(f"{n} positions but {vis.shape[0]} visual feature rows")
         log_post += vis
@@ -416,6 +447,7 @@ def concept_posterior(
     use_position: bool = True,
     use_vision: bool = True,
     active_regions_only: bool = False,
+    view_counts: float | None = None,
 ) -> np.ndarray:
     """P(l | x, v) ∝ G_{e,l} · p(v | θ^v_{e,l}) · Σ_m π_{e,l,m} N(x | μ_{e,m}, Σ_{e,m}).
 
@@ -427,13 +459,16 @@ def concept_posterior(
     use_position, use_vision: drop a modality from the likelihood.
     active_regions_only: sum only over regions with training samples (``region_counts > 0``), as
         the authors' code does; ignored if no region has any.
+    view_counts: the evidence of one view in counts: each view's log-likelihood is weighted by
+        ``min(1, view_counts / Σ_d v_d)`` (:data:`spco.confidence.VIEW_EFFECTIVE_COUNTS`);
+        ``None`` (default): the model's multinomial, every count a draw.
 
     Returns
     -------
     (n, L) float64, rows sum to 1, never NaN.
     """
     return np.exp(_log_concept_posterior(params, e, positions, visual, use_position, use_vision,
-                                         active_regions_only))
+                                         active_regions_only, view_counts))
 
 
 def _word_matrix(params: ConceptParameters, e: int) -> np.ndarray:
@@ -456,6 +491,7 @@ def word_posterior(
     use_position: bool = True,
     use_vision: bool = True,
     active_regions_only: bool = False,
+    view_counts: float | None = None,
 ) -> np.ndarray:
     """p(w | x, v) ∝ Σ_l θ^w_{e,l,w} P(l | x, v) (= the double sum over l and m of the model).
 
@@ -464,7 +500,7 @@ def word_posterior(
     """
     e = _check_home(params, e)
     concepts = concept_posterior(params, e, positions, visual, use_position, use_vision,
-                                 active_regions_only)
+                                 active_regions_only, view_counts)
     return _words_from_concepts(concepts, _word_matrix(params, e))
 
 
@@ -505,6 +541,7 @@ def kl_scores_reference(
     visual: object,
     use_position: bool = True,
     use_vision: bool = True,
+    view_counts: float | None = None,
 ) -> np.ndarray:
     """The authors' name score: score(w) = Σ_l P(l | x, v) θ^w_{e,l,w} KL_l(w).
 
@@ -514,7 +551,7 @@ def kl_scores_reference(
     """
     e = _check_home(params, e)
     concepts = concept_posterior(params, e, positions, visual, use_position, use_vision,
-                                 active_regions_only=True)
+                                 active_regions_only=True, view_counts=view_counts)
     return concepts @ (_word_matrix(params, e) * reference_kl_weights(params, e))
 
 
@@ -528,6 +565,8 @@ def predict_names(
     weighting: Weighting = "mi",
     use_position: bool = True,
     use_vision: bool = True,
+    view_counts: float | None = None,
+    unsure_below: float | None = None,
 ) -> NamePrediction:
     """Rank the place names of ``n`` observations in home ``e``.
 
@@ -540,6 +579,10 @@ def predict_names(
         ``"reference"`` — the authors' KL-weighted score (:func:`kl_scores_reference`), with the
         concept posterior over used regions only.
     use_position, use_vision: drop a modality.
+    view_counts: the evidence of one view in counts (see :func:`concept_posterior`); ``None``: the
+        model's multinomial. spco's answers use :func:`spco.confidence.predict_names_honestly`.
+    unsure_below: stored in the result: an answer whose probability is below it is
+        :attr:`NamePrediction.unsure` (``None``: never).
 
     Words with ``word_mask`` False are never returned. Ties in the score are broken by p(w|x,v),
     then by vocabulary order. A word with I(w) = 0 scores 0 and is ranked after every word with a
@@ -552,7 +595,7 @@ def predict_names(
     e = _check_home(params, e)
     _check_vocabulary(params, vocabulary)
     concepts = concept_posterior(params, e, positions, visual, use_position, use_vision,
-                                 active_regions_only=weighting == "reference")
+                                 active_regions_only=weighting == "reference", view_counts=view_counts)
     theta_w = _word_matrix(params, e)
     probs = _words_from_concepts(concepts, theta_w)  # (n, V)
     if weighting == "mi":
@@ -574,6 +617,7 @@ def predict_names(
         probabilities=np.take_along_axis(probs, order, axis=1),
         word_probabilities=probs,
         weighting=weighting,
+        unsure_below=unsure_below,
     )
 
 
