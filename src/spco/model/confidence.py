@@ -1,6 +1,6 @@
 """Honest confidence for place names: what ``what`` answers, and how sure it may be.
 
-The model's name posterior ``p(w | x, v) = Σ_l θ^w_{e,l,w} P(l | x, v)`` (:mod:`spco.prediction`)
+The model's name posterior ``p(w | x, v) = Σ_l θ^w_{e,l,w} P(l | x, v)`` (:mod:`spco.model.prediction`)
 was sure of every answer on new homes learnt from camera images: 86 % right, mean confidence 1.000,
 every wrong answer at p ≥ 0.99 (issue 22). Two causes, each a way of counting evidence that is not
 independent as if it were (``docs/model.md``, "Confidence"):
@@ -25,7 +25,7 @@ independent as if it were (``docs/model.md``, "Confidence"):
    prior mean — uniform over the names — when nothing was taught there.
 
 An answer whose probability is below :data:`UNSURE_BELOW` is flagged *unsure*
-(:attr:`spco.prediction.NamePrediction.unsure`; ``spco what`` says so, ``--json`` has
+(:attr:`spco.model.prediction.NamePrediction.unsure`; ``spco what`` says so, ``--json`` has
 ``"unsure": true``).
 """
 
@@ -39,7 +39,7 @@ import scipy.sparse as sp
 from spco.data.language import Vocabulary
 from spco.errors import ConfigurationError
 from spco.model.parameters import ConceptParameters
-from spco.prediction import NamePrediction, Weighting, predict_names
+from spco.model.prediction import NamePrediction, Weighting, predict_names
 
 __all__ = [
     "UNSURE_BELOW",
@@ -139,7 +139,7 @@ def predict_names_honestly(
     Parameters
     ----------
     params, e, vocabulary, positions, visual, top_k, weighting, use_vision: as
-        :func:`spco.prediction.predict_names` (positions (n, 4), visual (n, D) counts).
+        :func:`spco.model.prediction.predict_names` (positions (n, 4), visual (n, D) counts).
     free: (L,) bool, the concepts the knowledge does not use; word_counts: (L, V) the home's word
         counts by concept; alpha_word: α^w (see :func:`named_parameters`).
     view_counts: the evidence of one view in counts (default :data:`VIEW_EFFECTIVE_COUNTS`).
@@ -147,7 +147,7 @@ def predict_names_honestly(
 
     Returns
     -------
-    The :class:`~spco.prediction.NamePrediction`; its ``probabilities`` are the honest
+    The :class:`~spco.model.prediction.NamePrediction`; its ``probabilities`` are the honest
     p(w | x, v), ``confidence`` (n,) the answer's, ``unsure`` (n,) bool.
     """
     if not 0.0 <= unsure_below <= 1.0:
