@@ -372,10 +372,14 @@ def where(home_file: Path, name: str, n: int, seed: int, as_json: bool) -> None:
 @click.option("--onnx-model", "model_file", type=click.Path(path_type=Path), default=None,
               help="Where the knowledge's .onnx model file is now (onnx extractor), if it moved.")
 @click.option("--top", default=3, show_default=True, type=click.IntRange(1, 100), help="Names to list.")
+@click.option("--unsure-below", default=None, type=click.FloatRange(0.0, 1.0),
+              help="Say the robot is unsure when the best name's probability p is below this "
+                   "(default 0.5, spco.model.confidence.UNSURE_BELOW).")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON object.")
 @_friendly
 def what(home_file: Path, x: float, y: float, theta: float, visual: Path | None, visual_scale: float | None,
-         image: Path | None, model_file: Path | None, top: int, as_json: bool) -> None:
+         image: Path | None, model_file: Path | None, top: int, unsure_below: float | None,
+         as_json: bool) -> None:
     """The most probable place names at a pose of the home of HOME, with their probabilities.
 
     With --visual (or --image) the view is used too; without, the position alone. Names are ranked
@@ -385,22 +389,33 @@ def what(home_file: Path, x: float, y: float, theta: float, visual: Path | None,
     information with the concepts (so that "this" or "is", said everywhere, are never answered); the
     output's last line says which. A pose off the home's map is answered with a warning, one far off it is
     refused.
+
+    p is honest: a view counts as a few independent draws, not as its thousands of counts, and a
+    concept nobody named has no name (docs/model.md, "Confidence"). When the best name's p is below
+    --unsure-below (0.5: more likely wrong than right) the answer says the robot is unsure
+    (JSON: "unsure": true).
     """
     from spco.knowledge import load_home_model
     from spco.knowledge import what as what_names
+    from spco.model.confidence import UNSURE_BELOW
 
+    unsure_below = UNSURE_BELOW if unsure_below is None else unsure_below
     home = load_home_model(home_file)
     _warn_if_knowledge_does_not_fit(home)
     counts = _view_counts(home, home_file, visual, image, visual_scale, model_file)
-    pred = what_names(home, x, y, theta, visual=counts, top_k=max(len(home.vocabulary), 1))
+    pred = what_names(home, x, y, theta, visual=counts, top_k=max(len(home.vocabulary), 1),
+                      unsure_below=unsure_below)
     total = float(pred.scores[0].sum())
     names = [{"name": str(w), "probability": float(p), "score": float(s),
               "score_share": float(s) / total if total > 0 else 0.0}
              for w, p, s in zip(pred.words[0], pred.probabilities[0], pred.scores[0], strict=True)][:top]
+    unsure = bool(pred.unsure[0])
     if as_json:
         click.echo(json.dumps({"home": home.name, "pose": {"x": x, "y": y, "theta": theta},
                                "vision": counts is not None, "ranked_by": _RANKED_BY[pred.weighting],
-                               "names": names}, indent=1))
+                               "answer": names[0]["name"] if names else None,
+                               "confidence": float(pred.confidence[0]), "unsure": unsure,
+                               "unsure_below": unsure_below, "names": names}, indent=1))
         return
     click.echo(f"At ({x:g}, {y:g}, θ={theta:g}) in home {home.name} "
                f"({'position and view' if counts is not None else 'position only'}), ranked by score:")
@@ -413,6 +428,9 @@ def what(home_file: Path, x: float, y: float, theta: float, visual: Path | None,
         click.echo(f"  {rank}. {n['name']:<{width}}  {n['score_share']:.3f}  {n['probability']:.3f}")
     click.echo(f"score: {_RANKED_BY[pred.weighting]}, as a share of its sum over the usable names; "
                f"p: p(name | {'pose, view' if counts is not None else 'pose'}) over all words")
+    if unsure:
+        click.echo(f"unsure: the best name, {names[0]['name']!r}, has p = {names[0]['probability']:.3f} "
+                   f"< {unsure_below:g}; ask what this place is called (spco teach)")
 
 
 #: What ``what``'s score is, per weighting of the home's model.
