@@ -288,7 +288,7 @@ def main(argv: Sequence[str] | None = None) -> None:
 
     rng = np.random.default_rng(args.seed)
     summary = []
-    lines = ["| set | views | experienced homes | way | ECE | accuracy | mean confidence | "
+    lines = ["| set | views from | experienced homes | way | ECE | accuracy | mean confidence | "
              "wrong at p ≥ 0.99 | unsure | log loss |", "|---|---|---|---|---|---|---|---|---|---|"]
     for set_name, feats, size, mine in _configurations(rows):
         s = summarise(mine, rng)
