@@ -38,6 +38,13 @@ concept posterior is normalised with ``logsumexp``. Logarithms of probabilities 
 ``log(tiny)`` (≈ −708) instead of −∞, so a zero entry of θ, π or G makes a term negligible but never
 produces NaN; a near-singular covariance is repaired (eigenvalues clamped) before its Cholesky
 factor is taken.
+
+Confidence: those thousands of nats make p(w | x, v) sure of every answer, the wrong ones too (the
+counts of one image are not independent draws). ``view_counts`` weights each view's visual term as
+that many draws; ``spco.knowledge.what`` answers with :func:`spco.model.confidence.predict_names_honestly`
+(a view = :data:`~spco.model.confidence.VIEW_EFFECTIVE_COUNTS` draws, free concepts' names at their
+posterior mean, an ``unsure`` flag). The default here (``view_counts=None``) is the model itself,
+as the experiments use it.
 """
 
 from __future__ import annotations
