@@ -24,6 +24,10 @@ reliability diagram per configuration, ``reliability_<features>_<n>.png``, to ``
     python benchmarks/calibration.py … --sets development        # only what may be looked at
 
 Knowledge and home files are kept in ``--out``/models and reused by a re-run (``--force`` refits).
+
+``--fit-view-counts`` prints instead how ``VIEW_EFFECTIVE_COUNTS`` was chosen: the log loss of the
+right names on the **development** views (only; held-out views are never read) for n_eff = 1 … 12
+by 0.5, colour-hog and fc7 pooled, and the minimum.
 """
 
 from __future__ import annotations
@@ -79,31 +83,50 @@ def _load(data: Path, images: Path | None, names: Sequence[str], features: str, 
     return load_homes(data, names=list(names), teaching_rate=rate, extractor=extractor, images=images)
 
 
-def run_task(task: Task, data: Path, images: Path | None, models: Path, force: bool) -> list[dict[str, Any]]:
-    """Fit (or reuse) the knowledge of ``task``, adapt its homes, and score every test view."""
+def _knowledge(task: Task, data: Path, images: Path | None, models: Path, force: bool) -> Any:
     import spco.knowledge as kn
     from spco.data.environment import Corpus
     from spco.features import build_extractor
-    from spco.model.prediction import predict_names
 
-    warnings.filterwarnings("ignore")
     k_file = models / f"knowledge_{task.features}_{task.size}_{task.seed}.spco"
     if k_file.exists() and not force:
-        knowledge = kn.load_knowledge(k_file)
-    else:
-        homes = _load(data, images, PAPER_EXPERIENCED_HOMES[: task.size], task.features, 100)
-        extractor = None if task.features == "fc7" else build_extractor(task.features)
-        knowledge = kn.fit_knowledge(Corpus(homes), random_state=task.seed, extractor=extractor)
-        knowledge.save(k_file, overwrite=True)
-    rows = []
+        return kn.load_knowledge(k_file)
+    homes = _load(data, images, PAPER_EXPERIENCED_HOMES[: task.size], task.features, 100)
+    extractor = None if task.features == "fc7" else build_extractor(task.features)
+    knowledge = kn.fit_knowledge(Corpus(homes), random_state=task.seed, extractor=extractor)
+    knowledge.save(k_file, overwrite=True)
+    return knowledge
+
+
+def home_models(task: Task, data: Path, images: Path | None, models: Path, force: bool
+                ) -> Iterator[tuple[Any, Any]]:
+    """(new home, its adapted HomeModel) for each new home of ``task``: fitted and adapted, or read
+    from ``models`` where a previous run kept them."""
+    import spco.knowledge as kn
+
+    warnings.filterwarnings("ignore")
+    knowledge = None
     for name in task.homes:
         home = _load(data, images, [name], task.features, 0)[0]
         h_file = models / f"home_{task.features}_{task.size}_{task.seed}_{name}.spco"
         if h_file.exists() and not force:
-            model = kn.load_home_model(h_file)
-        else:
-            model = kn.adapt(knowledge, home, random_state=task.seed)
-            model.save(h_file, overwrite=True)
+            yield home, kn.load_home_model(h_file)
+            continue
+        if knowledge is None:
+            knowledge = _knowledge(task, data, images, models, force)
+        model = kn.adapt(knowledge, home, random_state=task.seed)
+        model.save(h_file, overwrite=True)
+        yield home, model
+
+
+def run_task(task: Task, data: Path, images: Path | None, models: Path, force: bool) -> list[dict[str, Any]]:
+    """Fit (or reuse) the knowledge of ``task``, adapt its homes, and score every test view."""
+    import spco.knowledge as kn
+    from spco.model.prediction import predict_names
+
+    rows = []
+    for home, model in home_models(task, data, images, models, force):
+        name = home.name
         positions, visual = home.test_observations()
         labels = [lab for lab, t in zip(home.labels(), home.is_test, strict=True) if t]
         ids = home.ids[home.is_test]
@@ -125,6 +148,39 @@ def run_task(task: Task, data: Path, images: Path | None, models: Path, force: b
                 "unsure": bool(after.unsure[0]),
             })
     return rows
+
+
+def view_counts_log_loss(data: Path, images: Path | None, models: Path, features: Sequence[str],
+                         grid: np.ndarray, force: bool) -> np.ndarray:
+    """(len(grid),) mean −log p(right name | pose, view) over the development test views, for each
+    number of draws a view is worth; the development models are fitted (or reused) first."""
+    from spco.model.confidence import concept_word_counts, predict_names_honestly
+    from spco.model.home_shard import FREE_CONCEPT_WEIGHT
+
+    dev = SETS["development"]
+    losses = np.zeros(len(grid))
+    n = 0
+    for f in features:
+        for size in dev["sizes"]:
+            for seed in dev["seeds"]:
+                task = Task(f, size, seed, dev["homes"], "development")
+                for home, model in home_models(task, data, images, models, force):
+                    positions, visual = home.test_observations()
+                    labels = [lab for lab, t in zip(home.labels(), home.is_test, strict=True) if t]
+                    words = list(model.vocabulary.words)
+                    rows = np.arange(len(labels))
+                    columns = np.array([words.index(lab) for lab in labels])
+                    counts = concept_word_counts(model.data.words, model.state.concepts,
+                                                 model.knowledge.n_concepts)
+                    for j, value in enumerate(grid):
+                        pred = predict_names_honestly(
+                            model.parameters, 0, model.vocabulary, positions, visual, top_k=1,
+                            weighting=model.weighting,  # type: ignore[arg-type]
+                            free=np.exp(model.knowledge.log_g0) < FREE_CONCEPT_WEIGHT, word_counts=counts,
+                            alpha_word=model.hyperparameters.alpha_word, view_counts=float(value))
+                        losses[j] -= np.log(np.maximum(pred.word_probabilities[rows, columns], 1e-12)).sum()
+                    n += len(labels)
+    return losses / n
 
 
 # ----------------------------------------------------------------------------------------- figures
@@ -256,6 +312,9 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("--jobs", type=int, default=1)
     parser.add_argument("--seed", type=int, default=0, help="seed of the bootstrap")
     parser.add_argument("--force", action="store_true", help="refit the models kept in --out/models")
+    parser.add_argument("--fit-view-counts", action="store_true",
+                        help="print the development log loss against n_eff (how VIEW_EFFECTIVE_COUNTS "
+                             "was chosen)")
     args = parser.parse_args(argv)
     sets = [s for s in args.sets.split(",") if s]
     features = [f for f in args.features.split(",") if f]
@@ -267,6 +326,13 @@ def main(argv: Sequence[str] | None = None) -> None:
             parser.error(f"--features: unknown {f!r}; choose from {', '.join(FEATURES)}")
     models = args.out / "models"
     models.mkdir(parents=True, exist_ok=True)
+    if args.fit_view_counts:
+        grid = np.arange(1.0, 12.01, 0.5)
+        losses = view_counts_log_loss(args.data, args.images, models, features, grid, args.force)
+        for value, loss in zip(grid, losses, strict=True):
+            print(f"n_eff {value:4.1f}: development log loss {loss:.4f}")
+        print(f"least log loss at n_eff = {grid[int(np.argmin(losses))]:g}")
+        return
     tasks = [Task(f, size, seed, SETS[s]["homes"], s) for s in sets for f in features
              for size in SETS[s]["sizes"] for seed in SETS[s]["seeds"]]
     start = time.perf_counter()

@@ -50,10 +50,11 @@ __all__ = [
 ]
 
 #: The evidence of one camera view, in independent draws from its concept's visual distribution.
-#: Fitted by the least log loss of the right names (mean −log p(true name | pose, view)) over the
+#: Chosen by the least log loss of the right names (mean −log p(true name | pose, view)) over the
 #: development views of ``benchmarks/calibration/SPLIT.md`` (1DK_8 and 3LDK_9 test views, 4 and 8
-#: experienced homes, seeds 0–4, colour-hog and fc7 views pooled; grid 1–12 by 0.5: 4.0, log loss
-#: 0.085, against 1.06 / 0.88 (colour-hog / fc7) with every count a draw).
+#: experienced homes, seeds 0–4, colour-hog and fc7 views pooled; grid 1–12 by 0.5;
+#: ``benchmarks/calibration.py --fit-view-counts``): 0.0809 at 4, 0.0806 at 3–3.5, flat from 2.5
+#: to 4.5, against 1.056 / 0.884 (colour-hog / fc7) for the model's own p(w | x, v).
 VIEW_EFFECTIVE_COUNTS = 4.0
 
 #: An answer whose probability p(name | pose, view) is below this is *unsure*: the name is more
