@@ -185,34 +185,44 @@ def home_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def test_what_says_when_it_is_unsure(home_file: Path) -> None:
-    """Between the learnt places (the map's centre, position only) the best name is shared with
-    others: unsure; in a region's centre it is not. The CLI says so in text and in JSON."""
+    """Over the home's own poses and views (a small, briefly learnt home) some answers are sure and
+    some are not; `unsure` is the answer's probability below the threshold, and the CLI says so in
+    text and in JSON."""
     home = kn.load_home_model(home_file)
-    params = home.parameters
-    active = np.flatnonzero(params.region_counts[0] > 0)
-    m = active[np.argmax(params.region_counts[0, active])]
-    x, y = params.region_means[0, m, :2]
-    theta = math.atan2(params.region_means[0, m, 2], params.region_means[0, m, 3])
-    sure = kn.what(home, float(x), float(y), theta)
-    assert not sure.unsure[0] and sure.confidence[0] >= UNSURE_BELOW
-    assert sure.confidence[0] == pytest.approx(sure.probabilities[0, 0])
-    always = kn.what(home, float(x), float(y), theta, unsure_below=1.0)
-    assert always.unsure[0]
-
-    result = CliRunner().invoke(what, [str(home_file), "--x", str(x), "--y", str(y), "--theta", str(theta),
-                                       "--json", "--unsure-below", "1"], catch_exceptions=False)
+    answers = []
+    for i in range(home.n_samples):
+        x, y, s, c = home.positions[i]
+        answers.append(kn.what(home, float(x), float(y), math.atan2(s, c), visual=home.visual[[i]]))
+    confidence = np.array([a.confidence[0] for a in answers])
+    unsure = np.array([a.unsure[0] for a in answers])
+    assert np.array_equal(unsure, confidence < UNSURE_BELOW)
+    assert confidence.max() > 0.95 and confidence.min() < UNSURE_BELOW  # both kinds occur
+    best = answers[int(confidence.argmax())]
+    assert best.confidence[0] == pytest.approx(best.probabilities[0, 0])
+    i = int(confidence.argmax())
+    x, y, s, c = home.positions[i]
+    theta = math.atan2(s, c)
+    assert kn.what(home, float(x), float(y), theta, visual=home.visual[[i]], unsure_below=1.0).unsure[0]
+    view = home_file.parent / "view.npy"
+    np.save(view, home.visual[[i]].toarray()[0])
+    args = [str(home_file), "--x", str(x), "--y", str(y), "--theta", str(theta), "--visual", str(view)]
+    result = CliRunner().invoke(what, [*args, "--json", "--unsure-below", "1"], catch_exceptions=False)
     out = json.loads(result.output)
     assert out["unsure"] is True and out["unsure_below"] == 1.0
     assert out["answer"] == out["names"][0]["name"] and out["confidence"] == out["names"][0]["probability"]
-    result = CliRunner().invoke(what, [str(home_file), "--x", str(x), "--y", str(y), "--theta", str(theta),
-                                       "--json"], catch_exceptions=False)
+    result = CliRunner().invoke(what, [*args, "--json"], catch_exceptions=False)
     assert json.loads(result.output)["unsure"] is False
-    text = CliRunner().invoke(what, [str(home_file), "--x", str(x), "--y", str(y), "--theta", str(theta),
-                                     "--unsure-below", "1"], catch_exceptions=False).output
+    text = CliRunner().invoke(what, [*args, "--unsure-below", "1"], catch_exceptions=False).output
     assert "unsure: the best name" in text
-    text = CliRunner().invoke(what, [str(home_file), "--x", str(x), "--y", str(y), "--theta", str(theta)],
-                              catch_exceptions=False).output
-    assert "unsure" not in text
+    assert "unsure" not in CliRunner().invoke(what, args, catch_exceptions=False).output
+    j = int(confidence.argmin())
+    x, y, s, c = home.positions[j]
+    np.save(view, home.visual[[j]].toarray()[0])
+    low = [str(home_file), "--x", str(x), "--y", str(y), "--theta", str(math.atan2(s, c)),
+           "--visual", str(view)]
+    low_json = CliRunner().invoke(what, [*low, "--json"], catch_exceptions=False).output
+    assert json.loads(low_json)["unsure"] is True
+    assert "unsure: the best name" in CliRunner().invoke(what, low, catch_exceptions=False).output
     bad = CliRunner().invoke(what, [str(home_file), "--x", "0", "--y", "0", "--theta", "0",
                                     "--unsure-below", "2"])
     assert bad.exit_code == 2 and "--unsure-below" in bad.output
