@@ -116,7 +116,7 @@ def test_corrupt_or_missing_image_is_a_clear_error(tmp_path: Path) -> None:
         build_extractor(DEFAULT_EXTRACTOR).extract(tmp_path / "empty.png")
     with pytest.raises(DataFormatError, match=r"nothere\.png: no such image"):
         read_image(tmp_path / "nothere.png")
-    with pytest.raises(DataFormatError, match="grey, RGB or RGBA"):
+    with pytest.raises(DataFormatError, match="grey, colour or colour with alpha"):
         read_image(np.zeros((10, 10, 2), np.uint8))
 
 

@@ -109,6 +109,7 @@ def plot_home_map(
     concept_colors: Sequence[object] | None = None,
     show_ground_truth: bool | None = None,
     show_samples: bool = True,
+    label_regions: bool = False,
     title: str | None = None,
     path: PathLike | None = None,
 ) -> Figure:
@@ -119,7 +120,8 @@ def plot_home_map(
     params, e, vocabulary: the model, the home index and the corpus vocabulary.
     environment: the home (its samples, extent and ground-truth regions), or ``None``.
     ax: draw into these axes (default: a new 8×7 inch figure).
-    map_image: floor-plan image (array or file path) drawn with ``imshow(extent=map_extent)``.
+    map_image: floor-plan image (array or file path) drawn with ``imshow(extent=map_extent)``; a grey
+        image (2-D, such as a ROS map's PGM) is drawn in grey.
     map_extent: ``(x_min, x_max, y_min, y_max)`` in metres covered by the image (default: the
         environment's extent).
     predicted_positions: name -> (P, 2 or 3) sampled positions, drawn as markers with a legend.
@@ -129,12 +131,13 @@ def plot_home_map(
     concept_colors: one colour per concept (default: ``tab10``, or ``tab20`` for more than 10).
     show_ground_truth: outline and label the ground-truth rectangles (default: when no image).
     show_samples: draw the home's training positions as small grey dots.
+    label_regions: write the names that describe each region's concept on the map, at its centre.
     title: axes title (default: the home's name).
     path: save the figure there as PNG.
 
     Each learnt region with training samples (``region_counts > 0``) is a 95% ellipse of the x–y
     marginal of Σ, coloured by its most probable concept argmax_l π_{e,l,m} G_{e,l}, with its mean
-    marked ``+``.
+    marked ``+``. The axes cover ``map_extent`` and every room outline drawn.
     """
     fig, ax = _new_axes(ax, (8.0, 7.0))
     n_concepts = params.n_concepts
@@ -148,7 +151,9 @@ def plot_home_map(
     if map_image is not None:
         image = matplotlib.image.imread(str(map_image)) if isinstance(map_image, str | Path) \
             else np.asarray(map_image)
-        ax.imshow(image, extent=extent, origin="upper", zorder=0, alpha=0.9)
+        grey = {"cmap": "gray", "vmin": 0, "vmax": 255 if image.dtype == np.uint8 else 1.0} \
+            if image.ndim == 2 else {}
+        ax.imshow(image, extent=extent, origin="upper", zorder=0, alpha=0.9, **grey)
     if show_ground_truth is None:
         show_ground_truth = map_image is None
     gt = environment.ground_truth if environment is not None else None
@@ -196,6 +201,8 @@ def plot_home_map(
                                  facecolor=colour, alpha=0.25, edgecolor=colour, linewidth=2.0,
                                  zorder=3, label=labels[c] if c not in shown else "_nolegend_"))
             shown.add(c)
+        if label_regions:
+            _label_regions(ax, used, counts, means, owner, labels, concept_colors)
         ax.scatter(means[used, 0], means[used, 1], marker="+", s=60, color="k", linewidths=1.2,
                    zorder=4, label="region centres (+)")
 
@@ -233,8 +240,13 @@ def plot_home_map(
                          or "(no name)") for (x, y, _, _), row in zip(p, entries, strict=True)]
 
     if extent is not None:
-        ax.set_xlim(extent[0], extent[1])
-        ax.set_ylim(extent[2], extent[3])
+        x0, x1, y0, y1 = extent
+        if show_ground_truth and gt is not None and gt.regions is not None:  # no room clipped off
+            for rects in gt.regions.places.values():
+                for rx0, rx1, ry0, ry1 in rects:
+                    x0, x1, y0, y1 = min(x0, rx0), max(x1, rx1), min(y0, ry0), max(y1, ry1)
+        ax.set_xlim(x0, x1)
+        ax.set_ylim(y0, y1)
     else:
         ax.autoscale_view()
     ax.set_aspect("equal")
@@ -250,6 +262,25 @@ def plot_home_map(
         _place_callouts(fig, ax, callouts, room_labels, points)
     _save(fig, path)
     return fig
+
+
+def _label_regions(ax: Axes, used: np.ndarray, counts: np.ndarray, means: np.ndarray, owner: np.ndarray,
+                   labels: Sequence[str], colours: Sequence[object]) -> None:
+    """Write each region's names (its concept's words) at its centre — largest regions first, and
+    not again within a sixth of the map's size of the same label (a place spread over several
+    regions is named once where it is, a place elsewhere again)."""
+    span = np.ptp(means[used, :2], axis=0).max() if used.size > 1 else 1.0
+    placed: list[tuple[str, np.ndarray]] = []
+    for m in sorted(used.tolist(), key=lambda k: -counts[k]):
+        c = int(owner[m])
+        words = labels[c].partition(": ")[2]
+        centre = means[m, :2]
+        if not words or any(w == words and np.hypot(*(p - centre)) < span / 6 for w, p in placed):
+            continue
+        placed.append((words, centre))
+        ax.text(centre[0], centre[1], words.replace(", ", "\n"), fontsize=8, ha="center", va="bottom",
+                color="0.1", zorder=4.6, clip_on=True,
+                bbox={"boxstyle": "round,pad=0.2", "fc": "white", "ec": colours[c], "alpha": 0.8})
 
 
 #: Offsets (points) tried for a callout, nearest first; 8 directions at each distance.

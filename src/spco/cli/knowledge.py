@@ -97,10 +97,32 @@ def _image_options(func: Any) -> Any:
                              "used as the views in place of the homes' visual counts.")(func)
 
 
+#: Colour orders of a pixel array given with --image (spco.features.pixels).
+_ENCODINGS = ("rgb8", "bgr8", "mono8", "rgba8", "bgra8")
+
+
+def _pixels(image: Path, encoding: str | None) -> Any:
+    """--image as the extractor takes it: a .npy array of pixels (with --encoding), or the file's path."""
+    import numpy as np
+
+    from spco.errors import ConfigurationError, DataFormatError
+
+    if image.suffix.lower() != ".npy":
+        if encoding is not None:
+            raise ConfigurationError(f"--encoding is the colour order of a .npy array of pixels; {image} "
+                                     "carries its own")
+        return image
+    try:
+        return np.load(image, allow_pickle=False)
+    except (OSError, ValueError) as exc:
+        raise DataFormatError(image, f"not a readable .npy array of pixels ({exc})") from None
+
+
 def _view_counts(home: Any, knowledge_file: Path, visual: Path | None, image: Path | None,
-                 visual_scale: float | None, model: Path | None) -> Any:
-    """The view's counts for what/teach: --visual features, or --image through the knowledge's
-    extractor; each refused for knowledge fitted on the other kind of view."""
+                 visual_scale: float | None, model: Path | None, encoding: str | None = None) -> Any:
+    """The view's counts for what/teach: --visual features, or --image (a file, or a .npy array of
+    pixels in --encoding) through the knowledge's extractor; each refused for knowledge fitted on the
+    other kind of view."""
     from spco.errors import ConfigurationError
     from spco.knowledge import read_visual_vector
 
@@ -112,7 +134,7 @@ def _view_counts(home: Any, knowledge_file: Path, visual: Path | None, image: Pa
             raise ConfigurationError(f"{knowledge_file}: its knowledge was fitted on visual count vectors, "
                                      "not on images: give the view's features with --visual (or fit the "
                                      "knowledge on homes with images)")
-        return knowledge.image_extractor(model_path=model).extract(image)
+        return knowledge.image_extractor(model_path=model).extract(_pixels(image, encoding), encoding)
     if visual is not None:
         if knowledge.fitted_on_images:
             from spco.features import ExtractorSpec
@@ -328,30 +350,25 @@ def where(home_file: Path, name: str, n: int, seed: int, as_json: bool) -> None:
     the density p(pose | NAME) among the N poses. A name the robot never heard is answered with
     the names it knows (exit status 2).
     """
-    from spco.knowledge import load_home_model
-    from spco.knowledge import where as where_name
+    from spco.service.answers import where_answer
 
-    home = load_home_model(home_file)
+    home = _load_home(home_file)
     _warn_if_knowledge_does_not_fit(home)
-    pred = where_name(home, name, n=n, random_state=seed)
-    order = sorted(range(pred.samples.shape[0]), key=lambda i: -float(pred.weights[i]))
-    positions = [{"x": float(pred.samples[i, 0]), "y": float(pred.samples[i, 1]),
-                  "theta": float(pred.samples[i, 2]), "probability": float(pred.weights[i])} for i in order]
+    answer = where_answer(home, name, n=n, seed=seed)
+    positions = answer["positions"]
     if as_json:
-        click.echo(json.dumps({"home": home.name, "name": pred.name, "region": int(pred.region),
-                               "region_probability": float(pred.region_probabilities[pred.region]),
-                               "learnt": bool(pred.learnt), "support": float(pred.support),
-                               "positions": positions}, indent=1))
+        click.echo(json.dumps(answer, indent=1))
         return
-    if not pred.learnt:
-        click.echo(f"warning: no such place learnt in this home: only {pred.support:.0%} of the probability "
-                   f"of {pred.name!r} comes from concepts holding its samples; the poses below are a guess",
-                   err=True)
-    click.echo(f"{pred.name} in home {home.name}: region {pred.region} of the home's map, "
-               f"p(region | {pred.name}) = {pred.region_probabilities[pred.region]:.2f} (the most probable "
+    name = answer["name"]
+    if not answer["learnt"]:
+        click.echo(f"warning: no such place learnt in this home: only {answer['support']:.0%} of the "
+                   f"probability of {name!r} comes from concepts holding its samples; the poses below are a "
+                   "guess", err=True)
+    click.echo(f"{name} in home {home.name}: region {answer['region']} of the home's map, "
+               f"p(region | {name}) = {answer['region_probability']:.2f} (the most probable "
                f"region; the rest is spread over others)")
     click.echo(f"{len(positions)} poses drawn from the region's Gaussian; probability: each pose's share of "
-               f"p(pose | {pred.name}) among them")
+               f"p(pose | {name}) among them")
     click.echo(f"{'x':>8} {'y':>8} {'theta':>7}  probability")
     for p in positions:
         click.echo(f"{p['x']:8.3f} {p['y']:8.3f} {p['theta']:7.3f}  {p['probability']:.3f}")
@@ -368,7 +385,11 @@ def where(home_file: Path, name: str, n: int, seed: int, as_json: bool) -> None:
 @click.option("--visual-scale", type=float, default=None,
               help="Turn real-valued CNN features into counts: floor(max(f, 0) × scale) (the authors: 5).")
 @click.option("--image", type=click.Path(path_type=Path), default=None,
-              help="The current view as a camera image (PNG/JPEG), for knowledge fitted on images.")
+              help="The current view as a camera image (PNG/JPEG, or a .npy array of pixels: see "
+                   "--encoding), for knowledge fitted on images.")
+@click.option("--encoding", type=click.Choice(_ENCODINGS), default=None,
+              help="The colour order of an --image .npy array: rgb8 (PIL, matplotlib, cv_bridge rgb8), "
+                   "bgr8 (OpenCV; the default), mono8, rgba8, bgra8.")
 @click.option("--onnx-model", "model_file", type=click.Path(path_type=Path), default=None,
               help="Where the knowledge's .onnx model file is now (onnx extractor), if it moved.")
 @click.option("--top", default=3, show_default=True, type=click.IntRange(1, 100), help="Names to list.")
@@ -378,8 +399,8 @@ def where(home_file: Path, name: str, n: int, seed: int, as_json: bool) -> None:
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON object.")
 @_friendly
 def what(home_file: Path, x: float, y: float, theta: float, visual: Path | None, visual_scale: float | None,
-         image: Path | None, model_file: Path | None, top: int, unsure_below: float | None,
-         as_json: bool) -> None:
+         image: Path | None, encoding: str | None, model_file: Path | None, top: int,
+         unsure_below: float | None, as_json: bool) -> None:
     """The most probable place names at a pose of the home of HOME, with their probabilities.
 
     With --visual (or --image) the view is used too; without, the position alone. Names are ranked
@@ -395,27 +416,19 @@ def what(home_file: Path, x: float, y: float, theta: float, visual: Path | None,
     --unsure-below (0.5: more likely wrong than right) the answer says the robot is unsure
     (JSON: "unsure": true).
     """
-    from spco.knowledge import load_home_model
-    from spco.knowledge import what as what_names
     from spco.model.confidence import UNSURE_BELOW
+    from spco.service.answers import what_answer
 
     unsure_below = UNSURE_BELOW if unsure_below is None else unsure_below
-    home = load_home_model(home_file)
+    home = _load_home(home_file)
     _warn_if_knowledge_does_not_fit(home)
-    counts = _view_counts(home, home_file, visual, image, visual_scale, model_file)
-    pred = what_names(home, x, y, theta, visual=counts, top_k=max(len(home.vocabulary), 1),
-                      unsure_below=unsure_below)
-    total = float(pred.scores[0].sum())
-    names = [{"name": str(w), "probability": float(p), "score": float(s),
-              "score_share": float(s) / total if total > 0 else 0.0}
-             for w, p, s in zip(pred.words[0], pred.probabilities[0], pred.scores[0], strict=True)][:top]
-    unsure = bool(pred.unsure[0])
+    counts = _view_counts(home, home_file, visual, image, visual_scale, model_file, encoding)
+    answer = what_answer(home, x, y, theta, counts, top, unsure_below=unsure_below)
+    names = answer["names"]
+    if "warning" in answer:
+        click.echo(f"warning: {answer['warning']}", err=True)
     if as_json:
-        click.echo(json.dumps({"home": home.name, "pose": {"x": x, "y": y, "theta": theta},
-                               "vision": counts is not None, "ranked_by": _RANKED_BY[pred.weighting],
-                               "answer": names[0]["name"] if names else None,
-                               "confidence": float(pred.confidence[0]), "unsure": unsure,
-                               "unsure_below": unsure_below, "names": names}, indent=1))
+        click.echo(json.dumps(answer, indent=1))
         return
     click.echo(f"At ({x:g}, {y:g}, θ={theta:g}) in home {home.name} "
                f"({'position and view' if counts is not None else 'position only'}), ranked by score:")
@@ -426,17 +439,26 @@ def what(home_file: Path, x: float, y: float, theta: float, visual: Path | None,
     click.echo(f"     {'name':<{width}}  score      p")
     for rank, n in enumerate(names, 1):
         click.echo(f"  {rank}. {n['name']:<{width}}  {n['score_share']:.3f}  {n['probability']:.3f}")
-    click.echo(f"score: {_RANKED_BY[pred.weighting]}, as a share of its sum over the usable names; "
+    click.echo(f"score: {answer['ranked_by']}, as a share of its sum over the usable names; "
                f"p: p(name | {'pose, view' if counts is not None else 'pose'}) over all words")
-    if unsure:
+    if answer["unsure"]:
         click.echo(f"unsure: the best name, {names[0]['name']!r}, has p = {names[0]['probability']:.3f} "
                    f"< {unsure_below:g}; ask what this place is called (spco teach)")
 
 
-#: What ``what``'s score is, per weighting of the home's model.
-_RANKED_BY = {"mi": "p(name | pose, view) × I(name), I = the name's mutual information with the concepts",
-              "none": "p(name | pose, view)",
-              "reference": "the authors' score Σ_l p(l | pose, view) θ^w_l(name) KL_l(name)"}
+def _load_home(home_file: Path) -> Any:
+    """The home of ``home_file`` with the teachings of its journal (a home served by ``spco serve``,
+    or one whose server stopped without compacting): what the read-only commands answer with."""
+    from spco.locking import served_by
+    from spco.service.teaching import load_current
+
+    home, replayed = load_current(home_file)
+    if replayed:
+        server = served_by(home_file)
+        origin = f"is served by {server}" if server else "has a journal"
+        click.echo(f"note: {home_file} {origin}; answered with its {replayed} teaching(s) not yet compacted "
+                   "into the file (replayed from its journal)", err=True)
+    return home
 
 
 def _warn_if_knowledge_does_not_fit(home: Any) -> None:
@@ -463,7 +485,11 @@ def _warn_if_knowledge_does_not_fit(home: Any) -> None:
 @click.option("--visual-scale", type=float, default=None,
               help="Turn real-valued CNN features into counts: floor(max(f, 0) × scale).")
 @click.option("--image", type=click.Path(path_type=Path), default=None,
-              help="New observation: the view as a camera image (PNG/JPEG), for knowledge fitted on images.")
+              help="New observation: the view as a camera image (PNG/JPEG, or a .npy array of pixels: see "
+                   "--encoding), for knowledge fitted on images.")
+@click.option("--encoding", type=click.Choice(_ENCODINGS), default=None,
+              help="The colour order of an --image .npy array: rgb8, bgr8 (the default), mono8, rgba8, "
+                   "bgra8.")
 @click.option("--onnx-model", "model_file", type=click.Path(path_type=Path), default=None,
               help="Where the knowledge's .onnx model file is now (onnx extractor), if it moved.")
 @click.option("--sweeps", default=10, show_default=True, type=click.IntRange(0, 10000),
@@ -475,7 +501,8 @@ def _warn_if_knowledge_does_not_fit(home: Any) -> None:
 @_friendly
 def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: float | None, y: float | None,
           theta: float | None, visual: Path | None, visual_scale: float | None, image: Path | None,
-          model_file: Path | None, sweeps: int, seed: int, out: Path | None, force: bool) -> None:
+          encoding: str | None, model_file: Path | None, sweeps: int, seed: int, out: Path | None,
+          force: bool) -> None:
     """Teach the robot in the home of HOME: a sentence for a sample, or a new observation.
 
     \b
@@ -489,7 +516,7 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
     home wait for each other (at most $SPCO_LOCK_TIMEOUT seconds, default 60) and every teaching is kept.
     """
     from spco.errors import ConfigurationError
-    from spco.knowledge import Observation, load_home_model
+    from spco.knowledge import Observation
     from spco.knowledge import teach as teach_home
     from spco.knowledge.locking import locked
 
@@ -515,9 +542,9 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
     # read, update and replace under the file's write lock: a concurrent `teach` waits, then
     # builds on this one's result (no teaching is lost)
     with locked(target):
-        home = load_home_model(home_file)
+        home = _load_home(home_file)  # with the teachings of a journal its server left (spco serve)
         if new_observation:
-            counts = _view_counts(home, home_file, visual, image, visual_scale, model_file)
+            counts = _view_counts(home, home_file, visual, image, visual_scale, model_file, encoding)
             obs = Observation(x=x, y=y, theta=theta, visual=counts,  # type: ignore[arg-type]
                               sentence=sentences[0] if sentences else None)
             updated = teach_home(home, observations=[obs], n_sweeps=sweeps, random_state=seed)
@@ -551,32 +578,47 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
 @click.argument("home_file", metavar="HOME", type=click.Path(path_type=Path))
 @click.option("--out", "-o", required=True, type=click.Path(path_type=Path), help="The PNG to write.")
 @click.option("--map", "map_image", type=click.Path(path_type=Path), default=None,
-              help="Floor-plan image drawn under the concepts.")
+              help="Floor plan drawn under the concepts: a ROS map (map.yaml: its image, origin and "
+                   "resolution give the extent) or an image (PNG, JPEG, PGM; grey drawn in grey).")
 @click.option("--extent", default=None,
-              help="x_min,x_max,y_min,y_max in metres covered by --map (default: the home's map extent).")
+              help="x_min,x_max,y_min,y_max in metres covered by a --map image (default: the home's map "
+                   "extent; a map.yaml gives its own).")
 @click.option("--name", "names", multiple=True, help="Also draw positions for this place name (repeatable).")
 @click.option("--regions", "regions_file", type=click.Path(path_type=Path), default=None,
               help="Room outlines to draw: a plain home's regions.json, or a file of every home's "
                    "(sigverse_regions.json). Default: the regions.json of the home folder adapted from.")
+@click.option("--regions-home", default=None, metavar="KEY",
+              help="The home of --regions to draw, when its key differs from the home's name.")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(0), help="Random seed.")
 @click.option("--force", is_flag=True, help="Replace --out if it exists.")
 @_friendly
 def show(home_file: Path, out: Path, map_image: Path | None, extent: str | None, names: Sequence[str],
-         regions_file: Path | None, seed: int, force: bool) -> None:
+         regions_file: Path | None, regions_home: str | None, seed: int, force: bool) -> None:
     """Draw the home's concepts on its floor plan: regions (95 % ellipses coloured by concept)
-    labelled with the names that describe them, the room outlines when the home has regions, the
-    home's samples, and positions for the names given."""
+    labelled on the map with the names that describe them, the room outlines when the home has
+    regions, the home's samples, and positions for the names given. --map takes a ROS map.yaml
+    (its image placed by its origin and resolution)."""
     import numpy as np
 
     from spco import plots
+    from spco.data.rosmap import MAP_YAML_SUFFIXES, read_ros_map
     from spco.errors import ConfigurationError
-    from spco.knowledge import load_home_model
     from spco.knowledge import where as where_name
 
     _check_out(out, force)
     if map_image is not None and not Path(map_image).is_file():
         raise ConfigurationError(f"{map_image}: no such map image (--map)")
-    home = load_home_model(home_file)
+    bounds = _extent(extent)
+    floor_plan: Any = map_image
+    if map_image is not None and Path(map_image).suffix.lower() in MAP_YAML_SUFFIXES:
+        if bounds is not None:
+            raise ConfigurationError("--extent is given by the map.yaml of --map (origin and resolution); "
+                                     "leave --extent out")
+        ros_map = read_ros_map(map_image)
+        floor_plan, bounds = ros_map.image, ros_map.extent
+    elif map_image is not None and Path(map_image).suffix.lower() == ".pgm":
+        floor_plan = _grey_image(Path(map_image))
+    home = _load_home(home_file)
     rng = np.random.default_rng(seed)
     predicted = {}
     from spco.knowledge import unused_word_hint
@@ -592,12 +634,13 @@ def show(home_file: Path, out: Path, map_image: Path | None, extent: str | None,
             click.echo(f"warning: no positions drawn for {name!r}: {exc}", err=True)
             continue
         predicted[pred.name] = pred.samples
-    bounds = _extent(extent)
     if bounds is None and map_image is not None and home.extent is None:
         raise ConfigurationError("the home has no map extent: give --extent x_min,x_max,y_min,y_max "
                                  "for --map")
     environment = home.environment()
-    rooms = _room_outlines(home, regions_file)
+    if regions_home is not None and regions_file is None:
+        raise ConfigurationError("--regions-home chooses a home of --regions: give --regions too")
+    rooms = _room_outlines(home, regions_file, regions_home)
     if rooms is not None:
         from dataclasses import replace
 
@@ -606,7 +649,7 @@ def show(home_file: Path, out: Path, map_image: Path | None, extent: str | None,
         environment = replace(environment, ground_truth=make_ground_truth(regions=rooms))
     try:
         fig = plots.plot_home_map(home.parameters, 0, environment, home.vocabulary,
-                                  map_image=map_image, map_extent=bounds,
+                                  map_image=floor_plan, map_extent=bounds, label_regions=True,
                                   predicted_positions=predicted or None, show_ground_truth=rooms is not None,
                                   title=f"{home.name}: {home.n_samples} samples, {home.n_taught} taught")
     except (OSError, ValueError, SyntaxError) as exc:  # an unreadable image
@@ -617,9 +660,24 @@ def show(home_file: Path, out: Path, map_image: Path | None, extent: str | None,
     click.echo(f"Wrote {out}")
 
 
-def _room_outlines(home: Any, regions_file: Path | None) -> Any:
-    """The home's room rectangles (:class:`~spco.data.regions.PlaceRegions`) from ``--regions``, or
-    from the regions.json of the home folder it was adapted from; ``None`` if there are none."""
+def _grey_image(path: Path) -> Any:
+    """A PGM (or other grey) image as a (H, W) uint8 array (matplotlib reads only PNG itself)."""
+    import cv2
+    import numpy as np
+
+    from spco.errors import ConfigurationError
+
+    raw = np.fromfile(path, dtype=np.uint8)
+    image = cv2.imdecode(raw, cv2.IMREAD_GRAYSCALE) if raw.size else None
+    if image is None:
+        raise ConfigurationError(f"{path}: not a readable map image (--map)")
+    return image
+
+
+def _room_outlines(home: Any, regions_file: Path | None, key: str | None = None) -> Any:
+    """The home's room rectangles (:class:`~spco.data.regions.PlaceRegions`) from ``--regions`` (the
+    entry ``key``, default the home's name, of a file of every home's), or from the regions.json of the
+    home folder it was adapted from; ``None`` if there are none."""
     from spco.data.plain import REGIONS_JSON, _read_regions
     from spco.data.regions import load_region_file
     from spco.errors import ConfigurationError
@@ -632,10 +690,12 @@ def _room_outlines(home: Any, regions_file: Path | None) -> Any:
         raise ConfigurationError(f"{regions_file}: no such region file (--regions)")
     if '"homes"' in Path(regions_file).read_text(encoding="utf-8", errors="replace")[:4096]:
         every = load_region_file(regions_file)
-        if home.name not in every:
-            raise ConfigurationError(f"{regions_file}: no regions for home {home.name!r} (it has "
-                                     f"{', '.join(sorted(every)[:8])}{', …' if len(every) > 8 else ''})")
-        return every[home.name]
+        wanted = key or home.name
+        if wanted not in every:
+            raise ConfigurationError(f"{regions_file}: no regions for home {wanted!r} (it has "
+                                     f"{', '.join(sorted(every)[:8])}{', …' if len(every) > 8 else ''}); "
+                                     "choose one with --regions-home")
+        return every[wanted]
     return _read_regions(Path(regions_file))
 
 

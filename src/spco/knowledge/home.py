@@ -40,8 +40,10 @@ class Observation:
 
     x, y in metres on the home's map, theta (heading) in radians; visual: (D,) counts (dense array
     or a 1-row sparse matrix); sentence: the user's words, or ``None``; id: the sample id (default:
-    one more than the largest id of the home); image: the view as an image (path or array) in place
-    of ``visual``, for a home whose knowledge was fitted on images (its extractor computes the counts).
+    one more than the largest id of the home); image: the view as an image (path, file bytes or array
+    of pixels) in place of ``visual``, for a home whose knowledge was fitted on images (its extractor
+    computes the counts); encoding: an array's colour order (``rgb8``, ``bgr8`` — the default —,
+    ``mono8``, ``rgba8``, ``bgra8``; :mod:`spco.features.pixels`).
     """
 
     x: float
@@ -51,6 +53,7 @@ class Observation:
     sentence: str | None = None
     id: int | None = None
     image: Any = None
+    encoding: str | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -161,11 +164,13 @@ class HomeModel:
         return where(self, name, n=n, random_state=random_state)
 
     def what(self, x: float, y: float, theta: float, visual: Any = None, top_k: int = 3,
-             image: Any = None, unsure_below: float = UNSURE_BELOW) -> NamePrediction:
+             image: Any = None, encoding: str | None = None,
+             unsure_below: float = UNSURE_BELOW) -> NamePrediction:
         """Place names at a pose, with honest probabilities; see :func:`spco.knowledge.what`."""
         from spco.knowledge.queries import what
 
-        return what(self, x, y, theta, visual=visual, top_k=top_k, image=image, unsure_below=unsure_below)
+        return what(self, x, y, theta, visual=visual, top_k=top_k, image=image, encoding=encoding,
+                    unsure_below=unsure_below)
 
     # ------------------------------------------------------------------ files
     def save(self, path: str | PathLike[str], overwrite: bool = False) -> Path:

@@ -141,7 +141,8 @@ def unused_word_hint(home: HomeModel, word: str) -> str | None:
 
 
 def what(home: HomeModel, x: float, y: float, theta: float, visual: Any = None,
-         top_k: int = 3, image: Any = None, unsure_below: float = UNSURE_BELOW) -> NamePrediction:
+         top_k: int = 3, image: Any = None, encoding: str | None = None,
+         unsure_below: float = UNSURE_BELOW) -> NamePrediction:
     """The ``top_k`` place names at pose ``(x, y, θ)``, with the view's visual counts if given.
 
     The probabilities are honest (:mod:`spco.model.confidence`): a view counts as
@@ -153,8 +154,10 @@ def what(home: HomeModel, x: float, y: float, theta: float, visual: Any = None,
     :data:`FAR_OUTSIDE_MAP` map sizes off it is refused (:func:`pose_outside_map`); ``θ`` must be in
     radians (``|θ| ≤ 2π``).
 
-    ``image`` (a path or an array) gives the view as an image instead, for a home whose knowledge
-    was fitted on images: its extractor computes the counts.
+    ``image`` (a path, a JPEG/PNG file's bytes or an array of pixels) gives the view as an image
+    instead, for a home whose knowledge was fitted on images: its extractor computes the counts.
+    ``encoding`` is an array's colour order — ``rgb8`` (PIL, matplotlib, ``cv_bridge``'s rgb8),
+    ``bgr8`` (OpenCV, the default), ``mono8``, ``rgba8``, ``bgra8`` (:mod:`spco.features.pixels`).
     Without a view the names come from the position alone (``use_vision=False``). The returned
     :class:`~spco.prediction.NamePrediction` holds one row: ``words[0]``, ``probabilities[0]``
     (p(w | x, v)), ``scores[0]`` (the ranking score), ``confidence[0]`` (the answer's probability)
@@ -164,10 +167,29 @@ def what(home: HomeModel, x: float, y: float, theta: float, visual: Any = None,
     outside = pose_outside_map(home, x, y)
     if outside is not None:
         warnings.warn(f"{outside}; the names are extrapolated from the nearest regions", stacklevel=2)
-    visual = _view_counts(home.knowledge, visual, image)
+    visual = _view_counts(home.knowledge, visual, image, encoding)
     row = None if visual is None else _visual_row(visual, home.knowledge.n_features)
+    return name_prediction(home, pose, row, top_k=top_k, unsure_below=unsure_below)
+
+
+def name_prediction(home: HomeModel, poses: np.ndarray, visual: Any = None, top_k: int = 3,
+                    unsure_below: float = UNSURE_BELOW) -> NamePrediction:
+    """The names :func:`what` answers, for ``n`` poses at once and without its checks of the pose.
+
+    Parameters
+    ----------
+    home: the home.
+    poses: (n, 4) ``(x, y, sin θ, cos θ)`` in metres.
+    visual: (n, D) the views' counts (sparse or dense), or ``None`` for the positions alone.
+    top_k, unsure_below: as :func:`what`.
+
+    Returns
+    -------
+    The :class:`~spco.prediction.NamePrediction` with honest probabilities
+    (:func:`spco.model.confidence.predict_names_honestly`), ``confidence`` and ``unsure``.
+    """
     return predict_names_honestly(
-        home.parameters, 0, home.vocabulary, pose, row, top_k=top_k, use_vision=row is not None,
+        home.parameters, 0, home.vocabulary, poses, visual, top_k=top_k, use_vision=visual is not None,
         weighting=home.weighting,  # type: ignore[arg-type]
         free=np.exp(home.knowledge.log_g0) < FREE_CONCEPT_WEIGHT,
         word_counts=concept_word_counts(home.data.words, home.state.concepts, home.knowledge.n_concepts),

@@ -85,7 +85,7 @@ def teach(
         taken.add(new_id)
         ids.append(new_id)
         poses.append(_pose(obs.x, obs.y, obs.theta))
-        rows.append(_visual_row(_view_counts(home.knowledge, obs.visual, obs.image),
+        rows.append(_visual_row(_view_counts(home.knowledge, obs.visual, obs.image, obs.encoding),
                                 home.knowledge.n_features))
         new_sentences.append(_clean_sentence(obs.sentence))
     positions = np.vstack([home.positions, *poses]) if poses else home.positions

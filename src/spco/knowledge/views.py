@@ -83,8 +83,9 @@ def pose_outside_map(home: HomeModel, x: float, y: float) -> str | None:
 
 
 
-def _view_counts(knowledge: Knowledge, visual: Any, image: Any) -> Any:
-    """A view's counts: ``visual`` as given, or ``image`` through the knowledge's extractor."""
+def _view_counts(knowledge: Knowledge, visual: Any, image: Any, encoding: str | None = None) -> Any:
+    """A view's counts: ``visual`` as given, or ``image`` (in ``encoding``, for an array of pixels)
+    through the knowledge's extractor."""
     if image is None:
         return visual
     if visual is not None:
@@ -92,7 +93,7 @@ def _view_counts(knowledge: Knowledge, visual: Any, image: Any) -> Any:
     if not knowledge.fitted_on_images:
         raise ConfigurationError("the knowledge of this home was fitted on visual count vectors, not on "
                                  "images: give the view's features (--visual), not an image")
-    return knowledge.image_extractor().extract(image)
+    return knowledge.image_extractor().extract(image, encoding)
 
 
 

@@ -21,6 +21,8 @@ import scipy.sparse as sp
 
 from spco.model import shard as shards_api
 from spco.model.hyperparameters import TransferHyperparameters
+from spco.model.kernels.crt import sample_crt_totals_each
+from spco.model.kernels.special import scaled_exp
 from spco.model.pruning import Colocation, colocation
 from spco.model.shard import HomeShard, HomeStepResult, PooledCounts, SharedParameters
 from spco.model.shard_init import HomeSummary
@@ -116,8 +118,17 @@ class ShardGroup:
         return self._each("local_step", word_mask)
 
     def tables(self, kind: str) -> np.ndarray:
-        """CRT table counts of the homes, summed (integers)."""
-        return _sum(self._each("tables", kind))
+        """CRT table counts of the homes, summed (integers): the sum of the homes' own
+        (:meth:`HomeShard.tables`), the visual and word tables drawn in one call, each home from a
+        seed of its own stream (:func:`~spco.model.kernels.crt.sample_crt_totals_each`)."""
+        if kind not in ("visual", "words") or len(self.homes) == 1:
+            return _sum(self._each("tables", kind))
+        first = self.homes[0]
+        counts = np.concatenate([getattr(h._stats(), kind) for h in self.homes])
+        log_phi, delta = ((first.state.log_phi_v, first.hyper.delta_visual) if kind == "visual"
+                          else (first.state.log_phi_w, first.hyper.delta_word))
+        seeds = np.array([h.rng.integers(0, 2**63 - 1, dtype=np.int64) for h in self.homes], dtype=np.uint64)
+        return sample_crt_totals_each(counts, scaled_exp(log_phi, delta), seeds)
 
     def pooled_counts(self) -> PooledCounts:
         """The homes' pooled counts, summed (integers)."""
