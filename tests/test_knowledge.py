@@ -446,7 +446,7 @@ def test_teach_library_keeps_what_was_learnt(home_file: Path) -> None:
     (["--id", 999999, "--sentence", "this is the kitchen"], "no sample with id 999999"),
     (["--id", 1, "--id", 2, "--sentence", "kitchen"], "one sentence per id"),
     ([], "nothing to teach"),
-    (["--x", 0, "--y", 0, "--theta", 0], "needs --x, --y, --theta and --visual"),
+    (["--x", 0, "--y", 0], "needs --x, --y and --theta"),
     (["--x", 0, "--y", 0, "--theta", 0, "--visual", "absent.csv", "--id", 1], "not both"),
 ])
 def test_teach_bad_input(tmp_path: Path, home_file: Path, args: list, message: str) -> None:

@@ -8,8 +8,11 @@ so importing this module never changes the pyplot backend of the caller. Each re
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+import functools
+import warnings
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
+from typing import Any, TypeVar
 
 import matplotlib
 import matplotlib.image
@@ -32,6 +35,45 @@ _CHI2_95_2D = float(chi2.ppf(0.95, df=2))  # ≈ 5.991
 _MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*", "<", ">", "h", "p")
 
 PathLike = str | Path
+_F = TypeVar("_F", bound=Callable[..., Any])
+#: Fonts with Japanese and Chinese glyphs, tried in order after matplotlib's own (names in such
+#: scripts are drawn with the first one installed; Debian: fonts-noto-cjk or fonts-ipafont-gothic).
+CJK_FONTS = ("Noto Sans CJK JP", "Noto Sans CJK SC", "IPAexGothic", "IPAGothic", "IPAPGothic",
+             "TakaoGothic", "VL Gothic", "WenQuanYi Zen Hei", "Droid Sans Fallback")
+
+
+@functools.cache
+def _installed_cjk_fonts() -> tuple[str, ...]:
+    from matplotlib import font_manager
+
+    names = {f.name for f in font_manager.fontManager.ttflist}
+    return tuple(f for f in CJK_FONTS if f in names)
+
+
+def _with_cjk_fonts(func: _F) -> _F:
+    """Draw with a font for Japanese and Chinese names after matplotlib's default when one is
+    installed; without one, such names come out as boxes and one warning says so (not one per
+    missing glyph)."""
+
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        fallback = _installed_cjk_fonts()
+        family = [*matplotlib.rcParams["font.sans-serif"][:1], *fallback]
+        with matplotlib.rc_context({"font.family": family}), \
+                warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            result = func(*args, **kwargs)
+        missing = [w for w in caught if "missing from font" in str(w.message)]
+        for w in caught:
+            if w not in missing:
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+        if missing:
+            warnings.warn("no installed font has the Japanese or Chinese characters of the names: they are "
+                          "drawn as boxes; install one (Debian: apt install fonts-noto-cjk)", UserWarning,
+                          stacklevel=2)
+        return result
+
+    return wrapper  # type: ignore[return-value]
 
 
 def _new_axes(ax: Axes | None, figsize: tuple[float, float]) -> tuple[Figure, Axes]:
@@ -95,6 +137,7 @@ def _ellipse_geometry(cov2: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndar
     return width, height, angle
 
 
+@_with_cjk_fonts
 def plot_home_map(
     params: ConceptParameters,
     e: int,
@@ -356,6 +399,7 @@ def _place_callouts(fig: Figure, ax: Axes, callouts: Sequence[tuple[float, float
         obstacles.append(best[2])
 
 
+@_with_cjk_fonts
 def plot_accuracy_curve(
     settings: Sequence[float],
     means: Sequence[float] | Mapping[str, Sequence[float]],
@@ -406,6 +450,7 @@ def plot_accuracy_curve(
     return fig
 
 
+@_with_cjk_fonts
 def plot_log_joint(
     trace: Sequence[float] | np.ndarray | Mapping[str, Sequence[float]],
     path: PathLike | None = None,

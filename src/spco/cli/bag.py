@@ -108,6 +108,9 @@ __all__ = ["import_bag"]
     help="How raw sensor_msgs/Image views are written (compressed ones are copied as they are).",
 )
 @click.option("--name", default=None, help="The home's name (default: the folder's name).")
+@click.option("--keep-without-image", is_flag=True,
+              help="Keep an utterance with no image (or features) within --tolerance as a sample without "
+                   "a view, learnt from its pose and words (default: skip it).")
 @click.option("--force", is_flag=True, help="Replace the home folder --out if it holds one.")
 @friendly_errors
 def import_bag(
@@ -127,6 +130,7 @@ def import_bag(
     clock: str,
     image_format: str,
     name: str | None,
+    keep_without_image: bool,
     force: bool,
 ) -> None:
     """Make a home folder from ROS bags (ROS 1 .bag files, or one ROS 2 bag folder / .db3 / .mcap each).
@@ -160,6 +164,7 @@ def import_bag(
         clock=clock,
         image_format=image_format,
         name=name,
+        keep_without_image=keep_without_image,
     )
     summary = import_bags(bags, out, settings, overwrite=force, progress=sys.stderr.isatty())
     click.echo(summary.format())

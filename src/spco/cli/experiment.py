@@ -69,6 +69,14 @@ def _common(func: Callable[..., Any]) -> Callable[..., Any]:
                           "compute the views from them instead of using the homes' visual counts."),
         click.option("--extractor", default=None,
                      help="Image extractor for --images (default: colour-hog; see `spco features --help`)."),
+        click.option("--views-missing", default=0.0, show_default=True, type=click.FloatRange(0, 100),
+                     help="Percentage of the new home's views removed at random in each run (a camera "
+                          "that drops frames; 100: no camera)."),
+        click.option("--text-language", default="auto", show_default=True,
+                     type=click.Choice(["auto", "ja", "zh", "spaced"]),
+                     help="Japanese or Chinese written without spaces: segment it into words (ja: "
+                          "pip install 'spco[ja]', zh: 'spco[zh]'), decide from the text (auto), or "
+                          "never (spaced: the words are separated by spaces)."),
     ]
     for option in reversed(options):
         func = option(func)
@@ -124,8 +132,8 @@ def _run(config_kwargs: dict[str, Any], out: Path, resume: bool, force: bool, qu
 @_friendly
 def general(data: str, language: str, regions: Path | None, maps: Path | None, trials: int, models: str,
             iterations: int, seed: int, jobs: int, engine: str, address: str | None, out: Path, resume: bool,
-            force: bool, quiet: bool, images: Path | None, extractor: str | None, envs: str,
-            experienced_homes: str | None, new_homes: str | None) -> None:
+            force: bool, quiet: bool, images: Path | None, extractor: str | None, views_missing: float,
+            text_language: str, envs: str, experienced_homes: str | None, new_homes: str | None) -> None:
     """General places: accuracy in new homes, taught nothing, vs. number of experienced homes."""
     from spco.evaluation.experiments import parse_int_list
 
@@ -133,8 +141,8 @@ def general(data: str, language: str, regions: Path | None, maps: Path | None, t
           "regions": regions, "maps": maps, "trials": trials, "models": models, "iterations": iterations,
           "seed": seed, "jobs": jobs, "engine": engine, "address": address,
           "experienced_homes": _split(experienced_homes),
-          "new_homes": _split(new_homes), "language": language, "images": images, "extractor": extractor},
-         out, resume, force, quiet)
+          "new_homes": _split(new_homes), "language": language, "images": images, "extractor": extractor,
+          "text_language": text_language, "views_missing": views_missing}, out, resume, force, quiet)
 
 
 @experiment.command()
@@ -148,8 +156,8 @@ def general(data: str, language: str, regions: Path | None, maps: Path | None, t
 @_friendly
 def specific(data: str, language: str, regions: Path | None, maps: Path | None, trials: int, models: str,
              iterations: int, seed: int, jobs: int, engine: str, address: str | None, out: Path, resume: bool,
-             force: bool, quiet: bool, images: Path | None, extractor: str | None, rates: str,
-             experienced_homes: str | None, new_home: str | None) -> None:
+             force: bool, quiet: bool, images: Path | None, extractor: str | None, views_missing: float,
+             text_language: str, rates: str, experienced_homes: str | None, new_home: str | None) -> None:
     """Home-specific places: accuracy on the new home's own room names vs. their teaching rate."""
     from spco.evaluation.experiments import parse_int_list
 
@@ -158,7 +166,8 @@ def specific(data: str, language: str, regions: Path | None, maps: Path | None, 
           "seed": seed, "jobs": jobs, "engine": engine, "address": address,
           "experienced_homes": _split(experienced_homes),
           "specific_home": new_home.strip() if new_home else None, "language": language, "images": images,
-          "extractor": extractor}, out, resume, force, quiet)
+          "extractor": extractor, "text_language": text_language, "views_missing": views_missing},
+         out, resume, force, quiet)
 
 
 @experiment.command(name="models")

@@ -184,11 +184,16 @@ def _seconds(value: float) -> str:
 @click.option("--extractor", default=None,
               help="Image extractor when the views are images (default: colour-hog; bovw-orb, bovw-sift "
                    "learn their codebook here, from the homes' training images; onnx needs --onnx-model).")
+@click.option("--text-language", default="auto", show_default=True,
+              type=click.Choice(["auto", "ja", "zh", "spaced"]),
+              help="Japanese or Chinese written without spaces: segment it into words (ja: pip install "
+                   "'spco[ja]', zh: 'spco[zh]'), decide from the text (auto), or never (spaced: the words "
+                   "are separated by spaces). Recorded in the knowledge file for adapt, teach, what, where.")
 @_friendly
 def fit(data: Path, homes: str | None, teaching_rate: int, model: str, iterations: int, seed: int,
         out: Path, force: bool, engine: str, shards: int | None, address: str | None, checkpoint_every: int,
         checkpoint_dir: Path | None, images: Path | None, model_file: Path | None,
-        extractor: str | None) -> None:
+        extractor: str | None, text_language: str) -> None:
     """Learn knowledge from experienced homes and write a knowledge file.
 
     The knowledge is the shared, home-independent part of the transfer model — the concepts'
@@ -225,7 +230,8 @@ def fit(data: Path, homes: str | None, teaching_rate: int, model: str, iteration
         # the shards read their own homes: the driver reads one home at a time for the vocabulary
         from spco.model.sources import FolderHomes
 
-        training: Corpus | FolderHomes = FolderHomes.create(data, names, teaching_rate, progress=_progress())
+        training: Corpus | FolderHomes = FolderHomes.create(data, names, teaching_rate, progress=_progress(),
+                                                            language=text_language)
         summary = (f"{training.n_homes} homes ({training.n_samples} training samples, {training.n_taught} "
                    f"taught, {training.n_words} words; each shard reads its own homes)")
     else:
@@ -237,7 +243,7 @@ def fit(data: Path, homes: str | None, teaching_rate: int, model: str, iteration
             seconds = time.perf_counter() - start_views
             click.echo(f"Views from {n_views} images with {image_extractor.spec().describe()}: "
                        f"{n_views / max(seconds, 1e-9):.0f} images/s (reading the homes included)", err=True)
-        training = Corpus(envs)
+        training = Corpus(envs, language=text_language)
         summary = (f"{len(envs)} homes ({sum(e.n_train for e in envs)} training samples, "
                    f"{sum(e.n_taught for e in envs)} taught, {len(training.vocabulary)} words)")
     click.echo(f"Learning from {summary} with {model}, {iterations} sweeps...", err=True)
@@ -509,6 +515,7 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
     spco teach home.spco --id 12 --sentence "this is Emma's room"
     spco teach home.spco --x 1.2 --y -0.4 --theta 1.57 --visual view.csv --sentence "the study is here"
     spco teach home.spco --x 1.2 --y -0.4 --theta 1.57 --image view.jpg --sentence "the study is here"
+    spco teach home.spco --x 1.2 --y -0.4 --theta 1.57 --sentence "the study is here"   (no view)
 
     An incremental update (a few sweeps from the current state; everything learnt so far is
     kept); new words grow the vocabulary. HOME is updated in place (atomically) unless --out is given.
@@ -526,8 +533,9 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
         if ids:
             raise ConfigurationError("give either --id with --sentence (a known sample) or --x/--y/--theta/"
                                      "--visual or --image (a new observation), not both")
-        if any(v is None for v in pose) or (visual is None and image is None):
-            raise ConfigurationError("a new observation needs --x, --y, --theta and --visual (or --image)")
+        if any(v is None for v in pose):
+            raise ConfigurationError("a new observation needs --x, --y and --theta (and its view as --visual "
+                                     "or --image, if the camera saw it)")
         if len(sentences) > 1:
             raise ConfigurationError("a new observation takes at most one --sentence")
     elif not ids:
@@ -555,6 +563,7 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
     last = updated.provenance["last_teach"]
     if new_observation:
         click.echo(f"Added sample {int(updated.ids[-1])} at ({x:g}, {y:g}, θ={theta:g})"
+                   + ("" if visual is not None or image is not None else " without a view")
                    + (f": {sentences[0]!r}" if sentences and sentences[0].strip() else ""))
     else:
         for i, s in zip(ids, sentences, strict=True):
@@ -563,10 +572,9 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
         click.echo(f"New words: {', '.join(last['new_words'])}")
     click.echo(f"Updated home {updated.name} in {_seconds(last['seconds'])} ({sweeps} sweeps): "
                f"{updated.n_samples} samples, {updated.n_taught} taught; wrote {target}.")
-    from spco.data.language import tokenize
     from spco.knowledge import unused_word_hint
 
-    for word in dict.fromkeys(w for s in sentences for w in tokenize(s)):
+    for word in dict.fromkeys(w for s in sentences for w in updated.vocabulary.tokenize(s)):
         index = updated.vocabulary.index(word)
         hint = unused_word_hint(updated, word)
         if hint is not None and index is not None and index >= updated.n_knowledge_words:  # a home's own word

@@ -124,6 +124,7 @@ class BagImportSettings:
     clock: str = "header"
     image_format: str = "jpg"
     name: str | None = None
+    keep_without_image: bool = False  # an utterance without a view in tolerance: a sample without a view
 
     def check(self) -> None:
         """Raise :class:`ConfigurationError` for an out-of-range setting."""
@@ -170,6 +171,7 @@ class BagImportSummary:
     image_interval: float | None = None  # median seconds between camera images
     utterance_image_within: float | None = None  # at images: how far an utterance's image may be (s)
     skipped: dict[str, int] = field(default_factory=dict)  # "utterance: no image within 0.5 s" -> n
+    without_view: int = 0  # utterances kept without a view (keep_without_image)
     dropped: dict[str, int] = field(default_factory=dict)  # "/topic: time went backwards" -> n
     warnings: list[str] = field(default_factory=list)
 
@@ -189,6 +191,9 @@ class BagImportSummary:
         ]
         lines += [f"  {role:<7} {topic}" for role, topic in self.topics.items()]
         lines.append(f"Wrote {self.samples} samples ({self.taught} taught) to {self.out}: {self.rule()}")
+        if self.without_view:
+            lines.append(f"  {_count(self.without_view, 'utterance')} without a view kept as samples "
+                         "without one")
         lost = {why: n for why, n in self.skipped.items() if why.startswith("utterance:")}
         if lost:  # a lost utterance is a lost teaching; untaught samples left out are in import.json
             lines.append(f"Not taught: {_count(sum(lost.values()), 'utterance')}:")
@@ -697,14 +702,18 @@ def _make_samples(
         if not has_pose[row]:
             skipped[f"{kind}: no pose within {tol}"] += 1
             continue
-        if "image" in topics and image_idx[row] < 0:
+        no_view = ("image" in topics and image_idx[row] < 0) or ("visual" in topics and visual_idx[row] < 0)
+        if no_view and kinds[row] == 0 and settings.keep_without_image:
+            summary.without_view += 1  # a sample without a view (its image or features: none)
+            image_idx[row] = visual_idx[row] = -1
+        elif "image" in topics and image_idx[row] < 0:
             within = tol if kinds[row] == 1 else f"{speech_tol / _NS:g} s"
             skipped[f"{kind}: no image within {within}"] += 1
             continue
-        if "visual" in topics and visual_idx[row] < 0:
+        elif "visual" in topics and visual_idx[row] < 0:
             skipped[f"{kind}: no visual features within {tol}"] += 1
             continue
-        if "image" in topics:
+        if "image" in topics and image_idx[row] >= 0:
             if kinds[row] == 1 and int(image_idx[row]) in used_images:
                 skipped[f"{kind}: same camera image as another sample"] += 1
                 continue
@@ -804,7 +813,7 @@ def _write_home_files(
     if "visual" in summary.topics:
         import scipy.sparse as sp
 
-        vectors = [streams.visual.values[s.visual] for s in samples]
+        vectors = [streams.visual.values[s.visual] for s in samples if s.visual >= 0]
         sizes = Counter(v.size for v in vectors)
         if len(sizes) > 1:
             raise DataFormatError(
@@ -812,7 +821,7 @@ def _write_home_files(
                 f"{summary.topics['visual']}: feature vectors of different lengths "
                 f"({', '.join(map(str, sorted(sizes)))})",
             )
-        matrix = np.vstack(vectors)
+        matrix = np.vstack(vectors) if vectors else np.zeros((0, 0))
         if not np.isfinite(matrix).all():
             raise DataFormatError(where, f"{summary.topics['visual']}: feature vectors hold NaN or infinity")
         if settings.visual_scale is None:
@@ -825,7 +834,16 @@ def _write_home_files(
             matrix = matrix.astype(np.int64)
         else:
             meta["visual_scale"] = settings.visual_scale
-        sp.save_npz(folder / "visual.npz", sp.csr_array(matrix), compressed=True)
+        missing = np.array([s.visual < 0 for s in samples], dtype=bool)
+        if not missing.any():
+            sp.save_npz(folder / "visual.npz", sp.csr_array(matrix), compressed=True)
+        elif vectors:  # rows of the samples without a view: zeros, marked missing (the plain format)
+            full = np.zeros((len(samples), matrix.shape[1]), dtype=matrix.dtype)
+            full[~missing] = matrix
+            counts = sp.csr_array(full)
+            np.savez_compressed(folder / "visual.npz", format=np.array("csr"),
+                                shape=np.array(counts.shape), data=counts.data, indices=counts.indices,
+                                indptr=counts.indptr, missing=missing)
     (folder / "home.json").write_text(json.dumps(meta, indent=1, ensure_ascii=False) + "\n", encoding="utf-8")
 
 

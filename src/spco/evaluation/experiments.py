@@ -285,7 +285,8 @@ def run_experiment(
     if max_runs is not None:
         pending = pending[:max(0, int(max_runs))]
     ctx = _RunContext(config.experiment, config.iterations, config.seed, config.n_positions,
-                      config.hyperparameters, fingerprint, str(out_path), maps, max(settings))
+                      config.hyperparameters, fingerprint, str(out_path), maps, max(settings),
+                      float(config.views_missing))
     runs_file = out_path / RUNS_FILE
     from tqdm import tqdm
 

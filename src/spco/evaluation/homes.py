@@ -43,6 +43,7 @@ class _DataSpec:
     images: str | None = None
     extractor: str | None = None
     shown_images: str | None = None  # --images as given
+    text_language: str = "auto"
 
 
 class _HomeSource:
@@ -241,7 +242,7 @@ def _build_data(spec: _DataSpec, settings: Sequence[int]) -> ExperimentData:
     sentences = [s for n in experienced for s in data.experienced_home(n).training_data().sentences]
     if spec.experiment == "specific":
         sentences += data.new_home(specific, max(settings)).training_data().sentences  # type: ignore[arg-type]
-    data.vocabulary = Vocabulary.from_sentences(sentences)
+    data.vocabulary = Vocabulary.from_sentences(sentences, language=spec.text_language)
     if len(data.vocabulary) == 0:
         raise DataFormatError(spec.source, "no taught sentence in any experienced home: there are no "
                               "place names to learn")
@@ -255,6 +256,8 @@ def _build_data(spec: _DataSpec, settings: Sequence[int]) -> ExperimentData:
         "regions_sha256": _file_digest(Path(spec.regions)) if spec.regions else None,
         "vocabulary": list(data.vocabulary.words),
     }
+    if data.vocabulary.segmentation is not None:  # (absent otherwise: earlier results resume)
+        data.description["segmentation"] = data.vocabulary.segmentation.to_dict()
     if spec.images is not None or spec.extractor is not None:
         from spco.features import DEFAULT_EXTRACTOR
 
@@ -342,7 +345,8 @@ def _data_spec(config: ExperimentConfig) -> _DataSpec:
                      shown_source=str(config.data),
                      shown_regions=None if config.regions is None else str(config.regions),
                      images=images, extractor=config.extractor,
-                     shown_images=None if config.images is None else str(config.images))
+                     shown_images=None if config.images is None else str(config.images),
+                     text_language=config.text_language)
 
 
 def load_experiment_data(config: ExperimentConfig) -> ExperimentData:

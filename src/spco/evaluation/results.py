@@ -43,6 +43,8 @@ def _identity(config: ExperimentConfig, data: ExperimentData) -> dict[str, Any]:
         "n_positions": config.n_positions,
         "data": data.description,
         "hyperparameters": json.loads(json.dumps(hyper)),
+        # (absent at 0: earlier results resume)
+        **({"views_missing": float(config.views_missing)} if config.views_missing else {}),
     }
 
 

@@ -202,9 +202,11 @@ def describe_model_file(path: str | PathLike[str]) -> dict[str, Any]:
 
     Keys: ``file``, ``kind`` (``"knowledge"`` or ``"home"``), ``model``, ``visual_dimension``,
     ``extractor`` (the feature extractor recorded with the views, or ``None``), ``vocabulary``,
-    ``kept_names`` (the words usable as place names), ``homes`` (the experienced homes), the view fit
-    (:func:`view_fit`) and the ``provenance``; a home file adds ``home``, ``samples``, ``taught`` and
-    ``extent``. Raises :class:`~spco.errors.ModelFileError` for a file that is neither (or broken).
+    ``kept_names`` (the words usable as place names), ``text`` (how text written without spaces is
+    cut: :meth:`~spco.data.segmentation.Segmentation.describe`, or ``None``), ``homes`` (the
+    experienced homes), the view fit (:func:`view_fit`) and the ``provenance``; a home file adds
+    ``home``, ``samples``, ``taught`` and ``extent``. Raises :class:`~spco.errors.ModelFileError`
+    for a file that is neither (or broken).
     """
     kind = model_file_format(path)
     if kind == HOME_FORMAT:
@@ -222,6 +224,8 @@ def describe_model_file(path: str | PathLike[str]) -> dict[str, Any]:
         "model": knowledge.model, "visual_dimension": knowledge.n_features,
         "extractor": knowledge.extractor,
         "vocabulary": list(knowledge.vocabulary.words), "kept_names": list(names), "homes": homes,
+        "text": None if knowledge.vocabulary.segmentation is None
+        else knowledge.vocabulary.segmentation.describe(),
         "view_fit": view, "provenance": provenance,
     }
     if kind == HOME_FORMAT:

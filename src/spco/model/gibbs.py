@@ -125,7 +125,7 @@ def initialize(data: PreparedData, n_words: int, hyper: TransferHyperparameters,
     reference = settings.variant == "reference"
     # Word and visual distributions start uniform (as in the authors' code), so the first local
     # step groups samples by region: concepts start spatially coherent within each home.
-    log_phi_v = np.full((L, D), -np.log(D))
+    log_phi_v = np.full((L, D), -np.log(max(D, 1)))  # D = 0: no home has a view
     log_phi_w = np.full((L, V), -np.log(V)) if V else np.zeros((L, 0))
     if reference:  # the authors: G_0 by stick breaking, G_e ~ Dir(G_0 + γ)
         log_g0 = log_dirichlet(np.full(L, hyper.gamma0), rng)

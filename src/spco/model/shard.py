@@ -186,6 +186,11 @@ class HomeShard(ShardInitialisation):
         """Homes in this shard."""
         return self.data.n_homes
 
+    def n_views(self) -> np.ndarray:
+        """(E,) samples with a view in each of the shard's homes (a sample without one has its
+        visual likelihood left out: ``PreparedData.view_missing``)."""
+        return self.data.n_views
+
     def local_step(self, word_mask: np.ndarray | None = None) -> float:
         """Draw every sample's concept and region and count the statistics (kept in the shard).
 
@@ -366,7 +371,8 @@ def data_of_homes(data: PreparedData, first: int, last: int) -> PreparedData:
     return PreparedData(positions=data.positions[rows].copy(), homes=data.homes[rows] - first,
                         visual=sp.csr_array(data.visual[rows]), words=sp.csr_array(data.words[rows]),
                         n_homes=last - first, offsets=data.offsets[first:last + 1] - data.offsets[first],
-                        position_scale=data.position_scale, map_centres=data.map_centres[first:last].copy())
+                        position_scale=data.position_scale, map_centres=data.map_centres[first:last].copy(),
+                        view_missing=data.view_missing[rows].copy())
 
 
 #: GibbsState fields indexed by home, by sample, and shared by all homes.

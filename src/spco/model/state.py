@@ -24,7 +24,11 @@ class PreparedData:
 
     positions (N, 4), homes (N,) home index of each sample, visual (N, D) CSR int64 counts,
     words (N, V) CSR int64 counts (empty rows for untaught samples), n_homes E, offsets (E+1,)
-    so that home e holds rows offsets[e]:offsets[e+1], position_scale (1 for metres, 100 for cm).
+    so that home e holds rows offsets[e]:offsets[e+1], position_scale (1 for metres, 100 for cm),
+    view_missing (N,) bool: the samples without a view (their rows of ``visual`` are empty, so
+    their visual likelihood — a product over no counts — is 1: it is left out, marginalised, not
+    imputed; and an empty row adds nothing to any visual statistic). ``D`` is 0 when no sample
+    of any home has a view.
     """
 
     positions: np.ndarray
@@ -35,6 +39,23 @@ class PreparedData:
     offsets: np.ndarray
     position_scale: float
     map_centres: np.ndarray  # (E, 4) in sampler units
+    view_missing: np.ndarray | None = None  # (N,) bool; None: every sample has a view
+
+    def __post_init__(self) -> None:
+        n = int(np.asarray(self.homes).size)
+        missing = np.zeros(n, dtype=bool) if self.view_missing is None \
+            else np.asarray(self.view_missing, dtype=bool)
+        if missing.shape != (n,):
+            raise ValueError(f"view_missing must have shape ({n},), got {missing.shape}")
+        if missing.any() and self.visual[np.flatnonzero(missing)].nnz:
+            raise ValueError("a sample without a view must have an empty visual row")
+        object.__setattr__(self, "view_missing", missing)
+
+    @property
+    def n_views(self) -> np.ndarray:
+        """(E,) samples with a view in each home."""
+        return np.add.reduceat(~self.view_missing, self.offsets[:-1]) if self.n_samples \
+            else np.zeros(self.n_homes, dtype=np.int64)
 
     @property
     def n_samples(self) -> int:

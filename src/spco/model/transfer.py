@@ -182,7 +182,8 @@ class SpatialConceptModel:
             else:
                 centres[e, :2] = t.positions[:, :2].mean(0)
         centres[:, :2] *= position_scale
-        return gibbs.PreparedData(positions=positions, homes=homes, visual=visual,
+        missing = np.concatenate([t.view_missing for t in training])
+        return gibbs.PreparedData(positions=positions, homes=homes, visual=visual, view_missing=missing,
                                   words=words, n_homes=len(training), offsets=offsets,
                                   position_scale=position_scale, map_centres=centres)
 
