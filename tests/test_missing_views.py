@@ -254,8 +254,9 @@ def test_import_bag_keeps_an_utterance_without_an_image_when_asked(tmp_path: Pat
 
     bag = tmp_path / "tour.bag"
     write_tour(bag, seconds=20, size=(64, 48), image_hz=1.0, speech_every=5.0)
-    # images 3 ms after each second, utterances at 2.5, 7.5, …: none has an image within 1 ms
-    strict = BagImportSettings(speech_topic="/speech", every_metres=0, tolerance=0.001)
+    # images 3 ms after each second, utterances at 2.5, 7.5, …: none has an image within 1 ms (--at travel:
+    # utterances keep the tolerance; --at images would widen it to the camera's interval)
+    strict = BagImportSettings(speech_topic="/speech", every_metres=0, tolerance=0.001, at="travel")
     with pytest.raises(DataFormatError, match="no image within"):
         import_bags([bag], tmp_path / "skipped", strict)
     summary = import_bags([bag], tmp_path / "kept", replace(strict, keep_without_image=True))
@@ -266,7 +267,8 @@ def test_import_bag_keeps_an_utterance_without_an_image_when_asked(tmp_path: Pat
     home = read_home(tmp_path / "kept", extractor=build_extractor(DEFAULT_EXTRACTOR))
     assert home.view_missing.all() and home.n_taught == 4
     mixed = import_bags([bag], tmp_path / "mixed", BagImportSettings(
-        speech_topic="/speech", every_metres=0, every_seconds=2.0, tolerance=0.01, keep_without_image=True))
+        speech_topic="/speech", every_metres=0, every_seconds=2.0, tolerance=0.01, at="travel",
+        keep_without_image=True))
     assert mixed.without_view == 4 and mixed.samples == 14  # the samples along the way have their image
     home = read_home(tmp_path / "mixed", extractor=build_extractor(DEFAULT_EXTRACTOR))
     taught = np.array([s is not None for s in home.sentences])

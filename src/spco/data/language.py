@@ -48,6 +48,11 @@ list of names (:func:`learn_terms`): two adjacent atoms ``a b`` become the term 
    that no frame rule catches — each style of speech is in fewer than half of the sentences — so a
    name followed by です in most sentences stays the name ``台所``.
 
+Where two candidate pairs overlap in a sentence ("in emma's" and "emma's room" in "we are in emma's
+room now"), the pair with the larger G² is joined there (best first, left to right among equals),
+and a pair becomes a term only if it is joined at least ``min_count`` times: a word is joined with
+the neighbour it belongs to, so a frame never swallows the first word of a name.
+
 A second pass over the sentences with the learnt pairs joined finds longer terms ("walk in closet").
 The rule also joins set phrases that are not names ("this is", "welcome to" when people say them in
 fewer than half of the sentences): they are tokens like any other, spread over all places, and the
@@ -74,7 +79,7 @@ import re
 import unicodedata
 import warnings
 from collections import Counter
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -245,7 +250,8 @@ def _g2(k11: int, k12: int, k21: int, k22: int) -> float:
 
 
 def _term_pass(sentences: list[list[str]], min_count: int, min_g2: float, min_follow: float,
-               max_sentence_share: float) -> set[tuple[str, str]]:
+               max_sentence_share: float) -> dict[tuple[str, str], float]:
+    """The candidate pairs of one pass and their G² (the rule of the module docstring)."""
     pairs: Counter[tuple[str, str]] = Counter()
     first: Counter[str] = Counter()
     second: Counter[str] = Counter()
@@ -260,7 +266,7 @@ def _term_pass(sentences: list[list[str]], min_count: int, min_g2: float, min_fo
             second[b] += 1
     n_pairs = sum(pairs.values())
     frame = max_sentence_share * len(sentences)
-    out = set()
+    out: dict[tuple[str, str], float] = {}
     for (a, b), k11 in pairs.items():
         if k11 < min_count or a == b or in_sentences[a] > frame or in_sentences[b] > frame:
             continue
@@ -272,17 +278,31 @@ def _term_pass(sentences: list[list[str]], min_count: int, min_g2: float, min_fo
         k22 = n_pairs - k11 - k12 - k21
         if k11 * n_pairs <= first[a] * second[b]:  # not more often than chance
             continue
-        if _g2(k11, k12, k21, k22) >= min_g2:
-            out.add((a, b))
+        score = _g2(k11, k12, k21, k22)
+        if score >= min_g2:
+            out[(a, b)] = score
     return out
 
 
-def _join(atoms: list[str], pairs: set[tuple[str, str]]) -> list[str]:
+def _join(atoms: list[str], pairs: Mapping[tuple[str, str], float],
+          joined: Counter[tuple[str, str]] | None = None) -> list[str]:
+    """``atoms`` with the candidate ``pairs`` (pair -> G²) joined, the strongest first where two
+    overlap (equal scores: the leftmost first); ``joined`` (optional) counts the pairs joined."""
+    found = [(pairs[(a, b)], -i) for i, (a, b) in enumerate(itertools.pairwise(atoms)) if (a, b) in pairs]
+    starts: set[int] = set()
+    used: set[int] = set()
+    for _, neg in sorted(found, reverse=True):
+        i = -neg
+        if i not in used and i + 1 not in used:
+            starts.add(i)
+            used.update((i, i + 1))
     out: list[str] = []
     i = 0
     while i < len(atoms):
-        if i + 1 < len(atoms) and (atoms[i], atoms[i + 1]) in pairs:
+        if i in starts:
             out.append(f"{atoms[i]} {atoms[i + 1]}")
+            if joined is not None:
+                joined[(atoms[i], atoms[i + 1])] += 1
             i += 2
         else:
             out.append(atoms[i])
@@ -310,12 +330,14 @@ def learn_terms(
     streams = [s for s in streams if s]
     terms: set[str] = set()
     for _ in range(passes):
-        pairs = {(a, b) for a, b in _term_pass(streams, min_count, min_g2, min_follow, max_sentence_share)
+        pairs = {(a, b): score for (a, b), score in
+                 _term_pass(streams, min_count, min_g2, min_follow, max_sentence_share).items()
                  if len(a.split()) + len(b.split()) <= MAX_TERM_WORDS}
         if not pairs:
             break
-        streams = [_join(s, pairs) for s in streams]
-        terms |= {f"{a} {b}" for a, b in pairs}
+        joined: Counter[tuple[str, str]] = Counter()
+        streams = [_join(s, pairs, joined) for s in streams]
+        terms |= {f"{a} {b}" for (a, b), n in joined.items() if n >= min_count}
     return sorted(terms)
 
 

@@ -152,17 +152,18 @@ def execute_run(data: ExperimentData, ctx: _RunContext, key: RunKey) -> dict[str
     from spco.data.environment import Corpus
 
     model = spec.build(ctx.iterations, seed, ctx.hyperparameters, traced)
+    vocabulary = data.vocabulary_for(key.setting)
     if spec.single_home:
-        corpus = Corpus([homes[-1]], vocabulary=data.vocabulary)
+        corpus = Corpus([homes[-1]], vocabulary=vocabulary)
     else:
-        corpus = Corpus(homes, vocabulary=data.vocabulary)
+        corpus = Corpus(homes, vocabulary=vocabulary)
     model.fit(corpus)
     e = len(corpus) - 1
     env = homes[-1]
     specific = ctx.experiment == "specific"
     scores = evaluate_home(model.parameters_, e, env, model.vocabulary_, specific=specific,
                            n_positions=ctx.n_positions, rng=np.random.default_rng([seed, 1]),
-                           weighting=spec.weighting)
+                           weighting=spec.weighting, view_counts=model.settings_.view_counts)
     wall = time.perf_counter() - start
     if traced:
         path = map_path(Path(ctx.out), ctx.experiment, key.model, key.setting, key.home)
@@ -187,6 +188,8 @@ def execute_run(data: ExperimentData, ctx: _RunContext, key: RunKey) -> dict[str
         "position_accuracy": {p: clean(v) for p, v in scores.position_accuracy.items()},
         "mean_name_accuracy": clean(scores.mean_name_accuracy),
         "mean_position_accuracy": clean(scores.mean_position_accuracy),
+        "position_accuracy_mixture": {p: clean(v) for p, v in scores.position_accuracy_mixture.items()},
+        "mean_position_accuracy_mixture": clean(scores.mean_position_accuracy_mixture),
         "name_chance": clean(scores.name_chance),
         "position_chance": clean(scores.position_chance),
         "log_joint": [round(float(v), 3) for v in model.log_joint_] if traced else None,

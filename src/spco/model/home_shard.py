@@ -417,7 +417,8 @@ class NewHomeShard:
                  rng: np.random.Generator, prior: SharedPrior | None = None) -> None:
         self.data, self.state, self.shared = data, state, shared
         self.n_known, self.rng, self.prior = n_known, rng, prior
-        self.settings = SamplerSettings.create(shared.variant, shared.prune_words, learn_shared=False)
+        self.settings = SamplerSettings.create(shared.variant, shared.prune_words, learn_shared=False,
+                                               view_counts=shared.hyperparameters.view_counts)
         self.average = ParameterAverage(data.homes, data.position_scale)
 
     @classmethod
@@ -425,7 +426,8 @@ class NewHomeShard:
               prior: SharedPrior | None = None) -> NewHomeShard:
         """A new home's shard from its first state (:func:`initial_state`); with ``prior`` the
         words the knowledge kept are the only candidates among its words."""
-        settings = SamplerSettings.create(shared.variant, shared.prune_words, learn_shared=False)
+        settings = SamplerSettings.create(shared.variant, shared.prune_words, learn_shared=False,
+                                          view_counts=shared.hyperparameters.view_counts)
         state = initial_state(data, shared, settings, n_known, rng)
         if prior is not None:
             state.candidate_words = shared.word_mask.copy()

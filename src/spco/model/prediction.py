@@ -43,8 +43,8 @@ Confidence: those thousands of nats make p(w | x, v) sure of every answer, the w
 counts of one image are not independent draws). ``view_counts`` weights each view's visual term as
 that many draws; ``spco.knowledge.what`` answers with :func:`spco.model.confidence.predict_names_honestly`
 (a view = :data:`~spco.model.confidence.VIEW_EFFECTIVE_COUNTS` draws, free concepts' names at their
-posterior mean, an ``unsure`` flag). The default here (``view_counts=None``) is the model itself,
-as the experiments use it.
+posterior mean, an ``unsure`` flag). ``view_counts=None`` (the default here) is the multinomial;
+the exact model learns, and its experiments predict, with ``TransferHyperparameters.view_counts``.
 """
 
 from __future__ import annotations
@@ -370,9 +370,10 @@ def _visual_log_likelihood(theta_v: np.ndarray, visual: object, view_counts: flo
                            ) -> np.ndarray:
     """(n, L) ``v · log θ^vᵀ`` for counts ``visual`` (n, D), sparse or dense (validated).
 
-    ``view_counts``: the evidence of one view, in counts (:mod:`spco.model.confidence`): a view with more
-    counts is weighted by ``view_counts / Σ_d v_d``, i.e. its proportions are scored as that many
-    draws; ``None``: every count is a draw (the model's multinomial)."""
+    ``view_counts``: the evidence of one view, in counts: a view with more counts is weighted by
+    ``view_counts / Σ_d v_d`` (its proportions scored as that many draws, as the exact sampler
+    does, :attr:`~spco.model.hyperparameters.TransferHyperparameters.view_counts`); ``None``:
+    every count is a draw (the model's multinomial)."""
     log_theta = _safe_log(theta_v)  # (L, D), finite
     counts = validate_visual_counts(visual, log_theta.shape[1])
     loglik = np.asarray(counts @ log_theta.T)
@@ -380,9 +381,8 @@ def _visual_log_likelihood(theta_v: np.ndarray, visual: object, view_counts: flo
         return loglik
     if not view_counts > 0:
         raise ConfigurationError(f"view_counts must be > 0, got {view_counts!r}")
-    totals = np.asarray(counts.sum(axis=1)).ravel()
-    weight = np.minimum(1.0, float(view_counts) / np.maximum(totals, 1.0))
-    return loglik * weight[:, None]
+    totals = np.asarray(counts.sum(axis=1), dtype=np.float64).ravel()
+    return loglik * np.minimum(1.0, float(view_counts) / np.maximum(totals, 1.0))[:, None]
 
 
 def _as_positions(positions: object) -> np.ndarray:
@@ -467,8 +467,7 @@ def concept_posterior(
     active_regions_only: sum only over regions with training samples (``region_counts > 0``), as
         the authors' code does; ignored if no region has any.
     view_counts: the evidence of one view in counts: each view's log-likelihood is weighted by
-        ``min(1, view_counts / Σ_d v_d)`` (:data:`spco.model.confidence.VIEW_EFFECTIVE_COUNTS`);
-        ``None`` (default): the model's multinomial, every count a draw.
+        ``min(1, view_counts / Σ_d v_d)``; ``None`` (default): every count a draw.
 
     Returns
     -------
@@ -586,10 +585,12 @@ def predict_names(
         ``"reference"`` — the authors' KL-weighted score (:func:`kl_scores_reference`), with the
         concept posterior over used regions only.
     use_position, use_vision: drop a modality.
-    view_counts: the evidence of one view in counts (see :func:`concept_posterior`); ``None``: the
-        model's multinomial. spco's answers use :func:`spco.model.confidence.predict_names_honestly`.
+    view_counts: the evidence of one view in counts (see :func:`concept_posterior`); pass the
+        model's (``TransferHyperparameters.view_counts`` for the exact sampler) to predict as it
+        learnt. ``None``: every count a draw.
     unsure_below: stored in the result: an answer whose probability is below it is
-        :attr:`NamePrediction.unsure` (``None``: never).
+        :attr:`NamePrediction.unsure` (``None``: never). ``spco.knowledge.what`` answers with
+        :func:`spco.model.confidence.predict_names_honestly`.
 
     Words with ``word_mask`` False are never returned. Ties in the score are broken by p(w|x,v),
     then by vocabulary order. A word with I(w) = 0 scores 0 and is ranked after every word with a

@@ -69,6 +69,11 @@ class PreparedData:
         return dimension_major(self.visual, self.offsets)
 
     @cached_property
+    def view_totals(self) -> np.ndarray:
+        """(N,) float: the visual counts of each sample (``Σ_d v_d``), for a view's weight."""
+        return np.asarray(self.visual.sum(axis=1), dtype=np.float64).ravel()
+
+    @cached_property
     def niw_priors(self) -> dict:
         """The NIW priors already built for this data (:func:`spco.model.gibbs.niw_prior`), by
         hyperparameters and variant: built once per fit instead of once per sweep."""
@@ -84,7 +89,9 @@ class GibbsState:
     log_phi_v (L, D), log_phi_w (L, V); word_mask (V,) words kept by pruning; candidate_words
     (V,) words that the mutual-information pruning may keep at all (``None``: every word);
     home_specific_words (V,) candidates it never prunes (the exact variant uses neither: see
-    :func:`naming_verdicts`).
+    :func:`naming_verdicts`); name_words (V,) the words the naming rule judges names (exact variant
+    with pruning; ``None``: none judged yet): a taught sample whose sentence holds one is scored by
+    its name words only (:func:`spco.model.gibbs.sentence_words`).
     """
 
     concepts: np.ndarray
@@ -103,6 +110,10 @@ class GibbsState:
     candidate_words: np.ndarray | None = None
     home_specific_words: np.ndarray | None = None
     visual_cache: VisualCountCache | None = field(default=None, repr=False)
+    name_words: np.ndarray | None = None
+    #: the words matrix :func:`spco.model.gibbs.sentence_words` last built: (data.words, name_words
+    #: bytes, matrix)
+    words_cache: tuple | None = field(default=None, repr=False)
 
 
 @dataclass
@@ -126,15 +137,21 @@ class SamplerSettings:
     joint_assignment: bool
     pruning_score: str
     learn_shared: bool = True
+    view_counts: float | None = None
 
     @classmethod
-    def create(cls, variant: str, prune: bool, learn_shared: bool = True) -> SamplerSettings:
+    def create(cls, variant: str, prune: bool, learn_shared: bool = True,
+               view_counts: float | None = None) -> SamplerSettings:
         """Settings of ``variant`` (``exact``, ``reference`` or ``spcoa``).
 
         ``learn_shared=False`` keeps φ^v, φ^w and G_0 fixed (adapting to a new home with
-        knowledge learnt elsewhere): sweeps then update only the homes' own variables."""
+        knowledge learnt elsewhere): sweeps then update only the homes' own variables.
+        ``view_counts``: the evidence of one view in counts
+        (:attr:`~spco.model.hyperparameters.TransferHyperparameters.view_counts`); the exact
+        variant only — the authors' sampler and SpCoA score every count, as published."""
         if variant not in VARIANTS:
             raise ValueError(f"unknown sampler variant {variant!r}; choose one of {VARIANTS}")
         return cls(variant=variant, prune=prune, hierarchical=variant != "spcoa",
                    joint_assignment=variant != "reference",
-                   pruning_score="kl" if variant == "reference" else "mi", learn_shared=learn_shared)
+                   pruning_score="kl" if variant == "reference" else "mi", learn_shared=learn_shared,
+                   view_counts=view_counts if variant == "exact" else None)
