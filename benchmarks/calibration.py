@@ -27,7 +27,7 @@ Knowledge and home files are kept in ``--out``/models and reused by a re-run (``
 
 ``--fit-view-counts`` prints instead how ``VIEW_EFFECTIVE_COUNTS`` was chosen: the log loss of the
 right names on the **development** views (only; held-out views are never read) for n_eff = 1 … 12
-by 0.5, colour-hog and fc7 pooled, and the minimum.
+by 0.5 and 14, 16, 20, 24, 32, colour-hog and fc7 pooled, and the minimum.
 """
 
 from __future__ import annotations
@@ -327,7 +327,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     models = args.out / "models"
     models.mkdir(parents=True, exist_ok=True)
     if args.fit_view_counts:
-        grid = np.arange(1.0, 12.01, 0.5)
+        grid = np.concatenate([np.arange(1.0, 12.01, 0.5), [14.0, 16.0, 20.0, 24.0, 32.0]])
         losses = view_counts_log_loss(args.data, args.images, models, features, grid, args.force)
         for value, loss in zip(grid, losses, strict=True):
             print(f"n_eff {value:4.1f}: development log loss {loss:.4f}")
