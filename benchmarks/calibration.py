@@ -27,7 +27,9 @@ Knowledge and home files are kept in ``--out``/models and reused by a re-run (``
 
 ``--fit-view-counts`` prints instead how ``VIEW_EFFECTIVE_COUNTS`` was chosen: the log loss of the
 right names on the **development** views (only; held-out views are never read) for n_eff = 1 … 12
-by 0.5 and 14, 16, 20, 24, 32, colour-hog and fc7 pooled, and the minimum.
+by 0.5 and 14, 16, 20, 24, 32, colour-hog and fc7 pooled, and the minimum; beside each value, its
+difference from the least with a 95 % paired bootstrap interval over development views ("within
+noise" when the interval reaches 0).
 """
 
 from __future__ import annotations
@@ -151,15 +153,21 @@ def run_task(task: Task, data: Path, images: Path | None, models: Path, force: b
 
 
 def view_counts_log_loss(data: Path, images: Path | None, models: Path, features: Sequence[str],
-                         grid: np.ndarray, force: bool) -> np.ndarray:
-    """(len(grid),) mean −log p(right name | pose, view) over the development test views, for each
-    number of draws a view is worth; the development models are fitted (or reused) first."""
+                         grid: np.ndarray, force: bool) -> tuple[np.ndarray, list[tuple[str, int]]]:
+    """−log p(right name | pose, view) of every development answer, for each number of draws a view
+    is worth; the development models are fitted (or reused) first.
+
+    Returns
+    -------
+    losses: (n, len(grid)) one row per answer (development test view × view kind × set × seed);
+    views: (n,) the (home, view id) of each row, for a bootstrap over views.
+    """
     from spco.model.confidence import concept_word_counts, predict_names_honestly
     from spco.model.home_shard import FREE_CONCEPT_WEIGHT
 
     dev = SETS["development"]
-    losses = np.zeros(len(grid))
-    n = 0
+    losses: list[np.ndarray] = []
+    views: list[tuple[str, int]] = []
     for f in features:
         for size in dev["sizes"]:
             for seed in dev["seeds"]:
@@ -172,15 +180,44 @@ def view_counts_log_loss(data: Path, images: Path | None, models: Path, features
                     columns = np.array([words.index(lab) for lab in labels])
                     counts = concept_word_counts(model.data.words, model.state.concepts,
                                                  model.knowledge.n_concepts)
+                    mine = np.zeros((len(labels), len(grid)))
                     for j, value in enumerate(grid):
                         pred = predict_names_honestly(
                             model.parameters, 0, model.vocabulary, positions, visual, top_k=1,
                             weighting=model.weighting,  # type: ignore[arg-type]
                             free=np.exp(model.knowledge.log_g0) < FREE_CONCEPT_WEIGHT, word_counts=counts,
                             alpha_word=model.hyperparameters.alpha_word, view_counts=float(value))
-                        losses[j] -= np.log(np.maximum(pred.word_probabilities[rows, columns], 1e-12)).sum()
-                    n += len(labels)
-    return losses / n
+                        mine[:, j] = -np.log(np.maximum(pred.word_probabilities[rows, columns], 1e-12))
+                    losses.append(mine)
+                    views += [(home.name, int(i)) for i in home.ids[home.is_test]]
+    return np.concatenate(losses), views
+
+
+def paired_difference_interval(losses: np.ndarray, views: Sequence[tuple[str, int]], best: int,
+                               rng: np.random.Generator, n_resamples: int = N_BOOTSTRAP) -> np.ndarray:
+    """95 % bootstrap interval of mean loss(grid value) − mean loss(``best``), paired, over views.
+
+    Parameters
+    ----------
+    losses: (n, G) the loss of each answer at each grid value; views: (n,) the view of each answer
+        (a view is resampled with all its answers: seeds, view kinds, experienced-home sets).
+    best: the column compared with.
+
+    Returns
+    -------
+    (G, 2) the 2.5 % and 97.5 % quantiles of the difference of the mean losses.
+    """
+    index: dict[tuple[str, int], int] = {}
+    cluster = np.array([index.setdefault(v, len(index)) for v in views])
+    differences = losses - losses[:, [best]]
+    sums = np.zeros((len(index), losses.shape[1]))
+    np.add.at(sums, cluster, differences)
+    sizes = np.bincount(cluster, minlength=len(index)).astype(float)
+    draws = np.empty((n_resamples, losses.shape[1]))
+    for r in range(n_resamples):
+        pick = rng.integers(0, len(index), len(index))
+        draws[r] = sums[pick].sum(axis=0) / sizes[pick].sum()
+    return np.quantile(draws, [0.025, 0.975], axis=0).T
 
 
 # ----------------------------------------------------------------------------------------- figures
@@ -328,10 +365,16 @@ def main(argv: Sequence[str] | None = None) -> None:
     models.mkdir(parents=True, exist_ok=True)
     if args.fit_view_counts:
         grid = np.concatenate([np.arange(1.0, 12.01, 0.5), [14.0, 16.0, 20.0, 24.0, 32.0]])
-        losses = view_counts_log_loss(args.data, args.images, models, features, grid, args.force)
-        for value, loss in zip(grid, losses, strict=True):
-            print(f"n_eff {value:4.1f}: development log loss {loss:.4f}")
-        print(f"least log loss at n_eff = {grid[int(np.argmin(losses))]:g}")
+        losses, views = view_counts_log_loss(args.data, args.images, models, features, grid, args.force)
+        mean = losses.mean(axis=0)
+        best = int(np.argmin(mean))
+        interval = paired_difference_interval(losses, views, best, np.random.default_rng(args.seed))
+        for value, loss, (low, high) in zip(grid, mean, interval, strict=True):
+            noise = "  within noise of the least" if low <= 0.0 else ""
+            print(f"n_eff {value:4.1f}: development log loss {loss:.4f}, minus the least "
+                  f"{loss - mean[best]:+.4f} [{low:+.4f}, {high:+.4f}]{noise}")
+        print(f"least log loss at n_eff = {grid[best]:g} ({len(losses)} answers, {len(set(views))} views; "
+              f"[ ]: 95 % paired bootstrap over views, {N_BOOTSTRAP} resamples, seed {args.seed})")
         return
     tasks = [Task(f, size, seed, SETS[s]["homes"], s) for s in sets for f in features
              for size in SETS[s]["sizes"] for seed in SETS[s]["seeds"]]
