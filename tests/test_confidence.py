@@ -26,7 +26,6 @@ from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.errors import ConfigurationError
 from spco.model.confidence import (
     UNSURE_BELOW,
-    VIEW_EFFECTIVE_COUNTS,
     concept_word_counts,
     named_parameters,
     predict_names_honestly,
@@ -89,10 +88,10 @@ def test_probability_of_the_answer_matches_its_frequency() -> None:
     poses = np.zeros((n, 4))
     poses[:, :2] = params.region_means[0, truth, :2] + rng.normal(0.0, 0.8, (n, 2))
     poses[:, 3] = 1.0
-    draws = np.stack([rng.multinomial(int(VIEW_EFFECTIVE_COUNTS), theta_v[t]) for t in truth])
+    draws = np.stack([rng.multinomial(4, theta_v[t]) for t in truth])
     views = sp.csr_array(draws * 500)
 
-    honest = _honest(params, poses, views)
+    honest = _honest(params, poses, views, view_counts=4.0)
     right = np.array(honest.best) == np.array(NAMES)[truth]
     assert 0.6 < right.mean() < 0.95  # a problem where confidence matters
     assert _ece(honest.confidence, right) < 0.03
