@@ -317,7 +317,7 @@ def reliability_png(path: Path, panels: dict[str, list[dict[str, Any]]], title: 
         ax.set_ylabel("accuracy")
         ax.set_title(f"{set_name} ({len(rows)} answers)")
         ax.legend(loc="upper left", fontsize=8)
-    fig.suptitle(title)
+    fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -24,7 +24,8 @@ PAPER_PSI0_CM = (10.0, 10.0, 0.5, 0.5)
 
 #: The evidence of one view, in counts, of the exact sampler and its predictions
 #: (``TransferHyperparameters.view_counts``); chosen on development configurations only (see
-#: ``docs/model.md``, "How much a view weighs").
+#: ``docs/model.md``, "How much a view weighs"). ``what``'s probabilities weigh a test view by their
+#: own :data:`spco.model.confidence.VIEW_EFFECTIVE_COUNTS` (docs/model.md, "Two numbers for one view").
 VIEW_COUNTS = 16.0
 
 
