@@ -104,7 +104,8 @@ def home_question_scores(home: HomeModel) -> QuestionScores:
 
     state = home.state
     words = home.data.words
-    said = np.asarray(words[:, columns].sum(axis=1)).ravel() > 0 if columns.size else np.zeros(home.n_samples, bool)
+    said = (np.asarray(words[:, columns].sum(axis=1)).ravel() > 0 if columns.size
+            else np.zeros(home.n_samples, dtype=bool))
     taught = said & np.array([s is not None for s in home.sentences], dtype=bool)
     n_concepts = home.knowledge.n_concepts
     used = np.exp(np.asarray(home.knowledge.log_g0, dtype=np.float64)) >= FREE_CONCEPT_WEIGHT
@@ -127,7 +128,8 @@ def home_question_scores(home: HomeModel) -> QuestionScores:
 
             log_theta_v = np.log(np.maximum(np.asarray(params.visual_probabilities[0], dtype=np.float64),
                                             np.finfo(float).tiny))[used]
-            fit = np.asarray(sp.csr_array(home.visual, dtype=np.float64)[np.flatnonzero(away)] @ log_theta_v.T)
+            views = sp.csr_array(home.visual, dtype=np.float64)[np.flatnonzero(away)]
+            fit = np.asarray(views @ log_theta_v.T)
             kinds[away] = np.flatnonzero(used)[np.argmax(fit, axis=1)]
     return question_scores(concepts, names, unnamed, kinds, state.regions, home.positions[:, :2], taught,
                            taught_own)
@@ -159,7 +161,8 @@ def _reason(home: HomeModel, scores: QuestionScores, columns: np.ndarray, row: i
     rho = float(scores.own_name[row])
     here = top(scores.model_probabilities[row])
     if float(scores.unnamed[row]) >= 0.5:
-        if float(scores.unnamed[in_room].mean()) >= 0.5 and not (scores.taught & (scores.rooms == room)).any():
+        room_taught = (scores.taught & (scores.rooms == room)).any()
+        if float(scores.unnamed[in_room].mean()) >= 0.5 and not room_taught:
             return (f"no experienced home has a place that looks like this: its {int(in_room.sum())} samples "
                     f"are learnt as a place of this home alone, and nobody has named it yet (it looks most "
                     f"like a {kind_name})")

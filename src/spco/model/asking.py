@@ -140,8 +140,8 @@ def group_rooms(regions: np.ndarray, kinds: np.ndarray, xy: np.ndarray,
     kinds = np.asarray(kinds, dtype=np.int64)
     xy = np.asarray(xy, dtype=np.float64)
     if not regions.shape == kinds.shape == xy.shape[:1] or xy.ndim != 2 or xy.shape[1] != 2:
-        raise ConfigurationError(f"regions {regions.shape}, kinds {kinds.shape} and xy {xy.shape} must describe "
-                                 "the same samples ((n,), (n,), (n, 2))")
+        raise ConfigurationError(f"regions {regions.shape}, kinds {kinds.shape} and xy {xy.shape} must "
+                                 "describe the same samples ((n,), (n,), (n, 2))")
     used, local = np.unique(regions, return_inverse=True)
     if used.size == 0:
         return np.zeros(0, dtype=np.int64)
@@ -249,7 +249,8 @@ def question_scores(
     q = np.asarray(concepts, dtype=np.float64)
     names = np.asarray(name_matrix, dtype=np.float64)
     if q.ndim != 2 or names.ndim != 2 or names.shape[0] != q.shape[1]:
-        raise ConfigurationError(f"concepts (n, L) and name_matrix (L, V') do not fit: {q.shape}, {names.shape}")
+        raise ConfigurationError(f"concepts (n, L) and name_matrix (L, V') do not fit: {q.shape}, "
+                                 f"{names.shape}")
     n, n_concepts = q.shape
     unnamed = np.asarray(unnamed, dtype=bool)
     kinds = np.asarray(kinds, dtype=np.int64)
@@ -284,7 +285,8 @@ def question_scores(
     room_own = np.bincount(rooms, weights=taught_own, minlength=n_rooms) > 0
     rooms_of_kind = np.bincount(room_kinds[size >= MIN_ROOM_SAMPLES], minlength=n_concepts)
     own_answers = np.bincount(room_kinds[room_own], minlength=n_concepts).astype(np.float64)
-    transferred_answers = np.bincount(room_kinds[room_taught & ~room_own], minlength=n_concepts).astype(np.float64)
+    transferred_answers = np.bincount(room_kinds[room_taught & ~room_own],
+                                      minlength=n_concepts).astype(np.float64)
     prior = np.where(rooms_of_kind >= 2, prior_shared, prior_alone)
     rho_kind = (prior_weight * prior + own_answers) / (prior_weight + own_answers + transferred_answers)
     rho_room = np.where(room_taught, 0.0, rho_kind[room_kinds])
