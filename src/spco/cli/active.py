@@ -30,8 +30,9 @@ def _split(text: str | None) -> tuple[str, ...]:
               help="A home-specific configuration file (benchmarks/heldout/specific_heldout.json).")
 @click.option("--heldout-config", "heldout_configs", default=None,
               help="Comma-separated configuration ids of --heldout to run (e.g. 2LDK_9-kenta-nursery-piano).")
-@click.option("--strategies", default="gain,uncertainty,random", show_default=True,
-              help="Where to ask: gain (expected information), uncertainty (entropy of what), random.")
+@click.option("--strategies", default="errors,information,uncertainty,random", show_default=True,
+              help="Where to ask: information (expected information gain), errors (expected wrong answers "
+                   "corrected), uncertainty (entropy of what), random.")
 @click.option("--questions", default=15, show_default=True, type=click.IntRange(0),
               help="Questions per run: k = 0 … this.")
 @click.option("--rates", default="20,40", show_default=True,

@@ -28,6 +28,7 @@ def main() -> None:
 def _register_commands() -> None:
     """Add the command groups that live in their own modules."""
     from spco.cli.active import active
+    from spco.cli.ask import ask
     from spco.cli.bag import import_bag
     from spco.cli.bench import bench
     from spco.cli.data import DATA_COMMANDS
@@ -47,6 +48,7 @@ def _register_commands() -> None:
     main.add_command(import_bag)
     for command in KNOWLEDGE_COMMANDS:  # fit, adapt, where, what, teach, show
         main.add_command(command)
+    main.add_command(ask)
     main.add_command(serve)
 
 

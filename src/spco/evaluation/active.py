@@ -16,8 +16,9 @@ The knowledge is fitted once per seed on the paper's 16 experienced homes (taugh
    at random at ``rates`` percent (SIGVerse ``sentence/per_<rate>``; a held-out configuration's own
    selection rule), scored the same way, at k = the number of taught samples.
 
-Strategies: ``gain`` (:func:`spco.knowledge.asking.ask`: the expected information of the answer about
-the names of the home's places), ``uncertainty`` (the sample whose ``what`` answer has the largest
+Strategies: ``information`` (:func:`spco.knowledge.asking.ask`: the expected information of the answer
+about the names of the home's places), ``errors`` (the same model, ranked by the expected number of
+wrong answers the question corrects), ``uncertainty`` (the sample whose ``what`` answer has the largest
 entropy over the usable names; ties at random), ``random`` (a uniformly random untaught sample).
 
 The oracle's sentence for a sample is its home-specific sentence where the data set has one (3LDK_9's
@@ -81,7 +82,9 @@ __all__ = [
 ACTIVE_FORMAT = "spco-active-results"
 _VERSION = 1
 #: The strategies that choose where to ask.
-STRATEGIES = ("gain", "uncertainty", "random")
+STRATEGIES = ("information", "errors", "uncertainty", "random")
+#: The strategies run by default.
+DEFAULT_STRATEGIES = ("errors", "information", "uncertainty", "random")
 #: The confidence thresholds of "ask only when unsure" reported.
 STOP_THRESHOLDS = (0.5, 0.6, 0.7, 0.8, 0.9)
 _RUNS_FILE = "runs.jsonl"
@@ -118,7 +121,7 @@ class ActiveConfig:
     heldout: str | None = None
     heldout_configs: tuple[str, ...] | None = None
     experienced_homes: tuple[str, ...] = PAPER_EXPERIENCED_HOMES
-    strategies: tuple[str, ...] = STRATEGIES
+    strategies: tuple[str, ...] = DEFAULT_STRATEGIES
     questions: int = 15
     trials: int = 20
     seed: int = 0
@@ -512,8 +515,8 @@ def choose_question(strategy: str, home: Any, rng: np.random.Generator) -> dict[
         raise ConfigurationError("no untaught sample left to ask about")
     start = time.perf_counter()
     gain = math.nan
-    if strategy == "gain":
-        scores = home_question_scores(home)
+    if strategy in ("information", "errors"):
+        scores = home_question_scores(home, strategy)
         rows, gains = rank_questions(scores, candidates)
         row, gain = int(rows[0]), float(gains[0])
     elif strategy == "uncertainty":
@@ -525,7 +528,7 @@ def choose_question(strategy: str, home: Any, rng: np.random.Generator) -> dict[
     else:
         raise ConfigurationError(f"unknown strategy {strategy!r}")
     seconds = time.perf_counter() - start
-    if strategy != "gain":
+    if strategy not in ("information", "errors"):
         scores = home_question_scores(home)
     what = _what_distribution(home, np.array([row]))[0]
     return {"row": row, "id": int(home.ids[row]), "gain": None if math.isnan(gain) else round(gain, 4),
@@ -667,7 +670,7 @@ def first_k(summary: Sequence[Mapping[str, Any]], measure: str = "specific_n",
     return out
 
 
-def stop_rule_summary(records: Sequence[Mapping[str, Any]], strategy: str = "gain",
+def stop_rule_summary(records: Sequence[Mapping[str, Any]], strategy: str = "information",
                       thresholds: Sequence[float] = STOP_THRESHOLDS, measure: str = "all_n",
                       confidence: str = "confidence") -> list[dict[str, Any]]:
     """"Ask only when unsure": a robot asking in ``strategy``'s order stops at the first question
@@ -704,8 +707,9 @@ def stop_rule_summary(records: Sequence[Mapping[str, Any]], strategy: str = "gai
 
 
 def ranking_time(records: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
-    """Seconds to rank a home's samples by the gain (every question of every run)."""
-    times = [s["rank_seconds"] for r in records for s in r["curves"].get("gain", []) if "rank_seconds" in s]
+    """Seconds to rank a home's samples by the criterion (every question of every run)."""
+    times = [s["rank_seconds"] for r in records for name in ("information", "errors")
+             for s in r["curves"].get(name, []) if "rank_seconds" in s]
     if not times:
         return {}
     return {"questions": len(times), "median": round(float(np.median(times)), 4),
@@ -775,7 +779,7 @@ def tables(results: Mapping[str, Any]) -> str:
     for home, by in results["first_k_specific"].items():
         lines.append(f"| {home} | " + " | ".join("not reached" if by.get(s) is None else str(by[s])
                                                   for s in strategies) + " |")
-    lines += ["", "## Ask only when unsure (gain order; stop when the best question's confidence >= τ)", "",
+    lines += ["", "## Ask only when unsure (stop when the best question's confidence >= τ)", "",
               "| home | confidence | τ | questions | saved | all A_n at stop | all A_n, all questions | "
               "specific A_n at stop | specific A_n, all questions |", "|---|---|---|---|---|---|---|---|---|"]
     for r in results["stop_rule"]:
@@ -784,8 +788,8 @@ def tables(results: Mapping[str, Any]) -> str:
                      f"{r['specific_n_at_stop']} | {r['specific_n_all_questions']} |")
     timing = results["ranking_seconds"]
     if timing:
-        lines += ["", f"Ranking a home's samples by the gain: median {timing['median'] * 1000:.1f} ms, 95th "
-                  f"percentile {timing['p95'] * 1000:.1f} ms, max {timing['max'] * 1000:.1f} ms over "
+        lines += ["", f"Ranking a home's samples by the criterion: median {timing['median'] * 1000:.1f} ms, "
+                  f"95th percentile {timing['p95'] * 1000:.1f} ms, max {timing['max'] * 1000:.1f} ms over "
                   f"{timing['questions']} questions."]
     lines += ["", "## Where the first 6 questions went (share of questions per place)", ""]
     for home, by in results["asked_places"].items():
@@ -803,7 +807,8 @@ def figures(out: Path, results: Mapping[str, Any]) -> list[Path]:
 
     written = []
     summary = results["summary"]
-    colours = {"gain": "tab:blue", "uncertainty": "tab:orange", "random": "tab:grey"}
+    colours = {"information": "tab:blue", "errors": "tab:green", "uncertainty": "tab:orange",
+               "random": "tab:grey"}
     for home in dict.fromkeys(r["home"] for r in summary):
         rows = [r for r in summary if r["home"] == home]
         has_specific = any(r.get("specific_n") is not None for r in rows)
@@ -971,9 +976,10 @@ def run_active_experiment(config: ActiveConfig, out: str | os.PathLike[str], *, 
         bar.close()
     records = [done[k] for k in planned if k in done]
     summary = summarise(records, config.strategies)
-    stop = (stop_rule_summary(records, "gain", measure="all_n", confidence="confidence")
-            + stop_rule_summary(records, "gain", measure="all_n", confidence="what_confidence")
-            if "gain" in config.strategies else [])
+    first = next((s for s in config.strategies if s in ("information", "errors")), None)
+    stop = (stop_rule_summary(records, first, measure="all_n", confidence="confidence")
+            + stop_rule_summary(records, first, measure="all_n", confidence="what_confidence")
+            if first else [])
     results = {
         "format": ACTIVE_FORMAT, "version": _VERSION,
         "config": {**identity, "trials": config.trials,

@@ -64,7 +64,8 @@ Layout
 (:class:`HomeModel`, :class:`Observation`), :mod:`~spco.knowledge.fit` (:func:`fit_knowledge`),
 :mod:`~spco.knowledge.diagnostics` (view fit), :mod:`~spco.knowledge.adapting` (:func:`adapt`),
 :mod:`~spco.knowledge.teaching` (:func:`teach`), :mod:`~spco.knowledge.queries` (:func:`where`,
-:func:`what`), :mod:`~spco.knowledge.views` (one observation's pose and view, feature files),
+:func:`what`), :mod:`~spco.knowledge.asking` (:func:`ask`: where an answer teaches the most),
+:mod:`~spco.knowledge.views` (one observation's pose and view, feature files),
 :mod:`~spco.knowledge.files` and :mod:`~spco.knowledge.locking`. The sampler of a new home is
 :class:`spco.model.home_shard.NewHomeShard`: a shard of one home with the shared part fixed.
 """
@@ -72,6 +73,7 @@ Layout
 from __future__ import annotations
 
 from spco.knowledge.adapting import adapt
+from spco.knowledge.asking import Question, ask
 from spco.knowledge.diagnostics import (
     VIEW_FIT_MEASURE,
     VIEW_FIT_WARN_FRACTION,
@@ -128,7 +130,9 @@ __all__ = [
     "KnowledgeMismatchWarning",
     "Observation",
     "OwnNamesSpreadWarning",
+    "Question",
     "adapt",
+    "ask",
     "check_view_fit",
     "concept_visual_totals",
     "describe_model_file",

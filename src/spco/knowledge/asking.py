@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import scipy.sparse as sp
 
 from spco.errors import ConfigurationError
 from spco.knowledge.home import HomeModel
@@ -21,8 +22,10 @@ from spco.model.asking import QuestionScores, question_scores, rank_questions
 from spco.model.home_shard import FREE_CONCEPT_WEIGHT
 from spco.model.prediction import concept_posterior
 
-__all__ = ["NAMELESS_MASS", "Question", "ask", "home_question_scores", "name_columns"]
+__all__ = ["DEFAULT_CRITERION", "NAMELESS_MASS", "Question", "ask", "home_question_scores", "name_columns"]
 
+#: What :func:`ask` ranks by (:data:`spco.model.asking.CRITERIA`).
+DEFAULT_CRITERION = "errors"
 #: A concept whose usable names hold less than this share of its word distribution names nothing
 #: (its words are all pruned: it is treated as unnamed).
 NAMELESS_MASS = 0.01
@@ -72,7 +75,7 @@ def name_columns(home: HomeModel) -> np.ndarray:
     return np.flatnonzero(np.asarray(home.parameters.word_mask, dtype=bool))
 
 
-def home_question_scores(home: HomeModel) -> QuestionScores:
+def home_question_scores(home: HomeModel, criterion: str = DEFAULT_CRITERION) -> QuestionScores:
     """What an answer at each of the home's samples would teach (:func:`spco.model.asking.question_scores`
     on the home's state).
 
@@ -84,6 +87,8 @@ def home_question_scores(home: HomeModel) -> QuestionScores:
     sample — its concept if the knowledge uses it, else the used concept whose view distribution in
     this home explains its view best; its region; and whether it was taught a name (a usable word),
     of the home's own (no word the knowledge keeps) or transferred.
+
+    ``criterion``: ``"information"`` or ``"errors"`` (:data:`spco.model.asking.CRITERIA`).
 
     Returns
     -------
@@ -103,36 +108,35 @@ def home_question_scores(home: HomeModel) -> QuestionScores:
     names[nameless] = 0.0
 
     state = home.state
-    words = home.data.words
-    said = (np.asarray(words[:, columns].sum(axis=1)).ravel() > 0 if columns.size
-            else np.zeros(home.n_samples, dtype=bool))
-    taught = said & np.array([s is not None for s in home.sentences], dtype=bool)
+    words = sp.csr_array(home.data.words, dtype=np.float64)
+    sentence = np.array([s is not None for s in home.sentences], dtype=bool)
+    said = np.asarray((words[:, columns] > 0).astype(np.float64).todense()) if columns.size else \
+        np.zeros((home.n_samples, 0))
+    said[~sentence] = 0.0
+    totals = said.sum(axis=1, keepdims=True)
+    taught_names = np.divide(said, totals, out=np.zeros_like(said), where=totals > 0)
+    taught = totals[:, 0] > 0
     n_concepts = home.knowledge.n_concepts
     used = np.exp(np.asarray(home.knowledge.log_g0, dtype=np.float64)) >= FREE_CONCEPT_WEIGHT
     held_taught = np.bincount(state.concepts[taught], minlength=n_concepts) > 0
     unnamed = (~used & ~held_taught) | nameless
 
-    known = np.zeros(home.vocabulary.__len__(), dtype=bool)
+    known = np.zeros(len(home.vocabulary), dtype=bool)
     k = home.n_knowledge_words
     known[:k] = np.asarray(home.knowledge.word_mask[:k], dtype=bool)
-    transferred_columns = columns[known[columns]]
-    says_transferred = (np.asarray(words[:, transferred_columns].sum(axis=1)).ravel() > 0
-                        if transferred_columns.size else np.zeros(home.n_samples, dtype=bool))
-    taught_own = taught & ~says_transferred
+    taught_own = taught & ~(said[:, known[columns]] > 0).any(axis=1)
 
     kinds = np.asarray(state.concepts, dtype=np.int64).copy()
     if used.any():
         away = ~used[kinds]
         if away.any():
-            import scipy.sparse as sp
-
             log_theta_v = np.log(np.maximum(np.asarray(params.visual_probabilities[0], dtype=np.float64),
                                             np.finfo(float).tiny))[used]
             views = sp.csr_array(home.visual, dtype=np.float64)[np.flatnonzero(away)]
             fit = np.asarray(views @ log_theta_v.T)
             kinds[away] = np.flatnonzero(used)[np.argmax(fit, axis=1)]
-    return question_scores(concepts, names, unnamed, kinds, state.regions, home.positions[:, :2], taught,
-                           taught_own)
+    return question_scores(concepts, names, unnamed, kinds, state.regions, home.positions[:, :2],
+                           taught_names, taught_own, criterion=criterion)
 
 
 def _kind_name(home: HomeModel, columns: np.ndarray, kind: int) -> str:
@@ -168,6 +172,10 @@ def _reason(home: HomeModel, scores: QuestionScores, columns: np.ndarray, row: i
                     f"like a {kind_name})")
         return (f"nobody has named this part of the room yet: its views are learnt as a place of this home "
                 f"alone (the room looks most like a {kind_name})")
+    taught_here = top(scores.room_names[room])
+    if taught_here and here and here[0][0] not in {w for w, _ in taught_here}:
+        return (f"this room was taught {taught_here[0][0]!r}, but the robot would answer {here[0][0]!r} here "
+                f"({said(here[:1])})")
     if len(here) == 2 and here[1][1] >= _COMPETING * here[0][1]:
         return f"two concepts compete here: {said(here)}"
     room_names = top(scores.model_probabilities[in_room].mean(axis=0))
@@ -187,7 +195,7 @@ def _reason(home: HomeModel, scores: QuestionScores, columns: np.ndarray, row: i
     return f"the model is unsure here: {said(here or room_names)}"
 
 
-def ask(home: HomeModel, n: int = 5) -> list[Question]:
+def ask(home: HomeModel, n: int = 5, criterion: str = DEFAULT_CRITERION) -> list[Question]:
     """The ``n`` places of ``home`` where an answer to "what is this place?" teaches the most.
 
     Candidates are the home's recorded samples without a name taught (a sample taught a sentence
@@ -202,6 +210,8 @@ def ask(home: HomeModel, n: int = 5) -> list[Question]:
     ----------
     home: the home (from :func:`~spco.knowledge.adapt`, :func:`~spco.knowledge.teach` or a home file).
     n: how many questions (≥ 1); fewer if fewer samples are untaught.
+    criterion: ``"information"`` (expected information, nats) or ``"errors"`` (expected wrong
+        answers corrected); default :data:`DEFAULT_CRITERION`.
 
     Returns
     -------
@@ -210,7 +220,7 @@ def ask(home: HomeModel, n: int = 5) -> list[Question]:
     """
     if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
         raise ConfigurationError(f"the number of questions must be an integer >= 1, got {n!r}")
-    scores = home_question_scores(home)
+    scores = home_question_scores(home, criterion)
     rows, gains = rank_questions(scores)
     columns = name_columns(home)
     words = home.vocabulary.words

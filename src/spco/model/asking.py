@@ -71,11 +71,13 @@ from scipy.spatial import cKDTree
 from spco.errors import ConfigurationError
 
 __all__ = [
+    "CRITERIA",
     "MIN_ROOM_SAMPLES",
     "OWN_NAME_PRIOR_ALONE",
     "OWN_NAME_PRIOR_SHARED",
     "OWN_NAME_PRIOR_WEIGHT",
     "ROOM_LINK_METRES",
+    "ROOM_NAME_WEIGHT",
     "QuestionScores",
     "group_rooms",
     "name_entropy",
@@ -95,6 +97,9 @@ OWN_NAME_PRIOR_ALONE = 0.1
 OWN_NAME_PRIOR_SHARED = 0.5
 #: Weight of the prior mean, in rooms: the first answer about a kind moves ρ by up to 1/3.
 OWN_NAME_PRIOR_WEIGHT = 2.0
+#: In a taught room, the weight of the room's taught names against the model's names as a witness
+#: of an untaught sample's name: two equal witnesses.
+ROOM_NAME_WEIGHT = 0.5
 
 
 def _entropy_rows(p: np.ndarray) -> np.ndarray:
@@ -174,22 +179,28 @@ class QuestionScores:
 
     Attributes
     ----------
-    gain: (n,) expected information of asking at each sample, nats (0 at taught samples).
-    entropy: (n,) H_i, the information of learning sample i's own name.
-    probabilities: (n, V') p_i(w) over the usable names (with ρ mixed in).
+    criterion: ``"information"`` or ``"errors"``: what :attr:`gain` measures.
+    gain: (n,) the value of asking at each sample (0 at taught samples): its room's ``information``
+        or ``errors``.
+    entropy: (n,) H_i, the information (nats) of learning sample i's own name.
+    errors: (n,) the probability that the robot's answer at sample i (``what``'s best name) is wrong.
+    probabilities: (n, V') p_i(w) over the usable names (ρ and the room's taught names mixed in).
     model_probabilities: (n, V') the model's p(w | x_i, v_i) from the named concepts, renormalised
-        over the usable names (0 for a sample whose concepts are all unnamed).
+        over the usable names (0 for a sample whose concepts are all unnamed): what ``what`` answers.
     unknown: (n,) p_i(⋆); unnamed: (n,) the concept posterior's mass on unnamed concepts.
     own_name: (n,) ρ_i; rooms: (n,) room of each sample; kinds: (n,) the kind each sample looks
         like; room_kinds: (R,) each room's kind; rooms_of_kind: (L,) rooms of each kind in the home
         (rooms of at least :data:`MIN_ROOM_SAMPLES` samples); own_answers, transferred_answers: (L,)
         taught rooms of each kind answered with a name of their own / a transferred name.
-    room_gain: (R,) each room's gain; taught: (n,) bool, samples with a name taught;
+    room_gain: (R,) each room's gain; room_names: (R, V') the names taught in each room (rows sum to
+        1 for taught rooms, 0 otherwise); taught: (n,) bool, samples with a name taught;
     centrality: (n,) distance of each sample to its room's mean position, metres.
     """
 
+    criterion: str
     gain: np.ndarray
     entropy: np.ndarray
+    errors: np.ndarray
     probabilities: np.ndarray
     model_probabilities: np.ndarray
     unknown: np.ndarray
@@ -202,6 +213,7 @@ class QuestionScores:
     own_answers: np.ndarray
     transferred_answers: np.ndarray
     room_gain: np.ndarray
+    room_names: np.ndarray
     taught: np.ndarray
     centrality: np.ndarray
 
@@ -209,6 +221,16 @@ class QuestionScores:
     def n_samples(self) -> int:
         """n."""
         return int(self.gain.size)
+
+    @property
+    def residual(self) -> np.ndarray:
+        """(n,) the value of a further question at a sample whose room was just asked: its own
+        ``entropy`` (information) or ``errors``."""
+        return self.entropy if self.criterion == "information" else self.errors
+
+
+#: The criteria :func:`question_scores` computes.
+CRITERIA = ("information", "errors")
 
 
 def question_scores(
@@ -218,14 +240,16 @@ def question_scores(
     kinds: np.ndarray,
     regions: np.ndarray,
     xy: np.ndarray,
-    taught: np.ndarray,
+    taught_names: np.ndarray,
     taught_own: np.ndarray,
+    criterion: str = "information",
     link: float = ROOM_LINK_METRES,
     prior_alone: float = OWN_NAME_PRIOR_ALONE,
     prior_shared: float = OWN_NAME_PRIOR_SHARED,
     prior_weight: float = OWN_NAME_PRIOR_WEIGHT,
+    room_weight: float = ROOM_NAME_WEIGHT,
 ) -> QuestionScores:
-    """The expected information of an answer at each of a home's samples (module docstring).
+    """The value of an answer at each of a home's samples (module docstring).
 
     Parameters
     ----------
@@ -236,41 +260,51 @@ def question_scores(
         taught sample of the home sits in them).
     kinds: (n,) int in 0..L-1, the kind of place (a concept the knowledge uses) each sample looks like.
     regions: (n,) int, each sample's region in the sampler's state; xy: (n, 2) positions, metres.
-    taught: (n,) bool, samples whose sentence holds a usable name; taught_own: (n,) bool, those
-        whose sentence holds no name the knowledge gives (a name of the home's own).
-    link, prior_alone, prior_shared, prior_weight: :data:`ROOM_LINK_METRES`,
-        :data:`OWN_NAME_PRIOR_ALONE`, :data:`OWN_NAME_PRIOR_SHARED`, :data:`OWN_NAME_PRIOR_WEIGHT`.
+    taught_names: (n, V') the usable names each sample was taught (a row of a taught sample sums to
+        1 over its names; 0 for untaught samples and for sentences that hold no usable name).
+    taught_own: (n,) bool, taught samples whose sentence holds no name the knowledge gives (a name of
+        the home's own).
+    criterion: ``"information"`` (expected information, nats) or ``"errors"`` (expected wrong
+        answers corrected), see :data:`CRITERIA`.
+    link, prior_alone, prior_shared, prior_weight, room_weight: :data:`ROOM_LINK_METRES`,
+        :data:`OWN_NAME_PRIOR_ALONE`, :data:`OWN_NAME_PRIOR_SHARED`, :data:`OWN_NAME_PRIOR_WEIGHT`,
+        :data:`ROOM_NAME_WEIGHT`.
 
     Returns
     -------
     :class:`QuestionScores`. Raises :class:`~spco.errors.ConfigurationError` on inconsistent shapes
     or values.
     """
+    if criterion not in CRITERIA:
+        raise ConfigurationError(f"criterion must be one of {', '.join(CRITERIA)}, got {criterion!r}")
     q = np.asarray(concepts, dtype=np.float64)
     names = np.asarray(name_matrix, dtype=np.float64)
     if q.ndim != 2 or names.ndim != 2 or names.shape[0] != q.shape[1]:
         raise ConfigurationError(f"concepts (n, L) and name_matrix (L, V') do not fit: {q.shape}, "
                                  f"{names.shape}")
     n, n_concepts = q.shape
+    n_names = names.shape[1]
     unnamed = np.asarray(unnamed, dtype=bool)
     kinds = np.asarray(kinds, dtype=np.int64)
-    taught = np.asarray(taught, dtype=bool)
-    taught_own = np.asarray(taught_own, dtype=bool) & taught
+    said = np.asarray(taught_names, dtype=np.float64)
+    taught_own = np.asarray(taught_own, dtype=bool)
     for label, array, shape in (("unnamed", unnamed, (n_concepts,)), ("kinds", kinds, (n,)),
-                                ("taught", taught, (n,)), ("taught_own", taught_own, (n,)),
+                                ("taught_names", said, (n, n_names)), ("taught_own", taught_own, (n,)),
                                 ("regions", np.asarray(regions), (n,)), ("xy", np.asarray(xy), (n, 2))):
         if array.shape != shape:
             raise ConfigurationError(f"{label} has shape {array.shape}, expected {shape}")
     if n and (kinds.min() < 0 or kinds.max() >= n_concepts):
         raise ConfigurationError(f"kinds must be concepts 0..{n_concepts - 1}")
-    if not (np.isfinite(q).all() and (q >= 0).all() and np.isfinite(names).all() and (names >= 0).all()):
-        raise ConfigurationError("concept and name probabilities must be finite and >= 0")
-    for label, value in (("prior_alone", prior_alone), ("prior_shared", prior_shared)):
+    if not all(np.isfinite(a).all() and (a >= 0).all() for a in (q, names, said)):
+        raise ConfigurationError("concept, name and taught-name weights must be finite and >= 0")
+    for label, value in (("prior_alone", prior_alone), ("prior_shared", prior_shared),
+                         ("room_weight", room_weight)):
         if not 0.0 <= value <= 1.0:
             raise ConfigurationError(f"{label} must be within 0..1, got {value!r}")
     if not prior_weight > 0:
         raise ConfigurationError(f"prior_weight must be > 0, got {prior_weight!r}")
-    n_names = names.shape[1]
+    taught = said.sum(axis=1) > 0
+    taught_own = taught_own & taught
     named = ~unnamed & (names.sum(axis=1) > 0)
     model = q[:, named] @ names[named]  # (n, V'): the named share of p(w | x, v)
     nameless = q[:, ~named].sum(axis=1)
@@ -281,7 +315,12 @@ def question_scores(
     size = np.bincount(rooms, minlength=n_rooms)
     room_kinds = np.array([np.bincount(kinds[rooms == r], minlength=n_concepts).argmax()
                            for r in range(n_rooms)], dtype=np.int64)  # a loop over rooms
-    room_taught = np.bincount(rooms, weights=taught, minlength=n_rooms) > 0
+    indicator = np.zeros((n_rooms, n))
+    indicator[rooms, np.arange(n)] = 1.0
+    room_said = indicator @ said  # (R, V')
+    room_taught = room_said.sum(axis=1) > 0
+    room_names = np.divide(room_said, room_said.sum(axis=1, keepdims=True), out=np.zeros_like(room_said),
+                           where=room_taught[:, None])
     room_own = np.bincount(rooms, weights=taught_own, minlength=n_rooms) > 0
     rooms_of_kind = np.bincount(room_kinds[size >= MIN_ROOM_SAMPLES], minlength=n_concepts)
     own_answers = np.bincount(room_kinds[room_own], minlength=n_concepts).astype(np.float64)
@@ -294,21 +333,31 @@ def question_scores(
 
     probabilities = (1.0 - rho)[:, None] * model
     unknown = rho + (1.0 - rho) * nameless
+    # in a taught room, the room's taught names are a second witness of each sample's name
+    witness = (room_taught[rooms] & ~taught) if n else np.zeros(0, dtype=bool)
+    weight = np.where(witness, room_weight, 0.0)
+    probabilities = (1.0 - weight)[:, None] * probabilities + weight[:, None] * room_names[rooms]
+    unknown = (1.0 - weight) * unknown
     entropy = name_entropy(probabilities, unknown, n_names)
-    open_entropy = np.where(taught, 0.0, entropy)
-    room_gain = np.bincount(rooms, weights=open_entropy, minlength=n_rooms)
+    answered = np.argmax(model, axis=1) if n_names else np.zeros(n, dtype=np.int64)
+    right = (np.take_along_axis(probabilities, answered[:, None], axis=1)[:, 0] if n_names
+             else np.zeros(n))
+    right = np.where(model.sum(axis=1) > 0, right, 0.0)  # no name answered: wrong whatever it is
+    errors = np.clip(1.0 - right, 0.0, 1.0)
+    value = entropy if criterion == "information" else errors
+    room_gain = np.bincount(rooms, weights=np.where(taught, 0.0, value), minlength=n_rooms)
     gain = np.where(taught, 0.0, room_gain[rooms] if n else np.zeros(0))
     centre = np.stack([np.bincount(rooms, weights=xy[:, d], minlength=n_rooms) / np.maximum(size, 1)
                        for d in range(2)], axis=1) if n else np.zeros((0, 2))
     centrality = np.linalg.norm(xy - centre[rooms], axis=1) if n else np.zeros(0)
     total = model.sum(axis=1, keepdims=True)
     model_probabilities = np.divide(model, total, out=np.zeros_like(model), where=total > 0)
-    return QuestionScores(gain=gain, entropy=entropy, probabilities=probabilities,
-                          model_probabilities=model_probabilities,
+    return QuestionScores(criterion=criterion, gain=gain, entropy=entropy, errors=errors,
+                          probabilities=probabilities, model_probabilities=model_probabilities,
                           unknown=unknown, unnamed=nameless, own_name=rho, rooms=rooms, kinds=kinds,
                           room_kinds=room_kinds, rooms_of_kind=rooms_of_kind, own_answers=own_answers,
-                          transferred_answers=transferred_answers, room_gain=room_gain, taught=taught,
-                          centrality=centrality)
+                          transferred_answers=transferred_answers, room_gain=room_gain,
+                          room_names=room_names, taught=taught, centrality=centrality)
 
 
 def rank_questions(scores: QuestionScores, candidates: np.ndarray | None = None
@@ -338,12 +387,13 @@ def rank_questions(scores: QuestionScores, candidates: np.ndarray | None = None
             raise ConfigurationError(f"candidates must be sample rows 0..{scores.n_samples - 1}")
     if rows.size == 0:
         return rows, np.zeros(0)
-    # within a room: most uncertain first (to 0.01 nats), then nearest its middle, then sample order
-    within = np.lexsort((rows, scores.centrality[rows], -np.round(scores.entropy[rows], 2),
+    # within a room: most uncertain first (to 0.01), then of the room's kind, then nearest its middle
+    typical = scores.kinds[rows] != scores.room_kinds[scores.rooms[rows]]
+    within = np.lexsort((rows, scores.centrality[rows], typical, -np.round(scores.residual[rows], 2),
                          scores.rooms[rows]))
     ordered = rows[within]
     first = np.ones(ordered.size, dtype=bool)
     first[1:] = scores.rooms[ordered[1:]] != scores.rooms[ordered[:-1]]
-    gains = np.where(first, scores.room_gain[scores.rooms[ordered]], scores.entropy[ordered])
+    gains = np.where(first, scores.room_gain[scores.rooms[ordered]], scores.residual[ordered])
     order = np.lexsort((~first, -gains), axis=-1)
     return ordered[order], gains[order]
