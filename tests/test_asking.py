@@ -25,7 +25,7 @@ from spco.cli.ask import ask as ask_command
 from spco.data.environment import Corpus
 from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.errors import ConfigurationError
-from spco.model.asking import group_rooms, name_entropy, question_scores, rank_questions
+from spco.model.asking import group_rooms, name_entropy, question_scores, rank_questions, room_novelty
 from spco.service.answers import ask_answer
 
 CONFIG = SyntheticConfig(n_features=128)
@@ -92,6 +92,24 @@ def test_a_place_nobody_named_ranks_first(criterion: str) -> None:
     assert scores.rooms[rows[0]] == 0 and gains[0] == pytest.approx(scores.gain[0])
     assert scores.unknown[:10] == pytest.approx(1.0)
     assert gains[0] > gains[1]
+
+
+def test_a_room_whose_views_are_unlike_the_experienced_homes_is_asked_first() -> None:
+    assert room_novelty(np.array([1.2, 0.6, 0.45, 0.2, np.nan]), (0.6, 0.3)) == pytest.approx(
+        [0.0, 0.0, 0.5, 1.0, 0.0])
+    assert room_novelty(np.array([0.1]), None) == pytest.approx([0.0])
+    with pytest.raises(ConfigurationError, match="fit_range"):
+        room_novelty(np.array([0.1]), (0.3, 0.6))
+    beliefs = _home_beliefs()
+    fits = np.full(30, 1.1)
+    fits[:10] = 0.1  # the kitchen's views: worse than any experienced home's
+    scores = question_scores(**beliefs, view_fits=fits, fit_range=(0.6, 0.3))
+    assert scores.novelty[:10] == pytest.approx(1.0) and scores.novelty[10:] == pytest.approx(0.0)
+    assert scores.own_name[:10] == pytest.approx(1.0)
+    rows, gains = rank_questions(scores)
+    assert scores.rooms[rows[0]] == 0 and gains[0] > gains[1]
+    plain = question_scores(**beliefs, view_fits=np.full(30, 1.1), fit_range=(0.6, 0.3))
+    assert plain.rooms[rank_questions(plain)[0][0]] != 0
 
 
 def test_rooms_of_a_shared_kind_may_have_names_of_their_own_and_answers_teach_it() -> None:

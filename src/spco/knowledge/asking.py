@@ -135,8 +135,33 @@ def home_question_scores(home: HomeModel, criterion: str = DEFAULT_CRITERION) ->
             views = sp.csr_array(home.visual, dtype=np.float64)[np.flatnonzero(away)]
             fit = np.asarray(views @ log_theta_v.T)
             kinds[away] = np.flatnonzero(used)[np.argmax(fit, axis=1)]
+    fits, fit_range = _view_fits(home)
     return question_scores(concepts, names, unnamed, kinds, state.regions, home.positions[:, :2],
-                           taught_names, taught_own, criterion=criterion)
+                           taught_names, taught_own, criterion=criterion, view_fits=fits, fit_range=fit_range)
+
+
+def _view_fits(home: HomeModel) -> tuple[np.ndarray, tuple[float, float] | None]:
+    """Each sample's view fit under the knowledge's visual mixture (nats per count better than a
+    uniform guess, :func:`spco.model.view_fit.view_fit` for one view; NaN for a sample without a
+    view), and ``(normal, foreign)`` from the knowledge's record of its experienced homes: the lowest
+    of their fits, and the level below which it is taken not to fit a home (``warn_below``); ``None``
+    for a knowledge without that record."""
+    from scipy.special import logsumexp
+
+    knowledge = home.knowledge
+    counts = sp.csr_array(home.visual, dtype=np.float64)
+    totals = np.asarray(counts.sum(axis=1)).ravel()
+    log_phi = np.maximum(np.asarray(knowledge.log_phi_visual, dtype=np.float64), np.log(np.finfo(float).tiny))
+    mixture = logsumexp(np.asarray(counts @ log_phi.T) + np.asarray(knowledge.log_g0)[None, :], axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        fits = np.where(totals > 0, mixture / totals + np.log(log_phi.shape[1]), np.nan)
+    record = knowledge.provenance.get("view_fit")
+    homes = [float(v) for v in ((record or {}).get("homes") or {}).values() if v is not None] \
+        if isinstance(record, dict) else []
+    warn = record.get("warn_below") if isinstance(record, dict) else None
+    if not homes or warn is None or not min(homes) > float(warn):
+        return fits, None
+    return fits, (min(homes), float(warn))
 
 
 def _kind_name(home: HomeModel, columns: np.ndarray, kind: int) -> str:
@@ -164,6 +189,10 @@ def _reason(home: HomeModel, scores: QuestionScores, columns: np.ndarray, row: i
     kind_name = _kind_name(home, columns, kind)
     rho = float(scores.own_name[row])
     here = top(scores.model_probabilities[row])
+    if float(scores.novelty[row]) >= 0.5:
+        return (f"no experienced home has a place that looks like this: the knowledge explains this room's "
+                f"views by {float(scores.room_fit[room]):.2f} nats per count better than a uniform guess, "
+                f"less than in any experienced home (a name of its own: p {rho:.2f})")
     if float(scores.unnamed[row]) >= 0.5:
         room_taught = (scores.taught & (scores.rooms == room)).any()
         if float(scores.unnamed[in_room].mean()) >= 0.5 and not room_taught:

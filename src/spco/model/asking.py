@@ -83,6 +83,7 @@ __all__ = [
     "name_entropy",
     "question_scores",
     "rank_questions",
+    "room_novelty",
 ]
 
 #: Two regions of the same kind whose samples come this close (metres) are one room. The robot's
@@ -195,6 +196,8 @@ class QuestionScores:
     room_gain: (R,) each room's gain; room_names: (R, V') the names taught in each room (rows sum to
         1 for taught rooms, 0 otherwise); taught: (n,) bool, samples with a name taught;
     centrality: (n,) distance of each sample to its room's mean position, metres.
+    novelty: (n,) how far the views of each sample's room are from anything the experienced homes
+        showed, 0 … 1 (:func:`room_novelty`); room_fit: (R,) the rooms' view fits (NaN: unknown).
     """
 
     criterion: str
@@ -216,6 +219,8 @@ class QuestionScores:
     room_names: np.ndarray
     taught: np.ndarray
     centrality: np.ndarray
+    novelty: np.ndarray
+    room_fit: np.ndarray
 
     @property
     def n_samples(self) -> int:
@@ -227,6 +232,31 @@ class QuestionScores:
         """(n,) the value of a further question at a sample whose room was just asked: its own
         ``entropy`` (information) or ``errors``."""
         return self.entropy if self.criterion == "information" else self.errors
+
+
+def room_novelty(room_fit: np.ndarray, fit_range: tuple[float, float] | None) -> np.ndarray:
+    """How far each room's views are from anything the experienced homes showed, 0 … 1.
+
+    ``room_fit``: (R,) the median view fit of each room's samples (nats per count by which the
+    knowledge's visual mixture explains a view better than a uniform guess,
+    :func:`spco.model.view_fit.view_fit`); ``fit_range = (normal, foreign)``: ``normal`` the lowest
+    fit of the experienced homes (every experienced home's views are explained at least this well),
+    ``foreign`` the level below which the knowledge is taken not to fit a home at all (half of it,
+    :data:`spco.knowledge.VIEW_FIT_WARN_FRACTION`). Novelty is 0 at or above ``normal``, 1 at or
+    below ``foreign``, linear between; 0 where the fit is unknown (NaN) or ``fit_range`` is ``None``.
+    A room this novel may have a name no experienced home used: it is the room's own-name
+    probability ρ at least (:func:`question_scores`).
+    """
+    fit = np.asarray(room_fit, dtype=np.float64)
+    if fit_range is None or not fit.size:
+        return np.zeros(fit.shape)
+    normal, foreign = (float(v) for v in fit_range)
+    if not (np.isfinite(normal) and np.isfinite(foreign)) or normal <= foreign:
+        raise ConfigurationError(f"fit_range must be (normal, foreign) with normal > foreign, "
+                                 f"got {fit_range!r}")
+    with np.errstate(invalid="ignore"):
+        novelty = np.clip((normal - fit) / (normal - foreign), 0.0, 1.0)
+    return np.where(np.isfinite(fit), novelty, 0.0)
 
 
 #: The criteria :func:`question_scores` computes.
@@ -248,6 +278,8 @@ def question_scores(
     prior_shared: float = OWN_NAME_PRIOR_SHARED,
     prior_weight: float = OWN_NAME_PRIOR_WEIGHT,
     room_weight: float = ROOM_NAME_WEIGHT,
+    view_fits: np.ndarray | None = None,
+    fit_range: tuple[float, float] | None = None,
 ) -> QuestionScores:
     """The value of an answer at each of a home's samples (module docstring).
 
@@ -269,6 +301,9 @@ def question_scores(
     link, prior_alone, prior_shared, prior_weight, room_weight: :data:`ROOM_LINK_METRES`,
         :data:`OWN_NAME_PRIOR_ALONE`, :data:`OWN_NAME_PRIOR_SHARED`, :data:`OWN_NAME_PRIOR_WEIGHT`,
         :data:`ROOM_NAME_WEIGHT`.
+    view_fits: (n,) each sample's view fit (nats per count by which the knowledge's views explain
+        it better than a uniform guess; NaN: no view), or ``None``; fit_range: ``(normal, foreign)``
+        for :func:`room_novelty` (``None``: no novelty).
 
     Returns
     -------
@@ -328,7 +363,18 @@ def question_scores(
                                       minlength=n_concepts).astype(np.float64)
     prior = np.where(rooms_of_kind >= 2, prior_shared, prior_alone)
     rho_kind = (prior_weight * prior + own_answers) / (prior_weight + own_answers + transferred_answers)
-    rho_room = np.where(room_taught, 0.0, rho_kind[room_kinds])
+    room_fit = np.full(n_rooms, np.nan)
+    if view_fits is not None:
+        fits = np.asarray(view_fits, dtype=np.float64)
+        if fits.shape != (n,):
+            raise ConfigurationError(f"view_fits has shape {fits.shape}, expected {(n,)}")
+        for r in range(n_rooms):  # a loop over rooms
+            seen = fits[rooms == r]
+            seen = seen[np.isfinite(seen)]
+            if seen.size:
+                room_fit[r] = float(np.median(seen))
+    novelty_room = room_novelty(room_fit, fit_range)
+    rho_room = np.where(room_taught, 0.0, np.maximum(rho_kind[room_kinds], novelty_room))
     rho = rho_room[rooms] if n else np.zeros(0)
 
     probabilities = (1.0 - rho)[:, None] * model
@@ -357,7 +403,8 @@ def question_scores(
                           unknown=unknown, unnamed=nameless, own_name=rho, rooms=rooms, kinds=kinds,
                           room_kinds=room_kinds, rooms_of_kind=rooms_of_kind, own_answers=own_answers,
                           transferred_answers=transferred_answers, room_gain=room_gain,
-                          room_names=room_names, taught=taught, centrality=centrality)
+                          room_names=room_names, taught=taught, centrality=centrality,
+                          novelty=novelty_room[rooms] if n else np.zeros(0), room_fit=room_fit)
 
 
 def rank_questions(scores: QuestionScores, candidates: np.ndarray | None = None
