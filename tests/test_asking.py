@@ -283,6 +283,22 @@ def test_bad_input_gets_clear_errors(world: dict, tmp_path: Path) -> None:
         assert result.exit_code == 2 and message in result.output, result.output
 
 
+def test_ask_only_when_unsure(world: dict) -> None:
+    home = world["home"]
+    every = kn.ask(home, n=1000)
+    unsure = kn.ask(home, n=1000, unsure_only=True)
+    assert [q.id for q in unsure] == [q.id for q in every if q.worth_asking]
+    assert all(q.confidence < kn.ASK_UNSURE_BELOW for q in unsure)
+    assert all(q.worth_asking == (q.confidence < kn.ASK_UNSURE_BELOW) for q in every)
+    assert kn.ask(home, n=5, unsure_only=True, unsure_below=0.0) == []
+    assert ask_answer(home, 5, unsure_only=True)["questions"] == [q.to_dict() for q in unsure[:5]]
+    for bad in (-0.1, 1.5, "high"):
+        with pytest.raises(ConfigurationError, match="unsure_below"):
+            kn.ask(home, unsure_below=bad)  # type: ignore[arg-type]
+    result = CliRunner().invoke(ask_command, [str(world["path"]), "--unsure-only", "--json"])
+    assert result.exit_code == 0 and all(q["worth_asking"] for q in json.loads(result.output)["questions"])
+
+
 def test_a_fully_taught_home_has_nothing_to_ask(world: dict) -> None:
     home = world["home"]
     sentences = {int(i): "this is the kitchen" for i in home.ids}
@@ -307,6 +323,8 @@ def test_http_ask_answers_as_the_library(world: dict, tmp_path: Path) -> None:
         response = client.get("/ask", params={"n": 3})
         assert response.status_code == 200
         assert response.json() == ask_answer(live.home, 3)
+        unsure = client.get("/ask", params={"n": 3, "unsure_only": "true"})
+        assert unsure.json() == ask_answer(live.home, 3, unsure_only=True)
         assert live.ask(3) == response.json()
         for n in (0, 10**9, "many"):
             bad = client.get("/ask", params={"n": n})

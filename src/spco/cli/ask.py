@@ -22,8 +22,11 @@ __all__ = ["ask"]
               help="How many questions.")
 @click.option("--json", "as_json", is_flag=True,
               help='Print a JSON object {"questions": [{"id", "x", "y", "theta", "gain", "reason", …}]}.')
+@click.option("--unsure-only", is_flag=True,
+              help="Only the questions worth asking: where the robot's confidence in the answer it "
+                   "expects is below 0.7 (none listed: nothing is worth asking).")
 @friendly_errors
-def ask(home_file: Path, n: int, as_json: bool) -> None:
+def ask(home_file: Path, n: int, as_json: bool, unsure_only: bool) -> None:
     """Where to ask "what is this place?" in the home of HOME, best first.
 
     Each of the home's recorded samples without a name taught is scored by the expected
@@ -36,13 +39,15 @@ def ask(home_file: Path, n: int, as_json: bool) -> None:
     from spco.service.answers import ask_answer
 
     home = _load_home(home_file)
-    answer = ask_answer(home, n)
+    answer = ask_answer(home, n, unsure_only=unsure_only)
     if as_json:
         click.echo(json.dumps(answer, indent=1))
         return
     questions = answer["questions"]
     if not questions:
-        click.echo(f"Every recorded sample of home {home.name} has a name taught: nothing left to ask.")
+        click.echo(f"Nothing worth asking in home {home.name}: the robot is sure of every answer it "
+                   "expects." if unsure_only else f"Every recorded sample of home {home.name} has a name "
+                   "taught: nothing left to ask.")
         return
     click.echo(f"Where to ask in home {home.name}, best first (gain: {answer['gain']}):")
     for rank, q in enumerate(questions, 1):
@@ -50,6 +55,7 @@ def ask(home_file: Path, n: int, as_json: bool) -> None:
         click.echo(f"{rank:3d}. sample {q['id']} at x={q['x']:.2f} y={q['y']:.2f} θ={q['theta']:.2f}  "
                    f"gain {q['gain']:.1f}")
         click.echo(f"     {q['reason']}")
-        click.echo(f"     the robot would say: {said}")
+        sure = "" if q["worth_asking"] else "; it is sure of the answer: not worth asking"
+        click.echo(f"     the robot would say: {said} (confidence {q['confidence']:.2f}{sure})")
     first = questions[0]
     click.echo(f'Record an answer: spco teach {home_file} --id {first["id"]} --sentence "this is …"')

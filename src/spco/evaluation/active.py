@@ -815,8 +815,12 @@ def figures(out: Path, results: Mapping[str, Any]) -> list[Path]:
         panels = ([("specific_n", "home-specific rooms: A_n"), ("specific_p", "home-specific rooms: A_p")]
                   if has_specific else [])
         panels += [("general_n", "general places: A_n"), ("all_p", "all places: A_p")]
-        fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 3.6), squeeze=False)
-        for ax, (measure, title) in zip(axes[0], panels, strict=True):
+        columns = 2
+        rows_of_panels = math.ceil(len(panels) / columns)
+        fig, axes = plt.subplots(rows_of_panels, columns, figsize=(10, 3.8 * rows_of_panels), squeeze=False)
+        for ax in axes.ravel()[len(panels):]:
+            ax.set_visible(False)
+        for ax, (measure, title) in zip(axes.ravel(), panels, strict=False):
             for strategy in results["config"]["strategies"]:
                 pts = [(r["k"], r[measure]) for r in rows if r["strategy"] == strategy and r.get(measure)]
                 if not pts:
@@ -836,8 +840,9 @@ def figures(out: Path, results: Mapping[str, Any]) -> list[Path]:
                             xytext=(4, -10), fontsize=7)
             if measure.endswith("_n") and measure.startswith("specific"):
                 ax.axhline(_TARGET, color="tab:red", lw=0.8, ls="--")
-            ax.set_title(title, fontsize=9)
-            ax.set_xlabel("questions answered k")
+            ax.set_title(title, fontsize=10)
+            ax.set_xlabel("questions answered k (squares: the paper's random teaching, k = samples taught)",
+                          fontsize=8)
             ax.set_ylim(-0.02, 1.02)
             ax.grid(alpha=0.3)
         axes[0][0].legend(fontsize=8, loc="lower right")

@@ -22,10 +22,16 @@ from spco.model.asking import QuestionScores, question_scores, rank_questions
 from spco.model.home_shard import FREE_CONCEPT_WEIGHT
 from spco.model.prediction import concept_posterior
 
-__all__ = ["DEFAULT_CRITERION", "NAMELESS_MASS", "Question", "ask", "home_question_scores", "name_columns"]
+__all__ = ["ASK_UNSURE_BELOW", "DEFAULT_CRITERION", "NAMELESS_MASS", "Question", "ask",
+           "home_question_scores", "name_columns"]
 
 #: What :func:`ask` ranks by (:data:`spco.model.asking.CRITERIA`).
 DEFAULT_CRITERION = "errors"
+#: A question is worth asking when the robot's confidence in the answer it expects is below this
+#: (``Question.worth_asking``). Chosen on the development home 3LDK_9 (``spco experiment active``:
+#: 0.6–0.8 ask the same 3.1 questions on average there and reach the accuracy of 15; 0.5 stops before
+#: the bedrooms, whose own-name probability is 0.5).
+ASK_UNSURE_BELOW = 0.7
 #: A concept whose usable names hold less than this share of its word distribution names nothing
 #: (its words are all pruned: it is treated as unnamed).
 NAMELESS_MASS = 0.01
@@ -50,6 +56,10 @@ class Question:
         ``what`` would answer), best first (at most three).
     unknown: the probability that the answer is a name the robot has not learnt.
     room: the room (joined regions) the sample belongs to.
+    confidence: the probability of the answer the robot expects there (its most probable name,
+        a name of the room's own and the room's taught names counted).
+    worth_asking: ``confidence`` is below :data:`ASK_UNSURE_BELOW`: the robot is unsure of the answer
+        (a robot that asks only when unsure stops at the first question that is not worth asking).
     """
 
     id: int
@@ -61,13 +71,15 @@ class Question:
     names: tuple[tuple[str, float], ...] = ()
     unknown: float = 0.0
     room: int = 0
+    confidence: float = 0.0
+    worth_asking: bool = True
 
     def to_dict(self) -> dict[str, Any]:
         """The question as JSON: ``{"id", "x", "y", "theta", "gain", "reason", "names": [{"name",
-        "p"}], "unknown"}``."""
+        "p"}], "unknown", "confidence", "worth_asking"}``."""
         return {"id": self.id, "x": self.x, "y": self.y, "theta": self.theta, "gain": self.gain,
                 "reason": self.reason, "names": [{"name": n, "p": p} for n, p in self.names],
-                "unknown": self.unknown}
+                "unknown": self.unknown, "confidence": self.confidence, "worth_asking": self.worth_asking}
 
 
 def name_columns(home: HomeModel) -> np.ndarray:
@@ -224,7 +236,8 @@ def _reason(home: HomeModel, scores: QuestionScores, columns: np.ndarray, row: i
     return f"the model is unsure here: {said(here or room_names)}"
 
 
-def ask(home: HomeModel, n: int = 5, criterion: str = DEFAULT_CRITERION) -> list[Question]:
+def ask(home: HomeModel, n: int = 5, criterion: str = DEFAULT_CRITERION, unsure_only: bool = False,
+        unsure_below: float = ASK_UNSURE_BELOW) -> list[Question]:
     """The ``n`` places of ``home`` where an answer to "what is this place?" teaches the most.
 
     Candidates are the home's recorded samples without a name taught (a sample taught a sentence
@@ -241,6 +254,9 @@ def ask(home: HomeModel, n: int = 5, criterion: str = DEFAULT_CRITERION) -> list
     n: how many questions (≥ 1); fewer if fewer samples are untaught.
     criterion: ``"information"`` (expected information, nats) or ``"errors"`` (expected wrong
         answers corrected); default :data:`DEFAULT_CRITERION`.
+    unsure_only: list only the questions worth asking (``worth_asking``: the robot's confidence in
+        the answer it expects is below ``unsure_below``); an empty list says "nothing worth asking".
+    unsure_below: the threshold of ``worth_asking`` (default :data:`ASK_UNSURE_BELOW`).
 
     Returns
     -------
@@ -249,8 +265,15 @@ def ask(home: HomeModel, n: int = 5, criterion: str = DEFAULT_CRITERION) -> list
     """
     if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
         raise ConfigurationError(f"the number of questions must be an integer >= 1, got {n!r}")
+    if isinstance(unsure_below, bool) or not isinstance(unsure_below, int | float | np.floating) \
+            or not 0.0 <= float(unsure_below) <= 1.0:
+        raise ConfigurationError(f"unsure_below must be a probability within 0..1, got {unsure_below!r}")
     scores = home_question_scores(home, criterion)
     rows, gains = rank_questions(scores)
+    confidence = scores.probabilities.max(axis=1, initial=0.0)
+    if unsure_only:
+        keep = confidence[rows] < float(unsure_below)
+        rows, gains = rows[keep], gains[keep]
     columns = name_columns(home)
     words = home.vocabulary.words
     questions = []
@@ -262,5 +285,6 @@ def ask(home: HomeModel, n: int = 5, criterion: str = DEFAULT_CRITERION) -> list
             id=int(home.ids[row]), x=x, y=y, theta=float(np.arctan2(s, c)), gain=float(gain),
             reason=_reason(home, scores, columns, int(row)),
             names=tuple((str(words[int(columns[j])]), float(p[j])) for j in top if p[j] > 0),
-            unknown=float(scores.unknown[row]), room=int(scores.rooms[row])))
+            unknown=float(scores.unknown[row]), room=int(scores.rooms[row]),
+            confidence=float(confidence[row]), worth_asking=bool(confidence[row] < float(unsure_below))))
     return questions

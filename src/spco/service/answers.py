@@ -94,19 +94,21 @@ GAIN_MEANS = {"errors": "expected number of the room's recorded samples whose an
               "information": "expected information of the answer about the names of the home's places, nats"}
 
 
-def ask_answer(home: kn.HomeModel, n: int = 5, criterion: str | None = None) -> dict[str, Any]:
+def ask_answer(home: kn.HomeModel, n: int = 5, criterion: str | None = None,
+               unsure_only: bool = False) -> dict[str, Any]:
     """Where to ask "what is this place?" (:func:`spco.knowledge.ask`), as JSON.
 
     Returns ``{"home", "gain", "questions"}``: ``gain`` says what the gains are (:data:`GAIN_MEANS`);
-    ``criterion``: that of :func:`spco.knowledge.ask` (``None``: its default); ``questions`` lists
-    ``n`` (fewer if fewer samples are untaught) :meth:`spco.knowledge.Question.to_dict` dicts
-    ``{"id", "x", "y", "theta", "gain", "reason", "names", "unknown"}``, best first. Raises
+    ``criterion``: that of :func:`spco.knowledge.ask` (``None``: its default); ``unsure_only``: only
+    the questions worth asking. ``questions`` lists ``n`` (fewer if fewer samples are untaught, or
+    worth asking) :meth:`spco.knowledge.Question.to_dict` dicts ``{"id", "x", "y", "theta", "gain",
+    "reason", "names", "unknown", "confidence", "worth_asking"}``, best first. Raises
     :class:`ConfigurationError` for a bad ``n``.
     """
     from spco.knowledge.asking import DEFAULT_CRITERION
 
     criterion = criterion or DEFAULT_CRITERION
-    questions = kn.ask(home, n=n, criterion=criterion)
+    questions = kn.ask(home, n=n, criterion=criterion, unsure_only=unsure_only)
     return {"home": home.name, "gain": GAIN_MEANS[criterion], "questions": [q.to_dict() for q in questions]}
 
 

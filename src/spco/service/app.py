@@ -166,6 +166,8 @@ class Question(BaseModel):
     reason: str
     names: list[dict[str, Any]]
     unknown: float
+    confidence: float
+    worth_asking: bool
 
 
 class AskAnswer(BaseModel):
@@ -378,8 +380,9 @@ def create_app(live: LiveHome, *, token: str | None = None, map_image: str | Pat
 
     @app.get("/ask", summary="Where to ask \"what is this place?\" next (spco ask --json)",
              responses={200: {"model": AskAnswer}, **_ERRORS})
-    async def ask(n: Annotated[int, Query(ge=1, le=MAX_QUESTIONS)] = 5) -> Response:
-        return _json(live.ask(n))
+    async def ask(n: Annotated[int, Query(ge=1, le=MAX_QUESTIONS)] = 5,
+                  unsure_only: bool = False) -> Response:
+        return _json(live.ask(n, unsure_only=unsure_only))
 
     def _counts(view: View) -> Any:
         image = _decode_base64(view.image)

@@ -280,12 +280,13 @@ class LiveHome:
                            "vision": answer["vision"], "names": answer["names"]})
         return answer
 
-    def ask(self, n: int = 5) -> dict[str, Any]:
+    def ask(self, n: int = 5, *, unsure_only: bool = False) -> dict[str, Any]:
         """Where to ask "what is this place?" next: the payload of ``spco ask HOME --n N --json``.
 
         Parameters
         ----------
         n: how many questions, 1…:data:`MAX_QUESTIONS`.
+        unsure_only: only the questions worth asking (the robot unsure of the answer).
 
         Returns
         -------
@@ -296,7 +297,7 @@ class LiveHome:
         if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= MAX_QUESTIONS:
             raise ConfigurationError(f"n: expected a number of questions from 1 to {MAX_QUESTIONS}, "
                                      f"got {n!r}")
-        return ask_answer(self._snapshot, n)
+        return ask_answer(self._snapshot, n, unsure_only=bool(unsure_only))
 
     def regions(self) -> dict[str, Any]:
         """The learnt regions, concepts and samples of the current snapshot, for drawing them.
