@@ -101,7 +101,8 @@ def test_fit_force_and_home_selection(tmp_path: Path, homes: dict[str, Path]) ->
     assert k.provenance["homes"] == names and not k.prune_words and k.word_mask.all()
 
 
-def test_fit_sets_hyperparameters_and_keeps_them_in_the_knowledge(tmp_path: Path, homes: dict[str, Path]) -> None:
+def test_fit_sets_hyperparameters_and_keeps_them_in_the_knowledge(tmp_path: Path,
+                                                                  homes: dict[str, Path]) -> None:
     out = tmp_path / "k.spco"
     result = _invoke(fit, ["--data", homes["experienced"], "--iterations", 2, "--out", out,
                            "--set", "n_concepts=7", "--set", "kappa0=0.001", "--set", "view_counts=none"])

@@ -186,7 +186,8 @@ def _seconds(value: float) -> str:
                    "learn their codebook here, from the homes' training images; onnx needs --onnx-model).")
 @click.option("--set", "settings", multiple=True, metavar="NAME=VALUE",
               help="A hyperparameter of the model instead of the paper's value (repeatable): n_concepts, "
-                   "n_regions, kappa0, nu0, alpha_visual, alpha_word, delta_visual, delta_word, gamma, gamma0, "
+                   "n_regions, kappa0, nu0, alpha_visual, alpha_word, delta_visual, delta_word, gamma, "
+                   "gamma0, "
                    "beta, mi_threshold, view_counts (none: every count a draw). E.g. a large floor: "
                    "--set n_concepts=30 --set n_regions=30 --set kappa0=0.001. Kept in the knowledge file.")
 @click.option("--text-language", default="auto", show_default=True,
