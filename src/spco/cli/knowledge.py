@@ -184,6 +184,12 @@ def _seconds(value: float) -> str:
 @click.option("--extractor", default=None,
               help="Image extractor when the views are images (default: colour-hog; bovw-orb, bovw-sift "
                    "learn their codebook here, from the homes' training images; onnx needs --onnx-model).")
+@click.option("--set", "settings", multiple=True, metavar="NAME=VALUE",
+              help="A hyperparameter of the model instead of the paper's value (repeatable): n_concepts, "
+                   "n_regions, kappa0, nu0, alpha_visual, alpha_word, delta_visual, delta_word, gamma, "
+                   "gamma0, "
+                   "beta, mi_threshold, view_counts (none: every count a draw). E.g. a large floor: "
+                   "--set n_concepts=30 --set n_regions=30 --set kappa0=0.001. Kept in the knowledge file.")
 @click.option("--text-language", default="auto", show_default=True,
               type=click.Choice(["auto", "ja", "zh", "spaced"]),
               help="Japanese or Chinese written without spaces: segment it into words (ja: pip install "
@@ -193,7 +199,7 @@ def _seconds(value: float) -> str:
 def fit(data: Path, homes: str | None, teaching_rate: int, model: str, iterations: int, seed: int,
         out: Path, force: bool, engine: str, shards: int | None, address: str | None, checkpoint_every: int,
         checkpoint_dir: Path | None, images: Path | None, model_file: Path | None,
-        extractor: str | None, text_language: str) -> None:
+        extractor: str | None, settings: tuple[str, ...], text_language: str) -> None:
     """Learn knowledge from experienced homes and write a knowledge file.
 
     The knowledge is the shared, home-independent part of the transfer model — the concepts'
@@ -209,6 +215,15 @@ def fit(data: Path, homes: str | None, teaching_rate: int, model: str, iteration
     from spco.knowledge import fit_knowledge
 
     _check_out(out, force)
+    hyperparameters = None
+    if settings:
+        from spco.errors import ConfigurationError
+        from spco.model.hyperparameters import TransferHyperparameters
+
+        try:
+            hyperparameters = TransferHyperparameters().with_settings(settings)
+        except ConfigurationError as exc:
+            raise click.BadParameter(str(exc), param_hint="--set") from None
     _precompile_if_cold()
     if engine == "ray":
         try:
@@ -249,7 +264,7 @@ def fit(data: Path, homes: str | None, teaching_rate: int, model: str, iteration
     click.echo(f"Learning from {summary} with {model}, {iterations} sweeps...", err=True)
     start = time.perf_counter()
     knowledge = fit_knowledge(training, model=model, n_iterations=iterations, random_state=seed,
-                              progress=_progress(), engine=runner,
+                              hyperparameters=hyperparameters, progress=_progress(), engine=runner,
                               provenance={"data": str(Path(data).expanduser().resolve()),
                                           "teaching_rate": teaching_rate},
                               extractor=image_extractor)
