@@ -30,6 +30,9 @@ Run (development set)::
 ``--unheard FILE.json`` also measures ``where`` with names nobody said (A_p of the place found via
 the lexicon, :func:`spco.model.unheard.resolve_name`).
 
+``--view-counts N|none`` (a diagnostic) fits and predicts with that view weight instead of the
+model's default (``TransferHyperparameters.view_counts``).
+
 ``--name-prior`` chooses how names are predicted: ``off`` (the default, as ``spco experiment``),
 ``wordnet`` (the opt-in ordering of each concept's words by the name prior,
 ``TransferHyperparameters.name_prior``) or ``both``: each fit scored both ways (only A_n can differ:
@@ -130,7 +133,21 @@ def main() -> None:
     parser.add_argument("--json", type=Path, default=None, help="write every figure to this file")
     parser.add_argument("--name-prior", choices=("off", "wordnet", "both"), default="off",
                         help="name prediction: off (default), the opt-in wordnet ordering, or both")
+    parser.add_argument("--view-counts", default=None,
+                        help="a diagnostic: the exact model's view weight (TransferHyperparameters."
+                             "view_counts) in the fit and in prediction, a number or 'none' (every count "
+                             "a draw); default: the model's default")
     args = parser.parse_args()
+    hyper = None
+    if args.view_counts is not None:
+        from spco.errors import ConfigurationError
+        from spco.model.hyperparameters import TransferHyperparameters
+
+        text = args.view_counts.strip().lower()
+        try:
+            hyper = TransferHyperparameters(view_counts=None if text == "none" else float(text))
+        except (ValueError, ConfigurationError):
+            parser.error(f"--view-counts: a positive number or 'none', got {args.view_counts!r}")
     settings = ["off", "wordnet"] if args.name_prior == "both" else [args.name_prior]
     regions_file = args.regions or args.sigverse.parent / "sigverse_regions.json"
     speech = read_speech(args.speech)
@@ -151,7 +168,7 @@ def main() -> None:
         for h, home in enumerate(args.homes):
             env = new_home(args.sigverse, regions_file, home, accepted)
             corpus = Corpus([*experienced, env])
-            model = SpCoTransfer(variant="exact", prune_words=True, n_iterations=args.sweeps,
+            model = SpCoTransfer(hyper, variant="exact", prune_words=True, n_iterations=args.sweeps,
                                  random_state=trial_seed(seed, h)).fit(corpus)
             e = len(corpus) - 1
             gt = env.ground_truth
