@@ -1,0 +1,137 @@
+"""Run the command blocks of Markdown pages as a reader would, to check that they work as written.
+
+Every fenced block marked ``bash`` (run with ``bash -euo pipefail``) or ``python`` of each page is
+run in order, in one scratch folder per page, so that a block can use the files an earlier block of
+the same page wrote. Blocks are run as written, with three substitutions a reader makes too:
+
+- ``pip install -e .`` / ``-e ".[extra]"`` installs this repository (the scratch folder is not a
+  clone of it);
+- a line ``D=path/to/datasets`` sets ``D`` to ``--datasets`` (a folder holding ``sigverse/`` and
+  ``sigverse_regions.json``); without ``--datasets`` such blocks are skipped;
+- a block running the test suite (``pytest``) is skipped unless ``--with-tests`` (CI runs it).
+
+A block preceded by ``<!-- blocks: not run (reason) -->`` is listed as not run, with its reason.
+Prints each block's status and time, and exits with status 1 at the first block that fails::
+
+    python tools/run_doc_blocks.py README.md docs/tutorial.md --datasets ../shared/datasets
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+_OPEN = re.compile(r"^```(bash|python)\s*$")
+_NOT_RUN = re.compile(r"<!--\s*blocks:\s*not run\s*\((.*)\)\s*-->")
+_DATASETS = re.compile(r"^D=path/to/datasets\b.*$", re.MULTILINE)
+_PIP_EDITABLE = re.compile(r"""pip install (-q )?-e (?:"\.(\[[\w,]+\])"|\.(?=\s|$))""")
+
+
+@dataclass
+class Block:
+    """One fenced block of a page: its language, its text, its first line and why it is not run."""
+
+    language: str
+    text: str
+    line: int
+    not_run: str | None = None
+
+
+def blocks(page: Path) -> list[Block]:
+    """The ``bash`` and ``python`` blocks of ``page``, in order."""
+    found: list[Block] = []
+    lines = page.read_text(encoding="utf-8").splitlines()
+    i, reason = 0, None
+    while i < len(lines):
+        marker = _NOT_RUN.search(lines[i])
+        if marker:
+            reason = marker.group(1)
+        match = _OPEN.match(lines[i])
+        if match:
+            start, body = i + 1, []
+            i += 1
+            while i < len(lines) and not lines[i].startswith("```"):
+                body.append(lines[i])
+                i += 1
+            found.append(Block(match.group(1), "\n".join(body) + "\n", start, reason))
+            reason = None
+        elif lines[i].startswith("```"):  # another language: skip to its end
+            i += 1
+            while i < len(lines) and not lines[i].startswith("```"):
+                i += 1
+        i += 1
+    return found
+
+
+def prepared(block: Block, datasets: Path | None, with_tests: bool) -> tuple[str | None, str]:
+    """The text to run (``None`` when skipped) and what was substituted or why it is skipped."""
+    if block.not_run:
+        return None, f"not run: {block.not_run}"
+    text, notes = block.text, []
+    if re.search(r"\bpytest\b", text) and not with_tests:
+        return None, "skipped: runs the test suite (--with-tests to run it)"
+    if _DATASETS.search(text):
+        if datasets is None:
+            return None, "skipped: needs --datasets"
+        text = _DATASETS.sub(f"D={datasets}", text)
+        notes.append(f"D={datasets}")
+
+    def install(match: re.Match[str]) -> str:
+        extra = match.group(2) or ""
+        return f'pip install -q -e "{ROOT}{extra}"'
+
+    if _PIP_EDITABLE.search(text):
+        text = _PIP_EDITABLE.sub(install, text)
+        notes.append("pip installs this repository")
+    return text, "; ".join(notes)
+
+
+def run_page(page: Path, datasets: Path | None, with_tests: bool, keep: bool) -> bool:
+    """Run the blocks of ``page`` in a new scratch folder; False at the first failure."""
+    work = Path(tempfile.mkdtemp(prefix=f"doc-blocks-{page.stem}-"))
+    print(f"== {page} (in {work})")
+    ok = True
+    for block in blocks(page):
+        text, note = prepared(block, datasets, with_tests)
+        head = f"  line {block.line} ({block.language})"
+        if text is None:
+            print(f"{head}: {note}")
+            continue
+        command = (["bash", "-euo", "pipefail", "-c", text] if block.language == "bash"
+                   else [sys.executable, "-c", text])
+        start = time.perf_counter()
+        result = subprocess.run(command, cwd=work, capture_output=True, text=True)
+        seconds = time.perf_counter() - start
+        status = "ok" if result.returncode == 0 else f"FAILED (exit {result.returncode})"
+        print(f"{head}: {status} in {seconds:.1f} s" + (f" [{note}]" if note else ""))
+        if result.returncode != 0:
+            print(result.stdout[-3000:], result.stderr[-3000:], sep="\n")
+            ok = False
+            break
+    if not keep:
+        shutil.rmtree(work, ignore_errors=True)
+    return ok
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("pages", nargs="+", type=Path, help="Markdown pages")
+    parser.add_argument("--datasets", type=Path, help="folder holding sigverse/ and sigverse_regions.json")
+    parser.add_argument("--with-tests", action="store_true", help="also run blocks that run pytest")
+    parser.add_argument("--keep", action="store_true", help="keep the scratch folders")
+    args = parser.parse_args(argv)
+    datasets = args.datasets.resolve() if args.datasets else None
+    ok = all([run_page(page, datasets, args.with_tests, args.keep) for page in args.pages])
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
