@@ -10,7 +10,9 @@ the same page wrote. Blocks are run as written, with three substitutions a reade
   ``sigverse_regions.json``); without ``--datasets`` such blocks are skipped;
 - a block running the test suite (``pytest``) is skipped unless ``--with-tests`` (CI runs it).
 
-A block preceded by ``<!-- blocks: not run (reason) -->`` is listed as not run, with its reason.
+A block preceded by ``<!-- blocks: not run (reason) -->`` is listed as not run, with its reason; one
+preceded by ``<!-- blocks: run in the repository -->`` runs in this repository's folder, as a
+developer in a clone runs it.
 Prints each block's status and time, and exits with status 1 at the first block that fails::
 
     python tools/run_doc_blocks.py README.md docs/tutorial.md --datasets ../shared/datasets
@@ -31,29 +33,33 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 _OPEN = re.compile(r"^```(bash|python)\s*$")
 _NOT_RUN = re.compile(r"<!--\s*blocks:\s*not run\s*\((.*)\)\s*-->")
+_IN_REPO = re.compile(r"<!--\s*blocks:\s*run in the repository\s*-->")
 _DATASETS = re.compile(r"^D=path/to/datasets\b.*$", re.MULTILINE)
 _PIP_EDITABLE = re.compile(r"""pip install (-q )?-e (?:"\.(\[[\w,]+\])"|\.(?=\s|$))""")
 
 
 @dataclass
 class Block:
-    """One fenced block of a page: its language, its text, its first line and why it is not run."""
+    """One fenced block of a page: its language, its text, its first line, why it is not run, and
+    whether it runs in the repository's folder."""
 
     language: str
     text: str
     line: int
     not_run: str | None = None
+    in_repo: bool = False
 
 
 def blocks(page: Path) -> list[Block]:
     """The ``bash`` and ``python`` blocks of ``page``, in order."""
     found: list[Block] = []
     lines = page.read_text(encoding="utf-8").splitlines()
-    i, reason = 0, None
+    i, reason, in_repo = 0, None, False
     while i < len(lines):
         marker = _NOT_RUN.search(lines[i])
         if marker:
             reason = marker.group(1)
+        in_repo = in_repo or bool(_IN_REPO.search(lines[i]))
         match = _OPEN.match(lines[i])
         if match:
             start, body = i + 1, []
@@ -61,8 +67,8 @@ def blocks(page: Path) -> list[Block]:
             while i < len(lines) and not lines[i].startswith("```"):
                 body.append(lines[i])
                 i += 1
-            found.append(Block(match.group(1), "\n".join(body) + "\n", start, reason))
-            reason = None
+            found.append(Block(match.group(1), "\n".join(body) + "\n", start, reason, in_repo))
+            reason, in_repo = None, False
         elif lines[i].startswith("```"):  # another language: skip to its end
             i += 1
             while i < len(lines) and not lines[i].startswith("```"):
@@ -88,18 +94,23 @@ def prepared(block: Block, datasets: Path | None, with_tests: bool) -> tuple[str
         extra = match.group(2) or ""
         return f'pip install -q -e "{ROOT}{extra}"'
 
-    if _PIP_EDITABLE.search(text):
+    if _PIP_EDITABLE.search(text) and not block.in_repo:
         text = _PIP_EDITABLE.sub(install, text)
         notes.append("pip installs this repository")
     return text, "; ".join(notes)
 
 
-def run_page(page: Path, datasets: Path | None, with_tests: bool, keep: bool) -> bool:
-    """Run the blocks of ``page`` in a new scratch folder; False at the first failure."""
-    work = Path(tempfile.mkdtemp(prefix=f"doc-blocks-{page.stem}-"))
+def run_page(page: Path, datasets: Path | None, with_tests: bool, keep: bool,
+             lines: set[int] | None = None, folder: Path | None = None) -> bool:
+    """Run the blocks of ``page`` (those opening at ``lines``, if given) in ``folder`` or a new
+    scratch folder; False at the first failure."""
+    work = folder or Path(tempfile.mkdtemp(prefix=f"doc-blocks-{page.stem}-"))
+    keep = keep or folder is not None
     print(f"== {page} (in {work})")
     ok = True
     for block in blocks(page):
+        if lines and block.line not in lines:
+            continue
         text, note = prepared(block, datasets, with_tests)
         head = f"  line {block.line} ({block.language})"
         if text is None:
@@ -108,7 +119,8 @@ def run_page(page: Path, datasets: Path | None, with_tests: bool, keep: bool) ->
         command = (["bash", "-euo", "pipefail", "-c", text] if block.language == "bash"
                    else [sys.executable, "-c", text])
         start = time.perf_counter()
-        result = subprocess.run(command, cwd=work, capture_output=True, text=True)
+        cwd = ROOT if block.in_repo else work
+        result = subprocess.run(command, cwd=cwd, capture_output=True, text=True)
         seconds = time.perf_counter() - start
         status = "ok" if result.returncode == 0 else f"FAILED (exit {result.returncode})"
         print(f"{head}: {status} in {seconds:.1f} s" + (f" [{note}]" if note else ""))
@@ -127,9 +139,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--datasets", type=Path, help="folder holding sigverse/ and sigverse_regions.json")
     parser.add_argument("--with-tests", action="store_true", help="also run blocks that run pytest")
     parser.add_argument("--keep", action="store_true", help="keep the scratch folders")
+    parser.add_argument("--lines", type=int, nargs="+",
+                        help="run only the blocks whose code starts at these lines")
+    parser.add_argument("--folder", type=Path, help="run in this folder (kept) instead of a scratch one")
     args = parser.parse_args(argv)
     datasets = args.datasets.resolve() if args.datasets else None
-    ok = all([run_page(page, datasets, args.with_tests, args.keep) for page in args.pages])
+    lines = set(args.lines or ())
+    ok = all([run_page(page, datasets, args.with_tests, args.keep, lines, args.folder)
+              for page in args.pages])
     return 0 if ok else 1
 
 
