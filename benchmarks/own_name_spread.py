@@ -32,7 +32,8 @@ from scipy.special import gammaln
 from spco import knowledge as kn
 from spco.data.environment import Corpus
 from spco.data.synthetic import SyntheticConfig, generate_homes
-from spco.model import gibbs
+from spco.knowledge.home import _copy_state
+from spco.model import gibbs, home_shard
 
 
 def collapsed_score(concepts: np.ndarray, regions: np.ndarray, visual: np.ndarray,
@@ -126,14 +127,14 @@ def main() -> None:
         print(f"  {label:26s} score {collapsed_score(assignment, regions, visual, extended):11.1f}  "
               f"taught concept {_composition(labels, assignment == named)}")
 
-    state = kn._copy_state(taught.state)
+    state = _copy_state(taught.state)
     state.concepts = own.copy()
     hyper = extended.hyperparameters
     settings = gibbs.SamplerSettings.create(extended.variant, extended.prune_words, learn_shared=False)
     rng = np.random.default_rng(args.seed)
-    kn._learn_free_concepts(taught.data, state, hyper, settings, rng)
+    home_shard.learn_free_concepts(taught.data, state, hyper, settings, rng)
     for _ in range(30):
-        kn._sweep(taught.data, state, hyper, settings, rng, None, taught.n_knowledge_words)
+        home_shard.sweep_home(taught.data, state, hyper, settings, rng, None, taught.n_knowledge_words)
     print(f"  from own concepts, 30 sweeps: score "
           f"{collapsed_score(state.concepts, state.regions, visual, extended):.1f}, taught concept "
           f"{_composition(labels, state.concepts == state.concepts[args.sample])}")

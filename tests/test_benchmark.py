@@ -11,7 +11,7 @@ import pytest
 from click.testing import CliRunner
 
 from spco import benchmark
-from spco.commands_bench import bench, format_result
+from spco.cli.bench import bench, format_result
 from spco.model import gibbs
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.random import niw_posterior

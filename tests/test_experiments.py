@@ -11,7 +11,7 @@ from typing import Any
 import pytest
 from click.testing import CliRunner
 
-from spco.commands_experiment import _MODEL_NAMES, experiment
+from spco.cli.experiment import _MODEL_NAMES, experiment
 from spco.errors import ConfigurationError, DataFormatError, SpcoError
 from spco.evaluation.experiments import (
     MODELS,

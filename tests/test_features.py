@@ -17,13 +17,14 @@ from click.testing import CliRunner
 
 from spco import knowledge as kn
 from spco.cli import inspect as inspect_command
-from spco.commands_features import features
-from spco.commands_knowledge import adapt, fit, teach, what
+from spco.cli.features import features
+from spco.cli.knowledge import adapt, fit, teach, what
 from spco.data.loading import load_home
 from spco.data.plain import write_corpus
 from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.errors import ConfigurationError, DataFormatError
 from spco.features import DEFAULT_EXTRACTOR, ExtractorSpec, build_extractor, read_image
+from spco.knowledge.files import _content_checksum
 
 PLACE_COLOURS = {}
 
@@ -309,7 +310,7 @@ def test_version_1_knowledge_files_are_read_as_count_vectors(image_homes: dict[s
     assert header["format_version"] == kn.FORMAT_VERSION == 2 and header["extractor"] is None
     del header["extractor"]
     header["format_version"] = 1
-    header["checksum"] = kn._content_checksum(header)
+    header["checksum"] = _content_checksum(header)
     old = tmp_path / "old.spco"
     with open(old, "wb") as handle:
         np.savez(handle, header=np.frombuffer(json.dumps(header).encode(), dtype=np.uint8), **arrays)

@@ -23,6 +23,7 @@ from spco.data.environment import Environment
 from spco.data.plain import write_corpus
 from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.errors import ConfigurationError, DataFormatError
+from spco.knowledge.home import _copy_state
 from spco.prediction import predict_names
 
 CONFIG = SyntheticConfig(n_features=128)
@@ -243,7 +244,7 @@ def test_a_word_taught_once_says_what_to_do(files: dict[str, Path], tmp_path: Pa
     index = updated.vocabulary.index("zorblax")
     if kn.unused_word_hint(updated, "zorblax") is None:  # kept in this home: prune it as a home might
         assert "note:" not in result.output
-        state = kn._copy_state(updated.state)
+        state = _copy_state(updated.state)
         state.word_mask[index] = False
         posterior = updated.posterior
         if posterior is not None:  # predictions read the posterior average's mask
@@ -293,7 +294,7 @@ def test_demo_knows_whether_its_kernels_are_compiled() -> None:
 
 
 def test_show_draws_the_rooms_of_the_home(files: dict[str, Path], tmp_path: Path) -> None:
-    from spco.commands_knowledge import _room_outlines
+    from spco.cli.knowledge import _room_outlines
 
     home = kn.load_home_model(files["home"])
     rooms = _room_outlines(home, None)  # the regions.json of the folder the home was adapted from

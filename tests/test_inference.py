@@ -13,7 +13,8 @@ from scipy import stats
 from spco.data.language import Vocabulary
 from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.errors import ConfigurationError
-from spco.knowledge import CONCENTRATION_PRIOR_SAMPLES, _concentration, _visual_row
+from spco.knowledge.fit import CONCENTRATION_PRIOR_SAMPLES, _concentration
+from spco.knowledge.views import _visual_row
 from spco.model import gibbs
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.parameters import ConceptParameters

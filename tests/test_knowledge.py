@@ -17,7 +17,7 @@ import pytest
 from click.testing import CliRunner
 
 from spco import knowledge as kn
-from spco.commands_knowledge import adapt, fit, show, teach, what, where
+from spco.cli.knowledge import adapt, fit, show, teach, what, where
 from spco.data.environment import Corpus
 from spco.data.plain import write_corpus
 from spco.data.synthetic import SyntheticConfig, generate_homes

@@ -19,12 +19,12 @@ import pytest
 from click.testing import CliRunner
 
 from spco import knowledge as kn
-from spco.commands_knowledge import adapt, fit
+from spco.cli.knowledge import adapt, fit
 from spco.data.plain import write_corpus
 from spco.data.synthetic import SyntheticConfig, generate_homes
-from spco.locking import LockTimeoutError, lock_path, locked
+from spco.knowledge.locking import LockTimeoutError, lock_path, locked
 
-SRC = str(Path(kn.__file__).resolve().parents[1])
+SRC = str(Path(kn.__file__).resolve().parents[2])
 
 
 def _env(**extra: str) -> dict[str, str]:
@@ -101,7 +101,7 @@ def test_concurrent_teachers_keep_every_teaching(tmp_path: Path, home_file: Path
 
 _HOLDER = textwrap.dedent("""
     import sys, time
-    from spco.locking import locked
+    from spco.knowledge.locking import locked
     with locked(sys.argv[1]):
         print("held", flush=True)
         time.sleep(120)
@@ -143,7 +143,8 @@ def test_lock_is_reentrant_and_times_out(tmp_path: Path) -> None:
     with locked(path) as sidecar, locked(path):  # the same thread does not wait for itself
         assert sidecar == tmp_path / "file.spco.lock"
         # another process cannot take it
-        probe = subprocess.run([sys.executable, "-c", "import sys; from spco.locking import locked\n"
+        probe = subprocess.run([sys.executable, "-c", "import sys\n"
+                                "from spco.knowledge.locking import locked\n"
                                 "with locked(sys.argv[1], timeout=0.2): pass", str(path)],
                                capture_output=True, text=True, env=_env())
         assert probe.returncode != 0 and "LockTimeoutError" in probe.stderr

@@ -88,7 +88,7 @@ def test_fit_and_adapt_on_an_empty_cache_precompile_in_two_processes(monkeypatch
     demo does (stubbed: the notice and the call are checked); with a cache, neither."""
     from click.testing import CliRunner
 
-    from spco.commands_knowledge import adapt, fit
+    from spco.cli.knowledge import adapt, fit
     from spco.data.plain import write_corpus
     from spco.data.synthetic import SyntheticConfig, generate_homes
 

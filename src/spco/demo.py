@@ -19,6 +19,7 @@ import numpy as np
 
 from spco.data.synthetic import generate_homes
 from spco.evaluation.metrics import HomeScores, evaluate_home
+from spco.model.numba_cache import warm_up
 from spco.model.transfer import SpCoA, SpCoTransfer
 
 
@@ -82,17 +83,6 @@ def run_demo(seed: int = 0, out: Path | str = "spco-demo", n_experienced: int = 
     return DemoResult(transfer=transfer, baseline=baseline, fit_seconds=fit_seconds, n_homes=len(corpus),
                       n_samples=sum(e.n_samples for e in corpus), files=[map_path, trace_path, results_path],
                       warm_up_seconds=warm_up_seconds)
-
-
-def warm_up() -> float:
-    """Compile (or load from Numba's cache) the kernels with a small fit (3 sweeps on 4 homes, every
-    kernel a demo-sized fit uses, checked by their signatures); returns the seconds taken."""
-    start = time.perf_counter()
-    # four homes of 1,024 features: batches large enough for the threaded variants of the kernels too
-    tiny = generate_homes(4, seed=0, new_homes=1, specific_rooms=False)
-    SpCoTransfer(prune_words=True, n_iterations=3, random_state=0, progress=False).fit(tiny)
-    SpCoA(prune_words=True, n_iterations=3, random_state=0, progress=False).fit(tiny, home=tiny[3].name)
-    return time.perf_counter() - start
 
 
 def _json_default(value: object) -> object:

@@ -23,7 +23,7 @@ from spco.data.environment import Environment
 from spco.data.language import Vocabulary
 from spco.errors import ConfigurationError
 from spco.model.parameters import ConceptParameters
-from spco.prediction import NamePrediction, mutual_information_weights
+from spco.model.prediction import NamePrediction, mutual_information_weights
 
 __all__ = ["concept_labels", "plot_accuracy_curve", "plot_home_map", "plot_log_joint"]
 

@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from spco.engines.local import LocalEngine, ShardedRun
+from spco.model import driver
+from spco.model.driver import LocalEngine, ShardedRun
 from spco.model.gibbs import PreparedData, SamplerSettings
 from spco.model.hyperparameters import TransferHyperparameters
 
@@ -35,41 +36,21 @@ def make_engine(name: str = "local", shards: int | None = None, address: str | N
     raise ValueError(f"unknown engine {name!r}; choose one of {ENGINES}")
 
 
+def _resolve(engine):
+    """An engine object for ``engine``: a name (:func:`make_engine`), an engine, or ``None``."""
+    return make_engine(engine) if isinstance(engine, str) else engine
+
+
 def start_run(engine, data: PreparedData, n_words: int, hyper: TransferHyperparameters,
               settings: SamplerSettings, rng: np.random.Generator) -> ShardedRun:
-    """Start a fit of ``data`` (``n_words`` words) on ``engine`` (a name, an engine, or ``None``:
-    the default ``LocalEngine()``).
-
-    The default engine, one in-process shard sharing the driver's generator, initialises in the
-    driver (:func:`spco.model.gibbs.initialize`): the chain of :func:`spco.model.gibbs.sweep`. An
-    engine whose shards draw from their own generators (Ray, or local with several shards) starts
-    them from the data instead (``engine.start_source``): each shard initialises its own homes
-    and the warm start's label alignment goes through the driver as per-home summaries
-    (:mod:`spco.model.shard_init`), so the driver never holds every home's sampler state. The
-    same seed and number of shards give the same chain on either engine."""
-    from spco.model import gibbs
-    from spco.model.sources import PreparedHomes
-
-    engine = make_engine(engine) if isinstance(engine, str) else (engine or LocalEngine())
-    if getattr(engine, "share_rng", False) or not hasattr(engine, "start_source"):
-        state = gibbs.initialize(data, n_words, hyper, settings, rng)
-        return engine.start(data, state, hyper, settings, rng)
-    return engine.start_source(PreparedHomes(data, n_words), hyper, settings, rng)
+    """:func:`spco.model.driver.start_run` with ``engine`` also given by name (``"local"``, ``"ray"``)."""
+    return driver.start_run(_resolve(engine), data, n_words, hyper, settings, rng)
 
 
 def start_source_run(engine, source, hyper: TransferHyperparameters, settings: SamplerSettings,
                      rng: np.random.Generator) -> tuple[ShardedRun, PreparedData | None]:
-    """Start a fit of the homes of ``source`` (a :class:`~spco.model.sources.HomeSource`, e.g.
-    :class:`~spco.model.sources.FolderHomes`) on ``engine`` (as :func:`start_run`); returns the
-    run and the data the driver prepared: ``None`` where the shards prepare their own homes (Ray,
-    or local with several shards), so the driver never holds them; all homes for the default
-    one-process engine, which initialises in the driver. The same chain as :func:`start_run`
-    given the same homes prepared in the driver."""
-    engine = make_engine(engine) if isinstance(engine, str) else (engine or LocalEngine())
-    if getattr(engine, "share_rng", False) or not hasattr(engine, "start_source"):
-        data = source.parts(1)[0].prepare()
-        return start_run(engine, data, source.n_words, hyper, settings, rng), data
-    return engine.start_source(source, hyper, settings, rng), None
+    """:func:`spco.model.driver.start_source_run` with ``engine`` also given by name."""
+    return driver.start_source_run(_resolve(engine), source, hyper, settings, rng)
 
 
 __all__ = ["ENGINES", "LocalEngine", "ShardedRun", "make_engine", "start_run", "start_source_run"]

@@ -23,7 +23,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from spco.engines import checkpoints
-from spco.engines.local import ShardedRun
+from spco.model.driver import ShardedRun
 from spco.model.gibbs import GibbsState, PreparedData, SamplerSettings
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.shard import HomeShard, SharedParameters

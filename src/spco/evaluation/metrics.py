@@ -27,7 +27,7 @@ from spco.data.language import Vocabulary, normalize_name
 from spco.data.regions import PlaceRegions
 from spco.errors import ConfigurationError, DataFormatError
 from spco.model.parameters import ConceptParameters
-from spco.prediction import (
+from spco.model.prediction import (
     NamePrediction,
     PositionMode,
     PositionPrediction,

@@ -26,8 +26,7 @@ Three samplers share this machinery:
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
-from functools import cached_property
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
@@ -40,114 +39,16 @@ from spco.model.moves import concept_swap_step
 from spco.model.numba_cache import announce_compilation
 from spco.model.observations import GaussianRegions, HierarchicalMultinomial, NIWPrior
 from spco.model.pruning import NAME, NOT_A_NAME, Colocation, colocation, judge_names, words_to_keep
-from spco.model.random import DimensionMajorCounts, dimension_major, dirichlet_log_density, log_dirichlet
+from spco.model.random import dirichlet_log_density, log_dirichlet
+from spco.model.state import (  # noqa: F401  (the sampler's data and state, re-exported)
+    CM_PER_M,
+    VARIANTS,
+    GibbsState,
+    PreparedData,
+    SamplerSettings,
+    VisualCountCache,
+)
 from spco.model.synonyms import same_place_names
-
-VARIANTS = ("exact", "reference", "spcoa")
-
-#: Reference variant: positions in centimetres.
-CM_PER_M = 100.0
-
-
-@dataclass(frozen=True, eq=False)
-class PreparedData:
-    """All homes' training samples stacked, in the sampler's units.
-
-    positions (N, 4), homes (N,) home index of each sample, visual (N, D) CSR int64 counts,
-    words (N, V) CSR int64 counts (empty rows for untaught samples), n_homes E, offsets (E+1,)
-    so that home e holds rows offsets[e]:offsets[e+1], position_scale (1 for metres, 100 for cm).
-    """
-
-    positions: np.ndarray
-    homes: np.ndarray
-    visual: sp.csr_array
-    words: sp.csr_array
-    n_homes: int
-    offsets: np.ndarray
-    position_scale: float
-    map_centres: np.ndarray  # (E, 4) in sampler units
-
-    @property
-    def n_samples(self) -> int:
-        """N."""
-        return int(self.homes.size)
-
-    @cached_property
-    def visual_by_dimension(self) -> DimensionMajorCounts:
-        """The visual counts by home and dimension (:func:`~spco.model.random.dimension_major`),
-        built at the first sweep: the layout of the visual likelihood's kernel."""
-        return dimension_major(self.visual, self.offsets)
-
-    @cached_property
-    def niw_priors(self) -> dict:
-        """The NIW priors already built for this data (:func:`niw_prior`), by hyperparameters and
-        variant: built once per fit instead of once per sweep."""
-        return {}
-
-
-@dataclass
-class GibbsState:
-    """Assignments and parameters after a sweep (log-probabilities, sampler units).
-
-    concepts (N,), regions (N,); log_g (E, L) G_e; log_g0 (L,) G_0; log_pi (E, L, K) π;
-    means (E, K, 4), covariances (E, K, 4, 4); log_theta_v (E, L, D), log_theta_w (E, L, V);
-    log_phi_v (L, D), log_phi_w (L, V); word_mask (V,) words kept by pruning; candidate_words
-    (V,) words that the mutual-information pruning may keep at all (``None``: every word);
-    home_specific_words (V,) candidates it never prunes (the exact variant uses neither: see
-    :func:`naming_verdicts`).
-    """
-
-    concepts: np.ndarray
-    regions: np.ndarray
-    log_g: np.ndarray
-    log_g0: np.ndarray
-    log_pi: np.ndarray
-    means: np.ndarray
-    covariances: np.ndarray
-    log_theta_v: np.ndarray
-    log_theta_w: np.ndarray
-    log_phi_v: np.ndarray
-    log_phi_w: np.ndarray
-    word_mask: np.ndarray
-    region_counts: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), dtype=np.int64))
-    candidate_words: np.ndarray | None = None
-    home_specific_words: np.ndarray | None = None
-    visual_cache: VisualCountCache | None = field(default=None, repr=False)
-
-
-@dataclass
-class VisualCountCache:
-    """n^v_{e,l,·} of the last sweep and the assignments they were counted for, so that the next
-    sweep only moves the rows of the samples whose concept changed (exact integer updates: the
-    counts are identical to a recount). Valid only for the same ``visual`` matrix object."""
-
-    visual: sp.csr_array
-    concepts: np.ndarray
-    counts: np.ndarray
-
-
-@dataclass(frozen=True)
-class SamplerSettings:
-    """What distinguishes the samplers (derived from the variant name)."""
-
-    variant: str
-    prune: bool
-    hierarchical: bool
-    joint_assignment: bool
-    pruning_score: str
-    learn_shared: bool = True
-
-    @classmethod
-    def create(cls, variant: str, prune: bool, learn_shared: bool = True) -> SamplerSettings:
-        """Settings of ``variant`` (``exact``, ``reference`` or ``spcoa``).
-
-        ``learn_shared=False`` keeps φ^v, φ^w and G_0 fixed (adapting to a new home with
-        knowledge learnt elsewhere): sweeps then update only the homes' own variables."""
-        if variant not in VARIANTS:
-            raise ValueError(f"unknown sampler variant {variant!r}; choose one of {VARIANTS}")
-        return cls(variant=variant, prune=prune, hierarchical=variant != "spcoa",
-                   joint_assignment=variant != "reference",
-                   pruning_score="kl" if variant == "reference" else "mi", learn_shared=learn_shared)
 
 
 def niw_prior(data: PreparedData, hyper: TransferHyperparameters, settings: SamplerSettings) -> NIWPrior:

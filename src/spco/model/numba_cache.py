@@ -231,8 +231,23 @@ def precompile(processes: int = 2) -> float:
     return time.perf_counter() - start
 
 
+def warm_up() -> float:
+    """Compile (or load from Numba's cache) the kernels with a small fit (3 sweeps on 4 homes, every
+    kernel a demo-sized fit uses, checked by their signatures; ``spco demo`` runs it first); returns
+    the seconds taken."""
+    from spco.data.synthetic import generate_homes
+    from spco.model.transfer import SpCoA, SpCoTransfer
+
+    start = time.perf_counter()
+    # four homes of 1,024 features: batches large enough for the threaded variants of the kernels too
+    tiny = generate_homes(4, seed=0, new_homes=1, specific_rooms=False)
+    SpCoTransfer(prune_words=True, n_iterations=3, random_state=0, progress=False).fit(tiny)
+    SpCoA(prune_words=True, n_iterations=3, random_state=0, progress=False).fit(tiny, home=tiny[3].name)
+    return time.perf_counter() - start
+
+
 def write_signatures(path: Path = SIGNATURES_FILE) -> None:
-    """Run the demo's warm-up fit (:func:`spco.demo.warm_up`) on a cold cache, note each kernel
+    """Run the demo's warm-up fit (:func:`warm_up`) on a cold cache, note each kernel
     called from Python with its argument types and compile seconds, and write them to ``path``."""
     from numba.core import event
 
@@ -254,8 +269,6 @@ def write_signatures(path: Path = SIGNATURES_FILE) -> None:
             name = f"{function.__module__}.{function.__qualname__}"
             seconds[name] = seconds.get(name, 0.0) + elapsed
             signatures.setdefault(name, []).append([repr(t) for t in ev.data["args"]])
-
-    from spco.demo import warm_up
 
     event.register("numba:compile", _Listener())
     warm_up()

@@ -136,16 +136,16 @@ class HomeShard(ShardInitialisation):
         return self.state.candidate_words
 
     def concept_visual_totals(self) -> np.ndarray:
-        """The shard's visual counts by concept, (L,) (:func:`spco.knowledge.concept_visual_totals`)."""
-        from spco.knowledge import concept_visual_totals
+        """The shard's visual counts by concept, (L,) (:func:`spco.model.view_fit.concept_visual_totals`)."""
+        from spco.model.view_fit import concept_visual_totals
 
         return concept_visual_totals(self.data, self.state.concepts, self.hyper.n_concepts)
 
     def held_out_view_fits(self, log_phi_v: np.ndarray, log_g0: np.ndarray,
                            totals: np.ndarray) -> list[float | None]:
-        """The held-out view fit of each of the shard's homes (:func:`spco.knowledge.held_out_view_fits`;
+        """The held-out view fit of each of the shard's homes (:func:`spco.model.view_fit.held_out_view_fits`;
         ``totals``: (L,) visual counts by concept over all homes)."""
-        from spco.knowledge import held_out_view_fits
+        from spco.model.view_fit import held_out_view_fits
 
         return held_out_view_fits(log_phi_v, log_g0, totals, self.data, self.state.concepts)
 

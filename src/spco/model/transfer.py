@@ -190,9 +190,9 @@ class SpatialConceptModel:
     def fit(self, corpus: Corpus, engine=None) -> SpatialConceptModel:
         """Learn from every home of ``corpus`` (their training samples) and return ``self``.
 
-        ``engine`` runs the homes' shards (:mod:`spco.engines`): ``None`` or ``"local"`` in this
-        process, one shard; ``"ray"`` on Ray actors; or an engine object such as
-        ``RayEngine(shards=4, address="auto")``.
+        ``engine`` runs the homes' shards: ``None`` or ``"local"`` in this process, one shard
+        (:class:`~spco.model.driver.LocalEngine`); or an engine object such as
+        ``spco.engines.make_engine("ray")`` or ``RayEngine(shards=4, address="auto")``.
 
         Sets ``parameters_`` (:class:`ConceptParameters`, metres: the average over the thinned
         sweeps of :func:`~spco.model.posterior.thinned_sweeps`, see :mod:`spco.model.posterior`),
@@ -215,7 +215,7 @@ class SpatialConceptModel:
 
             bar = tqdm(total=int(self.n_iterations), desc=f"{type(self).__name__} ({settings.variant})",
                        unit="sweep", leave=False)
-        from spco.engines import start_run
+        from spco.model.driver import start_run
 
         run = start_run(engine, data, len(corpus.vocabulary), hyper, settings, rng)
 
@@ -275,7 +275,7 @@ class SpatialConceptModel:
     def predict_names(self, home: str | int, positions: np.ndarray, visual: Any, top_k: int = 3,
                       weighting: str = "mi"):
         """Top-``top_k`` place names for observations of ``home`` (see :mod:`spco.prediction`)."""
-        from spco import prediction
+        from spco.model import prediction
 
         e = self.home_index(home)
         return prediction.predict_names(self.parameters_, e, self.vocabulary_, np.asarray(positions),
@@ -286,7 +286,7 @@ class SpatialConceptModel:
         """Positions to go to for place ``name`` in ``home`` (see :mod:`spco.prediction`): the
         result's ``samples`` are (x, y, θ), its ``poses`` (x, y, sin θ, cos θ); ``learnt`` is False
         when the name's probability in this home comes from concepts that hold none of its samples."""
-        from spco import prediction
+        from spco.model import prediction
 
         e = self.home_index(home)
         return prediction.predict_positions(self.parameters_, e, self.vocabulary_, name, n=n,

@@ -1,6 +1,6 @@
 """``spco experiment general|specific``: the paper's experiments from the command line.
 
-Registered in :mod:`spco.cli` with ``main.add_command(experiment)``. The heavy imports (numpy, the
+Registered in :mod:`spco.cli.main` with ``main.add_command(experiment)``. The heavy imports (numpy, the
 model) happen only when a command runs, so ``spco --help`` stays fast; errors are reported by the
 command line's ``_friendly_errors`` (one line, exit status 2).
 """
@@ -14,7 +14,7 @@ from typing import Any
 
 import click
 
-from spco.cli_errors import friendly_errors
+from spco.cli.errors import friendly_errors
 
 __all__ = ["experiment"]
 

@@ -1,6 +1,6 @@
 """``spco features IMAGES… --out FILE``: camera images to visual count vectors.
 
-Registered in :mod:`spco.cli`. Heavy imports (OpenCV, ONNX Runtime) happen when the command runs.
+Registered in :mod:`spco.cli.main`. Heavy imports (OpenCV, ONNX Runtime) happen when the command runs.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from pathlib import Path
 
 import click
 
-from spco.cli_errors import friendly_errors
+from spco.cli.errors import friendly_errors
 
 __all__ = ["features", "parse_settings"]
 
@@ -93,7 +93,7 @@ def features(images: Sequence[Path], out: Path, extractor: str | None, model: Pa
     """
     import scipy.sparse as sp
 
-    from spco.commands_knowledge import _check_out
+    from spco.cli.knowledge import _check_out
     from spco.errors import ConfigurationError
     from spco.features import DEFAULT_EXTRACTOR, ExtractorSpec, build_extractor
     from spco.model.io import _file_mode

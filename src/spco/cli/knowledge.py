@@ -5,7 +5,7 @@ seconds (``adapt`` writes a home file), ask the robot (``where``, ``what``), tea
 (``teach``) and draw what it knows (``show``). See :mod:`spco.knowledge` for the model and the
 file formats.
 
-Registered in :mod:`spco.cli` (``for command in KNOWLEDGE_COMMANDS: main.add_command(command)``).
+Registered in :mod:`spco.cli.main` (``for command in KNOWLEDGE_COMMANDS: main.add_command(command)``).
 Heavy imports happen when a command runs, so ``spco --help`` stays fast; spco's errors are
 reported by the command line's ``_friendly_errors`` (one line, exit status 2).
 """
@@ -25,7 +25,7 @@ from typing import Any
 
 import click
 
-from spco.cli_errors import friendly_errors
+from spco.cli.errors import friendly_errors
 
 __all__ = ["KNOWLEDGE_COMMANDS", "adapt", "fit", "show", "teach", "what", "where"]
 
@@ -473,7 +473,7 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
     from spco.errors import ConfigurationError
     from spco.knowledge import Observation, load_home_model
     from spco.knowledge import teach as teach_home
-    from spco.locking import locked
+    from spco.knowledge.locking import locked
 
     pose = (x, y, theta)
     new_observation = any(v is not None for v in (*pose, visual, image))
@@ -562,7 +562,7 @@ def show(home_file: Path, out: Path, map_image: Path | None, extent: str | None,
     rng = np.random.default_rng(seed)
     predicted = {}
     from spco.knowledge import unused_word_hint
-    from spco.prediction import UnknownNameError
+    from spco.model.prediction import UnknownNameError
 
     for name in names:
         seed_of_name = int(rng.integers(2**63 - 1))  # (a Generator passed on would be copied, not advanced)
@@ -639,5 +639,5 @@ def _save_png(fig: Any, out: Path) -> None:
                 os.unlink(tmp)
 
 
-#: The commands to register in :mod:`spco.cli`.
+#: The commands to register in :mod:`spco.cli.main`.
 KNOWLEDGE_COMMANDS = (fit, adapt, where, what, teach, show)

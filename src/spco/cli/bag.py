@@ -1,6 +1,6 @@
 """``spco import-bag``: a home folder (plain format) from a robot's ROS bags; see :mod:`spco.data.rosbag`.
 
-Registered in :mod:`spco.cli`.
+Registered in :mod:`spco.cli.main`.
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from pathlib import Path
 
 import click
 
-from spco.cli_errors import friendly_errors
+from spco.cli.errors import friendly_errors
 
 __all__ = ["import_bag"]
 

@@ -4,7 +4,7 @@ An :class:`~spco.errors.SpcoError` (bad file, bad argument) becomes one line ``e
 standard error and exit status 2, without a traceback; Ctrl-C exits with 130. A warning (e.g.
 knowledge that does not fit a home, a pose off the map) is one line ``warning: ...`` on standard
 error. Kept apart from
-:mod:`spco.cli` so that the command modules can use it without importing the command line.
+:mod:`spco.cli.main` so that the command modules can use it without importing the command line.
 """
 
 from __future__ import annotations

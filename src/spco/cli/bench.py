@@ -1,6 +1,6 @@
 """``spco bench``: how long a Gibbs sweep takes, per sampler step, against the authors' way.
 
-Registered in :mod:`spco.cli` with ``main.add_command(bench)``. Progress goes to stderr, the result
+Registered in :mod:`spco.cli.main` with ``main.add_command(bench)``. Progress goes to stderr, the result
 (a table, or JSON with ``--json``) to stdout. The heavy imports happen only when the command runs.
 """
 
@@ -12,7 +12,7 @@ from typing import Any
 
 import click
 
-from spco.cli_errors import friendly_errors
+from spco.cli.errors import friendly_errors
 
 __all__ = ["bench", "format_result"]
 

@@ -1,41 +1,26 @@
-"""The ``spco`` command line.
-
-Every command validates its input at the boundary; an :class:`~spco.errors.SpcoError` (bad file,
-bad argument) is printed as one line ``error: ...`` and the command exits with status 2, without a
-traceback.
-"""
+"""Commands about homes on disk: ``spco inspect`` (homes, knowledge and home files), ``spco import``
+(a folder of homes into one cache file) and ``spco synth`` (synthetic homes). Registered in
+:mod:`spco.cli.main`."""
 
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
 from typing import Any
 
 import click
 
-from spco import __version__
-from spco.cli_errors import friendly_errors
+from spco.cli.errors import friendly_errors
 
-_friendly_errors = friendly_errors
-
-
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
-@click.version_option(__version__, prog_name="spco")
-def main() -> None:
-    """spco: spatial concepts for home robots, learnt across homes and transferred to new ones.
-
-    Start with `spco demo` (synthetic homes, no dataset needed), or point `spco inspect` at a
-    folder of homes (the authors' SIGVerse layout or spco's plain format).
-    """
+__all__ = ["DATA_COMMANDS", "import_", "inspect", "synth"]
 
 
-@main.command()
+@click.command()
 @click.argument("path", type=click.Path(path_type=Path))
 @click.option("--teaching-rate", "-r", default=100, show_default=True, type=click.IntRange(0, 100),
               help="Percentage of taught samples to load (SIGVerse: the sentence/per_XX folder).")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON list instead of a table.")
-@_friendly_errors
+@friendly_errors
 def inspect(path: Path, teaching_rate: int, as_json: bool) -> None:
     """Summarise the homes in PATH (a home, a folder of homes or a cache file), or a knowledge or
     home file (visual dimension, extractor, vocabulary, kept names, homes, provenance).
@@ -150,13 +135,13 @@ def _home_vocabulary(env: Any) -> set[str]:
     return set(Vocabulary.from_sentences(env.training_data().sentences).words)
 
 
-@main.command(name="import")
+@click.command(name="import")
 @click.argument("src", type=click.Path(path_type=Path))
 @click.argument("out", type=click.Path(path_type=Path))
 @click.option("--teaching-rate", "-r", default=None, type=click.IntRange(0, 100),
               help="Keep only this teaching rate (default: every rate the source holds).")
 @click.option("--force", is_flag=True, help="Overwrite OUT if it exists.")
-@_friendly_errors
+@friendly_errors
 def import_(src: Path, out: Path, teaching_rate: int | None, force: bool) -> None:
     """Convert the homes in SRC (either layout) into one compact cache file OUT."""
     from spco.data.cache import write_cache
@@ -165,7 +150,7 @@ def import_(src: Path, out: Path, teaching_rate: int | None, force: bool) -> Non
     click.echo(summary)
 
 
-@main.command()
+@click.command()
 @click.argument("out", type=click.Path(path_type=Path))
 @click.option("--homes", "-n", default=8, show_default=True, type=click.IntRange(1, 10000),
               help="Number of homes to generate.")
@@ -175,7 +160,7 @@ def import_(src: Path, out: Path, teaching_rate: int | None, force: bool) -> Non
               help="Sentences: the paper's five templates, or 'free' (people talking freely: synonyms, "
                    "multi-word names, objects, fillers, typos; accepted_names.json lists each place's "
                    "accepted names).")
-@_friendly_errors
+@friendly_errors
 def synth(out: Path, homes: int, seed: int, force: bool, language: str) -> None:
     """Generate synthetic homes into folder OUT (plain format, with ground-truth regions).
 
@@ -192,51 +177,5 @@ def synth(out: Path, homes: int, seed: int, force: bool, language: str) -> None:
                f"to {out}")
 
 
-@main.command()
-@click.option("--seed", default=0, show_default=True, type=int, help="Random seed (homes and learning).")
-@click.option("--out", default="spco-demo", show_default=True, type=click.Path(path_type=Path),
-              help="Folder for the map figure, the log-joint trace and results.json.")
-@click.option("--homes", default=16, show_default=True, type=click.IntRange(1, 256),
-              help="Number of experienced (fully taught) synthetic homes.")
-@click.option("--iterations", default=100, show_default=True, type=click.IntRange(1, 100000),
-              help="Gibbs sweeps.")
-@_friendly_errors
-def demo(seed: int, out: Path, homes: int, iterations: int) -> None:
-    """Learn from synthetic homes and transfer to a new home taught nothing (no dataset needed)."""
-    from spco.demo import format_table, run_demo
-    from spco.model.numba_cache import precompile_if_cold
-
-    precompile_if_cold(lambda text: click.echo(text, err=True))
-    click.echo(f"Generating {homes} experienced synthetic homes and 1 new home (seed {seed})...", err=True)
-    result = run_demo(seed=seed, out=out, n_experienced=homes, n_iterations=iterations,
-                      progress=sys.stderr.isatty())
-    t = result.transfer
-    click.echo(f"Learnt {result.n_homes} homes ({result.n_samples} samples) in {result.fit_seconds:.1f} s "
-               f"(after {result.warm_up_seconds:.1f} s compiling or loading the kernels).")
-    click.echo(f"New home {t.home}: nothing taught there; names and positions come from the other homes.\n")
-    click.echo("SpCoTransfer+MI (A_n: name accuracy, A_p: position accuracy) beside the SpCoA+MI baseline:")
-    click.echo(format_table(result))
-    click.echo("\nWrote " + ", ".join(str(p) for p in result.files))
-
-
-def _register_commands() -> None:
-    """Add the command groups that live in their own modules."""
-    from spco.commands_bag import import_bag
-    from spco.commands_bench import bench
-    from spco.commands_experiment import experiment
-    from spco.commands_features import features
-    from spco.commands_knowledge import KNOWLEDGE_COMMANDS
-
-    main.add_command(experiment)
-    main.add_command(features)
-    main.add_command(bench)
-    main.add_command(import_bag)
-    for command in KNOWLEDGE_COMMANDS:  # fit, adapt, where, what, teach, show
-        main.add_command(command)
-
-
-_register_commands()
-
-
-if __name__ == "__main__":  # pragma: no cover
-    main()
+#: The commands to register in :mod:`spco.cli.main`.
+DATA_COMMANDS = (inspect, import_, synth)

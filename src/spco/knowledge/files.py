@@ -1,0 +1,194 @@
+"""Knowledge and home files: the archive format, its headers and checksums.
+
+Knowledge (``.spco``, format ``spco-knowledge``) and home (``.spco``, format ``spco-home``) files
+are NumPy ``.npz`` archives read with ``allow_pickle=False``: arrays plus a ``header`` array holding
+a UTF-8 JSON document with the format name, ``format_version`` (2), the spco version, the
+hyperparameters, the vocabulary, provenance, the image extractor (``extractor``: name, version,
+settings and checksum of its weights, ``null`` for knowledge fitted on count vectors; its weights,
+such as a codebook, as arrays ``extractor.<name>``; version 1 files, which predate it, are read
+as fitted on count vectors), a sha256 checksum of every array and a ``checksum`` of
+the whole content (header and arrays). They are written to a temporary file in the target's folder,
+flushed and renamed into place (atomic), and never replace an existing file unless asked
+(``overwrite=True``, ``--force``). A missing, truncated, edited or foreign file, or one written by
+a newer spco, raises :class:`~spco.errors.ModelFileError` naming the file and the problem.
+Every save holds the file's write lock (:func:`spco.knowledge.locking.locked`, a ``flock`` on
+``<file>.lock``); to read, update and replace a file without losing another process's update, hold
+it around all three (``with locked(path): home = load_home_model(path); …; home.save(path,
+overwrite=True)``).
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import json
+from collections.abc import Iterable, Mapping
+from datetime import UTC, datetime
+from os import PathLike
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from spco.errors import ModelFileError
+from spco.knowledge.locking import locked
+from spco.model.io import _checksum, write_npz_atomic
+
+#: Header ``format`` of knowledge files and home files.
+KNOWLEDGE_FORMAT = "spco-knowledge"
+HOME_FORMAT = "spco-home"
+#: Version of both file layouts written by this module; newer files are refused. Version 2 added
+#: the image extractor (``extractor`` in the header); version 1 files are read as count-vector ones.
+FORMAT_VERSION = 2
+
+
+_FORMAT_NAMES = {KNOWLEDGE_FORMAT: "knowledge file", HOME_FORMAT: "home file",
+                 "spco-model": "spco model file (spco fit --save / model.save)"}
+_UNREADABLE = "not a readable spco file (truncated or corrupted?)"
+
+
+def _as_generator(random_state: int | np.random.Generator | None) -> np.random.Generator:
+    """A new Generator from a seed, or a copy of a Generator: the caller's is never advanced."""
+    if isinstance(random_state, np.random.Generator):
+        return copy.deepcopy(random_state)
+    return np.random.default_rng(random_state)
+
+
+def _seed_of(random_state: object) -> int | None:
+    if isinstance(random_state, bool) or not isinstance(random_state, int | np.integer):
+        return None
+    return int(random_state)
+
+
+def _now() -> str:
+    return datetime.now(UTC).isoformat(timespec="seconds")
+
+
+def _version() -> str:
+    from spco import __version__
+
+    return __version__
+
+
+# ============================================================================ file helpers
+
+
+def _canonical(obj: Any) -> bytes:
+    return json.dumps(obj, sort_keys=True, ensure_ascii=False, allow_nan=True,
+                      separators=(",", ":")).encode("utf-8")
+
+
+def _content_checksum(header: Mapping[str, Any]) -> str:
+    """sha256 of the header, which holds every array's checksum; its own ``checksum`` and the
+    version of the spco that wrote it are left out (the same content has the same checksum)."""
+    content = {k: v for k, v in header.items() if k not in ("checksum", "spco_version")}
+    return hashlib.sha256(_canonical(content)).hexdigest()
+
+
+def _write_archive(path: str | PathLike[str], arrays: Mapping[str, np.ndarray], header: dict[str, Any],
+                   overwrite: bool, what: str) -> Path:
+    """Write ``arrays`` and ``header`` (+ array and content checksums) to ``path`` atomically,
+    holding the file's write lock (:func:`spco.locking.locked`; re-entrant, so a caller may hold it
+    already while it reads and updates the file)."""
+    target = Path(path).expanduser()
+    if target.is_dir() or not target.parent.is_dir():  # no lock to take: the writer says what is wrong
+        return write_npz_atomic(path, header, arrays, overwrite, what, seal=_content_checksum)
+    with locked(target):
+        return write_npz_atomic(path, header, arrays, overwrite, what, seal=_content_checksum)
+
+
+def _read_archive(path: str | PathLike[str],
+                  expected: str) -> tuple[Path, dict[str, Any], dict[str, np.ndarray]]:
+    """Header and arrays of a file of format ``expected``, verified; any problem -> ModelFileError."""
+    file = Path(path).expanduser()
+    what = _FORMAT_NAMES[expected]
+    if not file.exists():
+        raise ModelFileError(file, f"no such {what}")
+    if file.is_dir():
+        raise ModelFileError(file, f"is a folder, not a {what}")
+    try:
+        archive = np.load(file, allow_pickle=False)
+    except Exception as exc:  # any failure to parse means it is not a readable file
+        raise ModelFileError(file, f"{_UNREADABLE}: {exc}") from exc
+    if not isinstance(archive, np.lib.npyio.NpzFile):
+        raise ModelFileError(file, f"not a {what} (a single NumPy array, not an .npz archive)")
+    try:
+        with archive:
+            if "header" not in archive.files:
+                raise ModelFileError(file, f"not a {what} (no header; is it another program's .npz?)")
+            header = _decode_header(file, archive["header"], expected)
+            arrays = {name: archive[name] for name in archive.files if name != "header"}
+    except ModelFileError:
+        raise
+    except Exception as exc:  # zipfile.BadZipFile (bad CRC), EOFError, ValueError, OSError, ...
+        raise ModelFileError(file, f"{_UNREADABLE}: {exc}") from exc
+    checksums = header.get("array_checksums")
+    if not isinstance(checksums, dict):
+        raise ModelFileError(file, "the header has no array checksums")
+    missing = sorted(set(checksums) - set(arrays))
+    extra = sorted(set(arrays) - set(checksums))
+    if missing or extra:
+        raise ModelFileError(file, "the arrays do not match the header (missing: "
+                             f"{', '.join(missing) or '-'}; unexpected: {', '.join(extra) or '-'})")
+    for name, expected_sum in checksums.items():
+        if _checksum(arrays[name]) != expected_sum:
+            raise ModelFileError(file, f"checksum mismatch for array {name!r}: the file was modified or "
+                                 "corrupted after it was written")
+    if header.get("checksum") != _content_checksum(header):
+        raise ModelFileError(file, "checksum mismatch of the header: the file was modified after it "
+                             "was written")
+    return file, header, arrays
+
+
+def _decode_header(path: Path, raw: np.ndarray, expected: str) -> dict[str, Any]:
+    what = _FORMAT_NAMES[expected]
+    if raw.dtype != np.uint8 or raw.ndim != 1:
+        raise ModelFileError(path, f"not a {what} (its header is not a JSON byte string)")
+    try:
+        header = json.loads(raw.tobytes().decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ModelFileError(path, f"the header is not valid JSON: {exc}") from exc
+    found = header.get("format") if isinstance(header, dict) else None
+    if found != expected:
+        hint = ""
+        if found in _FORMAT_NAMES:
+            hint = f": it is a {_FORMAT_NAMES[found]}"
+            if expected == HOME_FORMAT and found == KNOWLEDGE_FORMAT:
+                hint += " — make a home file from it with `spco adapt`"
+            if expected == KNOWLEDGE_FORMAT and found == HOME_FORMAT:
+                hint += " — `spco adapt` needs the knowledge file written by `spco fit`"
+        raise ModelFileError(path, f"not a {what} (format {found!r}, expected {expected!r}){hint}")
+    version = header.get("format_version")
+    if not isinstance(version, int) or isinstance(version, bool) or version < 1:
+        raise ModelFileError(path, f"invalid format_version {version!r}")
+    if version > FORMAT_VERSION:
+        raise ModelFileError(path, f"written by a newer spco ({what} format version {version}, spco "
+                             f"{header.get('spco_version', '?')}); this spco reads up to version "
+                             f"{FORMAT_VERSION} — upgrade spco to read it")
+    return header
+
+
+def _require(path: Path, header: Mapping[str, Any], arrays: Mapping[str, np.ndarray],
+             keys: Iterable[str], names: Iterable[str]) -> None:
+    missing = [k for k in keys if k not in header]
+    missing += [n for n in names if n not in arrays]
+    if missing:
+        raise ModelFileError(path, f"incomplete file: it lacks {', '.join(missing)}")
+
+
+
+def model_file_format(path: str | PathLike[str]) -> str | None:
+    """:data:`KNOWLEDGE_FORMAT` or :data:`HOME_FORMAT` if ``path`` is such a file (by its header), else
+    ``None`` (a folder, a cache file, another program's file: not verified here)."""
+    file = Path(path).expanduser()
+    if not file.is_file():
+        return None
+    try:
+        with np.load(file, allow_pickle=False) as archive:
+            if "header" not in archive.files:
+                return None
+            header = json.loads(archive["header"].tobytes().decode("utf-8"))
+    except Exception:  # not an .npz archive with a JSON header: not a model file
+        return None
+    found = header.get("format") if isinstance(header, dict) else None
+    return found if found in (KNOWLEDGE_FORMAT, HOME_FORMAT) else None

@@ -1,0 +1,249 @@
+"""Fitting knowledge: the shared part of the transfer model learnt from experienced homes and
+summarised over several posterior samples (:func:`fit_knowledge`)."""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+from scipy.special import logsumexp
+
+from spco.data.environment import Corpus
+from spco.errors import ConfigurationError, DataFormatError
+from spco.knowledge.diagnostics import _experienced_view_fit, _view_fit_record
+from spco.knowledge.files import _as_generator, _now, _seed_of, _version
+from spco.knowledge.knowledge import DEFAULT_FIT_ITERATIONS, DEFAULT_MODEL, MODELS, Knowledge
+from spco.model import gibbs
+from spco.model.hyperparameters import TransferHyperparameters
+from spco.model.posterior import thinned_sweeps
+from spco.model.pruning import words_to_keep
+from spco.model.transfer import SpatialConceptModel, SpCoTransfer
+
+
+def summary_iterations(n_iterations: int, fraction: float = 0.25, every: int = 5) -> list[int]:
+    """The sweeps (0-based) whose samples the knowledge averages: every ``every``-th of the last
+    ``fraction`` of the chain, ending with the last sweep, with the step shortened so that a short
+    chain still gives up to three samples (:func:`spco.model.posterior.thinned_sweeps`)."""
+    return thinned_sweeps(n_iterations, fraction, every)
+
+
+#: Weight, in samples (degrees of freedom), of the default spread Dir(δ φ̄) in :func:`_concentration`.
+CONCENTRATION_PRIOR_SAMPLES = 2.0
+
+
+def _concentration(samples: np.ndarray, default: float) -> np.ndarray:
+    """Dirichlet concentration A_l of each row, moment-matched to the samples' spread, shrunk
+    towards ``default``: samples (S, L, D) -> (L,).
+
+    With φ̄ the mean and s² = Σ_k Var φ_k (ddof 1) of the S samples, the spread of Dir(A φ̄) is
+    Σ_k φ̄_k(1 − φ̄_k) / (A + 1). The variance used pools the samples' S − 1 degrees of freedom
+    with :data:`CONCENTRATION_PRIOR_SAMPLES` of the spread at A = ``default``::
+
+        v = ((S − 1) s² + ν Σ_k φ̄_k(1 − φ̄_k) / (default + 1)) / (S − 1 + ν),   A = Σ_k φ̄_k(1 − φ̄_k) / v − 1
+
+    so S = 1 gives ``default``, large S the moment-matched value, and A changes smoothly with S
+    and the samples. Rows with no spread at all (φ̄ one-hot) get ``default``.
+    """
+    n = samples.shape[0]
+    mean = samples.mean(axis=0)
+    spread = (mean * (1.0 - mean)).sum(axis=-1)
+    sample_var = samples.var(axis=0, ddof=1).sum(axis=-1) if n > 1 else np.zeros_like(spread)
+    nu = CONCENTRATION_PRIOR_SAMPLES
+    var = ((n - 1) * sample_var + nu * spread / (default + 1.0)) / (n - 1 + nu)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        a = spread / var - 1.0
+    return np.where(np.isfinite(a) & (a > 0), a, default)
+
+
+def _align_to(reference_v: np.ndarray, reference_w: np.ndarray, phi_v: np.ndarray,
+              phi_w: np.ndarray) -> np.ndarray:
+    """Permutation p of the concepts of one sample matching a reference: slot j takes concept p[j]."""
+    cost = np.abs(reference_v[:, None, :] - phi_v[None, :, :]).sum(-1)
+    if phi_w.shape[1]:
+        cost = cost + np.abs(reference_w[:, None, :] - phi_w[None, :, :]).sum(-1)
+    rows, cols = linear_sum_assignment(cost)
+    perm = np.empty(cost.shape[0], dtype=np.int64)
+    perm[rows] = cols
+    return perm
+
+
+def fit_knowledge(
+    corpus: Corpus,
+    model: str = DEFAULT_MODEL,
+    n_iterations: int = DEFAULT_FIT_ITERATIONS,
+    random_state: int | np.random.Generator | None = None,
+    progress: bool = False,
+    hyperparameters: TransferHyperparameters | None = None,
+    summary_fraction: float = 0.25,
+    summary_every: int = 5,
+    provenance: Mapping[str, Any] | None = None,
+    extractor: Any = None,
+    engine: Any = None,
+) -> Knowledge:
+    """Learn the shared part of the transfer model from the experienced homes of ``corpus``.
+
+    Runs the transfer model's Gibbs sampler on every home of ``corpus`` (their training samples)
+    and summarises φ^v, φ^w and G_0 over the samples of :func:`summary_iterations` (the last
+    quarter of the chain, every 5th sweep): each sample is first aligned to the last one
+    (Hungarian matching of its φ rows; late in the chain the labels are stable, and the number of
+    samples that needed a relabelling is recorded), then φ and G_0 are averaged, and the spread
+    of the samples gives the concentrations used by ``adapt(..., joint=True)``. With word pruning
+    the mask is decided again on the averaged φ^w and G_0.
+
+    Parameters
+    ----------
+    corpus: the experienced homes (a :class:`~spco.data.Corpus`), or a
+        :class:`~spco.model.sources.FolderHomes` whose home folders the shards read themselves
+        (with Ray or several local shards the driver never holds the homes' samples; the same
+        result as the :class:`~spco.data.Corpus` of the same homes).
+    model: one of :data:`MODELS` (default ``"spcotransfer+mi"``).
+    n_iterations: Gibbs sweeps (200 as in the paper).
+    random_state: seed or Generator.
+    progress: show a progress bar on standard error.
+    hyperparameters: default: the paper's.
+    summary_fraction, summary_every: which sweeps are averaged (see :func:`summary_iterations`).
+    provenance: extra entries for the knowledge's provenance (e.g. the data path).
+    extractor: the :class:`~spco.features.Extractor` that computed the homes' visual counts from
+        images (stored in the knowledge, so that adapt, teach and what use it); ``None`` for
+        count vectors given as such.
+    engine: where the homes' shards run (:func:`spco.engines.make_engine`): ``None`` in this
+        process, ``"ray"`` or an engine object such as ``RayEngine(shards=4, address="auto")``.
+
+    Returns
+    -------
+    The :class:`Knowledge`; its ``provenance`` records the homes, the seed, the iterations, the
+    samples averaged, the fit time and the spco version.
+    """
+    if model not in MODELS:
+        raise ConfigurationError(f"unknown model {model!r}; choose one of {', '.join(MODELS)}")
+    from spco.model.sources import FolderHomes
+
+    source = corpus if isinstance(corpus, FolderHomes) else None
+    if not isinstance(corpus, Corpus) and source is None:
+        raise ConfigurationError("fit_knowledge() expects a spco.data.Corpus or a "
+                                 "spco.model.sources.FolderHomes")
+    variant, prune = MODELS[model]
+    estimator = SpCoTransfer(hyperparameters, variant=variant, prune_words=prune, n_iterations=n_iterations,
+                             random_state=random_state)
+    hyper = estimator._validate()
+    if not (0 < summary_fraction <= 1) or summary_every < 1:
+        raise ConfigurationError("summary_fraction must be within (0, 1] and summary_every >= 1")
+    n_features = corpus.n_features if source is not None else corpus[0].n_features
+    if extractor is not None and extractor.n_features != n_features:
+        raise ConfigurationError(f"the extractor gives {extractor.n_features} features, the homes' views "
+                                 f"have {n_features}")
+    if len(corpus.vocabulary) == 0:
+        n_homes = source.n_homes if source is not None else len(corpus)
+        raise DataFormatError(None, f"no taught sentence in the {n_homes} experienced home(s) "
+                              f"({', '.join(list(corpus.names)[:5])}): there are no place names to learn")
+    settings = estimator._settings()
+    rng = _as_generator(random_state)
+    scale = gibbs.CM_PER_M if variant == "reference" else 1.0
+    if source is not None:
+        source = replace(source, position_scale=scale)
+    data = SpatialConceptModel._prepare(corpus, scale) if source is None else None
+    keep = set(summary_iterations(n_iterations, summary_fraction, summary_every))
+    start = time.perf_counter()
+    by_iteration: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=n_iterations, desc=f"fit ({model})", unit="sweep", leave=False)
+    from spco.engines import start_run, start_source_run
+
+    if source is not None:  # the shards read their homes (or, one process, the driver reads them)
+        run, data = start_source_run(engine, source, hyper, settings, rng)
+    else:
+        run = start_run(engine, data, len(corpus.vocabulary), hyper, settings, rng)
+
+    def after_sweep(iteration: int, _: float) -> None:  # (a restarted engine repeats sweeps)
+        if bar is not None:
+            bar.update(1)
+        if iteration in keep:
+            shared = run.shared
+            by_iteration[iteration] = (shared.log_phi_v.copy(), shared.log_phi_w.copy(), shared.log_g0.copy())
+
+    run.fit(n_iterations, after_sweep)
+    if data is None:  # the homes stay in the shards: no joined state
+        word_mask_last, candidate_words = run.shared.word_mask, run.call("candidate_words")[0]
+    else:
+        state = run.state()
+        word_mask_last, candidate_words = state.word_mask, state.candidate_words
+        run.close()
+    if bar is not None:
+        bar.close()
+    samples = [by_iteration[i] for i in sorted(by_iteration)]
+    seconds = time.perf_counter() - start
+
+    # align every sample to the last (labels are stable late in the chain; check and record it)
+    last_v, last_w = np.exp(samples[-1][0]), np.exp(samples[-1][1])
+    used = np.exp(samples[-1][2]) > 0.01
+    relabelled = 0
+    aligned = []
+    for log_v, log_w, log_g in samples:
+        perm = _align_to(last_v, last_w, np.exp(log_v), np.exp(log_w))
+        if (perm[used] != np.flatnonzero(used)).any():
+            relabelled += 1
+        aligned.append((log_v[perm], log_w[perm], log_g[perm]))
+    stack_v = np.stack([a[0] for a in aligned])
+    stack_w = np.stack([a[1] for a in aligned])
+    stack_g = np.stack([a[2] for a in aligned])
+    n = stack_v.shape[0]
+    log_phi_v = logsumexp(stack_v, axis=0) - math.log(n)
+    has_words = stack_w.shape[2] > 0
+    log_phi_w = logsumexp(stack_w, axis=0) - math.log(n) if has_words else np.zeros((hyper.n_concepts, 0))
+    log_g0 = logsumexp(stack_g, axis=0) - math.log(n)
+    phi_v_samples = np.exp(stack_v)
+    spread = np.abs(phi_v_samples - np.exp(log_phi_v)[None]).sum(-1)[:, used]  # total variation × 2
+    word_mask = np.ones(len(corpus.vocabulary), dtype=bool)
+    if prune and word_mask.size and variant == "exact":
+        # the naming rule on the last sweep's regions (:func:`gibbs.naming_verdicts`), the mask the
+        # sampler used: it judges a name said in one home on that home, where it is place-bound
+        word_mask = word_mask_last.copy()
+    elif prune and word_mask.size:
+        score = settings.pruning_score
+        word_mask = words_to_keep(np.exp(log_phi_w), np.exp(log_g0), hyper.pruning_threshold(score), score)
+        if candidate_words is not None:  # words the sampler found to depend on the place
+            word_mask &= candidate_words
+        if not word_mask.any():
+            word_mask[np.argmax(np.exp(log_phi_w).max(0))] = True
+    conc_g = _concentration(np.exp(stack_g)[:, None, :], hyper.gamma)[0]
+    record: dict[str, Any] = {
+        "homes": list(corpus.names),
+        "n_samples": int(source.n_samples if data is None else data.n_samples),
+        "seed": _seed_of(random_state),
+        "n_iterations": int(n_iterations),
+        "fit_seconds": round(seconds, 3),
+        "spco_version": _version(),
+        "created": _now(),
+        "summary": {
+            "iterations": sorted(keep),
+            "n_samples": int(n),
+            "relabelled_samples": int(relabelled),
+            "max_visual_distance_from_mean": round(float(0.5 * spread.max()) if spread.size else 0.0, 6),
+        },
+    }
+    if data is None:  # each shard scores its homes (φ^v without their counts: the pooled totals)
+        totals = np.sum(run.call("concept_visual_totals"), axis=0)
+        fits = [v for part in run.call("held_out_view_fits", log_phi_v, log_g0, totals) for v in part]
+        run.close()
+        record["view_fit"] = _view_fit_record(dict(zip(corpus.names, fits, strict=True)))
+    else:
+        record["view_fit"] = _experienced_view_fit(log_phi_v, log_g0, data, state.concepts, corpus.names)
+    record.update(provenance or {})
+    return Knowledge(
+        log_phi_visual=log_phi_v, log_phi_words=log_phi_w, log_g0=log_g0, word_mask=word_mask,
+        concentration_visual=_concentration(phi_v_samples, hyper.delta_visual),
+        concentration_words=(_concentration(np.exp(stack_w), hyper.delta_word) if has_words
+                             else np.full(hyper.n_concepts, np.nan)),
+        concentration_g0=float(conc_g), vocabulary=corpus.vocabulary, word_increment=corpus.word_increment,
+        hyperparameters=hyper, variant=variant, prune_words=prune, provenance=record,
+        extractor=None if extractor is None else extractor.spec().to_dict(),
+        extractor_arrays={} if extractor is None else dict(extractor.arrays),
+    )

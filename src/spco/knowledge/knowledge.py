@@ -1,0 +1,309 @@
+"""The knowledge: the shared, home-independent part of the transfer model learnt from experienced
+homes (:class:`Knowledge`), and its file (:func:`load_knowledge`)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field, replace
+from os import PathLike
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy.special import logsumexp
+
+from spco.data.language import Vocabulary
+from spco.errors import ConfigurationError, ModelFileError
+from spco.knowledge.files import (
+    FORMAT_VERSION,
+    KNOWLEDGE_FORMAT,
+    _content_checksum,
+    _read_archive,
+    _require,
+    _version,
+    _write_archive,
+)
+from spco.model.home_shard import SharedPart, SharedPrior
+from spco.model.hyperparameters import TransferHyperparameters
+from spco.model.io import _checksum
+
+#: The transfer models whose shared part can be learnt: name -> (sampler variant, word pruning).
+MODELS: dict[str, tuple[str, bool]] = {
+    "spcotransfer+mi": ("exact", True),
+    "spcotransfer": ("exact", False),
+    "spcotransfer-ref+mi": ("reference", True),
+    "spcotransfer-ref": ("reference", False),
+}
+
+DEFAULT_MODEL = "spcotransfer+mi"
+DEFAULT_FIT_ITERATIONS = 200
+DEFAULT_ADAPT_ITERATIONS = 100
+DEFAULT_TEACH_SWEEPS = 10
+
+
+def _model_name(variant: str, prune: bool) -> str:
+    for name, spec in MODELS.items():
+        if spec == (variant, prune):
+            return name
+    raise ConfigurationError(f"no transfer model with sampler {variant!r} and pruning {prune}")
+
+
+@dataclass(frozen=True, eq=False)
+class Knowledge:
+    """The shared, home-independent part of the transfer model, learnt from experienced homes.
+
+    Attributes
+    ----------
+    log_phi_visual: (L, D) log φ^v, the concepts' visual distributions.
+    log_phi_words: (L, V) log φ^w, the concepts' word distributions (pruned words included).
+    log_g0: (L,) log G_0, the global concept weights.
+    word_mask: (V,) bool, False for words removed by pruning.
+    concentration_visual, concentration_words: (L,) Dirichlet concentration A_l of the posterior
+        of φ^v_l, φ^w_l (moment-matched over the averaged samples, shrunk towards δ: see
+        :func:`_concentration`; NaN: unknown, in files written before, read as δ).
+    concentration_g0: the same for G_0 (shrunk towards γ; NaN: unknown).
+    vocabulary: the words of φ^w's columns.
+    word_increment: S^w, the count of each word occurrence.
+    hyperparameters: the model's hyperparameters.
+    variant: the sampler (``"exact"`` or ``"reference"``); prune_words: "+MI".
+    provenance: homes, seed, iterations, samples averaged, spco version, time of the fit, ...
+    extractor: the image extractor the visual counts come from
+        (:meth:`spco.features.ExtractorSpec.to_dict`), or ``None`` if fitted on count vectors.
+    extractor_arrays: its weights (e.g. ``{"codebook": (W, d)}``), stored in the file.
+    """
+
+    log_phi_visual: np.ndarray
+    log_phi_words: np.ndarray
+    log_g0: np.ndarray
+    word_mask: np.ndarray
+    concentration_visual: np.ndarray
+    concentration_words: np.ndarray
+    concentration_g0: float
+    vocabulary: Vocabulary
+    word_increment: int
+    hyperparameters: TransferHyperparameters
+    variant: str
+    prune_words: bool
+    provenance: dict[str, Any] = field(default_factory=dict)
+    extractor: dict[str, Any] | None = None
+    extractor_arrays: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        L = self.log_g0.shape[0] if np.ndim(self.log_g0) == 1 else -1
+        V = len(self.vocabulary)
+        problems = []
+        if L != self.hyperparameters.n_concepts:
+            problems.append(f"G_0 has {L} concepts, the hyperparameters {self.hyperparameters.n_concepts}")
+        if np.ndim(self.log_phi_visual) != 2 or self.log_phi_visual.shape[0] != L:
+            problems.append(f"φ^v has shape {np.shape(self.log_phi_visual)}")
+        if np.shape(self.log_phi_words) != (L, V):
+            problems.append(f"φ^w has shape {np.shape(self.log_phi_words)} for {L} concepts and {V} words")
+        if np.shape(self.word_mask) != (V,):
+            problems.append(f"the word mask has shape {np.shape(self.word_mask)} for {V} words")
+        for name in ("concentration_visual", "concentration_words"):
+            if np.shape(getattr(self, name)) != (L,):
+                problems.append(f"{name} has shape {np.shape(getattr(self, name))}")
+        if self.variant not in ("exact", "reference"):
+            problems.append(f"unknown sampler {self.variant!r}")
+        if problems:
+            raise ConfigurationError("inconsistent knowledge: " + "; ".join(problems))
+        object.__setattr__(self, "word_mask", np.asarray(self.word_mask, dtype=bool))
+
+    # ------------------------------------------------------------------ sizes and names
+    @property
+    def n_concepts(self) -> int:
+        """L."""
+        return int(self.log_g0.shape[0])
+
+    @property
+    def n_features(self) -> int:
+        """Visual dimension D."""
+        return int(self.log_phi_visual.shape[1])
+
+    @property
+    def n_words(self) -> int:
+        """Vocabulary size V."""
+        return len(self.vocabulary)
+
+    @property
+    def model(self) -> str:
+        """The model's name (``"spcotransfer+mi"``, ...)."""
+        return _model_name(self.variant, self.prune_words)
+
+    @property
+    def known_names(self) -> list[str]:
+        """The words kept by pruning."""
+        return [w for w, keep in zip(self.vocabulary.words, self.word_mask, strict=True) if keep]
+
+    @property
+    def checksum(self) -> str:
+        """sha256 identifying this knowledge's content (the ``checksum`` of its file)."""
+        arrays, header = self._arrays_and_header()
+        header = dict(header)
+        header["array_checksums"] = {n: _checksum(np.asarray(a)) for n, a in arrays.items()}
+        return _content_checksum(header)
+
+    @property
+    def fitted_on_images(self) -> bool:
+        """Whether the visual counts come from images through an extractor (:attr:`extractor`)."""
+        return self.extractor is not None
+
+    def image_extractor(self, model_path: str | PathLike[str] | None = None) -> Any:
+        """The :class:`~spco.features.Extractor` this knowledge was fitted with, rebuilt and checked.
+
+        ``model_path``: where the ONNX model file is now, if it moved (its checksum must match).
+        Raises ConfigurationError for knowledge fitted on count vectors, or weights that differ.
+        """
+        from spco.features import build_extractor
+
+        if self.extractor is None:
+            raise ConfigurationError("this knowledge was fitted on visual count vectors, not on images: "
+                                     "give views as features (--visual), or fit a knowledge on homes "
+                                     "with images")
+        extractor = build_extractor(self.extractor, self.extractor_arrays, model_path=model_path)
+        if extractor.n_features != self.n_features:
+            raise ConfigurationError(f"the extractor gives {extractor.n_features} features, the knowledge "
+                                     f"has {self.n_features}")
+        return extractor
+
+    def used_concepts(self, threshold: float = 0.01) -> int:
+        """Number of concepts with G_0 above ``threshold``."""
+        return int((np.exp(self.log_g0) > threshold).sum())
+
+    # ------------------------------------------------------------------ growing the vocabulary
+    def extended(self, sentences: Iterable[str | None]) -> Knowledge:
+        """This knowledge with the new words of ``sentences`` appended to the vocabulary.
+
+        A new word's φ^w_{l,k} is α^w/δ^w in every concept (rows renormalised): the home's
+        θ^w_{e,l} ~ Dir(δ^w φ^w_l + n) then gives it the prior mass α^w of a word never seen.
+        New words are kept by the mask (a home decides about them). Returns ``self`` if no word
+        is new.
+        """
+        vocabulary = self.vocabulary.extended(sentences)
+        added = len(vocabulary) - self.n_words
+        if added == 0:
+            return self
+        hyper = self.hyperparameters
+        log_new = math.log(hyper.alpha_word / hyper.delta_word)
+        log_phi = np.concatenate([self.log_phi_words, np.full((self.n_concepts, added), log_new)], axis=1)
+        log_phi -= logsumexp(log_phi, axis=1, keepdims=True)
+        mask = np.concatenate([self.word_mask, np.ones(added, dtype=bool)])
+        return replace(self, log_phi_words=log_phi, word_mask=mask, vocabulary=vocabulary)
+
+    # ------------------------------------------------------------------ for a new home
+    def shared_part(self) -> SharedPart:
+        """The shared part as a new home is learnt with it (:class:`spco.model.home_shard.SharedPart`)."""
+        return SharedPart(log_phi_visual=self.log_phi_visual, log_phi_words=self.log_phi_words,
+                          log_g0=self.log_g0, word_mask=self.word_mask,
+                          hyperparameters=self.hyperparameters, variant=self.variant,
+                          prune_words=self.prune_words, words=tuple(self.vocabulary.words))
+
+    def shared_prior(self) -> SharedPrior:
+        """The knowledge as the prior of the shared part (``adapt(..., joint=True)``): Dir(A φ̄),
+        Dir(A_g Ḡ_0) with the concentrations of :attr:`concentration_visual`, ... (δ, γ where unknown)."""
+        return SharedPrior.of(self.shared_part(), self.concentration_visual, self.concentration_words,
+                              self.concentration_g0)
+
+    # ------------------------------------------------------------------ files
+    def _arrays_and_header(self) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        arrays = {
+            "log_phi_visual": np.asarray(self.log_phi_visual, dtype=np.float64),
+            "log_phi_words": np.asarray(self.log_phi_words, dtype=np.float64),
+            "log_g0": np.asarray(self.log_g0, dtype=np.float64),
+            "word_mask": np.asarray(self.word_mask, dtype=bool),
+            "concentration_visual": np.asarray(self.concentration_visual, dtype=np.float64),
+            "concentration_words": np.asarray(self.concentration_words, dtype=np.float64),
+            "concentration_g0": np.asarray([self.concentration_g0], dtype=np.float64),
+        }
+        for name, value in self.extractor_arrays.items():
+            arrays["extractor." + name] = np.asarray(value)
+        header = {
+            "format": KNOWLEDGE_FORMAT,
+            "format_version": FORMAT_VERSION,
+            "spco_version": _version(),
+            "model": self.model,
+            "variant": self.variant,
+            "prune_words": bool(self.prune_words),
+            "hyperparameters": self.hyperparameters.to_dict(),
+            "vocabulary": list(self.vocabulary.words),
+            "word_increment": int(self.word_increment),
+            "provenance": self.provenance,
+            "extractor": self.extractor,
+        }
+        return arrays, header
+
+    def save(self, path: str | PathLike[str], overwrite: bool = False) -> Path:
+        """Write this knowledge to ``path`` (atomically; an existing file only with ``overwrite``)."""
+        arrays, header = self._arrays_and_header()
+        return _write_archive(path, arrays, header, overwrite, "knowledge file")
+
+    @classmethod
+    def load(cls, path: str | PathLike[str]) -> Knowledge:
+        """Read a knowledge file written by :meth:`save`; see :func:`load_knowledge`."""
+        file, header, arrays = _read_archive(path, KNOWLEDGE_FORMAT)
+        return cls._from_parts(file, header, arrays, "")
+
+    @classmethod
+    def _from_parts(cls, file: Path, header: Mapping[str, Any], arrays: Mapping[str, np.ndarray],
+                    prefix: str) -> Knowledge:
+        names = ("log_phi_visual", "log_phi_words", "log_g0", "word_mask", "concentration_visual",
+                 "concentration_words", "concentration_g0")
+        _require(file, header, arrays, ("variant", "prune_words", "hyperparameters", "vocabulary",
+                                        "word_increment"), [prefix + n for n in names])
+        try:
+            return cls(
+                log_phi_visual=arrays[prefix + "log_phi_visual"],
+                log_phi_words=arrays[prefix + "log_phi_words"],
+                log_g0=arrays[prefix + "log_g0"],
+                word_mask=arrays[prefix + "word_mask"],
+                concentration_visual=arrays[prefix + "concentration_visual"],
+                concentration_words=arrays[prefix + "concentration_words"],
+                concentration_g0=float(arrays[prefix + "concentration_g0"].reshape(-1)[0]),
+                vocabulary=Vocabulary(tuple(str(w) for w in header["vocabulary"])),
+                word_increment=int(header["word_increment"]),
+                hyperparameters=TransferHyperparameters.from_dict(header["hyperparameters"]),
+                variant=str(header["variant"]),
+                prune_words=bool(header["prune_words"]),
+                provenance=dict(header.get("provenance") or {}),
+                extractor=_extractor_of(header),
+                extractor_arrays={name[len(prefix) + len("extractor."):]: a for name, a in arrays.items()
+                                  if name.startswith(prefix + "extractor.")},
+            )
+        except (ConfigurationError, TypeError, ValueError, IndexError) as exc:
+            raise ModelFileError(file, f"inconsistent file: {exc}") from exc
+
+    def describe(self) -> str:
+        """A few lines for people: model, homes, concepts, words, samples averaged."""
+        p = self.provenance
+        homes = p.get("homes") or []
+        summary = p.get("summary") or {}
+        lines = [
+            f"model {self.model}: {self.used_concepts()} of {self.n_concepts} concepts used, "
+            f"{self.n_words} words ({len(self.known_names)} kept), {self.n_features} visual features",
+            f"learnt from {len(homes)} homes ({', '.join(homes[:6])}{', …' if len(homes) > 6 else ''}) "
+            f"in {p.get('n_iterations', '?')} sweeps, seed {p.get('seed')}; averaged over "
+            f"{summary.get('n_samples', '?')} posterior samples",
+        ]
+        if self.extractor is not None:
+            from spco.features import ExtractorSpec
+
+            lines.append(f"views: images, extractor {ExtractorSpec.from_dict(self.extractor).describe()}")
+        return "\n".join(lines)
+
+
+def _extractor_of(header: Mapping[str, Any]) -> dict[str, Any] | None:
+    """The extractor description of a header (``None``: count vectors; absent in version 1)."""
+    from spco.features import ExtractorSpec
+
+    value = header.get("extractor")
+    return None if value is None else ExtractorSpec.from_dict(value).to_dict()
+
+
+def load_knowledge(path: str | PathLike[str]) -> Knowledge:
+    """Read a knowledge file (``spco fit``).
+
+    Raises :class:`~spco.errors.ModelFileError` if the file is missing, truncated, not a knowledge
+    file, edited after it was written (checksum mismatch) or written by a newer spco.
+    """
+    return Knowledge.load(path)

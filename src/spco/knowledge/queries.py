@@ -1,0 +1,196 @@
+"""Questions to a home: where a place is (:func:`where`), what a place is called (:func:`what`),
+why a word is not used (:func:`unused_word_hint`), and what a knowledge or home file holds
+(:func:`describe_model_file`)."""
+
+from __future__ import annotations
+
+import warnings
+from os import PathLike
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from spco.errors import ConfigurationError
+from spco.knowledge.files import HOME_FORMAT, _as_generator, model_file_format
+from spco.knowledge.home import HomeModel, load_home_model
+from spco.knowledge.knowledge import load_knowledge
+from spco.knowledge.views import _pose, _view_counts, _visual_row, pose_outside_map
+from spco.model.prediction import NamePrediction, PositionPrediction, UnknownNameError, predict_names
+
+#: How many of the home's own teachings the model's p(m | name) weighs as, in :func:`where`.
+WHERE_MODEL_WEIGHT = 1.0
+#: ... and the home's regions in proportion to their samples (where a place taught a few times
+#: could still be), once the name was taught in the home.
+WHERE_ANYWHERE_WEIGHT = 1.0
+
+
+def where(home: HomeModel, name: str, n: int = 10,
+          random_state: int | np.random.Generator | None = None) -> PositionPrediction:
+    """Poses ``(x, y, θ)`` to go to for the place ``name`` in ``home``.
+
+    The region probabilities combine the model with the home's own teachings of the name:
+    ``p(m | name) = (c_m + κ · p_model(m | name) + λ · u_m) / (c + κ + λ)``, where ``c_m`` counts the
+    home's samples whose sentence holds the name and that sit in region m, ``c`` all of them, κ =
+    :data:`WHERE_MODEL_WEIGHT`, ``p_model(m | name) ∝ Σ_l π_{l,m} θ^w_{l,name} G_l``
+    (:func:`spco.prediction.region_posterior_for_name`), u_m the share of the home's samples in
+    region m and λ = :data:`WHERE_ANYWHERE_WEIGHT` (0 for a name never taught in this home, which is
+    answered by the model alone). A name taught once is answered with the region of that sample at
+    about 0.6–0.65 (little evidence); each further teaching there makes it firmer.
+    The poses are drawn from the answer regions — those at least half as probable as the best
+    (a name taught at two places of the home finds both) — in proportion to their probability, at
+    least one per region; each pose's ``weights`` entry is its share of the density p(x | name)
+    among the ``n`` poses. Raises :class:`~spco.prediction.UnknownNameError` (with suggestions)
+    for a name the home cannot use: never heard, or pruned as no name.
+    ``name`` is read like a sentence (``"Living Room"``, ``"living-room"`` → ``living room``); a name
+    never learnt as one term is its known words said together (``study + room``). ``learnt`` is
+    False (and ``support`` low) when no such place was learnt in this home: the name is neither
+    taught in the home nor carried by concepts holding its samples.
+    """
+    try:
+        return _where(home, name, n, random_state)
+    except UnknownNameError:
+        hint = unused_word_hint(home, name)
+        if hint is None:
+            raise
+        raise UnknownNameError(name, home.known_names, reason=hint) from None
+
+
+def _where(home: HomeModel, name: str, n: int,
+           random_state: int | np.random.Generator | None) -> PositionPrediction:
+    """:func:`where` without the hint for unusable names."""
+    from spco.model.prediction import (
+        LEARNT_SUPPORT,
+        draw_poses,
+        name_support,
+        query_indices,
+        query_name,
+        region_posterior_for_name,
+    )
+
+    if n < 0:
+        raise ConfigurationError(f"the number of positions must be >= 0, got {n}")
+    params, vocabulary = home.parameters, home.vocabulary
+    model = region_posterior_for_name(params, 0, vocabulary, name)
+    columns = query_indices(params, vocabulary, name)
+    words = home.data.words[:, columns]  # type: ignore[index]
+    said = np.asarray((words > 0).sum(axis=1)).ravel() == len(columns)  # every token of the name said
+    counts = np.bincount(home.state.regions[said], minlength=model.size).astype(np.float64)
+    probs = counts + WHERE_MODEL_WEIGHT * model
+    if counts.sum() > 0:  # a place taught a few times could still be anywhere in the home
+        anywhere = np.bincount(home.state.regions, minlength=model.size) / home.state.regions.size
+        probs = probs + WHERE_ANYWHERE_WEIGHT * anywhere
+    probs = probs / probs.sum()
+    support = 1.0 if counts.sum() > 0 else name_support(params, 0, vocabulary, name)
+    answer = np.flatnonzero(probs >= 0.5 * probs.max())
+    answer = answer[np.argsort(-probs[answer], kind="stable")]
+    share = probs[answer] / probs[answer].sum()
+    per_region = np.floor(share * n).astype(np.int64)
+    if n >= answer.size:
+        per_region = np.maximum(per_region, 1)
+    while per_region.sum() > n:
+        per_region[np.argmax(per_region)] -= 1
+    while per_region.sum() < n:
+        per_region[np.argmax(share * n - per_region)] += 1
+    regions = np.repeat(answer, per_region)
+    samples, log_density, weights = draw_poses(params, 0, probs, regions, _as_generator(random_state))
+    return PositionPrediction(name=query_name(vocabulary, params, name), region=int(answer[0]),
+                              region_probabilities=probs, samples=samples, regions=regions,
+                              log_density=log_density, weights=weights, mode="mixture", xy_only=False,
+                              support=support, learnt=support >= LEARNT_SUPPORT)
+
+
+def unused_word_hint(home: HomeModel, word: str) -> str | None:
+    """Why a word of the home's vocabulary is not used (pruned as uninformative) and what to do about
+    it, or ``None`` if the word is unknown or used.
+
+    A word taught at a few samples of this home is pruned when the naming rule finds its uses no
+    more often in one region than chance, and a word the knowledge pruned stays pruned until the
+    home's teachings show it marks a place (:func:`_home_word_mask`): in both cases teaching it at a
+    few more samples of the same place (the nearest untaught samples are suggested) can make it a
+    place name.
+    """
+    index = home.vocabulary.index(word)
+    if index is None or bool(home.state.word_mask[index]):
+        return None
+    w = home.vocabulary.words[index]
+    taught = [k for k, sentence in enumerate(home.sentences) if w in home.vocabulary.tokenize(sentence)]
+    if not taught:
+        return (f"the word {w!r} was pruned as uninformative in the experienced homes: it is said at "
+                f"every kind of place (or too rarely) to tell places apart, so it names no place")
+    xy = home.positions[:, :2]
+    distance = np.linalg.norm(xy - xy[taught].mean(0), axis=1)
+    untaught = [k for k in np.argsort(distance, kind="stable") if home.sentences[k] is None][:3]
+    ids = [int(home.ids[k]) for k in untaught]
+    more = ("teach it at a few more samples of that place"
+            + (", e.g. the nearest untaught ones: spco teach HOME "
+               + " ".join(f'--id {i} --sentence "this is {w}"' for i in ids) if ids else ""))
+    if index < home.n_knowledge_words and not bool(home.knowledge.word_mask[index]):
+        # the home takes such a word back once its own samples show it marks a place (_home_word_mask)
+        return (f"the word {w!r} was pruned as uninformative by the knowledge: in its experienced "
+                f"homes it did not tell places apart (a word said everywhere, or a name said in one "
+                f"home only), and this home's {len(taught)} teaching(s) do not yet show that it marks "
+                f"one place here; {more} (or fit the knowledge with --model spcotransfer: no pruning)")
+    shown = ", ".join(str(int(home.ids[k])) for k in taught[:5]) + (", …" if len(taught) > 5 else "")
+    return (f"the word {w!r} is not used as a place name yet: it is taught at {len(taught)} sample(s) of "
+            f"this home (id {shown}), too few to tell its place from the others (pruned as "
+            f"uninformative); {more}")
+
+
+
+def what(home: HomeModel, x: float, y: float, theta: float, visual: Any = None,
+         top_k: int = 3, image: Any = None) -> NamePrediction:
+    """The ``top_k`` place names at pose ``(x, y, θ)``, with the view's visual counts if given.
+
+    A pose off the home's map is answered with a :class:`UserWarning`, one more than
+    :data:`FAR_OUTSIDE_MAP` map sizes off it is refused (:func:`pose_outside_map`); ``θ`` must be in
+    radians (``|θ| ≤ 2π``).
+
+    ``image`` (a path or an array) gives the view as an image instead, for a home whose knowledge
+    was fitted on images: its extractor computes the counts.
+    Without a view the names come from the position alone (``use_vision=False``). The returned
+    :class:`~spco.prediction.NamePrediction` holds one row: ``words[0]``, ``probabilities[0]``
+    (p(w | x, v)) and ``scores[0]`` (the ranking score).
+    """
+    pose = _pose(x, y, theta)[None, :]
+    outside = pose_outside_map(home, x, y)
+    if outside is not None:
+        warnings.warn(f"{outside}; the names are extrapolated from the nearest regions", stacklevel=2)
+    visual = _view_counts(home.knowledge, visual, image)
+    row = None if visual is None else _visual_row(visual, home.knowledge.n_features)
+    return predict_names(home.parameters, 0, home.vocabulary, pose, row, top_k=top_k,
+                         weighting=home.weighting, use_vision=row is not None)  # type: ignore[arg-type]
+
+
+
+def describe_model_file(path: str | PathLike[str]) -> dict[str, Any]:
+    """What a knowledge or home file holds, for people and scripts (``spco inspect FILE``).
+
+    Keys: ``file``, ``kind`` (``"knowledge"`` or ``"home"``), ``model``, ``visual_dimension``,
+    ``extractor`` (the feature extractor recorded with the views, or ``None``), ``vocabulary``,
+    ``kept_names`` (the words usable as place names), ``homes`` (the experienced homes), the view fit
+    (:func:`view_fit`) and the ``provenance``; a home file adds ``home``, ``samples``, ``taught`` and
+    ``extent``. Raises :class:`~spco.errors.ModelFileError` for a file that is neither (or broken).
+    """
+    kind = model_file_format(path)
+    if kind == HOME_FORMAT:
+        home = load_home_model(path)
+        knowledge, names = home.knowledge, home.known_names
+        provenance = dict(home.provenance)
+        homes = list(provenance.get("knowledge_homes") or [])
+    else:
+        knowledge = load_knowledge(path)  # also the error for a file that is neither
+        names, provenance = knowledge.known_names, dict(knowledge.provenance)
+        homes = list(provenance.get("homes") or [])
+    view = provenance.pop("view_fit", None)
+    info: dict[str, Any] = {
+        "file": str(Path(path)), "kind": "home" if kind == HOME_FORMAT else "knowledge",
+        "model": knowledge.model, "visual_dimension": knowledge.n_features,
+        "extractor": knowledge.extractor,
+        "vocabulary": list(knowledge.vocabulary.words), "kept_names": list(names), "homes": homes,
+        "view_fit": view, "provenance": provenance,
+    }
+    if kind == HOME_FORMAT:
+        info.update({"home": home.name, "samples": home.n_samples, "taught": home.n_taught,
+                     "extent": None if home.extent is None else list(home.extent)})
+    return info

@@ -1,0 +1,84 @@
+"""The floors of spco hold: each imports only the floors below it (``[tool.importlinter]`` in
+pyproject.toml, checked with import-linter, the same check as ``lint-imports``).
+
+Function-level imports count: a lazy ``from spco.knowledge import ...`` inside ``spco.model``
+breaks the contract like a top-level one.
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PYPROJECT = ROOT / "pyproject.toml"
+
+
+def _lint_imports() -> str:
+    """The ``lint-imports`` of this environment (installed with the ``test`` extra)."""
+    beside = Path(sys.executable).with_name("lint-imports")
+    found = str(beside) if beside.exists() else shutil.which("lint-imports")
+    if found is None:
+        pytest.fail("lint-imports (import-linter) is not installed: pip install -e '.[test]'")
+    return found
+
+
+def _run(config: Path) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([_lint_imports(), "--no-cache", str(config)], capture_output=True, text=True,
+                          cwd=ROOT, timeout=120)
+
+
+def _layers() -> list[str]:
+    options = tomllib.loads(PYPROJECT.read_text())["tool"]["importlinter"]
+    (contract,) = [c for c in options["contracts"] if c["id"] == "floors"]
+    return list(contract["layers"])
+
+
+def test_the_floors_hold() -> None:
+    """Every import in src/spco goes down the floors of pyproject.toml."""
+    result = _run(PYPROJECT)
+    assert result.returncode == 0, f"an import climbs a floor:\n{result.stdout}\n{result.stderr}"
+    assert "1 kept, 0 broken" in result.stdout
+
+
+def test_a_climbing_import_breaks_the_contract(tmp_path: Path) -> None:
+    """The check fails when an import climbs: the same contract with the model above the knowledge
+    (which imports it) is reported broken, naming the import."""
+    layers = _layers()
+    model, knowledge = layers.index("model"), next(i for i, s in enumerate(layers) if "knowledge" in s)
+    assert knowledge < model
+    layers[knowledge], layers[model] = "model", layers[knowledge]
+    config = tmp_path / "pyproject.toml"
+    shown = ",\n".join(f'    "{layer}"' for layer in layers)
+    config.write_text(f"""[tool.importlinter]
+root_package = "spco"
+
+[[tool.importlinter.contracts]]
+id = "floors"
+name = "floors, swapped"
+type = "layers"
+containers = ["spco"]
+exhaustive = true
+layers = [
+{shown},
+]
+""")
+    result = _run(config)
+    assert result.returncode != 0
+    assert "BROKEN" in result.stdout and "spco.knowledge" in result.stdout
+
+
+def test_every_top_level_module_has_a_floor() -> None:
+    """A new module or package of spco must be given a floor (``exhaustive``): listed here too, so
+    the failure says which one is missing."""
+    named = {name.strip("() ") for layer in _layers() for name in layer.split("|")}
+    package = ROOT / "src" / "spco"
+    present = {p.stem for p in package.iterdir()
+               if (p.suffix == ".py" and p.stem != "__init__") or (p / "__init__.py").exists()}
+    missing = sorted(present - named)
+    assert not missing, f"no floor for {missing} in [tool.importlinter] of pyproject.toml"
