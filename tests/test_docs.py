@@ -117,3 +117,24 @@ def test_mkdocs_build_strict(tmp_path: Path) -> None:
     assert result.returncode == 0, result.stdout + result.stderr
     assert (site / "index.html").is_file()
     assert (site / "tutorial" / "index.html").is_file()
+
+
+def _griffe_spco():
+    _require_mkdocs()
+    spec = importlib.util.spec_from_file_location("griffe_spco", ROOT / "tools" / "griffe_spco.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_docstrings_are_rewritten_for_the_numpy_parser() -> None:
+    rewrite = _griffe_spco().rewrite
+    text = ("Fit it.\n\nParameters\n----------\ncorpus: the homes (a :class:`~spco.data.Corpus`), or a\n"
+            "    folder.\nrng, seed: a generator; progress: show a bar.\n\nConventions: NaN is left out.\n\n"
+            "Returns\n-------\nThe :func:`spco.knowledge.fit_knowledge` result.\n")
+    assert rewrite(text, "Knowledge", {"corpus", "rng", "seed", "progress"}).split("\n") == [
+        "Fit it.", "", "Parameters", "----------",
+        "corpus", "    the homes (a `Corpus`), or a", "    folder.",
+        "rng", "    a generator", "seed", "    a generator", "progress", "    show a bar.", "",
+        "Notes", "-----", "Conventions: NaN is left out.", "",
+        "Returns", "-------", "Knowledge", "    The `spco.knowledge.fit_knowledge` result.", ""]

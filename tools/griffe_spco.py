@@ -50,33 +50,32 @@ def _sections(lines: list[str]) -> list[tuple[str, int, int]]:
 def _items(lines: list[str], parameters: set[str]) -> list[str]:
     """The body of an item section (see the module docstring)."""
     out: list[str] = []
+
+    def is_item(text: str) -> re.Match[str] | None:
+        match = _ITEM.match(text)
+        names = [] if match is None else [n.strip().lstrip("*") for n in match.group(1).split(",")]
+        return match if match is not None and (not parameters or set(names) <= parameters) else None
+
     for k, line in enumerate(lines):
         if not line.strip() or line.startswith(" "):
             out.append(line)
             continue
-        match = _ITEM.match(line)
-        names = [] if match is None else [n.strip().lstrip("*") for n in match.group(1).split(",")]
-        if match is not None and parameters and not set(names) <= parameters:
-            match = None  # "Conventions: …" is prose, not a parameter
-        if match is None:
-            if k > 0 and not lines[k - 1].strip():  # a paragraph about the parameters as a whole
-                out += ["Notes", "-----", *lines[k:]]
-                break
-            out.append("    " + line)  # a continuation written without indentation
-            continue
+        if is_item(line) is None and k > 0 and not lines[k - 1].strip():
+            out += ["Notes", "-----", *lines[k:]]  # a paragraph about the parameters as a whole
+            break
         parts = re.split(r";\s+(?=(\*{0,2}[A-Za-z_]\w*):\s)", line)
-        items, current = [], parts[0]
+        pieces, current = [], parts[0]
         for name, rest in zip(parts[1::2], parts[2::2], strict=True):
-            if name.lstrip("*") in parameters:
-                items.append(current)
+            if name.lstrip("*") in parameters:  # "a: …; b: …": b starts an item of its own
+                pieces.append(current)
                 current = rest
             else:
                 current += "; " + rest
-        items.append(current)
-        for item in items:
-            match = _ITEM.match(item)
-            if match is None:
-                out.append("    " + item)
+        pieces.append(current)
+        for piece in pieces:
+            match = is_item(piece)
+            if match is None:  # a continuation written without indentation
+                out.append("    " + piece)
                 continue
             for name in re.split(r",\s*", match.group(1)):  # one entry per name: its own type
                 out += [name] + (["    " + match.group(2)] if match.group(2) else [])
@@ -105,9 +104,13 @@ class SpcoDocstrings(griffe.Extension):
     """Rewrite every docstring before it is parsed (:func:`rewrite`)."""
 
     def on_instance(self, *, obj: griffe.Object, **kwargs: Any) -> None:
-        if obj.docstring is None:
+        if obj.docstring is None or obj.is_class:  # a class: once its __init__ is known
             return
         returns = getattr(obj, "returns", None)
         parameters = {p.name for p in getattr(obj, "parameters", ())}
         obj.docstring.value = rewrite(obj.docstring.value, None if returns is None else str(returns),
                                       parameters)
+
+    def on_class_members(self, *, cls: griffe.Class, **kwargs: Any) -> None:
+        if cls.docstring is not None:
+            cls.docstring.value = rewrite(cls.docstring.value, None, {p.name for p in cls.parameters})
