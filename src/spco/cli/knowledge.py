@@ -19,6 +19,7 @@ import os
 import sys
 import tempfile
 import time
+from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -324,9 +325,10 @@ def adapt(knowledge_file: Path, home_path: Path, name: str | None, teaching_rate
 def where(home_file: Path, name: str, n: int, seed: int, as_json: bool) -> None:
     """Positions (x, y, θ) to go to for the place NAME in the home of HOME.
 
-    Draws N poses from the region most probable for NAME; each pose's probability is its share of
-    the density p(pose | NAME) among the N poses. A name the robot never heard is answered with
-    the names it knows (exit status 2).
+    Draws N poses from the regions at least half as probable for NAME as the most probable one, in
+    proportion to their probability (a name taught at two places finds both); each pose's
+    probability is its share of the density p(pose | NAME) among the N poses. A name the robot never
+    heard is answered with the names it knows (exit status 2).
     """
     from spco.knowledge import load_home_model
     from spco.knowledge import where as where_name
@@ -336,7 +338,8 @@ def where(home_file: Path, name: str, n: int, seed: int, as_json: bool) -> None:
     pred = where_name(home, name, n=n, random_state=seed)
     order = sorted(range(pred.samples.shape[0]), key=lambda i: -float(pred.weights[i]))
     positions = [{"x": float(pred.samples[i, 0]), "y": float(pred.samples[i, 1]),
-                  "theta": float(pred.samples[i, 2]), "probability": float(pred.weights[i])} for i in order]
+                  "theta": float(pred.samples[i, 2]), "probability": float(pred.weights[i]),
+                  "region": int(pred.regions[i])} for i in order]
     if as_json:
         click.echo(json.dumps({"home": home.name, "name": pred.name, "region": int(pred.region),
                                "region_probability": float(pred.region_probabilities[pred.region]),
@@ -350,11 +353,23 @@ def where(home_file: Path, name: str, n: int, seed: int, as_json: bool) -> None:
     click.echo(f"{pred.name} in home {home.name}: region {pred.region} of the home's map, "
                f"p(region | {pred.name}) = {pred.region_probabilities[pred.region]:.2f} (the most probable "
                f"region; the rest is spread over others)")
-    click.echo(f"{len(positions)} poses drawn from the region's Gaussian; probability: each pose's share of "
-               f"p(pose | {pred.name}) among them")
-    click.echo(f"{'x':>8} {'y':>8} {'theta':>7}  probability")
+    click.echo(_where_drawn_from(pred.regions.tolist(), pred.name))
+    several = len(set(pred.regions.tolist())) > 1
+    click.echo(f"{'x':>8} {'y':>8} {'theta':>7}  probability" + ("  region" if several else ""))
     for p in positions:
-        click.echo(f"{p['x']:8.3f} {p['y']:8.3f} {p['theta']:7.3f}  {p['probability']:.3f}")
+        click.echo(f"{p['x']:8.3f} {p['y']:8.3f} {p['theta']:7.3f}  {p['probability']:.3f}"
+                   + (f"        {p['region']:>6}" if several else ""))
+
+
+def _where_drawn_from(regions: Sequence[int], name: str) -> str:
+    """The line of ``spco where`` that says which regions its poses were drawn from."""
+    share = f"probability: each pose's share of p(pose | {name}) among them"
+    counts = Counter(int(r) for r in regions)
+    if len(counts) == 1:
+        return f"{len(regions)} poses drawn from the region's Gaussian; {share}"
+    parts = ", ".join(f"region {r}: {c}" for r, c in counts.most_common())
+    return (f"{len(regions)} poses drawn from {len(counts)} regions in proportion to p(region | {name}) "
+            f"({parts}); {share}")
 
 
 # ------------------------------------------------------------------------------------ what
