@@ -13,7 +13,8 @@ the same page wrote. Blocks are run as written, with three substitutions a reade
 A block preceded by ``<!-- blocks: not run (reason) -->`` is listed as not run, with its reason; one
 preceded by ``<!-- blocks: run in the repository -->`` runs in this repository's folder, as a
 developer in a clone runs it.
-Prints each block's status and time, and exits with status 1 at the first block that fails::
+Prints each block's status and time (its output goes to ``block-<line>.log`` in the page's folder;
+``--keep`` keeps it), and exits with status 1 at the first block that fails::
 
     python tools/run_doc_blocks.py README.md docs/tutorial.md --datasets ../shared/datasets
 """
@@ -122,6 +123,7 @@ def run_page(page: Path, datasets: Path | None, with_tests: bool, keep: bool,
         cwd = ROOT if block.in_repo else work
         result = subprocess.run(command, cwd=cwd, capture_output=True, text=True)
         seconds = time.perf_counter() - start
+        (work / f"block-{block.line}.log").write_text(result.stdout + result.stderr, encoding="utf-8")
         status = "ok" if result.returncode == 0 else f"FAILED (exit {result.returncode})"
         print(f"{head}: {status} in {seconds:.1f} s" + (f" [{note}]" if note else ""))
         if result.returncode != 0:
