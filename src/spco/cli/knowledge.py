@@ -338,8 +338,7 @@ def where(home_file: Path, name: str, n: int, seed: int, as_json: bool) -> None:
     pred = where_name(home, name, n=n, random_state=seed)
     order = sorted(range(pred.samples.shape[0]), key=lambda i: -float(pred.weights[i]))
     positions = [{"x": float(pred.samples[i, 0]), "y": float(pred.samples[i, 1]),
-                  "theta": float(pred.samples[i, 2]), "probability": float(pred.weights[i]),
-                  "region": int(pred.regions[i])} for i in order]
+                  "theta": float(pred.samples[i, 2]), "probability": float(pred.weights[i])} for i in order]
     if as_json:
         click.echo(json.dumps({"home": home.name, "name": pred.name, "region": int(pred.region),
                                "region_probability": float(pred.region_probabilities[pred.region]),
@@ -356,9 +355,9 @@ def where(home_file: Path, name: str, n: int, seed: int, as_json: bool) -> None:
     click.echo(_where_drawn_from(pred.regions.tolist(), pred.name))
     several = len(set(pred.regions.tolist())) > 1
     click.echo(f"{'x':>8} {'y':>8} {'theta':>7}  probability" + ("  region" if several else ""))
-    for p in positions:
+    for i, p in zip(order, positions, strict=True):
         click.echo(f"{p['x']:8.3f} {p['y']:8.3f} {p['theta']:7.3f}  {p['probability']:.3f}"
-                   + (f"        {p['region']:>6}" if several else ""))
+                   + (f"        {int(pred.regions[i]):>6}" if several else ""))
 
 
 def _where_drawn_from(regions: Sequence[int], name: str) -> str:
