@@ -2,10 +2,8 @@
 
 Each measurement runs in a fresh process (``one``), so that its peak memory is its own: it
 makes N fully taught synthetic homes plus one new home (D visual dimensions) and starts the engine
-(local, or Ray with S shards as actors). With ``--init shards`` (the default) every shard
-generates and initialises its own homes (:mod:`spco.model.shard_init`: the driver holds only the
-shared parameters); with ``--init driver`` the driver generates and initialises every home and
-then splits them (``engine.start``). It then runs
+(local, or Ray with S shards as actors): every shard generates and starts its own homes
+(:mod:`spco.model.shard_init`: the driver holds only the shared parameters). It then runs
 ``--warmup`` untimed and ``--sweeps`` timed sweeps (steady state: sweeps 21.., label swaps on
 every 10th) and prints one JSON row: seconds per sweep, peak resident memory of the driver and
 of every shard's process, bytes sent per sweep (shared parameters to the shards, statistics
@@ -48,11 +46,9 @@ def peak_rss() -> int:
 
 def measure(args: argparse.Namespace) -> dict[str, Any]:
     """One configuration, in this process."""
-    from spco import benchmark
     from spco.engines import make_engine
     from spco.model import gibbs
     from spco.model.hyperparameters import TransferHyperparameters
-    from spco.model.transfer import SpCoTransfer
 
     hyper = TransferHyperparameters()
     settings = gibbs.SamplerSettings.create("exact", prune=False)
@@ -63,33 +59,17 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
 
         ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
     generated = initialised = None
-    if args.init == "driver":  # every home generated and initialised in the driver, then split
-        t0 = time.perf_counter()
-        corpus = benchmark.synthetic_corpus(args.homes, 1, n_features=args.features, seed=args.seed)
-        generated = time.perf_counter() - t0
-        data = SpCoTransfer._prepare(corpus, 1.0)
-        n_words = len(corpus.vocabulary)
-        del corpus
-        t0 = time.perf_counter()
-        state = gibbs.initialize(data, n_words, hyper, settings, rng)
-        initialised = time.perf_counter() - t0
-        if args.engine == "local":
-            engine.share_rng = False
-        t0 = time.perf_counter()
-        run = engine.start(data, state, hyper, settings, rng)
-        del state, data
-        started = time.perf_counter() - t0
-    else:  # every shard generates and initialises its own homes (spco.model.shard_init)
-        from spco.data.synthetic import SyntheticConfig
-        from spco.model.sources import SyntheticHomes
+    # every shard generates and starts its own homes (spco.model.shard_init)
+    from spco.data.synthetic import SyntheticConfig
+    from spco.model.sources import SyntheticHomes
 
-        t0 = time.perf_counter()
-        source = SyntheticHomes.create(args.homes + 1, args.seed, SyntheticConfig(n_features=args.features),
-                                       new_homes=1)
-        vocabulary_seconds = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        run = engine.start_source(source, hyper, settings, rng)
-        started = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    source = SyntheticHomes.create(args.homes + 1, args.seed, SyntheticConfig(n_features=args.features),
+                                   new_homes=1)
+    vocabulary_seconds = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    run = engine.start_source(source, hyper, settings, rng)
+    started = time.perf_counter() - t0
     log(f"  started in {started:.1f} s")
     first = gibbs.SWAP_BURN_IN + 1
     for i in range(args.warmup):
@@ -101,21 +81,20 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         run.sweep(first + args.warmup + i)
         times.append(time.perf_counter() - t0)
     shard_memory = run.memory() if hasattr(run, "memory") else []
-    row = {"homes": run.bounds[-1][1], "D": args.features, "engine": args.engine, "init": args.init,
+    row = {"homes": run.bounds[-1][1], "D": args.features, "engine": args.engine,
            "shards": run.n_shards, "sweep_seconds": float(np.median(times)), "all_sweep_seconds": times,
            "driver_peak_bytes": peak_rss(), "shard_peak_bytes": shard_memory,
            "bytes_sent_per_sweep": (run.bytes_sent - sent) / args.sweeps,
            "bytes_received_per_sweep": (run.global_step.bytes_received - received) / args.sweeps,
            "generate_seconds": generated, "initialise_seconds": initialised, "start_seconds": started,
            "finished_at": time.strftime("%H:%M:%S", time.gmtime())}
-    if args.init == "shards":
-        setup = (run.setup_seconds() if hasattr(run, "setup_seconds")
-                 else [shard.setup_seconds for shard in run.shards])
-        row.update(vocabulary_seconds=vocabulary_seconds, shard_setup_seconds=setup,
-                   initialisation_bytes_received=run.initialisation.bytes_received,
-                   initialisation_bytes_sent=run.initialisation.bytes_sent,
-                   warm_start_seconds=run.initialisation.seconds,
-                   alignment_seconds=run.initialisation.alignment_seconds)
+    setup = (run.setup_seconds() if hasattr(run, "setup_seconds")
+             else [shard.setup_seconds for shard in run.shards])
+    row.update(vocabulary_seconds=vocabulary_seconds, shard_setup_seconds=setup,
+               initialisation_bytes_received=run.initialisation.bytes_received,
+               initialisation_bytes_sent=run.initialisation.bytes_sent,
+               warm_start_seconds=run.initialisation.seconds,
+               alignment_seconds=run.initialisation.alignment_seconds)
     run.close()
     return row
 
@@ -150,9 +129,6 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sweeps", type=int, default=3)
     parser.add_argument("--warmup", type=int, default=1)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--init", choices=("shards", "driver"), default="shards",
-                        help="where the homes are generated and initialised: in the shards "
-                             "(engine.start_source) or in the driver, then split (engine.start)")
     parser.add_argument("--json", default=None, help="table: append the rows to this JSON-lines file")
     args = parser.parse_args(argv)
     if args.mode == "one":
@@ -166,7 +142,7 @@ def main(argv: list[str] | None = None) -> int:
             command = [sys.executable, __file__, "one", "--homes", str(homes),
                        "--features", str(args.features),
                        "--engine", engine, "--shards", shards, "--sweeps", str(args.sweeps),
-                       "--warmup", str(args.warmup), "--seed", str(args.seed), "--init", args.init]
+                       "--warmup", str(args.warmup), "--seed", str(args.seed)]
             log(f"{homes} homes, D = {args.features}, {engine} × {shards} ...")
             done = subprocess.run(command, capture_output=True, text=True)
             if done.returncode != 0:

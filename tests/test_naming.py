@@ -12,6 +12,7 @@ import scipy.sparse as sp
 from spco.data import Corpus
 from spco.data.synthetic import SyntheticConfig, generate_homes, teach
 from spco.model import SpCoTransfer, TransferHyperparameters, gibbs
+from spco.model.driver import start_run
 from spco.model.pruning import (
     EXCESS_GRID,
     NAME,
@@ -152,7 +153,9 @@ def test_a_new_homes_own_names_start_in_free_concepts() -> None:
     data = SpCoTransfer._prepare(homes, 1.0)
     hyper = TransferHyperparameters()
     settings = gibbs.SamplerSettings.create("exact", prune=True)
-    state = gibbs.initialize(data, len(homes.vocabulary), hyper, settings, np.random.default_rng(0))
+    run = start_run(None, data, len(homes.vocabulary), hyper, settings, np.random.default_rng(0))
+    state = run.state()  # the state the fit's start (spco.model.shard_init) gives the first sweep
+    run.close()
     e = data.n_homes - 1
     rows = np.arange(data.offsets[e], data.offsets[e + 1])
     others = np.unique(state.concepts[data.homes != e])

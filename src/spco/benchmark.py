@@ -238,7 +238,11 @@ class SpcoRunner:
         self.data = SpCoTransfer._prepare(corpus, gibbs.CM_PER_M if variant == "reference" else 1.0)
         self.rng = np.random.default_rng(seed)
         start = time.perf_counter()
-        self.state = gibbs.initialize(self.data, len(corpus.vocabulary), self.hyper, self.settings, self.rng)
+        from spco.model.driver import start_run
+
+        run = start_run(None, self.data, len(corpus.vocabulary), self.hyper, self.settings, self.rng)
+        self.state = run.state()  # the fit's start (spco.model.shard_init), then sweeps in one process
+        run.close()
         for _ in range(warmup):
             gibbs.sweep(self.data, self.state, self.hyper, self.settings, self.rng)
         seconds = time.perf_counter() - start

@@ -1,6 +1,16 @@
 """The write lock of knowledge and home files: :mod:`spco.knowledge.locking` (this module keeps the
 path ``spco.locking`` working)."""
 
-from spco.knowledge.locking import LockTimeoutError, lock_path, locked
+from spco.knowledge.locking import (
+    HeldLock,
+    HomeServedError,
+    LockTimeoutError,
+    adopt,
+    hold,
+    lock_path,
+    locked,
+    served_by,
+)
 
-__all__ = ["LockTimeoutError", "lock_path", "locked"]
+__all__ = ["HeldLock", "HomeServedError", "LockTimeoutError", "adopt", "hold", "lock_path", "locked",
+           "served_by"]

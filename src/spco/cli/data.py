@@ -91,6 +91,14 @@ def _inspect_model_file(path: Path, as_json: bool) -> None:
     from spco.knowledge import describe_model_file, view_fit_warning
 
     info = describe_model_file(path)
+    if info["kind"] == "home":  # a served home: the file, and what its journal holds beyond it
+        from spco.service.teaching import pending_teachings
+
+        pending = pending_teachings(path)
+        if pending:
+            click.echo(f"note: this is the last compacted state of {path}; its journal holds {pending} more "
+                       "teaching(s) (served by spco serve; `spco where`/`what`/`show` answer with them)",
+                       err=True)
     if as_json:
         click.echo(json.dumps(info, indent=1, default=str))
         return

@@ -330,34 +330,35 @@ def where(home_file: Path, name: str, n: int, seed: int, as_json: bool) -> None:
     probability is its share of the density p(pose | NAME) among the N poses. A name the robot never
     heard is answered with the names it knows (exit status 2).
     """
-    from spco.knowledge import load_home_model
+    from spco.service.answers import where_answer
+
+    home = _load_home(home_file)
+    _warn_if_knowledge_does_not_fit(home)
+    answer = where_answer(home, name, n=n, seed=seed)
+    positions = answer["positions"]
+    if as_json:
+        click.echo(json.dumps(answer, indent=1))
+        return
+    name = answer["name"]
+    if not answer["learnt"]:
+        click.echo(f"warning: no such place learnt in this home: only {answer['support']:.0%} of the "
+                   f"probability of {name!r} comes from concepts holding its samples; the poses below are a "
+                   "guess", err=True)
+    click.echo(f"{name} in home {home.name}: region {answer['region']} of the home's map, "
+               f"p(region | {name}) = {answer['region_probability']:.2f} (the most probable "
+               f"region; the rest is spread over others)")
+    # the regions the answer's poses were drawn from (the same draws: same home, name, n and seed)
     from spco.knowledge import where as where_name
 
-    home = load_home_model(home_file)
-    _warn_if_knowledge_does_not_fit(home)
     pred = where_name(home, name, n=n, random_state=seed)
     order = sorted(range(pred.samples.shape[0]), key=lambda i: -float(pred.weights[i]))
-    positions = [{"x": float(pred.samples[i, 0]), "y": float(pred.samples[i, 1]),
-                  "theta": float(pred.samples[i, 2]), "probability": float(pred.weights[i])} for i in order]
-    if as_json:
-        click.echo(json.dumps({"home": home.name, "name": pred.name, "region": int(pred.region),
-                               "region_probability": float(pred.region_probabilities[pred.region]),
-                               "learnt": bool(pred.learnt), "support": float(pred.support),
-                               "positions": positions}, indent=1))
-        return
-    if not pred.learnt:
-        click.echo(f"warning: no such place learnt in this home: only {pred.support:.0%} of the probability "
-                   f"of {pred.name!r} comes from concepts holding its samples; the poses below are a guess",
-                   err=True)
-    click.echo(f"{pred.name} in home {home.name}: region {pred.region} of the home's map, "
-               f"p(region | {pred.name}) = {pred.region_probabilities[pred.region]:.2f} (the most probable "
-               f"region; the rest is spread over others)")
-    click.echo(_where_drawn_from(pred.regions.tolist(), pred.name))
-    several = len(set(pred.regions.tolist())) > 1
+    regions = [int(pred.regions[i]) for i in order]
+    click.echo(_where_drawn_from(regions, name))
+    several = len(set(regions)) > 1
     click.echo(f"{'x':>8} {'y':>8} {'theta':>7}  probability" + ("  region" if several else ""))
-    for i, p in zip(order, positions, strict=True):
+    for region, p in zip(regions, positions, strict=True):
         click.echo(f"{p['x']:8.3f} {p['y']:8.3f} {p['theta']:7.3f}  {p['probability']:.3f}"
-                   + (f"        {int(pred.regions[i]):>6}" if several else ""))
+                   + (f"        {region:>6}" if several else ""))
 
 
 def _where_drawn_from(regions: Sequence[int], name: str) -> str:
@@ -400,21 +401,17 @@ def what(home_file: Path, x: float, y: float, theta: float, visual: Path | None,
     output's last line says which. A pose off the home's map is answered with a warning, one far off it is
     refused.
     """
-    from spco.knowledge import load_home_model
-    from spco.knowledge import what as what_names
+    from spco.service.answers import what_answer
 
-    home = load_home_model(home_file)
+    home = _load_home(home_file)
     _warn_if_knowledge_does_not_fit(home)
     counts = _view_counts(home, home_file, visual, image, visual_scale, model_file)
-    pred = what_names(home, x, y, theta, visual=counts, top_k=max(len(home.vocabulary), 1))
-    total = float(pred.scores[0].sum())
-    names = [{"name": str(w), "probability": float(p), "score": float(s),
-              "score_share": float(s) / total if total > 0 else 0.0}
-             for w, p, s in zip(pred.words[0], pred.probabilities[0], pred.scores[0], strict=True)][:top]
+    answer = what_answer(home, x, y, theta, counts, top)
+    names = answer["names"]
+    if "warning" in answer:
+        click.echo(f"warning: {answer['warning']}", err=True)
     if as_json:
-        click.echo(json.dumps({"home": home.name, "pose": {"x": x, "y": y, "theta": theta},
-                               "vision": counts is not None, "ranked_by": _RANKED_BY[pred.weighting],
-                               "names": names}, indent=1))
+        click.echo(json.dumps(answer, indent=1))
         return
     click.echo(f"At ({x:g}, {y:g}, θ={theta:g}) in home {home.name} "
                f"({'position and view' if counts is not None else 'position only'}), ranked by score:")
@@ -425,14 +422,23 @@ def what(home_file: Path, x: float, y: float, theta: float, visual: Path | None,
     click.echo(f"     {'name':<{width}}  score      p")
     for rank, n in enumerate(names, 1):
         click.echo(f"  {rank}. {n['name']:<{width}}  {n['score_share']:.3f}  {n['probability']:.3f}")
-    click.echo(f"score: {_RANKED_BY[pred.weighting]}, as a share of its sum over the usable names; "
+    click.echo(f"score: {answer['ranked_by']}, as a share of its sum over the usable names; "
                f"p: p(name | {'pose, view' if counts is not None else 'pose'}) over all words")
 
 
-#: What ``what``'s score is, per weighting of the home's model.
-_RANKED_BY = {"mi": "p(name | pose, view) × I(name), I = the name's mutual information with the concepts",
-              "none": "p(name | pose, view)",
-              "reference": "the authors' score Σ_l p(l | pose, view) θ^w_l(name) KL_l(name)"}
+def _load_home(home_file: Path) -> Any:
+    """The home of ``home_file`` with the teachings of its journal (a home served by ``spco serve``,
+    or one whose server stopped without compacting): what the read-only commands answer with."""
+    from spco.locking import served_by
+    from spco.service.teaching import load_current
+
+    home, replayed = load_current(home_file)
+    if replayed:
+        server = served_by(home_file)
+        origin = f"is served by {server}" if server else "has a journal"
+        click.echo(f"note: {home_file} {origin}; answered with its {replayed} teaching(s) not yet compacted "
+                   "into the file (replayed from its journal)", err=True)
+    return home
 
 
 def _warn_if_knowledge_does_not_fit(home: Any) -> None:
@@ -485,7 +491,7 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
     home wait for each other (at most $SPCO_LOCK_TIMEOUT seconds, default 60) and every teaching is kept.
     """
     from spco.errors import ConfigurationError
-    from spco.knowledge import Observation, load_home_model
+    from spco.knowledge import Observation
     from spco.knowledge import teach as teach_home
     from spco.knowledge.locking import locked
 
@@ -511,7 +517,7 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
     # read, update and replace under the file's write lock: a concurrent `teach` waits, then
     # builds on this one's result (no teaching is lost)
     with locked(target):
-        home = load_home_model(home_file)
+        home = _load_home(home_file)  # with the teachings of a journal its server left (spco serve)
         if new_observation:
             counts = _view_counts(home, home_file, visual, image, visual_scale, model_file)
             obs = Observation(x=x, y=y, theta=theta, visual=counts,  # type: ignore[arg-type]
@@ -566,13 +572,12 @@ def show(home_file: Path, out: Path, map_image: Path | None, extent: str | None,
 
     from spco import plots
     from spco.errors import ConfigurationError
-    from spco.knowledge import load_home_model
     from spco.knowledge import where as where_name
 
     _check_out(out, force)
     if map_image is not None and not Path(map_image).is_file():
         raise ConfigurationError(f"{map_image}: no such map image (--map)")
-    home = load_home_model(home_file)
+    home = _load_home(home_file)
     rng = np.random.default_rng(seed)
     predicted = {}
     from spco.knowledge import unused_word_hint

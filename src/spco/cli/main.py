@@ -1,7 +1,7 @@
 """The ``spco`` command line: the click group :func:`main` and the registration of the commands,
 which live one module per group beside it (:mod:`spco.cli.data`, :mod:`~spco.cli.demo`,
 :mod:`~spco.cli.knowledge`, :mod:`~spco.cli.experiment`, :mod:`~spco.cli.features`,
-:mod:`~spco.cli.bench`, :mod:`~spco.cli.bag`; errors: :mod:`spco.cli.errors`).
+:mod:`~spco.cli.bench`, :mod:`~spco.cli.bag`, :mod:`~spco.cli.serve`; errors: :mod:`spco.cli.errors`).
 
 Every command validates its input at the boundary; an :class:`~spco.errors.SpcoError` (bad file,
 bad argument) is printed as one line ``error: ...`` and the command exits with status 2, without a
@@ -34,6 +34,7 @@ def _register_commands() -> None:
     from spco.cli.experiment import experiment
     from spco.cli.features import features
     from spco.cli.knowledge import KNOWLEDGE_COMMANDS
+    from spco.cli.serve import serve
 
     for command in DATA_COMMANDS:  # inspect, import, synth
         main.add_command(command)
@@ -44,6 +45,7 @@ def _register_commands() -> None:
     main.add_command(import_bag)
     for command in KNOWLEDGE_COMMANDS:  # fit, adapt, where, what, teach, show
         main.add_command(command)
+    main.add_command(serve)
 
 
 _register_commands()

@@ -1,11 +1,12 @@
 """Where a fit's home shards run: :mod:`spco.engines.local` (in this process, the default) or
 :mod:`spco.engines.ray` (Ray actors, on this machine or a cluster; ``pip install "spco[ray]"``).
 
-An engine starts a :class:`~spco.engines.local.ShardedRun` from the initialised data and state
-(``engine.start``), or from a :class:`~spco.model.sources.HomeSource` whose homes every shard
-prepares and initialises itself (``engine.start_source``; :func:`start_run` picks the path):
+An engine starts a :class:`~spco.model.driver.ShardedRun` from a
+:class:`~spco.model.sources.HomeSource` whose homes every shard prepares and starts itself
+(``engine.start_source``; :func:`start_run` for homes prepared in the driver):
 ``run.sweep(iteration)`` is one sweep of :func:`spco.model.shard.sweep` and ``run.state()`` joins
-the shards' states. The same seed and number of shards give the same chain on every engine.
+the shards' states. Every home draws from its own random stream, so the same seed gives the same
+chain for any number of shards and on every engine.
 """
 
 from __future__ import annotations
@@ -48,7 +49,7 @@ def start_run(engine, data: PreparedData, n_words: int, hyper: TransferHyperpara
 
 
 def start_source_run(engine, source, hyper: TransferHyperparameters, settings: SamplerSettings,
-                     rng: np.random.Generator) -> tuple[ShardedRun, PreparedData | None]:
+                     rng: np.random.Generator) -> ShardedRun:
     """:func:`spco.model.driver.start_source_run` with ``engine`` also given by name."""
     return driver.start_source_run(_resolve(engine), source, hyper, settings, rng)
 

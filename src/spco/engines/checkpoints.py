@@ -1,8 +1,8 @@
 """Checkpoints of a sharded fit on disk: one file per shard, written by the shard itself, and one
 driver file that commits them.
 
-A checkpoint of sweep i is the files ``shard-<s>-<i>.npz`` (each shard's
-:class:`~spco.model.gibbs.GibbsState` without its count cache, and its random generator's state)
+A checkpoint of sweep i is the files ``shard-<s>-<i>.npz`` (each worker's
+:class:`~spco.model.gibbs.GibbsState` without its count cache, and its homes' generator states)
 and ``driver.npz`` (the sweep i, the driver's generator, the shared parameters and the log-joint
 trace so far). Every file is written to a temporary name in the same directory and renamed into
 place (atomic on POSIX); the driver file is written last, so it always names a complete set of
@@ -23,7 +23,7 @@ from spco.model.gibbs import GibbsState
 from spco.model.shard import SharedParameters
 
 FORMAT = "spco-checkpoint"
-VERSION = 1
+VERSION = 2  # 2: a generator state per home
 DRIVER_FILE = "driver.npz"
 
 
@@ -70,8 +70,9 @@ def _read(path: Path, kind: str) -> tuple[dict[str, np.ndarray], dict]:
     return arrays, meta
 
 
-def save_shard(path: str | os.PathLike, state: GibbsState, rng_state: dict) -> int:
-    """Write a shard's state and generator state to ``path`` atomically; returns the bytes written."""
+def save_shard(path: str | os.PathLike, state: GibbsState, rng_state: list[dict]) -> int:
+    """Write a worker's state (its homes' joined states) and its homes' generator states to ``path``
+    atomically; returns the bytes written."""
     arrays, absent = {}, []
     for f in fields(state):
         if f.name == "visual_cache":  # rebuilt exactly from the assignments
@@ -84,8 +85,8 @@ def save_shard(path: str | os.PathLike, state: GibbsState, rng_state: dict) -> i
     return _write_atomically(Path(path), arrays, {"kind": "shard", "rng": rng_state, "absent": absent})
 
 
-def load_shard(path: str | os.PathLike) -> tuple[GibbsState, dict]:
-    """The state and generator state written by :func:`save_shard`."""
+def load_shard(path: str | os.PathLike) -> tuple[GibbsState, list[dict]]:
+    """The state and generator states written by :func:`save_shard`."""
     arrays, meta = _read(Path(path), "shard")
     values = {f.name: arrays[f.name] if f.name in arrays else None
               for f in fields(GibbsState) if f.name != "visual_cache"}

@@ -26,7 +26,8 @@ from spco.engines import checkpoints
 from spco.model.driver import ShardedRun
 from spco.model.gibbs import GibbsState, PreparedData, SamplerSettings
 from spco.model.hyperparameters import TransferHyperparameters
-from spco.model.shard import HomeShard, SharedParameters
+from spco.model.shard import SharedParameters
+from spco.model.shard_group import ShardGroup
 from spco.model.sources import HomeSource, HomesPart
 
 
@@ -49,27 +50,29 @@ class _WritablePart(HomesPart):
 
 
 class _ShardActor:
-    """A :class:`~spco.model.shard.HomeShard` in a Ray actor (its data and state stay there).
+    """A worker's homes (a :class:`~spco.model.shard_group.ShardGroup`) in a Ray actor: their data
+    and state stay there.
 
-    ``homes`` is the shard's :class:`PreparedData` or a :class:`~spco.model.sources.HomesPart` it
-    prepares itself; ``state`` its state, ``None`` (start the homes: :meth:`HomeShard.from_part`)
-    or the path of a checkpoint file (:func:`spco.engines.checkpoints.save_shard`, which also
-    holds the generator's state; ``rng_state`` is then ignored)."""
+    ``part`` is the worker's :class:`~spco.model.sources.HomesPart` (homes ``first``.. of the
+    fit), which it prepares itself; ``state`` is ``None`` (start the homes, each with its own
+    generator from ``entropy``), the homes' joined state and ``rng_states`` (a checkpoint in
+    memory), or the path of a checkpoint file (:func:`spco.engines.checkpoints.save_shard`, which
+    also holds the generators' states)."""
 
-    def __init__(self, homes, state, hyper: TransferHyperparameters, settings: SamplerSettings,
-                 rng_state: dict | None, threads: int, n_words: int = 0) -> None:
+    def __init__(self, part: HomesPart, first: int, state, rng_states: list[dict] | None, entropy: list[int],
+                 n_words: int, n_fit_homes: int, hyper: TransferHyperparameters, settings: SamplerSettings,
+                 threads: int) -> None:
         import numba
 
         numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))  # results do not change
         if isinstance(state, str):
-            state, rng_state = checkpoints.load_shard(state)
-        rng = np.random.default_rng()
-        rng.bit_generator.state = rng_state
+            state, rng_states = checkpoints.load_shard(state)
         if state is None:
-            self.shard = HomeShard.from_part(_WritablePart(homes), n_words, hyper, settings, rng)
+            self.shard = ShardGroup.from_part(_WritablePart(part), first, entropy, n_words, n_fit_homes,
+                                              hyper, settings)
             return
-        data = homes.prepare() if isinstance(homes, HomesPart) else homes
-        self.shard = HomeShard(_writable_data(data), _writable_state(state), hyper, settings, rng)
+        self.shard = ShardGroup.restore(_writable_data(part.prepare()), _writable_state(state), rng_states,
+                                        first, n_fit_homes, hyper, settings)
 
     def call(self, method: str, *args) -> Any:
         # arrays from Ray's object store are read-only: the kernels write into the state's
@@ -77,15 +80,16 @@ class _ShardActor:
         args = tuple(_writable_shared(a) if isinstance(a, SharedParameters) else a for a in args)
         return getattr(self.shard, method)(*args)
 
-    def snapshot(self) -> tuple[GibbsState, dict]:
-        """The shard's state (without the count cache, which is rebuilt exactly) and generator."""
+    def snapshot(self) -> tuple[GibbsState, list[dict]]:
+        """The homes' joined state (without the count cache, which is rebuilt exactly) and their
+        generators' states."""
         state = copy.copy(self.shard.state)
         state.visual_cache = None
-        return state, self.shard.rng.bit_generator.state
+        return state, self.shard.rng_states()
 
     def save(self, path: str) -> int:
-        """Write the shard's checkpoint to ``path`` (atomically); returns the bytes written."""
-        return checkpoints.save_shard(path, self.shard.state, self.shard.rng.bit_generator.state)
+        """Write the worker's checkpoint to ``path`` (atomically); returns the bytes written."""
+        return checkpoints.save_shard(path, self.shard.state, self.shard.rng_states())
 
     def setup_seconds(self) -> dict[str, float]:
         """Seconds the shard took to prepare and to start its homes (empty if given its state)."""
@@ -129,7 +133,7 @@ def _writable_shared(shared: SharedParameters) -> SharedParameters:
 @dataclass
 class _Checkpoint:
     iteration: int
-    shards: list[tuple[GibbsState, dict]] | None  # None: on disk
+    shards: list[tuple[GibbsState, list[dict]]] | None  # None: on disk
     driver_rng: dict | None = None
     shared: SharedParameters | None = None
     trace: np.ndarray | None = None
@@ -150,24 +154,24 @@ class RayRun(ShardedRun):
         self.restarts = 0
         super().__init__(*args, **kwargs)
 
-    def _start(self, parts, generators) -> None:
+    def _start(self, parts) -> None:
         self.ray = _require_ray()
-        given = isinstance(parts[0], tuple)
-        self._homes = [p[0] if given else p for p in parts]
-        self._launch([(p[1] if given else None, g.bit_generator.state)
-                      for p, g in zip(parts, generators, strict=True)])
+        self._parts = parts
+        self._launch([(None, None)] * len(parts))
 
-    def _launch(self, snapshots: list[tuple[GibbsState | str | None, dict | None]]) -> None:
+    def _launch(self, snapshots: list[tuple[GibbsState | str | None, list[dict] | None]]) -> None:
         ray = self.ray
         cpus = ray.cluster_resources().get("CPU", 1.0)
         actor = ray.remote(num_cpus=min(1.0, cpus / len(snapshots)), max_restarts=0)(_ShardActor)
         hyper, settings = ray.put(self.hyper), ray.put(self.settings)
-        if not hasattr(self, "homes_refs"):  # the homes' data (or parts) are put in the object store once
-            self.homes_refs = [ray.put(h) for h in self._homes]
-            del self._homes
-        threads = max(1, int(cpus // len(snapshots)))  # Numba threads per shard
-        self.actors = [actor.remote(h, s, hyper, settings, g, threads, self.n_words)
-                       for h, (s, g) in zip(self.homes_refs, snapshots, strict=True)]
+        if not hasattr(self, "part_refs"):  # the homes' parts are put in the object store once
+            self.part_refs = [ray.put(p) for p in self._parts]
+            del self._parts
+        threads = max(1, int(cpus // len(snapshots)))  # Numba threads per worker
+        self.actors = []
+        for part, (first, _), (state, rng_states) in zip(self.part_refs, self.bounds, snapshots, strict=True):
+            self.actors.append(actor.remote(part, first, state, rng_states, self.entropy, self.n_words,
+                                            self.n_homes, hyper, settings, threads))
 
     def call(self, method: str, *args) -> list:
         ray = self.ray
@@ -269,18 +273,11 @@ class RayEngine:
             ray.init(address=self.address, log_to_driver=False)
         return ray
 
-    def start(self, data: PreparedData, state: GibbsState, hyper: TransferHyperparameters,
-              settings: SamplerSettings, rng: np.random.Generator) -> RayRun:
-        """Start Ray if needed (joining ``address``), split the homes and start the actors."""
-        self._init_ray()
-        return RayRun(data, state, hyper, settings, rng, min(self.shards, data.n_homes),
-                      checkpoint_every=self.checkpoint_every, checkpoint_dir=self.checkpoint_dir)
-
     def start_source(self, source: HomeSource, hyper: TransferHyperparameters, settings: SamplerSettings,
                      rng: np.random.Generator) -> RayRun:
-        """Start Ray if needed and the actors from ``source``: each actor prepares and initialises
-        its own homes (:mod:`spco.model.shard_init`); the same chain as ``LocalEngine(shards)
-        .start_source`` with the same seed."""
+        """Start Ray if needed and the actors from ``source``: each actor prepares and starts its
+        own homes (:mod:`spco.model.shard_init`); the same chain as ``LocalEngine`` with any number
+        of shards, given the same seed."""
         self._init_ray()
-        return RayRun(None, None, hyper, settings, rng, min(self.shards, source.n_homes), source=source,
+        return RayRun(source, hyper, settings, rng, min(self.shards, source.n_homes),
                       checkpoint_every=self.checkpoint_every, checkpoint_dir=self.checkpoint_dir)

@@ -5,13 +5,10 @@ time, and the warning for a new home whose views the knowledge explains much wor
 from __future__ import annotations
 
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
-from spco.model.state import PreparedData
-from spco.model.view_fit import concept_visual_totals, held_out_view_fits, view_fit
+from spco.model.view_fit import view_fit
 
 if TYPE_CHECKING:
     from spco.knowledge.knowledge import Knowledge
@@ -32,22 +29,6 @@ class ExperiencedHomeWarning(UserWarning):
 
 class KnowledgeMismatchWarning(UserWarning):
     """The knowledge explains a home's views much worse than its experienced homes' (:func:`view_fit`)."""
-
-
-
-def _experienced_view_fit(log_phi_v: np.ndarray, log_g0: np.ndarray, data: PreparedData,
-                          concepts: np.ndarray, names: Sequence[str]) -> dict[str, Any]:
-    """The :func:`view_fit` of every experienced home, each held out, and the level below which a new
-    home is warned about.
-
-    A home's views helped to learn φ^v, so their fit under φ^v itself flatters them. Each home is
-    scored instead under φ^v without its own counts: φ^v_l × (N_l + D) − n_{e,l} (N_l the counts
-    of concept l over all homes, n_{e,l} home e's, with the concepts of the chain's last sweep, to
-    which φ^v is aligned), floored at 1 % of φ^v_l × (N_l + D) and renormalised.
-    """
-    totals = concept_visual_totals(data, concepts, log_phi_v.shape[0])
-    fits = held_out_view_fits(log_phi_v, log_g0, totals, data, concepts)
-    return _view_fit_record(dict(zip(names, fits, strict=True)))
 
 
 

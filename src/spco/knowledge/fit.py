@@ -15,13 +15,14 @@ from scipy.special import logsumexp
 
 from spco.data.environment import Corpus
 from spco.errors import ConfigurationError, DataFormatError
-from spco.knowledge.diagnostics import _experienced_view_fit, _view_fit_record
+from spco.knowledge.diagnostics import _view_fit_record
 from spco.knowledge.files import _as_generator, _now, _seed_of, _version
 from spco.knowledge.knowledge import DEFAULT_FIT_ITERATIONS, DEFAULT_MODEL, MODELS, Knowledge
 from spco.model import gibbs
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.posterior import thinned_sweeps
 from spco.model.pruning import words_to_keep
+from spco.model.sources import PreparedHomes
 from spco.model.transfer import SpatialConceptModel, SpCoTransfer
 
 
@@ -147,7 +148,11 @@ def fit_knowledge(
     scale = gibbs.CM_PER_M if variant == "reference" else 1.0
     if source is not None:
         source = replace(source, position_scale=scale)
-    data = SpatialConceptModel._prepare(corpus, scale) if source is None else None
+        n_samples = source.n_samples
+    else:  # the homes prepared here, then handed to the shards
+        data = SpatialConceptModel._prepare(corpus, scale)
+        source, n_samples = PreparedHomes(data, len(corpus.vocabulary)), data.n_samples
+        del data
     keep = set(summary_iterations(n_iterations, summary_fraction, summary_every))
     start = time.perf_counter()
     by_iteration: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
@@ -156,12 +161,9 @@ def fit_knowledge(
         from spco.progress import progress_bar
 
         bar = progress_bar(total=n_iterations, desc=f"fit ({model})", unit="sweep", leave=False)
-    from spco.engines import start_run, start_source_run
+    from spco.engines import start_source_run
 
-    if source is not None:  # the shards read their homes (or, one process, the driver reads them)
-        run, data = start_source_run(engine, source, hyper, settings, rng)
-    else:
-        run = start_run(engine, data, len(corpus.vocabulary), hyper, settings, rng)
+    run = start_source_run(engine, source, hyper, settings, rng)  # the homes stay in the shards
 
     def after_sweep(iteration: int, _: float) -> None:  # (a restarted engine repeats sweeps)
         if bar is not None:
@@ -171,12 +173,7 @@ def fit_knowledge(
             by_iteration[iteration] = (shared.log_phi_v.copy(), shared.log_phi_w.copy(), shared.log_g0.copy())
 
     run.fit(n_iterations, after_sweep)
-    if data is None:  # the homes stay in the shards: no joined state
-        word_mask_last, candidate_words = run.shared.word_mask, run.call("candidate_words")[0]
-    else:
-        state = run.state()
-        word_mask_last, candidate_words = state.word_mask, state.candidate_words
-        run.close()
+    word_mask_last, candidate_words = run.shared.word_mask, run.call("candidate_words")[0]
     if bar is not None:
         bar.close()
     samples = [by_iteration[i] for i in sorted(by_iteration)]
@@ -217,7 +214,7 @@ def fit_knowledge(
     conc_g = _concentration(np.exp(stack_g)[:, None, :], hyper.gamma)[0]
     record: dict[str, Any] = {
         "homes": list(corpus.names),
-        "n_samples": int(source.n_samples if data is None else data.n_samples),
+        "n_samples": int(n_samples),
         "seed": _seed_of(random_state),
         "n_iterations": int(n_iterations),
         "fit_seconds": round(seconds, 3),
@@ -230,13 +227,11 @@ def fit_knowledge(
             "max_visual_distance_from_mean": round(float(0.5 * spread.max()) if spread.size else 0.0, 6),
         },
     }
-    if data is None:  # each shard scores its homes (φ^v without their counts: the pooled totals)
-        totals = np.sum(run.call("concept_visual_totals"), axis=0)
-        fits = [v for part in run.call("held_out_view_fits", log_phi_v, log_g0, totals) for v in part]
-        run.close()
-        record["view_fit"] = _view_fit_record(dict(zip(corpus.names, fits, strict=True)))
-    else:
-        record["view_fit"] = _experienced_view_fit(log_phi_v, log_g0, data, state.concepts, corpus.names)
+    # each shard scores its homes (φ^v without their own counts: the pooled totals minus theirs)
+    totals = np.sum(run.call("concept_visual_totals"), axis=0)
+    fits = [v for part in run.call("held_out_view_fits", log_phi_v, log_g0, totals) for v in part]
+    run.close()
+    record["view_fit"] = _view_fit_record(dict(zip(corpus.names, fits, strict=True)))
     record.update(provenance or {})
     return Knowledge(
         log_phi_visual=log_phi_v, log_phi_words=log_phi_w, log_g0=log_g0, word_mask=word_mask,

@@ -18,66 +18,57 @@ from spco.errors import ConfigurationError
 from spco.model import shard as shards_api
 from spco.model import shard_init
 from spco.model.hyperparameters import TransferHyperparameters
-from spco.model.shard import GlobalStep, HomeShard, SharedParameters
-from spco.model.shard_init import InitialisationReport
+from spco.model.shard import GlobalStep
+from spco.model.shard_group import ShardGroup
 from spco.model.sources import HomeSource
 from spco.model.state import GibbsState, PreparedData, SamplerSettings
 
 
 class ShardedRun(ABC):
-    """A fit in progress: the driver's shared parameters and global step, and the shards.
+    """A fit in progress: the driver's shared parameters and global step, and the workers.
 
-    Subclasses say where the shards live (:meth:`_start` and :meth:`call`). With ``share_rng``
-    (one in-process shard only) the shard draws from the driver's generator: the chain of
-    :func:`spco.model.gibbs.sweep`. Otherwise shard i draws from its own generator seeded from
-    the driver's (:func:`~spco.model.shard.shard_seeds`)."""
+    Every fit starts the same way: the homes of a :class:`~spco.model.sources.HomeSource` are cut
+    into ``n_shards`` consecutive parts, each worker prepares its part and starts every home of it
+    on its own (a :class:`~spco.model.shard_group.ShardGroup` of one-home shards, each drawing
+    from its home's generator, :func:`~spco.model.shard.home_generator`), and the workers finish
+    the start together through the driver (:func:`spco.model.shard_init.initialise`). Subclasses
+    say where the workers live (:meth:`_start` and :meth:`call`). The chain depends on the seed
+    only: the same for any number of workers and any engine."""
 
-    def __init__(self, data: PreparedData | None, state: GibbsState | None, hyper: TransferHyperparameters,
-                 settings: SamplerSettings, rng: np.random.Generator, n_shards: int,
-                 share_rng: bool = False, source: HomeSource | None = None) -> None:
-        if n_shards > 1 and not settings.hierarchical:
-            raise ValueError("the SpCoA sampler has no shared part to reduce: run it with one shard")
-        if share_rng and (n_shards != 1 or source is not None):
-            raise ValueError("only one in-process shard started from the driver's state can share the "
-                             "driver's random generator")
+    def __init__(self, source: HomeSource, hyper: TransferHyperparameters, settings: SamplerSettings,
+                 rng: np.random.Generator, n_shards: int) -> None:
+        if not settings.hierarchical and source.n_homes > 1:
+            raise ValueError("the SpCoA sampler learns one home: it has no shared part to reduce")
         self.hyper, self.settings, self.rng = hyper, settings, rng
         self.n_shards = n_shards
+        self.n_homes = source.n_homes
         self.global_step = GlobalStep(hyper, settings, rng)
         self.bytes_sent = 0
-        self.initialisation: InitialisationReport | None = None
-        parts: list
-        if source is None:
-            self.shared = SharedParameters.of(state)
-            self.n_words = state.log_phi_w.shape[1]
-            parts = shards_api.split(data, state, n_shards)
-            sizes = [d.n_homes for d, _ in parts]
-        else:
-            self.n_words = source.n_words
-            parts = source.parts(n_shards)
-            sizes = [p.n_homes for p in parts]
-        edges = np.cumsum([0, *sizes])
+        self.n_words = source.n_words
+        parts = source.parts(n_shards)
+        edges = np.cumsum([0, *[p.n_homes for p in parts]])
         self.bounds = [(int(a), int(b)) for a, b in itertools.pairwise(edges)]
-        generators = ([rng] if share_rng
-                      else [np.random.default_rng(s) for s in shards_api.shard_seeds(rng, n_shards)])
-        self._start(parts, generators)
-        if source is not None:
-            self.shared, self.initialisation = shard_init.initialise(
-                self.call, self.call_each, self.bounds, self.n_words, hyper, settings, rng)
+        self.entropy = shards_api.home_entropy(rng)
+        self._start(parts)
+        self.shared, self.initialisation = shard_init.initialise(
+            self.call, self.call_each, self.bounds, self.n_words, hyper, settings, rng)
 
     @abstractmethod
-    def _start(self, parts: list, generators: list[np.random.Generator]) -> None:
-        """Start one shard per part, drawing from its generator: a part is a ``(data, state)`` pair
-        (initialised in the driver) or a :class:`~spco.model.sources.HomesPart` (the shard prepares
-        and starts its homes, :meth:`HomeShard.from_part`)."""
+    def _start(self, parts: list) -> None:
+        """Start one worker per part (a :class:`~spco.model.sources.HomesPart`, homes
+        ``self.bounds[i]`` of the fit): it prepares its homes and starts each on its own
+        (:meth:`ShardGroup.from_part <spco.model.shard_group.ShardGroup.from_part>` with
+        ``self.entropy``)."""
 
     @abstractmethod
     def call(self, method: str, *args) -> list:
-        """Run the :class:`~spco.model.shard.HomeShard` method on every shard; results in shard order."""
+        """Run the :class:`~spco.model.shard_group.ShardGroup` method on every worker; results in
+        worker (hence home) order."""
 
     @abstractmethod
     def call_each(self, method: str, args: list[tuple]) -> list:
-        """Run the :class:`~spco.model.shard.HomeShard` method on shard i with ``args[i]``; results
-        in shard order."""
+        """Run the :class:`~spco.model.shard_group.ShardGroup` method on worker i with ``args[i]``;
+        results in worker order."""
 
     def sweep(self, iteration: int) -> float:
         """Sweep number ``iteration`` (0-based); returns the log joint of the state it started from."""
@@ -98,27 +89,27 @@ class ShardedRun(ABC):
 
     @abstractmethod
     def states(self) -> list[GibbsState]:
-        """Every shard's state (copies where the shards live elsewhere)."""
+        """Every worker's state (copies where the workers live elsewhere)."""
 
     def state(self) -> GibbsState:
-        """The shards' states joined: the state of every home, with the word mask of the last
-        sweep's pruning (the shards receive it with the next local step)."""
+        """The workers' states joined: the state of every home, with the word mask of the last
+        sweep's pruning (the homes receive it with the next local step)."""
         state = shards_api.join_states(self.states())
         state.word_mask = self.shared.word_mask
         return state
 
     @abstractmethod
     def close(self) -> None:
-        """Free the shards."""
+        """Free the workers."""
 
 
 class LocalRun(ShardedRun):
-    """Shards as :class:`~spco.model.shard.HomeShard` objects in this process."""
+    """Workers as :class:`~spco.model.shard_group.ShardGroup` objects in this process."""
 
-    def _start(self, parts, generators) -> None:
-        self.shards = [HomeShard(*p, self.hyper, self.settings, g) if isinstance(p, tuple)
-                       else HomeShard.from_part(p, self.n_words, self.hyper, self.settings, g)
-                       for p, g in zip(parts, generators, strict=True)]
+    def _start(self, parts) -> None:
+        self.shards = [ShardGroup.from_part(p, first, self.entropy, self.n_words, self.n_homes, self.hyper,
+                                            self.settings)
+                       for p, (first, _) in zip(parts, self.bounds, strict=True)]
 
     def call(self, method: str, *args) -> list:
         return [getattr(s, method)(*args) for s in self.shards]
@@ -130,32 +121,25 @@ class LocalRun(ShardedRun):
         return [s.state for s in self.shards]
 
     def close(self) -> None:
-        """Nothing to free: the shards are this process's objects, dropped with the run."""
+        """Nothing to free: the workers are this process's objects, dropped with the run."""
 
 
 class LocalEngine:
-    """Shards in this process. ``LocalEngine(1)`` is the default fit: one shard sharing the
-    driver's generator (``share_rng``), the chain of :func:`spco.model.gibbs.sweep`; more shards
-    (or ``share_rng=False``) give the chain the Ray engine gives with as many shards."""
+    """Workers in this process: ``LocalEngine(shards)`` cuts the homes into ``shards`` groups
+    (default 1, the default fit); any number gives the same chain, as the Ray engine does."""
 
     name = "local"
 
-    def __init__(self, shards: int = 1, share_rng: bool | None = None) -> None:
+    def __init__(self, shards: int = 1) -> None:
         if shards < 1:
             raise ValueError(f"shards must be at least 1, got {shards}")
         self.shards = shards
-        self.share_rng = shards == 1 if share_rng is None else share_rng
-
-    def start(self, data: PreparedData, state: GibbsState, hyper: TransferHyperparameters,
-              settings: SamplerSettings, rng: np.random.Generator) -> ShardedRun:
-        """Split ``data`` and ``state`` into the shards and return the run."""
-        return LocalRun(data, state, hyper, settings, rng, min(self.shards, data.n_homes), self.share_rng)
 
     def start_source(self, source: HomeSource, hyper: TransferHyperparameters, settings: SamplerSettings,
                      rng: np.random.Generator) -> ShardedRun:
-        """Start the shards from ``source``: each prepares and initialises its own homes
-        (:mod:`spco.model.shard_init`; every shard draws from its own generator, also with one shard)."""
-        return LocalRun(None, None, hyper, settings, rng, min(self.shards, source.n_homes), source=source)
+        """Start the workers from ``source``: each prepares and starts its own homes
+        (:mod:`spco.model.shard_init`)."""
+        return LocalRun(source, hyper, settings, rng, min(self.shards, source.n_homes))
 
 
 def _engine(engine) -> object:
@@ -172,35 +156,16 @@ def _engine(engine) -> object:
 def start_run(engine, data: PreparedData, n_words: int, hyper: TransferHyperparameters,
               settings: SamplerSettings, rng: np.random.Generator) -> ShardedRun:
     """Start a fit of ``data`` (``n_words`` words) on ``engine`` (an engine object, or ``None``:
-    the default ``LocalEngine()``).
-
-    The default engine, one in-process shard sharing the driver's generator, initialises in the
-    driver (:func:`spco.model.gibbs.initialize`): the chain of :func:`spco.model.gibbs.sweep`. An
-    engine whose shards draw from their own generators (Ray, or local with several shards) starts
-    them from the data instead (``engine.start_source``): each shard initialises its own homes
-    and the warm start's label alignment goes through the driver as per-home summaries
-    (:mod:`spco.model.shard_init`), so the driver never holds every home's sampler state. The
-    same seed and number of shards give the same chain on either engine."""
-    from spco.model import gibbs
+    ``LocalEngine()``): :func:`start_source_run` of the homes of ``data``."""
     from spco.model.sources import PreparedHomes
 
-    engine = _engine(engine)
-    if getattr(engine, "share_rng", False) or not hasattr(engine, "start_source"):
-        state = gibbs.initialize(data, n_words, hyper, settings, rng)
-        return engine.start(data, state, hyper, settings, rng)
-    return engine.start_source(PreparedHomes(data, n_words), hyper, settings, rng)
+    return start_source_run(engine, PreparedHomes(data, n_words), hyper, settings, rng)
 
 
 def start_source_run(engine, source: HomeSource, hyper: TransferHyperparameters, settings: SamplerSettings,
-                     rng: np.random.Generator) -> tuple[ShardedRun, PreparedData | None]:
+                     rng: np.random.Generator) -> ShardedRun:
     """Start a fit of the homes of ``source`` (a :class:`~spco.model.sources.HomeSource`, e.g.
-    :class:`~spco.model.sources.FolderHomes`) on ``engine`` (as :func:`start_run`); returns the
-    run and the data the driver prepared: ``None`` where the shards prepare their own homes (Ray,
-    or local with several shards), so the driver never holds them; all homes for the default
-    one-process engine, which initialises in the driver. The same chain as :func:`start_run`
-    given the same homes prepared in the driver."""
-    engine = _engine(engine)
-    if getattr(engine, "share_rng", False) or not hasattr(engine, "start_source"):
-        data = source.parts(1)[0].prepare()
-        return start_run(engine, data, source.n_words, hyper, settings, rng), data
-    return engine.start_source(source, hyper, settings, rng), None
+    :class:`~spco.model.sources.FolderHomes`) on ``engine`` (an engine object, or ``None``:
+    ``LocalEngine()``): every worker prepares and starts its own homes, and the driver never holds
+    them (:class:`ShardedRun`)."""
+    return _engine(engine).start_source(source, hyper, settings, rng)

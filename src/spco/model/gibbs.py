@@ -48,7 +48,6 @@ from spco.model.state import (  # noqa: F401  (the sampler's data and state, re-
     SamplerSettings,
     VisualCountCache,
 )
-from spco.model.synonyms import same_place_names
 
 
 def niw_prior(data: PreparedData, hyper: TransferHyperparameters, settings: SamplerSettings) -> NIWPrior:
@@ -83,8 +82,9 @@ def _build_niw_prior(data: PreparedData, hyper: TransferHyperparameters,
 
 
 def initialize(data: PreparedData, n_words: int, hyper: TransferHyperparameters,
-               settings: SamplerSettings, rng: np.random.Generator, warm: bool = True) -> GibbsState:
-    """A starting state, then the first sweep starts with the local step.
+               settings: SamplerSettings, rng: np.random.Generator) -> GibbsState:
+    """Each home's start on its own (a fit's shards start their homes with it, then finish the
+    start together: :mod:`spco.model.shard_init`); the first sweep starts with the local step.
 
     Regions are assigned by k-means on each home's positions and their Gaussians drawn given that
     assignment (the reference variant sets the k-means centres as means with Σ = 100·I, as the
@@ -98,8 +98,9 @@ def initialize(data: PreparedData, n_words: int, hyper: TransferHyperparameters,
     nearby samples, which words and vision then refine. Drawing θ from the prior or from counts of
     random concepts instead starts from a random partition that the chain does not leave.
 
-    ``warm=False`` leaves out the exact variant's :func:`warm_start` (the shards of a fleet fit
-    run it together instead: :mod:`spco.model.shard_init`).
+    The exact variant's warm start — homes learnt on their own for a few sweeps, their labels
+    aligned across homes, the shared part set from the aligned counts — runs across the shards:
+    :func:`spco.model.shard_init.initialise`.
     """
     announce_compilation()
     L, K, E = hyper.n_concepts, hyper.n_regions, data.n_homes
@@ -137,7 +138,7 @@ def initialize(data: PreparedData, n_words: int, hyper: TransferHyperparameters,
     state = GibbsState(
         concepts=concepts, regions=regions, log_g=log_g, log_g0=log_g0, log_pi=log_pi, means=means,
         covariances=np.tile(100.0 * np.eye(4), (E, K, 1, 1)),
-        # θ only in the state, not in local names too: when the first sweep (or warm_start)
+        # θ only in the state, not in local names too: when the first sweep (or the warm start)
         # replaces the uniform (E, L, D) θ^v, it is freed at once
         log_theta_v=np.broadcast_to(log_phi_v, (E, L, D)).copy(),
         log_theta_w=np.broadcast_to(log_phi_w, (E, L, V)).copy(), log_phi_v=log_phi_v, log_phi_w=log_phi_w,
@@ -148,87 +149,7 @@ def initialize(data: PreparedData, n_words: int, hyper: TransferHyperparameters,
     if not reference:
         state.means, state.covariances = GaussianRegions.sample_posterior(
             count, total, scatter, niw_prior(data, hyper, settings), rng)
-    if settings.variant == "exact" and warm:
-        warm_start(data, state, hyper, settings, rng)
     return state
-
-
-def warm_start(data: PreparedData, state: GibbsState, hyper: TransferHyperparameters,
-               settings: SamplerSettings, rng: np.random.Generator, n_sweeps: int = 3) -> None:
-    """Start the hierarchical sampler from homes whose concept labels agree.
-
-    Each home is first learnt on its own for ``n_sweeps`` sweeps (θ_{e,l} ~ Dir(α + n), the SpCoA
-    conditionals), which makes its concepts place-pure within the home; then the homes' labels
-    are aligned progressively — taught homes first — by matching each home's concepts to the
-    pooled word and visual counts of the homes aligned before it (Hungarian algorithm); finally
-    φ and G_0 are set from the aligned counts, each home's weighted by how much it was taught
-    (:func:`initial_home_weights`: the most taught homes count fully, a home taught nothing among
-    taught homes ~2 %), and θ, G_e, π, μ, Σ drawn given them — for a new home essentially from
-    the priors given φ and G_0, so that its samples are first assigned by the transferred
-    knowledge.
-
-    With the naming rule ("+MI"), each home starts from the places its names mark
-    (:func:`concepts_by_name`) instead of groups of nearby samples: two rooms of one home that the
-    transferred knowledge sees alike (Emma's and mother's bedrooms) then start as two concepts. The
-    sampler cannot split one concept into two later: a single sample that leaves for an empty
-    concept pays S^w = 5000 counts per word of its sentence under that concept's prior.
-
-    This is only an initialisation (the chain is valid MCMC from its end on, whatever state it
-    starts from); it matters because label switching between homes is the sampler's hardest move:
-    see :mod:`spco.model.moves`.
-    """
-    independent = SamplerSettings(variant="spcoa", prune=False, hierarchical=False, joint_assignment=True,
-                                  pruning_score="mi")
-    names = None
-    if settings.prune and data.words.nnz:  # start from the places the home's names mark
-        names = sample_names(data, state.regions, hyper)
-        # synonyms (names a home says at the same spots) start as one concept, not one each
-        places = same_place_names(names, state.regions, data.offsets, hyper.n_regions, data.words.shape[1])
-        state.concepts = concepts_by_name(data, state.regions, hyper, places)
-        _home_step(data, state, _statistics(data, state, hyper), hyper, independent, rng)
-    for sweep_index in range(n_sweeps):
-        _local_step(data, state, independent, rng)
-        stats = _statistics(data, state, hyper)
-        if sweep_index == 0 and settings.prune:
-            _prune(state, hyper, settings, data)
-        _home_step(data, state, stats, hyper, independent, rng)
-    stats = _statistics(data, state, hyper)
-    name_counts = None
-    if names is not None:  # (E, L, V): samples of each home and concept standing for each name
-        named = names >= 0
-        name_counts = np.zeros((data.n_homes, hyper.n_concepts, data.words.shape[1]))
-        np.add.at(name_counts, (data.homes[named], state.concepts[named], names[named]), 1.0)
-    perms = align_homes(stats.visual, stats.words, hyper.alpha_visual, hyper.alpha_word, name_counts)
-    _apply_permutations(data, state, perms)
-    stats = _statistics(data, state, hyper)
-    # Homes taught little (a new home) start from the transferred knowledge instead: their
-    # concept statistics are scaled down, so their θ, G_e and π are drawn from (nearly) the priors
-    # given the φ and G_0 of the taught homes, and the next local step assigns their samples by it.
-    taught = np.bincount(data.homes, weights=np.diff(data.words.indptr) > 0, minlength=data.n_homes)
-    weights = initial_home_weights(taught / np.maximum(np.diff(data.offsets), 1))
-    reduced = weights < 1.0
-    own: dict[int, np.ndarray] = {}
-    if names is not None and reduced.any():
-        # names of such a home alone (Emma's room) start in free concepts of their own, with their
-        # statistics kept in full: left to the first local step they would land in the concepts of
-        # other places (every concept gives an unheard name the same tiny mass), whose visual prior
-        # of δ^v pseudo-counts then sends the rest of the room's views to the transferred concept
-        # of its kind
-        own = _own_names_to_free_concepts(data, state, names, reduced, stats.concepts)
-        if own:
-            stats = _statistics(data, state, hyper)
-    if reduced.any():
-        for name in ("visual", "words", "concepts", "regions_by_concept"):
-            counts = getattr(stats, name)  # (the visual counts are the sampler's cache: not in place)
-            scale = weights.reshape((-1,) + (1,) * (counts.ndim - 1))
-            scaled = np.rint(counts * scale).astype(np.int64)
-            for e, labels in own.items():
-                scaled[e, labels] = counts[e, labels]
-            setattr(stats, name, scaled)
-    state.log_phi_v = log_dirichlet(hyper.alpha_visual + stats.visual.sum(0), rng)
-    state.log_phi_w = log_dirichlet(hyper.alpha_word + stats.words.sum(0), rng)
-    state.log_g0 = log_dirichlet(hyper.gamma0 / hyper.n_concepts + stats.concepts.sum(0), rng)
-    _home_step(data, state, stats, hyper, settings, rng)
 
 
 #: Smoothing of :func:`initial_home_weights` (a taught fraction): keeps the weights continuous
@@ -290,32 +211,6 @@ def concepts_by_name(data: PreparedData, regions: np.ndarray, hyper: TransferHyp
         _, label = np.unique(key[rows], return_inverse=True)
         concepts[rows] = label % hyper.n_concepts
     return concepts
-
-
-def _own_names_to_free_concepts(data: PreparedData, state: GibbsState, names: np.ndarray,
-                                reset: np.ndarray, concept_counts: np.ndarray) -> dict[int, np.ndarray]:
-    """In each home that starts from the transferred knowledge (``reset``), move the samples that
-    stand for a name of that home alone (said in no home that is kept) to a concept no kept home
-    uses, one per name; returns home -> the concepts so given (their statistics are kept)."""
-    kept_rows = ~reset[data.homes]
-    said_elsewhere = np.zeros(data.words.shape[1], dtype=bool)
-    said_elsewhere[np.unique(data.words[np.flatnonzero(kept_rows)].indices)] = True
-    free = list(np.flatnonzero(concept_counts[~reset].sum(axis=0) == 0))
-    given: dict[int, np.ndarray] = {}
-    for e in np.flatnonzero(reset):  # a loop over homes (and their few own names)
-        rows = np.arange(data.offsets[e], data.offsets[e + 1])
-        own = np.unique(names[rows][names[rows] >= 0])
-        own = own[~said_elsewhere[own]]
-        labels = []
-        for word in own:
-            if not free:
-                break
-            label = free.pop(0)
-            state.concepts[rows[names[rows] == word]] = label
-            labels.append(label)
-        if labels:
-            given[int(e)] = np.array(labels, dtype=np.int64)
-    return given
 
 
 def naming_verdicts(data: PreparedData, state: GibbsState, hyper: TransferHyperparameters) -> np.ndarray:

@@ -340,11 +340,17 @@ class OwnNamesSpreadWarning(UserWarning):
     """The home's own names took over much of the home, far from where they were said."""
 
 
-def warn_if_own_names_spread(data: PreparedData, state: GibbsState, shared: SharedPart,
-                              home_name: str, stacklevel: int = 3) -> float:
-    """Warn when the concepts of the home's own names (those the knowledge does not use) hold more
-    than :data:`OWN_NAMES_SPREAD_WARNING` of the home's samples in regions where no sentence of
-    theirs was said; returns that share.
+def warn_if_own_names_spread(data: PreparedData, state: GibbsState, shared: SharedPart, home_name: str,
+                             n_known: int, stacklevel: int = 3) -> float:
+    """Warn when the concepts of the home's own names hold more than :data:`OWN_NAMES_SPREAD_WARNING`
+    of the home's samples in regions where none of those names was said; returns that share.
+
+    The home's own names are the names it uses that the knowledge does not give (words first heard
+    in the home, after the knowledge's ``n_known``, and words the knowledge pruned); their concepts
+    are the concepts the knowledge does not use (G_0 below :data:`FREE_CONCEPT_WEIGHT`) that hold a
+    sample saying one. A home without own names is never warned about (its samples may still sit in
+    such concepts: views the knowledge explains poorly, which :func:`spco.knowledge.check_view_fit`
+    measures).
 
     A concept the knowledge does not use learns its views from this home alone; when the
     knowledge's concepts explain the home's views poorly (a knowledge from few homes or few sweeps),
@@ -363,17 +369,23 @@ def warn_if_own_names_spread(data: PreparedData, state: GibbsState, shared: Shar
     sampler's, and in it `what` answers no transferred name at any room: a sampler that found it would
     trade this warning for homes that lose their names, so the sampler is left as it is."""
     free = np.exp(shared.log_g0) < FREE_CONCEPT_WEIGHT
-    in_free = free[state.concepts]
-    if not in_free.any():
+    own = np.ones(data.words.shape[1], dtype=bool)
+    own[:n_known] = ~np.asarray(shared.word_mask[:n_known], dtype=bool)
+    own &= np.asarray(state.word_mask, dtype=bool)
+    says_own = np.diff(data.words[:, np.flatnonzero(own)].indptr) > 0 if own.any() else np.zeros(
+        data.n_samples, dtype=bool)
+    named = np.zeros(free.size, dtype=bool)
+    named[state.concepts[says_own & free[state.concepts]]] = True
+    in_named = named[state.concepts]
+    if not in_named.any():
         return 0.0
-    taught = np.diff(data.words.indptr) > 0
     said_regions = np.zeros(int(state.regions.max()) + 1, dtype=bool)
-    said_regions[state.regions[taught & in_free]] = True
-    spread = float(np.mean(in_free & ~said_regions[state.regions]))
+    said_regions[state.regions[says_own & in_named]] = True
+    spread = float(np.mean(in_named & ~said_regions[state.regions]))
     if spread > OWN_NAMES_SPREAD_WARNING:
-        said = np.asarray(data.words[taught & in_free].sum(axis=0)).ravel() > 0
-        names = [shared.words[w] for w in np.flatnonzero(said & state.word_mask)]
-        shown = ", ".join(repr(n) for n in names[:4]) or "the home's own names"
+        said = np.asarray(data.words[says_own & in_named].sum(axis=0)).ravel() > 0
+        names = [shared.words[w] for w in np.flatnonzero(said & own)]
+        shown = ", ".join(repr(n) for n in names[:4])
         verb = "stands" if len(names) == 1 else "stand"
         warnings.warn(f"{home_name}: {shown} now {verb} for {spread:.0%} of the home's samples in regions "
                       "where they were never said: the knowledge explains this home's views poorly, so a "
@@ -443,5 +455,6 @@ class NewHomeShard:
         ``None`` if no sweep was run."""
         judge_new_words(self.state, self.shared, self.n_known, self.data)
         if self.prior is None:
-            warn_if_own_names_spread(self.data, self.state, self.shared, home_name, stacklevel=4)
+            warn_if_own_names_spread(self.data, self.state, self.shared, home_name, self.n_known,
+                                     stacklevel=4)
         return self.average.result(self.state) if self.average.n_samples else None

@@ -29,7 +29,8 @@ import numpy as np
 from numba import njit
 from scipy.special import logsumexp
 
-from spco.model.random import _call_in_parts, _log_minus, scaled_exp
+from spco.model.observations import shared_concentration
+from spco.model.random import _call_in_parts, _log_minus
 
 _HALF_LOG_2PI = 0.9189385332046727
 #: Arguments at or above this are not shifted (the product of the shift would overflow near 1e38).
@@ -116,6 +117,22 @@ def _score_difference(alpha: np.ndarray, lg_alpha: np.ndarray, counts: np.ndarra
     return total
 
 
+#: The last log-gamma tables of :func:`_shared_lgamma_table`: (a copy of α, ln Γ(α)).
+_LGAMMA_TABLES: list[tuple[np.ndarray, np.ndarray]] = []
+
+
+def _shared_lgamma_table(alpha: np.ndarray) -> np.ndarray:
+    """:func:`_lgamma_table` of ``alpha``, remembered for the same values: the homes of a shard
+    propose their swaps under the same δ φ (compared with a copy: exactly the table)."""
+    for values, table in _LGAMMA_TABLES:
+        if values.shape == alpha.shape and np.array_equal(values, alpha):
+            return table
+    table = _lgamma_table(alpha)
+    _LGAMMA_TABLES.insert(0, (np.array(alpha, copy=True), table))
+    del _LGAMMA_TABLES[4:]
+    return table
+
+
 def _read_only(array: np.ndarray) -> np.ndarray:
     """A read-only view of ``array`` (no copy): the kernels get both count arrays as the same
     Numba type, so :func:`_score_difference` is compiled once, not for read-only and writeable
@@ -132,8 +149,8 @@ def _matching_pass(alpha_v: np.ndarray, counts_v: np.ndarray, alpha_w: np.ndarra
     n_homes, n_concepts = log_g.shape
     perms = np.empty((n_homes, n_concepts), dtype=np.int64)
     counts_v, counts_w = _read_only(counts_v), _read_only(counts_w)  # one specialisation of _score_difference
-    args = (alpha_v, _lgamma_table(alpha_v), counts_v, alpha_w, _lgamma_table(alpha_w), counts_w, g_term,
-            log_g, pairs, log_u, perms)
+    args = (alpha_v, _shared_lgamma_table(alpha_v), counts_v, alpha_w, _shared_lgamma_table(alpha_w),
+            counts_w, g_term, log_g, pairs, log_u, perms)
     _call_in_parts(_matching_homes, args, n_homes, parallel=True)
     return perms
 
@@ -190,7 +207,7 @@ def concept_swap_step(visual_counts: np.ndarray, log_phi_v: np.ndarray, delta_v:
     perms: (E, L) int; after the pass, concept slot j of home e holds what was concept perms[e, j].
     """
     n_homes, n_concepts = log_g.shape
-    alpha_v = scaled_exp(log_phi_v, delta_v)
+    alpha_v = shared_concentration(log_phi_v, delta_v)
     if word_mask.any():
         log_phi = log_phi_w[:, word_mask]
         alpha_w = delta_w * np.exp(log_phi - logsumexp(log_phi, axis=1, keepdims=True))

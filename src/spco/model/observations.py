@@ -102,6 +102,27 @@ class GaussianRegions:
         return float((log_iw + log_normal).sum())
 
 
+#: The last concentrations δ φ computed by :func:`shared_concentration`: (log φ, δ, a copy of
+#: log φ, δ φ), most recent first.
+_CONCENTRATIONS: list[tuple[np.ndarray, float, np.ndarray, np.ndarray]] = []
+
+
+def shared_concentration(log_phi: np.ndarray, delta: float) -> np.ndarray:
+    """δ φ from log φ (:func:`~spco.model.kernels.special.scaled_exp`), remembered for the same φ:
+    the homes of a shard, each drawing its own θ and tables given the same shared φ, compute it
+    once per sweep. A remembered value is used only for the same array holding the same values
+    (compared with a copy), so it is exactly what ``scaled_exp`` gives. Callers must not write into
+    the result."""
+    for source, scale, values, result in _CONCENTRATIONS:
+        if source is log_phi and scale == delta and values.shape == log_phi.shape \
+                and np.array_equal(values, log_phi):
+            return result
+    result = scaled_exp(log_phi, delta)
+    _CONCENTRATIONS.insert(0, (log_phi, float(delta), np.array(log_phi, copy=True), result))
+    del _CONCENTRATIONS[4:]
+    return result
+
+
 class HierarchicalMultinomial:
     """Bags of counts: c_t ~ Mult(θ_{e,C_t}), θ_{e,l} ~ Dir(δ φ_l), φ_l ~ Dir(α).
 
@@ -146,7 +167,7 @@ class HierarchicalMultinomial:
     def sample_tables(n: np.ndarray, log_phi: np.ndarray, delta: float,
                       rng: np.random.Generator) -> np.ndarray:
         """Table counts summed over homes: Σ_e m_{e,l,k}, m ~ CRT(n_{e,l,k}, δ φ_{l,k}); (L, D)."""
-        return sample_crt_totals(n, scaled_exp(log_phi, delta), rng)
+        return sample_crt_totals(n, shared_concentration(log_phi, delta), rng)
 
     @staticmethod
     def sample_shared(pseudo_counts: np.ndarray, alpha: float, rng: np.random.Generator) -> np.ndarray:
@@ -158,7 +179,7 @@ class HierarchicalMultinomial:
                         out: np.ndarray | None = None) -> np.ndarray:
         """log θ_{e,l} ~ Dir(δ φ_l + n_{e,l}) for every home and concept; (E, L, D). ``out``
         (optional): an array of that shape to draw into, such as the previous draw."""
-        return log_dirichlet_hierarchical(scaled_exp(log_phi, delta), n, rng, out=out)
+        return log_dirichlet_hierarchical(shared_concentration(log_phi, delta), n, rng, out=out)
 
     @staticmethod
     def log_prior_specific(log_theta: np.ndarray, log_phi: np.ndarray, delta: float,

@@ -172,7 +172,7 @@ class Colocation:
 
 
 def colocation(words: sp.csr_array, homes: np.ndarray, regions: np.ndarray, n_homes: int,
-               n_regions: int) -> Colocation:
+               n_regions: int, grid: float | None = None) -> Colocation:
     """:class:`Colocation` of every word: ``words`` (N, V) counts (empty rows: untaught samples),
     ``homes`` (N,), ``regions`` (N,) the samples' current regions. Sparse products, no loop.
 
@@ -184,7 +184,16 @@ def colocation(words: sp.csr_array, homes: np.ndarray, regions: np.ndarray, n_ho
         log p = Σ_e [ln Γ(α) − ln Γ(α + n_e) + Σ_m (ln Γ(α s_{e,m} + n_{e,m}) − ln Γ(α s_{e,m}))]
 
     (n_{e,m}: the word's uses in region m of home e). Homes where the word is said once contribute
-    a constant (s_{e,m}) and are left out."""
+    a constant (s_{e,m}) and are left out.
+
+    ``grid``: round every home's part of ``expected`` and ``log_likelihood`` (each (home, word)) to
+    a multiple of ``grid`` before summing over homes; sums of such values are exact, so any set of
+    homes gives the sum of its homes' own statistics, bit for bit (the shards' statistics then add
+    up to the same whatever the grouping; :data:`spco.model.shard.SUM_GRID`)."""
+
+    def on_grid(values: np.ndarray) -> np.ndarray:
+        return values if grid is None else np.round(values / grid) * grid
+
     n_words = words.shape[1]
     taught = np.flatnonzero(np.diff(words.indptr) > 0)
     if taught.size == 0:
@@ -204,7 +213,7 @@ def colocation(words: sp.csr_array, homes: np.ndarray, regions: np.ndarray, n_ho
     sizes = cell_sizes.sum(1)
     with np.errstate(divide="ignore", invalid="ignore"):
         q = np.where(sizes > 1, (cell_sizes * (cell_sizes - 1)).sum(1) / (sizes * (sizes - 1)), 1.0)
-    expected = np.bincount(in_home.col, weights=home_pairs * q[in_home.row], minlength=n_words)
+    expected = np.bincount(in_home.col, weights=on_grid(home_pairs * q[in_home.row]), minlength=n_words)
     # the urn's likelihood on the grid of κ, from the (home, word) pairs said at least twice; each
     # term depends on the word only through its counts (and the cell's share), so it is evaluated
     # once per distinct value and summed per word with a sparse product
@@ -216,8 +225,10 @@ def colocation(words: sp.csr_array, homes: np.ndarray, regions: np.ndarray, n_ho
                           log_likelihood=np.zeros((n_words, EXCESS_GRID.size)))
     uses = np.arange(n_e.max() + 1)
     per_home = gammaln(alpha)[None, :] - gammaln(alpha[None, :] + uses[:, None])  # (max n_e + 1, G)
-    by_count = sp.csr_array((np.ones(n_e.size), (in_home.col[repeated], n_e)), shape=(n_words, uses.size))
-    log_likelihood = by_count @ per_home
+    if grid is None:
+        by_count = sp.csr_array((np.ones(n_e.size), (in_home.col[repeated], n_e)),
+                                shape=(n_words, uses.size))
+        log_likelihood = by_count @ per_home
     counted = sp.csr_array((np.ones(n_e.size), (in_home.row[repeated], in_home.col[repeated])),
                            shape=(n_homes, n_words))
     keep = np.asarray(counted[in_cell.row // n_regions, in_cell.col]).ravel() > 0
@@ -230,9 +241,22 @@ def colocation(words: sp.csr_array, homes: np.ndarray, regions: np.ndarray, n_ho
     share = (values // top // top) / ((values // top) % top)  # s_{e,m} = c_{e,m} / c_e
     a_s = alpha[None, :] * share[:, None]
     per_cell = gammaln(a_s + (values % top)[:, None]) - gammaln(a_s)  # (distinct (share, count), G)
-    by_value = sp.csr_array((np.ones(which.size), (in_cell.col[keep], which.ravel())),
-                            shape=(n_words, values.size))
-    log_likelihood = log_likelihood + by_value @ per_cell
+    if grid is None:
+        by_value = sp.csr_array((np.ones(which.size), (in_cell.col[keep], which.ravel())),
+                                shape=(n_words, values.size))
+        log_likelihood = log_likelihood + by_value @ per_cell
+        return Colocation(pairs=pairs, same=same, expected=expected, log_likelihood=log_likelihood)
+    # each (home, word) said at least twice: its count term, then its cells' terms in region order,
+    # rounded to the grid; then summed over homes (exactly)
+    pair_homes, pair_words = in_home.row[repeated], in_home.col[repeated]
+    pair_of = np.full(n_homes * n_words, -1, dtype=np.int64)
+    pair_of[pair_homes * n_words + pair_words] = np.arange(pair_homes.size)
+    per_pair = per_home[n_e].copy()  # (pairs, G)
+    cell_pairs = pair_of[(in_cell.row[keep] // n_regions) * n_words + in_cell.col[keep]]
+    order = np.argsort(in_cell.row[keep], kind="stable")  # region order within each (home, word)
+    np.add.at(per_pair, cell_pairs[order], per_cell[which.ravel()[order]])
+    log_likelihood = np.zeros((n_words, EXCESS_GRID.size))
+    np.add.at(log_likelihood, pair_words, on_grid(per_pair))
     return Colocation(pairs=pairs, same=same, expected=expected, log_likelihood=log_likelihood)
 
 

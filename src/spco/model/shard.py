@@ -18,16 +18,17 @@ A :class:`HomeShard` holds some homes' data and sampler state. One sweep is
    (:func:`spco.model.pruning.judge_names`): the mask sent with the next local step.
 
 Only statistics and shared parameters travel, so shards can live in other processes or machines
-(:mod:`spco.engines`). Each shard draws from its own random generator and the driver from its
-own; with one in-process shard that shares the driver's generator, the chain is the one of
-:func:`spco.model.gibbs.sweep` draw for draw (``tests/test_same_chain.py``). With several
-shards the chain depends on the seed and the number of shards, not on the engine that runs them.
+(:mod:`spco.engines`). A :class:`HomeShard` of a fit holds one home and draws from that home's own
+random generator (:func:`home_generator`: seeded from the fit's seed and the home's index); the
+homes a worker runs are a :class:`~spco.model.shard_group.ShardGroup`, and the driver draws from
+its own generator. The statistics that travel add up exactly (integer counts, and per-home float
+statistics rounded to :data:`SUM_GRID`), so the chain depends on the seed only: the same for any
+number of workers and any engine.
 """
 
 from __future__ import annotations
 
 import itertools
-import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -40,6 +41,33 @@ from spco.model.observations import HierarchicalMultinomial
 from spco.model.pruning import NOT_A_NAME, Colocation, colocation, judge_names
 from spco.model.random import log_dirichlet, sample_crt
 from spco.model.shard_init import ShardInitialisation
+
+#: Float statistics a home sends to be summed over homes (the naming rule's expected pairs and
+#: log-likelihoods, the synonyms' overlaps) are rounded to multiples of this grid first: sums of
+#: such values are exact, hence the same whatever the order and grouping of the homes, as long as
+#: every partial sum stays below 2^33 in magnitude (8.6·10^9; a home contributes tens to thousands).
+SUM_GRID = 2.0 ** -20
+
+
+def on_sum_grid(values):
+    """``values`` (an array, or a sparse matrix) rounded to multiples of :data:`SUM_GRID`."""
+    if sp.issparse(values):
+        out = sp.csr_array(values, dtype=np.float64, copy=True)
+        out.data = np.round(out.data / SUM_GRID) * SUM_GRID
+        return out
+    return np.round(np.asarray(values, dtype=np.float64) / SUM_GRID) * SUM_GRID
+
+
+def home_generator(entropy: list[int], home: int) -> np.random.Generator:
+    """The random generator of home ``home`` (its index in the fit) of a fit whose homes draw from
+    ``entropy`` (:func:`home_entropy`): ``SeedSequence(entropy, spawn_key=(home,))``, the stream
+    ``SeedSequence(entropy).spawn(n)[home]`` would give, whatever shard the home is in."""
+    return np.random.default_rng(np.random.SeedSequence(entropy, spawn_key=(int(home),)))
+
+
+def home_entropy(rng: np.random.Generator) -> list[int]:
+    """The entropy of a fit's home generators, drawn from the driver's generator (128 bits)."""
+    return [int(v) for v in rng.integers(0, 2**63 - 1, size=2, dtype=np.int64)]
 
 #: What a shard's :meth:`HomeShard.tables` can count.
 TABLE_KINDS = ("visual", "words", "concepts")
@@ -92,8 +120,9 @@ class HomeStepResult:
 class HomeShard(ShardInitialisation):
     """Some homes' data and sampler state, and the steps that touch only them.
 
-    A shard of a fleet fit starts from its part of the homes (:meth:`from_part`) and finishes its
-    initialisation with the others (the ``init_*`` steps of
+    In a fit every home is a shard of its own, drawing from its home's generator, and the homes a
+    worker runs are a :class:`~spco.model.shard_group.ShardGroup`. A shard starts its homes on
+    their own (:meth:`start`) and finishes its initialisation with the others (the ``init_*`` steps of
     :class:`~spco.model.shard_init.ShardInitialisation`, run by
     :func:`spco.model.shard_init.initialise`).
 
@@ -107,29 +136,28 @@ class HomeShard(ShardInitialisation):
     hyper, settings:
         The model's hyperparameters and sampler settings.
     rng:
-        The shard's random generator (the driver's own with one in-process shard).
+        The shard's random generator (a fit's shard holds one home and draws from its generator,
+        :func:`home_generator`).
+    n_fit_homes:
+        Homes of the whole fit (default: the shard's); label swaps need more than one.
     """
 
     def __init__(self, data: PreparedData, state: GibbsState, hyper: TransferHyperparameters,
-                 settings: SamplerSettings, rng: np.random.Generator) -> None:
+                 settings: SamplerSettings, rng: np.random.Generator, n_fit_homes: int | None = None) -> None:
         self.data, self.state, self.hyper, self.settings, self.rng = data, state, hyper, settings, rng
+        self.n_fit_homes = data.n_homes if n_fit_homes is None else int(n_fit_homes)
         self.stats: gibbs.Statistics | None = None
         self.setup_seconds: dict[str, float] = {}
 
     @classmethod
-    def from_part(cls, part, n_words: int, hyper: TransferHyperparameters, settings: SamplerSettings,
-                  rng: np.random.Generator) -> HomeShard:
-        """A shard that prepares its homes (``part``, a :class:`~spco.model.sources.HomesPart`) and
-        starts them on their own (``gibbs.initialize(..., warm=False)``: k-means regions, their
-        Gaussians, π); :func:`spco.model.shard_init.initialise` then finishes the start with the
-        other shards. ``setup_seconds`` records the time to prepare and to start."""
-        t0 = time.perf_counter()
-        data = part.prepare()
-        t1 = time.perf_counter()
-        state = gibbs.initialize(data, n_words, hyper, settings, rng, warm=False)
-        shard = cls(data, state, hyper, settings, rng)
-        shard.setup_seconds = {"prepare": t1 - t0, "initialise": time.perf_counter() - t1}
-        return shard
+    def start(cls, data: PreparedData, n_words: int, hyper: TransferHyperparameters,
+              settings: SamplerSettings, rng: np.random.Generator,
+              n_fit_homes: int | None = None) -> HomeShard:
+        """A shard of ``data`` whose homes start on their own (:func:`spco.model.gibbs.initialize`:
+        k-means regions, their Gaussians, π); :func:`spco.model.shard_init.initialise` then
+        finishes the start with the other shards."""
+        state = gibbs.initialize(data, n_words, hyper, settings, rng)
+        return cls(data, state, hyper, settings, rng, n_fit_homes)
 
     def candidate_words(self) -> np.ndarray | None:
         """The words the reference sampler found to depend on the place (V,) bool, or ``None``."""
@@ -202,7 +230,7 @@ class HomeShard(ShardInitialisation):
             gibbs.home_step_reference(data, state, stats, hyper, settings, rng)
         else:
             gibbs.home_step(data, state, stats, hyper, settings, rng)
-            if swaps and settings.hierarchical and data.n_homes > 1:
+            if swaps and settings.hierarchical and self.n_fit_homes > 1:
                 gibbs.swap_labels(data, state, stats, hyper, settings, rng)
         if prune and not uses_naming_rule(settings):  # (the naming rule is judged over all shards)
             gibbs.prune(state, hyper, settings)
@@ -221,9 +249,10 @@ class HomeShard(ShardInitialisation):
         """The naming rule's statistics of the shard's homes on their current regions: pairs of each
         word's uses in one home, those in one region, and those expected there by chance, (V,) each,
         and the log-likelihood of the uses' regions on the grid of excess values, (V, 50) (they add
-        up over shards)."""
+        up over shards; the float ones rounded to :data:`SUM_GRID`, so that they add up exactly)."""
         data = self.data
-        return colocation(data.words, data.homes, self.state.regions, data.n_homes, self.hyper.n_regions)
+        return colocation(data.words, data.homes, self.state.regions, data.n_homes, self.hyper.n_regions,
+                          grid=SUM_GRID)
 
     def _stats(self) -> gibbs.Statistics:
         if self.stats is None:
@@ -281,9 +310,10 @@ def sweep(call, global_step: GlobalStep, shared: SharedParameters, iteration: in
 
     ``word_mask`` is the mask decided by the previous sweep's pruning, sent with the local step
     (``None`` when unchanged). Returns the log joint of the state the sweep started from (the
-    shards' parts summed in shard order) and the new shared parameters (with the new mask)."""
+    homes' parts summed in home order) and the new shared parameters (with the new mask)."""
     settings = global_step.settings
-    log_joint = float(sum(call("local_step", word_mask)))
+    # every home's part, summed in home order (the same sum however the homes are grouped)
+    log_joint = float(sum(value for part in call("local_step", word_mask) for value in np.atleast_1d(part)))
     prune = settings.prune and settings.learn_shared
     swaps = gibbs.swaps_due(iteration)
     if settings.variant == "reference":
@@ -372,8 +402,3 @@ def split(data: PreparedData, state: GibbsState, n_shards: int) -> list[tuple[Pr
         return [(data, state)]
     return [(data_of_homes(data, a, b), state_of_homes(data, state, a, b))
             for a, b in shard_bounds(data, n_shards)]
-
-
-def shard_seeds(rng: np.random.Generator, n_shards: int) -> list[int]:
-    """One seed per shard, drawn from the driver's generator (after initialisation)."""
-    return [int(s) for s in rng.integers(0, 2**63 - 1, size=n_shards, dtype=np.int64)]

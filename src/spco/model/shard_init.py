@@ -1,10 +1,11 @@
-"""Initialisation inside the shards: every shard starts its own homes, the driver only reduces.
+"""The start of every fit, inside the shards: every shard starts its own homes, the driver only
+reduces.
 
-A fleet fit cannot initialise in the driver (:func:`spco.model.gibbs.initialize` holds every
-home's data and state in one process). Here each shard prepares its homes
-(:mod:`spco.model.sources`) and runs their per-home start (k-means regions, Gaussians, π:
-``gibbs.initialize(..., warm=False)``); the exact sampler's :func:`~spco.model.gibbs.warm_start`
-then runs as map → reduce steps:
+Each worker prepares its homes (:mod:`spco.model.sources`) and runs their per-home start (k-means
+regions, Gaussians, π: :func:`spco.model.gibbs.initialize`, each home with its own generator); the
+exact sampler's warm start then runs as map → reduce steps — homes learnt on their own for a few
+sweeps, their labels aligned across homes, the shared part set from the aligned counts, each home's
+weighted by how much it was taught:
 
 1. with the naming rule, the places the names mark: the naming statistics of all homes
    (:class:`~spco.model.pruning.Colocation`, (V,) × 3) are summed by the driver and sent back;
@@ -23,10 +24,18 @@ then runs as map → reduce steps:
    the driver, then every shard's home step.
 
 The driver holds (E,) and (E, V) vectors, the pooled reference and one batch of homes' counts:
-megabytes at D = 4,096, whatever the number of homes. Each shard draws from its own generator
-(seeded from the driver's), so the start differs from the one-process ``gibbs.initialize`` (whose
-single stream runs through every home) but depends only on the seed and the number of shards:
-the local and the Ray engine give the same chain from it (``tests/test_shard_init.py``).
+megabytes at D = 4,096, whatever the number of homes. Every home draws from its own generator and
+the driver from its own, and what the driver sums adds up exactly, so the start depends on the
+seed only: the same for any number of shards and on either engine (``tests/test_shard_init.py``).
+
+Why this start: with ~7,000 visual and S^w = 5000 word counts per sample the chain keeps whatever
+partition its first sweeps make, and label switching between homes is the sampler's hardest move
+(:mod:`spco.model.moves`). With the naming rule ("+MI") each home starts from the places its names
+mark (:func:`~spco.model.gibbs.concepts_by_name`, synonyms as one), so that two rooms of one home
+that the transferred knowledge sees alike (Emma's and mother's bedrooms) start as two concepts.
+Homes taught little (a new home) count little in the initial shared part
+(:func:`~spco.model.gibbs.initial_home_weights`), so their samples are first assigned by the
+knowledge of the taught homes; their own names start in free concepts of their own.
 """
 
 from __future__ import annotations
@@ -47,7 +56,7 @@ from spco.model.pruning import NOT_A_NAME, Colocation, judge_names
 from spco.model.random import log_dirichlet
 from spco.model.synonyms import NameOverlaps, name_overlaps, name_region_overlaps, same_place_names
 
-#: The per-home sampler of the warm start (θ_{e,l} ~ Dir(α + n), as in ``gibbs.warm_start``).
+#: The per-home sampler of the warm start (θ_{e,l} ~ Dir(α + n), the SpCoA conditionals).
 INDEPENDENT = SamplerSettings(variant="spcoa", prune=False, hierarchical=False, joint_assignment=True,
                               pruning_score="mi")
 
@@ -90,14 +99,17 @@ class ShardInitialisation:
         the shard's sums of the names' region overlaps (:class:`~spco.model.synonyms.NameOverlaps`),
         to be pooled over all homes."""
         data, state, hyper = self.data, self.state, self.hyper
+        from spco.model.shard import on_sum_grid
+
         self._names = gibbs.sample_names(data, state.regions, hyper, stats=naming)
-        return name_overlaps(name_region_overlaps(self._names, state.regions, data.offsets, hyper.n_regions),
-                             data.words.shape[1])
+        overlaps = name_overlaps(name_region_overlaps(self._names, state.regions, data.offsets,
+                                                      hyper.n_regions), data.words.shape[1])
+        return NameOverlaps(on_sum_grid(overlaps.weighted), overlaps.weights)
 
     def init_places(self, overlaps: NameOverlaps) -> None:
         """Start each home's concepts from the places its names mark, synonyms (``overlaps``
         pooled over all homes: :func:`~spco.model.synonyms.same_place_names`) as one, then draw
-        its parameters as on its own (as :func:`spco.model.gibbs.warm_start`)."""
+        its parameters as on its own."""
         data, state, hyper = self.data, self.state, self.hyper
         places = same_place_names(self._names, state.regions, data.offsets, hyper.n_regions,
                                   data.words.shape[1], overlaps=overlaps)
@@ -185,7 +197,7 @@ class ShardInitialisation:
 
         stats, own = self._init_stats, getattr(self, "_own", {})
         if scale:
-            # rint(n · w) as gibbs.warm_start scales, computed for the homes with w < 1 only: a
+            # rint(n · w), computed for the homes with w < 1 only: a
             # home of weight 1 keeps its counts exactly (rint(n · 1.0) = n), and no (E, L, D)
             # float temporary is made (the shard's peak memory at D = 4,096)
             reduced = np.flatnonzero(self._weights < 1.0)
@@ -277,7 +289,7 @@ def initialise(call, call_each, bounds: list[tuple[int, int]], n_words: int, hyp
                settings: SamplerSettings, rng: np.random.Generator, n_sweeps: int = 3,
                batch: int = ALIGNMENT_BATCH):
     """Finish the shards' initialisation (their homes already started with
-    ``gibbs.initialize(..., warm=False)``) and return the initial
+    :func:`spco.model.gibbs.initialize`) and return the initial
     :class:`~spco.model.shard.SharedParameters` and an :class:`InitialisationReport`.
 
     ``call(method, *args)`` runs a shard method on every shard (results in shard order);
@@ -359,7 +371,7 @@ def initialise(call, call_each, bounds: list[tuple[int, int]], n_words: int, hyp
         free = list(np.flatnonzero(sum(k[1] for k in kept) == 0))
         owns = gather(call_each("init_own_names", [(said_elsewhere,)] * n_shards))
         given: list[dict[int, list[tuple[int, int]]]] = []
-        for own in owns:  # in home order, as gibbs.warm_start hands the free labels out
+        for own in owns:  # the free labels handed out in home order
             pairs_of: dict[int, list[tuple[int, int]]] = {}
             for e in sorted(own):
                 pairs = []

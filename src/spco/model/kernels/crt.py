@@ -248,6 +248,16 @@ def _crt_totals_row(counts: np.ndarray, conc: np.ndarray, seed: np.uint64, exact
         opened[k] += extra
 
 
+@njit(cache=True, nogil=True, error_model="numpy")
+def _crt_totals_rows_each(counts: np.ndarray, conc: np.ndarray, seeds: np.ndarray, exact_max: int,
+                          out: np.ndarray, first: int, stop: int) -> None:
+    """:func:`sample_crt_totals_each` of rows first..stop−1 into ``out``: for each group g its own
+    :func:`_crt_totals_row` pass with ``seeds[g]``, added up."""
+    for r in range(first, stop):
+        for g in range(counts.shape[0]):
+            _crt_totals_row(counts[g:g + 1], conc, seeds[g], exact_max, r, out[r])
+
+
 def sample_crt_totals(counts: np.ndarray, concentration: np.ndarray, rng: np.random.Generator,
                       exact_max: int = 40) -> np.ndarray:
     """Σ_g m_g for independent m_g ~ CRT(n_g, a): table counts summed over the first axis.
@@ -280,4 +290,32 @@ def sample_crt_totals(counts: np.ndarray, concentration: np.ndarray, rng: np.ran
     out = np.zeros((counts.shape[1], counts.shape[2]), dtype=np.int64)
     _call_in_parts(_crt_totals_rows, (counts, conc, seed, int(exact_max), out), counts.shape[1],
                    counts.size >= _PARALLEL_MIN)
+    return out
+
+
+def sample_crt_totals_each(counts: np.ndarray, concentration: np.ndarray, seeds: np.ndarray,
+                           exact_max: int = 40) -> np.ndarray:
+    """Σ_g of :func:`sample_crt_totals` of each group alone, group g drawn from ``seeds[g]``: the
+    sum, bit for bit, of the calls ``sample_crt_totals(counts[g:g + 1], concentration, rng_g)``
+    where ``rng_g`` gives ``seeds[g]`` — the table counts of homes that each draw from their own
+    stream (:class:`~spco.model.shard_group.ShardGroup`), in one call.
+
+    Parameters
+    ----------
+    counts: (G, R, W) integer counts n ≥ 0; concentration: (R, W) a ≥ 0; seeds: (G,) uint64.
+
+    Returns
+    -------
+    (R, W) int64 table counts summed over the G groups.
+    """
+    counts = np.ascontiguousarray(counts, dtype=np.int64)
+    if counts.ndim != 3 or len(seeds) != counts.shape[0]:
+        raise ValueError("sample_crt_totals_each needs counts (groups, rows, width) and a seed per group")
+    conc = np.ascontiguousarray(np.broadcast_to(concentration, counts.shape[1:]), dtype=np.float64)
+    if counts.flags.writeable:  # a read-only view (no copy), as sample_crt_totals passes it
+        counts = counts.view()
+        counts.flags.writeable = False
+    out = np.zeros((counts.shape[1], counts.shape[2]), dtype=np.int64)
+    _call_in_parts(_crt_totals_rows_each, (counts, conc, np.asarray(seeds, dtype=np.uint64), int(exact_max),
+                                           out), counts.shape[1], counts.size >= _PARALLEL_MIN)
     return out

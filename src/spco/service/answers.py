@@ -1,0 +1,148 @@
+"""The JSON answers of ``where`` and ``what``, the same for ``spco where|what --json``, the library's
+:class:`~spco.service.LiveHome` and ``spco serve``; and the home's learnt regions for drawing.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from spco import knowledge as kn
+from spco.errors import ConfigurationError
+from spco.prediction import predict_names, validate_visual_counts
+
+__all__ = ["RANKED_BY", "check_pose", "regions_answer", "what_answer", "where_answer"]
+
+#: What ``what``'s score is, per weighting of the home's model.
+RANKED_BY = {"mi": "p(name | pose, view) × I(name), I = the name's mutual information with the concepts",
+             "none": "p(name | pose, view)",
+             "reference": "the authors' score Σ_l p(l | pose, view) θ^w_l(name) KL_l(name)"}
+
+#: χ² quantile of 95 % in two dimensions: the regions' ellipses hold 95 % of their Gaussian.
+_CHI2_95_2D = 5.991464547107979
+
+
+def where_answer(home: kn.HomeModel, name: str, n: int = 10, seed: int = 0) -> dict[str, Any]:
+    """Poses for the place ``name`` (:func:`spco.knowledge.where` with ``random_state=seed``), as JSON.
+
+    Returns ``{"home", "name", "region", "region_probability", "learnt", "support", "positions"}``;
+    ``positions`` lists ``{"x", "y", "theta", "probability"}`` (metres, radians), most probable
+    first. Raises :class:`~spco.prediction.UnknownNameError` for a name the home cannot use.
+    """
+    pred = kn.where(home, name, n=n, random_state=seed)
+    order = sorted(range(pred.samples.shape[0]), key=lambda i: -float(pred.weights[i]))
+    positions = [{"x": float(pred.samples[i, 0]), "y": float(pred.samples[i, 1]),
+                  "theta": float(pred.samples[i, 2]), "probability": float(pred.weights[i])} for i in order]
+    return {"home": home.name, "name": pred.name, "region": int(pred.region),
+            "region_probability": float(pred.region_probabilities[pred.region]),
+            "learnt": bool(pred.learnt), "support": float(pred.support), "positions": positions}
+
+
+def check_pose(home: kn.HomeModel, x: object, y: object, theta: object) -> tuple[float, float, float]:
+    """``(x, y, theta)`` as floats, or :class:`ConfigurationError`: each a finite number, ``|θ| ≤ 2π``
+    (radians), the position on the home's map or at most :data:`spco.knowledge.FAR_OUTSIDE_MAP` map
+    sizes off it (:func:`spco.knowledge.pose_outside_map`)."""
+    values = []
+    for name, value in (("x", x), ("y", y), ("theta", theta)):
+        if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
+            raise ConfigurationError(f"{name}: expected a number, got {value!r}")
+        if not math.isfinite(float(value)):
+            raise ConfigurationError(f"{name}: expected a finite number, got {value!r}")
+        values.append(float(value))
+    if abs(values[2]) > 2 * math.pi + 1e-9:
+        raise ConfigurationError(f"theta = {values[2]:g} is more than a full turn: the heading is in radians "
+                                 f"(degrees? {values[2]:g}° = {math.radians(values[2]):.4f} rad)")
+    kn.pose_outside_map(home, values[0], values[1])  # raises for a pose far off the map
+    return values[0], values[1], values[2]
+
+
+def what_answer(home: kn.HomeModel, x: float, y: float, theta: float, counts: Any = None,
+                top: int = 3) -> dict[str, Any]:
+    """The ``top`` place names at a pose (as :func:`spco.knowledge.what` ranks them), as JSON.
+
+    ``counts``: the view's visual counts (D,), or ``None`` for the position alone. Returns
+    ``{"home", "pose": {"x", "y", "theta"}, "vision", "ranked_by", "names"}``; ``names`` lists
+    ``{"name", "probability", "score", "score_share"}`` best first (``probability`` = p(name | pose,
+    view) over all words; ``score_share`` = the score over its sum across the usable names). A pose
+    off the map adds ``"warning"`` (instead of a Python warning: a server answers many such poses);
+    a bad pose raises :class:`ConfigurationError` (:func:`check_pose`).
+    """
+    x, y, theta = check_pose(home, x, y, theta)
+    outside = kn.pose_outside_map(home, x, y)
+    row = None if counts is None else validate_visual_counts(counts, home.knowledge.n_features)
+    if row is not None and row.shape[0] != 1:
+        raise ConfigurationError(f"visual: expected one view's counts, got {row.shape[0]} rows")
+    pose = np.array([[x, y, math.sin(theta), math.cos(theta)]])
+    pred = predict_names(home.parameters, 0, home.vocabulary, pose, row, top_k=max(len(home.vocabulary), 1),
+                         weighting=home.weighting, use_vision=row is not None)  # type: ignore[arg-type]
+    total = float(pred.scores[0].sum())
+    names = [{"name": str(w), "probability": float(p), "score": float(s),
+              "score_share": float(s) / total if total > 0 else 0.0}
+             for w, p, s in zip(pred.words[0], pred.probabilities[0], pred.scores[0], strict=True)][:top]
+    answer = {"home": home.name, "pose": {"x": x, "y": y, "theta": theta}, "vision": row is not None,
+              "ranked_by": RANKED_BY[pred.weighting], "names": names}
+    if outside is not None:
+        answer["warning"] = f"{outside}; the names are extrapolated from the nearest regions"
+    return answer
+
+
+def _ellipse(cov: np.ndarray) -> dict[str, float]:
+    """The 95 % ellipse of a 2×2 covariance: radii ``rx`` (major) and ``ry`` and the major axis's angle
+    in degrees, counter-clockwise from +x."""
+    cov = 0.5 * (cov + cov.T)
+    values, vectors = np.linalg.eigh(cov)
+    values = np.maximum(values, 0.0)
+    angle = math.degrees(math.atan2(float(vectors[1, 1]), float(vectors[0, 1])))
+    return {"rx": math.sqrt(_CHI2_95_2D * float(values[1])), "ry": math.sqrt(_CHI2_95_2D * float(values[0])),
+            "angle": angle}
+
+
+def regions_answer(home: kn.HomeModel, names_per_region: int = 3) -> dict[str, Any]:
+    """The home's learnt regions for a map: what the page at ``/`` and the ROS markers draw.
+
+    Returns ``{"home", "extent": [x_min, x_max, y_min, y_max], "names": [usable names],
+    "concepts": [{"concept", "names": [{"name", "p"}]}], "regions": [...], "samples": [...]}``.
+    Each region in use: ``region``, ``concept`` (the concept it belongs to most, which colours it),
+    ``samples`` (its samples), ``weight`` (its share of the home's samples), ``mean`` ``[x, y]``,
+    ``covariance`` (2×2, m²), ``ellipse`` (95 %: ``rx``, ``ry`` in metres, ``angle`` in degrees) and
+    ``names``: the ``names_per_region`` most probable usable names there, ``p`` = p(name | region)
+    = Σ_l p(l | region) θ^w_l(name), renormalised over the usable names. ``samples`` lists
+    ``{"id", "x", "y", "theta", "sentence"}``.
+    """
+    params = home.parameters
+    counts = np.asarray(params.region_counts[0], dtype=np.int64)
+    means = np.asarray(params.region_means[0], dtype=np.float64)
+    covs = np.asarray(params.region_covariances[0], dtype=np.float64)[:, :2, :2]
+    joint = np.asarray(params.region_weights[0], dtype=np.float64) * np.clip(
+        np.asarray(params.concept_weights[0], dtype=np.float64), 0.0, None)[:, None]  # (L, K)
+    usable = np.asarray(params.word_mask, dtype=bool)
+    theta_w = np.asarray(params.word_probabilities[0], dtype=np.float64) * usable[None, :]  # (L, V)
+    words = home.vocabulary.words
+
+    def top_names(weights: np.ndarray) -> list[dict[str, Any]]:
+        p = weights @ theta_w
+        if p.sum() <= 0:
+            return []
+        p = p / p.sum()
+        order = np.argsort(-p, kind="stable")[:names_per_region]
+        return [{"name": words[k], "p": float(p[k])} for k in order if p[k] > 0]
+
+    regions = []
+    total = max(int(counts.sum()), 1)
+    for m in np.flatnonzero(counts > 0):
+        column = joint[:, m]
+        p_concept = column / column.sum() if column.sum() > 0 else np.full(column.size, 1.0 / column.size)
+        regions.append({"region": int(m), "concept": int(np.argmax(column)), "samples": int(counts[m]),
+                        "weight": float(counts[m]) / total,
+                        "mean": [float(means[m, 0]), float(means[m, 1])],
+                        "covariance": covs[m].tolist(), "ellipse": _ellipse(covs[m]),
+                        "names": top_names(p_concept)})
+    concepts = sorted({r["concept"] for r in regions})
+    samples = [{"id": int(i), "x": float(p[0]), "y": float(p[1]),
+                "theta": math.atan2(float(p[2]), float(p[3])), "sentence": s}
+               for i, p, s in zip(home.ids, home.positions, home.sentences, strict=True)]
+    return {"home": home.name, "extent": list(kn.map_bounds(home)), "names": list(home.known_names),
+            "concepts": [{"concept": c, "names": top_names(np.eye(joint.shape[0])[c])} for c in concepts],
+            "regions": regions, "samples": samples}

@@ -1,0 +1,446 @@
+"""A home held in memory while a robot runs: answers in a millisecond, teachings never lost.
+
+:class:`LiveHome` is what ``spco serve`` serves, and what a program on the robot (a ROS node) can
+hold itself::
+
+    from spco.service import LiveHome
+
+    with LiveHome("home.spco") as live:          # takes the home's lock: `spco teach` is refused
+        live.what(1.2, -0.4, 1.57)["names"]      # [{"name": "kitchen", "probability": …}, …]
+        live.where("kitchen", n=5)["positions"]  # [{"x": …, "y": …, "theta": …, "probability": …}, …]
+        live.teach(x=1.2, y=-0.4, theta=1.57, sentence="this is the study")   # durable when it returns
+        live.teach(id=12, sentence="this is Emma's room")
+
+Readers (:meth:`~LiveHome.where`, :meth:`~LiveHome.what`, :meth:`~LiveHome.regions`,
+:attr:`~LiveHome.home`) answer from the last committed snapshot, an immutable
+:class:`~spco.knowledge.HomeModel`, and never wait for a teaching. Teachings go to the home's one
+writer (:mod:`spco.service.writer`, by default in a process of its own so that it does not hold
+this process's global lock), which applies the teachings that arrive together as one batch,
+appends them to the journal beside the home file and ``fsync``-s it (:mod:`spco.service.journal`),
+then publishes the new snapshot: :meth:`~LiveHome.teach` returns after that, and the next answer
+uses it. The journal is compacted into the home file now and then and on :meth:`~LiveHome.close`.
+
+Events (:meth:`~LiveHome.subscribe`): ``{"type": "taught", "seq", "op", "id", "sentence", …}``
+after a teaching, ``{"type": "undone", "seq", "undoes", …}`` after an undo and ``{"type":
+"answer", "kind": "what" | "where", …}`` after an answer (only built while someone listens).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import queue
+import threading
+import time
+import warnings
+from collections.abc import Callable, Iterator
+from concurrent.futures import Future
+from os import PathLike
+from pathlib import Path
+from typing import Any
+
+from spco import knowledge as kn
+from spco import locking
+from spco.errors import ConfigurationError, SpcoError
+from spco.service.answers import check_pose, regions_answer, what_answer, where_answer
+from spco.service.images import DEFAULT_MAX_PIXELS, decode_image
+from spco.service.journal import TornRecordWarning, journal_path
+from spco.service.teaching import ConflictError, NotFoundError, served_info
+from spco.service.writer import ProcessWriter, ThreadWriter, WriterUnavailableError
+
+__all__ = ["MAX_POSES", "MAX_TOP", "LiveHome", "Subscription"]
+
+#: The most poses :meth:`LiveHome.where` draws, and names :meth:`LiveHome.what` lists.
+MAX_POSES = 1000
+MAX_TOP = 100
+
+_RESULT_ERRORS: dict[str, type[SpcoError]] = {
+    "NotFoundError": NotFoundError, "ConflictError": ConflictError,
+    "WriterUnavailableError": WriterUnavailableError, "ConfigurationError": ConfigurationError,
+}
+
+
+class Subscription:
+    """Events of a :class:`LiveHome`, from :meth:`LiveHome.subscribe`: a queue, or a callback.
+
+    Without a callback, events wait in a queue of ``maxsize``; when it is full the oldest is dropped
+    (``dropped`` counts them), so a slow reader never slows the home down. Iterate it, or
+    :meth:`get` with a timeout; :meth:`close` (or leaving a ``with`` block) ends it.
+    """
+
+    def __init__(self, owner: LiveHome, callback: Callable[[dict[str, Any]], None] | None,
+                 maxsize: int, types: frozenset[str] | None) -> None:
+        self._owner = owner
+        self._callback = callback
+        self.types = types
+        self._queue: queue.Queue[dict[str, Any] | None] = queue.Queue(maxsize=max(1, maxsize))
+        self.dropped = 0
+        self.closed = False
+
+    def _deliver(self, event: dict[str, Any]) -> None:
+        if self.types is not None and event["type"] not in self.types:
+            return
+        if self._callback is not None:
+            try:
+                self._callback(event)
+            except Exception as exc:  # a listener's bug must not break the home
+                warnings.warn(f"an event callback failed: {type(exc).__name__}: {exc}", RuntimeWarning,
+                              stacklevel=2)
+            return
+        while True:
+            try:
+                self._queue.put_nowait(event)
+                return
+            except queue.Full:
+                with contextlib.suppress(queue.Empty):
+                    self._queue.get_nowait()
+                    self.dropped += 1
+
+    def get(self, timeout: float | None = None) -> dict[str, Any]:
+        """The next event; raises ``queue.Empty`` after ``timeout`` seconds, ``EOFError`` once closed."""
+        if self.closed and self._queue.empty():
+            raise EOFError("the subscription is closed")
+        event = self._queue.get(timeout=timeout)
+        if event is None:
+            raise EOFError("the subscription is closed")
+        return event
+
+    def __iter__(self) -> Iterator[dict[str, Any]]:
+        while True:
+            try:
+                yield self.get()
+            except EOFError:
+                return
+
+    def close(self) -> None:
+        """Stop receiving events (an iterating reader ends)."""
+        if not self.closed:
+            self.closed = True
+            self._owner._unsubscribe(self)
+            with contextlib.suppress(queue.Full):
+                self._queue.put_nowait(None)
+
+    def __enter__(self) -> Subscription:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class LiveHome:
+    """A served home: the last committed snapshot for readers, one writer for teachings, a journal.
+
+    Parameters
+    ----------
+    path: the home file (``spco adapt``). Its journal is ``<path>.journal``.
+    seed: base seed of the teachings (each batch's seed derives from it and its first seq and is
+        journalled); ``None``: fresh entropy.
+    sweeps: Gibbs sweeps per teaching (10, as ``spco teach``).
+    writer: ``"process"`` (default: a writer process; readers never wait for Python's global lock)
+        or ``"thread"`` (in this process: simpler, readers wait a few ms at p99 during teachings).
+    holder: how other writers are told who holds the home (``spco serve`` gives its address).
+    max_pixels: the largest image accepted.
+    compact_records, compact_idle: when the writer compacts (see :mod:`spco.service.writer`).
+
+    Opening takes the home's write lock for as long as it is open (:func:`spco.locking.hold`:
+    ``spco teach`` on it is refused at once, naming ``holder``), replays the journal's teachings
+    that the file lacks (a torn last record is dropped with a :class:`TornRecordWarning`) and
+    compacts. Raises :class:`~spco.locking.HomeServedError` if another server holds it, and
+    :class:`~spco.errors.ModelFileError` / :class:`~spco.service.journal.JournalError` for a bad
+    file or journal.
+    """
+
+    def __init__(self, path: str | PathLike[str], *, seed: int | None = None,
+                 sweeps: int = kn.DEFAULT_TEACH_SWEEPS, writer: str = "process", holder: str | None = None,
+                 max_pixels: int = DEFAULT_MAX_PIXELS, compact_records: int | None = None,
+                 compact_idle: float | None = None) -> None:
+        if writer not in ("process", "thread"):
+            raise ConfigurationError(f"writer must be 'process' or 'thread', got {writer!r}")
+        self.path = Path(path)
+        self.journal_path = journal_path(path)
+        self.max_pixels = max_pixels
+        self.holder = holder or f"a LiveHome of process {os.getpid()}"
+        self._subscribers: list[Subscription] = []
+        self._subscribers_lock = threading.Lock()
+        self._extractor: Any = None
+        self._extractor_key: str | None = None
+        self._regions: tuple[int, dict[str, Any]] | None = None
+        self._closed = False
+        self._lock = locking.hold(path, self.holder)
+        options = {"seed": seed, "sweeps": sweeps, "compact_records": compact_records,
+                   "compact_idle": compact_idle}
+        options = {k: v for k, v in options.items() if v is not None}
+        try:
+            if writer == "process":
+                self._writer: ProcessWriter | ThreadWriter = ProcessWriter(
+                    path, self._on_applied, lock_fd=self._lock.fd, holder=self.holder, **options)
+            else:
+                self._writer = ThreadWriter(path, self._on_applied, lock=self._lock, **options)
+        except BaseException:
+            self._lock.release()
+            raise
+        self._snapshot: kn.HomeModel = self._writer.first_snapshot
+        #: what opening found: ``replayed`` journal records, ``torn`` (what was dropped, or None)
+        self.startup: dict[str, Any] = dict(self._writer.startup)
+        if self.startup.get("torn"):
+            warnings.warn(f"{self.journal_path}: {self.startup['torn']}; it was never acknowledged and is "
+                          "dropped", TornRecordWarning, stacklevel=2)
+        self.started = time.time()
+
+    # ------------------------------------------------------------------ reading
+    @property
+    def home(self) -> kn.HomeModel:
+        """The last committed snapshot (immutable; a teaching publishes a new one)."""
+        return self._snapshot
+
+    @property
+    def writer_pid(self) -> int:
+        """The writer process's id (this process's for a thread writer)."""
+        return int(getattr(self._writer, "pid", os.getpid()))
+
+    def where(self, name: str, n: int = 10, *, seed: int = 0) -> dict[str, Any]:
+        """Poses for the place ``name``: the payload of ``spco where HOME NAME -n N --json``.
+
+        Parameters
+        ----------
+        name: a place name (read like a sentence: ``"Living Room"`` → ``living room``).
+        n: how many poses, 1…:data:`MAX_POSES`.
+        seed: the draw's seed (the CLI's default, 0: the same question, the same poses).
+
+        Returns
+        -------
+        ``{"home", "name", "region", "region_probability", "learnt", "support", "positions"}``;
+        ``positions``: ``n`` dicts ``{"x", "y", "theta", "probability"}`` (metres, radians), most
+        probable first (:func:`spco.service.answers.where_answer`). Raises
+        :class:`~spco.prediction.UnknownNameError` for a name the home cannot use,
+        :class:`ConfigurationError` for a bad ``n``.
+        """
+        if not isinstance(name, str) or not name.strip():
+            raise ConfigurationError("name: expected a place name")
+        if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= MAX_POSES:
+            raise ConfigurationError(f"n: expected a number of poses from 1 to {MAX_POSES}, got {n!r}")
+        answer = where_answer(self._snapshot, name, n=n, seed=seed)
+        if self._listening("answer"):
+            self._publish({"type": "answer", "kind": "where", "name": answer["name"],
+                           "positions": answer["positions"][:3]})
+        return answer
+
+    def view_counts(self, image: Any = None, encoding: str | None = None, visual: Any = None,
+                    width: int | None = None, height: int | None = None) -> Any:
+        """A view's visual counts: ``visual`` as given, or ``image`` through the knowledge's extractor
+        (:meth:`spco.knowledge.Knowledge.image_extractor`, as ``spco what --image``), or ``None``.
+
+        ``image``: JPEG/PNG bytes, or raw pixels (bytes with ``width``/``height``, or an array) in
+        ``encoding`` ``rgb8``/``bgr8``/``mono8`` (an array defaults to ``bgr8``, or ``mono8`` when
+        it has two dimensions); see :func:`spco.service.images.decode_image`.
+        """
+        if image is None:
+            return visual
+        if visual is not None:
+            raise ConfigurationError("give the view either as visual counts or as an image, not both")
+        knowledge = self._snapshot.knowledge
+        if not knowledge.fitted_on_images:
+            raise ConfigurationError("the knowledge of this home was fitted on visual count vectors, not on "
+                                     "images: give the view's features (visual), not an image")
+        pixels = decode_image(image, encoding, width=width, height=height, max_pixels=self.max_pixels)
+        key = json.dumps(knowledge.extractor, sort_keys=True)
+        if self._extractor is None or key != self._extractor_key:
+            self._extractor, self._extractor_key = knowledge.image_extractor(), key
+        return self._extractor.extract(pixels)
+
+    def what(self, x: float, y: float, theta: float, *, image: Any = None, encoding: str | None = None,
+             visual: Any = None, top: int = 3) -> dict[str, Any]:
+        """The ``top`` place names at pose (x, y, θ): the payload of ``spco what HOME … --json``.
+
+        Parameters
+        ----------
+        x, y: metres on the home's map; theta: heading in radians (``|θ| ≤ 2π``).
+        image, encoding: the camera view (optional): JPEG/PNG bytes, or an (H, W, 3) / (H, W) uint8
+            array in ``encoding`` ``bgr8`` (default for three channels), ``rgb8`` or ``mono8``
+            (:meth:`view_counts`).
+        visual: the view's visual counts (D,) instead of an image.
+        top: how many names, 1…:data:`MAX_TOP`.
+
+        Returns
+        -------
+        ``{"home", "pose", "vision", "ranked_by", "names"}``; ``names``: ``top`` dicts ``{"name",
+        "probability", "score", "score_share"}``, best first; ``"warning"`` too for a pose off the
+        map. A pose far off it, non-finite numbers or a bad view raise :class:`ConfigurationError`.
+        """
+        if isinstance(top, bool) or not isinstance(top, int) or not 1 <= top <= MAX_TOP:
+            raise ConfigurationError(f"top: expected a number of names from 1 to {MAX_TOP}, got {top!r}")
+        home = self._snapshot
+        check_pose(home, x, y, theta)  # before decoding an image
+        answer = what_answer(home, x, y, theta, self.view_counts(image, encoding, visual), top)
+        if self._listening("answer"):
+            self._publish({"type": "answer", "kind": "what", "pose": answer["pose"],
+                           "vision": answer["vision"], "names": answer["names"]})
+        return answer
+
+    def regions(self) -> dict[str, Any]:
+        """The learnt regions, concepts and samples of the current snapshot, for drawing them.
+
+        Returns
+        -------
+        :func:`spco.service.answers.regions_answer` (regions with ``mean`` [x, y], 2×2
+        ``covariance``, 95 % ``ellipse``, ``concept``, ``names`` with ``p``; ``concepts``;
+        ``samples``; ``extent``) plus ``teachings`` and ``seq``. Computed once per snapshot.
+        """
+        home = self._snapshot
+        cached = self._regions
+        if cached is not None and cached[0] == id(home):
+            return cached[1]
+        answer = regions_answer(home)
+        answer["teachings"] = int(served_info(home).get("teachings", 0))
+        answer["seq"] = int(served_info(home).get("last_seq", 0))
+        self._regions = (id(home), answer)
+        return answer
+
+    def health(self) -> dict[str, Any]:
+        """``{"status", "home", "file", "samples", "taught", "teachings", "seq", "names", "writer",
+        "uptime_seconds"}``; ``status`` is ``"ok"``, or ``"degraded"`` when the writer is gone
+        (answers go on, teachings are refused)."""
+        home = self._snapshot
+        served = served_info(home)
+        alive = self._writer.alive
+        return {"status": "ok" if alive else "degraded", "home": home.name, "file": str(self.path),
+                "samples": home.n_samples, "taught": home.n_taught,
+                "teachings": int(served.get("teachings", 0)),
+                "seq": int(served.get("last_seq", 0)), "names": len(home.known_names),
+                "writer": {"alive": alive, "pid": self.writer_pid,
+                           "kind": "process" if isinstance(self._writer, ProcessWriter) else "thread"},
+                "uptime_seconds": round(time.time() - self.started, 1)}
+
+    # ------------------------------------------------------------------ teaching
+    def _submit(self, request: dict[str, Any]) -> Future[dict[str, Any]]:
+        """Send ``request`` to the writer; the future gets the answer, or the error it raised."""
+        answer: Future[dict[str, Any]] = Future()
+        if self._closed:
+            answer.set_exception(WriterUnavailableError("the served home is closed"))
+            return answer
+
+        def done(result_future: Future[dict[str, Any]]) -> None:
+            try:
+                result = result_future.result()
+            except BaseException as exc:
+                answer.set_exception(exc)
+                return
+            if result.get("ok"):
+                answer.set_result({k: v for k, v in result.items() if k != "ok"})
+            elif result.get("kind") == "InternalError":
+                answer.set_exception(RuntimeError(result["error"]))
+            else:
+                answer.set_exception(_RESULT_ERRORS.get(result.get("kind", ""), SpcoError)(result["error"]))
+
+        self._writer.submit(request).add_done_callback(done)
+        return answer
+
+    def submit_teach(self, *, sentence: str | None = None, id: int | None = None, x: float | None = None,
+                     y: float | None = None, theta: float | None = None, image: Any = None,
+                     encoding: str | None = None, visual: Any = None) -> Future[dict[str, Any]]:
+        """:meth:`teach` without waiting: a future of its answer (or of its error). The request is
+        checked and its image turned into counts here, in the caller's thread (errors raise at once)."""
+        pose = (x, y, theta)
+        if id is not None:
+            if any(v is not None for v in (*pose, image, visual)):
+                raise ConfigurationError("give either id and sentence (a known sample) or a pose x, y, theta "
+                                         "with an optional image (a new observation), not both")
+            return self._submit({"op": "sentence", "id": id, "sentence": sentence})
+        if any(v is None for v in pose):
+            raise ConfigurationError("a teaching needs id and sentence (a known sample) or x, y and theta "
+                                     "(a new observation)")
+        check_pose(self._snapshot, x, y, theta)
+        counts = self.view_counts(image, encoding, visual)
+        return self._submit({"op": "observation", "x": x, "y": y, "theta": theta, "sentence": sentence,
+                             "visual": counts})
+
+    def teach(self, *, sentence: str | None = None, id: int | None = None, x: float | None = None,
+              y: float | None = None, theta: float | None = None, image: Any = None,
+              encoding: str | None = None, visual: Any = None, timeout: float | None = None
+              ) -> dict[str, Any]:
+        """Teach the home: a ``sentence`` for the known sample ``id``, or a new observation at pose
+        (``x``, ``y``, ``theta``) with an optional view (``image`` or ``visual``) and ``sentence``.
+
+        Without a view the observation holds the pose and the words only. Returns when the teaching
+        is in the journal on disk (``fsync``) and in the snapshot the next answer uses:
+        ``{"seq", "op", "id", "sentence", "teachings", "samples", "taught", "new_words", "notes",
+        "batch", "seconds", …}`` (``id``: the sample taught or added; ``notes``: why a new word is
+        not a place name yet). Raises :class:`~spco.service.teaching.NotFoundError` (no such
+        sample), :class:`~spco.service.teaching.ConflictError` (an id taken),
+        :class:`ConfigurationError` (a bad pose, view or sentence) or
+        :class:`~spco.service.writer.WriterUnavailableError`.
+        """
+        return self.submit_teach(sentence=sentence, id=id, x=x, y=y, theta=theta, image=image,
+                                 encoding=encoding, visual=visual).result(timeout)
+
+    def submit_undo(self, seq: int) -> Future[dict[str, Any]]:
+        """:meth:`undo` without waiting: a future of its answer (or of its error)."""
+        return self._submit({"op": "undo", "seq": seq})
+
+    def undo(self, seq: int, *, timeout: float | None = None) -> dict[str, Any]:
+        """Undo teaching ``seq``: restore the sentence it replaced, or remove the sample it added; as
+        durable as a teaching. Returns ``{"seq" (the undo's), "undoes", "teachings", …}``. Raises
+        :class:`~spco.service.teaching.NotFoundError` for an unknown seq and
+        :class:`~spco.service.teaching.ConflictError` for one undone already or changed since."""
+        return self.submit_undo(seq).result(timeout)
+
+    def _on_applied(self, pairs: list[tuple[dict[str, Any], dict[str, Any]]], snapshot: kn.HomeModel | None
+                    ) -> None:
+        if snapshot is not None:
+            self._snapshot = snapshot
+        if not self._subscribers:
+            return
+        for _, result in pairs:
+            if result.get("ok"):
+                kind = "undone" if result.get("op") == "undo" else "taught"
+                self._publish({"type": kind, **{k: v for k, v in result.items() if k != "ok"}})
+
+    # ------------------------------------------------------------------ events
+    def subscribe(self, callback: Callable[[dict[str, Any]], None] | None = None, maxsize: int = 1000,
+                  types: set[str] | None = None) -> Subscription:
+        """Receive the home's events (``taught``, ``undone``, ``answer``; see the module), or only
+        those whose type is in ``types``.
+
+        With ``callback``, it is called with each event in the thread that publishes it (keep it
+        short: hand the event on); without, events wait in the returned :class:`Subscription`.
+        """
+        subscription = Subscription(self, callback, maxsize, None if types is None else frozenset(types))
+        with self._subscribers_lock:
+            self._subscribers = [*self._subscribers, subscription]
+        return subscription
+
+    def _unsubscribe(self, subscription: Subscription) -> None:
+        with self._subscribers_lock:
+            self._subscribers = [s for s in self._subscribers if s is not subscription]
+
+    def _listening(self, kind: str) -> bool:
+        return any(s.types is None or kind in s.types for s in self._subscribers)
+
+    def _publish(self, event: dict[str, Any]) -> None:
+        event.setdefault("time", time.time())
+        for subscription in self._subscribers:
+            subscription._deliver(event)
+
+    # ------------------------------------------------------------------ closing
+    def close(self) -> None:
+        """Finish the queued teachings, compact the journal into the home file, release the lock."""
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            self._writer.close()
+        finally:
+            self._lock.release()
+            for subscription in list(self._subscribers):
+                subscription.close()
+
+    def __enter__(self) -> LiveHome:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        home = self._snapshot
+        return f"<LiveHome {self.path} ({home.name}: {home.n_samples} samples, {home.n_taught} taught)>"

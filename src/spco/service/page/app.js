@@ -1,0 +1,255 @@
+// The page of `spco serve`: the home's map, its learnt regions, and asking and teaching it.
+// Plain JavaScript and SVG, no build step. Coordinates on the map are metres; y points up.
+"use strict";
+
+const SVG = "http://www.w3.org/2000/svg";
+// matplotlib's tab20 in the order spco's figures use (dark shades first): one colour a concept
+const COLOURS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
+  "#bcbd22", "#17becf", "#aec7e8", "#ffbb78", "#98df8a", "#ff9896", "#c5b0d5", "#c49c94", "#f7b6d2",
+  "#c7c7c7", "#dbdb8d", "#9edae5"];
+
+const state = { extent: [0, 1, 0, 1], unit: 0.05, clicked: null, lastTeaching: null, regions: null };
+const $ = (id) => document.getElementById(id);
+
+function el(name, attrs, parent) {
+  const node = document.createElementNS(SVG, name);
+  for (const [k, v] of Object.entries(attrs || {})) node.setAttribute(k, v);
+  if (parent) parent.appendChild(node);
+  return node;
+}
+
+// map coordinates (metres, y up) -> SVG user units (metres, y down)
+const sx = (x) => x - state.extent[0];
+const sy = (y) => state.extent[3] - y;
+
+async function api(path, options) {
+  const response = await fetch(path, Object.assign({ credentials: "same-origin" }, options || {}));
+  const text = await response.text();
+  let body;
+  try { body = JSON.parse(text); } catch (e) { body = { error: text }; }
+  if (!response.ok) throw new Error(body.error || response.statusText);
+  return body;
+}
+
+function log(kind, text) {
+  const item = document.createElement("li");
+  item.className = kind;
+  item.textContent = new Date().toLocaleTimeString() + " " + text;
+  const list = $("log");
+  list.insertBefore(item, list.firstChild);
+  while (list.children.length > 30) list.removeChild(list.lastChild);
+}
+
+function fmt(p) { return (100 * p).toFixed(0) + "%"; }
+
+async function loadRegions() {
+  const r = await api("/regions");
+  state.regions = r;
+  const [x0, x1, y0, y1] = r.map ? r.map.extent : r.extent;
+  const pad = 0.03 * Math.max(x1 - x0, y1 - y0);
+  state.extent = [x0 - pad, x1 + pad, y0 - pad, y1 + pad];
+  state.unit = Math.max(x1 - x0, y1 - y0) / 60;  // text and marks scale with the map
+  const svg = $("map");
+  svg.setAttribute("viewBox", `0 0 ${state.extent[1] - state.extent[0]} ${state.extent[3] - state.extent[2]}`);
+  $("home-name").textContent = r.home;
+  $("stats").textContent = `${r.samples.length} samples, ${r.samples.filter((s) => s.sentence).length} taught, ` +
+    `${r.regions.length} regions, ${r.teachings} teachings served (seq ${r.seq})`;
+  const names = $("known-names");
+  names.innerHTML = "";
+  for (const n of r.names) { const o = document.createElement("option"); o.value = n; names.appendChild(o); }
+
+  const mapLayer = $("layer-map");
+  mapLayer.innerHTML = "";
+  if (r.map) {
+    const [mx0, mx1, my0, my1] = r.map.extent;
+    el("image", { href: r.map.url, x: sx(mx0), y: sy(my1), width: mx1 - mx0, height: my1 - my0,
+      preserveAspectRatio: "none", opacity: 0.85 }, mapLayer);
+  } else {
+    el("rect", { x: sx(x0), y: sy(y1), width: x1 - x0, height: y1 - y0, fill: "none", stroke: "#b0bec5",
+      "stroke-width": state.unit * 0.1, "stroke-dasharray": `${state.unit} ${state.unit}` }, mapLayer);
+  }
+  const samples = $("layer-samples");
+  samples.innerHTML = "";
+  for (const s of r.samples) {
+    const dot = el("circle", { cx: sx(s.x), cy: sy(s.y), r: state.unit * (s.sentence ? 0.22 : 0.16),
+      class: "sample" + (s.sentence ? " taught" : "") }, samples);
+    el("title", {}, dot).textContent = `sample ${s.id}` + (s.sentence ? `: “${s.sentence}”` : "");
+  }
+  const regions = $("layer-regions");
+  const labels = $("layer-labels");
+  regions.innerHTML = "";
+  labels.innerHTML = "";
+  for (const g of r.regions) {
+    const colour = COLOURS[g.concept % COLOURS.length];
+    const cx = sx(g.mean[0]), cy = sy(g.mean[1]);
+    const shape = el("ellipse", { cx, cy, rx: Math.max(g.ellipse.rx, 1e-3), ry: Math.max(g.ellipse.ry, 1e-3),
+      transform: `rotate(${-g.ellipse.angle} ${cx} ${cy})`, fill: colour, stroke: colour, class: "region",
+      "data-region": g.region, "data-concept": g.concept }, regions);
+    el("title", {}, shape).textContent = `region ${g.region} (concept ${g.concept}, ${g.samples} samples): ` +
+      g.names.map((n) => `${n.name} ${fmt(n.p)}`).join(", ");
+    el("path", { d: `M ${cx - state.unit * 0.4} ${cy} h ${state.unit * 0.8} M ${cx} ${cy - state.unit * 0.4} ` +
+      `v ${state.unit * 0.8}`, class: "region-centre" }, regions);
+    if (!g.names.length) continue;
+    const label = el("text", { x: cx, y: cy - state.unit * 0.6, "text-anchor": "middle", class: "region-label",
+      "font-size": state.unit * 1.1, "stroke-width": state.unit * 0.25 }, labels);
+    label.textContent = g.names[0].name + " ";
+    const p = el("tspan", { class: "p" }, label);
+    p.textContent = fmt(g.names[0].p);
+    if (g.names.length > 1 && g.names[1].p >= 0.2) {
+      const second = el("tspan", { x: cx, dy: state.unit * 1.1, class: "p", "font-size": state.unit * 0.9 }, label);
+      second.textContent = `${g.names[1].name} ${fmt(g.names[1].p)}`;
+    }
+  }
+  if (state.clicked) drawClick();
+}
+
+function drawClick() {
+  const layer = $("layer-click");
+  layer.innerHTML = "";
+  const { x, y } = state.clicked;
+  el("circle", { cx: sx(x), cy: sy(y), r: state.unit * 0.5, class: "click-mark",
+    "stroke-width": state.unit * 0.15 }, layer);
+}
+
+function heading() {
+  const degrees = parseFloat($("theta").value);
+  return (Number.isFinite(degrees) ? degrees : 0) * Math.PI / 180;
+}
+
+async function askWhat() {
+  if (!state.clicked) return;
+  const { x, y } = state.clicked;
+  const theta = heading();
+  $("point").textContent = `x ${x.toFixed(2)} m, y ${y.toFixed(2)} m, θ ${(theta * 180 / Math.PI).toFixed(0)}°`;
+  const list = $("what-names");
+  try {
+    const answer = await api(`/what?x=${x}&y=${y}&theta=${theta}&top=5`);
+    list.innerHTML = "";
+    for (const n of answer.names) {
+      const item = document.createElement("li");
+      item.textContent = `${n.name} — p ${n.probability.toFixed(3)}`;
+      list.appendChild(item);
+    }
+    if (answer.warning) $("point").textContent += " (off the map)";
+  } catch (error) {
+    list.innerHTML = `<li class="error"></li>`;
+    list.firstChild.textContent = error.message;
+  }
+}
+
+async function askWhere(event) {
+  event.preventDefault();
+  const name = $("where-input").value.trim();
+  if (!name) return;
+  const layer = $("layer-poses");
+  layer.innerHTML = "";
+  try {
+    const answer = await api(`/where?name=${encodeURIComponent(name)}&n=10`);
+    for (const p of answer.positions) {
+      const g = el("g", { class: "pose" }, layer);
+      const length = state.unit * 1.4;
+      el("line", { x1: sx(p.x), y1: sy(p.y), x2: sx(p.x) + length * Math.cos(p.theta),
+        y2: sy(p.y) - length * Math.sin(p.theta), "stroke-width": state.unit * 0.22 }, g);
+      el("circle", { cx: sx(p.x), cy: sy(p.y), r: state.unit * 0.38, "stroke-width": state.unit * 0.1 }, g);
+      el("title", {}, g).textContent = `${answer.name}: (${p.x.toFixed(2)}, ${p.y.toFixed(2)}), p ${p.probability.toFixed(2)}`;
+    }
+    $("where-result").className = answer.learnt ? "ok" : "";
+    $("where-result").textContent = `${answer.name}: ${answer.positions.length} poses in region ${answer.region}` +
+      ` (p ${answer.region_probability.toFixed(2)})` + (answer.learnt ? "" : " — not learnt in this home: a guess");
+  } catch (error) {
+    $("where-result").className = "error";
+    $("where-result").textContent = error.message;
+  }
+}
+
+async function teach(event) {
+  event.preventDefault();
+  const sentence = $("teach-sentence").value.trim();
+  const result = $("teach-result");
+  if (!state.clicked) { result.className = "error"; result.textContent = "Click the map where it is first."; return; }
+  if (!sentence) { result.className = "error"; result.textContent = "Type what the place is."; return; }
+  $("teach-button").disabled = true;
+  try {
+    const { x, y } = state.clicked;
+    const answer = await api("/teach", { method: "POST", headers: { "Content-Type": "application/json" },
+      body: JSON.stringify({ x, y, theta: heading(), sentence }) });
+    state.lastTeaching = answer.seq;
+    $("undo-button").disabled = false;
+    result.className = "ok";
+    result.textContent = `Taught (seq ${answer.seq}, ${answer.teachings} teachings).` +
+      (answer.new_words.length ? ` New words: ${answer.new_words.join(", ")}.` : "") +
+      (answer.notes.length ? " " + answer.notes.join(" ") : "");
+    $("teach-sentence").value = "";
+    await loadRegions();
+    await askWhat();
+  } catch (error) {
+    result.className = "error";
+    result.textContent = error.message;
+  } finally {
+    $("teach-button").disabled = false;
+  }
+}
+
+async function undo() {
+  if (state.lastTeaching === null) return;
+  try {
+    const answer = await api(`/teach/${state.lastTeaching}`, { method: "DELETE" });
+    $("teach-result").className = "ok";
+    $("teach-result").textContent = `Undone (teaching ${answer.undoes}).`;
+    state.lastTeaching = null;
+    $("undo-button").disabled = true;
+    await loadRegions();
+  } catch (error) {
+    $("teach-result").className = "error";
+    $("teach-result").textContent = error.message;
+  }
+}
+
+function onMapClick(event) {
+  const svg = $("map");
+  const point = svg.createSVGPoint();
+  point.x = event.clientX;
+  point.y = event.clientY;
+  const local = point.matrixTransform(svg.getScreenCTM().inverse());
+  state.clicked = { x: local.x + state.extent[0], y: state.extent[3] - local.y };
+  drawClick();
+  askWhat();
+}
+
+function listen() {
+  const source = new EventSource("/events");
+  source.onopen = () => { $("connection").textContent = "live"; $("connection").className = "online"; };
+  source.onerror = () => { $("connection").textContent = "reconnecting…"; $("connection").className = "offline"; };
+  let pending = null;
+  const refresh = () => { if (!pending) pending = setTimeout(() => { pending = null; loadRegions(); }, 150); };
+  source.addEventListener("taught", (e) => {
+    const t = JSON.parse(e.data);
+    const where = t.op === "observation" ? ` at (${t.x.toFixed(2)}, ${t.y.toFixed(2)})` : ` for sample ${t.id}`;
+    log("taught", `taught #${t.seq}: “${t.sentence || ""}”${where}`);
+    refresh();
+  });
+  source.addEventListener("undone", (e) => {
+    const t = JSON.parse(e.data);
+    log("undone", `undone #${t.undoes} (seq ${t.seq})`);
+    refresh();
+  });
+  source.addEventListener("answer", (e) => {
+    const a = JSON.parse(e.data);
+    if (a.kind === "what") {
+      log("answer", `what at (${a.pose.x.toFixed(2)}, ${a.pose.y.toFixed(2)}): ` +
+        a.names.map((n) => n.name).join(", "));
+    } else {
+      log("answer", `where ${a.name}`);
+    }
+  });
+}
+
+$("map").addEventListener("click", onMapClick);
+$("theta").addEventListener("change", askWhat);
+$("where-form").addEventListener("submit", askWhere);
+$("teach-form").addEventListener("submit", teach);
+$("undo-button").addEventListener("click", undo);
+loadRegions().then(listen).catch((error) => {
+  $("stats").textContent = "cannot load the home: " + error.message;
+  $("stats").className = "error";
+});

@@ -1,0 +1,147 @@
+"""Running ``spco serve``: the token, the address rules, uvicorn, and an orderly stop.
+
+:func:`serve` binds the socket itself (so that ``--port 0`` can print the port it got), opens the
+:class:`~spco.service.LiveHome` (taking the home's lock, naming this server's address), runs the
+app (:func:`spco.service.app.create_app`) on uvicorn until Ctrl-C or SIGTERM, then closes the home
+(pending teachings compacted into the file, lock released).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ipaddress
+import os
+import signal
+import socket
+import stat
+import sys
+import threading
+from collections.abc import Callable
+from os import PathLike
+from pathlib import Path
+from typing import Any
+
+from spco.errors import ConfigurationError
+
+__all__ = ["MIN_TOKEN_CHARS", "is_loopback", "read_token", "serve"]
+
+#: The shortest token accepted.
+MIN_TOKEN_CHARS = 16
+
+
+def is_loopback(host: str) -> bool:
+    """Whether ``host`` is a loopback address (127.0.0.0/8, ::1) or ``localhost``."""
+    if host.strip().lower() == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        return False
+
+
+def read_token(path: str | PathLike[str], warn: Callable[[str], None] | None = None) -> str:
+    """The token in the file ``path`` (its first line, stripped), at least :data:`MIN_TOKEN_CHARS`
+    characters; ``warn`` is told when other users may read the file. Raises :class:`ConfigurationError`."""
+    file = Path(path).expanduser()
+    try:
+        text = file.read_text(encoding="utf-8")
+        mode = file.stat().st_mode
+    except (OSError, UnicodeDecodeError) as exc:
+        problem = getattr(exc, "strerror", None) or exc
+        raise ConfigurationError(f"{file}: cannot read the token file ({problem})") from None
+    lines = text.strip().splitlines()
+    token = lines[0].strip() if lines else ""
+    if len(token) < MIN_TOKEN_CHARS or any(c.isspace() for c in token):
+        raise ConfigurationError(f"{file}: the token must be one line of at least {MIN_TOKEN_CHARS} "
+                                 "characters without spaces (e.g. python -c 'import secrets; "
+                                 f"print(secrets.token_urlsafe(32))' > {file})")
+    if warn is not None and mode & (stat.S_IRGRP | stat.S_IROTH):
+        warn(f"{file} can be read by other users of this machine (chmod 600 {file})")
+    return token
+
+
+def _bind(host: str, port: int) -> socket.socket:
+    family = socket.AF_INET6 if ":" in host.strip("[]") else socket.AF_INET
+    sock = socket.socket(family, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        sock.bind((host.strip("[]"), port))
+    except OSError as exc:
+        sock.close()
+        raise ConfigurationError(f"cannot listen on {host}:{port}: {exc.strerror or exc}") from None
+    sock.listen(2048)
+    sock.set_inheritable(True)
+    return sock
+
+
+def _server_class() -> type:
+    import uvicorn
+
+    class Server(uvicorn.Server):  # type: ignore[misc]
+        """uvicorn's server, stopping in order on SIGINT and SIGTERM without raising the signal again
+        afterwards (uvicorn does, which would end the process before the home is closed)."""
+
+        @contextlib.contextmanager
+        def capture_signals(self) -> Any:
+            if threading.current_thread() is not threading.main_thread():
+                yield
+                return
+            original = {sig: signal.signal(sig, self.handle_exit) for sig in (signal.SIGINT, signal.SIGTERM)}
+            try:
+                yield
+            finally:
+                for sig, handler in original.items():
+                    signal.signal(sig, handler)
+
+    return Server
+
+
+def serve(home: str | PathLike[str], host: str = "127.0.0.1", port: int = 8765, token_file: str | None = None,
+          map_image: str | None = None, map_extent: tuple[float, float, float, float] | None = None,
+          seed: int | None = None, writer: str = "process", say: Callable[[str], None] | None = None,
+          **app_options: Any) -> None:
+    """Serve the home file ``home`` over HTTP until interrupted (see :mod:`spco.service.app`).
+
+    Binds ``host`` only if it is loopback or a ``token_file`` is given (else
+    :class:`ConfigurationError`); ``port`` 0 takes a free port. ``say`` prints the address and
+    what start-up found (default: standard error).
+    """
+    import uvicorn
+
+    _Server = _server_class()
+    from spco.service.app import create_app
+    from spco.service.live import LiveHome
+
+    say = say or (lambda text: print(text, file=sys.stderr, flush=True))
+    token = None
+    if token_file is not None:
+        token = read_token(token_file, warn=lambda text: say(f"warning: {text}"))
+    elif not is_loopback(host):
+        raise ConfigurationError(f"refusing to serve on {host} without a token: other machines could read "
+                                 "and teach this home; give --token-file FILE (and put TLS in front: a "
+                                 "reverse proxy, see docs/on-the-robot.md), or serve on 127.0.0.1")
+    sock = _bind(host, port)
+    bound = sock.getsockname()[1]
+    shown = f"[{host.strip('[]')}]" if ":" in host.strip("[]") else host
+    address = f"http://{shown}:{bound}"
+    try:
+        live = LiveHome(home, seed=seed, writer=writer, holder=f"spco serve (pid {os.getpid()}) at {address}")
+    except BaseException:
+        sock.close()
+        raise
+    try:
+        if live.startup.get("replayed"):
+            say(f"Replayed {live.startup['replayed']} teachings from {live.journal_path} and compacted them "
+                f"into {home}.")
+        app = create_app(live, token=token, map_image=map_image, map_extent=map_extent, **app_options)
+        config = uvicorn.Config(app, log_level="warning", access_log=False, lifespan="off",
+                                timeout_graceful_shutdown=3, server_header=False, date_header=False)
+        server = _Server(config)
+        h = live.home
+        say(f"Serving home {h.name} ({h.n_samples} samples, {h.n_taught} taught) from {home} at {address}/ "
+            f"(page), {address}/openapi.json (API); writer process {live.writer_pid}. Ctrl-C to stop.")
+        server.run(sockets=[sock])  # until Ctrl-C or SIGTERM
+    finally:
+        live.close()
+        sock.close()
+        say(f"Stopped; every teaching is in {home}.")

@@ -1,0 +1,656 @@
+"""The one writer of a served home: teachings in batches, journalled before they are acknowledged.
+
+:class:`HomeWriter` owns the home's mutable state. On start it reads the home file and its journal
+(:mod:`spco.service.journal`), replays the teachings the file lacks (:func:`~spco.service.teaching.replay`)
+and compacts: the home file is rewritten atomically with the last seq it holds, then the journal
+anew. :meth:`HomeWriter.handle` takes the requests that arrived together, validates each against
+the current home, applies the valid ones as batches (one :func:`spco.knowledge.teach` call per
+batch of up to ``max_batch`` teachings; an undo alone), appends the batch's records to the journal
+and ``fsync``-s it, and only then reports them applied. It compacts again after
+``compact_records`` records, after ``compact_idle`` seconds without a teaching, and on close.
+
+It runs in a process of its own (:class:`ProcessWriter`, the default of
+:class:`spco.service.LiveHome`: ``python -m spco.service.writer``), so that the readers of the
+serving process, which answer from the last committed snapshot, never wait for Python's global
+lock while a teaching runs; or in a thread of the serving process (:class:`ThreadWriter`), which
+is simpler and costs readers a few milliseconds at the 99th percentile during teachings
+(``benchmarks/README.md``, "spco serve").
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import os
+import pickle
+import queue
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+import traceback
+import warnings
+from collections.abc import Callable
+from concurrent.futures import Future
+from dataclasses import replace
+from datetime import UTC, datetime
+from multiprocessing.connection import Connection
+from os import PathLike
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from spco import knowledge as kn
+from spco.errors import ConfigurationError, SpcoError
+from spco.service.journal import Journal, journal_path, new_journal_id, read_journal
+from spco.service.teaching import (
+    SERVED,
+    ConflictError,
+    apply_batch,
+    check_journal_matches,
+    file_digest,
+    history_of,
+    observation_record,
+    plan_undo,
+    replay,
+    sentence_record,
+    served_info,
+    with_history,
+)
+
+__all__ = ["DEFAULT_COMPACT_IDLE", "DEFAULT_COMPACT_RECORDS", "DEFAULT_MAX_BATCH", "HomeWriter",
+           "ProcessWriter", "SnapshotChannel", "ThreadWriter", "WriterUnavailableError", "error_result"]
+
+#: Records after which the writer compacts the journal into the home file.
+DEFAULT_COMPACT_RECORDS = 100
+#: Seconds without a teaching after which pending records are compacted.
+DEFAULT_COMPACT_IDLE = 2.0
+#: The most teachings applied by one :func:`spco.knowledge.teach` call.
+DEFAULT_MAX_BATCH = 32
+
+
+class WriterUnavailableError(SpcoError):
+    """The writer of a served home is gone (it died, or the home was closed): no teaching is possible."""
+
+
+def error_result(exc: BaseException) -> dict[str, Any]:
+    """A failed request's result: ``{"ok": False, "error": message, "kind": exception class name}``."""
+    if isinstance(exc, SpcoError):
+        return {"ok": False, "error": str(exc), "kind": type(exc).__name__}
+    return {"ok": False, "error": f"internal error of the writer: {type(exc).__name__}: {exc}",
+            "kind": "InternalError"}
+
+
+def _now() -> str:
+    return datetime.now(UTC).isoformat(timespec="milliseconds")
+
+
+class HomeWriter:
+    """The home being served, its journal and its teaching history; one instance per served file.
+
+    Parameters
+    ----------
+    path: the home file (held by the server's lock: :func:`spco.locking.hold`).
+    seed: base seed; each batch's seed is derived from it and the batch's first seq (and recorded).
+        ``None``: fresh entropy.
+    sweeps: Gibbs sweeps of each teaching (:data:`spco.knowledge.DEFAULT_TEACH_SWEEPS`).
+    compact_records, compact_idle: when to compact (records since the last compaction; seconds idle).
+    max_batch: the most teachings applied together.
+    """
+
+    def __init__(self, path: str | PathLike[str], *, seed: int | None = None,
+                 sweeps: int = kn.DEFAULT_TEACH_SWEEPS, compact_records: int = DEFAULT_COMPACT_RECORDS,
+                 compact_idle: float = DEFAULT_COMPACT_IDLE, max_batch: int = DEFAULT_MAX_BATCH) -> None:
+        if isinstance(sweeps, bool) or not isinstance(sweeps, int) or sweeps < 0:
+            raise ConfigurationError(f"sweeps must be an integer >= 0, got {sweeps!r}")
+        self.path = Path(path)
+        self.sweeps = sweeps
+        self.compact_records, self.compact_idle, self.max_batch = compact_records, compact_idle, max_batch
+        self.journal = Journal(journal_path(path))
+        home = kn.load_home_model(path)
+        contents = read_journal(self.journal.path, warn=False)
+        check_journal_matches(home, contents.header, contents.records, self.journal.path, path)
+        history = history_of(home)
+        before = int(served_info(home).get("last_seq", 0))
+        home = replay(home, contents.records, history)
+        replayed = int(served_info(home).get("last_seq", 0)) - before
+        #: what start-up found: records replayed, a torn record dropped
+        self.startup = {"replayed": replayed, "torn": contents.torn}
+        compacted = served_info(home).get("journal")
+        served = {**served_info(home), "journal": compacted or new_journal_id()}
+        served.setdefault("last_seq", 0)
+        served.setdefault("teachings", 0)
+        self.home = _with_served(home, served)
+        self.history = history
+        self._base_seed = int(np.random.SeedSequence().entropy if seed is None else seed)  # type: ignore[arg-type]
+        self._since_compaction = replayed
+        self._last_teaching = time.monotonic()
+        self._last_snapshot: kn.HomeModel | None = None
+        if replayed:
+            self.compact()
+        else:  # the file is left as it is: a journal anew, tied to the file (by its ID, or by its bytes)
+            header = {"journal": served["journal"], "home": home.name, "base_seq": served["last_seq"]}
+            if compacted is None:
+                header["base_sha256"] = file_digest(self.path)
+            self.journal.rewrite(header, [])
+        self._warm_up()
+
+    def _warm_up(self) -> None:
+        """Run one throw-away teaching, so that the first real one does not wait for the sampler's
+        compiled kernels to load (about a second)."""
+        home = self.home
+        with contextlib.suppress(SpcoError), warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            kn.teach(home, {int(home.ids[0]): home.sentences[0]}, n_sweeps=1, random_state=0)
+
+    # ------------------------------------------------------------------ state
+    @property
+    def last_seq(self) -> int:
+        """The seq of the last teaching applied."""
+        return int(served_info(self.home)["last_seq"])
+
+    def snapshot(self) -> kn.HomeModel:
+        """The current home for readers: without the teaching history and the sampler's cache, its
+        derived data computed (here, not by the first reader). Arrays that did not change since the
+        last snapshot are the same objects (what :class:`SnapshotChannel` does not send again)."""
+        home = with_history(self.home, None)
+        snap = replace(home, state=replace(home.state, visual_cache=None))
+        data = snap.data
+        previous = self._last_snapshot
+        if previous is not None and snap.visual is previous.visual:  # the same views: the same counts
+            snap.__dict__["data"] = replace(data, visual=previous.data.visual)
+        _ = snap.parameters
+        self._last_snapshot = snap
+        return snap
+
+    def _seed_for(self, first_seq: int) -> int:
+        state = np.random.SeedSequence([self._base_seed, first_seq]).generate_state(1, np.uint64)
+        return int(state[0] >> np.uint64(1))
+
+    # ------------------------------------------------------------------ teaching
+    def handle(self, requests: list[dict[str, Any]]) -> list[dict[str, Any]]:
+        """Apply ``requests`` (in order) and return one result each.
+
+        A request is ``{"op": "sentence", "id", "sentence"}``, ``{"op": "observation", "x", "y",
+        "theta", "sentence", "id" (optional), "visual" (counts or None)}`` or ``{"op": "undo",
+        "seq"}``. A result is ``{"ok": True, "seq", …}`` once the teaching is in the journal
+        (``fsync``-ed), or :func:`error_result`.
+        """
+        results: list[dict[str, Any] | None] = [None] * len(requests)
+        batch: list[tuple[int, dict[str, Any]]] = []
+        added: set[int] = set()
+
+        def flush() -> None:
+            if batch:
+                self._apply(list(batch), results)
+                batch.clear()
+                added.clear()
+
+        for index, request in enumerate(requests):
+            try:
+                op = request.get("op")
+                if op == "undo":
+                    flush()
+                    self._apply([(index, plan_undo(self.home, self.history, request.get("seq")))], results)
+                    continue
+                if op == "sentence":
+                    if request.get("id") in added:
+                        flush()
+                    record = sentence_record(self.home, request.get("id"), request.get("sentence"))
+                elif op == "observation":
+                    record = observation_record(self.home, request.get("x"), request.get("y"),
+                                                request.get("theta"), request.get("sentence"),
+                                                request.get("visual"), request.get("id"))
+                    if record["id"] is None:
+                        record["id"] = max(int(self.home.ids.max()), *added) + 1 if added \
+                            else int(self.home.ids.max()) + 1
+                    elif record["id"] in added:
+                        raise ConflictError(f"two new observations with id {record['id']}")
+                    added.add(record["id"])
+                else:
+                    raise ConfigurationError(f"op: expected 'sentence', 'observation' or 'undo', got {op!r}")
+                batch.append((index, record))
+                if len(batch) >= self.max_batch:
+                    flush()
+            except Exception as exc:  # SpcoError: the request's fault; anything else: a bug, said as such
+                results[index] = error_result(exc)
+        flush()
+        return [r if r is not None else error_result(RuntimeError("no result")) for r in results]
+
+    def _apply(self, batch: list[tuple[int, dict[str, Any]]], results: list[dict[str, Any] | None]) -> None:
+        """Apply a batch, journal it (fsync), then record its results; a batch that fails is
+        retried one teaching at a time, so that one bad teaching does not fail the others."""
+        start = time.perf_counter()
+        first = self.last_seq + 1
+        last = first + len(batch) - 1
+        seed = self._seed_for(first)
+        stamp = _now()
+        records = [{"seq": first + k, "batch": [first, last], "seed": seed, "sweeps": self.sweeps,
+                    "time": stamp, **record} for k, (_, record) in enumerate(batch)]
+        history = dict(self.history)
+        words_before = self.home.knowledge.n_words
+        try:
+            updated = apply_batch(self.home, records, history)
+        except Exception as exc:
+            if len(batch) > 1:
+                for item in batch:
+                    self._apply([item], results)
+                return
+            results[batch[0][0]] = error_result(exc)
+            return
+        try:
+            self.journal.append(records)
+        except OSError as exc:  # not durable: not applied
+            for index, _ in batch:
+                results[index] = error_result(WriterUnavailableError(
+                    f"{self.journal.path}: cannot write the journal ({exc.strerror or exc}); the teaching "
+                    "was not kept"))
+            return
+        self.home, self.history = updated, history
+        self._since_compaction += len(records)
+        self._last_teaching = time.monotonic()
+        seconds = time.perf_counter() - start
+        new_words = list(updated.vocabulary.words[words_before:])
+        served = served_info(updated)
+        said = list(updated.provenance["last_teach"].get("warnings", []))  # a new name spreading (teach)
+        for (index, _), record in zip(batch, records, strict=True):
+            result = {k: v for k, v in record.items() if k not in ("view", "seed", "sweeps", "batch")}
+            result.update(ok=True, home=updated.name, teachings=served["teachings"],
+                          samples=updated.n_samples, taught=updated.n_taught, new_words=new_words,
+                          batch=len(records), seconds=round(seconds, 4),
+                          notes=_notes(updated, record) + said)
+            results[index] = result
+        if self._since_compaction >= self.compact_records:
+            self.compact()
+
+    # ------------------------------------------------------------------ compaction
+    def compact(self) -> None:
+        """Write the home (with its history and last seq) atomically, then start the journal anew."""
+        served = served_info(self.home)
+        self.journal.close()
+        with_history(self.home, self.history).save(self.path, overwrite=True)
+        self.journal.rewrite({"journal": served["journal"], "home": self.home.name,
+                              "base_seq": served["last_seq"]}, [])
+        self._since_compaction = 0
+
+    def maybe_compact(self) -> bool:
+        """Compact if records wait and no teaching came for ``compact_idle`` seconds; whether it did."""
+        if self._since_compaction and time.monotonic() - self._last_teaching >= self.compact_idle:
+            self.compact()
+            return True
+        return False
+
+    def close(self) -> None:
+        """Compact what is pending and close the journal."""
+        if self._since_compaction:
+            self.compact()
+        self.journal.close()
+
+
+def _with_served(home: kn.HomeModel, served: dict[str, Any]) -> kn.HomeModel:
+    return replace(home, provenance={**home.provenance, SERVED: served})
+
+
+class SnapshotChannel:
+    """Snapshots from the writer process to the server without sending unchanged arrays again.
+
+    A teaching by sample id changes the sampler's state and the posterior, not the home's views or
+    the knowledge: arrays of at least :attr:`MIN_BYTES` that the last snapshot held already (the same
+    objects) travel as a reference, so that the server unpickles about 1 MB instead of 6 (for a
+    SIGVerse home) while readers wait for its global lock. :meth:`pack` (writer side) returns
+    ``(new arrays, snapshot, keys in use)`` as bytes; :meth:`unpack` (server side) rebuilds it.
+    """
+
+    MIN_BYTES = 32 * 1024
+
+    def __init__(self) -> None:
+        self._keys: dict[int, tuple[int, Any]] = {}  # writer: id(array) -> (key, array kept alive)
+        self._objects: dict[int, Any] = {}  # server: key -> array
+        self._next = 0
+
+    def pack(self, snapshot: kn.HomeModel) -> tuple[bytes, bytes, list[int]]:
+        """The snapshot as ``(pickled new arrays, pickled snapshot referring to arrays by key, keys)``."""
+        new: dict[int, Any] = {}
+        used: dict[int, tuple[int, Any]] = {}
+        channel = self
+
+        class Pickler(pickle.Pickler):
+            def persistent_id(self, obj: Any) -> int | None:
+                if not isinstance(obj, np.ndarray) or obj.nbytes < channel.MIN_BYTES:
+                    return None
+                entry = channel._keys.get(id(obj))
+                if entry is None or entry[1] is not obj:
+                    entry = (channel._next, obj)
+                    channel._next += 1
+                    new[entry[0]] = obj
+                used[id(obj)] = entry
+                return entry[0]
+
+        buffer = io.BytesIO()
+        Pickler(buffer, protocol=pickle.HIGHEST_PROTOCOL).dump(snapshot)
+        self._keys = used
+        return (pickle.dumps(new, protocol=pickle.HIGHEST_PROTOCOL), buffer.getvalue(),
+                [key for key, _ in used.values()])
+
+    def unpack(self, packed: tuple[bytes, bytes, list[int]]) -> kn.HomeModel:
+        """The snapshot :meth:`pack` made, with the arrays sent before."""
+        new, data, keys = packed
+        self._objects.update(pickle.loads(new))
+        objects = self._objects
+
+        class Unpickler(pickle.Unpickler):
+            def persistent_load(self, key: Any) -> Any:
+                return objects[key]
+
+        snapshot = Unpickler(io.BytesIO(data)).load()
+        self._objects = {key: objects[key] for key in keys}
+        return snapshot
+
+
+def _notes(home: kn.HomeModel, record: dict[str, Any]) -> list[str]:
+    """What ``spco teach`` notes about the home's own words of a taught sentence (not usable yet)."""
+    from spco.data.language import tokenize
+
+    notes = []
+    for word in dict.fromkeys(tokenize(record.get("sentence"))):
+        index = home.vocabulary.index(word)
+        if index is not None and index >= home.n_knowledge_words:
+            hint = kn.unused_word_hint(home, word)
+            if hint is not None:
+                notes.append(hint.replace("spco teach HOME ", "POST /teach "))
+    return notes
+
+
+# ============================================================================ running it
+Applied = Callable[[list[tuple[dict[str, Any], dict[str, Any]]], "kn.HomeModel | None"], None]
+
+
+class ThreadWriter:
+    """A :class:`HomeWriter` in a thread of this process; ``on_applied(pairs, snapshot)`` is called
+    in that thread after each round, with (request, result) pairs and the new snapshot (or ``None``).
+    ``lock``: the :class:`spco.locking.HeldLock` of the file, which the thread is permitted to write."""
+
+    def __init__(self, path: str | PathLike[str], on_applied: Applied, *, lock: Any = None,
+                 **options: Any) -> None:
+        self._writer = HomeWriter(path, **options)
+        self._lock_held = lock
+        self.startup = dict(self._writer.startup)
+        self.first_snapshot = self._writer.snapshot()
+        self._on_applied = on_applied
+        self._queue: queue.Queue[tuple[dict[str, Any], Future[dict[str, Any]]] | None] = queue.Queue()
+        self._closed = False
+        self._thread = threading.Thread(target=self._run, name="spco-home-writer", daemon=True)
+        self._thread.start()
+
+    def submit(self, request: dict[str, Any]) -> Future[dict[str, Any]]:
+        """Queue a request; the future gets its result."""
+        future: Future[dict[str, Any]] = Future()
+        if self._closed:
+            future.set_exception(WriterUnavailableError("the served home is closed"))
+            return future
+        self._queue.put((request, future))
+        return future
+
+    def _run(self) -> None:
+        if self._lock_held is not None:
+            self._lock_held.permit()  # this thread writes the file it holds
+        while True:
+            try:
+                item = self._queue.get(timeout=self._writer.compact_idle / 2)
+            except queue.Empty:
+                self._writer.maybe_compact()
+                continue
+            items = [item]
+            while True:  # what arrived meanwhile is one round (batched)
+                try:
+                    items.append(self._queue.get_nowait())
+                except queue.Empty:
+                    break
+            work = [i for i in items if i is not None]
+            if work:
+                results = self._writer.handle([r for r, _ in work])
+                changed = any(r.get("ok") for r in results)
+                self._on_applied([(r, res) for (r, _), res in zip(work, results, strict=True)],
+                                 self._writer.snapshot() if changed else None)
+                for (_, future), result in zip(work, results, strict=True):
+                    future.set_result(result)
+            if any(i is None for i in items):
+                self._writer.close()
+                return
+
+    def close(self, timeout: float = 60.0) -> None:
+        """Finish the queued requests, compact, stop the thread."""
+        if not self._closed:
+            self._closed = True
+            self._queue.put(None)
+            self._thread.join(timeout)
+
+    @property
+    def alive(self) -> bool:
+        """Whether the writer still takes teachings."""
+        return self._thread.is_alive() and not self._closed
+
+
+class ProcessWriter:
+    """A :class:`HomeWriter` in a child process (``python -m spco.service.writer``).
+
+    The child inherits the descriptor of the home's lock (held by this process with
+    :func:`spco.locking.hold`) and declares it (:func:`spco.locking.adopt`); it is killed when this
+    process dies (``PR_SET_PDEATHSIG`` on Linux; elsewhere it exits when its connection closes). It
+    runs the sampler on one thread, leaving the other cores to the readers. (It keeps the server's
+    scheduling priority: at ``nice`` +10 its teachings took seconds while other programs kept the
+    machine busy.)
+    ``on_applied`` is called in a receiving thread of this process.
+    """
+
+    def __init__(self, path: str | PathLike[str], on_applied: Applied, *, lock_fd: int, holder: str,
+                 start_timeout: float = 600.0, **options: Any) -> None:
+        ours, theirs = socket.socketpair()
+        args = [sys.executable, "-m", "spco.service.writer", "--path", str(Path(path).absolute()),
+                "--lock-fd", str(lock_fd), "--conn-fd", str(theirs.fileno()), "--holder", holder,
+                "--parent", str(os.getpid())]
+        for key, value in options.items():
+            if value is not None:
+                args += [f"--{key.replace('_', '-')}", str(value)]
+        # one sampler thread: the other core stays with the readers (the result does not depend on it)
+        environment = {**os.environ, "NUMBA_NUM_THREADS": "1"}
+        self._process = subprocess.Popen(args, pass_fds=(lock_fd, theirs.fileno()), stdin=subprocess.DEVNULL,
+                                         env=environment)
+        theirs.close()
+        self._conn = Connection(ours.detach())
+        self._on_applied = on_applied
+        self._pending: dict[int, tuple[dict[str, Any], Future[dict[str, Any]]]] = {}
+        self._next = 0
+        self._lock = threading.Lock()
+        self._closed = False
+        self._dead: str | None = None
+        deadline = time.monotonic() + start_timeout
+        while not self._conn.poll(0.2):
+            if self._process.poll() is not None or time.monotonic() > deadline:
+                self._kill()
+                raise WriterUnavailableError(f"{path}: the writer process did not start (exit status "
+                                             f"{self._process.returncode}); see the messages above")
+        try:
+            message = self._conn.recv()
+        except (EOFError, OSError):
+            self._kill()
+            raise WriterUnavailableError(f"{path}: the writer process ended while starting") from None
+        if message[0] == "error":
+            self._kill()
+            kind, text = message[1], message[2]
+            raise (_ERRORS.get(kind, SpcoError))(text)
+        self._channel = SnapshotChannel()
+        self.first_snapshot = self._channel.unpack(message[1])
+        self.startup = message[2]
+        self.pid = self._process.pid
+        # requests leave through a sender thread: a caller (the server's event loop) never blocks on a
+        # full socket, and the receiver never waits for a sender (the writer may be sending a snapshot
+        # while requests pile up: both directions must drain independently)
+        self._outbox: queue.Queue[tuple[Any, ...] | None] = queue.Queue()
+        self._sender = threading.Thread(target=self._send, name="spco-writer-sender", daemon=True)
+        self._sender.start()
+        self._receiver = threading.Thread(target=self._receive, name="spco-writer-receiver", daemon=True)
+        self._receiver.start()
+
+    def submit(self, request: dict[str, Any]) -> Future[dict[str, Any]]:
+        """Queue a request for the writer; the future gets its result."""
+        future: Future[dict[str, Any]] = Future()
+        with self._lock:
+            if self._closed or self._dead:
+                future.set_exception(WriterUnavailableError(self._dead or "the served home is closed"))
+                return future
+            key = self._next
+            self._next += 1
+            self._pending[key] = (request, future)
+        self._outbox.put(("teach", key, request))
+        return future
+
+    def _send(self) -> None:
+        while True:
+            message = self._outbox.get()
+            if message is None:
+                return
+            try:
+                self._conn.send(message)
+            except OSError:  # the writer is gone: the receiver fails what is pending
+                return
+
+    def _receive(self) -> None:
+        while True:
+            try:
+                message = self._conn.recv()
+            except (EOFError, OSError):
+                message = ("gone",)
+            if message[0] == "applied":
+                _, keyed, packed = message
+                snapshot = None if packed is None else self._channel.unpack(packed)
+                with self._lock:
+                    done = [(self._pending.pop(key), result) for key, result in keyed]
+                self._on_applied([(request, result) for (request, _), result in done], snapshot)
+                for (_, future), result in done:
+                    future.set_result(result)
+                continue
+            code = self._process.wait(timeout=30) if message[0] == "gone" else 0
+            with self._lock:
+                if message[0] == "gone" and not self._closed:
+                    self._dead = f"the writer process of the served home died (exit status {code})"
+                    print(f"spco serve: error: {self._dead}; teachings are refused until the server is "
+                          "restarted (every acknowledged teaching is in the journal)", file=sys.stderr)
+                error = WriterUnavailableError(self._dead or "the served home is closed")
+                for _, future in self._pending.values():
+                    future.set_exception(error)
+                self._pending.clear()
+            return
+
+    def close(self, timeout: float = 60.0) -> None:
+        """Let the writer finish its requests and compact, then wait for it to exit."""
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+        self._outbox.put(("close",))  # after every request queued before it
+        self._outbox.put(None)
+        try:
+            self._process.wait(timeout)
+        except subprocess.TimeoutExpired:
+            self._kill()
+        self._receiver.join(timeout=5)
+        self._sender.join(timeout=5)
+        self._conn.close()
+
+    def _kill(self) -> None:
+        with contextlib.suppress(OSError):
+            self._process.kill()
+        self._process.wait()
+
+    @property
+    def alive(self) -> bool:
+        """Whether the writer still takes teachings."""
+        return not self._closed and self._dead is None and self._process.poll() is None
+
+
+def _die_with_parent(parent: int) -> None:
+    """Have the kernel kill this process when its parent dies (Linux), so that the lock it inherited
+    is released with the server's; elsewhere the closed connection ends it."""
+    with contextlib.suppress(Exception):
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        pr_set_pdeathsig = 1
+        libc.prctl(pr_set_pdeathsig, signal.SIGKILL, 0, 0, 0)
+    if os.getppid() != parent:  # the parent died before the request was made
+        os._exit(1)
+
+
+def _serve_connection(conn: Connection, writer: HomeWriter, channel: SnapshotChannel) -> None:
+    idle = writer.compact_idle / 2
+    while True:
+        if not conn.poll(idle):
+            writer.maybe_compact()
+            continue
+        messages = []
+        try:
+            messages.append(conn.recv())
+            while conn.poll(0):  # what arrived meanwhile is one round (batched)
+                messages.append(conn.recv())
+        except (EOFError, OSError):  # the server is gone: nothing left to acknowledge
+            writer.close()
+            return
+        work = [(m[1], m[2]) for m in messages if m[0] == "teach"]
+        if work:
+            results = writer.handle([request for _, request in work])
+            changed = any(r.get("ok") for r in results)
+            conn.send(("applied", [(key, result) for (key, _), result in zip(work, results, strict=True)],
+                       channel.pack(writer.snapshot()) if changed else None))
+        if any(m[0] == "close" for m in messages):
+            writer.close()
+            return
+
+
+_ERRORS: dict[str, type[SpcoError]] = {"ConfigurationError": ConfigurationError,
+                                       "WriterUnavailableError": WriterUnavailableError}
+
+
+def main(argv: list[str] | None = None) -> int:
+    """The writer process: ``python -m spco.service.writer --path HOME --lock-fd N --conn-fd M …``."""
+    from spco import locking
+
+    parser = argparse.ArgumentParser(prog="python -m spco.service.writer")
+    parser.add_argument("--path", required=True)
+    parser.add_argument("--lock-fd", type=int, required=True)
+    parser.add_argument("--conn-fd", type=int, required=True)
+    parser.add_argument("--holder", required=True)
+    parser.add_argument("--parent", type=int, required=True)
+    parser.add_argument("--seed", type=int, default=None)
+    parser.add_argument("--sweeps", type=int, default=kn.DEFAULT_TEACH_SWEEPS)
+    parser.add_argument("--compact-records", type=int, default=DEFAULT_COMPACT_RECORDS)
+    parser.add_argument("--compact-idle", type=float, default=DEFAULT_COMPACT_IDLE)
+    parser.add_argument("--max-batch", type=int, default=DEFAULT_MAX_BATCH)
+    args = parser.parse_args(argv)
+    _die_with_parent(args.parent)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the server, which closes us in order
+    conn = Connection(args.conn_fd)
+    try:
+        locking.adopt(args.path, args.lock_fd, args.holder)
+        writer = HomeWriter(args.path, seed=args.seed, sweeps=args.sweeps,
+                            compact_records=args.compact_records, compact_idle=args.compact_idle,
+                            max_batch=args.max_batch)
+    except SpcoError as exc:
+        conn.send(("error", type(exc).__name__ if type(exc).__name__ in _ERRORS else "SpcoError", str(exc)))
+        return 2
+    except Exception as exc:
+        traceback.print_exc()
+        conn.send(("error", "SpcoError", f"the writer could not start: {type(exc).__name__}: {exc}"))
+        return 1
+    channel = SnapshotChannel()
+    conn.send(("ready", channel.pack(writer.snapshot()), dict(writer.startup)))
+    _serve_connection(conn, writer, channel)
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover - run as the writer process
+    sys.exit(main())

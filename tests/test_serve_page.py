@@ -1,0 +1,97 @@
+"""The page of ``spco serve`` in a real browser: Debian's headless chromium, driven by Selenium through
+Debian's chromedriver (no browser downloads; ``.ci/run`` installs both). Skipped with the reason where
+they are missing, except under CI (``CI=true``), where that is a failure."""
+
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+
+import pytest
+from serve_helpers import Server, build_home, copy_home
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+CHROMEDRIVER = shutil.which("chromedriver") or shutil.which("/usr/lib/chromium/chromedriver")
+
+
+def _unavailable(reason: str) -> None:
+    if os.environ.get("CI"):
+        pytest.fail(f"{reason} (CI must run the browser test: .ci/run installs chromium and chromium-driver)")
+    pytest.skip(reason)
+
+
+@pytest.fixture(scope="module")
+def browser(tmp_path_factory: pytest.TempPathFactory):
+    """A headless chromium driven by Selenium through the distribution's chromedriver."""
+    if CHROMIUM is None or CHROMEDRIVER is None:
+        _unavailable("no chromium and chromedriver on this machine (Debian: apt-get install chromium "
+                     "chromium-driver)")
+    try:
+        from selenium import webdriver
+        from selenium.webdriver.chrome.service import Service
+    except ImportError:
+        _unavailable("selenium is not installed (pip install -e '.[test]')")
+    options = webdriver.ChromeOptions()
+    options.binary_location = CHROMIUM
+    for flag in ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                 "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                 "--disable-dev-shm-usage", "--window-size=1400,900",
+                 f"--user-data-dir={tmp_path_factory.mktemp('chromium')}"):
+        options.add_argument(flag)
+    driver = webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)
+    driver.set_page_load_timeout(60)
+    yield driver
+    driver.quit()
+
+
+def test_the_page_shows_the_regions_answers_and_teaches_live(browser, tmp_path: Path) -> None:
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.support.ui import WebDriverWait
+
+    from spco.client import Client
+
+    (tmp_path / "built").mkdir()
+    home = copy_home(build_home(tmp_path / "built"), tmp_path / "served")
+    server = Server(home)
+    try:
+        robot = Client(server.url)
+        known = robot.regions()["names"]
+        wait = WebDriverWait(browser, 30)
+        browser.get(server.url + "/")
+        # the map: learnt regions as ellipses, labelled with their names, and the samples as dots
+        wait.until(lambda d: d.find_elements(By.CSS_SELECTOR, "#layer-regions ellipse.region"))
+        ellipses = browser.find_elements(By.CSS_SELECTOR, "#layer-regions ellipse.region")
+        labels = [e.text for e in browser.find_elements(By.CSS_SELECTOR, "#layer-labels text.region-label")]
+        assert len(ellipses) == len(robot.regions()["regions"])
+        assert labels and any(name in " ".join(labels) for name in known)
+        assert len(browser.find_elements(By.CSS_SELECTOR, "#layer-samples circle.sample")) == \
+            robot.health()["samples"]
+        assert browser.find_element(By.ID, "connection").text == "live"  # the event stream is open
+        # click a region: the names there, with p
+        biggest = max(ellipses, key=lambda e: e.size["width"] * e.size["height"])
+        ActionChains(browser).move_to_element(biggest).click().perform()
+        wait.until(lambda d: d.find_elements(By.CSS_SELECTOR, "#what-names li"))
+        names = [li.text for li in browser.find_elements(By.CSS_SELECTOR, "#what-names li")]
+        assert names and all(" — p 0." in n or " — p 1." in n for n in names)
+        # type a name: its poses drawn
+        browser.find_element(By.ID, "where-input").send_keys(known[0])
+        browser.find_element(By.ID, "where-button").click()
+        wait.until(lambda d: len(d.find_elements(By.CSS_SELECTOR, "#layer-poses g.pose")) == 10)
+        assert known[0] in browser.find_element(By.ID, "where-result").text
+        # click + type a sentence: taught, and the page shows it
+        browser.find_element(By.ID, "teach-sentence").send_keys("this is the pantry")
+        browser.find_element(By.ID, "teach-button").click()
+        wait.until(lambda d: "Taught (seq 1" in d.find_element(By.ID, "teach-result").text)
+        assert robot.health()["teachings"] == 1
+        wait.until(lambda d: "1 teachings served" in d.find_element(By.ID, "stats").text)
+        # another client teaches: the page learns it from the event stream
+        robot.teach(id=int(robot.regions()["samples"][0]["id"]), sentence="this is the scullery")
+        wait.until(lambda d: "2 teachings served" in d.find_element(By.ID, "stats").text)
+        log = browser.find_element(By.ID, "log").text
+        assert "this is the scullery" in log and "this is the pantry" in log
+        shot = tmp_path / "page.png"
+        assert browser.save_screenshot(str(shot)) and shot.stat().st_size > 10_000
+    finally:
+        assert server.stop() == 0, server.output
