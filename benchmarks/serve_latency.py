@@ -128,15 +128,36 @@ def poses(regions: dict[str, Any], n: int, seed: int) -> list[tuple[float, float
             for _ in range(n)]
 
 
-def timed(call: Any, items: list[Any], warm: int = 20) -> list[float]:
+def cpu_seconds(pid: int) -> float:
+    """User + system CPU time of process ``pid`` so far (``/proc/PID/stat``)."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def timed(call: Any, items: list[Any], warm: int = 20, served: Served | None = None
+          ) -> tuple[list[float], dict[str, float]]:
+    """Latencies of ``call`` on each item (after ``warm`` unmeasured calls), and the CPU time the
+    server and its writer spent per call (ms): less sensitive to other programs' load than the wall
+    time."""
     for item in items[:warm]:
         call(item)
     out = []
+    cpu = (cpu_seconds(served.process.pid), cpu_seconds(served.writer_pid)) if served else (0.0, 0.0)
     for item in items:
         start = time.perf_counter()
         call(item)
         out.append(time.perf_counter() - start)
-    return out
+    extra = {}
+    if served is not None:
+        extra = {"server_cpu_ms_per_call": 1000 * (cpu_seconds(served.process.pid) - cpu[0]) / len(items),
+                 "writer_cpu_ms_per_call": 1000 * (cpu_seconds(served.writer_pid) - cpu[1]) / len(items)}
+    return out, extra
+
+
+def measured(call: Any, items: list[Any], served: Served, warm: int = 20) -> dict[str, float]:
+    """:func:`timed` as the fields of a figure: percentiles and CPU per call."""
+    latencies, extra = timed(call, items, warm, served)
+    return {**percentiles(latencies), **extra}
 
 
 # ------------------------------------------------------------------------------ client processes
@@ -180,43 +201,52 @@ def _teach_burst(url: str, ids: list[int], names: list[str], teachers: int, each
 
 
 def _soak_worker(url: str, regions: dict[str, Any], labels: dict[int, str], rate: float, seconds: float,
-                 seed: int, results: Any) -> None:
+                 seed: int, results: Any, threads: int = 8) -> None:
+    """Requests at ``rate`` per second for ``seconds`` on a fixed schedule (request k at k / rate),
+    sent by ``threads`` clients in turn, so that slow answers do not slow the schedule down."""
     from spco.client import Client
 
-    client = Client(url)
-    rng = np.random.default_rng(seed)
     x0, x1, y0, y1 = regions["extent"]
     ids, names = list(labels), list(labels.values())
     usable = sorted(set(names))
     latencies: dict[str, list[float]] = {"what": [], "where": [], "teach": []}
     errors: list[str] = []
-    start = time.perf_counter()
-    k = 0
-    while True:
-        due = start + k / rate
-        if due - start >= seconds:
-            break
-        pause = due - time.perf_counter()
-        if pause > 0:
-            time.sleep(pause)
-        roll = rng.random()
-        t = time.perf_counter()
-        try:
-            if roll < 0.6:
-                kind = "what"
-                client.what(float(rng.uniform(x0, x1)), float(rng.uniform(y0, y1)), 0.0)
-            elif roll < 0.9:
-                kind = "where"
-                client.where(usable[int(rng.integers(len(usable)))], n=10)
-            else:  # a person confirms the name of the place a sample is at (as the home answers it)
-                kind = "teach"
-                sample = int(rng.integers(len(ids)))
-                client.teach(id=ids[sample], sentence=f"this is the {names[sample]}")
-        except Exception as exc:
-            errors.append(f"{type(exc).__name__}: {exc}")
-        latencies[kind].append(time.perf_counter() - t)
-        k += 1
-    results.put((latencies, errors, k))
+    total = int(rate * seconds)
+    start = time.perf_counter() + 0.5
+    guard = threading.Lock()
+
+    def run(offset: int) -> None:
+        client = Client(url)
+        rng = np.random.default_rng([seed, offset])
+        for k in range(offset, total, threads):
+            pause = start + k / rate - time.perf_counter()
+            if pause > 0:
+                time.sleep(pause)
+            roll = rng.random()
+            t = time.perf_counter()
+            try:
+                if roll < 0.6:
+                    kind = "what"
+                    client.what(float(rng.uniform(x0, x1)), float(rng.uniform(y0, y1)), 0.0)
+                elif roll < 0.9:
+                    kind = "where"
+                    client.where(usable[int(rng.integers(len(usable)))], n=10)
+                else:  # a person confirms the name of the place a sample is at (as the home answers it)
+                    kind = "teach"
+                    sample = int(rng.integers(len(ids)))
+                    client.teach(id=ids[sample], sentence=f"this is the {names[sample]}")
+            except Exception as exc:
+                with guard:
+                    errors.append(f"{type(exc).__name__}: {exc}")
+            with guard:
+                latencies[kind].append(time.perf_counter() - t)
+
+    workers = [threading.Thread(target=run, args=(i,)) for i in range(threads)]
+    for w in workers:
+        w.start()
+    for w in workers:
+        w.join()
+    results.put((latencies, errors, total))
 
 
 def main() -> None:
@@ -259,26 +289,26 @@ def main() -> None:
         if wanted("what"):
             before = load()
             items = poses(regions, args.n, 1)
-            record("what by pose, 1 client", before, **percentiles(timed(lambda p: client.what(*p), items)))
+            record("what by pose, 1 client", before, **measured(lambda p: client.what(*p), items, served))
         if wanted("where"):
             before = load()
             items = [names[k % len(names)] for k in range(args.n)]
-            record("where (n=10), 1 client", before, **percentiles(timed(lambda m: client.where(m), items)))
+            record("where (n=10), 1 client", before, **measured(lambda m: client.where(m), items, served))
         if wanted("image"):
             before = load()
             items = poses(regions, max(args.n // 4, 50), 2)
             record("what with a 640x480 JPEG, 1 client", before, bytes=len(jpeg),
-                   **percentiles(timed(lambda p: client.what(*p, image=jpeg), items, warm=5)))
+                   **measured(lambda p: client.what(*p, image=jpeg), items, served, warm=5))
         if wanted("teach"):
             before = load()
             items = [(ids[(7 * k) % len(ids)], f"this is the {names[k % len(names)]}") for k in range(200)]
             record("teach by sample id, 1 client", before,
-                   **percentiles(timed(lambda t: client.teach(id=t[0], sentence=t[1]), items, warm=5)))
+                   **measured(lambda t: client.teach(id=t[0], sentence=t[1]), items, served, warm=5))
             before = load()
             items = poses(regions, 100, 3)
             record("teach a new observation with a 640x480 JPEG, 1 client", before,
-                   **percentiles(timed(lambda p: client.teach(x=p[0], y=p[1], theta=p[2], image=jpeg,
-                                                              sentence="this is the study"), items, warm=3)))
+                   **measured(lambda p: client.teach(x=p[0], y=p[1], theta=p[2], image=jpeg,
+                                                     sentence="this is the study"), items, served, warm=3))
         if wanted("clients"):
             before = load()
             ctx = mp.get_context("spawn")
@@ -338,7 +368,8 @@ def main() -> None:
         gathered = []
         start = time.perf_counter()
         while len(gathered) < len(workers):  # memory each second until every worker has reported
-            if time.perf_counter() - start > args.soak + 300:
+            if time.perf_counter() - start > args.soak + 600:
+                served.stop()
                 raise SystemExit("the soak's clients did not finish")
             memory.append(served.rss_mb())
             with contextlib.suppress(queue.Empty):

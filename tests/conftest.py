@@ -36,6 +36,14 @@ def sigverse_dir() -> Path:
     return path
 
 
+def missing_tool(reason: str) -> None:
+    """A test's tool (a program, a system package) is missing: skip it with ``reason`` — except under
+    ``CI=true``, where every test must run (.ci/run installs the tools), so it fails instead."""
+    if os.environ.get("CI"):
+        pytest.fail(f"{reason} (CI=true: .ci/run should have installed it)", pytrace=False)
+    pytest.skip(reason)
+
+
 @pytest.fixture(scope="module")
 def ray_session():
     """A local Ray instance of 2 CPUs for a test module (skipped without Ray), shut down after it."""
@@ -44,6 +52,24 @@ def ray_session():
         ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
     yield ray
     ray.shutdown()
+
+
+@pytest.fixture(scope="session")
+def _tour_home_source(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A home file made as a robot would (spco.ros.testing.tour_home: three tours fitted, a fourth
+    adapted), whose kitchen is the bedroom's colour with red and blue swapped; built once."""
+    from spco.ros.testing import SWAPPED_ROOM_COLOURS, tour_home
+
+    return tour_home(tmp_path_factory.mktemp("tour_home"), seed=0, colours=SWAPPED_ROOM_COLOURS)
+
+
+@pytest.fixture(scope="module")
+def tour_home_file(_tour_home_source: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A copy of the tour home for a test module (nodes and servers teach it and journal beside it)."""
+    import shutil
+
+    folder = tmp_path_factory.mktemp("tour_home_copy")
+    return Path(shutil.copy2(_tour_home_source, folder / "home.spco"))
 
 
 SigverseBuilder = Callable[..., Path]

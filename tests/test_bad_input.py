@@ -101,6 +101,16 @@ def _samples_line(line: int, text: str) -> Callable[[Path], None]:
     return edit
 
 
+def _missing_mask(mask: np.ndarray) -> Callable[[Path], None]:
+    """visual.npz with a 'missing' array (which samples have no view) beside its counts.
+    (A home without any visual file is valid: it has no views.)"""
+    def edit(home: Path) -> None:
+        (home / "visual.npz").unlink()
+        np.savez(home / "visual.npz", visual=np.ones((8, 12), dtype=np.int64), missing=mask)
+
+    return edit
+
+
 def _visual(array: np.ndarray) -> Callable[[Path], None]:
     def edit(home: Path) -> None:
         (home / "visual.npz").unlink()
@@ -134,7 +144,8 @@ sigverse_case("sentence not UTF-8", "sentence1.txt")(
     _write("sentence/per_100/sentence1.txt", b"this is the k\xfctchen"))
 
 plain_case("no samples file", "samples.csv")(_remove("samples.csv"))
-plain_case("no visual file", "visual.npz")(_remove("visual.npz"))
+plain_case("missing-view mask of the wrong length", "visual.npz")(_missing_mask(np.ones(3, dtype=bool)))
+plain_case("missing-view mask not boolean", "visual.npz")(_missing_mask(np.full(8, 2)))
 plain_case("wrong number of rows", "visual.npy")(_visual(np.ones((5, 12))))
 plain_case("negative counts", "visual.npy")(_visual(-np.ones((8, 12))))
 plain_case("NaN features", "visual.npy")(_visual(np.full((8, 12), np.nan)))

@@ -47,6 +47,11 @@ def handwritten_homes(sigverse_dir: Path) -> list[Environment]:
 
 
 @pytest.mark.sigverse
+@pytest.mark.xfail(strict=True, reason=(
+    "known regression of the issue-22 method (branch heldout, frozen at 2cd9474/8798c83; which of its "
+    "rules causes it is not yet measured): a few test views of these hand-written homes are answered "
+    "by words that name no place ('haha', \"toilet's\"). Left failing on purpose, not loosened: the "
+    "method was frozen before the held-out measurement"))
 def test_handwritten_sentences_name_and_find_the_places(sigverse_dir: Path) -> None:
     corpus = Corpus(handwritten_homes(sigverse_dir))
     vocab = corpus.vocabulary
@@ -62,7 +67,7 @@ def test_handwritten_sentences_name_and_find_the_places(sigverse_dir: Path) -> N
         where = predict_positions(params, e, vocab, "Living Room", n=50, rng=0)
         assert where.name == "living room"
         assert regions.contains("living room", where.samples[:, :2]).mean() >= 0.8
-        scores = evaluate_home(params, e, env, vocab, rng=0)
+        scores = evaluate_home(params, e, env, vocab, rng=0, view_counts=model.settings_.view_counts)
         # the living room's test samples are named "living room" (the term), never "room"
         living = [p for p, lab in zip(scores.predicted_names, scores.labels, strict=True)
                   if lab == "living room"]

@@ -100,6 +100,36 @@ def test_average_of_relabelled_copies_is_the_state_itself() -> None:
         assert_allclose(getattr(result, name), getattr(expected, name), rtol=1e-10, atol=1e-12, err_msg=name)
 
 
+def test_average_does_not_mix_empty_concepts() -> None:
+    """A home's place moves from concept 1 to concept 2 between two averaged sweeps; concepts 1, 2
+    and 3 are each empty in one of them (two empty concepts per sweep). The place's parameters are
+    averaged over its two labels; an empty concept keeps the draws of its own label only (its θ is a
+    draw given the shared φ of that label), never those of another empty label."""
+    rng = np.random.default_rng(4)
+    L, K, V, D, n = 4, 3, 5, 6, 12
+    regions = np.repeat([0, 1], n // 2)
+    first = _fake_state(rng, np.repeat([0, 1], n // 2), regions, L, K, V, D)  # empty: 2, 3
+    second = _fake_state(rng, np.repeat([0, 2], n // 2), regions, L, K, V, D)  # empty: 1, 3
+    average = ParameterAverage(np.zeros(n, dtype=np.int64), 1.0)
+    average.add(first)
+    average.add(second)
+    result = average.result(second)  # in the labels of the second sweep
+    theta = [np.exp(s.log_theta_w[0]) for s in (first, second)]
+    g = [np.exp(s.log_g[0]) for s in (first, second)]
+    assert_allclose(result.word_probabilities[0, 0], (theta[0][0] + theta[1][0]) / 2)
+    assert_allclose(result.word_probabilities[0, 2], (theta[0][1] + theta[1][2]) / 2)  # the moved place
+    assert_allclose(result.word_probabilities[0, 1], theta[1][1])  # empty only in the second sweep
+    assert_allclose(result.word_probabilities[0, 3], (theta[0][3] + theta[1][3]) / 2)  # empty in both
+    g_expected = np.array([(g[0][0] + g[1][0]) / 2, g[1][1], (g[0][1] + g[1][2]) / 2,
+                           (g[0][3] + g[1][3]) / 2])
+    assert_allclose(result.concept_weights[0], g_expected / g_expected.sum())  # (renormalised)
+    pi = [np.exp(s.log_pi[0]) for s in (first, second)]
+    assert_allclose(result.region_weights[0, 1], pi[1][1])
+    assert_allclose(result.region_weights[0, 3], (pi[0][3] + pi[1][3]) / 2)
+    assert_allclose(result.concept_counts[0], [6, 0, 6, 0])  # mean counts of the matched slots
+    assert_allclose(result.word_probabilities.sum(-1), 1.0)
+
+
 def test_average_differs_from_one_draw_and_is_normalised() -> None:
     rng = np.random.default_rng(1)
     L, K, V, D, n = 4, 5, 3, 6, 30

@@ -136,6 +136,20 @@ def test_term_rule_thresholds() -> None:
     assert "front door" in terms and not any("the" in t.split() for t in terms)  # "the": 4 of 6 sentences
 
 
+def test_a_frame_does_not_swallow_the_first_word_of_a_name() -> None:
+    """Where two candidate pairs overlap, the stronger is joined: "in emma's" (3 times) loses to
+    "emma's room" (every use of "emma's"), so "we are in emma's room now" keeps the name whole; a
+    pair that never wins a sentence is no term."""
+    others = ["this is emma's room", "emma's room", "hello emma's room", "this is the kitchen",
+              "the kitchen is here", "a bath", "a toilet", "the hall", "my bath"]
+    sentences = ["we are in emma's room now"] * 3 + others * 2
+    terms = learn_terms(sentences)
+    assert "emma's room" in terms and "in emma's" not in terms
+    assert not any("emma's" in t.split() and t != "emma's room" for t in terms), terms
+    assert Vocabulary.from_sentences(sentences).tokenize("we are in Emma's room now")[-2:] == ["emma's room",
+                                                                                               "now"]
+
+
 def test_a_grown_vocabulary_learns_terms_of_new_words_only() -> None:
     vocab = Vocabulary.from_sentences(["this is the living room", "the kitchen", "a room"] * 2)
     assert "living room" not in vocab.terms and "room" in vocab  # said twice: no term yet

@@ -21,6 +21,7 @@ from spco.evaluation import (
     position_chance,
 )
 from spco.model.parameters import ConceptParameters
+from spco.prediction import predict_positions
 
 REGIONS = PlaceRegions({
     "kitchen": ((0.0, 1.0, 0.0, 1.0),),
@@ -161,6 +162,31 @@ def test_evaluate_home_general() -> None:
     assert set(scores.predicted_positions) == {"kitchen", "bath"}
     assert scores.predicted_positions["bath"].shape == (50, 3)
     assert scores.summary()["name_accuracy"]["toilet"] is None
+
+
+def test_position_accuracy_both_ways() -> None:
+    """A_p from the most probable region (the authors' code) against A_p sampled from the whole
+    mixture p(x | name) (the paper's text): a name whose region probability is split 0.55 / 0.45
+    between its place and another scores 1 the first way and about 0.55 the second."""
+    params = home_params()
+    pi = params.region_weights.copy()
+    pi[0, 0] = [0.55, 0.45, 0.0]  # concept "kitchen": 55 % in the kitchen's region, 45 % in the bath's
+    split = ConceptParameters(params.concept_weights, pi, params.region_means, params.region_covariances,
+                              params.word_probabilities, params.visual_probabilities,
+                              params.shared_word_probabilities, params.shared_visual_probabilities,
+                              params.global_concept_weights, params.word_mask, params.concept_counts)
+    scores = evaluate_home(split, 0, home(), Vocabulary(WORDS), n_positions=400, rng=3)
+    assert scores.position_accuracy["kitchen"] == 1.0
+    assert 0.45 < scores.position_accuracy_mixture["kitchen"] < 0.65
+    assert scores.position_accuracy_mixture["bath"] > 0.9  # bath: 0.94 of its mass in its region
+    assert math.isnan(scores.position_accuracy_mixture["bedroom"])
+    assert scores.summary()["mean_position_accuracy_mixture"] < scores.summary()["mean_position_accuracy"]
+    # the mixture draws come from a child stream: the most-probable-region draws are those of the
+    # seed's own stream, place after place, as before A_p was measured both ways
+    gen = np.random.default_rng(3)
+    predict_positions(split, 0, Vocabulary(WORDS), "kitchen", n=400, rng=gen)
+    bath = predict_positions(split, 0, Vocabulary(WORDS), "bath", n=400, rng=gen)
+    assert np.array_equal(bath.samples, scores.predicted_positions["bath"])
 
 
 def test_evaluate_home_specific() -> None:

@@ -202,11 +202,10 @@ def test_word_pruning_learns_home_specific_names() -> None:
         scores = evaluate_home(model.parameters_, len(corpus) - 1, taught, corpus.vocabulary, specific=True,
                                rng=0)
         accuracies.append(scores.mean_name_accuracy)
-    # observed: A_n 0.33, 0.70, 0.70 (chance 1/18); 0.00 at every seed when S^w was lost (see the
-    # test above). It was 1.00, 1.00, 0.97 while the local step scored kept words by their share of
-    # all words (pruned ones included); with the rows renormalised over the kept words, as the
-    # model has it, the untaught samples of a bedroom often stay in another concept (open problem)
-    assert np.mean(accuracies) >= 0.4, accuracies
+    # observed: A_n 1.00, 0.90, 0.97 (chance 1/18), with the home's own names starting in free
+    # concepts and one name per taught sentence; 0.33, 0.70, 0.70 before the own-name start, 0.00
+    # at every seed when S^w was lost (see the test above)
+    assert np.mean(accuracies) >= 0.9 and min(accuracies) >= 0.8, accuracies
 
 
 def test_transfer_names_the_places_of_a_new_home() -> None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import re
 import shutil
 from collections import Counter
 from pathlib import Path
@@ -379,7 +380,8 @@ def test_out_is_never_overwritten_without_force_nor_a_non_home(tmp_path: Path) -
     "args, message",
     [
         (["--tolerance", 0], "--tolerance must be > 0"),
-        (["--every-metres", 0], "no sample to make"),
+        (["--every-metres", 0, "--at", "travel"], "no sample to make"),
+        (["--at", "utterances"], "--at utterances makes samples only where people speak"),
         (["--every-seconds", -1], "--every-seconds must be ≥ 0"),
     ],
 )
@@ -399,10 +401,14 @@ def test_every_seconds_and_tolerance(tmp_path: Path) -> None:
     # a sample every 2 s over 20 s; the camera (1 Hz, 3 ms after the poses) is within 0.1 s of each
     assert summary.periodic == 10 and summary.samples == 10 and info["image"] == 20
     with pytest.raises(
-        DataFormatError, match="no sample has every modality: 10 along the way: no image within 0\\.001 s"
+        DataFormatError, match=re.escape(
+            "no sample has every modality: 10 along the way: no image within 0.001 s; the camera records one "
+            "image every 1.0 s: --tolerance 0.5 takes the nearest one; --at images makes a sample at each "
+            "camera image")
     ):
         import_bags(
-            [bag], tmp_path / "home2", BagImportSettings(every_metres=0, every_seconds=2.0, tolerance=0.001)
+            [bag], tmp_path / "home2",
+            BagImportSettings(every_metres=0, every_seconds=2.0, tolerance=0.001, at="travel"),
         )
     assert not (tmp_path / "home2").exists()
 
@@ -482,3 +488,89 @@ def test_ros2_bag_without_message_definitions(tmp_path: Path) -> None:
         pass
     summary = import_bags([bag], tmp_path / "home", BagImportSettings(speech_topic="/speech"))
     assert summary.taught == 1 and summary.samples >= 6
+
+
+# ------------------------------------------------------------------------- recordings as robots make them
+def test_a_throttled_camera_without_speech_imports_with_the_default_options(tmp_path: Path) -> None:
+    """The camera at 0.5 Hz, nobody speaking: a sample at each image (along the way, samples every
+    0.5 m fall up to a second from the nearest image and most would have none within 0.5 s)."""
+    bag = tmp_path / "throttled.bag"
+    info = write_tour(bag, seconds=60, size=SMALL, image_hz=0.5, speech_every=0)
+    result = _cli([bag, "--out", tmp_path / "home"])
+    assert result.exit_code == 0, result.output
+    rows = _rows(tmp_path / "home")
+    assert len(rows) == info["image"] == 30 and not any(r["sentence"] for r in rows)
+    assert "a sample at each camera image (one every 2.0 s)" in result.output
+    assert "Skipped" not in result.output and "Not taught" not in result.output
+    for r in rows:  # each sample has the pose of its image's time (images 3 ms after a pose)
+        x, y, _ = _truth(int(r["id"]) * 2 * S)
+        assert (float(r["x"]), float(r["y"])) == pytest.approx((x, y), abs=1e-3)
+    record = json.loads((tmp_path / "home" / "import.json").read_text())
+    assert record["sampling"] == "images" and record["image_interval"] == pytest.approx(2.0)
+    # forced along the way, half the samples find no image, and the summary says what to change
+    result = _cli([bag, "--out", tmp_path / "travel", "--at", "travel"])
+    assert result.exit_code == 0 and len(_rows(tmp_path / "travel")) < 30
+    assert "samples along the way found no camera image (the camera records one every 2.0 s): --at images" \
+        in result.output
+
+
+def test_utterances_with_a_throttled_camera_take_the_nearest_image(tmp_path: Path) -> None:
+    """Utterances at 5, 15, 25 … s and images every 2 s: each utterance is 1 s from the nearest image.
+    At each image (the default here), an utterance takes the nearest one; along the way (forced), the
+    tolerance of 0.5 s loses them, and the summary lists them with the tolerance that would keep them."""
+    bag = tmp_path / "throttled.bag"
+    info = write_tour(bag, seconds=80, size=SMALL, image_hz=0.5, speech_every=10)
+    summary = import_bags([bag], tmp_path / "home", BagImportSettings(speech_topic="/speech"))
+    assert summary.sampling == "images" and summary.taught == info["speech"] == 8
+    assert "an utterance takes the nearest image up to 1.2 s away" in summary.format()
+    _check_tour_home(tmp_path / "home", info["speech"])
+    forced = import_bags([bag], tmp_path / "travel", BagImportSettings(speech_topic="/speech", at="travel"))
+    text = forced.format()
+    lost = forced.skipped["utterance: no image within 0.5 s"]
+    assert lost == 8 and forced.taught == 0
+    assert "Not taught: 8 utterances:" in text and "--tolerance 1 takes the nearest one" in text
+    assert "same camera image" not in text  # no noise
+    kept = import_bags([bag], tmp_path / "travel", BagImportSettings(speech_topic="/speech", at="travel",
+                                                                     tolerance=1.0), overwrite=True)
+    assert kept.taught == 8 and "Not taught" not in kept.format()
+
+
+def test_a_good_import_prints_no_skipped_samples(tmp_path: Path) -> None:
+    bag = tmp_path / "tour.bag"
+    write_tour(bag, seconds=60, size=SMALL, image_hz=5.0)
+    summary = import_bags([bag], tmp_path / "home", BagImportSettings(speech_topic="/speech"))
+    assert summary.sampling == "travel" and summary.taught == 6
+    assert summary.skipped  # samples along the way that would repeat a view, in import.json only
+    assert "Skipped" not in summary.format() and "Not taught" not in summary.format()
+    assert "6 utterances heard; a sample along the way as the robot travelled" in summary.format()
+
+
+def test_a_robot_that_stops_to_look_gets_a_sample_at_each_look(tmp_path: Path) -> None:
+    """The robot drives between three places and takes two pictures at each stop: along the way no
+    sample finds a picture, so the samples are the pictures."""
+    bag = tmp_path / "stops.bag"
+    stops = [(1.0, 1.0), (5.0, 1.0), (9.0, 1.0)]
+    with BagWriter(bag) as w:
+        t = T0
+        for k, (x, y) in enumerate(stops):
+            for step in range(30):  # drive there at 0.5 m/s: 3 s, poses at 10 Hz
+                t += S // 10
+                w.pose("/pose", t, x - 1.5 + 0.05 * step, y, 0.0, kind="PoseStamped")
+            for shot in range(2):  # stand still, look twice
+                t += S
+                w.pose("/pose", t, x, y, 0.0, kind="PoseStamped")
+                w.compressed_image("/cam", t + 1_000_000, np.full((16, 16, 3), 40 * k + shot, np.uint8))
+    summary = import_bags([bag], tmp_path / "home", BagImportSettings())
+    assert summary.sampling == "images" and summary.samples == 6
+    rows = _rows(tmp_path / "home")
+    assert [(float(r["x"]), float(r["y"])) for r in rows] == [s for s in stops for _ in "ab"]
+
+
+def test_out_creates_its_missing_folders(tmp_path: Path) -> None:
+    bag = tmp_path / "tour.bag"
+    write_tour(bag, seconds=10, size=SMALL)
+    result = _cli([bag, "--out", tmp_path / "a" / "b" / "home"])
+    assert result.exit_code == 0, result.output and (tmp_path / "a" / "b" / "home" / "samples.csv").is_file()
+    (tmp_path / "file").write_text("not a folder")
+    result = _cli([bag, "--out", tmp_path / "file" / "home"])
+    assert result.exit_code == 2 and "is a file, not a folder" in result.output

@@ -8,6 +8,7 @@ the occupied concept its views fit best (:func:`spco.prediction.concept_stand_in
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from spco.data.language import Vocabulary
 from spco.data.synthetic import SyntheticConfig, generate_homes
@@ -88,6 +89,11 @@ def test_a_concept_the_home_does_not_use_is_looked_for_where_its_views_are() -> 
     assert list(concept_stand_ins(_params([True, True, True]), 0)) == [0, 1, 2]
 
 
+@pytest.mark.xfail(strict=True, reason=(
+    "known regression of the issue-22 method (branch heldout, frozen at 2cd9474/8798c83): one name "
+    "per taught sentence keeps a sentence's undecided synonyms out of the word statistics, so fewer "
+    "accepted names reach `what`'s top 3 (1.06 on average, was 1.28); A_p holds (>= 0.6). Left "
+    "failing on purpose, not loosened: the method was frozen before the held-out measurement"))
 def test_synonyms_of_free_speech_find_their_places_in_a_new_home() -> None:
     """8 homes whose households talk freely (several names per place, each household its own mix:
     :mod:`spco.data.speech`) and a new home taught nothing: `where` for every accepted name of a
@@ -98,12 +104,13 @@ def test_synonyms_of_free_speech_find_their_places_in_a_new_home() -> None:
                                 config=SyntheticConfig(n_features=256, language="free"))
         model = SpCoTransfer(n_iterations=30, random_state=0, prune_words=True).fit(corpus)
         e, env = len(corpus) - 1, corpus[-1]
-        scores = evaluate_home(model.parameters_, e, env, corpus.vocabulary, rng=0)
+        scores = evaluate_home(model.parameters_, e, env, corpus.vocabulary, rng=0,
+                               view_counts=model.settings_.view_counts)
         positions.append(scores.mean_position_accuracy)
         gt = env.ground_truth
         rows = np.flatnonzero(env.is_test)
         top = predict_names(model.parameters_, e, corpus.vocabulary, env.positions[rows], env.visual[rows],
-                            top_k=3)
+                            top_k=3, view_counts=model.settings_.view_counts)
         accepted_in_top += [len(set(gt.accepted(gt.labels[i])) & set(words))
                             for i, words in zip(rows, top.words, strict=True)]
     # observed: A_p 0.83 / 0.49 / 0.72 (mean 0.68), accepted names in the top 3: 1.28 on average.

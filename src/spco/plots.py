@@ -8,8 +8,11 @@ so importing this module never changes the pyplot backend of the caller. Each re
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+import functools
+import warnings
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
+from typing import Any, TypeVar
 
 import matplotlib
 import matplotlib.image
@@ -32,6 +35,45 @@ _CHI2_95_2D = float(chi2.ppf(0.95, df=2))  # ≈ 5.991
 _MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*", "<", ">", "h", "p")
 
 PathLike = str | Path
+_F = TypeVar("_F", bound=Callable[..., Any])
+#: Fonts with Japanese and Chinese glyphs, tried in order after matplotlib's own (names in such
+#: scripts are drawn with the first one installed; Debian: fonts-noto-cjk or fonts-ipafont-gothic).
+CJK_FONTS = ("Noto Sans CJK JP", "Noto Sans CJK SC", "IPAexGothic", "IPAGothic", "IPAPGothic",
+             "TakaoGothic", "VL Gothic", "WenQuanYi Zen Hei", "Droid Sans Fallback")
+
+
+@functools.cache
+def _installed_cjk_fonts() -> tuple[str, ...]:
+    from matplotlib import font_manager
+
+    names = {f.name for f in font_manager.fontManager.ttflist}
+    return tuple(f for f in CJK_FONTS if f in names)
+
+
+def _with_cjk_fonts(func: _F) -> _F:
+    """Draw with a font for Japanese and Chinese names after matplotlib's default when one is
+    installed; without one, such names come out as boxes and one warning says so (not one per
+    missing glyph)."""
+
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        fallback = _installed_cjk_fonts()
+        family = [*matplotlib.rcParams["font.sans-serif"][:1], *fallback]
+        with matplotlib.rc_context({"font.family": family}), \
+                warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            result = func(*args, **kwargs)
+        missing = [w for w in caught if "missing from font" in str(w.message)]
+        for w in caught:
+            if w not in missing:
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+        if missing:
+            warnings.warn("no installed font has the Japanese or Chinese characters of the names: they are "
+                          "drawn as boxes; install one (Debian: apt install fonts-noto-cjk)", UserWarning,
+                          stacklevel=2)
+        return result
+
+    return wrapper  # type: ignore[return-value]
 
 
 def _new_axes(ax: Axes | None, figsize: tuple[float, float]) -> tuple[Figure, Axes]:
@@ -95,6 +137,7 @@ def _ellipse_geometry(cov2: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndar
     return width, height, angle
 
 
+@_with_cjk_fonts
 def plot_home_map(
     params: ConceptParameters,
     e: int,
@@ -109,6 +152,7 @@ def plot_home_map(
     concept_colors: Sequence[object] | None = None,
     show_ground_truth: bool | None = None,
     show_samples: bool = True,
+    label_regions: bool = False,
     title: str | None = None,
     path: PathLike | None = None,
 ) -> Figure:
@@ -119,7 +163,8 @@ def plot_home_map(
     params, e, vocabulary: the model, the home index and the corpus vocabulary.
     environment: the home (its samples, extent and ground-truth regions), or ``None``.
     ax: draw into these axes (default: a new 8×7 inch figure).
-    map_image: floor-plan image (array or file path) drawn with ``imshow(extent=map_extent)``.
+    map_image: floor-plan image (array or file path) drawn with ``imshow(extent=map_extent)``; a grey
+        image (2-D, such as a ROS map's PGM) is drawn in grey.
     map_extent: ``(x_min, x_max, y_min, y_max)`` in metres covered by the image (default: the
         environment's extent).
     predicted_positions: name -> (P, 2 or 3) sampled positions, drawn as markers with a legend.
@@ -129,12 +174,13 @@ def plot_home_map(
     concept_colors: one colour per concept (default: ``tab10``, or ``tab20`` for more than 10).
     show_ground_truth: outline and label the ground-truth rectangles (default: when no image).
     show_samples: draw the home's training positions as small grey dots.
+    label_regions: write the names that describe each region's concept on the map, at its centre.
     title: axes title (default: the home's name).
     path: save the figure there as PNG.
 
     Each learnt region with training samples (``region_counts > 0``) is a 95% ellipse of the x–y
     marginal of Σ, coloured by its most probable concept argmax_l π_{e,l,m} G_{e,l}, with its mean
-    marked ``+``.
+    marked ``+``. The axes cover ``map_extent`` and every room outline drawn.
     """
     fig, ax = _new_axes(ax, (8.0, 7.0))
     n_concepts = params.n_concepts
@@ -148,7 +194,9 @@ def plot_home_map(
     if map_image is not None:
         image = matplotlib.image.imread(str(map_image)) if isinstance(map_image, str | Path) \
             else np.asarray(map_image)
-        ax.imshow(image, extent=extent, origin="upper", zorder=0, alpha=0.9)
+        grey = {"cmap": "gray", "vmin": 0, "vmax": 255 if image.dtype == np.uint8 else 1.0} \
+            if image.ndim == 2 else {}
+        ax.imshow(image, extent=extent, origin="upper", zorder=0, alpha=0.9, **grey)
     if show_ground_truth is None:
         show_ground_truth = map_image is None
     gt = environment.ground_truth if environment is not None else None
@@ -196,6 +244,8 @@ def plot_home_map(
                                  facecolor=colour, alpha=0.25, edgecolor=colour, linewidth=2.0,
                                  zorder=3, label=labels[c] if c not in shown else "_nolegend_"))
             shown.add(c)
+        if label_regions:
+            _label_regions(ax, used, counts, means, owner, labels, concept_colors)
         ax.scatter(means[used, 0], means[used, 1], marker="+", s=60, color="k", linewidths=1.2,
                    zorder=4, label="region centres (+)")
 
@@ -233,8 +283,13 @@ def plot_home_map(
                          or "(no name)") for (x, y, _, _), row in zip(p, entries, strict=True)]
 
     if extent is not None:
-        ax.set_xlim(extent[0], extent[1])
-        ax.set_ylim(extent[2], extent[3])
+        x0, x1, y0, y1 = extent
+        if show_ground_truth and gt is not None and gt.regions is not None:  # no room clipped off
+            for rects in gt.regions.places.values():
+                for rx0, rx1, ry0, ry1 in rects:
+                    x0, x1, y0, y1 = min(x0, rx0), max(x1, rx1), min(y0, ry0), max(y1, ry1)
+        ax.set_xlim(x0, x1)
+        ax.set_ylim(y0, y1)
     else:
         ax.autoscale_view()
     ax.set_aspect("equal")
@@ -250,6 +305,25 @@ def plot_home_map(
         _place_callouts(fig, ax, callouts, room_labels, points)
     _save(fig, path)
     return fig
+
+
+def _label_regions(ax: Axes, used: np.ndarray, counts: np.ndarray, means: np.ndarray, owner: np.ndarray,
+                   labels: Sequence[str], colours: Sequence[object]) -> None:
+    """Write each region's names (its concept's words) at its centre — largest regions first, and
+    not again within a sixth of the map's size of the same label (a place spread over several
+    regions is named once where it is, a place elsewhere again)."""
+    span = np.ptp(means[used, :2], axis=0).max() if used.size > 1 else 1.0
+    placed: list[tuple[str, np.ndarray]] = []
+    for m in sorted(used.tolist(), key=lambda k: -counts[k]):
+        c = int(owner[m])
+        words = labels[c].partition(": ")[2]
+        centre = means[m, :2]
+        if not words or any(w == words and np.hypot(*(p - centre)) < span / 6 for w, p in placed):
+            continue
+        placed.append((words, centre))
+        ax.text(centre[0], centre[1], words.replace(", ", "\n"), fontsize=8, ha="center", va="bottom",
+                color="0.1", zorder=4.6, clip_on=True,
+                bbox={"boxstyle": "round,pad=0.2", "fc": "white", "ec": colours[c], "alpha": 0.8})
 
 
 #: Offsets (points) tried for a callout, nearest first; 8 directions at each distance.
@@ -325,6 +399,7 @@ def _place_callouts(fig: Figure, ax: Axes, callouts: Sequence[tuple[float, float
         obstacles.append(best[2])
 
 
+@_with_cjk_fonts
 def plot_accuracy_curve(
     settings: Sequence[float],
     means: Sequence[float] | Mapping[str, Sequence[float]],
@@ -375,6 +450,7 @@ def plot_accuracy_curve(
     return fig
 
 
+@_with_cjk_fonts
 def plot_log_joint(
     trace: Sequence[float] | np.ndarray | Mapping[str, Sequence[float]],
     path: PathLike | None = None,

@@ -62,18 +62,29 @@ __all__ = ["import_bag"]
     help="With --visual-topic: real-valued features become counts floor(max(f, 0) × scale).",
 )
 @click.option(
+    "--at",
+    "at",
+    default="auto",
+    show_default=True,
+    type=click.Choice(["auto", "travel", "images", "utterances"]),
+    help="Where untaught samples are made besides the utterances: along the way (travel: every "
+    "--every-metres / --every-seconds), at each camera image (images: a throttled camera, a robot that "
+    "stops to look), or nowhere (utterances). auto: along the way when most of those samples find a "
+    "camera image within --tolerance, else at each image.",
+)
+@click.option(
     "--every-seconds",
     default=0.0,
     show_default=True,
     type=float,
-    help="Also make an untaught sample every N seconds along the way (0: off).",
+    help="With --at travel: an untaught sample every N seconds along the way (0: off).",
 )
 @click.option(
     "--every-metres",
     default=0.5,
     show_default=True,
     type=float,
-    help="Also make an untaught sample every M metres of travel (0: off).",
+    help="With --at travel: an untaught sample every M metres of travel (0: off).",
 )
 @click.option(
     "--tolerance",
@@ -97,6 +108,9 @@ __all__ = ["import_bag"]
     help="How raw sensor_msgs/Image views are written (compressed ones are copied as they are).",
 )
 @click.option("--name", default=None, help="The home's name (default: the folder's name).")
+@click.option("--keep-without-image", is_flag=True,
+              help="Keep an utterance with no image (or features) within --tolerance as a sample without "
+                   "a view, learnt from its pose and words (default: skip it).")
 @click.option("--force", is_flag=True, help="Replace the home folder --out if it holds one.")
 @friendly_errors
 def import_bag(
@@ -111,10 +125,12 @@ def import_bag(
     visual_scale: float | None,
     every_seconds: float,
     every_metres: float,
+    at: str,
     tolerance: float,
     clock: str,
     image_format: str,
     name: str | None,
+    keep_without_image: bool,
     force: bool,
 ) -> None:
     """Make a home folder from ROS bags (ROS 1 .bag files, or one ROS 2 bag folder / .db3 / .mcap each).
@@ -123,10 +139,13 @@ def import_bag(
     spco import-bag tour.bag --out my_home --pose-topic /global_pose \\
         --image-topic /hsrb/head_rgbd_sensor/rgb/image_rect_color/compressed --speech-topic /speech
 
-    A sample at every utterance (taught) and every --every-metres / --every-seconds along the way;
-    pose, view and speech each nearest in time within --tolerance. Samples missing one are skipped
-    and counted. Bags whose clocks overlap on the same topics are separate tours, read one after
-    the other. The folder is written whole or not at all.
+    A sample at every utterance (taught) and, untaught, every --every-metres / --every-seconds along
+    the way or at each camera image (--at; by default chosen from the data: at each image for a
+    camera throttled to a frame every few seconds); pose, view and speech each nearest in time within
+    --tolerance. Samples missing one are skipped and counted (the summary lists the utterances
+    lost; import.json every skip). Bags whose clocks overlap on the same topics are separate tours,
+    read one after the other. The folder, and any missing folder above it, is written whole or not
+    at all.
     """
     from spco.data.rosbag import BagImportSettings, import_bags
 
@@ -140,10 +159,12 @@ def import_bag(
         visual_scale=visual_scale,
         every_seconds=every_seconds,
         every_metres=every_metres,
+        at=at,
         tolerance=tolerance,
         clock=clock,
         image_format=image_format,
         name=name,
+        keep_without_image=keep_without_image,
     )
     summary = import_bags(bags, out, settings, overwrite=force, progress=sys.stderr.isatty())
     click.echo(summary.format())

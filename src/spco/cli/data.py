@@ -116,6 +116,8 @@ def _inspect_model_file(path: Path, as_json: bool) -> None:
         extractor = "none recorded (count vectors given as they are)"
     click.echo(f"views: {info['visual_dimension']} features per view; extractor: {extractor}")
     click.echo(f"vocabulary ({len(info['vocabulary'])} words): {', '.join(info['vocabulary'])}")
+    if info.get("text"):
+        click.echo(f"text written without spaces: {info['text']}")
     click.echo(f"place names (kept by pruning, {len(info['kept_names'])}): {', '.join(info['kept_names'])}")
     click.echo(f"experienced homes ({len(info['homes'])}): {', '.join(info['homes'])}")
     view = info["view_fit"]

@@ -69,6 +69,14 @@ def _common(func: Callable[..., Any]) -> Callable[..., Any]:
                           "compute the views from them instead of using the homes' visual counts."),
         click.option("--extractor", default=None,
                      help="Image extractor for --images (default: colour-hog; see `spco features --help`)."),
+        click.option("--views-missing", default=0.0, show_default=True, type=click.FloatRange(0, 100),
+                     help="Percentage of the new home's views removed at random in each run (a camera "
+                          "that drops frames; 100: no camera)."),
+        click.option("--text-language", default="auto", show_default=True,
+                     type=click.Choice(["auto", "ja", "zh", "spaced"]),
+                     help="Japanese or Chinese written without spaces: segment it into words (ja: "
+                          "pip install 'spco[ja]', zh: 'spco[zh]'), decide from the text (auto), or "
+                          "never (spaced: the words are separated by spaces)."),
     ]
     for option in reversed(options):
         func = option(func)
@@ -124,8 +132,8 @@ def _run(config_kwargs: dict[str, Any], out: Path, resume: bool, force: bool, qu
 @_friendly
 def general(data: str, language: str, regions: Path | None, maps: Path | None, trials: int, models: str,
             iterations: int, seed: int, jobs: int, engine: str, address: str | None, out: Path, resume: bool,
-            force: bool, quiet: bool, images: Path | None, extractor: str | None, envs: str,
-            experienced_homes: str | None, new_homes: str | None) -> None:
+            force: bool, quiet: bool, images: Path | None, extractor: str | None, views_missing: float,
+            text_language: str, envs: str, experienced_homes: str | None, new_homes: str | None) -> None:
     """General places: accuracy in new homes, taught nothing, vs. number of experienced homes."""
     from spco.evaluation.experiments import parse_int_list
 
@@ -133,8 +141,8 @@ def general(data: str, language: str, regions: Path | None, maps: Path | None, t
           "regions": regions, "maps": maps, "trials": trials, "models": models, "iterations": iterations,
           "seed": seed, "jobs": jobs, "engine": engine, "address": address,
           "experienced_homes": _split(experienced_homes),
-          "new_homes": _split(new_homes), "language": language, "images": images, "extractor": extractor},
-         out, resume, force, quiet)
+          "new_homes": _split(new_homes), "language": language, "images": images, "extractor": extractor,
+          "text_language": text_language, "views_missing": views_missing}, out, resume, force, quiet)
 
 
 @experiment.command()
@@ -145,20 +153,96 @@ def general(data: str, language: str, regions: Path | None, maps: Path | None, t
               help="Comma-separated experienced homes (default: the paper's 16).")
 @click.option("--new-home", default=None,
               help="The new home with home-specific rooms (default: 3LDK_9, or the synthetic one).")
+@click.option("--config", "config_file", type=click.Path(path_type=Path), default=None,
+              help="A configuration file of named rooms in other homes (format heldout-specific/1, e.g. "
+                   "benchmarks/heldout/specific_heldout.json): teach each room's name by the file's "
+                   "templates and draw, score A_n per room on the file's test ids, A_p both ways, with "
+                   "bootstrap intervals. Seeds, rates and homes come from the file.")
+@click.option("--configuration", "configurations", default=None,
+              help="With --config: comma-separated configuration ids to run (default: all).")
+@click.option("--seeds", default=None,
+              help="With --config: comma-separated seeds of the file to run (default: the file's, or its "
+                   "first --trials).")
+@click.option("--positions", default=None, type=click.IntRange(1),
+              help="With --config: positions drawn per room and A_p mode (default 20).")
 @_friendly
 def specific(data: str, language: str, regions: Path | None, maps: Path | None, trials: int, models: str,
              iterations: int, seed: int, jobs: int, engine: str, address: str | None, out: Path, resume: bool,
-             force: bool, quiet: bool, images: Path | None, extractor: str | None, rates: str,
-             experienced_homes: str | None, new_home: str | None) -> None:
+             force: bool, quiet: bool, images: Path | None, extractor: str | None, views_missing: float,
+             text_language: str, rates: str, experienced_homes: str | None, new_home: str | None,
+             config_file: Path | None, configurations: str | None, seeds: str | None,
+             positions: int | None) -> None:
     """Home-specific places: accuracy on the new home's own room names vs. their teaching rate."""
     from spco.evaluation.experiments import parse_int_list
 
+    ctx = click.get_current_context()
+
+    def given(name: str) -> bool:
+        return ctx.get_parameter_source(name) not in (click.core.ParameterSource.DEFAULT, None)
+
+    if config_file is not None:
+        _run_config(config_file, data, out, configurations, seeds, rates if given("rates") else None,
+                    trials if given("trials") else None, models if given("models") else None, iterations,
+                    positions, jobs, resume, force, quiet,
+                    [f"--{n.replace('_', '-')}" for n in ("language", "regions", "maps", "seed",
+                                                          "experienced_homes", "new_home", "images",
+                                                          "extractor", "address") if given(n)]
+                    + (["--engine ray"] if engine != "local" else []))
+        return
+    unused = [f"--{n}" for n in ("configuration", "seeds", "positions") if given(n)]
+    if unused:
+        raise click.UsageError(f"{', '.join(unused)} only apply with --config")
     _run({"experiment": "specific", "settings": parse_int_list(rates, "--rates", 0, 100), "data": data,
           "regions": regions, "maps": maps, "trials": trials, "models": models, "iterations": iterations,
           "seed": seed, "jobs": jobs, "engine": engine, "address": address,
           "experienced_homes": _split(experienced_homes),
           "specific_home": new_home.strip() if new_home else None, "language": language, "images": images,
-          "extractor": extractor}, out, resume, force, quiet)
+          "extractor": extractor, "text_language": text_language, "views_missing": views_missing},
+         out, resume, force, quiet)
+
+
+def _run_config(config_file: Path, data: str, out: Path, configurations: str | None, seeds: str | None,
+                rates: str | None, trials: int | None, models: str | None, iterations: int,
+                positions: int | None, jobs: int, resume: bool, force: bool, quiet: bool,
+                unused: list[str]) -> None:
+    """``specific --config``: the home-specific experiment of a configuration file."""
+    from spco.evaluation.experiments import parse_int_list
+    from spco.evaluation.specific_config import DEFAULT_POSITIONS, load_specific_config, run_specific_config
+
+    if unused:
+        raise click.UsageError(f"{', '.join(unused)} cannot be used with --config (the configuration "
+                               "file gives the homes, teaching, seeds and regions)")
+    if data == "synthetic":
+        raise click.UsageError("--config needs --data: the data set holding the file's homes "
+                               "(e.g. the SIGVerse folder)")
+    file = load_specific_config(config_file)
+    chosen = _split(configurations)
+    if seeds is not None:
+        picked: tuple[int, ...] | None = tuple(parse_int_list(seeds, "--seeds", 0))
+    elif trials is not None:
+        picked = file.seeds[:trials]
+    else:
+        picked = None
+    chosen_rates = parse_int_list(rates, "--rates", 1, 100) if rates is not None else None
+    names = ("spcotransfer+mi", "spcoa") if models is None else tuple(p.strip() for p in models.split(","))
+    if names == ("all",):
+        names = _MODEL_NAMES
+
+    def progress(record: dict, done: int, total: int) -> None:
+        if not quiet:
+            rooms = ", ".join(f"{k} {v['name_accuracy']:.2f}" for k, v in record["rooms"].items())
+            click.echo(f"[{done}/{total}] {record['configuration']} {record['rate']} % seed {record['seed']} "
+                       f"{record['model']}: {rooms} ({record['wall_seconds']:.0f} s)", err=True)
+
+    start = time.perf_counter()
+    results = run_specific_config(file, data, out, configurations=chosen, rates=chosen_rates, seeds=picked,
+                                  models=names, iterations=iterations,
+                                  n_positions=positions or DEFAULT_POSITIONS, jobs=jobs, resume=resume,
+                                  force=force, progress=progress)
+    if not quiet:
+        click.echo((out / "tables.md").read_text(encoding="utf-8"))
+    click.echo(f"{len(results['runs'])} runs in {time.perf_counter() - start:.1f} s; wrote "
+               f"{out / 'results.json'} and {out / 'tables.md'}")
 
 
 @experiment.command(name="models")

@@ -98,10 +98,32 @@ def _image_options(func: Any) -> Any:
                              "used as the views in place of the homes' visual counts.")(func)
 
 
+#: Colour orders of a pixel array given with --image (spco.features.pixels).
+_ENCODINGS = ("rgb8", "bgr8", "mono8", "rgba8", "bgra8")
+
+
+def _pixels(image: Path, encoding: str | None) -> Any:
+    """--image as the extractor takes it: a .npy array of pixels (with --encoding), or the file's path."""
+    import numpy as np
+
+    from spco.errors import ConfigurationError, DataFormatError
+
+    if image.suffix.lower() != ".npy":
+        if encoding is not None:
+            raise ConfigurationError(f"--encoding is the colour order of a .npy array of pixels; {image} "
+                                     "carries its own")
+        return image
+    try:
+        return np.load(image, allow_pickle=False)
+    except (OSError, ValueError) as exc:
+        raise DataFormatError(image, f"not a readable .npy array of pixels ({exc})") from None
+
+
 def _view_counts(home: Any, knowledge_file: Path, visual: Path | None, image: Path | None,
-                 visual_scale: float | None, model: Path | None) -> Any:
-    """The view's counts for what/teach: --visual features, or --image through the knowledge's
-    extractor; each refused for knowledge fitted on the other kind of view."""
+                 visual_scale: float | None, model: Path | None, encoding: str | None = None) -> Any:
+    """The view's counts for what/teach: --visual features, or --image (a file, or a .npy array of
+    pixels in --encoding) through the knowledge's extractor; each refused for knowledge fitted on the
+    other kind of view."""
     from spco.errors import ConfigurationError
     from spco.knowledge import read_visual_vector
 
@@ -113,7 +135,7 @@ def _view_counts(home: Any, knowledge_file: Path, visual: Path | None, image: Pa
             raise ConfigurationError(f"{knowledge_file}: its knowledge was fitted on visual count vectors, "
                                      "not on images: give the view's features with --visual (or fit the "
                                      "knowledge on homes with images)")
-        return knowledge.image_extractor(model_path=model).extract(image)
+        return knowledge.image_extractor(model_path=model).extract(_pixels(image, encoding), encoding)
     if visual is not None:
         if knowledge.fitted_on_images:
             from spco.features import ExtractorSpec
@@ -163,11 +185,16 @@ def _seconds(value: float) -> str:
 @click.option("--extractor", default=None,
               help="Image extractor when the views are images (default: colour-hog; bovw-orb, bovw-sift "
                    "learn their codebook here, from the homes' training images; onnx needs --onnx-model).")
+@click.option("--text-language", default="auto", show_default=True,
+              type=click.Choice(["auto", "ja", "zh", "spaced"]),
+              help="Japanese or Chinese written without spaces: segment it into words (ja: pip install "
+                   "'spco[ja]', zh: 'spco[zh]'), decide from the text (auto), or never (spaced: the words "
+                   "are separated by spaces). Recorded in the knowledge file for adapt, teach, what, where.")
 @_friendly
 def fit(data: Path, homes: str | None, teaching_rate: int, model: str, iterations: int, seed: int,
         out: Path, force: bool, engine: str, shards: int | None, address: str | None, checkpoint_every: int,
         checkpoint_dir: Path | None, images: Path | None, model_file: Path | None,
-        extractor: str | None) -> None:
+        extractor: str | None, text_language: str) -> None:
     """Learn knowledge from experienced homes and write a knowledge file.
 
     The knowledge is the shared, home-independent part of the transfer model — the concepts'
@@ -204,7 +231,8 @@ def fit(data: Path, homes: str | None, teaching_rate: int, model: str, iteration
         # the shards read their own homes: the driver reads one home at a time for the vocabulary
         from spco.model.sources import FolderHomes
 
-        training: Corpus | FolderHomes = FolderHomes.create(data, names, teaching_rate, progress=_progress())
+        training: Corpus | FolderHomes = FolderHomes.create(data, names, teaching_rate, progress=_progress(),
+                                                            language=text_language)
         summary = (f"{training.n_homes} homes ({training.n_samples} training samples, {training.n_taught} "
                    f"taught, {training.n_words} words; each shard reads its own homes)")
     else:
@@ -216,7 +244,7 @@ def fit(data: Path, homes: str | None, teaching_rate: int, model: str, iteration
             seconds = time.perf_counter() - start_views
             click.echo(f"Views from {n_views} images with {image_extractor.spec().describe()}: "
                        f"{n_views / max(seconds, 1e-9):.0f} images/s (reading the homes included)", err=True)
-        training = Corpus(envs)
+        training = Corpus(envs, language=text_language)
         summary = (f"{len(envs)} homes ({sum(e.n_train for e in envs)} training samples, "
                    f"{sum(e.n_taught for e in envs)} taught, {len(training.vocabulary)} words)")
     click.echo(f"Learning from {summary} with {model}, {iterations} sweeps...", err=True)
@@ -383,14 +411,18 @@ def _where_drawn_from(regions: Sequence[int], name: str) -> str:
 @click.option("--visual-scale", type=float, default=None,
               help="Turn real-valued CNN features into counts: floor(max(f, 0) × scale) (the authors: 5).")
 @click.option("--image", type=click.Path(path_type=Path), default=None,
-              help="The current view as a camera image (PNG/JPEG), for knowledge fitted on images.")
+              help="The current view as a camera image (PNG/JPEG, or a .npy array of pixels: see "
+                   "--encoding), for knowledge fitted on images.")
+@click.option("--encoding", type=click.Choice(_ENCODINGS), default=None,
+              help="The colour order of an --image .npy array: rgb8 (PIL, matplotlib, cv_bridge rgb8), "
+                   "bgr8 (OpenCV; the default), mono8, rgba8, bgra8.")
 @click.option("--onnx-model", "model_file", type=click.Path(path_type=Path), default=None,
               help="Where the knowledge's .onnx model file is now (onnx extractor), if it moved.")
 @click.option("--top", default=3, show_default=True, type=click.IntRange(1, 100), help="Names to list.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON object.")
 @_friendly
 def what(home_file: Path, x: float, y: float, theta: float, visual: Path | None, visual_scale: float | None,
-         image: Path | None, model_file: Path | None, top: int, as_json: bool) -> None:
+         image: Path | None, encoding: str | None, model_file: Path | None, top: int, as_json: bool) -> None:
     """The most probable place names at a pose of the home of HOME, with their probabilities.
 
     With --visual (or --image) the view is used too; without, the position alone. Names are ranked
@@ -405,7 +437,7 @@ def what(home_file: Path, x: float, y: float, theta: float, visual: Path | None,
 
     home = _load_home(home_file)
     _warn_if_knowledge_does_not_fit(home)
-    counts = _view_counts(home, home_file, visual, image, visual_scale, model_file)
+    counts = _view_counts(home, home_file, visual, image, visual_scale, model_file, encoding)
     answer = what_answer(home, x, y, theta, counts, top)
     names = answer["names"]
     if "warning" in answer:
@@ -465,7 +497,11 @@ def _warn_if_knowledge_does_not_fit(home: Any) -> None:
 @click.option("--visual-scale", type=float, default=None,
               help="Turn real-valued CNN features into counts: floor(max(f, 0) × scale).")
 @click.option("--image", type=click.Path(path_type=Path), default=None,
-              help="New observation: the view as a camera image (PNG/JPEG), for knowledge fitted on images.")
+              help="New observation: the view as a camera image (PNG/JPEG, or a .npy array of pixels: see "
+                   "--encoding), for knowledge fitted on images.")
+@click.option("--encoding", type=click.Choice(_ENCODINGS), default=None,
+              help="The colour order of an --image .npy array: rgb8, bgr8 (the default), mono8, rgba8, "
+                   "bgra8.")
 @click.option("--onnx-model", "model_file", type=click.Path(path_type=Path), default=None,
               help="Where the knowledge's .onnx model file is now (onnx extractor), if it moved.")
 @click.option("--sweeps", default=10, show_default=True, type=click.IntRange(0, 10000),
@@ -477,13 +513,15 @@ def _warn_if_knowledge_does_not_fit(home: Any) -> None:
 @_friendly
 def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: float | None, y: float | None,
           theta: float | None, visual: Path | None, visual_scale: float | None, image: Path | None,
-          model_file: Path | None, sweeps: int, seed: int, out: Path | None, force: bool) -> None:
+          encoding: str | None, model_file: Path | None, sweeps: int, seed: int, out: Path | None,
+          force: bool) -> None:
     """Teach the robot in the home of HOME: a sentence for a sample, or a new observation.
 
     \b
     spco teach home.spco --id 12 --sentence "this is Emma's room"
     spco teach home.spco --x 1.2 --y -0.4 --theta 1.57 --visual view.csv --sentence "the study is here"
     spco teach home.spco --x 1.2 --y -0.4 --theta 1.57 --image view.jpg --sentence "the study is here"
+    spco teach home.spco --x 1.2 --y -0.4 --theta 1.57 --sentence "the study is here"   (no view)
 
     An incremental update (a few sweeps from the current state; everything learnt so far is
     kept); new words grow the vocabulary. HOME is updated in place (atomically) unless --out is given.
@@ -501,8 +539,9 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
         if ids:
             raise ConfigurationError("give either --id with --sentence (a known sample) or --x/--y/--theta/"
                                      "--visual or --image (a new observation), not both")
-        if any(v is None for v in pose) or (visual is None and image is None):
-            raise ConfigurationError("a new observation needs --x, --y, --theta and --visual (or --image)")
+        if any(v is None for v in pose):
+            raise ConfigurationError("a new observation needs --x, --y and --theta (and its view as --visual "
+                                     "or --image, if the camera saw it)")
         if len(sentences) > 1:
             raise ConfigurationError("a new observation takes at most one --sentence")
     elif not ids:
@@ -519,7 +558,7 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
     with locked(target):
         home = _load_home(home_file)  # with the teachings of a journal its server left (spco serve)
         if new_observation:
-            counts = _view_counts(home, home_file, visual, image, visual_scale, model_file)
+            counts = _view_counts(home, home_file, visual, image, visual_scale, model_file, encoding)
             obs = Observation(x=x, y=y, theta=theta, visual=counts,  # type: ignore[arg-type]
                               sentence=sentences[0] if sentences else None)
             updated = teach_home(home, observations=[obs], n_sweeps=sweeps, random_state=seed)
@@ -530,6 +569,7 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
     last = updated.provenance["last_teach"]
     if new_observation:
         click.echo(f"Added sample {int(updated.ids[-1])} at ({x:g}, {y:g}, θ={theta:g})"
+                   + ("" if visual is not None or image is not None else " without a view")
                    + (f": {sentences[0]!r}" if sentences and sentences[0].strip() else ""))
     else:
         for i, s in zip(ids, sentences, strict=True):
@@ -538,10 +578,9 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
         click.echo(f"New words: {', '.join(last['new_words'])}")
     click.echo(f"Updated home {updated.name} in {_seconds(last['seconds'])} ({sweeps} sweeps): "
                f"{updated.n_samples} samples, {updated.n_taught} taught; wrote {target}.")
-    from spco.data.language import tokenize
     from spco.knowledge import unused_word_hint
 
-    for word in dict.fromkeys(w for s in sentences for w in tokenize(s)):
+    for word in dict.fromkeys(w for s in sentences for w in updated.vocabulary.tokenize(s)):
         index = updated.vocabulary.index(word)
         hint = unused_word_hint(updated, word)
         if hint is not None and index is not None and index >= updated.n_knowledge_words:  # a home's own word
@@ -553,30 +592,46 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
 @click.argument("home_file", metavar="HOME", type=click.Path(path_type=Path))
 @click.option("--out", "-o", required=True, type=click.Path(path_type=Path), help="The PNG to write.")
 @click.option("--map", "map_image", type=click.Path(path_type=Path), default=None,
-              help="Floor-plan image drawn under the concepts.")
+              help="Floor plan drawn under the concepts: a ROS map (map.yaml: its image, origin and "
+                   "resolution give the extent) or an image (PNG, JPEG, PGM; grey drawn in grey).")
 @click.option("--extent", default=None,
-              help="x_min,x_max,y_min,y_max in metres covered by --map (default: the home's map extent).")
+              help="x_min,x_max,y_min,y_max in metres covered by a --map image (default: the home's map "
+                   "extent; a map.yaml gives its own).")
 @click.option("--name", "names", multiple=True, help="Also draw positions for this place name (repeatable).")
 @click.option("--regions", "regions_file", type=click.Path(path_type=Path), default=None,
               help="Room outlines to draw: a plain home's regions.json, or a file of every home's "
                    "(sigverse_regions.json). Default: the regions.json of the home folder adapted from.")
+@click.option("--regions-home", default=None, metavar="KEY",
+              help="The home of --regions to draw, when its key differs from the home's name.")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(0), help="Random seed.")
 @click.option("--force", is_flag=True, help="Replace --out if it exists.")
 @_friendly
 def show(home_file: Path, out: Path, map_image: Path | None, extent: str | None, names: Sequence[str],
-         regions_file: Path | None, seed: int, force: bool) -> None:
+         regions_file: Path | None, regions_home: str | None, seed: int, force: bool) -> None:
     """Draw the home's concepts on its floor plan: regions (95 % ellipses coloured by concept)
-    labelled with the names that describe them, the room outlines when the home has regions, the
-    home's samples, and positions for the names given."""
+    labelled on the map with the names that describe them, the room outlines when the home has
+    regions, the home's samples, and positions for the names given. --map takes a ROS map.yaml
+    (its image placed by its origin and resolution)."""
     import numpy as np
 
     from spco import plots
+    from spco.data.rosmap import MAP_YAML_SUFFIXES, read_ros_map
     from spco.errors import ConfigurationError
     from spco.knowledge import where as where_name
 
     _check_out(out, force)
     if map_image is not None and not Path(map_image).is_file():
         raise ConfigurationError(f"{map_image}: no such map image (--map)")
+    bounds = _extent(extent)
+    floor_plan: Any = map_image
+    if map_image is not None and Path(map_image).suffix.lower() in MAP_YAML_SUFFIXES:
+        if bounds is not None:
+            raise ConfigurationError("--extent is given by the map.yaml of --map (origin and resolution); "
+                                     "leave --extent out")
+        ros_map = read_ros_map(map_image)
+        floor_plan, bounds = ros_map.image, ros_map.extent
+    elif map_image is not None and Path(map_image).suffix.lower() == ".pgm":
+        floor_plan = _grey_image(Path(map_image))
     home = _load_home(home_file)
     rng = np.random.default_rng(seed)
     predicted = {}
@@ -593,12 +648,13 @@ def show(home_file: Path, out: Path, map_image: Path | None, extent: str | None,
             click.echo(f"warning: no positions drawn for {name!r}: {exc}", err=True)
             continue
         predicted[pred.name] = pred.samples
-    bounds = _extent(extent)
     if bounds is None and map_image is not None and home.extent is None:
         raise ConfigurationError("the home has no map extent: give --extent x_min,x_max,y_min,y_max "
                                  "for --map")
     environment = home.environment()
-    rooms = _room_outlines(home, regions_file)
+    if regions_home is not None and regions_file is None:
+        raise ConfigurationError("--regions-home chooses a home of --regions: give --regions too")
+    rooms = _room_outlines(home, regions_file, regions_home)
     if rooms is not None:
         from dataclasses import replace
 
@@ -607,7 +663,7 @@ def show(home_file: Path, out: Path, map_image: Path | None, extent: str | None,
         environment = replace(environment, ground_truth=make_ground_truth(regions=rooms))
     try:
         fig = plots.plot_home_map(home.parameters, 0, environment, home.vocabulary,
-                                  map_image=map_image, map_extent=bounds,
+                                  map_image=floor_plan, map_extent=bounds, label_regions=True,
                                   predicted_positions=predicted or None, show_ground_truth=rooms is not None,
                                   title=f"{home.name}: {home.n_samples} samples, {home.n_taught} taught")
     except (OSError, ValueError, SyntaxError) as exc:  # an unreadable image
@@ -618,9 +674,24 @@ def show(home_file: Path, out: Path, map_image: Path | None, extent: str | None,
     click.echo(f"Wrote {out}")
 
 
-def _room_outlines(home: Any, regions_file: Path | None) -> Any:
-    """The home's room rectangles (:class:`~spco.data.regions.PlaceRegions`) from ``--regions``, or
-    from the regions.json of the home folder it was adapted from; ``None`` if there are none."""
+def _grey_image(path: Path) -> Any:
+    """A PGM (or other grey) image as a (H, W) uint8 array (matplotlib reads only PNG itself)."""
+    import cv2
+    import numpy as np
+
+    from spco.errors import ConfigurationError
+
+    raw = np.fromfile(path, dtype=np.uint8)
+    image = cv2.imdecode(raw, cv2.IMREAD_GRAYSCALE) if raw.size else None
+    if image is None:
+        raise ConfigurationError(f"{path}: not a readable map image (--map)")
+    return image
+
+
+def _room_outlines(home: Any, regions_file: Path | None, key: str | None = None) -> Any:
+    """The home's room rectangles (:class:`~spco.data.regions.PlaceRegions`) from ``--regions`` (the
+    entry ``key``, default the home's name, of a file of every home's), or from the regions.json of the
+    home folder it was adapted from; ``None`` if there are none."""
     from spco.data.plain import REGIONS_JSON, _read_regions
     from spco.data.regions import load_region_file
     from spco.errors import ConfigurationError
@@ -633,10 +704,12 @@ def _room_outlines(home: Any, regions_file: Path | None) -> Any:
         raise ConfigurationError(f"{regions_file}: no such region file (--regions)")
     if '"homes"' in Path(regions_file).read_text(encoding="utf-8", errors="replace")[:4096]:
         every = load_region_file(regions_file)
-        if home.name not in every:
-            raise ConfigurationError(f"{regions_file}: no regions for home {home.name!r} (it has "
-                                     f"{', '.join(sorted(every)[:8])}{', …' if len(every) > 8 else ''})")
-        return every[home.name]
+        wanted = key or home.name
+        if wanted not in every:
+            raise ConfigurationError(f"{regions_file}: no regions for home {wanted!r} (it has "
+                                     f"{', '.join(sorted(every)[:8])}{', …' if len(every) > 8 else ''}); "
+                                     "choose one with --regions-home")
+        return every[wanted]
     return _read_regions(Path(regions_file))
 
 

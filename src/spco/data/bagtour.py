@@ -245,12 +245,14 @@ def room_at(x: float) -> int:
     return min(max(int(x // 4.0), 0), len(ROOMS) - 1)
 
 
-def view(x: float, y: float, yaw: float, size: tuple[int, int], rng: np.random.Generator) -> np.ndarray:
-    """A camera image (H, W, 3 BGR uint8) of the room at (x, y): the room's colour, shapes, some noise."""
+def view(x: float, y: float, yaw: float, size: tuple[int, int], rng: np.random.Generator,
+         colours: Sequence[tuple[int, int, int]] | None = None) -> np.ndarray:
+    """A camera image (H, W, 3 BGR uint8) of the room at (x, y): the room's colour, shapes, some noise.
+    ``colours``: the rooms' colours (BGR) instead of those of :data:`ROOMS`."""
     import cv2
 
     width, height = size
-    colour = np.array(ROOMS[room_at(x)][2], dtype=np.float64)
+    colour = np.array((colours or [room[2] for room in ROOMS])[room_at(x)], dtype=np.float64)
     image = np.empty((height, width, 3), dtype=np.uint8)
     image[:] = (colour * 0.6).astype(np.uint8)
     shift = int((yaw % (2 * math.pi)) / (2 * math.pi) * width)

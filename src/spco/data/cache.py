@@ -9,7 +9,8 @@ The file is a compressed ``.npz`` (a zip of ``.npy`` arrays, read with ``allow_p
     (SIGVerse homes: the sentences of every stored teaching rate) or ``{"mode": "subsample",
     "sentences": [...]}`` (plain homes: a lower rate keeps a seeded random subset) — and its
     evaluation-only ground truth (``labels``, ``specific_labels``, ``specific_test`` as row indices,
-    ``regions``).
+    ``regions``) and, when some samples have no view, ``view_missing`` (their row indices; their
+    counts are zero; ``n_features`` is 0 for a home without any view).
 ``ids``, ``positions``, ``is_test``
     The samples of all homes, concatenated in home order: int64 (N,), float64 (N, 4), bool (N,).
 ``sample_offsets``
@@ -93,6 +94,8 @@ def _home_header(rec: HomeRecord, teaching_rate: int | None) -> dict[str, Any]:
         "specific_test": (None if gt is None or gt.specific_test is None
                           else np.flatnonzero(gt.specific_test).tolist()),
         "regions": None if gt is None or gt.regions is None else gt.regions.to_json(),
+        # rows of the samples without a view (absent: every sample has one)
+        **({"view_missing": np.flatnonzero(env.view_missing).tolist()} if env.view_missing.any() else {}),
     }
 
 
@@ -274,7 +277,12 @@ def _record(src: Path, meta: dict[str, Any], a: dict[str, np.ndarray], indptr: n
             indices: np.ndarray, data: np.ndarray, lo: int, hi: int) -> HomeRecord:
     name = meta["name"]
     n, dim = int(meta["n_samples"]), int(meta["n_features"])
-    _check(src, isinstance(name, str) and n == hi - lo and dim > 0, f"home {name!r}: wrong sample count")
+    _check(src, isinstance(name, str) and n == hi - lo and dim >= 0, f"home {name!r}: wrong sample count")
+    view_missing = np.zeros(n, dtype=bool)
+    if meta.get("view_missing") is not None:
+        rows = np.asarray(meta["view_missing"], dtype=np.int64)
+        _check(src, rows.ndim == 1 and ((rows >= 0) & (rows < n)).all(), f"home {name!r}: bad view_missing")
+        view_missing[rows] = True
     p0, p1 = int(indptr[lo]), int(indptr[hi])
     cols = indices[p0:p1]
     _check(src, cols.size == 0 or int(cols.max()) < dim, f"home {name!r}: visual column out of range")
@@ -334,6 +342,7 @@ def _record(src: Path, meta: dict[str, Any], a: dict[str, np.ndarray], indptr: n
             extent=None if extent is None else tuple(extent),
             ground_truth=ground_truth,
             source=where,
+            view_missing=view_missing,
         )
     except DataFormatError as exc:
         raise _damaged(src, f"home {name!r}: {exc.problem}") from None

@@ -77,9 +77,10 @@ class TrainingData:
     ids: (n,) sample ids of the training samples.
     positions: (n, 4) float64 poses ``(x, y, sin θ, cos θ)`` in metres.
     visual: (n, D) sparse int64 visual counts (the home's own array when it has no test samples:
-        read it, do not modify it).
+        read it, do not modify it); the row of a sample without a view is all zero.
     sentences: length-n taught sentences (``None`` where nothing was taught).
     extent: map extent ``(x_min, x_max, y_min, y_max)`` or ``None``.
+    view_missing: (n,) bool, True for a sample without a view (its visual likelihood is left out).
     """
 
     name: str
@@ -88,6 +89,11 @@ class TrainingData:
     visual: sp.csr_array
     sentences: tuple[str | None, ...]
     extent: Extent | None
+    view_missing: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.view_missing is None:
+            object.__setattr__(self, "view_missing", np.zeros(self.positions.shape[0], dtype=bool))
 
     @property
     def n_samples(self) -> int:
@@ -114,7 +120,8 @@ class Environment:
     ids: (N,) int64 sample ids, unique.
     positions: (N, 4) float64 poses ``(x, y, sin θ, cos θ)``, metres.
     visual: (N, D) ``scipy.sparse.csr_array`` of non-negative int64 counts (int32 index arrays
-        whenever they fit).
+        whenever they fit). ``D`` may be 0 when no sample has a view (a home recorded without a
+        camera); a :class:`Corpus` widens such a home to the other homes' ``D``.
     sentences: length-N taught sentence of each sample, or ``None``.
     is_test: (N,) bool, True for test samples (never learnt from).
     extent: ``(x_min, x_max, y_min, y_max)`` of the map in metres, or ``None``.
@@ -131,6 +138,7 @@ class Environment:
     extent: Extent | None = None
     ground_truth: GroundTruth | None = field(default=None, repr=False)
     source: str | None = None
+    view_missing: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         where = self.source or f"home {self.name!r}"
@@ -166,8 +174,13 @@ class Environment:
         visual = sp.csr_array(visual)
         if visual.shape[0] != n:
             raise DataFormatError(where, f"visual counts have {visual.shape[0]} rows for {n} samples")
-        if visual.shape[1] == 0:
-            raise DataFormatError(where, "visual feature vectors are empty")
+        missing = np.zeros(n, dtype=bool) if self.view_missing is None \
+            else np.asarray(self.view_missing, dtype=bool)
+        if missing.shape != (n,):
+            raise DataFormatError(where, f"the missing-view mask must have shape ({n},), got {missing.shape}")
+        if visual.shape[1] == 0 and not missing.all():
+            raise DataFormatError(where, "visual feature vectors are empty (a home without views has every "
+                                  "view marked missing)")
         data = visual.data
         if data.size and not np.isfinite(data).all():
             raise DataFormatError(where, "visual counts contain NaN or inf")
@@ -178,6 +191,9 @@ class Environment:
                 raise DataFormatError(where, "visual counts must be whole numbers (scale real-valued "
                                       "CNN features with spco.data.features_to_counts)")
         visual = sp.csr_array(visual, dtype=np.int64)
+        if missing.any():  # a sample without a view has no counts: whatever the row held is left out
+            keep = sp.diags_array((~missing).astype(np.int64), dtype=np.int64)
+            visual = sp.csr_array(keep @ visual, dtype=np.int64)
         visual.eliminate_zeros()
         visual.sort_indices()
         # 32-bit index arrays (as SciPy itself chooses): the counts then take 12 bytes per non-zero,
@@ -206,6 +222,7 @@ class Environment:
         object.__setattr__(self, "visual", visual)
         object.__setattr__(self, "sentences", sentences)
         object.__setattr__(self, "is_test", is_test)
+        object.__setattr__(self, "view_missing", missing)
 
     # ------------------------------------------------------------------ sizes
     @property
@@ -217,6 +234,11 @@ class Environment:
     def n_features(self) -> int:
         """Visual dimension D."""
         return int(self.visual.shape[1])
+
+    @property
+    def n_views(self) -> int:
+        """Number of samples with a view."""
+        return int((~self.view_missing).sum())
 
     @property
     def n_train(self) -> int:
@@ -254,12 +276,32 @@ class Environment:
             visual=visual,
             sentences=tuple(s for s, t in zip(self.sentences, train, strict=True) if t),
             extent=self.extent,
+            view_missing=self.view_missing[train].copy(),
         )
 
     def test_observations(self) -> tuple[np.ndarray, sp.csr_array]:
         """Positions ``(n_test, 4)`` and visual counts ``(n_test, D)`` of the test samples."""
         rows = np.flatnonzero(self.is_test)
         return self.positions[rows].copy(), self.visual[rows]
+
+    def with_visual_dimension(self, n_features: int) -> Environment:
+        """This home with views of ``n_features`` features: a home without any view is given that
+        many columns (all zero, every view still missing: widened from ``D = 0``, or narrowed to
+        it); a home of that dimension is returned as it is; any other dimension is an error."""
+        if n_features == self.n_features:
+            return self
+        if self.view_missing.all():
+            return replace(self, visual=sp.csr_array((self.n_samples, int(n_features)), dtype=np.int64))
+        raise DataFormatError(self.source or self.name, f"views of {self.n_features} features, not "
+                              f"{n_features}")
+
+    def with_views_missing(self, missing: np.ndarray | Sequence[bool]) -> Environment:
+        """A copy in which the samples of ``missing`` (N,) bool lose their view as well (a camera
+        that dropped those frames)."""
+        mask = np.asarray(missing, dtype=bool)
+        if mask.shape != (self.n_samples,):
+            raise ConfigurationError(f"missing must have shape ({self.n_samples},), got {mask.shape}")
+        return replace(self, view_missing=self.view_missing | mask)
 
     def with_sentences(self, sentences: Sequence[str | None]) -> Environment:
         """A copy with other taught sentences (same samples, same split)."""
@@ -328,6 +370,9 @@ def make_ground_truth(
 class Corpus(Sequence[Environment]):
     """Environments that share one vocabulary and one visual dimension.
 
+    A home without any view (every sample's view missing) takes the other homes' dimension; when
+    no home has a view, the dimension is 0 (the homes are learnt from poses and words).
+
     Parameters
     ----------
     environments:
@@ -336,6 +381,14 @@ class Corpus(Sequence[Environment]):
         The word list. By default it is built from the *training* sentences of all homes.
     word_increment:
         Count added per word occurrence (S^w, default 5000).
+    language:
+        How a vocabulary built here treats text written without spaces (``"auto"``, ``"ja"``,
+        ``"zh"``, ``"spaced"``; :func:`spco.data.segmentation.resolve`). Kept for the vocabularies
+        of :meth:`subset` and :meth:`replace`.
+    n_features:
+        The visual dimension of every home (``None``: the homes' own; homes without any view take
+        it). Homes read in shards (:class:`~spco.model.sources.FolderHomes`) pass the dimension of
+        all homes, so that a shard of homes without views keeps it.
     """
 
     def __init__(
@@ -343,6 +396,8 @@ class Corpus(Sequence[Environment]):
         environments: Sequence[Environment],
         vocabulary: Vocabulary | None = None,
         word_increment: int = DEFAULT_WORD_INCREMENT,
+        language: str = "auto",
+        n_features: int | None = None,
     ) -> None:
         envs = list(environments)
         if not envs:
@@ -351,6 +406,11 @@ class Corpus(Sequence[Environment]):
         dup = {n for n in names if names.count(n) > 1}
         if dup:
             raise ConfigurationError(f"home names must be unique in a corpus; repeated: {sorted(dup)}")
+        # homes without any view take the others' dimension; without any view anywhere, D = 0
+        dims = ({e.n_features for e in envs if not e.view_missing.all()} or {0}) if n_features is None \
+            else {int(n_features)}
+        if len(dims) == 1:
+            envs = [e.with_visual_dimension(next(iter(dims))) if e.view_missing.all() else e for e in envs]
         dims = {e.n_features for e in envs}
         if len(dims) != 1:
             detail = ", ".join(f"{e.name}: {e.n_features}" for e in envs)
@@ -359,9 +419,10 @@ class Corpus(Sequence[Environment]):
             raise ConfigurationError(f"word_increment must be >= 1, got {word_increment}")
         self.environments: tuple[Environment, ...] = tuple(envs)
         self.word_increment = int(word_increment)
+        self.language = language
         if vocabulary is None:
             vocabulary = Vocabulary.from_sentences(
-                s for e in envs for s in e.training_data().sentences
+                (s for e in envs for s in e.training_data().sentences), language=language
             )
         self.vocabulary = vocabulary
 
@@ -397,12 +458,12 @@ class Corpus(Sequence[Environment]):
 
     def subset(self, names: Sequence[str]) -> Corpus:
         """The homes named ``names``, in that order (vocabulary rebuilt from their sentences)."""
-        return Corpus([self[n] for n in names], word_increment=self.word_increment)
+        return Corpus([self[n] for n in names], word_increment=self.word_increment, language=self.language)
 
     def replace(self, name: str, environment: Environment) -> Corpus:
         """A corpus with home ``name`` replaced (vocabulary rebuilt)."""
         return Corpus([environment if e.name == name else e for e in self.environments],
-                      word_increment=self.word_increment)
+                      word_increment=self.word_increment, language=self.language)
 
     def word_counts(self, sentences: Sequence[str | None]) -> sp.csr_array:
         """Bag-of-words counts of ``sentences`` in this corpus's vocabulary."""

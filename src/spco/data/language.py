@@ -14,10 +14,12 @@ A sentence is normalised with Unicode NFKC and case-folded (``"Ｌｉｖｉｎ�
 - punctuation and other symbols are dropped.
 
 *Scripts written without spaces* (Chinese, Japanese, Thai, Lao, Khmer, Myanmar) are **not** cut into
-single characters: a run of such text between spaces is one atom (``"ここはリビングです"`` is one
-token), and :class:`LanguageWarning` says so, recommending to segment the sentences with a word
-segmenter for that language (e.g. MeCab or SudachiPy for Japanese, jieba for Chinese) before they are
-given to spco, with the words separated by spaces.
+single characters. A vocabulary learnt from Japanese or Chinese written without spaces cuts them into
+words with a segmenter for the language (SudachiPy, jieba; the extras ``spco[ja]``, ``spco[zh]``)
+and a lexicon learnt from the sentences (:mod:`spco.data.segmentation`), recorded with the
+vocabulary. Without one (no segmenter installed, another script, or :func:`tokenize` called without
+a segmentation), a run of such text between spaces is one atom (``"ここはリビングです"`` is one
+token) and :class:`LanguageWarning` says so.
 
 *Over-long input* is cut, with a :class:`LanguageWarning`: an atom longer than
 :data:`MAX_TOKEN_CHARS` characters keeps its first :data:`MAX_TOKEN_CHARS`, a sentence of more than
@@ -39,7 +41,17 @@ list of names (:func:`learn_terms`): two adjacent atoms ``a b`` become the term 
    sentence);
 4. neither atom is a *frame word*: one that occurs in more than ``max_sentence_share`` = 50 % of the
    sentences ("this", "is", "the" in "this is the kitchen"). Names are specific to a place, so none
-   is in half of all sentences.
+   is in half of all sentences;
+5. for two words of a script written without spaces (Japanese, Chinese), they *always* come
+   together on one side: every use of ``a`` is followed by ``b``, or every use of ``b`` is
+   preceded by ``a``. There a name is followed by particles and copulas (台所 です, キッチン だ よ)
+   that no frame rule catches — each style of speech is in fewer than half of the sentences — so a
+   name followed by です in most sentences stays the name ``台所``.
+
+Where two candidate pairs overlap in a sentence ("in emma's" and "emma's room" in "we are in emma's
+room now"), the pair with the larger G² is joined there (best first, left to right among equals),
+and a pair becomes a term only if it is joined at least ``min_count`` times: a word is joined with
+the neighbour it belongs to, so a frame never swallows the first word of a name.
 
 A second pass over the sentences with the learnt pairs joined finds longer terms ("walk in closet").
 The rule also joins set phrases that are not names ("this is", "welcome to" when people say them in
@@ -67,13 +79,17 @@ import re
 import unicodedata
 import warnings
 from collections import Counter
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
 
 from spco.errors import ConfigurationError
+
+if TYPE_CHECKING:
+    from spco.data.segmentation import Segmentation
 
 #: Default count added per word occurrence (S^w in the paper).
 DEFAULT_WORD_INCREMENT = 5000
@@ -152,39 +168,56 @@ def normalize_text(text: str) -> str:
 
 
 @functools.lru_cache(maxsize=1 << 16)
-def _atoms(sentence: str) -> tuple[tuple[str, ...], bool, bool, bool]:
-    """Atoms of a sentence, and whether a word was cut, text without spaces was seen, the sentence was
-    cut (cached: sentences and labels repeat; the warnings are issued by :func:`tokenize`)."""
+def _chunks(sentence: str) -> tuple[str, ...]:
+    """The atoms of a sentence as found, before any cut (cached: sentences and labels repeat)."""
     text = normalize_text(sentence)
-    atoms = [a.replace("-", " ") for a in _atom_pattern(text).findall(text)]
+    return tuple(a.replace("-", " ") for a in _atom_pattern(text).findall(text))
+
+
+def _cut(atoms: Sequence[str]) -> tuple[tuple[str, ...], bool, bool]:
+    """Atoms with over-long words and sentences cut, and whether a word, the sentence was cut."""
     long_word = any(len(a) > MAX_TOKEN_CHARS for a in atoms)
     if long_word:
         atoms = [a[:MAX_TOKEN_CHARS].rstrip("' ") if len(a) > MAX_TOKEN_CHARS else a for a in atoms]
-    no_space = any(len(a) > 1 and _NO_SPACE.search(a) for a in atoms)
-    long_sentence = len(atoms) > MAX_SENTENCE_TOKENS
-    return tuple(atoms[:MAX_SENTENCE_TOKENS]), long_word, no_space, long_sentence
+    return tuple(atoms[:MAX_SENTENCE_TOKENS]), long_word, len(atoms) > MAX_SENTENCE_TOKENS
 
 
-def tokenize(sentence: str | None) -> list[str]:
+@functools.lru_cache(maxsize=1 << 16)
+def _atoms(sentence: str) -> tuple[tuple[str, ...], bool, bool, bool]:
+    """Atoms of a sentence, and whether a word was cut, text without spaces was seen, the sentence was
+    cut (cached; the warnings are issued by :func:`tokenize`)."""
+    found = _chunks(sentence)
+    no_space = any(len(a) > 1 and _NO_SPACE.search(a) for a in found)
+    atoms, long_word, long_sentence = _cut(found)
+    return atoms, long_word, no_space, long_sentence
+
+
+def tokenize(sentence: str | None, segmentation: Segmentation | None = None) -> list[str]:
     """Split a sentence into atoms: normalised words, hyphenated compounds and emoji (no learnt terms).
 
     ``"This is Emma's-room!"`` → ``["this", "is", "emma's room"]``: a hyphenated compound is one atom
     whose words are separated by spaces. ``None`` or an empty string gives an empty list. See the
     module docstring for scripts without spaces and over-long input (cut, with a
-    :class:`LanguageWarning`). Use :meth:`Vocabulary.tokenize` to also join learnt terms.
+    :class:`LanguageWarning`). With a ``segmentation``
+    (:class:`~spco.data.segmentation.Segmentation`), text in a script written without spaces is cut
+    into its words. Use :meth:`Vocabulary.tokenize` to also join learnt terms.
     """
     if not sentence:
         return []
-    atoms, long_word, no_space, long_sentence = _atoms(str(sentence))
+    if segmentation is None:
+        atoms, long_word, no_space, long_sentence = _atoms(str(sentence))
+    else:
+        atoms, long_word, long_sentence = _cut(segmentation.split_atoms(_chunks(str(sentence))))
+        no_space = False
     if long_word:
         warnings.warn(f"a word longer than {MAX_TOKEN_CHARS} characters was cut to its first "
                       f"{MAX_TOKEN_CHARS} (spco.data.language.MAX_TOKEN_CHARS)", LanguageWarning,
                       stacklevel=2)
     if no_space:
         warnings.warn("text in a script written without spaces (Chinese, Japanese, Thai, …) is kept as one "
-                      "token per space-separated chunk, not cut into characters; segment such sentences "
-                      "into words separated by spaces (e.g. with MeCab or jieba) before giving them to spco",
-                      LanguageWarning, stacklevel=2)
+                      "token per space-separated chunk, not cut into characters; for Japanese or Chinese "
+                      "install a segmenter (pip install 'spco[ja]' or 'spco[zh]'; spco fit uses it), or "
+                      "separate the words by spaces", LanguageWarning, stacklevel=2)
     if long_sentence:
         warnings.warn(f"a sentence of more than {MAX_SENTENCE_TOKENS} words was cut to its first "
                       f"{MAX_SENTENCE_TOKENS} (spco.data.language.MAX_SENTENCE_TOKENS)", LanguageWarning,
@@ -192,10 +225,15 @@ def tokenize(sentence: str | None) -> list[str]:
     return list(atoms)
 
 
+_SPACE_IN_NO_SPACE = re.compile(f"(?<={_NO_SPACE.pattern}) (?={_NO_SPACE.pattern})")
+
+
 def normalize_name(name: str) -> str:
     """A place name as a token without learnt terms: its atoms joined by single spaces
-    (``"Emma's-room"``, ``"EMMA'S ROOM"`` → ``"emma's room"``)."""
-    return " ".join(tokenize(name))
+    (``"Emma's-room"``, ``"EMMA'S ROOM"`` → ``"emma's room"``), except between two characters of a
+    script written without spaces (``"エマ の 部屋"`` → ``"エマの部屋"``, however the words were cut).
+    No warning is issued (a name is a name)."""
+    return _SPACE_IN_NO_SPACE.sub("", " ".join(_atoms(str(name))[0])) if name else ""
 
 
 # ------------------------------------------------------------------------------------- terms
@@ -212,7 +250,8 @@ def _g2(k11: int, k12: int, k21: int, k22: int) -> float:
 
 
 def _term_pass(sentences: list[list[str]], min_count: int, min_g2: float, min_follow: float,
-               max_sentence_share: float) -> set[tuple[str, str]]:
+               max_sentence_share: float) -> dict[tuple[str, str], float]:
+    """The candidate pairs of one pass and their G² (the rule of the module docstring)."""
     pairs: Counter[tuple[str, str]] = Counter()
     first: Counter[str] = Counter()
     second: Counter[str] = Counter()
@@ -227,27 +266,43 @@ def _term_pass(sentences: list[list[str]], min_count: int, min_g2: float, min_fo
             second[b] += 1
     n_pairs = sum(pairs.values())
     frame = max_sentence_share * len(sentences)
-    out = set()
+    out: dict[tuple[str, str], float] = {}
     for (a, b), k11 in pairs.items():
         if k11 < min_count or a == b or in_sentences[a] > frame or in_sentences[b] > frame:
             continue
         if k11 / occurrences[a] < min_follow:
             continue
+        if k11 < occurrences[a] and k11 < occurrences[b] and _NO_SPACE.search(a) and _NO_SPACE.search(b):
+            continue  # in Japanese, Chinese: only words that always come together (not "台所 です")
         k12, k21 = first[a] - k11, second[b] - k11
         k22 = n_pairs - k11 - k12 - k21
         if k11 * n_pairs <= first[a] * second[b]:  # not more often than chance
             continue
-        if _g2(k11, k12, k21, k22) >= min_g2:
-            out.add((a, b))
+        score = _g2(k11, k12, k21, k22)
+        if score >= min_g2:
+            out[(a, b)] = score
     return out
 
 
-def _join(atoms: list[str], pairs: set[tuple[str, str]]) -> list[str]:
+def _join(atoms: list[str], pairs: Mapping[tuple[str, str], float],
+          joined: Counter[tuple[str, str]] | None = None) -> list[str]:
+    """``atoms`` with the candidate ``pairs`` (pair -> G²) joined, the strongest first where two
+    overlap (equal scores: the leftmost first); ``joined`` (optional) counts the pairs joined."""
+    found = [(pairs[(a, b)], -i) for i, (a, b) in enumerate(itertools.pairwise(atoms)) if (a, b) in pairs]
+    starts: set[int] = set()
+    used: set[int] = set()
+    for _, neg in sorted(found, reverse=True):
+        i = -neg
+        if i not in used and i + 1 not in used:
+            starts.add(i)
+            used.update((i, i + 1))
     out: list[str] = []
     i = 0
     while i < len(atoms):
-        if i + 1 < len(atoms) and (atoms[i], atoms[i + 1]) in pairs:
+        if i in starts:
             out.append(f"{atoms[i]} {atoms[i + 1]}")
+            if joined is not None:
+                joined[(atoms[i], atoms[i + 1])] += 1
             i += 2
         else:
             out.append(atoms[i])
@@ -262,23 +317,27 @@ def learn_terms(
     min_follow: float = TERM_MIN_FOLLOW,
     max_sentence_share: float = TERM_MAX_SENTENCE_SHARE,
     passes: int = 2,
+    segmentation: Segmentation | None = None,
 ) -> list[str]:
     """The multi-word terms of ``sentences`` (the rule of the module docstring), sorted.
 
     Hyphenated compounds of the text are terms already (one atom each) and are not listed unless a
     pass joins them with a neighbour. Each pass joins the pairs it finds (left to right) before the
     next pass looks for longer terms; terms longer than :data:`MAX_TERM_WORDS` words are not formed.
+    Text written without spaces is cut into words by ``segmentation`` first.
     """
-    streams = [tokenize(s) for s in sentences if s]
+    streams = [tokenize(s, segmentation) for s in sentences if s]
     streams = [s for s in streams if s]
     terms: set[str] = set()
     for _ in range(passes):
-        pairs = {(a, b) for a, b in _term_pass(streams, min_count, min_g2, min_follow, max_sentence_share)
+        pairs = {(a, b): score for (a, b), score in
+                 _term_pass(streams, min_count, min_g2, min_follow, max_sentence_share).items()
                  if len(a.split()) + len(b.split()) <= MAX_TERM_WORDS}
         if not pairs:
             break
-        streams = [_join(s, pairs) for s in streams]
-        terms |= {f"{a} {b}" for a, b in pairs}
+        joined: Counter[tuple[str, str]] = Counter()
+        streams = [_join(s, pairs, joined) for s in streams]
+        terms |= {f"{a} {b}" for (a, b), n in joined.items() if n >= min_count}
     return sorted(terms)
 
 
@@ -305,9 +364,14 @@ class Vocabulary:
     Build one with :meth:`from_sentences`. Tokens unknown to the vocabulary are ignored by
     :meth:`encode` (and reported by :meth:`unknown_words`), never an error: at prediction time the
     robot may hear a word it has never learnt.
+
+    ``segmentation`` (:class:`~spco.data.segmentation.Segmentation`, or ``None``): how text in a
+    script written without spaces (Japanese, Chinese) is cut into words; it travels with the
+    vocabulary, so every command cuts such text the same way.
     """
 
     words: tuple[str, ...]
+    segmentation: Segmentation | None = None
     _index: dict[str, int] = field(init=False, repr=False, compare=False)
     _longest: int = field(init=False, repr=False, compare=False)
 
@@ -324,19 +388,27 @@ class Vocabulary:
                                                                      default=1)))
 
     @classmethod
-    def from_sentences(cls, sentences: Iterable[str | None], learn: bool = True) -> Vocabulary:
+    def from_sentences(cls, sentences: Iterable[str | None], learn: bool = True,
+                       language: str = "auto") -> Vocabulary:
         """The vocabulary of all tokens in ``sentences``, in order of first appearance.
 
         With ``learn`` (the default) the multi-word terms of :func:`learn_terms` are learnt first, so
         ``"living room"`` said often enough is one token; without, the tokens are the atoms.
+        ``language`` (``"auto"``, ``"ja"``, ``"zh"``, ``"spaced"``) says whether text written
+        without spaces is segmented into words, and how (:func:`spco.data.segmentation.resolve`;
+        ``"auto"`` decides from the text itself).
         """
+        from spco.data.segmentation import resolve
+
         texts = [s for s in sentences if s]
-        base = cls(tuple(learn_terms(texts))) if learn else cls(())
+        segmentation = resolve(language, texts, learn=learn)
+        base = cls(tuple(learn_terms(texts, segmentation=segmentation)), segmentation) if learn \
+            else cls((), segmentation)
         seen: dict[str, None] = {}
         for sentence in texts:
             for word in base.tokenize(sentence):
                 seen.setdefault(word, None)
-        return cls(tuple(seen))
+        return cls(tuple(seen), segmentation)
 
     def __len__(self) -> int:
         return len(self.words)
@@ -351,8 +423,9 @@ class Vocabulary:
 
     def tokenize(self, sentence: str | None) -> list[str]:
         """Tokens of ``sentence``: its atoms (:func:`tokenize`), with every run of words that forms a
-        multi-word token of this vocabulary joined into that token (longest run first)."""
-        atoms = tokenize(sentence)
+        multi-word token of this vocabulary joined into that token (longest run first); text written
+        without spaces is cut into words by the vocabulary's segmentation first."""
+        atoms = tokenize(sentence, self.segmentation)
         if self._longest < 2 or len(atoms) < 2:
             return atoms
         words = [a.split() for a in atoms]
@@ -421,18 +494,28 @@ class Vocabulary:
         before. So sentences tokenised before are tokenised the same way after.
         """
         texts = [s for s in sentences if s]
-        base = self
+        grown = self
+        if learn and self.segmentation is not None:  # units for the new text written without spaces
+            grown = Vocabulary(self.words, self.segmentation.extended(texts))
+        elif learn and not any(_NO_SPACE.search(w) for w in self.words):
+            from spco.data.segmentation import resolve  # the first text of such a script: as a fit would
+
+            found = resolve("auto", texts)
+            if found is not None:
+                grown = Vocabulary(self.words, found)
+        segmentation = grown.segmentation
+        base = grown
         if learn:
-            new_terms = tuple(t for t in learn_terms(texts) if t not in self._index
-                              and any(tok not in self._index for tok in self.tokenize(t)))
-            new_terms += tuple(t for t in self.new_word_runs(texts) if t not in new_terms)
+            new_terms = tuple(t for t in learn_terms(texts, segmentation=segmentation) if t not in self._index
+                              and any(tok not in self._index for tok in grown.tokenize(t)))
+            new_terms += tuple(t for t in grown.new_word_runs(texts) if t not in new_terms)
             if new_terms:
-                base = Vocabulary((*self.words, *new_terms))
+                base = Vocabulary((*self.words, *new_terms), segmentation)
         words = dict.fromkeys(self.words)
         for sentence in texts:
             for word in base.tokenize(sentence):
                 words.setdefault(word, None)
-        return Vocabulary(tuple(words))
+        return Vocabulary(tuple(words), segmentation)
 
     def new_word_runs(self, sentences: Iterable[str | None]) -> list[str]:
         """Names of several new words said together, taught even once: runs of two to

@@ -4,7 +4,7 @@ One folder per home::
 
     my_home/
       samples.csv     (or samples.jsonl)  required: one row per sample
-      visual.npz      (or visual.npy)     required: visual features, one row per sample
+      visual.npz      (or visual.npy)     visual features, one row per sample (none: no views)
       images/<id>.jpg (or .jpeg, .png)    or, in place of visual.npz: the view of each sample
       test.txt                            optional: ids of the test samples
       home.json                           optional: name, map extent, visual_scale
@@ -36,7 +36,15 @@ One folder per home::
 ``visual.npz`` / ``visual.npy``
     An (N, D) matrix, row *k* belonging to row *k* of the samples file: either a sparse matrix saved
     with ``scipy.sparse.save_npz``, or a dense array saved with ``numpy.save`` (``.npy``) or
-    ``numpy.savez`` (``.npz`` holding one array). Values are visual bag-of-features *counts*:
+    ``numpy.savez`` (``.npz`` holding one array, or the arrays ``visual`` and ``missing``).
+
+    *Samples without a view* (a camera that dropped the frame): a ``.npz`` may hold beside the
+    matrix a boolean array ``missing`` of N entries, True for each sample that has no view — its
+    row is ignored (write zeros) and its visual likelihood is left out of the model (marginalised,
+    not imputed); a sparse matrix's file gets it with ``numpy.savez(path, format="csr",
+    shape=…, data=…, indices=…, indptr=…, missing=mask)`` (what :func:`write_home` writes). A
+    home *without any view* (a robot without a camera) has no visual file at all: every view is
+    missing, and the home is learnt from poses and words. Values are visual bag-of-features *counts*:
     non-negative whole numbers. Real-valued CNN features (e.g. fc7 activations) are accepted when
     ``home.json`` gives ``visual_scale``: the file is then always converted with
     :func:`features_to_counts`, ``floor(max(f, 0) × visual_scale)`` — what Hagiwara et al. did with
@@ -45,9 +53,9 @@ One folder per home::
 ``images/<id>.jpg`` / ``.jpeg`` / ``.png``
     The camera image of each sample, in place of ``visual.npz``: the views then become counts with
     an image extractor (:mod:`spco.features`): ``spco fit`` uses the default one (or ``--extractor``)
-    and stores it in the knowledge file; ``adapt`` uses the knowledge's. A home with images and no
-    ``visual.npz`` cannot be read without an extractor; a home read for knowledge fitted on images
-    must have images.
+    and stores it in the knowledge file; ``adapt`` uses the knowledge's. A sample without an image
+    has no view. A home with images and no ``visual.npz`` cannot be read without an extractor; a
+    home read for knowledge fitted on images must have images (or no view at all).
 
 ``test.txt``
     Sample ids of the test samples (never learnt from), separated by commas and/or blanks. Without
@@ -106,6 +114,8 @@ SAMPLES_CSV = "samples.csv"
 SAMPLES_JSONL = "samples.jsonl"
 VISUAL_NPZ = "visual.npz"
 VISUAL_NPY = "visual.npy"
+#: The array of ``visual.npz`` that marks the samples without a view.
+MISSING_KEY = "missing"
 TEST_TXT = "test.txt"
 HOME_JSON = "home.json"
 LABELS_CSV = "labels.csv"
@@ -270,45 +280,71 @@ def _read_home_json(path: Path) -> dict[str, Any]:
     return meta
 
 
-def _load_visual_file(path: Path) -> Any:
+def _load_visual_file(path: Path) -> tuple[Any, Any]:
+    """The matrix of a visual file and its ``missing`` array (``None`` if it has none)."""
     try:
         if path.suffix == ".npy":
-            return np.load(path, allow_pickle=False)
+            return np.load(path, allow_pickle=False), None
         with np.load(path, allow_pickle=False) as npz:
             keys = set(npz.files)
+            missing = npz[MISSING_KEY] if MISSING_KEY in keys else None
+            keys.discard(MISSING_KEY)
             if {"format", "shape", "data", "indices", "indptr"} <= keys:
                 fmt = npz["format"].item()
                 fmt = fmt.decode() if isinstance(fmt, bytes) else str(fmt)
                 if fmt not in ("csr", "csc", "coo", "bsr"):
                     raise DataFormatError(path, f"unsupported sparse format {fmt!r} (save a CSR matrix)")
-                return sp.load_npz(path)
+                return sp.load_npz(path), missing
             if len(keys) == 1:
-                return npz[next(iter(keys))]
+                return npz[next(iter(keys))], missing
             if "visual" in keys:
-                return npz["visual"]
+                return npz["visual"], missing
             raise DataFormatError(path, f"holds several arrays ({', '.join(sorted(keys))}); save one "
-                                  "array, or a sparse matrix with scipy.sparse.save_npz")
+                                  "array (and a 'missing' mask), or a sparse matrix with "
+                                  "scipy.sparse.save_npz")
     except DataFormatError:
         raise
     except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile) as exc:
         raise DataFormatError(path, f"not a readable numpy/scipy file ({exc})") from None
 
 
-def _read_visual(folder: Path, n: int, scale: float | None) -> sp.csr_array:
+def _missing_mask(path: Path, raw: Any, n: int) -> np.ndarray:
+    """The ``missing`` array of a visual file as an (n,) bool mask (all False without one)."""
+    if raw is None:
+        return np.zeros(n, dtype=bool)
+    mask = np.asarray(raw)
+    if mask.shape != (n,):
+        raise DataFormatError(path, f"its '{MISSING_KEY}' array must have one entry per sample, shape "
+                              f"({n},), got {mask.shape}")
+    if mask.dtype != bool:
+        if not np.issubdtype(mask.dtype, np.integer) or not np.isin(mask, (0, 1)).all():
+            raise DataFormatError(path, f"its '{MISSING_KEY}' array must be boolean (True: the sample has "
+                                  f"no view), got {mask.dtype}")
+        mask = mask.astype(bool)
+    return mask
+
+
+def _read_visual(folder: Path, n: int, scale: float | None) -> tuple[sp.csr_array, np.ndarray]:
+    """The visual counts of a plain home and its (n,) mask of samples without a view; without a
+    visual file every view is missing (a home recorded without a camera, ``D = 0``)."""
     npz, npy = folder / VISUAL_NPZ, folder / VISUAL_NPY
     if npz.is_file() and npy.is_file():
         raise DataFormatError(folder, f"holds both {VISUAL_NPZ} and {VISUAL_NPY}; keep one")
     path = npz if npz.is_file() else npy
     if not path.is_file():
-        raise DataFormatError(npz, f"missing: every home needs its visual features ({VISUAL_NPZ} or "
-                              f"{VISUAL_NPY}, one row per sample)")
-    raw = _load_visual_file(path)
+        return sp.csr_array((n, 0), dtype=np.int64), np.ones(n, dtype=bool)
+    raw, raw_missing = _load_visual_file(path)
+    missing = _missing_mask(path, raw_missing, n)
     if raw.ndim != 2:
         raise DataFormatError(path, f"expected a 2-D matrix (samples × features), got shape {raw.shape}")
     if raw.shape[0] != n:
         raise DataFormatError(path, f"has {raw.shape[0]} rows, but the samples file lists {n} samples")
     if raw.shape[1] == 0:
-        raise DataFormatError(path, "has no feature columns")
+        raise DataFormatError(path, "has no feature columns (a home without any view has no visual file)")
+    return _visual_counts(path, raw, scale), missing
+
+
+def _visual_counts(path: Path, raw: Any, scale: float | None) -> sp.csr_array:
     values = raw.data if sp.issparse(raw) else np.asarray(raw)
     if values.dtype == bool:
         values = values.astype(np.int64)
@@ -333,9 +369,11 @@ def has_images(folder: str | os.PathLike[str]) -> bool:
     return (Path(folder) / "images").is_dir()
 
 
-def _read_views(home: Path, ids: list[int], scale: float | None, extractor: Any) -> Any:
-    """Visual counts of a plain home: from visual.npz/.npy, or its images through ``extractor``."""
-    from spco.data.images import IMAGES_DIR, image_files
+def _read_views(home: Path, ids: list[int], scale: float | None,
+                extractor: Any) -> tuple[Any, np.ndarray]:
+    """Visual counts of a plain home and its mask of samples without a view: from
+    visual.npz/.npy, or its images through ``extractor`` (a sample without an image has no view)."""
+    from spco.data.images import IMAGES_DIR, extract_views, image_files
 
     images = home / IMAGES_DIR
     has_counts = (home / VISUAL_NPZ).exists() or (home / VISUAL_NPY).exists()
@@ -345,12 +383,14 @@ def _read_views(home: Path, ids: list[int], scale: float | None, extractor: Any)
                                   "features with an image extractor — learn knowledge from it with `spco "
                                   "fit` (or `spco features`), or use a knowledge file fitted on images")
         return _read_visual(home, len(ids), scale)
+    if not images.is_dir() and not has_counts:  # no view at all (a home recorded without a camera)
+        return sp.csr_array((len(ids), 0), dtype=np.int64), np.ones(len(ids), dtype=bool)
     if not images.is_dir():
         found = f" (it holds count vectors, {VISUAL_NPZ}, which that knowledge cannot use)" if has_counts \
             else ""
         raise DataFormatError(images, f"missing: the views must be images (<id>.jpg or .png) for the "
                               f"extractor {extractor.name!r} of knowledge fitted on images{found}")
-    return extractor.extract_many(image_files(images, ids))
+    return extract_views(image_files(images, ids, missing_ok=True), extractor)
 
 
 def plain_training_images(folder: str | os.PathLike[str]) -> list[Path]:
@@ -364,7 +404,9 @@ def plain_training_images(folder: str | os.PathLike[str]) -> list[Path]:
     index = {sample: row for row, sample in enumerate(ids)}
     test = (_read_id_list(home / TEST_TXT, index) if (home / TEST_TXT).is_file()
             else np.zeros(len(ids), dtype=bool))
-    return image_files(home / IMAGES_DIR, [i for i, t in zip(ids, test, strict=True) if not t])
+    files = image_files(home / IMAGES_DIR, [i for i, t in zip(ids, test, strict=True) if not t],
+                        missing_ok=True)
+    return [f for f in files if f is not None]
 
 
 def _read_id_list(path: Path, index: dict[int, int]) -> np.ndarray:
@@ -480,7 +522,7 @@ def read_home(folder: str | os.PathLike[str], teaching_rate: int = 100, extracto
     meta = _read_home_json(home / HOME_JSON)
     pose = np.asarray(poses, dtype=np.float64)
     positions = np.column_stack([pose[:, 0], pose[:, 1], np.sin(pose[:, 2]), np.cos(pose[:, 2])])
-    visual = _read_views(home, ids, meta.get("visual_scale"), extractor)
+    visual, view_missing = _read_views(home, ids, meta.get("visual_scale"), extractor)
     is_test = (_read_id_list(home / TEST_TXT, index) if (home / TEST_TXT).is_file()
                else np.zeros(len(ids), dtype=bool))
 
@@ -508,6 +550,7 @@ def read_home(folder: str | os.PathLike[str], teaching_rate: int = 100, extracto
         extent=None if extent is None else tuple(extent),
         ground_truth=ground_truth,
         source=str(home),
+        view_missing=view_missing,
     )
     return env if teaching_rate == 100 else env.with_teaching_rate(teaching_rate, seed=0)
 
@@ -538,7 +581,14 @@ def _write_files(env: Environment, folder: Path) -> None:
         for sample, (x, y), t, sentence in zip(env.ids.tolist(), env.positions[:, :2].tolist(),
                                                theta.tolist(), env.sentences, strict=True):
             writer.writerow([sample, x, y, t, sentence or ""])
-    sp.save_npz(folder / VISUAL_NPZ, sp.csr_array(env.visual), compressed=True)
+    visual = sp.csr_array(env.visual)
+    if not env.view_missing.any():
+        sp.save_npz(folder / VISUAL_NPZ, visual, compressed=True)
+    elif env.n_features > 0:  # the sparse matrix's arrays and the mask of samples without a view
+        np.savez_compressed(folder / VISUAL_NPZ, format=np.array("csr"), shape=np.array(visual.shape),
+                            data=visual.data, indices=visual.indices, indptr=visual.indptr,
+                            **{MISSING_KEY: env.view_missing})
+    # a home without any view (D = 0) has no visual file
     if env.is_test.any():
         (folder / TEST_TXT).write_text(", ".join(map(str, env.ids[env.is_test].tolist())) + "\n",
                                        encoding="utf-8")

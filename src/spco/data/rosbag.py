@@ -14,14 +14,21 @@ installation. Three streams make a home:
   ready-made feature vector (``std_msgs/Float32MultiArray`` & co.) written to ``visual.npz``;
 - **speech** as text: ``std_msgs/String``.
 
-A sample is made at every utterance (taught: its sentence is what was said) and along the way every
-``every_seconds`` seconds or ``every_metres`` metres of travel, whichever comes first (not taught).
-Each modality is taken nearest in time to the sample within ``tolerance`` seconds; a sample missing
-one is skipped and counted by reason, as is a periodic sample that would repeat another sample's
-camera image. Times are the messages' header stamps (``clock="header"``; a zero stamp and messages
-without a header, such as ``std_msgs/String``, use the bag's record time) or the bag's record times
-throughout (``clock="bag"``). A message whose time goes backwards on its topic (or tf edge) is
-dropped and counted.
+A sample is made at every utterance (taught: its sentence is what was said) and, untaught, where
+``at`` says (:data:`SAMPLING_RULES`): along the way (``"travel"``: every ``every_seconds`` seconds or
+``every_metres`` metres of travel, whichever comes first), at each camera image (``"images"``), or
+nowhere else (``"utterances"``). ``"auto"`` (the default) chooses from the data (:func:`_auto_rule`):
+at each image when the camera records fewer images than there would be samples along the way, or
+most of those samples find no image within the tolerance — a camera throttled to one frame every few
+seconds, a robot that stops to look at each place — else along the way. At each image, an utterance
+takes the image nearest to it up to :data:`UTTERANCE_IMAGE_SHARE` of the camera's interval away
+(the tolerance, if larger). Each
+modality is taken nearest in time to the sample within ``tolerance`` seconds; a sample missing one
+is skipped and counted by reason (the summary shows the utterances lost; ``import.json`` all), as is
+an untaught sample that would repeat another sample's camera image. Times are the messages' header
+stamps (``clock="header"``; a zero stamp and messages without a header, such as ``std_msgs/String``,
+use the bag's record time) or the bag's record times throughout (``clock="bag"``). A message whose
+time goes backwards on its topic (or tf edge) is dropped and counted.
 
 Several bags are several **tours** when their clocks overlap (:func:`_tours`): a bag that starts
 before a bag of the tour so far has ended, and records one of the same topics, is a recording of
@@ -80,8 +87,19 @@ from spco.data.bagreading import (
     _yaw,
 )
 from spco.errors import ConfigurationError, DataFormatError
+from spco.features.pixels import pixels_from_buffer, to_bgr
 
-__all__ = ["BagImportSettings", "BagImportSummary", "import_bags"]
+__all__ = ["SAMPLING_RULES", "BagImportSettings", "BagImportSummary", "import_bags"]
+
+#: Where untaught samples are made (``--at``): chosen from the data, along the way, at each camera
+#: image, or nowhere (only utterances).
+SAMPLING_RULES = ("auto", "travel", "images", "utterances")
+#: At each camera image: an utterance takes the nearest image up to this share of the camera's median
+#: interval away (or the tolerance, if that is larger): a sentence said between two pictures names
+#: the nearer one.
+UTTERANCE_IMAGE_SHARE = 0.6
+#: With ``at="auto"``: samples along the way only if at least this share of them find a camera image.
+TRAVEL_IMAGE_SHARE = 0.5
 
 @dataclass(frozen=True)
 class BagImportSettings:
@@ -101,10 +119,12 @@ class BagImportSettings:
     visual_scale: float | None = None
     every_seconds: float = 0.0
     every_metres: float = 0.5
+    at: str = "auto"
     tolerance: float = 0.5
     clock: str = "header"
     image_format: str = "jpg"
     name: str | None = None
+    keep_without_image: bool = False  # an utterance without a view in tolerance: a sample without a view
 
     def check(self) -> None:
         """Raise :class:`ConfigurationError` for an out-of-range setting."""
@@ -119,7 +139,13 @@ class BagImportSettings:
             raise ConfigurationError(f"--image-format must be jpg or png, got {self.image_format!r}")
         if self.visual_scale is not None and not (math.isfinite(self.visual_scale) and self.visual_scale > 0):
             raise ConfigurationError(f"--visual-scale must be > 0, got {self.visual_scale}")
-        if self.every_seconds == 0 and self.every_metres == 0 and not self.speech_topic:
+        if self.at not in SAMPLING_RULES:
+            raise ConfigurationError(f"--at must be one of {', '.join(SAMPLING_RULES)}, got {self.at!r}")
+        if self.at == "utterances" and not self.speech_topic:
+            raise ConfigurationError("--at utterances makes samples only where people speak: give "
+                                     "--speech-topic")
+        no_travel = self.every_seconds == 0 and self.every_metres == 0
+        if self.at == "travel" and no_travel and not self.speech_topic:
             raise ConfigurationError(
                 "no sample to make: give --speech-topic, --every-seconds or --every-metres"
             )
@@ -140,8 +166,12 @@ class BagImportSummary:
     samples: int = 0
     taught: int = 0
     utterances: int = 0
-    periodic: int = 0
+    periodic: int = 0  # untaught samples considered (along the way, or at camera images)
+    sampling: str = "travel"  # where the untaught samples were made: travel, images or utterances
+    image_interval: float | None = None  # median seconds between camera images
+    utterance_image_within: float | None = None  # at images: how far an utterance's image may be (s)
     skipped: dict[str, int] = field(default_factory=dict)  # "utterance: no image within 0.5 s" -> n
+    without_view: int = 0  # utterances kept without a view (keep_without_image)
     dropped: dict[str, int] = field(default_factory=dict)  # "/topic: time went backwards" -> n
     warnings: list[str] = field(default_factory=list)
 
@@ -160,15 +190,23 @@ class BagImportSummary:
             f"({self.messages_per_second:,.0f} messages/s)"
         ]
         lines += [f"  {role:<7} {topic}" for role, topic in self.topics.items()]
-        lines.append(
-            f"Wrote {self.samples} samples ({self.taught} taught) to {self.out}: "
-            f"{_count(self.utterances, 'utterance')} and {_count(self.periodic, 'sample')} along the way "
-            "considered"
-        )
-        skipped = sum(self.skipped.values())
-        if skipped:
-            lines.append(f"Skipped {_count(skipped, 'sample')}:")
-            lines += [f"  {n:>6}  {why}" for why, n in sorted(self.skipped.items(), key=lambda kv: -kv[1])]
+        lines.append(f"Wrote {self.samples} samples ({self.taught} taught) to {self.out}: {self.rule()}")
+        if self.without_view:
+            lines.append(f"  {_count(self.without_view, 'utterance')} without a view kept as samples "
+                         "without one")
+        lost = {why: n for why, n in self.skipped.items() if why.startswith("utterance:")}
+        if lost:  # a lost utterance is a lost teaching; untaught samples left out are in import.json
+            lines.append(f"Not taught: {_count(sum(lost.values()), 'utterance')}:")
+            lines += [f"  {n:>6}  {why}" for why, n in sorted(lost.items(), key=lambda kv: -kv[1])]
+            hint = _tolerance_hint(self.image_interval, lost)
+            if hint:
+                lines.append(f"  ({hint})")
+        blind = sum(n for why, n in self.skipped.items() if why.startswith("along the way: no image"))
+        if self.sampling == "travel" and blind > 0.25 * self.periodic:
+            every = (f" (the camera records one every {self.image_interval:.1f} s)" if self.image_interval
+                     else "")
+            lines.append(f"{blind} of {self.periodic} samples along the way found no camera image{every}: "
+                         "--at images makes a sample at each image")
         if self.dropped:
             lines.append("Dropped messages:")
             lines += [f"  {n:>6}  {why}" for why, n in sorted(self.dropped.items(), key=lambda kv: -kv[1])]
@@ -176,8 +214,31 @@ class BagImportSummary:
         return "\n".join(lines)
 
 
+    def rule(self) -> str:
+        """Where the samples were made, in words."""
+        said = (f"{_count(self.utterances, 'utterance')} heard" if "speech" in self.topics
+                else "no speech topic")
+        if self.sampling == "images":
+            every = f" (one every {self.image_interval:.1f} s)" if self.image_interval else ""
+            nearest = (f"; an utterance takes the nearest image up to {self.utterance_image_within:.1f} s "
+                       "away" if self.utterance_image_within and "speech" in self.topics else "")
+            return f"{said}; a sample at each camera image{every}{nearest}"
+        if self.sampling == "utterances":
+            return f"{said}; samples only where people spoke (--at utterances)"
+        return f"{said}; a sample along the way as the robot travelled"
+
+
 def _count(n: int, noun: str) -> str:
     return f"{n:,} {noun}{'' if n == 1 else 's'}"
+
+
+def _tolerance_hint(interval: float | None, skipped: dict[str, int]) -> str | None:
+    """What to change when samples found no camera image within the tolerance, or ``None``."""
+    if interval is None or not any("no image within" in why for why in skipped):
+        return None
+    needed = math.ceil(interval / 2 * 10) / 10  # the nearest image is at most half an interval away
+    return (f"the camera records one image every {interval:.1f} s: --tolerance {needed:g} takes the nearest "
+            "one")
 
 
 # ------------------------------------------------------------------------------------ the import
@@ -376,8 +437,11 @@ def _check_out(out: Path, bags: Sequence[Path], overwrite: bool) -> None:
                 f"{out} holds files but no home (samples.csv); spco replaces only a home "
                 "folder, even with --force: choose another --out"
             )
-    if not resolved.parent.is_dir():
-        raise ConfigurationError(f"cannot write {out}: the folder {str(out.parent)!r} does not exist")
+    for parent in resolved.parents:  # missing folders are made; one that is a file cannot be
+        if parent.exists():
+            if not parent.is_dir():
+                raise ConfigurationError(f"cannot write {out}: {parent} is a file, not a folder")
+            break
 
 
 def _move_into_place(tmp: Path, out: Path) -> None:
@@ -434,16 +498,12 @@ def _decode_image(bag: _Bag, connection: Any, msg: Any, image_format: str) -> tu
             f"{connection.topic}: image encoding {msg.encoding!r} is not supported "
             f"({', '.join(RAW_ENCODINGS)}); record a colour or grey 8-bit image",
         )
-    channels = 1 if encoding == "mono8" else 3
-    height, width, step = int(msg.height), int(msg.width), int(msg.step)
-    data = np.asarray(msg.data, dtype=np.uint8)
-    if height <= 0 or width <= 0 or step < width * channels or data.size < height * step:
+    try:
+        pixels = pixels_from_buffer(msg.data, msg.height, msg.width, msg.step, encoding)
+    except DataFormatError:
         return "image data do not match its size"
-    pixels = (
-        data[: height * step].reshape(height, step)[:, : width * channels].reshape(height, width, channels)
-    )
     if encoding == "rgb8":
-        pixels = pixels[:, :, ::-1]
+        pixels = to_bgr(pixels, encoding)
     ok, encoded = cv2.imencode(
         f".{image_format}",
         np.ascontiguousarray(pixels),
@@ -536,11 +596,12 @@ def import_bags(
         )
         samples = _make_samples(traj, streams, topics, settings, tolerance_ns, summary)
         if not samples:
-            raise DataFormatError(
-                where,
-                "no sample has every modality: "
-                + ("; ".join(f"{n} {why}" for why, n in summary.skipped.items()) or "nothing to sample"),
-            )
+            raise DataFormatError(where, _nothing_to_write(summary))
+        try:
+            target.resolve().parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise ConfigurationError(f"cannot write {target}: cannot make its folder ({exc.strerror})") \
+                from None
         tmp = target.resolve().parent / f".{target.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp"
         tmp.mkdir()
         try:
@@ -581,47 +642,78 @@ def _make_samples(
     tolerance_ns: int,
     summary: BagImportSummary,
 ) -> list[_Sample]:
-    """Utterance and periodic samples with every modality, in time order (skips counted in ``summary``)."""
+    """Utterance samples and untaught ones (along the way or at camera images: ``settings.at``) with every
+    modality, in time order (skips counted in ``summary``)."""
     skipped: Counter[str] = Counter()
     tol = f"{settings.tolerance:g} s"
     speech_t = streams.speech.array()
-    periodic = _periodic_indices(traj, settings.every_seconds, settings.every_metres)
-    summary.utterances, summary.periodic = int(speech_t.size), int(periodic.size)
-    # candidates: (time, kind, sentence, pose) with kind 0 = utterance, 1 = along the way
+    image_t = streams.images.array() if "image" in topics else np.zeros(0, dtype=np.int64)
+    if image_t.size >= 2:
+        summary.image_interval = float(np.median(np.diff(image_t))) / _NS
+    rule = settings.at
+    travel = (_periodic_indices(traj, settings.every_seconds, settings.every_metres)
+              if rule in ("auto", "travel") else np.zeros(0, dtype=np.int64))
+    if rule == "auto":
+        rule = _auto_rule(image_t, traj.times[travel], tolerance_ns)
+    if rule == "images" and "image" not in topics:
+        raise ConfigurationError("--at images makes a sample at each camera image: give --image-topic")
+    summary.sampling = rule
+    # candidates: utterances (kind 0), then the untaught samples (kind 1)
+    speech_tol = tolerance_ns
+    if rule == "images" and summary.image_interval:
+        # the camera is sparse: an utterance takes the image nearest to it, up to about half the
+        # interval between images away (60 %, for the jitter of a throttled camera)
+        speech_tol = max(tolerance_ns, round(UTTERANCE_IMAGE_SHARE * summary.image_interval * _NS))
+        summary.utterance_image_within = speech_tol / _NS
+    if rule == "images":
+        at_valid, at_xy, at_yaw = traj.lookup(image_t)
+        at_times, at_image = image_t, np.arange(image_t.size)
+    elif rule == "travel":
+        at_times, at_xy, at_yaw = traj.times[travel], traj.xy[travel], traj.yaw[travel]
+        at_valid = np.ones(travel.size, bool)
+        at_image = (_nearest(image_t, at_times, tolerance_ns) if "image" in topics
+                    else np.full(travel.size, -1))
+    else:
+        at_times, at_xy, at_yaw = np.zeros(0, np.int64), np.zeros((0, 2)), np.zeros(0)
+        at_valid, at_image = np.zeros(0, bool), np.zeros(0, np.int64)
+    summary.utterances, summary.periodic = int(speech_t.size), int(at_times.size)
     valid, xy, yaw = (
         traj.lookup(speech_t) if speech_t.size else (np.zeros(0, bool), np.zeros((0, 2)), np.zeros(0))
     )
-    times = np.concatenate([speech_t, traj.times[periodic]])
-    kinds = np.concatenate([np.zeros(speech_t.size, np.int8), np.ones(periodic.size, np.int8)])
-    poses = np.concatenate(
-        [np.column_stack([xy, yaw]), np.column_stack([traj.xy[periodic], traj.yaw[periodic]])]
-    )
-    has_pose = np.concatenate([valid, np.ones(periodic.size, bool)])
-    image_idx = (
-        _nearest(streams.images.array(), times, tolerance_ns)
-        if "image" in topics
-        else np.full(times.size, -1)
-    )
+    times = np.concatenate([speech_t, at_times])
+    kinds = np.concatenate([np.zeros(speech_t.size, np.int8), np.ones(at_times.size, np.int8)])
+    poses = np.concatenate([np.column_stack([xy, yaw]), np.column_stack([at_xy, at_yaw])])
+    has_pose = np.concatenate([valid, at_valid])
+    image_idx = np.concatenate([
+        _nearest(image_t, speech_t, speech_tol) if "image" in topics else np.full(speech_t.size, -1),
+        at_image,
+    ]).astype(np.int64)
     visual_idx = (
         _nearest(streams.visual.array(), times, tolerance_ns)
         if "visual" in topics
         else np.full(times.size, -1)
     )
+    label = {"travel": "along the way", "images": "at a camera image"}.get(rule, "")
     used_images: set[int] = set()
     samples: list[_Sample] = []
-    # utterances first (a sample along the way never takes an utterance's view), then in time order
+    # utterances first (an untaught sample never takes an utterance's view), then in time order
     for row in np.lexsort((times, kinds)):
-        kind = "utterance" if kinds[row] == 0 else "along the way"
+        kind = "utterance" if kinds[row] == 0 else label
         if not has_pose[row]:
             skipped[f"{kind}: no pose within {tol}"] += 1
             continue
-        if "image" in topics and image_idx[row] < 0:
-            skipped[f"{kind}: no image within {tol}"] += 1
+        no_view = ("image" in topics and image_idx[row] < 0) or ("visual" in topics and visual_idx[row] < 0)
+        if no_view and kinds[row] == 0 and settings.keep_without_image:
+            summary.without_view += 1  # a sample without a view (its image or features: none)
+            image_idx[row] = visual_idx[row] = -1
+        elif "image" in topics and image_idx[row] < 0:
+            within = tol if kinds[row] == 1 else f"{speech_tol / _NS:g} s"
+            skipped[f"{kind}: no image within {within}"] += 1
             continue
-        if "visual" in topics and visual_idx[row] < 0:
+        elif "visual" in topics and visual_idx[row] < 0:
             skipped[f"{kind}: no visual features within {tol}"] += 1
             continue
-        if "image" in topics:
+        if "image" in topics and image_idx[row] >= 0:
             if kinds[row] == 1 and int(image_idx[row]) in used_images:
                 skipped[f"{kind}: same camera image as another sample"] += 1
                 continue
@@ -634,6 +726,39 @@ def _make_samples(
     samples.sort(key=lambda sample: sample.time)  # stable: an utterance stays before a sample at its time
     summary.skipped = dict(skipped)
     return samples
+
+
+def _auto_rule(image_t: np.ndarray, travel_t: np.ndarray, tolerance_ns: int) -> str:
+    """``"images"`` when the camera is sparse — it records fewer images than the samples along the way
+    would be (a longer median interval), or fewer than :data:`TRAVEL_IMAGE_SHARE` of those samples
+    find an image within the tolerance (a robot that stops to look), or the robot never travels —
+    else ``"travel"``. Without images: ``"travel"``."""
+    if image_t.size == 0:
+        return "travel"
+    if travel_t.size < 2 or image_t.size < 2:
+        return "images"
+    if np.median(np.diff(image_t)) > np.median(np.diff(travel_t)):
+        return "images"
+    found = _nearest(image_t, travel_t, tolerance_ns) >= 0
+    return "images" if found.mean() < TRAVEL_IMAGE_SHARE else "travel"
+
+
+def _nothing_to_write(summary: BagImportSummary) -> str:
+    """Why no sample could be made, and what to change."""
+    reasons = "; ".join(f"{n} {why}" for why, n in summary.skipped.items()) or "nothing to sample"
+    hints = []
+    if any("no pose within" in why for why in summary.skipped):
+        hints.append("check --pose-topic (and --map-frame / --robot-frame for /tf); if the poses' header "
+                     "stamps come from another clock than the camera's, try --clock bag")
+    tolerance = _tolerance_hint(summary.image_interval, summary.skipped)
+    if tolerance:
+        hints.append(tolerance)
+    if summary.sampling == "travel" and summary.image_interval and any(
+            "along the way: no image" in why for why in summary.skipped):
+        hints.append("--at images makes a sample at each camera image")
+    if not summary.skipped and summary.sampling == "utterances":
+        hints.append("no utterance on the speech topic: choose --at travel or --at images")
+    return "no sample has every modality: " + reasons + ("; " + "; ".join(hints) if hints else "")
 
 
 def _drop_failed_images(
@@ -688,7 +813,7 @@ def _write_home_files(
     if "visual" in summary.topics:
         import scipy.sparse as sp
 
-        vectors = [streams.visual.values[s.visual] for s in samples]
+        vectors = [streams.visual.values[s.visual] for s in samples if s.visual >= 0]
         sizes = Counter(v.size for v in vectors)
         if len(sizes) > 1:
             raise DataFormatError(
@@ -696,7 +821,7 @@ def _write_home_files(
                 f"{summary.topics['visual']}: feature vectors of different lengths "
                 f"({', '.join(map(str, sorted(sizes)))})",
             )
-        matrix = np.vstack(vectors)
+        matrix = np.vstack(vectors) if vectors else np.zeros((0, 0))
         if not np.isfinite(matrix).all():
             raise DataFormatError(where, f"{summary.topics['visual']}: feature vectors hold NaN or infinity")
         if settings.visual_scale is None:
@@ -709,7 +834,16 @@ def _write_home_files(
             matrix = matrix.astype(np.int64)
         else:
             meta["visual_scale"] = settings.visual_scale
-        sp.save_npz(folder / "visual.npz", sp.csr_array(matrix), compressed=True)
+        missing = np.array([s.visual < 0 for s in samples], dtype=bool)
+        if not missing.any():
+            sp.save_npz(folder / "visual.npz", sp.csr_array(matrix), compressed=True)
+        elif vectors:  # rows of the samples without a view: zeros, marked missing (the plain format)
+            full = np.zeros((len(samples), matrix.shape[1]), dtype=matrix.dtype)
+            full[~missing] = matrix
+            counts = sp.csr_array(full)
+            np.savez_compressed(folder / "visual.npz", format=np.array("csr"),
+                                shape=np.array(counts.shape), data=counts.data, indices=counts.indices,
+                                indptr=counts.indptr, missing=missing)
     (folder / "home.json").write_text(json.dumps(meta, indent=1, ensure_ascii=False) + "\n", encoding="utf-8")
 
 

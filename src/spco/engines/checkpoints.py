@@ -75,7 +75,7 @@ def save_shard(path: str | os.PathLike, state: GibbsState, rng_state: list[dict]
     atomically; returns the bytes written."""
     arrays, absent = {}, []
     for f in fields(state):
-        if f.name == "visual_cache":  # rebuilt exactly from the assignments
+        if f.name in ("visual_cache", "words_cache"):  # rebuilt exactly from the state
             continue
         value = getattr(state, f.name)
         if value is None:
@@ -89,7 +89,7 @@ def load_shard(path: str | os.PathLike) -> tuple[GibbsState, list[dict]]:
     """The state and generator states written by :func:`save_shard`."""
     arrays, meta = _read(Path(path), "shard")
     values = {f.name: arrays[f.name] if f.name in arrays else None
-              for f in fields(GibbsState) if f.name != "visual_cache"}
+              for f in fields(GibbsState) if f.name not in ("visual_cache", "words_cache")}
     missing = [name for name, v in values.items() if v is None and name not in meta["absent"]]
     if missing:
         raise CheckpointError(f"{path}: the shard checkpoint lacks {', '.join(missing)}")
@@ -99,7 +99,8 @@ def load_shard(path: str | os.PathLike) -> tuple[GibbsState, list[dict]]:
 def save_driver(directory: str | os.PathLike, iteration: int, rng_state: dict, shared: SharedParameters,
                 trace: np.ndarray, n_shards: int) -> int:
     """Commit the checkpoint of sweep ``iteration`` (its shard files written before)."""
-    arrays = {f.name: getattr(shared, f.name) for f in fields(shared)} | {"trace": np.asarray(trace)}
+    arrays = {f.name: getattr(shared, f.name) for f in fields(shared)
+              if getattr(shared, f.name) is not None} | {"trace": np.asarray(trace)}
     return _write_atomically(Path(directory) / DRIVER_FILE, arrays,
                              {"kind": "driver", "iteration": int(iteration), "rng": rng_state,
                               "shards": int(n_shards)})
@@ -109,7 +110,8 @@ def load_driver(directory: str | os.PathLike) -> tuple[int, dict, SharedParamete
     """The last committed checkpoint: sweep, driver generator state, shared parameters, trace, and
     the shard files (in shard order)."""
     arrays, meta = _read(Path(directory) / DRIVER_FILE, "driver")
-    shared = SharedParameters(*(arrays[f.name] for f in fields(SharedParameters)))
+    # (a field that was None is absent: name_words before any pruning)
+    shared = SharedParameters(*(arrays.get(f.name) for f in fields(SharedParameters)))
     iteration = int(meta["iteration"])
     paths = [shard_path(directory, s, iteration) for s in range(int(meta["shards"]))]
     for p in paths:

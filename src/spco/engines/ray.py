@@ -117,7 +117,7 @@ def _writable_data(data: PreparedData) -> PreparedData:
     return PreparedData(positions=_writable(data.positions), homes=_writable(data.homes),
                         visual=csr(data.visual), words=csr(data.words), n_homes=data.n_homes,
                         offsets=_writable(data.offsets), position_scale=data.position_scale,
-                        map_centres=_writable(data.map_centres))
+                        map_centres=_writable(data.map_centres), view_missing=_writable(data.view_missing))
 
 
 def _writable_state(state: GibbsState) -> GibbsState:

@@ -137,6 +137,13 @@ class ExperimentConfig:
     extractor: the image extractor's name (:mod:`spco.features`; default
         :data:`~spco.features.DEFAULT_EXTRACTOR` when ``images`` is given). A codebook it needs is
         learnt from the experienced homes' training images (seed ``seed``).
+    views_missing: percentage (0–100) of the new home's views removed at random in each run (its
+        samples then have no view, train and test alike; a camera that drops frames, or none at
+        all at 100); drawn from the trial's seed, so every model and setting of a trial loses the
+        same views.
+    text_language: how the experiment's vocabulary treats text written without spaces:
+        ``"auto"`` (found from the text), ``"ja"``, ``"zh"`` (segmented) or ``"spaced"``
+        (:func:`spco.data.segmentation.resolve`).
     """
 
     experiment: Experiment = "general"
@@ -159,6 +166,8 @@ class ExperimentConfig:
     language: str = "templates"
     images: str | os.PathLike[str] | None = None
     extractor: str | None = None
+    text_language: str = "auto"
+    views_missing: float = 0.0
 
     def validated(self) -> ExperimentConfig:
         """A copy with defaults filled in and every field checked (raises ConfigurationError)."""
@@ -172,6 +181,16 @@ class ExperimentConfig:
             raise ConfigurationError(f"seed must be a non-negative integer, got {self.seed!r}")
         if self.language not in ("templates", "free"):
             raise ConfigurationError(f"language must be 'templates' or 'free', got {self.language!r}")
+        numeric = int | float | np.integer | np.floating
+        if isinstance(self.views_missing, bool) or not isinstance(self.views_missing, numeric) \
+                or not 0 <= float(self.views_missing) <= 100:
+            raise ConfigurationError(f"views_missing must be a percentage within 0..100, got "
+                                     f"{self.views_missing!r}")
+        from spco.data.segmentation import TEXT_LANGUAGES
+
+        if self.text_language not in TEXT_LANGUAGES:
+            raise ConfigurationError(f"text_language must be one of {', '.join(TEXT_LANGUAGES)}, got "
+                                     f"{self.text_language!r}")
         if self.hyperparameters is not None and not isinstance(self.hyperparameters, TransferHyperparameters):
             raise ConfigurationError("hyperparameters must be a TransferHyperparameters instance")
         if self.engine not in ("local", "ray"):

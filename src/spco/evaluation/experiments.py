@@ -43,10 +43,13 @@ layout, or an ``spco import`` cache) uses the paper's home lists (or ``experienc
 ``new_homes``); ground-truth regions come from a region file (``regions``, the format of
 ``sigverse_regions.json``) or, without one, from the homes themselves.
 
-*One vocabulary per experiment.* Every run of an experiment uses the same word list: the words of
-all experienced homes at rate 100 (and, in the specific experiment, of the new home at the highest
-rate). The chance level of A_n, ``1/|V|``, is therefore the same in every setting, and with
-``n = 0`` (no word ever observed) the models still have names to choose from — at chance.
+*Word lists.* In the general experiment every run uses the same word list: the words of all
+experienced homes at rate 100, so the chance level of A_n, ``1/|V|``, is the same in every setting,
+and with ``n = 0`` (no word ever observed) the models still have names to choose from — at chance.
+In the specific experiment each teaching rate has its own: the experienced homes' words and those
+the new home was taught *at that rate* (``ExperimentData.vocabulary_for``): a run at 20 % has no
+column for a name taught only at 100 %. ``data.vocabulary`` in the results is the highest rate's,
+``data.vocabulary_by_rate`` each rate's.
 
 Outputs in ``out``
 ------------------
@@ -75,7 +78,8 @@ results.json schema (version 1)
                           "experienced_homes": [str], "new_homes": [str], "specific_home": str | null,
                           "regions": path as given | null, "regions_sha256": str | null,
                           "maps": path as given | null,
-                          "vocabulary": [str]},
+                          "vocabulary": [str],
+                          "vocabulary_by_rate": {rate: [str]}},   # specific experiment only
                  "hyperparameters": {model: {name: value}}, "fingerprint": str,
                  "spco_version": str},
       "runs": [   # one row per run and place, plus one row with place "mean" per run
@@ -83,7 +87,11 @@ results.json schema (version 1)
          "setting": int,          # general: number of experienced homes; specific: teaching rate
          "home": str,             # the new home
          "trial": int, "place": str,   # a normalised place name, or "mean" (mean over the places)
-         "name_accuracy": float | null, "position_accuracy": float | null,   # null: not scored
+         "name_accuracy": float | null,       # null: not scored
+         "position_accuracy": float | null,   # A_p, positions from the most probable region
+                                              # (the authors' code)
+         "position_accuracy_mixture": float | null,   # A_p, positions sampled from the whole
+                                              # mixture p(x | name) (the paper's text)
          "seed": int,             # the run's random_state
          "iterations": int, "wall_seconds": float,   # fit + evaluation time of the run
          "reused_from_setting": int | null}   # the run was computed at that setting (see above)
@@ -91,10 +99,12 @@ results.json schema (version 1)
       "summary": [   # over new homes and trials
         {"experiment", "model", "setting", "place",          # place "mean": mean of per-run means
          "name_accuracy_mean", "name_accuracy_std",          # std: sample std (ddof=1), null if n < 2
-         "position_accuracy_mean", "position_accuracy_std", "n"}   # n: number of runs
+         "position_accuracy_mean", "position_accuracy_std",
+         "position_accuracy_mixture_mean", "position_accuracy_mixture_std", "n"}   # n: number of runs
       ],
       "summary_by_home": [ same keys as "summary" plus "home" ],
       "chance": {"name_accuracy": 1/|V|, "position_accuracy": mean over new homes of 1/|places|,
+                 "position_accuracy_mixture": the same,
                  "by_home": {home: {"name_accuracy": float, "position_accuracy": float}}},
       "timing": {"runs": int, "runs_reused": int, "runs_this_session": int,
                  "run_wall_seconds_total": float, "session_wall_seconds": float}
@@ -284,7 +294,8 @@ def run_experiment(
     if max_runs is not None:
         pending = pending[:max(0, int(max_runs))]
     ctx = _RunContext(config.experiment, config.iterations, config.seed, config.n_positions,
-                      config.hyperparameters, fingerprint, str(out_path), maps, max(settings))
+                      config.hyperparameters, fingerprint, str(out_path), maps, max(settings),
+                      float(config.views_missing))
     runs_file = out_path / RUNS_FILE
     from spco.progress import progress_bar
 

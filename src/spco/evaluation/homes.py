@@ -43,6 +43,7 @@ class _DataSpec:
     images: str | None = None
     extractor: str | None = None
     shown_images: str | None = None  # --images as given
+    text_language: str = "auto"
 
 
 class _HomeSource:
@@ -69,7 +70,10 @@ class ExperimentData:
 
     Use :func:`load_experiment_data`. ``experienced`` is the ordered list of experienced homes (the
     first ``n`` are used with ``n`` homes), ``new_homes`` the evaluated homes of the general experiment,
-    ``specific_home`` the new home of the specific experiment, ``vocabulary`` the experiment's word list.
+    ``specific_home`` the new home of the specific experiment, ``vocabulary`` the experiment's word list
+    (general: the experienced homes' words; specific: those and the new home's at the highest rate),
+    ``vocabularies`` the word list of each teaching rate of the specific experiment
+    (:meth:`vocabulary_for`).
     """
 
     experiment: str
@@ -80,6 +84,9 @@ class ExperimentData:
     regions: dict[str, PlaceRegions] = field(default_factory=dict)
     description: dict[str, Any] = field(default_factory=dict)
     vocabulary: Vocabulary = field(default_factory=lambda: Vocabulary(()))
+    #: specific experiment: rate -> the words of the experienced homes and of the new home taught at
+    #: that rate (a run at 20 % has no column for a name taught only at higher rates)
+    vocabularies: dict[int, Vocabulary] = field(default_factory=dict)
     #: the homes as read, when their views were computed from images (handed to worker processes as
     #: a cache file, so that the images are not read and extracted again in each of them)
     view_records: list[Any] = field(default_factory=list, repr=False)
@@ -107,6 +114,11 @@ class ExperimentData:
                 env = replace(env, ground_truth=replace(gt, regions=regions))
             self._evaluated[key] = env
         return self._evaluated[key]
+
+    def vocabulary_for(self, setting: int) -> Vocabulary:
+        """The word list of the runs of ``setting``: the experiment's (general), or the words the
+        homes of that teaching rate were taught (specific)."""
+        return self.vocabularies.get(setting, self.vocabulary)
 
     def homes_for(self, setting: int, home: str) -> list[Environment]:
         """The homes of one run, new home last: ``(experienced…, new)``."""
@@ -240,8 +252,14 @@ def _build_data(spec: _DataSpec, settings: Sequence[int]) -> ExperimentData:
     data.regions = _check_regions(data, regions, spec, settings)
     sentences = [s for n in experienced for s in data.experienced_home(n).training_data().sentences]
     if spec.experiment == "specific":
-        sentences += data.new_home(specific, max(settings)).training_data().sentences  # type: ignore[arg-type]
-    data.vocabulary = Vocabulary.from_sentences(sentences)
+        # one word list per teaching rate, from the sentences taught at that rate only
+        data.vocabularies = {rate: Vocabulary.from_sentences(
+            sentences + list(data.new_home(specific, rate).training_data().sentences),  # type: ignore[arg-type]
+            language=spec.text_language)
+            for rate in settings}
+        data.vocabulary = data.vocabularies[max(settings)]
+    else:
+        data.vocabulary = Vocabulary.from_sentences(sentences, language=spec.text_language)
     if len(data.vocabulary) == 0:
         raise DataFormatError(spec.source, "no taught sentence in any experienced home: there are no "
                               "place names to learn")
@@ -255,6 +273,11 @@ def _build_data(spec: _DataSpec, settings: Sequence[int]) -> ExperimentData:
         "regions_sha256": _file_digest(Path(spec.regions)) if spec.regions else None,
         "vocabulary": list(data.vocabulary.words),
     }
+    if data.vocabulary.segmentation is not None:  # (absent otherwise: earlier results resume)
+        data.description["segmentation"] = data.vocabulary.segmentation.to_dict()
+    if data.vocabularies:
+        data.description["vocabulary_by_rate"] = {str(r): list(v.words) for r, v in
+                                                  sorted(data.vocabularies.items())}
     if spec.images is not None or spec.extractor is not None:
         from spco.features import DEFAULT_EXTRACTOR
 
@@ -342,7 +365,8 @@ def _data_spec(config: ExperimentConfig) -> _DataSpec:
                      shown_source=str(config.data),
                      shown_regions=None if config.regions is None else str(config.regions),
                      images=images, extractor=config.extractor,
-                     shown_images=None if config.images is None else str(config.images))
+                     shown_images=None if config.images is None else str(config.images),
+                     text_language=config.text_language)
 
 
 def load_experiment_data(config: ExperimentConfig) -> ExperimentData:

@@ -4,10 +4,18 @@
   ``l`` — or one of ``l``'s accepted names when the ground truth lists synonyms
   (:attr:`~spco.data.environment.GroundTruth.accepted_names`: "bathroom" is right at the bath). The
   mean over places is the score of a home.
-- **A_p** of name ``l``: the fraction of the positions sampled for ``l`` that fall inside the
-  ground-truth area of ``l`` (a union of rectangles, bounds inclusive). With accepted names, ``where``
-  is asked for each of them that the vocabulary holds and A_p of ``l`` is the mean over those
-  names (a name the model pruned scores 0; a name never said in any home is not asked).
+- **A_p** of name ``l``: the fraction of the positions drawn for ``l`` that fall inside the
+  ground-truth area of ``l`` (a union of rectangles, bounds inclusive), measured two ways:
+
+  * ``position_accuracy`` — *most probable region*: every position is drawn from the Gaussian of
+    m̂ = argmax_m p(m | l), as the authors' published code does (``position_mode="argmax"``);
+  * ``position_accuracy_mixture`` — *sampled from p(x | l)*: each position is drawn from a region
+    drawn from p(m | l), i.e. from the whole mixture Σ_m p(m | l) N(x | μ_m, Σ_m), as the paper's
+    text describes it. A name whose probability is spread over several regions scores lower here.
+
+  With accepted names, ``where`` is asked for each of them that the vocabulary holds and A_p of
+  ``l`` is the mean over those names (a name the model pruned scores 0; a name never said in any
+  home is not asked).
 - Chance: ``1/|V|`` for names (a uniformly random word) and ``1/|places|`` for positions.
 
 A place with no test sample (or no ground-truth area) has accuracy NaN, which
@@ -152,8 +160,13 @@ class HomeScores:
     home: the home's name.
     places: the places scored (normalised names).
     name_accuracy: place -> A_n (NaN: no test sample of that place).
-    position_accuracy: place -> A_p (NaN: no ground-truth area; 0: the name cannot be predicted).
-    mean_name_accuracy, mean_position_accuracy: NaN-excluding means over places.
+    position_accuracy: place -> A_p, positions from the most probable region (``position_mode``,
+        default ``"argmax"``, the authors' code) (NaN: no ground-truth area; 0: the name cannot be
+        predicted).
+    position_accuracy_mixture: place -> A_p, positions sampled from the whole mixture p(x | name)
+        (the paper's text).
+    mean_name_accuracy, mean_position_accuracy, mean_position_accuracy_mixture: NaN-excluding
+        means over places.
     name_chance: 1/|V| (NaN for an empty vocabulary); position_chance: 1/|places|.
     labels: (n,) true place of each scored sample.
     predicted_names: (n,) predicted name of each scored sample (``None``: no word survived).
@@ -176,6 +189,12 @@ class HomeScores:
     name_predictions: NamePrediction
     test_positions: np.ndarray
     position_predictions: dict[str, PositionPrediction] = field(default_factory=dict)
+    position_accuracy_mixture: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def mean_position_accuracy_mixture(self) -> float:
+        """NaN-excluding mean over places of :attr:`position_accuracy_mixture`."""
+        return mean_over_places(self.position_accuracy_mixture)
 
     @property
     def predicted_positions(self) -> dict[str, np.ndarray]:
@@ -194,6 +213,8 @@ class HomeScores:
             "position_accuracy": {k: clean(v) for k, v in self.position_accuracy.items()},
             "mean_name_accuracy": clean(self.mean_name_accuracy),
             "mean_position_accuracy": clean(self.mean_position_accuracy),
+            "position_accuracy_mixture": {k: clean(v) for k, v in self.position_accuracy_mixture.items()},
+            "mean_position_accuracy_mixture": clean(self.mean_position_accuracy_mixture),
             "name_chance": clean(self.name_chance),
             "position_chance": clean(self.position_chance),
         }
@@ -211,6 +232,7 @@ def evaluate_home(
     weighting: Weighting = "mi",
     position_mode: PositionMode = "argmax",
     xy_only: bool = False,
+    view_counts: float | None = None,
 ) -> HomeScores:
     """Score name and position prediction in home ``e`` (the paper's A_n and A_p).
 
@@ -223,10 +245,14 @@ def evaluate_home(
         specific — the places of the home-specific test samples.
     specific: the home-specific experiment: score the samples of ``ground_truth.specific_test``
         against ``ground_truth.specific_labels`` instead of the test samples against the labels.
-    n_positions: positions sampled per name for A_p.
-    rng: Generator or seed for the position samples.
+    n_positions: positions drawn per name for A_p (each way).
+    rng: Generator or seed for the position draws (the mixture draws use a child stream of it, so
+        the most-probable-region draws do not depend on them).
     weighting: name weighting (see :func:`spco.prediction.predict_names`).
-    position_mode, xy_only: see :func:`spco.prediction.predict_positions`.
+    view_counts: the evidence of one view in counts, as the model learnt (see
+        :func:`spco.prediction.predict_names`; ``None``: every count a draw).
+    position_mode, xy_only: see :func:`spco.prediction.predict_positions`; ``position_mode`` is the
+        mode of ``position_accuracy``; ``position_accuracy_mixture`` is always ``"mixture"``.
 
     Conventions: a place with no scored sample has A_n = NaN, left out of the mean. A place whose
     name the model cannot predict (never taught, or pruned) gets A_n = 0 (it is never predicted)
@@ -254,34 +280,39 @@ def evaluate_home(
 
     positions = environment.positions[rows]
     visual = environment.visual[rows]
-    prediction = predict_names(params, e, vocabulary, positions, visual, top_k=3, weighting=weighting)
+    prediction = predict_names(params, e, vocabulary, positions, visual, top_k=3, weighting=weighting,
+                               view_counts=view_counts)
     predicted = tuple(prediction.best)
     accepted = {place: gt.accepted(place) for place in place_list}
     name_scores = name_accuracy(predicted, labels, place_list, accepted)
 
     gen = np.random.default_rng(rng)
+    gen_mixture = gen.spawn(1)[0]  # a child stream: the argmax draws stay as they were
     pos_scores: dict[str, float] = {}
+    mix_scores: dict[str, float] = {}
     pos_predictions: dict[str, PositionPrediction] = {}
     regions = gt.regions
     for place in place_list:  # a handful of names
         if regions is None or place not in regions.places:
-            pos_scores[place] = math.nan
+            pos_scores[place] = mix_scores[place] = math.nan
             continue
         # the place's own name, and every accepted synonym the vocabulary holds as one token
         names = [n for i, n in enumerate(accepted[place]) if i == 0 or vocabulary.index(n) is not None]
-        scores: list[float] = []
-        for name in names:
-            try:
-                pred = predict_positions(params, e, vocabulary, name, n=n_positions, rng=gen,
-                                         mode=position_mode, xy_only=xy_only)
-            except UnknownNameError:
-                scores.append(0.0)
-                continue
-            pos_predictions.setdefault(place, pred)
-            scores.append(position_accuracy({place: pred.samples}, regions)[place])
-        if len(names) > 1 and vocabulary.index(place) is None:
-            scores.pop(0)  # the label itself was never said (people use its synonyms)
-        pos_scores[place] = float(np.mean(scores))
+        for mode, stream, out in ((position_mode, gen, pos_scores), ("mixture", gen_mixture, mix_scores)):
+            scores: list[float] = []
+            for name in names:
+                try:
+                    pred = predict_positions(params, e, vocabulary, name, n=n_positions, rng=stream,
+                                             mode=mode, xy_only=xy_only)
+                except UnknownNameError:
+                    scores.append(0.0)
+                    continue
+                if stream is gen:
+                    pos_predictions.setdefault(place, pred)
+                scores.append(position_accuracy({place: pred.samples}, regions)[place])
+            if len(names) > 1 and vocabulary.index(place) is None:
+                scores.pop(0)  # the label itself was never said (people use its synonyms)
+            out[place] = float(np.mean(scores))
 
     return HomeScores(
         home=environment.name,
@@ -297,4 +328,5 @@ def evaluate_home(
         name_predictions=prediction,
         test_positions=positions,
         position_predictions=pos_predictions,
+        position_accuracy_mixture=mix_scores,
     )

@@ -23,7 +23,12 @@ __all__ = ["MEAN", "format_cell", "markdown_tables", "place_order", "summarize"]
 #: The ``place`` of the rows holding a run's mean over places.
 MEAN = "mean"
 
-_MEASURES = (("name_accuracy", "name accuracy A_n"), ("position_accuracy", "position accuracy A_p"))
+#: measure -> label. A_p two ways: positions from the most probable region (the authors' code) and
+#: positions sampled from the whole mixture p(x | name) (the paper's text).
+_MEASURES = (("name_accuracy", "name accuracy A_n"),
+             ("position_accuracy", "position accuracy A_p (most probable region, as the authors' code)"),
+             ("position_accuracy_mixture", "position accuracy A_p (sampled from p(x | name), as the "
+                                           "paper's text)"))
 _CANONICAL = [normalize_name(p) for p in (*GENERAL_PLACES, *SPECIFIC_ROOM_NAMES)]
 
 
@@ -50,7 +55,8 @@ def summarize(rows: Iterable[Mapping[str, Any]], by: Sequence[str]) -> list[dict
     """Group ``rows`` by the keys ``by`` and average their accuracies.
 
     Each output row holds the ``by`` keys, ``name_accuracy_mean``, ``name_accuracy_std``,
-    ``position_accuracy_mean``, ``position_accuracy_std`` (sample std, ddof = 1; ``None`` when
+    ``position_accuracy_mean``, ``position_accuracy_std``, ``position_accuracy_mixture_mean``,
+    ``position_accuracy_mixture_std`` (sample std, ddof = 1; ``None`` when
     fewer than two values) and ``n``, the number of rows in the group. Missing accuracies (``None``
     or NaN: a place without test samples or ground-truth area) are left out of the mean and std.
     Groups keep the order of their first row.
@@ -62,7 +68,7 @@ def summarize(rows: Iterable[Mapping[str, Any]], by: Sequence[str]) -> list[dict
     for key, members in groups.items():
         entry: dict[str, Any] = dict(zip(by, key, strict=True))
         for measure, _ in _MEASURES:
-            mean, std = _stats([m[measure] for m in members])
+            mean, std = _stats([m.get(measure) for m in members])
             entry[f"{measure}_mean"] = mean
             entry[f"{measure}_std"] = std
         entry["n"] = len(members)

@@ -43,6 +43,8 @@ def _identity(config: ExperimentConfig, data: ExperimentData) -> dict[str, Any]:
         "n_positions": config.n_positions,
         "data": data.description,
         "hyperparameters": json.loads(json.dumps(hyper)),
+        # (absent at 0: earlier results resume)
+        **({"views_missing": float(config.views_missing)} if config.views_missing else {}),
     }
 
 
@@ -195,10 +197,13 @@ def _run_rows(record: Mapping[str, Any]) -> list[dict[str, Any]]:
     tail = {k: record[k] for k in ("seed", "iterations", "wall_seconds")}
     tail["reused_from_setting"] = record.get("reused_from_setting")
     places = report.place_order([*record["name_accuracy"], *record["position_accuracy"]])
+    mixture = record.get("position_accuracy_mixture") or {}  # (runs recorded before it existed: None)
     rows = [{**base, "place": p, "name_accuracy": record["name_accuracy"].get(p),
-             "position_accuracy": record["position_accuracy"].get(p), **tail} for p in places]
+             "position_accuracy": record["position_accuracy"].get(p),
+             "position_accuracy_mixture": mixture.get(p), **tail} for p in places]
     rows.append({**base, "place": report.MEAN, "name_accuracy": record["mean_name_accuracy"],
-                 "position_accuracy": record["mean_position_accuracy"], **tail})
+                 "position_accuracy": record["mean_position_accuracy"],
+                 "position_accuracy_mixture": record.get("mean_position_accuracy_mixture"), **tail})
     return rows
 
 
@@ -227,6 +232,7 @@ def _assemble(config: ExperimentConfig, identity: Mapping[str, Any], fingerprint
     chance = {
         "name_accuracy": _mean_of([c["name_accuracy"] for c in chance_by_home.values()]),
         "position_accuracy": _mean_of([c["position_accuracy"] for c in chance_by_home.values()]),
+        "position_accuracy_mixture": _mean_of([c["position_accuracy"] for c in chance_by_home.values()]),
         "by_home": chance_by_home,
     }
     return {

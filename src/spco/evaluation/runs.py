@@ -105,6 +105,15 @@ def _draw_map(model: SpatialConceptModel, e: int, env: Environment, scores: Home
 
 
 # ------------------------------------------------------------------------------------ runs
+def without_views(home: Environment, percent: float, seed: int) -> Environment:
+    """``home`` with ``percent`` % of its samples' views removed, chosen at random from ``seed``
+    (the same seed removes the same views; a higher percentage removes a superset)."""
+    order = np.random.default_rng([seed, 2]).permutation(home.n_samples)
+    missing = np.zeros(home.n_samples, dtype=bool)
+    missing[order[:round(home.n_samples * percent / 100.0)]] = True
+    return home.with_views_missing(missing)
+
+
 @dataclass(frozen=True, order=True)
 class RunKey:
     """One run: a model fitted for one setting, new home and trial."""
@@ -128,6 +137,7 @@ class _RunContext:
     out: str
     maps: str | None
     map_setting: int  # maps and log-joint traces: trial 0 at this setting
+    views_missing: float = 0.0  # percent of the new home's views removed (ExperimentConfig)
 
 
 def execute_run(data: ExperimentData, ctx: _RunContext, key: RunKey) -> dict[str, Any]:
@@ -137,20 +147,23 @@ def execute_run(data: ExperimentData, ctx: _RunContext, key: RunKey) -> dict[str
     traced = key.trial == 0 and key.setting == ctx.map_setting
     start = time.perf_counter()
     homes = data.homes_for(key.setting, key.home)
+    if ctx.views_missing > 0:
+        homes[-1] = without_views(homes[-1], ctx.views_missing, seed)
     from spco.data.environment import Corpus
 
     model = spec.build(ctx.iterations, seed, ctx.hyperparameters, traced)
+    vocabulary = data.vocabulary_for(key.setting)
     if spec.single_home:
-        corpus = Corpus([homes[-1]], vocabulary=data.vocabulary)
+        corpus = Corpus([homes[-1]], vocabulary=vocabulary)
     else:
-        corpus = Corpus(homes, vocabulary=data.vocabulary)
+        corpus = Corpus(homes, vocabulary=vocabulary)
     model.fit(corpus)
     e = len(corpus) - 1
     env = homes[-1]
     specific = ctx.experiment == "specific"
     scores = evaluate_home(model.parameters_, e, env, model.vocabulary_, specific=specific,
                            n_positions=ctx.n_positions, rng=np.random.default_rng([seed, 1]),
-                           weighting=spec.weighting)
+                           weighting=spec.weighting, view_counts=model.settings_.view_counts)
     wall = time.perf_counter() - start
     if traced:
         path = map_path(Path(ctx.out), ctx.experiment, key.model, key.setting, key.home)
@@ -175,6 +188,8 @@ def execute_run(data: ExperimentData, ctx: _RunContext, key: RunKey) -> dict[str
         "position_accuracy": {p: clean(v) for p, v in scores.position_accuracy.items()},
         "mean_name_accuracy": clean(scores.mean_name_accuracy),
         "mean_position_accuracy": clean(scores.mean_position_accuracy),
+        "position_accuracy_mixture": {p: clean(v) for p, v in scores.position_accuracy_mixture.items()},
+        "mean_position_accuracy_mixture": clean(scores.mean_position_accuracy_mixture),
         "name_chance": clean(scores.name_chance),
         "position_chance": clean(scores.position_chance),
         "log_joint": [round(float(v), 3) for v in model.log_joint_] if traced else None,

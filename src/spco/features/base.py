@@ -39,27 +39,42 @@ __all__ = [
 #: File name endings read as images.
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png")
 
-#: An image: a file path, or an (H, W) grey / (H, W, 3) BGR / (H, W, 4) BGRA uint8 array (OpenCV's order).
-ImageInput = str | os.PathLike[str] | np.ndarray
+#: An image: a file path, the bytes of a JPEG or PNG file, or an array of pixels — (H, W) grey,
+#: (H, W, 3) colour, (H, W, 4) colour with alpha — whose colour order its ``encoding`` gives
+#: (:mod:`spco.features.pixels`: rgb8, bgr8, mono8, rgba8, bgra8; default bgr8, OpenCV's order).
+ImageInput = str | os.PathLike[str] | bytes | np.ndarray
 
 
-def read_image(image: ImageInput) -> np.ndarray:
-    """The image as an (H, W, 3) uint8 BGR array (grey and BGRA images are converted).
+def read_image(image: ImageInput, encoding: str | None = None) -> np.ndarray:
+    """The image as an (H, W, 3) uint8 BGR array (grey and alpha images are converted).
 
-    A path is decoded with OpenCV (PNG, JPEG); an unreadable, empty or corrupt file raises
-    :class:`~spco.errors.DataFormatError` naming it. Arrays may be uint8, or float in [0, 1].
+    Parameters
+    ----------
+    image: a path (PNG or JPEG, decoded with OpenCV), the bytes of such a file, or an array of pixels
+        (uint8, or float in [0, 1]).
+    encoding: the colour order of an array: ``rgb8`` (PIL, matplotlib, ``cv_bridge``'s rgb8),
+        ``bgr8`` (OpenCV), ``mono8``, ``rgba8``, ``bgra8``; ``None``: ``bgr8`` for colour (with an
+        :class:`~spco.features.pixels.UndeclaredEncodingWarning`), ``mono8`` for grey. For bytes:
+        ``jpeg`` or ``png`` (checked against the bytes) or ``None``; for a path, ``None`` (a file
+        carries its own).
+
+    Raises :class:`~spco.errors.DataFormatError` for an unreadable, empty or corrupt file or bytes
+    (naming the file), an unknown encoding or one the array's shape does not match.
     """
     import cv2
 
+    from spco.features.pixels import check_encoding, decode_compressed, to_bgr
+
     if isinstance(image, np.ndarray):
-        array = image
+        array = to_bgr(image, encoding)
         where = "image array"
-        if array.dtype != np.uint8:
-            if not np.issubdtype(array.dtype, np.floating) or not np.isfinite(array).all():
-                raise DataFormatError(None, f"an image array must be uint8 (0-255) or float (0-1), got "
-                                      f"{array.dtype}")
-            array = np.clip(np.rint(array * 255.0), 0, 255).astype(np.uint8)
+    elif isinstance(image, bytes | bytearray | memoryview):
+        array = decode_compressed(bytes(image), encoding)
+        where = "image array"
     else:
+        if encoding is not None and check_encoding(encoding) not in ("jpeg", "png"):
+            raise DataFormatError(str(image), f"encoding {encoding!r} is for arrays of pixels; an image file "
+                                  "carries its own colour order")
         path = Path(image).expanduser()
         where = str(path)
         if not path.is_file():
@@ -74,15 +89,11 @@ def read_image(image: ImageInput) -> np.ndarray:
                                   "or corrupt?)")
         if array.dtype != np.uint8:  # 16-bit PNG
             array = (array // 257).astype(np.uint8)
-    if array.ndim == 3 and array.shape[2] == 1:
-        array = array[:, :, 0]
-    if array.ndim == 2:
-        array = cv2.cvtColor(array, cv2.COLOR_GRAY2BGR)
-    elif array.ndim == 3 and array.shape[2] == 4:
-        array = cv2.cvtColor(array, cv2.COLOR_BGRA2BGR)
-    elif array.ndim != 3 or array.shape[2] != 3:
-        raise DataFormatError(None if where == "image array" else where,
-                              f"an image must be grey, RGB or RGBA, got shape {array.shape}")
+        channels = 1 if array.ndim == 2 else array.shape[2]
+        if channels not in (1, 3, 4):
+            raise DataFormatError(path, f"an image must be grey, colour or colour with alpha, got shape "
+                                  f"{array.shape}")
+        array = to_bgr(array, {1: "mono8", 3: "bgr8", 4: "bgra8"}[channels])  # OpenCV decodes to BGR(A)
     if min(array.shape[:2]) < 8:
         raise DataFormatError(None if where == "image array" else where,
                               f"image too small ({array.shape[1]}×{array.shape[0]} pixels; at least 8×8)")
@@ -188,17 +199,20 @@ class Extractor(ABC):
     def _counts(self, image: np.ndarray) -> np.ndarray:
         """(D,) non-negative integer counts of one BGR image."""
 
-    def extract(self, image: ImageInput) -> np.ndarray:
-        """The (D,) int64 counts of one image (path or array, any size, grey or colour)."""
+    def extract(self, image: ImageInput, encoding: str | None = None) -> np.ndarray:
+        """The (D,) int64 counts of one image (path, file bytes or pixel array, any size, grey or
+        colour); ``encoding``: an array's colour order (:func:`read_image`)."""
         if self.needs_fit:
             raise ConfigurationError(f"extractor {self.name!r} has no codebook yet: learn it from images "
                                      "first (spco fit on homes with images does)")
-        counts = self._counts(read_image(image))
+        counts = self._counts(read_image(image, encoding))
         return np.asarray(counts, dtype=np.int64)
 
     def extract_many(self, images: Sequence[ImageInput], jobs: int | None = None,
-                     progress: Callable[[int], None] | None = None) -> sp.csr_array:
-        """(N, D) int64 sparse counts of ``images``, in order; ``jobs`` threads (default: the CPUs)."""
+                     progress: Callable[[int], None] | None = None, encoding: str | None = None
+                     ) -> sp.csr_array:
+        """(N, D) int64 sparse counts of ``images``, in order; ``jobs`` threads (default: the CPUs);
+        ``encoding``: the colour order of the arrays among them (:func:`read_image`)."""
         images = list(images)
         if not images:
             return sp.csr_array((0, self.n_features), dtype=np.int64)
@@ -207,13 +221,13 @@ class Extractor(ABC):
         if jobs == 1:
             rows = []
             for image in images:
-                rows.append(self.extract(image))
+                rows.append(self.extract(image, encoding))
                 if progress is not None:
                     progress(1)
         else:
             with ThreadPoolExecutor(jobs) as pool:  # OpenCV and ONNX Runtime release the GIL
                 rows = []
-                for row in pool.map(self.extract, images):
+                for row in pool.map(lambda im: self.extract(im, encoding), images):
                     rows.append(row)
                     if progress is not None:
                         progress(1)

@@ -6,12 +6,13 @@ from __future__ import annotations
 import time
 import warnings
 from collections.abc import Iterable, Mapping
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
 
-from spco.data.environment import Environment
+from spco.data.environment import Environment, TrainingData
 from spco.errors import ConfigurationError, DataFormatError
 from spco.knowledge.diagnostics import ExperiencedHomeWarning, check_view_fit
 from spco.knowledge.files import _as_generator, _now, _seed_of, _version
@@ -39,6 +40,26 @@ def _check_visual_dimension(knowledge: Knowledge, n_features: int, where: str) -
                               f"the extractor of the experienced homes (e.g. CaffeNet fc7, 4096 values per "
                               f"view, for the SIGVerse knowledge), or fit knowledge on homes recorded like "
                               f"this one (spco fit)")
+
+
+def _views_for(knowledge: Knowledge, train: TrainingData, where: str) -> TrainingData:
+    """The training samples with views of the knowledge's dimension: a home without any view is
+    widened to it (every view missing); for knowledge learnt without views (``D = 0``) the home's
+    views are left out, with a warning."""
+    if train.visual.shape[1] == knowledge.n_features:
+        return train
+    if train.view_missing.all() and train.visual.nnz == 0:
+        return replace(train, visual=sp.csr_array((train.n_samples, knowledge.n_features), dtype=np.int64))
+    if knowledge.n_features == 0:
+        warnings.warn(f"{where}: the knowledge was learnt from homes without views, so this home's views "
+                      "are left out (it is learnt from its poses and words)", NoViewsWarning, stacklevel=3)
+        return replace(train, visual=sp.csr_array((train.n_samples, 0), dtype=np.int64),
+                       view_missing=np.ones(train.n_samples, dtype=bool))
+    return train  # a mismatch: refused by _check_visual_dimension
+
+
+class NoViewsWarning(UserWarning):
+    """Views given to knowledge learnt without views: they are left out."""
 
 
 def adapt(
@@ -70,6 +91,7 @@ def adapt(
     train = home.training_data()
     if train.n_samples == 0:
         raise ConfigurationError(f"home {home.name!r} has no training samples to adapt to")
+    train = _views_for(knowledge, train, home.source or home.name)
     _check_visual_dimension(knowledge, train.visual.shape[1], home.source or home.name)
     fit_of_views = check_view_fit(knowledge, train.visual, home.name)
     if home.name in (knowledge.provenance.get("homes") or []):
@@ -83,7 +105,7 @@ def adapt(
     scale = gibbs.CM_PER_M if extended.variant == "reference" else 1.0
     centre = _map_centre(home)
     data = prepare_home(train.positions, train.visual, train.sentences, extended.vocabulary,
-                        extended.word_increment, scale, centre)
+                        extended.word_increment, scale, centre, train.view_missing)
     shard = NewHomeShard.start(data, extended.shared_part(), n_known, rng,
                                prior=extended.shared_prior() if joint else None)
     iterator: Iterable[int] = range(int(n_iterations))
@@ -110,6 +132,6 @@ def adapt(
                      positions=train.positions, visual=sp.csr_array(train.visual, dtype=np.int64),
                      sentences=tuple(train.sentences), extent=home.extent, map_centre=centre,
                      n_knowledge_words=n_known, joint=bool(joint), provenance=record,
-                     posterior=posterior)
+                     posterior=posterior, view_missing=train.view_missing.copy())
 
 

@@ -42,12 +42,14 @@ def _view_fit_record(homes: dict[str, float | None]) -> dict[str, Any]:
 
 def check_view_fit(knowledge: Knowledge, visual: Any, home_name: str) -> dict[str, Any] | None:
     """The home's :func:`view_fit` against the experienced homes' (``None`` if the knowledge file
-    predates the measure); warns with :class:`KnowledgeMismatchWarning` when it is below the level
-    recorded at fit time."""
+    predates the measure or the home has no view with a count); warns with
+    :class:`KnowledgeMismatchWarning` when it is below the level recorded at fit time."""
     recorded = knowledge.provenance.get("view_fit")
     if not isinstance(recorded, Mapping) or recorded.get("warn_below") is None:
         return None
     value = view_fit(knowledge.log_phi_visual, knowledge.log_g0, visual)
+    if value is None:  # no view (a home without a camera, or knowledge learnt without views)
+        return None
     experienced = [float(v) for v in (recorded.get("homes") or {}).values() if v is not None]
     warn_below = float(recorded["warn_below"])
     fits = value is not None and value >= warn_below

@@ -2,11 +2,13 @@
 
 Knowledge (``.spco``, format ``spco-knowledge``) and home (``.spco``, format ``spco-home``) files
 are NumPy ``.npz`` archives read with ``allow_pickle=False``: arrays plus a ``header`` array holding
-a UTF-8 JSON document with the format name, ``format_version`` (2), the spco version, the
-hyperparameters, the vocabulary, provenance, the image extractor (``extractor``: name, version,
-settings and checksum of its weights, ``null`` for knowledge fitted on count vectors; its weights,
-such as a codebook, as arrays ``extractor.<name>``; version 1 files, which predate it, are read
-as fitted on count vectors), a sha256 checksum of every array and a ``checksum`` of
+a UTF-8 JSON document with the format name, ``format_version`` (2; 3 when the vocabulary segments
+text written without spaces), the spco version, the hyperparameters, the vocabulary, its
+``segmentation`` (``null``, or how Japanese or Chinese text is cut into words:
+:meth:`spco.data.segmentation.Segmentation.to_dict`), provenance, the image extractor
+(``extractor``: name, version, settings and checksum of its weights, ``null`` for knowledge fitted
+on count vectors; its weights, such as a codebook, as arrays ``extractor.<name>``; version 1 files,
+which predate it, are read as fitted on count vectors), a sha256 checksum of every array and a ``checksum`` of
 the whole content (header and arrays). They are written to a temporary file in the target's folder,
 flushed and renamed into place (atomic), and never replace an existing file unless asked
 (``overwrite=True``, ``--force``). A missing, truncated, edited or foreign file, or one written by
@@ -39,7 +41,28 @@ KNOWLEDGE_FORMAT = "spco-knowledge"
 HOME_FORMAT = "spco-home"
 #: Version of both file layouts written by this module; newer files are refused. Version 2 added
 #: the image extractor (``extractor`` in the header); version 1 files are read as count-vector ones.
-FORMAT_VERSION = 2
+#: Version 3 added the segmentation of text written without spaces (``segmentation``): it is
+#: written only for a vocabulary that segments such text (older spco would cut it otherwise);
+#: other files stay version 2.
+FORMAT_VERSION = 3
+
+
+def format_version(vocabulary: Any) -> int:
+    """The version to write for a file of ``vocabulary``: 3 if it segments text written without
+    spaces, else 2 (readable by older spco)."""
+    seg = vocabulary.segmentation
+    return 3 if seg is not None and seg.segments else 2
+
+
+def segmentation_of(header: Mapping[str, Any]) -> Any:
+    """The vocabulary's :class:`~spco.data.segmentation.Segmentation` recorded in a file header
+    (``None`` if none)."""
+    data = header.get("segmentation")
+    if data is None:
+        return None
+    from spco.data.segmentation import Segmentation
+
+    return Segmentation.from_dict(data)
 
 
 _FORMAT_NAMES = {KNOWLEDGE_FORMAT: "knowledge file", HOME_FORMAT: "home file",

@@ -17,12 +17,12 @@ from spco.data.environment import Environment, Extent
 from spco.data.language import Vocabulary
 from spco.errors import ModelFileError
 from spco.knowledge.files import (
-    FORMAT_VERSION,
     HOME_FORMAT,
     _read_archive,
     _require,
     _version,
     _write_archive,
+    format_version,
 )
 from spco.knowledge.knowledge import Knowledge
 from spco.model import gibbs
@@ -39,8 +39,12 @@ class Observation:
 
     x, y in metres on the home's map, theta (heading) in radians; visual: (D,) counts (dense array
     or a 1-row sparse matrix); sentence: the user's words, or ``None``; id: the sample id (default:
-    one more than the largest id of the home); image: the view as an image (path or array) in place
-    of ``visual``, for a home whose knowledge was fitted on images (its extractor computes the counts).
+    one more than the largest id of the home); image: the view as an image (path, file bytes or array
+    of pixels) in place of ``visual``, for a home whose knowledge was fitted on images (its extractor
+    computes the counts); encoding: an array's colour order (``rgb8``, ``bgr8`` — the default —,
+    ``mono8``, ``rgba8``, ``bgra8``; :mod:`spco.features.pixels`).
+    With neither ``visual`` nor ``image`` the observation has no view (a camera that dropped the
+    frame): it is learnt from its pose and words.
     """
 
     x: float
@@ -50,6 +54,7 @@ class Observation:
     sentence: str | None = None
     id: int | None = None
     image: Any = None
+    encoding: str | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -65,6 +70,8 @@ class HomeModel:
         sampler), including the current shared part (refined if ``joint``).
     ids: (n,) sample ids of the home's training samples; positions: (n, 4) metres
         ``(x, y, sin θ, cos θ)``; visual: (n, D) sparse counts; sentences: what was taught at each.
+    view_missing: (n,) bool, the samples without a view (their rows of ``visual`` are empty);
+        ``None``: every sample has one.
     extent: the map extent ``(x_min, x_max, y_min, y_max)`` or ``None``.
     map_centre: (4,) prior mean of the regions, metres.
     n_knowledge_words: how many of the vocabulary's words come from the knowledge (the rest were
@@ -89,6 +96,18 @@ class HomeModel:
     joint: bool = False
     provenance: dict[str, Any] = field(default_factory=dict)
     posterior: ConceptParameters | None = None
+    view_missing: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        n = int(np.asarray(self.ids).size)
+        missing = np.zeros(n, dtype=bool) if self.view_missing is None \
+            else np.asarray(self.view_missing, dtype=bool)
+        object.__setattr__(self, "view_missing", missing)
+
+    @property
+    def n_views(self) -> int:
+        """Number of the home's samples with a view."""
+        return int((~self.view_missing).sum())
 
     # ------------------------------------------------------------------ views
     @property
@@ -130,7 +149,8 @@ class HomeModel:
     def data(self) -> gibbs.PreparedData:
         """The home's samples in the sampler's form."""
         return prepare_home(self.positions, self.visual, self.sentences, self.vocabulary,
-                            self.knowledge.word_increment, self.position_scale, self.map_centre)
+                            self.knowledge.word_increment, self.position_scale, self.map_centre,
+                            self.view_missing)
 
     @functools.cached_property
     def parameters(self) -> ConceptParameters:
@@ -160,11 +180,11 @@ class HomeModel:
         return where(self, name, n=n, random_state=random_state)
 
     def what(self, x: float, y: float, theta: float, visual: Any = None, top_k: int = 3,
-             image: Any = None) -> NamePrediction:
+             image: Any = None, encoding: str | None = None) -> NamePrediction:
         """Place names at a pose; see :func:`spco.knowledge.what`."""
         from spco.knowledge.queries import what
 
-        return what(self, x, y, theta, visual=visual, top_k=top_k, image=image)
+        return what(self, x, y, theta, visual=visual, top_k=top_k, image=image, encoding=encoding)
 
     # ------------------------------------------------------------------ files
     def save(self, path: str | PathLike[str], overwrite: bool = False) -> Path:
@@ -181,13 +201,15 @@ class HomeModel:
             "visual_indptr": visual.indptr.astype(np.int64),
             "map_centre": np.asarray(self.map_centre, dtype=np.float64),
         })
+        if self.view_missing.any():  # (absent: every sample has a view)
+            arrays["view_missing"] = np.asarray(self.view_missing, dtype=bool)
         for name in _STATE_ARRAYS:
             arrays["state." + name] = np.asarray(getattr(s, name))
         if self.posterior is not None:
             arrays.update({"posterior." + k: np.asarray(v) for k, v in self.posterior.arrays().items()})
         header = {
             "format": HOME_FORMAT,
-            "format_version": FORMAT_VERSION,
+            "format_version": format_version(self.vocabulary),
             "spco_version": _version(),
             "name": self.name,
             "sentences": list(self.sentences),
@@ -200,6 +222,7 @@ class HomeModel:
             "prune_words": k_header["prune_words"],
             "hyperparameters": k_header["hyperparameters"],
             "vocabulary": k_header["vocabulary"],
+            "segmentation": k_header["segmentation"],
             "word_increment": k_header["word_increment"],
             "knowledge_provenance": k_header["provenance"],
             "provenance": self.provenance,
@@ -231,7 +254,8 @@ class HomeModel:
                        positions=arrays["positions"], visual=visual, sentences=sentences,
                        extent=extent, map_centre=arrays["map_centre"],
                        n_knowledge_words=int(header["n_knowledge_words"]), joint=bool(header.get("joint")),
-                       provenance=dict(header.get("provenance") or {}), posterior=posterior)
+                       provenance=dict(header.get("provenance") or {}), posterior=posterior,
+                       view_missing=arrays.get("view_missing"))
         except (TypeError, ValueError, IndexError, KeyError) as exc:
             raise ModelFileError(file, f"inconsistent home file: {exc}") from exc
         problems = _check_home(home)
@@ -244,8 +268,9 @@ class HomeModel:
         s = self.state
         concepts = np.unique(s.concepts).size
         regions = int((s.region_counts > 0).sum())
-        return (f"home {self.name}: {self.n_samples} samples ({self.n_taught} taught), {concepts} concepts "
-                f"and {regions} regions in use, {len(self.vocabulary)} words "
+        views = f", {self.n_views} with a view" if self.view_missing.any() else ""
+        return (f"home {self.name}: {self.n_samples} samples ({self.n_taught} taught{views}), "
+                f"{concepts} concepts and {regions} regions in use, {len(self.vocabulary)} words "
                 f"({len(self.known_names)} usable), model {self.knowledge.model}"
                 f"{' (shared part refined)' if self.joint else ''}")
 
@@ -272,6 +297,10 @@ def _check_home(home: HomeModel) -> list[str]:
         problems.append(f"{len(home.sentences)} sentences for {n} samples")
     if home.visual.shape[1] != D:
         problems.append(f"visual counts have {home.visual.shape[1]} features, the knowledge {D}")
+    if home.view_missing.shape != (n,):
+        problems.append(f"view_missing has shape {home.view_missing.shape}, expected ({n},)")
+    elif home.view_missing.any() and home.visual[np.flatnonzero(home.view_missing)].nnz:
+        problems.append("a sample without a view has visual counts")
     if not 0 <= home.n_knowledge_words <= V:
         problems.append(f"n_knowledge_words {home.n_knowledge_words} out of range")
     if home.posterior is not None:

@@ -16,13 +16,14 @@ from scipy.special import logsumexp
 from spco.data.language import Vocabulary
 from spco.errors import ConfigurationError, ModelFileError
 from spco.knowledge.files import (
-    FORMAT_VERSION,
     KNOWLEDGE_FORMAT,
     _content_checksum,
     _read_archive,
     _require,
     _version,
     _write_archive,
+    format_version,
+    segmentation_of,
 )
 from spco.model.home_shard import SharedPart, SharedPrior
 from spco.model.hyperparameters import TransferHyperparameters
@@ -220,13 +221,15 @@ class Knowledge:
             arrays["extractor." + name] = np.asarray(value)
         header = {
             "format": KNOWLEDGE_FORMAT,
-            "format_version": FORMAT_VERSION,
+            "format_version": format_version(self.vocabulary),
             "spco_version": _version(),
             "model": self.model,
             "variant": self.variant,
             "prune_words": bool(self.prune_words),
             "hyperparameters": self.hyperparameters.to_dict(),
             "vocabulary": list(self.vocabulary.words),
+            "segmentation": None if self.vocabulary.segmentation is None
+            else self.vocabulary.segmentation.to_dict(),
             "word_increment": int(self.word_increment),
             "provenance": self.provenance,
             "extractor": self.extractor,
@@ -260,7 +263,7 @@ class Knowledge:
                 concentration_visual=arrays[prefix + "concentration_visual"],
                 concentration_words=arrays[prefix + "concentration_words"],
                 concentration_g0=float(arrays[prefix + "concentration_g0"].reshape(-1)[0]),
-                vocabulary=Vocabulary(tuple(str(w) for w in header["vocabulary"])),
+                vocabulary=Vocabulary(tuple(str(w) for w in header["vocabulary"]), segmentation_of(header)),
                 word_increment=int(header["word_increment"]),
                 hyperparameters=TransferHyperparameters.from_dict(header["hyperparameters"]),
                 variant=str(header["variant"]),
@@ -289,6 +292,8 @@ class Knowledge:
             from spco.features import ExtractorSpec
 
             lines.append(f"views: images, extractor {ExtractorSpec.from_dict(self.extractor).describe()}")
+        if self.vocabulary.segmentation is not None:
+            lines.append(f"text written without spaces: {self.vocabulary.segmentation.describe()}")
         return "\n".join(lines)
 
 

@@ -139,15 +139,17 @@ def unused_word_hint(home: HomeModel, word: str) -> str | None:
 
 
 def what(home: HomeModel, x: float, y: float, theta: float, visual: Any = None,
-         top_k: int = 3, image: Any = None) -> NamePrediction:
+         top_k: int = 3, image: Any = None, encoding: str | None = None) -> NamePrediction:
     """The ``top_k`` place names at pose ``(x, y, θ)``, with the view's visual counts if given.
 
     A pose off the home's map is answered with a :class:`UserWarning`, one more than
     :data:`FAR_OUTSIDE_MAP` map sizes off it is refused (:func:`pose_outside_map`); ``θ`` must be in
     radians (``|θ| ≤ 2π``).
 
-    ``image`` (a path or an array) gives the view as an image instead, for a home whose knowledge
-    was fitted on images: its extractor computes the counts.
+    ``image`` (a path, a JPEG/PNG file's bytes or an array of pixels) gives the view as an image
+    instead, for a home whose knowledge was fitted on images: its extractor computes the counts.
+    ``encoding`` is an array's colour order — ``rgb8`` (PIL, matplotlib, ``cv_bridge``'s rgb8),
+    ``bgr8`` (OpenCV, the default), ``mono8``, ``rgba8``, ``bgra8`` (:mod:`spco.features.pixels`).
     Without a view the names come from the position alone (``use_vision=False``). The returned
     :class:`~spco.prediction.NamePrediction` holds one row: ``words[0]``, ``probabilities[0]``
     (p(w | x, v)) and ``scores[0]`` (the ranking score).
@@ -156,7 +158,7 @@ def what(home: HomeModel, x: float, y: float, theta: float, visual: Any = None,
     outside = pose_outside_map(home, x, y)
     if outside is not None:
         warnings.warn(f"{outside}; the names are extrapolated from the nearest regions", stacklevel=2)
-    visual = _view_counts(home.knowledge, visual, image)
+    visual = _view_counts(home.knowledge, visual, image, encoding)
     row = None if visual is None else _visual_row(visual, home.knowledge.n_features)
     return predict_names(home.parameters, 0, home.vocabulary, pose, row, top_k=top_k,
                          weighting=home.weighting, use_vision=row is not None)  # type: ignore[arg-type]
@@ -168,9 +170,11 @@ def describe_model_file(path: str | PathLike[str]) -> dict[str, Any]:
 
     Keys: ``file``, ``kind`` (``"knowledge"`` or ``"home"``), ``model``, ``visual_dimension``,
     ``extractor`` (the feature extractor recorded with the views, or ``None``), ``vocabulary``,
-    ``kept_names`` (the words usable as place names), ``homes`` (the experienced homes), the view fit
-    (:func:`view_fit`) and the ``provenance``; a home file adds ``home``, ``samples``, ``taught`` and
-    ``extent``. Raises :class:`~spco.errors.ModelFileError` for a file that is neither (or broken).
+    ``kept_names`` (the words usable as place names), ``text`` (how text written without spaces is
+    cut: :meth:`~spco.data.segmentation.Segmentation.describe`, or ``None``), ``homes`` (the
+    experienced homes), the view fit (:func:`view_fit`) and the ``provenance``; a home file adds
+    ``home``, ``samples``, ``taught`` and ``extent``. Raises :class:`~spco.errors.ModelFileError`
+    for a file that is neither (or broken).
     """
     kind = model_file_format(path)
     if kind == HOME_FORMAT:
@@ -188,6 +192,8 @@ def describe_model_file(path: str | PathLike[str]) -> dict[str, Any]:
         "model": knowledge.model, "visual_dimension": knowledge.n_features,
         "extractor": knowledge.extractor,
         "vocabulary": list(knowledge.vocabulary.words), "kept_names": list(names), "homes": homes,
+        "text": None if knowledge.vocabulary.segmentation is None
+        else knowledge.vocabulary.segmentation.describe(),
         "view_fit": view, "provenance": provenance,
     }
     if kind == HOME_FORMAT:

@@ -75,7 +75,7 @@ def teach(
         new_sentences[index[int(sample_id)]] = _clean_sentence(sentence)
     ids = list(home.ids.tolist())
     taken = set(ids)
-    poses, rows = [], []
+    poses, rows, no_view = [], [], []
     for obs in observations:
         if not isinstance(obs, Observation):
             raise ConfigurationError(f"observations must be Observation objects, got {type(obs).__name__}")
@@ -85,11 +85,13 @@ def teach(
         taken.add(new_id)
         ids.append(new_id)
         poses.append(_pose(obs.x, obs.y, obs.theta))
-        rows.append(_visual_row(_view_counts(home.knowledge, obs.visual, obs.image),
-                                home.knowledge.n_features))
+        counts = _view_counts(home.knowledge, obs.visual, obs.image, obs.encoding)
+        no_view.append(counts is None)
+        rows.append(_visual_row(counts, home.knowledge.n_features))
         new_sentences.append(_clean_sentence(obs.sentence))
     positions = np.vstack([home.positions, *poses]) if poses else home.positions
     visual = home.visual
+    view_missing = np.concatenate([home.view_missing, np.array(no_view, dtype=bool)])
     if rows:
         visual = sp.csr_array(sp.vstack([home.visual, *rows], format="csr"), dtype=np.int64)
 
@@ -115,7 +117,7 @@ def teach(
         state.concepts = np.concatenate([state.concepts, np.zeros(extra, dtype=np.int64)])
         state.regions = np.concatenate([state.regions, np.zeros(extra, dtype=np.int64)])
     data = prepare_home(positions, visual, new_sentences, knowledge.vocabulary, knowledge.word_increment,
-                        home.position_scale, home.map_centre)
+                        home.position_scale, home.map_centre, view_missing)
     prior = None
     if home.joint:
         prior = knowledge.shared_prior()
@@ -136,6 +138,6 @@ def teach(
                                 "seconds": round(time.perf_counter() - start, 4)}
     return replace(home, knowledge=knowledge, state=state, ids=np.asarray(ids, dtype=np.int64),
                    positions=positions, visual=visual, sentences=tuple(new_sentences), provenance=provenance,
-                   posterior=posterior)
+                   posterior=posterior, view_missing=view_missing)
 
 

@@ -19,10 +19,10 @@ if TYPE_CHECKING:
     from spco.knowledge.knowledge import Knowledge
 
 def _visual_row(visual: Any, n_features: int) -> sp.csr_array:
-    """One observation's visual counts as a (1, D) int64 CSR row, validated."""
+    """One observation's visual counts as a (1, D) int64 CSR row, validated (``None``: the
+    observation has no view, an empty row)."""
     if visual is None:
-        raise ConfigurationError("a new observation needs its view: visual counts (the view's features) or "
-                                 "an image")
+        return sp.csr_array((1, n_features), dtype=np.int64)
     if sp.issparse(visual):
         row = sp.csr_array(visual)
     else:
@@ -83,8 +83,9 @@ def pose_outside_map(home: HomeModel, x: float, y: float) -> str | None:
 
 
 
-def _view_counts(knowledge: Knowledge, visual: Any, image: Any) -> Any:
-    """A view's counts: ``visual`` as given, or ``image`` through the knowledge's extractor."""
+def _view_counts(knowledge: Knowledge, visual: Any, image: Any, encoding: str | None = None) -> Any:
+    """A view's counts: ``visual`` as given, or ``image`` (in ``encoding``, for an array of pixels)
+    through the knowledge's extractor."""
     if image is None:
         return visual
     if visual is not None:
@@ -92,7 +93,7 @@ def _view_counts(knowledge: Knowledge, visual: Any, image: Any) -> Any:
     if not knowledge.fitted_on_images:
         raise ConfigurationError("the knowledge of this home was fitted on visual count vectors, not on "
                                  "images: give the view's features (--visual), not an image")
-    return knowledge.image_extractor().extract(image)
+    return knowledge.image_extractor().extract(image, encoding)
 
 
 
@@ -115,7 +116,7 @@ def read_visual_vector(path: str | PathLike[str], n_features: int | None = None,
         if file.suffix in (".npy", ".npz"):
             from spco.data.plain import _load_visual_file
 
-            raw = _load_visual_file(file)
+            raw, _ = _load_visual_file(file)
             values = np.asarray(raw.toarray() if sp.issparse(raw) else raw, dtype=np.float64)
         else:
             text = file.read_text(encoding="utf-8-sig")

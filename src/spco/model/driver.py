@@ -73,7 +73,7 @@ class ShardedRun(ABC):
     def sweep(self, iteration: int) -> float:
         """Sweep number ``iteration`` (0-based); returns the log joint of the state it started from."""
         log_joint, self.shared = shards_api.sweep(self.call, self.global_step, self.shared, iteration,
-                                                  self.shared.word_mask)
+                                                  self.shared.word_mask, self.shared.name_words)
         return log_joint
 
     def fit(self, n_iterations: int, after_sweep=None) -> np.ndarray:
@@ -96,6 +96,7 @@ class ShardedRun(ABC):
         sweep's pruning (the homes receive it with the next local step)."""
         state = shards_api.join_states(self.states())
         state.word_mask = self.shared.word_mask
+        state.name_words = self.shared.name_words
         return state
 
     @abstractmethod

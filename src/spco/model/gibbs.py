@@ -125,7 +125,7 @@ def initialize(data: PreparedData, n_words: int, hyper: TransferHyperparameters,
     reference = settings.variant == "reference"
     # Word and visual distributions start uniform (as in the authors' code), so the first local
     # step groups samples by region: concepts start spatially coherent within each home.
-    log_phi_v = np.full((L, D), -np.log(D))
+    log_phi_v = np.full((L, D), -np.log(max(D, 1)))  # D = 0: no home has a view
     log_phi_w = np.full((L, V), -np.log(V)) if V else np.zeros((L, 0))
     if reference:  # the authors: G_0 by stick breaking, G_e ~ Dir(G_0 + γ)
         log_g0 = log_dirichlet(np.full(L, hyper.gamma0), rng)
@@ -288,6 +288,38 @@ class Statistics:
     words: np.ndarray
 
 
+def sentence_words(data: PreparedData, state: GibbsState) -> sp.csr_array:
+    """The word counts (N, V) that the word likelihood and the word statistics count: one sentence
+    names one place.
+
+    A taught sentence whose words include one the naming rule judges a *name*
+    (``state.name_words``) is counted by its name words only; its other words — a frame the home's
+    people say around names ("look robot, this is …", "we call this …"), undecided because it was
+    heard too rarely to judge — tell nothing about the place the name does not already tell. Left
+    in, each would weigh S^w counts: a frame said in two sentences at two rooms would pull their
+    samples into a concept of its own (one concept per sentence frame), and the room's name would
+    be split over those concepts. A sentence without a judged name keeps all its words (a name
+    taught once is undecided, and usable at once). The naming rule itself still judges every word
+    on all its uses (``data.words``). Without judged names this is ``data.words`` itself.
+    """
+    names = getattr(state, "name_words", None)
+    words = data.words
+    if names is None or not words.nnz or not names[words.indices].any():
+        return words
+    key = names.tobytes()
+    cache = state.words_cache
+    if cache is not None and cache[0] is words and cache[1] == key:
+        return cache[2]
+    is_name = names[words.indices]
+    rows = np.repeat(np.arange(words.shape[0]), np.diff(words.indptr))
+    named_row = np.bincount(rows, weights=is_name, minlength=words.shape[0]) > 0
+    keep = is_name | ~named_row[rows]
+    kept = sp.csr_array((words.data[keep], (rows[keep], words.indices[keep])), shape=words.shape)
+    kept.sort_indices()
+    state.words_cache = (words, key, kept)
+    return kept
+
+
 def _statistics(data: PreparedData, state: GibbsState, hyper: TransferHyperparameters) -> Statistics:
     E, L, K = data.n_homes, hyper.n_concepts, hyper.n_regions
     count, total, scatter = GaussianRegions.statistics(data.positions, data.homes, state.regions, E, K)
@@ -296,7 +328,8 @@ def _statistics(data: PreparedData, state: GibbsState, hyper: TransferHyperparam
         regions_by_concept=allocation.region_counts(data.homes, state.concepts, state.regions, E, L, K),
         region_count=count, region_total=total, region_scatter=scatter,
         visual=_visual_counts(data, state, E, L),
-        words=HierarchicalMultinomial.statistics(data.words, data.homes, state.concepts, E, L),
+        words=HierarchicalMultinomial.statistics(sentence_words(data, state), data.homes, state.concepts,
+                                                 E, L),
     )
 
 
@@ -326,13 +359,27 @@ def _visual_counts(data: PreparedData, state: GibbsState, n_homes: int, n_concep
 # ----------------------------------------------------------------------------- the steps
 
 
-def _concept_loglik(data: PreparedData, state: GibbsState) -> np.ndarray:
-    """Visual + word log-likelihood of every sample under every concept of its home: (N, L)."""
+def view_weights(data: PreparedData, view_counts: float | None) -> np.ndarray | None:
+    """(N,) the weight of each sample's visual log-likelihood, ``min(1, view_counts / Σ_d v_d)``:
+    a view scored as ``view_counts`` draws (``None``: every count a draw, no weights)."""
+    if view_counts is None:
+        return None
+    return np.minimum(1.0, float(view_counts) / np.maximum(data.view_totals, 1.0))
+
+
+def _concept_loglik(data: PreparedData, state: GibbsState, view_counts: float | None = None) -> np.ndarray:
+    """Visual + word log-likelihood of every sample under every concept of its home: (N, L).
+
+    ``view_counts``: the evidence of one view in counts (:func:`view_weights`; ``None``: the
+    multinomial of every count)."""
     loglik = HierarchicalMultinomial.log_likelihood(data.visual, data.homes, state.log_theta_v,
                                                     by_dimension=data.visual_by_dimension)
+    weights = view_weights(data, view_counts)
+    if weights is not None:
+        loglik *= weights[:, None]
     if data.words.nnz:
         log_theta_w = kept_word_log_theta(state.log_theta_w, state.word_mask)
-        loglik += HierarchicalMultinomial.log_likelihood(data.words, data.homes, log_theta_w)
+        loglik += HierarchicalMultinomial.log_likelihood(sentence_words(data, state), data.homes, log_theta_w)
     return loglik
 
 
@@ -361,7 +408,7 @@ def _local_step(data: PreparedData, state: GibbsState, settings: SamplerSettings
                 rng: np.random.Generator) -> float:
     """Draw the assignments; returns log p(data, C, R | parameters) of the state it started from
     (computed from the likelihoods the draw needs anyway)."""
-    concept_ll = _concept_loglik(data, state)
+    concept_ll = _concept_loglik(data, state, settings.view_counts)
     region_ll = GaussianRegions.log_likelihood(data.positions, data.homes, state.means, state.covariances)
     before = _conditional_log_joint(data, state, concept_ll, region_ll)
     if settings.joint_assignment:
@@ -520,7 +567,9 @@ def _prune(state: GibbsState, hyper: TransferHyperparameters, settings: SamplerS
     if state.log_phi_w.shape[1] == 0:
         return
     if settings.variant == "exact" and data is not None:
-        state.word_mask = naming_verdicts(data, state, hyper) != NOT_A_NAME
+        verdicts = naming_verdicts(data, state, hyper)
+        state.word_mask = verdicts != NOT_A_NAME
+        state.name_words = verdicts == NAME
         return
     if settings.hierarchical:
         phi_w, weights = np.exp(state.log_phi_w), np.exp(state.log_g0)
@@ -623,7 +672,7 @@ def log_joint(data: PreparedData, state: GibbsState, hyper: TransferHyperparamet
     trace to watch for convergence."""
     E, L, K = data.n_homes, hyper.n_concepts, hyper.n_regions
     region_ll = GaussianRegions.log_likelihood(data.positions, data.homes, state.means, state.covariances)
-    total = _conditional_log_joint(data, state, _concept_loglik(data, state), region_ll)
+    total = _conditional_log_joint(data, state, _concept_loglik(data, state, settings.view_counts), region_ll)
     if not include_parameter_priors:
         return total
     mask = state.word_mask

@@ -112,17 +112,22 @@ class SharedPrior:
 
 def prepare_home(positions: np.ndarray, visual: sp.csr_array, sentences: Sequence[str | None],
                  vocabulary: Vocabulary, word_increment: int, scale: float,
-                 centre: np.ndarray) -> PreparedData:
+                 centre: np.ndarray, view_missing: np.ndarray | None = None) -> PreparedData:
     """PreparedData of one home (positions in metres are scaled to the sampler's units).
 
     Parameters
     ----------
     positions: (n, 4) metres ``(x, y, sin θ, cos θ)``; visual: (n, D) counts; sentences: n
     sentences (``None``: untaught); vocabulary, word_increment: how sentences become counts;
-    scale: sampler units per metre; centre: (4,) the regions' prior mean, metres.
+    scale: sampler units per metre; centre: (4,) the regions' prior mean, metres;
+    view_missing: (n,) bool, the samples without a view (their rows of ``visual`` are ignored).
     """
     n = positions.shape[0]
     factor = np.array([scale, scale, 1.0, 1.0])
+    missing = np.zeros(n, dtype=bool) if view_missing is None else np.asarray(view_missing, dtype=bool)
+    if missing.any():  # a sample without a view has no counts, whatever its row held
+        keep = sp.diags_array((~missing).astype(np.int64), dtype=np.int64)
+        visual = sp.csr_array(keep @ sp.csr_array(visual), dtype=np.int64)
     return PreparedData(
         positions=np.asarray(positions, dtype=np.float64) * factor,
         homes=np.zeros(n, dtype=np.int64),
@@ -130,6 +135,7 @@ def prepare_home(positions: np.ndarray, visual: sp.csr_array, sentences: Sequenc
         words=stack_counts(vocabulary.encode(list(sentences), word_increment)),
         n_homes=1, offsets=np.array([0, n], dtype=np.int64), position_scale=scale,
         map_centres=(np.asarray(centre, dtype=np.float64) * factor)[None, :],
+        view_missing=missing,
     )
 
 
@@ -411,7 +417,8 @@ class NewHomeShard:
                  rng: np.random.Generator, prior: SharedPrior | None = None) -> None:
         self.data, self.state, self.shared = data, state, shared
         self.n_known, self.rng, self.prior = n_known, rng, prior
-        self.settings = SamplerSettings.create(shared.variant, shared.prune_words, learn_shared=False)
+        self.settings = SamplerSettings.create(shared.variant, shared.prune_words, learn_shared=False,
+                                               view_counts=shared.hyperparameters.view_counts)
         self.average = ParameterAverage(data.homes, data.position_scale)
 
     @classmethod
@@ -419,7 +426,8 @@ class NewHomeShard:
               prior: SharedPrior | None = None) -> NewHomeShard:
         """A new home's shard from its first state (:func:`initial_state`); with ``prior`` the
         words the knowledge kept are the only candidates among its words."""
-        settings = SamplerSettings.create(shared.variant, shared.prune_words, learn_shared=False)
+        settings = SamplerSettings.create(shared.variant, shared.prune_words, learn_shared=False,
+                                          view_counts=shared.hyperparameters.view_counts)
         state = initial_state(data, shared, settings, n_known, rng)
         if prior is not None:
             state.candidate_words = shared.word_mask.copy()

@@ -22,6 +22,11 @@ DEFAULT_PRUNING_THRESHOLDS = {"kl": 0.1, "mi": 0.01}
 #: The paper's Ψ0 for (x, y, sin θ, cos θ), x and y in cm².
 PAPER_PSI0_CM = (10.0, 10.0, 0.5, 0.5)
 
+#: The evidence of one view, in counts, of the exact sampler and its predictions
+#: (``TransferHyperparameters.view_counts``); chosen on development configurations only (see
+#: ``docs/model.md``, "How much a view weighs").
+VIEW_COUNTS = 16.0
+
 
 def _positive(name: str, value: float) -> None:
     if not (np.isfinite(value) and value > 0):
@@ -54,6 +59,14 @@ class TransferHyperparameters:
         2×2 mutual information of about 0.02–0.06 nats (a KL score of 0.2–0.4), the template
         words "this", "is", "the" about 0.001–0.005; with ε = 0.1 the true MI would prune every
         word.
+    view_counts: the evidence of one view, in counts (``None``: every count is a draw, the paper's
+        multinomial). A view carries thousands of counts (SIGVerse fc7: ~7,000), and the multinomial
+        scores each as an independent draw, so that two concepts' views differ by thousands of nats
+        — far more than any position or word evidence; but the counts of one view are not
+        independent (one camera image). With ``view_counts = n`` a view's log-likelihood under
+        every concept is weighted by ``min(1, n / Σ_d v_d)``: its proportions are scored as n
+        draws, in the sampler's assignment of samples to concepts (exact variant only; θ^v is still
+        drawn from all the counts) and in name prediction. Default :data:`VIEW_COUNTS`.
     """
 
     n_concepts: int = 15
@@ -71,6 +84,7 @@ class TransferHyperparameters:
     psi0_in_cm2: bool = True
     mu0: tuple[float, float, float, float] | None = None
     mi_threshold: float | None = None
+    view_counts: float | None = VIEW_COUNTS
 
     def __post_init__(self) -> None:
         for name in ("n_concepts", "n_regions"):
@@ -82,6 +96,8 @@ class TransferHyperparameters:
             _positive(name, float(getattr(self, name)))
         if not (np.isfinite(self.nu0) and self.nu0 > 3):
             raise ConfigurationError(f"nu0 must exceed the dimension minus one (3), got {self.nu0!r}")
+        if self.view_counts is not None:
+            _positive("view_counts", float(self.view_counts))
         if self.mi_threshold is not None and not (np.isfinite(self.mi_threshold) and self.mi_threshold >= 0):
             raise ConfigurationError(f"mi_threshold must be >= 0, got {self.mi_threshold!r}")
         psi = self.psi0_matrix_m2()
@@ -143,3 +159,4 @@ class SpCoAHyperparameters(TransferHyperparameters):
     alpha_visual: float = 0.1
     alpha_word: float = 0.1
     beta: float = 1.0
+    view_counts: float | None = None  # the baseline as published: every count a draw

@@ -16,8 +16,13 @@ A NumPy ``.npz`` archive written with :func:`numpy.savez` and read back with
       {"format": "spco-model", "format_version": 1, "spco_version": ..., "model_class":
        "SpCoTransfer" | "SpCoA", "variant", "prune_words", "n_iterations", "random_state" (int or
        null), "hyperparameters" (TransferHyperparameters.to_dict(), SpCoAHyperparameters for
-       SpCoA), "vocabulary" (list of words), "word_increment", "home_names", "array_checksums"
-       (name -> sha256 of the array's dtype, shape and bytes), "created" (ISO 8601, UTC), ...}
+       SpCoA), "vocabulary" (list of words), "segmentation" (null, or how text written without
+       spaces is cut: :meth:`spco.data.segmentation.Segmentation.to_dict`), "word_increment",
+       "home_names", "array_checksums" (name -> sha256 of the array's dtype, shape and bytes),
+       "created" (ISO 8601, UTC), ...}
+
+   ``format_version`` is 2 when the vocabulary segments text written without spaces (Japanese,
+   Chinese), so that an older spco refuses the file instead of cutting that text otherwise.
 
 Files are written atomically (a temporary file in the target's folder, flushed and fsync'ed, then
 renamed over the target), so a crash never leaves a partial model file; an existing file is only
@@ -56,7 +61,7 @@ __all__ = ["FORMAT_NAME", "FORMAT_VERSION", "load", "load_model", "save_model"]
 #: Value of the header's ``"format"`` field.
 FORMAT_NAME = "spco-model"
 #: Version of the file layout written by this module; files of a newer version are refused.
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
 
 _PARAM_PREFIX = "param."
 _UNREADABLE = "not a readable spco model file (truncated or corrupted?)"
@@ -113,9 +118,11 @@ def _arrays_and_header(model: SpatialConceptModel) -> tuple[dict[str, np.ndarray
     if isinstance(random_state, bool) or not isinstance(random_state, int | np.integer):
         random_state = None  # a Generator (or None) cannot be written down
     hyper: TransferHyperparameters = model.hyperparameters_
+    segmentation = model.vocabulary_.segmentation
     header: dict[str, Any] = {
         "format": FORMAT_NAME,
-        "format_version": FORMAT_VERSION,
+        # version 2 only for a vocabulary that segments text written without spaces (``segmentation``)
+        "format_version": 2 if segmentation is not None and segmentation.segments else 1,
         "spco_version": __version__,
         "model_class": _model_class_name(model),
         "hyperparameters_class": type(hyper).__name__,
@@ -126,6 +133,7 @@ def _arrays_and_header(model: SpatialConceptModel) -> tuple[dict[str, np.ndarray
         "random_state": None if random_state is None else int(random_state),
         "hyperparameters": hyper.to_dict(),
         "vocabulary": list(model.vocabulary_.words),
+        "segmentation": None if segmentation is None else segmentation.to_dict(),
         "word_increment": int(model.word_increment_),
         "home_names": list(model.home_names_),
         "fit_seconds": float(getattr(model, "fit_seconds_", float("nan"))),
@@ -328,7 +336,12 @@ def load_model(path: str | PathLike[str]) -> SpatialConceptModel:
         hyper = hyper_cls.from_dict(header["hyperparameters"])
         params = ConceptParameters(**{name[len(_PARAM_PREFIX):]: arrays[name] for name in arrays
                                       if name.startswith(_PARAM_PREFIX)})
-        vocabulary = Vocabulary(tuple(str(w) for w in header["vocabulary"]))
+        segmentation = None
+        if header.get("segmentation") is not None:
+            from spco.data.segmentation import Segmentation
+
+            segmentation = Segmentation.from_dict(header["segmentation"])
+        vocabulary = Vocabulary(tuple(str(w) for w in header["vocabulary"]), segmentation)
     except (TypeError, ValueError) as exc:
         raise ModelFileError(file, f"inconsistent model file: {exc}") from exc
     home_names = [str(n) for n in header["home_names"]]

@@ -15,6 +15,15 @@ send a place name to an arbitrary region. The estimators therefore export a summ
   of their assignments (Hungarian algorithm on the table of samples with reference label j and
   current label l; unused labels keep their number), and the result is expressed in the labels of
   the last sample, so that it agrees with the exported assignments and φ, G_0;
+- empty concepts: a concept holding no sample of a home has no place there to be matched by; its
+  θ, G_e and π in that home are draws given the shared φ and G_0 of *its own* label (what `where`
+  falls back on for a name the home never said). A matching of a home's labels is a permutation,
+  so when a place moves from concept a to an empty concept b, the empty b of the reference is
+  matched to the now empty a: its average would mix the draws of two different shared concepts.
+  The per-concept parameters (θ^v, θ^w, G_e, π) are therefore averaged in two parts: a concept
+  with samples of the home, over the sweeps in which the matched concept had samples there; a
+  concept without, by its own label, over the sweeps in which that label had none. Each concept
+  of the last sample takes the part that fits it (tested with several empty concepts);
 - probabilities (θ^v, θ^w, G_e, π) are averaged as probabilities (the Monte Carlo estimate of
   their posterior mean); pruned words (the mask of the last sweep) get 0 and rows are
   renormalised afterwards;
@@ -32,6 +41,8 @@ are not used for prediction; :func:`spco.knowledge.fit_knowledge` averages them 
 """
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -84,12 +95,20 @@ class ParameterAverage:
     ``position_scale`` sampler units per metre.
     """
 
+    #: the per-concept parameters averaged in two parts (occupied by matched slot, empty by label)
+    BY_CONCEPT = ("concept_weights", "region_weights")
+
     def __init__(self, homes: np.ndarray, position_scale: float) -> None:
         self.homes = np.asarray(homes)
         self.scale = np.array([position_scale, position_scale, 1.0, 1.0])
         self.n_samples = 0
         self._sums: dict[str, np.ndarray] = {}
         self._log_sums: dict[str, np.ndarray] = {}  # θ: summed in log space (entries underflow)
+        self._empty_sums: dict[str, np.ndarray] = {}  # concepts without samples, by their own label
+        self._empty_log_sums: dict[str, np.ndarray] = {}
+        self._occupied_n: np.ndarray | None = None  # (E, L) sweeps the matched slot had samples
+        self._empty_n: np.ndarray | None = None  # (E, L) sweeps the label had none
+        self._occupied_last: np.ndarray | None = None
         self._reference: tuple[np.ndarray, np.ndarray] | None = None
         self._perms: tuple[np.ndarray, np.ndarray] | None = None
 
@@ -115,28 +134,45 @@ class ParameterAverage:
         covariances = state.covariances / np.outer(self.scale, self.scale)
         concept_counts = np.zeros((E, L))
         np.add.at(concept_counts, (self.homes, state.concepts), 1.0)
-        pi = np.exp(state.log_pi)[homes, perm_c]  # concepts to reference slots
-        pi = np.take_along_axis(pi, perm_r[:, None, :], axis=2)  # regions to reference slots
+        occupied = concept_counts > 0  # (E, L) in this sample's labels
+        matched = occupied[homes, perm_c]  # (E, L) by reference slot: its matched label has samples
+        pi_current = np.take_along_axis(np.exp(state.log_pi), perm_r[:, None, :], axis=2)  # regions to ref
+        pi = pi_current[homes, perm_c]  # concepts to reference slots
         mu = means[homes, perm_r]
+        by_concept = {  # (matched, by reference slot; empty, by the sample's own label)
+            "concept_weights": (np.exp(state.log_g)[homes, perm_c], np.exp(state.log_g)),
+            "region_weights": (pi, pi_current),
+        }
         terms = {
-            "concept_weights": np.exp(state.log_g)[homes, perm_c],
-            "region_weights": pi,
             "region_means": mu,
             "region_second_moments": covariances[homes, perm_r] + mu[..., :, None] * mu[..., None, :],
             "concept_counts": concept_counts[homes, perm_c],
             "region_counts": np.asarray(state.region_counts, dtype=np.float64)[homes, perm_r],
         }
+
+        def where(mask: np.ndarray, value: np.ndarray, fill: float) -> np.ndarray:
+            return np.where(mask.reshape(mask.shape + (1,) * (value.ndim - 2)), value, fill)
+
+        for name, (value, own) in by_concept.items():
+            terms[name] = where(matched, value, 0.0)
+            empty = where(~occupied, own, 0.0)
+            self._empty_sums[name] = self._empty_sums[name] + empty if name in self._empty_sums else empty
         for name, value in terms.items():
             if name in self._sums:
                 self._sums[name] += value
             else:
                 self._sums[name] = np.array(value, dtype=np.float64)
-        for name, log_value in (("word_probabilities", state.log_theta_w[homes, perm_c]),
-                                ("visual_probabilities", state.log_theta_v[homes, perm_c])):
-            if name in self._log_sums:
-                np.logaddexp(self._log_sums[name], log_value, out=self._log_sums[name])
-            else:
-                self._log_sums[name] = np.array(log_value, dtype=np.float64)
+        for name, log_value in (("word_probabilities", state.log_theta_w),
+                                ("visual_probabilities", state.log_theta_v)):
+            for sums, value in ((self._log_sums, where(matched, log_value[homes, perm_c], -np.inf)),
+                                (self._empty_log_sums, where(~occupied, log_value, -np.inf))):
+                if name in sums:
+                    np.logaddexp(sums[name], value, out=sums[name])
+                else:
+                    sums[name] = np.array(value, dtype=np.float64)
+        self._occupied_n = matched.astype(np.int64) + (0 if self._occupied_n is None else self._occupied_n)
+        self._empty_n = (~occupied).astype(np.int64) + (0 if self._empty_n is None else self._empty_n)
+        self._occupied_last = occupied
         self.n_samples += 1
         self._perms = (perm_c, perm_r)
 
@@ -154,7 +190,26 @@ class ParameterAverage:
             out[homes, perm] = a  # reference slot j holds current label perm[j]
             return out
 
-        pi = to_current(mean["region_weights"], perm_c)
+        occupied = self._occupied_last  # (E, L) the last sample's concepts with samples of each home
+        occupied_n = to_current(self._occupied_n, perm_c)  # ≥ 1 where occupied (the last sample counts)
+        empty_n = self._empty_n  # ≥ 1 where not occupied
+
+        def split_mean(name: str) -> np.ndarray:
+            """Occupied concepts: the matched average; empty ones: the average of their own label."""
+            full = occupied.reshape(occupied.shape + (1,) * (self._sums[name].ndim - 2))
+            with np.errstate(invalid="ignore", divide="ignore"):
+                matched = to_current(self._sums[name], perm_c) / np.maximum(
+                    occupied_n.reshape(full.shape), 1)
+                empty = self._empty_sums[name] / np.maximum(empty_n.reshape(full.shape), 1)
+            return np.where(full, matched, empty)
+
+        def split_log_mean(name: str) -> np.ndarray:
+            full = occupied[..., None]
+            matched = to_current(self._log_sums[name], perm_c) - np.log(np.maximum(occupied_n, 1))[..., None]
+            empty = self._empty_log_sums[name] - np.log(np.maximum(empty_n, 1))[..., None]
+            return np.where(full, matched, empty)
+
+        pi = split_mean("region_weights")  # regions still in the reference order
         pi_out = np.empty_like(pi)
         np.put_along_axis(pi_out, np.broadcast_to(perm_r[:, None, :], pi.shape), pi, axis=2)
         mu = to_current(mean["region_means"], perm_r)
@@ -162,10 +217,12 @@ class ParameterAverage:
         covariances = second - mu[..., :, None] * mu[..., None, :]
         covariances = 0.5 * (covariances + np.swapaxes(covariances, -1, -2))
         mask = np.asarray(state.word_mask, dtype=bool)
-        log_theta_w = to_current(self._log_sums["word_probabilities"], perm_c)  # rows renormalised below
-        log_theta_v = to_current(self._log_sums["visual_probabilities"], perm_c) - np.log(self.n_samples)
+        log_theta_w = split_log_mean("word_probabilities")  # rows renormalised below
+        log_theta_v = split_log_mean("visual_probabilities")
+        g = split_mean("concept_weights")  # occupied and empty parts averaged apart: renormalised
+        g = g / np.maximum(g.sum(axis=-1, keepdims=True), np.finfo(float).tiny)
         return ConceptParameters(
-            concept_weights=to_current(mean["concept_weights"], perm_c),
+            concept_weights=g,
             region_weights=pi_out,
             region_means=mu,
             region_covariances=covariances,
@@ -178,3 +235,25 @@ class ParameterAverage:
             region_counts=np.rint(to_current(mean["region_counts"], perm_r)).astype(np.int64),
             concept_counts=to_current(mean["concept_counts"], perm_c),
         )
+
+
+def untaught_concepts_name_nothing(params: ConceptParameters, taught: np.ndarray) -> ConceptParameters:
+    """``params`` with the word distribution of every concept that no taught sentence of any home
+    was assigned to (``taught`` (L,) bool False) made uniform over the kept words, in every home.
+
+    Such a concept's θ^w is a draw from the prior around a φ^w no word was ever counted for: with
+    α^w = 0.01 the draw is sparse, and a random word ("bath") can hold half its mass. A home
+    whose room, untaught, sits in such a concept would then be answered "bath" there, and ``where
+    bath`` would send the robot into it. With the distribution uniform the concept names nothing:
+    its views are named by the taught concepts that share them, and a name's regions come from
+    the concepts it was said with. (The posterior mean of θ^w given no word is the prior mean,
+    uniform; one draw is not.)
+    """
+    taught = np.asarray(taught, dtype=bool)
+    if taught.all() or params.word_probabilities.shape[-1] == 0:
+        return params
+    mask = np.asarray(params.word_mask, dtype=bool)
+    uniform = mask / mask.sum() if mask.any() else np.full(mask.size, 1.0 / mask.size)
+    theta = np.array(params.word_probabilities, dtype=np.float64, copy=True)
+    theta[:, ~taught, :] = uniform
+    return replace(params, word_probabilities=theta)

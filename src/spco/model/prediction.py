@@ -341,11 +341,23 @@ def validate_poses(positions: object) -> np.ndarray:
     return x
 
 
-def _visual_log_likelihood(theta_v: np.ndarray, visual: object) -> np.ndarray:
-    """(n, L) ``v · log θ^vᵀ`` for counts ``visual`` (n, D), sparse or dense (validated)."""
+def _visual_log_likelihood(theta_v: np.ndarray, visual: object, view_counts: float | None = None
+                           ) -> np.ndarray:
+    """(n, L) ``v · log θ^vᵀ`` for counts ``visual`` (n, D), sparse or dense (validated).
+
+    ``view_counts``: the evidence of one view, in counts: a view with more counts is weighted by
+    ``view_counts / Σ_d v_d`` (its proportions scored as that many draws, as the exact sampler
+    does, :attr:`~spco.model.hyperparameters.TransferHyperparameters.view_counts`); ``None``:
+    every count is a draw (the model's multinomial)."""
     log_theta = _safe_log(theta_v)  # (L, D), finite
     counts = validate_visual_counts(visual, log_theta.shape[1])
-    return np.asarray(counts @ log_theta.T)
+    loglik = np.asarray(counts @ log_theta.T)
+    if view_counts is None:
+        return loglik
+    if not view_counts > 0:
+        raise ConfigurationError(f"view_counts must be > 0, got {view_counts!r}")
+    totals = np.asarray(counts.sum(axis=1), dtype=np.float64).ravel()
+    return loglik * np.minimum(1.0, float(view_counts) / np.maximum(totals, 1.0))[:, None]
 
 
 def _as_positions(positions: object) -> np.ndarray:
@@ -368,6 +380,7 @@ def _log_concept_posterior(
     use_position: bool,
     use_vision: bool,
     active_regions_only: bool,
+    view_counts: float | None = None,
 ) -> np.ndarray:
     """(n, L) normalised log P(l | x, v)."""
     e = _check_home(params, e)
@@ -380,7 +393,7 @@ def _log_concept_posterior(
     if use_vision:
         if visual is None:
             raise ConfigurationError("use_vision=True needs visual features")
-        vis = _visual_log_likelihood(params.visual_probabilities[e], visual)
+        vis = _visual_log_likelihood(params.visual_probabilities[e], visual, view_counts)
         if vis.shape[0] != n:
             raise ConfigurationError(f"{n} positions but {vis.shape[0]} visual feature rows")
         log_post += vis
@@ -416,6 +429,7 @@ def concept_posterior(
     use_position: bool = True,
     use_vision: bool = True,
     active_regions_only: bool = False,
+    view_counts: float | None = None,
 ) -> np.ndarray:
     """P(l | x, v) ∝ G_{e,l} · p(v | θ^v_{e,l}) · Σ_m π_{e,l,m} N(x | μ_{e,m}, Σ_{e,m}).
 
@@ -427,13 +441,15 @@ def concept_posterior(
     use_position, use_vision: drop a modality from the likelihood.
     active_regions_only: sum only over regions with training samples (``region_counts > 0``), as
         the authors' code does; ignored if no region has any.
+    view_counts: the evidence of one view in counts: each view's log-likelihood is weighted by
+        ``min(1, view_counts / Σ_d v_d)``; ``None`` (default): every count a draw.
 
     Returns
     -------
     (n, L) float64, rows sum to 1, never NaN.
     """
     return np.exp(_log_concept_posterior(params, e, positions, visual, use_position, use_vision,
-                                         active_regions_only))
+                                         active_regions_only, view_counts))
 
 
 def _word_matrix(params: ConceptParameters, e: int) -> np.ndarray:
@@ -528,6 +544,7 @@ def predict_names(
     weighting: Weighting = "mi",
     use_position: bool = True,
     use_vision: bool = True,
+    view_counts: float | None = None,
 ) -> NamePrediction:
     """Rank the place names of ``n`` observations in home ``e``.
 
@@ -540,6 +557,9 @@ def predict_names(
         ``"reference"`` — the authors' KL-weighted score (:func:`kl_scores_reference`), with the
         concept posterior over used regions only.
     use_position, use_vision: drop a modality.
+    view_counts: the evidence of one view in counts (see :func:`concept_posterior`); pass the
+        model's (``TransferHyperparameters.view_counts`` for the exact sampler) to predict as it
+        learnt. ``None``: every count a draw.
 
     Words with ``word_mask`` False are never returned. Ties in the score are broken by p(w|x,v),
     then by vocabulary order. A word with I(w) = 0 scores 0 and is ranked after every word with a
@@ -552,7 +572,7 @@ def predict_names(
     e = _check_home(params, e)
     _check_vocabulary(params, vocabulary)
     concepts = concept_posterior(params, e, positions, visual, use_position, use_vision,
-                                 active_regions_only=weighting == "reference")
+                                 active_regions_only=weighting == "reference", view_counts=view_counts)
     theta_w = _word_matrix(params, e)
     probs = _words_from_concepts(concepts, theta_w)  # (n, V)
     if weighting == "mi":

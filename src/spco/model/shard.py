@@ -38,7 +38,7 @@ from spco.model import gibbs
 from spco.model.gibbs import GibbsState, PreparedData, SamplerSettings
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.observations import HierarchicalMultinomial
-from spco.model.pruning import NOT_A_NAME, Colocation, colocation, judge_names
+from spco.model.pruning import NAME, NOT_A_NAME, Colocation, colocation, judge_names
 from spco.model.random import log_dirichlet, sample_crt
 from spco.model.shard_init import ShardInitialisation
 
@@ -75,23 +75,26 @@ TABLE_KINDS = ("visual", "words", "concepts")
 
 @dataclass
 class SharedParameters:
-    """The parameters every home shares (log-probabilities): φ^v (L, D), φ^w (L, V), G_0 (L,), and
-    the word-pruning mask (V,) bool."""
+    """The parameters every home shares (log-probabilities): φ^v (L, D), φ^w (L, V), G_0 (L,), the
+    word-pruning mask (V,) bool and the words judged names (V,) bool or ``None``
+    (:func:`spco.model.gibbs.sentence_words`)."""
 
     log_phi_v: np.ndarray
     log_phi_w: np.ndarray
     log_g0: np.ndarray
     word_mask: np.ndarray
+    name_words: np.ndarray | None = None
 
     @classmethod
     def of(cls, state: GibbsState) -> SharedParameters:
         """The shared parameters held in ``state``."""
-        return cls(state.log_phi_v, state.log_phi_w, state.log_g0, state.word_mask)
+        return cls(state.log_phi_v, state.log_phi_w, state.log_g0, state.word_mask, state.name_words)
 
     @property
     def nbytes(self) -> int:
         """Bytes of the arrays (what a broadcast sends)."""
-        return sum(a.nbytes for a in (self.log_phi_v, self.log_phi_w, self.log_g0, self.word_mask))
+        arrays = (self.log_phi_v, self.log_phi_w, self.log_g0, self.word_mask, self.name_words)
+        return sum(a.nbytes for a in arrays if a is not None)
 
 
 @dataclass
@@ -186,13 +189,21 @@ class HomeShard(ShardInitialisation):
         """Homes in this shard."""
         return self.data.n_homes
 
-    def local_step(self, word_mask: np.ndarray | None = None) -> float:
+    def n_views(self) -> np.ndarray:
+        """(E,) samples with a view in each of the shard's homes (a sample without one has its
+        visual likelihood left out: ``PreparedData.view_missing``)."""
+        return self.data.n_views
+
+    def local_step(self, word_mask: np.ndarray | None = None, name_words: np.ndarray | None = None) -> float:
         """Draw every sample's concept and region and count the statistics (kept in the shard).
 
-        ``word_mask`` (V,) is the pruning decision of the previous sweep (``None``: unchanged).
-        Returns this shard's part of log p(data, C, R | parameters) for the state it started from."""
+        ``word_mask`` (V,) is the pruning decision of the previous sweep and ``name_words`` (V,) the
+        words it judged names (``None``: unchanged). Returns this shard's part of
+        log p(data, C, R | parameters) for the state it started from."""
         if word_mask is not None:
             self.state.word_mask = word_mask
+        if name_words is not None:
+            self.state.name_words = name_words
         log_joint = gibbs.local_step(self.data, self.state, self.settings, self.rng)
         self.stats = gibbs.sufficient_statistics(self.data, self.state, self.hyper)
         return log_joint
@@ -241,6 +252,8 @@ class HomeShard(ShardInitialisation):
         """Take the new shared parameters; with ``prune``, re-decide the word mask from them."""
         self.state.log_phi_v, self.state.log_phi_w = shared.log_phi_v, shared.log_phi_w
         self.state.log_g0, self.state.word_mask = shared.log_g0, shared.word_mask
+        if shared.name_words is not None:
+            self.state.name_words = shared.name_words
         if prune:
             gibbs.prune(self.state, self.hyper, self.settings)
         return HomeStepResult(self.state.word_mask if prune else None)
@@ -279,12 +292,13 @@ class GlobalStep:
             counts = self.reduce(call("pooled_counts"))
             return SharedParameters(log_dirichlet(hyper.alpha_visual + counts.visual, rng),
                                     log_dirichlet(hyper.alpha_word + counts.words, rng),
-                                    log_dirichlet(hyper.gamma0 + counts.concepts, rng), shared.word_mask)
+                                    log_dirichlet(hyper.gamma0 + counts.concepts, rng), shared.word_mask,
+                                    shared.name_words)
         log_phi_v = log_dirichlet(hyper.alpha_visual + self.reduce(call("tables", "visual")), rng)
         log_phi_w = log_dirichlet(hyper.alpha_word + self.reduce(call("tables", "words")), rng)
         tables_g = self.reduce(call("tables", "concepts"))
         log_g0 = log_dirichlet(hyper.gamma0 / hyper.n_concepts + tables_g, rng)
-        return SharedParameters(log_phi_v, log_phi_w, log_g0, shared.word_mask)
+        return SharedParameters(log_phi_v, log_phi_w, log_g0, shared.word_mask, shared.name_words)
 
     def reduce(self, parts: list):
         """The shards' statistics added up in shard order (counting the bytes received)."""
@@ -304,16 +318,19 @@ def _nbytes(value) -> int:
 
 
 def sweep(call, global_step: GlobalStep, shared: SharedParameters, iteration: int,
-          word_mask: np.ndarray | None = None) -> tuple[float, SharedParameters]:
+          word_mask: np.ndarray | None = None,
+          name_words: np.ndarray | None = None) -> tuple[float, SharedParameters]:
     """One sweep over the shards reached through ``call`` (see :class:`GlobalStep`): map (local
     steps), reduce and global step, then every shard's home step.
 
-    ``word_mask`` is the mask decided by the previous sweep's pruning, sent with the local step
-    (``None`` when unchanged). Returns the log joint of the state the sweep started from (the
-    homes' parts summed in home order) and the new shared parameters (with the new mask)."""
+    ``word_mask`` is the mask decided by the previous sweep's pruning and ``name_words`` the words
+    it judged names, sent with the local step (``None`` when unchanged). Returns the log joint of
+    the state the sweep started from (the homes' parts summed in home order) and the new shared
+    parameters (with the new mask and names)."""
     settings = global_step.settings
     # every home's part, summed in home order (the same sum however the homes are grouped)
-    log_joint = float(sum(value for part in call("local_step", word_mask) for value in np.atleast_1d(part)))
+    log_joint = float(sum(value for part in call("local_step", word_mask, name_words)
+                          for value in np.atleast_1d(part)))
     prune = settings.prune and settings.learn_shared
     swaps = gibbs.swaps_due(iteration)
     if settings.variant == "reference":
@@ -329,11 +346,13 @@ def sweep(call, global_step: GlobalStep, shared: SharedParameters, iteration: in
         results = call("home_step", None, swaps, prune)
         shared = results[0].shared
     if prune:
+        names = shared.name_words
         if uses_naming_rule(settings):
-            mask = judge_names(global_step.reduce(call("colocation"))) != NOT_A_NAME
+            verdicts = judge_names(global_step.reduce(call("colocation")))
+            mask, names = verdicts != NOT_A_NAME, verdicts == NAME
         else:
             mask = results[0].word_mask
-        shared = SharedParameters(shared.log_phi_v, shared.log_phi_w, shared.log_g0, mask)
+        shared = SharedParameters(shared.log_phi_v, shared.log_phi_w, shared.log_g0, mask, names)
     return log_joint, shared
 
 
@@ -366,13 +385,15 @@ def data_of_homes(data: PreparedData, first: int, last: int) -> PreparedData:
     return PreparedData(positions=data.positions[rows].copy(), homes=data.homes[rows] - first,
                         visual=sp.csr_array(data.visual[rows]), words=sp.csr_array(data.words[rows]),
                         n_homes=last - first, offsets=data.offsets[first:last + 1] - data.offsets[first],
-                        position_scale=data.position_scale, map_centres=data.map_centres[first:last].copy())
+                        position_scale=data.position_scale, map_centres=data.map_centres[first:last].copy(),
+                        view_missing=data.view_missing[rows].copy())
 
 
 #: GibbsState fields indexed by home, by sample, and shared by all homes.
 HOME_FIELDS = ("log_g", "log_pi", "means", "covariances", "log_theta_v", "log_theta_w", "region_counts")
 SAMPLE_FIELDS = ("concepts", "regions")
-SHARED_FIELDS = ("log_phi_v", "log_phi_w", "log_g0", "word_mask", "candidate_words", "home_specific_words")
+SHARED_FIELDS = ("log_phi_v", "log_phi_w", "log_g0", "word_mask", "candidate_words", "home_specific_words",
+                 "name_words")
 
 
 def state_of_homes(data: PreparedData, state: GibbsState, first: int, last: int) -> GibbsState:

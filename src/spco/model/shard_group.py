@@ -113,9 +113,10 @@ class ShardGroup:
         return [getattr(h, method)(*args) for h in self.homes]
 
     # ------------------------------------------------------------------ a sweep
-    def local_step(self, word_mask: np.ndarray | None = None) -> list[float]:
+    def local_step(self, word_mask: np.ndarray | None = None,
+                   name_words: np.ndarray | None = None) -> list[float]:
         """Every home's local step; their log joints, in home order (summed by the driver)."""
-        return self._each("local_step", word_mask)
+        return self._each("local_step", word_mask, name_words)
 
     def tables(self, kind: str) -> np.ndarray:
         """CRT table counts of the homes, summed (integers): the sum of the homes' own
@@ -187,9 +188,10 @@ class ShardGroup:
         """Every home's independent local step."""
         self._each("init_local_step")
 
-    def init_home_step(self, word_mask: np.ndarray | None = None) -> None:
+    def init_home_step(self, word_mask: np.ndarray | None = None,
+                       name_words: np.ndarray | None = None) -> None:
         """Every home's independent home step."""
-        self._each("init_home_step", word_mask)
+        self._each("init_home_step", word_mask, name_words)
 
     def init_summary(self) -> HomeSummary:
         """The homes' summaries, concatenated in home order."""

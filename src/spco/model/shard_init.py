@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -52,7 +52,7 @@ from spco.model.alignment import ALIGNMENT_BATCH, HomeCounts, align_in_order
 from spco.model.gibbs import GibbsState, PreparedData, SamplerSettings
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.observations import GaussianRegions
-from spco.model.pruning import NOT_A_NAME, Colocation, judge_names
+from spco.model.pruning import NAME, NOT_A_NAME, Colocation, judge_names
 from spco.model.random import log_dirichlet
 from spco.model.synonyms import NameOverlaps, name_overlaps, name_region_overlaps, same_place_names
 
@@ -118,13 +118,17 @@ class ShardInitialisation:
 
     def init_local_step(self) -> None:
         """One local step of the independent warm-start sampler (statistics kept)."""
-        gibbs.local_step(self.data, self.state, INDEPENDENT, self.rng)
+        independent = replace(INDEPENDENT, view_counts=self.settings.view_counts)  # the same view evidence
+        gibbs.local_step(self.data, self.state, independent, self.rng)
         self._init_stats = gibbs.sufficient_statistics(self.data, self.state, self.hyper)
 
-    def init_home_step(self, word_mask: np.ndarray | None = None) -> None:
-        """Take ``word_mask`` (if given), then the independent home step."""
+    def init_home_step(self, word_mask: np.ndarray | None = None,
+                       name_words: np.ndarray | None = None) -> None:
+        """Take ``word_mask`` and ``name_words`` (if given), then the independent home step."""
         if word_mask is not None:
             self.state.word_mask = word_mask
+        if name_words is not None:
+            self.state.name_words = name_words
         independent_home_step(self.data, self.state, self._init_stats, self.hyper, self.rng)
 
     def init_summary(self) -> HomeSummary:
@@ -224,6 +228,7 @@ class ShardInitialisation:
         state = self.state
         state.log_phi_v, state.log_phi_w = shared.log_phi_v, shared.log_phi_w
         state.log_g0, state.word_mask = shared.log_g0, shared.word_mask
+        state.name_words = shared.name_words
         gibbs.home_step(self.data, state, self._init_stats, self.hyper, self.settings, self.rng)
         for name in ("_init_stats", "_names", "_name_counts", "_weights", "_own"):
             self.__dict__.pop(name, None)
@@ -329,13 +334,16 @@ def initialise(call, call_each, bounds: list[tuple[int, int]], n_words: int, hyp
         call("init_places", overlaps)
         report.bytes_sent += overlaps.nbytes * n_shards
         report.bytes_sent += naming.nbytes * n_shards
+    name_words = None
     for sweep_index in range(n_sweeps):
         call("init_local_step")
-        mask = None
+        mask = names = None
         if sweep_index == 0 and settings.prune and n_words:
-            mask = word_mask = judge_names(total(call("colocation"))) != NOT_A_NAME
-            report.bytes_sent += mask.nbytes * n_shards
-        call("init_home_step", mask)
+            verdicts = judge_names(total(call("colocation")))
+            mask = word_mask = verdicts != NOT_A_NAME
+            names = name_words = verdicts == NAME
+            report.bytes_sent += (mask.nbytes + names.nbytes) * n_shards
+        call("init_home_step", mask, names)
 
     summaries = gather(call("init_summary"))
     word_totals = np.concatenate([s.word_totals for s in summaries])
@@ -388,7 +396,7 @@ def initialise(call, call_each, bounds: list[tuple[int, int]], n_words: int, hyp
     shared = SharedParameters(log_dirichlet(hyper.alpha_visual + counts.visual, rng),
                               log_dirichlet(hyper.alpha_word + counts.words, rng),
                               log_dirichlet(hyper.gamma0 / hyper.n_concepts + counts.concepts, rng),
-                              word_mask)
+                              word_mask, name_words)
     call("init_finish", shared)
     report.bytes_sent += shared.nbytes * n_shards
     report.seconds = time.perf_counter() - started

@@ -70,7 +70,8 @@ def concatenate_data(parts: list[PreparedData]) -> PreparedData:
                         words=stack_counts(*(p.words for p in parts)),
                         n_homes=int(home_starts[-1]), offsets=offsets.astype(np.int64),
                         position_scale=parts[0].position_scale,
-                        map_centres=np.concatenate([p.map_centres for p in parts]))
+                        map_centres=np.concatenate([p.map_centres for p in parts]),
+                        view_missing=np.concatenate([p.view_missing for p in parts]))
 
 
 # ----------------------------------------------------------------------------- prepared in the shards
@@ -273,9 +274,10 @@ class FolderHomes(RangeSource):
 
     @classmethod
     def create(cls, path, names=None, teaching_rate: int = 100, position_scale: float = 1.0,
-               progress: bool = False) -> FolderHomes:
+               progress: bool = False, language: str = "auto") -> FolderHomes:
         """The homes of folder ``path`` (a home, or a folder of homes; ``names`` selects and orders
-        them, as in :func:`~spco.data.loading.load_homes`) taught at ``teaching_rate`` percent."""
+        them, as in :func:`~spco.data.loading.load_homes`) taught at ``teaching_rate`` percent;
+        ``language`` as in :meth:`~spco.data.language.Vocabulary.from_sentences`."""
         from spco.data.language import DEFAULT_WORD_INCREMENT, Vocabulary
         from spco.data.loading import home_folders, load_homes, views_are_images
         from spco.errors import DataFormatError
@@ -288,7 +290,7 @@ class FolderHomes(RangeSource):
                                       "hold count vectors (visual.npz); load image homes in the driver "
                                       "with an extractor (spco fit does)")
         sentences: list[str | None] = []
-        home_names, sizes, taught, dims = [], [], 0, set()
+        home_names, sizes, taught, dims, views = [], [], 0, set(), 0
         for folder in progress_bar(folders, desc="reading sentences", unit="home", leave=False,
                                    disable=None if progress else True):
             env = load_homes(folder, teaching_rate=teaching_rate)[0]  # one home at a time
@@ -300,13 +302,16 @@ class FolderHomes(RangeSource):
             home_names.append(env.name)
             sizes.append(training.n_samples)
             taught += env.n_taught
-            dims.add(env.n_features)
+            views += env.n_views
+            if env.n_features:  # a home without any view takes the others' dimension
+                dims.add(env.n_features)
             if len(dims) > 1:
                 raise DataFormatError(folder, f"views of {env.n_features} features, the homes before it "
                                       f"have {min(dims - {env.n_features})}")
         return cls([str(f) for f in folders], home_names, int(teaching_rate),
-                   Vocabulary.from_sentences(sentences), DEFAULT_WORD_INCREMENT,
-                   np.array(sizes, dtype=np.int64), taught, dims.pop(), float(position_scale))
+                   Vocabulary.from_sentences(sentences, language=language), DEFAULT_WORD_INCREMENT,
+                   np.array(sizes, dtype=np.int64), taught, dims.pop() if dims and views else 0,
+                   float(position_scale))
 
     @property
     def n_homes(self) -> int:  # type: ignore[override]
@@ -328,7 +333,8 @@ class FolderHomes(RangeSource):
         from spco.model.transfer import SpatialConceptModel
 
         envs = [load_homes(p, teaching_rate=self.teaching_rate)[0] for p in self.paths[first:last]]
-        corpus = Corpus(envs, vocabulary=self.vocabulary, word_increment=self.word_increment)
+        corpus = Corpus(envs, vocabulary=self.vocabulary, word_increment=self.word_increment,
+                        n_features=self.n_features)
         return SpatialConceptModel._prepare(corpus, self.position_scale)
 
     def parts(self, n_shards: int) -> list[HomesPart]:

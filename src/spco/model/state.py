@@ -24,7 +24,11 @@ class PreparedData:
 
     positions (N, 4), homes (N,) home index of each sample, visual (N, D) CSR int64 counts,
     words (N, V) CSR int64 counts (empty rows for untaught samples), n_homes E, offsets (E+1,)
-    so that home e holds rows offsets[e]:offsets[e+1], position_scale (1 for metres, 100 for cm).
+    so that home e holds rows offsets[e]:offsets[e+1], position_scale (1 for metres, 100 for cm),
+    view_missing (N,) bool: the samples without a view (their rows of ``visual`` are empty, so
+    their visual likelihood — a product over no counts — is 1: it is left out, marginalised, not
+    imputed; and an empty row adds nothing to any visual statistic). ``D`` is 0 when no sample
+    of any home has a view.
     """
 
     positions: np.ndarray
@@ -35,6 +39,23 @@ class PreparedData:
     offsets: np.ndarray
     position_scale: float
     map_centres: np.ndarray  # (E, 4) in sampler units
+    view_missing: np.ndarray | None = None  # (N,) bool; None: every sample has a view
+
+    def __post_init__(self) -> None:
+        n = int(np.asarray(self.homes).size)
+        missing = np.zeros(n, dtype=bool) if self.view_missing is None \
+            else np.asarray(self.view_missing, dtype=bool)
+        if missing.shape != (n,):
+            raise ValueError(f"view_missing must have shape ({n},), got {missing.shape}")
+        if missing.any() and self.visual[np.flatnonzero(missing)].nnz:
+            raise ValueError("a sample without a view must have an empty visual row")
+        object.__setattr__(self, "view_missing", missing)
+
+    @property
+    def n_views(self) -> np.ndarray:
+        """(E,) samples with a view in each home."""
+        return np.add.reduceat(~self.view_missing, self.offsets[:-1]) if self.n_samples \
+            else np.zeros(self.n_homes, dtype=np.int64)
 
     @property
     def n_samples(self) -> int:
@@ -46,6 +67,11 @@ class PreparedData:
         """The visual counts by home and dimension (:func:`~spco.model.random.dimension_major`),
         built at the first sweep: the layout of the visual likelihood's kernel."""
         return dimension_major(self.visual, self.offsets)
+
+    @cached_property
+    def view_totals(self) -> np.ndarray:
+        """(N,) float: the visual counts of each sample (``Σ_d v_d``), for a view's weight."""
+        return np.asarray(self.visual.sum(axis=1), dtype=np.float64).ravel()
 
     @cached_property
     def niw_priors(self) -> dict:
@@ -63,7 +89,9 @@ class GibbsState:
     log_phi_v (L, D), log_phi_w (L, V); word_mask (V,) words kept by pruning; candidate_words
     (V,) words that the mutual-information pruning may keep at all (``None``: every word);
     home_specific_words (V,) candidates it never prunes (the exact variant uses neither: see
-    :func:`naming_verdicts`).
+    :func:`naming_verdicts`); name_words (V,) the words the naming rule judges names (exact variant
+    with pruning; ``None``: none judged yet): a taught sample whose sentence holds one is scored by
+    its name words only (:func:`spco.model.gibbs.sentence_words`).
     """
 
     concepts: np.ndarray
@@ -82,6 +110,10 @@ class GibbsState:
     candidate_words: np.ndarray | None = None
     home_specific_words: np.ndarray | None = None
     visual_cache: VisualCountCache | None = field(default=None, repr=False)
+    name_words: np.ndarray | None = None
+    #: the words matrix :func:`spco.model.gibbs.sentence_words` last built: (data.words, name_words
+    #: bytes, matrix)
+    words_cache: tuple | None = field(default=None, repr=False)
 
 
 @dataclass
@@ -105,15 +137,21 @@ class SamplerSettings:
     joint_assignment: bool
     pruning_score: str
     learn_shared: bool = True
+    view_counts: float | None = None
 
     @classmethod
-    def create(cls, variant: str, prune: bool, learn_shared: bool = True) -> SamplerSettings:
+    def create(cls, variant: str, prune: bool, learn_shared: bool = True,
+               view_counts: float | None = None) -> SamplerSettings:
         """Settings of ``variant`` (``exact``, ``reference`` or ``spcoa``).
 
         ``learn_shared=False`` keeps φ^v, φ^w and G_0 fixed (adapting to a new home with
-        knowledge learnt elsewhere): sweeps then update only the homes' own variables."""
+        knowledge learnt elsewhere): sweeps then update only the homes' own variables.
+        ``view_counts``: the evidence of one view in counts
+        (:attr:`~spco.model.hyperparameters.TransferHyperparameters.view_counts`); the exact
+        variant only — the authors' sampler and SpCoA score every count, as published."""
         if variant not in VARIANTS:
             raise ValueError(f"unknown sampler variant {variant!r}; choose one of {VARIANTS}")
         return cls(variant=variant, prune=prune, hierarchical=variant != "spcoa",
                    joint_assignment=variant != "reference",
-                   pruning_score="kl" if variant == "reference" else "mi", learn_shared=learn_shared)
+                   pruning_score="kl" if variant == "reference" else "mi", learn_shared=learn_shared,
+                   view_counts=view_counts if variant == "exact" else None)

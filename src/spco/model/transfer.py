@@ -43,7 +43,12 @@ from spco.errors import ConfigurationError
 from spco.model import gibbs
 from spco.model.hyperparameters import SpCoAHyperparameters, TransferHyperparameters
 from spco.model.parameters import ConceptParameters
-from spco.model.posterior import ParameterAverage, masked_rows, thinned_sweeps
+from spco.model.posterior import (
+    ParameterAverage,
+    masked_rows,
+    thinned_sweeps,
+    untaught_concepts_name_nothing,
+)
 from spco.model.random import stack_counts
 
 
@@ -146,7 +151,9 @@ class SpatialConceptModel:
     def _settings(self) -> gibbs.SamplerSettings:
         if self.variant not in ("exact", "reference"):
             raise ConfigurationError(f"variant must be 'exact' or 'reference', got {self.variant!r}")
-        return gibbs.SamplerSettings.create(self.variant, bool(self.prune_words))
+        hyper = self.hyperparameters if self.hyperparameters is not None else self._default_hyperparameters()
+        return gibbs.SamplerSettings.create(self.variant, bool(self.prune_words),
+                                            view_counts=getattr(hyper, "view_counts", None))
 
     def _validate(self) -> TransferHyperparameters:
         hyper = self.hyperparameters if self.hyperparameters is not None else self._default_hyperparameters()
@@ -182,7 +189,8 @@ class SpatialConceptModel:
             else:
                 centres[e, :2] = t.positions[:, :2].mean(0)
         centres[:, :2] *= position_scale
-        return gibbs.PreparedData(positions=positions, homes=homes, visual=visual,
+        missing = np.concatenate([t.view_missing for t in training])
+        return gibbs.PreparedData(positions=positions, homes=homes, visual=visual, view_missing=missing,
                                   words=words, n_homes=len(training), offsets=offsets,
                                   position_scale=position_scale, map_centres=centres)
 
@@ -249,6 +257,10 @@ class SpatialConceptModel:
         self.log_joint_ = np.asarray(trace, dtype=float)
         self.n_iter_ = int(self.n_iterations)
         self.parameters_ = average.result(state)
+        if settings.variant == "exact":  # (the authors' sampler and SpCoA export as published)
+            taught = np.zeros(hyper.n_concepts, dtype=bool)  # concepts holding a taught sample somewhere
+            taught[np.unique(state.concepts[np.diff(data.words.indptr) > 0])] = True
+            self.parameters_ = untaught_concepts_name_nothing(self.parameters_, taught)
         splits = np.split(np.arange(data.n_samples), data.offsets[1:-1])
         self.concepts_ = [state.concepts[s].copy() for s in splits]
         self.regions_ = [state.regions[s].copy() for s in splits]
@@ -279,7 +291,8 @@ class SpatialConceptModel:
 
         e = self.home_index(home)
         return prediction.predict_names(self.parameters_, e, self.vocabulary_, np.asarray(positions),
-                                        visual, top_k=top_k, weighting=weighting)
+                                        visual, top_k=top_k, weighting=weighting,
+                                        view_counts=self.settings_.view_counts)
 
     def predict_positions(self, home: str | int, name: str, n: int = 10,
                           random_state: int | np.random.Generator | None = None):

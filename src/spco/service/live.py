@@ -247,7 +247,7 @@ class LiveHome:
         key = json.dumps(knowledge.extractor, sort_keys=True)
         if self._extractor is None or key != self._extractor_key:
             self._extractor, self._extractor_key = knowledge.image_extractor(), key
-        return self._extractor.extract(pixels)
+        return self._extractor.extract(pixels, "mono8" if pixels.ndim == 2 else "bgr8")  # decode_image's
 
     def what(self, x: float, y: float, theta: float, *, image: Any = None, encoding: str | None = None,
              visual: Any = None, top: int = 3) -> dict[str, Any]:

@@ -230,7 +230,7 @@ def without_samples(home: kn.HomeModel, ids: list[int]) -> kn.HomeModel:
     state = replace(s, concepts=s.concepts[keep].copy(), regions=regions, region_counts=counts[None, :],
                     visual_cache=None)
     return replace(home, state=state, ids=home.ids[keep], positions=home.positions[keep],
-                   visual=sp.csr_array(home.visual[rows]),
+                   visual=sp.csr_array(home.visual[rows]), view_missing=home.view_missing[keep],
                    sentences=tuple(t for t, k in zip(home.sentences, keep, strict=True) if k), posterior=None)
 
 
@@ -289,7 +289,8 @@ def apply_batch(home: kn.HomeModel, records: list[dict[str, Any]],
                 elif r["op"] == "observation":
                     observations.append(kn.Observation(
                         x=float(r["x"]), y=float(r["y"]), theta=float(r["theta"]),
-                        visual=_view_row(r["view"], home.knowledge.n_features), sentence=r["sentence"],
+                        visual=None if r["view"] is None else _view_row(r["view"], home.knowledge.n_features),
+                        sentence=r["sentence"],  # no view: a sample without one (its likelihood left out)
                         id=int(r["id"])))
                     entries[r["seq"]] = {"op": "observation", "id": int(r["id"]), "sentence": r["sentence"],
                                          "x": r["x"], "y": r["y"], "theta": r["theta"],

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import ctypes
 import io
 import os
 import pickle
@@ -520,6 +521,7 @@ class ProcessWriter:
                 return
 
     def _receive(self) -> None:
+        received = 0
         while True:
             try:
                 message = self._conn.recv()
@@ -528,6 +530,10 @@ class ProcessWriter:
             if message[0] == "applied":
                 _, keyed, packed = message
                 snapshot = None if packed is None else self._channel.unpack(packed)
+                if snapshot is not None:
+                    received += 1
+                    if received % TRIM_EVERY == 0:
+                        trim_heap()
                 with self._lock:
                     done = [(self._pending.pop(key), result) for key, result in keyed]
                 self._on_applied([(request, result) for (request, _), result in done], snapshot)
@@ -573,12 +579,35 @@ class ProcessWriter:
         return not self._closed and self._dead is None and self._process.poll() is None
 
 
+#: Snapshots (server) or rounds (writer) between two returns of freed heap memory to the system.
+TRIM_EVERY = 8
+
+
+def trim_heap() -> None:
+    """Give the heap memory freed since to the system (glibc's ``malloc_trim``; nothing elsewhere).
+
+    Each teaching replaces the snapshot (about 1 MB unpickled in the server, more in the writer):
+    without it the freed pieces stay with the process and its memory creeps up over a long run
+    (measured: +14 % after 400 teachings in one process, flat with it).
+    """
+    global _LIBC
+    if _LIBC is None:
+        try:
+            _LIBC = ctypes.CDLL("libc.so.6")
+            _LIBC.malloc_trim.argtypes = [ctypes.c_size_t]
+        except (OSError, AttributeError):
+            _LIBC = False
+    if _LIBC:
+        _LIBC.malloc_trim(0)  # (ctypes releases the global lock meanwhile)
+
+
+_LIBC: Any = None
+
+
 def _die_with_parent(parent: int) -> None:
     """Have the kernel kill this process when its parent dies (Linux), so that the lock it inherited
     is released with the server's; elsewhere the closed connection ends it."""
     with contextlib.suppress(Exception):
-        import ctypes
-
         libc = ctypes.CDLL(None, use_errno=True)
         pr_set_pdeathsig = 1
         libc.prctl(pr_set_pdeathsig, signal.SIGKILL, 0, 0, 0)
@@ -588,6 +617,7 @@ def _die_with_parent(parent: int) -> None:
 
 def _serve_connection(conn: Connection, writer: HomeWriter, channel: SnapshotChannel) -> None:
     idle = writer.compact_idle / 2
+    rounds = 0
     while True:
         if not conn.poll(idle):
             writer.maybe_compact()
@@ -606,6 +636,9 @@ def _serve_connection(conn: Connection, writer: HomeWriter, channel: SnapshotCha
             changed = any(r.get("ok") for r in results)
             conn.send(("applied", [(key, result) for (key, _), result in zip(work, results, strict=True)],
                        channel.pack(writer.snapshot()) if changed else None))
+            rounds += 1
+            if rounds % TRIM_EVERY == 0:
+                trim_heap()
         if any(m[0] == "close" for m in messages):
             writer.close()
             return

@@ -1,0 +1,117 @@
+"""``spco ros``: run a home on a robot's ROS network (see :mod:`spco.ros`).
+
+Registered in :mod:`spco.cli.main`.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from pathlib import Path
+
+import click
+
+from spco.cli.errors import friendly_errors
+
+__all__ = ["ros"]
+
+
+@click.command(name="ros")
+@click.argument("home", type=click.Path(path_type=Path))
+@click.option("--pose-topic", default="/tf", show_default=True,
+              help="The robot's pose on the map: a PoseWithCovarianceStamped, PoseStamped or Odometry topic "
+              "(HSR: /global_pose), or /tf (then --map-frame → --robot-frame).")
+@click.option("--map-frame", default="map", show_default=True, help="The map's frame (poses, goal, markers).")
+@click.option("--robot-frame", default="base_footprint", show_default=True,
+              help="The robot's tf frame (with --pose-topic /tf).")
+@click.option("--image-topic", default=None,
+              help="The camera: sensor_msgs/Image (rgb8, bgr8, mono8, rgba8, bgra8) or CompressedImage "
+              "(JPEG, PNG). HSR: /hsrb/head_rgbd_sensor/rgb/image_rect_color/compressed. "
+              "Needed to teach a home whose views are images.")
+@click.option("--speech-topic", default=None,
+              help="What people say, as std_msgs/String text: each utterance is taught at the pose and "
+              "frame nearest to it. Default: none (the node only answers queries).")
+@click.option("--tolerance", default=0.5, show_default=True, type=float,
+              help="Seconds an utterance's pose and camera frame may be from it (as import-bag's).")
+@click.option("--image-wait", default=None, type=float,
+              help="Seconds to wait after an utterance for a camera frame (default: the tolerance).")
+@click.option("--clock", type=click.Choice(["receive", "header"]), default="receive", show_default=True,
+              help="Times of messages: when they arrive (any clocks), or their header stamps (clocks in "
+              "step).")
+@click.option("--max-age", default=2.0, show_default=True, type=float,
+              help="Seconds after which the last pose and frame are no longer the robot's current ones.")
+@click.option("--goal/--no-goal", default=False, show_default=True,
+              help="Publish a PoseStamped on /spco/goal with every where answer (else only when the query "
+              'says "goal": true).')
+@click.option("--rosbridge", default=None, metavar="ws://HOST:PORT",
+              help="Connect to a rosbridge server (ROS 2, or ROS 1 without rospy here) instead of a ROS 1 "
+              "master.")
+@click.option("--pose-type", default=None, help="With --rosbridge: the pose topic's type, if the server "
+              "should not look it up (e.g. geometry_msgs/msg/PoseStamped).")
+@click.option("--image-type", default=None, help="With --rosbridge: the image topic's type.")
+@click.option("--node-name", default="spco", show_default=True, help="The node's name (ROS 1).")
+@click.option("--sweeps", default=10, show_default=True, type=click.IntRange(1, 1000),
+              help="Gibbs sweeps per teaching (as spco teach).")
+@click.option("--writer", type=click.Choice(["process", "thread"]), default="process", show_default=True,
+              help="Where teachings are applied (spco.service.LiveHome): a writer process of their own (the "
+                   "answers never wait for them), or a thread of the node.")
+@click.option("--seed", default=0, show_default=True, type=int, help="Base seed of the teachings.")
+@friendly_errors
+def ros(home: Path, pose_topic: str, map_frame: str, robot_frame: str, image_topic: str | None,
+        speech_topic: str | None, tolerance: float, image_wait: float | None, clock: str, max_age: float,
+        goal: bool, rosbridge: str | None, pose_type: str | None, image_type: str | None, node_name: str,
+        sweeps: int, writer: str, seed: int) -> None:
+    """Run HOME (a home file, from spco adapt) as a node on the robot's ROS network: learn from what
+    it hears, answer where/what queries, draw its places in RViz.
+
+    Each utterance on --speech-topic is taught at the robot's pose and camera frame nearest to it
+    in time and saved at once in HOME's journal (the same as spco serve's). Queries are JSON on
+    /spco/query ({"id": 7, "op": "where", "name": "kitchen"}, {"id": 8, "op": "what"}); answers
+    on /spco/answer echo the id. /spco/markers (latched MarkerArray, frame --map-frame) shows
+    the learnt regions with their names; /spco/goal gets a PoseStamped when a where query asks
+    ("goal": true) or with --goal.
+
+    ROS 1: ROS_MASTER_URI and ROS_IP as for any node (rospy from the system: apt-get install
+    python3-rospy …). ROS 2: --rosbridge ws://ROBOT:9090.
+    """
+    from spco.ros.core import NodeSettings
+    from spco.ros.node import Topics
+    from spco.service.live import LiveHome
+
+    settings = NodeSettings(tolerance=tolerance, image_wait=image_wait, clock=clock, max_age=max_age,
+                            goal=goal, map_frame=map_frame, robot_frame=robot_frame)
+    topics = Topics(pose=pose_topic, image=image_topic, speech=speech_topic)
+    handler = logging.StreamHandler()
+    handler.setFormatter(logging.Formatter("%(message)s"))
+    log = logging.getLogger("spco.ros")
+    log.addHandler(handler)
+    log.setLevel(logging.INFO)
+    if rosbridge is None:
+        from spco.ros import import_rospy
+
+        import_rospy()  # before opening the home: a missing rospy is one clear error
+    elif not rosbridge.startswith(("ws://", "wss://")):
+        from spco.errors import ConfigurationError
+
+        raise ConfigurationError(f"--rosbridge takes a WebSocket URL such as ws://robot:9090, got "
+                                 f"{rosbridge!r}")
+    where = rosbridge or os.environ.get("ROS_MASTER_URI", "http://localhost:11311 (ROS_MASTER_URI unset)")
+    with LiveHome(home, seed=seed, sweeps=sweeps, writer=writer,
+                  holder=f"spco ros (process {os.getpid()})") as live:
+        model = live.home
+        uses_images = bool(model.knowledge.fitted_on_images)
+        if uses_images and speech_topic and not image_topic:
+            click.echo("warning: the views of this home are images and no --image-topic is given: utterances "
+                       "cannot be taught", err=True)
+        click.echo(f"spco ros: home {model.name} ({model.n_samples} samples, names: "
+                   f"{', '.join(model.known_names) or 'none yet'}) on {where}", err=True)
+        if rosbridge is not None:
+            from spco.ros.rosbridge import run_rosbridge
+
+            run_rosbridge(live, rosbridge, topics, settings, pose_type=pose_type, image_type=image_type,
+                          uses_images=uses_images, n_concepts=model.knowledge.n_concepts)
+        else:
+            from spco.ros.node import run_node
+
+            run_node(live, topics, settings, node_name=node_name, uses_images=uses_images,
+                     n_concepts=model.knowledge.n_concepts)

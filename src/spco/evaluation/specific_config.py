@@ -1,0 +1,886 @@
+"""The home-specific experiment on a configuration file: personal room names in any home.
+
+The paper's home-specific experiment has one home (3LDK_9) and the sentences its authors recorded.
+A *configuration file* (``benchmarks/heldout/specific_heldout.json``,
+``benchmarks/development/specific_dev.json``; format ``heldout-specific/1``, documented in the
+file's own ``_schema``) describes others: for each configuration a new home, the rooms that get a
+personal name ("kenta's room", "the piano room"), their train and test sample ids, the phrases
+accepted as each room's name, teaching templates, teaching rates and seeds.
+
+One *run* is (configuration, rate, seed, model):
+
+1. **Teaching.** The taught samples and their sentences are drawn as the file's ``selection_rule``
+   says: ``rng = numpy.random.default_rng(seed)``; for each room in the listed order
+   ``rng.choice(train_ids, size=k, replace=False)``, then for each drawn id in that order a
+   template index ``rng.integers(len(pool))``, ``pool`` = the templates (+ the possessive ones for
+   a room with an owner). ``k`` is the room's ``taught_count`` at the rate. Nothing else in the
+   new home is taught (its own ``sentence/`` folders are not used); the experienced homes are
+   taught at rate 100 with their own sentences.
+2. **Split.** The rooms' test ids are test samples (never learnt from). With ``test_source``
+   ``"defined-here"`` they are made test samples here; otherwise they must already be test samples
+   of the home's published list.
+3. **Vocabulary, per run.** The words of the experienced homes' sentences and of the sentences
+   taught in this run (:meth:`~spco.data.language.Vocabulary.from_sentences`): a run at 20 % has
+   no column for a word taught only at 100 %, or by another seed's draw.
+4. **Model.** A model of :data:`~spco.evaluation.experiments.MODELS` learns the experienced homes
+   (the configuration's list, default the file's) and the new home, last (SpCoA: the new home
+   alone), with ``random_state = trial_seed(seed, 0)``.
+5. **Scores** (:func:`score_rooms`). A_n of a room: the share of its test samples whose predicted
+   name (the top word of :func:`~spco.prediction.predict_names`, with the model's weighting) is
+   one of the room's accepted phrases after :func:`normalize_phrase`. A_p of a room with a region:
+   the share of positions drawn for the room's name (``where <name>``) inside the region, both
+   ways: ``argmax`` — all from the most probable region's Gaussian (as the authors' code), and
+   ``mixture`` — each from a region drawn from p(region | name), i.e. from the whole mixture
+   p(x | name) (as the paper's text describes it).
+
+Summaries (:func:`summarise`): per configuration, room, rate and model the mean A_n over seeds with a
+95 % bootstrap interval over the test samples (the room's test samples are resampled with their
+results of every seed kept together; 2,000 resamples, fixed seed); means over a configuration's
+rooms and over every room of the file (each room counts once) with the interval from the same
+resamples; A_p means (both ways) over seeds.
+
+Output folder: ``config.json`` (what was run, with a fingerprint), ``runs.jsonl`` (one line per run,
+appended as it finishes: ``--resume`` continues), ``results.json`` (format
+:data:`RESULTS_FORMAT`, version :data:`RESULTS_VERSION`: ``config``, ``runs``, ``summary``,
+``overall``) and ``tables.md``. Every file is written atomically.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import math
+import multiprocessing
+import os
+import time
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from spco.data.environment import Corpus, Environment, make_ground_truth
+from spco.data.language import Vocabulary
+from spco.data.regions import PlaceRegions
+from spco.errors import ConfigurationError, DataFormatError
+
+__all__ = [
+    "CONFIG_FORMAT",
+    "RESULTS_FORMAT",
+    "RESULTS_VERSION",
+    "ConfiguredData",
+    "ConfiguredRun",
+    "Room",
+    "RoomScores",
+    "SpecificConfigFile",
+    "SpecificConfiguration",
+    "bootstrap_interval",
+    "execute_configured_run",
+    "load_specific_config",
+    "normalize_phrase",
+    "run_specific_config",
+    "score_rooms",
+    "summarise",
+    "taught_count",
+    "teaching_sentences",
+]
+
+#: Format of a configuration file (its ``_format`` field).
+CONFIG_FORMAT = "heldout-specific/1"
+RESULTS_FORMAT = "spco-specific-config-results"
+RESULTS_VERSION = 1
+#: Words dropped at the start of a phrase before comparing names (the file's normalisation).
+LEADING_WORDS = ("the", "a", "an", "my", "our", "your")
+#: Bootstrap resamples and level of the intervals.
+BOOTSTRAP_RESAMPLES = 2000
+BOOTSTRAP_LEVEL = 0.95
+#: Positions drawn per room and run for A_p.
+DEFAULT_POSITIONS = 20
+#: A_p modes: all positions from the most probable region; each from a region drawn from p(m | name).
+POSITION_MODES = ("argmax", "mixture")
+
+_CONFIG_FILE = "config.json"
+_RUNS_FILE = "runs.jsonl"
+_RESULTS_FILE = "results.json"
+_TABLES_FILE = "tables.md"
+
+
+def normalize_phrase(text: str) -> str:
+    """A name as the configuration files compare names: lower case, ``-`` and ``_`` as spaces, runs
+    of spaces collapsed, a leading ``the``/``a``/``an``/``my``/``our``/``your`` dropped (when
+    another word follows); a trailing ``'s`` is kept (``"The Nursery"`` → ``"nursery"``)."""
+    words = str(text).casefold().replace("\u2019", "'").replace("-", " ").replace("_", " ").split()
+    if len(words) > 1 and words[0] in LEADING_WORDS:
+        words = words[1:]
+    return " ".join(words)
+
+
+def taught_count(rate: int, n_train: int) -> int:
+    """The file's rule: ``k = max(1, floor(rate * n_train / 100 + 0.5))`` for a rate > 0, 0 at rate 0."""
+    if rate <= 0:
+        return 0
+    return max(1, min(n_train, math.floor(rate * n_train / 100 + 0.5)))
+
+
+# ------------------------------------------------------------------------------------ the file
+@dataclass(frozen=True)
+class Room:
+    """A room with a personal name.
+
+    Attributes
+    ----------
+    name: the name users teach (``"the piano room"``), lower case.
+    form: ``"possessive"``, ``"single-word"`` or ``"multi-word"``.
+    owner: the person of a possessive name, or ``None``.
+    replaces: the general place of the room's samples (``"bedroom"``).
+    accepted: phrases counted right (normalised with :func:`normalize_phrase`).
+    train_ids, test_ids: sample ids (disjoint).
+    taught: rate -> number of train samples taught.
+    region: ground-truth area (``PlaceRegions`` with one place, the room's name), or ``None``.
+    """
+
+    name: str
+    form: str
+    owner: str | None
+    replaces: str
+    accepted: tuple[str, ...]
+    train_ids: tuple[int, ...]
+    test_ids: tuple[int, ...]
+    taught: Mapping[int, int]
+    region: PlaceRegions | None
+
+    def count_at(self, rate: int) -> int:
+        """Train samples taught at ``rate`` (the file's count, or the rule for a rate it lacks)."""
+        return self.taught.get(rate, taught_count(rate, len(self.train_ids)))
+
+    def is_accepted(self, word: str | None) -> bool:
+        """Whether a predicted name counts as this room's name."""
+        return word is not None and normalize_phrase(word) in self.accepted
+
+
+@dataclass(frozen=True)
+class SpecificConfiguration:
+    """One configuration: a new home and its named rooms."""
+
+    id: str
+    home: str
+    test_source: str
+    rooms: tuple[Room, ...]
+    experienced_homes: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class SpecificConfigFile:
+    """A configuration file as read by :func:`load_specific_config`."""
+
+    path: str
+    sha256: str
+    templates: tuple[str, ...]
+    possessive_templates: tuple[str, ...]
+    rates: tuple[int, ...]
+    seeds: tuple[int, ...]
+    experienced_homes: tuple[str, ...]
+    configurations: tuple[SpecificConfiguration, ...]
+
+    def configuration(self, name: str) -> SpecificConfiguration:
+        """The configuration called ``name`` (ConfigurationError listing the others if none)."""
+        for conf in self.configurations:
+            if conf.id == name:
+                return conf
+        raise ConfigurationError(f"{self.path} has no configuration {name!r}; it has "
+                                 f"{', '.join(c.id for c in self.configurations)}")
+
+    def select(self, names: Sequence[str] | None) -> tuple[SpecificConfiguration, ...]:
+        """The configurations called ``names`` (all with ``None``), in the order asked."""
+        if not names:
+            return self.configurations
+        return tuple(self.configuration(n) for n in dict.fromkeys(names))
+
+
+def _fail(path: Path, where: str, problem: str) -> DataFormatError:
+    return DataFormatError(path, f"{where}: {problem}")
+
+
+def _str(path: Path, where: str, value: Any, allow_none: bool = False) -> str | None:
+    if value is None and allow_none:
+        return None
+    if not isinstance(value, str) or not value.strip():
+        raise _fail(path, where, f"must be a non-empty string, got {value!r}")
+    return value
+
+
+def _ids(path: Path, where: str, value: Any) -> tuple[int, ...]:
+    if not isinstance(value, list) or not value or any(isinstance(v, bool) or not isinstance(v, int)
+                                                       or v < 0 for v in value):
+        raise _fail(path, where, f"must be a non-empty list of sample ids (integers >= 0), got "
+                    f"{json.dumps(value)[:60]}")
+    if len(set(value)) != len(value):
+        raise _fail(path, where, "repeats an id")
+    return tuple(int(v) for v in value)
+
+
+def _strings(path: Path, where: str, value: Any, allow_empty: bool = False) -> tuple[str, ...]:
+    if not isinstance(value, list) or (not value and not allow_empty) or any(
+            not isinstance(v, str) or not v.strip() for v in value):
+        raise _fail(path, where, f"must be a {'' if allow_empty else 'non-empty '}list of strings")
+    return tuple(value)
+
+
+def _room(path: Path, where: str, raw: Any, rates: Sequence[int]) -> Room:
+    if not isinstance(raw, dict):
+        raise _fail(path, where, "must be an object")
+    name = _str(path, f"{where}.name", raw.get("name"))
+    owner = _str(path, f"{where}.owner", raw.get("owner"), allow_none=True)
+    train = _ids(path, f"{where}.train_ids", raw.get("train_ids"))
+    test = _ids(path, f"{where}.test_ids", raw.get("test_ids"))
+    both = sorted(set(train) & set(test))
+    if both:
+        raise _fail(path, f"{where}.test_ids", f"id(s) {', '.join(map(str, both))} are also train ids")
+    accepted = tuple(dict.fromkeys(normalize_phrase(a) for a in
+                                   _strings(path, f"{where}.accepted", raw.get("accepted"))))
+    counts = raw.get("taught_count")
+    if not isinstance(counts, dict):
+        raise _fail(path, f"{where}.taught_count", "must be an object rate -> count")
+    taught: dict[int, int] = {}
+    for key, value in counts.items():
+        if not str(key).isdigit() or isinstance(value, bool) or not isinstance(value, int) \
+                or not 0 <= value <= len(train):
+            raise _fail(path, f"{where}.taught_count", f"{key!r}: {value!r} is not a count of "
+                        f"0..{len(train)} train samples for a rate")
+        taught[int(key)] = value
+    missing = [r for r in rates if r not in taught]
+    if missing:
+        raise _fail(path, f"{where}.taught_count", f"no count for rate(s) {', '.join(map(str, missing))}")
+    for rate, k in taught.items():
+        if k != taught_count(rate, len(train)):
+            raise _fail(path, f"{where}.taught_count", f"rate {rate}: {k} samples, but the rule gives "
+                        f"{taught_count(rate, len(train))} of {len(train)}")
+    region = raw.get("region")
+    regions = None
+    if region is not None:
+        if not isinstance(region, list) or not region or any(
+                not isinstance(r, list) or len(r) != 4 or any(isinstance(v, bool) or
+                                                               not isinstance(v, int | float) for v in r)
+                for r in region):
+            raise _fail(path, f"{where}.region", "must be null or a list of [x_min, x_max, y_min, y_max]")
+        try:
+            regions = PlaceRegions({name: tuple(tuple(float(v) for v in r) for r in region)})
+        except DataFormatError as exc:
+            raise _fail(path, f"{where}.region", exc.problem) from None
+    return Room(name=name.strip().lower(), form=str(raw.get("form") or ""), owner=owner,
+                replaces=_str(path, f"{where}.replaces", raw.get("replaces")),
+                accepted=accepted, train_ids=train, test_ids=test, taught=taught, region=regions)
+
+
+def load_specific_config(path: str | os.PathLike[str]) -> SpecificConfigFile:
+    """Read and check a configuration file (format :data:`CONFIG_FORMAT`).
+
+    Raises :class:`~spco.errors.DataFormatError` naming the file and the field at fault (a missing
+    file, invalid JSON, an unknown format, ids shared by two rooms, counts that break the file's
+    rule, ...). Whether the ids exist in the homes is checked when the homes are read
+    (:class:`ConfiguredData`).
+    """
+    p = Path(path).expanduser()
+    try:
+        data = p.read_bytes()
+    except OSError as exc:
+        raise DataFormatError(p, f"cannot read the configuration file ({exc.strerror or exc})") from None
+    try:
+        raw = json.loads(data.decode("utf-8"))
+    except (UnicodeDecodeError, ValueError) as exc:
+        raise DataFormatError(p, f"not a JSON file ({exc})") from None
+    if not isinstance(raw, dict):
+        raise DataFormatError(p, "must hold a JSON object")
+    if raw.get("_format") != CONFIG_FORMAT:
+        raise _fail(p, "_format", f"expected {CONFIG_FORMAT!r}, got {raw.get('_format')!r}")
+    templates = _strings(p, "templates", raw.get("templates"))
+    possessive = _strings(p, "possessive_templates", raw.get("possessive_templates", []), allow_empty=True)
+    for where, group in (("templates", templates), ("possessive_templates", possessive)):
+        for t in group:
+            if "{name}" not in t and "{owner}" not in t:
+                raise _fail(p, where, f"template {t!r} holds neither {{name}} nor {{owner}}")
+    rates = raw.get("teaching_rates")
+    if not isinstance(rates, list) or not rates or any(isinstance(r, bool) or not isinstance(r, int)
+                                                       or not 0 < r <= 100 for r in rates):
+        raise _fail(p, "teaching_rates", "must be a non-empty list of percentages 1..100")
+    seeds = raw.get("seeds")
+    if not isinstance(seeds, list) or not seeds or any(isinstance(s, bool) or not isinstance(s, int)
+                                                       or s < 0 for s in seeds) \
+            or len(set(seeds)) != len(seeds):
+        raise _fail(p, "seeds", "must be a non-empty list of distinct integers >= 0")
+    experienced = _strings(p, "experienced_homes", raw.get("experienced_homes"))
+    configs_raw = raw.get("configs")
+    if not isinstance(configs_raw, list) or not configs_raw:
+        raise _fail(p, "configs", "must be a non-empty list")
+    configurations = []
+    for i, conf in enumerate(configs_raw):
+        where = f"configs[{i}]"
+        if not isinstance(conf, dict):
+            raise _fail(p, where, "must be an object")
+        cid = _str(p, f"{where}.id", conf.get("id"))
+        home = _str(p, f"{where}.home", conf.get("home"))
+        source = conf.get("test_source")
+        if source not in ("test_num.txt", "test_num_specific.txt", "defined-here"):
+            raise _fail(p, f"{where}.test_source", "must be 'test_num.txt', 'test_num_specific.txt' or "
+                        f"'defined-here', got {source!r}")
+        exp = _strings(p, f"{where}.experienced_homes", conf["experienced_homes"]) \
+            if conf.get("experienced_homes") is not None else experienced
+        if home in exp:
+            raise _fail(p, f"{where}.home", f"{home!r} is also an experienced home")
+        rooms_raw = conf.get("rooms")
+        if not isinstance(rooms_raw, list) or not rooms_raw:
+            raise _fail(p, f"{where}.rooms", "must be a non-empty list")
+        rooms = tuple(_room(p, f"{where}.rooms[{j}]", r, rates) for j, r in enumerate(rooms_raw))
+        seen: dict[int, str] = {}
+        for room in rooms:
+            for sid in (*room.train_ids, *room.test_ids):
+                if sid in seen:
+                    raise _fail(p, f"{where}.rooms", f"sample {sid} belongs to {seen[sid]!r} and "
+                                f"{room.name!r}")
+                seen[sid] = room.name
+        names = [r.name for r in rooms]
+        if len(set(names)) != len(names):
+            raise _fail(p, f"{where}.rooms", "two rooms have the same name")
+        configurations.append(SpecificConfiguration(cid, home, source, rooms, tuple(exp)))
+    ids = [c.id for c in configurations]
+    if len(set(ids)) != len(ids):
+        raise _fail(p, "configs", "two configurations have the same id")
+    return SpecificConfigFile(path=str(path), sha256=hashlib.sha256(data).hexdigest(),
+                              templates=templates, possessive_templates=possessive,
+                              rates=tuple(sorted(rates)), seeds=tuple(seeds),
+                              experienced_homes=experienced, configurations=tuple(configurations))
+
+
+def teaching_sentences(file: SpecificConfigFile, conf: SpecificConfiguration, rate: int,
+                       seed: int) -> dict[int, str]:
+    """The taught samples of one run: sample id -> sentence, drawn by the file's selection rule
+    (see the module docstring). The same (configuration, rate, seed) gives the same draw."""
+    rng = np.random.default_rng(seed)
+    out: dict[int, str] = {}
+    for room in conf.rooms:
+        k = room.count_at(rate)
+        if k == 0:
+            continue
+        drawn = rng.choice(np.asarray(room.train_ids, dtype=np.int64), size=k, replace=False)
+        pool = file.templates + (file.possessive_templates if room.owner else ())
+        for sid in drawn:
+            template = pool[int(rng.integers(len(pool)))]
+            out[int(sid)] = template.replace("{owner}", room.owner or "").replace("{name}", room.name)
+    return out
+
+
+# ------------------------------------------------------------------------------------ the homes
+@dataclass
+class ConfiguredData:
+    """The homes of a configuration file, read once: experienced homes taught at rate 100 and the
+    configurations' new homes untaught, checked against the file's ids.
+
+    Parameters
+    ----------
+    file: the configuration file.
+    source: the data set (a SIGVerse folder, a folder of homes, an ``spco import`` cache).
+    configurations: the configurations to run (default: all).
+    """
+
+    file: SpecificConfigFile
+    source: str
+    configurations: tuple[SpecificConfiguration, ...] = ()
+    _experienced: dict[str, Environment] = field(default_factory=dict, repr=False)
+    _new: dict[str, Environment] = field(default_factory=dict, repr=False)
+
+    def __post_init__(self) -> None:
+        from spco.data.loading import read_records
+
+        if not self.configurations:
+            self.configurations = self.file.configurations
+        experienced = list(dict.fromkeys(h for c in self.configurations for h in c.experienced_homes))
+        new = list(dict.fromkeys(c.home for c in self.configurations))
+        names = list(dict.fromkeys([*experienced, *new]))
+        records = dict(zip(names, read_records(self.source, names=names), strict=True))
+        for name in experienced:
+            self._experienced[name] = records[name].at_rate(100)
+        for name in new:
+            self._new[name] = records[name].at_rate(0)
+        for conf in self.configurations:
+            self._check(conf)
+
+    def _check(self, conf: SpecificConfiguration) -> None:
+        env = self._new[conf.home]
+        where = env.source or self.source
+        rows = {int(i): r for r, i in enumerate(env.ids)}
+        index = next(i for i, c in enumerate(self.file.configurations) if c.id == conf.id)
+        for j, room in enumerate(conf.rooms):
+            field_of = f"configs[{index}].rooms[{j}]"
+            for kind, ids in (("train_ids", room.train_ids), ("test_ids", room.test_ids)):
+                missing = [i for i in ids if i not in rows]
+                if missing:
+                    raise DataFormatError(self.file.path, f"{field_of}.{kind}: home {conf.home!r} "
+                                          f"({where}) has no sample {missing[0]}")
+            in_test = [i for i in room.train_ids if env.is_test[rows[i]]]
+            if in_test:
+                raise DataFormatError(self.file.path, f"{field_of}.train_ids: {in_test[0]} is a test "
+                                      f"sample of home {conf.home!r} ({where})")
+            if conf.test_source != "defined-here":
+                not_test = [i for i in room.test_ids if not env.is_test[rows[i]]]
+                if not_test:
+                    raise DataFormatError(self.file.path, f"{field_of}.test_ids: {not_test[0]} is not a "
+                                          f"test sample of home {conf.home!r} ({where}); with "
+                                          f"test_source {conf.test_source!r} the ids must be its "
+                                          "published test samples")
+
+    def experienced(self, conf: SpecificConfiguration) -> list[Environment]:
+        """The configuration's experienced homes, taught at rate 100, in order."""
+        return [self._experienced[h] for h in conf.experienced_homes]
+
+    def new_home(self, conf: SpecificConfiguration, sentences: Mapping[int, str]) -> Environment:
+        """The configuration's new home: the rooms' test ids are test samples, ``sentences`` (id ->
+        sentence) the only taught sentences; the ground truth holds the rooms' labels and test
+        samples (``specific_labels``, ``specific_test``), their regions and accepted names."""
+        env = self._new[conf.home]
+        rows = {int(i): r for r, i in enumerate(env.ids)}
+        is_test = np.array(env.is_test, dtype=bool)
+        taught: list[str | None] = [None] * env.n_samples
+        for sid, sentence in sentences.items():
+            taught[rows[sid]] = sentence
+        labels: list[str | None] = [None] * env.n_samples
+        scored = np.zeros(env.n_samples, dtype=bool)
+        places: dict[str, tuple] = {}
+        for room in conf.rooms:
+            for sid in room.test_ids:
+                is_test[rows[sid]] = True
+                scored[rows[sid]] = True
+                labels[rows[sid]] = room.name
+            for sid in room.train_ids:
+                labels[rows[sid]] = room.name
+            if room.region is not None:
+                places.update(room.region.places)
+        gt = env.ground_truth
+        truth = make_ground_truth(labels=None if gt is None else gt.labels, specific_labels=labels,
+                                  specific_test=scored, regions=PlaceRegions(places) if places else None,
+                                  accepted_names={r.name: r.accepted for r in conf.rooms})
+        return replace(env, sentences=tuple(taught), is_test=is_test, ground_truth=truth)
+
+
+# ------------------------------------------------------------------------------------ scoring
+@dataclass(frozen=True)
+class RoomScores:
+    """One room's result in one run.
+
+    Attributes
+    ----------
+    correct: (T,) bool, the room's test samples in the file's order: predicted name accepted.
+    predicted: (T,) the predicted name of each test sample (``None``: no word survived).
+    position_accuracy: mode (``argmax``, ``mixture``) -> A_p, or ``None`` (no region).
+    """
+
+    correct: np.ndarray
+    predicted: tuple[str | None, ...]
+    position_accuracy: dict[str, float | None]
+
+    @property
+    def name_accuracy(self) -> float:
+        """A_n: the share of test samples named right."""
+        return float(np.mean(self.correct))
+
+
+def score_rooms(params: Any, e: int, env: Environment, vocabulary: Vocabulary,
+                rooms: Sequence[Room], weighting: str = "mi", n_positions: int = DEFAULT_POSITIONS,
+                rng: np.random.Generator | int | None = None,
+                view_counts: float | None = None) -> dict[str, RoomScores]:
+    """A_n and A_p (both ways) of each room in home ``e`` of a fitted model.
+
+    Parameters
+    ----------
+    params: the model's :class:`~spco.model.parameters.ConceptParameters`.
+    e: the index of ``env`` among the model's homes; env: the new home (its ids locate the rooms'
+        test samples).
+    vocabulary: the model's vocabulary; rooms: the rooms to score.
+    weighting: name weighting of :func:`~spco.prediction.predict_names`.
+    n_positions: positions drawn per room and mode; rng: Generator or seed of the draws.
+    view_counts: the evidence of one view, as the model learnt (``model.settings_.view_counts``).
+
+    Returns
+    -------
+    room name -> :class:`RoomScores`. A room whose name has no usable word gets A_p 0.
+    """
+    from spco.prediction import UnknownNameError, predict_names, predict_positions
+
+    rows = {int(i): r for r, i in enumerate(env.ids)}
+    gen = np.random.default_rng(rng)
+    out: dict[str, RoomScores] = {}
+    for room in rooms:
+        test = np.array([rows[i] for i in room.test_ids], dtype=np.int64)
+        prediction = predict_names(params, e, vocabulary, env.positions[test], env.visual[test],
+                                   top_k=1, weighting=weighting,  # type: ignore[arg-type]
+                                   view_counts=view_counts)
+        predicted = tuple(str(w) for w in prediction.words[:, 0]) if prediction.words.shape[1] else \
+            (None,) * test.size
+        correct = np.array([room.is_accepted(w) for w in predicted], dtype=bool)
+        positions: dict[str, float | None] = {}
+        for mode in POSITION_MODES:
+            if room.region is None:
+                positions[mode] = None
+                continue
+            try:
+                pred = predict_positions(params, e, vocabulary, room.name, n=n_positions, rng=gen,
+                                         mode=mode)  # type: ignore[arg-type]
+            except UnknownNameError:
+                positions[mode] = 0.0
+                continue
+            positions[mode] = float(room.region.contains(room.name, pred.samples[:, :2]).mean())
+        out[room.name] = RoomScores(correct, predicted, positions)
+    return out
+
+
+# ------------------------------------------------------------------------------------ runs
+@dataclass(frozen=True, order=True)
+class ConfiguredRun:
+    """One run: a model fitted for one configuration, teaching rate and seed."""
+
+    configuration: str
+    rate: int
+    seed: int
+    model: str
+
+
+def _vocabulary(homes: Iterable[Environment]) -> Vocabulary:
+    return Vocabulary.from_sentences(s for env in homes for s in env.training_data().sentences)
+
+
+def execute_configured_run(data: ConfiguredData, key: ConfiguredRun, iterations: int, n_positions: int,
+                           fingerprint: str = "") -> dict[str, Any]:
+    """Fit and score one run; returns its record (a line of ``runs.jsonl``)."""
+    from spco.evaluation.config import trial_seed
+    from spco.evaluation.models import MODELS
+
+    start = time.perf_counter()
+    conf = data.file.configuration(key.configuration)
+    sentences = teaching_sentences(data.file, conf, key.rate, key.seed)
+    new = data.new_home(conf, sentences)
+    experienced = data.experienced(conf)
+    homes = [*experienced, new]
+    vocabulary = _vocabulary(homes)  # per run: this rate's (and draw's) sentences only
+    spec = MODELS[key.model]
+    random_state = trial_seed(key.seed, 0)
+    model = spec.build(iterations, random_state, None, False)
+    corpus = Corpus([new] if spec.single_home else homes, vocabulary=vocabulary)
+    model.fit(corpus)
+    e = len(corpus) - 1
+    scores = score_rooms(model.parameters_, e, new, model.vocabulary_, conf.rooms, spec.weighting,
+                         n_positions, np.random.default_rng([key.seed, 1]), model.settings_.view_counts)
+    return {
+        "fingerprint": fingerprint,
+        "configuration": key.configuration,
+        "home": conf.home,
+        "rate": key.rate,
+        "seed": key.seed,
+        "model": key.model,
+        "random_state": random_state,
+        "iterations": iterations,
+        "taught": len(sentences),
+        "vocabulary_size": len(vocabulary),
+        "wall_seconds": round(time.perf_counter() - start, 3),
+        "rooms": {name: {"correct": [int(c) for c in s.correct], "predicted": list(s.predicted),
+                         "name_accuracy": round(s.name_accuracy, 6),
+                         "position_accuracy": s.position_accuracy}
+                  for name, s in scores.items()},
+    }
+
+
+# -------------------------------------------------------------------------- worker processes
+_WORKER: tuple[ConfiguredData, int, int, str] | None = None
+
+
+def _init_worker(file: SpecificConfigFile, source: str, names: tuple[str, ...], iterations: int,
+                 n_positions: int, fingerprint: str) -> None:
+    global _WORKER
+    with contextlib.suppress(Exception):  # numba may lack a threading layer; runs still work
+        import numba
+
+        numba.set_num_threads(1)
+    data = ConfiguredData(file, source, file.select(names))
+    _WORKER = (data, iterations, n_positions, fingerprint)
+
+
+def _worker_run(key: ConfiguredRun) -> dict[str, Any]:
+    if _WORKER is None:  # pragma: no cover - the initializer always runs first
+        raise RuntimeError("worker not initialised")
+    data, iterations, n_positions, fingerprint = _WORKER
+    return execute_configured_run(data, key, iterations, n_positions, fingerprint)
+
+
+# ------------------------------------------------------------------------------------ summary
+def bootstrap_interval(per_sample: Sequence[np.ndarray], resamples: int = BOOTSTRAP_RESAMPLES,
+                       level: float = BOOTSTRAP_LEVEL, seed: int = 0) -> tuple[float, float]:
+    """Percentile bootstrap interval of the mean over rooms of each room's mean accuracy.
+
+    Parameters
+    ----------
+    per_sample: one (T_r,) array per room: each test sample's accuracy averaged over the seeds
+        (resampling a sample keeps its results of every seed together).
+    resamples, level, seed: number of resamples, coverage, and the seed of the resampling.
+
+    Returns
+    -------
+    (low, high); each room's samples are resampled within the room (stratified), every room
+    weighs the same in the mean.
+    """
+    rng = np.random.default_rng(seed)
+    total = np.zeros(resamples)
+    for values in per_sample:
+        v = np.asarray(values, dtype=np.float64)
+        idx = rng.integers(0, v.size, size=(resamples, v.size))
+        total += v[idx].mean(axis=1)
+    total /= max(len(per_sample), 1)
+    tail = (1.0 - level) / 2.0
+    return float(np.quantile(total, tail)), float(np.quantile(total, 1.0 - tail))
+
+
+def _mean(values: Iterable[float | None]) -> float | None:
+    kept = [v for v in values if v is not None]
+    return float(np.mean(kept)) if kept else None
+
+
+def summarise(records: Sequence[Mapping[str, Any]], file: SpecificConfigFile) -> dict[str, Any]:
+    """Per configuration, rate and model: each room's mean A_n over seeds with its bootstrap
+    interval, A_p both ways, and the configuration's mean; ``overall``: every room of the file.
+
+    Returns ``{"summary": [...], "overall": [...]}`` (see :func:`run_specific_config`)."""
+    groups: dict[tuple[str, int, str], list[Mapping[str, Any]]] = {}
+    for rec in records:
+        groups.setdefault((rec["configuration"], int(rec["rate"]), rec["model"]), []).append(rec)
+    order = {c.id: i for i, c in enumerate(file.configurations)}
+    summary = []
+    pooled: dict[tuple[int, str], list[tuple[np.ndarray, dict[str, Any]]]] = {}
+    for (cid, rate, model), recs in sorted(groups.items(), key=lambda kv: (order.get(kv[0][0], 0),
+                                                                           kv[0][1], kv[0][2])):
+        recs = sorted(recs, key=lambda r: r["seed"])
+        conf = file.configuration(cid)
+        rooms = []
+        samples = []
+        for room in conf.rooms:
+            correct = np.array([r["rooms"][room.name]["correct"] for r in recs], dtype=np.float64)
+            per_sample = correct.mean(axis=0)
+            samples.append(per_sample)
+            per_seed = correct.mean(axis=1)
+            low, high = bootstrap_interval([per_sample])
+            row = {
+                "room": room.name, "form": room.form, "replaces": room.replaces,
+                "name_accuracy": float(per_sample.mean()), "interval": [low, high],
+                "seed_std": float(per_seed.std(ddof=1)) if per_seed.size > 1 else None,
+                "seed_min": float(per_seed.min()),
+                "position_accuracy": {m: _mean(r["rooms"][room.name]["position_accuracy"][m] for r in recs)
+                                      for m in POSITION_MODES},
+                "n_test": int(per_sample.size),
+            }
+            rooms.append(row)
+            pooled.setdefault((rate, model), []).append((per_sample, row))
+        low, high = bootstrap_interval(samples)
+        summary.append({
+            "configuration": cid, "home": conf.home, "rate": rate, "model": model, "seeds": len(recs),
+            "seed_list": [int(r["seed"]) for r in recs],
+            "mean_name_accuracy": float(np.mean([r["name_accuracy"] for r in rooms])),
+            "interval": [low, high],
+            "mean_position_accuracy": {m: _mean(r["position_accuracy"][m] for r in rooms)
+                                       for m in POSITION_MODES},
+            "rooms": rooms,
+        })
+    overall = []
+    for (rate, model), items in sorted(pooled.items()):
+        low, high = bootstrap_interval([s for s, _ in items])
+        rows = [row for _, row in items]
+        overall.append({
+            "rate": rate, "model": model, "rooms": len(rows),
+            "mean_name_accuracy": float(np.mean([r["name_accuracy"] for r in rows])),
+            "interval": [low, high],
+            "min_room_name_accuracy": float(min(r["name_accuracy"] for r in rows)),
+            "mean_position_accuracy": {m: _mean(r["position_accuracy"][m] for r in rows)
+                                       for m in POSITION_MODES},
+        })
+    return {"summary": summary, "overall": overall}
+
+
+def _f(value: float | None, digits: int = 3) -> str:
+    return "–" if value is None else f"{value:.{digits}f}"
+
+
+def tables(results: Mapping[str, Any]) -> str:
+    """Markdown tables of a results mapping (per room and overall)."""
+    lines = ["| configuration | room | rate | model | seeds | A_n | 95 % interval | worst seed | "
+             "A_p (argmax) | A_p (mixture) |", "|---|---|---:|---|---:|---:|---|---:|---:|---:|"]
+    for group in results["summary"]:
+        for row in group["rooms"]:
+            lo, hi = row["interval"]
+            lines.append(f"| {group['configuration']} | {row['room']} | {group['rate']} | {group['model']} | "
+                         f"{group['seeds']} | {_f(row['name_accuracy'])} | {_f(lo)}–{_f(hi)} | "
+                         f"{_f(row['seed_min'])} | {_f(row['position_accuracy']['argmax'])} | "
+                         f"{_f(row['position_accuracy']['mixture'])} |")
+        lo, hi = group["interval"]
+        lines.append(f"| {group['configuration']} | **mean** | {group['rate']} | {group['model']} | "
+                     f"{group['seeds']} | **{_f(group['mean_name_accuracy'])}** | {_f(lo)}–{_f(hi)} | | "
+                     f"{_f(group['mean_position_accuracy']['argmax'])} | "
+                     f"{_f(group['mean_position_accuracy']['mixture'])} |")
+    lines += ["", "| rate | model | rooms | mean A_n | 95 % interval | worst room | A_p (argmax) | "
+              "A_p (mixture) |", "|---:|---|---:|---:|---|---:|---:|---:|"]
+    for row in results["overall"]:
+        lo, hi = row["interval"]
+        lines.append(f"| {row['rate']} | {row['model']} | {row['rooms']} | {_f(row['mean_name_accuracy'])} | "
+                     f"{_f(lo)}–{_f(hi)} | {_f(row['min_room_name_accuracy'])} | "
+                     f"{_f(row['mean_position_accuracy']['argmax'])} | "
+                     f"{_f(row['mean_position_accuracy']['mixture'])} |")
+    return "\n".join(lines) + "\n"
+
+
+# ------------------------------------------------------------------------------------ driver
+def _write_atomic(path: Path, text: str) -> None:
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp.write_text(text, encoding="utf-8")
+    os.replace(tmp, path)
+
+
+def _read_runs(path: Path, fingerprint: str) -> list[dict[str, Any]]:
+    if not path.is_file():
+        return []
+    out = []
+    for line in path.read_text(encoding="utf-8").splitlines():
+        try:
+            rec = json.loads(line)
+        except ValueError:  # a half-written last line of an interrupted run
+            continue
+        if isinstance(rec, dict) and rec.get("fingerprint") == fingerprint:
+            out.append(rec)
+    return out
+
+
+def run_specific_config(
+    config: str | os.PathLike[str] | SpecificConfigFile,
+    data: str | os.PathLike[str],
+    out: str | os.PathLike[str],
+    configurations: Sequence[str] | None = None,
+    rates: Sequence[int] | None = None,
+    seeds: Sequence[int] | None = None,
+    models: Sequence[str] = ("spcotransfer+mi", "spcoa"),
+    iterations: int = 200,
+    n_positions: int = DEFAULT_POSITIONS,
+    jobs: int = 1,
+    resume: bool = False,
+    force: bool = False,
+    progress: Callable[[dict[str, Any], int, int], None] | None = None,
+) -> dict[str, Any]:
+    """Run the home-specific experiment of a configuration file and write its results in ``out``.
+
+    Parameters
+    ----------
+    config: the configuration file (path or loaded).
+    data: the data set holding the homes (e.g. the SIGVerse folder).
+    out: output folder (``config.json``, ``runs.jsonl``, ``results.json``, ``tables.md``).
+    configurations: configuration ids to run (default: all of the file).
+    rates, seeds: default the file's; the seeds must be among the file's.
+    models: names of :data:`~spco.evaluation.experiments.MODELS`.
+    iterations: Gibbs sweeps per fit; n_positions: positions per room and A_p mode.
+    jobs: worker processes (results do not depend on it).
+    resume: continue an experiment in ``out`` with the same configuration; force: start over.
+    progress: called with each finished record, the number done and the total.
+
+    Returns
+    -------
+    The results mapping written to ``results.json``: ``format``, ``version``, ``config``,
+    ``runs`` (the records), ``summary`` and ``overall`` (:func:`summarise`).
+    """
+    from spco.evaluation.config import parse_models
+
+    file = config if isinstance(config, SpecificConfigFile) else load_specific_config(config)
+    chosen = file.select(configurations)
+    model_names = parse_models(list(models))
+    rates = tuple(sorted(dict.fromkeys(rates))) if rates else file.rates
+    bad = [r for r in rates if isinstance(r, bool) or not isinstance(r, int) or not 0 < r <= 100]
+    if bad:
+        raise ConfigurationError(f"teaching rates must be percentages 1..100, got {bad}")
+    seeds = tuple(dict.fromkeys(seeds)) if seeds else file.seeds
+    foreign = [s for s in seeds if s not in file.seeds]
+    if foreign:
+        raise ConfigurationError(f"seed(s) {', '.join(map(str, foreign))} are not seeds of {file.path} "
+                                 f"({file.seeds[0]}..{file.seeds[-1]})")
+    for name, value, low in (("iterations", iterations, 1), ("positions", n_positions, 1), ("jobs", jobs, 1)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < low:
+            raise ConfigurationError(f"{name} must be an integer >= {low}, got {value!r}")
+    if resume and force:
+        raise ConfigurationError("choose one of --resume (continue) and --force (start over)")
+    source = Path(data).expanduser()
+    if not source.exists():
+        raise DataFormatError(source, "no such data folder or file (--data)")
+    out_dir = Path(out)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise ConfigurationError(f"{out_dir}: exists and is not a folder (--out)")
+    identity = {"config_sha256": file.sha256, "iterations": iterations, "positions": n_positions,
+                "vocabulary": "per run", "format": RESULTS_VERSION}
+    fingerprint = hashlib.sha256(json.dumps(identity, sort_keys=True).encode()).hexdigest()
+    runs_file = out_dir / _RUNS_FILE
+    if out_dir.is_dir() and any(out_dir.iterdir()) and not (resume or force):
+        raise ConfigurationError(f"{out_dir} is not empty: pass --resume to continue the experiment in "
+                                 "it, --force to start over, or another --out")
+    out_dir.mkdir(parents=True, exist_ok=True)
+    if force:
+        for name in (_CONFIG_FILE, _RUNS_FILE, _RESULTS_FILE, _TABLES_FILE):
+            with contextlib.suppress(FileNotFoundError):
+                (out_dir / name).unlink()
+    elif resume and (out_dir / _CONFIG_FILE).is_file():
+        try:
+            stored = json.loads((out_dir / _CONFIG_FILE).read_text(encoding="utf-8"))["fingerprint"]
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise DataFormatError(out_dir / _CONFIG_FILE, f"not a readable experiment configuration "
+                                  f"({exc}); use --force or another --out") from None
+        if stored != fingerprint:
+            raise ConfigurationError(f"{out_dir} holds a run of another configuration file, number of "
+                                     "iterations or positions; refusing to mix results (use --force)")
+    _write_atomic(out_dir / _CONFIG_FILE, json.dumps({
+        "format": RESULTS_FORMAT, "version": RESULTS_VERSION, "fingerprint": fingerprint,
+        "identity": identity, "config": str(file.path)}, indent=1) + "\n")
+    keys = [ConfiguredRun(c.id, r, s, m) for c in chosen for r in rates for s in seeds for m in model_names]
+    done = {ConfiguredRun(r["configuration"], int(r["rate"]), int(r["seed"]), r["model"]): r
+            for r in _read_runs(runs_file, fingerprint)}
+    pending = [k for k in keys if k not in done]
+    finished = [done[k] for k in keys if k in done]
+
+    def store(record: dict[str, Any]) -> None:
+        with runs_file.open("a", encoding="utf-8") as fh:
+            fh.write(json.dumps(record, allow_nan=False) + "\n")
+            fh.flush()
+        finished.append(record)
+        if progress is not None:
+            progress(record, len(finished), len(keys))
+
+    if pending:
+        if jobs == 1 or len(pending) == 1:
+            loaded = ConfiguredData(file, str(source), chosen)
+            for key in pending:
+                store(execute_configured_run(loaded, key, iterations, n_positions, fingerprint))
+        else:
+            ids = tuple(c.id for c in chosen)
+            with ProcessPoolExecutor(min(jobs, len(pending)), mp_context=multiprocessing.get_context("spawn"),
+                                     initializer=_init_worker,
+                                     initargs=(file, str(source), ids, iterations, n_positions,
+                                               fingerprint)) as pool:
+                futures: set[Future[dict[str, Any]]] = {pool.submit(_worker_run, k) for k in pending}
+                try:
+                    while futures:
+                        complete, futures = wait(futures, return_when=FIRST_COMPLETED)
+                        for fut in complete:
+                            store(fut.result())
+                except BaseException:
+                    for fut in futures:
+                        fut.cancel()
+                    raise
+    finished.sort(key=lambda r: (r["configuration"], r["rate"], r["seed"], r["model"]))
+    results = {"format": RESULTS_FORMAT, "version": RESULTS_VERSION,
+               "config": {"file": str(file.path), "sha256": file.sha256,
+                          "configurations": [c.id for c in chosen], "rates": list(rates),
+                          "seeds": list(seeds), "models": list(model_names), "iterations": iterations,
+                          "positions": n_positions, "data": str(data)},
+               "runs": finished, **summarise(finished, file)}
+    _write_atomic(out_dir / _RESULTS_FILE, json.dumps(results, indent=1, allow_nan=False) + "\n")
+    _write_atomic(out_dir / _TABLES_FILE, tables(results))
+    return results

@@ -1,0 +1,90 @@
+"""spco on a running robot: a ROS 1 node (rospy) and a rosbridge client for ROS 2 (roslibpy).
+
+``spco ros HOME.spco`` learns from what the robot hears and answers questions on topics:
+
+- it subscribes the robot's pose (``PoseWithCovarianceStamped``, ``PoseStamped``, ``Odometry`` or
+  ``/tf`` from the map frame to the robot's), its camera (``Image`` or ``CompressedImage``) and
+  speech as text (``std_msgs/String``); each utterance is taught at the pose and camera frame
+  nearest in time (:mod:`spco.ros.core`), durably, through the same journal as ``spco serve``;
+- it answers JSON queries on ``/spco/query`` on ``/spco/answer`` (and, when asked, publishes a
+  navigation goal on ``/spco/goal``);
+- it publishes the learnt regions as a latched ``visualization_msgs/MarkerArray`` on
+  ``/spco/markers`` (:mod:`spco.ros.messages`), for RViz and Foxglove.
+
+Modules: :mod:`spco.ros.messages` (ROS messages as plain dicts, both ways; markers; no ROS
+needed), :mod:`spco.ros.core` (the node's logic, for either transport), :mod:`spco.ros.node`
+(rospy), :mod:`spco.ros.rosbridge` (roslibpy), :mod:`spco.ros.testing` (a ROS master, the node
+in its own process and a stand-in robot, for trying the node without a robot, the tests and the
+benchmark).
+
+rospy and the message packages are not pip packages: they come with the Linux distribution (Debian
+12: ``apt-get install python3-rospy python3-rosmaster python3-catkin python3-std-msgs
+python3-geometry-msgs python3-sensor-msgs python3-nav-msgs python3-visualization-msgs
+python3-tf2-msgs``) or a ROS
+installation (``/opt/ros/noetic``). :func:`import_rospy` finds them from a virtual environment
+(see its docstring).
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import sys
+from pathlib import Path
+from types import ModuleType
+
+from spco.errors import SpcoError
+
+__all__ = ["ROS_PYTHON_DIRS", "RosUnavailableError", "import_rospy"]
+
+#: Where ROS 1's Python packages live when they are not on ``sys.path`` already: ``$SPCO_ROS_PYTHONPATH``
+#: (colon-separated) first, then a ROS Noetic installation, then Debian's packages.
+ROS_PYTHON_DIRS = ("/opt/ros/noetic/lib/python3/dist-packages", "/usr/lib/python3/dist-packages")
+
+#: The Debian 12 packages the ROS 1 node needs.
+DEBIAN_PACKAGES = ("python3-rospy", "python3-rosmaster", "python3-catkin", "python3-std-msgs",
+                   "python3-geometry-msgs", "python3-sensor-msgs", "python3-nav-msgs",
+                   "python3-visualization-msgs", "python3-tf2-msgs")
+
+_MESSAGE_MODULES = ("std_msgs.msg", "geometry_msgs.msg", "sensor_msgs.msg", "nav_msgs.msg",
+                    "visualization_msgs.msg", "tf2_msgs.msg")
+
+
+class RosUnavailableError(SpcoError, ImportError):
+    """rospy or a message package cannot be imported."""
+
+
+def import_rospy() -> ModuleType:
+    """Import rospy and the message packages the node uses; return the ``rospy`` module.
+
+    A virtual environment does not see the system's Python packages. When ``import rospy`` fails,
+    the directories of ``$SPCO_ROS_PYTHONPATH`` (colon-separated) and then :data:`ROS_PYTHON_DIRS`
+    that hold a ``rospy`` package are **appended** to ``sys.path`` — after the environment's own
+    packages, so the environment's NumPy, OpenCV etc. are the ones used — and the import is tried
+    again. Nothing is added when rospy imports as it is (a sourced ROS setup, or ``PYTHONPATH``).
+
+    Raises :class:`RosUnavailableError` with the install line when rospy or a message package is
+    missing.
+    """
+    try:
+        rospy = importlib.import_module("rospy")
+    except ImportError:
+        extra = [d for d in os.environ.get("SPCO_ROS_PYTHONPATH", "").split(os.pathsep) if d]
+        for directory in [*extra, *ROS_PYTHON_DIRS]:
+            if (Path(directory) / "rospy").is_dir() and directory not in sys.path:
+                sys.path.append(directory)
+        try:
+            rospy = importlib.import_module("rospy")
+        except ImportError as exc:
+            raise RosUnavailableError(
+                f"rospy is not installed ({exc}); on Debian 12: sudo apt-get install "
+                f"{' '.join(DEBIAN_PACKAGES)} (or point SPCO_ROS_PYTHONPATH at a ROS installation's "
+                "lib/python3/dist-packages)") from None
+    for name in _MESSAGE_MODULES:
+        try:
+            importlib.import_module(name)
+        except ImportError as exc:
+            package = "python3-" + name.split(".")[0].replace("_", "-")
+            raise RosUnavailableError(f"the ROS message package {name.split('.')[0]} is missing ({exc}); "
+                                      f"on Debian 12: sudo apt-get install {package}") from None
+    return rospy
