@@ -57,10 +57,18 @@ def ray_session():
 @pytest.fixture(scope="session")
 def _tour_home_source(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A home file made as a robot would (spco.ros.testing.tour_home: three tours fitted, a fourth
-    adapted), whose kitchen is the bedroom's colour with red and blue swapped; built once."""
+    adapted), whose kitchen is the bedroom's colour with red and blue swapped; built once.
+
+    Seed 1: the tests check the node's plumbing through answers that need the adapted tour's three
+    rooms apart, and a few seeds leave two rooms in one region (measured on this tour with
+    ``tour_home(seed=s, colours=SWAPPED_ROOM_COLOURS)``, s = 0…11, ``where`` of each room: with the
+    exact model's view weight of 16 counts, seeds 0 and 4 (and partly 6) mix rooms; with every count
+    a draw, seed 6). That is the sampler on a tiny home, not the node, and is reported in
+    ``docs/model.md``.
+    """
     from spco.ros.testing import SWAPPED_ROOM_COLOURS, tour_home
 
-    return tour_home(tmp_path_factory.mktemp("tour_home"), seed=0, colours=SWAPPED_ROOM_COLOURS)
+    return tour_home(tmp_path_factory.mktemp("tour_home"), seed=1, colours=SWAPPED_ROOM_COLOURS)
 
 
 @pytest.fixture(scope="module")

@@ -324,6 +324,23 @@ def test_concurrent_teachings_through_the_writer_process_all_come_back(home: Pat
         assert live.home.n_samples == kn.load_home_model(home).n_samples + 12
 
 
+def test_writer_process_survives_a_default_socket_timeout_as_rospy_sets_it(home: Path) -> None:
+    """rospy's ``init_node`` calls ``socket.setdefaulttimeout(60)``: every socket made afterwards is
+    non-blocking underneath. A LiveHome opened in such a process (a user's own ROS node) still starts
+    its writer and gets snapshots larger than a socket's buffer back (the starting snapshot and a
+    teaching with an observation)."""
+    import socket
+
+    previous = socket.getdefaulttimeout()
+    socket.setdefaulttimeout(60.0)
+    try:
+        with LiveHome(home, seed=0) as live:
+            answer = live.teach(x=0.1, y=-0.1, theta=0.2, image=_jpeg(1), sentence="this is the hall")
+            assert answer["seq"] == 1 and live.home.n_samples == kn.load_home_model(home).n_samples + 1
+    finally:
+        socket.setdefaulttimeout(previous)
+
+
 # ----------------------------------------------------------------------------- HTTP
 @pytest.fixture
 def app_client(home: Path):

@@ -27,6 +27,8 @@ def main() -> None:
 
 def _register_commands() -> None:
     """Add the command groups that live in their own modules."""
+    from spco.cli.active import active
+    from spco.cli.ask import ask
     from spco.cli.bag import import_bag
     from spco.cli.bench import bench
     from spco.cli.data import DATA_COMMANDS
@@ -40,6 +42,7 @@ def _register_commands() -> None:
     for command in DATA_COMMANDS:  # inspect, import, synth
         main.add_command(command)
     main.add_command(demo)
+    experiment.add_command(active)  # spco experiment active
     main.add_command(experiment)
     main.add_command(features)
     main.add_command(bench)
@@ -47,6 +50,7 @@ def _register_commands() -> None:
     main.add_command(ros)
     for command in KNOWLEDGE_COMMANDS:  # fit, adapt, where, what, teach, show
         main.add_command(command)
+    main.add_command(ask)
     main.add_command(serve)
 
 

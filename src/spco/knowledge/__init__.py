@@ -64,7 +64,8 @@ Layout
 (:class:`HomeModel`, :class:`Observation`), :mod:`~spco.knowledge.fit` (:func:`fit_knowledge`),
 :mod:`~spco.knowledge.diagnostics` (view fit), :mod:`~spco.knowledge.adapting` (:func:`adapt`),
 :mod:`~spco.knowledge.teaching` (:func:`teach`), :mod:`~spco.knowledge.queries` (:func:`where`,
-:func:`what`), :mod:`~spco.knowledge.views` (one observation's pose and view, feature files),
+:func:`what`), :mod:`~spco.knowledge.asking` (:func:`ask`: where an answer teaches the most),
+:mod:`~spco.knowledge.views` (one observation's pose and view, feature files),
 :mod:`~spco.knowledge.files` and :mod:`~spco.knowledge.locking`. The sampler of a new home is
 :class:`spco.model.home_shard.NewHomeShard`: a shard of one home with the shared part fixed.
 """
@@ -72,6 +73,7 @@ Layout
 from __future__ import annotations
 
 from spco.knowledge.adapting import adapt
+from spco.knowledge.asking import ASK_UNSURE_BELOW, Question, ask
 from spco.knowledge.diagnostics import (
     VIEW_FIT_MEASURE,
     VIEW_FIT_WARN_FRACTION,
@@ -106,6 +108,7 @@ from spco.model.home_shard import FREE_CONCEPT_WEIGHT, OWN_NAMES_SPREAD_WARNING,
 from spco.model.view_fit import concept_visual_totals, held_out_view_fits, view_fit
 
 __all__ = [
+    "ASK_UNSURE_BELOW",
     "CONCENTRATION_PRIOR_SAMPLES",
     "DEFAULT_ADAPT_ITERATIONS",
     "DEFAULT_FIT_ITERATIONS",
@@ -128,7 +131,9 @@ __all__ = [
     "KnowledgeMismatchWarning",
     "Observation",
     "OwnNamesSpreadWarning",
+    "Question",
     "adapt",
+    "ask",
     "check_view_fit",
     "concept_visual_totals",
     "describe_model_file",

@@ -13,7 +13,8 @@ from spco import knowledge as kn
 from spco.errors import ConfigurationError
 from spco.prediction import predict_names, validate_visual_counts
 
-__all__ = ["RANKED_BY", "check_pose", "regions_answer", "what_answer", "where_answer"]
+__all__ = ["GAIN_MEANS", "RANKED_BY", "ask_answer", "check_pose", "regions_answer", "what_answer",
+           "where_answer"]
 
 #: What ``what``'s score is, per weighting of the home's model.
 RANKED_BY = {"mi": "p(name | pose, view) × I(name), I = the name's mutual information with the concepts",
@@ -86,6 +87,29 @@ def what_answer(home: kn.HomeModel, x: float, y: float, theta: float, counts: An
     if outside is not None:
         answer["warning"] = f"{outside}; the names are extrapolated from the nearest regions"
     return answer
+
+
+#: What a question's ``gain`` is, per criterion of :func:`spco.knowledge.ask`.
+GAIN_MEANS = {"errors": "expected number of the room's recorded samples whose answer the question corrects",
+              "information": "expected information of the answer about the names of the home's places, nats"}
+
+
+def ask_answer(home: kn.HomeModel, n: int = 5, criterion: str | None = None,
+               unsure_only: bool = False) -> dict[str, Any]:
+    """Where to ask "what is this place?" (:func:`spco.knowledge.ask`), as JSON.
+
+    Returns ``{"home", "gain", "questions"}``: ``gain`` says what the gains are (:data:`GAIN_MEANS`);
+    ``criterion``: that of :func:`spco.knowledge.ask` (``None``: its default); ``unsure_only``: only
+    the questions worth asking. ``questions`` lists ``n`` (fewer if fewer samples are untaught, or
+    worth asking) :meth:`spco.knowledge.Question.to_dict` dicts ``{"id", "x", "y", "theta", "gain",
+    "reason", "names", "unknown", "confidence", "worth_asking"}``, best first. Raises
+    :class:`ConfigurationError` for a bad ``n``.
+    """
+    from spco.knowledge.asking import DEFAULT_CRITERION
+
+    criterion = criterion or DEFAULT_CRITERION
+    questions = kn.ask(home, n=n, criterion=criterion, unsure_only=unsure_only)
+    return {"home": home.name, "gain": GAIN_MEANS[criterion], "questions": [q.to_dict() for q in questions]}
 
 
 def _ellipse(cov: np.ndarray) -> dict[str, float]:

@@ -62,7 +62,7 @@ from starlette.responses import StreamingResponse
 from spco.errors import SpcoError
 from spco.prediction import UnknownNameError
 from spco.service.images import ImageError, ImageTooLargeError, encoded_size
-from spco.service.live import MAX_POSES, MAX_TOP, LiveHome
+from spco.service.live import MAX_POSES, MAX_QUESTIONS, MAX_TOP, LiveHome
 from spco.service.teaching import MAX_SENTENCE_CHARS, ConflictError, NotFoundError
 from spco.service.writer import WriterUnavailableError
 
@@ -153,6 +153,29 @@ class WhatAnswer(BaseModel):
     ranked_by: str
     names: list[NameScore]
     warning: str | None = None
+
+
+class Question(BaseModel):
+    """A place to ask "what is this place?" (``spco ask --json``)."""
+
+    id: int
+    x: float
+    y: float
+    theta: float
+    gain: float
+    reason: str
+    names: list[dict[str, Any]]
+    unknown: float
+    confidence: float
+    worth_asking: bool
+
+
+class AskAnswer(BaseModel):
+    """The answer of ``GET /ask`` (as ``spco ask --json``)."""
+
+    home: str
+    gain: str
+    questions: list[Question]
 
 
 class TeachAnswer(BaseModel):
@@ -354,6 +377,12 @@ def create_app(live: LiveHome, *, token: str | None = None, map_image: str | Pat
                    theta: Annotated[float, Query(allow_inf_nan=False)],
                    top: Annotated[int, Query(ge=1, le=MAX_TOP)] = 3) -> Response:
         return _json(live.what(x, y, theta, top=top))
+
+    @app.get("/ask", summary="Where to ask \"what is this place?\" next (spco ask --json)",
+             responses={200: {"model": AskAnswer}, **_ERRORS})
+    async def ask(n: Annotated[int, Query(ge=1, le=MAX_QUESTIONS)] = 5,
+                  unsure_only: bool = False) -> Response:
+        return _json(live.ask(n, unsure_only=unsure_only))
 
     def _counts(view: View) -> Any:
         image = _decode_base64(view.image)

@@ -43,17 +43,19 @@ from typing import Any
 from spco import knowledge as kn
 from spco import locking
 from spco.errors import ConfigurationError, SpcoError
-from spco.service.answers import check_pose, regions_answer, what_answer, where_answer
+from spco.service.answers import ask_answer, check_pose, regions_answer, what_answer, where_answer
 from spco.service.images import DEFAULT_MAX_PIXELS, decode_image
 from spco.service.journal import TornRecordWarning, journal_path
 from spco.service.teaching import ConflictError, NotFoundError, served_info
 from spco.service.writer import ProcessWriter, ThreadWriter, WriterUnavailableError
 
-__all__ = ["MAX_POSES", "MAX_TOP", "LiveHome", "Subscription"]
+__all__ = ["MAX_POSES", "MAX_QUESTIONS", "MAX_TOP", "LiveHome", "Subscription"]
 
 #: The most poses :meth:`LiveHome.where` draws, and names :meth:`LiveHome.what` lists.
 MAX_POSES = 1000
 MAX_TOP = 100
+#: The most questions ``ask`` lists.
+MAX_QUESTIONS = 1000
 
 _RESULT_ERRORS: dict[str, type[SpcoError]] = {
     "NotFoundError": NotFoundError, "ConflictError": ConflictError,
@@ -277,6 +279,25 @@ class LiveHome:
             self._publish({"type": "answer", "kind": "what", "pose": answer["pose"],
                            "vision": answer["vision"], "names": answer["names"]})
         return answer
+
+    def ask(self, n: int = 5, *, unsure_only: bool = False) -> dict[str, Any]:
+        """Where to ask "what is this place?" next: the payload of ``spco ask HOME --n N --json``.
+
+        Parameters
+        ----------
+        n: how many questions, 1…:data:`MAX_QUESTIONS`.
+        unsure_only: only the questions worth asking (the robot unsure of the answer).
+
+        Returns
+        -------
+        :func:`spco.service.answers.ask_answer` of the current snapshot: ``{"home", "gain",
+        "questions"}``, each question ``{"id", "x", "y", "theta", "gain", "reason", "names",
+        "unknown"}``, best first. Raises :class:`ConfigurationError` for a bad ``n``.
+        """
+        if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= MAX_QUESTIONS:
+            raise ConfigurationError(f"n: expected a number of questions from 1 to {MAX_QUESTIONS}, "
+                                     f"got {n!r}")
+        return ask_answer(self._snapshot, n, unsure_only=bool(unsure_only))
 
     def regions(self) -> dict[str, Any]:
         """The learnt regions, concepts and samples of the current snapshot, for drawing them.

@@ -451,6 +451,11 @@ class ProcessWriter:
     def __init__(self, path: str | PathLike[str], on_applied: Applied, *, lock_fd: int, holder: str,
                  start_timeout: float = 600.0, **options: Any) -> None:
         ours, theirs = socket.socketpair()
+        # blocking whatever socket.setdefaulttimeout() says (rospy's init_node sets 60 s, which makes new
+        # sockets non-blocking underneath: a snapshot larger than the socket's buffer then fails half-way
+        # with BlockingIOError on both sides)
+        ours.setblocking(True)
+        theirs.setblocking(True)
         args = [sys.executable, "-m", "spco.service.writer", "--path", str(Path(path).absolute()),
                 "--lock-fd", str(lock_fd), "--conn-fd", str(theirs.fileno()), "--holder", holder,
                 "--parent", str(os.getpid())]
@@ -666,6 +671,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     _die_with_parent(args.parent)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the server, which closes us in order
+    os.set_blocking(args.conn_fd, True)  # as the server made it (see WriterProcess)
     conn = Connection(args.conn_fd)
     try:
         locking.adopt(args.path, args.lock_fd, args.holder)
