@@ -12,7 +12,9 @@ the same page wrote. Blocks are run as written, with three substitutions a reade
 
 A block preceded by ``<!-- blocks: not run (reason) -->`` is listed as not run, with its reason; one
 preceded by ``<!-- blocks: run in the repository -->`` runs in this repository's folder, as a
-developer in a clone runs it.
+developer in a clone runs it. A block preceded by ``<!-- blocks: in the background (wait for URL)
+-->`` is a server a reader leaves running in another terminal: it is started, the next block runs
+once ``URL`` answers, and it is stopped (SIGTERM, as Ctrl-C) when that next block has run.
 Prints each block's status and time (its output goes to ``block-<line>.log`` in the page's folder;
 ``--keep`` keeps it), and exits with status 1 at the first block that fails::
 
@@ -22,12 +24,16 @@ Prints each block's status and time (its output goes to ``block-<line>.log`` in 
 from __future__ import annotations
 
 import argparse
+import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
 import time
+import urllib.error
+import urllib.request
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -35,32 +41,40 @@ ROOT = Path(__file__).resolve().parents[1]
 _OPEN = re.compile(r"^```(bash|python)\s*$")
 _NOT_RUN = re.compile(r"<!--\s*blocks:\s*not run\s*\((.*)\)\s*-->")
 _IN_REPO = re.compile(r"<!--\s*blocks:\s*run in the repository\s*-->")
+_BACKGROUND = re.compile(r"<!--\s*blocks:\s*in the background\s*\(wait for (\S+)\)\s*-->")
+#: Seconds a background block has to answer at its URL.
+BACKGROUND_WAIT = 300.0
 _DATASETS = re.compile(r"^D=path/to/datasets\b.*$", re.MULTILINE)
 _PIP_EDITABLE = re.compile(r"""pip install (-q )?-e (?:"\.(\[[\w,]+\])"|\.(?=\s|$))""")
 
 
 @dataclass
 class Block:
-    """One fenced block of a page: its language, its text, its first line, why it is not run, and
-    whether it runs in the repository's folder."""
+    """One fenced block of a page: its language, its text, its first line, why it is not run,
+    whether it runs in the repository's folder, and the URL to wait for when it runs in the
+    background."""
 
     language: str
     text: str
     line: int
     not_run: str | None = None
     in_repo: bool = False
+    wait_for: str | None = None
 
 
 def blocks(page: Path) -> list[Block]:
     """The ``bash`` and ``python`` blocks of ``page``, in order."""
     found: list[Block] = []
     lines = page.read_text(encoding="utf-8").splitlines()
-    i, reason, in_repo = 0, None, False
+    i, reason, in_repo, wait_for = 0, None, False, None
     while i < len(lines):
         marker = _NOT_RUN.search(lines[i])
         if marker:
             reason = marker.group(1)
         in_repo = in_repo or bool(_IN_REPO.search(lines[i]))
+        background = _BACKGROUND.search(lines[i])
+        if background:
+            wait_for = background.group(1)
         match = _OPEN.match(lines[i])
         if match:
             start, body = i + 1, []
@@ -68,8 +82,8 @@ def blocks(page: Path) -> list[Block]:
             while i < len(lines) and not lines[i].startswith("```"):
                 body.append(lines[i])
                 i += 1
-            found.append(Block(match.group(1), "\n".join(body) + "\n", start, reason, in_repo))
-            reason, in_repo = None, False
+            found.append(Block(match.group(1), "\n".join(body) + "\n", start, reason, in_repo, wait_for))
+            reason, in_repo, wait_for = None, False, None
         elif lines[i].startswith("```"):  # another language: skip to its end
             i += 1
             while i < len(lines) and not lines[i].startswith("```"):
@@ -101,6 +115,50 @@ def prepared(block: Block, datasets: Path | None, with_tests: bool) -> tuple[str
     return text, "; ".join(notes)
 
 
+def _answers(url: str) -> bool:
+    """Whether ``url`` answers (any HTTP status counts: the server is up)."""
+    try:
+        with urllib.request.urlopen(url, timeout=2):
+            return True
+    except urllib.error.HTTPError:
+        return True
+    except (urllib.error.URLError, OSError):
+        return False
+
+
+def start_background(command: list[str], cwd: Path, log: Path, url: str,
+                     wait: float = BACKGROUND_WAIT) -> tuple[subprocess.Popen[bytes] | None, str]:
+    """Start ``command`` in its own process group, its output to ``log``, and wait until ``url``
+    answers: the process, or ``None`` with why it is not up (it ended, or ``wait`` seconds passed)."""
+    with log.open("wb") as out:
+        process = subprocess.Popen(command, cwd=cwd, stdout=out, stderr=subprocess.STDOUT,
+                                   start_new_session=True)
+    deadline = time.monotonic() + wait
+    while time.monotonic() < deadline:
+        if _answers(url):
+            return process, f"up at {url}"
+        if process.poll() is not None:
+            return None, f"ended (exit {process.returncode}) before {url} answered"
+        time.sleep(0.5)
+    stop_background(process)
+    return None, f"{url} did not answer within {wait:.0f} s"
+
+
+def stop_background(process: subprocess.Popen[bytes], grace: float = 60.0) -> int:
+    """SIGTERM the process group of ``process`` (a reader's Ctrl-C), SIGKILL after ``grace``
+    seconds; its exit status."""
+    if process.poll() is None:
+        try:
+            os.killpg(process.pid, signal.SIGTERM)
+            process.wait(grace)
+        except subprocess.TimeoutExpired:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait()
+        except ProcessLookupError:
+            process.wait()
+    return process.returncode
+
+
 def run_page(page: Path, datasets: Path | None, with_tests: bool, keep: bool,
              lines: set[int] | None = None, folder: Path | None = None) -> bool:
     """Run the blocks of ``page`` (those opening at ``lines``, if given) in ``folder`` or a new
@@ -109,6 +167,7 @@ def run_page(page: Path, datasets: Path | None, with_tests: bool, keep: bool,
     keep = keep or folder is not None
     print(f"== {page} (in {work})")
     ok = True
+    background: tuple[Block, subprocess.Popen[bytes]] | None = None
     for block in blocks(page):
         if lines and block.line not in lines:
             continue
@@ -121,15 +180,34 @@ def run_page(page: Path, datasets: Path | None, with_tests: bool, keep: bool,
                    else [sys.executable, "-c", text])
         start = time.perf_counter()
         cwd = ROOT if block.in_repo else work
+        log = work / f"block-{block.line}.log"
+        if block.wait_for:
+            process, status = start_background(command, cwd, log, block.wait_for)
+            print(f"{head}: in the background, {status} after {time.perf_counter() - start:.1f} s"
+                  + (f" [{note}]" if note else ""))
+            if process is None:
+                print(log.read_text(encoding="utf-8", errors="replace")[-3000:])
+                ok = False
+                break
+            background = (block, process)
+            continue
         result = subprocess.run(command, cwd=cwd, capture_output=True, text=True)
         seconds = time.perf_counter() - start
-        (work / f"block-{block.line}.log").write_text(result.stdout + result.stderr, encoding="utf-8")
+        log.write_text(result.stdout + result.stderr, encoding="utf-8")
         status = "ok" if result.returncode == 0 else f"FAILED (exit {result.returncode})"
         print(f"{head}: {status} in {seconds:.1f} s" + (f" [{note}]" if note else ""))
+        if background is not None:
+            server, process = background
+            code = stop_background(process)
+            print(f"  line {server.line}: stopped (exit {code})")
+            background = None
         if result.returncode != 0:
             print(result.stdout[-3000:], result.stderr[-3000:], sep="\n")
             ok = False
             break
+    if background is not None:
+        server, process = background
+        print(f"  line {server.line}: stopped (exit {stop_background(process)})")
     if not keep:
         shutil.rmtree(work, ignore_errors=True)
     return ok
