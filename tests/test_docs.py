@@ -11,6 +11,7 @@ from __future__ import annotations
 import importlib.util
 import os
 import re
+import socket
 import subprocess
 import sys
 from pathlib import Path
@@ -138,3 +139,41 @@ def test_docstrings_are_rewritten_for_the_numpy_parser() -> None:
         "rng", "    a generator", "seed", "    a generator", "progress", "    show a bar.", "",
         "Notes", "-----", "Conventions: NaN is left out.", "",
         "Returns", "-------", "Knowledge", "    The `spco.knowledge.fit_knowledge` result.", ""]
+
+
+def _run_doc_blocks():
+    spec = importlib.util.spec_from_file_location("run_doc_blocks", ROOT / "tools" / "run_doc_blocks.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["run_doc_blocks"] = module  # dataclasses look their module up by name
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_doc_blocks_run_in_order_with_a_server_in_the_background(tmp_path: Path,
+                                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    tool = _run_doc_blocks()
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    url = f"http://127.0.0.1:{port}/"
+    page = tmp_path / "page.md"
+    page.write_text(
+        "<!-- blocks: not run (needs a robot) -->\n```bash\nexit 1\n```\n\n"
+        "```bash\necho served > index.html\n```\n\n"
+        f"<!-- blocks: in the background (wait for {url}) -->\n```bash\n"
+        f"{sys.executable} -m http.server {port} --bind 127.0.0.1\n```\n\n"
+        f"```python\nimport urllib.request\n"
+        f"assert urllib.request.urlopen('{url}').read() == b'served\\n'\n```\n\n"
+        "```python\nraise SystemExit(3)\n```\n", encoding="utf-8")
+    work = tmp_path / "work"
+    work.mkdir()
+    assert not tool.run_page(page, None, False, keep=True, folder=work)
+    out = capsys.readouterr().out
+    assert "not run: needs a robot" in out
+    assert f"in the background, up at {url}" in out
+    assert re.search(r"line 1\d \(python\): ok", out)  # the block after the server reached it
+    assert "stopped (exit" in out
+    assert "FAILED (exit 3)" in out
+    with socket.socket() as probe:  # the server is gone: nothing listens on its port
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # the client's TIME_WAIT is fine
+        probe.bind(("127.0.0.1", port))
