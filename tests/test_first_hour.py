@@ -338,3 +338,17 @@ def test_a_name_of_two_words_taught_once_is_found_and_answered(files: dict[str, 
     assert what.exit_code == 0, what.output
     names = [n["name"] for n in json.loads(what.output)["names"]]
     assert names[0] == "study room" and "room" not in names
+
+
+def test_demo_leaves_the_files_a_robot_serves(tmp_path: Path) -> None:
+    """The README's first command ends with a home file that `spco where` and `spco serve` take, and
+    says how: the path from the demo's output to a served home."""
+    out = tmp_path / "demo"
+    result = CliRunner().invoke(main, ["demo", "--homes", "4", "--iterations", "20", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    assert f"spco serve {out / 'home.spco'}" in result.output
+    home = kn.load_home_model(out / "home.spco")
+    experienced = kn.load_knowledge(out / "knowledge.spco").provenance["homes"]
+    assert len(experienced) == 4 and home.name not in experienced  # learnt without the new home
+    answer = home.where(home.known_names[0], 3, random_state=0)
+    assert answer.samples.shape == (3, 3) and np.isfinite(answer.samples[:, :2]).all()

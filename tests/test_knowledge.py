@@ -101,9 +101,24 @@ def test_fit_force_and_home_selection(tmp_path: Path, homes: dict[str, Path]) ->
     assert k.provenance["homes"] == names and not k.prune_words and k.word_mask.all()
 
 
+def test_fit_sets_hyperparameters_and_keeps_them_in_the_knowledge(tmp_path: Path,
+                                                                  homes: dict[str, Path]) -> None:
+    out = tmp_path / "k.spco"
+    result = _invoke(fit, ["--data", homes["experienced"], "--iterations", 2, "--out", out,
+                           "--set", "n_concepts=7", "--set", "kappa0=0.001", "--set", "view_counts=none"])
+    assert result.exit_code == 0, result.output
+    hyper = kn.load_knowledge(out).hyperparameters
+    assert (hyper.n_concepts, hyper.kappa0, hyper.view_counts, hyper.n_regions) == (7, 0.001, None, 20)
+
+
 @pytest.mark.parametrize("args, message", [
     (["--homes", "no_such_home"], "no home named"),
     (["--teaching-rate", "101"], "101"),
+    (["--set", "n_concepts=2.5"], "n_concepts needs integer"),
+    (["--set", "kapa0=0.1"], "no hyperparameter 'kapa0'"),
+    (["--set", "kappa0"], "write NAME=VALUE"),
+    (["--set", "nu0=2"], "nu0 must exceed"),
+    (["--set", "n_regions=none"], "n_regions needs integer"),
 ])
 def test_fit_bad_input(tmp_path: Path, homes: dict[str, Path], args: list[str], message: str) -> None:
     result = _invoke(fit, ["--data", homes["experienced"], "--iterations", 2, "--out", tmp_path / "k.spco",

@@ -244,3 +244,47 @@ def test_an_utterance_without_a_camera_frame_is_not_taught_and_says_why(ros_node
     _, answer = robot.wait_for(lambda: next(((t, a) for t, a in robot.answers[answers:]
                                              if a.get("op") == "teach"), None), timeout=10)
     assert "no camera frame within 0.5 s" in answer["error"] and "--tolerance" in answer["error"]
+
+
+def test_roslaunch_arguments_rename_the_node_and_remap_its_topics(ros_node, tmp_path: Path) -> None:
+    """As roslaunch starts a node: `__name:=`, `__log:=` and `from:=to` remappings after HOME. A second
+    node on a copy of the home answers on its remapped topics under its own name."""
+    robot, home, _ = ros_node
+    from std_msgs.msg import String
+
+    from spco.ros.testing import start_node, stop_process
+
+    rospy = robot.rospy
+    copy = Path(shutil.copy2(home, tmp_path / "second.spco"))
+    port = int(os.environ["ROS_MASTER_URI"].rsplit(":", 1)[1].strip("/"))
+    node = start_node(copy, port, tmp_path, [*TOPICS, "/spco/query:=/second/query",
+                                             "/spco/answer:=/second/answer", "/spco/markers:=/second/markers",
+                                             "/spco/goal:=/second/goal", "__name:=spco_second",
+                                             f"__log:={tmp_path / 'second.log'}"])
+    answers: list[dict] = []
+    subscriber = rospy.Subscriber("/second/answer", String, lambda m: answers.append(json.loads(m.data)))
+    publisher = rospy.Publisher("/second/query", String, queue_size=10)
+    try:
+        deadline = time.monotonic() + 90
+        while publisher.get_num_connections() == 0 or subscriber.get_num_connections() == 0:
+            assert node.poll() is None, (tmp_path / "node.log").read_text(errors="replace")[-3000:]
+            assert time.monotonic() < deadline, "the remapped node did not connect"
+            time.sleep(0.1)
+        while not answers and time.monotonic() < deadline:
+            publisher.publish(String(data=json.dumps({"id": "r1", "op": "where", "name": "kitchen", "n": 2})))
+            time.sleep(0.3)
+        assert answers and answers[0]["id"] == "r1" and len(answers[0]["positions"]) == 2
+        _, _, (publishers, _, _) = rospy.get_master().getSystemState()
+        assert ["/spco_second"] in [nodes for topic, nodes in publishers if topic == "/second/markers"]
+    finally:
+        subscriber.unregister()
+        publisher.unregister()
+        stop_process(node)
+
+
+def test_an_argument_that_is_not_a_remapping_is_refused(tmp_path: Path) -> None:
+    from spco.cli.main import main
+
+    result = CliRunner().invoke(main, ["ros", str(tmp_path / "home.spco"), "kitchen"])
+    assert result.exit_code == 2 and "unexpected argument 'kitchen'" in result.output
+    assert "FROM:=TO" in result.output and "Traceback" not in result.output

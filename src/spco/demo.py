@@ -6,6 +6,11 @@ once, then, in the new home, predicts the place name of every test observation f
 and view, and positions for every place name. It prints A_n and A_p per place beside chance and
 beside the SpCoA+MI baseline (which learns the new home alone and so cannot name anything), and
 writes a map of the new home with the learnt regions and the predicted positions.
+
+Then it does what a robot does (the paper's protocol above learns the new home jointly with the
+others): it learns knowledge from the experienced homes alone (``fit_knowledge``), adapts it to the
+new home (``adapt``, nothing taught) and writes ``knowledge.spco`` and ``home.spco``, which
+``spco where`` / ``what`` / ``teach`` / ``serve`` / ``ros`` take as they are.
 """
 
 from __future__ import annotations
@@ -17,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from spco.data.environment import Corpus
 from spco.data.synthetic import generate_homes
 from spco.evaluation.metrics import HomeScores, evaluate_home
 from spco.model.numba_cache import warm_up
@@ -34,6 +40,9 @@ class DemoResult:
     n_samples: int
     files: list[Path]
     warm_up_seconds: float = 0.0
+    home_file: Path | None = None
+    knowledge_file: Path | None = None
+    robot_seconds: float = 0.0
 
 
 def run_demo(seed: int = 0, out: Path | str = "spco-demo", n_experienced: int = 16,
@@ -80,9 +89,30 @@ def run_demo(seed: int = 0, out: Path | str = "spco-demo", n_experienced: int = 
         "fit_seconds": fit_seconds, "new_home": new_home.name,
         "transfer": transfer.summary(), "spcoa_mi": baseline.summary(),
     }, indent=1, default=_json_default), encoding="utf-8")
+    start = time.perf_counter()
+    knowledge_file, home_file = _robot_files(corpus, new_index, out, seed, n_iterations, progress)
+    robot_seconds = time.perf_counter() - start
     return DemoResult(transfer=transfer, baseline=baseline, fit_seconds=fit_seconds, n_homes=len(corpus),
-                      n_samples=sum(e.n_samples for e in corpus), files=[map_path, trace_path, results_path],
-                      warm_up_seconds=warm_up_seconds)
+                      n_samples=sum(e.n_samples for e in corpus),
+                      files=[map_path, trace_path, results_path, knowledge_file, home_file],
+                      warm_up_seconds=warm_up_seconds, home_file=home_file, knowledge_file=knowledge_file,
+                      robot_seconds=robot_seconds)
+
+
+def _robot_files(corpus: Corpus, new_index: int, out: Path, seed: int, n_iterations: int,
+                 progress: bool) -> tuple[Path, Path]:
+    """Knowledge of the experienced homes alone, adapted to the new home (nothing taught): the two
+    files a robot uses, ``out/knowledge.spco`` and ``out/home.spco`` (replaced if there)."""
+    from spco.knowledge import adapt, fit_knowledge
+
+    experienced = Corpus([home for i, home in enumerate(corpus) if i != new_index])
+    knowledge = fit_knowledge(experienced, n_iterations=n_iterations, random_state=seed, progress=progress,
+                              provenance={"data": "spco demo (synthetic homes)", "seed": seed})
+    knowledge_file = knowledge.save(out / "knowledge.spco", overwrite=True)
+    home = adapt(knowledge, corpus[new_index], n_iterations=n_iterations, random_state=seed,
+                 progress=progress)
+    home_file = home.save(out / "home.spco", overwrite=True)
+    return Path(knowledge_file), Path(home_file)
 
 
 def _json_default(value: object) -> object:

@@ -41,6 +41,11 @@ def demo(seed: int, out: Path, homes: int, iterations: int) -> None:
     click.echo("SpCoTransfer+MI (A_n: name accuracy, A_p: position accuracy) beside the SpCoA+MI baseline:")
     click.echo(format_table(result))
     click.echo("\nWrote " + ", ".join(str(p) for p in result.files))
+    click.echo(f"\nThe robot's files ({result.robot_seconds:.1f} s): {result.knowledge_file} learnt from the "
+               f"experienced homes alone, {result.home_file} adapted to the new home. Next:\n"
+               f"  spco where {result.home_file} kitchen -n 3\n"
+               f"  pip install -e \".[serve]\" && spco serve {result.home_file}   "
+               "# then open http://127.0.0.1:8765/")
 
 
 def kernel_time(compiled: bool, compile_seconds: float, load_seconds: float) -> str:

@@ -185,6 +185,12 @@ def _seconds(value: float) -> str:
 @click.option("--extractor", default=None,
               help="Image extractor when the views are images (default: colour-hog; bovw-orb, bovw-sift "
                    "learn their codebook here, from the homes' training images; onnx needs --onnx-model).")
+@click.option("--set", "settings", multiple=True, metavar="NAME=VALUE",
+              help="A hyperparameter of the model instead of the paper's value (repeatable): n_concepts, "
+                   "n_regions, kappa0, nu0, alpha_visual, alpha_word, delta_visual, delta_word, gamma, "
+                   "gamma0, "
+                   "beta, mi_threshold, view_counts (none: every count a draw). E.g. a large floor: "
+                   "--set n_concepts=30 --set n_regions=30 --set kappa0=0.001. Kept in the knowledge file.")
 @click.option("--text-language", default="auto", show_default=True,
               type=click.Choice(["auto", "ja", "zh", "spaced"]),
               help="Japanese or Chinese written without spaces: segment it into words (ja: pip install "
@@ -194,7 +200,7 @@ def _seconds(value: float) -> str:
 def fit(data: Path, homes: str | None, teaching_rate: int, model: str, iterations: int, seed: int,
         out: Path, force: bool, engine: str, shards: int | None, address: str | None, checkpoint_every: int,
         checkpoint_dir: Path | None, images: Path | None, model_file: Path | None,
-        extractor: str | None, text_language: str) -> None:
+        extractor: str | None, settings: tuple[str, ...], text_language: str) -> None:
     """Learn knowledge from experienced homes and write a knowledge file.
 
     The knowledge is the shared, home-independent part of the transfer model — the concepts'
@@ -210,6 +216,15 @@ def fit(data: Path, homes: str | None, teaching_rate: int, model: str, iteration
     from spco.knowledge import fit_knowledge
 
     _check_out(out, force)
+    hyperparameters = None
+    if settings:
+        from spco.errors import ConfigurationError
+        from spco.model.hyperparameters import TransferHyperparameters
+
+        try:
+            hyperparameters = TransferHyperparameters().with_settings(settings)
+        except ConfigurationError as exc:
+            raise click.BadParameter(str(exc), param_hint="--set") from None
     _precompile_if_cold()
     if engine == "ray":
         try:
@@ -250,7 +265,7 @@ def fit(data: Path, homes: str | None, teaching_rate: int, model: str, iteration
     click.echo(f"Learning from {summary} with {model}, {iterations} sweeps...", err=True)
     start = time.perf_counter()
     knowledge = fit_knowledge(training, model=model, n_iterations=iterations, random_state=seed,
-                              progress=_progress(), engine=runner,
+                              hyperparameters=hyperparameters, progress=_progress(), engine=runner,
                               provenance={"data": str(Path(data).expanduser().resolve()),
                                           "teaching_rate": teaching_rate},
                               extractor=image_extractor)
@@ -419,10 +434,14 @@ def _where_drawn_from(regions: Sequence[int], name: str) -> str:
 @click.option("--onnx-model", "model_file", type=click.Path(path_type=Path), default=None,
               help="Where the knowledge's .onnx model file is now (onnx extractor), if it moved.")
 @click.option("--top", default=3, show_default=True, type=click.IntRange(1, 100), help="Names to list.")
+@click.option("--unsure-below", default=None, type=click.FloatRange(0.0, 1.0),
+              help="Say the robot is unsure when the best name's probability p is below this "
+                   "(default 0.5, spco.model.confidence.UNSURE_BELOW).")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON object.")
 @_friendly
 def what(home_file: Path, x: float, y: float, theta: float, visual: Path | None, visual_scale: float | None,
-         image: Path | None, encoding: str | None, model_file: Path | None, top: int, as_json: bool) -> None:
+         image: Path | None, encoding: str | None, model_file: Path | None, top: int,
+         unsure_below: float | None, as_json: bool) -> None:
     """The most probable place names at a pose of the home of HOME, with their probabilities.
 
     With --visual (or --image) the view is used too; without, the position alone. Names are ranked
@@ -432,13 +451,20 @@ def what(home_file: Path, x: float, y: float, theta: float, visual: Path | None,
     information with the concepts (so that "this" or "is", said everywhere, are never answered); the
     output's last line says which. A pose off the home's map is answered with a warning, one far off it is
     refused.
+
+    p is honest: a view counts as a few independent draws, not as its thousands of counts, and a
+    concept nobody named has no name (docs/model.md, "Confidence"). When the best name's p is below
+    --unsure-below (0.5: more likely wrong than right) the answer says the robot is unsure
+    (JSON: "unsure": true).
     """
+    from spco.model.confidence import UNSURE_BELOW
     from spco.service.answers import what_answer
 
+    unsure_below = UNSURE_BELOW if unsure_below is None else unsure_below
     home = _load_home(home_file)
     _warn_if_knowledge_does_not_fit(home)
     counts = _view_counts(home, home_file, visual, image, visual_scale, model_file, encoding)
-    answer = what_answer(home, x, y, theta, counts, top)
+    answer = what_answer(home, x, y, theta, counts, top, unsure_below=unsure_below)
     names = answer["names"]
     if "warning" in answer:
         click.echo(f"warning: {answer['warning']}", err=True)
@@ -456,6 +482,9 @@ def what(home_file: Path, x: float, y: float, theta: float, visual: Path | None,
         click.echo(f"  {rank}. {n['name']:<{width}}  {n['score_share']:.3f}  {n['probability']:.3f}")
     click.echo(f"score: {answer['ranked_by']}, as a share of its sum over the usable names; "
                f"p: p(name | {'pose, view' if counts is not None else 'pose'}) over all words")
+    if answer["unsure"]:
+        click.echo(f"unsure: the best name, {names[0]['name']!r}, has p = {names[0]['probability']:.3f} "
+                   f"< {unsure_below:g}; ask what this place is called (spco teach)")
 
 
 def _load_home(home_file: Path) -> Any:

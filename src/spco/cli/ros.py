@@ -16,8 +16,9 @@ from spco.cli.errors import friendly_errors
 __all__ = ["ros"]
 
 
-@click.command(name="ros")
+@click.command(name="ros", context_settings={"ignore_unknown_options": True})
 @click.argument("home", type=click.Path(path_type=Path))
+@click.argument("ros_arguments", nargs=-1, type=click.UNPROCESSED, metavar="[FROM:=TO ...]")
 @click.option("--pose-topic", default="/tf", show_default=True,
               help="The robot's pose on the map: a PoseWithCovarianceStamped, PoseStamped or Odometry topic "
               "(HSR: /global_pose), or /tf (then --map-frame → --robot-frame).")
@@ -57,7 +58,8 @@ __all__ = ["ros"]
                    "answers never wait for them), or a thread of the node.")
 @click.option("--seed", default=0, show_default=True, type=int, help="Base seed of the teachings.")
 @friendly_errors
-def ros(home: Path, pose_topic: str, map_frame: str, robot_frame: str, image_topic: str | None,
+def ros(home: Path, ros_arguments: tuple[str, ...], pose_topic: str, map_frame: str, robot_frame: str,
+        image_topic: str | None,
         speech_topic: str | None, tolerance: float, image_wait: float | None, clock: str, max_age: float,
         goal: bool, rosbridge: str | None, pose_type: str | None, image_type: str | None, node_name: str,
         sweeps: int, writer: str, seed: int) -> None:
@@ -72,8 +74,15 @@ def ros(home: Path, pose_topic: str, map_frame: str, robot_frame: str, image_top
     ("goal": true) or with --goal.
 
     ROS 1: ROS_MASTER_URI and ROS_IP as for any node (rospy from the system: apt-get install
-    python3-rospy …). ROS 2: --rosbridge ws://ROBOT:9090.
+    python3-rospy …); ROS remappings after HOME as for any node, e.g. /spco/query:=/hsr/query or
+    __name:=spco_kitchen (roslaunch adds __name:= and __log:=). ROS 2: --rosbridge ws://ROBOT:9090.
     """
+    for argument in ros_arguments:
+        if ":=" not in argument or argument.startswith(":=") or argument.startswith("-"):
+            raise click.UsageError(f"unexpected argument {argument!r}: after HOME come only ROS remappings "
+                                   "written FROM:=TO (e.g. /spco/query:=/robot/query, __name:=spco2)")
+        if rosbridge is not None:
+            raise click.UsageError(f"{argument!r}: ROS remappings are for a ROS 1 node, not --rosbridge")
     from spco.ros.core import NodeSettings
     from spco.ros.node import Topics
     from spco.service.live import LiveHome
@@ -114,4 +123,4 @@ def ros(home: Path, pose_topic: str, map_frame: str, robot_frame: str, image_top
             from spco.ros.node import run_node
 
             run_node(live, topics, settings, node_name=node_name, uses_images=uses_images,
-                     n_concepts=model.knowledge.n_concepts)
+                     n_concepts=model.knowledge.n_concepts, ros_arguments=ros_arguments)

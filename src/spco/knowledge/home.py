@@ -26,6 +26,7 @@ from spco.knowledge.files import (
 )
 from spco.knowledge.knowledge import Knowledge
 from spco.model import gibbs
+from spco.model.confidence import UNSURE_BELOW
 from spco.model.home_shard import prepare_home
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.parameters import ConceptParameters
@@ -180,11 +181,13 @@ class HomeModel:
         return where(self, name, n=n, random_state=random_state)
 
     def what(self, x: float, y: float, theta: float, visual: Any = None, top_k: int = 3,
-             image: Any = None, encoding: str | None = None) -> NamePrediction:
-        """Place names at a pose; see :func:`spco.knowledge.what`."""
+             image: Any = None, encoding: str | None = None,
+             unsure_below: float = UNSURE_BELOW) -> NamePrediction:
+        """Place names at a pose, with honest probabilities; see :func:`spco.knowledge.what`."""
         from spco.knowledge.queries import what
 
-        return what(self, x, y, theta, visual=visual, top_k=top_k, image=image, encoding=encoding)
+        return what(self, x, y, theta, visual=visual, top_k=top_k, image=image, encoding=encoding,
+                    unsure_below=unsure_below)
 
     # ------------------------------------------------------------------ files
     def save(self, path: str | PathLike[str], overwrite: bool = False) -> Path:

@@ -16,7 +16,9 @@ from spco.knowledge.files import HOME_FORMAT, _as_generator, model_file_format
 from spco.knowledge.home import HomeModel, load_home_model
 from spco.knowledge.knowledge import load_knowledge
 from spco.knowledge.views import _pose, _view_counts, _visual_row, pose_outside_map
-from spco.model.prediction import NamePrediction, PositionPrediction, UnknownNameError, predict_names
+from spco.model.confidence import UNSURE_BELOW, concept_word_counts, predict_names_honestly
+from spco.model.home_shard import FREE_CONCEPT_WEIGHT
+from spco.model.prediction import NamePrediction, PositionPrediction, UnknownNameError
 
 #: How many of the home's own teachings the model's p(m | name) weighs as, in :func:`where`.
 WHERE_MODEL_WEIGHT = 1.0
@@ -139,8 +141,14 @@ def unused_word_hint(home: HomeModel, word: str) -> str | None:
 
 
 def what(home: HomeModel, x: float, y: float, theta: float, visual: Any = None,
-         top_k: int = 3, image: Any = None, encoding: str | None = None) -> NamePrediction:
+         top_k: int = 3, image: Any = None, encoding: str | None = None,
+         unsure_below: float = UNSURE_BELOW) -> NamePrediction:
     """The ``top_k`` place names at pose ``(x, y, θ)``, with the view's visual counts if given.
+
+    The probabilities are honest (:mod:`spco.model.confidence`): a view counts as
+    :data:`~spco.model.confidence.VIEW_EFFECTIVE_COUNTS` draws, a concept nobody named has no name;
+    an answer whose probability is below ``unsure_below`` (default
+    :data:`~spco.model.confidence.UNSURE_BELOW`, 0.5) is flagged ``unsure``.
 
     A pose off the home's map is answered with a :class:`UserWarning`, one more than
     :data:`FAR_OUTSIDE_MAP` map sizes off it is refused (:func:`pose_outside_map`); ``θ`` must be in
@@ -152,7 +160,8 @@ def what(home: HomeModel, x: float, y: float, theta: float, visual: Any = None,
     ``bgr8`` (OpenCV, the default), ``mono8``, ``rgba8``, ``bgra8`` (:mod:`spco.features.pixels`).
     Without a view the names come from the position alone (``use_vision=False``). The returned
     :class:`~spco.prediction.NamePrediction` holds one row: ``words[0]``, ``probabilities[0]``
-    (p(w | x, v)) and ``scores[0]`` (the ranking score).
+    (p(w | x, v)), ``scores[0]`` (the ranking score), ``confidence[0]`` (the answer's probability)
+    and ``unsure[0]``.
     """
     pose = _pose(x, y, theta)[None, :]
     outside = pose_outside_map(home, x, y)
@@ -160,8 +169,31 @@ def what(home: HomeModel, x: float, y: float, theta: float, visual: Any = None,
         warnings.warn(f"{outside}; the names are extrapolated from the nearest regions", stacklevel=2)
     visual = _view_counts(home.knowledge, visual, image, encoding)
     row = None if visual is None else _visual_row(visual, home.knowledge.n_features)
-    return predict_names(home.parameters, 0, home.vocabulary, pose, row, top_k=top_k,
-                         weighting=home.weighting, use_vision=row is not None)  # type: ignore[arg-type]
+    return name_prediction(home, pose, row, top_k=top_k, unsure_below=unsure_below)
+
+
+def name_prediction(home: HomeModel, poses: np.ndarray, visual: Any = None, top_k: int = 3,
+                    unsure_below: float = UNSURE_BELOW) -> NamePrediction:
+    """The names :func:`what` answers, for ``n`` poses at once and without its checks of the pose.
+
+    Parameters
+    ----------
+    home: the home.
+    poses: (n, 4) ``(x, y, sin θ, cos θ)`` in metres.
+    visual: (n, D) the views' counts (sparse or dense), or ``None`` for the positions alone.
+    top_k, unsure_below: as :func:`what`.
+
+    Returns
+    -------
+    The :class:`~spco.prediction.NamePrediction` with honest probabilities
+    (:func:`spco.model.confidence.predict_names_honestly`), ``confidence`` and ``unsure``.
+    """
+    return predict_names_honestly(
+        home.parameters, 0, home.vocabulary, poses, visual, top_k=top_k, use_vision=visual is not None,
+        weighting=home.weighting,  # type: ignore[arg-type]
+        free=np.exp(home.knowledge.log_g0) < FREE_CONCEPT_WEIGHT,
+        word_counts=concept_word_counts(home.data.words, home.state.concepts, home.knowledge.n_concepts),
+        alpha_word=home.hyperparameters.alpha_word, unsure_below=unsure_below)
 
 
 

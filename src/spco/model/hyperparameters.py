@@ -9,7 +9,8 @@ the same model).
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -24,7 +25,8 @@ PAPER_PSI0_CM = (10.0, 10.0, 0.5, 0.5)
 
 #: The evidence of one view, in counts, of the exact sampler and its predictions
 #: (``TransferHyperparameters.view_counts``); chosen on development configurations only (see
-#: ``docs/model.md``, "How much a view weighs").
+#: ``docs/model.md``, "How much a view weighs"). ``what``'s probabilities weigh a test view by their
+#: own :data:`spco.model.confidence.VIEW_EFFECTIVE_COUNTS` (docs/model.md, "Two numbers for one view").
 VIEW_COUNTS = 16.0
 
 
@@ -139,6 +141,50 @@ class TransferHyperparameters:
             if data.get(key) is not None:
                 data[key] = _to_tuple(data[key])
         return cls(**data)
+
+    def with_settings(self, settings: Sequence[str]) -> TransferHyperparameters:
+        """A copy with ``NAME=VALUE`` settings applied (``spco fit --set``), e.g.
+        ``["n_concepts=30", "kappa0=0.001"]``.
+
+        Scalars only (:data:`SETTABLE`): integers for ``n_concepts`` / ``n_regions``, numbers
+        otherwise, ``none`` for ``view_counts`` (every count a draw) or ``mi_threshold`` (the
+        score's default). Raises :class:`~spco.errors.ConfigurationError` naming the setting for
+        an unknown name, a value of the wrong kind, or one the model refuses (e.g. ``kappa0=-1``).
+        """
+        changes: dict[str, Any] = {}
+        for setting in settings:
+            name, sep, text = (part.strip() for part in setting.partition("="))
+            if not sep or not name or not text:
+                raise ConfigurationError(f"hyperparameter setting {setting!r}: write NAME=VALUE, "
+                                         "e.g. n_concepts=30")
+            kind = SETTABLE.get(name)
+            if kind is None:
+                raise ConfigurationError(f"hyperparameter setting {setting!r}: no hyperparameter {name!r}; "
+                                         f"settable: {', '.join(SETTABLE)}")
+            if text.lower() == "none":
+                if kind != "number or none":
+                    raise ConfigurationError(f"hyperparameter setting {setting!r}: {name} needs {kind}")
+                changes[name] = None
+                continue
+            try:
+                value: float | int = int(text) if kind == "integer" else float(text)
+            except ValueError:
+                raise ConfigurationError(f"hyperparameter setting {setting!r}: {name} needs {kind}, "
+                                         f"got {text!r}") from None
+            changes[name] = value
+        try:
+            return replace(self, **changes)
+        except ConfigurationError as exc:
+            raise ConfigurationError(f"hyperparameter settings {list(settings)!r}: {exc}") from None
+
+
+#: Hyperparameters :meth:`TransferHyperparameters.with_settings` sets, with the kind of value each takes.
+SETTABLE: dict[str, str] = {
+    "n_concepts": "integer", "n_regions": "integer", "alpha_visual": "a number", "alpha_word": "a number",
+    "delta_visual": "a number", "delta_word": "a number", "gamma0": "a number", "gamma": "a number",
+    "beta": "a number", "kappa0": "a number", "nu0": "a number", "mi_threshold": "number or none",
+    "view_counts": "number or none",
+}
 
 
 def _to_tuple(value: Any) -> Any:

@@ -38,6 +38,13 @@ concept posterior is normalised with ``logsumexp``. Logarithms of probabilities 
 ``log(tiny)`` (≈ −708) instead of −∞, so a zero entry of θ, π or G makes a term negligible but never
 produces NaN; a near-singular covariance is repaired (eigenvalues clamped) before its Cholesky
 factor is taken.
+
+Confidence: those thousands of nats make p(w | x, v) sure of every answer, the wrong ones too (the
+counts of one image are not independent draws). ``view_counts`` weights each view's visual term as
+that many draws; ``spco.knowledge.what`` answers with :func:`spco.model.confidence.predict_names_honestly`
+(a view = :data:`~spco.model.confidence.VIEW_EFFECTIVE_COUNTS` draws, free concepts' names at their
+posterior mean, an ``unsure`` flag). ``view_counts=None`` (the default here) is the multinomial;
+the exact model learns, and its experiments predict, with ``TransferHyperparameters.view_counts``.
 """
 
 from __future__ import annotations
@@ -129,6 +136,7 @@ class NamePrediction:
     probabilities: (n, k) ``p(w | x, v)`` of those words (normalised over the vocabulary).
     word_probabilities: (n, V) the full ``p(w | x, v)``.
     weighting: the weighting used.
+    unsure_below: the threshold of :attr:`unsure` (``None``: no answer is flagged).
     """
 
     words: np.ndarray
@@ -137,6 +145,23 @@ class NamePrediction:
     probabilities: np.ndarray
     word_probabilities: np.ndarray
     weighting: str
+    unsure_below: float | None = None
+
+    @property
+    def confidence(self) -> np.ndarray:
+        """(n,) the probability ``p(w | x, v)`` of each observation's answer (its best-ranked
+        word); 0 where the model knows no words."""
+        if self.words.shape[1] == 0:
+            return np.zeros(self.words.shape[0])
+        return np.asarray(self.probabilities[:, 0], dtype=np.float64)
+
+    @property
+    def unsure(self) -> np.ndarray:
+        """(n,) bool: the answer's probability is below :attr:`unsure_below` (all False if that is
+        ``None``). See :mod:`spco.model.confidence`."""
+        if self.unsure_below is None:
+            return np.zeros(self.words.shape[0], dtype=bool)
+        return self.confidence < self.unsure_below
 
     @property
     def best(self) -> list[str | None]:
@@ -472,6 +497,7 @@ def word_posterior(
     use_position: bool = True,
     use_vision: bool = True,
     active_regions_only: bool = False,
+    view_counts: float | None = None,
 ) -> np.ndarray:
     """p(w | x, v) ∝ Σ_l θ^w_{e,l,w} P(l | x, v) (= the double sum over l and m of the model).
 
@@ -480,7 +506,7 @@ def word_posterior(
     """
     e = _check_home(params, e)
     concepts = concept_posterior(params, e, positions, visual, use_position, use_vision,
-                                 active_regions_only)
+                                 active_regions_only, view_counts)
     return _words_from_concepts(concepts, _word_matrix(params, e))
 
 
@@ -521,6 +547,7 @@ def kl_scores_reference(
     visual: object,
     use_position: bool = True,
     use_vision: bool = True,
+    view_counts: float | None = None,
 ) -> np.ndarray:
     """The authors' name score: score(w) = Σ_l P(l | x, v) θ^w_{e,l,w} KL_l(w).
 
@@ -530,7 +557,7 @@ def kl_scores_reference(
     """
     e = _check_home(params, e)
     concepts = concept_posterior(params, e, positions, visual, use_position, use_vision,
-                                 active_regions_only=True)
+                                 active_regions_only=True, view_counts=view_counts)
     return concepts @ (_word_matrix(params, e) * reference_kl_weights(params, e))
 
 
@@ -545,6 +572,7 @@ def predict_names(
     use_position: bool = True,
     use_vision: bool = True,
     view_counts: float | None = None,
+    unsure_below: float | None = None,
 ) -> NamePrediction:
     """Rank the place names of ``n`` observations in home ``e``.
 
@@ -560,6 +588,9 @@ def predict_names(
     view_counts: the evidence of one view in counts (see :func:`concept_posterior`); pass the
         model's (``TransferHyperparameters.view_counts`` for the exact sampler) to predict as it
         learnt. ``None``: every count a draw.
+    unsure_below: stored in the result: an answer whose probability is below it is
+        :attr:`NamePrediction.unsure` (``None``: never). ``spco.knowledge.what`` answers with
+        :func:`spco.model.confidence.predict_names_honestly`.
 
     Words with ``word_mask`` False are never returned. Ties in the score are broken by p(w|x,v),
     then by vocabulary order. A word with I(w) = 0 scores 0 and is ranked after every word with a
@@ -594,6 +625,7 @@ def predict_names(
         probabilities=np.take_along_axis(probs, order, axis=1),
         word_probabilities=probs,
         weighting=weighting,
+        unsure_below=unsure_below,
     )
 
 

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import logging
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -103,7 +103,8 @@ def _filled(cls: Any, data: dict[str, Any]) -> Any:
 
 def run_node(home: Any, topics: Topics, settings: NodeSettings, *, node_name: str = "spco",
              uses_images: bool = True, n_concepts: int = 10,
-             ready: Callable[[NodeCore], None] | None = None) -> None:
+             ready: Callable[[NodeCore], None] | None = None,
+             ros_arguments: Sequence[str] = ()) -> None:
     """Run the node until ROS shuts it down (Ctrl-C, ``rosnode kill``, the master gone).
 
     Parameters
@@ -113,6 +114,9 @@ def run_node(home: Any, topics: Topics, settings: NodeSettings, *, node_name: st
     node_name: the node's name on the ROS graph.
     uses_images, n_concepts: see :class:`~spco.ros.core.NodeCore`.
     ready: called with the node's core once every topic is set up (the tests and benchmarks use it).
+    ros_arguments: ROS remappings as on a node's command line (``/spco/query:=/robot/query``,
+        ``__name:=spco2``, ``__ns:=``, ``__log:=``: what roslaunch passes); they win over ``node_name``
+        and rename every topic, ``/spco/…`` included.
 
     ``ROS_MASTER_URI`` and ``ROS_IP`` (or ``ROS_HOSTNAME``) come from the environment, as for any
     ROS node: on a companion computer, the robot's master and this computer's own address.
@@ -123,7 +127,8 @@ def run_node(home: Any, topics: Topics, settings: NodeSettings, *, node_name: st
     from tf2_msgs.msg import TFMessage
     from visualization_msgs.msg import MarkerArray
 
-    rospy.init_node(node_name, anonymous=False, argv=sys.argv[:1])
+    # remappings (from:=to, __name:=, __ns:=, __log:=) as rospy reads a node's command line
+    rospy.init_node(node_name, anonymous=False, argv=[*sys.argv[:1], *ros_arguments])
     answers = rospy.Publisher(ANSWER_TOPIC, String, queue_size=100)
     goals = rospy.Publisher(GOAL_TOPIC, PoseStamped, queue_size=10)
     markers = rospy.Publisher(MARKER_TOPIC, MarkerArray, queue_size=1, latch=True)

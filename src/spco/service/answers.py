@@ -11,7 +11,8 @@ import numpy as np
 
 from spco import knowledge as kn
 from spco.errors import ConfigurationError
-from spco.prediction import predict_names, validate_visual_counts
+from spco.model.confidence import UNSURE_BELOW
+from spco.prediction import validate_visual_counts
 
 __all__ = ["GAIN_MEANS", "RANKED_BY", "ask_answer", "check_pose", "regions_answer", "what_answer",
            "where_answer"]
@@ -60,15 +61,18 @@ def check_pose(home: kn.HomeModel, x: object, y: object, theta: object) -> tuple
 
 
 def what_answer(home: kn.HomeModel, x: float, y: float, theta: float, counts: Any = None,
-                top: int = 3) -> dict[str, Any]:
+                top: int = 3, unsure_below: float = UNSURE_BELOW) -> dict[str, Any]:
     """The ``top`` place names at a pose (as :func:`spco.knowledge.what` ranks them), as JSON.
 
     ``counts``: the view's visual counts (D,), or ``None`` for the position alone. Returns
-    ``{"home", "pose": {"x", "y", "theta"}, "vision", "ranked_by", "names"}``; ``names`` lists
-    ``{"name", "probability", "score", "score_share"}`` best first (``probability`` = p(name | pose,
-    view) over all words; ``score_share`` = the score over its sum across the usable names). A pose
-    off the map adds ``"warning"`` (instead of a Python warning: a server answers many such poses);
-    a bad pose raises :class:`ConfigurationError` (:func:`check_pose`).
+    ``{"home", "pose": {"x", "y", "theta"}, "vision", "ranked_by", "answer", "confidence",
+    "unsure", "unsure_below", "names"}``; ``names`` lists ``{"name", "probability", "score",
+    "score_share"}`` best first (``probability`` = p(name | pose, view) over all words, honest as
+    :mod:`spco.model.confidence` makes it; ``score_share`` = the score over its sum across the usable
+    names); ``answer`` is the best name (``None`` if none is known), ``confidence`` its probability,
+    ``unsure`` whether that is below ``unsure_below``. A pose off the map adds ``"warning"`` (instead
+    of a Python warning: a server answers many such poses); a bad pose raises
+    :class:`ConfigurationError` (:func:`check_pose`).
     """
     x, y, theta = check_pose(home, x, y, theta)
     outside = kn.pose_outside_map(home, x, y)
@@ -76,14 +80,15 @@ def what_answer(home: kn.HomeModel, x: float, y: float, theta: float, counts: An
     if row is not None and row.shape[0] != 1:
         raise ConfigurationError(f"visual: expected one view's counts, got {row.shape[0]} rows")
     pose = np.array([[x, y, math.sin(theta), math.cos(theta)]])
-    pred = predict_names(home.parameters, 0, home.vocabulary, pose, row, top_k=max(len(home.vocabulary), 1),
-                         weighting=home.weighting, use_vision=row is not None)  # type: ignore[arg-type]
+    pred = kn.name_prediction(home, pose, row, top_k=max(len(home.vocabulary), 1), unsure_below=unsure_below)
     total = float(pred.scores[0].sum())
     names = [{"name": str(w), "probability": float(p), "score": float(s),
               "score_share": float(s) / total if total > 0 else 0.0}
              for w, p, s in zip(pred.words[0], pred.probabilities[0], pred.scores[0], strict=True)][:top]
     answer = {"home": home.name, "pose": {"x": x, "y": y, "theta": theta}, "vision": row is not None,
-              "ranked_by": RANKED_BY[pred.weighting], "names": names}
+              "ranked_by": RANKED_BY[pred.weighting], "answer": names[0]["name"] if names else None,
+              "confidence": float(pred.confidence[0]), "unsure": bool(pred.unsure[0]),
+              "unsure_below": float(unsure_below), "names": names}
     if outside is not None:
         answer["warning"] = f"{outside}; the names are extrapolated from the nearest regions"
     return answer
