@@ -444,12 +444,11 @@ def load_active_homes(config: ActiveConfig) -> tuple[list[Environment], list[Act
 
 # ------------------------------------------------------------------------------------ scoring
 def _names(home: Any, positions: np.ndarray, visual: Any) -> list[str | None]:
-    """The robot's answer at each pose, as ``what`` ranks names."""
-    from spco.model.prediction import predict_names
+    """The robot's answer at each pose, as ``what`` answers it (honest probabilities,
+    :func:`spco.knowledge.queries.name_prediction`)."""
+    from spco.knowledge.queries import name_prediction
 
-    pred = predict_names(home.parameters, 0, home.vocabulary, positions, visual, top_k=1,
-                         weighting=home.weighting)
-    return pred.best
+    return name_prediction(home, positions, visual, top_k=1).best
 
 
 def score_home(home: Any, ah: ActiveHome, rng: np.random.Generator) -> dict[str, Any]:
@@ -494,12 +493,13 @@ def score_home(home: Any, ah: ActiveHome, rng: np.random.Generator) -> dict[str,
 
 # ------------------------------------------------------------------------------------ strategies
 def _what_distribution(home: Any, rows: np.ndarray) -> np.ndarray:
-    """``what``'s p(name | pose, view) over the usable names at the home's samples ``rows``,
-    renormalised (rows, V')."""
-    from spco.model.prediction import word_posterior
+    """``what``'s p(name | pose, view) over the usable names at the home's samples ``rows`` (its
+    honest probabilities, :func:`spco.knowledge.queries.name_prediction`), renormalised (rows, V')."""
+    from spco.knowledge.queries import name_prediction
 
-    p = word_posterior(home.parameters, 0, home.positions[rows], home.visual[rows])
-    p = p[:, np.asarray(home.parameters.word_mask, dtype=bool)]
+    usable = int(np.asarray(home.parameters.word_mask, dtype=bool).sum())
+    p = np.asarray(name_prediction(home, home.positions[rows], home.visual[rows],
+                                   top_k=max(usable, 1)).probabilities, dtype=float)
     total = p.sum(axis=1, keepdims=True)
     return np.divide(p, total, out=np.zeros_like(p), where=total > 0)
 
