@@ -82,3 +82,13 @@ def test_every_top_level_module_has_a_floor() -> None:
                if (p.suffix == ".py" and p.stem != "__init__") or (p / "__init__.py").exists()}
     missing = sorted(present - named)
     assert not missing, f"no floor for {missing} in [tool.importlinter] of pyproject.toml"
+
+
+#: Issue 24: every source file reads in a sitting, "about 800 lines"; above this a file is split.
+MAX_SOURCE_LINES = 880
+
+
+def test_no_source_file_is_too_long_to_read_in_a_sitting() -> None:
+    long = {str(path.relative_to(ROOT)): n for path in sorted((ROOT / "src" / "spco").rglob("*.py"))
+            if (n := len(path.read_text(encoding="utf-8").splitlines())) > MAX_SOURCE_LINES}
+    assert long == {}, f"split these files (at most {MAX_SOURCE_LINES} lines): {long}"

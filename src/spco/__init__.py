@@ -26,6 +26,6 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 from spco.errors import ConfigurationError, DataFormatError, SpcoError
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
 __all__ = ["ConfigurationError", "DataFormatError", "SpcoError", "__version__"]

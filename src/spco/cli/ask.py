@@ -29,10 +29,10 @@ __all__ = ["ask"]
 def ask(home_file: Path, n: int, as_json: bool, unsure_only: bool) -> None:
     """Where to ask "what is this place?" in the home of HOME, best first.
 
-    Each of the home's recorded samples without a name taught is scored by the expected
-    information of the answer about the names of the home's places (nats): high where concepts
-    compete, where a room looks like nothing the experienced homes had, and where a room may have a
-    name of its own. One question per room comes first. Record the answer with
+    Each of the home's recorded samples without a name taught is scored by the expected number of
+    its room's answers that an answer there corrects (the gain): high where concepts compete, where
+    a room looks like nothing the experienced homes had, and where a room may have a name of its
+    own. One question per room comes first. Record the answer with
     `spco teach HOME --id ID --sentence "…"`.
     """
     from spco.cli.knowledge import _load_home

@@ -19,6 +19,7 @@ import os
 import sys
 import tempfile
 import time
+from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -367,11 +368,12 @@ def adapt(knowledge_file: Path, home_path: Path, name: str | None, teaching_rate
 def where(home_file: Path, name: str, n: int, seed: int, as_json: bool) -> None:
     """Positions (x, y, θ) to go to for the place NAME in the home of HOME.
 
-    Draws N poses from the region most probable for NAME; each pose's probability is its share of
-    the density p(pose | NAME) among the N poses. A name the robot never heard is looked up in
-    WordNet (with spco[words] and Debian's wordnet-base) and answered for the known name it stands
-    for ("restroom -> toilet"); if none is found, it is answered with the names the robot knows
-    (exit status 2).
+    Draws N poses from the regions at least half as probable for NAME as the most probable one, in
+    proportion to their probability (a name taught at two places finds both); each pose's
+    probability is its share of the density p(pose | NAME) among the N poses. A name the robot never
+    heard is looked up in WordNet (with spco[words] and Debian's wordnet-base) and answered for the
+    known name it stands for ("restroom -> toilet"); if none is found, it is answered with the names
+    the robot knows (exit status 2).
     """
     from spco.service.answers import where_answer
 
@@ -392,11 +394,29 @@ def where(home_file: Path, name: str, n: int, seed: int, as_json: bool) -> None:
     click.echo(f"{name} in home {home.name}: region {answer['region']} of the home's map, "
                f"p(region | {name}) = {answer['region_probability']:.2f} (the most probable "
                f"region; the rest is spread over others)")
-    click.echo(f"{len(positions)} poses drawn from the region's Gaussian; probability: each pose's share of "
-               f"p(pose | {name}) among them")
-    click.echo(f"{'x':>8} {'y':>8} {'theta':>7}  probability")
-    for p in positions:
-        click.echo(f"{p['x']:8.3f} {p['y']:8.3f} {p['theta']:7.3f}  {p['probability']:.3f}")
+    # the regions the answer's poses were drawn from (the same draws: same home, name, n and seed)
+    from spco.knowledge import where as where_name
+
+    pred = where_name(home, name, n=n, random_state=seed)
+    order = sorted(range(pred.samples.shape[0]), key=lambda i: -float(pred.weights[i]))
+    regions = [int(pred.regions[i]) for i in order]
+    click.echo(_where_drawn_from(regions, name))
+    several = len(set(regions)) > 1
+    click.echo(f"{'x':>8} {'y':>8} {'theta':>7}  probability" + ("  region" if several else ""))
+    for region, p in zip(regions, positions, strict=True):
+        click.echo(f"{p['x']:8.3f} {p['y']:8.3f} {p['theta']:7.3f}  {p['probability']:.3f}"
+                   + (f"        {region:>6}" if several else ""))
+
+
+def _where_drawn_from(regions: Sequence[int], name: str) -> str:
+    """The line of ``spco where`` that says which regions its poses were drawn from."""
+    share = f"probability: each pose's share of p(pose | {name}) among them"
+    counts = Counter(int(r) for r in regions)
+    if len(counts) == 1:
+        return f"{len(regions)} poses drawn from the region's Gaussian; {share}"
+    parts = ", ".join(f"region {r}: {c}" for r, c in counts.most_common())
+    return (f"{len(regions)} poses drawn from {len(counts)} regions in proportion to p(region | {name}) "
+            f"({parts}); {share}")
 
 
 # ------------------------------------------------------------------------------------ what

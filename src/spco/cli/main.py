@@ -1,7 +1,8 @@
 """The ``spco`` command line: the click group :func:`main` and the registration of the commands,
 which live one module per group beside it (:mod:`spco.cli.data`, :mod:`~spco.cli.demo`,
 :mod:`~spco.cli.knowledge`, :mod:`~spco.cli.experiment`, :mod:`~spco.cli.features`,
-:mod:`~spco.cli.bench`, :mod:`~spco.cli.bag`, :mod:`~spco.cli.serve`; errors: :mod:`spco.cli.errors`).
+:mod:`~spco.cli.bench`, :mod:`~spco.cli.bag`, :mod:`~spco.cli.ask`, :mod:`~spco.cli.active`,
+:mod:`~spco.cli.serve`, :mod:`~spco.cli.ros`; errors: :mod:`spco.cli.errors`).
 
 Every command validates its input at the boundary; an :class:`~spco.errors.SpcoError` (bad file,
 bad argument) is printed as one line ``error: ...`` and the command exits with status 2, without a

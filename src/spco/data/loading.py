@@ -18,7 +18,6 @@ a seeded random ``rate`` percent of their taught samples (:meth:`Environment.wit
 from __future__ import annotations
 
 import os
-import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -195,9 +194,8 @@ def read_records(
     With ``extractor`` the views are images (a plain home's ``images/``, else
     ``images/<home name>/<id>.jpg|png``) turned into counts by it.
     """
-    from tqdm import tqdm
-
     from spco.data.cache import read_cache_records
+    from spco.progress import progress_bar
 
     src = Path(path)
     if not src.exists():
@@ -219,8 +217,8 @@ def read_records(
         raise DataFormatError(src, f"neither a file nor a folder; {_EXPECTED}")
     homes = home_folders(src, names)
     # the bar shows on a terminal only, and is wiped when done (or when a home fails to load)
-    with tqdm(homes, desc="reading homes", unit="home", file=sys.stderr, leave=False,
-              disable=None if progress else True) as bar:
+    with progress_bar(homes, desc="reading homes", unit="home", leave=False,
+                      disable=None if progress else True) as bar:
         folder = None if images is None else Path(images).expanduser()
         if folder is not None and not folder.is_dir():
             raise DataFormatError(folder, "no such folder of images (--images)")

@@ -345,9 +345,9 @@ def _read_streams(
     frame = _frame(settings.map_frame)
     bar = None
     if progress:
-        from tqdm import tqdm
+        from spco.progress import progress_bar
 
-        bar = tqdm(desc="reading", unit=" msg", leave=False)
+        bar = progress_bar(desc="reading", unit=" msg", leave=False)
     count = 0
     tour_of = _tours(bags, wanted)
     shift, latest = 0, None  # the current tour's shift onto the import's time line; its last time

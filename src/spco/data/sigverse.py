@@ -60,7 +60,6 @@ import functools
 import math
 import os
 import re
-import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -620,7 +619,7 @@ def load_sigverse_folder(
     ``names`` restricts (and orders) the homes to load. ``progress=True`` shows a progress bar on
     standard error when it is a terminal (the bar is wiped when done).
     """
-    from tqdm import tqdm
+    from spco.progress import progress_bar
 
     folder = Path(path)
     if not folder.is_dir():
@@ -635,6 +634,6 @@ def load_sigverse_folder(
         homes = [by_name[n] for n in names]
     if not homes:
         raise DataFormatError(folder, "holds no SIGVerse homes (subfolders with position/)")
-    with tqdm(homes, desc="reading homes", unit="home", file=sys.stderr, leave=False,
-              disable=None if progress else True) as bar:
+    with progress_bar(homes, desc="reading homes", unit="home", leave=False,
+                      disable=None if progress else True) as bar:
         return [load_sigverse_home(home, teaching_rate) for home in bar]

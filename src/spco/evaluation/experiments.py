@@ -117,7 +117,6 @@ is ``null`` and left out of the means.
 from __future__ import annotations
 
 import os
-import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
@@ -298,10 +297,10 @@ def run_experiment(
                       config.hyperparameters, fingerprint, str(out_path), maps, max(settings),
                       float(config.views_missing))
     runs_file = out_path / RUNS_FILE
-    from tqdm import tqdm
+    from spco.progress import progress_bar
 
-    bar = tqdm(total=len(pending), desc=f"{config.experiment} experiment", unit="run", file=sys.stderr,
-               disable=not progress or not pending, dynamic_ncols=True)
+    bar = progress_bar(total=len(pending), desc=f"{config.experiment} experiment", unit="run",
+                       disable=not progress or not pending)
     finished = 0
 
     def store(record: dict[str, Any]) -> None:

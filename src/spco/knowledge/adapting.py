@@ -110,9 +110,9 @@ def adapt(
                                prior=extended.shared_prior() if joint else None)
     iterator: Iterable[int] = range(int(n_iterations))
     if progress:
-        from tqdm.auto import tqdm
+        from spco.progress import progress_bar
 
-        iterator = tqdm(iterator, desc=f"adapt {home.name}", unit="sweep", leave=False)
+        iterator = progress_bar(iterator, desc=f"adapt {home.name}", unit="sweep", leave=False)
     shard.begin()
     shard.run(int(n_iterations), iterator)
     posterior = shard.finish(home.name)

@@ -1,8 +1,9 @@
 """A robot that asks: where in a home an answer to "what is this place?" teaches the most
 (:func:`ask`), with a reason a person can read (:class:`Question`).
 
-The criterion is :mod:`spco.model.asking` (expected information of the answer about the names of
-the home's places, in closed form from the home's posterior); this module reads the home's state
+The criterion is :mod:`spco.model.asking` (by default the expected number of wrong answers an
+answer corrects; or the expected information of the answer about the names of the home's places;
+both in closed form from the home's posterior); this module reads the home's state
 for it: the concept posterior and the names at every recorded sample (as ``what`` computes them),
 which concepts nobody named, what kind of place each sample looks like, and which samples were
 taught with a name of the home's own.
@@ -233,7 +234,7 @@ def _reason(home: HomeModel, scores: QuestionScores, columns: np.ndarray, row: i
                 f"apart by name (a name of its own: p {rho:.2f}; the model says {said(room_names)})")
     if room_names and room_names[0][1] >= 0.9:
         return f"already known: {said(room_names[:1])} (an answer would confirm it)"
-    return f"the model is unsure here: {said(here or room_names)}"
+    return f"the model is unsure of this room's name: {said(room_names or here)}"
 
 
 def ask(home: HomeModel, n: int = 5, criterion: str = DEFAULT_CRITERION, unsure_only: bool = False,

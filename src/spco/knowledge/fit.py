@@ -102,7 +102,8 @@ def fit_knowledge(
     corpus: the experienced homes (a :class:`~spco.data.Corpus`), or a
         :class:`~spco.model.sources.FolderHomes` whose home folders the shards read themselves
         (with Ray or several local shards the driver never holds the homes' samples; the same
-        result as the :class:`~spco.data.Corpus` of the same homes).
+        result as the :class:`~spco.data.Corpus` of the same homes), or a
+        :class:`~spco.model.sources.SyntheticHomes` fleet that the shards generate.
     model: one of :data:`MODELS` (default ``"spcotransfer+mi"``).
     n_iterations: Gibbs sweeps (200 as in the paper).
     random_state: seed or Generator.
@@ -123,12 +124,12 @@ def fit_knowledge(
     """
     if model not in MODELS:
         raise ConfigurationError(f"unknown model {model!r}; choose one of {', '.join(MODELS)}")
-    from spco.model.sources import FolderHomes
+    from spco.model.sources import FolderHomes, SyntheticHomes
 
-    source = corpus if isinstance(corpus, FolderHomes) else None
+    source = corpus if isinstance(corpus, FolderHomes | SyntheticHomes) else None
     if not isinstance(corpus, Corpus) and source is None:
-        raise ConfigurationError("fit_knowledge() expects a spco.data.Corpus or a "
-                                 "spco.model.sources.FolderHomes")
+        raise ConfigurationError("fit_knowledge() expects a spco.data.Corpus, or a "
+                                 "spco.model.sources.FolderHomes or SyntheticHomes")
     variant, prune = MODELS[model]
     estimator = SpCoTransfer(hyperparameters, variant=variant, prune_words=prune, n_iterations=n_iterations,
                              random_state=random_state)
@@ -158,9 +159,9 @@ def fit_knowledge(
     by_iteration: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
     bar = None
     if progress:
-        from tqdm.auto import tqdm
+        from spco.progress import progress_bar
 
-        bar = tqdm(total=n_iterations, desc=f"fit ({model})", unit="sweep", leave=False)
+        bar = progress_bar(total=n_iterations, desc=f"fit ({model})", unit="sweep", leave=False)
     from spco.engines import start_source_run
 
     run = start_source_run(engine, source, hyper, settings, rng)  # the homes stay in the shards

@@ -166,6 +166,7 @@ class SyntheticHomes(RangeSource):
     word_increment: int
     teaching_rate: float = 100.0
     _world: object = field(default=None, repr=False, compare=False)
+    position_scale: float = 1.0
 
     @classmethod
     def create(cls, n_homes: int, seed: int = 0, config=None, new_homes: int = 0,
@@ -187,6 +188,35 @@ class SyntheticHomes(RangeSource):
     def n_words(self) -> int:  # type: ignore[override]
         return len(self.vocabulary)
 
+    @property
+    def n_features(self) -> int:
+        """The homes' visual dimension D."""
+        return int(self.config.n_features)
+
+    def _layout(self, index: int):
+        """Home ``index``'s layout and the generator :func:`generate_home` continues with."""
+        rng = np.random.default_rng(np.random.SeedSequence(self.seed, spawn_key=(index,)))
+        return self.config.layouts[int(rng.integers(len(self.config.layouts)))], rng
+
+    def _name(self, index: int, layout) -> str:
+        return f"synthetic_{layout.name}_{index + 1:0{max(2, len(str(self.n_homes)))}d}"
+
+    @property
+    def names(self) -> list[str]:
+        """The homes' names, in order (from each home's first draw: its layout)."""
+        return [self._name(i, self._layout(i)[0]) for i in range(self.n_homes)]
+
+    @property
+    def n_samples(self) -> int:
+        """Training samples over all homes: ``config.n_train`` per room, the optional rooms drawn
+        as :func:`~spco.data.synthetic.generate_home` draws them first."""
+        total = 0
+        for i in range(self.n_homes):
+            layout, rng = self._layout(i)
+            optional = int((rng.random(len(layout.optional)) < self.config.optional_room_probability).sum())
+            total += self.config.n_train * (len(layout.rooms) + optional)
+        return total
+
     def __getstate__(self) -> dict:  # the world is rebuilt where the part is prepared
         state = dict(self.__dict__)
         state["_world"] = None
@@ -198,12 +228,9 @@ class SyntheticHomes(RangeSource):
 
         if self._world is None:
             self._world = make_world(self.config, self.seed)
-        config = self.config
-        rng = np.random.default_rng(np.random.SeedSequence(self.seed, spawn_key=(index,)))
-        layout = config.layouts[int(rng.integers(len(config.layouts)))]
-        width = max(2, len(str(self.n_homes)))
-        return generate_home(rng, layout=layout, name=f"synthetic_{layout.name}_{index + 1:0{width}d}",
-                             config=config, world=self._world, new=index >= self.n_homes - self.new_homes,
+        layout, rng = self._layout(index)
+        return generate_home(rng, layout=layout, name=self._name(index, layout), config=self.config,
+                             world=self._world, new=index >= self.n_homes - self.new_homes,
                              teaching_rate=self.teaching_rate)
 
     def prepare_homes(self, first: int, last: int) -> PreparedData:
@@ -213,7 +240,7 @@ class SyntheticHomes(RangeSource):
 
         corpus = Corpus([self.home(i) for i in range(first, last)], vocabulary=self.vocabulary,
                         word_increment=self.word_increment)
-        return SpatialConceptModel._prepare(corpus, 1.0)
+        return SpatialConceptModel._prepare(corpus, self.position_scale)
 
     def parts(self, n_shards: int) -> list[HomesPart]:
         return [RangePart(self, a, b) for a, b in even_bounds(self.n_homes, n_shards)]
@@ -252,11 +279,10 @@ class FolderHomes(RangeSource):
         """The homes of folder ``path`` (a home, or a folder of homes; ``names`` selects and orders
         them, as in :func:`~spco.data.loading.load_homes`) taught at ``teaching_rate`` percent;
         ``language`` as in :meth:`~spco.data.language.Vocabulary.from_sentences`."""
-        from tqdm import tqdm
-
         from spco.data.language import DEFAULT_WORD_INCREMENT, Vocabulary
         from spco.data.loading import home_folders, load_homes, views_are_images
         from spco.errors import DataFormatError
+        from spco.progress import progress_bar
 
         folders = home_folders(path, names)
         for folder in folders:
@@ -266,8 +292,8 @@ class FolderHomes(RangeSource):
                                       "with an extractor (spco fit does)")
         sentences: list[str | None] = []
         home_names, sizes, taught, dims, views = [], [], 0, set(), 0
-        for folder in tqdm(folders, desc="reading sentences", unit="home", leave=False,
-                           disable=None if progress else True):
+        for folder in progress_bar(folders, desc="reading sentences", unit="home", leave=False,
+                                   disable=None if progress else True):
             env = load_homes(folder, teaching_rate=teaching_rate)[0]  # one home at a time
             training = env.training_data()
             if training.n_samples == 0:

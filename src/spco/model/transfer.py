@@ -220,10 +220,10 @@ class SpatialConceptModel:
         added: set[int] = set()
         bar = None
         if self.progress:
-            from tqdm.auto import tqdm
+            from spco.progress import progress_bar
 
-            bar = tqdm(total=int(self.n_iterations), desc=f"{type(self).__name__} ({settings.variant})",
-                       unit="sweep", leave=False)
+            bar = progress_bar(total=int(self.n_iterations),
+                               desc=f"{type(self).__name__} ({settings.variant})", unit="sweep", leave=False)
         from spco.model.driver import start_run
 
         run = start_run(engine, data, len(corpus.vocabulary), hyper, settings, rng)
