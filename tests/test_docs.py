@@ -177,3 +177,15 @@ def test_doc_blocks_run_in_order_with_a_server_in_the_background(tmp_path: Path,
     with socket.socket() as probe:  # the server is gone: nothing listens on its port
         probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # the client's TIME_WAIT is fine
         probe.bind(("127.0.0.1", port))
+
+
+def test_a_marker_mentioned_in_the_text_is_not_a_marker(tmp_path: Path) -> None:
+    """Only a line of its own marks the next block: prose that shows the syntax does not."""
+    tool = _run_doc_blocks()
+    page = tmp_path / "page.md"
+    page.write_text("Write `<!-- blocks: not run (reason) -->` before a block to skip it:\n\n"
+                    "<!-- blocks: run in the repository -->\n```bash\ntrue\n```\n\n"
+                    "<!-- blocks: not run (needs a robot) -->\n```bash\nexit 1\n```\n", encoding="utf-8")
+    first, second = tool.blocks(page)
+    assert first.not_run is None and first.in_repo
+    assert second.not_run == "needs a robot"

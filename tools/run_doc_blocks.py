@@ -39,9 +39,10 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 _OPEN = re.compile(r"^```(bash|python)\s*$")
-_NOT_RUN = re.compile(r"<!--\s*blocks:\s*not run\s*\((.*)\)\s*-->")
-_IN_REPO = re.compile(r"<!--\s*blocks:\s*run in the repository\s*-->")
-_BACKGROUND = re.compile(r"<!--\s*blocks:\s*in the background\s*\(wait for (\S+)\)\s*-->")
+# a marker is a line of its own (a page may mention one in its text, as docs/development.md does)
+_NOT_RUN = re.compile(r"^\s*<!--\s*blocks:\s*not run\s*\((.*)\)\s*-->\s*$")
+_IN_REPO = re.compile(r"^\s*<!--\s*blocks:\s*run in the repository\s*-->\s*$")
+_BACKGROUND = re.compile(r"^\s*<!--\s*blocks:\s*in the background\s*\(wait for (\S+)\)\s*-->\s*$")
 #: Seconds a background block has to answer at its URL.
 BACKGROUND_WAIT = 300.0
 _DATASETS = re.compile(r"^D=path/to/datasets\b.*$", re.MULTILINE)
