@@ -258,23 +258,37 @@ def _g2(k11: int, k12: int, k21: int, k22: int) -> float:
     return 2.0 * total
 
 
-def _term_pass(sentences: list[list[str]], min_count: int, min_g2: float, min_follow: float,
+@dataclass
+class _PairCounts:
+    """Counts of adjacent word pairs in a list of sentences (word lists), for the term rules."""
+
+    pairs: Counter[tuple[str, str]]  # (a, b) -> times said next to each other
+    first: Counter[str]  # a -> times a word pair starts with a
+    second: Counter[str]  # b -> times a word pair ends with b
+    in_sentences: Counter[str]  # word -> sentences holding it
+    occurrences: Counter[str]  # word -> times said
+    n_sentences: int
+
+    @classmethod
+    def of(cls, sentences: list[list[str]]) -> _PairCounts:
+        counts = cls(Counter(), Counter(), Counter(), Counter(), Counter(), len(sentences))
+        for atoms in sentences:
+            counts.in_sentences.update(set(atoms))
+            counts.occurrences.update(atoms)
+            for a, b in itertools.pairwise(atoms):
+                counts.pairs[(a, b)] += 1
+                counts.first[a] += 1
+                counts.second[b] += 1
+        return counts
+
+
+def _term_pass(counts: _PairCounts, min_count: int, min_g2: float, min_follow: float,
                max_sentence_share: float) -> dict[tuple[str, str], float]:
     """The candidate pairs of one pass and their G² (the rule of the module docstring)."""
-    pairs: Counter[tuple[str, str]] = Counter()
-    first: Counter[str] = Counter()
-    second: Counter[str] = Counter()
-    in_sentences: Counter[str] = Counter()
-    occurrences: Counter[str] = Counter()
-    for atoms in sentences:
-        in_sentences.update(set(atoms))
-        occurrences.update(atoms)
-        for a, b in itertools.pairwise(atoms):
-            pairs[(a, b)] += 1
-            first[a] += 1
-            second[b] += 1
+    pairs, first, second = counts.pairs, counts.first, counts.second
+    in_sentences, occurrences = counts.in_sentences, counts.occurrences
     n_pairs = sum(pairs.values())
-    frame = max_sentence_share * len(sentences)
+    frame = max_sentence_share * counts.n_sentences
     out: dict[tuple[str, str], float] = {}
     for (a, b), k11 in pairs.items():
         if k11 < min_count or a == b or in_sentences[a] > frame or in_sentences[b] > frame:
@@ -349,11 +363,12 @@ def learn_terms(
         streams, uses = [list(s) for s in said], list(said.values())
     terms: set[str] = set()
     for _ in range(passes):
+        counts = _PairCounts.of(streams)
         pairs = {(a, b): score for (a, b), score in
-                 _term_pass(streams, min_count, min_g2, min_follow, max_sentence_share).items()
+                 _term_pass(counts, min_count, min_g2, min_follow, max_sentence_share).items()
                  if len(a.split()) + len(b.split()) <= MAX_TERM_WORDS}
         together = {} if not distinct else {
-            pair: score for pair, score in _never_apart(streams, max_sentence_share).items()
+            pair: score for pair, score in _never_apart(counts, max_sentence_share).items()
             if pair not in pairs and len(pair[0].split()) + len(pair[1].split()) <= MAX_TERM_WORDS}
         if not pairs and not together:
             break
@@ -372,23 +387,13 @@ def learn_terms(
     return sorted(terms)
 
 
-def _never_apart(sentences: list[list[str]], max_sentence_share: float) -> dict[tuple[str, str], float]:
-    """Adjacent pairs whose words are never said apart in ``sentences`` (every use of ``a`` is
-    followed by ``b`` and every use of ``b`` preceded by ``a``), neither a frame word; -> G²."""
-    pairs: Counter[tuple[str, str]] = Counter()
-    first: Counter[str] = Counter()
-    second: Counter[str] = Counter()
-    in_sentences: Counter[str] = Counter()
-    occurrences: Counter[str] = Counter()
-    for atoms in sentences:
-        in_sentences.update(set(atoms))
-        occurrences.update(atoms)
-        for a, b in itertools.pairwise(atoms):
-            pairs[(a, b)] += 1
-            first[a] += 1
-            second[b] += 1
+def _never_apart(counts: _PairCounts, max_sentence_share: float) -> dict[tuple[str, str], float]:
+    """Adjacent pairs whose words are never said apart in the counted sentences (every use of ``a``
+    is followed by ``b`` and every use of ``b`` preceded by ``a``), neither a frame word; -> G²."""
+    pairs, first, second = counts.pairs, counts.first, counts.second
+    in_sentences, occurrences = counts.in_sentences, counts.occurrences
     n_pairs = sum(pairs.values())
-    frame = max_sentence_share * len(sentences)
+    frame = max_sentence_share * counts.n_sentences
     return {(a, b): _g2(k11, first[a] - k11, second[b] - k11, n_pairs - first[a] - second[b] + k11)
             for (a, b), k11 in pairs.items()
             if a != b and k11 == occurrences[a] == occurrences[b] and in_sentences[a] <= frame
