@@ -271,7 +271,8 @@ def run_cc4f(args: argparse.Namespace) -> None:
 
 
 # ------------------------------------------------------------------------------------- output
-def _interval(values: np.ndarray) -> str:
+def mean_interval(values: np.ndarray) -> str:
+    """``mean ± half-width of the 95 % interval of the mean`` of the finite ``values``."""
     values = values[np.isfinite(values)]
     if values.size < 2:
         return f"{values.mean():.3f}"
@@ -283,7 +284,8 @@ def _table(rows: list[tuple[str, np.ndarray, np.ndarray, int, float]], over: str
     print(f"\n| text | runs ({over}) | A_n | A_p | words | seconds |")
     print("|---|---:|---:|---:|---:|---:|")
     for kind, a_n, a_p, words, seconds in rows:
-        print(f"| {kind} | {a_n.size} | {_interval(a_n)} | {_interval(a_p)} | {words} | {seconds:.0f} |")
+        print(f"| {kind} | {a_n.size} | {mean_interval(a_n)} | {mean_interval(a_p)} | {words} "
+              f"| {seconds:.0f} |")
     base = {kind: (a_n.mean(), a_p.mean()) for kind, a_n, a_p, *_ in rows}
     if "unspaced" in base and "spaced" in base:
         dn = base["unspaced"][0] - base["spaced"][0]

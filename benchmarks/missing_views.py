@@ -33,17 +33,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from japanese import cc4f_answers
+from japanese import cc4f_answers, mean_interval
 
 LEVELS = (0.0, 30.0, 70.0, 100.0)
-
-
-def _interval(values: np.ndarray) -> str:
-    values = values[np.isfinite(values)]
-    if values.size < 2:
-        return f"{values.mean():.3f}"
-    half = 1.96 * values.std(ddof=1) / math.sqrt(values.size)
-    return f"{values.mean():.3f} ± {half:.3f}"
 
 
 def run_dropout(args: argparse.Namespace) -> None:
@@ -68,12 +60,13 @@ def run_dropout(args: argparse.Namespace) -> None:
         a_n = np.array([r["name_accuracy"] for r in runs], dtype=float)
         a_p = np.array([r["position_accuracy"] for r in runs], dtype=float)
         rows.append((level, a_n, a_p, time.perf_counter() - start))
-        print(f"{level:g} %: A_n {_interval(a_n)}, A_p {_interval(a_p)} ({a_n.size} runs)", flush=True)
+        print(f"{level:g} %: A_n {mean_interval(a_n)}, A_p {mean_interval(a_p)} ({a_n.size} runs)",
+              flush=True)
     print("\n| views removed | runs | A_n | A_p | A_n − full | A_p − full |")
     print("|---:|---:|---:|---:|---:|---:|")
     full = next(((n.mean(), p.mean()) for lv, n, p, _ in rows if lv == 0), (math.nan, math.nan))
     for level, a_n, a_p, _ in rows:
-        print(f"| {level:g} % | {a_n.size} | {_interval(a_n)} | {_interval(a_p)} "
+        print(f"| {level:g} % | {a_n.size} | {mean_interval(a_n)} | {mean_interval(a_p)} "
               f"| {a_n.mean() - full[0]:+.3f} | {a_p.mean() - full[1]:+.3f} |")
     print("(mean ± half-width of the 95 % interval of the mean over new homes × trials)")
 
@@ -121,7 +114,7 @@ def run_cc4f(args: argparse.Namespace) -> None:
         wrong = {n: round(v, 1) for n, v in per_name.items() if v < 1}
         print(f"seed {seed}: A_p {scores[-1]:.3f}; below 1: {wrong}", flush=True)
         last = model
-    print(f"\nA_p over {args.seeds} seeds: {_interval(np.array(scores))} (min {min(scores):.3f})")
+    print(f"\nA_p over {args.seeds} seeds: {mean_interval(np.array(scores))} (min {min(scores):.3f})")
     if args.map and last is not None:
         from spco.plots import plot_home_map
 
