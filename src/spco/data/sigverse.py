@@ -407,8 +407,10 @@ def _rate_folders(home: Path) -> dict[int, Path]:
     return out
 
 
-def _read_indexed_texts(folder: Path, prefix: str, n: int, *, strict: bool) -> tuple[str | None, ...]:
-    """Text of ``<prefix><i>.txt`` for i in 0..n-1 (``None`` where absent or blank)."""
+def read_indexed_texts(folder: Path, prefix: str, n: int, *, strict: bool) -> tuple[str | None, ...]:
+    """Text of ``<prefix><i>.txt`` of a SIGVerse folder for i in 0..n-1, whitespace collapsed
+    (``None`` where absent or blank). ``strict``: a file for a sample i ≥ n raises
+    :class:`~spco.errors.DataFormatError`; otherwise it is ignored."""
     names = _indexed_files(folder, prefix, ".txt")
     extra = sorted(i for i in names if i >= n)
     if extra and strict:
@@ -529,13 +531,13 @@ def read_sigverse_home(
 
     rates: RatesMap = {}
     for rate, folder in _rate_folders(home).items():
-        rates[rate] = _read_indexed_texts(folder, "sentence", n, strict=True)
+        rates[rate] = read_indexed_texts(folder, "sentence", n, strict=True)
 
     labels = specific = None
     if (home / "name_label").is_dir():
-        labels = _read_indexed_texts(home / "name_label", "word", n, strict=False)
+        labels = read_indexed_texts(home / "name_label", "word", n, strict=False)
     if (home / "name_label_specific").is_dir():
-        specific = _read_indexed_texts(home / "name_label_specific", "word", n, strict=False)
+        specific = read_indexed_texts(home / "name_label_specific", "word", n, strict=False)
     specific_test = _read_index_mask(home / "test_num_specific.txt", n, sentinel=True)
     if regions == "auto":
         regions = _find_regions(home)

@@ -64,6 +64,7 @@ import numpy as np
 from spco.data.environment import Corpus, Environment
 from spco.data.language import Vocabulary, normalize_name
 from spco.data.regions import PlaceRegions, load_region_file
+from spco.data.sigverse import read_indexed_texts
 from spco.errors import ConfigurationError, DataFormatError, SpcoError
 from spco.evaluation.active_report import (
     _asked_places,
@@ -228,28 +229,19 @@ def _read_sentence_labels(folder: Path, n: int) -> dict[int, str]:
     if not labels.is_dir():
         raise DataFormatError(folder, "has no sentence_label/ folder: the oracle answers with the place's "
                               "template sentence from it")
-    out: dict[int, str] = {}
-    for i in range(n):
-        path = labels / f"sentence{i}.txt"
-        if path.is_file():
-            text = path.read_text(encoding="utf-8", errors="replace").strip()
-            if text:
-                out[i] = text
-    return out
+    return _sentences(labels, n)
 
 
 def _rate_sentences(folder: Path, rate: int, n: int) -> dict[int, str]:
     """``sentence/per_<rate>/sentence<i>.txt`` of a SIGVerse home (empty if it has none)."""
     path = folder / "sentence" / f"per_{rate}"
-    out: dict[int, str] = {}
-    if path.is_dir():
-        for i in range(n):
-            f = path / f"sentence{i}.txt"
-            if f.is_file():
-                text = f.read_text(encoding="utf-8", errors="replace").strip()
-                if text:
-                    out[i] = text
-    return out
+    return _sentences(path, n) if path.is_dir() else {}
+
+
+def _sentences(folder: Path, n: int) -> dict[int, str]:
+    """sample -> ``sentence<i>.txt`` of ``folder`` for the samples 0..n-1 that have one."""
+    texts = read_indexed_texts(folder, "sentence", n, strict=False)
+    return {i: text for i, text in enumerate(texts) if text is not None}
 
 
 def _test_set(env: Environment, rows: np.ndarray, labels: Sequence[str | None]) -> tuple[np.ndarray, Any,
