@@ -175,6 +175,16 @@ def served_by(path: str | PathLike[str]) -> str | None:
         os.close(fd)
 
 
+def _open_lock_file(path: str | PathLike[str], sidecar: Path) -> int:
+    """A descriptor of ``path``'s lock file ``sidecar``, created if missing; :class:`SpcoError` if
+    the folder does not allow it."""
+    try:
+        return os.open(sidecar, os.O_RDWR | os.O_CREAT, 0o666)
+    except OSError as exc:
+        raise SpcoError(f"{Path(path)}: cannot create the lock file {sidecar}: "
+                        f"{exc.strerror or exc}") from None
+
+
 @contextlib.contextmanager
 def locked(path: str | PathLike[str], timeout: float | None = None) -> Iterator[Path]:
     """Hold the exclusive write lock of ``path`` (a knowledge or home file) inside the block.
@@ -201,11 +211,7 @@ def locked(path: str | PathLike[str], timeout: float | None = None) -> Iterator[
             held[key][1] -= 1
         return
     wait = _timeout(timeout)
-    try:
-        fd = os.open(sidecar, os.O_RDWR | os.O_CREAT, 0o666)
-    except OSError as exc:
-        raise SpcoError(f"{Path(path)}: cannot create the lock file {sidecar}: "
-                        f"{exc.strerror or exc}") from None
+    fd = _open_lock_file(path, sidecar)
     try:
         deadline = time.monotonic() + wait
         while not _try_lock(fd):
@@ -294,11 +300,7 @@ def hold(path: str | PathLike[str], description: str, timeout: float | None = No
     if str(sidecar) in _held_by_process:
         raise _served_error(path, _held_by_process[str(sidecar)].description)
     wait = _timeout(timeout)
-    try:
-        fd = os.open(sidecar, os.O_RDWR | os.O_CREAT, 0o666)
-    except OSError as exc:
-        raise SpcoError(f"{Path(path)}: cannot create the lock file {sidecar}: "
-                        f"{exc.strerror or exc}") from None
+    fd = _open_lock_file(path, sidecar)
     try:
         start = time.monotonic()
         while not _try_lock(fd):
