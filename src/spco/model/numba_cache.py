@@ -246,9 +246,30 @@ def warm_up() -> float:
     return time.perf_counter() - start
 
 
+def used_signatures() -> dict[str, set[tuple[str, ...]]]:
+    """The compiled signatures of every kernel of spco's imported modules in this process, by
+    kernel name (``module.qualname``), each a tuple of Numba type names as in
+    :data:`SIGNATURES_FILE`. In a fresh process whose kernels came from the on-disk cache, these
+    are exactly the kernels called from Python and their argument types (a kernel loaded from the
+    cache loads no callee)."""
+    from numba.core.registry import CPUDispatcher
+
+    used: dict[str, set[tuple[str, ...]]] = {}
+    for name, module in list(sys.modules.items()):
+        if not name.startswith("spco.") or module is None:
+            continue
+        for value in list(vars(module).values()):
+            if isinstance(value, CPUDispatcher) and value.signatures:
+                function = value.py_func
+                used.setdefault(f"{function.__module__}.{function.__qualname__}", set()).update(
+                    tuple(repr(t) for t in signature) for signature in value.signatures)
+    return used
+
+
 def write_signatures(path: Path = SIGNATURES_FILE) -> None:
     """Run the demo's warm-up fit (:func:`warm_up`) on a cold cache, note each kernel
-    called from Python with its argument types and compile seconds, and write them to ``path``."""
+    called from Python with its argument types and compile CPU seconds (this thread's), and write
+    them to ``path``."""
     from numba.core import event
 
     from spco.model.kernels import dispatch
@@ -259,10 +280,10 @@ def write_signatures(path: Path = SIGNATURES_FILE) -> None:
 
     class _Listener(event.Listener):
         def on_start(self, ev) -> None:
-            started.append(time.perf_counter())
+            started.append(time.thread_time())
 
         def on_end(self, ev) -> None:
-            elapsed = time.perf_counter() - started.pop()
+            elapsed = time.thread_time() - started.pop()
             if started:  # a callee compiled inside another kernel
                 return
             function = ev.data["dispatcher"].py_func

@@ -47,6 +47,18 @@ def stack_counts(*blocks) -> sp.csr_array:
     return out
 
 
+def csr_rows(matrix: sp.csr_array, first: int, stop: int) -> sp.csr_array:
+    """Rows first..stop − 1 of a CSR array, copied, in its own index and value types: slicing
+    with SciPy turns int32 column indices into int64 (twice their memory, and another compiled
+    specialisation of every kernel that takes them), this keeps the layout of :func:`stack_counts`."""
+    begin, end = int(matrix.indptr[first]), int(matrix.indptr[stop])
+    out = sp.csr_array((stop - first, matrix.shape[1]), dtype=matrix.dtype)  # its arrays replaced below
+    out.data = matrix.data[begin:end].copy()
+    out.indices = matrix.indices[begin:end].copy()
+    out.indptr = matrix.indptr[first:stop + 1] - begin
+    return out
+
+
 @njit(cache=True)
 def _grouped_moments(x: np.ndarray, groups: np.ndarray, count: np.ndarray, total: np.ndarray,
                      scatter: np.ndarray) -> None:
