@@ -120,15 +120,7 @@ def test_signature_file_lists_exactly_what_the_demo_s_warm_up_calls():
     (else a first run compiles it after the 2-process compilation, alone), and nothing else (else
     the first run compiles what no fit calls). Checked in a fresh process: kernels loaded from the
     on-disk cache load no callee, so its compiled signatures are the ones called from Python."""
-    import os
-    import subprocess
-    import sys
-
-    code = ("import json, spco.model.numba_cache as n; n.warm_up(); "
-            "print(json.dumps({k: sorted(v) for k, v in n.used_signatures().items()}))")
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=dict(os.environ),
-                          check=True)
-    used = {k: {tuple(s) for s in v} for k, v in json.loads(proc.stdout.strip().splitlines()[-1]).items()}
+    used = numba_cache.called_signatures()
     listed = {e["kernel"]: {tuple(s) for s in e["signatures"]} for e in _entries()}
     hint = "regenerate it: SPCO_CACHE_DIR=$(mktemp -d) python -m spco.model.numba_cache"
     assert {k: v - listed.get(k, set()) for k, v in used.items() if v - listed.get(k, set())} == {}, hint

@@ -266,16 +266,31 @@ def used_signatures() -> dict[str, set[tuple[str, ...]]]:
     return used
 
 
+#: What :func:`called_signatures` runs in a fresh process.
+_CALLED_SIGNATURES = ("import json, spco.model.numba_cache as n; n.warm_up(); "
+                      "print(json.dumps({k: sorted(v) for k, v in n.used_signatures().items()}))")
+
+
+def called_signatures() -> dict[str, set[tuple[str, ...]]]:
+    """The kernels and argument types the demo's warm-up fit (:func:`warm_up`) calls from Python:
+    :func:`used_signatures` after it, in a fresh Python process (compiling first if the cache is cold)."""
+    import subprocess
+
+    proc = subprocess.run([sys.executable, "-c", _CALLED_SIGNATURES], capture_output=True, text=True,
+                          check=True, env=dict(os.environ))
+    return {k: {tuple(s) for s in v} for k, v in json.loads(proc.stdout.strip().splitlines()[-1]).items()}
+
+
 def write_signatures(path: Path = SIGNATURES_FILE) -> None:
-    """Run the demo's warm-up fit (:func:`warm_up`) on a cold cache, note each kernel
-    called from Python with its argument types and compile CPU seconds (this thread's), and write
-    them to ``path``."""
+    """Run the demo's warm-up fit (:func:`warm_up`) on a cold cache noting each kernel's compile CPU
+    seconds (this thread's, callees included in their first caller), then write to ``path`` the
+    kernels and argument types it calls from Python (:func:`called_signatures`) with those seconds
+    (0 for a kernel first compiled as another's callee)."""
     from numba.core import event
 
     from spco.model.kernels import dispatch
 
     seconds: dict[str, float] = {}
-    signatures: dict[str, list] = {}
     started: list[float] = []
 
     class _Listener(event.Listener):
@@ -289,13 +304,13 @@ def write_signatures(path: Path = SIGNATURES_FILE) -> None:
             function = ev.data["dispatcher"].py_func
             name = f"{function.__module__}.{function.__qualname__}"
             seconds[name] = seconds.get(name, 0.0) + elapsed
-            signatures.setdefault(name, []).append([repr(t) for t in ev.data["args"]])
 
     event.register("numba:compile", _Listener())
     warm_up()
     vectorised = {f"{k.py_func.__module__}.{k.py_func.__qualname__}" for k, _ in dispatch._VECTORISED_READY}
-    kernels = [{"kernel": name, "seconds": round(seconds[name], 2), "vectorised": name in vectorised,
-                "signatures": signatures[name]} for name in sorted(seconds)]
+    called = called_signatures()
+    kernels = [{"kernel": name, "seconds": round(seconds.get(name, 0.0), 2), "vectorised": name in vectorised,
+                "signatures": [list(s) for s in sorted(called[name])]} for name in sorted(called)]
     path.write_text(json.dumps({"kernels": kernels}, indent=1) + "\n")
 
 
