@@ -60,7 +60,7 @@ from starlette.middleware.trustedhost import TrustedHostMiddleware
 from starlette.responses import StreamingResponse
 
 from spco.errors import SpcoError
-from spco.prediction import UnknownNameError
+from spco.model.prediction import UnknownNameError
 from spco.service.images import ImageError, ImageTooLargeError, encoded_size
 from spco.service.live import MAX_POSES, MAX_QUESTIONS, MAX_TOP, LiveHome
 from spco.service.teaching import MAX_SENTENCE_CHARS, ConflictError, NotFoundError

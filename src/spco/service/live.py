@@ -41,8 +41,8 @@ from pathlib import Path
 from typing import Any
 
 from spco import knowledge as kn
-from spco import locking
 from spco.errors import ConfigurationError, SpcoError
+from spco.knowledge import locking
 from spco.service.answers import ask_answer, check_pose, regions_answer, what_answer, where_answer
 from spco.service.images import DEFAULT_MAX_PIXELS, decode_image
 from spco.service.journal import TornRecordWarning, journal_path
@@ -145,10 +145,10 @@ class LiveHome:
     max_pixels: the largest image accepted.
     compact_records, compact_idle: when the writer compacts (see :mod:`spco.service.writer`).
 
-    Opening takes the home's write lock for as long as it is open (:func:`spco.locking.hold`:
+    Opening takes the home's write lock for as long as it is open (:func:`spco.knowledge.locking.hold`:
     ``spco teach`` on it is refused at once, naming ``holder``), replays the journal's teachings
     that the file lacks (a torn last record is dropped with a :class:`TornRecordWarning`) and
-    compacts. Raises :class:`~spco.locking.HomeServedError` if another server holds it, and
+    compacts. Raises :class:`~spco.knowledge.locking.HomeServedError` if another server holds it, and
     :class:`~spco.errors.ModelFileError` / :class:`~spco.service.journal.JournalError` for a bad
     file or journal.
     """
@@ -215,7 +215,7 @@ class LiveHome:
         ``{"home", "name", "region", "region_probability", "learnt", "support", "positions"}``;
         ``positions``: ``n`` dicts ``{"x", "y", "theta", "probability"}`` (metres, radians), most
         probable first (:func:`spco.service.answers.where_answer`). Raises
-        :class:`~spco.prediction.UnknownNameError` for a name the home cannot use,
+        :class:`~spco.model.prediction.UnknownNameError` for a name the home cannot use,
         :class:`ConfigurationError` for a bad ``n``.
         """
         if not isinstance(name, str) or not name.strip():
