@@ -448,7 +448,8 @@ def _read_facts(path: Path) -> dict[str, WordFacts]:
         data = json.loads(path.read_text(encoding="utf-8"))
         if data.get("format") != _FACTS_FORMAT:
             return {}
-        return {w: WordFacts(bool(k), math.nan if n is None else float(n), math.nan if p is None else float(p))
+        return {w: WordFacts(bool(k), math.nan if n is None else float(n),
+                             math.nan if p is None else float(p))
                 for w, (k, n, p) in data["words"].items()}
     except (OSError, ValueError, KeyError, TypeError, AttributeError):
         return {}  # no file yet, or not one of ours: computed again and rewritten
