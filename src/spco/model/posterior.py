@@ -204,10 +204,12 @@ class ParameterAverage:
             return np.where(full, matched, empty)
 
         def split_log_mean(name: str) -> np.ndarray:
-            full = occupied[..., None]
-            matched = to_current(self._log_sums[name], perm_c) - np.log(np.maximum(occupied_n, 1))[..., None]
-            empty = self._empty_log_sums[name] - np.log(np.maximum(empty_n, 1))[..., None]
-            return np.where(full, matched, empty)
+            # in place, one (E, L, D) array at a time beside the sums
+            out = to_current(self._log_sums[name], perm_c)
+            out -= np.log(np.maximum(occupied_n, 1))[..., None]
+            empty = ~occupied
+            out[empty] = self._empty_log_sums[name][empty] - np.log(np.maximum(empty_n[empty], 1))[:, None]
+            return out
 
         pi = split_mean("region_weights")  # regions still in the reference order
         pi_out = np.empty_like(pi)

@@ -382,7 +382,8 @@ def shard_bounds(data: PreparedData, n_shards: int) -> list[tuple[int, int]]:
 
 
 def data_of_homes(data: PreparedData, first: int, last: int) -> PreparedData:
-    """The homes first..last − 1 of ``data`` as their own :class:`PreparedData` (homes renumbered)."""
+    """The homes first..last − 1 of ``data`` as their own :class:`PreparedData` (homes renumbered;
+    the sparse counts' values and column indices are views of ``data``'s, which nothing writes)."""
     rows = slice(int(data.offsets[first]), int(data.offsets[last]))
     return PreparedData(positions=data.positions[rows].copy(), homes=data.homes[rows] - first,
                         visual=_rows_of(data.visual, rows), words=_rows_of(data.words, rows),
@@ -392,7 +393,8 @@ def data_of_homes(data: PreparedData, first: int, last: int) -> PreparedData:
 
 
 def _rows_of(matrix, rows: slice) -> sp.csr_array:
-    """Rows ``rows`` of a sparse matrix as CSR, copied, keeping int32 column indices (:func:`csr_rows`)."""
+    """Rows ``rows`` of a sparse matrix as CSR, views of its values and int32 column indices
+    (:func:`csr_rows`)."""
     if not isinstance(matrix, sp.csr_array):
         matrix = sp.csr_array(matrix)
     return csr_rows(matrix, rows.start, rows.stop)

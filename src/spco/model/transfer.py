@@ -255,10 +255,12 @@ class SpatialConceptModel:
         trace = list(log_joints[1:]) if self.record_log_joint else []
         state = run.state()
         run.close()
+        del run  # the workers' own data, caches and states: freed before the last log joint and the average
         if bar is not None:
             bar.close()
         if self.record_log_joint:
             trace.append(gibbs.log_joint(data, state, hyper, settings))
+            data.__dict__.pop("visual_by_dimension", None)  # (a cache the last log joint built: not kept)
         self.fit_seconds_ = time.perf_counter() - start
         self.hyperparameters_ = hyper
         self.settings_ = settings
