@@ -164,12 +164,17 @@ class ParameterAverage:
                 self._sums[name] = np.array(value, dtype=np.float64)
         for name, log_value in (("word_probabilities", state.log_theta_w),
                                 ("visual_probabilities", state.log_theta_v)):
-            for sums, value in ((self._log_sums, where(matched, log_value[homes, perm_c], -np.inf)),
-                                (self._empty_log_sums, where(~occupied, log_value, -np.inf))):
+            # one (E, L, ·) temporary at a time: matched concepts by reference slot, then empty ones
+            for sums, masked in ((self._log_sums, ~matched), (self._empty_log_sums, occupied)):
+                value = (log_value[homes, perm_c].astype(np.float64, copy=False)
+                         if sums is self._log_sums  # (a new array either way: filled in place)
+                         else np.array(log_value, dtype=np.float64))
+                value[masked] = -np.inf
                 if name in sums:
                     np.logaddexp(sums[name], value, out=sums[name])
                 else:
-                    sums[name] = np.array(value, dtype=np.float64)
+                    sums[name] = value
+                del value
         self._occupied_n = matched.astype(np.int64) + (0 if self._occupied_n is None else self._occupied_n)
         self._empty_n = (~occupied).astype(np.int64) + (0 if self._empty_n is None else self._empty_n)
         self._occupied_last = occupied
