@@ -255,7 +255,6 @@ class SpatialConceptModel:
         trace = list(log_joints[1:]) if self.record_log_joint else []
         state = run.state()
         run.close()
-        del run  # the workers' own data, caches and states: freed before the last log joint and the average
         if bar is not None:
             bar.close()
         if self.record_log_joint:
