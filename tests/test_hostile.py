@@ -341,15 +341,24 @@ slow = [socket.create_connection(("127.0.0.1", port)) for _ in range(50)]
 for c in slow: c.sendall(b"GET /hea")
 health = send(b"GET /health HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n")
 timed = send(b"GET /hea")
+from fastapi.testclient import TestClient
+from pydantic import BaseModel
+class Body(BaseModel):
+    id: int
+bare = fastapi.FastAPI()
+@bare.post("/teach")
+def bare_teach(body: Body) -> dict:
+    return {"taught": body.id}
+framework = TestClient(bare).post("/teach", content=b'{"id": 1}').status_code  # no Content-Type
 print(json.dumps({"versions": versions, "cross": cross[:12].decode(), "teachings": live.health()["teachings"],
-                  "health": health[:12].decode(), "slow": timed[:12].decode()}))
+                  "health": health[:12].decode(), "slow": timed[:12].decode(), "framework": framework}))
 server.should_exit = True; thread.join(10); live.close()
 """
 
 
 def _minimum(requirement: str) -> str:
     text = (ROOT / "pyproject.toml").read_text(encoding="utf-8")
-    match = re.search(rf'"{requirement}(?:\[[a-z]+\])?>=([0-9.]+)"', text)
+    match = re.search(rf'"{requirement}(?:\[[a-z]+\])?>=([0-9.]+)[",]', text)
     assert match, f"pyproject.toml has no minimum for {requirement}"
     return match.group(1)
 
@@ -357,17 +366,21 @@ def _minimum(requirement: str) -> str:
 def test_cross_site_teaching_is_refused_with_the_oldest_frameworks_allowed(built: Path,
                                                                            tmp_path: Path) -> None:
     fastapi_min, uvicorn_min = _minimum("fastapi"), _minimum("uvicorn")
-    starlette_pin = {"0.110": "0.36.3"}.get(".".join(fastapi_min.split(".")[:2]))
     target = tmp_path / "oldest"
-    packages = [f"fastapi=={fastapi_min}", f"uvicorn=={uvicorn_min}"]
-    if starlette_pin:
-        packages.append(f"starlette=={starlette_pin}")
-    installed = subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--target",
-                                str(target), *packages], capture_output=True, text=True, timeout=300)
-    if installed.returncode != 0:
-        if os.environ.get("CI") == "true":
-            raise AssertionError(f"cannot install {packages}:\n{installed.stderr[-2000:]}")
-        pytest.skip(f"cannot install {packages} (offline?): {installed.stderr.strip()[-300:]}")
+
+    def install(*packages: str) -> None:
+        installed = subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--target",
+                                    str(target), *packages], capture_output=True, text=True, timeout=300)
+        if installed.returncode != 0:
+            if os.environ.get("CI") == "true":
+                raise AssertionError(f"cannot install {packages}:\n{installed.stderr[-2000:]}")
+            pytest.skip(f"cannot install {packages} (offline?): {installed.stderr.strip()[-300:]}")
+
+    install(f"fastapi=={fastapi_min}", f"uvicorn=={uvicorn_min}")
+    metadata = next(target.glob("fastapi-*.dist-info")).joinpath("METADATA").read_text(encoding="utf-8")
+    starlette_min = re.search(r"Requires-Dist: starlette[^\n]*>=([0-9.]+)", metadata)
+    assert starlette_min, "fastapi's metadata names no starlette minimum"
+    install(f"starlette=={starlette_min.group(1)}")  # the oldest starlette that fastapi allows
     home = copy_home(built, tmp_path / "home")
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(target), SRC]))
     ran = subprocess.run([sys.executable, "-c", _OLDEST_CHECK, str(home)], capture_output=True, text=True,
@@ -381,3 +394,4 @@ def test_cross_site_teaching_is_refused_with_the_oldest_frameworks_allowed(built
     assert result["cross"].endswith("403") and result["teachings"] == 0
     assert result["health"].endswith("200")  # under 50 slow connections and a limit of 20
     assert result["slow"].endswith("408")  # the header timer works on the oldest uvicorn
+    assert result["framework"] == 422, result  # FastAPI's own protection: no JSON without Content-Type
