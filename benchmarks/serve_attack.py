@@ -293,6 +293,7 @@ def image_bombs(served: Served, clients: int, seconds: float) -> dict[str, Any]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--dir", type=Path, default=Path("/tmp/serve-bench"))
+    parser.add_argument("--data", type=Path, default=DATA, help="the datasets folder (shared/datasets)")
     parser.add_argument("--synthetic", action="store_true", help="a small synthetic home instead of SIGVerse")
     parser.add_argument("--slow", type=int, default=1100)
     parser.add_argument("--slow-seconds", type=float, default=20.0)
@@ -312,7 +313,7 @@ def main() -> None:
         if not home.exists():
             home = build_home(args.dir)
     else:
-        home = build(args.dir, DATA / "sigverse", DATA / "sigverse_images")
+        home = build(args.dir, args.data / "sigverse", args.data / "sigverse_images")
     report: dict[str, Any] = {"home": str(home), "server_nofile": None}
     rows = []
     for name, run in (("slow", lambda s: slow_connections(s, args.slow, args.slow_seconds)),

@@ -205,6 +205,45 @@ def test_event_streams_are_bounded(server: Server) -> None:
         time.sleep(0.1)
 
 
+def test_an_event_consumer_that_does_not_read_is_dropped(built: Path, tmp_path: Path) -> None:
+    import threading
+
+    import uvicorn
+
+    from spco.service.app import ServeSettings
+    from spco.service.connections import ConnectionGuard
+
+    home = copy_home(built, tmp_path)
+    with LiveHome(home, writer="thread", seed=0) as live:
+        guard = ConnectionGuard(header_timeout=5, keep_alive=5, max_connections=32)
+        app = create_app(live, settings=ServeSettings(subscriber_queue=4), connections=guard)
+        listener = socket.socket()
+        listener.bind(("127.0.0.1", 0))
+        listener.listen(64)
+        server = uvicorn.Server(uvicorn.Config(app, http=guard.protocol(), log_level="error", lifespan="off"))
+        thread = threading.Thread(target=server.run, kwargs={"sockets": [listener]}, daemon=True)
+        thread.start()
+        try:
+            deadline = time.monotonic() + 30
+            while not server.started:
+                assert time.monotonic() < deadline
+                time.sleep(0.05)
+            sock = socket.socket()
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+            sock.connect(listener.getsockname())
+            sock.sendall(b"GET /events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
+            assert sock.recv(12).startswith(b"HTTP/1.1 200")  # then never reads
+            deadline = time.monotonic() + 30
+            while app.app.state.event_streams[0] and time.monotonic() < deadline:
+                live._publish({"type": "answer", "kind": "what", "pad": "x" * 200_000})  # 200 kB each
+                time.sleep(0.01)
+            assert app.app.state.event_streams[0] == 0  # dropped, its stream freed
+            sock.close()
+        finally:
+            server.should_exit = True
+            thread.join(10)
+
+
 # ----------------------------------------------------------------------------- browser-borne requests
 def test_cross_site_requests_cannot_teach(server: Server) -> None:
     teach = json.dumps({"id": 1, "sentence": "this is the evil room"}).encode()
