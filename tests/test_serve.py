@@ -40,8 +40,8 @@ from spco.service.writer import HomeWriter
 pytest.importorskip("fastapi", reason="spco serve needs its extra: pip install -e '.[serve]'")
 from fastapi.testclient import TestClient
 
-from spco.service.client import Client, ClientError
 from spco.service.app import create_app
+from spco.service.client import Client, ClientError
 
 
 @pytest.fixture(scope="module")
