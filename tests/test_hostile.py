@@ -295,6 +295,11 @@ def test_every_error_has_one_shape_and_no_leaks(server: Server) -> None:
         assert answer and _status(answer) == status, (label, answer[:300])
         body = _json(answer)
         assert set(body) == {"error", "status"} and body["status"] == status, (label, body)
+    for path in ("/what", "/teach"):  # the same rule for both: encoding and width go with an image
+        answer = _raw(server, _request("POST", path, json.dumps(
+            {"x": 0, "y": 0, "theta": 0, "encoding": "rgb8", "width": 8}).encode(),
+            Content_Type="application/json"), wait=30)
+        assert _status(answer) == 422 and "give the image too" in _json(answer)["error"], (path, answer)
     health = _json(_raw(server, _request("GET", "/health")))
     text = json.dumps(health)
     assert "file" not in health and "pid" not in text and str(server.home) not in text

@@ -262,7 +262,7 @@ class Guard:
             if why is not None:
                 return error_response(403, f"refused: {why}; a page of another site cannot teach this robot")
             length = _header(scope, b"content-length")
-            if method != "DELETE" or (length not in (None, "0")):
+            if (length is not None and length.strip() != "0") or _header(scope, b"transfer-encoding"):
                 kind = (_header(scope, b"content-type") or "").split(";")[0].strip().lower()
                 wanted = ("application/x-www-form-urlencoded",) if path in FORM_PATHS \
                     else ("application/json",)
