@@ -27,7 +27,8 @@ from spco.service.app import create_app
 
 ROOT = Path(__file__).resolve().parents[1]
 SRC = str(Path(spco.__file__).resolve().parents[1])
-LIMITS = ("--header-timeout", "1", "--keep-alive", "1", "--body-timeout", "1", "--max-connections", "40",
+LIMITS = ("--header-timeout", "1", "--keep-alive", "1", "--body-timeout", "1", "--send-timeout", "1",
+          "--max-connections", "40",
           "--max-subscribers", "2", "--writer", "thread")
 
 
@@ -108,6 +109,34 @@ def test_half_sent_headers_and_idle_connections_are_closed(server: Server) -> No
         while sock.recv(65536):
             pass
         assert time.monotonic() - started < 6
+
+
+def test_a_client_that_does_not_read_its_answers_is_closed(server: Server) -> None:
+    with socket.socket() as sock:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+        sock.connect(_address(server))
+        request = _request("GET", "/regions").replace(b"Connection: close", b"Connection: keep-alive")
+        sock.settimeout(0.5)
+        sent = 0
+        deadline = time.monotonic() + 20
+        try:
+            while sent < 5000 and time.monotonic() < deadline:  # pipelined, never read
+                sock.sendall(request)
+                sent += 1
+        except OSError:
+            pass  # the server stopped reading, or closed
+        time.sleep(3)  # more than the send timeout
+        sock.settimeout(10)
+        received, closed = 0, False
+        try:
+            while chunk := sock.recv(1 << 20):
+                received += chunk.count(b"HTTP/1.1 200")
+            closed = True
+        except ConnectionResetError:
+            closed = True
+        except TimeoutError:
+            pass
+        assert closed and received < sent, (closed, received, sent)
 
 
 def test_headers_too_long_are_refused(server: Server) -> None:
