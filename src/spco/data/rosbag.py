@@ -62,6 +62,7 @@ from typing import Any
 
 import numpy as np
 
+from spco.data import tf
 from spco.data.bagreading import (
     _HEADER_OFFSET_WARNING_S,
     _NS,
@@ -73,7 +74,6 @@ from spco.data.bagreading import (
     TOUR_GAP_SECONDS,
     VISUAL_TYPES,
     _Bag,
-    _frame,
     _nearest,
     _periodic_indices,
     _pose_trajectory,
@@ -84,7 +84,6 @@ from spco.data.bagreading import (
     _TfTree,
     _Trajectory,
     _version,
-    _yaw,
 )
 from spco.errors import ConfigurationError, DataFormatError
 from spco.features.pixels import pixels_from_buffer, to_bgr
@@ -342,7 +341,7 @@ def _read_streams(
     if tf_mode and any("/tf_static" in b.topics for b in bags):
         wanted.append("/tf_static")
     use_header = settings.clock == "header"
-    frame = _frame(settings.map_frame)
+    frame = tf.frame_name(settings.map_frame)
     bar = None
     if progress:
         from spco.progress import progress_bar
@@ -375,7 +374,7 @@ def _read_streams(
                 stamp = _stamp(msg.header) if use_header else 0
                 if stamp:
                     streams.header_offsets[topic].append(record_time - stamp)
-                source = _frame(msg.header.frame_id)
+                source = tf.frame_name(msg.header.frame_id)
                 if source and source != frame:
                     raise DataFormatError(
                         bag.path,
@@ -384,7 +383,7 @@ def _read_streams(
                     )
                 pose = POSE_TYPES[connection.msgtype](msg)
                 p, q = pose.position, pose.orientation
-                value = (float(p.x), float(p.y), float(_yaw(np.array([q.x, q.y, q.z, q.w]))))
+                value = (float(p.x), float(p.y), float(tf.yaw(np.array([q.x, q.y, q.z, q.w]))))
                 if not all(math.isfinite(v) for v in value):
                     dropped[f"{topic}: pose not finite"] += 1
                     continue
