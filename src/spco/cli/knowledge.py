@@ -121,30 +121,25 @@ def _pixels(image: Path, encoding: str | None) -> Any:
 
 def _view_counts(home: Any, knowledge_file: Path, visual: Path | None, image: Path | None,
                  visual_scale: float | None, model: Path | None, encoding: str | None = None) -> Any:
-    """The view's counts for what/teach: --visual features, or --image (a file, or a .npy array of
-    pixels in --encoding) through the knowledge's extractor; each refused for knowledge fitted on the
-    other kind of view."""
+    """The view's counts for what/teach (:func:`spco.knowledge.views.view_counts`): --visual features
+    read from their file, or --image (a file, or a .npy array of pixels in --encoding) through the
+    knowledge's extractor (its --model file); --visual is refused for knowledge fitted on images."""
     from spco.errors import ConfigurationError
-    from spco.knowledge import read_visual_vector
+    from spco.knowledge import read_visual_vector, view_counts
 
     knowledge = home.knowledge
-    if visual is not None and image is not None:
-        raise ConfigurationError("give the view either as --visual features or as an --image, not both")
-    if image is not None:
-        if not knowledge.fitted_on_images:
-            raise ConfigurationError(f"{knowledge_file}: its knowledge was fitted on visual count vectors, "
-                                     "not on images: give the view's features with --visual (or fit the "
-                                     "knowledge on homes with images)")
-        return knowledge.image_extractor(model_path=model).extract(_pixels(image, encoding), encoding)
-    if visual is not None:
+    if visual is not None and image is None:
         if knowledge.fitted_on_images:
             from spco.features import ExtractorSpec
 
             raise ConfigurationError(f"{knowledge_file}: its knowledge was fitted on images (extractor "
                                      f"{ExtractorSpec.from_dict(knowledge.extractor).describe()}): give the "
                                      "view as --image, not as --visual features")
-        return read_visual_vector(visual, knowledge.n_features, visual_scale)
-    return None
+        visual = read_visual_vector(visual, knowledge.n_features, visual_scale)
+    elif image is not None and visual is None:
+        image = _pixels(image, encoding)
+    return view_counts(knowledge, visual, image, encoding,
+                       extractor=lambda: knowledge.image_extractor(model_path=model))
 
 
 def _seconds(value: float) -> str:

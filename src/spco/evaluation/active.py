@@ -496,16 +496,11 @@ def _what_distribution(home: Any, rows: np.ndarray) -> np.ndarray:
     return np.divide(p, total, out=np.zeros_like(p), where=total > 0)
 
 
-def _entropy(p: np.ndarray) -> np.ndarray:
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(p > 0, -p * np.log(np.where(p > 0, p, 1.0)), 0.0).sum(axis=1)
-
-
 def choose_question(strategy: str, home: Any, rng: np.random.Generator) -> dict[str, Any]:
     """The sample a strategy asks about next: ``{"row", "id", "gain", "confidence",
     "what_confidence", "seconds"}`` (``seconds``: the time to rank the home's samples)."""
     from spco.knowledge.asking import home_question_scores
-    from spco.model.question_scores import rank_questions
+    from spco.model.question_scores import entropy_rows, rank_questions
 
     candidates = np.flatnonzero([s is None for s in home.sentences])
     if candidates.size == 0:
@@ -517,7 +512,7 @@ def choose_question(strategy: str, home: Any, rng: np.random.Generator) -> dict[
         rows, gains = rank_questions(scores, candidates)
         row, gain = int(rows[0]), float(gains[0])
     elif strategy == "uncertainty":
-        h = _entropy(_what_distribution(home, candidates))
+        h = entropy_rows(_what_distribution(home, candidates))
         best = np.flatnonzero(h >= h.max() - 1e-9)
         row = int(candidates[best[int(rng.integers(best.size))]])
     elif strategy == "random":

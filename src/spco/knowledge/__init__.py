@@ -104,7 +104,13 @@ from spco.knowledge.queries import (
     where,
 )
 from spco.knowledge.updating import teach
-from spco.knowledge.views import FAR_OUTSIDE_MAP, map_bounds, pose_outside_map, read_visual_vector
+from spco.knowledge.views import (
+    FAR_OUTSIDE_MAP,
+    map_bounds,
+    pose_outside_map,
+    read_visual_vector,
+    view_counts,
+)
 from spco.model.home_shard import FREE_CONCEPT_WEIGHT, OWN_NAMES_SPREAD_WARNING, OwnNamesSpreadWarning
 from spco.model.view_fit import concept_visual_totals, held_out_view_fits, view_fit
 
@@ -150,6 +156,7 @@ __all__ = [
     "summary_iterations",
     "teach",
     "unused_word_hint",
+    "view_counts",
     "view_fit",
     "view_fit_warning",
     "what",

@@ -15,11 +15,13 @@ import scipy.sparse as sp
 from spco.data.environment import Environment, TrainingData
 from spco.errors import ConfigurationError, DataFormatError
 from spco.knowledge.diagnostics import ExperiencedHomeWarning, check_view_fit
-from spco.knowledge.files import _as_generator, _now, _seed_of, _version
+from spco.knowledge.files import _version
 from spco.knowledge.home import HomeModel
 from spco.knowledge.knowledge import DEFAULT_ADAPT_ITERATIONS, Knowledge
 from spco.model import gibbs
 from spco.model.home_shard import NewHomeShard, prepare_home
+from spco.model.seeds import as_generator, seed_of
+from spco.timestamps import utc_now
 
 
 def _map_centre(home: Environment) -> np.ndarray:
@@ -101,7 +103,7 @@ def adapt(
                       ExperiencedHomeWarning, stacklevel=2)
     extended = knowledge.extended(train.sentences)
     n_known = knowledge.n_words
-    rng = _as_generator(random_state)
+    rng = as_generator(random_state)
     scale = gibbs.CM_PER_M if extended.variant == "reference" else 1.0
     centre = _map_centre(home)
     data = prepare_home(train.positions, train.visual, train.sentences, extended.vocabulary,
@@ -120,12 +122,12 @@ def adapt(
     record: dict[str, Any] = {
         "knowledge_checksum": knowledge.checksum,
         "knowledge_homes": list(knowledge.provenance.get("homes") or []),
-        "adapt": {"seed": _seed_of(random_state), "n_iterations": int(n_iterations), "joint": bool(joint),
+        "adapt": {"seed": seed_of(random_state), "n_iterations": int(n_iterations), "joint": bool(joint),
                   "seconds": round(seconds, 3), "new_words": list(extended.vocabulary.words[n_known:])},
         "teach_updates": 0,
         "view_fit": fit_of_views,
         "spco_version": _version(),
-        "created": _now(),
+        "created": utc_now(),
     }
     record.update(provenance or {})
     return HomeModel(name=home.name, knowledge=extended, state=shard.state, ids=train.ids,

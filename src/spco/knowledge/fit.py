@@ -16,14 +16,16 @@ from scipy.special import logsumexp
 from spco.data.environment import Corpus
 from spco.errors import ConfigurationError, DataFormatError
 from spco.knowledge.diagnostics import _view_fit_record
-from spco.knowledge.files import _as_generator, _now, _seed_of, _version
+from spco.knowledge.files import _version
 from spco.knowledge.knowledge import DEFAULT_FIT_ITERATIONS, DEFAULT_MODEL, MODELS, Knowledge
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.name_evidence import name_prior
 from spco.model.posterior import thinned_sweeps
 from spco.model.pruning import words_to_keep
+from spco.model.seeds import as_generator, seed_of
 from spco.model.sources import PreparedHomes
 from spco.model.transfer import SpCoTransfer
+from spco.timestamps import utc_now
 
 
 def summary_iterations(n_iterations: int, fraction: float = 0.25, every: int = 5) -> list[int]:
@@ -144,7 +146,7 @@ def fit_knowledge(
         raise DataFormatError(None, f"no taught sentence in the {n_homes} experienced home(s) "
                               f"({', '.join(list(corpus.names)[:5])}): there are no place names to learn")
     settings = estimator.sampler_settings()
-    rng = _as_generator(random_state)
+    rng = as_generator(random_state)
     scale = estimator.position_scale
     if source is not None:
         source = replace(source, position_scale=scale)
@@ -215,11 +217,11 @@ def fit_knowledge(
     record: dict[str, Any] = {
         "homes": list(corpus.names),
         "n_samples": int(n_samples),
-        "seed": _seed_of(random_state),
+        "seed": seed_of(random_state),
         "n_iterations": int(n_iterations),
         "fit_seconds": round(seconds, 3),
         "spco_version": _version(),
-        "created": _now(),
+        "created": utc_now(),
         "summary": {
             "iterations": sorted(keep),
             "n_samples": int(n),

@@ -67,6 +67,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
+from scipy.special import entr
 
 from spco.errors import ConfigurationError
 
@@ -79,6 +80,7 @@ __all__ = [
     "ROOM_LINK_METRES",
     "ROOM_NAME_WEIGHT",
     "QuestionScores",
+    "entropy_rows",
     "group_rooms",
     "name_entropy",
     "question_scores",
@@ -103,11 +105,10 @@ OWN_NAME_PRIOR_WEIGHT = 2.0
 ROOM_NAME_WEIGHT = 0.5
 
 
-def _entropy_rows(p: np.ndarray) -> np.ndarray:
-    """Entropy (nats) of each row of non-negative weights ``p`` (not renormalised; 0 log 0 = 0)."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        terms = np.where(p > 0, -p * np.log(np.where(p > 0, p, 1.0)), 0.0)
-    return terms.sum(axis=-1)
+def entropy_rows(p: np.ndarray) -> np.ndarray:
+    """Entropy (nats) of each row (last axis) of non-negative weights ``p``, not renormalised:
+    ``-Σ p log p`` with 0 log 0 = 0 (:func:`scipy.special.entr`)."""
+    return entr(p).sum(axis=-1)
 
 
 def name_entropy(probabilities: np.ndarray, unknown: np.ndarray, n_names: int) -> np.ndarray:
@@ -125,7 +126,7 @@ def name_entropy(probabilities: np.ndarray, unknown: np.ndarray, n_names: int) -
     """
     p = np.asarray(probabilities, dtype=np.float64)
     u = np.asarray(unknown, dtype=np.float64)
-    return _entropy_rows(p) + _entropy_rows(u[:, None]) + u * math.log(n_names + 1)
+    return entropy_rows(p) + entropy_rows(u[:, None]) + u * math.log(n_names + 1)
 
 
 def group_rooms(regions: np.ndarray, kinds: np.ndarray, xy: np.ndarray,

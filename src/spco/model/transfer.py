@@ -51,14 +51,7 @@ from spco.model.posterior import (
     thinned_sweeps,
     untaught_concepts_name_nothing,
 )
-
-
-def _as_generator(random_state: int | np.random.Generator | None) -> np.random.Generator:
-    """A Generator for ``random_state``: a new one from a seed, or a copy of a Generator (the
-    caller's Generator is never advanced)."""
-    if isinstance(random_state, np.random.Generator):
-        return copy.deepcopy(random_state)
-    return np.random.default_rng(random_state)
+from spco.model.seeds import as_generator
 
 
 def clone(estimator: SpatialConceptModel) -> SpatialConceptModel:
@@ -224,7 +217,7 @@ class SpatialConceptModel:
         """
         hyper = self.checked_hyperparameters()
         settings = self.sampler_settings()
-        rng = _as_generator(self.random_state)
+        rng = as_generator(self.random_state)
         data = self.prepare_data(corpus, self.position_scale)
         start = time.perf_counter()
         averaged = set(thinned_sweeps(int(self.n_iterations)))
@@ -325,7 +318,7 @@ class SpatialConceptModel:
 
         e = self.home_index(home)
         return prediction.predict_positions(self.parameters_, e, self.vocabulary_, name, n=n,
-                                            rng=_as_generator(random_state))
+                                            rng=as_generator(random_state))
 
     def save(self, path, overwrite: bool = False) -> None:
         """Write the fitted model to ``path`` atomically (see :mod:`spco.model.io`); an existing

@@ -36,12 +36,12 @@ import uuid
 import warnings
 import zlib
 from dataclasses import dataclass, field
-from datetime import UTC, datetime
 from os import PathLike
 from pathlib import Path
 from typing import Any
 
 from spco.errors import SpcoError
+from spco.timestamps import utc_now
 
 __all__ = [
     "JOURNAL_FORMAT",
@@ -245,7 +245,7 @@ class Journal:
     def rewrite(self, header: dict[str, Any], records: list[dict[str, Any]]) -> None:
         """Make the journal ``header`` followed by ``records``, atomically, and open it for appending."""
         header = {"format": JOURNAL_FORMAT, "version": JOURNAL_VERSION,
-                  "created": datetime.now(UTC).isoformat(timespec="seconds"), **header}
+                  "created": utc_now(), **header}
         data = encode_record(header) + b"".join(encode_record(r) for r in records)
         tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
         fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)

@@ -237,19 +237,20 @@ class LiveHome:
         ``encoding`` ``rgb8``/``bgr8``/``mono8`` (an array defaults to ``bgr8``, or ``mono8`` when
         it has two dimensions); see :func:`spco.service.images.decode_image`.
         """
-        if image is None:
-            return visual
-        if visual is not None:
-            raise ConfigurationError("give the view either as visual counts or as an image, not both")
         knowledge = self._snapshot.knowledge
-        if not knowledge.fitted_on_images:
-            raise ConfigurationError("the knowledge of this home was fitted on visual count vectors, not on "
-                                     "images: give the view's features (visual), not an image")
+        if image is None or visual is not None or not knowledge.fitted_on_images:
+            return kn.view_counts(knowledge, visual, image)  # the view as given, or why it is refused
         pixels = decode_image(image, encoding, width=width, height=height, max_pixels=self.max_pixels)
+        encoding = "mono8" if pixels.ndim == 2 else "bgr8"  # what decode_image gives
+        return kn.view_counts(knowledge, None, pixels, encoding,
+                              extractor=lambda: self._extractor_of(knowledge))
+
+    def _extractor_of(self, knowledge: kn.Knowledge) -> Any:
+        """``knowledge``'s extractor, built once and kept while the served knowledge stays the same."""
         key = json.dumps(knowledge.extractor, sort_keys=True)
         if self._extractor is None or key != self._extractor_key:
             self._extractor, self._extractor_key = knowledge.image_extractor(), key
-        return self._extractor.extract(pixels, "mono8" if pixels.ndim == 2 else "bgr8")  # decode_image's
+        return self._extractor
 
     def what(self, x: float, y: float, theta: float, *, image: Any = None, encoding: str | None = None,
              visual: Any = None, top: int = 3) -> dict[str, Any]:

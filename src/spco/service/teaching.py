@@ -33,7 +33,6 @@ from __future__ import annotations
 import time
 import warnings
 from dataclasses import replace
-from datetime import UTC, datetime
 from os import PathLike
 from typing import Any
 
@@ -42,9 +41,11 @@ import scipy.sparse as sp
 
 from spco import knowledge as kn
 from spco.errors import ConfigurationError, SpcoError
+from spco.knowledge.updating import clean_sentence
 from spco.model.prediction import validate_visual_counts
 from spco.service.answers import check_pose
 from spco.service.journal import JournalError, journal_path, read_journal
+from spco.timestamps import utc_now
 
 __all__ = [
     "HISTORY_LIMIT",
@@ -85,10 +86,6 @@ class ConflictError(SpcoError):
     teaching that a later one changed or that was undone already."""
 
 
-def _now() -> str:
-    return datetime.now(UTC).isoformat(timespec="milliseconds")
-
-
 def served_info(home: kn.HomeModel) -> dict[str, Any]:
     """``provenance["served"]`` of ``home`` without its history: ``journal``, ``last_seq``, ``teachings``
     (empty for a home never served)."""
@@ -113,16 +110,6 @@ def with_history(home: kn.HomeModel, history: dict[int, dict[str, Any]] | None) 
 
 
 # ---------------------------------------------------------------------------- requests -> records
-def _clean_sentence(sentence: object) -> str | None:
-    if sentence is None:
-        return None
-    if not isinstance(sentence, str):
-        raise ConfigurationError(f"sentence: expected a string or null, got {type(sentence).__name__}")
-    if len(sentence) > MAX_SENTENCE_CHARS:
-        raise ConfigurationError(f"sentence: {len(sentence)} characters; at most {MAX_SENTENCE_CHARS}")
-    return sentence.strip() or None
-
-
 def _sample_id(value: object, what: str = "id") -> int:
     if isinstance(value, bool) or not isinstance(value, int | np.integer):
         raise ConfigurationError(f"{what}: expected an integer sample id, got {value!r}")
@@ -144,7 +131,7 @@ def sentence_record(home: kn.HomeModel, sample_id: object, sentence: object) -> 
     """
     sample = _sample_id(sample_id)
     _check_known(home, sample)
-    return {"op": "sentence", "id": sample, "sentence": _clean_sentence(sentence)}
+    return {"op": "sentence", "id": sample, "sentence": clean_sentence(sentence, MAX_SENTENCE_CHARS)}
 
 
 def view_record(home: kn.HomeModel, counts: object) -> dict[str, list[int]] | None:
@@ -175,7 +162,8 @@ def observation_record(home: kn.HomeModel, x: object, y: object, theta: object, 
     """
     px, py, ptheta = check_pose(home, x, y, theta)
     record: dict[str, Any] = {"op": "observation", "id": None, "x": px, "y": py, "theta": ptheta,
-                              "sentence": _clean_sentence(sentence), "view": view_record(home, counts)}
+                              "sentence": clean_sentence(sentence, MAX_SENTENCE_CHARS),
+                              "view": view_record(home, counts)}
     if sample_id is not None:
         sample = _sample_id(sample_id)
         if (home.ids == sample).any():
@@ -256,7 +244,7 @@ def apply_batch(home: kn.HomeModel, records: list[dict[str, Any]],
     seed, sweeps = int(first["seed"]), int(first["sweeps"])
     served = served_info(home)
     teachings = int(served.get("teachings", 0))
-    stamp = first.get("time") or _now()
+    stamp = first.get("time") or utc_now("milliseconds")
     entries: dict[int, dict[str, Any]] = {}  # merged into history once the teaching succeeded
     with warnings.catch_warnings(record=True) as caught:  # said in the answer (notes), not on stderr
         warnings.simplefilter("always", kn.OwnNamesSpreadWarning)

@@ -37,7 +37,6 @@ import warnings
 from collections.abc import Callable
 from concurrent.futures import Future
 from dataclasses import replace
-from datetime import UTC, datetime
 from multiprocessing.connection import Connection
 from os import PathLike
 from pathlib import Path
@@ -62,6 +61,7 @@ from spco.service.teaching import (
     served_info,
     with_history,
 )
+from spco.timestamps import utc_now
 
 __all__ = ["DEFAULT_COMPACT_IDLE", "DEFAULT_COMPACT_RECORDS", "DEFAULT_MAX_BATCH", "HomeWriter",
            "ProcessWriter", "SnapshotChannel", "ThreadWriter", "WriterUnavailableError", "error_result"]
@@ -84,10 +84,6 @@ def error_result(exc: BaseException) -> dict[str, Any]:
         return {"ok": False, "error": str(exc), "kind": type(exc).__name__}
     return {"ok": False, "error": f"internal error of the writer: {type(exc).__name__}: {exc}",
             "kind": "InternalError"}
-
-
-def _now() -> str:
-    return datetime.now(UTC).isoformat(timespec="milliseconds")
 
 
 class HomeWriter:
@@ -229,7 +225,7 @@ class HomeWriter:
         first = self.last_seq + 1
         last = first + len(batch) - 1
         seed = self._seed_for(first)
-        stamp = _now()
+        stamp = utc_now("milliseconds")
         records = [{"seq": first + k, "batch": [first, last], "seed": seed, "sweeps": self.sweeps,
                     "time": stamp, **record} for k, (_, record) in enumerate(batch)]
         history = dict(self.history)
