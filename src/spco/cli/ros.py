@@ -83,8 +83,7 @@ def ros(home: Path, ros_arguments: tuple[str, ...], pose_topic: str, map_frame: 
                                    "written FROM:=TO (e.g. /spco/query:=/robot/query, __name:=spco2)")
         if rosbridge is not None:
             raise click.UsageError(f"{argument!r}: ROS remappings are for a ROS 1 node, not --rosbridge")
-    from spco.ros.core import NodeSettings
-    from spco.ros.node import Topics
+    from spco.ros.core import NodeSettings, Topics
     from spco.service.live import LiveHome
 
     settings = NodeSettings(tolerance=tolerance, image_wait=image_wait, clock=clock, max_age=max_age,

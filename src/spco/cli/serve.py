@@ -54,9 +54,9 @@ def serve(home_file: Path, host: str, port: int, token_file: Path | None, map_im
         import uvicorn  # noqa: F401
     except ImportError:
         raise click.UsageError("spco serve needs the web stack: pip install 'spco[serve]'") from None
-    from spco.cli.knowledge import _extent
+    from spco.cli.common import parse_extent
     from spco.service.server import serve as run
 
     run(home_file, host=host, port=port, token_file=None if token_file is None else str(token_file),
-        map_image=None if map_image is None else str(map_image), map_extent=_extent(extent), seed=seed,
+        map_image=None if map_image is None else str(map_image), map_extent=parse_extent(extent), seed=seed,
         writer=writer, say=lambda text: click.echo(text, err=True))

@@ -5,10 +5,10 @@ matched nearest in time, the tf tree composed along its edges, and the robot's t
 from __future__ import annotations
 
 import struct
-from collections import Counter
+from collections import Counter, defaultdict
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import ExitStack
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -263,3 +263,28 @@ def _periodic_indices(traj: _Trajectory, every_seconds: float, every_metres: flo
         if nxt >= n:
             return np.asarray(chosen, dtype=np.int64)
         chosen.append(max(nxt, i + 1))
+
+
+# ------------------------------------------------------------------------------------ what was read
+@dataclass
+class _Streams:
+    """Everything read in the first pass."""
+
+    pose: _Series
+    tf: _TfTree
+    speech: _Series
+    images: _Series  # values: (bag index, ordinal among the topic's messages in that bag)
+    visual: _Series
+    header_offsets: dict[str, list[int]] = field(default_factory=lambda: defaultdict(list))
+    tours: int = 1  # recordings whose clocks overlap (:func:`spco.data.rosbag._tours`)
+
+
+@dataclass
+class _Sample:
+    time: int
+    x: float
+    y: float
+    theta: float
+    sentence: str | None
+    image: int  # index into streams.images, -1 if none
+    visual: int  # index into streams.visual, -1 if none

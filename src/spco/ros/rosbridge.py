@@ -20,8 +20,7 @@ from collections.abc import Callable
 from typing import Any
 
 from spco.errors import SpcoError
-from spco.ros.core import NodeCore, NodeSettings
-from spco.ros.node import ANSWER_TOPIC, GOAL_TOPIC, MARKER_TOPIC, QUERY_TOPIC, Topics
+from spco.ros.core import ANSWER_TOPIC, GOAL_TOPIC, MARKER_TOPIC, QUERY_TOPIC, NodeCore, NodeSettings, Topics
 
 __all__ = ["RosbridgeError", "run_rosbridge"]
 
