@@ -1,5 +1,21 @@
 """Adapting knowledge to a new home: the home learnt with the knowledge as its prior
-(:func:`adapt`), one :class:`~spco.model.home_shard.NewHomeShard` run from its first state."""
+(:func:`adapt`), one :class:`~spco.model.home_shard.NewHomeShard` run from its first state.
+
+*Adapting* runs the exact conditionals of the model for the new home alone with φ^v, φ^w and G_0
+fixed at the knowledge (``SamplerSettings.create(variant, prune, learn_shared=False)``): this is the
+model's posterior of the home given the shared part, which is what joint learning computes for the
+new home when the experienced homes pin the shared part down. With ``joint=True`` the shared part
+is learnt too, with the knowledge as its prior: the posterior of φ_l given the experienced homes is
+approximated by a Dirichlet with the knowledge's mean and a concentration A_l moment-matched to the
+spread of the averaged posterior samples (``A_l + 1 = Σ_k φ̄_k(1 − φ̄_k) / Σ_k Var φ_k``), so
+``φ_l | new home ~ Dir(A_l φ̄_l + table counts of the new home)`` (the same for G_0). This is
+assumed-density filtering: exact if that posterior were Dirichlet. With few samples the spread is
+poorly known, so it is shrunk towards the spread of Dir(δ φ̄_l) — the spread of one home's θ_{e,l}
+around φ_l, concentration δ^v, δ^w (γ for G_0) — with the weight of
+:data:`CONCENTRATION_PRIOR_SAMPLES` samples (:func:`_concentration`): one sample gives exactly
+δ, many give the moment-matched value, and every number of samples in between lies between them
+(no cliff).
+"""
 
 from __future__ import annotations
 

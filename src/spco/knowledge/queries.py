@@ -1,6 +1,13 @@
 """Questions to a home: where a place is (:func:`where`), what a place is called (:func:`what`),
 why a word is not used (:func:`unused_word_hint`), and what a knowledge or home file holds
-(:func:`describe_model_file`)."""
+(:func:`describe_model_file`).
+
+*Answers* (:func:`where`, :func:`what`) come from the home's parameters averaged over thinned
+sweeps of the last adaptation or teaching (``HomeModel.posterior``, :mod:`spco.model.posterior`),
+not from the last draw; ``where`` reports ``learnt`` False and a low ``support`` when the name's
+probability in the home comes from concepts that hold none of its samples (no such place learnt
+in this home).
+"""
 
 from __future__ import annotations
 

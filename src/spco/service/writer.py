@@ -586,9 +586,8 @@ TRIM_EVERY = 8
 def trim_heap() -> None:
     """Give the heap memory freed since to the system (glibc's ``malloc_trim``; nothing elsewhere).
 
-    Each teaching replaces the snapshot (about 1 MB unpickled in the server, more in the writer):
-    without it the freed pieces stay with the process and its memory creeps up over a long run
-    (measured: +14 % after 400 teachings in one process, flat with it).
+    Each teaching replaces the snapshot: without this the freed pieces stay with the process and its
+    memory creeps up over a long run.
     """
     global _LIBC
     if _LIBC is None:
