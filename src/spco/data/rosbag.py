@@ -57,6 +57,7 @@ from collections.abc import Sequence
 from contextlib import ExitStack
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -312,6 +313,38 @@ def _tours(bags: Sequence[_Bag], topics: Sequence[str]) -> list[int]:
     return tours
 
 
+def _reading_bar() -> Any:
+    """The progress bar of the first pass over the bags (messages read)."""
+    from spco.progress import progress_bar
+
+    return progress_bar(desc="reading", unit=" msg", leave=False)
+
+
+def _add_utterance(speech: _Series, dropped: Counter[str], topic: str, text: str, time_ns: int) -> None:
+    """An utterance at ``time_ns``, stripped; an empty one is dropped and counted."""
+    text = text.strip()
+    if text:
+        speech.add(time_ns, text)
+    else:
+        dropped[f"{topic}: empty utterance"] += 1
+
+
+def _pose_value(bag: _Bag, connection: Any, msg: Any, frame: str) -> tuple[float, float, float] | None:
+    """(x, y, yaw) of a pose message in the map ``frame`` (``None`` if not finite); a pose in another
+    frame is refused."""
+    source = tf.frame_name(msg.header.frame_id)
+    if source and source != frame:
+        raise DataFormatError(
+            bag.path,
+            f"{connection.topic}: poses are in frame {source!r}, not the map frame "
+            f"{frame!r}; pass --map-frame {source} if that is the map",
+        )
+    pose = POSE_TYPES[connection.msgtype](msg)
+    p, q = pose.position, pose.orientation
+    value = (float(p.x), float(p.y), float(tf.yaw(np.array([q.x, q.y, q.z, q.w]))))
+    return value if all(math.isfinite(v) for v in value) else None
+
+
 def _read_streams(
     bags: list[_Bag],
     topics: dict[str, str],
@@ -329,16 +362,11 @@ def _read_streams(
     )
     pose_topic = topics["pose"]
     tf_mode = any(b.topics.get(pose_topic) in TF_TYPES for b in bags)
-    wanted = [t for t in topics.values()]
-    if tf_mode and any("/tf_static" in b.topics for b in bags):
-        wanted.append("/tf_static")
+    wanted = [*topics.values(), *(["/tf_static"] if tf_mode and any("/tf_static" in b.topics for b in bags)
+                                  else [])]
     use_header = settings.clock == "header"
     frame = tf.frame_name(settings.map_frame)
-    bar = None
-    if progress:
-        from spco.progress import progress_bar
-
-        bar = progress_bar(desc="reading", unit=" msg", leave=False)
+    bar = _reading_bar() if progress else None
     count = 0
     tour_of = _tours(bags, wanted)
     shift, latest = 0, None  # the current tour's shift onto the import's time line; its last time
@@ -366,17 +394,8 @@ def _read_streams(
                 stamp = _stamp(msg.header) if use_header else 0
                 if stamp:
                     streams.header_offsets[topic].append(record_time - stamp)
-                source = tf.frame_name(msg.header.frame_id)
-                if source and source != frame:
-                    raise DataFormatError(
-                        bag.path,
-                        f"{topic}: poses are in frame {source!r}, not the map frame "
-                        f"{frame!r}; pass --map-frame {source} if that is the map",
-                    )
-                pose = POSE_TYPES[connection.msgtype](msg)
-                p, q = pose.position, pose.orientation
-                value = (float(p.x), float(p.y), float(tf.yaw(np.array([q.x, q.y, q.z, q.w]))))
-                if not all(math.isfinite(v) for v in value):
+                value = _pose_value(bag, connection, msg, frame)
+                if value is None:
                     dropped[f"{topic}: pose not finite"] += 1
                     continue
                 streams.pose.add(stamp + shift if stamp else bag_time, value)
@@ -386,17 +405,35 @@ def _read_streams(
                     stamp = _stamp(transform.header) if use_header else 0
                     streams.tf.add(transform, stamp + shift if stamp else bag_time, static)
             elif topic == topics.get("speech"):
-                text = str(msg.data).strip()
-                if text:
-                    streams.speech.add(bag_time, text)
-                else:
-                    dropped[f"{topic}: empty utterance"] += 1
+                _add_utterance(streams.speech, dropped, topic, str(msg.data), bag_time)
             elif topic == topics.get("visual"):
                 streams.visual.add(bag_time, np.asarray(msg.data, dtype=np.float64).ravel())
     if bar is not None:
         bar.close()
     streams.tours = tour_of[-1] + 1 if tour_of else 1
     return streams, count
+
+
+def _import_topics(bags: list[_Bag], settings: BagImportSettings) -> dict[str, str]:
+    """The topics to read, by role (``pose``, and ``speech``, ``visual``, ``image`` when used)."""
+    topics: dict[str, str] = {"pose": _pose_source(bags, settings)}
+    if settings.speech_topic is not None:
+        topics["speech"] = _required(bags, settings.speech_topic, SPEECH_TYPES, "speech", "--speech-topic")
+    if settings.visual_topic is not None:
+        topics["visual"] = _required(
+            bags, settings.visual_topic, VISUAL_TYPES, "visual features", "--visual-topic"
+        )
+    if settings.image_topic is not None or settings.visual_topic is None:
+        # with ready-made features, views are read only from a topic given
+        topics["image"] = _required(bags, settings.image_topic, IMAGE_TYPES, "image", "--image-topic")
+    return topics
+
+
+def _write_import_record(folder: Path, summary: BagImportSummary, settings: BagImportSettings) -> None:
+    """``import.json``: what was read and written, with the settings and spco's version."""
+    record = {**asdict(summary), "settings": asdict(settings), "spco_version": _version()}
+    (folder / "import.json").write_text(json.dumps(record, indent=1, ensure_ascii=False) + "\n",
+                                        encoding="utf-8")
 
 
 def import_bags(
@@ -424,18 +461,7 @@ def import_bags(
     dropped: Counter[str] = Counter()
     with ExitStack() as stack:
         opened = sorted((_Bag(p, stack) for p in paths), key=lambda b: b.start)
-        topics: dict[str, str] = {"pose": _pose_source(opened, settings)}
-        if settings.speech_topic is not None:
-            topics["speech"] = _required(
-                opened, settings.speech_topic, SPEECH_TYPES, "speech", "--speech-topic"
-            )
-        if settings.visual_topic is not None:
-            topics["visual"] = _required(
-                opened, settings.visual_topic, VISUAL_TYPES, "visual features", "--visual-topic"
-            )
-        if settings.image_topic is not None or settings.visual_topic is None:
-            # with ready-made features, views are read only from a topic given
-            topics["image"] = _required(opened, settings.image_topic, IMAGE_TYPES, "image", "--image-topic")
+        topics = _import_topics(opened, settings)
         where = ", ".join(str(b.path) for b in opened)
         streams, n_messages = _read_streams(opened, topics, settings, dropped, progress)
         tf_mode = any(b.topics.get(topics["pose"]) in TF_TYPES for b in opened)
@@ -478,10 +504,7 @@ def import_bags(
             _add_clock_warnings(streams, summary)
             summary.dropped = dict(dropped)
             summary.seconds = time.perf_counter() - start
-            record = {**asdict(summary), "settings": asdict(settings), "spco_version": _version()}
-            (tmp / "import.json").write_text(
-                json.dumps(record, indent=1, ensure_ascii=False) + "\n", encoding="utf-8"
-            )
+            _write_import_record(tmp, summary, settings)
             _move_into_place(tmp, target)
         finally:
             if tmp.exists():
@@ -515,23 +538,9 @@ def _make_samples(
         raise ConfigurationError("--at images makes a sample at each camera image: give --image-topic")
     summary.sampling = rule
     # candidates: utterances (kind 0), then the untaught samples (kind 1)
-    speech_tol = tolerance_ns
-    if rule == "images" and summary.image_interval:
-        # the camera is sparse: an utterance takes the image nearest to it, up to about half the
-        # interval between images away (60 %, for the jitter of a throttled camera)
-        speech_tol = max(tolerance_ns, round(UTTERANCE_IMAGE_SHARE * summary.image_interval * _NS))
-        summary.utterance_image_within = speech_tol / _NS
-    if rule == "images":
-        at_valid, at_xy, at_yaw = traj.lookup(image_t)
-        at_times, at_image = image_t, np.arange(image_t.size)
-    elif rule == "travel":
-        at_times, at_xy, at_yaw = traj.times[travel], traj.xy[travel], traj.yaw[travel]
-        at_valid = np.ones(travel.size, bool)
-        at_image = (_nearest(image_t, at_times, tolerance_ns) if "image" in topics
-                    else np.full(travel.size, -1))
-    else:
-        at_times, at_xy, at_yaw = np.zeros(0, np.int64), np.zeros((0, 2)), np.zeros(0)
-        at_valid, at_image = np.zeros(0, bool), np.zeros(0, np.int64)
+    speech_tol = _utterance_image_tolerance(rule, tolerance_ns, summary)
+    at_times, at_xy, at_yaw, at_valid, at_image = _untaught_candidates(rule, traj, travel, image_t,
+                                                                       "image" in topics, tolerance_ns)
     summary.utterances, summary.periodic = int(speech_t.size), int(at_times.size)
     valid, xy, yaw = (
         traj.lookup(speech_t) if speech_t.size else (np.zeros(0, bool), np.zeros((0, 2)), np.zeros(0))
@@ -558,16 +567,15 @@ def _make_samples(
         if not has_pose[row]:
             skipped[f"{kind}: no pose within {tol}"] += 1
             continue
-        no_view = ("image" in topics and image_idx[row] < 0) or ("visual" in topics and visual_idx[row] < 0)
-        if no_view and kinds[row] == 0 and settings.keep_without_image:
+        no_image = "image" in topics and image_idx[row] < 0
+        no_features = "visual" in topics and visual_idx[row] < 0
+        if (no_image or no_features) and kinds[row] == 0 and settings.keep_without_image:
             summary.without_view += 1  # a sample without a view (its image or features: none)
             image_idx[row] = visual_idx[row] = -1
-        elif "image" in topics and image_idx[row] < 0:
+        elif no_image or no_features:
             within = tol if kinds[row] == 1 else f"{speech_tol / _NS:g} s"
-            skipped[f"{kind}: no image within {within}"] += 1
-            continue
-        elif "visual" in topics and visual_idx[row] < 0:
-            skipped[f"{kind}: no visual features within {tol}"] += 1
+            skipped[f"{kind}: no image within {within}" if no_image
+                    else f"{kind}: no visual features within {tol}"] += 1
             continue
         if "image" in topics and image_idx[row] >= 0:
             if kinds[row] == 1 and int(image_idx[row]) in used_images:
@@ -582,6 +590,32 @@ def _make_samples(
     samples.sort(key=lambda sample: sample.time)  # stable: an utterance stays before a sample at its time
     summary.skipped = dict(skipped)
     return samples
+
+
+def _utterance_image_tolerance(rule: str, tolerance_ns: int, summary: BagImportSummary) -> int:
+    """How far from an utterance its image may be (ns): the tolerance, or with ``--at images`` and a
+    sparse camera up to about half the interval between images (recorded in ``summary``)."""
+    if rule != "images" or not summary.image_interval:
+        return tolerance_ns
+    # an utterance takes the image nearest to it, up to about half the interval between images away
+    # (60 %, for the jitter of a throttled camera)
+    speech_tol = max(tolerance_ns, round(UTTERANCE_IMAGE_SHARE * summary.image_interval * _NS))
+    summary.utterance_image_within = speech_tol / _NS
+    return speech_tol
+
+
+def _untaught_candidates(rule: str, traj: _Trajectory, travel: np.ndarray, image_t: np.ndarray,
+                         has_images: bool, tolerance_ns: int) -> tuple[np.ndarray, ...]:
+    """Where untaught samples may be made under ``rule``: (times, xy, yaw, whether a pose was found,
+    index of the image each takes, -1 for none) — at each camera image, along the way, or nowhere."""
+    if rule == "images":
+        at_valid, at_xy, at_yaw = traj.lookup(image_t)
+        return image_t, at_xy, at_yaw, at_valid, np.arange(image_t.size)
+    if rule == "travel":
+        at_times = traj.times[travel]
+        at_image = _nearest(image_t, at_times, tolerance_ns) if has_images else np.full(travel.size, -1)
+        return at_times, traj.xy[travel], traj.yaw[travel], np.ones(travel.size, bool), at_image
+    return np.zeros(0, np.int64), np.zeros((0, 2)), np.zeros(0), np.zeros(0, bool), np.zeros(0, np.int64)
 
 
 def _auto_rule(image_t: np.ndarray, travel_t: np.ndarray, tolerance_ns: int) -> str:
