@@ -50,7 +50,7 @@ def clean_sentence(sentence: object, max_chars: int | None = None) -> str | None
 
 
 
-def teach(
+def teach(  # noqa: PLR0915 (teach() is being reworked on its own branch (issue 33); split there)
     home: HomeModel,
     sentences: Mapping[int, str | None] | None = None,
     observations: Sequence[Observation] = (),

@@ -307,7 +307,8 @@ class _Guard:
         await self.app(scope, replay, send)
 
 
-def create_app(live: LiveHome, *, token: str | None = None, map_image: str | Path | None = None,
+# too many statements: the routes leave create_app on their own branch (issue 33)
+def create_app(live: LiveHome, *, token: str | None = None, map_image: str | Path | None = None,  # noqa: PLR0915
                map_extent: tuple[float, float, float, float] | None = None, max_body: int = DEFAULT_MAX_BODY,
                allowed_hosts: list[str] | None = None) -> Any:
     """The ASGI app serving ``live``.
