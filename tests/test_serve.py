@@ -21,6 +21,7 @@ from click.testing import CliRunner
 from serve_helpers import Server, build_home, copy_home, env, wait_unlocked
 
 from spco import knowledge as kn
+from spco.cli.ask import ask as ask_command
 from spco.cli.knowledge import what as what_command
 from spco.cli.knowledge import where as where_command
 from spco.errors import ConfigurationError
@@ -40,8 +41,8 @@ from spco.service.writer import HomeWriter
 pytest.importorskip("fastapi", reason="spco serve needs its extra: pip install -e '.[serve]'")
 from fastapi.testclient import TestClient
 
-from spco.client import Client, ClientError
-from spco.service.app import create_app, session_value
+from spco.service.app import create_app
+from spco.service.client import Client, ClientError
 
 
 @pytest.fixture(scope="module")
@@ -279,6 +280,8 @@ def test_client_mirrors_the_library_over_a_real_server(home: Path) -> None:
         assert robot.where(name, n=3) == json.loads(
             CliRunner().invoke(where_command, [str(home), name, "-n", "3", "--json"]).stdout)
         assert robot.what(0.3, -0.2, 0.4)["names"][0]["name"] in library.known_names
+        assert robot.ask(2) == json.loads(CliRunner().invoke(ask_command, [str(home), "--n", "2",
+                                                                           "--json"]).stdout)
         assert robot.what(0.3, -0.2, 0.4, image=_jpeg(5))["vision"] is True
         assert robot.what(0.3, -0.2, 0.4, image=_view(5), encoding="bgr8")["names"] == \
             robot.what(0.3, -0.2, 0.4, image=cv2.imencode(".png", _view(5))[1].tobytes())["names"]  # lossless
@@ -425,12 +428,14 @@ def test_token_covers_the_api_the_page_and_its_event_stream(home: Path) -> None:
         assert client.get("/health", headers=wrong).status_code == 401
         assert client.get("/health", headers={"Authorization": f"Bearer {token}"}).status_code == 200
         assert "sign in" in client.get("/").text.lower()  # the page asks for the token
-        assert client.get("/login", params={"token": "nope"}, follow_redirects=False).status_code == 401
+        assert client.get("/login", params={"token": token}, follow_redirects=False).status_code == 400
+        assert client.post("/login", data={"token": "nope"}, follow_redirects=False).status_code == 401
         signed = client.post("/login", data={"token": token}, follow_redirects=False)
         assert signed.status_code == 303
-        cookie = signed.headers["set-cookie"]
-        assert "httponly" in cookie.lower() and "samesite=strict" in cookie.lower() and token not in cookie
-        assert client.cookies.get("spco_session") == session_value(token)
+        cookie = signed.headers["set-cookie"].lower()
+        assert "httponly" in cookie and "samesite=strict" in cookie and "max-age=604800" in cookie
+        assert token.lower() not in cookie and "secure" not in cookie  # plain HTTP: no Secure flag
+        assert len(client.cookies.get("spco_session") or "") >= 40
         assert client.get("/health").status_code == 200  # the cookie now
         with client.stream("GET", "/events", params={"types": "taught"}) as stream:
             assert stream.status_code == 200

@@ -29,25 +29,11 @@ from scipy.special import logsumexp
 from spco.errors import ConfigurationError
 from spco.knowledge.home import HomeModel, Observation, _copy_state
 from spco.knowledge.knowledge import DEFAULT_TEACH_SWEEPS
+from spco.knowledge.requests import clean_sentence
 from spco.knowledge.views import _pose, _visual_row, view_counts
 from spco.model.home_shard import NewHomeShard, init_new_words, prepare_home
 from spco.model.seeds import as_generator, seed_of
 from spco.timestamps import utc_now
-
-
-def clean_sentence(sentence: object, max_chars: int | None = None) -> str | None:
-    """A taught sentence as a home keeps it: stripped of surrounding white space, ``None`` for no
-    sentence (``None``, or nothing but white space). Raises :class:`~spco.errors.ConfigurationError`
-    for anything but a string or ``None``, and for a string longer than ``max_chars``."""
-    if sentence is None:
-        return None
-    if not isinstance(sentence, str):
-        raise ConfigurationError(f"sentence: expected a string or None, got {type(sentence).__name__}")
-    if max_chars is not None and len(sentence) > max_chars:
-        raise ConfigurationError(f"sentence: {len(sentence)} characters; at most {max_chars}")
-    return sentence.strip() or None
-
-
 
 
 def teach(  # noqa: PLR0915 (teach() is being reworked on its own branch (issue 33); split there)
@@ -92,7 +78,7 @@ def teach(  # noqa: PLR0915 (teach() is being reworked on its own branch (issue 
             raise ConfigurationError(f"home {home.name!r} has no sample with id {sample_id} (its "
                                      f"{home.n_samples} training samples have ids {shown}"
                                      f"{', …' if home.n_samples > 5 else ''}, up to {int(home.ids.max())})")
-        new_sentences[index[int(sample_id)]] = clean_sentence(sentence)
+        new_sentences[index[int(sample_id)]] = clean_sentence(sentence, None)
     ids = list(home.ids.tolist())
     taken = set(ids)
     poses, rows, no_view = [], [], []
@@ -108,7 +94,7 @@ def teach(  # noqa: PLR0915 (teach() is being reworked on its own branch (issue 
         counts = view_counts(home.knowledge, obs.visual, obs.image, obs.encoding)
         no_view.append(counts is None)
         rows.append(_visual_row(counts, home.knowledge.n_features))
-        new_sentences.append(clean_sentence(obs.sentence))
+        new_sentences.append(clean_sentence(obs.sentence, None))
     positions = np.vstack([home.positions, *poses]) if poses else home.positions
     visual = home.visual
     view_missing = np.concatenate([home.view_missing, np.array(no_view, dtype=bool)])
