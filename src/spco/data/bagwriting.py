@@ -1,6 +1,7 @@
 """Writing the home folder of ``spco import-bag`` (:mod:`spco.data.rosbag`): where it may be written,
 the chosen camera images as files, ``samples.csv``, ``home.json`` and ``visual.npz``, and the
-finished folder moved into place in one rename."""
+finished folder moved into place in one rename. ``settings`` and ``summary`` below are the import's
+:class:`~spco.data.rosbag.BagImportSettings` and :class:`~spco.data.rosbag.BagImportSummary`."""
 
 from __future__ import annotations
 
@@ -12,16 +13,13 @@ import uuid
 from collections import Counter, defaultdict
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from spco.data.bagreading import RAW_ENCODINGS, _Bag, _Sample, _Streams
 from spco.errors import ConfigurationError, DataFormatError
 from spco.features.pixels import pixels_from_buffer, to_bgr
-
-if TYPE_CHECKING:
-    from spco.data.rosbag import BagImportSettings, BagImportSummary
 
 
 def _check_out(out: Path, bags: Sequence[Path], overwrite: bool) -> None:
@@ -149,7 +147,7 @@ def _write_images(
 
 
 def _drop_failed_images(
-    samples: list[_Sample], failures: dict[int, str], folder: Path, summary: BagImportSummary
+    samples: list[_Sample], failures: dict[int, str], folder: Path, summary: Any
 ) -> list[_Sample]:
     """Remove samples whose image could not be used and renumber the image files to the new rows."""
     if not failures:
@@ -175,9 +173,9 @@ def _write_home_files(
     folder: Path,
     samples: list[_Sample],
     streams: _Streams,
-    settings: BagImportSettings,
+    settings: Any,
     target: Path,
-    summary: BagImportSummary,
+    summary: Any,
     where: str,
 ) -> None:
     """samples.csv, home.json and (with a visual topic) visual.npz."""
