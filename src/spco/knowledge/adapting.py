@@ -12,9 +12,9 @@ spread of the averaged posterior samples (``A_l + 1 = Σ_k φ̄_k(1 − φ̄_k) 
 assumed-density filtering: exact if that posterior were Dirichlet. With few samples the spread is
 poorly known, so it is shrunk towards the spread of Dir(δ φ̄_l) — the spread of one home's θ_{e,l}
 around φ_l, concentration δ^v, δ^w (γ for G_0) — with the weight of
-:data:`CONCENTRATION_PRIOR_SAMPLES` samples (:func:`_concentration`): one sample gives exactly
-δ, many give the moment-matched value, and every number of samples in between lies between them
-(no cliff).
+:data:`~spco.knowledge.fit.CONCENTRATION_PRIOR_SAMPLES` samples
+(:func:`spco.knowledge.fit._concentration`): one sample gives exactly δ, many give the
+moment-matched value, and every number of samples in between lies between them (no cliff).
 """
 
 from __future__ import annotations
