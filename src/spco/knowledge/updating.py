@@ -9,8 +9,8 @@ vocabulary; their φ^w_{l,k} is α^w/δ^w in every concept (rows renormalised), 
 θ^w_{e,l} ~ Dir(δ^w φ^w_l + n) gives them the prior mass α^w of a word never seen, and they are
 learnt from the home's counts. Their θ^w starts at its posterior mean given the current
 assignments (:func:`spco.model.home_shard.init_new_words`), so the first samples that say a new
-word are placed by what they see and where they are, preferring concepts that hold few words yet. With word pruning
-("+MI" models) the words of the knowledge keep its decision and new words are judged in the home
+word are placed by what they see and where they are, preferring concepts that hold few words yet.
+With word pruning ("+MI" models) the words of the knowledge keep its decision and new words are judged in the home
 (mutual information of the word and the concept under θ^w_e and G_e, threshold ε) after every
 adaptation or teaching: a home-specific name that no other home uses would score low against G_0.
 """
