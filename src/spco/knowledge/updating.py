@@ -10,9 +10,10 @@ vocabulary; their φ^w_{l,k} is α^w/δ^w in every concept (rows renormalised), 
 learnt from the home's counts. Their θ^w starts at its posterior mean given the current
 assignments (:func:`spco.model.home_shard.init_new_words`), so the first samples that say a new
 word are placed by what they see and where they are, preferring concepts that hold few words yet.
-With word pruning ("+MI" models) the words of the knowledge keep its decision and new words are judged in the home
-(mutual information of the word and the concept under θ^w_e and G_e, threshold ε) after every
-adaptation or teaching: a home-specific name that no other home uses would score low against G_0.
+With word pruning ("+MI" models) the words of the knowledge keep its decision and new words are
+judged in the home (mutual information of the word and the concept under θ^w_e and G_e, threshold
+ε) after every adaptation or teaching: a home-specific name that no other home uses would score low
+against G_0.
 """
 
 from __future__ import annotations
