@@ -99,7 +99,7 @@ class ServeSettings:
     max_pixels: int = DEFAULT_MAX_PIXELS
     decode_concurrency: int = 2
     decode_queue: int = 8
-    max_subscribers: int = 32
+    max_subscribers: int = 8
     subscriber_queue: int = 256
     keepalive_comment: float = 15.0
     session_hours: float = 168.0
