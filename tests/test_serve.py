@@ -25,7 +25,7 @@ from spco.cli.ask import ask as ask_command
 from spco.cli.knowledge import what as what_command
 from spco.cli.knowledge import where as where_command
 from spco.errors import ConfigurationError
-from spco.locking import HomeServedError, locked, served_by
+from spco.knowledge.locking import HomeServedError, locked, served_by
 from spco.service import LiveHome
 from spco.service.journal import (
     Journal,

@@ -13,7 +13,7 @@ from spco import knowledge as kn
 from spco.errors import ConfigurationError
 from spco.knowledge.requests import Pose
 from spco.model.confidence import UNSURE_BELOW
-from spco.prediction import validate_visual_counts
+from spco.model.prediction import validate_visual_counts
 
 __all__ = ["GAIN_MEANS", "RANKED_BY", "ask_answer", "check_pose", "regions_answer", "what_answer",
            "where_answer"]
@@ -35,7 +35,7 @@ def where_answer(home: kn.HomeModel, name: str, n: int = 10, seed: int = 0) -> d
     resolved to a known one (:mod:`spco.model.unheard`), ``name`` is the known name and ``via`` how it
     was found ("synonym", "gloss", ...), else ``via`` is ``None``. ``positions`` lists
     ``{"x", "y", "theta", "probability"}`` (metres, radians), most probable first. Raises
-    :class:`~spco.prediction.UnknownNameError` for a name the home cannot use.
+    :class:`~spco.model.prediction.UnknownNameError` for a name the home cannot use.
     """
     pred = kn.where(home, name, n=n, random_state=seed)
     order = sorted(range(pred.samples.shape[0]), key=lambda i: -float(pred.weights[i]))

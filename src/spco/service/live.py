@@ -43,8 +43,8 @@ from typing import Any
 import numpy as np
 
 from spco import knowledge as kn
-from spco import locking
 from spco.errors import ConfigurationError, SpcoError
+from spco.knowledge import locking
 from spco.knowledge.requests import (
     MAX_POSES,
     MAX_QUESTIONS,
@@ -217,7 +217,7 @@ class LiveHome:
         - :class:`~spco.knowledge.requests.Where`: the payload of ``spco where HOME NAME -n N --json``
           (:func:`spco.service.answers.where_answer`): ``{"home", "name", "region",
           "region_probability", "learnt", "support", "positions"}``, ``positions`` most probable
-          first. Raises :class:`~spco.prediction.UnknownNameError` for a name the home cannot use.
+          first. Raises :class:`~spco.model.prediction.UnknownNameError` for a name the home cannot use.
         - :class:`~spco.knowledge.requests.What`: the payload of ``spco what HOME … --json``
           (:func:`spco.service.answers.what_answer`): ``{"home", "pose", "vision", "ranked_by",
           "names", …}``, ``"warning"`` too for a pose off the map; a pose far off it or a view

@@ -43,7 +43,7 @@ import scipy.sparse as sp
 from spco import knowledge as kn
 from spco.errors import ConfigurationError, SpcoError
 from spco.knowledge.requests import MAX_SENTENCE_CHARS
-from spco.prediction import validate_visual_counts
+from spco.model.prediction import validate_visual_counts
 from spco.service.answers import check_pose
 from spco.service.journal import JournalError, journal_path, read_journal
 
