@@ -56,7 +56,7 @@ __all__ = ["serve"]
               help="The largest image accepted (width × height), checked from its header before decoding.")
 @click.option("--decode-concurrency", default=2, show_default=True, type=click.IntRange(1),
               help="Images decoded at once (one 2048² decode is about 13 MB).")
-@click.option("--max-subscribers", default=32, show_default=True, type=click.IntRange(1),
+@click.option("--max-subscribers", default=8, show_default=True, type=click.IntRange(1),
               help="Event streams (/events) open at once; a stream 256 events behind is closed.")
 @click.option("--session-hours", default=168.0, show_default=True, type=click.FloatRange(0.01),
               help="How long a page's sign-in lasts.")
