@@ -123,7 +123,8 @@ def ros(home: Path, ros_arguments: tuple[str, ...], pose_topic: str, map_frame: 
             from spco.ros.node import run_node
 
             run_node(live, topics, settings, node_name=node_name, uses_images=uses_images,
-                     n_concepts=model.knowledge.n_concepts, ros_arguments=ros_arguments)
+                     n_concepts=model.knowledge.n_concepts, ros_arguments=ros_arguments,
+                     echo=lambda line: click.echo(line, err=True))
 
 
 @click.command(name="ros2", context_settings={"ignore_unknown_options": True, "allow_extra_args": True})
