@@ -338,6 +338,66 @@ def test_remapping_renames_the_node_and_its_topics_and_sigint_stops_it_with_a_la
     assert code == 0 and lines[-1] == "spco ros2: stopped after 0 teachings and 2 answers", lines[-5:]
 
 
+def test_relayed_through_another_python_the_node_answers_and_teaches(ros2_node, tmp_path: Path) -> None:
+    """``--ros-python``: spco in this test's Python (which has no rclpy), the ROS 2 side in the ROS 2
+    environment's Python (as a Humble robot's 3.10), relaying over the child's pipes — camera frames
+    included."""
+    import sys
+
+    _, home, _, _, env, python = ros2_node
+    copy = Path(shutil.copy2(home, tmp_path / "relayed.spco"))
+    log = tmp_path / "relayed.log"
+    with log.open("w") as out:
+        node = subprocess.Popen([sys.executable, "-m", "spco", "ros2", str(copy), "--writer", "thread",
+                                 "--ros-python", python, "--ros-args", *PARAMETERS,
+                                 "-r", "__node:=spco_relayed", "-r", "goal_pose:=/relayed/goal"],
+                                stdout=out, stderr=subprocess.STDOUT, env=env)
+    robot = Robot(python, env, "--node", "/spco_relayed", "--query-topic", "/spco_relayed/query",
+                  "--answer-topic", "/spco_relayed/answer", "--markers-topic", "/spco_relayed/markers",
+                  "--where-topic", "/spco_relayed/where", "--goal-topic", "/relayed/goal")
+    try:
+        assert robot.result(180)["connected"], log.read_text(errors="replace")[-3000:]
+        assert robot("late_markers")["markers"]
+        request = {"id": "q1", "op": "where", "name": "kitchen", "goal": True}
+        answer = robot("query", request=request)["answer"]
+        assert answer is not None and answer["id"] == "q1" and "error" not in answer, answer
+        assert robot("goal")["goal"]["x"] == pytest.approx(answer["goal"]["x"])
+        bad = robot("query", request={"id": "q2", "op": "where", "name": "kichen"})["answer"]
+        assert "kichen" in bad["error"]
+        refused = robot("set_parameters", values={"clock": "sometimes"})["results"][0]
+        assert not refused["successful"] and "clock must be receive or header" in refused["reason"]
+        assert robot("set_parameters", values={"top": 2})["results"][0]["successful"]
+        _look(robot, 6.0)
+        answer = robot("query", request={"id": "q3", "op": "what"})["answer"]
+        # the frame came through the pipe; top 2 as set at run time
+        assert answer["vision"] is True and len(answer["names"]) == 2, answer
+        sent = robot("say", sentence="this is the lounge")["sent"]
+        _look(robot, 6.0, frames=3, seed=2)
+        taught = robot("answer", op="teach", after=sent, timeout=20)["answer"]
+        assert taught is not None and "error" not in taught and taught["new_words"] == ["lounge"], taught
+        assert robot("markers", after=sent)["markers"] is not None
+    finally:
+        robot.close()
+        code = stop(node, signal.SIGINT)
+    lines = log.read_text(errors="replace").strip().splitlines()
+    assert any("node /spco_relayed; listening to pose /pose" in line for line in lines), lines[:5]
+    assert code == 0 and lines[-1] == "spco ros2: stopped after 1 teaching and 4 answers", lines[-5:]
+
+
+def test_the_ros2_side_needs_nothing_of_spco() -> None:
+    """spco/ros/thin.py runs with the robot's Python (Humble: 3.10): it imports the standard library and
+    ROS 2 packages only."""
+    import ast
+    import sys
+
+    tree = ast.parse((ROOT / "src" / "spco" / "ros" / "thin.py").read_text())
+    imported = {(node.module if isinstance(node, ast.ImportFrom) else alias.name).split(".")[0]
+                for node in ast.walk(tree) if isinstance(node, ast.Import | ast.ImportFrom)
+                for alias in node.names}
+    ros = {"rclpy", "geometry_msgs", "rcl_interfaces", "std_msgs", "visualization_msgs", "tf2_msgs"}
+    assert imported - ros <= set(sys.stdlib_module_names) | {"__future__"}, imported - ros
+
+
 def test_arguments_other_than_ros_args_are_refused(tmp_path: Path) -> None:
     from spco.cli.main import main
 

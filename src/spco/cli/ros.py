@@ -136,8 +136,13 @@ def ros(home: Path, ros_arguments: tuple[str, ...], pose_topic: str, map_frame: 
               help="Where teachings are applied (spco.service.LiveHome): a writer process of their own (the "
                    "answers never wait for them), or a thread of the node.")
 @click.option("--seed", default=0, show_default=True, type=int, help="Base seed of the teachings.")
+@click.option("--ros-python", default=None, metavar="PYTHON",
+              help="Run the ROS 2 side with this Python (the robot's: /usr/bin/python3 after sourcing "
+              "/opt/ros/humble/setup.bash) in a child process, relaying to spco here; default: rclpy in "
+              "this process (Jazzy: Python 3.12).")
 @friendly_errors
-def ros2(home: Path, ros_arguments: tuple[str, ...], sweeps: int, writer: str, seed: int) -> None:
+def ros2(home: Path, ros_arguments: tuple[str, ...], sweeps: int, writer: str, seed: int,
+         ros_python: str | None) -> None:
     """Run HOME (a home file, from spco adapt) as a ROS 2 node (rclpy): learn from what the robot
     hears, answer where/what queries, draw its places in RViz2 and Foxglove, send Nav2 goals.
 
@@ -149,8 +154,9 @@ def ros2(home: Path, ros_arguments: tuple[str, ...], sweeps: int, writer: str, s
     id; ~/markers (MarkerArray) and ~/where (PoseArray) are transient local; goal_pose gets a
     PoseStamped when a where query asks ("goal": true) or with -p goal:=true.
 
-    rclpy comes from the robot's ROS 2 installation: source it first (Jazzy: Python 3.12). A
-    Humble robot (Python 3.10) runs the thin node against spco serve instead (docs/ros.md).
+    rclpy comes from the robot's ROS 2 installation: source it first. Jazzy (Python 3.12): spco in
+    a Python 3.12 environment imports it. Humble (Python 3.10, older than spco needs): --ros-python
+    /usr/bin/python3 runs the ROS 2 side with the robot's Python, relaying to spco.
     """
     if ros_arguments and ros_arguments[0] != "--ros-args":
         raise click.UsageError(f"unexpected argument {ros_arguments[0]!r}: after HOME come only ROS 2 "
@@ -164,7 +170,8 @@ def ros2(home: Path, ros_arguments: tuple[str, ...], sweeps: int, writer: str, s
     log = logging.getLogger("spco.ros")
     log.addHandler(handler)
     log.setLevel(logging.INFO)
-    import_rclpy()  # before opening the home: a missing rclpy is one clear error
+    if ros_python is None:
+        import_rclpy()  # before opening the home: a missing rclpy is one clear error
     from spco.ros.ros2 import run_ros2
 
     with LiveHome(home, seed=seed, sweeps=sweeps, writer=writer,
@@ -174,5 +181,5 @@ def ros2(home: Path, ros_arguments: tuple[str, ...], sweeps: int, writer: str, s
         domain = os.environ.get("ROS_DOMAIN_ID", "0")
         click.echo(f"spco ros2: home {model.name} ({model.n_samples} samples, names: "
                    f"{', '.join(model.known_names) or 'none yet'}) on ROS_DOMAIN_ID {domain}", err=True)
-        run_ros2(live, ros_arguments=ros_arguments, uses_images=uses_images,
+        run_ros2(live, ros_arguments=ros_arguments, uses_images=uses_images, ros_python=ros_python,
                  n_concepts=model.knowledge.n_concepts, echo=lambda line: click.echo(line, err=True))

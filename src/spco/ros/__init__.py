@@ -100,7 +100,8 @@ def import_rclpy() -> ModuleType:
     rclpy is a compiled extension built for one Python: the ROS installation's (``source
     /opt/ros/jazzy/setup.bash`` puts it on ``PYTHONPATH``; Jazzy's is Python 3.12). Raises
     :class:`RosUnavailableError` naming what to do when it cannot be imported — including on a
-    Python other than the installation's, e.g. Humble's 3.10, where :mod:`spco.ros.thin` runs instead.
+    Python other than the installation's (Humble's 3.10: ``spco ros2 --ros-python`` runs
+    :mod:`spco.ros.thin` with it instead).
     """
     try:
         rclpy = importlib.import_module("rclpy")
@@ -109,8 +110,8 @@ def import_rclpy() -> ModuleType:
             f"rclpy cannot be imported by Python {sys.version_info.major}.{sys.version_info.minor} ({exc}): "
             "source the ROS 2 installation first (source /opt/ros/jazzy/setup.bash; Jazzy's rclpy is for "
             "Python 3.12, so run spco from a Python 3.12 environment made with --system-site-packages); "
-            "on Humble (Python 3.10) run the thin node, python3 -m spco_ros2_thin, against spco serve "
-            "(docs/ros.md)") from None
+            "on Humble (Python 3.10) give spco ros2 --ros-python /usr/bin/python3 to run the ROS 2 side "
+            "with the robot's Python (docs/ros.md)") from None
     for name in ROS2_MESSAGE_MODULES:
         try:
             importlib.import_module(name)

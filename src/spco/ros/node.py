@@ -193,4 +193,5 @@ def run_node(home: Any, topics: Topics, settings: NodeSettings, *, node_name: st
         ready(core)
     rospy.spin()
     core.stop()
-    echo(f"spco ros: stopped after {core.taught} teachings and {core.answered} answers")
+    echo(f"spco ros: stopped after {core.taught} teaching{'' if core.taught == 1 else 's'} and "
+         f"{core.answered} answer{'' if core.answered == 1 else 's'}")

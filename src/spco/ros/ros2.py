@@ -1,160 +1,45 @@
-"""``spco ros2 HOME.spco``: the node for ROS 2 (Humble, Jazzy), with rclpy, in spco's own process.
+"""``spco ros2 HOME.spco``: the node for ROS 2 (Humble, Jazzy): the node's core
+(:class:`spco.ros.core.NodeCore`, the same as the ROS 1 node's) on the ROS 2 graph through
+:mod:`spco.ros.thin` (rclpy: parameters, topics, QoS, messages).
 
-The same behaviour as the ROS 1 node (:mod:`spco.ros.node`) through the same core
-(:class:`spco.ros.core.NodeCore`), the way a ROS 2 node is configured and wired:
+Two ways to run, the same node on the graph:
 
-- **parameters** (:data:`PARAMETERS`), declared with descriptions and ranges: set at start with
-  ``--ros-args -p tolerance:=1.0`` (or ``--params-file``), read and changed at run time through the
-  node's ``rcl_interfaces`` services (``ros2 param get|set /spco …``). The topic parameters are
-  read-only (they choose the subscriptions); the others take effect with the next message;
-- **names**: the node's own topics are private (``~/query`` is ``/spco/query`` for a node named
-  ``spco``), the goal is ``goal_pose`` (``/goal_pose``, Nav2's), and every name can be remapped
-  (``--ros-args -r __node:=spco_kitchen -r __ns:=/robot1 -r /spco/query:=/hsr/query``);
-- **QoS**: the pose and camera are subscribed best-effort (sensor data: compatible with reliable and
-  best-effort publishers), speech and queries reliable, answers reliable, the markers and the last
-  ``where`` poses reliable and transient local (RViz2 and Foxglove get them on connect), the goal
-  reliable and volatile (as RViz2's "2D Goal Pose");
-- **types**: the pose topic may carry ``PoseWithCovarianceStamped`` (AMCL's ``/amcl_pose``),
-  ``PoseStamped`` or ``Odometry``, the camera ``Image`` or ``CompressedImage``: with ``pose_type`` or
-  ``image_type`` ``auto`` (the default) the node subscribes once a publisher has announced the type
-  on the graph; ``/tf`` (the default pose topic) composes ``map_frame`` → ``robot_frame`` from
-  ``/tf`` and ``/tf_static``.
+- **in process** (the default): spco's own Python imports rclpy — a Jazzy robot's (Python 3.12,
+  ``source /opt/ros/jazzy/setup.bash`` and a Python 3.12 environment for spco);
+- **relayed** (``--ros-python /usr/bin/python3``): the ROS 2 side runs in a child process of the
+  robot's Python (:func:`spco.ros.thin.relay_main`, which needs nothing of spco), and spco keeps the
+  core in its own Python, relaying over the child's stdin and stdout — for a Humble robot, whose
+  rclpy is for Python 3.10 while spco needs 3.11 or later.
 
-rclpy comes from the robot's ROS installation (``/opt/ros/<distro>``), for that installation's
-Python: Jazzy's Python 3.12 runs this module (spco needs 3.11 or later); a Humble robot (Python
-3.10) runs :mod:`spco.ros.thin` with its own Python instead, against ``spco serve``.
+See :mod:`spco.ros.thin` for the parameters, names and QoS.
 """
 
 from __future__ import annotations
 
-import array
-import importlib
 import logging
+import os
 import signal
+import subprocess
 import threading
+import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
-from spco.errors import ConfigurationError
+from spco.errors import ConfigurationError, SpcoError
 from spco.ros import RosUnavailableError, import_rclpy
 from spco.ros.core import NodeCore, NodeSettings
+from spco.ros.thin import ParameterError, Ros2Transport, read_frame, write_frame
 
-__all__ = ["PARAMETERS", "Parameter2", "fill_message", "message_to_dict", "run_ros2"]
+__all__ = ["THIN_NODE", "run_ros2", "settings_of"]
 
 log = logging.getLogger("spco.ros")
 
-#: Accepted types of the pose and camera topics (ROS 2 names).
-POSE_TYPES = ("geometry_msgs/msg/PoseWithCovarianceStamped", "geometry_msgs/msg/PoseStamped",
-              "nav_msgs/msg/Odometry")
-IMAGE_TYPES = ("sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage")
+#: The ROS 2 side as a script for the robot's Python (``--ros-python``).
+THIN_NODE = Path(__file__).with_name("thin.py")
 
 
-@dataclass(frozen=True)
-class Parameter2:
-    """A parameter of the node: its default, description, whether it is read-only, and its range."""
-
-    default: Any
-    description: str
-    read_only: bool = False
-    low: float | None = None
-    high: float | None = None
-
-
-#: The node's parameters (``ros2 param describe /spco NAME`` shows the description).
-PARAMETERS: dict[str, Parameter2] = {
-    "pose_topic": Parameter2("/tf", "The robot's pose on the map: a PoseWithCovarianceStamped (AMCL's "
-                             "/amcl_pose), PoseStamped or Odometry topic, or /tf (map_frame -> robot_frame "
-                             "from /tf and /tf_static)", read_only=True),
-    "pose_type": Parameter2("auto", "The pose topic's type: auto (as its publisher announces it), "
-                            "PoseWithCovarianceStamped, PoseStamped or Odometry", read_only=True),
-    "image_topic": Parameter2("", "The camera: sensor_msgs/Image (rgb8, bgr8, mono8, rgba8, bgra8) or "
-                              "CompressedImage (JPEG, PNG); empty: no camera", read_only=True),
-    "image_type": Parameter2("auto", "The camera topic's type: auto, Image or CompressedImage",
-                             read_only=True),
-    "speech_topic": Parameter2("", "What people say (std_msgs/String): each utterance is taught at the pose "
-                               "and camera frame nearest to it; empty: the node only answers queries",
-                               read_only=True),
-    "map_frame": Parameter2("map", "The map's frame: poses in another frame are refused; the frame of the "
-                            "goal, the where poses and the markers"),
-    "robot_frame": Parameter2("base_footprint", "The robot's frame (pose_topic /tf)"),
-    "tolerance": Parameter2(0.5, "Seconds an utterance's pose and camera frame may be from it", low=0.001,
-                            high=30.0),
-    "image_wait": Parameter2(-1.0, "Seconds to wait after an utterance for a camera frame (negative: the "
-                             "tolerance)", low=-1.0, high=30.0),
-    "clock": Parameter2("receive", "Times of messages: receive (when they arrive; any clocks) or header "
-                        "(their header stamps; clocks kept in step)"),
-    "max_age": Parameter2(2.0, "Seconds after which the last pose and frame are no longer the robot's "
-                          "current ones (what queries)", low=0.001, high=3600.0),
-    "goal": Parameter2(False, "Publish the best pose of every where answer on goal_pose (else only when the "
-                       "query says \"goal\": true)"),
-    "n": Parameter2(10, "Poses a where answer gives when the query does not say", low=1, high=1000),
-    "top": Parameter2(3, "Names a what answer gives when the query does not say", low=1, high=100),
-}
-
-_TYPE_ALIASES = {"posewithcovariancestamped": POSE_TYPES[0], "posestamped": POSE_TYPES[1],
-                 "odometry": POSE_TYPES[2], "image": IMAGE_TYPES[0], "compressedimage": IMAGE_TYPES[1]}
-
-
-def _full_type(value: str, accepted: tuple[str, ...], parameter: str) -> str | None:
-    """``None`` for auto, else the full ROS 2 type name of ``value`` (short or full)."""
-    text = value.strip()
-    if text.lower() in ("", "auto"):
-        return None
-    full = _TYPE_ALIASES.get(text.lower(), text if text in accepted else "")
-    if full not in accepted:
-        names = ", ".join(t.rsplit("/", 1)[-1] for t in accepted)
-        raise ConfigurationError(f"parameter {parameter}: {value!r} is not a type the node reads "
-                                 f"(auto, {names})")
-    return full
-
-
-def _message_class(type_name: str) -> Any:
-    """The Python class of a ROS 2 type, ``pkg/msg/Name`` or ``pkg/Name``."""
-    parts = type_name.split("/")
-    package, name = parts[0], parts[-1]
-    return getattr(importlib.import_module(f"{package}.msg"), name)
-
-
-def message_to_dict(msg: Any) -> Any:
-    """An rclpy message as nested dicts and lists, as rosbridge sends it (times ``{"sec", "nanosec"}``),
-    ``uint8[]`` (image data) as ``bytes``, other arrays as lists."""
-    fields = getattr(msg, "get_fields_and_field_types", None)
-    if fields is not None:
-        return {name: message_to_dict(getattr(msg, name)) for name in fields()}
-    if isinstance(msg, array.array):
-        return msg.tobytes() if msg.typecode == "B" else msg.tolist()
-    if isinstance(msg, bytes | bytearray):
-        return bytes(msg)
-    if isinstance(msg, list | tuple):
-        return [message_to_dict(v) for v in msg]
-    tolist = getattr(msg, "tolist", None)  # NumPy arrays (covariances)
-    return tolist() if tolist is not None else msg
-
-
-def fill_message(cls: Any, data: Mapping[str, Any]) -> Any:
-    """An instance of the rclpy message class ``cls`` filled from ``data`` (nested dicts and lists, as
-    :mod:`spco.ros.messages` makes them; fields not given keep their defaults). Raises
-    :class:`~spco.errors.ConfigurationError` for a field the message does not have."""
-    msg = cls()
-    types = cls.get_fields_and_field_types()
-    for key, value in data.items():
-        kind = types.get(key)
-        if kind is None:
-            raise ConfigurationError(f"{cls.__name__} has no field {key!r}")
-        if kind.startswith("sequence<") and "/" in kind:
-            element = _message_class(kind[len("sequence<"):].split(",")[0].rstrip(">"))
-            setattr(msg, key, [fill_message(element, v) for v in value])
-        elif "/" in kind and not kind.endswith("]"):
-            setattr(msg, key, fill_message(_message_class(kind), value))
-        elif kind in ("double", "float"):
-            setattr(msg, key, float(value))
-        else:
-            setattr(msg, key, value)
-    return msg
-
-
-def _settings_of(values: Mapping[str, Any]) -> NodeSettings:
+def settings_of(values: Mapping[str, Any]) -> NodeSettings:
     """The :class:`NodeSettings` of the node's parameter values (raises ConfigurationError)."""
     wait = float(values["image_wait"])
     return NodeSettings(tolerance=float(values["tolerance"]), image_wait=None if wait < 0 else wait,
@@ -164,8 +49,59 @@ def _settings_of(values: Mapping[str, Any]) -> NodeSettings:
                         n=int(values["n"]), top=int(values["top"]))
 
 
+def _count(n: int, noun: str) -> str:
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
+class _CoreBackend:
+    """The transport's messages handed to the core in this process."""
+
+    def __init__(self) -> None:
+        self.core: NodeCore | None = None
+        self.settings: NodeSettings | None = None
+
+    def check(self, values: Mapping[str, Any]) -> str | None:
+        try:
+            settings = settings_of(values)
+        except (ConfigurationError, TypeError, ValueError) as exc:
+            return str(exc)
+        self.settings = settings
+        if self.core is not None:
+            self.core.settings = settings
+        return None
+
+    def pose(self, msg: dict[str, Any], received: float) -> None:
+        assert self.core is not None
+        self.core.on_pose(msg, received)
+
+    def tf(self, msg: dict[str, Any], static: bool, received: float) -> None:
+        assert self.core is not None
+        self.core.on_tf(msg, static, received)
+
+    def image(self, msg: dict[str, Any], received: float) -> None:
+        assert self.core is not None
+        self.core.on_image(msg, received)
+
+    def speech(self, text: str, received: float) -> None:
+        assert self.core is not None
+        self.core.on_speech(text, received)
+
+    def query(self, text: str) -> None:
+        assert self.core is not None
+        self.core.on_query(text)
+
+
+def _signals(stop: threading.Event) -> dict[int, Any]:
+    previous: dict[int, Any] = {}
+    if threading.current_thread() is threading.main_thread():
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            previous[sig] = signal.signal(sig, lambda *_: stop.set())
+    return previous
+
+
 def run_ros2(home: Any, *, ros_arguments: Sequence[str] = (), node_name: str = "spco",
-             uses_images: bool = True, n_concepts: int = 10, stop: threading.Event | None = None,
+             uses_images: bool = True, n_concepts: int = 10, ros_python: str | None = None,
+             stop: threading.Event | None = None,
              ready: Callable[[NodeCore, Mapping[str, str]], None] | None = None,
              echo: Callable[[str], None] = print) -> dict[str, int]:
     """Run the ROS 2 node until SIGINT/SIGTERM (or ``stop`` is set); return ``{"taught", "answered"}``.
@@ -176,182 +112,173 @@ def run_ros2(home: Any, *, ros_arguments: Sequence[str] = (), node_name: str = "
     ros_arguments: ROS 2 arguments (``--ros-args -p tolerance:=1.0 -r __node:=spco2 …``).
     node_name: the node's name unless remapped (``-r __node:=…``).
     uses_images, n_concepts: see :class:`~spco.ros.core.NodeCore`.
+    ros_python: run the ROS 2 side with this Python (the robot's, whose rclpy it imports) in a
+        child process; ``None``: in this process.
     stop: an event that ends the node (default: set by SIGINT and SIGTERM).
-    ready: called with the core and the node's resolved topic names once it is set up.
+    ready: called with the core and the node's resolved names once it is set up.
     echo: where the start-up and last lines go.
 
     ``ROS_DOMAIN_ID`` and ``ROS_AUTOMATIC_DISCOVERY_RANGE`` (Jazzy) or ``ROS_LOCALHOST_ONLY`` (Humble)
     come from the environment, as for any ROS 2 node.
     """
-    rclpy = import_rclpy()
-    from geometry_msgs.msg import PoseArray, PoseStamped
-    from rcl_interfaces.msg import (
-        FloatingPointRange,
-        IntegerRange,
-        ParameterDescriptor,
-        SetParametersResult,
-    )
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.qos import (
-        DurabilityPolicy,
-        HistoryPolicy,
-        QoSProfile,
-        ReliabilityPolicy,
-        qos_profile_sensor_data,
-    )
-    from rclpy.signals import SignalHandlerOptions
-    from std_msgs.msg import String
-    from visualization_msgs.msg import MarkerArray
-
-    context = rclpy.Context()
-    rclpy.init(args=["spco", *ros_arguments], context=context, signal_handler_options=SignalHandlerOptions.NO)
-    node = rclpy.create_node(node_name, context=context)
+    stop = stop or threading.Event()
+    if ros_python is not None:
+        return _run_relayed(home, ros_python, ros_arguments, node_name, uses_images, n_concepts, stop, ready,
+                            echo)
+    import_rclpy()
+    backend = _CoreBackend()
     try:
-        values: dict[str, Any] = {}
-        for name, spec in PARAMETERS.items():
-            descriptor = ParameterDescriptor(description=spec.description, read_only=spec.read_only)
-            ranged = spec.low is not None and spec.high is not None
-            if ranged and isinstance(spec.default, float):
-                descriptor.floating_point_range = [FloatingPointRange(from_value=spec.low,
-                                                                      to_value=spec.high)]
-            elif ranged and isinstance(spec.default, int) and not isinstance(spec.default, bool):
-                descriptor.integer_range = [IntegerRange(from_value=int(spec.low), to_value=int(spec.high),
-                                                         step=1)]
-            values[name] = node.declare_parameter(name, spec.default, descriptor).value
-        settings = _settings_of(values)
-        pose_type = _full_type(str(values["pose_type"]), POSE_TYPES, "pose_type")
-        image_type = _full_type(str(values["image_type"]), IMAGE_TYPES, "image_type")
-
-        keep_last = HistoryPolicy.KEEP_LAST
-        reliable = QoSProfile(history=keep_last, depth=100, reliability=ReliabilityPolicy.RELIABLE,
-                              durability=DurabilityPolicy.VOLATILE)
-        latched = QoSProfile(history=keep_last, depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        best_effort = QoSProfile(history=keep_last, depth=100, reliability=ReliabilityPolicy.BEST_EFFORT,
-                                 durability=DurabilityPolicy.VOLATILE)
-        answers = node.create_publisher(String, "~/answer", reliable)
-        goals = node.create_publisher(PoseStamped, "goal_pose", QoSProfile(depth=10))
-        poses = node.create_publisher(PoseArray, "~/where", latched)
-        markers = node.create_publisher(MarkerArray, "~/markers", latched)
-
-        def now() -> float:
-            return node.get_clock().now().nanoseconds * 1e-9
-
-        core = NodeCore(home, settings,
-                        publish_answer=lambda d: answers.publish(String(data=d["data"])),
-                        publish_goal=lambda d: goals.publish(fill_message(PoseStamped, d)),
-                        publish_markers=lambda d: markers.publish(fill_message(MarkerArray, d)),
-                        publish_poses=lambda d: poses.publish(fill_message(PoseArray, d)),
-                        now=now, uses_images=uses_images, n_concepts=n_concepts)
-
-        def on_parameters(changes: list[Any]) -> Any:
-            merged = {k: node.get_parameter(k).value for k in PARAMETERS}
-            merged.update({p.name: p.value for p in changes})
-            try:
-                new = _settings_of(merged)
-            except (ConfigurationError, TypeError, ValueError) as exc:
-                return SetParametersResult(successful=False, reason=str(exc))
-            core.settings = new
-            log.info("spco ros2: parameters %s", ", ".join(f"{p.name}={p.value!r}" for p in changes))
-            return SetParametersResult(successful=True)
-
-        node.add_on_set_parameters_callback(on_parameters)
-
-        subscriptions: list[Any] = [node.create_subscription(String, "~/query",
-                                                             lambda m: core.on_query(m.data), reliable)]
-        if values["speech_topic"]:
-            subscriptions.append(node.create_subscription(String, str(values["speech_topic"]),
-                                                          lambda m: core.on_speech(m.data, now()), reliable))
-        pose_topic = str(values["pose_topic"])
-        pending: dict[str, tuple[tuple[str, ...], Callable[[dict[str, Any], float], None], Any]] = {}
-
-        def subscribe_typed(topic: str, type_name: str, handle: Callable[[dict[str, Any], float], None],
-                            qos: Any) -> Any:
-            return node.create_subscription(_message_class(type_name), topic,
-                                            lambda m: handle(message_to_dict(m), now()), qos)
-
-        if pose_topic.strip("/") == "tf":
-            try:
-                from tf2_msgs.msg import TFMessage
-            except ImportError:
-                raise RosUnavailableError("pose_topic /tf needs the tf2_msgs package (ros-<distro>-tf2-msgs, "
-                                          "part of any ROS 2 installation); or give a pose topic "
-                                          "(-p pose_topic:=/amcl_pose)") from None
-            static_qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
-                                    reliability=ReliabilityPolicy.RELIABLE,
-                                    durability=DurabilityPolicy.TRANSIENT_LOCAL)
-            subscriptions.append(node.create_subscription(
-                TFMessage, "/tf", lambda m: core.on_tf(message_to_dict(m), False, now()), best_effort))
-            subscriptions.append(node.create_subscription(
-                TFMessage, "/tf_static", lambda m: core.on_tf(message_to_dict(m), True, now()), static_qos))
-        elif pose_type is not None:
-            subscriptions.append(subscribe_typed(pose_topic, pose_type, core.on_pose, best_effort))
-        else:
-            pending[pose_topic] = (POSE_TYPES, core.on_pose, best_effort)
-        image_topic = str(values["image_topic"])
-        if image_topic:
-            camera_qos = qos_profile_sensor_data  # best effort, the newest 5 frames
-            if image_type is not None:
-                subscriptions.append(subscribe_typed(image_topic, image_type, core.on_image, camera_qos))
-            else:
-                pending[image_topic] = (IMAGE_TYPES, core.on_image, camera_qos)
-        refused: set[tuple[str, str]] = set()
-
-        def resolve_types() -> None:
-            """Subscribe the topics whose type was ``auto`` once a publisher announces an accepted type."""
-            if not pending:
-                return
-            known = dict(node.get_topic_names_and_types())
-            for topic in list(pending):
-                resolved = node.resolve_topic_name(topic)
-                accepted, handle, qos = pending[topic]
-                for type_name in known.get(resolved, ()):
-                    if type_name in accepted:
-                        subscriptions.append(subscribe_typed(topic, type_name, handle, qos))
-                        log.info("spco ros2: %s is %s", resolved, type_name)
-                        del pending[topic]
-                        break
-                    if (resolved, type_name) not in refused:
-                        refused.add((resolved, type_name))
-                        log.error("spco ros2: %s carries %s; expected %s", resolved, type_name,
-                                  " or ".join(accepted))
-        timer = node.create_timer(0.25, resolve_types)
-        resolve_types()
-
-        stop = stop or threading.Event()
-        previous: dict[int, Any] = {}
-        if threading.current_thread() is threading.main_thread():
-            for sig in (signal.SIGINT, signal.SIGTERM):
-                previous[sig] = signal.signal(sig, lambda *_: stop.set())
+        transport = Ros2Transport(backend, ros_arguments, node_name=node_name, echo=echo)
+    except ParameterError as exc:
+        raise ConfigurationError(str(exc)) from None
+    assert backend.settings is not None
+    core = NodeCore(home, backend.settings, publish_answer=transport.publish_answer,
+                    publish_goal=transport.publish_goal, publish_markers=transport.publish_markers,
+                    publish_poses=transport.publish_poses, now=transport.now, uses_images=uses_images,
+                    n_concepts=n_concepts)
+    backend.core = core
+    previous = _signals(stop)
+    try:
         core.start()
-        from_tf = pose_topic.strip("/") == "tf"
-        names = {"query": node.resolve_topic_name("~/query"), "answer": answers.topic_name,
-                 "markers": markers.topic_name, "where": poses.topic_name, "goal": goals.topic_name,
-                 "pose": "/tf + /tf_static" if from_tf else node.resolve_topic_name(pose_topic),
-                 "image": node.resolve_topic_name(image_topic) if image_topic else "(none)",
-                 "speech": node.resolve_topic_name(str(values["speech_topic"])) if values["speech_topic"]
-                 else "(none)"}
-        echo(f"spco ros2: node {node.get_fully_qualified_name()}; listening to pose {names['pose']}, image "
-             f"{names['image']}, speech {names['speech']}; queries on {names['query']}, answers on "
-             f"{names['answer']}, markers on {names['markers']}, where poses on {names['where']}, goals on "
-             f"{names['goal']} ({'every where' if settings.goal else 'when a query asks'})")
         if ready is not None:
-            ready(core, names)
-        executor = SingleThreadedExecutor(context=context)
-        executor.add_node(node)
-        try:
-            while not stop.is_set() and context.ok():
-                executor.spin_once(timeout_sec=0.1)
-        finally:
-            core.stop()
-            for sig, handler in previous.items():
-                signal.signal(sig, handler)
-            timer.cancel()
-            executor.shutdown(timeout_sec=1.0)
+            ready(core, transport.names)
+        transport.spin(stop)
     finally:
-        node.destroy_node()
-        if context.ok():
-            rclpy.shutdown(context=context)
+        core.stop()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        transport.close()
     counts = {"taught": core.taught, "answered": core.answered}
-    echo(f"spco ros2: stopped after {counts['taught']} teachings and {counts['answered']} answers")
+    echo(f"spco ros2: stopped after {_count(counts['taught'], 'teaching')} and "
+         f"{_count(counts['answered'], 'answer')}")
+    return counts
+
+
+class _RelayClock:
+    """The robot process's clock (ROS time) as last reported, advanced by this process's monotonic clock."""
+
+    def __init__(self) -> None:
+        self.robot = time.time()
+        self.local = time.monotonic()
+
+    def seen(self, robot_time: float) -> None:
+        self.robot, self.local = robot_time, time.monotonic()
+
+    def __call__(self) -> float:
+        return self.robot + (time.monotonic() - self.local)
+
+
+def _run_relayed(home: Any, ros_python: str, ros_arguments: Sequence[str], node_name: str, uses_images: bool,
+                 n_concepts: int, stop: threading.Event,
+                 ready: Callable[[NodeCore, Mapping[str, str]], None] | None,
+                 echo: Callable[[str], None]) -> dict[str, int]:
+    """The core here, the ROS 2 side in ``ros_python`` running :data:`THIN_NODE`."""
+    env = dict(os.environ, SPCO_ROS2_NODE_NAME=node_name)
+    try:
+        child = subprocess.Popen([ros_python, str(THIN_NODE), *ros_arguments], stdin=subprocess.PIPE,
+                                 stdout=subprocess.PIPE, env=env, start_new_session=True)
+    except OSError as exc:
+        raise RosUnavailableError(f"--ros-python {ros_python}: cannot start it ({exc})") from None
+    assert child.stdin is not None and child.stdout is not None
+    to_child, lock = child.stdin, threading.Lock()
+
+    def send(kind: str, msg: Mapping[str, Any]) -> None:
+        with lock:
+            try:
+                write_frame(to_child, {"kind": kind, "msg": msg})
+            except (BrokenPipeError, ValueError):
+                stop.set()
+
+    clock = _RelayClock()
+    box: dict[str, Any] = {}
+    previous = _signals(stop)
+    core: NodeCore | None = None
+
+    def dispatch() -> None:
+        nonlocal core
+        while True:
+            frame = read_frame(child.stdout)  # type: ignore[arg-type]
+            if frame is None:
+                stop.set()
+                return
+            header, payload = frame
+            kind = header.get("kind")
+            if "received" in header:
+                clock.seen(float(header["received"]))
+            try:
+                if kind == "check":
+                    try:
+                        settings = settings_of(header["values"])
+                        reason = None
+                    except (ConfigurationError, TypeError, ValueError, KeyError) as exc:
+                        reason, settings = str(exc), None
+                    if settings is not None:
+                        box["settings"] = settings
+                        if core is not None:
+                            core.settings = settings
+                    with lock:
+                        write_frame(to_child, {"kind": "checked", "ask": header.get("ask"), "reason": reason})
+                elif kind == "started":
+                    echo(str(header["line"]))
+                elif kind == "names":
+                    box["names"] = header["names"]
+                    box["ready"].set()
+                elif kind == "failed":
+                    box["failed"] = header["error"]
+                    box["ready"].set()
+                elif core is None:
+                    continue
+                elif kind == "query":
+                    core.on_query(header["text"])
+                elif kind == "speech":
+                    core.on_speech(header["text"], header["received"])
+                elif kind == "pose":
+                    core.on_pose(header["msg"], header["received"])
+                elif kind == "tf":
+                    core.on_tf(header["msg"], bool(header["static"]), header["received"])
+                elif kind == "image":
+                    core.on_image({**header["msg"], "data": payload}, header["received"])
+            except SpcoError:
+                log.exception("spco ros2: a %s from the robot's process could not be used", kind)
+
+    box["ready"] = threading.Event()
+    reader = threading.Thread(target=dispatch, name="spco-relay", daemon=True)
+    reader.start()
+    try:
+        while not box["ready"].wait(0.2):
+            if stop.is_set() or child.poll() is not None:
+                raise RosUnavailableError(f"the ROS 2 side ({ros_python} {THIN_NODE.name}) stopped before "
+                                          f"it was up (exit code {child.poll()}): does that Python import "
+                                          "rclpy? (source /opt/ros/<distro>/setup.bash first)")
+        if "failed" in box:
+            raise ConfigurationError(box["failed"])
+        core = NodeCore(home, box["settings"], publish_answer=lambda d: send("answer", d),
+                        publish_goal=lambda d: send("goal", d), publish_markers=lambda d: send("markers", d),
+                        publish_poses=lambda d: send("poses", d), now=clock, uses_images=uses_images,
+                        n_concepts=n_concepts)
+        core.start()
+        if ready is not None:
+            ready(core, box["names"])
+        while not stop.wait(0.2):
+            if child.poll() is not None:
+                break
+    finally:
+        if core is not None:
+            core.stop()
+        with lock:
+            try:
+                write_frame(to_child, {"kind": "stop"})
+                to_child.close()
+            except (BrokenPipeError, ValueError, OSError):
+                pass
+        try:
+            child.wait(10)
+        except subprocess.TimeoutExpired:
+            child.kill()
+            child.wait()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    counts = {"taught": core.taught if core else 0, "answered": core.answered if core else 0}
+    echo(f"spco ros2: stopped after {_count(counts['taught'], 'teaching')} and "
+         f"{_count(counts['answered'], 'answer')}")
     return counts
