@@ -99,12 +99,14 @@ def _server_class() -> type:
 def serve(home: str | PathLike[str], host: str = "127.0.0.1", port: int = 8765, token_file: str | None = None,
           map_image: str | None = None, map_extent: tuple[float, float, float, float] | None = None,
           seed: int | None = None, writer: str = "process", say: Callable[[str], None] | None = None,
-          **app_options: Any) -> None:
+          attach: Callable[[Any], Callable[[], None]] | None = None, **app_options: Any) -> None:
     """Serve the home file ``home`` over HTTP until interrupted (see :mod:`spco.service.app`).
 
     Binds ``host`` only if it is loopback or a ``token_file`` is given (else
     :class:`ConfigurationError`); ``port`` 0 takes a free port. ``say`` prints the address and
-    what start-up found (default: standard error).
+    what start-up found (default: standard error). ``attach`` is called with the resident home
+    (:class:`~spco.service.live.LiveHome`) once it is open and returns what to call before it closes
+    (``spco serve --foxglove`` attaches its Foxglove stream so).
     """
     import uvicorn
 
@@ -133,6 +135,7 @@ def serve(home: str | PathLike[str], host: str = "127.0.0.1", port: int = 8765, 
         if live.startup.get("replayed"):
             say(f"Replayed {live.startup['replayed']} teachings from {live.journal_path} and compacted them "
                 f"into {home}.")
+        detach = attach(live) if attach is not None else None
         app = create_app(live, token=token, map_image=map_image, map_extent=map_extent, **app_options)
         config = uvicorn.Config(app, log_level="warning", access_log=False, lifespan="off",
                                 timeout_graceful_shutdown=3, server_header=False, date_header=False)
@@ -140,7 +143,11 @@ def serve(home: str | PathLike[str], host: str = "127.0.0.1", port: int = 8765, 
         h = live.home
         say(f"Serving home {h.name} ({h.n_samples} samples, {h.n_taught} taught) from {home} at {address}/ "
             f"(page), {address}/openapi.json (API); writer process {live.writer_pid}. Ctrl-C to stop.")
-        server.run(sockets=[sock])  # until Ctrl-C or SIGTERM
+        try:
+            server.run(sockets=[sock])  # until Ctrl-C or SIGTERM
+        finally:
+            if detach is not None:
+                detach()
     finally:
         live.close()
         sock.close()
