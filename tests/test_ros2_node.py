@@ -398,6 +398,32 @@ def test_the_ros2_side_needs_nothing_of_spco() -> None:
     assert imported - ros <= set(sys.stdlib_module_names) | {"__future__"}, imported - ros
 
 
+def _python310() -> str | None:
+    import glob
+
+    found = shutil.which("python3.10")
+    if found and subprocess.run([found, "--version"], capture_output=True).returncode == 0:
+        return found
+    candidates = sorted(glob.glob(os.path.expanduser("~/.pyenv/versions/3.10*/bin/python3.10")))
+    return candidates[-1] if candidates else None
+
+
+def test_the_ros2_side_imports_and_relays_with_python_3_10(tmp_path: Path) -> None:
+    """Humble's Python is 3.10: spco/ros/thin.py loads with it and its relay frames round-trip."""
+    python = _python310()
+    if python is None:
+        missing_tool("no Python 3.10 here (Humble's Python), to load spco/ros/thin.py with")
+    script = "\n".join([
+        "import io, sys; sys.path.insert(0, sys.argv[1]); import thin",
+        "b = io.BytesIO(); thin.write_frame(b, {'kind': 'image', 'msg': {}}, bytes([0, 1]))",
+        "b.seek(0); print(thin.read_frame(b)[0]['kind'], thin.read_frame(b))",
+        "print(thin.full_type('PoseStamped', thin.POSE_TYPES, 'pose_type'), sorted(thin.PARAMETERS)[0])"])
+    result = subprocess.run([python, "-c", script, str(ROOT / "src" / "spco" / "ros")], capture_output=True,
+                            text=True, timeout=60, cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split() == ["image", "None", "geometry_msgs/msg/PoseStamped", "clock"]
+
+
 def test_arguments_other_than_ros_args_are_refused(tmp_path: Path) -> None:
     from spco.cli.main import main
 
