@@ -78,12 +78,7 @@ class Robot:
         self.clients = {"get": n.create_client(GetParameters, f"{node_name}/get_parameters"),
                         "set": n.create_client(SetParameters, f"{node_name}/set_parameters"),
                         "describe": n.create_client(DescribeParameters, f"{node_name}/describe_parameters")}
-        try:  # rclpy's events executor (Jazzy): the robot's own overhead per message stays small
-            from rclpy.experimental import EventsExecutor
-
-            self.executor = EventsExecutor()
-        except ImportError:
-            self.executor = MultiThreadedExecutor(num_threads=2)
+        self.executor = MultiThreadedExecutor(num_threads=2)
         self.executor.add_node(n)
         self.thread = threading.Thread(target=self.executor.spin, daemon=True)
         self.thread.start()
