@@ -5,7 +5,7 @@ Run with the ROS 2 environment's Python (``bash .ci/ros2-venv`` makes ``.venv-ro
 
     .venv-ros2/bin/python benchmarks/ros2_latency.py --queries 1000 --utterances 20
 
-It builds a tour home (:func:`spco.ros.testing.tour_home`: three tours fitted, a fourth adapted, 80
+It builds a tour home (``tests/ros_harness.py``: three tours fitted, a fourth adapted, 80
 samples), starts ``spco ros2`` on it in a process of its own (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``,
 a domain of its own) with ``-p pose_topic:=/pose -p image_topic:=/camera/image/compressed -p
 speech_topic:=/speech``, and plays the robot in this process with rclpy (tests/ros2_robot.py's
@@ -53,10 +53,10 @@ class Drive(threading.Thread):
                  size: tuple[int, int] = (640, 480)) -> None:
         super().__init__(daemon=True)
         import cv2
+        from ros_harness import tour_pose
         from sensor_msgs.msg import CompressedImage
 
         from spco.data.bagtour import view
-        from spco.ros.testing import tour_pose
 
         self.robot, self.camera, self.pose_hz, self.image_hz = robot, camera, pose_hz, image_hz
         self.tour_pose = tour_pose
@@ -110,9 +110,9 @@ def main() -> None:
                  f"{exc}")
     sys.path.insert(0, str(ROOT / "tests"))
     from ros2_robot import Robot
+    from ros_harness import tour_home
 
     from spco.data.bagtour import ROOMS, room_at
-    from spco.ros.testing import tour_home
 
     folder = args.dir or Path(tempfile.mkdtemp(prefix="spco-ros2-bench-"))
     folder.mkdir(parents=True, exist_ok=True)

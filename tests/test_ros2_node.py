@@ -146,7 +146,7 @@ def ros2_node(tmp_path_factory: pytest.TempPathFactory, tour_home_file: Path):
 
 def _look(robot: Robot, distance: float, frames: int = 3, seed: int = 0) -> None:
     """Publish the robot's pose at ``distance`` along the tour and a few camera frames of it."""
-    from spco.ros.testing import SWAPPED_ROOM_COLOURS, tour_pose
+    from ros_harness import SWAPPED_ROOM_COLOURS, tour_pose
 
     x, y, theta = tour_pose(distance)
     rng = np.random.default_rng(seed)
@@ -267,7 +267,7 @@ def test_parameters_set_at_run_time_take_effect_and_bad_values_are_refused(ros2_
 
 def test_an_utterance_is_taught_at_the_current_pose_and_the_markers_follow(ros2_node) -> None:
     robot, home, _, _, _, _ = ros2_node
-    from spco.ros.testing import tour_pose
+    from ros_harness import tour_pose
 
     before = robot("markers")["count"]
     _look(robot, 1.5, frames=1)
@@ -290,7 +290,7 @@ def test_an_utterance_is_taught_at_the_current_pose_and_the_markers_follow(ros2_
 
 def test_an_utterance_without_a_camera_frame_is_not_taught_and_says_why(ros2_node) -> None:
     robot = ros2_node[0]
-    from spco.ros.testing import tour_pose
+    from ros_harness import tour_pose
 
     x, y, theta = tour_pose(9.0)
     robot("pose", x=x, y=y, theta=theta)
