@@ -230,7 +230,8 @@ def test_bad_queries_get_a_clear_error_on_the_answer_topic_and_the_node_stays_up
     ]
     for request, expected_id, message in cases:
         match = "id" if isinstance(request, dict) else "error"
-        answer = robot("query", request=request, match=match)["answer"]
+        # an unknown name is looked up in WordNet: its first load takes seconds on a loaded machine
+        answer = robot("query", request=request, match=match, timeout=60)["answer"]
         assert answer is not None and answer["id"] == expected_id and message in answer["error"], answer
     answer = robot("query", request={"id": 10, "op": "where", "name": "kitchen", "n": 1})["answer"]
     assert "error" not in answer and node.poll() is None
@@ -362,7 +363,7 @@ def test_relayed_through_another_python_the_node_answers_and_teaches(ros2_node, 
         answer = robot("query", request=request)["answer"]
         assert answer is not None and answer["id"] == "q1" and "error" not in answer, answer
         assert robot("goal")["goal"]["x"] == pytest.approx(answer["goal"]["x"])
-        bad = robot("query", request={"id": "q2", "op": "where", "name": "kichen"})["answer"]
+        bad = robot("query", request={"id": "q2", "op": "where", "name": "kichen"}, timeout=60)["answer"]
         assert "kichen" in bad["error"]
         refused = robot("set_parameters", values={"clock": "sometimes"})["results"][0]
         assert not refused["successful"] and "clock must be receive or header" in refused["reason"]

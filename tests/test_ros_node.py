@@ -196,7 +196,8 @@ def test_malformed_queries_get_an_error_answer_and_the_node_stays_up(ros_node) -
         ({"id": 7, "op": "where", "name": "kitchen", "goal": "yes"}, 7, "'goal' must be true or false"),
     ]
     for request, expected_id, message in cases:
-        answer, _ = robot.query(request)
+        # an unknown name is looked up in WordNet: its first load takes seconds on a loaded machine
+        answer, _ = robot.query(request, timeout=60)
         assert answer["id"] == expected_id and message in answer["error"], answer
     answer, _ = robot.query({"id": 10, "op": "where", "name": "kitchen", "n": 1})
     assert "error" not in answer and node.poll() is None
