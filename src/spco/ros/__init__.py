@@ -1,6 +1,9 @@
-"""spco on a running robot: a ROS 1 node (rospy) and a rosbridge client for ROS 2 (roslibpy).
+"""spco on a running robot: a ROS 2 node (rclpy), a ROS 1 node (rospy), a rosbridge client (roslibpy),
+and the home for Foxglove (foxglove-sdk).
 
-``spco ros HOME.spco`` learns from what the robot hears and answers questions on topics:
+``spco ros2 HOME.spco`` (:mod:`spco.ros.ros2`, its rclpy side in :mod:`spco.ros.thin`) and ``spco ros
+HOME.spco`` (:mod:`spco.ros.node`) run the same core; each learns from what the robot hears and
+answers questions on topics (the ROS 1 node's names below; the ROS 2 node's in docs/ros.md):
 
 - it subscribes the robot's pose (``PoseWithCovarianceStamped``, ``PoseStamped``, ``Odometry`` or
   ``/tf`` from the map frame to the robot's), its camera (``Image`` or ``CompressedImage``) and
@@ -12,8 +15,9 @@
   ``/spco/markers`` (:mod:`spco.ros.messages`), for RViz and Foxglove.
 
 Modules: :mod:`spco.ros.messages` (ROS messages as plain dicts, both ways; markers; no ROS
-needed), :mod:`spco.ros.core` (the node's logic, for either transport), :mod:`spco.ros.node`
-(rospy), :mod:`spco.ros.rosbridge` (roslibpy). A ROS master, the node in its own process and a
+needed), :mod:`spco.ros.core` (the node's logic, for every transport), :mod:`spco.ros.ros2` and
+:mod:`spco.ros.thin` (rclpy), :mod:`spco.ros.node` (rospy), :mod:`spco.ros.rosbridge` (roslibpy),
+:mod:`spco.ros.foxglove` (Foxglove's WebSocket and MCAP). A ROS master, the node in its own process and a
 stand-in robot, for the tests and ``benchmarks/ros_latency.py``, are in the repository's
 ``tests/ros_harness.py``.
 
