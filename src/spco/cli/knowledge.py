@@ -575,7 +575,11 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
 # ------------------------------------------------------------------------------------ show
 @click.command(name="show")
 @click.argument("home_file", metavar="HOME", type=click.Path(path_type=Path))
-@click.option("--out", "-o", required=True, type=click.Path(path_type=Path), help="The PNG to write.")
+@click.option("--out", "-o", default=None, type=click.Path(path_type=Path), help="The PNG to write.")
+@click.option("--mcap", "mcap_file", default=None, type=click.Path(path_type=Path),
+              help="Also (or instead) write the home's regions, names and teachings to this MCAP file, as "
+              "foxglove.SceneUpdate entities on /spco/scene and /spco/teachings (frame map), for Foxglove "
+              "(needs spco[foxglove]).")
 @click.option("--map", "map_image", type=click.Path(path_type=Path), default=None,
               help="Floor plan drawn under the concepts: a ROS map (map.yaml: its image, origin and "
                    "resolution give the extent) or an image (PNG, JPEG, PGM; grey drawn in grey).")
@@ -589,14 +593,15 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
 @click.option("--regions-home", default=None, metavar="KEY",
               help="The home of --regions to draw, when its key differs from the home's name.")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(0), help="Random seed.")
-@click.option("--force", is_flag=True, help="Replace --out if it exists.")
+@click.option("--force", is_flag=True, help="Replace --out (and --mcap) if it exists.")
 @_friendly
-def show(home_file: Path, out: Path, map_image: Path | None, extent: str | None, names: Sequence[str],
-         regions_file: Path | None, regions_home: str | None, seed: int, force: bool) -> None:
+def show(home_file: Path, out: Path | None, mcap_file: Path | None, map_image: Path | None,
+         extent: str | None, names: Sequence[str], regions_file: Path | None, regions_home: str | None,
+         seed: int, force: bool) -> None:
     """Draw the home's concepts on its floor plan: regions (95 % ellipses coloured by concept)
     labelled on the map with the names that describe them, the room outlines when the home has
     regions, the home's samples, and positions for the names given. --map takes a ROS map.yaml
-    (its image placed by its origin and resolution)."""
+    (its image placed by its origin and resolution). --mcap writes the regions for Foxglove."""
     import numpy as np
 
     from spco import plots
@@ -604,6 +609,17 @@ def show(home_file: Path, out: Path, map_image: Path | None, extent: str | None,
     from spco.errors import ConfigurationError
     from spco.knowledge import where as where_name
 
+    if out is None and mcap_file is None:
+        raise click.UsageError("give --out PNG, --mcap FILE, or both")
+    if mcap_file is not None:
+        check_out(mcap_file, force)
+        from spco.ros.foxglove import require_foxglove
+
+        require_foxglove()  # a missing foxglove-sdk is one clear error, before any work
+    if out is None:
+        assert mcap_file is not None
+        _write_mcap(load_home(home_file), mcap_file)
+        return
     check_out(out, force)
     if map_image is not None and not Path(map_image).is_file():
         raise ConfigurationError(f"{map_image}: no such map image (--map)")
@@ -657,6 +673,19 @@ def show(home_file: Path, out: Path, map_image: Path | None, extent: str | None,
         raise ConfigurationError(f"{map_image}: cannot draw the map image ({exc})") from None
     _save_png(fig, out)
     click.echo(f"Wrote {out}")
+    if mcap_file is not None:
+        _write_mcap(home, mcap_file)
+
+
+def _write_mcap(home: Any, path: Path) -> None:
+    """The home's regions and teachings as Foxglove scene updates in the MCAP file ``path``."""
+    from spco.ros.foxglove import write_mcap
+    from spco.service.answers import regions_answer
+
+    regions = regions_answer(home)
+    write_mcap(regions, home.knowledge.n_concepts, path)
+    click.echo(f"Wrote {path} ({len(regions['regions'])} regions, "
+               f"{sum(1 for s in regions['samples'] if s.get('sentence'))} teachings)")
 
 
 def _grey_image(path: Path) -> Any:

@@ -33,6 +33,7 @@ __all__ = [
     "frame_from_message",
     "goal_message",
     "marker_array",
+    "pose_array_message",
     "pose_from_message",
     "quaternion_from_yaw",
     "stamp_seconds",
@@ -237,13 +238,24 @@ def frame_from_message(msg: Mapping[str, Any]) -> CameraFrame:
 # ------------------------------------------------------------------------------------- output
 def goal_message(x: float, y: float, theta: float, frame: str = "map", stamp: float | None = None,
                  ros_version: int = 1) -> dict[str, Any]:
-    """A ``geometry_msgs/PoseStamped`` goal at ``(x, y, θ)`` in ``frame`` (stamp 0: "latest" for move_base
-    and Nav2, when ``stamp`` is ``None``)."""
+    """A ``geometry_msgs/PoseStamped`` goal at ``(x, y, θ)`` in ``frame``.
+
+    With ``stamp`` ``None`` (what both nodes send) the header has no stamp, i.e. time 0: move_base
+    and Nav2 transform a goal with stamp 0 with the latest transform they have (tf's "latest"),
+    where a goal stamped "now" could wait for, or fail on, a transform not yet received."""
     header: dict[str, Any] = {"frame_id": frame}
     if stamp is not None:
         header["stamp"] = time_message(stamp, ros_version)
     return {"header": header, "pose": {"position": {"x": float(x), "y": float(y), "z": 0.0},
                                        "orientation": quaternion_from_yaw(float(theta))}}
+
+
+def pose_array_message(positions: Sequence[Mapping[str, Any]], frame: str = "map") -> dict[str, Any]:
+    """A ``geometry_msgs/PoseArray`` of a ``where`` answer's positions (``{"x", "y", "theta"}``, most
+    probable first), in ``frame``, stamp 0 (as the goal)."""
+    return {"header": {"frame_id": frame},
+            "poses": [{"position": {"x": float(p["x"]), "y": float(p["y"]), "z": 0.0},
+                       "orientation": quaternion_from_yaw(float(p["theta"]))} for p in positions]}
 
 
 def concept_colour(concept: int, n_concepts: int) -> tuple[float, float, float]:
