@@ -18,6 +18,7 @@ from spco.knowledge.home import HomeModel, Observation, _copy_state
 from spco.knowledge.knowledge import DEFAULT_TEACH_SWEEPS
 from spco.knowledge.views import _pose, _view_counts, _visual_row
 from spco.model.home_shard import NewHomeShard, init_new_words, prepare_home
+from spco.model.local_update import teach_locally
 
 
 def _clean_sentence(sentence: str | None) -> str | None:
@@ -96,13 +97,14 @@ def teach(
         visual = sp.csr_array(sp.vstack([home.visual, *rows], format="csr"), dtype=np.int64)
 
     knowledge = home.knowledge.extended(new_sentences)
+    local = not home.joint and knowledge.variant == "exact"
     added = knowledge.n_words - home.knowledge.n_words
     state = _copy_state(home.state)
     if added:
         hyper = knowledge.hyperparameters
         log_new = math.log(hyper.alpha_word / hyper.delta_word)
         L = knowledge.n_concepts
-        if home.joint:  # the shared part is the home's: grow it like the knowledge
+        if home.joint or local:  # the home's φ^w (learnt, or a free concept's): grown like the knowledge's
             phi_w = np.concatenate([state.log_phi_w, np.full((L, added), log_new)], axis=1)
             state.log_phi_w = phi_w - logsumexp(phi_w, axis=1, keepdims=True)
         else:
@@ -124,11 +126,19 @@ def teach(
         state.candidate_words = knowledge.word_mask[: home.n_knowledge_words].copy()
         state.candidate_words = np.concatenate([state.candidate_words,
                                                 np.ones(knowledge.n_words - home.n_knowledge_words, bool)])
-    shard = NewHomeShard(data, state, knowledge.shared_part(), home.n_knowledge_words,
-                         _as_generator(random_state), prior)
-    shard.begin()  # a taught name counts at once
-    shard.run(int(n_sweeps))
-    posterior = shard.finish(home.name)
+    if local:  # a local update: the taught place changes, the rest of the home only where it must
+        n_old = home.n_samples
+        taught = [k for k in range(n_old) if new_sentences[k] != home.sentences[k]]
+        new_rows = np.arange(n_old, len(new_sentences))
+        posterior = teach_locally(data, state, knowledge.shared_part(), home.n_knowledge_words,
+                                  np.concatenate([np.asarray(taught, dtype=np.int64), new_rows]), new_rows,
+                                  int(n_sweeps), _as_generator(random_state), home.posterior, home.name)
+    else:
+        shard = NewHomeShard(data, state, knowledge.shared_part(), home.n_knowledge_words,
+                             _as_generator(random_state), prior)
+        shard.begin()  # a taught name counts at once
+        shard.run(int(n_sweeps))
+        posterior = shard.finish(home.name)
     provenance = dict(home.provenance)
     provenance["teach_updates"] = int(provenance.get("teach_updates", 0)) + 1
     provenance["updated"] = _now()

@@ -49,8 +49,11 @@ from spco import knowledge as kn
 from spco.errors import ConfigurationError, SpcoError
 from spco.service.journal import Journal, journal_path, new_journal_id, read_journal
 from spco.service.teaching import (
+    CHECKPOINT_EVERY,
+    DEFAULT_UNDO_LIMIT,
     SERVED,
     ConflictError,
+    UndoCheckpoints,
     apply_batch,
     check_journal_matches,
     file_digest,
@@ -60,6 +63,8 @@ from spco.service.teaching import (
     replay,
     sentence_record,
     served_info,
+    undo_base_path,
+    undo_base_seq,
     with_history,
 )
 
@@ -101,14 +106,20 @@ class HomeWriter:
     sweeps: Gibbs sweeps of each teaching (:data:`spco.knowledge.DEFAULT_TEACH_SWEEPS`).
     compact_records, compact_idle: when to compact (records since the last compaction; seconds idle).
     max_batch: the most teachings applied together.
+    undo_limit: how many of the last teachings can be undone exactly
+        (:data:`~spco.service.teaching.DEFAULT_UNDO_LIMIT`; see :mod:`spco.service.teaching`).
     """
 
     def __init__(self, path: str | PathLike[str], *, seed: int | None = None,
                  sweeps: int = kn.DEFAULT_TEACH_SWEEPS, compact_records: int = DEFAULT_COMPACT_RECORDS,
-                 compact_idle: float = DEFAULT_COMPACT_IDLE, max_batch: int = DEFAULT_MAX_BATCH) -> None:
+                 compact_idle: float = DEFAULT_COMPACT_IDLE, max_batch: int = DEFAULT_MAX_BATCH,
+                 undo_limit: int = DEFAULT_UNDO_LIMIT) -> None:
         if isinstance(sweeps, bool) or not isinstance(sweeps, int) or sweeps < 0:
             raise ConfigurationError(f"sweeps must be an integer >= 0, got {sweeps!r}")
+        if isinstance(undo_limit, bool) or not isinstance(undo_limit, int) or undo_limit < 0:
+            raise ConfigurationError(f"undo_limit must be an integer >= 0, got {undo_limit!r}")
         self.path = Path(path)
+        self.undo_limit = undo_limit
         self.sweeps = sweeps
         self.compact_records, self.compact_idle, self.max_batch = compact_records, compact_idle, max_batch
         self.journal = Journal(journal_path(path))
@@ -117,7 +128,13 @@ class HomeWriter:
         check_journal_matches(home, contents.header, contents.records, self.journal.path, path)
         history = history_of(home)
         before = int(served_info(home).get("last_seq", 0))
-        home = replay(home, contents.records, history)
+        base_file = undo_base_path(path)
+        fresh_base = not base_file.exists() or (served_info(home).get("undo_base") is None)
+        if fresh_base:  # no undo base yet: the home as it is (its teachings so far cannot be undone)
+            self.checkpoints = UndoCheckpoints(home, before)
+        else:
+            self.checkpoints = UndoCheckpoints(lambda: kn.load_home_model(base_file), undo_base_seq(home))
+        home = replay(home, contents.records, history, self.checkpoints)
         replayed = int(served_info(home).get("last_seq", 0)) - before
         #: what start-up found: records replayed, a torn record dropped
         self.startup = {"replayed": replayed, "torn": contents.torn}
@@ -125,8 +142,12 @@ class HomeWriter:
         served = {**served_info(home), "journal": compacted or new_journal_id()}
         served.setdefault("last_seq", 0)
         served.setdefault("teachings", 0)
+        served["undo_base"] = self.checkpoints.base_seq
+        if fresh_base:  # the undo base is the home file as it is (until its first compaction says otherwise)
+            _copy_atomically(self.path, base_file)
         self.home = _with_served(home, served)
         self.history = history
+        self._since_checkpoint = 0
         self._base_seed = int(np.random.SeedSequence().entropy if seed is None else seed)  # type: ignore[arg-type]
         self._since_compaction = replayed
         self._last_teaching = time.monotonic()
@@ -196,7 +217,9 @@ class HomeWriter:
                 op = request.get("op")
                 if op == "undo":
                     flush()
-                    self._apply([(index, plan_undo(self.home, self.history, request.get("seq")))], results)
+                    undo = plan_undo(self.home, self.history, request.get("seq"), self.undo_limit,
+                                     self.checkpoints.base_seq)
+                    self._apply([(index, undo)], results)
                     continue
                 if op == "sentence":
                     if request.get("id") in added:
@@ -234,9 +257,12 @@ class HomeWriter:
                     "time": stamp, **record} for k, (_, record) in enumerate(batch)]
         history = dict(self.history)
         words_before = self.home.knowledge.n_words
+        undoing = records[0]["op"] == "undo"
         try:
-            updated = apply_batch(self.home, records, history)
+            updated = apply_batch(self.home, records, history, self.checkpoints)
         except Exception as exc:
+            if undoing:  # the checkpoints after the undone teaching may be half rebuilt
+                self.checkpoints.drop_from(int(records[0]["undoes"]))
             if len(batch) > 1:
                 for item in batch:
                     self._apply([item], results)
@@ -246,6 +272,8 @@ class HomeWriter:
         try:
             self.journal.append(records)
         except OSError as exc:  # not durable: not applied
+            if undoing:  # the checkpoints rebuilt for the undo do not hold
+                self.checkpoints.drop_from(int(records[0]["undoes"]))
             for index, _ in batch:
                 results[index] = error_result(WriterUnavailableError(
                     f"{self.journal.path}: cannot write the journal ({exc.strerror or exc}); the teaching "
@@ -253,11 +281,20 @@ class HomeWriter:
             return
         self.home, self.history = updated, history
         self._since_compaction += len(records)
+        if undoing:
+            self._since_checkpoint = 0
+            self.checkpoints.add(self.last_seq, self.home)
+        else:
+            self._since_checkpoint += len(records)
+            if self._since_checkpoint >= CHECKPOINT_EVERY:
+                self.checkpoints.add(self.last_seq, self.home)
+                self._since_checkpoint = 0
         self._last_teaching = time.monotonic()
         seconds = time.perf_counter() - start
         new_words = list(updated.vocabulary.words[words_before:])
         served = served_info(updated)
-        said = list(updated.provenance["last_teach"].get("warnings", []))  # a new name spreading (teach)
+        # a new name spreading (teach)
+        said = list((updated.provenance.get("last_teach") or {}).get("warnings", []))
         for (index, _), record in zip(batch, records, strict=True):
             result = {k: v for k, v in record.items() if k not in ("view", "seed", "sweeps", "batch")}
             result.update(ok=True, home=updated.name, teachings=served["teachings"],
@@ -270,7 +307,21 @@ class HomeWriter:
 
     # ------------------------------------------------------------------ compaction
     def compact(self) -> None:
-        """Write the home (with its history and last seq) atomically, then start the journal anew."""
+        """Write the home (with its history and last seq) atomically, then start the journal anew.
+
+        First the undo base moves on if the last ``undo_limit`` teachings allow it
+        (:meth:`UndoCheckpoints.advance`): the new base is written, then the home file, whose history
+        keeps the records of the teachings after it (a crash in between leaves the old home file,
+        whose records cover the new base too)."""
+        base = self.checkpoints.advance(self.history, self.undo_limit)
+        if base is not None:
+            seq = self.checkpoints.base_seq
+            _with_served(base, {**served_info(base), "last_seq": seq}).save(undo_base_path(self.path),
+                                                                            overwrite=True)
+            for k, entry in self.history.items():  # records before the base are never replayed again
+                if k <= seq and "record" in entry:
+                    self.history[k] = {key: v for key, v in entry.items() if key != "record"}
+            self.home = _with_served(self.home, {**served_info(self.home), "undo_base": seq})
         served = served_info(self.home)
         self.journal.close()
         with_history(self.home, self.history).save(self.path, overwrite=True)
@@ -290,6 +341,17 @@ class HomeWriter:
         if self._since_compaction:
             self.compact()
         self.journal.close()
+
+
+def _copy_atomically(source: Path, target: Path) -> None:
+    """Copy ``source`` to ``target`` through a temporary file renamed over it (fsync-ed first)."""
+    import shutil
+
+    temporary = target.with_name(target.name + ".tmp")
+    shutil.copyfile(source, temporary)
+    with open(temporary, "rb+") as handle:
+        os.fsync(handle.fileno())
+    os.replace(temporary, target)
 
 
 def _with_served(home: kn.HomeModel, served: dict[str, Any]) -> kn.HomeModel:
