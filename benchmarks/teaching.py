@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import time
 import warnings
 from pathlib import Path
@@ -77,8 +78,8 @@ def sigverse_env(name: str = "3LDK_9") -> Environment:
     """The SIGVerse home ``name`` as the adapted home saw it (its ground truth for scoring)."""
     from spco.data import load
 
-    root = Path(__file__).resolve().parents[1] / ".." / "shared" / "datasets" / "sigverse"
-    return load(root / name)
+    root = Path(os.environ.get("SPCO_DATASETS", "/work/shared/datasets")) / "sigverse"
+    return next(iter(load(root / name)))
 
 
 def room_labels(env: Environment, home: kn.HomeModel) -> tuple[np.ndarray, np.ndarray]:
