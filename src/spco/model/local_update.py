@@ -37,6 +37,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
+import scipy.sparse as sp
 from scipy.special import gammaln, multigammaln
 
 from spco.model import gibbs
@@ -48,7 +49,7 @@ from spco.model.home_shard import (
     warn_if_own_names_spread,
 )
 from spco.model.kernels.niw import niw_posterior
-from spco.model.observations import GaussianRegions, HierarchicalMultinomial
+from spco.model.observations import LOG_FLOOR, GaussianRegions, HierarchicalMultinomial
 from spco.model.parameters import ConceptParameters
 from spco.model.posterior import ParameterAverage, masked_rows, thinned_sweeps
 from spco.model.random import log_dirichlet
@@ -73,12 +74,25 @@ def _sample_rows(logits: np.ndarray, rng: np.random.Generator) -> np.ndarray:
 def _likelihoods(
     data: PreparedData, state: GibbsState, settings: SamplerSettings, rows: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """(concept log-likelihood (n, L), region log-likelihood (n, K)) of the samples ``rows``."""
-    concept_ll = gibbs._concept_loglik(data, state, settings.view_counts)[rows]
-    region_ll = GaussianRegions.log_likelihood(data.positions, data.homes, state.means, state.covariances)[
-        rows
-    ]
-    return concept_ll, region_ll
+    """(concept log-likelihood (n, L), region log-likelihood (n, K)) of the samples ``rows``: the
+    sampler's (:func:`spco.model.gibbs._concept_loglik`, :meth:`GaussianRegions.log_likelihood`)
+    for these rows only — a teaching's few samples, not the home's hundreds."""
+    visual = sp.csr_array(data.visual[rows], dtype=np.float64)
+    concept_ll = visual @ np.maximum(state.log_theta_v[0], LOG_FLOOR).T
+    weights = gibbs.view_weights(data, settings.view_counts)
+    if weights is not None:
+        concept_ll *= weights[rows][:, None]
+    words = gibbs.sentence_words(data, state)[rows]
+    if words.nnz:
+        log_theta_w = gibbs.kept_word_log_theta(state.log_theta_w, state.word_mask)[0]
+        concept_ll = concept_ll + sp.csr_array(words, dtype=np.float64) @ np.maximum(log_theta_w, LOG_FLOOR).T
+    chol = np.linalg.cholesky(state.covariances[0])  # (K, d, d)
+    diff = data.positions[rows][:, None, :] - state.means[0][None]  # (n, K, d)
+    z = np.linalg.solve(chol[None], diff[..., None])[..., 0]
+    d = diff.shape[-1]
+    log_det = 2.0 * np.log(np.diagonal(chol, axis1=-2, axis2=-1)).sum(-1)
+    region_ll = -0.5 * ((z**2).sum(-1) + log_det[None] + d * np.log(2 * np.pi))
+    return np.asarray(concept_ll), region_ll
 
 
 def _collapsed_logits(
