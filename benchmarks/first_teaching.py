@@ -44,8 +44,12 @@ def one_round(home: Path, folder: Path, k: int) -> tuple[tuple[float, float], tu
         Path(str(served) + suffix).unlink(missing_ok=True)
     shutil.copyfile(home, served)
     model = kn.load_home_model(served)
-    process = subprocess.Popen([sys.executable, "-m", "spco", "serve", str(served), "--port", "0", "--seed", "0"],
-                               stdin=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    process = subprocess.Popen(
+        [sys.executable, "-m", "spco", "serve", str(served), "--port", "0", "--seed", "0"],
+        stdin=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     assert process.stderr is not None
     url = None
     for line in process.stderr:
@@ -77,7 +81,9 @@ def one_round(home: Path, folder: Path, k: int) -> tuple[tuple[float, float], tu
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--home", type=Path, required=True)
     parser.add_argument("--rounds", type=int, default=20)
     parser.add_argument("--json", type=Path, default=None)
@@ -90,17 +96,30 @@ def main() -> None:
             seconds.append(second[0] * 1000)
             writer_firsts.append(first[1] * 1000)
             writer_seconds.append(second[1] * 1000)
-            print(f"round {k}: first {first[0] * 1000:.0f} ms (writer {first[1] * 1000:.0f}), second "
-                  f"{second[0] * 1000:.0f} ms (writer {second[1] * 1000:.0f})", flush=True)
+            print(
+                f"round {k}: first {first[0] * 1000:.0f} ms (writer {first[1] * 1000:.0f}), second "
+                f"{second[0] * 1000:.0f} ms (writer {second[1] * 1000:.0f})",
+                flush=True,
+            )
     print("| teaching after ready | n | p50 ms | p99 ms | max ms | writer's part p50 / p99 ms |")
     print("|---|---|---|---|---|---|")
     for label, values, writer in (("first", firsts, writer_firsts), ("second", seconds, writer_seconds)):
-        print(f"| {label} | {len(values)} | {np.percentile(values, 50):.0f} | {np.percentile(values, 99):.0f} | "
-              f"{max(values):.0f} | {np.percentile(writer, 50):.0f} / {np.percentile(writer, 99):.0f} |")
+        print(
+            f"| {label} | {len(values)} | {np.percentile(values, 50):.0f} | {np.percentile(values, 99):.0f} | "
+            f"{max(values):.0f} | {np.percentile(writer, 50):.0f} / {np.percentile(writer, 99):.0f} |"
+        )
     print(f"load average at the end: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
     if args.json:
-        args.json.write_text(json.dumps({"first_ms": firsts, "second_ms": seconds,
-                                         "writer_first_ms": writer_firsts, "writer_second_ms": writer_seconds}))
+        args.json.write_text(
+            json.dumps(
+                {
+                    "first_ms": firsts,
+                    "second_ms": seconds,
+                    "writer_first_ms": writer_firsts,
+                    "writer_second_ms": writer_seconds,
+                }
+            )
+        )
 
 
 if __name__ == "__main__":
