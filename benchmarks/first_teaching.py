@@ -106,7 +106,8 @@ def main() -> None:
     for label, values, writer in (("first", firsts, writer_firsts), ("second", seconds, writer_seconds)):
         print(
             f"| {label} | {len(values)} | {np.percentile(values, 50):.0f} | "
-            f"{np.percentile(values, 99):.0f} | {max(values):.0f} | {np.percentile(writer, 50):.0f} / {np.percentile(writer, 99):.0f} |"
+            f"{np.percentile(values, 99):.0f} | {max(values):.0f} | "
+            f"{np.percentile(writer, 50):.0f} / {np.percentile(writer, 99):.0f} |"
         )
     print(f"load average at the end: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
     if args.json:
