@@ -11,6 +11,7 @@ from pathlib import Path
 import click
 
 from spco.cli.errors import friendly_errors
+from spco.cli.limits import limits_from_options, teaching_limit_options
 
 __all__ = ["serve"]
 
@@ -33,9 +34,10 @@ __all__ = ["serve"]
 @click.option("--writer", type=click.Choice(["process", "thread"]), default="process", hidden=True,
               help="Where teachings run: a writer process (default) or a thread of the server (for the "
                    "benchmark's comparison: readers then wait for Python's global lock).")
+@teaching_limit_options
 @friendly_errors
 def serve(home_file: Path, host: str, port: int, token_file: Path | None, map_image: Path | None,
-          extent: str | None, seed: int | None, writer: str) -> None:
+          extent: str | None, seed: int | None, writer: str, undo_limit: int, **limit_options: int) -> None:
     """Serve the home of HOME over HTTP: where, what and teach in milliseconds, and a page at /.
 
     \b
@@ -47,7 +49,9 @@ def serve(home_file: Path, host: str, port: int, token_file: Path | None, map_im
 
     Teachings are kept in HOME.journal (fsync'd before they are acknowledged) and compacted into
     HOME; while it is served, `spco teach HOME` is refused and the read-only commands replay the
-    journal. See docs/on-the-robot.md.
+    journal. A teaching beyond a limit (--max-…) is refused with HTTP 422 (429 for too many
+    observations a minute) naming the limit; DELETE /teach/SEQ undoes one of the last --undo-limit
+    teachings exactly. See docs/on-the-robot.md.
     """
     try:
         import fastapi  # noqa: F401
@@ -59,4 +63,5 @@ def serve(home_file: Path, host: str, port: int, token_file: Path | None, map_im
 
     run(home_file, host=host, port=port, token_file=None if token_file is None else str(token_file),
         map_image=None if map_image is None else str(map_image), map_extent=_extent(extent), seed=seed,
-        writer=writer, say=lambda text: click.echo(text, err=True))
+        writer=writer, say=lambda text: click.echo(text, err=True), undo_limit=undo_limit,
+        limits=limits_from_options(limit_options))

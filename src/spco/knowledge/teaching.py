@@ -16,6 +16,7 @@ from spco.errors import ConfigurationError
 from spco.knowledge.files import _as_generator, _now, _seed_of
 from spco.knowledge.home import HomeModel, Observation, _copy_state
 from spco.knowledge.knowledge import DEFAULT_TEACH_SWEEPS
+from spco.knowledge.limits import DEFAULT_LIMITS, TeachingLimits, check_sentences
 from spco.knowledge.views import _pose, _view_counts, _visual_row
 from spco.model.home_shard import NewHomeShard, init_new_words, prepare_home
 from spco.model.local_update import teach_locally
@@ -37,6 +38,7 @@ def teach(
     observations: Sequence[Observation] = (),
     n_sweeps: int = DEFAULT_TEACH_SWEEPS,
     random_state: int | np.random.Generator | None = None,
+    limits: TeachingLimits | None = DEFAULT_LIMITS,
 ) -> HomeModel:
     """Teach the home: new sentences for known samples, new observations; an incremental update.
 
@@ -49,6 +51,14 @@ def teach(
         milliseconds for a home of 300 samples); prediction then uses the average of the last
         of them (:func:`~spco.model.posterior.thinned_sweeps`), with 0 the state's own draw.
     random_state: seed or Generator.
+    limits: what one teaching may bring (:class:`~spco.knowledge.limits.TeachingLimits`: words per
+        sentence, new words, the home's own words); a teaching beyond them is refused whole with a
+        :class:`~spco.errors.TeachingLimitError` naming the limit. ``None``: no limits (replaying
+        teachings accepted before).
+
+    The update is local (:mod:`spco.model.local_update`): the taught place changes, and the rest of
+    the home only where the new evidence demands it; a concept or region the teaching does not
+    touch answers exactly as before. The same home, teaching and seed give the same home.
 
     New words grow the vocabulary (:meth:`Knowledge.extended`); everything learnt so far is kept:
     the sweeps start from the home's assignments and parameters, with the shared part fixed (or
@@ -62,6 +72,9 @@ def teach(
     observations = list(observations)
     if not sentences and not observations:
         raise ConfigurationError("nothing to teach: give a sentence for a sample or a new observation")
+    said = [s for s in sentences.values() if isinstance(s, str)]
+    said += [o.sentence for o in observations if isinstance(o, Observation) and isinstance(o.sentence, str)]
+    check_sentences(home.vocabulary, home.n_knowledge_words, said, limits)
     start = time.perf_counter()
     new_sentences = list(home.sentences)
     index = {int(i): k for k, i in enumerate(home.ids)}

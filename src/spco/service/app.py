@@ -59,7 +59,7 @@ from starlette.concurrency import run_in_threadpool
 from starlette.middleware.trustedhost import TrustedHostMiddleware
 from starlette.responses import StreamingResponse
 
-from spco.errors import SpcoError
+from spco.errors import SpcoError, TeachingRateError
 from spco.prediction import UnknownNameError
 from spco.service.images import ImageError, ImageTooLargeError, encoded_size
 from spco.service.live import MAX_POSES, MAX_QUESTIONS, MAX_TOP, LiveHome
@@ -196,7 +196,7 @@ class ErrorAnswer(BaseModel):
     status: int
 
 
-_ERRORS = {code: {"model": ErrorAnswer} for code in (400, 401, 404, 409, 413, 415, 422, 503)}
+_ERRORS = {code: {"model": ErrorAnswer} for code in (400, 401, 404, 409, 413, 415, 422, 429, 503)}
 
 
 def session_value(token: str) -> str:
@@ -213,6 +213,8 @@ def _status_of(exc: BaseException) -> int:
         return 413
     if isinstance(exc, WriterUnavailableError):
         return 503
+    if isinstance(exc, TeachingRateError):
+        return 429
     return 422
 
 

@@ -99,12 +99,13 @@ def _server_class() -> type:
 def serve(home: str | PathLike[str], host: str = "127.0.0.1", port: int = 8765, token_file: str | None = None,
           map_image: str | None = None, map_extent: tuple[float, float, float, float] | None = None,
           seed: int | None = None, writer: str = "process", say: Callable[[str], None] | None = None,
-          **app_options: Any) -> None:
+          undo_limit: int | None = None, limits: Any = "default", **app_options: Any) -> None:
     """Serve the home file ``home`` over HTTP until interrupted (see :mod:`spco.service.app`).
 
     Binds ``host`` only if it is loopback or a ``token_file`` is given (else
     :class:`ConfigurationError`); ``port`` 0 takes a free port. ``say`` prints the address and
-    what start-up found (default: standard error).
+    what start-up found (default: standard error). ``undo_limit``, ``limits``: as
+    :class:`~spco.service.LiveHome` (``"default"``: :data:`spco.knowledge.DEFAULT_LIMITS`).
     """
     import uvicorn
 
@@ -125,7 +126,10 @@ def serve(home: str | PathLike[str], host: str = "127.0.0.1", port: int = 8765, 
     shown = f"[{host.strip('[]')}]" if ":" in host.strip("[]") else host
     address = f"http://{shown}:{bound}"
     try:
-        live = LiveHome(home, seed=seed, writer=writer, holder=f"spco serve (pid {os.getpid()}) at {address}")
+        from spco import knowledge as kn
+
+        live = LiveHome(home, seed=seed, writer=writer, holder=f"spco serve (pid {os.getpid()}) at {address}",
+                        undo_limit=undo_limit, limits=kn.DEFAULT_LIMITS if limits == "default" else limits)
     except BaseException:
         sock.close()
         raise

@@ -398,7 +398,8 @@ def _teach_records(home: kn.HomeModel, records: list[dict[str, Any]]
                                  "time": r.get("time", stamp), "record": r}
         else:
             raise JournalError(f"seq {r['seq']}: unknown record kind {r['op']!r}")
-    return kn.teach(home, sentences, observations, n_sweeps=sweeps, random_state=seed), entries
+    # accepted under the writer's limits when they arrived: replayed as they were
+    return kn.teach(home, sentences, observations, n_sweeps=sweeps, random_state=seed, limits=None), entries
 
 
 def apply_batch(home: kn.HomeModel, records: list[dict[str, Any]],

@@ -20,9 +20,12 @@ is simpler and costs readers a few milliseconds at the 99th percentile during te
 from __future__ import annotations
 
 import argparse
+import collections
 import contextlib
 import ctypes
+import dataclasses
 import io
+import json
 import os
 import pickle
 import queue
@@ -46,7 +49,8 @@ from typing import Any
 import numpy as np
 
 from spco import knowledge as kn
-from spco.errors import ConfigurationError, SpcoError
+from spco.errors import ConfigurationError, SpcoError, TeachingLimitError, TeachingRateError
+from spco.knowledge.limits import check_sentences
 from spco.service.journal import Journal, journal_path, new_journal_id, read_journal
 from spco.service.teaching import (
     CHECKPOINT_EVERY,
@@ -85,6 +89,9 @@ class WriterUnavailableError(SpcoError):
 
 def error_result(exc: BaseException) -> dict[str, Any]:
     """A failed request's result: ``{"ok": False, "error": message, "kind": exception class name}``."""
+    if isinstance(exc, TeachingLimitError):
+        return {"ok": False, "error": str(exc), "kind": type(exc).__name__, "limit": exc.limit,
+                "value": exc.value, "allowed": exc.allowed}
     if isinstance(exc, SpcoError):
         return {"ok": False, "error": str(exc), "kind": type(exc).__name__}
     return {"ok": False, "error": f"internal error of the writer: {type(exc).__name__}: {exc}",
@@ -108,18 +115,23 @@ class HomeWriter:
     max_batch: the most teachings applied together.
     undo_limit: how many of the last teachings can be undone exactly
         (:data:`~spco.service.teaching.DEFAULT_UNDO_LIMIT`; see :mod:`spco.service.teaching`).
+    limits: what a teaching may bring (:class:`spco.knowledge.TeachingLimits`); a request beyond
+        them is refused with a :class:`~spco.errors.TeachingLimitError` naming the limit.
     """
 
     def __init__(self, path: str | PathLike[str], *, seed: int | None = None,
                  sweeps: int = kn.DEFAULT_TEACH_SWEEPS, compact_records: int = DEFAULT_COMPACT_RECORDS,
                  compact_idle: float = DEFAULT_COMPACT_IDLE, max_batch: int = DEFAULT_MAX_BATCH,
-                 undo_limit: int = DEFAULT_UNDO_LIMIT) -> None:
+                 undo_limit: int = DEFAULT_UNDO_LIMIT,
+                 limits: kn.TeachingLimits | None = kn.DEFAULT_LIMITS) -> None:
         if isinstance(sweeps, bool) or not isinstance(sweeps, int) or sweeps < 0:
             raise ConfigurationError(f"sweeps must be an integer >= 0, got {sweeps!r}")
         if isinstance(undo_limit, bool) or not isinstance(undo_limit, int) or undo_limit < 0:
             raise ConfigurationError(f"undo_limit must be an integer >= 0, got {undo_limit!r}")
         self.path = Path(path)
         self.undo_limit = undo_limit
+        self.limits = limits
+        self._observed: collections.deque[float] = collections.deque()  # when observations came
         self.sweeps = sweeps
         self.compact_records, self.compact_idle, self.max_batch = compact_records, compact_idle, max_batch
         self.journal = Journal(journal_path(path))
@@ -220,12 +232,14 @@ class HomeWriter:
         results: list[dict[str, Any] | None] = [None] * len(requests)
         batch: list[tuple[int, dict[str, Any]]] = []
         added: set[int] = set()
+        said: list[str] = []  # the batch's sentences so far (its new words count together)
 
         def flush() -> None:
             if batch:
                 self._apply(list(batch), results)
                 batch.clear()
                 added.clear()
+                said.clear()
 
         for index, request in enumerate(requests):
             try:
@@ -252,6 +266,7 @@ class HomeWriter:
                     added.add(record["id"])
                 else:
                     raise ConfigurationError(f"op: expected 'sentence', 'observation' or 'undo', got {op!r}")
+                self._check_limits(record, said)
                 batch.append((index, record))
                 if len(batch) >= self.max_batch:
                     flush()
@@ -259,6 +274,30 @@ class HomeWriter:
                 results[index] = error_result(exc)
         flush()
         return [r if r is not None else error_result(RuntimeError("no result")) for r in results]
+
+    def _check_limits(self, record: dict[str, Any], said: list[str]) -> None:
+        """Raise :class:`~spco.errors.TeachingLimitError` if ``record`` breaks the limits, counted with
+        the sentences ``said`` earlier in its batch (appended to when it does not)."""
+        limits = self.limits
+        if limits is None:
+            return
+        if record["op"] == "observation" and limits.max_observations_per_minute is not None:
+            now = time.monotonic()
+            while self._observed and now - self._observed[0] > 60.0:
+                self._observed.popleft()
+            if len(self._observed) >= limits.max_observations_per_minute:
+                raise TeachingRateError(
+                    f"{len(self._observed)} new observations in the last minute; the home takes at most "
+                    f"{limits.max_observations_per_minute} a minute (limit max_observations_per_minute): "
+                    f"try again in {60.0 - (now - self._observed[0]):.0f} s", "max_observations_per_minute",
+                    len(self._observed) + 1, limits.max_observations_per_minute)
+        sentence = record.get("sentence")
+        if sentence:
+            vocabulary = self.home.vocabulary.extended(said) if said else self.home.vocabulary
+            check_sentences(vocabulary, self.home.n_knowledge_words, [sentence], limits)
+            said.append(sentence)
+        if record["op"] == "observation" and limits.max_observations_per_minute is not None:
+            self._observed.append(time.monotonic())
 
     def _apply(self, batch: list[tuple[int, dict[str, Any]]], results: list[dict[str, Any] | None]) -> None:
         """Apply a batch, journal it (fsync), then record its results; a batch that fails is
@@ -537,7 +576,9 @@ class ProcessWriter:
                 "--lock-fd", str(lock_fd), "--conn-fd", str(theirs.fileno()), "--holder", holder,
                 "--parent", str(os.getpid())]
         for key, value in options.items():
-            if value is not None:
+            if key == "limits":  # always given: None (no limits) too
+                args += ["--limits", json.dumps(None if value is None else dataclasses.asdict(value))]
+            elif value is not None:
                 args += [f"--{key.replace('_', '-')}", str(value)]
         # one sampler thread: the other core stays with the readers (the result does not depend on it)
         environment = {**os.environ, "NUMBA_NUM_THREADS": "1"}
@@ -745,6 +786,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--compact-records", type=int, default=DEFAULT_COMPACT_RECORDS)
     parser.add_argument("--compact-idle", type=float, default=DEFAULT_COMPACT_IDLE)
     parser.add_argument("--max-batch", type=int, default=DEFAULT_MAX_BATCH)
+    parser.add_argument("--undo-limit", type=int, default=DEFAULT_UNDO_LIMIT)
+    parser.add_argument("--limits", default=None, help="the teaching limits as JSON (null: none)")
     args = parser.parse_args(argv)
     _die_with_parent(args.parent)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the server, which closes us in order
@@ -754,7 +797,10 @@ def main(argv: list[str] | None = None) -> int:
         locking.adopt(args.path, args.lock_fd, args.holder)
         writer = HomeWriter(args.path, seed=args.seed, sweeps=args.sweeps,
                             compact_records=args.compact_records, compact_idle=args.compact_idle,
-                            max_batch=args.max_batch)
+                            max_batch=args.max_batch, undo_limit=args.undo_limit,
+                            limits=kn.DEFAULT_LIMITS if args.limits is None else (
+                                None if json.loads(args.limits) is None
+                                else kn.TeachingLimits(**json.loads(args.limits))))
     except SpcoError as exc:
         conn.send(("error", type(exc).__name__ if type(exc).__name__ in _ERRORS else "SpcoError", str(exc)))
         return 2
