@@ -40,6 +40,8 @@ class TeachingLimitError(SpcoError, ValueError):
     or in the home, too many observations a minute). ``limit`` names the limit (its option, e.g.
     ``"max_new_words"``), ``value`` what the teaching would reach and ``allowed`` the limit."""
 
+    http_status = 422
+
     def __init__(self, message: str, limit: str, value: int, allowed: int) -> None:
         self.limit, self.value, self.allowed = limit, value, allowed
         super().__init__(message)
@@ -47,6 +49,8 @@ class TeachingLimitError(SpcoError, ValueError):
 
 class TeachingRateError(TeachingLimitError):
     """Teachings coming faster than the home's limit per minute (HTTP 429)."""
+
+    http_status = 429
 
 
 class ModelFileError(SpcoError, ValueError):

@@ -57,7 +57,8 @@ import scipy.sparse as sp
 
 from spco import knowledge as kn
 from spco.errors import ConfigurationError, SpcoError
-from spco.prediction import validate_visual_counts
+from spco.knowledge.requests import MAX_SENTENCE_CHARS
+from spco.model.prediction import validate_visual_counts
 from spco.service.answers import check_pose
 from spco.service.journal import JournalError, journal_path, read_journal
 
@@ -96,8 +97,6 @@ HISTORY_LIMIT = 10_000
 DEFAULT_UNDO_LIMIT = 100
 #: The writer keeps a checkpoint of the home every this many teachings (what an undo replays from).
 CHECKPOINT_EVERY = 10
-#: The longest sentence a teaching may carry.
-MAX_SENTENCE_CHARS = 1000
 SERVED = "served"
 
 
