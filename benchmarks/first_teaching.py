@@ -4,7 +4,7 @@ Each round copies the home file afresh, starts ``spco serve`` on it (a fresh pro
 compiled or loaded but what start-up did), waits for the line that says it is ready, then sends
 one teaching at once — alternately a sentence with a word the home never heard for a recorded
 sample, and a new observation without a view at a recorded sample's pose — and times the answer
-(``spco.client.Client``, loopback). Then a second teaching, for comparison. Prints p50/p99 over
+(``spco.service.client.Client``, loopback). Then a second teaching, for comparison. Prints p50/p99 over
 ``--rounds`` rounds.
 
 The home is SIGVerse 3LDK_9 adapted from the 16-home knowledge (built as in
@@ -37,7 +37,7 @@ WORDS = ("quokka", "zephyr", "marimba", "tundra", "saffron", "obsidian", "lagoon
 def one_round(home: Path, folder: Path, k: int) -> tuple[tuple[float, float], tuple[float, float]]:
     """(first, second) teaching: (latency, the writer's own seconds) after a fresh start."""
     from spco import knowledge as kn
-    from spco.client import Client
+    from spco.service.client import Client
 
     served = folder / "served.spco"
     for suffix in ("", ".journal", ".lock", ".undo"):

@@ -48,11 +48,11 @@ from spco.model.home_shard import (
     own_names_to_free_concepts,
     warn_if_own_names_spread,
 )
+from spco.model.kernels.dirichlet import log_dirichlet
 from spco.model.kernels.niw import niw_posterior
 from spco.model.observations import LOG_FLOOR, GaussianRegions, HierarchicalMultinomial
 from spco.model.parameters import ConceptParameters
 from spco.model.posterior import ParameterAverage, masked_rows, thinned_sweeps
-from spco.model.random import log_dirichlet
 from spco.model.state import GibbsState, PreparedData, SamplerSettings
 
 __all__ = ["SPLIT_SWEEPS", "splice_posterior", "teach_locally"]
