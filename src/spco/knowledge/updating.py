@@ -1,5 +1,7 @@
-"""Teaching a home: new sentences and observations, an incremental update from the home's current
-state (:func:`teach`), one :class:`~spco.model.home_shard.NewHomeShard` resumed."""
+"""Teaching a home: new sentences and observations, a local update from the home's current state
+(:func:`teach`, :mod:`spco.model.local_update`; a home adapted with ``joint=True`` or with the
+reference sampler resumes one :class:`~spco.model.home_shard.NewHomeShard` instead), within the
+home's limits (:mod:`spco.knowledge.limits`)."""
 
 from __future__ import annotations
 
@@ -47,9 +49,10 @@ def teach(
     home: the home model to update (it is not modified: a new one is returned).
     sentences: sample id -> sentence (``None`` or ``""`` forgets the sentence of that sample).
     observations: new samples (:class:`Observation`), appended with new ids.
-    n_sweeps: Gibbs sweeps run from the home's current state (10 by default, a few tens of
-        milliseconds for a home of 300 samples); prediction then uses the average of the last
-        of them (:func:`~spco.model.posterior.thinned_sweeps`), with 0 the state's own draw.
+    n_sweeps: Gibbs sweeps of the part of the home the teaching affects, from the home's current
+        state (10 by default, a few tens of milliseconds); prediction then uses the average of the
+        last of them (:func:`~spco.model.posterior.thinned_sweeps`) for that part, and the home's
+        previous average for the rest.
     random_state: seed or Generator.
     limits: what one teaching may bring (:class:`~spco.knowledge.limits.TeachingLimits`: words per
         sentence, new words, the home's own words); a teaching beyond them is refused whole with a
