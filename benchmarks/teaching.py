@@ -31,6 +31,8 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shutil
+import signal
 import time
 import warnings
 from pathlib import Path
@@ -282,6 +284,115 @@ def undo_trial(home: kn.HomeModel, t: int, folder: Path, n_teach: int = 12, comp
     }
 
 
+def http_trials(home_file: Path, env: Environment, n: int, folder: Path) -> dict[str, Any]:
+    """``n`` teachings over HTTP (``spco serve`` on a fresh copy of ``home_file``, ``spco.service.client``):
+    each a new name, for a recorded sample or at a pose without a view, then undone. Per teaching:
+    ``where`` of the name in the taught room (≥ 8 of 10 poses), and after the undo max |Δp| of
+    ``what`` at every training sample (pose and view counts) and ``where`` of every name, against
+    the answers before the teaching — an exact undo makes every teaching one on a fresh home."""
+    import re
+    import subprocess
+    import sys
+    import threading
+
+    from spco.service.client import Client
+
+    served = folder / "served.spco"
+    for suffix in ("", ".journal", ".lock", ".undo"):
+        Path(str(served) + suffix).unlink(missing_ok=True)
+    shutil.copyfile(home_file, served)
+    home = kn.load_home_model(served)
+    train_xy, train_rooms = room_labels(env, home)
+    process = subprocess.Popen(
+        [sys.executable, "-m", "spco", "serve", str(served), "--port", "0", "--seed", "0"],
+        stdin=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    url = None
+    for line in process.stderr:  # type: ignore[union-attr]
+        match = re.search(r" at (http://[^ /]+)/ \(page\)", line)
+        if match:
+            url = match.group(1)
+            break
+    if url is None:
+        raise SystemExit("spco serve did not start")
+    threading.Thread(target=lambda: [None for _ in process.stderr], daemon=True).start()  # type: ignore[union-attr]
+    client = Client(url)
+
+    def snapshot() -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        for k in range(home.n_samples):
+            row = home.visual[[k]]
+            answer = client.what(
+                float(home.positions[k, 0]),
+                float(home.positions[k, 1]),
+                float(np.arctan2(home.positions[k, 2], home.positions[k, 3])),
+                visual=row.toarray()[0],
+                top=5,
+            )
+            out[f"what {k}"] = [(a["name"], a["probability"]) for a in answer["names"]]
+        for name in client.regions()["names"]:
+            out[f"where {name}"] = [
+                (p["x"], p["y"], p["probability"]) for p in client.where(name)["positions"]
+            ]
+        return out
+
+    def difference(a: dict[str, Any], b: dict[str, Any]) -> float:
+        if a.keys() != b.keys():
+            return 1.0
+        worst = 0.0
+        for key in a:
+            if len(a[key]) != len(b[key]):
+                return 1.0
+            for x, y in zip(a[key], b[key], strict=True):
+                if x[0] != y[0] and isinstance(x[0], str):
+                    return 1.0
+                worst = max(
+                    worst,
+                    max(
+                        abs(float(u) - float(v)) for u, v in zip(x, y, strict=True) if not isinstance(u, str)
+                    ),
+                )
+        return worst
+
+    results = []
+    try:
+        before = snapshot()
+        for t in range(n):
+            rng = np.random.default_rng(500 + t)
+            pick = int(rng.integers(0, train_xy.shape[0]))
+            room = str(train_rooms[pick])
+            row = int(np.flatnonzero((home.positions[:, :2] == train_xy[pick]).all(axis=1))[0])
+            word = new_word(home, t)
+            sentence = f"this is the {word} room"
+            if t % 2 == 0:
+                taught = client.teach(id=int(home.ids[row]), sentence=sentence)
+            else:
+                x, y = home.positions[row, :2] + rng.uniform(-0.3, 0.3, size=2)
+                theta = float(np.arctan2(home.positions[row, 2], home.positions[row, 3]))
+                taught = client.teach(x=float(x), y=float(y), theta=theta, sentence=sentence)
+            poses = [(p["x"], p["y"]) for p in client.where(f"{word} room", n=10, seed=t)["positions"]]
+            in_room = sum(r == room for r in room_at(np.array(poses), train_xy, train_rooms))
+            client.undo(taught["seq"])
+            results.append(
+                {
+                    "kind": "sample" if t % 2 == 0 else "pose",
+                    "room": room,
+                    "in_room": in_room,
+                    "undo_max_dp": difference(snapshot(), before),
+                }
+            )
+    finally:
+        process.send_signal(signal.SIGINT)
+        process.wait(120)
+    return {
+        "teachings": results,
+        "effective_share": float(np.mean([r["in_room"] >= 8 for r in results])),
+        "undo_exact_share": float(np.mean([r["undo_max_dp"] == 0 for r in results])),
+    }
+
+
 def summarise(results: list[dict[str, Any]]) -> dict[str, Any]:
     eff = np.array([r["effective"] for r in results])
     changed = np.array([r["changed_elsewhere"] for r in results])
@@ -306,6 +417,12 @@ def main() -> None:
     parser.add_argument("--n", type=int, default=100, help="teachings per home and kind")
     parser.add_argument("--undo", type=int, default=0, help="undo trials per home")
     parser.add_argument("--sigverse-home", type=Path, default=None)
+    parser.add_argument(
+        "--http",
+        type=int,
+        default=0,
+        help="teachings over HTTP on the SIGVerse home (each undone and checked)",
+    )
     parser.add_argument("--no-synthetic", action="store_true")
     parser.add_argument("--json", type=Path, default=None)
     args = parser.parse_args()
@@ -323,7 +440,7 @@ def main() -> None:
     )
     print("|---|---|---|---|---|---|---|---|")
     for label, home, env in homes:
-        for kind in ("sample", "pose"):
+        for kind in ("sample", "pose") if args.n else ():
             results = [one_teaching(home, env, t, kind) for t in range(args.n)]
             s = summarise(results)
             report[f"{label} {kind}"] = {"summary": s, "teachings": results}
@@ -348,6 +465,19 @@ def main() -> None:
                 f"in {exact:.0%} (worst {worst:.3g}), also after a restart | | | | |",
                 flush=True,
             )
+    if args.http and args.sigverse_home is not None:
+        import tempfile
+
+        with tempfile.TemporaryDirectory() as folder:
+            http = http_trials(args.sigverse_home.resolve(), sigverse_env("3LDK_9"), args.http, Path(folder))
+        report["SIGVerse 3LDK_9 http"] = http
+        print(
+            f"| SIGVerse 3LDK_9 | over HTTP, each undone | {len(http['teachings'])} | "
+            f"{http['effective_share']:.0%} | "
+            f"{np.mean([r['in_room'] for r in http['teachings']]):.1f} | undo max abs dp = 0 in "
+            f"{http['undo_exact_share']:.0%} | | |",
+            flush=True,
+        )
     if args.json:
         args.json.write_text(json.dumps(report, indent=1, default=str))
 
