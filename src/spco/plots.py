@@ -162,7 +162,8 @@ def _draw_regions(ax: Any, params: ConceptParameters, e: int, vocabulary: Any, c
     names in the legend, and on the map with ``label_regions``) and its centre (+). Returns the
     centres (n, 2)."""
     counts = np.asarray(params.region_counts[e])
-    used = np.flatnonzero(counts > 0)
+    used = np.flatnonzero(counts >= max(NEGLIGIBLE_REGION * counts.sum(), 1e-12))
+    hidden = int(np.count_nonzero(counts > 0)) - used.size
     means = np.asarray(params.region_means[e], dtype=float)
     if not used.size:
         return np.zeros((0, 2))
@@ -183,7 +184,9 @@ def _draw_regions(ax: Any, params: ConceptParameters, e: int, vocabulary: Any, c
     if label_regions:
         _label_regions(ax, used, counts, means, owner, labels, concept_colors)
     ax.scatter(means[used, 0], means[used, 1], marker="+", s=60, color="k", linewidths=1.2,
-               zorder=4, label="region centres (+)")
+               zorder=4, label="region centres (+)" + (
+                   f"; {hidden} region(s) under {NEGLIGIBLE_REGION:.0%} of the samples not drawn"
+                   if hidden else ""))
     return means[used, :2]
 
 
@@ -279,9 +282,11 @@ def plot_home_map(
     title: axes title (default: the home's name).
     path: save the figure there as PNG.
 
-    Each learnt region with training samples (``region_counts > 0``) is a 95% ellipse of the x–y
-    marginal of Σ, coloured by its most probable concept argmax_l π_{e,l,m} G_{e,l}, with its mean
-    marked ``+``. The axes cover ``map_extent`` and every room outline drawn.
+    Each learnt region that matters — at least :data:`NEGLIGIBLE_REGION` of the home's training
+    samples (``region_counts``) — is a 95% ellipse of the x–y marginal of Σ, coloured by its most
+    probable concept argmax_l π_{e,l,m} G_{e,l}, with its mean marked ``+``; the regions left out
+    are counted in the legend. With ``label_regions`` each place is named once, at its largest
+    region. The axes cover ``map_extent`` and every room outline drawn, in metres, with a scale bar.
     """
     fig, ax = _new_axes(ax, (8.0, 7.0))
     concept_colors = _concept_colors(concept_colors, params.n_concepts)
@@ -330,6 +335,7 @@ def plot_home_map(
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
+    _scale_bar(ax)
     ax.set_title(title if title is not None else (environment.name if environment is not None
                                                   else f"home {e}"))
     handles, _ = ax.get_legend_handles_labels()
@@ -342,20 +348,33 @@ def plot_home_map(
     return fig
 
 
+#: A region with less than this share of the home's samples is not drawn by :func:`plot_home_map`.
+NEGLIGIBLE_REGION = 0.01
+
+
+def _scale_bar(ax: Axes) -> None:
+    """A scale bar (1, 2, 5 … m: about a fifth of the axes' width) in the axes' lower right corner."""
+    from mpl_toolkits.axes_grid1.anchored_artists import AnchoredSizeBar
+
+    x0, x1 = ax.get_xlim()
+    target = abs(x1 - x0) / 5
+    length = next((s for s in (0.5, 1, 2, 5, 10, 20, 50, 100) if s >= target / 2), 100)
+    ax.add_artist(AnchoredSizeBar(ax.transData, length, f"{length:g} m", "lower right", pad=0.4,
+                                  color="0.15", frameon=True, size_vertical=abs(x1 - x0) / 200,
+                                  fontproperties={"size": 8}))
+
+
 def _label_regions(ax: Axes, used: np.ndarray, counts: np.ndarray, means: np.ndarray, owner: np.ndarray,
                    labels: Sequence[str], colours: Sequence[object]) -> None:
-    """Write each region's names (its concept's words) at its centre — largest regions first, and
-    not again within a sixth of the map's size of the same label (a place spread over several
-    regions is named once where it is, a place elsewhere again)."""
-    span = np.ptp(means[used, :2], axis=0).max() if used.size > 1 else 1.0
-    placed: list[tuple[str, np.ndarray]] = []
+    """Write each place's names (its concept's words) once, at the centre of its largest region."""
+    placed: set[str] = set()
     for m in sorted(used.tolist(), key=lambda k: -counts[k]):
         c = int(owner[m])
         words = labels[c].partition(": ")[2]
         centre = means[m, :2]
-        if not words or any(w == words and np.hypot(*(p - centre)) < span / 6 for w, p in placed):
+        if not words or words in placed:
             continue
-        placed.append((words, centre))
+        placed.add(words)
         ax.text(centre[0], centre[1], words.replace(", ", "\n"), fontsize=8, ha="center", va="bottom",
                 color="0.1", zorder=4.6, clip_on=True,
                 bbox={"boxstyle": "round,pad=0.2", "fc": "white", "ec": colours[c], "alpha": 0.8})

@@ -60,6 +60,7 @@ from spco.knowledge.knowledge import (
     Knowledge,
     load_knowledge,
 )
+from spco.knowledge.limits import DEFAULT_LIMITS, TeachingLimits
 from spco.knowledge.queries import (
     WHERE_ANYWHERE_WEIGHT,
     WHERE_MODEL_WEIGHT,
@@ -85,6 +86,7 @@ __all__ = [
     "CONCENTRATION_PRIOR_SAMPLES",
     "DEFAULT_ADAPT_ITERATIONS",
     "DEFAULT_FIT_ITERATIONS",
+    "DEFAULT_LIMITS",
     "DEFAULT_MODEL",
     "DEFAULT_TEACH_SWEEPS",
     "FAR_OUTSIDE_MAP",
@@ -105,6 +107,7 @@ __all__ = [
     "Observation",
     "OwnNamesSpreadWarning",
     "Question",
+    "TeachingLimits",
     "adapt",
     "ask",
     "check_view_fit",

@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 
 from spco import knowledge as kn
-from spco.errors import ConfigurationError, SpcoError
+from spco.errors import ConfigurationError, SpcoError, TeachingLimitError, TeachingRateError
 from spco.knowledge import locking
 from spco.knowledge.requests import (
     MAX_POSES,
@@ -152,6 +152,10 @@ class LiveHome:
     holder: how other writers are told who holds the home (``spco serve`` gives its address).
     max_pixels: the largest image accepted.
     compact_records, compact_idle: when the writer compacts (see :mod:`spco.service.writer`).
+    undo_limit: how many of the last teachings can be undone exactly (100).
+    limits: what a teaching may bring (:class:`spco.knowledge.TeachingLimits`, ``None``: no limits);
+        a teaching beyond them raises :class:`~spco.errors.TeachingLimitError` (HTTP 422) or
+        :class:`~spco.errors.TeachingRateError` (HTTP 429), naming the limit.
 
     Opening takes the home's write lock for as long as it is open (:func:`spco.knowledge.locking.hold`:
     ``spco teach`` on it is refused at once, naming ``holder``), replays the journal's teachings
@@ -164,7 +168,8 @@ class LiveHome:
     def __init__(self, path: str | PathLike[str], *, seed: int | None = None,
                  sweeps: int = kn.DEFAULT_TEACH_SWEEPS, writer: str = "process", holder: str | None = None,
                  max_pixels: int = DEFAULT_MAX_PIXELS, compact_records: int | None = None,
-                 compact_idle: float | None = None) -> None:
+                 compact_idle: float | None = None, undo_limit: int | None = None,
+                 limits: kn.TeachingLimits | None = kn.DEFAULT_LIMITS) -> None:
         if writer not in ("process", "thread"):
             raise ConfigurationError(f"writer must be 'process' or 'thread', got {writer!r}")
         self.path = Path(path)
@@ -179,8 +184,9 @@ class LiveHome:
         self._closed = False
         self._lock = locking.hold(path, self.holder)
         options = {"seed": seed, "sweeps": sweeps, "compact_records": compact_records,
-                   "compact_idle": compact_idle}
+                   "compact_idle": compact_idle, "undo_limit": undo_limit}
         options = {k: v for k, v in options.items() if v is not None}
+        options["limits"] = limits
         try:
             if writer == "process":
                 self._writer: ProcessWriter | ThreadWriter = ProcessWriter(
@@ -345,7 +351,14 @@ class LiveHome:
             elif result.get("kind") == "InternalError":
                 answer.set_exception(RuntimeError(result["error"]))
             else:
-                answer.set_exception(_RESULT_ERRORS.get(result.get("kind", ""), SpcoError)(result["error"]))
+                kind = result.get("kind", "")
+                if kind in ("TeachingLimitError", "TeachingRateError"):
+                    error_class = TeachingRateError if kind == "TeachingRateError" else TeachingLimitError
+                    answer.set_exception(error_class(
+                        result["error"], result.get("limit", ""), int(result.get("value", 0)),
+                        int(result.get("allowed", 0))))
+                else:
+                    answer.set_exception(_RESULT_ERRORS.get(kind, SpcoError)(result["error"]))
 
         self._writer.submit(request).add_done_callback(done)
         return answer
