@@ -45,7 +45,8 @@ def browser(tmp_path_factory: pytest.TempPathFactory):
     driver.quit()
 
 
-def test_the_page_shows_the_regions_answers_and_teaches_live(browser, tmp_path: Path) -> None:
+# too many statements: the page's browser walk, one session; to split
+def test_the_page_shows_the_regions_answers_and_teaches_live(browser, tmp_path: Path) -> None:  # noqa: PLR0915
     from selenium.webdriver.common.action_chains import ActionChains
     from selenium.webdriver.common.by import By
     from selenium.webdriver.support.ui import WebDriverWait

@@ -157,10 +157,10 @@ class LiveHome:
         a teaching beyond them raises :class:`~spco.errors.TeachingLimitError` (HTTP 422) or
         :class:`~spco.errors.TeachingRateError` (HTTP 429), naming the limit.
 
-    Opening takes the home's write lock for as long as it is open (:func:`spco.locking.hold`:
+    Opening takes the home's write lock for as long as it is open (:func:`spco.knowledge.locking.hold`:
     ``spco teach`` on it is refused at once, naming ``holder``), replays the journal's teachings
     that the file lacks (a torn last record is dropped with a :class:`TornRecordWarning`) and
-    compacts. Raises :class:`~spco.locking.HomeServedError` if another server holds it, and
+    compacts. Raises :class:`~spco.knowledge.locking.HomeServedError` if another server holds it, and
     :class:`~spco.errors.ModelFileError` / :class:`~spco.service.journal.JournalError` for a bad
     file or journal.
     """
@@ -250,24 +250,29 @@ class LiveHome:
         raise ConfigurationError(f"not a question: {type(request).__name__} (Where, What or Ask)")
 
     def view_counts(self, view: View | None) -> Any:
-        """A view's visual counts: its ``visual`` as given, or its image through the knowledge's
-        extractor (:meth:`spco.knowledge.Knowledge.image_extractor`, as ``spco what --image``), or
-        ``None`` for no view. The image is decoded by :func:`spco.service.images.decode_image`
-        (its size checked from its header first, against ``max_pixels``)."""
+        """A view's visual counts (:func:`spco.knowledge.view_counts`): its ``visual`` as given, or its
+        image through the knowledge's extractor (:meth:`spco.knowledge.Knowledge.image_extractor`, as
+        ``spco what --image``), or ``None`` for no view. The image is decoded by
+        :func:`spco.service.images.decode_image` (its size checked from its header first, against
+        ``max_pixels``)."""
         if view is None:
             return None
-        if view.image is None:
-            return view.visual
         knowledge = self._snapshot.knowledge
-        if not knowledge.fitted_on_images:
-            raise ConfigurationError("the knowledge of this home was fitted on visual count vectors, not on "
-                                     "images: give the view's features (visual), not an image")
+        if view.image is None or not knowledge.fitted_on_images:
+            # the counts as given, or why an image is refused
+            return kn.view_counts(knowledge, view.visual, view.image)
         pixels = decode_image(view.image, view.encoding, width=view.width, height=view.height,
                               max_pixels=self.max_pixels)
+        encoding = "mono8" if pixels.ndim == 2 else "bgr8"  # what decode_image gives
+        return kn.view_counts(knowledge, None, pixels, encoding,
+                              extractor=lambda: self._extractor_of(knowledge))
+
+    def _extractor_of(self, knowledge: kn.Knowledge) -> Any:
+        """``knowledge``'s extractor, built once and kept while the served knowledge stays the same."""
         key = json.dumps(knowledge.extractor, sort_keys=True)
         if self._extractor is None or key != self._extractor_key:
             self._extractor, self._extractor_key = knowledge.image_extractor(), key
-        return self._extractor.extract(pixels, "mono8" if pixels.ndim == 2 else "bgr8")  # decode_image's
+        return self._extractor
 
     def where(self, name: str, n: int = 10, *, seed: int = 0) -> dict[str, Any]:
         """Poses for the place ``name`` (read like a sentence: ``"Living Room"`` → ``living room``):

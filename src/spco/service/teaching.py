@@ -47,7 +47,6 @@ import time
 import warnings
 from collections.abc import Callable
 from dataclasses import replace
-from datetime import UTC, datetime
 from os import PathLike
 from pathlib import Path
 from typing import Any
@@ -57,10 +56,11 @@ import scipy.sparse as sp
 
 from spco import knowledge as kn
 from spco.errors import ConfigurationError, SpcoError
-from spco.knowledge.requests import MAX_SENTENCE_CHARS
+from spco.knowledge.requests import MAX_SENTENCE_CHARS, clean_sentence
 from spco.model.prediction import validate_visual_counts
 from spco.service.answers import check_pose
 from spco.service.journal import JournalError, journal_path, read_journal
+from spco.timestamps import utc_now
 
 __all__ = [
     "CHECKPOINT_EVERY",
@@ -109,9 +109,6 @@ class ConflictError(SpcoError):
     teaching that a later one changed or that was undone already."""
 
 
-def _now() -> str:
-    return datetime.now(UTC).isoformat(timespec="milliseconds")
-
 
 def served_info(home: kn.HomeModel) -> dict[str, Any]:
     """``provenance["served"]`` of ``home`` without its history: ``journal``, ``last_seq``, ``teachings``
@@ -144,15 +141,6 @@ def with_history(home: kn.HomeModel, history: dict[int, dict[str, Any]] | None) 
 
 
 # ---------------------------------------------------------------------------- requests -> records
-def _clean_sentence(sentence: object) -> str | None:
-    if sentence is None:
-        return None
-    if not isinstance(sentence, str):
-        raise ConfigurationError(f"sentence: expected a string or null, got {type(sentence).__name__}")
-    if len(sentence) > MAX_SENTENCE_CHARS:
-        raise ConfigurationError(f"sentence: {len(sentence)} characters; at most {MAX_SENTENCE_CHARS}")
-    return sentence.strip() or None
-
 
 def _sample_id(value: object, what: str = "id") -> int:
     if isinstance(value, bool) or not isinstance(value, int | np.integer):
@@ -175,7 +163,7 @@ def sentence_record(home: kn.HomeModel, sample_id: object, sentence: object) -> 
     """
     sample = _sample_id(sample_id)
     _check_known(home, sample)
-    return {"op": "sentence", "id": sample, "sentence": _clean_sentence(sentence)}
+    return {"op": "sentence", "id": sample, "sentence": clean_sentence(sentence)}
 
 
 def view_record(home: kn.HomeModel, counts: object) -> dict[str, list[int]] | None:
@@ -206,7 +194,7 @@ def observation_record(home: kn.HomeModel, x: object, y: object, theta: object, 
     """
     px, py, ptheta = check_pose(home, x, y, theta)
     record: dict[str, Any] = {"op": "observation", "id": None, "x": px, "y": py, "theta": ptheta,
-                              "sentence": _clean_sentence(sentence), "view": view_record(home, counts)}
+                              "sentence": clean_sentence(sentence), "view": view_record(home, counts)}
     if sample_id is not None:
         sample = _sample_id(sample_id)
         if (home.ids == sample).any():
@@ -374,7 +362,7 @@ def _teach_records(home: kn.HomeModel, records: list[dict[str, Any]]
     """One :func:`spco.knowledge.teach` call for teaching records of one batch (its seed and sweeps):
     the updated home and the history entries of the records."""
     seed, sweeps = int(records[0]["seed"]), int(records[0]["sweeps"])
-    stamp = records[0].get("time") or _now()
+    stamp = records[0].get("time") or utc_now()
     entries: dict[int, dict[str, Any]] = {}
     sentences: dict[int, str | None] = {}
     observations = []
@@ -415,7 +403,7 @@ def apply_batch(home: kn.HomeModel, records: list[dict[str, Any]],
     first = records[0]
     served = served_info(home)
     teachings = int(served.get("teachings", 0))
-    stamp = first.get("time") or _now()
+    stamp = first.get("time") or utc_now()
     with warnings.catch_warnings(record=True) as caught:  # said in the answer (notes), not on stderr
         warnings.simplefilter("always", kn.OwnNamesSpreadWarning)
         if first["op"] == "undo":
