@@ -12,6 +12,7 @@ from pathlib import Path
 import click
 
 from spco.cli.errors import friendly_errors
+from spco.cli.limits import limits_from_options, teaching_limit_options
 
 __all__ = ["ros", "ros2"]
 
@@ -57,12 +58,13 @@ __all__ = ["ros", "ros2"]
               help="Where teachings are applied (spco.service.LiveHome): a writer process of their own (the "
                    "answers never wait for them), or a thread of the node.")
 @click.option("--seed", default=0, show_default=True, type=int, help="Base seed of the teachings.")
+@teaching_limit_options
 @friendly_errors
 def ros(home: Path, ros_arguments: tuple[str, ...], pose_topic: str, map_frame: str, robot_frame: str,
         image_topic: str | None,
         speech_topic: str | None, tolerance: float, image_wait: float | None, clock: str, max_age: float,
         goal: bool, rosbridge: str | None, pose_type: str | None, image_type: str | None, node_name: str,
-        sweeps: int, writer: str, seed: int) -> None:
+        sweeps: int, writer: str, seed: int, undo_limit: int, **limit_options: int) -> None:
     """Run HOME (a home file, from spco adapt) as a node on the robot's ROS network: learn from what
     it hears, answer where/what queries, draw its places in RViz.
 
@@ -83,8 +85,7 @@ def ros(home: Path, ros_arguments: tuple[str, ...], pose_topic: str, map_frame: 
                                    "written FROM:=TO (e.g. /spco/query:=/robot/query, __name:=spco2)")
         if rosbridge is not None:
             raise click.UsageError(f"{argument!r}: ROS remappings are for a ROS 1 node, not --rosbridge")
-    from spco.ros.core import NodeSettings
-    from spco.ros.node import Topics
+    from spco.ros.core import NodeSettings, Topics
     from spco.service.live import LiveHome
 
     settings = NodeSettings(tolerance=tolerance, image_wait=image_wait, clock=clock, max_age=max_age,
@@ -105,7 +106,8 @@ def ros(home: Path, ros_arguments: tuple[str, ...], pose_topic: str, map_frame: 
         raise ConfigurationError(f"--rosbridge takes a WebSocket URL such as ws://robot:9090, got "
                                  f"{rosbridge!r}")
     where = rosbridge or os.environ.get("ROS_MASTER_URI", "http://localhost:11311 (ROS_MASTER_URI unset)")
-    with LiveHome(home, seed=seed, sweeps=sweeps, writer=writer,
+    limits = limits_from_options(limit_options)
+    with LiveHome(home, seed=seed, sweeps=sweeps, writer=writer, undo_limit=undo_limit, limits=limits,
                   holder=f"spco ros (process {os.getpid()})") as live:
         model = live.home
         uses_images = bool(model.knowledge.fitted_on_images)

@@ -58,7 +58,25 @@ from spco.ros.messages import (
 )
 from spco.service.live import LiveHome
 
-__all__ = ["NodeCore", "NodeSettings", "QueryError"]
+__all__ = ["ANSWER_TOPIC", "GOAL_TOPIC", "MARKER_TOPIC", "QUERY_TOPIC", "WHERE_TOPIC", "NodeCore",
+           "NodeSettings", "QueryError", "Topics"]
+
+#: spco's own topics, the same on every transport (the robot's are options: :class:`Topics`).
+QUERY_TOPIC = "/spco/query"
+ANSWER_TOPIC = "/spco/answer"
+GOAL_TOPIC = "/spco/goal"
+MARKER_TOPIC = "/spco/markers"
+WHERE_TOPIC = "/spco/where"
+
+
+@dataclass(frozen=True)
+class Topics:
+    """The robot's topics: pose (a pose topic, or ``/tf``), camera (``None``: no camera) and speech
+    (``None``: the node only answers queries)."""
+
+    pose: str = "/tf"
+    image: str | None = None
+    speech: str | None = None
 
 log = logging.getLogger("spco.ros")
 

@@ -26,36 +26,27 @@ from __future__ import annotations
 import logging
 import sys
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 from typing import Any
 
 from spco.ros import import_rospy
-from spco.ros.core import NodeCore, NodeSettings
+from spco.ros.core import (
+    ANSWER_TOPIC,
+    GOAL_TOPIC,
+    MARKER_TOPIC,
+    QUERY_TOPIC,
+    WHERE_TOPIC,
+    NodeCore,
+    NodeSettings,
+    Topics,
+)
 
-__all__ = ["ANSWER_TOPIC", "GOAL_TOPIC", "MARKER_TOPIC", "QUERY_TOPIC", "WHERE_TOPIC", "Topics",
-           "message_to_dict", "run_node"]
-
-QUERY_TOPIC = "/spco/query"
-ANSWER_TOPIC = "/spco/answer"
-GOAL_TOPIC = "/spco/goal"
-MARKER_TOPIC = "/spco/markers"
-WHERE_TOPIC = "/spco/where"
+__all__ = ["message_to_dict", "run_node"]
 
 #: Message types accepted on the pose and image topics (ROS 1 names).
 POSE_TYPES = ("geometry_msgs/PoseWithCovarianceStamped", "geometry_msgs/PoseStamped", "nav_msgs/Odometry")
 IMAGE_TYPES = ("sensor_msgs/Image", "sensor_msgs/CompressedImage")
 
 log = logging.getLogger("spco.ros")
-
-
-@dataclass(frozen=True)
-class Topics:
-    """The robot's topics: pose (a pose topic, or ``/tf``), camera (``None``: no camera) and speech
-    (``None``: the node only answers queries)."""
-
-    pose: str = "/tf"
-    image: str | None = None
-    speech: str | None = None
 
 
 def message_to_dict(msg: Any) -> Any:
