@@ -51,6 +51,7 @@ from spco.model.posterior import (
     untaught_concepts_name_nothing,
 )
 from spco.model.random import stack_counts
+from spco.model.word_channels import WordChannels, uses_word_channels
 
 
 def _as_generator(random_state: int | np.random.Generator | None) -> np.random.Generator:
@@ -227,6 +228,11 @@ class SpatialConceptModel:
         from spco.model.driver import start_run
 
         run = start_run(engine, data, len(corpus.vocabulary), hyper, settings, rng)
+        sentences = [s for t in corpus.training_set() for s in t.sentences]
+        evidence = None
+        if uses_word_channels(hyper, settings) and data.words.nnz:
+            evidence = name_prior(corpus.vocabulary, sentences)
+            run.use_word_channels(WordChannels.initial(evidence, hyper.n_concepts, hyper.evidence_weight))
 
         def after_sweep(iteration: int, previous: float) -> None:
             # a restarted engine repeats the sweeps since its checkpoint (the same chain): each
@@ -266,9 +272,9 @@ class SpatialConceptModel:
             # the naming rule's linguistic evidence, how name-like each word is: candidates for names
             # never heard (spco.model.unheard), and the order of each concept's words with the
             # opt-in hyperparameters.name_prior = "wordnet"
-            sentences = [s for t in corpus.training_set() for s in t.sentences]
-            self.parameters_ = replace(self.parameters_,
-                                       name_prior=name_prior(corpus.vocabulary, sentences))
+            self.parameters_ = replace(self.parameters_, name_prior=evidence if evidence is not None
+                                       else name_prior(corpus.vocabulary, sentences))
+        self.word_channels_ = state.channels
         splits = np.split(np.arange(data.n_samples), data.offsets[1:-1])
         self.concepts_ = [state.concepts[s].copy() for s in splits]
         self.regions_ = [state.regions[s].copy() for s in splits]
