@@ -51,15 +51,24 @@ def _random_problem(seed: int, n_samples: int = 3, n_words: int = 4, n_concepts:
     channels = WordChannels(
         log_place=np.log(rng.dirichlet(np.ones(n_words), size=n_concepts)),
         log_background=np.log(rng.dirichlet(np.ones(n_words))),
-        log_shares=np.log(rng.dirichlet(np.ones(3))),
+        log_shares=np.concatenate([[0.0], np.log(rng.dirichlet(np.ones(2)))]),
         log_evidence=np.log(np.column_stack([p := rng.uniform(0.05, 0.95, n_words), 1 - p, 1 - p])))
     return words, homes, log_theta, channels
 
 
+def _prior(k: int, channels) -> np.ndarray:
+    """p(z | word k), written out: the evidence for the names, the rest split by λ."""
+    e = np.exp(channels.log_evidence[k])
+    e = e / e.sum()
+    lam = np.exp(channels.log_shares)
+    split = lam[1:] * e[1:] / (lam[1:] * e[1:]).sum()
+    return np.array([e[0], (1 - e[0]) * split[0], (1 - e[0]) * split[1]])
+
+
 def _token_joint(k: int, z: int, home: int, concept: int, log_theta, channels) -> float:
     """log p(z, w = k | C = concept) of one token, written out."""
-    prior = np.exp(channels.log_shares) * np.exp(channels.log_evidence[k])
-    prior = prior / prior.sum()
+    prior = _prior(k, channels)
+    assert_allclose(prior, np.exp(channels.log_prior()[k]), rtol=1e-12)
     like = (np.exp(log_theta[home, concept, k]), np.exp(channels.log_place[concept, k]),
             np.exp(channels.log_background[k]))[z]
     return float(np.log(prior[z] * like))
@@ -113,8 +122,12 @@ def test_lambda_conditional_matches_the_tokens_prior() -> None:
     np.add.at(by_word, (cols, z), 1)
     grid = lambda_grid(12)
     got = lambda_log_posterior(by_word, log_e, grid)
-    brute = np.array([sum(np.log(lam[zz] * np.exp(log_e[k, zz]) / (lam * np.exp(log_e[k])).sum())
-                          for k, zz in zip(cols, z, strict=True)) for lam in grid])
+
+    def log_p_z(lam: np.ndarray) -> float:  # Σ_tokens log p(z | k, λ)
+        channels = WordChannels(np.zeros((1, V)), np.zeros(V), np.concatenate([[0.0], np.log(lam)]), log_e)
+        return sum(np.log(_prior(k, channels)[zz]) for k, zz in zip(cols, z, strict=True))
+
+    brute = np.array([log_p_z(lam) for lam in grid])
     assert_allclose(got - got.max(), brute - brute.max(), atol=1e-9)
     assert_allclose(grid.sum(axis=1), 1.0)
     assert (grid > 0).all()

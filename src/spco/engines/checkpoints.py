@@ -34,6 +34,7 @@ def _put(arrays: dict, name: str, value) -> None:
     if name == "channels":
         for part in _CHANNEL_ARRAYS:
             arrays[f"channels.{part}"] = np.asarray(getattr(value, part))
+        arrays["channels.fresh"] = np.asarray(value.fresh)
     else:
         arrays[name] = np.asarray(value)
 
@@ -42,7 +43,8 @@ def _get(arrays, name: str):
     if name == "channels":
         if "channels.log_place" not in arrays:
             return None
-        return WordChannels(*(arrays[f"channels.{part}"] for part in _CHANNEL_ARRAYS))
+        return WordChannels(*(arrays[f"channels.{part}"] for part in _CHANNEL_ARRAYS),
+                            fresh=bool(arrays["channels.fresh"]))
     return arrays[name] if name in arrays else None
 DRIVER_FILE = "driver.npz"
 

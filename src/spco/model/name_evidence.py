@@ -48,14 +48,18 @@ import numpy as np
 from spco.data.language import Vocabulary
 
 __all__ = [
+    "CLOSED_CLASS",
     "COPULAS",
     "DETERMINERS",
     "FEATURES",
     "PREPOSITIONS",
     "PRONOUNS",
     "WEIGHTS",
+    "channel_evidence",
+    "content_share",
     "feature_matrix",
     "frame_features",
+    "is_function_word",
     "lexical_features",
     "name_prior",
     "within_concepts",
@@ -76,6 +80,21 @@ COPULAS = frozenset({"is", "are", "was", "it's", "that's", "here's", "this's", "
 #: Personal pronouns (subjects and objects: "I'm home", "we eat", "see you").
 PRONOUNS = frozenset({"i", "i'm", "me", "we", "we're", "us", "you", "you're", "he", "she", "they",
                       "they're", "him", "them", "i've", "we've", "i'll", "we'll"})
+#: Other closed-class words: conjunctions, auxiliaries and their contractions, negations, question
+#: words, adverbs of place and fillers. With the lists above: words that are never a place's name
+#: (:func:`content_share`).
+OTHER_FUNCTION_WORDS = frozenset({
+    "and", "or", "but", "so", "if", "then", "than", "because", "as", "do", "does", "did", "don't",
+    "doesn't", "didn't", "can", "can't", "cannot", "could", "will", "won't", "would", "should", "shall",
+    "may", "might", "must", "have", "has", "had", "having", "been", "being", "am", "were", "isn't",
+    "aren't", "wasn't", "weren't", "not", "no", "yes", "yeah", "ok", "okay", "um", "uh", "er", "hmm",
+    "oh", "ah", "well", "like", "just", "also", "too", "very", "really", "here", "there", "where",
+    "what", "which", "who", "when", "how", "why", "all", "some", "any", "every", "each", "much",
+    "many", "more", "most", "again", "ago", "about", "always", "never", "now", "only", "still",
+    "it'll", "that'll", "there's", "what's", "where's", "let's", "she's", "he's", "you'll", "you've",
+    "they'll", "they've", "i'd", "we'd", "you'd", "let", "get", "got", "go", "going", "gonna",
+    "wanna", "please", "thanks", "thank", "hi", "hello", "hey", "bye", "robot", "one", "ones"})
+
 #: Words after a name in "X is here", "X here", "X's here".
 AFTER_NAME = frozenset({"is", "are", "here", "'s"})
 
@@ -87,6 +106,26 @@ FEATURES = ("determiner", "naming_frame", "preposition", "pronoun", "sentence_st
 #: development data, L2 penalty 1; see docs/model.md).
 WEIGHTS: tuple[float, ...] = (-5.805, 2.303, 0.703, -1.110, -0.366, 0.068, -0.140, 0.030, 1.458, 2.641,
                                -0.434)
+
+
+#: Every closed-class word spco knows (English): :data:`DETERMINERS`, :data:`PREPOSITIONS`,
+#: :data:`COPULAS`, :data:`PRONOUNS` and :data:`OTHER_FUNCTION_WORDS`.
+CLOSED_CLASS = DETERMINERS | PREPOSITIONS | COPULAS | PRONOUNS | OTHER_FUNCTION_WORDS
+
+
+def is_function_word(token: str) -> bool:
+    """Whether one token is a closed-class word or a number ("2", "11", "2am", "1st")."""
+    return token in CLOSED_CLASS or (any(ch.isdigit() for ch in token) and len(token) <= 6)
+
+
+def content_share(words: Sequence[str]) -> np.ndarray:
+    """(V,) the share of each vocabulary entry's words that are content words (not
+    :func:`is_function_word`): 1 for "wash basin", 0.5 for "front of", 0 for "you are in"."""
+    out = np.empty(len(words))
+    for k, word in enumerate(words):
+        parts = word.split() or [word]
+        out[k] = sum(not is_function_word(p) for p in parts) / len(parts)
+    return out
 
 
 def _possessive(token: str) -> bool:
@@ -184,6 +223,37 @@ def name_prior(vocabulary: Vocabulary, sentences: Iterable[str | None], lexicon:
     if w.shape != (features.shape[1] + 1,):
         raise ValueError(f"expected {features.shape[1] + 1} weights, got {w.shape}")
     return 1.0 / (1.0 + np.exp(-(w[0] + features @ w[1:])))
+
+
+#: A word that is the WordNet kind (a hypernym) of at least this many other place words said is
+#: the name of a kind of place ("room": bedroom, kitchen, bathroom, …), not of one place.
+KIND_OF_PLACES = 3
+#: The factor of a kind word's name evidence in the word channels' prior.
+KIND_FACTOR = 0.1
+
+
+def channel_evidence(vocabulary: Vocabulary, sentences: Iterable[str | None],
+                     lexicon: object | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The evidence of the word channels' switch prior (:mod:`spco.model.word_channels`): (ν, a), each
+    (V,). ν: :func:`name_prior`, times :data:`KIND_FACTOR` for a word that is the kind of
+    :data:`KIND_OF_PLACES` or more other place words of the vocabulary (WordNet hypernyms: "room");
+    a: :func:`content_share`."""
+    sentences = list(sentences)
+    if lexicon is None:
+        from spco.data.lexicon import lexicon as load
+
+        lexicon = load()
+    features = feature_matrix(vocabulary, sentences, lexicon)
+    w = np.asarray(WEIGHTS, dtype=np.float64)
+    nu = 1.0 / (1.0 + np.exp(-(w[0] + features @ w[1:])))
+    words = list(vocabulary.words)
+    if lexicon is not None:
+        place = features[:, FEATURES.index("place_share")] > 0
+        candidates = [words[k] for k in np.flatnonzero(place)]
+        for k in np.flatnonzero(place):
+            if lexicon.kinds_of(words[k], candidates) >= KIND_OF_PLACES:  # type: ignore[attr-defined]
+                nu[k] *= KIND_FACTOR
+    return nu, content_share(words)
 
 
 def within_concepts(weighted: np.ndarray, prior: np.ndarray) -> np.ndarray:

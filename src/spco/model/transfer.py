@@ -42,7 +42,7 @@ from spco.data.language import Vocabulary
 from spco.errors import ConfigurationError
 from spco.model import gibbs
 from spco.model.hyperparameters import SpCoAHyperparameters, TransferHyperparameters
-from spco.model.name_evidence import name_prior
+from spco.model.name_evidence import channel_evidence, name_prior
 from spco.model.parameters import ConceptParameters
 from spco.model.posterior import (
     ParameterAverage,
@@ -51,7 +51,7 @@ from spco.model.posterior import (
     untaught_concepts_name_nothing,
 )
 from spco.model.random import stack_counts
-from spco.model.word_channels import WordChannels, uses_word_channels
+from spco.model.word_channels import WordChannels, channel_parameters, uses_word_channels
 
 
 def _as_generator(random_state: int | np.random.Generator | None) -> np.random.Generator:
@@ -231,8 +231,9 @@ class SpatialConceptModel:
         sentences = [s for t in corpus.training_set() for s in t.sentences]
         evidence = None
         if uses_word_channels(hyper, settings) and data.words.nnz:
-            evidence = name_prior(corpus.vocabulary, sentences)
-            run.use_word_channels(WordChannels.initial(evidence, hyper.n_concepts, hyper.evidence_weight))
+            evidence, content = channel_evidence(corpus.vocabulary, sentences)
+            run.use_word_channels(WordChannels.initial(evidence, hyper.n_concepts, hyper.evidence_weight,
+                                                       content))
 
         def after_sweep(iteration: int, previous: float) -> None:
             # a restarted engine repeats the sweeps since its checkpoint (the same chain): each
@@ -275,6 +276,8 @@ class SpatialConceptModel:
             self.parameters_ = replace(self.parameters_, name_prior=evidence if evidence is not None
                                        else name_prior(corpus.vocabulary, sentences))
         self.word_channels_ = state.channels
+        if state.channels is not None:
+            self.parameters_ = replace(self.parameters_, **channel_parameters(state.channels))
         splits = np.split(np.arange(data.n_samples), data.offsets[1:-1])
         self.concepts_ = [state.concepts[s].copy() for s in splits]
         self.regions_ = [state.regions[s].copy() for s in splits]

@@ -11,12 +11,16 @@ z_ti ∈ {name, place, background} (``docs/model.md``, "Words that are not names
 - **background** (z = 2): from a **background** β ~ Dir(α^b) shared by every place and home
   (function words, fillers, greetings).
 
-The switch's prior is p(z_ti = c | w_ti = k) ∝ λ_c · e_{k,c}: learnt channel shares λ ~ Dir(1, 1, 1)
-(on a grid, below) times the **linguistic evidence** e_k = (ν_k, 1 − ν_k, 1 − ν_k), ν_k = P(name | how
+The switch's prior comes from the **linguistic evidence** of word k, e_k = (ν_k, (1 − ν_k) a_k,
+(1 − ν_k)(1 − a_k)) (to the power η, ``TransferHyperparameters.evidence_weight``): ν_k = P(name | how
 word k is said and what it is) of :func:`spco.model.name_evidence.name_prior` (sentence frames and
-WordNet; a function word has no noun sense and ν ≈ 0). As in topic models with background and
-special words (Chemudugunta et al. 2006; the background switch of Twitter-LDA), which words are
-names is then what the posterior says.
+WordNet, a logistic model fitted on development data), a_k the share of its words that are content
+words (:func:`spco.model.name_evidence.content_share`: function words, numbers and fillers are
+not). p(z = name | k) = e_{k,0} / Σ_c e_{k,c}: the calibrated evidence itself. The rest is split
+between place and background in proportion to λ_place e_{k,1} and λ_background e_{k,2}, with learnt
+shares λ ~ Beta(1, 1) (on a grid, below). As in topic models with background and special words
+(Chemudugunta et al. 2006; the background switch of Twitter-LDA), which words are names is then what
+the posterior says.
 
 **Each token counts once in its switch.** The token's conditional given the concept uses one draw:
 
@@ -40,9 +44,8 @@ names' θ^w and φ^w keep their scale.
 The two conditionals are not those of one joint distribution when S^w > 1 (the switch at power 1,
 the concept at power S^w): the sampler is a modular ("cut") Gibbs sampler, exact for S^w = 1 (tested
 against enumeration of the joint in ``tests/test_word_channels.py``). λ | z is drawn exactly on a
-grid of the simplex (:data:`LAMBDA_GRID` points per side): its conditional
-p(λ | z) ∝ Π_c λ_c^{n_c} / Π_k (Σ_c λ_c e_{k,c})^{m_k} (n_c tokens in channel c, m_k tokens of word
-k) is not a Dirichlet.
+grid (:data:`LAMBDA_GRID` steps): its conditional p(λ | z) ∝ Π_c λ_c^{n_c} / Π_k (Σ_c λ_c e_{k,c})^{m_k}
+(c ∈ {place, background}; n_c tokens in channel c, m_k such tokens of word k) is not a Beta.
 
 The name scoring that prediction uses, p(name k | concept l) = θ^w_{e,l,k}, is
 :func:`name_log_probabilities`.
@@ -85,21 +88,33 @@ class WordChannels:
     log_background: np.ndarray
     log_shares: np.ndarray
     log_evidence: np.ndarray
+    #: True until the first statistics: the first switches are drawn from their prior alone
+    #: (:func:`sample_switches`), so that ψ, β and θ^w start from the evidence, not from a θ^w of
+    #: the start that counted every word as a name
+    fresh: bool = False
 
     @classmethod
-    def initial(cls, evidence: np.ndarray, n_concepts: int, weight: float = 1.0) -> WordChannels:
-        """Uniform ψ and β, equal shares, and the evidence ``evidence`` (V,) = ν_k in (0, 1) with
-        weight η = ``weight``: e_k = (ν_k^η, (1 − ν_k)^η, (1 − ν_k)^η)."""
+    def initial(cls, evidence: np.ndarray, n_concepts: int, weight: float = 1.0,
+                content: np.ndarray | None = None) -> WordChannels:
+        """Uniform ψ and β, equal shares, and the evidence of every word: ``evidence`` (V,) = ν_k in
+        (0, 1), P(name | word), with weight η = ``weight``, and ``content`` (V,) = a_k, the share of
+        its words that are content words (:func:`spco.model.name_evidence.content_share`; default 1):
+        e_k = (ν_k^η, ((1 − ν_k) a_k)^η, ((1 − ν_k)(1 − a_k))^η), a_k kept within [0.05, 0.95]: a
+        function word is background, an object or an activity a place word or background."""
         nu = np.clip(np.asarray(evidence, dtype=np.float64), EVIDENCE_FLOOR, 1.0 - EVIDENCE_FLOOR)
         V = nu.size
-        log_e = weight * np.stack([np.log(nu), np.log1p(-nu), np.log1p(-nu)], axis=1)
+        a = np.ones(V) if content is None else np.asarray(content, dtype=np.float64)
+        a = np.clip(a, 0.05, 0.95)
+        log_e = weight * np.stack([np.log(nu), np.log1p(-nu) + np.log(a), np.log1p(-nu) + np.log1p(-a)],
+                                  axis=1)
         flat = -np.log(max(V, 1))
-        return cls(np.full((n_concepts, V), flat), np.full(V, flat), np.full(3, -np.log(3.0)), log_e)
+        shares = np.array([0.0, -np.log(2.0), -np.log(2.0)])  # (the first is unused)
+        return cls(np.full((n_concepts, V), flat), np.full(V, flat), shares, log_e, True)
 
     def copy(self) -> WordChannels:
         """A copy of the arrays."""
         return WordChannels(self.log_place.copy(), self.log_background.copy(), self.log_shares.copy(),
-                            self.log_evidence.copy())
+                            self.log_evidence.copy(), self.fresh)
 
     @property
     def n_words(self) -> int:
@@ -107,9 +122,14 @@ class WordChannels:
         return int(self.log_background.size)
 
     def log_prior(self) -> np.ndarray:
-        """(V, 3) log p(z = c | word k) = log λ_c e_{k,c} − log Σ_c' λ_c' e_{k,c'}."""
-        joint = self.log_shares[None, :] + self.log_evidence
-        return joint - logsumexp(joint, axis=1, keepdims=True)
+        """(V, 3) log p(z = c | word k): the name evidence for the names channel,
+        p(name | k) = e_{k,0} / Σ_c e_{k,c}, and the rest split between place and background by
+        the learnt shares, ∝ λ_place e_{k,1} and λ_background e_{k,2} (``log_shares[0]`` is unused)."""
+        log_e = self.log_evidence - logsumexp(self.log_evidence, axis=1, keepdims=True)
+        rest = logsumexp(log_e[:, 1:], axis=1)  # log p(not a name | k)
+        split = self.log_shares[None, 1:] + log_e[:, 1:]
+        split = split - logsumexp(split, axis=1, keepdims=True)
+        return np.column_stack([log_e[:, 0], rest[:, None] + split])
 
     def extended(self, n_words: int, evidence: np.ndarray | None = None) -> WordChannels:
         """The channels for a vocabulary grown to ``n_words`` (new words appended): new words get
@@ -121,7 +141,7 @@ class WordChannels:
             return self
         nu = np.full(added, 0.5) if evidence is None else np.clip(np.asarray(evidence, dtype=np.float64)[V:],
                                                                    EVIDENCE_FLOOR, 1.0 - EVIDENCE_FLOOR)
-        log_e = np.stack([np.log(nu), np.log1p(-nu), np.log1p(-nu)], axis=1)
+        log_e = np.stack([np.log(nu), np.log1p(-nu) + np.log(0.95), np.log1p(-nu) + np.log(0.05)], axis=1)
         low_p = self.log_place.min(axis=1, keepdims=True) if V else np.zeros((self.log_place.shape[0], 1))
         low_b = self.log_background.min() if V else 0.0
         place = np.concatenate([self.log_place, np.repeat(low_p, added, axis=1)], axis=1)
@@ -191,8 +211,13 @@ def switch_probabilities(words: sp.csr_array, homes: np.ndarray, concepts: np.nd
 
 def sample_switches(words: sp.csr_array, homes: np.ndarray, concepts: np.ndarray, log_theta_w: np.ndarray,
                     channels: WordChannels, rng: np.random.Generator) -> np.ndarray:
-    """Draw every token's switch given its sample's concept: (nnz,) int8 in {0, 1, 2}."""
-    p = switch_probabilities(words, homes, concepts, log_theta_w, channels)
+    """Draw every token's switch given its sample's concept: (nnz,) int8 in {0, 1, 2}. Fresh channels
+    (:attr:`WordChannels.fresh`): from the switch's prior alone (the start)."""
+    if channels.fresh:
+        _, cols, _ = _tokens(words)
+        p = np.exp(channels.log_prior()[cols])
+    else:
+        p = switch_probabilities(words, homes, concepts, log_theta_w, channels)
     u = rng.random(p.shape[0])
     return (u[:, None] > np.cumsum(p, axis=1)[:, :2]).sum(axis=1).astype(np.int8)
 
@@ -252,22 +277,24 @@ def place_token_counts(words: sp.csr_array, homes: np.ndarray, concepts: np.ndar
 
 
 def lambda_grid(points: int = LAMBDA_GRID) -> np.ndarray:
-    """The interior points of the simplex grid with ``points`` steps per side: (G, 3), rows sum to 1."""
-    i, j = np.meshgrid(np.arange(1, points), np.arange(1, points), indexing="ij")
-    k = points - i - j
-    keep = k >= 1
-    return np.stack([i[keep], j[keep], k[keep]], axis=1).astype(np.float64) / points
+    """The shares (λ_place, λ_background) on a grid of ``points`` steps: (points − 1, 2), the interior
+    points i/points, rows summing to 1."""
+    i = np.arange(1, points, dtype=np.float64) / points
+    return np.column_stack([i, 1.0 - i])
 
 
 def lambda_log_posterior(by_word: np.ndarray, log_evidence: np.ndarray, grid: np.ndarray) -> np.ndarray:
     """log p(λ | z) up to a constant at every grid point (uniform prior): (G,).
 
-    Σ_c n_c log λ_c − Σ_k m_k log Σ_c λ_c e_{k,c}, n_c the tokens in channel c, m_k those of word k."""
-    n = by_word.sum(axis=0).astype(np.float64)  # (3,)
-    m = by_word.sum(axis=1).astype(np.float64)  # (V,)
+    Only the tokens that are not names depend on λ: Σ_c n_c log λ_c − Σ_k m_k log Σ_c λ_c e_{k,c} over
+    c ∈ {place, background}, n_c the tokens in channel c, m_k the place and background tokens of
+    word k."""
+    rest = by_word[:, 1:].astype(np.float64)  # (V, 2)
+    n = rest.sum(axis=0)
+    m = rest.sum(axis=1)
     log_grid = np.log(grid)
     used = m > 0
-    norm = logsumexp(log_grid[:, None, :] + log_evidence[None, used, :], axis=2)  # (G, V_used)
+    norm = logsumexp(log_grid[:, None, :] + log_evidence[None, used, 1:], axis=2)  # (G, V_used)
     return log_grid @ n - norm @ m[used]
 
 
@@ -279,10 +306,17 @@ def sample_channels(counts: ChannelCounts, channels: WordChannels, rng: np.rando
     log_post = lambda_log_posterior(counts.by_word, channels.log_evidence, grid)
     p = np.exp(log_post - log_post.max())
     choice = rng.choice(grid.shape[0], p=p / p.sum())
-    return replace(channels,
+    return replace(channels, fresh=False,
                    log_place=log_dirichlet(alpha_place + counts.place.astype(np.float64), rng),
                    log_background=log_dirichlet(alpha_background + counts.background.astype(np.float64), rng),
-                   log_shares=np.log(grid[choice]))
+                   log_shares=np.concatenate([[0.0], np.log(grid[choice])]))
+
+
+def channel_parameters(channels: WordChannels) -> dict[str, np.ndarray]:
+    """The channels as fields of :class:`~spco.model.parameters.ConceptParameters`: the place words ψ
+    (L, V) and the switch's prior (V, 3), as probabilities."""
+    return {"place_word_probabilities": np.exp(channels.log_place),
+            "word_channel_prior": np.exp(channels.log_prior())}
 
 
 def name_log_probabilities(log_theta_w: np.ndarray) -> np.ndarray:
