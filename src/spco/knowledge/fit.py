@@ -133,7 +133,9 @@ def fit_knowledge(
     variant, prune = MODELS[model]
     estimator = SpCoTransfer(hyperparameters, variant=variant, prune_words=prune, n_iterations=n_iterations,
                              random_state=random_state)
-    hyper = estimator._validate()
+    # knowledge files and adapt / teach learn words with the naming rule: the word channels are not yet
+    # carried by the knowledge file (docs/model.md, "Words that are not names"); the file says so
+    hyper = replace(estimator._validate(), word_model="naming-rule")
     if not (0 < summary_fraction <= 1) or summary_every < 1:
         raise ConfigurationError("summary_fraction must be within (0, 1] and summary_every >= 1")
     n_features = corpus.n_features if source is not None else corpus[0].n_features

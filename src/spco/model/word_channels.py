@@ -11,16 +11,16 @@ z_ti ∈ {name, place, background} (``docs/model.md``, "Words that are not names
 - **background** (z = 2): from a **background** β ~ Dir(α^b) shared by every place and home
   (function words, fillers, greetings).
 
-The switch's prior comes from the **linguistic evidence** of word k, e_k = (ν_k, (1 − ν_k) a_k,
-(1 − ν_k)(1 − a_k)) (to the power η, ``TransferHyperparameters.evidence_weight``): ν_k = P(name | how
-word k is said and what it is) of :func:`spco.model.name_evidence.name_prior` (sentence frames and
-WordNet, a logistic model fitted on development data), a_k the share of its words that are content
-words (:func:`spco.model.name_evidence.content_share`: function words, numbers and fillers are
-not). p(z = name | k) = e_{k,0} / Σ_c e_{k,c}: the calibrated evidence itself. The rest is split
-between place and background in proportion to λ_place e_{k,1} and λ_background e_{k,2}, with learnt
-shares λ ~ Beta(1, 1) (on a grid, below). As in topic models with background and special words
-(Chemudugunta et al. 2006; the background switch of Twitter-LDA), which words are names is then what
-the posterior says.
+The switch's prior comes from the **linguistic evidence** of word k, e_k = (a_k ν_k, a_k (1 − ν_k),
+1 − a_k) (each to the power η, ``TransferHyperparameters.evidence_weight``, then normalised): a_k the
+share of its words that are content words (:func:`spco.model.name_evidence.content_share`: function
+words, numbers and fillers are not), ν_k = P(name | how word k is said and what it is) of
+:func:`spco.model.name_evidence.channel_evidence` (sentence frames and WordNet, a logistic model
+fitted on development data). p(z = name | k) = e_{k,0} / Σ_c e_{k,c}: the evidence itself, not
+learnt. The rest is split between place and background in proportion to λ_place e_{k,1} and
+λ_background e_{k,2}, with learnt shares λ ~ Beta(1, 1) (on a grid, below). As in topic models
+with background and special words (Chemudugunta et al. 2006; the background switch of Twitter-LDA),
+which words are names is then what the posterior says.
 
 **Each token counts once in its switch.** The token's conditional given the concept uses one draw:
 
@@ -99,14 +99,13 @@ class WordChannels:
         """Uniform ψ and β, equal shares, and the evidence of every word: ``evidence`` (V,) = ν_k in
         (0, 1), P(name | word), with weight η = ``weight``, and ``content`` (V,) = a_k, the share of
         its words that are content words (:func:`spco.model.name_evidence.content_share`; default 1):
-        e_k = (ν_k^η, ((1 − ν_k) a_k)^η, ((1 − ν_k)(1 − a_k))^η), a_k kept within [0.05, 0.95]: a
-        function word is background, an object or an activity a place word or background."""
+        e_k = ((a_k ν_k)^η, (a_k (1 − ν_k))^η, (1 − a_k)^η), a_k kept within [0.05, 0.95]: a content
+        word is a name or a place word as the evidence says, a function word background."""
         nu = np.clip(np.asarray(evidence, dtype=np.float64), EVIDENCE_FLOOR, 1.0 - EVIDENCE_FLOOR)
         V = nu.size
         a = np.ones(V) if content is None else np.asarray(content, dtype=np.float64)
         a = np.clip(a, 0.05, 0.95)
-        log_e = weight * np.stack([np.log(nu), np.log1p(-nu) + np.log(a), np.log1p(-nu) + np.log1p(-a)],
-                                  axis=1)
+        log_e = weight * np.stack([np.log(a) + np.log(nu), np.log(a) + np.log1p(-nu), np.log1p(-a)], axis=1)
         flat = -np.log(max(V, 1))
         shares = np.array([0.0, -np.log(2.0), -np.log(2.0)])  # (the first is unused)
         return cls(np.full((n_concepts, V), flat), np.full(V, flat), shares, log_e, True)
@@ -139,9 +138,10 @@ class WordChannels:
         added = n_words - V
         if added <= 0:
             return self
-        nu = np.full(added, 0.5) if evidence is None else np.clip(np.asarray(evidence, dtype=np.float64)[V:],
-                                                                   EVIDENCE_FLOOR, 1.0 - EVIDENCE_FLOOR)
-        log_e = np.stack([np.log(nu), np.log1p(-nu) + np.log(0.95), np.log1p(-nu) + np.log(0.05)], axis=1)
+        nu = np.full(added, 0.5) if evidence is None else np.asarray(evidence, dtype=np.float64)[V:]
+        nu = np.clip(nu, EVIDENCE_FLOOR, 1.0 - EVIDENCE_FLOOR)
+        log_e = np.stack([np.log(0.95) + np.log(nu), np.log(0.95) + np.log1p(-nu),
+                          np.full(added, np.log(0.05))], axis=1)
         low_p = self.log_place.min(axis=1, keepdims=True) if V else np.zeros((self.log_place.shape[0], 1))
         low_b = self.log_background.min() if V else 0.0
         place = np.concatenate([self.log_place, np.repeat(low_p, added, axis=1)], axis=1)
