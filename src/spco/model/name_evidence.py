@@ -45,7 +45,16 @@ from collections.abc import Iterable, Sequence
 
 import numpy as np
 
-from spco.data.language import Vocabulary
+from spco.data.language import (  # noqa: F401  (re-exported)
+    CLOSED_CLASS,
+    COPULAS,
+    DETERMINERS,
+    OTHER_FUNCTION_WORDS,
+    PREPOSITIONS,
+    PRONOUNS,
+    Vocabulary,
+    is_function_word,
+)
 
 __all__ = [
     "CLOSED_CLASS",
@@ -65,36 +74,8 @@ __all__ = [
     "within_concepts",
 ]
 
-#: Determiners and possessive pronouns (a word ending in "'s" or "s'" also counts as a possessive).
-DETERMINERS = frozenset({"the", "a", "an", "this", "that", "these", "those", "my", "our", "your", "his",
-                         "her", "their", "its", "whose"})
-#: Prepositions (place and direction phrases: "on the table", "to your left", "next to the bath").
-PREPOSITIONS = frozenset({"to", "in", "on", "at", "by", "from", "into", "onto", "near", "next", "beside",
-                          "behind", "under", "over", "across", "through", "after", "before", "for",
-                          "with", "of", "off", "out", "up", "down", "around", "between", "inside",
-                          "outside", "past", "toward", "towards", "along", "against", "opposite",
-                          "above", "below", "beneath", "underneath", "within", "without", "via"})
-#: Copulas and naming verbs: what comes before a name in "this is X", "we call it X".
-COPULAS = frozenset({"is", "are", "was", "it's", "that's", "here's", "this's", "called", "call",
-                     "named", "name", "be", "it", "s"})
-#: Personal pronouns (subjects and objects: "I'm home", "we eat", "see you").
-PRONOUNS = frozenset({"i", "i'm", "me", "we", "we're", "us", "you", "you're", "he", "she", "they",
-                      "they're", "him", "them", "i've", "we've", "i'll", "we'll"})
-#: Other closed-class words: conjunctions, auxiliaries and their contractions, negations, question
-#: words, adverbs of place and fillers. With the lists above: words that are never a place's name
-#: (:func:`content_share`).
-OTHER_FUNCTION_WORDS = frozenset({
-    "and", "or", "but", "so", "if", "then", "than", "because", "as", "do", "does", "did", "don't",
-    "doesn't", "didn't", "can", "can't", "cannot", "could", "will", "won't", "would", "should", "shall",
-    "may", "might", "must", "have", "has", "had", "having", "been", "being", "am", "were", "isn't",
-    "aren't", "wasn't", "weren't", "not", "no", "yes", "yeah", "ok", "okay", "um", "uh", "er", "hmm",
-    "oh", "ah", "well", "like", "just", "also", "too", "very", "really", "here", "there", "where",
-    "what", "which", "who", "when", "how", "why", "all", "some", "any", "every", "each", "much",
-    "many", "more", "most", "again", "ago", "about", "always", "never", "now", "only", "still",
-    "it'll", "that'll", "there's", "what's", "where's", "let's", "she's", "he's", "you'll", "you've",
-    "they'll", "they've", "i'd", "we'd", "you'd", "let", "get", "got", "go", "going", "gonna",
-    "wanna", "please", "thanks", "thank", "hi", "hello", "hey", "bye", "robot", "one", "ones"})
-
+# The English function-word lists live with the tokeniser (:mod:`spco.data.language`, whose term
+# rule uses them too); re-exported here, where the frames read them.
 #: Words after a name in "X is here", "X here", "X's here".
 AFTER_NAME = frozenset({"is", "are", "here", "'s"})
 
@@ -106,16 +87,6 @@ FEATURES = ("determiner", "naming_frame", "preposition", "pronoun", "sentence_st
 #: development data, L2 penalty 1; see docs/model.md).
 WEIGHTS: tuple[float, ...] = (-5.805, 2.303, 0.703, -1.110, -0.366, 0.068, -0.140, 0.030, 1.458, 2.641,
                                -0.434)
-
-
-#: Every closed-class word spco knows (English): :data:`DETERMINERS`, :data:`PREPOSITIONS`,
-#: :data:`COPULAS`, :data:`PRONOUNS` and :data:`OTHER_FUNCTION_WORDS`.
-CLOSED_CLASS = DETERMINERS | PREPOSITIONS | COPULAS | PRONOUNS | OTHER_FUNCTION_WORDS
-
-
-def is_function_word(token: str) -> bool:
-    """Whether one token is a closed-class word or a number ("2", "11", "2am", "1st")."""
-    return token in CLOSED_CLASS or (any(ch.isdigit() for ch in token) and len(token) <= 6)
 
 
 def content_share(words: Sequence[str]) -> np.ndarray:
@@ -228,6 +199,9 @@ def name_prior(vocabulary: Vocabulary, sentences: Iterable[str | None], lexicon:
 #: A word that is the WordNet kind (a hypernym) of at least this many other place words said is
 #: the name of a kind of place ("room": bedroom, kitchen, bathroom, …), not of one place.
 KIND_OF_PLACES = 3
+#: So is a word with at least this many kinds under one of its two commonest noun senses in WordNet
+#: ("room" 195, "area" 91, "house" 59, "place" 55; "entrance" 16, "bed" 23, "kitchen" 4).
+KINDS_BELOW = 50
 #: The factor of a kind word's name evidence in the word channels' prior.
 KIND_FACTOR = 0.1
 
@@ -235,8 +209,9 @@ KIND_FACTOR = 0.1
 def channel_evidence(vocabulary: Vocabulary, sentences: Iterable[str | None],
                      lexicon: object | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The evidence of the word channels' switch prior (:mod:`spco.model.word_channels`): (ν, a), each
-    (V,). ν: :func:`name_prior`, times :data:`KIND_FACTOR` for a word that is the kind of
-    :data:`KIND_OF_PLACES` or more other place words of the vocabulary (WordNet hypernyms: "room");
+    (V,). ν: :func:`name_prior`, times :data:`KIND_FACTOR` for a place word that is the kind of
+    :data:`KIND_OF_PLACES` or more other place words of the vocabulary (WordNet hypernyms: "room"),
+    or has :data:`KINDS_BELOW` kinds or more under a commonest sense ("place", "area");
     a: :func:`content_share`."""
     sentences = list(sentences)
     if lexicon is None:
@@ -251,7 +226,8 @@ def channel_evidence(vocabulary: Vocabulary, sentences: Iterable[str | None],
         place = features[:, FEATURES.index("place_share")] > 0
         candidates = [words[k] for k in np.flatnonzero(place)]
         for k in np.flatnonzero(place):
-            if lexicon.kinds_of(words[k], candidates) >= KIND_OF_PLACES:  # type: ignore[attr-defined]
+            if (lexicon.kinds_below(words[k]) >= KINDS_BELOW  # type: ignore[attr-defined]
+                    or lexicon.kinds_of(words[k], candidates) >= KIND_OF_PLACES):  # type: ignore[attr-defined]
                 nu[k] *= KIND_FACTOR
     return nu, content_share(words)
 
