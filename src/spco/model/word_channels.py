@@ -59,7 +59,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.special import logsumexp
 
-from spco.model.random import log_dirichlet
+from spco.model.kernels.dirichlet import log_dirichlet
 
 #: The channels of a word token.
 NAME, PLACE, BACKGROUND = 0, 1, 2
