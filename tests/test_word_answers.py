@@ -13,13 +13,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from spco.model.prediction import predict_names
 
 from spco.data import Corpus
 from spco.data.loading import load
 from spco.data.sigverse import read_indexed_texts
 from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.model import SpCoTransfer
+from spco.model.prediction import predict_names
 
 #: Closed-class English words: articles and determiners, pronouns, prepositions, conjunctions,
 #: auxiliaries and copulas, and their contractions. None of them is ever a place's name.

@@ -201,3 +201,40 @@ def test_label_swap_place_term_is_the_place_tokens_log_ratio() -> None:
                                              1.0, mask, rng, place=(place, log_psi))[0, 0] == 1
                      for _ in range(4000)])
     assert abs(taken - np.exp(delta)) < 4.5 * np.sqrt(np.exp(delta) * (1 - np.exp(delta)) / 4000)
+
+
+def test_a_fit_recovers_names_and_background_in_free_form_homes() -> None:
+    """Synthetic households (:mod:`spco.data.speech`) say names beside fillers, frames, objects and
+    activities. After a fit, the tokens of the places' accepted names are mostly names, and the
+    tokens of function words are (almost) never."""
+    from spco.data.synthetic import SyntheticConfig, generate_homes
+    from spco.model import SpCoTransfer
+
+    corpus = generate_homes(9, seed=0, new_homes=1, specific_rooms=False,
+                            config=SyntheticConfig(n_features=256, language="free"))
+    model = SpCoTransfer(n_iterations=30, random_state=0, prune_words=True).fit(corpus)
+    state, data = model.state_, model.data_
+    assert state.channels is not None and model.parameters_.place_word_probabilities is not None
+    p = switch_probabilities(data.words, data.homes, state.concepts, state.log_theta_w, state.channels)
+    cols = data.words.indices[: data.words.indptr[-1]]
+    V = len(corpus.vocabulary)
+    uses = np.bincount(cols, minlength=V)
+    share = np.zeros((V, 3))
+    np.add.at(share, cols, p)
+    share /= np.maximum(uses, 1)[:, None]
+    words = corpus.vocabulary.words
+    accepted = {n for env in corpus for names in (env.ground_truth.accepted_names or {}).values()
+                for n in names}
+    names = [k for k, w in enumerate(words) if w in accepted and uses[k] >= 5]
+    closed = {"the", "is", "this", "a", "in", "we", "here", "it's", "our", "and", "to", "um", "uh", "so"}
+    function = [k for k, w in enumerate(words) if w in closed and uses[k] >= 5]
+    assert len(names) >= 8 and len(function) >= 4, (len(names), len(function))
+    shares = {words[k]: round(float(share[k, NAME]), 2) for k in names}
+    # observed (seed 0): 19 of 25 accepted names mostly names (mean 0.70); not recovered: "toilet",
+    # "bathtub", "shower" (WordNet: artifacts, counted as place words), "bathroom" (a WordNet hypernym
+    # of three toilet words said, so taken for a kind of place), "wc", "dining" (an act)
+    assert sum(v >= 0.5 for v in shares.values()) >= 17, str(shares)
+    assert np.mean(list(shares.values())) >= 0.65, str(shares)
+    assert (share[function, NAME] <= 0.05).all(), str({words[k]: round(float(share[k, NAME]), 3)
+                                                       for k in function})
+    assert (share[function, BACKGROUND] + share[function, PLACE] >= 0.95).all()
