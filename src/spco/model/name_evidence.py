@@ -68,6 +68,7 @@ __all__ = [
     "content_share",
     "feature_matrix",
     "frame_features",
+    "has_english",
     "is_function_word",
     "lexical_features",
     "name_prior",
@@ -212,7 +213,8 @@ def channel_evidence(vocabulary: Vocabulary, sentences: Iterable[str | None],
     (V,). ν: :func:`name_prior`, times :data:`KIND_FACTOR` for a place word that is the kind of
     :data:`KIND_OF_PLACES` or more other place words of the vocabulary (WordNet hypernyms: "room"),
     or has :data:`KINDS_BELOW` kinds or more under a commonest sense ("place", "area");
-    a: :func:`content_share`."""
+    a: :func:`content_share`. A word without any evidence (unknown to WordNet and never said in a
+    sentence holding an English function word: text in another language) gets ν = a = 0.5."""
     sentences = list(sentences)
     if lexicon is None:
         from spco.data.lexicon import lexicon as load
@@ -229,7 +231,27 @@ def channel_evidence(vocabulary: Vocabulary, sentences: Iterable[str | None],
             if (lexicon.kinds_below(words[k]) >= KINDS_BELOW  # type: ignore[attr-defined]
                     or lexicon.kinds_of(words[k], candidates) >= KIND_OF_PLACES):  # type: ignore[attr-defined]
                 nu[k] *= KIND_FACTOR
-    return nu, content_share(words)
+    content = content_share(words)
+    # a word with no evidence at all — unknown to WordNet, never said in a sentence with an English
+    # function word, not one itself (text in another language: Japanese particles and names alike) —
+    # gets the neutral prior: name, place or background as its uses say, not "no name" (σ of the
+    # intercept, 0.006)
+    english = np.zeros(len(words), dtype=bool)  # said in a sentence holding an English function word
+    for sentence in sentences:
+        if sentence is None:
+            continue
+        tokens = vocabulary.tokenize(sentence)
+        if any(t in CLOSED_CLASS for t in tokens):
+            english[[k for k in map(vocabulary.index, tokens) if k is not None]] = True
+    silent = (features[:, FEATURES.index("known")] == 0) & ~english & (content == 1.0)
+    nu[silent], content[silent] = 0.5, 0.5
+    return nu, content
+
+
+def has_english(vocabulary: Vocabulary, sentences: Iterable[str | None]) -> bool:
+    """Whether any of ``sentences`` holds an English function word (:data:`CLOSED_CLASS`): the
+    evidence of the word channels is English; speech without any is learnt with the naming rule."""
+    return any(any(t in CLOSED_CLASS for t in vocabulary.tokenize(s)) for s in sentences if s)
 
 
 def within_concepts(weighted: np.ndarray, prior: np.ndarray) -> np.ndarray:

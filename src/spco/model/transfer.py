@@ -43,7 +43,7 @@ from spco.errors import ConfigurationError
 from spco.model import gibbs
 from spco.model.hyperparameters import SpCoAHyperparameters, TransferHyperparameters
 from spco.model.kernels.counts import stack_counts
-from spco.model.name_evidence import channel_evidence, name_prior
+from spco.model.name_evidence import channel_evidence, has_english, name_prior
 from spco.model.parameters import ConceptParameters
 from spco.model.posterior import (
     ParameterAverage,
@@ -242,7 +242,12 @@ class SpatialConceptModel:
         run = start_run(engine, data, len(corpus.vocabulary), hyper, settings, rng)
         sentences = [s for t in corpus.training_set() for s in t.sentences]
         evidence = None
-        if uses_word_channels(hyper, settings) and data.words.nnz:
+        channels = uses_word_channels(hyper, settings) and bool(data.words.nnz)
+        if channels and not has_english(corpus.vocabulary, sentences):
+            # the channels' prior is English evidence; speech with no English function word at all
+            # (Japanese) is learnt with the naming rule, which measures where words are said
+            hyper = replace(hyper, word_model="naming-rule")
+        elif channels:
             evidence, content = channel_evidence(corpus.vocabulary, sentences)
             run.use_word_channels(WordChannels.initial(evidence, hyper.n_concepts, hyper.evidence_weight,
                                                        content))
