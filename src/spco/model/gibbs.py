@@ -403,8 +403,9 @@ def _concept_loglik(data: PreparedData, state: GibbsState, view_counts: float | 
     weights = view_weights(data, view_counts)
     if weights is not None:
         loglik *= weights[:, None]
-    if data.words.nnz and state.channels is not None:  # the switches marginalised
-        loglik += mixture_log_likelihood(data.words, data.homes, state.log_theta_w, state.channels)
+    channels = getattr(state, "channels", None)
+    if data.words.nnz and channels is not None:  # the switches marginalised
+        loglik += mixture_log_likelihood(data.words, data.homes, state.log_theta_w, channels)
     elif data.words.nnz:
         log_theta_w = kept_word_log_theta(state.log_theta_w, state.word_mask)
         loglik += HierarchicalMultinomial.log_likelihood(sentence_words(data, state), data.homes, log_theta_w)
