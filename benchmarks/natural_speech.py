@@ -92,8 +92,8 @@ def frozen() -> bool:
     return message.startswith("WORDS FROZEN:")
 
 
-def main() -> None:
-    """Fit, score and print per seed and home, then the means over seeds with intervals."""
+def _parser() -> argparse.ArgumentParser:
+    """The command line."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sigverse", type=Path, default=Path("/work/shared/datasets/sigverse"))
     parser.add_argument("--subject", type=Path, default=None,
@@ -111,6 +111,37 @@ def main() -> None:
     parser.add_argument("--json", type=Path, default=None)
     parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE",
                         help="hyperparameter settings, as spco fit --set (development runs of the ablation)")
+    return parser
+
+
+def _summarise(args: argparse.Namespace, configs: list, runs: list[dict], wrong: dict,
+               per_place: dict) -> dict[str, object]:
+    """Print the table of means over seeds and the wrong answers; returns the figures."""
+    summary: dict[str, object] = {"side": args.side, "seeds": args.seeds, "sweeps": args.sweeps}
+    print("\n| configuration | seeds | A_n | A_p |\n|---|---:|---:|---:|")
+    for label, *_ in configs:
+        a_n = np.array([r["A_n"] for r in runs if r["home"] == label])
+        a_p = np.array([r["A_p"] for r in runs if r["home"] == label])
+        print(f"| {label} | {a_n.size} | {mean_interval(a_n)} | "
+              f"{mean_interval(a_p) if np.isfinite(a_p).any() else '–'} |")
+        summary[label] = {"A_n": float(a_n.mean()), "A_p": float(np.nanmean(a_p)) if np.isfinite(a_p).any()
+                          else None, "A_n_seeds": a_n.tolist(), "A_p_seeds": a_p.tolist(),
+                          "A_n_per_place": {p: round(float(np.mean(v)), 3) for (h, p), v in per_place.items()
+                                            if h == label},
+                          "wrong": dict(wrong[label].most_common(15))}
+    if len(configs) > 1:  # per seed, the mean over configurations
+        per_seed = np.array([np.mean([r["A_n"] for r in runs if r["seed"] == s]) for s in args.seeds])
+        print(f"| all (mean per seed) | {per_seed.size} | {mean_interval(per_seed)} | |")
+        summary["all_A_n"] = float(per_seed.mean())
+    print("(mean ± half-width of the 95 % interval over seeds)")
+    for label, *_ in configs:
+        print(f"{label} wrong: {dict(wrong[label].most_common(8))}")
+    return summary
+
+
+def main() -> None:
+    """Fit, score and print per seed and home, then the means over seeds with intervals."""
+    parser = _parser()
     args = parser.parse_args()
     side = SIDES[args.side]
     bad = [s for s in args.seeds if s not in side["seeds"]]
@@ -161,25 +192,7 @@ def main() -> None:
                          "A_p_places": scores.position_accuracy if gt.regions is not None else {}})
             print(f"seed {seed} {label}: A_n {scores.mean_name_accuracy:.3f} A_p {a_p:.3f} "
                   f"({time.perf_counter() - started:.0f} s)", flush=True)
-    summary: dict[str, object] = {"side": args.side, "seeds": args.seeds, "sweeps": args.sweeps}
-    print("\n| configuration | seeds | A_n | A_p |\n|---|---:|---:|---:|")
-    for label, *_ in configs:
-        a_n = np.array([r["A_n"] for r in runs if r["home"] == label])
-        a_p = np.array([r["A_p"] for r in runs if r["home"] == label])
-        print(f"| {label} | {a_n.size} | {mean_interval(a_n)} | "
-              f"{mean_interval(a_p) if np.isfinite(a_p).any() else '–'} |")
-        summary[label] = {"A_n": float(a_n.mean()), "A_p": float(np.nanmean(a_p)) if np.isfinite(a_p).any()
-                          else None, "A_n_seeds": a_n.tolist(), "A_p_seeds": a_p.tolist(),
-                          "A_n_per_place": {p: round(float(np.mean(v)), 3) for (h, p), v in per_place.items()
-                                            if h == label},
-                          "wrong": dict(wrong[label].most_common(15))}
-    if len(configs) > 1:  # per seed, the mean over configurations
-        per_seed = np.array([np.mean([r["A_n"] for r in runs if r["seed"] == s]) for s in args.seeds])
-        print(f"| all (mean per seed) | {per_seed.size} | {mean_interval(per_seed)} | |")
-        summary["all_A_n"] = float(per_seed.mean())
-    print("(mean ± half-width of the 95 % interval over seeds)")
-    for label, *_ in configs:
-        print(f"{label} wrong: {dict(wrong[label].most_common(8))}")
+    summary = _summarise(args, configs, runs, wrong, per_place)
     summary["runs"] = runs
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)

@@ -29,9 +29,8 @@ __all__ = ["ASK_UNSURE_BELOW", "DEFAULT_CRITERION", "NAMELESS_MASS", "Question",
 #: What :func:`ask` ranks by (:data:`spco.model.question_scores.CRITERIA`).
 DEFAULT_CRITERION = "errors"
 #: A question is worth asking when the robot's confidence in the answer it expects is below this
-#: (``Question.worth_asking``). Chosen on the development home 3LDK_9 (``spco experiment active``:
-#: 0.6–0.8 ask the same 3.1 questions on average there and reach the accuracy of 15; 0.5 stops before
-#: the bedrooms, whose own-name probability is 0.5).
+#: (``Question.worth_asking``). Chosen on a development home with ``spco experiment active``
+#: (the figures are in benchmarks/README.md).
 ASK_UNSURE_BELOW = 0.7
 #: A concept whose usable names hold less than this share of its word distribution names nothing
 #: (its words are all pruned: it is treated as unnamed).

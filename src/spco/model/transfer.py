@@ -51,15 +51,8 @@ from spco.model.posterior import (
     thinned_sweeps,
     untaught_concepts_name_nothing,
 )
+from spco.model.seeds import as_generator
 from spco.model.word_channels import WordChannels, channel_parameters, uses_word_channels
-
-
-def _as_generator(random_state: int | np.random.Generator | None) -> np.random.Generator:
-    """A Generator for ``random_state``: a new one from a seed, or a copy of a Generator (the
-    caller's Generator is never advanced)."""
-    if isinstance(random_state, np.random.Generator):
-        return copy.deepcopy(random_state)
-    return np.random.default_rng(random_state)
 
 
 def clone(estimator: SpatialConceptModel) -> SpatialConceptModel:
@@ -225,7 +218,7 @@ class SpatialConceptModel:
         """
         hyper = self.checked_hyperparameters()
         settings = self.sampler_settings()
-        rng = _as_generator(self.random_state)
+        rng = as_generator(self.random_state)
         data = self.prepare_data(corpus, self.position_scale)
         start = time.perf_counter()
         averaged = set(thinned_sweeps(int(self.n_iterations)))
@@ -240,17 +233,7 @@ class SpatialConceptModel:
         from spco.model.driver import start_run
 
         run = start_run(engine, data, len(corpus.vocabulary), hyper, settings, rng)
-        sentences = [s for t in corpus.training_set() for s in t.sentences]
-        evidence = None
-        channels = uses_word_channels(hyper, settings) and bool(data.words.nnz)
-        if channels and not has_english(corpus.vocabulary, sentences):
-            # the channels' prior is English evidence; speech with no English function word at all
-            # (Japanese) is learnt with the naming rule, which measures where words are said
-            hyper = replace(hyper, word_model="naming-rule")
-        elif channels:
-            evidence, content = channel_evidence(corpus.vocabulary, sentences)
-            run.use_word_channels(WordChannels.initial(evidence, hyper.n_concepts, hyper.evidence_weight,
-                                                       content))
+        hyper, evidence = self._start_word_channels(run, corpus, data, hyper, settings)
 
         def after_sweep(iteration: int, previous: float) -> None:
             # a restarted engine repeats the sweeps since its checkpoint (the same chain): each
@@ -281,17 +264,8 @@ class SpatialConceptModel:
         self.data_ = data
         self.log_joint_ = np.asarray(trace, dtype=float)
         self.n_iter_ = int(self.n_iterations)
-        self.parameters_ = average.result(state)
-        if settings.variant == "exact":  # (the authors' sampler and SpCoA export as published)
-            taught = np.zeros(hyper.n_concepts, dtype=bool)  # concepts holding a taught sample somewhere
-            taught[np.unique(state.concepts[np.diff(data.words.indptr) > 0])] = True
-            self.parameters_ = untaught_concepts_name_nothing(self.parameters_, taught)
-        if settings.prune and settings.variant == "exact":
-            # the naming rule's linguistic evidence, how name-like each word is: candidates for names
-            # never heard (spco.model.unheard), and the order of each concept's words with the
-            # opt-in hyperparameters.name_prior = "wordnet"
-            self.parameters_ = replace(self.parameters_, name_prior=evidence if evidence is not None
-                                       else name_prior(corpus.vocabulary, sentences))
+        self.parameters_ = self._fitted_parameters(average.result(state), corpus, data, state, hyper,
+                                                   settings, evidence)
         self.word_channels_ = state.channels
         if state.channels is not None:
             self.parameters_ = replace(self.parameters_, **channel_parameters(state.channels))
@@ -300,6 +274,48 @@ class SpatialConceptModel:
         self.regions_ = [state.regions[s].copy() for s in splits]
         self.training_ids_ = [t.ids for t in corpus.training_set()]
         return self
+
+    @staticmethod
+    def _start_word_channels(run, corpus: Corpus, data: gibbs.PreparedData, hyper: TransferHyperparameters,
+                             settings: gibbs.SamplerSettings
+                             ) -> tuple[TransferHyperparameters, np.ndarray | None]:
+        """Give ``run`` the word channels (:mod:`spco.model.word_channels`) when the model uses them;
+        returns the hyperparameters the fit used (``word_model`` "naming-rule" for speech without any
+        English function word) and the channels' name evidence (or None)."""
+        sentences = [s for t in corpus.training_set() for s in t.sentences]
+        channels = uses_word_channels(hyper, settings) and bool(data.words.nnz)
+        if channels and not has_english(corpus.vocabulary, sentences):
+            # the channels' prior is English evidence; speech with no English function word at all
+            # (Japanese) is learnt with the naming rule, which measures where words are said
+            return replace(hyper, word_model="naming-rule"), None
+        if not channels:
+            return hyper, None
+        evidence, content = channel_evidence(corpus.vocabulary, sentences)
+        run.use_word_channels(WordChannels.initial(evidence, hyper.n_concepts, hyper.evidence_weight,
+                                                   content))
+        return hyper, evidence
+
+    @staticmethod
+    def _fitted_parameters(params: ConceptParameters, corpus: Corpus, data: gibbs.PreparedData,
+                           state: gibbs.GibbsState, hyper: TransferHyperparameters,
+                           settings: gibbs.SamplerSettings,
+                           evidence: np.ndarray | None = None) -> ConceptParameters:
+        """The averaged parameters as the exact model exports them: concepts no taught sample was
+        ever assigned to name nothing, and (with the naming rule or the word channels) each word's
+        name prior (``evidence``: the channels' evidence, computed before the chain)."""
+        if settings.variant == "exact":  # (the authors' sampler and SpCoA export as published)
+            taught = np.zeros(hyper.n_concepts, dtype=bool)  # concepts holding a taught sample somewhere
+            taught[np.unique(state.concepts[np.diff(data.words.indptr) > 0])] = True
+            params = untaught_concepts_name_nothing(params, taught)
+        if settings.prune and settings.variant == "exact":
+            # the naming rule's linguistic evidence, how name-like each word is: candidates for names
+            # never heard (spco.model.unheard), and the order of each concept's words with the
+            # opt-in hyperparameters.name_prior = "wordnet"
+            if evidence is None:
+                sentences = [s for t in corpus.training_set() for s in t.sentences]
+                evidence = name_prior(corpus.vocabulary, sentences)
+            params = replace(params, name_prior=evidence)
+        return params
 
     # ------------------------------------------------------------------ use
     def _check_fitted(self) -> None:
@@ -339,7 +355,7 @@ class SpatialConceptModel:
 
         e = self.home_index(home)
         return prediction.predict_positions(self.parameters_, e, self.vocabulary_, name, n=n,
-                                            rng=_as_generator(random_state))
+                                            rng=as_generator(random_state))
 
     def save(self, path, overwrite: bool = False) -> None:
         """Write the fitted model to ``path`` atomically (see :mod:`spco.model.io`); an existing
