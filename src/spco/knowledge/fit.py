@@ -127,7 +127,9 @@ def fit_knowledge(
     variant, prune = MODELS[model]
     estimator = SpCoTransfer(hyperparameters, variant=variant, prune_words=prune, n_iterations=n_iterations,
                              random_state=random_state)
-    hyper = estimator.checked_hyperparameters()
+    # knowledge files and adapt / teach learn words with the naming rule: the word channels are not yet
+    # carried by the knowledge file (docs/model.md, "Words that are not names"); the file says so
+    hyper = replace(estimator.checked_hyperparameters(), word_model="naming-rule")
     settings = estimator.sampler_settings()
     rng = as_generator(random_state)
     source, n_samples = _home_source(estimator, corpus, source)

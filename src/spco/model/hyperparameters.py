@@ -25,6 +25,15 @@ DEFAULT_PRUNING_THRESHOLDS = {"kl": 0.1, "mi": 0.01}
 NAME_PRIORS = ("off", "wordnet")
 NamePrior = Literal["off", "wordnet"]
 
+#: The word models of the exact sampler with "+MI": word channels (name / place / background switch per
+#: token, :mod:`spco.model.word_channels`) or the naming rule (words pruned by where they are said,
+#: :mod:`spco.model.pruning`).
+WORD_MODELS = ("channels", "naming-rule")
+WordModel = Literal["channels", "naming-rule"]
+
+#: η of ``TransferHyperparameters.evidence_weight``.
+EVIDENCE_WEIGHT = 1.0
+
 #: The paper's Ψ0 for (x, y, sin θ, cos θ), x and y in cm².
 PAPER_PSI0_CM = (10.0, 10.0, 0.5, 0.5)
 
@@ -81,6 +90,17 @@ class TransferHyperparameters:
         words said at a place is its name"). It changes prediction only, never the fit, and is
         written by :meth:`to_dict` only when not ``"off"`` (files and experiment identities from
         before it are unchanged).
+    word_model: the exact sampler's account of the words that are not names ("+MI" models):
+        ``"channels"`` (default) — every word token comes from the concept's names, the place's
+        associated words or a background, a latent switch with a learnt prior and the linguistic
+        evidence (:mod:`spco.model.word_channels`, docs/model.md "Words that are not names");
+        ``"naming-rule"`` — the earlier rule that prunes words by where they are said
+        (:mod:`spco.model.pruning`). A dictionary without it (a file from before it) reads as
+        ``"naming-rule"``, the model it was learnt with.
+    evidence_weight: η, the weight of the linguistic evidence in the switch's prior (word channels):
+        p(z = name | word) ∝ λ_name ν^η, p(z = place or background) ∝ λ_c (1 − ν)^η, ν the name
+        evidence of :mod:`spco.model.name_evidence`. Default :data:`EVIDENCE_WEIGHT`, chosen on
+        development data (docs/model.md, "Words that are not names").
     """
 
     n_concepts: int = 15
@@ -100,6 +120,8 @@ class TransferHyperparameters:
     mi_threshold: float | None = None
     view_counts: float | None = VIEW_COUNTS
     name_prior: NamePrior = "off"
+    word_model: WordModel = "channels"
+    evidence_weight: float = EVIDENCE_WEIGHT
 
     def __post_init__(self) -> None:
         for name in ("n_concepts", "n_regions"):
@@ -107,7 +129,7 @@ class TransferHyperparameters:
             if not isinstance(value, int | np.integer) or value < 1:
                 raise ConfigurationError(f"{name} must be an integer >= 1, got {value!r}")
         for name in ("alpha_visual", "alpha_word", "delta_visual", "delta_word", "gamma", "gamma0",
-                     "beta", "kappa0"):
+                     "beta", "kappa0", "evidence_weight"):
             _positive(name, float(getattr(self, name)))
         if not (np.isfinite(self.nu0) and self.nu0 > 3):
             raise ConfigurationError(f"nu0 must exceed the dimension minus one (3), got {self.nu0!r}")
@@ -115,6 +137,9 @@ class TransferHyperparameters:
             _positive("view_counts", float(self.view_counts))
         if self.mi_threshold is not None and not (np.isfinite(self.mi_threshold) and self.mi_threshold >= 0):
             raise ConfigurationError(f"mi_threshold must be >= 0, got {self.mi_threshold!r}")
+        if self.word_model not in WORD_MODELS:
+            raise ConfigurationError(f"word_model must be one of {', '.join(map(repr, WORD_MODELS))}, "
+                                     f"got {self.word_model!r}")
         if self.name_prior not in NAME_PRIORS:
             raise ConfigurationError(f"name_prior must be one of {', '.join(map(repr, NAME_PRIORS))}, "
                                      f"got {self.name_prior!r}")
@@ -156,6 +181,7 @@ class TransferHyperparameters:
     def from_dict(cls, data: dict[str, Any]) -> TransferHyperparameters:
         """Inverse of :meth:`to_dict`."""
         data = dict(data)
+        data.setdefault("word_model", "naming-rule")  # written before the word channels
         for key in ("psi0", "mu0"):
             if data.get(key) is not None:
                 data[key] = _to_tuple(data[key])
@@ -180,6 +206,9 @@ class TransferHyperparameters:
             if kind is None:
                 raise ConfigurationError(f"hyperparameter setting {setting!r}: no hyperparameter {name!r}; "
                                          f"settable: {', '.join(SETTABLE)}")
+            if kind == "one of channels, naming-rule":
+                changes[name] = text
+                continue
             if text.lower() == "none":
                 if kind != "number or none":
                     raise ConfigurationError(f"hyperparameter setting {setting!r}: {name} needs {kind}")
@@ -202,7 +231,8 @@ SETTABLE: dict[str, str] = {
     "n_concepts": "integer", "n_regions": "integer", "alpha_visual": "a number", "alpha_word": "a number",
     "delta_visual": "a number", "delta_word": "a number", "gamma0": "a number", "gamma": "a number",
     "beta": "a number", "kappa0": "a number", "nu0": "a number", "mi_threshold": "number or none",
-    "view_counts": "number or none",
+    "view_counts": "number or none", "evidence_weight": "a number",
+    "word_model": "one of channels, naming-rule",
 }
 
 

@@ -682,11 +682,29 @@ def _occupied_concepts(params: ConceptParameters, e: int) -> np.ndarray:
     return np.asarray(params.concept_counts[e], dtype=np.float64) >= 1.0
 
 
+def said_word_matrix(params: ConceptParameters, e: int) -> np.ndarray:
+    """(L, V) how much each concept of home ``e`` explains a word said there, for ``where``.
+
+    Without word channels: θ^w_{e,l}. With them (:mod:`spco.model.word_channels`): the word as a
+    name or as a word of the place, p(name | w) θ^w_{e,l,w} + p(place | w) ψ_{l,w} — "where is the
+    fridge" finds the kitchen, "where is the bath" the bath even when people say "bath" mostly as a
+    thing ("take a bath"). The background part, the same in every concept, is left out: it cannot
+    tell places apart. ``what`` names with θ^w alone
+    (:func:`spco.model.word_channels.name_log_probabilities`)."""
+    theta = _word_matrix(params, e)
+    psi, prior = params.place_word_probabilities, params.word_channel_prior
+    if psi is None or prior is None:
+        return theta
+    prior = np.asarray(prior, dtype=np.float64)
+    psi = np.clip(np.asarray(psi, dtype=np.float64), 0.0, 1.0)
+    return prior[None, :, 0] * theta + prior[None, :, 1] * psi
+
+
 def _name_concept_weights(params: ConceptParameters, e: int, words: list[int]) -> np.ndarray:
-    """(L,) G_{e,l} Π_i θ^w_{e,l,w_i}: how much each concept of home e explains the words said together,
-    scaled by the largest concept's Π_i θ (several small θ multiply); a concept in which a word has
-    probability 0 keeps weight 0."""
-    log_theta = _safe_log(_word_matrix(params, e)[:, words]).sum(axis=1)  # (L,)
+    """(L,) G_{e,l} Π_i p(w_i | l): how much each concept of home e explains the words said together
+    (:func:`said_word_matrix`), scaled by the largest concept's product (several small p multiply);
+    a concept in which a word has probability 0 keeps weight 0."""
+    log_theta = _safe_log(said_word_matrix(params, e)[:, words]).sum(axis=1)  # (L,)
     top = float(log_theta.max())
     theta_w = np.exp(log_theta - top) if top > _LOG_FLOOR else np.zeros_like(log_theta)
     g = np.clip(np.asarray(params.concept_weights[e], dtype=np.float64), 0.0, None)
