@@ -27,6 +27,14 @@ from spco.errors import ConfigurationError, DataFormatError
 
 #: Largest tolerated deviation of sin²θ + cos²θ from 1 before a pose is refused.
 HEADING_TOLERANCE = 0.05
+#: Largest |x| or |y| of a position, in map units: the model's covariances hold squared distances
+#: summed over samples, which overflow float64 (1.8e308) beyond about 1e150.
+MAX_COORDINATE = 1e150
+#: Largest span (max − min of x or of y) of a home's positions, in map units. A region's covariance
+#: holds x, y (squared: span²) beside sin θ, cos θ (about 1): beyond a span of ~1e7 its condition
+#: number exceeds what float64 factorises (1e16). 1e6 is a 1,000 km map in metres — a home in
+#: micrometres, or a position typed with a wrong exponent, is refused instead of learnt wrongly.
+MAX_SPAN = 1e6
 
 Extent = tuple[float, float, float, float]  # x_min, x_max, y_min, y_max (metres)
 
@@ -159,6 +167,19 @@ class Environment:
         if bad.any():
             raise DataFormatError(where, f"non-finite (NaN or inf) position for sample ids "
                                   f"{ids[bad][:10].tolist()}")
+        far = (np.abs(positions[:, :2]) > MAX_COORDINATE).any(axis=1)
+        if far.any():
+            raise DataFormatError(where, f"position beyond ±{MAX_COORDINATE:g} map units for sample "
+                                  f"ids {ids[far][:10].tolist()} (e.g. {positions[far][0, :2].tolist()}): "
+                                  "squared distances would overflow float64; give positions in metres")
+        span = float(np.ptp(positions[:, :2], axis=0).max()) if n else 0.0
+        if span > MAX_SPAN:
+            axis = int(np.argmax(np.ptp(positions[:, :2], axis=0)))
+            lo, hi = int(np.argmin(positions[:, axis])), int(np.argmax(positions[:, axis]))
+            raise DataFormatError(where, f"the positions span {span:.3g} map units in {'xy'[axis]} "
+                                  f"(sample ids {int(ids[lo])} to {int(ids[hi])}), more than {MAX_SPAN:g}: "
+                                  "a home's regions can not be learnt at that scale in float64; give "
+                                  "positions in metres")
         norm = positions[:, 2] ** 2 + positions[:, 3] ** 2
         off = np.abs(norm - 1.0) > HEADING_TOLERANCE
         if off.any():
@@ -209,8 +230,9 @@ class Environment:
             raise DataFormatError(where, f"test mask must have shape ({n},)")
         if self.extent is not None:
             ext = tuple(float(v) for v in self.extent)
-            if len(ext) != 4 or not np.isfinite(ext).all():
-                raise DataFormatError(where, f"invalid map extent {self.extent!r}")
+            if len(ext) != 4 or not np.isfinite(ext).all() or (np.abs(ext) > MAX_COORDINATE).any():
+                raise DataFormatError(where, f"invalid map extent {self.extent!r} (4 finite numbers within "
+                                      f"±{MAX_COORDINATE:g} map units)")
             object.__setattr__(self, "extent", ext)
         gt = self.ground_truth
         if gt is not None:

@@ -73,7 +73,7 @@ Layout
 from __future__ import annotations
 
 from spco.knowledge.adapting import adapt
-from spco.knowledge.asking import ASK_UNSURE_BELOW, Question, ask
+from spco.knowledge.asking import Question, ask
 from spco.knowledge.diagnostics import (
     VIEW_FIT_MEASURE,
     VIEW_FIT_WARN_FRACTION,
@@ -109,7 +109,6 @@ from spco.model.home_shard import FREE_CONCEPT_WEIGHT, OWN_NAMES_SPREAD_WARNING,
 from spco.model.view_fit import concept_visual_totals, held_out_view_fits, view_fit
 
 __all__ = [
-    "ASK_UNSURE_BELOW",
     "CONCENTRATION_PRIOR_SAMPLES",
     "DEFAULT_ADAPT_ITERATIONS",
     "DEFAULT_FIT_ITERATIONS",

@@ -20,19 +20,15 @@ import scipy.sparse as sp
 from spco.errors import ConfigurationError
 from spco.knowledge.home import HomeModel
 from spco.model.asking import QuestionScores, question_scores, rank_questions
+from spco.model.confidence import UNSURE_BELOW
 from spco.model.home_shard import FREE_CONCEPT_WEIGHT
 from spco.model.prediction import concept_posterior
 
-__all__ = ["ASK_UNSURE_BELOW", "DEFAULT_CRITERION", "NAMELESS_MASS", "Question", "ask",
+__all__ = ["DEFAULT_CRITERION", "NAMELESS_MASS", "Question", "ask",
            "home_question_scores", "name_columns"]
 
 #: What :func:`ask` ranks by (:data:`spco.model.asking.CRITERIA`).
 DEFAULT_CRITERION = "errors"
-#: A question is worth asking when the robot's confidence in the answer it expects is below this
-#: (``Question.worth_asking``). Chosen on the development home 3LDK_9 (``spco experiment active``:
-#: 0.6–0.8 ask the same 3.1 questions on average there and reach the accuracy of 15; 0.5 stops before
-#: the bedrooms, whose own-name probability is 0.5).
-ASK_UNSURE_BELOW = 0.7
 #: A concept whose usable names hold less than this share of its word distribution names nothing
 #: (its words are all pruned: it is treated as unnamed).
 NAMELESS_MASS = 0.01
@@ -59,7 +55,7 @@ class Question:
     room: the room (joined regions) the sample belongs to.
     confidence: the probability of the answer the robot expects there (its most probable name,
         a name of the room's own and the room's taught names counted).
-    worth_asking: ``confidence`` is below :data:`ASK_UNSURE_BELOW`: the robot is unsure of the answer
+    worth_asking: ``confidence`` is below :data:`UNSURE_BELOW`: the robot is unsure of the answer
         (a robot that asks only when unsure stops at the first question that is not worth asking).
     """
 
@@ -112,7 +108,8 @@ def home_question_scores(home: HomeModel, criterion: str = DEFAULT_CRITERION) ->
         raise ConfigurationError("ask() expects a HomeModel (from adapt or load_home_model)")
     params = home.parameters
     columns = name_columns(home)
-    concepts = concept_posterior(params, 0, home.positions, home.visual)
+    concepts = concept_posterior(params, 0, home.positions, home.visual,
+                                 view_counts=home.knowledge.view_counts)  # as what scores a view
     theta = np.clip(np.asarray(params.word_probabilities[0], dtype=np.float64), 0.0, None)  # (L, V)
     mass = theta[:, columns].sum(axis=1)
     names = np.divide(theta[:, columns], mass[:, None], out=np.zeros((theta.shape[0], columns.size)),
@@ -238,7 +235,7 @@ def _reason(home: HomeModel, scores: QuestionScores, columns: np.ndarray, row: i
 
 
 def ask(home: HomeModel, n: int = 5, criterion: str = DEFAULT_CRITERION, unsure_only: bool = False,
-        unsure_below: float = ASK_UNSURE_BELOW) -> list[Question]:
+        unsure_below: float = UNSURE_BELOW) -> list[Question]:
     """The ``n`` places of ``home`` where an answer to "what is this place?" teaches the most.
 
     Candidates are the home's recorded samples without a name taught (a sample taught a sentence
@@ -257,7 +254,7 @@ def ask(home: HomeModel, n: int = 5, criterion: str = DEFAULT_CRITERION, unsure_
         answers corrected); default :data:`DEFAULT_CRITERION`.
     unsure_only: list only the questions worth asking (``worth_asking``: the robot's confidence in
         the answer it expects is below ``unsure_below``); an empty list says "nothing worth asking".
-    unsure_below: the threshold of ``worth_asking`` (default :data:`ASK_UNSURE_BELOW`).
+    unsure_below: the threshold of ``worth_asking`` (default :data:`UNSURE_BELOW`).
 
     Returns
     -------

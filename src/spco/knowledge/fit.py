@@ -19,7 +19,7 @@ from spco.knowledge.diagnostics import _view_fit_record
 from spco.knowledge.files import _as_generator, _now, _seed_of, _version
 from spco.knowledge.knowledge import DEFAULT_FIT_ITERATIONS, DEFAULT_MODEL, MODELS, Knowledge
 from spco.model import gibbs
-from spco.model.hyperparameters import TransferHyperparameters
+from spco.model.hyperparameters import PRIORS, TransferHyperparameters, scaled_hyperparameters
 from spco.model.name_evidence import name_prior
 from spco.model.posterior import thinned_sweeps
 from spco.model.pruning import words_to_keep
@@ -86,6 +86,7 @@ def fit_knowledge(
     provenance: Mapping[str, Any] | None = None,
     extractor: Any = None,
     engine: Any = None,
+    prior: str = "scaled",
 ) -> Knowledge:
     """Learn the shared part of the transfer model from the experienced homes of ``corpus``.
 
@@ -108,7 +109,7 @@ def fit_knowledge(
     n_iterations: Gibbs sweeps (200 as in the paper).
     random_state: seed or Generator.
     progress: show a progress bar on standard error.
-    hyperparameters: default: the paper's.
+    hyperparameters: default: the paper's, with the position prior and truncations of ``prior``.
     summary_fraction, summary_every: which sweeps are averaged (see :func:`summary_iterations`).
     provenance: extra entries for the knowledge's provenance (e.g. the data path).
     extractor: the :class:`~spco.features.Extractor` that computed the homes' visual counts from
@@ -116,6 +117,10 @@ def fit_knowledge(
         count vectors given as such.
     engine: where the homes' shards run (:func:`spco.engines.make_engine`): ``None`` in this
         process, ``"ray"`` or an engine object such as ``RayEngine(shards=4, address="auto")``.
+    prior: used when ``hyperparameters`` is ``None``: ``"scaled"`` (default) — κ0, L and K follow
+        the homes' spread and place sizes (:func:`~spco.model.hyperparameters.scaled_hyperparameters`;
+        homes read in the shards, which the driver does not hold, keep the paper's); ``"paper"`` —
+        the paper's constants.
 
     Returns
     -------
@@ -131,6 +136,12 @@ def fit_knowledge(
         raise ConfigurationError("fit_knowledge() expects a spco.data.Corpus, or a "
                                  "spco.model.sources.FolderHomes or SyntheticHomes")
     variant, prune = MODELS[model]
+    if prior not in PRIORS:
+        raise ConfigurationError(f"prior must be one of {', '.join(PRIORS)}, got {prior!r}")
+    if hyperparameters is None and prior == "scaled" and source is None:
+        training = corpus.training_set()
+        hyperparameters = scaled_hyperparameters(
+            [(t.positions, corpus.word_counts(list(t.sentences))) for t in training])
     estimator = SpCoTransfer(hyperparameters, variant=variant, prune_words=prune, n_iterations=n_iterations,
                              random_state=random_state)
     hyper = estimator._validate()
@@ -148,10 +159,10 @@ def fit_knowledge(
     rng = _as_generator(random_state)
     scale = gibbs.CM_PER_M if variant == "reference" else 1.0
     if source is not None:
-        source = replace(source, position_scale=scale)
+        source = replace(source, position_scale=scale, view_counts=settings.view_counts)
         n_samples = source.n_samples
     else:  # the homes prepared here, then handed to the shards
-        data = SpatialConceptModel._prepare(corpus, scale)
+        data = SpatialConceptModel._prepare(corpus, scale, settings.view_counts)
         source, n_samples = PreparedHomes(data, len(corpus.vocabulary)), data.n_samples
         del data
     keep = set(summary_iterations(n_iterations, summary_fraction, summary_every))

@@ -159,10 +159,10 @@ def what(home: HomeModel, x: float, y: float, theta: float, visual: Any = None,
          unsure_below: float = UNSURE_BELOW) -> NamePrediction:
     """The ``top_k`` place names at pose ``(x, y, θ)``, with the view's visual counts if given.
 
-    The probabilities are honest (:mod:`spco.model.confidence`): a view counts as
-    :data:`~spco.model.confidence.VIEW_EFFECTIVE_COUNTS` draws, a concept nobody named has no name;
+    The probabilities are honest (:mod:`spco.model.confidence`): a view counts as the model's
+    S^v draws (``home.knowledge.view_counts``, as it learnt), a concept nobody named has no name;
     an answer whose probability is below ``unsure_below`` (default
-    :data:`~spco.model.confidence.UNSURE_BELOW`, 0.5) is flagged ``unsure``.
+    :data:`~spco.model.confidence.UNSURE_BELOW`) is flagged ``unsure``.
 
     A pose off the home's map is answered with a :class:`UserWarning`, one more than
     :data:`FAR_OUTSIDE_MAP` map sizes off it is refused (:func:`pose_outside_map`); ``θ`` must be in
@@ -207,7 +207,8 @@ def name_prediction(home: HomeModel, poses: np.ndarray, visual: Any = None, top_
         weighting=home.weighting,  # type: ignore[arg-type]
         free=np.exp(home.knowledge.log_g0) < FREE_CONCEPT_WEIGHT,
         word_counts=concept_word_counts(home.data.words, home.state.concepts, home.knowledge.n_concepts),
-        alpha_word=home.hyperparameters.alpha_word, unsure_below=unsure_below)
+        alpha_word=home.hyperparameters.alpha_word, view_counts=home.knowledge.view_counts,
+        unsure_below=unsure_below)
 
 
 

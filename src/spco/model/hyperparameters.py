@@ -28,10 +28,9 @@ NamePrior = Literal["off", "wordnet"]
 #: The paper's Ψ0 for (x, y, sin θ, cos θ), x and y in cm².
 PAPER_PSI0_CM = (10.0, 10.0, 0.5, 0.5)
 
-#: The evidence of one view, in counts, of the exact sampler and its predictions
-#: (``TransferHyperparameters.view_counts``); chosen on development configurations only (see
-#: ``docs/model.md``, "How much a view weighs"). ``what``'s probabilities weigh a test view by their
-#: own :data:`spco.model.confidence.VIEW_EFFECTIVE_COUNTS` (docs/model.md, "Two numbers for one view").
+#: S^v, the draws the exact model observes of each view (``TransferHyperparameters.view_counts``,
+#: :func:`spco.model.observations.view_draws`): the one weight of a view, in learning and in every
+#: prediction. Chosen on development views only (docs/samplers.md, "A view's evidence").
 VIEW_COUNTS = 16.0
 
 
@@ -66,14 +65,13 @@ class TransferHyperparameters:
         2×2 mutual information of about 0.02–0.06 nats (a KL score of 0.2–0.4), the template
         words "this", "is", "the" about 0.001–0.005; with ε = 0.1 the true MI would prune every
         word.
-    view_counts: the evidence of one view, in counts (``None``: every count is a draw, the paper's
-        multinomial). A view carries thousands of counts (SIGVerse fc7: ~7,000), and the multinomial
-        scores each as an independent draw, so that two concepts' views differ by thousands of nats
-        — far more than any position or word evidence; but the counts of one view are not
-        independent (one camera image). With ``view_counts = n`` a view's log-likelihood under
-        every concept is weighted by ``min(1, n / Σ_d v_d)``: its proportions are scored as n
-        draws, in the sampler's assignment of samples to concepts (exact variant only; θ^v is still
-        drawn from all the counts) and in name prediction. Default :data:`VIEW_COUNTS`.
+    view_counts: S^v, the draws the model observes of each view, a positive integer (``None``:
+        every count is a draw, the paper's multinomial). A view carries thousands of counts
+        (SIGVerse fc7: ~7,000) that are not independent draws (one camera image); scored as such,
+        two concepts' views differ by thousands of nats. The exact model observes instead each
+        view's proportions rounded to S^v counts (:func:`spco.model.observations.view_draws`),
+        ``ṽ_t ~ Mult(S^v, θ^v)``: the sampler's every conditional and every prediction use these
+        draws (exact variant only). Default :data:`VIEW_COUNTS`.
     name_prior: ``"off"`` (default) or ``"wordnet"``: with ``"wordnet"``, the MI-weighted name
         prediction reorders the words of each concept by how name-like they are (the sentence
         positions and WordNet, :mod:`spco.model.name_evidence`; models with the naming rule only).
@@ -113,6 +111,9 @@ class TransferHyperparameters:
             raise ConfigurationError(f"nu0 must exceed the dimension minus one (3), got {self.nu0!r}")
         if self.view_counts is not None:
             _positive("view_counts", float(self.view_counts))
+            if not float(self.view_counts).is_integer() or float(self.view_counts) > 2**53:
+                raise ConfigurationError(
+                    f"view_counts must be a whole number of draws, got {self.view_counts!r}")
         if self.mi_threshold is not None and not (np.isfinite(self.mi_threshold) and self.mi_threshold >= 0):
             raise ConfigurationError(f"mi_threshold must be >= 0, got {self.mi_threshold!r}")
         if self.name_prior not in NAME_PRIORS:
@@ -225,3 +226,67 @@ class SpCoAHyperparameters(TransferHyperparameters):
     alpha_word: float = 0.1
     beta: float = 1.0
     view_counts: float | None = None  # the baseline as published: every count a draw
+
+
+#: Where the default position prior and truncations come from (``fit_knowledge(prior=…)``,
+#: ``spco fit --prior``): ``"scaled"`` follows the experienced homes' scale (:func:`scaled_hyperparameters`),
+#: ``"paper"`` is the paper's constants (the reproduction).
+PRIORS = ("scaled", "paper")
+#: Words said at least this many times in a home measure its place sizes (:func:`scaled_hyperparameters`).
+_MIN_USES = 3
+
+
+def home_scales(positions: np.ndarray, said: Any) -> tuple[float, float, int]:
+    """(R, s, n) of one home's training samples, in map units.
+
+    R: the spread of its positions, sqrt of the mean variance of x and y. s: the size of its places,
+    the 25th percentile over its words said at ≥ 3 samples of the spread of those samples (a place
+    name is said at one place, a frame word such as "this" all over the home: the lower quartile
+    is the names'), NaN with fewer than two such words. n: how many of those words are said within
+    half the home's spread (words that mark one place: a count of the home's named places).
+
+    ``said``: (n_samples, V) sparse or dense, non-zero where a sample's sentence holds the word.
+    """
+    xy = np.asarray(positions, dtype=np.float64)[:, :2]
+    spread = float(np.sqrt(xy.var(axis=0).mean())) if xy.shape[0] else 0.0
+    dense = said.todense() if hasattr(said, "todense") else said
+    mask = np.asarray(dense) != 0
+    uses = mask.sum(axis=0)
+    sizes = np.array([np.sqrt(xy[mask[:, w]].var(axis=0).mean()) for w in np.flatnonzero(uses >= _MIN_USES)])
+    size = float(np.percentile(sizes, 25)) if sizes.size >= 2 else float("nan")
+    return spread, size, int((sizes < spread / 2).sum())
+
+
+def scaled_hyperparameters(homes: Sequence[tuple[np.ndarray, Any]],
+                           base: TransferHyperparameters | None = None) -> TransferHyperparameters:
+    """The paper's hyperparameters with the position prior and truncations following the homes' scale.
+
+    ``homes``: (positions (n, ≥2) in map units, said (n, V)) of each experienced home's training
+    samples (:func:`home_scales`). With R the median spread of the homes and s the median size of
+    their places (both in map units):
+
+    - κ0 = min(κ0_paper, (s / 2R)²). A region's mean is a priori N(μ0, Σ/κ0) around the map centre,
+      and its covariance's posterior gains κ0·n/(κ0 + n)·(x̄ − μ0)(x̄ − μ0)ᵀ: with the paper's 0.05 a
+      place 25 m from the centre of a university floor gets ≈ 31 m² added (its `where` draws land at
+      the next room). With (s/2R)² the mean's prior spreads over twice the home's spread and the
+      added term stays within a place's size wherever the place is (SIGVerse flats: s ≈ 0.3 m,
+      R ≈ 2.7 m, κ0 ≈ 0.003; the CC4F floor: s ≈ 0.7 m, R ≈ 15 m, κ0 ≈ 0.0006).
+    - L and K at least twice the most places any home names (words said within half its spread),
+      the paper's 15 and 20 otherwise: a weak-limit truncation below the places merges them.
+
+    Ψ0, ν0 stay the paper's (Ψ0 ≈ (1.4 cm)² is far below any place: the data decide a region's
+    size). Without two words said ≥ 3 times in any home, κ0 stays the paper's.
+    """
+    base = TransferHyperparameters() if base is None else base
+    scales = [home_scales(positions, said) for positions, said in homes]
+    if not scales:
+        return base
+    spread = float(np.median([r for r, _, _ in scales]))
+    sizes = [s for _, s, _ in scales if np.isfinite(s)]
+    places = max(n for _, _, n in scales)
+    kappa0 = base.kappa0
+    if sizes and spread > 0:
+        size = float(np.median(sizes))
+        kappa0 = float(min(base.kappa0, max((size / (2.0 * spread)) ** 2, 1e-12)))
+    return replace(base, kappa0=kappa0, n_concepts=max(base.n_concepts, 2 * places),
+                   n_regions=max(base.n_regions, 2 * places))

@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
@@ -118,8 +118,7 @@ class ShardInitialisation:
 
     def init_local_step(self) -> None:
         """One local step of the independent warm-start sampler (statistics kept)."""
-        independent = replace(INDEPENDENT, view_counts=self.settings.view_counts)  # the same view evidence
-        gibbs.local_step(self.data, self.state, independent, self.rng)
+        gibbs.local_step(self.data, self.state, INDEPENDENT, self.rng)
         self._init_stats = gibbs.sufficient_statistics(self.data, self.state, self.hyper)
 
     def init_home_step(self, word_mask: np.ndarray | None = None,

@@ -43,6 +43,7 @@ from spco.errors import ConfigurationError
 from spco.model import gibbs
 from spco.model.hyperparameters import SpCoAHyperparameters, TransferHyperparameters
 from spco.model.name_evidence import name_prior
+from spco.model.observations import view_draws
 from spco.model.parameters import ConceptParameters
 from spco.model.posterior import (
     ParameterAverage,
@@ -166,7 +167,10 @@ class SpatialConceptModel:
 
     # ------------------------------------------------------------------ data
     @staticmethod
-    def _prepare(corpus: Corpus, position_scale: float) -> gibbs.PreparedData:
+    def _prepare(corpus: Corpus, position_scale: float,
+                 view_counts: float | None = None) -> gibbs.PreparedData:
+        """The training samples of ``corpus`` in the sampler's form: positions × ``position_scale``,
+        each view as the model's ``view_counts`` draws (:func:`~spco.model.observations.view_draws`)."""
         if not isinstance(corpus, Corpus):
             raise ConfigurationError("fit() expects a spco.data.Corpus")
         training = corpus.training_set()
@@ -180,7 +184,8 @@ class SpatialConceptModel:
         sizes = np.array([t.n_samples for t in training])
         offsets = np.concatenate([[0], np.cumsum(sizes)])
         homes = np.repeat(np.arange(len(training)), sizes)
-        visual = stack_counts(*(t.visual for t in training))  # stacked once, in the kernels' layout
+        # stacked once, in the kernels' layout
+        visual = stack_counts(*(view_draws(t.visual, view_counts) for t in training))
         words = stack_counts(corpus.word_counts([s for t in training for s in t.sentences]))
         centres = np.zeros((len(training), 4))
         for e, t in enumerate(training):
@@ -213,7 +218,7 @@ class SpatialConceptModel:
         settings = self._settings()
         rng = _as_generator(self.random_state)
         scale = gibbs.CM_PER_M if settings.variant == "reference" else 1.0
-        data = self._prepare(corpus, scale)
+        data = self._prepare(corpus, scale, settings.view_counts)
         start = time.perf_counter()
         averaged = set(thinned_sweeps(int(self.n_iterations)))
         average = ParameterAverage(data.homes, data.position_scale)
