@@ -302,6 +302,9 @@ def main(argv: Sequence[str] | None = None) -> None:
                         help="S^v, the draws the model observes of a view, in learning and in prediction "
                              "(default: the library's, spco.model.hyperparameters.VIEW_COUNTS); models "
                              "are kept per value")
+    parser.add_argument("--first-seeds", type=int, default=None,
+                        help="only the first N seeds of each set (a quick development look)")
+    parser.add_argument("--sizes", default=None, help="only these experienced-home set sizes, e.g. 4,8")
     args = parser.parse_args(argv)
     sets = [s for s in args.sets.split(",") if s]
     features = [f for f in args.features.split(",") if f]
@@ -314,7 +317,8 @@ def main(argv: Sequence[str] | None = None) -> None:
     models = args.out / "models" / ("" if args.view_counts is None else f"S{args.view_counts}")
     models.mkdir(parents=True, exist_ok=True)
     tasks = [Task(f, size, seed, SETS[s]["homes"], s, args.view_counts) for s in sets for f in features
-             for size in SETS[s]["sizes"] for seed in SETS[s]["seeds"]]
+             for size in SETS[s]["sizes"] if args.sizes is None or str(size) in args.sizes.split(",")
+             for seed in SETS[s]["seeds"][: args.first_seeds]]
     start = time.perf_counter()
     rows: list[dict[str, Any]] = []
     if args.jobs > 1:

@@ -25,8 +25,8 @@ from spco.cli.ask import ask as ask_command
 from spco.data.environment import Corpus
 from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.errors import ConfigurationError
-from spco.model.confidence import UNSURE_BELOW
 from spco.model.asking import group_rooms, name_entropy, question_scores, rank_questions, room_novelty
+from spco.model.confidence import UNSURE_BELOW
 from spco.service.answers import ask_answer
 
 CONFIG = SyntheticConfig(n_features=128)

@@ -35,6 +35,8 @@ MAX_COORDINATE = 1e150
 #: number exceeds what float64 factorises (1e16). 1e6 is a 1,000 km map in metres — a home in
 #: micrometres, or a position typed with a wrong exponent, is refused instead of learnt wrongly.
 MAX_SPAN = 1e6
+#: Largest visual count of one feature: counts are int64, summed over up to millions of samples.
+MAX_COUNT = 1e12
 
 Extent = tuple[float, float, float, float]  # x_min, x_max, y_min, y_max (metres)
 
@@ -207,6 +209,10 @@ class Environment:
             raise DataFormatError(where, "visual counts contain NaN or inf")
         if data.size and (data < 0).any():
             raise DataFormatError(where, "visual counts must be non-negative")
+        if data.size and (data > MAX_COUNT).any():
+            raise DataFormatError(where, f"visual counts above {MAX_COUNT:g} (largest "
+                                  f"{float(data.max()):.3g}): sums of counts would overflow int64; scale the "
+                                  "counts down (a view's evidence depends on its proportions only)")
         if data.size and not np.issubdtype(data.dtype, np.integer):
             if (data != np.round(data)).any():
                 raise DataFormatError(where, "visual counts must be whole numbers (scale real-valued "

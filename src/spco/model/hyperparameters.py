@@ -34,6 +34,13 @@ PAPER_PSI0_CM = (10.0, 10.0, 0.5, 0.5)
 VIEW_COUNTS = 16.0
 
 
+#: Largest Dirichlet concentration or NIW κ0 accepted (sums over thousands of dimensions stay finite).
+MAX_CONCENTRATION = 1e100
+#: Largest condition number of Ψ0 (its smallest eigenvalue must be representable beside its largest
+#: in a Cholesky factor: float64 holds 16 digits).
+MAX_CONDITION = 1e12
+
+
 def _positive(name: str, value: float) -> None:
     if not (np.isfinite(value) and value > 0):
         raise ConfigurationError(f"{name} must be a positive number, got {value!r}")
@@ -107,8 +114,13 @@ class TransferHyperparameters:
         for name in ("alpha_visual", "alpha_word", "delta_visual", "delta_word", "gamma", "gamma0",
                      "beta", "kappa0"):
             _positive(name, float(getattr(self, name)))
-        if not (np.isfinite(self.nu0) and self.nu0 > 3):
-            raise ConfigurationError(f"nu0 must exceed the dimension minus one (3), got {self.nu0!r}")
+            if not float(getattr(self, name)) <= MAX_CONCENTRATION:
+                raise ConfigurationError(f"{name} must be at most {MAX_CONCENTRATION:g} (a Dirichlet's "
+                                         f"concentrations are summed over its dimensions), got "
+                                         f"{getattr(self, name)!r}")
+        if not (np.isfinite(self.nu0) and 3 < self.nu0 <= MAX_CONCENTRATION):
+            raise ConfigurationError(f"nu0 must exceed the dimension minus one (3) and be at most "
+                                     f"{MAX_CONCENTRATION:g}, got {self.nu0!r}")
         if self.view_counts is not None:
             _positive("view_counts", float(self.view_counts))
             if not float(self.view_counts).is_integer() or float(self.view_counts) > 2**53:
@@ -124,6 +136,12 @@ class TransferHyperparameters:
             np.linalg.cholesky(psi)
         except np.linalg.LinAlgError:
             raise ConfigurationError(f"psi0 must be symmetric positive definite, got {self.psi0!r}") from None
+        eig = np.linalg.eigvalsh(psi)
+        if not (eig.min() >= 1e-100 and eig.max() <= 1e100 and eig.max() <= MAX_CONDITION * eig.min()):
+            raise ConfigurationError(f"psi0 must have eigenvalues within 1e-100..1e100 m² and a condition "
+                                     f"number at most {MAX_CONDITION:g} (x, y beside sin θ, cos θ: a region "
+                                     f"with no sample has covariance ~Ψ0 and must factorise), got "
+                                     f"{self.psi0!r}")
         if self.mu0 is not None and (len(self.mu0) != 4 or not np.isfinite(self.mu0).all()):
             raise ConfigurationError(f"mu0 must be 4 finite numbers (x, y, sin θ, cos θ), got {self.mu0!r}")
 
