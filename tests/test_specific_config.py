@@ -121,6 +121,22 @@ def test_bootstrap_interval_covers_the_mean_and_narrows_with_samples() -> None:
     assert bootstrap_interval([np.ones(5)]) == (1.0, 1.0)
 
 
+def test_bootstrap_interval_resamples_seeds() -> None:
+    """A room right at every test sample in 9 seeds and wrong everywhere in one: the interval over
+    seeds and samples reaches well below the mean (averaging the seeds first gave [0.9, 0.9]), and
+    resampling rooms widens the interval of a mean over unlike rooms."""
+    one_bad_seed = np.ones((10, 20))
+    one_bad_seed[3] = 0.0
+    lo, hi = bootstrap_interval([one_bad_seed])
+    assert lo <= 0.75 and hi == 1.0
+    assert np.allclose(bootstrap_interval([one_bad_seed.mean(axis=0)]), 0.9)  # one row: seeds averaged
+    unlike = [np.ones((3, 10)), np.zeros((3, 10)), np.ones((3, 10))]
+    fixed = bootstrap_interval(unlike)
+    assert fixed[0] == fixed[1]
+    lo_r, hi_r = bootstrap_interval(unlike, rooms=True)
+    assert lo_r < 0.5 and hi_r == 1.0
+
+
 def test_summary_pools_seeds_per_test_sample(tmp_path: Path) -> None:
     file = load_specific_config(_small(tmp_path))
     unscored = {"argmax": None, "mixture": None}
