@@ -13,7 +13,8 @@ from spco.data.language import normalize_name
 
 BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
 SIDES = [("development", "speech_dev.csv", "unheard_names_dev.json"),
-         ("heldout", "speech_heldout.csv", "unheard_names_heldout.json")]
+         ("heldout", "speech_heldout.csv", "unheard_names_heldout.json"),
+         ("heldout/speech2", "speech.csv", "unheard_names.json")]
 
 
 @pytest.mark.parametrize(("folder", "speech", "unheard"), SIDES)
