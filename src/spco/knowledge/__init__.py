@@ -97,6 +97,7 @@ from spco.knowledge.knowledge import (
 from spco.knowledge.queries import (
     WHERE_ANYWHERE_WEIGHT,
     WHERE_MODEL_WEIGHT,
+    answer_parameters,
     describe_model_file,
     name_prediction,
     unused_word_hint,
@@ -133,6 +134,7 @@ __all__ = [
     "OwnNamesSpreadWarning",
     "Question",
     "adapt",
+    "answer_parameters",
     "ask",
     "check_view_fit",
     "concept_visual_totals",

@@ -19,6 +19,7 @@ import scipy.sparse as sp
 
 from spco.errors import ConfigurationError
 from spco.knowledge.home import HomeModel
+from spco.knowledge.queries import answer_parameters
 from spco.model.asking import QuestionScores, question_scores, rank_questions
 from spco.model.confidence import UNSURE_BELOW
 from spco.model.home_shard import FREE_CONCEPT_WEIGHT
@@ -106,7 +107,7 @@ def home_question_scores(home: HomeModel, criterion: str = DEFAULT_CRITERION) ->
     """
     if not isinstance(home, HomeModel):
         raise ConfigurationError("ask() expects a HomeModel (from adapt or load_home_model)")
-    params = home.parameters
+    params = answer_parameters(home)  # p(name | concept) as what answers
     columns = name_columns(home)
     concepts = concept_posterior(params, 0, home.positions, home.visual,
                                  view_counts=home.knowledge.view_counts)  # as what scores a view

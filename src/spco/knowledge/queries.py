@@ -17,13 +17,15 @@ from spco.knowledge.files import HOME_FORMAT, _as_generator, model_file_format
 from spco.knowledge.home import HomeModel, load_home_model
 from spco.knowledge.knowledge import load_knowledge
 from spco.knowledge.views import _pose, _view_counts, _visual_row, pose_outside_map
-from spco.model.confidence import UNSURE_BELOW, concept_word_counts, predict_names_honestly
+from spco.model.confidence import UNSURE_BELOW, concept_word_counts, named_parameters
 from spco.model.home_shard import FREE_CONCEPT_WEIGHT
+from spco.model.parameters import ConceptParameters
 from spco.model.prediction import (
     NamePrediction,
     PositionPrediction,
     UnknownNameError,
     mutual_information_weights,
+    predict_names,
 )
 from spco.model.unheard import resolve_name
 
@@ -186,9 +188,26 @@ def what(home: HomeModel, x: float, y: float, theta: float, visual: Any = None,
     return name_prediction(home, pose, row, top_k=top_k, unsure_below=unsure_below)
 
 
+def answer_parameters(home: HomeModel) -> ConceptParameters:
+    """The home's parameters as every answer about names uses them (``what``, ``ask``, the service
+    and the ROS node through them): the one place where a home's p(name | concept) is decided.
+
+    Today: the posterior average θ^w of the home, with the concepts the knowledge does not use at
+    their posterior mean given the home's own taught words (:func:`spco.model.confidence.named_parameters`:
+    uniform over the names when nothing was taught there). A word model that replaces θ^w (the
+    speech work) replaces this function and nothing else.
+    """
+    counts = concept_word_counts(home.data.words, home.state.concepts, home.knowledge.n_concepts)
+    return named_parameters(home.parameters, 0, np.exp(home.knowledge.log_g0) < FREE_CONCEPT_WEIGHT, counts,
+                            home.hyperparameters.alpha_word)
+
+
 def name_prediction(home: HomeModel, poses: np.ndarray, visual: Any = None, top_k: int = 3,
                     unsure_below: float = UNSURE_BELOW) -> NamePrediction:
-    """The names :func:`what` answers, for ``n`` poses at once and without its checks of the pose.
+    """The names :func:`what` answers, for ``n`` poses at once and without its checks of the pose:
+    p(name | pose, view) = Σ_l p(name | l) P(l | pose, view), with p(name | l) from
+    :func:`answer_parameters` and P(l | pose, view) scoring a view as the model's S^v draws
+    (``home.knowledge.view_counts``, as it learnt).
 
     Parameters
     ----------
@@ -199,17 +218,14 @@ def name_prediction(home: HomeModel, poses: np.ndarray, visual: Any = None, top_
 
     Returns
     -------
-    The :class:`~spco.prediction.NamePrediction` with honest probabilities
-    (:func:`spco.model.confidence.predict_names_honestly`), ``confidence`` and ``unsure``.
+    The :class:`~spco.prediction.NamePrediction` with ``confidence`` and ``unsure``.
     """
-    return predict_names_honestly(
-        home.parameters, 0, home.vocabulary, poses, visual, top_k=top_k, use_vision=visual is not None,
-        weighting=home.weighting,  # type: ignore[arg-type]
-        free=np.exp(home.knowledge.log_g0) < FREE_CONCEPT_WEIGHT,
-        word_counts=concept_word_counts(home.data.words, home.state.concepts, home.knowledge.n_concepts),
-        alpha_word=home.hyperparameters.alpha_word, view_counts=home.knowledge.view_counts,
-        unsure_below=unsure_below)
-
+    if not 0.0 <= unsure_below <= 1.0:
+        raise ConfigurationError(f"unsure_below must be within 0..1, got {unsure_below!r}")
+    return predict_names(answer_parameters(home), 0, home.vocabulary, poses, visual, top_k=top_k,
+                         weighting=home.weighting,  # type: ignore[arg-type]
+                         use_vision=visual is not None, view_counts=home.knowledge.view_counts,
+                         unsure_below=unsure_below)
 
 
 def describe_model_file(path: str | PathLike[str]) -> dict[str, Any]:
