@@ -69,8 +69,7 @@ def _parameters(theta_v: np.ndarray, means_xy: np.ndarray, sd: float,
 
 def _honest(params: ConceptParameters, poses: np.ndarray, views: object, **kw):
     L, V = params.n_concepts, params.word_probabilities.shape[-1]
-    defaults = {"free": np.zeros(L, dtype=bool), "word_counts": np.zeros((L, V)), "alpha_word": 0.01,
-                "view_counts": 16.0}
+    defaults = {"free": np.zeros(L, dtype=bool), "word_counts": np.zeros((L, V)), "alpha_word": 0.01}
     defaults.update(kw)
     return predict_names_honestly(params, 0, Vocabulary(list(NAMES)), poses, views, top_k=3,
                                   **defaults)
@@ -78,7 +77,7 @@ def _honest(params: ConceptParameters, poses: np.ndarray, views: object, **kw):
 
 def test_probability_of_the_answer_matches_its_frequency() -> None:
     """Views whose 2,000 counts are 500 copies of each of 4 draws from the concept's θ^v (counts of
-    one image are not independent draws): with the view observed as 4 draws (S^v = 4) the posterior
+    one image are not independent draws): with the view's evidence counted as 4 draws the posterior
     is the true one, and the answers' probabilities match their frequencies; counting every count
     as a draw makes every answer sure, the wrong ones too."""
     rng = np.random.default_rng(7)
@@ -108,7 +107,7 @@ def test_probability_of_the_answer_matches_its_frequency() -> None:
 def test_huge_counts_do_not_overrule_a_position_that_disagrees() -> None:
     """A kitchen pose (4 σ from the bedroom) with a view like the bedroom's: the model's multinomial
     says "bedroom" at p = 1 from 10^5 counts; counted as a few draws the view cannot, and the answer
-    does not depend on how many counts the extractor gives (× 1 or × 1,000). A model with S^v = 4."""
+    does not depend on how many counts the extractor gives (× 1 or × 1,000)."""
     theta_v = np.array([[0.5, 0.3, 0.1, 0.1], [0.3, 0.5, 0.1, 0.1], [0.1, 0.1, 0.4, 0.4]])
     params = _parameters(theta_v, np.array([[0.0, 0.0], [5.0, 0.0], [2.5, 4.0]]), sd=1.0)
     pose = np.array([[1.0, 0.0, 0.0, 1.0]])  # 1 m from the kitchen, 4 m from the dining room
@@ -116,12 +115,12 @@ def test_huge_counts_do_not_overrule_a_position_that_disagrees() -> None:
     naive = predict_names(params, 0, Vocabulary(list(NAMES)), pose, view, weighting="none")
     assert naive.best[0] == "bedroom" and naive.confidence[0] > 0.999
 
-    honest = _honest(params, pose, view, view_counts=4.0)
+    honest = _honest(params, pose, view)
     p = dict(zip(honest.words[0], honest.probabilities[0], strict=True))
     assert p["bedroom"] < 0.99 and p["kitchen"] > 0.05
-    scaled = _honest(params, pose, view * 1000, view_counts=4.0)
+    scaled = _honest(params, pose, view * 1000)
     assert np.allclose(scaled.word_probabilities, honest.word_probabilities)
-    few = _honest(params, pose, np.array([[0, 0, 1, 1]]), view_counts=4.0)  # fewer than S^v: as given
+    few = _honest(params, pose, np.array([[0, 0, 1, 1]]))  # fewer counts than n_eff: as given, weaker
     few_p = dict(zip(few.words[0], few.probabilities[0], strict=True))
     assert few_p["bedroom"] < p["bedroom"]
 

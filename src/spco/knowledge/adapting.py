@@ -105,7 +105,7 @@ def adapt(
     scale = gibbs.CM_PER_M if extended.variant == "reference" else 1.0
     centre = _map_centre(home)
     data = prepare_home(train.positions, train.visual, train.sentences, extended.vocabulary,
-                        extended.word_increment, scale, centre, train.view_missing, extended.view_counts)
+                        extended.word_increment, scale, centre, train.view_missing)
     shard = NewHomeShard.start(data, extended.shared_part(), n_known, rng,
                                prior=extended.shared_prior() if joint else None)
     iterator: Iterable[int] = range(int(n_iterations))

@@ -159,10 +159,10 @@ def fit_knowledge(
     rng = _as_generator(random_state)
     scale = gibbs.CM_PER_M if variant == "reference" else 1.0
     if source is not None:
-        source = replace(source, position_scale=scale, view_counts=settings.view_counts)
+        source = replace(source, position_scale=scale)
         n_samples = source.n_samples
     else:  # the homes prepared here, then handed to the shards
-        data = SpatialConceptModel._prepare(corpus, scale, settings.view_counts)
+        data = SpatialConceptModel._prepare(corpus, scale)
         source, n_samples = PreparedHomes(data, len(corpus.vocabulary)), data.n_samples
         del data
     keep = set(summary_iterations(n_iterations, summary_fraction, summary_every))

@@ -152,7 +152,7 @@ class HomeModel:
         """The home's samples in the sampler's form."""
         return prepare_home(self.positions, self.visual, self.sentences, self.vocabulary,
                             self.knowledge.word_increment, self.position_scale, self.map_centre,
-                            self.view_missing, self.knowledge.view_counts)
+                            self.view_missing)
 
     @functools.cached_property
     def parameters(self) -> ConceptParameters:

@@ -28,7 +28,6 @@ from spco.knowledge.files import (
 from spco.model.home_shard import SharedPart, SharedPrior
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.io import _checksum
-from spco.model.state import sampler_view_counts
 
 #: The transfer models whose shared part can be learnt: name -> (sampler variant, word pruning).
 MODELS: dict[str, tuple[str, bool]] = {
@@ -173,13 +172,6 @@ class Knowledge:
             raise ConfigurationError(f"the extractor gives {extractor.n_features} features, the knowledge "
                                      f"has {self.n_features}")
         return extractor
-
-    @property
-    def view_counts(self) -> float | None:
-        """S^v: the draws the model observes of each view, in learning and in every prediction
-        (:func:`spco.model.observations.view_draws`); ``None`` (every count a draw) for the
-        authors' sampler."""
-        return sampler_view_counts(self.variant, self.hyperparameters.view_counts)
 
     def used_concepts(self, threshold: float = 0.01) -> int:
         """Number of concepts with G_0 above ``threshold``."""

@@ -17,7 +17,7 @@ from spco.knowledge.files import HOME_FORMAT, _as_generator, model_file_format
 from spco.knowledge.home import HomeModel, load_home_model
 from spco.knowledge.knowledge import load_knowledge
 from spco.knowledge.views import _pose, _view_counts, _visual_row, pose_outside_map
-from spco.model.confidence import UNSURE_BELOW, concept_word_counts, named_parameters
+from spco.model.confidence import UNSURE_BELOW, VIEW_EFFECTIVE_COUNTS, concept_word_counts, named_parameters
 from spco.model.home_shard import FREE_CONCEPT_WEIGHT
 from spco.model.parameters import ConceptParameters
 from spco.model.prediction import (
@@ -161,8 +161,8 @@ def what(home: HomeModel, x: float, y: float, theta: float, visual: Any = None,
          unsure_below: float = UNSURE_BELOW) -> NamePrediction:
     """The ``top_k`` place names at pose ``(x, y, θ)``, with the view's visual counts if given.
 
-    The probabilities are honest (:mod:`spco.model.confidence`): a view counts as the model's
-    S^v draws (``home.knowledge.view_counts``, as it learnt), a concept nobody named has no name;
+    The probabilities are honest (:mod:`spco.model.confidence`): a view counts as
+    :data:`~spco.model.confidence.VIEW_EFFECTIVE_COUNTS` draws, a concept nobody named has no name;
     an answer whose probability is below ``unsure_below`` (default
     :data:`~spco.model.confidence.UNSURE_BELOW`) is flagged ``unsure``.
 
@@ -207,7 +207,8 @@ def name_prediction(home: HomeModel, poses: np.ndarray, visual: Any = None, top_
     """The names :func:`what` answers, for ``n`` poses at once and without its checks of the pose:
     p(name | pose, view) = Σ_l p(name | l) P(l | pose, view), with p(name | l) from
     :func:`answer_parameters` and P(l | pose, view) scoring a view as the model's S^v draws
-    (``home.knowledge.view_counts``, as it learnt).
+    (:data:`~spco.model.confidence.VIEW_EFFECTIVE_COUNTS` draws: a test view's weight, not the
+    sampler's ``view_counts``; docs/model.md, "Two numbers for one view").
 
     Parameters
     ----------
@@ -224,7 +225,7 @@ def name_prediction(home: HomeModel, poses: np.ndarray, visual: Any = None, top_
         raise ConfigurationError(f"unsure_below must be within 0..1, got {unsure_below!r}")
     return predict_names(answer_parameters(home), 0, home.vocabulary, poses, visual, top_k=top_k,
                          weighting=home.weighting,  # type: ignore[arg-type]
-                         use_vision=visual is not None, view_counts=home.knowledge.view_counts,
+                         use_vision=visual is not None, view_counts=VIEW_EFFECTIVE_COUNTS,
                          unsure_below=unsure_below)
 
 

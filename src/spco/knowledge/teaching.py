@@ -117,7 +117,7 @@ def teach(
         state.concepts = np.concatenate([state.concepts, np.zeros(extra, dtype=np.int64)])
         state.regions = np.concatenate([state.regions, np.zeros(extra, dtype=np.int64)])
     data = prepare_home(positions, visual, new_sentences, knowledge.vocabulary, knowledge.word_increment,
-                        home.position_scale, home.map_centre, view_missing, knowledge.view_counts)
+                        home.position_scale, home.map_centre, view_missing)
     prior = None
     if home.joint:
         prior = knowledge.shared_prior()

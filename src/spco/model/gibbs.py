@@ -359,14 +359,24 @@ def _visual_counts(data: PreparedData, state: GibbsState, n_homes: int, n_concep
 # ----------------------------------------------------------------------------- the steps
 
 
-def _concept_loglik(data: PreparedData, state: GibbsState) -> np.ndarray:
+def view_weights(data: PreparedData, view_counts: float | None) -> np.ndarray | None:
+    """(N,) the weight of each sample's visual log-likelihood, ``min(1, view_counts / Σ_d v_d)``:
+    a view scored as ``view_counts`` draws (``None``: every count a draw, no weights)."""
+    if view_counts is None:
+        return None
+    return np.minimum(1.0, float(view_counts) / np.maximum(data.view_totals, 1.0))
+
+
+def _concept_loglik(data: PreparedData, state: GibbsState, view_counts: float | None = None) -> np.ndarray:
     """Visual + word log-likelihood of every sample under every concept of its home: (N, L).
 
-    The visual counts are the model's draws of each view
-    (:func:`~spco.model.observations.view_draws`, applied when the data were prepared): the same
-    counts enter θ^v's and φ^v's conditionals and the label swaps, so every step targets one model."""
+    ``view_counts``: the evidence of one view in counts (:func:`view_weights`; ``None``: the
+    multinomial of every count)."""
     loglik = HierarchicalMultinomial.log_likelihood(data.visual, data.homes, state.log_theta_v,
                                                     by_dimension=data.visual_by_dimension)
+    weights = view_weights(data, view_counts)
+    if weights is not None:
+        loglik *= weights[:, None]
     if data.words.nnz:
         log_theta_w = kept_word_log_theta(state.log_theta_w, state.word_mask)
         loglik += HierarchicalMultinomial.log_likelihood(sentence_words(data, state), data.homes, log_theta_w)
@@ -398,7 +408,7 @@ def _local_step(data: PreparedData, state: GibbsState, settings: SamplerSettings
                 rng: np.random.Generator) -> float:
     """Draw the assignments; returns log p(data, C, R | parameters) of the state it started from
     (computed from the likelihoods the draw needs anyway)."""
-    concept_ll = _concept_loglik(data, state)
+    concept_ll = _concept_loglik(data, state, settings.view_counts)
     region_ll = GaussianRegions.log_likelihood(data.positions, data.homes, state.means, state.covariances)
     before = _conditional_log_joint(data, state, concept_ll, region_ll)
     if settings.joint_assignment:
@@ -662,7 +672,7 @@ def log_joint(data: PreparedData, state: GibbsState, hyper: TransferHyperparamet
     trace to watch for convergence."""
     E, L, K = data.n_homes, hyper.n_concepts, hyper.n_regions
     region_ll = GaussianRegions.log_likelihood(data.positions, data.homes, state.means, state.covariances)
-    total = _conditional_log_joint(data, state, _concept_loglik(data, state), region_ll)
+    total = _conditional_log_joint(data, state, _concept_loglik(data, state, settings.view_counts), region_ll)
     if not include_parameter_priors:
         return total
     mask = state.word_mask

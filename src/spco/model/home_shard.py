@@ -29,7 +29,7 @@ from scipy.cluster.vq import kmeans2
 from spco.data.language import Vocabulary
 from spco.model import gibbs
 from spco.model.hyperparameters import TransferHyperparameters
-from spco.model.observations import HierarchicalMultinomial, view_draws
+from spco.model.observations import HierarchicalMultinomial
 from spco.model.parameters import ConceptParameters
 from spco.model.posterior import ParameterAverage, thinned_sweeps
 from spco.model.pruning import NOT_A_NAME, words_to_keep
@@ -112,8 +112,7 @@ class SharedPrior:
 
 def prepare_home(positions: np.ndarray, visual: sp.csr_array, sentences: Sequence[str | None],
                  vocabulary: Vocabulary, word_increment: int, scale: float,
-                 centre: np.ndarray, view_missing: np.ndarray | None = None,
-                 view_counts: float | None = None) -> PreparedData:
+                 centre: np.ndarray, view_missing: np.ndarray | None = None) -> PreparedData:
     """PreparedData of one home (positions in metres are scaled to the sampler's units).
 
     Parameters
@@ -121,9 +120,7 @@ def prepare_home(positions: np.ndarray, visual: sp.csr_array, sentences: Sequenc
     positions: (n, 4) metres ``(x, y, sin θ, cos θ)``; visual: (n, D) counts; sentences: n
     sentences (``None``: untaught); vocabulary, word_increment: how sentences become counts;
     scale: sampler units per metre; centre: (4,) the regions' prior mean, metres;
-    view_missing: (n,) bool, the samples without a view (their rows of ``visual`` are ignored);
-    view_counts: S^v, each view kept as the model's draws (:func:`~spco.model.observations.view_draws`;
-    the knowledge's :attr:`~spco.knowledge.Knowledge.view_counts`).
+    view_missing: (n,) bool, the samples without a view (their rows of ``visual`` are ignored).
     """
     n = positions.shape[0]
     factor = np.array([scale, scale, 1.0, 1.0])
@@ -134,7 +131,7 @@ def prepare_home(positions: np.ndarray, visual: sp.csr_array, sentences: Sequenc
     return PreparedData(
         positions=np.asarray(positions, dtype=np.float64) * factor,
         homes=np.zeros(n, dtype=np.int64),
-        visual=stack_counts(view_draws(visual, view_counts)),
+        visual=stack_counts(visual),
         words=stack_counts(vocabulary.encode(list(sentences), word_increment)),
         n_homes=1, offsets=np.array([0, n], dtype=np.int64), position_scale=scale,
         map_centres=(np.asarray(centre, dtype=np.float64) * factor)[None, :],

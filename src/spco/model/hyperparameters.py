@@ -28,9 +28,10 @@ NamePrior = Literal["off", "wordnet"]
 #: The paper's Ψ0 for (x, y, sin θ, cos θ), x and y in cm².
 PAPER_PSI0_CM = (10.0, 10.0, 0.5, 0.5)
 
-#: S^v, the draws the exact model observes of each view (``TransferHyperparameters.view_counts``,
-#: :func:`spco.model.observations.view_draws`): the one weight of a view, in learning and in every
-#: prediction. Chosen on development views only (docs/samplers.md, "A view's evidence").
+#: The evidence of one view, in counts, of the exact sampler and its predictions
+#: (``TransferHyperparameters.view_counts``); chosen on development configurations only (see
+#: ``docs/model.md``, "How much a view weighs"). ``what``'s probabilities weigh a test view by their
+#: own :data:`spco.model.confidence.VIEW_EFFECTIVE_COUNTS` (docs/model.md, "Two numbers for one view").
 VIEW_COUNTS = 16.0
 
 
@@ -72,13 +73,14 @@ class TransferHyperparameters:
         2×2 mutual information of about 0.02–0.06 nats (a KL score of 0.2–0.4), the template
         words "this", "is", "the" about 0.001–0.005; with ε = 0.1 the true MI would prune every
         word.
-    view_counts: S^v, the draws the model observes of each view, a positive integer (``None``:
-        every count is a draw, the paper's multinomial). A view carries thousands of counts
-        (SIGVerse fc7: ~7,000) that are not independent draws (one camera image); scored as such,
-        two concepts' views differ by thousands of nats. The exact model observes instead each
-        view's proportions rounded to S^v counts (:func:`spco.model.observations.view_draws`),
-        ``ṽ_t ~ Mult(S^v, θ^v)``: the sampler's every conditional and every prediction use these
-        draws (exact variant only). Default :data:`VIEW_COUNTS`.
+    view_counts: the evidence of one view, in counts (``None``: every count is a draw, the paper's
+        multinomial). A view carries thousands of counts (SIGVerse fc7: ~7,000), and the multinomial
+        scores each as an independent draw, so that two concepts' views differ by thousands of nats
+        — far more than any position or word evidence; but the counts of one view are not
+        independent (one camera image). With ``view_counts = n`` a view's log-likelihood under
+        every concept is weighted by ``min(1, n / Σ_d v_d)``: its proportions are scored as n
+        draws, in the sampler's assignment of samples to concepts (exact variant only; θ^v is still
+        drawn from all the counts) and in name prediction. Default :data:`VIEW_COUNTS`.
     name_prior: ``"off"`` (default) or ``"wordnet"``: with ``"wordnet"``, the MI-weighted name
         prediction reorders the words of each concept by how name-like they are (the sentence
         positions and WordNet, :mod:`spco.model.name_evidence`; models with the naming rule only).
@@ -123,9 +125,6 @@ class TransferHyperparameters:
                                      f"{MAX_CONCENTRATION:g}, got {self.nu0!r}")
         if self.view_counts is not None:
             _positive("view_counts", float(self.view_counts))
-            if not float(self.view_counts).is_integer() or float(self.view_counts) > 2**53:
-                raise ConfigurationError(
-                    f"view_counts must be a whole number of draws, got {self.view_counts!r}")
         if self.mi_threshold is not None and not (np.isfinite(self.mi_threshold) and self.mi_threshold >= 0):
             raise ConfigurationError(f"mi_threshold must be >= 0, got {self.mi_threshold!r}")
         if self.name_prior not in NAME_PRIORS:

@@ -5,8 +5,6 @@
 - :class:`HierarchicalMultinomial` — bags of counts (words or visual features) from per-home
   θ_{e,l} ~ Dir(δ φ_l) around shared φ_l ~ Dir(α): log-likelihood, count statistics, the
   auxiliary table counts that make φ | counts conjugate, and the draws of φ and θ.
-- :func:`view_draws` — what the model observes of a view: its counts as ``S^v`` draws (the one
-  definition of a view's evidence, used by learning and by every prediction).
 
 All functions work on every home at once (stacked arrays); shapes use N samples, E homes,
 L concepts, K regions and D dimensions (words or visual features).
@@ -36,67 +34,6 @@ from spco.model.random import (
     sample_niw,
     scaled_exp,
 )
-
-
-def view_draws(visual: sp.csr_array | np.ndarray, view_counts: float | None) -> sp.csr_array:
-    """The model's visual observation of each view: its counts rounded to ``S^v = view_counts`` draws.
-
-    A camera view carries thousands of counts (a colour-hog image ~1,950, an fc7 vector ~7,300),
-    and they are not independent draws from the concept's θ^v: they are deterministic functions of
-    one image. spco's model observes of each view ``S^v`` draws instead: the view's proportions
-    v̂ = v / Σ_d v_d times S^v, rounded to integers that sum to S^v by the largest remainders
-    (Hamilton's method; ties to the lower dimension), so ``ṽ_t ~ Mult(S^v, θ^v_{e,C_t})`` — the
-    visual counterpart of the paper's S^w counts per word. A view with at most S^v counts is
-    kept as it is. Every conditional of the sampler (assignments, θ^v and φ^v given the counts,
-    label swaps) and every prediction (``what``, ``ask``, the experiments) uses these draws, so
-    the sampler is exact for the model as stated and a view's evidence is bounded by S^v · KL.
-
-    Idempotent (draws of draws are the same draws) and deterministic. ``view_counts=None``: every
-    count is a draw (the paper's multinomial), the counts returned as they are.
-
-    Parameters
-    ----------
-    visual: (n, D) counts, whole numbers >= 0 (any magnitude: the proportions are computed relative
-        to each row's largest count, so a row of counts near 1e308 rounds without overflow).
-    view_counts: S^v, a positive integer, or ``None``.
-
-    Returns
-    -------
-    (n, D) CSR int64 counts; each row sums to min(S^v, its total) (its total rounded).
-    """
-    counts = sp.csr_array(visual)
-    if view_counts is None:
-        return counts
-    target = float(view_counts)
-    if not (np.isfinite(target) and target >= 1 and target.is_integer()):
-        raise ValueError(f"view_counts must be a positive integer, got {view_counts!r}")
-    counts.sum_duplicates()
-    counts.eliminate_zeros()
-    n = counts.shape[0]
-    rows = np.repeat(np.arange(n), np.diff(counts.indptr))
-    values = np.asarray(counts.data, dtype=np.float64)
-    if values.size and not (np.isfinite(values).all() and (values >= 0).all()):
-        raise ValueError("view counts must be finite and >= 0")
-    top = np.zeros(n)
-    if values.size:
-        np.maximum.at(top, rows, values)
-    relative = values / np.where(top > 0, top, 1.0)[rows]  # in (0, 1]: no overflow summing 1e308s
-    mass = np.bincount(rows, weights=relative, minlength=n)
-    totals = np.bincount(rows, weights=values, minlength=n)
-    keep = totals <= target  # a view of at most S^v counts is its own draws
-    scaled = target * relative / np.where(mass > 0, mass, 1.0)[rows]
-    whole = np.floor(scaled)
-    remainder = scaled - whole
-    deficit = np.round(target - np.bincount(rows, weights=whole, minlength=n)).astype(np.int64)
-    order = np.lexsort((counts.indices, -remainder, rows))  # by row, largest remainder first
-    rank = np.empty(values.size, dtype=np.int64)
-    rank[order] = np.arange(values.size) - counts.indptr[rows[order]]
-    drawn = whole + (rank < deficit[rows])
-    out = np.where(keep[rows], np.round(values), drawn).astype(np.int64)
-    result = sp.csr_array((out, counts.indices.copy(), counts.indptr.copy()), shape=counts.shape)
-    result.eliminate_zeros()
-    return result
-
 
 #: Log-probabilities below this are clipped in likelihoods: a count times it is still finite
 #: (no -inf, hence no NaN after normalisation) and still means "impossible".

@@ -40,11 +40,11 @@ produces NaN; a near-singular covariance is repaired (eigenvalues clamped) befor
 factor is taken.
 
 Confidence: those thousands of nats make p(w | x, v) sure of every answer, the wrong ones too (the
-counts of one image are not independent draws). The exact model observes each view as S^v draws
-(``view_counts``, :func:`spco.model.observations.view_draws`): pass the model's S^v
-(``Knowledge.view_counts``, ``SamplerSettings.view_counts``) to predict with the model that learnt;
-``view_counts=None`` (the default here) is the multinomial of every count (the authors' model).
-``spco.knowledge.what``, ``ask`` and the experiments all pass the model's.
+counts of one image are not independent draws). ``view_counts`` weights each view's visual term as
+that many draws; ``spco.knowledge.what`` answers with :func:`spco.model.confidence.predict_names_honestly`
+(a view = :data:`~spco.model.confidence.VIEW_EFFECTIVE_COUNTS` draws, free concepts' names at their
+posterior mean, an ``unsure`` flag). ``view_counts=None`` (the default here) is the multinomial;
+the exact model learns, and its experiments predict, with ``TransferHyperparameters.view_counts``.
 """
 
 from __future__ import annotations
@@ -61,7 +61,6 @@ from spco.data.language import Vocabulary, normalize_name
 from spco.errors import ConfigurationError, SpcoError
 from spco.model.hyperparameters import NAME_PRIORS, NamePrior
 from spco.model.name_evidence import within_concepts
-from spco.model.observations import view_draws
 from spco.model.parameters import ConceptParameters
 from spco.model.pruning import bernoulli_kl_scores, word_concept_mutual_information
 from spco.model.unheard import resolve_name
@@ -377,18 +376,21 @@ def validate_poses(positions: object) -> np.ndarray:
 
 def _visual_log_likelihood(theta_v: np.ndarray, visual: object, view_counts: float | None = None
                            ) -> np.ndarray:
-    """(n, L) ``ṽ · log θ^vᵀ`` for counts ``visual`` (n, D), sparse or dense (validated).
+    """(n, L) ``v · log θ^vᵀ`` for counts ``visual`` (n, D), sparse or dense (validated).
 
-    ``view_counts``: S^v, each view scored as the model's draws ṽ
-    (:func:`~spco.model.observations.view_draws`, as the exact sampler learnt); ``None``: every
-    count is a draw (ṽ = v, the authors' multinomial)."""
+    ``view_counts``: the evidence of one view, in counts: a view with more counts is weighted by
+    ``view_counts / Σ_d v_d`` (its proportions scored as that many draws, as the exact sampler
+    does, :attr:`~spco.model.hyperparameters.TransferHyperparameters.view_counts`); ``None``:
+    every count is a draw (the model's multinomial)."""
     log_theta = _safe_log(theta_v)  # (L, D), finite
     counts = validate_visual_counts(visual, log_theta.shape[1])
-    try:
-        draws = view_draws(counts, view_counts)
-    except ValueError as exc:
-        raise ConfigurationError(str(exc)) from None
-    return np.asarray(sp.csr_array(draws, dtype=np.float64) @ log_theta.T)
+    loglik = np.asarray(counts @ log_theta.T)
+    if view_counts is None:
+        return loglik
+    if not view_counts > 0:
+        raise ConfigurationError(f"view_counts must be > 0, got {view_counts!r}")
+    totals = np.asarray(counts.sum(axis=1), dtype=np.float64).ravel()
+    return loglik * np.minimum(1.0, float(view_counts) / np.maximum(totals, 1.0))[:, None]
 
 
 def _as_positions(positions: object) -> np.ndarray:
@@ -472,8 +474,8 @@ def concept_posterior(
     use_position, use_vision: drop a modality from the likelihood.
     active_regions_only: sum only over regions with training samples (``region_counts > 0``), as
         the authors' code does; ignored if no region has any.
-    view_counts: S^v, each view scored as the model's draws
-        (:func:`~spco.model.observations.view_draws`); ``None`` (default): every count a draw.
+    view_counts: the evidence of one view in counts: each view's log-likelihood is weighted by
+        ``min(1, view_counts / Σ_d v_d)``; ``None`` (default): every count a draw.
 
     Returns
     -------
@@ -592,8 +594,9 @@ def predict_names(
         ``"reference"`` — the authors' KL-weighted score (:func:`kl_scores_reference`), with the
         concept posterior over used regions only.
     use_position, use_vision: drop a modality.
-    view_counts: S^v (see :func:`concept_posterior`); pass the model's (``Knowledge.view_counts``,
-        ``SamplerSettings.view_counts``) to predict as it learnt. ``None``: every count a draw.
+    view_counts: the evidence of one view in counts (see :func:`concept_posterior`); pass the
+        model's (``TransferHyperparameters.view_counts`` for the exact sampler) to predict as it
+        learnt. ``None``: every count a draw.
     name_prior: ``"off"`` (default) or ``"wordnet"``: with ``"mi"``, the words of each concept
         compete by how name-like they are (``params.name_prior``, :mod:`spco.model.name_evidence`:
         sentence positions and WordNet) before the concepts are mixed; a model without a name

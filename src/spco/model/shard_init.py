@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -118,7 +118,8 @@ class ShardInitialisation:
 
     def init_local_step(self) -> None:
         """One local step of the independent warm-start sampler (statistics kept)."""
-        gibbs.local_step(self.data, self.state, INDEPENDENT, self.rng)
+        independent = replace(INDEPENDENT, view_counts=self.settings.view_counts)  # the same view evidence
+        gibbs.local_step(self.data, self.state, independent, self.rng)
         self._init_stats = gibbs.sufficient_statistics(self.data, self.state, self.hyper)
 
     def init_home_step(self, word_mask: np.ndarray | None = None,

@@ -167,7 +167,6 @@ class SyntheticHomes(RangeSource):
     teaching_rate: float = 100.0
     _world: object = field(default=None, repr=False, compare=False)
     position_scale: float = 1.0
-    view_counts: float | None = None  # S^v of the sampler (spco.model.observations.view_draws)
 
     @classmethod
     def create(cls, n_homes: int, seed: int = 0, config=None, new_homes: int = 0,
@@ -241,7 +240,7 @@ class SyntheticHomes(RangeSource):
 
         corpus = Corpus([self.home(i) for i in range(first, last)], vocabulary=self.vocabulary,
                         word_increment=self.word_increment)
-        return SpatialConceptModel._prepare(corpus, self.position_scale, self.view_counts)
+        return SpatialConceptModel._prepare(corpus, self.position_scale)
 
     def parts(self, n_shards: int) -> list[HomesPart]:
         return [RangePart(self, a, b) for a, b in even_bounds(self.n_homes, n_shards)]
@@ -272,7 +271,6 @@ class FolderHomes(RangeSource):
     n_taught: int
     n_features: int
     position_scale: float = 1.0
-    view_counts: float | None = None  # S^v of the sampler (spco.model.observations.view_draws)
     name_prior: np.ndarray | None = None  # (V,) spco.model.name_evidence.name_prior of the sentences
 
     @classmethod
@@ -341,7 +339,7 @@ class FolderHomes(RangeSource):
         envs = [load_homes(p, teaching_rate=self.teaching_rate)[0] for p in self.paths[first:last]]
         corpus = Corpus(envs, vocabulary=self.vocabulary, word_increment=self.word_increment,
                         n_features=self.n_features)
-        return SpatialConceptModel._prepare(corpus, self.position_scale, self.view_counts)
+        return SpatialConceptModel._prepare(corpus, self.position_scale)
 
     def parts(self, n_shards: int) -> list[HomesPart]:
         from types import SimpleNamespace

@@ -69,6 +69,11 @@ class PreparedData:
         return dimension_major(self.visual, self.offsets)
 
     @cached_property
+    def view_totals(self) -> np.ndarray:
+        """(N,) float: the visual counts of each sample (``Σ_d v_d``), for a view's weight."""
+        return np.asarray(self.visual.sum(axis=1), dtype=np.float64).ravel()
+
+    @cached_property
     def niw_priors(self) -> dict:
         """The NIW priors already built for this data (:func:`spco.model.gibbs.niw_prior`), by
         hyperparameters and variant: built once per fit instead of once per sweep."""
@@ -141,20 +146,12 @@ class SamplerSettings:
 
         ``learn_shared=False`` keeps φ^v, φ^w and G_0 fixed (adapting to a new home with
         knowledge learnt elsewhere): sweeps then update only the homes' own variables.
-        ``view_counts``: S^v, the draws the model observes of each view
-        (:attr:`~spco.model.hyperparameters.TransferHyperparameters.view_counts`,
-        :func:`~spco.model.observations.view_draws`), recorded here as the data were prepared
-        with it; the exact variant only — the authors' sampler and SpCoA score every count, as
-        published (:func:`sampler_view_counts`)."""
+        ``view_counts``: the evidence of one view in counts
+        (:attr:`~spco.model.hyperparameters.TransferHyperparameters.view_counts`); the exact
+        variant only — the authors' sampler and SpCoA score every count, as published."""
         if variant not in VARIANTS:
             raise ValueError(f"unknown sampler variant {variant!r}; choose one of {VARIANTS}")
         return cls(variant=variant, prune=prune, hierarchical=variant != "spcoa",
                    joint_assignment=variant != "reference",
                    pruning_score="kl" if variant == "reference" else "mi", learn_shared=learn_shared,
-                   view_counts=sampler_view_counts(variant, view_counts))
-
-
-def sampler_view_counts(variant: str, view_counts: float | None) -> float | None:
-    """S^v of a sampler ``variant`` given the hyperparameters' ``view_counts``: the exact sampler's
-    model observes each view as S^v draws; the authors' sampler and SpCoA every count (``None``)."""
-    return view_counts if variant == "exact" else None
+                   view_counts=view_counts if variant == "exact" else None)

@@ -43,7 +43,6 @@ from spco.errors import ConfigurationError
 from spco.model import gibbs
 from spco.model.hyperparameters import SpCoAHyperparameters, TransferHyperparameters
 from spco.model.name_evidence import name_prior
-from spco.model.observations import view_draws
 from spco.model.parameters import ConceptParameters
 from spco.model.posterior import (
     ParameterAverage,
@@ -167,10 +166,7 @@ class SpatialConceptModel:
 
     # ------------------------------------------------------------------ data
     @staticmethod
-    def _prepare(corpus: Corpus, position_scale: float,
-                 view_counts: float | None = None) -> gibbs.PreparedData:
-        """The training samples of ``corpus`` in the sampler's form: positions × ``position_scale``,
-        each view as the model's ``view_counts`` draws (:func:`~spco.model.observations.view_draws`)."""
+    def _prepare(corpus: Corpus, position_scale: float) -> gibbs.PreparedData:
         if not isinstance(corpus, Corpus):
             raise ConfigurationError("fit() expects a spco.data.Corpus")
         training = corpus.training_set()
@@ -184,8 +180,7 @@ class SpatialConceptModel:
         sizes = np.array([t.n_samples for t in training])
         offsets = np.concatenate([[0], np.cumsum(sizes)])
         homes = np.repeat(np.arange(len(training)), sizes)
-        # stacked once, in the kernels' layout
-        visual = stack_counts(*(view_draws(t.visual, view_counts) for t in training))
+        visual = stack_counts(*(t.visual for t in training))  # stacked once, in the kernels' layout
         words = stack_counts(corpus.word_counts([s for t in training for s in t.sentences]))
         centres = np.zeros((len(training), 4))
         for e, t in enumerate(training):
@@ -218,7 +213,7 @@ class SpatialConceptModel:
         settings = self._settings()
         rng = _as_generator(self.random_state)
         scale = gibbs.CM_PER_M if settings.variant == "reference" else 1.0
-        data = self._prepare(corpus, scale, settings.view_counts)
+        data = self._prepare(corpus, scale)
         start = time.perf_counter()
         averaged = set(thinned_sweeps(int(self.n_iterations)))
         average = ParameterAverage(data.homes, data.position_scale)
