@@ -47,9 +47,9 @@ STARTS = ("names", "regions", "random")
 def _chain(corpus: Corpus, variant: str, start: str, seed: int, sweeps: int) -> dict:
     """Run one chain by hand (the one-process sampler) and return its partitions and parameters."""
     model = SpCoTransfer(variant=variant, prune_words=True, n_iterations=sweeps, random_state=seed)
-    hyper = model._validate()
-    settings = model._settings()
-    data = model._prepare(corpus, gibbs.CM_PER_M if variant == "reference" else 1.0)
+    hyper = model.checked_hyperparameters()
+    settings = model.sampler_settings()
+    data = model.prepare_data(corpus, gibbs.CM_PER_M if variant == "reference" else 1.0)
     rng = np.random.default_rng(seed)
     average = ParameterAverage(data.homes, data.position_scale)
     averaged = set(thinned_sweeps(sweeps))

@@ -78,7 +78,7 @@ def run_cc4f(args: argparse.Namespace) -> None:
     from spco.data.loading import load_home
     from spco.knowledge import adapt, fit_knowledge
     from spco.model.hyperparameters import TransferHyperparameters
-    from spco.prediction import UnknownNameError
+    from spco.model.prediction import UnknownNameError
 
     folder = Path(args.data)
     places, names = cc4f_answers(folder)

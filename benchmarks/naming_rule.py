@@ -53,7 +53,7 @@ def main() -> None:
     model = SpCoTransfer(prune_words=False, n_iterations=args.sweeps, random_state=args.seed,
                          record_log_joint=False)
     model.fit(corpus)
-    prepared = SpatialConceptModel._prepare(corpus, 1.0)
+    prepared = SpatialConceptModel.prepare_data(corpus, 1.0)
     state = model.state_
     stats = colocation(prepared.words, prepared.homes, state.regions, prepared.n_homes,
                        model.hyperparameters_.n_regions)

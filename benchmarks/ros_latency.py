@@ -2,10 +2,11 @@
 updated markers.
 
 Starts a real ROS 1 master (Debian's ``rosmaster``) on a free loopback port, ``spco ros`` in a process
-of its own (ROS_MASTER_URI / ROS_IP set for loopback) on a tour home (:func:`spco.ros.testing.tour_home`:
-three tours fitted, a fourth adapted, 80 samples), and plays the robot in this process with rospy:
-the pose (PoseStamped) at 10 Hz and the head camera (CompressedImage, 640×480 JPEG, as the HSR's
-``…/image_rect_color/compressed``) at 15 Hz, from a background thread, as the robot drives the tour.
+of its own (ROS_MASTER_URI / ROS_IP set for loopback) on a tour home (``tour_home`` of
+``tests/ros_harness.py``: three tours fitted, a fourth adapted, 80 samples), and plays the robot in
+this process with rospy: the pose (PoseStamped) at 10 Hz and the head camera (CompressedImage,
+640×480 JPEG, as the HSR's ``…/image_rect_color/compressed``) at 15 Hz, from a background thread,
+as the robot drives the tour.
 
 - **query → answer**: ``--queries`` queries one after the other, alternating ``where`` (a name, 10
   poses) and ``what`` (the robot's current pose and camera frame); the time from publishing the query
@@ -28,6 +29,7 @@ import argparse
 import json
 import math
 import os
+import sys
 import tempfile
 import threading
 import time
@@ -35,6 +37,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+# the ROS master, node process and stand-in robot the tests use (tests/ros_harness.py)
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 
 def _percentiles(seconds: list[float]) -> dict[str, float]:
@@ -48,8 +53,9 @@ class Drive(threading.Thread):
 
     def __init__(self, robot: Any, pose_hz: float = 10.0, image_hz: float = 15.0, size=(640, 480)) -> None:
         super().__init__(daemon=True)
+        from ros_harness import tour_pose
+
         from spco.data.bagtour import view
-        from spco.ros.testing import tour_pose
 
         self.robot, self.pose_hz, self.image_hz, self.size = robot, pose_hz, image_hz, size
         self.view, self.tour_pose = view, tour_pose
@@ -125,8 +131,7 @@ def main() -> None:
                         help="folder for the home and the logs (default: a temporary one)")
     args = parser.parse_args()
 
-    from spco.data.bagtour import ROOMS, room_at
-    from spco.ros.testing import (
+    from ros_harness import (
         FakeRobot,
         free_port,
         ros_environment,
@@ -135,6 +140,8 @@ def main() -> None:
         stop_process,
         tour_home,
     )
+
+    from spco.data.bagtour import ROOMS, room_at
 
     folder = args.dir or Path(tempfile.mkdtemp(prefix="spco-ros-bench-"))
     folder.mkdir(parents=True, exist_ok=True)

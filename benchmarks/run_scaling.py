@@ -20,6 +20,7 @@ import time
 from typing import Any
 
 import numpy as np
+from reference_sampler import time_reference
 
 from spco import benchmark
 from spco.model.hyperparameters import TransferHyperparameters
@@ -50,7 +51,7 @@ def measure(n_homes: int, args: argparse.Namespace) -> dict[str, Any]:
                            "sweep_seconds": timings.per_sweep, "steps": timings.per_step(),
                            "all_sweep_seconds": timings.totals}
     if args.with_reference:
-        ref = benchmark.time_reference(corpus, args.reference_sweeps, warmup=1, seed=args.seed, log=log)
+        ref = time_reference(corpus, args.reference_sweeps, warmup=1, seed=args.seed, log=log)
         row["reference_sweep_seconds"] = ref.per_sweep
     return row
 

@@ -4,7 +4,7 @@ The served home is adapted from a 16-home SIGVerse knowledge fitted on the camer
 default extractor (colour-hog): ``spco fit`` on the paper's 16 experienced homes, ``spco adapt``
 for 3LDK_9 (its bedrooms taught at 40 %). Both are built once into ``--dir`` (about 30 s) and the
 commands are printed. Each figure starts ``spco serve`` on a fresh copy of the home; the clients
-are ``spco.client.Client`` (``http.client``, one keep-alive connection each), in processes of their
+are ``spco.service.client.Client`` (``http.client``, one keep-alive connection each), in processes of their
 own where there are several.
 
 - ``what`` by pose, one client: p50/p99 over ``--n`` requests at random poses on the map;
@@ -94,7 +94,7 @@ class Served:
         else:
             raise SystemExit("spco serve did not start")
         threading.Thread(target=self._drain, daemon=True).start()
-        from spco.client import Client
+        from spco.service.client import Client
 
         self.writer_pid = Client(self.url).health()["writer"]["pid"]
 
@@ -162,7 +162,7 @@ def measured(call: Any, items: list[Any], served: Served, warm: int = 20) -> dic
 
 # ------------------------------------------------------------------------------ client processes
 def _what_loop(url: str, extent: list[float], seconds: float, seed: int, results: Any) -> None:
-    from spco.client import Client
+    from spco.service.client import Client
 
     client = Client(url)
     rng = np.random.default_rng(seed)
@@ -181,7 +181,7 @@ def _what_loop(url: str, extent: list[float], seconds: float, seed: int, results
 
 def _teach_burst(url: str, ids: list[int], names: list[str], teachers: int, each: int, results: Any) -> None:
     """``teachers`` clients (threads of this process) teaching ``each`` times back to back."""
-    from spco.client import Client
+    from spco.service.client import Client
 
     taught: list[float] = []
 
@@ -204,7 +204,7 @@ def _soak_worker(url: str, regions: dict[str, Any], labels: dict[int, str], rate
                  seed: int, results: Any, threads: int = 8) -> None:
     """Requests at ``rate`` per second for ``seconds`` on a fixed schedule (request k at k / rate),
     sent by ``threads`` clients in turn, so that slow answers do not slow the schedule down."""
-    from spco.client import Client
+    from spco.service.client import Client
 
     x0, x1, y0, y1 = regions["extent"]
     ids, names = list(labels), list(labels.values())
@@ -262,7 +262,7 @@ def main() -> None:
     parser.add_argument("--json", type=Path, default=None)
     parser.add_argument("--only", default=None, help="comma-separated figures to run (default: all)")
     args = parser.parse_args()
-    from spco.client import Client
+    from spco.service.client import Client
 
     home = build(args.dir, args.sigverse.resolve(), args.images.resolve())
     import cv2

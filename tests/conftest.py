@@ -4,7 +4,7 @@ local Ray instance."""
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -56,7 +56,7 @@ def ray_session():
 
 @pytest.fixture(scope="session")
 def _tour_home_source(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A home file made as a robot would (spco.ros.testing.tour_home: three tours fitted, a fourth
+    """A home file made as a robot would (``ros_harness.tour_home``: three tours fitted, a fourth
     adapted), whose kitchen is the bedroom's colour with red and blue swapped; built once.
 
     Seed 1: the tests check the node's plumbing through answers that need the adapted tour's three
@@ -66,7 +66,7 @@ def _tour_home_source(tmp_path_factory: pytest.TempPathFactory) -> Path:
     a draw, seed 6). That is the sampler on a tiny home, not the node, and is reported in
     ``docs/model.md``.
     """
-    from spco.ros.testing import SWAPPED_ROOM_COLOURS, tour_home
+    from ros_harness import SWAPPED_ROOM_COLOURS, tour_home
 
     return tour_home(tmp_path_factory.mktemp("tour_home"), seed=1, colours=SWAPPED_ROOM_COLOURS)
 
@@ -135,3 +135,60 @@ def wordnet():
             pytest.fail(f"the lexicon must be available under CI: {reason}")
         pytest.skip(f"{reason}: pip install -e '.[words]' and apt-get install wordnet-base")
     return lexicon()
+
+
+@pytest.fixture
+def single_numba_thread() -> Iterator[None]:
+    """One Numba thread for a test (``pytestmark = pytest.mark.usefixtures("single_numba_thread")``):
+    tiny problems call the compiled kernels thousands of times, and one thread avoids the OpenMP
+    start-up cost of every call (results do not depend on the number of threads)."""
+    import numba
+
+    before = numba.get_num_threads()
+    numba.set_num_threads(1)
+    yield
+    numba.set_num_threads(before)
+
+
+@pytest.fixture(scope="module")
+def small_corpus():
+    """Two taught synthetic homes and a new one, 5 training and 2 test samples each, D = 64."""
+    from spco.data.synthetic import SyntheticConfig, generate_homes
+
+    return generate_homes(3, seed=4, new_homes=1, config=SyntheticConfig(n_features=64, n_train=5, n_test=2),
+                          specific_rooms=False)
+
+
+def synthetic_home_folders(root: Path, n_homes: int, seed: int, n_features: int = 128) -> dict[str, Path]:
+    """``n_homes`` synthetic homes (no home-specific rooms) in the plain format: all but the last
+    under ``root/experienced``, the last (nothing taught) under ``root/new``. Returns the paths
+    ``root``, ``experienced``, ``new`` (the new home's folder) and its name, ``new_name``."""
+    from spco.data.plain import write_corpus
+    from spco.data.synthetic import SyntheticConfig, generate_homes
+
+    corpus = generate_homes(n_homes, seed=seed, config=SyntheticConfig(n_features=n_features), new_homes=1,
+                            specific_rooms=False)
+    write_corpus(list(corpus)[:-1], root / "experienced")
+    write_corpus(list(corpus)[-1:], root / "new")
+    return {"root": root, "experienced": root / "experienced", "new": root / "new" / corpus.names[-1],
+            "new_name": corpus.names[-1]}  # type: ignore[dict-item]
+
+
+def fit_and_adapt(folders: dict[str, Path], fit_args: Sequence[object], adapt_args: Sequence[object],
+                  knowledge: str = "knowledge.spco", home: str = "home.spco") -> tuple[Path, Path, str]:
+    """``spco fit`` on the experienced homes of :func:`synthetic_home_folders`, then ``spco adapt``
+    of that knowledge to its new home, each with the extra arguments given; returns the knowledge
+    file, the home file (both in ``folders["root"]``) and what ``adapt`` printed."""
+    from click.testing import CliRunner
+
+    from spco.cli import main
+
+    def run(args: Sequence[object]) -> str:
+        result = CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=False)
+        assert result.exit_code == 0, result.output
+        return result.output
+
+    knowledge_file, home_file = folders["root"] / knowledge, folders["root"] / home
+    run(["fit", "--data", folders["experienced"], *fit_args, "--out", knowledge_file])
+    output = run(["adapt", knowledge_file, "--home", folders["new"], *adapt_args, "--out", home_file])
+    return knowledge_file, home_file, output

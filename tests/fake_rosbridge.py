@@ -19,9 +19,8 @@ from collections import defaultdict
 from typing import Any
 
 import websockets
+from ros_harness import Mailbox
 from websockets.asyncio.server import ServerConnection, serve
-
-from spco.ros.testing import Mailbox
 
 
 class FakeRosbridge(Mailbox):

@@ -103,7 +103,7 @@ class Server:
 
 def wait_unlocked(home: Path, timeout: float = 20.0) -> None:
     """Wait until no server holds ``home`` (a killed server's writer process exits with it)."""
-    from spco.locking import served_by
+    from spco.knowledge.locking import served_by
 
     deadline = time.monotonic() + timeout
     while served_by(home) is not None:

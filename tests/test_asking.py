@@ -1,4 +1,4 @@
-"""A robot that asks: the criterion (spco.model.asking), ``spco.knowledge.ask``, ``spco ask`` and
+"""A robot that asks: the criterion (spco.model.question_scores), ``spco.knowledge.ask``, ``spco ask`` and
 ``GET /ask``.
 
 The criterion's tests build the home's beliefs by hand (concept posteriors, names, regions), so that
@@ -25,8 +25,14 @@ from spco.cli.ask import ask as ask_command
 from spco.data.environment import Corpus
 from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.errors import ConfigurationError
-from spco.model.asking import group_rooms, name_entropy, question_scores, rank_questions, room_novelty
 from spco.model.confidence import UNSURE_BELOW
+from spco.model.question_scores import (
+    group_rooms,
+    name_entropy,
+    question_scores,
+    rank_questions,
+    room_novelty,
+)
 from spco.service.answers import ask_answer
 
 CONFIG = SyntheticConfig(n_features=128)

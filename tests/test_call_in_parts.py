@@ -11,9 +11,14 @@ import scipy.sparse as sp
 from numba import njit
 
 from spco.model.kernels import dispatch
+from spco.model.kernels.categorical import sample_joint_assignment
 from spco.model.kernels.counts import _grouped_row_sums, grouped_row_sums
-from spco.model.kernels.crt import _crt_entries, _crt_totals_rows, sample_crt
-from spco.model.kernels.dirichlet import _dirichlet_rows, _hierarchical_dirichlet_rows
+from spco.model.kernels.crt import _crt_entries, _crt_totals_rows, sample_crt, sample_crt_totals
+from spco.model.kernels.dirichlet import (
+    _dirichlet_rows,
+    _hierarchical_dirichlet_rows,
+    log_dirichlet_hierarchical,
+)
 from spco.model.kernels.likelihood import (
     LANES,
     _blocked_sparse_rows,
@@ -22,7 +27,6 @@ from spco.model.kernels.likelihood import (
     likelihood_table,
 )
 from spco.model.kernels.niw import _niw_rows, sample_niw
-from spco.model.random import log_dirichlet_hierarchical, sample_crt_totals, sample_joint_assignment
 
 
 def _both(kernel, args: tuple, n_items: int, out: np.ndarray, vectorised: bool = False) -> tuple:

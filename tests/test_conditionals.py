@@ -14,9 +14,7 @@
 from __future__ import annotations
 
 import itertools
-from collections.abc import Iterator
 
-import numba
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -38,14 +36,8 @@ P_MIN = 1e-3
 Z_MAX = 4.0
 
 
-@pytest.fixture(autouse=True)
-def single_numba_thread() -> Iterator[None]:
-    """Tiny problems call the compiled kernels thousands of times: one thread avoids the
-    OpenMP start-up cost of every call (results do not depend on the number of threads)."""
-    before = numba.get_num_threads()
-    numba.set_num_threads(1)
-    yield
-    numba.set_num_threads(before)
+# tiny problems call the compiled kernels thousands of times: one thread (conftest.py)
+pytestmark = pytest.mark.usefixtures("single_numba_thread")
 
 
 # ----------------------------------------------------------------------------- tiny problems

@@ -17,12 +17,11 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 from click.testing import CliRunner
+from conftest import fit_and_adapt, synthetic_home_folders
 
 from spco import knowledge as kn
-from spco.cli.knowledge import adapt, fit, what
+from spco.cli.knowledge import what
 from spco.data.language import Vocabulary
-from spco.data.plain import write_corpus
-from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.errors import ConfigurationError
 from spco.model.confidence import (
     UNSURE_BELOW,
@@ -167,20 +166,8 @@ def test_concept_word_counts_and_bad_arguments() -> None:
 # ------------------------------------------------------------------------- what: library, CLI, JSON
 @pytest.fixture(scope="module")
 def home_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    root = tmp_path_factory.mktemp("confidence")
-    corpus = generate_homes(4, seed=5, config=SyntheticConfig(n_features=64), new_homes=1,
-                            specific_rooms=False)
-    write_corpus(list(corpus)[:3], root / "experienced")
-    write_corpus(list(corpus)[3:], root / "new")
-    knowledge = root / "k.spco"
-    run = CliRunner().invoke(fit, ["--data", str(root / "experienced"), "--iterations", "12", "--seed", "1",
-                                   "--out", str(knowledge)], catch_exceptions=False)
-    assert run.exit_code == 0, run.output
-    out = root / "h.spco"
-    run = CliRunner().invoke(adapt, [str(knowledge), "--home", str(root / "new" / corpus.names[3]),
-                                     "--iterations", "15", "--out", str(out)], catch_exceptions=False)
-    assert run.exit_code == 0, run.output
-    return out
+    folders = synthetic_home_folders(tmp_path_factory.mktemp("confidence"), 4, seed=5, n_features=64)
+    return fit_and_adapt(folders, ["--iterations", 12, "--seed", 1], ["--iterations", 15])[1]
 
 
 def test_what_says_when_it_is_unsure(home_file: Path) -> None:

@@ -3,7 +3,7 @@ an ``encoding`` (rgb8, bgr8, mono8, rgba8, bgra8); an RGB frame declared rgb8 gi
 same frame as BGR and of its file.
 
 The home's kitchen is orange and its bedroom the same colour with red and blue swapped
-(:data:`spco.ros.testing.SWAPPED_ROOM_COLOURS`): an RGB frame read as BGR is another room.
+(``ros_harness.SWAPPED_ROOM_COLOURS``): an RGB frame read as BGR is another room.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ import cv2
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from ros_harness import SWAPPED_ROOM_COLOURS, tour_pose
 
 from spco import knowledge as kn
 from spco.cli import main
@@ -23,13 +24,7 @@ from spco.data.bagtour import view
 from spco.errors import DataFormatError
 from spco.features import read_image
 from spco.features.pixels import UndeclaredEncodingWarning
-from spco.ros.testing import SWAPPED_ROOM_COLOURS, tour_pose
 from spco.service.live import LiveHome
-
-
-@pytest.fixture(scope="module")
-def home_file(tour_home_file: Path) -> Path:
-    return tour_home_file
 
 
 def _frame(distance: float, seed: int = 0) -> tuple[tuple[float, float, float], np.ndarray]:
@@ -56,9 +51,9 @@ def test_read_image_takes_the_declared_colour_order(tmp_path: Path) -> None:
         read_image(np.zeros((10, 10, 2), np.uint8))
 
 
-def test_an_rgb_frame_declared_rgb8_gives_the_names_of_the_bgr_frame_and_of_its_file(home_file: Path,
+def test_an_rgb_frame_declared_rgb8_gives_the_names_of_the_bgr_frame_and_of_its_file(tour_home_file: Path,
                                                                                     tmp_path: Path) -> None:
-    home = kn.load_home_model(home_file)
+    home = kn.load_home_model(tour_home_file)
     changed = 0
     distances = np.arange(0.25, 24.0, 0.5)
     for k, distance in enumerate(distances):
@@ -77,8 +72,8 @@ def test_an_rgb_frame_declared_rgb8_gives_the_names_of_the_bgr_frame_and_of_its_
     assert changed >= len(distances) // 2, changed
 
 
-def test_teach_with_an_rgb8_frame_learns_the_view_of_its_file(home_file: Path, tmp_path: Path) -> None:
-    home = kn.load_home_model(home_file)
+def test_teach_with_an_rgb8_frame_learns_the_view_of_its_file(tour_home_file: Path, tmp_path: Path) -> None:
+    home = kn.load_home_model(tour_home_file)
     (x, y, theta), bgr = _frame(6.0)
     png = tmp_path / "view.png"
     cv2.imwrite(str(png), bgr)
@@ -89,30 +84,31 @@ def test_teach_with_an_rgb8_frame_learns_the_view_of_its_file(home_file: Path, t
     assert np.array_equal(taught.visual[[taught.n_samples - 1]].toarray()[0], expected)
 
 
-def test_the_command_line_reads_a_pixel_array_in_its_encoding(home_file: Path, tmp_path: Path) -> None:
+def test_the_command_line_reads_a_pixel_array_in_its_encoding(tour_home_file: Path, tmp_path: Path) -> None:
     (x, y, theta), bgr = _frame(10.0, seed=3)
     png, npy = tmp_path / "view.png", tmp_path / "view.npy"
     cv2.imwrite(str(png), bgr)
     np.save(npy, bgr[:, :, ::-1])  # as PIL or cv_bridge's rgb8 give it
 
     def what(*image: str) -> list:
-        result = CliRunner().invoke(main, ["what", str(home_file), "--x", str(x), "--y", str(y), "--theta",
-                                           str(theta), "--json", *image])
+        result = CliRunner().invoke(main, ["what", str(tour_home_file), "--x", str(x), "--y", str(y),
+                                           "--theta", str(theta), "--json", *image])
         assert result.exit_code == 0, result.output
         return json.loads(result.output)["names"]
 
     assert what("--image", str(npy), "--encoding", "rgb8") == what("--image", str(png))
-    result = CliRunner().invoke(main, ["what", str(home_file), "--x", "1", "--y", "1", "--theta", "0",
+    result = CliRunner().invoke(main, ["what", str(tour_home_file), "--x", "1", "--y", "1", "--theta", "0",
                                        "--image", str(png), "--encoding", "rgb8"])
     assert result.exit_code == 2 and "carries its own" in result.output
 
 
-def test_the_resident_home_takes_the_encoding_too(home_file: Path, tmp_path: Path) -> None:
+def test_the_resident_home_takes_the_encoding_too(tour_home_file: Path, tmp_path: Path) -> None:
     (x, y, theta), bgr = _frame(2.0, seed=7)
     png = tmp_path / "view.png"
     cv2.imwrite(str(png), bgr)
-    from_file = [(n, p) for n, p in _names(kn.load_home_model(home_file).what(x, y, theta, image=png))][:3]
-    with LiveHome(home_file, writer="thread") as live:
+    home = kn.load_home_model(tour_home_file)
+    from_file = [(n, p) for n, p in _names(home.what(x, y, theta, image=png))][:3]
+    with LiveHome(tour_home_file, writer="thread") as live:
         for pixels, encoding in ((bgr[:, :, ::-1].copy(), "rgb8"), (bgr, "bgr8"), (png.read_bytes(), None)):
             answer = live.what(x, y, theta, image=pixels, encoding=encoding)
             assert [(n["name"], pytest.approx(n["probability"])) for n in answer["names"]] == from_file

@@ -26,9 +26,9 @@ def corpus():
 def start(corpus, engine, variant: str = "exact", seed: int = 5):
     """A run of ``engine`` on ``corpus``, started as SpatialConceptModel.fit starts it."""
     model = SpatialConceptModel(variant=variant, random_state=seed, prune_words=True)
-    hyper, settings = model._validate(), model._settings()
+    hyper, settings = model.checked_hyperparameters(), model.sampler_settings()
     rng = np.random.default_rng(seed)
-    data = SpatialConceptModel._prepare(corpus, gibbs.CM_PER_M if variant == "reference" else 1.0)
+    data = SpatialConceptModel.prepare_data(corpus, gibbs.CM_PER_M if variant == "reference" else 1.0)
     return data, start_run(engine, data, len(corpus.vocabulary), hyper, settings, rng)
 
 
@@ -44,9 +44,9 @@ def chain(corpus, engine, variant: str = "exact", after_sweep=None):
 def test_split_and_join_round_trip(corpus) -> None:
     """Cutting homes into shards and joining their states gives back every array unchanged."""
     model = SpatialConceptModel(random_state=0, prune_words=True)
-    data = SpatialConceptModel._prepare(corpus, 1.0)
-    state = gibbs.initialize(data, len(corpus.vocabulary), model._validate(), model._settings(),
-                             np.random.default_rng(0))
+    data = SpatialConceptModel.prepare_data(corpus, 1.0)
+    state = gibbs.initialize(data, len(corpus.vocabulary), model.checked_hyperparameters(),
+                             model.sampler_settings(), np.random.default_rng(0))
     bounds = shard.shard_bounds(data, 3)
     assert bounds[0][0] == 0 and bounds[-1][1] == data.n_homes
     assert all(a < b for a, b in bounds) and all(bounds[i][1] == bounds[i + 1][0] for i in range(2))
@@ -82,7 +82,7 @@ def test_statistics_add_up_over_shards(corpus) -> None:
     total = parts[0] + parts[1]
     state = run.state()
     model = SpatialConceptModel(random_state=0)
-    stats = gibbs.sufficient_statistics(data, state, model._validate())
+    stats = gibbs.sufficient_statistics(data, state, model.checked_hyperparameters())
     np.testing.assert_array_equal(total.visual, stats.visual.sum(0))
     np.testing.assert_array_equal(total.concepts, stats.concepts.sum(0))
 
@@ -96,7 +96,7 @@ def test_naming_rule_adds_up_over_shards(corpus) -> None:
     run.call("local_step", None)
     parts = run.call("colocation")
     state = run.state()
-    hyper = SpatialConceptModel(random_state=0)._validate()
+    hyper = SpatialConceptModel(random_state=0).checked_hyperparameters()
     whole = colocation(data.words, data.homes, state.regions, data.n_homes, hyper.n_regions)
     fields = ("pairs", "same", "expected", "log_likelihood")
     for field in fields:  # (each home's floats are rounded to SUM_GRID, so that they add up exactly)

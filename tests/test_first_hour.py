@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 from click.testing import CliRunner
+from conftest import fit_and_adapt, synthetic_home_folders
 
 from spco import knowledge as kn
 from spco.cli import main
@@ -24,7 +25,7 @@ from spco.data.plain import write_corpus
 from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.errors import ConfigurationError, DataFormatError
 from spco.knowledge.home import _copy_state
-from spco.prediction import predict_names
+from spco.model.prediction import predict_names
 
 CONFIG = SyntheticConfig(n_features=128)
 
@@ -36,20 +37,10 @@ def _run(args: list[object]):
 @pytest.fixture(scope="module")
 def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """A knowledge file from four synthetic homes, a new home of the same generator and its home file."""
-    root = tmp_path_factory.mktemp("first_hour")
-    corpus = generate_homes(5, seed=3, config=CONFIG, new_homes=1, specific_rooms=False)
-    write_corpus(list(corpus)[:4], root / "experienced")
-    write_corpus(list(corpus)[4:], root / "new")
-    knowledge = root / "knowledge.spco"
-    result = _run(["fit", "--data", root / "experienced", "--iterations", 20, "--seed", 1,
-                   "--out", knowledge])
-    assert result.exit_code == 0, result.output
-    home = root / "home.spco"
-    result = _run(["adapt", knowledge, "--home", root / "new" / corpus.names[4], "--iterations", 15,
-                   "--out", home])
-    assert result.exit_code == 0, result.output
-    return {"root": root, "knowledge": knowledge, "home": home, "new": root / "new" / corpus.names[4],
-            "adapt_output": result.output}  # type: ignore[dict-item]
+    folders = synthetic_home_folders(tmp_path_factory.mktemp("first_hour"), 5, seed=3)
+    knowledge, home, output = fit_and_adapt(folders, ["--iterations", 20, "--seed", 1], ["--iterations", 15])
+    return {"root": folders["root"], "knowledge": knowledge, "home": home, "new": folders["new"],
+            "adapt_output": output}  # type: ignore[dict-item]
 
 
 def _hand_built_home(n_features: int, seed: int = 1) -> Environment:
@@ -283,8 +274,8 @@ def test_synth_with_another_seed_does_not_reuse_names(tmp_path: Path) -> None:
 
 
 def test_demo_knows_whether_its_kernels_are_compiled() -> None:
-    from spco.demo import warm_up
     from spco.model.numba_cache import kernels_compiled
+    from spco.synthetic_transfer import warm_up
 
     warm_up()  # the kernels are in memory now
     assert kernels_compiled() is True

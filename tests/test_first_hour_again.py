@@ -18,10 +18,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from conftest import synthetic_home_folders
 
 from spco.cli import main
 from spco.cli.knowledge import _where_drawn_from
-from spco.data.plain import write_corpus
 from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.engines import LocalEngine
 from spco.knowledge import fit_knowledge, load_knowledge
@@ -68,11 +68,7 @@ def test_a_bar_is_drawn_on_a_terminal_that_reports_no_size(monkeypatch: pytest.M
 @pytest.fixture(scope="module")
 def homes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """Four experienced synthetic homes and a new one, in the plain format."""
-    root = tmp_path_factory.mktemp("first_hour_again")
-    corpus = generate_homes(5, seed=3, config=CONFIG, new_homes=1, specific_rooms=False)
-    write_corpus(list(corpus)[:4], root / "experienced")
-    write_corpus(list(corpus)[4:], root / "new")
-    return {"root": root, "experienced": root / "experienced", "new": root / "new" / corpus.names[4]}
+    return synthetic_home_folders(tmp_path_factory.mktemp("first_hour_again"), 5, seed=3)
 
 
 def test_spco_fit_shows_its_sweeps_on_a_terminal(homes: dict[str, Path]) -> None:

@@ -20,9 +20,6 @@ features (4 counts per sample), V = 3 words (S^w = 1, every sample taught), 5 sa
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-
-import numba
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -52,13 +49,8 @@ BATCH = 100
 Z_MAX = 4.0
 
 
-@pytest.fixture(autouse=True)
-def single_numba_thread() -> Iterator[None]:
-    """Thousands of sweeps of a tiny model: one thread avoids the OpenMP cost of every kernel call."""
-    before = numba.get_num_threads()
-    numba.set_num_threads(1)
-    yield
-    numba.set_num_threads(before)
+# tiny problems call the compiled kernels thousands of times: one thread (conftest.py)
+pytestmark = pytest.mark.usefixtures("single_numba_thread")
 
 
 # ----------------------------------------------------------------------------- the model, written out

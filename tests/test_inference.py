@@ -11,17 +11,15 @@ from numpy.testing import assert_allclose
 from scipy import stats
 
 from spco.data.language import Vocabulary
-from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.errors import ConfigurationError
 from spco.knowledge.fit import CONCENTRATION_PRIOR_SAMPLES, _concentration
 from spco.knowledge.views import _visual_row
 from spco.model import gibbs
 from spco.model.hyperparameters import TransferHyperparameters
+from spco.model.kernels.crt import sample_crt, sample_crt_totals
 from spco.model.parameters import ConceptParameters
 from spco.model.posterior import ParameterAverage, thinned_sweeps
-from spco.model.random import sample_crt, sample_crt_totals
-from spco.model.transfer import SpCoA, SpCoTransfer, clone, export_parameters
-from spco.prediction import (
+from spco.model.prediction import (
     LEARNT_SUPPORT,
     name_support,
     predict_names,
@@ -30,14 +28,9 @@ from spco.prediction import (
     validate_poses,
     validate_visual_counts,
 )
+from spco.model.transfer import SpCoA, SpCoTransfer, clone, export_parameters
 
 SMALL = TransferHyperparameters(n_concepts=6, n_regions=8)
-
-
-@pytest.fixture(scope="module")
-def small_corpus():
-    return generate_homes(3, seed=4, new_homes=1, config=SyntheticConfig(n_features=64, n_train=5, n_test=2),
-                          specific_rooms=False)
 
 
 # ----------------------------------------------------------------------------- 1. posterior average

@@ -15,16 +15,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from conftest import synthetic_home_folders
 
 from spco import knowledge as kn
 from spco.cli.knowledge import adapt, fit, show, teach, what, where
 from spco.data.environment import Corpus
-from spco.data.plain import write_corpus
 from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.errors import ConfigurationError, DataFormatError, ModelFileError
-from spco.prediction import UnknownNameError
-
-CONFIG = SyntheticConfig(n_features=128)
+from spco.model.prediction import UnknownNameError
 
 
 def _invoke(command, args: list[str]):
@@ -35,12 +33,7 @@ def _invoke(command, args: list[str]):
 @pytest.fixture(scope="module")
 def homes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """Three experienced synthetic homes and one new home (nothing taught), in the plain format."""
-    root = tmp_path_factory.mktemp("knowledge")
-    corpus = generate_homes(4, seed=3, config=CONFIG, new_homes=1, specific_rooms=False)
-    write_corpus(list(corpus)[:3], root / "experienced")
-    write_corpus(list(corpus)[3:], root / "new")
-    return {"root": root, "experienced": root / "experienced", "new": root / "new" / corpus.names[3],
-            "new_name": corpus.names[3]}
+    return synthetic_home_folders(tmp_path_factory.mktemp("knowledge"), 4, seed=3)
 
 
 @pytest.fixture(scope="module")
@@ -367,11 +360,8 @@ def test_teach_a_new_word_in_place(tmp_path: Path, home_file: Path) -> None:
     path = _copy(home_file, tmp_path / "home.spco")
     before = kn.load_home_model(path)
     sample = int(before.ids[7])
-    start = time.perf_counter()
     result = _invoke(teach, [path, "--id", sample, "--sentence", "this is Emma's-room"])
-    elapsed = time.perf_counter() - start
     assert result.exit_code == 0, result.output
-    assert elapsed < 5.0  # well under a second in practice; loose on a loaded machine
     assert "New words: emma's room" in result.output
     after = kn.load_home_model(path)
     assert after.vocabulary.words[: len(before.vocabulary)] == before.vocabulary.words

@@ -16,12 +16,9 @@ import time
 from pathlib import Path
 
 import pytest
-from click.testing import CliRunner
+from conftest import fit_and_adapt, synthetic_home_folders
 
 from spco import knowledge as kn
-from spco.cli.knowledge import adapt, fit
-from spco.data.plain import write_corpus
-from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.knowledge.locking import LockTimeoutError, lock_path, locked
 
 SRC = str(Path(kn.__file__).resolve().parents[2])
@@ -36,20 +33,9 @@ def _env(**extra: str) -> dict[str, str]:
 
 @pytest.fixture(scope="module")
 def home_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    root = tmp_path_factory.mktemp("locking")
-    corpus = generate_homes(3, seed=5, config=SyntheticConfig(n_features=64), new_homes=1,
-                            specific_rooms=False)
-    write_corpus(list(corpus)[:2], root / "experienced")
-    write_corpus(list(corpus)[2:], root / "new")
-    runner = CliRunner()
-    result = runner.invoke(fit, ["--data", str(root / "experienced"), "--iterations", "8", "--out",
-                                 str(root / "k.spco")], catch_exceptions=False)
-    assert result.exit_code == 0, result.output
-    result = runner.invoke(adapt, [str(root / "k.spco"), "--home", str(root / "new" / corpus.names[2]),
-                                   "--teaching-rate", "0", "--iterations", "5", "--out",
-                                   str(root / "home.spco")], catch_exceptions=False)
-    assert result.exit_code == 0, result.output
-    return root / "home.spco"
+    folders = synthetic_home_folders(tmp_path_factory.mktemp("locking"), 3, seed=5, n_features=64)
+    return fit_and_adapt(folders, ["--iterations", 8], ["--teaching-rate", 0, "--iterations", 5],
+                         knowledge="k.spco")[1]
 
 
 def _teach(path: Path, sample: int, sentence: str, **env: str) -> subprocess.Popen[str]:

@@ -7,7 +7,6 @@ import json
 from dataclasses import replace
 from pathlib import Path
 
-import numba
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -25,12 +24,8 @@ from spco.model.observations import HierarchicalMultinomial
 P_MIN = 1e-3
 
 
-@pytest.fixture(autouse=True)
-def single_numba_thread():
-    before = numba.get_num_threads()
-    numba.set_num_threads(1)
-    yield
-    numba.set_num_threads(before)
+# tiny problems call the compiled kernels thousands of times: one thread (conftest.py)
+pytestmark = pytest.mark.usefixtures("single_numba_thread")
 
 
 def _home(n: int = 24, d: int = 8, seed: int = 0, name: str = "flat") -> Environment:
@@ -303,6 +298,6 @@ def test_the_ray_engine_hands_the_mask_to_its_actors() -> None:
     from spco.model.transfer import SpatialConceptModel
 
     home = _home().with_views_missing(np.arange(24) % 2 == 0)
-    data = SpatialConceptModel._prepare(Corpus([home]), 1.0)
+    data = SpatialConceptModel.prepare_data(Corpus([home]), 1.0)
     sent = _writable_data(data)
     assert sent.view_missing.tolist() == data.view_missing.tolist() == home.view_missing.tolist()

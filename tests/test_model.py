@@ -170,7 +170,7 @@ def test_naming_rule_leaves_the_word_counts_alone() -> None:
     """The naming rule works on word presence; an earlier G-test set the data array it shared with
     the (float64) word counts to 1, i.e. S^w = 1 instead of 5000 for the rest of every +MI run."""
     corpus = generate_homes(4, seed=0, new_homes=1, config=SyntheticConfig(n_features=32, n_train=6))
-    data = SpCoTransfer._prepare(corpus, 1.0)
+    data = SpCoTransfer.prepare_data(corpus, 1.0)
     before = data.words.copy()
     assert before.data.min() == corpus.word_increment == 5000
     regions = np.arange(data.n_samples) % 3
@@ -238,7 +238,7 @@ def test_pruned_words_leave_the_kept_words_renormalised() -> None:
     import scipy.sparse as sp
 
     from spco.model.gibbs import _concept_loglik
-    from spco.model.random import dimension_major
+    from spco.model.kernels.likelihood import dimension_major
 
     words = sp.csr_array(np.array([[5000.0, 5000.0]]))  # "kitchen", "this": S^w = 5000 each
     visual = sp.csr_array(np.array([[3.0, 1.0]]))
@@ -311,12 +311,6 @@ def test_empty_concepts_and_regions() -> None:
 
 
 # ----------------------------------------------------------------------------- reproducibility
-
-
-@pytest.fixture(scope="module")
-def small_corpus() -> Corpus:
-    return generate_homes(3, seed=4, new_homes=1, config=SyntheticConfig(n_features=64, n_train=5, n_test=2),
-                          specific_rooms=False)
 
 
 SMALL = TransferHyperparameters(n_concepts=6, n_regions=8)

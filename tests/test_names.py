@@ -25,8 +25,8 @@ from spco.model.name_evidence import (
     within_concepts,
 )
 from spco.model.parameters import ConceptParameters
+from spco.model.prediction import UnknownNameError, predict_names, predict_positions
 from spco.model.unheard import resolve_name
-from spco.prediction import UnknownNameError, predict_names, predict_positions
 
 # ------------------------------------------------------------------------------ sentence frames
 

@@ -150,7 +150,7 @@ def test_a_new_homes_own_names_start_in_free_concepts() -> None:
     assert places, "the synthetic new home has home-specific rooms"
     taught = teach(new, 40, places=places, seed=0)
     homes = Corpus([*list(corpus)[:-1], taught])
-    data = SpCoTransfer._prepare(homes, 1.0)
+    data = SpCoTransfer.prepare_data(homes, 1.0)
     hyper = TransferHyperparameters()
     settings = gibbs.SamplerSettings.create("exact", prune=True)
     run = start_run(None, data, len(homes.vocabulary), hyper, settings, np.random.default_rng(0))

@@ -14,8 +14,8 @@ from spco.data.regions import PlaceRegions
 from spco.errors import ConfigurationError
 from spco.evaluation import evaluate_home
 from spco.model.parameters import ConceptParameters
+from spco.model.prediction import predict_names
 from spco.plots import concept_labels, plot_accuracy_curve, plot_home_map, plot_log_joint
-from spco.prediction import predict_names
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 WORDS = ("this", "is", "kitchen", "bath", "bedroom")

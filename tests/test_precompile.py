@@ -62,7 +62,7 @@ def test_demo_on_an_empty_cache_says_it_compiles_in_two_processes(monkeypatch):
     stubbed here: the notice is what is checked, not the compilation or its time)."""
     from click.testing import CliRunner
 
-    import spco.demo
+    import spco.synthetic_transfer
     from spco.cli import main
 
     calls: list[int] = []
@@ -75,7 +75,7 @@ def test_demo_on_an_empty_cache_says_it_compiles_in_two_processes(monkeypatch):
 
     monkeypatch.setattr(numba_cache, "kernels_compiled", lambda: False)
     monkeypatch.setattr(numba_cache, "precompile", lambda processes: calls.append(processes) or 0.0)
-    monkeypatch.setattr(spco.demo, "run_demo", stop)
+    monkeypatch.setattr(spco.synthetic_transfer, "run_demo", stop)
     result = CliRunner().invoke(main, ["demo", "--out", "unused"])
     assert isinstance(result.exception, Stop)
     assert numba_cache.precompile_notice(2) in result.stderr

@@ -13,7 +13,7 @@ from scipy.stats import multivariate_normal
 from spco.data.language import Vocabulary
 from spco.errors import ConfigurationError, SpcoError
 from spco.model.parameters import ConceptParameters
-from spco.prediction import (
+from spco.model.prediction import (
     NamePrediction,
     UnknownNameError,
     concept_posterior,

@@ -1,4 +1,4 @@
-"""The sampler's random primitives against their exact distributions (spco.model.random).
+"""The sampler's random primitives against their exact distributions (spco.model.kernels).
 
 Every statistical test runs at a fixed seed, so it is deterministic; thresholds (p > 1e-3, |z| < 4)
 are loose enough for a correct sampler and tight enough to catch a wrong formula (a wrong mean,
@@ -18,19 +18,14 @@ from numpy.testing import assert_allclose, assert_array_equal
 from scipy import stats
 from scipy.special import gammainc, gammaln, logsumexp, softmax
 
-from spco.model.random import (
-    dirichlet_log_density,
-    grouped_gaussian_log_density,
-    grouped_row_sums,
-    grouped_sparse_dot,
-    log_dirichlet,
-    log_gamma_variates,
-    niw_posterior,
-    sample_categorical_log,
-    sample_crt,
-    sample_joint_assignment,
-    sample_niw,
-)
+from spco.model.kernels.categorical import sample_categorical_log, sample_joint_assignment
+from spco.model.kernels.counts import grouped_row_sums
+from spco.model.kernels.crt import sample_crt
+from spco.model.kernels.dirichlet import dirichlet_log_density, log_dirichlet
+from spco.model.kernels.gamma import log_gamma_variates
+from spco.model.kernels.gaussian import grouped_gaussian_log_density
+from spco.model.kernels.likelihood import grouped_sparse_dot
+from spco.model.kernels.niw import niw_posterior, sample_niw
 
 P_MIN = 1e-3
 Z_MAX = 4.0
@@ -127,7 +122,7 @@ def test_vectorised_log_is_within_one_ulp_of_numpy() -> None:
     """The Dirichlet kernels' in-place log (fdlibm's algorithm in branch-free loops) against
     np.log: 1 M values spread over the whole range of normal doubles, plus the awkward ones; then
     with the shift the kernels subtract (the row's log total)."""
-    from spco.model.random import _log_minus
+    from spco.model.kernels.special import _log_minus
 
     rng = np.random.default_rng(35)
     values = np.exp(rng.uniform(-700.0, 709.0, 1_000_000))
@@ -147,7 +142,7 @@ def test_vectorised_log_is_within_one_ulp_of_numpy() -> None:
 def test_vectorised_exp_sum_matches_numpy() -> None:
     """The Dirichlet rows' sum of exponentials (boosted entries) against np.exp: values over the
     whole range used, including ones that underflow (counted as 0) and large positive ones."""
-    from spco.model.random import _sum_exp
+    from spco.model.kernels.special import _sum_exp
 
     rng = np.random.default_rng(36)
     for values in (rng.uniform(-30.0, 5.0, 100_000), rng.uniform(-800.0, 700.0, 100_000),
@@ -164,7 +159,8 @@ def test_vectorised_exp_sum_matches_numpy() -> None:
 
 def _row_log_gammas(shape: np.ndarray, seed: int, normalise: bool = False) -> np.ndarray:
     """The Dirichlet kernels' row function on one row (compiled as the kernels compile it)."""
-    from spco.model.random import _call_vectorised, _log_gamma_row, _row_scratch
+    from spco.model.kernels.dispatch import _call_vectorised
+    from spco.model.kernels.gamma import _log_gamma_row, _row_scratch
 
     out = np.empty(shape.size)
     _call_vectorised(_log_gamma_row, (np.ascontiguousarray(shape, dtype=np.float64), out, np.uint64(seed),
@@ -259,7 +255,8 @@ def test_log_gamma_variates_blocks_are_correct_seeded_and_thread_independent() -
 
 def test_standard_normals_of_the_compiled_streams() -> None:
     """The ziggurat normals behind the gamma kernel: distribution, tails, independence."""
-    from spco.model.random import _stream_normal, _stream_start
+    from spco.model.kernels.normal import _stream_normal
+    from spco.model.kernels.rng import _stream_start
 
     @numba.njit
     def normals(seed, rows, width):
@@ -339,7 +336,8 @@ def test_batches_of_short_rows_are_dirichlet() -> None:
     """Batches of many short rows below the parallel threshold (π: E × L rows of K = 20; θ^w:
     rows of a few words) are drawn as one flat batch of gamma variates normalised row by row:
     moments and Beta marginals per column, zero shapes exactly 0, rows of zeros all −inf."""
-    from spco.model.random import _PARALLEL_MIN, _SHORT_ROW
+    from spco.model.kernels.dispatch import _PARALLEL_MIN
+    from spco.model.kernels.gamma import _SHORT_ROW
 
     alpha = np.array([0.05, 0.5, 1.0, 3.0, 0.0, 10.0, 0.3, 2.5, 1e-3, 7.0, 0.8, 1.5])
     rows_per_batch = 1_500  # 18,000 entries per call: the one-thread flat path
@@ -364,7 +362,7 @@ def test_batches_of_short_rows_are_dirichlet() -> None:
 def test_batches_of_short_hierarchical_rows_are_dirichlet() -> None:
     """θ^w for few words: log_dirichlet_hierarchical on a small batch of short rows (the flat
     one-thread path) follows Dir(base + counts) row by row."""
-    from spco.model.random import log_dirichlet_hierarchical
+    from spco.model.kernels.dirichlet import log_dirichlet_hierarchical
 
     base = np.array([[0.5, 1e-3, 3.0, 20.0, 0.2, 1.0], [2e-4, 1e-4, 0.3, 0.05, 4.0, 0.0]])
     counts = np.array([[[0, 0, 2, 5, 0, 1], [0, 0, 0, 0, 1, 0]], [[4, 0, 0, 1, 0, 0], [0, 3, 0, 0, 0, 0]]])
@@ -386,7 +384,7 @@ def test_batches_of_short_hierarchical_rows_are_dirichlet() -> None:
 def test_scaled_exp_matches_numpy() -> None:
     """scale · exp(x), compiled (δ φ from log φ each sweep): within 2 ulp of NumPy over the range
     used, and NumPy's values outside it (underflow to subnormals and 0, overflow, ±inf, NaN)."""
-    from spco.model.random import scaled_exp
+    from spco.model.kernels.special import scaled_exp
 
     rng = np.random.default_rng(43)
     cases = ((rng.uniform(-40.0, 5.0, (15, 4096)), 3e5), (rng.uniform(-708.0, 709.0, 50_000), 1.0))
@@ -715,7 +713,7 @@ def test_grouped_sparse_dot_and_row_sums_match_dense() -> None:
 def test_grouped_row_sums_one_thread_and_parallel_agree() -> None:
     """Below 32,768 non-zeros the row sums run on one thread, above in parallel over runs of
     rows: both equal the dense sums."""
-    from spco.model.random import grouped_row_sums
+    from spco.model.kernels.counts import grouped_row_sums
 
     rng = np.random.default_rng(38)
     for n in (50, 2_000):  # ~750 and ~40,000 non-zeros
@@ -728,7 +726,7 @@ def test_grouped_row_sums_one_thread_and_parallel_agree() -> None:
 
 
 def test_grouped_moments_match_numpy() -> None:
-    from spco.model.random import grouped_moments
+    from spco.model.kernels.counts import grouped_moments
 
     rng = np.random.default_rng(39)
     x = rng.normal(size=(300, 4)) * [100.0, 50.0, 1.0, 1.0]
@@ -747,7 +745,8 @@ def test_blocked_sparse_dot_over_several_blocks_of_lanes_matches_dense() -> None
     (the kernel is compiled with the SLP vectoriser, which must not change any sum)."""
     from numba.core import config
 
-    from spco.model.random import LANES, blocked_sparse_dot, likelihood_table, stack_counts
+    from spco.model.kernels.counts import stack_counts
+    from spco.model.kernels.likelihood import LANES, blocked_sparse_dot, likelihood_table
 
     rng = np.random.default_rng(27)
     n, D, G, L = 60, 50, 2, 20
@@ -772,12 +771,12 @@ def test_dimension_major_dot_equals_blocked_dot_bit_for_bit(sizes: tuple[int, ..
     """The sampler's visual likelihood (the counts regrouped by home and dimension) gives exactly
     the row-major kernel's sums: over two blocks of lanes (L = 20), with an empty home, columns
     no sample uses, and a home of more than 65,535 rows (row numbers stored in int64)."""
-    from spco.model.random import (
+    from spco.model.kernels.counts import stack_counts
+    from spco.model.kernels.likelihood import (
         blocked_sparse_dot,
         dimension_major,
         dimension_major_dot,
         likelihood_table,
-        stack_counts,
     )
 
     rng = np.random.default_rng(37)
@@ -815,7 +814,7 @@ def test_dimension_major_dot_equals_blocked_dot_bit_for_bit(sizes: tuple[int, ..
 ])
 def test_crt_totals_match_explicit_bernoulli_sums(counts: tuple[int, ...], a: float) -> None:
     """Σ_e CRT(n_e, a), drawn in one go, against explicit sums of the Bernoulli(a/(a+i)) terms."""
-    from spco.model.random import sample_crt_totals
+    from spco.model.kernels.crt import sample_crt_totals
 
     size = 20_000
     n = np.array(counts)
@@ -831,7 +830,7 @@ def test_crt_totals_match_explicit_bernoulli_sums(counts: tuple[int, ...], a: fl
 
 
 def test_crt_totals_edge_cases() -> None:
-    from spco.model.random import sample_crt_totals
+    from spco.model.kernels.crt import sample_crt_totals
 
     counts = np.array([[[0, 3, 1]], [[0, 0, 1]]])
     out = sample_crt_totals(counts, np.array([[1.0, 0.0, 2.0]]), np.random.default_rng(33))
@@ -845,7 +844,7 @@ def test_crt_totals_edge_cases() -> None:
 def test_hierarchical_dirichlet_matches_dirichlet_of_the_sum() -> None:
     """log θ_{g,r} ~ Dir(base_r + counts_{g,r}) without forming the sum: moments per entry, rows
     normalised, and tiny concentrations (stored as logarithms in the kernel) finite."""
-    from spco.model.random import log_dirichlet_hierarchical
+    from spco.model.kernels.dirichlet import log_dirichlet_hierarchical
 
     base = np.array([[0.5, 1e-3, 3.0, 20.0], [2e-4, 1e-4, 0.3, 0.05]])
     counts = np.array([[[0, 0, 2, 5], [0, 0, 0, 0]], [[4, 0, 0, 1], [0, 3, 0, 0]]])

@@ -11,17 +11,12 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from ros_harness import SWAPPED_ROOM_COLOURS, tour_pose
 
 from spco.data.bagtour import view
 from spco.ros.core import NodeCore, NodeSettings
 from spco.ros.messages import quaternion_from_yaw
-from spco.ros.testing import SWAPPED_ROOM_COLOURS, tour_pose
 from spco.service.live import LiveHome
-
-
-@pytest.fixture(scope="module")
-def home_file(tour_home_file: Path) -> Path:
-    return tour_home_file
 
 
 class Clock:
@@ -61,9 +56,9 @@ def _taught_counts(live: LiveHome) -> np.ndarray:
     return live.home.visual[[live.home.n_samples - 1]].toarray()[0]
 
 
-def test_the_nearest_pose_and_frame_within_the_tolerance_are_taught(home_file: Path) -> None:
+def test_the_nearest_pose_and_frame_within_the_tolerance_are_taught(tour_home_file: Path) -> None:
     clock = Clock()
-    with LiveHome(home_file, seed=0, writer="thread") as live:
+    with LiveHome(tour_home_file, seed=0, writer="thread") as live:
         core, sent = _core(live, clock)
         extractor = live.home.knowledge.image_extractor()
         kitchen, bedroom = _room_view(2.0), _room_view(10.0)
@@ -92,8 +87,8 @@ def test_the_nearest_pose_and_frame_within_the_tolerance_are_taught(home_file: P
         assert "no pose within 1 s" in refused["error"]
 
 
-def test_an_utterance_waits_for_the_frame_that_follows_it(home_file: Path) -> None:
-    with LiveHome(home_file, seed=0, writer="thread") as live:
+def test_an_utterance_waits_for_the_frame_that_follows_it(tour_home_file: Path) -> None:
+    with LiveHome(tour_home_file, seed=0, writer="thread") as live:
         core, sent = _core(live, tolerance=0.5)
         extractor = live.home.knowledge.image_extractor()
         core.start()
@@ -116,10 +111,10 @@ def test_an_utterance_waits_for_the_frame_that_follows_it(home_file: Path) -> No
         assert np.array_equal(_taught_counts(live), extractor.extract(new, "bgr8"))
 
 
-def test_an_utterance_just_after_a_frame_does_not_wait_for_the_next(home_file: Path) -> None:
+def test_an_utterance_just_after_a_frame_does_not_wait_for_the_next(tour_home_file: Path) -> None:
     """A frame 0.02 s before the utterance: a later one could be nearer only within 0.02 s, so the
     node decides then, not after the tolerance (0.5 s)."""
-    with LiveHome(home_file, seed=0, writer="thread") as live:
+    with LiveHome(tour_home_file, seed=0, writer="thread") as live:
         core, _ = _core(live, tolerance=0.5)
         now = time.time()
         core.on_pose(_pose_msg(2.0, 1.0, 0.0), received=now)
@@ -135,8 +130,8 @@ def test_an_utterance_just_after_a_frame_does_not_wait_for_the_next(home_file: P
         assert 0.2 < time.monotonic() - started < 0.49
 
 
-def test_poses_from_tf_and_answers(home_file: Path) -> None:
-    with LiveHome(home_file, seed=0, writer="thread") as live:
+def test_poses_from_tf_and_answers(tour_home_file: Path) -> None:
+    with LiveHome(tour_home_file, seed=0, writer="thread") as live:
         clock = Clock(50.0)
         core, sent = _core(live, clock, robot_frame="base_footprint")
 
@@ -168,11 +163,11 @@ def test_poses_from_tf_and_answers(home_file: Path) -> None:
     (["--max-age", "0"], "--max-age must be > 0 seconds"),
     (["--rosbridge", "http://robot:9090"], "--rosbridge takes a WebSocket URL"),
 ])
-def test_spco_ros_refuses_bad_options_before_it_starts(home_file: Path, args: list[str],
+def test_spco_ros_refuses_bad_options_before_it_starts(tour_home_file: Path, args: list[str],
                                                       message: str) -> None:
     from click.testing import CliRunner
 
     from spco.cli import main
 
-    result = CliRunner().invoke(main, ["ros", str(home_file), *args])
+    result = CliRunner().invoke(main, ["ros", str(tour_home_file), *args])
     assert result.exit_code == 2 and message in result.output, result.output

@@ -21,10 +21,10 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 from conftest import missing_tool
+from ros_harness import SWAPPED_ROOM_COLOURS
 
 from spco.data.bagtour import view
 from spco.errors import SpcoError
-from spco.ros.testing import SWAPPED_ROOM_COLOURS
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 
@@ -42,7 +42,7 @@ def ros_node(tmp_path_factory: pytest.TempPathFactory, tour_home_file: Path):
         missing_tool(str(exc))
     if shutil.which("rosmaster") is None:
         missing_tool("no rosmaster program (sudo apt-get install python3-rosmaster)")
-    from spco.ros.testing import (
+    from ros_harness import (
         FakeRobot,
         free_port,
         ros_environment,
@@ -74,7 +74,7 @@ def ros_node(tmp_path_factory: pytest.TempPathFactory, tour_home_file: Path):
 
 def _look(robot, distance: float, frames: int = 3, encoding: str = "bgr8", seed: int = 0) -> np.ndarray:
     """Publish the robot's pose at ``distance`` along the tour and a few camera frames of it."""
-    from spco.ros.testing import tour_pose
+    from ros_harness import tour_pose
 
     x, y, theta = tour_pose(distance)
     image = view(x, y, theta, (320, 240), np.random.default_rng(seed), SWAPPED_ROOM_COLOURS)
@@ -149,8 +149,9 @@ def test_an_rgb_frame_declared_rgb8_gives_the_names_of_the_bgr_frame_and_of_the_
     """The kitchen is orange and the bedroom the same colour with red and blue swapped: read in the
     wrong order, a kitchen frame is the bedroom (what the issue saw at 41 of 60 poses, at p = 1.0)."""
     robot, home, _ = ros_node
+    from ros_harness import tour_pose
+
     from spco.cli.knowledge import what
-    from spco.ros.testing import tour_pose
 
     distance = 2.0  # in the kitchen
     answers = {}
@@ -202,7 +203,7 @@ def test_malformed_queries_get_an_error_answer_and_the_node_stays_up(ros_node) -
 
 def test_an_utterance_is_taught_durably_and_answers_the_next_query(ros_node) -> None:
     robot, home, _ = ros_node
-    from spco.ros.testing import tour_pose
+    from ros_harness import tour_pose
 
     before = len(robot.markers)
     answers = len(robot.answers)
@@ -231,7 +232,7 @@ def test_an_utterance_is_taught_durably_and_answers_the_next_query(ros_node) -> 
 
 def test_an_utterance_without_a_camera_frame_is_not_taught_and_says_why(ros_node) -> None:
     robot, _, _ = ros_node
-    from spco.ros.testing import tour_pose
+    from ros_harness import tour_pose
 
     answers = len(robot.answers)
     x, y, theta = tour_pose(9.0)
@@ -250,9 +251,8 @@ def test_roslaunch_arguments_rename_the_node_and_remap_its_topics(ros_node, tmp_
     """As roslaunch starts a node: `__name:=`, `__log:=` and `from:=to` remappings after HOME. A second
     node on a copy of the home answers on its remapped topics under its own name."""
     robot, home, _ = ros_node
+    from ros_harness import start_node, stop_process
     from std_msgs.msg import String
-
-    from spco.ros.testing import start_node, stop_process
 
     rospy = robot.rospy
     copy = Path(shutil.copy2(home, tmp_path / "second.spco"))

@@ -21,10 +21,10 @@ import cv2
 import numpy as np
 import pytest
 from conftest import missing_tool
+from ros_harness import SWAPPED_ROOM_COLOURS, free_port, stop_process, tour_pose
 
 from spco.data.bagtour import view
 from spco.ros.messages import quaternion_from_yaw
-from spco.ros.testing import SWAPPED_ROOM_COLOURS, free_port, stop_process, tour_pose
 
 IMAGE = "/head_rgbd_sensor/rgb/image_rect_color/compressed"  # the HSR's head camera under ROS 2
 SUBSCRIBED = ("/global_pose", IMAGE, "/speech", "/spco/query")

@@ -24,7 +24,7 @@ from spco import knowledge as kn
 from spco.cli.knowledge import what as what_command
 from spco.cli.knowledge import where as where_command
 from spco.errors import ConfigurationError
-from spco.locking import HomeServedError, locked, served_by
+from spco.knowledge.locking import HomeServedError, locked, served_by
 from spco.service import LiveHome
 from spco.service.journal import (
     Journal,
@@ -40,8 +40,8 @@ from spco.service.writer import HomeWriter
 pytest.importorskip("fastapi", reason="spco serve needs its extra: pip install -e '.[serve]'")
 from fastapi.testclient import TestClient
 
-from spco.client import Client, ClientError
-from spco.service.app import create_app, session_value
+from spco.service.app import create_app
+from spco.service.client import Client, ClientError
 
 
 @pytest.fixture(scope="module")
@@ -425,12 +425,14 @@ def test_token_covers_the_api_the_page_and_its_event_stream(home: Path) -> None:
         assert client.get("/health", headers=wrong).status_code == 401
         assert client.get("/health", headers={"Authorization": f"Bearer {token}"}).status_code == 200
         assert "sign in" in client.get("/").text.lower()  # the page asks for the token
-        assert client.get("/login", params={"token": "nope"}, follow_redirects=False).status_code == 401
+        assert client.get("/login", params={"token": token}, follow_redirects=False).status_code == 400
+        assert client.post("/login", data={"token": "nope"}, follow_redirects=False).status_code == 401
         signed = client.post("/login", data={"token": token}, follow_redirects=False)
         assert signed.status_code == 303
-        cookie = signed.headers["set-cookie"]
-        assert "httponly" in cookie.lower() and "samesite=strict" in cookie.lower() and token not in cookie
-        assert client.cookies.get("spco_session") == session_value(token)
+        cookie = signed.headers["set-cookie"].lower()
+        assert "httponly" in cookie and "samesite=strict" in cookie and "max-age=604800" in cookie
+        assert token.lower() not in cookie and "secure" not in cookie  # plain HTTP: no Secure flag
+        assert len(client.cookies.get("spco_session") or "") >= 40
         assert client.get("/health").status_code == 200  # the cookie now
         with client.stream("GET", "/events", params={"types": "taught"}) as stream:
             assert stream.status_code == 200

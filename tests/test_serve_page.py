@@ -50,7 +50,7 @@ def test_the_page_shows_the_regions_answers_and_teaches_live(browser, tmp_path: 
     from selenium.webdriver.common.by import By
     from selenium.webdriver.support.ui import WebDriverWait
 
-    from spco.client import Client
+    from spco.service.client import Client
 
     (tmp_path / "built").mkdir()
     home = copy_home(build_home(tmp_path / "built"), tmp_path / "served")

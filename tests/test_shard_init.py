@@ -29,7 +29,7 @@ def source() -> SyntheticHomes:
 
 def model_settings(prune: bool = True, variant: str = "exact"):
     model = SpatialConceptModel(variant=variant, random_state=0, prune_words=prune)
-    return model._validate(), model._settings()
+    return model.checked_hyperparameters(), model.sampler_settings()
 
 
 run_of: list = []  # the run of the last chain() (for its callbacks)
@@ -50,7 +50,7 @@ def test_synthetic_source_makes_the_homes_generate_homes_makes(source) -> None:
     """Each part generates its homes alone, from the seed and their indices: joined, the parts are
     the data of generate_homes' corpus (same vocabulary, counts, positions, map centres)."""
     corpus = generate_homes(5, seed=2, new_homes=1, config=CONFIG, specific_rooms=False)
-    whole = SpatialConceptModel._prepare(corpus, 1.0)
+    whole = SpatialConceptModel.prepare_data(corpus, 1.0)
     assert source.vocabulary.words == corpus.vocabulary.words
     parts = [p.prepare() for p in source.parts(2)]
     assert [p.n_homes for p in parts] == [2, 3]
@@ -123,7 +123,7 @@ def test_sharded_start_aligns_the_homes(source) -> None:
 
     run = LocalEngine(2).start_source(source, hyper, settings, np.random.default_rng(5))
     sharded = agreement(run.state(), 5)
-    data = SpatialConceptModel._prepare(corpus, 1.0)
+    data = SpatialConceptModel.prepare_data(corpus, 1.0)
     alone = gibbs.initialize(data, len(corpus.vocabulary), hyper, settings, np.random.default_rng(5))
     assert agreement(alone, 5) < 0.3
     assert sharded > 0.8

@@ -19,11 +19,6 @@ RES = 0.05
 ORIGIN = (-1.0, -0.5)
 
 
-@pytest.fixture(scope="module")
-def home_file(tour_home_file: Path) -> Path:
-    return tour_home_file
-
-
 def _write_map(folder: Path, negate: int = 0) -> Path:
     """A 14 m × 5 m map at 5 cm: free (254) with unknown (205) borders, a wall (0) at x = 4 m and a
     dark block at x 0…1 m, y 3.5…4.5 m (near the map's top-left corner)."""
@@ -66,18 +61,18 @@ def test_read_ros_map(tmp_path: Path) -> None:
             read_ros_map(bad)
 
 
-def test_show_draws_a_ros_map_where_it_belongs_in_grey(home_file: Path, tmp_path: Path) -> None:
+def test_show_draws_a_ros_map_where_it_belongs_in_grey(tour_home_file: Path, tmp_path: Path) -> None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
     from spco import plots
 
     yaml = _write_map(tmp_path)
     out = tmp_path / "map.png"
-    result = CliRunner().invoke(main, ["show", str(home_file), "--map", str(yaml), "--out", str(out)])
+    result = CliRunner().invoke(main, ["show", str(tour_home_file), "--map", str(yaml), "--out", str(out)])
     assert result.exit_code == 0, result.output
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     # the figure spco show draws: the map image at its extent, grey, regions labelled with names
-    home = load_home_model(home_file)
+    home = load_home_model(tour_home_file)
     ros_map = read_ros_map(yaml)
     fig = plots.plot_home_map(home.parameters, 0, home.environment(), home.vocabulary,
                               map_image=ros_map.image, map_extent=ros_map.extent, label_regions=True)
@@ -101,26 +96,27 @@ def test_show_draws_a_ros_map_where_it_belongs_in_grey(home_file: Path, tmp_path
     assert free.min() > 180 and np.ptp(free) < 10  # free space light grey, not viridis' colours
 
 
-def test_regions_home_chooses_the_key_of_a_regions_file(home_file: Path, tmp_path: Path) -> None:
+def test_regions_home_chooses_the_key_of_a_regions_file(tour_home_file: Path, tmp_path: Path) -> None:
     regions = tmp_path / "regions.json"
     rooms = {"kitchen": [[0, 4, 0, 4]], "hall": [[13, 15, 0, 4]]}
     regions.write_text(json.dumps({"homes": {"flat_2": rooms}}))
     out = tmp_path / "rooms.png"
     run = CliRunner().invoke
-    result = run(main, ["show", str(home_file), "--out", str(out), "--regions", str(regions)])
+    result = run(main, ["show", str(tour_home_file), "--out", str(out), "--regions", str(regions)])
     assert result.exit_code == 2 and "no regions for home 'new_tour'" in result.output
     assert "flat_2" in result.output and "--regions-home" in result.output
-    result = run(main, ["show", str(home_file), "--out", str(out), "--regions", str(regions),
+    result = run(main, ["show", str(tour_home_file), "--out", str(out), "--regions", str(regions),
                         "--regions-home", "flat_2"])
     assert result.exit_code == 0, result.output
-    result = run(main, ["show", str(home_file), "--out", str(out), "--regions-home", "flat_2", "--force"])
+    result = run(main, ["show", str(tour_home_file), "--out", str(out), "--regions-home", "flat_2",
+                        "--force"])
     assert result.exit_code == 2 and "give --regions too" in result.output
     # a room beyond the home's extent (x 12.5) is not clipped off: the axes reach it
     from spco import plots
     from spco.cli.knowledge import _room_outlines
     from spco.data.environment import make_ground_truth
 
-    home = load_home_model(home_file)
+    home = load_home_model(tour_home_file)
     rooms = _room_outlines(home, regions, "flat_2")
     from dataclasses import replace
 
@@ -129,8 +125,8 @@ def test_regions_home_chooses_the_key_of_a_regions_file(home_file: Path, tmp_pat
     assert fig.axes[0].get_xlim()[1] >= 15.0
 
 
-def test_show_refuses_extent_with_a_map_yaml(home_file: Path, tmp_path: Path) -> None:
+def test_show_refuses_extent_with_a_map_yaml(tour_home_file: Path, tmp_path: Path) -> None:
     yaml = _write_map(tmp_path)
-    result = CliRunner().invoke(main, ["show", str(home_file), "--map", str(yaml), "--extent", "0,1,0,1",
+    result = CliRunner().invoke(main, ["show", str(tour_home_file), "--map", str(yaml), "--extent", "0,1,0,1",
                                        "--out", str(tmp_path / "x.png")])
     assert result.exit_code == 2 and "--extent is given by the map.yaml" in result.output

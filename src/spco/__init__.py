@@ -9,7 +9,7 @@ The package reads top-down (each floor imports only the floors below it; the con
 - :mod:`spco.model` — the hierarchical Bayesian model of Hagiwara et al. (2021) and the SpCoA
   baselines, learnt by blocked Gibbs sampling over home shards (:mod:`spco.model.driver`), the
   shard of one new home with the shared part fixed (:mod:`spco.model.home_shard`) and prediction
-  (:mod:`spco.model.prediction`, also :mod:`spco.prediction`): place names from observations,
+  (:mod:`spco.model.prediction`): place names from observations,
   positions from place names;
 - :mod:`spco.engines` — where the shards of a fit run (this process, Ray);
 - :mod:`spco.knowledge` — knowledge learnt once, adapted to a new home, taught; its files;

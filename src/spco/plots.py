@@ -170,7 +170,7 @@ def plot_home_map(
     predicted_positions: name -> (P, 2 or 3) sampled positions, drawn as markers with a legend.
     poses: (n, 4) poses ``(x, y, sin θ, cos θ)`` drawn as arrows.
     pose_names: for each pose, its top names with probabilities — a
-        :class:`~spco.prediction.NamePrediction` of those poses or lists of ``(word, p)``.
+        :class:`~spco.model.prediction.NamePrediction` of those poses or lists of ``(word, p)``.
     concept_colors: one colour per concept (default: ``tab10``, or ``tab20`` for more than 10).
     show_ground_truth: outline and label the ground-truth rectangles (default: when no image).
     show_samples: draw the home's training positions as small grey dots.

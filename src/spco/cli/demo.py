@@ -25,8 +25,8 @@ __all__ = ["demo", "kernel_time"]
 @friendly_errors
 def demo(seed: int, out: Path, homes: int, iterations: int) -> None:
     """Learn from synthetic homes and transfer to a new home taught nothing (no dataset needed)."""
-    from spco.demo import format_table, run_demo
     from spco.model.numba_cache import precompile_if_cold
+    from spco.synthetic_transfer import format_table, run_demo
 
     start = time.perf_counter()
     compiled = precompile_if_cold(lambda text: click.echo(text, err=True))

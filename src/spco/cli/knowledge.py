@@ -506,7 +506,7 @@ def what(home_file: Path, x: float, y: float, theta: float, visual: Path | None,
 def _load_home(home_file: Path) -> Any:
     """The home of ``home_file`` with the teachings of its journal (a home served by ``spco serve``,
     or one whose server stopped without compacting): what the read-only commands answer with."""
-    from spco.locking import served_by
+    from spco.knowledge.locking import served_by
     from spco.service.teaching import load_current
 
     home, replayed = load_current(home_file)

@@ -33,9 +33,37 @@ __all__ = ["serve"]
 @click.option("--writer", type=click.Choice(["process", "thread"]), default="process", hidden=True,
               help="Where teachings run: a writer process (default) or a thread of the server (for the "
                    "benchmark's comparison: readers then wait for Python's global lock).")
+@click.option("--allowed-host", "allowed_hosts", multiple=True, metavar="NAME",
+              help="A Host name the server answers to besides loopback and --host (repeat; e.g. the robot's "
+                   "name behind a proxy). Others are refused (DNS rebinding).")
+@click.option("--allowed-origin", "allowed_origins", multiple=True, metavar="URL",
+              help="An origin (https://robot.example) whose pages may teach, besides the server's own.")
+@click.option("--header-timeout", default=10.0, show_default=True, type=click.FloatRange(0.1),
+              help="Seconds a connection has to send a request's headers.")
+@click.option("--body-timeout", default=30.0, show_default=True, type=click.FloatRange(0.1),
+              help="Seconds a request has to send its whole body.")
+@click.option("--keep-alive", default=5.0, show_default=True, type=click.FloatRange(0.1),
+              help="Seconds an idle kept-alive connection stays open.")
+@click.option("--max-connections", default=None, type=click.IntRange(16),
+              help="Connections open at once [default: the open-file limit less 64, at most 4096]; at the "
+                   "limit the oldest connection still sending headers is closed.")
+@click.option("--max-body", default=None, type=click.IntRange(1024),
+              help="A cap on any request body, bytes [default: each endpoint's own, from the home: its "
+                   "largest view].")
+@click.option("--max-pixels", default=2048 * 2048, show_default=True, type=click.IntRange(64),
+              help="The largest image accepted (width × height), checked from its header before decoding.")
+@click.option("--decode-concurrency", default=2, show_default=True, type=click.IntRange(1),
+              help="Images decoded at once (one 2048² decode is about 13 MB).")
+@click.option("--max-subscribers", default=32, show_default=True, type=click.IntRange(1),
+              help="Event streams (/events) open at once; a stream 256 events behind is closed.")
+@click.option("--session-hours", default=168.0, show_default=True, type=click.FloatRange(0.01),
+              help="How long a page's sign-in lasts.")
 @friendly_errors
 def serve(home_file: Path, host: str, port: int, token_file: Path | None, map_image: Path | None,
-          extent: str | None, seed: int | None, writer: str) -> None:
+          extent: str | None, seed: int | None, writer: str, allowed_hosts: tuple[str, ...],
+          allowed_origins: tuple[str, ...], header_timeout: float, body_timeout: float, keep_alive: float,
+          max_connections: int | None, max_body: int | None, max_pixels: int, decode_concurrency: int,
+          max_subscribers: int, session_hours: float) -> None:
     """Serve the home of HOME over HTTP: where, what and teach in milliseconds, and a page at /.
 
     \b
@@ -47,7 +75,8 @@ def serve(home_file: Path, host: str, port: int, token_file: Path | None, map_im
 
     Teachings are kept in HOME.journal (fsync'd before they are acknowledged) and compacted into
     HOME; while it is served, `spco teach HOME` is refused and the read-only commands replay the
-    journal. See docs/on-the-robot.md.
+    journal. Every connection, body, image and event stream has a limit (the options below; see
+    docs/security.md).
     """
     try:
         import fastapi  # noqa: F401
@@ -59,4 +88,8 @@ def serve(home_file: Path, host: str, port: int, token_file: Path | None, map_im
 
     run(home_file, host=host, port=port, token_file=None if token_file is None else str(token_file),
         map_image=None if map_image is None else str(map_image), map_extent=_extent(extent), seed=seed,
-        writer=writer, say=lambda text: click.echo(text, err=True))
+        writer=writer, say=lambda text: click.echo(text, err=True), header_timeout=header_timeout,
+        keep_alive=keep_alive, max_connections=max_connections, allowed_hosts=allowed_hosts,
+        allowed_origins=list(allowed_origins), body_timeout=body_timeout, max_body=max_body,
+        max_pixels=max_pixels, decode_concurrency=decode_concurrency, max_subscribers=max_subscribers,
+        session_hours=session_hours)

@@ -112,7 +112,7 @@ def _read_record(home: Path, extractor: Any = None, images: Path | None = None) 
             env = _sigverse_images(env, home, extractor, images)
         return HomeRecord(env, rates, str(home / "sentence"))
     if extractor is not None and images is not None and not has_images(home):
-        from spco.data.images import image_files, with_image_features
+        from spco.data.image_views import image_files, with_image_features
 
         env = read_home(home)  # its images are in the --images folder
         env = with_image_features(env, image_files(images / env.name, env.ids.tolist()), extractor)
@@ -122,7 +122,7 @@ def _read_record(home: Path, extractor: Any = None, images: Path | None = None) 
 
 def _sigverse_images(env: Environment, home: Path, extractor: Any, images: Path | None) -> Environment:
     """A SIGVerse home with counts computed from ``images/<home>/<i>.jpg`` instead of its fc7 files."""
-    from spco.data.images import image_files, with_image_features
+    from spco.data.image_views import image_files, with_image_features
 
     if images is None:
         raise DataFormatError(home, f"a SIGVerse home holds CNN features, not images: give the folder of "
@@ -135,7 +135,7 @@ def training_image_files(path: str | os.PathLike[str], names: Sequence[str] | No
                          images: str | os.PathLike[str] | None = None) -> list[Path]:
     """The image files of the training samples of the homes at ``path`` (a folder of homes or a home):
     plain homes' ``images/``, or ``images/<home>/<id>.jpg`` for the others. For learning a codebook."""
-    from spco.data.images import image_files
+    from spco.data.image_views import image_files
     from spco.data.plain import plain_training_images
 
     src = Path(path)

@@ -373,7 +373,7 @@ def _read_views(home: Path, ids: list[int], scale: float | None,
                 extractor: Any) -> tuple[Any, np.ndarray]:
     """Visual counts of a plain home and its mask of samples without a view: from
     visual.npz/.npy, or its images through ``extractor`` (a sample without an image has no view)."""
-    from spco.data.images import IMAGES_DIR, extract_views, image_files
+    from spco.data.image_views import IMAGES_DIR, extract_views, image_files
 
     images = home / IMAGES_DIR
     has_counts = (home / VISUAL_NPZ).exists() or (home / VISUAL_NPY).exists()
@@ -395,7 +395,7 @@ def _read_views(home: Path, ids: list[int], scale: float | None,
 
 def plain_training_images(folder: str | os.PathLike[str]) -> list[Path]:
     """The image files of the training samples of the plain home in ``folder`` (not test.txt's)."""
-    from spco.data.images import IMAGES_DIR, image_files
+    from spco.data.image_views import IMAGES_DIR, image_files
 
     home = Path(folder)
     csv_path = home / SAMPLES_CSV

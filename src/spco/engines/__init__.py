@@ -1,4 +1,4 @@
-"""Where a fit's home shards run: :mod:`spco.engines.local` (in this process, the default) or
+"""Where a fit's home shards run: :mod:`spco.model.driver` (in this process, the default) or
 :mod:`spco.engines.ray` (Ray actors, on this machine or a cluster; ``pip install "spco[ray]"``).
 
 An engine starts a :class:`~spco.model.driver.ShardedRun` from a

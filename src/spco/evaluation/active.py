@@ -505,7 +505,7 @@ def choose_question(strategy: str, home: Any, rng: np.random.Generator) -> dict[
     """The sample a strategy asks about next: ``{"row", "id", "gain", "confidence",
     "what_confidence", "seconds"}`` (``seconds``: the time to rank the home's samples)."""
     from spco.knowledge.asking import home_question_scores
-    from spco.model.asking import rank_questions
+    from spco.model.question_scores import rank_questions
 
     candidates = np.flatnonzero([s is None for s in home.sentences])
     if candidates.size == 0:

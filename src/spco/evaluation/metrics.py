@@ -171,9 +171,9 @@ class HomeScores:
     name_chance: 1/|V| (NaN for an empty vocabulary); position_chance: 1/|places|.
     labels: (n,) true place of each scored sample.
     predicted_names: (n,) predicted name of each scored sample (``None``: no word survived).
-    name_predictions: the full :class:`~spco.prediction.NamePrediction` of the scored samples.
+    name_predictions: the full :class:`~spco.model.prediction.NamePrediction` of the scored samples.
     test_positions: (n, 4) poses of the scored samples.
-    position_predictions: place -> :class:`~spco.prediction.PositionPrediction` (names that could
+    position_predictions: place -> :class:`~spco.model.prediction.PositionPrediction` (names that could
         be predicted only).
     """
 
@@ -250,12 +250,12 @@ def evaluate_home(
     n_positions: positions drawn per name for A_p (each way).
     rng: Generator or seed for the position draws (the mixture draws use a child stream of it, so
         the most-probable-region draws do not depend on them).
-    weighting: name weighting (see :func:`spco.prediction.predict_names`).
+    weighting: name weighting (see :func:`spco.model.prediction.predict_names`).
     view_counts: the evidence of one view in counts, as the model learnt (see
-        :func:`spco.prediction.predict_names`; ``None``: every count a draw).
+        :func:`spco.model.prediction.predict_names`; ``None``: every count a draw).
     name_prior: ``"wordnet"`` orders each concept's words by the name prior when names are
-        predicted (opt-in; see :func:`spco.prediction.predict_names`).
-    position_mode, xy_only: see :func:`spco.prediction.predict_positions`; ``position_mode`` is the
+        predicted (opt-in; see :func:`spco.model.prediction.predict_names`).
+    position_mode, xy_only: see :func:`spco.model.prediction.predict_positions`; ``position_mode`` is the
         mode of ``position_accuracy``; ``position_accuracy_mixture`` is always ``"mixture"``.
 
     Conventions: a place with no scored sample has A_n = NaN, left out of the mean. A place whose

@@ -26,7 +26,7 @@ One *run* is (configuration, rate, seed, model):
    (the configuration's list, default the file's) and the new home, last (SpCoA: the new home
    alone), with ``random_state = trial_seed(seed, 0)``.
 5. **Scores** (:func:`score_rooms`). A_n of a room: the share of its test samples whose predicted
-   name (the top word of :func:`~spco.prediction.predict_names`, with the model's weighting) is
+   name (the top word of :func:`~spco.model.prediction.predict_names`, with the model's weighting) is
    one of the room's accepted phrases after :func:`normalize_phrase`. A_p of a room with a region:
    the share of positions drawn for the room's name (``where <name>``) inside the region, both
    ways: ``argmax`` — all from the most probable region's Gaussian (as the authors' code), and
@@ -239,7 +239,7 @@ def score_rooms(params: Any, e: int, env: Environment, vocabulary: Vocabulary,
     e: the index of ``env`` among the model's homes; env: the new home (its ids locate the rooms'
         test samples).
     vocabulary: the model's vocabulary; rooms: the rooms to score.
-    weighting: name weighting of :func:`~spco.prediction.predict_names`.
+    weighting: name weighting of :func:`~spco.model.prediction.predict_names`.
     n_positions: positions drawn per room and mode; rng: Generator or seed of the draws.
     view_counts: the evidence of one view, as the model learnt (``model.settings_.view_counts``).
 
@@ -247,7 +247,7 @@ def score_rooms(params: Any, e: int, env: Environment, vocabulary: Vocabulary,
     -------
     room name -> :class:`RoomScores`. A room whose name has no usable word gets A_p 0.
     """
-    from spco.prediction import UnknownNameError, predict_names, predict_positions
+    from spco.model.prediction import UnknownNameError, predict_names, predict_positions
 
     rows = {int(i): r for r, i in enumerate(env.ids)}
     gen = np.random.default_rng(rng)

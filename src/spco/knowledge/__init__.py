@@ -63,7 +63,7 @@ Layout
 :mod:`~spco.knowledge.knowledge` (:class:`Knowledge`), :mod:`~spco.knowledge.home`
 (:class:`HomeModel`, :class:`Observation`), :mod:`~spco.knowledge.fit` (:func:`fit_knowledge`),
 :mod:`~spco.knowledge.diagnostics` (view fit), :mod:`~spco.knowledge.adapting` (:func:`adapt`),
-:mod:`~spco.knowledge.teaching` (:func:`teach`), :mod:`~spco.knowledge.queries` (:func:`where`,
+:mod:`~spco.knowledge.updating` (:func:`teach`), :mod:`~spco.knowledge.queries` (:func:`where`,
 :func:`what`), :mod:`~spco.knowledge.asking` (:func:`ask`: where an answer teaches the most),
 :mod:`~spco.knowledge.views` (one observation's pose and view, feature files),
 :mod:`~spco.knowledge.files` and :mod:`~spco.knowledge.locking`. The sampler of a new home is
@@ -104,7 +104,7 @@ from spco.knowledge.queries import (
     what,
     where,
 )
-from spco.knowledge.teaching import teach
+from spco.knowledge.updating import teach
 from spco.knowledge.views import FAR_OUTSIDE_MAP, map_bounds, pose_outside_map, read_visual_vector
 from spco.model.home_shard import FREE_CONCEPT_WEIGHT, OWN_NAMES_SPREAD_WARNING, OwnNamesSpreadWarning
 from spco.model.view_fit import concept_visual_totals, held_out_view_fits, view_fit

@@ -1,7 +1,7 @@
 """A robot that asks: where in a home an answer to "what is this place?" teaches the most
 (:func:`ask`), with a reason a person can read (:class:`Question`).
 
-The criterion is :mod:`spco.model.asking` (by default the expected number of wrong answers an
+The criterion is :mod:`spco.model.question_scores` (by default the expected number of wrong answers an
 answer corrects; or the expected information of the answer about the names of the home's places;
 both in closed form from the home's posterior); this module reads the home's state
 for it: the concept posterior and the names at every recorded sample (as ``what`` computes them),
@@ -20,15 +20,15 @@ import scipy.sparse as sp
 from spco.errors import ConfigurationError
 from spco.knowledge.home import HomeModel
 from spco.knowledge.queries import answer_parameters
-from spco.model.asking import QuestionScores, question_scores, rank_questions
 from spco.model.confidence import UNSURE_BELOW, VIEW_EFFECTIVE_COUNTS
 from spco.model.home_shard import FREE_CONCEPT_WEIGHT
 from spco.model.prediction import concept_posterior
+from spco.model.question_scores import QuestionScores, question_scores, rank_questions
 
 __all__ = ["DEFAULT_CRITERION", "NAMELESS_MASS", "Question", "ask",
            "home_question_scores", "name_columns"]
 
-#: What :func:`ask` ranks by (:data:`spco.model.asking.CRITERIA`).
+#: What :func:`ask` ranks by (:data:`spco.model.question_scores.CRITERIA`).
 DEFAULT_CRITERION = "errors"
 #: A concept whose usable names hold less than this share of its word distribution names nothing
 #: (its words are all pruned: it is treated as unnamed).
@@ -86,8 +86,8 @@ def name_columns(home: HomeModel) -> np.ndarray:
 
 
 def home_question_scores(home: HomeModel, criterion: str = DEFAULT_CRITERION) -> QuestionScores:
-    """What an answer at each of the home's samples would teach (:func:`spco.model.asking.question_scores`
-    on the home's state).
+    """What an answer at each of the home's samples would teach
+    (:func:`spco.model.question_scores.question_scores` on the home's state).
 
     The inputs: the concept posterior P(l | x_i, v_i) of every sample from the home's averaged
     parameters (as ``what``); each concept's distribution over the usable names (θ^w of the home);
@@ -98,11 +98,11 @@ def home_question_scores(home: HomeModel, criterion: str = DEFAULT_CRITERION) ->
     this home explains its view best; its region; and whether it was taught a name (a usable word),
     of the home's own (no word the knowledge keeps) or transferred.
 
-    ``criterion``: ``"information"`` or ``"errors"`` (:data:`spco.model.asking.CRITERIA`).
+    ``criterion``: ``"information"`` or ``"errors"`` (:data:`spco.model.question_scores.CRITERIA`).
 
     Returns
     -------
-    :class:`~spco.model.asking.QuestionScores` over the home's ``n`` samples, in the order of
+    :class:`~spco.model.question_scores.QuestionScores` over the home's ``n`` samples, in the order of
     ``home.ids``.
     """
     if not isinstance(home, HomeModel):
@@ -241,7 +241,7 @@ def ask(home: HomeModel, n: int = 5, criterion: str = DEFAULT_CRITERION, unsure_
 
     Candidates are the home's recorded samples without a name taught (a sample taught a sentence
     naming no place stays a candidate). Each is scored by the expected information of the answer
-    about the names of the home's places (:mod:`spco.model.asking`): the answer's entropy under the
+    about the names of the home's places (:mod:`spco.model.question_scores`): the answer's entropy under the
     current posterior — concepts that compete there, a place nobody named that no experienced home
     had, the chance that the room has a name of its own — summed over the samples of its room,
     which the answer names. One question per room comes first, best room first, each at the room's

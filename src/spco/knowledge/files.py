@@ -111,7 +111,7 @@ def _content_checksum(header: Mapping[str, Any]) -> str:
 def _write_archive(path: str | PathLike[str], arrays: Mapping[str, np.ndarray], header: dict[str, Any],
                    overwrite: bool, what: str) -> Path:
     """Write ``arrays`` and ``header`` (+ array and content checksums) to ``path`` atomically,
-    holding the file's write lock (:func:`spco.locking.locked`; re-entrant, so a caller may hold it
+    holding the file's write lock (:func:`spco.knowledge.locking.locked`; re-entrant, so a caller may hold it
     already while it reads and updates the file)."""
     target = Path(path).expanduser()
     if target.is_dir() or not target.parent.is_dir():  # no lock to take: the writer says what is wrong

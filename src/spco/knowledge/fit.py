@@ -18,13 +18,12 @@ from spco.errors import ConfigurationError, DataFormatError
 from spco.knowledge.diagnostics import _view_fit_record
 from spco.knowledge.files import _as_generator, _now, _seed_of, _version
 from spco.knowledge.knowledge import DEFAULT_FIT_ITERATIONS, DEFAULT_MODEL, MODELS, Knowledge
-from spco.model import gibbs
 from spco.model.hyperparameters import PRIORS, TransferHyperparameters, scaled_hyperparameters
 from spco.model.name_evidence import name_prior
 from spco.model.posterior import thinned_sweeps
 from spco.model.pruning import words_to_keep
 from spco.model.sources import PreparedHomes
-from spco.model.transfer import SpatialConceptModel, SpCoTransfer
+from spco.model.transfer import SpCoTransfer
 
 
 def summary_iterations(n_iterations: int, fraction: float = 0.25, every: int = 5) -> list[int]:
@@ -144,7 +143,7 @@ def fit_knowledge(
             [(t.positions, corpus.word_counts(list(t.sentences))) for t in training])
     estimator = SpCoTransfer(hyperparameters, variant=variant, prune_words=prune, n_iterations=n_iterations,
                              random_state=random_state)
-    hyper = estimator._validate()
+    hyper = estimator.checked_hyperparameters()
     if not (0 < summary_fraction <= 1) or summary_every < 1:
         raise ConfigurationError("summary_fraction must be within (0, 1] and summary_every >= 1")
     n_features = corpus.n_features if source is not None else corpus[0].n_features
@@ -155,14 +154,14 @@ def fit_knowledge(
         n_homes = source.n_homes if source is not None else len(corpus)
         raise DataFormatError(None, f"no taught sentence in the {n_homes} experienced home(s) "
                               f"({', '.join(list(corpus.names)[:5])}): there are no place names to learn")
-    settings = estimator._settings()
+    settings = estimator.sampler_settings()
     rng = _as_generator(random_state)
-    scale = gibbs.CM_PER_M if variant == "reference" else 1.0
+    scale = estimator.position_scale
     if source is not None:
         source = replace(source, position_scale=scale)
         n_samples = source.n_samples
     else:  # the homes prepared here, then handed to the shards
-        data = SpatialConceptModel._prepare(corpus, scale)
+        data = estimator.prepare_data(corpus, scale)
         source, n_samples = PreparedHomes(data, len(corpus.vocabulary)), data.n_samples
         del data
     keep = set(summary_iterations(n_iterations, summary_fraction, summary_every))

@@ -147,9 +147,9 @@ def _alive(pid: int | None) -> bool:
 
 
 def _served_error(path: str | PathLike[str], served: str) -> HomeServedError:
-    return HomeServedError(f"{Path(path)} is served by {served}: teach it through the server (POST /teach, "
-                           "or spco.client.Client.teach), or stop the server first; its teachings are in "
-                           "the file once it has stopped")
+    return HomeServedError(f"{Path(path)} is served by {served}: teach it through the server (POST "
+                           "/teach, or spco.service.client.Client.teach), or stop the server first; its "
+                           "teachings are in the file once it has stopped")
 
 
 def served_by(path: str | PathLike[str]) -> str | None:

@@ -44,14 +44,14 @@ def where(home: HomeModel, name: str, n: int = 10,
     ``p(m | name) = (c_m + κ · p_model(m | name) + λ · u_m) / (c + κ + λ)``, where ``c_m`` counts the
     home's samples whose sentence holds the name and that sit in region m, ``c`` all of them, κ =
     :data:`WHERE_MODEL_WEIGHT`, ``p_model(m | name) ∝ Σ_l π_{l,m} θ^w_{l,name} G_l``
-    (:func:`spco.prediction.region_posterior_for_name`), u_m the share of the home's samples in
+    (:func:`spco.model.prediction.region_posterior_for_name`), u_m the share of the home's samples in
     region m and λ = :data:`WHERE_ANYWHERE_WEIGHT` (0 for a name never taught in this home, which is
     answered by the model alone). A name taught once is answered with the region of that sample at
     about 0.6–0.65 (little evidence); each further teaching there makes it firmer.
     The poses are drawn from the answer regions — those at least half as probable as the best
     (a name taught at two places of the home finds both) — in proportion to their probability, at
     least one per region; each pose's ``weights`` entry is its share of the density p(x | name)
-    among the ``n`` poses. Raises :class:`~spco.prediction.UnknownNameError` (with suggestions)
+    among the ``n`` poses. Raises :class:`~spco.model.prediction.UnknownNameError` (with suggestions)
     for a name the home cannot use: never heard, or pruned as no name.
     ``name`` is read like a sentence (``"Living Room"``, ``"living-room"`` → ``living room``); a name
     never learnt as one term is its known words said together (``study + room``). ``learnt`` is
@@ -175,7 +175,7 @@ def what(home: HomeModel, x: float, y: float, theta: float, visual: Any = None,
     ``encoding`` is an array's colour order — ``rgb8`` (PIL, matplotlib, ``cv_bridge``'s rgb8),
     ``bgr8`` (OpenCV, the default), ``mono8``, ``rgba8``, ``bgra8`` (:mod:`spco.features.pixels`).
     Without a view the names come from the position alone (``use_vision=False``). The returned
-    :class:`~spco.prediction.NamePrediction` holds one row: ``words[0]``, ``probabilities[0]``
+    :class:`~spco.model.prediction.NamePrediction` holds one row: ``words[0]``, ``probabilities[0]``
     (p(w | x, v)), ``scores[0]`` (the ranking score), ``confidence[0]`` (the answer's probability)
     and ``unsure[0]``.
     """
@@ -219,7 +219,7 @@ def name_prediction(home: HomeModel, poses: np.ndarray, visual: Any = None, top_
 
     Returns
     -------
-    The :class:`~spco.prediction.NamePrediction` with ``confidence`` and ``unsure``.
+    The :class:`~spco.model.prediction.NamePrediction` with ``confidence`` and ``unsure``.
     """
     if not 0.0 <= unsure_below <= 1.0:
         raise ConfigurationError(f"unsure_below must be within 0..1, got {unsure_below!r}")

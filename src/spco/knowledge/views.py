@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import math
 from os import PathLike
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -12,6 +11,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from spco.errors import ConfigurationError, DataFormatError
+from spco.knowledge.requests import Pose
 from spco.model.prediction import validate_visual_counts
 
 if TYPE_CHECKING:
@@ -43,13 +43,8 @@ def _visual_row(visual: Any, n_features: int) -> sp.csr_array:
 
 
 def _pose(x: float, y: float, theta: float) -> np.ndarray:
-    pose = np.array([x, y, math.sin(theta), math.cos(theta)], dtype=np.float64)
-    if not (np.isfinite(pose).all() and math.isfinite(theta)):
-        raise ConfigurationError(f"the pose must be finite numbers, got x={x!r}, y={y!r}, theta={theta!r}")
-    if abs(theta) > 2 * math.pi + 1e-9:
-        raise ConfigurationError(f"theta = {theta:g} is more than a full turn: the heading is in radians "
-                                 f"(degrees? {theta:g}° = {math.radians(theta):.4f} rad)")
-    return pose
+    """``[x, y, sin θ, cos θ]`` of a pose checked by :class:`~spco.knowledge.requests.Pose`."""
+    return Pose(x, y, theta).row()
 
 
 #: How far beyond its map (in map sizes) a pose is still answered (with a warning) by :func:`what`.

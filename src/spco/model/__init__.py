@@ -2,8 +2,7 @@
 
 - :mod:`spco.model.hyperparameters` — the paper's hyperparameters and their validation;
 - :mod:`spco.model.kernels` — the compiled kernels, one module each: random streams, normals,
-  gamma and Dirichlet, CRT, NIW, Gaussian densities, likelihoods (:mod:`spco.model.random`
-  re-exports them under their former names);
+  gamma and Dirichlet, CRT, NIW, Gaussian densities, likelihoods;
 - :mod:`spco.model.allocation` — concepts (HDP over homes) and regions (per concept);
 - :mod:`spco.model.observations` — positions (Gaussian–NIW), words and vision (hierarchical
   Dirichlet–multinomial);

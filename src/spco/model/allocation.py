@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from spco.model.random import log_dirichlet, sample_categorical_log, sample_crt, sample_joint_assignment
+from spco.model.kernels.categorical import sample_categorical_log, sample_joint_assignment
+from spco.model.kernels.crt import sample_crt
+from spco.model.kernels.dirichlet import log_dirichlet
 
 
 def concept_counts(homes: np.ndarray, concepts: np.ndarray, n_homes: int, n_concepts: int) -> np.ndarray:

@@ -35,11 +35,11 @@ from scipy.cluster.vq import kmeans2
 from spco.model import allocation
 from spco.model.alignment import HomeCounts, align_in_order
 from spco.model.hyperparameters import TransferHyperparameters
+from spco.model.kernels.dirichlet import dirichlet_log_density, log_dirichlet
 from spco.model.moves import concept_swap_step
 from spco.model.numba_cache import announce_compilation
 from spco.model.observations import GaussianRegions, HierarchicalMultinomial, NIWPrior
 from spco.model.pruning import NAME, NOT_A_NAME, Colocation, colocation, judge_names, words_to_keep
-from spco.model.random import dirichlet_log_density, log_dirichlet
 from spco.model.state import (  # noqa: F401  (the sampler's data and state, re-exported)
     CM_PER_M,
     VARIANTS,

@@ -29,11 +29,13 @@ from scipy.cluster.vq import kmeans2
 from spco.data.language import Vocabulary
 from spco.model import gibbs
 from spco.model.hyperparameters import TransferHyperparameters
+from spco.model.kernels.counts import stack_counts
+from spco.model.kernels.crt import sample_crt
+from spco.model.kernels.dirichlet import log_dirichlet
 from spco.model.observations import HierarchicalMultinomial
 from spco.model.parameters import ConceptParameters
 from spco.model.posterior import ParameterAverage, thinned_sweeps
 from spco.model.pruning import NOT_A_NAME, words_to_keep
-from spco.model.random import log_dirichlet, sample_crt, stack_counts
 from spco.model.state import GibbsState, PreparedData, SamplerSettings
 
 __all__ = [

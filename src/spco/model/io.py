@@ -355,7 +355,7 @@ def load_model(path: str | PathLike[str]) -> SpatialConceptModel:
     else:
         model = cls(hyper, variant=str(header["variant"]), **common)
     try:
-        model.settings_ = model._settings()
+        model.settings_ = model.sampler_settings()
     except ConfigurationError as exc:
         raise ModelFileError(file, f"inconsistent model file: {exc}") from exc
     model.hyperparameters_ = hyper

@@ -29,8 +29,9 @@ import numpy as np
 from numba import njit
 from scipy.special import logsumexp
 
+from spco.model.kernels.dispatch import _call_in_parts
+from spco.model.kernels.special import _log_minus
 from spco.model.observations import shared_concentration
-from spco.model.random import _call_in_parts, _log_minus
 
 _HALF_LOG_2PI = 0.9189385332046727
 #: Arguments at or above this are not shifted (the product of the shift would overflow near 1e38).
@@ -43,7 +44,7 @@ def _log_gamma_values(x: np.ndarray, out: np.ndarray, work: np.ndarray) -> None:
 
     ln Γ(x) = ln Γ(x + 8) − ln(x (x + 1) ⋯ (x + 7)), with Stirling's series at y = x + 8 ≥ 8
     (error below 1e-12 relative) and both logarithms from the vectorised log of
-    :func:`spco.model.random._log_minus`: no branch and no library call per entry."""
+    :func:`spco.model.kernels.special._log_minus`: no branch and no library call per entry."""
     n = x.size
     log_y, log_p, scratch = work[0, :n], work[1, :n], work[2, :n]
     for j in range(n):

@@ -26,7 +26,7 @@ evidence: :func:`name_prior` gives each vocabulary word P(name | how it was said
 default it decides which known words may stand for a name nobody said
 (:func:`spco.model.unheard.resolve_name`). Only with the opt-in ``name_prior="wordnet"``
 (:class:`~spco.model.hyperparameters.TransferHyperparameters`,
-:func:`spco.prediction.predict_names`) does prediction reorder each concept's words by it
+:func:`spco.model.prediction.predict_names`) does prediction reorder each concept's words by it
 (:func:`within_concepts`); it is off by default because on the held-out speech set a place whose
 only name is weak evidence ("dining") lost the views of a concept it shared with "kitchen".
 

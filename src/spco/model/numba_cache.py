@@ -167,11 +167,29 @@ def kernels_compiled() -> bool | None:
     try:
         from numba.core.registry import CPUDispatcher
 
-        from spco.model import allocation, gibbs, moves, observations, random
+        from spco.model import allocation, gibbs, moves, observations
+        from spco.model.kernels import (
+            categorical,
+            counts,
+            crt,
+            dirichlet,
+            dispatch,
+            gamma,
+            gaussian,
+            likelihood,
+            niw,
+            normal,
+            rng,
+            special,
+        )
 
+        # the kernels' modules count as one: some (rng) hold only helpers of the others
+        groups = [(allocation,), (gibbs,), (moves,), (observations,),
+                  (categorical, counts, crt, dirichlet, dispatch, gamma, gaussian, likelihood, niw, normal,
+                   rng, special)]
         found = False
-        for module in (allocation, gibbs, moves, observations, random):
-            kernels = [v for v in vars(module).values()
+        for group in groups:
+            kernels = [v for module in group for v in vars(module).values()
                        if isinstance(v, CPUDispatcher) and getattr(v, "_cache", None) is not None]
             if not kernels:
                 continue

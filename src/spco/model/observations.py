@@ -18,22 +18,18 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.special import gammaln, multigammaln
 
-from spco.model.random import (
+from spco.model.kernels.counts import grouped_moments, grouped_row_sums, move_rows
+from spco.model.kernels.crt import sample_crt_totals
+from spco.model.kernels.dirichlet import log_dirichlet, log_dirichlet_hierarchical
+from spco.model.kernels.gaussian import grouped_gaussian_log_density
+from spco.model.kernels.likelihood import (
     DimensionMajorCounts,
     blocked_sparse_dot,
     dimension_major_dot,
-    grouped_gaussian_log_density,
-    grouped_moments,
-    grouped_row_sums,
     likelihood_table,
-    log_dirichlet,
-    log_dirichlet_hierarchical,
-    move_rows,
-    niw_posterior,
-    sample_crt_totals,
-    sample_niw,
-    scaled_exp,
 )
+from spco.model.kernels.niw import niw_posterior, sample_niw
+from spco.model.kernels.special import scaled_exp
 
 #: Log-probabilities below this are clipped in likelihoods: a count times it is still finite
 #: (no -inf, hence no NaN after normalisation) and still means "impossible".
@@ -138,7 +134,7 @@ class HierarchicalMultinomial:
 
         ``log_theta`` (E, L, D); entries below :data:`LOG_FLOOR` are clipped to it. The
         multinomial coefficient, the same for every concept, is left out. ``by_dimension``: the
-        same counts in the layout of :func:`~spco.model.random.dimension_major` (rows in home
+        same counts in the layout of :func:`~spco.model.kernels.likelihood.dimension_major` (rows in home
         blocks), which the sampler builds once per fit for the visual counts; the result is the
         same, faster.
         """

@@ -1,6 +1,6 @@
 """The learnt parameters of the spatial-concept model: a posterior summary, all homes stacked.
 
-This is the interface between learning (:mod:`spco.model`) and use (:mod:`spco.prediction`,
+This is the interface between learning (:mod:`spco.model`) and use (:mod:`spco.model.prediction`,
 :mod:`spco.evaluation`, model files): every model — the transfer model and the SpCoA baselines —
 produces a :class:`ConceptParameters`, and prediction needs nothing else. Positions are in metres
 whatever units the sampler used internally.

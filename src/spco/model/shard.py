@@ -37,9 +37,10 @@ import scipy.sparse as sp
 from spco.model import gibbs
 from spco.model.gibbs import GibbsState, PreparedData, SamplerSettings
 from spco.model.hyperparameters import TransferHyperparameters
+from spco.model.kernels.crt import sample_crt
+from spco.model.kernels.dirichlet import log_dirichlet
 from spco.model.observations import HierarchicalMultinomial
 from spco.model.pruning import NAME, NOT_A_NAME, Colocation, colocation, judge_names
-from spco.model.random import log_dirichlet, sample_crt
 from spco.model.shard_init import ShardInitialisation
 
 #: Float statistics a home sends to be summed over homes (the naming rule's expected pairs and

@@ -51,9 +51,9 @@ from spco.model import allocation, gibbs
 from spco.model.alignment import ALIGNMENT_BATCH, HomeCounts, align_in_order
 from spco.model.gibbs import GibbsState, PreparedData, SamplerSettings
 from spco.model.hyperparameters import TransferHyperparameters
+from spco.model.kernels.dirichlet import log_dirichlet
 from spco.model.observations import GaussianRegions
 from spco.model.pruning import NAME, NOT_A_NAME, Colocation, judge_names
-from spco.model.random import log_dirichlet
 from spco.model.synonyms import NameOverlaps, name_overlaps, name_region_overlaps, same_place_names
 
 #: The per-home sampler of the warm start (θ_{e,l} ~ Dir(α + n), the SpCoA conditionals).

@@ -240,7 +240,7 @@ class SyntheticHomes(RangeSource):
 
         corpus = Corpus([self.home(i) for i in range(first, last)], vocabulary=self.vocabulary,
                         word_increment=self.word_increment)
-        return SpatialConceptModel._prepare(corpus, self.position_scale)
+        return SpatialConceptModel.prepare_data(corpus, self.position_scale)
 
     def parts(self, n_shards: int) -> list[HomesPart]:
         return [RangePart(self, a, b) for a, b in even_bounds(self.n_homes, n_shards)]
@@ -339,7 +339,7 @@ class FolderHomes(RangeSource):
         envs = [load_homes(p, teaching_rate=self.teaching_rate)[0] for p in self.paths[first:last]]
         corpus = Corpus(envs, vocabulary=self.vocabulary, word_increment=self.word_increment,
                         n_features=self.n_features)
-        return SpatialConceptModel._prepare(corpus, self.position_scale)
+        return SpatialConceptModel.prepare_data(corpus, self.position_scale)
 
     def parts(self, n_shards: int) -> list[HomesPart]:
         from types import SimpleNamespace

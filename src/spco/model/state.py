@@ -10,7 +10,7 @@ from functools import cached_property
 import numpy as np
 import scipy.sparse as sp
 
-from spco.model.random import DimensionMajorCounts, dimension_major
+from spco.model.kernels.likelihood import DimensionMajorCounts, dimension_major
 
 VARIANTS = ("exact", "reference", "spcoa")
 
@@ -64,7 +64,7 @@ class PreparedData:
 
     @cached_property
     def visual_by_dimension(self) -> DimensionMajorCounts:
-        """The visual counts by home and dimension (:func:`~spco.model.random.dimension_major`),
+        """The visual counts by home and dimension (:func:`~spco.model.kernels.likelihood.dimension_major`),
         built at the first sweep: the layout of the visual likelihood's kernel."""
         return dimension_major(self.visual, self.offsets)
 

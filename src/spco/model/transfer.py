@@ -12,7 +12,7 @@ before use, never advanced, so the same Generator gives the same fit every time,
 
 Poses: observations are given as ``(x, y, sin θ, cos θ)`` rows (the model's 4-D region space);
 :meth:`~SpatialConceptModel.predict_positions` returns a
-:class:`~spco.prediction.PositionPrediction` whose ``samples`` are ``(x, y, θ)`` (θ in radians,
+:class:`~spco.model.prediction.PositionPrediction` whose ``samples`` are ``(x, y, θ)`` (θ in radians,
 for a robot's goal) and whose ``poses`` are the same draws as ``(x, y, sin θ, cos θ)``, the input
 convention, ready for :meth:`~SpatialConceptModel.predict_names`.
 
@@ -42,6 +42,7 @@ from spco.data.language import Vocabulary
 from spco.errors import ConfigurationError
 from spco.model import gibbs
 from spco.model.hyperparameters import SpCoAHyperparameters, TransferHyperparameters
+from spco.model.kernels.counts import stack_counts
 from spco.model.name_evidence import name_prior
 from spco.model.parameters import ConceptParameters
 from spco.model.posterior import (
@@ -50,7 +51,6 @@ from spco.model.posterior import (
     thinned_sweeps,
     untaught_concepts_name_nothing,
 )
-from spco.model.random import stack_counts
 
 
 def _as_generator(random_state: int | np.random.Generator | None) -> np.random.Generator:
@@ -149,14 +149,18 @@ class SpatialConceptModel:
     def _default_hyperparameters(self) -> TransferHyperparameters:
         return TransferHyperparameters()
 
-    def _settings(self) -> gibbs.SamplerSettings:
+    def sampler_settings(self) -> gibbs.SamplerSettings:
+        """The sampler's settings for this estimator's ``variant`` and ``prune_words`` (raises
+        :class:`~spco.errors.ConfigurationError` for an unknown variant)."""
         if self.variant not in ("exact", "reference"):
             raise ConfigurationError(f"variant must be 'exact' or 'reference', got {self.variant!r}")
         hyper = self.hyperparameters if self.hyperparameters is not None else self._default_hyperparameters()
         return gibbs.SamplerSettings.create(self.variant, bool(self.prune_words),
                                             view_counts=getattr(hyper, "view_counts", None))
 
-    def _validate(self) -> TransferHyperparameters:
+    def checked_hyperparameters(self) -> TransferHyperparameters:
+        """The hyperparameters this estimator fits with (the paper's when none were given), checked
+        with ``n_iterations``; raises :class:`~spco.errors.ConfigurationError` if they are not valid."""
         hyper = self.hyperparameters if self.hyperparameters is not None else self._default_hyperparameters()
         if not isinstance(hyper, TransferHyperparameters):
             raise ConfigurationError("hyperparameters must be a TransferHyperparameters instance")
@@ -165,8 +169,17 @@ class SpatialConceptModel:
         return hyper
 
     # ------------------------------------------------------------------ data
+    @property
+    def position_scale(self) -> float:
+        """Metres to the sampler's position units: centimetres (:data:`~spco.model.gibbs.CM_PER_M`)
+        for the ``reference`` variant, as the authors' code has them; metres otherwise."""
+        return gibbs.CM_PER_M if self.variant == "reference" else 1.0
+
     @staticmethod
-    def _prepare(corpus: Corpus, position_scale: float) -> gibbs.PreparedData:
+    def prepare_data(corpus: Corpus, position_scale: float) -> gibbs.PreparedData:
+        """The training samples of every home of ``corpus`` stacked as the sampler reads them, positions
+        multiplied by ``position_scale`` (see :attr:`position_scale`); raises
+        :class:`~spco.errors.ConfigurationError` for a home without training samples."""
         if not isinstance(corpus, Corpus):
             raise ConfigurationError("fit() expects a spco.data.Corpus")
         training = corpus.training_set()
@@ -209,11 +222,10 @@ class SpatialConceptModel:
         ``home_names_``, ``concepts_`` and ``regions_`` (per home, for its training samples),
         ``log_joint_`` (per sweep), ``n_iter_`` and ``fit_seconds_``.
         """
-        hyper = self._validate()
-        settings = self._settings()
+        hyper = self.checked_hyperparameters()
+        settings = self.sampler_settings()
         rng = _as_generator(self.random_state)
-        scale = gibbs.CM_PER_M if settings.variant == "reference" else 1.0
-        data = self._prepare(corpus, scale)
+        data = self.prepare_data(corpus, self.position_scale)
         start = time.perf_counter()
         averaged = set(thinned_sweeps(int(self.n_iterations)))
         average = ParameterAverage(data.homes, data.position_scale)
@@ -294,7 +306,7 @@ class SpatialConceptModel:
 
     def predict_names(self, home: str | int, positions: np.ndarray, visual: Any, top_k: int = 3,
                       weighting: str = "mi"):
-        """Top-``top_k`` place names for observations of ``home`` (see :mod:`spco.prediction`;
+        """Top-``top_k`` place names for observations of ``home`` (see :mod:`spco.model.prediction`;
         the hyperparameters' ``name_prior`` setting applies)."""
         from spco.model import prediction
 
@@ -306,7 +318,7 @@ class SpatialConceptModel:
 
     def predict_positions(self, home: str | int, name: str, n: int = 10,
                           random_state: int | np.random.Generator | None = None):
-        """Positions to go to for place ``name`` in ``home`` (see :mod:`spco.prediction`): the
+        """Positions to go to for place ``name`` in ``home`` (see :mod:`spco.model.prediction`): the
         result's ``samples`` are (x, y, θ), its ``poses`` (x, y, sin θ, cos θ); ``learnt`` is False
         when the name's probability in this home comes from concepts that hold none of its samples."""
         from spco.model import prediction
@@ -371,7 +383,8 @@ class SpCoA(SpatialConceptModel):
     def _default_hyperparameters(self) -> TransferHyperparameters:
         return SpCoAHyperparameters()
 
-    def _settings(self) -> gibbs.SamplerSettings:
+    def sampler_settings(self) -> gibbs.SamplerSettings:
+        """The SpCoA sampler's settings (``prune_words`` as set)."""
         return gibbs.SamplerSettings.create("spcoa", bool(self.prune_words))
 
     def fit(self, corpus: Corpus, home: str | None = None) -> SpCoA:  # type: ignore[override]

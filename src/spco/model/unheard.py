@@ -8,7 +8,7 @@ A user may ask for "the restroom", "the lounge" or "the powder room" in a home w
 among the home's usable words that are names (name prior ≥ :data:`MIN_CANDIDATE_PRIOR` when the
 model has a prior, :mod:`spco.model.name_evidence`) and place-bound in this home (mutual information
 ≥ :data:`MIN_CANDIDATE_INFORMATION` of the largest), and ``where`` answers for that name, saying
-which one it used ("restroom -> toilet": :attr:`spco.prediction.PositionPrediction.asked`).
+which one it used ("restroom -> toilet": :attr:`spco.model.prediction.PositionPrediction.asked`).
 
 Without the lexicon (no NLTK or no WordNet database, see :mod:`spco.data.lexicon`), nothing is
 resolved: a name nobody said is an unknown name, or its known words said together, as before.
@@ -61,7 +61,7 @@ def resolve_name(vocabulary: Vocabulary, word_mask: np.ndarray, name: str,
     name_prior: (V,) the words' name prior, or None (every usable word is a candidate).
     lexicon: a :class:`spco.data.lexicon.Lexicon` (default: the process's, which may be None).
     information: (V,) the words' mutual information with the home's concepts
-        (:func:`spco.prediction.mutual_information_weights`), or None (no such filter).
+        (:func:`spco.model.prediction.mutual_information_weights`), or None (no such filter).
 
     Returns
     -------

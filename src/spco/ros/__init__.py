@@ -13,9 +13,9 @@
 
 Modules: :mod:`spco.ros.messages` (ROS messages as plain dicts, both ways; markers; no ROS
 needed), :mod:`spco.ros.core` (the node's logic, for either transport), :mod:`spco.ros.node`
-(rospy), :mod:`spco.ros.rosbridge` (roslibpy), :mod:`spco.ros.testing` (a ROS master, the node
-in its own process and a stand-in robot, for trying the node without a robot, the tests and the
-benchmark).
+(rospy), :mod:`spco.ros.rosbridge` (roslibpy). A ROS master, the node in its own process and a
+stand-in robot, for the tests and ``benchmarks/ros_latency.py``, are in the repository's
+``tests/ros_harness.py``.
 
 rospy and the message packages are not pip packages: they come with the Linux distribution (Debian
 12: ``apt-get install python3-rospy python3-rosmaster python3-catkin python3-std-msgs

@@ -11,8 +11,9 @@ import numpy as np
 
 from spco import knowledge as kn
 from spco.errors import ConfigurationError
+from spco.knowledge.requests import Pose
 from spco.model.confidence import UNSURE_BELOW
-from spco.prediction import validate_visual_counts
+from spco.model.prediction import validate_visual_counts
 
 __all__ = ["GAIN_MEANS", "RANKED_BY", "ask_answer", "check_pose", "regions_answer", "what_answer",
            "where_answer"]
@@ -34,7 +35,7 @@ def where_answer(home: kn.HomeModel, name: str, n: int = 10, seed: int = 0) -> d
     resolved to a known one (:mod:`spco.model.unheard`), ``name`` is the known name and ``via`` how it
     was found ("synonym", "gloss", ...), else ``via`` is ``None``. ``positions`` lists
     ``{"x", "y", "theta", "probability"}`` (metres, radians), most probable first. Raises
-    :class:`~spco.prediction.UnknownNameError` for a name the home cannot use.
+    :class:`~spco.model.prediction.UnknownNameError` for a name the home cannot use.
     """
     pred = kn.where(home, name, n=n, random_state=seed)
     order = sorted(range(pred.samples.shape[0]), key=lambda i: -float(pred.weights[i]))
@@ -46,22 +47,14 @@ def where_answer(home: kn.HomeModel, name: str, n: int = 10, seed: int = 0) -> d
             "learnt": bool(pred.learnt), "support": float(pred.support), "positions": positions}
 
 
-def check_pose(home: kn.HomeModel, x: object, y: object, theta: object) -> tuple[float, float, float]:
-    """``(x, y, theta)`` as floats, or :class:`ConfigurationError`: each a finite number, ``|θ| ≤ 2π``
-    (radians), the position on the home's map or at most :data:`spco.knowledge.FAR_OUTSIDE_MAP` map
-    sizes off it (:func:`spco.knowledge.pose_outside_map`)."""
-    values = []
-    for name, value in (("x", x), ("y", y), ("theta", theta)):
-        if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
-            raise ConfigurationError(f"{name}: expected a number, got {value!r}")
-        if not math.isfinite(float(value)):
-            raise ConfigurationError(f"{name}: expected a finite number, got {value!r}")
-        values.append(float(value))
-    if abs(values[2]) > 2 * math.pi + 1e-9:
-        raise ConfigurationError(f"theta = {values[2]:g} is more than a full turn: the heading is in radians "
-                                 f"(degrees? {values[2]:g}° = {math.radians(values[2]):.4f} rad)")
-    kn.pose_outside_map(home, values[0], values[1])  # raises for a pose far off the map
-    return values[0], values[1], values[2]
+def check_pose(home: kn.HomeModel, x: object, y: object = None, theta: object = None
+               ) -> tuple[float, float, float]:
+    """``(x, y, theta)`` as floats, or :class:`ConfigurationError`: a :class:`~spco.knowledge.requests.Pose`
+    (finite numbers, ``|θ| ≤ 2π``) on the home's map or at most
+    :data:`spco.knowledge.FAR_OUTSIDE_MAP` map sizes off it (:func:`spco.knowledge.pose_outside_map`)."""
+    pose = x if isinstance(x, Pose) else Pose(x, y, theta)  # type: ignore[arg-type]
+    kn.pose_outside_map(home, pose.x, pose.y)  # raises for a pose far off the map
+    return pose.x, pose.y, pose.theta
 
 
 def what_answer(home: kn.HomeModel, x: float, y: float, theta: float, counts: Any = None,

@@ -17,14 +17,14 @@ from typing import Any
 import numpy as np
 
 from spco.errors import ConfigurationError
+from spco.knowledge.requests import ENCODINGS
 
 __all__ = ["DEFAULT_MAX_PIXELS", "ENCODINGS", "ImageError", "ImageTooLargeError", "decode_image",
            "encoded_size"]
 
-#: Raw pixel encodings (ROS ``sensor_msgs/Image``) and their channels.
-ENCODINGS = {"rgb8": 3, "bgr8": 3, "mono8": 1}
-#: The largest image accepted, in pixels (4096 × 4096).
-DEFAULT_MAX_PIXELS = 4096 * 4096
+#: The largest image accepted, in pixels (2048 × 2048: a 1080p camera fits; one decode of it is
+#: 12.6 MB, where a 4096 × 4096 image would be 50 MB).
+DEFAULT_MAX_PIXELS = 2048 * 2048
 
 
 class ImageError(ConfigurationError):

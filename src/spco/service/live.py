@@ -40,9 +40,23 @@ from os import PathLike
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from spco import knowledge as kn
-from spco import locking
 from spco.errors import ConfigurationError, SpcoError
+from spco.knowledge import locking
+from spco.knowledge.requests import (
+    MAX_POSES,
+    MAX_QUESTIONS,
+    MAX_TOP,
+    Ask,
+    Pose,
+    Teach,
+    Undo,
+    View,
+    What,
+    Where,
+)
 from spco.service.answers import ask_answer, check_pose, regions_answer, what_answer, where_answer
 from spco.service.images import DEFAULT_MAX_PIXELS, decode_image
 from spco.service.journal import TornRecordWarning, journal_path
@@ -50,12 +64,6 @@ from spco.service.teaching import ConflictError, NotFoundError, served_info
 from spco.service.writer import ProcessWriter, ThreadWriter, WriterUnavailableError
 
 __all__ = ["MAX_POSES", "MAX_QUESTIONS", "MAX_TOP", "LiveHome", "Subscription"]
-
-#: The most poses :meth:`LiveHome.where` draws, and names :meth:`LiveHome.what` lists.
-MAX_POSES = 1000
-MAX_TOP = 100
-#: The most questions ``ask`` lists.
-MAX_QUESTIONS = 1000
 
 _RESULT_ERRORS: dict[str, type[SpcoError]] = {
     "NotFoundError": NotFoundError, "ConflictError": ConflictError,
@@ -201,103 +209,83 @@ class LiveHome:
         """The writer process's id (this process's for a thread writer)."""
         return int(getattr(self._writer, "pid", os.getpid()))
 
-    def where(self, name: str, n: int = 10, *, seed: int = 0) -> dict[str, Any]:
-        """Poses for the place ``name``: the payload of ``spco where HOME NAME -n N --json``.
+    # ------------------------------------------------------------------ the questions
+    def answer(self, request: Where | What | Ask) -> dict[str, Any]:
+        """Answer a checked question (:mod:`spco.knowledge.requests`) from the current snapshot: the
+        one way every reader (HTTP, ROS, the methods below) asks the home.
 
-        Parameters
-        ----------
-        name: a place name (read like a sentence: ``"Living Room"`` → ``living room``).
-        n: how many poses, 1…:data:`MAX_POSES`.
-        seed: the draw's seed (the CLI's default, 0: the same question, the same poses).
-
-        Returns
-        -------
-        ``{"home", "name", "region", "region_probability", "learnt", "support", "positions"}``;
-        ``positions``: ``n`` dicts ``{"x", "y", "theta", "probability"}`` (metres, radians), most
-        probable first (:func:`spco.service.answers.where_answer`). Raises
-        :class:`~spco.prediction.UnknownNameError` for a name the home cannot use,
-        :class:`ConfigurationError` for a bad ``n``.
+        - :class:`~spco.knowledge.requests.Where`: the payload of ``spco where HOME NAME -n N --json``
+          (:func:`spco.service.answers.where_answer`): ``{"home", "name", "region",
+          "region_probability", "learnt", "support", "positions"}``, ``positions`` most probable
+          first. Raises :class:`~spco.model.prediction.UnknownNameError` for a name the home cannot use.
+        - :class:`~spco.knowledge.requests.What`: the payload of ``spco what HOME … --json``
+          (:func:`spco.service.answers.what_answer`): ``{"home", "pose", "vision", "ranked_by",
+          "names", …}``, ``"warning"`` too for a pose off the map; a pose far off it or a view
+          that does not fit the home raise :class:`ConfigurationError`.
+        - :class:`~spco.knowledge.requests.Ask`: :func:`spco.service.answers.ask_answer`.
         """
-        if not isinstance(name, str) or not name.strip():
-            raise ConfigurationError("name: expected a place name")
-        if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= MAX_POSES:
-            raise ConfigurationError(f"n: expected a number of poses from 1 to {MAX_POSES}, got {n!r}")
-        answer = where_answer(self._snapshot, name, n=n, seed=seed)
-        if self._listening("answer"):
-            self._publish({"type": "answer", "kind": "where", "name": answer["name"],
-                           "positions": answer["positions"][:3]})
-        return answer
+        home = self._snapshot
+        if isinstance(request, Where):
+            answer = where_answer(home, request.name, n=request.n, seed=request.seed)
+            if self._listening("answer"):
+                self._publish({"type": "answer", "kind": "where", "name": answer["name"],
+                               "positions": answer["positions"][:3]})
+            return answer
+        if isinstance(request, What):
+            check_pose(home, request.pose)  # on the map, before an image is decoded
+            answer = what_answer(home, request.pose.x, request.pose.y, request.pose.theta,
+                                 self.view_counts(request.view), request.top)
+            if self._listening("answer"):
+                self._publish({"type": "answer", "kind": "what", "pose": answer["pose"],
+                               "vision": answer["vision"], "names": answer["names"]})
+            return answer
+        if isinstance(request, Ask):
+            return ask_answer(home, request.n, criterion=request.criterion, unsure_only=request.unsure_only)
+        raise ConfigurationError(f"not a question: {type(request).__name__} (Where, What or Ask)")
 
-    def view_counts(self, image: Any = None, encoding: str | None = None, visual: Any = None,
-                    width: int | None = None, height: int | None = None) -> Any:
-        """A view's visual counts: ``visual`` as given, or ``image`` through the knowledge's extractor
-        (:meth:`spco.knowledge.Knowledge.image_extractor`, as ``spco what --image``), or ``None``.
-
-        ``image``: JPEG/PNG bytes, or raw pixels (bytes with ``width``/``height``, or an array) in
-        ``encoding`` ``rgb8``/``bgr8``/``mono8`` (an array defaults to ``bgr8``, or ``mono8`` when
-        it has two dimensions); see :func:`spco.service.images.decode_image`.
-        """
-        if image is None:
-            return visual
-        if visual is not None:
-            raise ConfigurationError("give the view either as visual counts or as an image, not both")
+    def view_counts(self, view: View | None) -> Any:
+        """A view's visual counts: its ``visual`` as given, or its image through the knowledge's
+        extractor (:meth:`spco.knowledge.Knowledge.image_extractor`, as ``spco what --image``), or
+        ``None`` for no view. The image is decoded by :func:`spco.service.images.decode_image`
+        (its size checked from its header first, against ``max_pixels``)."""
+        if view is None:
+            return None
+        if view.image is None:
+            return view.visual
         knowledge = self._snapshot.knowledge
         if not knowledge.fitted_on_images:
             raise ConfigurationError("the knowledge of this home was fitted on visual count vectors, not on "
                                      "images: give the view's features (visual), not an image")
-        pixels = decode_image(image, encoding, width=width, height=height, max_pixels=self.max_pixels)
+        pixels = decode_image(view.image, view.encoding, width=view.width, height=view.height,
+                              max_pixels=self.max_pixels)
         key = json.dumps(knowledge.extractor, sort_keys=True)
         if self._extractor is None or key != self._extractor_key:
             self._extractor, self._extractor_key = knowledge.image_extractor(), key
         return self._extractor.extract(pixels, "mono8" if pixels.ndim == 2 else "bgr8")  # decode_image's
 
+    def where(self, name: str, n: int = 10, *, seed: int = 0) -> dict[str, Any]:
+        """Poses for the place ``name`` (read like a sentence: ``"Living Room"`` → ``living room``):
+        :meth:`answer` of :class:`~spco.knowledge.requests.Where` ``(name, n, seed)``; ``n`` poses,
+        1…:data:`~spco.knowledge.requests.MAX_POSES`, each ``{"x", "y", "theta", "probability"}``."""
+        return self.answer(Where(name, n, seed))
+
     def what(self, x: float, y: float, theta: float, *, image: Any = None, encoding: str | None = None,
              visual: Any = None, top: int = 3) -> dict[str, Any]:
-        """The ``top`` place names at pose (x, y, θ): the payload of ``spco what HOME … --json``.
+        """The ``top`` place names at pose (x, y, θ): :meth:`answer` of
+        :class:`~spco.knowledge.requests.What`.
 
-        Parameters
-        ----------
-        x, y: metres on the home's map; theta: heading in radians (``|θ| ≤ 2π``).
-        image, encoding: the camera view (optional): JPEG/PNG bytes, or an (H, W, 3) / (H, W) uint8
-            array in ``encoding`` ``bgr8`` (default for three channels), ``rgb8`` or ``mono8``
-            (:meth:`view_counts`).
-        visual: the view's visual counts (D,) instead of an image.
-        top: how many names, 1…:data:`MAX_TOP`.
-
-        Returns
-        -------
-        ``{"home", "pose", "vision", "ranked_by", "names"}``; ``names``: ``top`` dicts ``{"name",
-        "probability", "score", "score_share"}``, best first; ``"warning"`` too for a pose off the
-        map. A pose far off it, non-finite numbers or a bad view raise :class:`ConfigurationError`.
+        ``image``, ``encoding``: the camera view (optional): JPEG/PNG bytes, or an (H, W, 3) / (H, W)
+        uint8 array in ``encoding`` ``bgr8`` (default for three channels), ``rgb8`` or ``mono8``;
+        ``visual``: the view's visual counts (D,) instead; ``top``: 1…:data:`MAX_TOP` names.
         """
-        if isinstance(top, bool) or not isinstance(top, int) or not 1 <= top <= MAX_TOP:
-            raise ConfigurationError(f"top: expected a number of names from 1 to {MAX_TOP}, got {top!r}")
-        home = self._snapshot
-        check_pose(home, x, y, theta)  # before decoding an image
-        answer = what_answer(home, x, y, theta, self.view_counts(image, encoding, visual), top)
-        if self._listening("answer"):
-            self._publish({"type": "answer", "kind": "what", "pose": answer["pose"],
-                           "vision": answer["vision"], "names": answer["names"]})
-        return answer
+        return self.answer(What(Pose(x, y, theta), _view(image, encoding, visual), top))
 
     def ask(self, n: int = 5, *, unsure_only: bool = False) -> dict[str, Any]:
-        """Where to ask "what is this place?" next: the payload of ``spco ask HOME --n N --json``.
-
-        Parameters
-        ----------
-        n: how many questions, 1…:data:`MAX_QUESTIONS`.
-        unsure_only: only the questions worth asking (the robot unsure of the answer).
-
-        Returns
-        -------
-        :func:`spco.service.answers.ask_answer` of the current snapshot: ``{"home", "gain",
-        "questions"}``, each question ``{"id", "x", "y", "theta", "gain", "reason", "names",
-        "unknown"}``, best first. Raises :class:`ConfigurationError` for a bad ``n``.
-        """
-        if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= MAX_QUESTIONS:
-            raise ConfigurationError(f"n: expected a number of questions from 1 to {MAX_QUESTIONS}, "
-                                     f"got {n!r}")
-        return ask_answer(self._snapshot, n, unsure_only=bool(unsure_only))
+        """Where to ask "what is this place?" next (the payload of ``spco ask HOME --n N --json``):
+        :meth:`answer` of :class:`~spco.knowledge.requests.Ask`; ``n`` questions,
+        1…:data:`MAX_QUESTIONS`, each ``{"id", "x", "y", "theta", "gain", "reason", "names",
+        "unknown", …}``, best first."""
+        return self.answer(Ask(n, unsure_only))
 
     def regions(self) -> dict[str, Any]:
         """The learnt regions, concepts and samples of the current snapshot, for drawing them.
@@ -357,24 +345,29 @@ class LiveHome:
         self._writer.submit(request).add_done_callback(done)
         return answer
 
+    def submit(self, request: Teach | Undo) -> Future[dict[str, Any]]:
+        """Hand a checked teaching or undo (:mod:`spco.knowledge.requests`) to the writer; a future of
+        its answer (or of its error). The one way every teacher (HTTP, ROS, the methods below)
+        teaches the home. A new observation's pose is checked against the map and its image turned
+        into counts here, in the caller's thread (errors raise at once)."""
+        if isinstance(request, Undo):
+            return self._submit({"op": "undo", "seq": request.seq})
+        if not isinstance(request, Teach):
+            raise ConfigurationError(f"not a teaching: {type(request).__name__} (Teach or Undo)")
+        if request.id is not None:
+            return self._submit({"op": "sentence", "id": request.id, "sentence": request.sentence})
+        pose = request.pose
+        assert pose is not None  # Teach holds an id or a pose
+        check_pose(self._snapshot, pose)
+        counts = self.view_counts(request.view)
+        return self._submit({"op": "observation", "x": pose.x, "y": pose.y, "theta": pose.theta,
+                             "sentence": request.sentence, "visual": counts})
+
     def submit_teach(self, *, sentence: str | None = None, id: int | None = None, x: float | None = None,
                      y: float | None = None, theta: float | None = None, image: Any = None,
                      encoding: str | None = None, visual: Any = None) -> Future[dict[str, Any]]:
-        """:meth:`teach` without waiting: a future of its answer (or of its error). The request is
-        checked and its image turned into counts here, in the caller's thread (errors raise at once)."""
-        pose = (x, y, theta)
-        if id is not None:
-            if any(v is not None for v in (*pose, image, visual)):
-                raise ConfigurationError("give either id and sentence (a known sample) or a pose x, y, theta "
-                                         "with an optional image (a new observation), not both")
-            return self._submit({"op": "sentence", "id": id, "sentence": sentence})
-        if any(v is None for v in pose):
-            raise ConfigurationError("a teaching needs id and sentence (a known sample) or x, y and theta "
-                                     "(a new observation)")
-        check_pose(self._snapshot, x, y, theta)
-        counts = self.view_counts(image, encoding, visual)
-        return self._submit({"op": "observation", "x": x, "y": y, "theta": theta, "sentence": sentence,
-                             "visual": counts})
+        """:meth:`teach` without waiting: :meth:`submit` of a :class:`~spco.knowledge.requests.Teach`."""
+        return self.submit(_teaching(sentence, id, x, y, theta, _view(image, encoding, visual)))
 
     def teach(self, *, sentence: str | None = None, id: int | None = None, x: float | None = None,
               y: float | None = None, theta: float | None = None, image: Any = None,
@@ -396,8 +389,8 @@ class LiveHome:
                                  encoding=encoding, visual=visual).result(timeout)
 
     def submit_undo(self, seq: int) -> Future[dict[str, Any]]:
-        """:meth:`undo` without waiting: a future of its answer (or of its error)."""
-        return self._submit({"op": "undo", "seq": seq})
+        """:meth:`undo` without waiting: :meth:`submit` of an :class:`~spco.knowledge.requests.Undo`."""
+        return self.submit(Undo(seq))
 
     def undo(self, seq: int, *, timeout: float | None = None) -> dict[str, Any]:
         """Undo teaching ``seq``: restore the sentence it replaced, or remove the sample it added; as
@@ -465,3 +458,25 @@ class LiveHome:
     def __repr__(self) -> str:
         home = self._snapshot
         return f"<LiveHome {self.path} ({home.name}: {home.n_samples} samples, {home.n_taught} taught)>"
+
+
+def _view(image: Any, encoding: str | None, visual: Any) -> View | None:
+    """The :class:`~spco.knowledge.requests.View` of the library methods' keyword arguments."""
+    if image is None and visual is None and encoding is None:
+        return None
+    if isinstance(image, np.ndarray) and encoding is None:  # an array says its shape; bytes do not
+        encoding = "mono8" if image.ndim == 2 else "bgr8"
+    return View(image=image, encoding=encoding, visual=visual)
+
+
+def _teaching(sentence: str | None, id: int | None, x: float | None, y: float | None, theta: float | None,
+              view: View | None) -> Teach:
+    pose = (x, y, theta)
+    if id is None and any(v is not None for v in pose):
+        if any(v is None for v in pose):
+            raise ConfigurationError("a new observation needs all of x, y and theta")
+        return Teach(sentence=sentence, pose=Pose(x, y, theta), view=view)  # type: ignore[arg-type]
+    if id is not None and (any(v is not None for v in pose) or view is not None):
+        raise ConfigurationError("give either id and sentence (a known sample) or a pose x, y, theta "
+                                 "with an optional image (a new observation), not both")
+    return Teach(sentence=sentence, id=id)

@@ -23,10 +23,12 @@ from typing import Any
 
 from spco.errors import ConfigurationError
 
-__all__ = ["MIN_TOKEN_CHARS", "is_loopback", "read_token", "serve"]
+__all__ = ["LOOPBACK_HOSTS", "MIN_TOKEN_CHARS", "accepted_hosts", "is_loopback", "read_token", "serve"]
 
 #: The shortest token accepted.
 MIN_TOKEN_CHARS = 16
+#: The host names every server answers to (``--allowed-host`` adds more).
+LOOPBACK_HOSTS = ["127.0.0.1", "localhost", "[::1]", "::1"]
 
 
 def is_loopback(host: str) -> bool:
@@ -96,20 +98,41 @@ def _server_class() -> type:
     return Server
 
 
+def accepted_hosts(host: str, token: str | None, extra: list[str] | tuple[str, ...] = ()) -> list[str] | None:
+    """The ``Host`` names a server bound to ``host`` answers to: the loopback names, ``host`` itself
+    (unless a wildcard address) and ``extra``; ``None`` (any) for a wildcard address with a token and
+    no ``extra`` (the token protects it then; give ``--allowed-host`` to check names too)."""
+    name = host.strip().lower()
+    wildcard = name in ("0.0.0.0", "::", "[::]", "")
+    if wildcard and token is not None and not extra:
+        return None
+    hosts = [*LOOPBACK_HOSTS, *(h.strip().lower() for h in extra if h.strip())]
+    if not wildcard:
+        hosts.append(f"[{name.strip('[]')}]" if ":" in name.strip("[]") else name)
+    return sorted(set(hosts))
+
+
 def serve(home: str | PathLike[str], host: str = "127.0.0.1", port: int = 8765, token_file: str | None = None,
           map_image: str | None = None, map_extent: tuple[float, float, float, float] | None = None,
-          seed: int | None = None, writer: str = "process", say: Callable[[str], None] | None = None,
-          **app_options: Any) -> None:
+          seed: int | None = None, writer: str = "process", say: Callable[[str], None] | None = None, *,
+          header_timeout: float = 10.0, keep_alive: float = 5.0, max_connections: int | None = None,
+          max_header_bytes: int = 64 * 1024, allowed_hosts: list[str] | tuple[str, ...] = (),
+          **settings: Any) -> None:
     """Serve the home file ``home`` over HTTP until interrupted (see :mod:`spco.service.app`).
 
     Binds ``host`` only if it is loopback or a ``token_file`` is given (else
     :class:`ConfigurationError`); ``port`` 0 takes a free port. ``say`` prints the address and
-    what start-up found (default: standard error).
+    what start-up found (default: standard error). ``header_timeout``, ``keep_alive``,
+    ``max_connections`` (default: the open-file limit less a reserve) and ``max_header_bytes``
+    bound connections (:class:`~spco.service.connections.ConnectionGuard`); ``allowed_hosts``
+    adds ``Host`` names (:func:`accepted_hosts`); ``settings`` are fields of
+    :class:`~spco.service.app.ServeSettings` (body, image, event limits).
     """
     import uvicorn
 
     _Server = _server_class()
-    from spco.service.app import create_app
+    from spco.service.app import ServeSettings, create_app
+    from spco.service.connections import ConnectionGuard
     from spco.service.live import LiveHome
 
     say = say or (lambda text: print(text, file=sys.stderr, flush=True))
@@ -133,8 +156,15 @@ def serve(home: str | PathLike[str], host: str = "127.0.0.1", port: int = 8765, 
         if live.startup.get("replayed"):
             say(f"Replayed {live.startup['replayed']} teachings from {live.journal_path} and compacted them "
                 f"into {home}.")
-        app = create_app(live, token=token, map_image=map_image, map_extent=map_extent, **app_options)
-        config = uvicorn.Config(app, log_level="warning", access_log=False, lifespan="off",
+        options = ServeSettings(map_image=None if map_image is None else Path(map_image),
+                                map_extent=map_extent,
+                                allowed_hosts=accepted_hosts(host, token, allowed_hosts),
+                                **settings)
+        connections = ConnectionGuard(header_timeout=header_timeout, keep_alive=keep_alive,
+                                      max_connections=max_connections, max_header_bytes=max_header_bytes)
+        app = create_app(live, token=token, settings=options, connections=connections)
+        config = uvicorn.Config(app, http=connections.protocol(), log_level="warning", access_log=False,
+                                lifespan="off", timeout_keep_alive=max(1, round(keep_alive)),
                                 timeout_graceful_shutdown=3, server_header=False, date_header=False)
         server = _Server(config)
         h = live.home

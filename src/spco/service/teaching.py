@@ -42,7 +42,8 @@ import scipy.sparse as sp
 
 from spco import knowledge as kn
 from spco.errors import ConfigurationError, SpcoError
-from spco.prediction import validate_visual_counts
+from spco.knowledge.requests import MAX_SENTENCE_CHARS
+from spco.model.prediction import validate_visual_counts
 from spco.service.answers import check_pose
 from spco.service.journal import JournalError, journal_path, read_journal
 
@@ -71,8 +72,6 @@ __all__ = [
 
 #: How many teachings the home file remembers for :func:`plan_undo` (older ones cannot be undone).
 HISTORY_LIMIT = 10_000
-#: The longest sentence a teaching may carry.
-MAX_SENTENCE_CHARS = 1000
 SERVED = "served"
 
 

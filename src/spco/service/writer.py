@@ -95,7 +95,7 @@ class HomeWriter:
 
     Parameters
     ----------
-    path: the home file (held by the server's lock: :func:`spco.locking.hold`).
+    path: the home file (held by the server's lock: :func:`spco.knowledge.locking.hold`).
     seed: base seed; each batch's seed is derived from it and the batch's first seq (and recorded).
         ``None``: fresh entropy.
     sweeps: Gibbs sweeps of each teaching (:data:`spco.knowledge.DEFAULT_TEACH_SWEEPS`).
@@ -373,7 +373,8 @@ Applied = Callable[[list[tuple[dict[str, Any], dict[str, Any]]], "kn.HomeModel |
 class ThreadWriter:
     """A :class:`HomeWriter` in a thread of this process; ``on_applied(pairs, snapshot)`` is called
     in that thread after each round, with (request, result) pairs and the new snapshot (or ``None``).
-    ``lock``: the :class:`spco.locking.HeldLock` of the file, which the thread is permitted to write."""
+    ``lock``: the :class:`spco.knowledge.locking.HeldLock` of the file, which the thread is permitted
+    to write."""
 
     def __init__(self, path: str | PathLike[str], on_applied: Applied, *, lock: Any = None,
                  **options: Any) -> None:
@@ -440,12 +441,10 @@ class ProcessWriter:
     """A :class:`HomeWriter` in a child process (``python -m spco.service.writer``).
 
     The child inherits the descriptor of the home's lock (held by this process with
-    :func:`spco.locking.hold`) and declares it (:func:`spco.locking.adopt`); it is killed when this
-    process dies (``PR_SET_PDEATHSIG`` on Linux; elsewhere it exits when its connection closes). It
-    runs the sampler on one thread, leaving the other cores to the readers. (It keeps the server's
-    scheduling priority: at ``nice`` +10 its teachings took seconds while other programs kept the
-    machine busy.)
-    ``on_applied`` is called in a receiving thread of this process.
+    :func:`spco.knowledge.locking.hold`) and declares it (:func:`spco.knowledge.locking.adopt`); it is
+    killed when this process dies (``PR_SET_PDEATHSIG`` on Linux; elsewhere it exits when its
+    connection closes). It runs the sampler on one thread, leaving the other cores to the readers, at
+    the server's scheduling priority. ``on_applied`` is called in a receiving thread of this process.
     """
 
     def __init__(self, path: str | PathLike[str], on_applied: Applied, *, lock_fd: int, holder: str,
@@ -655,7 +654,7 @@ _ERRORS: dict[str, type[SpcoError]] = {"ConfigurationError": ConfigurationError,
 
 def main(argv: list[str] | None = None) -> int:
     """The writer process: ``python -m spco.service.writer --path HOME --lock-fd N --conn-fd M …``."""
-    from spco import locking
+    from spco.knowledge import locking
 
     parser = argparse.ArgumentParser(prog="python -m spco.service.writer")
     parser.add_argument("--path", required=True)

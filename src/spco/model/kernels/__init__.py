@@ -5,6 +5,4 @@ Dependencies run one way: :mod:`.rng` (random streams) ← :mod:`.normal` ← :m
 :mod:`.dispatch` (threads, vectoriser, dtypes) are leaves. Every random draw takes a
 :class:`numpy.random.Generator`, from which a compiled kernel takes one seed for its
 counter-seeded streams, so results do not depend on the number of threads.
-
-:mod:`spco.model.random` re-exports everything here under its former names.
 """

@@ -2,7 +2,7 @@
 
 ::
 
-    from spco.client import Client
+    from spco.service.client import Client
 
     robot = Client("http://127.0.0.1:8765")            # token="…" or token_file="…" if the server has one
     robot.what(1.2, -0.4, 1.57)["names"][0]["name"]    # 'kitchen'
@@ -192,6 +192,12 @@ class Client:
             body["visual"] = [int(v) for v in visual]
         return self.request("POST", "/teach", body)
 
+    def ask(self, n: int = 5, *, unsure_only: bool = False) -> dict[str, Any]:
+        """Where to ask "what is this place?" next (as :func:`spco.knowledge.ask`; ``spco ask --json``):
+        ``{"home", "gain", "questions"}``, best first (``GET /ask``)."""
+        return self.request("GET", "/ask?" + urlencode({"n": n, "unsure_only": "true" if unsure_only
+                                                         else "false"}))
+
     def undo(self, seq: int) -> dict[str, Any]:
         """Undo teaching ``seq`` (``DELETE /teach/{seq}``)."""
         return self.request("DELETE", f"/teach/{int(seq)}")
@@ -199,6 +205,28 @@ class Client:
     def regions(self) -> dict[str, Any]:
         """The learnt regions, concepts and samples (``GET /regions``)."""
         return self.request("GET", "/regions")
+
+    def map_image(self) -> bytes:
+        """The server's map image (``GET /map``: PNG or JPEG bytes); :class:`ClientError` 404 without one."""
+        connection = self._connect()
+        try:
+            connection.request("GET", self._prefix + "/map", headers=self._headers)
+            response = connection.getresponse()
+            payload = response.read()
+        except (ConnectionError, http.client.HTTPException, OSError) as exc:
+            self.close()
+            raise ClientError(0, f"no answer from {self.url}: {exc}") from None
+        if response.status >= 400:
+            try:
+                message = json.loads(payload.decode("utf-8")).get("error")
+            except (UnicodeDecodeError, json.JSONDecodeError, AttributeError):
+                message = None
+            raise ClientError(response.status, str(message or response.reason))
+        return payload
+
+    def revoke_sessions(self) -> int:
+        """Sign every page out (``DELETE /sessions``); how many sessions were live."""
+        return int(self.request("DELETE", "/sessions")["revoked"])
 
     def events(self, types: str | None = None) -> Iterator[dict[str, Any]]:
         """The server's events as they come (``GET /events``, Server-Sent Events), on a connection of

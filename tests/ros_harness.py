@@ -1,6 +1,6 @@
-"""Try the node without a robot: a ROS master on this computer, ``spco ros`` in its own process, and
-a stand-in for the robot (rospy publishers and subscribers) — what the tests and
-``benchmarks/ros_latency.py`` use.
+"""The node without a robot: a ROS master on this computer, ``spco ros`` in its own process, and
+a stand-in for the robot (rospy publishers and subscribers) — what the tests (through
+``conftest.py``) and ``benchmarks/ros_latency.py`` use.
 
 The processes talk over loopback as a companion computer talks to a robot over its network:
 ``ROS_MASTER_URI`` names the master, ``ROS_IP`` each process's own address.
