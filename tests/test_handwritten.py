@@ -21,7 +21,7 @@ from spco.data.language import normalize_name
 from spco.data.loading import load
 from spco.evaluation import evaluate_home
 from spco.model import SpCoTransfer
-from spco.model.prediction import predict_positions, region_posterior_for_name
+from spco.model.position_prediction import predict_positions, region_posterior_for_name
 
 SENTENCES = Path(__file__).parent / "data" / "handwritten_sigverse.csv"
 #: Names the writer used for each place besides the place's own (accepted as right answers).

@@ -247,7 +247,8 @@ def score_rooms(params: Any, e: int, env: Environment, vocabulary: Vocabulary,
     -------
     room name -> :class:`RoomScores`. A room whose name has no usable word gets A_p 0.
     """
-    from spco.model.prediction import UnknownNameError, predict_names, predict_positions
+    from spco.model.position_prediction import predict_positions
+    from spco.model.prediction import UnknownNameError, predict_names
 
     rows = {int(i): r for r, i in enumerate(env.ids)}
     gen = np.random.default_rng(rng)

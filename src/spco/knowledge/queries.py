@@ -20,13 +20,8 @@ from spco.knowledge.views import _pose, _view_counts, _visual_row, pose_outside_
 from spco.model.confidence import UNSURE_BELOW, VIEW_EFFECTIVE_COUNTS, concept_word_counts, named_parameters
 from spco.model.home_shard import FREE_CONCEPT_WEIGHT
 from spco.model.parameters import ConceptParameters
-from spco.model.prediction import (
-    NamePrediction,
-    PositionPrediction,
-    UnknownNameError,
-    mutual_information_weights,
-    predict_names,
-)
+from spco.model.position_prediction import PositionPrediction
+from spco.model.prediction import NamePrediction, UnknownNameError, mutual_information_weights, predict_names
 from spco.model.unheard import resolve_name
 
 #: How many of the home's own teachings the model's p(m | name) weighs as, in :func:`where`.
@@ -44,7 +39,7 @@ def where(home: HomeModel, name: str, n: int = 10,
     ``p(m | name) = (c_m + κ · p_model(m | name) + λ · u_m) / (c + κ + λ)``, where ``c_m`` counts the
     home's samples whose sentence holds the name and that sit in region m, ``c`` all of them, κ =
     :data:`WHERE_MODEL_WEIGHT`, ``p_model(m | name) ∝ Σ_l π_{l,m} θ^w_{l,name} G_l``
-    (:func:`spco.model.prediction.region_posterior_for_name`), u_m the share of the home's samples in
+    (:func:`spco.model.position_prediction.region_posterior_for_name`), u_m the share of the home's samples in
     region m and λ = :data:`WHERE_ANYWHERE_WEIGHT` (0 for a name never taught in this home, which is
     answered by the model alone). A name taught once is answered with the region of that sample at
     about 0.6–0.65 (little evidence); each further teaching there makes it firmer.
@@ -77,7 +72,7 @@ def where(home: HomeModel, name: str, n: int = 10,
 def _where(home: HomeModel, name: str, n: int,
            random_state: int | np.random.Generator | None) -> PositionPrediction:
     """:func:`where` without the hint for unusable names."""
-    from spco.model.prediction import (
+    from spco.model.position_prediction import (
         LEARNT_SUPPORT,
         draw_poses,
         name_support,
