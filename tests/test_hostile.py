@@ -27,7 +27,8 @@ from spco.service.app import create_app
 
 ROOT = Path(__file__).resolve().parents[1]
 SRC = str(Path(spco.__file__).resolve().parents[1])
-LIMITS = ("--header-timeout", "1", "--keep-alive", "1", "--body-timeout", "1", "--max-connections", "40",
+LIMITS = ("--header-timeout", "1", "--keep-alive", "1", "--body-timeout", "1", "--send-timeout", "1",
+          "--max-connections", "40",
           "--max-subscribers", "2", "--writer", "thread")
 
 
@@ -108,6 +109,34 @@ def test_half_sent_headers_and_idle_connections_are_closed(server: Server) -> No
         while sock.recv(65536):
             pass
         assert time.monotonic() - started < 6
+
+
+def test_a_client_that_does_not_read_its_answers_is_closed(server: Server) -> None:
+    with socket.socket() as sock:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+        sock.connect(_address(server))
+        request = _request("GET", "/regions").replace(b"Connection: close", b"Connection: keep-alive")
+        sock.settimeout(0.5)
+        sent = 0
+        deadline = time.monotonic() + 20
+        try:
+            while sent < 5000 and time.monotonic() < deadline:  # pipelined, never read
+                sock.sendall(request)
+                sent += 1
+        except OSError:
+            pass  # the server stopped reading, or closed
+        time.sleep(3)  # more than the send timeout
+        sock.settimeout(10)
+        received, closed = 0, False
+        try:
+            while chunk := sock.recv(1 << 20):
+                received += chunk.count(b"HTTP/1.1 200")
+            closed = True
+        except ConnectionResetError:
+            closed = True
+        except TimeoutError:
+            pass
+        assert closed and received < sent, (closed, received, sent)
 
 
 def test_headers_too_long_are_refused(server: Server) -> None:
@@ -205,6 +234,45 @@ def test_event_streams_are_bounded(server: Server) -> None:
         time.sleep(0.1)
 
 
+def test_an_event_consumer_that_does_not_read_is_dropped(built: Path, tmp_path: Path) -> None:
+    import threading
+
+    import uvicorn
+
+    from spco.service.app import ServeSettings
+    from spco.service.connections import ConnectionGuard
+
+    home = copy_home(built, tmp_path)
+    with LiveHome(home, writer="thread", seed=0) as live:
+        guard = ConnectionGuard(header_timeout=5, keep_alive=5, max_connections=32)
+        app = create_app(live, settings=ServeSettings(subscriber_queue=4), connections=guard)
+        listener = socket.socket()
+        listener.bind(("127.0.0.1", 0))
+        listener.listen(64)
+        server = uvicorn.Server(uvicorn.Config(app, http=guard.protocol(), log_level="error", lifespan="off"))
+        thread = threading.Thread(target=server.run, kwargs={"sockets": [listener]}, daemon=True)
+        thread.start()
+        try:
+            deadline = time.monotonic() + 30
+            while not server.started:
+                assert time.monotonic() < deadline
+                time.sleep(0.05)
+            sock = socket.socket()
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+            sock.connect(listener.getsockname())
+            sock.sendall(b"GET /events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
+            assert sock.recv(12).startswith(b"HTTP/1.1 200")  # then never reads
+            deadline = time.monotonic() + 30
+            while app.app.state.event_streams[0] and time.monotonic() < deadline:
+                live._publish({"type": "answer", "kind": "what", "pad": "x" * 200_000})  # 200 kB each
+                time.sleep(0.01)
+            assert app.app.state.event_streams[0] == 0  # dropped, its stream freed
+            sock.close()
+        finally:
+            server.should_exit = True
+            thread.join(10)
+
+
 # ----------------------------------------------------------------------------- browser-borne requests
 def test_cross_site_requests_cannot_teach(server: Server) -> None:
     teach = json.dumps({"id": 1, "sentence": "this is the evil room"}).encode()
@@ -256,6 +324,11 @@ def test_every_error_has_one_shape_and_no_leaks(server: Server) -> None:
         assert answer and _status(answer) == status, (label, answer[:300])
         body = _json(answer)
         assert set(body) == {"error", "status"} and body["status"] == status, (label, body)
+    for path in ("/what", "/teach"):  # the same rule for both: encoding and width go with an image
+        answer = _raw(server, _request("POST", path, json.dumps(
+            {"x": 0, "y": 0, "theta": 0, "encoding": "rgb8", "width": 8}).encode(),
+            Content_Type="application/json"), wait=30)
+        assert _status(answer) == 422 and "give the image too" in _json(answer)["error"], (path, answer)
     health = _json(_raw(server, _request("GET", "/health")))
     text = json.dumps(health)
     assert "file" not in health and "pid" not in text and str(server.home) not in text
@@ -341,15 +414,24 @@ slow = [socket.create_connection(("127.0.0.1", port)) for _ in range(50)]
 for c in slow: c.sendall(b"GET /hea")
 health = send(b"GET /health HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n")
 timed = send(b"GET /hea")
+from fastapi.testclient import TestClient
+from pydantic import BaseModel
+class Body(BaseModel):
+    id: int
+bare = fastapi.FastAPI()
+@bare.post("/teach")
+def bare_teach(body: Body) -> dict:
+    return {"taught": body.id}
+framework = TestClient(bare).post("/teach", content=b'{"id": 1}').status_code  # no Content-Type
 print(json.dumps({"versions": versions, "cross": cross[:12].decode(), "teachings": live.health()["teachings"],
-                  "health": health[:12].decode(), "slow": timed[:12].decode()}))
+                  "health": health[:12].decode(), "slow": timed[:12].decode(), "framework": framework}))
 server.should_exit = True; thread.join(10); live.close()
 """
 
 
 def _minimum(requirement: str) -> str:
     text = (ROOT / "pyproject.toml").read_text(encoding="utf-8")
-    match = re.search(rf'"{requirement}(?:\[[a-z]+\])?>=([0-9.]+)"', text)
+    match = re.search(rf'"{requirement}(?:\[[a-z]+\])?>=([0-9.]+)[",]', text)
     assert match, f"pyproject.toml has no minimum for {requirement}"
     return match.group(1)
 
@@ -357,17 +439,21 @@ def _minimum(requirement: str) -> str:
 def test_cross_site_teaching_is_refused_with_the_oldest_frameworks_allowed(built: Path,
                                                                            tmp_path: Path) -> None:
     fastapi_min, uvicorn_min = _minimum("fastapi"), _minimum("uvicorn")
-    starlette_pin = {"0.110": "0.36.3"}.get(".".join(fastapi_min.split(".")[:2]))
     target = tmp_path / "oldest"
-    packages = [f"fastapi=={fastapi_min}", f"uvicorn=={uvicorn_min}"]
-    if starlette_pin:
-        packages.append(f"starlette=={starlette_pin}")
-    installed = subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--target",
-                                str(target), *packages], capture_output=True, text=True, timeout=300)
-    if installed.returncode != 0:
-        if os.environ.get("CI") == "true":
-            raise AssertionError(f"cannot install {packages}:\n{installed.stderr[-2000:]}")
-        pytest.skip(f"cannot install {packages} (offline?): {installed.stderr.strip()[-300:]}")
+
+    def install(*packages: str) -> None:
+        installed = subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--target",
+                                    str(target), *packages], capture_output=True, text=True, timeout=300)
+        if installed.returncode != 0:
+            if os.environ.get("CI") == "true":
+                raise AssertionError(f"cannot install {packages}:\n{installed.stderr[-2000:]}")
+            pytest.skip(f"cannot install {packages} (offline?): {installed.stderr.strip()[-300:]}")
+
+    install(f"fastapi=={fastapi_min}", f"uvicorn=={uvicorn_min}")
+    metadata = next(target.glob("fastapi-*.dist-info")).joinpath("METADATA").read_text(encoding="utf-8")
+    starlette_min = re.search(r"Requires-Dist: starlette[^\n]*>=([0-9.]+)", metadata)
+    assert starlette_min, "fastapi's metadata names no starlette minimum"
+    install(f"starlette=={starlette_min.group(1)}")  # the oldest starlette that fastapi allows
     home = copy_home(built, tmp_path / "home")
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(target), SRC]))
     ran = subprocess.run([sys.executable, "-c", _OLDEST_CHECK, str(home)], capture_output=True, text=True,
@@ -381,3 +467,4 @@ def test_cross_site_teaching_is_refused_with_the_oldest_frameworks_allowed(built
     assert result["cross"].endswith("403") and result["teachings"] == 0
     assert result["health"].endswith("200")  # under 50 slow connections and a limit of 20
     assert result["slow"].endswith("408")  # the header timer works on the oldest uvicorn
+    assert result["framework"] == 422, result  # FastAPI's own protection: no JSON without Content-Type

@@ -21,6 +21,7 @@ from click.testing import CliRunner
 from serve_helpers import Server, build_home, copy_home, env, wait_unlocked
 
 from spco import knowledge as kn
+from spco.cli.ask import ask as ask_command
 from spco.cli.knowledge import what as what_command
 from spco.cli.knowledge import where as where_command
 from spco.errors import ConfigurationError
@@ -279,6 +280,8 @@ def test_client_mirrors_the_library_over_a_real_server(home: Path) -> None:
         assert robot.where(name, n=3) == json.loads(
             CliRunner().invoke(where_command, [str(home), name, "-n", "3", "--json"]).stdout)
         assert robot.what(0.3, -0.2, 0.4)["names"][0]["name"] in library.known_names
+        assert robot.ask(2) == json.loads(CliRunner().invoke(ask_command, [str(home), "--n", "2",
+                                                                           "--json"]).stdout)
         assert robot.what(0.3, -0.2, 0.4, image=_jpeg(5))["vision"] is True
         assert robot.what(0.3, -0.2, 0.4, image=_view(5), encoding="bgr8")["names"] == \
             robot.what(0.3, -0.2, 0.4, image=cv2.imencode(".png", _view(5))[1].tobytes())["names"]  # lossless

@@ -42,6 +42,8 @@ __all__ = ["serve"]
               help="Seconds a connection has to send a request's headers.")
 @click.option("--body-timeout", default=30.0, show_default=True, type=click.FloatRange(0.1),
               help="Seconds a request has to send its whole body.")
+@click.option("--send-timeout", default=30.0, show_default=True, type=click.FloatRange(0.1),
+              help="Seconds a client may leave an answer unread before its connection is closed.")
 @click.option("--keep-alive", default=5.0, show_default=True, type=click.FloatRange(0.1),
               help="Seconds an idle kept-alive connection stays open.")
 @click.option("--max-connections", default=None, type=click.IntRange(16),
@@ -61,7 +63,8 @@ __all__ = ["serve"]
 @friendly_errors
 def serve(home_file: Path, host: str, port: int, token_file: Path | None, map_image: Path | None,
           extent: str | None, seed: int | None, writer: str, allowed_hosts: tuple[str, ...],
-          allowed_origins: tuple[str, ...], header_timeout: float, body_timeout: float, keep_alive: float,
+          allowed_origins: tuple[str, ...], header_timeout: float, body_timeout: float, send_timeout: float,
+          keep_alive: float,
           max_connections: int | None, max_body: int | None, max_pixels: int, decode_concurrency: int,
           max_subscribers: int, session_hours: float) -> None:
     """Serve the home of HOME over HTTP: where, what and teach in milliseconds, and a page at /.
@@ -90,6 +93,7 @@ def serve(home_file: Path, host: str, port: int, token_file: Path | None, map_im
         map_image=None if map_image is None else str(map_image), map_extent=_extent(extent), seed=seed,
         writer=writer, say=lambda text: click.echo(text, err=True), header_timeout=header_timeout,
         keep_alive=keep_alive, max_connections=max_connections, allowed_hosts=allowed_hosts,
-        allowed_origins=list(allowed_origins), body_timeout=body_timeout, max_body=max_body,
+        allowed_origins=list(allowed_origins), body_timeout=body_timeout, send_timeout=send_timeout,
+        max_body=max_body,
         max_pixels=max_pixels, decode_concurrency=decode_concurrency, max_subscribers=max_subscribers,
         session_hours=session_hours)

@@ -107,13 +107,13 @@ class View:
     visual: Any = None
 
     def __post_init__(self) -> None:
+        if self.image is None and (self.encoding is not None or self.width is not None
+                                   or self.height is not None):
+            raise ConfigurationError("encoding, width and height describe an image; give the image too")
         if self.image is None and self.visual is None:
             raise ConfigurationError("a view needs an image or its visual counts (visual)")
         if self.image is not None and self.visual is not None:
             raise ConfigurationError("give the view either as visual counts or as an image, not both")
-        if self.image is None and (self.encoding is not None or self.width is not None
-                                   or self.height is not None):
-            raise ConfigurationError("encoding, width and height describe an image; give the image too")
         if self.encoding is not None and self.encoding not in ENCODINGS:
             raise ConfigurationError(f"encoding: expected one of {', '.join(ENCODINGS)} (or none for "
                                      f"JPEG/PNG bytes), got {self.encoding!r}")

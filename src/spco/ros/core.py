@@ -46,6 +46,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from spco.errors import ConfigurationError, SpcoError
+from spco.knowledge.requests import Pose, Teach, View, What, Where
 from spco.ros.messages import (
     PoseReading,
     TfBuffer,
@@ -310,7 +311,7 @@ class NodeCore:
             return {**base, "error": f"not taught: no pose within {tol:g} s of the utterance ({got}); "
                     "check the pose topic, or raise --tolerance"}
         pose: PoseReading = pose_entry[1]
-        kwargs: dict[str, Any] = {"sentence": sentence, "x": pose.x, "y": pose.y, "theta": pose.theta}
+        view = None
         if self.uses_images:
             frame_entry = self.frames.nearest(t)
             if frame_entry is None or abs(frame_entry[0] - t) > tol:
@@ -322,11 +323,12 @@ class NodeCore:
                 pixels, encoding = frame_entry[1].pixels()
             except SpcoError as exc:
                 return {**base, "error": f"not taught: the camera frame cannot be read: {exc}"}
-            kwargs.update(image=pixels, encoding=encoding)
+            view = View(image=pixels, encoding=encoding)
         decoded = time.perf_counter()
         try:
+            request = Teach(sentence=sentence, pose=Pose(pose.x, pose.y, pose.theta), view=view)
             with self._home_lock:
-                result = self.home.teach(**kwargs)
+                result = self.home.submit(request).result()
         except SpcoError as exc:
             return {**base, "error": f"not taught: {exc}"}
         self.taught += 1
@@ -389,7 +391,7 @@ class NodeCore:
             raise QueryError(f"'n' must be at least 1, got {n}")
         goal = self._field(request, "goal", bool, self.settings.goal)
         with self._home_lock:
-            answer = self.home.where(name, n)
+            answer = self.home.answer(Where(name, n))
         if goal:
             best = max(answer.get("positions") or [], key=lambda p: p.get("probability", 0.0), default=None)
             if best is None:
@@ -420,17 +422,17 @@ class NodeCore:
                 raise QueryError(f"the last pose is {now - last[0]:.1f} s old (more than --max-age "
                                  f"{self.settings.max_age:g} s): is the pose topic still published?")
             x, y, theta = last[1].x, last[1].y, last[1].theta
-        kwargs: dict[str, Any] = {"top": top}
+        view = None
         view_age = None
         if use_view and self.uses_images:
             frame = self.frames.last()
             if frame is not None and (self.settings.clock != "receive"
                                       or now - frame[0] <= self.settings.max_age):
                 pixels, encoding = frame[1].pixels()
-                kwargs.update(image=pixels, encoding=encoding)
+                view = View(image=pixels, encoding=encoding)
                 view_age = round(now - frame[0], 3) if self.settings.clock == "receive" else None
         with self._home_lock:
-            answer = self.home.what(x, y, theta, **kwargs)
+            answer = self.home.answer(What(Pose(x, y, theta), view, top))
         return {**answer, "pose": {"x": x, "y": y, "theta": theta}, "view_age": view_age}
 
     # ------------------------------------------------------------------ output

@@ -77,6 +77,8 @@ class ServeSettings:
     max_body: a cap on any request body, bytes (``None``: each endpoint's own limit, from the
         home: a view's largest image or visual vector).
     body_timeout: seconds to receive a whole request body.
+    send_timeout: seconds a client may leave a part of an answer unread (its buffers full) before
+        its connection is closed (an event stream that stops reading too).
     max_buffered: bytes of request bodies held at once across all requests.
     max_pixels: the largest image (width × height) accepted, checked from its header.
     decode_concurrency: images decoded at once; decode_queue: more waiting for that (else 503).
@@ -92,6 +94,7 @@ class ServeSettings:
 
     max_body: int | None = None
     body_timeout: float = 30.0
+    send_timeout: float = 30.0
     max_buffered: int = 64 * 1024 * 1024
     max_pixels: int = DEFAULT_MAX_PIXELS
     decode_concurrency: int = 2

@@ -155,7 +155,8 @@ async def regions(live: Live, request: Request) -> Response:
     return _json(answer)
 
 
-@api.get("/map", summary="The map image under the page", response_class=FileResponse)
+@api.get("/map", summary="The map image under the page", response_class=FileResponse,
+         responses={200: {"content": {"image/png": {}, "image/jpeg": {}}, "description": "the map image"}})
 async def map_file(request: Request) -> Response:
     settings = request.app.state.settings
     if settings.map_image is None:

@@ -14,10 +14,12 @@
    read whole within ``body_timeout`` seconds (408, and the connection is closed), with all bodies
    being read at once holding at most ``max_buffered`` bytes (503).
 
-Every answer gets ``X-Frame-Options: DENY``, a ``Content-Security-Policy`` (``frame-ancestors
-'none'``; scripts, styles and connections from this server only), ``X-Content-Type-Options:
-nosniff`` and ``Referrer-Policy: no-referrer``. When a :class:`~spco.service.connections.ConnectionGuard`
-is given, it is told when a request starts and when its answer is sent (its header timer).
+An answer the client does not read within ``send_timeout`` seconds (its connection's buffers
+full) ends the connection. Every answer gets ``X-Frame-Options: DENY``, a
+``Content-Security-Policy`` (``frame-ancestors 'none'``; scripts, styles and connections from this
+server only), ``X-Content-Type-Options: nosniff`` and ``Referrer-Policy: no-referrer``. When a
+:class:`~spco.service.connections.ConnectionGuard` is given, it is told when a request starts and
+when its answer was sent (its header timer).
 """
 
 from __future__ import annotations
@@ -195,7 +197,13 @@ class Guard:
         async def send_with_headers(message: dict[str, Any]) -> None:
             if message["type"] == "http.response.start":
                 message = {**message, "headers": [*message.get("headers", []), *SECURITY_HEADERS]}
-            await send(message)
+            try:
+                async with asyncio.timeout(self.settings.send_timeout):  # a client that does not read
+                    await send(message)
+            except TimeoutError:
+                if connections is not None and client is not None:
+                    connections.abort(client)
+                raise
             if connections is not None and client is not None and message["type"] == "http.response.body" \
                     and not message.get("more_body"):
                 connections.response_sent(client)
@@ -262,7 +270,7 @@ class Guard:
             if why is not None:
                 return error_response(403, f"refused: {why}; a page of another site cannot teach this robot")
             length = _header(scope, b"content-length")
-            if method != "DELETE" or (length not in (None, "0")):
+            if (length is not None and length.strip() != "0") or _header(scope, b"transfer-encoding"):
                 kind = (_header(scope, b"content-type") or "").split(";")[0].strip().lower()
                 wanted = ("application/x-www-form-urlencoded",) if path in FORM_PATHS \
                     else ("application/json",)
