@@ -267,12 +267,10 @@ def fit(data: Path, homes: str | None, teaching_rate: int, model: str, iteration
         training = Corpus(envs, language=text_language)
         summary = (f"{len(envs)} homes ({sum(e.n_train for e in envs)} training samples, "
                    f"{sum(e.n_taught for e in envs)} taught, {len(training.vocabulary)} words)")
-    if settings and prior == "scaled" and isinstance(training, Corpus):  # --set on top of the scaled prior
-        from spco.model.hyperparameters import scaled_hyperparameters
+    if settings and prior == "scaled":  # --set on top of the scaled prior
+        from spco.knowledge.fit import default_hyperparameters
 
-        base = scaled_hyperparameters([(t.positions, training.word_counts(list(t.sentences)))
-                                       for t in training.training_set()])
-        hyperparameters = base.with_settings(settings)
+        hyperparameters = default_hyperparameters(training).with_settings(settings)
     click.echo(f"Learning from {summary} with {model}, {iterations} sweeps...", err=True)
     start = time.perf_counter()
     knowledge = fit_knowledge(training, model=model, n_iterations=iterations, random_state=seed,

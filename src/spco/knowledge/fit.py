@@ -18,7 +18,7 @@ from spco.errors import ConfigurationError, DataFormatError
 from spco.knowledge.diagnostics import _view_fit_record
 from spco.knowledge.files import _as_generator, _now, _seed_of, _version
 from spco.knowledge.knowledge import DEFAULT_FIT_ITERATIONS, DEFAULT_MODEL, MODELS, Knowledge
-from spco.model.hyperparameters import PRIORS, TransferHyperparameters, scaled_hyperparameters
+from spco.model.hyperparameters import PRIORS, TransferHyperparameters, scaled_from, scaled_hyperparameters
 from spco.model.name_evidence import name_prior
 from spco.model.posterior import thinned_sweeps
 from spco.model.pruning import words_to_keep
@@ -73,6 +73,21 @@ def _align_to(reference_v: np.ndarray, reference_w: np.ndarray, phi_v: np.ndarra
     return perm
 
 
+def default_hyperparameters(homes: Any) -> TransferHyperparameters:
+    """The scaled prior of ``homes`` (:func:`~spco.model.hyperparameters.scaled_hyperparameters`): a
+    :class:`~spco.data.Corpus` is read here, a :class:`~spco.model.sources.FolderHomes` brings the
+    scales it measured while reading its folders; a synthetic fleet generated in the shards
+    (:class:`~spco.model.sources.SyntheticHomes`, never read in the driver) keeps the paper's."""
+    from spco.model.sources import FolderHomes
+
+    if isinstance(homes, FolderHomes):
+        return scaled_from(homes.scales)
+    if isinstance(homes, Corpus):
+        return scaled_hyperparameters([(t.positions, homes.word_counts(list(t.sentences)))
+                                       for t in homes.training_set()])
+    return TransferHyperparameters()
+
+
 def fit_knowledge(
     corpus: Corpus,
     model: str = DEFAULT_MODEL,
@@ -117,9 +132,8 @@ def fit_knowledge(
     engine: where the homes' shards run (:func:`spco.engines.make_engine`): ``None`` in this
         process, ``"ray"`` or an engine object such as ``RayEngine(shards=4, address="auto")``.
     prior: used when ``hyperparameters`` is ``None``: ``"scaled"`` (default) — κ0, L and K follow
-        the homes' spread and place sizes (:func:`~spco.model.hyperparameters.scaled_hyperparameters`;
-        homes read in the shards, which the driver does not hold, keep the paper's); ``"paper"`` —
-        the paper's constants.
+        the homes' spread and place sizes (:func:`default_hyperparameters`); ``"paper"`` — the
+        paper's constants.
 
     Returns
     -------
@@ -137,10 +151,8 @@ def fit_knowledge(
     variant, prune = MODELS[model]
     if prior not in PRIORS:
         raise ConfigurationError(f"prior must be one of {', '.join(PRIORS)}, got {prior!r}")
-    if hyperparameters is None and prior == "scaled" and source is None:
-        training = corpus.training_set()
-        hyperparameters = scaled_hyperparameters(
-            [(t.positions, corpus.word_counts(list(t.sentences))) for t in training])
+    if hyperparameters is None and prior == "scaled":
+        hyperparameters = default_hyperparameters(corpus)
     estimator = SpCoTransfer(hyperparameters, variant=variant, prune_words=prune, n_iterations=n_iterations,
                              random_state=random_state)
     hyper = estimator.checked_hyperparameters()

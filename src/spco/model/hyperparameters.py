@@ -294,8 +294,14 @@ def scaled_hyperparameters(homes: Sequence[tuple[np.ndarray, Any]],
     Ψ0, ν0 stay the paper's (Ψ0 ≈ (1.4 cm)² is far below any place: the data decide a region's
     size). Without two words said ≥ 3 times in any home, κ0 stays the paper's.
     """
+    return scaled_from([home_scales(positions, said) for positions, said in homes], base)
+
+
+def scaled_from(scales: Sequence[tuple[float, float, int]],
+                base: TransferHyperparameters | None = None) -> TransferHyperparameters:
+    """:func:`scaled_hyperparameters` from the homes' :func:`home_scales` (R, s, n), computed where
+    the homes are read (a :class:`~spco.model.sources.FolderHomes` keeps them)."""
     base = TransferHyperparameters() if base is None else base
-    scales = [home_scales(positions, said) for positions, said in homes]
     if not scales:
         return base
     spread = float(np.median([r for r, _, _ in scales]))
