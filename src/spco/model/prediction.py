@@ -32,9 +32,9 @@ factor is taken.
 
 Confidence: those thousands of nats make p(w | x, v) sure of every answer, the wrong ones too (the
 counts of one image are not independent draws). ``view_counts`` weights each view's visual term as
-that many draws; ``spco.knowledge.what`` answers with :func:`spco.model.confidence.predict_names_honestly`
-(a view = :data:`~spco.model.confidence.VIEW_EFFECTIVE_COUNTS` draws, free concepts' names at their
-posterior mean, an ``unsure`` flag). ``view_counts=None`` (the default here) is the multinomial;
+that many draws; ``spco.knowledge.what`` and ``ask`` answer with :func:`predict_names` on
+``spco.knowledge.answer_parameters`` (free concepts' names at their posterior mean) with a view =
+:data:`~spco.model.confidence.VIEW_EFFECTIVE_COUNTS` draws and an ``unsure`` flag. ``view_counts=None`` (the default here) is the multinomial;
 the exact model learns, and its experiments predict, with ``TransferHyperparameters.view_counts``.
 """
 
@@ -526,8 +526,8 @@ def predict_names(
         prior (no naming rule) keeps the MI order. Opt-in: on the held-out speech set it lowered
         A_n (a weak name such as "dining" lost its concept to "kitchen"; docs/model.md).
     unsure_below: stored in the result: an answer whose probability is below it is
-        :attr:`NamePrediction.unsure` (``None``: never). ``spco.knowledge.what`` answers with
-        :func:`spco.model.confidence.predict_names_honestly`.
+        :attr:`NamePrediction.unsure` (``None``: never); ``spco.knowledge.what`` passes
+        :data:`spco.model.confidence.UNSURE_BELOW`.
 
     Words with ``word_mask`` False are never returned. Ties in the score are broken by p(w|x,v),
     then by vocabulary order. A word with I(w) = 0 scores 0 and is ranked after every word with a
