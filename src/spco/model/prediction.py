@@ -34,7 +34,8 @@ Confidence: those thousands of nats make p(w | x, v) sure of every answer, the w
 counts of one image are not independent draws). ``view_counts`` weights each view's visual term as
 that many draws; ``spco.knowledge.what`` and ``ask`` answer with :func:`predict_names` on
 ``spco.knowledge.answer_parameters`` (free concepts' names at their posterior mean) with a view =
-:data:`~spco.model.confidence.VIEW_EFFECTIVE_COUNTS` draws and an ``unsure`` flag. ``view_counts=None`` (the default here) is the multinomial;
+:data:`~spco.model.confidence.VIEW_EFFECTIVE_COUNTS` draws and an ``unsure`` flag.
+``view_counts=None`` (the default here) is the multinomial;
 the exact model learns, and its experiments predict, with ``TransferHyperparameters.view_counts``.
 """
 
