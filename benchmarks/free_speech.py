@@ -119,7 +119,7 @@ def bootstrap(groups: dict[tuple, list[float]], rng: np.random.Generator,
     return float(np.quantile(means, 0.025)), float(np.quantile(means, 0.975))
 
 
-def main() -> None:
+def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order they run; to split)
     """Fit, score and print per seed, home and place, then the pooled figures with intervals."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sigverse", type=Path, default=Path("../shared/datasets/sigverse"))

@@ -117,7 +117,7 @@ def draw_markers(message: Any, path: Path, title: str) -> None:
     fig.savefig(path, dpi=110, facecolor=fig.get_facecolor())
 
 
-def main() -> None:
+def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order they run; to split)
     """Start the master, the node and the robot; measure; print a table and a JSON line."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--queries", type=int, default=1000)

@@ -30,6 +30,7 @@ from __future__ import annotations
 import argparse
 import base64
 import json
+import os
 import re
 import resource
 import shutil
@@ -95,6 +96,11 @@ class Served:
             except OSError:
                 pass
         return total
+
+    def cpu_seconds(self) -> float:
+        """CPU time (user + system) of the server process so far."""
+        fields = Path(f"/proc/{self.process.pid}/stat").read_text().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
     def stop(self) -> None:
         self.process.send_signal(2)
@@ -195,6 +201,7 @@ def _what_latency(served: Served, n: int, extent: list[float]) -> dict[str, floa
     rng = np.random.default_rng(0)
     sock = socket.create_connection(served.address, timeout=10)
     times = []
+    cpu = served.cpu_seconds()
     try:
         for _ in range(n):
             x, y = rng.uniform(extent[0], extent[1]), rng.uniform(extent[2], extent[3])
@@ -211,7 +218,7 @@ def _what_latency(served: Served, n: int, extent: list[float]) -> dict[str, floa
             times.append(time.perf_counter() - started)
     finally:
         sock.close()
-    return _percentiles(times)
+    return {**_percentiles(times), "server_cpu_ms": (served.cpu_seconds() - cpu) * 1000 / n}
 
 
 def idle_subscribers(served: Served, count: int, n: int) -> dict[str, Any]:
@@ -353,8 +360,9 @@ def main() -> None:
          f"{slow['connections_opened']} opened", "≤ 100", slow["health"]["max"] <= 100
          and slow["answered"] == slow["asked"]),
         ("what with idle subscribers (ms)",
-         f"p50 {subs['with']['p50']:.2f}, p99 {subs['with']['p99']:.2f} (without: p50 "
-         f"{subs['without']['p50']:.2f}); {subs['accepted']} accepted, {subs['refused']} refused",
+         f"p50 {subs['with']['p50']:.2f}, p99 {subs['with']['p99']:.2f}, server CPU "
+         f"{subs['with']['server_cpu_ms']:.2f} ms a request (without: p50 {subs['without']['p50']:.2f}, CPU "
+         f"{subs['without']['server_cpu_ms']:.2f}); {subs['accepted']} accepted, {subs['refused']} refused",
          "p50 ≤ 2", subs["with"]["p50"] <= 2),
         ("memory under 8 concurrent image bombs (MB)",
          f"growth {bombs['growth_mb']:.1f} (start {bombs['start_mb']:.0f}, peak {bombs['peak_mb']:.0f}); "

@@ -249,7 +249,7 @@ def _soak_worker(url: str, regions: dict[str, Any], labels: dict[int, str], rate
     results.put((latencies, errors, total))
 
 
-def main() -> None:
+def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order they run; to split)
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--dir", type=Path, default=Path("/tmp/spco-serve-bench"))
     parser.add_argument("--sigverse", type=Path, default=DATA / "sigverse")

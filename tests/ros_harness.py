@@ -156,7 +156,7 @@ class FakeRobot(Mailbox):
         from std_msgs.msg import String
         from visualization_msgs.msg import MarkerArray
 
-        from spco.ros.node import ANSWER_TOPIC, GOAL_TOPIC, MARKER_TOPIC, QUERY_TOPIC
+        from spco.ros.core import ANSWER_TOPIC, GOAL_TOPIC, MARKER_TOPIC, QUERY_TOPIC
 
         self.rospy = rospy
         if not rospy.core.is_initialized():

@@ -338,3 +338,15 @@ def test_http_ask_answers_as_the_library(world: dict, tmp_path: Path) -> None:
             assert bad.status_code == 422 and "n" in bad.json()["error"]
         with pytest.raises(ConfigurationError, match="number of questions"):
             live.ask(0)
+
+
+def test_the_http_question_is_the_library_question_as_json() -> None:
+    """One definition of a question: the HTTP schema (``QuestionJSON``, in the OpenAPI document) has
+    exactly the keys of :meth:`spco.knowledge.Question.to_dict` and takes its values."""
+    pytest.importorskip("fastapi", reason="spco serve needs its extra: pip install -e '.[serve]'")
+    from spco.service.schemas import QuestionJSON
+
+    question = kn.Question(id=4, x=1.0, y=-2.0, theta=0.5, gain=0.3, reason="two concepts compete",
+                           names=(("kitchen", 0.6), ("bath", 0.3)), unknown=0.1, confidence=0.6)
+    assert set(QuestionJSON.model_fields) == set(question.to_dict())
+    assert QuestionJSON.model_validate(question.to_dict()).model_dump() == question.to_dict()

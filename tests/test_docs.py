@@ -118,6 +118,12 @@ def test_mkdocs_build_strict(tmp_path: Path) -> None:
     assert result.returncode == 0, result.stdout + result.stderr
     assert (site / "index.html").is_file()
     assert (site / "tutorial" / "index.html").is_file()
+    # the command-line reference shows each option's real default: no click sentinel (an option
+    # without a default reads "None"), and the defaults the options declare
+    cli = (site / "reference" / "cli" / "index.html").read_text(encoding="utf-8")
+    assert "Sentinel" not in cli and "UNSET" not in cli
+    assert "<td><code>spco-demo</code></td>" in cli  # spco demo --out
+    assert "<td>None</td>" in cli
 
 
 def _griffe_spco():

@@ -263,10 +263,10 @@ def test_an_event_consumer_that_does_not_read_is_dropped(built: Path, tmp_path: 
             sock.sendall(b"GET /events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
             assert sock.recv(12).startswith(b"HTTP/1.1 200")  # then never reads
             deadline = time.monotonic() + 30
-            while app.app.state.event_streams[0] and time.monotonic() < deadline:
+            while app.app.state.events.streams and time.monotonic() < deadline:
                 live._publish({"type": "answer", "kind": "what", "pad": "x" * 200_000})  # 200 kB each
                 time.sleep(0.01)
-            assert app.app.state.event_streams[0] == 0  # dropped, its stream freed
+            assert not app.app.state.events.streams  # dropped, its stream freed
             sock.close()
         finally:
             server.should_exit = True

@@ -1,5 +1,7 @@
-"""The floors of spco hold: each imports only the floors below it (``[tool.importlinter]`` in
-pyproject.toml, checked with import-linter, the same check as ``lint-imports``).
+"""The floors of spco hold: each imports only the floors below it, and the rooms of the top floors
+(the commands, the ROS node, the served home) are layered inside, with HTTP and ROS libraries only in
+their adapters (``[tool.importlinter]`` in pyproject.toml, checked with import-linter, the same check
+as ``lint-imports``).
 
 Function-level imports count: a lazy ``from spco.knowledge import ...`` inside ``spco.model``
 breaks the contract like a top-level one.
@@ -39,11 +41,47 @@ def _layers() -> list[str]:
     return list(contract["layers"])
 
 
+def _contracts() -> dict[str, dict]:
+    options = tomllib.loads(PYPROJECT.read_text())["tool"]["importlinter"]
+    return {c["id"]: c for c in options["contracts"]}
+
+
 def test_the_floors_hold() -> None:
-    """Every import in src/spco goes down the floors of pyproject.toml."""
+    """Every import in src/spco goes down the floors of pyproject.toml, and every contract holds."""
     result = _run(PYPROJECT)
     assert result.returncode == 0, f"an import climbs a floor:\n{result.stdout}\n{result.stderr}"
-    assert "1 kept, 0 broken" in result.stdout
+    assert f"{len(_contracts())} kept, 0 broken" in result.stdout
+
+
+def test_the_rooms_of_the_top_floors_have_contracts() -> None:
+    """The commands, the ROS node and the served home are each layered inside, and none of the
+    floors below their adapters imports an HTTP or ROS library."""
+    contracts = _contracts()
+    assert {"cli", "ros", "service", "transports"} <= set(contracts)
+    assert [contracts[c]["containers"] for c in ("cli", "ros", "service")] == [
+        ["spco.cli"], ["spco.ros"], ["spco.service"]]
+    floors = [name.strip() for layer in _layers() for name in layer.split("|")]
+    assert "ros" in floors and "service" in floors  # real floors, no longer optional "(ros)"
+    assert {"fastapi", "uvicorn", "roslibpy", "rospy"} <= set(contracts["transports"]["forbidden_modules"])
+
+
+def test_a_transport_imported_by_the_node_core_breaks_the_ros_contract(tmp_path: Path) -> None:
+    """The ROS room's contract fails when its layers are turned over: the core above the ROS 1 node
+    (which imports it) is reported broken, naming the import."""
+    config = tmp_path / "pyproject.toml"
+    config.write_text("""[tool.importlinter]
+root_package = "spco"
+
+[[tool.importlinter.contracts]]
+id = "ros"
+name = "ros, turned over"
+type = "layers"
+containers = ["spco.ros"]
+layers = ["core", "node | rosbridge", "messages"]
+""")
+    result = _run(config)
+    assert result.returncode != 0
+    assert "BROKEN" in result.stdout and "spco.ros.node" in result.stdout
 
 
 def test_a_climbing_import_breaks_the_contract(tmp_path: Path) -> None:
@@ -84,11 +122,14 @@ def test_every_top_level_module_has_a_floor() -> None:
     assert not missing, f"no floor for {missing} in [tool.importlinter] of pyproject.toml"
 
 
-#: Issue 24: every source file reads in a sitting, "about 800 lines"; above this a file is split.
-MAX_SOURCE_LINES = 880
+#: Every source file reads in a sitting: above this a file is split (issue 33).
+MAX_SOURCE_LINES = 800
+#: Being rewritten on its own branch (the one predictor of issue 33); remove once that lands.
+BEING_REWRITTEN = {"src/spco/model/prediction.py"}
 
 
 def test_no_source_file_is_too_long_to_read_in_a_sitting() -> None:
     long = {str(path.relative_to(ROOT)): n for path in sorted((ROOT / "src" / "spco").rglob("*.py"))
             if (n := len(path.read_text(encoding="utf-8").splitlines())) > MAX_SOURCE_LINES}
+    long = {path: n for path, n in long.items() if path not in BEING_REWRITTEN}
     assert long == {}, f"split these files (at most {MAX_SOURCE_LINES} lines): {long}"

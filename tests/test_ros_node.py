@@ -124,6 +124,7 @@ def test_where_with_goal_publishes_a_pose_stamped(ros_node) -> None:
     assert answer["id"] == "g1" and answer["goal"]["frame"] == "map"
     _, goal = robot.wait_for(lambda: robot.goals[-1] if robot.goals else None)
     assert goal.header.frame_id == "map"
+    assert goal.header.stamp.to_nsec() == 0  # stamp 0: move_base transforms it with the latest tf
     position = goal.pose.position
     assert (position.x, position.y) == pytest.approx((answer["goal"]["x"], answer["goal"]["y"]))
     q = goal.pose.orientation
@@ -195,7 +196,8 @@ def test_malformed_queries_get_an_error_answer_and_the_node_stays_up(ros_node) -
         ({"id": 7, "op": "where", "name": "kitchen", "goal": "yes"}, 7, "'goal' must be true or false"),
     ]
     for request, expected_id, message in cases:
-        answer, _ = robot.query(request)
+        # an unknown name is looked up in WordNet: its first load takes seconds on a loaded machine
+        answer, _ = robot.query(request, timeout=60)
         assert answer["id"] == expected_id and message in answer["error"], answer
     answer, _ = robot.query({"id": 10, "op": "where", "name": "kitchen", "n": 1})
     assert "error" not in answer and node.poll() is None
@@ -264,6 +266,8 @@ def test_roslaunch_arguments_rename_the_node_and_remap_its_topics(ros_node, tmp_
     answers: list[dict] = []
     subscriber = rospy.Subscriber("/second/answer", String, lambda m: answers.append(json.loads(m.data)))
     publisher = rospy.Publisher("/second/query", String, queue_size=10)
+    from geometry_msgs.msg import PoseArray
+
     try:
         deadline = time.monotonic() + 90
         while publisher.get_num_connections() == 0 or subscriber.get_num_connections() == 0:
@@ -276,10 +280,18 @@ def test_roslaunch_arguments_rename_the_node_and_remap_its_topics(ros_node, tmp_
         assert answers and answers[0]["id"] == "r1" and len(answers[0]["positions"]) == 2
         _, _, (publishers, _, _) = rospy.get_master().getSystemState()
         assert ["/spco_second"] in [nodes for topic, nodes in publishers if topic == "/second/markers"]
+        poses = rospy.wait_for_message("/spco/where", PoseArray, timeout=10)
+        assert poses.header.frame_id == "map" and len(poses.poses) >= 1  # latched: the last where's poses
     finally:
         subscriber.unregister()
         publisher.unregister()
         stop_process(node)
+    text = (tmp_path / "node.log").read_text(errors="replace")
+    # the start-up line names the topics as remapped; stopping prints a last line
+    assert "spco ros: node /spco_second; listening to pose /global_pose" in text, text[-2000:]
+    assert "queries on /second/query, answers on /second/answer, markers on /second/markers" in text
+    assert "goals on /second/goal" in text
+    assert text.strip().splitlines()[-1].startswith("spco ros: stopped after 0 teachings and ")
 
 
 def test_an_argument_that_is_not_a_remapping_is_refused(tmp_path: Path) -> None:

@@ -64,8 +64,14 @@ def test_the_page_shows_the_regions_answers_and_teaches_live(browser, tmp_path: 
         wait.until(lambda d: d.find_elements(By.CSS_SELECTOR, "#layer-regions ellipse.region"))
         ellipses = browser.find_elements(By.CSS_SELECTOR, "#layer-regions ellipse.region")
         labels = [e.text for e in browser.find_elements(By.CSS_SELECTOR, "#layer-labels text.region-label")]
-        assert len(ellipses) == len(robot.regions()["regions"])
+        regions = robot.regions()["regions"]
+        drawn = [g for g in regions if g["weight"] >= 0.01 or g["taught"] > 0]  # negligible ones hidden
+        assert len(ellipses) == len(drawn) and len(drawn) < len(regions) + 1
         assert labels and any(name in " ".join(labels) for name in known)
+        first_words = [label.split()[0] for label in labels]
+        assert len(first_words) == len(set(first_words)), labels  # one label per place
+        axis_labels = [e.text for e in browser.find_elements(By.CSS_SELECTOR, "#layer-axes text.axis-label")]
+        assert "x (m)" in axis_labels and "y (m)" in axis_labels and any(t.endswith(" m") for t in axis_labels)
         assert len(browser.find_elements(By.CSS_SELECTOR, "#layer-samples circle.sample")) == \
             robot.health()["samples"]
         assert browser.find_element(By.ID, "connection").text == "live"  # the event stream is open
@@ -80,11 +86,25 @@ def test_the_page_shows_the_regions_answers_and_teaches_live(browser, tmp_path: 
         browser.find_element(By.ID, "where-button").click()
         wait.until(lambda d: len(d.find_elements(By.CSS_SELECTOR, "#layer-poses g.pose")) == 10)
         assert known[0] in browser.find_element(By.ID, "where-result").text
-        # click + type a sentence: taught, and the page shows it
+        shots = Path(os.environ.get("SPCO_PAGE_SCREENSHOTS", str(tmp_path)))
+        shots.mkdir(parents=True, exist_ok=True)
+        before = names
+        assert browser.save_screenshot(str(shots / "page-before-teaching.png"))
+        # click + type a sentence: taught, and every panel shows it (the names at the point included)
         browser.find_element(By.ID, "teach-sentence").send_keys("this is the pantry")
         browser.find_element(By.ID, "teach-button").click()
         wait.until(lambda d: "Taught (seq 1" in d.find_element(By.ID, "teach-result").text)
         assert robot.health()["teachings"] == 1
+        wait.until(lambda d: "1 teachings served" in d.find_element(By.ID, "stats").text)
+        wait.until(lambda d: "pantry" in d.find_element(By.ID, "what-names").text)
+        assert browser.save_screenshot(str(shots / "page-after-teaching.png"))
+        # undo it: the names at the point are again exactly what they were before the teaching
+        browser.find_element(By.ID, "undo-button").click()
+        wait.until(lambda d: "Undone (teaching 1)" in d.find_element(By.ID, "teach-result").text)
+        wait.until(lambda d: [li.text for li in d.find_elements(By.CSS_SELECTOR, "#what-names li")] == before)
+        wait.until(lambda d: "0 teachings served" in d.find_element(By.ID, "stats").text)
+        assert browser.save_screenshot(str(shots / "page-after-undo.png"))
+        robot.teach(x=0.0, y=0.0, theta=0.0, sentence="this is the pantry")  # taught again, by the robot
         wait.until(lambda d: "1 teachings served" in d.find_element(By.ID, "stats").text)
         # another client teaches: the page learns it from the event stream
         robot.teach(id=int(robot.regions()["samples"][0]["id"]), sentence="this is the scullery")

@@ -341,7 +341,7 @@ def inside(point: tuple[float, float] | None, rects: list[list[float]]) -> bool:
     return point is not None and any(r[0] <= point[0] <= r[1] and r[2] <= point[1] <= r[3] for r in rects)
 
 
-def check_specific(
+def check_specific(  # noqa: PLR0915 (a benchmark script's steps in the order they run; to split)
     doc: dict[str, Any], data: Path, accepted: dict[str, list[str]], heard: set[str], check: Checker
 ) -> None:
     """Check ``specific_heldout.json`` against the data set.

@@ -35,6 +35,24 @@ class ConfigurationError(SpcoError, ValueError):
     """An argument or hyperparameter is out of its valid range."""
 
 
+class TeachingLimitError(SpcoError, ValueError):
+    """A teaching beyond one of the home's limits (too long a sentence, too many new words in it
+    or in the home, too many observations a minute). ``limit`` names the limit (its option, e.g.
+    ``"max_new_words"``), ``value`` what the teaching would reach and ``allowed`` the limit."""
+
+    http_status = 422
+
+    def __init__(self, message: str, limit: str, value: int, allowed: int) -> None:
+        self.limit, self.value, self.allowed = limit, value, allowed
+        super().__init__(message)
+
+
+class TeachingRateError(TeachingLimitError):
+    """Teachings coming faster than the home's limit per minute (HTTP 429)."""
+
+    http_status = 429
+
+
 class ModelFileError(SpcoError, ValueError):
     """A saved model or knowledge file cannot be read (truncated, edited, wrong version)."""
 

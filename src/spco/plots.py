@@ -138,6 +138,110 @@ def _ellipse_geometry(cov2: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndar
 
 
 @_with_cjk_fonts
+def _concept_colors(colors: Sequence[Any] | None, n_concepts: int) -> Sequence[Any]:
+    """A colour per concept: those given (at least one per concept) or the default ones."""
+    if colors is None:
+        return _default_colors(n_concepts)
+    if len(colors) < n_concepts:
+        raise ConfigurationError(f"{len(colors)} colours for {n_concepts} concepts")
+    return colors
+
+
+def _draw_floor_plan(ax: Any, map_image: Any, extent: Sequence[float] | None) -> None:
+    """The floor plan (a file or an array; grey levels drawn grey) under everything else."""
+    image = matplotlib.image.imread(str(map_image)) if isinstance(map_image, str | Path) \
+        else np.asarray(map_image)
+    grey = {"cmap": "gray", "vmin": 0, "vmax": 255 if image.dtype == np.uint8 else 1.0} \
+        if image.ndim == 2 else {}
+    ax.imshow(image, extent=extent, origin="upper", zorder=0, alpha=0.9, **grey)
+
+
+def _draw_regions(ax: Any, params: ConceptParameters, e: int, vocabulary: Any, concept_colors: Sequence[Any],
+                  label_regions: bool) -> np.ndarray:
+    """The home's learnt regions: an ellipse per used region in its concept's colour (the concept's
+    names in the legend, and on the map with ``label_regions``) and its centre (+). Returns the
+    centres (n, 2)."""
+    counts = np.asarray(params.region_counts[e])
+    used = np.flatnonzero(counts >= max(NEGLIGIBLE_REGION * counts.sum(), 1e-12))
+    hidden = int(np.count_nonzero(counts > 0)) - used.size
+    means = np.asarray(params.region_means[e], dtype=float)
+    if not used.size:
+        return np.zeros((0, 2))
+    covs = np.asarray(params.region_covariances[e], dtype=float)[:, :2, :2]
+    joint = np.asarray(params.region_weights[e], dtype=float) * np.asarray(
+        params.concept_weights[e], dtype=float)[:, None]  # (L, K)
+    owner = np.argmax(joint, axis=0)  # (K,)
+    labels = concept_labels(params, e, vocabulary)
+    width, height, angle = _ellipse_geometry(covs[used])
+    shown: set[int] = set()
+    for j, m in enumerate(used):  # one patch per region (K ≤ a few tens)
+        c = int(owner[m])
+        colour = concept_colors[c]
+        ax.add_patch(Ellipse((means[m, 0], means[m, 1]), width[j], height[j], angle=angle[j],
+                             facecolor=colour, alpha=0.25, edgecolor=colour, linewidth=2.0,
+                             zorder=3, label=labels[c] if c not in shown else "_nolegend_"))
+        shown.add(c)
+    if label_regions:
+        _label_regions(ax, used, counts, means, owner, labels, concept_colors)
+    ax.scatter(means[used, 0], means[used, 1], marker="+", s=60, color="k", linewidths=1.2,
+               zorder=4, label="region centres (+)" + (
+                   f"; {hidden} region(s) under {NEGLIGIBLE_REGION:.0%} of the samples not drawn"
+                   if hidden else ""))
+    return means[used, :2]
+
+
+def _draw_predicted(ax: Any, predicted_positions: Mapping[str, Any]) -> list[np.ndarray]:
+    """Each place name's predicted positions, one marker and colour per name; returns their (x, y)."""
+    cmap = matplotlib.colormaps["Dark2"]
+    points = []
+    for i, (name, pts) in enumerate(predicted_positions.items()):
+        xy = np.atleast_2d(np.asarray(pts, dtype=float))
+        if xy.size == 0:
+            continue
+        points.append(xy[:, :2])
+        ax.scatter(xy[:, 0], xy[:, 1], marker=_MARKERS[i % len(_MARKERS)], s=36,
+                   color=cmap(i % 8), edgecolors="k", linewidths=0.5, zorder=5,
+                   label=f"predicted: {name}")
+    return points
+
+
+def _draw_rooms(ax: Any, regions: Any, extent: Sequence[float] | None) -> list[Any]:
+    """The rooms' rectangles, each drawn once and labelled (inside, kept within the map) with the
+    names of the places it is the first rectangle of: "bedroom / emma's-room" where both share it.
+    Returns the labels' text artists."""
+    first_of: dict[tuple[float, ...], list[str]] = {}
+    for name, rects in regions.places.items():
+        for i, rect in enumerate(rects):
+            names_here = first_of.setdefault(tuple(rect), [])
+            if i == 0:
+                names_here.append(name)
+    room_labels = []
+    for (x0, x1, y0, y1), names_here in first_of.items():
+        ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, edgecolor="0.35",
+                               linewidth=1.0, linestyle="-", zorder=1))
+        if names_here:
+            tx = x0 if extent is None else min(max(x0, extent[0]), extent[1])
+            ty = y1 if extent is None else max(min(y1, extent[3]), extent[2])
+            room_labels.append(ax.text(
+                    tx + 0.08, ty - 0.08, " / ".join(names_here), fontsize=8, color="0.15", ha="left",
+                    va="top", zorder=4.5, clip_on=True,
+                    bbox={"boxstyle": "square,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.7}))
+    return room_labels
+
+
+def _pose_callouts(p: np.ndarray, pose_names: Any) -> list[tuple[float, float, str]]:
+    """(x, y, text) of each pose's callout: its top three names with their probabilities."""
+    if isinstance(pose_names, NamePrediction):
+        entries = [list(zip(w, pr, strict=True)) for w, pr in
+                   zip(pose_names.words.tolist(), pose_names.probabilities.tolist(), strict=True)]
+    else:
+        entries = [list(row) for row in pose_names]
+    if len(entries) != p.shape[0]:
+        raise ConfigurationError(f"{len(entries)} name lists for {p.shape[0]} poses")
+    return [(float(x), float(y), "\n".join(f"{w} ({float(pr):.2f})" for w, pr in row[:3]) or "(no name)")
+            for (x, y, _, _), row in zip(p, entries, strict=True)]
+
+
 def plot_home_map(
     params: ConceptParameters,
     e: int,
@@ -178,89 +282,33 @@ def plot_home_map(
     title: axes title (default: the home's name).
     path: save the figure there as PNG.
 
-    Each learnt region with training samples (``region_counts > 0``) is a 95% ellipse of the x–y
-    marginal of Σ, coloured by its most probable concept argmax_l π_{e,l,m} G_{e,l}, with its mean
-    marked ``+``. The axes cover ``map_extent`` and every room outline drawn.
+    Each learnt region that matters — at least :data:`NEGLIGIBLE_REGION` of the home's training
+    samples (``region_counts``) — is a 95% ellipse of the x–y marginal of Σ, coloured by its most
+    probable concept argmax_l π_{e,l,m} G_{e,l}, with its mean marked ``+``; the regions left out
+    are counted in the legend. With ``label_regions`` each place is named once, at its largest
+    region. The axes cover ``map_extent`` and every room outline drawn, in metres, with a scale bar.
     """
     fig, ax = _new_axes(ax, (8.0, 7.0))
-    n_concepts = params.n_concepts
-    if concept_colors is None:
-        concept_colors = _default_colors(n_concepts)
-    elif len(concept_colors) < n_concepts:
-        raise ConfigurationError(f"{len(concept_colors)} colours for {n_concepts} concepts")
-
+    concept_colors = _concept_colors(concept_colors, params.n_concepts)
     extent = tuple(map_extent) if map_extent is not None else (
         environment.extent if environment is not None else None)
     if map_image is not None:
-        image = matplotlib.image.imread(str(map_image)) if isinstance(map_image, str | Path) \
-            else np.asarray(map_image)
-        grey = {"cmap": "gray", "vmin": 0, "vmax": 255 if image.dtype == np.uint8 else 1.0} \
-            if image.ndim == 2 else {}
-        ax.imshow(image, extent=extent, origin="upper", zorder=0, alpha=0.9, **grey)
+        _draw_floor_plan(ax, map_image, extent)
     if show_ground_truth is None:
         show_ground_truth = map_image is None
     gt = environment.ground_truth if environment is not None else None
     room_labels = []
     if show_ground_truth and gt is not None and gt.regions is not None:
-        # each rectangle drawn once; labelled (inside, kept within the map) with the names of the
-        # places it is the first rectangle of: "bedroom / emma's-room" where both share it
-        first_of: dict[tuple[float, ...], list[str]] = {}
-        for name, rects in gt.regions.places.items():
-            for i, rect in enumerate(rects):
-                names_here = first_of.setdefault(tuple(rect), [])
-                if i == 0:
-                    names_here.append(name)
-        for (x0, x1, y0, y1), names_here in first_of.items():
-            ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, edgecolor="0.35",
-                                   linewidth=1.0, linestyle="-", zorder=1))
-            if names_here:
-                tx = x0 if extent is None else min(max(x0, extent[0]), extent[1])
-                ty = y1 if extent is None else max(min(y1, extent[3]), extent[2])
-                room_labels.append(ax.text(
-                        tx + 0.08, ty - 0.08, " / ".join(names_here), fontsize=8, color="0.15", ha="left",
-                        va="top", zorder=4.5, clip_on=True,
-                        bbox={"boxstyle": "square,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.7}))
+        room_labels = _draw_rooms(ax, gt.regions, extent)
     if show_samples and environment is not None:
-        train = ~environment.is_test
-        ax.scatter(environment.positions[train, 0], environment.positions[train, 1], s=4,
-                   color="0.6", alpha=0.6, linewidths=0, zorder=2, label="samples (robot positions)")
+        xy = environment.positions[~environment.is_test, :2]
+        ax.scatter(xy[:, 0], xy[:, 1], s=4, color="0.6", alpha=0.6, linewidths=0, zorder=2,
+                   label="samples (robot positions)")
 
-    # learnt regions
-    counts = np.asarray(params.region_counts[e])
-    used = np.flatnonzero(counts > 0)
-    means = np.asarray(params.region_means[e], dtype=float)
-    covs = np.asarray(params.region_covariances[e], dtype=float)[:, :2, :2]
-    joint = np.asarray(params.region_weights[e], dtype=float) * np.asarray(
-        params.concept_weights[e], dtype=float)[:, None]  # (L, K)
-    owner = np.argmax(joint, axis=0)  # (K,)
-    labels = concept_labels(params, e, vocabulary)
-    if used.size:
-        width, height, angle = _ellipse_geometry(covs[used])
-        shown: set[int] = set()
-        for j, m in enumerate(used):  # one patch per region (K ≤ a few tens)
-            c = int(owner[m])
-            colour = concept_colors[c]
-            ax.add_patch(Ellipse((means[m, 0], means[m, 1]), width[j], height[j], angle=angle[j],
-                                 facecolor=colour, alpha=0.25, edgecolor=colour, linewidth=2.0,
-                                 zorder=3, label=labels[c] if c not in shown else "_nolegend_"))
-            shown.add(c)
-        if label_regions:
-            _label_regions(ax, used, counts, means, owner, labels, concept_colors)
-        ax.scatter(means[used, 0], means[used, 1], marker="+", s=60, color="k", linewidths=1.2,
-                   zorder=4, label="region centres (+)")
-
-    # predicted positions
-    marker_points = [means[used, :2]] if used.size else []
+    centres = _draw_regions(ax, params, e, vocabulary, concept_colors, label_regions)
+    marker_points = [centres] if centres.size else []
     if predicted_positions:
-        cmap = matplotlib.colormaps["Dark2"]
-        for i, (name, pts) in enumerate(predicted_positions.items()):
-            xy = np.atleast_2d(np.asarray(pts, dtype=float))
-            if xy.size == 0:
-                continue
-            marker_points.append(xy[:, :2])
-            ax.scatter(xy[:, 0], xy[:, 1], marker=_MARKERS[i % len(_MARKERS)], s=36,
-                       color=cmap(i % 8), edgecolors="k", linewidths=0.5, zorder=5,
-                       label=f"predicted: {name}")
+        marker_points += _draw_predicted(ax, predicted_positions)
 
     # poses with their top names
     callouts: list[tuple[float, float, str]] = []
@@ -272,15 +320,7 @@ def plot_home_map(
                   width=0.006, color="crimson", zorder=6)
         marker_points.append(p[:, :2])
         if pose_names is not None:
-            if isinstance(pose_names, NamePrediction):
-                entries = [list(zip(w, pr, strict=True)) for w, pr in
-                           zip(pose_names.words.tolist(), pose_names.probabilities.tolist(), strict=True)]
-            else:
-                entries = [list(row) for row in pose_names]
-            if len(entries) != p.shape[0]:
-                raise ConfigurationError(f"{len(entries)} name lists for {p.shape[0]} poses")
-            callouts = [(float(x), float(y), "\n".join(f"{w} ({float(pr):.2f})" for w, pr in row[:3])
-                         or "(no name)") for (x, y, _, _), row in zip(p, entries, strict=True)]
+            callouts = _pose_callouts(p, pose_names)
 
     if extent is not None:
         x0, x1, y0, y1 = extent
@@ -295,6 +335,7 @@ def plot_home_map(
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
+    _scale_bar(ax)
     ax.set_title(title if title is not None else (environment.name if environment is not None
                                                   else f"home {e}"))
     handles, _ = ax.get_legend_handles_labels()
@@ -307,20 +348,33 @@ def plot_home_map(
     return fig
 
 
+#: A region with less than this share of the home's samples is not drawn by :func:`plot_home_map`.
+NEGLIGIBLE_REGION = 0.01
+
+
+def _scale_bar(ax: Axes) -> None:
+    """A scale bar (1, 2, 5 … m: about a fifth of the axes' width) in the axes' lower right corner."""
+    from mpl_toolkits.axes_grid1.anchored_artists import AnchoredSizeBar
+
+    x0, x1 = ax.get_xlim()
+    target = abs(x1 - x0) / 5
+    length = next((s for s in (0.5, 1, 2, 5, 10, 20, 50, 100) if s >= target / 2), 100)
+    ax.add_artist(AnchoredSizeBar(ax.transData, length, f"{length:g} m", "lower right", pad=0.4,
+                                  color="0.15", frameon=True, size_vertical=abs(x1 - x0) / 200,
+                                  fontproperties={"size": 8}))
+
+
 def _label_regions(ax: Axes, used: np.ndarray, counts: np.ndarray, means: np.ndarray, owner: np.ndarray,
                    labels: Sequence[str], colours: Sequence[object]) -> None:
-    """Write each region's names (its concept's words) at its centre — largest regions first, and
-    not again within a sixth of the map's size of the same label (a place spread over several
-    regions is named once where it is, a place elsewhere again)."""
-    span = np.ptp(means[used, :2], axis=0).max() if used.size > 1 else 1.0
-    placed: list[tuple[str, np.ndarray]] = []
+    """Write each place's names (its concept's words) once, at the centre of its largest region."""
+    placed: set[str] = set()
     for m in sorted(used.tolist(), key=lambda k: -counts[k]):
         c = int(owner[m])
         words = labels[c].partition(": ")[2]
         centre = means[m, :2]
-        if not words or any(w == words and np.hypot(*(p - centre)) < span / 6 for w, p in placed):
+        if not words or words in placed:
             continue
-        placed.append((words, centre))
+        placed.add(words)
         ax.text(centre[0], centre[1], words.replace(", ", "\n"), fontsize=8, ha="center", va="bottom",
                 color="0.1", zorder=4.6, clip_on=True,
                 bbox={"boxstyle": "round,pad=0.2", "fc": "white", "ec": colours[c], "alpha": 0.8})

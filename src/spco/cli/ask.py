@@ -36,10 +36,10 @@ def ask(home_file: Path, n: int, as_json: bool, unsure_only: bool) -> None:
     own. One question per room comes first. Record the answer with
     `spco teach HOME --id ID --sentence "…"`.
     """
-    from spco.cli.knowledge import _load_home
+    from spco.cli.common import load_home
     from spco.service.answers import ask_answer
 
-    home = _load_home(home_file)
+    home = load_home(home_file)
     answer = ask_answer(home, n, unsure_only=unsure_only)
     if as_json:
         click.echo(json.dumps(answer, indent=1))

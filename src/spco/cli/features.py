@@ -93,12 +93,12 @@ def features(images: Sequence[Path], out: Path, extractor: str | None, model: Pa
     """
     import scipy.sparse as sp
 
-    from spco.cli.knowledge import _check_out
+    from spco.cli.common import check_out
     from spco.errors import ConfigurationError
     from spco.features import DEFAULT_EXTRACTOR, ExtractorSpec, build_extractor
     from spco.model.io import _file_mode
 
-    _check_out(out, force)
+    check_out(out, force)
     if out.suffix != ".npz":
         raise ConfigurationError(f"--out {out}: the counts are written as a .npz file")
     files = expand_images(images)

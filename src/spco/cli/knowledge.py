@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import math
 import os
 import sys
 import tempfile
@@ -26,6 +25,7 @@ from typing import Any
 
 import click
 
+from spco.cli.common import check_out, load_home, parse_extent
 from spco.cli.errors import friendly_errors
 
 __all__ = ["KNOWLEDGE_COMMANDS", "adapt", "fit", "show", "teach", "what", "where"]
@@ -48,18 +48,6 @@ def _precompile_if_cold() -> None:
     precompile_if_cold(lambda text: click.echo(text, err=True))
 
 
-def _check_out(path: Path, force: bool) -> None:
-    """Refuse early (before any long computation) to write where the user would lose a file."""
-    from spco.errors import ConfigurationError
-
-    if path.is_dir():
-        raise ConfigurationError(f"{path} is a folder; give the name of the file to write (--out)")
-    if not path.expanduser().resolve().parent.is_dir():
-        raise ConfigurationError(f"cannot write {path}: the folder {str(path.parent)!r} does not exist")
-    if path.exists() and not force:
-        raise ConfigurationError(f"{path} already exists; pass --force to replace it")
-
-
 def _names(text: str | None) -> list[str] | None:
     if text is None:
         return None
@@ -69,22 +57,6 @@ def _names(text: str | None) -> list[str] | None:
 
         raise ConfigurationError("--homes lists no home; give comma-separated home names")
     return names
-
-
-def _extent(text: str | None) -> tuple[float, float, float, float] | None:
-    if text is None:
-        return None
-    from spco.errors import ConfigurationError
-
-    try:
-        values = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        values = ()
-    if len(values) != 4 or not all(math.isfinite(v) for v in values) or values[0] >= values[1] \
-            or values[2] >= values[3]:
-        raise ConfigurationError(f"--extent must be x_min,x_max,y_min,y_max in metres (increasing), "
-                                 f"got {text!r}")
-    return values  # type: ignore[return-value]
 
 
 def _image_options(func: Any) -> Any:
@@ -121,30 +93,25 @@ def _pixels(image: Path, encoding: str | None) -> Any:
 
 def _view_counts(home: Any, knowledge_file: Path, visual: Path | None, image: Path | None,
                  visual_scale: float | None, model: Path | None, encoding: str | None = None) -> Any:
-    """The view's counts for what/teach: --visual features, or --image (a file, or a .npy array of
-    pixels in --encoding) through the knowledge's extractor; each refused for knowledge fitted on the
-    other kind of view."""
+    """The view's counts for what/teach (:func:`spco.knowledge.views.view_counts`): --visual features
+    read from their file, or --image (a file, or a .npy array of pixels in --encoding) through the
+    knowledge's extractor (its --model file); --visual is refused for knowledge fitted on images."""
     from spco.errors import ConfigurationError
-    from spco.knowledge import read_visual_vector
+    from spco.knowledge import read_visual_vector, view_counts
 
     knowledge = home.knowledge
-    if visual is not None and image is not None:
-        raise ConfigurationError("give the view either as --visual features or as an --image, not both")
-    if image is not None:
-        if not knowledge.fitted_on_images:
-            raise ConfigurationError(f"{knowledge_file}: its knowledge was fitted on visual count vectors, "
-                                     "not on images: give the view's features with --visual (or fit the "
-                                     "knowledge on homes with images)")
-        return knowledge.image_extractor(model_path=model).extract(_pixels(image, encoding), encoding)
-    if visual is not None:
+    if visual is not None and image is None:
         if knowledge.fitted_on_images:
             from spco.features import ExtractorSpec
 
             raise ConfigurationError(f"{knowledge_file}: its knowledge was fitted on images (extractor "
                                      f"{ExtractorSpec.from_dict(knowledge.extractor).describe()}): give the "
                                      "view as --image, not as --visual features")
-        return read_visual_vector(visual, knowledge.n_features, visual_scale)
-    return None
+        visual = read_visual_vector(visual, knowledge.n_features, visual_scale)
+    elif image is not None and visual is None:
+        image = _pixels(image, encoding)
+    return view_counts(knowledge, visual, image, encoding,
+                       extractor=lambda: knowledge.image_extractor(model_path=model))
 
 
 def _seconds(value: float) -> str:
@@ -152,6 +119,16 @@ def _seconds(value: float) -> str:
 
 
 # ------------------------------------------------------------------------------------ fit
+def _on_the_prior(training: Any, prior: str, settings: tuple[str, ...], checked: Any) -> Any:
+    """``--set`` applied on top of the scaled prior of ``training`` (``checked``: the settings on the
+    paper's constants, checked before the homes were read; kept for ``--prior paper``)."""
+    if not settings or prior != "scaled":
+        return checked
+    from spco.knowledge.fit import default_hyperparameters
+
+    return default_hyperparameters(training).with_settings(settings)
+
+
 @click.command(name="fit")
 @click.option("--data", "data", required=True, type=click.Path(path_type=Path),
               help="The experienced homes: a folder of homes (SIGVerse or plain layout) or an "
@@ -220,7 +197,7 @@ def fit(data: Path, homes: str | None, teaching_rate: int, model: str, iteration
     from spco.engines import make_engine
     from spco.knowledge import fit_knowledge
 
-    _check_out(out, force)
+    check_out(out, force)
     hyperparameters = None
     if settings:
         from spco.errors import ConfigurationError
@@ -267,10 +244,7 @@ def fit(data: Path, homes: str | None, teaching_rate: int, model: str, iteration
         training = Corpus(envs, language=text_language)
         summary = (f"{len(envs)} homes ({sum(e.n_train for e in envs)} training samples, "
                    f"{sum(e.n_taught for e in envs)} taught, {len(training.vocabulary)} words)")
-    if settings and prior == "scaled":  # --set on top of the scaled prior
-        from spco.knowledge.fit import default_hyperparameters
-
-        hyperparameters = default_hyperparameters(training).with_settings(settings)
+    hyperparameters = _on_the_prior(training, prior, settings, hyperparameters)
     click.echo(f"Learning from {summary} with {model}, {iterations} sweeps...", err=True)
     start = time.perf_counter()
     knowledge = fit_knowledge(training, model=model, n_iterations=iterations, random_state=seed,
@@ -330,7 +304,7 @@ def adapt(knowledge_file: Path, home_path: Path, name: str | None, teaching_rate
     from spco.knowledge import adapt as adapt_home
     from spco.knowledge import load_knowledge
 
-    _check_out(out, force)
+    check_out(out, force)
     knowledge = load_knowledge(knowledge_file)
     _precompile_if_cold()
     extractor = None
@@ -387,7 +361,7 @@ def where(home_file: Path, name: str, n: int, seed: int, as_json: bool) -> None:
     """
     from spco.service.answers import where_answer
 
-    home = _load_home(home_file)
+    home = load_home(home_file)
     _warn_if_knowledge_does_not_fit(home)
     answer = where_answer(home, name, n=n, seed=seed)
     positions = answer["positions"]
@@ -475,7 +449,7 @@ def what(home_file: Path, x: float, y: float, theta: float, visual: Path | None,
     from spco.service.answers import what_answer
 
     unsure_below = UNSURE_BELOW if unsure_below is None else unsure_below
-    home = _load_home(home_file)
+    home = load_home(home_file)
     _warn_if_knowledge_does_not_fit(home)
     counts = _view_counts(home, home_file, visual, image, visual_scale, model_file, encoding)
     answer = what_answer(home, x, y, theta, counts, top, unsure_below=unsure_below)
@@ -499,21 +473,6 @@ def what(home_file: Path, x: float, y: float, theta: float, visual: Path | None,
     if answer["unsure"]:
         click.echo(f"unsure: the best name, {names[0]['name']!r}, has p = {names[0]['probability']:.3f} "
                    f"< {unsure_below:g}; ask what this place is called (spco teach)")
-
-
-def _load_home(home_file: Path) -> Any:
-    """The home of ``home_file`` with the teachings of its journal (a home served by ``spco serve``,
-    or one whose server stopped without compacting): what the read-only commands answer with."""
-    from spco.knowledge.locking import served_by
-    from spco.service.teaching import load_current
-
-    home, replayed = load_current(home_file)
-    if replayed:
-        server = served_by(home_file)
-        origin = f"is served by {server}" if server else "has a journal"
-        click.echo(f"note: {home_file} {origin}; answered with its {replayed} teaching(s) not yet compacted "
-                   "into the file (replayed from its journal)", err=True)
-    return home
 
 
 def _warn_if_knowledge_does_not_fit(home: Any) -> None:
@@ -594,12 +553,12 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
         raise ConfigurationError(f"{len(ids)} --id but {len(sentences)} --sentence: give one sentence per id")
     target = out if out is not None else home_file
     if out is not None:
-        _check_out(out, force)
+        check_out(out, force)
     _precompile_if_cold()  # before the lock: a concurrent teach does not wait for the compilation
     # read, update and replace under the file's write lock: a concurrent `teach` waits, then
     # builds on this one's result (no teaching is lost)
     with locked(target):
-        home = _load_home(home_file)  # with the teachings of a journal its server left (spco serve)
+        home = load_home(home_file)  # with the teachings of a journal its server left (spco serve)
         if new_observation:
             counts = _view_counts(home, home_file, visual, image, visual_scale, model_file, encoding)
             obs = Observation(x=x, y=y, theta=theta, visual=counts,  # type: ignore[arg-type]
@@ -633,7 +592,11 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
 # ------------------------------------------------------------------------------------ show
 @click.command(name="show")
 @click.argument("home_file", metavar="HOME", type=click.Path(path_type=Path))
-@click.option("--out", "-o", required=True, type=click.Path(path_type=Path), help="The PNG to write.")
+@click.option("--out", "-o", default=None, type=click.Path(path_type=Path), help="The PNG to write.")
+@click.option("--mcap", "mcap_file", default=None, type=click.Path(path_type=Path),
+              help="Also (or instead) write the home's regions, names and teachings to this MCAP file, as "
+              "foxglove.SceneUpdate entities on /spco/scene and /spco/teachings (frame map), for Foxglove "
+              "(needs spco[foxglove]).")
 @click.option("--map", "map_image", type=click.Path(path_type=Path), default=None,
               help="Floor plan drawn under the concepts: a ROS map (map.yaml: its image, origin and "
                    "resolution give the extent) or an image (PNG, JPEG, PGM; grey drawn in grey).")
@@ -647,14 +610,15 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
 @click.option("--regions-home", default=None, metavar="KEY",
               help="The home of --regions to draw, when its key differs from the home's name.")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(0), help="Random seed.")
-@click.option("--force", is_flag=True, help="Replace --out if it exists.")
+@click.option("--force", is_flag=True, help="Replace --out (and --mcap) if it exists.")
 @_friendly
-def show(home_file: Path, out: Path, map_image: Path | None, extent: str | None, names: Sequence[str],
-         regions_file: Path | None, regions_home: str | None, seed: int, force: bool) -> None:
+def show(home_file: Path, out: Path | None, mcap_file: Path | None, map_image: Path | None,
+         extent: str | None, names: Sequence[str], regions_file: Path | None, regions_home: str | None,
+         seed: int, force: bool) -> None:
     """Draw the home's concepts on its floor plan: regions (95 % ellipses coloured by concept)
     labelled on the map with the names that describe them, the room outlines when the home has
     regions, the home's samples, and positions for the names given. --map takes a ROS map.yaml
-    (its image placed by its origin and resolution)."""
+    (its image placed by its origin and resolution). --mcap writes the regions for Foxglove."""
     import numpy as np
 
     from spco import plots
@@ -662,10 +626,21 @@ def show(home_file: Path, out: Path, map_image: Path | None, extent: str | None,
     from spco.errors import ConfigurationError
     from spco.knowledge import where as where_name
 
-    _check_out(out, force)
+    if out is None and mcap_file is None:
+        raise click.UsageError("give --out PNG, --mcap FILE, or both")
+    if mcap_file is not None:
+        check_out(mcap_file, force)
+        from spco.ros.foxglove import require_foxglove
+
+        require_foxglove()  # a missing foxglove-sdk is one clear error, before any work
+    if out is None:
+        assert mcap_file is not None
+        _write_mcap(load_home(home_file), mcap_file)
+        return
+    check_out(out, force)
     if map_image is not None and not Path(map_image).is_file():
         raise ConfigurationError(f"{map_image}: no such map image (--map)")
-    bounds = _extent(extent)
+    bounds = parse_extent(extent)
     floor_plan: Any = map_image
     if map_image is not None and Path(map_image).suffix.lower() in MAP_YAML_SUFFIXES:
         if bounds is not None:
@@ -675,7 +650,7 @@ def show(home_file: Path, out: Path, map_image: Path | None, extent: str | None,
         floor_plan, bounds = ros_map.image, ros_map.extent
     elif map_image is not None and Path(map_image).suffix.lower() == ".pgm":
         floor_plan = _grey_image(Path(map_image))
-    home = _load_home(home_file)
+    home = load_home(home_file)
     rng = np.random.default_rng(seed)
     predicted = {}
     from spco.knowledge import unused_word_hint
@@ -715,6 +690,19 @@ def show(home_file: Path, out: Path, map_image: Path | None, extent: str | None,
         raise ConfigurationError(f"{map_image}: cannot draw the map image ({exc})") from None
     _save_png(fig, out)
     click.echo(f"Wrote {out}")
+    if mcap_file is not None:
+        _write_mcap(home, mcap_file)
+
+
+def _write_mcap(home: Any, path: Path) -> None:
+    """The home's regions and teachings as Foxglove scene updates in the MCAP file ``path``."""
+    from spco.ros.foxglove import write_mcap
+    from spco.service.answers import regions_answer
+
+    regions = regions_answer(home)
+    write_mcap(regions, home.knowledge.n_concepts, path)
+    click.echo(f"Wrote {path} ({len(regions['regions'])} regions, "
+               f"{sum(1 for s in regions['samples'] if s.get('sentence'))} teachings)")
 
 
 def _grey_image(path: Path) -> Any:

@@ -37,7 +37,7 @@ def _register_commands() -> None:
     from spco.cli.experiment import experiment
     from spco.cli.features import features
     from spco.cli.knowledge import KNOWLEDGE_COMMANDS
-    from spco.cli.ros import ros
+    from spco.cli.ros import ros, ros2
     from spco.cli.serve import serve
 
     for command in DATA_COMMANDS:  # inspect, import, synth
@@ -49,6 +49,7 @@ def _register_commands() -> None:
     main.add_command(bench)
     main.add_command(import_bag)
     main.add_command(ros)
+    main.add_command(ros2)
     for command in KNOWLEDGE_COMMANDS:  # fit, adapt, where, what, teach, show
         main.add_command(command)
     main.add_command(ask)

@@ -12,8 +12,9 @@ from pathlib import Path
 import click
 
 from spco.cli.errors import friendly_errors
+from spco.cli.limits import limits_from_options, teaching_limit_options
 
-__all__ = ["ros"]
+__all__ = ["ros", "ros2"]
 
 
 @click.command(name="ros", context_settings={"ignore_unknown_options": True})
@@ -57,12 +58,13 @@ __all__ = ["ros"]
               help="Where teachings are applied (spco.service.LiveHome): a writer process of their own (the "
                    "answers never wait for them), or a thread of the node.")
 @click.option("--seed", default=0, show_default=True, type=int, help="Base seed of the teachings.")
+@teaching_limit_options
 @friendly_errors
 def ros(home: Path, ros_arguments: tuple[str, ...], pose_topic: str, map_frame: str, robot_frame: str,
         image_topic: str | None,
         speech_topic: str | None, tolerance: float, image_wait: float | None, clock: str, max_age: float,
         goal: bool, rosbridge: str | None, pose_type: str | None, image_type: str | None, node_name: str,
-        sweeps: int, writer: str, seed: int) -> None:
+        sweeps: int, writer: str, seed: int, undo_limit: int, **limit_options: int) -> None:
     """Run HOME (a home file, from spco adapt) as a node on the robot's ROS network: learn from what
     it hears, answer where/what queries, draw its places in RViz.
 
@@ -83,8 +85,7 @@ def ros(home: Path, ros_arguments: tuple[str, ...], pose_topic: str, map_frame: 
                                    "written FROM:=TO (e.g. /spco/query:=/robot/query, __name:=spco2)")
         if rosbridge is not None:
             raise click.UsageError(f"{argument!r}: ROS remappings are for a ROS 1 node, not --rosbridge")
-    from spco.ros.core import NodeSettings
-    from spco.ros.node import Topics
+    from spco.ros.core import NodeSettings, Topics
     from spco.service.live import LiveHome
 
     settings = NodeSettings(tolerance=tolerance, image_wait=image_wait, clock=clock, max_age=max_age,
@@ -105,7 +106,8 @@ def ros(home: Path, ros_arguments: tuple[str, ...], pose_topic: str, map_frame: 
         raise ConfigurationError(f"--rosbridge takes a WebSocket URL such as ws://robot:9090, got "
                                  f"{rosbridge!r}")
     where = rosbridge or os.environ.get("ROS_MASTER_URI", "http://localhost:11311 (ROS_MASTER_URI unset)")
-    with LiveHome(home, seed=seed, sweeps=sweeps, writer=writer,
+    limits = limits_from_options(limit_options)
+    with LiveHome(home, seed=seed, sweeps=sweeps, writer=writer, undo_limit=undo_limit, limits=limits,
                   holder=f"spco ros (process {os.getpid()})") as live:
         model = live.home
         uses_images = bool(model.knowledge.fitted_on_images)
@@ -123,4 +125,63 @@ def ros(home: Path, ros_arguments: tuple[str, ...], pose_topic: str, map_frame: 
             from spco.ros.node import run_node
 
             run_node(live, topics, settings, node_name=node_name, uses_images=uses_images,
-                     n_concepts=model.knowledge.n_concepts, ros_arguments=ros_arguments)
+                     n_concepts=model.knowledge.n_concepts, ros_arguments=ros_arguments,
+                     echo=lambda line: click.echo(line, err=True))
+
+
+@click.command(name="ros2", context_settings={"ignore_unknown_options": True, "allow_extra_args": True})
+@click.argument("home", type=click.Path(path_type=Path))
+@click.argument("ros_arguments", nargs=-1, type=click.UNPROCESSED, metavar="[--ros-args ...]")
+@click.option("--sweeps", default=10, show_default=True, type=click.IntRange(1, 1000),
+              help="Gibbs sweeps per teaching (as spco teach).")
+@click.option("--writer", type=click.Choice(["process", "thread"]), default="process", show_default=True,
+              help="Where teachings are applied (spco.service.LiveHome): a writer process of their own (the "
+                   "answers never wait for them), or a thread of the node.")
+@click.option("--seed", default=0, show_default=True, type=int, help="Base seed of the teachings.")
+@click.option("--ros-python", default=None, metavar="PYTHON",
+              help="Run the ROS 2 side with this Python (the robot's: /usr/bin/python3 after sourcing "
+              "/opt/ros/humble/setup.bash) in a child process, relaying to spco here; default: rclpy in "
+              "this process (Jazzy: Python 3.12).")
+@friendly_errors
+def ros2(home: Path, ros_arguments: tuple[str, ...], sweeps: int, writer: str, seed: int,
+         ros_python: str | None) -> None:
+    """Run HOME (a home file, from spco adapt) as a ROS 2 node (rclpy): learn from what the robot
+    hears, answer where/what queries, draw its places in RViz2 and Foxglove, send Nav2 goals.
+
+    Everything about ROS is set the ROS 2 way, after --ros-args: parameters (-p
+    pose_topic:=/amcl_pose -p speech_topic:=/speech -p image_topic:=/camera/image_raw -p
+    tolerance:=1.0, or --params-file spco.yaml; readable and settable with ros2 param) and
+    remappings (-r __node:=spco_kitchen -r __ns:=/robot1 -r /spco/query:=/hsr/query). Queries are
+    JSON on ~/query ({"id": 7, "op": "where", "name": "kitchen"}); answers on ~/answer echo the
+    id; ~/markers (MarkerArray) and ~/where (PoseArray) are transient local; goal_pose gets a
+    PoseStamped when a where query asks ("goal": true) or with -p goal:=true.
+
+    rclpy comes from the robot's ROS 2 installation: source it first. Jazzy (Python 3.12): spco in
+    a Python 3.12 environment imports it. Humble (Python 3.10, older than spco needs): --ros-python
+    /usr/bin/python3 runs the ROS 2 side with the robot's Python, relaying to spco.
+    """
+    if ros_arguments and ros_arguments[0] != "--ros-args":
+        raise click.UsageError(f"unexpected argument {ros_arguments[0]!r}: after HOME come only ROS 2 "
+                               "arguments, starting with --ros-args "
+                               "(e.g. --ros-args -p pose_topic:=/amcl_pose)")
+    from spco.ros import import_rclpy
+    from spco.service.live import LiveHome
+
+    handler = logging.StreamHandler()
+    handler.setFormatter(logging.Formatter("%(message)s"))
+    log = logging.getLogger("spco.ros")
+    log.addHandler(handler)
+    log.setLevel(logging.INFO)
+    if ros_python is None:
+        import_rclpy()  # before opening the home: a missing rclpy is one clear error
+    from spco.ros.ros2 import run_ros2
+
+    with LiveHome(home, seed=seed, sweeps=sweeps, writer=writer,
+                  holder=f"spco ros2 (process {os.getpid()})") as live:
+        model = live.home
+        uses_images = bool(model.knowledge.fitted_on_images)
+        domain = os.environ.get("ROS_DOMAIN_ID", "0")
+        click.echo(f"spco ros2: home {model.name} ({model.n_samples} samples, names: "
+                   f"{', '.join(model.known_names) or 'none yet'}) on ROS_DOMAIN_ID {domain}", err=True)
+        run_ros2(live, ros_arguments=ros_arguments, uses_images=uses_images, ros_python=ros_python,
+                 n_concepts=model.knowledge.n_concepts, echo=lambda line: click.echo(line, err=True))

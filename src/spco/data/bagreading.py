@@ -5,15 +5,16 @@ matched nearest in time, the tf tree composed along its edges, and the robot's t
 from __future__ import annotations
 
 import struct
-from collections import Counter
+from collections import Counter, defaultdict
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import ExitStack
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from spco.data import tf
 from spco.errors import DataFormatError
 
 POSE_TYPES = {  # message type -> how to reach its geometry_msgs/Pose
@@ -122,10 +123,6 @@ def _stamp(header: Any) -> int:
     return int(header.stamp.sec) * _NS + int(header.stamp.nanosec)
 
 
-def _frame(name: str) -> str:
-    return name.strip().lstrip("/")
-
-
 class _Series:
     """Times (ns) and values of one stream, in order; a time going backwards is dropped and counted."""
 
@@ -157,43 +154,6 @@ def _nearest(times: np.ndarray, queries: np.ndarray, tolerance_ns: int) -> np.nd
 
 
 # ------------------------------------------------------------------------------------ geometry
-def _yaw(q: np.ndarray) -> np.ndarray:
-    """Heading (rad) of quaternions (..., 4) as x, y, z, w."""
-    x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    return np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
-
-
-def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    ax, ay, az, aw = np.moveaxis(a, -1, 0)
-    bx, by, bz, bw = np.moveaxis(b, -1, 0)
-    return np.stack(
-        [
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-            aw * bw - ax * bx - ay * by - az * bz,
-        ],
-        axis=-1,
-    )
-
-
-def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Rotate vectors v (..., 3) by unit quaternions q (..., 4)."""
-    u, w = q[..., :3], q[..., 3:]
-    t = 2 * np.cross(u, v)
-    return v + w * t + np.cross(u, t)
-
-
-def _compose(ta: np.ndarray, qa: np.ndarray, tb: np.ndarray, qb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """T_a ∘ T_b (translation, quaternion)."""
-    return ta + _rotate(qa, tb), _quat_mul(qa, qb)
-
-
-def _invert(t: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    qi = q * np.array([-1.0, -1.0, -1.0, 1.0])
-    return -_rotate(qi, t), qi
-
-
 class _TfTree:
     """Transforms parent -> child from /tf (time series) and /tf_static, and chains between frames."""
 
@@ -203,7 +163,7 @@ class _TfTree:
         self._dropped = dropped
 
     def add(self, transform: Any, t: int | None, static: bool) -> None:
-        parent, child = _frame(transform.header.frame_id), _frame(transform.child_frame_id)
+        parent, child = tf.frame_name(transform.header.frame_id), tf.frame_name(transform.child_frame_id)
         tr, rot = transform.transform.translation, transform.transform.rotation
         value = np.array([tr.x, tr.y, tr.z, rot.x, rot.y, rot.z, rot.w], dtype=np.float64)
         if not np.isfinite(value).all():
@@ -217,27 +177,11 @@ class _TfTree:
                 self.dynamic[key] = _Series(f"/tf {parent}→{child}", self._dropped)
             self.dynamic[key].add(int(t or 0), value)
 
-    def chain(self, source: str, target: str) -> list[tuple[tuple[str, str], bool]]:
-        """Edges (parent, child) and whether each is walked forwards, from ``source`` to ``target``."""
-        parent_of: dict[str, str] = {}
-        for parent, child in [*self.dynamic, *self.static]:
-            parent_of[child] = parent
-
-        def up(frame: str) -> list[str]:
-            path = [frame]
-            while path[-1] in parent_of and parent_of[path[-1]] not in path:
-                path.append(parent_of[path[-1]])
-            return path
-
-        from_source, from_target = up(source), up(target)
-        common = next((f for f in from_target if f in from_source), None)
-        if common is None:
-            return []
-        down = from_target[: from_target.index(common) + 1][::-1]  # common ... target
-        rise = from_source[: from_source.index(common) + 1]  # source ... common
-        steps = [((parent_of[child], child), False) for child in rise[:-1]]
-        steps += [((down[i], down[i + 1]), True) for i in range(len(down) - 1)]
-        return steps
+    def chain(self, source: str, target: str) -> list[tf.Step]:
+        """Edges (parent, child) and whether each is walked forwards, from ``source`` to ``target``
+        (:func:`spco.data.tf.path_between`); ``[]`` when the tree does not connect them."""
+        parent_of = {child: parent for parent, child in [*self.dynamic, *self.static]}
+        return tf.path_between(parent_of, source, target) or []
 
     def frames(self) -> list[str]:
         return sorted({f for edge in [*self.dynamic, *self.static] for f in edge})
@@ -268,7 +212,7 @@ def _pose_trajectory(series: _Series, tolerance_ns: int) -> _Trajectory:
 def _tf_trajectory(tree: _TfTree, map_frame: str, robot_frame: str, tolerance_ns: int,
                    where: str) -> _Trajectory:
     """The robot's trajectory: the transform from ``map_frame`` to ``robot_frame`` along the tf tree."""
-    source, target = _frame(map_frame), _frame(robot_frame)
+    source, target = tf.frame_name(map_frame), tf.frame_name(robot_frame)
     steps = tree.chain(source, target)
     if not steps:
         raise DataFormatError(
@@ -284,22 +228,18 @@ def _tf_trajectory(tree: _TfTree, map_frame: str, robot_frame: str, tolerance_ns
     times = edge_times[max(dynamic, key=lambda e: edge_times[e].size)]
 
     def lookup(queries: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        n = queries.size
-        valid = np.ones(n, dtype=bool)
-        t = np.zeros((n, 3))
-        q = np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))
-        for edge, forwards in steps:
+        valid = np.ones(queries.size, dtype=bool)
+
+        def value_of(edge: tf.Edge) -> np.ndarray:  # each edge's transform nearest each query
+            nonlocal valid
             if edge in tree.static:
-                value = np.broadcast_to(tree.static[edge], (n, 7))
-            else:
-                idx = _nearest(edge_times[edge], queries, tolerance_ns)
-                valid &= idx >= 0
-                value = edge_values[edge][np.maximum(idx, 0)]
-            et, eq = value[:, :3], value[:, 3:] / np.linalg.norm(value[:, 3:], axis=1, keepdims=True)
-            if not forwards:
-                et, eq = _invert(et, eq)
-            t, q = _compose(t, q, et, eq)
-        return valid, t[:, :2], _yaw(q)
+                return tree.static[edge]
+            idx = _nearest(edge_times[edge], queries, tolerance_ns)
+            valid &= idx >= 0
+            return edge_values[edge][np.maximum(idx, 0)]
+
+        t, q = tf.compose_path(steps, value_of, queries.size)
+        return valid, t[:, :2], tf.yaw(q)
 
     valid, xy, yaw = lookup(times)
     return _Trajectory(times[valid], xy[valid], yaw[valid], lookup)
@@ -323,3 +263,28 @@ def _periodic_indices(traj: _Trajectory, every_seconds: float, every_metres: flo
         if nxt >= n:
             return np.asarray(chosen, dtype=np.int64)
         chosen.append(max(nxt, i + 1))
+
+
+# ------------------------------------------------------------------------------------ what was read
+@dataclass
+class _Streams:
+    """Everything read in the first pass."""
+
+    pose: _Series
+    tf: _TfTree
+    speech: _Series
+    images: _Series  # values: (bag index, ordinal among the topic's messages in that bag)
+    visual: _Series
+    header_offsets: dict[str, list[int]] = field(default_factory=lambda: defaultdict(list))
+    tours: int = 1  # recordings whose clocks overlap (:func:`spco.data.rosbag._tours`)
+
+
+@dataclass
+class _Sample:
+    time: int
+    x: float
+    y: float
+    theta: float
+    sentence: str | None
+    image: int  # index into streams.images, -1 if none
+    visual: int  # index into streams.visual, -1 if none

@@ -273,16 +273,43 @@ def read_cache_records(path: str | os.PathLike[str]) -> list[HomeRecord]:
     return records
 
 
+def _row_mask(src: Path, name: str, rows: Any, n: int, what: str) -> np.ndarray | None:
+    """A (n,) mask of the rows listed in a cached home's ``what`` (``None`` when not recorded)."""
+    if rows is None:
+        return None
+    rows = np.asarray(rows, dtype=np.int64)
+    _check(src, rows.ndim == 1 and ((rows >= 0) & (rows < n)).all(), f"home {name!r}: bad {what}")
+    mask = np.zeros(n, dtype=bool)
+    mask[rows] = True
+    return mask
+
+
+def _cached_sentences(src: Path, name: str, teaching: dict[str, Any], n: int, strings: Any
+                      ) -> tuple[dict[int, tuple[str | None, ...]] | None, tuple[str | None, ...]]:
+    """A cached home's sentences: (per teaching rate, or ``None``; the sentences it starts with)."""
+    if teaching["mode"] == "rates":
+        _check(src, isinstance(teaching["rates"], dict), f"home {name!r}: bad sentences")
+        rates: dict[int, tuple[str | None, ...]] = {}
+        for r, s in teaching["rates"].items():
+            chosen = strings(s, "sentences")
+            _check(src, chosen is not None and 0 <= int(r) <= 100, f"home {name!r}: bad sentences")
+            rates[int(r)] = chosen
+        return rates, rates[max(rates)] if rates else (None,) * n
+    if teaching["mode"] == "subsample":
+        base = strings(teaching["sentences"], "sentences")
+        _check(src, base is not None, f"home {name!r}: bad sentences")
+        return None, base
+    raise _damaged(src, f"home {name!r}: unknown sentence mode {teaching['mode']!r}")
+
+
 def _record(src: Path, meta: dict[str, Any], a: dict[str, np.ndarray], indptr: np.ndarray,
             indices: np.ndarray, data: np.ndarray, lo: int, hi: int) -> HomeRecord:
     name = meta["name"]
     n, dim = int(meta["n_samples"]), int(meta["n_features"])
     _check(src, isinstance(name, str) and n == hi - lo and dim >= 0, f"home {name!r}: wrong sample count")
-    view_missing = np.zeros(n, dtype=bool)
-    if meta.get("view_missing") is not None:
-        rows = np.asarray(meta["view_missing"], dtype=np.int64)
-        _check(src, rows.ndim == 1 and ((rows >= 0) & (rows < n)).all(), f"home {name!r}: bad view_missing")
-        view_missing[rows] = True
+    view_missing = _row_mask(src, name, meta.get("view_missing"), n, "view_missing")
+    if view_missing is None:
+        view_missing = np.zeros(n, dtype=bool)
     p0, p1 = int(indptr[lo]), int(indptr[hi])
     cols = indices[p0:p1]
     _check(src, cols.size == 0 or int(cols.max()) < dim, f"home {name!r}: visual column out of range")
@@ -295,30 +322,10 @@ def _record(src: Path, meta: dict[str, Any], a: dict[str, np.ndarray], indptr: n
                and all(v is None or isinstance(v, str) for v in values), f"home {name!r}: bad {what}")
         return tuple(values)
 
-    teaching = meta["sentences"]
-    rates: dict[int, tuple[str | None, ...]] | None
-    if teaching["mode"] == "rates":
-        _check(src, isinstance(teaching["rates"], dict), f"home {name!r}: bad sentences")
-        rates = {}
-        for r, s in teaching["rates"].items():
-            chosen = strings(s, "sentences")
-            _check(src, chosen is not None and 0 <= int(r) <= 100, f"home {name!r}: bad sentences")
-            rates[int(r)] = chosen
-        base = rates[max(rates)] if rates else (None,) * n
-    elif teaching["mode"] == "subsample":
-        rates = None
-        base = strings(teaching["sentences"], "sentences")
-        _check(src, base is not None, f"home {name!r}: bad sentences")
-    else:
-        raise _damaged(src, f"home {name!r}: unknown sentence mode {teaching['mode']!r}")
+    rates, base = _cached_sentences(src, name, meta["sentences"], n, strings)
     labels = strings(meta.get("labels"), "labels")
     specific = strings(meta.get("specific_labels"), "specific labels")
-    specific_test = None
-    if meta.get("specific_test") is not None:
-        rows = np.asarray(meta["specific_test"], dtype=np.int64)
-        _check(src, rows.ndim == 1 and ((rows >= 0) & (rows < n)).all(), f"home {name!r}: bad specific_test")
-        specific_test = np.zeros(n, dtype=bool)
-        specific_test[rows] = True
+    specific_test = _row_mask(src, name, meta.get("specific_test"), n, "specific_test")
     regions = None
     if meta.get("regions") is not None:
         try:

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -116,6 +117,84 @@ class TrainingData:
         return sum(s is not None for s in self.sentences)
 
 
+def _checked_positions(where: str, raw: Any, ids: np.ndarray) -> np.ndarray:
+    """A home's (N, 4) positions as float64, checked: finite, headings on the unit circle."""
+    n = ids.size
+    positions = np.asarray(raw, dtype=np.float64)
+    if positions.shape != (n, 4):
+        raise DataFormatError(where, f"positions must have shape ({n}, 4) "
+                              f"(x, y, sin θ, cos θ), got {positions.shape}")
+    bad = ~np.isfinite(positions).all(axis=1)
+    if bad.any():
+        raise DataFormatError(where, f"non-finite (NaN or inf) position for sample ids "
+                              f"{ids[bad][:10].tolist()}")
+    far = (np.abs(positions[:, :2]) > MAX_COORDINATE).any(axis=1)
+    if far.any():
+        raise DataFormatError(where, f"position beyond ±{MAX_COORDINATE:g} map units for sample ids "
+                              f"{ids[far][:10].tolist()} (e.g. {positions[far][0, :2].tolist()}): squared "
+                              "distances would overflow float64; give positions in metres")
+    span = float(np.ptp(positions[:, :2], axis=0).max()) if n else 0.0
+    if span > MAX_SPAN:
+        axis = int(np.argmax(np.ptp(positions[:, :2], axis=0)))
+        lo, hi = int(np.argmin(positions[:, axis])), int(np.argmax(positions[:, axis]))
+        raise DataFormatError(where, f"the positions span {span:.3g} map units in {'xy'[axis]} (sample ids "
+                              f"{int(ids[lo])} to {int(ids[hi])}), more than {MAX_SPAN:g}: a home's regions "
+                              "can not be learnt at that scale in float64; give positions in metres")
+    norm = positions[:, 2] ** 2 + positions[:, 3] ** 2
+    off = np.abs(norm - 1.0) > HEADING_TOLERANCE
+    if off.any():
+        raise DataFormatError(where, f"sin²θ + cos²θ is far from 1 for sample ids "
+                              f"{ids[off][:10].tolist()} (values {np.round(norm[off][:3], 3).tolist()})")
+    return positions
+
+
+def _checked_visual(where: str, raw: Any, view_missing: Any, n: int) -> tuple[sp.csr_array, np.ndarray]:
+    """A home's (N, D) visual counts as an int64 CSR array (32-bit indices when they fit) and its
+    missing-view mask, checked: whole non-negative numbers, no counts where a view is missing."""
+    visual = raw
+    if not sp.issparse(visual):
+        visual = np.asarray(visual)
+        if visual.ndim != 2:
+            raise DataFormatError(where, "visual counts must be a 2-D array (samples × features)")
+        if not np.issubdtype(visual.dtype, np.number):
+            raise DataFormatError(where, "visual counts must be numeric")
+    visual = sp.csr_array(visual)
+    if visual.shape[0] != n:
+        raise DataFormatError(where, f"visual counts have {visual.shape[0]} rows for {n} samples")
+    missing = np.zeros(n, dtype=bool) if view_missing is None \
+        else np.asarray(view_missing, dtype=bool)
+    if missing.shape != (n,):
+        raise DataFormatError(where, f"the missing-view mask must have shape ({n},), got {missing.shape}")
+    if visual.shape[1] == 0 and not missing.all():
+        raise DataFormatError(where, "visual feature vectors are empty (a home without views has every "
+                              "view marked missing)")
+    data = visual.data
+    if data.size and not np.isfinite(data).all():
+        raise DataFormatError(where, "visual counts contain NaN or inf")
+    if data.size and (data < 0).any():
+        raise DataFormatError(where, "visual counts must be non-negative")
+    if data.size and (data > MAX_COUNT).any():
+        raise DataFormatError(where, f"visual counts above {MAX_COUNT:g} (largest {float(data.max()):.3g}): "
+                              "sums of counts would overflow int64; scale the counts down (a view's "
+                              "evidence depends on its proportions only)")
+    if data.size and not np.issubdtype(data.dtype, np.integer):
+        if (data != np.round(data)).any():
+            raise DataFormatError(where, "visual counts must be whole numbers (scale real-valued "
+                                  "CNN features with spco.data.features_to_counts)")
+    visual = sp.csr_array(visual, dtype=np.int64)
+    if missing.any():  # a sample without a view has no counts: whatever the row held is left out
+        keep = sp.diags_array((~missing).astype(np.int64), dtype=np.int64)
+        visual = sp.csr_array(keep @ visual, dtype=np.int64)
+    visual.eliminate_zeros()
+    visual.sort_indices()
+    # 32-bit index arrays (as SciPy itself chooses): the counts then take 12 bytes per non-zero,
+    # not 16 (a loader may hand over int64 ones); the kernels get their own layout at fit time
+    if max(visual.nnz, visual.shape[1]) < 2**31:
+        visual.indices = visual.indices.astype(np.int32, copy=False)
+        visual.indptr = visual.indptr.astype(np.int32, copy=False)
+    return visual, missing
+
+
 @dataclass(frozen=True, eq=False)
 class Environment:
     """One home: observations of N samples, their taught sentences and a train/test split.
@@ -161,73 +240,8 @@ class Environment:
         uniq, counts = np.unique(ids, return_counts=True)
         if (counts > 1).any():
             raise DataFormatError(where, f"duplicate sample ids: {uniq[counts > 1][:10].tolist()}")
-        positions = np.asarray(self.positions, dtype=np.float64)
-        if positions.shape != (n, 4):
-            raise DataFormatError(where, f"positions must have shape ({n}, 4) "
-                                  f"(x, y, sin θ, cos θ), got {positions.shape}")
-        bad = ~np.isfinite(positions).all(axis=1)
-        if bad.any():
-            raise DataFormatError(where, f"non-finite (NaN or inf) position for sample ids "
-                                  f"{ids[bad][:10].tolist()}")
-        far = (np.abs(positions[:, :2]) > MAX_COORDINATE).any(axis=1)
-        if far.any():
-            raise DataFormatError(where, f"position beyond ±{MAX_COORDINATE:g} map units for sample "
-                                  f"ids {ids[far][:10].tolist()} (e.g. {positions[far][0, :2].tolist()}): "
-                                  "squared distances would overflow float64; give positions in metres")
-        span = float(np.ptp(positions[:, :2], axis=0).max()) if n else 0.0
-        if span > MAX_SPAN:
-            axis = int(np.argmax(np.ptp(positions[:, :2], axis=0)))
-            lo, hi = int(np.argmin(positions[:, axis])), int(np.argmax(positions[:, axis]))
-            raise DataFormatError(where, f"the positions span {span:.3g} map units in {'xy'[axis]} "
-                                  f"(sample ids {int(ids[lo])} to {int(ids[hi])}), more than {MAX_SPAN:g}: "
-                                  "a home's regions can not be learnt at that scale in float64; give "
-                                  "positions in metres")
-        norm = positions[:, 2] ** 2 + positions[:, 3] ** 2
-        off = np.abs(norm - 1.0) > HEADING_TOLERANCE
-        if off.any():
-            raise DataFormatError(where, f"sin²θ + cos²θ is far from 1 for sample ids "
-                                  f"{ids[off][:10].tolist()} (values {np.round(norm[off][:3], 3).tolist()})")
-        visual = self.visual
-        if not sp.issparse(visual):
-            visual = np.asarray(visual)
-            if visual.ndim != 2:
-                raise DataFormatError(where, "visual counts must be a 2-D array (samples × features)")
-            if not np.issubdtype(visual.dtype, np.number):
-                raise DataFormatError(where, "visual counts must be numeric")
-        visual = sp.csr_array(visual)
-        if visual.shape[0] != n:
-            raise DataFormatError(where, f"visual counts have {visual.shape[0]} rows for {n} samples")
-        missing = np.zeros(n, dtype=bool) if self.view_missing is None \
-            else np.asarray(self.view_missing, dtype=bool)
-        if missing.shape != (n,):
-            raise DataFormatError(where, f"the missing-view mask must have shape ({n},), got {missing.shape}")
-        if visual.shape[1] == 0 and not missing.all():
-            raise DataFormatError(where, "visual feature vectors are empty (a home without views has every "
-                                  "view marked missing)")
-        data = visual.data
-        if data.size and not np.isfinite(data).all():
-            raise DataFormatError(where, "visual counts contain NaN or inf")
-        if data.size and (data < 0).any():
-            raise DataFormatError(where, "visual counts must be non-negative")
-        if data.size and (data > MAX_COUNT).any():
-            raise DataFormatError(where, f"visual counts above {MAX_COUNT:g} (largest "
-                                  f"{float(data.max()):.3g}): sums of counts would overflow int64; scale the "
-                                  "counts down (a view's evidence depends on its proportions only)")
-        if data.size and not np.issubdtype(data.dtype, np.integer):
-            if (data != np.round(data)).any():
-                raise DataFormatError(where, "visual counts must be whole numbers (scale real-valued "
-                                      "CNN features with spco.data.features_to_counts)")
-        visual = sp.csr_array(visual, dtype=np.int64)
-        if missing.any():  # a sample without a view has no counts: whatever the row held is left out
-            keep = sp.diags_array((~missing).astype(np.int64), dtype=np.int64)
-            visual = sp.csr_array(keep @ visual, dtype=np.int64)
-        visual.eliminate_zeros()
-        visual.sort_indices()
-        # 32-bit index arrays (as SciPy itself chooses): the counts then take 12 bytes per non-zero,
-        # not 16 (a loader may hand over int64 ones); the kernels get their own layout at fit time
-        if max(visual.nnz, visual.shape[1]) < 2**31:
-            visual.indices = visual.indices.astype(np.int32, copy=False)
-            visual.indptr = visual.indptr.astype(np.int32, copy=False)
+        positions = _checked_positions(where, self.positions, ids)
+        visual, missing = _checked_visual(where, self.visual, self.view_missing, n)
         sentences = tuple(None if (s is None or not str(s).strip()) else str(s) for s in self.sentences)
         if len(sentences) != n:
             raise DataFormatError(where, f"{len(sentences)} sentences for {n} samples")

@@ -46,14 +46,13 @@ topic, an unsupported image encoding) raises :class:`~spco.errors.DataFormatErro
 
 from __future__ import annotations
 
-import csv
 import json
 import math
 import os
 import shutil
 import time
 import uuid
-from collections import Counter, defaultdict
+from collections import Counter
 from collections.abc import Sequence
 from contextlib import ExitStack
 from dataclasses import asdict, dataclass, field
@@ -62,32 +61,38 @@ from typing import Any
 
 import numpy as np
 
+from spco.data import tf
 from spco.data.bagreading import (
     _HEADER_OFFSET_WARNING_S,
     _NS,
     IMAGE_TYPES,
     POSE_TYPES,
-    RAW_ENCODINGS,
     SPEECH_TYPES,
     TF_TYPES,
     TOUR_GAP_SECONDS,
     VISUAL_TYPES,
     _Bag,
-    _frame,
     _nearest,
     _periodic_indices,
     _pose_trajectory,
     _raw_stamp,
+    _Sample,
     _Series,
     _stamp,
+    _Streams,
     _tf_trajectory,
     _TfTree,
     _Trajectory,
     _version,
-    _yaw,
+)
+from spco.data.bagwriting import (
+    _check_out,
+    _drop_failed_images,
+    _move_into_place,
+    _write_home_files,
+    _write_images,
 )
 from spco.errors import ConfigurationError, DataFormatError
-from spco.features.pixels import pixels_from_buffer, to_bgr
 
 __all__ = ["SAMPLING_RULES", "BagImportSettings", "BagImportSummary", "import_bags"]
 
@@ -242,19 +247,6 @@ def _tolerance_hint(interval: float | None, skipped: dict[str, int]) -> str | No
 
 
 # ------------------------------------------------------------------------------------ the import
-@dataclass
-class _Streams:
-    """Everything read in the first pass."""
-
-    pose: _Series
-    tf: _TfTree
-    speech: _Series
-    images: _Series  # values: (bag index, ordinal among the topic's messages in that bag)
-    visual: _Series
-    header_offsets: dict[str, list[int]] = field(default_factory=lambda: defaultdict(list))
-    tours: int = 1  # recordings whose clocks overlap (:func:`_tours`)
-
-
 def _choose(
     bags: list[_Bag], given: str | None, types: Sequence[str], role: str, option: str, required: bool
 ) -> str | None:
@@ -321,6 +313,38 @@ def _tours(bags: Sequence[_Bag], topics: Sequence[str]) -> list[int]:
     return tours
 
 
+def _reading_bar() -> Any:
+    """The progress bar of the first pass over the bags (messages read)."""
+    from spco.progress import progress_bar
+
+    return progress_bar(desc="reading", unit=" msg", leave=False)
+
+
+def _add_utterance(speech: _Series, dropped: Counter[str], topic: str, text: str, time_ns: int) -> None:
+    """An utterance at ``time_ns``, stripped; an empty one is dropped and counted."""
+    text = text.strip()
+    if text:
+        speech.add(time_ns, text)
+    else:
+        dropped[f"{topic}: empty utterance"] += 1
+
+
+def _pose_value(bag: _Bag, connection: Any, msg: Any, frame: str) -> tuple[float, float, float] | None:
+    """(x, y, yaw) of a pose message in the map ``frame`` (``None`` if not finite); a pose in another
+    frame is refused."""
+    source = tf.frame_name(msg.header.frame_id)
+    if source and source != frame:
+        raise DataFormatError(
+            bag.path,
+            f"{connection.topic}: poses are in frame {source!r}, not the map frame "
+            f"{frame!r}; pass --map-frame {source} if that is the map",
+        )
+    pose = POSE_TYPES[connection.msgtype](msg)
+    p, q = pose.position, pose.orientation
+    value = (float(p.x), float(p.y), float(tf.yaw(np.array([q.x, q.y, q.z, q.w]))))
+    return value if all(math.isfinite(v) for v in value) else None
+
+
 def _read_streams(
     bags: list[_Bag],
     topics: dict[str, str],
@@ -338,16 +362,11 @@ def _read_streams(
     )
     pose_topic = topics["pose"]
     tf_mode = any(b.topics.get(pose_topic) in TF_TYPES for b in bags)
-    wanted = [t for t in topics.values()]
-    if tf_mode and any("/tf_static" in b.topics for b in bags):
-        wanted.append("/tf_static")
+    wanted = [*topics.values(), *(["/tf_static"] if tf_mode and any("/tf_static" in b.topics for b in bags)
+                                  else [])]
     use_header = settings.clock == "header"
-    frame = _frame(settings.map_frame)
-    bar = None
-    if progress:
-        from spco.progress import progress_bar
-
-        bar = progress_bar(desc="reading", unit=" msg", leave=False)
+    frame = tf.frame_name(settings.map_frame)
+    bar = _reading_bar() if progress else None
     count = 0
     tour_of = _tours(bags, wanted)
     shift, latest = 0, None  # the current tour's shift onto the import's time line; its last time
@@ -375,17 +394,8 @@ def _read_streams(
                 stamp = _stamp(msg.header) if use_header else 0
                 if stamp:
                     streams.header_offsets[topic].append(record_time - stamp)
-                source = _frame(msg.header.frame_id)
-                if source and source != frame:
-                    raise DataFormatError(
-                        bag.path,
-                        f"{topic}: poses are in frame {source!r}, not the map frame "
-                        f"{frame!r}; pass --map-frame {source} if that is the map",
-                    )
-                pose = POSE_TYPES[connection.msgtype](msg)
-                p, q = pose.position, pose.orientation
-                value = (float(p.x), float(p.y), float(_yaw(np.array([q.x, q.y, q.z, q.w]))))
-                if not all(math.isfinite(v) for v in value):
+                value = _pose_value(bag, connection, msg, frame)
+                if value is None:
                     dropped[f"{topic}: pose not finite"] += 1
                     continue
                 streams.pose.add(stamp + shift if stamp else bag_time, value)
@@ -395,11 +405,7 @@ def _read_streams(
                     stamp = _stamp(transform.header) if use_header else 0
                     streams.tf.add(transform, stamp + shift if stamp else bag_time, static)
             elif topic == topics.get("speech"):
-                text = str(msg.data).strip()
-                if text:
-                    streams.speech.add(bag_time, text)
-                else:
-                    dropped[f"{topic}: empty utterance"] += 1
+                _add_utterance(streams.speech, dropped, topic, str(msg.data), bag_time)
             elif topic == topics.get("visual"):
                 streams.visual.add(bag_time, np.asarray(msg.data, dtype=np.float64).ravel())
     if bar is not None:
@@ -408,139 +414,26 @@ def _read_streams(
     return streams, count
 
 
-@dataclass
-class _Sample:
-    time: int
-    x: float
-    y: float
-    theta: float
-    sentence: str | None
-    image: int  # index into streams.images, -1 if none
-    visual: int  # index into streams.visual, -1 if none
-
-
-def _check_out(out: Path, bags: Sequence[Path], overwrite: bool) -> None:
-    if out.exists() and not out.is_dir():
-        raise ConfigurationError(f"{out} exists and is not a folder (--out names the home folder to write)")
-    resolved = out.resolve()
-    for bag in bags:
-        b = bag.resolve()
-        if b == resolved or resolved in b.parents:
-            raise ConfigurationError(
-                f"--out {out} would hold or replace the bag {bag}; choose another folder"
-            )
-    if out.is_dir() and any(out.iterdir()):
-        if not overwrite:
-            raise ConfigurationError(f"{out} is not empty; pass --force to replace the home folder it holds")
-        if not ((out / "samples.csv").is_file() or (out / "samples.jsonl").is_file()):
-            raise ConfigurationError(
-                f"{out} holds files but no home (samples.csv); spco replaces only a home "
-                "folder, even with --force: choose another --out"
-            )
-    for parent in resolved.parents:  # missing folders are made; one that is a file cannot be
-        if parent.exists():
-            if not parent.is_dir():
-                raise ConfigurationError(f"cannot write {out}: {parent} is a file, not a folder")
-            break
-
-
-def _move_into_place(tmp: Path, out: Path) -> None:
-    """Rename the finished folder ``tmp`` to ``out`` (replacing an old home folder there)."""
-    if not out.exists():
-        os.replace(tmp, out)
-        return
-    if out.is_dir() and not any(out.iterdir()):
-        out.rmdir()
-        os.replace(tmp, out)
-        return
-    old = out.parent / f".{out.name}.old.{uuid.uuid4().hex[:8]}"
-    os.replace(out, old)
-    try:
-        os.replace(tmp, out)
-    except OSError:
-        os.replace(old, out)
-        raise
-    shutil.rmtree(old, ignore_errors=True)
-
-
-def _decode_image(bag: _Bag, connection: Any, msg: Any, image_format: str) -> tuple[bytes, str] | str:
-    """(file bytes, extension) of an image message, or the reason it cannot be used."""
-    import cv2
-
-    if connection.msgtype == "sensor_msgs/msg/CompressedImage":
-        data = np.asarray(msg.data, dtype=np.uint8)
-        fmt = str(msg.format).lower()
-        if "compresseddepth" in fmt:
-            raise DataFormatError(
-                bag.path,
-                f"{connection.topic}: depth images ({msg.format!r}) are not views; "
-                "give a colour image topic (--image-topic)",
-            )
-        head = bytes(data[:8])
-        if head.startswith(b"\xff\xd8"):
-            ext = "jpg"
-        elif head.startswith(b"\x89PNG"):
-            ext = "png"
-        elif data.size == 0:
-            return "empty image"
-        else:
-            raise DataFormatError(
-                bag.path,
-                f"{connection.topic}: compressed image format {msg.format!r} is not supported (JPEG or PNG)",
-            )
-        if cv2.imdecode(data, cv2.IMREAD_UNCHANGED) is None:
-            return "image could not be decoded"
-        return data.tobytes(), ext
-    encoding = str(msg.encoding).lower()
-    if encoding not in RAW_ENCODINGS:
-        raise DataFormatError(
-            bag.path,
-            f"{connection.topic}: image encoding {msg.encoding!r} is not supported "
-            f"({', '.join(RAW_ENCODINGS)}); record a colour or grey 8-bit image",
+def _import_topics(bags: list[_Bag], settings: BagImportSettings) -> dict[str, str]:
+    """The topics to read, by role (``pose``, and ``speech``, ``visual``, ``image`` when used)."""
+    topics: dict[str, str] = {"pose": _pose_source(bags, settings)}
+    if settings.speech_topic is not None:
+        topics["speech"] = _required(bags, settings.speech_topic, SPEECH_TYPES, "speech", "--speech-topic")
+    if settings.visual_topic is not None:
+        topics["visual"] = _required(
+            bags, settings.visual_topic, VISUAL_TYPES, "visual features", "--visual-topic"
         )
-    try:
-        pixels = pixels_from_buffer(msg.data, msg.height, msg.width, msg.step, encoding)
-    except DataFormatError:
-        return "image data do not match its size"
-    if encoding == "rgb8":
-        pixels = to_bgr(pixels, encoding)
-    ok, encoded = cv2.imencode(
-        f".{image_format}",
-        np.ascontiguousarray(pixels),
-        [cv2.IMWRITE_JPEG_QUALITY, 95] if image_format == "jpg" else [],
-    )
-    if not ok:
-        return "image could not be encoded"
-    return encoded.tobytes(), image_format
+    if settings.image_topic is not None or settings.visual_topic is None:
+        # with ready-made features, views are read only from a topic given
+        topics["image"] = _required(bags, settings.image_topic, IMAGE_TYPES, "image", "--image-topic")
+    return topics
 
 
-def _write_images(
-    bags: list[_Bag], topic: str, streams: _Streams, samples: list[_Sample], folder: Path, image_format: str
-) -> dict[int, str]:
-    """Second pass: decode the chosen images, write ``folder/images/<row>.<ext>``; returns failures."""
-    wanted: dict[tuple[int, int], list[int]] = defaultdict(list)  # (bag, ordinal) -> sample rows
-    for row, sample in enumerate(samples):
-        if sample.image >= 0:
-            wanted[streams.images.values[sample.image]].append(row)
-    images = folder / "images"
-    images.mkdir()
-    failures: dict[int, str] = {}
-    for index, bag in enumerate(bags):
-        todo = {ordinal for b, ordinal in wanted if b == index}
-        if not todo:
-            continue
-        last = max(todo)
-        for ordinal, (connection, _, raw) in enumerate(bag.messages([topic])):
-            if ordinal in todo:
-                result = _decode_image(bag, connection, bag.deserialize(raw, connection), image_format)
-                for row in wanted[(index, ordinal)]:
-                    if isinstance(result, str):
-                        failures[row] = result
-                    else:
-                        (images / f"{row}.{result[1]}").write_bytes(result[0])
-            if ordinal >= last:
-                break
-    return failures
+def _write_import_record(folder: Path, summary: BagImportSummary, settings: BagImportSettings) -> None:
+    """``import.json``: what was read and written, with the settings and spco's version."""
+    record = {**asdict(summary), "settings": asdict(settings), "spco_version": _version()}
+    (folder / "import.json").write_text(json.dumps(record, indent=1, ensure_ascii=False) + "\n",
+                                        encoding="utf-8")
 
 
 def import_bags(
@@ -568,18 +461,7 @@ def import_bags(
     dropped: Counter[str] = Counter()
     with ExitStack() as stack:
         opened = sorted((_Bag(p, stack) for p in paths), key=lambda b: b.start)
-        topics: dict[str, str] = {"pose": _pose_source(opened, settings)}
-        if settings.speech_topic is not None:
-            topics["speech"] = _required(
-                opened, settings.speech_topic, SPEECH_TYPES, "speech", "--speech-topic"
-            )
-        if settings.visual_topic is not None:
-            topics["visual"] = _required(
-                opened, settings.visual_topic, VISUAL_TYPES, "visual features", "--visual-topic"
-            )
-        if settings.image_topic is not None or settings.visual_topic is None:
-            # with ready-made features, views are read only from a topic given
-            topics["image"] = _required(opened, settings.image_topic, IMAGE_TYPES, "image", "--image-topic")
+        topics = _import_topics(opened, settings)
         where = ", ".join(str(b.path) for b in opened)
         streams, n_messages = _read_streams(opened, topics, settings, dropped, progress)
         tf_mode = any(b.topics.get(topics["pose"]) in TF_TYPES for b in opened)
@@ -622,10 +504,7 @@ def import_bags(
             _add_clock_warnings(streams, summary)
             summary.dropped = dict(dropped)
             summary.seconds = time.perf_counter() - start
-            record = {**asdict(summary), "settings": asdict(settings), "spco_version": _version()}
-            (tmp / "import.json").write_text(
-                json.dumps(record, indent=1, ensure_ascii=False) + "\n", encoding="utf-8"
-            )
+            _write_import_record(tmp, summary, settings)
             _move_into_place(tmp, target)
         finally:
             if tmp.exists():
@@ -659,23 +538,9 @@ def _make_samples(
         raise ConfigurationError("--at images makes a sample at each camera image: give --image-topic")
     summary.sampling = rule
     # candidates: utterances (kind 0), then the untaught samples (kind 1)
-    speech_tol = tolerance_ns
-    if rule == "images" and summary.image_interval:
-        # the camera is sparse: an utterance takes the image nearest to it, up to about half the
-        # interval between images away (60 %, for the jitter of a throttled camera)
-        speech_tol = max(tolerance_ns, round(UTTERANCE_IMAGE_SHARE * summary.image_interval * _NS))
-        summary.utterance_image_within = speech_tol / _NS
-    if rule == "images":
-        at_valid, at_xy, at_yaw = traj.lookup(image_t)
-        at_times, at_image = image_t, np.arange(image_t.size)
-    elif rule == "travel":
-        at_times, at_xy, at_yaw = traj.times[travel], traj.xy[travel], traj.yaw[travel]
-        at_valid = np.ones(travel.size, bool)
-        at_image = (_nearest(image_t, at_times, tolerance_ns) if "image" in topics
-                    else np.full(travel.size, -1))
-    else:
-        at_times, at_xy, at_yaw = np.zeros(0, np.int64), np.zeros((0, 2)), np.zeros(0)
-        at_valid, at_image = np.zeros(0, bool), np.zeros(0, np.int64)
+    speech_tol = _utterance_image_tolerance(rule, tolerance_ns, summary)
+    at_times, at_xy, at_yaw, at_valid, at_image = _untaught_candidates(rule, traj, travel, image_t,
+                                                                       "image" in topics, tolerance_ns)
     summary.utterances, summary.periodic = int(speech_t.size), int(at_times.size)
     valid, xy, yaw = (
         traj.lookup(speech_t) if speech_t.size else (np.zeros(0, bool), np.zeros((0, 2)), np.zeros(0))
@@ -702,16 +567,15 @@ def _make_samples(
         if not has_pose[row]:
             skipped[f"{kind}: no pose within {tol}"] += 1
             continue
-        no_view = ("image" in topics and image_idx[row] < 0) or ("visual" in topics and visual_idx[row] < 0)
-        if no_view and kinds[row] == 0 and settings.keep_without_image:
+        no_image = "image" in topics and image_idx[row] < 0
+        no_features = "visual" in topics and visual_idx[row] < 0
+        if (no_image or no_features) and kinds[row] == 0 and settings.keep_without_image:
             summary.without_view += 1  # a sample without a view (its image or features: none)
             image_idx[row] = visual_idx[row] = -1
-        elif "image" in topics and image_idx[row] < 0:
+        elif no_image or no_features:
             within = tol if kinds[row] == 1 else f"{speech_tol / _NS:g} s"
-            skipped[f"{kind}: no image within {within}"] += 1
-            continue
-        elif "visual" in topics and visual_idx[row] < 0:
-            skipped[f"{kind}: no visual features within {tol}"] += 1
+            skipped[f"{kind}: no image within {within}" if no_image
+                    else f"{kind}: no visual features within {tol}"] += 1
             continue
         if "image" in topics and image_idx[row] >= 0:
             if kinds[row] == 1 and int(image_idx[row]) in used_images:
@@ -726,6 +590,32 @@ def _make_samples(
     samples.sort(key=lambda sample: sample.time)  # stable: an utterance stays before a sample at its time
     summary.skipped = dict(skipped)
     return samples
+
+
+def _utterance_image_tolerance(rule: str, tolerance_ns: int, summary: BagImportSummary) -> int:
+    """How far from an utterance its image may be (ns): the tolerance, or with ``--at images`` and a
+    sparse camera up to about half the interval between images (recorded in ``summary``)."""
+    if rule != "images" or not summary.image_interval:
+        return tolerance_ns
+    # an utterance takes the image nearest to it, up to about half the interval between images away
+    # (60 %, for the jitter of a throttled camera)
+    speech_tol = max(tolerance_ns, round(UTTERANCE_IMAGE_SHARE * summary.image_interval * _NS))
+    summary.utterance_image_within = speech_tol / _NS
+    return speech_tol
+
+
+def _untaught_candidates(rule: str, traj: _Trajectory, travel: np.ndarray, image_t: np.ndarray,
+                         has_images: bool, tolerance_ns: int) -> tuple[np.ndarray, ...]:
+    """Where untaught samples may be made under ``rule``: (times, xy, yaw, whether a pose was found,
+    index of the image each takes, -1 for none) — at each camera image, along the way, or nowhere."""
+    if rule == "images":
+        at_valid, at_xy, at_yaw = traj.lookup(image_t)
+        return image_t, at_xy, at_yaw, at_valid, np.arange(image_t.size)
+    if rule == "travel":
+        at_times = traj.times[travel]
+        at_image = _nearest(image_t, at_times, tolerance_ns) if has_images else np.full(travel.size, -1)
+        return at_times, traj.xy[travel], traj.yaw[travel], np.ones(travel.size, bool), at_image
+    return np.zeros(0, np.int64), np.zeros((0, 2)), np.zeros(0), np.zeros(0, bool), np.zeros(0, np.int64)
 
 
 def _auto_rule(image_t: np.ndarray, travel_t: np.ndarray, tolerance_ns: int) -> str:
@@ -759,92 +649,6 @@ def _nothing_to_write(summary: BagImportSummary) -> str:
     if not summary.skipped and summary.sampling == "utterances":
         hints.append("no utterance on the speech topic: choose --at travel or --at images")
     return "no sample has every modality: " + reasons + ("; " + "; ".join(hints) if hints else "")
-
-
-def _drop_failed_images(
-    samples: list[_Sample], failures: dict[int, str], folder: Path, summary: BagImportSummary
-) -> list[_Sample]:
-    """Remove samples whose image could not be used and renumber the image files to the new rows."""
-    if not failures:
-        return samples
-    skipped = Counter(summary.skipped)
-    kept: list[_Sample] = []
-    images = folder / "images"
-    for row, sample in enumerate(samples):
-        if row in failures:
-            kind = "utterance" if sample.sentence is not None else "along the way"
-            skipped[f"{kind}: {failures[row]}"] += 1
-            continue
-        if row != len(kept):
-            for ext in ("jpg", "png"):
-                if (images / f"{row}.{ext}").exists():
-                    os.replace(images / f"{row}.{ext}", images / f"{len(kept)}.{ext}")
-        kept.append(sample)
-    summary.skipped = dict(skipped)
-    return kept
-
-
-def _write_home_files(
-    folder: Path,
-    samples: list[_Sample],
-    streams: _Streams,
-    settings: BagImportSettings,
-    target: Path,
-    summary: BagImportSummary,
-    where: str,
-) -> None:
-    """samples.csv, home.json and (with a visual topic) visual.npz."""
-    with open(folder / "samples.csv", "w", encoding="utf-8", newline="") as fh:
-        fh.write("id,x,y,theta,sentence\n")
-        writer = csv.writer(fh, lineterminator="\n", quoting=csv.QUOTE_NONNUMERIC)
-        for row, s in enumerate(samples):
-            writer.writerow([row, round(s.x, 4), round(s.y, 4), round(s.theta, 4), s.sentence or ""])
-    xy = np.array([[s.x, s.y] for s in samples])
-    margin = 0.5
-    meta: dict[str, Any] = {
-        "name": settings.name or target.resolve().name,
-        "extent": [
-            round(float(xy[:, 0].min()) - margin, 3),
-            round(float(xy[:, 0].max()) + margin, 3),
-            round(float(xy[:, 1].min()) - margin, 3),
-            round(float(xy[:, 1].max()) + margin, 3),
-        ],
-    }
-    if "visual" in summary.topics:
-        import scipy.sparse as sp
-
-        vectors = [streams.visual.values[s.visual] for s in samples if s.visual >= 0]
-        sizes = Counter(v.size for v in vectors)
-        if len(sizes) > 1:
-            raise DataFormatError(
-                where,
-                f"{summary.topics['visual']}: feature vectors of different lengths "
-                f"({', '.join(map(str, sorted(sizes)))})",
-            )
-        matrix = np.vstack(vectors) if vectors else np.zeros((0, 0))
-        if not np.isfinite(matrix).all():
-            raise DataFormatError(where, f"{summary.topics['visual']}: feature vectors hold NaN or infinity")
-        if settings.visual_scale is None:
-            if (matrix < 0).any() or (matrix != np.round(matrix)).any():
-                raise DataFormatError(
-                    where,
-                    f"{summary.topics['visual']}: features are not counts (negative or "
-                    "fractional values); give --visual-scale (the authors used 5)",
-                )
-            matrix = matrix.astype(np.int64)
-        else:
-            meta["visual_scale"] = settings.visual_scale
-        missing = np.array([s.visual < 0 for s in samples], dtype=bool)
-        if not missing.any():
-            sp.save_npz(folder / "visual.npz", sp.csr_array(matrix), compressed=True)
-        elif vectors:  # rows of the samples without a view: zeros, marked missing (the plain format)
-            full = np.zeros((len(samples), matrix.shape[1]), dtype=matrix.dtype)
-            full[~missing] = matrix
-            counts = sp.csr_array(full)
-            np.savez_compressed(folder / "visual.npz", format=np.array("csr"),
-                                shape=np.array(counts.shape), data=counts.data, indices=counts.indices,
-                                indptr=counts.indptr, missing=missing)
-    (folder / "home.json").write_text(json.dumps(meta, indent=1, ensure_ascii=False) + "\n", encoding="utf-8")
 
 
 def _add_clock_warnings(streams: _Streams, summary: BagImportSummary) -> None:

@@ -473,18 +473,9 @@ def _find_regions(home: Path) -> PlaceRegions | None:
 
 
 # --------------------------------------------------------------------------------------- homes
-def read_sigverse_home(
-    path: str | os.PathLike[str],
-    regions: PlaceRegions | str | None = "auto",
-) -> tuple[Environment, RatesMap]:
-    """Read a SIGVerse home with the sentences of *every* teaching rate it has.
-
-    Returns the home (its sentences: those of the highest rate, or none) and a mapping
-    ``rate -> sentences`` (empty if the home has no ``sentence/`` folder). ``regions="auto"`` looks for
-    ``sigverse_regions.json`` beside the data set; pass a :class:`PlaceRegions` or ``None`` instead to
-    choose. Used by :func:`load_sigverse_home` and by the cache, which stores every rate.
-    """
-    home = Path(path)
+def _sample_files(home: Path) -> tuple[Path, dict[int, str], Path, dict[int, str]]:
+    """A SIGVerse home's ``position/`` and ``vision_fc7_normalized/`` folders and their files by
+    sample index, checked: numbered 0..n-1 without gaps, one visual file per position file."""
     if not home.exists():
         raise DataFormatError(home, "no such file or folder")
     pos_dir = home / "position"
@@ -512,8 +503,11 @@ def read_sigverse_home(
         extra = sorted(set(vis_names) - set(range(n)))
         raise DataFormatError(vis_dir, f"holds visual files for samples without a position file: "
                               f"{', '.join(vis_names[i] for i in extra[:10])}")
+    return pos_dir, pos_names, vis_dir, vis_names
 
-    param_file = home / "Environment_parameter.txt"
+
+def _checked_parameters(param_file: Path, n: int) -> dict[str, tuple[float, int]]:
+    """``Environment_parameter.txt`` (empty without one), checked against the ``n`` samples."""
     params = _read_parameters(param_file) if param_file.is_file() else {}
     if "Last_data_number" in params:
         last, lineno = params["Last_data_number"]
@@ -522,7 +516,25 @@ def read_sigverse_home(
                                   f"position/ holds {n} samples (0..{n - 1})")
     if "Initial_data_number" in params and params["Initial_data_number"][0] != 0:
         raise DataFormatError(param_file, "Initial_data_number must be 0 (samples are numbered from 0)")
+    return params
 
+
+def read_sigverse_home(
+    path: str | os.PathLike[str],
+    regions: PlaceRegions | str | None = "auto",
+) -> tuple[Environment, RatesMap]:
+    """Read a SIGVerse home with the sentences of *every* teaching rate it has.
+
+    Returns the home (its sentences: those of the highest rate, or none) and a mapping
+    ``rate -> sentences`` (empty if the home has no ``sentence/`` folder). ``regions="auto"`` looks for
+    ``sigverse_regions.json`` beside the data set; pass a :class:`PlaceRegions` or ``None`` instead to
+    choose. Used by :func:`load_sigverse_home` and by the cache, which stores every rate.
+    """
+    home = Path(path)
+    pos_dir, pos_names, vis_dir, vis_names = _sample_files(home)
+    n = len(pos_names)
+    param_file = home / "Environment_parameter.txt"
+    params = _checked_parameters(param_file, n)
     positions = _read_positions(pos_dir, n, pos_names)
     visual = _read_visual(vis_dir, n, vis_names)
     is_test = _read_index_mask(home / "test_num.txt", n, sentinel=True)

@@ -62,7 +62,7 @@ identical homes (with the same NumPy and BLAS: image profiles go through a matri
 from __future__ import annotations
 
 import zlib
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -227,17 +227,11 @@ def _sentences(rng: np.random.Generator, names: Sequence[str], candidates: Seque
 
 
 # --------------------------------------------------------------------------------------- one home
-def _visual(rng: np.random.Generator, world: VisualWorld, config: SyntheticConfig,
-            room_types: Sequence[str], rects: Sequence[Rectangle], room_of: np.ndarray,
-            positions: np.ndarray) -> sp.csr_array:
-    """Visual counts (N, D) of samples in rooms ``room_of`` (N,) at ``positions`` (N, 4)."""
-    n, n_rooms = room_of.size, len(room_types)
-    base = world.place_topics[[world.type_index(t) for t in room_types]]  # (R, K)
-    room_topics = rng.gamma(config.home_concentration * base + 1e-3)
-    room_topics /= room_topics.sum(axis=1, keepdims=True)
-    style = rng.lognormal(-config.home_style ** 2 / 2, config.home_style, size=world.n_features)
-
-    # the neighbouring room an image looks into, and how much of it
+def _looked_into(rng: np.random.Generator, config: SyntheticConfig, rects: Sequence[Rectangle],
+                 room_of: np.ndarray, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The neighbouring room each image looks into (N,), and how much of the image it fills (N,):
+    more of the room the camera faces, none for a room without neighbours."""
+    n = room_of.size
     centres = np.array([((r[0] + r[1]) / 2, (r[2] + r[3]) / 2) for r in rects])
     neighbours = _adjacent(rects)
     other = room_of.copy()
@@ -245,7 +239,7 @@ def _visual(rng: np.random.Generator, world: VisualWorld, config: SyntheticConfi
     mix = rng.beta(1.0, 1.0 / config.view_mixing - 1.0, size=n) if config.view_mixing > 0 else share
     u = rng.random(n)
     heading = positions[:, [3, 2]]  # (cos θ, sin θ)
-    for r in range(n_rooms):
+    for r in range(len(rects)):
         rows = np.flatnonzero(room_of == r)
         adj = neighbours[r]
         if not adj or rows.size == 0:
@@ -258,6 +252,20 @@ def _visual(rng: np.random.Generator, world: VisualWorld, config: SyntheticConfi
         choice = np.minimum((u[rows, None] > cdf).sum(axis=1), len(adj) - 1)
         other[rows] = np.asarray(adj)[choice]
         share[rows] = mix[rows] * facing[np.arange(rows.size), choice]
+    return other, share
+
+
+def _visual(rng: np.random.Generator, world: VisualWorld, config: SyntheticConfig,
+            room_types: Sequence[str], rects: Sequence[Rectangle], room_of: np.ndarray,
+            positions: np.ndarray) -> sp.csr_array:
+    """Visual counts (N, D) of samples in rooms ``room_of`` (N,) at ``positions`` (N, 4)."""
+    n = room_of.size
+    base = world.place_topics[[world.type_index(t) for t in room_types]]  # (R, K)
+    room_topics = rng.gamma(config.home_concentration * base + 1e-3)
+    room_topics /= room_topics.sum(axis=1, keepdims=True)
+    style = rng.lognormal(-config.home_style ** 2 / 2, config.home_style, size=world.n_features)
+
+    other, share = _looked_into(rng, config, rects, room_of, positions)
     mixed = (1.0 - share)[:, None] * room_topics[room_of] + share[:, None] * room_topics[other]
     image_topics = rng.gamma(config.image_concentration * mixed + 1e-4)
     image_topics /= image_topics.sum(axis=1, keepdims=True)
@@ -288,6 +296,54 @@ def _visual(rng: np.random.Generator, world: VisualWorld, config: SyntheticConfi
     indptr = np.zeros(n + 1, dtype=np.int64)
     np.cumsum(np.count_nonzero(fires, axis=1), out=indptr[1:])
     return sp.csr_array((data, flat % world.n_features, indptr), shape=act.shape)
+
+
+def _room_types(rng: np.random.Generator, layout: Layout, config: SyntheticConfig) -> list[str]:
+    """The place type of each room of a home: the layout's rooms and the optional rooms drawn, in a
+    random order with the entrance first."""
+    present = rng.random(len(layout.optional)) < config.optional_room_probability
+    rooms = [normalize_name(t) for t in layout.rooms]
+    rooms += [normalize_name(t) for t, keep in zip(layout.optional, present, strict=True) if keep]
+    order = rng.permutation(len(rooms))
+    rooms = [rooms[i] for i in order]
+    if "entrance" in rooms:
+        rooms.insert(0, rooms.pop(rooms.index("entrance")))
+    return rooms
+
+
+def _room_names(rooms: Sequence[str], layout: Layout, config: SyntheticConfig,
+                specific_names: Sequence[str]) -> tuple[dict[int, str], dict[int, str]]:
+    """(room -> the name its sentences use, room -> home-specific name): the first rooms of
+    ``config.specific_place_type`` take ``specific_names``, checked."""
+    specific_type = normalize_name(config.specific_place_type)
+    of_type = [i for i, t in enumerate(rooms) if t == specific_type]
+    special = [normalize_name(s) for s in specific_names]
+    if any(not s for s in special) or len(set(special)) != len(special) or set(special) & set(rooms):
+        raise ConfigurationError(f"home-specific names must be distinct, non-empty and differ from "
+                                 f"the place types, got {list(specific_names)}")
+    if len(specific_names) > len(of_type):
+        raise ConfigurationError(f"layout {layout.name!r} has {len(of_type)} room(s) of type "
+                                 f"{specific_type!r}, too few for {len(specific_names)} "
+                                 "home-specific rooms")
+    type_names = {normalize_name(t): t for t in config.place_types}
+    display = {i: type_names.get(t, t) for i, t in enumerate(rooms)}
+    specific_rooms = dict(zip(of_type, specific_names, strict=False))
+    display.update(specific_rooms)
+    return display, specific_rooms
+
+
+def _sample_blocks(n_rooms: int, config: SyntheticConfig, new: bool,
+                   specific_rooms: Mapping[int, str]) -> tuple[np.ndarray, np.ndarray]:
+    """(room of each sample, whether it is a test sample): blocks of training samples per room, then
+    test samples (new homes), then extra training samples of the home-specific rooms."""
+    blocks: list[tuple[int, int, bool]] = [(r, config.n_train, False) for r in range(n_rooms)]
+    if new and config.n_test > 0:
+        blocks += [(r, config.n_test, True) for r in range(n_rooms)]
+    if config.specific_extra_train > 0:
+        blocks += [(r, config.specific_extra_train, False) for r in specific_rooms]
+    room_of = np.concatenate([np.full(size, r) for r, size, _ in blocks])
+    is_test = np.concatenate([np.full(size, test) for _, size, test in blocks])
+    return room_of, is_test
 
 
 def generate_home(
@@ -346,40 +402,12 @@ def generate_home(
     layout = config.layout(layout) if isinstance(layout, str) else layout
     name = name or f"synthetic_{layout.name}"
 
-    present = rng.random(len(layout.optional)) < config.optional_room_probability
-    rooms = [normalize_name(t) for t in layout.rooms]
-    rooms += [normalize_name(t) for t, keep in zip(layout.optional, present, strict=True) if keep]
-    order = rng.permutation(len(rooms))
-    rooms = [rooms[i] for i in order]
-    if "entrance" in rooms:
-        rooms.insert(0, rooms.pop(rooms.index("entrance")))
-
-    specific_type = normalize_name(config.specific_place_type)
-    of_type = [i for i, t in enumerate(rooms) if t == specific_type]
-    special = [normalize_name(s) for s in specific_names]
-    if any(not s for s in special) or len(set(special)) != len(special) or set(special) & set(rooms):
-        raise ConfigurationError(f"home-specific names must be distinct, non-empty and differ from "
-                                 f"the place types, got {list(specific_names)}")
-    if len(specific_names) > len(of_type):
-        raise ConfigurationError(f"layout {layout.name!r} has {len(of_type)} room(s) of type "
-                                 f"{specific_type!r}, too few for {len(specific_names)} "
-                                 "home-specific rooms")
-    display = {i: t for i, t in enumerate(rooms)}
-    type_names = {normalize_name(t): t for t in config.place_types}
-    display = {i: type_names.get(t, t) for i, t in display.items()}
-    specific_rooms = dict(zip(of_type, specific_names, strict=False))
-    display.update(specific_rooms)
+    rooms = _room_types(rng, layout, config)
+    display, specific_rooms = _room_names(rooms, layout, config, specific_names)
 
     rects, extent = _plan(rng, rooms, config)
 
-    # sample blocks: training, then test (new homes), then extra training of home-specific rooms
-    blocks: list[tuple[int, int, bool]] = [(r, config.n_train, False) for r in range(len(rooms))]
-    if new and config.n_test > 0:
-        blocks += [(r, config.n_test, True) for r in range(len(rooms))]
-    if config.specific_extra_train > 0:
-        blocks += [(r, config.specific_extra_train, False) for r in specific_rooms]
-    room_of = np.concatenate([np.full(size, r) for r, size, _ in blocks])
-    is_test = np.concatenate([np.full(size, test) for _, size, test in blocks])
+    room_of, is_test = _sample_blocks(len(rooms), config, new, specific_rooms)
     n = room_of.size
 
     box = np.asarray(rects)[room_of]  # (N, 4)

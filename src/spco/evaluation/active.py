@@ -304,21 +304,13 @@ def _sigverse_home(env: Environment, regions: PlaceRegions | None, rates: Sequen
                       source=str(folder))
 
 
-def _heldout_home(env: Environment, regions: PlaceRegions | None, spec: Mapping[str, Any],
-                  rates: Sequence[int], where: str) -> ActiveHome:
-    """A held-out configuration: its rooms replace the general places of their samples."""
-    base = _sigverse_home(env, regions, ())
-    rooms = spec.get("rooms")
-    templates = spec.get("_templates")
-    possessive = spec.get("_possessive_templates") or []
-    seeds = spec.get("_seeds") or []
-    if not isinstance(rooms, list) or not rooms or not isinstance(templates, list) or not templates:
-        raise DataFormatError(where, f"configuration {spec.get('id')!r}: needs 'rooms' and the file's "
-                              "'templates'")
-    index = {int(i): k for k, i in enumerate(env.ids)}
-    labels = list(env.ground_truth.labels)  # type: ignore[union-attr]
-    room_regions = dict(base.regions.places)
-    accepted = dict(base.accepted)
+def _read_heldout_rooms(env: Environment, rooms: list[Any], spec: Mapping[str, Any], index: dict[int, int],
+                        labels: list[Any], accepted: dict[str, tuple[str, ...]],
+                        room_regions: dict[str, Any], where: str
+                        ) -> tuple[list[str], dict[int, dict[str, Any]]]:
+    """The rooms of a held-out configuration, checked: their names (in order), and the room of each
+    training sample; each room's test samples are labelled with it in ``labels``, its accepted
+    names and region added to ``accepted`` and ``room_regions``."""
     specific: list[str] = []
     room_of: dict[int, dict[str, Any]] = {}
     for room in rooms:
@@ -342,6 +334,25 @@ def _heldout_home(env: Environment, regions: PlaceRegions | None, spec: Mapping[
             room_of[i] = room
         for i in test:
             labels[index[i]] = name
+    return specific, room_of
+
+
+def _heldout_home(env: Environment, regions: PlaceRegions | None, spec: Mapping[str, Any],
+                  rates: Sequence[int], where: str) -> ActiveHome:
+    """A held-out configuration: its rooms replace the general places of their samples."""
+    base = _sigverse_home(env, regions, ())
+    rooms = spec.get("rooms")
+    templates = spec.get("_templates")
+    possessive = spec.get("_possessive_templates") or []
+    seeds = spec.get("_seeds") or []
+    if not isinstance(rooms, list) or not rooms or not isinstance(templates, list) or not templates:
+        raise DataFormatError(where, f"configuration {spec.get('id')!r}: needs 'rooms' and the file's "
+                              "'templates'")
+    index = {int(i): k for k, i in enumerate(env.ids)}
+    labels = list(env.ground_truth.labels)  # type: ignore[union-attr]
+    room_regions = dict(base.regions.places)
+    accepted = dict(base.accepted)
+    specific, room_of = _read_heldout_rooms(env, rooms, spec, index, labels, accepted, room_regions, where)
     is_test = np.asarray(env.is_test, dtype=bool).copy()
     for room in rooms:
         for i in room["test_ids"]:
@@ -496,16 +507,11 @@ def _what_distribution(home: Any, rows: np.ndarray) -> np.ndarray:
     return np.divide(p, total, out=np.zeros_like(p), where=total > 0)
 
 
-def _entropy(p: np.ndarray) -> np.ndarray:
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(p > 0, -p * np.log(np.where(p > 0, p, 1.0)), 0.0).sum(axis=1)
-
-
 def choose_question(strategy: str, home: Any, rng: np.random.Generator) -> dict[str, Any]:
     """The sample a strategy asks about next: ``{"row", "id", "gain", "confidence",
     "what_confidence", "seconds"}`` (``seconds``: the time to rank the home's samples)."""
     from spco.knowledge.asking import home_question_scores
-    from spco.model.question_scores import rank_questions
+    from spco.model.question_scores import entropy_rows, rank_questions
 
     candidates = np.flatnonzero([s is None for s in home.sentences])
     if candidates.size == 0:
@@ -517,7 +523,7 @@ def choose_question(strategy: str, home: Any, rng: np.random.Generator) -> dict[
         rows, gains = rank_questions(scores, candidates)
         row, gain = int(rows[0]), float(gains[0])
     elif strategy == "uncertainty":
-        h = _entropy(_what_distribution(home, candidates))
+        h = entropy_rows(_what_distribution(home, candidates))
         best = np.flatnonzero(h >= h.max() - 1e-9)
         row = int(candidates[best[int(rng.integers(best.size))]])
     elif strategy == "random":
@@ -658,6 +664,29 @@ def _knowledge(config: ActiveConfig, experienced: Sequence[Environment], out: Pa
     return path
 
 
+def _remove_stale_outputs(out_path: Path) -> None:
+    """With ``force``: the runs, knowledge files and figures of an earlier experiment in ``out_path``."""
+    stale_files = [out_path / _RUNS_FILE, *out_path.glob("knowledge-seed*.spco"),
+                   *out_path.glob("active_*.png")]
+    for stale in stale_files:
+        if stale.is_file():
+            stale.unlink()
+
+
+def _runs_done(runs_file: Path, fingerprint: str) -> dict[tuple[str, int], dict[str, Any]]:
+    """The runs of this experiment (same fingerprint) already in ``runs.jsonl``, by (home, trial)."""
+    done: dict[tuple[str, int], dict[str, Any]] = {}
+    if runs_file.is_file():
+        for line in runs_file.read_text(encoding="utf-8").splitlines():
+            try:
+                rec = json.loads(line)
+            except ValueError:
+                continue  # an interrupted write: that run is done again
+            if isinstance(rec, dict) and rec.get("fingerprint") == fingerprint:
+                done[(rec["home"], int(rec["trial"]))] = rec
+    return done
+
+
 def run_active_experiment(config: ActiveConfig, out: str | os.PathLike[str], *, resume: bool = False,
                           force: bool = False, progress: bool = False,
                           log: Callable[[str], None] | None = None) -> ActiveResults:
@@ -676,26 +705,14 @@ def run_active_experiment(config: ActiveConfig, out: str | os.PathLike[str], *, 
     out_path = Path(out).expanduser()
     _prepare_out(out_path, identity, fingerprint, resume, force)
     if force:
-        stale_files = [out_path / _RUNS_FILE, *out_path.glob("knowledge-seed*.spco"),
-                       *out_path.glob("active_*.png")]
-        for stale in stale_files:
-            if stale.is_file():
-                stale.unlink()
+        _remove_stale_outputs(out_path)
     _write_json_atomic(out_path / "config.json", {"format": "spco-active", "version": _VERSION,
                                                    "fingerprint": fingerprint, "identity": identity,
                                                    "trials": config.trials, "jobs": config.jobs})
     knowledge_path = _knowledge(config, experienced, out_path, say)
     ctx = _Context(config, str(knowledge_path), fingerprint)
     runs_file = out_path / _RUNS_FILE
-    done: dict[tuple[str, int], dict[str, Any]] = {}
-    if runs_file.is_file():
-        for line in runs_file.read_text(encoding="utf-8").splitlines():
-            try:
-                rec = json.loads(line)
-            except ValueError:
-                continue  # an interrupted write: that run is done again
-            if isinstance(rec, dict) and rec.get("fingerprint") == fingerprint:
-                done[(rec["home"], int(rec["trial"]))] = rec
+    done = _runs_done(runs_file, fingerprint)
     planned = [(h.key, t) for t in range(config.trials) for h in homes]
     pending = [key for key in planned if key not in done]
     if done:

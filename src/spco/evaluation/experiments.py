@@ -233,6 +233,22 @@ def _reused_record(source: Mapping[str, Any], key: RunKey) -> dict[str, Any]:
             "reused_from_setting": source["setting"]}
 
 
+def _runs_to_compute(config: ExperimentConfig, planned: list[RunKey], done: Mapping[RunKey, Any],
+                     max_runs: int | None) -> tuple[list[RunKey], dict[RunKey, list[RunKey]]]:
+    """The runs still to compute (at most ``max_runs``), and for each run computed, the runs recorded
+    from its result (runs that would repeat it exactly, :func:`shared_runs`)."""
+    sources = shared_runs(config, planned)
+    pending = [k for k in planned if k not in done]
+    copies: dict[RunKey, list[RunKey]] = {}  # a run to compute -> the runs recorded from its result
+    for key in pending:
+        if key in sources:
+            copies.setdefault(sources[key], []).append(key)
+    pending = [k for k in pending if k not in sources]
+    if max_runs is not None:
+        pending = pending[:max(0, int(max_runs))]
+    return pending, copies
+
+
 def run_experiment(
     config: ExperimentConfig,
     out: str | os.PathLike[str],
@@ -279,20 +295,11 @@ def run_experiment(
         "spco_version": __version__,
     })
     planned = plan_runs(config, data)
-    sources = shared_runs(config, planned)
-    done = {}
-    for rec in read_runs(out_path, fingerprint):
-        done[RunKey(rec["setting"], rec["trial"], rec["home"], rec["model"])] = rec
-    pending = [k for k in planned if k not in done]
+    done = {RunKey(rec["setting"], rec["trial"], rec["home"], rec["model"]): rec
+            for rec in read_runs(out_path, fingerprint)}
     if done:
         say(f"resuming: {sum(k in done for k in planned)} of {len(planned)} runs already done")
-    copies: dict[RunKey, list[RunKey]] = {}  # a run to compute -> the runs recorded from its result
-    for key in pending:
-        if key in sources:
-            copies.setdefault(sources[key], []).append(key)
-    pending = [k for k in pending if k not in sources]
-    if max_runs is not None:
-        pending = pending[:max(0, int(max_runs))]
+    pending, copies = _runs_to_compute(config, planned, done, max_runs)
     ctx = _RunContext(config.experiment, config.iterations, config.seed, config.n_positions,
                       config.hyperparameters, fingerprint, str(out_path), maps, max(settings),
                       float(config.views_missing))
@@ -335,16 +342,23 @@ def run_experiment(
     finally:
         bar.close()
     records = [done[k] for k in planned if k in done]
+    if len(records) < len(planned) and records:
+        say(f"{len(planned) - len(records)} of {len(planned)} runs still to do: continue with --resume")
+    return _write_outputs(out_path, config, identity, fingerprint, records, time.perf_counter() - started,
+                          finished, maps)
+
+
+def _write_outputs(out_path: Path, config: ExperimentConfig, identity: Mapping[str, Any], fingerprint: str,
+                   records: list[dict[str, Any]], seconds: float, finished: int,
+                   maps: Any) -> ExperimentResults:
+    """``results.json``, ``tables.md`` and the figures of the runs done so far."""
     if not records:
         raise ConfigurationError("no run finished, nothing to report")
-    results = _assemble(config, identity, fingerprint, records, time.perf_counter() - started, finished,
-                        maps)
+    results = _assemble(config, identity, fingerprint, records, seconds, finished, maps)
     _write_json_atomic(out_path / RESULTS_FILE, results)
     tables = _tables(config, results)
     _write_text_atomic(out_path / TABLES_FILE, tables)
     figures = _figures(out_path, config, results, records)
-    if len(records) < len(planned):
-        say(f"{len(planned) - len(records)} of {len(planned)} runs still to do: continue with --resume")
     return ExperimentResults(out_path, results, tables, figures)
 
 

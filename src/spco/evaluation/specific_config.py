@@ -506,6 +506,56 @@ def _read_runs(path: Path, fingerprint: str) -> list[dict[str, Any]]:
     return out
 
 
+def _checked_run_settings(file: SpecificConfigFile, rates: Sequence[int] | None, seeds: Sequence[int] | None,
+                          iterations: int, n_positions: int, jobs: int, resume: bool,
+                          force: bool) -> tuple[tuple[int, ...], tuple[int, ...]]:
+    """The teaching rates and seeds to run (default the file's), with the other settings checked."""
+    rates = tuple(sorted(dict.fromkeys(rates))) if rates else file.rates
+    bad = [r for r in rates if isinstance(r, bool) or not isinstance(r, int) or not 0 < r <= 100]
+    if bad:
+        raise ConfigurationError(f"teaching rates must be percentages 1..100, got {bad}")
+    seeds = tuple(dict.fromkeys(seeds)) if seeds else file.seeds
+    foreign = [s for s in seeds if s not in file.seeds]
+    if foreign:
+        raise ConfigurationError(f"seed(s) {', '.join(map(str, foreign))} are not seeds of {file.path} "
+                                 f"({file.seeds[0]}..{file.seeds[-1]})")
+    for name, value, low in (("iterations", iterations, 1), ("positions", n_positions, 1), ("jobs", jobs, 1)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < low:
+            raise ConfigurationError(f"{name} must be an integer >= {low}, got {value!r}")
+    if resume and force:
+        raise ConfigurationError("choose one of --resume (continue) and --force (start over)")
+    return rates, seeds
+
+
+def _prepare_out_dir(out_dir: Path, fingerprint: str, resume: bool, force: bool) -> None:
+    """``out_dir`` made ready: empty or absent; emptied of an earlier experiment (``force``); or
+    holding this same experiment (``resume``)."""
+    if out_dir.is_dir() and any(out_dir.iterdir()) and not (resume or force):
+        raise ConfigurationError(f"{out_dir} is not empty: pass --resume to continue the experiment in "
+                                 "it, --force to start over, or another --out")
+    out_dir.mkdir(parents=True, exist_ok=True)
+    if force:
+        for name in (_CONFIG_FILE, _RUNS_FILE, _RESULTS_FILE, _TABLES_FILE):
+            with contextlib.suppress(FileNotFoundError):
+                (out_dir / name).unlink()
+    elif resume:
+        _check_same_experiment(out_dir, fingerprint)
+
+
+def _check_same_experiment(out_dir: Path, fingerprint: str) -> None:
+    """``--resume``: the experiment in ``out_dir`` (if any) must be this one."""
+    if not (out_dir / _CONFIG_FILE).is_file():
+        return
+    try:
+        stored = json.loads((out_dir / _CONFIG_FILE).read_text(encoding="utf-8"))["fingerprint"]
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise DataFormatError(out_dir / _CONFIG_FILE, f"not a readable experiment configuration "
+                              f"({exc}); use --force or another --out") from None
+    if stored != fingerprint:
+        raise ConfigurationError(f"{out_dir} holds a run of another configuration file, number of "
+                                 "iterations or positions; refusing to mix results (use --force)")
+
+
 def run_specific_config(
     config: str | os.PathLike[str] | SpecificConfigFile,
     data: str | os.PathLike[str],
@@ -546,20 +596,7 @@ def run_specific_config(
     file = config if isinstance(config, SpecificConfigFile) else load_specific_config(config)
     chosen = file.select(configurations)
     model_names = parse_models(list(models))
-    rates = tuple(sorted(dict.fromkeys(rates))) if rates else file.rates
-    bad = [r for r in rates if isinstance(r, bool) or not isinstance(r, int) or not 0 < r <= 100]
-    if bad:
-        raise ConfigurationError(f"teaching rates must be percentages 1..100, got {bad}")
-    seeds = tuple(dict.fromkeys(seeds)) if seeds else file.seeds
-    foreign = [s for s in seeds if s not in file.seeds]
-    if foreign:
-        raise ConfigurationError(f"seed(s) {', '.join(map(str, foreign))} are not seeds of {file.path} "
-                                 f"({file.seeds[0]}..{file.seeds[-1]})")
-    for name, value, low in (("iterations", iterations, 1), ("positions", n_positions, 1), ("jobs", jobs, 1)):
-        if isinstance(value, bool) or not isinstance(value, int) or value < low:
-            raise ConfigurationError(f"{name} must be an integer >= {low}, got {value!r}")
-    if resume and force:
-        raise ConfigurationError("choose one of --resume (continue) and --force (start over)")
+    rates, seeds = _checked_run_settings(file, rates, seeds, iterations, n_positions, jobs, resume, force)
     source = Path(data).expanduser()
     if not source.exists():
         raise DataFormatError(source, "no such data folder or file (--data)")
@@ -570,23 +607,7 @@ def run_specific_config(
                 "vocabulary": "per run", "format": RESULTS_VERSION}
     fingerprint = hashlib.sha256(json.dumps(identity, sort_keys=True).encode()).hexdigest()
     runs_file = out_dir / _RUNS_FILE
-    if out_dir.is_dir() and any(out_dir.iterdir()) and not (resume or force):
-        raise ConfigurationError(f"{out_dir} is not empty: pass --resume to continue the experiment in "
-                                 "it, --force to start over, or another --out")
-    out_dir.mkdir(parents=True, exist_ok=True)
-    if force:
-        for name in (_CONFIG_FILE, _RUNS_FILE, _RESULTS_FILE, _TABLES_FILE):
-            with contextlib.suppress(FileNotFoundError):
-                (out_dir / name).unlink()
-    elif resume and (out_dir / _CONFIG_FILE).is_file():
-        try:
-            stored = json.loads((out_dir / _CONFIG_FILE).read_text(encoding="utf-8"))["fingerprint"]
-        except (OSError, ValueError, KeyError, TypeError) as exc:
-            raise DataFormatError(out_dir / _CONFIG_FILE, f"not a readable experiment configuration "
-                                  f"({exc}); use --force or another --out") from None
-        if stored != fingerprint:
-            raise ConfigurationError(f"{out_dir} holds a run of another configuration file, number of "
-                                     "iterations or positions; refusing to mix results (use --force)")
+    _prepare_out_dir(out_dir, fingerprint, resume, force)
     _write_atomic(out_dir / _CONFIG_FILE, json.dumps({
         "format": RESULTS_FORMAT, "version": RESULTS_VERSION, "fingerprint": fingerprint,
         "identity": identity, "config": str(file.path)}, indent=1) + "\n")

@@ -194,6 +194,39 @@ def _room(path: Path, where: str, raw: Any, rates: Sequence[int]) -> Room:
                 accepted=accepted, train_ids=train, test_ids=test, taught=taught, region=regions)
 
 
+def _configuration(p: Path, i: int, conf: Any, rates: list[int],
+                   experienced: tuple[str, ...]) -> SpecificConfiguration:
+    """Configuration ``i`` of the file, checked: its rooms and their samples, which no two rooms share."""
+    where = f"configs[{i}]"
+    if not isinstance(conf, dict):
+        raise _fail(p, where, "must be an object")
+    cid = _str(p, f"{where}.id", conf.get("id"))
+    home = _str(p, f"{where}.home", conf.get("home"))
+    source = conf.get("test_source")
+    if source not in ("test_num.txt", "test_num_specific.txt", "defined-here"):
+        raise _fail(p, f"{where}.test_source", "must be 'test_num.txt', 'test_num_specific.txt' or "
+                    f"'defined-here', got {source!r}")
+    exp = _strings(p, f"{where}.experienced_homes", conf["experienced_homes"]) \
+        if conf.get("experienced_homes") is not None else experienced
+    if home in exp:
+        raise _fail(p, f"{where}.home", f"{home!r} is also an experienced home")
+    rooms_raw = conf.get("rooms")
+    if not isinstance(rooms_raw, list) or not rooms_raw:
+        raise _fail(p, f"{where}.rooms", "must be a non-empty list")
+    rooms = tuple(_room(p, f"{where}.rooms[{j}]", r, rates) for j, r in enumerate(rooms_raw))
+    seen: dict[int, str] = {}
+    for room in rooms:
+        for sid in (*room.train_ids, *room.test_ids):
+            if sid in seen:
+                raise _fail(p, f"{where}.rooms", f"sample {sid} belongs to {seen[sid]!r} and "
+                            f"{room.name!r}")
+            seen[sid] = room.name
+    names = [r.name for r in rooms]
+    if len(set(names)) != len(names):
+        raise _fail(p, f"{where}.rooms", "two rooms have the same name")
+    return SpecificConfiguration(cid, home, source, rooms, tuple(exp))
+
+
 def load_specific_config(path: str | os.PathLike[str]) -> SpecificConfigFile:
     """Read and check a configuration file (format :data:`CONFIG_FORMAT`).
 
@@ -234,36 +267,7 @@ def load_specific_config(path: str | os.PathLike[str]) -> SpecificConfigFile:
     configs_raw = raw.get("configs")
     if not isinstance(configs_raw, list) or not configs_raw:
         raise _fail(p, "configs", "must be a non-empty list")
-    configurations = []
-    for i, conf in enumerate(configs_raw):
-        where = f"configs[{i}]"
-        if not isinstance(conf, dict):
-            raise _fail(p, where, "must be an object")
-        cid = _str(p, f"{where}.id", conf.get("id"))
-        home = _str(p, f"{where}.home", conf.get("home"))
-        source = conf.get("test_source")
-        if source not in ("test_num.txt", "test_num_specific.txt", "defined-here"):
-            raise _fail(p, f"{where}.test_source", "must be 'test_num.txt', 'test_num_specific.txt' or "
-                        f"'defined-here', got {source!r}")
-        exp = _strings(p, f"{where}.experienced_homes", conf["experienced_homes"]) \
-            if conf.get("experienced_homes") is not None else experienced
-        if home in exp:
-            raise _fail(p, f"{where}.home", f"{home!r} is also an experienced home")
-        rooms_raw = conf.get("rooms")
-        if not isinstance(rooms_raw, list) or not rooms_raw:
-            raise _fail(p, f"{where}.rooms", "must be a non-empty list")
-        rooms = tuple(_room(p, f"{where}.rooms[{j}]", r, rates) for j, r in enumerate(rooms_raw))
-        seen: dict[int, str] = {}
-        for room in rooms:
-            for sid in (*room.train_ids, *room.test_ids):
-                if sid in seen:
-                    raise _fail(p, f"{where}.rooms", f"sample {sid} belongs to {seen[sid]!r} and "
-                                f"{room.name!r}")
-                seen[sid] = room.name
-        names = [r.name for r in rooms]
-        if len(set(names)) != len(names):
-            raise _fail(p, f"{where}.rooms", "two rooms have the same name")
-        configurations.append(SpecificConfiguration(cid, home, source, rooms, tuple(exp)))
+    configurations = [_configuration(p, i, conf, rates, experienced) for i, conf in enumerate(configs_raw)]
     ids = [c.id for c in configurations]
     if len(set(ids)) != len(ids):
         raise _fail(p, "configs", "two configurations have the same id")

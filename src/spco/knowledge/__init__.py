@@ -16,42 +16,8 @@ package splits the transfer model (Hagiwara et al. 2021, ``docs/model.md``) alon
 - :func:`where` (positions for a place name), :func:`what` (place names at a pose) and
   :func:`teach` (new sentences, new observations, new words; a few sweeps from the current state).
 
-Semantics
----------
-*Adapting* runs the exact conditionals of the model for the new home alone with φ^v, φ^w and G_0
-fixed at the knowledge (``SamplerSettings.create(variant, prune, learn_shared=False)``): this is the
-model's posterior of the home given the shared part, which is what joint learning computes for the
-new home when the experienced homes pin the shared part down. With ``joint=True`` the shared part
-is learnt too, with the knowledge as its prior: the posterior of φ_l given the experienced homes is
-approximated by a Dirichlet with the knowledge's mean and a concentration A_l moment-matched to the
-spread of the averaged posterior samples (``A_l + 1 = Σ_k φ̄_k(1 − φ̄_k) / Σ_k Var φ_k``), so
-``φ_l | new home ~ Dir(A_l φ̄_l + table counts of the new home)`` (the same for G_0). This is
-assumed-density filtering: exact if that posterior were Dirichlet. With few samples the spread is
-poorly known, so it is shrunk towards the spread of Dir(δ φ̄_l) — the spread of one home's θ_{e,l}
-around φ_l, concentration δ^v, δ^w (γ for G_0) — with the weight of
-:data:`CONCENTRATION_PRIOR_SAMPLES` samples (:func:`_concentration`): one sample gives exactly
-δ, many give the moment-matched value, and every number of samples in between lies between them
-(no cliff).
-
-*New words* (a word no experienced home used, such as ``emma's-room``) are appended to the
-vocabulary; their φ^w_{l,k} is α^w/δ^w in every concept (rows renormalised), so a home's
-θ^w_{e,l} ~ Dir(δ^w φ^w_l + n) gives them the prior mass α^w of a word never seen, and they are
-learnt from the home's counts. Their θ^w starts at its posterior mean given the current
-assignments (:func:`_init_new_words`), so the first samples that say a new word are placed by what
-they see and where they are, preferring concepts that hold few words yet. With word pruning
-("+MI" models) the words of the knowledge keep its decision and new words are judged in the home
-(mutual information of the word and the concept under θ^w_e and G_e, threshold ε) after every
-adaptation or teaching: a home-specific name that no other home uses would score low against G_0.
-
-*Teaching* appends or replaces sentences and observations and runs a few sweeps (10 by default)
-of the same sampler, starting from the home's current state: everything learnt so far is kept
-(about 0.1 s for a SIGVerse home of 260–370 samples).
-
-*Answers* (:func:`where`, :func:`what`) come from the home's parameters averaged over thinned
-sweeps of the last adaptation or teaching (``HomeModel.posterior``, :mod:`spco.model.posterior`),
-not from the last draw; ``where`` reports ``learnt`` False and a low ``support`` when the name's
-probability in the home comes from concepts that hold none of its samples (no such place learnt
-in this home).
+What adapting, teaching and answering compute is in the modules that do it:
+:mod:`~spco.knowledge.adapting`, :mod:`~spco.knowledge.updating`, :mod:`~spco.knowledge.queries`.
 
 Files
 -----
@@ -94,6 +60,7 @@ from spco.knowledge.knowledge import (
     Knowledge,
     load_knowledge,
 )
+from spco.knowledge.limits import DEFAULT_LIMITS, TeachingLimits
 from spco.knowledge.queries import (
     WHERE_ANYWHERE_WEIGHT,
     WHERE_MODEL_WEIGHT,
@@ -105,7 +72,13 @@ from spco.knowledge.queries import (
     where,
 )
 from spco.knowledge.updating import teach
-from spco.knowledge.views import FAR_OUTSIDE_MAP, map_bounds, pose_outside_map, read_visual_vector
+from spco.knowledge.views import (
+    FAR_OUTSIDE_MAP,
+    map_bounds,
+    pose_outside_map,
+    read_visual_vector,
+    view_counts,
+)
 from spco.model.home_shard import FREE_CONCEPT_WEIGHT, OWN_NAMES_SPREAD_WARNING, OwnNamesSpreadWarning
 from spco.model.view_fit import concept_visual_totals, held_out_view_fits, view_fit
 
@@ -113,6 +86,7 @@ __all__ = [
     "CONCENTRATION_PRIOR_SAMPLES",
     "DEFAULT_ADAPT_ITERATIONS",
     "DEFAULT_FIT_ITERATIONS",
+    "DEFAULT_LIMITS",
     "DEFAULT_MODEL",
     "DEFAULT_TEACH_SWEEPS",
     "FAR_OUTSIDE_MAP",
@@ -133,6 +107,7 @@ __all__ = [
     "Observation",
     "OwnNamesSpreadWarning",
     "Question",
+    "TeachingLimits",
     "adapt",
     "answer_parameters",
     "ask",
@@ -151,6 +126,7 @@ __all__ = [
     "summary_iterations",
     "teach",
     "unused_word_hint",
+    "view_counts",
     "view_fit",
     "view_fit_warning",
     "what",

@@ -1,5 +1,21 @@
 """Adapting knowledge to a new home: the home learnt with the knowledge as its prior
-(:func:`adapt`), one :class:`~spco.model.home_shard.NewHomeShard` run from its first state."""
+(:func:`adapt`), one :class:`~spco.model.home_shard.NewHomeShard` run from its first state.
+
+*Adapting* runs the exact conditionals of the model for the new home alone with φ^v, φ^w and G_0
+fixed at the knowledge (``SamplerSettings.create(variant, prune, learn_shared=False)``): this is the
+model's posterior of the home given the shared part, which is what joint learning computes for the
+new home when the experienced homes pin the shared part down. With ``joint=True`` the shared part
+is learnt too, with the knowledge as its prior: the posterior of φ_l given the experienced homes is
+approximated by a Dirichlet with the knowledge's mean and a concentration A_l moment-matched to the
+spread of the averaged posterior samples (``A_l + 1 = Σ_k φ̄_k(1 − φ̄_k) / Σ_k Var φ_k``), so
+``φ_l | new home ~ Dir(A_l φ̄_l + table counts of the new home)`` (the same for G_0). This is
+assumed-density filtering: exact if that posterior were Dirichlet. With few samples the spread is
+poorly known, so it is shrunk towards the spread of Dir(δ φ̄_l) — the spread of one home's θ_{e,l}
+around φ_l, concentration δ^v, δ^w (γ for G_0) — with the weight of
+:data:`~spco.knowledge.fit.CONCENTRATION_PRIOR_SAMPLES` samples
+(:func:`spco.knowledge.fit._concentration`): one sample gives exactly δ, many give the
+moment-matched value, and every number of samples in between lies between them (no cliff).
+"""
 
 from __future__ import annotations
 
@@ -15,11 +31,13 @@ import scipy.sparse as sp
 from spco.data.environment import Environment, TrainingData
 from spco.errors import ConfigurationError, DataFormatError
 from spco.knowledge.diagnostics import ExperiencedHomeWarning, check_view_fit
-from spco.knowledge.files import _as_generator, _now, _seed_of, _version
+from spco.knowledge.files import _version
 from spco.knowledge.home import HomeModel
 from spco.knowledge.knowledge import DEFAULT_ADAPT_ITERATIONS, Knowledge
 from spco.model import gibbs
 from spco.model.home_shard import NewHomeShard, prepare_home
+from spco.model.seeds import as_generator, seed_of
+from spco.timestamps import utc_now
 
 
 def _map_centre(home: Environment) -> np.ndarray:
@@ -101,7 +119,7 @@ def adapt(
                       ExperiencedHomeWarning, stacklevel=2)
     extended = knowledge.extended(train.sentences)
     n_known = knowledge.n_words
-    rng = _as_generator(random_state)
+    rng = as_generator(random_state)
     scale = gibbs.CM_PER_M if extended.variant == "reference" else 1.0
     centre = _map_centre(home)
     data = prepare_home(train.positions, train.visual, train.sentences, extended.vocabulary,
@@ -120,12 +138,12 @@ def adapt(
     record: dict[str, Any] = {
         "knowledge_checksum": knowledge.checksum,
         "knowledge_homes": list(knowledge.provenance.get("homes") or []),
-        "adapt": {"seed": _seed_of(random_state), "n_iterations": int(n_iterations), "joint": bool(joint),
+        "adapt": {"seed": seed_of(random_state), "n_iterations": int(n_iterations), "joint": bool(joint),
                   "seconds": round(seconds, 3), "new_words": list(extended.vocabulary.words[n_known:])},
         "teach_updates": 0,
         "view_fit": fit_of_views,
         "spco_version": _version(),
-        "created": _now(),
+        "created": utc_now(),
     }
     record.update(provenance or {})
     return HomeModel(name=home.name, knowledge=extended, state=shard.state, ids=train.ids,

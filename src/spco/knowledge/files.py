@@ -21,11 +21,9 @@ overwrite=True)``).
 
 from __future__ import annotations
 
-import copy
 import hashlib
 import json
 from collections.abc import Iterable, Mapping
-from datetime import UTC, datetime
 from os import PathLike
 from pathlib import Path
 from typing import Any
@@ -68,23 +66,6 @@ def segmentation_of(header: Mapping[str, Any]) -> Any:
 _FORMAT_NAMES = {KNOWLEDGE_FORMAT: "knowledge file", HOME_FORMAT: "home file",
                  "spco-model": "spco model file (spco fit --save / model.save)"}
 _UNREADABLE = "not a readable spco file (truncated or corrupted?)"
-
-
-def _as_generator(random_state: int | np.random.Generator | None) -> np.random.Generator:
-    """A new Generator from a seed, or a copy of a Generator: the caller's is never advanced."""
-    if isinstance(random_state, np.random.Generator):
-        return copy.deepcopy(random_state)
-    return np.random.default_rng(random_state)
-
-
-def _seed_of(random_state: object) -> int | None:
-    if isinstance(random_state, bool) or not isinstance(random_state, int | np.integer):
-        return None
-    return int(random_state)
-
-
-def _now() -> str:
-    return datetime.now(UTC).isoformat(timespec="seconds")
 
 
 def _version() -> str:

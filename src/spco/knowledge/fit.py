@@ -16,14 +16,16 @@ from scipy.special import logsumexp
 from spco.data.environment import Corpus
 from spco.errors import ConfigurationError, DataFormatError
 from spco.knowledge.diagnostics import _view_fit_record
-from spco.knowledge.files import _as_generator, _now, _seed_of, _version
+from spco.knowledge.files import _version
 from spco.knowledge.knowledge import DEFAULT_FIT_ITERATIONS, DEFAULT_MODEL, MODELS, Knowledge
 from spco.model.hyperparameters import PRIORS, TransferHyperparameters, scaled_from, scaled_hyperparameters
 from spco.model.name_evidence import name_prior
 from spco.model.posterior import thinned_sweeps
 from spco.model.pruning import words_to_keep
+from spco.model.seeds import as_generator, seed_of
 from spco.model.sources import PreparedHomes
 from spco.model.transfer import SpCoTransfer
+from spco.timestamps import utc_now
 
 
 def summary_iterations(n_iterations: int, fraction: float = 0.25, every: int = 5) -> list[int]:
@@ -140,14 +142,7 @@ def fit_knowledge(
     The :class:`Knowledge`; its ``provenance`` records the homes, the seed, the iterations, the
     samples averaged, the fit time and the spco version.
     """
-    if model not in MODELS:
-        raise ConfigurationError(f"unknown model {model!r}; choose one of {', '.join(MODELS)}")
-    from spco.model.sources import FolderHomes, SyntheticHomes
-
-    source = corpus if isinstance(corpus, FolderHomes | SyntheticHomes) else None
-    if not isinstance(corpus, Corpus) and source is None:
-        raise ConfigurationError("fit_knowledge() expects a spco.data.Corpus, or a "
-                                 "spco.model.sources.FolderHomes or SyntheticHomes")
+    source = _check_fit_arguments(corpus, model, summary_fraction, summary_every, extractor)
     variant, prune = MODELS[model]
     if prior not in PRIORS:
         raise ConfigurationError(f"prior must be one of {', '.join(PRIORS)}, got {prior!r}")
@@ -156,26 +151,9 @@ def fit_knowledge(
     estimator = SpCoTransfer(hyperparameters, variant=variant, prune_words=prune, n_iterations=n_iterations,
                              random_state=random_state)
     hyper = estimator.checked_hyperparameters()
-    if not (0 < summary_fraction <= 1) or summary_every < 1:
-        raise ConfigurationError("summary_fraction must be within (0, 1] and summary_every >= 1")
-    n_features = corpus.n_features if source is not None else corpus[0].n_features
-    if extractor is not None and extractor.n_features != n_features:
-        raise ConfigurationError(f"the extractor gives {extractor.n_features} features, the homes' views "
-                                 f"have {n_features}")
-    if len(corpus.vocabulary) == 0:
-        n_homes = source.n_homes if source is not None else len(corpus)
-        raise DataFormatError(None, f"no taught sentence in the {n_homes} experienced home(s) "
-                              f"({', '.join(list(corpus.names)[:5])}): there are no place names to learn")
     settings = estimator.sampler_settings()
-    rng = _as_generator(random_state)
-    scale = estimator.position_scale
-    if source is not None:
-        source = replace(source, position_scale=scale)
-        n_samples = source.n_samples
-    else:  # the homes prepared here, then handed to the shards
-        data = estimator.prepare_data(corpus, scale)
-        source, n_samples = PreparedHomes(data, len(corpus.vocabulary)), data.n_samples
-        del data
+    rng = as_generator(random_state)
+    source, n_samples = _home_source(estimator, corpus, source)
     keep = set(summary_iterations(n_iterations, summary_fraction, summary_every))
     start = time.perf_counter()
     by_iteration: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
@@ -202,19 +180,7 @@ def fit_knowledge(
     samples = [by_iteration[i] for i in sorted(by_iteration)]
     seconds = time.perf_counter() - start
 
-    # align every sample to the last (labels are stable late in the chain; check and record it)
-    last_v, last_w = np.exp(samples[-1][0]), np.exp(samples[-1][1])
-    used = np.exp(samples[-1][2]) > 0.01
-    relabelled = 0
-    aligned = []
-    for log_v, log_w, log_g in samples:
-        perm = _align_to(last_v, last_w, np.exp(log_v), np.exp(log_w))
-        if (perm[used] != np.flatnonzero(used)).any():
-            relabelled += 1
-        aligned.append((log_v[perm], log_w[perm], log_g[perm]))
-    stack_v = np.stack([a[0] for a in aligned])
-    stack_w = np.stack([a[1] for a in aligned])
-    stack_g = np.stack([a[2] for a in aligned])
+    stack_v, stack_w, stack_g, relabelled, used = _aligned_samples(samples)
     n = stack_v.shape[0]
     log_phi_v = logsumexp(stack_v, axis=0) - math.log(n)
     has_words = stack_w.shape[2] > 0
@@ -222,27 +188,17 @@ def fit_knowledge(
     log_g0 = logsumexp(stack_g, axis=0) - math.log(n)
     phi_v_samples = np.exp(stack_v)
     spread = np.abs(phi_v_samples - np.exp(log_phi_v)[None]).sum(-1)[:, used]  # total variation × 2
-    word_mask = np.ones(len(corpus.vocabulary), dtype=bool)
-    if prune and word_mask.size and variant == "exact":
-        # the naming rule on the last sweep's regions (:func:`gibbs.naming_verdicts`), the mask the
-        # sampler used: it judges a name said in one home on that home, where it is place-bound
-        word_mask = word_mask_last.copy()
-    elif prune and word_mask.size:
-        score = settings.pruning_score
-        word_mask = words_to_keep(np.exp(log_phi_w), np.exp(log_g0), hyper.pruning_threshold(score), score)
-        if candidate_words is not None:  # words the sampler found to depend on the place
-            word_mask &= candidate_words
-        if not word_mask.any():
-            word_mask[np.argmax(np.exp(log_phi_w).max(0))] = True
+    word_mask = _kept_words(len(corpus.vocabulary), prune, variant, word_mask_last, candidate_words,
+                            log_phi_w, log_g0, hyper, settings)
     conc_g = _concentration(np.exp(stack_g)[:, None, :], hyper.gamma)[0]
     record: dict[str, Any] = {
         "homes": list(corpus.names),
         "n_samples": int(n_samples),
-        "seed": _seed_of(random_state),
+        "seed": seed_of(random_state),
         "n_iterations": int(n_iterations),
         "fit_seconds": round(seconds, 3),
         "spco_version": _version(),
-        "created": _now(),
+        "created": utc_now(),
         "summary": {
             "iterations": sorted(keep),
             "n_samples": int(n),
@@ -267,6 +223,79 @@ def fit_knowledge(
         extractor=None if extractor is None else extractor.spec().to_dict(),
         extractor_arrays={} if extractor is None else dict(extractor.arrays),
     )
+
+
+def _home_source(estimator: SpCoTransfer, corpus: Any, source: Any) -> tuple[Any, int]:
+    """What the shards start from, in the estimator's position units, and its number of samples:
+    a source whose homes the shards read themselves, or the corpus's homes prepared here."""
+    scale = estimator.position_scale
+    if source is not None:
+        source = replace(source, position_scale=scale)
+        return source, source.n_samples
+    data = estimator.prepare_data(corpus, scale)
+    return PreparedHomes(data, len(corpus.vocabulary)), data.n_samples
+
+
+def _check_fit_arguments(corpus: Any, model: str, summary_fraction: float, summary_every: int,
+                         extractor: Any) -> Any:
+    """Refuse what :func:`fit_knowledge` cannot fit; returns the home source the shards read
+    themselves (``None`` for a :class:`~spco.data.Corpus`)."""
+    if model not in MODELS:
+        raise ConfigurationError(f"unknown model {model!r}; choose one of {', '.join(MODELS)}")
+    from spco.model.sources import FolderHomes, SyntheticHomes
+
+    source = corpus if isinstance(corpus, FolderHomes | SyntheticHomes) else None
+    if not isinstance(corpus, Corpus) and source is None:
+        raise ConfigurationError("fit_knowledge() expects a spco.data.Corpus, or a "
+                                 "spco.model.sources.FolderHomes or SyntheticHomes")
+    if not (0 < summary_fraction <= 1) or summary_every < 1:
+        raise ConfigurationError("summary_fraction must be within (0, 1] and summary_every >= 1")
+    n_features = corpus.n_features if source is not None else corpus[0].n_features
+    if extractor is not None and extractor.n_features != n_features:
+        raise ConfigurationError(f"the extractor gives {extractor.n_features} features, the homes' views "
+                                 f"have {n_features}")
+    if len(corpus.vocabulary) == 0:
+        n_homes = source.n_homes if source is not None else len(corpus)
+        raise DataFormatError(None, f"no taught sentence in the {n_homes} experienced home(s) "
+                              f"({', '.join(list(corpus.names)[:5])}): there are no place names to learn")
+    return source
+
+
+def _aligned_samples(samples: list[tuple[np.ndarray, np.ndarray, np.ndarray]]
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, np.ndarray]:
+    """The kept sweeps' (log φ^v, log φ^w, log G_0), each relabelled to match the last sweep's
+    concepts (labels are stable late in the chain; this checks it): the three stacks, how many
+    sweeps needed a relabelling of a used concept, and which concepts the last sweep uses."""
+    last_v, last_w = np.exp(samples[-1][0]), np.exp(samples[-1][1])
+    used = np.exp(samples[-1][2]) > 0.01
+    relabelled = 0
+    aligned = []
+    for log_v, log_w, log_g in samples:
+        perm = _align_to(last_v, last_w, np.exp(log_v), np.exp(log_w))
+        if (perm[used] != np.flatnonzero(used)).any():
+            relabelled += 1
+        aligned.append((log_v[perm], log_w[perm], log_g[perm]))
+    stacks = [np.stack([a[i] for a in aligned]) for i in range(3)]
+    return stacks[0], stacks[1], stacks[2], relabelled, used
+
+
+def _kept_words(n_words: int, prune: bool, variant: str, word_mask_last: np.ndarray,
+                candidate_words: np.ndarray | None, log_phi_w: np.ndarray, log_g0: np.ndarray,
+                hyper: Any, settings: Any) -> np.ndarray:
+    """The words the knowledge keeps (every word without pruning)."""
+    word_mask = np.ones(n_words, dtype=bool)
+    if prune and word_mask.size and variant == "exact":
+        # the naming rule on the last sweep's regions (:func:`gibbs.naming_verdicts`), the mask the
+        # sampler used: it judges a name said in one home on that home, where it is place-bound
+        return word_mask_last.copy()
+    if prune and word_mask.size:
+        score = settings.pruning_score
+        word_mask = words_to_keep(np.exp(log_phi_w), np.exp(log_g0), hyper.pruning_threshold(score), score)
+        if candidate_words is not None:  # words the sampler found to depend on the place
+            word_mask &= candidate_words
+        if not word_mask.any():
+            word_mask[np.argmax(np.exp(log_phi_w).max(0))] = True
+    return word_mask
 
 
 def _fitted_name_prior(corpus: Any, naming_rule: bool) -> np.ndarray | None:

@@ -1,6 +1,13 @@
 """Questions to a home: where a place is (:func:`where`), what a place is called (:func:`what`),
 why a word is not used (:func:`unused_word_hint`), and what a knowledge or home file holds
-(:func:`describe_model_file`)."""
+(:func:`describe_model_file`).
+
+*Answers* (:func:`where`, :func:`what`) come from the home's parameters averaged over thinned
+sweeps of the last adaptation or teaching (``HomeModel.posterior``, :mod:`spco.model.posterior`),
+not from the last draw; ``where`` reports ``learnt`` False and a low ``support`` when the name's
+probability in the home comes from concepts that hold none of its samples (no such place learnt
+in this home).
+"""
 
 from __future__ import annotations
 
@@ -13,15 +20,16 @@ from typing import Any
 import numpy as np
 
 from spco.errors import ConfigurationError
-from spco.knowledge.files import HOME_FORMAT, _as_generator, model_file_format
+from spco.knowledge.files import HOME_FORMAT, model_file_format
 from spco.knowledge.home import HomeModel, load_home_model
 from spco.knowledge.knowledge import load_knowledge
-from spco.knowledge.views import _pose, _view_counts, _visual_row, pose_outside_map
+from spco.knowledge.views import _pose, _visual_row, pose_outside_map, view_counts
 from spco.model.confidence import UNSURE_BELOW, VIEW_EFFECTIVE_COUNTS, concept_word_counts, named_parameters
 from spco.model.home_shard import FREE_CONCEPT_WEIGHT
 from spco.model.parameters import ConceptParameters
 from spco.model.position_prediction import PositionPrediction
 from spco.model.prediction import NamePrediction, UnknownNameError, mutual_information_weights, predict_names
+from spco.model.seeds import as_generator
 from spco.model.unheard import resolve_name
 
 #: How many of the home's own teachings the model's p(m | name) weighs as, in :func:`where`.
@@ -106,7 +114,7 @@ def _where(home: HomeModel, name: str, n: int,
     while per_region.sum() < n:
         per_region[np.argmax(share * n - per_region)] += 1
     regions = np.repeat(answer, per_region)
-    samples, log_density, weights = draw_poses(params, 0, probs, regions, _as_generator(random_state))
+    samples, log_density, weights = draw_poses(params, 0, probs, regions, as_generator(random_state))
     return PositionPrediction(name=query_name(vocabulary, params, name), region=int(answer[0]),
                               region_probabilities=probs, samples=samples, regions=regions,
                               log_density=log_density, weights=weights, mode="mixture", xy_only=False,
@@ -178,7 +186,7 @@ def what(home: HomeModel, x: float, y: float, theta: float, visual: Any = None,
     outside = pose_outside_map(home, x, y)
     if outside is not None:
         warnings.warn(f"{outside}; the names are extrapolated from the nearest regions", stacklevel=2)
-    visual = _view_counts(home.knowledge, visual, image, encoding)
+    visual = view_counts(home.knowledge, visual, image, encoding)
     row = None if visual is None else _visual_row(visual, home.knowledge.n_features)
     return name_prediction(home, pose, row, top_k=top_k, unsure_below=unsure_below)
 

@@ -24,7 +24,7 @@ import numpy as np
 from spco.errors import ConfigurationError
 
 __all__ = ["ENCODINGS", "MAX_POSES", "MAX_QUESTIONS", "MAX_SENTENCE_CHARS", "MAX_TOP", "Ask", "Pose",
-           "Teach", "Undo", "View", "What", "Where"]
+           "Teach", "Undo", "View", "What", "Where", "clean_sentence"]
 
 #: Raw pixel encodings of a view (ROS ``sensor_msgs/Image`` names) and their channels.
 ENCODINGS = {"rgb8": 3, "bgr8": 3, "mono8": 1}
@@ -144,14 +144,18 @@ class View:
         return None
 
 
-def _sentence(value: object) -> str | None:
-    if value is None:
+def clean_sentence(sentence: object, max_chars: int | None = MAX_SENTENCE_CHARS) -> str | None:
+    """A taught sentence as a home keeps it: stripped of surrounding white space, ``None`` for no
+    sentence (``None``, or nothing but white space). Raises :class:`~spco.errors.ConfigurationError`
+    for anything but a string or ``None`` (null), and for a string longer than ``max_chars``
+    (``None``: no limit)."""
+    if sentence is None:
         return None
-    if not isinstance(value, str):
-        raise ConfigurationError(f"sentence: expected a string or null, got {type(value).__name__}")
-    if len(value) > MAX_SENTENCE_CHARS:
-        raise ConfigurationError(f"sentence: {len(value)} characters; at most {MAX_SENTENCE_CHARS}")
-    return value.strip() or None
+    if not isinstance(sentence, str):
+        raise ConfigurationError(f"sentence: expected a string or null, got {type(sentence).__name__}")
+    if max_chars is not None and len(sentence) > max_chars:
+        raise ConfigurationError(f"sentence: {len(sentence)} characters; at most {max_chars}")
+    return sentence.strip() or None
 
 
 @dataclass(frozen=True, slots=True)
@@ -199,7 +203,7 @@ class Teach:
     view: View | None = None
 
     def __post_init__(self) -> None:
-        _set(self, "sentence", _sentence(self.sentence))
+        _set(self, "sentence", clean_sentence(self.sentence))
         if self.id is not None:
             if self.pose is not None or self.view is not None:
                 raise ConfigurationError("give either id and sentence (a known sample) or a pose x, y, theta "

@@ -1,5 +1,7 @@
-"""Teaching a home: new sentences and observations, an incremental update from the home's current
-state (:func:`teach`), one :class:`~spco.model.home_shard.NewHomeShard` resumed."""
+"""Teaching a home: new sentences and observations, a local update from the home's current state
+(:func:`teach`, :mod:`spco.model.local_update`; a home adapted with ``joint=True`` or with the
+reference sampler resumes one :class:`~spco.model.home_shard.NewHomeShard` instead), within the
+home's limits (:mod:`spco.knowledge.limits`)."""
 
 from __future__ import annotations
 
@@ -13,21 +15,15 @@ import scipy.sparse as sp
 from scipy.special import logsumexp
 
 from spco.errors import ConfigurationError
-from spco.knowledge.files import _as_generator, _now, _seed_of
 from spco.knowledge.home import HomeModel, Observation, _copy_state
 from spco.knowledge.knowledge import DEFAULT_TEACH_SWEEPS
-from spco.knowledge.views import _pose, _view_counts, _visual_row
+from spco.knowledge.limits import DEFAULT_LIMITS, TeachingLimits, check_sentences
+from spco.knowledge.requests import clean_sentence
+from spco.knowledge.views import _pose, _visual_row, view_counts
 from spco.model.home_shard import NewHomeShard, init_new_words, prepare_home
-
-
-def _clean_sentence(sentence: str | None) -> str | None:
-    if sentence is None:
-        return None
-    if not isinstance(sentence, str):
-        raise ConfigurationError(f"a sentence must be a string or None, got {sentence!r}")
-    return sentence.strip() or None
-
-
+from spco.model.local_update import teach_locally
+from spco.model.seeds import as_generator, seed_of
+from spco.timestamps import utc_now
 
 
 def teach(
@@ -36,6 +32,7 @@ def teach(
     observations: Sequence[Observation] = (),
     n_sweeps: int = DEFAULT_TEACH_SWEEPS,
     random_state: int | np.random.Generator | None = None,
+    limits: TeachingLimits | None = DEFAULT_LIMITS,
 ) -> HomeModel:
     """Teach the home: new sentences for known samples, new observations; an incremental update.
 
@@ -44,10 +41,19 @@ def teach(
     home: the home model to update (it is not modified: a new one is returned).
     sentences: sample id -> sentence (``None`` or ``""`` forgets the sentence of that sample).
     observations: new samples (:class:`Observation`), appended with new ids.
-    n_sweeps: Gibbs sweeps run from the home's current state (10 by default, a few tens of
-        milliseconds for a home of 300 samples); prediction then uses the average of the last
-        of them (:func:`~spco.model.posterior.thinned_sweeps`), with 0 the state's own draw.
+    n_sweeps: Gibbs sweeps of the part of the home the teaching affects, from the home's current
+        state (10 by default, a few tens of milliseconds); prediction then uses the average of the
+        last of them (:func:`~spco.model.posterior.thinned_sweeps`) for that part, and the home's
+        previous average for the rest.
     random_state: seed or Generator.
+    limits: what one teaching may bring (:class:`~spco.knowledge.limits.TeachingLimits`: words per
+        sentence, new words, the home's own words); a teaching beyond them is refused whole with a
+        :class:`~spco.errors.TeachingLimitError` naming the limit. ``None``: no limits (replaying
+        teachings accepted before).
+
+    The update is local (:mod:`spco.model.local_update`): the taught place changes, and the rest of
+    the home only where the new evidence demands it; a concept or region the teaching does not
+    touch answers exactly as before. The same home, teaching and seed give the same home.
 
     New words grow the vocabulary (:meth:`Knowledge.extended`); everything learnt so far is kept:
     the sweeps start from the home's assignments and parameters, with the shared part fixed (or
@@ -61,6 +67,9 @@ def teach(
     observations = list(observations)
     if not sentences and not observations:
         raise ConfigurationError("nothing to teach: give a sentence for a sample or a new observation")
+    said = [s for s in sentences.values() if isinstance(s, str)]
+    said += [o.sentence for o in observations if isinstance(o, Observation) and isinstance(o.sentence, str)]
+    check_sentences(home.vocabulary, home.n_knowledge_words, said, limits)
     start = time.perf_counter()
     new_sentences = list(home.sentences)
     index = {int(i): k for k, i in enumerate(home.ids)}
@@ -72,7 +81,7 @@ def teach(
             raise ConfigurationError(f"home {home.name!r} has no sample with id {sample_id} (its "
                                      f"{home.n_samples} training samples have ids {shown}"
                                      f"{', …' if home.n_samples > 5 else ''}, up to {int(home.ids.max())})")
-        new_sentences[index[int(sample_id)]] = _clean_sentence(sentence)
+        new_sentences[index[int(sample_id)]] = clean_sentence(sentence, None)
     ids = list(home.ids.tolist())
     taken = set(ids)
     poses, rows, no_view = [], [], []
@@ -85,10 +94,10 @@ def teach(
         taken.add(new_id)
         ids.append(new_id)
         poses.append(_pose(obs.x, obs.y, obs.theta))
-        counts = _view_counts(home.knowledge, obs.visual, obs.image, obs.encoding)
+        counts = view_counts(home.knowledge, obs.visual, obs.image, obs.encoding)
         no_view.append(counts is None)
         rows.append(_visual_row(counts, home.knowledge.n_features))
-        new_sentences.append(_clean_sentence(obs.sentence))
+        new_sentences.append(clean_sentence(obs.sentence, None))
     positions = np.vstack([home.positions, *poses]) if poses else home.positions
     visual = home.visual
     view_missing = np.concatenate([home.view_missing, np.array(no_view, dtype=bool)])
@@ -96,13 +105,14 @@ def teach(
         visual = sp.csr_array(sp.vstack([home.visual, *rows], format="csr"), dtype=np.int64)
 
     knowledge = home.knowledge.extended(new_sentences)
+    local = not home.joint and knowledge.variant == "exact"
     added = knowledge.n_words - home.knowledge.n_words
     state = _copy_state(home.state)
     if added:
         hyper = knowledge.hyperparameters
         log_new = math.log(hyper.alpha_word / hyper.delta_word)
         L = knowledge.n_concepts
-        if home.joint:  # the shared part is the home's: grow it like the knowledge
+        if home.joint or local:  # the home's φ^w (learnt, or a free concept's): grown like the knowledge's
             phi_w = np.concatenate([state.log_phi_w, np.full((L, added), log_new)], axis=1)
             state.log_phi_w = phi_w - logsumexp(phi_w, axis=1, keepdims=True)
         else:
@@ -124,17 +134,25 @@ def teach(
         state.candidate_words = knowledge.word_mask[: home.n_knowledge_words].copy()
         state.candidate_words = np.concatenate([state.candidate_words,
                                                 np.ones(knowledge.n_words - home.n_knowledge_words, bool)])
-    shard = NewHomeShard(data, state, knowledge.shared_part(), home.n_knowledge_words,
-                         _as_generator(random_state), prior)
-    shard.begin()  # a taught name counts at once
-    shard.run(int(n_sweeps))
-    posterior = shard.finish(home.name)
+    if local:  # a local update: the taught place changes, the rest of the home only where it must
+        n_old = home.n_samples
+        taught = [k for k in range(n_old) if new_sentences[k] != home.sentences[k]]
+        new_rows = np.arange(n_old, len(new_sentences))
+        posterior = teach_locally(data, state, knowledge.shared_part(), home.n_knowledge_words,
+                                  np.concatenate([np.asarray(taught, dtype=np.int64), new_rows]), new_rows,
+                                  int(n_sweeps), as_generator(random_state), home.posterior, home.name)
+    else:
+        shard = NewHomeShard(data, state, knowledge.shared_part(), home.n_knowledge_words,
+                             as_generator(random_state), prior)
+        shard.begin()  # a taught name counts at once
+        shard.run(int(n_sweeps))
+        posterior = shard.finish(home.name)
     provenance = dict(home.provenance)
     provenance["teach_updates"] = int(provenance.get("teach_updates", 0)) + 1
-    provenance["updated"] = _now()
+    provenance["updated"] = utc_now()
     provenance["last_teach"] = {"sentences": len(sentences), "observations": len(observations),
                                 "new_words": list(knowledge.vocabulary.words[home.knowledge.n_words:]),
-                                "n_sweeps": int(n_sweeps), "seed": _seed_of(random_state),
+                                "n_sweeps": int(n_sweeps), "seed": seed_of(random_state),
                                 "seconds": round(time.perf_counter() - start, 4)}
     return replace(home, knowledge=knowledge, state=state, ids=np.asarray(ids, dtype=np.int64),
                    positions=positions, visual=visual, sentences=tuple(new_sentences), provenance=provenance,

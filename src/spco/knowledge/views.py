@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from os import PathLike
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -15,6 +16,7 @@ from spco.knowledge.requests import Pose
 from spco.model.prediction import validate_visual_counts
 
 if TYPE_CHECKING:
+    from spco.features import Extractor
     from spco.knowledge.home import HomeModel
     from spco.knowledge.knowledge import Knowledge
 
@@ -78,17 +80,25 @@ def pose_outside_map(home: HomeModel, x: float, y: float) -> str | None:
 
 
 
-def _view_counts(knowledge: Knowledge, visual: Any, image: Any, encoding: str | None = None) -> Any:
-    """A view's counts: ``visual`` as given, or ``image`` (in ``encoding``, for an array of pixels)
-    through the knowledge's extractor."""
+def view_counts(knowledge: Knowledge, visual: Any = None, image: Any = None, encoding: str | None = None,
+                extractor: Callable[[], Extractor] | None = None) -> Any:
+    """One view's visual counts, as every entry point takes a view (library, CLI, HTTP, ROS).
+
+    ``visual``: the counts themselves, returned as given (checked where they are used,
+    :func:`_visual_row`); or ``image``: a file, encoded bytes or an array of pixels in ``encoding``,
+    turned into counts by the knowledge's extractor (``extractor``: a function giving the
+    extractor to use, e.g. one the caller keeps; default :meth:`Knowledge.image_extractor`); neither:
+    ``None`` (no view). Raises :class:`~spco.errors.ConfigurationError` for both, and for an image
+    when the knowledge was fitted on count vectors.
+    """
     if image is None:
         return visual
     if visual is not None:
-        raise ConfigurationError("give a view either as visual counts or as an image, not both")
+        raise ConfigurationError("give the view either as visual counts or as an image, not both")
     if not knowledge.fitted_on_images:
         raise ConfigurationError("the knowledge of this home was fitted on visual count vectors, not on "
-                                 "images: give the view's features (--visual), not an image")
-    return knowledge.image_extractor().extract(image, encoding)
+                                 "images: give the view's features (visual counts, --visual), not an image")
+    return (extractor or knowledge.image_extractor)().extract(image, encoding)
 
 
 

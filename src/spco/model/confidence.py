@@ -1,9 +1,8 @@
 """Honest confidence for place names: what ``what`` answers, and how sure it may be.
 
 The model's name posterior ``p(w | x, v) = Σ_l θ^w_{e,l,w} P(l | x, v)`` (:mod:`spco.model.prediction`)
-was sure of every answer on new homes learnt from camera images: 86 % right, mean confidence 1.000,
-every wrong answer at p ≥ 0.99 (issue 22). Two causes, each a way of counting evidence that is not
-independent as if it were (``docs/model.md``, "Confidence"):
+counts two kinds of evidence that are not independent as if they were; this module corrects both
+(``docs/model.md``, "Confidence"):
 
 1. **A view is not thousands of independent draws.** The visual likelihood is a multinomial over
    the view's counts: ~1,950 counts per colour-hog image, ~7,300 per fc7 vector (× 5, an arbitrary
@@ -21,7 +20,7 @@ independent as if it were (``docs/model.md``, "Confidence"):
 2. **A concept nobody named has no name.** A concept the knowledge does not use (G_0 below
    ``free_weight``, e.g. a third bedroom unlike the experienced ones) gets its φ^w redrawn from the
    sparse prior Dir(α^w) at each sweep of ``adapt`` — nearly one-hot on a random word — and the few
-   averaged draws gave it a name at p ≈ 1 ("washroom" for a bedroom). Its word distribution is
+   averaged draws would give it a name at p ≈ 1. Its word distribution is
    replaced by its posterior mean given the home's own taught words (Rao-Blackwellised:
    ``(α^w + N_{l,w}) / (V α^w + N_l)``, N the home's word counts in the concept), which is the
    prior mean — uniform over the names — when nothing was taught there.
@@ -53,14 +52,11 @@ __all__ = [
 ]
 
 #: The evidence of one camera view in ``what``'s probabilities, in independent draws from its
-#: concept's visual distribution. Not the model's ``TransferHyperparameters.view_counts`` (16, the
-#: weight of a view while the exact sampler *learns*, chosen for the rooms it finds): this one is
-#: chosen for *honest probabilities*, by the least log loss of the right names (mean −log p(true
-#: name | pose, view)) over the development views of ``benchmarks/calibration/SPLIT.md`` (1DK_8 and
-#: 3LDK_9 test views, 4 and 8 experienced homes, seeds 0–4, colour-hog and fc7 pooled, models learnt
-#: with view_counts = 16; ``benchmarks/calibration.py --fit-view-counts``): 0.0279 at 4.5–5, 0.0282
-#: at 4, 0.0411 at 16 — 16 is 0.0132 [0.0009, 0.0287] worse (95 % paired bootstrap over views), so
-#: the two stay two numbers (docs/model.md, "Confidence").
+#: concept's visual distribution. Not the model's ``TransferHyperparameters.view_counts`` (the
+#: weight of a view while the exact sampler *learns*): this one is for *honest probabilities*, the
+#: value of least log loss of the right names over the development views of
+#: ``benchmarks/calibration/SPLIT.md`` (``benchmarks/calibration.py --fit-view-counts``; the figures
+#: are in benchmarks/README.md).
 VIEW_EFFECTIVE_COUNTS = 5.0
 
 #: The one "unsure" threshold: an answer whose probability p(name | pose, view) is below this is

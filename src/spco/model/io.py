@@ -43,7 +43,6 @@ import json
 import os
 import tempfile
 from collections.abc import Callable, Mapping
-from datetime import UTC, datetime
 from os import PathLike
 from pathlib import Path
 from typing import Any
@@ -55,6 +54,7 @@ from spco.errors import ConfigurationError, ModelFileError
 from spco.model.hyperparameters import SpCoAHyperparameters, TransferHyperparameters
 from spco.model.parameters import ConceptParameters
 from spco.model.transfer import SpatialConceptModel, SpCoA, SpCoTransfer
+from spco.timestamps import utc_now
 
 __all__ = ["FORMAT_NAME", "FORMAT_VERSION", "load", "load_model", "save_model"]
 
@@ -137,7 +137,7 @@ def _arrays_and_header(model: SpatialConceptModel) -> tuple[dict[str, np.ndarray
         "word_increment": int(model.word_increment_),
         "home_names": list(model.home_names_),
         "fit_seconds": float(getattr(model, "fit_seconds_", float("nan"))),
-        "created": datetime.now(UTC).isoformat(timespec="seconds"),
+        "created": utc_now(),
     }
     return arrays, header
 

@@ -248,16 +248,27 @@ def colocation(words: sp.csr_array, homes: np.ndarray, regions: np.ndarray, n_ho
         return Colocation(pairs=pairs, same=same, expected=expected, log_likelihood=log_likelihood)
     # each (home, word) said at least twice: its count term, then its cells' terms in region order,
     # rounded to the grid; then summed over homes (exactly)
+    per_pair = _per_pair_terms(in_home, in_cell, repeated, keep, per_home[n_e], per_cell[which.ravel()],
+                               n_homes, n_words, n_regions)
+    log_likelihood = np.zeros((n_words, EXCESS_GRID.size))
+    np.add.at(log_likelihood, in_home.col[repeated], on_grid(per_pair))
+    return Colocation(pairs=pairs, same=same, expected=expected, log_likelihood=log_likelihood)
+
+
+def _per_pair_terms(in_home: sp.coo_array, in_cell: sp.coo_array, repeated: np.ndarray, keep: np.ndarray,
+                    count_terms: np.ndarray, cell_terms: np.ndarray, n_homes: int, n_words: int,
+                    n_regions: int) -> np.ndarray:
+    """The urn's log-likelihood on the grid of κ of each (home, word) said at least twice, (pairs, G):
+    its count term (``count_terms``), plus its cells' terms (``cell_terms``, one per kept cell)
+    added in region order."""
     pair_homes, pair_words = in_home.row[repeated], in_home.col[repeated]
     pair_of = np.full(n_homes * n_words, -1, dtype=np.int64)
     pair_of[pair_homes * n_words + pair_words] = np.arange(pair_homes.size)
-    per_pair = per_home[n_e].copy()  # (pairs, G)
+    per_pair = count_terms.copy()  # (pairs, G)
     cell_pairs = pair_of[(in_cell.row[keep] // n_regions) * n_words + in_cell.col[keep]]
     order = np.argsort(in_cell.row[keep], kind="stable")  # region order within each (home, word)
-    np.add.at(per_pair, cell_pairs[order], per_cell[which.ravel()[order]])
-    log_likelihood = np.zeros((n_words, EXCESS_GRID.size))
-    np.add.at(log_likelihood, pair_words, on_grid(per_pair))
-    return Colocation(pairs=pairs, same=same, expected=expected, log_likelihood=log_likelihood)
+    np.add.at(per_pair, cell_pairs[order], cell_terms[order])
+    return per_pair
 
 
 def judge_names(stats: Colocation, min_excess: float = NAME_MIN_EXCESS, p_value: float = NAME_P_VALUE,

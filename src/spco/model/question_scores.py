@@ -64,9 +64,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy.spatial import cKDTree
+from scipy.special import entr
 
 from spco.errors import ConfigurationError
 
@@ -79,6 +81,7 @@ __all__ = [
     "ROOM_LINK_METRES",
     "ROOM_NAME_WEIGHT",
     "QuestionScores",
+    "entropy_rows",
     "group_rooms",
     "name_entropy",
     "question_scores",
@@ -103,11 +106,10 @@ OWN_NAME_PRIOR_WEIGHT = 2.0
 ROOM_NAME_WEIGHT = 0.5
 
 
-def _entropy_rows(p: np.ndarray) -> np.ndarray:
-    """Entropy (nats) of each row of non-negative weights ``p`` (not renormalised; 0 log 0 = 0)."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        terms = np.where(p > 0, -p * np.log(np.where(p > 0, p, 1.0)), 0.0)
-    return terms.sum(axis=-1)
+def entropy_rows(p: np.ndarray) -> np.ndarray:
+    """Entropy (nats) of each row (last axis) of non-negative weights ``p``, not renormalised:
+    ``-Σ p log p`` with 0 log 0 = 0 (:func:`scipy.special.entr`)."""
+    return entr(p).sum(axis=-1)
 
 
 def name_entropy(probabilities: np.ndarray, unknown: np.ndarray, n_names: int) -> np.ndarray:
@@ -125,7 +127,7 @@ def name_entropy(probabilities: np.ndarray, unknown: np.ndarray, n_names: int) -
     """
     p = np.asarray(probabilities, dtype=np.float64)
     u = np.asarray(unknown, dtype=np.float64)
-    return _entropy_rows(p) + _entropy_rows(u[:, None]) + u * math.log(n_names + 1)
+    return entropy_rows(p) + entropy_rows(u[:, None]) + u * math.log(n_names + 1)
 
 
 def group_rooms(regions: np.ndarray, kinds: np.ndarray, xy: np.ndarray,
@@ -263,6 +265,60 @@ def room_novelty(room_fit: np.ndarray, fit_range: tuple[float, float] | None) ->
 CRITERIA = ("information", "errors")
 
 
+def _checked_score_inputs(criterion: str, concepts: Any, name_matrix: Any, unnamed: Any, kinds: Any,
+                          regions: Any, xy: Any, taught_names: Any, taught_own: Any,
+                          weights: tuple[float, float, float, float]) -> tuple[np.ndarray, ...]:
+    """:func:`question_scores`'s arrays as NumPy arrays, checked (shapes, ranges, the criterion and
+    ``weights`` = prior_alone, prior_shared, prior_weight, room_weight): (concepts, name matrix,
+    unnamed, kinds, taught names, taught own)."""
+    if criterion not in CRITERIA:
+        raise ConfigurationError(f"criterion must be one of {', '.join(CRITERIA)}, got {criterion!r}")
+    q = np.asarray(concepts, dtype=np.float64)
+    names = np.asarray(name_matrix, dtype=np.float64)
+    if q.ndim != 2 or names.ndim != 2 or names.shape[0] != q.shape[1]:
+        raise ConfigurationError(f"concepts (n, L) and name_matrix (L, V') do not fit: {q.shape}, "
+                                 f"{names.shape}")
+    n, n_concepts = q.shape
+    n_names = names.shape[1]
+    unnamed = np.asarray(unnamed, dtype=bool)
+    kinds = np.asarray(kinds, dtype=np.int64)
+    said = np.asarray(taught_names, dtype=np.float64)
+    taught_own = np.asarray(taught_own, dtype=bool)
+    for label, array, shape in (("unnamed", unnamed, (n_concepts,)), ("kinds", kinds, (n,)),
+                                ("taught_names", said, (n, n_names)), ("taught_own", taught_own, (n,)),
+                                ("regions", np.asarray(regions), (n,)), ("xy", np.asarray(xy), (n, 2))):
+        if array.shape != shape:
+            raise ConfigurationError(f"{label} has shape {array.shape}, expected {shape}")
+    if n and (kinds.min() < 0 or kinds.max() >= n_concepts):
+        raise ConfigurationError(f"kinds must be concepts 0..{n_concepts - 1}")
+    if not all(np.isfinite(a).all() and (a >= 0).all() for a in (q, names, said)):
+        raise ConfigurationError("concept, name and taught-name weights must be finite and >= 0")
+    prior_alone, prior_shared, prior_weight, room_weight = weights
+    for label, value in (("prior_alone", prior_alone), ("prior_shared", prior_shared),
+                         ("room_weight", room_weight)):
+        if not 0.0 <= value <= 1.0:
+            raise ConfigurationError(f"{label} must be within 0..1, got {value!r}")
+    if not prior_weight > 0:
+        raise ConfigurationError(f"prior_weight must be > 0, got {prior_weight!r}")
+    return q, names, unnamed, kinds, said, taught_own
+
+
+def _room_view_fits(view_fits: Any, rooms: np.ndarray, n_rooms: int) -> np.ndarray:
+    """(R,) the median view fit of each room's samples with a view (NaN: none, or no fits given)."""
+    room_fit = np.full(n_rooms, np.nan)
+    if view_fits is None:
+        return room_fit
+    fits = np.asarray(view_fits, dtype=np.float64)
+    if fits.shape != rooms.shape:
+        raise ConfigurationError(f"view_fits has shape {fits.shape}, expected {rooms.shape}")
+    for r in range(n_rooms):  # a loop over rooms
+        seen = fits[rooms == r]
+        seen = seen[np.isfinite(seen)]
+        if seen.size:
+            room_fit[r] = float(np.median(seen))
+    return room_fit
+
+
 def question_scores(
     concepts: np.ndarray,
     name_matrix: np.ndarray,
@@ -310,34 +366,11 @@ def question_scores(
     :class:`QuestionScores`. Raises :class:`~spco.errors.ConfigurationError` on inconsistent shapes
     or values.
     """
-    if criterion not in CRITERIA:
-        raise ConfigurationError(f"criterion must be one of {', '.join(CRITERIA)}, got {criterion!r}")
-    q = np.asarray(concepts, dtype=np.float64)
-    names = np.asarray(name_matrix, dtype=np.float64)
-    if q.ndim != 2 or names.ndim != 2 or names.shape[0] != q.shape[1]:
-        raise ConfigurationError(f"concepts (n, L) and name_matrix (L, V') do not fit: {q.shape}, "
-                                 f"{names.shape}")
+    q, names, unnamed, kinds, said, taught_own = _checked_score_inputs(
+        criterion, concepts, name_matrix, unnamed, kinds, regions, xy, taught_names, taught_own,
+        (prior_alone, prior_shared, prior_weight, room_weight))
     n, n_concepts = q.shape
     n_names = names.shape[1]
-    unnamed = np.asarray(unnamed, dtype=bool)
-    kinds = np.asarray(kinds, dtype=np.int64)
-    said = np.asarray(taught_names, dtype=np.float64)
-    taught_own = np.asarray(taught_own, dtype=bool)
-    for label, array, shape in (("unnamed", unnamed, (n_concepts,)), ("kinds", kinds, (n,)),
-                                ("taught_names", said, (n, n_names)), ("taught_own", taught_own, (n,)),
-                                ("regions", np.asarray(regions), (n,)), ("xy", np.asarray(xy), (n, 2))):
-        if array.shape != shape:
-            raise ConfigurationError(f"{label} has shape {array.shape}, expected {shape}")
-    if n and (kinds.min() < 0 or kinds.max() >= n_concepts):
-        raise ConfigurationError(f"kinds must be concepts 0..{n_concepts - 1}")
-    if not all(np.isfinite(a).all() and (a >= 0).all() for a in (q, names, said)):
-        raise ConfigurationError("concept, name and taught-name weights must be finite and >= 0")
-    for label, value in (("prior_alone", prior_alone), ("prior_shared", prior_shared),
-                         ("room_weight", room_weight)):
-        if not 0.0 <= value <= 1.0:
-            raise ConfigurationError(f"{label} must be within 0..1, got {value!r}")
-    if not prior_weight > 0:
-        raise ConfigurationError(f"prior_weight must be > 0, got {prior_weight!r}")
     taught = said.sum(axis=1) > 0
     taught_own = taught_own & taught
     named = ~unnamed & (names.sum(axis=1) > 0)
@@ -363,16 +396,7 @@ def question_scores(
                                       minlength=n_concepts).astype(np.float64)
     prior = np.where(rooms_of_kind >= 2, prior_shared, prior_alone)
     rho_kind = (prior_weight * prior + own_answers) / (prior_weight + own_answers + transferred_answers)
-    room_fit = np.full(n_rooms, np.nan)
-    if view_fits is not None:
-        fits = np.asarray(view_fits, dtype=np.float64)
-        if fits.shape != (n,):
-            raise ConfigurationError(f"view_fits has shape {fits.shape}, expected {(n,)}")
-        for r in range(n_rooms):  # a loop over rooms
-            seen = fits[rooms == r]
-            seen = seen[np.isfinite(seen)]
-            if seen.size:
-                room_fit[r] = float(np.median(seen))
+    room_fit = _room_view_fits(view_fits, rooms, n_rooms)
     novelty_room = room_novelty(room_fit, fit_range)
     rho_room = np.where(room_taught, 0.0, np.maximum(rho_kind[room_kinds], novelty_room))
     rho = rho_room[rooms] if n else np.zeros(0)

@@ -43,6 +43,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -290,6 +291,77 @@ def _nbytes(value) -> int:
     raise TypeError(f"cannot size {type(value).__name__}")
 
 
+def _uniform_start(call, gather, settings: SamplerSettings, hyper: TransferHyperparameters,
+                   rng: np.random.Generator, report: InitialisationReport, n_shards: int):
+    """The shared parameters of a start without warm start (the reference and SpCoA samplers): φ and
+    G_0 uniform, the reference sampler's G_0 drawn from its prior and sent to the shards."""
+    shared = gather(call("shared_parameters"))[0]  # (the same in every shard but G_0)
+    if settings.variant == "reference":
+        shared.log_g0 = log_dirichlet(np.full(hyper.n_concepts, hyper.gamma0), rng)
+        call("init_reference_weights", shared.log_g0)
+        report.bytes_sent += shared.log_g0.nbytes * n_shards
+    return shared
+
+
+def _home_counts_fetcher(call_each, gather, bounds: list[tuple[int, int]], report: InitialisationReport):
+    """``fetch(homes)``: the :class:`HomeCounts` of the given homes, asked of the shards holding them,
+    in the order asked."""
+    starts = np.array([a for a, _ in bounds])
+    n_shards = len(bounds)
+
+    def fetch(homes: np.ndarray) -> list[HomeCounts]:
+        owner = np.searchsorted(starts, homes, side="right") - 1
+        asked = [[int(h - starts[s]) for h, o in zip(homes, owner, strict=True) if o == s]
+                 for s in range(n_shards)]
+        answers = gather(call_each("init_home_counts", [(a,) for a in asked]))
+        report.bytes_sent += 8 * len(homes)
+        position = [0] * n_shards
+        out = []
+        for o in owner:
+            out.append(answers[o][position[o]])
+            position[o] += 1
+        return out
+
+    return fetch
+
+
+def _first_sweeps(call, total, settings: SamplerSettings, n_words: int, n_sweeps: int,
+                  report: InitialisationReport, n_shards: int) -> tuple[np.ndarray, np.ndarray | None]:
+    """The start's ``n_sweeps`` local and home steps; with word pruning the naming rule judges the
+    words after the first local step. Returns the words kept (all without pruning) and the words
+    judged names (``None`` without pruning)."""
+    word_mask = np.ones(n_words, dtype=bool)
+    name_words = None
+    for sweep_index in range(n_sweeps):
+        call("init_local_step")
+        mask = names = None
+        if sweep_index == 0 and settings.prune and n_words:
+            verdicts = judge_names(total(call("colocation")))
+            mask = word_mask = verdicts != NOT_A_NAME
+            names = name_words = verdicts == NAME
+            report.bytes_sent += (mask.nbytes + names.nbytes) * n_shards
+        call("init_home_step", mask, names)
+    return word_mask, name_words
+
+
+def _hand_out_labels(owns: list[dict[int, Any]], free: list[int]) -> list[dict[int, list[tuple[int, int]]]]:
+    """The free concept labels handed out in home order: per shard, home -> (own word, label) pairs,
+    one label per word of the home's own while labels are left (``free`` is used up in place)."""
+    given: list[dict[int, list[tuple[int, int]]]] = []
+    for own in owns:
+        pairs_of: dict[int, list[tuple[int, int]]] = {}
+        for e in sorted(own):
+            pairs = []
+            for word in own[e]:
+                if not free:
+                    break
+                pairs.append((int(word), int(free.pop(0))))
+            if pairs:
+                pairs_of[e] = pairs
+        given.append(pairs_of)
+    return given
+
+
 def initialise(call, call_each, bounds: list[tuple[int, int]], n_words: int, hyper: TransferHyperparameters,
                settings: SamplerSettings, rng: np.random.Generator, n_sweeps: int = 3,
                batch: int = ALIGNMENT_BATCH):
@@ -318,14 +390,8 @@ def initialise(call, call_each, bounds: list[tuple[int, int]], n_words: int, hyp
 
     n_shards = len(bounds)
     L = hyper.n_concepts
-    word_mask = np.ones(n_words, dtype=bool)
     if settings.variant != "exact":  # no warm start: φ and G_0 start uniform (reference: G_0 drawn)
-        shared = gather(call("shared_parameters"))[0]  # (the same in every shard but G_0)
-        if settings.variant == "reference":
-            shared.log_g0 = log_dirichlet(np.full(L, hyper.gamma0), rng)
-            call("init_reference_weights", shared.log_g0)
-            report.bytes_sent += shared.log_g0.nbytes * n_shards
-        return shared, report
+        return _uniform_start(call, gather, settings, hyper, rng, report, n_shards), report
 
     naming_start = settings.prune and any(gather(call("init_has_words")))
     if naming_start:
@@ -334,36 +400,13 @@ def initialise(call, call_each, bounds: list[tuple[int, int]], n_words: int, hyp
         call("init_places", overlaps)
         report.bytes_sent += overlaps.nbytes * n_shards
         report.bytes_sent += naming.nbytes * n_shards
-    name_words = None
-    for sweep_index in range(n_sweeps):
-        call("init_local_step")
-        mask = names = None
-        if sweep_index == 0 and settings.prune and n_words:
-            verdicts = judge_names(total(call("colocation")))
-            mask = word_mask = verdicts != NOT_A_NAME
-            names = name_words = verdicts == NAME
-            report.bytes_sent += (mask.nbytes + names.nbytes) * n_shards
-        call("init_home_step", mask, names)
+    word_mask, name_words = _first_sweeps(call, total, settings, n_words, n_sweeps, report, n_shards)
 
     summaries = gather(call("init_summary"))
     word_totals = np.concatenate([s.word_totals for s in summaries])
     names_said = np.concatenate([s.names_said for s in summaries]) if naming_start else None
     taught = np.concatenate([s.taught_fraction for s in summaries])
-    starts = np.array([a for a, _ in bounds])
-
-    def fetch(homes: np.ndarray) -> list[HomeCounts]:
-        owner = np.searchsorted(starts, homes, side="right") - 1
-        asked = [[int(h - starts[s]) for h, o in zip(homes, owner, strict=True) if o == s]
-                 for s in range(n_shards)]
-        answers = gather(call_each("init_home_counts", [(a,) for a in asked]))
-        report.bytes_sent += 8 * len(homes)
-        position = [0] * n_shards
-        out = []
-        for o in owner:
-            out.append(answers[o][position[o]])
-            position[o] += 1
-        return out
-
+    fetch = _home_counts_fetcher(call_each, gather, bounds, report)
     aligning = time.perf_counter()
     perms = align_in_order(fetch, word_totals, names_said, hyper.alpha_visual, hyper.alpha_word, L, batch)
     report.alignment_seconds = time.perf_counter() - aligning
@@ -378,18 +421,7 @@ def initialise(call, call_each, bounds: list[tuple[int, int]], n_words: int, hyp
         said_elsewhere = np.logical_or.reduce([k[0] for k in kept])
         free = list(np.flatnonzero(sum(k[1] for k in kept) == 0))
         owns = gather(call_each("init_own_names", [(said_elsewhere,)] * n_shards))
-        given: list[dict[int, list[tuple[int, int]]]] = []
-        for own in owns:  # the free labels handed out in home order
-            pairs_of: dict[int, list[tuple[int, int]]] = {}
-            for e in sorted(own):
-                pairs = []
-                for word in own[e]:
-                    if not free:
-                        break
-                    pairs.append((int(word), int(free.pop(0))))
-                if pairs:
-                    pairs_of[e] = pairs
-            given.append(pairs_of)
+        given = _hand_out_labels(owns, free)
         call_each("init_give_labels", [(g,) for g in given])
         report.bytes_sent += _nbytes(given) + said_elsewhere.nbytes * n_shards
     counts = total(call("init_weighted_counts", bool(reduced.any())))

@@ -51,14 +51,7 @@ from spco.model.posterior import (
     thinned_sweeps,
     untaught_concepts_name_nothing,
 )
-
-
-def _as_generator(random_state: int | np.random.Generator | None) -> np.random.Generator:
-    """A Generator for ``random_state``: a new one from a seed, or a copy of a Generator (the
-    caller's Generator is never advanced)."""
-    if isinstance(random_state, np.random.Generator):
-        return copy.deepcopy(random_state)
-    return np.random.default_rng(random_state)
+from spco.model.seeds import as_generator
 
 
 def clone(estimator: SpatialConceptModel) -> SpatialConceptModel:
@@ -224,7 +217,7 @@ class SpatialConceptModel:
         """
         hyper = self.checked_hyperparameters()
         settings = self.sampler_settings()
-        rng = _as_generator(self.random_state)
+        rng = as_generator(self.random_state)
         data = self.prepare_data(corpus, self.position_scale)
         start = time.perf_counter()
         averaged = set(thinned_sweeps(int(self.n_iterations)))
@@ -269,23 +262,31 @@ class SpatialConceptModel:
         self.data_ = data
         self.log_joint_ = np.asarray(trace, dtype=float)
         self.n_iter_ = int(self.n_iterations)
-        self.parameters_ = average.result(state)
-        if settings.variant == "exact":  # (the authors' sampler and SpCoA export as published)
-            taught = np.zeros(hyper.n_concepts, dtype=bool)  # concepts holding a taught sample somewhere
-            taught[np.unique(state.concepts[np.diff(data.words.indptr) > 0])] = True
-            self.parameters_ = untaught_concepts_name_nothing(self.parameters_, taught)
-        if settings.prune and settings.variant == "exact":
-            # the naming rule's linguistic evidence, how name-like each word is: candidates for names
-            # never heard (spco.model.unheard), and the order of each concept's words with the
-            # opt-in hyperparameters.name_prior = "wordnet"
-            sentences = [s for t in corpus.training_set() for s in t.sentences]
-            self.parameters_ = replace(self.parameters_,
-                                       name_prior=name_prior(corpus.vocabulary, sentences))
+        self.parameters_ = self._fitted_parameters(average.result(state), corpus, data, state, hyper,
+                                                   settings)
         splits = np.split(np.arange(data.n_samples), data.offsets[1:-1])
         self.concepts_ = [state.concepts[s].copy() for s in splits]
         self.regions_ = [state.regions[s].copy() for s in splits]
         self.training_ids_ = [t.ids for t in corpus.training_set()]
         return self
+
+    @staticmethod
+    def _fitted_parameters(params: ConceptParameters, corpus: Corpus, data: gibbs.PreparedData,
+                           state: gibbs.GibbsState, hyper: TransferHyperparameters,
+                           settings: gibbs.SamplerSettings) -> ConceptParameters:
+        """The averaged parameters as the exact model exports them: concepts no taught sample was
+        ever assigned to name nothing, and (with the naming rule) each word's name prior."""
+        if settings.variant == "exact":  # (the authors' sampler and SpCoA export as published)
+            taught = np.zeros(hyper.n_concepts, dtype=bool)  # concepts holding a taught sample somewhere
+            taught[np.unique(state.concepts[np.diff(data.words.indptr) > 0])] = True
+            params = untaught_concepts_name_nothing(params, taught)
+        if settings.prune and settings.variant == "exact":
+            # the naming rule's linguistic evidence, how name-like each word is: candidates for names
+            # never heard (spco.model.unheard), and the order of each concept's words with the
+            # opt-in hyperparameters.name_prior = "wordnet"
+            sentences = [s for t in corpus.training_set() for s in t.sentences]
+            params = replace(params, name_prior=name_prior(corpus.vocabulary, sentences))
+        return params
 
     # ------------------------------------------------------------------ use
     def _check_fitted(self) -> None:
@@ -325,7 +326,7 @@ class SpatialConceptModel:
 
         e = self.home_index(home)
         return position_prediction.predict_positions(self.parameters_, e, self.vocabulary_, name, n=n,
-                                                     rng=_as_generator(random_state))
+                                                     rng=as_generator(random_state))
 
     def save(self, path, overwrite: bool = False) -> None:
         """Write the fitted model to ``path`` atomically (see :mod:`spco.model.io`); an existing

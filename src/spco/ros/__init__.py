@@ -1,6 +1,9 @@
-"""spco on a running robot: a ROS 1 node (rospy) and a rosbridge client for ROS 2 (roslibpy).
+"""spco on a running robot: a ROS 2 node (rclpy), a ROS 1 node (rospy), a rosbridge client (roslibpy),
+and the home for Foxglove (foxglove-sdk).
 
-``spco ros HOME.spco`` learns from what the robot hears and answers questions on topics:
+``spco ros2 HOME.spco`` (:mod:`spco.ros.ros2`, its rclpy side in :mod:`spco.ros.thin`) and ``spco ros
+HOME.spco`` (:mod:`spco.ros.node`) run the same core; each learns from what the robot hears and
+answers questions on topics (the ROS 1 node's names below; the ROS 2 node's in docs/ros.md):
 
 - it subscribes the robot's pose (``PoseWithCovarianceStamped``, ``PoseStamped``, ``Odometry`` or
   ``/tf`` from the map frame to the robot's), its camera (``Image`` or ``CompressedImage``) and
@@ -12,8 +15,9 @@
   ``/spco/markers`` (:mod:`spco.ros.messages`), for RViz and Foxglove.
 
 Modules: :mod:`spco.ros.messages` (ROS messages as plain dicts, both ways; markers; no ROS
-needed), :mod:`spco.ros.core` (the node's logic, for either transport), :mod:`spco.ros.node`
-(rospy), :mod:`spco.ros.rosbridge` (roslibpy). A ROS master, the node in its own process and a
+needed), :mod:`spco.ros.core` (the node's logic, for every transport), :mod:`spco.ros.ros2` and
+:mod:`spco.ros.thin` (rclpy), :mod:`spco.ros.node` (rospy), :mod:`spco.ros.rosbridge` (roslibpy),
+:mod:`spco.ros.foxglove` (Foxglove's WebSocket and MCAP). A ROS master, the node in its own process and a
 stand-in robot, for the tests and ``benchmarks/ros_latency.py``, are in the repository's
 ``tests/ros_harness.py``.
 
@@ -35,7 +39,7 @@ from types import ModuleType
 
 from spco.errors import SpcoError
 
-__all__ = ["ROS_PYTHON_DIRS", "RosUnavailableError", "import_rospy"]
+__all__ = ["ROS2_MESSAGE_MODULES", "ROS_PYTHON_DIRS", "RosUnavailableError", "import_rclpy", "import_rospy"]
 
 #: Where ROS 1's Python packages live when they are not on ``sys.path`` already: ``$SPCO_ROS_PYTHONPATH``
 #: (colon-separated) first, then a ROS Noetic installation, then Debian's packages.
@@ -45,6 +49,10 @@ ROS_PYTHON_DIRS = ("/opt/ros/noetic/lib/python3/dist-packages", "/usr/lib/python
 DEBIAN_PACKAGES = ("python3-rospy", "python3-rosmaster", "python3-catkin", "python3-std-msgs",
                    "python3-geometry-msgs", "python3-sensor-msgs", "python3-nav-msgs",
                    "python3-visualization-msgs", "python3-tf2-msgs")
+
+#: The ROS 2 message packages the ROS 2 node needs (tf2_msgs only for poses from /tf).
+ROS2_MESSAGE_MODULES = ("std_msgs.msg", "geometry_msgs.msg", "sensor_msgs.msg", "nav_msgs.msg",
+                        "visualization_msgs.msg", "rcl_interfaces.msg")
 
 _MESSAGE_MODULES = ("std_msgs.msg", "geometry_msgs.msg", "sensor_msgs.msg", "nav_msgs.msg",
                     "visualization_msgs.msg", "tf2_msgs.msg")
@@ -88,3 +96,31 @@ def import_rospy() -> ModuleType:
             raise RosUnavailableError(f"the ROS message package {name.split('.')[0]} is missing ({exc}); "
                                       f"on Debian 12: sudo apt-get install {package}") from None
     return rospy
+
+
+def import_rclpy() -> ModuleType:
+    """Import rclpy and the ROS 2 message packages the node uses; return the ``rclpy`` module.
+
+    rclpy is a compiled extension built for one Python: the ROS installation's (``source
+    /opt/ros/jazzy/setup.bash`` puts it on ``PYTHONPATH``; Jazzy's is Python 3.12). Raises
+    :class:`RosUnavailableError` naming what to do when it cannot be imported — including on a
+    Python other than the installation's (Humble's 3.10: ``spco ros2 --ros-python`` runs
+    :mod:`spco.ros.thin` with it instead).
+    """
+    try:
+        rclpy = importlib.import_module("rclpy")
+    except ImportError as exc:
+        raise RosUnavailableError(
+            f"rclpy cannot be imported by Python {sys.version_info.major}.{sys.version_info.minor} ({exc}): "
+            "source the ROS 2 installation first (source /opt/ros/jazzy/setup.bash; Jazzy's rclpy is for "
+            "Python 3.12, so run spco from a Python 3.12 environment made with --system-site-packages); "
+            "on Humble (Python 3.10) give spco ros2 --ros-python /usr/bin/python3 to run the ROS 2 side "
+            "with the robot's Python (docs/ros.md)") from None
+    for name in ROS2_MESSAGE_MODULES:
+        try:
+            importlib.import_module(name)
+        except ImportError as exc:
+            package = "ros-<distro>-" + name.split(".")[0].replace("_", "-")
+            raise RosUnavailableError(f"the ROS 2 message package {name.split('.')[0]} is missing ({exc}); "
+                                      f"install {package}") from None
+    return rclpy

@@ -53,11 +53,30 @@ from spco.ros.messages import (
     frame_from_message,
     goal_message,
     marker_array,
+    pose_array_message,
     pose_from_message,
 )
 from spco.service.live import LiveHome
 
-__all__ = ["NodeCore", "NodeSettings", "QueryError"]
+__all__ = ["ANSWER_TOPIC", "GOAL_TOPIC", "MARKER_TOPIC", "QUERY_TOPIC", "WHERE_TOPIC", "NodeCore",
+           "NodeSettings", "QueryError", "Topics"]
+
+#: spco's own topics, the same on every transport (the robot's are options: :class:`Topics`).
+QUERY_TOPIC = "/spco/query"
+ANSWER_TOPIC = "/spco/answer"
+GOAL_TOPIC = "/spco/goal"
+MARKER_TOPIC = "/spco/markers"
+WHERE_TOPIC = "/spco/where"
+
+
+@dataclass(frozen=True)
+class Topics:
+    """The robot's topics: pose (a pose topic, or ``/tf``), camera (``None``: no camera) and speech
+    (``None``: the node only answers queries)."""
+
+    pose: str = "/tf"
+    image: str | None = None
+    speech: str | None = None
 
 log = logging.getLogger("spco.ros")
 
@@ -168,6 +187,8 @@ class NodeCore:
     settings: :class:`NodeSettings`.
     publish_answer, publish_goal, publish_markers: send a message (as a dict: ``{"data": text}`` for
         the answer, a ``PoseStamped`` and a ``MarkerArray``) on the transport.
+    publish_poses: send a ``where`` answer's positions as a ``geometry_msgs/PoseArray`` (a dict; most
+        probable first), or ``None`` for a transport without one.
     now: the transport's clock (seconds; ROS time for rospy).
     uses_images: whether the home's views are images (else teachings cannot take a view from the
         camera, and ``what`` answers from the position).
@@ -179,6 +200,7 @@ class NodeCore:
                  publish_answer: Callable[[dict[str, Any]], None],
                  publish_goal: Callable[[dict[str, Any]], None],
                  publish_markers: Callable[[dict[str, Any]], None],
+                 publish_poses: Callable[[dict[str, Any]], None] | None = None,
                  now: Callable[[], float] = time.time, uses_images: bool = True,
                  n_concepts: int = 10) -> None:
         self.home = home
@@ -186,6 +208,7 @@ class NodeCore:
         self._publish_answer = publish_answer
         self._publish_goal = publish_goal
         self._publish_markers = publish_markers
+        self._publish_poses = publish_poses
         self.now = now
         self.uses_images = uses_images
         self.n_concepts = n_concepts
@@ -197,6 +220,7 @@ class NodeCore:
         self._worker: threading.Thread | None = None
         self._home_lock = threading.Lock()  # one home operation at a time
         self.taught = 0
+        self.answered = 0
         self.pose_frames_refused: set[str] = set()
 
     # ------------------------------------------------------------------ lifecycle
@@ -392,6 +416,8 @@ class NodeCore:
         goal = self._field(request, "goal", bool, self.settings.goal)
         with self._home_lock:
             answer = self.home.answer(Where(name, n))
+        if self._publish_poses is not None:
+            self._publish_poses(pose_array_message(answer.get("positions") or [], self.settings.map_frame))
         if goal:
             best = max(answer.get("positions") or [], key=lambda p: p.get("probability", 0.0), default=None)
             if best is None:
@@ -439,6 +465,7 @@ class NodeCore:
     def answer(self, answer: Mapping[str, Any]) -> None:
         """Publish an answer (a JSON text in a String)."""
         log.debug("answer %s", answer)
+        self.answered += 1
         self._publish_answer({"data": json.dumps(answer, ensure_ascii=False, default=_json_default)})
 
     def publish_markers(self) -> dict[str, Any]:

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from spco.data.bagreading import _quat_mul, _rotate  # the quaternion algebra of spco import-bag's tf
+from spco.data import tf
 from spco.errors import DataFormatError
 from spco.features.pixels import check_encoding, decode_compressed, pixels_from_buffer, to_bgr
 
@@ -33,6 +33,7 @@ __all__ = [
     "frame_from_message",
     "goal_message",
     "marker_array",
+    "pose_array_message",
     "pose_from_message",
     "quaternion_from_yaw",
     "stamp_seconds",
@@ -99,10 +100,6 @@ class PoseReading:
     stamp: float | None
 
 
-def _frame_name(name: Any) -> str:
-    return str(name or "").strip().lstrip("/")
-
-
 def pose_from_message(msg: Mapping[str, Any]) -> PoseReading:
     """The pose in a ``geometry_msgs/PoseStamped``, ``PoseWithCovarianceStamped`` or ``nav_msgs/Odometry``.
 
@@ -123,7 +120,7 @@ def pose_from_message(msg: Mapping[str, Any]) -> PoseReading:
     if not all(math.isfinite(v) for v in (x, y, theta)):
         raise DataFormatError(None, f"a pose message holds non-finite values (x={x}, y={y}, θ={theta})")
     header = msg.get("header") if isinstance(msg.get("header"), Mapping) else {}
-    return PoseReading(x, y, theta, _frame_name(header.get("frame_id")), stamp_seconds(header))
+    return PoseReading(x, y, theta, tf.frame_name(header.get("frame_id")), stamp_seconds(header))
 
 
 class TfBuffer:
@@ -138,16 +135,18 @@ class TfBuffer:
         self._edges: dict[str, tuple[str, np.ndarray, float | None, bool]] = {}  # child -> parent, T, stamp
 
     def add(self, msg: Mapping[str, Any], static: bool = False) -> None:
-        """Take in a ``TFMessage`` (its ``transforms``); non-finite transforms are ignored."""
+        """Take in a ``TFMessage`` (its ``transforms``); non-finite transforms and zero rotations are
+        ignored."""
         for transform in msg.get("transforms") or ():
             header = transform.get("header") or {}
-            parent, child = _frame_name(header.get("frame_id")), _frame_name(transform.get("child_frame_id"))
+            parent = tf.frame_name(header.get("frame_id"))
+            child = tf.frame_name(transform.get("child_frame_id"))
             t, r = (transform.get("transform") or {}).get("translation"), \
                 (transform.get("transform") or {}).get("rotation")
             if not parent or not child or not isinstance(t, Mapping) or not isinstance(r, Mapping):
                 continue
             value = np.array([float(t.get(k, 0.0)) for k in "xyz"] + [float(r.get(k, 0.0)) for k in "xyzw"])
-            if np.isfinite(value).all():
+            if np.isfinite(value).all() and value[3:].any():
                 self._edges[child] = (parent, value, stamp_seconds(header), static)
 
     def frames(self) -> list[str]:
@@ -157,37 +156,22 @@ class TfBuffer:
     def lookup(self, map_frame: str, robot_frame: str) -> PoseReading | None:
         """The pose of ``robot_frame`` in ``map_frame`` from the latest transforms, or ``None`` while the
         tree does not connect them. Its stamp is the oldest of the dynamic transforms used."""
-        source, target = _frame_name(map_frame), _frame_name(robot_frame)
-
-        def up(frame: str) -> list[str]:
-            path = [frame]
-            while path[-1] in self._edges and self._edges[path[-1]][0] not in path:
-                path.append(self._edges[path[-1]][0])
-            return path
-
-        from_map, from_robot = up(source), up(target)
-        common = next((f for f in from_robot if f in from_map), None)
-        if common is None:
+        source, target = tf.frame_name(map_frame), tf.frame_name(robot_frame)
+        parent_of = {child: parent for child, (parent, *_) in self._edges.items()}
+        steps = tf.path_between(parent_of, source, target)
+        if steps is None:
             return None
         stamps: list[float] = []
 
-        def chain(path: list[str]) -> tuple[np.ndarray, np.ndarray]:
-            """Transform of path[0] in common (path: frame ... common)."""
-            t, q = np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0])
-            for child in path[: path.index(common)][::-1]:
-                _, value, stamp, static = self._edges[child]
-                if not static and stamp is not None:
-                    stamps.append(stamp)
-                t, q = t + _rotate(q, value[:3]), _quat_mul(q, value[3:])
-            return t, q
+        def value_of(edge: tf.Edge) -> np.ndarray:
+            _, value, stamp, static = self._edges[edge[1]]
+            if not static and stamp is not None:
+                stamps.append(stamp)
+            return value
 
-        t_map, q_map = chain(from_map)
-        t_robot, q_robot = chain(from_robot)
-        q_inv = q_map * np.array([-1.0, -1.0, -1.0, 1.0])
-        t = _rotate(q_inv, t_robot - t_map)
-        q = _quat_mul(q_inv, q_robot)
-        theta = yaw_from_quaternion(dict(zip("xyzw", q.tolist(), strict=True)))
-        return PoseReading(float(t[0]), float(t[1]), theta, source, min(stamps) if stamps else None)
+        t, q = tf.compose_path(steps, value_of)
+        theta = float(tf.yaw(q[0]))
+        return PoseReading(float(t[0, 0]), float(t[0, 1]), theta, source, min(stamps) if stamps else None)
 
 
 # ------------------------------------------------------------------------------------- images
@@ -254,13 +238,24 @@ def frame_from_message(msg: Mapping[str, Any]) -> CameraFrame:
 # ------------------------------------------------------------------------------------- output
 def goal_message(x: float, y: float, theta: float, frame: str = "map", stamp: float | None = None,
                  ros_version: int = 1) -> dict[str, Any]:
-    """A ``geometry_msgs/PoseStamped`` goal at ``(x, y, θ)`` in ``frame`` (stamp 0: "latest" for move_base
-    and Nav2, when ``stamp`` is ``None``)."""
+    """A ``geometry_msgs/PoseStamped`` goal at ``(x, y, θ)`` in ``frame``.
+
+    With ``stamp`` ``None`` (what both nodes send) the header has no stamp, i.e. time 0: move_base
+    and Nav2 transform a goal with stamp 0 with the latest transform they have (tf's "latest"),
+    where a goal stamped "now" could wait for, or fail on, a transform not yet received."""
     header: dict[str, Any] = {"frame_id": frame}
     if stamp is not None:
         header["stamp"] = time_message(stamp, ros_version)
     return {"header": header, "pose": {"position": {"x": float(x), "y": float(y), "z": 0.0},
                                        "orientation": quaternion_from_yaw(float(theta))}}
+
+
+def pose_array_message(positions: Sequence[Mapping[str, Any]], frame: str = "map") -> dict[str, Any]:
+    """A ``geometry_msgs/PoseArray`` of a ``where`` answer's positions (``{"x", "y", "theta"}``, most
+    probable first), in ``frame``, stamp 0 (as the goal)."""
+    return {"header": {"frame_id": frame},
+            "poses": [{"position": {"x": float(p["x"]), "y": float(p["y"]), "z": 0.0},
+                       "orientation": quaternion_from_yaw(float(p["theta"]))} for p in positions]}
 
 
 def concept_colour(concept: int, n_concepts: int) -> tuple[float, float, float]:

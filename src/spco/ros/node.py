@@ -11,12 +11,14 @@ topic                       type                                         directi
 ``--speech-topic``          std_msgs/String                              subscribed
 ``/spco/query``             std_msgs/String (JSON)                       subscribed
 ``/spco/answer``            std_msgs/String (JSON)                       published
-``/spco/goal``              geometry_msgs/PoseStamped                    published when asked
+``/spco/goal``              geometry_msgs/PoseStamped (stamp 0)          published when asked
+``/spco/where``             geometry_msgs/PoseArray                      published, latched
 ``/spco/markers``           visualization_msgs/MarkerArray               published, latched
 ==========================  ===========================================  =========================
 
 The pose and image topics are subscribed as ``rospy.AnyMsg`` and decoded with the class their
-publisher announces, so one option takes any of the accepted types.
+publisher announces, so one option takes any of the accepted types. The goal's stamp is 0, which
+move_base reads as "transform with the latest tf" (:func:`spco.ros.messages.goal_message`).
 """
 
 from __future__ import annotations
@@ -24,35 +26,27 @@ from __future__ import annotations
 import logging
 import sys
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 from typing import Any
 
 from spco.ros import import_rospy
-from spco.ros.core import NodeCore, NodeSettings
+from spco.ros.core import (
+    ANSWER_TOPIC,
+    GOAL_TOPIC,
+    MARKER_TOPIC,
+    QUERY_TOPIC,
+    WHERE_TOPIC,
+    NodeCore,
+    NodeSettings,
+    Topics,
+)
 
-__all__ = ["ANSWER_TOPIC", "GOAL_TOPIC", "MARKER_TOPIC", "QUERY_TOPIC", "Topics", "message_to_dict",
-           "run_node"]
-
-QUERY_TOPIC = "/spco/query"
-ANSWER_TOPIC = "/spco/answer"
-GOAL_TOPIC = "/spco/goal"
-MARKER_TOPIC = "/spco/markers"
+__all__ = ["message_to_dict", "run_node"]
 
 #: Message types accepted on the pose and image topics (ROS 1 names).
 POSE_TYPES = ("geometry_msgs/PoseWithCovarianceStamped", "geometry_msgs/PoseStamped", "nav_msgs/Odometry")
 IMAGE_TYPES = ("sensor_msgs/Image", "sensor_msgs/CompressedImage")
 
 log = logging.getLogger("spco.ros")
-
-
-@dataclass(frozen=True)
-class Topics:
-    """The robot's topics: pose (a pose topic, or ``/tf``), camera (``None``: no camera) and speech
-    (``None``: the node only answers queries)."""
-
-    pose: str = "/tf"
-    image: str | None = None
-    speech: str | None = None
 
 
 def message_to_dict(msg: Any) -> Any:
@@ -104,7 +98,7 @@ def _filled(cls: Any, data: dict[str, Any]) -> Any:
 def run_node(home: Any, topics: Topics, settings: NodeSettings, *, node_name: str = "spco",
              uses_images: bool = True, n_concepts: int = 10,
              ready: Callable[[NodeCore], None] | None = None,
-             ros_arguments: Sequence[str] = ()) -> None:
+             ros_arguments: Sequence[str] = (), echo: Callable[[str], None] = print) -> None:
     """Run the node until ROS shuts it down (Ctrl-C, ``rosnode kill``, the master gone).
 
     Parameters
@@ -117,12 +111,13 @@ def run_node(home: Any, topics: Topics, settings: NodeSettings, *, node_name: st
     ros_arguments: ROS remappings as on a node's command line (``/spco/query:=/robot/query``,
         ``__name:=spco2``, ``__ns:=``, ``__log:=``: what roslaunch passes); they win over ``node_name``
         and rename every topic, ``/spco/…`` included.
+    echo: where the start-up line (the topics as remapped) and the last line go.
 
     ``ROS_MASTER_URI`` and ``ROS_IP`` (or ``ROS_HOSTNAME``) come from the environment, as for any
     ROS node: on a companion computer, the robot's master and this computer's own address.
     """
     rospy = import_rospy()
-    from geometry_msgs.msg import PoseStamped
+    from geometry_msgs.msg import PoseArray, PoseStamped
     from std_msgs.msg import String
     from tf2_msgs.msg import TFMessage
     from visualization_msgs.msg import MarkerArray
@@ -132,16 +127,13 @@ def run_node(home: Any, topics: Topics, settings: NodeSettings, *, node_name: st
     answers = rospy.Publisher(ANSWER_TOPIC, String, queue_size=100)
     goals = rospy.Publisher(GOAL_TOPIC, PoseStamped, queue_size=10)
     markers = rospy.Publisher(MARKER_TOPIC, MarkerArray, queue_size=1, latch=True)
-
-    def stamp_now(data: dict[str, Any]) -> dict[str, Any]:
-        now = rospy.get_rostime()
-        data["header"]["stamp"] = {"secs": now.secs, "nsecs": now.nsecs}
-        return data
+    poses = rospy.Publisher(WHERE_TOPIC, PoseArray, queue_size=1, latch=True)
 
     core = NodeCore(home, settings,
                     publish_answer=lambda d: answers.publish(String(data=d["data"])),
-                    publish_goal=lambda d: goals.publish(_filled(PoseStamped, stamp_now(d))),
+                    publish_goal=lambda d: goals.publish(_filled(PoseStamped, d)),  # stamp 0: latest tf
                     publish_markers=lambda d: markers.publish(_filled(MarkerArray, d)),
+                    publish_poses=lambda d: poses.publish(_filled(PoseArray, d)),
                     now=lambda: rospy.get_rostime().to_sec(), uses_images=uses_images,
                     n_concepts=n_concepts)
 
@@ -160,12 +152,15 @@ def run_node(home: Any, topics: Topics, settings: NodeSettings, *, node_name: st
 
         return rospy.Subscriber(topic, rospy.AnyMsg, callback, tcp_nodelay=True, **options)
 
-    subscribers = [rospy.Subscriber(QUERY_TOPIC, String, lambda m: core.on_query(m.data), queue_size=100,
-                                    tcp_nodelay=True)]
+    query = rospy.Subscriber(QUERY_TOPIC, String, lambda m: core.on_query(m.data), queue_size=100,
+                             tcp_nodelay=True)
+    names = {"query": query.resolved_name, "pose": "/tf + /tf_static", "image": "(none)", "speech": "(none)"}
+    subscribers = [query]
     if topics.speech:
         subscribers.append(rospy.Subscriber(topics.speech, String,
                                             lambda m: core.on_speech(m.data, received()), queue_size=100,
                                             tcp_nodelay=True))
+        names["speech"] = subscribers[-1].resolved_name
     if topics.pose.strip("/") == "tf":
         subscribers.append(rospy.Subscriber("/tf", TFMessage,
                                             lambda m: core.on_tf(message_to_dict(m), False, received()),
@@ -175,13 +170,19 @@ def run_node(home: Any, topics: Topics, settings: NodeSettings, *, node_name: st
                                             queue_size=100, tcp_nodelay=True))
     else:
         subscribers.append(any_type(topics.pose, POSE_TYPES, core.on_pose, queue_size=100))
+        names["pose"] = subscribers[-1].resolved_name
     if topics.image:  # a camera's frames are large: keep the newest few, never a backlog
         subscribers.append(any_type(topics.image, IMAGE_TYPES, core.on_image, queue_size=2, buff_size=2**24))
+        names["image"] = subscribers[-1].resolved_name
     core.start()
     rospy.on_shutdown(core.stop)
-    log.info("spco ros: listening to pose %s, image %s, speech %s; queries on %s", topics.pose,
-             topics.image or "(none)", topics.speech or "(none)", QUERY_TOPIC)
+    echo(f"spco ros: node {rospy.get_name()}; listening to pose {names['pose']}, image {names['image']}, "
+         f"speech {names['speech']}; queries on {names['query']}, answers on {answers.resolved_name}, "
+         f"markers on {markers.resolved_name}, where poses on {poses.resolved_name}, goals on "
+         f"{goals.resolved_name} ({'every where' if settings.goal else 'when a query asks'})")
     if ready is not None:
         ready(core)
     rospy.spin()
     core.stop()
+    echo(f"spco ros: stopped after {core.taught} teaching{'' if core.taught == 1 else 's'} and "
+         f"{core.answered} answer{'' if core.answered == 1 else 's'}")

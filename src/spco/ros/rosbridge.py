@@ -20,8 +20,7 @@ from collections.abc import Callable
 from typing import Any
 
 from spco.errors import SpcoError
-from spco.ros.core import NodeCore, NodeSettings
-from spco.ros.node import ANSWER_TOPIC, GOAL_TOPIC, MARKER_TOPIC, QUERY_TOPIC, Topics
+from spco.ros.core import ANSWER_TOPIC, GOAL_TOPIC, MARKER_TOPIC, QUERY_TOPIC, NodeCore, NodeSettings, Topics
 
 __all__ = ["RosbridgeError", "run_rosbridge"]
 
@@ -39,6 +38,21 @@ def _roslibpy() -> Any:
         raise RosbridgeError("roslibpy is not installed: pip install 'spco[ros]' (or pip install roslibpy)") \
             from None
     return roslibpy
+
+
+def _connect(roslibpy: Any, url: str, timeout: float) -> Any:
+    """A ``roslibpy.Ros`` connected to the rosbridge server at ``url`` (a :class:`RosbridgeError` when
+    the URL is not a WebSocket URL or the server does not answer within ``timeout`` seconds)."""
+    if not url.startswith(("ws://", "wss://")):
+        raise RosbridgeError(f"--rosbridge takes a WebSocket URL such as ws://robot:9090, got {url!r}")
+    ros = roslibpy.Ros(url)
+    try:
+        ros.run(timeout=timeout)
+    except Exception as exc:
+        raise RosbridgeError(f"cannot reach the rosbridge server at {url} within {timeout:g} s "
+                             f"({exc or type(exc).__name__}); is rosbridge_server running on the robot, "
+                             "and is its port reachable from here?") from None
+    return ros
 
 
 def run_rosbridge(home: Any, url: str, topics: Topics, settings: NodeSettings, *,
@@ -61,15 +75,7 @@ def run_rosbridge(home: Any, url: str, topics: Topics, settings: NodeSettings, *
     ready: called with the node's core once every topic is set up.
     """
     roslibpy = _roslibpy()
-    if not url.startswith(("ws://", "wss://")):
-        raise RosbridgeError(f"--rosbridge takes a WebSocket URL such as ws://robot:9090, got {url!r}")
-    ros = roslibpy.Ros(url)
-    try:
-        ros.run(timeout=connect_timeout)
-    except Exception as exc:
-        raise RosbridgeError(f"cannot reach the rosbridge server at {url} within {connect_timeout:g} s "
-                             f"({exc or type(exc).__name__}); is rosbridge_server running on the robot, "
-                             "and is its port reachable from here?") from None
+    ros = _connect(roslibpy, url, connect_timeout)
     stop = stop or threading.Event()
     if threading.current_thread() is threading.main_thread():
         for sig in (signal.SIGINT, signal.SIGTERM):

@@ -134,8 +134,8 @@ def regions_answer(home: kn.HomeModel, names_per_region: int = 3) -> dict[str, A
     ``samples`` (its samples), ``weight`` (its share of the home's samples), ``mean`` ``[x, y]``,
     ``covariance`` (2×2, m²), ``ellipse`` (95 %: ``rx``, ``ry`` in metres, ``angle`` in degrees) and
     ``names``: the ``names_per_region`` most probable usable names there, ``p`` = p(name | region)
-    = Σ_l p(l | region) θ^w_l(name), renormalised over the usable names. ``samples`` lists
-    ``{"id", "x", "y", "theta", "sentence"}``.
+    = Σ_l p(l | region) θ^w_l(name), renormalised over the usable names, and ``taught``: its
+    samples with a sentence. ``samples`` lists ``{"id", "x", "y", "theta", "sentence", "region"}``.
     """
     params = home.parameters
     counts = np.asarray(params.region_counts[0], dtype=np.int64)
@@ -157,6 +157,9 @@ def regions_answer(home: kn.HomeModel, names_per_region: int = 3) -> dict[str, A
 
     regions = []
     total = max(int(counts.sum()), 1)
+    assigned = np.asarray(home.state.regions, dtype=np.int64)
+    taught = np.bincount(assigned[np.array([s is not None for s in home.sentences], dtype=bool)],
+                         minlength=counts.size)
     for m in np.flatnonzero(counts > 0):
         column = joint[:, m]
         p_concept = column / column.sum() if column.sum() > 0 else np.full(column.size, 1.0 / column.size)
@@ -164,11 +167,11 @@ def regions_answer(home: kn.HomeModel, names_per_region: int = 3) -> dict[str, A
                         "weight": float(counts[m]) / total,
                         "mean": [float(means[m, 0]), float(means[m, 1])],
                         "covariance": covs[m].tolist(), "ellipse": _ellipse(covs[m]),
-                        "names": top_names(p_concept)})
+                        "names": top_names(p_concept), "taught": int(taught[m])})
     concepts = sorted({r["concept"] for r in regions})
     samples = [{"id": int(i), "x": float(p[0]), "y": float(p[1]),
-                "theta": math.atan2(float(p[2]), float(p[3])), "sentence": s}
-               for i, p, s in zip(home.ids, home.positions, home.sentences, strict=True)]
+                "theta": math.atan2(float(p[2]), float(p[3])), "sentence": s, "region": int(r)}
+               for i, p, s, r in zip(home.ids, home.positions, home.sentences, assigned, strict=True)]
     return {"home": home.name, "extent": list(kn.map_bounds(home)), "names": list(home.known_names),
             "concepts": [{"concept": c, "names": top_names(np.eye(joint.shape[0])[c])} for c in concepts],
             "regions": regions, "samples": samples}

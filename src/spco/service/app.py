@@ -53,9 +53,8 @@ from spco.errors import SpcoError
 from spco.service.errors import FRAMEWORK_MESSAGES, answer_for, error_response, validation_answer
 from spco.service.images import DEFAULT_MAX_PIXELS, ImageError, encoded_size
 from spco.service.live import LiveHome
-from spco.service.routes import api, page
-from spco.service.security import Guard, Sessions
-from spco.service.server import LOOPBACK_HOSTS
+from spco.service.routes import EventHub, api, page
+from spco.service.security import LOOPBACK_HOSTS, Guard, Sessions
 
 __all__ = ["LOOPBACK_HOSTS", "PAGE", "SESSION_COOKIE", "ServeSettings", "create_app", "login_html"]
 
@@ -99,7 +98,7 @@ class ServeSettings:
     max_pixels: int = DEFAULT_MAX_PIXELS
     decode_concurrency: int = 2
     decode_queue: int = 8
-    max_subscribers: int = 32
+    max_subscribers: int = 8
     subscriber_queue: int = 256
     keepalive_comment: float = 15.0
     session_hours: float = 168.0
@@ -174,7 +173,7 @@ def create_app(live: LiveHome, *, token: str | None = None, settings: ServeSetti
     app.state.connections = connections
     app.state.decodes = asyncio.Semaphore(settings.decode_concurrency)
     app.state.decode_waiting = [0]
-    app.state.event_streams = [0]
+    app.state.events = EventHub(live)
     app.include_router(api)
     app.include_router(page)
     _error_handlers(app)

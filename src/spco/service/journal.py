@@ -36,12 +36,12 @@ import uuid
 import warnings
 import zlib
 from dataclasses import dataclass, field
-from datetime import UTC, datetime
 from os import PathLike
 from pathlib import Path
 from typing import Any
 
 from spco.errors import SpcoError
+from spco.timestamps import utc_now
 
 __all__ = [
     "JOURNAL_FORMAT",
@@ -150,6 +150,26 @@ def _check_record(path: Path, number: int, record: dict[str, Any]) -> None:
                            f"{json.dumps(record)[:200]}")
 
 
+def _decoded_lines(raw: bytes) -> tuple[list[tuple[int, dict[str, Any] | None, int]], str | None]:
+    """The journal's lines as (line number, record or ``None`` if damaged, end offset), without the
+    damaged or unfinished lines at its end (a torn write), and why those were dropped (or ``None``)."""
+    lines = raw.split(b"\n")
+    complete = lines[:-1]  # the part after the last newline is an unfinished line (or b"")
+    tail = lines[-1]
+    decoded: list[tuple[int, dict[str, Any] | None, int]] = []
+    offset = 0
+    for number, line in enumerate(complete, start=1):
+        offset += len(line) + 1
+        decoded.append((number, _decode_line(line), offset))
+    torn = None
+    if tail:
+        torn = f"its last line ({len(tail)} bytes) was cut short"
+    while decoded and decoded[-1][1] is None:  # bad lines at the end: a torn write
+        number = decoded.pop()[0]
+        torn = f"line {number} fails its checksum" if torn is None else torn
+    return decoded, torn
+
+
 def read_journal(path: str | PathLike[str], warn: bool = True) -> JournalContents:
     """Read the journal at ``path``; a missing or empty file gives an empty :class:`JournalContents`.
 
@@ -166,20 +186,7 @@ def read_journal(path: str | PathLike[str], warn: bool = True) -> JournalContent
         raise JournalError(f"{file}: cannot read the journal ({exc.strerror or exc})") from None
     if not raw:
         return JournalContents(header=None)
-    lines = raw.split(b"\n")
-    complete = lines[:-1]  # the part after the last newline is an unfinished line (or b"")
-    tail = lines[-1]
-    decoded: list[tuple[int, dict[str, Any] | None, int]] = []  # (line number, record, end offset)
-    offset = 0
-    for number, line in enumerate(complete, start=1):
-        offset += len(line) + 1
-        decoded.append((number, _decode_line(line), offset))
-    torn = None
-    if tail:
-        torn = f"its last line ({len(tail)} bytes) was cut short"
-    while decoded and decoded[-1][1] is None:  # bad lines at the end: a torn write
-        number = decoded.pop()[0]
-        torn = f"line {number} fails its checksum" if torn is None else torn
+    decoded, torn = _decoded_lines(raw)
     bad = next((number for number, record, _ in decoded if record is None), None)
     if bad is not None:
         raise JournalError(f"{file}, line {bad}: damaged record (checksum mismatch) followed by intact "
@@ -245,7 +252,7 @@ class Journal:
     def rewrite(self, header: dict[str, Any], records: list[dict[str, Any]]) -> None:
         """Make the journal ``header`` followed by ``records``, atomically, and open it for appending."""
         header = {"format": JOURNAL_FORMAT, "version": JOURNAL_VERSION,
-                  "created": datetime.now(UTC).isoformat(timespec="seconds"), **header}
+                  "created": utc_now(), **header}
         data = encode_record(header) + b"".join(encode_record(r) for r in records)
         tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
         fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)

@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 
 from spco import knowledge as kn
-from spco.errors import ConfigurationError, SpcoError
+from spco.errors import ConfigurationError, SpcoError, TeachingLimitError, TeachingRateError
 from spco.knowledge import locking
 from spco.knowledge.requests import (
     MAX_POSES,
@@ -152,11 +152,15 @@ class LiveHome:
     holder: how other writers are told who holds the home (``spco serve`` gives its address).
     max_pixels: the largest image accepted.
     compact_records, compact_idle: when the writer compacts (see :mod:`spco.service.writer`).
+    undo_limit: how many of the last teachings can be undone exactly (100).
+    limits: what a teaching may bring (:class:`spco.knowledge.TeachingLimits`, ``None``: no limits);
+        a teaching beyond them raises :class:`~spco.errors.TeachingLimitError` (HTTP 422) or
+        :class:`~spco.errors.TeachingRateError` (HTTP 429), naming the limit.
 
-    Opening takes the home's write lock for as long as it is open (:func:`spco.locking.hold`:
+    Opening takes the home's write lock for as long as it is open (:func:`spco.knowledge.locking.hold`:
     ``spco teach`` on it is refused at once, naming ``holder``), replays the journal's teachings
     that the file lacks (a torn last record is dropped with a :class:`TornRecordWarning`) and
-    compacts. Raises :class:`~spco.locking.HomeServedError` if another server holds it, and
+    compacts. Raises :class:`~spco.knowledge.locking.HomeServedError` if another server holds it, and
     :class:`~spco.errors.ModelFileError` / :class:`~spco.service.journal.JournalError` for a bad
     file or journal.
     """
@@ -164,7 +168,8 @@ class LiveHome:
     def __init__(self, path: str | PathLike[str], *, seed: int | None = None,
                  sweeps: int = kn.DEFAULT_TEACH_SWEEPS, writer: str = "process", holder: str | None = None,
                  max_pixels: int = DEFAULT_MAX_PIXELS, compact_records: int | None = None,
-                 compact_idle: float | None = None) -> None:
+                 compact_idle: float | None = None, undo_limit: int | None = None,
+                 limits: kn.TeachingLimits | None = kn.DEFAULT_LIMITS) -> None:
         if writer not in ("process", "thread"):
             raise ConfigurationError(f"writer must be 'process' or 'thread', got {writer!r}")
         self.path = Path(path)
@@ -179,8 +184,9 @@ class LiveHome:
         self._closed = False
         self._lock = locking.hold(path, self.holder)
         options = {"seed": seed, "sweeps": sweeps, "compact_records": compact_records,
-                   "compact_idle": compact_idle}
+                   "compact_idle": compact_idle, "undo_limit": undo_limit}
         options = {k: v for k, v in options.items() if v is not None}
+        options["limits"] = limits
         try:
             if writer == "process":
                 self._writer: ProcessWriter | ThreadWriter = ProcessWriter(
@@ -244,24 +250,29 @@ class LiveHome:
         raise ConfigurationError(f"not a question: {type(request).__name__} (Where, What or Ask)")
 
     def view_counts(self, view: View | None) -> Any:
-        """A view's visual counts: its ``visual`` as given, or its image through the knowledge's
-        extractor (:meth:`spco.knowledge.Knowledge.image_extractor`, as ``spco what --image``), or
-        ``None`` for no view. The image is decoded by :func:`spco.service.images.decode_image`
-        (its size checked from its header first, against ``max_pixels``)."""
+        """A view's visual counts (:func:`spco.knowledge.view_counts`): its ``visual`` as given, or its
+        image through the knowledge's extractor (:meth:`spco.knowledge.Knowledge.image_extractor`, as
+        ``spco what --image``), or ``None`` for no view. The image is decoded by
+        :func:`spco.service.images.decode_image` (its size checked from its header first, against
+        ``max_pixels``)."""
         if view is None:
             return None
-        if view.image is None:
-            return view.visual
         knowledge = self._snapshot.knowledge
-        if not knowledge.fitted_on_images:
-            raise ConfigurationError("the knowledge of this home was fitted on visual count vectors, not on "
-                                     "images: give the view's features (visual), not an image")
+        if view.image is None or not knowledge.fitted_on_images:
+            # the counts as given, or why an image is refused
+            return kn.view_counts(knowledge, view.visual, view.image)
         pixels = decode_image(view.image, view.encoding, width=view.width, height=view.height,
                               max_pixels=self.max_pixels)
+        encoding = "mono8" if pixels.ndim == 2 else "bgr8"  # what decode_image gives
+        return kn.view_counts(knowledge, None, pixels, encoding,
+                              extractor=lambda: self._extractor_of(knowledge))
+
+    def _extractor_of(self, knowledge: kn.Knowledge) -> Any:
+        """``knowledge``'s extractor, built once and kept while the served knowledge stays the same."""
         key = json.dumps(knowledge.extractor, sort_keys=True)
         if self._extractor is None or key != self._extractor_key:
             self._extractor, self._extractor_key = knowledge.image_extractor(), key
-        return self._extractor.extract(pixels, "mono8" if pixels.ndim == 2 else "bgr8")  # decode_image's
+        return self._extractor
 
     def where(self, name: str, n: int = 10, *, seed: int = 0) -> dict[str, Any]:
         """Poses for the place ``name`` (read like a sentence: ``"Living Room"`` → ``living room``):
@@ -340,7 +351,14 @@ class LiveHome:
             elif result.get("kind") == "InternalError":
                 answer.set_exception(RuntimeError(result["error"]))
             else:
-                answer.set_exception(_RESULT_ERRORS.get(result.get("kind", ""), SpcoError)(result["error"]))
+                kind = result.get("kind", "")
+                if kind in ("TeachingLimitError", "TeachingRateError"):
+                    error_class = TeachingRateError if kind == "TeachingRateError" else TeachingLimitError
+                    answer.set_exception(error_class(
+                        result["error"], result.get("limit", ""), int(result.get("value", 0)),
+                        int(result.get("allowed", 0))))
+                else:
+                    answer.set_exception(_RESULT_ERRORS.get(kind, SpcoError)(result["error"]))
 
         self._writer.submit(request).add_done_callback(done)
         return answer

@@ -47,7 +47,7 @@ from spco.service.schemas import (
     WhereAnswer,
 )
 
-__all__ = ["api", "page"]
+__all__ = ["EventHub", "api", "page"]
 
 _ERRORS: dict[int | str, dict[str, Any]] = {
     code: {"model": ErrorAnswer} for code in (400, 401, 403, 404, 408, 409, 413, 415, 422, 503)}
@@ -164,53 +164,92 @@ async def map_file(request: Request) -> Response:
     return FileResponse(settings.map_image)
 
 
+class EventHub:
+    """The event streams of one app: one subscription to the home whatever the number of streams
+    (for the union of the types they want), each event written as text once and handed to every
+    stream that wants it. A stream whose queue is full (a consumer that does not keep up) is
+    dropped: its connection is closed."""
+
+    def __init__(self, live: LiveHome) -> None:
+        self.live = live
+        self.streams: dict[int, tuple[frozenset[str] | None, Any]] = {}  # id -> (types, drop-or-put)
+        self.subscription: Any = None
+        self.loop: asyncio.AbstractEventLoop | None = None
+        self.loop_thread = 0
+
+    def add(self, types: frozenset[str] | None, put: Any) -> int:
+        """A new stream; its ``put(text)`` returns ``False`` when it must be dropped."""
+        if self.loop is None:
+            self.loop, self.loop_thread = asyncio.get_running_loop(), threading.get_ident()
+        key = id(put)
+        self.streams[key] = (types, put)
+        self._resubscribe()
+        return key
+
+    def remove(self, key: int) -> None:
+        if self.streams.pop(key, None) is not None:
+            self._resubscribe()
+
+    def _resubscribe(self) -> None:
+        wanted: set[str] | None = set()
+        for types, _ in self.streams.values():
+            if types is None:
+                wanted = None
+                break
+            wanted |= types  # type: ignore[operator]
+        if self.subscription is not None:
+            self.subscription.close()
+            self.subscription = None
+        if self.streams:
+            self.subscription = self.live.subscribe(self._deliver, types=wanted)
+
+    def _deliver(self, event: dict[str, Any]) -> None:  # in the thread that publishes
+        assert self.loop is not None
+        if threading.get_ident() == self.loop_thread:
+            self._fan_out(event)
+        else:
+            self.loop.call_soon_threadsafe(self._fan_out, event)
+
+    def _fan_out(self, event: dict[str, Any]) -> None:
+        text = f"event: {event['type']}\ndata: {json.dumps(event, default=_plain)}\n\n"
+        for key, (types, put) in list(self.streams.items()):
+            if (types is None or event["type"] in types) and not put(text):
+                self.remove(key)
+
+
 @api.get("/events", summary="Server-Sent Events: taught, undone, answer", response_class=StreamingResponse,
          responses={200: {"content": {"text/event-stream": {}},
                           "description": "event: taught|undone|answer, data: the event's JSON"}})
-async def events(live: Live, request: Request,
-                 types: Annotated[str | None, Query(max_length=100)] = None) -> StreamingResponse:
+async def events(request: Request, types: Annotated[str | None, Query(max_length=100)] = None
+                 ) -> StreamingResponse:
     settings = request.app.state.settings
     wanted = None
     if types is not None:
-        wanted = {t.strip() for t in types.split(",") if t.strip()}
+        wanted = frozenset(t.strip() for t in types.split(",") if t.strip())
         unknown = wanted - {"taught", "undone", "answer"}
         if unknown:
             raise ConfigurationError(f"types: unknown event types {', '.join(sorted(unknown))} (taught, "
                                      "undone, answer)")
-    streams: list[int] = request.app.state.event_streams
-    if streams[0] >= settings.max_subscribers:
+    hub: EventHub = request.app.state.events
+    if len(hub.streams) >= settings.max_subscribers:
         raise LimitError(f"the server has {settings.max_subscribers} event streams open, its limit "
                          "(spco serve --max-subscribers)")
-    loop = asyncio.get_running_loop()
-    loop_thread = threading.get_ident()
     pending: asyncio.Queue[str | None] = asyncio.Queue(maxsize=settings.subscriber_queue)
-    dropped = False
     client = request.scope.get("client")
     connections = request.app.state.connections
 
-    def put(event: dict[str, Any]) -> None:
-        nonlocal dropped
-        if dropped:
-            return
+    def put(text: str) -> bool:
         if pending.full():  # a consumer that does not keep up is dropped, not waited for
-            dropped = True
-            subscription.close()
-            with contextlib.suppress(asyncio.QueueFull):
+            with contextlib.suppress(asyncio.QueueEmpty):
                 pending.get_nowait()
-                pending.put_nowait(None)
+            pending.put_nowait(None)
             if connections is not None and client:
                 connections.abort(tuple(client))
-            return
-        pending.put_nowait(f"event: {event['type']}\ndata: {json.dumps(event, default=_plain)}\n\n")
+            return False
+        pending.put_nowait(text)
+        return True
 
-    def deliver(event: dict[str, Any]) -> None:
-        if threading.get_ident() == loop_thread:
-            put(event)
-        else:
-            loop.call_soon_threadsafe(put, event)
-
-    subscription = live.subscribe(deliver, types=wanted)
-    streams[0] += 1
+    key = hub.add(wanted, put)
 
     async def stream() -> Any:
         try:
@@ -225,8 +264,7 @@ async def events(live: Live, request: Request,
                     return
                 yield text
         finally:
-            subscription.close()
-            streams[0] -= 1
+            hub.remove(key)
 
     return StreamingResponse(stream(), media_type="text/event-stream",
                              headers={"Cache-Control": "no-cache", "X-Accel-Buffering": "no"})

@@ -141,8 +141,9 @@ class WhatAnswer(BaseModel):
     warning: str | None = None
 
 
-class Question(BaseModel):
-    """A place to ask "what is this place?" (``spco ask --json``)."""
+class QuestionJSON(BaseModel):
+    """A place to ask "what is this place?" on the wire: the JSON of
+    :meth:`spco.knowledge.Question.to_dict` (as ``spco ask --json`` prints it)."""
 
     id: int
     x: float
@@ -161,7 +162,7 @@ class AskAnswer(BaseModel):
 
     home: str
     gain: str
-    questions: list[Question]
+    questions: list[QuestionJSON]
 
 
 class TeachAnswer(BaseModel):

@@ -36,7 +36,10 @@ from starlette.responses import HTMLResponse, Response
 
 from spco.service.errors import error_response
 
-__all__ = ["SECURITY_HEADERS", "Guard", "Sessions"]
+__all__ = ["LOOPBACK_HOSTS", "SECURITY_HEADERS", "Guard", "Sessions"]
+
+#: The host names every server answers to (``--allowed-host`` adds more).
+LOOPBACK_HOSTS = ["127.0.0.1", "localhost", "[::1]", "::1"]
 
 Scope = dict[str, Any]
 Receive = Callable[[], Awaitable[dict[str, Any]]]

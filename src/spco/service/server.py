@@ -22,13 +22,12 @@ from pathlib import Path
 from typing import Any
 
 from spco.errors import ConfigurationError
+from spco.service.security import LOOPBACK_HOSTS
 
 __all__ = ["LOOPBACK_HOSTS", "MIN_TOKEN_CHARS", "accepted_hosts", "is_loopback", "read_token", "serve"]
 
 #: The shortest token accepted.
 MIN_TOKEN_CHARS = 16
-#: The host names every server answers to (``--allowed-host`` adds more).
-LOOPBACK_HOSTS = ["127.0.0.1", "localhost", "[::1]", "::1"]
 
 
 def is_loopback(host: str) -> bool:
@@ -117,7 +116,8 @@ def serve(home: str | PathLike[str], host: str = "127.0.0.1", port: int = 8765, 
           seed: int | None = None, writer: str = "process", say: Callable[[str], None] | None = None, *,
           header_timeout: float = 10.0, keep_alive: float = 5.0, max_connections: int | None = None,
           max_header_bytes: int = 64 * 1024, allowed_hosts: list[str] | tuple[str, ...] = (),
-          **settings: Any) -> None:
+          undo_limit: int | None = None, limits: Any = "default",
+          attach: Callable[[Any], Callable[[], None]] | None = None, **settings: Any) -> None:
     """Serve the home file ``home`` over HTTP until interrupted (see :mod:`spco.service.app`).
 
     Binds ``host`` only if it is loopback or a ``token_file`` is given (else
@@ -126,7 +126,11 @@ def serve(home: str | PathLike[str], host: str = "127.0.0.1", port: int = 8765, 
     ``max_connections`` (default: the open-file limit less a reserve) and ``max_header_bytes``
     bound connections (:class:`~spco.service.connections.ConnectionGuard`); ``allowed_hosts``
     adds ``Host`` names (:func:`accepted_hosts`); ``settings`` are fields of
-    :class:`~spco.service.app.ServeSettings` (body, image, event limits).
+    :class:`~spco.service.app.ServeSettings` (body, image, event limits). ``undo_limit``,
+    ``limits``: the teachings' (:class:`~spco.service.LiveHome`; ``"default"``:
+    :data:`spco.knowledge.DEFAULT_LIMITS`). ``attach`` is called with
+    the resident home (:class:`~spco.service.live.LiveHome`) once it is open and returns what to
+    call before it closes (``spco serve --foxglove`` attaches its Foxglove stream so).
     """
     import uvicorn
 
@@ -148,7 +152,10 @@ def serve(home: str | PathLike[str], host: str = "127.0.0.1", port: int = 8765, 
     shown = f"[{host.strip('[]')}]" if ":" in host.strip("[]") else host
     address = f"http://{shown}:{bound}"
     try:
-        live = LiveHome(home, seed=seed, writer=writer, holder=f"spco serve (pid {os.getpid()}) at {address}")
+        from spco import knowledge as kn
+
+        live = LiveHome(home, seed=seed, writer=writer, holder=f"spco serve (pid {os.getpid()}) at {address}",
+                        undo_limit=undo_limit, limits=kn.DEFAULT_LIMITS if limits == "default" else limits)
     except BaseException:
         sock.close()
         raise
@@ -156,6 +163,7 @@ def serve(home: str | PathLike[str], host: str = "127.0.0.1", port: int = 8765, 
         if live.startup.get("replayed"):
             say(f"Replayed {live.startup['replayed']} teachings from {live.journal_path} and compacted them "
                 f"into {home}.")
+        detach = attach(live) if attach is not None else None
         options = ServeSettings(map_image=None if map_image is None else Path(map_image),
                                 map_extent=map_extent,
                                 allowed_hosts=accepted_hosts(host, token, allowed_hosts),
@@ -170,7 +178,11 @@ def serve(home: str | PathLike[str], host: str = "127.0.0.1", port: int = 8765, 
         h = live.home
         say(f"Serving home {h.name} ({h.n_samples} samples, {h.n_taught} taught) from {home} at {address}/ "
             f"(page), {address}/openapi.json (API); writer process {live.writer_pid}. Ctrl-C to stop.")
-        server.run(sockets=[sock])  # until Ctrl-C or SIGTERM
+        try:
+            server.run(sockets=[sock])  # until Ctrl-C or SIGTERM
+        finally:
+            if detach is not None:
+                detach()
     finally:
         live.close()
         sock.close()

@@ -18,23 +18,37 @@ Record kinds (``op``), besides ``seq``, ``batch``, ``seed``, ``sweeps`` and ``ti
     ``{"indices": [...], "counts": [...]}`` of the view's visual counts, or ``null`` for a pose
     without a view (its visual likelihood is 1: only the position and the words are learnt from it).
 ``undo``
-    ``undoes`` (the seq of the teaching undone), ``restore`` (sample id → the sentence it had
-    before, for a sentence) and ``remove`` (the sample ids an observation added). An undo is
-    self-contained, so it replays after the undone teaching was compacted into the home file.
+    ``undoes`` (the seq of the teaching undone).
+
+An undo restores exactly (:func:`rebuild`): the home becomes what it would be had the teaching
+never been made — every later teaching replayed, batch by batch with its recorded seed, from a
+checkpoint of the home taken before the undone one (:class:`UndoCheckpoints`). Every answer and the
+vocabulary are then bit for bit those of that home; undoing the last teaching gives back the home
+as it was before it. The last :data:`DEFAULT_UNDO_LIMIT` teachings can be undone (configurable);
+an older one is refused (:class:`ConflictError`, HTTP 409) saying why.
+
+What that keeps: the home file's history holds the journal record of each teaching after the
+*undo base* (``history[seq]["record"]``: a few hundred bytes, a view's counts more); the undo base
+is a home file of its own next to the home (:func:`undo_base_path`, ``HOME.undo``: the home as it
+was before the oldest teaching that can still be undone, one more home file on disk), and the
+writer keeps in memory a checkpoint every :data:`CHECKPOINT_EVERY` teachings (at most
+``limit / CHECKPOINT_EVERY + 2`` homes), so that an undo replays at most that many teachings before
+the undone one, and every teaching after it.
 
 The home file remembers what it needs in ``provenance["served"]``: ``journal`` (the ID of its
 journal), ``last_seq`` (the last teaching it holds), ``teachings`` (teachings applied through the
-journal and not undone) and ``history`` (seq → what the teaching did and what it replaced, for the
-last :data:`HISTORY_LIMIT` teachings; what :func:`plan_undo` needs).
+journal and not undone) and ``history`` (seq → what the teaching did, its record, and what undid it,
+for the last :data:`HISTORY_LIMIT` teachings; what :func:`plan_undo` needs).
 """
 
 from __future__ import annotations
 
 import time
 import warnings
+from collections.abc import Callable
 from dataclasses import replace
-from datetime import UTC, datetime
 from os import PathLike
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -42,16 +56,20 @@ import scipy.sparse as sp
 
 from spco import knowledge as kn
 from spco.errors import ConfigurationError, SpcoError
-from spco.knowledge.requests import MAX_SENTENCE_CHARS
+from spco.knowledge.requests import MAX_SENTENCE_CHARS, clean_sentence
 from spco.model.prediction import validate_visual_counts
 from spco.service.answers import check_pose
 from spco.service.journal import JournalError, journal_path, read_journal
+from spco.timestamps import utc_now
 
 __all__ = [
+    "CHECKPOINT_EVERY",
+    "DEFAULT_UNDO_LIMIT",
     "HISTORY_LIMIT",
     "MAX_SENTENCE_CHARS",
     "ConflictError",
     "NotFoundError",
+    "UndoCheckpoints",
     "apply_batch",
     "batches",
     "check_journal_matches",
@@ -62,9 +80,12 @@ __all__ = [
     "observation_record",
     "pending_teachings",
     "plan_undo",
+    "rebuild",
     "replay",
     "sentence_record",
     "served_info",
+    "undo_base_path",
+    "undo_base_seq",
     "view_record",
     "with_history",
     "without_samples",
@@ -72,6 +93,10 @@ __all__ = [
 
 #: How many teachings the home file remembers for :func:`plan_undo` (older ones cannot be undone).
 HISTORY_LIMIT = 10_000
+#: How many of the last teachings can be undone exactly (``spco serve --undo-limit``).
+DEFAULT_UNDO_LIMIT = 100
+#: The writer keeps a checkpoint of the home every this many teachings (what an undo replays from).
+CHECKPOINT_EVERY = 10
 SERVED = "served"
 
 
@@ -83,9 +108,6 @@ class ConflictError(SpcoError):
     """A request that contradicts the home's current state (HTTP 409): an id taken, an undo of a
     teaching that a later one changed or that was undone already."""
 
-
-def _now() -> str:
-    return datetime.now(UTC).isoformat(timespec="milliseconds")
 
 
 def served_info(home: kn.HomeModel) -> dict[str, Any]:
@@ -101,6 +123,13 @@ def history_of(home: kn.HomeModel) -> dict[int, dict[str, Any]]:
     return {int(k): dict(v) for k, v in (served.get("history") or {}).items()}
 
 
+def undo_base_seq(home: kn.HomeModel) -> int:
+    """The seq of the home's undo base (``provenance["served"]["undo_base"]``): before the first
+    compaction that moved it, the undo base is a copy of the home file itself, its ``last_seq``."""
+    served = home.provenance.get(SERVED) or {}
+    return int(served.get("undo_base", served.get("last_seq", 0)))
+
+
 def with_history(home: kn.HomeModel, history: dict[int, dict[str, Any]] | None) -> kn.HomeModel:
     """``home`` with ``history`` (the last :data:`HISTORY_LIMIT` entries) in ``provenance["served"]``,
     or without any history for ``None`` (a snapshot for readers: they do not need it)."""
@@ -112,15 +141,6 @@ def with_history(home: kn.HomeModel, history: dict[int, dict[str, Any]] | None) 
 
 
 # ---------------------------------------------------------------------------- requests -> records
-def _clean_sentence(sentence: object) -> str | None:
-    if sentence is None:
-        return None
-    if not isinstance(sentence, str):
-        raise ConfigurationError(f"sentence: expected a string or null, got {type(sentence).__name__}")
-    if len(sentence) > MAX_SENTENCE_CHARS:
-        raise ConfigurationError(f"sentence: {len(sentence)} characters; at most {MAX_SENTENCE_CHARS}")
-    return sentence.strip() or None
-
 
 def _sample_id(value: object, what: str = "id") -> int:
     if isinstance(value, bool) or not isinstance(value, int | np.integer):
@@ -143,7 +163,7 @@ def sentence_record(home: kn.HomeModel, sample_id: object, sentence: object) -> 
     """
     sample = _sample_id(sample_id)
     _check_known(home, sample)
-    return {"op": "sentence", "id": sample, "sentence": _clean_sentence(sentence)}
+    return {"op": "sentence", "id": sample, "sentence": clean_sentence(sentence)}
 
 
 def view_record(home: kn.HomeModel, counts: object) -> dict[str, list[int]] | None:
@@ -174,7 +194,7 @@ def observation_record(home: kn.HomeModel, x: object, y: object, theta: object, 
     """
     px, py, ptheta = check_pose(home, x, y, theta)
     record: dict[str, Any] = {"op": "observation", "id": None, "x": px, "y": py, "theta": ptheta,
-                              "sentence": _clean_sentence(sentence), "view": view_record(home, counts)}
+                              "sentence": clean_sentence(sentence), "view": view_record(home, counts)}
     if sample_id is not None:
         sample = _sample_id(sample_id)
         if (home.ids == sample).any():
@@ -183,11 +203,20 @@ def observation_record(home: kn.HomeModel, x: object, y: object, theta: object, 
     return record
 
 
-def plan_undo(home: kn.HomeModel, history: dict[int, dict[str, Any]], seq: object) -> dict[str, Any]:
-    """The record undoing teaching ``seq``: restore the sentence it replaced, or remove the sample it added.
+def _effective(history: dict[int, dict[str, Any]], after: int = 0) -> list[int]:
+    """The seqs of the teachings in ``history`` after seq ``after`` that hold now: not undos, not undone."""
+    return sorted(k for k, e in history.items()
+                  if k > after and e["op"] != "undo" and e.get("undone_by") is None)
 
-    Raises :class:`NotFoundError` for a seq not in the history, :class:`ConflictError` for a teaching
-    already undone, or whose sample was changed since (by a later teaching: undo that first).
+
+def plan_undo(home: kn.HomeModel, history: dict[int, dict[str, Any]], seq: object,
+              limit: int = DEFAULT_UNDO_LIMIT, base_seq: int = 0) -> dict[str, Any]:
+    """The record undoing teaching ``seq``: ``{"op": "undo", "undoes": seq}``.
+
+    Raises :class:`NotFoundError` for a seq not in the history, :class:`ConflictError` for an undo,
+    a teaching already undone, one older than the last ``limit`` teachings or than the undo base
+    ``base_seq`` (the home before it is no longer kept), and one whose new sample a later teaching
+    gave a sentence (undo that one first).
     """
     if isinstance(seq, bool) or not isinstance(seq, int | np.integer):
         raise ConfigurationError(f"seq: expected an integer, got {seq!r}")
@@ -201,17 +230,104 @@ def plan_undo(home: kn.HomeModel, history: dict[int, dict[str, Any]], seq: objec
                             "instead")
     if entry.get("undone_by") is not None:
         raise ConflictError(f"teaching {seq} was undone already (by seq {entry['undone_by']})")
-    sample = int(entry["id"])
-    later = [k for k, e in history.items() if k > seq and e.get("undone_by") is None
-             and e["op"] != "undo" and int(e["id"]) == sample]
-    index = np.flatnonzero(home.ids == sample)
-    current = home.sentences[int(index[0])] if index.size else None
-    if later or index.size == 0 or current != entry["sentence"]:
-        by = f"teaching {later[-1]} (undo it first)" if later else "a teaching since"
-        raise ConflictError(f"teaching {seq} cannot be undone: sample {sample} was changed by {by}")
-    if entry["op"] == "sentence":
-        return {"op": "undo", "undoes": seq, "restore": {str(sample): entry["previous"]}, "remove": []}
-    return {"op": "undo", "undoes": seq, "restore": {}, "remove": [sample]}
+    later = _effective(history, seq - 1)
+    if len(later) > limit:
+        raise ConflictError(f"teaching {seq} cannot be undone: it is not among the last {limit} teachings "
+                            f"({len(later) - 1} came after it), and only those are undone exactly (the home "
+                            "before them is kept; the server's --undo-limit keeps more); teach the place "
+                            "again instead")
+    if entry.get("record") is None or seq <= base_seq:
+        raise ConflictError(f"teaching {seq} cannot be undone: the home as it was before it is no longer "
+                            "kept (it was taught before the oldest undo checkpoint); teach the place again "
+                            "instead")
+    if entry["op"] == "observation":
+        sample = int(entry["id"])
+        uses = [k for k in later
+                if k != seq and history[k]["op"] == "sentence" and int(history[k]["id"]) == sample]
+        if uses:
+            raise ConflictError(f"teaching {seq} cannot be undone: it added sample {sample}, which teaching "
+                                f"{uses[-1]} gave a sentence since (undo that one first)")
+    return {"op": "undo", "undoes": seq}
+
+
+def undo_base_path(path: str | PathLike[str]) -> Path:
+    """The undo base of the served home file ``path``: ``HOME.undo`` (a home file)."""
+    return Path(str(path) + ".undo")
+
+
+class UndoCheckpoints:
+    """Homes as they were after the teachings up to some seqs: what an undo replays from.
+
+    ``base``: the undo base (a home, or a function loading it, called at the first need) and its
+    seq ``base_seq`` (its ``last_seq``); further checkpoints are added by :meth:`add` (the writer,
+    every :data:`CHECKPOINT_EVERY` teachings) and by the replays of :func:`rebuild`.
+    """
+
+    def __init__(self, base: kn.HomeModel | Callable[[], kn.HomeModel], base_seq: int) -> None:
+        self._loader = base if callable(base) else None
+        self._homes: dict[int, kn.HomeModel] = {} if callable(base) else {int(base_seq): base}
+        self.base_seq = int(base_seq)
+
+    def before(self, seq: int) -> tuple[int, kn.HomeModel]:
+        """The latest checkpoint taken before teaching ``seq``: (its seq, the home)."""
+        if seq <= self.base_seq:
+            raise ConflictError(f"teaching {seq} is older than the undo base (seq {self.base_seq})")
+        if self.base_seq not in self._homes:
+            assert self._loader is not None
+            self._homes[self.base_seq] = self._loader()
+        best = max(k for k in self._homes if k < seq)
+        return best, self._homes[best]
+
+    def add(self, seq: int, home: kn.HomeModel) -> None:
+        """Keep ``home`` as it is after the teachings up to ``seq``."""
+        self._homes[int(seq)] = home
+
+    def drop_from(self, seq: int) -> None:
+        """Forget the checkpoints at or after ``seq`` (an undo of ``seq`` changed what follows)."""
+        for k in [k for k in self._homes if k >= seq and k != self.base_seq]:
+            del self._homes[k]
+
+    def advance(self, history: dict[int, dict[str, Any]], limit: int) -> kn.HomeModel | None:
+        """Move the base to the latest checkpoint that still precedes the last ``limit`` teachings;
+        returns the new base (to be written) or ``None`` if it did not move. Older checkpoints go."""
+        teachings = _effective(history, self.base_seq)
+        if len(teachings) <= limit:
+            return None
+        oldest = teachings[-limit]  # the oldest teaching that must stay undoable
+        candidates = [k for k in self._homes if self.base_seq < k < oldest]
+        if not candidates:
+            return None
+        new = max(candidates)
+        for k in [k for k in self._homes if k < new]:
+            del self._homes[k]
+        self.base_seq = new
+        return self._homes[new]
+
+    def __len__(self) -> int:
+        return len(self._homes)
+
+
+def rebuild(start: kn.HomeModel, start_seq: int, history: dict[int, dict[str, Any]],
+            checkpoints: UndoCheckpoints | None = None) -> kn.HomeModel:
+    """The home after the teachings of ``history`` that hold (not undone) after ``start_seq``,
+    replayed on ``start`` (the home after the teachings up to ``start_seq``) batch by batch, each
+    batch with its recorded seed and sweeps (less its undone teachings): what the home is had the
+    undone teachings never been made. Keeps a checkpoint in ``checkpoints`` every
+    :data:`CHECKPOINT_EVERY` teachings replayed."""
+    groups: dict[tuple[int, int], list[dict[str, Any]]] = {}
+    for k in _effective(history, start_seq):
+        record = history[k].get("record")
+        if record is None:
+            raise ConflictError(f"teaching {k} has no record to replay (taught before exact undo existed)")
+        groups.setdefault(tuple(record["batch"]), []).append(record)
+    home, since = start, 0
+    for _, records in sorted(groups.items()):
+        home = _teach_records(home, records)[0]
+        since += len(records)
+        if checkpoints is not None and since >= CHECKPOINT_EVERY:
+            checkpoints.add(int(records[-1]["seq"]), home)
+            since = 0
+    return home
 
 
 # ---------------------------------------------------------------------------- applying
@@ -241,69 +357,82 @@ def _view_row(view: dict[str, list[int]] | None, n_features: int) -> sp.csr_arra
                         shape=(1, n_features))
 
 
+def _teach_records(home: kn.HomeModel, records: list[dict[str, Any]]
+                   ) -> tuple[kn.HomeModel, dict[int, dict[str, Any]]]:
+    """One :func:`spco.knowledge.teach` call for teaching records of one batch (its seed and sweeps):
+    the updated home and the history entries of the records."""
+    seed, sweeps = int(records[0]["seed"]), int(records[0]["sweeps"])
+    stamp = records[0].get("time") or utc_now()
+    entries: dict[int, dict[str, Any]] = {}
+    sentences: dict[int, str | None] = {}
+    observations = []
+    current = dict(zip(home.ids.tolist(), home.sentences, strict=True))
+    for r in records:
+        if r["op"] == "sentence":
+            sample = int(r["id"])
+            previous = sentences.get(sample, current.get(sample))
+            sentences[sample] = r["sentence"]
+            entries[r["seq"]] = {"op": "sentence", "id": sample, "sentence": r["sentence"],
+                                 "previous": previous, "time": r.get("time", stamp), "record": r}
+        elif r["op"] == "observation":
+            observations.append(kn.Observation(
+                x=float(r["x"]), y=float(r["y"]), theta=float(r["theta"]),
+                visual=None if r["view"] is None else _view_row(r["view"], home.knowledge.n_features),
+                sentence=r["sentence"],  # no view: a sample without one (its likelihood left out)
+                id=int(r["id"])))
+            entries[r["seq"]] = {"op": "observation", "id": int(r["id"]), "sentence": r["sentence"],
+                                 "x": r["x"], "y": r["y"], "theta": r["theta"],
+                                 "time": r.get("time", stamp), "record": r}
+        else:
+            raise JournalError(f"seq {r['seq']}: unknown record kind {r['op']!r}")
+    # accepted under the writer's limits when they arrived: replayed as they were
+    return kn.teach(home, sentences, observations, n_sweeps=sweeps, random_state=seed, limits=None), entries
+
+
 def apply_batch(home: kn.HomeModel, records: list[dict[str, Any]],
-                history: dict[int, dict[str, Any]] | None = None) -> kn.HomeModel:
+                history: dict[int, dict[str, Any]] | None = None,
+                checkpoints: UndoCheckpoints | None = None) -> kn.HomeModel:
     """Apply one batch of journal records (all with the same ``batch``, ``seed`` and ``sweeps``).
 
-    Teachings become one :func:`spco.knowledge.teach` call (sentences and observations together);
-    an undo is a batch of its own: the samples an observation added are removed
-    (:func:`without_samples`) and replaced sentences restored, then the sweeps run (with nothing to
-    restore, the first sample's sentence is re-asserted: it changes no data and runs the sweeps).
+    Teachings become one :func:`spco.knowledge.teach` call (sentences and observations together).
+    An undo is a batch of its own: the home is rebuilt (:func:`rebuild`) from the latest of
+    ``checkpoints`` before the undone teaching, with the teachings after it replayed; ``history``
+    (the records of the teachings since the checkpoint) and ``checkpoints`` are required for it.
     Updates ``provenance["served"]`` (``last_seq``, ``teachings``) and ``history`` in place.
     """
     first = records[0]
-    seed, sweeps = int(first["seed"]), int(first["sweeps"])
     served = served_info(home)
     teachings = int(served.get("teachings", 0))
-    stamp = first.get("time") or _now()
-    entries: dict[int, dict[str, Any]] = {}  # merged into history once the teaching succeeded
+    stamp = first.get("time") or utc_now()
     with warnings.catch_warnings(record=True) as caught:  # said in the answer (notes), not on stderr
         warnings.simplefilter("always", kn.OwnNamesSpreadWarning)
         if first["op"] == "undo":
             if len(records) != 1:
                 raise JournalError(f"an undo (seq {first['seq']}) must be a batch of its own")
-            updated = home
-            if first["remove"]:
-                updated = without_samples(updated, [int(i) for i in first["remove"]])
-            restore = {int(k): v for k, v in first["restore"].items()}
-            if not restore:
-                restore = {int(updated.ids[0]): updated.sentences[0]}
-            updated = kn.teach(updated, restore, n_sweeps=sweeps, random_state=seed)
-            undone = (history or {}).get(int(first["undoes"]))
-            if undone is not None:
-                entries[int(first["undoes"])] = {**undone, "undone_by": first["seq"]}
-            entries[first["seq"]] = {"op": "undo", "undoes": first["undoes"], "time": stamp}
+            undone_seq = int(first["undoes"])
+            if history is None or checkpoints is None:
+                raise JournalError(f"seq {first['seq']} undoes teaching {undone_seq}: replaying it needs the "
+                                   f"home's teaching history and its undo base ({undo_base_path('HOME')})")
+            undone = history.get(undone_seq)
+            if undone is None or undone.get("record") is None:
+                raise JournalError(f"seq {first['seq']} undoes teaching {undone_seq}, whose record the home "
+                                   "file does not hold")
+            entries = {undone_seq: {**undone, "undone_by": first["seq"]},
+                       first["seq"]: {"op": "undo", "undoes": undone_seq, "time": stamp}}
+            after = {**history, **entries}
+            start_seq, start = checkpoints.before(undone_seq)
+            checkpoints.drop_from(undone_seq)
+            updated = rebuild(start, start_seq, after, checkpoints)
             teachings -= 1
         else:
-            sentences: dict[int, str | None] = {}
-            observations = []
-            current = dict(zip(home.ids.tolist(), home.sentences, strict=True))
-            for r in records:
-                if r["op"] == "sentence":
-                    sample = int(r["id"])
-                    previous = sentences.get(sample, current.get(sample))
-                    sentences[sample] = r["sentence"]
-                    entries[r["seq"]] = {"op": "sentence", "id": sample, "sentence": r["sentence"],
-                                         "previous": previous, "time": r.get("time", stamp)}
-                elif r["op"] == "observation":
-                    observations.append(kn.Observation(
-                        x=float(r["x"]), y=float(r["y"]), theta=float(r["theta"]),
-                        visual=None if r["view"] is None else _view_row(r["view"], home.knowledge.n_features),
-                        sentence=r["sentence"],  # no view: a sample without one (its likelihood left out)
-                        id=int(r["id"])))
-                    entries[r["seq"]] = {"op": "observation", "id": int(r["id"]), "sentence": r["sentence"],
-                                         "x": r["x"], "y": r["y"], "theta": r["theta"],
-                                         "time": r.get("time", stamp)}
-                else:
-                    raise JournalError(f"seq {r['seq']}: unknown record kind {r['op']!r}")
-            updated = kn.teach(home, sentences, observations, n_sweeps=sweeps, random_state=seed)
+            updated, entries = _teach_records(home, records)
             teachings += len(records)
     if history is not None:
         history.update(entries)
     served.update(last_seq=int(records[-1]["seq"]), teachings=teachings)
     provenance = {**updated.provenance, SERVED: served}
     said = [str(w.message) for w in caught if issubclass(w.category, kn.OwnNamesSpreadWarning)]
-    if said and isinstance(provenance.get("last_teach"), dict):
+    if isinstance(provenance.get("last_teach"), dict):
         provenance["last_teach"] = {**provenance["last_teach"], "warnings": said}
     return replace(updated, provenance=provenance)
 
@@ -320,7 +449,8 @@ def batches(records: list[dict[str, Any]]) -> list[list[dict[str, Any]]]:
 
 
 def replay(home: kn.HomeModel, records: list[dict[str, Any]],
-           history: dict[int, dict[str, Any]] | None = None) -> kn.HomeModel:
+           history: dict[int, dict[str, Any]] | None = None,
+           checkpoints: UndoCheckpoints | None = None) -> kn.HomeModel:
     """Apply the journal ``records`` after the home's ``last_seq``, batch by batch (:func:`apply_batch`).
 
     Records up to ``last_seq`` are in the home already and skipped. Raises :class:`JournalError` if
@@ -333,7 +463,7 @@ def replay(home: kn.HomeModel, records: list[dict[str, Any]],
                            f"the teachings up to seq {last}: records {last + 1}…{pending[0]['batch'][0] - 1} "
                            "are missing")
     for group in batches(pending):
-        home = apply_batch(home, group, history)
+        home = apply_batch(home, group, history, checkpoints)
     return home
 
 
@@ -393,7 +523,11 @@ def load_current(path: str | PathLike[str], attempts: int = 5) -> tuple[kn.HomeM
             time.sleep(0.05)
             continue
         history = history_of(home)
-        home = replay(home, pending, history)
+        checkpoints = None
+        if any(r["op"] == "undo" for r in pending):
+            checkpoints = UndoCheckpoints(lambda: kn.load_home_model(undo_base_path(path)),
+                                          undo_base_seq(home))
+        home = replay(home, pending, history, checkpoints)
         return with_history(home, history), len(pending)
     raise JournalError(f"{journal}: it does not continue {path} (records missing after the file's last "
                        f"teaching) in {attempts} readings; is the server compacting it over and over?")

@@ -20,9 +20,12 @@ is simpler and costs readers a few milliseconds at the 99th percentile during te
 from __future__ import annotations
 
 import argparse
+import collections
 import contextlib
 import ctypes
+import dataclasses
 import io
+import json
 import os
 import pickle
 import queue
@@ -37,7 +40,6 @@ import warnings
 from collections.abc import Callable
 from concurrent.futures import Future
 from dataclasses import replace
-from datetime import UTC, datetime
 from multiprocessing.connection import Connection
 from os import PathLike
 from pathlib import Path
@@ -46,11 +48,15 @@ from typing import Any
 import numpy as np
 
 from spco import knowledge as kn
-from spco.errors import ConfigurationError, SpcoError
+from spco.errors import ConfigurationError, SpcoError, TeachingLimitError, TeachingRateError
+from spco.knowledge.limits import check_sentences
 from spco.service.journal import Journal, journal_path, new_journal_id, read_journal
 from spco.service.teaching import (
+    CHECKPOINT_EVERY,
+    DEFAULT_UNDO_LIMIT,
     SERVED,
     ConflictError,
+    UndoCheckpoints,
     apply_batch,
     check_journal_matches,
     file_digest,
@@ -60,8 +66,11 @@ from spco.service.teaching import (
     replay,
     sentence_record,
     served_info,
+    undo_base_path,
+    undo_base_seq,
     with_history,
 )
+from spco.timestamps import utc_now
 
 __all__ = ["DEFAULT_COMPACT_IDLE", "DEFAULT_COMPACT_RECORDS", "DEFAULT_MAX_BATCH", "HomeWriter",
            "ProcessWriter", "SnapshotChannel", "ThreadWriter", "WriterUnavailableError", "error_result"]
@@ -80,14 +89,13 @@ class WriterUnavailableError(SpcoError):
 
 def error_result(exc: BaseException) -> dict[str, Any]:
     """A failed request's result: ``{"ok": False, "error": message, "kind": exception class name}``."""
+    if isinstance(exc, TeachingLimitError):
+        return {"ok": False, "error": str(exc), "kind": type(exc).__name__, "limit": exc.limit,
+                "value": exc.value, "allowed": exc.allowed}
     if isinstance(exc, SpcoError):
         return {"ok": False, "error": str(exc), "kind": type(exc).__name__}
     return {"ok": False, "error": f"internal error of the writer: {type(exc).__name__}: {exc}",
             "kind": "InternalError"}
-
-
-def _now() -> str:
-    return datetime.now(UTC).isoformat(timespec="milliseconds")
 
 
 class HomeWriter:
@@ -101,14 +109,25 @@ class HomeWriter:
     sweeps: Gibbs sweeps of each teaching (:data:`spco.knowledge.DEFAULT_TEACH_SWEEPS`).
     compact_records, compact_idle: when to compact (records since the last compaction; seconds idle).
     max_batch: the most teachings applied together.
+    undo_limit: how many of the last teachings can be undone exactly
+        (:data:`~spco.service.teaching.DEFAULT_UNDO_LIMIT`; see :mod:`spco.service.teaching`).
+    limits: what a teaching may bring (:class:`spco.knowledge.TeachingLimits`); a request beyond
+        them is refused with a :class:`~spco.errors.TeachingLimitError` naming the limit.
     """
 
     def __init__(self, path: str | PathLike[str], *, seed: int | None = None,
                  sweeps: int = kn.DEFAULT_TEACH_SWEEPS, compact_records: int = DEFAULT_COMPACT_RECORDS,
-                 compact_idle: float = DEFAULT_COMPACT_IDLE, max_batch: int = DEFAULT_MAX_BATCH) -> None:
+                 compact_idle: float = DEFAULT_COMPACT_IDLE, max_batch: int = DEFAULT_MAX_BATCH,
+                 undo_limit: int = DEFAULT_UNDO_LIMIT,
+                 limits: kn.TeachingLimits | None = kn.DEFAULT_LIMITS) -> None:
         if isinstance(sweeps, bool) or not isinstance(sweeps, int) or sweeps < 0:
             raise ConfigurationError(f"sweeps must be an integer >= 0, got {sweeps!r}")
+        if isinstance(undo_limit, bool) or not isinstance(undo_limit, int) or undo_limit < 0:
+            raise ConfigurationError(f"undo_limit must be an integer >= 0, got {undo_limit!r}")
         self.path = Path(path)
+        self.undo_limit = undo_limit
+        self.limits = limits
+        self._observed: collections.deque[float] = collections.deque()  # when observations came
         self.sweeps = sweeps
         self.compact_records, self.compact_idle, self.max_batch = compact_records, compact_idle, max_batch
         self.journal = Journal(journal_path(path))
@@ -117,7 +136,13 @@ class HomeWriter:
         check_journal_matches(home, contents.header, contents.records, self.journal.path, path)
         history = history_of(home)
         before = int(served_info(home).get("last_seq", 0))
-        home = replay(home, contents.records, history)
+        base_file = undo_base_path(path)
+        fresh_base = not base_file.exists() or (served_info(home).get("undo_base") is None)
+        if fresh_base:  # no undo base yet: the home as it is (its teachings so far cannot be undone)
+            self.checkpoints = UndoCheckpoints(home, before)
+        else:
+            self.checkpoints = UndoCheckpoints(lambda: kn.load_home_model(base_file), undo_base_seq(home))
+        home = replay(home, contents.records, history, self.checkpoints)
         replayed = int(served_info(home).get("last_seq", 0)) - before
         #: what start-up found: records replayed, a torn record dropped
         self.startup = {"replayed": replayed, "torn": contents.torn}
@@ -125,8 +150,12 @@ class HomeWriter:
         served = {**served_info(home), "journal": compacted or new_journal_id()}
         served.setdefault("last_seq", 0)
         served.setdefault("teachings", 0)
+        served["undo_base"] = self.checkpoints.base_seq
+        if fresh_base:  # the undo base is the home file as it is (until its first compaction says otherwise)
+            _copy_atomically(self.path, base_file)
         self.home = _with_served(home, served)
         self.history = history
+        self._since_checkpoint = 0
         self._base_seed = int(np.random.SeedSequence().entropy if seed is None else seed)  # type: ignore[arg-type]
         self._since_compaction = replayed
         self._last_teaching = time.monotonic()
@@ -141,12 +170,27 @@ class HomeWriter:
         self._warm_up()
 
     def _warm_up(self) -> None:
-        """Run one throw-away teaching, so that the first real one does not wait for the sampler's
-        compiled kernels to load (about a second)."""
+        """Run throw-away teachings of every kind before the home is said to be ready, so that the
+        first real one does not wait for the sampler's compiled kernels to load or for anything a
+        teaching needs first (a word never heard, a new observation with and without a view, an
+        undo's rebuild, the snapshot's parameters): the first teaching after start takes as long as
+        any other (``benchmarks/first_teaching.py``)."""
         home = self.home
         with contextlib.suppress(SpcoError), warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            kn.teach(home, {int(home.ids[0]): home.sentences[0]}, n_sweeps=1, random_state=0)
+            word = "spcowarmupword"
+            while home.vocabulary.index(word) is not None:
+                word += "x"
+            x, y = (float(v) for v in home.positions[0, :2])
+            theta = float(np.arctan2(home.positions[0, 2], home.positions[0, 3]))
+            observations = [kn.Observation(x=x, y=y, theta=theta, sentence=f"this is the {word} room")]
+            if not home.view_missing[0] and home.knowledge.n_features:
+                observations.append(kn.Observation(x=x, y=y, theta=theta, visual=home.visual[[0]],
+                                                   sentence=f"the {word} room"))
+            taught = kn.teach(home, {int(home.ids[0]): f"this is the {word}"}, n_sweeps=self.sweeps,
+                              random_state=0)
+            taught = kn.teach(taught, observations=observations, n_sweeps=self.sweeps, random_state=1)
+            _ = replace(taught, state=replace(taught.state, visual_cache=None)).parameters
 
     # ------------------------------------------------------------------ state
     @property
@@ -184,19 +228,23 @@ class HomeWriter:
         results: list[dict[str, Any] | None] = [None] * len(requests)
         batch: list[tuple[int, dict[str, Any]]] = []
         added: set[int] = set()
+        said: list[str] = []  # the batch's sentences so far (its new words count together)
 
         def flush() -> None:
             if batch:
                 self._apply(list(batch), results)
                 batch.clear()
                 added.clear()
+                said.clear()
 
         for index, request in enumerate(requests):
             try:
                 op = request.get("op")
                 if op == "undo":
                     flush()
-                    self._apply([(index, plan_undo(self.home, self.history, request.get("seq")))], results)
+                    undo = plan_undo(self.home, self.history, request.get("seq"), self.undo_limit,
+                                     self.checkpoints.base_seq)
+                    self._apply([(index, undo)], results)
                     continue
                 if op == "sentence":
                     if request.get("id") in added:
@@ -214,6 +262,7 @@ class HomeWriter:
                     added.add(record["id"])
                 else:
                     raise ConfigurationError(f"op: expected 'sentence', 'observation' or 'undo', got {op!r}")
+                self._check_limits(record, said)
                 batch.append((index, record))
                 if len(batch) >= self.max_batch:
                     flush()
@@ -222,6 +271,30 @@ class HomeWriter:
         flush()
         return [r if r is not None else error_result(RuntimeError("no result")) for r in results]
 
+    def _check_limits(self, record: dict[str, Any], said: list[str]) -> None:
+        """Raise :class:`~spco.errors.TeachingLimitError` if ``record`` breaks the limits, counted with
+        the sentences ``said`` earlier in its batch (appended to when it does not)."""
+        limits = self.limits
+        if limits is None:
+            return
+        if record["op"] == "observation" and limits.max_observations_per_minute is not None:
+            now = time.monotonic()
+            while self._observed and now - self._observed[0] > 60.0:
+                self._observed.popleft()
+            if len(self._observed) >= limits.max_observations_per_minute:
+                raise TeachingRateError(
+                    f"{len(self._observed)} new observations in the last minute; the home takes at most "
+                    f"{limits.max_observations_per_minute} a minute (limit max_observations_per_minute): "
+                    f"try again in {60.0 - (now - self._observed[0]):.0f} s", "max_observations_per_minute",
+                    len(self._observed) + 1, limits.max_observations_per_minute)
+        sentence = record.get("sentence")
+        if sentence:
+            vocabulary = self.home.vocabulary.extended(said) if said else self.home.vocabulary
+            check_sentences(vocabulary, self.home.n_knowledge_words, [sentence], limits)
+            said.append(sentence)
+        if record["op"] == "observation" and limits.max_observations_per_minute is not None:
+            self._observed.append(time.monotonic())
+
     def _apply(self, batch: list[tuple[int, dict[str, Any]]], results: list[dict[str, Any] | None]) -> None:
         """Apply a batch, journal it (fsync), then record its results; a batch that fails is
         retried one teaching at a time, so that one bad teaching does not fail the others."""
@@ -229,14 +302,17 @@ class HomeWriter:
         first = self.last_seq + 1
         last = first + len(batch) - 1
         seed = self._seed_for(first)
-        stamp = _now()
+        stamp = utc_now("milliseconds")
         records = [{"seq": first + k, "batch": [first, last], "seed": seed, "sweeps": self.sweeps,
                     "time": stamp, **record} for k, (_, record) in enumerate(batch)]
         history = dict(self.history)
         words_before = self.home.knowledge.n_words
+        undoing = records[0]["op"] == "undo"
         try:
-            updated = apply_batch(self.home, records, history)
+            updated = apply_batch(self.home, records, history, self.checkpoints)
         except Exception as exc:
+            if undoing:  # the checkpoints after the undone teaching may be half rebuilt
+                self.checkpoints.drop_from(int(records[0]["undoes"]))
             if len(batch) > 1:
                 for item in batch:
                     self._apply([item], results)
@@ -246,6 +322,8 @@ class HomeWriter:
         try:
             self.journal.append(records)
         except OSError as exc:  # not durable: not applied
+            if undoing:  # the checkpoints rebuilt for the undo do not hold
+                self.checkpoints.drop_from(int(records[0]["undoes"]))
             for index, _ in batch:
                 results[index] = error_result(WriterUnavailableError(
                     f"{self.journal.path}: cannot write the journal ({exc.strerror or exc}); the teaching "
@@ -253,11 +331,20 @@ class HomeWriter:
             return
         self.home, self.history = updated, history
         self._since_compaction += len(records)
+        if undoing:
+            self._since_checkpoint = 0
+            self.checkpoints.add(self.last_seq, self.home)
+        else:
+            self._since_checkpoint += len(records)
+            if self._since_checkpoint >= CHECKPOINT_EVERY:
+                self.checkpoints.add(self.last_seq, self.home)
+                self._since_checkpoint = 0
         self._last_teaching = time.monotonic()
         seconds = time.perf_counter() - start
         new_words = list(updated.vocabulary.words[words_before:])
         served = served_info(updated)
-        said = list(updated.provenance["last_teach"].get("warnings", []))  # a new name spreading (teach)
+        # a new name spreading (teach)
+        said = list((updated.provenance.get("last_teach") or {}).get("warnings", []))
         for (index, _), record in zip(batch, records, strict=True):
             result = {k: v for k, v in record.items() if k not in ("view", "seed", "sweeps", "batch")}
             result.update(ok=True, home=updated.name, teachings=served["teachings"],
@@ -270,7 +357,21 @@ class HomeWriter:
 
     # ------------------------------------------------------------------ compaction
     def compact(self) -> None:
-        """Write the home (with its history and last seq) atomically, then start the journal anew."""
+        """Write the home (with its history and last seq) atomically, then start the journal anew.
+
+        First the undo base moves on if the last ``undo_limit`` teachings allow it
+        (:meth:`UndoCheckpoints.advance`): the new base is written, then the home file, whose history
+        keeps the records of the teachings after it (a crash in between leaves the old home file,
+        whose records cover the new base too)."""
+        base = self.checkpoints.advance(self.history, self.undo_limit)
+        if base is not None:
+            seq = self.checkpoints.base_seq
+            _with_served(base, {**served_info(base), "last_seq": seq}).save(undo_base_path(self.path),
+                                                                            overwrite=True)
+            for k, entry in self.history.items():  # records before the base are never replayed again
+                if k <= seq and "record" in entry:
+                    self.history[k] = {key: v for key, v in entry.items() if key != "record"}
+            self.home = _with_served(self.home, {**served_info(self.home), "undo_base": seq})
         served = served_info(self.home)
         self.journal.close()
         with_history(self.home, self.history).save(self.path, overwrite=True)
@@ -290,6 +391,17 @@ class HomeWriter:
         if self._since_compaction:
             self.compact()
         self.journal.close()
+
+
+def _copy_atomically(source: Path, target: Path) -> None:
+    """Copy ``source`` to ``target`` through a temporary file renamed over it (fsync-ed first)."""
+    import shutil
+
+    temporary = target.with_name(target.name + ".tmp")
+    shutil.copyfile(source, temporary)
+    with open(temporary, "rb+") as handle:
+        os.fsync(handle.fileno())
+    os.replace(temporary, target)
 
 
 def _with_served(home: kn.HomeModel, served: dict[str, Any]) -> kn.HomeModel:
@@ -459,7 +571,9 @@ class ProcessWriter:
                 "--lock-fd", str(lock_fd), "--conn-fd", str(theirs.fileno()), "--holder", holder,
                 "--parent", str(os.getpid())]
         for key, value in options.items():
-            if value is not None:
+            if key == "limits":  # always given: None (no limits) too
+                args += ["--limits", json.dumps(None if value is None else dataclasses.asdict(value))]
+            elif value is not None:
                 args += [f"--{key.replace('_', '-')}", str(value)]
         # one sampler thread: the other core stays with the readers (the result does not depend on it)
         environment = {**os.environ, "NUMBA_NUM_THREADS": "1"}
@@ -590,9 +704,8 @@ TRIM_EVERY = 8
 def trim_heap() -> None:
     """Give the heap memory freed since to the system (glibc's ``malloc_trim``; nothing elsewhere).
 
-    Each teaching replaces the snapshot (about 1 MB unpickled in the server, more in the writer):
-    without it the freed pieces stay with the process and its memory creeps up over a long run
-    (measured: +14 % after 400 teachings in one process, flat with it).
+    Each teaching replaces the snapshot: without this the freed pieces stay with the process and its
+    memory creeps up over a long run.
     """
     global _LIBC
     if _LIBC is None:
@@ -667,6 +780,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--compact-records", type=int, default=DEFAULT_COMPACT_RECORDS)
     parser.add_argument("--compact-idle", type=float, default=DEFAULT_COMPACT_IDLE)
     parser.add_argument("--max-batch", type=int, default=DEFAULT_MAX_BATCH)
+    parser.add_argument("--undo-limit", type=int, default=DEFAULT_UNDO_LIMIT)
+    parser.add_argument("--limits", default=None, help="the teaching limits as JSON (null: none)")
     args = parser.parse_args(argv)
     _die_with_parent(args.parent)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the server, which closes us in order
@@ -676,7 +791,10 @@ def main(argv: list[str] | None = None) -> int:
         locking.adopt(args.path, args.lock_fd, args.holder)
         writer = HomeWriter(args.path, seed=args.seed, sweeps=args.sweeps,
                             compact_records=args.compact_records, compact_idle=args.compact_idle,
-                            max_batch=args.max_batch)
+                            max_batch=args.max_batch, undo_limit=args.undo_limit,
+                            limits=kn.DEFAULT_LIMITS if args.limits is None else (
+                                None if json.loads(args.limits) is None
+                                else kn.TeachingLimits(**json.loads(args.limits))))
     except SpcoError as exc:
         conn.send(("error", type(exc).__name__ if type(exc).__name__ in _ERRORS else "SpcoError", str(exc)))
         return 2

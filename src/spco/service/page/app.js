@@ -8,7 +8,10 @@ const COLOURS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b
   "#bcbd22", "#17becf", "#aec7e8", "#ffbb78", "#98df8a", "#ff9896", "#c5b0d5", "#c49c94", "#f7b6d2",
   "#c7c7c7", "#dbdb8d", "#9edae5"];
 
-const state = { extent: [0, 1, 0, 1], unit: 0.05, clicked: null, lastTeaching: null, regions: null };
+const state = { extent: [0, 1, 0, 1], unit: 0.05, clicked: null, lastTeaching: null, regions: null,
+  lastWhere: null };
+// A region is drawn unless it is negligible: less than this share of the home's samples and none taught.
+const NEGLIGIBLE = 0.01;
 const $ = (id) => document.getElementById(id);
 
 function el(name, attrs, parent) {
@@ -46,14 +49,17 @@ async function loadRegions() {
   const r = await api("/regions");
   state.regions = r;
   const [x0, x1, y0, y1] = r.map ? r.map.extent : r.extent;
-  const pad = 0.03 * Math.max(x1 - x0, y1 - y0);
+  const pad = 0.07 * Math.max(x1 - x0, y1 - y0);  // room for the axes' labels
   state.extent = [x0 - pad, x1 + pad, y0 - pad, y1 + pad];
   state.unit = Math.max(x1 - x0, y1 - y0) / 60;  // text and marks scale with the map
   const svg = $("map");
   svg.setAttribute("viewBox", `0 0 ${state.extent[1] - state.extent[0]} ${state.extent[3] - state.extent[2]}`);
   $("home-name").textContent = r.home;
+  const shown = r.regions.filter((g) => g.weight >= NEGLIGIBLE || g.taught > 0);
+  const hidden = r.regions.length - shown.length;
   $("stats").textContent = `${r.samples.length} samples, ${r.samples.filter((s) => s.sentence).length} taught, ` +
-    `${r.regions.length} regions, ${r.teachings} teachings served (seq ${r.seq})`;
+    `${shown.length} regions` + (hidden ? ` (${hidden} of under ${fmt(NEGLIGIBLE)} of the samples not drawn)` : "") +
+    `, ${r.teachings} teachings served (seq ${r.seq})`;
   const names = $("known-names");
   names.innerHTML = "";
   for (const n of r.names) { const o = document.createElement("option"); o.value = n; names.appendChild(o); }
@@ -68,6 +74,7 @@ async function loadRegions() {
     el("rect", { x: sx(x0), y: sy(y1), width: x1 - x0, height: y1 - y0, fill: "none", stroke: "#b0bec5",
       "stroke-width": state.unit * 0.1, "stroke-dasharray": `${state.unit} ${state.unit}` }, mapLayer);
   }
+  drawAxes(x0, x1, y0, y1);
   const samples = $("layer-samples");
   samples.innerHTML = "";
   for (const s of r.samples) {
@@ -79,7 +86,17 @@ async function loadRegions() {
   const labels = $("layer-labels");
   regions.innerHTML = "";
   labels.innerHTML = "";
-  for (const g of r.regions) {
+  // one label per place: a name labels the region where it is most probable (the larger on a tie)
+  const labelled = new Map();
+  for (const g of shown) {
+    if (!g.names.length) continue;
+    const best = labelled.get(g.names[0].name);
+    if (!best || g.names[0].p > best.names[0].p || (g.names[0].p === best.names[0].p && g.samples > best.samples)) {
+      labelled.set(g.names[0].name, g);
+    }
+  }
+  const labelRegions = new Set(labelled.values());
+  for (const g of shown) {
     const colour = COLOURS[g.concept % COLOURS.length];
     const cx = sx(g.mean[0]), cy = sy(g.mean[1]);
     const shape = el("ellipse", { cx, cy, rx: Math.max(g.ellipse.rx, 1e-3), ry: Math.max(g.ellipse.ry, 1e-3),
@@ -89,7 +106,7 @@ async function loadRegions() {
       g.names.map((n) => `${n.name} ${fmt(n.p)}`).join(", ");
     el("path", { d: `M ${cx - state.unit * 0.4} ${cy} h ${state.unit * 0.8} M ${cx} ${cy - state.unit * 0.4} ` +
       `v ${state.unit * 0.8}`, class: "region-centre" }, regions);
-    if (!g.names.length) continue;
+    if (!labelRegions.has(g)) continue;
     const label = el("text", { x: cx, y: cy - state.unit * 0.6, "text-anchor": "middle", class: "region-label",
       "font-size": state.unit * 1.1, "stroke-width": state.unit * 0.25 }, labels);
     label.textContent = g.names[0].name + " ";
@@ -101,6 +118,43 @@ async function loadRegions() {
     }
   }
   if (state.clicked) drawClick();
+}
+
+// axes in metres along the map's lower and left edges, and a scale bar
+function drawAxes(x0, x1, y0, y1) {
+  const layer = $("layer-axes");
+  layer.innerHTML = "";
+  const span = Math.max(x1 - x0, y1 - y0);
+  const step = [0.5, 1, 2, 5, 10, 20, 50].find((s) => span / s <= 12) || 100;
+  const u = state.unit;
+  const tick = { class: "axis", "stroke-width": u * 0.08 };
+  const text = { class: "axis-label", "font-size": u * 0.8 };
+  el("line", Object.assign({ x1: sx(x0), y1: sy(y0), x2: sx(x1), y2: sy(y0) }, tick), layer);
+  el("line", Object.assign({ x1: sx(x0), y1: sy(y0), x2: sx(x0), y2: sy(y1) }, tick), layer);
+  for (let x = Math.ceil(x0 / step) * step; x <= x1 + 1e-9; x += step) {
+    el("line", Object.assign({ x1: sx(x), y1: sy(y0), x2: sx(x), y2: sy(y0) + u * 0.4 }, tick), layer);
+    el("text", Object.assign({ x: sx(x), y: sy(y0) + u * 1.3, "text-anchor": "middle" }, text), layer)
+      .textContent = `${+x.toFixed(2)}`;
+  }
+  for (let y = Math.ceil(y0 / step) * step; y <= y1 + 1e-9; y += step) {
+    el("line", Object.assign({ x1: sx(x0), y1: sy(y), x2: sx(x0) - u * 0.4, y2: sy(y) }, tick), layer);
+    el("text", Object.assign({ x: sx(x0) - u * 0.6, y: sy(y) + u * 0.3, "text-anchor": "end" }, text), layer)
+      .textContent = `${+y.toFixed(2)}`;
+  }
+  el("text", Object.assign({ x: sx(x1), y: sy(y0) - u * 0.5, "text-anchor": "end" }, text), layer).textContent = "x (m)";
+  el("text", Object.assign({ x: sx(x0) + u * 0.5, y: sy(y1) + u * 0.9 }, text), layer).textContent = "y (m)";
+  const bar = step, bx = sx(x0) + u, by = sy(y0) - u * 0.8;  // the scale bar, lower left
+  el("path", { d: `M ${bx} ${by - u * 0.3} v ${u * 0.3} h ${bar} v ${-u * 0.3}`, class: "scale-bar",
+    "stroke-width": u * 0.15, fill: "none" }, layer);
+  el("text", Object.assign({ x: bx + bar / 2, y: by - u * 0.5, "text-anchor": "middle" }, text), layer)
+    .textContent = `${bar} m`;
+}
+
+// after a teaching or an undo, here or by anyone: every panel shows the home as it is now
+async function refreshPanels() {
+  await loadRegions();
+  await askWhat();
+  if (state.lastWhere) await showWhere(state.lastWhere);
 }
 
 function drawClick() {
@@ -141,6 +195,11 @@ async function askWhere(event) {
   event.preventDefault();
   const name = $("where-input").value.trim();
   if (!name) return;
+  state.lastWhere = name;
+  await showWhere(name);
+}
+
+async function showWhere(name) {
   const layer = $("layer-poses");
   layer.innerHTML = "";
   try {
@@ -181,8 +240,7 @@ async function teach(event) {
       (answer.new_words.length ? ` New words: ${answer.new_words.join(", ")}.` : "") +
       (answer.notes.length ? " " + answer.notes.join(" ") : "");
     $("teach-sentence").value = "";
-    await loadRegions();
-    await askWhat();
+    await refreshPanels();
   } catch (error) {
     result.className = "error";
     result.textContent = error.message;
@@ -199,7 +257,7 @@ async function undo() {
     $("teach-result").textContent = `Undone (teaching ${answer.undoes}).`;
     state.lastTeaching = null;
     $("undo-button").disabled = true;
-    await loadRegions();
+    await refreshPanels();
   } catch (error) {
     $("teach-result").className = "error";
     $("teach-result").textContent = error.message;
@@ -222,7 +280,7 @@ function listen() {
   source.onopen = () => { $("connection").textContent = "live"; $("connection").className = "online"; };
   source.onerror = () => { $("connection").textContent = "reconnecting…"; $("connection").className = "offline"; };
   let pending = null;
-  const refresh = () => { if (!pending) pending = setTimeout(() => { pending = null; loadRegions(); }, 150); };
+  const refresh = () => { if (!pending) pending = setTimeout(() => { pending = null; refreshPanels(); }, 150); };
   source.addEventListener("taught", (e) => {
     const t = JSON.parse(e.data);
     const where = t.op === "observation" ? ` at (${t.x.toFixed(2)}, ${t.y.toFixed(2)})` : ` for sample ${t.id}`;

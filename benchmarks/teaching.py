@@ -1,0 +1,486 @@
+"""Single teachings of a home, measured as a person teaching a robot would judge them.
+
+Each teaching starts from a fresh copy of the home (the adapted home, untouched) and teaches one
+new name ("this is the <word> room", a word the home never heard) for either
+
+- ``sample``: a recorded training sample (a sentence for its id), or
+- ``pose``: a new observation at a recorded sample's pose moved by up to 0.3 m, without a view.
+
+After the teaching it measures
+
+- **effective**: how many of 10 poses of ``where <taught name>`` land in the taught room (the room
+  of the 5 nearest training samples, by ground truth); a teaching is effective with ≥ 8 of 10;
+- **local**: the share of the *other* rooms' training samples (pose and view, ``what``) whose top
+  name changed;
+- **same seed**: the teaching repeated with the same seed gives the same home (every array of the
+  state and of the posterior equal);
+- **undo**: ``--undo`` teachings (each seed its own sequence of 5 teachings through the service's
+  journal records, :mod:`spco.service.teaching`), one of them undone: every answer (``what`` at
+  every training sample with its view, ``where`` of every name of the vocabulary) and the vocabulary
+  compared with the home taught the same sequence without it; max |Δp|.
+
+Homes: a synthetic new home (6 experienced synthetic homes as knowledge) and, with ``--sigverse``,
+SIGVerse 3LDK_9 adapted from the 16-home knowledge (``--sigverse-home``, a home file built as in
+``benchmarks/serve_latency.py``). Seeds 0–99 (development, benchmarks/SPLIT.md).
+
+    python benchmarks/teaching.py --n 100 [--sigverse-home /path/home_3LDK_9.spco] [--json out.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import signal
+import time
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from spco import knowledge as kn
+from spco.data.environment import Corpus, Environment
+
+NEW_WORDS = (
+    "quokka",
+    "zephyr",
+    "marimba",
+    "tundra",
+    "saffron",
+    "obsidian",
+    "lagoon",
+    "juniper",
+    "falcon",
+    "meadow",
+    "cobalt",
+    "harbour",
+    "walnut",
+    "ember",
+    "glacier",
+    "orchid",
+)
+
+
+def synthetic_home(seed: int = 3) -> tuple[kn.HomeModel, Environment]:
+    """A synthetic new home adapted from 6 experienced synthetic homes, and its environment."""
+    from spco.data.synthetic import generate_homes
+
+    corpus = generate_homes(7, seed=seed, new_homes=1, specific_rooms=False)
+    envs = list(corpus)
+    knowledge = kn.fit_knowledge(Corpus(envs[:6]), n_iterations=30, random_state=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        home = kn.adapt(knowledge, envs[6], n_iterations=30, random_state=0)
+    return home, envs[6]
+
+
+def sigverse_env(name: str = "3LDK_9") -> Environment:
+    """The SIGVerse home ``name`` as the adapted home saw it (its ground truth for scoring)."""
+    from spco.data import load
+
+    root = Path(os.environ.get("SPCO_DATASETS", "/work/shared/datasets")) / "sigverse"
+    return next(iter(load(root / name)))
+
+
+def room_labels(env: Environment, home: kn.HomeModel) -> tuple[np.ndarray, np.ndarray]:
+    """(xy of the labelled training samples, their room labels)."""
+    labels = env.ground_truth.labels if env.ground_truth is not None else None
+    if labels is None:
+        raise SystemExit(f"{env.name}: no ground-truth room labels")
+    by_id = dict(zip(env.ids.tolist(), labels, strict=True))
+    keep = [k for k, i in enumerate(home.ids.tolist()) if by_id.get(i) is not None]
+    return home.positions[keep, :2], np.array([by_id[int(home.ids[k])] for k in keep], dtype=object)
+
+
+def room_at(xy: np.ndarray, train_xy: np.ndarray, train_rooms: np.ndarray, k: int = 5) -> list[str]:
+    """The room of each point: the most common room of its ``k`` nearest training samples."""
+    out = []
+    for p in np.atleast_2d(xy):
+        near = np.argsort(((train_xy - p) ** 2).sum(axis=1))[:k]
+        rooms, counts = np.unique(train_rooms[near], return_counts=True)
+        out.append(str(rooms[np.argmax(counts)]))
+    return out
+
+
+def top_names(home: kn.HomeModel) -> np.ndarray:
+    """The top name of ``what`` at every training sample of ``home`` (its pose and its view)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        pred = kn.name_prediction(home, home.positions, home.visual, top_k=1)
+    return np.array([w[0] for w in pred.words], dtype=object)
+
+
+def answers(home: kn.HomeModel, rows: np.ndarray) -> dict[str, Any]:
+    """Every answer compared by the undo measure: ``what`` probabilities at the training samples
+    ``rows`` (pose and view) and ``where`` region probabilities of every usable name."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        pred = kn.name_prediction(home, home.positions[rows], home.visual[rows], top_k=5)
+        out: dict[str, Any] = {
+            "what_words": [tuple(w) for w in pred.words],
+            "what_p": np.asarray(pred.probabilities, dtype=float),
+            "vocabulary": tuple(home.vocabulary.words),
+        }
+        for name in home.known_names:
+            try:
+                out["where " + name] = np.asarray(
+                    kn.where(home, name, n=10, random_state=0).region_probabilities
+                )
+            except Exception as error:  # a name the home cannot answer: its error is the answer
+                out["where " + name] = repr(error)
+    return out
+
+
+def max_difference(a: dict[str, Any], b: dict[str, Any]) -> float:
+    """max |Δp| between two :func:`answers` (1.0 for a different word, name or vocabulary)."""
+    if a.keys() != b.keys() or a["vocabulary"] != b["vocabulary"] or a["what_words"] != b["what_words"]:
+        return 1.0
+    worst = 0.0
+    for key, value in a.items():
+        other = b[key]
+        if isinstance(value, np.ndarray):
+            if value.shape != other.shape:
+                return 1.0
+            worst = max(worst, float(np.max(np.abs(value - other))) if value.size else 0.0)
+        elif value != other:
+            return 1.0
+    return worst
+
+
+def same_home(a: kn.HomeModel, b: kn.HomeModel) -> bool:
+    """Whether two homes hold the same state, posterior, samples and vocabulary."""
+    if a.vocabulary.words != b.vocabulary.words or a.sentences != b.sentences:
+        return False
+    for name in vars(a.state):
+        x, y = getattr(a.state, name), getattr(b.state, name)
+        if isinstance(x, np.ndarray) and not np.array_equal(x, y):
+            return False
+    if (a.posterior is None) != (b.posterior is None):
+        return False
+    if a.posterior is not None:
+        for name, x in a.posterior.arrays().items():
+            if not np.array_equal(x, getattr(b.posterior, name)):
+                return False
+    return True
+
+
+def new_word(home: kn.HomeModel, t: int) -> str:
+    words = set(home.vocabulary.words)
+    for k in range(len(NEW_WORDS)):
+        w = NEW_WORDS[(t + k) % len(NEW_WORDS)]
+        if w not in words:
+            return w
+    raise SystemExit("every benchmark word is in the home's vocabulary")
+
+
+def one_teaching(home: kn.HomeModel, env: Environment, t: int, kind: str) -> dict[str, Any]:
+    """Teach one new name (seed ``t``) and measure it."""
+    rng = np.random.default_rng(t)
+    train_xy, train_rooms = room_labels(env, home)
+    pick = int(rng.integers(0, train_xy.shape[0]))
+    room = str(train_rooms[pick])
+    row = int(np.flatnonzero((home.positions[:, :2] == train_xy[pick]).all(axis=1))[0])
+    word = new_word(home, t)
+    sentence = f"this is the {word} room"
+    before = top_names(home)
+    start = time.perf_counter()
+    if kind == "sample":
+        taught = kn.teach(home, {int(home.ids[row]): sentence}, random_state=t)
+        again = kn.teach(home, {int(home.ids[row]): sentence}, random_state=t)
+    else:
+        x, y = home.positions[row, :2] + rng.uniform(-0.3, 0.3, size=2)
+        theta = float(np.arctan2(home.positions[row, 2], home.positions[row, 3]))
+        obs = kn.Observation(x=float(x), y=float(y), theta=theta, sentence=sentence)
+        taught = kn.teach(home, observations=[obs], random_state=t)
+        again = kn.teach(home, observations=[obs], random_state=t)
+    seconds = time.perf_counter() - start
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            poses = kn.where(taught, f"{word} room", n=10, random_state=t).samples[:, :2]
+            in_room = sum(r == room for r in room_at(poses, train_xy, train_rooms))
+        except Exception:
+            in_room = 0
+    after = top_names(taught)[: home.n_samples]
+    rooms_all = np.array(room_at(home.positions[:, :2], train_xy, train_rooms), dtype=object)
+    others = rooms_all != room
+    changed = float(np.mean(before[others] != after[others])) if others.any() else 0.0
+    return {
+        "kind": kind,
+        "seed": t,
+        "room": room,
+        "in_room": in_room,
+        "effective": in_room >= 8,
+        "changed_elsewhere": changed,
+        "same_seed": same_home(taught, again),
+        "seconds": seconds / 2,
+    }
+
+
+def _library_teaching(home: kn.HomeModel, record: dict[str, Any]) -> kn.HomeModel:
+    """One journal record applied with the library alone (``spco.knowledge.teach``, its seed)."""
+    seed, sweeps = int(record["seed"]), int(record["sweeps"])
+    if record["op"] == "sentence":
+        return kn.teach(home, {int(record["id"]): record["sentence"]}, n_sweeps=sweeps, random_state=seed)
+    obs = kn.Observation(
+        x=record["x"], y=record["y"], theta=record["theta"], sentence=record["sentence"], id=int(record["id"])
+    )
+    return kn.teach(home, observations=[obs], n_sweeps=sweeps, random_state=seed)
+
+
+def undo_trial(home: kn.HomeModel, t: int, folder: Path, n_teach: int = 12, compact_records: int = 5) -> dict:
+    """``n_teach`` teachings through the service's writer (journalled, compacted every
+    ``compact_records``), one of them undone; the home after the undo, and after a restart of the
+    writer, compared with the home the library gives for the same teachings (their recorded seeds)
+    without the undone one: max |Δp| over every answer (:func:`answers`)."""
+    from spco.service.writer import HomeWriter
+
+    rng = np.random.default_rng(1000 + t)
+    path = folder / f"undo-{t}.spco"
+    for suffix in ("", ".journal", ".undo", ".lock"):
+        Path(str(path) + suffix).unlink(missing_ok=True)
+    home.save(path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        writer = HomeWriter(path, seed=t, compact_records=compact_records)
+        for _ in range(n_teach):
+            row = int(rng.integers(0, home.n_samples))
+            word = NEW_WORDS[int(rng.integers(0, len(NEW_WORDS)))]
+            if rng.random() < 0.5:
+                request = {"op": "sentence", "id": int(home.ids[row]), "sentence": f"this is the {word} room"}
+            else:
+                x, y = (float(v) for v in home.positions[row, :2] + rng.uniform(-0.3, 0.3, size=2))
+                request = {
+                    "op": "observation",
+                    "x": x,
+                    "y": y,
+                    "theta": 0.0,
+                    "sentence": f"this is the {word} room",
+                }
+            result = writer.handle([request])[0]
+            assert result["ok"], result
+        seqs = sorted(k for k, e in writer.history.items() if e["op"] != "undo")
+        undone = seqs[int(rng.integers(0, len(seqs)))]
+        result = writer.handle([{"op": "undo", "seq": undone}])[0]
+        if not result["ok"]:  # refused (a later teaching named the sample it added): said, not measured
+            writer.close()
+            return {"seq": undone, "refused": result["error"]}
+        after = writer.snapshot()
+        records = [writer.history[k]["record"] for k in seqs if k != undone]
+        writer.close()
+        restarted = HomeWriter(path, seed=t).snapshot()
+        expected = home
+        for record in records:
+            expected = _library_teaching(expected, record)
+    rows = np.arange(home.n_samples)
+    want = answers(expected, rows)
+    return {
+        "seq": undone,
+        "of": len(seqs),
+        "max_dp": max_difference(answers(after, rows), want),
+        "max_dp_restarted": max_difference(answers(restarted, rows), want),
+    }
+
+
+def http_trials(home_file: Path, env: Environment, n: int, folder: Path) -> dict[str, Any]:
+    """``n`` teachings over HTTP (``spco serve`` on a fresh copy of ``home_file``, ``spco.service.client``):
+    each a new name, for a recorded sample or at a pose without a view, then undone. Per teaching:
+    ``where`` of the name in the taught room (≥ 8 of 10 poses), and after the undo max |Δp| of
+    ``what`` at every training sample (pose and view counts) and ``where`` of every name, against
+    the answers before the teaching — an exact undo makes every teaching one on a fresh home."""
+    import re
+    import subprocess
+    import sys
+    import threading
+
+    from spco.service.client import Client
+
+    served = folder / "served.spco"
+    for suffix in ("", ".journal", ".lock", ".undo"):
+        Path(str(served) + suffix).unlink(missing_ok=True)
+    shutil.copyfile(home_file, served)
+    home = kn.load_home_model(served)
+    train_xy, train_rooms = room_labels(env, home)
+    process = subprocess.Popen(
+        [sys.executable, "-m", "spco", "serve", str(served), "--port", "0", "--seed", "0"],
+        stdin=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    url = None
+    for line in process.stderr:  # type: ignore[union-attr]
+        match = re.search(r" at (http://[^ /]+)/ \(page\)", line)
+        if match:
+            url = match.group(1)
+            break
+    if url is None:
+        raise SystemExit("spco serve did not start")
+    threading.Thread(target=lambda: [None for _ in process.stderr], daemon=True).start()  # type: ignore[union-attr]
+    client = Client(url)
+
+    def snapshot() -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        for k in range(home.n_samples):
+            row = home.visual[[k]]
+            answer = client.what(
+                float(home.positions[k, 0]),
+                float(home.positions[k, 1]),
+                float(np.arctan2(home.positions[k, 2], home.positions[k, 3])),
+                visual=row.toarray()[0],
+                top=5,
+            )
+            out[f"what {k}"] = [(a["name"], a["probability"]) for a in answer["names"]]
+        for name in client.regions()["names"]:
+            out[f"where {name}"] = [
+                (p["x"], p["y"], p["probability"]) for p in client.where(name)["positions"]
+            ]
+        return out
+
+    def difference(a: dict[str, Any], b: dict[str, Any]) -> float:
+        if a.keys() != b.keys():
+            return 1.0
+        worst = 0.0
+        for key in a:
+            if len(a[key]) != len(b[key]):
+                return 1.0
+            for x, y in zip(a[key], b[key], strict=True):
+                if x[0] != y[0] and isinstance(x[0], str):
+                    return 1.0
+                worst = max(
+                    worst,
+                    max(
+                        abs(float(u) - float(v)) for u, v in zip(x, y, strict=True) if not isinstance(u, str)
+                    ),
+                )
+        return worst
+
+    results = []
+    try:
+        before = snapshot()
+        for t in range(n):
+            rng = np.random.default_rng(500 + t)
+            pick = int(rng.integers(0, train_xy.shape[0]))
+            room = str(train_rooms[pick])
+            row = int(np.flatnonzero((home.positions[:, :2] == train_xy[pick]).all(axis=1))[0])
+            word = new_word(home, t)
+            sentence = f"this is the {word} room"
+            if t % 2 == 0:
+                taught = client.teach(id=int(home.ids[row]), sentence=sentence)
+            else:
+                x, y = home.positions[row, :2] + rng.uniform(-0.3, 0.3, size=2)
+                theta = float(np.arctan2(home.positions[row, 2], home.positions[row, 3]))
+                taught = client.teach(x=float(x), y=float(y), theta=theta, sentence=sentence)
+            poses = [(p["x"], p["y"]) for p in client.where(f"{word} room", n=10, seed=t)["positions"]]
+            in_room = sum(r == room for r in room_at(np.array(poses), train_xy, train_rooms))
+            client.undo(taught["seq"])
+            results.append(
+                {
+                    "kind": "sample" if t % 2 == 0 else "pose",
+                    "room": room,
+                    "in_room": in_room,
+                    "undo_max_dp": difference(snapshot(), before),
+                }
+            )
+    finally:
+        process.send_signal(signal.SIGINT)
+        process.wait(120)
+    return {
+        "teachings": results,
+        "effective_share": float(np.mean([r["in_room"] >= 8 for r in results])),
+        "undo_exact_share": float(np.mean([r["undo_max_dp"] == 0 for r in results])),
+    }
+
+
+def summarise(results: list[dict[str, Any]]) -> dict[str, Any]:
+    eff = np.array([r["effective"] for r in results])
+    changed = np.array([r["changed_elsewhere"] for r in results])
+    seconds = np.array([r["seconds"] for r in results]) * 1000
+    return {
+        "n": len(results),
+        "effective_share": float(eff.mean()),
+        "in_room_mean": float(np.mean([r["in_room"] for r in results])),
+        "changed_elsewhere_mean": float(changed.mean()),
+        "changed_elsewhere_p95": float(np.percentile(changed, 95)),
+        "changed_elsewhere_max": float(changed.max()),
+        "same_seed_share": float(np.mean([r["same_seed"] for r in results])),
+        "teach_ms_p50": float(np.percentile(seconds, 50)),
+        "teach_ms_p99": float(np.percentile(seconds, 99)),
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--n", type=int, default=100, help="teachings per home and kind")
+    parser.add_argument("--undo", type=int, default=0, help="undo trials per home")
+    parser.add_argument("--sigverse-home", type=Path, default=None)
+    parser.add_argument(
+        "--http",
+        type=int,
+        default=0,
+        help="teachings over HTTP on the SIGVerse home (each undone and checked)",
+    )
+    parser.add_argument("--no-synthetic", action="store_true")
+    parser.add_argument("--json", type=Path, default=None)
+    args = parser.parse_args()
+    homes: list[tuple[str, kn.HomeModel, Environment]] = []
+    if not args.no_synthetic:
+        home, env = synthetic_home()
+        homes.append(("synthetic", home, env))
+    if args.sigverse_home is not None:
+        home = kn.load_home_model(args.sigverse_home)
+        homes.append(("SIGVerse 3LDK_9", home, sigverse_env("3LDK_9")))
+    report: dict[str, Any] = {}
+    print(
+        "| home | kind | teachings | effective (≥ 8/10 in room) | mean in room | other places' top name "
+        "changed: mean / p95 / max | same seed | teach ms p50 / p99 |"
+    )
+    print("|---|---|---|---|---|---|---|---|")
+    for label, home, env in homes:
+        for kind in ("sample", "pose") if args.n else ():
+            results = [one_teaching(home, env, t, kind) for t in range(args.n)]
+            s = summarise(results)
+            report[f"{label} {kind}"] = {"summary": s, "teachings": results}
+            print(
+                f"| {label} | {kind} | {s['n']} | {s['effective_share']:.0%} | {s['in_room_mean']:.1f} | "
+                f"{s['changed_elsewhere_mean']:.2%} / {s['changed_elsewhere_p95']:.2%} / "
+                f"{s['changed_elsewhere_max']:.2%} | {s['same_seed_share']:.0%} | "
+                f"{s['teach_ms_p50']:.0f} / {s['teach_ms_p99']:.0f} |",
+                flush=True,
+            )
+        if args.undo:
+            import tempfile
+
+            with tempfile.TemporaryDirectory() as folder:
+                trials = [undo_trial(home, t, Path(folder)) for t in range(args.undo)]
+            report[f"{label} undo"] = trials
+            done = [r for r in trials if "max_dp" in r]
+            exact = np.mean([r["max_dp"] == 0 and r["max_dp_restarted"] == 0 for r in done]) if done else 0.0
+            worst = max((max(r["max_dp"], r["max_dp_restarted"]) for r in done), default=0.0)
+            print(
+                f"| {label} | undo | {len(done)} undone ({len(trials) - len(done)} refused) | max abs dp = 0 "
+                f"in {exact:.0%} (worst {worst:.3g}), also after a restart | | | | |",
+                flush=True,
+            )
+    if args.http and args.sigverse_home is not None:
+        import tempfile
+
+        with tempfile.TemporaryDirectory() as folder:
+            http = http_trials(args.sigverse_home.resolve(), sigverse_env("3LDK_9"), args.http, Path(folder))
+        report["SIGVerse 3LDK_9 http"] = http
+        print(
+            f"| SIGVerse 3LDK_9 | over HTTP, each undone | {len(http['teachings'])} | "
+            f"{http['effective_share']:.0%} | "
+            f"{np.mean([r['in_room'] for r in http['teachings']]):.1f} | undo max abs dp = 0 in "
+            f"{http['undo_exact_share']:.0%} | | |",
+            flush=True,
+        )
+    if args.json:
+        args.json.write_text(json.dumps(report, indent=1, default=str))
+
+
+if __name__ == "__main__":
+    main()

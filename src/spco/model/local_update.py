@@ -1,0 +1,398 @@
+"""A teaching as a local update of one home: the taught place changes, the rest of the home stays.
+
+A home that is served is taught one sentence or one observation at a time. Re-running Gibbs sweeps
+of the whole home from its state after each teaching (what adapting does) redraws every concept's
+and every region's parameters and lets every sample move: each teaching is then a fresh random
+perturbation of the whole home — a room nobody talked about can change its name — and the answers
+at places the teaching said nothing about change from one teaching to the next.
+
+:func:`teach_locally` updates instead only the part of the home the new evidence is about, as a
+blocked Gibbs sampler whose blocks are the *affected* variables, all others conditioned on at their
+current values (a valid MCMC step of the same posterior, restricted to a block):
+
+1. a new observation's concept and region are drawn from their joint conditional given the home's
+   parameters (:func:`draw_new_assignments`), over every concept and region — not placed in
+   region 0 and concept 0;
+2. the affected set: the regions of the taught samples (``R_A``) plus one empty region, the
+   *movable* samples (the taught ones and every sample of ``R_A``), and the affected concepts
+   ``C_A``: the movable samples' concepts, the concept that explains a taught sentence's words
+   best, and the concept a name first heard in the home gets
+   (:func:`~spco.model.home_shard.own_names_to_free_concepts`);
+3. ``n_sweeps`` sweeps of that block: the movable samples' (concept, region) pairs from their
+   joint conditional restricted to ``C_A × R_A`` (the current pair is in it, so the step keeps the
+   posterior), then θ^v, θ^w and π of ``C_A``, the Gaussians of ``R_A``, and G_e's share among
+   ``C_A`` given the share of the other concepts (the conditional of a Dirichlet's sub-vector);
+   φ of a free concept in ``C_A`` (one the knowledge does not use) as adapting learns it;
+4. the home's answers come from the posterior average (:class:`~spco.model.posterior.ParameterAverage`)
+   of those sweeps for ``C_A`` and ``R_A``, and from the home's previous average for every other
+   concept and region (:func:`splice_posterior`): a concept or region the teaching did not touch
+   answers exactly as before it; G_e moves only by the affected concepts' share.
+
+Everything is drawn from the one generator given: the same home, teaching and seed give the same
+home, bit for bit.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.special import gammaln, multigammaln
+
+from spco.model import gibbs
+from spco.model.home_shard import (
+    FREE_CONCEPT_WEIGHT,
+    SharedPart,
+    judge_new_words,
+    own_names_to_free_concepts,
+    warn_if_own_names_spread,
+)
+from spco.model.kernels.dirichlet import log_dirichlet
+from spco.model.kernels.niw import niw_posterior
+from spco.model.observations import LOG_FLOOR, GaussianRegions, HierarchicalMultinomial
+from spco.model.parameters import ConceptParameters
+from spco.model.posterior import ParameterAverage, masked_rows, thinned_sweeps
+from spco.model.state import GibbsState, PreparedData, SamplerSettings
+
+__all__ = ["SPLIT_SWEEPS", "splice_posterior", "teach_locally"]
+
+#: The first sweeps of a teaching that try to give the taught place a region of its own
+#: (:func:`_split_taught_places`).
+SPLIT_SWEEPS = 3
+
+
+def _sample_rows(logits: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """One categorical draw per row of ``logits`` (n, m), by the inverse CDF of one uniform each."""
+    top = logits.max(axis=1, keepdims=True)
+    p = np.exp(logits - top)
+    cdf = np.cumsum(p, axis=1)
+    u = rng.random(logits.shape[0]) * cdf[:, -1]
+    return np.minimum((cdf < u[:, None]).sum(axis=1), logits.shape[1] - 1)
+
+
+def _likelihoods(
+    data: PreparedData, state: GibbsState, settings: SamplerSettings, rows: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """(concept log-likelihood (n, L), region log-likelihood (n, K)) of the samples ``rows``: the
+    sampler's (:func:`spco.model.gibbs._concept_loglik`, :meth:`GaussianRegions.log_likelihood`)
+    for these rows only — a teaching's few samples, not the home's hundreds."""
+    visual = sp.csr_array(data.visual[rows], dtype=np.float64)
+    concept_ll = visual @ np.maximum(state.log_theta_v[0], LOG_FLOOR).T
+    weights = gibbs.view_weights(data, settings.view_counts)
+    if weights is not None:
+        concept_ll *= weights[rows][:, None]
+    words = gibbs.sentence_words(data, state)[rows]
+    if words.nnz:
+        log_theta_w = gibbs.kept_word_log_theta(state.log_theta_w, state.word_mask)[0]
+        concept_ll = concept_ll + sp.csr_array(words, dtype=np.float64) @ np.maximum(log_theta_w, LOG_FLOOR).T
+    chol = np.linalg.cholesky(state.covariances[0])  # (K, d, d)
+    diff = data.positions[rows][:, None, :] - state.means[0][None]  # (n, K, d)
+    z = np.linalg.solve(chol[None], diff[..., None])[..., 0]
+    d = diff.shape[-1]
+    log_det = 2.0 * np.log(np.diagonal(chol, axis1=-2, axis2=-1)).sum(-1)
+    region_ll = -0.5 * ((z**2).sum(-1) + log_det[None] + d * np.log(2 * np.pi))
+    return np.asarray(concept_ll), region_ll
+
+
+def _collapsed_logits(
+    state: GibbsState,
+    hyper,
+    concept_counts: np.ndarray,
+    pair_counts: np.ndarray,
+    concepts: np.ndarray,
+    regions: np.ndarray,
+    concept_ll: np.ndarray,
+    region_ll: np.ndarray,
+) -> np.ndarray:
+    """log p(C = c, R = r | the other samples, θ, the Gaussians) with G_e and π integrated out
+    (their Dirichlet predictive), over ``concepts`` × ``regions``: (|C|, |R|)."""
+    K = state.log_pi.shape[2]
+    log_g = np.log(hyper.gamma * np.exp(state.log_g0[concepts]) + concept_counts[concepts])
+    log_pi = (
+        np.log(hyper.beta / K + pair_counts[np.ix_(concepts, regions)])
+        - np.log(hyper.beta + concept_counts[concepts])[:, None]
+    )
+    return log_g[:, None] + log_pi + concept_ll[concepts][:, None] + region_ll[regions][None, :]
+
+
+def _draw_assignments(
+    data: PreparedData,
+    state: GibbsState,
+    shared: SharedPart,
+    settings: SamplerSettings,
+    rows: np.ndarray,
+    concepts: np.ndarray,
+    regions: np.ndarray,
+    rng: np.random.Generator,
+) -> None:
+    """Draw the (concept, region) of the samples ``rows`` one after another from their joint
+    conditional restricted to ``concepts`` × ``regions``, G_e and π integrated out (the counts of the
+    other samples; π and G_e are drawn again given the assignments in :func:`_parameters`), in place.
+    A sample's current pair must be in the restriction (or the sample new, not yet counted)."""
+    if rows.size == 0:
+        return
+    hyper = shared.hyperparameters
+    L, K = state.log_pi.shape[1:]
+    concept_ll, region_ll = _likelihoods(data, state, settings, rows)
+    counted = np.ones(data.n_samples, dtype=bool)
+    counted[rows] = False
+    pair_counts = np.zeros((L, K))
+    np.add.at(pair_counts, (state.concepts[counted], state.regions[counted]), 1.0)
+    concept_counts = pair_counts.sum(axis=1)
+    for k, row in enumerate(rows):  # a loop over the teaching's few movable samples
+        logits = _collapsed_logits(
+            state, hyper, concept_counts, pair_counts, concepts, regions, concept_ll[k], region_ll[k]
+        )
+        flat = int(_sample_rows(logits.reshape(1, -1), rng)[0])
+        c, r = concepts[flat // regions.size], regions[flat % regions.size]
+        state.concepts[row], state.regions[row] = c, r
+        pair_counts[c, r] += 1.0
+        concept_counts[c] += 1.0
+
+
+def _parameters(
+    data: PreparedData,
+    state: GibbsState,
+    shared: SharedPart,
+    settings: SamplerSettings,
+    concepts: np.ndarray,
+    regions: np.ndarray,
+    rng: np.random.Generator,
+) -> None:
+    """The affected parameters given the assignments (module docstring, step 3), in place."""
+    hyper = shared.hyperparameters
+    K = state.log_pi.shape[2]
+    stats = gibbs.sufficient_statistics(data, state, hyper)
+    free = concepts[
+        (np.exp(state.log_g0[concepts]) < FREE_CONCEPT_WEIGHT) & (stats.concepts[0, concepts] > 0)
+    ]
+    if free.size:  # φ of a concept the knowledge does not use is learnt from this home (as adapting)
+        tables_v = HierarchicalMultinomial.sample_tables(
+            stats.visual[:, free], state.log_phi_v[free], hyper.delta_visual, rng
+        )
+        state.log_phi_v[free] = HierarchicalMultinomial.sample_shared(tables_v, hyper.alpha_visual, rng)
+        tables_w = HierarchicalMultinomial.sample_tables(
+            stats.words[:, free], state.log_phi_w[free], hyper.delta_word, rng
+        )
+        state.log_phi_w[free] = HierarchicalMultinomial.sample_shared(tables_w, hyper.alpha_word, rng)
+    state.log_theta_v[:, concepts] = HierarchicalMultinomial.sample_specific(
+        stats.visual[:, concepts], state.log_phi_v[concepts], hyper.delta_visual, rng
+    )
+    state.log_theta_w[:, concepts] = HierarchicalMultinomial.sample_specific(
+        stats.words[:, concepts], state.log_phi_w[concepts], hyper.delta_word, rng
+    )
+    # G_e restricted to C_A: its share among them ~ Dir(γ G_0 + n), their total mass kept
+    log_mass = np.logaddexp.reduce(state.log_g[0, concepts])
+    alpha = hyper.gamma * np.exp(state.log_g0[concepts]) + stats.concepts[0, concepts]
+    state.log_g[0, concepts] = log_mass + log_dirichlet(alpha, rng)
+    state.log_pi[:, concepts] = log_dirichlet(hyper.beta / K + stats.regions_by_concept[:, concepts], rng)
+    means, covariances = GaussianRegions.sample_posterior(
+        stats.region_count[:, regions],
+        stats.region_total[:, regions],
+        stats.region_scatter[:, regions],
+        gibbs.niw_prior(data, hyper, settings),
+        rng,
+    )
+    state.means[:, regions], state.covariances[:, regions] = means, covariances
+    state.region_counts = stats.region_count.astype(np.int64)
+
+
+def _log_marginal_positions(points: np.ndarray, prior) -> float:
+    """log p(points) of one region, its Gaussian integrated out under the NIW prior."""
+    d = points.shape[1]
+    n = points.shape[0]
+    mu0 = prior.mu0[0]
+    _, kappa_n, psi_n, nu_n = niw_posterior(
+        np.array([float(n)]),
+        points.sum(axis=0)[None],
+        (points.T @ points)[None],
+        mu0,
+        prior.kappa0,
+        prior.psi0,
+        prior.nu0,
+    )
+    _, logdet0 = np.linalg.slogdet(prior.psi0)
+    _, logdet_n = np.linalg.slogdet(psi_n[0])
+    return float(
+        -0.5 * n * d * np.log(np.pi)
+        + multigammaln(0.5 * float(nu_n[0]), d)
+        - multigammaln(0.5 * prior.nu0, d)
+        + 0.5 * prior.nu0 * logdet0
+        - 0.5 * float(nu_n[0]) * logdet_n
+        + 0.5 * d * (np.log(prior.kappa0) - np.log(float(kappa_n[0])))
+    )
+
+
+def _log_regions_given_concept(counts: np.ndarray, beta: float, n_regions: int) -> float:
+    """log p(R of one concept's samples | C), π integrated out (Dirichlet-multinomial)."""
+    a = beta / n_regions
+    return float(gammaln(beta) - gammaln(beta + counts.sum()) + (gammaln(a + counts) - gammaln(a)).sum())
+
+
+def _split_taught_places(
+    data: PreparedData, state: GibbsState, shared: SharedPart, settings: SamplerSettings, taught: np.ndarray
+) -> np.ndarray:
+    """For each taught sample's region shared with other concepts: move the taught sample's concept's
+    samples of that region to an empty region when the posterior (Gaussians, π integrated out)
+    prefers it — the region of a place first told apart by a teaching. Returns the regions used."""
+    hyper = shared.hyperparameters
+    prior = gibbs.niw_prior(data, hyper, settings)
+    K = state.log_pi.shape[2]
+    opened = []
+    for row in taught:
+        c, r = state.concepts[row], state.regions[row]
+        in_region = state.regions == r
+        part = in_region & (state.concepts == c)
+        if part.all() or part.sum() == in_region.sum():
+            continue
+        empty = np.flatnonzero(np.bincount(state.regions, minlength=K) == 0)
+        if empty.size == 0:
+            break
+        counts = np.bincount(state.regions[state.concepts == c], minlength=K).astype(float)
+        split = counts.copy()
+        split[empty[0]], split[r] = split[r], 0.0
+        x = data.positions
+        gain = (
+            _log_marginal_positions(x[part], prior)
+            + _log_marginal_positions(x[in_region & ~part], prior)
+            - _log_marginal_positions(x[in_region], prior)
+            + _log_regions_given_concept(split, hyper.beta, K)
+            - _log_regions_given_concept(counts, hyper.beta, K)
+        )
+        if gain > 0:
+            state.regions[part] = empty[0]
+            opened.append(empty[0])
+    return np.asarray(opened, dtype=np.int64)
+
+
+def _affected(
+    data: PreparedData, state: GibbsState, taught: np.ndarray, moved: np.ndarray, settings: SamplerSettings
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(movable samples, affected concepts C_A, affected regions R_A): module docstring, step 2."""
+    K = state.log_pi.shape[2]
+    touched = np.union1d(taught, moved)
+    regions = np.unique(state.regions[touched])
+    empty = np.flatnonzero(np.bincount(state.regions, minlength=K) == 0)
+    if empty.size:  # room for the taught place to become a region of its own
+        regions = np.union1d(regions, empty[:1])
+    movable = np.union1d(np.flatnonzero(np.isin(state.regions, regions)), touched)
+    concepts = np.unique(state.concepts[movable])
+    said = taught[np.diff(data.words.indptr)[taught] > 0]
+    if said.size:  # the concept whose words explain a taught sentence best
+        words = gibbs.sentence_words(data, state)[said]
+        log_theta_w = gibbs.kept_word_log_theta(state.log_theta_w, state.word_mask)
+        word_ll = HierarchicalMultinomial.log_likelihood(words, data.homes[said], log_theta_w)
+        concepts = np.union1d(concepts, np.argmax(word_ll + state.log_g[0][None, :], axis=1))
+    return movable.astype(np.int64), concepts.astype(np.int64), regions.astype(np.int64)
+
+
+def splice_posterior(
+    previous: ConceptParameters | None, updated: ConceptParameters, concepts: np.ndarray, regions: np.ndarray
+) -> ConceptParameters:
+    """The home's parameters after a local update: ``updated`` (the average of the update's sweeps)
+    for the affected ``concepts`` and ``regions``, ``previous`` (the home's average before it) for
+    every other one; G_e's affected entries take the share the others leave. Words first heard in
+    the teaching (columns ``previous`` lacks) and words the mask newly keeps come from ``updated``;
+    rows are renormalised over the mask. ``previous`` ``None``: ``updated``."""
+    if previous is None:
+        return updated
+    L, K = updated.region_weights.shape[1:]
+    keep_c = np.ones(L, dtype=bool)
+    keep_c[concepts] = False
+    keep_r = np.ones(K, dtype=bool)
+    keep_r[regions] = False
+    g = updated.concept_weights.copy()
+    kept_mass = previous.concept_weights[0, keep_c].sum()
+    g[0, keep_c] = previous.concept_weights[0, keep_c]
+    share = updated.concept_weights[0, ~keep_c]
+    g[0, ~keep_c] = max(1.0 - kept_mass, 0.0) * share / max(share.sum(), np.finfo(float).tiny)
+    pi = updated.region_weights.copy()
+    pi[:, keep_c] = previous.region_weights[:, keep_c]
+    means, covariances = updated.region_means.copy(), updated.region_covariances.copy()
+    means[:, keep_r], covariances[:, keep_r] = (
+        previous.region_means[:, keep_r],
+        previous.region_covariances[:, keep_r],
+    )
+    region_counts = updated.region_counts.copy()
+    region_counts[:, keep_r] = previous.region_counts[:, keep_r]
+    visual = updated.visual_probabilities.copy()
+    visual[:, keep_c] = previous.visual_probabilities[:, keep_c]
+    v_old = previous.word_probabilities.shape[2]
+    with np.errstate(divide="ignore"):
+        log_words = np.log(updated.word_probabilities)
+        old = np.log(previous.word_probabilities[:, keep_c])
+    kept_before = np.asarray(previous.word_mask, dtype=bool)
+    rows = log_words[:, keep_c]
+    rows[..., :v_old] = np.where(kept_before, old, rows[..., :v_old])
+    log_words[:, keep_c] = rows
+    mask = np.asarray(updated.word_mask, dtype=bool)
+    counts = None
+    if updated.concept_counts is not None:
+        counts = updated.concept_counts.copy()
+        if previous.concept_counts is not None:
+            counts[:, keep_c] = previous.concept_counts[:, keep_c]
+    return replace(
+        updated,
+        concept_weights=g,
+        region_weights=pi,
+        region_means=means,
+        region_covariances=covariances,
+        region_counts=region_counts,
+        visual_probabilities=visual,
+        word_probabilities=masked_rows(log_words, mask),
+        concept_counts=counts,
+    )
+
+
+def teach_locally(
+    data: PreparedData,
+    state: GibbsState,
+    shared: SharedPart,
+    n_known: int,
+    taught: np.ndarray,
+    new: np.ndarray,
+    n_sweeps: int,
+    rng: np.random.Generator,
+    previous: ConceptParameters | None,
+    home_name: str,
+) -> ConceptParameters:
+    """Update ``state`` in place for a teaching (module docstring) and return the home's parameters.
+
+    Parameters
+    ----------
+    data: the home's samples after the teaching; state: its state, the new samples' rows appended
+    (their assignments are drawn here); shared: the shared part (fixed); n_known: the knowledge's
+    words; taught: rows whose sentence changed or that are new; new: the new samples' rows;
+    n_sweeps: sweeps of the affected block (their thinned average answers for it); rng: the
+    generator; previous: the home's parameters before the teaching (``None``: none averaged);
+    home_name: for the warning of :func:`~spco.model.home_shard.warn_if_own_names_spread`.
+    """
+    settings = SamplerSettings.create(
+        shared.variant, shared.prune_words, learn_shared=False, view_counts=shared.hyperparameters.view_counts
+    )
+    taught = np.asarray(taught, dtype=np.int64)
+    new = np.asarray(new, dtype=np.int64)
+    judge_new_words(state, shared, n_known, data)  # a taught name counts at once
+    L, K = state.log_pi.shape[1:]
+    _draw_assignments(data, state, shared, settings, new, np.arange(L), np.arange(K), rng)
+    before = state.concepts.copy()
+    own_names_to_free_concepts(data, state, shared, n_known)
+    moved = np.flatnonzero(before != state.concepts)
+    movable, concepts, regions = _affected(data, state, taught, moved, settings)
+    concepts = np.union1d(concepts, before[moved]).astype(np.int64)
+    _parameters(data, state, shared, settings, concepts, regions, rng)
+    average = ParameterAverage(data.homes, data.position_scale)
+    averaged = set(thinned_sweeps(int(n_sweeps))) if n_sweeps else set()
+    for iteration in range(int(n_sweeps)):
+        _draw_assignments(data, state, shared, settings, movable, concepts, regions, rng)
+        if iteration < SPLIT_SWEEPS:  # once the sweeps told the taught place's samples from the others'
+            regions = np.union1d(regions, _split_taught_places(data, state, shared, settings, taught))
+        _parameters(data, state, shared, settings, concepts, regions, rng)
+        if iteration in averaged:
+            average.add(state)
+    judge_new_words(state, shared, n_known, data)
+    warn_if_own_names_spread(data, state, shared, home_name, n_known, stacklevel=5)
+    if not average.n_samples:
+        average.add(state)
+    return splice_posterior(previous, average.result(state), concepts, regions)
