@@ -89,7 +89,7 @@ class Drive(threading.Thread):
             time.sleep(max(0.0, min(next_pose, next_image) - (time.perf_counter() - start)))
 
 
-def main() -> None:
+def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order they run; to split)
     """Build the home, start the node and the robot; measure; print a table and a JSON line."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--queries", type=int, default=1000)

@@ -284,7 +284,8 @@ def undo_trial(home: kn.HomeModel, t: int, folder: Path, n_teach: int = 12, comp
     }
 
 
-def http_trials(home_file: Path, env: Environment, n: int, folder: Path) -> dict[str, Any]:
+# too many statements: a benchmark script's steps in the order they run; to split
+def http_trials(home_file: Path, env: Environment, n: int, folder: Path) -> dict[str, Any]:  # noqa: PLR0915
     """``n`` teachings over HTTP (``spco serve`` on a fresh copy of ``home_file``, ``spco.service.client``):
     each a new name, for a recorded sample or at a pose without a view, then undone. Per teaching:
     ``where`` of the name in the taught room (≥ 8 of 10 poses), and after the undo max |Δp| of

@@ -45,7 +45,8 @@ def browser(tmp_path_factory: pytest.TempPathFactory):
     driver.quit()
 
 
-def test_the_page_shows_the_regions_answers_and_teaches_live(browser, tmp_path: Path) -> None:
+# too many statements: the page's browser walk, one session; to split
+def test_the_page_shows_the_regions_answers_and_teaches_live(browser, tmp_path: Path) -> None:  # noqa: PLR0915
     from selenium.webdriver.common.action_chains import ActionChains
     from selenium.webdriver.common.by import By
     from selenium.webdriver.support.ui import WebDriverWait
@@ -71,7 +72,8 @@ def test_the_page_shows_the_regions_answers_and_teaches_live(browser, tmp_path: 
         first_words = [label.split()[0] for label in labels]
         assert len(first_words) == len(set(first_words)), labels  # one label per place
         axis_labels = [e.text for e in browser.find_elements(By.CSS_SELECTOR, "#layer-axes text.axis-label")]
-        assert "x (m)" in axis_labels and "y (m)" in axis_labels and any(t.endswith(" m") for t in axis_labels)
+        assert "x (m)" in axis_labels and "y (m)" in axis_labels
+        assert any(t.endswith(" m") for t in axis_labels)
         assert len(browser.find_elements(By.CSS_SELECTOR, "#layer-samples circle.sample")) == \
             robot.health()["samples"]
         assert browser.find_element(By.ID, "connection").text == "live"  # the event stream is open

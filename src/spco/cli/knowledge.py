@@ -612,7 +612,8 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(0), help="Random seed.")
 @click.option("--force", is_flag=True, help="Replace --out (and --mcap) if it exists.")
 @_friendly
-def show(home_file: Path, out: Path | None, mcap_file: Path | None, map_image: Path | None,
+# too many statements: spco show grew with the MCAP output on its branch; to split
+def show(home_file: Path, out: Path | None, mcap_file: Path | None, map_image: Path | None,  # noqa: PLR0915
          extent: str | None, names: Sequence[str], regions_file: Path | None, regions_home: str | None,
          seed: int, force: bool) -> None:
     """Draw the home's concepts on its floor plan: regions (95 % ellipses coloured by concept)

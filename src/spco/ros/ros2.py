@@ -168,7 +168,8 @@ class _RelayClock:
         return self.robot + (time.monotonic() - self.local)
 
 
-def _run_relayed(home: Any, ros_python: str, ros_arguments: Sequence[str], node_name: str, uses_images: bool,
+# too many statements: the ROS 2 node's set-up, arrived at the last merge; to split
+def _run_relayed(home: Any, ros_python: str, ros_arguments: Sequence[str], node_name: str, uses_images: bool,  # noqa: PLR0915
                  n_concepts: int, stop: threading.Event,
                  ready: Callable[[NodeCore, Mapping[str, str]], None] | None,
                  echo: Callable[[str], None]) -> dict[str, int]:

@@ -171,7 +171,8 @@ class Ros2Transport:
     ``--params-file``, ``--log-level``). ``echo`` gets the start-up line.
     """
 
-    def __init__(self, backend: Backend, ros_arguments: Sequence[str] = (), node_name: str = "spco",
+    # too many statements: the thin rclpy side, arrived at the last merge; to split
+    def __init__(self, backend: Backend, ros_arguments: Sequence[str] = (), node_name: str = "spco",  # noqa: PLR0915
                  echo: Callable[[str], None] = print) -> None:
         import rclpy
         from geometry_msgs.msg import PoseArray, PoseStamped

@@ -14,6 +14,7 @@ a teaching that conflicts with the home (an id taken, …)   409
 a body or image too large                                  413
 not JSON (``Content-Type``)                                415
 a well-formed request with wrong values                    422
+too many teachings a minute (``TeachingRateError``)        429
 a server at one of its limits (subscribers, connections)   503
 the writer gone: no teaching possible                      503
 a bug                                                      500

@@ -24,10 +24,8 @@ import collections
 import contextlib
 import ctypes
 import dataclasses
-import io
 import json
 import os
-import pickle
 import queue
 import signal
 import socket
@@ -51,6 +49,7 @@ from spco import knowledge as kn
 from spco.errors import ConfigurationError, SpcoError, TeachingLimitError, TeachingRateError
 from spco.knowledge.limits import check_sentences
 from spco.service.journal import Journal, journal_path, new_journal_id, read_journal
+from spco.service.snapshots import TRIM_EVERY, SnapshotChannel, trim_heap
 from spco.service.teaching import (
     CHECKPOINT_EVERY,
     DEFAULT_UNDO_LIMIT,
@@ -73,7 +72,7 @@ from spco.service.teaching import (
 from spco.timestamps import utc_now
 
 __all__ = ["DEFAULT_COMPACT_IDLE", "DEFAULT_COMPACT_RECORDS", "DEFAULT_MAX_BATCH", "HomeWriter",
-           "ProcessWriter", "SnapshotChannel", "ThreadWriter", "WriterUnavailableError", "error_result"]
+           "ProcessWriter", "ThreadWriter", "WriterUnavailableError", "error_result"]
 
 #: Records after which the writer compacts the journal into the home file.
 DEFAULT_COMPACT_RECORDS = 100
@@ -408,62 +407,6 @@ def _with_served(home: kn.HomeModel, served: dict[str, Any]) -> kn.HomeModel:
     return replace(home, provenance={**home.provenance, SERVED: served})
 
 
-class SnapshotChannel:
-    """Snapshots from the writer process to the server without sending unchanged arrays again.
-
-    A teaching by sample id changes the sampler's state and the posterior, not the home's views or
-    the knowledge: arrays of at least :attr:`MIN_BYTES` that the last snapshot held already (the same
-    objects) travel as a reference, so that the server unpickles about 1 MB instead of 6 (for a
-    SIGVerse home) while readers wait for its global lock. :meth:`pack` (writer side) returns
-    ``(new arrays, snapshot, keys in use)`` as bytes; :meth:`unpack` (server side) rebuilds it.
-    """
-
-    MIN_BYTES = 32 * 1024
-
-    def __init__(self) -> None:
-        self._keys: dict[int, tuple[int, Any]] = {}  # writer: id(array) -> (key, array kept alive)
-        self._objects: dict[int, Any] = {}  # server: key -> array
-        self._next = 0
-
-    def pack(self, snapshot: kn.HomeModel) -> tuple[bytes, bytes, list[int]]:
-        """The snapshot as ``(pickled new arrays, pickled snapshot referring to arrays by key, keys)``."""
-        new: dict[int, Any] = {}
-        used: dict[int, tuple[int, Any]] = {}
-        channel = self
-
-        class Pickler(pickle.Pickler):
-            def persistent_id(self, obj: Any) -> int | None:
-                if not isinstance(obj, np.ndarray) or obj.nbytes < channel.MIN_BYTES:
-                    return None
-                entry = channel._keys.get(id(obj))
-                if entry is None or entry[1] is not obj:
-                    entry = (channel._next, obj)
-                    channel._next += 1
-                    new[entry[0]] = obj
-                used[id(obj)] = entry
-                return entry[0]
-
-        buffer = io.BytesIO()
-        Pickler(buffer, protocol=pickle.HIGHEST_PROTOCOL).dump(snapshot)
-        self._keys = used
-        return (pickle.dumps(new, protocol=pickle.HIGHEST_PROTOCOL), buffer.getvalue(),
-                [key for key, _ in used.values()])
-
-    def unpack(self, packed: tuple[bytes, bytes, list[int]]) -> kn.HomeModel:
-        """The snapshot :meth:`pack` made, with the arrays sent before."""
-        new, data, keys = packed
-        self._objects.update(pickle.loads(new))
-        objects = self._objects
-
-        class Unpickler(pickle.Unpickler):
-            def persistent_load(self, key: Any) -> Any:
-                return objects[key]
-
-        snapshot = Unpickler(io.BytesIO(data)).load()
-        self._objects = {key: objects[key] for key in keys}
-        return snapshot
-
-
 def _notes(home: kn.HomeModel, record: dict[str, Any]) -> list[str]:
     """What ``spco teach`` notes about the home's own words of a taught sentence (not usable yet)."""
     from spco.data.language import tokenize
@@ -695,30 +638,6 @@ class ProcessWriter:
     def alive(self) -> bool:
         """Whether the writer still takes teachings."""
         return not self._closed and self._dead is None and self._process.poll() is None
-
-
-#: Snapshots (server) or rounds (writer) between two returns of freed heap memory to the system.
-TRIM_EVERY = 8
-
-
-def trim_heap() -> None:
-    """Give the heap memory freed since to the system (glibc's ``malloc_trim``; nothing elsewhere).
-
-    Each teaching replaces the snapshot: without this the freed pieces stay with the process and its
-    memory creeps up over a long run.
-    """
-    global _LIBC
-    if _LIBC is None:
-        try:
-            _LIBC = ctypes.CDLL("libc.so.6")
-            _LIBC.malloc_trim.argtypes = [ctypes.c_size_t]
-        except (OSError, AttributeError):
-            _LIBC = False
-    if _LIBC:
-        _LIBC.malloc_trim(0)  # (ctypes releases the global lock meanwhile)
-
-
-_LIBC: Any = None
 
 
 def _die_with_parent(parent: int) -> None:
