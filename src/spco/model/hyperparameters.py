@@ -44,6 +44,13 @@ PAPER_PSI0_CM = (10.0, 10.0, 0.5, 0.5)
 VIEW_COUNTS = 16.0
 
 
+#: Largest Dirichlet concentration or NIW κ0 accepted (sums over thousands of dimensions stay finite).
+MAX_CONCENTRATION = 1e100
+#: Largest condition number of Ψ0 (its smallest eigenvalue must be representable beside its largest
+#: in a Cholesky factor: float64 holds 16 digits).
+MAX_CONDITION = 1e12
+
+
 def _positive(name: str, value: float) -> None:
     if not (np.isfinite(value) and value > 0):
         raise ConfigurationError(f"{name} must be a positive number, got {value!r}")
@@ -131,8 +138,13 @@ class TransferHyperparameters:
         for name in ("alpha_visual", "alpha_word", "delta_visual", "delta_word", "gamma", "gamma0",
                      "beta", "kappa0", "evidence_weight"):
             _positive(name, float(getattr(self, name)))
-        if not (np.isfinite(self.nu0) and self.nu0 > 3):
-            raise ConfigurationError(f"nu0 must exceed the dimension minus one (3), got {self.nu0!r}")
+            if not float(getattr(self, name)) <= MAX_CONCENTRATION:
+                raise ConfigurationError(f"{name} must be at most {MAX_CONCENTRATION:g} (a Dirichlet's "
+                                         f"concentrations are summed over its dimensions), got "
+                                         f"{getattr(self, name)!r}")
+        if not (np.isfinite(self.nu0) and 3 < self.nu0 <= MAX_CONCENTRATION):
+            raise ConfigurationError(f"nu0 must exceed the dimension minus one (3) and be at most "
+                                     f"{MAX_CONCENTRATION:g}, got {self.nu0!r}")
         if self.view_counts is not None:
             _positive("view_counts", float(self.view_counts))
         if self.mi_threshold is not None and not (np.isfinite(self.mi_threshold) and self.mi_threshold >= 0):
@@ -148,6 +160,12 @@ class TransferHyperparameters:
             np.linalg.cholesky(psi)
         except np.linalg.LinAlgError:
             raise ConfigurationError(f"psi0 must be symmetric positive definite, got {self.psi0!r}") from None
+        eig = np.linalg.eigvalsh(psi)
+        if not (eig.min() >= 1e-100 and eig.max() <= 1e100 and eig.max() <= MAX_CONDITION * eig.min()):
+            raise ConfigurationError(f"psi0 must have eigenvalues within 1e-100..1e100 m² and a condition "
+                                     f"number at most {MAX_CONDITION:g} (x, y beside sin θ, cos θ: a region "
+                                     f"with no sample has covariance ~Ψ0 and must factorise), got "
+                                     f"{self.psi0!r}")
         if self.mu0 is not None and (len(self.mu0) != 4 or not np.isfinite(self.mu0).all()):
             raise ConfigurationError(f"mu0 must be 4 finite numbers (x, y, sin θ, cos θ), got {self.mu0!r}")
 
@@ -255,3 +273,73 @@ class SpCoAHyperparameters(TransferHyperparameters):
     alpha_word: float = 0.1
     beta: float = 1.0
     view_counts: float | None = None  # the baseline as published: every count a draw
+
+
+#: Where the default position prior and truncations come from (``fit_knowledge(prior=…)``,
+#: ``spco fit --prior``): ``"scaled"`` follows the experienced homes' scale (:func:`scaled_hyperparameters`),
+#: ``"paper"`` is the paper's constants (the reproduction).
+PRIORS = ("scaled", "paper")
+#: Words said at least this many times in a home measure its place sizes (:func:`scaled_hyperparameters`).
+_MIN_USES = 3
+
+
+def home_scales(positions: np.ndarray, said: Any) -> tuple[float, float, int]:
+    """(R, s, n) of one home's training samples, in map units.
+
+    R: the spread of its positions, sqrt of the mean variance of x and y. s: the size of its places,
+    the 25th percentile over its words said at ≥ 3 samples of the spread of those samples (a place
+    name is said at one place, a frame word such as "this" all over the home: the lower quartile
+    is the names'), NaN with fewer than two such words. n: how many of those words are said within
+    half the home's spread (words that mark one place: a count of the home's named places).
+
+    ``said``: (n_samples, V) sparse or dense, non-zero where a sample's sentence holds the word.
+    """
+    xy = np.asarray(positions, dtype=np.float64)[:, :2]
+    spread = float(np.sqrt(xy.var(axis=0).mean())) if xy.shape[0] else 0.0
+    dense = said.todense() if hasattr(said, "todense") else said
+    mask = np.asarray(dense) != 0
+    uses = mask.sum(axis=0)
+    sizes = np.array([np.sqrt(xy[mask[:, w]].var(axis=0).mean()) for w in np.flatnonzero(uses >= _MIN_USES)])
+    size = float(np.percentile(sizes, 25)) if sizes.size >= 2 else float("nan")
+    return spread, size, int((sizes < spread / 2).sum())
+
+
+def scaled_hyperparameters(homes: Sequence[tuple[np.ndarray, Any]],
+                           base: TransferHyperparameters | None = None) -> TransferHyperparameters:
+    """The paper's hyperparameters with the position prior and truncations following the homes' scale.
+
+    ``homes``: (positions (n, ≥2) in map units, said (n, V)) of each experienced home's training
+    samples (:func:`home_scales`). With R the median spread of the homes and s the median size of
+    their places (both in map units):
+
+    - κ0 = min(κ0_paper, (s / 2R)²). A region's mean is a priori N(μ0, Σ/κ0) around the map centre,
+      and its covariance's posterior gains κ0·n/(κ0 + n)·(x̄ − μ0)(x̄ − μ0)ᵀ: with the paper's 0.05 a
+      place 25 m from the centre of a university floor gets ≈ 31 m² added (its `where` draws land at
+      the next room). With (s/2R)² the mean's prior spreads over twice the home's spread and the
+      added term stays within a place's size wherever the place is (SIGVerse flats: s ≈ 0.3 m,
+      R ≈ 2.7 m, κ0 ≈ 0.003; the CC4F floor: s ≈ 0.7 m, R ≈ 15 m, κ0 ≈ 0.0006).
+    - L and K at least twice the most places any home names (words said within half its spread),
+      the paper's 15 and 20 otherwise: a weak-limit truncation below the places merges them.
+
+    Ψ0, ν0 stay the paper's (Ψ0 ≈ (1.4 cm)² is far below any place: the data decide a region's
+    size). Without two words said ≥ 3 times in any home, κ0 stays the paper's.
+    """
+    return scaled_from([home_scales(positions, said) for positions, said in homes], base)
+
+
+def scaled_from(scales: Sequence[tuple[float, float, int]],
+                base: TransferHyperparameters | None = None) -> TransferHyperparameters:
+    """:func:`scaled_hyperparameters` from the homes' :func:`home_scales` (R, s, n), computed where
+    the homes are read (a :class:`~spco.model.sources.FolderHomes` keeps them)."""
+    base = TransferHyperparameters() if base is None else base
+    if not scales:
+        return base
+    spread = float(np.median([r for r, _, _ in scales]))
+    sizes = [s for _, s, _ in scales if np.isfinite(s)]
+    places = max(n for _, _, n in scales)
+    kappa0 = base.kappa0
+    if sizes and spread > 0:
+        size = float(np.median(sizes))
+        kappa0 = float(min(base.kappa0, max((size / (2.0 * spread)) ** 2, 1e-12)))
+    return replace(base, kappa0=kappa0, n_concepts=max(base.n_concepts, 2 * places),
+                   n_regions=max(base.n_regions, 2 * places))

@@ -12,8 +12,8 @@ before use, never advanced, so the same Generator gives the same fit every time,
 
 Poses: observations are given as ``(x, y, sin θ, cos θ)`` rows (the model's 4-D region space);
 :meth:`~SpatialConceptModel.predict_positions` returns a
-:class:`~spco.model.prediction.PositionPrediction` whose ``samples`` are ``(x, y, θ)`` (θ in radians,
-for a robot's goal) and whose ``poses`` are the same draws as ``(x, y, sin θ, cos θ)``, the input
+:class:`~spco.model.position_prediction.PositionPrediction` whose ``samples`` are ``(x, y, θ)`` (θ in
+radians, for a robot's goal) and whose ``poses`` are the same draws as ``(x, y, sin θ, cos θ)``, the input
 convention, ready for :meth:`~SpatialConceptModel.predict_names`.
 
 The parameters used for prediction (``parameters_``) are a posterior summary, the average over
@@ -348,14 +348,14 @@ class SpatialConceptModel:
 
     def predict_positions(self, home: str | int, name: str, n: int = 10,
                           random_state: int | np.random.Generator | None = None):
-        """Positions to go to for place ``name`` in ``home`` (see :mod:`spco.model.prediction`): the
-        result's ``samples`` are (x, y, θ), its ``poses`` (x, y, sin θ, cos θ); ``learnt`` is False
+        """Positions to go to for place ``name`` in ``home`` (see :mod:`spco.model.position_prediction`):
+        the result's ``samples`` are (x, y, θ), its ``poses`` (x, y, sin θ, cos θ); ``learnt`` is False
         when the name's probability in this home comes from concepts that hold none of its samples."""
-        from spco.model import prediction
+        from spco.model import position_prediction
 
         e = self.home_index(home)
-        return prediction.predict_positions(self.parameters_, e, self.vocabulary_, name, n=n,
-                                            rng=as_generator(random_state))
+        return position_prediction.predict_positions(self.parameters_, e, self.vocabulary_, name, n=n,
+                                                     rng=as_generator(random_state))
 
     def save(self, path, overwrite: bool = False) -> None:
         """Write the fitted model to ``path`` atomically (see :mod:`spco.model.io`); an existing
