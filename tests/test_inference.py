@@ -18,16 +18,14 @@ from spco.model import gibbs
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.kernels.crt import sample_crt, sample_crt_totals
 from spco.model.parameters import ConceptParameters
-from spco.model.posterior import ParameterAverage, thinned_sweeps
-from spco.model.prediction import (
+from spco.model.position_prediction import (
     LEARNT_SUPPORT,
     name_support,
-    predict_names,
     predict_positions,
     region_posterior_for_name,
-    validate_poses,
-    validate_visual_counts,
 )
+from spco.model.posterior import ParameterAverage, thinned_sweeps
+from spco.model.prediction import predict_names, validate_poses, validate_visual_counts
 from spco.model.transfer import SpCoA, SpCoTransfer, clone, export_parameters
 
 SMALL = TransferHyperparameters(n_concepts=6, n_regions=8)
