@@ -53,12 +53,13 @@ The name scoring that prediction uses, p(name k | concept l) = θ^w_{e,l,k}, is
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.special import logsumexp
 
+from spco.model.kernels.channels import mixture_rows, switch_rows
 from spco.model.kernels.dirichlet import log_dirichlet
 
 #: The channels of a word token.
@@ -92,6 +93,8 @@ class WordChannels:
     #: (:func:`sample_switches`), so that ψ, β and θ^w start from the evidence, not from a θ^w of
     #: the start that counted every word as a name
     fresh: bool = False
+    #: :meth:`log_prior`, computed once per channels (every field is replaced, never changed in place)
+    _log_prior: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
 
     @classmethod
     def initial(cls, evidence: np.ndarray, n_concepts: int, weight: float = 1.0,
@@ -123,7 +126,14 @@ class WordChannels:
     def log_prior(self) -> np.ndarray:
         """(V, 3) log p(z = c | word k): the name evidence for the names channel,
         p(name | k) = e_{k,0} / Σ_c e_{k,c}, and the rest split between place and background by
-        the learnt shares, ∝ λ_place e_{k,1} and λ_background e_{k,2} (``log_shares[0]`` is unused)."""
+        the learnt shares, ∝ λ_place e_{k,1} and λ_background e_{k,2} (``log_shares[0]`` is unused).
+        Computed once (the fields are replaced, not changed in place); read-only."""
+        if self._log_prior is None:
+            self._log_prior = self._compute_log_prior()
+            self._log_prior.flags.writeable = False
+        return self._log_prior
+
+    def _compute_log_prior(self) -> np.ndarray:
         log_e = self.log_evidence - logsumexp(self.log_evidence, axis=1, keepdims=True)
         rest = logsumexp(log_e[:, 1:], axis=1)  # log p(not a name | k)
         split = self.log_shares[None, 1:] + log_e[:, 1:]
@@ -171,16 +181,6 @@ def _tokens(words: sp.csr_array) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return token_rows(words), words.indices[first:last], words.data[first:last]
 
 
-def _channel_log_terms(cols: np.ndarray, homes: np.ndarray, log_theta_w: np.ndarray,
-                       channels: WordChannels, rows: np.ndarray) -> np.ndarray:
-    """(nnz, L, 3): log p(z = c | k) + log p(k | channel c, concept l) for every token and concept."""
-    prior = channels.log_prior()[cols]  # (nnz, 3)
-    name = log_theta_w[homes[rows], :, cols]  # (nnz, L)
-    place = channels.log_place[:, cols].T  # (nnz, L)
-    background = np.broadcast_to(channels.log_background[cols][:, None], name.shape)
-    return np.stack([name, place, background], axis=2) + prior[:, None, :]
-
-
 def mixture_log_likelihood(words: sp.csr_array, homes: np.ndarray, log_theta_w: np.ndarray,
                            channels: WordChannels) -> np.ndarray:
     """Σ_i c_ti log Σ_c p(z = c | k) p(k | c, l) for every sample and concept of its home: (N, L).
@@ -190,10 +190,8 @@ def mixture_log_likelihood(words: sp.csr_array, homes: np.ndarray, log_theta_w: 
     out = np.zeros((n_samples, n_concepts))
     if not words.nnz:
         return out
-    rows, cols, counts = _tokens(words)
-    per_token = logsumexp(_channel_log_terms(cols, homes, log_theta_w, channels, rows), axis=2)  # (nnz, L)
-    np.add.at(out, rows, counts[:, None] * per_token)
-    return out
+    return mixture_rows(words, homes, log_theta_w, channels.log_place, channels.log_background,
+                        channels.log_prior())
 
 
 def switch_probabilities(words: sp.csr_array, homes: np.ndarray, concepts: np.ndarray,
@@ -201,12 +199,8 @@ def switch_probabilities(words: sp.csr_array, homes: np.ndarray, concepts: np.nd
     """p(z_ti = c | C_t, w_ti) of every token, each token counted once: (nnz, 3)."""
     if not words.nnz:
         return np.zeros((0, 3))
-    rows, cols, _ = _tokens(words)
-    prior = channels.log_prior()[cols]
-    terms = np.stack([log_theta_w[homes[rows], concepts[rows], cols],
-                      channels.log_place[concepts[rows], cols],
-                      channels.log_background[cols]], axis=1) + prior
-    return np.exp(terms - logsumexp(terms, axis=1, keepdims=True))
+    return switch_rows(words, homes, concepts, log_theta_w, channels.log_place, channels.log_background,
+                       channels.log_prior())
 
 
 def sample_switches(words: sp.csr_array, homes: np.ndarray, concepts: np.ndarray, log_theta_w: np.ndarray,
@@ -257,10 +251,13 @@ def channel_counts(words: sp.csr_array, concepts: np.ndarray, switches: np.ndarr
 
 def name_tokens(words: sp.csr_array, switches: np.ndarray) -> sp.csr_array:
     """The counts of the name tokens only (N, V): what θ^w | z counts (S^w per token)."""
-    rows, cols, counts = _tokens(words)
+    first, last = int(words.indptr[0]), int(words.indptr[-1])
     keep = switches == NAME
-    out = sp.csr_array((counts[keep], (rows[keep], cols[keep])), shape=words.shape)
-    out.sort_indices()
+    kept_before = np.concatenate([[0], np.cumsum(keep)])  # name tokens before each token
+    indptr = kept_before[words.indptr - first].astype(words.indptr.dtype)
+    out = sp.csr_array((words.data[first:last][keep], words.indices[first:last][keep], indptr),
+                       shape=words.shape)
+    out.sort_indices()  # (a no-op when the words' indices are sorted, as a canonical CSR's are)
     return out
 
 
