@@ -1,5 +1,6 @@
-"""The file cache of WordNet's word facts (spco.data.lexicon.word_facts): the same numbers as the
-lexicon, read without loading WordNet once known, rewritten when missing or of another format."""
+"""The file caches of WordNet's word facts (spco.data.lexicon.word_facts) and kind facts
+(spco.data.lexicon.kind_facts): the same numbers as the lexicon, read without loading WordNet once
+known, rewritten when missing or of another format."""
 
 from __future__ import annotations
 
@@ -9,7 +10,8 @@ import numpy as np
 import pytest
 
 from spco.data import lexicon as lexicon_module
-from spco.model.name_evidence import lexical_features
+from spco.data.language import Vocabulary
+from spco.model.name_evidence import channel_evidence, lexical_features
 
 WORDS = ["kitchen", "emma's room", "room", "the", "genkan", "sofa", "living room", "greet"]
 
@@ -18,6 +20,7 @@ WORDS = ["kitchen", "emma's room", "room", "the", "genkan", "sofa", "living room
 def empty_cache(tmp_path, monkeypatch: pytest.MonkeyPatch):
     monkeypatch.setenv("SPCO_CACHE_DIR", str(tmp_path))
     monkeypatch.setattr(lexicon_module, "_facts_memory", {})
+    monkeypatch.setattr(lexicon_module, "_kinds_memory", {})
     return tmp_path
 
 
@@ -53,3 +56,34 @@ def test_no_facts_without_the_lexicon(monkeypatch: pytest.MonkeyPatch, empty_cac
     assert lexicon_module.word_facts(["kitchen"]) is None
     features = lexical_features(["kitchen", "the"])
     assert features[0].tolist() == [0.0, 0.5, 0.0, 0.0] and features[1, 3] == 1.0
+
+
+#: Place words of which some are kinds of others ("room" of "bedroom", "kitchen", "bathroom") or have
+#: many kinds below them ("area", "place"), beside names and other words.
+KIND_SENTENCES = ["this is the bedroom", "this is the kitchen", "this is the bathroom",
+                  "this room is the study", "the area by the window", "a place to sit", "the living room",
+                  "this is emma's room",
+                  "here is the sofa", "the genkan"]
+
+
+def test_cached_kind_facts_give_the_lexicon_s_evidence_and_need_no_wordnet_once_known(
+        wordnet, empty_cache, monkeypatch: pytest.MonkeyPatch) -> None:
+    vocabulary = Vocabulary.from_sentences(KIND_SENTENCES)
+    direct = channel_evidence(vocabulary, KIND_SENTENCES, wordnet)
+    nu, content = channel_evidence(vocabulary, KIND_SENTENCES)  # computes and writes both files
+    np.testing.assert_array_equal(nu, direct[0])
+    np.testing.assert_array_equal(content, direct[1])
+    room = vocabulary.index("room")
+    assert room is not None and nu[room] < 0.1 * nu[vocabulary.index("kitchen")]  # a kind of place
+    files = list(empty_cache.glob("wordnet-kinds-*.json"))
+    assert len(files) == 1 and json.loads(files[0].read_text())["format"] == 1
+
+    def no_wordnet(folder: str):
+        raise AssertionError("WordNet loaded although every word's facts are in the files")
+
+    monkeypatch.setattr(lexicon_module, "_load", no_wordnet)
+    monkeypatch.setattr(lexicon_module, "_facts_memory", {})  # a new process: from the files alone
+    monkeypatch.setattr(lexicon_module, "_kinds_memory", {})
+    again = channel_evidence(vocabulary, KIND_SENTENCES)
+    np.testing.assert_array_equal(again[0], direct[0])
+    np.testing.assert_array_equal(again[1], direct[1])

@@ -306,25 +306,30 @@ class Lexicon:
                 best = max(best, sum(1 for _ in synset.closure(lambda s: s.hyponyms())))
         return best
 
+    def kind_heads(self, word: str) -> frozenset[str]:
+        """The names of the word's three commonest noun senses: what :meth:`kinds_of` asks to be a
+        hypernym of another word's sense."""
+        return frozenset(synset.name() for synset in self.synsets(word, pos="n")[:3])
+
+    def kind_ancestors(self, text: str) -> frozenset[str]:
+        """The names of the hypernyms (at every depth) of the two commonest noun senses of ``text``
+        (or, when it has none, of the commonest of its head word): what :meth:`kinds_of` looks for
+        a word's :meth:`kind_heads` in."""
+        ancestors: set[str] = set()
+        for synset in self.synsets(text, pos="n")[:2] or self.synsets(text.split()[-1], pos="n")[:1]:
+            with self._lock:
+                ancestors.update(s.name() for s in synset.closure(lambda s: s.hypernyms()))
+        return frozenset(ancestors)
+
     def kinds_of(self, word: str, others: list[str]) -> int:
         """How many of ``others`` have a commonest noun sense (of their first two) of which a noun
         sense of ``word`` (of its first three) is a hypernym: "room" of "bedroom", "kitchen",
         "bathroom". A word that is the kind of several other words said names a kind of place, not
         a place. A term is judged by its head word; ``word`` itself is not counted."""
-        heads = set(self.synsets(word, pos="n")[:3])
+        heads = self.kind_heads(word)
         if not heads:
             return 0
-        count = 0
-        for text in others:
-            if text == word:
-                continue
-            for synset in self.synsets(text, pos="n")[:2] or self.synsets(text.split()[-1], pos="n")[:1]:
-                with self._lock:
-                    ancestors = set(synset.closure(lambda s: s.hypernyms()))
-                if heads & ancestors:
-                    count += 1
-                    break
-        return count
+        return sum(1 for text in others if text != word and heads & self.kind_ancestors(text))
 
     def closest(self, name: str, known: list[str]) -> LexiconMatch | None:
         """The known name that stands for ``name`` (a name nobody said), or None.
@@ -450,16 +455,37 @@ class WordFacts:
     place_share: float
 
 
+@dataclass(frozen=True)
+class KindFacts:
+    """What WordNet says of one word's kinds, as :func:`spco.model.name_evidence.channel_evidence`
+    uses them: ``kinds_below`` (:meth:`Lexicon.kinds_below`), ``heads`` (:meth:`Lexicon.kind_heads`)
+    and ``ancestors`` (:meth:`Lexicon.kind_ancestors`)."""
+
+    kinds_below: int
+    heads: frozenset[str]
+    ancestors: frozenset[str]
+
+
+def kinds_of(word: str, facts: dict[str, KindFacts], others: Sequence[str]) -> int:
+    """:meth:`Lexicon.kinds_of` from :class:`KindFacts` (``facts`` holding ``word`` and ``others``)."""
+    heads = facts[word].heads
+    if not heads:
+        return 0
+    return sum(1 for text in others if text != word and heads & facts[text].ancestors)
+
+
 #: Format of the file of :func:`word_facts` (a file of another format is computed again).
 _FACTS_FORMAT = 1
+#: Format of the file of :func:`kind_facts`.
+_KINDS_FORMAT = 1
 _facts_lock = threading.Lock()
 _facts_memory: dict[str, dict[str, WordFacts]] = {}
 
 
-def _facts_file(folder: Path) -> Path:
-    """The file of word facts for the WordNet files in ``folder``: named by a digest of their
-    names, sizes and modification times and of NLTK's version (a changed database or reader is a
-    new file)."""
+def _facts_file(folder: Path, what: str = "facts") -> Path:
+    """The file of word facts (``what``: "facts" or "kinds") for the WordNet files in ``folder``:
+    named by a digest of their names, sizes and modification times and of NLTK's version (a changed
+    database or reader is a new file)."""
     from importlib.metadata import PackageNotFoundError, version
 
     digest = hashlib.sha256(str(folder.resolve()).encode())
@@ -470,7 +496,7 @@ def _facts_file(folder: Path) -> Path:
     for name in _DATABASE:
         stat = (folder / name).stat()
         digest.update(f"{name}:{stat.st_size}:{stat.st_mtime_ns}".encode())
-    return _cache_root() / f"wordnet-facts-{digest.hexdigest()[:16]}.json"
+    return _cache_root() / f"wordnet-{what}-{digest.hexdigest()[:16]}.json"
 
 
 def _read_facts(path: Path) -> dict[str, WordFacts]:
@@ -526,4 +552,53 @@ def word_facts(words: Sequence[str]) -> dict[str, WordFacts] | None:
                 facts[word] = WordFacts(known, lex.noun_share(word) if known else math.nan,
                                         lex.place_share(word) if known else math.nan)
             _write_facts(path, {**_read_facts(path), **facts})  # (another process may have added some)
+        return {w: facts[w] for w in words}
+
+
+_kinds_memory: dict[str, dict[str, KindFacts]] = {}
+
+
+def _read_kinds(path: Path) -> dict[str, KindFacts]:
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+        if data.get("format") != _KINDS_FORMAT:
+            return {}
+        return {w: KindFacts(int(n), frozenset(map(str, h)), frozenset(map(str, a)))
+                for w, (n, h, a) in data["words"].items()}
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return {}  # no file yet, or not one of ours: computed again and rewritten
+
+
+def _write_kinds(path: Path, facts: dict[str, KindFacts]) -> None:
+    text = json.dumps({"format": _KINDS_FORMAT, "words": {
+        w: [f.kinds_below, sorted(f.heads), sorted(f.ancestors)] for w, f in sorted(facts.items())}})
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.{threading.get_ident()}")
+        tmp.write_text(text, encoding="utf-8")
+        os.replace(tmp, path)
+    except OSError:
+        pass  # a read-only cache: the facts are computed again next time
+
+
+def kind_facts(words: Sequence[str]) -> dict[str, KindFacts] | None:
+    """:class:`KindFacts` of each of ``words``, or None when the lexicon is unavailable
+    (:func:`lexicon_unavailable_reason`); kept in a file as :func:`word_facts` keeps its facts
+    (WordNet is loaded only for words not in it yet). The same numbers as asking :func:`lexicon`."""
+    if lexicon_unavailable_reason() is not None:
+        return None
+    folder = _wordnet_folder()
+    assert folder is not None
+    path = _facts_file(folder, "kinds")
+    key = str(path)
+    with _facts_lock:
+        facts = _kinds_memory.get(key)
+        if facts is None:
+            facts = _kinds_memory[key] = _read_kinds(path)
+        missing = [w for w in dict.fromkeys(words) if w not in facts]
+        if missing:
+            lex = _load(str(folder))
+            for word in missing:
+                facts[word] = KindFacts(lex.kinds_below(word), lex.kind_heads(word), lex.kind_ancestors(word))
+            _write_kinds(path, {**_read_kinds(path), **facts})  # (another process may have added some)
         return {w: facts[w] for w in words}

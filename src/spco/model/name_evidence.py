@@ -230,17 +230,22 @@ def channel_evidence(vocabulary: Vocabulary, sentences: Iterable[str | None],
     a: :func:`content_share`. A word without any evidence (unknown to WordNet and never said in a
     sentence holding an English function word: text in another language) gets ν = a = 0.5."""
     sentences = list(sentences)
-    if lexicon is None:
-        from spco.data.lexicon import lexicon as load
-
-        lexicon = load()
     features = feature_matrix(vocabulary, sentences, lexicon)
     w = np.asarray(WEIGHTS, dtype=np.float64)
     nu = 1.0 / (1.0 + np.exp(-(w[0] + features @ w[1:])))
     words = list(vocabulary.words)
-    if lexicon is not None:
-        place = features[:, FEATURES.index("place_share")] > 0
-        candidates = [words[k] for k in np.flatnonzero(place)]
+    place = features[:, FEATURES.index("place_share")] > 0
+    candidates = [words[k] for k in np.flatnonzero(place)]
+    if lexicon is None:  # the process's WordNet, through the cache of kind facts (no NLTK if all known)
+        from spco.data.lexicon import kind_facts, kinds_of
+
+        kinds = kind_facts(candidates)
+        if kinds is not None:
+            for k in np.flatnonzero(place):
+                if (kinds[words[k]].kinds_below >= KINDS_BELOW
+                        or kinds_of(words[k], kinds, candidates) >= KIND_OF_PLACES):
+                    nu[k] *= KIND_FACTOR
+    else:
         for k in np.flatnonzero(place):
             if (lexicon.kinds_below(words[k]) >= KINDS_BELOW  # type: ignore[attr-defined]
                     or lexicon.kinds_of(words[k], candidates) >= KIND_OF_PLACES):  # type: ignore[attr-defined]
