@@ -32,6 +32,8 @@ def _log_sum_exp3(a: float, b: float, c: float) -> float:
         n_top += 1.0
     else:
         total += math.exp(c - top)
+    if n_top == 1.0:  # (log 1 = 0 added: the same number, one log call fewer)
+        return math.log1p(total) + top
     if total != 0.0:
         total = total / n_top
     return math.log1p(total) + math.log(n_top) + top
