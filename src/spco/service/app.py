@@ -50,8 +50,8 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.responses import JSONResponse
 
 from spco.errors import SpcoError
+from spco.features.pixels import DEFAULT_MAX_PIXELS, ImageError, encoded_size
 from spco.service.errors import FRAMEWORK_MESSAGES, answer_for, error_response, validation_answer
-from spco.service.images import DEFAULT_MAX_PIXELS, ImageError, encoded_size
 from spco.service.live import LiveHome
 from spco.service.routes import EventHub, api, page
 from spco.service.security import LOOPBACK_HOSTS, Guard, Sessions
