@@ -54,6 +54,11 @@ from spco.evaluation.config import PAPER_EXPERIENCED_HOMES
 #: The split of benchmarks/calibration/SPLIT.md.
 SETS: dict[str, dict[str, Any]] = {
     "development": {"homes": ("1DK_8", "3LDK_9"), "sizes": (4, 8), "seeds": tuple(range(5))},
+    # issue 29, decided before it was run: the development views above are nearly all answered right
+    # (fc7: all), too easy to compare methods on; two experienced homes outside the first 6 of the
+    # paper's list held out as new homes (SPLIT.md: development configurations may), scored at every
+    # sample (they have no test split), 4 and 6 homes
+    "development-new": {"homes": ("2LDK_3", "1LDK_3"), "sizes": (4, 6), "seeds": tuple(range(3))},
     "held-out": {"homes": ("1LDK_9", "2LDK_9"), "sizes": (4, 8, 16), "seeds": tuple(range(100, 110))},
 }
 FEATURES = ("colour-hog", "fc7")
@@ -121,6 +126,15 @@ def home_models(task: Task, data: Path, images: Path | None, models: Path, force
         yield home, model
 
 
+def scored_views(home: Any) -> tuple[np.ndarray, Any, list[str], np.ndarray]:
+    """(positions, views, labels, ids) scored in ``home``: its test views; an experienced home held
+    out as a new one (no test split: ``test_num.txt`` is 999) is scored at every sample, none of
+    which was taught (``development-new``)."""
+    scored = home.is_test if home.is_test.any() else np.ones(home.n_samples, dtype=bool)
+    labels = [lab for lab, t in zip(home.labels(), scored, strict=True) if t]
+    return home.positions[scored], home.visual[scored], labels, home.ids[scored]
+
+
 def run_task(task: Task, data: Path, images: Path | None, models: Path, force: bool) -> list[dict[str, Any]]:
     """Fit (or reuse) the knowledge of ``task``, adapt its homes, and score every test view."""
     import spco.knowledge as kn
@@ -129,9 +143,7 @@ def run_task(task: Task, data: Path, images: Path | None, models: Path, force: b
     rows = []
     for home, model in home_models(task, data, images, models, force):
         name = home.name
-        positions, visual = home.test_observations()
-        labels = [lab for lab, t in zip(home.labels(), home.is_test, strict=True) if t]
-        ids = home.ids[home.is_test]
+        positions, visual, labels, ids = scored_views(home)
         before = predict_names(model.parameters, 0, model.vocabulary, positions, visual, top_k=1,
                                weighting=model.weighting)  # type: ignore[arg-type]
         vocabulary = list(model.vocabulary.words)
@@ -353,6 +365,9 @@ def main(argv: Sequence[str] | None = None) -> None:  # noqa: PLR0915
     parser.add_argument("--fit-view-counts", action="store_true",
                         help="print the development log loss against n_eff (how VIEW_EFFECTIVE_COUNTS "
                              "was chosen)")
+    parser.add_argument("--first-seeds", type=int, default=None,
+                        help="only the first N seeds of each set (a quick development look)")
+    parser.add_argument("--sizes", default=None, help="only these experienced-home set sizes, e.g. 4,8")
     args = parser.parse_args(argv)
     sets = [s for s in args.sets.split(",") if s]
     features = [f for f in args.features.split(",") if f]
@@ -378,7 +393,8 @@ def main(argv: Sequence[str] | None = None) -> None:  # noqa: PLR0915
               f"[ ]: 95 % paired bootstrap over views, {N_BOOTSTRAP} resamples, seed {args.seed})")
         return
     tasks = [Task(f, size, seed, SETS[s]["homes"], s) for s in sets for f in features
-             for size in SETS[s]["sizes"] for seed in SETS[s]["seeds"]]
+             for size in SETS[s]["sizes"] if args.sizes is None or str(size) in args.sizes.split(",")
+             for seed in SETS[s]["seeds"][: args.first_seeds]]
     start = time.perf_counter()
     rows: list[dict[str, Any]] = []
     if args.jobs > 1:

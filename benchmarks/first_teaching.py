@@ -34,7 +34,9 @@ _ADDRESS = re.compile(r" at (http://[^ /]+)/ \(page\)")
 WORDS = ("quokka", "zephyr", "marimba", "tundra", "saffron", "obsidian", "lagoon", "juniper")
 
 
-def one_round(home: Path, folder: Path, k: int) -> tuple[tuple[float, float], tuple[float, float]]:
+def one_round(
+    home: Path, folder: Path, k: int, health_first: bool = False
+) -> tuple[tuple[float, float], tuple[float, float]]:
     """(first, second) teaching: (latency, the writer's own seconds) after a fresh start."""
     from spco import knowledge as kn
     from spco.service.client import Client
@@ -62,6 +64,8 @@ def one_round(home: Path, folder: Path, k: int) -> tuple[tuple[float, float], tu
     threading.Thread(target=lambda: [None for _ in process.stderr], daemon=True).start()  # type: ignore[union-attr]
     try:
         client = Client(url)
+        if health_first:  # a request before the teaching: what is first-request cost of the HTTP stack
+            client.health()
         rng = np.random.default_rng(k)
         times = []
         for n in range(2):
@@ -86,12 +90,17 @@ def main() -> None:
     )
     parser.add_argument("--home", type=Path, required=True)
     parser.add_argument("--rounds", type=int, default=20)
+    parser.add_argument(
+        "--health-first",
+        action="store_true",
+        help="send GET /health before the first teaching (to tell the HTTP stack's first request apart)",
+    )
     parser.add_argument("--json", type=Path, default=None)
     args = parser.parse_args()
     firsts, seconds, writer_firsts, writer_seconds = [], [], [], []
     with tempfile.TemporaryDirectory() as folder:
         for k in range(args.rounds):
-            first, second = one_round(args.home.resolve(), Path(folder), k)
+            first, second = one_round(args.home.resolve(), Path(folder), k, args.health_first)
             firsts.append(first[0] * 1000)
             seconds.append(second[0] * 1000)
             writer_firsts.append(first[1] * 1000)

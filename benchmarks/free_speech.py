@@ -61,7 +61,8 @@ from spco.evaluation import evaluate_home
 from spco.evaluation.experiments import PAPER_EXPERIENCED_HOMES, trial_seed
 from spco.evaluation.metrics import position_accuracy
 from spco.model import SpCoTransfer
-from spco.model.prediction import UnknownNameError, predict_positions
+from spco.model.position_prediction import predict_positions
+from spco.model.prediction import UnknownNameError
 
 NEW_HOMES = ("1LDK_9", "2LDK_9", "3LDK_9")
 

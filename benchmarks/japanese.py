@@ -213,7 +213,8 @@ def cc4f_scores(env: Environment, places: np.ndarray, names: list[set[str]], fol
                 iterations: int, said: set[str]) -> tuple[float, float]:
     """A_n and A_p of one fold (test samples: every 5th sample of each place, from ``fold``)."""
     from spco.data.environment import Corpus
-    from spco.model.prediction import UnknownNameError, predict_names, predict_positions
+    from spco.model.position_prediction import predict_positions
+    from spco.model.prediction import UnknownNameError, predict_names
     from spco.model.transfer import SpCoTransfer
 
     rank = np.zeros(len(places), dtype=int)

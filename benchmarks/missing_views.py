@@ -9,7 +9,8 @@
 ``cc4f``
     The CC4F_turtlebot2 recording (a real robot without a camera: no visual file, every view
     missing) learnt on its own as ``spco fit`` and ``spco adapt`` learn it (``fit_knowledge`` on the
-    home, then ``adapt`` to it), then ``where`` for each of its names that was said: a drawn position
+    home, then ``adapt`` to it; ``--prior paper`` for the paper's constants), then ``where`` for
+    each of its names that was said: a drawn position
     is right when its nearest recorded sample belongs to a place of that name (``answers.json``,
     realigned as in ``benchmarks/japanese.py``). A_p per seed and its mean; ``--map`` also draws
     the home on the floor's ROS map (``map.yaml``).
@@ -92,14 +93,14 @@ def run_cc4f(args: argparse.Namespace) -> None:
                                         n_regions=args.regions or defaults.n_regions,
                                         kappa0=args.kappa0 or defaults.kappa0)
     print(f"CC4F: {home.n_samples} samples, {home.n_views} with a view, {len(asked)} names asked; "
-          f"hyperparameters: {'the paper' if hyper is None else hyper}", flush=True)
+          f"hyperparameters: {f'the defaults, prior {args.prior}' if hyper is None else hyper}", flush=True)
     scores = []
     last = None
     for seed in range(args.seeds):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # the home is, by construction, the knowledge's own
             knowledge = fit_knowledge(Corpus([home]), n_iterations=args.iterations, random_state=seed,
-                                      hyperparameters=hyper)
+                                      hyperparameters=hyper, prior=args.prior)
             model = adapt(knowledge, home, n_iterations=args.adapt_iterations, random_state=seed)
         per_name = {}
         for name in asked:
@@ -168,6 +169,8 @@ def main() -> None:
     cc.add_argument("--seeds", type=int, default=5)
     cc.add_argument("--iterations", type=int, default=200)
     cc.add_argument("--adapt-iterations", type=int, default=100)
+    cc.add_argument("--prior", default="scaled", choices=("scaled", "paper"),
+                    help="fit_knowledge's prior (default: scaled, as spco fit)")
     cc.add_argument("--concepts", type=int, default=None, help="L (default: the paper's 15)")
     cc.add_argument("--regions", type=int, default=None, help="K (default: the paper's 20)")
     cc.add_argument("--kappa0", type=float, default=None, help="κ0 (default: the paper's 0.05)")

@@ -44,8 +44,13 @@ from spco.model.name_evidence import FEATURES, feature_matrix
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def corpora(sigverse: Path) -> dict[str, tuple[list[str], set[str]]]:
-    """name -> (sentences, accepted names)."""
+#: The development homes of people's real sentences (benchmarks/SPLIT.md, "Natural speech").
+SUBJECT_DEVELOPMENT = ("1LDK_1", "1LDK_3", "1LDK_5", "1LDK_7", "2LDK_1", "2LDK_3", "2LDK_5", "2LDK_7")
+
+
+def corpora(sigverse: Path, subject: Path | None = None) -> dict[str, tuple[list[str], set[str]]]:
+    """name -> (sentences, accepted names). ``subject``: also people's sentences of the development
+    homes (``sigverse_subject``; never the held-out homes), labelled by ``accepted_names_dev.json``."""
     out: dict[str, tuple[list[str], set[str]]] = {}
     dev = ROOT / "benchmarks" / "development"
     with open(dev / "speech_dev.csv", encoding="utf-8", newline="") as fh:
@@ -68,6 +73,15 @@ def corpora(sigverse: Path) -> dict[str, tuple[list[str], set[str]]]:
     template = [s for name in PAPER_EXPERIENCED_HOMES for s in load(sigverse / name)[name].sentences
                 if s is not None]
     out["templates"] = (template, labels)
+    if subject is not None:
+        from spco.data.sigverse import read_indexed_texts
+
+        said = []
+        for home in SUBJECT_DEVELOPMENT:
+            n = len(list((subject / home / "per_100").glob("sentence*.txt")))
+            texts = read_indexed_texts(subject / home / "per_100", "sentence", n, strict=False)
+            said += [t for t in texts if t]
+        out["subject_dev"] = (said, names)
     return out
 
 
@@ -91,13 +105,15 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sigverse", type=Path, default=Path("../shared/datasets/sigverse"))
     parser.add_argument("--penalty", type=float, default=1.0)
+    parser.add_argument("--subject", type=Path, default=None,
+                        help="sigverse_subject: also fit on people's sentences of the development homes")
     parser.add_argument("--terms-from", choices=("all", "distinct"), default="all",
                         help="learn each corpus's terms from all its sentences (how the frozen WEIGHTS "
                              "were fitted, before Vocabulary.from_sentences counted distinct sentences "
                              "only) or from its distinct sentences (as spco does now)")
     args = parser.parse_args()
     data = {}
-    for name, (sentences, names) in corpora(args.sigverse).items():
+    for name, (sentences, names) in corpora(args.sigverse, args.subject).items():
         if args.terms_from == "all":
             terms = Vocabulary(tuple(learn_terms(s for s in sentences if s)))
             vocab = Vocabulary(tuple(dict.fromkeys(t for s in sentences for t in terms.tokenize(s))))

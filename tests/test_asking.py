@@ -25,6 +25,7 @@ from spco.cli.ask import ask as ask_command
 from spco.data.environment import Corpus
 from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.errors import ConfigurationError
+from spco.model.confidence import UNSURE_BELOW
 from spco.model.question_scores import (
     group_rooms,
     name_entropy,
@@ -294,8 +295,8 @@ def test_ask_only_when_unsure(world: dict) -> None:
     every = kn.ask(home, n=1000)
     unsure = kn.ask(home, n=1000, unsure_only=True)
     assert [q.id for q in unsure] == [q.id for q in every if q.worth_asking]
-    assert all(q.confidence < kn.ASK_UNSURE_BELOW for q in unsure)
-    assert all(q.worth_asking == (q.confidence < kn.ASK_UNSURE_BELOW) for q in every)
+    assert all(q.confidence < UNSURE_BELOW for q in unsure)
+    assert all(q.worth_asking == (q.confidence < UNSURE_BELOW) for q in every)
     assert kn.ask(home, n=5, unsure_only=True, unsure_below=0.0) == []
     assert ask_answer(home, 5, unsure_only=True)["questions"] == [q.to_dict() for q in unsure[:5]]
     for bad in (-0.1, 1.5, "high"):

@@ -18,16 +18,14 @@ from spco.model import gibbs
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.kernels.crt import sample_crt, sample_crt_totals
 from spco.model.parameters import ConceptParameters
-from spco.model.posterior import ParameterAverage, thinned_sweeps
-from spco.model.prediction import (
+from spco.model.position_prediction import (
     LEARNT_SUPPORT,
     name_support,
-    predict_names,
     predict_positions,
     region_posterior_for_name,
-    validate_poses,
-    validate_visual_counts,
 )
+from spco.model.posterior import ParameterAverage, thinned_sweeps
+from spco.model.prediction import predict_names, validate_poses, validate_visual_counts
 from spco.model.transfer import SpCoA, SpCoTransfer, clone, export_parameters
 
 SMALL = TransferHyperparameters(n_concepts=6, n_regions=8)
@@ -391,7 +389,13 @@ def test_home_model_predicts_from_its_posterior_average_and_keeps_it_in_its_file
     taught = teach(home, {sample: "this is the kitchen"}, n_sweeps=4, random_state=1)
     assert taught.posterior is not None
     assert taught.posterior.word_probabilities.shape[-1] == len(taught.vocabulary)
-    assert teach(home, {sample: "this is the kitchen"}, n_sweeps=0).posterior is None
+    # no sweeps: a local update still (the home's average where the teaching did not reach, the
+    # state's own values where it did), not the state's draw for the whole home
+    unswept = teach(home, {sample: "this is the kitchen"}, n_sweeps=0, random_state=1).posterior
+    assert unswept is not None
+    same = [c for c in range(unswept.n_concepts)
+            if np.array_equal(unswept.visual_probabilities[0, c], home.posterior.visual_probabilities[0, c])]
+    assert 0 < len(same) < unswept.n_concepts
 
 
 def test_masked_rows_never_nan() -> None:

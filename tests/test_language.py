@@ -15,6 +15,7 @@ from spco.data.language import (
     MAX_TOKEN_CHARS,
     LanguageWarning,
     Vocabulary,
+    is_function_word,
     learn_terms,
     normalize_name,
     tokenize,
@@ -112,7 +113,11 @@ def test_terms_are_learnt_from_the_sentences() -> None:
     assert "room" not in vocab  # "room" never stands alone in these sentences
     assert not any(w == "the" for t in vocab.terms for w in t.split())  # a frame word: in > 50 % of sentences
     assert not any(t.startswith(("living room ", "kitchen ")) for t in vocab.terms)  # names end sentences
-    assert vocab.tokenize("The Living-Room is here") == ["the", "living room", "is here"]
+    # function words never make a term of their own ("is here", "you are in", "front of"): no name
+    # starts or ends with one
+    assert vocab.tokenize("The Living-Room is here") == ["the", "living room", "is", "here"]
+    assert not any((is_function_word(t.split()[0]) and t.split()[0] not in ("my", "our", "your"))
+                   or is_function_word(t.split()[-1]) for t in vocab.terms)
     k = vocab.index("living room")
     assert k is not None and vocab.index("Living Room") == vocab.index("living-room") == k
     assert vocab.words[k] == "living room"

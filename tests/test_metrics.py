@@ -21,7 +21,7 @@ from spco.evaluation import (
     position_chance,
 )
 from spco.model.parameters import ConceptParameters
-from spco.model.prediction import predict_positions
+from spco.model.position_prediction import predict_positions
 
 REGIONS = PlaceRegions({
     "kitchen": ((0.0, 1.0, 0.0, 1.0),),

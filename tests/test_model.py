@@ -79,7 +79,7 @@ def check_parameters(params: ConceptParameters, n_homes: int, n_concepts: int, n
         "visual_probabilities": (E, L, D),
         "shared_word_probabilities": (L, V), "shared_visual_probabilities": (L, D),
         "global_concept_weights": (L,), "word_mask": (V,), "region_counts": (E, K), "concept_counts": (E, L),
-        "name_prior": (V,),
+        "name_prior": (V,), "place_word_probabilities": (L, V), "word_channel_prior": (V, 3),
     }
     for name, array in params.arrays().items():
         assert array.shape == expected[name], name
@@ -152,7 +152,9 @@ def test_exact_model_with_word_pruning_recovers_places_of_taught_homes() -> None
     the rooms). A home's several bedrooms may share one concept with several regions — the model's
     idea of a spatial concept — or get one each; both pass."""
     corpus = synthetic_corpus(seed=0)
-    model = SpCoTransfer(n_iterations=30, random_state=0, prune_words=True).fit(corpus)
+    # the naming rule's pruning (the word channels prune nothing: tests/test_word_channels.py)
+    model = SpCoTransfer(TransferHyperparameters(word_model="naming-rule"), n_iterations=30, random_state=0,
+                         prune_words=True).fit(corpus)
     for e, env in enumerate(corpus):
         if env.n_taught == 0:
             continue
@@ -197,7 +199,8 @@ def test_word_pruning_learns_home_specific_names() -> None:
         names = sorted({gt.specific_labels[i] for i in np.flatnonzero(gt.specific_test)})
         taught = teach(new, 40, places=names, seed=seed)
         corpus = Corpus([*list(corpus)[:-1], taught], word_increment=corpus.word_increment)
-        model = SpCoTransfer(n_iterations=30, random_state=0, prune_words=True).fit(corpus)
+        model = SpCoTransfer(TransferHyperparameters(word_model="naming-rule"), n_iterations=30,
+                             random_state=0, prune_words=True).fit(corpus)  # the naming rule's mask
         assert {"emma's room", "mother's room", "father's room"} <= {
             w for w, keep in zip(corpus.vocabulary.words, model.parameters_.word_mask, strict=True) if keep}
         scores = evaluate_home(model.parameters_, len(corpus) - 1, taught, corpus.vocabulary, specific=True,

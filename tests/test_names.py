@@ -25,7 +25,8 @@ from spco.model.name_evidence import (
     within_concepts,
 )
 from spco.model.parameters import ConceptParameters
-from spco.model.prediction import UnknownNameError, predict_names, predict_positions
+from spco.model.position_prediction import predict_positions
+from spco.model.prediction import UnknownNameError, predict_names
 from spco.model.unheard import resolve_name
 
 # ------------------------------------------------------------------------------ sentence frames

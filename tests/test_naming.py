@@ -127,17 +127,39 @@ def test_verdicts() -> None:
         judge_names(stats, bayes_factor=1.0)
 
 
-def test_template_words_are_no_names_and_place_names_are() -> None:
-    """On synthetic homes taught at 20 %, fitted with pruning: every place name is kept (none was
-    lost for the run as with the earlier one-off test), no template word is."""
+@pytest.mark.parametrize("word_model", ["naming-rule", pytest.param("channels", marks=pytest.mark.xfail(
+    strict=True, reason="known failure of the frozen word channels (issue 28): 'bath' (a vessel in WordNet, "
+    "name evidence 0.09) and 'dining' (an act, 0.03) are counted as place words, not names, even in the "
+    "template sentences; left failing, not loosened (docs/model.md, 'Words that are not names')"))])
+def test_template_words_are_no_names_and_place_names_are(word_model: str) -> None:
+    """On synthetic homes taught at 20 %: with the naming rule every place name is kept (none was
+    lost for the run as with the earlier one-off test), no template word is; with the word channels
+    (no word is pruned) the place names are the names of their concepts and no template word is
+    a name (its tokens are background or place words)."""
+    from spco.model.hyperparameters import TransferHyperparameters
+    from spco.model.word_channels import NAME, switch_probabilities
+
     corpus = generate_homes(6, seed=1, config=SyntheticConfig(n_features=64), teaching_rate=20,
                             specific_rooms=False)
-    model = SpCoTransfer(prune_words=True, n_iterations=15, random_state=0, record_log_joint=False)
+    model = SpCoTransfer(TransferHyperparameters(word_model=word_model), prune_words=True, n_iterations=15,
+                         random_state=0, record_log_joint=False)
     model.fit(corpus)
-    kept = {w for w, k in zip(corpus.vocabulary.words, model.parameters_.word_mask, strict=True) if k}
+    words = corpus.vocabulary.words
     places = {lab for env in corpus for lab in env.labels() if lab}
-    assert places <= kept
-    assert not {"this", "is", "the", "here", "place", "location"} & kept
+    template = {"this", "is", "the", "here", "place", "location"}
+    if word_model == "naming-rule":
+        kept = {w for w, k in zip(words, model.parameters_.word_mask, strict=True) if k}
+        assert places <= kept
+        assert not template & kept
+        return
+    state, data = model.state_, model.data_
+    p = switch_probabilities(data.words, data.homes, state.concepts, state.log_theta_w, state.channels)
+    cols = data.words.indices[: data.words.indptr[-1]]
+    share = np.bincount(cols, weights=p[:, NAME], minlength=len(words)) / np.maximum(
+        np.bincount(cols, minlength=len(words)), 1)
+    named = {w for w, v in zip(words, share, strict=True) if v >= 0.5}
+    assert places <= named, {w: round(float(v), 2) for w, v in zip(words, share, strict=True)}
+    assert not template & named
 
 
 def test_a_new_homes_own_names_start_in_free_concepts() -> None:

@@ -13,6 +13,7 @@ from scipy.stats import multivariate_normal
 from spco.data.language import Vocabulary
 from spco.errors import ConfigurationError, SpcoError
 from spco.model.parameters import ConceptParameters
+from spco.model.position_prediction import predict_positions, region_posterior_for_name
 from spco.model.prediction import (
     NamePrediction,
     UnknownNameError,
@@ -21,9 +22,7 @@ from spco.model.prediction import (
     kl_scores_reference,
     mutual_information_weights,
     predict_names,
-    predict_positions,
     reference_kl_weights,
-    region_posterior_for_name,
     word_posterior,
 )
 

@@ -73,7 +73,7 @@ def test_the_page_shows_the_regions_answers_and_teaches_live(browser, tmp_path: 
         assert len(first_words) == len(set(first_words)), labels  # one label per place
         axis_labels = [e.text for e in browser.find_elements(By.CSS_SELECTOR, "#layer-axes text.axis-label")]
         assert "x (m)" in axis_labels and "y (m)" in axis_labels
-        assert any(t.endswith(" m") for t in axis_labels)
+        assert any(t.endswith(" m") for t in axis_labels)  # the scale bar
         assert len(browser.find_elements(By.CSS_SELECTOR, "#layer-samples circle.sample")) == \
             robot.health()["samples"]
         assert browser.find_element(By.ID, "connection").text == "live"  # the event stream is open

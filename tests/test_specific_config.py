@@ -121,6 +121,22 @@ def test_bootstrap_interval_covers_the_mean_and_narrows_with_samples() -> None:
     assert bootstrap_interval([np.ones(5)]) == (1.0, 1.0)
 
 
+def test_bootstrap_interval_resamples_seeds() -> None:
+    """A room right at every test sample in 9 seeds and wrong everywhere in one: the interval over
+    seeds and samples reaches well below the mean (averaging the seeds first gave [0.9, 0.9]), and
+    resampling rooms widens the interval of a mean over unlike rooms."""
+    one_bad_seed = np.ones((10, 20))
+    one_bad_seed[3] = 0.0
+    lo, hi = bootstrap_interval([one_bad_seed])
+    assert lo <= 0.75 and hi == 1.0
+    assert np.allclose(bootstrap_interval([one_bad_seed.mean(axis=0)]), 0.9)  # one row: seeds averaged
+    unlike = [np.ones((3, 10)), np.zeros((3, 10)), np.ones((3, 10))]
+    fixed = bootstrap_interval(unlike)
+    assert fixed[0] == fixed[1]
+    lo_r, hi_r = bootstrap_interval(unlike, rooms=True)
+    assert lo_r < 0.5 and hi_r == 1.0
+
+
 def test_summary_pools_seeds_per_test_sample(tmp_path: Path) -> None:
     file = load_specific_config(_small(tmp_path))
     unscored = {"argmax": None, "mixture": None}
@@ -149,24 +165,17 @@ def test_cli_refuses_options_that_do_not_apply(tmp_path: Path) -> None:
 
 # ------------------------------------------------------------------------------------ SIGVerse
 @pytest.mark.sigverse
-@pytest.mark.xfail(strict=True, reason=(
-    "known change from branch names (terms learnt from distinct sentences): the run's vocabulary "
-    "differs from main's by junk terms ('we always say' for 'always say', no 'are in'), and seed 100's "
-    "chain puts the piano room's test views with the living room (A_n 0/10; main 10/10; kenta's room "
-    "1.0 and the nursery 0.8 either way). A chain outcome of this one seed, not a systematic loss: "
-    "on the development configurations at 40 %, seeds 0-2, mean A_n 0.839 [0.825, 0.852] against "
-    "main's 0.826 [0.811, 0.842], and main's own worst seed of this room is 0.30 (docs/results.md). "
-    "Not re-seeded (held-out): the merge was decided on development data, and the held-out loss is reported "
-    "in docs/results.md (piano room A_p 0.845 -> 0.295 over seeds 100-109)"))
-def test_held_out_rooms_are_named_at_40_percent(sigverse_dir: Path) -> None:
-    """One trial of the first held-out configuration (2LDK_9: kenta's room, the nursery, the piano
-    room), its first seed (100), 40 % taught, the protocol's 200 sweeps: every room's test samples
-    named by an accepted phrase at ≥ 0.9 on average. Chosen before any held-out figure was seen;
-    SpCoTransfer+MI as frozen (commit 'SPECIFIC FROZEN')."""
-    file = load_specific_config(HELDOUT)
+def test_development_rooms_are_named_at_40_percent(sigverse_dir: Path) -> None:
+    """One trial of the first development configuration (3LDK_9: Emma's, mother's and father's
+    rooms), development seed 0, 40 % taught, the protocol's 200 sweeps: the run is complete and its
+    rooms are named far above chance. A floor, not a figure (the figures are `spco experiment
+    specific`'s, over seeds); a unit test scores no held-out configuration (benchmarks/SPLIT.md) —
+    this test scored the held-out 2LDK_9 configuration (seed 100) before issue 29."""
+    file = load_specific_config(DEVELOPMENT)
     conf = file.configurations[0]
     data = ConfiguredData(file, str(sigverse_dir), (conf,))
-    record = execute_configured_run(data, ConfiguredRun(conf.id, 40, 100, "spcotransfer+mi"), 200, 10)
+    record = execute_configured_run(data, ConfiguredRun(conf.id, 40, 0, "spcotransfer+mi"), 200, 10)
     accuracy = {room: r["name_accuracy"] for room, r in record["rooms"].items()}
-    assert record["taught"] == 24 and record["vocabulary_size"] > 18
-    assert np.mean(list(accuracy.values())) >= 0.9, accuracy
+    assert record["taught"] > 0 and record["vocabulary_size"] > 18
+    assert set(accuracy) == {room.name for room in conf.rooms}
+    assert np.mean(list(accuracy.values())) >= 0.5, accuracy

@@ -2,7 +2,7 @@
 
 Two parts (docs/model.md, "Synonyms"): names one home says at the same places start as one concept
 (:func:`spco.model.synonyms.same_place_names`), and a concept a home does not use is looked for at
-the occupied concept its views fit best (:func:`spco.model.prediction.concept_stand_ins`).
+the occupied concept its views fit best (:func:`spco.model.position_prediction.concept_stand_ins`).
 """
 
 from __future__ import annotations
@@ -14,7 +14,8 @@ from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.evaluation import evaluate_home
 from spco.model import SpCoTransfer
 from spco.model.parameters import ConceptParameters
-from spco.model.prediction import concept_stand_ins, predict_names, region_posterior_for_name
+from spco.model.position_prediction import concept_stand_ins, region_posterior_for_name
+from spco.model.prediction import predict_names
 from spco.model.synonyms import name_overlaps, name_region_overlaps, pooled_overlaps, same_place_names
 
 

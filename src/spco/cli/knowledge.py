@@ -119,6 +119,16 @@ def _seconds(value: float) -> str:
 
 
 # ------------------------------------------------------------------------------------ fit
+def _on_the_prior(training: Any, prior: str, settings: tuple[str, ...], checked: Any) -> Any:
+    """``--set`` applied on top of the scaled prior of ``training`` (``checked``: the settings on the
+    paper's constants, checked before the homes were read; kept for ``--prior paper``)."""
+    if not settings or prior != "scaled":
+        return checked
+    from spco.knowledge.fit import default_hyperparameters
+
+    return default_hyperparameters(training).with_settings(settings)
+
+
 @click.command(name="fit")
 @click.option("--data", "data", required=True, type=click.Path(path_type=Path),
               help="The experienced homes: a folder of homes (SIGVerse or plain layout) or an "
@@ -158,6 +168,11 @@ def _seconds(value: float) -> str:
                    "gamma0, "
                    "beta, mi_threshold, view_counts (none: every count a draw). E.g. a large floor: "
                    "--set n_concepts=30 --set n_regions=30 --set kappa0=0.001. Kept in the knowledge file.")
+@click.option("--prior", default="scaled", show_default=True, type=click.Choice(["scaled", "paper"]),
+              help="scaled: the position prior κ0 and the numbers of concepts and regions follow the "
+                   "homes' spread and place sizes (a flat or a university floor, in any map units); "
+                   "paper: the paper's constants (κ0 = 0.05, L = 15, K = 20), for the reproduction. "
+                   "--set applies on top.")
 @click.option("--text-language", default="auto", show_default=True,
               type=click.Choice(["auto", "ja", "zh", "spaced"]),
               help="Japanese or Chinese written without spaces: segment it into words (ja: pip install "
@@ -167,7 +182,7 @@ def _seconds(value: float) -> str:
 def fit(data: Path, homes: str | None, teaching_rate: int, model: str, iterations: int, seed: int,
         out: Path, force: bool, engine: str, shards: int | None, address: str | None, checkpoint_every: int,
         checkpoint_dir: Path | None, images: Path | None, model_file: Path | None,
-        extractor: str | None, settings: tuple[str, ...], text_language: str) -> None:
+        extractor: str | None, settings: tuple[str, ...], text_language: str, prior: str) -> None:
     """Learn knowledge from experienced homes and write a knowledge file.
 
     The knowledge is the shared, home-independent part of the transfer model — the concepts'
@@ -229,10 +244,12 @@ def fit(data: Path, homes: str | None, teaching_rate: int, model: str, iteration
         training = Corpus(envs, language=text_language)
         summary = (f"{len(envs)} homes ({sum(e.n_train for e in envs)} training samples, "
                    f"{sum(e.n_taught for e in envs)} taught, {len(training.vocabulary)} words)")
+    hyperparameters = _on_the_prior(training, prior, settings, hyperparameters)
     click.echo(f"Learning from {summary} with {model}, {iterations} sweeps...", err=True)
     start = time.perf_counter()
     knowledge = fit_knowledge(training, model=model, n_iterations=iterations, random_state=seed,
                               hyperparameters=hyperparameters, progress=_progress(), engine=runner,
+                              prior=prior,
                               provenance={"data": str(Path(data).expanduser().resolve()),
                                           "teaching_rate": teaching_rate},
                               extractor=image_extractor)
@@ -407,7 +424,7 @@ def _where_drawn_from(regions: Sequence[int], name: str) -> str:
 @click.option("--top", default=3, show_default=True, type=click.IntRange(1, 100), help="Names to list.")
 @click.option("--unsure-below", default=None, type=click.FloatRange(0.0, 1.0),
               help="Say the robot is unsure when the best name's probability p is below this "
-                   "(default 0.5, spco.model.confidence.UNSURE_BELOW).")
+                   "(default 0.7, spco.model.confidence.UNSURE_BELOW).")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON object.")
 @_friendly
 def what(home_file: Path, x: float, y: float, theta: float, visual: Path | None, visual_scale: float | None,
@@ -425,7 +442,7 @@ def what(home_file: Path, x: float, y: float, theta: float, visual: Path | None,
 
     p is honest: a view counts as a few independent draws, not as its thousands of counts, and a
     concept nobody named has no name (docs/model.md, "Confidence"). When the best name's p is below
-    --unsure-below (0.5: more likely wrong than right) the answer says the robot is unsure
+    --unsure-below (default 0.7, the one threshold of what and ask) the answer says the robot is unsure
     (JSON: "unsure": true).
     """
     from spco.model.confidence import UNSURE_BELOW

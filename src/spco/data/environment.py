@@ -28,6 +28,16 @@ from spco.errors import ConfigurationError, DataFormatError
 
 #: Largest tolerated deviation of sin²θ + cos²θ from 1 before a pose is refused.
 HEADING_TOLERANCE = 0.05
+#: Largest |x| or |y| of a position, in map units: the model's covariances hold squared distances
+#: summed over samples, which overflow float64 (1.8e308) beyond about 1e150.
+MAX_COORDINATE = 1e150
+#: Largest span (max − min of x or of y) of a home's positions, in map units. A region's covariance
+#: holds x, y (squared: span²) beside sin θ, cos θ (about 1): beyond a span of ~1e7 its condition
+#: number exceeds what float64 factorises (1e16). 1e6 is a 1,000 km map in metres — a home in
+#: micrometres, or a position typed with a wrong exponent, is refused instead of learnt wrongly.
+MAX_SPAN = 1e6
+#: Largest visual count of one feature: counts are int64, summed over up to millions of samples.
+MAX_COUNT = 1e12
 
 Extent = tuple[float, float, float, float]  # x_min, x_max, y_min, y_max (metres)
 
@@ -118,6 +128,18 @@ def _checked_positions(where: str, raw: Any, ids: np.ndarray) -> np.ndarray:
     if bad.any():
         raise DataFormatError(where, f"non-finite (NaN or inf) position for sample ids "
                               f"{ids[bad][:10].tolist()}")
+    far = (np.abs(positions[:, :2]) > MAX_COORDINATE).any(axis=1)
+    if far.any():
+        raise DataFormatError(where, f"position beyond ±{MAX_COORDINATE:g} map units for sample ids "
+                              f"{ids[far][:10].tolist()} (e.g. {positions[far][0, :2].tolist()}): squared "
+                              "distances would overflow float64; give positions in metres")
+    span = float(np.ptp(positions[:, :2], axis=0).max()) if n else 0.0
+    if span > MAX_SPAN:
+        axis = int(np.argmax(np.ptp(positions[:, :2], axis=0)))
+        lo, hi = int(np.argmin(positions[:, axis])), int(np.argmax(positions[:, axis]))
+        raise DataFormatError(where, f"the positions span {span:.3g} map units in {'xy'[axis]} (sample ids "
+                              f"{int(ids[lo])} to {int(ids[hi])}), more than {MAX_SPAN:g}: a home's regions "
+                              "can not be learnt at that scale in float64; give positions in metres")
     norm = positions[:, 2] ** 2 + positions[:, 3] ** 2
     off = np.abs(norm - 1.0) > HEADING_TOLERANCE
     if off.any():
@@ -151,6 +173,10 @@ def _checked_visual(where: str, raw: Any, view_missing: Any, n: int) -> tuple[sp
         raise DataFormatError(where, "visual counts contain NaN or inf")
     if data.size and (data < 0).any():
         raise DataFormatError(where, "visual counts must be non-negative")
+    if data.size and (data > MAX_COUNT).any():
+        raise DataFormatError(where, f"visual counts above {MAX_COUNT:g} (largest {float(data.max()):.3g}): "
+                              "sums of counts would overflow int64; scale the counts down (a view's "
+                              "evidence depends on its proportions only)")
     if data.size and not np.issubdtype(data.dtype, np.integer):
         if (data != np.round(data)).any():
             raise DataFormatError(where, "visual counts must be whole numbers (scale real-valued "
@@ -224,8 +250,9 @@ class Environment:
             raise DataFormatError(where, f"test mask must have shape ({n},)")
         if self.extent is not None:
             ext = tuple(float(v) for v in self.extent)
-            if len(ext) != 4 or not np.isfinite(ext).all():
-                raise DataFormatError(where, f"invalid map extent {self.extent!r}")
+            if len(ext) != 4 or not np.isfinite(ext).all() or (np.abs(ext) > MAX_COORDINATE).any():
+                raise DataFormatError(where, f"invalid map extent {self.extent!r} (4 finite numbers within "
+                                      f"±{MAX_COORDINATE:g} map units)")
             object.__setattr__(self, "extent", ext)
         gt = self.ground_truth
         if gt is not None:

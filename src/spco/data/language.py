@@ -100,6 +100,58 @@ from spco.errors import ConfigurationError
 if TYPE_CHECKING:
     from spco.data.segmentation import Segmentation
 
+#: Determiners and possessive pronouns (a word ending in "'s" or "s'" also counts as a possessive).
+DETERMINERS = frozenset({"the", "a", "an", "this", "that", "these", "those", "my", "our", "your", "his",
+                         "her", "their", "its", "whose"})
+#: Prepositions (place and direction phrases: "on the table", "to your left", "next to the bath").
+PREPOSITIONS = frozenset({"to", "in", "on", "at", "by", "from", "into", "onto", "near", "next", "beside",
+                          "behind", "under", "over", "across", "through", "after", "before", "for",
+                          "with", "of", "off", "out", "up", "down", "around", "between", "inside",
+                          "outside", "past", "toward", "towards", "along", "against", "opposite",
+                          "above", "below", "beneath", "underneath", "within", "without", "via"})
+#: Copulas and naming verbs: what comes before a name in "this is X", "we call it X".
+COPULAS = frozenset({"is", "are", "was", "it's", "that's", "here's", "this's", "called", "call",
+                     "named", "name", "be", "it", "s"})
+#: Personal pronouns (subjects and objects: "I'm home", "we eat", "see you").
+PRONOUNS = frozenset({"i", "i'm", "me", "we", "we're", "us", "you", "you're", "he", "she", "they",
+                      "they're", "him", "them", "i've", "we've", "i'll", "we'll"})
+#: Other closed-class words: conjunctions, auxiliaries and their contractions, negations, question
+#: words, adverbs of place and fillers. With the lists above: words that are never a place's name
+#: (:func:`content_share`).
+OTHER_FUNCTION_WORDS = frozenset({
+    "and", "or", "but", "so", "if", "then", "than", "because", "as", "do", "does", "did", "don't",
+    "doesn't", "didn't", "can", "can't", "cannot", "could", "will", "won't", "would", "should", "shall",
+    "may", "might", "must", "have", "has", "had", "having", "been", "being", "am", "were", "isn't",
+    "aren't", "wasn't", "weren't", "not", "no", "yes", "yeah", "ok", "okay", "um", "uh", "er", "hmm",
+    "oh", "ah", "well", "like", "just", "also", "too", "very", "really", "here", "there", "where",
+    "what", "which", "who", "when", "how", "why", "all", "some", "any", "every", "each", "much",
+    "many", "more", "most", "again", "ago", "about", "always", "never", "now", "only", "still",
+    "it'll", "that'll", "there's", "what's", "where's", "let's", "she's", "he's", "you'll", "you've",
+    "they'll", "they've", "i'd", "we'd", "you'd", "let", "get", "got", "go", "going", "gonna",
+    "wanna", "please", "thanks", "thank", "hi", "hello", "hey", "bye", "robot", "one", "ones"})
+
+#: Every closed-class word spco knows (English): :data:`DETERMINERS`, :data:`PREPOSITIONS`,
+#: :data:`COPULAS`, :data:`PRONOUNS` and :data:`OTHER_FUNCTION_WORDS`.
+CLOSED_CLASS = DETERMINERS | PREPOSITIONS | COPULAS | PRONOUNS | OTHER_FUNCTION_WORDS
+
+
+def is_function_word(token: str) -> bool:
+    """Whether one token is a closed-class word or a number ("2", "11", "2am", "1st")."""
+    return token in CLOSED_CLASS or (any(ch.isdigit() for ch in token) and len(token) <= 6)
+
+
+#: Words a name may start with although they are function words: possessive determiners ("my room",
+#: "our bedroom").
+NAME_OPENERS = frozenset({"my", "our", "your", "his", "her", "their"})
+
+
+def _joinable(a: str, b: str) -> bool:
+    """Whether ``a b`` may be a term: a name never ends with a function word or a number ("front of",
+    "you are in", "wash your") nor starts with one but a possessive ("my room")."""
+    first, last = a.split()[0], b.split()[-1]
+    return not is_function_word(last) and (first in NAME_OPENERS or not is_function_word(first))
+
+
 #: Default count added per word occurrence (S^w in the paper).
 DEFAULT_WORD_INCREMENT = 5000
 #: Longest atom kept whole (characters); longer ones are cut, with a warning.
@@ -293,6 +345,8 @@ def _term_pass(counts: _PairCounts, min_count: int, min_g2: float, min_follow: f
     for (a, b), k11 in pairs.items():
         if k11 < min_count or a == b or in_sentences[a] > frame or in_sentences[b] > frame:
             continue
+        if not _joinable(a, b):
+            continue
         if k11 / occurrences[a] < min_follow:
             continue
         if k11 < occurrences[a] and k11 < occurrences[b] and _NO_SPACE.search(a) and _NO_SPACE.search(b):
@@ -397,7 +451,7 @@ def _never_apart(counts: _PairCounts, max_sentence_share: float) -> dict[tuple[s
     return {(a, b): _g2(k11, first[a] - k11, second[b] - k11, n_pairs - first[a] - second[b] + k11)
             for (a, b), k11 in pairs.items()
             if a != b and k11 == occurrences[a] == occurrences[b] and in_sentences[a] <= frame
-            and in_sentences[b] <= frame}
+            and in_sentences[b] <= frame and _joinable(a, b)}
 
 
 def _contains_run(words: list[str], run: list[str]) -> bool:

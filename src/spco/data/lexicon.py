@@ -294,6 +294,36 @@ class Lexicon:
                     return True
         return False
 
+    def kinds_below(self, word: str) -> int:
+        """The most kinds (hyponyms, at every depth) under one of the word's two commonest noun senses:
+        195 for "room", 91 for "area", 55 for "place" against 4 for "kitchen", 11 for "bedroom";
+        0 for a word without noun senses. A term is judged by its own senses only."""
+        best = 0
+        for synset in self.synsets(word, pos="n")[:2]:
+            with self._lock:
+                best = max(best, sum(1 for _ in synset.closure(lambda s: s.hyponyms())))
+        return best
+
+    def kinds_of(self, word: str, others: list[str]) -> int:
+        """How many of ``others`` have a commonest noun sense (of their first two) of which a noun
+        sense of ``word`` (of its first three) is a hypernym: "room" of "bedroom", "kitchen",
+        "bathroom". A word that is the kind of several other words said names a kind of place, not
+        a place. A term is judged by its head word; ``word`` itself is not counted."""
+        heads = set(self.synsets(word, pos="n")[:3])
+        if not heads:
+            return 0
+        count = 0
+        for text in others:
+            if text == word:
+                continue
+            for synset in self.synsets(text, pos="n")[:2] or self.synsets(text.split()[-1], pos="n")[:1]:
+                with self._lock:
+                    ancestors = set(synset.closure(lambda s: s.hypernyms()))
+                if heads & ancestors:
+                    count += 1
+                    break
+        return count
+
     def closest(self, name: str, known: list[str]) -> LexiconMatch | None:
         """The known name that stands for ``name`` (a name nobody said), or None.
 

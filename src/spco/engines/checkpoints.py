@@ -21,9 +21,31 @@ import numpy as np
 
 from spco.model.gibbs import GibbsState
 from spco.model.shard import SharedParameters
+from spco.model.word_channels import WordChannels
 
 FORMAT = "spco-checkpoint"
-VERSION = 2  # 2: a generator state per home
+VERSION = 3  # 2: a generator state per home; 3: the word channels
+
+#: The arrays of a :class:`~spco.model.word_channels.WordChannels`, stored as ``channels.<name>``.
+_CHANNEL_ARRAYS = ("log_place", "log_background", "log_shares", "log_evidence")
+
+
+def _put(arrays: dict, name: str, value) -> None:
+    if name == "channels":
+        for part in _CHANNEL_ARRAYS:
+            arrays[f"channels.{part}"] = np.asarray(getattr(value, part))
+        arrays["channels.fresh"] = np.asarray(value.fresh)
+    else:
+        arrays[name] = np.asarray(value)
+
+
+def _get(arrays, name: str):
+    if name == "channels":
+        if "channels.log_place" not in arrays:
+            return None
+        return WordChannels(*(arrays[f"channels.{part}"] for part in _CHANNEL_ARRAYS),
+                            fresh=bool(arrays["channels.fresh"]))
+    return arrays[name] if name in arrays else None
 DRIVER_FILE = "driver.npz"
 
 
@@ -75,21 +97,21 @@ def save_shard(path: str | os.PathLike, state: GibbsState, rng_state: list[dict]
     atomically; returns the bytes written."""
     arrays, absent = {}, []
     for f in fields(state):
-        if f.name in ("visual_cache", "words_cache"):  # rebuilt exactly from the state
-            continue
+        if f.name in ("visual_cache", "words_cache", "switches"):  # rebuilt exactly from the state
+            continue  # (the switches: drawn afresh by the next local step, before anything reads them)
         value = getattr(state, f.name)
         if value is None:
             absent.append(f.name)
         else:
-            arrays[f.name] = np.asarray(value)
+            _put(arrays, f.name, value)
     return _write_atomically(Path(path), arrays, {"kind": "shard", "rng": rng_state, "absent": absent})
 
 
 def load_shard(path: str | os.PathLike) -> tuple[GibbsState, list[dict]]:
     """The state and generator states written by :func:`save_shard`."""
     arrays, meta = _read(Path(path), "shard")
-    values = {f.name: arrays[f.name] if f.name in arrays else None
-              for f in fields(GibbsState) if f.name not in ("visual_cache", "words_cache")}
+    values = {f.name: _get(arrays, f.name)
+              for f in fields(GibbsState) if f.name not in ("visual_cache", "words_cache", "switches")}
     missing = [name for name, v in values.items() if v is None and name not in meta["absent"]]
     if missing:
         raise CheckpointError(f"{path}: the shard checkpoint lacks {', '.join(missing)}")
@@ -99,8 +121,10 @@ def load_shard(path: str | os.PathLike) -> tuple[GibbsState, list[dict]]:
 def save_driver(directory: str | os.PathLike, iteration: int, rng_state: dict, shared: SharedParameters,
                 trace: np.ndarray, n_shards: int) -> int:
     """Commit the checkpoint of sweep ``iteration`` (its shard files written before)."""
-    arrays = {f.name: getattr(shared, f.name) for f in fields(shared)
-              if getattr(shared, f.name) is not None} | {"trace": np.asarray(trace)}
+    arrays = {"trace": np.asarray(trace)}
+    for f in fields(shared):
+        if getattr(shared, f.name) is not None:
+            _put(arrays, f.name, getattr(shared, f.name))
     return _write_atomically(Path(directory) / DRIVER_FILE, arrays,
                              {"kind": "driver", "iteration": int(iteration), "rng": rng_state,
                               "shards": int(n_shards)})
@@ -111,7 +135,7 @@ def load_driver(directory: str | os.PathLike) -> tuple[int, dict, SharedParamete
     the shard files (in shard order)."""
     arrays, meta = _read(Path(directory) / DRIVER_FILE, "driver")
     # (a field that was None is absent: name_words before any pruning)
-    shared = SharedParameters(*(arrays.get(f.name) for f in fields(SharedParameters)))
+    shared = SharedParameters(*(_get(arrays, f.name) for f in fields(SharedParameters)))
     iteration = int(meta["iteration"])
     paths = [shard_path(directory, s, iteration) for s in range(int(meta["shards"]))]
     for p in paths:

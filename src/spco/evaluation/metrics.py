@@ -36,15 +36,8 @@ from spco.data.regions import PlaceRegions
 from spco.errors import ConfigurationError, DataFormatError
 from spco.model.hyperparameters import NamePrior
 from spco.model.parameters import ConceptParameters
-from spco.model.prediction import (
-    NamePrediction,
-    PositionMode,
-    PositionPrediction,
-    UnknownNameError,
-    Weighting,
-    predict_names,
-    predict_positions,
-)
+from spco.model.position_prediction import PositionMode, PositionPrediction, predict_positions
+from spco.model.prediction import NamePrediction, UnknownNameError, Weighting, predict_names
 
 __all__ = [
     "HomeScores",
@@ -173,8 +166,8 @@ class HomeScores:
     predicted_names: (n,) predicted name of each scored sample (``None``: no word survived).
     name_predictions: the full :class:`~spco.model.prediction.NamePrediction` of the scored samples.
     test_positions: (n, 4) poses of the scored samples.
-    position_predictions: place -> :class:`~spco.model.prediction.PositionPrediction` (names that could
-        be predicted only).
+    position_predictions: place -> :class:`~spco.model.position_prediction.PositionPrediction`
+        (names that could be predicted only).
     """
 
     home: str
@@ -255,8 +248,9 @@ def evaluate_home(
         :func:`spco.model.prediction.predict_names`; ``None``: every count a draw).
     name_prior: ``"wordnet"`` orders each concept's words by the name prior when names are
         predicted (opt-in; see :func:`spco.model.prediction.predict_names`).
-    position_mode, xy_only: see :func:`spco.model.prediction.predict_positions`; ``position_mode`` is the
-        mode of ``position_accuracy``; ``position_accuracy_mixture`` is always ``"mixture"``.
+    position_mode, xy_only: see :func:`spco.model.position_prediction.predict_positions`;
+        ``position_mode`` is the mode of ``position_accuracy``; ``position_accuracy_mixture`` is
+        always ``"mixture"``.
 
     Conventions: a place with no scored sample has A_n = NaN, left out of the mean. A place whose
     name the model cannot predict (never taught, or pruned) gets A_n = 0 (it is never predicted)

@@ -34,10 +34,10 @@ One *run* is (configuration, rate, seed, model):
    p(x | name) (as the paper's text describes it).
 
 Summaries (:func:`summarise`): per configuration, room, rate and model the mean A_n over seeds with a
-95 % bootstrap interval over the test samples (the room's test samples are resampled with their
-results of every seed kept together; 2,000 resamples, fixed seed); means over a configuration's
-rooms and over every room of the file (each room counts once) with the interval from the same
-resamples; A_p means (both ways) over seeds.
+95 % bootstrap interval over seeds and test samples (each resample draws the seeds and, apart, the
+room's test samples; 2,000 resamples, fixed seed); means over a configuration's rooms and over every
+room of the file (each room counts once) with an interval that resamples the rooms as well; A_p
+means (both ways) over seeds.
 
 Output folder: ``config.json`` (what was run, with a fingerprint), ``runs.jsonl`` (one line per run,
 appended as it finishes: ``--resume`` continues), ``results.json`` (format
@@ -247,7 +247,8 @@ def score_rooms(params: Any, e: int, env: Environment, vocabulary: Vocabulary,
     -------
     room name -> :class:`RoomScores`. A room whose name has no usable word gets A_p 0.
     """
-    from spco.model.prediction import UnknownNameError, predict_names, predict_positions
+    from spco.model.position_prediction import predict_positions
+    from spco.model.prediction import UnknownNameError, predict_names
 
     rows = {int(i): r for r, i in enumerate(env.ids)}
     gen = np.random.default_rng(rng)
@@ -354,28 +355,37 @@ def _worker_run(key: ConfiguredRun) -> dict[str, Any]:
 
 
 # ------------------------------------------------------------------------------------ summary
-def bootstrap_interval(per_sample: Sequence[np.ndarray], resamples: int = BOOTSTRAP_RESAMPLES,
-                       level: float = BOOTSTRAP_LEVEL, seed: int = 0) -> tuple[float, float]:
-    """Percentile bootstrap interval of the mean over rooms of each room's mean accuracy.
+def bootstrap_interval(per_room: Sequence[np.ndarray], resamples: int = BOOTSTRAP_RESAMPLES,
+                       level: float = BOOTSTRAP_LEVEL, seed: int = 0,
+                       rooms: bool = False) -> tuple[float, float]:
+    """Percentile bootstrap interval of the mean over rooms of each room's mean accuracy, over seeds
+    **and** test samples (and rooms, with ``rooms``).
 
     Parameters
     ----------
-    per_sample: one (T_r,) array per room: each test sample's accuracy averaged over the seeds
-        (resampling a sample keeps its results of every seed together).
+    per_room: one array per room of each test sample's accuracy, (S_r, T_r) — one row per seed —
+        or (T_r,) for one seed. A resample draws the room's seeds with replacement and, apart, its
+        test samples (so a seed at 0.00 widens the interval instead of being averaged away).
     resamples, level, seed: number of resamples, coverage, and the seed of the resampling.
+    rooms: also resample the rooms (for a mean over rooms: the rooms are a sample too).
 
     Returns
     -------
-    (low, high); each room's samples are resampled within the room (stratified), every room
-    weighs the same in the mean.
+    (low, high); without ``rooms`` every room weighs the same in the mean.
     """
     rng = np.random.default_rng(seed)
-    total = np.zeros(resamples)
-    for values in per_sample:
-        v = np.asarray(values, dtype=np.float64)
-        idx = rng.integers(0, v.size, size=(resamples, v.size))
-        total += v[idx].mean(axis=1)
-    total /= max(len(per_sample), 1)
+    arrays = [np.atleast_2d(np.asarray(v, dtype=np.float64)) for v in per_room]
+    means = np.zeros((resamples, len(arrays)))
+    for r, a in enumerate(arrays):
+        n_seeds, n_samples = a.shape
+        by_seed = a[:, rng.integers(0, n_samples, size=(resamples, n_samples))].mean(axis=2)  # (S, B)
+        chosen = rng.integers(0, n_seeds, size=(resamples, n_seeds))
+        means[:, r] = np.take_along_axis(by_seed.T, chosen, axis=1).mean(axis=1)
+    if rooms and len(arrays) > 1:
+        picked = rng.integers(0, len(arrays), size=(resamples, len(arrays)))
+        total = np.take_along_axis(means, picked, axis=1).mean(axis=1)
+    else:
+        total = means.mean(axis=1) if arrays else np.zeros(resamples)
     tail = (1.0 - level) / 2.0
     return float(np.quantile(total, tail)), float(np.quantile(total, 1.0 - tail))
 
@@ -405,9 +415,9 @@ def summarise(records: Sequence[Mapping[str, Any]], file: SpecificConfigFile) ->
         for room in conf.rooms:
             correct = np.array([r["rooms"][room.name]["correct"] for r in recs], dtype=np.float64)
             per_sample = correct.mean(axis=0)
-            samples.append(per_sample)
+            samples.append(correct)
             per_seed = correct.mean(axis=1)
-            low, high = bootstrap_interval([per_sample])
+            low, high = bootstrap_interval([correct])
             row = {
                 "room": room.name, "form": room.form, "replaces": room.replaces,
                 "name_accuracy": float(per_sample.mean()), "interval": [low, high],
@@ -418,8 +428,8 @@ def summarise(records: Sequence[Mapping[str, Any]], file: SpecificConfigFile) ->
                 "n_test": int(per_sample.size),
             }
             rooms.append(row)
-            pooled.setdefault((rate, model), []).append((per_sample, row))
-        low, high = bootstrap_interval(samples)
+            pooled.setdefault((rate, model), []).append((correct, row))
+        low, high = bootstrap_interval(samples, rooms=True)
         summary.append({
             "configuration": cid, "home": conf.home, "rate": rate, "model": model, "seeds": len(recs),
             "seed_list": [int(r["seed"]) for r in recs],
@@ -431,7 +441,7 @@ def summarise(records: Sequence[Mapping[str, Any]], file: SpecificConfigFile) ->
         })
     overall = []
     for (rate, model), items in sorted(pooled.items()):
-        low, high = bootstrap_interval([s for s, _ in items])
+        low, high = bootstrap_interval([s for s, _ in items], rooms=True)
         rows = [row for _, row in items]
         overall.append({
             "rate": rate, "model": model, "rooms": len(rows),

@@ -39,7 +39,7 @@ Layout
 from __future__ import annotations
 
 from spco.knowledge.adapting import adapt
-from spco.knowledge.asking import ASK_UNSURE_BELOW, Question, ask
+from spco.knowledge.asking import Question, ask
 from spco.knowledge.diagnostics import (
     VIEW_FIT_MEASURE,
     VIEW_FIT_WARN_FRACTION,
@@ -64,6 +64,7 @@ from spco.knowledge.limits import DEFAULT_LIMITS, TeachingLimits
 from spco.knowledge.queries import (
     WHERE_ANYWHERE_WEIGHT,
     WHERE_MODEL_WEIGHT,
+    answer_parameters,
     describe_model_file,
     name_prediction,
     unused_word_hint,
@@ -82,7 +83,6 @@ from spco.model.home_shard import FREE_CONCEPT_WEIGHT, OWN_NAMES_SPREAD_WARNING,
 from spco.model.view_fit import concept_visual_totals, held_out_view_fits, view_fit
 
 __all__ = [
-    "ASK_UNSURE_BELOW",
     "CONCENTRATION_PRIOR_SAMPLES",
     "DEFAULT_ADAPT_ITERATIONS",
     "DEFAULT_FIT_ITERATIONS",
@@ -109,6 +109,7 @@ __all__ = [
     "Question",
     "TeachingLimits",
     "adapt",
+    "answer_parameters",
     "ask",
     "check_view_fit",
     "concept_visual_totals",

@@ -19,19 +19,17 @@ import scipy.sparse as sp
 
 from spco.errors import ConfigurationError
 from spco.knowledge.home import HomeModel
+from spco.knowledge.queries import answer_parameters
+from spco.model.confidence import UNSURE_BELOW, VIEW_EFFECTIVE_COUNTS
 from spco.model.home_shard import FREE_CONCEPT_WEIGHT
 from spco.model.prediction import concept_posterior
 from spco.model.question_scores import QuestionScores, question_scores, rank_questions
 
-__all__ = ["ASK_UNSURE_BELOW", "DEFAULT_CRITERION", "NAMELESS_MASS", "Question", "ask",
+__all__ = ["DEFAULT_CRITERION", "NAMELESS_MASS", "Question", "ask",
            "home_question_scores", "name_columns"]
 
 #: What :func:`ask` ranks by (:data:`spco.model.question_scores.CRITERIA`).
 DEFAULT_CRITERION = "errors"
-#: A question is worth asking when the robot's confidence in the answer it expects is below this
-#: (``Question.worth_asking``). Chosen on a development home with ``spco experiment active``
-#: (the figures are in benchmarks/README.md).
-ASK_UNSURE_BELOW = 0.7
 #: A concept whose usable names hold less than this share of its word distribution names nothing
 #: (its words are all pruned: it is treated as unnamed).
 NAMELESS_MASS = 0.01
@@ -58,7 +56,7 @@ class Question:
     room: the room (joined regions) the sample belongs to.
     confidence: the probability of the answer the robot expects there (its most probable name,
         a name of the room's own and the room's taught names counted).
-    worth_asking: ``confidence`` is below :data:`ASK_UNSURE_BELOW`: the robot is unsure of the answer
+    worth_asking: ``confidence`` is below :data:`UNSURE_BELOW`: the robot is unsure of the answer
         (a robot that asks only when unsure stops at the first question that is not worth asking).
     """
 
@@ -109,9 +107,10 @@ def home_question_scores(home: HomeModel, criterion: str = DEFAULT_CRITERION) ->
     """
     if not isinstance(home, HomeModel):
         raise ConfigurationError("ask() expects a HomeModel (from adapt or load_home_model)")
-    params = home.parameters
+    params = answer_parameters(home)  # p(name | concept) as what answers
     columns = name_columns(home)
-    concepts = concept_posterior(params, 0, home.positions, home.visual)
+    concepts = concept_posterior(params, 0, home.positions, home.visual,
+                                 view_counts=VIEW_EFFECTIVE_COUNTS)  # as what scores a view
     theta = np.clip(np.asarray(params.word_probabilities[0], dtype=np.float64), 0.0, None)  # (L, V)
     mass = theta[:, columns].sum(axis=1)
     names = np.divide(theta[:, columns], mass[:, None], out=np.zeros((theta.shape[0], columns.size)),
@@ -237,7 +236,7 @@ def _reason(home: HomeModel, scores: QuestionScores, columns: np.ndarray, row: i
 
 
 def ask(home: HomeModel, n: int = 5, criterion: str = DEFAULT_CRITERION, unsure_only: bool = False,
-        unsure_below: float = ASK_UNSURE_BELOW) -> list[Question]:
+        unsure_below: float = UNSURE_BELOW) -> list[Question]:
     """The ``n`` places of ``home`` where an answer to "what is this place?" teaches the most.
 
     Candidates are the home's recorded samples without a name taught (a sample taught a sentence
@@ -256,7 +255,7 @@ def ask(home: HomeModel, n: int = 5, criterion: str = DEFAULT_CRITERION, unsure_
         answers corrected); default :data:`DEFAULT_CRITERION`.
     unsure_only: list only the questions worth asking (``worth_asking``: the robot's confidence in
         the answer it expects is below ``unsure_below``); an empty list says "nothing worth asking".
-    unsure_below: the threshold of ``worth_asking`` (default :data:`ASK_UNSURE_BELOW`).
+    unsure_below: the threshold of ``worth_asking`` (default :data:`UNSURE_BELOW`).
 
     Returns
     -------

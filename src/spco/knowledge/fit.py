@@ -18,7 +18,7 @@ from spco.errors import ConfigurationError, DataFormatError
 from spco.knowledge.diagnostics import _view_fit_record
 from spco.knowledge.files import _version
 from spco.knowledge.knowledge import DEFAULT_FIT_ITERATIONS, DEFAULT_MODEL, MODELS, Knowledge
-from spco.model.hyperparameters import TransferHyperparameters
+from spco.model.hyperparameters import PRIORS, TransferHyperparameters, scaled_from, scaled_hyperparameters
 from spco.model.name_evidence import name_prior
 from spco.model.posterior import thinned_sweeps
 from spco.model.pruning import words_to_keep
@@ -75,6 +75,21 @@ def _align_to(reference_v: np.ndarray, reference_w: np.ndarray, phi_v: np.ndarra
     return perm
 
 
+def default_hyperparameters(homes: Any) -> TransferHyperparameters:
+    """The scaled prior of ``homes`` (:func:`~spco.model.hyperparameters.scaled_hyperparameters`): a
+    :class:`~spco.data.Corpus` is read here, a :class:`~spco.model.sources.FolderHomes` brings the
+    scales it measured while reading its folders; a synthetic fleet generated in the shards
+    (:class:`~spco.model.sources.SyntheticHomes`, never read in the driver) keeps the paper's."""
+    from spco.model.sources import FolderHomes
+
+    if isinstance(homes, FolderHomes):
+        return scaled_from(homes.scales)
+    if isinstance(homes, Corpus):
+        return scaled_hyperparameters([(t.positions, homes.word_counts(list(t.sentences)))
+                                       for t in homes.training_set()])
+    return TransferHyperparameters()
+
+
 def fit_knowledge(
     corpus: Corpus,
     model: str = DEFAULT_MODEL,
@@ -87,6 +102,7 @@ def fit_knowledge(
     provenance: Mapping[str, Any] | None = None,
     extractor: Any = None,
     engine: Any = None,
+    prior: str = "scaled",
 ) -> Knowledge:
     """Learn the shared part of the transfer model from the experienced homes of ``corpus``.
 
@@ -109,7 +125,7 @@ def fit_knowledge(
     n_iterations: Gibbs sweeps (200 as in the paper).
     random_state: seed or Generator.
     progress: show a progress bar on standard error.
-    hyperparameters: default: the paper's.
+    hyperparameters: default: the paper's, with the position prior and truncations of ``prior``.
     summary_fraction, summary_every: which sweeps are averaged (see :func:`summary_iterations`).
     provenance: extra entries for the knowledge's provenance (e.g. the data path).
     extractor: the :class:`~spco.features.Extractor` that computed the homes' visual counts from
@@ -117,6 +133,9 @@ def fit_knowledge(
         count vectors given as such.
     engine: where the homes' shards run (:func:`spco.engines.make_engine`): ``None`` in this
         process, ``"ray"`` or an engine object such as ``RayEngine(shards=4, address="auto")``.
+    prior: used when ``hyperparameters`` is ``None``: ``"scaled"`` (default) — κ0, L and K follow
+        the homes' spread and place sizes (:func:`default_hyperparameters`); ``"paper"`` — the
+        paper's constants.
 
     Returns
     -------
@@ -125,9 +144,15 @@ def fit_knowledge(
     """
     source = _check_fit_arguments(corpus, model, summary_fraction, summary_every, extractor)
     variant, prune = MODELS[model]
+    if prior not in PRIORS:
+        raise ConfigurationError(f"prior must be one of {', '.join(PRIORS)}, got {prior!r}")
+    if hyperparameters is None and prior == "scaled":
+        hyperparameters = default_hyperparameters(corpus)
     estimator = SpCoTransfer(hyperparameters, variant=variant, prune_words=prune, n_iterations=n_iterations,
                              random_state=random_state)
-    hyper = estimator.checked_hyperparameters()
+    # knowledge files and adapt / teach learn words with the naming rule: the word channels are not yet
+    # carried by the knowledge file (docs/model.md, "Words that are not names"); the file says so
+    hyper = replace(estimator.checked_hyperparameters(), word_model="naming-rule")
     settings = estimator.sampler_settings()
     rng = as_generator(random_state)
     source, n_samples = _home_source(estimator, corpus, source)

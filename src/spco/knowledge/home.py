@@ -31,7 +31,8 @@ from spco.model.home_shard import prepare_home
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.name_evidence import extend_prior
 from spco.model.parameters import ConceptParameters
-from spco.model.prediction import NamePrediction, PositionPrediction
+from spco.model.position_prediction import PositionPrediction
+from spco.model.prediction import NamePrediction
 from spco.model.transfer import export_parameters
 
 

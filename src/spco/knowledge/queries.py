@@ -24,14 +24,11 @@ from spco.knowledge.files import HOME_FORMAT, model_file_format
 from spco.knowledge.home import HomeModel, load_home_model
 from spco.knowledge.knowledge import load_knowledge
 from spco.knowledge.views import _pose, _visual_row, pose_outside_map, view_counts
-from spco.model.confidence import UNSURE_BELOW, concept_word_counts, predict_names_honestly
+from spco.model.confidence import UNSURE_BELOW, VIEW_EFFECTIVE_COUNTS, concept_word_counts, named_parameters
 from spco.model.home_shard import FREE_CONCEPT_WEIGHT
-from spco.model.prediction import (
-    NamePrediction,
-    PositionPrediction,
-    UnknownNameError,
-    mutual_information_weights,
-)
+from spco.model.parameters import ConceptParameters
+from spco.model.position_prediction import PositionPrediction
+from spco.model.prediction import NamePrediction, UnknownNameError, mutual_information_weights, predict_names
 from spco.model.seeds import as_generator
 from spco.model.unheard import resolve_name
 
@@ -50,7 +47,7 @@ def where(home: HomeModel, name: str, n: int = 10,
     ``p(m | name) = (c_m + κ · p_model(m | name) + λ · u_m) / (c + κ + λ)``, where ``c_m`` counts the
     home's samples whose sentence holds the name and that sit in region m, ``c`` all of them, κ =
     :data:`WHERE_MODEL_WEIGHT`, ``p_model(m | name) ∝ Σ_l π_{l,m} θ^w_{l,name} G_l``
-    (:func:`spco.model.prediction.region_posterior_for_name`), u_m the share of the home's samples in
+    (:func:`spco.model.position_prediction.region_posterior_for_name`), u_m the share of the home's samples in
     region m and λ = :data:`WHERE_ANYWHERE_WEIGHT` (0 for a name never taught in this home, which is
     answered by the model alone). A name taught once is answered with the region of that sample at
     about 0.6–0.65 (little evidence); each further teaching there makes it firmer.
@@ -83,7 +80,7 @@ def where(home: HomeModel, name: str, n: int = 10,
 def _where(home: HomeModel, name: str, n: int,
            random_state: int | np.random.Generator | None) -> PositionPrediction:
     """:func:`where` without the hint for unusable names."""
-    from spco.model.prediction import (
+    from spco.model.position_prediction import (
         LEARNT_SUPPORT,
         draw_poses,
         name_support,
@@ -170,7 +167,7 @@ def what(home: HomeModel, x: float, y: float, theta: float, visual: Any = None,
     The probabilities are honest (:mod:`spco.model.confidence`): a view counts as
     :data:`~spco.model.confidence.VIEW_EFFECTIVE_COUNTS` draws, a concept nobody named has no name;
     an answer whose probability is below ``unsure_below`` (default
-    :data:`~spco.model.confidence.UNSURE_BELOW`, 0.5) is flagged ``unsure``.
+    :data:`~spco.model.confidence.UNSURE_BELOW`) is flagged ``unsure``.
 
     A pose off the home's map is answered with a :class:`UserWarning`, one more than
     :data:`FAR_OUTSIDE_MAP` map sizes off it is refused (:func:`pose_outside_map`); ``θ`` must be in
@@ -194,9 +191,27 @@ def what(home: HomeModel, x: float, y: float, theta: float, visual: Any = None,
     return name_prediction(home, pose, row, top_k=top_k, unsure_below=unsure_below)
 
 
+def answer_parameters(home: HomeModel) -> ConceptParameters:
+    """The home's parameters as every answer about names uses them (``what``, ``ask``, the service
+    and the ROS node through them): the one place where a home's p(name | concept) is decided.
+
+    Today: the posterior average θ^w of the home, with the concepts the knowledge does not use at
+    their posterior mean given the home's own taught words (:func:`spco.model.confidence.named_parameters`:
+    uniform over the names when nothing was taught there). A word model that replaces θ^w (the
+    speech work) replaces this function and nothing else.
+    """
+    counts = concept_word_counts(home.data.words, home.state.concepts, home.knowledge.n_concepts)
+    return named_parameters(home.parameters, 0, np.exp(home.knowledge.log_g0) < FREE_CONCEPT_WEIGHT, counts,
+                            home.hyperparameters.alpha_word)
+
+
 def name_prediction(home: HomeModel, poses: np.ndarray, visual: Any = None, top_k: int = 3,
                     unsure_below: float = UNSURE_BELOW) -> NamePrediction:
-    """The names :func:`what` answers, for ``n`` poses at once and without its checks of the pose.
+    """The names :func:`what` answers, for ``n`` poses at once and without its checks of the pose:
+    p(name | pose, view) = Σ_l p(name | l) P(l | pose, view), with p(name | l) from
+    :func:`answer_parameters` and P(l | pose, view) scoring a view as the model's S^v draws
+    (:data:`~spco.model.confidence.VIEW_EFFECTIVE_COUNTS` draws: a test view's weight, not the
+    sampler's ``view_counts``; docs/model.md, "Two numbers for one view").
 
     Parameters
     ----------
@@ -207,16 +222,14 @@ def name_prediction(home: HomeModel, poses: np.ndarray, visual: Any = None, top_
 
     Returns
     -------
-    The :class:`~spco.model.prediction.NamePrediction` with honest probabilities
-    (:func:`spco.model.confidence.predict_names_honestly`), ``confidence`` and ``unsure``.
+    The :class:`~spco.model.prediction.NamePrediction` with ``confidence`` and ``unsure``.
     """
-    return predict_names_honestly(
-        home.parameters, 0, home.vocabulary, poses, visual, top_k=top_k, use_vision=visual is not None,
-        weighting=home.weighting,  # type: ignore[arg-type]
-        free=np.exp(home.knowledge.log_g0) < FREE_CONCEPT_WEIGHT,
-        word_counts=concept_word_counts(home.data.words, home.state.concepts, home.knowledge.n_concepts),
-        alpha_word=home.hyperparameters.alpha_word, unsure_below=unsure_below)
-
+    if not 0.0 <= unsure_below <= 1.0:
+        raise ConfigurationError(f"unsure_below must be within 0..1, got {unsure_below!r}")
+    return predict_names(answer_parameters(home), 0, home.vocabulary, poses, visual, top_k=top_k,
+                         weighting=home.weighting,  # type: ignore[arg-type]
+                         use_vision=visual is not None, view_counts=VIEW_EFFECTIVE_COUNTS,
+                         unsure_below=unsure_below)
 
 
 def describe_model_file(path: str | PathLike[str]) -> dict[str, Any]:

@@ -9,6 +9,7 @@ Where else shards may run — Ray actors — is :mod:`spco.engines`, whose engin
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 from abc import ABC, abstractmethod
 
@@ -97,7 +98,16 @@ class ShardedRun(ABC):
         state = shards_api.join_states(self.states())
         state.word_mask = self.shared.word_mask
         state.name_words = self.shared.name_words
+        state.channels = self.shared.channels
         return state
+
+    def use_word_channels(self, channels) -> None:
+        """From the next sweep on, words follow the word channels ``channels``
+        (:class:`~spco.model.word_channels.WordChannels`) instead of the naming rule: no word is
+        pruned, and every token's switch is drawn from the next local step on. Called after the
+        start (which places the homes by the naming rule's names: a start, valid for any target)."""
+        self.shared = dataclasses.replace(self.shared, word_mask=np.ones_like(self.shared.word_mask),
+                                          name_words=None, channels=channels)
 
     @abstractmethod
     def close(self) -> None:

@@ -48,6 +48,15 @@ from spco.model.state import (  # noqa: F401  (the sampler's data and state, re-
     SamplerSettings,
     VisualCountCache,
 )
+from spco.model.word_channels import (
+    ChannelCounts,
+    channel_counts,
+    mixture_log_likelihood,
+    name_tokens,
+    place_token_counts,
+    sample_channels,
+    sample_switches,
+)
 
 
 def niw_prior(data: PreparedData, hyper: TransferHyperparameters, settings: SamplerSettings) -> NIWPrior:
@@ -286,6 +295,16 @@ class Statistics:
     region_scatter: np.ndarray
     visual: np.ndarray
     words: np.ndarray
+    #: with word channels: the switches' counts (each token once) and the place tokens per home and
+    #: concept with their counts (E, L, V), for the label swaps
+    channel: ChannelCounts | None = None
+    place_tokens: np.ndarray | None = None
+
+
+def uses_channels(data: PreparedData, state: GibbsState) -> bool:
+    """Whether ``state`` has word channels whose switches are drawn for ``data``'s tokens."""
+    switches = state.switches
+    return state.channels is not None and switches is not None and switches.shape == (data.words.nnz,)
 
 
 def sentence_words(data: PreparedData, state: GibbsState) -> sp.csr_array:
@@ -323,13 +342,20 @@ def sentence_words(data: PreparedData, state: GibbsState) -> sp.csr_array:
 def _statistics(data: PreparedData, state: GibbsState, hyper: TransferHyperparameters) -> Statistics:
     E, L, K = data.n_homes, hyper.n_concepts, hyper.n_regions
     count, total, scatter = GaussianRegions.statistics(data.positions, data.homes, state.regions, E, K)
+    channel = place_tokens = None
+    if uses_channels(data, state):  # θ^w counts the name tokens only
+        words = name_tokens(data.words, state.switches)
+        channel = channel_counts(data.words, state.concepts, state.switches, L)
+        place_tokens = place_token_counts(data.words, data.homes, state.concepts, state.switches, E, L)
+    else:
+        words = sentence_words(data, state)
     return Statistics(
         concepts=allocation.concept_counts(data.homes, state.concepts, E, L),
         regions_by_concept=allocation.region_counts(data.homes, state.concepts, state.regions, E, L, K),
         region_count=count, region_total=total, region_scatter=scatter,
         visual=_visual_counts(data, state, E, L),
-        words=HierarchicalMultinomial.statistics(sentence_words(data, state), data.homes, state.concepts,
-                                                 E, L),
+        words=HierarchicalMultinomial.statistics(words, data.homes, state.concepts, E, L),
+        channel=channel, place_tokens=place_tokens,
     )
 
 
@@ -377,7 +403,10 @@ def _concept_loglik(data: PreparedData, state: GibbsState, view_counts: float | 
     weights = view_weights(data, view_counts)
     if weights is not None:
         loglik *= weights[:, None]
-    if data.words.nnz:
+    channels = getattr(state, "channels", None)
+    if data.words.nnz and channels is not None:  # the switches marginalised
+        loglik += mixture_log_likelihood(data.words, data.homes, state.log_theta_w, channels)
+    elif data.words.nnz:
         log_theta_w = kept_word_log_theta(state.log_theta_w, state.word_mask)
         loglik += HierarchicalMultinomial.log_likelihood(sentence_words(data, state), data.homes, log_theta_w)
     return loglik
@@ -419,6 +448,9 @@ def _local_step(data: PreparedData, state: GibbsState, settings: SamplerSettings
                                                                  region_ll, rng)
         state.concepts = allocation.sample_concepts_given_regions(state.log_g, state.log_pi, data.homes,
                                                                   state.regions, concept_ll, rng)
+    if state.channels is not None:  # each token's switch given its sample's new concept
+        state.switches = sample_switches(data.words, data.homes, state.concepts, state.log_theta_w,
+                                         state.channels, rng)
     return before
 
 
@@ -440,6 +472,8 @@ def _global_step(stats: Statistics, state: GibbsState, hyper: TransferHyperparam
     state.log_phi_w = HierarchicalMultinomial.sample_shared(tables_w, hyper.alpha_word, rng)
     state.log_g0 = allocation.sample_global_concept_weights(stats.concepts, state.log_g0, hyper.gamma,
                                                             hyper.gamma0, rng)
+    if stats.channel is not None and state.channels is not None:
+        state.channels = sample_channels(stats.channel, state.channels, rng)
 
 
 def _home_step(data: PreparedData, state: GibbsState, stats: Statistics, hyper: TransferHyperparameters,
@@ -470,9 +504,12 @@ def _swap_labels(data: PreparedData, state: GibbsState, stats: Statistics, hyper
                  settings: SamplerSettings, rng: np.random.Generator) -> None:
     """Metropolis–Hastings label swaps within each home, θ marginalised (see
     :mod:`spco.model.moves`), then θ of the homes that changed redrawn from its conditional."""
+    place = None
+    if stats.place_tokens is not None and state.channels is not None:
+        place = (stats.place_tokens, state.channels.log_place)
     perms = concept_swap_step(stats.visual, state.log_phi_v, hyper.delta_visual, stats.words,
                               state.log_phi_w, hyper.delta_word, state.log_g, state.log_g0, hyper.gamma,
-                              state.word_mask, rng)
+                              state.word_mask, rng, place=place)
     changed = np.flatnonzero((perms != np.arange(perms.shape[1])).any(axis=1))
     if changed.size == 0:
         return
@@ -564,7 +601,7 @@ def _prune(state: GibbsState, hyper: TransferHyperparameters, settings: SamplerS
     distribution and its log joint jumps when the mask changes. Without pruning the exact
     sampler is an MCMC for the model's posterior.
     """
-    if state.log_phi_w.shape[1] == 0:
+    if state.log_phi_w.shape[1] == 0 or state.channels is not None:  # channels: no pruning
         return
     if settings.variant == "exact" and data is not None:
         verdicts = naming_verdicts(data, state, hyper)

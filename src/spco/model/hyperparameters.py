@@ -25,6 +25,15 @@ DEFAULT_PRUNING_THRESHOLDS = {"kl": 0.1, "mi": 0.01}
 NAME_PRIORS = ("off", "wordnet")
 NamePrior = Literal["off", "wordnet"]
 
+#: The word models of the exact sampler with "+MI": word channels (name / place / background switch per
+#: token, :mod:`spco.model.word_channels`) or the naming rule (words pruned by where they are said,
+#: :mod:`spco.model.pruning`).
+WORD_MODELS = ("channels", "naming-rule")
+WordModel = Literal["channels", "naming-rule"]
+
+#: η of ``TransferHyperparameters.evidence_weight``.
+EVIDENCE_WEIGHT = 1.0
+
 #: The paper's Ψ0 for (x, y, sin θ, cos θ), x and y in cm².
 PAPER_PSI0_CM = (10.0, 10.0, 0.5, 0.5)
 
@@ -33,6 +42,13 @@ PAPER_PSI0_CM = (10.0, 10.0, 0.5, 0.5)
 #: ``docs/model.md``, "How much a view weighs"). ``what``'s probabilities weigh a test view by their
 #: own :data:`spco.model.confidence.VIEW_EFFECTIVE_COUNTS` (docs/model.md, "Two numbers for one view").
 VIEW_COUNTS = 16.0
+
+
+#: Largest Dirichlet concentration or NIW κ0 accepted (sums over thousands of dimensions stay finite).
+MAX_CONCENTRATION = 1e100
+#: Largest condition number of Ψ0 (its smallest eigenvalue must be representable beside its largest
+#: in a Cholesky factor: float64 holds 16 digits).
+MAX_CONDITION = 1e12
 
 
 def _positive(name: str, value: float) -> None:
@@ -81,6 +97,17 @@ class TransferHyperparameters:
         words said at a place is its name"). It changes prediction only, never the fit, and is
         written by :meth:`to_dict` only when not ``"off"`` (files and experiment identities from
         before it are unchanged).
+    word_model: the exact sampler's account of the words that are not names ("+MI" models):
+        ``"channels"`` (default) — every word token comes from the concept's names, the place's
+        associated words or a background, a latent switch with a learnt prior and the linguistic
+        evidence (:mod:`spco.model.word_channels`, docs/model.md "Words that are not names");
+        ``"naming-rule"`` — the earlier rule that prunes words by where they are said
+        (:mod:`spco.model.pruning`). A dictionary without it (a file from before it) reads as
+        ``"naming-rule"``, the model it was learnt with.
+    evidence_weight: η, the weight of the linguistic evidence in the switch's prior (word channels):
+        p(z = name | word) ∝ λ_name ν^η, p(z = place or background) ∝ λ_c (1 − ν)^η, ν the name
+        evidence of :mod:`spco.model.name_evidence`. Default :data:`EVIDENCE_WEIGHT`, chosen on
+        development data (docs/model.md, "Words that are not names").
     """
 
     n_concepts: int = 15
@@ -100,6 +127,8 @@ class TransferHyperparameters:
     mi_threshold: float | None = None
     view_counts: float | None = VIEW_COUNTS
     name_prior: NamePrior = "off"
+    word_model: WordModel = "channels"
+    evidence_weight: float = EVIDENCE_WEIGHT
 
     def __post_init__(self) -> None:
         for name in ("n_concepts", "n_regions"):
@@ -107,14 +136,22 @@ class TransferHyperparameters:
             if not isinstance(value, int | np.integer) or value < 1:
                 raise ConfigurationError(f"{name} must be an integer >= 1, got {value!r}")
         for name in ("alpha_visual", "alpha_word", "delta_visual", "delta_word", "gamma", "gamma0",
-                     "beta", "kappa0"):
+                     "beta", "kappa0", "evidence_weight"):
             _positive(name, float(getattr(self, name)))
-        if not (np.isfinite(self.nu0) and self.nu0 > 3):
-            raise ConfigurationError(f"nu0 must exceed the dimension minus one (3), got {self.nu0!r}")
+            if not float(getattr(self, name)) <= MAX_CONCENTRATION:
+                raise ConfigurationError(f"{name} must be at most {MAX_CONCENTRATION:g} (a Dirichlet's "
+                                         f"concentrations are summed over its dimensions), got "
+                                         f"{getattr(self, name)!r}")
+        if not (np.isfinite(self.nu0) and 3 < self.nu0 <= MAX_CONCENTRATION):
+            raise ConfigurationError(f"nu0 must exceed the dimension minus one (3) and be at most "
+                                     f"{MAX_CONCENTRATION:g}, got {self.nu0!r}")
         if self.view_counts is not None:
             _positive("view_counts", float(self.view_counts))
         if self.mi_threshold is not None and not (np.isfinite(self.mi_threshold) and self.mi_threshold >= 0):
             raise ConfigurationError(f"mi_threshold must be >= 0, got {self.mi_threshold!r}")
+        if self.word_model not in WORD_MODELS:
+            raise ConfigurationError(f"word_model must be one of {', '.join(map(repr, WORD_MODELS))}, "
+                                     f"got {self.word_model!r}")
         if self.name_prior not in NAME_PRIORS:
             raise ConfigurationError(f"name_prior must be one of {', '.join(map(repr, NAME_PRIORS))}, "
                                      f"got {self.name_prior!r}")
@@ -123,6 +160,12 @@ class TransferHyperparameters:
             np.linalg.cholesky(psi)
         except np.linalg.LinAlgError:
             raise ConfigurationError(f"psi0 must be symmetric positive definite, got {self.psi0!r}") from None
+        eig = np.linalg.eigvalsh(psi)
+        if not (eig.min() >= 1e-100 and eig.max() <= 1e100 and eig.max() <= MAX_CONDITION * eig.min()):
+            raise ConfigurationError(f"psi0 must have eigenvalues within 1e-100..1e100 m² and a condition "
+                                     f"number at most {MAX_CONDITION:g} (x, y beside sin θ, cos θ: a region "
+                                     f"with no sample has covariance ~Ψ0 and must factorise), got "
+                                     f"{self.psi0!r}")
         if self.mu0 is not None and (len(self.mu0) != 4 or not np.isfinite(self.mu0).all()):
             raise ConfigurationError(f"mu0 must be 4 finite numbers (x, y, sin θ, cos θ), got {self.mu0!r}")
 
@@ -156,6 +199,7 @@ class TransferHyperparameters:
     def from_dict(cls, data: dict[str, Any]) -> TransferHyperparameters:
         """Inverse of :meth:`to_dict`."""
         data = dict(data)
+        data.setdefault("word_model", "naming-rule")  # written before the word channels
         for key in ("psi0", "mu0"):
             if data.get(key) is not None:
                 data[key] = _to_tuple(data[key])
@@ -180,6 +224,9 @@ class TransferHyperparameters:
             if kind is None:
                 raise ConfigurationError(f"hyperparameter setting {setting!r}: no hyperparameter {name!r}; "
                                          f"settable: {', '.join(SETTABLE)}")
+            if kind == "one of channels, naming-rule":
+                changes[name] = text
+                continue
             if text.lower() == "none":
                 if kind != "number or none":
                     raise ConfigurationError(f"hyperparameter setting {setting!r}: {name} needs {kind}")
@@ -202,7 +249,8 @@ SETTABLE: dict[str, str] = {
     "n_concepts": "integer", "n_regions": "integer", "alpha_visual": "a number", "alpha_word": "a number",
     "delta_visual": "a number", "delta_word": "a number", "gamma0": "a number", "gamma": "a number",
     "beta": "a number", "kappa0": "a number", "nu0": "a number", "mi_threshold": "number or none",
-    "view_counts": "number or none",
+    "view_counts": "number or none", "evidence_weight": "a number",
+    "word_model": "one of channels, naming-rule",
 }
 
 
@@ -225,3 +273,73 @@ class SpCoAHyperparameters(TransferHyperparameters):
     alpha_word: float = 0.1
     beta: float = 1.0
     view_counts: float | None = None  # the baseline as published: every count a draw
+
+
+#: Where the default position prior and truncations come from (``fit_knowledge(prior=…)``,
+#: ``spco fit --prior``): ``"scaled"`` follows the experienced homes' scale (:func:`scaled_hyperparameters`),
+#: ``"paper"`` is the paper's constants (the reproduction).
+PRIORS = ("scaled", "paper")
+#: Words said at least this many times in a home measure its place sizes (:func:`scaled_hyperparameters`).
+_MIN_USES = 3
+
+
+def home_scales(positions: np.ndarray, said: Any) -> tuple[float, float, int]:
+    """(R, s, n) of one home's training samples, in map units.
+
+    R: the spread of its positions, sqrt of the mean variance of x and y. s: the size of its places,
+    the 25th percentile over its words said at ≥ 3 samples of the spread of those samples (a place
+    name is said at one place, a frame word such as "this" all over the home: the lower quartile
+    is the names'), NaN with fewer than two such words. n: how many of those words are said within
+    half the home's spread (words that mark one place: a count of the home's named places).
+
+    ``said``: (n_samples, V) sparse or dense, non-zero where a sample's sentence holds the word.
+    """
+    xy = np.asarray(positions, dtype=np.float64)[:, :2]
+    spread = float(np.sqrt(xy.var(axis=0).mean())) if xy.shape[0] else 0.0
+    dense = said.todense() if hasattr(said, "todense") else said
+    mask = np.asarray(dense) != 0
+    uses = mask.sum(axis=0)
+    sizes = np.array([np.sqrt(xy[mask[:, w]].var(axis=0).mean()) for w in np.flatnonzero(uses >= _MIN_USES)])
+    size = float(np.percentile(sizes, 25)) if sizes.size >= 2 else float("nan")
+    return spread, size, int((sizes < spread / 2).sum())
+
+
+def scaled_hyperparameters(homes: Sequence[tuple[np.ndarray, Any]],
+                           base: TransferHyperparameters | None = None) -> TransferHyperparameters:
+    """The paper's hyperparameters with the position prior and truncations following the homes' scale.
+
+    ``homes``: (positions (n, ≥2) in map units, said (n, V)) of each experienced home's training
+    samples (:func:`home_scales`). With R the median spread of the homes and s the median size of
+    their places (both in map units):
+
+    - κ0 = min(κ0_paper, (s / 2R)²). A region's mean is a priori N(μ0, Σ/κ0) around the map centre,
+      and its covariance's posterior gains κ0·n/(κ0 + n)·(x̄ − μ0)(x̄ − μ0)ᵀ: with the paper's 0.05 a
+      place 25 m from the centre of a university floor gets ≈ 31 m² added (its `where` draws land at
+      the next room). With (s/2R)² the mean's prior spreads over twice the home's spread and the
+      added term stays within a place's size wherever the place is (SIGVerse flats: s ≈ 0.3 m,
+      R ≈ 2.7 m, κ0 ≈ 0.003; the CC4F floor: s ≈ 0.7 m, R ≈ 15 m, κ0 ≈ 0.0006).
+    - L and K at least twice the most places any home names (words said within half its spread),
+      the paper's 15 and 20 otherwise: a weak-limit truncation below the places merges them.
+
+    Ψ0, ν0 stay the paper's (Ψ0 ≈ (1.4 cm)² is far below any place: the data decide a region's
+    size). Without two words said ≥ 3 times in any home, κ0 stays the paper's.
+    """
+    return scaled_from([home_scales(positions, said) for positions, said in homes], base)
+
+
+def scaled_from(scales: Sequence[tuple[float, float, int]],
+                base: TransferHyperparameters | None = None) -> TransferHyperparameters:
+    """:func:`scaled_hyperparameters` from the homes' :func:`home_scales` (R, s, n), computed where
+    the homes are read (a :class:`~spco.model.sources.FolderHomes` keeps them)."""
+    base = TransferHyperparameters() if base is None else base
+    if not scales:
+        return base
+    spread = float(np.median([r for r, _, _ in scales]))
+    sizes = [s for _, s, _ in scales if np.isfinite(s)]
+    places = max(n for _, _, n in scales)
+    kappa0 = base.kappa0
+    if sizes and spread > 0:
+        size = float(np.median(sizes))
+        kappa0 = float(min(base.kappa0, max((size / (2.0 * spread)) ** 2, 1e-12)))
+    return replace(base, kappa0=kappa0, n_concepts=max(base.n_concepts, 2 * places),
+                   n_regions=max(base.n_regions, 2 * places))

@@ -364,7 +364,8 @@ def teach_locally(
     data: the home's samples after the teaching; state: its state, the new samples' rows appended
     (their assignments are drawn here); shared: the shared part (fixed); n_known: the knowledge's
     words; taught: rows whose sentence changed or that are new; new: the new samples' rows;
-    n_sweeps: sweeps of the affected block (their thinned average answers for it); rng: the
+    n_sweeps: sweeps of the affected block (their thinned average answers for it; 0: the
+    state's values after the first draw of the affected parameters); rng: the
     generator; previous: the home's parameters before the teaching (``None``: none averaged);
     home_name: for the warning of :func:`~spco.model.home_shard.warn_if_own_names_spread`.
     """

@@ -193,7 +193,8 @@ def _matching_homes(alpha_v: np.ndarray, lg_v: np.ndarray, counts_v: np.ndarray,
 def concept_swap_step(visual_counts: np.ndarray, log_phi_v: np.ndarray, delta_v: float,
                       word_counts: np.ndarray, log_phi_w: np.ndarray, delta_w: float,
                       log_g: np.ndarray, log_g0: np.ndarray, gamma: float, word_mask: np.ndarray,
-                      rng: np.random.Generator) -> np.ndarray:
+                      rng: np.random.Generator,
+                      place: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """One pass of label-swap proposals in every home (θ marginalised).
 
     The proposals of a pass pair the home's concept slots by a uniformly random perfect matching,
@@ -202,6 +203,11 @@ def concept_swap_step(visual_counts: np.ndarray, log_phi_v: np.ndarray, delta_v:
 
     Shapes: visual_counts (E, L, D) and word_counts (E, L, V) per home and concept, log_phi_v
     (L, D), log_phi_w (L, V), log_g (E, L), log_g0 (L,), word_mask (V,).
+
+    ``place`` (optional, word channels): the place tokens per home, concept and word with their
+    counts (E, L, V) and log ψ (L, V) (:mod:`spco.model.word_channels`). ψ is shared and held fixed, so
+    swapping concepts a and b of home e adds Σ_k (P_{e,a,k} − P_{e,b,k})(log ψ_{b,k} − log ψ_{a,k}) to
+    the log acceptance ratio (subtracted from log u here: each pair's test is log u < ratio).
 
     Returns
     -------
@@ -221,6 +227,13 @@ def concept_swap_step(visual_counts: np.ndarray, log_phi_v: np.ndarray, delta_v:
     n_pairs = n_concepts // 2
     pairs = order[:, : 2 * n_pairs].reshape(n_homes, n_pairs, 2)
     log_u = np.log(rng.random((n_homes, n_pairs)))
+    if place is not None and n_pairs:
+        counts_p, log_psi = place
+        a_, b_ = pairs[..., 0], pairs[..., 1]  # (E, P)
+        homes = np.arange(n_homes)[:, None]
+        diff_counts = counts_p[homes, a_] - counts_p[homes, b_]  # (E, P, V)
+        diff_log = log_psi[b_] - log_psi[a_]  # (E, P, V)
+        log_u = log_u - np.einsum("epv,epv->ep", diff_counts, diff_log)
     return _matching_pass(np.ascontiguousarray(alpha_v), np.ascontiguousarray(visual_counts, dtype=np.int64),
                           np.ascontiguousarray(alpha_w), np.ascontiguousarray(counts_w, dtype=np.int64),
                           g_term, np.ascontiguousarray(log_g), np.ascontiguousarray(pairs, dtype=np.int64),

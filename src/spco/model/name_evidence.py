@@ -45,37 +45,38 @@ from collections.abc import Iterable, Sequence
 
 import numpy as np
 
-from spco.data.language import Vocabulary
+from spco.data.language import (  # noqa: F401  (re-exported)
+    CLOSED_CLASS,
+    COPULAS,
+    DETERMINERS,
+    OTHER_FUNCTION_WORDS,
+    PREPOSITIONS,
+    PRONOUNS,
+    Vocabulary,
+    is_function_word,
+)
 
 __all__ = [
+    "CLOSED_CLASS",
     "COPULAS",
     "DETERMINERS",
     "FEATURES",
     "PREPOSITIONS",
     "PRONOUNS",
     "WEIGHTS",
+    "channel_evidence",
+    "content_share",
     "feature_matrix",
     "frame_features",
+    "has_english",
+    "is_function_word",
     "lexical_features",
     "name_prior",
     "within_concepts",
 ]
 
-#: Determiners and possessive pronouns (a word ending in "'s" or "s'" also counts as a possessive).
-DETERMINERS = frozenset({"the", "a", "an", "this", "that", "these", "those", "my", "our", "your", "his",
-                         "her", "their", "its", "whose"})
-#: Prepositions (place and direction phrases: "on the table", "to your left", "next to the bath").
-PREPOSITIONS = frozenset({"to", "in", "on", "at", "by", "from", "into", "onto", "near", "next", "beside",
-                          "behind", "under", "over", "across", "through", "after", "before", "for",
-                          "with", "of", "off", "out", "up", "down", "around", "between", "inside",
-                          "outside", "past", "toward", "towards", "along", "against", "opposite",
-                          "above", "below", "beneath", "underneath", "within", "without", "via"})
-#: Copulas and naming verbs: what comes before a name in "this is X", "we call it X".
-COPULAS = frozenset({"is", "are", "was", "it's", "that's", "here's", "this's", "called", "call",
-                     "named", "name", "be", "it", "s"})
-#: Personal pronouns (subjects and objects: "I'm home", "we eat", "see you").
-PRONOUNS = frozenset({"i", "i'm", "me", "we", "we're", "us", "you", "you're", "he", "she", "they",
-                      "they're", "him", "them", "i've", "we've", "i'll", "we'll"})
+# The English function-word lists live with the tokeniser (:mod:`spco.data.language`, whose term
+# rule uses them too); re-exported here, where the frames read them.
 #: Words after a name in "X is here", "X here", "X's here".
 AFTER_NAME = frozenset({"is", "are", "here", "'s"})
 
@@ -87,6 +88,16 @@ FEATURES = ("determiner", "naming_frame", "preposition", "pronoun", "sentence_st
 #: development data, L2 penalty 1; see docs/model.md).
 WEIGHTS: tuple[float, ...] = (-5.805, 2.303, 0.703, -1.110, -0.366, 0.068, -0.140, 0.030, 1.458, 2.641,
                                -0.434)
+
+
+def content_share(words: Sequence[str]) -> np.ndarray:
+    """(V,) the share of each vocabulary entry's words that are content words (not
+    :func:`is_function_word`): 1 for "wash basin", 0.5 for "front of", 0 for "you are in"."""
+    out = np.empty(len(words))
+    for k, word in enumerate(words):
+        parts = word.split() or [word]
+        out[k] = sum(not is_function_word(p) for p in parts) / len(parts)
+    return out
 
 
 def _possessive(token: str) -> bool:
@@ -184,6 +195,63 @@ def name_prior(vocabulary: Vocabulary, sentences: Iterable[str | None], lexicon:
     if w.shape != (features.shape[1] + 1,):
         raise ValueError(f"expected {features.shape[1] + 1} weights, got {w.shape}")
     return 1.0 / (1.0 + np.exp(-(w[0] + features @ w[1:])))
+
+
+#: A word that is the WordNet kind (a hypernym) of at least this many other place words said is
+#: the name of a kind of place ("room": bedroom, kitchen, bathroom, …), not of one place.
+KIND_OF_PLACES = 3
+#: So is a word with at least this many kinds under one of its two commonest noun senses in WordNet
+#: ("room" 195, "area" 91, "house" 59, "place" 55; "entrance" 16, "bed" 23, "kitchen" 4).
+KINDS_BELOW = 50
+#: The factor of a kind word's name evidence in the word channels' prior.
+KIND_FACTOR = 0.1
+
+
+def channel_evidence(vocabulary: Vocabulary, sentences: Iterable[str | None],
+                     lexicon: object | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The evidence of the word channels' switch prior (:mod:`spco.model.word_channels`): (ν, a), each
+    (V,). ν: :func:`name_prior`, times :data:`KIND_FACTOR` for a place word that is the kind of
+    :data:`KIND_OF_PLACES` or more other place words of the vocabulary (WordNet hypernyms: "room"),
+    or has :data:`KINDS_BELOW` kinds or more under a commonest sense ("place", "area");
+    a: :func:`content_share`. A word without any evidence (unknown to WordNet and never said in a
+    sentence holding an English function word: text in another language) gets ν = a = 0.5."""
+    sentences = list(sentences)
+    if lexicon is None:
+        from spco.data.lexicon import lexicon as load
+
+        lexicon = load()
+    features = feature_matrix(vocabulary, sentences, lexicon)
+    w = np.asarray(WEIGHTS, dtype=np.float64)
+    nu = 1.0 / (1.0 + np.exp(-(w[0] + features @ w[1:])))
+    words = list(vocabulary.words)
+    if lexicon is not None:
+        place = features[:, FEATURES.index("place_share")] > 0
+        candidates = [words[k] for k in np.flatnonzero(place)]
+        for k in np.flatnonzero(place):
+            if (lexicon.kinds_below(words[k]) >= KINDS_BELOW  # type: ignore[attr-defined]
+                    or lexicon.kinds_of(words[k], candidates) >= KIND_OF_PLACES):  # type: ignore[attr-defined]
+                nu[k] *= KIND_FACTOR
+    content = content_share(words)
+    # a word with no evidence at all — unknown to WordNet, never said in a sentence with an English
+    # function word, not one itself (text in another language: Japanese particles and names alike) —
+    # gets the neutral prior: name, place or background as its uses say, not "no name" (σ of the
+    # intercept, 0.006)
+    english = np.zeros(len(words), dtype=bool)  # said in a sentence holding an English function word
+    for sentence in sentences:
+        if sentence is None:
+            continue
+        tokens = vocabulary.tokenize(sentence)
+        if any(t in CLOSED_CLASS for t in tokens):
+            english[[k for k in map(vocabulary.index, tokens) if k is not None]] = True
+    silent = (features[:, FEATURES.index("known")] == 0) & ~english & (content == 1.0)
+    nu[silent], content[silent] = 0.5, 0.5
+    return nu, content
+
+
+def has_english(vocabulary: Vocabulary, sentences: Iterable[str | None]) -> bool:
+    """Whether any of ``sentences`` holds an English function word (:data:`CLOSED_CLASS`): the
+    evidence of the word channels is English; speech without any is learnt with the naming rule."""
+    return any(any(t in CLOSED_CLASS for t in vocabulary.tokenize(s)) for s in sentences if s)
 
 
 def within_concepts(weighted: np.ndarray, prior: np.ndarray) -> np.ndarray:

@@ -42,6 +42,11 @@ class ConceptParameters:
         (``predict_names(..., name_prior="wordnet")``), the order of each concept's words; or
         ``None`` (models without the naming rule, and files written before it existed: every word
         alike).
+    place_word_probabilities: (L, V) ψ_l, the words said at each concept's place that are not its
+        names (objects, activities, people: the word channels, :mod:`spco.model.word_channels`), or
+        ``None`` (models without the channels). ``word_probabilities`` is then the names channel.
+    word_channel_prior: (V, 3) p(z = name, place, background | word), the switch's prior of every
+        word with the learnt shares, or ``None``.
     """
 
     concept_weights: np.ndarray
@@ -57,6 +62,8 @@ class ConceptParameters:
     region_counts: np.ndarray
     concept_counts: np.ndarray | None = None
     name_prior: np.ndarray | None = None
+    place_word_probabilities: np.ndarray | None = None
+    word_channel_prior: np.ndarray | None = None
 
     @property
     def n_environments(self) -> int:

@@ -34,7 +34,7 @@ send a place name to an arbitrary region. The estimators therefore export a summ
 - ``concept_counts`` (E, L) and ``region_counts`` (E, K) are the mean numbers of training
   samples assigned (region counts rounded to whole samples); a concept with a mean count below 1
   holds no sample of that home: prediction treats a name whose probability comes from such
-  concepts as not learnt there (see :func:`spco.model.prediction.region_posterior_for_name`).
+  concepts as not learnt there (see :func:`spco.model.position_prediction.region_posterior_for_name`).
 
 The shared φ^v, φ^w and G_0 exported with the home parameters are those of the last sample (they
 are not used for prediction; :func:`spco.knowledge.fit_knowledge` averages them for transfer).

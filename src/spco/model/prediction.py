@@ -1,4 +1,4 @@
-"""Prediction in a learnt home: place names from observations, positions from place names.
+"""Prediction in a learnt home: place names from observations (p(name | pose, view)).
 
 Everything here is a pure function of a :class:`~spco.model.parameters.ConceptParameters` sample,
 a home index ``e`` and the corpus :class:`~spco.data.language.Vocabulary` (column ``k`` of the word
@@ -15,16 +15,7 @@ where ``I(w)`` is the mutual information between the indicator "word = w" and th
 each concept's word probability by a per-concept KL score (``weighting="reference"``,
 :func:`kl_scores_reference`).
 
-Positions::
-
-    p(m | w) ∝ Σ_l π_{e,l,m} θ^w_{e,l,w} G_{e,l},   m̂ = argmax_m p(m | w),   x ~ N(μ_{e,m̂}, Σ_{e,m̂}).
-
-The sum runs over the concepts that hold training samples of home e (``concept_counts`` ≥ 1): a
-concept with no sample there has π drawn from its sparse prior, which says nothing about the
-home's map. The share of Σ_l θ^w_{e,l,w} G_{e,l} that those concepts hold is the name's
-``support`` in the home; below :data:`LEARNT_SUPPORT` the place is reported as not learnt in this
-home (``PositionPrediction.learnt`` False): its name is explained mostly by concepts of other
-homes, e.g. ``dining`` in a home without a dining room.
+Positions from place names: :mod:`spco.model.position_prediction`.
 
 Input: every function validates its input the same way, and so does the CLI, which calls them:
 poses are ``(x, y, sin θ, cos θ)`` rows with sin² + cos² = 1 (:func:`validate_poses`); visual
@@ -41,16 +32,17 @@ factor is taken.
 
 Confidence: those thousands of nats make p(w | x, v) sure of every answer, the wrong ones too (the
 counts of one image are not independent draws). ``view_counts`` weights each view's visual term as
-that many draws; ``spco.knowledge.what`` answers with :func:`spco.model.confidence.predict_names_honestly`
-(a view = :data:`~spco.model.confidence.VIEW_EFFECTIVE_COUNTS` draws, free concepts' names at their
-posterior mean, an ``unsure`` flag). ``view_counts=None`` (the default here) is the multinomial;
+that many draws; ``spco.knowledge.what`` and ``ask`` answer with :func:`predict_names` on
+``spco.knowledge.answer_parameters`` (free concepts' names at their posterior mean) with a view =
+:data:`~spco.model.confidence.VIEW_EFFECTIVE_COUNTS` draws and an ``unsure`` flag.
+``view_counts=None`` (the default here) is the multinomial;
 the exact model learns, and its experiments predict, with ``TransferHyperparameters.view_counts``.
 """
 
 from __future__ import annotations
 
 import difflib
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
@@ -63,40 +55,27 @@ from spco.model.hyperparameters import NAME_PRIORS, NamePrior
 from spco.model.name_evidence import within_concepts
 from spco.model.parameters import ConceptParameters
 from spco.model.pruning import bernoulli_kl_scores, word_concept_mutual_information
-from spco.model.unheard import resolve_name
 
 __all__ = [
-    "LEARNT_SUPPORT",
     "NamePrediction",
-    "PositionPrediction",
     "UnknownNameError",
     "concept_posterior",
-    "draw_poses",
     "gaussian_log_density",
     "kl_scores_reference",
     "mutual_information_weights",
-    "name_support",
     "predict_names",
-    "predict_positions",
-    "query_indices",
-    "query_name",
     "reference_kl_weights",
-    "region_posterior_for_name",
     "validate_poses",
     "validate_visual_counts",
     "word_posterior",
 ]
 
 Weighting = Literal["mi", "none", "reference"]
-PositionMode = Literal["argmax", "mixture"]
 
 _TINY = np.finfo(np.float64).tiny
 _LOG_FLOOR = float(np.log(_TINY))  # ≈ -708.4: the log of "zero", finite on purpose
 _LOG_2PI = float(np.log(2.0 * np.pi))
 
-#: A place name is *learnt* in a home when at least this share of its probability there comes
-#: from concepts that hold samples of the home (see :func:`name_support`).
-LEARNT_SUPPORT = 0.5
 #: Tolerance on sin² θ + cos² θ = 1 for the pose columns 3–4.
 _UNIT_TOLERANCE = 1e-3
 
@@ -175,61 +154,6 @@ class NamePrediction:
 
     def __len__(self) -> int:
         return int(self.words.shape[0])
-
-
-@dataclass(frozen=True, eq=False)
-class PositionPrediction:
-    """Positions predicted for one place name.
-
-    Attributes
-    ----------
-    name: the normalised name (a vocabulary word).
-    region: m̂ = argmax_m p(m | w).
-    region_probabilities: (K,) p(m | w).
-    samples: (n, 3) sampled poses ``(x, y, θ)``, metres and radians; ``θ = atan2(sin, cos)`` of
-        the sampled 4-D vector, NaN when ``xy_only``. The same draws in the input convention
-        ``(x, y, sin θ, cos θ)`` are :attr:`poses`.
-    regions: (n,) int, the region each sample was drawn from.
-    log_density: (n,) log-density of each raw draw (4-D, or x–y when ``xy_only``) under the
-        whole mixture Σ_m p(m | w) N(· | μ_m, Σ_m).
-    weights: (n,) that density normalised over the ``n`` samples (sums to 1).
-    mode: ``"argmax"`` or ``"mixture"``.
-    xy_only: whether only the x–y marginal was sampled.
-    support: the share of the name's probability in the home that comes from concepts holding
-        samples of the home (:func:`name_support`); 1.0 when the parameters carry no concept
-        counts.
-    learnt: ``support >= LEARNT_SUPPORT``; False means "no such place learnt in this home": the
-        region and samples are then the best the model can say, but not knowledge of this home.
-    asked: the name asked for when nobody said it and the lexicon found the known name ``name``
-        for it (:func:`spco.model.unheard.resolve_name`: "restroom" asked, "toilet" used); else None.
-    via: how the lexicon related them (``"synonym"``, ``"gloss"``, …), or None.
-    """
-
-    name: str
-    region: int
-    region_probabilities: np.ndarray
-    samples: np.ndarray
-    regions: np.ndarray
-    log_density: np.ndarray
-    weights: np.ndarray
-    mode: str
-    xy_only: bool
-    support: float = 1.0
-    learnt: bool = True
-    asked: str | None = None
-    via: str | None = None
-
-    @property
-    def xy(self) -> np.ndarray:
-        """(n, 2) sampled x, y in metres."""
-        return self.samples[:, :2]
-
-    @property
-    def poses(self) -> np.ndarray:
-        """(n, 4) the samples as ``(x, y, sin θ, cos θ)``, the convention of the inputs (NaN
-        columns 3–4 when ``xy_only``)."""
-        theta = self.samples[:, 2]
-        return np.column_stack([self.samples[:, :2], np.sin(theta), np.cos(theta)])
 
 
 # ---------------------------------------------------------------------------------- helpers
@@ -603,8 +527,8 @@ def predict_names(
         prior (no naming rule) keeps the MI order. Opt-in: on the held-out speech set it lowered
         A_n (a weak name such as "dining" lost its concept to "kitchen"; docs/model.md).
     unsure_below: stored in the result: an answer whose probability is below it is
-        :attr:`NamePrediction.unsure` (``None``: never). ``spco.knowledge.what`` answers with
-        :func:`spco.model.confidence.predict_names_honestly`.
+        :attr:`NamePrediction.unsure` (``None``: never); ``spco.knowledge.what`` passes
+        :data:`spco.model.confidence.UNSURE_BELOW`.
 
     Words with ``word_mask`` False are never returned. Ties in the score are broken by p(w|x,v),
     then by vocabulary order. A word with I(w) = 0 scores 0 and is ranked after every word with a
@@ -647,207 +571,4 @@ def predict_names(
         word_probabilities=probs,
         weighting=weighting,
         unsure_below=unsure_below,
-    )
-
-
-# ---------------------------------------------------------------------------------- positions
-def query_indices(params: ConceptParameters, vocabulary: Vocabulary, name: str) -> list[int]:
-    """Columns of the usable tokens of a name asked for (see :func:`region_posterior_for_name`)."""
-    _check_vocabulary(params, vocabulary)
-    mask = np.asarray(params.word_mask, dtype=bool)
-    known = [w for w, keep in zip(vocabulary.words, mask, strict=True) if keep]
-    _, indices = vocabulary.query(name)
-    usable = list(dict.fromkeys(k for k in indices if mask[k]))
-    if usable:
-        return usable
-    if not indices:
-        raise UnknownNameError(name, known)
-    pruned = ", ".join(repr(vocabulary.words[k]) for k in dict.fromkeys(indices))
-    raise UnknownNameError(name, known, reason=f"the word {pruned} was pruned as uninformative (it names "
-                           "no place)" if len(set(indices)) == 1 else
-                           f"the words {pruned} were pruned as uninformative (they name no place)")
-
-
-def query_name(vocabulary: Vocabulary, params: ConceptParameters, name: str) -> str:
-    """How a name asked for is understood: its usable tokens joined by ``" + "`` (``"living room"``,
-    or ``"study + room"`` for a name never learnt as one term)."""
-    return " + ".join(vocabulary.words[k] for k in query_indices(params, vocabulary, name))
-
-
-def _occupied_concepts(params: ConceptParameters, e: int) -> np.ndarray:
-    """(L,) bool: concepts holding training samples of home ``e`` (mean count ≥ 1); all True when
-    the parameters carry no concept counts."""
-    if params.concept_counts is None:
-        return np.ones(params.n_concepts, dtype=bool)
-    return np.asarray(params.concept_counts[e], dtype=np.float64) >= 1.0
-
-
-def _name_concept_weights(params: ConceptParameters, e: int, words: list[int]) -> np.ndarray:
-    """(L,) G_{e,l} Π_i θ^w_{e,l,w_i}: how much each concept of home e explains the words said together,
-    scaled by the largest concept's Π_i θ (several small θ multiply); a concept in which a word has
-    probability 0 keeps weight 0."""
-    log_theta = _safe_log(_word_matrix(params, e)[:, words]).sum(axis=1)  # (L,)
-    top = float(log_theta.max())
-    theta_w = np.exp(log_theta - top) if top > _LOG_FLOOR else np.zeros_like(log_theta)
-    g = np.clip(np.asarray(params.concept_weights[e], dtype=np.float64), 0.0, None)
-    return g * theta_w
-
-
-def concept_stand_ins(params: ConceptParameters, e: int) -> np.ndarray:
-    """(L,) int: the concept of home ``e`` that stands in for each concept when a name is looked for.
-
-    A concept holding samples of the home (``concept_counts`` ≥ 1) stands for itself. A concept with
-    none has no place in this home (its π there is its prior), yet it may carry a name the other
-    homes say at a place this home has under another concept: people call the bath "bath",
-    "bathroom" or "shower", each household its own way, and the sampler learns one concept per name
-    (a synonym's samples keep to the concept whose θ^w gives it the most). Such a concept is looked
-    for where the home keeps the concept its views would be assigned to: the occupied concept l
-    maximising Σ_d φ^v_{l',d} log θ^v_{e,l,d}, the log-likelihood per count of the concept's shared
-    view profile φ^v_{l'} (a typical view of it). Views carry thousands of counts per sample, so that
-    assignment is a hard choice and this one is too. Identity when no concept is occupied or the
-    parameters carry no concept counts.
-    """
-    e = _check_home(params, e)
-    n_concepts = params.n_concepts
-    occupied = _occupied_concepts(params, e)
-    stand_in = np.arange(n_concepts)
-    if occupied.all() or not occupied.any():
-        return stand_in
-    phi_v = np.clip(np.asarray(params.shared_visual_probabilities, dtype=np.float64), 0.0, None)  # (L, D)
-    log_theta_v = _safe_log(np.asarray(params.visual_probabilities[e], dtype=np.float64))  # (L, D)
-    fit = phi_v[~occupied] @ log_theta_v[occupied].T  # (unoccupied, occupied)
-    stand_in[~occupied] = np.flatnonzero(occupied)[np.argmax(fit, axis=1)]
-    return stand_in
-
-
-def name_support(params: ConceptParameters, e: int, vocabulary: Vocabulary, name: str) -> float:
-    """Share of p(name | home e) = Σ_l G_{e,l} θ^w_{e,l,w} held by concepts with samples of home e.
-
-    Near 1: the name belongs to places the home's samples were assigned to. Near 0: the name is
-    explained by concepts that hold no sample of this home (their θ^w and π come from the prior,
-    i.e. from the other homes): no such place was learnt in this home. Returns a float in [0, 1]
-    (0 if the name has probability 0 in every concept).
-    """
-    e = _check_home(params, e)
-    weights = _name_concept_weights(params, e, query_indices(params, vocabulary, name))
-    total = weights.sum()
-    return float(weights[_occupied_concepts(params, e)].sum() / total) if total > 0 else 0.0
-
-
-def region_posterior_for_name(
-    params: ConceptParameters, e: int, vocabulary: Vocabulary, name: str
-) -> np.ndarray:
-    """p(m | w) ∝ Σ_l π_{e,l,m} θ^w_{e,l,w} G_{e,l} for the place name ``name``.
-
-    ``name`` is tokenised like a sentence (:meth:`~spco.data.language.Vocabulary.tokenize`:
-    ``"Living Room"``, ``"living-room"`` → the token ``"living room"``). A name of several tokens
-    (``"study room"`` never learnt as one term) is understood as all its known, unpruned tokens said
-    together: p(m | w_1 … w_n) ∝ Σ_l π_{e,l,m} G_{e,l} Π_i θ^w_{e,l,w_i}; its unknown or pruned tokens
-    are left out. The sum runs over the concepts holding samples of home ``e`` (``concept_counts``
-    ≥ 1), or over all concepts if the name has no probability in those (see :func:`name_support`).
-    Returns (K,) float64 summing to 1. Raises :class:`UnknownNameError` if no token of the name is
-    known and unpruned, or the name has probability 0 in every concept of home ``e``.
-    """
-    e = _check_home(params, e)
-    ws = query_indices(params, vocabulary, name)
-    concept_weights = _name_concept_weights(params, e, ws)  # (L,)
-    # a concept without samples of this home is looked for where its stand-in is (synonyms)
-    concept_weights = np.bincount(concept_stand_ins(params, e), weights=concept_weights,
-                                  minlength=concept_weights.size)
-    occupied = _occupied_concepts(params, e)
-    if (concept_weights[occupied] > 0).any():
-        concept_weights = np.where(occupied, concept_weights, 0.0)
-    pi = np.clip(np.asarray(params.region_weights[e], dtype=np.float64), 0.0, None)  # (L, K)
-    weights = concept_weights @ pi  # (K,)
-    total = weights.sum()
-    if not total > 0:
-        mask = np.asarray(params.word_mask, dtype=bool)
-        known = [v for v, keep in zip(vocabulary.words, mask, strict=True) if keep]
-        shown = " + ".join(vocabulary.words[w] for w in ws)
-        raise UnknownNameError(name, known, reason=f"the name {shown!r} has "
-                               f"probability 0 in every concept of home {e}")
-    return weights / total
-
-
-def draw_poses(params: ConceptParameters, e: int, region_probabilities: np.ndarray, regions: np.ndarray,
-               rng: np.random.Generator, xy_only: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Poses drawn from the Gaussians of ``regions`` (n,) of home ``e``, one per entry.
-
-    Returns ``samples`` (n, 3) = (x, y, θ) (θ NaN when ``xy_only``: the x–y marginal is drawn),
-    ``log_density`` (n,) of each raw draw under the mixture Σ_m p(m) N(· | μ_m, Σ_m) with
-    p(m) = ``region_probabilities``, and ``weights`` (n,), that density normalised over the draws.
-    """
-    n = regions.size
-    d = 2 if xy_only else 4
-    means = np.asarray(params.region_means[e], dtype=np.float64)[:, :d]
-    covs = np.asarray(params.region_covariances[e], dtype=np.float64)[:, :d, :d]
-    z = rng.standard_normal((n, d))
-    draws = means[regions] + np.einsum("nij,nj->ni", _cholesky(covs)[regions], z)
-    if not n:
-        return np.empty((0, 3)), np.empty(0), np.empty(0)
-    theta = np.full(n, np.nan) if xy_only else np.arctan2(draws[:, 2], draws[:, 3])
-    samples = np.column_stack([draws[:, 0], draws[:, 1], theta])
-    log_mixture = _safe_log(region_probabilities)[None, :] + gaussian_log_density(draws, means, covs)
-    log_density = logsumexp(log_mixture, axis=1)
-    return samples, log_density, np.exp(log_density - logsumexp(log_density))
-
-
-def predict_positions(
-    params: ConceptParameters,
-    e: int,
-    vocabulary: Vocabulary,
-    name: str,
-    n: int = 10,
-    rng: np.random.Generator | int | None = None,
-    mode: PositionMode = "argmax",
-    xy_only: bool = False,
-    unheard: bool = True,
-) -> PositionPrediction:
-    """Sample ``n`` poses where the place ``name`` is, in home ``e``.
-
-    Parameters
-    ----------
-    mode: ``"argmax"`` — draw from N(μ_m̂, Σ_m̂) with m̂ = argmax p(m | w) (the paper);
-        ``"mixture"`` — draw each sample's region from p(m | w) first.
-    xy_only: draw from the x–y marginal only (the authors' code); θ is then NaN.
-    rng: a Generator (advanced by the draws) or a seed.
-    unheard: a name that is not a usable token is first looked up in the lexicon
-        (:func:`spco.model.unheard.resolve_name`; ``asked`` and ``via`` of the result say so); False:
-        only the name's own known tokens are used.
-
-    Returns a :class:`PositionPrediction` with samples (n, 3) = (x, y, θ) (``poses``: the same
-    as (x, y, sin θ, cos θ)), the name's ``support`` in the home and ``learnt`` (see the module
-    docstring: False means no such place was learnt in this home).
-    """
-    if n < 0:
-        raise ConfigurationError(f"the number of positions must be >= 0, got {n}")
-    if mode not in ("argmax", "mixture"):
-        raise ConfigurationError(f"mode must be 'argmax' or 'mixture', got {mode!r}")
-    e = _check_home(params, e)
-    resolved = (resolve_name(vocabulary, params.word_mask, name, params.name_prior,
-                             information=mutual_information_weights(params, e)) if unheard else None)
-    if resolved is not None:  # a name nobody said: the known name the lexicon finds for it
-        pred = predict_positions(params, e, vocabulary, resolved.name, n, rng, mode, xy_only, unheard=False)
-        return replace(pred, asked=resolved.asked, via=resolved.how)
-    probs = region_posterior_for_name(params, e, vocabulary, name)
-    support = name_support(params, e, vocabulary, name)
-    best = int(np.argmax(probs))
-    gen = np.random.default_rng(rng)
-    if mode == "argmax":
-        regions = np.full(n, best, dtype=np.int64)
-    else:
-        regions = gen.choice(probs.size, size=n, p=probs).astype(np.int64)
-    samples, log_density, weights = draw_poses(params, e, probs, regions, gen, xy_only)
-    return PositionPrediction(
-        name=query_name(vocabulary, params, name),
-        region=best,
-        region_probabilities=probs,
-        samples=samples,
-        regions=regions,
-        log_density=log_density,
-        weights=weights,
-        mode=mode,
-        xy_only=bool(xy_only),
-        support=support,
-        learnt=support >= LEARNT_SUPPORT,
     )

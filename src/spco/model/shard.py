@@ -42,6 +42,7 @@ from spco.model.kernels.dirichlet import log_dirichlet
 from spco.model.observations import HierarchicalMultinomial
 from spco.model.pruning import NAME, NOT_A_NAME, Colocation, colocation, judge_names
 from spco.model.shard_init import ShardInitialisation
+from spco.model.word_channels import ChannelCounts, WordChannels, sample_channels
 
 #: Float statistics a home sends to be summed over homes (the naming rule's expected pairs and
 #: log-likelihoods, the synonyms' overlaps) are rounded to multiples of this grid first: sums of
@@ -85,16 +86,22 @@ class SharedParameters:
     log_g0: np.ndarray
     word_mask: np.ndarray
     name_words: np.ndarray | None = None
+    #: the word channels (:mod:`spco.model.word_channels`; ``None``: the naming rule's word model)
+    channels: WordChannels | None = None
 
     @classmethod
     def of(cls, state: GibbsState) -> SharedParameters:
         """The shared parameters held in ``state``."""
-        return cls(state.log_phi_v, state.log_phi_w, state.log_g0, state.word_mask, state.name_words)
+        return cls(state.log_phi_v, state.log_phi_w, state.log_g0, state.word_mask, state.name_words,
+                   state.channels)
 
     @property
     def nbytes(self) -> int:
         """Bytes of the arrays (what a broadcast sends)."""
         arrays = (self.log_phi_v, self.log_phi_w, self.log_g0, self.word_mask, self.name_words)
+        if self.channels is not None:
+            c = self.channels
+            arrays += (c.log_place, c.log_background, c.log_shares, c.log_evidence)
         return sum(a.nbytes for a in arrays if a is not None)
 
 
@@ -195,16 +202,19 @@ class HomeShard(ShardInitialisation):
         visual likelihood left out: ``PreparedData.view_missing``)."""
         return self.data.n_views
 
-    def local_step(self, word_mask: np.ndarray | None = None, name_words: np.ndarray | None = None) -> float:
+    def local_step(self, word_mask: np.ndarray | None = None, name_words: np.ndarray | None = None,
+                   channels: WordChannels | None = None) -> float:
         """Draw every sample's concept and region and count the statistics (kept in the shard).
 
         ``word_mask`` (V,) is the pruning decision of the previous sweep and ``name_words`` (V,) the
-        words it judged names (``None``: unchanged). Returns this shard's part of
-        log p(data, C, R | parameters) for the state it started from."""
+        words it judged names, ``channels`` the word channels (``None``: unchanged). Returns this
+        shard's part of log p(data, C, R | parameters) for the state it started from."""
         if word_mask is not None:
             self.state.word_mask = word_mask
         if name_words is not None:
             self.state.name_words = name_words
+        if channels is not None:
+            self.state.channels = channels
         log_joint = gibbs.local_step(self.data, self.state, self.settings, self.rng)
         self.stats = gibbs.sufficient_statistics(self.data, self.state, self.hyper)
         return log_joint
@@ -223,6 +233,13 @@ class HomeShard(ShardInitialisation):
             concentration = hyper.gamma * np.exp(state.log_g0)[None, :]
             return sample_crt(stats.concepts, concentration, self.rng).sum(axis=0)
         raise ValueError(f"unknown table kind {kind!r}; choose one of {TABLE_KINDS}")
+
+    def channel_counts(self) -> ChannelCounts:
+        """The switches' counts of the shard's homes (word channels; each token once)."""
+        stats = self._stats()
+        if stats.channel is None:
+            raise RuntimeError("HomeShard: no word channels in this state")
+        return stats.channel
 
     def pooled_counts(self) -> PooledCounts:
         """The shard's visual, word and concept counts summed over its homes (authors' sampler)."""
@@ -255,6 +272,8 @@ class HomeShard(ShardInitialisation):
         self.state.log_g0, self.state.word_mask = shared.log_g0, shared.word_mask
         if shared.name_words is not None:
             self.state.name_words = shared.name_words
+        if shared.channels is not None:
+            self.state.channels = shared.channels
         if prune:
             gibbs.prune(self.state, self.hyper, self.settings)
         return HomeStepResult(self.state.word_mask if prune else None)
@@ -294,12 +313,15 @@ class GlobalStep:
             return SharedParameters(log_dirichlet(hyper.alpha_visual + counts.visual, rng),
                                     log_dirichlet(hyper.alpha_word + counts.words, rng),
                                     log_dirichlet(hyper.gamma0 + counts.concepts, rng), shared.word_mask,
-                                    shared.name_words)
+                                    shared.name_words, shared.channels)
         log_phi_v = log_dirichlet(hyper.alpha_visual + self.reduce(call("tables", "visual")), rng)
         log_phi_w = log_dirichlet(hyper.alpha_word + self.reduce(call("tables", "words")), rng)
         tables_g = self.reduce(call("tables", "concepts"))
         log_g0 = log_dirichlet(hyper.gamma0 / hyper.n_concepts + tables_g, rng)
-        return SharedParameters(log_phi_v, log_phi_w, log_g0, shared.word_mask, shared.name_words)
+        channels = shared.channels
+        if channels is not None:  # ψ, β, λ from the switches' counts of every home
+            channels = sample_channels(self.reduce(call("channel_counts")), channels, rng)
+        return SharedParameters(log_phi_v, log_phi_w, log_g0, shared.word_mask, shared.name_words, channels)
 
     def reduce(self, parts: list):
         """The shards' statistics added up in shard order (counting the bytes received)."""
@@ -313,7 +335,7 @@ class GlobalStep:
 def _nbytes(value) -> int:
     if isinstance(value, PooledCounts):
         return value.visual.nbytes + value.words.nbytes + value.concepts.nbytes
-    if isinstance(value, Colocation):
+    if isinstance(value, Colocation | ChannelCounts):
         return value.nbytes
     return int(np.asarray(value).nbytes)
 
@@ -330,9 +352,9 @@ def sweep(call, global_step: GlobalStep, shared: SharedParameters, iteration: in
     parameters (with the new mask and names)."""
     settings = global_step.settings
     # every home's part, summed in home order (the same sum however the homes are grouped)
-    log_joint = float(sum(value for part in call("local_step", word_mask, name_words)
+    log_joint = float(sum(value for part in call("local_step", word_mask, name_words, shared.channels)
                           for value in np.atleast_1d(part)))
-    prune = settings.prune and settings.learn_shared
+    prune = settings.prune and settings.learn_shared and shared.channels is None  # channels: no rule
     swaps = gibbs.swaps_due(iteration)
     if settings.variant == "reference":
         results = call("home_step", None, swaps, False)
@@ -353,7 +375,8 @@ def sweep(call, global_step: GlobalStep, shared: SharedParameters, iteration: in
             mask, names = verdicts != NOT_A_NAME, verdicts == NAME
         else:
             mask = results[0].word_mask
-        shared = SharedParameters(shared.log_phi_v, shared.log_phi_w, shared.log_g0, mask, names)
+        shared = SharedParameters(shared.log_phi_v, shared.log_phi_w, shared.log_g0, mask, names,
+                                  shared.channels)
     return log_joint, shared
 
 
@@ -394,7 +417,7 @@ def data_of_homes(data: PreparedData, first: int, last: int) -> PreparedData:
 HOME_FIELDS = ("log_g", "log_pi", "means", "covariances", "log_theta_v", "log_theta_w", "region_counts")
 SAMPLE_FIELDS = ("concepts", "regions")
 SHARED_FIELDS = ("log_phi_v", "log_phi_w", "log_g0", "word_mask", "candidate_words", "home_specific_words",
-                 "name_words")
+                 "name_words", "channels")
 
 
 def state_of_homes(data: PreparedData, state: GibbsState, first: int, last: int) -> GibbsState:

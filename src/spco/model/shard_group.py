@@ -114,9 +114,13 @@ class ShardGroup:
 
     # ------------------------------------------------------------------ a sweep
     def local_step(self, word_mask: np.ndarray | None = None,
-                   name_words: np.ndarray | None = None) -> list[float]:
+                   name_words: np.ndarray | None = None, channels=None) -> list[float]:
         """Every home's local step; their log joints, in home order (summed by the driver)."""
-        return self._each("local_step", word_mask, name_words)
+        return self._each("local_step", word_mask, name_words, channels)
+
+    def channel_counts(self):
+        """The switches' counts of the homes, summed (integers)."""
+        return _sum(self._each("channel_counts"))
 
     def tables(self, kind: str) -> np.ndarray:
         """CRT table counts of the homes, summed (integers): the sum of the homes' own

@@ -272,6 +272,8 @@ class FolderHomes(RangeSource):
     n_features: int
     position_scale: float = 1.0
     name_prior: np.ndarray | None = None  # (V,) spco.model.name_evidence.name_prior of the sentences
+    #: (R, s, n) of each home (spco.model.hyperparameters.home_scales), for the scaled prior
+    scales: tuple[tuple[float, float, int], ...] = ()
 
     @classmethod
     def create(cls, path, names=None, teaching_rate: int = 100, position_scale: float = 1.0,
@@ -292,6 +294,7 @@ class FolderHomes(RangeSource):
                                       "with an extractor (spco fit does)")
         sentences: list[str | None] = []
         home_names, sizes, taught, dims, views = [], [], 0, set(), 0
+        positions: list[np.ndarray] = []
         for folder in progress_bar(folders, desc="reading sentences", unit="home", leave=False,
                                    disable=None if progress else True):
             env = load_homes(folder, teaching_rate=teaching_rate)[0]  # one home at a time
@@ -300,6 +303,7 @@ class FolderHomes(RangeSource):
                 raise DataFormatError(folder, f"home {env.name!r} has no training samples: all its "
                                       f"{env.n_samples} samples are in its test split")
             sentences += training.sentences
+            positions.append(training.positions[:, :2].copy())
             home_names.append(env.name)
             sizes.append(training.n_samples)
             taught += env.n_taught
@@ -309,13 +313,17 @@ class FolderHomes(RangeSource):
             if len(dims) > 1:
                 raise DataFormatError(folder, f"views of {env.n_features} features, the homes before it "
                                       f"have {min(dims - {env.n_features})}")
+        from spco.model.hyperparameters import home_scales
         from spco.model.name_evidence import name_prior
 
         vocabulary = Vocabulary.from_sentences(sentences, language=language)
+        bounds = np.cumsum([0, *sizes])
+        scales = tuple(home_scales(xy, vocabulary.encode(sentences[a:b], DEFAULT_WORD_INCREMENT))
+                       for xy, a, b in zip(positions, bounds[:-1], bounds[1:], strict=True))
         return cls([str(f) for f in folders], home_names, int(teaching_rate), vocabulary,
                    DEFAULT_WORD_INCREMENT, np.array(sizes, dtype=np.int64), taught,
                    dims.pop() if dims and views else 0, float(position_scale),
-                   name_prior(vocabulary, sentences))
+                   name_prior(vocabulary, sentences), scales)
 
     @property
     def n_homes(self) -> int:  # type: ignore[override]

@@ -91,7 +91,8 @@ class GibbsState:
     home_specific_words (V,) candidates it never prunes (the exact variant uses neither: see
     :func:`naming_verdicts`); name_words (V,) the words the naming rule judges names (exact variant
     with pruning; ``None``: none judged yet): a taught sample whose sentence holds one is scored by
-    its name words only (:func:`spco.model.gibbs.sentence_words`).
+    its name words only (:func:`spco.model.gibbs.sentence_words`); channels and switches: the word
+    channels (:mod:`spco.model.word_channels`), which replace the naming rule where set.
     """
 
     concepts: np.ndarray
@@ -114,6 +115,12 @@ class GibbsState:
     #: the words matrix :func:`spco.model.gibbs.sentence_words` last built: (data.words, name_words
     #: bytes, matrix)
     words_cache: tuple | None = field(default=None, repr=False)
+    #: the word channels' parameters (:class:`spco.model.word_channels.WordChannels`, shared by all
+    #: homes; ``None``: the naming rule's word model)
+    channels: object | None = None
+    #: every token's switch (:mod:`spco.model.word_channels`): (nnz of ``data.words``,) int8, drawn in
+    #: the local step after the concepts (``None`` before the first draw or without channels)
+    switches: np.ndarray | None = field(default=None, repr=False)
 
 
 @dataclass

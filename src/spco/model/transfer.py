@@ -12,8 +12,8 @@ before use, never advanced, so the same Generator gives the same fit every time,
 
 Poses: observations are given as ``(x, y, sin θ, cos θ)`` rows (the model's 4-D region space);
 :meth:`~SpatialConceptModel.predict_positions` returns a
-:class:`~spco.model.prediction.PositionPrediction` whose ``samples`` are ``(x, y, θ)`` (θ in radians,
-for a robot's goal) and whose ``poses`` are the same draws as ``(x, y, sin θ, cos θ)``, the input
+:class:`~spco.model.position_prediction.PositionPrediction` whose ``samples`` are ``(x, y, θ)`` (θ in
+radians, for a robot's goal) and whose ``poses`` are the same draws as ``(x, y, sin θ, cos θ)``, the input
 convention, ready for :meth:`~SpatialConceptModel.predict_names`.
 
 The parameters used for prediction (``parameters_``) are a posterior summary, the average over
@@ -43,7 +43,7 @@ from spco.errors import ConfigurationError
 from spco.model import gibbs
 from spco.model.hyperparameters import SpCoAHyperparameters, TransferHyperparameters
 from spco.model.kernels.counts import stack_counts
-from spco.model.name_evidence import name_prior
+from spco.model.name_evidence import channel_evidence, has_english, name_prior
 from spco.model.parameters import ConceptParameters
 from spco.model.posterior import (
     ParameterAverage,
@@ -52,6 +52,7 @@ from spco.model.posterior import (
     untaught_concepts_name_nothing,
 )
 from spco.model.seeds import as_generator
+from spco.model.word_channels import WordChannels, channel_parameters, uses_word_channels
 
 
 def clone(estimator: SpatialConceptModel) -> SpatialConceptModel:
@@ -232,6 +233,7 @@ class SpatialConceptModel:
         from spco.model.driver import start_run
 
         run = start_run(engine, data, len(corpus.vocabulary), hyper, settings, rng)
+        hyper, evidence = self._start_word_channels(run, corpus, data, hyper, settings)
 
         def after_sweep(iteration: int, previous: float) -> None:
             # a restarted engine repeats the sweeps since its checkpoint (the same chain): each
@@ -263,7 +265,10 @@ class SpatialConceptModel:
         self.log_joint_ = np.asarray(trace, dtype=float)
         self.n_iter_ = int(self.n_iterations)
         self.parameters_ = self._fitted_parameters(average.result(state), corpus, data, state, hyper,
-                                                   settings)
+                                                   settings, evidence)
+        self.word_channels_ = state.channels
+        if state.channels is not None:
+            self.parameters_ = replace(self.parameters_, **channel_parameters(state.channels))
         splits = np.split(np.arange(data.n_samples), data.offsets[1:-1])
         self.concepts_ = [state.concepts[s].copy() for s in splits]
         self.regions_ = [state.regions[s].copy() for s in splits]
@@ -271,11 +276,33 @@ class SpatialConceptModel:
         return self
 
     @staticmethod
+    def _start_word_channels(run, corpus: Corpus, data: gibbs.PreparedData, hyper: TransferHyperparameters,
+                             settings: gibbs.SamplerSettings
+                             ) -> tuple[TransferHyperparameters, np.ndarray | None]:
+        """Give ``run`` the word channels (:mod:`spco.model.word_channels`) when the model uses them;
+        returns the hyperparameters the fit used (``word_model`` "naming-rule" for speech without any
+        English function word) and the channels' name evidence (or None)."""
+        sentences = [s for t in corpus.training_set() for s in t.sentences]
+        channels = uses_word_channels(hyper, settings) and bool(data.words.nnz)
+        if channels and not has_english(corpus.vocabulary, sentences):
+            # the channels' prior is English evidence; speech with no English function word at all
+            # (Japanese) is learnt with the naming rule, which measures where words are said
+            return replace(hyper, word_model="naming-rule"), None
+        if not channels:
+            return hyper, None
+        evidence, content = channel_evidence(corpus.vocabulary, sentences)
+        run.use_word_channels(WordChannels.initial(evidence, hyper.n_concepts, hyper.evidence_weight,
+                                                   content))
+        return hyper, evidence
+
+    @staticmethod
     def _fitted_parameters(params: ConceptParameters, corpus: Corpus, data: gibbs.PreparedData,
                            state: gibbs.GibbsState, hyper: TransferHyperparameters,
-                           settings: gibbs.SamplerSettings) -> ConceptParameters:
+                           settings: gibbs.SamplerSettings,
+                           evidence: np.ndarray | None = None) -> ConceptParameters:
         """The averaged parameters as the exact model exports them: concepts no taught sample was
-        ever assigned to name nothing, and (with the naming rule) each word's name prior."""
+        ever assigned to name nothing, and (with the naming rule or the word channels) each word's
+        name prior (``evidence``: the channels' evidence, computed before the chain)."""
         if settings.variant == "exact":  # (the authors' sampler and SpCoA export as published)
             taught = np.zeros(hyper.n_concepts, dtype=bool)  # concepts holding a taught sample somewhere
             taught[np.unique(state.concepts[np.diff(data.words.indptr) > 0])] = True
@@ -284,8 +311,10 @@ class SpatialConceptModel:
             # the naming rule's linguistic evidence, how name-like each word is: candidates for names
             # never heard (spco.model.unheard), and the order of each concept's words with the
             # opt-in hyperparameters.name_prior = "wordnet"
-            sentences = [s for t in corpus.training_set() for s in t.sentences]
-            params = replace(params, name_prior=name_prior(corpus.vocabulary, sentences))
+            if evidence is None:
+                sentences = [s for t in corpus.training_set() for s in t.sentences]
+                evidence = name_prior(corpus.vocabulary, sentences)
+            params = replace(params, name_prior=evidence)
         return params
 
     # ------------------------------------------------------------------ use
@@ -319,14 +348,14 @@ class SpatialConceptModel:
 
     def predict_positions(self, home: str | int, name: str, n: int = 10,
                           random_state: int | np.random.Generator | None = None):
-        """Positions to go to for place ``name`` in ``home`` (see :mod:`spco.model.prediction`): the
-        result's ``samples`` are (x, y, θ), its ``poses`` (x, y, sin θ, cos θ); ``learnt`` is False
+        """Positions to go to for place ``name`` in ``home`` (see :mod:`spco.model.position_prediction`):
+        the result's ``samples`` are (x, y, θ), its ``poses`` (x, y, sin θ, cos θ); ``learnt`` is False
         when the name's probability in this home comes from concepts that hold none of its samples."""
-        from spco.model import prediction
+        from spco.model import position_prediction
 
         e = self.home_index(home)
-        return prediction.predict_positions(self.parameters_, e, self.vocabulary_, name, n=n,
-                                            rng=as_generator(random_state))
+        return position_prediction.predict_positions(self.parameters_, e, self.vocabulary_, name, n=n,
+                                                     rng=as_generator(random_state))
 
     def save(self, path, overwrite: bool = False) -> None:
         """Write the fitted model to ``path`` atomically (see :mod:`spco.model.io`); an existing

@@ -8,7 +8,7 @@ A user may ask for "the restroom", "the lounge" or "the powder room" in a home w
 among the home's usable words that are names (name prior ≥ :data:`MIN_CANDIDATE_PRIOR` when the
 model has a prior, :mod:`spco.model.name_evidence`) and place-bound in this home (mutual information
 ≥ :data:`MIN_CANDIDATE_INFORMATION` of the largest), and ``where`` answers for that name, saying
-which one it used ("restroom -> toilet": :attr:`spco.model.prediction.PositionPrediction.asked`).
+which one it used ("restroom -> toilet": :attr:`spco.model.position_prediction.PositionPrediction.asked`).
 
 Without the lexicon (no NLTK or no WordNet database, see :mod:`spco.data.lexicon`), nothing is
 resolved: a name nobody said is an unknown name, or its known words said together, as before.

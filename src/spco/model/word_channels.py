@@ -1,0 +1,331 @@
+"""Words that are not names, in the model: every word token comes from one of three channels.
+
+A taught sentence is a bag of word tokens (one token per distinct word of the sentence; the corpus
+gives it S^w counts, ``Corpus.word_increment``). Each token i of sample t has a latent **switch**
+z_ti ∈ {name, place, background} (``docs/model.md``, "Words that are not names"):
+
+- **name** (z = 0): the word is drawn from the concept's *names*, θ^w_{e,C_t} ~ Dir(δ^w φ^w_{C_t})
+  (the paper's word distribution, now of names only);
+- **place** (z = 1): from the words *associated with the place* — objects, activities, people said
+  there ("fridge", "cook", "guests") — ψ_{C_t} ~ Dir(α^p), one per concept, shared by all homes;
+- **background** (z = 2): from a **background** β ~ Dir(α^b) shared by every place and home
+  (function words, fillers, greetings).
+
+The switch's prior comes from the **linguistic evidence** of word k, e_k = (a_k ν_k, a_k (1 − ν_k),
+1 − a_k) (each to the power η, ``TransferHyperparameters.evidence_weight``, then normalised): a_k the
+share of its words that are content words (:func:`spco.model.name_evidence.content_share`: function
+words, numbers and fillers are not), ν_k = P(name | how word k is said and what it is) of
+:func:`spco.model.name_evidence.channel_evidence` (sentence frames and WordNet, a logistic model
+fitted on development data). p(z = name | k) = e_{k,0} / Σ_c e_{k,c}: the evidence itself, not
+learnt. The rest is split between place and background in proportion to λ_place e_{k,1} and
+λ_background e_{k,2}, with learnt shares λ ~ Beta(1, 1) (on a grid, below). As in topic models
+with background and special words (Chemudugunta et al. 2006; the background switch of Twitter-LDA),
+which words are names is then what the posterior says.
+
+**Each token counts once in its switch.** The token's conditional given the concept uses one draw:
+
+    p(z_ti = c | C_t = l, k) ∝ λ_c e_{k,c} · (θ^w_{e,l,k}, ψ_{l,k}, β_k)_c
+
+so its prior is weighed against one likelihood, not against the S^w = 5000 counts with which a name
+weighs in the concept's assignment (raised to the 5000th power, any prior on the switch would be
+swamped). The tokens' channel counts — ψ's, β's and λ's statistics — count each token once.
+
+**Each sentence weighs S^w in its concept.** The concept's conditional marginalises the switches:
+
+    log p(w_t | C_t = l) = Σ_i c_ti · log Σ_c λ̃_{k,c} (θ^w_{e,l,k}, ψ_{l,k}, β_k)_c,
+    λ̃_{k,c} = λ_c e_{k,c} / Σ_c' λ_c' e_{k,c'}
+
+with c_ti = S^w per token (the word increment, as before): a power likelihood on the words, as
+``view_counts`` is one on the views. A function word (λ̃ background ≈ 1) then says nothing about the
+concept, a name (θ^w large at one concept) as much as before, an object (ψ) as much as a name.
+θ^w | z counts the name tokens with their S^w counts (as the paper's word statistics did), so the
+names' θ^w and φ^w keep their scale.
+
+The two conditionals are not those of one joint distribution when S^w > 1 (the switch at power 1,
+the concept at power S^w): the sampler is a modular ("cut") Gibbs sampler, exact for S^w = 1 (tested
+against enumeration of the joint in ``tests/test_word_channels.py``). λ | z is drawn exactly on a
+grid (:data:`LAMBDA_GRID` steps): its conditional p(λ | z) ∝ Π_c λ_c^{n_c} / Π_k (Σ_c λ_c e_{k,c})^{m_k}
+(c ∈ {place, background}; n_c tokens in channel c, m_k such tokens of word k) is not a Beta.
+
+The name scoring that prediction uses, p(name k | concept l) = θ^w_{e,l,k}, is
+:func:`name_log_probabilities`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.special import logsumexp
+
+from spco.model.kernels.dirichlet import log_dirichlet
+
+#: The channels of a word token.
+NAME, PLACE, BACKGROUND = 0, 1, 2
+CHANNELS = ("name", "place", "background")
+
+#: Dirichlet concentration of the place words ψ_l (per word) and of the background β (per word).
+ALPHA_PLACE = 0.1
+ALPHA_BACKGROUND = 0.1
+
+#: Points per side of the simplex grid on which λ | z is drawn (interior points only).
+LAMBDA_GRID = 40
+
+#: Smallest name evidence ν used (a word is never certainly a name or certainly not).
+EVIDENCE_FLOOR = 1e-4
+
+
+@dataclass
+class WordChannels:
+    """The channels' parameters (log-probabilities), shared by every home.
+
+    log_place: (L, V) log ψ, each concept's place-associated words; log_background: (V,) log β;
+    log_shares: (3,) log λ, the channels' shares; log_evidence: (V, 3) log e_k, the linguistic
+    evidence (fixed: computed from the sentences before the chain starts)."""
+
+    log_place: np.ndarray
+    log_background: np.ndarray
+    log_shares: np.ndarray
+    log_evidence: np.ndarray
+    #: True until the first statistics: the first switches are drawn from their prior alone
+    #: (:func:`sample_switches`), so that ψ, β and θ^w start from the evidence, not from a θ^w of
+    #: the start that counted every word as a name
+    fresh: bool = False
+
+    @classmethod
+    def initial(cls, evidence: np.ndarray, n_concepts: int, weight: float = 1.0,
+                content: np.ndarray | None = None) -> WordChannels:
+        """Uniform ψ and β, equal shares, and the evidence of every word: ``evidence`` (V,) = ν_k in
+        (0, 1), P(name | word), with weight η = ``weight``, and ``content`` (V,) = a_k, the share of
+        its words that are content words (:func:`spco.model.name_evidence.content_share`; default 1):
+        e_k = ((a_k ν_k)^η, (a_k (1 − ν_k))^η, (1 − a_k)^η), a_k kept within [0.05, 0.95]: a content
+        word is a name or a place word as the evidence says, a function word background."""
+        nu = np.clip(np.asarray(evidence, dtype=np.float64), EVIDENCE_FLOOR, 1.0 - EVIDENCE_FLOOR)
+        V = nu.size
+        a = np.ones(V) if content is None else np.asarray(content, dtype=np.float64)
+        a = np.clip(a, 0.05, 0.95)
+        log_e = weight * np.stack([np.log(a) + np.log(nu), np.log(a) + np.log1p(-nu), np.log1p(-a)], axis=1)
+        flat = -np.log(max(V, 1))
+        shares = np.array([0.0, -np.log(2.0), -np.log(2.0)])  # (the first is unused)
+        return cls(np.full((n_concepts, V), flat), np.full(V, flat), shares, log_e, True)
+
+    def copy(self) -> WordChannels:
+        """A copy of the arrays."""
+        return WordChannels(self.log_place.copy(), self.log_background.copy(), self.log_shares.copy(),
+                            self.log_evidence.copy(), self.fresh)
+
+    @property
+    def n_words(self) -> int:
+        """V."""
+        return int(self.log_background.size)
+
+    def log_prior(self) -> np.ndarray:
+        """(V, 3) log p(z = c | word k): the name evidence for the names channel,
+        p(name | k) = e_{k,0} / Σ_c e_{k,c}, and the rest split between place and background by
+        the learnt shares, ∝ λ_place e_{k,1} and λ_background e_{k,2} (``log_shares[0]`` is unused)."""
+        log_e = self.log_evidence - logsumexp(self.log_evidence, axis=1, keepdims=True)
+        rest = logsumexp(log_e[:, 1:], axis=1)  # log p(not a name | k)
+        split = self.log_shares[None, 1:] + log_e[:, 1:]
+        split = split - logsumexp(split, axis=1, keepdims=True)
+        return np.column_stack([log_e[:, 0], rest[:, None] + split])
+
+    def extended(self, n_words: int, evidence: np.ndarray | None = None) -> WordChannels:
+        """The channels for a vocabulary grown to ``n_words`` (new words appended): new words get
+        ψ and β of a word never said (α / (α V + count) as from the prior mean, here the smallest
+        present value) and evidence ``evidence[V_old:]`` (default ν = 0.5)."""
+        V = self.n_words
+        added = n_words - V
+        if added <= 0:
+            return self
+        nu = np.full(added, 0.5) if evidence is None else np.asarray(evidence, dtype=np.float64)[V:]
+        nu = np.clip(nu, EVIDENCE_FLOOR, 1.0 - EVIDENCE_FLOOR)
+        log_e = np.stack([np.log(0.95) + np.log(nu), np.log(0.95) + np.log1p(-nu),
+                          np.full(added, np.log(0.05))], axis=1)
+        low_p = self.log_place.min(axis=1, keepdims=True) if V else np.zeros((self.log_place.shape[0], 1))
+        low_b = self.log_background.min() if V else 0.0
+        place = np.concatenate([self.log_place, np.repeat(low_p, added, axis=1)], axis=1)
+        background = np.concatenate([self.log_background, np.full(added, low_b)])
+        return replace(self, log_place=place - logsumexp(place, axis=1, keepdims=True),
+                       log_background=background - logsumexp(background),
+                       log_evidence=np.concatenate([self.log_evidence, log_e]))
+
+
+def uses_word_channels(hyper, settings) -> bool:
+    """Whether a fit with ``hyper`` (:class:`~spco.model.hyperparameters.TransferHyperparameters`) and
+    ``settings`` (:class:`~spco.model.state.SamplerSettings`) models its words with the channels: the
+    exact sampler's "+MI" models with ``word_model="channels"`` (the default)."""
+    return (settings.variant == "exact" and settings.prune and settings.learn_shared
+            and getattr(hyper, "word_model", "naming-rule") == "channels")
+
+
+def token_rows(words: sp.csr_array) -> np.ndarray:
+    """The sample (row) of every token (stored entry) of ``words``: (nnz,)."""
+    return np.repeat(np.arange(words.shape[0]), np.diff(words.indptr))
+
+
+def _tokens(words: sp.csr_array) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Row, column and count of every token (stored entry): (nnz,) each (a CSR's buffers may be
+    longer than its entries: they are cut to ``indptr``)."""
+    first, last = int(words.indptr[0]), int(words.indptr[-1])
+    return token_rows(words), words.indices[first:last], words.data[first:last]
+
+
+def _channel_log_terms(cols: np.ndarray, homes: np.ndarray, log_theta_w: np.ndarray,
+                       channels: WordChannels, rows: np.ndarray) -> np.ndarray:
+    """(nnz, L, 3): log p(z = c | k) + log p(k | channel c, concept l) for every token and concept."""
+    prior = channels.log_prior()[cols]  # (nnz, 3)
+    name = log_theta_w[homes[rows], :, cols]  # (nnz, L)
+    place = channels.log_place[:, cols].T  # (nnz, L)
+    background = np.broadcast_to(channels.log_background[cols][:, None], name.shape)
+    return np.stack([name, place, background], axis=2) + prior[:, None, :]
+
+
+def mixture_log_likelihood(words: sp.csr_array, homes: np.ndarray, log_theta_w: np.ndarray,
+                           channels: WordChannels) -> np.ndarray:
+    """Σ_i c_ti log Σ_c p(z = c | k) p(k | c, l) for every sample and concept of its home: (N, L).
+
+    The switches marginalised; each token weighed by its count c_ti (S^w per word)."""
+    n_samples, n_concepts = words.shape[0], log_theta_w.shape[1]
+    out = np.zeros((n_samples, n_concepts))
+    if not words.nnz:
+        return out
+    rows, cols, counts = _tokens(words)
+    per_token = logsumexp(_channel_log_terms(cols, homes, log_theta_w, channels, rows), axis=2)  # (nnz, L)
+    np.add.at(out, rows, counts[:, None] * per_token)
+    return out
+
+
+def switch_probabilities(words: sp.csr_array, homes: np.ndarray, concepts: np.ndarray,
+                         log_theta_w: np.ndarray, channels: WordChannels) -> np.ndarray:
+    """p(z_ti = c | C_t, w_ti) of every token, each token counted once: (nnz, 3)."""
+    if not words.nnz:
+        return np.zeros((0, 3))
+    rows, cols, _ = _tokens(words)
+    prior = channels.log_prior()[cols]
+    terms = np.stack([log_theta_w[homes[rows], concepts[rows], cols],
+                      channels.log_place[concepts[rows], cols],
+                      channels.log_background[cols]], axis=1) + prior
+    return np.exp(terms - logsumexp(terms, axis=1, keepdims=True))
+
+
+def sample_switches(words: sp.csr_array, homes: np.ndarray, concepts: np.ndarray, log_theta_w: np.ndarray,
+                    channels: WordChannels, rng: np.random.Generator) -> np.ndarray:
+    """Draw every token's switch given its sample's concept: (nnz,) int8 in {0, 1, 2}. Fresh channels
+    (:attr:`WordChannels.fresh`): from the switch's prior alone (the start)."""
+    if channels.fresh:
+        _, cols, _ = _tokens(words)
+        p = np.exp(channels.log_prior()[cols])
+    else:
+        p = switch_probabilities(words, homes, concepts, log_theta_w, channels)
+    u = rng.random(p.shape[0])
+    return (u[:, None] > np.cumsum(p, axis=1)[:, :2]).sum(axis=1).astype(np.int8)
+
+
+@dataclass
+class ChannelCounts:
+    """The switches' statistics, adding up over homes: place tokens per concept and word (L, V),
+    background tokens per word (V,), tokens per word and channel (V, 3); each token counted once."""
+
+    place: np.ndarray
+    background: np.ndarray
+    by_word: np.ndarray
+
+    def __add__(self, other: ChannelCounts) -> ChannelCounts:
+        return ChannelCounts(self.place + other.place, self.background + other.background,
+                             self.by_word + other.by_word)
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of the arrays."""
+        return self.place.nbytes + self.background.nbytes + self.by_word.nbytes
+
+
+def channel_counts(words: sp.csr_array, concepts: np.ndarray, switches: np.ndarray,
+                   n_concepts: int) -> ChannelCounts:
+    """:class:`ChannelCounts` of the tokens of ``words`` with their switches (nnz,)."""
+    V = words.shape[1]
+    rows, cols, _ = _tokens(words)
+    place = np.zeros((n_concepts, V), dtype=np.int64)
+    is_place = switches == PLACE
+    np.add.at(place, (concepts[rows[is_place]], cols[is_place]), 1)
+    background = np.bincount(cols[switches == BACKGROUND], minlength=V).astype(np.int64)
+    by_word = np.zeros((V, 3), dtype=np.int64)
+    np.add.at(by_word, (cols, switches.astype(np.int64)), 1)
+    return ChannelCounts(place, background, by_word)
+
+
+def name_tokens(words: sp.csr_array, switches: np.ndarray) -> sp.csr_array:
+    """The counts of the name tokens only (N, V): what θ^w | z counts (S^w per token)."""
+    rows, cols, counts = _tokens(words)
+    keep = switches == NAME
+    out = sp.csr_array((counts[keep], (rows[keep], cols[keep])), shape=words.shape)
+    out.sort_indices()
+    return out
+
+
+def place_token_counts(words: sp.csr_array, homes: np.ndarray, concepts: np.ndarray, switches: np.ndarray,
+                       n_homes: int, n_concepts: int) -> np.ndarray:
+    """Place tokens per home, concept and word, with their counts c_ti (E, L, V): the place
+    channel's part of a label swap's ratio (the concept's likelihood weighs them as it weighs names)."""
+    out = np.zeros((n_homes, n_concepts, words.shape[1]), dtype=np.float64)
+    rows, cols, counts = _tokens(words)
+    is_place = switches == PLACE
+    r = rows[is_place]
+    np.add.at(out, (homes[r], concepts[r], cols[is_place]), counts[is_place])
+    return out
+
+
+def lambda_grid(points: int = LAMBDA_GRID) -> np.ndarray:
+    """The shares (λ_place, λ_background) on a grid of ``points`` steps: (points − 1, 2), the interior
+    points i/points, rows summing to 1."""
+    i = np.arange(1, points, dtype=np.float64) / points
+    return np.column_stack([i, 1.0 - i])
+
+
+def lambda_log_posterior(by_word: np.ndarray, log_evidence: np.ndarray, grid: np.ndarray) -> np.ndarray:
+    """log p(λ | z) up to a constant at every grid point (uniform prior): (G,).
+
+    Only the tokens that are not names depend on λ: Σ_c n_c log λ_c − Σ_k m_k log Σ_c λ_c e_{k,c} over
+    c ∈ {place, background}, n_c the tokens in channel c, m_k the place and background tokens of
+    word k."""
+    rest = by_word[:, 1:].astype(np.float64)  # (V, 2)
+    n = rest.sum(axis=0)
+    m = rest.sum(axis=1)
+    log_grid = np.log(grid)
+    used = m > 0
+    norm = logsumexp(log_grid[:, None, :] + log_evidence[None, used, 1:], axis=2)  # (G, V_used)
+    return log_grid @ n - norm @ m[used]
+
+
+def sample_channels(counts: ChannelCounts, channels: WordChannels, rng: np.random.Generator,
+                    alpha_place: float = ALPHA_PLACE,
+                    alpha_background: float = ALPHA_BACKGROUND) -> WordChannels:
+    """ψ ~ Dir(α^p + place counts), β ~ Dir(α^b + background counts), λ | z on the grid."""
+    grid = lambda_grid()
+    log_post = lambda_log_posterior(counts.by_word, channels.log_evidence, grid)
+    p = np.exp(log_post - log_post.max())
+    choice = rng.choice(grid.shape[0], p=p / p.sum())
+    return replace(channels, fresh=False,
+                   log_place=log_dirichlet(alpha_place + counts.place.astype(np.float64), rng),
+                   log_background=log_dirichlet(alpha_background + counts.background.astype(np.float64), rng),
+                   log_shares=np.concatenate([[0.0], np.log(grid[choice])]))
+
+
+def channel_parameters(channels: WordChannels) -> dict[str, np.ndarray]:
+    """The channels as fields of :class:`~spco.model.parameters.ConceptParameters`: the place words ψ
+    (L, V) and the switch's prior (V, 3), as probabilities."""
+    return {"place_word_probabilities": np.exp(channels.log_place),
+            "word_channel_prior": np.exp(channels.log_prior())}
+
+
+def name_log_probabilities(log_theta_w: np.ndarray) -> np.ndarray:
+    """log p(name k | concept): the names channel θ^w, rows normalised (…, V).
+
+    The one function prediction calls to score a word as a place's name: with the channels the
+    words of the other two channels are not in θ^w (it counts name tokens only), so θ^w itself is
+    the names' distribution."""
+    log_theta_w = np.asarray(log_theta_w, dtype=np.float64)
+    if log_theta_w.shape[-1] == 0:
+        return log_theta_w
+    return log_theta_w - logsumexp(log_theta_w, axis=-1, keepdims=True)
