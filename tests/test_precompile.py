@@ -113,3 +113,15 @@ def test_fit_and_adapt_on_an_empty_cache_precompile_in_two_processes(monkeypatch
     result = CliRunner().invoke(adapt, [str(kfile), "--home", str(home), "--iterations", "2",
                                         "--out", str(tmp_path / "h2.spco")])
     assert result.exit_code == 0 and calls == [2, 2] and "Compiling" not in result.stderr
+
+
+def test_signature_file_lists_exactly_what_the_demo_s_warm_up_calls():
+    """Every kernel and argument types the demo's warm-up fit calls from Python is in the file
+    (else a first run compiles it after the 2-process compilation, alone), and nothing else (else
+    the first run compiles what no fit calls). Checked in a fresh process: kernels loaded from the
+    on-disk cache load no callee, so its compiled signatures are the ones called from Python."""
+    used = numba_cache.called_signatures()
+    listed = {e["kernel"]: {tuple(s) for s in e["signatures"]} for e in _entries()}
+    hint = "regenerate it: SPCO_CACHE_DIR=$(mktemp -d) python -m spco.model.numba_cache"
+    assert {k: v - listed.get(k, set()) for k, v in used.items() if v - listed.get(k, set())} == {}, hint
+    assert {k: v - used.get(k, set()) for k, v in listed.items() if v - used.get(k, set())} == {}, hint

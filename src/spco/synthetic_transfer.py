@@ -25,7 +25,7 @@ import numpy as np
 from spco.data.environment import Corpus
 from spco.data.synthetic import generate_homes
 from spco.evaluation.metrics import HomeScores, evaluate_home
-from spco.model.numba_cache import warm_up
+from spco.model.numba_cache import load_kernels
 from spco.model.transfer import SpCoA, SpCoTransfer
 
 
@@ -49,12 +49,13 @@ def run_demo(seed: int = 0, out: Path | str = "spco-demo", n_experienced: int = 
              n_iterations: int = 100, progress: bool = True) -> DemoResult:
     """Run the demo and write its figures and ``results.json`` into ``out``.
 
-    A small warm-up fit runs first, so that ``fit_seconds`` times the learning alone, not the
-    compilation (or loading from Numba's cache) of the kernels: ``warm_up_seconds``.
+    The kernels are loaded from Numba's cache (or compiled) first
+    (:func:`~spco.model.numba_cache.load_kernels`), so that ``fit_seconds`` times the learning
+    alone: ``warm_up_seconds``.
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    warm_up_seconds = warm_up()
+    warm_up_seconds = load_kernels()
     corpus = generate_homes(n_experienced + 1, seed=seed, new_homes=1, specific_rooms=False)
     new_index = len(corpus) - 1
     new_home = corpus[new_index]

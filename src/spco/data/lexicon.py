@@ -28,16 +28,20 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import importlib.util
 import itertools
+import json
+import math
 import os
 import shutil
 import threading
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-__all__ = ["MIN_SIMILARITY", "PLACE_ROOTS", "Lexicon", "LexiconMatch", "lexicon",
-           "lexicon_unavailable_reason"]
+__all__ = ["MIN_SIMILARITY", "PLACE_ROOTS", "Lexicon", "LexiconMatch", "WordFacts", "lexicon",
+           "lexicon_unavailable_reason", "word_facts"]
 
 #: Where Debian's wordnet-base puts the database files.
 DEBIAN_WORDNET = Path("/usr/share/wordnet")
@@ -94,9 +98,7 @@ def lexicon_unavailable_reason() -> str | None:
     chosen = os.environ.get("SPCO_WORDNET", "").strip()
     if chosen.lower() in ("off", "0", "none", "no"):
         return "the lexicon is turned off (SPCO_WORDNET=off)"
-    try:
-        import nltk  # noqa: F401
-    except ImportError:
+    if importlib.util.find_spec("nltk") is None:  # (importing NLTK takes seconds: only looked up)
         return "NLTK is not installed (pip install 'spco[words]')"
     if _wordnet_folder() is None:
         where = chosen or str(DEBIAN_WORDNET)
@@ -435,3 +437,93 @@ def lexicon() -> Lexicon | None:
     folder = _wordnet_folder()
     assert folder is not None
     return _load(str(folder))
+
+
+@dataclass(frozen=True)
+class WordFacts:
+    """What WordNet says of one word, as :func:`spco.model.name_evidence.lexical_features` uses it:
+    ``known`` (:meth:`Lexicon.knows`), ``noun_share`` (:meth:`Lexicon.noun_share`) and
+    ``place_share`` (:meth:`Lexicon.place_share`); the shares are NaN for an unknown word."""
+
+    known: bool
+    noun_share: float
+    place_share: float
+
+
+#: Format of the file of :func:`word_facts` (a file of another format is computed again).
+_FACTS_FORMAT = 1
+_facts_lock = threading.Lock()
+_facts_memory: dict[str, dict[str, WordFacts]] = {}
+
+
+def _facts_file(folder: Path) -> Path:
+    """The file of word facts for the WordNet files in ``folder``: named by a digest of their
+    names, sizes and modification times and of NLTK's version (a changed database or reader is a
+    new file)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    digest = hashlib.sha256(str(folder.resolve()).encode())
+    try:
+        digest.update(version("nltk").encode())
+    except PackageNotFoundError:
+        pass
+    for name in _DATABASE:
+        stat = (folder / name).stat()
+        digest.update(f"{name}:{stat.st_size}:{stat.st_mtime_ns}".encode())
+    return _cache_root() / f"wordnet-facts-{digest.hexdigest()[:16]}.json"
+
+
+def _read_facts(path: Path) -> dict[str, WordFacts]:
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+        if data.get("format") != _FACTS_FORMAT:
+            return {}
+        return {w: WordFacts(bool(k), math.nan if n is None else float(n),
+                             math.nan if p is None else float(p))
+                for w, (k, n, p) in data["words"].items()}
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return {}  # no file yet, or not one of ours: computed again and rewritten
+
+
+def _write_facts(path: Path, facts: dict[str, WordFacts]) -> None:
+    def number(x: float) -> float | None:
+        return None if math.isnan(x) else x
+
+    text = json.dumps({"format": _FACTS_FORMAT, "words": {
+        w: [f.known, number(f.noun_share), number(f.place_share)] for w, f in sorted(facts.items())}})
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.{threading.get_ident()}")
+        tmp.write_text(text, encoding="utf-8")
+        os.replace(tmp, path)
+    except OSError:
+        pass  # a read-only cache: the facts are computed again next time
+
+
+def word_facts(words: Sequence[str]) -> dict[str, WordFacts] | None:
+    """:class:`WordFacts` of each of ``words`` (lower-case words or terms), or None when the lexicon
+    is unavailable (:func:`lexicon_unavailable_reason`).
+
+    The facts are a function of the word and the WordNet files only, so they are kept in a file
+    beside the reader's folder (``$SPCO_CACHE_DIR``, default ``~/.cache/spco``): WordNet (and
+    NLTK, seconds to import and read) is loaded only for words not in it yet, which are then added.
+    The same numbers as asking :func:`lexicon` each time."""
+    if lexicon_unavailable_reason() is not None:
+        return None
+    folder = _wordnet_folder()
+    assert folder is not None
+    path = _facts_file(folder)
+    key = str(path)
+    with _facts_lock:
+        facts = _facts_memory.get(key)
+        if facts is None:
+            facts = _facts_memory[key] = _read_facts(path)
+        missing = [w for w in dict.fromkeys(words) if w not in facts]
+        if missing:
+            lex = _load(str(folder))
+            for word in missing:
+                known = lex.knows(word)
+                facts[word] = WordFacts(known, lex.noun_share(word) if known else math.nan,
+                                        lex.place_share(word) if known else math.nan)
+            _write_facts(path, {**_read_facts(path), **facts})  # (another process may have added some)
+        return {w: facts[w] for w in words}

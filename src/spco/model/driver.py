@@ -132,7 +132,9 @@ class LocalRun(ShardedRun):
         return [s.state for s in self.shards]
 
     def close(self) -> None:
-        """Nothing to free: the workers are this process's objects, dropped with the run."""
+        """Drop the workers (this process's objects: their data views, caches and states), so that
+        what follows a fit does not hold them beside the joined state."""
+        self.shards = []
 
 
 class LocalEngine:

@@ -152,26 +152,40 @@ def lexical_features(words: Sequence[str], lexicon: object | None = None) -> np.
 
     ``lexicon``: a :class:`spco.data.lexicon.Lexicon` (default: :func:`spco.data.lexicon.lexicon`,
     which may be None: then every word is unknown to it)."""
-    if lexicon is None:
-        from spco.data.lexicon import lexicon as load
-
-        lexicon = load()
     out = np.zeros((len(words), 4))
     out[:, 1] = 0.5
+    asked: list[tuple[int, list[str]]] = []
     for k, word in enumerate(words):
         parts = word.split()
         out[k, 3] = float(len(parts) == 1 and (word in DETERMINERS or word in PREPOSITIONS
                                                or word in COPULAS or word in PRONOUNS))
-        if lexicon is None or out[k, 3]:
-            continue
-        for candidate in (word, parts[-1]) if len(parts) > 1 else (word,):
-            if candidate.endswith("'s") or not lexicon.knows(candidate):  # type: ignore[attr-defined]
-                continue
-            noun = lexicon.noun_share(candidate)  # type: ignore[attr-defined]
-            place = lexicon.place_share(candidate)  # type: ignore[attr-defined]
-            out[k] = (1.0, noun, 0.0 if np.isnan(place) else place, 0.0)
-            break
+        if not out[k, 3]:
+            asked.append((k, [c for c in ((word, parts[-1]) if len(parts) > 1 else (word,))
+                              if not c.endswith("'s")]))
+    if lexicon is None:  # the process's WordNet, through the cache of word facts (no NLTK if all known)
+        from spco.data.lexicon import word_facts
+
+        facts = word_facts([c for _, candidates in asked for c in candidates])
+    else:
+        facts = {c: _facts_of(lexicon, c) for _, candidates in asked for c in candidates}
+    if facts is None:
+        return out
+    for k, candidates in asked:
+        for candidate in candidates:
+            fact = facts[candidate]
+            if fact.known:
+                out[k] = (1.0, fact.noun_share, 0.0 if np.isnan(fact.place_share) else fact.place_share, 0.0)
+                break
     return out
+
+
+def _facts_of(lexicon: object, word: str):
+    """:class:`spco.data.lexicon.WordFacts` of ``word`` from a lexicon object."""
+    from spco.data.lexicon import WordFacts
+
+    known = bool(lexicon.knows(word))  # type: ignore[attr-defined]
+    return WordFacts(known, lexicon.noun_share(word) if known else float("nan"),  # type: ignore[attr-defined]
+                     lexicon.place_share(word) if known else float("nan"))  # type: ignore[attr-defined]
 
 
 def feature_matrix(vocabulary: Vocabulary, sentences: Iterable[str | None],

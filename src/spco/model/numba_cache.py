@@ -249,6 +249,17 @@ def precompile(processes: int = 2) -> float:
     return time.perf_counter() - start
 
 
+def load_kernels() -> float:
+    """Load the kernels listed in :data:`SIGNATURES_FILE` from the on-disk cache, compiling any it
+    lacks, in this process, without a fit (cheaper than :func:`warm_up`: ~0.3 s of CPU on a warm
+    cache against a 4-home fit); returns the seconds taken. Without the file, :func:`warm_up`."""
+    try:
+        entries = json.loads(SIGNATURES_FILE.read_text())["kernels"]
+    except (OSError, ValueError, KeyError):
+        return warm_up()
+    return _compile_group(entries)
+
+
 def warm_up() -> float:
     """Compile (or load from Numba's cache) the kernels with a small fit (3 sweeps on 4 homes, every
     kernel a demo-sized fit uses, checked by their signatures; ``spco demo`` runs it first); returns
@@ -264,35 +275,71 @@ def warm_up() -> float:
     return time.perf_counter() - start
 
 
+def used_signatures() -> dict[str, set[tuple[str, ...]]]:
+    """The compiled signatures of every kernel of spco's imported modules in this process, by
+    kernel name (``module.qualname``), each a tuple of Numba type names as in
+    :data:`SIGNATURES_FILE`. In a fresh process whose kernels came from the on-disk cache, these
+    are exactly the kernels called from Python and their argument types (a kernel loaded from the
+    cache loads no callee)."""
+    from numba.core.registry import CPUDispatcher
+
+    used: dict[str, set[tuple[str, ...]]] = {}
+    for name, module in list(sys.modules.items()):
+        if not name.startswith("spco.") or module is None:
+            continue
+        for value in list(vars(module).values()):
+            if isinstance(value, CPUDispatcher) and value.signatures:
+                function = value.py_func
+                used.setdefault(f"{function.__module__}.{function.__qualname__}", set()).update(
+                    tuple(repr(t) for t in signature) for signature in value.signatures)
+    return used
+
+
+#: What :func:`called_signatures` runs in a fresh process.
+_CALLED_SIGNATURES = ("import json, spco.model.numba_cache as n; n.warm_up(); "
+                      "print(json.dumps({k: sorted(v) for k, v in n.used_signatures().items()}))")
+
+
+def called_signatures() -> dict[str, set[tuple[str, ...]]]:
+    """The kernels and argument types the demo's warm-up fit (:func:`warm_up`) calls from Python:
+    :func:`used_signatures` after it, in a fresh Python process (compiling first if the cache is cold)."""
+    import subprocess
+
+    proc = subprocess.run([sys.executable, "-c", _CALLED_SIGNATURES], capture_output=True, text=True,
+                          check=True, env=dict(os.environ))
+    return {k: {tuple(s) for s in v} for k, v in json.loads(proc.stdout.strip().splitlines()[-1]).items()}
+
+
 def write_signatures(path: Path = SIGNATURES_FILE) -> None:
-    """Run the demo's warm-up fit (:func:`warm_up`) on a cold cache, note each kernel
-    called from Python with its argument types and compile seconds, and write them to ``path``."""
+    """Run the demo's warm-up fit (:func:`warm_up`) on a cold cache noting each kernel's compile CPU
+    seconds (this thread's, callees included in their first caller), then write to ``path`` the
+    kernels and argument types it calls from Python (:func:`called_signatures`) with those seconds
+    (0 for a kernel first compiled as another's callee)."""
     from numba.core import event
 
     from spco.model.kernels import dispatch
 
     seconds: dict[str, float] = {}
-    signatures: dict[str, list] = {}
     started: list[float] = []
 
     class _Listener(event.Listener):
         def on_start(self, ev) -> None:
-            started.append(time.perf_counter())
+            started.append(time.thread_time())
 
         def on_end(self, ev) -> None:
-            elapsed = time.perf_counter() - started.pop()
+            elapsed = time.thread_time() - started.pop()
             if started:  # a callee compiled inside another kernel
                 return
             function = ev.data["dispatcher"].py_func
             name = f"{function.__module__}.{function.__qualname__}"
             seconds[name] = seconds.get(name, 0.0) + elapsed
-            signatures.setdefault(name, []).append([repr(t) for t in ev.data["args"]])
 
     event.register("numba:compile", _Listener())
     warm_up()
     vectorised = {f"{k.py_func.__module__}.{k.py_func.__qualname__}" for k, _ in dispatch._VECTORISED_READY}
-    kernels = [{"kernel": name, "seconds": round(seconds[name], 2), "vectorised": name in vectorised,
-                "signatures": signatures[name]} for name in sorted(seconds)]
+    called = called_signatures()
+    kernels = [{"kernel": name, "seconds": round(seconds.get(name, 0.0), 2), "vectorised": name in vectorised,
+                "signatures": [list(s) for s in sorted(called[name])]} for name in sorted(called)]
     path.write_text(json.dumps({"kernels": kernels}, indent=1) + "\n")
 
 

@@ -164,12 +164,17 @@ class ParameterAverage:
                 self._sums[name] = np.array(value, dtype=np.float64)
         for name, log_value in (("word_probabilities", state.log_theta_w),
                                 ("visual_probabilities", state.log_theta_v)):
-            for sums, value in ((self._log_sums, where(matched, log_value[homes, perm_c], -np.inf)),
-                                (self._empty_log_sums, where(~occupied, log_value, -np.inf))):
+            # one (E, L, ·) temporary at a time: matched concepts by reference slot, then empty ones
+            for sums, masked in ((self._log_sums, ~matched), (self._empty_log_sums, occupied)):
+                value = (log_value[homes, perm_c].astype(np.float64, copy=False)
+                         if sums is self._log_sums  # (a new array either way: filled in place)
+                         else np.array(log_value, dtype=np.float64))
+                value[masked] = -np.inf
                 if name in sums:
                     np.logaddexp(sums[name], value, out=sums[name])
                 else:
-                    sums[name] = np.array(value, dtype=np.float64)
+                    sums[name] = value
+                del value
         self._occupied_n = matched.astype(np.int64) + (0 if self._occupied_n is None else self._occupied_n)
         self._empty_n = (~occupied).astype(np.int64) + (0 if self._empty_n is None else self._empty_n)
         self._occupied_last = occupied
@@ -204,10 +209,12 @@ class ParameterAverage:
             return np.where(full, matched, empty)
 
         def split_log_mean(name: str) -> np.ndarray:
-            full = occupied[..., None]
-            matched = to_current(self._log_sums[name], perm_c) - np.log(np.maximum(occupied_n, 1))[..., None]
-            empty = self._empty_log_sums[name] - np.log(np.maximum(empty_n, 1))[..., None]
-            return np.where(full, matched, empty)
+            # in place, one (E, L, D) array at a time beside the sums
+            out = to_current(self._log_sums[name], perm_c)
+            out -= np.log(np.maximum(occupied_n, 1))[..., None]
+            empty = ~occupied
+            out[empty] = self._empty_log_sums[name][empty] - np.log(np.maximum(empty_n[empty], 1))[:, None]
+            return out
 
         pi = split_mean("region_weights")  # regions still in the reference order
         pi_out = np.empty_like(pi)

@@ -37,6 +37,7 @@ import scipy.sparse as sp
 from spco.model import gibbs
 from spco.model.gibbs import GibbsState, PreparedData, SamplerSettings
 from spco.model.hyperparameters import TransferHyperparameters
+from spco.model.kernels.counts import csr_rows
 from spco.model.kernels.crt import sample_crt
 from spco.model.kernels.dirichlet import log_dirichlet
 from spco.model.observations import HierarchicalMultinomial
@@ -404,13 +405,22 @@ def shard_bounds(data: PreparedData, n_shards: int) -> list[tuple[int, int]]:
 
 
 def data_of_homes(data: PreparedData, first: int, last: int) -> PreparedData:
-    """The homes first..last − 1 of ``data`` as their own :class:`PreparedData` (homes renumbered)."""
+    """The homes first..last − 1 of ``data`` as their own :class:`PreparedData` (homes renumbered;
+    the sparse counts' values and column indices are views of ``data``'s, which nothing writes)."""
     rows = slice(int(data.offsets[first]), int(data.offsets[last]))
     return PreparedData(positions=data.positions[rows].copy(), homes=data.homes[rows] - first,
-                        visual=sp.csr_array(data.visual[rows]), words=sp.csr_array(data.words[rows]),
+                        visual=_rows_of(data.visual, rows), words=_rows_of(data.words, rows),
                         n_homes=last - first, offsets=data.offsets[first:last + 1] - data.offsets[first],
                         position_scale=data.position_scale, map_centres=data.map_centres[first:last].copy(),
                         view_missing=data.view_missing[rows].copy())
+
+
+def _rows_of(matrix, rows: slice) -> sp.csr_array:
+    """Rows ``rows`` of a sparse matrix as CSR, views of its values and int32 column indices
+    (:func:`csr_rows`)."""
+    if not isinstance(matrix, sp.csr_array):
+        matrix = sp.csr_array(matrix)
+    return csr_rows(matrix, rows.start, rows.stop)
 
 
 #: GibbsState fields indexed by home, by sample, and shared by all homes.

@@ -254,6 +254,7 @@ class SpatialConceptModel:
             bar.close()
         if self.record_log_joint:
             trace.append(gibbs.log_joint(data, state, hyper, settings))
+            data.__dict__.pop("visual_by_dimension", None)  # (a cache the last log joint built: not kept)
         self.fit_seconds_ = time.perf_counter() - start
         self.hyperparameters_ = hyper
         self.settings_ = settings

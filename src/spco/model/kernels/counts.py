@@ -47,6 +47,19 @@ def stack_counts(*blocks) -> sp.csr_array:
     return out
 
 
+def csr_rows(matrix: sp.csr_array, first: int, stop: int) -> sp.csr_array:
+    """Rows first..stop − 1 of a CSR array in its own index and value types, its values and column
+    indices views of ``matrix``'s (no copy: the sampler never writes its counts; the row pointers
+    are new). Slicing with SciPy copies and turns int32 column indices into int64 (twice their
+    memory, and another compiled specialisation of every kernel that takes them)."""
+    begin, end = int(matrix.indptr[first]), int(matrix.indptr[stop])
+    out = sp.csr_array((stop - first, matrix.shape[1]), dtype=matrix.dtype)  # its arrays replaced below
+    out.data = matrix.data[begin:end]
+    out.indices = matrix.indices[begin:end]
+    out.indptr = matrix.indptr[first:stop + 1] - begin
+    return out
+
+
 @njit(cache=True)
 def _grouped_moments(x: np.ndarray, groups: np.ndarray, count: np.ndarray, total: np.ndarray,
                      scatter: np.ndarray) -> None:

@@ -175,9 +175,9 @@ def _crt_totals_row(counts: np.ndarray, conc: np.ndarray, seed: np.uint64, exact
     # its own random stream from group to group) and the moments of the others: Σ_i p_i and
     # Σ_i p_i (1 − p_i), p_i = a/(a + i), term by term where a + n < 6, otherwise through
     # Σ_g ψ(a + n_g) and Σ_g ψ′(a + n_g) (series), with ψ(a + 1) once per column
-    states = np.empty(width, dtype=np.uint64)
-    for k in range(width):
-        states[k] = _stream_start(seed, np.uint64(r * width + k))
+    # column k's stream starts at its first draw (0: not started; a started state is never 0): a
+    # column without Bernoulli terms never draws, and most columns of one home's counts have none
+    states = np.zeros(width, dtype=np.uint64)
     exact_mean = np.zeros(width)
     exact_var = np.zeros(width)
     digamma_sum = np.zeros(width)
@@ -229,6 +229,8 @@ def _crt_totals_row(counts: np.ndarray, conc: np.ndarray, seed: np.uint64, exact
             n = n_row[k]
             a = a_row[k]
             state = states[k]
+            if state == 0:
+                state = _stream_start(seed, np.uint64(r * width + k))
             for i in range(1, n):
                 state, u = _stream_next(state)
                 opened[k] += np.int64(u * (a + i) < a)
@@ -244,7 +246,10 @@ def _crt_totals_row(counts: np.ndarray, conc: np.ndarray, seed: np.uint64, exact
             series_mean = a * (digamma_sum[k] - several[k] * _digamma(a + 1.0))
             mean += series_mean
             var += series_mean - a * a * (several[k] * _trigamma(a + 1.0) - trigamma_sum[k])
-        _, extra = _bernoulli_sum_moment_matched(terms[k], mean, var, states[k])
+        state = states[k]
+        if state == 0:
+            state = _stream_start(seed, np.uint64(r * width + k))
+        _, extra = _bernoulli_sum_moment_matched(terms[k], mean, var, state)
         opened[k] += extra
 
 

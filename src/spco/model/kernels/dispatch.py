@@ -122,8 +122,13 @@ def _as(array: np.ndarray, dtype: type) -> np.ndarray:
 
 
 def _index_array(indices: np.ndarray) -> np.ndarray:
-    """CSR column indices as the kernels take them: int32 kept as it is, anything else int64."""
-    return indices if indices.dtype == np.int32 and indices.flags.c_contiguous else _as(indices, np.int64)
+    """CSR column indices as the kernels take them: int32 (one compiled specialisation per kernel;
+    SciPy's slicing and arithmetic give int64, converted here: column numbers fit)."""
+    if indices.dtype == np.int32 and indices.flags.c_contiguous:
+        return indices
+    if indices.size and int(indices.max()) >= 2**31:
+        raise ValueError("sparse matrices of 2^31 columns or more are not supported")
+    return _as(indices, np.int32)
 
 
 def _value_array(values: np.ndarray) -> np.ndarray:
