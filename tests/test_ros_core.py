@@ -182,7 +182,7 @@ def _jpeg_bomb(width: int, height: int) -> bytes:
 
 def test_a_camera_frame_claiming_too_many_pixels_is_refused_before_it_is_decoded(
         tour_home_file: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """ROS message → counts: a CompressedImage whose JPEG header claims 4096 × 4096 pixels (more than
+    """ROS message → counts: a CompressedImage whose JPEG header claims 16384 × 16384 pixels (more than
     DEFAULT_MAX_PIXELS) is refused, in a teaching and in a what, without OpenCV decoding it."""
     from spco.features.pixels import DEFAULT_MAX_PIXELS
 
@@ -194,12 +194,12 @@ def test_a_camera_frame_claiming_too_many_pixels_is_refused_before_it_is_decoded
         n = live.home.n_samples
         now = time.time()
         core.on_pose(_pose_msg(2.0, 1.0, 0.0), received=now)
-        core.on_image({"header": {}, "format": "jpeg", "data": _jpeg_bomb(4096, 4096)}, received=now)
+        core.on_image({"header": {}, "format": "jpeg", "data": _jpeg_bomb(16384, 16384)}, received=now)
         refused = core.teach_utterance(now, "this is the kitchen")
         assert "camera frame cannot be read" in refused["error"]
-        assert f"4096×4096 pixels is more than the {DEFAULT_MAX_PIXELS} accepted" in refused["error"]
+        assert f"16384×16384 pixels is more than the {DEFAULT_MAX_PIXELS} accepted" in refused["error"]
         answer = core.on_query('{"id": 1, "op": "what"}')
-        assert "4096×4096 pixels is more than" in answer["error"] and answer["id"] == 1
+        assert "16384×16384 pixels is more than" in answer["error"] and answer["id"] == 1
         assert live.home.n_samples == n and decoded == []  # nothing taught, nothing decoded
         # a real frame after it is decoded (once per use) and taught
         core.on_image(_image_msg(_room_view(2.0)), received=time.time())

@@ -42,6 +42,7 @@ __all__ = [
     "COMPRESSED_ENCODINGS",
     "DEFAULT_ENCODING",
     "DEFAULT_MAX_PIXELS",
+    "SERVED_MAX_PIXELS",
     "MIN_SIDE",
     "RAW_ENCODINGS",
     "ImageError",
@@ -65,9 +66,13 @@ COMPRESSED_ENCODINGS = ("jpeg", "png")
 #: The colour order of a colour array given without an encoding: OpenCV's.
 DEFAULT_ENCODING = "bgr8"
 
-#: The largest image accepted by default, in pixels (2048 × 2048: a 1080p camera fits; one decode
-#: of it is 12.6 MB, where a 4096 × 4096 image would be 50 MB).
-DEFAULT_MAX_PIXELS = 2048 * 2048
+#: The largest image accepted by default from the robot's own files, bags and topics, in pixels
+#: (8192 × 8192: an 8K camera fits; one decode of it is 201 MB): a bound on what a corrupt or hostile
+#: header can make spco allocate.
+DEFAULT_MAX_PIXELS = 8192 * 8192
+#: The largest image `spco serve` accepts over HTTP by default, in pixels (2048 × 2048: a 1080p
+#: camera fits; one decode of it is 12.6 MB), where any client on the network may send one.
+SERVED_MAX_PIXELS = 2048 * 2048
 #: The smallest side of a view, in pixels.
 MIN_SIDE = 8
 

@@ -44,7 +44,7 @@ import numpy as np
 
 from spco import knowledge as kn
 from spco.errors import ConfigurationError, SpcoError, TeachingLimitError, TeachingRateError
-from spco.features.pixels import DEFAULT_MAX_PIXELS, decode_image
+from spco.features.pixels import SERVED_MAX_PIXELS, decode_image
 from spco.knowledge import locking
 from spco.knowledge.requests import (
     MAX_POSES,
@@ -167,7 +167,7 @@ class LiveHome:
 
     def __init__(self, path: str | PathLike[str], *, seed: int | None = None,
                  sweeps: int = kn.DEFAULT_TEACH_SWEEPS, writer: str = "process", holder: str | None = None,
-                 max_pixels: int = DEFAULT_MAX_PIXELS, compact_records: int | None = None,
+                 max_pixels: int = SERVED_MAX_PIXELS, compact_records: int | None = None,
                  compact_idle: float | None = None, undo_limit: int | None = None,
                  limits: kn.TeachingLimits | None = kn.DEFAULT_LIMITS) -> None:
         if writer not in ("process", "thread"):
