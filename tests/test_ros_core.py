@@ -171,3 +171,37 @@ def test_spco_ros_refuses_bad_options_before_it_starts(tour_home_file: Path, arg
 
     result = CliRunner().invoke(main, ["ros", str(tour_home_file), *args])
     assert result.exit_code == 2 and message in result.output, result.output
+
+
+def _jpeg_bomb(width: int, height: int) -> bytes:
+    """A JPEG whose frame header claims ``width`` × ``height`` pixels, without the data to decode."""
+    sof = b"\xff\xc0\x00\x11\x08" + height.to_bytes(2, "big") + width.to_bytes(2, "big") \
+        + b"\x03\x01\x22\x00\x02\x11\x01\x03\x11\x01"
+    return b"\xff\xd8\xff\xe0\x00\x10JFIF\x00\x01\x01\x00\x00\x01\x00\x01\x00\x00" + sof + b"\x00" * 64
+
+
+def test_a_camera_frame_claiming_too_many_pixels_is_refused_before_it_is_decoded(
+        tour_home_file: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """ROS message → counts: a CompressedImage whose JPEG header claims 16384 × 16384 pixels (more than
+    DEFAULT_MAX_PIXELS) is refused, in a teaching and in a what, without OpenCV decoding it."""
+    from spco.features.pixels import DEFAULT_MAX_PIXELS
+
+    decoded: list[int] = []
+    real = cv2.imdecode
+    monkeypatch.setattr(cv2, "imdecode", lambda raw, flags: decoded.append(len(raw)) or real(raw, flags))
+    with LiveHome(tour_home_file, seed=0, writer="thread") as live:
+        core, _ = _core(live)
+        n = live.home.n_samples
+        now = time.time()
+        core.on_pose(_pose_msg(2.0, 1.0, 0.0), received=now)
+        core.on_image({"header": {}, "format": "jpeg", "data": _jpeg_bomb(16384, 16384)}, received=now)
+        refused = core.teach_utterance(now, "this is the kitchen")
+        assert "camera frame cannot be read" in refused["error"]
+        assert f"16384×16384 pixels is more than the {DEFAULT_MAX_PIXELS} accepted" in refused["error"]
+        answer = core.on_query('{"id": 1, "op": "what"}')
+        assert "16384×16384 pixels is more than" in answer["error"] and answer["id"] == 1
+        assert live.home.n_samples == n and decoded == []  # nothing taught, nothing decoded
+        # a real frame after it is decoded (once per use) and taught
+        core.on_image(_image_msg(_room_view(2.0)), received=time.time())
+        answer = core.teach_utterance(time.time(), "this is the kitchen")
+        assert "error" not in answer and live.home.n_samples == n + 1 and len(decoded) == 1

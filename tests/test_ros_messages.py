@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import base64
 import math
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -191,3 +192,45 @@ def test_goal_message() -> None:
     assert yaw_from_quaternion(goal["pose"]["orientation"]) == pytest.approx(math.pi / 2)
     stamped = goal_message(0, 0, 0, stamp=2.5, ros_version=2)
     assert stamped["header"]["stamp"] == {"sec": 2, "nanosec": 500_000_000}
+
+
+def test_every_image_path_checks_the_header_before_decoding(tmp_path: Path,
+                                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    """A PNG or JPEG whose header claims more pixels than allowed is refused without decoding, whether
+    it comes as a ROS message, bytes, a file or a view; a small one that decodes differently from its
+    header is refused as broken."""
+    from spco.features import read_image
+    from spco.features.pixels import ImageError, ImageTooLargeError, decode_image, encoded_size
+
+    png = cv2.imencode(".png", _frame(32, 40))[1].tobytes()
+    jpeg = cv2.imencode(".jpg", _frame(32, 40))[1].tobytes()
+    assert encoded_size(png) == ("png", 40, 32) and encoded_size(jpeg) == ("jpeg", 40, 32)
+    decoded: list[int] = []
+    real = cv2.imdecode
+    monkeypatch.setattr(cv2, "imdecode", lambda raw, flags: decoded.append(len(raw)) or real(raw, flags))
+    frame = frame_from_message({"format": "jpeg", "data": base64.b64encode(jpeg).decode()})
+    with pytest.raises(ImageTooLargeError, match=r"40×32 pixels is more than the 1000 accepted"):
+        frame.pixels(max_pixels=1000)
+    with pytest.raises(ImageTooLargeError):
+        decode_compressed(png, max_pixels=1000)
+    (tmp_path / "big.png").write_bytes(png)
+    with pytest.raises(ImageTooLargeError, match=r"big\.png: 40×32 pixels is more than"):
+        read_image(tmp_path / "big.png", max_pixels=1000)
+    with pytest.raises(ImageTooLargeError, match=r"^image: 40×32"):
+        decode_image(jpeg, max_pixels=1000)
+    with pytest.raises(ImageTooLargeError):
+        decode_image(_frame(32, 40).tobytes(), "bgr8", width=40, height=32, max_pixels=1000)
+    assert decoded == []
+    assert frame.pixels()[0].shape == (32, 40, 3) and len(decoded) == 1
+    # a header that lies about the size: refused after decoding, as broken
+    lying = png[:16] + (41).to_bytes(4, "big") + png[20:]
+    with pytest.raises(ImageError, match=r"broken PNG \(41×32 in its header"):
+        decode_compressed(lying)
+    with pytest.raises(ImageError, match="too small"):
+        decode_compressed(cv2.imencode(".png", _frame(4, 4))[1].tobytes())
+    # every view comes out BGR, grey and raw pixels included
+    grey = np.arange(64, dtype=np.uint8).reshape(8, 8)
+    assert np.array_equal(decode_image(grey.tobytes(), "mono8", width=8, height=8),
+                          np.repeat(grey[:, :, None], 3, axis=2))
+    with pytest.raises(ImageError, match=r"^image: 3 bytes of mono8 pixels, but 8×8×1 = 64 expected"):
+        decode_image(b"abc", "mono8", width=8, height=8)

@@ -708,16 +708,15 @@ def _write_mcap(home: Any, path: Path) -> None:
 
 def _grey_image(path: Path) -> Any:
     """A PGM (or other grey) image as a (H, W) uint8 array (matplotlib reads only PNG itself)."""
-    import cv2
     import numpy as np
 
     from spco.errors import ConfigurationError
+    from spco.features.pixels import ImageError, decode_grey
 
-    raw = np.fromfile(path, dtype=np.uint8)
-    image = cv2.imdecode(raw, cv2.IMREAD_GRAYSCALE) if raw.size else None
-    if image is None:
-        raise ConfigurationError(f"{path}: not a readable map image (--map)")
-    return image
+    try:
+        return decode_grey(np.fromfile(path, dtype=np.uint8))
+    except (OSError, ImageError):
+        raise ConfigurationError(f"{path}: not a readable map image (--map)") from None
 
 
 def _room_outlines(home: Any, regions_file: Path | None, key: str | None = None) -> Any:

@@ -19,7 +19,7 @@ import numpy as np
 
 from spco.data.bagreading import RAW_ENCODINGS, _Bag, _Sample, _Streams
 from spco.errors import ConfigurationError, DataFormatError
-from spco.features.pixels import pixels_from_buffer, to_bgr
+from spco.features.pixels import ImageError, ImageTooLargeError, decode_compressed, pixels_from_buffer, to_bgr
 
 
 def _check_out(out: Path, bags: Sequence[Path], overwrite: bool) -> None:
@@ -91,7 +91,11 @@ def _decode_image(bag: _Bag, connection: Any, msg: Any, image_format: str) -> tu
                 bag.path,
                 f"{connection.topic}: compressed image format {msg.format!r} is not supported (JPEG or PNG)",
             )
-        if cv2.imdecode(data, cv2.IMREAD_UNCHANGED) is None:
+        try:
+            decode_compressed(data)  # its size checked from its header first
+        except ImageTooLargeError as exc:
+            return f"image too large ({exc.problem})"
+        except ImageError:
             return "image could not be decoded"
         return data.tobytes(), ext
     encoding = str(msg.encoding).lower()

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from spco.errors import DataFormatError
+from spco.features.pixels import decode_grey
 
 __all__ = ["MAP_YAML_SUFFIXES", "RosMap", "read_ros_map"]
 
@@ -53,7 +54,6 @@ def read_ros_map(path: str | os.PathLike[str]) -> RosMap:
     unreadable file, a missing ``image``, ``resolution`` or ``origin``, a resolution ≤ 0, or a
     rotated map (``origin`` yaw ≠ 0, which spco does not draw).
     """
-    import cv2
     import yaml
 
     file = Path(path).expanduser()
@@ -83,10 +83,7 @@ def read_ros_map(path: str | os.PathLike[str]) -> RosMap:
         image_file = file.parent / image_file
     if not image_file.is_file():
         raise DataFormatError(file, f"its image {image_file} does not exist")
-    raw = np.fromfile(image_file, dtype=np.uint8)
-    image = cv2.imdecode(raw, cv2.IMREAD_GRAYSCALE) if raw.size else None
-    if image is None:
-        raise DataFormatError(image_file, "not a readable map image (PGM or PNG)")
+    image = decode_grey(np.fromfile(image_file, dtype=np.uint8), image_file)
     if meta.get("negate") in (1, True):
         image = 255 - image
     height, width = image.shape

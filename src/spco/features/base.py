@@ -23,6 +23,14 @@ import numpy as np
 import scipy.sparse as sp
 
 from spco.errors import ConfigurationError, DataFormatError
+from spco.features.pixels import (
+    DEFAULT_MAX_PIXELS,
+    check_encoding,
+    check_size,
+    decode_compressed,
+    read_image_file,
+    to_bgr,
+)
 
 __all__ = [
     "IMAGE_SUFFIXES",
@@ -45,7 +53,8 @@ IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png")
 ImageInput = str | os.PathLike[str] | bytes | np.ndarray
 
 
-def read_image(image: ImageInput, encoding: str | None = None) -> np.ndarray:
+def read_image(image: ImageInput, encoding: str | None = None, *,
+               max_pixels: int | None = DEFAULT_MAX_PIXELS) -> np.ndarray:
     """The image as an (H, W, 3) uint8 BGR array (grey and alpha images are converted).
 
     Parameters
@@ -57,46 +66,26 @@ def read_image(image: ImageInput, encoding: str | None = None) -> np.ndarray:
         :class:`~spco.features.pixels.UndeclaredEncodingWarning`), ``mono8`` for grey. For bytes:
         ``jpeg`` or ``png`` (checked against the bytes) or ``None``; for a path, ``None`` (a file
         carries its own).
+    max_pixels: the largest file or bytes accepted, checked from the header before decoding
+        (:func:`spco.features.pixels.decode_compressed`; ``None``: no limit).
 
     Raises :class:`~spco.errors.DataFormatError` for an unreadable, empty or corrupt file or bytes
-    (naming the file), an unknown encoding or one the array's shape does not match.
+    (naming the file), an unknown encoding or one the array's shape does not match;
+    :class:`~spco.features.pixels.ImageTooLargeError` for more than ``max_pixels`` pixels.
     """
-    import cv2
-
-    from spco.features.pixels import check_encoding, decode_compressed, to_bgr
-
     if isinstance(image, np.ndarray):
         array = to_bgr(image, encoding)
         where = "image array"
     elif isinstance(image, bytes | bytearray | memoryview):
-        array = decode_compressed(bytes(image), encoding)
+        array = decode_compressed(bytes(image), encoding, max_pixels=max_pixels)
         where = "image array"
     else:
         if encoding is not None and check_encoding(encoding) not in ("jpeg", "png"):
             raise DataFormatError(str(image), f"encoding {encoding!r} is for arrays of pixels; an image file "
                                   "carries its own colour order")
-        path = Path(image).expanduser()
-        where = str(path)
-        if not path.is_file():
-            raise DataFormatError(path, "no such image file")
-        try:
-            raw = np.fromfile(path, dtype=np.uint8)
-        except OSError as exc:
-            raise DataFormatError(path, f"cannot be read ({exc.strerror})") from None
-        array = cv2.imdecode(raw, cv2.IMREAD_UNCHANGED) if raw.size else None
-        if array is None:
-            raise DataFormatError(path, "not a readable image (expected a PNG or JPEG file; is it truncated "
-                                  "or corrupt?)")
-        if array.dtype != np.uint8:  # 16-bit PNG
-            array = (array // 257).astype(np.uint8)
-        channels = 1 if array.ndim == 2 else array.shape[2]
-        if channels not in (1, 3, 4):
-            raise DataFormatError(path, f"an image must be grey, colour or colour with alpha, got shape "
-                                  f"{array.shape}")
-        array = to_bgr(array, {1: "mono8", 3: "bgr8", 4: "bgra8"}[channels])  # OpenCV decodes to BGR(A)
-    if min(array.shape[:2]) < 8:
-        raise DataFormatError(None if where == "image array" else where,
-                              f"image too small ({array.shape[1]}×{array.shape[0]} pixels; at least 8×8)")
+        where = str(Path(image).expanduser())
+        array = read_image_file(where, max_pixels)
+    check_size(array.shape[1], array.shape[0], None, None if where == "image array" else where)
     return np.ascontiguousarray(array)
 
 

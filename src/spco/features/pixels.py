@@ -18,11 +18,20 @@ and, for encoded bytes (a ``sensor_msgs/CompressedImage`` or a file's contents),
 ``png``. :data:`DEFAULT_ENCODING` (``bgr8``, OpenCV's order) is used for a colour array given
 without one, with a :class:`UndeclaredEncodingWarning`: declare the encoding of frames that come
 from PIL, matplotlib or ``cv_bridge`` (``rgb8``).
+
+This module is the one place where image bytes and pixels become an array: encoded bytes (files,
+``sensor_msgs/CompressedImage``, the service's views, bags) are measured from their header
+(:func:`encoded_size`) and refused above ``max_pixels`` (:class:`ImageTooLargeError`) **before**
+they are decoded, so a small file that would decode to a huge image costs nothing; bytes that are
+not a usable image are refused with an :class:`ImageError` naming the problem.
 """
 
 from __future__ import annotations
 
+import struct
 import warnings
+from os import PathLike
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -32,11 +41,21 @@ from spco.errors import DataFormatError
 __all__ = [
     "COMPRESSED_ENCODINGS",
     "DEFAULT_ENCODING",
+    "DEFAULT_MAX_PIXELS",
+    "MIN_SIDE",
     "RAW_ENCODINGS",
+    "SERVED_MAX_PIXELS",
+    "ImageError",
+    "ImageTooLargeError",
     "UndeclaredEncodingWarning",
     "check_encoding",
+    "check_size",
     "decode_compressed",
+    "decode_grey",
+    "decode_image",
+    "encoded_size",
     "pixels_from_buffer",
+    "read_image_file",
     "to_bgr",
 ]
 
@@ -47,7 +66,28 @@ COMPRESSED_ENCODINGS = ("jpeg", "png")
 #: The colour order of a colour array given without an encoding: OpenCV's.
 DEFAULT_ENCODING = "bgr8"
 
+#: The largest image accepted by default from the robot's own files, bags and topics, in pixels
+#: (8192 × 8192: an 8K camera fits; one decode of it is 201 MB): a bound on what a corrupt or hostile
+#: header can make spco allocate.
+DEFAULT_MAX_PIXELS = 8192 * 8192
+#: The largest image `spco serve` accepts over HTTP by default, in pixels (2048 × 2048: a 1080p
+#: camera fits; one decode of it is 12.6 MB), where any client on the network may send one.
+SERVED_MAX_PIXELS = 2048 * 2048
+#: The smallest side of a view, in pixels.
+MIN_SIDE = 8
+
 _ALIASES = {"jpg": "jpeg", "8uc3": None, "8uc1": "mono8", "grey": "mono8", "gray": "mono8"}
+
+
+class ImageError(DataFormatError):
+    """Bytes or pixels that are not a usable view: not JPEG/PNG, corrupt, too small, or raw pixels of
+    the wrong size. ``path`` names where the image came from (a file, or a request's field such as
+    ``image``), ``None`` when unknown."""
+
+
+class ImageTooLargeError(ImageError):
+    """An image with more pixels than accepted (``max_pixels``), refused from its header before it is
+    decoded."""
 
 
 class UndeclaredEncodingWarning(UserWarning):
@@ -156,32 +196,176 @@ def pixels_from_buffer(data: bytes | bytearray | memoryview | np.ndarray, height
     return pixels.reshape(height, width) if channels == 1 else pixels.reshape(height, width, channels)
 
 
-def decode_compressed(data: bytes | bytearray | memoryview | np.ndarray | Any,
-                      encoding: str | None = None) -> np.ndarray:
-    """An (H, W, 3) uint8 BGR array of JPEG or PNG bytes (a ``sensor_msgs/CompressedImage``'s data).
+def encoded_size(data: bytes | bytearray | memoryview | np.ndarray, where: str | PathLike[str] | None = None
+                 ) -> tuple[str, int, int]:
+    """``(format, width, height)`` of JPEG or PNG bytes, read from the header without decoding.
 
-    ``encoding`` (``jpeg``, ``png`` or ROS's format string) is checked against the bytes' own
-    signature when given. Raises :class:`~spco.errors.DataFormatError` for other formats or bytes
-    OpenCV cannot decode.
+    ``where`` names the image in the error (a file, or a request's field). Raises :class:`ImageError`
+    for empty bytes, other formats, or a header cut short.
     """
+    data = memoryview(np.ascontiguousarray(_as_uint8(data)))
+    if len(data) == 0:
+        raise ImageError(where, "an empty image (no bytes)")
+    if data[:8] == b"\x89PNG\r\n\x1a\n":
+        if len(data) < 24 or data[12:16] != b"IHDR":
+            raise ImageError(where, "a PNG without its IHDR header (cut short?)")
+        width, height = struct.unpack(">II", data[16:24])
+        return "png", width, height
+    if data[:3] == b"\xff\xd8\xff":
+        i = 2
+        while i + 4 <= len(data):
+            if data[i] != 0xFF:
+                i += 1
+                continue
+            marker = data[i + 1]
+            if marker == 0xFF:  # fill byte
+                i += 1
+                continue
+            if marker in (0xD8, 0x01) or 0xD0 <= marker <= 0xD7:  # no length
+                i += 2
+                continue
+            (length,) = struct.unpack(">H", data[i + 2:i + 4])
+            if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):  # start of frame
+                if i + 9 > len(data):
+                    break
+                height, width = struct.unpack(">HH", data[i + 5:i + 9])
+                return "jpeg", width, height
+            if marker == 0xDA:  # start of scan before any frame header
+                break
+            i += 2 + length
+        raise ImageError(where, "a JPEG without a frame header (cut short or corrupt?)")
+    raise ImageError(where, "not a JPEG or PNG (give raw pixels with an encoding: rgb8, bgr8 or mono8)")
+
+
+def check_size(width: int, height: int, max_pixels: int | None = DEFAULT_MAX_PIXELS,
+               where: str | PathLike[str] | None = None) -> None:
+    """Refuse an image of ``width`` × ``height`` pixels smaller than :data:`MIN_SIDE` on a side
+    (:class:`ImageError`) or of more than ``max_pixels`` pixels (:class:`ImageTooLargeError`;
+    ``None``: no limit)."""
+    if width < MIN_SIDE or height < MIN_SIDE:
+        raise ImageError(where, f"{width}×{height} pixels is too small (at least {MIN_SIDE}×{MIN_SIDE})")
+    if max_pixels is not None and width * height > max_pixels:
+        raise ImageTooLargeError(where, f"{width}×{height} pixels is more than the {max_pixels} accepted")
+
+
+def _as_uint8(data: Any) -> np.ndarray:
+    return np.frombuffer(data, dtype=np.uint8) if isinstance(data, bytes | bytearray | memoryview) \
+        else np.asarray(data, dtype=np.uint8).ravel()
+
+
+def _opencv_decode(raw: np.ndarray, grey: bool = False) -> np.ndarray | None:
+    """OpenCV's decoder (the one call of it in spco): the array, or ``None`` for bytes it cannot decode."""
     import cv2
 
-    raw = np.frombuffer(data, dtype=np.uint8) if isinstance(data, bytes | bytearray | memoryview) \
-        else np.asarray(data, dtype=np.uint8).ravel()
-    head = raw[:8].tobytes()
-    kind = "jpeg" if head.startswith(b"\xff\xd8") else "png" if head.startswith(b"\x89PNG") else None
+    return cv2.imdecode(raw, cv2.IMREAD_GRAYSCALE if grey else cv2.IMREAD_UNCHANGED) if raw.size else None
+
+
+def decode_compressed(data: bytes | bytearray | memoryview | np.ndarray | Any, encoding: str | None = None, *,
+                      max_pixels: int | None = DEFAULT_MAX_PIXELS,
+                      where: str | PathLike[str] | None = None) -> np.ndarray:
+    """An (H, W, 3) uint8 BGR array of JPEG or PNG bytes (a file's contents, a
+    ``sensor_msgs/CompressedImage``'s data, a served view).
+
+    The size is read from the header first (:func:`encoded_size`) and checked (:func:`check_size`:
+    at least :data:`MIN_SIDE` a side, at most ``max_pixels``, ``None`` for no limit) before anything is
+    decoded. ``encoding`` (``jpeg``, ``png`` or ROS's format string) is checked against the bytes' own
+    signature when given; ``where`` names the image in errors.
+
+    Raises :class:`ImageTooLargeError` for too many pixels, :class:`ImageError` for other formats,
+    a wrong declared format, or bytes that do not decode to the size in their header.
+    """
+    raw = _as_uint8(data)
+    kind, width, height = encoded_size(raw, where)
     declared = check_encoding(encoding) if encoding is not None else None
-    if kind is None:
-        raise DataFormatError(None, "compressed image is empty" if raw.size == 0 else
-                              f"compressed image format {encoding or 'unknown'!r} is not supported "
-                              "(JPEG or PNG)")
     if declared is not None and declared in COMPRESSED_ENCODINGS and declared != kind:
-        raise DataFormatError(None, f"compressed image declared {declared} holds {kind} data")
-    array = cv2.imdecode(raw, cv2.IMREAD_UNCHANGED)
-    if array is None:
-        raise DataFormatError(None, f"the {kind} image could not be decoded (truncated or corrupt?)")
+        raise ImageError(where, f"compressed image declared {declared} holds {kind} data")
+    check_size(width, height, max_pixels, where)
+    array = _opencv_decode(raw)
+    if array is None or array.shape[:2] != (height, width):
+        raise ImageError(where, f"a broken {kind.upper()} ({width}×{height} in its header, but it could not "
+                         "be decoded: cut short or corrupt?)")
     if array.dtype != np.uint8:  # 16-bit PNG
         array = (array // 257).astype(np.uint8)
     # OpenCV decodes colour files into BGR(A) and grey files into one channel
     channels = 1 if array.ndim == 2 else array.shape[2]
     return to_bgr(array, {1: "mono8", 3: "bgr8", 4: "bgra8"}.get(channels))
+
+
+def decode_grey(data: bytes | bytearray | memoryview | np.ndarray, where: str | PathLike[str] | None = None
+                ) -> np.ndarray:
+    """An (H, W) uint8 grey array of an image file's bytes (a map: PGM or PNG), without a pixel limit
+    (maps are the operator's own files, and large). Raises :class:`ImageError` for bytes that do not
+    decode."""
+    image = _opencv_decode(_as_uint8(data), grey=True)
+    if image is None:
+        raise ImageError(where, "not a readable map image (PGM or PNG)")
+    return image
+
+
+def decode_image(image: Any, encoding: str | None = None, *, width: int | None = None,
+                 height: int | None = None, max_pixels: int | None = DEFAULT_MAX_PIXELS,
+                 where: str | PathLike[str] | None = "image") -> np.ndarray:
+    """A view as an (H, W, 3) uint8 BGR array, its size checked (:func:`check_size`) before decoding.
+
+    Parameters
+    ----------
+    image: JPEG/PNG bytes (``encoding`` ``None``, ``jpeg`` or ``png``); raw pixel bytes, rows unpadded
+        (``encoding`` one of :data:`RAW_ENCODINGS`, ``width`` and ``height`` given); or a uint8 array
+        (H, W), (H, W, 3) or (H, W, 4) in ``encoding`` (default ``bgr8`` for colour, ``mono8`` for grey).
+    max_pixels: the largest image accepted (``None``: no limit).
+    where: names the image in errors (default ``image``, the field of a request).
+
+    Raises :class:`ImageTooLargeError` or :class:`ImageError` naming the problem.
+    """
+    name = check_encoding(encoding) if encoding is not None else None
+    if isinstance(image, bytes | bytearray | memoryview):
+        if name is None or name in COMPRESSED_ENCODINGS:
+            return decode_compressed(image, name, max_pixels=max_pixels, where=where)
+        if width is None or height is None:
+            raise ImageError(where, f"raw {name} pixels need their width and height")
+        for field, value in (("width", width), ("height", height)):
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ImageError(field, f"expected a whole number of pixels >= 1, got {value!r}")
+        check_size(width, height, max_pixels, where)
+        channels = RAW_ENCODINGS[name]
+        expected = width * height * channels
+        if len(image) != expected:
+            raise ImageError(where, f"{len(image)} bytes of {name} pixels, but {width}×{height}×{channels} = "
+                             f"{expected} expected")
+        image = pixels_from_buffer(image, height, width, width * channels, name)
+    elif not isinstance(image, np.ndarray):
+        raise ImageError(where, f"expected JPEG/PNG bytes, raw pixel bytes or a uint8 array, got "
+                         f"{type(image).__name__}")
+    elif name in COMPRESSED_ENCODINGS:
+        raise ImageError(where, f"an array of pixels is not {name} bytes: give its encoding (rgb8, bgr8, "
+                         "mono8)")
+    if image.dtype != np.uint8:
+        raise ImageError(where, f"a pixel array must be uint8, got {image.dtype}")
+    if image.ndim not in (2, 3):
+        raise ImageError(where, f"an array of shape {image.shape} is not an image (H×W or H×W×channels)")
+    check_size(image.shape[1], image.shape[0], max_pixels, where)
+    if name is None:
+        name = "mono8" if image.ndim == 2 else DEFAULT_ENCODING
+    try:
+        return to_bgr(image, name)
+    except DataFormatError as exc:
+        raise ImageError(where, exc.problem) from None
+
+
+def read_image_file(path: str | PathLike[str], max_pixels: int | None = DEFAULT_MAX_PIXELS) -> np.ndarray:
+    """An (H, W, 3) uint8 BGR array of a PNG or JPEG file (:func:`decode_compressed`, the file named in
+    errors). Raises :class:`ImageError` (:class:`ImageTooLargeError`) for a missing, unreadable, corrupt
+    or too large file."""
+    path = Path(path).expanduser()
+    if not path.is_file():
+        raise ImageError(path, "no such image file")
+    try:
+        raw = np.fromfile(path, dtype=np.uint8)
+    except OSError as exc:
+        raise ImageError(path, f"cannot be read ({exc.strerror})") from None
+    try:
+        return decode_compressed(raw, max_pixels=max_pixels)
+    except ImageTooLargeError as exc:
+        raise ImageTooLargeError(path, exc.problem) from None
+    except ImageError as exc:
+        raise ImageError(path, f"not a readable image (expected a PNG or JPEG file): {exc.problem}") from None

@@ -20,7 +20,13 @@ import numpy as np
 
 from spco.data import tf
 from spco.errors import DataFormatError
-from spco.features.pixels import check_encoding, decode_compressed, pixels_from_buffer, to_bgr
+from spco.features.pixels import (
+    DEFAULT_MAX_PIXELS,
+    check_encoding,
+    decode_compressed,
+    pixels_from_buffer,
+    to_bgr,
+)
 
 __all__ = [
     "CHI2_95_2D",
@@ -202,14 +208,16 @@ class CameraFrame:
     width: int = 0
     step: int = 0
 
-    def pixels(self) -> tuple[np.ndarray, str]:
+    def pixels(self, max_pixels: int | None = DEFAULT_MAX_PIXELS) -> tuple[np.ndarray, str]:
         """``(pixel array, its encoding)`` with the encoding one of ``rgb8``, ``bgr8`` (H, W, 3) or
         ``mono8`` (H, W): a raw rgb8, bgr8 or mono8 frame's pixels as they are, in their own channel
-        order; a frame with alpha and a compressed one converted to (decoded into) ``bgr8``. Raises
+        order; a frame with alpha and a compressed one converted to (decoded into) ``bgr8``. A
+        compressed frame of more than ``max_pixels`` pixels is refused from its header before it is
+        decoded (:class:`~spco.features.pixels.ImageTooLargeError`). Raises
         :class:`~spco.errors.DataFormatError` for data that do not make an image."""
         raw = _bytes_of(self.data)
         if self.encoding in ("jpeg", "png"):
-            return decode_compressed(raw, self.encoding), "bgr8"
+            return decode_compressed(raw, self.encoding, max_pixels=max_pixels), "bgr8"
         pixels = pixels_from_buffer(raw, self.height, self.width, self.step, self.encoding)
         if self.encoding in ("rgba8", "bgra8"):
             return to_bgr(pixels, self.encoding), "bgr8"

@@ -50,8 +50,8 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.responses import JSONResponse
 
 from spco.errors import SpcoError
+from spco.features.pixels import SERVED_MAX_PIXELS, ImageError, encoded_size
 from spco.service.errors import FRAMEWORK_MESSAGES, answer_for, error_response, validation_answer
-from spco.service.images import DEFAULT_MAX_PIXELS, ImageError, encoded_size
 from spco.service.live import LiveHome
 from spco.service.routes import EventHub, api, page
 from spco.service.security import LOOPBACK_HOSTS, Guard, Sessions
@@ -95,7 +95,7 @@ class ServeSettings:
     body_timeout: float = 30.0
     send_timeout: float = 30.0
     max_buffered: int = 64 * 1024 * 1024
-    max_pixels: int = DEFAULT_MAX_PIXELS
+    max_pixels: int = SERVED_MAX_PIXELS
     decode_concurrency: int = 2
     decode_queue: int = 8
     max_subscribers: int = 8

@@ -33,8 +33,8 @@ from typing import Any
 from starlette.responses import JSONResponse
 
 from spco.errors import SpcoError
+from spco.features.pixels import ImageTooLargeError
 from spco.model.prediction import UnknownNameError
-from spco.service.images import ImageTooLargeError
 from spco.service.teaching import ConflictError, NotFoundError
 from spco.service.writer import WriterUnavailableError
 

@@ -44,6 +44,7 @@ import numpy as np
 
 from spco import knowledge as kn
 from spco.errors import ConfigurationError, SpcoError, TeachingLimitError, TeachingRateError
+from spco.features.pixels import SERVED_MAX_PIXELS, decode_image
 from spco.knowledge import locking
 from spco.knowledge.requests import (
     MAX_POSES,
@@ -58,7 +59,6 @@ from spco.knowledge.requests import (
     Where,
 )
 from spco.service.answers import ask_answer, check_pose, regions_answer, what_answer, where_answer
-from spco.service.images import DEFAULT_MAX_PIXELS, decode_image
 from spco.service.journal import TornRecordWarning, journal_path
 from spco.service.teaching import ConflictError, NotFoundError, served_info
 from spco.service.writer import ProcessWriter, ThreadWriter, WriterUnavailableError
@@ -167,7 +167,7 @@ class LiveHome:
 
     def __init__(self, path: str | PathLike[str], *, seed: int | None = None,
                  sweeps: int = kn.DEFAULT_TEACH_SWEEPS, writer: str = "process", holder: str | None = None,
-                 max_pixels: int = DEFAULT_MAX_PIXELS, compact_records: int | None = None,
+                 max_pixels: int = SERVED_MAX_PIXELS, compact_records: int | None = None,
                  compact_idle: float | None = None, undo_limit: int | None = None,
                  limits: kn.TeachingLimits | None = kn.DEFAULT_LIMITS) -> None:
         if writer not in ("process", "thread"):
@@ -253,7 +253,7 @@ class LiveHome:
         """A view's visual counts (:func:`spco.knowledge.view_counts`): its ``visual`` as given, or its
         image through the knowledge's extractor (:meth:`spco.knowledge.Knowledge.image_extractor`, as
         ``spco what --image``), or ``None`` for no view. The image is decoded by
-        :func:`spco.service.images.decode_image` (its size checked from its header first, against
+        :func:`spco.features.pixels.decode_image` (its size checked from its header first, against
         ``max_pixels``)."""
         if view is None:
             return None
@@ -263,8 +263,7 @@ class LiveHome:
             return kn.view_counts(knowledge, view.visual, view.image)
         pixels = decode_image(view.image, view.encoding, width=view.width, height=view.height,
                               max_pixels=self.max_pixels)
-        encoding = "mono8" if pixels.ndim == 2 else "bgr8"  # what decode_image gives
-        return kn.view_counts(knowledge, None, pixels, encoding,
+        return kn.view_counts(knowledge, None, pixels, "bgr8",
                               extractor=lambda: self._extractor_of(knowledge))
 
     def _extractor_of(self, knowledge: kn.Knowledge) -> Any:

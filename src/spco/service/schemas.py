@@ -15,8 +15,8 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from spco.features.pixels import ImageError
 from spco.knowledge.requests import MAX_ID, MAX_SENTENCE_CHARS, MAX_TOP, Pose, Teach, View, What
-from spco.service.images import ImageError
 
 __all__ = ["AskAnswer", "ErrorAnswer", "HealthAnswer", "RegionsAnswer", "TeachAnswer", "TeachBody",
            "ViewBody", "WhatAnswer", "WhatBody", "WhereAnswer"]
@@ -32,7 +32,7 @@ def _decode_base64(text: str) -> bytes:
     try:
         return base64.b64decode(text, validate=True)
     except (binascii.Error, ValueError):
-        raise ImageError("image: not valid base64") from None
+        raise ImageError("image", "not valid base64") from None
 
 
 class ViewBody(_Strict):

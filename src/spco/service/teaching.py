@@ -170,7 +170,7 @@ def view_record(home: kn.HomeModel, counts: object) -> dict[str, list[int]] | No
     """A view's visual counts as ``{"indices", "counts"}`` (its non-zero entries), ``None`` for none.
 
     ``counts``: a (D,) vector of whole numbers ≥ 0, D the home's visual dimension (an image is
-    turned into counts by :func:`spco.service.images.view_counts` first)."""
+    turned into counts by :meth:`spco.service.live.LiveHome.view_counts` first)."""
     if counts is None:
         return None
     if not sp.issparse(counts) and np.ndim(counts) != 1:
