@@ -36,9 +36,10 @@ import os
 import shutil
 import threading
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any, TypeVar
 
 __all__ = ["MIN_SIMILARITY", "PLACE_ROOTS", "Lexicon", "LexiconMatch", "WordFacts", "lexicon",
            "lexicon_unavailable_reason", "word_facts"]
@@ -480,6 +481,8 @@ _FACTS_FORMAT = 1
 _KINDS_FORMAT = 1
 _facts_lock = threading.Lock()
 _facts_memory: dict[str, dict[str, WordFacts]] = {}
+#: The facts kept of each word by a cache file (:class:`WordFacts`, :class:`KindFacts`).
+_F = TypeVar("_F")
 
 
 def _facts_file(folder: Path, what: str = "facts") -> Path:
@@ -499,31 +502,69 @@ def _facts_file(folder: Path, what: str = "facts") -> Path:
     return _cache_root() / f"wordnet-{what}-{digest.hexdigest()[:16]}.json"
 
 
-def _read_facts(path: Path) -> dict[str, WordFacts]:
+def _read_cache(path: Path, fmt: int, decode: Callable[[Any], _F]) -> dict[str, _F]:
+    """The words' facts of a cache file written by :func:`_write_cache` (empty when there is no file
+    yet or it is not one of ours: the facts are computed again and the file rewritten)."""
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
-        if data.get("format") != _FACTS_FORMAT:
+        if data.get("format") != fmt:
             return {}
-        return {w: WordFacts(bool(k), math.nan if n is None else float(n),
-                             math.nan if p is None else float(p))
-                for w, (k, n, p) in data["words"].items()}
+        return {w: decode(row) for w, row in data["words"].items()}
     except (OSError, ValueError, KeyError, TypeError, AttributeError):
-        return {}  # no file yet, or not one of ours: computed again and rewritten
+        return {}
 
 
-def _write_facts(path: Path, facts: dict[str, WordFacts]) -> None:
-    def number(x: float) -> float | None:
-        return None if math.isnan(x) else x
-
-    text = json.dumps({"format": _FACTS_FORMAT, "words": {
-        w: [f.known, number(f.noun_share), number(f.place_share)] for w, f in sorted(facts.items())}})
+def _write_cache(path: Path, fmt: int, rows: dict[str, Any]) -> None:
+    """Write ``{"format": fmt, "words": rows}`` to ``path`` atomically (nothing on a read-only cache:
+    the facts are computed again next time)."""
+    text = json.dumps({"format": fmt, "words": dict(sorted(rows.items()))})
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_name(f".{path.name}.{os.getpid()}.{threading.get_ident()}")
         tmp.write_text(text, encoding="utf-8")
         os.replace(tmp, path)
     except OSError:
-        pass  # a read-only cache: the facts are computed again next time
+        pass
+
+
+def _cached_facts(words: Sequence[str], what: str, fmt: int, memory: dict[str, dict[str, _F]],
+                  compute: Callable[[Lexicon, str], _F], encode: Callable[[_F], Any],
+                  decode: Callable[[Any], _F]) -> dict[str, _F] | None:
+    """The facts of ``words`` from the cache file ``what`` (and this process's ``memory`` of it),
+    WordNet loaded only for words not in it yet, which are then added; None when the lexicon is
+    unavailable."""
+    if lexicon_unavailable_reason() is not None:
+        return None
+    folder = _wordnet_folder()
+    assert folder is not None
+    path = _facts_file(folder, what)
+    key = str(path)
+    with _facts_lock:
+        facts = memory.get(key)
+        if facts is None:
+            facts = memory[key] = _read_cache(path, fmt, decode)
+        missing = [w for w in dict.fromkeys(words) if w not in facts]
+        if missing:
+            lex = _load(str(folder))
+            for word in missing:
+                facts[word] = compute(lex, word)
+            on_file = _read_cache(path, fmt, decode)  # (another process may have added some)
+            _write_cache(path, fmt, {w: encode(f) for w, f in {**on_file, **facts}.items()})
+        return {w: facts[w] for w in words}
+
+
+def _nan_or(x: float | None) -> float:
+    return math.nan if x is None else float(x)
+
+
+def _number(x: float) -> float | None:
+    return None if math.isnan(x) else x
+
+
+def _word_facts_of(lex: Lexicon, word: str) -> WordFacts:
+    known = lex.knows(word)
+    return WordFacts(known, lex.noun_share(word) if known else math.nan,
+                     lex.place_share(word) if known else math.nan)
 
 
 def word_facts(words: Sequence[str]) -> dict[str, WordFacts] | None:
@@ -534,71 +575,21 @@ def word_facts(words: Sequence[str]) -> dict[str, WordFacts] | None:
     beside the reader's folder (``$SPCO_CACHE_DIR``, default ``~/.cache/spco``): WordNet (and
     NLTK, seconds to import and read) is loaded only for words not in it yet, which are then added.
     The same numbers as asking :func:`lexicon` each time."""
-    if lexicon_unavailable_reason() is not None:
-        return None
-    folder = _wordnet_folder()
-    assert folder is not None
-    path = _facts_file(folder)
-    key = str(path)
-    with _facts_lock:
-        facts = _facts_memory.get(key)
-        if facts is None:
-            facts = _facts_memory[key] = _read_facts(path)
-        missing = [w for w in dict.fromkeys(words) if w not in facts]
-        if missing:
-            lex = _load(str(folder))
-            for word in missing:
-                known = lex.knows(word)
-                facts[word] = WordFacts(known, lex.noun_share(word) if known else math.nan,
-                                        lex.place_share(word) if known else math.nan)
-            _write_facts(path, {**_read_facts(path), **facts})  # (another process may have added some)
-        return {w: facts[w] for w in words}
+    return _cached_facts(
+        words, "facts", _FACTS_FORMAT, _facts_memory, _word_facts_of,
+        lambda f: [f.known, _number(f.noun_share), _number(f.place_share)],
+        lambda row: WordFacts(bool(row[0]), _nan_or(row[1]), _nan_or(row[2])))
 
 
 _kinds_memory: dict[str, dict[str, KindFacts]] = {}
-
-
-def _read_kinds(path: Path) -> dict[str, KindFacts]:
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-        if data.get("format") != _KINDS_FORMAT:
-            return {}
-        return {w: KindFacts(int(n), frozenset(map(str, h)), frozenset(map(str, a)))
-                for w, (n, h, a) in data["words"].items()}
-    except (OSError, ValueError, KeyError, TypeError, AttributeError):
-        return {}  # no file yet, or not one of ours: computed again and rewritten
-
-
-def _write_kinds(path: Path, facts: dict[str, KindFacts]) -> None:
-    text = json.dumps({"format": _KINDS_FORMAT, "words": {
-        w: [f.kinds_below, sorted(f.heads), sorted(f.ancestors)] for w, f in sorted(facts.items())}})
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f".{path.name}.{os.getpid()}.{threading.get_ident()}")
-        tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, path)
-    except OSError:
-        pass  # a read-only cache: the facts are computed again next time
 
 
 def kind_facts(words: Sequence[str]) -> dict[str, KindFacts] | None:
     """:class:`KindFacts` of each of ``words``, or None when the lexicon is unavailable
     (:func:`lexicon_unavailable_reason`); kept in a file as :func:`word_facts` keeps its facts
     (WordNet is loaded only for words not in it yet). The same numbers as asking :func:`lexicon`."""
-    if lexicon_unavailable_reason() is not None:
-        return None
-    folder = _wordnet_folder()
-    assert folder is not None
-    path = _facts_file(folder, "kinds")
-    key = str(path)
-    with _facts_lock:
-        facts = _kinds_memory.get(key)
-        if facts is None:
-            facts = _kinds_memory[key] = _read_kinds(path)
-        missing = [w for w in dict.fromkeys(words) if w not in facts]
-        if missing:
-            lex = _load(str(folder))
-            for word in missing:
-                facts[word] = KindFacts(lex.kinds_below(word), lex.kind_heads(word), lex.kind_ancestors(word))
-            _write_kinds(path, {**_read_kinds(path), **facts})  # (another process may have added some)
-        return {w: facts[w] for w in words}
+    return _cached_facts(
+        words, "kinds", _KINDS_FORMAT, _kinds_memory,
+        lambda lex, word: KindFacts(lex.kinds_below(word), lex.kind_heads(word), lex.kind_ancestors(word)),
+        lambda f: [f.kinds_below, sorted(f.heads), sorted(f.ancestors)],
+        lambda row: KindFacts(int(row[0]), frozenset(map(str, row[1])), frozenset(map(str, row[2]))))
