@@ -91,11 +91,7 @@ def ros(home: Path, ros_arguments: tuple[str, ...], pose_topic: str, map_frame: 
     settings = NodeSettings(tolerance=tolerance, image_wait=image_wait, clock=clock, max_age=max_age,
                             goal=goal, map_frame=map_frame, robot_frame=robot_frame)
     topics = Topics(pose=pose_topic, image=image_topic, speech=speech_topic)
-    handler = logging.StreamHandler()
-    handler.setFormatter(logging.Formatter("%(message)s"))
-    log = logging.getLogger("spco.ros")
-    log.addHandler(handler)
-    log.setLevel(logging.INFO)
+    _log_to_stderr()
     if rosbridge is None:
         from spco.ros import import_rospy
 
@@ -167,11 +163,7 @@ def ros2(home: Path, ros_arguments: tuple[str, ...], sweeps: int, writer: str, s
     from spco.ros import import_rclpy
     from spco.service.live import LiveHome
 
-    handler = logging.StreamHandler()
-    handler.setFormatter(logging.Formatter("%(message)s"))
-    log = logging.getLogger("spco.ros")
-    log.addHandler(handler)
-    log.setLevel(logging.INFO)
+    _log_to_stderr()
     if ros_python is None:
         import_rclpy()  # before opening the home: a missing rclpy is one clear error
     from spco.ros.ros2 import run_ros2
@@ -185,3 +177,12 @@ def ros2(home: Path, ros_arguments: tuple[str, ...], sweeps: int, writer: str, s
                    f"{', '.join(model.known_names) or 'none yet'}) on ROS_DOMAIN_ID {domain}", err=True)
         run_ros2(live, ros_arguments=ros_arguments, uses_images=uses_images, ros_python=ros_python,
                  n_concepts=model.knowledge.n_concepts, echo=lambda line: click.echo(line, err=True))
+
+
+def _log_to_stderr() -> None:
+    """The nodes' log (logger ``spco.ros``, INFO and above) as plain lines on standard error."""
+    handler = logging.StreamHandler()
+    handler.setFormatter(logging.Formatter("%(message)s"))
+    log = logging.getLogger("spco.ros")
+    log.addHandler(handler)
+    log.setLevel(logging.INFO)
