@@ -57,7 +57,9 @@ from spco.knowledge.knowledge import (
     DEFAULT_MODEL,
     DEFAULT_TEACH_SWEEPS,
     MODELS,
+    NAME_SHARE,
     Knowledge,
+    KnowledgeChannels,
     load_knowledge,
 )
 from spco.knowledge.limits import DEFAULT_LIMITS, TeachingLimits
@@ -95,6 +97,7 @@ __all__ = [
     "HOME_FORMAT",
     "KNOWLEDGE_FORMAT",
     "MODELS",
+    "NAME_SHARE",
     "OWN_NAMES_SPREAD_WARNING",
     "VIEW_FIT_MEASURE",
     "VIEW_FIT_WARN_FRACTION",
@@ -103,6 +106,7 @@ __all__ = [
     "ExperiencedHomeWarning",
     "HomeModel",
     "Knowledge",
+    "KnowledgeChannels",
     "KnowledgeMismatchWarning",
     "Observation",
     "OwnNamesSpreadWarning",

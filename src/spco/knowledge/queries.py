@@ -31,6 +31,7 @@ from spco.model.position_prediction import PositionPrediction
 from spco.model.prediction import NamePrediction, UnknownNameError, mutual_information_weights, predict_names
 from spco.model.seeds import as_generator
 from spco.model.unheard import resolve_name
+from spco.model.word_channels import name_tokens
 
 #: How many of the home's own teachings the model's p(m | name) weighs as, in :func:`where`.
 WHERE_MODEL_WEIGHT = 1.0
@@ -64,7 +65,7 @@ def where(home: HomeModel, name: str, n: int = 10,
     answer is then for the known name it found (``name``: "toilet"; ``asked``: "restroom"; ``via``:
     how).
     """
-    resolved = resolve_name(home.vocabulary, home.state.word_mask, name, home.parameters.name_prior,
+    resolved = resolve_name(home.vocabulary, home.said_words, name, home.parameters.name_prior,
                             information=mutual_information_weights(home.parameters, 0))
     if resolved is not None:  # a name nobody said: the known name the lexicon finds for it
         return replace(_where(home, resolved.name, n, random_state), asked=resolved.asked, via=resolved.how)
@@ -132,9 +133,14 @@ def unused_word_hint(home: HomeModel, word: str) -> str | None:
     place name.
     """
     index = home.vocabulary.index(word)
-    if index is None or bool(home.state.word_mask[index]):
+    if index is None or bool(home.said_words[index]):
         return None
     w = home.vocabulary.words[index]
+    if home.knowledge.channels is not None:  # the word channels: the word is said as no place's word
+        tokens = home.channel_tokens[index]
+        return (f"the word {w!r} names no place: {tokens[2]:.0f} of its {tokens.sum():.0f} uses (the "
+                f"experienced homes' and this home's) are background words, said alike everywhere "
+                f"(function words, fillers, greetings); teach the place by its name (\"this is the …\")")
     taught = [k for k, sentence in enumerate(home.sentences) if w in home.vocabulary.tokenize(sentence)]
     if not taught:
         return (f"the word {w!r} was pruned as uninformative in the experienced homes: it is said at "
@@ -195,14 +201,21 @@ def answer_parameters(home: HomeModel) -> ConceptParameters:
     """The home's parameters as every answer about names uses them (``what``, ``ask``, the service
     and the ROS node through them): the one place where a home's p(name | concept) is decided.
 
-    Today: the posterior average θ^w of the home, with the concepts the knowledge does not use at
-    their posterior mean given the home's own taught words (:func:`spco.model.confidence.named_parameters`:
-    uniform over the names when nothing was taught there). A word model that replaces θ^w (the
-    speech work) replaces this function and nothing else.
+    The posterior average θ^w of the home (with the word channels: the names channel), with the
+    concepts the knowledge does not use at their posterior mean given the home's own taught names
+    (:func:`spco.model.confidence.named_parameters`: uniform over the names when nothing was taught
+    there; with the channels the name tokens of the home's switches), and ``word_mask`` the home's
+    names (:attr:`~spco.knowledge.home.HomeModel.name_mask`): with the channels, the words most of
+    whose tokens are names — never a word said as an object or a background word.
     """
-    counts = concept_word_counts(home.data.words, home.state.concepts, home.knowledge.n_concepts)
-    return named_parameters(home.parameters, 0, np.exp(home.knowledge.log_g0) < FREE_CONCEPT_WEIGHT, counts,
-                            home.hyperparameters.alpha_word)
+    words = home.data.words
+    if home.knowledge.channels is not None and home.state.switches is not None and words.nnz:
+        words = name_tokens(words, home.state.switches)  # a free concept's names: its name tokens
+    counts = concept_word_counts(words, home.state.concepts, home.knowledge.n_concepts)
+    params = named_parameters(home.parameters, 0, np.exp(home.knowledge.log_g0) < FREE_CONCEPT_WEIGHT, counts,
+                              home.hyperparameters.alpha_word)
+    # the names only (the word channels: a word said as an object or a function word is never a name)
+    return replace(params, word_mask=home.name_mask)
 
 
 def name_prediction(home: HomeModel, poses: np.ndarray, visual: Any = None, top_k: int = 3,

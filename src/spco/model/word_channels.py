@@ -140,18 +140,22 @@ class WordChannels:
         split = split - logsumexp(split, axis=1, keepdims=True)
         return np.column_stack([log_e[:, 0], rest[:, None] + split])
 
-    def extended(self, n_words: int, evidence: np.ndarray | None = None) -> WordChannels:
+    def extended(self, n_words: int, evidence: np.ndarray | None = None, content: np.ndarray | None = None,
+                 weight: float = 1.0) -> WordChannels:
         """The channels for a vocabulary grown to ``n_words`` (new words appended): new words get
         ψ and β of a word never said (α / (α V + count) as from the prior mean, here the smallest
-        present value) and evidence ``evidence[V_old:]`` (default ν = 0.5)."""
+        present value) and evidence ``evidence[V_old:]`` (default ν = 0.5) with content share
+        ``content[V_old:]`` (default 0.95: a content word) and weight η = ``weight``, as
+        :meth:`initial` computes it."""
         V = self.n_words
         added = n_words - V
         if added <= 0:
             return self
         nu = np.full(added, 0.5) if evidence is None else np.asarray(evidence, dtype=np.float64)[V:]
         nu = np.clip(nu, EVIDENCE_FLOOR, 1.0 - EVIDENCE_FLOOR)
-        log_e = np.stack([np.log(0.95) + np.log(nu), np.log(0.95) + np.log1p(-nu),
-                          np.full(added, np.log(0.05))], axis=1)
+        a = np.full(added, 0.95) if content is None else np.asarray(content, dtype=np.float64)[V:]
+        a = np.clip(a, 0.05, 0.95)
+        log_e = weight * np.stack([np.log(a) + np.log(nu), np.log(a) + np.log1p(-nu), np.log1p(-a)], axis=1)
         low_p = self.log_place.min(axis=1, keepdims=True) if V else np.zeros((self.log_place.shape[0], 1))
         low_b = self.log_background.min() if V else 0.0
         place = np.concatenate([self.log_place, np.repeat(low_p, added, axis=1)], axis=1)
