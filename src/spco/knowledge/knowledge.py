@@ -26,7 +26,7 @@ from spco.knowledge.files import (
     format_version,
     segmentation_of,
 )
-from spco.model.home_shard import SharedPart, SharedPrior
+from spco.model.home_shard import NAME_SHARE, SharedPart, SharedPrior
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.io import _checksum
 from spco.model.word_channels import WordChannels
@@ -45,9 +45,6 @@ DEFAULT_ADAPT_ITERATIONS = 100
 DEFAULT_TEACH_SWEEPS = 10
 
 
-#: A word is one of a home's names when at least this share of its tokens are drawn as names
-#: (the channels' switches: the fit's, then the home's own), :meth:`KnowledgeChannels.name_mask`.
-NAME_SHARE = 0.5
 
 
 @dataclass(frozen=True, eq=False)
@@ -91,7 +88,10 @@ class KnowledgeChannels:
         added = n_words - self.tokens.shape[0]
         if added <= 0:
             return self
-        return KnowledgeChannels(self.channels.extended(n_words, evidence, content, weight),
+        V = self.tokens.shape[0]
+        channels = self.channels.extended(n_words, evidence, content, weight)
+        first = V if self.channels.prior_only_from is None else self.channels.prior_only_from
+        return KnowledgeChannels(replace(channels, prior_only_from=first),
                                  np.concatenate([self.tokens, np.zeros((added, 3))]))
 
     def name_mask(self, home_tokens: np.ndarray | None = None, share: float = NAME_SHARE) -> np.ndarray:
@@ -105,11 +105,14 @@ class KnowledgeChannels:
     def arrays(self) -> dict[str, np.ndarray]:
         """The arrays a file holds (``channels.<name>``)."""
         c = self.channels
-        return {"channels.log_place": np.asarray(c.log_place, dtype=np.float64),
-                "channels.log_background": np.asarray(c.log_background, dtype=np.float64),
-                "channels.log_shares": np.asarray(c.log_shares, dtype=np.float64),
-                "channels.log_evidence": np.asarray(c.log_evidence, dtype=np.float64),
-                "channels.tokens": self.tokens}
+        arrays = {"channels.log_place": np.asarray(c.log_place, dtype=np.float64),
+                  "channels.log_background": np.asarray(c.log_background, dtype=np.float64),
+                  "channels.log_shares": np.asarray(c.log_shares, dtype=np.float64),
+                  "channels.log_evidence": np.asarray(c.log_evidence, dtype=np.float64),
+                  "channels.tokens": self.tokens}
+        if c.prior_only_from is not None:
+            arrays["channels.prior_only_from"] = np.array([c.prior_only_from], dtype=np.int64)
+        return arrays
 
     @classmethod
     def from_arrays(cls, arrays: Mapping[str, np.ndarray], prefix: str = "") -> KnowledgeChannels | None:
@@ -122,6 +125,9 @@ class KnowledgeChannels:
                                 np.asarray(a["log_background"], dtype=np.float64),
                                 np.asarray(a["log_shares"], dtype=np.float64),
                                 np.asarray(a["log_evidence"], dtype=np.float64), False)
+        first = arrays.get(prefix + "channels.prior_only_from")
+        if first is not None:
+            channels = replace(channels, prior_only_from=int(np.asarray(first).reshape(-1)[0]))
         return cls(channels, a["tokens"])
 
 

@@ -41,6 +41,7 @@ from spco.model.word_channels import NAME, WordChannels, switch_probabilities
 
 __all__ = [
     "FREE_CONCEPT_WEIGHT",
+    "NAME_SHARE",
     "OWN_NAMES_SPREAD_WARNING",
     "NewHomeShard",
     "OwnNamesSpreadWarning",
@@ -201,6 +202,13 @@ def draw_switches(data: PreparedData, state: GibbsState, rng: np.random.Generato
     state.switches = switches
 
 
+#: A word is one of a home's names when at least this share of its tokens are drawn as names
+#: (the channels' switches: the fit's, then the home's own; `KnowledgeChannels.name_mask`):
+#: a third, one of three channels — "bath", said as a name about half the time and as a thing ("take
+#: a bath") the other half, names the bath; a function word (no name token) or an object said as a
+#: name now and then ("the fridge is over here") names nothing.
+NAME_SHARE = 1.0 / 3.0
+
 #: A concept whose knowledge weight G_0 is below this is one the experienced homes did not use:
 #: the knowledge holds no information about it (its φ is a prior draw), see :func:`learn_free_concepts`.
 FREE_CONCEPT_WEIGHT = 1e-3
@@ -221,7 +229,7 @@ def own_names_to_free_concepts(data: PreparedData, state: GibbsState, shared: Sh
     hyper = shared.hyperparameters
     candidate = np.zeros(data.words.shape[1], dtype=bool)
     if shared.channels is not None:  # with the word channels: a new word whose tokens here are names
-        candidate[n_known:] = home_name_share(data, state)[n_known:] >= 0.5
+        candidate[n_known:] = home_name_share(data, state)[n_known:] >= NAME_SHARE
     else:
         verdict = gibbs.naming_verdicts(data, state, hyper)
         candidate[n_known:] = verdict[n_known:] != NOT_A_NAME
