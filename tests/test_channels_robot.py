@@ -138,16 +138,15 @@ def test_the_home_path_never_runs_the_naming_rule_with_the_channels(world: dict,
 
 
 def test_what_answers_from_the_channels_names_not_the_naming_rule(world: dict) -> None:
-    """The names `what` may answer are the words most of whose tokens the switches make names (the
-    fit's and the home's expected ones, recomputed here from the switch probabilities), not the
-    naming rule's kept words."""
+    """The names `what` may answer are the words the switches make names (the fit's name tokens and
+    the home's expected ones, recomputed here from the switch probabilities), not the naming rule's
+    kept words."""
     home = world["home"]
     data, state = home.data, home.state
     p = switch_probabilities(data.words, data.homes, state.concepts, state.log_theta_w, state.channels)
     tokens = home.knowledge.channels.tokens.copy()
     np.add.at(tokens, data.words.indices, p)
-    expected = tokens[:, 0] >= home_shard.NAME_SHARE * tokens.sum(axis=1)
-    expected &= tokens.sum(axis=1) > 0
+    expected = tokens[:, 0] >= home_shard.NAME_TOKENS
     np.testing.assert_array_equal(home.name_mask, expected)
     params = kn.answer_parameters(home)
     np.testing.assert_array_equal(params.word_mask, home.name_mask)

@@ -24,10 +24,10 @@ from spco.knowledge.files import (
     _write_archive,
     format_version,
 )
-from spco.knowledge.knowledge import NAME_SHARE, Knowledge
+from spco.knowledge.knowledge import Knowledge
 from spco.model import gibbs
 from spco.model.confidence import UNSURE_BELOW
-from spco.model.home_shard import prepare_home, switch_tokens
+from spco.model.home_shard import NAME_TOKENS, prepare_home, switch_tokens
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.name_evidence import extend_prior
 from spco.model.parameters import ConceptParameters
@@ -184,15 +184,14 @@ class HomeModel:
     @functools.cached_property
     def name_mask(self) -> np.ndarray:
         """(V,) bool: the words the home answers as place names. With the word channels: the words
-        at least :data:`~spco.knowledge.knowledge.NAME_SHARE` of whose tokens (the experienced homes'
-        and this home's, :attr:`channel_tokens`) are names — a word said as an object or a function
-        word is never answered; otherwise the words the naming rule keeps (``state.word_mask``)."""
+        at least :data:`~spco.model.home_shard.NAME_TOKENS` of whose uses (the experienced homes' and
+        this home's, :attr:`channel_tokens`) are expected to be names — a function word, or an object
+        said once ("the fridge is over here"), is never answered; otherwise the words the naming rule
+        keeps (``state.word_mask``)."""
         channels = self.knowledge.channels
         if channels is None:
             return np.asarray(self.state.word_mask, dtype=bool)
-        tokens = self.channel_tokens
-        total = tokens.sum(axis=1)
-        return (total > 0) & (tokens[:, 0] >= NAME_SHARE * total) & np.asarray(self.state.word_mask, bool)
+        return (self.channel_tokens[:, 0] >= NAME_TOKENS) & np.asarray(self.state.word_mask, bool)
 
     @functools.cached_property
     def said_words(self) -> np.ndarray:
@@ -203,7 +202,8 @@ class HomeModel:
             return self.name_mask
         tokens = self.channel_tokens
         total = tokens.sum(axis=1)
-        return (total > 0) & (tokens[:, 0] + tokens[:, 1] >= 0.5 * total) | self.name_mask
+        said = (total > 0) & (tokens[:, 0] + tokens[:, 1] >= 0.5 * total)
+        return (said | self.name_mask) & np.asarray(self.state.word_mask, bool)
 
     @property
     def known_names(self) -> list[str]:

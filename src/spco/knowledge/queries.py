@@ -133,15 +133,17 @@ def unused_word_hint(home: HomeModel, word: str) -> str | None:
     place name.
     """
     index = home.vocabulary.index(word)
-    if index is None or bool(home.said_words[index]):
+    channels = home.knowledge.channels is not None
+    if index is None or bool((home.name_mask if channels else home.said_words)[index]):
         return None
     w = home.vocabulary.words[index]
-    if home.knowledge.channels is not None:  # the word channels: the word is said as no place's word
-        tokens = home.channel_tokens[index]
-        return (f"the word {w!r} names no place: {tokens[2]:.0f} of its {tokens.sum():.0f} uses (the "
-                f"experienced homes' and this home's) are background words, said alike everywhere "
-                f"(function words, fillers, greetings); teach the place by its name (\"this is the …\")")
     taught = [k for k, sentence in enumerate(home.sentences) if w in home.vocabulary.tokenize(sentence)]
+    if channels:  # the word channels: the word's uses are words of a place or background, not names
+        tokens = home.channel_tokens[index]
+        if not taught or tokens[2] >= tokens[:2].sum():
+            return (f"the word {w!r} names no place: {tokens[2]:.0f} of its {tokens.sum():.0f} uses (the "
+                    f"experienced homes' and this home's) are background words, said alike everywhere "
+                    f"(function words, fillers, greetings); teach the place by its name (\"this is the …\")")
     if not taught:
         return (f"the word {w!r} was pruned as uninformative in the experienced homes: it is said at "
                 f"every kind of place (or too rarely) to tell places apart, so it names no place")
@@ -159,6 +161,11 @@ def unused_word_hint(home: HomeModel, word: str) -> str | None:
                 f"home only), and this home's {len(taught)} teaching(s) do not yet show that it marks "
                 f"one place here; {more} (or fit the knowledge with --model spcotransfer: no pruning)")
     shown = ", ".join(str(int(home.ids[k])) for k in taught[:5]) + (", …" if len(taught) > 5 else "")
+    if channels:
+        return (f"the word {w!r} is not used as a place name yet: it is taught at {len(taught)} sample(s) of "
+                f"this home (id {shown}), and how it is said makes it a word of its place (an object, an "
+                f"activity: `where` finds the place by it) more likely than the place's name; to name the "
+                f"place, say its name as one (\"this is the …\"), or {more}")
     return (f"the word {w!r} is not used as a place name yet: it is taught at {len(taught)} sample(s) of "
             f"this home (id {shown}), too few to tell its place from the others (pruned as "
             f"uninformative); {more}")

@@ -41,7 +41,7 @@ from spco.model.word_channels import NAME, WordChannels, switch_probabilities
 
 __all__ = [
     "FREE_CONCEPT_WEIGHT",
-    "NAME_SHARE",
+    "NAME_TOKENS",
     "OWN_NAMES_SPREAD_WARNING",
     "NewHomeShard",
     "OwnNamesSpreadWarning",
@@ -160,14 +160,6 @@ def switch_tokens(data: PreparedData, state: GibbsState) -> np.ndarray:
     return out
 
 
-def home_name_share(data: PreparedData, state: GibbsState) -> np.ndarray:
-    """(V,) the share of each word's tokens in this home that are names (expected, given the
-    concepts: :func:`switch_tokens`); 0 for words the home does not say."""
-    tokens = switch_tokens(data, state)
-    total = tokens.sum(axis=1)
-    return np.divide(tokens[:, NAME], total, out=np.zeros_like(total), where=total > 0)
-
-
 def draw_switches(data: PreparedData, state: GibbsState, rng: np.random.Generator,
                   rows: np.ndarray | None = None) -> None:
     """Draw the word channels' switch of the tokens of the samples ``rows`` (default: every token
@@ -202,12 +194,15 @@ def draw_switches(data: PreparedData, state: GibbsState, rng: np.random.Generato
     state.switches = switches
 
 
-#: A word is one of a home's names when at least this share of its tokens are drawn as names
-#: (the channels' switches: the fit's, then the home's own; `KnowledgeChannels.name_mask`):
-#: a third, one of three channels — "bath", said as a name about half the time and as a thing ("take
-#: a bath") the other half, names the bath; a function word (no name token) or an object said as a
-#: name now and then ("the fridge is over here") names nothing.
-NAME_SHARE = 1.0 / 3.0
+#: A word is one of a home's names once the posterior expects at least this many of its uses to be
+#: names (its tokens drawn as names by the channels' switches: the fit's, then the home's expected
+#: ones; `KnowledgeChannels.name_mask`): a word said once is a name when its switch says name more
+#: likely than not ("this is the study room"), not when it says place ("the fridge is over here": the
+#: evidence gives P(name) 0.22); a word of the experienced homes when any of its uses were names
+#: ("dining", a name in 15 % of its uses and an activity in the rest, names the dining area there);
+#: a function word, with no name use at all, never. Which of a place's names comes first is then
+#: the names channel θ^w's.
+NAME_TOKENS = 0.5
 
 #: A concept whose knowledge weight G_0 is below this is one the experienced homes did not use:
 #: the knowledge holds no information about it (its φ is a prior draw), see :func:`learn_free_concepts`.
@@ -229,7 +224,7 @@ def own_names_to_free_concepts(data: PreparedData, state: GibbsState, shared: Sh
     hyper = shared.hyperparameters
     candidate = np.zeros(data.words.shape[1], dtype=bool)
     if shared.channels is not None:  # with the word channels: a new word whose tokens here are names
-        candidate[n_known:] = home_name_share(data, state)[n_known:] >= NAME_SHARE
+        candidate[n_known:] = switch_tokens(data, state)[n_known:, NAME] >= NAME_TOKENS
     else:
         verdict = gibbs.naming_verdicts(data, state, hyper)
         candidate[n_known:] = verdict[n_known:] != NOT_A_NAME
