@@ -161,6 +161,12 @@ def fit_knowledge(  # noqa: PLR0915 (one sequence: start, sweeps, summary; to sp
                              random_state=random_state)
     hyper = estimator.checked_hyperparameters()
     settings = estimator.sampler_settings()
+    if variant == "exact" and prune and hyper.word_model != "channels":
+        # one word model on the robot's path: the naming rule is chosen for speech without English
+        # function words only, never asked for
+        raise ConfigurationError(f"a knowledge of model {model} learns its words with the word channels "
+                                 f"(word_model 'channels'), not {hyper.word_model!r}: speech without any "
+                                 "English function word (Japanese) is learnt with the naming rule by itself")
     # the word channels (docs/model.md, "Words that are not names") for English speech; speech
     # without any English function word (Japanese) is learnt with the naming rule, as a joint fit
     evidence = _channel_evidence(corpus) if uses_word_channels(hyper, settings) else None
