@@ -146,7 +146,8 @@ def test_what_answers_from_the_channels_names_not_the_naming_rule(world: dict) -
     p = switch_probabilities(data.words, data.homes, state.concepts, state.log_theta_w, state.channels)
     tokens = home.knowledge.channels.tokens.copy()
     np.add.at(tokens, data.words.indices, p)
-    expected = tokens[:, 0] >= home_shard.NAME_TOKENS
+    names = tokens[:, 0]
+    expected = (names >= home_shard.NAME_TOKENS) & (names >= home_shard.NAME_SHARE * tokens.sum(axis=1))
     np.testing.assert_array_equal(home.name_mask, expected)
     params = kn.answer_parameters(home)
     np.testing.assert_array_equal(params.word_mask, home.name_mask)

@@ -4,7 +4,8 @@ Knowledge (``.spco``, format ``spco-knowledge``) and home (``.spco``, format ``s
 are NumPy ``.npz`` archives read with ``allow_pickle=False``: arrays plus a ``header`` array holding
 a UTF-8 JSON document with the format name, ``format_version`` (2; 3 when the vocabulary segments
 text written without spaces; 4 for the ``spcotransfer+mi`` model, whose word channels the file
-carries as ``channels.*`` arrays, :data:`FORMAT_VERSION`), the spco version, the hyperparameters, the vocabulary, its
+carries as ``channels.*`` arrays, :data:`FORMAT_VERSION`), the spco version, the hyperparameters,
+the vocabulary, its
 ``segmentation`` (``null``, or how Japanese or Chinese text is cut into words:
 :meth:`spco.data.segmentation.Segmentation.to_dict`), provenance, the image extractor
 (``extractor``: name, version, settings and checksum of its weights, ``null`` for knowledge fitted

@@ -27,7 +27,7 @@ from spco.knowledge.files import (
 from spco.knowledge.knowledge import Knowledge
 from spco.model import gibbs
 from spco.model.confidence import UNSURE_BELOW
-from spco.model.home_shard import NAME_TOKENS, prepare_home, switch_tokens
+from spco.model.home_shard import name_words, prepare_home, switch_tokens
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.name_evidence import extend_prior
 from spco.model.parameters import ConceptParameters
@@ -184,14 +184,14 @@ class HomeModel:
     @functools.cached_property
     def name_mask(self) -> np.ndarray:
         """(V,) bool: the words the home answers as place names. With the word channels: the words
-        at least :data:`~spco.model.home_shard.NAME_TOKENS` of whose uses (the experienced homes' and
-        this home's, :attr:`channel_tokens`) are expected to be names — a function word, or an object
+        enough of whose uses (the experienced homes' and this home's, :attr:`channel_tokens`) are
+        expected to be names (:func:`spco.model.home_shard.name_words`) — a function word, or an object
         said once ("the fridge is over here"), is never answered; otherwise the words the naming rule
         keeps (``state.word_mask``)."""
         channels = self.knowledge.channels
         if channels is None:
             return np.asarray(self.state.word_mask, dtype=bool)
-        return (self.channel_tokens[:, 0] >= NAME_TOKENS) & np.asarray(self.state.word_mask, bool)
+        return name_words(self.channel_tokens) & np.asarray(self.state.word_mask, bool)
 
     @functools.cached_property
     def said_words(self) -> np.ndarray:

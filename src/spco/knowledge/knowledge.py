@@ -26,7 +26,7 @@ from spco.knowledge.files import (
     format_version,
     segmentation_of,
 )
-from spco.model.home_shard import NAME_TOKENS, SharedPart, SharedPrior
+from spco.model.home_shard import SharedPart, SharedPrior, name_words
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.io import _checksum
 from spco.model.word_channels import WordChannels
@@ -95,12 +95,11 @@ class KnowledgeChannels:
                                  np.concatenate([self.tokens, np.zeros((added, 3))]))
 
     def name_mask(self, home_tokens: np.ndarray | None = None) -> np.ndarray:
-        """(V,) bool: the words that are names — at least
-        :data:`~spco.model.home_shard.NAME_TOKENS` of their tokens drawn as names, the fit's tokens
-        (:attr:`tokens`) plus a home's own (``home_tokens``, (V, 3), e.g. its switches' expected
-        counts)."""
+        """(V,) bool: the words that are names (:func:`spco.model.home_shard.name_words`) by the fit's
+        tokens (:attr:`tokens`) plus a home's own (``home_tokens``, (V, 3), e.g. its switches'
+        expected counts)."""
         tokens = self.tokens if home_tokens is None else self.tokens + np.asarray(home_tokens, float)
-        return tokens[:, 0] >= NAME_TOKENS
+        return name_words(tokens)
 
     def arrays(self) -> dict[str, np.ndarray]:
         """The arrays a file holds (``channels.<name>``)."""

@@ -41,6 +41,7 @@ from spco.model.word_channels import NAME, WordChannels, switch_probabilities
 
 __all__ = [
     "FREE_CONCEPT_WEIGHT",
+    "NAME_SHARE",
     "NAME_TOKENS",
     "OWN_NAMES_SPREAD_WARNING",
     "NewHomeShard",
@@ -199,10 +200,21 @@ def draw_switches(data: PreparedData, state: GibbsState, rng: np.random.Generato
 #: ones; `KnowledgeChannels.name_mask`): a word said once is a name when its switch says name more
 #: likely than not ("this is the study room"), not when it says place ("the fridge is over here": the
 #: evidence gives P(name) 0.22); a word of the experienced homes when any of its uses were names
-#: ("dining", a name in 15 % of its uses and an activity in the rest, names the dining area there);
-#: a function word, with no name use at all, never. Which of a place's names comes first is then
-#: the names channel θ^w's.
+#: ("dining", a name in 13 % of its SIGVerse uses and an activity in the rest, names the dining
+#: area), provided they are at least :data:`NAME_SHARE` of its uses ("location", a name in 7 of its
+#: 532 template uses, is no name); a function word, with no name use at all, never. Which of a
+#: place's names comes first is then the names channel θ^w's.
 NAME_TOKENS = 0.5
+#: ... and at least this share of its uses (:data:`NAME_TOKENS`).
+NAME_SHARE = 0.1
+
+
+def name_words(tokens: np.ndarray) -> np.ndarray:
+    """(V,) bool: the words that are names given their uses per channel ``tokens`` (V, 3) (name,
+    place, background; expected or drawn): at least :data:`NAME_TOKENS` name uses and at least
+    :data:`NAME_SHARE` of all its uses."""
+    tokens = np.asarray(tokens, dtype=np.float64)
+    return (tokens[:, NAME] >= NAME_TOKENS) & (tokens[:, NAME] >= NAME_SHARE * tokens.sum(axis=1))
 
 #: A concept whose knowledge weight G_0 is below this is one the experienced homes did not use:
 #: the knowledge holds no information about it (its φ is a prior draw), see :func:`learn_free_concepts`.
@@ -224,7 +236,7 @@ def own_names_to_free_concepts(data: PreparedData, state: GibbsState, shared: Sh
     hyper = shared.hyperparameters
     candidate = np.zeros(data.words.shape[1], dtype=bool)
     if shared.channels is not None:  # with the word channels: a new word whose tokens here are names
-        candidate[n_known:] = switch_tokens(data, state)[n_known:, NAME] >= NAME_TOKENS
+        candidate[n_known:] = name_words(switch_tokens(data, state))[n_known:]
     else:
         verdict = gibbs.naming_verdicts(data, state, hyper)
         candidate[n_known:] = verdict[n_known:] != NOT_A_NAME
