@@ -26,10 +26,11 @@ from spco.knowledge.files import (
     format_version,
     segmentation_of,
 )
-from spco.model.home_shard import SharedPart, SharedPrior, name_words
+from spco.model.home_shard import FREE_CONCEPT_WEIGHT, SharedPart, SharedPrior, name_words
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.io import _checksum
-from spco.model.word_channels import WordChannels
+from spco.model.kernels.dirichlet import log_dirichlet
+from spco.model.word_channels import ALPHA_PLACE, WordChannels
 
 #: The transfer models whose shared part can be learnt: name -> (sampler variant, word pruning).
 MODELS: dict[str, tuple[str, bool]] = {
@@ -43,6 +44,11 @@ DEFAULT_MODEL = "spcotransfer+mi"
 DEFAULT_FIT_ITERATIONS = 200
 DEFAULT_ADAPT_ITERATIONS = 100
 DEFAULT_TEACH_SWEEPS = 10
+#: Concepts no experienced home uses that a new home is adapted with at least
+#: (:meth:`Knowledge.with_free_concepts`): one per name of the home's own (the knowledge of the
+#: paper's 16 SIGVerse homes learnt with the word channels uses 15 of its 16 concepts — places split
+#: by the frames said around their names — which left 3LDK_9's three own names one concept).
+MIN_FREE_CONCEPTS = 8
 
 
 
@@ -90,6 +96,12 @@ class KnowledgeChannels:
             return self
         V = self.tokens.shape[0]
         channels = self.channels.extended(n_words, evidence, content, weight)
+        # a word never said is as unlikely a place word of one concept as of another: the same ψ in
+        # every concept (the smallest of the knowledge's), so that with its S^w counts in the concept's
+        # likelihood it draws no sample to the concept whose ψ happens to be least sparse
+        place = channels.log_place.copy()
+        place[:, V:] = float(self.channels.log_place.min()) if self.channels.log_place.size else 0.0
+        channels = replace(channels, log_place=place - logsumexp(place, axis=1, keepdims=True))
         first = V if self.channels.prior_only_from is None else self.channels.prior_only_from
         return KnowledgeChannels(replace(channels, prior_only_from=first),
                                  np.concatenate([self.tokens, np.zeros((added, 3))]))
@@ -311,6 +323,42 @@ class Knowledge:
         return replace(self, log_phi_words=log_phi, word_mask=mask, vocabulary=vocabulary, channels=channels)
 
     # ------------------------------------------------------------------ for a new home
+    def with_free_concepts(self, rng: np.random.Generator, n_free: int = MIN_FREE_CONCEPTS) -> Knowledge:
+        """This knowledge with at least ``n_free`` concepts the experienced homes do not use (G_0
+        below :data:`~spco.model.home_shard.FREE_CONCEPT_WEIGHT`), appended when it has fewer: the
+        concepts a new home's own names take (names nobody in the experienced homes said: "emma's
+        room", a room taught once). A concept no experienced home used has its prior as posterior,
+        so an appended one is what a fit with a larger truncation L would hold: φ^v ~ Dir(α^v),
+        φ^w ~ Dir(α^w) and ψ ~ Dir(α^p) drawn from ``rng`` (as a fit's unused concept holds a prior
+        draw), G_0 the weight of the knowledge's own unused concepts (or 1e-12),
+        concentrations unknown (δ, γ). Returns ``self`` when it has enough."""
+        g0 = np.exp(self.log_g0)
+        free = g0 < FREE_CONCEPT_WEIGHT
+        added = int(n_free) - int(free.sum())
+        if added <= 0:
+            return self
+        L, D, V = self.n_concepts, self.n_features, self.n_words
+        hyper = self.hyperparameters
+
+        def prior_draw(alpha: float, rows: int, size: int) -> np.ndarray:
+            return log_dirichlet(np.full((rows, size), alpha), rng) if size else np.zeros((rows, 0))
+
+        weight = float(g0[free].min()) if free.any() and g0[free].min() > 0 else 1e-12
+        log_g0 = np.concatenate([self.log_g0, np.full(added, math.log(weight))])
+        log_g0 -= logsumexp(log_g0)
+        channels = self.channels
+        if channels is not None:
+            c = channels.channels
+            place = np.concatenate([c.log_place, prior_draw(ALPHA_PLACE, added, V)])
+            channels = KnowledgeChannels(replace(c, log_place=place), channels.tokens)
+        return replace(
+            self, log_g0=log_g0,
+            log_phi_visual=np.concatenate([self.log_phi_visual, prior_draw(hyper.alpha_visual, added, D)]),
+            log_phi_words=np.concatenate([self.log_phi_words, prior_draw(hyper.alpha_word, added, V)]),
+            concentration_visual=np.concatenate([self.concentration_visual, np.full(added, np.nan)]),
+            concentration_words=np.concatenate([self.concentration_words, np.full(added, np.nan)]),
+            hyperparameters=replace(self.hyperparameters, n_concepts=L + added), channels=channels)
+
     def shared_part(self) -> SharedPart:
         """The shared part as a new home is learnt with it (:class:`spco.model.home_shard.SharedPart`)."""
         return SharedPart(log_phi_visual=self.log_phi_visual, log_phi_words=self.log_phi_words,
