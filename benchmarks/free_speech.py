@@ -164,8 +164,10 @@ def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order th
     resolved_as: dict[str, Counter] = defaultdict(Counter)
     per_seed = []
     started = time.perf_counter()
+    unheard_seeds: dict[int, float] = {}  # seed -> mean over (home, place) of that seed's unheard A_p
     for seed in args.seeds:
         experienced = taught_homes(args.sigverse, speech, seed)
+        seed_unheard: dict[tuple, list[float]] = defaultdict(list)
         for h, home in enumerate(args.homes):
             env = new_home(args.sigverse, regions_file, home, accepted)
             corpus = Corpus([*experienced, env])
@@ -206,7 +208,11 @@ def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order th
                     main_positions[(home, place)].append(hit)
             if unheard:
                 _score_unheard(model.parameters_, e, corpus.vocabulary, env, unheard, seed,
-                               unheard_scores, resolved_as)
+                               seed_unheard, resolved_as)
+        for key, values in seed_unheard.items():
+            unheard_scores[key].extend(values)
+        if seed_unheard:
+            unheard_seeds[seed] = float(np.mean([np.mean(v) for v in seed_unheard.values()]))
     rng = np.random.default_rng(0)
     first = settings[0]
     a_n = float(np.mean([np.mean(v) for v in names_right[first].values()]))
@@ -235,6 +241,7 @@ def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order th
         summary["unheard_A_p"] = float(np.mean([np.mean(v) for v in unheard_scores.values()]))
         summary["unheard_A_p_interval"] = bootstrap(unheard_scores, rng)
         summary["unheard_A_p_per_place"] = _per_place(unheard_scores)
+        summary["unheard_A_p_seeds"] = unheard_seeds
         summary["unheard_resolved_as"] = {k: dict(v) for k, v in resolved_as.items()}
     print(json.dumps({k: v for k, v in summary.items() if k != "runs"}, indent=1, default=str))
     if args.json:
