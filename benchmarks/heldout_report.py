@@ -30,13 +30,13 @@ asking         ``spco experiment active``, default criterion (``errors``) and ra
                (development: 3LDK_9's bedrooms, master seed 0)
 calibration    ``benchmarks/calibration.py --sets held-out``: ECE and wrong answers at p ≥ 0.99 of
                ``what`` on the test views of 1LDK_9, 2LDK_9, seeds 100–109, 4/6/8/16 experienced
-               homes, colour-hog and fc7 (development: 1DK_8, 3LDK_9, seeds 0–4, 4 and 8 homes)
+               homes, colour-hog and fc7 (development: 1DK_8, 3LDK_9, seeds 0–2, 4 and 8 homes)
 =============  ================================================================================
 
 Every figure is the mean over seeds with a 95 % Student-t interval over seeds (for ``asking``: over
 trials, each its own seed, one knowledge fit). ``--budget`` (the lead's end-of-session run) keeps
-every held-out headline at 10 seeds and trims the rest: development sides smaller, calibration
-held-out seeds 100–104 and its development side fc7 only. ``--dry-run`` prints every command with
+every held-out headline at 10 seeds (the full run: natural speech, home-specific rooms and asking
+at 20) and the development sides smaller. ``--dry-run`` prints every command with
 its estimated CPU time (from development runs, never held-out ones, ``COSTS``) and the estimated
 wall time on ``--jobs`` cores. Steps run as separate processes, ``--jobs`` at a time (longest
 first), each single-threaded; a step whose outputs are in ``--out`` from the same commit and command
@@ -78,24 +78,26 @@ SIDES = ("heldout", "development")
 HELDOUT_SEEDS = tuple(range(100, 110))
 
 #: Estimated CPU seconds (one core) of each kind of unit of work, measured on DEVELOPMENT runs only
-#: (2026-12-06, this 2-core machine under the load of ~8 sessions; CPU time, not wall time):
-#: ``start`` is a process's imports, data loading and first kernel calls; the other keys one fit,
-#: run or trial. Natural speech: ``natural_speech.py --seeds 0 --sweeps 60`` (7.6 s for one fit);
-#: free speech: ``free_speech.py --speech …speech_dev.csv --seeds 0 --homes 3LDK_9`` (26.7 s);
-#: general: ``general_places.py --seeds 0`` (18.5 s); specific: one run of ``specific_dev.json``;
-#: asking: ``spco experiment active --homes 3LDK_9 --strategies errors --questions 6 --trials 1``;
-#: calibration: ``calibration.py --sets development --first-seeds 1 --sizes 4``.
+#: (2026-12-06 06:22–06:40 UTC, this 2-core machine at a load of 9–18 from other sessions: CPU time of
+#: the process and its children, user + sys; a quiet machine may be faster). ``start``: a process's
+#: imports and data loading; the others one fit, run, question or task. Measured:
+#: ``natural_speech.py --seeds 0 --sweeps 60`` 8.4 s (one fit of 8 + 1 homes);
+#: ``free_speech.py --speech …speech_dev.csv … --seeds 0 --homes 3LDK_9`` 28.0 s (16 + 1 homes, 200
+#: sweeps); ``general_places.py --seeds 0`` 18.5 s; ``spco experiment specific --config
+#: …specific_dev.json --rates 40 --trials 1`` 102 s for its 6 runs; ``spco experiment active --homes
+#: 3LDK_9 --strategies errors --questions 6 --rates '' --trials 1`` 19.5 s (the knowledge's fit and one
+#: trial); ``calibration.py --sets development --first-seeds 1 --sizes 4`` 13.1 s and ``--sizes 8``
+#: 17.9 s (colour-hog and fc7: two tasks each).
 COSTS: dict[str, float] = {
-    "start": 6.0,
+    "start": 5.0,
     "natural_fit_60": 3.0,          # one fit of 8 + 1 homes, 60 sweeps, and its scoring
-    "free_fit_200": 21.0,           # 16 + 1 homes, 200 sweeps, scoring and unheard names
-    "general_fit_200": 13.0,        # 16 + 1 homes, 200 sweeps, scoring
-    "specific_run_200": 22.0,       # 16 + 1 homes, 200 sweeps, a configuration's rooms scored
-    "active_knowledge": 20.0,       # the 16 homes' knowledge, 200 sweeps (once per master seed)
-    "active_trial_per_question": 6.0,  # adapt (amortised) + one question's ranking, teach, scoring
-    "calibration_knowledge_per_home": 1.6,  # fit_knowledge, 200 sweeps, per experienced home
-    "calibration_adapt": 4.0,       # adapt one new home and answer its test views
-    "colour_hog_per_home": 3.0,     # views from camera images: extraction per home loaded
+    "free_fit_200": 23.0,           # 16 + 1 homes, 200 sweeps, scoring and unheard names
+    "general_fit_200": 13.5,        # 16 + 1 homes, 200 sweeps, scoring
+    "specific_run_200": 16.0,       # 16 + 1 homes, 200 sweeps, a configuration's rooms scored
+    "active_knowledge": 12.0,       # the 16 homes' knowledge, 200 sweeps (once per master seed)
+    "active_question": 0.6,         # one question of one strategy: ranking, teach, scoring (+ adapt)
+    "calibration_task": 1.5,        # one (views, homes, seed) task: adapting 2 new homes, answering
+    "calibration_per_home": 0.6,    # fit_knowledge per experienced home of the task
 }
 
 
@@ -245,37 +247,23 @@ def plan(args: argparse.Namespace) -> Plan:
                              *extra, "--strategies", "errors,random", "--questions", "6", "--rates", "",
                              "--trials", str(n), "--seed", seed, "--jobs", "1", "--out", str(folder),
                              "--quiet"],
-            folder / "runs.jsonl", c["active_knowledge"] + n * 2 * 6 * c["active_trial_per_question"],
+            folder / "runs.jsonl", c["active_knowledge"] + n * 2 * 6 * c["active_question"],
             f"{n} trials × 2 strategies × 6 questions")
 
     # how sure `what` is, on held-out views (issue 29's configurations)
-    folder = out / "calibration_heldout"
-    sizes = (4, 6, 8, 16)
-    cal_seeds = 5 if budget else 10
     images = ["--images", str(args.images)] if args.images else []
     feats = "colour-hog,fc7" if args.images else "fc7"
-    n_feats = len(feats.split(","))
-    add("calibration", "heldout", [*_py("calibration.py"), "--data", str(data), *images, "--sets", "held-out",
-                                   "--features", feats, "--sizes", ",".join(map(str, sizes)),
-                                   *(["--first-seeds", str(cal_seeds)] if budget else []), "--jobs", "1",
-                                   "--out", str(folder)],
-        folder / "predictions.jsonl",
-        n_feats * cal_seeds * sum(s * c["calibration_knowledge_per_home"] + 2 * c["calibration_adapt"]
-                                  for s in sizes)
-        + (cal_seeds * len(sizes) * (sum(sizes) / len(sizes) + 2) * c["colour_hog_per_home"]
-           if args.images else 0),
-        f"{feats} × sizes {','.join(map(str, sizes))} × {cal_seeds} seeds × 2 new homes")
-    folder = out / "calibration_dev"
-    dev_feats = "fc7" if budget or not args.images else "colour-hog,fc7"
-    add("calibration", "development", [*_py("calibration.py"), "--data", str(data),
-                                       *(images if "colour-hog" in dev_feats else []),
-                                       "--sets", "development",
-                                       "--features", dev_feats, "--first-seeds", "3" if budget else "5",
-                                       "--jobs", "1", "--out", str(folder)],
-        folder / "predictions.jsonl",
-        len(dev_feats.split(",")) * (3 if budget else 5) * sum(s * c["calibration_knowledge_per_home"]
-                                                               + 2 * c["calibration_adapt"] for s in (4, 8)),
-        f"{dev_feats} × sizes 4,8 × {3 if budget else 5} seeds × 2 new homes")
+    for side, sizes, seeds in (("heldout", (4, 6, 8, 16), 10), ("development", (4, 8), 3 if budget else 5)):
+        folder = out / f"calibration_{side}"
+        add("calibration", side, [*_py("calibration.py"), "--data", str(data), *images,
+                                  "--sets", "held-out" if side == "heldout" else "development",
+                                  "--features", feats, "--sizes", ",".join(map(str, sizes)),
+                                  *(["--first-seeds", str(seeds)] if side == "development" else []),
+                                  "--jobs", "1", "--out", str(folder)],
+            folder / "predictions.jsonl",
+            len(feats.split(",")) * seeds * sum(c["calibration_task"] + s * c["calibration_per_home"]
+                                                for s in sizes),
+            f"{feats} × {','.join(map(str, sizes))} homes × {seeds} seeds × 2 new homes")
     return p
 
 
@@ -489,7 +477,7 @@ def summarise_calibration(out: Path) -> dict[str, Any]:
     from calibration import SURE, ece
 
     res: dict[str, Any] = {}
-    for side, folder in (("heldout", "calibration_heldout"), ("development", "calibration_dev")):
+    for side, folder in (("heldout", "calibration_heldout"), ("development", "calibration_development")):
         path = out / folder / "predictions.jsonl"
         if not path.is_file():
             continue
@@ -630,8 +618,8 @@ def details(figures: dict[str, Any], records: list[dict[str, Any]]) -> str:
 
 
 # ------------------------------------------------------------------------------------ main
-def main(argv: Sequence[str] | None = None) -> int:  # noqa: PLR0915 (the steps in the order they run)
-    """Plan, (dry-)run, summarise, write ``report.json`` and ``report.md``."""
+def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
+    """The command line, checked; ``parts`` and ``sides`` as lists, the default paths filled in."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     default_data = ROOT.parent.parent / "shared" / "datasets"
     if not default_data.is_dir():
@@ -662,6 +650,14 @@ def main(argv: Sequence[str] | None = None) -> int:  # noqa: PLR0915 (the steps 
     args.regions = args.regions or args.data.parent / "sigverse_regions.json"
     if args.images is None and (args.data.parent / "sigverse_images").is_dir():
         args.images = args.data.parent / "sigverse_images"
+    args.parser = parser
+    return args
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Plan, (dry-)run, summarise, write ``report.json`` and ``report.md``."""
+    args = parse_args(argv)
+    parser = args.parser
     the_plan = plan(args)
     total_cpu = sum(s.cpu_estimate for s in the_plan.steps)
     wall = estimate_wall(the_plan.steps, args.jobs)
