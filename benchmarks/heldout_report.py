@@ -530,8 +530,9 @@ def _seeds_text(fig: dict[str, Any] | None, unit: str = "seeds") -> str:
     return "" if fig is None else f", {fig['n']} {unit}"
 
 
-def table(figures: dict[str, Any], commands: dict[str, dict[str, str]]) -> tuple[list[str], str]:
-    """The README Results table (one row per part) and its Markdown."""
+def table(figures: dict[str, Any], budget: bool = False) -> tuple[list[str], str]:
+    """The README Results table (one row per part, with the command that re-measures it) and its
+    Markdown."""
     header = ["experiment", "held-out A_n", "held-out A_p", "development (labelled)", "paper A_n / A_p",
               "command"]
     rows = []
@@ -541,7 +542,7 @@ def table(figures: dict[str, Any], commands: dict[str, dict[str, str]]) -> tuple
         f = figures[part]
         h, d = f.get("heldout") or {}, f.get("development") or {}
         label, paper = LABELS[part]
-        cmd = f"`python benchmarks/heldout_report.py --parts {part}`"
+        cmd = f"`python benchmarks/heldout_report.py {'--budget ' if budget else ''}--parts {part}`"
         if part == "calibration":
             confs = h.get("configurations", [])
             worst = max(confs, key=lambda c: c["ece_pooled"], default=None)
@@ -687,7 +688,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             records.append(json.loads(m.read_text(encoding="utf-8")) if m.is_file() else
                            {"part": s.part, "side": s.side, "command": s.command, "exit": None})
     figures = {part: SUMMARIES[part](args.out) for part in args.parts}
-    _, md_table = table(figures, {})
+    _, md_table = table(figures, args.budget)
     report = {"format": FORMAT, "created": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
               "commit": state["commit"], "commit_subject": state["subject"], "dirty": state["dirty"],
               "budget": args.budget, "jobs": args.jobs, "split": "benchmarks/SPLIT.md",

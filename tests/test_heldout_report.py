@@ -45,8 +45,12 @@ def test_every_part_has_both_sides_and_each_side_its_own_seeds(report, tmp_path:
     for step in steps:
         assert step.command in text and step.cpu_estimate > 0
         seeds = _seeds_of(step.argv)
-        if "--first-seeds" in step.argv or ("--trials" in step.argv and not seeds):
-            continue  # seeds set by the script's own split (calibration) or the configuration file
+        if step.part == "calibration":  # seeds from the script's own split, by set
+            expected = "held-out" if step.side == "heldout" else step.side
+            assert step.argv[step.argv.index("--sets") + 1] == expected
+            continue
+        if "--trials" in step.argv and not seeds:
+            continue  # seeds from the configuration file (specific_heldout.json: 100–119)
         held = [s for s in seeds if 100 <= s <= 119]
         if step.side == "heldout":
             assert seeds and held == seeds, step.command
@@ -96,10 +100,10 @@ def test_summaries_and_table_from_output_files(report, tmp_path: Path) -> None:
     assert specific["A_n"]["values"] == [0.5, 1.0]  # a seed at 0 in one room widens the interval
     assert specific["worst_room"] == {"room": "2LDK_10 office", "A_n": 0.5} and specific["A_p"] is None
     _, md = report.table({"natural": report.summarise_natural(tmp_path),
-                          "specific": report.summarise_specific(tmp_path)}, {})
+                          "specific": report.summarise_specific(tmp_path)}, budget=True)
     lines = md.splitlines()
     assert lines[0].startswith("| experiment | held-out A_n | held-out A_p | development (labelled)")
-    assert "--parts natural" in lines[2] and "0.700 [" in lines[2] and "2 seeds" in lines[2]
+    assert "--budget --parts natural" in lines[2] and "0.700 [" in lines[2] and "2 seeds" in lines[2]
     assert "worst room 0.50" in lines[3]
 
 
