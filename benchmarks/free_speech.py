@@ -22,10 +22,19 @@ Protocol (docs/model.md "What counts as a name"; benchmarks/README "Free speech 
 - intervals: 95 % percentile bootstrap (2,000 resamples) over the test views (A_n; resampled within
   each home and place) and over the seeds' position scores of each (home, place) (A_p).
 
-Run (development set)::
+Run (development set, on the development home 3LDK_9 only: 1LDK_9 and 2LDK_9 are held-out homes,
+benchmarks/SPLIT.md)::
 
     nice -n 10 python benchmarks/free_speech.py --speech benchmarks/development/speech_dev.csv \\
-        --accepted benchmarks/development/accepted_names_dev.json --seeds 0 1 2
+        --accepted benchmarks/development/accepted_names_dev.json --homes 3LDK_9 --seeds 0 1 2
+
+The held-out set of the independent writer (seeds 100–109; ``benchmarks/heldout_report.py --parts
+speech2`` runs it with the development set beside)::
+
+    python benchmarks/free_speech.py --speech benchmarks/heldout/speech2/speech.csv \\
+        --accepted benchmarks/heldout/speech2/accepted_names.json \\
+        --unheard benchmarks/heldout/speech2/unheard_names.json \\
+        --seeds 100 101 102 103 104 105 106 107 108 109
 
 ``--unheard FILE.json`` also measures ``where`` with names nobody said (A_p of the place found via
 the lexicon, :func:`spco.model.unheard.resolve_name`).
