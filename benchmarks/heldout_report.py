@@ -26,15 +26,16 @@ general        general places on new homes taught nothing: 2LDK_10, 1LDK_10 (hel
                2026-12-06; A_n only, they have no rectangles), ``benchmarks/general_places.py``,
                seeds 100–109 (development: 3LDK_9, seeds 0–2)
 asking         ``spco experiment active``, default criterion (``errors``) and random questions:
-               home-specific A_n of ``2LDK_9-kenta-nursery-piano`` after 6 answers, master seed 100
-               (development: 3LDK_9's bedrooms, master seed 0)
+               home-specific A_n of ``2LDK_9-kenta-nursery-piano`` after 6 answers, master seeds
+               100–109, one trial each (development: 3LDK_9's bedrooms, master seeds 0–4)
 calibration    ``benchmarks/calibration.py --sets held-out``: ECE and wrong answers at p ≥ 0.99 of
                ``what`` on the test views of 1LDK_9, 2LDK_9, seeds 100–109, 4/6/8/16 experienced
                homes, colour-hog and fc7 (development: 1DK_8, 3LDK_9, seeds 0–2, 4 and 8 homes)
 =============  ================================================================================
 
-Every figure is the mean over seeds with a 95 % Student-t interval over seeds (for ``asking``: over
-trials, each its own seed, one knowledge fit). ``--budget`` (the lead's end-of-session run) keeps
+Every figure is the mean over seeds with a 95 % Student-t interval over seeds (for ``asking`` each
+master seed is the whole pipeline: the knowledge's fit, adapt and the questions, one trial).
+``--budget`` (the lead's end-of-session run) keeps
 every held-out headline at 10 seeds (the full run: natural speech, home-specific rooms and asking
 at 20) and the development sides smaller. ``--dry-run`` prints every command with
 its estimated CPU time (from development runs, never held-out ones, ``COSTS``) and the estimated
@@ -138,6 +139,7 @@ class Step:
     output: Path
     cpu_estimate: float
     what: str
+    tag: str = ""  # tells apart the steps of one part and side (logs, markers)
 
     @property
     def command(self) -> str:
@@ -180,9 +182,10 @@ def plan(args: argparse.Namespace) -> Plan:
     p = Plan()
     c = COSTS
 
-    def add(part: str, side: str, argv: list[str], output: Path, cpu: float, what: str) -> None:
+    def add(part: str, side: str, argv: list[str], output: Path, cpu: float, what: str,
+            tag: str = "") -> None:
         if part in args.parts and side in args.sides:
-            p.steps.append(Step(part, side, argv, output, c["start"] + cpu, what))
+            p.steps.append(Step(part, side, argv, output, c["start"] + cpu, what, tag))
 
     # natural speech (issue 28): README's first row
     held = HELDOUT_SEEDS if budget else tuple(range(100, 120))
@@ -235,20 +238,23 @@ def plan(args: argparse.Namespace) -> Plan:
             out / name, len(seeds) * homes * c["general_fit_200"],
             f"{len(seeds)} seeds × {homes} new home(s), 200 sweeps")
 
-    # a robot that asks: the default criterion and random questions, 6 answers
-    trials = 10 if budget else 20
-    for side, seed, extra in (
-            ("heldout", "100", ["--homes", "", "--heldout", str(BENCH / "heldout" / "specific_heldout.json"),
-                                "--heldout-config", "2LDK_9-kenta-nursery-piano"]),
-            ("development", "0", ["--homes", "3LDK_9"])):
-        n = trials if side == "heldout" else (5 if budget else 10)
-        folder = out / f"asking_{side}"
-        add("asking", side, [*_spco(), "experiment", "active", "--data", str(data), "--regions", str(regions),
-                             *extra, "--strategies", "errors,random", "--questions", "6", "--rates", "",
-                             "--trials", str(n), "--seed", seed, "--jobs", "1", "--out", str(folder),
-                             "--quiet"],
-            folder / "runs.jsonl", c["active_knowledge"] + n * 2 * 6 * c["active_question"],
-            f"{n} trials × 2 strategies × 6 questions")
+    # a robot that asks: the default criterion and random questions, 6 answers; one trial per master
+    # seed, so that each seed is the whole pipeline (the knowledge's fit, adapt, questions)
+    held = HELDOUT_SEEDS if budget else tuple(range(100, 120))
+    for side, seeds, extra in (
+            ("heldout", held, ["--homes", "", "--heldout", str(BENCH / "heldout" / "specific_heldout.json"),
+                               "--heldout-config", "2LDK_9-kenta-nursery-piano"]),
+            ("development", range(0, 5) if budget else range(0, 10), ["--homes", "3LDK_9"])):
+        for seed in seeds:
+            folder = out / f"asking_{side}" / f"seed{seed}"
+            add("asking", side, [*_spco(), "experiment", "active", "--data", str(data),
+                                 "--regions", str(regions),
+                                 *extra, "--strategies", "errors,random", "--questions", "6", "--rates", "",
+                                 "--trials", "1", "--seed", str(seed), "--jobs", "1", "--out", str(folder),
+                                 "--quiet"],
+                folder / "runs.jsonl", c["active_knowledge"] + 2 * 6 * c["active_question"],
+                f"master seed {seed}: the knowledge's fit, 1 trial × 2 strategies × 6 questions",
+                tag=f"_{seed}")
 
     # how sure `what` is, on held-out views (issue 29's configurations)
     images = ["--images", str(args.images)] if args.images else []
@@ -290,7 +296,7 @@ def git_state() -> dict[str, Any]:
 
 
 def _marker(step: Step) -> Path:
-    return step.output.parent / f".{step.part}_{step.side}.done.json"
+    return step.output.parent / f".{step.part}_{step.side}{step.tag}.done.json"
 
 
 def run_step(step: Step, state: dict[str, Any], logs: Path, lock: threading.Lock) -> dict[str, Any]:
@@ -305,7 +311,7 @@ def run_step(step: Step, state: dict[str, Any], logs: Path, lock: threading.Lock
                 print(f"[reuse] {step.part} ({step.side}): {step.output}", flush=True)
             return old
     step.output.parent.mkdir(parents=True, exist_ok=True)
-    log = logs / f"{step.part}_{step.side}.log"
+    log = logs / f"{step.part}_{step.side}{step.tag}.log"
     log.parent.mkdir(parents=True, exist_ok=True)
     env = dict(os.environ, NUMBA_NUM_THREADS="1", OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1",
                MKL_NUM_THREADS="1", PYTHONUNBUFFERED="1")
@@ -449,23 +455,29 @@ def summarise_general(out: Path) -> dict[str, Any]:
 
 
 def summarise_asking(out: Path, k: int = 6) -> dict[str, Any]:
-    """A robot that asks: home-specific A_n after ``k`` answers, per trial, by strategy."""
+    """A robot that asks: home-specific A_n after ``k`` answers, by strategy, per master seed (the
+    mean of its trials), with the interval over master seeds."""
     res: dict[str, Any] = {}
     for side in SIDES:
-        path = out / f"asking_{side}" / "runs.jsonl"
-        if not path.is_file():
+        paths = sorted((out / f"asking_{side}").glob("seed*/runs.jsonl"))
+        if not paths:
             continue
-        runs = _jsonl(path)
         figs: dict[str, Any] = {}
+        homes: set[str] = set()
         for strategy in ("errors", "random"):
-            values = []
-            for r in runs:
-                steps = [s for s in r.get("curves", {}).get(strategy, []) if s["k"] == k]
-                if steps and steps[0].get("specific_n") is not None:
-                    values.append(steps[0]["specific_n"])
-            figs[strategy] = seed_interval(values)
+            per_seed = []
+            for path in paths:
+                values = []
+                for r in _jsonl(path):
+                    homes.add(r["home"])
+                    steps = [s for s in r.get("curves", {}).get(strategy, []) if s["k"] == k]
+                    if steps and steps[0].get("specific_n") is not None:
+                        values.append(steps[0]["specific_n"])
+                if values:
+                    per_seed.append(sum(values) / len(values))
+            figs[strategy] = seed_interval(per_seed)
         res[side] = {"A_n": figs.get("errors"), "A_n_random": figs.get("random"), "k": k,
-                     "homes": sorted({r["home"] for r in runs})}
+                     "homes": sorted(homes)}
     return res
 
 
@@ -554,11 +566,11 @@ def table(figures: dict[str, Any], budget: bool = False) -> tuple[list[str], str
             dev = ("–" if not dconfs else "development (1DK_8, 3LDK_9): " + "; ".join(
                 f"{c['features']} {c['size']}: ECE {c['ece_pooled']:.3f}" for c in dconfs))
         elif part == "asking":
-            held_n = (f"**{cell(h.get('A_n'))}**{_seeds_text(h.get('A_n'), 'trials')} "
+            held_n = (f"**{cell(h.get('A_n'))}**{_seeds_text(h.get('A_n'))} "
                       f"(random questions {cell(h.get('A_n_random'))})") if h else "–"
             held_p = "–"
             dev = (f"development (3LDK_9's bedrooms): {cell(d.get('A_n'))}"
-                   f"{_seeds_text(d.get('A_n'), 'trials')}" if d else "–")
+                   f"{_seeds_text(d.get('A_n'))}" if d else "–")
         else:
             held_n = f"**{cell(h.get('A_n'))}**{_seeds_text(h.get('A_n'))}" if h.get("A_n") else "–"
             held_p = f"**{cell(h.get('A_p'))}**" if h.get("A_p") else "–"
