@@ -35,10 +35,9 @@ calibration    ``benchmarks/calibration.py --sets held-out``: ECE and wrong answ
 
 Every figure is the mean over seeds with a 95 % Student-t interval over seeds (for ``asking`` each
 master seed is the whole pipeline: the knowledge's fit, adapt and the questions, one trial).
-``--budget`` (the lead's end-of-session run) keeps
-every held-out headline at 10 seeds (the full run: natural speech, home-specific rooms and asking
-at 20) and the development sides smaller. ``--dry-run`` prints every command with
-its estimated CPU time (from development runs, never held-out ones, ``COSTS``) and the estimated
+``--budget`` (the lead's end-of-session run) keeps every held-out headline at 10 seeds (the full
+run: natural speech, home-specific rooms and asking at 20) and the development sides smaller.
+``--dry-run`` prints every command with its estimated CPU time (from development runs, never held-out ones, ``COSTS``) and the estimated
 wall time on ``--jobs`` cores. Steps run as separate processes, ``--jobs`` at a time (longest
 first), each single-threaded; a step whose outputs are in ``--out`` from the same commit and command
 is reused (so an interrupted run continues).
