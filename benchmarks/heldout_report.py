@@ -37,8 +37,9 @@ Every figure is the mean over seeds with a 95 % Student-t interval over seeds (f
 master seed is the whole pipeline: the knowledge's fit, adapt and the questions, one trial).
 ``--budget`` (the lead's end-of-session run) keeps every held-out headline at 10 seeds (the full
 run: natural speech, home-specific rooms and asking at 20) and the development sides smaller.
-``--dry-run`` prints every command with its estimated CPU time (from development runs, never held-out ones, ``COSTS``) and the estimated
-wall time on ``--jobs`` cores. Steps run as separate processes, ``--jobs`` at a time (longest
+``--dry-run`` prints every command with its estimated CPU time (from development runs, never
+held-out ones, ``COSTS``) and the estimated wall time on ``--jobs`` quiet cores (a machine shared
+with other work takes longer in proportion). Steps run as separate processes, ``--jobs`` at a time (longest
 first), each single-threaded; a step whose outputs are in ``--out`` from the same commit and command
 is reused (so an interrupted run continues).
 
@@ -124,6 +125,8 @@ def cell(fig: dict[str, Any] | None, digits: int = 3) -> str:
     """``mean [low, high]`` or ``–``."""
     if fig is None:
         return "–"
+    if fig["n"] < 2:  # no interval from one seed
+        return f"{fig['mean']:.{digits}f}"
     return f"{fig['mean']:.{digits}f} [{fig['low']:.{digits}f}, {fig['high']:.{digits}f}]"
 
 
@@ -538,7 +541,7 @@ LABELS = {
 
 
 def _seeds_text(fig: dict[str, Any] | None, unit: str = "seeds") -> str:
-    return "" if fig is None else f", {fig['n']} {unit}"
+    return "" if fig is None else f", {fig['n']} {unit if fig['n'] != 1 else unit.rstrip('s')}"
 
 
 def table(figures: dict[str, Any], budget: bool = False) -> tuple[list[str], str]:
@@ -596,7 +599,7 @@ def details(figures: dict[str, Any], records: list[dict[str, Any]]) -> str:
             continue
         text = [f"### {part}", ""]
         for r in sorted(mine, key=lambda r: r["side"] != "heldout"):
-            status = ("" if r.get("exit", 0) == 0
+            status = ("" if r.get("exit", 0) == 0 else " — not run here" if r.get("exit") is None
                       else f" — **failed** (exit {r.get('exit')}, see {r.get('log')})")
             timing = (f" ({r['wall_seconds']:.0f} s wall, {r['cpu_seconds']:.0f} s CPU)"
                       if "wall_seconds" in r else "")
