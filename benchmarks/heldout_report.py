@@ -96,7 +96,7 @@ COSTS: dict[str, float] = {
     "general_fit_200": 13.5,        # 16 + 1 homes, 200 sweeps, scoring
     "specific_run_200": 16.0,       # 16 + 1 homes, 200 sweeps, a configuration's rooms scored
     "active_knowledge": 12.0,       # the 16 homes' knowledge, 200 sweeps (once per master seed)
-    "active_question": 0.6,         # one question of one strategy: ranking, teach, scoring (+ adapt)
+    "active_question": 0.3,         # one question of one strategy: ranking, teach, scoring (+ adapt)
     "calibration_task": 1.5,        # one (views, homes, seed) task: adapting 2 new homes, answering
     "calibration_per_home": 0.6,    # fit_knowledge per experienced home of the task
 }
