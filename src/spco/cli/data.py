@@ -118,7 +118,7 @@ def _inspect_model_file(path: Path, as_json: bool) -> None:
     click.echo(f"vocabulary ({len(info['vocabulary'])} words): {', '.join(info['vocabulary'])}")
     if info.get("text"):
         click.echo(f"text written without spaces: {info['text']}")
-    click.echo(f"place names (kept by pruning, {len(info['kept_names'])}): {', '.join(info['kept_names'])}")
+    click.echo(f"place names ({len(info['kept_names'])}): {', '.join(info['kept_names'])}")
     click.echo(f"experienced homes ({len(info['homes'])}): {', '.join(info['homes'])}")
     view = info["view_fit"]
     if info["kind"] == "knowledge" and view:
