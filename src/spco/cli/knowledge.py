@@ -370,9 +370,12 @@ def where(home_file: Path, name: str, n: int, seed: int, as_json: bool) -> None:
         return
     name = answer["name"]
     if not answer["learnt"]:
-        click.echo(f"warning: no such place learnt in this home: only {answer['support']:.0%} of the "
-                   f"probability of {name!r} comes from concepts holding its samples; the poses below are a "
-                   "guess", err=True)
+        there = (f"the poses below are at the place that looks most like a {name} of the experienced homes, "
+                 f"which `what` calls {answer['called']!r} here" if answer.get("called") else
+                 f"the poses below are at the place that looks most like a {name} of the experienced homes")
+        click.echo(f"warning: no such place learnt in this home: nobody said {name!r} here and only "
+                   f"{answer['support']:.0%} of its probability comes from concepts holding the home's "
+                   f"samples; {there} — a guess (teach it to make it sure)", err=True)
     if answer["via"] is not None:  # a name nobody said, found through the lexicon
         click.echo(f"{answer['asked']} -> {name} (never said in this home; {answer['via']} in WordNet)")
     click.echo(f"{name} in home {home.name}: region {answer['region']} of the home's map, "

@@ -116,6 +116,8 @@ class WhereAnswer(BaseModel):
     region_probability: float
     learnt: bool
     support: float
+    called: str | None = Field(None, description="for a name not learnt: what `what` answers at the centre "
+                               "of the answer region (the home's own name for that place)")
     positions: list[Position]
 
 
