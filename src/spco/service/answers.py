@@ -33,8 +33,8 @@ def where_answer(home: kn.HomeModel, name: str, n: int = 10, seed: int = 0) -> d
     Returns ``{"home", "name", "asked", "via", "region", "region_probability", "learnt", "support",
     "called", "positions"}`` (``called``: for a name not learnt, what ``what`` answers at the centre
     of ``region``, or ``None``); ``asked`` is the name as asked; for a name never said in the home
-    that WordNet resolved to a known one (:mod:`spco.model.unheard`), ``name`` is the known name and ``via`` how it
-    was found ("synonym", "gloss", ...), else ``via`` is ``None``. ``positions`` lists
+    that WordNet resolved to a known one (:mod:`spco.model.unheard`), ``name`` is the known name and
+    ``via`` how it was found ("synonym", "gloss", ...), else ``via`` is ``None``. ``positions`` lists
     ``{"x", "y", "theta", "probability"}`` (metres, radians), most probable first. Raises
     :class:`~spco.model.prediction.UnknownNameError` for a name the home cannot use.
     """
