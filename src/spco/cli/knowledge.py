@@ -329,9 +329,10 @@ def adapt(knowledge_file: Path, home_path: Path, name: str | None, teaching_rate
     click.echo(home.describe())
     view = home.provenance.get("view_fit")
     if view and view.get("value") is not None and view.get("experienced_range"):
-        low, high = view["experienced_range"]
+        from spco.knowledge import fit_range_text
+
         click.echo(f"The knowledge explains this home's views by {view['value']:.2f} nats per count better "
-                   f"than a uniform guess (experienced homes: {low:.2f}…{high:.2f}); "
+                   f"than a uniform guess (experienced homes: {fit_range_text(view['experienced_range'])}); "
                    f"{'it fits' if view['fits'] else 'IT DOES NOT FIT (see the warning)'}.")
     new_words = home.provenance["adapt"]["new_words"]
     if new_words:

@@ -157,6 +157,7 @@ class QuestionJSON(BaseModel):
     unknown: float
     confidence: float
     worth_asking: bool
+    own_name: float = Field(0.0, description="the probability that the room has a name of its own")
 
 
 class AskAnswer(BaseModel):
