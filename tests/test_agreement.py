@@ -58,7 +58,8 @@ def _unoccupied(home: kn.HomeModel, name: str) -> kn.HomeModel:
     return moved
 
 
-def test_a_name_not_learnt_says_what_the_home_calls_the_place_of_its_poses(built: Path, tmp_path: Path) -> None:
+def test_a_name_not_learnt_says_what_the_home_calls_the_place_of_its_poses(
+        built: Path, tmp_path: Path) -> None:
     home = kn.load_home_model(built)
     checked = 0
     for name in home.known_names:
