@@ -121,3 +121,32 @@ def test_view_fit_ranges_never_print_one_number_twice() -> None:
     assert kn.fit_range_text([]) == "unknown"
     text = kn.view_fit_warning("h", {"value": 0.1, "experienced_range": [2.55, 2.55], "warn_below": 1.0})
     assert "against 2.55 in its experienced homes" in text and "2.55…2.55" not in text
+
+
+def test_a_teachings_positions_are_scored_by_the_regions_posterior_predictive(built: Path) -> None:
+    """log p(x | a region's samples) = log m(samples ∪ {x}) − log m(samples), m the NIW marginal."""
+    from spco.model import gibbs
+    from spco.model.local_update import _log_marginal_positions, _RegionStatistics
+    from spco.model.state import SamplerSettings
+
+    home = kn.load_home_model(built)
+    shared = home.knowledge.shared_part()
+    settings = SamplerSettings.create(shared.variant, shared.prune_words, learn_shared=False,
+                                      view_counts=shared.hyperparameters.view_counts)
+    prior = gibbs.niw_prior(home.data, shared.hyperparameters, settings)
+    state, x = home.state, home.data.positions
+    regions = np.unique(state.regions)
+    counted = np.ones(home.n_samples, dtype=bool)
+    counted[0] = False
+    stats = _RegionStatistics(home.data, state, counted, regions, prior)
+    got = stats.log_predictive(x[0])
+    for k, region in enumerate(regions):
+        members = x[counted & (state.regions == region)]
+        want = (_log_marginal_positions(np.vstack([members, x[:1]]), prior)
+                - (_log_marginal_positions(members, prior) if len(members) else 0.0))
+        assert got[k] == pytest.approx(want, rel=1e-8, abs=1e-8)
+    stats.add(0, x[0])  # counted in the first region: its predictive is that of the region with it
+    members = np.vstack([x[counted & (state.regions == regions[0])], x[:1]])
+    with_x1 = _log_marginal_positions(np.vstack([members, x[1:2]]), prior)
+    assert stats.log_predictive(x[1])[0] == pytest.approx(with_x1 - _log_marginal_positions(members, prior),
+                                                           rel=1e-8)
