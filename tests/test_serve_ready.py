@@ -37,3 +37,16 @@ def test_ready_after_every_route_answered_once_and_nothing_taught(built: Path, t
         assert first["seq"] == 1  # the first real teaching is the first the home records
     finally:
         assert server.stop() == 0
+
+
+def test_answers_given_while_quiet_publish_no_event(built: Path, tmp_path: Path) -> None:
+    from spco.service import LiveHome
+
+    home = copy_home(built, tmp_path)
+    name = kn.load_home_model(home).known_names[0]
+    with LiveHome(home, writer="thread", seed=0) as live, live.subscribe() as events:
+        with live.quiet():
+            live.where(name, n=3)
+        live.what(0.0, 0.0, 0.0)
+        event = events.get(timeout=10)
+        assert event["type"] == "answer" and event["kind"] == "what"  # the where above published nothing

@@ -180,34 +180,17 @@ def accepted_hosts(host: str, token: str | None, extra: list[str] | tuple[str, .
     return sorted(set(hosts))
 
 
-def _run(server: Any, sock: socket.socket, warm: Callable[[], None],
-         attach: Callable[[], Callable[[], None] | None], announce: Callable[[], None]) -> None:
-    """Run the uvicorn ``server`` on ``sock`` until Ctrl-C or SIGTERM. Once it listens (the requests
-    answered meanwhile): ``warm`` (:func:`warm_requests`), then ``attach`` (its answers are not
-    streamed: a stream attached after the warm-up), then ``announce`` (the line that says ready). An
-    error of ``attach`` stops the server and is raised here."""
-    detach: Callable[[], None] | None = None
-    failed: list[BaseException] = []
+def _run(server: Any, sock: socket.socket, warm: Callable[[], None], announce: Callable[[], None]) -> None:
+    """Run the uvicorn ``server`` on ``sock`` until Ctrl-C or SIGTERM; once it listens (requests are
+    answered meanwhile), ``warm`` (:func:`warm_requests`), then ``announce`` (the line that says
+    ready)."""
 
     def ready() -> None:
-        nonlocal detach
         warm()
-        try:
-            detach = attach()
-        except BaseException as exc:  # said by serve's caller, as before the server started
-            failed.append(exc)
-            server.should_exit = True
-            return
         announce()
 
     server.when_started = ready
-    try:
-        server.run(sockets=[sock])
-    finally:
-        if detach is not None:
-            detach()
-    if failed:
-        raise failed[0]
+    server.run(sockets=[sock])
 
 
 def serve(home: str | PathLike[str], host: str = "127.0.0.1", port: int = 8765, token_file: str | None = None,
@@ -262,6 +245,7 @@ def serve(home: str | PathLike[str], host: str = "127.0.0.1", port: int = 8765, 
         if live.startup.get("replayed"):
             say(f"Replayed {live.startup['replayed']} teachings from {live.journal_path} and compacted them "
                 f"into {home}.")
+        detach = attach(live) if attach is not None else None
         options = ServeSettings(map_image=None if map_image is None else Path(map_image),
                                 map_extent=map_extent,
                                 allowed_hosts=accepted_hosts(host, token, allowed_hosts),
@@ -274,11 +258,19 @@ def serve(home: str | PathLike[str], host: str = "127.0.0.1", port: int = 8765, 
                                 timeout_graceful_shutdown=3, server_header=False, date_header=False)
         h = live.home
         local = f"http://{'[::1]' if ':' in host.strip('[]') else '127.0.0.1'}:{bound}"
-        _run(_Server(config), sock, lambda: warm_requests(local if is_wildcard(host) else address, token, h),
-             lambda: attach(live) if attach is not None else None,
-             lambda: say(f"Serving home {h.name} ({h.n_samples} samples, {h.n_taught} taught) from {home} at "
-                         f"{address}/ (page), {address}/openapi.json (API); writer process "
-                         f"{live.writer_pid}. Ctrl-C to stop."))
+
+        def warm() -> None:  # the warm-up's answers are nobody's: not streamed
+            with live.quiet():
+                warm_requests(local if is_wildcard(host) else address, token, h)
+
+        try:
+            _run(_Server(config), sock, warm,
+                 lambda: say(f"Serving home {h.name} ({h.n_samples} samples, {h.n_taught} taught) from "
+                             f"{home} at {address}/ (page), {address}/openapi.json (API); writer process "
+                             f"{live.writer_pid}. Ctrl-C to stop."))
+        finally:
+            if detach is not None:
+                detach()
     finally:
         live.close()
         sock.close()
