@@ -24,9 +24,11 @@ current values (a valid MCMC step of the same posterior, restricted to a block):
    best, and the concept a name first heard in the home gets
    (:func:`~spco.model.home_shard.own_names_to_free_concepts`);
 3. ``n_sweeps`` sweeps of that block: the movable samples' (concept, region) pairs from their
-   joint conditional restricted to ``C_A × R_A``, the Gaussians of ``R_A`` integrated out as in
-   step 1 (the current pair is in it, so the step keeps the posterior; the Gaussians are drawn
-   again next, given the pairs: a partially collapsed Gibbs step), then θ^v, θ^w and π of
+   joint conditional restricted to ``C_A × R_A``, given the regions' current Gaussians (the
+   current pair is in it, so the step keeps the posterior; not integrated out here: with the
+   model's prior the collapsed conditional drains small regions into large ones — a teaching at
+   six regions merged three of them into one — the uncollapsed sampler's slow mixing between
+   region configurations is what keeps a teaching local), then θ^v, θ^w and π of
    ``C_A``, the Gaussians of ``R_A``, and G_e's share among
    ``C_A`` given the share of the other concepts (the conditional of a Dirichlet's sub-vector);
    φ of a free concept in ``C_A`` (one the knowledge does not use) as adapting learns it;
@@ -78,12 +80,13 @@ def _sample_rows(logits: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     return np.minimum((cdf < u[:, None]).sum(axis=1), logits.shape[1] - 1)
 
 
-def _concept_likelihoods(
+def _likelihoods(
     data: PreparedData, state: GibbsState, settings: SamplerSettings, rows: np.ndarray
-) -> np.ndarray:
-    """The concept log-likelihood (n, L) of the samples ``rows``' views and words: the sampler's
-    (:func:`spco.model.gibbs._concept_loglik`) for these rows only — a teaching's few samples, not
-    the home's hundreds. (Their positions are scored by :class:`_RegionStatistics`.)"""
+) -> tuple[np.ndarray, np.ndarray]:
+    """(concept log-likelihood (n, L) of their views and words, region log-likelihood (n, K) of
+    their positions under the regions' current Gaussians) of the samples ``rows``: the sampler's
+    (:func:`spco.model.gibbs._concept_loglik`, :meth:`GaussianRegions.log_likelihood`) for these rows
+    only — a teaching's few samples, not the home's hundreds."""
     visual = sp.csr_array(data.visual[rows], dtype=np.float64)
     concept_ll = visual @ np.maximum(state.log_theta_v[0], LOG_FLOOR).T
     weights = gibbs.view_weights(data, settings.view_counts)
@@ -93,7 +96,13 @@ def _concept_likelihoods(
     if words.nnz:
         log_theta_w = gibbs.kept_word_log_theta(state.log_theta_w, state.word_mask)[0]
         concept_ll = concept_ll + sp.csr_array(words, dtype=np.float64) @ np.maximum(log_theta_w, LOG_FLOOR).T
-    return np.asarray(concept_ll)
+    chol = np.linalg.cholesky(state.covariances[0])  # (K, d, d)
+    diff = data.positions[rows][:, None, :] - state.means[0][None]  # (n, K, d)
+    z = np.linalg.solve(chol[None], diff[..., None])[..., 0]
+    d = diff.shape[-1]
+    log_det = 2.0 * np.log(np.diagonal(chol, axis1=-2, axis2=-1)).sum(-1)
+    region_ll = -0.5 * ((z**2).sum(-1) + log_det[None] + d * np.log(2 * np.pi))
+    return np.asarray(concept_ll), region_ll
 
 
 def _collapsed_logits(
@@ -126,35 +135,41 @@ def _draw_assignments(
     concepts: np.ndarray,
     regions: np.ndarray,
     rng: np.random.Generator,
+    collapsed: bool = False,
 ) -> None:
     """Draw the (concept, region) of the samples ``rows`` one after another from their joint
-    conditional restricted to ``concepts`` × ``regions``, G_e, π and the regions' Gaussians
-    integrated out (the counts and positions of the other samples; they are drawn again given the
-    assignments in :func:`_parameters`: a partially collapsed Gibbs step), in place.
-    A sample's current pair must be in the restriction (or the sample new, not yet counted)."""
+    conditional restricted to ``concepts`` × ``regions``, G_e and π integrated out (the counts of the
+    other samples; π and G_e are drawn again given the assignments in :func:`_parameters`), in place.
+    ``collapsed``: the regions' Gaussians integrated out too (each position scored by the posterior
+    predictive of the region's other samples, :class:`_RegionStatistics`; they are drawn again given
+    the assignments next: a partially collapsed Gibbs step) — for a new observation's first draw;
+    else the regions' current Gaussians score it. A sample's current pair must be in the
+    restriction (or the sample new, not yet counted)."""
     if rows.size == 0:
         return
     hyper = shared.hyperparameters
     L, K = state.log_pi.shape[1:]
-    concept_ll = _concept_likelihoods(data, state, settings, rows)
+    concept_ll, region_ll = _likelihoods(data, state, settings, rows)
     counted = np.ones(data.n_samples, dtype=bool)
     counted[rows] = False
     pair_counts = np.zeros((L, K))
     np.add.at(pair_counts, (state.concepts[counted], state.regions[counted]), 1.0)
     concept_counts = pair_counts.sum(axis=1)
-    positions = _RegionStatistics(data, state, counted, regions, gibbs.niw_prior(data, hyper, settings))
+    positions = (_RegionStatistics(data, state, counted, regions, gibbs.niw_prior(data, hyper, settings))
+                 if collapsed else None)
     for k, row in enumerate(rows):  # a loop over the teaching's few movable samples
-        region_ll = np.full(K, -np.inf)
-        region_ll[regions] = positions.log_predictive(data.positions[row])
+        if positions is not None:
+            region_ll[k, regions] = positions.log_predictive(data.positions[row])
         logits = _collapsed_logits(
-            state, hyper, concept_counts, pair_counts, concepts, regions, concept_ll[k], region_ll
+            state, hyper, concept_counts, pair_counts, concepts, regions, concept_ll[k], region_ll[k]
         )
         flat = int(_sample_rows(logits.reshape(1, -1), rng)[0])
         c, r = concepts[flat // regions.size], regions[flat % regions.size]
         state.concepts[row], state.regions[row] = c, r
         pair_counts[c, r] += 1.0
         concept_counts[c] += 1.0
-        positions.add(flat % regions.size, data.positions[row])
+        if positions is not None:
+            positions.add(flat % regions.size, data.positions[row])
 
 
 class _RegionStatistics:
@@ -432,7 +447,7 @@ def teach_locally(
     new = np.asarray(new, dtype=np.int64)
     judge_new_words(state, shared, n_known, data)  # a taught name counts at once
     L, K = state.log_pi.shape[1:]
-    _draw_assignments(data, state, shared, settings, new, np.arange(L), np.arange(K), rng)
+    _draw_assignments(data, state, shared, settings, new, np.arange(L), np.arange(K), rng, collapsed=True)
     before = state.concepts.copy()
     own_names_to_free_concepts(data, state, shared, n_known)
     moved = np.flatnonzero(before != state.concepts)
