@@ -65,8 +65,8 @@ def test_a_name_not_learnt_says_what_the_home_calls_the_place_of_its_poses(
     for name in home.known_names:
         moved = _unoccupied(home, name)
         answer = _answers_quietly(moved, name)
-        if answer.learnt:  # `what` answers the name there after all: where and what agree
-            assert answered_at_region(moved, answer.region) == answer.name
+        if answer.learnt:  # other concepts still carry it, or `what` answers it there: where and what agree
+            assert answer.support >= 0.5 or answered_at_region(moved, answer.region) == answer.name
             continue
         checked += 1
         assert answer.support < 0.5
