@@ -329,9 +329,10 @@ def adapt(knowledge_file: Path, home_path: Path, name: str | None, teaching_rate
     click.echo(home.describe())
     view = home.provenance.get("view_fit")
     if view and view.get("value") is not None and view.get("experienced_range"):
-        low, high = view["experienced_range"]
+        from spco.knowledge import fit_range_text
+
         click.echo(f"The knowledge explains this home's views by {view['value']:.2f} nats per count better "
-                   f"than a uniform guess (experienced homes: {low:.2f}…{high:.2f}); "
+                   f"than a uniform guess (experienced homes: {fit_range_text(view['experienced_range'])}); "
                    f"{'it fits' if view['fits'] else 'IT DOES NOT FIT (see the warning)'}.")
     new_words = home.provenance["adapt"]["new_words"]
     if new_words:
@@ -370,9 +371,12 @@ def where(home_file: Path, name: str, n: int, seed: int, as_json: bool) -> None:
         return
     name = answer["name"]
     if not answer["learnt"]:
-        click.echo(f"warning: no such place learnt in this home: only {answer['support']:.0%} of the "
-                   f"probability of {name!r} comes from concepts holding its samples; the poses below are a "
-                   "guess", err=True)
+        there = (f"the poses below are at the place that looks most like a {name} of the experienced homes, "
+                 f"which `what` calls {answer['called']!r} here" if answer.get("called") else
+                 f"the poses below are at the place that looks most like a {name} of the experienced homes")
+        click.echo(f"warning: no such place learnt in this home: nobody said {name!r} here and only "
+                   f"{answer['support']:.0%} of its probability comes from concepts holding the home's "
+                   f"samples; {there} — a guess (teach it to make it sure)", err=True)
     if answer["via"] is not None:  # a name nobody said, found through the lexicon
         click.echo(f"{answer['asked']} -> {name} (never said in this home; {answer['via']} in WordNet)")
     click.echo(f"{name} in home {home.name}: region {answer['region']} of the home's map, "

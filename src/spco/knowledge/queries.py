@@ -60,7 +60,10 @@ def where(home: HomeModel, name: str, n: int = 10,
     ``name`` is read like a sentence (``"Living Room"``, ``"living-room"`` → ``living room``); a name
     never learnt as one term is its known words said together (``study + room``). ``learnt`` is
     False (and ``support`` low) when no such place was learnt in this home: the name is neither
-    taught in the home nor carried by concepts holding its samples. A name nobody said
+    taught in the home nor carried by concepts holding its samples, and :func:`what` at the centre
+    of the answer region does not answer it either (``called``: the name it answers there, the
+    home's own name for the place; a name ``what`` answers there counts as learnt, whatever the
+    support: ``where`` and ``what`` agree). A name nobody said
     ("restroom") is first looked up in the lexicon (:func:`spco.model.unheard.resolve_name`): the
     answer is then for the known name it found (``name``: "toilet"; ``asked``: "restroom"; ``via``:
     how).
@@ -116,10 +119,28 @@ def _where(home: HomeModel, name: str, n: int,
         per_region[np.argmax(share * n - per_region)] += 1
     regions = np.repeat(answer, per_region)
     samples, log_density, weights = draw_poses(params, 0, probs, regions, as_generator(random_state))
-    return PositionPrediction(name=query_name(vocabulary, params, name), region=int(answer[0]),
+    asked = query_name(vocabulary, params, name)
+    learnt, called = support >= LEARNT_SUPPORT, None
+    if not learnt:  # what `what` answers where the poses are: the name itself (learnt after all) or another
+        called = answered_at_region(home, int(answer[0]))
+        learnt = called == asked
+        called = None if learnt else called
+    return PositionPrediction(name=asked, region=int(answer[0]),
                               region_probabilities=probs, samples=samples, regions=regions,
                               log_density=log_density, weights=weights, mode="mixture", xy_only=False,
-                              support=support, learnt=support >= LEARNT_SUPPORT)
+                              support=support, learnt=learnt, called=called)
+
+
+def answered_at_region(home: HomeModel, region: int) -> str | None:
+    """The name :func:`what` answers (the position alone) at the centre of the home's region
+    ``region``: the name the home gives the place there; ``None`` if it knows none."""
+    mean = np.asarray(home.parameters.region_means[0, region], dtype=np.float64)
+    theta = float(np.arctan2(mean[2], mean[3])) if mean.size >= 4 else 0.0
+    pose = np.array([[mean[0], mean[1], np.sin(theta), np.cos(theta)]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # a region's centre off the map: still the region's answer
+        words = name_prediction(home, pose, None, top_k=1).words[0]
+    return str(words[0]) if len(words) else None
 
 
 def unused_word_hint(home: HomeModel, word: str) -> str | None:
