@@ -55,6 +55,7 @@ from spco.data.language import (  # noqa: F401  (re-exported)
     Vocabulary,
     is_function_word,
 )
+from spco.data.lexicon import PLACE_ROOTS
 
 __all__ = [
     "CLOSED_CLASS",
@@ -82,12 +83,13 @@ AFTER_NAME = frozenset({"is", "are", "here", "'s"})
 
 #: The features, in the order of :data:`WEIGHTS` (all in [0, 1]).
 FEATURES = ("determiner", "naming_frame", "preposition", "pronoun", "sentence_start", "alone",
-            "known", "noun_share", "place_share", "function_word")
+            "known", "noun_share", "place_share", "function_word", "room_modifier", "spelling_variant")
 
-#: Intercept and weights of the logistic model (fitted by ``benchmarks/name_evidence.py`` on
-#: development data, L2 penalty 1; see docs/model.md).
-WEIGHTS: tuple[float, ...] = (-5.805, 2.303, 0.703, -1.110, -0.366, 0.068, -0.140, 0.030, 1.458, 2.641,
-                               -0.434)
+#: Intercept and weights of the logistic model (fitted by ``benchmarks/name_evidence.py --subject
+#: …/sigverse_subject --terms-from distinct`` on development data only — the development homes of
+#: people's sentences among its corpora — L2 penalty 1; see docs/model.md).
+WEIGHTS: tuple[float, ...] = (-4.626, 1.787, 1.595, -0.330, -0.564, 0.419, 0.630, -1.634, 1.290, 3.222,
+                               -1.464, 1.895, -3.670)
 
 
 def content_share(words: Sequence[str]) -> np.ndarray:
@@ -146,14 +148,20 @@ def frame_features(vocabulary: Vocabulary, sentences: Iterable[str | None]) -> n
 
 
 def lexical_features(words: Sequence[str], lexicon: object | None = None) -> np.ndarray:
-    """What each word is, from WordNet: (V, 4) = known (1: WordNet knows the word, or one of its
+    """What each word is, from WordNet: (V, 6) = known (1: WordNet knows the word, or one of its
     :func:`spelling_variants`, or for a term its head word, tried in that order), share of noun
     senses, share of noun senses that are places, function word (one of spco's English
-    function-word lists). Unknown words: (0, 0.5, 0, function word).
+    function-word lists), room modifier (1: the word followed by "room", spaced or joined, is a
+    place noun of WordNet: "dining", "bath", "living", "wash", "guest" — a word that can stand for
+    a room by ellipsis, "the dining", "the bath"; "room" is the lemma of the first of
+    :data:`spco.data.lexicon.PLACE_ROOTS`), spelling variant (1: the facts are those of a word one
+    edit away, "kicthen", "bathrooom": a misspelt name is where the name is, but not the name to
+    answer; a compound written as one or in two, "bed room", "livingroom", is not a misspelling).
+    Unknown words: (0, 0.5, 0, function word, 0, 0).
 
     ``lexicon``: a :class:`spco.data.lexicon.Lexicon` (default: :func:`spco.data.lexicon.lexicon`,
     which may be None: then every word is unknown to it)."""
-    out = np.zeros((len(words), 4))
+    out = np.zeros((len(words), 6))
     out[:, 1] = 0.5
     asked: list[int] = []
     for k, word in enumerate(words):
@@ -161,7 +169,10 @@ def lexical_features(words: Sequence[str], lexicon: object | None = None) -> np.
                                                or word in COPULAS or word in PRONOUNS))
         if not out[k, 3] and not word.endswith("'s"):
             asked.append(k)
-    facts = _lookup([words[k] for k in asked], lexicon)
+    room = _ROOM_HEAD
+    compounds = {k: (f"{words[k]} {room}", f"{words[k]}{room}") for k in asked
+                 if words[k].isalpha() and words[k] != room}
+    facts = _lookup([words[k] for k in asked] + [c for pair in compounds.values() for c in pair], lexicon)
     if facts is None:
         return out
     # the words WordNet does not know: their other spellings, then a term's head word
@@ -174,9 +185,19 @@ def lexical_features(words: Sequence[str], lexicon: object | None = None) -> np.
         for candidate in (words[k], *others.get(k, ())):
             fact = facts[candidate]
             if fact.known:
-                out[k] = (1.0, fact.noun_share, 0.0 if np.isnan(fact.place_share) else fact.place_share, 0.0)
+                out[k, :4] = (1.0, fact.noun_share, 0.0 if np.isnan(fact.place_share) else fact.place_share,
+                              0.0)
+                # a misspelling (not the word, its head, or the word written as one or in two)
+                out[k, 5] = float(candidate.replace(" ", "") != words[k].replace(" ", "")
+                                  and candidate not in words[k].split()[1:][-1:])
                 break
+    for k, pair in compounds.items():
+        out[k, 4] = float(any(facts[c].known and facts[c].place_share > 0.5 for c in pair))
     return out
+
+
+#: The head of :func:`lexical_features`' room modifiers: the lemma of WordNet's ``room.n.01``.
+_ROOM_HEAD = PLACE_ROOTS[0].split(".")[0]
 
 
 def _lookup(texts: Sequence[str], lexicon: object | None) -> dict | None:
