@@ -55,7 +55,6 @@ from spco.data.language import (  # noqa: F401  (re-exported)
     Vocabulary,
     is_function_word,
 )
-from spco.data.lexicon import PLACE_ROOTS
 
 __all__ = [
     "CLOSED_CLASS",
@@ -83,13 +82,13 @@ AFTER_NAME = frozenset({"is", "are", "here", "'s"})
 
 #: The features, in the order of :data:`WEIGHTS` (all in [0, 1]).
 FEATURES = ("determiner", "naming_frame", "preposition", "pronoun", "sentence_start", "alone",
-            "known", "noun_share", "place_share", "function_word", "room_modifier", "spelling_variant")
+            "known", "noun_share", "place_share", "function_word", "spelling_variant")
 
 #: Intercept and weights of the logistic model (fitted by ``benchmarks/name_evidence.py --subject
 #: …/sigverse_subject --terms-from distinct`` on development data only — the development homes of
 #: people's sentences among its corpora — L2 penalty 1; see docs/model.md).
-WEIGHTS: tuple[float, ...] = (-4.626, 1.787, 1.595, -0.330, -0.564, 0.419, 0.630, -1.634, 1.290, 3.222,
-                               -1.464, 1.895, -3.670)
+WEIGHTS: tuple[float, ...] = (-4.407, 1.831, 1.452, -0.334, -0.472, 0.399, 0.749, -1.278, 1.068, 2.947,
+                               -1.484, -3.702)
 
 
 def content_share(words: Sequence[str]) -> np.ndarray:
@@ -148,20 +147,17 @@ def frame_features(vocabulary: Vocabulary, sentences: Iterable[str | None]) -> n
 
 
 def lexical_features(words: Sequence[str], lexicon: object | None = None) -> np.ndarray:
-    """What each word is, from WordNet: (V, 6) = known (1: WordNet knows the word, or one of its
+    """What each word is, from WordNet: (V, 5) = known (1: WordNet knows the word, or one of its
     :func:`spelling_variants`, or for a term its head word, tried in that order), share of noun
     senses, share of noun senses that are places, function word (one of spco's English
-    function-word lists), room modifier (1: the word followed by "room", spaced or joined, is a
-    place noun of WordNet: "dining", "bath", "living", "wash", "guest" — a word that can stand for
-    a room by ellipsis, "the dining", "the bath"; "room" is the lemma of the first of
-    :data:`spco.data.lexicon.PLACE_ROOTS`), spelling variant (1: the facts are those of a word one
+    function-word lists), spelling variant (1: the facts are those of a word one
     edit away, "kicthen", "bathrooom": a misspelt name is where the name is, but not the name to
     answer; a compound written as one or in two, "bed room", "livingroom", is not a misspelling).
-    Unknown words: (0, 0.5, 0, function word, 0, 0).
+    Unknown words: (0, 0.5, 0, function word, 0).
 
     ``lexicon``: a :class:`spco.data.lexicon.Lexicon` (default: :func:`spco.data.lexicon.lexicon`,
     which may be None: then every word is unknown to it)."""
-    out = np.zeros((len(words), 6))
+    out = np.zeros((len(words), 5))
     out[:, 1] = 0.5
     asked: list[int] = []
     for k, word in enumerate(words):
@@ -169,10 +165,7 @@ def lexical_features(words: Sequence[str], lexicon: object | None = None) -> np.
                                                or word in COPULAS or word in PRONOUNS))
         if not out[k, 3] and not word.endswith("'s"):
             asked.append(k)
-    room = _ROOM_HEAD
-    compounds = {k: (f"{words[k]} {room}", f"{words[k]}{room}") for k in asked
-                 if words[k].isalpha() and words[k] != room}
-    facts = _lookup([words[k] for k in asked] + [c for pair in compounds.values() for c in pair], lexicon)
+    facts = _lookup([words[k] for k in asked], lexicon)
     if facts is None:
         return out
     # the words WordNet does not know: their other spellings, then a term's head word
@@ -188,16 +181,10 @@ def lexical_features(words: Sequence[str], lexicon: object | None = None) -> np.
                 out[k, :4] = (1.0, fact.noun_share, 0.0 if np.isnan(fact.place_share) else fact.place_share,
                               0.0)
                 # a misspelling (not the word, its head, or the word written as one or in two)
-                out[k, 5] = float(candidate.replace(" ", "") != words[k].replace(" ", "")
+                out[k, 4] = float(candidate.replace(" ", "") != words[k].replace(" ", "")
                                   and candidate not in words[k].split()[1:][-1:])
                 break
-    for k, pair in compounds.items():
-        out[k, 4] = float(any(facts[c].known and facts[c].place_share > 0.5 for c in pair))
     return out
-
-
-#: The head of :func:`lexical_features`' room modifiers: the lemma of WordNet's ``room.n.01``.
-_ROOM_HEAD = PLACE_ROOTS[0].split(".")[0]
 
 
 def _lookup(texts: Sequence[str], lexicon: object | None) -> dict | None:
