@@ -24,7 +24,7 @@ from spco.knowledge.files import HOME_FORMAT, model_file_format
 from spco.knowledge.home import HomeModel, load_home_model
 from spco.knowledge.knowledge import load_knowledge
 from spco.knowledge.views import _pose, _visual_row, pose_outside_map, view_counts
-from spco.model.confidence import UNSURE_BELOW, VIEW_EFFECTIVE_COUNTS, concept_word_counts, named_parameters
+from spco.model.confidence import UNSURE_BELOW, concept_word_counts, named_parameters
 from spco.model.home_shard import FREE_CONCEPT_WEIGHT
 from spco.model.parameters import ConceptParameters
 from spco.model.position_prediction import PositionPrediction
@@ -164,8 +164,8 @@ def what(home: HomeModel, x: float, y: float, theta: float, visual: Any = None,
          unsure_below: float = UNSURE_BELOW) -> NamePrediction:
     """The ``top_k`` place names at pose ``(x, y, θ)``, with the view's visual counts if given.
 
-    The probabilities are honest (:mod:`spco.model.confidence`): a view counts as
-    :data:`~spco.model.confidence.VIEW_EFFECTIVE_COUNTS` draws, a concept nobody named has no name;
+    The probabilities are honest (:mod:`spco.model.confidence`): a view counts as the model's view
+    weight w draws (the one the home was learnt with), a concept nobody named has no name;
     an answer whose probability is below ``unsure_below`` (default
     :data:`~spco.model.confidence.UNSURE_BELOW`) is flagged ``unsure``.
 
@@ -209,9 +209,9 @@ def name_prediction(home: HomeModel, poses: np.ndarray, visual: Any = None, top_
                     unsure_below: float = UNSURE_BELOW) -> NamePrediction:
     """The names :func:`what` answers, for ``n`` poses at once and without its checks of the pose:
     p(name | pose, view) = Σ_l p(name | l) P(l | pose, view), with p(name | l) from
-    :func:`answer_parameters` and P(l | pose, view) scoring a view as the model's S^v draws
-    (:data:`~spco.model.confidence.VIEW_EFFECTIVE_COUNTS` draws: a test view's weight, not the
-    sampler's ``view_counts``; docs/model.md, "Two numbers for one view").
+    :func:`answer_parameters` and P(l | pose, view) scoring a view as the model's view weight w
+    draws (:meth:`~spco.model.hyperparameters.TransferHyperparameters.view_weight`, the weight the
+    home was learnt with; docs/model.md, "A view's evidence").
 
     Parameters
     ----------
@@ -228,7 +228,7 @@ def name_prediction(home: HomeModel, poses: np.ndarray, visual: Any = None, top_
         raise ConfigurationError(f"unsure_below must be within 0..1, got {unsure_below!r}")
     return predict_names(answer_parameters(home), 0, home.vocabulary, poses, visual, top_k=top_k,
                          weighting=home.weighting,  # type: ignore[arg-type]
-                         use_vision=visual is not None, view_counts=VIEW_EFFECTIVE_COUNTS,
+                         use_vision=visual is not None, view_counts=home.hyperparameters.view_weight(),
                          unsure_below=unsure_below)
 
 

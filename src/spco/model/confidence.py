@@ -5,18 +5,13 @@ counts two kinds of evidence that are not independent as if they were; this modu
 (``docs/model.md``, "Confidence"):
 
 1. **A view is not thousands of independent draws.** The visual likelihood is a multinomial over
-   the view's counts: ~1,950 counts per colour-hog image, ~7,300 per fc7 vector (× 5, an arbitrary
-   scale). Counts of one image are not independent draws from the concept's θ^v — they are
-   deterministic functions of one image — so the log-likelihood gaps between concepts are hundreds
-   to thousands of nats, the concept posterior is one-hot, and a view that looks like another room
-   overrides the position entirely. Here each view's log-likelihood is weighted by
-   ``min(1, n_eff / Σ_d v_d)``: its proportions are scored as :data:`VIEW_EFFECTIVE_COUNTS`
-   draws (a power, or tempered, likelihood; for n_eff ≪ Σ v the evidence between concepts l, l' is
-   ``n_eff · (KL(v̂ ‖ θ^v_l') − KL(v̂ ‖ θ^v_l))``, v̂ the view's proportions, whatever the extractor's
-   count scale). n_eff was fitted by the least log loss of the right names on *development*
-   views only (``benchmarks/calibration/SPLIT.md``). The exact model learns with its own weight of
-   a view, ``TransferHyperparameters.view_counts`` (16); this one is for the probabilities of a
-   test view, and was checked against that one (:data:`VIEW_EFFECTIVE_COUNTS`).
+   the view's counts (~1,950 per colour-hog image, ~7,300 per fc7 vector), and counts of one image
+   are not independent draws from the concept's θ^v. A view is scored as the model's view weight
+   w draws of its proportions (``min(1, w / Σ_d v_d)`` times its log-likelihood): the same w the
+   sampler learnt with, estimated from the experienced homes
+   (:attr:`spco.model.hyperparameters.TransferHyperparameters.view_counts`,
+   :meth:`~spco.model.hyperparameters.TransferHyperparameters.view_weight`; docs/model.md, "A view's
+   evidence"). There is no separate constant for prediction.
 2. **A concept nobody named has no name.** A concept the knowledge does not use (G_0 below
    ``free_weight``, e.g. a third bedroom unlike the experienced ones) gets its φ^w redrawn from the
    sparse prior Dir(α^w) at each sweep of ``adapt`` — nearly one-hot on a random word — and the few
@@ -28,7 +23,7 @@ counts two kinds of evidence that are not independent as if they were; this modu
 An answer whose probability is below :data:`UNSURE_BELOW` is flagged *unsure*
 (:attr:`spco.model.prediction.NamePrediction.unsure`; ``spco what`` says so, ``--json`` has
 ``"unsure": true``); ``ask`` uses the same threshold for a question worth asking, and scores views
-with the same :data:`VIEW_EFFECTIVE_COUNTS`.
+with the same view weight.
 """
 
 from __future__ import annotations
@@ -45,19 +40,10 @@ from spco.model.prediction import NamePrediction, Weighting, predict_names
 
 __all__ = [
     "UNSURE_BELOW",
-    "VIEW_EFFECTIVE_COUNTS",
     "concept_word_counts",
     "named_parameters",
     "predict_names_honestly",
 ]
-
-#: The evidence of one camera view in ``what``'s probabilities, in independent draws from its
-#: concept's visual distribution. Not the model's ``TransferHyperparameters.view_counts`` (the
-#: weight of a view while the exact sampler *learns*): this one is for *honest probabilities*, the
-#: value of least log loss of the right names over the development views of
-#: ``benchmarks/calibration/SPLIT.md`` (``benchmarks/calibration.py --fit-view-counts``; the figures
-#: are in benchmarks/README.md).
-VIEW_EFFECTIVE_COUNTS = 5.0
 
 #: The one "unsure" threshold: an answer whose probability p(name | pose, view) is below this is
 #: *unsure* (``what``, the service, the ROS node), and a place where the answer the robot expects is
@@ -134,10 +120,10 @@ def predict_names_honestly(
     free: np.ndarray,
     word_counts: np.ndarray,
     alpha_word: float,
+    view_counts: float | None,
     top_k: int = 3,
     weighting: Weighting = "none",
     use_vision: bool = True,
-    view_counts: float = VIEW_EFFECTIVE_COUNTS,
     unsure_below: float = UNSURE_BELOW,
 ) -> NamePrediction:
     """Place names of ``n`` observations of home ``e`` with honest probabilities (module docstring).
@@ -148,7 +134,9 @@ def predict_names_honestly(
         :func:`spco.model.prediction.predict_names` (positions (n, 4), visual (n, D) counts).
     free: (L,) bool, the concepts the knowledge does not use; word_counts: (L, V) the home's word
         counts by concept; alpha_word: α^w (see :func:`named_parameters`).
-    view_counts: the evidence of one view in counts (default :data:`VIEW_EFFECTIVE_COUNTS`).
+    view_counts: the model's view weight w
+        (:meth:`~spco.model.hyperparameters.TransferHyperparameters.view_weight`; ``None``: every
+        count a draw).
     unsure_below: answers below this probability are flagged unsure (default :data:`UNSURE_BELOW`).
 
     Returns
