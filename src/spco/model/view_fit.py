@@ -85,9 +85,9 @@ def held_out_view_fits(log_phi_v: np.ndarray, log_g0: np.ndarray, totals: np.nda
     return fits
 
 
-#: The view weights w the estimate chooses from: √2 steps from 1/4 to 2^14 counts (a grid, not a
+#: The view weights w the estimate chooses from: √2 steps from 1/16 to 2^14 counts (a grid, not a
 #: search: the leave-one-home-out loss is flat within a step).
-VIEW_WEIGHT_GRID = tuple(float(2.0 ** (k / 2)) for k in range(-4, 29))
+VIEW_WEIGHT_GRID = tuple(float(2.0 ** (k / 2)) for k in range(-8, 29))
 
 
 def home_concept_totals(data: PreparedData, concepts: np.ndarray, n_concepts: int
@@ -111,14 +111,17 @@ def _labelled(data: PreparedData) -> np.ndarray:
 def view_weight_losses(data: PreparedData, concepts: np.ndarray, totals: np.ndarray, taught: np.ndarray,
                        alpha_visual: float, grid: tuple[float, ...] = VIEW_WEIGHT_GRID
                        ) -> tuple[np.ndarray, int]:
-    """The leave-one-home-out log loss of the concepts of ``data``'s taught views, for every view
-    weight w of ``grid``: summed over the views, and how many views.
+    """The leave-one-home-out log loss of the concept of each of ``data``'s taught views given the
+    view, for every view weight w of ``grid``: summed over the views, and how many views.
 
     Each home e is predicted from the other homes only: φ^v_l ∝ α^v + N_l − n_{e,l} (the visual
     counts of concept l in all homes, ``totals`` (L, D), without e's own) and p(l) ∝
-    T_l − t_{e,l} + 1/L (``taught`` (L,): the taught views by concept in all homes), and a view v
-    with concept C scores −log p(C | v) with p(l | v) ∝ p(l) exp(min(1, w / Σ_d v_d) Σ_d v_d log φ^v_{l,d}):
-    the probability of its place given its view alone, a view counting as w draws. Homes of
+    T_l − t_{e,l} + 1/L (``taught`` (L,): the taught views by concept in all homes). A view v of
+    concept C scores −log p(C | v) with
+
+        p(l | v) ∝ p(l) exp(min(1, w / Σ_d v_d) Σ_d v_d log φ^v_{l,d}),
+
+    the probability of its place given the view alone, the view counting as w draws. Homes of
     another shard contribute through ``totals`` and ``taught`` only.
     """
     L = totals.shape[0]
@@ -138,8 +141,7 @@ def view_weight_losses(data: PreparedData, concepts: np.ndarray, totals: np.ndar
         log_prior -= logsumexp(log_prior)
         visual = sp.csr_array(data.visual[rows], dtype=np.float64)
         loglik = np.asarray(visual @ log_phi.T)  # (n, L)
-        view_totals = data.view_totals[rows]
-        scale = np.minimum(1.0, weights[:, None] / view_totals[None, :])  # (G, n)
+        scale = np.minimum(1.0, weights[:, None] / data.view_totals[rows][None, :])  # (G, n)
         scores = scale[:, :, None] * loglik[None] + log_prior[None, None, :]  # (G, n, L)
         right = scores[:, np.arange(rows.size), concepts[rows]]
         losses += (logsumexp(scores, axis=2) - right).sum(axis=1)
@@ -150,7 +152,11 @@ def view_weight_losses(data: PreparedData, concepts: np.ndarray, totals: np.ndar
 def estimate_view_weight(losses: np.ndarray, used: int, grid: tuple[float, ...] = VIEW_WEIGHT_GRID
                          ) -> float | None:
     """The view weight of least leave-one-home-out log loss (:func:`view_weight_losses`, summed over
-    every shard's homes); ``None`` when no home had a taught view (nothing to estimate from)."""
+    every shard's homes); ``None`` when no home had a taught view (nothing to estimate from). Of the
+    weights within 0.001 nats per view of the least loss, the smallest: where the loss is flat
+    (views that every weight above some w places right) the homes give no reason
+    for more evidence than that w, and a new home unlike them would pay for it."""
     if used == 0 or not np.isfinite(losses).all():
         return None
-    return float(grid[int(np.argmin(losses))])
+    least = np.flatnonzero(losses <= losses.min() + 1e-3 * used)
+    return float(grid[int(least[0])])
