@@ -137,6 +137,12 @@ def scored_views(home: Any) -> tuple[np.ndarray, Any, list[str], np.ndarray]:
     return home.positions[scored], home.visual[scored], labels, home.ids[scored]
 
 
+def _view_weight(hyper: Any) -> float | None:
+    """The model's view weight w (a model file from before ``view_weight``: its ``view_counts``)."""
+    weight = getattr(hyper, "view_weight", None)
+    return weight() if callable(weight) else hyper.view_counts
+
+
 def run_task(task: Task, data: Path, images: Path | None, models: Path, force: bool) -> list[dict[str, Any]]:
     """Fit (or reuse) the knowledge of ``task``, adapt its homes, and score every test view."""
     import spco.knowledge as kn
@@ -162,7 +168,7 @@ def run_task(task: Task, data: Path, images: Path | None, models: Path, force: b
                 "after": after.best[0], "p_after": float(after.confidence[0]),
                 "p_true_after": float(after.word_probabilities[0, k]) if k is not None else 0.0,
                 "unsure": bool(after.unsure[0]),
-                "view_counts": model.hyperparameters.view_weight(),
+                "view_counts": _view_weight(model.hyperparameters),
             })
     return rows
 

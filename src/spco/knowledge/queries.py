@@ -24,11 +24,11 @@ from spco.knowledge.files import HOME_FORMAT, model_file_format
 from spco.knowledge.home import HomeModel, load_home_model
 from spco.knowledge.knowledge import load_knowledge
 from spco.knowledge.views import _pose, _visual_row, pose_outside_map, view_counts
-from spco.model.confidence import UNSURE_BELOW, concept_word_counts, named_parameters
-from spco.model.home_shard import FREE_CONCEPT_WEIGHT
+from spco.model import confidence
+from spco.model.confidence import UNSURE_BELOW
 from spco.model.parameters import ConceptParameters
 from spco.model.position_prediction import PositionPrediction
-from spco.model.prediction import NamePrediction, UnknownNameError, mutual_information_weights, predict_names
+from spco.model.prediction import NamePrediction, UnknownNameError, mutual_information_weights
 from spco.model.seeds import as_generator
 from spco.model.unheard import resolve_name
 
@@ -200,9 +200,8 @@ def answer_parameters(home: HomeModel) -> ConceptParameters:
     uniform over the names when nothing was taught there). A word model that replaces θ^w (the
     speech work) replaces this function and nothing else.
     """
-    counts = concept_word_counts(home.data.words, home.state.concepts, home.knowledge.n_concepts)
-    return named_parameters(home.parameters, 0, np.exp(home.knowledge.log_g0) < FREE_CONCEPT_WEIGHT, counts,
-                            home.hyperparameters.alpha_word)
+    return confidence.answer_parameters(home.parameters, 0, home.data.words, home.state.concepts,
+                                        home.knowledge.log_g0, home.hyperparameters.alpha_word)
 
 
 def name_prediction(home: HomeModel, poses: np.ndarray, visual: Any = None, top_k: int = 3,
@@ -224,12 +223,9 @@ def name_prediction(home: HomeModel, poses: np.ndarray, visual: Any = None, top_
     -------
     The :class:`~spco.model.prediction.NamePrediction` with ``confidence`` and ``unsure``.
     """
-    if not 0.0 <= unsure_below <= 1.0:
-        raise ConfigurationError(f"unsure_below must be within 0..1, got {unsure_below!r}")
-    return predict_names(answer_parameters(home), 0, home.vocabulary, poses, visual, top_k=top_k,
-                         weighting=home.weighting,  # type: ignore[arg-type]
-                         use_vision=visual is not None, view_counts=home.hyperparameters.view_weight(),
-                         unsure_below=unsure_below)
+    return confidence.answer_names(answer_parameters(home), 0, home.vocabulary, poses, visual, top_k=top_k,
+                                   weighting=home.weighting,  # type: ignore[arg-type]
+                                   view_counts=home.hyperparameters.view_weight(), unsure_below=unsure_below)
 
 
 def describe_model_file(path: str | PathLike[str]) -> dict[str, Any]:

@@ -40,7 +40,11 @@ from spco.model.prediction import NamePrediction, Weighting, predict_names
 
 __all__ = [
     "UNSURE_BELOW",
+    "answer_names",
+    "answer_parameters",
+    "answer_weighting",
     "concept_word_counts",
+    "model_answer_parameters",
     "named_parameters",
     "predict_names_honestly",
 ]
@@ -149,3 +153,76 @@ def predict_names_honestly(
     named = named_parameters(params, e, free, word_counts, alpha_word)
     return predict_names(named, e, vocabulary, positions, visual, top_k=top_k, weighting=weighting,
                          use_vision=use_vision, view_counts=view_counts, unsure_below=unsure_below)
+
+
+def answer_parameters(params: ConceptParameters, e: int, words: sp.csr_array | np.ndarray,
+                      concepts: np.ndarray, log_g0: np.ndarray, alpha_word: float) -> ConceptParameters:
+    """``params`` as every answer about home ``e``'s names uses them: its concepts that the shared
+    knowledge does not use (G_0 below :data:`~spco.model.home_shard.FREE_CONCEPT_WEIGHT`) with
+    their word distributions at the posterior mean given the home's own words
+    (:func:`named_parameters`).
+
+    Parameters
+    ----------
+    params: the model; e: the home.
+    words: (n, V) the home's training word counts; concepts: (n,) their concepts.
+    log_g0: (L,) log G_0 of the knowledge; alpha_word: α^w.
+    """
+    from spco.model.home_shard import FREE_CONCEPT_WEIGHT
+
+    counts = concept_word_counts(words, concepts, params.n_concepts)
+    return named_parameters(params, e, np.exp(np.asarray(log_g0, dtype=np.float64)) < FREE_CONCEPT_WEIGHT,
+                            counts, alpha_word)
+
+
+def answer_names(
+    params: ConceptParameters,
+    e: int,
+    vocabulary: Vocabulary,
+    positions: np.ndarray | None,
+    visual: object,
+    *,
+    view_counts: float | None,
+    weighting: Weighting,
+    top_k: int = 3,
+    unsure_below: float = UNSURE_BELOW,
+    name_prior: str = "off",
+) -> NamePrediction:
+    """The names the robot answers at ``n`` observations of home ``e`` — the one predictor of
+    p(name | pose, view): ``what`` (:func:`spco.knowledge.name_prediction`, the service, the ROS
+    node) and the experiments (:func:`spco.evaluation.metrics.evaluate_home`) call it.
+
+    ``params`` are the answer's parameters (:func:`answer_parameters`); ``view_counts`` the model's
+    view weight w (:meth:`~spco.model.hyperparameters.TransferHyperparameters.view_weight`);
+    ``weighting`` the model's name weighting (:func:`answer_weighting`); answers below
+    ``unsure_below`` (default :data:`UNSURE_BELOW`) are flagged unsure; ``name_prior``: the opt-in
+    ordering of :func:`~spco.model.prediction.predict_names` (off for the robot's answers).
+    """
+    if not 0.0 <= unsure_below <= 1.0:
+        raise ConfigurationError(f"unsure_below must be within 0..1, got {unsure_below!r}")
+    return predict_names(params, e, vocabulary, positions, visual, top_k=top_k, weighting=weighting,
+                         use_vision=visual is not None, view_counts=view_counts, unsure_below=unsure_below,
+                         name_prior=name_prior)  # type: ignore[arg-type]
+
+
+def answer_weighting(variant: str, prune_words: bool) -> Weighting:
+    """The name weighting of a model's answers: the authors' KL score for the reference sampler;
+    none with the naming rule (exact sampler with pruning: only names are kept, and the name people
+    say most at a place comes first — the MI weight would put a name taught once behind names of
+    the places around); MI without pruning (it keeps "this" and "is" from being answered)."""
+    if variant == "reference":
+        return "reference"
+    return "none" if prune_words else "mi"
+
+
+def model_answer_parameters(model: object, e: int) -> ConceptParameters:
+    """:func:`answer_parameters` of home ``e`` of a fitted joint model
+    (:class:`~spco.model.transfer.SpatialConceptModel`: the experiments' fit of the experienced
+    and new homes together): its averaged parameters, its concepts of the home's training samples,
+    its G_0."""
+    params = model.parameters_  # type: ignore[attr-defined]
+    data = model.data_  # type: ignore[attr-defined]
+    rows = slice(int(data.offsets[e]), int(data.offsets[e + 1]))
+    log_g0 = np.log(np.maximum(np.asarray(params.global_concept_weights, dtype=np.float64), 1e-300))
+    return answer_parameters(params, e, data.words[rows], model.concepts_[e], log_g0,  # type: ignore[attr-defined]
+                             model.hyperparameters_.alpha_word)  # type: ignore[attr-defined]
