@@ -199,13 +199,9 @@ class HomeShard(ShardInitialisation):
     def view_weight_losses(self, totals: np.ndarray, taught: np.ndarray) -> tuple[np.ndarray, int]:
         """The leave-one-home-out log loss of the shard's taught views on the view-weight grid
         (:func:`spco.model.view_fit.view_weight_losses`; ``totals``, ``taught``: all homes')."""
-        from spco.model.view_fit import position_concept_log_probabilities, view_weight_losses
+        from spco.model.view_fit import view_weight_losses
 
-        st = self.state
-        position = position_concept_log_probabilities(self.data, st.log_g, st.log_pi, st.means,
-                                                      st.covariances)
-        return view_weight_losses(self.data, st.concepts, totals, taught, self.hyper.alpha_visual,
-                                  position=position)
+        return view_weight_losses(self.data, self.state.concepts, totals, taught, self.hyper.alpha_visual)
 
     def set_view_weight(self, view_counts: float | None) -> None:
         """From the next sweep on, a view weighs ``view_counts`` (the estimate of the driver)."""

@@ -19,7 +19,6 @@ __all__ = [
     "estimate_view_weight",
     "held_out_view_fits",
     "home_concept_totals",
-    "position_concept_log_probabilities",
     "view_fit",
     "view_weight_losses",
 ]
@@ -110,22 +109,19 @@ def _labelled(data: PreparedData) -> np.ndarray:
 
 
 def view_weight_losses(data: PreparedData, concepts: np.ndarray, totals: np.ndarray, taught: np.ndarray,
-                       alpha_visual: float, grid: tuple[float, ...] = VIEW_WEIGHT_GRID,
-                       position: np.ndarray | None = None) -> tuple[np.ndarray, int]:
+                       alpha_visual: float, grid: tuple[float, ...] = VIEW_WEIGHT_GRID
+                       ) -> tuple[np.ndarray, int]:
     """The leave-one-home-out log loss of the concept of each of ``data``'s taught views given the
-    view and its position, for every view weight w of ``grid``: summed over the views, and how
-    many views.
+    view, for every view weight w of ``grid``: summed over the views, and how many views.
 
-    The views of each home e are scored against the other homes' only: φ^v_l ∝ α^v + N_l − n_{e,l}
-    (the visual counts of concept l in all homes, ``totals`` (L, D), without e's own). A view v at
-    position x of concept C scores −log p(C | x, v) with
+    Each home e is predicted from the other homes only: φ^v_l ∝ α^v + N_l − n_{e,l} (the visual
+    counts of concept l in all homes, ``totals`` (L, D), without e's own) and p(l) ∝
+    T_l − t_{e,l} + 1/L (``taught`` (L,): the taught views by concept in all homes). A view v of
+    concept C scores −log p(C | v) with
 
-        p(l | x, v) ∝ p(l | x) exp(min(1, w / Σ_d v_d) Σ_d v_d log φ^v_{l,d}),
+        p(l | v) ∝ p(l) exp(min(1, w / Σ_d v_d) Σ_d v_d log φ^v_{l,d}),
 
-    the view counting as w draws — the form of the answers' p(l | pose, view). ``position``
-    (N, L): log p(l | x) of every sample from its own home's regions, π and G_e (a home's positions
-    say where its own places are; no other home tells); ``None``: the position left out, p(l) ∝
-    T_l − t_{e,l} + 1/L (``taught`` (L,): the taught views by concept in all homes). Homes of
+    the probability of its place given the view alone, the view counting as w draws. Homes of
     another shard contribute through ``totals`` and ``taught`` only.
     """
     L = totals.shape[0]
@@ -140,16 +136,13 @@ def view_weight_losses(data: PreparedData, concepts: np.ndarray, totals: np.ndar
         own = _home_concept_counts(data, concepts, e, L)
         others = np.maximum(totals - own, 0.0) + alpha_visual
         log_phi = np.log(others) - np.log(others.sum(1, keepdims=True))
-        if position is None:
-            own_taught = np.bincount(concepts[rows], minlength=L)
-            log_prior = np.log(np.maximum(taught - own_taught, 0.0) + 1.0 / L)
-            prior = np.broadcast_to(log_prior - logsumexp(log_prior), (rows.size, L))
-        else:
-            prior = position[rows]
+        own_taught = np.bincount(concepts[rows], minlength=L)
+        log_prior = np.log(np.maximum(taught - own_taught, 0.0) + 1.0 / L)
+        log_prior -= logsumexp(log_prior)
         visual = sp.csr_array(data.visual[rows], dtype=np.float64)
         loglik = np.asarray(visual @ log_phi.T)  # (n, L)
         scale = np.minimum(1.0, weights[:, None] / data.view_totals[rows][None, :])  # (G, n)
-        scores = scale[:, :, None] * loglik[None] + prior[None]  # (G, n, L)
+        scores = scale[:, :, None] * loglik[None] + log_prior[None, None, :]  # (G, n, L)
         right = scores[:, np.arange(rows.size), concepts[rows]]
         losses += (logsumexp(scores, axis=2) - right).sum(axis=1)
         used += rows.size
@@ -167,15 +160,3 @@ def estimate_view_weight(losses: np.ndarray, used: int, grid: tuple[float, ...] 
         return None
     least = np.flatnonzero(losses <= losses.min() + 1e-3 * used)
     return float(grid[int(least[0])])
-
-
-def position_concept_log_probabilities(data: PreparedData, log_g: np.ndarray, log_pi: np.ndarray,
-                                       means: np.ndarray, covariances: np.ndarray) -> np.ndarray:
-    """(N, L) log p(l | x_t) of every sample from its home's regions:
-    ∝ G_{e,l} Σ_k π_{e,l,k} N(x_t | μ_{e,k}, Σ_{e,k}) (the position part of the answers)."""
-    from spco.model.observations import GaussianRegions
-
-    region_ll = GaussianRegions.log_likelihood(data.positions, data.homes, means, covariances)  # (N, K)
-    joint = log_g[data.homes][:, :, None] + log_pi[data.homes] + region_ll[:, None, :]  # (N, L, K)
-    per_concept = logsumexp(joint, axis=2)
-    return per_concept - logsumexp(per_concept, axis=1, keepdims=True)
