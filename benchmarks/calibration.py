@@ -10,7 +10,8 @@ taught), ``adapt`` each new home (nothing taught; same seed), then the names at 
 
 - ``before``: the model's p(w | x, v) as `what` gave it before the fix (every visual count a draw,
   free concepts' word distributions as averaged);
-- ``after``: ``spco.knowledge.what`` as it is (honest probabilities, ``spco.model.confidence``).
+- ``after``: ``spco.knowledge.what`` as it is (``spco.model.confidence.answer_names``: a view counts
+  as the model's view weight w, estimated by the fit from its experienced homes).
 
 Printed per set and configuration, pooled over new homes and seeds: ECE (10 equal-width bins of
 the answer's probability), accuracy of the answer, mean confidence, the share of wrong answers given
@@ -25,11 +26,16 @@ reliability diagram per configuration, ``reliability_<features>_<n>.png``, to ``
 
 Knowledge and home files are kept in ``--out``/models and reused by a re-run (``--force`` refits).
 
-``--fit-view-counts`` prints instead how ``VIEW_EFFECTIVE_COUNTS`` was chosen: the log loss of the
-right names on the **development** views (only; held-out views are never read) for n_eff = 1 … 12
-by 0.5 and 14, 16, 20, 24, 32, colour-hog and fc7 pooled, and the minimum; beside each value, its
-difference from the least with a 95 % paired bootstrap interval over development views ("within
-noise" when the interval reaches 0).
+``--fit-view-counts`` prints instead a diagnostic (how the former ``what``-only constant n_eff was
+chosen, before issue 29 made the model's w the one weight): the log loss of the right names on the
+**development** views (only; held-out views are never read) if a test view were weighed as n_eff =
+1 … 12 by 0.5 and 14, 16, 20, 24, 32 draws instead of w, colour-hog and fc7 pooled, and the minimum;
+beside each value, its difference from the least with a 95 % paired bootstrap interval over
+development views ("within noise" when the interval reaches 0).
+
+Figures over seeds: each configuration's ECE, accuracy and share of wrong answers at p ≥ 0.99 per
+seed, their mean and a 95 % t interval over the seeds (each seed its own knowledge fit and adapt),
+and the view weights w the seeds' models used.
 """
 
 from __future__ import annotations
@@ -399,8 +405,8 @@ def main(argv: Sequence[str] | None = None) -> None:  # noqa: PLR0915
     parser.add_argument("--seed", type=int, default=0, help="seed of the bootstrap")
     parser.add_argument("--force", action="store_true", help="refit the models kept in --out/models")
     parser.add_argument("--fit-view-counts", action="store_true",
-                        help="print the development log loss against n_eff (how VIEW_EFFECTIVE_COUNTS "
-                             "was chosen)")
+                        help="print the development log loss against a test view's weight n_eff "
+                             "(a diagnostic; what uses the model's w)")
     parser.add_argument("--first-seeds", type=int, default=None,
                         help="only the first N seeds of each set (a quick development look)")
     parser.add_argument("--sizes", default=None, help="only these experienced-home set sizes, e.g. 4,8")
