@@ -80,15 +80,17 @@ def test_nothing_to_estimate_from() -> None:
 
 
 def test_the_setting_reads_and_resolves() -> None:
-    """``view_counts`` is a number, none or ``estimate`` (the default), which the sampler starts
-    from as :data:`VIEW_COUNTS`; anything else is refused naming the field."""
+    """``view_counts`` is a number (default :data:`VIEW_COUNTS`), none or ``estimate``, which the
+    sampler starts from as :data:`VIEW_COUNTS`; anything else is refused naming the field."""
     hyper = TransferHyperparameters()
-    assert hyper.view_counts == ESTIMATE and hyper.view_weight() == VIEW_COUNTS
+    assert hyper.view_counts == VIEW_COUNTS and hyper.view_weight() == VIEW_COUNTS
+    assert TransferHyperparameters(view_counts=ESTIMATE).view_weight() == VIEW_COUNTS
     assert SamplerSettings.create("exact", True, view_counts=ESTIMATE).view_counts == VIEW_COUNTS
     assert hyper.with_settings(["view_counts=8"]).view_weight() == 8.0
     assert hyper.with_settings(["view_counts=none"]).view_weight() is None
     assert hyper.with_settings(["view_counts=8", "view_counts=estimate"]).view_counts == ESTIMATE
-    assert TransferHyperparameters.from_dict(hyper.to_dict()).view_counts == ESTIMATE
+    estimate = hyper.with_settings(["view_counts=estimate"])
+    assert TransferHyperparameters.from_dict(estimate.to_dict()).view_counts == ESTIMATE
     for bad in ("sometimes", -1.0, 0.0, math.inf):
         with pytest.raises(ConfigurationError, match="view_counts"):
             TransferHyperparameters(view_counts=bad)
@@ -96,7 +98,8 @@ def test_the_setting_reads_and_resolves() -> None:
 
 @pytest.fixture(scope="module")
 def fitted():
-    """A knowledge of 3 synthetic homes (estimated w) and a new home adapted from it."""
+    """A knowledge of 3 synthetic homes (w estimated: ``view_counts="estimate"``) and a new home
+    adapted from it."""
     from spco.data.environment import Corpus
     from spco.data.synthetic import SyntheticConfig, generate_homes
 
@@ -105,7 +108,8 @@ def fitted():
     experienced, new = list(corpus)[:-1], list(corpus)[-1]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        knowledge = kn.fit_knowledge(Corpus(experienced), n_iterations=6, random_state=0)
+        knowledge = kn.fit_knowledge(Corpus(experienced), n_iterations=6, random_state=0,
+                                     hyperparameters=TransferHyperparameters(view_counts=ESTIMATE))
         home = kn.adapt(knowledge, new, n_iterations=4, random_state=0)
     return knowledge, home, experienced
 
@@ -136,7 +140,8 @@ def test_the_knowledge_carries_the_estimate_and_every_answer_uses_it(fitted) -> 
 
 
 def test_a_given_weight_is_kept(fitted) -> None:
-    """A number given for ``view_counts`` is used as it is: nothing is estimated or recorded."""
+    """A number given for ``view_counts`` (the default's too) is used as it is: nothing is estimated
+    or recorded."""
     from spco.data.environment import Corpus
 
     _, _, experienced = fitted

@@ -37,10 +37,10 @@ EVIDENCE_WEIGHT = 1.0
 #: The paper's Ψ0 for (x, y, sin θ, cos θ), x and y in cm².
 PAPER_PSI0_CM = (10.0, 10.0, 0.5, 0.5)
 
-#: The view weight w the exact sampler *starts* with when ``TransferHyperparameters.view_counts`` is
-#: ``"estimate"`` (the default): the weight of the start's sweeps, before w is estimated from the
-#: experienced homes (:func:`spco.model.view_fit.estimate_view_weight`), and the weight of a model
-#: whose homes cannot estimate it (one home, no taught view). docs/model.md, "A view's evidence".
+#: The view weight w, in counts: the default of ``TransferHyperparameters.view_counts``, the one
+#: weight of a view in the sampler and in every answer (docs/model.md, "A view's evidence"); chosen
+#: on development configurations. With ``view_counts="estimate"`` also the weight of the start's
+#: sweeps before w is estimated, and of a fit that cannot estimate it.
 VIEW_COUNTS = 16.0
 #: ``TransferHyperparameters.view_counts`` of a model whose view weight is learnt from its homes.
 ESTIMATE = "estimate"
@@ -90,14 +90,13 @@ class TransferHyperparameters:
         fc7: ~7,000) and the multinomial scores each as an independent draw, so that two concepts'
         views differ by thousands of nats; but the counts of one image are not independent. With
         w a view's log-likelihood under every concept is weighted by ``min(1, w / Σ_d v_d)``: its
-        proportions are scored as w draws (a power likelihood). ``"estimate"`` (default): w is
-        learnt from the experienced homes when the exact sampler fits several homes — the least
-        leave-one-home-out log loss of the concept of each taught view
-        (:func:`spco.model.view_fit.estimate_view_weight`), after the start and before the chain
-        — and the fitted model's hyperparameters hold the number (so a knowledge file, and every
-        home adapted from it, carries it); a fit that cannot estimate it uses
-        :data:`VIEW_COUNTS`. A number fixes w; ``None``: every count a draw (the paper's
-        multinomial). Exact variant only.
+        proportions are scored as w draws (a power likelihood). Default :data:`VIEW_COUNTS`.
+        ``"estimate"`` (opt-in): w is learnt from the experienced homes when the exact sampler fits
+        several homes — the least leave-one-home-out log loss of the concept of each taught view
+        (:func:`spco.model.view_fit.estimate_view_weight`), after the start and before the chain —
+        and the fitted model's hyperparameters hold the number (so a knowledge file, and every home
+        adapted from it, carries it); a fit that cannot estimate it uses :data:`VIEW_COUNTS`.
+        ``None``: every count a draw (the paper's multinomial). Exact variant only.
     name_prior: ``"off"`` (default) or ``"wordnet"``: with ``"wordnet"``, the MI-weighted name
         prediction reorders the words of each concept by how name-like they are (the sentence
         positions and WordNet, :mod:`spco.model.name_evidence`; models with the naming rule only).
@@ -133,7 +132,7 @@ class TransferHyperparameters:
     psi0_in_cm2: bool = True
     mu0: tuple[float, float, float, float] | None = None
     mi_threshold: float | None = None
-    view_counts: float | str | None = ESTIMATE
+    view_counts: float | str | None = VIEW_COUNTS
     name_prior: NamePrior = "off"
     word_model: WordModel = "channels"
     evidence_weight: float = EVIDENCE_WEIGHT
