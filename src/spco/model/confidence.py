@@ -8,8 +8,8 @@ counts two kinds of evidence that are not independent as if they were; this modu
    the view's counts (~1,950 per colour-hog image, ~7,300 per fc7 vector), and counts of one image
    are not independent draws from the concept's θ^v. A view is scored as the model's view weight
    w draws of its proportions (``min(1, w / Σ_d v_d)`` times its log-likelihood): the same w the
-   sampler learnt with, estimated from the experienced homes
-   (:attr:`spco.model.hyperparameters.TransferHyperparameters.view_counts`,
+   sampler learnt with (16 by default, or estimated from the experienced homes;
+   :attr:`spco.model.hyperparameters.TransferHyperparameters.view_counts`,
    :meth:`~spco.model.hyperparameters.TransferHyperparameters.view_weight`; docs/model.md, "A view's
    evidence"). There is no separate constant for prediction.
 2. **A concept nobody named has no name.** A concept the knowledge does not use (G_0 below
