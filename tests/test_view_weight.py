@@ -152,3 +152,25 @@ def test_a_given_weight_is_kept(fitted) -> None:
                                      random_state=0)
     assert knowledge.hyperparameters.view_counts == 3.0
     assert "view_weight" not in knowledge.provenance
+
+
+def test_the_estimate_is_the_same_for_any_number_of_shards() -> None:
+    """Each shard scores its own homes against all homes' totals; summed in home order, the estimate
+    and the chain after it are the same with one worker or two."""
+    from spco.data.synthetic import SyntheticConfig
+    from spco.model.driver import LocalEngine
+    from spco.model.sources import SyntheticHomes
+    from spco.model.transfer import SpatialConceptModel
+
+    source = SyntheticHomes.create(5, seed=2, config=SyntheticConfig(n_features=64, n_train=12), new_homes=1)
+    model = SpatialConceptModel(TransferHyperparameters(view_counts=ESTIMATE), variant="exact",
+                                random_state=0, prune_words=True)
+    hyper, settings = model.checked_hyperparameters(), model.sampler_settings()
+    runs = []
+    for shards in (1, 2):
+        run = LocalEngine(shards).start_source(source, hyper, settings, np.random.default_rng(5))
+        runs.append((run.view_weight, run.fit(3), run.hyper.view_counts, run.settings.view_counts))
+        run.close()
+    (first, trace1, h1, s1), (second, trace2, h2, s2) = runs
+    assert first == second and first["estimated"] and h1 == s1 == first["view_counts"] == h2 == s2
+    np.testing.assert_array_equal(trace1, trace2)
