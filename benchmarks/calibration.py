@@ -66,7 +66,9 @@ SETS: dict[str, dict[str, Any]] = {
     # sample (they have no test split), 4 and 6 homes; 8 and 16 added for issue 29's view weight (the
     # knowledge of "16" is the paper's 16 without these two: 14 homes)
     "development-new": {"homes": ("2LDK_3", "1LDK_3"), "sizes": (4, 6, 8, 16), "seeds": tuple(range(3))},
-    "held-out": {"homes": ("1LDK_9", "2LDK_9"), "sizes": (4, 8, 16), "seeds": tuple(range(100, 110))},
+    # 6 added 2026-12-06 (issue 29's configurations: 4, 6, 8, 16), before a held-out view was scored
+    # with it (calibration/SPLIT.md, Log)
+    "held-out": {"homes": ("1LDK_9", "2LDK_9"), "sizes": (4, 6, 8, 16), "seeds": tuple(range(100, 110))},
 }
 FEATURES = ("colour-hog", "fc7")
 N_BINS = 10
