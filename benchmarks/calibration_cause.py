@@ -8,7 +8,8 @@ experienced-home set:
   (a) the model's multinomial (every count a draw), (b) a Dirichlet-multinomial with θ^v's own
   posterior uncertainty (concentration δ^v + the concept's visual counts in the home), (c) a
   Dirichlet-multinomial with a precision s fitted by maximum likelihood to the home's training views
-  (in-sample overdispersion), (d) the view counted as the model's view weight w draws (``view_counts``, 16 by default);
+  (in-sample overdispersion), (d) the view counted as the model's view weight w draws
+  (``view_counts``, 16 by default);
   and the share of test views whose concept is decided at P(l | view) ≥ 0.99 under each;
 - of the wrong answers of the model's own p(w | x, v): how many have the right name's concept
   ahead given the position alone (the view overruled the position), and how many come from a
