@@ -166,7 +166,8 @@ def _on_the_prior(training: Any, prior: str, settings: tuple[str, ...], checked:
               help="A hyperparameter of the model instead of the paper's value (repeatable): n_concepts, "
                    "n_regions, kappa0, nu0, alpha_visual, alpha_word, delta_visual, delta_word, gamma, "
                    "gamma0, "
-                   "beta, mi_threshold, view_counts (none: every count a draw). E.g. a large floor: "
+                   "beta, mi_threshold, view_counts (a view's weight w, default 16; none: every count a "
+                   "draw; estimate: learnt from the homes). E.g. a large floor: "
                    "--set n_concepts=30 --set n_regions=30 --set kappa0=0.001. Kept in the knowledge file.")
 @click.option("--prior", default="scaled", show_default=True, type=click.Choice(["scaled", "paper"]),
               help="scaled: the position prior κ0 and the numbers of concepts and regions follow the "

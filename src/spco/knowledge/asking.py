@@ -20,7 +20,7 @@ import scipy.sparse as sp
 from spco.errors import ConfigurationError
 from spco.knowledge.home import HomeModel
 from spco.knowledge.queries import answer_parameters
-from spco.model.confidence import UNSURE_BELOW, VIEW_EFFECTIVE_COUNTS
+from spco.model.confidence import UNSURE_BELOW
 from spco.model.home_shard import FREE_CONCEPT_WEIGHT
 from spco.model.prediction import concept_posterior
 from spco.model.question_scores import QuestionScores, question_scores, rank_questions
@@ -115,7 +115,7 @@ def home_question_scores(home: HomeModel, criterion: str = DEFAULT_CRITERION) ->
     params = answer_parameters(home)  # p(name | concept) as what answers
     columns = name_columns(home)
     concepts = concept_posterior(params, 0, home.positions, home.visual,
-                                 view_counts=VIEW_EFFECTIVE_COUNTS)  # as what scores a view
+                                 view_counts=home.hyperparameters.view_weight())  # as what scores a view
     theta = np.clip(np.asarray(params.word_probabilities[0], dtype=np.float64), 0.0, None)  # (L, V)
     mass = theta[:, columns].sum(axis=1)
     names = np.divide(theta[:, columns], mass[:, None], out=np.zeros((theta.shape[0], columns.size)),

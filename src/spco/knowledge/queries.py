@@ -24,11 +24,11 @@ from spco.knowledge.files import HOME_FORMAT, model_file_format
 from spco.knowledge.home import HomeModel, load_home_model
 from spco.knowledge.knowledge import load_knowledge
 from spco.knowledge.views import _pose, _visual_row, pose_outside_map, view_counts
-from spco.model.confidence import UNSURE_BELOW, VIEW_EFFECTIVE_COUNTS, concept_word_counts, named_parameters
-from spco.model.home_shard import FREE_CONCEPT_WEIGHT
+from spco.model import confidence
+from spco.model.confidence import UNSURE_BELOW
 from spco.model.parameters import ConceptParameters
 from spco.model.position_prediction import PositionPrediction
-from spco.model.prediction import NamePrediction, UnknownNameError, mutual_information_weights, predict_names
+from spco.model.prediction import NamePrediction, UnknownNameError, mutual_information_weights
 from spco.model.seeds import as_generator
 from spco.model.unheard import resolve_name
 from spco.model.word_channels import name_tokens
@@ -198,8 +198,8 @@ def what(home: HomeModel, x: float, y: float, theta: float, visual: Any = None,
          unsure_below: float = UNSURE_BELOW) -> NamePrediction:
     """The ``top_k`` place names at pose ``(x, y, θ)``, with the view's visual counts if given.
 
-    The probabilities are honest (:mod:`spco.model.confidence`): a view counts as
-    :data:`~spco.model.confidence.VIEW_EFFECTIVE_COUNTS` draws, a concept nobody named has no name;
+    The probabilities are honest (:mod:`spco.model.confidence`): a view counts as the model's view
+    weight w draws (the one the home was learnt with), a concept nobody named has no name;
     an answer whose probability is below ``unsure_below`` (default
     :data:`~spco.model.confidence.UNSURE_BELOW`) is flagged ``unsure``.
 
@@ -239,9 +239,8 @@ def answer_parameters(home: HomeModel) -> ConceptParameters:
     words = home.data.words
     if home.knowledge.channels is not None and home.state.switches is not None and words.nnz:
         words = name_tokens(words, home.state.switches)  # a free concept's names: its name tokens
-    counts = concept_word_counts(words, home.state.concepts, home.knowledge.n_concepts)
-    params = named_parameters(home.parameters, 0, np.exp(home.knowledge.log_g0) < FREE_CONCEPT_WEIGHT, counts,
-                              home.hyperparameters.alpha_word)
+    params = confidence.answer_parameters(home.parameters, 0, words, home.state.concepts,
+                                          home.knowledge.log_g0, home.hyperparameters.alpha_word)
     # the names only (the word channels: a word said as an object or a function word is never a name)
     return replace(params, word_mask=home.name_mask)
 
@@ -250,9 +249,9 @@ def name_prediction(home: HomeModel, poses: np.ndarray, visual: Any = None, top_
                     unsure_below: float = UNSURE_BELOW) -> NamePrediction:
     """The names :func:`what` answers, for ``n`` poses at once and without its checks of the pose:
     p(name | pose, view) = Σ_l p(name | l) P(l | pose, view), with p(name | l) from
-    :func:`answer_parameters` and P(l | pose, view) scoring a view as the model's S^v draws
-    (:data:`~spco.model.confidence.VIEW_EFFECTIVE_COUNTS` draws: a test view's weight, not the
-    sampler's ``view_counts``; docs/model.md, "Two numbers for one view").
+    :func:`answer_parameters` and P(l | pose, view) scoring a view as the model's view weight w
+    draws (:meth:`~spco.model.hyperparameters.TransferHyperparameters.view_weight`, the weight the
+    home was learnt with; docs/model.md, "A view's evidence").
 
     Parameters
     ----------
@@ -265,12 +264,9 @@ def name_prediction(home: HomeModel, poses: np.ndarray, visual: Any = None, top_
     -------
     The :class:`~spco.model.prediction.NamePrediction` with ``confidence`` and ``unsure``.
     """
-    if not 0.0 <= unsure_below <= 1.0:
-        raise ConfigurationError(f"unsure_below must be within 0..1, got {unsure_below!r}")
-    return predict_names(answer_parameters(home), 0, home.vocabulary, poses, visual, top_k=top_k,
-                         weighting=home.weighting,  # type: ignore[arg-type]
-                         use_vision=visual is not None, view_counts=VIEW_EFFECTIVE_COUNTS,
-                         unsure_below=unsure_below)
+    return confidence.answer_names(answer_parameters(home), 0, home.vocabulary, poses, visual, top_k=top_k,
+                                   weighting=home.weighting,  # type: ignore[arg-type]
+                                   view_counts=home.hyperparameters.view_weight(), unsure_below=unsure_below)
 
 
 def describe_model_file(path: str | PathLike[str]) -> dict[str, Any]:

@@ -233,6 +233,7 @@ class SpatialConceptModel:
         from spco.model.driver import start_run
 
         run = start_run(engine, data, len(corpus.vocabulary), hyper, settings, rng)
+        hyper, settings = run.hyper, run.settings  # with the view weight estimated from the homes
         hyper, evidence = self._start_word_channels(run, corpus, data, hyper, settings)
 
         def after_sweep(iteration: int, previous: float) -> None:
@@ -256,8 +257,7 @@ class SpatialConceptModel:
             trace.append(gibbs.log_joint(data, state, hyper, settings))
             data.__dict__.pop("visual_by_dimension", None)  # (a cache the last log joint built: not kept)
         self.fit_seconds_ = time.perf_counter() - start
-        self.hyperparameters_ = hyper
-        self.settings_ = settings
+        self.hyperparameters_, self.settings_, self.view_weight_ = hyper, settings, run.view_weight
         self.vocabulary_: Vocabulary = corpus.vocabulary
         self.word_increment_ = corpus.word_increment
         self.home_names_ = corpus.names
