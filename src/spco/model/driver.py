@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 from abc import ABC, abstractmethod
+from collections.abc import Iterator
 
 import numpy as np
 
@@ -119,10 +120,26 @@ class ShardedRun(ABC):
     def states(self) -> list[GibbsState]:
         """Every worker's state (copies where the workers live elsewhere)."""
 
-    def state(self) -> GibbsState:
+    def home_states(self) -> list[GibbsState]:
+        """States whose homes, in order, are every home of the fit: the workers' own states where
+        they live in this process (no copies), else :meth:`states`."""
+        return self.states()
+
+    def home_visual(self) -> Iterator[np.ndarray]:
+        """Every home's log θ^v (L, D), in home order, without joining them (views where the
+        workers live in this process)."""
+        for state in self.home_states():
+            yield from state.log_theta_v
+
+    def state(self, visual: bool = True) -> GibbsState:
         """The workers' states joined: the state of every home, with the word mask of the last
-        sweep's pruning (the homes receive it with the next local step)."""
-        state = shards_api.join_states(self.states())
+        sweep's pruning (the homes receive it with the next local step). ``visual=False``: without
+        log θ^v (``None``; read it per home with :meth:`home_visual`), the largest field, which
+        joining copies."""
+        if visual:
+            state = shards_api.join_states(self.states())
+        else:
+            state = shards_api.join_states(self.home_states(), without=("log_theta_v",))
         state.word_mask = self.shared.word_mask
         state.name_words = self.shared.name_words
         state.channels = self.shared.channels
@@ -157,6 +174,9 @@ class LocalRun(ShardedRun):
 
     def states(self) -> list[GibbsState]:
         return [s.state for s in self.shards]
+
+    def home_states(self) -> list[GibbsState]:
+        return [h.state for s in self.shards for h in s.homes]
 
     def close(self) -> None:
         """Drop the workers (this process's objects: their data views, caches and states), so that

@@ -459,11 +459,13 @@ def state_of_homes(data: PreparedData, state: GibbsState, first: int, last: int)
     return GibbsState(**fields)
 
 
-def join_states(states: list[GibbsState]) -> GibbsState:
-    """The states of consecutive shards as one (the shared part taken from the first)."""
+def join_states(states: list[GibbsState], without: tuple[str, ...] = ()) -> GibbsState:
+    """The states of consecutive shards as one (the shared part taken from the first); the fields
+    named in ``without`` are not joined (``None``, e.g. log θ^v for the average, which reads each
+    home's own: :meth:`~spco.model.driver.ShardedRun.home_states`)."""
     if len(states) == 1:
         return states[0]
-    fields = {name: np.concatenate([getattr(s, name) for s in states])
+    fields = {name: None if name in without else np.concatenate([getattr(s, name) for s in states])
               for name in HOME_FIELDS + SAMPLE_FIELDS}
     fields.update({name: getattr(states[0], name) for name in SHARED_FIELDS})
     return GibbsState(**fields)
