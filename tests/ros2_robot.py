@@ -12,7 +12,8 @@ library, NumPy and rclpy. Commands (``{"cmd": …}``):
 - ``say`` ``{sentence}``: publish on ``--speech-topic``; returns the send time;
 - ``query`` ``{request, timeout?}``: publish a query (JSON text, or a string as is) and wait for the
   answer echoing its id (``"match": "error"`` waits for the next answer with an error); returns
-  ``{"answer", "seconds"}``;
+  ``{"answer", "seconds", "hops"}`` (``hops``: the answer's ``transit`` in the middleware and
+  ``dispatch`` by this side's executor, seconds);
 - ``answer`` ``{op, timeout?}``: wait for the next answer with that op (e.g. a teaching's);
 - ``markers`` ``{after?, timeout?}``: wait for a MarkerArray received after ``after`` (a time from
   ``say``); returns its markers summarised and the time it came;
@@ -59,6 +60,7 @@ class Robot:
         self.node = rclpy.create_node("fake_robot")
         self.lock = threading.Condition()
         self.answers: list[tuple[float, dict[str, Any]]] = []
+        self.answer_hops: list[dict[str, float]] = []  # of each answer: see _on_answer
         self.markers: list[tuple[float, Any]] = []
         self.goals: list[Any] = []
         self.where: list[Any] = []
@@ -84,13 +86,22 @@ class Robot:
         self.thread.start()
 
     # ------------------------------------------------------------------ callbacks
-    def _on_answer(self, msg: String) -> None:
+    def _on_answer(self, msg: String, info: Any) -> None:
+        """An answer, with where its time went on this side (``info``: the middleware's MessageInfo):
+        ``transit`` from the node's publish to the middleware here (source → received timestamps,
+        both the system clock) and ``dispatch`` from there to this callback (the executor)."""
+        called = time.perf_counter()
+        now_ns = time.time_ns()
+        source, received = info.get("source_timestamp"), info.get("received_timestamp")
+        hops = ({"transit": max(0.0, (received - source) * 1e-9),
+                 "dispatch": max(0.0, (now_ns - received) * 1e-9)} if source and received else {})
         try:
             answer = json.loads(msg.data)
         except ValueError:
             answer = {"unparsed": msg.data}
         with self.lock:
-            self.answers.append((time.perf_counter(), answer))
+            self.answers.append((called, answer))
+            self.answer_hops.append(hops)
             self.lock.notify_all()
 
     def _on_markers(self, msg: MarkerArray) -> None:
@@ -167,17 +178,17 @@ class Robot:
         self.query_pub.publish(String(data=text))
 
         def found() -> Any:
-            for t, answer in self.answers[start_index:]:
+            for k, (t, answer) in enumerate(self.answers[start_index:], start_index):
                 if match == "error" and "error" in answer and answer.get("op") != "teach":
-                    return t, answer
+                    return t, answer, self.answer_hops[k]
                 if match == "id" and answer.get("id") == wanted and answer.get("op") != "teach":
-                    return t, answer
+                    return t, answer, self.answer_hops[k]
             return None
 
         got = self._wait(found, timeout)
         if got is None:
-            return {"answer": None, "seconds": None}
-        return {"answer": got[1], "seconds": got[0] - sent}
+            return {"answer": None, "seconds": None, "hops": {}}
+        return {"answer": got[1], "seconds": got[0] - sent, "hops": got[2]}
 
     def answer(self, op: str, after: float = 0.0, timeout: float = 10.0) -> dict:
         got = self._wait(lambda: next(((t, a) for t, a in self.answers if t > after and a.get("op") == op),

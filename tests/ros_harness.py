@@ -33,6 +33,7 @@ __all__ = [
     "FakeRobot",
     "Mailbox",
     "free_port",
+    "reserve_ros_domain",
     "ros_environment",
     "start_master",
     "start_node",
@@ -47,6 +48,39 @@ def free_port() -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
         s.bind(("127.0.0.1", 0))
         return int(s.getsockname()[1])
+
+
+_DOMAIN_LOCKS: dict[int, Any] = {}
+
+
+def reserve_ros_domain(low: int = 1, high: int = 101) -> int:
+    """A ``ROS_DOMAIN_ID`` in ``low..high`` that no other spco test or benchmark run on this machine
+    holds, reserved until this process exits (an exclusive ``flock`` on
+    ``<tmp>/spco-ros2-domain-N.lock``; the same id again on later calls).
+
+    Concurrent runs in the same domain see each other's nodes and robots (the same ``/spco`` names):
+    each node then answers the other robot's queries and takes its camera frames — wrong answers and
+    latencies that are not the node's. The search starts at an id drawn from the process id and
+    takes the first free one. Raises ``RuntimeError`` when every id is held.
+    """
+    import fcntl
+    import tempfile
+
+    if _DOMAIN_LOCKS:
+        return next(iter(_DOMAIN_LOCKS))
+    span = high - low + 1
+    start = os.getpid() % span
+    for k in range(span):
+        domain = low + (start + k) % span
+        handle = (Path(tempfile.gettempdir()) / f"spco-ros2-domain-{domain}.lock").open("a")
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            handle.close()
+            continue
+        _DOMAIN_LOCKS[domain] = handle  # kept open: the lock lasts as long as this process
+        return domain
+    raise RuntimeError(f"every ROS 2 domain {low}..{high} is held by another spco test or benchmark run")
 
 
 def ros_environment(port: int, log_dir: str | os.PathLike[str]) -> dict[str, str]:

@@ -27,6 +27,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 from conftest import missing_tool
+from ros_harness import reserve_ros_domain
 
 from spco.data.bagtour import view
 
@@ -51,9 +52,10 @@ def ros2_python() -> str:
 
 
 def ros2_environment(log_dir: Path) -> dict[str, str]:
-    """A ROS 2 environment on loopback only, in a domain of this test run's own."""
+    """A ROS 2 environment on loopback only, in a domain of this test run's own (reserved against other
+    spco test and benchmark runs on the machine: :func:`ros_harness.reserve_ros_domain`)."""
     env = dict(os.environ)
-    env.update({"ROS_DOMAIN_ID": str(1 + os.getpid() % 100), "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+    env.update({"ROS_DOMAIN_ID": str(reserve_ros_domain()), "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
                 "ROS_LOG_DIR": str(log_dir), "RCUTILS_LOGGING_BUFFERED_STREAM": "0",
                 "PYTHONPATH": os.pathsep.join(p for p in (str(ROOT / "src"), env.get("PYTHONPATH")) if p)})
     env.pop("ROS_LOCALHOST_ONLY", None)  # Jazzy: superseded by ROS_AUTOMATIC_DISCOVERY_RANGE
