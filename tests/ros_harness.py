@@ -29,6 +29,7 @@ from spco.ros import import_rospy
 from spco.ros.messages import quaternion_from_yaw
 
 __all__ = [
+    "MALFORMED_QUERIES",
     "SWAPPED_ROOM_COLOURS",
     "FakeRobot",
     "Mailbox",
@@ -49,6 +50,21 @@ def free_port() -> int:
         s.bind(("127.0.0.1", 0))
         return int(s.getsockname()[1])
 
+
+#: Queries the node must answer with an error on the answer topic, and stay up — the same for every
+#: transport (ROS 1, ROS 2): (the query: a JSON object, or a text sent as is; the id the error answer
+#: echoes; a part of its error message).
+MALFORMED_QUERIES: list[tuple[Any, Any, str]] = [
+    ("not json", None, "not JSON"),
+    ("[1, 2]", None, "must be a JSON object"),
+    ({"id": 1, "op": "fly"}, 1, "unknown op 'fly'"),
+    ({"id": 2, "op": "where"}, 2, "has no 'name'"),
+    ({"id": 3, "op": "where", "name": "kitchen", "n": "ten"}, 3, "'n' must be an integer"),
+    ({"id": 4, "op": "where", "name": "kichen"}, 4, "kichen"),
+    ({"id": 5, "op": "what", "x": 1.0}, 5, "give all of 'x', 'y' and 'theta'"),
+    ({"id": 6, "op": "what", "x": 1.0, "y": 1.0, "theta": 90.0}, 6, "radians"),
+    ({"id": 7, "op": "where", "name": "kitchen", "goal": "yes"}, 7, "'goal' must be true or false"),
+]
 
 _DOMAIN_LOCKS: dict[int, Any] = {}
 

@@ -27,7 +27,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 from conftest import missing_tool
-from ros_harness import reserve_ros_domain
+from ros_harness import MALFORMED_QUERIES, reserve_ros_domain
 
 from spco.data.bagtour import view
 
@@ -220,17 +220,7 @@ def test_what_answers_at_the_current_pose_and_view(ros2_node) -> None:
 
 def test_bad_queries_get_a_clear_error_on_the_answer_topic_and_the_node_stays_up(ros2_node) -> None:
     robot, _, node, _, _, _ = ros2_node
-    cases = [
-        ("not json", None, "not JSON"),
-        ("[1, 2]", None, "must be a JSON object"),
-        ({"id": 1, "op": "fly"}, 1, "unknown op 'fly'"),
-        ({"id": 2, "op": "where"}, 2, "has no 'name'"),
-        ({"id": 3, "op": "where", "name": "kitchen", "n": "ten"}, 3, "'n' must be an integer"),
-        ({"id": 4, "op": "where", "name": "kichen"}, 4, "kichen"),
-        ({"id": 5, "op": "what", "x": 1.0}, 5, "give all of 'x', 'y' and 'theta'"),
-        ({"id": 6, "op": "what", "x": 1.0, "y": 1.0, "theta": 90.0}, 6, "radians"),
-    ]
-    for request, expected_id, message in cases:
+    for request, expected_id, message in MALFORMED_QUERIES:
         match = "id" if isinstance(request, dict) else "error"
         # an unknown name is looked up in WordNet: its first load takes seconds on a loaded machine
         answer = robot("query", request=request, match=match, timeout=60)["answer"]
