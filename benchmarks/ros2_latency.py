@@ -96,6 +96,8 @@ def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order th
                         help="spco ros2 --writer: where the teachings are applied")
     parser.add_argument("--dir", type=Path, default=None,
                         help="folder for the home and the logs (default: a temporary one)")
+    parser.add_argument("--robot-executor", choices=("multi", "single"), default="multi",
+                        help="the robot's rclpy executor (tests/ros2_robot.py), spun in a thread")
     parser.add_argument("--home", type=Path, default=None,
                         help="a tour home made by an earlier run (its folder's home.spco, copied into --dir; "
                         "the node teaches into the copy) instead of building one")
@@ -134,7 +136,7 @@ def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order th
                                     image_topic="/camera/image", speech_topic="/speech",
                                     query_topic="/spco/query", answer_topic="/spco/answer",
                                     markers_topic="/spco/markers", where_topic="/spco/where",
-                                    goal_topic="/goal_pose")
+                                    goal_topic="/goal_pose", executor=args.robot_executor)
     robot = Robot(robot_args)
     camera = robot.node.create_publisher(CompressedImage, "/camera/image/compressed", qos_profile_sensor_data)
     drive = None
@@ -187,12 +189,13 @@ def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order th
                   "utterance_to_teach_answer": _percentiles(teach) if teach else None,
                   "node_seconds_per_teaching": {part: _percentiles(v) for part, v in parts.items()},
                   "first_teaching": first, "errors": errors, "loadavg_start": load_start,
-                  "writer": args.writer, "rmw": os.environ.get("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")}
+                  "writer": args.writer, "robot_executor": args.robot_executor,
+                  "rmw": os.environ.get("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")}
         labels = {"rest": "the query to the node, the node's answer, its publish",
                   "transit": "the answer in the middleware (source -> received stamps)",
                   "dispatch": "the answer from the middleware to the robot's callback (its executor)"}
         print_report(result, f"spco ros2, query -> answer (ms), {args.queries} queries, Fast DDS on loopback "
-                     f"(writer: {args.writer}):",
+                     f"(writer: {args.writer}; robot: {args.robot_executor} executor):",
                      breakdown={labels[k]: _percentiles(v) for k, v in hops.items() if v})
     finally:
         if drive is not None:

@@ -41,7 +41,7 @@ from geometry_msgs.msg import PoseArray, PoseStamped, PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import DescribeParameters, GetParameters, SetParameters
-from rclpy.executors import MultiThreadedExecutor
+from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import Image
 from std_msgs.msg import String
@@ -50,6 +50,18 @@ from visualization_msgs.msg import MarkerArray
 RELIABLE = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def make_executor(kind: str) -> Any:
+    """The robot's executor, spun in a thread of its own: ``multi`` (rclpy's multi-threaded executor,
+    two threads) or ``single`` (the single-threaded one, ``rclpy.spin``'s). Not rclpy 7.1's events
+    executor: it fails on a subscription callback that takes the message's MessageInfo, as the
+    answers' does (``SystemError: null argument to internal routine``)."""
+    if kind == "multi":
+        return MultiThreadedExecutor(num_threads=2)
+    if kind == "single":
+        return SingleThreadedExecutor()
+    raise ValueError(f"executor: expected multi or single, got {kind!r}")
 
 
 class Robot:
@@ -80,7 +92,7 @@ class Robot:
         self.clients = {"get": n.create_client(GetParameters, f"{node_name}/get_parameters"),
                         "set": n.create_client(SetParameters, f"{node_name}/set_parameters"),
                         "describe": n.create_client(DescribeParameters, f"{node_name}/describe_parameters")}
-        self.executor = MultiThreadedExecutor(num_threads=2)
+        self.executor = make_executor(getattr(args, "executor", "multi"))
         self.executor.add_node(n)
         self.thread = threading.Thread(target=self.executor.spin, daemon=True)
         self.thread.start()
@@ -303,6 +315,7 @@ def main() -> None:
     parser.add_argument("--where-topic", default="/spco/where")
     parser.add_argument("--goal-topic", default="/goal_pose")
     parser.add_argument("--connect-timeout", type=float, default=120.0)
+    parser.add_argument("--executor", choices=("multi", "single"), default="multi")
     args = parser.parse_args()
     rclpy.init()
     robot = Robot(args)
