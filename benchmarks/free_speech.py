@@ -22,10 +22,19 @@ Protocol (docs/model.md "What counts as a name"; benchmarks/README "Free speech 
 - intervals: 95 % percentile bootstrap (2,000 resamples) over the test views (A_n; resampled within
   each home and place) and over the seeds' position scores of each (home, place) (A_p).
 
-Run (development set)::
+Run (development set, on the development home 3LDK_9 only: 1LDK_9 and 2LDK_9 are held-out homes,
+benchmarks/SPLIT.md)::
 
     nice -n 10 python benchmarks/free_speech.py --speech benchmarks/development/speech_dev.csv \\
-        --accepted benchmarks/development/accepted_names_dev.json --seeds 0 1 2
+        --accepted benchmarks/development/accepted_names_dev.json --homes 3LDK_9 --seeds 0 1 2
+
+The held-out set of the independent writer (seeds 100–109; ``benchmarks/heldout_report.py --parts
+speech2`` runs it with the development set beside)::
+
+    python benchmarks/free_speech.py --speech benchmarks/heldout/speech2/speech.csv \\
+        --accepted benchmarks/heldout/speech2/accepted_names.json \\
+        --unheard benchmarks/heldout/speech2/unheard_names.json \\
+        --seeds 100 101 102 103 104 105 106 107 108 109
 
 ``--unheard FILE.json`` also measures ``where`` with names nobody said (A_p of the place found via
 the lexicon, :func:`spco.model.unheard.resolve_name`).
@@ -164,8 +173,10 @@ def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order th
     resolved_as: dict[str, Counter] = defaultdict(Counter)
     per_seed = []
     started = time.perf_counter()
+    unheard_seeds: dict[int, float] = {}  # seed -> mean over (home, place) of that seed's unheard A_p
     for seed in args.seeds:
         experienced = taught_homes(args.sigverse, speech, seed)
+        seed_unheard: dict[tuple, list[float]] = defaultdict(list)
         for h, home in enumerate(args.homes):
             env = new_home(args.sigverse, regions_file, home, accepted)
             corpus = Corpus([*experienced, env])
@@ -206,7 +217,11 @@ def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order th
                     main_positions[(home, place)].append(hit)
             if unheard:
                 _score_unheard(model.parameters_, e, corpus.vocabulary, env, unheard, seed,
-                               unheard_scores, resolved_as)
+                               seed_unheard, resolved_as)
+        for key, values in seed_unheard.items():
+            unheard_scores[key].extend(values)
+        if seed_unheard:
+            unheard_seeds[seed] = float(np.mean([np.mean(v) for v in seed_unheard.values()]))
     rng = np.random.default_rng(0)
     first = settings[0]
     a_n = float(np.mean([np.mean(v) for v in names_right[first].values()]))
@@ -235,6 +250,7 @@ def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order th
         summary["unheard_A_p"] = float(np.mean([np.mean(v) for v in unheard_scores.values()]))
         summary["unheard_A_p_interval"] = bootstrap(unheard_scores, rng)
         summary["unheard_A_p_per_place"] = _per_place(unheard_scores)
+        summary["unheard_A_p_seeds"] = unheard_seeds
         summary["unheard_resolved_as"] = {k: dict(v) for k, v in resolved_as.items()}
     print(json.dumps({k: v for k, v in summary.items() if k != "runs"}, indent=1, default=str))
     if args.json:

@@ -116,7 +116,7 @@ def test_a_tiny_run_writes_its_results_and_resumes(tmp_path: Path, sigverse_dir:
                      random_state=0).save(knowledge_file)
     regions = sigverse_dir.parent / "sigverse_regions.json"
     out = tmp_path / "out"
-    args = ["--data", sigverse_dir, "--regions", regions, "--homes", "1LDK_9",
+    args = ["--data", sigverse_dir, "--regions", regions, "--homes", "3LDK_9",
             "--strategies", "errors,random", "--questions", "1", "--trials", "1", "--adapt-iterations", "2",
             "--teach-sweeps", "1", "--rates", "", "--knowledge", knowledge_file, "--out", out, "-q"]
     result = CliRunner().invoke(active_command, [str(a) for a in args])
@@ -124,9 +124,9 @@ def test_a_tiny_run_writes_its_results_and_resumes(tmp_path: Path, sigverse_dir:
     results = json.loads((out / "results.json").read_text())
     assert results["format"] == "spco-active-results" and results["timing"]["runs"] == 1
     steps = [r for r in results["summary"] if r["strategy"] == "errors"]
-    assert [r["k"] for r in steps] == [0, 1] and steps[0]["specific_n"] is None
+    assert [r["k"] for r in steps] == [0, 1] and steps[0]["specific_n"] is not None  # 3LDK_9's bedrooms
     assert steps[0]["general_n"] is not None
-    assert (out / "tables.md").is_file() and (out / "active_1LDK_9.png").is_file()
+    assert (out / "tables.md").is_file() and (out / "active_3LDK_9.png").is_file()
     assert results["ranking_seconds"]["max"] < 1.0
     again = CliRunner().invoke(active_command, [str(a) for a in args])
     assert again.exit_code == 2 and "--resume" in again.output

@@ -295,7 +295,7 @@ def test_sigverse_smoke(sigverse_dir: Path, tmp_path: Path, monkeypatch: pytest.
     monkeypatch.chdir(sigverse_dir.parent)  # paths as a user types them, relative
     res = CliRunner().invoke(experiment, [
         "general", "--data", sigverse_dir.name, "--regions", regions.name, "--envs", "1",
-        "--trials", "1", "--iterations", "3", "--models", "spcotransfer", "--new-homes", "1LDK_9",
+        "--trials", "1", "--iterations", "3", "--models", "spcotransfer", "--new-homes", "3LDK_9",
         "--out", str(out), "-q",
     ])
     assert res.exit_code == 0, res.output
@@ -308,4 +308,4 @@ def test_sigverse_smoke(sigverse_dir: Path, tmp_path: Path, monkeypatch: pytest.
     assert str(sigverse_dir.parent) not in (out / "results.json").read_text()
     places = {r["place"] for r in results["runs"]} - {"mean"}
     assert len(places) == 8
-    assert (out / "maps" / "general_spcotransfer_1_1LDK_9.png").stat().st_size > 1000
+    assert (out / "maps" / "general_spcotransfer_1_3LDK_9.png").stat().st_size > 1000
