@@ -137,6 +137,8 @@ def _teach_library(model: kn.HomeModel, record: dict) -> kn.HomeModel:
 
 def test_undo_gives_every_answer_back_exactly_through_compaction_and_a_restart(home: Path) -> None:
     original = kn.load_home_model(home)
+    # the home learns its words with the word channels: the undo gives their switches back too
+    assert original.knowledge.channels is not None and original.state.switches is not None
     ids = [int(i) for i in original.ids[:6]]
     writer = HomeWriter(home, seed=5, compact_records=2, compact_idle=3600)
     requests = [{"op": "sentence", "id": ids[0], "sentence": "this is the quokka room"},
@@ -159,6 +161,7 @@ def test_undo_gives_every_answer_back_exactly_through_compaction_and_a_restart(h
     words = writer.home.vocabulary.words
     assert "zephyr hall" not in words and "zephyr" not in words and "marimba room" in words
     _assert_same_answers(writer.snapshot(), expected)
+    np.testing.assert_array_equal(writer.snapshot().state.switches, expected.state.switches)
     after_undo = writer.snapshot()
     writer.close()
     assert undo_base_path(home).exists()

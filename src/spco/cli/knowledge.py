@@ -434,8 +434,10 @@ def what(home_file: Path, x: float, y: float, theta: float, visual: Path | None,
 
     With --visual (or --image) the view is used too; without, the position alone. Names are ranked
     by a score, printed as a share of its sum over the usable names beside `p` = p(name | pose, view)
-    itself (its sum over all words, template words included, is 1): with the naming rule (the default
-    model, spcotransfer+mi) the score is p; without pruning it is p × I(name), I the name's mutual
+    itself (its sum over all words, template words included, is 1): with the default model
+    (spcotransfer+mi: the word channels, or the naming rule for speech without English function
+    words) the score is p over the home's names — never a word said as an object or a function word;
+    without pruning it is p × I(name), I the name's mutual
     information with the concepts (so that "this" or "is", said everywhere, are never answered); the
     output's last line says which. A pose off the home's map is answered with a warning, one far off it is
     refused.

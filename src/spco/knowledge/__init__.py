@@ -58,6 +58,7 @@ from spco.knowledge.knowledge import (
     DEFAULT_TEACH_SWEEPS,
     MODELS,
     Knowledge,
+    KnowledgeChannels,
     load_knowledge,
 )
 from spco.knowledge.limits import DEFAULT_LIMITS, TeachingLimits
@@ -103,6 +104,7 @@ __all__ = [
     "ExperiencedHomeWarning",
     "HomeModel",
     "Knowledge",
+    "KnowledgeChannels",
     "KnowledgeMismatchWarning",
     "Observation",
     "OwnNamesSpreadWarning",

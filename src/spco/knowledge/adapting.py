@@ -117,9 +117,10 @@ def adapt(
                       "that home, it is not new to the knowledge and its answers say little about a new "
                       "home (spco synth: write new homes with another --seed than the experienced ones)",
                       ExperiencedHomeWarning, stacklevel=2)
-    extended = knowledge.extended(train.sentences)
-    n_known = knowledge.n_words
+    # concepts for the home's own names (names the experienced homes never said), then its new words
     rng = as_generator(random_state)
+    extended = knowledge.with_free_concepts(rng).extended(train.sentences)
+    n_known = knowledge.n_words
     scale = gibbs.CM_PER_M if extended.variant == "reference" else 1.0
     centre = _map_centre(home)
     data = prepare_home(train.positions, train.visual, train.sentences, extended.vocabulary,

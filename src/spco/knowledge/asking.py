@@ -81,8 +81,9 @@ class Question:
 
 
 def name_columns(home: HomeModel) -> np.ndarray:
-    """(V',) vocabulary columns of the home's usable names (the words its naming rule keeps)."""
-    return np.flatnonzero(np.asarray(home.parameters.word_mask, dtype=bool))
+    """(V',) vocabulary columns of the home's usable names (:attr:`HomeModel.name_mask`: the word
+    channels' names, or the words the naming rule keeps)."""
+    return np.flatnonzero(np.asarray(home.name_mask, dtype=bool))
 
 
 def home_question_scores(home: HomeModel, criterion: str = DEFAULT_CRITERION) -> QuestionScores:
@@ -134,7 +135,8 @@ def home_question_scores(home: HomeModel, criterion: str = DEFAULT_CRITERION) ->
 
     known = np.zeros(len(home.vocabulary), dtype=bool)
     k = home.n_knowledge_words
-    known[:k] = np.asarray(home.knowledge.word_mask[:k], dtype=bool)
+    channels = home.knowledge.channels  # the knowledge's names: the channels' or the words it kept
+    known[:k] = np.asarray((home.knowledge.word_mask if channels is None else channels.name_mask())[:k], bool)
     taught_own = taught & ~(said[:, known[columns]] > 0).any(axis=1)
 
     kinds = np.asarray(state.concepts, dtype=np.int64).copy()

@@ -3,7 +3,9 @@
 Knowledge (``.spco``, format ``spco-knowledge``) and home (``.spco``, format ``spco-home``) files
 are NumPy ``.npz`` archives read with ``allow_pickle=False``: arrays plus a ``header`` array holding
 a UTF-8 JSON document with the format name, ``format_version`` (2; 3 when the vocabulary segments
-text written without spaces), the spco version, the hyperparameters, the vocabulary, its
+text written without spaces; 4 for the ``spcotransfer+mi`` model, whose word channels the file
+carries as ``channels.*`` arrays, :data:`FORMAT_VERSION`), the spco version, the hyperparameters,
+the vocabulary, its
 ``segmentation`` (``null``, or how Japanese or Chinese text is cut into words:
 :meth:`spco.data.segmentation.Segmentation.to_dict`), provenance, the image extractor
 (``extractor``: name, version, settings and checksum of its weights, ``null`` for knowledge fitted
@@ -42,14 +44,41 @@ HOME_FORMAT = "spco-home"
 #: Version 3 added the segmentation of text written without spaces (``segmentation``): it is
 #: written only for a vocabulary that segments such text (older spco would cut it otherwise);
 #: other files stay version 2.
-FORMAT_VERSION = 3
+#: Version 4 is the word model of the ``spcotransfer+mi`` files (exact sampler with pruning): their
+#: words are learnt with the word channels (``channels.*`` arrays: :class:`spco.knowledge.KnowledgeChannels`,
+#: and a home's ``state.switches``), or with the naming rule for speech without English function words
+#: (``hyperparameters.word_model``). Such files of an earlier version were learnt with the naming rule
+#: for every language and are refused (:func:`check_word_model`): fit the knowledge again.
+FORMAT_VERSION = 4
+#: The first version whose ``spcotransfer+mi`` files carry the word channels.
+CHANNELS_FORMAT_VERSION = 4
 
 
-def format_version(vocabulary: Any) -> int:
-    """The version to write for a file of ``vocabulary``: 3 if it segments text written without
-    spaces, else 2 (readable by older spco)."""
+def format_version(vocabulary: Any, word_model: bool = False) -> int:
+    """The version to write for a file of ``vocabulary``: 4 for a model with a word model
+    (``word_model``: the exact sampler with pruning, ``spcotransfer+mi``); otherwise 3 if the
+    vocabulary segments text written without spaces, else 2 (readable by older spco)."""
+    if word_model:
+        return CHANNELS_FORMAT_VERSION
     seg = vocabulary.segmentation
     return 3 if seg is not None and seg.segments else 2
+
+
+def check_word_model(path: Path, header: Mapping[str, Any]) -> None:
+    """Refuse a ``spcotransfer+mi`` file written before the word channels (format version < 4): its
+    words were learnt with the naming rule whatever the language, a word model this spco no longer
+    runs for English speech. Raises :class:`~spco.errors.ModelFileError` saying what to do."""
+    version = header.get("format_version")
+    if (isinstance(version, int) and version < CHANNELS_FORMAT_VERSION and header.get("variant") == "exact"
+            and bool(header.get("prune_words"))):
+        what = _FORMAT_NAMES.get(str(header.get("format")), "file")
+        redo = ("fit the knowledge again with `spco fit` (same homes and seed), then `spco adapt` the "
+                "home" if header.get("format") == HOME_FORMAT
+                else "fit it again with `spco fit` (same homes and seed)")
+        raise ModelFileError(path, f"an old {what} (format version {version}, spco "
+                             f"{header.get('spco_version', '?')}): its words were learnt with the naming "
+                             f"rule, which this spco replaced by the word channels for model "
+                             f"spcotransfer+mi; {redo}")
 
 
 def segmentation_of(header: Mapping[str, Any]) -> Any:

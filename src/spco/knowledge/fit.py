@@ -3,7 +3,9 @@ summarised over several posterior samples (:func:`fit_knowledge`)."""
 
 from __future__ import annotations
 
+import functools
 import math
+import operator
 import time
 from collections.abc import Mapping
 from dataclasses import replace
@@ -17,14 +19,21 @@ from spco.data.environment import Corpus
 from spco.errors import ConfigurationError, DataFormatError
 from spco.knowledge.diagnostics import _view_fit_record
 from spco.knowledge.files import _version
-from spco.knowledge.knowledge import DEFAULT_FIT_ITERATIONS, DEFAULT_MODEL, MODELS, Knowledge
+from spco.knowledge.knowledge import (
+    DEFAULT_FIT_ITERATIONS,
+    DEFAULT_MODEL,
+    MODELS,
+    Knowledge,
+    KnowledgeChannels,
+)
 from spco.model.hyperparameters import PRIORS, TransferHyperparameters, scaled_from, scaled_hyperparameters
-from spco.model.name_evidence import name_prior
+from spco.model.name_evidence import channel_evidence, has_english, name_prior
 from spco.model.posterior import thinned_sweeps
 from spco.model.pruning import words_to_keep
 from spco.model.seeds import as_generator, seed_of
 from spco.model.sources import PreparedHomes
 from spco.model.transfer import SpCoTransfer
+from spco.model.word_channels import WordChannels, uses_word_channels
 from spco.timestamps import utc_now
 
 
@@ -90,7 +99,7 @@ def default_hyperparameters(homes: Any) -> TransferHyperparameters:
     return TransferHyperparameters()
 
 
-def fit_knowledge(
+def fit_knowledge(  # noqa: PLR0915 (one sequence: start, sweeps, summary; to split)
     corpus: Corpus,
     model: str = DEFAULT_MODEL,
     n_iterations: int = DEFAULT_FIT_ITERATIONS,
@@ -150,15 +159,25 @@ def fit_knowledge(
         hyperparameters = default_hyperparameters(corpus)
     estimator = SpCoTransfer(hyperparameters, variant=variant, prune_words=prune, n_iterations=n_iterations,
                              random_state=random_state)
-    # knowledge files and adapt / teach learn words with the naming rule: the word channels are not yet
-    # carried by the knowledge file (docs/model.md, "Words that are not names"); the file says so
-    hyper = replace(estimator.checked_hyperparameters(), word_model="naming-rule")
+    hyper = estimator.checked_hyperparameters()
     settings = estimator.sampler_settings()
+    if variant == "exact" and prune and hyper.word_model != "channels":
+        # one word model on the robot's path: the naming rule is chosen for speech without English
+        # function words only, never asked for
+        raise ConfigurationError(f"a knowledge of model {model} learns its words with the word channels "
+                                 f"(word_model 'channels'), not {hyper.word_model!r}: speech without any "
+                                 "English function word (Japanese) is learnt with the naming rule by itself")
+    # the word channels (docs/model.md, "Words that are not names") for English speech; speech
+    # without any English function word (Japanese) is learnt with the naming rule, as a joint fit
+    evidence = _channel_evidence(corpus) if uses_word_channels(hyper, settings) else None
+    if uses_word_channels(hyper, settings) and evidence is None:
+        hyper = replace(hyper, word_model="naming-rule")
     rng = as_generator(random_state)
     source, n_samples = _home_source(estimator, corpus, source)
     keep = set(summary_iterations(n_iterations, summary_fraction, summary_every))
     start = time.perf_counter()
     by_iteration: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+    channel_samples: dict[int, WordChannels] = {}
     bar = None
     if progress:
         from spco.progress import progress_bar
@@ -167,6 +186,9 @@ def fit_knowledge(
     from spco.engines import start_source_run
 
     run = start_source_run(engine, source, hyper, settings, rng)  # the homes stay in the shards
+    if evidence is not None:
+        run.use_word_channels(WordChannels.initial(evidence[0], hyper.n_concepts, hyper.evidence_weight,
+                                                   evidence[1]))
 
     def after_sweep(iteration: int, _: float) -> None:  # (a restarted engine repeats sweeps)
         if bar is not None:
@@ -174,15 +196,20 @@ def fit_knowledge(
         if iteration in keep:
             shared = run.shared
             by_iteration[iteration] = (shared.log_phi_v.copy(), shared.log_phi_w.copy(), shared.log_g0.copy())
+            if shared.channels is not None:
+                channel_samples[iteration] = shared.channels.copy()
 
     run.fit(n_iterations, after_sweep)
     word_mask_last, candidate_words = run.shared.word_mask, run.call("candidate_words")[0]
+    tokens = (functools.reduce(operator.add, run.call("channel_counts")).by_word
+              if run.shared.channels is not None else None)
     if bar is not None:
         bar.close()
     samples = [by_iteration[i] for i in sorted(by_iteration)]
     seconds = time.perf_counter() - start
 
-    stack_v, stack_w, stack_g, relabelled, used = _aligned_samples(samples)
+    stack_v, stack_w, stack_g, relabelled, used, perms = _aligned_samples(samples)
+    channels = _averaged_channels([channel_samples[i] for i in sorted(channel_samples)], perms, tokens)
     n = stack_v.shape[0]
     log_phi_v = logsumexp(stack_v, axis=0) - math.log(n)
     has_words = stack_w.shape[2] > 0
@@ -224,7 +251,39 @@ def fit_knowledge(
         hyperparameters=hyper, variant=variant, prune_words=prune, provenance=record,
         extractor=None if extractor is None else extractor.spec().to_dict(),
         extractor_arrays={} if extractor is None else dict(extractor.arrays),
+        channels=channels,
     )
+
+
+def _channel_evidence(corpus: Any) -> tuple[np.ndarray, np.ndarray] | None:
+    """The word channels' linguistic evidence (ν, a) of the experienced homes' words
+    (:func:`spco.model.name_evidence.channel_evidence`), or ``None`` when no sentence holds an English
+    function word (the evidence is English: such speech is learnt with the naming rule). A
+    :class:`~spco.model.sources.FolderHomes` or :class:`~spco.model.sources.SyntheticHomes` brings the
+    evidence it computed while reading its sentences."""
+    if isinstance(corpus, Corpus):
+        sentences = [s for t in corpus.training_set() for s in t.sentences]
+        if not has_english(corpus.vocabulary, sentences):
+            return None
+        return channel_evidence(corpus.vocabulary, sentences)
+    return getattr(corpus, "channel_evidence", None)
+
+
+def _averaged_channels(samples: list[WordChannels], perms: list[np.ndarray],
+                       tokens: np.ndarray | None) -> KnowledgeChannels | None:
+    """The word channels of the kept sweeps averaged as φ is: ψ relabelled like φ (``perms``), then
+    ψ, β and the shares λ averaged as probabilities; the evidence is fixed. ``tokens``: (V, 3) the
+    last sweep's tokens per word and channel (over all homes). ``None`` without channels."""
+    if not samples or tokens is None:
+        return None
+    n = len(samples)
+    log_place = logsumexp(np.stack([c.log_place[p] for c, p in zip(samples, perms, strict=True)]), axis=0)
+    log_background = logsumexp(np.stack([c.log_background for c in samples]), axis=0)
+    shares = np.exp(np.stack([c.log_shares[1:] for c in samples])).mean(axis=0)
+    averaged = replace(samples[-1], log_place=log_place - math.log(n),
+                       log_background=log_background - math.log(n),
+                       log_shares=np.concatenate([[0.0], np.log(shares / shares.sum())]), fresh=False)
+    return KnowledgeChannels(averaged, np.asarray(tokens, dtype=np.float64))
 
 
 def _home_source(estimator: SpCoTransfer, corpus: Any, source: Any) -> tuple[Any, int]:
@@ -264,21 +323,23 @@ def _check_fit_arguments(corpus: Any, model: str, summary_fraction: float, summa
 
 
 def _aligned_samples(samples: list[tuple[np.ndarray, np.ndarray, np.ndarray]]
-                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, np.ndarray]:
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, np.ndarray, list[np.ndarray]]:
     """The kept sweeps' (log φ^v, log φ^w, log G_0), each relabelled to match the last sweep's
     concepts (labels are stable late in the chain; this checks it): the three stacks, how many
-    sweeps needed a relabelling of a used concept, and which concepts the last sweep uses."""
+    sweeps needed a relabelling of a used concept, which concepts the last sweep uses, and each
+    sweep's permutation."""
     last_v, last_w = np.exp(samples[-1][0]), np.exp(samples[-1][1])
     used = np.exp(samples[-1][2]) > 0.01
     relabelled = 0
-    aligned = []
+    aligned, perms = [], []
     for log_v, log_w, log_g in samples:
         perm = _align_to(last_v, last_w, np.exp(log_v), np.exp(log_w))
         if (perm[used] != np.flatnonzero(used)).any():
             relabelled += 1
         aligned.append((log_v[perm], log_w[perm], log_g[perm]))
+        perms.append(perm)
     stacks = [np.stack([a[i] for a in aligned]) for i in range(3)]
-    return stacks[0], stacks[1], stacks[2], relabelled, used
+    return stacks[0], stacks[1], stacks[2], relabelled, used, perms
 
 
 def _kept_words(n_words: int, prune: bool, variant: str, word_mask_last: np.ndarray,

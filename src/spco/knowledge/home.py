@@ -27,13 +27,14 @@ from spco.knowledge.files import (
 from spco.knowledge.knowledge import Knowledge
 from spco.model import gibbs
 from spco.model.confidence import UNSURE_BELOW
-from spco.model.home_shard import prepare_home
+from spco.model.home_shard import name_words, prepare_home, switch_tokens
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.name_evidence import extend_prior
 from spco.model.parameters import ConceptParameters
 from spco.model.position_prediction import PositionPrediction
 from spco.model.prediction import NamePrediction
 from spco.model.transfer import export_parameters
+from spco.model.word_channels import channel_parameters
 
 
 @dataclass(frozen=True)
@@ -158,15 +159,56 @@ class HomeModel:
     @functools.cached_property
     def parameters(self) -> ConceptParameters:
         """The home's parameters (one home, metres), as prediction uses them: the posterior
-        average of the last sweeps (``posterior``), or the state's draw if there is none."""
+        average of the last sweeps (``posterior``), or the state's draw if there is none. With the
+        word channels they carry ψ and the switch's prior (``where`` finds a place by its names and
+        its place words), and ``word_mask`` holds the words that are names or place words
+        (:attr:`said_words`)."""
         params = self.posterior if self.posterior is not None else export_parameters(self.state, self.data)
         prior = extend_prior(self.knowledge.name_prior, self.vocabulary, self.sentences)
-        return params if prior is None else replace(params, name_prior=prior)
+        if prior is not None:
+            params = replace(params, name_prior=prior)
+        if self.knowledge.channels is not None:
+            params = replace(params, word_mask=self.said_words,
+                             **channel_parameters(self.knowledge.channels.channels))
+        return params
+
+    @functools.cached_property
+    def channel_tokens(self) -> np.ndarray | None:
+        """(V, 3) each word's tokens as name, place word and background word: the knowledge's fit
+        plus this home's expected switches (:func:`spco.model.home_shard.switch_tokens`); ``None``
+        without the word channels."""
+        if self.knowledge.channels is None:
+            return None
+        return self.knowledge.channels.tokens + switch_tokens(self.data, self.state)
+
+    @functools.cached_property
+    def name_mask(self) -> np.ndarray:
+        """(V,) bool: the words the home answers as place names. With the word channels: the words
+        enough of whose uses (the experienced homes' and this home's, :attr:`channel_tokens`) are
+        expected to be names (:func:`spco.model.home_shard.name_words`) — a function word, or an object
+        said once ("the fridge is over here"), is never answered; otherwise the words the naming rule
+        keeps (``state.word_mask``)."""
+        channels = self.knowledge.channels
+        if channels is None:
+            return np.asarray(self.state.word_mask, dtype=bool)
+        return name_words(self.channel_tokens) & np.asarray(self.state.word_mask, bool)
+
+    @functools.cached_property
+    def said_words(self) -> np.ndarray:
+        """(V,) bool: the words ``where`` looks a place up by — with the word channels, the names and
+        the words said mostly as words of a place (objects, activities: "where is the fridge"),
+        not the background; otherwise :attr:`name_mask`."""
+        if self.knowledge.channels is None:
+            return self.name_mask
+        tokens = self.channel_tokens
+        total = tokens.sum(axis=1)
+        said = (total > 0) & (tokens[:, 0] + tokens[:, 1] >= 0.5 * total)
+        return (said | self.name_mask) & np.asarray(self.state.word_mask, bool)
 
     @property
     def known_names(self) -> list[str]:
-        """The words the home can answer for (kept by pruning)."""
-        return [w for w, keep in zip(self.vocabulary.words, self.state.word_mask, strict=True) if keep]
+        """The words the home can answer for (:attr:`name_mask`)."""
+        return [w for w, keep in zip(self.vocabulary.words, self.name_mask, strict=True) if keep]
 
     def environment(self) -> Environment:
         """The home's samples as an :class:`~spco.data.Environment` (all training, no ground truth)."""
@@ -210,11 +252,14 @@ class HomeModel:
             arrays["view_missing"] = np.asarray(self.view_missing, dtype=bool)
         for name in _STATE_ARRAYS:
             arrays["state." + name] = np.asarray(getattr(s, name))
+        if s.switches is not None:  # the word channels' switch of every token
+            arrays["state.switches"] = np.asarray(s.switches, dtype=np.int8)
         if self.posterior is not None:
             arrays.update({"posterior." + k: np.asarray(v) for k, v in self.posterior.arrays().items()})
         header = {
             "format": HOME_FORMAT,
-            "format_version": format_version(self.vocabulary),
+            "format_version": format_version(self.vocabulary, self.knowledge.variant == "exact"
+                                             and self.knowledge.prune_words),
             "spco_version": _version(),
             "name": self.name,
             "sentences": list(self.sentences),
@@ -250,6 +295,9 @@ class HomeModel:
             visual = sp.csr_array((arrays["visual_data"], arrays["visual_indices"], arrays["visual_indptr"]),
                                   shape=(n, int(header["n_features"])))
             state = gibbs.GibbsState(**{name: arrays["state." + name] for name in _STATE_ARRAYS})
+            if knowledge.channels is not None:
+                state.channels = knowledge.channels.channels
+                state.switches = arrays.get("state.switches")
             sentences = tuple(None if s is None else str(s) for s in header["sentences"])
             extent = None if header["extent"] is None else tuple(float(v) for v in header["extent"])
             posterior_arrays = {k.removeprefix("posterior."): v for k, v in arrays.items()
@@ -314,6 +362,13 @@ def _check_home(home: HomeModel) -> list[str]:
                             ("region_weights", (1, L, K)), ("region_means", (1, K, 4))):
             if np.shape(getattr(p, name)) != shape:
                 problems.append(f"posterior.{name} has shape {np.shape(getattr(p, name))}, expected {shape}")
+    if k.channels is not None and not problems:
+        nnz = home.data.words.nnz
+        if s.switches is None:
+            problems.append("the home holds no state.switches (the word channels' switch of each token)")
+        elif np.shape(s.switches) != (nnz,) or (nnz and (s.switches.min() < 0 or s.switches.max() > 2)):
+            problems.append(f"state.switches has shape {np.shape(s.switches)} (expected ({nnz},), one switch "
+                            "0, 1 or 2 per word token of the sentences)")
     if n and ((s.concepts < 0).any() or (s.concepts >= L).any()
               or (s.regions < 0).any() or (s.regions >= K).any()):
         problems.append("assignments out of range")
@@ -331,4 +386,7 @@ def load_home_model(path: str | PathLike[str]) -> HomeModel:
 
 
 def _copy_state(state: gibbs.GibbsState) -> gibbs.GibbsState:
-    return gibbs.GibbsState(**{name: np.array(getattr(state, name), copy=True) for name in _STATE_ARRAYS})
+    copy = gibbs.GibbsState(**{name: np.array(getattr(state, name), copy=True) for name in _STATE_ARRAYS})
+    copy.channels = state.channels  # (never changed in place: replaced)
+    copy.switches = None if state.switches is None else state.switches.copy()
+    return copy

@@ -22,12 +22,15 @@ from spco.knowledge.files import (
     _require,
     _version,
     _write_archive,
+    check_word_model,
     format_version,
     segmentation_of,
 )
-from spco.model.home_shard import SharedPart, SharedPrior
+from spco.model.home_shard import FREE_CONCEPT_WEIGHT, SharedPart, SharedPrior, name_words
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.io import _checksum
+from spco.model.kernels.dirichlet import log_dirichlet
+from spco.model.word_channels import ALPHA_PLACE, WordChannels
 
 #: The transfer models whose shared part can be learnt: name -> (sampler variant, word pruning).
 MODELS: dict[str, tuple[str, bool]] = {
@@ -41,6 +44,102 @@ DEFAULT_MODEL = "spcotransfer+mi"
 DEFAULT_FIT_ITERATIONS = 200
 DEFAULT_ADAPT_ITERATIONS = 100
 DEFAULT_TEACH_SWEEPS = 10
+#: Concepts no experienced home uses that a new home is adapted with at least
+#: (:meth:`Knowledge.with_free_concepts`): one per name of the home's own (the knowledge of the
+#: paper's 16 SIGVerse homes learnt with the word channels uses 15 of its 16 concepts — places split
+#: by the frames said around their names — which left 3LDK_9's three own names one concept).
+MIN_FREE_CONCEPTS = 8
+
+
+
+
+@dataclass(frozen=True, eq=False)
+class KnowledgeChannels:
+    """The word channels a knowledge carries (:mod:`spco.model.word_channels`): the learnt
+    distributions and the switches' statistics of the fit.
+
+    Attributes
+    ----------
+    channels: the :class:`~spco.model.word_channels.WordChannels` averaged over the kept sweeps: log ψ
+        (L, V) each concept's place words, log β (V,) the background, log λ (3,) the learnt shares and
+        the linguistic evidence log e (V, 3) of every word (the switch's prior).
+    tokens: (V, 3) the experienced homes' tokens of each word drawn as name, place word and background
+        word at the fit's last sweep (0 for words first heard in a home): which words are names
+        (:meth:`name_mask`).
+    """
+
+    channels: WordChannels
+    tokens: np.ndarray
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "tokens", np.asarray(self.tokens, dtype=np.float64))
+
+    def check(self, n_concepts: int, n_words: int) -> list[str]:
+        """Shape problems for ``n_concepts`` concepts and ``n_words`` words (empty if none)."""
+        c = self.channels
+        expected = {"log_place": (n_concepts, n_words), "log_background": (n_words,), "log_shares": (3,),
+                    "log_evidence": (n_words, 3), "tokens": (n_words, 3)}
+        found = {"log_place": c.log_place, "log_background": c.log_background, "log_shares": c.log_shares,
+                 "log_evidence": c.log_evidence, "tokens": self.tokens}
+        problems = [f"channels.{k} has shape {np.shape(found[k])}, expected {v}"
+                    for k, v in expected.items() if np.shape(found[k]) != v]
+        if not problems and not all(np.isfinite(a).all() for a in found.values() if a is not self.tokens):
+            problems.append("the channels hold a NaN or an infinite log-probability")
+        return problems
+
+    def extended(self, n_words: int, evidence: np.ndarray, content: np.ndarray,
+                 weight: float) -> KnowledgeChannels:
+        """The channels of a vocabulary grown to ``n_words``: the new words with their evidence (ν,
+        a: ``evidence``, ``content``, (n_words,) of which the new entries are used) and no token."""
+        added = n_words - self.tokens.shape[0]
+        if added <= 0:
+            return self
+        V = self.tokens.shape[0]
+        channels = self.channels.extended(n_words, evidence, content, weight)
+        # a word never said is as unlikely a place word of one concept as of another: the same ψ in
+        # every concept (the smallest of the knowledge's), so that with its S^w counts in the concept's
+        # likelihood it draws no sample to the concept whose ψ happens to be least sparse
+        place = channels.log_place.copy()
+        place[:, V:] = float(self.channels.log_place.min()) if self.channels.log_place.size else 0.0
+        channels = replace(channels, log_place=place - logsumexp(place, axis=1, keepdims=True))
+        first = V if self.channels.prior_only_from is None else self.channels.prior_only_from
+        return KnowledgeChannels(replace(channels, prior_only_from=first),
+                                 np.concatenate([self.tokens, np.zeros((added, 3))]))
+
+    def name_mask(self, home_tokens: np.ndarray | None = None) -> np.ndarray:
+        """(V,) bool: the words that are names (:func:`spco.model.home_shard.name_words`) by the fit's
+        tokens (:attr:`tokens`) plus a home's own (``home_tokens``, (V, 3), e.g. its switches'
+        expected counts)."""
+        tokens = self.tokens if home_tokens is None else self.tokens + np.asarray(home_tokens, float)
+        return name_words(tokens)
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The arrays a file holds (``channels.<name>``)."""
+        c = self.channels
+        arrays = {"channels.log_place": np.asarray(c.log_place, dtype=np.float64),
+                  "channels.log_background": np.asarray(c.log_background, dtype=np.float64),
+                  "channels.log_shares": np.asarray(c.log_shares, dtype=np.float64),
+                  "channels.log_evidence": np.asarray(c.log_evidence, dtype=np.float64),
+                  "channels.tokens": self.tokens}
+        if c.prior_only_from is not None:
+            arrays["channels.prior_only_from"] = np.array([c.prior_only_from], dtype=np.int64)
+        return arrays
+
+    @classmethod
+    def from_arrays(cls, arrays: Mapping[str, np.ndarray], prefix: str = "") -> KnowledgeChannels | None:
+        """The channels of a file's arrays (``None`` if it holds none)."""
+        if prefix + "channels.log_place" not in arrays:
+            return None
+        a = {name: arrays[prefix + "channels." + name] for name in
+             ("log_place", "log_background", "log_shares", "log_evidence", "tokens")}
+        channels = WordChannels(np.asarray(a["log_place"], dtype=np.float64),
+                                np.asarray(a["log_background"], dtype=np.float64),
+                                np.asarray(a["log_shares"], dtype=np.float64),
+                                np.asarray(a["log_evidence"], dtype=np.float64), False)
+        first = arrays.get(prefix + "channels.prior_only_from")
+        if first is not None:
+            channels = replace(channels, prior_only_from=int(np.asarray(first).reshape(-1)[0]))
+        return cls(channels, a["tokens"])
 
 
 def _model_name(variant: str, prune: bool) -> str:
@@ -76,6 +175,10 @@ class Knowledge:
         (:func:`spco.model.name_evidence.name_prior`, from the experienced homes' sentences; used
         for names nobody said, :mod:`spco.model.unheard`), or ``None`` (models without the naming
         rule, files written before it existed).
+    channels: the word channels (:class:`KnowledgeChannels`: names, place words ψ, background β, the
+        switch's learnt shares and evidence) of a knowledge learnt with them
+        (``hyperparameters.word_model == "channels"``), or ``None`` (the naming rule: speech without
+        English function words, and the models without pruning or with the authors' sampler).
     """
 
     log_phi_visual: np.ndarray
@@ -94,6 +197,7 @@ class Knowledge:
     extractor: dict[str, Any] | None = None
     extractor_arrays: dict[str, np.ndarray] = field(default_factory=dict)
     name_prior: np.ndarray | None = None
+    channels: KnowledgeChannels | None = None
 
     def __post_init__(self) -> None:
         L = self.log_g0.shape[0] if np.ndim(self.log_g0) == 1 else -1
@@ -112,6 +216,14 @@ class Knowledge:
                 problems.append(f"{name} has shape {np.shape(getattr(self, name))}")
         if self.variant not in ("exact", "reference"):
             problems.append(f"unknown sampler {self.variant!r}")
+        if self.channels is not None:
+            problems += self.channels.check(L, V)
+        learnt_with_channels = (self.variant == "exact" and self.prune_words
+                                and self.hyperparameters.word_model == "channels")
+        if learnt_with_channels and self.channels is None:
+            problems.append("the hyperparameters say word_model 'channels' but the knowledge holds none")
+        if self.channels is not None and not learnt_with_channels:
+            problems.append("word channels in a knowledge whose model does not learn them")
         if problems:
             raise ConfigurationError("inconsistent knowledge: " + "; ".join(problems))
         object.__setattr__(self, "word_mask", np.asarray(self.word_mask, dtype=bool))
@@ -138,9 +250,16 @@ class Knowledge:
         return _model_name(self.variant, self.prune_words)
 
     @property
+    def name_mask(self) -> np.ndarray:
+        """(V,) bool: the knowledge's place names — with the word channels the words most of whose
+        tokens the fit drew as names (:meth:`KnowledgeChannels.name_mask`), otherwise the words kept
+        by pruning (``word_mask``)."""
+        return self.word_mask if self.channels is None else self.channels.name_mask() & self.word_mask
+
+    @property
     def known_names(self) -> list[str]:
-        """The words kept by pruning."""
-        return [w for w, keep in zip(self.vocabulary.words, self.word_mask, strict=True) if keep]
+        """The knowledge's place names (:attr:`name_mask`)."""
+        return [w for w, keep in zip(self.vocabulary.words, self.name_mask, strict=True) if keep]
 
     @property
     def checksum(self) -> str:
@@ -195,15 +314,58 @@ class Knowledge:
         log_phi = np.concatenate([self.log_phi_words, np.full((self.n_concepts, added), log_new)], axis=1)
         log_phi -= logsumexp(log_phi, axis=1, keepdims=True)
         mask = np.concatenate([self.word_mask, np.ones(added, dtype=bool)])
-        return replace(self, log_phi_words=log_phi, word_mask=mask, vocabulary=vocabulary)
+        channels = self.channels
+        if channels is not None:  # the new words' evidence, from how the home says them
+            from spco.model.name_evidence import channel_evidence
+
+            nu, content = channel_evidence(vocabulary, [s for s in sentences if s])
+            channels = channels.extended(len(vocabulary), nu, content, hyper.evidence_weight)
+        return replace(self, log_phi_words=log_phi, word_mask=mask, vocabulary=vocabulary, channels=channels)
 
     # ------------------------------------------------------------------ for a new home
+    def with_free_concepts(self, rng: np.random.Generator, n_free: int = MIN_FREE_CONCEPTS) -> Knowledge:
+        """This knowledge with at least ``n_free`` concepts the experienced homes do not use (G_0
+        below :data:`~spco.model.home_shard.FREE_CONCEPT_WEIGHT`), appended when it has fewer: the
+        concepts a new home's own names take (names nobody in the experienced homes said: "emma's
+        room", a room taught once). A concept no experienced home used has its prior as posterior,
+        so an appended one is what a fit with a larger truncation L would hold: φ^v ~ Dir(α^v),
+        φ^w ~ Dir(α^w) and ψ ~ Dir(α^p) drawn from ``rng`` (as a fit's unused concept holds a prior
+        draw), G_0 the weight of the knowledge's own unused concepts (or 1e-12),
+        concentrations unknown (δ, γ). Returns ``self`` when it has enough."""
+        g0 = np.exp(self.log_g0)
+        free = g0 < FREE_CONCEPT_WEIGHT
+        added = int(n_free) - int(free.sum())
+        if added <= 0:
+            return self
+        L, D, V = self.n_concepts, self.n_features, self.n_words
+        hyper = self.hyperparameters
+
+        def prior_draw(alpha: float, rows: int, size: int) -> np.ndarray:
+            return log_dirichlet(np.full((rows, size), alpha), rng) if size else np.zeros((rows, 0))
+
+        weight = float(g0[free].min()) if free.any() and g0[free].min() > 0 else 1e-12
+        log_g0 = np.concatenate([self.log_g0, np.full(added, math.log(weight))])
+        log_g0 -= logsumexp(log_g0)
+        channels = self.channels
+        if channels is not None:
+            c = channels.channels
+            place = np.concatenate([c.log_place, prior_draw(ALPHA_PLACE, added, V)])
+            channels = KnowledgeChannels(replace(c, log_place=place), channels.tokens)
+        return replace(
+            self, log_g0=log_g0,
+            log_phi_visual=np.concatenate([self.log_phi_visual, prior_draw(hyper.alpha_visual, added, D)]),
+            log_phi_words=np.concatenate([self.log_phi_words, prior_draw(hyper.alpha_word, added, V)]),
+            concentration_visual=np.concatenate([self.concentration_visual, np.full(added, np.nan)]),
+            concentration_words=np.concatenate([self.concentration_words, np.full(added, np.nan)]),
+            hyperparameters=replace(self.hyperparameters, n_concepts=L + added), channels=channels)
+
     def shared_part(self) -> SharedPart:
         """The shared part as a new home is learnt with it (:class:`spco.model.home_shard.SharedPart`)."""
         return SharedPart(log_phi_visual=self.log_phi_visual, log_phi_words=self.log_phi_words,
                           log_g0=self.log_g0, word_mask=self.word_mask,
                           hyperparameters=self.hyperparameters, variant=self.variant,
-                          prune_words=self.prune_words, words=tuple(self.vocabulary.words))
+                          prune_words=self.prune_words, words=tuple(self.vocabulary.words),
+                          channels=None if self.channels is None else self.channels.channels)
 
     def shared_prior(self) -> SharedPrior:
         """The knowledge as the prior of the shared part (``adapt(..., joint=True)``): Dir(A φ̄),
@@ -226,9 +388,11 @@ class Knowledge:
             arrays["extractor." + name] = np.asarray(value)
         if self.name_prior is not None:
             arrays["name_prior"] = np.asarray(self.name_prior, dtype=np.float64)
+        if self.channels is not None:
+            arrays.update(self.channels.arrays())
         header = {
             "format": KNOWLEDGE_FORMAT,
-            "format_version": format_version(self.vocabulary),
+            "format_version": format_version(self.vocabulary, self.variant == "exact" and self.prune_words),
             "spco_version": _version(),
             "model": self.model,
             "variant": self.variant,
@@ -261,6 +425,7 @@ class Knowledge:
                  "concentration_words", "concentration_g0")
         _require(file, header, arrays, ("variant", "prune_words", "hyperparameters", "vocabulary",
                                         "word_increment"), [prefix + n for n in names])
+        check_word_model(file, header)
         try:
             return cls(
                 log_phi_visual=arrays[prefix + "log_phi_visual"],
@@ -280,6 +445,7 @@ class Knowledge:
                 extractor_arrays={name[len(prefix) + len("extractor."):]: a for name, a in arrays.items()
                                   if name.startswith(prefix + "extractor.")},
                 name_prior=arrays.get(prefix + "name_prior"),
+                channels=KnowledgeChannels.from_arrays(arrays, prefix),
             )
         except (ConfigurationError, TypeError, ValueError, IndexError) as exc:
             raise ModelFileError(file, f"inconsistent file: {exc}") from exc

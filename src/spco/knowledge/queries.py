@@ -31,6 +31,7 @@ from spco.model.position_prediction import PositionPrediction
 from spco.model.prediction import NamePrediction, UnknownNameError, mutual_information_weights, predict_names
 from spco.model.seeds import as_generator
 from spco.model.unheard import resolve_name
+from spco.model.word_channels import name_tokens
 
 #: How many of the home's own teachings the model's p(m | name) weighs as, in :func:`where`.
 WHERE_MODEL_WEIGHT = 1.0
@@ -64,7 +65,7 @@ def where(home: HomeModel, name: str, n: int = 10,
     answer is then for the known name it found (``name``: "toilet"; ``asked``: "restroom"; ``via``:
     how).
     """
-    resolved = resolve_name(home.vocabulary, home.state.word_mask, name, home.parameters.name_prior,
+    resolved = resolve_name(home.vocabulary, home.said_words, name, home.parameters.name_prior,
                             information=mutual_information_weights(home.parameters, 0))
     if resolved is not None:  # a name nobody said: the known name the lexicon finds for it
         return replace(_where(home, resolved.name, n, random_state), asked=resolved.asked, via=resolved.how)
@@ -132,10 +133,17 @@ def unused_word_hint(home: HomeModel, word: str) -> str | None:
     place name.
     """
     index = home.vocabulary.index(word)
-    if index is None or bool(home.state.word_mask[index]):
+    channels = home.knowledge.channels is not None
+    if index is None or bool((home.name_mask if channels else home.said_words)[index]):
         return None
     w = home.vocabulary.words[index]
     taught = [k for k, sentence in enumerate(home.sentences) if w in home.vocabulary.tokenize(sentence)]
+    if channels:  # the word channels: the word's uses are words of a place or background, not names
+        tokens = home.channel_tokens[index]
+        if not taught or tokens[2] >= tokens[:2].sum():
+            return (f"the word {w!r} names no place: {tokens[2]:.0f} of its {tokens.sum():.0f} uses (the "
+                    f"experienced homes' and this home's) are background words, said alike everywhere "
+                    f"(function words, fillers, greetings); teach the place by its name (\"this is the …\")")
     if not taught:
         return (f"the word {w!r} was pruned as uninformative in the experienced homes: it is said at "
                 f"every kind of place (or too rarely) to tell places apart, so it names no place")
@@ -153,6 +161,11 @@ def unused_word_hint(home: HomeModel, word: str) -> str | None:
                 f"home only), and this home's {len(taught)} teaching(s) do not yet show that it marks "
                 f"one place here; {more} (or fit the knowledge with --model spcotransfer: no pruning)")
     shown = ", ".join(str(int(home.ids[k])) for k in taught[:5]) + (", …" if len(taught) > 5 else "")
+    if channels:
+        return (f"the word {w!r} is not used as a place name yet: it is taught at {len(taught)} sample(s) of "
+                f"this home (id {shown}), and how it is said makes it a word of its place (an object, an "
+                f"activity: `where` finds the place by it) more likely than the place's name; to name the "
+                f"place, say its name as one (\"this is the …\"), or {more}")
     return (f"the word {w!r} is not used as a place name yet: it is taught at {len(taught)} sample(s) of "
             f"this home (id {shown}), too few to tell its place from the others (pruned as "
             f"uninformative); {more}")
@@ -195,14 +208,21 @@ def answer_parameters(home: HomeModel) -> ConceptParameters:
     """The home's parameters as every answer about names uses them (``what``, ``ask``, the service
     and the ROS node through them): the one place where a home's p(name | concept) is decided.
 
-    Today: the posterior average θ^w of the home, with the concepts the knowledge does not use at
-    their posterior mean given the home's own taught words (:func:`spco.model.confidence.named_parameters`:
-    uniform over the names when nothing was taught there). A word model that replaces θ^w (the
-    speech work) replaces this function and nothing else.
+    The posterior average θ^w of the home (with the word channels: the names channel), with the
+    concepts the knowledge does not use at their posterior mean given the home's own taught names
+    (:func:`spco.model.confidence.named_parameters`: uniform over the names when nothing was taught
+    there; with the channels the name tokens of the home's switches), and ``word_mask`` the home's
+    names (:attr:`~spco.knowledge.home.HomeModel.name_mask`): with the channels, the words most of
+    whose tokens are names — never a word said as an object or a background word.
     """
-    counts = concept_word_counts(home.data.words, home.state.concepts, home.knowledge.n_concepts)
-    return named_parameters(home.parameters, 0, np.exp(home.knowledge.log_g0) < FREE_CONCEPT_WEIGHT, counts,
-                            home.hyperparameters.alpha_word)
+    words = home.data.words
+    if home.knowledge.channels is not None and home.state.switches is not None and words.nnz:
+        words = name_tokens(words, home.state.switches)  # a free concept's names: its name tokens
+    counts = concept_word_counts(words, home.state.concepts, home.knowledge.n_concepts)
+    params = named_parameters(home.parameters, 0, np.exp(home.knowledge.log_g0) < FREE_CONCEPT_WEIGHT, counts,
+                              home.hyperparameters.alpha_word)
+    # the names only (the word channels: a word said as an object or a function word is never a name)
+    return replace(params, word_mask=home.name_mask)
 
 
 def name_prediction(home: HomeModel, poses: np.ndarray, visual: Any = None, top_k: int = 3,

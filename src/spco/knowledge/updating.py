@@ -26,6 +26,22 @@ from spco.model.seeds import as_generator, seed_of
 from spco.timestamps import utc_now
 
 
+def carried_switches(old: sp.csr_array, switches: np.ndarray | None, new: sp.csr_array,
+                     rows: list[int]) -> np.ndarray:
+    """The word channels' switches of the tokens of ``new`` (a home's word counts after a teaching):
+    the switch each token of the unchanged sample ``rows`` had in ``old`` (same row, same word), −1
+    (to draw) for every other token. ``switches``: (nnz of ``old``,) or ``None`` (all −1)."""
+    out = np.full(new.nnz, -1, dtype=np.int8)
+    if switches is None or switches.shape != (old.nnz,):
+        return out
+    for r in rows:  # a loop over the home's samples with a sentence
+        a, b = int(old.indptr[r]), int(old.indptr[r + 1])
+        c, d = int(new.indptr[r]), int(new.indptr[r + 1])
+        if b > a and b - a == d - c and np.array_equal(old.indices[a:b], new.indices[c:d]):
+            out[c:d] = switches[a:b]
+    return out
+
+
 def teach(  # noqa: PLR0915 (teach()'s local update arrived at the last merge; to split)
     home: HomeModel,
     sentences: Mapping[int, str | None] | None = None,
@@ -108,6 +124,8 @@ def teach(  # noqa: PLR0915 (teach()'s local update arrived at the last merge; t
     local = not home.joint and knowledge.variant == "exact"
     added = knowledge.n_words - home.knowledge.n_words
     state = _copy_state(home.state)
+    if knowledge.channels is not None:  # the channels of the grown vocabulary (fixed, like φ)
+        state.channels = knowledge.channels.channels
     if added:
         hyper = knowledge.hyperparameters
         log_new = math.log(hyper.alpha_word / hyper.delta_word)
@@ -128,6 +146,9 @@ def teach(  # noqa: PLR0915 (teach()'s local update arrived at the last merge; t
         state.regions = np.concatenate([state.regions, np.zeros(extra, dtype=np.int64)])
     data = prepare_home(positions, visual, new_sentences, knowledge.vocabulary, knowledge.word_increment,
                         home.position_scale, home.map_centre, view_missing)
+    if knowledge.channels is not None:  # the untouched sentences keep their tokens' switches
+        unchanged = [k for k in range(home.n_samples) if new_sentences[k] == home.sentences[k]]
+        state.switches = carried_switches(home.data.words, home.state.switches, data.words, unchanged)
     prior = None
     if home.joint:
         prior = knowledge.shared_prior()

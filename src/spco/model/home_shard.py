@@ -37,9 +37,12 @@ from spco.model.parameters import ConceptParameters
 from spco.model.posterior import ParameterAverage, thinned_sweeps
 from spco.model.pruning import NOT_A_NAME, words_to_keep
 from spco.model.state import GibbsState, PreparedData, SamplerSettings
+from spco.model.word_channels import NAME, WordChannels, switch_probabilities
 
 __all__ = [
     "FREE_CONCEPT_WEIGHT",
+    "NAME_SHARE",
+    "NAME_TOKENS",
     "OWN_NAMES_SPREAD_WARNING",
     "NewHomeShard",
     "OwnNamesSpreadWarning",
@@ -61,6 +64,8 @@ class SharedPart:
     hyperparameters: the model's hyperparameters.
     variant: the sampler (``"exact"`` or ``"reference"``); prune_words: "+MI".
     words: the V words of φ^w's columns (for messages).
+    channels: the word channels (:class:`~spco.model.word_channels.WordChannels`: ψ, β, the shares
+        and the evidence, fixed like φ), or ``None`` (the naming rule's word model).
     """
 
     log_phi_visual: np.ndarray
@@ -71,6 +76,7 @@ class SharedPart:
     variant: str
     prune_words: bool
     words: tuple[str, ...]
+    channels: WordChannels | None = None
 
     @property
     def n_features(self) -> int:
@@ -141,6 +147,75 @@ def prepare_home(positions: np.ndarray, visual: sp.csr_array, sentences: Sequenc
     )
 
 
+def switch_tokens(data: PreparedData, state: GibbsState) -> np.ndarray:
+    """(V, 3) the home's expected tokens of each word per channel (name, place, background): every
+    token's switch probabilities given its sample's concept (each token counted once,
+    :func:`spco.model.word_channels.switch_probabilities`); zeros without channels or words."""
+    V = data.words.shape[1]
+    out = np.zeros((V, 3))
+    if state.channels is None or not data.words.nnz:
+        return out
+    p = switch_probabilities(data.words, data.homes, state.concepts, state.log_theta_w, state.channels)
+    first, last = int(data.words.indptr[0]), int(data.words.indptr[-1])
+    np.add.at(out, data.words.indices[first:last], p)
+    return out
+
+
+def draw_switches(data: PreparedData, state: GibbsState, rng: np.random.Generator,
+                  rows: np.ndarray | None = None) -> None:
+    """Draw the word channels' switch of the tokens of the samples ``rows`` (default: every token
+    whose switch is unknown, −1, or all of them if the state has none for ``data``) given their
+    sample's concept, each token once (:func:`spco.model.word_channels.switch_probabilities`), in
+    place. Nothing without channels."""
+    words = data.words
+    if state.channels is None or not words.nnz:
+        if state.channels is not None:
+            state.switches = np.zeros(0, dtype=np.int8)
+        return
+    token_row = np.repeat(np.arange(words.shape[0]), np.diff(words.indptr))
+    if state.switches is None or state.switches.shape != (words.nnz,):
+        state.switches = np.full(words.nnz, -1, dtype=np.int8)
+    if rows is None:
+        todo = np.flatnonzero(state.switches < 0)
+    else:
+        todo = np.flatnonzero(np.isin(token_row, np.asarray(rows, dtype=np.int64)))
+    if todo.size == 0:
+        return
+    sub_rows = np.unique(token_row[todo])
+    sub = sp.csr_array(words[sub_rows])
+    p = switch_probabilities(sub, data.homes[sub_rows], state.concepts[sub_rows], state.log_theta_w,
+                             state.channels)
+    # the tokens of ``sub`` in the order of ``words``' tokens of those rows
+    position = np.concatenate([np.arange(words.indptr[r], words.indptr[r + 1]) for r in sub_rows])
+    wanted = np.isin(position, todo)
+    u = rng.random(int(wanted.sum()))
+    drawn = (u[:, None] > np.cumsum(p[wanted], axis=1)[:, :2]).sum(axis=1).astype(np.int8)
+    switches = state.switches.copy()
+    switches[position[wanted]] = drawn
+    state.switches = switches
+
+
+#: A word is one of a home's names once the posterior expects at least this many of its uses to be
+#: names (its tokens drawn as names by the channels' switches: the fit's, then the home's expected
+#: ones; `KnowledgeChannels.name_mask`): a word said once is a name when its switch says name more
+#: likely than not ("this is the study room"), not when it says place ("the fridge is over here": the
+#: evidence gives P(name) 0.22); a word of the experienced homes when any of its uses were names
+#: ("dining", a name in 13 % of its SIGVerse uses and an activity in the rest, names the dining
+#: area), provided they are at least :data:`NAME_SHARE` of its uses ("location", a name in 7 of its
+#: 532 template uses, is no name); a function word, with no name use at all, never. Which of a
+#: place's names comes first is then the names channel θ^w's.
+NAME_TOKENS = 0.5
+#: ... and at least this share of its uses (:data:`NAME_TOKENS`).
+NAME_SHARE = 0.1
+
+
+def name_words(tokens: np.ndarray) -> np.ndarray:
+    """(V,) bool: the words that are names given their uses per channel ``tokens`` (V, 3) (name,
+    place, background; expected or drawn): at least :data:`NAME_TOKENS` name uses and at least
+    :data:`NAME_SHARE` of all its uses."""
+    tokens = np.asarray(tokens, dtype=np.float64)
+    return (tokens[:, NAME] >= NAME_TOKENS) & (tokens[:, NAME] >= NAME_SHARE * tokens.sum(axis=1))
+
 #: A concept whose knowledge weight G_0 is below this is one the experienced homes did not use:
 #: the knowledge holds no information about it (its φ is a prior draw), see :func:`learn_free_concepts`.
 FREE_CONCEPT_WEIGHT = 1e-3
@@ -159,9 +234,12 @@ def own_names_to_free_concepts(data: PreparedData, state: GibbsState, shared: Sh
     if shared.variant != "exact" or data.words.shape[1] <= n_known:
         return False
     hyper = shared.hyperparameters
-    verdict = gibbs.naming_verdicts(data, state, hyper)
     candidate = np.zeros(data.words.shape[1], dtype=bool)
-    candidate[n_known:] = verdict[n_known:] != NOT_A_NAME
+    if shared.channels is not None:  # with the word channels: a new word whose tokens here are names
+        candidate[n_known:] = name_words(switch_tokens(data, state))[n_known:]
+    else:
+        verdict = gibbs.naming_verdicts(data, state, hyper)
+        candidate[n_known:] = verdict[n_known:] != NOT_A_NAME
     names = gibbs.sample_names(data, state.regions, hyper, named=candidate)
     free = np.exp(shared.log_g0) < FREE_CONCEPT_WEIGHT
     moved = False
@@ -232,6 +310,8 @@ def sweep_home(data: PreparedData, state: GibbsState, hyper: TransferHyperparame
         tables_g = sample_crt(stats.concepts, hyper.gamma * np.exp(state.log_g0)[None, :], rng).sum(axis=0)
         state.log_g0 = log_dirichlet(prior.g0 + tables_g, rng)
         gibbs.home_step(data, state, stats, hyper, settings, rng)
+    if state.channels is not None:  # the word channels: no word is pruned
+        return
     if settings.prune and settings.variant == "exact":
         known = state.candidate_words if state.candidate_words is not None else state.word_mask
         state.word_mask = home_word_mask(gibbs.naming_verdicts(data, state, hyper), known, n_known)
@@ -268,7 +348,7 @@ def initial_state(data: PreparedData, shared: SharedPart, settings: SamplerSetti
         log_theta_v=np.broadcast_to(shared.log_phi_visual, (1, L, shared.n_features)).copy(),
         log_theta_w=np.broadcast_to(shared.log_phi_words, (1, L, shared.n_words)).copy(),
         log_phi_v=shared.log_phi_visual.copy(), log_phi_w=shared.log_phi_words.copy(),
-        word_mask=shared.word_mask.copy(),
+        word_mask=shared.word_mask.copy(), channels=shared.channels,
     )
     stats = gibbs.sufficient_statistics(data, state, hyper)
     for name in ("visual", "words", "concepts", "regions_by_concept"):
@@ -323,6 +403,9 @@ def judge_new_words(state: GibbsState, shared: SharedPart, n_known: int,
     once. Reference variant: the words first heard here are judged by the authors' score on the
     home's θ^w and G_e."""
     if not shared.prune_words:
+        return
+    if shared.channels is not None:  # the word channels: no word is pruned, the switches say names
+        state.word_mask = np.ones(state.log_theta_w.shape[2], dtype=bool)
         return
     state.word_mask = state.word_mask.copy()
     if shared.variant == "exact" and data is not None:
@@ -439,6 +522,7 @@ class NewHomeShard:
         """Before the sweeps: judge the home's words (a taught name counts at once) and, with the
         shared part fixed, give the home's own names concepts of their own."""
         judge_new_words(self.state, self.shared, self.n_known, self.data)
+        draw_switches(self.data, self.state, self.rng)  # (channels: the tokens not drawn yet)
         if self.prior is None and own_names_to_free_concepts(self.data, self.state, self.shared,
                                                              self.n_known):
             learn_free_concepts(self.data, self.state, self.shared.hyperparameters, self.settings, self.rng)

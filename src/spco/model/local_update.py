@@ -20,8 +20,11 @@ current values (a valid MCMC step of the same posterior, restricted to a block):
    (:func:`~spco.model.home_shard.own_names_to_free_concepts`);
 3. ``n_sweeps`` sweeps of that block: the movable samples' (concept, region) pairs from their
    joint conditional restricted to ``C_A × R_A`` (the current pair is in it, so the step keeps the
-   posterior), then θ^v, θ^w and π of ``C_A``, the Gaussians of ``R_A``, and G_e's share among
-   ``C_A`` given the share of the other concepts (the conditional of a Dirichlet's sub-vector);
+   posterior; with the word channels the switches marginalised), with the word channels the switch
+   of each of their word tokens given its new concept (the taught tokens' switches are first drawn
+   given their sample's concept; every other token keeps its switch), then θ^v, θ^w and π of
+   ``C_A``, the Gaussians of ``R_A``, and G_e's share among ``C_A`` given the share of the other
+   concepts (the conditional of a Dirichlet's sub-vector);
    φ of a free concept in ``C_A`` (one the knowledge does not use) as adapting learns it;
 4. the home's answers come from the posterior average (:class:`~spco.model.posterior.ParameterAverage`)
    of those sweeps for ``C_A`` and ``R_A``, and from the home's previous average for every other
@@ -44,6 +47,7 @@ from spco.model import gibbs
 from spco.model.home_shard import (
     FREE_CONCEPT_WEIGHT,
     SharedPart,
+    draw_switches,
     judge_new_words,
     own_names_to_free_concepts,
     warn_if_own_names_spread,
@@ -54,6 +58,7 @@ from spco.model.observations import LOG_FLOOR, GaussianRegions, HierarchicalMult
 from spco.model.parameters import ConceptParameters
 from spco.model.posterior import ParameterAverage, masked_rows, thinned_sweeps
 from spco.model.state import GibbsState, PreparedData, SamplerSettings
+from spco.model.word_channels import mixture_log_likelihood
 
 __all__ = ["SPLIT_SWEEPS", "splice_posterior", "teach_locally"]
 
@@ -82,10 +87,17 @@ def _likelihoods(
     weights = gibbs.view_weights(data, settings.view_counts)
     if weights is not None:
         concept_ll *= weights[rows][:, None]
-    words = gibbs.sentence_words(data, state)[rows]
-    if words.nnz:
-        log_theta_w = gibbs.kept_word_log_theta(state.log_theta_w, state.word_mask)[0]
-        concept_ll = concept_ll + sp.csr_array(words, dtype=np.float64) @ np.maximum(log_theta_w, LOG_FLOOR).T
+    if state.channels is not None:  # the word channels: the switches marginalised, as the sampler
+        words = sp.csr_array(data.words[rows])
+        if words.nnz:
+            concept_ll = concept_ll + mixture_log_likelihood(words, data.homes[rows], state.log_theta_w,
+                                                             state.channels)
+    else:
+        words = gibbs.sentence_words(data, state)[rows]
+        if words.nnz:
+            log_theta_w = gibbs.kept_word_log_theta(state.log_theta_w, state.word_mask)[0]
+            theta = np.maximum(log_theta_w, LOG_FLOOR).T
+            concept_ll = concept_ll + sp.csr_array(words, dtype=np.float64) @ theta
     chol = np.linalg.cholesky(state.covariances[0])  # (K, d, d)
     diff = data.positions[rows][:, None, :] - state.means[0][None]  # (n, K, d)
     z = np.linalg.solve(chol[None], diff[..., None])[..., 0]
@@ -280,9 +292,13 @@ def _affected(
     concepts = np.unique(state.concepts[movable])
     said = taught[np.diff(data.words.indptr)[taught] > 0]
     if said.size:  # the concept whose words explain a taught sentence best
-        words = gibbs.sentence_words(data, state)[said]
-        log_theta_w = gibbs.kept_word_log_theta(state.log_theta_w, state.word_mask)
-        word_ll = HierarchicalMultinomial.log_likelihood(words, data.homes[said], log_theta_w)
+        if state.channels is not None:
+            word_ll = mixture_log_likelihood(sp.csr_array(data.words[said]), data.homes[said],
+                                             state.log_theta_w, state.channels)
+        else:
+            words = gibbs.sentence_words(data, state)[said]
+            log_theta_w = gibbs.kept_word_log_theta(state.log_theta_w, state.word_mask)
+            word_ll = HierarchicalMultinomial.log_likelihood(words, data.homes[said], log_theta_w)
         concepts = np.union1d(concepts, np.argmax(word_ll + state.log_g[0][None, :], axis=1))
     return movable.astype(np.int64), concepts.astype(np.int64), regions.astype(np.int64)
 
@@ -377,6 +393,7 @@ def teach_locally(
     judge_new_words(state, shared, n_known, data)  # a taught name counts at once
     L, K = state.log_pi.shape[1:]
     _draw_assignments(data, state, shared, settings, new, np.arange(L), np.arange(K), rng)
+    draw_switches(data, state, rng)  # (word channels: the switches of the taught tokens, given their concept)
     before = state.concepts.copy()
     own_names_to_free_concepts(data, state, shared, n_known)
     moved = np.flatnonzero(before != state.concepts)
@@ -387,6 +404,7 @@ def teach_locally(
     averaged = set(thinned_sweeps(int(n_sweeps))) if n_sweeps else set()
     for iteration in range(int(n_sweeps)):
         _draw_assignments(data, state, shared, settings, movable, concepts, regions, rng)
+        draw_switches(data, state, rng, movable)  # (word channels: the movable samples' tokens)
         if iteration < SPLIT_SWEEPS:  # once the sweeps told the taught place's samples from the others'
             regions = np.union1d(regions, _split_taught_places(data, state, shared, settings, taught))
         _parameters(data, state, shared, settings, concepts, regions, rng)

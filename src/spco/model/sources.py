@@ -167,6 +167,9 @@ class SyntheticHomes(RangeSource):
     teaching_rate: float = 100.0
     _world: object = field(default=None, repr=False, compare=False)
     position_scale: float = 1.0
+    #: (ν, a) of the vocabulary's words (spco.model.name_evidence.channel_evidence) from the sentences
+    #: the vocabulary was learnt from; ``None`` when none holds an English function word
+    channel_evidence: tuple[np.ndarray, np.ndarray] | None = None
 
     @classmethod
     def create(cls, n_homes: int, seed: int = 0, config=None, new_homes: int = 0,
@@ -182,6 +185,7 @@ class SyntheticHomes(RangeSource):
         sentences = [s for i in range(min(vocabulary_homes, n_homes))
                      for s in source.home(i).training_data().sentences]
         source.vocabulary = Vocabulary.from_sentences(sentences)
+        source.channel_evidence = _channel_evidence(source.vocabulary, sentences)
         return source
 
     @property
@@ -274,6 +278,9 @@ class FolderHomes(RangeSource):
     name_prior: np.ndarray | None = None  # (V,) spco.model.name_evidence.name_prior of the sentences
     #: (R, s, n) of each home (spco.model.hyperparameters.home_scales), for the scaled prior
     scales: tuple[tuple[float, float, int], ...] = ()
+    #: (ν, a) of the vocabulary's words (spco.model.name_evidence.channel_evidence); ``None`` when no
+    #: sentence holds an English function word
+    channel_evidence: tuple[np.ndarray, np.ndarray] | None = None
 
     @classmethod
     def create(cls, path, names=None, teaching_rate: int = 100, position_scale: float = 1.0,
@@ -323,7 +330,7 @@ class FolderHomes(RangeSource):
         return cls([str(f) for f in folders], home_names, int(teaching_rate), vocabulary,
                    DEFAULT_WORD_INCREMENT, np.array(sizes, dtype=np.int64), taught,
                    dims.pop() if dims and views else 0, float(position_scale),
-                   name_prior(vocabulary, sentences), scales)
+                   name_prior(vocabulary, sentences), scales, _channel_evidence(vocabulary, sentences))
 
     @property
     def n_homes(self) -> int:  # type: ignore[override]
@@ -359,3 +366,13 @@ class FolderHomes(RangeSource):
         sizes = SimpleNamespace(offsets=offsets, n_homes=self.n_homes)
         bounds = shard_bounds(sizes, n_shards)  # type: ignore[arg-type]
         return [RangePart(self, a, b) for a, b in bounds]
+
+
+def _channel_evidence(vocabulary, sentences) -> tuple[np.ndarray, np.ndarray] | None:
+    """The word channels' evidence (ν, a) of ``vocabulary``'s words said in ``sentences``, or ``None``
+    when no sentence holds an English function word (:func:`spco.model.name_evidence.has_english`)."""
+    from spco.model.name_evidence import channel_evidence, has_english
+
+    if not has_english(vocabulary, sentences):
+        return None
+    return channel_evidence(vocabulary, sentences)

@@ -93,6 +93,12 @@ class WordChannels:
     #: (:func:`sample_switches`), so that ψ, β and θ^w start from the evidence, not from a θ^w of
     #: the start that counted every word as a name
     fresh: bool = False
+    #: the first column of the words first heard in a home after the fit (``None``: none): their
+    #: switch is the prior's most probable channel (:func:`switch_probabilities`) — with no token in
+    #: the fit, their θ^w, ψ and β are all "a word never said" (θ^w a draw around a Dirichlet parameter
+    #: α^w, e^-95 as often as e^-17), which says nothing about the channel; and a switch redrawn from
+    #: the prior at every sweep would drop a name taught once from its concept's θ^w one sweep in three
+    prior_only_from: int | None = None
     #: :meth:`log_prior`, computed once per channels (every field is replaced, never changed in place)
     _log_prior: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
 
@@ -116,7 +122,7 @@ class WordChannels:
     def copy(self) -> WordChannels:
         """A copy of the arrays."""
         return WordChannels(self.log_place.copy(), self.log_background.copy(), self.log_shares.copy(),
-                            self.log_evidence.copy(), self.fresh)
+                            self.log_evidence.copy(), self.fresh, self.prior_only_from)
 
     @property
     def n_words(self) -> int:
@@ -140,18 +146,22 @@ class WordChannels:
         split = split - logsumexp(split, axis=1, keepdims=True)
         return np.column_stack([log_e[:, 0], rest[:, None] + split])
 
-    def extended(self, n_words: int, evidence: np.ndarray | None = None) -> WordChannels:
+    def extended(self, n_words: int, evidence: np.ndarray | None = None, content: np.ndarray | None = None,
+                 weight: float = 1.0) -> WordChannels:
         """The channels for a vocabulary grown to ``n_words`` (new words appended): new words get
         ψ and β of a word never said (α / (α V + count) as from the prior mean, here the smallest
-        present value) and evidence ``evidence[V_old:]`` (default ν = 0.5)."""
+        present value) and evidence ``evidence[V_old:]`` (default ν = 0.5) with content share
+        ``content[V_old:]`` (default 0.95: a content word) and weight η = ``weight``, as
+        :meth:`initial` computes it."""
         V = self.n_words
         added = n_words - V
         if added <= 0:
             return self
         nu = np.full(added, 0.5) if evidence is None else np.asarray(evidence, dtype=np.float64)[V:]
         nu = np.clip(nu, EVIDENCE_FLOOR, 1.0 - EVIDENCE_FLOOR)
-        log_e = np.stack([np.log(0.95) + np.log(nu), np.log(0.95) + np.log1p(-nu),
-                          np.full(added, np.log(0.05))], axis=1)
+        a = np.full(added, 0.95) if content is None else np.asarray(content, dtype=np.float64)[V:]
+        a = np.clip(a, 0.05, 0.95)
+        log_e = weight * np.stack([np.log(a) + np.log(nu), np.log(a) + np.log1p(-nu), np.log1p(-a)], axis=1)
         low_p = self.log_place.min(axis=1, keepdims=True) if V else np.zeros((self.log_place.shape[0], 1))
         low_b = self.log_background.min() if V else 0.0
         place = np.concatenate([self.log_place, np.repeat(low_p, added, axis=1)], axis=1)
@@ -196,11 +206,20 @@ def mixture_log_likelihood(words: sp.csr_array, homes: np.ndarray, log_theta_w: 
 
 def switch_probabilities(words: sp.csr_array, homes: np.ndarray, concepts: np.ndarray,
                          log_theta_w: np.ndarray, channels: WordChannels) -> np.ndarray:
-    """p(z_ti = c | C_t, w_ti) of every token, each token counted once: (nnz, 3)."""
+    """p(z_ti = c | C_t, w_ti) of every token, each token counted once: (nnz, 3). The tokens of the
+    words from ``channels.prior_only_from`` on (first heard in a home) get their prior's most probable
+    channel (:attr:`WordChannels.prior_only_from`)."""
     if not words.nnz:
         return np.zeros((0, 3))
-    return switch_rows(words, homes, concepts, log_theta_w, channels.log_place, channels.log_background,
-                       channels.log_prior())
+    p = switch_rows(words, homes, concepts, log_theta_w, channels.log_place, channels.log_background,
+                    channels.log_prior())
+    if channels.prior_only_from is not None:  # words first heard in a home: the prior's channel
+        _, cols, _ = _tokens(words)
+        new = cols >= channels.prior_only_from
+        if new.any():
+            p = np.array(p, copy=True)
+            p[new] = np.eye(3)[np.argmax(channels.log_prior()[cols[new]], axis=1)]
+    return p
 
 
 def sample_switches(words: sp.csr_array, homes: np.ndarray, concepts: np.ndarray, log_theta_w: np.ndarray,

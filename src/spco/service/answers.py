@@ -143,7 +143,7 @@ def regions_answer(home: kn.HomeModel, names_per_region: int = 3) -> dict[str, A
     covs = np.asarray(params.region_covariances[0], dtype=np.float64)[:, :2, :2]
     joint = np.asarray(params.region_weights[0], dtype=np.float64) * np.clip(
         np.asarray(params.concept_weights[0], dtype=np.float64), 0.0, None)[:, None]  # (L, K)
-    usable = np.asarray(params.word_mask, dtype=bool)
+    usable = np.asarray(home.name_mask, dtype=bool)  # the home's names (what `what` answers)
     theta_w = np.asarray(params.word_probabilities[0], dtype=np.float64) * usable[None, :]  # (L, V)
     words = home.vocabulary.words
 
