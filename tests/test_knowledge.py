@@ -613,3 +613,27 @@ def test_a_word_said_at_many_places_of_a_home_is_no_name(home_file: Path) -> Non
         theta = float(np.arctan2(home.positions[k, 2], home.positions[k, 3]))
         answers.append(kn.what(taught, float(x), float(y), theta).best[0])
     assert "well" not in answers and answers[-1] == "study room", answers
+
+
+def test_appended_free_concepts_hold_the_priors_mean_not_a_draw(knowledge_file: Path) -> None:
+    """A knowledge holds each concept's posterior mean; a concept no experienced home used has its
+    prior as posterior, so an appended one is the prior's mean — uniform φ^v, φ^w (and ψ) — whatever
+    the generator: one draw of Dir(α^w) puts nearly all its mass on one word at random and drew
+    taught samples away from their place (synthetic teaching effective 60 % instead of 95 %)."""
+    from spco.knowledge.knowledge import MIN_FREE_CONCEPTS
+
+    k = kn.load_knowledge(knowledge_file)
+    free = kn.FREE_CONCEPT_WEIGHT
+    a = k.with_free_concepts(np.random.default_rng(0), n_free=MIN_FREE_CONCEPTS + k.n_concepts)
+    b = k.with_free_concepts(np.random.default_rng(1), n_free=MIN_FREE_CONCEPTS + k.n_concepts)
+    L = k.n_concepts
+    added = a.n_concepts - L
+    assert added >= MIN_FREE_CONCEPTS and (np.exp(a.log_g0[L:]) < free).all()
+    for x, y in ((a.log_phi_visual, b.log_phi_visual), (a.log_phi_words, b.log_phi_words)):
+        assert np.array_equal(x, y)
+        np.testing.assert_allclose(np.exp(x[L:]), 1.0 / x.shape[1], rtol=1e-12)
+    assert np.array_equal(a.log_phi_visual[:L], k.log_phi_visual)
+    assert np.array_equal(a.log_phi_words[:L], k.log_phi_words)
+    if a.channels is not None:
+        place = a.channels.channels.log_place
+        np.testing.assert_allclose(np.exp(place[L:]), 1.0 / place.shape[1], rtol=1e-12)

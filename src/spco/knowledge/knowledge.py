@@ -29,8 +29,7 @@ from spco.knowledge.files import (
 from spco.model.home_shard import FREE_CONCEPT_WEIGHT, SharedPart, SharedPrior, name_words
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.io import _checksum
-from spco.model.kernels.dirichlet import log_dirichlet
-from spco.model.word_channels import ALPHA_PLACE, WordChannels
+from spco.model.word_channels import WordChannels
 
 #: The transfer models whose shared part can be learnt: name -> (sampler variant, word pruning).
 MODELS: dict[str, tuple[str, bool]] = {
@@ -323,15 +322,23 @@ class Knowledge:
         return replace(self, log_phi_words=log_phi, word_mask=mask, vocabulary=vocabulary, channels=channels)
 
     # ------------------------------------------------------------------ for a new home
-    def with_free_concepts(self, rng: np.random.Generator, n_free: int = MIN_FREE_CONCEPTS) -> Knowledge:
+    def with_free_concepts(self, rng: np.random.Generator | None = None,
+                           n_free: int = MIN_FREE_CONCEPTS) -> Knowledge:
         """This knowledge with at least ``n_free`` concepts the experienced homes do not use (G_0
         below :data:`~spco.model.home_shard.FREE_CONCEPT_WEIGHT`), appended when it has fewer: the
         concepts a new home's own names take (names nobody in the experienced homes said: "emma's
         room", a room taught once). A concept no experienced home used has its prior as posterior,
-        so an appended one is what a fit with a larger truncation L would hold: φ^v ~ Dir(α^v),
-        φ^w ~ Dir(α^w) and ψ ~ Dir(α^p) drawn from ``rng`` (as a fit's unused concept holds a prior
-        draw), G_0 the weight of the knowledge's own unused concepts (or 1e-12),
-        concentrations unknown (δ, γ). Returns ``self`` when it has enough."""
+        and a knowledge holds the posterior *mean* of each concept's φ and ψ (averaged over the fit's
+        kept sweeps), so an appended one holds what a fit with a larger truncation L would report
+        for it: the prior's mean — φ^v, φ^w and ψ uniform — not one prior draw. (One draw of
+        Dir(α^w) with a small α^w puts nearly all its mass on one word of the vocabulary at random;
+        a concept holding it explains every sentence with that word, and on the synthetic home of
+        ``benchmarks/teaching.py`` it drew taught samples and views away from their place: a single
+        teaching was effective in 60 % of teachings instead of 95 %.) G_0 the weight of the
+        knowledge's own unused concepts (or 1e-12), concentrations unknown (δ, γ). Deterministic:
+        ``rng`` is accepted for callers that pass one and not used. Returns ``self`` when it has
+        enough."""
+        del rng  # the prior's mean needs no draw
         g0 = np.exp(self.log_g0)
         free = g0 < FREE_CONCEPT_WEIGHT
         added = int(n_free) - int(free.sum())
@@ -340,8 +347,8 @@ class Knowledge:
         L, D, V = self.n_concepts, self.n_features, self.n_words
         hyper = self.hyperparameters
 
-        def prior_draw(alpha: float, rows: int, size: int) -> np.ndarray:
-            return log_dirichlet(np.full((rows, size), alpha), rng) if size else np.zeros((rows, 0))
+        def prior_mean(rows: int, size: int) -> np.ndarray:
+            return np.full((rows, size), -math.log(size) if size else 0.0)
 
         weight = float(g0[free].min()) if free.any() and g0[free].min() > 0 else 1e-12
         log_g0 = np.concatenate([self.log_g0, np.full(added, math.log(weight))])
@@ -349,15 +356,15 @@ class Knowledge:
         channels = self.channels
         if channels is not None:
             c = channels.channels
-            place = np.concatenate([c.log_place, prior_draw(ALPHA_PLACE, added, V)])
+            place = np.concatenate([c.log_place, prior_mean(added, V)])
             channels = KnowledgeChannels(replace(c, log_place=place), channels.tokens)
         return replace(
             self, log_g0=log_g0,
-            log_phi_visual=np.concatenate([self.log_phi_visual, prior_draw(hyper.alpha_visual, added, D)]),
-            log_phi_words=np.concatenate([self.log_phi_words, prior_draw(hyper.alpha_word, added, V)]),
+            log_phi_visual=np.concatenate([self.log_phi_visual, prior_mean(added, D)]),
+            log_phi_words=np.concatenate([self.log_phi_words, prior_mean(added, V)]),
             concentration_visual=np.concatenate([self.concentration_visual, np.full(added, np.nan)]),
             concentration_words=np.concatenate([self.concentration_words, np.full(added, np.nan)]),
-            hyperparameters=replace(self.hyperparameters, n_concepts=L + added), channels=channels)
+            hyperparameters=replace(hyper, n_concepts=L + added), channels=channels)
 
     def shared_part(self) -> SharedPart:
         """The shared part as a new home is learnt with it (:class:`spco.model.home_shard.SharedPart`)."""
