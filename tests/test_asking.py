@@ -236,7 +236,7 @@ def test_a_home_whose_every_place_is_taught_asks_little(world: dict) -> None:
     untaught = home_question_scores(world["home"])
     scores = home_question_scores(known)
     # every room has a taught name (measured with the word channels: 0.1 at one sample of 180, a view
-    # the concepts appended for the home's own names — prior draws, Knowledge.with_free_concepts —
+    # the concepts appended for the home's own names — Knowledge.with_free_concepts —
     # explain in part)
     assert scores.own_name.max() < 0.2 and np.mean(scores.own_name > 0) < 0.02
     size = np.bincount(scores.rooms)

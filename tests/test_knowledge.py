@@ -50,8 +50,14 @@ def knowledge_file(homes: dict[str, Path]) -> Path:
 
 @pytest.fixture(scope="module")
 def home_file(homes: dict[str, Path], knowledge_file: Path) -> Path:
+    """The new home adapted with 15 sweeps. With this weak knowledge the adapting chain too can leave
+    the untaught home absorbed by a concept learnt from it alone (42 of 120 samples in a free
+    concept): adapt seeds 0–39 measured, 1 of 40 on the code before and after the free concepts held
+    the prior's mean (seed 31 before, seed 0 after: the chain's stream changed); seed 1 is the usual
+    case on both."""
     out = homes["root"] / "home.spco"
-    result = _invoke(adapt, [knowledge_file, "--home", homes["new"], "--iterations", 15, "--out", out])
+    result = _invoke(adapt, [knowledge_file, "--home", homes["new"], "--iterations", 15, "--seed", 1,
+                             "--out", out])
     assert result.exit_code == 0, result.output
     return out
 
@@ -136,7 +142,7 @@ def test_adapt_writes_home(home_file: Path, knowledge_file: Path, homes: dict[st
     assert home.n_taught == 0 and home.n_samples == home.state.concepts.size
     # the shared part is the knowledge's (kept fixed), but for the concepts the knowledge does not
     # use: those are learnt from the home
-    # (and the concepts a home's own names need, appended when the knowledge has too few: prior draws)
+    # (and the concepts a home's own names need, appended when the knowledge has too few: the prior's mean)
     from spco.knowledge.knowledge import MIN_FREE_CONCEPTS
 
     L = k.n_concepts
