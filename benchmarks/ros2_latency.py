@@ -24,8 +24,8 @@ speech_topic:=/speech``, and plays the robot in this process with rclpy (tests/r
 from __future__ import annotations
 
 import argparse
-import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -38,12 +38,8 @@ from typing import Any
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def _percentiles(seconds: list[float]) -> dict[str, float]:
-    ms = np.asarray(seconds) * 1e3
-    return {"n": int(ms.size), "p50": float(np.percentile(ms, 50)), "p95": float(np.percentile(ms, 95)),
-            "p99": float(np.percentile(ms, 99)), "max": float(ms.max()), "mean": float(ms.mean())}
+from latency_report import percentiles as _percentiles  # noqa: E402 (benchmarks/, next to this script)
+from latency_report import print_report, query_rows  # noqa: E402
 
 
 class Drive(threading.Thread):
@@ -100,6 +96,11 @@ def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order th
                         help="spco ros2 --writer: where the teachings are applied")
     parser.add_argument("--dir", type=Path, default=None,
                         help="folder for the home and the logs (default: a temporary one)")
+    parser.add_argument("--robot-executor", choices=("multi", "single"), default="multi",
+                        help="the robot's rclpy executor (tests/ros2_robot.py), spun in a thread")
+    parser.add_argument("--home", type=Path, default=None,
+                        help="a tour home made by an earlier run (its folder's home.spco, copied into --dir; "
+                        "the node teaches into the copy) instead of building one")
     args = parser.parse_args()
     try:
         import rclpy
@@ -110,14 +111,20 @@ def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order th
                  f"{exc}")
     sys.path.insert(0, str(ROOT / "tests"))
     from ros2_robot import Robot
-    from ros_harness import tour_home
+    from ros_harness import reserve_ros_domain, tour_home
 
     from spco.data.bagtour import ROOMS, room_at
 
     folder = args.dir or Path(tempfile.mkdtemp(prefix="spco-ros2-bench-"))
     folder.mkdir(parents=True, exist_ok=True)
-    home = tour_home(folder, seed=args.seed)
-    os.environ.update({"ROS_DOMAIN_ID": str(1 + os.getpid() % 100), "ROS_LOG_DIR": str(folder),
+    if args.home is not None:
+        if not args.home.is_file():
+            sys.exit(f"--home {args.home}: no such file")
+        home = folder / "home.spco"
+        shutil.copyfile(args.home, home)
+    else:
+        home = tour_home(folder, seed=args.seed)
+    os.environ.update({"ROS_DOMAIN_ID": str(reserve_ros_domain()), "ROS_LOG_DIR": str(folder),
                        "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"})
     log = (folder / "node.log").open("w")
     node = subprocess.Popen([sys.executable, "-m", "spco", "ros2", str(home), "--writer", args.writer,
@@ -129,7 +136,7 @@ def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order th
                                     image_topic="/camera/image", speech_topic="/speech",
                                     query_topic="/spco/query", answer_topic="/spco/answer",
                                     markers_topic="/spco/markers", where_topic="/spco/where",
-                                    goal_topic="/goal_pose")
+                                    goal_topic="/goal_pose", executor=args.robot_executor)
     robot = Robot(robot_args)
     camera = robot.node.create_publisher(CompressedImage, "/camera/image/compressed", qos_profile_sensor_data)
     drive = None
@@ -142,7 +149,9 @@ def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order th
         robot.query({"id": "warm-where", "op": "where", "name": "kitchen"})
         robot.query({"id": "warm-what", "op": "what"})
         names = ["kitchen", "living room", "bedroom"]
+        load_start = os.getloadavg()
         latencies: dict[str, list[float]] = {"where": [], "what": []}
+        hops: dict[str, list[float]] = {"transit": [], "dispatch": [], "rest": []}
         errors = 0
         for k in range(args.queries):
             op = "where" if k % 2 == 0 else "what"
@@ -151,6 +160,10 @@ def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order th
             errors += got["answer"] is None or "error" in got["answer"]
             if got["seconds"] is not None:
                 latencies[op].append(got["seconds"])
+                if got["hops"]:
+                    hops["transit"].append(got["hops"]["transit"])
+                    hops["dispatch"].append(got["hops"]["dispatch"])
+                    hops["rest"].append(got["seconds"] - got["hops"]["transit"] - got["hops"]["dispatch"])
         markers, teach, first = [], [], None
         parts: dict[str, list[float]] = {}
         for k in range(args.utterances):
@@ -171,32 +184,19 @@ def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order th
                 teach.append(got_answer["received"] - sent)
                 for part, seconds in answer.get("node_seconds", {}).items():
                     parts.setdefault(part, []).append(seconds)
-        load = os.getloadavg()
-        result = {"queries": {op: _percentiles(v) for op, v in latencies.items()},
-                  "all_queries": _percentiles(latencies["where"] + latencies["what"]),
+        result = {**query_rows(latencies),
                   "utterance_to_markers": _percentiles(markers) if markers else None,
                   "utterance_to_teach_answer": _percentiles(teach) if teach else None,
                   "node_seconds_per_teaching": {part: _percentiles(v) for part, v in parts.items()},
-                  "first_teaching": first, "errors": errors, "loadavg": load, "writer": args.writer,
+                  "first_teaching": first, "errors": errors, "loadavg_start": load_start,
+                  "writer": args.writer, "robot_executor": args.robot_executor,
                   "rmw": os.environ.get("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")}
-        print(f"spco ros2, query -> answer (ms), {args.queries} queries, Fast DDS on loopback "
-              f"(writer: {args.writer}):")
-        for op, row in [*result["queries"].items(), ("all", result["all_queries"])]:
-            print(f"  {op:<6} p50 {row['p50']:6.2f}  p95 {row['p95']:6.2f}  p99 {row['p99']:6.2f}  "
-                  f"max {row['max']:7.2f}  (n={row['n']})")
-        if markers:
-            m, t = result["utterance_to_markers"], result["utterance_to_teach_answer"]
-            print(f"utterance -> updated markers (ms), {len(markers)} teachings after the first: "
-                  f"p50 {m['p50']:.1f}  p95 {m['p95']:.1f}  p99 {m['p99']:.1f}  max {m['max']:.1f}; "
-                  f"-> teach answer p50 {t['p50']:.1f} max {t['max']:.1f}")
-            print("  in the node (ms, p50 / max): " + ", ".join(
-                f"{part} {row['p50']:.1f} / {row['max']:.1f}"
-                for part, row in result["node_seconds_per_teaching"].items()))
-        if first:
-            print(f"first teaching of the node: markers {first['markers_ms']:.0f} ms, answer "
-                  f"{first['answer_ms']:.0f} ms")
-        print(f"errors: {errors}; load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}")
-        print(json.dumps(result))
+        labels = {"rest": "the query to the node, the node's answer, its publish",
+                  "transit": "the answer in the middleware (source -> received stamps)",
+                  "dispatch": "the answer from the middleware to the robot's callback (its executor)"}
+        print_report(result, f"spco ros2, query -> answer (ms), {args.queries} queries, Fast DDS on loopback "
+                     f"(writer: {args.writer}; robot: {args.robot_executor} executor):",
+                     breakdown={labels[k]: _percentiles(v) for k, v in hops.items() if v})
     finally:
         if drive is not None:
             drive.stop.set()

@@ -26,7 +26,6 @@ name texts; as RViz shows them, top view of the map frame) with matplotlib.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
 import sys
@@ -40,12 +39,8 @@ import numpy as np
 
 # the ROS master, node process and stand-in robot the tests use (tests/ros_harness.py)
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-
-
-def _percentiles(seconds: list[float]) -> dict[str, float]:
-    ms = np.asarray(seconds) * 1e3
-    return {"n": int(ms.size), "p50": float(np.percentile(ms, 50)), "p95": float(np.percentile(ms, 95)),
-            "p99": float(np.percentile(ms, 99)), "max": float(ms.max()), "mean": float(ms.mean())}
+from latency_report import percentiles as _percentiles  # benchmarks/, next to this script
+from latency_report import print_report, query_rows
 
 
 class Drive(threading.Thread):
@@ -163,6 +158,7 @@ def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order th
         robot.query({"id": "warm-where", "op": "where", "name": "kitchen"})
         robot.query({"id": "warm-what", "op": "what"})
         names = ["kitchen", "living room", "bedroom"]
+        load_start = os.getloadavg()
         latencies: dict[str, list[float]] = {"where": [], "what": []}
         errors = 0
         for k in range(args.queries):
@@ -193,33 +189,17 @@ def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order th
                 writer.append(float(answer.get("seconds", math.nan)))  # the writer's own time
                 for part, seconds in answer.get("node_seconds", {}).items():
                     parts.setdefault(part, []).append(seconds)
-        load = os.getloadavg()
-        result = {"queries": {op: _percentiles(v) for op, v in latencies.items()},
-                  "all_queries": _percentiles(latencies["where"] + latencies["what"]),
+        w = _percentiles(writer) if writer else None
+        result = {**query_rows(latencies),
                   "utterance_to_markers": _percentiles(markers) if markers else None,
                   "utterance_to_teach_answer": _percentiles(teach) if teach else None,
-                  "writer_seconds_per_teaching": _percentiles(writer) if writer else None,
+                  "writer_seconds_per_teaching": w,
                   "node_seconds_per_teaching": {part: _percentiles(v) for part, v in parts.items()},
-                  "first_teaching": first, "errors": errors, "loadavg": load, "writer": args.writer}
-        print(f"query -> answer (ms), {args.queries} queries, loopback (writer: {args.writer}):")
-        for op, row in [*result["queries"].items(), ("all", result["all_queries"])]:
-            print(f"  {op:<6} p50 {row['p50']:6.2f}  p95 {row['p95']:6.2f}  p99 {row['p99']:6.2f}  "
-                  f"max {row['max']:7.2f}  (n={row['n']})")
-        if markers:
-            m, t = result["utterance_to_markers"], result["utterance_to_teach_answer"]
-            w = result["writer_seconds_per_teaching"]
-            print(f"utterance -> updated markers (ms), {len(markers)} teachings after the first: "
-                  f"p50 {m['p50']:.1f}  p95 {m['p95']:.1f}  max {m['max']:.1f}; -> teach answer "
-                  f"p50 {t['p50']:.1f} max {t['max']:.1f}; of which the writer process p50 {w['p50']:.1f} "
-                  f"max {w['max']:.1f}")
-            print("  in the node (ms, p50 / max): " + ", ".join(
-                f"{part} {row['p50']:.1f} / {row['max']:.1f}"
-                for part, row in result["node_seconds_per_teaching"].items()))
-        if first:
-            print(f"first teaching of the node: markers {first['markers_ms']:.0f} ms, answer "
-                  f"{first['answer_ms']:.0f} ms")
-        print(f"errors: {errors}; load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}")
-        print(json.dumps(result))
+                  "first_teaching": first, "errors": errors, "loadavg_start": load_start,
+                  "writer": args.writer}
+        print_report(result,
+                     f"query -> answer (ms), {args.queries} queries, loopback (writer: {args.writer}):",
+                     f"; of which the writer process p50 {w['p50']:.1f} max {w['max']:.1f}" if w else "")
         if args.markers_png is not None:
             draw_markers(robot.markers[-1][1], args.markers_png,
                          "/spco/markers as received over ROS 1 (visualization_msgs/MarkerArray, frame map): "

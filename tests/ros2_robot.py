@@ -12,7 +12,8 @@ library, NumPy and rclpy. Commands (``{"cmd": …}``):
 - ``say`` ``{sentence}``: publish on ``--speech-topic``; returns the send time;
 - ``query`` ``{request, timeout?}``: publish a query (JSON text, or a string as is) and wait for the
   answer echoing its id (``"match": "error"`` waits for the next answer with an error); returns
-  ``{"answer", "seconds"}``;
+  ``{"answer", "seconds", "hops"}`` (``hops``: the answer's ``transit`` in the middleware and
+  ``dispatch`` by this side's executor, seconds);
 - ``answer`` ``{op, timeout?}``: wait for the next answer with that op (e.g. a teaching's);
 - ``markers`` ``{after?, timeout?}``: wait for a MarkerArray received after ``after`` (a time from
   ``say``); returns its markers summarised and the time it came;
@@ -40,7 +41,7 @@ from geometry_msgs.msg import PoseArray, PoseStamped, PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import DescribeParameters, GetParameters, SetParameters
-from rclpy.executors import MultiThreadedExecutor
+from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import Image
 from std_msgs.msg import String
@@ -51,6 +52,18 @@ LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
+def make_executor(kind: str) -> Any:
+    """The robot's executor, spun in a thread of its own: ``multi`` (rclpy's multi-threaded executor,
+    two threads) or ``single`` (the single-threaded one, ``rclpy.spin``'s). Not rclpy 7.1's events
+    executor: it fails on a subscription callback that takes the message's MessageInfo, as the
+    answers' does (``SystemError: null argument to internal routine``)."""
+    if kind == "multi":
+        return MultiThreadedExecutor(num_threads=2)
+    if kind == "single":
+        return SingleThreadedExecutor()
+    raise ValueError(f"executor: expected multi or single, got {kind!r}")
+
+
 class Robot:
     """The robot's side of the graph."""
 
@@ -59,6 +72,7 @@ class Robot:
         self.node = rclpy.create_node("fake_robot")
         self.lock = threading.Condition()
         self.answers: list[tuple[float, dict[str, Any]]] = []
+        self.answer_hops: list[dict[str, float]] = []  # of each answer: see _on_answer
         self.markers: list[tuple[float, Any]] = []
         self.goals: list[Any] = []
         self.where: list[Any] = []
@@ -78,19 +92,28 @@ class Robot:
         self.clients = {"get": n.create_client(GetParameters, f"{node_name}/get_parameters"),
                         "set": n.create_client(SetParameters, f"{node_name}/set_parameters"),
                         "describe": n.create_client(DescribeParameters, f"{node_name}/describe_parameters")}
-        self.executor = MultiThreadedExecutor(num_threads=2)
+        self.executor = make_executor(getattr(args, "executor", "multi"))
         self.executor.add_node(n)
         self.thread = threading.Thread(target=self.executor.spin, daemon=True)
         self.thread.start()
 
     # ------------------------------------------------------------------ callbacks
-    def _on_answer(self, msg: String) -> None:
+    def _on_answer(self, msg: String, info: Any) -> None:
+        """An answer, with where its time went on this side (``info``: the middleware's MessageInfo):
+        ``transit`` from the node's publish to the middleware here (source → received timestamps,
+        both the system clock) and ``dispatch`` from there to this callback (the executor)."""
+        called = time.perf_counter()
+        now_ns = time.time_ns()
+        source, received = info.get("source_timestamp"), info.get("received_timestamp")
+        hops = ({"transit": max(0.0, (received - source) * 1e-9),
+                 "dispatch": max(0.0, (now_ns - received) * 1e-9)} if source and received else {})
         try:
             answer = json.loads(msg.data)
         except ValueError:
             answer = {"unparsed": msg.data}
         with self.lock:
-            self.answers.append((time.perf_counter(), answer))
+            self.answers.append((called, answer))
+            self.answer_hops.append(hops)
             self.lock.notify_all()
 
     def _on_markers(self, msg: MarkerArray) -> None:
@@ -167,17 +190,17 @@ class Robot:
         self.query_pub.publish(String(data=text))
 
         def found() -> Any:
-            for t, answer in self.answers[start_index:]:
+            for k, (t, answer) in enumerate(self.answers[start_index:], start_index):
                 if match == "error" and "error" in answer and answer.get("op") != "teach":
-                    return t, answer
+                    return t, answer, self.answer_hops[k]
                 if match == "id" and answer.get("id") == wanted and answer.get("op") != "teach":
-                    return t, answer
+                    return t, answer, self.answer_hops[k]
             return None
 
         got = self._wait(found, timeout)
         if got is None:
-            return {"answer": None, "seconds": None}
-        return {"answer": got[1], "seconds": got[0] - sent}
+            return {"answer": None, "seconds": None, "hops": {}}
+        return {"answer": got[1], "seconds": got[0] - sent, "hops": got[2]}
 
     def answer(self, op: str, after: float = 0.0, timeout: float = 10.0) -> dict:
         got = self._wait(lambda: next(((t, a) for t, a in self.answers if t > after and a.get("op") == op),
@@ -292,6 +315,7 @@ def main() -> None:
     parser.add_argument("--where-topic", default="/spco/where")
     parser.add_argument("--goal-topic", default="/goal_pose")
     parser.add_argument("--connect-timeout", type=float, default=120.0)
+    parser.add_argument("--executor", choices=("multi", "single"), default="multi")
     args = parser.parse_args()
     rclpy.init()
     robot = Robot(args)

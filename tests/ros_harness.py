@@ -29,10 +29,12 @@ from spco.ros import import_rospy
 from spco.ros.messages import quaternion_from_yaw
 
 __all__ = [
+    "MALFORMED_QUERIES",
     "SWAPPED_ROOM_COLOURS",
     "FakeRobot",
     "Mailbox",
     "free_port",
+    "reserve_ros_domain",
     "ros_environment",
     "start_master",
     "start_node",
@@ -47,6 +49,54 @@ def free_port() -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
         s.bind(("127.0.0.1", 0))
         return int(s.getsockname()[1])
+
+
+#: Queries the node must answer with an error on the answer topic, and stay up — the same for every
+#: transport (ROS 1, ROS 2): (the query: a JSON object, or a text sent as is; the id the error answer
+#: echoes; a part of its error message).
+MALFORMED_QUERIES: list[tuple[Any, Any, str]] = [
+    ("not json", None, "not JSON"),
+    ("[1, 2]", None, "must be a JSON object"),
+    ({"id": 1, "op": "fly"}, 1, "unknown op 'fly'"),
+    ({"id": 2, "op": "where"}, 2, "has no 'name'"),
+    ({"id": 3, "op": "where", "name": "kitchen", "n": "ten"}, 3, "'n' must be an integer"),
+    ({"id": 4, "op": "where", "name": "kichen"}, 4, "kichen"),
+    ({"id": 5, "op": "what", "x": 1.0}, 5, "give all of 'x', 'y' and 'theta'"),
+    ({"id": 6, "op": "what", "x": 1.0, "y": 1.0, "theta": 90.0}, 6, "radians"),
+    ({"id": 7, "op": "where", "name": "kitchen", "goal": "yes"}, 7, "'goal' must be true or false"),
+]
+
+_DOMAIN_LOCKS: dict[int, Any] = {}
+
+
+def reserve_ros_domain(low: int = 1, high: int = 101) -> int:
+    """A ``ROS_DOMAIN_ID`` in ``low..high`` that no other spco test or benchmark run on this machine
+    holds, reserved until this process exits (an exclusive ``flock`` on
+    ``<tmp>/spco-ros2-domain-N.lock``; the same id again on later calls).
+
+    Concurrent runs in the same domain see each other's nodes and robots (the same ``/spco`` names):
+    each node then answers the other robot's queries and takes its camera frames — wrong answers and
+    latencies that are not the node's. The search starts at an id drawn from the process id and
+    takes the first free one. Raises ``RuntimeError`` when every id is held.
+    """
+    import fcntl
+    import tempfile
+
+    if _DOMAIN_LOCKS:
+        return next(iter(_DOMAIN_LOCKS))
+    span = high - low + 1
+    start = os.getpid() % span
+    for k in range(span):
+        domain = low + (start + k) % span
+        handle = (Path(tempfile.gettempdir()) / f"spco-ros2-domain-{domain}.lock").open("a")
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            handle.close()
+            continue
+        _DOMAIN_LOCKS[domain] = handle  # kept open: the lock lasts as long as this process
+        return domain
+    raise RuntimeError(f"every ROS 2 domain {low}..{high} is held by another spco test or benchmark run")
 
 
 def ros_environment(port: int, log_dir: str | os.PathLike[str]) -> dict[str, str]:

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 from conftest import missing_tool
-from ros_harness import SWAPPED_ROOM_COLOURS
+from ros_harness import MALFORMED_QUERIES, SWAPPED_ROOM_COLOURS
 
 from spco.data.bagtour import view
 from spco.errors import SpcoError
@@ -184,18 +184,7 @@ def test_an_rgb_frame_declared_rgb8_gives_the_names_of_the_bgr_frame_and_of_the_
 
 def test_malformed_queries_get_an_error_answer_and_the_node_stays_up(ros_node) -> None:
     robot, _, node = ros_node
-    cases = [
-        ("not json", None, "not JSON"),
-        ("[1, 2]", None, "must be a JSON object"),
-        ({"id": 1, "op": "fly"}, 1, "unknown op 'fly'"),
-        ({"id": 2, "op": "where"}, 2, "has no 'name'"),
-        ({"id": 3, "op": "where", "name": "kitchen", "n": "ten"}, 3, "'n' must be an integer"),
-        ({"id": 4, "op": "where", "name": "kichen"}, 4, "kichen"),
-        ({"id": 5, "op": "what", "x": 1.0}, 5, "give all of 'x', 'y' and 'theta'"),
-        ({"id": 6, "op": "what", "x": 1.0, "y": 1.0, "theta": 90.0}, 6, "radians"),
-        ({"id": 7, "op": "where", "name": "kitchen", "goal": "yes"}, 7, "'goal' must be true or false"),
-    ]
-    for request, expected_id, message in cases:
+    for request, expected_id, message in MALFORMED_QUERIES:
         # an unknown name is looked up in WordNet: its first load takes seconds on a loaded machine
         answer, _ = robot.query(request, timeout=60)
         assert answer["id"] == expected_id and message in answer["error"], answer

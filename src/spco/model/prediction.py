@@ -34,9 +34,9 @@ Confidence: those thousands of nats make p(w | x, v) sure of every answer, the w
 counts of one image are not independent draws). ``view_counts`` weights each view's visual term as
 that many draws; ``spco.knowledge.what`` and ``ask`` answer with :func:`predict_names` on
 ``spco.knowledge.answer_parameters`` (free concepts' names at their posterior mean) with a view =
-:data:`~spco.model.confidence.VIEW_EFFECTIVE_COUNTS` draws and an ``unsure`` flag.
-``view_counts=None`` (the default here) is the multinomial;
-the exact model learns, and its experiments predict, with ``TransferHyperparameters.view_counts``.
+the model's view weight w draws (``TransferHyperparameters.view_counts``, the one the model learnt
+with) and an ``unsure`` flag (:func:`spco.model.confidence.answer_names`, which the experiments call
+too). ``view_counts=None`` (the default here) is the multinomial.
 """
 
 from __future__ import annotations
