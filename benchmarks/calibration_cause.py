@@ -8,7 +8,8 @@ experienced-home set:
   (a) the model's multinomial (every count a draw), (b) a Dirichlet-multinomial with θ^v's own
   posterior uncertainty (concentration δ^v + the concept's visual counts in the home), (c) a
   Dirichlet-multinomial with a precision s fitted by maximum likelihood to the home's training views
-  (in-sample overdispersion), (d) the view counted as n_eff = ``VIEW_EFFECTIVE_COUNTS`` draws;
+  (in-sample overdispersion), (d) the view counted as the model's view weight w draws
+  (``view_counts``, 16 by default);
   and the share of test views whose concept is decided at P(l | view) ≥ 0.99 under each;
 - of the wrong answers of the model's own p(w | x, v): how many have the right name's concept
   ahead given the position alone (the view overruled the position), and how many come from a
@@ -67,7 +68,6 @@ def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order th
     import spco.knowledge as kn
     from spco.data.loading import load_homes
     from spco.features import build_extractor
-    from spco.model.confidence import VIEW_EFFECTIVE_COUNTS
     from spco.model.home_shard import FREE_CONCEPT_WEIGHT
     from spco.model.prediction import _visual_log_likelihood, concept_posterior, predict_names
 
@@ -77,7 +77,7 @@ def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order th
     parser.add_argument("--models", type=Path, required=True, help="calibration.py's --out/models")
     args = parser.parse_args()
     warnings.filterwarnings("ignore")
-    tempered = f"n_eff = {VIEW_EFFECTIVE_COUNTS:g}"
+    tempered = "w = the model's view weight"
     pattern = re.compile(r"home_(colour-hog|fc7)_(\d+)_(\d+)_(.+)\.spco")
     table: dict[tuple[str, int], dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
     views: dict[tuple[str, str], tuple] = {}
@@ -107,7 +107,7 @@ def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order th
             ("in-sample DirMult", dirichlet_multinomial(
                 visual, theta, np.full(theta.shape[0], fitted_precision(
                     sp.csr_array(model.visual, dtype=np.float64), theta, model.state.concepts)))),
-            (tempered, _visual_log_likelihood(theta, visual, VIEW_EFFECTIVE_COUNTS)),
+            (tempered, _visual_log_likelihood(theta, visual, model.hyperparameters.view_weight())),
         ):
             gap, decided = _gap(loglik)
             row[key + " gap"].append(gap)

@@ -222,7 +222,7 @@ def plan(args: argparse.Namespace) -> Plan:
     # home-specific rooms at 40 %
     for side, config, trials, rooms_configs in (
             ("heldout", BENCH / "heldout" / "specific_heldout.json", 10 if budget else 20, 4),
-            ("development", BENCH / "development" / "specific_dev.json", 2 if budget else 5, 6)):
+            ("development", BENCH / "development" / "specific_dev.json", 3 if budget else 5, 6)):
         folder = out / f"specific_{side}"
         add("specific", side, [*_spco(), "experiment", "specific", "--config", str(config),
                                "--data", str(data), "--rates", "40", "--trials", str(trials),

@@ -68,7 +68,8 @@ def _parameters(theta_v: np.ndarray, means_xy: np.ndarray, sd: float,
 
 def _honest(params: ConceptParameters, poses: np.ndarray, views: object, **kw):
     L, V = params.n_concepts, params.word_probabilities.shape[-1]
-    defaults = {"free": np.zeros(L, dtype=bool), "word_counts": np.zeros((L, V)), "alpha_word": 0.01}
+    defaults = {"free": np.zeros(L, dtype=bool), "word_counts": np.zeros((L, V)), "alpha_word": 0.01,
+                "view_counts": 5.0}  # a view weight w of a few draws, as a knowledge estimates it
     defaults.update(kw)
     return predict_names_honestly(params, 0, Vocabulary(list(NAMES)), poses, views, top_k=3,
                                   **defaults)

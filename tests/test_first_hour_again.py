@@ -90,18 +90,21 @@ def test_spco_fit_shows_its_sweeps_on_a_terminal(homes: dict[str, Path]) -> None
 
 
 def _demo_line(monkeypatch: pytest.MonkeyPatch, tmp_path: Path, cold: bool) -> str:
-    calls: list[int] = []
+    import spco.synthetic_transfer
 
-    def precompile(processes: int) -> float:
-        calls.append(processes)
+    calls: list[tuple[int, int]] = []
+
+    def compile_share(index: int, processes: int) -> float:  # this process's share (the other's is real)
+        calls.append((index, processes))
         time.sleep(0.3)
         return 0.3
 
     monkeypatch.setattr(numba_cache, "kernels_compiled", lambda: not cold)
-    monkeypatch.setattr(numba_cache, "precompile", precompile)
+    monkeypatch.setattr(spco.synthetic_transfer, "compile_share", compile_share)
+    monkeypatch.setattr("os.cpu_count", lambda: 2)
     result = CliRunner().invoke(main, ["demo", "--homes", "2", "--iterations", "3", "--out", str(tmp_path)])
     assert result.exit_code == 0, result.output
-    assert calls == ([2] if cold else [])
+    assert calls == ([(0, 2)] if cold else [])
     return next(line for line in result.stdout.splitlines() if line.startswith("Learnt"))
 
 

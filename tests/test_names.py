@@ -101,7 +101,7 @@ def test_the_prior_prefers_a_place_s_name_to_what_is_said_there(wordnet) -> None
     prior = dict(zip(vocab.words, name_prior(vocab, sentences, wordnet), strict=True))
     assert prior["dining room"] > 3 * max(prior["table"], prior["sleep"], prior["home"], prior["left"])
     assert prior["dining room"] > 10 * max(prior["our"], prior["i"], prior["we"])
-    assert len(FEATURES) == 10
+    assert len(FEATURES) == 11
 
 
 def _two_place_params(theta: np.ndarray) -> ConceptParameters:
@@ -195,3 +195,54 @@ def test_spco_without_wordnet_works_as_before(monkeypatch: pytest.MonkeyPatch) -
     prior = name_prior(v, sentences)  # the frames alone
     assert prior.shape == (len(v),) and np.all((prior > 0) & (prior < 1))
     assert prior[v.index("toilet")] > prior[v.index("we")]
+
+
+def test_barriers_walls_and_drawers_are_not_places(wordnet) -> None:
+    """NOT_PLACE_ROOTS: a door, a gate, a wall, a window, a drawer bound or hold places (WordNet files
+    them under structures) and are no places; the rooms, halls, doorways and stairs they bound are."""
+    for thing in ("door", "gate", "wall", "drawer", "fence"):
+        assert wordnet.place_share(thing) < 0.3, (thing, wordnet.place_share(thing))  # door: doorway
+    for place in ("hall", "doorway", "stairs", "porch", "garage", "bedroom"):
+        assert wordnet.place_share(place) >= 0.9, place
+
+
+def test_a_misspelt_or_run_together_word_takes_its_spelling_s_facts(wordnet) -> None:
+    """spelling_variants: "livingroom" is "living room" run together, "bed room" is "bedroom" written
+    in two (no misspelling: flag 0), "kicthen" is one edit from the vocabulary's "kitchen" (a
+    misspelling: flag 1); a word of fewer than MIN_VARIANT_CHARS letters is not matched ("bde")."""
+    from spco.model.name_evidence import spelling_variants
+
+    words = ["livingroom", "bed room", "kicthen", "kitchen", "bde", "bed", "the"]
+    feats = lexical_features(words, wordnet)
+    known, place, variant = (FEATURES.index(f) - 6 for f in ("known", "place_share", "spelling_variant"))
+    for k in (0, 1, 2):
+        assert feats[k, known] == 1.0 and feats[k, place] > 0.9, words[k]
+    assert feats[0, variant] == 0.0 and feats[1, variant] == 0.0 and feats[2, variant] == 1.0
+    assert feats[4, known] == 0.0 and feats[3, variant] == 0.0
+    assert "kitchen" in spelling_variants("kicthen", words) and spelling_variants("bde", words) == []
+    assert "living room" in spelling_variants("livingroom") and spelling_variants("bed room") == ["bedroom"]
+
+
+def test_an_object_said_at_a_place_stands_in_for_the_name_the_lexicon_relates_it_to(wordnet) -> None:
+    """stand_in_names: "door" (an object, name evidence below OBJECT_BELOW) is in the definition of
+    "door" as "the entrance to a room": the known, stronger name "entrance" stands in for it; "dining
+    table" gets its modifier "dining" when that is a stronger name; "pot" (WordNet's slang synonym of
+    a toilet) and "vase" (only similar to a bath) get none; a strong name is never replaced."""
+    from spco.model.unheard import stand_in_names
+
+    vocab = Vocabulary(("door", "entrance", "kitchen", "toilet", "bath", "pot", "vase", "dining table",
+                        "dining"))
+    prior = np.array([0.08, 0.3, 0.6, 0.2, 0.3, 0.05, 0.05, 0.03, 0.2])
+    mask = np.ones(len(vocab), dtype=bool)
+    out = stand_in_names(vocab, mask, prior, np.arange(len(vocab)), wordnet)
+    w = vocab.words
+    assert {w[k]: w[j] for k, j in out.items()} == {"door": "entrance", "dining table": "dining"}
+    # the stand-in must be a stronger name than the object: with "entrance" weak, "door" stays
+    weak = prior.copy()
+    weak[1] = 0.05
+    assert 0 not in stand_in_names(vocab, mask, weak, np.arange(len(vocab)), wordnet)
+    # a spelling WordNet does not know stands in for the one it knows, when the vocabulary holds it
+    spelt = Vocabulary(("livingroom", "living room", "kicthen", "kitchen", "genkan"))
+    found = stand_in_names(spelt, np.ones(5, dtype=bool), np.full(5, 0.5), np.arange(5), wordnet)
+    assert {spelt.words[k]: spelt.words[j] for k, j in found.items()} == {"livingroom": "living room",
+                                                                         "kicthen": "kitchen"}

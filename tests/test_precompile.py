@@ -58,29 +58,42 @@ def test_a_fit_on_an_empty_cache_says_it_compiles_once(tmp_path, monkeypatch, ca
 
 
 def test_demo_on_an_empty_cache_says_it_compiles_in_two_processes(monkeypatch):
-    """``spco demo`` on a cold cache prints its notice, then precompiles in 2 processes (both
-    stubbed here: the notice is what is checked, not the compilation or its time)."""
+    """``spco demo`` on a cold cache prints its notice, then runs in 2 processes that compile a
+    share of the kernels each first (the demo stubbed here: the notice and the layout asked for
+    are checked, not the compilation or its time)."""
     from click.testing import CliRunner
 
     import spco.synthetic_transfer
     from spco.cli import main
 
-    calls: list[int] = []
+    calls: list[dict] = []
 
     class Stop(Exception):
         pass
 
-    def stop(**_: object) -> None:
+    def stop(**kwargs: object) -> None:
+        calls.append(kwargs)
         raise Stop
 
     monkeypatch.setattr(numba_cache, "kernels_compiled", lambda: False)
-    monkeypatch.setattr(numba_cache, "precompile", lambda processes: calls.append(processes) or 0.0)
     monkeypatch.setattr(spco.synthetic_transfer, "run_demo", stop)
+    monkeypatch.setattr("os.cpu_count", lambda: 2)
     result = CliRunner().invoke(main, ["demo", "--out", "unused"])
     assert isinstance(result.exception, Stop)
     assert numba_cache.precompile_notice(2) in result.stderr
     assert f"about {numba_cache.PRECOMPILE_SECONDS_ESTIMATE} s" in result.stderr
-    assert calls == [2]
+    assert [(c["processes"], c["compile_first"]) for c in calls] == [(2, True)]
+
+
+def test_compile_shares_are_the_split_of_precompile(monkeypatch):
+    """Share i of n compiles exactly group i of the split (each kernel in one share)."""
+    compiled: list[list[str]] = []
+    monkeypatch.setattr(numba_cache, "_compile_group",
+                        lambda entries: compiled.append([e["kernel"] for e in entries]) or 0.0)
+    numba_cache.compile_share(0, 2)
+    numba_cache.compile_share(1, 2)
+    groups = numba_cache._split(_entries(), 2)
+    assert compiled == [[e["kernel"] for e in group] for group in groups]
 
 
 def test_fit_and_adapt_on_an_empty_cache_precompile_in_two_processes(monkeypatch, tmp_path):

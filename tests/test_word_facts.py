@@ -30,7 +30,7 @@ def test_cached_features_equal_the_lexicon_s_and_need_no_wordnet_once_known(
     first = lexical_features(WORDS)  # computes and writes the file
     np.testing.assert_array_equal(first, direct)
     files = list(empty_cache.glob("wordnet-facts-*.json"))
-    assert len(files) == 1 and json.loads(files[0].read_text())["format"] == 1
+    assert len(files) == 1 and json.loads(files[0].read_text())["format"] == lexicon_module._FACTS_FORMAT
 
     def no_wordnet(folder: str):
         raise AssertionError("WordNet loaded although every word's facts are in the file")
@@ -48,14 +48,14 @@ def test_a_file_of_another_format_or_broken_is_computed_again(wordnet, empty_cac
         lexicon_module._facts_memory.clear()
         facts = lexicon_module.word_facts(["kitchen"])
         assert facts is not None and facts["kitchen"].known and facts["kitchen"].place_share >= 0.99
-        assert json.loads(path.read_text())["format"] == 1
+        assert json.loads(path.read_text())["format"] == lexicon_module._FACTS_FORMAT
 
 
 def test_no_facts_without_the_lexicon(monkeypatch: pytest.MonkeyPatch, empty_cache) -> None:
     monkeypatch.setenv("SPCO_WORDNET", "off")
     assert lexicon_module.word_facts(["kitchen"]) is None
     features = lexical_features(["kitchen", "the"])
-    assert features[0].tolist() == [0.0, 0.5, 0.0, 0.0] and features[1, 3] == 1.0
+    assert features[0].tolist() == [0.0, 0.5, 0.0, 0.0, 0.0] and features[1, 3] == 1.0
 
 
 #: Place words of which some are kinds of others ("room" of "bedroom", "kitchen", "bathroom") or have
@@ -76,7 +76,7 @@ def test_cached_kind_facts_give_the_lexicon_s_evidence_and_need_no_wordnet_once_
     room = vocabulary.index("room")
     assert room is not None and nu[room] < 0.1 * nu[vocabulary.index("kitchen")]  # a kind of place
     files = list(empty_cache.glob("wordnet-kinds-*.json"))
-    assert len(files) == 1 and json.loads(files[0].read_text())["format"] == 1
+    assert len(files) == 1 and json.loads(files[0].read_text())["format"] == lexicon_module._KINDS_FORMAT
 
     def no_wordnet(folder: str):
         raise AssertionError("WordNet loaded although every word's facts are in the files")

@@ -172,11 +172,14 @@ class SweepTimings:
 
     totals: list[float] = field(default_factory=list)
     steps: list[dict[str, float]] = field(default_factory=list)
+    cpu: list[float] = field(default_factory=list)
 
-    def add(self, total: float, steps: dict[str, float]) -> None:
-        """Record one sweep."""
+    def add(self, total: float, steps: dict[str, float], cpu: float | None = None) -> None:
+        """Record one sweep (``cpu``: its CPU seconds, every thread of this process)."""
         self.totals.append(total)
         self.steps.append(dict(steps))
+        if cpu is not None:
+            self.cpu.append(cpu)
 
     @property
     def per_sweep(self) -> float:
@@ -197,6 +200,7 @@ class SweepTimings:
     def summary(self) -> dict[str, Any]:
         """JSON-ready: seconds per sweep, every sweep, seconds per step."""
         return {"sweep_seconds": self.per_sweep, "sweeps": len(self.totals),
+                "cpu_seconds": float(np.median(self.cpu)) if self.cpu else None,
                 "all_sweep_seconds": [round(t, 6) for t in self.totals], "steps": self.per_step()}
 
 
@@ -230,11 +234,53 @@ class SpcoRunner:
         """Run and record one timed sweep; returns its wall time in seconds."""
         timer = gibbs.StepTimer()
         swaps = gibbs.swaps_due(gibbs.SWAP_BURN_IN + len(self.timings.totals))
-        t0 = time.perf_counter()
+        c0, t0 = time.process_time(), time.perf_counter()
         gibbs.sweep(self.data, self.state, self.hyper, self.settings, self.rng, timer=timer, swaps=swaps)
         elapsed = time.perf_counter() - t0
-        self.timings.add(elapsed, timer.seconds)
+        self.timings.add(elapsed, timer.seconds, time.process_time() - c0)
         return elapsed
+
+
+class FitSweepRunner:
+    """The sweep a fit runs (``SpCoTransfer(...).fit``: :func:`spco.model.driver.start_run` on the
+    local engine, every home a shard of its own drawing from its own random stream, the shards'
+    statistics reduced for the global step), on ``corpus``, timed whole into :attr:`timings`
+    after ``warmup`` untimed sweeps. Exact sampler, no word pruning, as :class:`SpcoRunner`; its
+    sweep numbers continue from :data:`~spco.model.gibbs.SWAP_BURN_IN` (label swaps on every
+    :data:`~spco.model.gibbs.SWAP_EVERY`-th, as a fit's steady state)."""
+
+    def __init__(self, corpus: Corpus, warmup: int = 2, seed: int = 0,
+                 hyper: TransferHyperparameters | None = None, log: Log = _quiet) -> None:
+        from spco.model.driver import start_run
+        from spco.model.transfer import SpCoTransfer
+
+        hyper = hyper or TransferHyperparameters()
+        settings = gibbs.SamplerSettings.create("exact", prune=False)
+        data = SpCoTransfer.prepare_data(corpus, 1.0)
+        start = time.perf_counter()
+        self.run = start_run(None, data, len(corpus.vocabulary), hyper, settings, np.random.default_rng(seed))
+        self.iteration = max(0, gibbs.SWAP_BURN_IN - warmup)
+        for _ in range(warmup):
+            self.run.sweep(self.iteration)
+            self.iteration += 1
+        log(f"  a fit's sweep (per-home shards): started and {warmup} warm-up sweeps in "
+            f"{time.perf_counter() - start:.1f} s")
+        self.timings = SweepTimings()
+
+    def sweep(self) -> float:
+        """Run and record one timed sweep; returns its wall time in seconds."""
+        c0, t0 = time.process_time(), time.perf_counter()
+        self.run.sweep(self.iteration)
+        elapsed = time.perf_counter() - t0
+        self.iteration += 1
+        self.timings.add(elapsed, {}, time.process_time() - c0)
+        return elapsed
+
+    def summary(self) -> dict[str, Any]:
+        """JSON-ready: :meth:`SweepTimings.summary` without steps."""
+        summary = self.timings.summary()
+        del summary["steps"]
+        return summary
 
 
 def time_spco(corpus: Corpus, variant: str = "exact", sweeps: int = 20, warmup: int = 2, seed: int = 0,
@@ -373,6 +419,8 @@ def run_benchmark(corpus: Corpus, source: str, sweeps: int = 20, warmup: int = 2
     log(f"preparing spco's exact and reference samplers ({warmup} warm-up sweeps each)")
     runners: dict[str, SweepRunner] = {
         variant: SpcoRunner(corpus, variant, warmup, seed, hyper, log) for variant in ("exact", "reference")}
+    log(f"preparing a fit's sweep ({warmup} warm-up sweeps)")
+    fit_runner = FitSweepRunner(corpus, warmup, seed, hyper, log)
     if baseline is not None:
         runners["authors"] = baseline(corpus, hyper, seed, log)
     rounds = baseline_sweeps if baseline is not None else 0
@@ -380,13 +428,16 @@ def run_benchmark(corpus: Corpus, source: str, sweeps: int = 20, warmup: int = 2
                                                             if rounds else ""))
     for name in interleaved_schedule(sweeps, rounds):
         elapsed = runners[name].sweep()
+        if name == "exact":  # a fit's sweep beside each of the exact sampler's, in the same minutes
+            fit_runner.sweep()
         if name == "authors":
             done = len(runners["authors"].timings.totals)
             log(f"  baseline sweep {done}/{rounds}: {elapsed * 1e3:.0f} ms; spco exact so "
                 f"far {runners['exact'].timings.per_sweep * 1e3:.0f} ms per sweep")
     variants = {variant: runners[variant].timings.summary() for variant in ("exact", "reference")}
     reference = runners["authors"].timings.summary() if baseline is not None else None
-    del runners
+    fit_sweep = fit_runner.summary()
+    del runners, fit_runner
     peak = None
     if memory:
         log(f"measuring the peak memory of an exact fit ({memory_sweeps} sweeps) in a child process")
@@ -396,6 +447,8 @@ def run_benchmark(corpus: Corpus, source: str, sweeps: int = 20, warmup: int = 2
     exact = variants["exact"]["sweep_seconds"]
     result: dict[str, Any] = {
         "sweep_seconds": exact,
+        "fit_sweep_seconds": fit_sweep["sweep_seconds"],
+        "fit_sweep": fit_sweep,
         "peak_memory_mb": None if peak is None else peak["peak_mb"],
         "steps": variants["exact"]["steps"],
         "configuration": config,

@@ -11,21 +11,31 @@ Then it does what a robot does (the paper's protocol above learns the new home j
 others): it learns knowledge from the experienced homes alone (``fit_knowledge``), adapts it to the
 new home (``adapt``, nothing taught) and writes ``knowledge.spco`` and ``home.spco``, which
 ``spco where`` / ``what`` / ``teach`` / ``serve`` / ``ros`` take as they are.
+
+With ``processes=2`` (``spco demo`` on a machine of 2 cores or more) the robot's files are made in
+a second process at the same time as the transfer fit, the baseline and the figures, and on a
+cold cache each process first compiles half of the kernels (:func:`~spco.model.numba_cache.compile_share`)
+and loads the other's half from the cache. Each part depends on the seed alone, so the results
+and files are the same as with one process.
 """
 
 from __future__ import annotations
 
 import json
+import pickle
 import time
+import traceback
 from dataclasses import dataclass
+from multiprocessing import get_context
 from pathlib import Path
 
 import numpy as np
 
 from spco.data.environment import Corpus
 from spco.data.synthetic import generate_homes
+from spco.errors import SpcoError
 from spco.evaluation.metrics import HomeScores, evaluate_home
-from spco.model.numba_cache import load_kernels
+from spco.model.numba_cache import compile_share, load_kernels
 from spco.model.transfer import SpCoA, SpCoTransfer
 
 
@@ -46,18 +56,68 @@ class DemoResult:
 
 
 def run_demo(seed: int = 0, out: Path | str = "spco-demo", n_experienced: int = 16,
-             n_iterations: int = 100, progress: bool = True) -> DemoResult:
+             n_iterations: int = 100, progress: bool = True, processes: int = 1,
+             compile_first: bool = False) -> DemoResult:
     """Run the demo and write its figures and ``results.json`` into ``out``.
 
     The kernels are loaded from Numba's cache (or compiled) first
     (:func:`~spco.model.numba_cache.load_kernels`), so that ``fit_seconds`` times the learning
     alone: ``warm_up_seconds``.
+
+    ``processes=2`` makes the robot's files (:func:`_robot_files`) in a second (spawned) process
+    while this one fits, evaluates and draws; with ``compile_first`` (a cold cache) each process
+    first compiles its half of the kernels. The same results as one process; a script calling it
+    with 2 needs the ``if __name__ == "__main__":`` guard of :mod:`multiprocessing`.
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    warm_up_seconds = load_kernels()
+    if processes <= 1:
+        warm_up_seconds = load_kernels()
+        corpus, new_index = _demo_homes(seed, n_experienced)
+        result = _learn_and_draw(corpus, new_index, out, seed, n_experienced, n_iterations, progress)
+        start = time.perf_counter()
+        knowledge_file, home_file = _robot_files(corpus, new_index, out, seed, n_iterations, progress)
+        robot_seconds = time.perf_counter() - start
+    else:
+        with _RobotProcess(seed, out, n_experienced, n_iterations, compile_first) as robot:
+            start = time.perf_counter()
+            if compile_first:
+                compile_share(0, 2)
+            robot.wait_for_its_kernels()
+            load_kernels()
+            warm_up_seconds = time.perf_counter() - start
+            corpus, new_index = _demo_homes(seed, n_experienced)
+            result = _learn_and_draw(corpus, new_index, out, seed, n_experienced, n_iterations, progress)
+            knowledge_file, home_file, robot_seconds = robot.result()
+    result.files += [knowledge_file, home_file]
+    result.warm_up_seconds = warm_up_seconds
+    result.home_file, result.knowledge_file, result.robot_seconds = home_file, knowledge_file, robot_seconds
+    return result
+
+
+def _portable(error: BaseException) -> BaseException | str:
+    """``error`` as the parent process can unpickle it: itself; or, for an error of spco's whose
+    arguments do not round-trip, a :class:`~spco.errors.SpcoError` with its message (the command
+    line prints it as one line); or else its traceback's text."""
+    try:
+        pickle.loads(pickle.dumps(error))
+        return error
+    except Exception:
+        if isinstance(error, SpcoError):
+            return SpcoError(str(error))
+        return "".join(traceback.format_exception(error))
+
+
+def _demo_homes(seed: int, n_experienced: int) -> tuple[Corpus, int]:
+    """The demo's synthetic homes (the experienced ones, then the new one) and the new one's index."""
     corpus = generate_homes(n_experienced + 1, seed=seed, new_homes=1, specific_rooms=False)
-    new_index = len(corpus) - 1
+    return corpus, len(corpus) - 1
+
+
+def _learn_and_draw(corpus: Corpus, new_index: int, out: Path, seed: int, n_experienced: int,
+                    n_iterations: int, progress: bool) -> DemoResult:
+    """The paper's protocol on the demo's homes: the transfer fit and the SpCoA+MI baseline scored
+    in the new home, its map, the log-joint trace and ``results.json`` (the robot's files not yet)."""
     new_home = corpus[new_index]
     rng = np.random.default_rng(seed)
     start = time.perf_counter()
@@ -90,14 +150,77 @@ def run_demo(seed: int = 0, out: Path | str = "spco-demo", n_experienced: int = 
         "fit_seconds": fit_seconds, "new_home": new_home.name,
         "transfer": transfer.summary(), "spcoa_mi": baseline.summary(),
     }, indent=1, default=_json_default), encoding="utf-8")
-    start = time.perf_counter()
-    knowledge_file, home_file = _robot_files(corpus, new_index, out, seed, n_iterations, progress)
-    robot_seconds = time.perf_counter() - start
     return DemoResult(transfer=transfer, baseline=baseline, fit_seconds=fit_seconds, n_homes=len(corpus),
-                      n_samples=sum(e.n_samples for e in corpus),
-                      files=[map_path, trace_path, results_path, knowledge_file, home_file],
-                      warm_up_seconds=warm_up_seconds, home_file=home_file, knowledge_file=knowledge_file,
-                      robot_seconds=robot_seconds)
+                      n_samples=sum(e.n_samples for e in corpus), files=[map_path, trace_path, results_path])
+
+
+class _RobotProcess:
+    """The demo's second process: it compiles share 1 of 2 of the kernels (on a cold cache), waits
+    for this process's share, then makes the robot's files (:func:`_robot_worker`). A context
+    manager: leaving it early ends the process."""
+
+    def __init__(self, seed: int, out: Path, n_experienced: int, n_iterations: int, compile_first: bool):
+        context = get_context("spawn")
+        self._ours, self._theirs = context.Event(), context.Event()
+        self._receiver, sender = context.Pipe(duplex=False)
+        self._process = context.Process(
+            target=_robot_worker, name="spco-demo-robot", daemon=True,
+            args=(sender, self._theirs, self._ours, seed, out, n_experienced, n_iterations, compile_first))
+        self._process.start()
+        sender.close()
+
+    def __enter__(self) -> _RobotProcess:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._ours.set()
+        if self._process.is_alive() and exc[0] is not None:
+            self._process.terminate()
+        self._process.join()
+
+    def wait_for_its_kernels(self) -> None:
+        """Say that this process's share of the kernels is in the cache, and wait for the other's."""
+        self._ours.set()
+        while not self._theirs.wait(0.2):
+            if not self._process.is_alive():
+                self._raise_its_error()
+
+    def result(self) -> tuple[Path, Path, float]:
+        """The knowledge file, the home file and the seconds the second process took to make them."""
+        while not self._receiver.poll(0.2):
+            if not self._process.is_alive() and not self._receiver.poll(0):
+                self._raise_its_error()
+        status, payload = self._receiver.recv()
+        if status == "error":
+            raise payload if isinstance(payload, BaseException) else RuntimeError(payload)
+        return payload
+
+    def _raise_its_error(self) -> None:
+        if self._receiver.poll(0):
+            status, payload = self._receiver.recv()
+            if status == "error":
+                raise payload if isinstance(payload, BaseException) else RuntimeError(payload)
+        raise RuntimeError(f"the demo's second process ended early (exit code {self._process.exitcode})")
+
+
+def _robot_worker(sender, compiled_here, compiled_there, seed: int, out: Path, n_experienced: int,
+                  n_iterations: int, compile_first: bool) -> None:
+    """The second process of :func:`run_demo` (see :class:`_RobotProcess`): sends ``("ok",
+    (knowledge file, home file, seconds))`` or ``("error", exception)``."""
+    try:
+        if compile_first:
+            compile_share(1, 2)
+        compiled_here.set()
+        compiled_there.wait()
+        load_kernels()
+        corpus, new_index = _demo_homes(seed, n_experienced)
+        start = time.perf_counter()
+        files = _robot_files(corpus, new_index, out, seed, n_iterations, progress=False)
+        sender.send(("ok", (*files, time.perf_counter() - start)))
+    except BaseException as error:  # the parent raises it
+        sender.send(("error", _portable(error)))
+    finally:
+        sender.close()
 
 
 def _robot_files(corpus: Corpus, new_index: int, out: Path, seed: int, n_iterations: int,

@@ -13,7 +13,21 @@ import click
 
 from spco.cli.errors import friendly_errors
 
-__all__ = ["ask"]
+__all__ = ["ask", "confidence_note"]
+
+
+def confidence_note(question: dict) -> str:
+    """How a question's confidence follows from the answer line's numbers (``spco ask``): the best
+    name's p times the chance that the room has no name of its own, when that is what it is; else
+    that the room's taught names count too."""
+    names, rho = question.get("names") or [], float(question.get("own_name", 0.0))
+    if not names:
+        return ""
+    best = float(names[0]["p"])
+    if abs(best * (1.0 - rho) - float(question["confidence"])) <= 5e-3:
+        return (f" = {names[0]['name']} {best:.2f} × {1.0 - rho:.2f}, the chance that the room has no "
+                f"name of its own" if rho > 0 else "")
+    return " (the names taught in this room counted)"
 
 
 @click.command(name="ask")
@@ -57,6 +71,7 @@ def ask(home_file: Path, n: int, as_json: bool, unsure_only: bool) -> None:
                    f"gain {q['gain']:.1f}")
         click.echo(f"     {q['reason']}")
         sure = "" if q["worth_asking"] else "; it is sure of the answer: not worth asking"
-        click.echo(f"     the robot would say: {said} (confidence {q['confidence']:.2f}{sure})")
+        click.echo(f"     the robot would say: {said} (`what` here); confidence {q['confidence']:.2f}"
+                   f"{confidence_note(q)}{sure}")
     first = questions[0]
     click.echo(f'Record an answer: spco teach {home_file} --id {first["id"]} --sentence "this is …"')

@@ -56,8 +56,9 @@ def bench(data: str | None, sweeps: int, warmup: int, seed: int, new_home: str,
     sweeping is measured by the repository's benchmarks/reference_sampler.py.
 
     \b
-    --json keys: sweep_seconds (spco exact, per sweep), peak_memory_mb, steps (seconds per sweep of
-    each step), configuration, machine, and details: spco (both variants, every sweep), memory.
+    --json keys: sweep_seconds (spco exact, per sweep), fit_sweep_seconds (a fit's sweep: per-home
+    shards), peak_memory_mb, steps (seconds per sweep of each step), configuration, machine, and
+    details: spco (both variants, every sweep), fit_sweep, memory.
     """
     from spco import benchmark
     from spco.errors import ConfigurationError
@@ -114,6 +115,14 @@ def format_result(result: dict[str, Any]) -> str:
         return f"{row[0]:<{widths[0]}}  {row[1]:>{widths[1]}}  {row[2]:>{widths[2]}}"
 
     lines += [fmt(header), *(fmt(r) for r in rows[:-1]), "-" * (sum(widths) + 4), fmt(rows[-1]), ""]
+    fit_sweep = result.get("fit_sweep")
+    if fit_sweep is not None:
+        lines += [f"a fit's sweep, as `spco fit` runs it (every home its own shard and random stream), "
+                  f"mean of {fit_sweep['sweeps']}: {_ms(fit_sweep['sweep_seconds'])} ms "
+                  f"({_ms(fit_sweep['cpu_seconds'])} ms CPU, median): "
+                  f"{fit_sweep['sweep_seconds'] / exact['sweep_seconds']:.2f}x the exact sweep above, "
+                  f"{fit_sweep['cpu_seconds'] / exact['cpu_seconds']:.2f}x its CPU "
+                  f"({_ms(exact['cpu_seconds'])} ms)", ""]
     reference = result.get("reference")
     if reference is not None:  # a baseline was timed too (benchmarks/reference_sampler.py)
         lines.append(f"authors'-style reference sweep (mean of {reference['sweeps']}): "

@@ -88,7 +88,7 @@ def inspect(path: Path, teaching_rate: int, as_json: bool) -> None:
 
 def _inspect_model_file(path: Path, as_json: bool) -> None:
     """``spco inspect`` of a knowledge or home file."""
-    from spco.knowledge import describe_model_file, view_fit_warning
+    from spco.knowledge import describe_model_file, fit_range_text, view_fit_warning
 
     info = describe_model_file(path)
     if info["kind"] == "home":  # a served home: the file, and what its journal holds beyond it
@@ -118,19 +118,18 @@ def _inspect_model_file(path: Path, as_json: bool) -> None:
     click.echo(f"vocabulary ({len(info['vocabulary'])} words): {', '.join(info['vocabulary'])}")
     if info.get("text"):
         click.echo(f"text written without spaces: {info['text']}")
-    click.echo(f"place names (kept by pruning, {len(info['kept_names'])}): {', '.join(info['kept_names'])}")
+    click.echo(f"place names ({len(info['kept_names'])}): {', '.join(info['kept_names'])}")
     click.echo(f"experienced homes ({len(info['homes'])}): {', '.join(info['homes'])}")
     view = info["view_fit"]
     if info["kind"] == "knowledge" and view:
         values = [v for v in view["homes"].values() if v is not None]
         if values:
-            click.echo(f"fit of the views: {min(values):.2f}…{max(values):.2f} nats per count above a "
+            click.echo(f"fit of the views: {fit_range_text(values)} nats per count above a "
                        f"uniform guess in the experienced homes; a new home below {view['warn_below']:.2f} "
                        f"is warned about")
     elif info["kind"] == "home" and view:
-        low, high = view["experienced_range"]
         click.echo(f"fit of the views: {view['value']:.2f} nats per count above a uniform guess "
-                   f"(experienced homes {low:.2f}…{high:.2f})")
+                   f"(experienced homes {fit_range_text(view['experienced_range'])})")
         if not view["fits"]:
             click.echo(f"warning: {view_fit_warning(info['home'], view)}", err=True)
     keys = ("seed", "n_iterations", "created", "updated", "spco_version", "data", "teaching_rate",

@@ -3,8 +3,8 @@
 
 from __future__ import annotations
 
+import os
 import sys
-import time
 from pathlib import Path
 
 import click
@@ -25,18 +25,20 @@ __all__ = ["demo", "kernel_time"]
 @friendly_errors
 def demo(seed: int, out: Path, homes: int, iterations: int) -> None:
     """Learn from synthetic homes and transfer to a new home taught nothing (no dataset needed)."""
-    from spco.model.numba_cache import precompile_if_cold
+    from spco.model import numba_cache
     from spco.synthetic_transfer import format_table, run_demo
 
-    start = time.perf_counter()
-    compiled = precompile_if_cold(lambda text: click.echo(text, err=True))
-    compile_seconds = time.perf_counter() - start
+    processes = 2 if (os.cpu_count() or 1) >= 2 else 1
+    cold = numba_cache.kernels_compiled() is False
+    if cold:
+        click.echo(numba_cache.precompile_notice(processes), err=True)
+        numba_cache.mark_announced()
     click.echo(f"Generating {homes} experienced synthetic homes and 1 new home (seed {seed})...", err=True)
     result = run_demo(seed=seed, out=out, n_experienced=homes, n_iterations=iterations,
-                      progress=sys.stderr.isatty())
+                      progress=sys.stderr.isatty(), processes=processes, compile_first=cold)
     t = result.transfer
     click.echo(f"Learnt {result.n_homes} homes ({result.n_samples} samples) in {result.fit_seconds:.1f} s "
-               f"({kernel_time(compiled, compile_seconds, result.warm_up_seconds)}).")
+               f"({kernel_time(cold, 0.0, result.warm_up_seconds)}).")
     click.echo(f"New home {t.home}: nothing taught there; names and positions come from the other homes.\n")
     click.echo("SpCoTransfer+MI (A_n: name accuracy, A_p: position accuracy) beside the SpCoA+MI baseline:")
     click.echo(format_table(result))

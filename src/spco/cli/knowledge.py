@@ -166,7 +166,8 @@ def _on_the_prior(training: Any, prior: str, settings: tuple[str, ...], checked:
               help="A hyperparameter of the model instead of the paper's value (repeatable): n_concepts, "
                    "n_regions, kappa0, nu0, alpha_visual, alpha_word, delta_visual, delta_word, gamma, "
                    "gamma0, "
-                   "beta, mi_threshold, view_counts (none: every count a draw). E.g. a large floor: "
+                   "beta, mi_threshold, view_counts (a view's weight w, default 16; none: every count a "
+                   "draw; estimate: learnt from the homes). E.g. a large floor: "
                    "--set n_concepts=30 --set n_regions=30 --set kappa0=0.001. Kept in the knowledge file.")
 @click.option("--prior", default="scaled", show_default=True, type=click.Choice(["scaled", "paper"]),
               help="scaled: the position prior κ0 and the numbers of concepts and regions follow the "
@@ -329,9 +330,10 @@ def adapt(knowledge_file: Path, home_path: Path, name: str | None, teaching_rate
     click.echo(home.describe())
     view = home.provenance.get("view_fit")
     if view and view.get("value") is not None and view.get("experienced_range"):
-        low, high = view["experienced_range"]
+        from spco.knowledge import fit_range_text
+
         click.echo(f"The knowledge explains this home's views by {view['value']:.2f} nats per count better "
-                   f"than a uniform guess (experienced homes: {low:.2f}…{high:.2f}); "
+                   f"than a uniform guess (experienced homes: {fit_range_text(view['experienced_range'])}); "
                    f"{'it fits' if view['fits'] else 'IT DOES NOT FIT (see the warning)'}.")
     new_words = home.provenance["adapt"]["new_words"]
     if new_words:
@@ -370,9 +372,12 @@ def where(home_file: Path, name: str, n: int, seed: int, as_json: bool) -> None:
         return
     name = answer["name"]
     if not answer["learnt"]:
-        click.echo(f"warning: no such place learnt in this home: only {answer['support']:.0%} of the "
-                   f"probability of {name!r} comes from concepts holding its samples; the poses below are a "
-                   "guess", err=True)
+        there = (f"the poses below are at the place that looks most like a {name} of the experienced homes, "
+                 f"which `what` calls {answer['called']!r} here" if answer.get("called") else
+                 f"the poses below are at the place that looks most like a {name} of the experienced homes")
+        click.echo(f"warning: no such place learnt in this home: nobody said {name!r} here and only "
+                   f"{answer['support']:.0%} of its probability comes from concepts holding the home's "
+                   f"samples; {there} — a guess (teach it to make it sure)", err=True)
     if answer["via"] is not None:  # a name nobody said, found through the lexicon
         click.echo(f"{answer['asked']} -> {name} (never said in this home; {answer['via']} in WordNet)")
     click.echo(f"{name} in home {home.name}: region {answer['region']} of the home's map, "
@@ -614,21 +619,13 @@ def teach(home_file: Path, ids: Sequence[int], sentences: Sequence[str], x: floa
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(0), help="Random seed.")
 @click.option("--force", is_flag=True, help="Replace --out (and --mcap) if it exists.")
 @_friendly
-# too many statements: spco show grew with the MCAP output on its branch; to split
-def show(home_file: Path, out: Path | None, mcap_file: Path | None, map_image: Path | None,  # noqa: PLR0915
+def show(home_file: Path, out: Path | None, mcap_file: Path | None, map_image: Path | None,
          extent: str | None, names: Sequence[str], regions_file: Path | None, regions_home: str | None,
          seed: int, force: bool) -> None:
     """Draw the home's concepts on its floor plan: regions (95 % ellipses coloured by concept)
     labelled on the map with the names that describe them, the room outlines when the home has
     regions, the home's samples, and positions for the names given. --map takes a ROS map.yaml
     (its image placed by its origin and resolution). --mcap writes the regions for Foxglove."""
-    import numpy as np
-
-    from spco import plots
-    from spco.data.rosmap import MAP_YAML_SUFFIXES, read_ros_map
-    from spco.errors import ConfigurationError
-    from spco.knowledge import where as where_name
-
     if out is None and mcap_file is None:
         raise click.UsageError("give --out PNG, --mcap FILE, or both")
     if mcap_file is not None:
@@ -641,6 +638,22 @@ def show(home_file: Path, out: Path | None, mcap_file: Path | None, map_image: P
         _write_mcap(load_home(home_file), mcap_file)
         return
     check_out(out, force)
+    floor_plan, bounds = _floor_plan(map_image, extent)
+    home = load_home(home_file)
+    predicted = _predicted_positions(home, names, seed)
+    _draw_home(home, out, floor_plan, bounds, map_image, predicted, regions_file, regions_home)
+    click.echo(f"Wrote {out}")
+    if mcap_file is not None:
+        _write_mcap(home, mcap_file)
+
+
+def _floor_plan(map_image: Path | None, extent: str | None) -> tuple[Any, Any]:
+    """What ``spco show`` draws under the concepts and where: the --map image (a path; a ROS
+    map.yaml's image array placed by its origin and resolution; a PGM as a grey array) and the
+    extent in metres (--extent, the map.yaml's, or ``None``: the home's)."""
+    from spco.data.rosmap import MAP_YAML_SUFFIXES, read_ros_map
+    from spco.errors import ConfigurationError
+
     if map_image is not None and not Path(map_image).is_file():
         raise ConfigurationError(f"{map_image}: no such map image (--map)")
     bounds = parse_extent(extent)
@@ -653,12 +666,20 @@ def show(home_file: Path, out: Path | None, mcap_file: Path | None, map_image: P
         floor_plan, bounds = ros_map.image, ros_map.extent
     elif map_image is not None and Path(map_image).suffix.lower() == ".pgm":
         floor_plan = _grey_image(Path(map_image))
-    home = load_home(home_file)
-    rng = np.random.default_rng(seed)
-    predicted = {}
+    return floor_plan, bounds
+
+
+def _predicted_positions(home: Any, names: Sequence[str], seed: int) -> dict[str, Any]:
+    """Ten drawn positions for each of ``names`` (by the name the home knows it as), each name on
+    its own seed drawn from ``seed``; a name taught but not usable yet is left out with a warning."""
+    import numpy as np
+
     from spco.knowledge import unused_word_hint
+    from spco.knowledge import where as where_name
     from spco.model.prediction import UnknownNameError
 
+    rng = np.random.default_rng(seed)
+    predicted = {}
     for name in names:
         seed_of_name = int(rng.integers(2**63 - 1))  # (a Generator passed on would be copied, not advanced)
         try:
@@ -669,6 +690,16 @@ def show(home_file: Path, out: Path | None, mcap_file: Path | None, map_image: P
             click.echo(f"warning: no positions drawn for {name!r}: {exc}", err=True)
             continue
         predicted[pred.name] = pred.samples
+    return predicted
+
+
+def _draw_home(home: Any, out: Path, floor_plan: Any, bounds: Any, map_image: Path | None,
+               predicted: dict[str, Any], regions_file: Path | None, regions_home: str | None) -> None:
+    """The home's map (:func:`spco.plots.plot_home_map`) with its room outlines, if any, written
+    to ``out``; an unreadable --map image is a :class:`~spco.errors.ConfigurationError`."""
+    from spco import plots
+    from spco.errors import ConfigurationError
+
     if bounds is None and map_image is not None and home.extent is None:
         raise ConfigurationError("the home has no map extent: give --extent x_min,x_max,y_min,y_max "
                                  "for --map")
@@ -692,9 +723,6 @@ def show(home_file: Path, out: Path | None, mcap_file: Path | None, map_image: P
             raise
         raise ConfigurationError(f"{map_image}: cannot draw the map image ({exc})") from None
     _save_png(fig, out)
-    click.echo(f"Wrote {out}")
-    if mcap_file is not None:
-        _write_mcap(home, mcap_file)
 
 
 def _write_mcap(home: Any, path: Path) -> None:

@@ -62,6 +62,13 @@ may): two words that are *never said apart* — every use of ``a`` followed by `
 counting repeats. Joining them changes nothing about where they are said (their counts are the
 same), and keeps the place from being answered as "living" or "room".
 
+6. **Compounds the lexicon knows** (:func:`lexicon_compounds`): a pair whose compound is a noun of
+   WordNet, written with a space or as one word ("dining room", "dining table", "bath room" as
+   "bathroom", "bath tub" as "bathtub"), needs rules 1, 2 and 4 only, not 3: a modifier said with
+   several heads ("dining" with "table", "room", "space") is followed by none of them in half of
+   its uses, yet each compound is one name or one object. Without the lexicon (no NLTK or WordNet,
+   :mod:`spco.data.lexicon`) only rules 1–5 apply.
+
 A second pass over the sentences with the learnt pairs joined finds longer terms ("walk in closet").
 The rule also joins set phrases that are not names ("this is", "welcome to" when people say them in
 fewer than half of the sentences): they are tokens like any other, spread over all places, and the
@@ -361,6 +368,47 @@ def _term_pass(counts: _PairCounts, min_count: int, min_g2: float, min_follow: f
     return out
 
 
+def lexicon_compounds(pairs: Iterable[tuple[str, str]]) -> set[tuple[str, str]]:
+    """The pairs of single words whose compound is a WordNet noun, written with a space ("dining
+    room") or as one word ("bath room" as "bathroom"): rule 6 of the module docstring. Empty when
+    the lexicon is unavailable (:func:`spco.data.lexicon.word_facts`)."""
+    asked = [(a, b) for a, b in pairs if " " not in a and " " not in b and a.isalpha() and b.isalpha()]
+    if not asked:
+        return set()
+    from spco.data.lexicon import word_facts
+
+    facts = word_facts(sorted({f for a, b in asked for f in (f"{a} {b}", f"{a}{b}")}))
+    if facts is None:
+        return set()
+
+    def noun(text: str) -> bool:
+        fact = facts[text]
+        return fact.known and not math.isnan(fact.noun_share) and fact.noun_share > 0
+
+    return {(a, b) for a, b in asked if noun(f"{a} {b}") or noun(f"{a}{b}")}
+
+
+def _lexicon_pass(counts: _PairCounts, min_count: int, min_g2: float, max_sentence_share: float,
+                  found: Mapping[tuple[str, str], float]) -> dict[tuple[str, str], float]:
+    """The pairs rule 6 adds to a pass's ``found`` ones: compounds the lexicon knows, said together
+    at least ``min_count`` times, more often than chance, G² ≥ ``min_g2``, no frame word (rule 3,
+    the share of ``a`` followed by ``b``, is not asked)."""
+    pairs, first, second = counts.pairs, counts.first, counts.second
+    n_pairs = sum(pairs.values())
+    frame = max_sentence_share * counts.n_sentences
+    candidates = [(a, b) for (a, b), k11 in pairs.items()
+                  if (a, b) not in found and k11 >= min_count and a != b and counts.in_sentences[a] <= frame
+                  and counts.in_sentences[b] <= frame and _joinable(a, b) and not _NO_SPACE.search(a + b)
+                  and k11 * n_pairs > first[a] * second[b]]
+    out: dict[tuple[str, str], float] = {}
+    for a, b in lexicon_compounds(candidates):
+        k11 = pairs[(a, b)]
+        score = _g2(k11, first[a] - k11, second[b] - k11, n_pairs - first[a] - second[b] + k11)
+        if score >= min_g2:
+            out[(a, b)] = score
+    return out
+
+
 def _join(atoms: list[str], pairs: Mapping[tuple[str, str], float],
           joined: Counter[tuple[str, str]] | None = None) -> list[str]:
     """``atoms`` with the candidate ``pairs`` (pair -> G²) joined, the strongest first where two
@@ -396,6 +444,7 @@ def learn_terms(
     passes: int = 2,
     segmentation: Segmentation | None = None,
     distinct: bool = False,
+    lexicon: bool = True,
 ) -> list[str]:
     """The multi-word terms of ``sentences`` (the rule of the module docstring), sorted.
 
@@ -421,6 +470,8 @@ def learn_terms(
         pairs = {(a, b): score for (a, b), score in
                  _term_pass(counts, min_count, min_g2, min_follow, max_sentence_share).items()
                  if len(a.split()) + len(b.split()) <= MAX_TERM_WORDS}
+        if lexicon:
+            pairs.update(_lexicon_pass(counts, min_count, min_g2, max_sentence_share, pairs))
         together = {} if not distinct else {
             pair: score for pair, score in _never_apart(counts, max_sentence_share).items()
             if pair not in pairs and len(pair[0].split()) + len(pair[1].split()) <= MAX_TERM_WORDS}

@@ -41,8 +41,8 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, TypeVar
 
-__all__ = ["MIN_SIMILARITY", "PLACE_ROOTS", "Lexicon", "LexiconMatch", "WordFacts", "lexicon",
-           "lexicon_unavailable_reason", "word_facts"]
+__all__ = ["MIN_SIMILARITY", "NOT_PLACE_ROOTS", "PLACE_ROOTS", "Lexicon", "LexiconMatch", "WordFacts",
+           "lexicon", "lexicon_unavailable_reason", "word_facts"]
 
 #: Where Debian's wordnet-base puts the database files.
 DEBIAN_WORDNET = Path("/usr/share/wordnet")
@@ -50,6 +50,14 @@ DEBIAN_WORDNET = Path("/usr/share/wordnet")
 #: The WordNet noun concepts that places in a home fall under (see the module docstring).
 PLACE_ROOTS = ("room.n.01", "area.n.05", "building.n.01", "structure.n.01", "location.n.01",
                "housing.n.01", "way.n.06")
+
+#: The kinds of structure that bound or hold places without being one (a sense under one of these is
+#: not a place, whatever root is above it): barriers (doors, gates, fences), partitions (walls),
+#: supporting structures (frames, windows, beams) and storage spaces (drawers, cupboards). A person
+#: is *in* a room or a hall, *at* a door or a wall: "in front of the door" at the entrance names the
+#: door, not the place.
+NOT_PLACE_ROOTS = ("obstruction.n.01", "partition.n.01", "supporting_structure.n.01",
+                   "storage_space.n.01")
 
 #: Least Wu–Palmer similarity for a known name to stand for an asked one: kinds of room are about
 #: 0.85–0.9 apart (siblings under "room"), a room and a garage (an outbuilding) about 0.6.
@@ -163,6 +171,7 @@ class Lexicon:
             warnings.simplefilter("ignore")  # "the multilingual functions are not available"
             self._wn = _Reader(str(root), None)
         self._roots = [self._wn.synset(name) for name in PLACE_ROOTS]
+        self._not_roots = [self._wn.synset(name) for name in NOT_PLACE_ROOTS]
         self._lock = threading.Lock()
         self.version = str(self._wn.get_version())
 
@@ -197,6 +206,8 @@ class Lexicon:
         if synset.lexname() == "noun.location":
             return True
         closure = {synset, *synset.closure(lambda s: s.hypernyms() + s.instance_hypernyms())}
+        if any(root in closure for root in self._not_roots):
+            return False
         return any(root in closure for root in self._roots)
 
     def place_share(self, word: str) -> float:
@@ -475,8 +486,9 @@ def kinds_of(word: str, facts: dict[str, KindFacts], others: Sequence[str]) -> i
     return sum(1 for text in others if text != word and heads & facts[text].ancestors)
 
 
-#: Format of the file of :func:`word_facts` (a file of another format is computed again).
-_FACTS_FORMAT = 1
+#: Format of the file of :func:`word_facts` (a file of another format is computed again; 2: places
+#: without :data:`NOT_PLACE_ROOTS`).
+_FACTS_FORMAT = 2
 #: Format of the file of :func:`kind_facts`.
 _KINDS_FORMAT = 1
 _facts_lock = threading.Lock()

@@ -34,10 +34,11 @@ from spco.data.environment import Environment
 from spco.data.language import Vocabulary, normalize_name
 from spco.data.regions import PlaceRegions
 from spco.errors import ConfigurationError, DataFormatError
+from spco.model.confidence import answer_names
 from spco.model.hyperparameters import NamePrior
 from spco.model.parameters import ConceptParameters
 from spco.model.position_prediction import PositionMode, PositionPrediction, predict_positions
-from spco.model.prediction import NamePrediction, UnknownNameError, Weighting, predict_names
+from spco.model.prediction import NamePrediction, UnknownNameError, Weighting
 
 __all__ = [
     "HomeScores",
@@ -228,6 +229,7 @@ def evaluate_home(
     xy_only: bool = False,
     name_prior: NamePrior = "off",
     view_counts: float | None = None,
+    answer_params: ConceptParameters | None = None,
 ) -> HomeScores:
     """Score name and position prediction in home ``e`` (the paper's A_n and A_p).
 
@@ -244,8 +246,11 @@ def evaluate_home(
     rng: Generator or seed for the position draws (the mixture draws use a child stream of it, so
         the most-probable-region draws do not depend on them).
     weighting: name weighting (see :func:`spco.model.prediction.predict_names`).
-    view_counts: the evidence of one view in counts, as the model learnt (see
-        :func:`spco.model.prediction.predict_names`; ``None``: every count a draw).
+    view_counts: the model's view weight w (see :func:`spco.model.prediction.predict_names`;
+        ``None``: every count a draw).
+    answer_params: the parameters the robot answers names with
+        (:func:`spco.model.confidence.model_answer_parameters`); names are then predicted by the
+        robot's own function, :func:`spco.model.confidence.answer_names` (``None``: ``params``).
     name_prior: ``"wordnet"`` orders each concept's words by the name prior when names are
         predicted (opt-in; see :func:`spco.model.prediction.predict_names`).
     position_mode, xy_only: see :func:`spco.model.position_prediction.predict_positions`;
@@ -278,8 +283,9 @@ def evaluate_home(
 
     positions = environment.positions[rows]
     visual = environment.visual[rows]
-    prediction = predict_names(params, e, vocabulary, positions, visual, top_k=3, weighting=weighting,
-                               name_prior=name_prior, view_counts=view_counts)
+    prediction = answer_names(params if answer_params is None else answer_params, e, vocabulary, positions,
+                              visual, top_k=3, weighting=weighting, name_prior=name_prior,
+                              view_counts=view_counts)
     predicted = tuple(prediction.best)
     accepted = {place: gt.accepted(place) for place in place_list}
     name_scores = name_accuracy(predicted, labels, place_list, accepted)

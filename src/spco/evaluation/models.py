@@ -6,6 +6,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Literal
 
+from spco.model.confidence import answer_weighting
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.transfer import SpatialConceptModel, SpCoA, SpCoTransfer
 
@@ -21,7 +22,9 @@ class ModelSpec:
     build: ``build(n_iterations, random_state, hyperparameters, record_log_joint)`` -> an unfitted
         model; ``hyperparameters`` (``None``: the model's defaults) applies to transfer models.
     single_home: fitted on the new home alone (SpCoA) instead of all homes of the setting.
-    weighting: the name weighting of prediction (``"mi"`` or the authors' ``"reference"``).
+    weighting: the name weighting of prediction: for the transfer models the robot's
+        (:func:`spco.model.confidence.answer_weighting`: ``"none"`` with the naming rule, ``"mi"``
+        without, the authors' ``"reference"``).
     """
 
     description: str
@@ -56,7 +59,8 @@ def _spcoa(prune: bool) -> Callable[..., SpatialConceptModel]:
 #: The models an experiment can compare, by name. Add an entry to extend the comparison.
 MODELS: dict[str, ModelSpec] = {
     "spcotransfer": ModelSpec("SpCoTransfer, exact sampler", _transfer("exact", False)),
-    "spcotransfer+mi": ModelSpec("SpCoTransfer + MI word pruning", _transfer("exact", True)),
+    "spcotransfer+mi": ModelSpec("SpCoTransfer + MI word pruning", _transfer("exact", True),
+                                 weighting=answer_weighting("exact", True)),
     "spcotransfer-ref": ModelSpec("SpCoTransfer, the authors' sampler and KL name scoring",
                                   _transfer("reference", False), weighting="reference"),
     "spcotransfer-ref+mi": ModelSpec("SpCoTransfer + word pruning, the authors' sampler and KL "

@@ -75,6 +75,7 @@ from spco.evaluation.specific_file import (
     taught_count,
     teaching_sentences,
 )
+from spco.model.confidence import model_answer_parameters
 
 __all__ = [
     "CONFIG_FORMAT",
@@ -230,7 +231,8 @@ class RoomScores:
 def score_rooms(params: Any, e: int, env: Environment, vocabulary: Vocabulary,
                 rooms: Sequence[Room], weighting: str = "mi", n_positions: int = DEFAULT_POSITIONS,
                 rng: np.random.Generator | int | None = None,
-                view_counts: float | None = None) -> dict[str, RoomScores]:
+                view_counts: float | None = None,
+                answer_params: Any = None) -> dict[str, RoomScores]:
     """A_n and A_p (both ways) of each room in home ``e`` of a fitted model.
 
     Parameters
@@ -241,23 +243,28 @@ def score_rooms(params: Any, e: int, env: Environment, vocabulary: Vocabulary,
     vocabulary: the model's vocabulary; rooms: the rooms to score.
     weighting: name weighting of :func:`~spco.model.prediction.predict_names`.
     n_positions: positions drawn per room and mode; rng: Generator or seed of the draws.
-    view_counts: the evidence of one view, as the model learnt (``model.settings_.view_counts``).
+    view_counts: the model's view weight w (``model.settings_.view_counts``).
+    answer_params: the parameters the robot answers names with
+        (:func:`spco.model.confidence.model_answer_parameters`; ``None``: ``params``); names come
+        from the robot's own function, :func:`spco.model.confidence.answer_names`.
 
     Returns
     -------
     room name -> :class:`RoomScores`. A room whose name has no usable word gets A_p 0.
     """
+    from spco.model.confidence import answer_names
     from spco.model.position_prediction import predict_positions
-    from spco.model.prediction import UnknownNameError, predict_names
+    from spco.model.prediction import UnknownNameError
 
     rows = {int(i): r for r, i in enumerate(env.ids)}
     gen = np.random.default_rng(rng)
     out: dict[str, RoomScores] = {}
     for room in rooms:
         test = np.array([rows[i] for i in room.test_ids], dtype=np.int64)
-        prediction = predict_names(params, e, vocabulary, env.positions[test], env.visual[test],
-                                   top_k=1, weighting=weighting,  # type: ignore[arg-type]
-                                   view_counts=view_counts)
+        prediction = answer_names(params if answer_params is None else answer_params, e, vocabulary,
+                                  env.positions[test], env.visual[test], top_k=1,
+                                  weighting=weighting,  # type: ignore[arg-type]
+                                  view_counts=view_counts)
         predicted = tuple(str(w) for w in prediction.words[:, 0]) if prediction.words.shape[1] else \
             (None,) * test.size
         correct = np.array([room.is_accepted(w) for w in predicted], dtype=bool)
@@ -312,7 +319,8 @@ def execute_configured_run(data: ConfiguredData, key: ConfiguredRun, iterations:
     model.fit(corpus)
     e = len(corpus) - 1
     scores = score_rooms(model.parameters_, e, new, model.vocabulary_, conf.rooms, spec.weighting,
-                         n_positions, np.random.default_rng([key.seed, 1]), model.settings_.view_counts)
+                         n_positions, np.random.default_rng([key.seed, 1]), model.settings_.view_counts,
+                         None if spec.single_home else model_answer_parameters(model, e))
     return {
         "fingerprint": fingerprint,
         "configuration": key.configuration,

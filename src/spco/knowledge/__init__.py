@@ -46,6 +46,7 @@ from spco.knowledge.diagnostics import (
     ExperiencedHomeWarning,
     KnowledgeMismatchWarning,
     check_view_fit,
+    fit_range_text,
     view_fit_warning,
 )
 from spco.knowledge.files import FORMAT_VERSION, HOME_FORMAT, KNOWLEDGE_FORMAT, model_file_format
@@ -117,6 +118,7 @@ __all__ = [
     "concept_visual_totals",
     "describe_model_file",
     "fit_knowledge",
+    "fit_range_text",
     "held_out_view_fits",
     "load_home_model",
     "load_knowledge",

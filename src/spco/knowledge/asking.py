@@ -20,7 +20,7 @@ import scipy.sparse as sp
 from spco.errors import ConfigurationError
 from spco.knowledge.home import HomeModel
 from spco.knowledge.queries import answer_parameters
-from spco.model.confidence import UNSURE_BELOW, VIEW_EFFECTIVE_COUNTS
+from spco.model.confidence import UNSURE_BELOW
 from spco.model.home_shard import FREE_CONCEPT_WEIGHT
 from spco.model.prediction import concept_posterior
 from spco.model.question_scores import QuestionScores, question_scores, rank_questions
@@ -55,7 +55,9 @@ class Question:
     unknown: the probability that the answer is a name the robot has not learnt.
     room: the room (joined regions) the sample belongs to.
     confidence: the probability of the answer the robot expects there (its most probable name,
-        a name of the room's own and the room's taught names counted).
+        a name of the room's own and the room's taught names counted): ``names``' first p × (1 −
+        ``own_name``) when the room has no taught name.
+    own_name: the probability that the room has a name of its own (one no experienced home gave).
     worth_asking: ``confidence`` is below :data:`UNSURE_BELOW`: the robot is unsure of the answer
         (a robot that asks only when unsure stops at the first question that is not worth asking).
     """
@@ -71,13 +73,15 @@ class Question:
     room: int = 0
     confidence: float = 0.0
     worth_asking: bool = True
+    own_name: float = 0.0
 
     def to_dict(self) -> dict[str, Any]:
         """The question as JSON: ``{"id", "x", "y", "theta", "gain", "reason", "names": [{"name",
-        "p"}], "unknown", "confidence", "worth_asking"}``."""
+        "p"}], "unknown", "confidence", "worth_asking", "own_name"}``."""
         return {"id": self.id, "x": self.x, "y": self.y, "theta": self.theta, "gain": self.gain,
                 "reason": self.reason, "names": [{"name": n, "p": p} for n, p in self.names],
-                "unknown": self.unknown, "confidence": self.confidence, "worth_asking": self.worth_asking}
+                "unknown": self.unknown, "confidence": self.confidence, "worth_asking": self.worth_asking,
+                "own_name": self.own_name}
 
 
 def name_columns(home: HomeModel) -> np.ndarray:
@@ -111,7 +115,7 @@ def home_question_scores(home: HomeModel, criterion: str = DEFAULT_CRITERION) ->
     params = answer_parameters(home)  # p(name | concept) as what answers
     columns = name_columns(home)
     concepts = concept_posterior(params, 0, home.positions, home.visual,
-                                 view_counts=VIEW_EFFECTIVE_COUNTS)  # as what scores a view
+                                 view_counts=home.hyperparameters.view_weight())  # as what scores a view
     theta = np.clip(np.asarray(params.word_probabilities[0], dtype=np.float64), 0.0, None)  # (L, V)
     mass = theta[:, columns].sum(axis=1)
     names = np.divide(theta[:, columns], mass[:, None], out=np.zeros((theta.shape[0], columns.size)),
@@ -220,18 +224,18 @@ def _reason(home: HomeModel, scores: QuestionScores, columns: np.ndarray, row: i
                 f"({said(here[:1])})")
     if len(here) == 2 and here[1][1] >= _COMPETING * here[0][1]:
         return f"two concepts compete here: {said(here)}"
-    room_names = top(scores.model_probabilities[in_room].mean(axis=0))
+    room_names = here  # the numbers of `what` at this sample, as the answer line prints them
     if rho >= _OWN_NAME_REASON and float(scores.own_answers[kind]) > 0:
         own_rows = np.flatnonzero(scores.taught & (scores.kinds == kind))
         examples = sorted({w for i in own_rows for w in home.vocabulary.tokenize(home.sentences[i])
                            if (k := home.vocabulary.index(w)) is not None and k >= home.n_knowledge_words})
         named = ", ".join(examples[:3]) or "names of their own"
         return (f"rooms like this {kind_name} had names of their own here ({named}): this one's name may be "
-                f"its own too (p {rho:.2f}; the model says {said(room_names)})")
+                f"its own too (p {rho:.2f})")
     n_rooms = int(scores.rooms_of_kind[kind])
     if rho >= _OWN_NAME_REASON and n_rooms >= 2:
         return (f"the home has {n_rooms} rooms that look like a {kind_name}: people often tell such rooms "
-                f"apart by name (a name of its own: p {rho:.2f}; the model says {said(room_names)})")
+                f"apart by name (a name of its own: p {rho:.2f})")
     if room_names and room_names[0][1] >= 0.9:
         return f"already known: {said(room_names[:1])} (an answer would confirm it)"
     return f"the model is unsure of this room's name: {said(room_names or here)}"
@@ -287,5 +291,6 @@ def ask(home: HomeModel, n: int = 5, criterion: str = DEFAULT_CRITERION, unsure_
             reason=_reason(home, scores, columns, int(row)),
             names=tuple((str(words[int(columns[j])]), float(p[j])) for j in top if p[j] > 0),
             unknown=float(scores.unknown[row]), room=int(scores.rooms[row]),
-            confidence=float(confidence[row]), worth_asking=bool(confidence[row] < float(unsure_below))))
+            confidence=float(confidence[row]), worth_asking=bool(confidence[row] < float(unsure_below)),
+            own_name=float(scores.own_name[row])))
     return questions

@@ -8,6 +8,8 @@ import warnings
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from spco.model.view_fit import view_fit
 
 if TYPE_CHECKING:
@@ -61,11 +63,22 @@ def check_view_fit(knowledge: Knowledge, visual: Any, home_name: str) -> dict[st
     return result
 
 
+def fit_range_text(values: Any) -> str:
+    """The experienced homes' view fits as the messages print them: ``"0.42…0.65"``, or one number
+    when they all print the same (one experienced home, or homes that fit alike): never
+    ``"2.55…2.55"``."""
+    finite = [float(v) for v in (values or []) if v is not None and np.isfinite(float(v))]
+    if not finite:
+        return "unknown"
+    low, high = f"{min(finite):.2f}", f"{max(finite):.2f}"
+    return low if low == high else f"{low}…{high}"
+
+
 def view_fit_warning(home_name: str, result: Mapping[str, Any]) -> str:
     """The sentence that says a knowledge does not fit a home (``result``: :func:`check_view_fit`)."""
-    span = result.get("experienced_range") or [float("nan")] * 2
     value = "no view has a count" if result.get("value") is None else f"{result['value']:.2f}"
+    span = fit_range_text(result.get("experienced_range"))
     return (f"the knowledge does not fit home {home_name!r}: it explains its views by {value} nats per "
-            f"count better than a uniform guess, against {span[0]:.2f}…{span[1]:.2f} in its experienced "
-            f"homes (warned below {result['warn_below']:.2f}); the views probably come from another "
-            f"feature extractor or another kind of place, and answers here may be confidently wrong")
+            f"count better than a uniform guess, against {span} in its experienced homes (warned below "
+            f"{result['warn_below']:.2f}); the views probably come from another feature extractor or "
+            f"another kind of place, and answers here may be confidently wrong")

@@ -186,6 +186,7 @@ def fit_knowledge(  # noqa: PLR0915 (one sequence: start, sweeps, summary; to sp
     from spco.engines import start_source_run
 
     run = start_source_run(engine, source, hyper, settings, rng)  # the homes stay in the shards
+    hyper, settings = run.hyper, run.settings  # (with the view weight estimated from the homes)
     if evidence is not None:
         run.use_word_channels(WordChannels.initial(evidence[0], hyper.n_concepts, hyper.evidence_weight,
                                                    evidence[1]))
@@ -240,7 +241,7 @@ def fit_knowledge(  # noqa: PLR0915 (one sequence: start, sweeps, summary; to sp
     fits = [v for part in run.call("held_out_view_fits", log_phi_v, log_g0, totals) for v in part]
     run.close()
     record["view_fit"] = _view_fit_record(dict(zip(corpus.names, fits, strict=True)))
-    record.update(provenance or {})
+    record.update({**_view_weight_record(run.view_weight), **(provenance or {})})
     return Knowledge(
         log_phi_visual=log_phi_v, log_phi_words=log_phi_w, log_g0=log_g0, word_mask=word_mask,
         concentration_visual=_concentration(phi_v_samples, hyper.delta_visual),
@@ -255,6 +256,13 @@ def fit_knowledge(  # noqa: PLR0915 (one sequence: start, sweeps, summary; to sp
     )
 
 
+def _view_weight_record(estimate: dict | None) -> dict[str, Any]:
+    """The provenance of an estimated view weight (:attr:`spco.model.driver.ShardedRun.view_weight`):
+    ``{"view_weight": {"estimated", "views", "view_counts", "grid", "mean_log_loss"}}`` (the
+    leave-one-home-out loss per view at each w of the grid), or nothing when w was given."""
+    if estimate is None:
+        return {}
+    return {"view_weight": {**estimate, "mean_log_loss": [round(x, 6) for x in estimate["mean_log_loss"]]}}
 def _channel_evidence(corpus: Any) -> tuple[np.ndarray, np.ndarray] | None:
     """The word channels' linguistic evidence (ν, a) of the experienced homes' words
     (:func:`spco.model.name_evidence.channel_evidence`), or ``None`` when no sentence holds an English

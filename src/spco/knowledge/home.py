@@ -140,9 +140,9 @@ class HomeModel:
         the naming rule (exact sampler with pruning: only names are kept, and the name people say
         most at a place comes first — the MI weight would put a name taught once behind names of
         the places around); MI without pruning (it keeps "this" and "is" from being answered)."""
-        if self.knowledge.variant == "reference":
-            return "reference"
-        return "none" if self.knowledge.prune_words else "mi"
+        from spco.model.confidence import answer_weighting
+
+        return answer_weighting(self.knowledge.variant, self.knowledge.prune_words)
 
     @property
     def position_scale(self) -> float:

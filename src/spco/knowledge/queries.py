@@ -24,11 +24,11 @@ from spco.knowledge.files import HOME_FORMAT, model_file_format
 from spco.knowledge.home import HomeModel, load_home_model
 from spco.knowledge.knowledge import load_knowledge
 from spco.knowledge.views import _pose, _visual_row, pose_outside_map, view_counts
-from spco.model.confidence import UNSURE_BELOW, VIEW_EFFECTIVE_COUNTS, concept_word_counts, named_parameters
-from spco.model.home_shard import FREE_CONCEPT_WEIGHT
+from spco.model import confidence
+from spco.model.confidence import UNSURE_BELOW
 from spco.model.parameters import ConceptParameters
 from spco.model.position_prediction import PositionPrediction
-from spco.model.prediction import NamePrediction, UnknownNameError, mutual_information_weights, predict_names
+from spco.model.prediction import NamePrediction, UnknownNameError, mutual_information_weights
 from spco.model.seeds import as_generator
 from spco.model.unheard import resolve_name
 from spco.model.word_channels import name_tokens
@@ -60,7 +60,10 @@ def where(home: HomeModel, name: str, n: int = 10,
     ``name`` is read like a sentence (``"Living Room"``, ``"living-room"`` → ``living room``); a name
     never learnt as one term is its known words said together (``study + room``). ``learnt`` is
     False (and ``support`` low) when no such place was learnt in this home: the name is neither
-    taught in the home nor carried by concepts holding its samples. A name nobody said
+    taught in the home nor carried by concepts holding its samples, and :func:`what` at the centre
+    of the answer region does not answer it either (``called``: the name it answers there, the
+    home's own name for the place; a name ``what`` answers there counts as learnt, whatever the
+    support: ``where`` and ``what`` agree). A name nobody said
     ("restroom") is first looked up in the lexicon (:func:`spco.model.unheard.resolve_name`): the
     answer is then for the known name it found (``name``: "toilet"; ``asked``: "restroom"; ``via``:
     how).
@@ -116,10 +119,28 @@ def _where(home: HomeModel, name: str, n: int,
         per_region[np.argmax(share * n - per_region)] += 1
     regions = np.repeat(answer, per_region)
     samples, log_density, weights = draw_poses(params, 0, probs, regions, as_generator(random_state))
-    return PositionPrediction(name=query_name(vocabulary, params, name), region=int(answer[0]),
+    asked = query_name(vocabulary, params, name)
+    learnt, called = support >= LEARNT_SUPPORT, None
+    if not learnt:  # what `what` answers where the poses are: the name itself (learnt after all) or another
+        called = answered_at_region(home, int(answer[0]))
+        learnt = called == asked
+        called = None if learnt else called
+    return PositionPrediction(name=asked, region=int(answer[0]),
                               region_probabilities=probs, samples=samples, regions=regions,
                               log_density=log_density, weights=weights, mode="mixture", xy_only=False,
-                              support=support, learnt=support >= LEARNT_SUPPORT)
+                              support=support, learnt=learnt, called=called)
+
+
+def answered_at_region(home: HomeModel, region: int) -> str | None:
+    """The name :func:`what` answers (the position alone) at the centre of the home's region
+    ``region``: the name the home gives the place there; ``None`` if it knows none."""
+    mean = np.asarray(home.parameters.region_means[0, region], dtype=np.float64)
+    theta = float(np.arctan2(mean[2], mean[3])) if mean.size >= 4 else 0.0
+    pose = np.array([[mean[0], mean[1], np.sin(theta), np.cos(theta)]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # a region's centre off the map: still the region's answer
+        words = name_prediction(home, pose, None, top_k=1).words[0]
+    return str(words[0]) if len(words) else None
 
 
 def unused_word_hint(home: HomeModel, word: str) -> str | None:
@@ -177,8 +198,8 @@ def what(home: HomeModel, x: float, y: float, theta: float, visual: Any = None,
          unsure_below: float = UNSURE_BELOW) -> NamePrediction:
     """The ``top_k`` place names at pose ``(x, y, θ)``, with the view's visual counts if given.
 
-    The probabilities are honest (:mod:`spco.model.confidence`): a view counts as
-    :data:`~spco.model.confidence.VIEW_EFFECTIVE_COUNTS` draws, a concept nobody named has no name;
+    The probabilities are honest (:mod:`spco.model.confidence`): a view counts as the model's view
+    weight w draws (the one the home was learnt with), a concept nobody named has no name;
     an answer whose probability is below ``unsure_below`` (default
     :data:`~spco.model.confidence.UNSURE_BELOW`) is flagged ``unsure``.
 
@@ -218,9 +239,8 @@ def answer_parameters(home: HomeModel) -> ConceptParameters:
     words = home.data.words
     if home.knowledge.channels is not None and home.state.switches is not None and words.nnz:
         words = name_tokens(words, home.state.switches)  # a free concept's names: its name tokens
-    counts = concept_word_counts(words, home.state.concepts, home.knowledge.n_concepts)
-    params = named_parameters(home.parameters, 0, np.exp(home.knowledge.log_g0) < FREE_CONCEPT_WEIGHT, counts,
-                              home.hyperparameters.alpha_word)
+    params = confidence.answer_parameters(home.parameters, 0, words, home.state.concepts,
+                                          home.knowledge.log_g0, home.hyperparameters.alpha_word)
     # the names only (the word channels: a word said as an object or a function word is never a name)
     return replace(params, word_mask=home.name_mask)
 
@@ -229,9 +249,9 @@ def name_prediction(home: HomeModel, poses: np.ndarray, visual: Any = None, top_
                     unsure_below: float = UNSURE_BELOW) -> NamePrediction:
     """The names :func:`what` answers, for ``n`` poses at once and without its checks of the pose:
     p(name | pose, view) = Σ_l p(name | l) P(l | pose, view), with p(name | l) from
-    :func:`answer_parameters` and P(l | pose, view) scoring a view as the model's S^v draws
-    (:data:`~spco.model.confidence.VIEW_EFFECTIVE_COUNTS` draws: a test view's weight, not the
-    sampler's ``view_counts``; docs/model.md, "Two numbers for one view").
+    :func:`answer_parameters` and P(l | pose, view) scoring a view as the model's view weight w
+    draws (:meth:`~spco.model.hyperparameters.TransferHyperparameters.view_weight`, the weight the
+    home was learnt with; docs/model.md, "A view's evidence").
 
     Parameters
     ----------
@@ -244,12 +264,9 @@ def name_prediction(home: HomeModel, poses: np.ndarray, visual: Any = None, top_
     -------
     The :class:`~spco.model.prediction.NamePrediction` with ``confidence`` and ``unsure``.
     """
-    if not 0.0 <= unsure_below <= 1.0:
-        raise ConfigurationError(f"unsure_below must be within 0..1, got {unsure_below!r}")
-    return predict_names(answer_parameters(home), 0, home.vocabulary, poses, visual, top_k=top_k,
-                         weighting=home.weighting,  # type: ignore[arg-type]
-                         use_vision=visual is not None, view_counts=VIEW_EFFECTIVE_COUNTS,
-                         unsure_below=unsure_below)
+    return confidence.answer_names(answer_parameters(home), 0, home.vocabulary, poses, visual, top_k=top_k,
+                                   weighting=home.weighting,  # type: ignore[arg-type]
+                                   view_counts=home.hyperparameters.view_weight(), unsure_below=unsure_below)
 
 
 def describe_model_file(path: str | PathLike[str]) -> dict[str, Any]:

@@ -42,7 +42,7 @@ def carried_switches(old: sp.csr_array, switches: np.ndarray | None, new: sp.csr
     return out
 
 
-def teach(  # noqa: PLR0915 (teach()'s local update arrived at the last merge; to split)
+def teach(
     home: HomeModel,
     sentences: Mapping[int, str | None] | None = None,
     observations: Sequence[Observation] = (),
@@ -75,6 +75,43 @@ def teach(  # noqa: PLR0915 (teach()'s local update arrived at the last merge; t
     the sweeps start from the home's assignments and parameters, with the shared part fixed (or
     learnt with the knowledge as prior if the home was adapted with ``joint=True``).
     """
+    sentences, observations = _checked_teaching(home, sentences, observations, n_sweeps, limits)
+    start = time.perf_counter()
+    new_sentences = _taught_sentences(home, sentences)
+    ids, poses, rows, no_view = _new_samples(home, observations, new_sentences)
+    positions = np.vstack([home.positions, *poses]) if poses else home.positions
+    visual = home.visual
+    view_missing = np.concatenate([home.view_missing, np.array(no_view, dtype=bool)])
+    if rows:
+        visual = sp.csr_array(sp.vstack([home.visual, *rows], format="csr"), dtype=np.int64)
+
+    knowledge = home.knowledge.extended(new_sentences)
+    local = not home.joint and knowledge.variant == "exact"
+    state = _grown_state(home, knowledge, local, len(poses))
+    data = prepare_home(positions, visual, new_sentences, knowledge.vocabulary, knowledge.word_increment,
+                        home.position_scale, home.map_centre, view_missing)
+    if knowledge.channels is not None:  # the untouched sentences keep their tokens' switches
+        unchanged = [k for k in range(home.n_samples) if new_sentences[k] == home.sentences[k]]
+        state.switches = carried_switches(home.data.words, home.state.switches, data.words, unchanged)
+    posterior = _updated_posterior(home, knowledge, data, state, new_sentences, local, int(n_sweeps),
+                                   random_state)
+    provenance = dict(home.provenance)
+    provenance["teach_updates"] = int(provenance.get("teach_updates", 0)) + 1
+    provenance["updated"] = utc_now()
+    provenance["last_teach"] = {"sentences": len(sentences), "observations": len(observations),
+                                "new_words": list(knowledge.vocabulary.words[home.knowledge.n_words:]),
+                                "n_sweeps": int(n_sweeps), "seed": seed_of(random_state),
+                                "seconds": round(time.perf_counter() - start, 4)}
+    return replace(home, knowledge=knowledge, state=state, ids=np.asarray(ids, dtype=np.int64),
+                   positions=positions, visual=visual, sentences=tuple(new_sentences), provenance=provenance,
+                   posterior=posterior, view_missing=view_missing)
+
+
+def _checked_teaching(home: HomeModel, sentences: Mapping[int, str | None] | None,
+                      observations: Sequence[Observation], n_sweeps: int,
+                      limits: TeachingLimits | None) -> tuple[dict, list]:
+    """The teaching's sentences (a dict) and observations (a list), checked: a home, a number of
+    sweeps, something to teach, and words within ``limits``."""
     if not isinstance(home, HomeModel):
         raise ConfigurationError("teach() expects a HomeModel (from adapt or load_home_model)")
     if not isinstance(n_sweeps, int | np.integer) or n_sweeps < 0:
@@ -86,7 +123,12 @@ def teach(  # noqa: PLR0915 (teach()'s local update arrived at the last merge; t
     said = [s for s in sentences.values() if isinstance(s, str)]
     said += [o.sentence for o in observations if isinstance(o, Observation) and isinstance(o.sentence, str)]
     check_sentences(home.vocabulary, home.n_knowledge_words, said, limits)
-    start = time.perf_counter()
+    return sentences, observations
+
+
+def _taught_sentences(home: HomeModel, sentences: Mapping[int, str | None]) -> list[str | None]:
+    """The home's sentences with those of ``sentences`` (sample id -> sentence, cleaned; ``None``
+    or "" forgets it) in place; an unknown or non-integer id is a clear error."""
     new_sentences = list(home.sentences)
     index = {int(i): k for k, i in enumerate(home.ids)}
     for sample_id, sentence in sentences.items():
@@ -98,6 +140,13 @@ def teach(  # noqa: PLR0915 (teach()'s local update arrived at the last merge; t
                                      f"{home.n_samples} training samples have ids {shown}"
                                      f"{', …' if home.n_samples > 5 else ''}, up to {int(home.ids.max())})")
         new_sentences[index[int(sample_id)]] = clean_sentence(sentence, None)
+    return new_sentences
+
+
+def _new_samples(home: HomeModel, observations: list, new_sentences: list) -> tuple[list, list, list, list]:
+    """The observations as new samples: every id (the home's, then the new ones: given, or the
+    next free), their poses, visual count rows and whether each had no view; their sentences are
+    appended to ``new_sentences``."""
     ids = list(home.ids.tolist())
     taken = set(ids)
     poses, rows, no_view = [], [], []
@@ -114,18 +163,17 @@ def teach(  # noqa: PLR0915 (teach()'s local update arrived at the last merge; t
         no_view.append(counts is None)
         rows.append(_visual_row(counts, home.knowledge.n_features))
         new_sentences.append(clean_sentence(obs.sentence, None))
-    positions = np.vstack([home.positions, *poses]) if poses else home.positions
-    visual = home.visual
-    view_missing = np.concatenate([home.view_missing, np.array(no_view, dtype=bool)])
-    if rows:
-        visual = sp.csr_array(sp.vstack([home.visual, *rows], format="csr"), dtype=np.int64)
+    return ids, poses, rows, no_view
 
-    knowledge = home.knowledge.extended(new_sentences)
-    local = not home.joint and knowledge.variant == "exact"
-    added = knowledge.n_words - home.knowledge.n_words
+
+def _grown_state(home: HomeModel, knowledge, local: bool, n_new_samples: int):
+    """A copy of the home's state grown to the extended ``knowledge``'s new words (their φ^w and
+    θ^w entries at the prior, the knowledge's φ^w for a home that does not learn its own) and to
+    ``n_new_samples`` new samples (concept and region 0 until the sweeps draw them)."""
     state = _copy_state(home.state)
     if knowledge.channels is not None:  # the channels of the grown vocabulary (fixed, like φ)
         state.channels = knowledge.channels.channels
+    added = knowledge.n_words - home.knowledge.n_words
     if added:
         hyper = knowledge.hyperparameters
         log_new = math.log(hyper.alpha_word / hyper.delta_word)
@@ -140,43 +188,33 @@ def teach(  # noqa: PLR0915 (teach()'s local update arrived at the last merge; t
                            minlength=L)
         init_new_words(state, home.knowledge.n_words, said, hyper.delta_word)
         state.word_mask = np.concatenate([state.word_mask, np.ones(added, dtype=bool)])
-    if poses:
-        extra = len(poses)
-        state.concepts = np.concatenate([state.concepts, np.zeros(extra, dtype=np.int64)])
-        state.regions = np.concatenate([state.regions, np.zeros(extra, dtype=np.int64)])
-    data = prepare_home(positions, visual, new_sentences, knowledge.vocabulary, knowledge.word_increment,
-                        home.position_scale, home.map_centre, view_missing)
-    if knowledge.channels is not None:  # the untouched sentences keep their tokens' switches
-        unchanged = [k for k in range(home.n_samples) if new_sentences[k] == home.sentences[k]]
-        state.switches = carried_switches(home.data.words, home.state.switches, data.words, unchanged)
+    if n_new_samples:
+        state.concepts = np.concatenate([state.concepts, np.zeros(n_new_samples, dtype=np.int64)])
+        state.regions = np.concatenate([state.regions, np.zeros(n_new_samples, dtype=np.int64)])
+    return state
+
+
+def _updated_posterior(home: HomeModel, knowledge, data, state, new_sentences: list, local: bool,
+                       n_sweeps: int, random_state):
+    """The sweeps of the teaching from ``state`` (updated in place) and the home's new posterior
+    average: a local update of the samples taught and added (:func:`teach_locally`), or, for a home
+    adapted with ``joint=True`` or the reference sampler, the whole home resumed
+    (:class:`NewHomeShard`)."""
+    if local:  # a local update: the taught place changes, the rest of the home only where it must
+        n_old = home.n_samples
+        taught = [k for k in range(n_old) if new_sentences[k] != home.sentences[k]]
+        new_rows = np.arange(n_old, len(new_sentences))
+        return teach_locally(data, state, knowledge.shared_part(), home.n_knowledge_words,
+                             np.concatenate([np.asarray(taught, dtype=np.int64), new_rows]), new_rows,
+                             n_sweeps, as_generator(random_state), home.posterior, home.name)
     prior = None
     if home.joint:
         prior = knowledge.shared_prior()
         state.candidate_words = knowledge.word_mask[: home.n_knowledge_words].copy()
         state.candidate_words = np.concatenate([state.candidate_words,
                                                 np.ones(knowledge.n_words - home.n_knowledge_words, bool)])
-    if local:  # a local update: the taught place changes, the rest of the home only where it must
-        n_old = home.n_samples
-        taught = [k for k in range(n_old) if new_sentences[k] != home.sentences[k]]
-        new_rows = np.arange(n_old, len(new_sentences))
-        posterior = teach_locally(data, state, knowledge.shared_part(), home.n_knowledge_words,
-                                  np.concatenate([np.asarray(taught, dtype=np.int64), new_rows]), new_rows,
-                                  int(n_sweeps), as_generator(random_state), home.posterior, home.name)
-    else:
-        shard = NewHomeShard(data, state, knowledge.shared_part(), home.n_knowledge_words,
-                             as_generator(random_state), prior)
-        shard.begin()  # a taught name counts at once
-        shard.run(int(n_sweeps))
-        posterior = shard.finish(home.name)
-    provenance = dict(home.provenance)
-    provenance["teach_updates"] = int(provenance.get("teach_updates", 0)) + 1
-    provenance["updated"] = utc_now()
-    provenance["last_teach"] = {"sentences": len(sentences), "observations": len(observations),
-                                "new_words": list(knowledge.vocabulary.words[home.knowledge.n_words:]),
-                                "n_sweeps": int(n_sweeps), "seed": seed_of(random_state),
-                                "seconds": round(time.perf_counter() - start, 4)}
-    return replace(home, knowledge=knowledge, state=state, ids=np.asarray(ids, dtype=np.int64),
-                   positions=positions, visual=visual, sentences=tuple(new_sentences), provenance=provenance,
-                   posterior=posterior, view_missing=view_missing)
-
-
+    shard = NewHomeShard(data, state, knowledge.shared_part(), home.n_knowledge_words,
+                         as_generator(random_state), prior)
+    shard.begin()  # a taught name counts at once
+    shard.run(n_sweeps)
+    return shard.finish(home.name)

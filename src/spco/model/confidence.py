@@ -5,18 +5,13 @@ counts two kinds of evidence that are not independent as if they were; this modu
 (``docs/model.md``, "Confidence"):
 
 1. **A view is not thousands of independent draws.** The visual likelihood is a multinomial over
-   the view's counts: ~1,950 counts per colour-hog image, ~7,300 per fc7 vector (× 5, an arbitrary
-   scale). Counts of one image are not independent draws from the concept's θ^v — they are
-   deterministic functions of one image — so the log-likelihood gaps between concepts are hundreds
-   to thousands of nats, the concept posterior is one-hot, and a view that looks like another room
-   overrides the position entirely. Here each view's log-likelihood is weighted by
-   ``min(1, n_eff / Σ_d v_d)``: its proportions are scored as :data:`VIEW_EFFECTIVE_COUNTS`
-   draws (a power, or tempered, likelihood; for n_eff ≪ Σ v the evidence between concepts l, l' is
-   ``n_eff · (KL(v̂ ‖ θ^v_l') − KL(v̂ ‖ θ^v_l))``, v̂ the view's proportions, whatever the extractor's
-   count scale). n_eff was fitted by the least log loss of the right names on *development*
-   views only (``benchmarks/calibration/SPLIT.md``). The exact model learns with its own weight of
-   a view, ``TransferHyperparameters.view_counts`` (16); this one is for the probabilities of a
-   test view, and was checked against that one (:data:`VIEW_EFFECTIVE_COUNTS`).
+   the view's counts (~1,950 per colour-hog image, ~7,300 per fc7 vector), and counts of one image
+   are not independent draws from the concept's θ^v. A view is scored as the model's view weight
+   w draws of its proportions (``min(1, w / Σ_d v_d)`` times its log-likelihood): the same w the
+   sampler learnt with (16 by default, or estimated from the experienced homes;
+   :attr:`spco.model.hyperparameters.TransferHyperparameters.view_counts`,
+   :meth:`~spco.model.hyperparameters.TransferHyperparameters.view_weight`; docs/model.md, "A view's
+   evidence"). There is no separate constant for prediction.
 2. **A concept nobody named has no name.** A concept the knowledge does not use (G_0 below
    ``free_weight``, e.g. a third bedroom unlike the experienced ones) gets its φ^w redrawn from the
    sparse prior Dir(α^w) at each sweep of ``adapt`` — nearly one-hot on a random word — and the few
@@ -28,7 +23,7 @@ counts two kinds of evidence that are not independent as if they were; this modu
 An answer whose probability is below :data:`UNSURE_BELOW` is flagged *unsure*
 (:attr:`spco.model.prediction.NamePrediction.unsure`; ``spco what`` says so, ``--json`` has
 ``"unsure": true``); ``ask`` uses the same threshold for a question worth asking, and scores views
-with the same :data:`VIEW_EFFECTIVE_COUNTS`.
+with the same view weight.
 """
 
 from __future__ import annotations
@@ -45,19 +40,14 @@ from spco.model.prediction import NamePrediction, Weighting, predict_names
 
 __all__ = [
     "UNSURE_BELOW",
-    "VIEW_EFFECTIVE_COUNTS",
+    "answer_names",
+    "answer_parameters",
+    "answer_weighting",
     "concept_word_counts",
+    "model_answer_parameters",
     "named_parameters",
     "predict_names_honestly",
 ]
-
-#: The evidence of one camera view in ``what``'s probabilities, in independent draws from its
-#: concept's visual distribution. Not the model's ``TransferHyperparameters.view_counts`` (the
-#: weight of a view while the exact sampler *learns*): this one is for *honest probabilities*, the
-#: value of least log loss of the right names over the development views of
-#: ``benchmarks/calibration/SPLIT.md`` (``benchmarks/calibration.py --fit-view-counts``; the figures
-#: are in benchmarks/README.md).
-VIEW_EFFECTIVE_COUNTS = 5.0
 
 #: The one "unsure" threshold: an answer whose probability p(name | pose, view) is below this is
 #: *unsure* (``what``, the service, the ROS node), and a place where the answer the robot expects is
@@ -134,10 +124,10 @@ def predict_names_honestly(
     free: np.ndarray,
     word_counts: np.ndarray,
     alpha_word: float,
+    view_counts: float | None,
     top_k: int = 3,
     weighting: Weighting = "none",
     use_vision: bool = True,
-    view_counts: float = VIEW_EFFECTIVE_COUNTS,
     unsure_below: float = UNSURE_BELOW,
 ) -> NamePrediction:
     """Place names of ``n`` observations of home ``e`` with honest probabilities (module docstring).
@@ -148,7 +138,9 @@ def predict_names_honestly(
         :func:`spco.model.prediction.predict_names` (positions (n, 4), visual (n, D) counts).
     free: (L,) bool, the concepts the knowledge does not use; word_counts: (L, V) the home's word
         counts by concept; alpha_word: α^w (see :func:`named_parameters`).
-    view_counts: the evidence of one view in counts (default :data:`VIEW_EFFECTIVE_COUNTS`).
+    view_counts: the model's view weight w
+        (:meth:`~spco.model.hyperparameters.TransferHyperparameters.view_weight`; ``None``: every
+        count a draw).
     unsure_below: answers below this probability are flagged unsure (default :data:`UNSURE_BELOW`).
 
     Returns
@@ -161,3 +153,76 @@ def predict_names_honestly(
     named = named_parameters(params, e, free, word_counts, alpha_word)
     return predict_names(named, e, vocabulary, positions, visual, top_k=top_k, weighting=weighting,
                          use_vision=use_vision, view_counts=view_counts, unsure_below=unsure_below)
+
+
+def answer_parameters(params: ConceptParameters, e: int, words: sp.csr_array | np.ndarray,
+                      concepts: np.ndarray, log_g0: np.ndarray, alpha_word: float) -> ConceptParameters:
+    """``params`` as every answer about home ``e``'s names uses them: its concepts that the shared
+    knowledge does not use (G_0 below :data:`~spco.model.home_shard.FREE_CONCEPT_WEIGHT`) with
+    their word distributions at the posterior mean given the home's own words
+    (:func:`named_parameters`).
+
+    Parameters
+    ----------
+    params: the model; e: the home.
+    words: (n, V) the home's training word counts; concepts: (n,) their concepts.
+    log_g0: (L,) log G_0 of the knowledge; alpha_word: α^w.
+    """
+    from spco.model.home_shard import FREE_CONCEPT_WEIGHT
+
+    counts = concept_word_counts(words, concepts, params.n_concepts)
+    return named_parameters(params, e, np.exp(np.asarray(log_g0, dtype=np.float64)) < FREE_CONCEPT_WEIGHT,
+                            counts, alpha_word)
+
+
+def answer_names(
+    params: ConceptParameters,
+    e: int,
+    vocabulary: Vocabulary,
+    positions: np.ndarray | None,
+    visual: object,
+    *,
+    view_counts: float | None,
+    weighting: Weighting,
+    top_k: int = 3,
+    unsure_below: float = UNSURE_BELOW,
+    name_prior: str = "off",
+) -> NamePrediction:
+    """The names the robot answers at ``n`` observations of home ``e`` — the one predictor of
+    p(name | pose, view): ``what`` (:func:`spco.knowledge.name_prediction`, the service, the ROS
+    node) and the experiments (:func:`spco.evaluation.metrics.evaluate_home`) call it.
+
+    ``params`` are the answer's parameters (:func:`answer_parameters`); ``view_counts`` the model's
+    view weight w (:meth:`~spco.model.hyperparameters.TransferHyperparameters.view_weight`);
+    ``weighting`` the model's name weighting (:func:`answer_weighting`); answers below
+    ``unsure_below`` (default :data:`UNSURE_BELOW`) are flagged unsure; ``name_prior``: the opt-in
+    ordering of :func:`~spco.model.prediction.predict_names` (off for the robot's answers).
+    """
+    if not 0.0 <= unsure_below <= 1.0:
+        raise ConfigurationError(f"unsure_below must be within 0..1, got {unsure_below!r}")
+    return predict_names(params, e, vocabulary, positions, visual, top_k=top_k, weighting=weighting,
+                         use_vision=visual is not None, view_counts=view_counts, unsure_below=unsure_below,
+                         name_prior=name_prior)  # type: ignore[arg-type]
+
+
+def answer_weighting(variant: str, prune_words: bool) -> Weighting:
+    """The name weighting of a model's answers: the authors' KL score for the reference sampler;
+    none with the naming rule (exact sampler with pruning: only names are kept, and the name people
+    say most at a place comes first — the MI weight would put a name taught once behind names of
+    the places around); MI without pruning (it keeps "this" and "is" from being answered)."""
+    if variant == "reference":
+        return "reference"
+    return "none" if prune_words else "mi"
+
+
+def model_answer_parameters(model: object, e: int) -> ConceptParameters:
+    """:func:`answer_parameters` of home ``e`` of a fitted joint model
+    (:class:`~spco.model.transfer.SpatialConceptModel`: the experiments' fit of the experienced
+    and new homes together): its averaged parameters, its concepts of the home's training samples,
+    its G_0."""
+    params = model.parameters_  # type: ignore[attr-defined]
+    data = model.data_  # type: ignore[attr-defined]
+    rows = slice(int(data.offsets[e]), int(data.offsets[e + 1]))
+    log_g0 = np.log(np.maximum(np.asarray(params.global_concept_weights, dtype=np.float64), 1e-300))
+    return answer_parameters(params, e, data.words[rows], model.concepts_[e], log_g0,  # type: ignore[attr-defined]
+                             model.hyperparameters_.alpha_word)  # type: ignore[attr-defined]

@@ -12,17 +12,19 @@ from __future__ import annotations
 import dataclasses
 import itertools
 from abc import ABC, abstractmethod
+from collections.abc import Iterator
 
 import numpy as np
 
 from spco.errors import ConfigurationError
 from spco.model import shard as shards_api
 from spco.model import shard_init
-from spco.model.hyperparameters import TransferHyperparameters
+from spco.model.hyperparameters import ESTIMATE, VIEW_COUNTS, TransferHyperparameters
 from spco.model.shard import GlobalStep
 from spco.model.shard_group import ShardGroup
 from spco.model.sources import HomeSource
 from spco.model.state import GibbsState, PreparedData, SamplerSettings
+from spco.model.view_fit import VIEW_WEIGHT_GRID, estimate_view_weight
 
 
 class ShardedRun(ABC):
@@ -53,6 +55,32 @@ class ShardedRun(ABC):
         self._start(parts)
         self.shared, self.initialisation = shard_init.initialise(
             self.call, self.call_each, self.bounds, self.n_words, hyper, settings, rng)
+        #: the view-weight estimate's record (``None``: w was given, not estimated)
+        self.view_weight: dict | None = None
+        if hyper.view_counts == ESTIMATE and settings.variant == "exact":
+            self._estimate_view_weight()
+
+    def _estimate_view_weight(self) -> None:
+        """Learn the view weight w from the homes (:func:`spco.model.view_fit.estimate_view_weight`,
+        on the concepts of the start) and make every worker, the global step and this run's
+        ``hyper`` and ``settings`` use it from the first sweep of the chain on. Without a taught view
+        in two homes there is nothing to estimate from: w stays the start's
+        :data:`~spco.model.hyperparameters.VIEW_COUNTS`."""
+        totals, taught = (sum(parts) for parts in zip(*self.call("view_weight_totals"), strict=True))
+        losses, used, homes = np.zeros(len(VIEW_WEIGHT_GRID)), 0, 0
+        for part in self.call("view_weight_losses", totals, taught):
+            for home_losses, home_used in part:  # in home order
+                losses, used, homes = losses + home_losses, used + home_used, homes + (home_used > 0)
+        w = estimate_view_weight(losses, used) if homes > 1 else None
+        self.view_weight = {"estimated": w is not None, "views": int(used),
+                            "grid": [float(g) for g in VIEW_WEIGHT_GRID],
+                            "mean_log_loss": [float(x) / max(used, 1) for x in losses]}
+        w = VIEW_COUNTS if w is None else w
+        self.view_weight["view_counts"] = w
+        self.hyper = dataclasses.replace(self.hyper, view_counts=w)
+        self.settings = dataclasses.replace(self.settings, view_counts=w)
+        self.global_step.hyper, self.global_step.settings = self.hyper, self.settings
+        self.call("set_view_weight", w)
 
     @abstractmethod
     def _start(self, parts: list) -> None:
@@ -92,10 +120,26 @@ class ShardedRun(ABC):
     def states(self) -> list[GibbsState]:
         """Every worker's state (copies where the workers live elsewhere)."""
 
-    def state(self) -> GibbsState:
+    def home_states(self) -> list[GibbsState]:
+        """States whose homes, in order, are every home of the fit: the workers' own states where
+        they live in this process (no copies), else :meth:`states`."""
+        return self.states()
+
+    def home_visual(self) -> Iterator[np.ndarray]:
+        """Every home's log θ^v (L, D), in home order, without joining them (views where the
+        workers live in this process)."""
+        for state in self.home_states():
+            yield from state.log_theta_v
+
+    def state(self, visual: bool = True) -> GibbsState:
         """The workers' states joined: the state of every home, with the word mask of the last
-        sweep's pruning (the homes receive it with the next local step)."""
-        state = shards_api.join_states(self.states())
+        sweep's pruning (the homes receive it with the next local step). ``visual=False``: without
+        log θ^v (``None``; read it per home with :meth:`home_visual`), the largest field, which
+        joining copies."""
+        if visual:
+            state = shards_api.join_states(self.states())
+        else:
+            state = shards_api.join_states(self.home_states(), without=("log_theta_v",))
         state.word_mask = self.shared.word_mask
         state.name_words = self.shared.name_words
         state.channels = self.shared.channels
@@ -130,6 +174,9 @@ class LocalRun(ShardedRun):
 
     def states(self) -> list[GibbsState]:
         return [s.state for s in self.shards]
+
+    def home_states(self) -> list[GibbsState]:
+        return [h.state for s in self.shards for h in s.homes]
 
     def close(self) -> None:
         """Drop the workers (this process's objects: their data views, caches and states), so that

@@ -37,11 +37,13 @@ EVIDENCE_WEIGHT = 1.0
 #: The paper's Ψ0 for (x, y, sin θ, cos θ), x and y in cm².
 PAPER_PSI0_CM = (10.0, 10.0, 0.5, 0.5)
 
-#: The evidence of one view, in counts, of the exact sampler and its predictions
-#: (``TransferHyperparameters.view_counts``); chosen on development configurations only (see
-#: ``docs/model.md``, "How much a view weighs"). ``what``'s probabilities weigh a test view by their
-#: own :data:`spco.model.confidence.VIEW_EFFECTIVE_COUNTS` (docs/model.md, "Two numbers for one view").
+#: The view weight w, in counts: the default of ``TransferHyperparameters.view_counts``, the one
+#: weight of a view in the sampler and in every answer (docs/model.md, "A view's evidence"); chosen
+#: on development configurations. With ``view_counts="estimate"`` also the weight of the start's
+#: sweeps before w is estimated, and of a fit that cannot estimate it.
 VIEW_COUNTS = 16.0
+#: ``TransferHyperparameters.view_counts`` of a model whose view weight is learnt from its homes.
+ESTIMATE = "estimate"
 
 
 #: Largest Dirichlet concentration or NIW κ0 accepted (sums over thousands of dimensions stay finite).
@@ -82,14 +84,19 @@ class TransferHyperparameters:
         2×2 mutual information of about 0.02–0.06 nats (a KL score of 0.2–0.4), the template
         words "this", "is", "the" about 0.001–0.005; with ε = 0.1 the true MI would prune every
         word.
-    view_counts: the evidence of one view, in counts (``None``: every count is a draw, the paper's
-        multinomial). A view carries thousands of counts (SIGVerse fc7: ~7,000), and the multinomial
-        scores each as an independent draw, so that two concepts' views differ by thousands of nats
-        — far more than any position or word evidence; but the counts of one view are not
-        independent (one camera image). With ``view_counts = n`` a view's log-likelihood under
-        every concept is weighted by ``min(1, n / Σ_d v_d)``: its proportions are scored as n
-        draws, in the sampler's assignment of samples to concepts (exact variant only; θ^v is still
-        drawn from all the counts) and in name prediction. Default :data:`VIEW_COUNTS`.
+    view_counts: the view weight w, the evidence of one view in counts — the one definition of
+        a view's weight, used by the sampler's assignments, ``adapt``, ``teach``, ``what``, ``ask``
+        and the experiments (:meth:`view_weight`). A view carries thousands of counts (SIGVerse
+        fc7: ~7,000) and the multinomial scores each as an independent draw, so that two concepts'
+        views differ by thousands of nats; but the counts of one image are not independent. With
+        w a view's log-likelihood under every concept is weighted by ``min(1, w / Σ_d v_d)``: its
+        proportions are scored as w draws (a power likelihood). Default :data:`VIEW_COUNTS`.
+        ``"estimate"`` (opt-in): w is learnt from the experienced homes when the exact sampler fits
+        several homes — the least leave-one-home-out log loss of the concept of each taught view
+        (:func:`spco.model.view_fit.estimate_view_weight`), after the start and before the chain —
+        and the fitted model's hyperparameters hold the number (so a knowledge file, and every home
+        adapted from it, carries it); a fit that cannot estimate it uses :data:`VIEW_COUNTS`.
+        ``None``: every count a draw (the paper's multinomial). Exact variant only.
     name_prior: ``"off"`` (default) or ``"wordnet"``: with ``"wordnet"``, the MI-weighted name
         prediction reorders the words of each concept by how name-like they are (the sentence
         positions and WordNet, :mod:`spco.model.name_evidence`; models with the naming rule only).
@@ -125,7 +132,7 @@ class TransferHyperparameters:
     psi0_in_cm2: bool = True
     mu0: tuple[float, float, float, float] | None = None
     mi_threshold: float | None = None
-    view_counts: float | None = VIEW_COUNTS
+    view_counts: float | str | None = VIEW_COUNTS
     name_prior: NamePrior = "off"
     word_model: WordModel = "channels"
     evidence_weight: float = EVIDENCE_WEIGHT
@@ -145,8 +152,15 @@ class TransferHyperparameters:
         if not (np.isfinite(self.nu0) and 3 < self.nu0 <= MAX_CONCENTRATION):
             raise ConfigurationError(f"nu0 must exceed the dimension minus one (3) and be at most "
                                      f"{MAX_CONCENTRATION:g}, got {self.nu0!r}")
-        if self.view_counts is not None:
+        if isinstance(self.view_counts, str):
+            if self.view_counts != ESTIMATE:
+                raise ConfigurationError(f"view_counts must be a number, none or {ESTIMATE!r}, "
+                                         f"got {self.view_counts!r}")
+        elif self.view_counts is not None:
             _positive("view_counts", float(self.view_counts))
+            if not float(self.view_counts) <= MAX_CONCENTRATION:
+                raise ConfigurationError(f"view_counts must be at most {MAX_CONCENTRATION:g}, "
+                                         f"got {self.view_counts!r}")
         if self.mi_threshold is not None and not (np.isfinite(self.mi_threshold) and self.mi_threshold >= 0):
             raise ConfigurationError(f"mi_threshold must be >= 0, got {self.mi_threshold!r}")
         if self.word_model not in WORD_MODELS:
@@ -174,6 +188,13 @@ class TransferHyperparameters:
         if self.mi_threshold is not None:
             return float(self.mi_threshold)
         return DEFAULT_PRUNING_THRESHOLDS[score]
+
+    def view_weight(self) -> float | None:
+        """The view weight w as a number (``None``: every count a draw): ``view_counts``, or
+        :data:`VIEW_COUNTS` while it is still to be estimated (``"estimate"``)."""
+        if self.view_counts == ESTIMATE:
+            return VIEW_COUNTS
+        return None if self.view_counts is None else float(self.view_counts)
 
     def psi0_matrix_m2(self) -> np.ndarray:
         """Ψ0 as a 4×4 matrix with x and y in metres²."""
@@ -211,8 +232,9 @@ class TransferHyperparameters:
 
         Scalars only (:data:`SETTABLE`): integers for ``n_concepts`` / ``n_regions``, numbers
         otherwise, ``none`` for ``view_counts`` (every count a draw) or ``mi_threshold`` (the
-        score's default). Raises :class:`~spco.errors.ConfigurationError` naming the setting for
-        an unknown name, a value of the wrong kind, or one the model refuses (e.g. ``kappa0=-1``).
+        score's default), ``estimate`` for ``view_counts`` (learnt from the homes). Raises
+        :class:`~spco.errors.ConfigurationError` naming the setting for an unknown name, a value of
+        the wrong kind, or one the model refuses (e.g. ``kappa0=-1``).
         """
         changes: dict[str, Any] = {}
         for setting in settings:
@@ -227,8 +249,11 @@ class TransferHyperparameters:
             if kind == "one of channels, naming-rule":
                 changes[name] = text
                 continue
+            if name == "view_counts" and text.lower() == ESTIMATE:
+                changes[name] = ESTIMATE
+                continue
             if text.lower() == "none":
-                if kind != "number or none":
+                if kind not in ("number or none", "number, none or estimate"):
                     raise ConfigurationError(f"hyperparameter setting {setting!r}: {name} needs {kind}")
                 changes[name] = None
                 continue
@@ -249,7 +274,7 @@ SETTABLE: dict[str, str] = {
     "n_concepts": "integer", "n_regions": "integer", "alpha_visual": "a number", "alpha_word": "a number",
     "delta_visual": "a number", "delta_word": "a number", "gamma0": "a number", "gamma": "a number",
     "beta": "a number", "kappa0": "a number", "nu0": "a number", "mi_threshold": "number or none",
-    "view_counts": "number or none", "evidence_weight": "a number",
+    "view_counts": "number, none or estimate", "evidence_weight": "a number",
     "word_model": "one of channels, naming-rule",
 }
 

@@ -190,6 +190,30 @@ def _matching_homes(alpha_v: np.ndarray, lg_v: np.ndarray, counts_v: np.ndarray,
             perms[e, j] = perm[j]
 
 
+#: The last word concentrations of :func:`_word_concentration`: (log φ^w, a copy of it, of the
+#: mask, δ^w, the result).
+_WORD_CONCENTRATIONS: list[tuple[np.ndarray, np.ndarray, np.ndarray, float, np.ndarray]] = []
+
+
+def _word_concentration(log_phi_w: np.ndarray, word_mask: np.ndarray, delta_w: float) -> np.ndarray:
+    """δ^w φ^w over the kept words, renormalised (log-sum-exp): remembered for the same φ^w and
+    mask, as :func:`~spco.model.observations.shared_concentration` does for φ^v, so that the homes
+    of a shard, each proposing its swaps under the same φ^w, compute it once per sweep (SciPy's
+    ``logsumexp`` costs ~0.1 ms a call). A remembered value is used only for the same array
+    holding the same values (compared with copies): exactly what the computation gives."""
+    for source, values, mask, delta, result in _WORD_CONCENTRATIONS:
+        if source is log_phi_w and delta == delta_w and values.shape == log_phi_w.shape \
+                and mask.shape == word_mask.shape and np.array_equal(mask, word_mask) \
+                and np.array_equal(values, log_phi_w):
+            return result
+    log_phi = log_phi_w[:, word_mask]
+    result = delta_w * np.exp(log_phi - logsumexp(log_phi, axis=1, keepdims=True))
+    _WORD_CONCENTRATIONS.insert(0, (log_phi_w, np.array(log_phi_w, copy=True), np.array(word_mask, copy=True),
+                                    float(delta_w), result))
+    del _WORD_CONCENTRATIONS[4:]
+    return result
+
+
 def concept_swap_step(visual_counts: np.ndarray, log_phi_v: np.ndarray, delta_v: float,
                       word_counts: np.ndarray, log_phi_w: np.ndarray, delta_w: float,
                       log_g: np.ndarray, log_g0: np.ndarray, gamma: float, word_mask: np.ndarray,
@@ -216,8 +240,7 @@ def concept_swap_step(visual_counts: np.ndarray, log_phi_v: np.ndarray, delta_v:
     n_homes, n_concepts = log_g.shape
     alpha_v = shared_concentration(log_phi_v, delta_v)
     if word_mask.any():
-        log_phi = log_phi_w[:, word_mask]
-        alpha_w = delta_w * np.exp(log_phi - logsumexp(log_phi, axis=1, keepdims=True))
+        alpha_w = _word_concentration(log_phi_w, word_mask, delta_w)
         counts_w = word_counts[:, :, word_mask]
     else:
         alpha_w = np.zeros((n_concepts, 0))

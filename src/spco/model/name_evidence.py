@@ -82,12 +82,13 @@ AFTER_NAME = frozenset({"is", "are", "here", "'s"})
 
 #: The features, in the order of :data:`WEIGHTS` (all in [0, 1]).
 FEATURES = ("determiner", "naming_frame", "preposition", "pronoun", "sentence_start", "alone",
-            "known", "noun_share", "place_share", "function_word")
+            "known", "noun_share", "place_share", "function_word", "spelling_variant")
 
-#: Intercept and weights of the logistic model (fitted by ``benchmarks/name_evidence.py`` on
-#: development data, L2 penalty 1; see docs/model.md).
-WEIGHTS: tuple[float, ...] = (-5.805, 2.303, 0.703, -1.110, -0.366, 0.068, -0.140, 0.030, 1.458, 2.641,
-                               -0.434)
+#: Intercept and weights of the logistic model (fitted by ``benchmarks/name_evidence.py --subject
+#: …/sigverse_subject --terms-from distinct`` on development data only — the development homes of
+#: people's sentences among its corpora — L2 penalty 1; see docs/model.md).
+WEIGHTS: tuple[float, ...] = (-4.407, 1.831, 1.452, -0.334, -0.472, 0.399, 0.749, -1.278, 1.068, 2.947,
+                               -1.484, -3.702)
 
 
 def content_share(words: Sequence[str]) -> np.ndarray:
@@ -146,37 +147,95 @@ def frame_features(vocabulary: Vocabulary, sentences: Iterable[str | None]) -> n
 
 
 def lexical_features(words: Sequence[str], lexicon: object | None = None) -> np.ndarray:
-    """What each word is, from WordNet: (V, 4) = known (1: WordNet knows the word or, for a term,
-    its head word), share of noun senses, share of noun senses that are places, function word
-    (one of spco's English function-word lists). Unknown words: (0, 0.5, 0, function word).
+    """What each word is, from WordNet: (V, 5) = known (1: WordNet knows the word, or one of its
+    :func:`spelling_variants`, or for a term its head word, tried in that order), share of noun
+    senses, share of noun senses that are places, function word (one of spco's English
+    function-word lists), spelling variant (1: the facts are those of a word one
+    edit away, "kicthen", "bathrooom": a misspelt name is where the name is, but not the name to
+    answer; a compound written as one or in two, "bed room", "livingroom", is not a misspelling).
+    Unknown words: (0, 0.5, 0, function word, 0).
 
     ``lexicon``: a :class:`spco.data.lexicon.Lexicon` (default: :func:`spco.data.lexicon.lexicon`,
     which may be None: then every word is unknown to it)."""
-    out = np.zeros((len(words), 4))
+    out = np.zeros((len(words), 5))
     out[:, 1] = 0.5
-    asked: list[tuple[int, list[str]]] = []
+    asked: list[int] = []
     for k, word in enumerate(words):
-        parts = word.split()
-        out[k, 3] = float(len(parts) == 1 and (word in DETERMINERS or word in PREPOSITIONS
+        out[k, 3] = float(" " not in word and (word in DETERMINERS or word in PREPOSITIONS
                                                or word in COPULAS or word in PRONOUNS))
-        if not out[k, 3]:
-            asked.append((k, [c for c in ((word, parts[-1]) if len(parts) > 1 else (word,))
-                              if not c.endswith("'s")]))
-    if lexicon is None:  # the process's WordNet, through the cache of word facts (no NLTK if all known)
-        from spco.data.lexicon import word_facts
-
-        facts = word_facts([c for _, candidates in asked for c in candidates])
-    else:
-        facts = {c: _facts_of(lexicon, c) for _, candidates in asked for c in candidates}
+        if not out[k, 3] and not word.endswith("'s"):
+            asked.append(k)
+    facts = _lookup([words[k] for k in asked], lexicon)
     if facts is None:
         return out
-    for k, candidates in asked:
-        for candidate in candidates:
+    # the words WordNet does not know: their other spellings, then a term's head word
+    unknown = [k for k in asked if not facts[words[k]].known]
+    others = {k: [c for c in (*spelling_variants(words[k], words), *words[k].split()[1:][-1:])
+                  if not c.endswith("'s")] for k in unknown}
+    more = _lookup(sorted({c for cs in others.values() for c in cs} - set(facts)), lexicon)
+    facts.update(more or {})
+    for k in asked:
+        for candidate in (words[k], *others.get(k, ())):
             fact = facts[candidate]
             if fact.known:
-                out[k] = (1.0, fact.noun_share, 0.0 if np.isnan(fact.place_share) else fact.place_share, 0.0)
+                out[k, :4] = (1.0, fact.noun_share, 0.0 if np.isnan(fact.place_share) else fact.place_share,
+                              0.0)
+                # a misspelling (not the word, its head, or the word written as one or in two)
+                out[k, 4] = float(candidate.replace(" ", "") != words[k].replace(" ", "")
+                                  and candidate not in words[k].split()[1:][-1:])
                 break
     return out
+
+
+def _lookup(texts: Sequence[str], lexicon: object | None) -> dict | None:
+    """:class:`spco.data.lexicon.WordFacts` of ``texts``: from ``lexicon``, or the process's WordNet
+    through the cache of word facts (no NLTK if all known); None without a lexicon."""
+    if lexicon is None:
+        from spco.data.lexicon import word_facts
+
+        return word_facts(list(texts))
+    return {c: _facts_of(lexicon, c) for c in texts}
+
+
+#: Shortest word whose misspellings are looked for (:func:`spelling_variants`): shorter words are
+#: one letter from too many others ("bed", "bad", "bid").
+MIN_VARIANT_CHARS = 5
+
+
+def _one_edit(a: str, b: str) -> bool:
+    """Whether ``a`` and ``b`` differ by one deletion, insertion, substitution or transposition of
+    adjacent letters (Damerau–Levenshtein distance 1)."""
+    if a == b or abs(len(a) - len(b)) > 1:
+        return False
+    if len(a) > len(b):
+        a, b = b, a
+    if len(a) < len(b):  # one insertion into a
+        return any(b[:i] + b[i + 1:] == a for i in range(len(b)))
+    diff = [i for i in range(len(a)) if a[i] != b[i]]
+    return len(diff) == 1 or (len(diff) == 2 and diff[1] == diff[0] + 1
+                              and a[diff[0]] == b[diff[1]] and a[diff[1]] == b[diff[0]])
+
+
+def spelling_variants(word: str, vocabulary: Sequence[str] = ()) -> list[str]:
+    """Other spellings of ``word`` whose WordNet facts stand for its own when WordNet does not know it
+    (what :func:`lexical_features` asks after the word itself, before a term's head word): the word
+    written as one ("bath room" → "bathroom", "bed room" → "bedroom") or, for one word, split in two
+    ("livingroom" → "living room") or with a doubled letter single ("bathrooom" → "bathroom"); and
+    the words of ``vocabulary`` one edit apart (:func:`_one_edit`: "toiket" → "toilet", "dinning room"
+    → "dining room"), for words of :data:`MIN_VARIANT_CHARS` letters or more.
+    No list of words: WordNet decides which variant is a word (:func:`lexical_features` takes the
+    first it knows)."""
+    out: list[str] = []
+    compact = word.replace(" ", "")
+    if " " in word:
+        out.append(compact)
+    elif word.isalpha():
+        out += [f"{word[:i]} {word[i:]}" for i in range(3, len(word) - 2)]
+        out += [word[:i] + word[i + 1:] for i in range(1, len(word)) if word[i] == word[i - 1]]
+    if len(compact) >= MIN_VARIANT_CHARS:
+        out += [v for v in vocabulary if v != word and len(v.replace(" ", "")) >= MIN_VARIANT_CHARS
+                and v.count(" ") == word.count(" ") and _one_edit(v, word)]
+    return list(dict.fromkeys(out))
 
 
 def _facts_of(lexicon: object, word: str):

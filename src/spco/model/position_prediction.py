@@ -81,8 +81,12 @@ class PositionPrediction:
     support: the share of the name's probability in the home that comes from concepts holding
         samples of the home (:func:`name_support`); 1.0 when the parameters carry no concept
         counts.
-    learnt: ``support >= LEARNT_SUPPORT``; False means "no such place learnt in this home": the
+    learnt: ``support >= LEARNT_SUPPORT`` (for a home file, :func:`spco.knowledge.where`: or ``what``
+        answers the name at the centre of ``region``); False means "no such place learnt in this home": the
         region and samples are then the best the model can say, but not knowledge of this home.
+    called: when ``learnt`` is False, the name ``what`` answers at the centre of ``region`` (the
+        home's own name for the place the poses were drawn from; ``where`` of a home file sets it),
+        else None.
     asked: the name asked for when nobody said it and the lexicon found the known name ``name``
         for it (:func:`spco.model.unheard.resolve_name`: "restroom" asked, "toilet" used); else None.
     via: how the lexicon related them (``"synonym"``, ``"gloss"``, …), or None.
@@ -99,6 +103,7 @@ class PositionPrediction:
     xy_only: bool
     support: float = 1.0
     learnt: bool = True
+    called: str | None = None
     asked: str | None = None
     via: str | None = None
 

@@ -42,6 +42,7 @@ are not used for prediction; :func:`spco.knowledge.fit_knowledge` averages them 
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import replace
 
 import numpy as np
@@ -125,8 +126,10 @@ class ParameterAverage:
             perm_r[e] = _match_labels(ref_r[rows], regions[rows], n_regions)
         return perm_c, perm_r
 
-    def add(self, state) -> None:
-        """Add the parameters of ``state`` (a :class:`~spco.model.gibbs.GibbsState`), aligned."""
+    def add(self, state, visual: Iterable[np.ndarray] | None = None) -> None:
+        """Add the parameters of ``state`` (a :class:`~spco.model.gibbs.GibbsState`), aligned.
+        ``visual``: each home's log θ^v (L, D) in home order, read instead of ``state.log_theta_v``
+        (which may then be ``None``), so that no (E, L, D) copy of it is made."""
         E, L, K = state.log_pi.shape
         perm_c, perm_r = self._permutations(state.concepts, state.regions, E, L, K)
         homes = np.arange(E)[:, None]
@@ -162,8 +165,13 @@ class ParameterAverage:
                 self._sums[name] += value
             else:
                 self._sums[name] = np.array(value, dtype=np.float64)
-        for name, log_value in (("word_probabilities", state.log_theta_w),
-                                ("visual_probabilities", state.log_theta_v)):
+        if visual is None:
+            log_values = (("word_probabilities", state.log_theta_w),
+                          ("visual_probabilities", state.log_theta_v))
+        else:
+            log_values = (("word_probabilities", state.log_theta_w),)
+            self._add_log_rows("visual_probabilities", visual, perm_c, matched, occupied)
+        for name, log_value in log_values:
             # one (E, L, ·) temporary at a time: matched concepts by reference slot, then empty ones
             for sums, masked in ((self._log_sums, ~matched), (self._empty_log_sums, occupied)):
                 value = (log_value[homes, perm_c].astype(np.float64, copy=False)
@@ -181,8 +189,26 @@ class ParameterAverage:
         self.n_samples += 1
         self._perms = (perm_c, perm_r)
 
-    def result(self, state) -> ConceptParameters:
-        """The averaged parameters in the labels of ``state``, the last sample added."""
+    def _add_log_rows(self, name: str, rows: Iterable[np.ndarray], perm_c: np.ndarray, matched: np.ndarray,
+                      occupied: np.ndarray) -> None:
+        """What :meth:`add` does with an (E, L, D) log-probability array, home by home from its
+        (L, D) ``rows``: the same sums, with one home's temporary at a time."""
+        for e, log_value in enumerate(rows):
+            for sums, value in ((self._log_sums, log_value[perm_c[e]].astype(np.float64)),
+                                (self._empty_log_sums, np.array(log_value, dtype=np.float64))):
+                value[~matched[e] if sums is self._log_sums else occupied[e]] = -np.inf
+                if name not in sums:
+                    sums[name] = np.empty((perm_c.shape[0], *value.shape))
+                if self.n_samples == 0:
+                    sums[name][e] = value
+                else:
+                    np.logaddexp(sums[name][e], value, out=sums[name][e])
+
+    def result(self, state, release: bool = False) -> ConceptParameters:
+        """The averaged parameters in the labels of ``state``, the last sample added. ``release``:
+        build the probability arrays in the sums' own memory and drop the sums (the average can
+        then take no more samples nor give its result again; a fit's end, where the (E, L, D) sums
+        are the largest arrays)."""
         if self.n_samples == 0 or self._perms is None:
             raise ValueError("no sample was added to the average")
         perm_c, perm_r = self._perms
@@ -209,11 +235,18 @@ class ParameterAverage:
             return np.where(full, matched, empty)
 
         def split_log_mean(name: str) -> np.ndarray:
-            # in place, one (E, L, D) array at a time beside the sums
-            out = to_current(self._log_sums[name], perm_c)
+            # in place, one (E, L, D) array at a time beside the sums (with release: in the sums)
+            if release:
+                out = self._log_sums.pop(name)
+                for e in range(E):  # to_current, one home's rows at a time
+                    out[e, perm_c[e]] = out[e].copy()
+            else:
+                out = to_current(self._log_sums[name], perm_c)
             out -= np.log(np.maximum(occupied_n, 1))[..., None]
             empty = ~occupied
             out[empty] = self._empty_log_sums[name][empty] - np.log(np.maximum(empty_n[empty], 1))[:, None]
+            if release:
+                del self._empty_log_sums[name]
             return out
 
         pi = split_mean("region_weights")  # regions still in the reference order
@@ -225,7 +258,8 @@ class ParameterAverage:
         covariances = 0.5 * (covariances + np.swapaxes(covariances, -1, -2))
         mask = np.asarray(state.word_mask, dtype=bool)
         log_theta_w = split_log_mean("word_probabilities")  # rows renormalised below
-        log_theta_v = split_log_mean("visual_probabilities")
+        visual = split_log_mean("visual_probabilities")
+        np.exp(visual, out=visual)  # in place: one (E, L, D) array, not two, at a fit's end
         g = split_mean("concept_weights")  # occupied and empty parts averaged apart: renormalised
         g = g / np.maximum(g.sum(axis=-1, keepdims=True), np.finfo(float).tiny)
         return ConceptParameters(
@@ -234,7 +268,7 @@ class ParameterAverage:
             region_means=mu,
             region_covariances=covariances,
             word_probabilities=masked_rows(log_theta_w, mask),
-            visual_probabilities=np.exp(log_theta_v),
+            visual_probabilities=visual,
             shared_word_probabilities=masked_rows(state.log_phi_w, mask),
             shared_visual_probabilities=np.exp(state.log_phi_v),
             global_concept_weights=np.exp(state.log_g0),

@@ -34,9 +34,9 @@ Confidence: those thousands of nats make p(w | x, v) sure of every answer, the w
 counts of one image are not independent draws). ``view_counts`` weights each view's visual term as
 that many draws; ``spco.knowledge.what`` and ``ask`` answer with :func:`predict_names` on
 ``spco.knowledge.answer_parameters`` (free concepts' names at their posterior mean) with a view =
-:data:`~spco.model.confidence.VIEW_EFFECTIVE_COUNTS` draws and an ``unsure`` flag.
-``view_counts=None`` (the default here) is the multinomial;
-the exact model learns, and its experiments predict, with ``TransferHyperparameters.view_counts``.
+the model's view weight w draws (``TransferHyperparameters.view_counts``, the one the model learnt
+with) and an ``unsure`` flag (:func:`spco.model.confidence.answer_names`, which the experiments call
+too). ``view_counts=None`` (the default here) is the multinomial.
 """
 
 from __future__ import annotations
@@ -493,6 +493,35 @@ def kl_scores_reference(
     return concepts @ (_word_matrix(params, e) * reference_kl_weights(params, e))
 
 
+#: How many of each observation's best words :func:`_with_stand_ins` looks up.
+STAND_IN_CANDIDATES = 3
+
+
+def _with_stand_ins(scores: np.ndarray, probs: np.ndarray, params: ConceptParameters, vocabulary: Vocabulary,
+                    mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``scores`` and ``probs`` (n, V) with the score and probability of each object among the best
+    :data:`STAND_IN_CANDIDATES` words of an observation added to the place name that stands in for
+    it (:func:`spco.model.unheard.stand_in_names`: "door" → "entrance"), the object's set to 0.
+    Models with the word channels only (their switch prior says which words are objects)."""
+    from spco.model.unheard import stand_in_names
+
+    ranked = np.where(mask[None, :], scores, -np.inf)
+    n_best = min(STAND_IN_CANDIDATES, int(mask.sum()))
+    if n_best < 1 or not scores.size:
+        return scores, probs
+    best = np.argpartition(-ranked, n_best - 1, axis=1)[:, :n_best]
+    stand_in = stand_in_names(vocabulary, mask, np.asarray(params.word_channel_prior)[:, 0], best)
+    if not stand_in:
+        return scores, probs
+    scores, probs = scores.copy(), probs.copy()
+    for k, j in stand_in.items():
+        scores[:, j] += scores[:, k]
+        probs[:, j] += probs[:, k]
+        scores[:, k] = 0.0
+        probs[:, k] = 0.0
+    return scores, probs
+
+
 def predict_names(
     params: ConceptParameters,
     e: int,
@@ -558,6 +587,9 @@ def predict_names(
     else:
         scores = concepts @ (theta_w * reference_kl_weights(params, e))
     mask = np.asarray(params.word_mask, dtype=bool)
+    if (params.word_channel_prior is not None and weighting != "reference"
+            and np.shape(params.word_channel_prior)[0] == scores.shape[1]):
+        scores, probs = _with_stand_ins(scores, probs, params, vocabulary, mask)
     k = min(int(top_k), int(mask.sum()))
     ranked = np.where(mask[None, :], scores, -np.inf)
     tie = np.where(mask[None, :], probs, -np.inf)

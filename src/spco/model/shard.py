@@ -29,7 +29,7 @@ number of workers and any engine.
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -188,6 +188,25 @@ class HomeShard(ShardInitialisation):
         from spco.model.view_fit import held_out_view_fits
 
         return held_out_view_fits(log_phi_v, log_g0, totals, self.data, self.state.concepts)
+
+    def view_weight_totals(self) -> tuple[np.ndarray, np.ndarray]:
+        """The shard's visual counts (L, D) and taught views (L,) by concept, for the view-weight
+        estimate (:func:`spco.model.view_fit.home_concept_totals`)."""
+        from spco.model.view_fit import home_concept_totals
+
+        return home_concept_totals(self.data, self.state.concepts, self.hyper.n_concepts)
+
+    def view_weight_losses(self, totals: np.ndarray, taught: np.ndarray) -> tuple[np.ndarray, int]:
+        """The leave-one-home-out log loss of the shard's taught views on the view-weight grid
+        (:func:`spco.model.view_fit.view_weight_losses`; ``totals``, ``taught``: all homes')."""
+        from spco.model.view_fit import view_weight_losses
+
+        return view_weight_losses(self.data, self.state.concepts, totals, taught, self.hyper.alpha_visual)
+
+    def set_view_weight(self, view_counts: float | None) -> None:
+        """From the next sweep on, a view weighs ``view_counts`` (the estimate of the driver)."""
+        self.hyper = replace(self.hyper, view_counts=view_counts)
+        self.settings = replace(self.settings, view_counts=view_counts)
 
     def shared_parameters(self) -> SharedParameters:
         """The shared parameters the shard holds."""
@@ -440,11 +459,13 @@ def state_of_homes(data: PreparedData, state: GibbsState, first: int, last: int)
     return GibbsState(**fields)
 
 
-def join_states(states: list[GibbsState]) -> GibbsState:
-    """The states of consecutive shards as one (the shared part taken from the first)."""
+def join_states(states: list[GibbsState], without: tuple[str, ...] = ()) -> GibbsState:
+    """The states of consecutive shards as one (the shared part taken from the first); the fields
+    named in ``without`` are not joined (``None``, e.g. log θ^v for the average, which reads each
+    home's own: :meth:`~spco.model.driver.ShardedRun.home_states`)."""
     if len(states) == 1:
         return states[0]
-    fields = {name: np.concatenate([getattr(s, name) for s in states])
+    fields = {name: None if name in without else np.concatenate([getattr(s, name) for s in states])
               for name in HOME_FIELDS + SAMPLE_FIELDS}
     fields.update({name: getattr(states[0], name) for name in SHARED_FIELDS})
     return GibbsState(**fields)

@@ -10,6 +10,7 @@ from functools import cached_property
 import numpy as np
 import scipy.sparse as sp
 
+from spco.model.hyperparameters import ESTIMATE, VIEW_COUNTS
 from spco.model.kernels.likelihood import DimensionMajorCounts, dimension_major
 
 VARIANTS = ("exact", "reference", "spcoa")
@@ -148,14 +149,18 @@ class SamplerSettings:
 
     @classmethod
     def create(cls, variant: str, prune: bool, learn_shared: bool = True,
-               view_counts: float | None = None) -> SamplerSettings:
+               view_counts: float | str | None = None) -> SamplerSettings:
         """Settings of ``variant`` (``exact``, ``reference`` or ``spcoa``).
 
         ``learn_shared=False`` keeps φ^v, φ^w and G_0 fixed (adapting to a new home with
         knowledge learnt elsewhere): sweeps then update only the homes' own variables.
         ``view_counts``: the evidence of one view in counts
-        (:attr:`~spco.model.hyperparameters.TransferHyperparameters.view_counts`); the exact
-        variant only — the authors' sampler and SpCoA score every count, as published."""
+        (:attr:`~spco.model.hyperparameters.TransferHyperparameters.view_counts`; ``"estimate"``:
+        the start's :data:`~spco.model.hyperparameters.VIEW_COUNTS` until the driver sets the
+        estimate); the exact variant only — the authors' sampler and SpCoA score every count, as
+        published."""
+        if view_counts == ESTIMATE:
+            view_counts = VIEW_COUNTS
         if variant not in VARIANTS:
             raise ValueError(f"unknown sampler variant {variant!r}; choose one of {VARIANTS}")
         return cls(variant=variant, prune=prune, hierarchical=variant != "spcoa",

@@ -221,9 +221,7 @@ class SpatialConceptModel:
         rng = as_generator(self.random_state)
         data = self.prepare_data(corpus, self.position_scale)
         start = time.perf_counter()
-        averaged = set(thinned_sweeps(int(self.n_iterations)))
-        average = ParameterAverage(data.homes, data.position_scale)
-        added: set[int] = set()
+        average = _SweepAverage(int(self.n_iterations), data)
         bar = None
         if self.progress:
             from spco.progress import progress_bar
@@ -233,14 +231,11 @@ class SpatialConceptModel:
         from spco.model.driver import start_run
 
         run = start_run(engine, data, len(corpus.vocabulary), hyper, settings, rng)
+        hyper, settings = run.hyper, run.settings  # with the view weight estimated from the homes
         hyper, evidence = self._start_word_channels(run, corpus, data, hyper, settings)
 
         def after_sweep(iteration: int, previous: float) -> None:
-            # a restarted engine repeats the sweeps since its checkpoint (the same chain): each
-            # averaged sweep is added once
-            if iteration in averaged and iteration not in added:
-                average.add(run.state())
-                added.add(iteration)
+            average.after_sweep(run, iteration)
             if bar is not None:
                 bar.update(1)
                 bar.set_postfix(log_joint=f"{previous:.4g}", refresh=False)
@@ -248,7 +243,7 @@ class SpatialConceptModel:
         # each sweep reports the log joint of the state it started from: the previous sweep's
         log_joints = run.fit(int(self.n_iterations), after_sweep)
         trace = list(log_joints[1:]) if self.record_log_joint else []
-        state = run.state()
+        state = average.last_state if average.last_state is not None else run.state()
         run.close()
         if bar is not None:
             bar.close()
@@ -256,8 +251,7 @@ class SpatialConceptModel:
             trace.append(gibbs.log_joint(data, state, hyper, settings))
             data.__dict__.pop("visual_by_dimension", None)  # (a cache the last log joint built: not kept)
         self.fit_seconds_ = time.perf_counter() - start
-        self.hyperparameters_ = hyper
-        self.settings_ = settings
+        self.hyperparameters_, self.settings_, self.view_weight_ = hyper, settings, run.view_weight
         self.vocabulary_: Vocabulary = corpus.vocabulary
         self.word_increment_ = corpus.word_increment
         self.home_names_ = corpus.names
@@ -265,8 +259,9 @@ class SpatialConceptModel:
         self.data_ = data
         self.log_joint_ = np.asarray(trace, dtype=float)
         self.n_iter_ = int(self.n_iterations)
-        self.parameters_ = self._fitted_parameters(average.result(state), corpus, data, state, hyper,
-                                                   settings, evidence)
+        averaged_parameters = average.average.result(state, release=True)
+        self.parameters_ = self._fitted_parameters(averaged_parameters, corpus, data, state, hyper, settings,
+                                                   evidence)
         self.word_channels_ = state.channels
         if state.channels is not None:
             self.parameters_ = replace(self.parameters_, **channel_parameters(state.channels))
@@ -441,3 +436,28 @@ def with_hyperparameters(model: SpatialConceptModel, **changes: Any) -> SpatialC
     clone.__dict__.update({k: v for k, v in model.__dict__.items() if not k.endswith("_")})
     clone.hyperparameters = replace(hyper, **changes)
     return clone
+
+
+class _SweepAverage:
+    """The thinned sweeps of a fit averaged (:class:`~spco.model.posterior.ParameterAverage`,
+    :func:`~spco.model.posterior.thinned_sweeps`) as the sweeps run, without a joined copy of
+    every home's θ^v but for the last sweep's state, which the fit keeps (``last_state``)."""
+
+    def __init__(self, n_iterations: int, data: gibbs.PreparedData) -> None:
+        self.n_iterations = n_iterations
+        self.averaged = set(thinned_sweeps(n_iterations))
+        self.average = ParameterAverage(data.homes, data.position_scale)
+        self.added: set[int] = set()
+        self.last_state = None
+
+    def after_sweep(self, run, iteration: int) -> None:
+        """Add sweep ``iteration``'s state if it is averaged. A restarted engine repeats the sweeps
+        since its checkpoint (the same chain): each averaged sweep is added once."""
+        if iteration not in self.averaged or iteration in self.added:
+            return
+        if iteration == self.n_iterations - 1:  # the fit's final state: joined once, for both
+            self.last_state = run.state()
+            self.average.add(self.last_state)
+        else:
+            self.average.add(run.state(visual=False), visual=run.home_visual())
+        self.added.add(iteration)

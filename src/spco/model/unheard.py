@@ -22,7 +22,8 @@ import numpy as np
 
 from spco.data.language import Vocabulary, normalize_name
 
-__all__ = ["MIN_CANDIDATE_INFORMATION", "MIN_CANDIDATE_PRIOR", "ResolvedName", "resolve_name"]
+__all__ = ["MIN_CANDIDATE_INFORMATION", "MIN_CANDIDATE_PRIOR", "OBJECT_BELOW", "STAND_IN_HOW", "ResolvedName",
+           "resolve_name", "stand_in_names"]
 
 #: Known words below this name prior are not candidates for a name nobody said (verbs and function
 #: words: "sleep" 0.004, "my" 0.005; names with weak evidence such as "laundry" 0.12 or "bath"
@@ -93,3 +94,93 @@ def resolve_name(vocabulary: Vocabulary, word_mask: np.ndarray, name: str,
     if match is None:
         return None
     return ResolvedName(asked=asked, name=match.name, how=match.how, score=float(match.score))
+
+
+#: A word whose name evidence p(name | word) is below this is an object, an act or a person said at
+#: a place, not its name (:func:`stand_in_names`): "door" 0.08, "bed" 0.07, "table" 0.04; place names
+#: are 0.2–0.8 ("toilet" 0.19, "entrance" 0.32, "kitchen" 0.57).
+OBJECT_BELOW = 0.15
+#: How the lexicon may relate an object to the place name that stands in for it: the object's
+#: definition names the place ("door": "a swinging or sliding barrier that will close the entrance
+#: to a room or building"), or a term's head or modifier is the name ("dining table" → "dining").
+#: Not synonyms ("pot", slang for a toilet) nor mere similarity ("vase" and "bath").
+STAND_IN_HOW = ("gloss", "head", "head gloss")
+
+
+def stand_in_names(vocabulary: Vocabulary, word_mask: np.ndarray, name_prior: np.ndarray,
+                   asked: np.ndarray, lexicon: object | None = None) -> dict[int, int]:
+    """The place name that stands in for each object among ``asked`` (column indices): {object column:
+    name column}.
+
+    People often call a place by what is there ("near the door" at the entrance, "by the dining
+    table"); where a home's people never said the room's name, the model's best word for the place
+    is then the object (low name evidence, :data:`OBJECT_BELOW`). The lexicon relates the object to a
+    name the corpus knows with stronger evidence (:meth:`spco.data.lexicon.Lexicon.closest`, the
+    relations of :data:`STAND_IN_HOW` only); :func:`spco.model.prediction.predict_names` then
+    answers that name with the object's score added to it. Likewise a word WordNet does not know
+    stands in for its spelling the vocabulary holds and WordNet knows ("livingroom" for "living
+    room", "kicthen" for "kitchen": :func:`spco.model.name_evidence.spelling_variants`). Objects
+    without such a name, and every word without the lexicon, are left out.
+
+    Parameters
+    ----------
+    vocabulary, word_mask: the corpus vocabulary and its usable words (V,).
+    name_prior: (V,) p(name | word), the word channels' switch prior of the names channel.
+    asked: the columns to look up (the answers' candidates).
+    lexicon: a :class:`spco.data.lexicon.Lexicon` (default: the process's, which may be None).
+    """
+    if lexicon is None:
+        from spco.data.lexicon import lexicon as load
+
+        lexicon = load()
+        if lexicon is None:
+            return {}
+    prior = np.asarray(name_prior, dtype=np.float64)
+    mask = np.asarray(word_mask, dtype=bool)
+    out: dict[int, int] = {}
+    for k in sorted({int(k) for k in np.asarray(asked).ravel()}):
+        if not mask[k]:
+            continue
+        spelled = _spelled(lexicon, vocabulary, mask, k)
+        if spelled is not None:
+            out[k] = spelled
+            continue
+        if prior[k] >= OBJECT_BELOW:
+            continue
+        stronger = np.flatnonzero(mask & (prior >= OBJECT_BELOW) & (prior > prior[k]))
+        stronger = stronger[np.argsort(-prior[stronger], kind="stable")]
+        match = _closest(lexicon, vocabulary.words[k], tuple(vocabulary.words[j] for j in stronger))
+        if match is not None and match.how in STAND_IN_HOW:
+            j = vocabulary.index(match.name)
+            if j is not None and j != k:
+                out[k] = j
+    return out
+
+
+def _spelled(lexicon: object, vocabulary: Vocabulary, mask: np.ndarray, k: int) -> int | None:
+    """The column of the spelling of word ``k`` that WordNet knows, when WordNet does not know ``k``
+    itself and the vocabulary holds that spelling (:func:`spco.model.name_evidence.spelling_variants`:
+    "livingroom" → "living room", "kicthen" → "kitchen"); else None."""
+    from spco.model.name_evidence import spelling_variants
+
+    word = vocabulary.words[k]
+    if lexicon.knows(word):  # type: ignore[attr-defined]
+        return None
+    for variant in spelling_variants(word, vocabulary.words):
+        j = vocabulary.index(variant)
+        if j is not None and j != k and mask[j] and lexicon.knows(variant):  # type: ignore[attr-defined]
+            return j
+    return None
+
+
+_STAND_IN_CACHE: dict[tuple[int, str, tuple[str, ...]], object] = {}
+
+
+def _closest(lexicon: object, word: str, known: tuple[str, ...]):
+    """:meth:`Lexicon.closest`, remembered per (lexicon, word, candidates) for the process."""
+    key = (id(lexicon), word, known)
+    if key not in _STAND_IN_CACHE:
+        if len(_STAND_IN_CACHE) > 4096:
+            _STAND_IN_CACHE.clear()
+        _STAND_IN_CACHE[key] = lexicon.closest(word, list(known)) if known else None  # type: ignore[attr-defined]
+    return _STAND_IN_CACHE[key]

@@ -13,7 +13,15 @@ from scipy.special import logsumexp
 
 from spco.model.state import PreparedData
 
-__all__ = ["concept_visual_totals", "held_out_view_fits", "view_fit"]
+__all__ = [
+    "VIEW_WEIGHT_GRID",
+    "concept_visual_totals",
+    "estimate_view_weight",
+    "held_out_view_fits",
+    "home_concept_totals",
+    "view_fit",
+    "view_weight_losses",
+]
 
 
 def view_fit(log_phi_visual: np.ndarray, log_g0: np.ndarray, visual: Any) -> float | None:
@@ -75,3 +83,80 @@ def held_out_view_fits(log_phi_v: np.ndarray, log_g0: np.ndarray, totals: np.nda
         rows = slice(int(data.offsets[e]), int(data.offsets[e + 1]))
         fits.append(view_fit(log_held_out, log_g0, data.visual[rows]))
     return fits
+
+
+#: The view weights w the estimate chooses from: √2 steps from 1/16 to 2^14 counts (a grid, not a
+#: search: the leave-one-home-out loss is flat within a step).
+VIEW_WEIGHT_GRID = tuple(float(2.0 ** (k / 2)) for k in range(-8, 29))
+
+
+def home_concept_totals(data: PreparedData, concepts: np.ndarray, n_concepts: int
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """What the view-weight estimate needs of the homes of ``data``, summed over them: (L, D) their
+    visual counts by concept (every sample), and (L,) their *taught* samples with a view by concept
+    (the labels it predicts)."""
+    counts = sum((_home_concept_counts(data, concepts, e, n_concepts) for e in range(data.n_homes)),
+                 np.zeros((n_concepts, data.visual.shape[1])))
+    labelled = _labelled(data)
+    taught = np.bincount(concepts[labelled], minlength=n_concepts).astype(np.float64)
+    return counts, taught
+
+
+def _labelled(data: PreparedData) -> np.ndarray:
+    """(N,) bool: the samples whose concept the estimate predicts — taught (a sentence) and seen."""
+    has_words = np.diff(data.words.indptr) > 0 if data.words.shape[1] else np.zeros(data.n_samples, bool)
+    return has_words & (data.view_totals > 0)
+
+
+def view_weight_losses(data: PreparedData, concepts: np.ndarray, totals: np.ndarray, taught: np.ndarray,
+                       alpha_visual: float, grid: tuple[float, ...] = VIEW_WEIGHT_GRID
+                       ) -> tuple[np.ndarray, int]:
+    """The leave-one-home-out log loss of the concept of each of ``data``'s taught views given the
+    view, for every view weight w of ``grid``: summed over the views, and how many views.
+
+    Each home e is predicted from the other homes only: φ^v_l ∝ α^v + N_l − n_{e,l} (the visual
+    counts of concept l in all homes, ``totals`` (L, D), without e's own) and p(l) ∝
+    T_l − t_{e,l} + 1/L (``taught`` (L,): the taught views by concept in all homes). A view v of
+    concept C scores −log p(C | v) with
+
+        p(l | v) ∝ p(l) exp(min(1, w / Σ_d v_d) Σ_d v_d log φ^v_{l,d}),
+
+    the probability of its place given the view alone, the view counting as w draws. Homes of
+    another shard contribute through ``totals`` and ``taught`` only.
+    """
+    L = totals.shape[0]
+    labelled = _labelled(data)
+    losses = np.zeros(len(grid))
+    used = 0
+    weights = np.asarray(grid, dtype=np.float64)
+    for e in range(data.n_homes):  # a loop over homes, each left out in turn
+        rows = np.flatnonzero(labelled & (data.homes == e))
+        if rows.size == 0:
+            continue
+        own = _home_concept_counts(data, concepts, e, L)
+        others = np.maximum(totals - own, 0.0) + alpha_visual
+        log_phi = np.log(others) - np.log(others.sum(1, keepdims=True))
+        own_taught = np.bincount(concepts[rows], minlength=L)
+        log_prior = np.log(np.maximum(taught - own_taught, 0.0) + 1.0 / L)
+        log_prior -= logsumexp(log_prior)
+        visual = sp.csr_array(data.visual[rows], dtype=np.float64)
+        loglik = np.asarray(visual @ log_phi.T)  # (n, L)
+        scale = np.minimum(1.0, weights[:, None] / data.view_totals[rows][None, :])  # (G, n)
+        scores = scale[:, :, None] * loglik[None] + log_prior[None, None, :]  # (G, n, L)
+        right = scores[:, np.arange(rows.size), concepts[rows]]
+        losses += (logsumexp(scores, axis=2) - right).sum(axis=1)
+        used += rows.size
+    return losses, used
+
+
+def estimate_view_weight(losses: np.ndarray, used: int, grid: tuple[float, ...] = VIEW_WEIGHT_GRID
+                         ) -> float | None:
+    """The view weight of least leave-one-home-out log loss (:func:`view_weight_losses`, summed over
+    every shard's homes); ``None`` when no home had a taught view (nothing to estimate from). Of the
+    weights within 0.001 nats per view of the least loss, the smallest: where the loss is flat
+    (views that every weight above some w places right) the homes give no reason
+    for more evidence than that w, and a new home unlike them would pay for it."""
+    if used == 0 or not np.isfinite(losses).all():
+        return None
+    least = np.flatnonzero(losses <= losses.min() + 1e-3 * used)
+    return float(grid[int(least[0])])

@@ -94,10 +94,11 @@ class WordChannels:
     #: the start that counted every word as a name
     fresh: bool = False
     #: the first column of the words first heard in a home after the fit (``None``: none): their
-    #: switch is the prior's most probable channel (:func:`switch_probabilities`) — with no token in
-    #: the fit, their θ^w, ψ and β are all "a word never said" (θ^w a draw around a Dirichlet parameter
-    #: α^w, e^-95 as often as e^-17), which says nothing about the channel; and a switch redrawn from
-    #: the prior at every sweep would drop a name taught once from its concept's θ^w one sweep in three
+    #: switch is drawn from its prior (:func:`switch_probabilities`) — with no token in the fit, their
+    #: θ^w, ψ and β are all "a word never said" (θ^w a draw around a Dirichlet parameter α^w, e^-95 as
+    #: often as e^-17), which says nothing about the channel — and is a name whenever the prior's most
+    #: probable channel is the name: redrawn at every sweep, "study room" (P(name) 0.69) taught once
+    #: left its concept's θ^w one sweep in three, and `what` there answered the transferred name
     prior_only_from: int | None = None
     #: :meth:`log_prior`, computed once per channels (every field is replaced, never changed in place)
     _log_prior: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
@@ -207,18 +208,21 @@ def mixture_log_likelihood(words: sp.csr_array, homes: np.ndarray, log_theta_w: 
 def switch_probabilities(words: sp.csr_array, homes: np.ndarray, concepts: np.ndarray,
                          log_theta_w: np.ndarray, channels: WordChannels) -> np.ndarray:
     """p(z_ti = c | C_t, w_ti) of every token, each token counted once: (nnz, 3). The tokens of the
-    words from ``channels.prior_only_from`` on (first heard in a home) get their prior's most probable
-    channel (:attr:`WordChannels.prior_only_from`)."""
+    words from ``channels.prior_only_from`` on (first heard in a home) get their prior, the name
+    channel alone where it is the prior's most probable (:attr:`WordChannels.prior_only_from`)."""
     if not words.nnz:
         return np.zeros((0, 3))
     p = switch_rows(words, homes, concepts, log_theta_w, channels.log_place, channels.log_background,
                     channels.log_prior())
-    if channels.prior_only_from is not None:  # words first heard in a home: the prior's channel
+    if channels.prior_only_from is not None:  # words first heard in a home: the prior (see the field)
         _, cols, _ = _tokens(words)
         new = cols >= channels.prior_only_from
         if new.any():
             p = np.array(p, copy=True)
-            p[new] = np.eye(3)[np.argmax(channels.log_prior()[cols[new]], axis=1)]
+            prior = np.exp(channels.log_prior()[cols[new]])
+            named = np.argmax(prior, axis=1) == NAME
+            prior[named] = np.eye(3)[NAME]
+            p[new] = prior
     return p
 
 

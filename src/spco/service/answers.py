@@ -31,9 +31,10 @@ def where_answer(home: kn.HomeModel, name: str, n: int = 10, seed: int = 0) -> d
     """Poses for the place ``name`` (:func:`spco.knowledge.where` with ``random_state=seed``), as JSON.
 
     Returns ``{"home", "name", "asked", "via", "region", "region_probability", "learnt", "support",
-    "positions"}``; ``asked`` is the name as asked; for a name never said in the home that WordNet
-    resolved to a known one (:mod:`spco.model.unheard`), ``name`` is the known name and ``via`` how it
-    was found ("synonym", "gloss", ...), else ``via`` is ``None``. ``positions`` lists
+    "called", "positions"}`` (``called``: for a name not learnt, what ``what`` answers at the centre
+    of ``region``, or ``None``); ``asked`` is the name as asked; for a name never said in the home
+    that WordNet resolved to a known one (:mod:`spco.model.unheard`), ``name`` is the known name and
+    ``via`` how it was found ("synonym", "gloss", ...), else ``via`` is ``None``. ``positions`` lists
     ``{"x", "y", "theta", "probability"}`` (metres, radians), most probable first. Raises
     :class:`~spco.model.prediction.UnknownNameError` for a name the home cannot use.
     """
@@ -44,7 +45,8 @@ def where_answer(home: kn.HomeModel, name: str, n: int = 10, seed: int = 0) -> d
     return {"home": home.name, "name": pred.name, "asked": pred.asked or pred.name, "via": pred.via,
             "region": int(pred.region),
             "region_probability": float(pred.region_probabilities[pred.region]),
-            "learnt": bool(pred.learnt), "support": float(pred.support), "positions": positions}
+            "learnt": bool(pred.learnt), "support": float(pred.support), "called": pred.called,
+            "positions": positions}
 
 
 def check_pose(home: kn.HomeModel, x: object, y: object = None, theta: object = None

@@ -182,6 +182,7 @@ class LiveHome:
         self._extractor_key: str | None = None
         self._regions: tuple[int, dict[str, Any]] | None = None
         self._closed = False
+        self._quiet = threading.Event()
         self._lock = locking.hold(path, self.holder)
         options = {"seed": seed, "sweeps": sweeps, "compact_records": compact_records,
                    "compact_idle": compact_idle, "undo_limit": undo_limit}
@@ -446,7 +447,19 @@ class LiveHome:
             self._subscribers = [s for s in self._subscribers if s is not subscription]
 
     def _listening(self, kind: str) -> bool:
+        if kind == "answer" and self._quiet.is_set():
+            return False
         return any(s.types is None or kind in s.types for s in self._subscribers)
+
+    @contextlib.contextmanager
+    def quiet(self) -> Iterator[None]:
+        """Answers given meanwhile publish no ``answer`` event (``spco serve``'s warm-up before it
+        says it is ready: its own requests are nobody's answers; teachings still publish theirs)."""
+        self._quiet.set()
+        try:
+            yield
+        finally:
+            self._quiet.clear()
 
     def _publish(self, event: dict[str, Any]) -> None:
         event.setdefault("time", time.time())

@@ -116,6 +116,8 @@ class WhereAnswer(BaseModel):
     region_probability: float
     learnt: bool
     support: float
+    called: str | None = Field(None, description="for a name not learnt: what `what` answers at the centre "
+                               "of the answer region (the home's own name for that place)")
     positions: list[Position]
 
 
@@ -155,6 +157,7 @@ class QuestionJSON(BaseModel):
     unknown: float
     confidence: float
     worth_asking: bool
+    own_name: float = Field(0.0, description="the probability that the room has a name of its own")
 
 
 class AskAnswer(BaseModel):

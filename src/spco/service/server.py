@@ -24,7 +24,8 @@ from typing import Any
 from spco.errors import ConfigurationError
 from spco.service.security import LOOPBACK_HOSTS
 
-__all__ = ["LOOPBACK_HOSTS", "MIN_TOKEN_CHARS", "accepted_hosts", "is_loopback", "read_token", "serve"]
+__all__ = ["LOOPBACK_HOSTS", "MIN_TOKEN_CHARS", "accepted_hosts", "is_loopback", "is_wildcard", "read_token",
+           "serve", "warm_requests"]
 
 #: The shortest token accepted.
 MIN_TOKEN_CHARS = 16
@@ -75,12 +76,75 @@ def _bind(host: str, port: int) -> socket.socket:
     return sock
 
 
+def warm_requests(address: str, token: str | None, home: Any, timeout: float = 60.0) -> list[int]:
+    """Send the requests of every route once to the server at ``address`` (``http://host:port``), so
+    that the first real one of each kind does not pay for what a server does first (the HTTP stack's
+    first request, each route's validation and answer schema, JSON, the page's files, the writer's
+    pipe both ways): ``/health``, the page, ``where`` of a name of ``home``, ``what`` by pose and
+    (when the home has views) with a view, ``ask``, ``/regions``, ``/openapi.json``, and a teaching
+    and an undo that the writer refuses (a sample id the home does not have, a seq never given), so
+    that nothing is taught. Returns the HTTP status of each (a request that fails is skipped: this
+    is a warm-up, the server answers without it)."""
+    import http.client
+    import json
+    from urllib.parse import quote, urlsplit
+
+    import numpy as np
+
+    parts = urlsplit(address)
+    headers = {"Host": f"localhost:{parts.port}", "Accept": "application/json"}
+    if token is not None:
+        headers["Authorization"] = f"Bearer {token}"
+    x, y = (float(v) for v in home.positions[0, :2])
+    theta = float(np.arctan2(home.positions[0, 2], home.positions[0, 3]))
+    pose = {"x": x, "y": y, "theta": theta}
+    names = list(home.known_names)
+    missing = int(home.ids.max()) + 1_000_000
+    requests: list[tuple[str, str, dict[str, Any] | None]] = [
+        ("GET", "/health", None), ("GET", "/", None), ("GET", f"/what?x={x}&y={y}&theta={theta}&top=3", None),
+        ("POST", "/what", {**pose, "top": 3}), ("GET", "/ask?n=1", None), ("GET", "/regions", None),
+        ("GET", "/openapi.json", None),
+        ("POST", "/teach", {"id": missing, "sentence": "this is the kitchen"}),
+        ("POST", "/teach", {"x": x, "y": y}), ("DELETE", f"/teach/{10**12}", None)]
+    if names:
+        requests.insert(2, ("GET", f"/where?name={quote(names[0])}&n=10", None))
+    if home.knowledge.n_features and not bool(home.view_missing[0]):
+        visual = np.asarray(home.visual[[0]].toarray()[0]).tolist()
+        requests.insert(4, ("POST", "/what", {**pose, "top": 3, "visual": visual}))
+    statuses = []
+    connection = http.client.HTTPConnection(parts.hostname or "127.0.0.1", parts.port, timeout=timeout)
+    try:
+        for method, path, body in requests:  # one connection, kept alive, as a client would
+            data = None if body is None else json.dumps(body).encode()
+            sent = {**headers, **({"Content-Type": "application/json"} if data is not None else {})}
+            try:
+                connection.request(method, path, body=data, headers=sent)
+                response = connection.getresponse()
+                response.read()
+                statuses.append(response.status)
+            except (OSError, http.client.HTTPException):
+                connection.close()
+    finally:
+        connection.close()
+    return statuses
+
+
 def _server_class() -> type:
     import uvicorn
 
     class Server(uvicorn.Server):  # type: ignore[misc]
         """uvicorn's server, stopping in order on SIGINT and SIGTERM without raising the signal again
-        afterwards (uvicorn does, which would end the process before the home is closed)."""
+        afterwards (uvicorn does, which would end the process before the home is closed), and
+        running :attr:`when_started` (in a thread, the server answering meanwhile) once it listens."""
+
+        when_started: Callable[[], None] | None = None
+
+        async def startup(self, sockets: Any = None) -> None:
+            import asyncio
+
+            await super().startup(sockets=sockets)
+            if self.when_started is not None and not self.should_exit:
+                await asyncio.get_running_loop().run_in_executor(None, self.when_started)
 
         @contextlib.contextmanager
         def capture_signals(self) -> Any:
@@ -97,18 +161,36 @@ def _server_class() -> type:
     return Server
 
 
+def is_wildcard(host: str) -> bool:
+    """Whether ``host`` is a wildcard address (every interface)."""
+    return host.strip().lower() in ("0.0.0.0", "::", "[::]", "")
+
+
 def accepted_hosts(host: str, token: str | None, extra: list[str] | tuple[str, ...] = ()) -> list[str] | None:
     """The ``Host`` names a server bound to ``host`` answers to: the loopback names, ``host`` itself
     (unless a wildcard address) and ``extra``; ``None`` (any) for a wildcard address with a token and
     no ``extra`` (the token protects it then; give ``--allowed-host`` to check names too)."""
     name = host.strip().lower()
-    wildcard = name in ("0.0.0.0", "::", "[::]", "")
+    wildcard = is_wildcard(name)
     if wildcard and token is not None and not extra:
         return None
     hosts = [*LOOPBACK_HOSTS, *(h.strip().lower() for h in extra if h.strip())]
     if not wildcard:
         hosts.append(f"[{name.strip('[]')}]" if ":" in name.strip("[]") else name)
     return sorted(set(hosts))
+
+
+def _run(server: Any, sock: socket.socket, warm: Callable[[], None], announce: Callable[[], None]) -> None:
+    """Run the uvicorn ``server`` on ``sock`` until Ctrl-C or SIGTERM; once it listens (requests are
+    answered meanwhile), ``warm`` (:func:`warm_requests`), then ``announce`` (the line that says
+    ready)."""
+
+    def ready() -> None:
+        warm()
+        announce()
+
+    server.when_started = ready
+    server.run(sockets=[sock])
 
 
 def serve(home: str | PathLike[str], host: str = "127.0.0.1", port: int = 8765, token_file: str | None = None,
@@ -174,12 +256,18 @@ def serve(home: str | PathLike[str], host: str = "127.0.0.1", port: int = 8765, 
         config = uvicorn.Config(app, http=connections.protocol(), log_level="warning", access_log=False,
                                 lifespan="off", timeout_keep_alive=max(1, round(keep_alive)),
                                 timeout_graceful_shutdown=3, server_header=False, date_header=False)
-        server = _Server(config)
         h = live.home
-        say(f"Serving home {h.name} ({h.n_samples} samples, {h.n_taught} taught) from {home} at {address}/ "
-            f"(page), {address}/openapi.json (API); writer process {live.writer_pid}. Ctrl-C to stop.")
+        local = f"http://{'[::1]' if ':' in host.strip('[]') else '127.0.0.1'}:{bound}"
+
+        def warm() -> None:  # the warm-up's answers are nobody's: not streamed
+            with live.quiet():
+                warm_requests(local if is_wildcard(host) else address, token, h)
+
         try:
-            server.run(sockets=[sock])  # until Ctrl-C or SIGTERM
+            _run(_Server(config), sock, warm,
+                 lambda: say(f"Serving home {h.name} ({h.n_samples} samples, {h.n_taught} taught) from "
+                             f"{home} at {address}/ (page), {address}/openapi.json (API); writer process "
+                             f"{live.writer_pid}. Ctrl-C to stop."))
         finally:
             if detach is not None:
                 detach()

@@ -63,12 +63,15 @@ def _joint_assignment(log_g: np.ndarray, log_pi: np.ndarray, pi_scaled: np.ndarr
                       homes: np.ndarray, concept_ll: np.ndarray, region_ll: np.ndarray, u_concept: np.ndarray,
                       u_region: np.ndarray) -> np.ndarray:
     """The flat C·K + R draw of every sample (:func:`_joint_assignment_chunks` over all chunks of
-    :data:`_ASSIGNMENT_CHUNK` samples, on Numba's thread count)."""
+    :data:`_ASSIGNMENT_CHUNK` samples, on Numba's thread count when the samples' (C, R) pairs
+    number at least 16 × :data:`~spco.model.kernels.dispatch._PARALLEL_MIN`, ~1,700 samples at
+    L = 15, K = 20: one home's ~160 samples run on this thread, where the pool cost twice their CPU)."""
     n = homes.size
     out = np.empty(n, dtype=np.int64)
     args = (log_g, log_pi, pi_scaled, pi_row_max, homes, concept_ll, region_ll, u_concept, u_region, out)
     n_chunks = (n + _ASSIGNMENT_CHUNK - 1) // _ASSIGNMENT_CHUNK
-    _call_in_parts(_joint_assignment_chunks, args, n_chunks, parallel=True)
+    _call_in_parts(_joint_assignment_chunks, args, n_chunks,
+                   parallel=n * log_pi.shape[1] * log_pi.shape[2] >= 16 * _PARALLEL_MIN)
     return out
 
 

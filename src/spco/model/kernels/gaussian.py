@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from spco.model.kernels.dispatch import _call_in_parts
+from spco.model.kernels.dispatch import _PARALLEL_MIN, _call_in_parts
 from spco.model.kernels.niw import _cholesky_into
 
 
@@ -28,10 +28,13 @@ _GAUSSIAN_CHUNK = 64
 def _grouped_gaussian(x: np.ndarray, groups: np.ndarray, means_t: np.ndarray, inv_chol_t: np.ndarray,
                       constant: np.ndarray) -> np.ndarray:
     """(n, K) log densities: :func:`_grouped_gaussian_chunks` over all chunks of
-    :data:`_GAUSSIAN_CHUNK` points, on Numba's thread count."""
+    :data:`_GAUSSIAN_CHUNK` points, on Numba's thread count when there are at least
+    :data:`~spco.model.kernels.dispatch._PARALLEL_MIN` densities (one home's ~160 points run on
+    this thread: handing them to the pool cost 3× their CPU)."""
     out = np.empty((x.shape[0], means_t.shape[2]))
     n_chunks = (x.shape[0] + _GAUSSIAN_CHUNK - 1) // _GAUSSIAN_CHUNK
-    _call_in_parts(_grouped_gaussian_chunks, (x, groups, means_t, inv_chol_t, constant, out), n_chunks, True)
+    _call_in_parts(_grouped_gaussian_chunks, (x, groups, means_t, inv_chol_t, constant, out), n_chunks,
+                   out.size >= _PARALLEL_MIN)
     return out
 
 
