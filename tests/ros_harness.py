@@ -69,15 +69,15 @@ MALFORMED_QUERIES: list[tuple[Any, Any, str]] = [
 _DOMAIN_LOCKS: dict[int, Any] = {}
 
 
-def reserve_ros_domain(low: int = 1, high: int = 101) -> int:
+def reserve_ros_domain(low: int = 1, high: int = 101, first: int | None = None) -> int:
     """A ``ROS_DOMAIN_ID`` in ``low..high`` that no other spco test or benchmark run on this machine
     holds, reserved until this process exits (an exclusive ``flock`` on
     ``<tmp>/spco-ros2-domain-N.lock``; the same id again on later calls).
 
     Concurrent runs in the same domain see each other's nodes and robots (the same ``/spco`` names):
     each node then answers the other robot's queries and takes its camera frames — wrong answers and
-    latencies that are not the node's. The search starts at an id drawn from the process id and
-    takes the first free one. Raises ``RuntimeError`` when every id is held.
+    latencies that are not the node's. The search starts at ``first`` (default: an id drawn from the
+    process id) and takes the first free one. Raises ``RuntimeError`` when every id is held.
     """
     import fcntl
     import tempfile
@@ -85,7 +85,7 @@ def reserve_ros_domain(low: int = 1, high: int = 101) -> int:
     if _DOMAIN_LOCKS:
         return next(iter(_DOMAIN_LOCKS))
     span = high - low + 1
-    start = os.getpid() % span
+    start = (os.getpid() if first is None else first - low) % span
     for k in range(span):
         domain = low + (start + k) % span
         handle = (Path(tempfile.gettempdir()) / f"spco-ros2-domain-{domain}.lock").open("a")

@@ -303,7 +303,10 @@ def test_count_vector_knowledge_refuses_images(image_homes: dict[str, Path], tmp
 def test_version_1_knowledge_files_are_read_as_count_vectors(image_homes: dict[str, Path],
                                                              tmp_path: Path) -> None:
     kfile = tmp_path / "k.spco"
-    assert _invoke(fit, ["--data", image_homes["counts"], "--iterations", 2, "--out", kfile]).exit_code == 0
+    # (a model without word pruning: spcotransfer+mi files older than version 4 are refused, being
+    # learnt with the naming rule — tests/test_channels_robot.py)
+    assert _invoke(fit, ["--data", image_homes["counts"], "--iterations", 2, "--model", "spcotransfer",
+                         "--out", kfile]).exit_code == 0
     with np.load(kfile, allow_pickle=False) as archive:
         arrays = {k: archive[k] for k in archive.files}
     header = json.loads(arrays.pop("header").tobytes().decode())

@@ -384,6 +384,9 @@ def test_home_model_predicts_from_its_posterior_average_and_keeps_it_in_its_file
     path = home.save(tmp_path / "home.spco")
     loaded = load_home_model(path)
     for name, array in home.posterior.arrays().items():
+        np.testing.assert_array_equal(array, getattr(loaded.posterior, name), err_msg=name)
+    # (the word channels: prediction's parameters add ψ, the switch's prior and the home's said words)
+    for name, array in home.parameters.arrays().items():
         np.testing.assert_array_equal(array, getattr(loaded.parameters, name), err_msg=name)
     sample = int(home.ids[0])
     taught = teach(home, {sample: "this is the kitchen"}, n_sweeps=4, random_state=1)
