@@ -67,3 +67,22 @@ def test_fit_knowledge_refuses_an_unknown_prior() -> None:
     corpus = generate_homes(2, seed=0, config=SyntheticConfig(n_features=16))
     with pytest.raises(ConfigurationError, match="prior"):
         fit_knowledge(Corpus(list(corpus)), n_iterations=1, prior="cm")
+
+
+def test_a_synthetic_fleet_gets_the_scaled_prior_of_the_corpus_of_its_homes() -> None:
+    """A :class:`SyntheticHomes` fleet (generated in the shards) measures its homes' scales as the
+    :class:`Corpus` of the same homes does, so ``fit_knowledge`` starts both from the same prior (it
+    kept the paper's κ0 for the fleet: the two fits drew different chains)."""
+    from spco.data.synthetic import SyntheticConfig, generate_homes
+    from spco.knowledge.fit import default_hyperparameters
+    from spco.model.sources import SyntheticHomes
+
+    config = SyntheticConfig(n_features=32, n_train=12)
+    source = SyntheticHomes.create(4, seed=4, config=config, new_homes=1)
+    corpus = generate_homes(4, seed=4, config=config, new_homes=1, specific_rooms=False)
+    expected = [home_scales(t.positions, corpus.word_counts(list(t.sentences)))
+                for t in corpus.training_set()]
+    np.testing.assert_array_equal(np.array(source.scales), np.array(expected))
+    fleet, read = default_hyperparameters(source), default_hyperparameters(corpus)
+    assert fleet == read
+    assert fleet.kappa0 < TransferHyperparameters().kappa0  # the scaled prior, not the paper's

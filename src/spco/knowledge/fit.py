@@ -87,11 +87,11 @@ def _align_to(reference_v: np.ndarray, reference_w: np.ndarray, phi_v: np.ndarra
 def default_hyperparameters(homes: Any) -> TransferHyperparameters:
     """The scaled prior of ``homes`` (:func:`~spco.model.hyperparameters.scaled_hyperparameters`): a
     :class:`~spco.data.Corpus` is read here, a :class:`~spco.model.sources.FolderHomes` brings the
-    scales it measured while reading its folders; a synthetic fleet generated in the shards
-    (:class:`~spco.model.sources.SyntheticHomes`, never read in the driver) keeps the paper's."""
-    from spco.model.sources import FolderHomes
+    scales it measured while reading its folders, a :class:`~spco.model.sources.SyntheticHomes` fleet
+    measures them generating its homes one at a time: the same prior as the corpus of the same homes."""
+    from spco.model.sources import FolderHomes, SyntheticHomes
 
-    if isinstance(homes, FolderHomes):
+    if isinstance(homes, FolderHomes | SyntheticHomes):
         return scaled_from(homes.scales)
     if isinstance(homes, Corpus):
         return scaled_hyperparameters([(t.positions, homes.word_counts(list(t.sentences)))

@@ -170,6 +170,7 @@ class SyntheticHomes(RangeSource):
     #: (ν, a) of the vocabulary's words (spco.model.name_evidence.channel_evidence) from the sentences
     #: the vocabulary was learnt from; ``None`` when none holds an English function word
     channel_evidence: tuple[np.ndarray, np.ndarray] | None = None
+    _scales: tuple[tuple[float, float, int], ...] | None = field(default=None, repr=False, compare=False)
 
     @classmethod
     def create(cls, n_homes: int, seed: int = 0, config=None, new_homes: int = 0,
@@ -220,6 +221,24 @@ class SyntheticHomes(RangeSource):
             optional = int((rng.random(len(layout.optional)) < self.config.optional_room_probability).sum())
             total += self.config.n_train * (len(layout.rooms) + optional)
         return total
+
+    @property
+    def scales(self) -> tuple[tuple[float, float, int], ...]:
+        """(R, s, n) of each home's training samples (:func:`spco.model.hyperparameters.home_scales`,
+        their words in the fleet's vocabulary), for the scaled prior: what
+        :func:`~spco.model.hyperparameters.scaled_hyperparameters` reads from the
+        :class:`~spco.data.environment.Corpus` of the same homes. Measured on first use, generating the
+        homes one at a time in this process (a few milliseconds each; only the scales are kept)."""
+        if self._scales is None:
+            from spco.model.hyperparameters import home_scales
+
+            measured = []
+            for i in range(self.n_homes):
+                training = self.home(i).training_data()
+                measured.append(home_scales(training.positions,
+                                            self.vocabulary.encode(training.sentences, self.word_increment)))
+            self._scales = tuple(measured)
+        return self._scales
 
     def __getstate__(self) -> dict:  # the world is rebuilt where the part is prepared
         state = dict(self.__dict__)
