@@ -96,8 +96,10 @@ def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order th
                         help="spco ros2 --writer: where the teachings are applied")
     parser.add_argument("--dir", type=Path, default=None,
                         help="folder for the home and the logs (default: a temporary one)")
-    parser.add_argument("--robot-executor", choices=("multi", "single"), default="multi",
-                        help="the robot's rclpy executor (tests/ros2_robot.py), spun in a thread")
+    parser.add_argument("--robot-executor", choices=("single", "multi"), default="single",
+                        help="the robot's rclpy executor (tests/ros2_robot.py), spun in a thread: "
+                        "single (rclpy.spin's default) or multi (MultiThreadedExecutor(2): on an idle "
+                        "machine it hands the answer to its callback 70-600 ms late)")
     parser.add_argument("--home", type=Path, default=None,
                         help="a tour home made by an earlier run (its folder's home.spco, copied into --dir; "
                         "the node teaches into the copy) instead of building one")
