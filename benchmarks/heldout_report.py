@@ -616,18 +616,13 @@ def details(figures: dict[str, Any], records: list[dict[str, Any]]) -> str:
                              f"{cell(c['ece_seeds'])} | {cell(c['accuracy'])} | "
                              f"{c['wrong_sure']} of {c['wrong']} | "
                              f"{'yes' if c['met'] else 'no'} |" for c in confs]
-        elif part == "specific":
+        elif part in ("specific", "general"):
+            unit = "room" if part == "specific" else "place"
             for side in SIDES:
-                rooms = (f.get(side) or {}).get("per_room")
-                if rooms:
-                    text += ["", f"{side} A_n per room (mean over seeds): "
-                             + ", ".join(f"{k} {v:.2f}" for k, v in rooms.items())]
-        elif part == "general":
-            for side in SIDES:
-                places = (f.get(side) or {}).get("per_place")
-                if places:
-                    text += ["", f"{side} A_n per place (mean over seeds): "
-                             + ", ".join(f"{k} {v:.2f}" for k, v in places.items())]
+                scores = (f.get(side) or {}).get(f"per_{unit}")
+                if scores:
+                    text += ["", f"{side} A_n per {unit} (mean over seeds): "
+                             + ", ".join(f"{k} {v:.2f}" for k, v in scores.items())]
         parts.append("\n".join(text))
     return "\n\n".join(parts)
 

@@ -623,15 +623,15 @@ def test_a_word_said_at_many_places_of_a_home_is_no_name(home_file: Path) -> Non
 
 def test_appended_free_concepts_hold_the_priors_mean_not_a_draw(knowledge_file: Path) -> None:
     """A knowledge holds each concept's posterior mean; a concept no experienced home used has its
-    prior as posterior, so an appended one is the prior's mean — uniform φ^v, φ^w (and ψ) — whatever
-    the generator: one draw of Dir(α^w) puts nearly all its mass on one word at random and drew
+    prior as posterior, so an appended one is the prior's mean — uniform φ^v, φ^w (and ψ), the same on
+    every call: one draw of Dir(α^w) puts nearly all its mass on one word at random and drew
     taught samples away from their place (synthetic teaching effective 60 % instead of 95 %)."""
     from spco.knowledge.knowledge import MIN_FREE_CONCEPTS
 
     k = kn.load_knowledge(knowledge_file)
     free = kn.FREE_CONCEPT_WEIGHT
-    a = k.with_free_concepts(np.random.default_rng(0), n_free=MIN_FREE_CONCEPTS + k.n_concepts)
-    b = k.with_free_concepts(np.random.default_rng(1), n_free=MIN_FREE_CONCEPTS + k.n_concepts)
+    a = k.with_free_concepts(n_free=MIN_FREE_CONCEPTS + k.n_concepts)
+    b = k.with_free_concepts(n_free=MIN_FREE_CONCEPTS + k.n_concepts)
     L = k.n_concepts
     added = a.n_concepts - L
     assert added >= MIN_FREE_CONCEPTS and (np.exp(a.log_g0[L:]) < free).all()

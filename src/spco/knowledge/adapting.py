@@ -119,7 +119,7 @@ def adapt(
                       ExperiencedHomeWarning, stacklevel=2)
     # concepts for the home's own names (names the experienced homes never said), then its new words
     rng = as_generator(random_state)
-    extended = knowledge.with_free_concepts(rng).extended(train.sentences)
+    extended = knowledge.with_free_concepts().extended(train.sentences)
     n_known = knowledge.n_words
     scale = gibbs.CM_PER_M if extended.variant == "reference" else 1.0
     centre = _map_centre(home)

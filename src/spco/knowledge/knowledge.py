@@ -322,8 +322,7 @@ class Knowledge:
         return replace(self, log_phi_words=log_phi, word_mask=mask, vocabulary=vocabulary, channels=channels)
 
     # ------------------------------------------------------------------ for a new home
-    def with_free_concepts(self, rng: np.random.Generator | None = None,
-                           n_free: int = MIN_FREE_CONCEPTS) -> Knowledge:
+    def with_free_concepts(self, n_free: int = MIN_FREE_CONCEPTS) -> Knowledge:
         """This knowledge with at least ``n_free`` concepts the experienced homes do not use (G_0
         below :data:`~spco.model.home_shard.FREE_CONCEPT_WEIGHT`), appended when it has fewer: the
         concepts a new home's own names take (names nobody in the experienced homes said: "emma's
@@ -335,10 +334,8 @@ class Knowledge:
         a concept holding it explains every sentence with that word, and on the synthetic home of
         ``benchmarks/teaching.py`` it drew taught samples and views away from their place: a single
         teaching was effective in 60 % of teachings instead of 95 %.) G_0 the weight of the
-        knowledge's own unused concepts (or 1e-12), concentrations unknown (δ, γ). Deterministic:
-        ``rng`` is accepted for callers that pass one and not used. Returns ``self`` when it has
-        enough."""
-        del rng  # the prior's mean needs no draw
+        knowledge's own unused concepts (or 1e-12), concentrations unknown (δ, γ). Deterministic (the
+        prior's mean needs no draw). Returns ``self`` when it has enough."""
         g0 = np.exp(self.log_g0)
         free = g0 < FREE_CONCEPT_WEIGHT
         added = int(n_free) - int(free.sum())
