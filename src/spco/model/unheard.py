@@ -22,7 +22,7 @@ import numpy as np
 
 from spco.data.language import Vocabulary, normalize_name
 
-__all__ = ["MIN_CANDIDATE_INFORMATION", "MIN_CANDIDATE_PRIOR", "OBJECT_BELOW", "STAND_IN_HOW", "ResolvedName",
+__all__ = ["MIN_CANDIDATE_INFORMATION", "PLACE_CANDIDATE_SHARE", "candidate_names", "MIN_CANDIDATE_PRIOR", "OBJECT_BELOW", "STAND_IN_HOW", "ResolvedName",
            "resolve_name", "stand_in_names"]
 
 #: Known words below this name prior are not candidates for a name nobody said (verbs and function
@@ -34,6 +34,10 @@ MIN_CANDIDATE_PRIOR = 0.05
 #: largest (said everywhere or nowhere in this home: "house", "corner"; names of places score
 #: 0.01–0.25 nats against 0.24 for the best, such words < 0.0003).
 MIN_CANDIDATE_INFORMATION = 0.01
+#: Names whose information is at least this share of the largest are the home's firmly bound names
+#: (one per place: "kitchen" 0.48, "entrance" 0.43, "washroom" 0.35 against "hall" 0.02): the lexicon
+#: looks for the name asked among them first, then among all candidates.
+FIRM_INFORMATION = 0.1
 
 
 @dataclass(frozen=True)
@@ -81,19 +85,74 @@ def resolve_name(vocabulary: Vocabulary, word_mask: np.ndarray, name: str,
         lexicon = load()
         if lexicon is None:
             return None
-    usable = np.flatnonzero(mask)
-    if information is not None and usable.size:
+    candidates = candidate_names(vocabulary, mask, name_prior, lexicon, information)
+    firm = candidates
+    if information is not None and mask.any():  # the home's firmly bound names
         info = np.asarray(information, dtype=np.float64)
-        usable = usable[info[usable] >= MIN_CANDIDATE_INFORMATION * info[usable].max()]
-    if name_prior is not None:
-        prior = np.asarray(name_prior, dtype=np.float64)
-        usable = usable[prior[usable] >= MIN_CANDIDATE_PRIOR]
-        usable = usable[np.argsort(-prior[usable], kind="stable")]
-    candidates = [vocabulary.words[k] for k in usable]
-    match = lexicon.closest(asked, candidates)  # type: ignore[attr-defined]
+        floor = FIRM_INFORMATION * info[mask].max()
+        firm = [c for c in candidates if info[vocabulary.index(c)] >= floor]
+    match = None
+    for similarity in (False, True):  # a lexical relation before mere similarity,
+        for group in (firm, candidates):  # a firmly bound name before the others
+            if match is None and group:
+                match = lexicon.closest(asked, group, similarity=similarity)  # type: ignore[attr-defined]
     if match is None:
         return None
     return ResolvedName(asked=asked, name=match.name, how=match.how, score=float(match.score))
+
+
+#: A known word is a candidate whatever its name prior and information when this share of its noun
+#: senses (weighted by frequency, :meth:`spco.data.lexicon.Lexicon.place_share`) are places in WordNet:
+#: "toilet" (0.44) is said so often beside "go to the" and objects that its prior is low and, said at
+#: one place among many words, its information is small, yet it is the place's own name.
+PLACE_CANDIDATE_SHARE = 0.25
+
+
+def candidate_names(vocabulary: Vocabulary, word_mask: np.ndarray, name_prior: np.ndarray | None,
+                    lexicon: object, information: np.ndarray | None = None) -> list[str]:
+    """The home's known words a name nobody said may stand for, most name-like first.
+
+    A usable word is a candidate when it is a name by the model (name prior ≥
+    :data:`MIN_CANDIDATE_PRIOR` and information ≥ :data:`MIN_CANDIDATE_INFORMATION` of the largest,
+    when given) or a place by WordNet (place share ≥ :data:`PLACE_CANDIDATE_SHARE`), and is not a
+    kind of place (:data:`spco.data.lexicon.KINDS_BELOW` kinds under it in WordNet: "room", "area",
+    "house", "home"). The names by the model come first (by prior), then the places by WordNet
+    (by prior)."""
+    from spco.data.lexicon import KINDS_BELOW
+
+    mask = np.asarray(word_mask, dtype=bool)
+    usable = np.flatnonzero(mask)
+    named = np.ones(mask.size, dtype=bool)
+    if information is not None and usable.size:
+        info = np.asarray(information, dtype=np.float64)
+        named &= info >= MIN_CANDIDATE_INFORMATION * info[usable].max()
+    prior = np.zeros(mask.size) if name_prior is None else np.asarray(name_prior, dtype=np.float64)
+    if name_prior is not None:
+        named &= prior >= MIN_CANDIDATE_PRIOR
+    order = usable[np.argsort(-prior[usable], kind="stable")]
+    first = [k for k in order if named[k]]
+    then = [k for k in order if not named[k] and _room_share(lexicon, vocabulary.words[k]) >= PLACE_CANDIDATE_SHARE]
+    return [vocabulary.words[k] for k in (*first, *then)
+            if _kinds_below(lexicon, vocabulary.words[k]) < KINDS_BELOW]
+
+
+_FACTS: dict[tuple[int, str, str], float] = {}
+
+
+def _room_share(lexicon: object, word: str) -> float:
+    """:meth:`Lexicon.room_share`, remembered for the process."""
+    key = (id(lexicon), "room", word)
+    if key not in _FACTS:
+        _FACTS[key] = float(lexicon.room_share(word))  # type: ignore[attr-defined]
+    return _FACTS[key]
+
+
+def _kinds_below(lexicon: object, word: str) -> float:
+    """:meth:`Lexicon.kinds_below`, remembered for the process."""
+    key = (id(lexicon), "kinds", word)
+    if key not in _FACTS:
+        _FACTS[key] = float(lexicon.kinds_below(word))  # type: ignore[attr-defined]
+    return _FACTS[key]
 
 
 #: A word whose name evidence p(name | word) is below this is an object, an act or a person said at
