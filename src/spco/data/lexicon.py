@@ -41,7 +41,8 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, TypeVar
 
-__all__ = ["KINDS_BELOW", "MIN_SIMILARITY", "NOT_PLACE_ROOTS", "PLACE_ROOTS", "Lexicon", "LexiconMatch", "WordFacts",
+__all__ = ["KINDS_BELOW", "MIN_SIMILARITY", "NOT_PLACE_ROOTS", "PLACE_ROOTS", "Lexicon", "LexiconMatch",
+           "WordFacts",
            "lexicon", "lexicon_unavailable_reason", "word_facts"]
 
 #: Where Debian's wordnet-base puts the database files.
@@ -244,7 +245,8 @@ class Lexicon:
             total += weight
             with self._lock:
                 closure = {synset, *synset.closure(lambda s: s.hypernyms())}
-            if any(root in closure for root in self._roots[:2]) and not any(r in closure for r in self._not_roots):
+            rooms = any(root in closure for root in self._roots[:2])  # room.n.01, area.n.05
+            if rooms and not any(r in closure for r in self._not_roots):
                 room += weight
         return room / total if total else 0.0
 
@@ -393,10 +395,15 @@ class Lexicon:
 
         In order: a known name that is a synonym of ``name`` (shares a noun synset; "privy" ->
         "toilet"), or is in a definition of ``name``'s senses or of their hypernyms ("powder room":
-        "a toilet that is available to the public"); for a name of several words, the words before
-        a general head ("room", "area", "corner": a hypernym of known names) or the head itself,
-        when known or found so ("kitchen nook" -> "kitchen", "tub room" -> "tub" -> "bath"); else
-        the known name of highest Wu–Palmer similarity between noun senses (≥
+        "a toilet that is available to the public"); for a name of several words (a single word
+        WordNet does not know is first read as two nouns it knows, :meth:`split_compound`:
+        "mudroom" -> "mud room"), the words before a general head ("room", "area": a hypernym of
+        known names, or :data:`KINDS_BELOW` kinds under it) or the head itself, when known ("kitchen
+        nook" -> "kitchen"), a known term of the same words before another general head ("laundry
+        area" -> "laundry room"), or found so: a synonym or definition ("tub room" -> "tub" ->
+        "bath"), the one place (or synonyms) defined by the word ("sleeping quarters" -> "bedroom":
+        "a room used primarily for sleeping"), a derivation or verb synonym ("bathing room" ->
+        "bathe" -> "bath"); else the known name of highest Wu–Palmer similarity between noun senses (≥
         :data:`MIN_SIMILARITY`) of the name or its words, among near ties (kinds of room are all
         about as similar) the one whose definition shares most words with the name's, and none
         when they share none. ``known``: candidate names (vocabulary tokens, lower case, words

@@ -4,11 +4,18 @@ A user may ask for "the restroom", "the lounge" or "the powder room" in a home w
 "toilet", "living room" and "loo". When the name asked for is not one usable vocabulary token
 (several words never said as one name, "bath area", count as not said),
 :func:`resolve_name` looks for the known name it stands for with the lexicon
-(:meth:`spco.data.lexicon.Lexicon.closest`: WordNet synonyms, definitions, head words, similarity)
-among the home's usable words that are names (name prior ≥ :data:`MIN_CANDIDATE_PRIOR` when the
-model has a prior, :mod:`spco.model.name_evidence`) and place-bound in this home (mutual information
-≥ :data:`MIN_CANDIDATE_INFORMATION` of the largest), and ``where`` answers for that name, saying
-which one it used ("restroom -> toilet": :attr:`spco.model.position_prediction.PositionPrediction.asked`).
+(:meth:`spco.data.lexicon.Lexicon.closest`: WordNet synonyms, definitions, head words and modifiers,
+derivations, similarity) among the home's candidate names (:func:`candidate_names`: usable words that
+are names by the model — name prior ≥ :data:`MIN_CANDIDATE_PRIOR` when the model has a prior,
+:mod:`spco.model.name_evidence`, and mutual information ≥ :data:`MIN_CANDIDATE_INFORMATION` of the
+largest — or rooms by WordNet, never kinds of place such as "room" or "area"). It asks in four
+steps and keeps the first answer: a lexical relation (synonym, definition, head, modifier,
+derivation) to one of the home's firmly bound names (information ≥ :data:`FIRM_INFORMATION` of the
+largest: one or two per place), the same to any candidate, then WordNet similarity to a firmly bound
+name, then to any candidate. ``where`` answers for that name, saying which one it used ("restroom ->
+toilet": :attr:`spco.model.position_prediction.PositionPrediction.asked`). When nothing is found, the
+name's own known words said together answer ("spare + room"); a name none of whose words is known is
+an unknown name (:class:`spco.model.prediction.UnknownNameError`).
 
 Without the lexicon (no NLTK or no WordNet database, see :mod:`spco.data.lexicon`), nothing is
 resolved: a name nobody said is an unknown name, or its known words said together, as before.
@@ -22,8 +29,18 @@ import numpy as np
 
 from spco.data.language import Vocabulary, normalize_name
 
-__all__ = ["MIN_CANDIDATE_INFORMATION", "PLACE_CANDIDATE_SHARE", "candidate_names", "MIN_CANDIDATE_PRIOR", "OBJECT_BELOW", "STAND_IN_HOW", "ResolvedName",
-           "resolve_name", "stand_in_names"]
+__all__ = [
+    "FIRM_INFORMATION",
+    "MIN_CANDIDATE_INFORMATION",
+    "MIN_CANDIDATE_PRIOR",
+    "OBJECT_BELOW",
+    "PLACE_CANDIDATE_SHARE",
+    "STAND_IN_HOW",
+    "ResolvedName",
+    "candidate_names",
+    "resolve_name",
+    "stand_in_names",
+]
 
 #: Known words below this name prior are not candidates for a name nobody said (verbs and function
 #: words: "sleep" 0.004, "my" 0.005; names with weak evidence such as "laundry" 0.12 or "bath"
@@ -101,10 +118,11 @@ def resolve_name(vocabulary: Vocabulary, word_mask: np.ndarray, name: str,
     return ResolvedName(asked=asked, name=match.name, how=match.how, score=float(match.score))
 
 
-#: A known word is a candidate whatever its name prior and information when this share of its noun
-#: senses (weighted by frequency, :meth:`spco.data.lexicon.Lexicon.place_share`) are places in WordNet:
-#: "toilet" (0.44) is said so often beside "go to the" and objects that its prior is low and, said at
-#: one place among many words, its information is small, yet it is the place's own name.
+#: A known word is a candidate whatever its name prior and information when this share of its own noun
+#: senses (weighted by frequency, :meth:`spco.data.lexicon.Lexicon.room_share`) are rooms or areas of a
+#: building in WordNet: "toilet" (0.44) is said so often beside "go to the" and its objects that its
+#: prior is low and, one word among many at its place, its information small, yet it is the place's
+#: own name ("corner" 0.16, "hall" 0.36, "kitchen" 1.0).
 PLACE_CANDIDATE_SHARE = 0.25
 
 
@@ -131,7 +149,8 @@ def candidate_names(vocabulary: Vocabulary, word_mask: np.ndarray, name_prior: n
         named &= prior >= MIN_CANDIDATE_PRIOR
     order = usable[np.argsort(-prior[usable], kind="stable")]
     first = [k for k in order if named[k]]
-    then = [k for k in order if not named[k] and _room_share(lexicon, vocabulary.words[k]) >= PLACE_CANDIDATE_SHARE]
+    then = [k for k in order
+            if not named[k] and _room_share(lexicon, vocabulary.words[k]) >= PLACE_CANDIDATE_SHARE]
     return [vocabulary.words[k] for k in (*first, *then)
             if _kinds_below(lexicon, vocabulary.words[k]) < KINDS_BELOW]
 
