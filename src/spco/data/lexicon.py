@@ -325,8 +325,12 @@ class Lexicon:
 
     def _defined_by(self, words: str, known: dict[str, str]) -> LexiconMatch | None:
         """The known place name whose commonest sense's definition holds one of ``words`` (in a base
-        form), if the names that do are one concept (synonyms: "bedroom", "bedchamber")."""
+        form) or a synonym of their verbs ("cook": "prepare"), if the names that do are one concept
+        (synonyms: "bedroom", "bedchamber")."""
         wanted = {f for w in words.split() for f in self._base_forms(w)}
+        for base in list(wanted):  # and the verb's synonyms ("cook": "prepare", as in "preparing meals")
+            wanted |= {lemma.name().lower() for synset in self.synsets(base, pos="v")[:3]
+                       for lemma in synset.lemmas() if "_" not in lemma.name()}
         hits, concepts = [], set()
         for text, original in known.items():
             senses = self.synsets(text, pos="n")[:1]
