@@ -183,6 +183,63 @@ def test_where_finds_a_name_nobody_said_and_says_which_name_it_used(wordnet) -> 
     assert unusable is None or unusable.name != "toilet"  # a pruned word is never the answer
 
 
+def _living_kitchen() -> tuple[ConceptParameters, Vocabulary]:
+    """Concept 0 at x = 0 says "living room" and "tv", concept 1 at x = 5 "kitchen"."""
+    theta = np.array([[0.5, 0.2, 0.3, 0.0], [0.0, 0.0, 0.3, 0.7]])
+    return _two_place_params(theta), Vocabulary(("living room", "tv", "is", "kitchen"))
+
+
+def test_compound_names_never_heard_resolve_through_their_words_or_are_refused(wordnet) -> None:
+    params, vocab = _living_kitchen()
+    tv = predict_positions(params, 0, vocab, "tv room", n=5, rng=0)  # the modifier before a kind of room
+    assert (tv.asked, tv.name, tv.region) == ("tv room", "tv", 0), (tv.name, tv.via)
+    sitting = predict_positions(params, 0, vocab, "sitting room", n=5, rng=0)  # a WordNet synonym
+    assert (sitting.name, sitting.via, sitting.region) == ("living room", "synonym", 0)
+    for asked in ("cookroom", "cooking corner"):  # one word read as two; "cook" ~ "preparing meals"
+        pred = predict_positions(params, 0, vocab, asked, n=5, rng=0)
+        assert (pred.name, pred.via, pred.region) == ("kitchen", "definition", 1), (asked, pred.name, pred.via)
+    for asked in ("garage", "mudroom"):  # nothing in WordNet links them to a name of this home
+        assert resolve_name(vocab, params.word_mask, asked, lexicon=wordnet) is None
+        with pytest.raises(UnknownNameError, match=asked):
+            predict_positions(params, 0, vocab, asked, n=3, rng=0)
+
+
+def test_the_lexicon_reads_heads_modifiers_derivations_and_definitions(wordnet) -> None:
+    assert wordnet.split_compound("mudroom") == ["mud", "room"]
+    assert wordnet.split_compound("kitchen") is None and wordnet.split_compound("bath room") is None
+    known = ["bedchamber", "bed", "bedroom", "laundry room", "bath", "kitchen"]
+    cases = {"sleeping quarters": ("bedchamber", "definition"),  # one concept; "bed" is no place
+             "laundry area": ("laundry room", "head"),  # the same words before another kind of place
+             "bathing room": ("bath", "derivation"),  # "bathing" -> "bathe", whose synset holds "bath"
+             "kitchen nook": ("kitchen", "head")}
+    for asked, (name, how) in cases.items():
+        found = wordnet.closest(asked, known, similarity=False)
+        assert found is not None and (found.name, found.how) == (name, how), (asked, found)
+    assert wordnet.closest("lounge", ["living room", "kitchen"], similarity=False) is None
+    assert wordnet.closest("lounge", ["living room", "kitchen"]).name == "living room"  # similarity
+
+
+def test_rooms_are_candidates_kinds_of_place_never_and_firm_names_come_first(wordnet) -> None:
+    from spco.model.unheard import candidate_names
+
+    vocab = Vocabulary(("room", "area", "toilet", "corner", "hall", "entrance", "sofa"))
+    prior = np.array([0.6, 0.6, 0.01, 0.3, 0.6, 0.6, 0.01])  # "toilet": a low name prior
+    info = np.array([0.3, 0.3, 0.0, 0.0, 0.02, 0.4, 0.0])
+    mask = np.ones(len(vocab.words), dtype=bool)
+    candidates = candidate_names(vocab, mask, prior, wordnet, info)
+    # "toilet" is a room in WordNet; "room" and "area" are kinds of place; "corner" and "sofa" neither
+    assert candidates == ["hall", "entrance", "toilet"], candidates
+    # "foyer" is a synonym of "hall" (weakly bound here) and defined as "a large entrance …": the
+    # firmly bound "entrance" is used; with "hall" as firm as "entrance", the synonym
+    found = resolve_name(vocab, mask, "foyer", prior, lexicon=wordnet, information=info)
+    assert found is not None and (found.name, found.how) == ("entrance", "gloss")
+    info[4] = 0.4
+    found = resolve_name(vocab, mask, "foyer", prior, lexicon=wordnet, information=info)
+    assert found is not None and (found.name, found.how) == ("hall", "synonym")
+    found = resolve_name(vocab, mask, "latrine", prior, lexicon=wordnet, information=info)
+    assert found is not None and found.name == "toilet"
+
+
 def test_spco_without_wordnet_works_as_before(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("SPCO_WORDNET", "off")
     assert lexicon() is None and "turned off" in (lexicon_unavailable_reason() or "")
