@@ -240,6 +240,19 @@ def test_rooms_are_candidates_kinds_of_place_never_and_firm_names_come_first(wor
     assert found is not None and found.name == "toilet"
 
 
+def test_a_weakly_bound_name_found_gives_way_to_its_firmly_bound_synonym(wordnet) -> None:
+    # "reception room" is in the definition of "parlour" only ("a reception room in a private
+    # house"); "parlour" is a WordNet synonym of "living room", which this home binds firmly
+    vocab = Vocabulary(("parlour", "living room", "kitchen"))
+    mask, prior = np.ones(3, dtype=bool), np.array([0.8, 0.7, 0.7])
+    found = resolve_name(vocab, mask, "reception room", prior, lexicon=wordnet,
+                         information=np.array([0.001, 0.4, 0.4]))
+    assert found is not None and (found.name, found.how) == ("living room", "definition synonym"), found
+    found = resolve_name(vocab, mask, "reception room", prior, lexicon=wordnet,
+                         information=np.array([0.4, 0.4, 0.4]))  # both firm: the name found stays
+    assert found is not None and found.name == "parlour", found
+
+
 def test_spco_without_wordnet_works_as_before(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("SPCO_WORDNET", "off")
     assert lexicon() is None and "turned off" in (lexicon_unavailable_reason() or "")

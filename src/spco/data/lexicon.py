@@ -250,6 +250,14 @@ class Lexicon:
                 room += weight
         return room / total if total else 0.0
 
+    def synonyms_among(self, word: str, others: Sequence[str]) -> list[str]:
+        """Those of ``others`` that share one of the two commonest noun senses of ``word`` as one of
+        their own two commonest ("parlour" and "living room": living_room.n.01), in their order."""
+        senses = set(self.synsets(word, pos="n")[:2])
+        if not senses:
+            return []
+        return [o for o in others if o != word and senses & set(self.synsets(o, pos="n")[:2])]
+
     # ------------------------------------------------------------------ unheard names
     def _variants(self, words: list[str]) -> list:
         """Noun senses of a name written with spaces, joined ("guest room" -> "guestroom") or

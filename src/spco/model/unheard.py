@@ -115,7 +115,12 @@ def resolve_name(vocabulary: Vocabulary, word_mask: np.ndarray, name: str,
                 match = lexicon.closest(asked, group, similarity=similarity)  # type: ignore[attr-defined]
     if match is None:
         return None
-    return ResolvedName(asked=asked, name=match.name, how=match.how, score=float(match.score))
+    name, how = match.name, match.how
+    if name not in firm:  # a synonym of it that this home binds firmly names the same place
+        same = lexicon.synonyms_among(name, firm)  # type: ignore[attr-defined]
+        if same:
+            name, how = same[0], f"{how} synonym"
+    return ResolvedName(asked=asked, name=name, how=how, score=float(match.score))
 
 
 #: A known word is a candidate whatever its name prior and information when this share of its own noun
