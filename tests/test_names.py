@@ -210,6 +210,7 @@ def test_the_lexicon_reads_heads_modifiers_derivations_and_definitions(wordnet) 
     known = ["bedchamber", "bed", "bedroom", "laundry room", "bath", "kitchen"]
     cases = {"sleeping quarters": ("bedchamber", "definition"),  # one concept; "bed" is no place
              "laundry area": ("laundry room", "head"),  # the same words before another kind of place
+             "washing area": ("laundry room", "head synonym"),  # a synonym (laundry.n.01) before one
              "bathing room": ("bath", "derivation"),  # "bathing" -> "bathe", whose synset holds "bath"
              "kitchen nook": ("kitchen", "head")}
     for asked, (name, how) in cases.items():

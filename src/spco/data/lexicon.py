@@ -412,7 +412,8 @@ class Lexicon:
         "mudroom" -> "mud room"), the words before a general head ("room", "area": a hypernym of
         known names, or :data:`KINDS_BELOW` kinds under it) or the head itself, when known ("kitchen
         nook" -> "kitchen"), a known term of the same words before another general head ("laundry
-        area" -> "laundry room"), or found so: a synonym or definition ("tub room" -> "tub" ->
+        area" -> "laundry room"), or found so (then also a known term of a synonym before another
+        general head: "washing area" -> "laundry room"): a synonym or definition ("tub room" -> "tub" ->
         "bath"), the one place (or synonyms) defined by the word ("sleeping quarters" -> "bedroom":
         "a room used primarily for sleeping"), a derivation or verb synonym ("bathing room" ->
         "bathe" -> "bath"); else the known name of highest Wu–Palmer similarity between noun senses (≥
@@ -454,6 +455,12 @@ class Lexicon:
                 found = self._by_senses(self._variants(part.split()), known_set)
                 if found is not None:
                     return replace(found, score=found.score * 0.8, how=f"head {found.how}")
+            mine = set(self.synsets(modifier, pos="n")[:3]) if general else set()
+            for text, original in known_set.items():  # a known term of a synonym before another
+                kw = text.split()  # general head: "washing area" -> "laundry room" (washing ~ laundry)
+                if (mine and len(kw) > 1 and mine & set(self.synsets(" ".join(kw[:-1]), pos="n")[:3])
+                        and self._general(kw[-1], known_set)):
+                    return LexiconMatch(original, 0.8 * 0.8, "head synonym")
             for part in parts:  # a known name defined by the word: "sleeping quarters" -> bedroom,
                 found = self._defined_by(part, known_set)  # "a room used primarily for sleeping"
                 if found is not None:
