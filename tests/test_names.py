@@ -223,12 +223,13 @@ def test_the_lexicon_reads_heads_modifiers_derivations_and_definitions(wordnet) 
 def test_rooms_are_candidates_kinds_of_place_never_and_firm_names_come_first(wordnet) -> None:
     from spco.model.unheard import candidate_names
 
-    vocab = Vocabulary(("room", "area", "toilet", "corner", "hall", "entrance", "sofa"))
-    prior = np.array([0.6, 0.6, 0.01, 0.3, 0.6, 0.6, 0.01])  # "toilet": a low name prior
-    info = np.array([0.3, 0.3, 0.0, 0.0, 0.02, 0.4, 0.0])
+    vocab = Vocabulary(("room", "area", "toilet", "corner", "hall", "entrance", "sofa", "or"))
+    prior = np.array([0.6, 0.6, 0.01, 0.3, 0.6, 0.6, 0.01, 0.01])  # "toilet": a low name prior
+    info = np.array([0.3, 0.3, 0.0, 0.0, 0.02, 0.4, 0.0, 0.0])
     mask = np.ones(len(vocab.words), dtype=bool)
     candidates = candidate_names(vocab, mask, prior, wordnet, info)
-    # "toilet" is a room in WordNet; "room" and "area" are kinds of place; "corner" and "sofa" neither
+    # "toilet" is a room in WordNet; "room" and "area" are kinds of place; "corner" and "sofa" neither;
+    # "or" (WordNet: an operating room) is a function word
     assert candidates == ["hall", "entrance", "toilet"], candidates
     # "foyer" is a synonym of "hall" (weakly bound here) and defined as "a large entrance …": the
     # firmly bound "entrance" is used; with "hall" as firm as "entrance", the synonym

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from spco.data.language import Vocabulary, normalize_name
+from spco.data.language import Vocabulary, is_function_word, normalize_name
 
 __all__ = [
     "FIRM_INFORMATION",
@@ -156,8 +156,8 @@ def candidate_names(vocabulary: Vocabulary, word_mask: np.ndarray, name_prior: n
     first = [k for k in order if named[k]]
     then = [k for k in order
             if not named[k] and _room_share(lexicon, vocabulary.words[k]) >= PLACE_CANDIDATE_SHARE]
-    return [vocabulary.words[k] for k in (*first, *then)
-            if _kinds_below(lexicon, vocabulary.words[k]) < KINDS_BELOW]
+    return [vocabulary.words[k] for k in (*first, *then) if not is_function_word(vocabulary.words[k])
+            and _kinds_below(lexicon, vocabulary.words[k]) < KINDS_BELOW]
 
 
 _FACTS: dict[tuple[int, str, str], float] = {}
