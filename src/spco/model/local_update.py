@@ -466,7 +466,9 @@ def teach_locally(
     _draw_assignments(data, state, shared, settings, new, np.arange(L), np.arange(K), rng, collapsed=True)
     draw_switches(data, state, rng)  # (word channels: the switches of the taught tokens, given their concept)
     before = state.concepts.copy()
-    own_names_to_free_concepts(data, state, shared, n_known)
+    # the names of this teaching only: the home's other names keep the concepts its posterior gave them
+    said = np.unique(data.words[taught].indices) if taught.size else np.zeros(0, dtype=np.int64)
+    own_names_to_free_concepts(data, state, shared, n_known, words=said[said >= n_known])
     moved = np.flatnonzero(before != state.concepts)
     movable, concepts, regions = _affected(data, state, taught, moved, settings)
     concepts = np.union1d(concepts, before[moved]).astype(np.int64)
