@@ -80,6 +80,36 @@ def _same(a: kn.HomeModel, b: kn.HomeModel) -> bool:
 
 
 # ----------------------------------------------------------------------------- the library: LiveHome
+#: Every operation of the JSON API and the method of spco.service.client.Client that calls it.
+CLIENT_METHODS = {("get", "/health"): "health", ("get", "/where"): "where", ("get", "/what"): "what",
+                  ("post", "/what"): "what", ("get", "/ask"): "ask", ("post", "/teach"): "teach",
+                  ("delete", "/teach/{seq}"): "undo", ("get", "/regions"): "regions",
+                  ("get", "/map"): "map_image", ("get", "/events"): "events",
+                  ("delete", "/sessions"): "revoke_sessions"}
+
+
+def test_the_openapi_schema_describes_every_answer_and_the_client_calls_every_operation() -> None:
+    """The routers at module level make the whole schema without a home: every JSON operation's
+    answer has a schema, every error the one error shape; the Python client has a method for each
+    operation (a new endpoint without one fails here)."""
+    from fastapi import FastAPI
+
+    from spco.service.routes import api
+
+    app = FastAPI()
+    app.include_router(api)
+    spec = app.openapi()
+    operations = {(method, path): op for path, item in spec["paths"].items() for method, op in item.items()}
+    assert set(operations) == set(CLIENT_METHODS)
+    for (method, path), op in operations.items():
+        assert callable(getattr(Client, CLIENT_METHODS[method, path]))
+        ok = op["responses"]["200"]["content"]
+        if path not in ("/map", "/events"):  # an image, an event stream
+            assert "$ref" in ok["application/json"]["schema"], (method, path)
+        error = op["responses"]["404"]["content"]["application/json"]["schema"]
+        assert error["$ref"].endswith("/ErrorAnswer"), (method, path)
+
+
 def test_live_home_answers_as_the_cli_and_teaches(home: Path) -> None:
     name = kn.load_home_model(home).known_names[0]
     runner = CliRunner()
@@ -174,7 +204,7 @@ def test_journal_replays_to_the_same_home_and_compaction_never_applies_twice(
     results = writer.handle([{"op": "sentence", "id": ids[0], "sentence": "this is the den"},
                              {"op": "sentence", "id": ids[1], "sentence": "this is the den"},
                              {"op": "observation", "x": 0.1, "y": 0.2, "theta": 0.3,
-                              "sentence": "the den is here", "visual": None}])
+                              "sentence": "the den is here", "view": None}])
     assert [r["ok"] for r in results] == [True, True, True] and results[0]["batch"] == 3
     writer.handle([{"op": "undo", "seq": 2}, {"op": "sentence", "id": ids[2], "sentence": "this is the den"}])
     live_state = writer.home
