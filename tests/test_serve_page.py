@@ -108,6 +108,7 @@ def _teaches_and_undoes(browser: Any, robot: Any, wait: Any, before: list[str], 
 
 
 def test_the_page_shows_the_regions_answers_and_teaches_live(browser, tmp_path: Path) -> None:
+    from selenium.common.exceptions import StaleElementReferenceException
     from selenium.webdriver.common.by import By
     from selenium.webdriver.support.ui import WebDriverWait
 
@@ -119,7 +120,8 @@ def test_the_page_shows_the_regions_answers_and_teaches_live(browser, tmp_path: 
     try:
         robot = Client(server.url)
         known = robot.regions()["names"]
-        wait = WebDriverWait(browser, 30)
+        # (a list the page redraws between finding an element and reading it: read it again)
+        wait = WebDriverWait(browser, 30, ignored_exceptions=(StaleElementReferenceException,))
         browser.get(server.url + "/")
         ellipses = _shows_the_map(browser, robot, wait)
         before = _answers_what_and_where(browser, wait, ellipses, known[0])
