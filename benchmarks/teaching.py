@@ -501,7 +501,8 @@ def main() -> None:
         import tempfile
 
         with tempfile.TemporaryDirectory() as folder:
-            http = http_trials(args.sigverse_home[0].resolve(), sigverse_env("3LDK_9"), args.http, Path(folder))
+            served = args.sigverse_home[0].resolve()
+            http = http_trials(served, sigverse_env("3LDK_9"), args.http, Path(folder))
         report["SIGVerse 3LDK_9 http"] = http
         print(
             f"| SIGVerse 3LDK_9 | over HTTP, each undone | {len(http['teachings'])} | "
