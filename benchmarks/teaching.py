@@ -19,11 +19,12 @@ After the teaching it measures
   every training sample with its view, ``where`` of every name of the vocabulary) and the vocabulary
   compared with the home taught the same sequence without it; max |Δp|.
 
-Homes: a synthetic new home (6 experienced synthetic homes as knowledge) and, with ``--sigverse``,
-SIGVerse 3LDK_9 adapted from the 16-home knowledge (``--sigverse-home``, a home file built as in
-``benchmarks/serve_latency.py``). Seeds 0–99 (development, benchmarks/SPLIT.md).
+Homes: synthetic new homes (6 experienced synthetic homes as knowledge; ``--home-seed``: the
+``generate_homes`` seeds, default 3) and, with ``--sigverse-home``, SIGVerse 3LDK_9 adapted from the
+16-home knowledge (one or more home files built as in ``benchmarks/serve_latency.py``, e.g. several
+adapt seeds). Seeds 0–99 (development, benchmarks/SPLIT.md).
 
-    python benchmarks/teaching.py --n 100 [--sigverse-home /path/home_3LDK_9.spco] [--json out.json]
+    python benchmarks/teaching.py --n 100 [--home-seed 3 5 7] [--sigverse-home home_s0.spco …] [--json o.json]
 """
 
 from __future__ import annotations
