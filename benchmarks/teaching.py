@@ -19,11 +19,12 @@ After the teaching it measures
   every training sample with its view, ``where`` of every name of the vocabulary) and the vocabulary
   compared with the home taught the same sequence without it; max |Δp|.
 
-Homes: a synthetic new home (6 experienced synthetic homes as knowledge) and, with ``--sigverse``,
-SIGVerse 3LDK_9 adapted from the 16-home knowledge (``--sigverse-home``, a home file built as in
-``benchmarks/serve_latency.py``). Seeds 0–99 (development, benchmarks/SPLIT.md).
+Homes: synthetic new homes (6 experienced synthetic homes as knowledge; ``--home-seed``: the
+``generate_homes`` seeds, default 3) and, with ``--sigverse-home``, SIGVerse 3LDK_9 adapted from the
+16-home knowledge (one or more home files built as in ``benchmarks/serve_latency.py``, e.g. several
+adapt seeds). Seeds 0–99 (development, benchmarks/SPLIT.md).
 
-    python benchmarks/teaching.py --n 100 [--sigverse-home /path/home_3LDK_9.spco] [--json out.json]
+    python benchmarks/teaching.py --n 100 [--home-seed 3 5 7] [--sigverse-home home_s0.spco …] [--json o.json]
 """
 
 from __future__ import annotations
@@ -63,13 +64,25 @@ NEW_WORDS = (
 )
 
 
-def synthetic_home(seed: int = 3) -> tuple[kn.HomeModel, Environment]:
-    """A synthetic new home adapted from 6 experienced synthetic homes, and its environment."""
+def synthetic_home(seed: int = 3, psi0_xy: float | None = None) -> tuple[kn.HomeModel, Environment]:
+    """A synthetic new home adapted from 6 experienced synthetic homes, and its environment.
+    ``psi0_xy``: Ψ0's x and y entries in m² (an experiment with the position prior; default the
+    knowledge's own)."""
+    from dataclasses import replace
+
     from spco.data.synthetic import generate_homes
 
     corpus = generate_homes(7, seed=seed, new_homes=1, specific_rooms=False)
     envs = list(corpus)
-    knowledge = kn.fit_knowledge(Corpus(envs[:6]), n_iterations=30, random_state=0)
+    hyper = None
+    if psi0_xy is not None:
+        from spco.knowledge.fit import default_hyperparameters
+
+        base = default_hyperparameters(Corpus(envs[:6]))
+        psi = np.diag(base.psi0_matrix_m2()).copy()
+        psi[:2] = psi0_xy
+        hyper = replace(base, psi0=tuple(float(v) for v in psi), psi0_in_cm2=False)
+    knowledge = kn.fit_knowledge(Corpus(envs[:6]), n_iterations=30, random_state=0, hyperparameters=hyper)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         home = kn.adapt(knowledge, envs[6], n_iterations=30, random_state=0)
@@ -284,26 +297,17 @@ def undo_trial(home: kn.HomeModel, t: int, folder: Path, n_teach: int = 12, comp
     }
 
 
-# too many statements: a benchmark script's steps in the order they run; to split
-def http_trials(home_file: Path, env: Environment, n: int, folder: Path) -> dict[str, Any]:  # noqa: PLR0915
-    """``n`` teachings over HTTP (``spco serve`` on a fresh copy of ``home_file``, ``spco.service.client``):
-    each a new name, for a recorded sample or at a pose without a view, then undone. Per teaching:
-    ``where`` of the name in the taught room (≥ 8 of 10 poses), and after the undo max |Δp| of
-    ``what`` at every training sample (pose and view counts) and ``where`` of every name, against
-    the answers before the teaching — an exact undo makes every teaching one on a fresh home."""
+def _start_serving(home_file: Path, folder: Path) -> tuple[Any, str, Path]:
+    """``spco serve`` on a fresh copy of ``home_file`` in ``folder``: the process, its URL, the copy."""
     import re
     import subprocess
     import sys
     import threading
 
-    from spco.service.client import Client
-
     served = folder / "served.spco"
     for suffix in ("", ".journal", ".lock", ".undo"):
         Path(str(served) + suffix).unlink(missing_ok=True)
     shutil.copyfile(home_file, served)
-    home = kn.load_home_model(served)
-    train_xy, train_rooms = room_labels(env, home)
     process = subprocess.Popen(
         [sys.executable, "-m", "spco", "serve", str(served), "--port", "0", "--seed", "0"],
         stdin=subprocess.DEVNULL,
@@ -319,47 +323,64 @@ def http_trials(home_file: Path, env: Environment, n: int, folder: Path) -> dict
     if url is None:
         raise SystemExit("spco serve did not start")
     threading.Thread(target=lambda: [None for _ in process.stderr], daemon=True).start()  # type: ignore[union-attr]
-    client = Client(url)
+    return process, url, served
 
-    def snapshot() -> dict[str, Any]:
-        out: dict[str, Any] = {}
-        for k in range(home.n_samples):
-            row = home.visual[[k]]
-            answer = client.what(
-                float(home.positions[k, 0]),
-                float(home.positions[k, 1]),
-                float(np.arctan2(home.positions[k, 2], home.positions[k, 3])),
-                visual=row.toarray()[0],
-                top=5,
-            )
-            out[f"what {k}"] = [(a["name"], a["probability"]) for a in answer["names"]]
-        for name in client.regions()["names"]:
-            out[f"where {name}"] = [
-                (p["x"], p["y"], p["probability"]) for p in client.where(name)["positions"]
-            ]
-        return out
 
-    def difference(a: dict[str, Any], b: dict[str, Any]) -> float:
-        if a.keys() != b.keys():
+def _served_answers(client: Any, home: Any) -> dict[str, Any]:
+    """``what`` (top 5) at every sample's pose and view counts, and ``where`` of every name."""
+    out: dict[str, Any] = {}
+    for k in range(home.n_samples):
+        row = home.visual[[k]]
+        answer = client.what(
+            float(home.positions[k, 0]),
+            float(home.positions[k, 1]),
+            float(np.arctan2(home.positions[k, 2], home.positions[k, 3])),
+            visual=row.toarray()[0],
+            top=5,
+        )
+        out[f"what {k}"] = [(a["name"], a["probability"]) for a in answer["names"]]
+    for name in client.regions()["names"]:
+        out[f"where {name}"] = [
+            (p["x"], p["y"], p["probability"]) for p in client.where(name)["positions"]
+        ]
+    return out
+
+
+def _answers_difference(a: dict[str, Any], b: dict[str, Any]) -> float:
+    """max |Δ| of the numbers of two :func:`_served_answers`, 1 where their names or lengths differ."""
+    if a.keys() != b.keys():
+        return 1.0
+    worst = 0.0
+    for key in a:
+        if len(a[key]) != len(b[key]):
             return 1.0
-        worst = 0.0
-        for key in a:
-            if len(a[key]) != len(b[key]):
+        for x, y in zip(a[key], b[key], strict=True):
+            if x[0] != y[0] and isinstance(x[0], str):
                 return 1.0
-            for x, y in zip(a[key], b[key], strict=True):
-                if x[0] != y[0] and isinstance(x[0], str):
-                    return 1.0
-                worst = max(
-                    worst,
-                    max(
-                        abs(float(u) - float(v)) for u, v in zip(x, y, strict=True) if not isinstance(u, str)
-                    ),
-                )
-        return worst
+            worst = max(
+                worst,
+                max(
+                    abs(float(u) - float(v)) for u, v in zip(x, y, strict=True) if not isinstance(u, str)
+                ),
+            )
+    return worst
 
+
+def http_trials(home_file: Path, env: Environment, n: int, folder: Path) -> dict[str, Any]:
+    """``n`` teachings over HTTP (``spco serve`` on a fresh copy of ``home_file``, ``spco.service.client``):
+    each a new name, for a recorded sample or at a pose without a view, then undone. Per teaching:
+    ``where`` of the name in the taught room (≥ 8 of 10 poses), and after the undo max |Δp| of
+    ``what`` at every training sample (pose and view counts) and ``where`` of every name, against
+    the answers before the teaching — an exact undo makes every teaching one on a fresh home."""
+    from spco.service.client import Client
+
+    process, url, served = _start_serving(home_file, folder)
+    home = kn.load_home_model(served)
+    train_xy, train_rooms = room_labels(env, home)
+    client = Client(url)
     results = []
     try:
-        before = snapshot()
+        before = _served_answers(client, home)
         for t in range(n):
             rng = np.random.default_rng(500 + t)
             pick = int(rng.integers(0, train_xy.shape[0]))
@@ -381,7 +402,7 @@ def http_trials(home_file: Path, env: Environment, n: int, folder: Path) -> dict
                     "kind": "sample" if t % 2 == 0 else "pose",
                     "room": room,
                     "in_room": in_room,
-                    "undo_max_dp": difference(snapshot(), before),
+                    "undo_max_dp": _answers_difference(_served_answers(client, home), before),
                 }
             )
     finally:
@@ -417,7 +438,8 @@ def main() -> None:
     )
     parser.add_argument("--n", type=int, default=100, help="teachings per home and kind")
     parser.add_argument("--undo", type=int, default=0, help="undo trials per home")
-    parser.add_argument("--sigverse-home", type=Path, default=None)
+    parser.add_argument("--sigverse-home", type=Path, nargs="+", default=[],
+                        help="adapted SIGVerse 3LDK_9 home files (several: e.g. several adapt seeds)")
     parser.add_argument(
         "--http",
         type=int,
@@ -425,15 +447,25 @@ def main() -> None:
         help="teachings over HTTP on the SIGVerse home (each undone and checked)",
     )
     parser.add_argument("--no-synthetic", action="store_true")
+    parser.add_argument(
+        "--home-seed",
+        type=int,
+        nargs="+",
+        default=[3],
+        help="seeds of the synthetic homes (generate_homes; 3: the table's home)",
+    )
+    parser.add_argument("--psi0-xy", type=float, default=None,
+                        help="an experiment: the synthetic knowledge fitted with Ψ0's x, y entries in m²")
     parser.add_argument("--json", type=Path, default=None)
     args = parser.parse_args()
     homes: list[tuple[str, kn.HomeModel, Environment]] = []
     if not args.no_synthetic:
-        home, env = synthetic_home()
-        homes.append(("synthetic", home, env))
-    if args.sigverse_home is not None:
-        home = kn.load_home_model(args.sigverse_home)
-        homes.append(("SIGVerse 3LDK_9", home, sigverse_env("3LDK_9")))
+        for seed in args.home_seed:
+            home, env = synthetic_home(seed, args.psi0_xy)
+            homes.append(("synthetic" if seed == 3 else f"synthetic (seed {seed})", home, env))
+    for path in args.sigverse_home:
+        home = kn.load_home_model(path)
+        homes.append((f"SIGVerse 3LDK_9 ({path.name})", home, sigverse_env("3LDK_9")))
     report: dict[str, Any] = {}
     print(
         "| home | kind | teachings | effective (≥ 8/10 in room) | mean in room | other places' top name "
@@ -466,11 +498,12 @@ def main() -> None:
                 f"in {exact:.0%} (worst {worst:.3g}), also after a restart | | | | |",
                 flush=True,
             )
-    if args.http and args.sigverse_home is not None:
+    if args.http and args.sigverse_home:
         import tempfile
 
         with tempfile.TemporaryDirectory() as folder:
-            http = http_trials(args.sigverse_home.resolve(), sigverse_env("3LDK_9"), args.http, Path(folder))
+            served = args.sigverse_home[0].resolve()
+            http = http_trials(served, sigverse_env("3LDK_9"), args.http, Path(folder))
         report["SIGVerse 3LDK_9 http"] = http
         print(
             f"| SIGVerse 3LDK_9 | over HTTP, each undone | {len(http['teachings'])} | "
