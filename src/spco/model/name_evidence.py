@@ -9,7 +9,8 @@ apart is how they are said and what they are:
 
 - **Where in the sentence** (:func:`frame_features`, shares over the word's uses): a name heads the
   noun phrase that names the place — after a determiner or a possessive ("this is *the* kitchen",
-  "*my* room", "*Emma's* room"), in a naming frame ("this is X", "X is here", "we call it X", "X"
+  "*my* room", "*Emma's* room"; a term holding its own possessive, "emma's room", counts as said after
+  one: :func:`holds_determiner`), in a naming frame ("this is X", "X is here", "we call it X", "X"
   said alone) — while objects and directions come after prepositions ("*on the* table", "to *the*
   left"), greetings and activities after pronouns or verbs ("I'm home", "I sleep here").
 - **What the word is** (:func:`lexical_features`, WordNet through :mod:`spco.data.lexicon`): the
