@@ -70,6 +70,59 @@ def test_the_estimate_follows_how_much_a_view_is_worth() -> None:
     assert loose <= 4 < tight <= 128 < 512 <= independent
 
 
+def _replicated_homes(rng: np.random.Generator, n_homes: int, draws: int, copies: int, n_views: int = 30,
+                      D: int = 40, L: int = 3) -> tuple[PreparedData, np.ndarray]:
+    """Homes whose views carry a known number of draws: each view is ``draws`` independent draws
+    from its place's θ_l, every draw counted ``copies`` times (``draws × copies`` correlated counts
+    that hold exactly ``draws`` draws' information). Scored at w = ``draws`` the power likelihood
+    of a view is the multinomial likelihood of its draws: the weight to recover."""
+    base = rng.dirichlet(np.full(D, 2.0))
+    theta = 0.7 * base + 0.3 * rng.dirichlet(np.full(D, 2.0), size=L)
+    rows, homes, concepts = [], [], []
+    for e in range(n_homes):
+        for c in range(L):
+            for _ in range(n_views):
+                rows.append(copies * rng.multinomial(draws, theta[c]))
+                homes.append(e)
+                concepts.append(c)
+    n = len(rows)
+    visual = sp.csr_array(np.array(rows, dtype=np.int64))
+    words = sp.csr_array((np.ones(n, dtype=np.int64), (np.arange(n), np.array(concepts))), shape=(n, L))
+    data = PreparedData(positions=np.zeros((n, 4)), homes=np.array(homes), visual=visual, words=words,
+                        n_homes=n_homes, offsets=np.arange(0, n + 1, L * n_views), position_scale=1.0,
+                        map_centres=np.zeros((n_homes, 4)))
+    return data, np.array(concepts)
+
+
+@pytest.mark.parametrize("draws", [4, 16, 64])
+def test_the_estimate_recovers_a_known_weight(draws: int) -> None:
+    """Views of ``draws`` draws each, every draw counted 50 times (the counts of a view correlated,
+    as an image's are): the estimate is within a factor 2 of ``draws`` — not the views' 50× larger
+    count, and not a fixed number."""
+    data, concepts = _replicated_homes(np.random.default_rng(draws), 6, draws, copies=50)
+    w = _estimate(data, concepts)
+    assert w is not None and draws / 2 <= w <= 2 * draws
+
+
+@pytest.mark.parametrize("scale, alpha", [(1, 1e-300), (10 ** 12, 3.0), (10 ** 15, 1e-300), (1, 1e300)])
+def test_the_estimate_is_finite_at_extremes(scale: int, alpha: float) -> None:
+    """Views of one count or of 10^15, α^v from 10^-300 to 10^300, a feature no other home ever saw,
+    views left empty (not scored): every loss on the grid is finite, and the estimate is a value of
+    the grid."""
+    rng = np.random.default_rng(7)
+    data, concepts = _replicated_homes(rng, 3, 1, copies=scale, n_views=4)
+    visual = data.visual.toarray()
+    visual[0] = 0
+    visual[0, -1] = scale  # seen by this home only: φ^v of it is α^v / (…) in every other's prediction
+    visual[1:, -1] = 0
+    data = dataclasses.replace(data, visual=sp.csr_array(visual))
+    totals, taught = home_concept_totals(data, concepts, 3)
+    losses, used = view_weight_losses(data, concepts, totals, taught, alpha_visual=alpha)
+    assert used == int((data.view_totals > 0).sum()) > 0
+    assert np.isfinite(losses).all() and (losses >= 0).all()
+    assert estimate_view_weight(losses, used) in VIEW_WEIGHT_GRID
+
+
 def test_nothing_to_estimate_from() -> None:
     """No taught view (or none with a count): no estimate; one home alone is left to the driver."""
     data, concepts = _homes(np.random.default_rng(1), 2, 20.0)
