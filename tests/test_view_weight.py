@@ -94,11 +94,12 @@ def _replicated_homes(rng: np.random.Generator, n_homes: int, draws: int, copies
     return data, np.array(concepts)
 
 
-@pytest.mark.parametrize("draws", [4, 16, 64])
+@pytest.mark.parametrize("draws", [8, 32, 128])
 def test_the_estimate_recovers_a_known_weight(draws: int) -> None:
     """Views of ``draws`` draws each, every draw counted 50 times (the counts of a view correlated,
     as an image's are): the estimate is within a factor 2 of ``draws`` — not the views' 50× larger
-    count, and not a fixed number."""
+    count, and not a fixed number. (It is at or one step below ``draws`` in seeds 0–7: φ^v is itself
+    estimated from the other homes, so a little less evidence predicts best.)"""
     data, concepts = _replicated_homes(np.random.default_rng(draws), 6, draws, copies=50)
     w = _estimate(data, concepts)
     assert w is not None and draws / 2 <= w <= 2 * draws
