@@ -85,6 +85,7 @@ class Task:
     seed: int
     homes: tuple[str, ...]
     set_name: str
+    settings: tuple[str, ...] = ()  # ``--set NAME=VALUE`` of the knowledge's hyperparameters
 
 
 def _load(data: Path, images: Path | None, names: Sequence[str], features: str, rate: int) -> list[Any]:
@@ -110,7 +111,13 @@ def _knowledge(task: Task, data: Path, images: Path | None, models: Path, force:
     experienced = [h for h in PAPER_EXPERIENCED_HOMES[: task.size] if h not in task.homes]
     homes = _load(data, images, experienced, task.features, 100)
     extractor = None if task.features == "fc7" else build_extractor(task.features)
-    knowledge = kn.fit_knowledge(Corpus(homes), random_state=task.seed, extractor=extractor)
+    hyper = None
+    if task.settings:
+        from spco.model.hyperparameters import TransferHyperparameters
+
+        hyper = TransferHyperparameters().with_settings(list(task.settings))
+    knowledge = kn.fit_knowledge(Corpus(homes), random_state=task.seed, extractor=extractor,
+                                 hyperparameters=hyper)
     knowledge.save(k_file, overwrite=True)
     return knowledge
 
@@ -412,6 +419,9 @@ def main(argv: Sequence[str] | None = None) -> None:  # noqa: PLR0915
     parser.add_argument("--first-seeds", type=int, default=None,
                         help="only the first N seeds of each set (a quick development look)")
     parser.add_argument("--sizes", default=None, help="only these experienced-home set sizes, e.g. 4,8")
+    parser.add_argument("--set", dest="settings", action="append", default=[], metavar="NAME=VALUE",
+                        help="a hyperparameter of the knowledge fits, as `spco fit --set` (e.g. "
+                             "view_counts=estimate); use a fresh --out: kept models are not checked")
     args = parser.parse_args(argv)
     sets = [s for s in args.sets.split(",") if s]
     features = [f for f in args.features.split(",") if f]
@@ -436,7 +446,15 @@ def main(argv: Sequence[str] | None = None) -> None:  # noqa: PLR0915
         print(f"least log loss at n_eff = {grid[best]:g} ({len(losses)} answers, {len(set(views))} views; "
               f"[ ]: 95 % paired bootstrap over views, {N_BOOTSTRAP} resamples, seed {args.seed})")
         return
-    tasks = [Task(f, size, seed, SETS[s]["homes"], s) for s in sets for f in features
+    if args.settings:
+        from spco.errors import SpcoError
+        from spco.model.hyperparameters import TransferHyperparameters
+
+        try:
+            TransferHyperparameters().with_settings(list(args.settings))
+        except SpcoError as err:
+            parser.error(f"--set: {err}")
+    tasks = [Task(f, size, seed, SETS[s]["homes"], s, tuple(args.settings)) for s in sets for f in features
              for size in SETS[s]["sizes"] if args.sizes is None or str(size) in args.sizes.split(",")
              for seed in SETS[s]["seeds"][: args.first_seeds]]
     start = time.perf_counter()
