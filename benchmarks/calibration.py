@@ -112,10 +112,10 @@ def _knowledge(task: Task, data: Path, images: Path | None, models: Path, force:
     homes = _load(data, images, experienced, task.features, 100)
     extractor = None if task.features == "fc7" else build_extractor(task.features)
     hyper = None
-    if task.settings:
-        from spco.model.hyperparameters import TransferHyperparameters
+    if task.settings:  # the defaults' scaled prior (as without settings), then the settings: `spco fit --set`
+        from spco.knowledge.fit import default_hyperparameters
 
-        hyper = TransferHyperparameters().with_settings(list(task.settings))
+        hyper = default_hyperparameters(Corpus(homes)).with_settings(list(task.settings))
     knowledge = kn.fit_knowledge(Corpus(homes), random_state=task.seed, extractor=extractor,
                                  hyperparameters=hyper)
     knowledge.save(k_file, overwrite=True)
