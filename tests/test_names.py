@@ -20,6 +20,7 @@ from spco.model.name_evidence import (
     FEATURES,
     PREPOSITIONS,
     frame_features,
+    holds_determiner,
     lexical_features,
     name_prior,
     within_concepts,
@@ -47,6 +48,33 @@ def test_frames_of_hand_made_sentences() -> None:
     assert f["table"][frame] == 0.5  # "… is here" frames it, "on the table" does not
     assert f["home"][pron] == 1.0 and f["home"][det] == 0.0  # "i'm home": a greeting
     assert f["this"][start] == 1.0
+
+
+def test_a_possessive_term_is_read_as_its_head_after_a_determiner() -> None:
+    """"this is emma's room" with "emma's room" one token frames it as "room" is framed when the
+    possessive is a token of its own: after a determiner, in a naming frame. So do "mum and dad's
+    room", "kids' room" and "my room"; "living room", "over here" and a lone "emma's" hold none."""
+    assert all(map(holds_determiner, ["emma's room", "mum and dad's room", "kids' room", "my room",
+                                      "our spare room"]))
+    assert not any(map(holds_determiner, ["living room", "over here", "emma's", "room", "the room's"]))
+    said = ["this is emma's room", "we call it mum and dad's room", "my room is where i sleep"]
+    terms = Vocabulary(("emma's room", "mum and dad's room", "my room", "this", "is", "we", "call", "it",
+                        "where", "i", "sleep"))
+    apart = Vocabulary(("emma's", "room", "mum", "and", "dad's", "my", "this", "is", "we", "call", "it",
+                        "where", "i", "sleep"))
+    joined = frame_features(terms, said)
+    split = frame_features(apart, said)
+    room = split[apart.index("room")]  # "room" after "emma's", "dad's" and "my"
+    det, frame, prep, pron, start, alone = range(6)
+    for term in ("emma's room", "mum and dad's room", "my room"):
+        f = joined[terms.index(term)]
+        assert f[det] == 1.0 and f[frame] == 1.0 and f[prep] == 0.0 and f[pron] == 0.0 and f[alone] == 0.0
+    # each term framed as "room" is in its sentence; the three together as "room" over the three
+    together = joined[[terms.index(t) for t in ("emma's room", "mum and dad's room", "my room")]].mean(axis=0)
+    shares = [det, frame, prep, pron, alone]
+    np.testing.assert_allclose(together[shares], room[shares])
+    # the sentence-start share counts the term's own position ("my room" opens its sentence)
+    assert joined[terms.index("my room")][start] == 1.0 and joined[terms.index("emma's room")][start] == 0.0
 
 
 @given(st.lists(st.lists(st.sampled_from(["the", "my", "on", "kitchen", "table", "is", "here", "we"]),
