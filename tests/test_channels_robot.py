@@ -266,3 +266,45 @@ def test_speech_without_english_function_words_keeps_the_naming_rule() -> None:
     home = _quiet(kn.adapt, knowledge, homes[2], n_iterations=4, random_state=0)
     assert home.state.channels is None and home.state.switches is None
     np.testing.assert_array_equal(home.name_mask, home.state.word_mask)
+
+
+def test_a_concept_named_with_a_word_the_home_does_not_answer_is_answered_unsure(world: dict) -> None:
+    """The SIGVerse "dining" case (benchmarks/README.md, "Issue 29: dining views answered
+    'entrance'"): a word whose uses are mostly drawn as place words is no name of the home
+    (``name_mask``), yet it is the whole names channel of its concept. Masked, the concept's other
+    names hold ~10^-6 each; renormalised, `what` answered one of them at p ≈ 1. The concept must
+    answer unsure (p ≈ 1 / number of names), and a concept named with a kept name is unchanged."""
+    from dataclasses import replace
+
+    home = world["home"]
+    vocabulary = list(home.vocabulary.words)
+    plain = kn.answer_parameters(home)
+    theta = np.asarray(plain.word_probabilities)[0]
+    prediction = kn.name_prediction(home, home.positions, home.visual, top_k=1)
+    concepts = home.state.concepts
+    best = np.asarray(prediction.best, dtype=object)
+    answers, counts = np.unique(best.astype(str), return_counts=True)
+    name = str(answers[np.argmax(counts)])  # the name answered most in this home
+    column = vocabulary.index(name)
+    rows = np.flatnonzero((best == name) & (np.asarray(prediction.confidence) > 0.9))
+    assert rows.size  # views answered that name, sure
+    # drop that name from the home's names the way the fit dropped "dining": most uses place words
+    tokens = home.knowledge.channels.tokens.copy()
+    tokens[column] = [1.0, 20.0 * max(1.0, tokens[column].sum()), 0.0]
+    knowledge = replace(home.knowledge, channels=replace(home.knowledge.channels, tokens=tokens))
+    masked = replace(home, knowledge=knowledge)
+    assert name not in masked.known_names and len(masked.known_names) >= 3
+    params = kn.answer_parameters(masked)
+    answered = kn.name_prediction(masked, home.positions[rows], home.visual[rows], top_k=1)
+    n_names = len(masked.known_names)
+    assert answered.confidence.max() < 2.0 / n_names  # was 0.998 (the concept's leftovers)
+    assert answered.unsure.all()
+    # rows sum to one over the names; a concept whose θ^w is on kept names keeps its distribution
+    theta_masked = np.asarray(params.word_probabilities)[0]
+    np.testing.assert_allclose(theta_masked.sum(axis=1), 1.0)
+    assert not theta_masked[:, ~masked.name_mask].any()
+    kept = np.asarray(masked.name_mask)
+    for concept in np.unique(concepts):
+        on_kept = theta[concept, kept]
+        if on_kept.sum() > 1 - 1e-9:
+            np.testing.assert_allclose(theta_masked[concept, kept], on_kept / on_kept.sum(), atol=1e-9)
