@@ -19,7 +19,7 @@ from spco.data.loading import load
 from spco.data.sigverse import read_indexed_texts
 from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.model import SpCoTransfer
-from spco.model.prediction import predict_names
+from spco.model.confidence import answer_names, model_answer_parameters
 
 #: Closed-class English words: articles and determiners, pronouns, prepositions, conjunctions,
 #: auxiliaries and copulas, and their contractions. None of them is ever a place's name.
@@ -64,10 +64,11 @@ def test_the_checker_knows_what_is_no_name() -> None:
 def _answers(model: SpCoTransfer, corpus: Corpus, e: int, rows: np.ndarray) -> set[str]:
     env = corpus[e]
     out: set[str] = set()
-    for weighting in ("none", "mi"):  # `what` on a home; the experiments
-        names = predict_names(model.parameters_, e, corpus.vocabulary, env.positions[rows], env.visual[rows],
-                              top_k=1, weighting=weighting, view_counts=model.settings_.view_counts)
-        out |= {n for n in names.best if n is not None}
+    for params in (model.parameters_, model_answer_parameters(model, e)):  # the model; what experiments score
+        for weighting in ("none", "mi"):
+            names = answer_names(params, e, corpus.vocabulary, env.positions[rows], env.visual[rows], top_k=1,
+                                 weighting=weighting, view_counts=model.settings_.view_counts)
+            out |= {n for n in names.best if n is not None}
     return out
 
 
@@ -103,3 +104,21 @@ def test_no_function_word_is_answered_with_development_natural_speech(sigverse_d
     for e, env in enumerate(corpus):
         answers |= _answers(model, corpus, e, np.arange(env.n_samples))
     _check(answers)
+
+
+def test_the_experiments_answer_only_the_names_the_robot_answers() -> None:
+    """The experiments' p(name | concept) (:func:`model_answer_parameters`) masks what the word
+    channels draw as background or place words, as a robot's home does: no function word is among
+    the names an experiment can score (before, its mask kept every word and "the" was answered at
+    taught rooms)."""
+    corpus = generate_homes(9, seed=0, new_homes=1, specific_rooms=False,
+                            config=SyntheticConfig(n_features=256, language="free"))
+    model = SpCoTransfer(n_iterations=30, random_state=0, prune_words=True).fit(corpus)
+    assert model.word_channels_ is not None
+    said = [w for w in corpus.vocabulary.words if w in CLOSED_CLASS]
+    assert said, "the free-form homes say function words"
+    for e in range(len(corpus)):
+        mask = model_answer_parameters(model, e).word_mask
+        answerable = {w for w, keep in zip(corpus.vocabulary.words, mask, strict=True) if keep}
+        assert answerable, f"home {e} answers no name"
+        assert not answerable & CLOSED_CLASS, (e, sorted(answerable & CLOSED_CLASS))

@@ -258,10 +258,25 @@ def model_answer_parameters(model: object, e: int) -> ConceptParameters:
     """:func:`answer_parameters` of home ``e`` of a fitted joint model
     (:class:`~spco.model.transfer.SpatialConceptModel`: the experiments' fit of the experienced
     and new homes together): its averaged parameters, its concepts of the home's training samples,
-    its G_0."""
+    its G_0.
+
+    With the word channels, the names the home answers are chosen as the robot's home chooses
+    them (:attr:`spco.knowledge.home.HomeModel.name_mask`): the words whose expected uses over the
+    fit's homes are names (:func:`~spco.model.home_shard.name_words` of
+    :func:`~spco.model.home_shard.switch_tokens`), and each concept's names-channel mass on other
+    words spread over them (:func:`answerable_names`), so an experiment scores what the robot would
+    answer (never "the" or "this", which the channels draw as background).
+    """
+    from spco.model.home_shard import name_words, switch_tokens
+
     params = model.parameters_  # type: ignore[attr-defined]
     data = model.data_  # type: ignore[attr-defined]
     rows = slice(int(data.offsets[e]), int(data.offsets[e + 1]))
     log_g0 = np.log(np.maximum(np.asarray(params.global_concept_weights, dtype=np.float64), 1e-300))
-    return answer_parameters(params, e, data.words[rows], model.concepts_[e], log_g0,  # type: ignore[attr-defined]
-                             model.hyperparameters_.alpha_word)  # type: ignore[attr-defined]
+    answer = answer_parameters(params, e, data.words[rows], model.concepts_[e], log_g0,  # type: ignore[attr-defined]
+                               model.hyperparameters_.alpha_word)  # type: ignore[attr-defined]
+    state = getattr(model, "state_", None)
+    if getattr(model, "word_channels_", None) is None or state is None or state.channels is None:
+        return answer
+    names = name_words(switch_tokens(data, state)) & np.asarray(answer.word_mask, dtype=bool)
+    return answerable_names(answer, e, names)
