@@ -394,9 +394,7 @@ def _configurations(rows: list[dict[str, Any]]) -> Iterator[tuple[str, str, str,
             yield set_name, features, "all", mine
 
 
-# too many statements: a benchmark script's steps in the order they run; to split
-def main(argv: Sequence[str] | None = None) -> None:  # noqa: PLR0915
-    """Run the configurations, print the table and write the files."""
+def _arguments(argv: Sequence[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, required=True, help="the SIGVerse homes (sigverse/)")
     parser.add_argument("--images", type=Path, default=None, help="their camera images (sigverse_images/)")
@@ -413,33 +411,37 @@ def main(argv: Sequence[str] | None = None) -> None:  # noqa: PLR0915
                         help="only the first N seeds of each set (a quick development look)")
     parser.add_argument("--sizes", default=None, help="only these experienced-home set sizes, e.g. 4,8")
     args = parser.parse_args(argv)
-    sets = [s for s in args.sets.split(",") if s]
-    features = [f for f in args.features.split(",") if f]
-    for s in sets:
+    args.sets = [s for s in args.sets.split(",") if s]
+    args.features = [f for f in args.features.split(",") if f]
+    for s in args.sets:
         if s not in SETS:
             parser.error(f"--sets: unknown set {s!r}; choose from {', '.join(SETS)}")
-    for f in features:
+    for f in args.features:
         if f not in FEATURES:
             parser.error(f"--features: unknown {f!r}; choose from {', '.join(FEATURES)}")
-    models = args.out / "models"
-    models.mkdir(parents=True, exist_ok=True)
-    if args.fit_view_counts:
-        grid = np.concatenate([np.arange(1.0, 12.01, 0.5), [14.0, 16.0, 20.0, 24.0, 32.0]])
-        losses, views = view_counts_log_loss(args.data, args.images, models, features, grid, args.force)
-        mean = losses.mean(axis=0)
-        best = int(np.argmin(mean))
-        interval = paired_difference_interval(losses, views, best, np.random.default_rng(args.seed))
-        for value, loss, (low, high) in zip(grid, mean, interval, strict=True):
-            noise = "  within noise of the least" if low <= 0.0 else ""
-            print(f"n_eff {value:4.1f}: development log loss {loss:.4f}, minus the least "
-                  f"{loss - mean[best]:+.4f} [{low:+.4f}, {high:+.4f}]{noise}")
-        print(f"least log loss at n_eff = {grid[best]:g} ({len(losses)} answers, {len(set(views))} views; "
-              f"[ ]: 95 % paired bootstrap over views, {N_BOOTSTRAP} resamples, seed {args.seed})")
-        return
-    tasks = [Task(f, size, seed, SETS[s]["homes"], s) for s in sets for f in features
+    return args
+
+
+def _print_view_counts_fit(args: argparse.Namespace, models: Path) -> None:
+    """The development log loss against a test view's weight n_eff, with paired intervals."""
+    grid = np.concatenate([np.arange(1.0, 12.01, 0.5), [14.0, 16.0, 20.0, 24.0, 32.0]])
+    losses, views = view_counts_log_loss(args.data, args.images, models, args.features, grid, args.force)
+    mean = losses.mean(axis=0)
+    best = int(np.argmin(mean))
+    interval = paired_difference_interval(losses, views, best, np.random.default_rng(args.seed))
+    for value, loss, (low, high) in zip(grid, mean, interval, strict=True):
+        noise = "  within noise of the least" if low <= 0.0 else ""
+        print(f"n_eff {value:4.1f}: development log loss {loss:.4f}, minus the least "
+              f"{loss - mean[best]:+.4f} [{low:+.4f}, {high:+.4f}]{noise}")
+    print(f"least log loss at n_eff = {grid[best]:g} ({len(losses)} answers, {len(set(views))} views; "
+          f"[ ]: 95 % paired bootstrap over views, {N_BOOTSTRAP} resamples, seed {args.seed})")
+
+
+def _predictions(args: argparse.Namespace, models: Path, start: float) -> list[dict[str, Any]]:
+    """Every configuration's answers (``args.jobs`` processes), also written to predictions.jsonl."""
+    tasks = [Task(f, size, seed, SETS[s]["homes"], s) for s in args.sets for f in args.features
              for size in SETS[s]["sizes"] if args.sizes is None or str(size) in args.sizes.split(",")
              for seed in SETS[s]["seeds"][: args.first_seeds]]
-    start = time.perf_counter()
     rows: list[dict[str, Any]] = []
     if args.jobs > 1:
         with ProcessPoolExecutor(args.jobs) as pool:
@@ -455,8 +457,11 @@ def main(argv: Sequence[str] | None = None) -> None:  # noqa: PLR0915
     tmp = args.out / "predictions.jsonl.tmp"
     tmp.write_text("".join(json.dumps(r) + "\n" for r in rows))
     os.replace(tmp, args.out / "predictions.jsonl")
+    return rows
 
-    rng = np.random.default_rng(args.seed)
+
+def _tables(rows: list[dict[str, Any]], rng: np.random.Generator) -> tuple[str, list[dict[str, Any]]]:
+    """The Markdown tables (per configuration and way; over seeds) and the summary rows."""
     summary = []
     lines = ["| set | views from | experienced homes | way | ECE | accuracy | mean confidence | "
              "wrong at p ≥ 0.99 | unsure | log loss |", "|---|---|---|---|---|---|---|---|---|---|"]
@@ -478,15 +483,29 @@ def main(argv: Sequence[str] | None = None) -> None:  # noqa: PLR0915
         weights = ", ".join("every count" if w is None else f"{w:.3g}" for w in o["view_counts"])
         seed_lines.append(f"| {set_name} | {feats} | {size} | {weights} | {len(o['seeds'])} | "
                           + " | ".join(cells) + " |")
-    for feats in features:
+    table = ("\n".join(lines) + "\n\nOver seeds (after; t interval over the seeds' figures):\n\n"
+             + "\n".join(seed_lines))
+    return table, summary
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    """Run the configurations, print the table and write the files."""
+    args = _arguments(argv)
+    models = args.out / "models"
+    models.mkdir(parents=True, exist_ok=True)
+    if args.fit_view_counts:
+        _print_view_counts_fit(args, models)
+        return
+    start = time.perf_counter()
+    rows = _predictions(args, models, start)
+    table, summary = _tables(rows, np.random.default_rng(args.seed))
+    for feats in args.features:
         for size in sorted({r["size"] for r in rows if r["features"] == feats}):
             panels = {s: [r for r in rows if r["set"] == s and r["features"] == feats and r["size"] == size]
-                      for s in sets}
+                      for s in args.sets}
             panels = {k: v for k, v in panels.items() if v}
             reliability_png(args.out / f"reliability_{feats}_{size}.png", panels,
                             f"what on new SIGVerse homes: {feats} views, {size} experienced homes")
-    table = ("\n".join(lines) + "\n\nOver seeds (after; t interval over the seeds' figures):\n\n"
-             + "\n".join(seed_lines))
     (args.out / "tables.md").write_text(table + "\n")
     (args.out / "summary.json").write_text(json.dumps(
         {"split": "benchmarks/calibration/SPLIT.md", "bootstrap": N_BOOTSTRAP, "seed": args.seed,

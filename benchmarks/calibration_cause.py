@@ -26,6 +26,7 @@ import re
 import warnings
 from collections import defaultdict
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -63,13 +64,88 @@ def _gap(loglik: np.ndarray) -> tuple[float, float]:
     return float(np.median(top[:, -1] - top[:, -2])), float((post >= 0.99).mean())
 
 
-def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order they run; to split)
-    """Print the evidence table."""
-    import spco.knowledge as kn
+#: The row of the view counted as the model's view weight draws.
+TEMPERED = "w = the model's view weight"
+
+
+def _test_views(data: Path, images: Path | None, features: str, name: str) -> tuple:
+    """The test views of the development home ``name`` with ``features``: positions, visual counts and
+    the labels."""
     from spco.data.loading import load_homes
     from spco.features import build_extractor
+
+    kw = {} if features == "fc7" else {"extractor": build_extractor(features), "images": images}
+    home = load_homes(data, names=[name], teaching_rate=0, **kw)[0]
+    labels = np.array([lab for lab, t in zip(home.labels(), home.is_test, strict=True) if t])
+    return (*home.test_observations(), labels)
+
+
+def _add_view_gaps(row: dict[str, list[float]], model: Any, visual: sp.csr_array) -> None:
+    """The best-second concept gap and the share decided at P ≥ 0.99, given the view alone, under each
+    view likelihood."""
+    from spco.model.prediction import _visual_log_likelihood
+
+    theta = model.parameters.visual_probabilities[0]
+    in_concept = np.zeros(theta.shape[0])
+    np.add.at(in_concept, model.state.concepts, np.asarray(model.visual.sum(axis=1)).ravel())
+    for key, loglik in (
+        ("multinomial", _visual_log_likelihood(theta, visual)),
+        ("theta uncertainty", dirichlet_multinomial(
+            visual, theta, model.hyperparameters.delta_visual + in_concept)),
+        ("in-sample DirMult", dirichlet_multinomial(
+            visual, theta, np.full(theta.shape[0], fitted_precision(
+                sp.csr_array(model.visual, dtype=np.float64), theta, model.state.concepts)))),
+        (TEMPERED, _visual_log_likelihood(theta, visual, model.hyperparameters.view_weight())),
+    ):
+        gap, decided = _gap(loglik)
+        row[key + " gap"].append(gap)
+        row[key + " decided"].append(decided)
+
+
+def _add_wrong_answers(row: dict[str, list[float]], model: Any, positions: np.ndarray, visual: sp.csr_array,
+                       labels: np.ndarray) -> None:
+    """Of the wrong answers of the model's p(w | x, v): at p ≥ 0.99, the position alone favouring the
+    right name, answered from a free concept."""
     from spco.model.home_shard import FREE_CONCEPT_WEIGHT
-    from spco.model.prediction import _visual_log_likelihood, concept_posterior, predict_names
+    from spco.model.prediction import concept_posterior, predict_names
+
+    params = model.parameters
+    before = predict_names(params, 0, model.vocabulary, positions, visual, top_k=1,
+                           weighting=model.weighting)  # type: ignore[arg-type]
+    wrong = np.array(before.best) != labels
+    by_position = concept_posterior(params, 0, positions, None, use_vision=False)
+    both = concept_posterior(params, 0, positions, visual)
+    words = np.asarray(model.vocabulary.words)
+    theta_w = params.word_probabilities[0] * params.word_mask[None, :]
+    names = words[theta_w.argmax(axis=1)]  # each concept's name
+    free = np.exp(model.knowledge.log_g0) < FREE_CONCEPT_WEIGHT
+    for i in np.flatnonzero(wrong):
+        right_concepts = names == labels[i]
+        chosen = int(both[i].argmax())
+        row["wrong"].append(1)
+        row["position favoured the right name"].append(
+            float(by_position[i, right_concepts].sum() > by_position[i, chosen]))
+        row["from a free concept"].append(float(free[chosen]))
+        row["wrong at p >= 0.99"].append(float(before.confidence[i] >= 0.99))
+
+
+def _print_table(table: dict[tuple[str, int], dict[str, list[float]]]) -> None:
+    for (features, size), row in sorted(table.items()):
+        print(f"\n{features}, {size} experienced homes ({len(row['multinomial gap'])} home files)")
+        for key in ("multinomial", "theta uncertainty", "in-sample DirMult", TEMPERED):
+            gap = np.median(row[key + " gap"])
+            print(f"  view alone, {key:<18}: median best-second gap {gap:9.2f} nats; "
+                  f"views decided at P >= 0.99: {np.mean(row[key + ' decided']):.2f}")
+        count = {k: int(sum(v)) for k, v in row.items() if not k.endswith(("gap", "decided"))}
+        print(f"  wrong answers of the model's p: {count.get('wrong', 0)}; at p >= 0.99: "
+              f"{count.get('wrong at p >= 0.99', 0)}; the position alone favoured the right name: "
+              f"{count.get('position favoured the right name', 0)}; answered from a concept the knowledge "
+              f"does not use: {count.get('from a free concept', 0)}")
+
+
+def main() -> None:
+    """Print the evidence table."""
+    import spco.knowledge as kn
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, required=True)
@@ -77,7 +153,6 @@ def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order th
     parser.add_argument("--models", type=Path, required=True, help="calibration.py's --out/models")
     args = parser.parse_args()
     warnings.filterwarnings("ignore")
-    tempered = "w = the model's view weight"
     pattern = re.compile(r"home_(colour-hog|fc7)_(\d+)_(\d+)_(.+)\.spco")
     table: dict[tuple[str, int], dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
     views: dict[tuple[str, str], tuple] = {}
@@ -87,59 +162,13 @@ def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order th
             continue
         features, size, name = match.group(1), int(match.group(2)), match.group(4)
         if (features, name) not in views:
-            kw = {} if features == "fc7" else {"extractor": build_extractor(features), "images": args.images}
-            home = load_homes(args.data, names=[name], teaching_rate=0, **kw)[0]
-            labels = np.array([lab for lab, t in zip(home.labels(), home.is_test, strict=True) if t])
-            views[features, name] = (*home.test_observations(), labels)
+            views[features, name] = _test_views(args.data, args.images, features, name)
         positions, visual, labels = views[features, name]
         visual = sp.csr_array(visual, dtype=np.float64)
         model = kn.load_home_model(path)
-        params = model.parameters
-        theta = params.visual_probabilities[0]
-        row = table[features, size]
-        multinomial = _visual_log_likelihood(theta, visual)
-        in_concept = np.zeros(theta.shape[0])
-        np.add.at(in_concept, model.state.concepts, np.asarray(model.visual.sum(axis=1)).ravel())
-        for key, loglik in (
-            ("multinomial", multinomial),
-            ("theta uncertainty", dirichlet_multinomial(
-                visual, theta, model.hyperparameters.delta_visual + in_concept)),
-            ("in-sample DirMult", dirichlet_multinomial(
-                visual, theta, np.full(theta.shape[0], fitted_precision(
-                    sp.csr_array(model.visual, dtype=np.float64), theta, model.state.concepts)))),
-            (tempered, _visual_log_likelihood(theta, visual, model.hyperparameters.view_weight())),
-        ):
-            gap, decided = _gap(loglik)
-            row[key + " gap"].append(gap)
-            row[key + " decided"].append(decided)
-        before = predict_names(params, 0, model.vocabulary, positions, visual, top_k=1,
-                               weighting=model.weighting)  # type: ignore[arg-type]
-        wrong = np.array(before.best) != labels
-        by_position = concept_posterior(params, 0, positions, None, use_vision=False)
-        both = concept_posterior(params, 0, positions, visual)
-        words = np.asarray(model.vocabulary.words)
-        theta_w = params.word_probabilities[0] * params.word_mask[None, :]
-        names = words[theta_w.argmax(axis=1)]  # each concept's name
-        free = np.exp(model.knowledge.log_g0) < FREE_CONCEPT_WEIGHT
-        for i in np.flatnonzero(wrong):
-            right_concepts = names == labels[i]
-            chosen = int(both[i].argmax())
-            row["wrong"].append(1)
-            row["position favoured the right name"].append(
-                float(by_position[i, right_concepts].sum() > by_position[i, chosen]))
-            row["from a free concept"].append(float(free[chosen]))
-            row["wrong at p >= 0.99"].append(float(before.confidence[i] >= 0.99))
-    for (features, size), row in sorted(table.items()):
-        print(f"\n{features}, {size} experienced homes ({len(row['multinomial gap'])} home files)")
-        for key in ("multinomial", "theta uncertainty", "in-sample DirMult", tempered):
-            gap = np.median(row[key + " gap"])
-            print(f"  view alone, {key:<18}: median best-second gap {gap:9.2f} nats; "
-                  f"views decided at P >= 0.99: {np.mean(row[key + ' decided']):.2f}")
-        count = {k: int(sum(v)) for k, v in row.items() if not k.endswith(("gap", "decided"))}
-        print(f"  wrong answers of the model's p: {count.get('wrong', 0)}; at p >= 0.99: "
-              f"{count.get('wrong at p >= 0.99', 0)}; the position alone favoured the right name: "
-              f"{count.get('position favoured the right name', 0)}; answered from a concept the knowledge "
-              f"does not use: {count.get('from a free concept', 0)}")
+        _add_view_gaps(table[features, size], model, visual)
+        _add_wrong_answers(table[features, size], model, positions, visual, labels)
+    _print_table(table)
 
 
 if __name__ == "__main__":

@@ -57,8 +57,9 @@ import csv
 import json
 import time
 from collections import Counter, defaultdict
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -128,8 +129,8 @@ def bootstrap(groups: dict[tuple, list[float]], rng: np.random.Generator,
     return float(np.quantile(means, 0.025)), float(np.quantile(means, 0.975))
 
 
-def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order they run; to split)
-    """Fit, score and print per seed, home and place, then the pooled figures with intervals."""
+def _arguments() -> tuple[argparse.Namespace, Any]:
+    """The command line, and the hyperparameters of ``--view-counts`` (``None``: the model's)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sigverse", type=Path, default=Path("../shared/datasets/sigverse"))
     parser.add_argument("--regions", type=Path, default=None,
@@ -158,70 +159,82 @@ def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order th
             hyper = TransferHyperparameters(view_counts=None if text == "none" else float(text))
         except (ValueError, ConfigurationError):
             parser.error(f"--view-counts: a positive number or 'none', got {args.view_counts!r}")
-    settings = ["off", "wordnet"] if args.name_prior == "both" else [args.name_prior]
-    regions_file = args.regions or args.sigverse.parent / "sigverse_regions.json"
-    speech = read_speech(args.speech)
-    accepted = read_names(args.accepted)
-    unheard = read_names(args.unheard) if args.unheard else {}
-    # per name-prior setting: (home, place) -> 0/1 per test view, and the wrong names
-    names_right: dict[str, dict[tuple, list[float]]] = {s: defaultdict(list) for s in settings}
-    wrong: dict[str, Counter] = {s: Counter() for s in settings}
-    main_positions: dict[tuple, list[float]] = defaultdict(list)  # (home, place) -> main name's A_p
-    positions: dict[tuple, list[float]] = defaultdict(list)  # (home, place) -> A_p per seed
-    positions_mixture: dict[tuple, list[float]] = defaultdict(list)  # the same, drawn from p(x | name)
-    unheard_scores: dict[tuple, list[float]] = defaultdict(list)
-    resolved_as: dict[str, Counter] = defaultdict(Counter)
-    per_seed = []
-    started = time.perf_counter()
-    unheard_seeds: dict[int, float] = {}  # seed -> mean over (home, place) of that seed's unheard A_p
-    for seed in args.seeds:
-        experienced = taught_homes(args.sigverse, speech, seed)
-        seed_unheard: dict[tuple, list[float]] = defaultdict(list)
-        for h, home in enumerate(args.homes):
-            env = new_home(args.sigverse, regions_file, home, accepted)
-            corpus = Corpus([*experienced, env])
-            model = SpCoTransfer(hyper, variant="exact", prune_words=True, n_iterations=args.sweeps,
-                                 random_state=trial_seed(seed, h)).fit(corpus)
-            e = len(corpus) - 1
-            gt = env.ground_truth
-            # names predicted with the view weight the model learnt with, as ``spco experiment``
-            # (code from before the option: no argument)
-            view_counts = getattr(getattr(model, "settings_", None), "view_counts", None)
-            weight = {} if view_counts is None else {"view_counts": view_counts}
-            for setting in settings:  # the same draws of positions: only the names can differ
-                option = dict(weight) if setting == "off" else {"name_prior": setting, **weight}
-                scores = evaluate_home(model.parameters_, e, env, corpus.vocabulary, rng=seed, **option)
-                per_seed.append({"seed": seed, "home": home, "name_prior": setting,
-                                 "A_n": scores.mean_name_accuracy, "A_p": scores.mean_position_accuracy,
-                                 "A_n_places": scores.name_accuracy, "A_p_places": scores.position_accuracy})
-                for label, name in zip(scores.labels, scores.predicted_names, strict=True):
-                    right = name in gt.accepted(label)  # type: ignore[union-attr]
-                    names_right[setting][(home, label)].append(float(right))
-                    if not right:
-                        wrong[setting][f"{label} -> {name}"] += 1
-                print(f"seed {seed} {home} name prior {setting}: A_n {scores.mean_name_accuracy:.3f} "
-                      f"A_p {scores.mean_position_accuracy:.3f} ({time.perf_counter() - started:.0f} s)",
-                      flush=True)
-            for place, value in scores.position_accuracy.items():
-                positions[(home, place)].append(value)
-            for place, value in getattr(scores, "position_accuracy_mixture", {}).items():
-                positions_mixture[(home, place)].append(value)
-            for place, name in main_names(experienced, accepted).items():  # A_p of the main name
-                if place in gt.regions.places:  # type: ignore[union-attr]
-                    try:
-                        pred = predict_positions(model.parameters_, e, corpus.vocabulary, name, n=10,
-                                                 rng=seed)
-                        hit = position_accuracy({place: pred.samples}, gt.regions)[place]  # type: ignore
-                    except UnknownNameError:
-                        hit = 0.0
-                    main_positions[(home, place)].append(hit)
-            if unheard:
-                _score_unheard(model.parameters_, e, corpus.vocabulary, env, unheard, seed,
-                               seed_unheard, resolved_as)
-        for key, values in seed_unheard.items():
-            unheard_scores[key].extend(values)
-        if seed_unheard:
-            unheard_seeds[seed] = float(np.mean([np.mean(v) for v in seed_unheard.values()]))
+    return args, hyper
+
+
+@dataclass
+class _Tally:
+    """The figures over seeds, per name-prior setting where the setting matters; keys (home, place)."""
+
+    settings: list[str]
+    names_right: dict[str, dict[tuple, list[float]]] = field(init=False)  # 0/1 per test view
+    wrong: dict[str, Counter] = field(init=False)  # the wrong names
+    main_positions: dict[tuple, list[float]] = field(  # the main name's A_p
+        default_factory=lambda: defaultdict(list))
+    positions: dict[tuple, list[float]] = field(default_factory=lambda: defaultdict(list))  # A_p per seed
+    positions_mixture: dict[tuple, list[float]] = field(  # the same, drawn from p(x | name)
+        default_factory=lambda: defaultdict(list))
+    unheard_scores: dict[tuple, list[float]] = field(default_factory=lambda: defaultdict(list))
+    resolved_as: dict[str, Counter] = field(default_factory=lambda: defaultdict(Counter))
+    per_seed: list[dict[str, Any]] = field(default_factory=list)
+    unheard_seeds: dict[int, float] = field(default_factory=dict)  # seed -> mean of its unheard A_p
+
+    def __post_init__(self) -> None:
+        self.names_right = {s: defaultdict(list) for s in self.settings}
+        self.wrong = {s: Counter() for s in self.settings}
+
+
+def _score_home(tally: _Tally, args: argparse.Namespace, hyper: Any, seed: int, h: int, home: str,
+                experienced: list[Environment], env: Environment, accepted: dict[str, tuple[str, ...]],
+                unheard: dict[str, tuple[str, ...]], seed_unheard: dict[tuple, list[float]],
+                started: float) -> None:
+    """Fit the new home ``env`` with the experienced homes; its names, positions, main names' and
+    unheard names' positions into ``tally``."""
+    corpus = Corpus([*experienced, env])
+    model = SpCoTransfer(hyper, variant="exact", prune_words=True, n_iterations=args.sweeps,
+                         random_state=trial_seed(seed, h)).fit(corpus)
+    e = len(corpus) - 1
+    gt = env.ground_truth
+    # names predicted with the view weight the model learnt with, as ``spco experiment``
+    # (code from before the option: no argument)
+    view_counts = getattr(getattr(model, "settings_", None), "view_counts", None)
+    weight = {} if view_counts is None else {"view_counts": view_counts}
+    for setting in tally.settings:  # the same draws of positions: only the names can differ
+        option = dict(weight) if setting == "off" else {"name_prior": setting, **weight}
+        scores = evaluate_home(model.parameters_, e, env, corpus.vocabulary, rng=seed, **option)
+        tally.per_seed.append({"seed": seed, "home": home, "name_prior": setting,
+                               "A_n": scores.mean_name_accuracy, "A_p": scores.mean_position_accuracy,
+                               "A_n_places": scores.name_accuracy, "A_p_places": scores.position_accuracy})
+        for label, name in zip(scores.labels, scores.predicted_names, strict=True):
+            right = name in gt.accepted(label)  # type: ignore[union-attr]
+            tally.names_right[setting][(home, label)].append(float(right))
+            if not right:
+                tally.wrong[setting][f"{label} -> {name}"] += 1
+        print(f"seed {seed} {home} name prior {setting}: A_n {scores.mean_name_accuracy:.3f} "
+              f"A_p {scores.mean_position_accuracy:.3f} ({time.perf_counter() - started:.0f} s)",
+              flush=True)
+    for place, value in scores.position_accuracy.items():
+        tally.positions[(home, place)].append(value)
+    for place, value in getattr(scores, "position_accuracy_mixture", {}).items():
+        tally.positions_mixture[(home, place)].append(value)
+    for place, name in main_names(experienced, accepted).items():  # A_p of the main name
+        if place in gt.regions.places:  # type: ignore[union-attr]
+            try:
+                pred = predict_positions(model.parameters_, e, corpus.vocabulary, name, n=10, rng=seed)
+                hit = position_accuracy({place: pred.samples}, gt.regions)[place]  # type: ignore
+            except UnknownNameError:
+                hit = 0.0
+            tally.main_positions[(home, place)].append(hit)
+    if unheard:
+        _score_unheard(model.parameters_, e, corpus.vocabulary, env, unheard, seed, seed_unheard,
+                       tally.resolved_as)
+
+
+def _summary(args: argparse.Namespace, tally: _Tally, unheard: bool) -> dict[str, object]:
+    """The pooled figures with 95 % intervals over (home, place) groups, and every run."""
+    settings, names_right, wrong = tally.settings, tally.names_right, tally.wrong
+    positions, positions_mixture = tally.positions, tally.positions_mixture
+    main_positions = tally.main_positions
     rng = np.random.default_rng(0)
     first = settings[0]
     a_n = float(np.mean([np.mean(v) for v in names_right[first].values()]))
@@ -238,7 +251,7 @@ def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order th
         "A_p_main_name_interval": bootstrap(main_positions, rng),
         "A_n_per_place": _per_place(names_right[first]), "A_p_per_place": _per_place(positions),
         "A_p_main_name_per_place": _per_place(main_positions),
-        "wrong": dict(wrong[first].most_common(25)), "runs": per_seed,
+        "wrong": dict(wrong[first].most_common(25)), "runs": tally.per_seed,
     }
     for setting in settings[1:]:  # the other way of predicting names, from the same fits
         summary[f"name_prior_{setting}"] = {
@@ -247,11 +260,36 @@ def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order th
             "A_n_per_place": _per_place(names_right[setting]),
             "wrong": dict(wrong[setting].most_common(25))}
     if unheard:
-        summary["unheard_A_p"] = float(np.mean([np.mean(v) for v in unheard_scores.values()]))
-        summary["unheard_A_p_interval"] = bootstrap(unheard_scores, rng)
-        summary["unheard_A_p_per_place"] = _per_place(unheard_scores)
-        summary["unheard_A_p_seeds"] = unheard_seeds
-        summary["unheard_resolved_as"] = {k: dict(v) for k, v in resolved_as.items()}
+        summary["unheard_A_p"] = float(np.mean([np.mean(v) for v in tally.unheard_scores.values()]))
+        summary["unheard_A_p_interval"] = bootstrap(tally.unheard_scores, rng)
+        summary["unheard_A_p_per_place"] = _per_place(tally.unheard_scores)
+        summary["unheard_A_p_seeds"] = tally.unheard_seeds
+        summary["unheard_resolved_as"] = {k: dict(v) for k, v in tally.resolved_as.items()}
+    return summary
+
+
+def main() -> None:
+    """Fit, score and print per seed, home and place, then the pooled figures with intervals."""
+    args, hyper = _arguments()
+    settings = ["off", "wordnet"] if args.name_prior == "both" else [args.name_prior]
+    regions_file = args.regions or args.sigverse.parent / "sigverse_regions.json"
+    speech = read_speech(args.speech)
+    accepted = read_names(args.accepted)
+    unheard = read_names(args.unheard) if args.unheard else {}
+    tally = _Tally(settings)
+    started = time.perf_counter()
+    for seed in args.seeds:
+        experienced = taught_homes(args.sigverse, speech, seed)
+        seed_unheard: dict[tuple, list[float]] = defaultdict(list)
+        for h, home in enumerate(args.homes):
+            env = new_home(args.sigverse, regions_file, home, accepted)
+            _score_home(tally, args, hyper, seed, h, home, experienced, env, accepted, unheard, seed_unheard,
+                        started)
+        for key, values in seed_unheard.items():
+            tally.unheard_scores[key].extend(values)
+        if seed_unheard:
+            tally.unheard_seeds[seed] = float(np.mean([np.mean(v) for v in seed_unheard.values()]))
+    summary = _summary(args, tally, bool(unheard))
     print(json.dumps({k: v for k, v in summary.items() if k != "runs"}, indent=1, default=str))
     if args.json:
         args.json.write_text(json.dumps(summary, indent=1, default=str), encoding="utf-8")

@@ -85,8 +85,7 @@ class Drive(threading.Thread):
             time.sleep(max(0.0, min(next_pose, next_image) - (time.perf_counter() - start)))
 
 
-def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order they run; to split)
-    """Build the home, start the node and the robot; measure; print a table and a JSON line."""
+def _arguments() -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--queries", type=int, default=1000)
     parser.add_argument("--utterances", type=int, default=20)
@@ -103,7 +102,83 @@ def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order th
     parser.add_argument("--home", type=Path, default=None,
                         help="a tour home made by an earlier run (its folder's home.spco, copied into --dir; "
                         "the node teaches into the copy) instead of building one")
-    args = parser.parse_args()
+    return parser.parse_args()
+
+
+def _home(folder: Path, given: Path | None, seed: int) -> Path:
+    """The home the node teaches into: a copy of ``given`` in ``folder``, or a tour home built there."""
+    from ros_harness import tour_home
+
+    if given is None:
+        return tour_home(folder, seed=seed)
+    if not given.is_file():
+        sys.exit(f"--home {given}: no such file")
+    home = folder / "home.spco"
+    shutil.copyfile(given, home)
+    return home
+
+
+def _time_queries(robot: Any, n: int) -> tuple[dict[str, list[float]], dict[str, list[float]], int]:
+    """``n`` queries, where and what in turn: their latencies (s), the answer's hops, the errors."""
+    names = ["kitchen", "living room", "bedroom"]
+    latencies: dict[str, list[float]] = {"where": [], "what": []}
+    hops: dict[str, list[float]] = {"transit": [], "dispatch": [], "rest": []}
+    errors = 0
+    for k in range(n):
+        op = "where" if k % 2 == 0 else "what"
+        request = {"id": k, "op": op, **({"name": names[k % 3], "n": 10} if op == "where" else {})}
+        got = robot.query(request)
+        errors += got["answer"] is None or "error" in got["answer"]
+        if got["seconds"] is not None:
+            latencies[op].append(got["seconds"])
+            if got["hops"]:
+                hops["transit"].append(got["hops"]["transit"])
+                hops["dispatch"].append(got["hops"]["dispatch"])
+                hops["rest"].append(got["seconds"] - got["hops"]["transit"] - got["hops"]["dispatch"])
+    return latencies, hops, errors
+
+
+def _time_utterances(robot: Any, drive: Drive, n: int) -> dict[str, Any]:
+    """``n`` utterances of the room the robot drives through, 2 s apart: the utterance -> markers and
+    -> teach answer times after the first (s), the first's (ms), the node's seconds per part, the
+    errors."""
+    from spco.data.bagtour import ROOMS, room_at
+
+    markers, teach, first, errors = [], [], None, 0
+    parts: dict[str, list[float]] = {}
+    for k in range(n):
+        time.sleep(2.0)  # the robot drives on
+        robot_x = drive.tour_pose(drive.distance)[0]
+        sent = robot.say(f"this is the {ROOMS[room_at(robot_x)][0]}")["sent"]
+        got_markers = robot.markers_after(sent, timeout=30)
+        got_answer = robot.answer("teach", after=sent, timeout=30)
+        answer = got_answer["answer"] or {"error": "no answer"}
+        errors += "error" in answer or got_markers["markers"] is None
+        if got_markers["markers"] is None or got_answer["received"] is None:
+            continue
+        if k == 0:
+            first = {"markers_ms": (got_markers["received"] - sent) * 1e3,
+                     "answer_ms": (got_answer["received"] - sent) * 1e3}
+        else:
+            markers.append(got_markers["received"] - sent)
+            teach.append(got_answer["received"] - sent)
+            for part, seconds in answer.get("node_seconds", {}).items():
+                parts.setdefault(part, []).append(seconds)
+    return {"markers": markers, "teach": teach, "first": first, "parts": parts, "errors": errors}
+
+
+def _stop(node: subprocess.Popen) -> None:
+    if node.poll() is None:
+        node.send_signal(signal.SIGINT)
+        try:
+            node.wait(30)
+        except subprocess.TimeoutExpired:
+            node.kill()
+
+
+def main() -> None:
+    """Build the home, start the node and the robot; measure; print a table and a JSON line."""
+    args = _arguments()
     try:
         import rclpy
         from rclpy.qos import qos_profile_sensor_data
@@ -113,19 +188,11 @@ def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order th
                  f"{exc}")
     sys.path.insert(0, str(ROOT / "tests"))
     from ros2_robot import Robot
-    from ros_harness import reserve_ros_domain, tour_home
-
-    from spco.data.bagtour import ROOMS, room_at
+    from ros_harness import reserve_ros_domain
 
     folder = args.dir or Path(tempfile.mkdtemp(prefix="spco-ros2-bench-"))
     folder.mkdir(parents=True, exist_ok=True)
-    if args.home is not None:
-        if not args.home.is_file():
-            sys.exit(f"--home {args.home}: no such file")
-        home = folder / "home.spco"
-        shutil.copyfile(args.home, home)
-    else:
-        home = tour_home(folder, seed=args.seed)
+    home = _home(folder, args.home, args.seed)
     os.environ.update({"ROS_DOMAIN_ID": str(reserve_ros_domain()), "ROS_LOG_DIR": str(folder),
                        "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"})
     log = (folder / "node.log").open("w")
@@ -150,47 +217,15 @@ def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order th
         time.sleep(1.5)  # the node subscribes the camera once its type is on the graph
         robot.query({"id": "warm-where", "op": "where", "name": "kitchen"})
         robot.query({"id": "warm-what", "op": "what"})
-        names = ["kitchen", "living room", "bedroom"]
         load_start = os.getloadavg()
-        latencies: dict[str, list[float]] = {"where": [], "what": []}
-        hops: dict[str, list[float]] = {"transit": [], "dispatch": [], "rest": []}
-        errors = 0
-        for k in range(args.queries):
-            op = "where" if k % 2 == 0 else "what"
-            request = {"id": k, "op": op, **({"name": names[k % 3], "n": 10} if op == "where" else {})}
-            got = robot.query(request)
-            errors += got["answer"] is None or "error" in got["answer"]
-            if got["seconds"] is not None:
-                latencies[op].append(got["seconds"])
-                if got["hops"]:
-                    hops["transit"].append(got["hops"]["transit"])
-                    hops["dispatch"].append(got["hops"]["dispatch"])
-                    hops["rest"].append(got["seconds"] - got["hops"]["transit"] - got["hops"]["dispatch"])
-        markers, teach, first = [], [], None
-        parts: dict[str, list[float]] = {}
-        for k in range(args.utterances):
-            time.sleep(2.0)  # the robot drives on
-            robot_x = drive.tour_pose(drive.distance)[0]
-            sent = robot.say(f"this is the {ROOMS[room_at(robot_x)][0]}")["sent"]
-            got_markers = robot.markers_after(sent, timeout=30)
-            got_answer = robot.answer("teach", after=sent, timeout=30)
-            answer = got_answer["answer"] or {"error": "no answer"}
-            errors += "error" in answer or got_markers["markers"] is None
-            if got_markers["markers"] is None or got_answer["received"] is None:
-                continue
-            if k == 0:
-                first = {"markers_ms": (got_markers["received"] - sent) * 1e3,
-                         "answer_ms": (got_answer["received"] - sent) * 1e3}
-            else:
-                markers.append(got_markers["received"] - sent)
-                teach.append(got_answer["received"] - sent)
-                for part, seconds in answer.get("node_seconds", {}).items():
-                    parts.setdefault(part, []).append(seconds)
+        latencies, hops, errors = _time_queries(robot, args.queries)
+        said = _time_utterances(robot, drive, args.utterances)
         result = {**query_rows(latencies),
-                  "utterance_to_markers": _percentiles(markers) if markers else None,
-                  "utterance_to_teach_answer": _percentiles(teach) if teach else None,
-                  "node_seconds_per_teaching": {part: _percentiles(v) for part, v in parts.items()},
-                  "first_teaching": first, "errors": errors, "loadavg_start": load_start,
+                  "utterance_to_markers": _percentiles(said["markers"]) if said["markers"] else None,
+                  "utterance_to_teach_answer": _percentiles(said["teach"]) if said["teach"] else None,
+                  "node_seconds_per_teaching": {part: _percentiles(v) for part, v in said["parts"].items()},
+                  "first_teaching": said["first"], "errors": errors + said["errors"],
+                  "loadavg_start": load_start,
                   "writer": args.writer, "robot_executor": args.robot_executor,
                   "rmw": os.environ.get("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")}
         labels = {"rest": "the query to the node, the node's answer, its publish",
@@ -204,12 +239,7 @@ def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order th
             drive.stop.set()
         robot.close()
         rclpy.shutdown()
-        if node.poll() is None:
-            node.send_signal(signal.SIGINT)
-            try:
-                node.wait(30)
-            except subprocess.TimeoutExpired:
-                node.kill()
+        _stop(node)
         log.close()
         print((folder / "node.log").read_text().strip().splitlines()[-1])
 

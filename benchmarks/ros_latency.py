@@ -112,8 +112,7 @@ def draw_markers(message: Any, path: Path, title: str) -> None:
     fig.savefig(path, dpi=110, facecolor=fig.get_facecolor())
 
 
-def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order they run; to split)
-    """Start the master, the node and the robot; measure; print a table and a JSON line."""
+def _arguments() -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--queries", type=int, default=1000)
     parser.add_argument("--utterances", type=int, default=20)
@@ -124,8 +123,58 @@ def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order th
                         help="spco ros --writer: where the teachings are applied")
     parser.add_argument("--dir", type=Path, default=None,
                         help="folder for the home and the logs (default: a temporary one)")
-    args = parser.parse_args()
+    return parser.parse_args()
 
+
+def _time_queries(robot: Any, n: int) -> tuple[dict[str, list[float]], int]:
+    """``n`` queries, where and what in turn: their latencies (s) and the errors."""
+    names = ["kitchen", "living room", "bedroom"]
+    latencies: dict[str, list[float]] = {"where": [], "what": []}
+    errors = 0
+    for k in range(n):
+        op = "where" if k % 2 == 0 else "what"
+        request = {"id": k, "op": op, **({"name": names[k % 3], "n": 10} if op == "where" else {})}
+        answer, seconds = robot.query(request)
+        errors += "error" in answer
+        latencies[op].append(seconds)
+    return latencies, errors
+
+
+def _time_utterances(robot: Any, drive: Drive, n: int) -> dict[str, Any]:
+    """``n`` utterances of the room the robot drives through, 2 s apart: the utterance -> markers and
+    -> teach answer times after the first (s), the writer's own seconds, the first's (ms), the node's
+    seconds per part, the errors."""
+    from spco.data.bagtour import ROOMS, room_at
+
+    teach, markers, writer, first, errors = [], [], [], None, 0
+    parts: dict[str, list[float]] = {}
+    for k in range(n):
+        time.sleep(2.0)  # the robot drives on
+        room = ROOMS[room_at(robot_x := drive.tour_pose(drive.distance)[0])][0]
+        before_markers, before_answers = len(robot.markers), len(robot.answers)
+        sent = robot.say(f"this is the {room}")
+        got_markers, _ = robot.wait_for(
+            lambda b=before_markers: robot.markers[-1] if len(robot.markers) > b else None, timeout=30)
+        got_answer, answer = robot.wait_for(
+            lambda b=before_answers: next(
+                ((t, a) for t, a in robot.answers[b:] if a.get("op") == "teach"), None), timeout=30)
+        errors += "error" in answer
+        if k == 0:
+            first = {"markers_ms": (got_markers - sent) * 1e3, "answer_ms": (got_answer - sent) * 1e3,
+                     "x": robot_x}
+        else:
+            markers.append(got_markers - sent)
+            teach.append(got_answer - sent)
+            writer.append(float(answer.get("seconds", math.nan)))  # the writer's own time
+            for part, seconds in answer.get("node_seconds", {}).items():
+                parts.setdefault(part, []).append(seconds)
+    return {"markers": markers, "teach": teach, "writer": writer, "first": first, "parts": parts,
+            "errors": errors}
+
+
+def main() -> None:
+    """Start the master, the node and the robot; measure; print a table and a JSON line."""
+    args = _arguments()
     from ros_harness import (
         FakeRobot,
         free_port,
@@ -135,8 +184,6 @@ def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order th
         stop_process,
         tour_home,
     )
-
-    from spco.data.bagtour import ROOMS, room_at
 
     folder = args.dir or Path(tempfile.mkdtemp(prefix="spco-ros-bench-"))
     folder.mkdir(parents=True, exist_ok=True)
@@ -157,53 +204,24 @@ def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order th
         # warm-up: the first what builds the extractor, the first where draws
         robot.query({"id": "warm-where", "op": "where", "name": "kitchen"})
         robot.query({"id": "warm-what", "op": "what"})
-        names = ["kitchen", "living room", "bedroom"]
         load_start = os.getloadavg()
-        latencies: dict[str, list[float]] = {"where": [], "what": []}
-        errors = 0
-        for k in range(args.queries):
-            op = "where" if k % 2 == 0 else "what"
-            request = {"id": k, "op": op, **({"name": names[k % 3], "n": 10} if op == "where" else {})}
-            answer, seconds = robot.query(request)
-            errors += "error" in answer
-            latencies[op].append(seconds)
-        teach, markers, writer, first = [], [], [], None
-        parts: dict[str, list[float]] = {}
-        for k in range(args.utterances):
-            time.sleep(2.0)  # the robot drives on
-            room = ROOMS[room_at(robot_x := drive.tour_pose(drive.distance)[0])][0]
-            before_markers, before_answers = len(robot.markers), len(robot.answers)
-            sent = robot.say(f"this is the {room}")
-            got_markers, _ = robot.wait_for(
-                lambda b=before_markers: robot.markers[-1] if len(robot.markers) > b else None, timeout=30)
-            got_answer, answer = robot.wait_for(
-                lambda b=before_answers: next(
-                    ((t, a) for t, a in robot.answers[b:] if a.get("op") == "teach"), None), timeout=30)
-            errors += "error" in answer
-            if k == 0:
-                first = {"markers_ms": (got_markers - sent) * 1e3, "answer_ms": (got_answer - sent) * 1e3,
-                         "x": robot_x}
-            else:
-                markers.append(got_markers - sent)
-                teach.append(got_answer - sent)
-                writer.append(float(answer.get("seconds", math.nan)))  # the writer's own time
-                for part, seconds in answer.get("node_seconds", {}).items():
-                    parts.setdefault(part, []).append(seconds)
-        w = _percentiles(writer) if writer else None
+        latencies, errors = _time_queries(robot, args.queries)
+        said = _time_utterances(robot, drive, args.utterances)
+        w = _percentiles(said["writer"]) if said["writer"] else None
         result = {**query_rows(latencies),
-                  "utterance_to_markers": _percentiles(markers) if markers else None,
-                  "utterance_to_teach_answer": _percentiles(teach) if teach else None,
+                  "utterance_to_markers": _percentiles(said["markers"]) if said["markers"] else None,
+                  "utterance_to_teach_answer": _percentiles(said["teach"]) if said["teach"] else None,
                   "writer_seconds_per_teaching": w,
-                  "node_seconds_per_teaching": {part: _percentiles(v) for part, v in parts.items()},
-                  "first_teaching": first, "errors": errors, "loadavg_start": load_start,
-                  "writer": args.writer}
+                  "node_seconds_per_teaching": {part: _percentiles(v) for part, v in said["parts"].items()},
+                  "first_teaching": said["first"], "errors": errors + said["errors"],
+                  "loadavg_start": load_start, "writer": args.writer}
         print_report(result,
                      f"query -> answer (ms), {args.queries} queries, loopback (writer: {args.writer}):",
                      f"; of which the writer process p50 {w['p50']:.1f} max {w['max']:.1f}" if w else "")
         if args.markers_png is not None:
             draw_markers(robot.markers[-1][1], args.markers_png,
                          "/spco/markers as received over ROS 1 (visualization_msgs/MarkerArray, frame map): "
-                         f"the tour home after {len(markers) + 1} teachings")
+                         f"the tour home after {len(said['markers']) + 1} teachings")
             print(f"Wrote {args.markers_png}")
     finally:
         if drive is not None:

@@ -249,7 +249,178 @@ def _soak_worker(url: str, regions: dict[str, Any], labels: dict[int, str], rate
     results.put((latencies, errors, total))
 
 
-def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order they run; to split)
+class _Figures:
+    """The figures measured, each printed as a JSON line as it is recorded."""
+
+    def __init__(self, only: str | None) -> None:
+        self.only = None if only is None else set(only.split(","))
+        self.rows: list[dict[str, Any]] = []
+
+    def wanted(self, name: str) -> bool:
+        return self.only is None or name in self.only
+
+    def record(self, figure: str, before: str, **values: Any) -> None:
+        row = {"figure": figure, "load_before": before, "load_after": load(), **values}
+        self.rows.append(row)
+        print(json.dumps(row), flush=True)
+
+    def print_table(self) -> None:
+        print("\n| figure | p50 ms | p99 ms | other | load before → after |\n|---|---|---|---|---|")
+        for row in self.rows:
+            other = {k: (round(v, 2) if isinstance(v, float) else v) for k, v in row.items()
+                     if k not in ("figure", "p50_ms", "p99_ms", "load_before", "load_after", "max_ms",
+                                  "first_errors")}
+            p50 = f"{row['p50_ms']:.2f}" if "p50_ms" in row else "-"
+            p99 = f"{row['p99_ms']:.2f}" if "p99_ms" in row else "-"
+            print(f"| {row['figure']} | {p50} | {p99} | {json.dumps(other)} | {row['load_before']} → "
+                  f"{row['load_after']} |")
+
+
+def _one_client(figures: _Figures, client: Any, served: Served, regions: dict[str, Any], n: int,
+                jpeg: bytes) -> None:
+    """what, where, what with an image, teach by id and by a new observation: one client, in turn."""
+    names = regions["names"]
+    ids = [s["id"] for s in regions["samples"]]
+    if figures.wanted("what"):
+        before = load()
+        items = poses(regions, n, 1)
+        figures.record("what by pose, 1 client", before, **measured(lambda p: client.what(*p), items, served))
+    if figures.wanted("where"):
+        before = load()
+        items = [names[k % len(names)] for k in range(n)]
+        figures.record("where (n=10), 1 client", before, **measured(lambda m: client.where(m), items, served))
+    if figures.wanted("image"):
+        before = load()
+        items = poses(regions, max(n // 4, 50), 2)
+        figures.record("what with a 640x480 JPEG, 1 client", before, bytes=len(jpeg),
+                       **measured(lambda p: client.what(*p, image=jpeg), items, served, warm=5))
+    if figures.wanted("teach"):
+        before = load()
+        items = [(ids[(7 * k) % len(ids)], f"this is the {names[k % len(names)]}") for k in range(200)]
+        figures.record("teach by sample id, 1 client", before,
+                       **measured(lambda t: client.teach(id=t[0], sentence=t[1]), items, served, warm=5))
+        before = load()
+        items = poses(regions, 100, 3)
+        figures.record("teach a new observation with a 640x480 JPEG, 1 client", before,
+                       **measured(lambda p: client.teach(x=p[0], y=p[1], theta=p[2], image=jpeg,
+                                                         sentence="this is the study"), items, served,
+                                  warm=3))
+
+
+def _many_clients(figures: _Figures, served: Served, regions: dict[str, Any], clients: int,
+                  seconds: float) -> None:
+    """what by pose from ``clients`` processes for ``seconds``."""
+    before = load()
+    ctx = mp.get_context("spawn")
+    results = ctx.Queue()
+    workers = [ctx.Process(target=_what_loop, args=(served.url, regions["extent"], seconds, k, results))
+               for k in range(clients)]
+    for w in workers:
+        w.start()
+    gathered = [results.get(timeout=seconds + 120) for _ in workers]
+    for w in workers:
+        w.join()
+    latencies = [v for lat, _ in gathered for v in lat]
+    figures.record(f"what by pose, {clients} client processes", before,
+                   answers_per_second=len(latencies) / seconds,
+                   errors=sum(e for _, e in gathered), **percentiles(latencies))
+
+
+def _burst(figures: _Figures, home: Path, folder: Path, regions: dict[str, Any]) -> None:
+    """what by pose while two processes teach 100 sentences each, with each writer."""
+    from spco.service.client import Client
+
+    names = regions["names"]
+    ids = [s["id"] for s in regions["samples"]]
+    for writer in ("process", "thread"):
+        served = Served(home, folder, writer=writer)
+        before = load()
+        reader = Client(served.url)
+        items = poses(regions, 100000, 4)
+        for p in items[:50]:
+            reader.what(*p)
+        ctx = mp.get_context("spawn")
+        results = ctx.Queue()
+        burst = ctx.Process(target=_teach_burst, args=(served.url, ids, names, 2, 100, results))
+        burst.start()
+        latencies = []
+        k = 0
+        while results.empty():  # the reader asks while the teachers teach
+            t0 = time.perf_counter()
+            reader.what(*items[k % len(items)])
+            latencies.append(time.perf_counter() - t0)
+            k += 1
+        taught = results.get()
+        burst.join()
+        figures.record(f"what during a burst of teachings (writer: {writer})", before, teachings=len(taught),
+                       teach_p50_ms=float(np.percentile(np.asarray(taught) * 1000, 50)),
+                       **percentiles(latencies))
+        served.stop()
+
+
+def _soak(figures: _Figures, served: Served, client: Any, regions: dict[str, Any], rate: float,
+          seconds: float) -> None:
+    """``rate`` requests a second (60 % what, 30 % where, 10 % teach) from 4 processes for ``seconds``,
+    the served processes' memory each second."""
+    # each sample's name as the home answers it at the sample's pose: what the soak's people confirm
+    labels = {s["id"]: client.what(s["x"], s["y"], s["theta"])["names"][0]["name"]
+              for s in regions["samples"]}
+    served_rss = served.rss_mb()
+    before = load()
+    ctx = mp.get_context("spawn")
+    results = ctx.Queue()
+    workers = [ctx.Process(target=_soak_worker, args=(served.url, regions, labels, rate / 4,
+                                                      seconds, k, results)) for k in range(4)]
+    for w in workers:
+        w.start()
+    memory = []
+    gathered = []
+    start = time.perf_counter()
+    while len(gathered) < len(workers):  # memory each second until every worker has reported
+        if time.perf_counter() - start > seconds + 600:
+            served.stop()
+            raise SystemExit("the soak's clients did not finish")
+        memory.append(served.rss_mb())
+        with contextlib.suppress(queue.Empty):
+            gathered.append(results.get(timeout=1.0))
+    for w in workers:
+        w.join()
+    errors = [e for _, errs, _ in gathered for e in errs]
+    sent = sum(k for _, _, k in gathered)
+    by_kind = {kind: [v for lat, _, _ in gathered for v in lat[kind]]
+               for kind in ("what", "where", "teach")}
+    total = [a + b for a, b in memory]
+    warm = total[min(10, len(total) - 1)]
+    figure = f"soak: {rate:g} requests/s for {seconds:g} s (60 % what, 30 % where, 10 % teach)"
+    figures.record(figure, before, requests=sent, rate=sent / seconds, errors=len(errors),
+                   first_errors=errors[:3], rss_mb_served=sum(served_rss), rss_mb_at_10s=warm,
+                   rss_mb_end=total[-1], rss_mb_max=max(total),
+                   rss_growth_percent=100 * (total[-1] - warm) / warm,
+                   rss_mb_server_start_10s_end=[served_rss[0], memory[min(10, len(memory) - 1)][0],
+                                                memory[-1][0]],
+                   rss_mb_writer_start_10s_end=[served_rss[1], memory[min(10, len(memory) - 1)][1],
+                                                memory[-1][1]],
+                   teachings=client.health()["teachings"],
+                   **{f"{kind}_{k}": v for kind, lat in by_kind.items() for k, v in percentiles(lat).items()})
+
+
+def _observation_cost(figures: _Figures, served: Served, client: Any, regions: dict[str, Any],
+                      jpeg: bytes) -> None:
+    """The memory and file bytes of 200 new observations (the home grows by design)."""
+    before = load()
+    rss0, size0 = sum(served.rss_mb()), served.file.stat().st_size
+    samples0 = client.health()["samples"]
+    for p in poses(regions, 200, 5):
+        client.teach(x=p[0], y=p[1], theta=p[2], image=jpeg, sentence="this is the study")
+    time.sleep(4)  # compacted when idle
+    rss1, size1 = sum(served.rss_mb()), served.file.stat().st_size
+    added = client.health()["samples"] - samples0
+    figures.record("cost of a new observation (640x480 JPEG view)", before, observations=added,
+                   rss_kb_per_observation=1024 * (rss1 - rss0) / added,
+                   file_bytes_per_observation=(size1 - size0) / added, rss_mb=rss1, file_mb=size1 / 1e6)
+
+
+def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--dir", type=Path, default=Path("/tmp/spco-serve-bench"))
     parser.add_argument("--sigverse", type=Path, default=DATA / "sigverse")
@@ -269,154 +440,27 @@ def main() -> None:  # noqa: PLR0915 (a benchmark script's steps in the order th
 
     view = cv2.resize(cv2.imread(str(args.images / "3LDK_9" / "0.jpg")), (640, 480))
     jpeg = cv2.imencode(".jpg", view, [cv2.IMWRITE_JPEG_QUALITY, 90])[1].tobytes()
-    only = None if args.only is None else set(args.only.split(","))
-    rows: list[dict[str, Any]] = []
-
-    def record(figure: str, before: str, **values: Any) -> None:
-        row = {"figure": figure, "load_before": before, "load_after": load(), **values}
-        rows.append(row)
-        print(json.dumps(row), flush=True)
-
-    def wanted(name: str) -> bool:
-        return only is None or name in only
-
+    figures = _Figures(args.only)
     served = Served(home, args.dir)
     client = Client(served.url)
     regions = client.regions()
-    names = regions["names"]
-    ids = [s["id"] for s in regions["samples"]]
     try:
-        if wanted("what"):
-            before = load()
-            items = poses(regions, args.n, 1)
-            record("what by pose, 1 client", before, **measured(lambda p: client.what(*p), items, served))
-        if wanted("where"):
-            before = load()
-            items = [names[k % len(names)] for k in range(args.n)]
-            record("where (n=10), 1 client", before, **measured(lambda m: client.where(m), items, served))
-        if wanted("image"):
-            before = load()
-            items = poses(regions, max(args.n // 4, 50), 2)
-            record("what with a 640x480 JPEG, 1 client", before, bytes=len(jpeg),
-                   **measured(lambda p: client.what(*p, image=jpeg), items, served, warm=5))
-        if wanted("teach"):
-            before = load()
-            items = [(ids[(7 * k) % len(ids)], f"this is the {names[k % len(names)]}") for k in range(200)]
-            record("teach by sample id, 1 client", before,
-                   **measured(lambda t: client.teach(id=t[0], sentence=t[1]), items, served, warm=5))
-            before = load()
-            items = poses(regions, 100, 3)
-            record("teach a new observation with a 640x480 JPEG, 1 client", before,
-                   **measured(lambda p: client.teach(x=p[0], y=p[1], theta=p[2], image=jpeg,
-                                                     sentence="this is the study"), items, served, warm=3))
-        if wanted("clients"):
-            before = load()
-            ctx = mp.get_context("spawn")
-            results = ctx.Queue()
-            workers = [ctx.Process(target=_what_loop, args=(served.url, regions["extent"], args.seconds, k,
-                                                            results)) for k in range(args.clients)]
-            for w in workers:
-                w.start()
-            gathered = [results.get(timeout=args.seconds + 120) for _ in workers]
-            for w in workers:
-                w.join()
-            latencies = [v for lat, _ in gathered for v in lat]
-            record(f"what by pose, {args.clients} client processes", before,
-                   answers_per_second=len(latencies) / args.seconds,
-                   errors=sum(e for _, e in gathered), **percentiles(latencies))
+        _one_client(figures, client, served, regions, args.n, jpeg)
+        if figures.wanted("clients"):
+            _many_clients(figures, served, regions, args.clients, args.seconds)
     finally:
         served.stop()
-    if wanted("burst"):
-        for writer in ("process", "thread"):
-            served = Served(home, args.dir, writer=writer)
-            before = load()
-            reader = Client(served.url)
-            items = poses(regions, 100000, 4)
-            for p in items[:50]:
-                reader.what(*p)
-            ctx = mp.get_context("spawn")
-            results = ctx.Queue()
-            burst = ctx.Process(target=_teach_burst, args=(served.url, ids, names, 2, 100, results))
-            burst.start()
-            latencies = []
-            k = 0
-            while results.empty():  # the reader asks while the teachers teach
-                t0 = time.perf_counter()
-                reader.what(*items[k % len(items)])
-                latencies.append(time.perf_counter() - t0)
-                k += 1
-            taught = results.get()
-            burst.join()
-            record(f"what during a burst of teachings (writer: {writer})", before, teachings=len(taught),
-                   teach_p50_ms=float(np.percentile(np.asarray(taught) * 1000, 50)), **percentiles(latencies))
-            served.stop()
-    if wanted("soak"):
+    if figures.wanted("burst"):
+        _burst(figures, home, args.dir, regions)
+    if figures.wanted("soak"):
         served = Served(home, args.dir)
         client = Client(served.url)
-        # each sample's name as the home answers it at the sample's pose: what the soak's people confirm
-        labels = {s["id"]: client.what(s["x"], s["y"], s["theta"])["names"][0]["name"]
-                  for s in regions["samples"]}
-        served_rss = served.rss_mb()
-        before = load()
-        ctx = mp.get_context("spawn")
-        results = ctx.Queue()
-        workers = [ctx.Process(target=_soak_worker, args=(served.url, regions, labels, args.rate / 4,
-                                                          args.soak, k, results)) for k in range(4)]
-        for w in workers:
-            w.start()
-        memory = []
-        gathered = []
-        start = time.perf_counter()
-        while len(gathered) < len(workers):  # memory each second until every worker has reported
-            if time.perf_counter() - start > args.soak + 600:
-                served.stop()
-                raise SystemExit("the soak's clients did not finish")
-            memory.append(served.rss_mb())
-            with contextlib.suppress(queue.Empty):
-                gathered.append(results.get(timeout=1.0))
-        for w in workers:
-            w.join()
-        errors = [e for _, errs, _ in gathered for e in errs]
-        sent = sum(k for _, _, k in gathered)
-        by_kind = {kind: [v for lat, _, _ in gathered for v in lat[kind]]
-                   for kind in ("what", "where", "teach")}
-        total = [a + b for a, b in memory]
-        warm = total[min(10, len(total) - 1)]
-        figure = f"soak: {args.rate:g} requests/s for {args.soak:g} s (60 % what, 30 % where, 10 % teach)"
-        record(figure, before, requests=sent, rate=sent / args.soak, errors=len(errors),
-               first_errors=errors[:3], rss_mb_served=sum(served_rss), rss_mb_at_10s=warm,
-               rss_mb_end=total[-1], rss_mb_max=max(total),
-               rss_growth_percent=100 * (total[-1] - warm) / warm,
-               rss_mb_server_start_10s_end=[served_rss[0], memory[min(10, len(memory) - 1)][0],
-                                            memory[-1][0]],
-               rss_mb_writer_start_10s_end=[served_rss[1], memory[min(10, len(memory) - 1)][1],
-                                            memory[-1][1]],
-               teachings=client.health()["teachings"],
-               **{f"{kind}_{k}": v for kind, lat in by_kind.items() for k, v in percentiles(lat).items()})
-        # the cost of new observations (the home grows by design)
-        before = load()
-        rss0, size0 = sum(served.rss_mb()), served.file.stat().st_size
-        samples0 = client.health()["samples"]
-        for p in poses(regions, 200, 5):
-            client.teach(x=p[0], y=p[1], theta=p[2], image=jpeg, sentence="this is the study")
-        time.sleep(4)  # compacted when idle
-        rss1, size1 = sum(served.rss_mb()), served.file.stat().st_size
-        added = client.health()["samples"] - samples0
-        record("cost of a new observation (640x480 JPEG view)", before, observations=added,
-               rss_kb_per_observation=1024 * (rss1 - rss0) / added,
-               file_bytes_per_observation=(size1 - size0) / added, rss_mb=rss1, file_mb=size1 / 1e6)
+        _soak(figures, served, client, regions, args.rate, args.soak)
+        _observation_cost(figures, served, client, regions, jpeg)
         served.stop()
-    print("\n| figure | p50 ms | p99 ms | other | load before → after |\n|---|---|---|---|---|")
-    for row in rows:
-        other = {k: (round(v, 2) if isinstance(v, float) else v) for k, v in row.items()
-                 if k not in ("figure", "p50_ms", "p99_ms", "load_before", "load_after", "max_ms",
-                              "first_errors")}
-        p50 = f"{row['p50_ms']:.2f}" if "p50_ms" in row else "-"
-        p99 = f"{row['p99_ms']:.2f}" if "p99_ms" in row else "-"
-        print(f"| {row['figure']} | {p50} | {p99} | {json.dumps(other)} | {row['load_before']} → "
-              f"{row['load_after']} |")
+    figures.print_table()
     if args.json is not None:
-        args.json.write_text(json.dumps(rows, indent=1))
+        args.json.write_text(json.dumps(figures.rows, indent=1))
 
 
 if __name__ == "__main__":

@@ -284,26 +284,17 @@ def undo_trial(home: kn.HomeModel, t: int, folder: Path, n_teach: int = 12, comp
     }
 
 
-# too many statements: a benchmark script's steps in the order they run; to split
-def http_trials(home_file: Path, env: Environment, n: int, folder: Path) -> dict[str, Any]:  # noqa: PLR0915
-    """``n`` teachings over HTTP (``spco serve`` on a fresh copy of ``home_file``, ``spco.service.client``):
-    each a new name, for a recorded sample or at a pose without a view, then undone. Per teaching:
-    ``where`` of the name in the taught room (≥ 8 of 10 poses), and after the undo max |Δp| of
-    ``what`` at every training sample (pose and view counts) and ``where`` of every name, against
-    the answers before the teaching — an exact undo makes every teaching one on a fresh home."""
+def _start_serving(home_file: Path, folder: Path) -> tuple[Any, str, Path]:
+    """``spco serve`` on a fresh copy of ``home_file`` in ``folder``: the process, its URL, the copy."""
     import re
     import subprocess
     import sys
     import threading
 
-    from spco.service.client import Client
-
     served = folder / "served.spco"
     for suffix in ("", ".journal", ".lock", ".undo"):
         Path(str(served) + suffix).unlink(missing_ok=True)
     shutil.copyfile(home_file, served)
-    home = kn.load_home_model(served)
-    train_xy, train_rooms = room_labels(env, home)
     process = subprocess.Popen(
         [sys.executable, "-m", "spco", "serve", str(served), "--port", "0", "--seed", "0"],
         stdin=subprocess.DEVNULL,
@@ -319,47 +310,64 @@ def http_trials(home_file: Path, env: Environment, n: int, folder: Path) -> dict
     if url is None:
         raise SystemExit("spco serve did not start")
     threading.Thread(target=lambda: [None for _ in process.stderr], daemon=True).start()  # type: ignore[union-attr]
-    client = Client(url)
+    return process, url, served
 
-    def snapshot() -> dict[str, Any]:
-        out: dict[str, Any] = {}
-        for k in range(home.n_samples):
-            row = home.visual[[k]]
-            answer = client.what(
-                float(home.positions[k, 0]),
-                float(home.positions[k, 1]),
-                float(np.arctan2(home.positions[k, 2], home.positions[k, 3])),
-                visual=row.toarray()[0],
-                top=5,
-            )
-            out[f"what {k}"] = [(a["name"], a["probability"]) for a in answer["names"]]
-        for name in client.regions()["names"]:
-            out[f"where {name}"] = [
-                (p["x"], p["y"], p["probability"]) for p in client.where(name)["positions"]
-            ]
-        return out
 
-    def difference(a: dict[str, Any], b: dict[str, Any]) -> float:
-        if a.keys() != b.keys():
+def _served_answers(client: Any, home: Any) -> dict[str, Any]:
+    """``what`` (top 5) at every sample's pose and view counts, and ``where`` of every name."""
+    out: dict[str, Any] = {}
+    for k in range(home.n_samples):
+        row = home.visual[[k]]
+        answer = client.what(
+            float(home.positions[k, 0]),
+            float(home.positions[k, 1]),
+            float(np.arctan2(home.positions[k, 2], home.positions[k, 3])),
+            visual=row.toarray()[0],
+            top=5,
+        )
+        out[f"what {k}"] = [(a["name"], a["probability"]) for a in answer["names"]]
+    for name in client.regions()["names"]:
+        out[f"where {name}"] = [
+            (p["x"], p["y"], p["probability"]) for p in client.where(name)["positions"]
+        ]
+    return out
+
+
+def _answers_difference(a: dict[str, Any], b: dict[str, Any]) -> float:
+    """max |Δ| of the numbers of two :func:`_served_answers`, 1 where their names or lengths differ."""
+    if a.keys() != b.keys():
+        return 1.0
+    worst = 0.0
+    for key in a:
+        if len(a[key]) != len(b[key]):
             return 1.0
-        worst = 0.0
-        for key in a:
-            if len(a[key]) != len(b[key]):
+        for x, y in zip(a[key], b[key], strict=True):
+            if x[0] != y[0] and isinstance(x[0], str):
                 return 1.0
-            for x, y in zip(a[key], b[key], strict=True):
-                if x[0] != y[0] and isinstance(x[0], str):
-                    return 1.0
-                worst = max(
-                    worst,
-                    max(
-                        abs(float(u) - float(v)) for u, v in zip(x, y, strict=True) if not isinstance(u, str)
-                    ),
-                )
-        return worst
+            worst = max(
+                worst,
+                max(
+                    abs(float(u) - float(v)) for u, v in zip(x, y, strict=True) if not isinstance(u, str)
+                ),
+            )
+    return worst
 
+
+def http_trials(home_file: Path, env: Environment, n: int, folder: Path) -> dict[str, Any]:
+    """``n`` teachings over HTTP (``spco serve`` on a fresh copy of ``home_file``, ``spco.service.client``):
+    each a new name, for a recorded sample or at a pose without a view, then undone. Per teaching:
+    ``where`` of the name in the taught room (≥ 8 of 10 poses), and after the undo max |Δp| of
+    ``what`` at every training sample (pose and view counts) and ``where`` of every name, against
+    the answers before the teaching — an exact undo makes every teaching one on a fresh home."""
+    from spco.service.client import Client
+
+    process, url, served = _start_serving(home_file, folder)
+    home = kn.load_home_model(served)
+    train_xy, train_rooms = room_labels(env, home)
+    client = Client(url)
     results = []
     try:
-        before = snapshot()
+        before = _served_answers(client, home)
         for t in range(n):
             rng = np.random.default_rng(500 + t)
             pick = int(rng.integers(0, train_xy.shape[0]))
@@ -381,7 +389,7 @@ def http_trials(home_file: Path, env: Environment, n: int, folder: Path) -> dict
                     "kind": "sample" if t % 2 == 0 else "pose",
                     "room": room,
                     "in_room": in_room,
-                    "undo_max_dp": difference(snapshot(), before),
+                    "undo_max_dp": _answers_difference(_served_answers(client, home), before),
                 }
             )
     finally:

@@ -153,8 +153,67 @@ class FoxgloveClient:
                 self.received.setdefault(on, []).append(message)
 
 
-# too many statements: arrived at the last merge; to split
-def test_serve_foxglove_streams_the_scene_teachings_and_answers(tour_home_file: Path, tmp_path: Path) -> None:  # noqa: PLR0915
+def _wait_until_healthy(server: subprocess.Popen, base: str, log: Path) -> None:
+    """Wait (at most 120 s) for ``spco serve`` at ``base`` to answer ``/health``."""
+    import httpx
+
+    deadline = time.monotonic() + 120
+    while True:
+        assert server.poll() is None, log.read_text()
+        try:
+            if httpx.get(f"{base}/health", timeout=2).status_code == 200:
+                return
+        except httpx.HTTPError:
+            pass
+        assert time.monotonic() < deadline, log.read_text()
+        time.sleep(0.3)
+
+
+async def _sees_the_scene(client: FoxgloveClient) -> None:
+    """The four channels are advertised, and the scene (the regions' names) comes on subscribing."""
+    await client.handshake()
+    topics = {"/spco/scene", "/spco/teachings", "/spco/answers", "/spco/log"}
+    assert set(client.channels) == topics
+    assert client.server_info["name"].startswith("spco ")
+    await client.subscribe("/spco/scene", "/spco/teachings", "/spco/answers", "/spco/log")
+    scene = await client.next("/spco/scene")  # sent to a client as it subscribes
+    names = "\n".join(e.texts[0].text for e in scene.entities)
+    assert len(scene.entities) >= 3 and all(e.frame_id == "map" for e in scene.entities)
+    for name in ("kitchen", "living room", "bedroom"):
+        assert name in names
+
+
+async def _sees_a_teaching(client: FoxgloveClient, base: str, sample: int) -> None:
+    """A teaching over HTTP: the teachings again, and a log line."""
+    import httpx
+
+    answer = await asyncio.to_thread(httpx.post, f"{base}/teach", json={
+        "id": sample, "sentence": "this is the pantry"}, timeout=30)
+    assert answer.status_code == 200, answer.text
+    taught = await client.next("/spco/teachings",
+                               where=lambda m: any(e.texts and "pantry" in e.texts[0].text
+                                                   for e in m.entities))
+    assert taught.entities[0].id == f"teaching/{sample}"
+    line = await client.next("/spco/log", where=lambda m: "taught" in m.message)
+    assert "this is the pantry" in line.message
+
+
+async def _sees_an_answer(client: FoxgloveClient, base: str) -> None:
+    """A where over HTTP: arrows at its poses, the best first."""
+    import httpx
+
+    where = await asyncio.to_thread(httpx.get, f"{base}/where", params={"name": "bedroom", "n": 3},
+                                    timeout=10)
+    assert where.status_code == 200
+    shown = await client.next("/spco/answers")
+    entity = shown.entities[0]
+    assert entity.id == "answer" and len(entity.arrows) == 3 and "bedroom" in entity.texts[0].text
+    best = where.json()["positions"][0]
+    assert (entity.arrows[0].pose.position.x, entity.arrows[0].pose.position.y) == pytest.approx(
+        (best["x"], best["y"]))
+
+
+def test_serve_foxglove_streams_the_scene_teachings_and_answers(tour_home_file: Path, tmp_path: Path) -> None:
     _need_foxglove()
     pytest.importorskip("fastapi", reason="spco serve needs spco[serve]")
     import httpx
@@ -169,16 +228,7 @@ def test_serve_foxglove_streams_the_scene_teachings_and_answers(tour_home_file: 
                                   stderr=subprocess.STDOUT, env=dict(os.environ))
     try:
         base = f"http://127.0.0.1:{port}"
-        deadline = time.monotonic() + 120
-        while True:
-            assert server.poll() is None, log.read_text()
-            try:
-                if httpx.get(f"{base}/health", timeout=2).status_code == 200:
-                    break
-            except httpx.HTTPError:
-                pass
-            assert time.monotonic() < deadline, log.read_text()
-            time.sleep(0.3)
+        _wait_until_healthy(server, base, log)
         assert f"Foxglove: ws://127.0.0.1:{fox}" in log.read_text()
         samples = httpx.get(f"{base}/regions", timeout=10).json()["samples"]
 
@@ -186,36 +236,9 @@ def test_serve_foxglove_streams_the_scene_teachings_and_answers(tour_home_file: 
             async with websockets.connect(f"ws://127.0.0.1:{fox}",
                                           subprotocols=["foxglove.sdk.v1", "foxglove.websocket.v1"]) as ws:
                 client = FoxgloveClient(ws)
-                await client.handshake()
-                topics = {"/spco/scene", "/spco/teachings", "/spco/answers", "/spco/log"}
-                assert set(client.channels) == topics
-                assert client.server_info["name"].startswith("spco ")
-                await client.subscribe("/spco/scene", "/spco/teachings", "/spco/answers", "/spco/log")
-                scene = await client.next("/spco/scene")  # sent to a client as it subscribes
-                names = "\n".join(e.texts[0].text for e in scene.entities)
-                assert len(scene.entities) >= 3 and all(e.frame_id == "map" for e in scene.entities)
-                for name in ("kitchen", "living room", "bedroom"):
-                    assert name in names
-                # a teaching: the scene and the teachings again, and a log line
-                answer = await asyncio.to_thread(httpx.post, f"{base}/teach", json={
-                    "id": samples[3]["id"], "sentence": "this is the pantry"}, timeout=30)
-                assert answer.status_code == 200, answer.text
-                taught = await client.next("/spco/teachings",
-                                           where=lambda m: any(e.texts and "pantry" in e.texts[0].text
-                                                               for e in m.entities))
-                assert taught.entities[0].id == f"teaching/{samples[3]['id']}"
-                line = await client.next("/spco/log", where=lambda m: "taught" in m.message)
-                assert "this is the pantry" in line.message
-                # an answer: arrows at the poses of a where
-                where = await asyncio.to_thread(httpx.get, f"{base}/where",
-                                                params={"name": "bedroom", "n": 3}, timeout=10)
-                assert where.status_code == 200
-                shown = await client.next("/spco/answers")
-                entity = shown.entities[0]
-                assert entity.id == "answer" and len(entity.arrows) == 3 and "bedroom" in entity.texts[0].text
-                best = where.json()["positions"][0]
-                assert (entity.arrows[0].pose.position.x, entity.arrows[0].pose.position.y) == pytest.approx(
-                    (best["x"], best["y"]))
+                await _sees_the_scene(client)
+                await _sees_a_teaching(client, base, samples[3]["id"])
+                await _sees_an_answer(client, base)
 
         asyncio.run(scenario())
     finally:

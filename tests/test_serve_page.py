@@ -7,6 +7,7 @@ from __future__ import annotations
 import os
 import shutil
 from pathlib import Path
+from typing import Any
 
 import pytest
 from serve_helpers import Server, build_home, copy_home
@@ -45,9 +46,69 @@ def browser(tmp_path_factory: pytest.TempPathFactory):
     driver.quit()
 
 
-# too many statements: the page's browser walk, one session; to split
-def test_the_page_shows_the_regions_answers_and_teaches_live(browser, tmp_path: Path) -> None:  # noqa: PLR0915
+def _shows_the_map(browser: Any, robot: Any, wait: Any) -> list[Any]:
+    """The map: learnt regions as ellipses, labelled with their names, axes, and the samples as dots;
+    the event stream open. Returns the regions' ellipses."""
+    from selenium.webdriver.common.by import By
+
+    known = robot.regions()["names"]
+    wait.until(lambda d: d.find_elements(By.CSS_SELECTOR, "#layer-regions ellipse.region"))
+    ellipses = browser.find_elements(By.CSS_SELECTOR, "#layer-regions ellipse.region")
+    labels = [e.text for e in browser.find_elements(By.CSS_SELECTOR, "#layer-labels text.region-label")]
+    regions = robot.regions()["regions"]
+    drawn = [g for g in regions if g["weight"] >= 0.01 or g["taught"] > 0]  # negligible ones hidden
+    assert len(ellipses) == len(drawn) and len(drawn) < len(regions) + 1
+    assert labels and any(name in " ".join(labels) for name in known)
+    first_words = [label.split()[0] for label in labels]
+    assert len(first_words) == len(set(first_words)), labels  # one label per place
+    axis_labels = [e.text for e in browser.find_elements(By.CSS_SELECTOR, "#layer-axes text.axis-label")]
+    assert "x (m)" in axis_labels and "y (m)" in axis_labels
+    assert any(t.endswith(" m") for t in axis_labels)  # the scale bar
+    assert len(browser.find_elements(By.CSS_SELECTOR, "#layer-samples circle.sample")) == \
+        robot.health()["samples"]
+    assert browser.find_element(By.ID, "connection").text == "live"  # the event stream is open
+    return ellipses
+
+
+def _answers_what_and_where(browser: Any, wait: Any, ellipses: list[Any], name: str) -> list[str]:
+    """Click the biggest region: the names there, with p; type ``name``: its poses drawn. Returns the
+    names shown at the click."""
     from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.by import By
+
+    biggest = max(ellipses, key=lambda e: e.size["width"] * e.size["height"])
+    ActionChains(browser).move_to_element(biggest).click().perform()
+    wait.until(lambda d: d.find_elements(By.CSS_SELECTOR, "#what-names li"))
+    names = [li.text for li in browser.find_elements(By.CSS_SELECTOR, "#what-names li")]
+    assert names and all(" — p 0." in n or " — p 1." in n for n in names)
+    browser.find_element(By.ID, "where-input").send_keys(name)
+    browser.find_element(By.ID, "where-button").click()
+    wait.until(lambda d: len(d.find_elements(By.CSS_SELECTOR, "#layer-poses g.pose")) == 10)
+    assert name in browser.find_element(By.ID, "where-result").text
+    return names
+
+
+def _teaches_and_undoes(browser: Any, robot: Any, wait: Any, before: list[str], shots: Path) -> None:
+    """Type a sentence at the clicked point: taught, and every panel shows it (the names at the point
+    included); undo it: the names at the point are again exactly ``before``."""
+    from selenium.webdriver.common.by import By
+
+    browser.find_element(By.ID, "teach-sentence").send_keys("this is the pantry")
+    browser.find_element(By.ID, "teach-button").click()
+    wait.until(lambda d: "Taught (seq 1" in d.find_element(By.ID, "teach-result").text)
+    assert robot.health()["teachings"] == 1
+    wait.until(lambda d: "1 teachings served" in d.find_element(By.ID, "stats").text)
+    wait.until(lambda d: "pantry" in d.find_element(By.ID, "what-names").text)
+    assert browser.save_screenshot(str(shots / "page-after-teaching.png"))
+    browser.find_element(By.ID, "undo-button").click()
+    wait.until(lambda d: "Undone (teaching 1)" in d.find_element(By.ID, "teach-result").text)
+    wait.until(lambda d: [li.text for li in d.find_elements(By.CSS_SELECTOR, "#what-names li")] == before)
+    wait.until(lambda d: "0 teachings served" in d.find_element(By.ID, "stats").text)
+    assert browser.save_screenshot(str(shots / "page-after-undo.png"))
+
+
+def test_the_page_shows_the_regions_answers_and_teaches_live(browser, tmp_path: Path) -> None:
+    from selenium.common.exceptions import StaleElementReferenceException
     from selenium.webdriver.common.by import By
     from selenium.webdriver.support.ui import WebDriverWait
 
@@ -59,53 +120,15 @@ def test_the_page_shows_the_regions_answers_and_teaches_live(browser, tmp_path: 
     try:
         robot = Client(server.url)
         known = robot.regions()["names"]
-        wait = WebDriverWait(browser, 30)
+        # (a list the page redraws between finding an element and reading it: read it again)
+        wait = WebDriverWait(browser, 30, ignored_exceptions=(StaleElementReferenceException,))
         browser.get(server.url + "/")
-        # the map: learnt regions as ellipses, labelled with their names, and the samples as dots
-        wait.until(lambda d: d.find_elements(By.CSS_SELECTOR, "#layer-regions ellipse.region"))
-        ellipses = browser.find_elements(By.CSS_SELECTOR, "#layer-regions ellipse.region")
-        labels = [e.text for e in browser.find_elements(By.CSS_SELECTOR, "#layer-labels text.region-label")]
-        regions = robot.regions()["regions"]
-        drawn = [g for g in regions if g["weight"] >= 0.01 or g["taught"] > 0]  # negligible ones hidden
-        assert len(ellipses) == len(drawn) and len(drawn) < len(regions) + 1
-        assert labels and any(name in " ".join(labels) for name in known)
-        first_words = [label.split()[0] for label in labels]
-        assert len(first_words) == len(set(first_words)), labels  # one label per place
-        axis_labels = [e.text for e in browser.find_elements(By.CSS_SELECTOR, "#layer-axes text.axis-label")]
-        assert "x (m)" in axis_labels and "y (m)" in axis_labels
-        assert any(t.endswith(" m") for t in axis_labels)  # the scale bar
-        assert len(browser.find_elements(By.CSS_SELECTOR, "#layer-samples circle.sample")) == \
-            robot.health()["samples"]
-        assert browser.find_element(By.ID, "connection").text == "live"  # the event stream is open
-        # click a region: the names there, with p
-        biggest = max(ellipses, key=lambda e: e.size["width"] * e.size["height"])
-        ActionChains(browser).move_to_element(biggest).click().perform()
-        wait.until(lambda d: d.find_elements(By.CSS_SELECTOR, "#what-names li"))
-        names = [li.text for li in browser.find_elements(By.CSS_SELECTOR, "#what-names li")]
-        assert names and all(" — p 0." in n or " — p 1." in n for n in names)
-        # type a name: its poses drawn
-        browser.find_element(By.ID, "where-input").send_keys(known[0])
-        browser.find_element(By.ID, "where-button").click()
-        wait.until(lambda d: len(d.find_elements(By.CSS_SELECTOR, "#layer-poses g.pose")) == 10)
-        assert known[0] in browser.find_element(By.ID, "where-result").text
+        ellipses = _shows_the_map(browser, robot, wait)
+        before = _answers_what_and_where(browser, wait, ellipses, known[0])
         shots = Path(os.environ.get("SPCO_PAGE_SCREENSHOTS", str(tmp_path)))
         shots.mkdir(parents=True, exist_ok=True)
-        before = names
         assert browser.save_screenshot(str(shots / "page-before-teaching.png"))
-        # click + type a sentence: taught, and every panel shows it (the names at the point included)
-        browser.find_element(By.ID, "teach-sentence").send_keys("this is the pantry")
-        browser.find_element(By.ID, "teach-button").click()
-        wait.until(lambda d: "Taught (seq 1" in d.find_element(By.ID, "teach-result").text)
-        assert robot.health()["teachings"] == 1
-        wait.until(lambda d: "1 teachings served" in d.find_element(By.ID, "stats").text)
-        wait.until(lambda d: "pantry" in d.find_element(By.ID, "what-names").text)
-        assert browser.save_screenshot(str(shots / "page-after-teaching.png"))
-        # undo it: the names at the point are again exactly what they were before the teaching
-        browser.find_element(By.ID, "undo-button").click()
-        wait.until(lambda d: "Undone (teaching 1)" in d.find_element(By.ID, "teach-result").text)
-        wait.until(lambda d: [li.text for li in d.find_elements(By.CSS_SELECTOR, "#what-names li")] == before)
-        wait.until(lambda d: "0 teachings served" in d.find_element(By.ID, "stats").text)
-        assert browser.save_screenshot(str(shots / "page-after-undo.png"))
+        _teaches_and_undoes(browser, robot, wait, before, shots)
         robot.teach(x=0.0, y=0.0, theta=0.0, sentence="this is the pantry")  # taught again, by the robot
         wait.until(lambda d: "1 teachings served" in d.find_element(By.ID, "stats").text)
         # another client teaches: the page learns it from the event stream

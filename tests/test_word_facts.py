@@ -25,19 +25,29 @@ def empty_cache(tmp_path, monkeypatch: pytest.MonkeyPatch):
     return tmp_path
 
 
+@pytest.fixture()
+def from_files_alone(monkeypatch: pytest.MonkeyPatch):
+    """Call it to read the lexicon as a new process would, from the cache files alone: the facts in
+    memory are forgotten and loading WordNet fails the test."""
+    def forbid_wordnet() -> None:
+        def no_wordnet(folder: str):
+            raise AssertionError("WordNet loaded although every word's facts are in the cache files")
+
+        monkeypatch.setattr(lexicon_module, "_load", no_wordnet)
+        monkeypatch.setattr(lexicon_module, "_facts_memory", {})
+        monkeypatch.setattr(lexicon_module, "_kinds_memory", {})
+
+    return forbid_wordnet
+
+
 def test_cached_features_equal_the_lexicon_s_and_need_no_wordnet_once_known(
-        wordnet, empty_cache, monkeypatch: pytest.MonkeyPatch) -> None:
+        wordnet, empty_cache, from_files_alone) -> None:
     direct = lexical_features(WORDS, wordnet)
     first = lexical_features(WORDS)  # computes and writes the file
     np.testing.assert_array_equal(first, direct)
     files = list(empty_cache.glob("wordnet-facts-*.json"))
     assert len(files) == 1 and json.loads(files[0].read_text())["format"] == lexicon_module._FACTS_FORMAT
-
-    def no_wordnet(folder: str):
-        raise AssertionError("WordNet loaded although every word's facts are in the file")
-
-    monkeypatch.setattr(lexicon_module, "_load", no_wordnet)
-    monkeypatch.setattr(lexicon_module, "_facts_memory", {})  # a new process: from the file alone
+    from_files_alone()
     np.testing.assert_array_equal(lexical_features(WORDS), direct)
 
 
@@ -68,7 +78,7 @@ KIND_SENTENCES = ["this is the bedroom", "this is the kitchen", "this is the bat
 
 
 def test_cached_kind_facts_give_the_lexicon_s_evidence_and_need_no_wordnet_once_known(
-        wordnet, empty_cache, monkeypatch: pytest.MonkeyPatch) -> None:
+        wordnet, empty_cache, from_files_alone) -> None:
     vocabulary = Vocabulary.from_sentences(KIND_SENTENCES)
     direct = channel_evidence(vocabulary, KIND_SENTENCES, wordnet)
     nu, content = channel_evidence(vocabulary, KIND_SENTENCES)  # computes and writes both files
@@ -78,13 +88,7 @@ def test_cached_kind_facts_give_the_lexicon_s_evidence_and_need_no_wordnet_once_
     assert room is not None and nu[room] < 0.1 * nu[vocabulary.index("kitchen")]  # a kind of place
     files = list(empty_cache.glob("wordnet-kinds-*.json"))
     assert len(files) == 1 and json.loads(files[0].read_text())["format"] == lexicon_module._KINDS_FORMAT
-
-    def no_wordnet(folder: str):
-        raise AssertionError("WordNet loaded although every word's facts are in the files")
-
-    monkeypatch.setattr(lexicon_module, "_load", no_wordnet)
-    monkeypatch.setattr(lexicon_module, "_facts_memory", {})  # a new process: from the files alone
-    monkeypatch.setattr(lexicon_module, "_kinds_memory", {})
+    from_files_alone()
     again = channel_evidence(vocabulary, KIND_SENTENCES)
     np.testing.assert_array_equal(again[0], direct[0])
     np.testing.assert_array_equal(again[1], direct[1])

@@ -341,7 +341,118 @@ def inside(point: tuple[float, float] | None, rects: list[list[float]]) -> bool:
     return point is not None and any(r[0] <= point[0] <= r[1] and r[2] <= point[1] <= r[3] for r in rects)
 
 
-def check_specific(  # noqa: PLR0915 (a benchmark script's steps in the order they run; to split)
+def _check_specific_header(doc: dict[str, Any], name: str, check: Checker) -> None:
+    """Check the fields of ``specific_heldout.json`` around its configs: schema, seeds, rates, templates."""
+    check.require(
+        isinstance(doc.get("_schema"), dict) and next(iter(doc)) == "_schema",
+        f"{name}: _schema must be the first field",
+    )
+    check.require(doc.get("seeds") == SEEDS, f"{name}: seeds must be 100..119")
+    check.require(
+        tuple(doc.get("teaching_rates", ())) == RATES, f"{name}: teaching_rates must be {list(RATES)}"
+    )
+    templates = doc.get("templates", [])
+    check.require(
+        len(templates) >= 4 and all("{name}" in t for t in templates),
+        f"{name}: templates: need >= 4, each with {{name}}",
+    )
+    check.require(
+        all("{owner}" in t for t in doc.get("possessive_templates", [])),
+        f"{name}: possessive_templates: each needs {{owner}}",
+    )
+
+
+def _check_room_ids(
+    room: dict[str, Any], rw: str, home: str, labels: list[str], published: set[int], from_file: bool,
+    used: dict[int, str], check: Checker
+) -> None:
+    """Check a room's train and test ids: in the home, of the replaced place, used by no other room,
+    and on the right side of ``test_num.txt``."""
+    rname = room.get("name", "")
+    train, test = room.get("train_ids", []), room.get("test_ids", [])
+    check.require(bool(train) and bool(test), f"{rw}: train_ids and test_ids must be non-empty")
+    check.require(
+        not set(train) & set(test), f"{rw}: train and test share {sorted(set(train) & set(test))}"
+    )
+    for i in list(train) + list(test):
+        if not check.require(
+            isinstance(i, int) and 0 <= i < len(labels),
+            f"{rw}: id {i} not in {home} (0..{len(labels) - 1})",
+        ):
+            continue
+        check.require(
+            labels[i] == room.get("replaces"),
+            f"{rw}: id {i} is labelled {labels[i]!r}, not {room.get('replaces')!r}",
+        )
+        check.require(i not in used, f"{rw}: id {i} also used by room {used.get(i)!r}")
+        used[i] = rname
+    if from_file:
+        check.require(
+            set(test) <= published,
+            f"{rw}: test ids not in test_num.txt: {sorted(set(test) - published)}",
+        )
+    check.require(
+        not set(train) & published,
+        f"{rw}: train ids in test_num.txt: {sorted(set(train) & published)}",
+    )
+
+
+def _check_room_names(
+    room: dict[str, Any], rw: str, heard: set[str], general: set[str], phrases: dict[str, str],
+    check: Checker
+) -> None:
+    """Check a room's name and accepted phrases: never said in the data set, not a general place
+    name, accepted for no other room."""
+    rname = room.get("name", "")
+    check.require(
+        "{owner}" not in rname and (room.get("owner") is None or room["owner"] in rname),
+        f"{rw}: owner {room.get('owner')!r} not in the name",
+    )
+    said = [w for w in normalise(rname).split() if w not in STOP_WORDS and w in heard]
+    check.require(not said, f"{rw}: words said in the data set: {said}")
+    acc = [normalise(a) for a in room.get("accepted", [])]
+    check.require(normalise(rname) in acc, f"{rw}: its own name is not in accepted")
+    for a in acc:
+        check.require(a not in general, f"{rw}: accepted {a!r} is also a general place name")
+        check.require(
+            a not in phrases, f"{rw}: accepted {a!r} also accepted for room {phrases.get(a)!r}"
+        )
+        phrases[a] = rname
+
+
+def _check_room_region(
+    room: dict[str, Any], rw: str, cid: Any, cfg: dict[str, Any], home: str, regions: dict[str, Any],
+    positions: list[tuple[float, float] | None], check: Checker
+) -> None:
+    """Check a room's region: among the home's rectangles of the replaced place, holding >= 60 % of
+    the room's samples and none of another room's."""
+    region = room.get("region")
+    if region is None:
+        return
+    rname = room.get("name", "")
+    train, test = room.get("train_ids", []), room.get("test_ids", [])
+    known = regions.get(home, {}).get(room.get("replaces"), [])
+    check.require(
+        all(r in known for r in region),
+        f"{rw}: region rectangles not among {home}'s {room.get('replaces')} rectangles",
+    )
+    ins_train = sum(inside(positions[i], region) for i in train if 0 <= i < len(positions))
+    ins_test = sum(inside(positions[i], region) for i in test if 0 <= i < len(positions))
+    others = [r for o in cfg["rooms"] if o is not room and o.get("region") for r in o["region"]]
+    stray = sum(
+        inside(positions[i], others) for i in list(train) + list(test) if 0 <= i < len(positions)
+    )
+    print(
+        f"info  {cid}: {rname}: {ins_train}/{len(train)} train and {ins_test}/{len(test)} test "
+        f"positions inside its region, {stray} inside another room's"
+    )
+    check.require(
+        ins_train + ins_test >= 0.6 * (len(train) + len(test)) and stray == 0,
+        f"{rw}: region holds < 60 % of its samples or some lie in another room's",
+    )
+
+
+def check_specific(
     doc: dict[str, Any], data: Path, accepted: dict[str, list[str]], heard: set[str], check: Checker
 ) -> None:
     """Check ``specific_heldout.json`` against the data set.
@@ -360,23 +471,7 @@ def check_specific(  # noqa: PLR0915 (a benchmark script's steps in the order th
         Where results go.
     """
     name = "specific_heldout.json"
-    check.require(
-        isinstance(doc.get("_schema"), dict) and next(iter(doc)) == "_schema",
-        f"{name}: _schema must be the first field",
-    )
-    check.require(doc.get("seeds") == SEEDS, f"{name}: seeds must be 100..119")
-    check.require(
-        tuple(doc.get("teaching_rates", ())) == RATES, f"{name}: teaching_rates must be {list(RATES)}"
-    )
-    templates = doc.get("templates", [])
-    check.require(
-        len(templates) >= 4 and all("{name}" in t for t in templates),
-        f"{name}: templates: need >= 4, each with {{name}}",
-    )
-    check.require(
-        all("{owner}" in t for t in doc.get("possessive_templates", [])),
-        f"{name}: possessive_templates: each needs {{owner}}",
-    )
+    _check_specific_header(doc, name, check)
     regions_path = data.parent / "sigverse_regions.json"
     regions = json.loads(regions_path.read_text(encoding="utf-8"))["homes"] if regions_path.exists() else {}
     general = {a for names in accepted.values() for a in names}
@@ -407,75 +502,18 @@ def check_specific(  # noqa: PLR0915 (a benchmark script's steps in the order th
             rw = f"{where}: room {rname!r}"
             n_rooms += 1
             kinds.add(room.get("replaces", ""))
-            train, test = room.get("train_ids", []), room.get("test_ids", [])
             check.require(room.get("form") in ("possessive", "single-word", "multi-word"), f"{rw}: bad form")
             check.require(
                 room.get("replaces") in PLACES, f"{rw}: replaces {room.get('replaces')!r} not a place"
             )
-            check.require(bool(train) and bool(test), f"{rw}: train_ids and test_ids must be non-empty")
-            check.require(
-                not set(train) & set(test), f"{rw}: train and test share {sorted(set(train) & set(test))}"
-            )
-            for i in list(train) + list(test):
-                if not check.require(
-                    isinstance(i, int) and 0 <= i < len(labels),
-                    f"{rw}: id {i} not in {home} (0..{len(labels) - 1})",
-                ):
-                    continue
-                check.require(
-                    labels[i] == room.get("replaces"),
-                    f"{rw}: id {i} is labelled {labels[i]!r}, not {room.get('replaces')!r}",
-                )
-                check.require(i not in used, f"{rw}: id {i} also used by room {used.get(i)!r}")
-                used[i] = rname
-            if from_file:
-                check.require(
-                    set(test) <= published,
-                    f"{rw}: test ids not in test_num.txt: {sorted(set(test) - published)}",
-                )
-            check.require(
-                not set(train) & published,
-                f"{rw}: train ids in test_num.txt: {sorted(set(train) & published)}",
-            )
+            _check_room_ids(room, rw, home, labels, published, from_file, used, check)
+            train = room.get("train_ids", [])
             want = {str(r): max(1, int(r * len(train) / 100 + 0.5)) for r in RATES}
             check.require(
                 room.get("taught_count") == want, f"{rw}: taught_count {room.get('taught_count')} != {want}"
             )
-            check.require(
-                "{owner}" not in rname and (room.get("owner") is None or room["owner"] in rname),
-                f"{rw}: owner {room.get('owner')!r} not in the name",
-            )
-            said = [w for w in normalise(rname).split() if w not in STOP_WORDS and w in heard]
-            check.require(not said, f"{rw}: words said in the data set: {said}")
-            acc = [normalise(a) for a in room.get("accepted", [])]
-            check.require(normalise(rname) in acc, f"{rw}: its own name is not in accepted")
-            for a in acc:
-                check.require(a not in general, f"{rw}: accepted {a!r} is also a general place name")
-                check.require(
-                    a not in phrases, f"{rw}: accepted {a!r} also accepted for room {phrases.get(a)!r}"
-                )
-                phrases[a] = rname
-            region = room.get("region")
-            if region is not None:
-                known = regions.get(home, {}).get(room.get("replaces"), [])
-                check.require(
-                    all(r in known for r in region),
-                    f"{rw}: region rectangles not among {home}'s {room.get('replaces')} rectangles",
-                )
-                ins_train = sum(inside(positions[i], region) for i in train if 0 <= i < len(positions))
-                ins_test = sum(inside(positions[i], region) for i in test if 0 <= i < len(positions))
-                others = [r for o in cfg["rooms"] if o is not room and o.get("region") for r in o["region"]]
-                stray = sum(
-                    inside(positions[i], others) for i in list(train) + list(test) if 0 <= i < len(positions)
-                )
-                print(
-                    f"info  {cid}: {rname}: {ins_train}/{len(train)} train and {ins_test}/{len(test)} test "
-                    f"positions inside its region, {stray} inside another room's"
-                )
-                check.require(
-                    ins_train + ins_test >= 0.6 * (len(train) + len(test)) and stray == 0,
-                    f"{rw}: region holds < 60 % of its samples or some lie in another room's",
-                )
+            _check_room_names(room, rw, heard, general, phrases, check)
+            _check_room_region(room, rw, cid, cfg, home, regions, positions, check)
         check.ok(
             f"{cid} ({home}): {len(cfg.get('rooms', []))} rooms, "
             + "; ".join(

@@ -27,6 +27,7 @@ import click
 
 from spco.cli.common import check_out, load_home, parse_extent
 from spco.cli.errors import friendly_errors
+from spco.features.pixels import RAW_ENCODINGS
 
 __all__ = ["KNOWLEDGE_COMMANDS", "adapt", "fit", "show", "teach", "what", "where"]
 
@@ -71,7 +72,7 @@ def _image_options(func: Any) -> Any:
 
 
 #: Colour orders of a pixel array given with --image (spco.features.pixels).
-_ENCODINGS = ("rgb8", "bgr8", "mono8", "rgba8", "bgra8")
+_ENCODINGS = tuple(RAW_ENCODINGS)
 
 
 def _pixels(image: Path, encoding: str | None) -> Any:

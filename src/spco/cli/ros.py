@@ -8,6 +8,7 @@ from __future__ import annotations
 import logging
 import os
 from pathlib import Path
+from typing import Any
 
 import click
 
@@ -15,6 +16,22 @@ from spco.cli.errors import friendly_errors
 from spco.cli.limits import limits_from_options, teaching_limit_options
 
 __all__ = ["ros", "ros2"]
+
+
+def node_teaching_options(command: Any) -> Any:
+    """``--sweeps``, ``--writer`` and ``--seed``: how a node (``spco ros``, ``spco ros2``) applies its
+    teachings."""
+    for option in reversed([
+        click.option("--sweeps", default=10, show_default=True, type=click.IntRange(1, 1000),
+                     help="Gibbs sweeps per teaching (as spco teach)."),
+        click.option("--writer", type=click.Choice(["process", "thread"]), default="process",
+                     show_default=True,
+                     help="Where teachings are applied (spco.service.LiveHome): a writer process of their "
+                          "own (the answers never wait for them), or a thread of the node."),
+        click.option("--seed", default=0, show_default=True, type=int, help="Base seed of the teachings."),
+    ]):
+        command = option(command)
+    return command
 
 
 @click.command(name="ros", context_settings={"ignore_unknown_options": True})
@@ -52,12 +69,7 @@ __all__ = ["ros", "ros2"]
               "should not look it up (e.g. geometry_msgs/msg/PoseStamped).")
 @click.option("--image-type", default=None, help="With --rosbridge: the image topic's type.")
 @click.option("--node-name", default="spco", show_default=True, help="The node's name (ROS 1).")
-@click.option("--sweeps", default=10, show_default=True, type=click.IntRange(1, 1000),
-              help="Gibbs sweeps per teaching (as spco teach).")
-@click.option("--writer", type=click.Choice(["process", "thread"]), default="process", show_default=True,
-              help="Where teachings are applied (spco.service.LiveHome): a writer process of their own (the "
-                   "answers never wait for them), or a thread of the node.")
-@click.option("--seed", default=0, show_default=True, type=int, help="Base seed of the teachings.")
+@node_teaching_options
 @teaching_limit_options
 @friendly_errors
 def ros(home: Path, ros_arguments: tuple[str, ...], pose_topic: str, map_frame: str, robot_frame: str,
@@ -128,12 +140,7 @@ def ros(home: Path, ros_arguments: tuple[str, ...], pose_topic: str, map_frame: 
 @click.command(name="ros2", context_settings={"ignore_unknown_options": True, "allow_extra_args": True})
 @click.argument("home", type=click.Path(path_type=Path))
 @click.argument("ros_arguments", nargs=-1, type=click.UNPROCESSED, metavar="[--ros-args ...]")
-@click.option("--sweeps", default=10, show_default=True, type=click.IntRange(1, 1000),
-              help="Gibbs sweeps per teaching (as spco teach).")
-@click.option("--writer", type=click.Choice(["process", "thread"]), default="process", show_default=True,
-              help="Where teachings are applied (spco.service.LiveHome): a writer process of their own (the "
-                   "answers never wait for them), or a thread of the node.")
-@click.option("--seed", default=0, show_default=True, type=int, help="Base seed of the teachings.")
+@node_teaching_options
 @click.option("--ros-python", default=None, metavar="PYTHON",
               help="Run the ROS 2 side with this Python (the robot's: /usr/bin/python3 after sourcing "
               "/opt/ros/humble/setup.bash) in a child process, relaying to spco here; default: rclpy in "

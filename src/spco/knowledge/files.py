@@ -34,7 +34,7 @@ import numpy as np
 
 from spco.errors import ModelFileError
 from spco.knowledge.locking import locked
-from spco.model.io import _checksum, write_npz_atomic
+from spco.model.io import _checksum, check_format_version, write_npz_atomic
 
 #: Header ``format`` of knowledge files and home files.
 KNOWLEDGE_FORMAT = "spco-knowledge"
@@ -191,13 +191,7 @@ def _decode_header(path: Path, raw: np.ndarray, expected: str) -> dict[str, Any]
             if expected == KNOWLEDGE_FORMAT and found == HOME_FORMAT:
                 hint += " — `spco adapt` needs the knowledge file written by `spco fit`"
         raise ModelFileError(path, f"not a {what} (format {found!r}, expected {expected!r}){hint}")
-    version = header.get("format_version")
-    if not isinstance(version, int) or isinstance(version, bool) or version < 1:
-        raise ModelFileError(path, f"invalid format_version {version!r}")
-    if version > FORMAT_VERSION:
-        raise ModelFileError(path, f"written by a newer spco ({what} format version {version}, spco "
-                             f"{header.get('spco_version', '?')}); this spco reads up to version "
-                             f"{FORMAT_VERSION} — upgrade spco to read it")
+    check_format_version(path, header, what, FORMAT_VERSION)
     return header
 
 

@@ -8,7 +8,7 @@ import math
 import operator
 import time
 from collections.abc import Mapping
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -99,7 +99,7 @@ def default_hyperparameters(homes: Any) -> TransferHyperparameters:
     return TransferHyperparameters()
 
 
-def fit_knowledge(  # noqa: PLR0915 (one sequence: start, sweeps, summary; to split)
+def fit_knowledge(
     corpus: Corpus,
     model: str = DEFAULT_MODEL,
     n_iterations: int = DEFAULT_FIT_ITERATIONS,
@@ -153,64 +153,20 @@ def fit_knowledge(  # noqa: PLR0915 (one sequence: start, sweeps, summary; to sp
     """
     source = _check_fit_arguments(corpus, model, summary_fraction, summary_every, extractor)
     variant, prune = MODELS[model]
-    if prior not in PRIORS:
-        raise ConfigurationError(f"prior must be one of {', '.join(PRIORS)}, got {prior!r}")
-    if hyperparameters is None and prior == "scaled":
-        hyperparameters = default_hyperparameters(corpus)
-    estimator = SpCoTransfer(hyperparameters, variant=variant, prune_words=prune, n_iterations=n_iterations,
-                             random_state=random_state)
-    hyper = estimator.checked_hyperparameters()
-    settings = estimator.sampler_settings()
-    if variant == "exact" and prune and hyper.word_model != "channels":
-        # one word model on the robot's path: the naming rule is chosen for speech without English
-        # function words only, never asked for
-        raise ConfigurationError(f"a knowledge of model {model} learns its words with the word channels "
-                                 f"(word_model 'channels'), not {hyper.word_model!r}: speech without any "
-                                 "English function word (Japanese) is learnt with the naming rule by itself")
-    # the word channels (docs/model.md, "Words that are not names") for English speech; speech
-    # without any English function word (Japanese) is learnt with the naming rule, as a joint fit
-    evidence = _channel_evidence(corpus) if uses_word_channels(hyper, settings) else None
-    if uses_word_channels(hyper, settings) and evidence is None:
-        hyper = replace(hyper, word_model="naming-rule")
+    estimator, hyper, settings, evidence = _fit_setup(corpus, model, n_iterations, random_state,
+                                                      hyperparameters, prior)
     rng = as_generator(random_state)
     source, n_samples = _home_source(estimator, corpus, source)
     keep = set(summary_iterations(n_iterations, summary_fraction, summary_every))
     start = time.perf_counter()
-    by_iteration: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
-    channel_samples: dict[int, WordChannels] = {}
-    bar = None
-    if progress:
-        from spco.progress import progress_bar
-
-        bar = progress_bar(total=n_iterations, desc=f"fit ({model})", unit="sweep", leave=False)
-    from spco.engines import start_source_run
-
-    run = start_source_run(engine, source, hyper, settings, rng)  # the homes stay in the shards
-    hyper, settings = run.hyper, run.settings  # (with the view weight estimated from the homes)
-    if evidence is not None:
-        run.use_word_channels(WordChannels.initial(evidence[0], hyper.n_concepts, hyper.evidence_weight,
-                                                   evidence[1]))
-
-    def after_sweep(iteration: int, _: float) -> None:  # (a restarted engine repeats sweeps)
-        if bar is not None:
-            bar.update(1)
-        if iteration in keep:
-            shared = run.shared
-            by_iteration[iteration] = (shared.log_phi_v.copy(), shared.log_phi_w.copy(), shared.log_g0.copy())
-            if shared.channels is not None:
-                channel_samples[iteration] = shared.channels.copy()
-
-    run.fit(n_iterations, after_sweep)
-    word_mask_last, candidate_words = run.shared.word_mask, run.call("candidate_words")[0]
-    tokens = (functools.reduce(operator.add, run.call("channel_counts")).by_word
-              if run.shared.channels is not None else None)
-    if bar is not None:
-        bar.close()
-    samples = [by_iteration[i] for i in sorted(by_iteration)]
+    chain = _sample_chain(engine, source, hyper, settings, rng, evidence, n_iterations, keep,
+                          f"fit ({model})" if progress else None)
     seconds = time.perf_counter() - start
+    run = chain.run
+    hyper, settings = run.hyper, run.settings  # (with the view weight estimated from the homes)
 
-    stack_v, stack_w, stack_g, relabelled, used, perms = _aligned_samples(samples)
-    channels = _averaged_channels([channel_samples[i] for i in sorted(channel_samples)], perms, tokens)
+    stack_v, stack_w, stack_g, relabelled, used, perms = _aligned_samples(chain.samples)
+    channels = _averaged_channels(chain.channel_samples, perms, chain.tokens)
     n = stack_v.shape[0]
     log_phi_v = logsumexp(stack_v, axis=0) - math.log(n)
     has_words = stack_w.shape[2] > 0
@@ -218,8 +174,8 @@ def fit_knowledge(  # noqa: PLR0915 (one sequence: start, sweeps, summary; to sp
     log_g0 = logsumexp(stack_g, axis=0) - math.log(n)
     phi_v_samples = np.exp(stack_v)
     spread = np.abs(phi_v_samples - np.exp(log_phi_v)[None]).sum(-1)[:, used]  # total variation × 2
-    word_mask = _kept_words(len(corpus.vocabulary), prune, variant, word_mask_last, candidate_words,
-                            log_phi_w, log_g0, hyper, settings)
+    word_mask = _kept_words(len(corpus.vocabulary), prune, variant, chain.word_mask_last,
+                            chain.candidate_words, log_phi_w, log_g0, hyper, settings)
     conc_g = _concentration(np.exp(stack_g)[:, None, :], hyper.gamma)[0]
     record: dict[str, Any] = {
         "homes": list(corpus.names),
@@ -256,6 +212,88 @@ def fit_knowledge(  # noqa: PLR0915 (one sequence: start, sweeps, summary; to sp
     )
 
 
+def _fit_setup(corpus: Any, model: str, n_iterations: int, random_state: Any,
+               hyperparameters: TransferHyperparameters | None, prior: str
+               ) -> tuple[SpCoTransfer, TransferHyperparameters, Any, tuple[np.ndarray, np.ndarray] | None]:
+    """The estimator of ``model``, its checked hyperparameters and sampler settings, and the word
+    channels' evidence (``None``: the model learns its words without channels)."""
+    variant, prune = MODELS[model]
+    if prior not in PRIORS:
+        raise ConfigurationError(f"prior must be one of {', '.join(PRIORS)}, got {prior!r}")
+    if hyperparameters is None and prior == "scaled":
+        hyperparameters = default_hyperparameters(corpus)
+    estimator = SpCoTransfer(hyperparameters, variant=variant, prune_words=prune, n_iterations=n_iterations,
+                             random_state=random_state)
+    hyper = estimator.checked_hyperparameters()
+    settings = estimator.sampler_settings()
+    if variant == "exact" and prune and hyper.word_model != "channels":
+        # one word model on the robot's path: the naming rule is chosen for speech without English
+        # function words only, never asked for
+        raise ConfigurationError(f"a knowledge of model {model} learns its words with the word channels "
+                                 f"(word_model 'channels'), not {hyper.word_model!r}: speech without any "
+                                 "English function word (Japanese) is learnt with the naming rule by itself")
+    # the word channels (docs/model.md, "Words that are not names") for English speech; speech
+    # without any English function word (Japanese) is learnt with the naming rule, as a joint fit
+    evidence = _channel_evidence(corpus) if uses_word_channels(hyper, settings) else None
+    if uses_word_channels(hyper, settings) and evidence is None:
+        hyper = replace(hyper, word_model="naming-rule")
+    return estimator, hyper, settings, evidence
+
+
+@dataclass
+class _Chain:
+    """What :func:`_sample_chain` keeps of a fit's chain: the run (still open: its shards hold the
+    homes), the kept sweeps' (log φ^v, log φ^w, log G_0) and word channels in sweep order, and the
+    last sweep's word mask, candidate words and word-channel tokens (``None`` without channels)."""
+
+    run: Any
+    samples: list[tuple[np.ndarray, np.ndarray, np.ndarray]]
+    channel_samples: list[WordChannels]
+    word_mask_last: np.ndarray
+    candidate_words: np.ndarray | None
+    tokens: np.ndarray | None
+
+
+def _sample_chain(engine: Any, source: Any, hyper: TransferHyperparameters, settings: Any,
+                  rng: np.random.Generator, evidence: tuple[np.ndarray, np.ndarray] | None, n_iterations: int,
+                  keep: set[int], progress: str | None) -> _Chain:
+    """Run the sampler ``n_iterations`` sweeps on the homes of ``source`` (in their shards, on
+    ``engine``), keeping the shared parameters of the sweeps in ``keep``; ``progress``: a progress
+    bar's label, ``None`` for none."""
+    by_iteration: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+    channel_samples: dict[int, WordChannels] = {}
+    bar = None
+    if progress is not None:
+        from spco.progress import progress_bar
+
+        bar = progress_bar(total=n_iterations, desc=progress, unit="sweep", leave=False)
+    from spco.engines import start_source_run
+
+    run = start_source_run(engine, source, hyper, settings, rng)  # the homes stay in the shards
+    if evidence is not None:
+        run.use_word_channels(WordChannels.initial(evidence[0], run.hyper.n_concepts,
+                                                   run.hyper.evidence_weight, evidence[1]))
+
+    def after_sweep(iteration: int, _: float) -> None:  # (a restarted engine repeats sweeps)
+        if bar is not None:
+            bar.update(1)
+        if iteration in keep:
+            shared = run.shared
+            by_iteration[iteration] = (shared.log_phi_v.copy(), shared.log_phi_w.copy(), shared.log_g0.copy())
+            if shared.channels is not None:
+                channel_samples[iteration] = shared.channels.copy()
+
+    run.fit(n_iterations, after_sweep)
+    word_mask_last, candidate_words = run.shared.word_mask, run.call("candidate_words")[0]
+    tokens = (functools.reduce(operator.add, run.call("channel_counts")).by_word
+              if run.shared.channels is not None else None)
+    if bar is not None:
+        bar.close()
+    return _Chain(run, [by_iteration[i] for i in sorted(by_iteration)],
+                  [channel_samples[i] for i in sorted(channel_samples)], word_mask_last, candidate_words,
+                  tokens)
+
+
 def _view_weight_record(estimate: dict | None) -> dict[str, Any]:
     """The provenance of an estimated view weight (:attr:`spco.model.driver.ShardedRun.view_weight`):
     ``{"view_weight": {"estimated", "views", "view_counts", "grid", "mean_log_loss"}}`` (the
@@ -263,6 +301,8 @@ def _view_weight_record(estimate: dict | None) -> dict[str, Any]:
     if estimate is None:
         return {}
     return {"view_weight": {**estimate, "mean_log_loss": [round(x, 6) for x in estimate["mean_log_loss"]]}}
+
+
 def _channel_evidence(corpus: Any) -> tuple[np.ndarray, np.ndarray] | None:
     """The word channels' linguistic evidence (ν, a) of the experienced homes' words
     (:func:`spco.model.name_evidence.channel_evidence`), or ``None`` when no sentence holds an English

@@ -22,12 +22,14 @@ from typing import Any
 import numpy as np
 
 from spco.errors import ConfigurationError
+from spco.features.pixels import RAW_ENCODINGS
 
 __all__ = ["ENCODINGS", "MAX_POSES", "MAX_QUESTIONS", "MAX_SENTENCE_CHARS", "MAX_TOP", "Ask", "Pose",
            "Teach", "Undo", "View", "What", "Where", "clean_sentence"]
 
-#: Raw pixel encodings of a view (ROS ``sensor_msgs/Image`` names) and their channels.
-ENCODINGS = {"rgb8": 3, "bgr8": 3, "mono8": 1}
+#: Raw pixel encodings of a served view (ROS ``sensor_msgs/Image`` names) and their channels: those of
+#: :data:`spco.features.pixels.RAW_ENCODINGS` without an alpha channel.
+ENCODINGS = {name: channels for name, channels in RAW_ENCODINGS.items() if name in ("rgb8", "bgr8", "mono8")}
 #: The most poses a ``where`` draws.
 MAX_POSES = 1000
 #: The most names a ``what`` lists.

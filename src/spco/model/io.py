@@ -276,14 +276,22 @@ def _decode_header(path: Path, raw: np.ndarray) -> dict[str, Any]:
     if not isinstance(header, dict) or header.get("format") != FORMAT_NAME:
         found = header.get("format") if isinstance(header, dict) else None
         raise ModelFileError(path, f"not a spco model file (format {found!r}, expected {FORMAT_NAME!r})")
+    check_format_version(path, header, "model", FORMAT_VERSION)
+    return header
+
+
+def check_format_version(path: Path, header: Mapping[str, Any], what: str, newest: int) -> int:
+    """The ``format_version`` of a file's ``header``; :class:`~spco.errors.ModelFileError` naming
+    ``path`` when it is not a whole number ≥ 1, or newer than ``newest`` (written by a newer spco: the
+    ``what`` file format's version that this spco reads up to)."""
     version = header.get("format_version")
     if not isinstance(version, int) or isinstance(version, bool) or version < 1:
         raise ModelFileError(path, f"invalid format_version {version!r}")
-    if version > FORMAT_VERSION:
-        raise ModelFileError(path, f"written by a newer spco (model format version {version}, spco "
+    if version > newest:
+        raise ModelFileError(path, f"written by a newer spco ({what} format version {version}, spco "
                              f"{header.get('spco_version', '?')}); this spco reads up to version "
-                             f"{FORMAT_VERSION} — upgrade spco to load it")
-    return header
+                             f"{newest} — upgrade spco to read it")
+    return version
 
 
 def _verify(path: Path, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:

@@ -35,6 +35,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from spco.model import gibbs
+from spco.model.additive import AdditiveCounts
 from spco.model.gibbs import GibbsState, PreparedData, SamplerSettings
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.kernels.counts import csr_rows
@@ -107,17 +108,13 @@ class SharedParameters:
 
 
 @dataclass
-class PooledCounts:
+class PooledCounts(AdditiveCounts):
     """The authors' sampler's statistics of a shard, summed over its homes: visual (L, D) and word
     (L, V) counts per concept, concept counts (L,)."""
 
     visual: np.ndarray
     words: np.ndarray
     concepts: np.ndarray
-
-    def __add__(self, other: PooledCounts) -> PooledCounts:
-        return PooledCounts(self.visual + other.visual, self.words + other.words,
-                            self.concepts + other.concepts)
 
 
 @dataclass

@@ -59,6 +59,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.special import logsumexp
 
+from spco.model.additive import AdditiveCounts
 from spco.model.kernels.channels import mixture_rows, switch_rows
 from spco.model.kernels.dirichlet import log_dirichlet
 
@@ -240,22 +241,13 @@ def sample_switches(words: sp.csr_array, homes: np.ndarray, concepts: np.ndarray
 
 
 @dataclass
-class ChannelCounts:
+class ChannelCounts(AdditiveCounts):
     """The switches' statistics, adding up over homes: place tokens per concept and word (L, V),
     background tokens per word (V,), tokens per word and channel (V, 3); each token counted once."""
 
     place: np.ndarray
     background: np.ndarray
     by_word: np.ndarray
-
-    def __add__(self, other: ChannelCounts) -> ChannelCounts:
-        return ChannelCounts(self.place + other.place, self.background + other.background,
-                             self.by_word + other.by_word)
-
-    @property
-    def nbytes(self) -> int:
-        """Bytes of the arrays."""
-        return self.place.nbytes + self.background.nbytes + self.by_word.nbytes
 
 
 def channel_counts(words: sp.csr_array, concepts: np.ndarray, switches: np.ndarray,

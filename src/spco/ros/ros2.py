@@ -168,117 +168,151 @@ class _RelayClock:
         return self.robot + (time.monotonic() - self.local)
 
 
-# too many statements: the ROS 2 node's set-up, arrived at the last merge; to split
-def _run_relayed(home: Any, ros_python: str, ros_arguments: Sequence[str], node_name: str, uses_images: bool,  # noqa: PLR0915
-                 n_concepts: int, stop: threading.Event,
-                 ready: Callable[[NodeCore, Mapping[str, str]], None] | None,
-                 echo: Callable[[str], None]) -> dict[str, int]:
-    """The core here, the ROS 2 side in ``ros_python`` running :data:`THIN_NODE`."""
-    env = dict(os.environ, SPCO_ROS2_NODE_NAME=node_name)
-    try:
-        child = subprocess.Popen([ros_python, str(THIN_NODE), *ros_arguments], stdin=subprocess.PIPE,
-                                 stdout=subprocess.PIPE, env=env, start_new_session=True)
-    except OSError as exc:
-        raise RosUnavailableError(f"--ros-python {ros_python}: cannot start it ({exc})") from None
-    assert child.stdin is not None and child.stdout is not None
-    to_child, lock = child.stdin, threading.Lock()
+class _Relay:
+    """This process's end of the pipe to the ROS 2 side (``ros_python`` running :data:`THIN_NODE`):
+    frames to it (:meth:`send`), and a reader thread handing the robot's frames to the core."""
 
-    def send(kind: str, msg: Mapping[str, Any]) -> None:
-        with lock:
+    def __init__(self, ros_python: str, ros_arguments: Sequence[str], node_name: str,
+                 stop: threading.Event, echo: Callable[[str], None]) -> None:
+        env = dict(os.environ, SPCO_ROS2_NODE_NAME=node_name)
+        try:
+            self.child = subprocess.Popen([ros_python, str(THIN_NODE), *ros_arguments], stdin=subprocess.PIPE,
+                                          stdout=subprocess.PIPE, env=env, start_new_session=True)
+        except OSError as exc:
+            raise RosUnavailableError(f"--ros-python {ros_python}: cannot start it ({exc})") from None
+        assert self.child.stdin is not None and self.child.stdout is not None
+        self.to_child, self.lock = self.child.stdin, threading.Lock()
+        self.ros_python, self.stop, self.echo = ros_python, stop, echo
+        self.clock = _RelayClock()
+        self.ready = threading.Event()
+        self.settings: Any = None
+        self.names: Mapping[str, str] = {}
+        self.failed: str | None = None
+        self.core: NodeCore | None = None
+
+    def send(self, kind: str, msg: Mapping[str, Any]) -> None:
+        """One frame to the ROS 2 side; a closed pipe stops the node."""
+        with self.lock:
             try:
-                write_frame(to_child, {"kind": kind, "msg": msg})
+                write_frame(self.to_child, {"kind": kind, "msg": msg})
             except (BrokenPipeError, ValueError):
-                stop.set()
+                self.stop.set()
 
-    clock = _RelayClock()
-    box: dict[str, Any] = {}
-    previous = _signals(stop)
-    core: NodeCore | None = None
+    def start_reading(self) -> None:
+        """Read the robot's frames in a daemon thread until the pipe closes."""
+        threading.Thread(target=self._dispatch, name="spco-relay", daemon=True).start()
 
-    def dispatch() -> None:
-        nonlocal core
+    def _dispatch(self) -> None:
         while True:
-            frame = read_frame(child.stdout)  # type: ignore[arg-type]
+            frame = read_frame(self.child.stdout)  # type: ignore[arg-type]
             if frame is None:
-                stop.set()
+                self.stop.set()
                 return
             header, payload = frame
             kind = header.get("kind")
             if "received" in header:
-                clock.seen(float(header["received"]))
+                self.clock.seen(float(header["received"]))
             try:
-                if kind == "check":
-                    try:
-                        settings = settings_of(header["values"])
-                        reason = None
-                    except (ConfigurationError, TypeError, ValueError, KeyError) as exc:
-                        reason, settings = str(exc), None
-                    if settings is not None:
-                        box["settings"] = settings
-                        if core is not None:
-                            core.settings = settings
-                    with lock:
-                        write_frame(to_child, {"kind": "checked", "ask": header.get("ask"), "reason": reason})
-                elif kind == "started":
-                    echo(str(header["line"]))
-                elif kind == "names":
-                    box["names"] = header["names"]
-                    box["ready"].set()
-                elif kind == "failed":
-                    box["failed"] = header["error"]
-                    box["ready"].set()
-                elif core is None:
-                    continue
-                elif kind == "query":
-                    core.on_query(header["text"])
-                elif kind == "speech":
-                    core.on_speech(header["text"], header["received"])
-                elif kind == "pose":
-                    core.on_pose(header["msg"], header["received"])
-                elif kind == "tf":
-                    core.on_tf(header["msg"], bool(header["static"]), header["received"])
-                elif kind == "image":
-                    core.on_image({**header["msg"], "data": payload}, header["received"])
+                self._handle(kind, header, payload)
             except SpcoError:
                 log.exception("spco ros2: a %s from the robot's process could not be used", kind)
 
-    box["ready"] = threading.Event()
-    reader = threading.Thread(target=dispatch, name="spco-relay", daemon=True)
-    reader.start()
-    try:
-        while not box["ready"].wait(0.2):
-            if stop.is_set() or child.poll() is not None:
-                raise RosUnavailableError(f"the ROS 2 side ({ros_python} {THIN_NODE.name}) stopped before "
-                                          f"it was up (exit code {child.poll()}): does that Python import "
-                                          "rclpy? (source /opt/ros/<distro>/setup.bash first)")
-        if "failed" in box:
-            raise ConfigurationError(box["failed"])
-        core = NodeCore(home, box["settings"], publish_answer=lambda d: send("answer", d),
-                        publish_goal=lambda d: send("goal", d), publish_markers=lambda d: send("markers", d),
-                        publish_poses=lambda d: send("poses", d), now=clock, uses_images=uses_images,
-                        n_concepts=n_concepts)
-        core.start()
-        if ready is not None:
-            ready(core, box["names"])
-        while not stop.wait(0.2):
-            if child.poll() is not None:
-                break
-    finally:
-        if core is not None:
-            core.stop()
-        with lock:
+    def _handle(self, kind: Any, header: dict[str, Any], payload: bytes) -> None:
+        if kind == "check":
+            self._check(header)
+        elif kind == "started":
+            self.echo(str(header["line"]))
+        elif kind == "names":
+            self.names = header["names"]
+            self.ready.set()
+        elif kind == "failed":
+            self.failed = header["error"]
+            self.ready.set()
+        elif self.core is not None:
+            self._to_core(self.core, kind, header, payload)
+
+    def _check(self, header: dict[str, Any]) -> None:
+        """Answer the ROS 2 side's parameter check; keep the settings it accepted."""
+        try:
+            settings = settings_of(header["values"])
+            reason = None
+        except (ConfigurationError, TypeError, ValueError, KeyError) as exc:
+            reason, settings = str(exc), None
+        if settings is not None:
+            self.settings = settings
+            if self.core is not None:
+                self.core.settings = settings
+        with self.lock:
+            write_frame(self.to_child, {"kind": "checked", "ask": header.get("ask"), "reason": reason})
+
+    @staticmethod
+    def _to_core(core: NodeCore, kind: Any, header: dict[str, Any], payload: bytes) -> None:
+        if kind == "query":
+            core.on_query(header["text"])
+        elif kind == "speech":
+            core.on_speech(header["text"], header["received"])
+        elif kind == "pose":
+            core.on_pose(header["msg"], header["received"])
+        elif kind == "tf":
+            core.on_tf(header["msg"], bool(header["static"]), header["received"])
+        elif kind == "image":
+            core.on_image({**header["msg"], "data": payload}, header["received"])
+
+    def wait_until_up(self) -> None:
+        """Wait for the ROS 2 side's topic names; raise if it stops or fails first."""
+        while not self.ready.wait(0.2):
+            if self.stop.is_set() or self.child.poll() is not None:
+                raise RosUnavailableError(
+                    f"the ROS 2 side ({self.ros_python} {THIN_NODE.name}) stopped before it was up (exit "
+                    f"code {self.child.poll()}): does that Python import rclpy? (source "
+                    "/opt/ros/<distro>/setup.bash first)")
+        if self.failed is not None:
+            raise ConfigurationError(self.failed)
+
+    def close(self) -> None:
+        """Stop the core, tell the ROS 2 side to stop and wait for it (killed after 10 s)."""
+        if self.core is not None:
+            self.core.stop()
+        with self.lock:
             try:
-                write_frame(to_child, {"kind": "stop"})
-                to_child.close()
+                write_frame(self.to_child, {"kind": "stop"})
+                self.to_child.close()
             except (BrokenPipeError, ValueError, OSError):
                 pass
         try:
-            child.wait(10)
+            self.child.wait(10)
         except subprocess.TimeoutExpired:
-            child.kill()
-            child.wait()
+            self.child.kill()
+            self.child.wait()
+
+
+def _run_relayed(home: Any, ros_python: str, ros_arguments: Sequence[str], node_name: str, uses_images: bool,
+                 n_concepts: int, stop: threading.Event,
+                 ready: Callable[[NodeCore, Mapping[str, str]], None] | None,
+                 echo: Callable[[str], None]) -> dict[str, int]:
+    """The core here, the ROS 2 side in ``ros_python`` running :data:`THIN_NODE`."""
+    relay = _Relay(ros_python, ros_arguments, node_name, stop, echo)
+    previous = _signals(stop)
+    relay.start_reading()
+    try:
+        relay.wait_until_up()
+        send = relay.send
+        core = relay.core = NodeCore(
+            home, relay.settings, publish_answer=lambda d: send("answer", d),
+            publish_goal=lambda d: send("goal", d), publish_markers=lambda d: send("markers", d),
+            publish_poses=lambda d: send("poses", d), now=relay.clock, uses_images=uses_images,
+            n_concepts=n_concepts)
+        core.start()
+        if ready is not None:
+            ready(core, relay.names)
+        while not stop.wait(0.2):
+            if relay.child.poll() is not None:
+                break
+    finally:
+        relay.close()
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+    core = relay.core
     counts = {"taught": core.taught if core else 0, "answered": core.answered if core else 0}
     echo(f"spco ros2: stopped after {_count(counts['taught'], 'teaching')} and "
          f"{_count(counts['answered'], 'answer')}")

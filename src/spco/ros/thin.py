@@ -164,6 +164,26 @@ class Backend(Protocol):
     def query(self, text: str) -> None: ...
 
 
+def _qos_profiles() -> dict[str, Any]:
+    """The node's QoS: ``reliable`` (queries, answers, speech), ``latched`` (the last markers and
+    where poses), ``best_effort`` (poses, /tf), ``static`` (/tf_static), ``camera`` (the newest frames)."""
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+    keep_last = HistoryPolicy.KEEP_LAST
+    return {
+        "reliable": QoSProfile(history=keep_last, depth=100, reliability=ReliabilityPolicy.RELIABLE,
+                               durability=DurabilityPolicy.VOLATILE),
+        "latched": QoSProfile(history=keep_last, depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                              durability=DurabilityPolicy.TRANSIENT_LOCAL),
+        "best_effort": QoSProfile(history=keep_last, depth=100, reliability=ReliabilityPolicy.BEST_EFFORT,
+                                  durability=DurabilityPolicy.VOLATILE),
+        "static": QoSProfile(history=keep_last, depth=100, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL),
+        "camera": QoSProfile(history=keep_last, depth=5, reliability=ReliabilityPolicy.BEST_EFFORT,
+                             durability=DurabilityPolicy.VOLATILE),  # sensor data: the newest frames
+    }
+
+
 class Ros2Transport:
     """The node on the ROS 2 graph: parameters, subscriptions and publishers; messages go to ``backend``.
 
@@ -171,20 +191,9 @@ class Ros2Transport:
     ``--params-file``, ``--log-level``). ``echo`` gets the start-up line.
     """
 
-    # too many statements: the thin rclpy side, arrived at the last merge; to split
-    def __init__(self, backend: Backend, ros_arguments: Sequence[str] = (), node_name: str = "spco",  # noqa: PLR0915
+    def __init__(self, backend: Backend, ros_arguments: Sequence[str] = (), node_name: str = "spco",
                  echo: Callable[[str], None] = print) -> None:
         import rclpy
-        from geometry_msgs.msg import PoseArray, PoseStamped
-        from rcl_interfaces.msg import (
-            FloatingPointRange,
-            IntegerRange,
-            ParameterDescriptor,
-            SetParametersResult,
-        )
-        from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-        from std_msgs.msg import String
-        from visualization_msgs.msg import MarkerArray
 
         self.rclpy, self.backend = rclpy, backend
         self.context = rclpy.Context()
@@ -195,7 +204,31 @@ class Ros2Transport:
                        signal_handler_options=SignalHandlerOptions.NO)
         except ImportError:  # older rclpy: no signal handler options
             rclpy.init(args=["spco", *ros_arguments], context=self.context)
-        node = self.node = rclpy.create_node(node_name, context=self.context)
+        self.node = rclpy.create_node(node_name, context=self.context)
+        values = self.values = self._declare_parameters()
+        pose_type = full_type(str(values["pose_type"]), POSE_TYPES, "pose_type")
+        image_type = full_type(str(values["image_type"]), IMAGE_TYPES, "image_type")
+        reason = backend.check(values)
+        if reason is not None:
+            raise ParameterError(reason)
+        self.node.add_on_set_parameters_callback(self._on_parameters)
+        qos = _qos_profiles()
+        self._make_publishers(qos)
+        from_tf = self._subscribe_inputs(qos, pose_type, image_type)
+        self._refused: set[tuple[str, str]] = set()
+        self.timer = self.node.create_timer(0.25, self._resolve_types)
+        self._resolve_types()
+        self.names = self._topic_names(from_tf)
+        names = self.names
+        echo(f"spco ros2: node {names['node']}; listening to pose {names['pose']}, image {names['image']}, "
+             f"speech {names['speech']}; queries on {names['query']}, answers on {names['answer']}, markers "
+             f"on {names['markers']}, where poses on {names['where']}, goals on {names['goal']} "
+             f"({'every where' if values['goal'] else 'when a query asks'})")
+
+    def _declare_parameters(self) -> dict[str, Any]:
+        """Declare :data:`PARAMETERS` on the node (descriptions, ranges); their values as given."""
+        from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+
         values: dict[str, Any] = {}
         for name, spec in PARAMETERS.items():
             descriptor = ParameterDescriptor(description=spec.description, read_only=spec.read_only)
@@ -206,86 +239,90 @@ class Ros2Transport:
             elif ranged and isinstance(spec.default, int) and not isinstance(spec.default, bool):
                 descriptor.integer_range = [IntegerRange(from_value=int(spec.low), to_value=int(spec.high),
                                                          step=1)]
-            values[name] = node.declare_parameter(name, spec.default, descriptor).value
-        self.values = values
-        pose_type = full_type(str(values["pose_type"]), POSE_TYPES, "pose_type")
-        image_type = full_type(str(values["image_type"]), IMAGE_TYPES, "image_type")
-        reason = backend.check(values)
-        if reason is not None:
-            raise ParameterError(reason)
+            values[name] = self.node.declare_parameter(name, spec.default, descriptor).value
+        return values
 
-        def on_parameters(changes: list[Any]) -> Any:
-            merged = {k: node.get_parameter(k).value for k in PARAMETERS}
-            merged.update({p.name: p.value for p in changes if p.name in PARAMETERS})
-            problem = backend.check(merged)
-            if problem is None:
-                self.values = merged
-                log.info("spco ros2: parameters %s", ", ".join(f"{p.name}={p.value!r}" for p in changes))
-            return SetParametersResult(successful=problem is None, reason=problem or "")
+    def _on_parameters(self, changes: list[Any]) -> Any:
+        """A parameter change, accepted (and in force) if the backend accepts the merged values."""
+        from rcl_interfaces.msg import SetParametersResult
 
-        node.add_on_set_parameters_callback(on_parameters)
+        merged = {k: self.node.get_parameter(k).value for k in PARAMETERS}
+        merged.update({p.name: p.value for p in changes if p.name in PARAMETERS})
+        problem = self.backend.check(merged)
+        if problem is None:
+            self.values = merged
+            log.info("spco ros2: parameters %s", ", ".join(f"{p.name}={p.value!r}" for p in changes))
+        return SetParametersResult(successful=problem is None, reason=problem or "")
 
-        keep_last = HistoryPolicy.KEEP_LAST
-        reliable = QoSProfile(history=keep_last, depth=100, reliability=ReliabilityPolicy.RELIABLE,
-                              durability=DurabilityPolicy.VOLATILE)
-        latched = QoSProfile(history=keep_last, depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        best_effort = QoSProfile(history=keep_last, depth=100, reliability=ReliabilityPolicy.BEST_EFFORT,
-                                 durability=DurabilityPolicy.VOLATILE)
-        camera_qos = QoSProfile(history=keep_last, depth=5, reliability=ReliabilityPolicy.BEST_EFFORT,
-                                durability=DurabilityPolicy.VOLATILE)  # sensor data: the newest frames
+    def _make_publishers(self, qos: Mapping[str, Any]) -> None:
+        from geometry_msgs.msg import PoseArray, PoseStamped
+        from rclpy.qos import QoSProfile
+        from std_msgs.msg import String
+        from visualization_msgs.msg import MarkerArray
+
+        node = self.node
         self._String, self._PoseStamped = String, PoseStamped
         self._MarkerArray, self._PoseArray = MarkerArray, PoseArray
-        self.answers = node.create_publisher(String, "~/answer", reliable)
+        self.answers = node.create_publisher(String, "~/answer", qos["reliable"])
         self.goals = node.create_publisher(PoseStamped, "goal_pose", QoSProfile(depth=10))
-        self.poses = node.create_publisher(PoseArray, "~/where", latched)
-        self.markers = node.create_publisher(MarkerArray, "~/markers", latched)
+        self.poses = node.create_publisher(PoseArray, "~/where", qos["latched"])
+        self.markers = node.create_publisher(MarkerArray, "~/markers", qos["latched"])
+
+    def _subscribe_inputs(self, qos: Mapping[str, Any], pose_type: str | None,
+                          image_type: str | None) -> bool:
+        """Subscribe the query, speech, pose (or /tf) and image topics (those of type ``auto`` once their
+        type is known); whether the pose comes from /tf."""
+        from std_msgs.msg import String
+
+        node, backend, values = self.node, self.backend, self.values
         self.subscriptions: list[Any] = [node.create_subscription(
-            String, "~/query", lambda m: backend.query(m.data), reliable)]
+            String, "~/query", lambda m: backend.query(m.data), qos["reliable"])]
         speech_topic = str(values["speech_topic"])
         if speech_topic:
             self.subscriptions.append(node.create_subscription(
-                String, speech_topic, lambda m: backend.speech(m.data, self.now()), reliable))
+                String, speech_topic, lambda m: backend.speech(m.data, self.now()), qos["reliable"]))
         pose_topic = str(values["pose_topic"])
         self.pending: dict[str, tuple[tuple[str, ...], Callable[[dict[str, Any], float], None], Any]] = {}
         from_tf = pose_topic.strip("/") == "tf"
         if from_tf:
-            try:
-                from tf2_msgs.msg import TFMessage
-            except ImportError:
-                raise ParameterError("pose_topic /tf needs the tf2_msgs package (ros-<distro>-tf2-msgs, part "
-                                     "of any ROS 2 installation); or give a pose topic "
-                                     "(-p pose_topic:=/amcl_pose)") from None
-            static_qos = QoSProfile(history=keep_last, depth=100, reliability=ReliabilityPolicy.RELIABLE,
-                                    durability=DurabilityPolicy.TRANSIENT_LOCAL)
-            self.subscriptions.append(node.create_subscription(
-                TFMessage, "/tf", lambda m: backend.tf(message_to_dict(m), False, self.now()), best_effort))
-            self.subscriptions.append(node.create_subscription(
-                TFMessage, "/tf_static", lambda m: backend.tf(message_to_dict(m), True, self.now()),
-                static_qos))
+            self._subscribe_tf(qos)
         elif pose_type is not None:
-            self._subscribe(pose_topic, pose_type, backend.pose, best_effort)
+            self._subscribe(pose_topic, pose_type, backend.pose, qos["best_effort"])
         else:
-            self.pending[pose_topic] = (POSE_TYPES, backend.pose, best_effort)
+            self.pending[pose_topic] = (POSE_TYPES, backend.pose, qos["best_effort"])
         image_topic = str(values["image_topic"])
         if image_topic and image_type is not None:
-            self._subscribe(image_topic, image_type, backend.image, camera_qos)
+            self._subscribe(image_topic, image_type, backend.image, qos["camera"])
         elif image_topic:
-            self.pending[image_topic] = (IMAGE_TYPES, backend.image, camera_qos)
-        self._refused: set[tuple[str, str]] = set()
-        self.timer = node.create_timer(0.25, self._resolve_types)
-        self._resolve_types()
-        self.names = {"node": node.get_fully_qualified_name(), "query": node.resolve_topic_name("~/query"),
-                      "answer": self.answers.topic_name, "markers": self.markers.topic_name,
-                      "where": self.poses.topic_name, "goal": self.goals.topic_name,
-                      "pose": "/tf + /tf_static" if from_tf else node.resolve_topic_name(pose_topic),
-                      "image": node.resolve_topic_name(image_topic) if image_topic else "(none)",
-                      "speech": node.resolve_topic_name(speech_topic) if speech_topic else "(none)"}
-        names = self.names
-        echo(f"spco ros2: node {names['node']}; listening to pose {names['pose']}, image {names['image']}, "
-             f"speech {names['speech']}; queries on {names['query']}, answers on {names['answer']}, markers "
-             f"on {names['markers']}, where poses on {names['where']}, goals on {names['goal']} "
-             f"({'every where' if values['goal'] else 'when a query asks'})")
+            self.pending[image_topic] = (IMAGE_TYPES, backend.image, qos["camera"])
+        return from_tf
+
+    def _subscribe_tf(self, qos: Mapping[str, Any]) -> None:
+        try:
+            from tf2_msgs.msg import TFMessage
+        except ImportError:
+            raise ParameterError("pose_topic /tf needs the tf2_msgs package (ros-<distro>-tf2-msgs, part "
+                                 "of any ROS 2 installation); or give a pose topic "
+                                 "(-p pose_topic:=/amcl_pose)") from None
+        node, backend = self.node, self.backend
+        self.subscriptions.append(node.create_subscription(
+            TFMessage, "/tf", lambda m: backend.tf(message_to_dict(m), False, self.now()),
+            qos["best_effort"]))
+        self.subscriptions.append(node.create_subscription(
+            TFMessage, "/tf_static", lambda m: backend.tf(message_to_dict(m), True, self.now()),
+            qos["static"]))
+
+    def _topic_names(self, from_tf: bool) -> dict[str, str]:
+        """The node's and its topics' resolved names (the start-up line's)."""
+        node, values = self.node, self.values
+        pose_topic, image_topic = str(values["pose_topic"]), str(values["image_topic"])
+        speech_topic = str(values["speech_topic"])
+        return {"node": node.get_fully_qualified_name(), "query": node.resolve_topic_name("~/query"),
+                "answer": self.answers.topic_name, "markers": self.markers.topic_name,
+                "where": self.poses.topic_name, "goal": self.goals.topic_name,
+                "pose": "/tf + /tf_static" if from_tf else node.resolve_topic_name(pose_topic),
+                "image": node.resolve_topic_name(image_topic) if image_topic else "(none)",
+                "speech": node.resolve_topic_name(speech_topic) if speech_topic else "(none)"}
 
     def now(self) -> float:
         """The node's clock in seconds (ROS time: simulated time under ``use_sim_time``)."""

@@ -54,13 +54,10 @@ from spco.features.pixels import SERVED_MAX_PIXELS, ImageError, encoded_size
 from spco.service.errors import FRAMEWORK_MESSAGES, answer_for, error_response, validation_answer
 from spco.service.live import LiveHome
 from spco.service.routes import EventHub, api, page
-from spco.service.security import LOOPBACK_HOSTS, Guard, Sessions
+from spco.service.security import LOOPBACK_HOSTS, PAGE, SESSION_COOKIE, Guard, Sessions, login_html
 
 __all__ = ["LOOPBACK_HOSTS", "PAGE", "SESSION_COOKIE", "ServeSettings", "create_app", "login_html"]
 
-#: The page's session cookie.
-SESSION_COOKIE = "spco_session"
-PAGE = Path(__file__).with_name("page")
 #: Bytes of a request body besides its view (the pose, the sentence, JSON's punctuation).
 BODY_OVERHEAD = 8 * 1024
 #: The longest text of one visual count in JSON, with its comma and a space.
@@ -106,16 +103,6 @@ class ServeSettings:
     allowed_origins: list[str] = field(default_factory=list)
     map_image: Path | None = None
     map_extent: tuple[float, float, float, float] | None = None
-
-
-def login_html(message: str | None = None) -> str:
-    """The sign-in page (with an error ``message``)."""
-    text = (PAGE / "login.html").read_text(encoding="utf-8")
-    if message:
-        from html import escape
-
-        text = text.replace("<!--message-->", f"<p class=error>{escape(message)}</p>")
-    return text
 
 
 def view_body_limit(live: LiveHome, settings: ServeSettings) -> int:

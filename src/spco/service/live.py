@@ -60,7 +60,7 @@ from spco.knowledge.requests import (
 )
 from spco.service.answers import ask_answer, check_pose, regions_answer, what_answer, where_answer
 from spco.service.journal import TornRecordWarning, journal_path
-from spco.service.teaching import ConflictError, NotFoundError, served_info
+from spco.service.teaching import ConflictError, NotFoundError, served_info, view_record
 from spco.service.writer import ProcessWriter, ThreadWriter, WriterUnavailableError
 
 __all__ = ["MAX_POSES", "MAX_QUESTIONS", "MAX_TOP", "LiveHome", "Subscription"]
@@ -377,9 +377,9 @@ class LiveHome:
         pose = request.pose
         assert pose is not None  # Teach holds an id or a pose
         check_pose(self._snapshot, pose)
-        counts = self.view_counts(request.view)
+        view = view_record(self._snapshot, self.view_counts(request.view))
         return self._submit({"op": "observation", "x": pose.x, "y": pose.y, "theta": pose.theta,
-                             "sentence": request.sentence, "visual": counts})
+                             "sentence": request.sentence, "view": view})
 
     def submit_teach(self, *, sentence: str | None = None, id: int | None = None, x: float | None = None,
                      y: float | None = None, theta: float | None = None, image: Any = None,

@@ -40,12 +40,14 @@ from spco.service.schemas import (
     ErrorAnswer,
     HealthAnswer,
     RegionsAnswer,
+    RevokedAnswer,
     TeachAnswer,
     TeachBody,
     WhatAnswer,
     WhatBody,
     WhereAnswer,
 )
+from spco.service.security import PAGE, SESSION_COOKIE, login_html
 
 __all__ = ["EventHub", "api", "page"]
 
@@ -273,15 +275,11 @@ async def events(request: Request, types: Annotated[str | None, Query(max_length
 # ---------------------------------------------------------------------------- the page and signing in
 @page.get("/")
 async def index() -> Response:
-    from spco.service.app import PAGE
-
     return FileResponse(PAGE / "index.html", headers={"Cache-Control": "no-cache"})
 
 
 @page.get("/page/{name}")
 async def page_file(name: str) -> Response:
-    from spco.service.app import PAGE
-
     if name not in ("app.js", "style.css"):
         return error_response(404, "no such page file")
     return FileResponse(PAGE / name, headers={"Cache-Control": "no-cache"})
@@ -289,8 +287,6 @@ async def page_file(name: str) -> Response:
 
 @page.get("/login")
 async def login_page(request: Request) -> Response:
-    from spco.service.app import login_html
-
     if "token" in request.query_params:
         return error_response(400, "the token never goes in a URL (proxies and browsers log URLs): sign in "
                                    "with the form (POST /login, token in the body)")
@@ -300,8 +296,6 @@ async def login_page(request: Request) -> Response:
 @page.post("/login")
 async def login(request: Request) -> Response:
     from urllib.parse import parse_qs
-
-    from spco.service.app import SESSION_COOKIE, login_html
 
     sessions = request.app.state.sessions
     if sessions is None:
@@ -318,8 +312,6 @@ async def login(request: Request) -> Response:
 
 @page.post("/logout")
 async def logout(request: Request) -> Response:
-    from spco.service.app import SESSION_COOKIE
-
     sessions = request.app.state.sessions
     if sessions is not None:
         sessions.revoke(request.cookies.get(SESSION_COOKIE, ""))
@@ -329,7 +321,7 @@ async def logout(request: Request) -> Response:
     return response
 
 
-@api.delete("/sessions", summary="Sign every page out (revoke all sessions)")
+@api.delete("/sessions", summary="Sign every page out (revoke all sessions)", response_model=RevokedAnswer)
 async def revoke_sessions(request: Request) -> Response:
     sessions = request.app.state.sessions
     if sessions is None:

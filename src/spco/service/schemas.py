@@ -18,8 +18,8 @@ from pydantic import BaseModel, ConfigDict, Field
 from spco.features.pixels import ImageError
 from spco.knowledge.requests import MAX_ID, MAX_SENTENCE_CHARS, MAX_TOP, Pose, Teach, View, What
 
-__all__ = ["AskAnswer", "ErrorAnswer", "HealthAnswer", "RegionsAnswer", "TeachAnswer", "TeachBody",
-           "ViewBody", "WhatAnswer", "WhatBody", "WhereAnswer"]
+__all__ = ["AskAnswer", "ErrorAnswer", "HealthAnswer", "RegionsAnswer", "RevokedAnswer", "TeachAnswer",
+           "TeachBody", "ViewBody", "WhatAnswer", "WhatBody", "WhereAnswer"]
 
 Finite = Annotated[float, Field(strict=True, allow_inf_nan=False)]
 
@@ -207,6 +207,12 @@ class RegionsAnswer(BaseModel):
     teachings: int
     seq: int
     map: dict[str, Any] | None
+
+
+class RevokedAnswer(BaseModel):
+    """``DELETE /sessions``: how many of the page's sessions were signed out."""
+
+    revoked: int
 
 
 class ErrorAnswer(BaseModel):

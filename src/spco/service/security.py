@@ -30,20 +30,37 @@ import hmac
 import secrets
 import time
 from collections.abc import Awaitable, Callable
+from pathlib import Path
 from typing import Any
 
 from starlette.responses import HTMLResponse, Response
 
 from spco.service.errors import error_response
 
-__all__ = ["LOOPBACK_HOSTS", "SECURITY_HEADERS", "Guard", "Sessions"]
+__all__ = ["LOOPBACK_HOSTS", "PAGE", "SECURITY_HEADERS", "SESSION_COOKIE", "Guard", "Sessions", "login_html"]
 
+#: The page's session cookie.
+SESSION_COOKIE = "spco_session"
+#: The page's files (HTML, JS, CSS).
+PAGE = Path(__file__).with_name("page")
 #: The host names every server answers to (``--allowed-host`` adds more).
 LOOPBACK_HOSTS = ["127.0.0.1", "localhost", "[::1]", "::1"]
 
 Scope = dict[str, Any]
 Receive = Callable[[], Awaitable[dict[str, Any]]]
 Send = Callable[[dict[str, Any]], Awaitable[None]]
+
+
+
+def login_html(message: str | None = None) -> str:
+    """The sign-in page (with an error ``message``)."""
+    text = (PAGE / "login.html").read_text(encoding="utf-8")
+    if message:
+        from html import escape
+
+        text = text.replace("<!--message-->", f"<p class=error>{escape(message)}</p>")
+    return text
+
 
 #: The headers every answer carries.
 SECURITY_HEADERS = [
@@ -161,8 +178,6 @@ class Guard:
         if auth[:7].lower() == "bearer " and hmac.compare_digest(auth[7:].strip().encode("latin-1"),
                                                                  self.token):
             return True
-        from spco.service.app import SESSION_COOKIE
-
         for part in (_header(scope, b"cookie") or "").split(";"):
             name, _, value = part.strip().partition("=")
             if name == SESSION_COOKIE and self.sessions is not None and self.sessions.valid(value):
@@ -259,8 +274,6 @@ class Guard:
         path, method = scope["path"], scope["method"]
         if path not in OPEN_PATHS and not self._authorised(scope):
             if method == "GET" and path == "/":
-                from spco.service.app import login_html
-
                 response: Response = HTMLResponse(login_html(), status_code=401)
             else:
                 response = error_response(401, "this server needs its token: Authorization: Bearer TOKEN "

@@ -1,9 +1,11 @@
 """Teachings of a served home as journal records: validated, applied in batches, replayed, undone.
 
-A teaching arrives as a request (a sentence for a known sample, or a new observation: a pose, an
-optional view and a sentence), is validated against the home (:func:`sentence_record`,
-:func:`observation_record`), given a sequence number, and applied together with the teachings
-that arrived with it by one :func:`spco.knowledge.teach` call (:func:`apply_batch`). The journal
+A teaching arrives as a request checked where it entered (a
+:class:`~spco.knowledge.requests.Teach`; its pose on the map and its view's counts checked by
+:meth:`spco.service.LiveHome.submit`, the counts as :func:`view_record`), becomes a record against
+the writer's home (:func:`sentence_record`: the sample must be known; :func:`observation_record`: a
+given id must be new), is given a sequence number, and applied together with the teachings that
+arrived with it by one :func:`spco.knowledge.teach` call (:func:`apply_batch`). The journal
 record (:mod:`spco.service.journal`) holds the request as applied — the sample id an observation
 got, its visual counts (an image is turned into counts before it is recorded), the batch, its seed
 and its sweeps — so that :func:`replay` of the records from the home file gives the same home,
@@ -56,9 +58,8 @@ import scipy.sparse as sp
 
 from spco import knowledge as kn
 from spco.errors import ConfigurationError, SpcoError
-from spco.knowledge.requests import MAX_SENTENCE_CHARS, clean_sentence
+from spco.knowledge.requests import MAX_SENTENCE_CHARS
 from spco.model.prediction import validate_visual_counts
-from spco.service.answers import check_pose
 from spco.service.journal import JournalError, journal_path, read_journal
 from spco.timestamps import utc_now
 
@@ -73,7 +74,6 @@ __all__ = [
     "apply_batch",
     "batches",
     "check_journal_matches",
-    "check_pose",
     "file_digest",
     "history_of",
     "load_current",
@@ -142,12 +142,6 @@ def with_history(home: kn.HomeModel, history: dict[int, dict[str, Any]] | None) 
 
 # ---------------------------------------------------------------------------- requests -> records
 
-def _sample_id(value: object, what: str = "id") -> int:
-    if isinstance(value, bool) or not isinstance(value, int | np.integer):
-        raise ConfigurationError(f"{what}: expected an integer sample id, got {value!r}")
-    return int(value)
-
-
 def _check_known(home: kn.HomeModel, sample_id: int) -> None:
     if not (home.ids == sample_id).any():
         raise NotFoundError(f"home {home.name!r} has no sample with id {sample_id} (its {home.n_samples} "
@@ -155,22 +149,23 @@ def _check_known(home: kn.HomeModel, sample_id: int) -> None:
                             "place by its pose instead")
 
 
-def sentence_record(home: kn.HomeModel, sample_id: object, sentence: object) -> dict[str, Any]:
-    """The record of a sentence for the known sample ``sample_id`` (``None`` or ``""`` forgets it).
+def sentence_record(home: kn.HomeModel, sample_id: int, sentence: str | None) -> dict[str, Any]:
+    """The record of a checked sentence (:class:`~spco.knowledge.requests.Teach`: stripped, ``None``
+    forgets the sample's sentence) for the known sample ``sample_id``.
 
-    Raises :class:`NotFoundError` for an id the home does not have, :class:`ConfigurationError` for
-    a sentence that is not a string (or longer than :data:`MAX_SENTENCE_CHARS`).
+    Raises :class:`NotFoundError` for an id the home does not have.
     """
-    sample = _sample_id(sample_id)
+    sample = int(sample_id)
     _check_known(home, sample)
-    return {"op": "sentence", "id": sample, "sentence": clean_sentence(sentence)}
+    return {"op": "sentence", "id": sample, "sentence": sentence}
 
 
 def view_record(home: kn.HomeModel, counts: object) -> dict[str, list[int]] | None:
     """A view's visual counts as ``{"indices", "counts"}`` (its non-zero entries), ``None`` for none.
 
     ``counts``: a (D,) vector of whole numbers ≥ 0, D the home's visual dimension (an image is
-    turned into counts by :meth:`spco.service.live.LiveHome.view_counts` first)."""
+    turned into counts by :meth:`spco.service.live.LiveHome.view_counts` first). Raises
+    :class:`ConfigurationError` for anything else."""
     if counts is None:
         return None
     if not sp.issparse(counts) and np.ndim(counts) != 1:
@@ -184,19 +179,19 @@ def view_record(home: kn.HomeModel, counts: object) -> dict[str, list[int]] | No
     return {"indices": [int(i) for i in row.indices], "counts": [int(c) for c in row.data]}
 
 
-def observation_record(home: kn.HomeModel, x: object, y: object, theta: object, sentence: object = None,
-                       counts: object = None, sample_id: object = None) -> dict[str, Any]:
-    """The record of a new observation: a pose, an optional view (visual counts) and a sentence.
+def observation_record(home: kn.HomeModel, x: float, y: float, theta: float, sentence: str | None = None,
+                       view: dict[str, list[int]] | None = None, sample_id: int | None = None
+                       ) -> dict[str, Any]:
+    """The record of a checked new observation: its pose (a :class:`~spco.knowledge.requests.Pose` on
+    the home's map), its view (:func:`view_record`, ``None`` for none) and its sentence.
 
     ``sample_id`` (optional) must be new to the home (:class:`ConflictError` otherwise); without it
-    the writer gives the sample one more than the largest id. Raises :class:`ConfigurationError`
-    for a bad pose (:func:`check_pose`), view or sentence.
+    the writer gives the sample one more than the largest id.
     """
-    px, py, ptheta = check_pose(home, x, y, theta)
-    record: dict[str, Any] = {"op": "observation", "id": None, "x": px, "y": py, "theta": ptheta,
-                              "sentence": clean_sentence(sentence), "view": view_record(home, counts)}
+    record: dict[str, Any] = {"op": "observation", "id": None, "x": float(x), "y": float(y),
+                              "theta": float(theta), "sentence": sentence, "view": view}
     if sample_id is not None:
-        sample = _sample_id(sample_id)
+        sample = int(sample_id)
         if (home.ids == sample).any():
             raise ConflictError(f"home {home.name!r} already has a sample with id {sample}")
         record["id"] = sample

@@ -219,10 +219,12 @@ class HomeWriter:
     def handle(self, requests: list[dict[str, Any]]) -> list[dict[str, Any]]:
         """Apply ``requests`` (in order) and return one result each.
 
-        A request is ``{"op": "sentence", "id", "sentence"}``, ``{"op": "observation", "x", "y",
-        "theta", "sentence", "id" (optional), "visual" (counts or None)}`` or ``{"op": "undo",
-        "seq"}``. A result is ``{"ok": True, "seq", …}`` once the teaching is in the journal
-        (``fsync``-ed), or :func:`error_result`.
+        A request, checked where it entered (:meth:`spco.service.LiveHome.submit`), is ``{"op":
+        "sentence", "id", "sentence"}``, ``{"op": "observation", "x", "y", "theta", "sentence", "id"
+        (optional), "view" (:func:`~spco.service.teaching.view_record`, or None)}`` or ``{"op": "undo",
+        "seq"}``; what is checked here is what needs the writer's home: a known sample, a new id, a
+        teaching that can be undone, the teaching limits. A result is ``{"ok": True, "seq", …}`` once
+        the teaching is in the journal (``fsync``-ed), or :func:`error_result`.
         """
         results: list[dict[str, Any] | None] = [None] * len(requests)
         batch: list[tuple[int, dict[str, Any]]] = []
@@ -248,11 +250,11 @@ class HomeWriter:
                 if op == "sentence":
                     if request.get("id") in added:
                         flush()
-                    record = sentence_record(self.home, request.get("id"), request.get("sentence"))
+                    record = sentence_record(self.home, request["id"], request.get("sentence"))
                 elif op == "observation":
-                    record = observation_record(self.home, request.get("x"), request.get("y"),
-                                                request.get("theta"), request.get("sentence"),
-                                                request.get("visual"), request.get("id"))
+                    record = observation_record(self.home, request["x"], request["y"], request["theta"],
+                                                request.get("sentence"), request.get("view"),
+                                                request.get("id"))
                     if record["id"] is None:
                         record["id"] = max(int(self.home.ids.max()), *added) + 1 if added \
                             else int(self.home.ids.max()) + 1
