@@ -36,6 +36,7 @@ def from_files_alone(monkeypatch: pytest.MonkeyPatch):
         monkeypatch.setattr(lexicon_module, "_load", no_wordnet)
         monkeypatch.setattr(lexicon_module, "_facts_memory", {})
         monkeypatch.setattr(lexicon_module, "_kinds_memory", {})
+        monkeypatch.setattr(lexicon_module, "_closest_memory", {})
 
     return forbid_wordnet
 
@@ -95,7 +96,7 @@ def test_cached_kind_facts_give_the_lexicon_s_evidence_and_need_no_wordnet_once_
 
 
 def test_stand_ins_from_the_cache_files_equal_the_lexicon_s_and_need_no_wordnet_once_asked(
-        wordnet, empty_cache, monkeypatch: pytest.MonkeyPatch) -> None:
+        wordnet, empty_cache, from_files_alone, monkeypatch: pytest.MonkeyPatch) -> None:
     """stand_in_names without a lexicon asks the lexicon's cache files (word facts and
     closest_names): the same stand-ins as the lexicon, and a new process whose questions are all in
     the files never loads WordNet."""
@@ -114,13 +115,7 @@ def test_stand_ins_from_the_cache_files_equal_the_lexicon_s_and_need_no_wordnet_
     assert unheard.stand_in_names(vocab, mask, prior, asked) == direct  # computes and writes the files
     files = list(empty_cache.glob("wordnet-closest-*.json"))
     assert len(files) == 1 and json.loads(files[0].read_text())["format"] == lexicon_module._CLOSEST_FORMAT
-
-    def no_wordnet(folder: str):
-        raise AssertionError("WordNet loaded although every question is in the files")
-
-    monkeypatch.setattr(lexicon_module, "_load", no_wordnet)
-    monkeypatch.setattr(lexicon_module, "_facts_memory", {})  # a new process: from the files alone
-    monkeypatch.setattr(lexicon_module, "_closest_memory", {})
+    from_files_alone()
     monkeypatch.setattr(unheard, "_STAND_IN_CACHE", {})
     assert unheard.stand_in_names(vocab, mask, prior, asked) == direct
     monkeypatch.setenv("SPCO_WORDNET", "off")
