@@ -288,7 +288,7 @@ def test_demo_knows_whether_its_kernels_are_compiled() -> None:
 
 
 def test_show_draws_the_rooms_of_the_home(files: dict[str, Path], tmp_path: Path) -> None:
-    from spco.cli.knowledge import _room_outlines
+    from spco.cli.show import _room_outlines
 
     home = kn.load_home_model(files["home"])
     rooms = _room_outlines(home, None)  # the regions.json of the folder the home was adapted from

@@ -18,7 +18,8 @@ from click.testing import CliRunner
 from conftest import synthetic_home_folders
 
 from spco import knowledge as kn
-from spco.cli.knowledge import adapt, fit, show, teach, what, where
+from spco.cli.knowledge import adapt, fit, teach, what, where
+from spco.cli.show import show
 from spco.data.environment import Corpus
 from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.errors import ConfigurationError, DataFormatError, ModelFileError

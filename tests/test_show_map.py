@@ -113,7 +113,7 @@ def test_regions_home_chooses_the_key_of_a_regions_file(tour_home_file: Path, tm
     assert result.exit_code == 2 and "give --regions too" in result.output
     # a room beyond the home's extent (x 12.5) is not clipped off: the axes reach it
     from spco import plots
-    from spco.cli.knowledge import _room_outlines
+    from spco.cli.show import _room_outlines
     from spco.data.environment import make_ground_truth
 
     home = load_home_model(tour_home_file)

@@ -39,6 +39,7 @@ def _register_commands() -> None:
     from spco.cli.knowledge import KNOWLEDGE_COMMANDS
     from spco.cli.ros import ros, ros2
     from spco.cli.serve import serve
+    from spco.cli.show import show
 
     for command in DATA_COMMANDS:  # inspect, import, synth
         main.add_command(command)
@@ -50,8 +51,9 @@ def _register_commands() -> None:
     main.add_command(import_bag)
     main.add_command(ros)
     main.add_command(ros2)
-    for command in KNOWLEDGE_COMMANDS:  # fit, adapt, where, what, teach, show
+    for command in KNOWLEDGE_COMMANDS:  # fit, adapt, where, what, teach
         main.add_command(command)
+    main.add_command(show)
     main.add_command(ask)
     main.add_command(serve)
 
