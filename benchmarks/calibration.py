@@ -85,6 +85,7 @@ class Task:
     seed: int
     homes: tuple[str, ...]
     set_name: str
+    settings: tuple[str, ...] = ()  # ``--set NAME=VALUE`` of the knowledge's hyperparameters
 
 
 def _load(data: Path, images: Path | None, names: Sequence[str], features: str, rate: int) -> list[Any]:
@@ -110,7 +111,13 @@ def _knowledge(task: Task, data: Path, images: Path | None, models: Path, force:
     experienced = [h for h in PAPER_EXPERIENCED_HOMES[: task.size] if h not in task.homes]
     homes = _load(data, images, experienced, task.features, 100)
     extractor = None if task.features == "fc7" else build_extractor(task.features)
-    knowledge = kn.fit_knowledge(Corpus(homes), random_state=task.seed, extractor=extractor)
+    hyper = None
+    if task.settings:  # the defaults' scaled prior (as without settings), then the settings: `spco fit --set`
+        from spco.knowledge.fit import default_hyperparameters
+
+        hyper = default_hyperparameters(Corpus(homes)).with_settings(list(task.settings))
+    knowledge = kn.fit_knowledge(Corpus(homes), random_state=task.seed, extractor=extractor,
+                                 hyperparameters=hyper)
     knowledge.save(k_file, overwrite=True)
     return knowledge
 
@@ -410,6 +417,9 @@ def _arguments(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument("--first-seeds", type=int, default=None,
                         help="only the first N seeds of each set (a quick development look)")
     parser.add_argument("--sizes", default=None, help="only these experienced-home set sizes, e.g. 4,8")
+    parser.add_argument("--set", dest="settings", action="append", default=[], metavar="NAME=VALUE",
+                        help="a hyperparameter of the knowledge fits, as `spco fit --set` (e.g. "
+                             "view_counts=estimate); use a fresh --out: kept models are not checked")
     args = parser.parse_args(argv)
     args.sets = [s for s in args.sets.split(",") if s]
     args.features = [f for f in args.features.split(",") if f]
@@ -419,6 +429,14 @@ def _arguments(argv: Sequence[str] | None) -> argparse.Namespace:
     for f in args.features:
         if f not in FEATURES:
             parser.error(f"--features: unknown {f!r}; choose from {', '.join(FEATURES)}")
+    if args.settings:
+        from spco.errors import SpcoError
+        from spco.model.hyperparameters import TransferHyperparameters
+
+        try:
+            TransferHyperparameters().with_settings(list(args.settings))
+        except SpcoError as err:
+            parser.error(f"--set: {err}")
     return args
 
 
@@ -439,7 +457,8 @@ def _print_view_counts_fit(args: argparse.Namespace, models: Path) -> None:
 
 def _predictions(args: argparse.Namespace, models: Path, start: float) -> list[dict[str, Any]]:
     """Every configuration's answers (``args.jobs`` processes), also written to predictions.jsonl."""
-    tasks = [Task(f, size, seed, SETS[s]["homes"], s) for s in args.sets for f in args.features
+    tasks = [Task(f, size, seed, SETS[s]["homes"], s, tuple(args.settings))
+             for s in args.sets for f in args.features
              for size in SETS[s]["sizes"] if args.sizes is None or str(size) in args.sizes.split(",")
              for seed in SETS[s]["seeds"][: args.first_seeds]]
     rows: list[dict[str, Any]] = []

@@ -37,7 +37,9 @@ speech2`` runs it with the development set beside)::
         --seeds 100 101 102 103 104 105 106 107 108 109
 
 ``--unheard FILE.json`` also measures ``where`` with names nobody said (A_p of the place found via
-the lexicon, :func:`spco.model.unheard.resolve_name`).
+the lexicon, :func:`spco.model.unheard.resolve_name`; a refused query counts 0 and is counted in
+``unheard_refused`` of ``unheard_queries``). A name of that list that a sentence of ``--speech`` says
+is left out (``unheard_said_left_out``): never heard means never said by the speech taught.
 
 ``--view-counts N|none`` (a diagnostic) fits and predicts with that view weight instead of the
 model's default (``TransferHyperparameters.view_counts``).
@@ -276,6 +278,9 @@ def main() -> None:
     speech = read_speech(args.speech)
     accepted = read_names(args.accepted)
     unheard = read_names(args.unheard) if args.unheard else {}
+    unheard, said_unheard = never_heard(unheard, speech)
+    if said_unheard:
+        print(f"left out of the unheard names (said by {args.speech.name}): {', '.join(said_unheard)}")
     tally = _Tally(settings)
     started = time.perf_counter()
     for seed in args.seeds:
@@ -290,9 +295,29 @@ def main() -> None:
         if seed_unheard:
             tally.unheard_seeds[seed] = float(np.mean([np.mean(v) for v in seed_unheard.values()]))
     summary = _summary(args, tally, bool(unheard))
+    if unheard:
+        summary["unheard_refused"] = int(sum(v.get("(none)", 0) for v in tally.resolved_as.values()))
+        summary["unheard_queries"] = int(sum(sum(v.values()) for v in tally.resolved_as.values()))
+        summary["unheard_said_left_out"] = said_unheard
     print(json.dumps({k: v for k, v in summary.items() if k != "runs"}, indent=1, default=str))
     if args.json:
         args.json.write_text(json.dumps(summary, indent=1, default=str), encoding="utf-8")
+
+
+def never_heard(unheard: dict[str, tuple[str, ...]], speech: dict[str, list[str]]
+                ) -> tuple[dict[str, tuple[str, ...]], list[str]]:
+    """The unheard names that no sentence of the teaching speech says (as whole tokens after
+    :func:`~spco.data.language.normalize_name`, the check of tests/test_unheard_lists.py), and the
+    names left out because a sentence says them: a name never heard is one the speech it is scored
+    with never says."""
+    said = [f" {normalize_name(s)} " for sentences in speech.values() for s in sentences]
+    kept: dict[str, tuple[str, ...]] = {}
+    left_out: list[str] = []
+    for place, names in unheard.items():
+        heard = [n for n in names if any(f" {n} " in sentence for sentence in said)]
+        left_out += heard
+        kept[place] = tuple(n for n in names if n not in heard)
+    return kept, left_out
 
 
 def main_names(homes: list[Environment], accepted: dict[str, tuple[str, ...]]) -> dict[str, str]:

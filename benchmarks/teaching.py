@@ -19,11 +19,12 @@ After the teaching it measures
   every training sample with its view, ``where`` of every name of the vocabulary) and the vocabulary
   compared with the home taught the same sequence without it; max |Δp|.
 
-Homes: a synthetic new home (6 experienced synthetic homes as knowledge) and, with ``--sigverse``,
-SIGVerse 3LDK_9 adapted from the 16-home knowledge (``--sigverse-home``, a home file built as in
-``benchmarks/serve_latency.py``). Seeds 0–99 (development, benchmarks/SPLIT.md).
+Homes: synthetic new homes (6 experienced synthetic homes as knowledge; ``--home-seed``: the
+``generate_homes`` seeds, default 3) and, with ``--sigverse-home``, SIGVerse 3LDK_9 adapted from the
+16-home knowledge (one or more home files built as in ``benchmarks/serve_latency.py``, e.g. several
+adapt seeds). Seeds 0–99 (development, benchmarks/SPLIT.md).
 
-    python benchmarks/teaching.py --n 100 [--sigverse-home /path/home_3LDK_9.spco] [--json out.json]
+    python benchmarks/teaching.py --n 100 [--home-seed 3 5 7] [--sigverse-home home_s0.spco …] [--json o.json]
 """
 
 from __future__ import annotations
@@ -63,13 +64,25 @@ NEW_WORDS = (
 )
 
 
-def synthetic_home(seed: int = 3) -> tuple[kn.HomeModel, Environment]:
-    """A synthetic new home adapted from 6 experienced synthetic homes, and its environment."""
+def synthetic_home(seed: int = 3, psi0_xy: float | None = None) -> tuple[kn.HomeModel, Environment]:
+    """A synthetic new home adapted from 6 experienced synthetic homes, and its environment.
+    ``psi0_xy``: Ψ0's x and y entries in m² (an experiment with the position prior; default the
+    knowledge's own)."""
+    from dataclasses import replace
+
     from spco.data.synthetic import generate_homes
 
     corpus = generate_homes(7, seed=seed, new_homes=1, specific_rooms=False)
     envs = list(corpus)
-    knowledge = kn.fit_knowledge(Corpus(envs[:6]), n_iterations=30, random_state=0)
+    hyper = None
+    if psi0_xy is not None:
+        from spco.knowledge.fit import default_hyperparameters
+
+        base = default_hyperparameters(Corpus(envs[:6]))
+        psi = np.diag(base.psi0_matrix_m2()).copy()
+        psi[:2] = psi0_xy
+        hyper = replace(base, psi0=tuple(float(v) for v in psi), psi0_in_cm2=False)
+    knowledge = kn.fit_knowledge(Corpus(envs[:6]), n_iterations=30, random_state=0, hyperparameters=hyper)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         home = kn.adapt(knowledge, envs[6], n_iterations=30, random_state=0)
@@ -425,7 +438,8 @@ def main() -> None:
     )
     parser.add_argument("--n", type=int, default=100, help="teachings per home and kind")
     parser.add_argument("--undo", type=int, default=0, help="undo trials per home")
-    parser.add_argument("--sigverse-home", type=Path, default=None)
+    parser.add_argument("--sigverse-home", type=Path, nargs="+", default=[],
+                        help="adapted SIGVerse 3LDK_9 home files (several: e.g. several adapt seeds)")
     parser.add_argument(
         "--http",
         type=int,
@@ -433,15 +447,25 @@ def main() -> None:
         help="teachings over HTTP on the SIGVerse home (each undone and checked)",
     )
     parser.add_argument("--no-synthetic", action="store_true")
+    parser.add_argument(
+        "--home-seed",
+        type=int,
+        nargs="+",
+        default=[3],
+        help="seeds of the synthetic homes (generate_homes; 3: the table's home)",
+    )
+    parser.add_argument("--psi0-xy", type=float, default=None,
+                        help="an experiment: the synthetic knowledge fitted with Ψ0's x, y entries in m²")
     parser.add_argument("--json", type=Path, default=None)
     args = parser.parse_args()
     homes: list[tuple[str, kn.HomeModel, Environment]] = []
     if not args.no_synthetic:
-        home, env = synthetic_home()
-        homes.append(("synthetic", home, env))
-    if args.sigverse_home is not None:
-        home = kn.load_home_model(args.sigverse_home)
-        homes.append(("SIGVerse 3LDK_9", home, sigverse_env("3LDK_9")))
+        for seed in args.home_seed:
+            home, env = synthetic_home(seed, args.psi0_xy)
+            homes.append(("synthetic" if seed == 3 else f"synthetic (seed {seed})", home, env))
+    for path in args.sigverse_home:
+        home = kn.load_home_model(path)
+        homes.append((f"SIGVerse 3LDK_9 ({path.name})", home, sigverse_env("3LDK_9")))
     report: dict[str, Any] = {}
     print(
         "| home | kind | teachings | effective (≥ 8/10 in room) | mean in room | other places' top name "
@@ -474,11 +498,12 @@ def main() -> None:
                 f"in {exact:.0%} (worst {worst:.3g}), also after a restart | | | | |",
                 flush=True,
             )
-    if args.http and args.sigverse_home is not None:
+    if args.http and args.sigverse_home:
         import tempfile
 
         with tempfile.TemporaryDirectory() as folder:
-            http = http_trials(args.sigverse_home.resolve(), sigverse_env("3LDK_9"), args.http, Path(folder))
+            served = args.sigverse_home[0].resolve()
+            http = http_trials(served, sigverse_env("3LDK_9"), args.http, Path(folder))
         report["SIGVerse 3LDK_9 http"] = http
         print(
             f"| SIGVerse 3LDK_9 | over HTTP, each undone | {len(http['teachings'])} | "

@@ -13,10 +13,11 @@ from hypothesis import settings
 
 # In CI (CI=true, as .ci/run runs) property tests draw the same examples on every run, so a green
 # build stays green; on a developer's machine they keep exploring new examples each run (a failure
-# prints the example and how to reproduce it).
-settings.register_profile("ci", derandomize=True, print_blob=True)
-if os.environ.get("CI"):
-    settings.load_profile("ci")
+# prints the example and how to reproduce it). Neither profile has a per-example deadline: tests check
+# behaviour, not speed (speed is measured in benchmarks/), and a loaded machine must not fail them.
+settings.register_profile("ci", derandomize=True, print_blob=True, deadline=None)
+settings.register_profile("dev", deadline=None)
+settings.load_profile("ci" if os.environ.get("CI") else "dev")
 
 SIGVERSE_DEFAULT = Path(__file__).resolve().parents[1] / ".." / "shared" / "datasets" / "sigverse"
 

@@ -239,12 +239,30 @@ def test_new_words_said_together_once_form_a_term() -> None:
     assert grown.tokenize("This is the Study-Room") == ["this", "is", "the", "study room"]
 
 
-def test_a_query_inside_a_longer_term_finds_it() -> None:
-    """A name taught once with a trailing filler ("grandma's room okay") is still found by its words."""
+def test_a_run_of_new_words_is_cut_at_its_function_words() -> None:
+    """All words new: a run of new words keeps no leading function word but a possessive and no
+    trailing one, so the name in "we call it mum and dad's room" is a term of its own and "i cook",
+    "don't touch" are no terms."""
     from spco.data.language import Vocabulary
 
-    grown = Vocabulary(("this", "is", "the")).extended(["well this is grandma's room okay"])
-    term = "grandma's room okay"
+    empty = Vocabulary(("kitchen",))
+    assert empty.new_word_runs(["we call it mum and dad's room"]) == ["mum and dad's room"]
+    assert empty.new_word_runs(["my room"]) == ["my room"]
+    assert empty.new_word_runs(["i cook here"]) == []
+    assert empty.new_word_runs(["don't touch"]) == []
+    grown = empty.extended(["we call it mum and dad's room"])
+    assert grown.tokenize("we call it mum and dad's room") == ["we", "call", "it", "mum and dad's room"]
+
+
+def test_a_query_inside_a_longer_term_finds_it() -> None:
+    """A name taught once with a trailing word ("grandma's room downstairs") is still found by its
+    words; a trailing filler ("okay") is no part of the term."""
+    from spco.data.language import Vocabulary
+
+    okay = Vocabulary(("this", "is", "the")).extended(["well this is grandma's room okay"])
+    assert "grandma's room" in okay.words and "okay" in okay.words
+    grown = Vocabulary(("this", "is", "the")).extended(["well this is grandma's room downstairs"])
+    term = "grandma's room downstairs"
     assert term in grown.words
     assert grown.query("Grandma's room") == ([term], [grown.words.index(term)])
     assert grown.query("grandma") == (["grandma"], [])  # not a whole word of the term: unknown

@@ -20,6 +20,7 @@ from spco.model.name_evidence import (
     FEATURES,
     PREPOSITIONS,
     frame_features,
+    holds_determiner,
     lexical_features,
     name_prior,
     within_concepts,
@@ -47,6 +48,33 @@ def test_frames_of_hand_made_sentences() -> None:
     assert f["table"][frame] == 0.5  # "… is here" frames it, "on the table" does not
     assert f["home"][pron] == 1.0 and f["home"][det] == 0.0  # "i'm home": a greeting
     assert f["this"][start] == 1.0
+
+
+def test_a_possessive_term_is_read_as_its_head_after_a_determiner() -> None:
+    """"this is emma's room" with "emma's room" one token frames it as "room" is framed when the
+    possessive is a token of its own: after a determiner, in a naming frame. So do "mum and dad's
+    room", "kids' room" and "my room"; "living room", "over here" and a lone "emma's" hold none."""
+    assert all(map(holds_determiner, ["emma's room", "mum and dad's room", "kids' room", "my room",
+                                      "our spare room"]))
+    assert not any(map(holds_determiner, ["living room", "over here", "emma's", "room", "the room's"]))
+    said = ["this is emma's room", "we call it mum and dad's room", "my room is where i sleep"]
+    terms = Vocabulary(("emma's room", "mum and dad's room", "my room", "this", "is", "we", "call", "it",
+                        "where", "i", "sleep"))
+    apart = Vocabulary(("emma's", "room", "mum", "and", "dad's", "my", "this", "is", "we", "call", "it",
+                        "where", "i", "sleep"))
+    joined = frame_features(terms, said)
+    split = frame_features(apart, said)
+    room = split[apart.index("room")]  # "room" after "emma's", "dad's" and "my"
+    det, frame, prep, pron, start, alone = range(6)
+    for term in ("emma's room", "mum and dad's room", "my room"):
+        f = joined[terms.index(term)]
+        assert f[det] == 1.0 and f[frame] == 1.0 and f[prep] == 0.0 and f[pron] == 0.0 and f[alone] == 0.0
+    # each term framed as "room" is in its sentence; the three together as "room" over the three
+    together = joined[[terms.index(t) for t in ("emma's room", "mum and dad's room", "my room")]].mean(axis=0)
+    shares = [det, frame, prep, pron, alone]
+    np.testing.assert_allclose(together[shares], room[shares])
+    # the sentence-start share counts the term's own position ("my room" opens its sentence)
+    assert joined[terms.index("my room")][start] == 1.0 and joined[terms.index("emma's room")][start] == 0.0
 
 
 @given(st.lists(st.lists(st.sampled_from(["the", "my", "on", "kitchen", "table", "is", "here", "we"]),
@@ -181,6 +209,78 @@ def test_where_finds_a_name_nobody_said_and_says_which_name_it_used(wordnet) -> 
     assert found is not None and found.name == "toilet" and found.how in ("synonym", "gloss")
     unusable = resolve_name(vocab, np.array([False, True, True]), "restroom", lexicon=wordnet)
     assert unusable is None or unusable.name != "toilet"  # a pruned word is never the answer
+
+
+def _living_kitchen() -> tuple[ConceptParameters, Vocabulary]:
+    """Concept 0 at x = 0 says "living room" and "tv", concept 1 at x = 5 "kitchen"."""
+    theta = np.array([[0.5, 0.2, 0.3, 0.0], [0.0, 0.0, 0.3, 0.7]])
+    return _two_place_params(theta), Vocabulary(("living room", "tv", "is", "kitchen"))
+
+
+def test_compound_names_never_heard_resolve_through_their_words_or_are_refused(wordnet) -> None:
+    params, vocab = _living_kitchen()
+    tv = predict_positions(params, 0, vocab, "tv room", n=5, rng=0)  # the modifier before a kind of room
+    assert (tv.asked, tv.name, tv.region) == ("tv room", "tv", 0), (tv.name, tv.via)
+    sitting = predict_positions(params, 0, vocab, "sitting room", n=5, rng=0)  # a WordNet synonym
+    assert (sitting.name, sitting.via, sitting.region) == ("living room", "synonym", 0)
+    for asked in ("cookroom", "cooking corner"):  # one word read as two; "cook" ~ "preparing meals"
+        pred = predict_positions(params, 0, vocab, asked, n=5, rng=0)
+        assert (pred.name, pred.via, pred.region) == ("kitchen", "definition", 1), (asked, pred.via)
+    for asked in ("garage", "mudroom"):  # nothing in WordNet links them to a name of this home
+        assert resolve_name(vocab, params.word_mask, asked, lexicon=wordnet) is None
+        with pytest.raises(UnknownNameError, match=asked):
+            predict_positions(params, 0, vocab, asked, n=3, rng=0)
+
+
+def test_the_lexicon_reads_heads_modifiers_derivations_and_definitions(wordnet) -> None:
+    assert wordnet.split_compound("mudroom") == ["mud", "room"]
+    assert wordnet.split_compound("kitchen") is None and wordnet.split_compound("bath room") is None
+    known = ["bedchamber", "bed", "bedroom", "laundry room", "bath", "kitchen"]
+    cases = {"sleeping quarters": ("bedchamber", "definition"),  # one concept; "bed" is no place
+             "laundry area": ("laundry room", "head"),  # the same words before another kind of place
+             "washing area": ("laundry room", "head synonym"),  # a synonym (laundry.n.01) before one
+             "bathing room": ("bath", "derivation"),  # "bathing" -> "bathe", whose synset holds "bath"
+             "kitchen nook": ("kitchen", "head")}
+    for asked, (name, how) in cases.items():
+        found = wordnet.closest(asked, known, similarity=False)
+        assert found is not None and (found.name, found.how) == (name, how), (asked, found)
+    assert wordnet.closest("lounge", ["living room", "kitchen"], similarity=False) is None
+    assert wordnet.closest("lounge", ["living room", "kitchen"]).name == "living room"  # similarity
+
+
+def test_rooms_are_candidates_kinds_of_place_never_and_firm_names_come_first(wordnet) -> None:
+    from spco.model.unheard import candidate_names
+
+    vocab = Vocabulary(("room", "area", "toilet", "corner", "hall", "entrance", "sofa", "or"))
+    prior = np.array([0.6, 0.6, 0.01, 0.3, 0.6, 0.6, 0.01, 0.01])  # "toilet": a low name prior
+    info = np.array([0.3, 0.3, 0.0, 0.0, 0.02, 0.4, 0.0, 0.0])
+    mask = np.ones(len(vocab.words), dtype=bool)
+    candidates = candidate_names(vocab, mask, prior, wordnet, info)
+    # "toilet" is a room in WordNet; "room" and "area" are kinds of place; "corner" and "sofa" neither;
+    # "or" (WordNet: an operating room) is a function word
+    assert candidates == ["hall", "entrance", "toilet"], candidates
+    # "foyer" is a synonym of "hall" (weakly bound here) and defined as "a large entrance …": the
+    # firmly bound "entrance" is used; with "hall" as firm as "entrance", the synonym
+    found = resolve_name(vocab, mask, "foyer", prior, lexicon=wordnet, information=info)
+    assert found is not None and (found.name, found.how) == ("entrance", "gloss")
+    info[4] = 0.4
+    found = resolve_name(vocab, mask, "foyer", prior, lexicon=wordnet, information=info)
+    assert found is not None and (found.name, found.how) == ("hall", "synonym")
+    found = resolve_name(vocab, mask, "latrine", prior, lexicon=wordnet, information=info)
+    assert found is not None and found.name == "toilet"
+
+
+def test_a_weakly_bound_name_found_gives_way_to_its_firmly_bound_synonym(wordnet) -> None:
+    # "reception room" is in the definition of "parlour" only ("a reception room in a private
+    # house"); "parlour" is a WordNet synonym of "living room", which this home binds firmly
+    vocab = Vocabulary(("parlour", "living room", "kitchen"))
+    mask, prior = np.ones(3, dtype=bool), np.array([0.8, 0.7, 0.7])
+    found = resolve_name(vocab, mask, "reception room", prior, lexicon=wordnet,
+                         information=np.array([0.001, 0.4, 0.4]))
+    assert found is not None and (found.name, found.how) == ("living room", "definition synonym"), found
+    found = resolve_name(vocab, mask, "reception room", prior, lexicon=wordnet,
+                         information=np.array([0.4, 0.4, 0.4]))  # both firm: the name found stays
+    assert found is not None and found.name == "parlour", found
 
 
 def test_spco_without_wordnet_works_as_before(monkeypatch: pytest.MonkeyPatch) -> None:

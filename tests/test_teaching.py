@@ -93,6 +93,33 @@ def test_a_teaching_changes_the_taught_place_and_leaves_the_rest_as_it_was(home:
     assert answer.learnt and int(answer.region) == region
 
 
+def test_a_teaching_regroups_only_its_own_names_not_the_homes_other_new_names(home: Path) -> None:
+    import copy
+    from dataclasses import replace
+
+    model = kn.load_home_model(home)
+    row_a = 7
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        named = kn.teach(model, {int(model.ids[row_a]): "this is the quokka room"}, random_state=1)
+    concept_a = int(named.state.concepts[row_a])
+    of_a = np.flatnonzero(named.state.concepts == concept_a)
+    # a posterior in which the name's samples are not all in one concept: one of them elsewhere
+    spread = copy.deepcopy(named.state)
+    other = int(np.flatnonzero(np.arange(named.posterior.n_concepts) != concept_a)[0])
+    spread.concepts[row_a] = other
+    spread_home = replace(named, state=spread)
+    far = np.flatnonzero(~np.isin(named.state.regions, named.state.regions[of_a]))
+    row_b = int(far[len(far) // 2])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        taught = kn.teach(spread_home, {int(model.ids[row_b]): "this is the zephyr room"}, random_state=2)
+    # the teaching of "zephyr room" gave its own name a concept, and left "quokka room"'s samples as the
+    # home's posterior had them (not regrouped into a concept of their own)
+    assert taught.state.concepts[row_b] not in set(spread.concepts[of_a].tolist())
+    np.testing.assert_array_equal(taught.state.concepts[of_a], spread.concepts[of_a])
+
+
 def test_a_new_observation_is_placed_where_it_is_not_in_region_0(home: Path) -> None:
     model = kn.load_home_model(home)
     nonzero = np.flatnonzero(model.state.regions != 0)

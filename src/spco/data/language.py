@@ -695,6 +695,9 @@ class Vocabulary:
         several words said once is one name, and its words alone ("room") would be answered as
         names. A word also said elsewhere ("study" in "the study is here") keeps the run from
         forming; known tokens never join one, so columns learnt before keep their occurrences.
+        A name neither starts with a function word, but a possessive ("my room"), nor ends with one
+        (as :func:`learn_terms`' rule): a run is cut to the words between, so "we call it mum and
+        dad's room", all new words, gives ``"mum and dad's room"``, and "i cook" is no run.
         """
         streams = [self.tokenize(s) for s in sentences if s]
         uses: dict[str, int] = {}
@@ -708,8 +711,13 @@ class Vocabulary:
                 j = i
                 while j < len(stream) and stream[j] not in self._index:
                     j += 1
-                if j - i >= 2 and sum(len(w.split()) for w in stream[i:j]) <= MAX_TERM_WORDS:
-                    run = tuple(stream[i:j])
+                a, b = i, j  # the run without its leading and trailing function words
+                while a < b and is_function_word(stream[a]) and stream[a] not in NAME_OPENERS:
+                    a += 1
+                while b > a and is_function_word(stream[b - 1]):
+                    b -= 1
+                if b - a >= 2 and sum(len(w.split()) for w in stream[a:b]) <= MAX_TERM_WORDS:
+                    run = tuple(stream[a:b])
                     runs[run] = runs.get(run, 0) + 1
                 i = max(j, i + 1)
         inside: dict[str, int] = {}

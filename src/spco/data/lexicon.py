@@ -41,7 +41,8 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, TypeVar
 
-__all__ = ["MIN_SIMILARITY", "NOT_PLACE_ROOTS", "PLACE_ROOTS", "Lexicon", "LexiconMatch", "WordFacts",
+__all__ = ["KINDS_BELOW", "MIN_SIMILARITY", "NOT_PLACE_ROOTS", "PLACE_ROOTS", "Lexicon", "LexiconMatch",
+           "WordFacts",
            "lexicon", "lexicon_unavailable_reason", "word_facts"]
 
 #: Where Debian's wordnet-base puts the database files.
@@ -62,6 +63,12 @@ NOT_PLACE_ROOTS = ("obstruction.n.01", "partition.n.01", "supporting_structure.n
 #: Least Wu–Palmer similarity for a known name to stand for an asked one: kinds of room are about
 #: 0.85–0.9 apart (siblings under "room"), a room and a garage (an outbuilding) about 0.6.
 MIN_SIMILARITY = 0.8
+
+#: A word with at least this many kinds (hyponyms, at every depth) under one of its two commonest noun
+#: senses names a kind of place, not a place ("room" 195, "area" 91, "home" 76, "house" 59, "place" 55;
+#: "entrance" 16, "bedroom" 11, "kitchen" 4): as a head it leaves the choice of place to the words
+#: before it ("laundry area"), and it is never the known name a name nobody said stands for.
+KINDS_BELOW = 50
 
 #: Prepositions of location: a known name after one of them in a definition is where the defined
 #: place is, not what it is.
@@ -223,6 +230,34 @@ class Lexicon:
                     place += weight
         return place / total if total else float("nan")
 
+    def room_share(self, word: str) -> float:
+        """Share of the word's own noun senses (those with the word itself as a lemma, not a base form
+        of it: "has" is no "ha"), weighted as :meth:`noun_share`, that are rooms or areas of a
+        building in WordNet (under ``room.n.01`` or ``area.n.05``, and none of
+        :data:`NOT_PLACE_ROOTS`); 0 for a word without such senses."""
+        lemma = self._lemma(word)
+        room = total = 0.0
+        for synset in self.synsets(word, pos="n"):
+            counts = [lem.count() for lem in synset.lemmas() if lem.name().lower() == lemma]
+            if not counts:
+                continue
+            weight = 1.0 + sum(counts)
+            total += weight
+            with self._lock:
+                closure = {synset, *synset.closure(lambda s: s.hypernyms())}
+            rooms = any(root in closure for root in self._roots[:2])  # room.n.01, area.n.05
+            if rooms and not any(r in closure for r in self._not_roots):
+                room += weight
+        return room / total if total else 0.0
+
+    def synonyms_among(self, word: str, others: Sequence[str]) -> list[str]:
+        """Those of ``others`` that share one of the two commonest noun senses of ``word`` as one of
+        their own two commonest ("parlour" and "living room": living_room.n.01), in their order."""
+        senses = set(self.synsets(word, pos="n")[:2])
+        if not senses:
+            return []
+        return [o for o in others if o != word and senses & set(self.synsets(o, pos="n")[:2])]
+
     # ------------------------------------------------------------------ unheard names
     def _variants(self, words: list[str]) -> list:
         """Noun senses of a name written with spaces, joined ("guest room" -> "guestroom") or
@@ -254,8 +289,9 @@ class Lexicon:
         return None
 
     def _derived(self, words: str, known: dict[str, str]) -> LexiconMatch | None:
-        """A known name derived from the word (WordNet's derivational links: "bathing" -> "bathe"
-        -> "bath")."""
+        """A known name derived from the word (WordNet's derivational links: "sleeping" -> "sleep"
+        -> "sleeper"), or a verb of the same synset as the word's verb ("bathing" -> "bathe", whose
+        synset holds the verb "bath")."""
         for word in words.split():
             for base in sorted(self._base_forms(word)):
                 for pos in ("v", "n"):
@@ -263,10 +299,26 @@ class Lexicon:
                         for lemma in synset.lemmas():
                             if lemma.name().lower() != base:
                                 continue
-                            for related in lemma.derivationally_related_forms():
-                                text = related.name().replace("_", " ").lower()
+                            related = list(lemma.derivationally_related_forms())
+                            if pos == "v":  # the verb's synonyms (noun synonyms are _by_senses')
+                                related += [other for other in synset.lemmas() if other is not lemma]
+                            for other in related:
+                                text = other.name().replace("_", " ").lower()
                                 if text in known:
                                     return LexiconMatch(known[text], 0.7, "derivation")
+        return None
+
+    def split_compound(self, word: str) -> list[str] | None:
+        """A single word WordNet does not know, read as two nouns it knows ("mudroom" -> "mud room",
+        "cookroom" -> "cook room"; each part at least three letters, the longest known tail), or
+        None."""
+        word = word.lower()
+        if " " in word or self.synsets(word):
+            return None
+        for i in range(3, len(word) - 2):
+            head, tail = word[:i], word[i:]
+            if self.synsets(tail, pos="n") and self.synsets(head):
+                return [head, tail]
         return None
 
     def _base_forms(self, word: str) -> set[str]:
@@ -280,25 +332,32 @@ class Lexicon:
         return forms
 
     def _defined_by(self, words: str, known: dict[str, str]) -> LexiconMatch | None:
-        """The known name whose commonest sense's definition holds one of ``words`` (in a base
-        form), if exactly one does."""
+        """The known place name whose commonest sense's definition holds one of ``words`` (in a base
+        form) or a synonym of their verbs ("cook": "prepare"), if the names that do are one concept
+        (synonyms: "bedroom", "bedchamber")."""
         wanted = {f for w in words.split() for f in self._base_forms(w)}
-        hits = []
+        for base in list(wanted):  # and the verb's synonyms ("cook": "prepare", as in "preparing meals")
+            wanted |= {lemma.name().lower() for synset in self.synsets(base, pos="v")[:3]
+                       for lemma in synset.lemmas() if "_" not in lemma.name()}
+        hits, concepts = [], set()
         for text, original in known.items():
             senses = self.synsets(text, pos="n")[:1]
             if not senses:
                 continue
             terms = {f for t in self._gloss_terms(senses[0].definition()) if " " not in t
                      for f in self._base_forms(t)}
-            if terms & wanted:
+            with self._lock:
+                place = self._is_place_synset(senses[0].name())
+            if place and terms & wanted:  # a place defined by the word ("a bed" is no place)
                 hits.append(original)
-        return LexiconMatch(hits[0], 0.7, "definition") if len(hits) == 1 else None
+                concepts.add(senses[0])  # synonyms ("bedroom", "bedchamber") are one concept
+        return LexiconMatch(hits[0], 0.7, "definition") if len(concepts) == 1 else None
 
     def _general(self, word: str, known: dict[str, str]) -> bool:
         """Whether a head word is more general than the known names ("room", "area": a hypernym of
         one of their noun senses), so that the word before it says which place is meant."""
         heads = set(self.synsets(word, pos="n")[:3])
-        if not heads:
+        if not heads or self.kinds_below(word) >= KINDS_BELOW:
             return True
         for text in known:
             for synset in self.synsets(text, pos="n")[:2]:
@@ -343,27 +402,38 @@ class Lexicon:
             return 0
         return sum(1 for text in others if text != word and heads & self.kind_ancestors(text))
 
-    def closest(self, name: str, known: list[str]) -> LexiconMatch | None:
+    def closest(self, name: str, known: list[str], similarity: bool = True) -> LexiconMatch | None:
         """The known name that stands for ``name`` (a name nobody said), or None.
 
         In order: a known name that is a synonym of ``name`` (shares a noun synset; "privy" ->
         "toilet"), or is in a definition of ``name``'s senses or of their hypernyms ("powder room":
-        "a toilet that is available to the public"); for a name of several words, the words before
-        a general head ("room", "area", "corner": a hypernym of known names) or the head itself,
-        when known or found so ("kitchen nook" -> "kitchen", "tub room" -> "tub" -> "bath"); else
-        the known name of highest Wu–Palmer similarity between noun senses (≥
+        "a toilet that is available to the public"); for a name of several words (a single word
+        WordNet does not know is first read as two nouns it knows, :meth:`split_compound`:
+        "mudroom" -> "mud room"), the words before a general head ("room", "area": a hypernym of
+        known names, or :data:`KINDS_BELOW` kinds under it) or the head itself, when known ("kitchen
+        nook" -> "kitchen"), a known term of the same words before another general head ("laundry
+        area" -> "laundry room"), or found so (then also a known term of a synonym before another
+        general head: "washing area" -> "laundry room"): a synonym or definition ("tub room" -> "tub" ->
+        "bath"), the one place (or synonyms) defined by the word ("sleeping quarters" -> "bedroom":
+        "a room used primarily for sleeping"), a derivation or verb synonym ("bathing room" ->
+        "bathe" -> "bath"); else the known name of highest Wu–Palmer similarity between noun senses (≥
         :data:`MIN_SIMILARITY`) of the name or its words, among near ties (kinds of room are all
         about as similar) the one whose definition shares most words with the name's, and none
         when they share none. ``known``: candidate names (vocabulary tokens, lower case, words
-        separated by spaces), most name-like first."""
+        separated by spaces), most name-like first. ``similarity=False``: only the relations before
+        similarity (synonym, gloss, head, definition, derivation)."""
         words = name.lower().split()
         if not words or not known:
             return None
+        if len(words) == 1:  # a compound written as one word ("mudroom"): its nouns
+            words = self.split_compound(words[0]) or words
         known_set = {k.lower(): k for k in known}
         if name.lower() in known_set:
             return LexiconMatch(known_set[name.lower()], 1.0, "synonym")
-        # only nouns can be the name of a place ("is" in a definition is no answer)
-        known_set = {k: v for k, v in known_set.items() if self.synsets(k, pos="n")}
+        # only nouns (or terms with a noun head: "laundry room") can be the name of a place ("is" in a
+        # definition is no answer)
+        known_set = {k: v for k, v in known_set.items()
+                     if self.synsets(k, pos="n") or (" " in k and self.synsets(k.split()[-1], pos="n"))}
         senses = self._variants(words)
         found = self._by_senses(senses, known_set)
         if found is not None:
@@ -376,10 +446,21 @@ class Lexicon:
             for part in parts:
                 if part in known_set:
                     return LexiconMatch(known_set[part], 0.8, "head")
+            if general:  # a known name of the same words before another general head: "laundry
+                for text, original in known_set.items():  # area" -> "laundry room"
+                    kw = text.split()
+                    if len(kw) > 1 and " ".join(kw[:-1]) == modifier and self._general(kw[-1], known_set):
+                        return LexiconMatch(original, 0.8, "head")
             for part in parts:
                 found = self._by_senses(self._variants(part.split()), known_set)
                 if found is not None:
                     return replace(found, score=found.score * 0.8, how=f"head {found.how}")
+            mine = set(self.synsets(modifier, pos="n")[:3]) if general else set()
+            for text, original in known_set.items():  # a known term of a synonym before another
+                kw = text.split()  # general head: "washing area" -> "laundry room" (washing ~ laundry)
+                if (mine and len(kw) > 1 and mine & set(self.synsets(" ".join(kw[:-1]), pos="n")[:3])
+                        and self._general(kw[-1], known_set)):
+                    return LexiconMatch(original, 0.8 * 0.8, "head synonym")
             for part in parts:  # a known name defined by the word: "sleeping quarters" -> bedroom,
                 found = self._defined_by(part, known_set)  # "a room used primarily for sleeping"
                 if found is not None:
@@ -388,6 +469,8 @@ class Lexicon:
                 found = self._derived(part, known_set)
                 if found is not None:
                     return found
+        if not similarity:
+            return None
         # similarity of the nouns (the name's, else its words')
         groups = [g for g in ([senses] if senses else [self._variants(p.split()) for p in parts]) if g]
         firsts = {text: self.synsets(text, pos="n")[:1] for text in known_set}

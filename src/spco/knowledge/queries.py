@@ -234,7 +234,10 @@ def answer_parameters(home: HomeModel) -> ConceptParameters:
     (:func:`spco.model.confidence.named_parameters`: uniform over the names when nothing was taught
     there; with the channels the name tokens of the home's switches), and ``word_mask`` the home's
     names (:attr:`~spco.knowledge.home.HomeModel.name_mask`): with the channels, the words most of
-    whose tokens are names — never a word said as an object or a background word.
+    whose tokens are names — never a word said as an object or a background word — and each
+    concept's names-channel mass on other words spread evenly over the home's names
+    (:func:`spco.model.confidence.answerable_names`: a concept named with a masked word answers
+    unsure, not a neighbour's name at p ≈ 1).
     """
     words = home.data.words
     if home.knowledge.channels is not None and home.state.switches is not None and words.nnz:
@@ -242,7 +245,11 @@ def answer_parameters(home: HomeModel) -> ConceptParameters:
     params = confidence.answer_parameters(home.parameters, 0, words, home.state.concepts,
                                           home.knowledge.log_g0, home.hyperparameters.alpha_word)
     # the names only (the word channels: a word said as an object or a function word is never a name)
-    return replace(params, word_mask=home.name_mask)
+    if home.knowledge.channels is None:
+        return replace(params, word_mask=home.name_mask)
+    # with the channels θ^w is the names channel: its mass on a word the home does not answer says
+    # the place's name is none of the home's names (spco.model.confidence.answerable_names)
+    return confidence.answerable_names(params, 0, home.name_mask)
 
 
 def name_prediction(home: HomeModel, poses: np.ndarray, visual: Any = None, top_k: int = 3,

@@ -19,6 +19,13 @@ counts two kinds of evidence that are not independent as if they were; this modu
    replaced by its posterior mean given the home's own taught words (Rao-Blackwellised:
    ``(α^w + N_{l,w}) / (V α^w + N_l)``, N the home's word counts in the concept), which is the
    prior mean — uniform over the names — when nothing was taught there.
+3. **A concept named with a word the home does not answer has no answerable name.** With the word
+   channels a home answers only the words enough of whose uses are names
+   (:attr:`spco.knowledge.home.HomeModel.name_mask`); a concept whose names channel holds another
+   word ("dining", its uses nearly all drawn as a place word) would, once that word is masked, answer
+   whatever name its θ^w holds at 10^-6 with p ≈ 1 after the answer's normalisation. The mass θ^w
+   puts on words the home does not answer is spread evenly over the names it does
+   (:func:`answerable_names`): such a concept answers at p ≈ 1 / (number of names), i.e. unsure.
 
 An answer whose probability is below :data:`UNSURE_BELOW` is flagged *unsure*
 (:attr:`spco.model.prediction.NamePrediction.unsure`; ``spco what`` says so, ``--json`` has
@@ -43,6 +50,7 @@ __all__ = [
     "answer_names",
     "answer_parameters",
     "answer_weighting",
+    "answerable_names",
     "concept_word_counts",
     "model_answer_parameters",
     "named_parameters",
@@ -112,6 +120,37 @@ def named_parameters(params: ConceptParameters, e: int, free: np.ndarray, word_c
     theta = theta.copy()
     theta[e, free] = rows / rows.sum(axis=1, keepdims=True)
     return replace(params, word_probabilities=theta)
+
+
+def answerable_names(params: ConceptParameters, e: int, names: np.ndarray) -> ConceptParameters:
+    """``params`` with home ``e``'s p(name | concept) over the names the home answers: θ^w on
+    ``names``, plus the mass θ^w puts on every other word spread evenly over ``names`` (rows still sum
+    to 1; other words get 0; ``word_mask`` becomes ``names``).
+
+    A concept whose names channel says a word the home does not answer (masked) then says nothing
+    about which of the home's names applies — uniform over them — instead of the largest of its
+    near-zero masses renormalised to p ≈ 1 (:func:`spco.model.prediction.predict_names` normalises
+    over the unmasked words). A concept whose θ^w is on the names is unchanged.
+
+    Parameters
+    ----------
+    params: the model; e: the home.
+    names: (V,) bool, the words the home answers.
+    """
+    names = np.asarray(names, dtype=bool)
+    theta = np.asarray(params.word_probabilities, dtype=np.float64)
+    if names.shape != theta.shape[-1:]:
+        raise ConfigurationError(f"names must be a ({theta.shape[-1]},) bool array, got {names.shape}")
+    if not names.any():
+        return replace(params, word_mask=names)
+    rows = np.clip(theta[e], 0.0, None)
+    total = rows.sum(axis=1, keepdims=True)
+    rows = np.divide(rows, total, out=np.zeros_like(rows), where=total > 0)
+    on_names = rows * names[None, :]
+    elsewhere = 1.0 - on_names.sum(axis=1, keepdims=True)
+    theta = theta.copy()
+    theta[e] = on_names + np.clip(elsewhere, 0.0, 1.0) * names[None, :] / names.sum()
+    return replace(params, word_probabilities=theta, word_mask=names)
 
 
 def predict_names_honestly(

@@ -66,9 +66,9 @@ class ShardedRun(ABC):
         ``hyper`` and ``settings`` use it from the first sweep of the chain on. Without a taught view
         in two homes there is nothing to estimate from: w stays the start's
         :data:`~spco.model.hyperparameters.VIEW_COUNTS`."""
-        totals, taught = (sum(parts) for parts in zip(*self.call("view_weight_totals"), strict=True))
+        totals, taught, words = (sum(parts) for parts in zip(*self.call("view_weight_totals"), strict=True))
         losses, used, homes = np.zeros(len(VIEW_WEIGHT_GRID)), 0, 0
-        for part in self.call("view_weight_losses", totals, taught):
+        for part in self.call("view_weight_losses", totals, taught, words):
             for home_losses, home_used in part:  # in home order
                 losses, used, homes = losses + home_losses, used + home_used, homes + (home_used > 0)
         w = estimate_view_weight(losses, used) if homes > 1 else None

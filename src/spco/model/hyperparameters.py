@@ -92,8 +92,9 @@ class TransferHyperparameters:
         w a view's log-likelihood under every concept is weighted by ``min(1, w / Σ_d v_d)``: its
         proportions are scored as w draws (a power likelihood). Default :data:`VIEW_COUNTS`.
         ``"estimate"`` (opt-in): w is learnt from the experienced homes when the exact sampler fits
-        several homes — the least leave-one-home-out log loss of the concept of each taught view
-        (:func:`spco.model.view_fit.estimate_view_weight`), after the start and before the chain —
+        several homes — the least leave-one-home-out log loss of the words taught at each view given
+        the view (:func:`spco.model.view_fit.estimate_view_weight`), after the start and before the
+        chain —
         and the fitted model's hyperparameters hold the number (so a knowledge file, and every home
         adapted from it, carries it); a fit that cannot estimate it uses :data:`VIEW_COUNTS`.
         ``None``: every count a draw (the paper's multinomial). Exact variant only.

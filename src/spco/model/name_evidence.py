@@ -9,7 +9,8 @@ apart is how they are said and what they are:
 
 - **Where in the sentence** (:func:`frame_features`, shares over the word's uses): a name heads the
   noun phrase that names the place — after a determiner or a possessive ("this is *the* kitchen",
-  "*my* room", "*Emma's* room"), in a naming frame ("this is X", "X is here", "we call it X", "X"
+  "*my* room", "*Emma's* room"; a term holding its own possessive, "emma's room", counts as said after
+  one: :func:`holds_determiner`), in a naming frame ("this is X", "X is here", "we call it X", "X"
   said alone) — while objects and directions come after prepositions ("*on the* table", "to *the*
   left"), greetings and activities after pronouns or verbs ("I'm home", "I sleep here").
 - **What the word is** (:func:`lexical_features`, WordNet through :mod:`spco.data.lexicon`): the
@@ -49,6 +50,7 @@ from spco.data.language import (  # noqa: F401  (re-exported)
     CLOSED_CLASS,
     COPULAS,
     DETERMINERS,
+    NAME_OPENERS,
     OTHER_FUNCTION_WORDS,
     PREPOSITIONS,
     PRONOUNS,
@@ -69,6 +71,7 @@ __all__ = [
     "feature_matrix",
     "frame_features",
     "has_english",
+    "holds_determiner",
     "is_function_word",
     "lexical_features",
     "name_prior",
@@ -105,6 +108,15 @@ def _possessive(token: str) -> bool:
     return token.endswith("'s") or token.endswith("s'")
 
 
+def holds_determiner(token: str) -> bool:
+    """Whether a term carries its own determiner: a possessive before its head ("emma's room", "mum
+    and dad's room", "kids' room") or a possessive pronoun first ("my room", "our bedroom"). The
+    term is then a noun phrase already determined, as "room" is in "emma's room" said as two
+    tokens: :func:`frame_features` reads it as said after a determiner, wherever it is said."""
+    words = token.split()
+    return len(words) >= 2 and (words[0] in NAME_OPENERS or any(_possessive(w) for w in words[:-1]))
+
+
 def frame_features(vocabulary: Vocabulary, sentences: Iterable[str | None]) -> np.ndarray:
     """Where each vocabulary word is said in ``sentences``: (V, 6) shares of its uses that come
     after a determiner or possessive, in a naming frame, after a preposition (possibly with a
@@ -134,14 +146,15 @@ def frame_features(vocabulary: Vocabulary, sentences: Iterable[str | None]) -> n
             prev = tokens[i - 1] if i >= 1 else ""
             prev2 = tokens[i - 2] if i >= 2 else ""
             after = tokens[i + 1] if i + 1 < len(tokens) else ""
-            det = prev in DETERMINERS or _possessive(prev)
-            before_det = prev2 if det else prev
-            frame = (before_det in COPULAS or (det and prev2 == "") or after in AFTER_NAME
+            det_before = prev in DETERMINERS or _possessive(prev)
+            det = det_before or holds_determiner(token)  # "the X", "emma's X", or "emma's room" itself
+            before_det = prev2 if det_before else prev
+            frame = (before_det in COPULAS or (det_before and prev2 == "") or after in AFTER_NAME
                      or after == "")
             prep = before_det in PREPOSITIONS
             pron = prev in PRONOUNS
-            alone = len(tokens) == 1 or (len(tokens) == 2 and i == 1 and det)
-            sums[k] += (det, frame and not prep, prep, pron, i == 0 or (i == 1 and det), alone)
+            alone = len(tokens) == 1 or (len(tokens) == 2 and i == 1 and det_before)
+            sums[k] += (det, frame and not prep, prep, pron, i == 0 or (i == 1 and det_before), alone)
             uses[k] += 1
     return sums / np.maximum(uses, 1.0)[:, None]
 

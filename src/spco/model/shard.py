@@ -186,19 +186,22 @@ class HomeShard(ShardInitialisation):
 
         return held_out_view_fits(log_phi_v, log_g0, totals, self.data, self.state.concepts)
 
-    def view_weight_totals(self) -> tuple[np.ndarray, np.ndarray]:
-        """The shard's visual counts (L, D) and taught views (L,) by concept, for the view-weight
-        estimate (:func:`spco.model.view_fit.home_concept_totals`)."""
+    def view_weight_totals(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The shard's visual counts (L, D), taught views (L,) and taught words (L, V) by concept, for
+        the view-weight estimate (:func:`spco.model.view_fit.home_concept_totals`)."""
         from spco.model.view_fit import home_concept_totals
 
         return home_concept_totals(self.data, self.state.concepts, self.hyper.n_concepts)
 
-    def view_weight_losses(self, totals: np.ndarray, taught: np.ndarray) -> tuple[np.ndarray, int]:
+    def view_weight_losses(self, totals: np.ndarray, taught: np.ndarray, words: np.ndarray
+                           ) -> tuple[np.ndarray, int]:
         """The leave-one-home-out log loss of the shard's taught views on the view-weight grid
-        (:func:`spco.model.view_fit.view_weight_losses`; ``totals``, ``taught``: all homes')."""
+        (:func:`spco.model.view_fit.view_weight_losses`; ``totals``, ``taught``, ``words``: all
+        homes')."""
         from spco.model.view_fit import view_weight_losses
 
-        return view_weight_losses(self.data, self.state.concepts, totals, taught, self.hyper.alpha_visual)
+        return view_weight_losses(self.data, self.state.concepts, totals, taught, words,
+                                  self.hyper.alpha_visual, self.hyper.alpha_word)
 
     def set_view_weight(self, view_counts: float | None) -> None:
         """From the next sweep on, a view weighs ``view_counts`` (the estimate of the driver)."""

@@ -175,15 +175,17 @@ class ShardGroup:
         """The held-out view fit of every home, in home order."""
         return [v for fits in self._each("held_out_view_fits", log_phi_v, log_g0, totals) for v in fits]
 
-    def view_weight_totals(self) -> tuple[np.ndarray, np.ndarray]:
-        """The homes' visual counts (L, D) and taught views (L,) by concept, summed."""
+    def view_weight_totals(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The homes' visual counts (L, D), taught views (L,) and taught words (L, V) by concept,
+        summed."""
         parts = self._each("view_weight_totals")
-        return _sum([p[0] for p in parts]), _sum([p[1] for p in parts])
+        return _sum([p[0] for p in parts]), _sum([p[1] for p in parts]), _sum([p[2] for p in parts])
 
-    def view_weight_losses(self, totals: np.ndarray, taught: np.ndarray) -> list[tuple[np.ndarray, int]]:
+    def view_weight_losses(self, totals: np.ndarray, taught: np.ndarray, words: np.ndarray
+                           ) -> list[tuple[np.ndarray, int]]:
         """Every home's leave-one-home-out losses on the view-weight grid and its views, in home
         order (summed by the driver in home order: the same sum for any number of workers)."""
-        return self._each("view_weight_losses", totals, taught)
+        return self._each("view_weight_losses", totals, taught, words)
 
     def set_view_weight(self, view_counts: float | None) -> None:
         """Every home weighs a view ``view_counts`` from the next sweep on."""

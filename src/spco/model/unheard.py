@@ -4,11 +4,18 @@ A user may ask for "the restroom", "the lounge" or "the powder room" in a home w
 "toilet", "living room" and "loo". When the name asked for is not one usable vocabulary token
 (several words never said as one name, "bath area", count as not said),
 :func:`resolve_name` looks for the known name it stands for with the lexicon
-(:meth:`spco.data.lexicon.Lexicon.closest`: WordNet synonyms, definitions, head words, similarity)
-among the home's usable words that are names (name prior ≥ :data:`MIN_CANDIDATE_PRIOR` when the
-model has a prior, :mod:`spco.model.name_evidence`) and place-bound in this home (mutual information
-≥ :data:`MIN_CANDIDATE_INFORMATION` of the largest), and ``where`` answers for that name, saying
-which one it used ("restroom -> toilet": :attr:`spco.model.position_prediction.PositionPrediction.asked`).
+(:meth:`spco.data.lexicon.Lexicon.closest`: WordNet synonyms, definitions, head words and modifiers,
+derivations, similarity) among the home's candidate names (:func:`candidate_names`: usable words that
+are names by the model — name prior ≥ :data:`MIN_CANDIDATE_PRIOR` when the model has a prior,
+:mod:`spco.model.name_evidence`, and mutual information ≥ :data:`MIN_CANDIDATE_INFORMATION` of the
+largest — or rooms by WordNet, never kinds of place such as "room" or "area"). It asks in four
+steps and keeps the first answer: a lexical relation (synonym, definition, head, modifier,
+derivation) to one of the home's firmly bound names (information ≥ :data:`FIRM_INFORMATION` of the
+largest: one or two per place), the same to any candidate, then WordNet similarity to a firmly bound
+name, then to any candidate. ``where`` answers for that name, saying which one it used ("restroom ->
+toilet": :attr:`spco.model.position_prediction.PositionPrediction.asked`). When nothing is found, the
+name's own known words said together answer ("spare + room"); a name none of whose words is known is
+an unknown name (:class:`spco.model.prediction.UnknownNameError`).
 
 Without the lexicon (no NLTK or no WordNet database, see :mod:`spco.data.lexicon`), nothing is
 resolved: a name nobody said is an unknown name, or its known words said together, as before.
@@ -20,10 +27,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from spco.data.language import Vocabulary, normalize_name
+from spco.data.language import Vocabulary, is_function_word, normalize_name
 
-__all__ = ["MIN_CANDIDATE_INFORMATION", "MIN_CANDIDATE_PRIOR", "OBJECT_BELOW", "STAND_IN_HOW", "ResolvedName",
-           "resolve_name", "stand_in_names"]
+__all__ = [
+    "FIRM_INFORMATION",
+    "MIN_CANDIDATE_INFORMATION",
+    "MIN_CANDIDATE_PRIOR",
+    "OBJECT_BELOW",
+    "PLACE_CANDIDATE_SHARE",
+    "STAND_IN_HOW",
+    "ResolvedName",
+    "candidate_names",
+    "resolve_name",
+    "stand_in_names",
+]
 
 #: Known words below this name prior are not candidates for a name nobody said (verbs and function
 #: words: "sleep" 0.004, "my" 0.005; names with weak evidence such as "laundry" 0.12 or "bath"
@@ -34,6 +51,10 @@ MIN_CANDIDATE_PRIOR = 0.05
 #: largest (said everywhere or nowhere in this home: "house", "corner"; names of places score
 #: 0.01–0.25 nats against 0.24 for the best, such words < 0.0003).
 MIN_CANDIDATE_INFORMATION = 0.01
+#: Names whose information is at least this share of the largest are the home's firmly bound names
+#: (one per place: "kitchen" 0.48, "entrance" 0.43, "washroom" 0.35 against "hall" 0.02): the lexicon
+#: looks for the name asked among them first, then among all candidates.
+FIRM_INFORMATION = 0.1
 
 
 @dataclass(frozen=True)
@@ -81,19 +102,81 @@ def resolve_name(vocabulary: Vocabulary, word_mask: np.ndarray, name: str,
         lexicon = load()
         if lexicon is None:
             return None
-    usable = np.flatnonzero(mask)
-    if information is not None and usable.size:
+    candidates = candidate_names(vocabulary, mask, name_prior, lexicon, information)
+    firm = candidates
+    if information is not None and mask.any():  # the home's firmly bound names
         info = np.asarray(information, dtype=np.float64)
-        usable = usable[info[usable] >= MIN_CANDIDATE_INFORMATION * info[usable].max()]
-    if name_prior is not None:
-        prior = np.asarray(name_prior, dtype=np.float64)
-        usable = usable[prior[usable] >= MIN_CANDIDATE_PRIOR]
-        usable = usable[np.argsort(-prior[usable], kind="stable")]
-    candidates = [vocabulary.words[k] for k in usable]
-    match = lexicon.closest(asked, candidates)  # type: ignore[attr-defined]
+        floor = FIRM_INFORMATION * info[mask].max()
+        firm = [c for c in candidates if info[vocabulary.index(c)] >= floor]
+    match = None
+    for similarity in (False, True):  # a lexical relation before mere similarity,
+        for group in (firm, candidates):  # a firmly bound name before the others
+            if match is None and group:
+                match = lexicon.closest(asked, group, similarity=similarity)  # type: ignore[attr-defined]
     if match is None:
         return None
-    return ResolvedName(asked=asked, name=match.name, how=match.how, score=float(match.score))
+    name, how = match.name, match.how
+    if name not in firm:  # a synonym of it that this home binds firmly names the same place
+        same = lexicon.synonyms_among(name, firm)  # type: ignore[attr-defined]
+        if same:
+            name, how = same[0], f"{how} synonym"
+    return ResolvedName(asked=asked, name=name, how=how, score=float(match.score))
+
+
+#: A known word is a candidate whatever its name prior and information when this share of its own noun
+#: senses (weighted by frequency, :meth:`spco.data.lexicon.Lexicon.room_share`) are rooms or areas of a
+#: building in WordNet: "toilet" (0.44) is said so often beside "go to the" and its objects that its
+#: prior is low and, one word among many at its place, its information small, yet it is the place's
+#: own name ("corner" 0.16, "hall" 0.36, "kitchen" 1.0).
+PLACE_CANDIDATE_SHARE = 0.25
+
+
+def candidate_names(vocabulary: Vocabulary, word_mask: np.ndarray, name_prior: np.ndarray | None,
+                    lexicon: object, information: np.ndarray | None = None) -> list[str]:
+    """The home's known words a name nobody said may stand for, most name-like first.
+
+    A usable word is a candidate when it is a name by the model (name prior ≥
+    :data:`MIN_CANDIDATE_PRIOR` and information ≥ :data:`MIN_CANDIDATE_INFORMATION` of the largest,
+    when given) or a place by WordNet (place share ≥ :data:`PLACE_CANDIDATE_SHARE`), and is not a
+    kind of place (:data:`spco.data.lexicon.KINDS_BELOW` kinds under it in WordNet: "room", "area",
+    "house", "home"). The names by the model come first (by prior), then the places by WordNet
+    (by prior)."""
+    from spco.data.lexicon import KINDS_BELOW
+
+    mask = np.asarray(word_mask, dtype=bool)
+    usable = np.flatnonzero(mask)
+    named = np.ones(mask.size, dtype=bool)
+    if information is not None and usable.size:
+        info = np.asarray(information, dtype=np.float64)
+        named &= info >= MIN_CANDIDATE_INFORMATION * info[usable].max()
+    prior = np.zeros(mask.size) if name_prior is None else np.asarray(name_prior, dtype=np.float64)
+    if name_prior is not None:
+        named &= prior >= MIN_CANDIDATE_PRIOR
+    order = usable[np.argsort(-prior[usable], kind="stable")]
+    first = [k for k in order if named[k]]
+    then = [k for k in order
+            if not named[k] and _room_share(lexicon, vocabulary.words[k]) >= PLACE_CANDIDATE_SHARE]
+    return [vocabulary.words[k] for k in (*first, *then) if not is_function_word(vocabulary.words[k])
+            and _kinds_below(lexicon, vocabulary.words[k]) < KINDS_BELOW]
+
+
+_FACTS: dict[tuple[int, str, str], float] = {}
+
+
+def _room_share(lexicon: object, word: str) -> float:
+    """:meth:`Lexicon.room_share`, remembered for the process."""
+    key = (id(lexicon), "room", word)
+    if key not in _FACTS:
+        _FACTS[key] = float(lexicon.room_share(word))  # type: ignore[attr-defined]
+    return _FACTS[key]
+
+
+def _kinds_below(lexicon: object, word: str) -> float:
+    """:meth:`Lexicon.kinds_below`, remembered for the process."""
+    key = (id(lexicon), "kinds", word)
+    if key not in _FACTS:
+        _FACTS[key] = float(lexicon.kinds_below(word))  # type: ignore[attr-defined]
+    return _FACTS[key]
 
 
 #: A word whose name evidence p(name | word) is below this is an object, an act or a person said at

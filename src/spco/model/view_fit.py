@@ -91,38 +91,52 @@ VIEW_WEIGHT_GRID = tuple(float(2.0 ** (k / 2)) for k in range(-8, 29))
 
 
 def home_concept_totals(data: PreparedData, concepts: np.ndarray, n_concepts: int
-                        ) -> tuple[np.ndarray, np.ndarray]:
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """What the view-weight estimate needs of the homes of ``data``, summed over them: (L, D) their
-    visual counts by concept (every sample), and (L,) their *taught* samples with a view by concept
-    (the labels it predicts)."""
+    visual counts by concept (every sample), (L,) their *taught* samples with a view by concept, and
+    (L, V) the word counts of those taught samples by concept (what the estimate predicts)."""
     counts = sum((_home_concept_counts(data, concepts, e, n_concepts) for e in range(data.n_homes)),
                  np.zeros((n_concepts, data.visual.shape[1])))
     labelled = _labelled(data)
     taught = np.bincount(concepts[labelled], minlength=n_concepts).astype(np.float64)
-    return counts, taught
+    return counts, taught, _concept_words(data, concepts, labelled, n_concepts)
+
+
+def _concept_words(data: PreparedData, concepts: np.ndarray, rows: np.ndarray, n_concepts: int) -> np.ndarray:
+    """(L, V) the word counts of the samples ``rows`` (bool or indices) by concept."""
+    rows = np.flatnonzero(rows) if rows.dtype == bool else rows
+    onehot = sp.csr_array((np.ones(rows.size), (concepts[rows], np.arange(rows.size))),
+                          shape=(n_concepts, rows.size))
+    return np.asarray((onehot @ sp.csr_array(data.words[rows], dtype=np.float64)).todense(), dtype=np.float64)
 
 
 def _labelled(data: PreparedData) -> np.ndarray:
-    """(N,) bool: the samples whose concept the estimate predicts — taught (a sentence) and seen."""
+    """(N,) bool: the samples the estimate predicts — taught (a sentence) and seen."""
     has_words = np.diff(data.words.indptr) > 0 if data.words.shape[1] else np.zeros(data.n_samples, bool)
     return has_words & (data.view_totals > 0)
 
 
 def view_weight_losses(data: PreparedData, concepts: np.ndarray, totals: np.ndarray, taught: np.ndarray,
-                       alpha_visual: float, grid: tuple[float, ...] = VIEW_WEIGHT_GRID
-                       ) -> tuple[np.ndarray, int]:
-    """The leave-one-home-out log loss of the concept of each of ``data``'s taught views given the
-    view, for every view weight w of ``grid``: summed over the views, and how many views.
+                       words: np.ndarray, alpha_visual: float, alpha_word: float,
+                       grid: tuple[float, ...] = VIEW_WEIGHT_GRID) -> tuple[np.ndarray, int]:
+    """The leave-one-home-out log loss of what was taught at each of ``data``'s taught views given
+    the view, for every view weight w of ``grid``: summed over the views, and how many views.
 
     Each home e is predicted from the other homes only: φ^v_l ∝ α^v + N_l − n_{e,l} (the visual
-    counts of concept l in all homes, ``totals`` (L, D), without e's own) and p(l) ∝
-    T_l − t_{e,l} + 1/L (``taught`` (L,): the taught views by concept in all homes). A view v of
-    concept C scores −log p(C | v) with
+    counts of concept l in all homes, ``totals`` (L, D), without e's own), φ^w_l ∝ α^w + W_l − w_{e,l}
+    (the taught word counts of concept l, ``words`` (L, V), without e's own) and p(l) ∝
+    T_l − t_{e,l} + 1/L (``taught`` (L,): the taught views by concept in all homes). A taught view
+    v with the words u scores −log p(u | v) + log p(u) with
 
+        p(u | v) = Σ_l p(l | v) Π_w φ^w_{l,w}^{u_w},
         p(l | v) ∝ p(l) exp(min(1, w / Σ_d v_d) Σ_d v_d log φ^v_{l,d}),
 
-    the probability of its place given the view alone, the view counting as w draws. Homes of
-    another shard contribute through ``totals`` and ``taught`` only.
+    the view counting as w draws (log p(u), the words without the view, does not depend on w: it
+    makes the loss the information the view gives about the words, 0 for a view that says nothing).
+    What is predicted is what was observed — the words — not the concept the sampler's start put
+    the sample in: a start that splits one place over two concepts (or holds two places in one)
+    leaves the words' predictive, and so the estimate, as it is. Homes of another shard contribute
+    through ``totals``, ``taught`` and ``words`` only.
     """
     L = totals.shape[0]
     labelled = _labelled(data)
@@ -139,12 +153,16 @@ def view_weight_losses(data: PreparedData, concepts: np.ndarray, totals: np.ndar
         own_taught = np.bincount(concepts[rows], minlength=L)
         log_prior = np.log(np.maximum(taught - own_taught, 0.0) + 1.0 / L)
         log_prior -= logsumexp(log_prior)
+        other_words = np.maximum(words - _concept_words(data, concepts, rows, L), 0.0) + alpha_word
+        log_phi_w = np.log(other_words) - np.log(other_words.sum(1, keepdims=True))
+        said = np.asarray(sp.csr_array(data.words[rows], dtype=np.float64) @ log_phi_w.T)  # (n, L)
         visual = sp.csr_array(data.visual[rows], dtype=np.float64)
         loglik = np.asarray(visual @ log_phi.T)  # (n, L)
         scale = np.minimum(1.0, weights[:, None] / data.view_totals[rows][None, :])  # (G, n)
         scores = scale[:, :, None] * loglik[None] + log_prior[None, None, :]  # (G, n, L)
-        right = scores[:, np.arange(rows.size), concepts[rows]]
-        losses += (logsumexp(scores, axis=2) - right).sum(axis=1)
+        given_view = logsumexp(scores + said[None], axis=2) - logsumexp(scores, axis=2)  # log p(u | v)
+        without = logsumexp(log_prior[None, :] + said, axis=1)  # log p(u)
+        losses += (without[None, :] - given_view).sum(axis=1)
         used += rows.size
     return losses, used
 
