@@ -702,6 +702,13 @@ def _closest_of(lex: Lexicon, key: str) -> LexiconMatch | None:
     return lex.closest(name, known.split(_KNOWN_SEP) if known else [])
 
 
+@functools.lru_cache(maxsize=1)
+def _code_digest() -> str:
+    """A digest of this module's source: :meth:`Lexicon.closest` is spco's code, so its remembered
+    answers are kept per version of it (a changed rule starts a new file)."""
+    return hashlib.sha256(Path(__file__).read_bytes()).hexdigest()[:12]
+
+
 def closest_names(queries: Sequence[tuple[str, Sequence[str]]]) -> list[LexiconMatch | None] | None:
     """:meth:`Lexicon.closest` of each ``(name, known)`` of ``queries``, or None when the lexicon is
     unavailable (:func:`lexicon_unavailable_reason`); kept in a file as :func:`word_facts` keeps its
@@ -709,7 +716,7 @@ def closest_names(queries: Sequence[tuple[str, Sequence[str]]]) -> list[LexiconM
     :func:`lexicon`."""
     keys = [name + _ASKED_SEP + _KNOWN_SEP.join(known) for name, known in queries]
     found = _cached_facts(
-        keys, "closest", _CLOSEST_FORMAT, _closest_memory, _closest_of,
+        keys, f"closest-{_code_digest()}", _CLOSEST_FORMAT, _closest_memory, _closest_of,
         lambda m: None if m is None else [m.name, m.score, m.how],
         lambda row: None if row is None else LexiconMatch(str(row[0]), float(row[1]), str(row[2])))
     return None if found is None else [found[k] for k in keys]
