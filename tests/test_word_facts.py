@@ -21,6 +21,7 @@ def empty_cache(tmp_path, monkeypatch: pytest.MonkeyPatch):
     monkeypatch.setenv("SPCO_CACHE_DIR", str(tmp_path))
     monkeypatch.setattr(lexicon_module, "_facts_memory", {})
     monkeypatch.setattr(lexicon_module, "_kinds_memory", {})
+    monkeypatch.setattr(lexicon_module, "_closest_memory", {})
     return tmp_path
 
 
@@ -35,6 +36,7 @@ def from_files_alone(monkeypatch: pytest.MonkeyPatch):
         monkeypatch.setattr(lexicon_module, "_load", no_wordnet)
         monkeypatch.setattr(lexicon_module, "_facts_memory", {})
         monkeypatch.setattr(lexicon_module, "_kinds_memory", {})
+        monkeypatch.setattr(lexicon_module, "_closest_memory", {})
 
     return forbid_wordnet
 
@@ -91,3 +93,31 @@ def test_cached_kind_facts_give_the_lexicon_s_evidence_and_need_no_wordnet_once_
     again = channel_evidence(vocabulary, KIND_SENTENCES)
     np.testing.assert_array_equal(again[0], direct[0])
     np.testing.assert_array_equal(again[1], direct[1])
+
+
+def test_stand_ins_from_the_cache_files_equal_the_lexicon_s_and_need_no_wordnet_once_asked(
+        wordnet, empty_cache, from_files_alone, monkeypatch: pytest.MonkeyPatch) -> None:
+    """stand_in_names without a lexicon asks the lexicon's cache files (word facts and
+    closest_names): the same stand-ins as the lexicon, and a new process whose questions are all in
+    the files never loads WordNet."""
+    from spco.model import unheard
+
+    vocab = Vocabulary(("door", "entrance", "kitchen", "toilet", "bath", "pot", "vase", "dining table",
+                        "dining", "livingroom", "living room", "kicthen", "genkan"))
+    prior = np.array([0.08, 0.3, 0.6, 0.2, 0.3, 0.05, 0.05, 0.03, 0.2, 0.5, 0.5, 0.5, 0.5])
+    mask = np.ones(len(vocab), dtype=bool)
+    asked = np.arange(len(vocab))
+    monkeypatch.setattr(unheard, "_STAND_IN_CACHE", {})
+    direct = unheard.stand_in_names(vocab, mask, prior, asked, wordnet)
+    assert {vocab.words[k]: vocab.words[j] for k, j in direct.items()} == {
+        "door": "entrance", "dining table": "dining", "livingroom": "living room", "kicthen": "kitchen"}
+    monkeypatch.setattr(unheard, "_STAND_IN_CACHE", {})
+    assert unheard.stand_in_names(vocab, mask, prior, asked) == direct  # computes and writes the files
+    files = list(empty_cache.glob("wordnet-closest-*.json"))
+    assert len(files) == 1 and json.loads(files[0].read_text())["format"] == lexicon_module._CLOSEST_FORMAT
+    from_files_alone()
+    monkeypatch.setattr(unheard, "_STAND_IN_CACHE", {})
+    assert unheard.stand_in_names(vocab, mask, prior, asked) == direct
+    monkeypatch.setenv("SPCO_WORDNET", "off")
+    monkeypatch.setattr(unheard, "_STAND_IN_CACHE", {})
+    assert unheard.stand_in_names(vocab, mask, prior, asked) == {}

@@ -688,3 +688,36 @@ def kind_facts(words: Sequence[str]) -> dict[str, KindFacts] | None:
         lambda lex, word: KindFacts(lex.kinds_below(word), lex.kind_heads(word), lex.kind_ancestors(word)),
         lambda f: [f.kinds_below, sorted(f.heads), sorted(f.ancestors)],
         lambda row: KindFacts(int(row[0]), frozenset(map(str, row[1])), frozenset(map(str, row[2]))))
+
+
+#: Format of the file of :func:`closest_names`.
+_CLOSEST_FORMAT = 1
+_closest_memory: dict[str, dict[str, LexiconMatch | None]] = {}
+#: Separates the asked name from the candidates, and the candidates, in a key of :func:`closest_names`.
+_ASKED_SEP, _KNOWN_SEP = "\t", "|"
+
+
+def _closest_of(lex: Lexicon, key: str) -> LexiconMatch | None:
+    name, _, known = key.partition(_ASKED_SEP)
+    return lex.closest(name, known.split(_KNOWN_SEP) if known else [])
+
+
+@functools.lru_cache(maxsize=1)
+def _code_digest() -> str:
+    """A digest of this module's source: :meth:`Lexicon.closest` is spco's code, so its remembered
+    answers are kept per version of it (a changed rule starts a new file)."""
+    return hashlib.sha256(Path(__file__).read_bytes()).hexdigest()[:12]
+
+
+def closest_names(queries: Sequence[tuple[str, Sequence[str]]]) -> list[LexiconMatch | None] | None:
+    """:meth:`Lexicon.closest` of each ``(name, known)`` of ``queries``, or None when the lexicon is
+    unavailable (:func:`lexicon_unavailable_reason`); kept in a file as :func:`word_facts` keeps its
+    facts (WordNet is loaded only for queries not in it yet). The same matches as asking
+    :func:`lexicon`."""
+    keys = [name + _ASKED_SEP + _KNOWN_SEP.join(known) for name, known in queries]
+    found = _cached_facts(
+        keys, f"closest-{_code_digest()}", _CLOSEST_FORMAT, _closest_memory, _closest_of,
+        lambda m: None if m is None else [m.name, m.score, m.how],
+        lambda row: None if row is None else LexiconMatch(str(row[0]), float(row[1]), str(row[2])))
+    return None if found is None else [found[k] for k in keys]
+

@@ -210,14 +210,15 @@ def stand_in_names(vocabulary: Vocabulary, word_mask: np.ndarray, name_prior: np
     vocabulary, word_mask: the corpus vocabulary and its usable words (V,).
     name_prior: (V,) p(name | word), the word channels' switch prior of the names channel.
     asked: the columns to look up (the answers' candidates).
-    lexicon: a :class:`spco.data.lexicon.Lexicon` (default: the process's, which may be None).
+    lexicon: a :class:`spco.data.lexicon.Lexicon` (default: the process's, asked through its cache
+        files, so that WordNet is read only for words not asked before; none without the lexicon).
     """
     if lexicon is None:
-        from spco.data.lexicon import lexicon as load
+        from spco.data.lexicon import lexicon_unavailable_reason
 
-        lexicon = load()
-        if lexicon is None:
+        if lexicon_unavailable_reason() is not None:
             return {}
+        lexicon = _FILE_LEXICON
     prior = np.asarray(name_prior, dtype=np.float64)
     mask = np.asarray(word_mask, dtype=bool)
     out: dict[int, int] = {}
@@ -254,6 +255,30 @@ def _spelled(lexicon: object, vocabulary: Vocabulary, mask: np.ndarray, k: int) 
         if j is not None and j != k and mask[j] and lexicon.knows(variant):  # type: ignore[attr-defined]
             return j
     return None
+
+
+class _FileLexicon:
+    """The two questions :func:`stand_in_names` asks the lexicon, answered from the lexicon's cache
+    files (:func:`spco.data.lexicon.word_facts`, :func:`spco.data.lexicon.closest_names`): the same
+    answers, and WordNet (NLTK's import and reading, seconds) is loaded only for words not asked
+    before on this machine."""
+
+    @staticmethod
+    def knows(word: str) -> bool:
+        from spco.data.lexicon import word_facts
+
+        facts = word_facts([word])
+        return bool(facts is not None and facts[word].known)
+
+    @staticmethod
+    def closest(name: str, known: list[str]):
+        from spco.data.lexicon import closest_names
+
+        found = closest_names([(name, known)])
+        return None if found is None else found[0]
+
+
+_FILE_LEXICON = _FileLexicon()
 
 
 _STAND_IN_CACHE: dict[tuple[int, str, tuple[str, ...]], object] = {}

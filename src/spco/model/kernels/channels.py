@@ -45,18 +45,28 @@ def _mixture_rows(indptr: np.ndarray, indices: np.ndarray, counts: np.ndarray, h
                   log_prior: np.ndarray, out: np.ndarray) -> None:
     """out[t, l] += c_ti · log Σ_c p(z = c | k) p(k | c, l) over the tokens i of every sample t (rows
     of the CSR ``indptr``/``indices``/``counts``) and every concept l: the switches marginalised.
-    ``log_theta_w`` (E, L, V), ``log_place`` (L, V), ``log_background`` (V,), ``log_prior`` (V, 3)."""
+    ``log_theta_w`` (E, L, V), ``log_place`` (L, V), ``log_background`` (V,), ``log_prior`` (V, 3).
+
+    A token's term depends on its home, word and concept only, so it is computed once per (home,
+    word) met in a run of samples of one home and read for the word's other tokens: the same
+    numbers added in the same order as computing it per token."""
     n_concepts = out.shape[1]
+    terms = np.empty((log_prior.shape[0], n_concepts))
+    term_home = np.full(log_prior.shape[0], -1, dtype=np.int64)  # whose terms row k holds
     for t in range(indptr.size - 1):
         e = homes[t]
         for j in range(indptr[t], indptr[t + 1]):
             k = indices[j]
+            if term_home[k] != e:
+                p_name, p_place = log_prior[k, 0], log_prior[k, 1]
+                background = log_background[k] + log_prior[k, 2]
+                for concept in range(n_concepts):
+                    terms[k, concept] = _log_sum_exp3(log_theta_w[e, concept, k] + p_name,
+                                                      log_place[concept, k] + p_place, background)
+                term_home[k] = e
             weight = counts[j]
-            p_name, p_place = log_prior[k, 0], log_prior[k, 1]
-            background = log_background[k] + log_prior[k, 2]
             for concept in range(n_concepts):
-                out[t, concept] += weight * _log_sum_exp3(log_theta_w[e, concept, k] + p_name,
-                                                    log_place[concept, k] + p_place, background)
+                out[t, concept] += weight * terms[k, concept]
 
 
 @njit(cache=True)
