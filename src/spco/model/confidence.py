@@ -275,8 +275,8 @@ def model_answer_parameters(model: object, e: int) -> ConceptParameters:
     log_g0 = np.log(np.maximum(np.asarray(params.global_concept_weights, dtype=np.float64), 1e-300))
     answer = answer_parameters(params, e, data.words[rows], model.concepts_[e], log_g0,  # type: ignore[attr-defined]
                                model.hyperparameters_.alpha_word)  # type: ignore[attr-defined]
-    state = getattr(model, "state_", None)
-    if getattr(model, "word_channels_", None) is None or state is None or state.channels is None:
+    state = model.state_  # type: ignore[attr-defined]
+    if state.channels is None:  # (the model's word_channels_ are these)
         return answer
     names = name_words(switch_tokens(data, state)) & np.asarray(answer.word_mask, dtype=bool)
     return answerable_names(answer, e, names)
