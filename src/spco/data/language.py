@@ -152,11 +152,22 @@ def is_function_word(token: str) -> bool:
 NAME_OPENERS = frozenset({"my", "our", "your", "his", "her", "their"})
 
 
+def _may_start_name(word: str) -> bool:
+    """Whether a name may start with ``word``: not a function word or a number, but a possessive
+    ("my room")."""
+    return word in NAME_OPENERS or not is_function_word(word)
+
+
+def _may_end_name(word: str) -> bool:
+    """Whether a name may end with ``word``: never a function word or a number ("front of", "you are
+    in", "wash your")."""
+    return not is_function_word(word)
+
+
 def _joinable(a: str, b: str) -> bool:
-    """Whether ``a b`` may be a term: a name never ends with a function word or a number ("front of",
-    "you are in", "wash your") nor starts with one but a possessive ("my room")."""
-    first, last = a.split()[0], b.split()[-1]
-    return not is_function_word(last) and (first in NAME_OPENERS or not is_function_word(first))
+    """Whether ``a b`` may be a term: it starts and ends as a name may (:func:`_may_start_name`,
+    :func:`_may_end_name`)."""
+    return _may_start_name(a.split()[0]) and _may_end_name(b.split()[-1])
 
 
 #: Default count added per word occurrence (S^w in the paper).
@@ -712,9 +723,9 @@ class Vocabulary:
                 while j < len(stream) and stream[j] not in self._index:
                     j += 1
                 a, b = i, j  # the run without its leading and trailing function words
-                while a < b and is_function_word(stream[a]) and stream[a] not in NAME_OPENERS:
+                while a < b and not _may_start_name(stream[a]):
                     a += 1
-                while b > a and is_function_word(stream[b - 1]):
+                while b > a and not _may_end_name(stream[b - 1]):
                     b -= 1
                 if b - a >= 2 and sum(len(w.split()) for w in stream[a:b]) <= MAX_TERM_WORDS:
                     run = tuple(stream[a:b])
