@@ -84,19 +84,20 @@ def _align_to(reference_v: np.ndarray, reference_w: np.ndarray, phi_v: np.ndarra
     return perm
 
 
-def default_hyperparameters(homes: Any) -> TransferHyperparameters:
+def default_hyperparameters(homes: Any, base: TransferHyperparameters | None = None) -> TransferHyperparameters:
     """The scaled prior of ``homes`` (:func:`~spco.model.hyperparameters.scaled_hyperparameters`): a
     :class:`~spco.data.Corpus` is read here, a :class:`~spco.model.sources.FolderHomes` brings the
     scales it measured while reading its folders, a :class:`~spco.model.sources.SyntheticHomes` fleet
-    measures them generating its homes one at a time: the same prior as the corpus of the same homes."""
+    measures them generating its homes one at a time: the same prior as the corpus of the same homes.
+    ``base``: the constants scaled (default the paper's; its ν0 sets Ψ0's weight)."""
     from spco.model.sources import FolderHomes, SyntheticHomes
 
     if isinstance(homes, FolderHomes | SyntheticHomes):
-        return scaled_from(homes.scales)
+        return scaled_from(homes.scales, base)
     if isinstance(homes, Corpus):
         return scaled_hyperparameters([(t.positions, homes.word_counts(list(t.sentences)))
-                                       for t in homes.training_set()])
-    return TransferHyperparameters()
+                                       for t in homes.training_set()], base)
+    return TransferHyperparameters() if base is None else base
 
 
 def fit_knowledge(
@@ -142,9 +143,9 @@ def fit_knowledge(
         count vectors given as such.
     engine: where the homes' shards run (:func:`spco.engines.make_engine`): ``None`` in this
         process, ``"ray"`` or an engine object such as ``RayEngine(shards=4, address="auto")``.
-    prior: used when ``hyperparameters`` is ``None``: ``"scaled"`` (default) — κ0, L and K follow
-        the homes' spread and place sizes (:func:`default_hyperparameters`); ``"paper"`` — the
-        paper's constants.
+    prior: used when ``hyperparameters`` is ``None``: ``"scaled"`` (default) — Ψ0, κ0, L and K
+        follow the homes' spread and place sizes in their map units (:func:`default_hyperparameters`);
+        ``"paper"`` — the paper's constants (the reproduction).
 
     Returns
     -------
