@@ -194,3 +194,31 @@ def test_nu0_sets_the_weight_not_the_size() -> None:
     ten = scaled_hyperparameters(homes)
     forty = scaled_hyperparameters(homes, base=TransferHyperparameters(nu0=40.0))
     np.testing.assert_allclose(np.diag(forty.psi0_matrix_m2()) / 35.0, np.diag(ten.psi0_matrix_m2()) / 5.0)
+
+
+def test_every_route_of_a_home_uses_the_knowledge_scaled_prior(tmp_path) -> None:
+    """fit_knowledge's scaled Ψ0 is the one adapt, teach (the local update) and a reloaded file use; the
+    paper's stays one argument away."""
+    import warnings
+
+    from spco import knowledge as kn
+    from spco.data.environment import Corpus
+    from spco.data.synthetic import SyntheticConfig, generate_homes
+    from spco.knowledge.fit import default_hyperparameters
+
+    envs = list(generate_homes(3, seed=1, config=SyntheticConfig(n_features=16, n_train=10), new_homes=1,
+                               specific_rooms=False))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        knowledge = kn.fit_knowledge(Corpus(envs[:2]), n_iterations=2, random_state=0)
+        scaled = default_hyperparameters(Corpus(envs[:2]))
+        assert knowledge.hyperparameters.psi0 == scaled.psi0 and not knowledge.hyperparameters.psi0_in_cm2
+        assert scaled.psi0 != TransferHyperparameters().psi0
+        knowledge.save(tmp_path / "k.spco")
+        loaded = kn.load_knowledge(tmp_path / "k.spco")
+        home = kn.adapt(loaded, envs[2], n_iterations=1, random_state=0)
+        taught = kn.teach(home, {int(home.ids[0]): "this is the quokka room"}, random_state=0)
+        for model in (loaded, home, taught):
+            np.testing.assert_array_equal(model.hyperparameters.psi0_matrix_m2(), scaled.psi0_matrix_m2())
+        paper = kn.fit_knowledge(Corpus(envs[:2]), n_iterations=1, random_state=0, prior="paper")
+    assert paper.hyperparameters.psi0 == TransferHyperparameters().psi0 and paper.hyperparameters.psi0_in_cm2
