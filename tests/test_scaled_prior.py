@@ -111,14 +111,16 @@ def _log_marginal(points: np.ndarray, prior) -> float:
 def _prior(hyper: TransferHyperparameters, centre: np.ndarray):
     from spco.model.observations import NIWPrior
 
-    return NIWPrior(mu0=np.asarray(centre, dtype=float)[None], kappa0=hyper.kappa0, psi0=hyper.psi0_matrix_m2(),
-                    nu0=hyper.nu0)
+    return NIWPrior(mu0=np.asarray(centre, dtype=float)[None], kappa0=hyper.kappa0,
+                    psi0=hyper.psi0_matrix_m2(), nu0=hyper.nu0)
 
 
 def _rooms(scale: float) -> tuple[np.ndarray, np.ndarray]:
     """Two neighbouring rooms 2.5 m apart, 15 samples each within 0.6 m (× ``scale``), any heading."""
     rng = np.random.default_rng(7)
-    xy = np.concatenate([rng.normal(0.0, 0.6, (15, 2)), rng.normal(0.0, 0.6, (15, 2)) + [2.5, 0.0]]) * scale
+    first = rng.normal(0.0, 0.6, (15, 2))
+    second = rng.normal(0.0, 0.6, (15, 2)) + np.array([2.5, 0.0])
+    xy = np.concatenate([first, second]) * scale
     heading = rng.uniform(-np.pi, np.pi, 30)
     return np.column_stack([xy, np.sin(heading), np.cos(heading)]), np.repeat([0, 1], 15)
 

@@ -84,7 +84,8 @@ def _align_to(reference_v: np.ndarray, reference_w: np.ndarray, phi_v: np.ndarra
     return perm
 
 
-def default_hyperparameters(homes: Any, base: TransferHyperparameters | None = None) -> TransferHyperparameters:
+def default_hyperparameters(homes: Any,
+                            base: TransferHyperparameters | None = None) -> TransferHyperparameters:
     """The scaled prior of ``homes`` (:func:`~spco.model.hyperparameters.scaled_hyperparameters`): a
     :class:`~spco.data.Corpus` is read here, a :class:`~spco.model.sources.FolderHomes` brings the
     scales it measured while reading its folders, a :class:`~spco.model.sources.SyntheticHomes` fleet

@@ -348,7 +348,8 @@ def scaled_psi0(size: float, nu0: float) -> tuple[tuple[float, float, float, flo
     Raises :class:`~spco.errors.ConfigurationError` for a size that is not a finite number ≥ 0 or a
     ν0 ≤ d + 1 (no prior mean of Σ)."""
     if not (np.isfinite(size) and size >= 0):
-        raise ConfigurationError(f"the homes' place size must be a finite number >= 0 (map units), got {size!r}")
+        raise ConfigurationError(f"the homes' place size must be a finite number >= 0 (map units), "
+                                 f"got {size!r}")
     if not (np.isfinite(nu0) and nu0 > 5):
         raise ConfigurationError(f"nu0 must exceed d + 1 = 5 for the scaled prior (Ψ0 = (ν0 − 5)·E[Σ]: the "
                                  f"prior mean of a region's covariance must exist), got {nu0!r}; "
@@ -410,9 +411,10 @@ def scaled_from(scales: Sequence[tuple[float, float, int]],
         changes["kappa0"] = float(min(base.kappa0, max((size / (2.0 * spread)) ** 2, 1e-12)))
         psi0, clamped = scaled_psi0(size, base.nu0)
         if clamped:
+            taken = psi0[0] / (base.nu0 - 5)
             warnings.warn(f"the homes' places measure {size:.3g} map units, beyond what the position prior "
-                          f"holds beside the heading: its x, y variance is taken as {psi0[0] / (base.nu0 - 5):.3g} "
-                          "map units² (a map in metres, centimetres or millimetres is within)", stacklevel=2)
+                          f"holds beside the heading: its x, y variance is taken as {taken:.3g} map units² "
+                          "(a map in metres, centimetres or millimetres is within)", stacklevel=2)
         changes.update(psi0=psi0, psi0_in_cm2=False)
     return replace(base, n_concepts=max(base.n_concepts, 2 * places),
                    n_regions=max(base.n_regions, 2 * places), **changes)
