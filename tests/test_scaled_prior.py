@@ -116,22 +116,24 @@ def _prior(hyper: TransferHyperparameters, centre: np.ndarray):
 
 
 def _rooms(scale: float) -> tuple[np.ndarray, np.ndarray]:
-    """Two neighbouring rooms 2.5 m apart, 15 samples each within 0.6 m (× ``scale``), any heading."""
+    """Two neighbouring rooms 3 m apart, 15 samples each within 0.5 m (× ``scale``), any heading."""
     rng = np.random.default_rng(7)
-    first = rng.normal(0.0, 0.6, (15, 2))
-    second = rng.normal(0.0, 0.6, (15, 2)) + np.array([2.5, 0.0])
+    first = rng.normal(0.0, 0.5, (15, 2))
+    second = rng.normal(0.0, 0.5, (15, 2)) + np.array([3.0, 0.0])
     xy = np.concatenate([first, second]) * scale
     heading = rng.uniform(-np.pi, np.pi, 30)
     return np.column_stack([xy, np.sin(heading), np.cos(heading)]), np.repeat([0, 1], 15)
 
 
 def test_psi0_expects_regions_of_the_places_size() -> None:
-    """E[Σ] = Ψ0 / (ν0 − 5) is diag(s², s², h, h): the places' size in x, y, the paper's heading."""
+    """Ψ0 = diag(s², s², 0.5, 0.5) at ν0 = 10: E[Σ] = Ψ0 / (ν0 − 5) is diag(s²/5, s²/5, h, h), a part
+    of a place in x, y, the paper's heading."""
     floor = [_home(8, 6.0, 0.5, seed=s) for s in range(3)]
     hyper = scaled_hyperparameters(floor)
     size = float(np.median([home_scales(xy, said)[1] for xy, said in floor]))
     expected = np.diag(hyper.psi0_matrix_m2()) / (hyper.nu0 - 5)
-    np.testing.assert_allclose(expected, [size**2, size**2, 0.1, 0.1], rtol=1e-12)
+    np.testing.assert_allclose(expected, [size**2 / 5, size**2 / 5, 0.1, 0.1], rtol=1e-12)
+    np.testing.assert_allclose(hyper.psi0, [size**2, size**2, 0.5, 0.5], rtol=1e-12)
     assert hyper.psi0_in_cm2 is False and hyper.nu0 == TransferHyperparameters().nu0
     # the paper's: (1.4 cm)², whatever the map
     paper = TransferHyperparameters()
@@ -159,7 +161,8 @@ def test_the_same_floor_in_metres_and_centimetres_gets_the_same_model() -> None:
 
     odds_m, odds_cm = split_odds(m, 1.0), split_odds(cm, 100.0)
     assert odds_cm == pytest.approx(odds_m, abs=1e-6)
-    assert odds_m > 0  # two rooms 2.5 m apart are two regions
+    assert odds_m > 0  # two rooms 3 m apart are two regions
+    assert split_odds(TransferHyperparameters(), 1.0) < 0  # the paper's (1.4 cm)² regions merge them
     paper = TransferHyperparameters()
     assert abs(split_odds(paper, 1.0) - split_odds(paper, 100.0)) > 1.0
 

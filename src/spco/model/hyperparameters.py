@@ -334,16 +334,22 @@ def home_scales(positions: np.ndarray, said: Any) -> tuple[float, float, int]:
 #: E[Σ] of the heading (sin θ, cos θ) under the paper's prior: Ψ0's 0.5 over ν0 − d − 1 = 5. The scaled
 #: prior keeps it (the heading has no map units) and sets x, y from the homes' place size.
 HEADING_VARIANCE = PAPER_PSI0_CM[2] / (10.0 - 4 - 1)
-#: The scaled prior's x, y variance s² is kept within this factor of :data:`HEADING_VARIANCE` either way:
+#: E[Σ] of a region's x and y under the scaled prior, as a share of the places' variance s²: at the
+#: paper's ν0 = 10, Ψ0 = diag(s², s², 0.5, 0.5) — the paper's Ψ0 with s² for its 10 cm². Chosen on
+#: development (``benchmarks/teaching.py``, synthetic homes; docs/samplers.md): with E[Σ] = s² a region
+#: of a small room is as wide as a typical place and `where` draws leave the room.
+REGION_SHARE = 0.2
+#: The scaled prior's x, y variance is kept within this factor of :data:`HEADING_VARIANCE` either way:
 #: Ψ0 must factorise with x, y beside the heading (its condition number at most :data:`MAX_CONDITION`).
 MAX_SCALE_RATIO = 1e10
 
 
 def scaled_psi0(size: float, nu0: float) -> tuple[tuple[float, float, float, float], bool]:
     """Ψ0's diagonal (map units², for ``psi0_in_cm2=False``) whose prior mean of a region's covariance
-    is diag(s², s², h, h): E[Σ] = Ψ0 / (ν0 − d − 1), d = 4, s = ``size`` the places' size in map units,
-    h = :data:`HEADING_VARIANCE` (the paper's). s² is kept within :data:`MAX_SCALE_RATIO` of h (a map
-    whose places measure less than ~3·10⁻⁶ or more than ~3·10⁴ map units); the flag says it was.
+    is diag(r s², r s², h, h): E[Σ] = Ψ0 / (ν0 − d − 1), d = 4, s = ``size`` the places' size in map
+    units, r = :data:`REGION_SHARE`, h = :data:`HEADING_VARIANCE` (the paper's); at ν0 = 10,
+    diag(s², s², 0.5, 0.5). r s² is kept within :data:`MAX_SCALE_RATIO` of h (a map whose places
+    measure less than ~7·10⁻⁶ or more than ~7·10⁴ map units); the flag says it was.
 
     Raises :class:`~spco.errors.ConfigurationError` for a size that is not a finite number ≥ 0 or a
     ν0 ≤ d + 1 (no prior mean of Σ)."""
@@ -354,7 +360,7 @@ def scaled_psi0(size: float, nu0: float) -> tuple[tuple[float, float, float, flo
         raise ConfigurationError(f"nu0 must exceed d + 1 = 5 for the scaled prior (Ψ0 = (ν0 − 5)·E[Σ]: the "
                                  f"prior mean of a region's covariance must exist), got {nu0!r}; "
                                  "use --prior paper for a smaller nu0")
-    variance = size * size
+    variance = REGION_SHARE * size * size
     low, high = HEADING_VARIANCE / MAX_SCALE_RATIO, HEADING_VARIANCE * MAX_SCALE_RATIO
     kept = float(min(max(variance, low), high))
     strength = nu0 - 4 - 1
@@ -370,10 +376,11 @@ def scaled_hyperparameters(homes: Sequence[tuple[np.ndarray, Any]],
     samples (:func:`home_scales`). With R the median spread of the homes and s the median size of
     their places (both in map units):
 
-    - Ψ0 = (ν0 − d − 1)·diag(s², s², h, h), d = 4 (:func:`scaled_psi0`): the prior mean of a
-      region's covariance is a place's size, E[Σ] = diag(s², s², h, h), h the paper's heading
-      variance (0.1), ν0 the paper's 10 (its weight: a region of n samples has E[Σ | data] =
-      (Ψ0 + scatter)/(ν0 + n − 5), a place-sized Gaussian with few samples, its data's with many).
+    - Ψ0 = diag(s², s², 0.5, 0.5) at the paper's ν0 = 10 — the paper's Ψ0 with the places' size s²
+      for its 10 cm² (:func:`scaled_psi0`): the prior mean of a region's covariance is E[Σ] =
+      Ψ0 / (ν0 − d − 1) = diag(s²/5, s²/5, h, h), d = 4, h the paper's heading variance (0.1): a
+      region a part of a place, never wider than one (a region of n samples has E[Σ | data] =
+      (Ψ0 + scatter)/(ν0 + n − 5): a part of a place with few samples, its data's with many).
       The paper's Ψ0 = diag(10 cm², 10 cm², 0.5, 0.5) expects regions of (1.4 cm)², whatever the
       map: every region must win ν0/2·log|Ψ0| back from its data, and two neighbouring rooms in one
       region are preferred to a split (benchmarks/README.md, "Teaching a live home").
@@ -397,7 +404,7 @@ def scaled_from(scales: Sequence[tuple[float, float, int]],
                 base: TransferHyperparameters | None = None) -> TransferHyperparameters:
     """:func:`scaled_hyperparameters` from the homes' :func:`home_scales` (R, s, n), computed where
     the homes are read (a :class:`~spco.model.sources.FolderHomes` keeps them). Ψ0 follows
-    ``base.nu0`` (E[Σ] stays the places' size whatever ν0); warns when the places' size is beyond
+    ``base.nu0`` (E[Σ] stays the same whatever ν0); warns when the places' size is beyond
     what Ψ0 can hold beside the heading (:func:`scaled_psi0`)."""
     base = TransferHyperparameters() if base is None else base
     if not scales:
