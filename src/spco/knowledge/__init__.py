@@ -73,7 +73,7 @@ from spco.knowledge.queries import (
     what,
     where,
 )
-from spco.knowledge.updating import teach
+from spco.knowledge.updating import teach, teach_requests
 from spco.knowledge.views import (
     FAR_OUTSIDE_MAP,
     map_bounds,
@@ -129,6 +129,7 @@ __all__ = [
     "read_visual_vector",
     "summary_iterations",
     "teach",
+    "teach_requests",
     "unused_word_hint",
     "view_counts",
     "view_fit",

@@ -23,7 +23,8 @@ from spco.errors import ConfigurationError
 from spco.knowledge.files import HOME_FORMAT, model_file_format
 from spco.knowledge.home import HomeModel, load_home_model
 from spco.knowledge.knowledge import load_knowledge
-from spco.knowledge.views import _pose, _visual_row, pose_outside_map, view_counts
+from spco.knowledge.requests import Pose
+from spco.knowledge.views import _visual_row, pose_outside_map, view_counts
 from spco.model import confidence
 from spco.model.confidence import UNSURE_BELOW
 from spco.model.parameters import ConceptParameters
@@ -216,7 +217,7 @@ def what(home: HomeModel, x: float, y: float, theta: float, visual: Any = None,
     (p(w | x, v)), ``scores[0]`` (the ranking score), ``confidence[0]`` (the answer's probability)
     and ``unsure[0]``.
     """
-    pose = _pose(x, y, theta)[None, :]
+    pose = Pose(x, y, theta).row()[None, :]
     outside = pose_outside_map(home, x, y)
     if outside is not None:
         warnings.warn(f"{outside}; the names are extrapolated from the nearest regions", stacklevel=2)

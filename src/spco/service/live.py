@@ -36,6 +36,7 @@ import time
 import warnings
 from collections.abc import Callable, Iterator
 from concurrent.futures import Future
+from dataclasses import replace
 from os import PathLike
 from pathlib import Path
 from typing import Any
@@ -60,7 +61,7 @@ from spco.knowledge.requests import (
 )
 from spco.service.answers import ask_answer, check_pose, regions_answer, what_answer, where_answer
 from spco.service.journal import TornRecordWarning, journal_path
-from spco.service.teaching import ConflictError, NotFoundError, served_info, view_record
+from spco.service.teaching import ConflictError, NotFoundError, served_info
 from spco.service.writer import ProcessWriter, ThreadWriter, WriterUnavailableError
 
 __all__ = ["MAX_POSES", "MAX_QUESTIONS", "MAX_TOP", "LiveHome", "Subscription"]
@@ -333,7 +334,7 @@ class LiveHome:
                 "uptime_seconds": round(time.time() - self.started, 1)}
 
     # ------------------------------------------------------------------ teaching
-    def _submit(self, request: dict[str, Any]) -> Future[dict[str, Any]]:
+    def _submit(self, request: Teach | Undo) -> Future[dict[str, Any]]:
         """Send ``request`` to the writer; the future gets the answer, or the error it raised."""
         answer: Future[dict[str, Any]] = Future()
         if self._closed:
@@ -366,20 +367,22 @@ class LiveHome:
     def submit(self, request: Teach | Undo) -> Future[dict[str, Any]]:
         """Hand a checked teaching or undo (:mod:`spco.knowledge.requests`) to the writer; a future of
         its answer (or of its error). The one way every teacher (HTTP, ROS, the methods below)
-        teaches the home. A new observation's pose is checked against the map and its image turned
-        into counts here, in the caller's thread (errors raise at once)."""
+        teaches the home: the writer teaches it with one call of the home
+        (:func:`spco.service.teaching.teach_batch`, :func:`spco.knowledge.teach_requests`), which
+        checks what needs the home (a known sample, the pose on the map, the view's counts) and
+        turns an image into counts. A view's image bytes are decoded here, in the caller's thread
+        (:func:`spco.features.pixels.decode_image`, its size checked against ``max_pixels``: a bad
+        image raises at once)."""
         if isinstance(request, Undo):
-            return self._submit({"op": "undo", "seq": request.seq})
+            return self._submit(request)
         if not isinstance(request, Teach):
             raise ConfigurationError(f"not a teaching: {type(request).__name__} (Teach or Undo)")
-        if request.id is not None:
-            return self._submit({"op": "sentence", "id": request.id, "sentence": request.sentence})
-        pose = request.pose
-        assert pose is not None  # Teach holds an id or a pose
-        check_pose(self._snapshot, pose)
-        view = view_record(self._snapshot, self.view_counts(request.view))
-        return self._submit({"op": "observation", "x": pose.x, "y": pose.y, "theta": pose.theta,
-                             "sentence": request.sentence, "view": view})
+        view = request.view
+        if view is not None and view.image is not None:
+            pixels = decode_image(view.image, view.encoding, width=view.width, height=view.height,
+                                  max_pixels=self.max_pixels)
+            request = replace(request, view=View(image=pixels, encoding="bgr8"))
+        return self._submit(request)
 
     def submit_teach(self, *, sentence: str | None = None, id: int | None = None, x: float | None = None,
                      y: float | None = None, theta: float | None = None, image: Any = None,
