@@ -190,13 +190,14 @@ def test_what_says_when_it_is_unsure(home_file: Path) -> None:
     x, y, s, c = home.positions[i]
     theta = math.atan2(s, c)
     assert kn.what(home, float(x), float(y), theta, visual=home.visual[[i]], unsure_below=1.0).unsure[0]
+    from spco.knowledge.requests import Pose, View, What
     from spco.service.answers import what_answer  # spco serve's /what and the ROS node answer with it
 
-    counts = home.visual[[i]].toarray()[0]
-    served = what_answer(home, float(x), float(y), theta, counts)
+    request = What(Pose(float(x), float(y), theta), View(visual=home.visual[[i]].toarray()[0]))
+    served = what_answer(home, request)
     assert served["confidence"] == pytest.approx(float(confidence[i])) and served["unsure"] is False
     assert served["answer"] == best.best[0]
-    assert what_answer(home, float(x), float(y), theta, counts, unsure_below=1.0)["unsure"] is True
+    assert what_answer(home, request, unsure_below=1.0)["unsure"] is True
     view = home_file.parent / "view.npy"
     np.save(view, home.visual[[i]].toarray()[0])
     args = [str(home_file), "--x", str(x), "--y", str(y), "--theta", str(theta), "--visual", str(view)]

@@ -146,20 +146,43 @@ def test_a_teaching_crosses_into_the_home_once_before_the_journal(built: Path, t
         assert walk.calls == ["spco.knowledge.updating.teach_requests"] and not walk.journalled
 
 
+def test_each_question_is_one_call_of_the_home(built: Path, tmp_path: Path) -> None:
+    """``where``, ``what`` (with a view as an image) and ``ask``: one function of the home each."""
+    home = copy_home(built, tmp_path)
+    walk = Walk()
+    with walk.installed(), LiveHome(home, writer="thread", seed=0) as live, \
+            TestClient(create_app(live), base_url="http://127.0.0.1") as client:
+        name = live.home.known_names[0]
+        view = {"x": 0.2, "y": 0.1, "theta": 0.5, "image": _jpeg(2)}
+        assert client.post("/what", json=view).status_code == 200  # the extractor built (once per home)
+        questions = [("/where", {"name": name, "n": 3}, "spco.knowledge.queries.where"),
+                     ("/what", view, "spco.knowledge.queries.what_request"),
+                     ("/what", {"x": 0.2, "y": 0.1, "theta": 0.5}, "spco.knowledge.queries.what_request"),
+                     ("/ask", {"n": 2}, "spco.knowledge.asking.ask")]
+        for path, arguments, call in questions:
+            with walk.recorded():
+                if path == "/what" and "image" in arguments:
+                    answer = client.post(path, json=arguments)
+                else:
+                    answer = client.get(path, params=arguments)
+            assert answer.status_code == 200, answer.text
+            # an ask's questions say themselves (Question.to_dict): the answer's own form, not a question
+            calls = [c for c in walk.calls if not c.endswith("Question.to_dict")]
+            assert calls == [call], (path, walk.calls)
+
+
 def test_the_walk_tracer_sees_a_second_call(built: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
                                             ) -> None:
     """The tracer itself: a service that asks the home twice before the journal is caught."""
     import spco.service.teaching as teaching
-    from spco.service.answers import check_pose
+    import spco.service.writer as writer
+    from spco.service.answers import regions_answer
 
     original = teaching.teach_batch
 
     def twice(home: kn.HomeModel, *args: Any, **kwargs: Any) -> Any:
-        check_pose(home, 0.0, 0.0, 0.0)  # the service asks the home a second time
+        regions_answer(home)  # the service asks the home something else first
         return original(home, *args, **kwargs)
-
-    monkeypatch.setattr(teaching, "teach_batch", twice)
-    import spco.service.writer as writer
 
     monkeypatch.setattr(writer, "teach_batch", twice)
     home = copy_home(built, tmp_path)
@@ -168,4 +191,4 @@ def test_the_walk_tracer_sees_a_second_call(built: Path, tmp_path: Path, monkeyp
         with walk.recorded():
             live.teach(x=0.2, y=0.1, theta=0.5, sentence="this is the larder")
     assert walk.journalled
-    assert walk.calls == ["spco.knowledge.views.pose_outside_map", "spco.knowledge.updating.teach_requests"]
+    assert len(walk.calls) >= 2 and walk.calls[-1] == "spco.knowledge.updating.teach_requests", walk.calls

@@ -71,6 +71,7 @@ from spco.knowledge.queries import (
     name_prediction,
     unused_word_hint,
     what,
+    what_request,
     where,
 )
 from spco.knowledge.updating import teach, teach_requests
@@ -135,5 +136,6 @@ __all__ = [
     "view_fit",
     "view_fit_warning",
     "what",
+    "what_request",
     "where",
 ]
