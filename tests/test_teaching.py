@@ -60,14 +60,20 @@ def _assert_same_answers(a: kn.HomeModel, b: kn.HomeModel) -> None:
             np.testing.assert_array_equal(x[name], y[name])
 
 
+def _teach(model: kn.HomeModel, sentences: dict | None = None, observations: list | tuple = (),
+           **options: object) -> kn.HomeModel:
+    """:func:`spco.knowledge.teach` without its warnings (a new name spreading: said, not tested here)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return kn.teach(model, sentences, observations, **options)  # type: ignore[arg-type]
+
+
 # ----------------------------------------------------------------------------- a local update
 def test_a_teaching_changes_the_taught_place_and_leaves_the_rest_as_it_was(home: Path) -> None:
     model = kn.load_home_model(home)
     row = 7
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        taught = kn.teach(model, {int(model.ids[row]): "this is the quokka room"}, random_state=4)
-        again = kn.teach(model, {int(model.ids[row]): "this is the quokka room"}, random_state=4)
+    taught = _teach(model, {int(model.ids[row]): "this is the quokka room"}, random_state=4)
+    again = _teach(model, {int(model.ids[row]): "this is the quokka room"}, random_state=4)
     for name, value in _arrays(taught).items():  # the same seed: the same home, bit for bit
         np.testing.assert_array_equal(value, _arrays(again)[name], err_msg=name)
     before, after = model.posterior, taught.posterior
@@ -100,9 +106,7 @@ def test_a_teaching_regroups_only_its_own_names_not_the_homes_other_new_names(ho
 
     model = kn.load_home_model(home)
     row_a = 7
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        named = kn.teach(model, {int(model.ids[row_a]): "this is the quokka room"}, random_state=1)
+    named = _teach(model, {int(model.ids[row_a]): "this is the quokka room"}, random_state=1)
     concept_a = int(named.state.concepts[row_a])
     of_a = np.flatnonzero(named.state.concepts == concept_a)
     # a posterior in which the name's samples are not all in one concept: one of them elsewhere
@@ -112,9 +116,7 @@ def test_a_teaching_regroups_only_its_own_names_not_the_homes_other_new_names(ho
     spread_home = replace(named, state=spread)
     far = np.flatnonzero(~np.isin(named.state.regions, named.state.regions[of_a]))
     row_b = int(far[len(far) // 2])
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        taught = kn.teach(spread_home, {int(model.ids[row_b]): "this is the zephyr room"}, random_state=2)
+    taught = _teach(spread_home, {int(model.ids[row_b]): "this is the zephyr room"}, random_state=2)
     # the teaching of "zephyr room" gave its own name a concept, and left "quokka room"'s samples as the
     # home's posterior had them (not regrouped into a concept of their own)
     assert taught.state.concepts[row_b] not in set(spread.concepts[of_a].tolist())
@@ -127,10 +129,8 @@ def test_a_new_observation_is_placed_where_it_is_not_in_region_0(home: Path) -> 
     row = int(nonzero[len(nonzero) // 2])
     x, y = (float(v) for v in model.positions[row, :2])
     theta = float(np.arctan2(model.positions[row, 2], model.positions[row, 3]))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        taught = kn.teach(model, observations=[kn.Observation(x=x, y=y, theta=theta, sentence="the zephyr")],
-                          random_state=0)
+    taught = _teach(model, observations=[kn.Observation(x=x, y=y, theta=theta, sentence="the zephyr")],
+                    random_state=0)
     assert taught.state.regions[-1] == taught.state.regions[row]
 
 
@@ -152,15 +152,12 @@ def test_splice_keeps_untouched_concepts_and_regions_and_the_concept_weights_sum
 
 # ----------------------------------------------------------------------------- undo restores
 def _teach_library(model: kn.HomeModel, record: dict) -> kn.HomeModel:
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        if record["op"] == "sentence":
-            return kn.teach(model, {int(record["id"]): record["sentence"]}, n_sweeps=int(record["sweeps"]),
-                            random_state=int(record["seed"]))
-        obs = kn.Observation(x=record["x"], y=record["y"], theta=record["theta"], sentence=record["sentence"],
-                             id=int(record["id"]))
-        return kn.teach(model, observations=[obs], n_sweeps=int(record["sweeps"]),
-                        random_state=int(record["seed"]))
+    options = {"n_sweeps": int(record["sweeps"]), "random_state": int(record["seed"])}
+    if record["op"] == "sentence":
+        return _teach(model, {int(record["id"]): record["sentence"]}, **options)
+    obs = kn.Observation(x=record["x"], y=record["y"], theta=record["theta"], sentence=record["sentence"],
+                         id=int(record["id"]))
+    return _teach(model, observations=[obs], **options)
 
 
 def test_undo_gives_every_answer_back_exactly_through_compaction_and_a_restart(home: Path) -> None:
@@ -228,9 +225,7 @@ def test_limits_refuse_a_teaching_whole_naming_the_limit(home: Path) -> None:
     assert error.value.limit == "max_sentence_words" and error.value.allowed == 6
     with pytest.raises(TeachingLimitError, match="max_new_words"):
         kn.teach(model, {sample: "zork the blip the quux"}, limits=limits)  # three new words
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        grown = kn.teach(model, {sample: "zork the blip"}, limits=limits, n_sweeps=1)
+    grown = _teach(model, {sample: "zork the blip"}, limits=limits, n_sweeps=1)
     with pytest.raises(TeachingLimitError, match="max_home_words"):
         kn.teach(grown, {sample: "quux the frob"}, limits=limits)
     kn.TeachingLimits(max_home_words=None)  # no limit of that kind
