@@ -1,4 +1,4 @@
-"""Teachings of a served home as journal records: validated, applied in batches, replayed, undone.
+"""Teachings of a served home as journal records: taught in batches, replayed, undone.
 
 A teaching arrives as a request checked where it entered (a
 :class:`~spco.knowledge.requests.Teach`), is given a sequence number, and taught together with the
