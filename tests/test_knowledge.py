@@ -113,10 +113,11 @@ def test_fit_sets_hyperparameters_and_keeps_them_in_the_knowledge(tmp_path: Path
 
 def test_fit_nu0_weights_the_scaled_prior_and_prior_paper_keeps_the_papers(tmp_path: Path,
                                                                           homes: dict[str, Path]) -> None:
-    """``--set nu0`` on the scaled prior scales Ψ0 with it (E[Σ] = Ψ0 / (ν0 − 5) stays the places'
+    """``--set nu0`` with ``--prior places`` scales Ψ0 with it (E[Σ] = Ψ0 / (ν0 − 5) stays the places'
     size); ``--prior paper`` keeps the paper's Ψ0; ν0 ≤ 5 has no scaled prior and is refused."""
     runs = {}
-    for name, args in (("default", []), ("nu0", ["--set", "nu0=20"]), ("paper", ["--prior", "paper"])):
+    for name, args in (("default", ["--prior", "places"]), ("nu0", ["--prior", "places", "--set", "nu0=20"]),
+                       ("paper", ["--prior", "paper"])):
         out = tmp_path / f"{name}.spco"
         result = _invoke(fit, ["--data", homes["experienced"], "--iterations", 2, "--out", out, *args])
         assert result.exit_code == 0, result.output
@@ -127,7 +128,7 @@ def test_fit_nu0_weights_the_scaled_prior_and_prior_paper_keeps_the_papers(tmp_p
     assert runs["paper"].psi0 == (10.0, 10.0, 0.5, 0.5) and runs["paper"].psi0_in_cm2
     assert runs["default"].psi0 != runs["paper"].psi0
     result = _invoke(fit, ["--data", homes["experienced"], "--iterations", 2, "--out", tmp_path / "low.spco",
-                           "--set", "nu0=4.5"])
+                           "--prior", "places", "--set", "nu0=4.5"])
     assert result.exit_code != 0 and "nu0" in result.output and "Traceback" not in result.output
     assert not (tmp_path / "low.spco").exists()
 

@@ -88,7 +88,7 @@ def test_a_synthetic_fleet_gets_the_scaled_prior_of_the_corpus_of_its_homes() ->
     assert fleet.kappa0 < TransferHyperparameters().kappa0  # the scaled prior, not the paper's
 
 
-# ------------------------------------------------------------------ Ψ0 (the regions' size) follows the places
+# ------------------------------------------- Ψ0 (the regions' size) follows the places: prior="places"
 
 
 def _log_marginal(points: np.ndarray, prior) -> float:
@@ -129,7 +129,7 @@ def test_psi0_expects_regions_of_the_places_size() -> None:
     """Ψ0 = diag(s², s², 0.5, 0.5) at ν0 = 10: E[Σ] = Ψ0 / (ν0 − 5) is diag(s²/5, s²/5, h, h), a part
     of a place in x, y, the paper's heading."""
     floor = [_home(8, 6.0, 0.5, seed=s) for s in range(3)]
-    hyper = scaled_hyperparameters(floor)
+    hyper = scaled_hyperparameters(floor, psi0=True)
     size = float(np.median([home_scales(xy, said)[1] for xy, said in floor]))
     expected = np.diag(hyper.psi0_matrix_m2()) / (hyper.nu0 - 5)
     np.testing.assert_allclose(expected, [size**2 / 5, size**2 / 5, 0.1, 0.1], rtol=1e-12)
@@ -147,7 +147,7 @@ def test_the_same_floor_in_metres_and_centimetres_gets_the_same_model() -> None:
     paper's constants they are not (its Ψ0 is 10 cm² in any map)."""
     metres = [_home(8, 6.0, 0.5, seed=s) for s in range(3)]
     centimetres = [(xy * 100.0, said) for xy, said in metres]
-    m, cm = scaled_hyperparameters(metres), scaled_hyperparameters(centimetres)
+    m, cm = scaled_hyperparameters(metres, psi0=True), scaled_hyperparameters(centimetres, psi0=True)
     np.testing.assert_allclose(np.diag(cm.psi0_matrix_m2()),
                                np.diag(m.psi0_matrix_m2()) * [1e4, 1e4, 1.0, 1.0], rtol=1e-9)
     assert cm.kappa0 == pytest.approx(m.kappa0, rel=1e-9)
@@ -175,7 +175,7 @@ def test_extreme_place_sizes_are_kept_representable_or_refused() -> None:
     for scale in (1e-9, 1e9, 1e150):
         homes = [(xy * scale, said) for xy, said in (_home(8, 6.0, 0.5, seed=s) for s in range(2))]
         with pytest.warns(UserWarning, match="places measure"):
-            hyper = scaled_hyperparameters(homes)
+            hyper = scaled_hyperparameters(homes, psi0=True)
         eig = np.linalg.eigvalsh(hyper.psi0_matrix_m2())
         assert eig.max() <= MAX_CONDITION * eig.min()
     for size in (0.0, 1e-300, 1e300):
@@ -183,21 +183,21 @@ def test_extreme_place_sizes_are_kept_representable_or_refused() -> None:
         assert clamped and np.isfinite(psi).all() and min(psi) > 0
     # positions whose squares underflow have no measurable spread: the base's prior
     tiny = [(xy * 1e-300, said) for xy, said in (_home(8, 6.0, 0.5, seed=s) for s in range(2))]
-    assert scaled_hyperparameters(tiny).psi0 == TransferHyperparameters().psi0
+    assert scaled_hyperparameters(tiny, psi0=True).psi0 == TransferHyperparameters().psi0
     for size in (float("nan"), float("inf"), -1.0):
         with pytest.raises(ConfigurationError, match="place size"):
             scaled_psi0(size, 10.0)
     with pytest.raises(ConfigurationError, match="nu0"):
         scaled_psi0(0.3, 5.0)
     with pytest.raises(ConfigurationError, match="nu0"):
-        scaled_hyperparameters([_home(8, 6.0, 0.5)], base=TransferHyperparameters(nu0=4.5))
+        scaled_hyperparameters([_home(8, 6.0, 0.5)], base=TransferHyperparameters(nu0=4.5), psi0=True)
 
 
 def test_nu0_sets_the_weight_not_the_size() -> None:
     """A larger ν0 scales Ψ0 with it: E[Σ] stays the places' size (``spco fit --set nu0=…``)."""
     homes = [_home(8, 6.0, 0.5, seed=s) for s in range(2)]
-    ten = scaled_hyperparameters(homes)
-    forty = scaled_hyperparameters(homes, base=TransferHyperparameters(nu0=40.0))
+    ten = scaled_hyperparameters(homes, psi0=True)
+    forty = scaled_hyperparameters(homes, base=TransferHyperparameters(nu0=40.0), psi0=True)
     np.testing.assert_allclose(np.diag(forty.psi0_matrix_m2()) / 35.0, np.diag(ten.psi0_matrix_m2()) / 5.0)
 
 
@@ -215,8 +215,9 @@ def test_every_route_of_a_home_uses_the_knowledge_scaled_prior(tmp_path) -> None
                                specific_rooms=False))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        knowledge = kn.fit_knowledge(Corpus(envs[:2]), n_iterations=2, random_state=0)
-        scaled = default_hyperparameters(Corpus(envs[:2]))
+        knowledge = kn.fit_knowledge(Corpus(envs[:2]), n_iterations=2, random_state=0, prior="places")
+        scaled = default_hyperparameters(Corpus(envs[:2]), psi0=True)
+        assert default_hyperparameters(Corpus(envs[:2])).psi0 == TransferHyperparameters().psi0  # opt-in
         assert knowledge.hyperparameters.psi0 == scaled.psi0 and not knowledge.hyperparameters.psi0_in_cm2
         assert scaled.psi0 != TransferHyperparameters().psi0
         knowledge.save(tmp_path / "k.spco")

@@ -305,9 +305,10 @@ class SpCoAHyperparameters(TransferHyperparameters):
 
 
 #: Where the default position prior and truncations come from (``fit_knowledge(prior=…)``,
-#: ``spco fit --prior``): ``"scaled"`` follows the experienced homes' scale (:func:`scaled_hyperparameters`),
+#: ``spco fit --prior``): ``"scaled"`` follows the experienced homes' scale (κ0, L, K:
+#: :func:`scaled_hyperparameters`), ``"places"`` (opt-in) also sets Ψ0 from the homes' places,
 #: ``"paper"`` is the paper's constants (the reproduction).
-PRIORS = ("scaled", "paper")
+PRIORS = ("scaled", "places", "paper")
 #: Words said at least this many times in a home measure its place sizes (:func:`scaled_hyperparameters`).
 _MIN_USES = 3
 
@@ -371,14 +372,16 @@ def scaled_psi0(size: float, nu0: float) -> tuple[tuple[float, float, float, flo
 
 
 def scaled_hyperparameters(homes: Sequence[tuple[np.ndarray, Any]],
-                           base: TransferHyperparameters | None = None) -> TransferHyperparameters:
+                           base: TransferHyperparameters | None = None,
+                           psi0: bool = False) -> TransferHyperparameters:
     """The paper's hyperparameters with the position prior and truncations following the homes' scale.
 
     ``homes``: (positions (n, ≥2) in map units, said (n, V)) of each experienced home's training
     samples (:func:`home_scales`). With R the median spread of the homes and s the median size of
     their places (both in map units):
 
-    - Ψ0 = diag(s², s², 0.5, 0.5) at the paper's ν0 = 10 — the paper's Ψ0 with the places' size s²
+    - with ``psi0`` (``prior="places"``, opt-in): Ψ0 = diag(s², s², 0.5, 0.5) at the paper's
+      ν0 = 10 — the paper's Ψ0 with the places' size s²
       for its 10 cm² (:func:`scaled_psi0`): the prior mean of a region's covariance is E[Σ] =
       Ψ0 / (ν0 − d − 1) = diag(s²/5, s²/5, h, h), d = 4, h the paper's heading variance (0.1): a
       region a part of a place, never wider than one (a region of n samples has E[Σ | data] =
@@ -399,11 +402,11 @@ def scaled_hyperparameters(homes: Sequence[tuple[np.ndarray, Any]],
     (the answers are the same). Without two words said ≥ 3 times in any home, κ0 and Ψ0 stay the
     base's (the paper's).
     """
-    return scaled_from([home_scales(positions, said) for positions, said in homes], base)
+    return scaled_from([home_scales(positions, said) for positions, said in homes], base, psi0)
 
 
 def scaled_from(scales: Sequence[tuple[float, float, int]],
-                base: TransferHyperparameters | None = None) -> TransferHyperparameters:
+                base: TransferHyperparameters | None = None, psi0: bool = False) -> TransferHyperparameters:
     """:func:`scaled_hyperparameters` from the homes' :func:`home_scales` (R, s, n), computed where
     the homes are read (a :class:`~spco.model.sources.FolderHomes` keeps them). Ψ0 follows
     ``base.nu0`` (E[Σ] stays the same whatever ν0); warns when the places' size is beyond
@@ -418,12 +421,14 @@ def scaled_from(scales: Sequence[tuple[float, float, int]],
     if sizes and spread > 0:
         size = float(np.median(sizes))
         changes["kappa0"] = float(min(base.kappa0, max((size / (2.0 * spread)) ** 2, 1e-12)))
-        psi0, clamped = scaled_psi0(size, base.nu0)
+    if sizes and spread > 0 and psi0:
+        size = float(np.median(sizes))
+        psi, clamped = scaled_psi0(size, base.nu0)
         if clamped:
-            taken = psi0[0] / (base.nu0 - 5)
+            taken = psi[0] / (base.nu0 - 5)
             warnings.warn(f"the homes' places measure {size:.3g} map units, beyond what the position prior "
                           f"holds beside the heading: its x, y variance is taken as {taken:.3g} map units² "
                           "(a map in metres, centimetres or millimetres is within)", stacklevel=2)
-        changes.update(psi0=psi0, psi0_in_cm2=False)
+        changes.update(psi0=psi, psi0_in_cm2=False)
     return replace(base, n_concepts=max(base.n_concepts, 2 * places),
                    n_regions=max(base.n_regions, 2 * places), **changes)
