@@ -62,9 +62,9 @@ class KnowledgeChannels:
     channels: the :class:`~spco.model.word_channels.WordChannels` averaged over the kept sweeps: log ψ
         (L, V) each concept's place words, log β (V,) the background, log λ (3,) the learnt shares and
         the linguistic evidence log e (V, 3) of every word (the switch's prior).
-    tokens: (V, 3) the experienced homes' tokens of each word drawn as name, place word and background
-        word at the fit's last sweep (0 for words first heard in a home): which words are names
-        (:meth:`name_mask`).
+    tokens: (V, 3) the experienced homes' expected tokens of each word as name, place word and
+        background word: the switch probabilities of its tokens summed, averaged over the fit's kept
+        sweeps (0 for words first heard in a home): which words are names (:meth:`name_mask`).
     """
 
     channels: WordChannels
@@ -106,11 +106,12 @@ class KnowledgeChannels:
                                  np.concatenate([self.tokens, np.zeros((added, 3))]))
 
     def name_mask(self, home_tokens: np.ndarray | None = None) -> np.ndarray:
-        """(V,) bool: the words that are names (:func:`spco.model.home_shard.name_words`) by the fit's
-        tokens (:attr:`tokens`) plus a home's own (``home_tokens``, (V, 3), e.g. its switches'
-        expected counts)."""
+        """(V,) bool: the words that are names (:func:`spco.model.home_shard.name_words`: the names
+        their most probable channel given the switch's prior and their uses) by the fit's tokens
+        (:attr:`tokens`) plus a home's own (``home_tokens``, (V, 3), e.g. its switches' expected
+        counts)."""
         tokens = self.tokens if home_tokens is None else self.tokens + np.asarray(home_tokens, float)
-        return name_words(tokens)
+        return name_words(tokens, self.channels.log_prior())
 
     def arrays(self) -> dict[str, np.ndarray]:
         """The arrays a file holds (``channels.<name>``)."""

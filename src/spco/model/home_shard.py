@@ -37,12 +37,10 @@ from spco.model.parameters import ConceptParameters
 from spco.model.posterior import ParameterAverage, thinned_sweeps
 from spco.model.pruning import NOT_A_NAME, words_to_keep
 from spco.model.state import GibbsState, PreparedData, SamplerSettings
-from spco.model.word_channels import NAME, WordChannels, switch_probabilities
+from spco.model.word_channels import NAME, WordChannels, expected_tokens, switch_probabilities
 
 __all__ = [
     "FREE_CONCEPT_WEIGHT",
-    "NAME_SHARE",
-    "NAME_TOKENS",
     "OWN_NAMES_SPREAD_WARNING",
     "NewHomeShard",
     "OwnNamesSpreadWarning",
@@ -151,14 +149,9 @@ def switch_tokens(data: PreparedData, state: GibbsState) -> np.ndarray:
     """(V, 3) the home's expected tokens of each word per channel (name, place, background): every
     token's switch probabilities given its sample's concept (each token counted once,
     :func:`spco.model.word_channels.switch_probabilities`); zeros without channels or words."""
-    V = data.words.shape[1]
-    out = np.zeros((V, 3))
     if state.channels is None or not data.words.nnz:
-        return out
-    p = switch_probabilities(data.words, data.homes, state.concepts, state.log_theta_w, state.channels)
-    first, last = int(data.words.indptr[0]), int(data.words.indptr[-1])
-    np.add.at(out, data.words.indices[first:last], p)
-    return out
+        return np.zeros((data.words.shape[1], 3))
+    return expected_tokens(data.words, data.homes, state.concepts, state.log_theta_w, state.channels)
 
 
 def draw_switches(data: PreparedData, state: GibbsState, rng: np.random.Generator,
@@ -195,26 +188,45 @@ def draw_switches(data: PreparedData, state: GibbsState, rng: np.random.Generato
     state.switches = switches
 
 
-#: A word is one of a home's names once the posterior expects at least this many of its uses to be
-#: names (its tokens drawn as names by the channels' switches: the fit's, then the home's expected
-#: ones; `KnowledgeChannels.name_mask`): a word said once is a name when its switch says name more
-#: likely than not ("this is the study room"), not when it says place ("the fridge is over here": the
-#: evidence gives P(name) 0.22); a word of the experienced homes when any of its uses were names
-#: ("dining", a name in 13 % of its SIGVerse uses and an activity in the rest, names the dining
-#: area), provided they are at least :data:`NAME_SHARE` of its uses ("location", a name in 7 of its
-#: 532 template uses, is no name); a function word, with no name use at all, never. Which of a
-#: place's names comes first is then the names channel θ^w's.
-NAME_TOKENS = 0.5
-#: ... and at least this share of its uses (:data:`NAME_TOKENS`).
-NAME_SHARE = 0.1
+def word_channel_log_posterior(tokens: np.ndarray, log_prior: np.ndarray) -> np.ndarray:
+    """(V, 3) log p(word k is a name word, a place word, a background word | its uses), up to a
+    constant per word: the word's channel as one latent for all its uses, with the switch's prior
+    p(z | k) as its prior (``log_prior`` (V, 3), :meth:`~spco.model.word_channels.WordChannels.log_prior`)
+    and its n_k uses' likelihoods.
 
+    Each use i's switch posterior is r_ic = p(z = c | k) L_ic / Z_i (L_ic its likelihood under channel
+    c given its concept), so Π_i L_ic ∝ Π_i r_ic / p(z = c | k), the Z_i common to the three channels.
+    From ``tokens`` (V, 3), the expected switch counts T_kc = Σ_i r_ic (the uses taken as exchangeable:
+    each r_ic is their mean T_kc / n_k):
 
-def name_words(tokens: np.ndarray) -> np.ndarray:
-    """(V,) bool: the words that are names given their uses per channel ``tokens`` (V, 3) (name,
-    place, background; expected or drawn): at least :data:`NAME_TOKENS` name uses and at least
-    :data:`NAME_SHARE` of all its uses."""
+        log p(c | uses of k) = log p(z = c | k) + n_k · log(T_kc / (n_k p(z = c | k))) + const.
+
+    A word with no use gets its prior; a channel with no expected use, −inf."""
     tokens = np.asarray(tokens, dtype=np.float64)
-    return (tokens[:, NAME] >= NAME_TOKENS) & (tokens[:, NAME] >= NAME_SHARE * tokens.sum(axis=1))
+    log_prior = np.asarray(log_prior, dtype=np.float64)
+    n = tokens.sum(axis=1, keepdims=True)
+    with np.errstate(divide="ignore", invalid="ignore"):  # (the −inf of unused channels, masked below)
+        log_share = np.log(tokens) - np.log(np.where(n > 0, n, 1.0))
+        data = np.where(n > 0, np.where(tokens > 0, n * (log_share - log_prior), -np.inf), 0.0)
+    return log_prior + data
+
+
+def name_words(tokens: np.ndarray, log_prior: np.ndarray) -> np.ndarray:
+    """(V,) bool: the words that are names given their uses per channel ``tokens`` (V, 3) (name,
+    place, background; the switches' expected counts) and the switch's prior ``log_prior`` (V, 3):
+    the words said at least once whose most probable channel is the names
+    (:func:`word_channel_log_posterior`: p(name | uses) ≥ p(place | uses) and ≥ p(background | uses)).
+
+    No threshold: the prior counts once, each use once. A word said once in a home and never in the
+    experienced homes has no likelihood that tells the channels apart (its switch is its prior), so
+    it is a name when the evidence makes a name its most probable channel ("this is the study room"),
+    not when it makes it a place word ("the fridge is over here": P(name) 0.22); a function word,
+    whose uses the background explains, never; a word of the experienced homes as its uses say
+    ("bath" in the templates: 42 % of its uses names against a prior 0.27, a name)."""
+    log_post = word_channel_log_posterior(tokens, log_prior)
+    said = np.asarray(tokens, dtype=np.float64).sum(axis=1) > 0
+    return said & (log_post[:, NAME] >= log_post.max(axis=1)) & np.isfinite(log_post[:, NAME])
+
 
 #: A concept whose knowledge weight G_0 is below this is one the experienced homes did not use:
 #: the knowledge holds no information about it (its φ is a prior draw), see :func:`learn_free_concepts`.
@@ -238,7 +250,7 @@ def own_names_to_free_concepts(data: PreparedData, state: GibbsState, shared: Sh
     hyper = shared.hyperparameters
     candidate = np.zeros(data.words.shape[1], dtype=bool)
     if shared.channels is not None:  # with the word channels: a new word whose tokens here are names
-        candidate[n_known:] = name_words(switch_tokens(data, state))[n_known:]
+        candidate[n_known:] = name_words(switch_tokens(data, state), state.channels.log_prior())[n_known:]
     else:
         verdict = gibbs.naming_verdicts(data, state, hyper)
         candidate[n_known:] = verdict[n_known:] != NOT_A_NAME
