@@ -251,9 +251,9 @@ class Knowledge:
 
     @property
     def name_mask(self) -> np.ndarray:
-        """(V,) bool: the knowledge's place names — with the word channels the words most of whose
-        tokens the fit drew as names (:meth:`KnowledgeChannels.name_mask`), otherwise the words kept
-        by pruning (``word_mask``)."""
+        """(V,) bool: the knowledge's place names — with the word channels the words whose most
+        probable channel given their uses in the fit is the names (:meth:`KnowledgeChannels.name_mask`),
+        otherwise the words kept by pruning (``word_mask``)."""
         return self.word_mask if self.channels is None else self.channels.name_mask() & self.word_mask
 
     @property
