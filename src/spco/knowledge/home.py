@@ -184,15 +184,14 @@ class HomeModel:
     @functools.cached_property
     def name_mask(self) -> np.ndarray:
         """(V,) bool: the words the home answers as place names. With the word channels: the words
-        whose most probable channel, given the switch's prior and their uses (the experienced homes'
-        and this home's, :attr:`channel_tokens`), is the names (:func:`spco.model.home_shard.name_words`)
-        — a function word, or an object said once ("the fridge is over here"), is never answered;
-        otherwise the words the naming rule keeps (``state.word_mask``)."""
+        enough of whose uses (the experienced homes' and this home's, :attr:`channel_tokens`) are
+        expected to be names (:func:`spco.model.home_shard.name_words`) — a function word, or an
+        object said once ("the fridge is over here"), is never answered; otherwise the words the
+        naming rule keeps (``state.word_mask``)."""
         channels = self.knowledge.channels
         if channels is None:
             return np.asarray(self.state.word_mask, dtype=bool)
-        log_prior = (channels.channels if self.state.channels is None else self.state.channels).log_prior()
-        return name_words(self.channel_tokens, log_prior) & np.asarray(self.state.word_mask, bool)
+        return name_words(self.channel_tokens) & np.asarray(self.state.word_mask, bool)
 
     @functools.cached_property
     def said_words(self) -> np.ndarray:

@@ -106,12 +106,11 @@ class KnowledgeChannels:
                                  np.concatenate([self.tokens, np.zeros((added, 3))]))
 
     def name_mask(self, home_tokens: np.ndarray | None = None) -> np.ndarray:
-        """(V,) bool: the words that are names (:func:`spco.model.home_shard.name_words`: the names
-        their most probable channel given the switch's prior and their uses) by the fit's tokens
-        (:attr:`tokens`) plus a home's own (``home_tokens``, (V, 3), e.g. its switches' expected
-        counts)."""
+        """(V,) bool: the words that are names (:func:`spco.model.home_shard.name_words`) by the fit's
+        tokens (:attr:`tokens`) plus a home's own (``home_tokens``, (V, 3), e.g. its switches'
+        expected counts)."""
         tokens = self.tokens if home_tokens is None else self.tokens + np.asarray(home_tokens, float)
-        return name_words(tokens, self.channels.log_prior())
+        return name_words(tokens)
 
     def arrays(self) -> dict[str, np.ndarray]:
         """The arrays a file holds (``channels.<name>``)."""
@@ -251,9 +250,9 @@ class Knowledge:
 
     @property
     def name_mask(self) -> np.ndarray:
-        """(V,) bool: the knowledge's place names — with the word channels the words whose most
-        probable channel given their uses in the fit is the names (:meth:`KnowledgeChannels.name_mask`),
-        otherwise the words kept by pruning (``word_mask``)."""
+        """(V,) bool: the knowledge's place names — with the word channels the words enough of whose
+        uses the fit expects to be names (:meth:`KnowledgeChannels.name_mask`), otherwise the words kept
+        by pruning (``word_mask``)."""
         return self.word_mask if self.channels is None else self.channels.name_mask() & self.word_mask
 
     @property
