@@ -131,7 +131,8 @@ def test_verdicts() -> None:
     strict=True, reason="known failure of the word channels (issue 28): 'dining' (an act in WordNet, name "
     "evidence 0.10 on the templates) is a place word, not a name, in the template sentences in every seed: "
     "said at one place only, its uses are explained as well by the place channel as by the names, so the "
-    "evidence decides: 0-4 % of its uses names in seeds 0-3, below NAME_SHARE. 'bath' (42-54 %) is a name "
+    "evidence decides: 0-4 % of its uses names in seeds 0-3, below NAME_SHARE (7 %). 'bath' (42-54 %) "
+    "is a name "
     "since the decision reads the switches' expected counts averaged over the sweeps, not the last state. "
     "Left failing, not loosened (docs/model.md, 'Words that are not names')"))])
 def test_template_words_are_no_names_and_place_names_are(word_model: str) -> None:
