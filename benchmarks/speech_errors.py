@@ -40,6 +40,7 @@ import json
 import sys
 import time
 from collections import Counter, defaultdict
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -141,8 +142,8 @@ def classify_miss(place: str, name: str, k: int | None, names_mask: np.ndarray,
     return "b" if best != place and shares[best] > 0 else "c"
 
 
-def main() -> None:
-    """Fit, score, classify; print the table per home and the errors with their words."""
+def _parser() -> argparse.ArgumentParser:
+    """The command line."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sigverse", type=Path, default=Path("/work/shared/datasets/sigverse"))
     parser.add_argument("--accepted", type=Path,
@@ -157,21 +158,104 @@ def main() -> None:
                         "as spco experiment) instead of the fit's parameters (as natural_speech.py)")
     parser.add_argument("--json", type=Path, default=None)
     parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE")
-    args = parser.parse_args()
+    return parser
+
+
+def _configurations(args: argparse.Namespace, accepted: dict) -> tuple[list[Environment], list[tuple]]:
+    """The knowledge homes and the (label, knowledge, new home) configurations of natural_speech.py."""
     side = SIDES["development"]
-    if any(s not in side["seeds"] for s in args.seeds):
-        parser.error("development seeds are 0-99 (benchmarks/SPLIT.md)")
     subject = args.sigverse.parent / "sigverse_subject"
     regions_file = args.sigverse.parent / "sigverse_regions.json"
-    accepted = read_names(args.accepted)
     knowledge = [subject_home(args.sigverse, subject, h) for h in side["knowledge"]]
     configs = [(h, knowledge, new_home(args.sigverse, regions_file, h, accepted)) for h in side["new"]]
     if args.leave_one_out:
-        from dataclasses import replace
         for i, h in enumerate(side["knowledge"]):
             env = untaught_subject_home(args.sigverse, h)
             env = replace(env, ground_truth=replace(env.ground_truth, accepted_names=accepted))
             configs.append((f"{h} (out)", knowledge[:i] + knowledge[i + 1:], env))
+    return knowledge, configs
+
+
+def _answers(model, corpus: Corpus, e: int, env: Environment, scored: Environment, scores,
+             accepted: dict, said: dict, out: Counter, words: Counter, home: str) -> None:
+    """Classify the wrong answers of one fit into ``out`` (class counts) and ``words``."""
+    rows = np.flatnonzero(scored.is_test)
+    posterior = concept_posterior(model.parameters_, e, env.positions[rows], env.visual[rows], True, True,
+                                  view_counts=model.settings_.view_counts)
+    gt = env.ground_truth
+    for place, name, view in zip(scores.labels, scores.predicted_names, posterior, strict=True):
+        if place is None or name in gt.accepted(place):
+            continue
+        cls = classify_answer(normalize_name(place), name, accepted, said)
+        if cls == "a":  # a nameless concept, or a concept whose people name the place
+            share = named_share(model, corpus, e, int(np.argmax(view)), place, accepted)
+            cls = "a2" if share < NAMED else "a1"
+        out[f"A_n {cls}"] += 1
+        words[f"A_n {cls}"][f"{home}: {place} -> {name}"] += 1
+    out["A_n views"] += sum(p is not None for p in scores.labels)
+
+
+def _misses(model, corpus: Corpus, e: int, env: Environment, scores, said: dict, seed: int, out: Counter,
+            words: Counter, home: str) -> None:
+    """Classify the missed ``where`` of one fit (homes with regions) into ``out`` and ``words``."""
+    gt = env.ground_truth
+    if gt.regions is None:
+        return
+    mask = name_words(switch_tokens(model.data_, model.state_))
+    for place in scores.places:
+        if place not in gt.regions.places:
+            continue
+        names = [n for i, n in enumerate(gt.accepted(place))
+                 if i == 0 or corpus.vocabulary.index(n) is not None]
+        if len(names) > 1 and corpus.vocabulary.index(place) is None:
+            names = names[1:]
+        for name in names:
+            try:
+                pred = predict_positions(model.parameters_, e, corpus.vocabulary, name, n=10, rng=seed,
+                                         unheard=False)
+                score = position_accuracy({place: pred.samples}, gt.regions)[place]
+            except UnknownNameError:
+                score = 0.0
+            out["A_p names"] += 1
+            if score < 0.5:
+                cls = classify_miss(normalize_name(place), name, corpus.vocabulary.index(name), mask, said)
+                out[f"A_p {cls}"] += 1
+                words[f"A_p {cls}"][f"{home}: where {name} ({place})"] += 1
+
+
+CLASSES = ("A_n a1", "A_n a2", "A_n b", "A_n c", "A_n e", "A_p d", "A_p b", "A_p c")
+
+
+def _print_table(table: dict[str, Counter], words: dict[str, Counter], runs: list[dict],
+                 seeds: list[int]) -> None:
+    """The table of classes per home, the mean A_n per seed, and the errors with their words."""
+    print("\n| home | views | " + " | ".join(CLASSES) + " | A_p names |")
+    print("|---|---:|" + "---:|" * len(CLASSES) + "---:|")
+    total: Counter = Counter()
+    for home, c in table.items():
+        total.update(c)
+        print(f"| {home} | {c['A_n views']} | " + " | ".join(str(c[k]) for k in CLASSES)
+              + f" | {c['A_p names']} |")
+    print(f"| all | {total['A_n views']} | " + " | ".join(str(total[k]) for k in CLASSES)
+          + f" | {total['A_p names']} |")
+    per_seed = [np.mean([r["A_n"] for r in runs if r["seed"] == s]) for s in seeds]
+    print(f"\nA_n, mean over the configurations, per seed: {np.round(per_seed, 3).tolist()}, "
+          f"mean {np.mean(per_seed):.3f}")
+    for cls in CLASSES:
+        if words[cls]:
+            print(f"\n{cls}: {dict(words[cls].most_common(25))}")
+
+
+def main() -> None:
+    """Fit, score, classify; print the table per home and the errors with their words."""
+    parser = _parser()
+    args = parser.parse_args()
+    side = SIDES["development"]
+    if any(s not in side["seeds"] for s in args.seeds):
+        parser.error("development seeds are 0-99 (benchmarks/SPLIT.md)")
+    accepted = read_names(args.accepted)
+    knowledge, configs = _configurations(args, accepted)
+    labels = [c[0] for c in configs]  # natural_speech.py's order: the trial seed's index
     if args.homes:
         configs = [c for c in configs if c[0].split()[0] in args.homes]
     hyper = TransferHyperparameters().with_settings(args.set) if args.set else None
@@ -180,12 +264,10 @@ def main() -> None:
     runs = []
     started = time.perf_counter()
     for seed in args.seeds:
-        for index, (label, homes, env) in enumerate(configs):
-            if args.homes:  # the trial seed of the configuration's index in natural_speech.py
-                index = [c[0] for c in _all_labels(side, args.leave_one_out)].index(label)
+        for label, homes, env in configs:
             corpus = Corpus([*homes, env])
             model = SpCoTransfer(hyper, variant="exact", prune_words=True, n_iterations=args.sweeps,
-                                 random_state=trial_seed(seed, index)).fit(corpus)
+                                 random_state=trial_seed(seed, labels.index(label))).fit(corpus)
             view_counts = model.settings_.view_counts
             weight = {} if view_counts is None else {"view_counts": view_counts}
             e = len(corpus) - 1
@@ -194,74 +276,20 @@ def main() -> None:
             scores = evaluate_home(model.parameters_, e, scored, corpus.vocabulary, rng=seed,
                                    answer_params=answer, **weight)
             said = place_speech(knowledge, corpus)  # every development home's people
-            gt = env.ground_truth
             home = label.split()[0]
-            rows = np.flatnonzero(scored.is_test)
-            posterior = concept_posterior(model.parameters_, e, env.positions[rows], env.visual[rows], True, True,
-                                          view_counts=view_counts)
-            for place, name, view in zip(scores.labels, scores.predicted_names, posterior, strict=True):
-                if place is None or name in gt.accepted(place):
-                    continue
-                cls = classify_answer(normalize_name(place), name, accepted, said)
-                if cls == "a":  # a nameless concept, or a concept whose people name the place
-                    cls = "a2" if named_share(model, corpus, e, int(np.argmax(view)), place,
-                                              accepted) < NAMED else "a1"
-                table[home][f"A_n {cls}"] += 1
-                words[f"A_n {cls}"][f"{home}: {place} -> {name}"] += 1
-            n_views = sum(p is not None for p in scores.labels)
-            table[home]["A_n views"] += n_views
-            mask = name_words(switch_tokens(model.data_, model.state_))
-            if gt.regions is not None:
-                for place in scores.places:
-                    if place not in gt.regions.places:
-                        continue
-                    names = [n for i, n in enumerate(gt.accepted(place))
-                             if i == 0 or corpus.vocabulary.index(n) is not None]
-                    if len(names) > 1 and corpus.vocabulary.index(place) is None:
-                        names = names[1:]
-                    for name in names:
-                        k = corpus.vocabulary.index(name)
-                        try:
-                            pred = predict_positions(model.parameters_, e, corpus.vocabulary, name, n=10,
-                                                     rng=seed, unheard=False)
-                            score = position_accuracy({place: pred.samples}, gt.regions)[place]
-                        except UnknownNameError:
-                            score = 0.0
-                        table[home]["A_p names"] += 1
-                        if score < 0.5:
-                            cls = classify_miss(normalize_name(place), name, k, mask, said)
-                            table[home][f"A_p {cls}"] += 1
-                            words[f"A_p {cls}"][f"{home}: where {name} ({place})"] += 1
+            _answers(model, corpus, e, env, scored, scores, accepted, said, table[home], words, home)
+            _misses(model, corpus, e, env, scores, said, seed, table[home], words, home)
             runs.append({"seed": seed, "home": label, "A_n": scores.mean_name_accuracy,
                          "A_p": scores.mean_position_accuracy})
             print(f"seed {seed} {label}: A_n {scores.mean_name_accuracy:.3f} "
-                  f"A_p {scores.mean_position_accuracy:.3f} ({time.perf_counter() - started:.0f} s)", flush=True)
-    classes = ["A_n a1", "A_n a2", "A_n b", "A_n c", "A_n e", "A_p d", "A_p b", "A_p c"]
-    print("\n| home | views | " + " | ".join(classes) + " | A_p names |")
-    print("|---|---:|" + "---:|" * len(classes) + "---:|")
-    total: Counter = Counter()
-    for home, c in table.items():
-        total.update(c)
-        print(f"| {home} | {c['A_n views']} | " + " | ".join(str(c[k]) for k in classes)
-              + f" | {c['A_p names']} |")
-    print(f"| all | {total['A_n views']} | " + " | ".join(str(total[k]) for k in classes)
-          + f" | {total['A_p names']} |")
-    for cls in classes:
-        if words[cls]:
-            print(f"\n{cls}: {dict(words[cls].most_common(25))}")
+                  f"A_p {scores.mean_position_accuracy:.3f} ({time.perf_counter() - started:.0f} s)",
+                  flush=True)
+    _print_table(table, words, runs, args.seeds)
     if args.json:
         args.json.write_text(json.dumps({"seeds": args.seeds, "sweeps": args.sweeps, "runs": runs,
                                          "table": {h: dict(c) for h, c in table.items()},
                                          "errors": {k: dict(v) for k, v in words.items()}}, indent=1),
                              encoding="utf-8")
-
-
-def _all_labels(side: dict, leave_one_out: bool) -> list[tuple[str]]:
-    """The configuration labels in natural_speech.py's order (for their trial seeds)."""
-    labels = [(h,) for h in side["new"]]
-    if leave_one_out:
-        labels += [(f"{h} (out)",) for h in side["knowledge"]]
-    return labels
 
 
 if __name__ == "__main__":
