@@ -346,39 +346,3 @@ def test_an_object_said_at_a_place_stands_in_for_the_name_the_lexicon_relates_it
     found = stand_in_names(spelt, np.ones(5, dtype=bool), np.full(5, 0.5), np.arange(5), wordnet)
     assert {spelt.words[k]: spelt.words[j] for k, j in found.items()} == {"livingroom": "living room",
                                                                          "kicthen": "kitchen"}
-
-
-def test_what_answers_the_name_of_the_concept_that_stands_in_for_a_nameless_one() -> None:
-    """borrowed_names: the people of the knowledge said "kitchen" at one concept (1) and only
-    "refrigerator" at another (0) with the same views. In this home the kitchen's views went to
-    concept 0, and concept 1, unoccupied here, stands in for it (`where kitchen` goes there). `what`
-    at concept 0 answers "kitchen": concept 0's mass on the object goes to the names of the concept
-    standing in for it. The living room (concept 2) keeps its own name, every row its sum."""
-    from spco.model.prediction import borrowed_names
-
-    vocab = Vocabulary(("kitchen", "refrigerator", "living room", "couch"))
-    prior = np.array([0.6, 0.05, 0.7, 0.05])
-    theta = np.array([[[0.0, 1.0, 0.0, 0.0], [0.95, 0.05, 0.0, 0.0], [0.0, 0.0, 0.8, 0.2]]]) + 1e-9
-    theta /= theta.sum(axis=2, keepdims=True)
-    views = np.array([[0.8, 0.1, 0.1], [0.8, 0.1, 0.1], [0.1, 0.1, 0.8]])
-    params = ConceptParameters(
-        concept_weights=np.array([[0.5, 1e-6, 0.5]]), region_weights=np.eye(3)[None] * 0.98 + 0.02 / 3,
-        region_means=np.array([[[0.0, 0, 0, 1], [5.0, 0, 0, 1], [10.0, 0, 0, 1]]]),
-        region_covariances=np.tile(np.eye(4) * 0.1, (1, 3, 1, 1)),
-        word_probabilities=theta, visual_probabilities=views[None], shared_word_probabilities=theta[0],
-        shared_visual_probabilities=views, global_concept_weights=np.full(3, 1 / 3),
-        word_mask=np.ones(4, dtype=bool), region_counts=np.array([[10, 0, 10]]),
-        concept_counts=np.array([[10.0, 0.0, 10.0]]),
-        place_word_probabilities=np.full((3, 4), 0.25),
-        word_channel_prior=np.column_stack([prior, (1 - prior) / 2, (1 - prior) / 2]))
-    out = borrowed_names(params, 0, theta[0])
-    np.testing.assert_allclose(out.sum(axis=1), theta[0].sum(axis=1))
-    assert out[0, 0] > 0.99 and out[0, 1] == 0.0  # the object's mass went to "kitchen"
-    np.testing.assert_allclose(out[1:], theta[0, 1:])  # concepts no other stands in for: unchanged
-    at_kitchen = predict_names(params, 0, vocab, np.array([[0.0, 0.0, 0.0, 1.0]]), None, weighting="none",
-                               use_vision=False)
-    assert at_kitchen.words[0, 0] == "kitchen"
-    # without the word channels (the naming rule's models) the names channel is θ^w itself
-    plain = replace(params, word_channel_prior=None, place_word_probabilities=None)
-    assert predict_names(plain, 0, vocab, np.array([[0.0, 0.0, 0.0, 1.0]]), None, weighting="none",
-                         use_vision=False).words[0, 0] == "refrigerator"

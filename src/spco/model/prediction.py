@@ -497,47 +497,6 @@ def kl_scores_reference(
 STAND_IN_CANDIDATES = 3
 
 
-def borrowed_names(params: ConceptParameters, e: int, theta_w: np.ndarray) -> np.ndarray:
-    """(L, V) the names channel θ^w_e (``theta_w``) with each concept's mass on objects given to the
-    names of the concepts that stand in for it, models with the word channels only.
-
-    People who name a place and people who name only what is there ("near the refrigerator") can be
-    learnt as two concepts with the same views: one whose names channel holds the room's name, one
-    whose names channel holds nothing but the few object tokens drawn as names. In a new home the
-    views of the place go to one of them — the occupied concept — and the other, unoccupied here,
-    stands in for it when its name is looked for
-    (:func:`spco.model.position_prediction.concept_stand_ins`: `where kitchen` goes to the occupied
-    concept its views would be assigned to). `what` answers by the same relation: the mass that
-    concept l puts on objects (words whose name evidence p(name | w) is below
-    :data:`spco.model.unheard.OBJECT_BELOW`) goes to the names of the unoccupied concepts l' whose
-    stand-in is l, in proportion to G_{0,l'} θ^w_{e,l',j} over their names j. A concept's own names
-    keep their mass; a concept no other stands in for, or whose stand-ins hold no name, is unchanged;
-    each row keeps its sum."""
-    from spco.model.position_prediction import concept_stand_ins
-    from spco.model.unheard import OBJECT_BELOW
-
-    prior = np.asarray(params.word_channel_prior, dtype=np.float64)
-    if prior.ndim != 2 or prior.shape[0] != theta_w.shape[1]:
-        return theta_w
-    names = prior[:, 0] >= OBJECT_BELOW  # (V,)
-    stand_in = concept_stand_ins(params, e)
-    g0 = np.clip(np.asarray(params.global_concept_weights, dtype=np.float64), 0.0, None)
-    out = theta_w
-    for concept in np.unique(stand_in):
-        others = np.flatnonzero((stand_in == concept) & (np.arange(stand_in.size) != concept))
-        if others.size == 0:
-            continue
-        borrowed = (g0[others, None] * theta_w[others] * names[None, :]).sum(axis=0)  # (V,)
-        total = borrowed.sum()
-        objects = float(theta_w[concept, ~names].sum())
-        if total <= 0 or objects <= 0:
-            continue
-        if out is theta_w:
-            out = theta_w.copy()
-        out[concept] = theta_w[concept] * names + objects * borrowed / total
-    return out
-
-
 def _with_stand_ins(scores: np.ndarray, probs: np.ndarray, params: ConceptParameters, vocabulary: Vocabulary,
                     mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``scores`` and ``probs`` (n, V) with the score and probability of each object among the best
@@ -616,8 +575,6 @@ def predict_names(
     concepts = concept_posterior(params, e, positions, visual, use_position, use_vision,
                                  active_regions_only=weighting == "reference", view_counts=view_counts)
     theta_w = _word_matrix(params, e)
-    if params.word_channel_prior is not None and weighting != "reference":
-        theta_w = borrowed_names(params, e, theta_w)
     probs = _words_from_concepts(concepts, theta_w)  # (n, V)
     if weighting == "mi" and name_prior == "wordnet" and params.name_prior is not None:
         # the words said at each place compete by how name-like they are (spco.model.name_evidence)
