@@ -2,7 +2,8 @@
 of the development configuration of ``benchmarks/natural_speech.py``, classified.
 
 The fits and the scores are those of ``natural_speech.py`` (same configurations, seeds, trial seeds
-and scoring, development side only: this script refuses the held-out side). Each wrong answer
+and scoring; development side only: the script has no held-out configuration and refuses seeds
+outside 0–99). Each wrong answer
 (A_n: a test view whose top name is not an accepted name of its place) and each missed ``where``
 (A_p: an accepted name the vocabulary holds whose positions fall outside its place's region, score
 below 0.5) is put in one class:
@@ -20,9 +21,9 @@ below 0.5) is put in one class:
   went to the other place's concept, or the two places share a concept (transfer / clustering);
 - **d** (A_p) the accepted name is not a name of any concept: never said by people, or said but
   drawn as a place or background word (the home's names, ``home_shard.name_words``);
-- **e** the answer is what people call the place but the accepted-names file lacks it (a
-  misspelling such as "dinning room": the file deliberately accepts no typos; it was written before
-  any output and is not edited here). Which words are so is the table :data:`CALLED_BUT_NOT_ACCEPTED`,
+- **e** the answer is what people call the place but the accepted-names file lacks it (an owner's
+  room, "taro's room", or a misspelling: the file deliberately accepts no typos; it was written
+  before any output and is not edited here). Which words are so is the table :data:`CALLED_BUT_NOT_ACCEPTED`,
   written by reading the subject sentences, not the outputs.
 
 A_p misses are classified d (not a name), b (people say the name most at another place) or c.
