@@ -76,6 +76,7 @@ from spco.evaluation.specific_file import (
     teaching_sentences,
 )
 from spco.model.confidence import model_answer_parameters
+from spco.model.rooms import model_rooms
 
 __all__ = [
     "CONFIG_FORMAT",
@@ -232,7 +233,7 @@ def score_rooms(params: Any, e: int, env: Environment, vocabulary: Vocabulary,
                 rooms: Sequence[Room], weighting: str = "mi", n_positions: int = DEFAULT_POSITIONS,
                 rng: np.random.Generator | int | None = None,
                 view_counts: float | None = None,
-                answer_params: Any = None) -> dict[str, RoomScores]:
+                answer_params: Any = None, answer_rooms: Any = None) -> dict[str, RoomScores]:
     """A_n and A_p (both ways) of each room in home ``e`` of a fitted model.
 
     Parameters
@@ -247,6 +248,8 @@ def score_rooms(params: Any, e: int, env: Environment, vocabulary: Vocabulary,
     answer_params: the parameters the robot answers names with
         (:func:`spco.model.confidence.model_answer_parameters`; ``None``: ``params``); names come
         from the robot's own function, :func:`spco.model.confidence.answer_names`.
+    answer_rooms: the home's rooms as the robot's answer reads them
+        (:func:`spco.model.rooms.model_rooms`; ``None``: names from each sample's own view and pose).
 
     Returns
     -------
@@ -264,7 +267,7 @@ def score_rooms(params: Any, e: int, env: Environment, vocabulary: Vocabulary,
         prediction = answer_names(params if answer_params is None else answer_params, e, vocabulary,
                                   env.positions[test], env.visual[test], top_k=1,
                                   weighting=weighting,  # type: ignore[arg-type]
-                                  view_counts=view_counts)
+                                  view_counts=view_counts, rooms=answer_rooms)
         predicted = tuple(str(w) for w in prediction.words[:, 0]) if prediction.words.shape[1] else \
             (None,) * test.size
         correct = np.array([room.is_accepted(w) for w in predicted], dtype=bool)
@@ -320,7 +323,8 @@ def execute_configured_run(data: ConfiguredData, key: ConfiguredRun, iterations:
     e = len(corpus) - 1
     scores = score_rooms(model.parameters_, e, new, model.vocabulary_, conf.rooms, spec.weighting,
                          n_positions, np.random.default_rng([key.seed, 1]), model.settings_.view_counts,
-                         None if spec.single_home else model_answer_parameters(model, e))
+                         None if spec.single_home else model_answer_parameters(model, e),
+                         None if spec.single_home else model_rooms(model, e))
     return {
         "fingerprint": fingerprint,
         "configuration": key.configuration,

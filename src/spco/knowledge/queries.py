@@ -29,6 +29,7 @@ from spco.model.confidence import UNSURE_BELOW
 from spco.model.parameters import ConceptParameters
 from spco.model.position_prediction import PositionPrediction
 from spco.model.prediction import NamePrediction, UnknownNameError, mutual_information_weights
+from spco.model.rooms import HomeRooms
 from spco.model.seeds import as_generator
 from spco.model.unheard import resolve_name
 from spco.model.word_channels import name_tokens
@@ -273,7 +274,18 @@ def name_prediction(home: HomeModel, poses: np.ndarray, visual: Any = None, top_
     """
     return confidence.answer_names(answer_parameters(home), 0, home.vocabulary, poses, visual, top_k=top_k,
                                    weighting=home.weighting,  # type: ignore[arg-type]
-                                   view_counts=home.hyperparameters.view_weight(), unsure_below=unsure_below)
+                                   view_counts=home.hyperparameters.view_weight(), unsure_below=unsure_below,
+                                   rooms=home_rooms(home))
+
+
+def home_rooms(home: HomeModel) -> HomeRooms:
+    """The home's training samples as the room-level answer reads them (:mod:`spco.model.rooms`):
+    their regions, their views and the name tokens taught at them (with the word channels the
+    tokens drawn as names, as :func:`answer_parameters` counts them)."""
+    words = home.data.words
+    if home.knowledge.channels is not None and home.state.switches is not None and words.nnz:
+        words = name_tokens(words, home.state.switches)
+    return HomeRooms.of(home.state.regions, home.data.visual, words)
 
 
 def describe_model_file(path: str | PathLike[str]) -> dict[str, Any]:

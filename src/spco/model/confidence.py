@@ -44,6 +44,7 @@ from spco.data.language import Vocabulary
 from spco.errors import ConfigurationError
 from spco.model.parameters import ConceptParameters
 from spco.model.prediction import NamePrediction, Weighting, predict_names
+from spco.model.rooms import HomeRooms, concepts_by_room
 
 __all__ = [
     "UNSURE_BELOW",
@@ -226,6 +227,7 @@ def answer_names(
     top_k: int = 3,
     unsure_below: float = UNSURE_BELOW,
     name_prior: str = "off",
+    rooms: HomeRooms | None = None,
 ) -> NamePrediction:
     """The names the robot answers at ``n`` observations of home ``e`` — the one predictor of
     p(name | pose, view): ``what`` (:func:`spco.knowledge.name_prediction`, the service, the ROS
@@ -236,12 +238,19 @@ def answer_names(
     ``weighting`` the model's name weighting (:func:`answer_weighting`); answers below
     ``unsure_below`` (default :data:`UNSURE_BELOW`) are flagged unsure; ``name_prior``: the opt-in
     ordering of :func:`~spco.model.prediction.predict_names` (off for the robot's answers).
+    ``rooms``: the home's training samples' regions, views and taught names; with them and a pose,
+    the concept is the pose's room's, its views pooled as one piece of evidence
+    (:func:`spco.model.rooms.concepts_by_room`; docs/model.md, "A room's evidence"), not the
+    observation's view weighed against the home's θ^v.
     """
     if not 0.0 <= unsure_below <= 1.0:
         raise ConfigurationError(f"unsure_below must be within 0..1, got {unsure_below!r}")
+    concepts = None
+    if rooms is not None and positions is not None and weighting != "reference":
+        concepts = concepts_by_room(params, e, positions, rooms, view_counts)
     return predict_names(params, e, vocabulary, positions, visual, top_k=top_k, weighting=weighting,
                          use_vision=visual is not None, view_counts=view_counts, unsure_below=unsure_below,
-                         name_prior=name_prior)  # type: ignore[arg-type]
+                         name_prior=name_prior, concepts=concepts)  # type: ignore[arg-type]
 
 
 def answer_weighting(variant: str, prune_words: bool) -> Weighting:
