@@ -158,6 +158,22 @@ def _view_weight(hyper: Any) -> float | None:
     return weight() if callable(weight) else hyper.view_counts
 
 
+def _answer_left_out(model: Any, sample: int, pose: np.ndarray, view: Any) -> Any:
+    """``what``'s answer (:func:`spco.knowledge.name_prediction`) at a training sample of ``model``
+    with the sample left out of its room's views (:mod:`spco.model.rooms`), so that its view is not
+    counted twice: the answer a new view at that pose would get."""
+    from spco.knowledge.queries import answer_parameters, home_rooms
+    from spco.model.confidence import answer_names
+    from spco.model.rooms import HomeRooms
+
+    rooms = home_rooms(model)
+    keep = np.asarray(model.ids) != sample
+    rooms = HomeRooms.of(rooms.regions[keep], rooms.visual[keep], rooms.words[keep])
+    return answer_names(answer_parameters(model), 0, model.vocabulary, pose, view, top_k=1,
+                        weighting=model.weighting, view_counts=model.hyperparameters.view_weight(),
+                        rooms=rooms)
+
+
 def run_task(task: Task, data: Path, images: Path | None, models: Path, force: bool) -> list[dict[str, Any]]:
     """Fit (or reuse) the knowledge of ``task``, adapt its homes, and score every test view."""
     import spco.knowledge as kn
@@ -172,8 +188,11 @@ def run_task(task: Task, data: Path, images: Path | None, models: Path, force: b
         vocabulary = list(model.vocabulary.words)
         for i, label in enumerate(labels):
             theta = math.atan2(positions[i, 2], positions[i, 3])
-            after = kn.what(model, float(positions[i, 0]), float(positions[i, 1]), theta,
-                            visual=visual[[i]].toarray()[0], top_k=1)
+            if home.is_test.any():  # a test view: what the robot answers
+                after = kn.what(model, float(positions[i, 0]), float(positions[i, 1]), theta,
+                                visual=visual[[i]].toarray()[0], top_k=1)
+            else:  # a training sample scored (development-new): left out of its room, as a new view is
+                after = _answer_left_out(model, int(ids[i]), positions[[i]], visual[[i]])
             k = vocabulary.index(label) if label in vocabulary else None
             rows.append({
                 "set": task.set_name, "features": task.features, "size": task.size, "seed": task.seed,

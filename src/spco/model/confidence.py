@@ -239,15 +239,16 @@ def answer_names(
     ``unsure_below`` (default :data:`UNSURE_BELOW`) are flagged unsure; ``name_prior``: the opt-in
     ordering of :func:`~spco.model.prediction.predict_names` (off for the robot's answers).
     ``rooms``: the home's training samples' regions, views and taught names; with them and a pose,
-    the concept is the pose's room's, its views pooled as one piece of evidence
-    (:func:`spco.model.rooms.concepts_by_room`; docs/model.md, "A room's evidence"), not the
-    observation's view weighed against the home's θ^v.
+    the concept is judged from the pose's room — its training views pooled as one piece of evidence
+    — and the observation's view, each worth w draws against φ^v
+    (:func:`spco.model.rooms.concepts_by_room`; docs/model.md, "A room's evidence"), not from the
+    home's π and θ^v, which count each of the room's views as independent evidence.
     """
     if not 0.0 <= unsure_below <= 1.0:
         raise ConfigurationError(f"unsure_below must be within 0..1, got {unsure_below!r}")
     concepts = None
     if rooms is not None and positions is not None and weighting != "reference":
-        concepts = concepts_by_room(params, e, positions, rooms, view_counts)
+        concepts = concepts_by_room(params, e, positions, visual, rooms, view_counts)
     return predict_names(params, e, vocabulary, positions, visual, top_k=top_k, weighting=weighting,
                          use_vision=visual is not None, view_counts=view_counts, unsure_below=unsure_below,
                          name_prior=name_prior, concepts=concepts)  # type: ignore[arg-type]

@@ -7,19 +7,20 @@ a room's views pooled are worth about as many draws as one view (leave-one-home-
 experienced homes; docs/model.md, "A room's evidence"), and a room that looks like another room's
 concept is put there, and answered, with certainty.
 
-The names the robot answers therefore decide a region's concept at the level of the room
-(:func:`room_concepts`): the region's training views pooled into one count vector whose proportions
-count as the same w draws, scored against the shared visual distributions φ^v (the concepts as the
-experienced homes taught them, not the home's own θ^v, which already holds the room's views), with
-the prior G_0 and the words taught in the region (each taught name token a draw from θ^w of the
-concept). An observation at pose x is in region k with p(k | x) ∝ n_k N(x | μ_k, Σ_k) (n_k the
-region's training samples), so
+The names the robot answers therefore judge an observation's concept from two pieces of evidence,
+each worth the model's w draws: the room it is in — the region's training views pooled into one
+count vector (:func:`room_concepts`) — and its own view, both against the shared visual
+distributions φ^v (the concepts as the experienced homes taught them, not the home's own θ^v, which
+already holds the room's views), with the prior G_0 and the names taught in the region (each taught
+name token a draw from θ^w of the concept). The observation is in region k with
+p(k | x) ∝ n_k N(x | μ_k, Σ_k) (n_k the region's training samples), so
 
-    P(l | x) = Σ_k p(k | x) p(l | room k),    p(l | room k) ∝ G_0,l · exp(ω_k Σ_d V_{k,d} log φ^v_{l,d})
-                                                                 · Π_{t ∈ k} Π_w θ^w_{e,l,w}^{u_{t,w}},
+    P(l | x, v) = Σ_k p(k | x) p(l | room k, v),
+    p(l | room k, v) ∝ G_0,l · exp(ω_k Σ_d V_{k,d} log φ^v_{l,d}) · exp(ω_v Σ_d v_d log φ^v_{l,d})
+                       · Π_{t ∈ k} Π_w θ^w_{e,l,w}^{u_{t,w}},
 
-ω_k = min(1, w / Σ_d V_{k,d}), V_k the pooled counts. The observation's own view is one more view of
-the room it is in: it is not counted again (nor used to find the region: the pose does).
+ω_k = min(1, w / Σ_d V_{k,d}) with V_k the region's pooled counts, ω_v = min(1, w / Σ_d v_d): two
+pieces of evidence where the home's π and θ^v hold twenty-one.
 """
 
 from __future__ import annotations
@@ -69,27 +70,15 @@ class HomeRooms:
         return cls(regions, visual, words)
 
 
-def room_concepts(params: ConceptParameters, e: int, rooms: HomeRooms, view_counts: float | None
-                  ) -> tuple[np.ndarray, np.ndarray]:
-    """Each region's concept, its views pooled as one piece of evidence (module docstring).
-
-    Parameters
-    ----------
-    params: the answer's parameters (their θ^w and ``word_mask``: the names the home answers).
-    e: the home; rooms: its training samples' regions, views and taught name tokens.
-    view_counts: the model's view weight w (``None``: every count a draw).
-
-    Returns
-    -------
-    counts: (K,) training samples per region; posterior: (K, L) p(l | room k), rows sum to 1 (a
-    region without samples: G_0).
-    """
+def _room_log_posterior(params: ConceptParameters, rooms: HomeRooms, view_counts: float | None,
+                        e: int = 0) -> np.ndarray:
+    """(K, L) log G_0 + each region's pooled views at w against φ^v + its taught name tokens under θ^w
+    (unnormalised)."""
     K = int(np.shape(params.region_means)[1])
     if rooms.regions.size and rooms.regions.max() >= K:
         raise ConfigurationError(f"rooms: region {int(rooms.regions.max())} but the model has {K}")
     n = rooms.regions.size
     onehot = sp.csr_array((np.ones(n), (rooms.regions, np.arange(n))), shape=(K, n))
-    counts = np.bincount(rooms.regions, minlength=K).astype(np.float64)
     log_post = np.broadcast_to(_log(params.global_concept_weights)[None, :], (K, params.n_concepts)).copy()
     phi_v = np.asarray(params.shared_visual_probabilities, dtype=np.float64)
     if phi_v.size and rooms.visual.shape[1] == phi_v.shape[1]:
@@ -108,17 +97,39 @@ def room_concepts(params: ConceptParameters, e: int, rooms: HomeRooms, view_coun
         theta /= np.maximum(theta.sum(axis=1, keepdims=True), np.finfo(np.float64).tiny)
         said = sp.csr_array(onehot @ (rooms.words @ sp.diags_array(names.astype(np.float64))))
         log_post += np.asarray(said @ _log(theta).T)
+    return log_post
+
+
+def room_concepts(params: ConceptParameters, e: int, rooms: HomeRooms, view_counts: float | None
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Each region's concept, its views pooled as one piece of evidence (module docstring).
+
+    Parameters
+    ----------
+    params: the answer's parameters (their θ^w and ``word_mask``: the names the home answers).
+    e: the home; rooms: its training samples' regions, views and taught name tokens.
+    view_counts: the model's view weight w (``None``: every count a draw).
+
+    Returns
+    -------
+    counts: (K,) training samples per region; posterior: (K, L) p(l | room k), rows sum to 1 (a
+    region without samples: G_0).
+    """
+    log_post = _room_log_posterior(params, rooms, view_counts, e)
+    counts = np.bincount(rooms.regions, minlength=log_post.shape[0]).astype(np.float64)
     return counts, np.exp(log_post - logsumexp(log_post, axis=1, keepdims=True))
 
 
-def concepts_by_room(params: ConceptParameters, e: int, positions: np.ndarray, rooms: HomeRooms,
-                     view_counts: float | None) -> np.ndarray | None:
-    """(n, L) P(l | x) = Σ_k p(k | x) p(l | room k) at poses ``positions`` (n, 4) of home ``e``, with
-    p(k | x) ∝ n_k N(x | μ_k, Σ_k) over the regions with training samples; ``None`` if no region has
-    one (the caller answers from the view and the pose's concept weights instead)."""
-    from spco.model.prediction import gaussian_log_density, validate_poses
+def concepts_by_room(params: ConceptParameters, e: int, positions: np.ndarray, visual: object,
+                     rooms: HomeRooms, view_counts: float | None) -> np.ndarray | None:
+    """(n, L) P(l | x, v) = Σ_k p(k | x) p(l | room k, v) at poses ``positions`` (n, 4) of home ``e``
+    with views ``visual`` (n, D; ``None`` or an empty row: no view), p(k | x) ∝ n_k N(x | μ_k, Σ_k)
+    over the regions with training samples and p(l | room k, v) ∝ G_0,l · (room k's pooled views at
+    w) · (the view at w), both against φ^v (module docstring); ``None`` if no region has a training
+    sample (the caller answers from the view and the pose against the home's parameters instead)."""
+    from spco.model.prediction import gaussian_log_density, validate_poses, validate_visual_counts
 
-    counts, posterior = room_concepts(params, e, rooms, view_counts)
+    counts, _ = room_concepts(params, e, rooms, view_counts)
     if not (counts > 0).any():
         return None
     x = validate_poses(positions)
@@ -131,7 +142,23 @@ def concepts_by_room(params: ConceptParameters, e: int, positions: np.ndarray, r
         raise ConfigurationError(f"observation {i} at {tuple(float(v) for v in x[i, :2])}: every region's "
                                  f"density is 0 in floating point; is the position on the home's map, in "
                                  f"metres?")
-    return np.exp(log_k - total) @ posterior
+    p_k = np.exp(log_k - total)  # (n, K)
+    room_log = _room_log_posterior(params, rooms, view_counts, e)  # (K, L), unnormalised
+    view_log = np.zeros((x.shape[0], params.n_concepts))
+    phi_v = np.asarray(params.shared_visual_probabilities, dtype=np.float64)
+    if visual is not None and phi_v.size:
+        counts_v = validate_visual_counts(visual, phi_v.shape[1])
+        if counts_v.shape[0] != x.shape[0]:
+            raise ConfigurationError(f"{x.shape[0]} positions but {counts_v.shape[0]} visual feature rows")
+        view_log = np.asarray(counts_v @ _log(phi_v).T)
+        if view_counts is not None:
+            totals = np.asarray(counts_v.sum(axis=1), dtype=np.float64).ravel()
+            view_log = view_log * np.minimum(1.0, float(view_counts) / np.maximum(totals, 1.0))[:, None]
+    out = np.zeros((x.shape[0], params.n_concepts))
+    for k in np.flatnonzero(counts > 0):  # a loop over the home's regions (tens)
+        joint = room_log[k][None, :] + view_log
+        out += p_k[:, [k]] * np.exp(joint - logsumexp(joint, axis=1, keepdims=True))
+    return out
 
 
 def model_rooms(model: object, e: int) -> HomeRooms:
