@@ -33,6 +33,7 @@ from scipy.special import logsumexp
 
 from spco.errors import ConfigurationError
 from spco.model.parameters import ConceptParameters
+from spco.model.prediction import _visual_log_likelihood
 
 __all__ = ["HomeRooms", "concepts_by_room", "model_rooms", "room_concepts"]
 
@@ -81,15 +82,8 @@ def _room_log_posterior(params: ConceptParameters, rooms: HomeRooms, view_counts
     onehot = sp.csr_array((np.ones(n), (rooms.regions, np.arange(n))), shape=(K, n))
     log_post = np.broadcast_to(_log(params.global_concept_weights)[None, :], (K, params.n_concepts)).copy()
     phi_v = np.asarray(params.shared_visual_probabilities, dtype=np.float64)
-    if phi_v.size and rooms.visual.shape[1] == phi_v.shape[1]:
-        pooled = sp.csr_array(onehot @ rooms.visual)
-        loglik = np.asarray(pooled @ _log(phi_v).T)  # (K, L)
-        totals = np.asarray(pooled.sum(axis=1), dtype=np.float64).ravel()
-        if view_counts is not None:
-            if not view_counts > 0:
-                raise ConfigurationError(f"view_counts must be > 0, got {view_counts!r}")
-            loglik *= np.minimum(1.0, float(view_counts) / np.maximum(totals, 1.0))[:, None]
-        log_post += loglik
+    if phi_v.size and rooms.visual.shape[1] == phi_v.shape[1]:  # the room's views pooled: one view at w
+        log_post += _visual_log_likelihood(phi_v, sp.csr_array(onehot @ rooms.visual), view_counts)
     names = np.asarray(params.word_mask, dtype=bool)
     if rooms.words.nnz and names.any() and rooms.words.shape[1] == names.size:
         theta = np.clip(np.asarray(params.word_probabilities[e], dtype=np.float64), 0.0, None)
@@ -127,7 +121,7 @@ def concepts_by_room(params: ConceptParameters, e: int, positions: np.ndarray, v
     over the regions with training samples and p(l | room k, v) ∝ G_0,l · (room k's pooled views at
     w) · (the view at w), both against φ^v (module docstring); ``None`` if no region has a training
     sample (the caller answers from the view and the pose against the home's parameters instead)."""
-    from spco.model.prediction import gaussian_log_density, validate_poses, validate_visual_counts
+    from spco.model.prediction import gaussian_log_density, validate_poses
 
     counts, _ = room_concepts(params, e, rooms, view_counts)
     if not (counts > 0).any():
@@ -147,13 +141,9 @@ def concepts_by_room(params: ConceptParameters, e: int, positions: np.ndarray, v
     view_log = np.zeros((x.shape[0], params.n_concepts))
     phi_v = np.asarray(params.shared_visual_probabilities, dtype=np.float64)
     if visual is not None and phi_v.size:
-        counts_v = validate_visual_counts(visual, phi_v.shape[1])
-        if counts_v.shape[0] != x.shape[0]:
-            raise ConfigurationError(f"{x.shape[0]} positions but {counts_v.shape[0]} visual feature rows")
-        view_log = np.asarray(counts_v @ _log(phi_v).T)
-        if view_counts is not None:
-            totals = np.asarray(counts_v.sum(axis=1), dtype=np.float64).ravel()
-            view_log = view_log * np.minimum(1.0, float(view_counts) / np.maximum(totals, 1.0))[:, None]
+        view_log = _visual_log_likelihood(phi_v, visual, view_counts)
+        if view_log.shape[0] != x.shape[0]:
+            raise ConfigurationError(f"{x.shape[0]} positions but {view_log.shape[0]} visual feature rows")
     out = np.zeros((x.shape[0], params.n_concepts))
     for k in np.flatnonzero(counts > 0):  # a loop over the home's regions (tens)
         joint = room_log[k][None, :] + view_log
