@@ -10,8 +10,10 @@ taught), ``adapt`` each new home (nothing taught; same seed), then the names at 
 
 - ``before``: the model's p(w | x, v) as `what` gave it before the fix (every visual count a draw,
   free concepts' word distributions as averaged);
-- ``after``: ``spco.knowledge.what`` as it is (``spco.model.confidence.answer_names``: a view counts
-  as the model's view weight w, estimated by the fit from its experienced homes).
+- ``after``: ``spco.knowledge.what`` as it is (``spco.model.confidence.answer_names``: the pose's
+  room, its training views pooled, and the view, each counted as the model's view weight w;
+  ``spco.model.rooms``). A ``development-new`` view is a training sample of its home: it is answered
+  with itself left out of its room's views (:func:`_answer_left_out`), as a new view would be.
 
 Printed per set and configuration, pooled over new homes and seeds: ECE (10 equal-width bins of
 the answer's probability), accuracy of the answer, mean confidence, the share of wrong answers given
