@@ -91,10 +91,8 @@ def test_asks_numbers_are_whats_and_its_confidence_is_explained(built: Path, tmp
     for q in questions:
         row = int(np.flatnonzero(home.ids == q.id)[0])
         said = kn.what(home, q.x, q.y, q.theta, visual=home.visual[[row]].toarray()[0], top_k=3)
-        # (to 1e-6: ask gives a concept without a usable name no name at all, what lets its θ^w
-        # speak; with the room's evidence counted once such concepts keep posteriors of ~1e-9)
         for (name, p), word, prob in zip(q.names, said.words[0], said.probabilities[0], strict=False):
-            assert name == word and p == pytest.approx(prob, abs=1e-6)
+            assert name == word and p == pytest.approx(prob, abs=1e-9)
         # no number in the reason contradicts the answer line: a name it quotes has what's p
         for name, p in q.names:
             if f"{name} " in q.reason and "the model says" in q.reason:

@@ -19,12 +19,11 @@ import scipy.sparse as sp
 
 from spco.errors import ConfigurationError
 from spco.knowledge.home import HomeModel
-from spco.knowledge.queries import answer_parameters, home_rooms
+from spco.knowledge.queries import answer_parameters
 from spco.model.confidence import UNSURE_BELOW
 from spco.model.home_shard import FREE_CONCEPT_WEIGHT
 from spco.model.prediction import concept_posterior
 from spco.model.question_scores import QuestionScores, question_scores, rank_questions
-from spco.model.rooms import concepts_by_room
 
 __all__ = ["DEFAULT_CRITERION", "NAMELESS_MASS", "Question", "ask",
            "home_question_scores", "name_columns"]
@@ -115,11 +114,8 @@ def home_question_scores(home: HomeModel, criterion: str = DEFAULT_CRITERION) ->
         raise ConfigurationError("ask() expects a HomeModel (from adapt or load_home_model)")
     params = answer_parameters(home)  # p(name | concept) as what answers
     columns = name_columns(home)
-    w = home.hyperparameters.view_weight()
-    # as what answers: the pose's room counted once, and the view (spco.model.rooms)
-    concepts = concepts_by_room(params, 0, home.positions, home.visual, home_rooms(home), w)
-    if concepts is None:  # no region holds a sample: the view and the pose against the home's parameters
-        concepts = concept_posterior(params, 0, home.positions, home.visual, view_counts=w)
+    concepts = concept_posterior(params, 0, home.positions, home.visual,
+                                 view_counts=home.hyperparameters.view_weight())  # as what scores a view
     theta = np.clip(np.asarray(params.word_probabilities[0], dtype=np.float64), 0.0, None)  # (L, V)
     mass = theta[:, columns].sum(axis=1)
     names = np.divide(theta[:, columns], mass[:, None], out=np.zeros((theta.shape[0], columns.size)),
