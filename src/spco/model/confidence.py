@@ -26,11 +26,12 @@ counts two kinds of evidence that are not independent as if they were; this modu
    whatever name its θ^w holds at 10^-6 with p ≈ 1 after the answer's normalisation. The mass θ^w
    puts on words the home does not answer is spread evenly over the names it does
    (:func:`answerable_names`): such a concept answers at p ≈ 1 / (number of names), i.e. unsure.
-4. **A room's views are one piece of evidence.** Given the home's rooms (:func:`answer_names`'s
-   ``rooms``), the concept at a pose is judged from the pose's region — its training views pooled,
-   worth w draws — and the observation's view, worth w, against φ^v, not from the home's π and θ^v,
-   which hold each of the room's views as independent evidence (:mod:`spco.model.rooms`): a room
-   ``adapt`` merged into another room's concept is then not answered with certainty.
+4. **Opt-in: a room's views as one piece of evidence.** Given the home's rooms (:func:`answer_names`'s
+   ``rooms``; ``spco.knowledge.name_prediction(by_room=True)``), the concept at a pose is judged from
+   the pose's region — its training views pooled, worth w draws — and the observation's view, worth
+   w, against φ^v, not from the home's π and θ^v, which hold each of the room's views as independent
+   evidence (:mod:`spco.model.rooms`; docs/model.md, "A room's evidence", says why it is not the
+   default).
 
 An answer whose probability is below :data:`UNSURE_BELOW` is flagged *unsure*
 (:attr:`spco.model.prediction.NamePrediction.unsure`; ``spco what`` says so, ``--json`` has
