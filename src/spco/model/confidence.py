@@ -235,11 +235,12 @@ def model_answer_parameters(model: object, e: int) -> ConceptParameters:
     its G_0.
 
     With the word channels, the names the home answers are chosen as the robot's home chooses
-    them (:attr:`spco.knowledge.home.HomeModel.name_mask`): the words whose expected uses over the
-    fit's homes are names (:func:`~spco.model.home_shard.name_words` of
-    :func:`~spco.model.home_shard.switch_tokens`), and each concept's names-channel mass on other
-    words spread over them (:func:`answerable_names`), so an experiment scores what the robot would
-    answer (never "the" or "this", which the channels draw as background).
+    them (:attr:`spco.knowledge.home.HomeModel.name_mask`): the words enough of whose uses over the
+    fit's homes are expected to be names (:func:`~spco.model.home_shard.name_words` of
+    ``channel_tokens_``, the switches' expected counts averaged over the averaged sweeps), and each
+    concept's names-channel mass on other words spread over them (:func:`answerable_names`), so an
+    experiment scores what the robot would answer (never "the" or "this", which the channels draw as
+    background).
     """
     from spco.model.home_shard import name_words, switch_tokens
 
@@ -252,5 +253,8 @@ def model_answer_parameters(model: object, e: int) -> ConceptParameters:
     state = model.state_  # type: ignore[attr-defined]
     if state.channels is None:  # (the model's word_channels_ are these)
         return answer
-    names = name_words(switch_tokens(data, state)) & np.asarray(answer.word_mask, dtype=bool)
+    tokens = getattr(model, "channel_tokens_", None)  # averaged over the fit's averaged sweeps
+    if tokens is None:
+        tokens = switch_tokens(data, state)
+    names = name_words(tokens) & np.asarray(answer.word_mask, dtype=bool)
     return answerable_names(answer, e, names)
