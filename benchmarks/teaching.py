@@ -64,10 +64,11 @@ NEW_WORDS = (
 )
 
 
-def synthetic_home(seed: int = 3, psi0_xy: float | None = None) -> tuple[kn.HomeModel, Environment]:
+def synthetic_home(seed: int = 3, psi0_xy: float | None = None,
+                   prior: str = "scaled") -> tuple[kn.HomeModel, Environment]:
     """A synthetic new home adapted from 6 experienced synthetic homes, and its environment.
     ``psi0_xy``: Ψ0's x and y entries in m² (an experiment with the position prior; default the
-    knowledge's own)."""
+    knowledge's own); ``prior``: ``fit_knowledge``'s (``"places"``: Ψ0 from the homes' places)."""
     from dataclasses import replace
 
     from spco.data.synthetic import generate_homes
@@ -82,7 +83,8 @@ def synthetic_home(seed: int = 3, psi0_xy: float | None = None) -> tuple[kn.Home
         psi = np.diag(base.psi0_matrix_m2()).copy()
         psi[:2] = psi0_xy
         hyper = replace(base, psi0=tuple(float(v) for v in psi), psi0_in_cm2=False)
-    knowledge = kn.fit_knowledge(Corpus(envs[:6]), n_iterations=30, random_state=0, hyperparameters=hyper)
+    knowledge = kn.fit_knowledge(Corpus(envs[:6]), n_iterations=30, random_state=0, hyperparameters=hyper,
+                                 prior=prior)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         home = kn.adapt(knowledge, envs[6], n_iterations=30, random_state=0)
@@ -451,12 +453,14 @@ def main() -> None:
     )
     parser.add_argument("--psi0-xy", type=float, default=None,
                         help="an experiment: the synthetic knowledge fitted with Ψ0's x, y entries in m²")
+    parser.add_argument("--prior", default="scaled", choices=["scaled", "places", "paper"],
+                        help="fit_knowledge's prior of the synthetic knowledge (places: Ψ0 from the places)")
     parser.add_argument("--json", type=Path, default=None)
     args = parser.parse_args()
     homes: list[tuple[str, kn.HomeModel, Environment]] = []
     if not args.no_synthetic:
         for seed in args.home_seed:
-            home, env = synthetic_home(seed, args.psi0_xy)
+            home, env = synthetic_home(seed, args.psi0_xy, args.prior)
             homes.append(("synthetic" if seed == 3 else f"synthetic (seed {seed})", home, env))
     for path in args.sigverse_home:
         home = kn.load_home_model(path)

@@ -111,6 +111,28 @@ def test_fit_sets_hyperparameters_and_keeps_them_in_the_knowledge(tmp_path: Path
     assert (hyper.n_concepts, hyper.kappa0, hyper.view_counts, hyper.n_regions) == (7, 0.001, None, 20)
 
 
+def test_fit_nu0_weights_the_scaled_prior_and_prior_paper_keeps_the_papers(tmp_path: Path,
+                                                                          homes: dict[str, Path]) -> None:
+    """``--set nu0`` with ``--prior places`` scales Ψ0 with it (E[Σ] = Ψ0 / (ν0 − 5) stays the places'
+    size); ``--prior paper`` keeps the paper's Ψ0; ν0 ≤ 5 has no scaled prior and is refused."""
+    runs = {}
+    for name, args in (("default", ["--prior", "places"]), ("nu0", ["--prior", "places", "--set", "nu0=20"]),
+                       ("paper", ["--prior", "paper"])):
+        out = tmp_path / f"{name}.spco"
+        result = _invoke(fit, ["--data", homes["experienced"], "--iterations", 2, "--out", out, *args])
+        assert result.exit_code == 0, result.output
+        runs[name] = kn.load_knowledge(out).hyperparameters
+    expected = np.diag(runs["default"].psi0_matrix_m2()) / 5.0
+    np.testing.assert_allclose(np.diag(runs["nu0"].psi0_matrix_m2()) / 15.0, expected)
+    assert runs["nu0"].nu0 == 20.0
+    assert runs["paper"].psi0 == (10.0, 10.0, 0.5, 0.5) and runs["paper"].psi0_in_cm2
+    assert runs["default"].psi0 != runs["paper"].psi0
+    result = _invoke(fit, ["--data", homes["experienced"], "--iterations", 2, "--out", tmp_path / "low.spco",
+                           "--prior", "places", "--set", "nu0=4.5"])
+    assert result.exit_code != 0 and "nu0" in result.output and "Traceback" not in result.output
+    assert not (tmp_path / "low.spco").exists()
+
+
 @pytest.mark.parametrize("args, message", [
     (["--homes", "no_such_home"], "no home named"),
     (["--teaching-rate", "101"], "101"),

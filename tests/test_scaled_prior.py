@@ -86,3 +86,145 @@ def test_a_synthetic_fleet_gets_the_scaled_prior_of_the_corpus_of_its_homes() ->
     fleet, read = default_hyperparameters(source), default_hyperparameters(corpus)
     assert fleet == read
     assert fleet.kappa0 < TransferHyperparameters().kappa0  # the scaled prior, not the paper's
+
+
+# ------------------------------------------- Ψ0 (the regions' size) follows the places: prior="places"
+
+
+def _log_marginal(points: np.ndarray, prior) -> float:
+    """log p(points) of one region, (μ, Σ) integrated out: the identity log p(X) = log p(X | μ, Σ) +
+    log NIW(μ, Σ | prior) − log NIW(μ, Σ | posterior), at the posterior mean of (μ, Σ)."""
+    from spco.model.kernels.niw import niw_posterior
+    from spco.model.observations import GaussianRegions, NIWPrior
+
+    n, d = points.shape
+    mu_n, kappa_n, psi_n, nu_n = niw_posterior(np.array([[float(n)]]), points.sum(axis=0)[None, None],
+                                               (points.T @ points)[None, None], prior.mu0[:, None, :],
+                                               prior.kappa0, prior.psi0, prior.nu0)
+    sigma = psi_n / (nu_n[..., None, None] - d - 1)
+    likelihood = GaussianRegions.log_likelihood(points, np.zeros(n, dtype=np.int64), mu_n, sigma).sum()
+    posterior = NIWPrior(mu0=mu_n[:, 0], kappa0=float(kappa_n[0, 0]), psi0=psi_n[0, 0], nu0=float(nu_n[0, 0]))
+    return float(likelihood + GaussianRegions.log_prior(mu_n, sigma, prior)
+                 - GaussianRegions.log_prior(mu_n, sigma, posterior))
+
+
+def _prior(hyper: TransferHyperparameters, centre: np.ndarray):
+    from spco.model.observations import NIWPrior
+
+    return NIWPrior(mu0=np.asarray(centre, dtype=float)[None], kappa0=hyper.kappa0,
+                    psi0=hyper.psi0_matrix_m2(), nu0=hyper.nu0)
+
+
+def _rooms(scale: float) -> tuple[np.ndarray, np.ndarray]:
+    """Two neighbouring rooms 3 m apart, 15 samples each within 0.5 m (× ``scale``), any heading."""
+    rng = np.random.default_rng(7)
+    first = rng.normal(0.0, 0.5, (15, 2))
+    second = rng.normal(0.0, 0.5, (15, 2)) + np.array([3.0, 0.0])
+    xy = np.concatenate([first, second]) * scale
+    heading = rng.uniform(-np.pi, np.pi, 30)
+    return np.column_stack([xy, np.sin(heading), np.cos(heading)]), np.repeat([0, 1], 15)
+
+
+def test_psi0_expects_regions_of_the_places_size() -> None:
+    """Ψ0 = diag(s², s², 0.5, 0.5) at ν0 = 10: E[Σ] = Ψ0 / (ν0 − 5) is diag(s²/5, s²/5, h, h), a part
+    of a place in x, y, the paper's heading."""
+    floor = [_home(8, 6.0, 0.5, seed=s) for s in range(3)]
+    hyper = scaled_hyperparameters(floor, psi0=True)
+    size = float(np.median([home_scales(xy, said)[1] for xy, said in floor]))
+    expected = np.diag(hyper.psi0_matrix_m2()) / (hyper.nu0 - 5)
+    np.testing.assert_allclose(expected, [size**2 / 5, size**2 / 5, 0.1, 0.1], rtol=1e-12)
+    np.testing.assert_allclose(hyper.psi0, [size**2, size**2, 0.5, 0.5], rtol=1e-12)
+    assert hyper.psi0_in_cm2 is False and hyper.nu0 == TransferHyperparameters().nu0
+    # the paper's: (1.4 cm)², whatever the map
+    paper = TransferHyperparameters()
+    assert np.diag(paper.psi0_matrix_m2())[0] / (paper.nu0 - 5) == pytest.approx(0.0002)
+
+
+def test_the_same_floor_in_metres_and_centimetres_gets_the_same_model() -> None:
+    """Scale invariance: the floor in centimetres gets Ψ0 × 10⁴ in x, y, the same κ0, L, K; the
+    posterior odds of splitting two neighbouring rooms into two regions (the positions' marginal
+    likelihoods, as the local update scores a split) are the same in either unit — and with the
+    paper's constants they are not (its Ψ0 is 10 cm² in any map)."""
+    metres = [_home(8, 6.0, 0.5, seed=s) for s in range(3)]
+    centimetres = [(xy * 100.0, said) for xy, said in metres]
+    m, cm = scaled_hyperparameters(metres, psi0=True), scaled_hyperparameters(centimetres, psi0=True)
+    np.testing.assert_allclose(np.diag(cm.psi0_matrix_m2()),
+                               np.diag(m.psi0_matrix_m2()) * [1e4, 1e4, 1.0, 1.0], rtol=1e-9)
+    assert cm.kappa0 == pytest.approx(m.kappa0, rel=1e-9)
+    assert (cm.n_concepts, cm.n_regions, cm.nu0) == (m.n_concepts, m.n_regions, m.nu0)
+
+    def split_odds(hyper: TransferHyperparameters, scale: float) -> float:
+        points, room = _rooms(scale)
+        prior = _prior(hyper, np.r_[points[:, :2].mean(axis=0), 0.0, 0.0])
+        apart = sum(_log_marginal(points[room == r], prior) for r in (0, 1))
+        return apart - _log_marginal(points, prior)
+
+    odds_m, odds_cm = split_odds(m, 1.0), split_odds(cm, 100.0)
+    assert odds_cm == pytest.approx(odds_m, abs=1e-6)
+    assert odds_m > 0  # two rooms 3 m apart are two regions
+    assert split_odds(TransferHyperparameters(), 1.0) < 0  # the paper's (1.4 cm)² regions merge them
+    paper = TransferHyperparameters()
+    assert abs(split_odds(paper, 1.0) - split_odds(paper, 100.0)) > 1.0
+
+
+def test_extreme_place_sizes_are_kept_representable_or_refused() -> None:
+    """A place size beyond what Ψ0 holds beside the heading (condition number ≤ 10¹²) is kept at the
+    nearest it holds, with a warning; a size or ν0 that cannot make a prior is refused by name."""
+    from spco.model.hyperparameters import MAX_CONDITION, scaled_psi0
+
+    for scale in (1e-9, 1e9, 1e150):
+        homes = [(xy * scale, said) for xy, said in (_home(8, 6.0, 0.5, seed=s) for s in range(2))]
+        with pytest.warns(UserWarning, match="places measure"):
+            hyper = scaled_hyperparameters(homes, psi0=True)
+        eig = np.linalg.eigvalsh(hyper.psi0_matrix_m2())
+        assert eig.max() <= MAX_CONDITION * eig.min()
+    for size in (0.0, 1e-300, 1e300):
+        psi, clamped = scaled_psi0(size, 10.0)
+        assert clamped and np.isfinite(psi).all() and min(psi) > 0
+    # positions whose squares underflow have no measurable spread: the base's prior
+    tiny = [(xy * 1e-300, said) for xy, said in (_home(8, 6.0, 0.5, seed=s) for s in range(2))]
+    assert scaled_hyperparameters(tiny, psi0=True).psi0 == TransferHyperparameters().psi0
+    for size in (float("nan"), float("inf"), -1.0):
+        with pytest.raises(ConfigurationError, match="place size"):
+            scaled_psi0(size, 10.0)
+    with pytest.raises(ConfigurationError, match="nu0"):
+        scaled_psi0(0.3, 5.0)
+    with pytest.raises(ConfigurationError, match="nu0"):
+        scaled_hyperparameters([_home(8, 6.0, 0.5)], base=TransferHyperparameters(nu0=4.5), psi0=True)
+
+
+def test_nu0_sets_the_weight_not_the_size() -> None:
+    """A larger ν0 scales Ψ0 with it: E[Σ] stays the places' size (``spco fit --set nu0=…``)."""
+    homes = [_home(8, 6.0, 0.5, seed=s) for s in range(2)]
+    ten = scaled_hyperparameters(homes, psi0=True)
+    forty = scaled_hyperparameters(homes, base=TransferHyperparameters(nu0=40.0), psi0=True)
+    np.testing.assert_allclose(np.diag(forty.psi0_matrix_m2()) / 35.0, np.diag(ten.psi0_matrix_m2()) / 5.0)
+
+
+def test_every_route_of_a_home_uses_the_knowledge_scaled_prior(tmp_path) -> None:
+    """fit_knowledge's scaled Ψ0 is the one adapt, teach (the local update) and a reloaded file use; the
+    paper's stays one argument away."""
+    import warnings
+
+    from spco import knowledge as kn
+    from spco.data.environment import Corpus
+    from spco.data.synthetic import SyntheticConfig, generate_homes
+    from spco.knowledge.fit import default_hyperparameters
+
+    envs = list(generate_homes(3, seed=1, config=SyntheticConfig(n_features=16, n_train=10), new_homes=1,
+                               specific_rooms=False))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        knowledge = kn.fit_knowledge(Corpus(envs[:2]), n_iterations=2, random_state=0, prior="places")
+        scaled = default_hyperparameters(Corpus(envs[:2]), psi0=True)
+        assert default_hyperparameters(Corpus(envs[:2])).psi0 == TransferHyperparameters().psi0  # opt-in
+        assert knowledge.hyperparameters.psi0 == scaled.psi0 and not knowledge.hyperparameters.psi0_in_cm2
+        assert scaled.psi0 != TransferHyperparameters().psi0
+        knowledge.save(tmp_path / "k.spco")
+        loaded = kn.load_knowledge(tmp_path / "k.spco")
+        home = kn.adapt(loaded, envs[2], n_iterations=1, random_state=0)
+        taught = kn.teach(home, {int(home.ids[0]): "this is the quokka room"}, random_state=0)
+        for model in (loaded, home, taught):
+            np.testing.assert_array_equal(model.hyperparameters.psi0_matrix_m2(), scaled.psi0_matrix_m2())
+        paper = kn.fit_knowledge(Corpus(envs[:2]), n_iterations=1, random_state=0, prior="paper")
+    assert paper.hyperparameters.psi0 == TransferHyperparameters().psi0 and paper.hyperparameters.psi0_in_cm2

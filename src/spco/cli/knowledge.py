@@ -119,12 +119,16 @@ def _seconds(value: float) -> str:
 # ------------------------------------------------------------------------------------ fit
 def _on_the_prior(training: Any, prior: str, settings: tuple[str, ...], checked: Any) -> Any:
     """``--set`` applied on top of the scaled prior of ``training`` (``checked``: the settings on the
-    paper's constants, checked before the homes were read; kept for ``--prior paper``)."""
-    if not settings or prior != "scaled":
+    paper's constants, checked before the homes were read; kept for ``--prior paper``). A ``nu0``
+    setting is the scaled Ψ0's weight: Ψ0 is scaled with it, so E[Σ] stays the places' size."""
+    if not settings or prior == "paper":
         return checked
     from spco.knowledge.fit import default_hyperparameters
+    from spco.model.hyperparameters import TransferHyperparameters
 
-    return default_hyperparameters(training).with_settings(settings)
+    nu0 = [s for s in settings if s.partition("=")[0].strip() == "nu0"]
+    base = TransferHyperparameters().with_settings(nu0) if nu0 else None
+    return default_hyperparameters(training, base, psi0=prior == "places").with_settings(settings)
 
 
 @click.command(name="fit")
@@ -167,11 +171,13 @@ def _on_the_prior(training: Any, prior: str, settings: tuple[str, ...], checked:
                    "beta, mi_threshold, view_counts (a view's weight w, default 16; none: every count a "
                    "draw; estimate: learnt from the homes). E.g. a large floor: "
                    "--set n_concepts=30 --set n_regions=30 --set kappa0=0.001. Kept in the knowledge file.")
-@click.option("--prior", default="scaled", show_default=True, type=click.Choice(["scaled", "paper"]),
-              help="scaled: the position prior κ0 and the numbers of concepts and regions follow the "
+@click.option("--prior", default="scaled", show_default=True,
+              type=click.Choice(["scaled", "places", "paper"]),
+              help="scaled: the position prior's κ0 and the numbers of concepts and regions follow the "
                    "homes' spread and place sizes (a flat or a university floor, in any map units); "
-                   "paper: the paper's constants (κ0 = 0.05, L = 15, K = 20), for the reproduction. "
-                   "--set applies on top.")
+                   "places: Ψ0 from the places' size too (opt-in); paper: the paper's constants "
+                   "(Ψ0 = diag(10 cm², 10 cm², 0.5, 0.5), κ0 = 0.05, L = 15, K = 20), for the "
+                   "reproduction. --set applies on top (nu0 with places: Ψ0 is scaled with it).")
 @click.option("--text-language", default="auto", show_default=True,
               type=click.Choice(["auto", "ja", "zh", "spaced"]),
               help="Japanese or Chinese written without spaces: segment it into words (ja: pip install "

@@ -84,19 +84,22 @@ def _align_to(reference_v: np.ndarray, reference_w: np.ndarray, phi_v: np.ndarra
     return perm
 
 
-def default_hyperparameters(homes: Any) -> TransferHyperparameters:
+def default_hyperparameters(homes: Any, base: TransferHyperparameters | None = None,
+                            psi0: bool = False) -> TransferHyperparameters:
     """The scaled prior of ``homes`` (:func:`~spco.model.hyperparameters.scaled_hyperparameters`): a
     :class:`~spco.data.Corpus` is read here, a :class:`~spco.model.sources.FolderHomes` brings the
     scales it measured while reading its folders, a :class:`~spco.model.sources.SyntheticHomes` fleet
-    measures them generating its homes one at a time: the same prior as the corpus of the same homes."""
+    measures them generating its homes one at a time: the same prior as the corpus of the same homes.
+    ``base``: the constants scaled (default the paper's; its ν0 sets Ψ0's weight); ``psi0``: Ψ0 from
+    the homes' places too (``prior="places"``)."""
     from spco.model.sources import FolderHomes, SyntheticHomes
 
     if isinstance(homes, FolderHomes | SyntheticHomes):
-        return scaled_from(homes.scales)
+        return scaled_from(homes.scales, base, psi0)
     if isinstance(homes, Corpus):
         return scaled_hyperparameters([(t.positions, homes.word_counts(list(t.sentences)))
-                                       for t in homes.training_set()])
-    return TransferHyperparameters()
+                                       for t in homes.training_set()], base, psi0)
+    return TransferHyperparameters() if base is None else base
 
 
 def fit_knowledge(
@@ -143,8 +146,9 @@ def fit_knowledge(
     engine: where the homes' shards run (:func:`spco.engines.make_engine`): ``None`` in this
         process, ``"ray"`` or an engine object such as ``RayEngine(shards=4, address="auto")``.
     prior: used when ``hyperparameters`` is ``None``: ``"scaled"`` (default) — κ0, L and K follow
-        the homes' spread and place sizes (:func:`default_hyperparameters`); ``"paper"`` — the
-        paper's constants.
+        the homes' spread and place sizes in their map units (:func:`default_hyperparameters`);
+        ``"places"`` (opt-in) — Ψ0 from the homes' places too; ``"paper"`` — the paper's constants
+        (the reproduction).
 
     Returns
     -------
@@ -220,8 +224,8 @@ def _fit_setup(corpus: Any, model: str, n_iterations: int, random_state: Any,
     variant, prune = MODELS[model]
     if prior not in PRIORS:
         raise ConfigurationError(f"prior must be one of {', '.join(PRIORS)}, got {prior!r}")
-    if hyperparameters is None and prior == "scaled":
-        hyperparameters = default_hyperparameters(corpus)
+    if hyperparameters is None and prior != "paper":
+        hyperparameters = default_hyperparameters(corpus, psi0=prior == "places")
     estimator = SpCoTransfer(hyperparameters, variant=variant, prune_words=prune, n_iterations=n_iterations,
                              random_state=random_state)
     hyper = estimator.checked_hyperparameters()

@@ -9,6 +9,7 @@ the same model).
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, replace
 from typing import Any, Literal
@@ -73,7 +74,9 @@ class TransferHyperparameters:
     beta: β = 3, concentration of the region weights π_{e,l} (weak limit Dir(β/K)).
     kappa0, nu0: κ0 = 0.05, ν0 = 10 of the Normal–inverse-Wishart prior.
     psi0: diagonal of Ψ0 (4 values) or a full 4×4 matrix, x and y in cm² when
-        ``psi0_in_cm2`` (the paper's convention, default ``diag(10, 10, 0.5, 0.5)``), else metres².
+        ``psi0_in_cm2`` (the paper's convention, default ``diag(10, 10, 0.5, 0.5)``), else metres²
+        (the map's units²: the scaled prior of :func:`scaled_hyperparameters` sets it from the homes'
+        places, ``diag(s², s², 0.5, 0.5)``).
     mu0: prior mean of the region means in metres (4 values), or ``None`` for the map centre
         with heading (0, 0).
     mi_threshold: ε, words whose score with every concept is below ε are pruned (models "+MI"
@@ -302,9 +305,10 @@ class SpCoAHyperparameters(TransferHyperparameters):
 
 
 #: Where the default position prior and truncations come from (``fit_knowledge(prior=…)``,
-#: ``spco fit --prior``): ``"scaled"`` follows the experienced homes' scale (:func:`scaled_hyperparameters`),
+#: ``spco fit --prior``): ``"scaled"`` follows the experienced homes' scale (κ0, L, K:
+#: :func:`scaled_hyperparameters`), ``"places"`` (opt-in) also sets Ψ0 from the homes' places,
 #: ``"paper"`` is the paper's constants (the reproduction).
-PRIORS = ("scaled", "paper")
+PRIORS = ("scaled", "places", "paper")
 #: Words said at least this many times in a home measure its place sizes (:func:`scaled_hyperparameters`).
 _MIN_USES = 3
 
@@ -330,14 +334,61 @@ def home_scales(positions: np.ndarray, said: Any) -> tuple[float, float, int]:
     return spread, size, int((sizes < spread / 2).sum())
 
 
+#: E[Σ] of the heading (sin θ, cos θ) under the paper's prior: Ψ0's 0.5 over ν0 − d − 1 = 5. The scaled
+#: prior keeps it (the heading has no map units) and sets x, y from the homes' place size.
+HEADING_VARIANCE = PAPER_PSI0_CM[2] / (10.0 - 4 - 1)
+#: E[Σ] of a region's x and y under the scaled prior, as a share of the places' variance s²: at the
+#: paper's ν0 = 10, Ψ0 = diag(s², s², 0.5, 0.5) — the paper's Ψ0 with s² for its 10 cm². Chosen on
+#: development (``benchmarks/teaching.py``, synthetic homes; docs/samplers.md): with E[Σ] = s² a region
+#: of a small room is as wide as a typical place and `where` draws leave the room.
+REGION_SHARE = 0.2
+#: The scaled prior's x, y variance is kept within this factor of :data:`HEADING_VARIANCE` either way:
+#: Ψ0 must factorise with x, y beside the heading (its condition number at most :data:`MAX_CONDITION`).
+MAX_SCALE_RATIO = 1e10
+
+
+def scaled_psi0(size: float, nu0: float) -> tuple[tuple[float, float, float, float], bool]:
+    """Ψ0's diagonal (map units², for ``psi0_in_cm2=False``) whose prior mean of a region's covariance
+    is diag(r s², r s², h, h): E[Σ] = Ψ0 / (ν0 − d − 1), d = 4, s = ``size`` the places' size in map
+    units, r = :data:`REGION_SHARE`, h = :data:`HEADING_VARIANCE` (the paper's); at ν0 = 10,
+    diag(s², s², 0.5, 0.5). r s² is kept within :data:`MAX_SCALE_RATIO` of h (a map whose places
+    measure less than ~7·10⁻⁶ or more than ~7·10⁴ map units); the flag says it was.
+
+    Raises :class:`~spco.errors.ConfigurationError` for a size that is not a finite number ≥ 0 or a
+    ν0 ≤ d + 1 (no prior mean of Σ)."""
+    if not (np.isfinite(size) and size >= 0):
+        raise ConfigurationError(f"the homes' place size must be a finite number >= 0 (map units), "
+                                 f"got {size!r}")
+    if not (np.isfinite(nu0) and nu0 > 5):
+        raise ConfigurationError(f"nu0 must exceed d + 1 = 5 for the scaled prior (Ψ0 = (ν0 − 5)·E[Σ]: the "
+                                 f"prior mean of a region's covariance must exist), got {nu0!r}; "
+                                 "use --prior paper for a smaller nu0")
+    variance = REGION_SHARE * size * size
+    low, high = HEADING_VARIANCE / MAX_SCALE_RATIO, HEADING_VARIANCE * MAX_SCALE_RATIO
+    kept = float(min(max(variance, low), high))
+    strength = nu0 - 4 - 1
+    xy, heading = strength * kept, strength * HEADING_VARIANCE
+    return (xy, xy, heading, heading), kept != variance
+
+
 def scaled_hyperparameters(homes: Sequence[tuple[np.ndarray, Any]],
-                           base: TransferHyperparameters | None = None) -> TransferHyperparameters:
+                           base: TransferHyperparameters | None = None,
+                           psi0: bool = False) -> TransferHyperparameters:
     """The paper's hyperparameters with the position prior and truncations following the homes' scale.
 
     ``homes``: (positions (n, ≥2) in map units, said (n, V)) of each experienced home's training
     samples (:func:`home_scales`). With R the median spread of the homes and s the median size of
     their places (both in map units):
 
+    - with ``psi0`` (``prior="places"``, opt-in): Ψ0 = diag(s², s², 0.5, 0.5) at the paper's
+      ν0 = 10 — the paper's Ψ0 with the places' size s²
+      for its 10 cm² (:func:`scaled_psi0`): the prior mean of a region's covariance is E[Σ] =
+      Ψ0 / (ν0 − d − 1) = diag(s²/5, s²/5, h, h), d = 4, h the paper's heading variance (0.1): a
+      region a part of a place, never wider than one (a region of n samples has E[Σ | data] =
+      (Ψ0 + scatter)/(ν0 + n − 5): a part of a place with few samples, its data's with many).
+      The paper's Ψ0 = diag(10 cm², 10 cm², 0.5, 0.5) expects regions of (1.4 cm)², whatever the
+      map: every region must win ν0/2·log|Ψ0| back from its data, and two neighbouring rooms in one
+      region are preferred to a split (benchmarks/README.md, "Teaching a live home").
     - κ0 = min(κ0_paper, (s / 2R)²). A region's mean is a priori N(μ0, Σ/κ0) around the map centre,
       and its covariance's posterior gains κ0·n/(κ0 + n)·(x̄ − μ0)(x̄ − μ0)ᵀ: with the paper's 0.05 a
       place 25 m from the centre of a university floor gets ≈ 31 m² added (its `where` draws land at
@@ -347,25 +398,37 @@ def scaled_hyperparameters(homes: Sequence[tuple[np.ndarray, Any]],
     - L and K at least twice the most places any home names (words said within half its spread),
       the paper's 15 and 20 otherwise: a weak-limit truncation below the places merges them.
 
-    Ψ0, ν0 stay the paper's (Ψ0 ≈ (1.4 cm)² is far below any place: the data decide a region's
-    size). Without two words said ≥ 3 times in any home, κ0 stays the paper's.
+    Every term is in the map's units, so the same homes in metres or centimetres get the same model
+    (the answers are the same). Without two words said ≥ 3 times in any home, κ0 and Ψ0 stay the
+    base's (the paper's).
     """
-    return scaled_from([home_scales(positions, said) for positions, said in homes], base)
+    return scaled_from([home_scales(positions, said) for positions, said in homes], base, psi0)
 
 
 def scaled_from(scales: Sequence[tuple[float, float, int]],
-                base: TransferHyperparameters | None = None) -> TransferHyperparameters:
+                base: TransferHyperparameters | None = None, psi0: bool = False) -> TransferHyperparameters:
     """:func:`scaled_hyperparameters` from the homes' :func:`home_scales` (R, s, n), computed where
-    the homes are read (a :class:`~spco.model.sources.FolderHomes` keeps them)."""
+    the homes are read (a :class:`~spco.model.sources.FolderHomes` keeps them). Ψ0 follows
+    ``base.nu0`` (E[Σ] stays the same whatever ν0); warns when the places' size is beyond
+    what Ψ0 can hold beside the heading (:func:`scaled_psi0`)."""
     base = TransferHyperparameters() if base is None else base
     if not scales:
         return base
     spread = float(np.median([r for r, _, _ in scales]))
     sizes = [s for _, s, _ in scales if np.isfinite(s)]
     places = max(n for _, _, n in scales)
-    kappa0 = base.kappa0
+    changes: dict[str, Any] = {}
     if sizes and spread > 0:
         size = float(np.median(sizes))
-        kappa0 = float(min(base.kappa0, max((size / (2.0 * spread)) ** 2, 1e-12)))
-    return replace(base, kappa0=kappa0, n_concepts=max(base.n_concepts, 2 * places),
-                   n_regions=max(base.n_regions, 2 * places))
+        changes["kappa0"] = float(min(base.kappa0, max((size / (2.0 * spread)) ** 2, 1e-12)))
+    if sizes and spread > 0 and psi0:
+        size = float(np.median(sizes))
+        psi, clamped = scaled_psi0(size, base.nu0)
+        if clamped:
+            taken = psi[0] / (base.nu0 - 5)
+            warnings.warn(f"the homes' places measure {size:.3g} map units, beyond what the position prior "
+                          f"holds beside the heading: its x, y variance is taken as {taken:.3g} map units² "
+                          "(a map in metres, centimetres or millimetres is within)", stacklevel=2)
+        changes.update(psi0=psi, psi0_in_cm2=False)
+    return replace(base, n_concepts=max(base.n_concepts, 2 * places),
+                   n_regions=max(base.n_regions, 2 * places), **changes)
