@@ -198,8 +198,7 @@ def view_counts_log_loss(data: Path, images: Path | None, models: Path, features
     losses: (n, len(grid)) one row per answer (development test view × view kind × set × seed);
     views: (n,) the (home, view id) of each row, for a bootstrap over views.
     """
-    from spco.model.confidence import concept_word_counts, predict_names_honestly
-    from spco.model.home_shard import FREE_CONCEPT_WEIGHT
+    from spco.model.confidence import answer_names, answer_parameters
 
     dev = SETS["development"]
     losses: list[np.ndarray] = []
@@ -214,15 +213,13 @@ def view_counts_log_loss(data: Path, images: Path | None, models: Path, features
                     words = list(model.vocabulary.words)
                     rows = np.arange(len(labels))
                     columns = np.array([words.index(lab) for lab in labels])
-                    counts = concept_word_counts(model.data.words, model.state.concepts,
-                                                 model.knowledge.n_concepts)
+                    named = answer_parameters(model.parameters, 0, model.data.words, model.state.concepts,
+                                              model.knowledge.log_g0, model.hyperparameters.alpha_word)
                     mine = np.zeros((len(labels), len(grid)))
                     for j, value in enumerate(grid):
-                        pred = predict_names_honestly(
-                            model.parameters, 0, model.vocabulary, positions, visual, top_k=1,
-                            weighting=model.weighting,  # type: ignore[arg-type]
-                            free=np.exp(model.knowledge.log_g0) < FREE_CONCEPT_WEIGHT, word_counts=counts,
-                            alpha_word=model.hyperparameters.alpha_word, view_counts=float(value))
+                        pred = answer_names(named, 0, model.vocabulary, positions, visual, top_k=1,
+                                            weighting=model.weighting,  # type: ignore[arg-type]
+                                            view_counts=float(value))
                         mine[:, j] = -np.log(np.maximum(pred.word_probabilities[rows, columns], 1e-12))
                     losses.append(mine)
                     views += [(home.name, int(i)) for i in home.ids[home.is_test]]

@@ -50,6 +50,7 @@ def what_ms(home: kn.HomeModel, rng: np.random.Generator, n: int = 200) -> tuple
 
 def flood(home_file: Path, n: int, limits: kn.TeachingLimits | None, seed: int) -> dict[str, Any]:
     """The flood on a fresh copy of ``home_file`` (module docstring)."""
+    from spco.knowledge.requests import Pose, Teach
     from spco.service.writer import HomeWriter
 
     rng = np.random.default_rng(seed)
@@ -72,19 +73,10 @@ def flood(home_file: Path, n: int, limits: kn.TeachingLimits | None, seed: int) 
                 ]
                 sentence = " ".join(words)
                 if k % 2 == 0:
-                    request = {
-                        "op": "sentence",
-                        "id": int(home.ids[int(rng.integers(0, home.n_samples))]),
-                        "sentence": sentence,
-                    }
+                    request = Teach(sentence=sentence, id=int(home.ids[int(rng.integers(0, home.n_samples))]))
                 else:
-                    request = {
-                        "op": "observation",
-                        "x": float(rng.uniform(x0, x1)),
-                        "y": float(rng.uniform(y0, y1)),
-                        "theta": 0.0,
-                        "sentence": sentence,
-                    }
+                    request = Teach(sentence=sentence,
+                                    pose=Pose(float(rng.uniform(x0, x1)), float(rng.uniform(y0, y1)), 0.0))
                 result = writer.handle([request])[0]
                 if not result["ok"]:
                     refused[result.get("limit") or result.get("kind", "error")] += 1

@@ -248,6 +248,7 @@ def undo_trial(home: kn.HomeModel, t: int, folder: Path, n_teach: int = 12, comp
     ``compact_records``), one of them undone; the home after the undo, and after a restart of the
     writer, compared with the home the library gives for the same teachings (their recorded seeds)
     without the undone one: max |Δp| over every answer (:func:`answers`)."""
+    from spco.knowledge.requests import Pose, Teach, Undo
     from spco.service.writer import HomeWriter
 
     rng = np.random.default_rng(1000 + t)
@@ -262,21 +263,15 @@ def undo_trial(home: kn.HomeModel, t: int, folder: Path, n_teach: int = 12, comp
             row = int(rng.integers(0, home.n_samples))
             word = NEW_WORDS[int(rng.integers(0, len(NEW_WORDS)))]
             if rng.random() < 0.5:
-                request = {"op": "sentence", "id": int(home.ids[row]), "sentence": f"this is the {word} room"}
+                request = Teach(sentence=f"this is the {word} room", id=int(home.ids[row]))
             else:
                 x, y = (float(v) for v in home.positions[row, :2] + rng.uniform(-0.3, 0.3, size=2))
-                request = {
-                    "op": "observation",
-                    "x": x,
-                    "y": y,
-                    "theta": 0.0,
-                    "sentence": f"this is the {word} room",
-                }
+                request = Teach(sentence=f"this is the {word} room", pose=Pose(x, y, 0.0))
             result = writer.handle([request])[0]
             assert result["ok"], result
         seqs = sorted(k for k, e in writer.history.items() if e["op"] != "undo")
         undone = seqs[int(rng.integers(0, len(seqs)))]
-        result = writer.handle([{"op": "undo", "seq": undone}])[0]
+        result = writer.handle([Undo(undone)])[0]
         if not result["ok"]:  # refused (a later teaching named the sample it added): said, not measured
             writer.close()
             return {"seq": undone, "refused": result["error"]}

@@ -124,8 +124,12 @@ def test_view_fit_ranges_never_print_one_number_twice() -> None:
 
 
 def test_a_teachings_positions_are_scored_by_the_regions_posterior_predictive(built: Path) -> None:
-    """log p(x | a region's samples) = log m(samples ∪ {x}) − log m(samples), m the NIW marginal."""
+    """log p(x | a region's samples) = log m(samples ∪ {x}) − log m(samples), m the NIW marginal; and
+    that is the Student t of the NIW posterior (scipy's multivariate_t, an independent form)."""
+    from scipy.stats import multivariate_t
+
     from spco.model import gibbs
+    from spco.model.kernels.niw import niw_posterior
     from spco.model.local_update import _log_marginal_positions, _RegionStatistics
     from spco.model.state import SamplerSettings
 
@@ -145,6 +149,12 @@ def test_a_teachings_positions_are_scored_by_the_regions_posterior_predictive(bu
         want = (_log_marginal_positions(np.vstack([members, x[:1]]), prior)
                 - (_log_marginal_positions(members, prior) if len(members) else 0.0))
         assert got[k] == pytest.approx(want, rel=1e-8, abs=1e-8)
+        mu_n, kappa_n, psi_n, nu_n = niw_posterior(
+            np.array([float(len(members))]), members.sum(axis=0)[None], (members.T @ members)[None],
+            prior.mu0[0], prior.kappa0, prior.psi0, prior.nu0)
+        dof = float(nu_n[0]) - x.shape[1] + 1.0
+        student = multivariate_t(mu_n[0], psi_n[0] * (kappa_n[0] + 1.0) / (kappa_n[0] * dof), df=dof)
+        assert got[k] == pytest.approx(student.logpdf(x[0]), rel=1e-8, abs=1e-8)
     stats.add(0, x[0])  # counted in the first region: its predictive is that of the region with it
     members = np.vstack([x[counted & (state.regions == regions[0])], x[:1]])
     with_x1 = _log_marginal_positions(np.vstack([members, x[1:2]]), prior)

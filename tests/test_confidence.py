@@ -25,9 +25,9 @@ from spco.data.language import Vocabulary
 from spco.errors import ConfigurationError
 from spco.model.confidence import (
     UNSURE_BELOW,
+    answer_names,
     concept_word_counts,
     named_parameters,
-    predict_names_honestly,
 )
 from spco.model.parameters import ConceptParameters
 from spco.model.prediction import predict_names
@@ -66,13 +66,15 @@ def _parameters(theta_v: np.ndarray, means_xy: np.ndarray, sd: float,
         concept_counts=np.full((1, L), 20.0))
 
 
-def _honest(params: ConceptParameters, poses: np.ndarray, views: object, **kw):
+def _honest(params: ConceptParameters, poses: np.ndarray, views: object, *, free: np.ndarray | None = None,
+            view_counts: float = 5.0, unsure_below: float = UNSURE_BELOW):
+    """The one predictor (answer_names) of the named parameters; a view weight w of a few draws, as
+    a knowledge estimates it."""
     L, V = params.n_concepts, params.word_probabilities.shape[-1]
-    defaults = {"free": np.zeros(L, dtype=bool), "word_counts": np.zeros((L, V)), "alpha_word": 0.01,
-                "view_counts": 5.0}  # a view weight w of a few draws, as a knowledge estimates it
-    defaults.update(kw)
-    return predict_names_honestly(params, 0, Vocabulary(list(NAMES)), poses, views, top_k=3,
-                                  **defaults)
+    named = named_parameters(params, 0, np.zeros(L, dtype=bool) if free is None else free, np.zeros((L, V)),
+                             0.01)
+    return answer_names(named, 0, Vocabulary(list(NAMES)), poses, views, view_counts=view_counts,
+                        weighting="none", top_k=3, unsure_below=unsure_below)
 
 
 def test_probability_of_the_answer_matches_its_frequency() -> None:
@@ -159,7 +161,7 @@ def test_concept_word_counts_and_bad_arguments() -> None:
     with pytest.raises(ConfigurationError, match="word_counts"):
         named_parameters(params, 0, np.ones(3, dtype=bool), np.zeros((3, 2)), 0.01)
     with pytest.raises(ConfigurationError, match="unsure_below"):
-        _honest(params, np.array([[0.0, 0.0, 0.0, 1.0]]), None, use_vision=False, unsure_below=1.5)
+        _honest(params, np.array([[0.0, 0.0, 0.0, 1.0]]), None, unsure_below=1.5)
     with pytest.raises(ConfigurationError, match="view_counts"):
         _honest(params, np.array([[0.0, 0.0, 0.0, 1.0]]), np.ones((1, 4)), view_counts=0.0)
 
@@ -190,13 +192,14 @@ def test_what_says_when_it_is_unsure(home_file: Path) -> None:
     x, y, s, c = home.positions[i]
     theta = math.atan2(s, c)
     assert kn.what(home, float(x), float(y), theta, visual=home.visual[[i]], unsure_below=1.0).unsure[0]
+    from spco.knowledge.requests import Pose, View, What
     from spco.service.answers import what_answer  # spco serve's /what and the ROS node answer with it
 
-    counts = home.visual[[i]].toarray()[0]
-    served = what_answer(home, float(x), float(y), theta, counts)
+    request = What(Pose(float(x), float(y), theta), View(visual=home.visual[[i]].toarray()[0]))
+    served = what_answer(home, request)
     assert served["confidence"] == pytest.approx(float(confidence[i])) and served["unsure"] is False
     assert served["answer"] == best.best[0]
-    assert what_answer(home, float(x), float(y), theta, counts, unsure_below=1.0)["unsure"] is True
+    assert what_answer(home, request, unsure_below=1.0)["unsure"] is True
     view = home_file.parent / "view.npy"
     np.save(view, home.visual[[i]].toarray()[0])
     args = [str(home_file), "--x", str(x), "--y", str(y), "--theta", str(theta), "--visual", str(view)]

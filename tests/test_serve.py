@@ -27,6 +27,7 @@ from spco.cli.knowledge import what as what_command
 from spco.cli.knowledge import where as where_command
 from spco.errors import ConfigurationError
 from spco.knowledge.locking import HomeServedError, locked, served_by
+from spco.knowledge.requests import Pose, Teach, Undo
 from spco.service import LiveHome
 from spco.service.journal import (
     Journal,
@@ -201,12 +202,11 @@ def test_journal_replays_to_the_same_home_and_compaction_never_applies_twice(
         home: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     writer = HomeWriter(home, seed=3, compact_records=1000, compact_idle=3600)
     ids = [int(i) for i in writer.home.ids[:4]]
-    results = writer.handle([{"op": "sentence", "id": ids[0], "sentence": "this is the den"},
-                             {"op": "sentence", "id": ids[1], "sentence": "this is the den"},
-                             {"op": "observation", "x": 0.1, "y": 0.2, "theta": 0.3,
-                              "sentence": "the den is here", "view": None}])
+    results = writer.handle([Teach(sentence="this is the den", id=ids[0]),
+                             Teach(sentence="this is the den", id=ids[1]),
+                             Teach(sentence="the den is here", pose=Pose(0.1, 0.2, 0.3))])
     assert [r["ok"] for r in results] == [True, True, True] and results[0]["batch"] == 3
-    writer.handle([{"op": "undo", "seq": 2}, {"op": "sentence", "id": ids[2], "sentence": "this is the den"}])
+    writer.handle([Undo(2), Teach(sentence="this is the den", id=ids[2])])
     live_state = writer.home
     # a crash now (nothing compacted): the file plus its journal give the same home
     replayed, count = load_current(home)
@@ -230,7 +230,7 @@ def test_journal_replays_to_the_same_home_and_compaction_never_applies_twice(
 def test_torn_last_record_is_dropped_with_a_warning_and_damage_is_refused(home: Path) -> None:
     writer = HomeWriter(home, seed=1, compact_records=1000, compact_idle=3600)
     sample = int(writer.home.ids[0])
-    writer.handle([{"op": "sentence", "id": sample, "sentence": "this is the loft"}])
+    writer.handle([Teach(sentence="this is the loft", id=sample)])
     expected = writer.home
     journal = journal_path(home)
     line = encode_record({"seq": 2, "batch": [2, 2], "seed": 5, "sweeps": 10, "op": "sentence", "id": sample,

@@ -12,6 +12,7 @@ from serve_helpers import build_home
 
 from spco import knowledge as kn
 from spco.errors import TeachingLimitError, TeachingRateError
+from spco.knowledge.requests import Pose, Teach, Undo
 from spco.model.local_update import splice_posterior
 from spco.service.teaching import ConflictError, undo_base_path
 from spco.service.writer import HomeWriter
@@ -59,14 +60,20 @@ def _assert_same_answers(a: kn.HomeModel, b: kn.HomeModel) -> None:
             np.testing.assert_array_equal(x[name], y[name])
 
 
+def _teach(model: kn.HomeModel, sentences: dict | None = None, observations: list | tuple = (),
+           **options: object) -> kn.HomeModel:
+    """:func:`spco.knowledge.teach` without its warnings (a new name spreading: said, not tested here)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return kn.teach(model, sentences, observations, **options)  # type: ignore[arg-type]
+
+
 # ----------------------------------------------------------------------------- a local update
 def test_a_teaching_changes_the_taught_place_and_leaves_the_rest_as_it_was(home: Path) -> None:
     model = kn.load_home_model(home)
     row = 7
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        taught = kn.teach(model, {int(model.ids[row]): "this is the quokka room"}, random_state=4)
-        again = kn.teach(model, {int(model.ids[row]): "this is the quokka room"}, random_state=4)
+    taught = _teach(model, {int(model.ids[row]): "this is the quokka room"}, random_state=4)
+    again = _teach(model, {int(model.ids[row]): "this is the quokka room"}, random_state=4)
     for name, value in _arrays(taught).items():  # the same seed: the same home, bit for bit
         np.testing.assert_array_equal(value, _arrays(again)[name], err_msg=name)
     before, after = model.posterior, taught.posterior
@@ -99,9 +106,7 @@ def test_a_teaching_regroups_only_its_own_names_not_the_homes_other_new_names(ho
 
     model = kn.load_home_model(home)
     row_a = 7
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        named = kn.teach(model, {int(model.ids[row_a]): "this is the quokka room"}, random_state=1)
+    named = _teach(model, {int(model.ids[row_a]): "this is the quokka room"}, random_state=1)
     concept_a = int(named.state.concepts[row_a])
     of_a = np.flatnonzero(named.state.concepts == concept_a)
     # a posterior in which the name's samples are not all in one concept: one of them elsewhere
@@ -111,9 +116,7 @@ def test_a_teaching_regroups_only_its_own_names_not_the_homes_other_new_names(ho
     spread_home = replace(named, state=spread)
     far = np.flatnonzero(~np.isin(named.state.regions, named.state.regions[of_a]))
     row_b = int(far[len(far) // 2])
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        taught = kn.teach(spread_home, {int(model.ids[row_b]): "this is the zephyr room"}, random_state=2)
+    taught = _teach(spread_home, {int(model.ids[row_b]): "this is the zephyr room"}, random_state=2)
     # the teaching of "zephyr room" gave its own name a concept, and left "quokka room"'s samples as the
     # home's posterior had them (not regrouped into a concept of their own)
     assert taught.state.concepts[row_b] not in set(spread.concepts[of_a].tolist())
@@ -126,10 +129,8 @@ def test_a_new_observation_is_placed_where_it_is_not_in_region_0(home: Path) -> 
     row = int(nonzero[len(nonzero) // 2])
     x, y = (float(v) for v in model.positions[row, :2])
     theta = float(np.arctan2(model.positions[row, 2], model.positions[row, 3]))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        taught = kn.teach(model, observations=[kn.Observation(x=x, y=y, theta=theta, sentence="the zephyr")],
-                          random_state=0)
+    taught = _teach(model, observations=[kn.Observation(x=x, y=y, theta=theta, sentence="the zephyr")],
+                    random_state=0)
     assert taught.state.regions[-1] == taught.state.regions[row]
 
 
@@ -151,15 +152,12 @@ def test_splice_keeps_untouched_concepts_and_regions_and_the_concept_weights_sum
 
 # ----------------------------------------------------------------------------- undo restores
 def _teach_library(model: kn.HomeModel, record: dict) -> kn.HomeModel:
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        if record["op"] == "sentence":
-            return kn.teach(model, {int(record["id"]): record["sentence"]}, n_sweeps=int(record["sweeps"]),
-                            random_state=int(record["seed"]))
-        obs = kn.Observation(x=record["x"], y=record["y"], theta=record["theta"], sentence=record["sentence"],
-                             id=int(record["id"]))
-        return kn.teach(model, observations=[obs], n_sweeps=int(record["sweeps"]),
-                        random_state=int(record["seed"]))
+    options = {"n_sweeps": int(record["sweeps"]), "random_state": int(record["seed"])}
+    if record["op"] == "sentence":
+        return _teach(model, {int(record["id"]): record["sentence"]}, **options)
+    obs = kn.Observation(x=record["x"], y=record["y"], theta=record["theta"], sentence=record["sentence"],
+                         id=int(record["id"]))
+    return _teach(model, observations=[obs], **options)
 
 
 def test_undo_gives_every_answer_back_exactly_through_compaction_and_a_restart(home: Path) -> None:
@@ -168,20 +166,20 @@ def test_undo_gives_every_answer_back_exactly_through_compaction_and_a_restart(h
     assert original.knowledge.channels is not None and original.state.switches is not None
     ids = [int(i) for i in original.ids[:6]]
     writer = HomeWriter(home, seed=5, compact_records=2, compact_idle=3600)
-    requests = [{"op": "sentence", "id": ids[0], "sentence": "this is the quokka room"},
-                {"op": "observation", "x": 0.2, "y": -0.3, "theta": 0.1, "sentence": "the zephyr hall"},
-                {"op": "sentence", "id": ids[1], "sentence": "this is the marimba room"},
-                {"op": "sentence", "id": ids[0], "sentence": "this is the tundra"},
-                {"op": "sentence", "id": ids[2], "sentence": "this is the quokka room"}]
+    requests = [Teach(sentence="this is the quokka room", id=ids[0]),
+                Teach(sentence="the zephyr hall", pose=Pose(0.2, -0.3, 0.1)),
+                Teach(sentence="this is the marimba room", id=ids[1]),
+                Teach(sentence="this is the tundra", id=ids[0]),
+                Teach(sentence="this is the quokka room", id=ids[2])]
     snapshots = []
     for request in requests:
         snapshots.append(writer.snapshot())
         assert writer.handle([request])[0]["ok"]
     # the last teaching undone: the home as it was before it
-    assert writer.handle([{"op": "undo", "seq": 5}])[0]["ok"]
+    assert writer.handle([Undo(5)])[0]["ok"]
     _assert_same_answers(writer.snapshot(), snapshots[4])
     # a teaching in the middle undone: the later ones replayed, as if it had never been made
-    assert writer.handle([{"op": "undo", "seq": 2}])[0]["ok"]
+    assert writer.handle([Undo(2)])[0]["ok"]
     expected = original
     for seq in (1, 3, 4):
         expected = _teach_library(expected, writer.history[seq]["record"])
@@ -195,7 +193,7 @@ def test_undo_gives_every_answer_back_exactly_through_compaction_and_a_restart(h
     restarted = HomeWriter(home, seed=5)
     _assert_same_answers(restarted.snapshot(), after_undo)
     with pytest.raises(ConflictError, match="undone already"):
-        raise ConflictError(restarted.handle([{"op": "undo", "seq": 2}])[0]["error"])
+        raise ConflictError(restarted.handle([Undo(2)])[0]["error"])
     restarted.close()
 
 
@@ -203,16 +201,16 @@ def test_undo_of_an_old_teaching_is_refused_saying_why(home: Path) -> None:
     model = kn.load_home_model(home)
     writer = HomeWriter(home, seed=1, undo_limit=2, compact_idle=3600)
     for k in range(4):
-        request = {"op": "sentence", "id": int(model.ids[k]), "sentence": "this is the den"}
+        request = Teach(sentence="this is the den", id=int(model.ids[k]))
         assert writer.handle([request])[0]["ok"]
-    refused = writer.handle([{"op": "undo", "seq": 1}])[0]
+    refused = writer.handle([Undo(1)])[0]
     assert not refused["ok"] and refused["kind"] == "ConflictError"
     assert "not among the last 2 teachings" in refused["error"] and "--undo-limit" in refused["error"]
-    assert writer.handle([{"op": "undo", "seq": 3}])[0]["ok"]
+    assert writer.handle([Undo(3)])[0]["ok"]
     # an observation whose sample a later teaching named: that one first
-    added = writer.handle([{"op": "observation", "x": 0.1, "y": 0.1, "theta": 0.0, "sentence": "the den"}])[0]
-    assert writer.handle([{"op": "sentence", "id": added["id"], "sentence": "this is the hall"}])[0]["ok"]
-    refused = writer.handle([{"op": "undo", "seq": added["seq"]}])[0]
+    added = writer.handle([Teach(sentence="the den", pose=Pose(0.1, 0.1, 0.0))])[0]
+    assert writer.handle([Teach(sentence="this is the hall", id=added["id"])])[0]["ok"]
+    refused = writer.handle([Undo(added["seq"])])[0]
     assert not refused["ok"] and "undo that one first" in refused["error"]
     writer.close()
 
@@ -227,9 +225,7 @@ def test_limits_refuse_a_teaching_whole_naming_the_limit(home: Path) -> None:
     assert error.value.limit == "max_sentence_words" and error.value.allowed == 6
     with pytest.raises(TeachingLimitError, match="max_new_words"):
         kn.teach(model, {sample: "zork the blip the quux"}, limits=limits)  # three new words
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        grown = kn.teach(model, {sample: "zork the blip"}, limits=limits, n_sweeps=1)
+    grown = _teach(model, {sample: "zork the blip"}, limits=limits, n_sweeps=1)
     with pytest.raises(TeachingLimitError, match="max_home_words"):
         kn.teach(grown, {sample: "quux the frob"}, limits=limits)
     kn.TeachingLimits(max_home_words=None)  # no limit of that kind
@@ -240,13 +236,13 @@ def test_limits_refuse_a_teaching_whole_naming_the_limit(home: Path) -> None:
 def test_the_writer_limits_observations_a_minute_and_words_across_a_batch(home: Path) -> None:
     limits = kn.TeachingLimits(max_observations_per_minute=2, max_new_words=2, max_home_words=3)
     writer = HomeWriter(home, seed=0, limits=limits, compact_idle=3600)
-    results = writer.handle([{"op": "observation", "x": 0.1, "y": 0.1, "theta": 0.0, "sentence": None}
+    results = writer.handle([Teach(sentence=None, pose=Pose(0.1, 0.1, 0.0))
                              for _ in range(3)])
     assert [r["ok"] for r in results] == [True, True, False]
     assert results[2]["kind"] == TeachingRateError.__name__
     assert results[2]["limit"] == "max_observations_per_minute"
     sample = int(writer.home.ids[0])
-    results = writer.handle([{"op": "sentence", "id": sample, "sentence": "zork the blip"},
-                             {"op": "sentence", "id": int(writer.home.ids[1]), "sentence": "quux the frob"}])
+    results = writer.handle([Teach(sentence="zork the blip", id=sample),
+                             Teach(sentence="quux the frob", id=int(writer.home.ids[1]))])
     assert results[0]["ok"] and not results[1]["ok"] and results[1]["limit"] == "max_home_words"
     writer.close()

@@ -35,6 +35,15 @@ class ConfigurationError(SpcoError, ValueError):
     """An argument or hyperparameter is out of its valid range."""
 
 
+class NotFoundError(ConfigurationError, LookupError):
+    """A sample id or teaching seq the home does not have (HTTP 404)."""
+
+
+class ConflictError(ConfigurationError):
+    """A request that contradicts the home's current state (HTTP 409): an id taken, an undo of a
+    teaching that a later one changed or that was undone already."""
+
+
 class TeachingLimitError(SpcoError, ValueError):
     """A teaching beyond one of the home's limits (too long a sentence, too many new words in it
     or in the home, too many observations a minute). ``limit`` names the limit (its option, e.g.

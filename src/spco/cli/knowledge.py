@@ -450,14 +450,17 @@ def what(home_file: Path, x: float, y: float, theta: float, visual: Path | None,
     --unsure-below (default 0.7, the one threshold of what and ask) the answer says the robot is unsure
     (JSON: "unsure": true).
     """
+    from spco.knowledge.requests import Pose, View, What
     from spco.model.confidence import UNSURE_BELOW
     from spco.service.answers import what_answer
 
     unsure_below = UNSURE_BELOW if unsure_below is None else unsure_below
+    pose = Pose(x, y, theta)  # checked before the home is read
     home = load_home(home_file)
     _warn_if_knowledge_does_not_fit(home)
     counts = _view_counts(home, home_file, visual, image, visual_scale, model_file, encoding)
-    answer = what_answer(home, x, y, theta, counts, top, unsure_below=unsure_below)
+    request = What(pose, None if counts is None else View(visual=counts), top)
+    answer = what_answer(home, request, unsure_below=unsure_below)
     names = answer["names"]
     if "warning" in answer:
         click.echo(f"warning: {answer['warning']}", err=True)

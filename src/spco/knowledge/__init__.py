@@ -71,9 +71,10 @@ from spco.knowledge.queries import (
     name_prediction,
     unused_word_hint,
     what,
+    what_request,
     where,
 )
-from spco.knowledge.updating import teach
+from spco.knowledge.updating import teach, teach_requests
 from spco.knowledge.views import (
     FAR_OUTSIDE_MAP,
     map_bounds,
@@ -129,10 +130,12 @@ __all__ = [
     "read_visual_vector",
     "summary_iterations",
     "teach",
+    "teach_requests",
     "unused_word_hint",
     "view_counts",
     "view_fit",
     "view_fit_warning",
     "what",
+    "what_request",
     "where",
 ]

@@ -152,9 +152,9 @@ def fit_knowledge(
     samples averaged, the fit time and the spco version.
     """
     source = _check_fit_arguments(corpus, model, summary_fraction, summary_every, extractor)
-    variant, prune = MODELS[model]
     estimator, hyper, settings, evidence = _fit_setup(corpus, model, n_iterations, random_state,
                                                       hyperparameters, prior)
+    variant, prune = estimator.variant, estimator.prune_words  # the model's (MODELS), set up once
     rng = as_generator(random_state)
     source, n_samples = _home_source(estimator, corpus, source)
     keep = set(summary_iterations(n_iterations, summary_fraction, summary_every))

@@ -12,6 +12,7 @@ in this home).
 from __future__ import annotations
 
 import warnings
+from collections.abc import Callable
 from dataclasses import replace
 from os import PathLike
 from pathlib import Path
@@ -23,7 +24,8 @@ from spco.errors import ConfigurationError
 from spco.knowledge.files import HOME_FORMAT, model_file_format
 from spco.knowledge.home import HomeModel, load_home_model
 from spco.knowledge.knowledge import load_knowledge
-from spco.knowledge.views import _pose, _visual_row, pose_outside_map, view_counts
+from spco.knowledge.requests import Pose, What
+from spco.knowledge.views import _visual_row, pose_outside_map, view_counts
 from spco.model import confidence
 from spco.model.confidence import UNSURE_BELOW
 from spco.model.parameters import ConceptParameters
@@ -216,13 +218,36 @@ def what(home: HomeModel, x: float, y: float, theta: float, visual: Any = None,
     (p(w | x, v)), ``scores[0]`` (the ranking score), ``confidence[0]`` (the answer's probability)
     and ``unsure[0]``.
     """
-    pose = _pose(x, y, theta)[None, :]
-    outside = pose_outside_map(home, x, y)
+    pose = Pose(x, y, theta)
+    outside = pose_outside_map(home, pose.x, pose.y)
     if outside is not None:
         warnings.warn(f"{outside}; the names are extrapolated from the nearest regions", stacklevel=2)
-    visual = view_counts(home.knowledge, visual, image, encoding)
-    row = None if visual is None else _visual_row(visual, home.knowledge.n_features)
-    return name_prediction(home, pose, row, top_k=top_k, unsure_below=unsure_below)
+    counts = view_counts(home.knowledge, visual, image, encoding)
+    return _names_at(home, pose, counts, top_k, unsure_below)
+
+
+def what_request(home: HomeModel, request: What, *, extractor: Callable[[], Any] | None = None,
+                 unsure_below: float = UNSURE_BELOW) -> tuple[NamePrediction, str | None]:
+    """The home's one answer to a checked :class:`~spco.knowledge.requests.What` (HTTP, ROS, the
+    command line): every name ranked as :func:`what` ranks them (``request.top`` is the caller's to
+    show), and ``None`` for a pose on the map or the sentence saying how far off it is (instead of
+    :func:`what`'s warning: a server answers many such poses). Checks what needs the home: the pose
+    (:func:`pose_outside_map` raises for one far off), then the view (its counts of the home's
+    dimension; an image turned into counts by the knowledge's extractor: ``extractor``, a function
+    giving the one to use, :func:`~spco.knowledge.views.view_counts`)."""
+    if not isinstance(request, What):
+        raise ConfigurationError(f"what_request() takes a What request, got {type(request).__name__}")
+    pose, view = request.pose, request.view
+    outside = pose_outside_map(home, pose.x, pose.y)  # before an image is turned into counts
+    counts = None if view is None else view_counts(home.knowledge, view.visual, view.image, view.encoding,
+                                                   extractor)
+    return _names_at(home, pose, counts, max(len(home.vocabulary), 1), unsure_below), outside
+
+
+def _names_at(home: HomeModel, pose: Pose, counts: Any, top_k: int, unsure_below: float) -> NamePrediction:
+    """:func:`name_prediction` at one checked pose, with one view's counts (``None``: no view)."""
+    row = None if counts is None else _visual_row(counts, home.knowledge.n_features)
+    return name_prediction(home, pose.row()[None, :], row, top_k=top_k, unsure_below=unsure_below)
 
 
 def answer_parameters(home: HomeModel) -> ConceptParameters:

@@ -195,9 +195,10 @@ class What:
 
 @dataclass(frozen=True, slots=True)
 class Teach:
-    """A teaching: a ``sentence`` for the known sample ``id``, or a new observation at ``pose`` with an
-    optional ``view`` and ``sentence``. A sentence is stripped (empty: ``None``, which forgets a
-    sample's sentence) and at most :data:`MAX_SENTENCE_CHARS` characters."""
+    """A teaching: a ``sentence`` for the known sample ``id`` (no ``pose``), or a new observation at
+    ``pose`` with an optional ``view`` and ``sentence`` (and ``id``: the new sample's id, which must
+    be new to the home; without it the home gives the next free one). A sentence is stripped (empty:
+    ``None``, which forgets a sample's sentence) and at most :data:`MAX_SENTENCE_CHARS` characters."""
 
     sentence: str | None = None
     id: int | None = None
@@ -207,17 +208,22 @@ class Teach:
     def __post_init__(self) -> None:
         _set(self, "sentence", clean_sentence(self.sentence))
         if self.id is not None:
-            if self.pose is not None or self.view is not None:
-                raise ConfigurationError("give either id and sentence (a known sample) or a pose x, y, theta "
-                                         "with an optional view (a new observation), not both")
             _set(self, "id", _whole("id", self.id, -MAX_ID, MAX_ID, "an integer sample id"))
-        elif self.pose is None:
-            raise ConfigurationError("a teaching needs id and sentence (a known sample) or x, y and theta "
-                                     "(a new observation)")
+        if self.pose is None:
+            if self.id is None:
+                raise ConfigurationError("a teaching needs id and sentence (a known sample) or x, y and "
+                                         "theta (a new observation)")
+            if self.view is not None:
+                raise ConfigurationError("a view goes with a new observation: give its pose x, y, theta too")
         elif not isinstance(self.pose, Pose):
             raise ConfigurationError("pose: expected a Pose (x, y, theta)")
         if self.view is not None and not isinstance(self.view, View):
             raise ConfigurationError("view: expected a View")
+
+    @property
+    def observation(self) -> bool:
+        """Whether this is a new observation (a pose), not a sentence for a known sample."""
+        return self.pose is not None
 
 
 @dataclass(frozen=True, slots=True)

@@ -7,23 +7,27 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.special import logsumexp
 
-from spco.errors import ConfigurationError
+from spco.errors import ConfigurationError, ConflictError, NotFoundError
 from spco.knowledge.home import HomeModel, Observation, _copy_state
 from spco.knowledge.knowledge import DEFAULT_TEACH_SWEEPS
 from spco.knowledge.limits import DEFAULT_LIMITS, TeachingLimits, check_sentences
-from spco.knowledge.requests import clean_sentence
-from spco.knowledge.views import _pose, _visual_row, view_counts
+from spco.knowledge.requests import Pose, Teach, View
+from spco.knowledge.views import _visual_row, pose_outside_map, view_counts
 from spco.model.home_shard import NewHomeShard, init_new_words, prepare_home
 from spco.model.local_update import teach_locally
 from spco.model.seeds import as_generator, seed_of
 from spco.timestamps import utc_now
+
+if TYPE_CHECKING:
+    from spco.features import Extractor
 
 
 def carried_switches(old: sp.csr_array, switches: np.ndarray | None, new: sp.csr_array,
@@ -67,6 +71,10 @@ def teach(
         :class:`~spco.errors.TeachingLimitError` naming the limit. ``None``: no limits (replaying
         teachings accepted before).
 
+    The library's way in to :func:`teach_requests`: the arguments become checked
+    :class:`~spco.knowledge.requests.Teach` requests (an observation's image turned into its counts
+    by the knowledge's extractor, :func:`~spco.knowledge.views.view_counts`), taught together.
+
     The update is local (:mod:`spco.model.local_update`): the taught place changes, and the rest of
     the home only where the new evidence demands it; a concept or region the teaching does not
     touch answers exactly as before. The same home, teaching and seed give the same home.
@@ -75,15 +83,63 @@ def teach(
     the sweeps start from the home's assignments and parameters, with the shared part fixed (or
     learnt with the knowledge as prior if the home was adapted with ``joint=True``).
     """
-    sentences, observations = _checked_teaching(home, sentences, observations, n_sweeps, limits)
+    if not isinstance(home, HomeModel):
+        raise ConfigurationError("teach() expects a HomeModel (from adapt or load_home_model)")
+    requests: list[Teach] = []
+    for sample_id, sentence in dict(sentences or {}).items():
+        if isinstance(sample_id, bool) or not isinstance(sample_id, int | np.integer):
+            raise ConfigurationError(f"sample ids are integers, got {sample_id!r}")
+        requests.append(Teach(sentence=sentence, id=int(sample_id)))
+    for obs in observations:
+        if not isinstance(obs, Observation):
+            raise ConfigurationError(f"observations must be Observation objects, got {type(obs).__name__}")
+        counts = view_counts(home.knowledge, obs.visual, obs.image, obs.encoding)
+        requests.append(Teach(sentence=obs.sentence, id=obs.id, pose=Pose(obs.x, obs.y, obs.theta),
+                              view=None if counts is None else View(visual=counts)))
+    return teach_requests(home, requests, n_sweeps, random_state, limits)[0]
+
+
+def teach_requests(home: HomeModel, requests: Sequence[Teach], n_sweeps: int = DEFAULT_TEACH_SWEEPS,
+                   random_state: int | np.random.Generator | None = None,
+                   limits: TeachingLimits | None = DEFAULT_LIMITS, *, on_map: bool = False,
+                   extractor: Callable[[], Extractor] | None = None) -> tuple[HomeModel, tuple[Teach, ...]]:
+    """The home's one teaching: checked requests (:class:`~spco.knowledge.requests.Teach`), taught together.
+
+    What needs the home is checked here, for the requests together, before anything is learnt: a
+    sentence's sample must be known (:class:`~spco.errors.NotFoundError`; a sample added earlier in
+    ``requests`` counts), a new observation's ``id`` must be new (:class:`~spco.errors.ConflictError`),
+    its view's counts must have the home's visual dimension (an image is turned into counts by the
+    knowledge's extractor: ``extractor``, a function giving the one to use, e.g. one the caller
+    keeps; :func:`~spco.knowledge.views.view_counts`), its pose must lie on the home's map or at most
+    :data:`~spco.knowledge.views.FAR_OUTSIDE_MAP` map sizes off it when ``on_map`` (what a served
+    home asks), and the sentences together must keep within ``limits``. Then the home learns
+    (see :func:`teach` for ``n_sweeps``, ``random_state`` and the update).
+
+    Returns
+    -------
+    The taught home, and the requests as applied, in order: a new observation with the ``id`` it got
+    and its view as its validated (1, D) count row (``view=None``: no view); what a journal records
+    so that the same call on the same home gives the same home again.
+    """
+    if not isinstance(home, HomeModel):
+        raise ConfigurationError("teach() expects a HomeModel (from adapt or load_home_model)")
+    if isinstance(n_sweeps, bool) or not isinstance(n_sweeps, int | np.integer) or n_sweeps < 0:
+        raise ConfigurationError(f"n_sweeps must be an integer >= 0, got {n_sweeps!r}")
+    requests = list(requests)
+    if not requests:
+        raise ConfigurationError("nothing to teach: give a sentence for a sample or a new observation")
+    if any(not isinstance(r, Teach) for r in requests):
+        raise ConfigurationError("teach_requests() takes Teach requests (spco.knowledge.requests)")
+    check_sentences(home.vocabulary, home.n_knowledge_words, [r.sentence for r in requests if r.sentence],
+                    limits)
     start = time.perf_counter()
-    new_sentences = _taught_sentences(home, sentences)
-    ids, poses, rows, no_view = _new_samples(home, observations, new_sentences)
+    new_sentences, applied, poses, rows, no_view = _applied_requests(home, requests, on_map, extractor)
     positions = np.vstack([home.positions, *poses]) if poses else home.positions
     visual = home.visual
     view_missing = np.concatenate([home.view_missing, np.array(no_view, dtype=bool)])
     if rows:
         visual = sp.csr_array(sp.vstack([home.visual, *rows], format="csr"), dtype=np.int64)
+    ids = np.concatenate([home.ids, np.array([r.id for r in applied if r.observation], dtype=np.int64)])
 
     knowledge = home.knowledge.extended(new_sentences)
     local = not home.joint and knowledge.variant == "exact"
@@ -98,72 +154,58 @@ def teach(
     provenance = dict(home.provenance)
     provenance["teach_updates"] = int(provenance.get("teach_updates", 0)) + 1
     provenance["updated"] = utc_now()
-    provenance["last_teach"] = {"sentences": len(sentences), "observations": len(observations),
+    provenance["last_teach"] = {"sentences": sum(not r.observation for r in requests),
+                                "observations": len(poses),
                                 "new_words": list(knowledge.vocabulary.words[home.knowledge.n_words:]),
                                 "n_sweeps": int(n_sweeps), "seed": seed_of(random_state),
                                 "seconds": round(time.perf_counter() - start, 4)}
-    return replace(home, knowledge=knowledge, state=state, ids=np.asarray(ids, dtype=np.int64),
-                   positions=positions, visual=visual, sentences=tuple(new_sentences), provenance=provenance,
-                   posterior=posterior, view_missing=view_missing)
+    taught = replace(home, knowledge=knowledge, state=state, ids=ids, positions=positions, visual=visual,
+                     sentences=tuple(new_sentences), provenance=provenance, posterior=posterior,
+                     view_missing=view_missing)
+    return taught, tuple(applied)
 
 
-def _checked_teaching(home: HomeModel, sentences: Mapping[int, str | None] | None,
-                      observations: Sequence[Observation], n_sweeps: int,
-                      limits: TeachingLimits | None) -> tuple[dict, list]:
-    """The teaching's sentences (a dict) and observations (a list), checked: a home, a number of
-    sweeps, something to teach, and words within ``limits``."""
-    if not isinstance(home, HomeModel):
-        raise ConfigurationError("teach() expects a HomeModel (from adapt or load_home_model)")
-    if not isinstance(n_sweeps, int | np.integer) or n_sweeps < 0:
-        raise ConfigurationError(f"n_sweeps must be an integer >= 0, got {n_sweeps!r}")
-    sentences = dict(sentences or {})
-    observations = list(observations)
-    if not sentences and not observations:
-        raise ConfigurationError("nothing to teach: give a sentence for a sample or a new observation")
-    said = [s for s in sentences.values() if isinstance(s, str)]
-    said += [o.sentence for o in observations if isinstance(o, Observation) and isinstance(o.sentence, str)]
-    check_sentences(home.vocabulary, home.n_knowledge_words, said, limits)
-    return sentences, observations
-
-
-def _taught_sentences(home: HomeModel, sentences: Mapping[int, str | None]) -> list[str | None]:
-    """The home's sentences with those of ``sentences`` (sample id -> sentence, cleaned; ``None``
-    or "" forgets it) in place; an unknown or non-integer id is a clear error."""
-    new_sentences = list(home.sentences)
+def _applied_requests(home: HomeModel, requests: list[Teach], on_map: bool,
+                      extractor: Callable[[], Extractor] | None) -> tuple[list[str | None], list[Teach], list,
+                                                                          list, list]:
+    """The home's sentences with the requests' in place and the new observations' appended, the
+    requests as applied (new ids given, views as count rows), and the new samples' poses, count
+    rows and whether each had no view."""
+    new_sentences: list[str | None] = list(home.sentences)
     index = {int(i): k for k, i in enumerate(home.ids)}
-    for sample_id, sentence in sentences.items():
-        if isinstance(sample_id, bool) or not isinstance(sample_id, int | np.integer):
-            raise ConfigurationError(f"sample ids are integers, got {sample_id!r}")
-        if int(sample_id) not in index:
-            shown = ", ".join(str(i) for i in home.ids[:5])
-            raise ConfigurationError(f"home {home.name!r} has no sample with id {sample_id} (its "
-                                     f"{home.n_samples} training samples have ids {shown}"
-                                     f"{', …' if home.n_samples > 5 else ''}, up to {int(home.ids.max())})")
-        new_sentences[index[int(sample_id)]] = clean_sentence(sentence, None)
-    return new_sentences
-
-
-def _new_samples(home: HomeModel, observations: list, new_sentences: list) -> tuple[list, list, list, list]:
-    """The observations as new samples: every id (the home's, then the new ones: given, or the
-    next free), their poses, visual count rows and whether each had no view; their sentences are
-    appended to ``new_sentences``."""
-    ids = list(home.ids.tolist())
-    taken = set(ids)
+    applied: list[Teach] = []
     poses, rows, no_view = [], [], []
-    for obs in observations:
-        if not isinstance(obs, Observation):
-            raise ConfigurationError(f"observations must be Observation objects, got {type(obs).__name__}")
-        new_id = max(taken) + 1 if obs.id is None else int(obs.id)
-        if new_id in taken:
-            raise ConfigurationError(f"home {home.name!r} already has a sample with id {new_id}")
-        taken.add(new_id)
-        ids.append(new_id)
-        poses.append(_pose(obs.x, obs.y, obs.theta))
-        counts = view_counts(home.knowledge, obs.visual, obs.image, obs.encoding)
+    for request in requests:
+        if not request.observation:
+            row = index.get(int(request.id))  # type: ignore[arg-type]
+            if row is None:
+                shown = ", ".join(str(i) for i in home.ids[:5])
+                raise NotFoundError(f"home {home.name!r} has no sample with id {request.id} (its "
+                                    f"{home.n_samples} samples have ids {shown}"
+                                    f"{', …' if home.n_samples > 5 else ''}, up to {int(home.ids.max())}); "
+                                    "teach a new place by its pose instead")
+            new_sentences[row] = request.sentence
+            applied.append(request)
+            continue
+        new_id = max(index) + 1 if request.id is None else int(request.id)
+        if new_id in index:
+            raise ConflictError(f"home {home.name!r} already has a sample with id {new_id}")
+        pose = request.pose
+        assert pose is not None  # an observation has a pose
+        if on_map:
+            pose_outside_map(home, pose.x, pose.y)  # raises for a pose far off the map
+        view = request.view
+        counts = None if view is None else view_counts(home.knowledge, view.visual, view.image, view.encoding,
+                                                       extractor)
+        row = _visual_row(counts, home.knowledge.n_features)
+        index[new_id] = len(new_sentences)
+        new_sentences.append(request.sentence)
+        poses.append(pose.row())
+        rows.append(row)
         no_view.append(counts is None)
-        rows.append(_visual_row(counts, home.knowledge.n_features))
-        new_sentences.append(clean_sentence(obs.sentence, None))
-    return ids, poses, rows, no_view
+        applied.append(Teach(sentence=request.sentence, id=new_id, pose=pose,
+                             view=None if counts is None else View(visual=row)))
+    return new_sentences, applied, poses, rows, no_view
 
 
 def _grown_state(home: HomeModel, knowledge, local: bool, n_new_samples: int):

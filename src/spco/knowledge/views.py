@@ -12,7 +12,6 @@ import numpy as np
 import scipy.sparse as sp
 
 from spco.errors import ConfigurationError, DataFormatError
-from spco.knowledge.requests import Pose
 from spco.model.prediction import validate_visual_counts
 
 if TYPE_CHECKING:
@@ -42,11 +41,6 @@ def _visual_row(visual: Any, n_features: int) -> sp.csr_array:
     out = sp.csr_array(validate_visual_counts(row, n_features), dtype=np.int64)  # the library's checks
     out.eliminate_zeros()
     return out
-
-
-def _pose(x: float, y: float, theta: float) -> np.ndarray:
-    """``[x, y, sin θ, cos θ]`` of a pose checked by :class:`~spco.knowledge.requests.Pose`."""
-    return Pose(x, y, theta).row()
 
 
 #: How far beyond its map (in map sizes) a pose is still answered (with a warning) by :func:`what`.

@@ -54,7 +54,6 @@ __all__ = [
     "concept_word_counts",
     "model_answer_parameters",
     "named_parameters",
-    "predict_names_honestly",
 ]
 
 #: The one "unsure" threshold: an answer whose probability p(name | pose, view) is below this is
@@ -151,47 +150,6 @@ def answerable_names(params: ConceptParameters, e: int, names: np.ndarray) -> Co
     theta = theta.copy()
     theta[e] = on_names + np.clip(elsewhere, 0.0, 1.0) * names[None, :] / names.sum()
     return replace(params, word_probabilities=theta, word_mask=names)
-
-
-def predict_names_honestly(
-    params: ConceptParameters,
-    e: int,
-    vocabulary: Vocabulary,
-    positions: np.ndarray | None,
-    visual: object,
-    *,
-    free: np.ndarray,
-    word_counts: np.ndarray,
-    alpha_word: float,
-    view_counts: float | None,
-    top_k: int = 3,
-    weighting: Weighting = "none",
-    use_vision: bool = True,
-    unsure_below: float = UNSURE_BELOW,
-) -> NamePrediction:
-    """Place names of ``n`` observations of home ``e`` with honest probabilities (module docstring).
-
-    Parameters
-    ----------
-    params, e, vocabulary, positions, visual, top_k, weighting, use_vision: as
-        :func:`spco.model.prediction.predict_names` (positions (n, 4), visual (n, D) counts).
-    free: (L,) bool, the concepts the knowledge does not use; word_counts: (L, V) the home's word
-        counts by concept; alpha_word: α^w (see :func:`named_parameters`).
-    view_counts: the model's view weight w
-        (:meth:`~spco.model.hyperparameters.TransferHyperparameters.view_weight`; ``None``: every
-        count a draw).
-    unsure_below: answers below this probability are flagged unsure (default :data:`UNSURE_BELOW`).
-
-    Returns
-    -------
-    The :class:`~spco.model.prediction.NamePrediction`; its ``probabilities`` are the honest
-    p(w | x, v), ``confidence`` (n,) the answer's, ``unsure`` (n,) bool.
-    """
-    if not 0.0 <= unsure_below <= 1.0:
-        raise ConfigurationError(f"unsure_below must be within 0..1, got {unsure_below!r}")
-    named = named_parameters(params, e, free, word_counts, alpha_word)
-    return predict_names(named, e, vocabulary, positions, visual, top_k=top_k, weighting=weighting,
-                         use_vision=use_vision, view_counts=view_counts, unsure_below=unsure_below)
 
 
 def answer_parameters(params: ConceptParameters, e: int, words: sp.csr_array | np.ndarray,

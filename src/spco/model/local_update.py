@@ -217,24 +217,11 @@ class _RegionStatistics:
         self.scatter[k] += np.outer(point, point)
 
     def log_predictive(self, point: np.ndarray) -> np.ndarray:
-        """log p(point | the region's samples) of each region, (|regions|,)."""
-        prior = self.prior
-        d = point.size
-        mu_n, kappa_n, psi_n, nu_n = niw_posterior(
-            self.count, self.total, self.scatter, prior.mu0[0], prior.kappa0, prior.psi0, prior.nu0
-        )
-        dof = nu_n - d + 1.0
-        scale = psi_n * ((kappa_n + 1.0) / (kappa_n * dof))[:, None, None]
-        chol = np.linalg.cholesky(scale)
-        z = np.linalg.solve(chol, (point[None] - mu_n)[..., None])[..., 0]
-        log_det = 2.0 * np.log(np.diagonal(chol, axis1=-2, axis2=-1)).sum(-1)
-        return (
-            gammaln(0.5 * (dof + d))
-            - gammaln(0.5 * dof)
-            - 0.5 * d * np.log(dof * np.pi)
-            - 0.5 * log_det
-            - 0.5 * (dof + d) * np.log1p((z**2).sum(-1) / dof)
-        )
+        """log p(point | the region's samples) of each region, (|regions|,): the ratio of the
+        regions' marginals with and without the point (:func:`_log_marginal`)."""
+        with_point = _log_marginal(self.count + 1.0, self.total + point[None],
+                                   self.scatter + np.outer(point, point)[None], self.prior)
+        return with_point - _log_marginal(self.count, self.total, self.scatter, self.prior)
 
 
 def _parameters(
@@ -284,30 +271,28 @@ def _parameters(
     state.region_counts = stats.region_count.astype(np.int64)
 
 
-def _log_marginal_positions(points: np.ndarray, prior) -> float:
-    """log p(points) of one region, its Gaussian integrated out under the NIW prior."""
-    d = points.shape[1]
-    n = points.shape[0]
-    mu0 = prior.mu0[0]
-    _, kappa_n, psi_n, nu_n = niw_posterior(
-        np.array([float(n)]),
-        points.sum(axis=0)[None],
-        (points.T @ points)[None],
-        mu0,
-        prior.kappa0,
-        prior.psi0,
-        prior.nu0,
-    )
+def _log_marginal(count: np.ndarray, total: np.ndarray, scatter: np.ndarray, prior) -> np.ndarray:
+    """log p(points) of each of m regions from their statistics — ``count`` (m,), Σx ``total`` (m, d),
+    Σxxᵀ ``scatter`` (m, d, d) — the Gaussian integrated out under the NIW prior, (m,)."""
+    d = total.shape[-1]
+    _, kappa_n, psi_n, nu_n = niw_posterior(count, total, scatter, prior.mu0[0], prior.kappa0, prior.psi0,
+                                            prior.nu0)
     _, logdet0 = np.linalg.slogdet(prior.psi0)
-    _, logdet_n = np.linalg.slogdet(psi_n[0])
-    return float(
-        -0.5 * n * d * np.log(np.pi)
-        + multigammaln(0.5 * float(nu_n[0]), d)
+    _, logdet_n = np.linalg.slogdet(psi_n)
+    return (
+        -0.5 * count * d * np.log(np.pi)
+        + multigammaln(0.5 * nu_n, d)
         - multigammaln(0.5 * prior.nu0, d)
         + 0.5 * prior.nu0 * logdet0
-        - 0.5 * float(nu_n[0]) * logdet_n
-        + 0.5 * d * (np.log(prior.kappa0) - np.log(float(kappa_n[0])))
+        - 0.5 * nu_n * logdet_n
+        + 0.5 * d * (np.log(prior.kappa0) - np.log(kappa_n))
     )
+
+
+def _log_marginal_positions(points: np.ndarray, prior) -> float:
+    """log p(points) of one region (:func:`_log_marginal` of their statistics)."""
+    return float(_log_marginal(np.array([float(points.shape[0])]), points.sum(axis=0)[None],
+                               (points.T @ points)[None], prior)[0])
 
 
 def _log_regions_given_concept(counts: np.ndarray, beta: float, n_regions: int) -> float:

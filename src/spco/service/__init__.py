@@ -3,7 +3,8 @@
 - :mod:`spco.service.live` — :class:`LiveHome`: the last committed snapshot for readers, one writer
   for teachings (a process of its own by default), events.
 - :mod:`spco.service.journal` — the append-only journal beside the home file (durable teachings).
-- :mod:`spco.service.teaching` — teachings as journal records: validated, batched, replayed, undone;
+- :mod:`spco.service.teaching` — teachings as journal records: batched (one call of the home a batch),
+  replayed, undone;
   :func:`~spco.service.teaching.load_current` (the file plus its journal, for read-only commands).
 - :mod:`spco.service.writer` — the one writer of a served home.
 - :mod:`spco.service.answers` — the JSON answers shared with ``spco where|what --json``.

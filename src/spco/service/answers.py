@@ -5,18 +5,16 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
 from spco import knowledge as kn
-from spco.errors import ConfigurationError
-from spco.knowledge.requests import Pose
+from spco.knowledge.requests import What
 from spco.model.confidence import UNSURE_BELOW
-from spco.model.prediction import validate_visual_counts
 
-__all__ = ["GAIN_MEANS", "RANKED_BY", "ask_answer", "check_pose", "regions_answer", "what_answer",
-           "where_answer"]
+__all__ = ["GAIN_MEANS", "RANKED_BY", "ask_answer", "regions_answer", "what_answer", "where_answer"]
 
 #: What ``what``'s score is, per weighting of the home's model.
 RANKED_BY = {"mi": "p(name | pose, view) × I(name), I = the name's mutual information with the concepts",
@@ -49,45 +47,32 @@ def where_answer(home: kn.HomeModel, name: str, n: int = 10, seed: int = 0) -> d
             "positions": positions}
 
 
-def check_pose(home: kn.HomeModel, x: object, y: object = None, theta: object = None
-               ) -> tuple[float, float, float]:
-    """``(x, y, theta)`` as floats, or :class:`ConfigurationError`: a :class:`~spco.knowledge.requests.Pose`
-    (finite numbers, ``|θ| ≤ 2π``) on the home's map or at most
-    :data:`spco.knowledge.FAR_OUTSIDE_MAP` map sizes off it (:func:`spco.knowledge.pose_outside_map`)."""
-    pose = x if isinstance(x, Pose) else Pose(x, y, theta)  # type: ignore[arg-type]
-    kn.pose_outside_map(home, pose.x, pose.y)  # raises for a pose far off the map
-    return pose.x, pose.y, pose.theta
+def what_answer(home: kn.HomeModel, request: What, *, extractor: Callable[[], Any] | None = None,
+                unsure_below: float = UNSURE_BELOW) -> dict[str, Any]:
+    """The ``request.top`` place names at a pose (the home's one answer,
+    :func:`spco.knowledge.what_request`, ranked as :func:`spco.knowledge.what` ranks them), as JSON.
 
-
-def what_answer(home: kn.HomeModel, x: float, y: float, theta: float, counts: Any = None,
-                top: int = 3, unsure_below: float = UNSURE_BELOW) -> dict[str, Any]:
-    """The ``top`` place names at a pose (as :func:`spco.knowledge.what` ranks them), as JSON.
-
-    ``counts``: the view's visual counts (D,), or ``None`` for the position alone. Returns
-    ``{"home", "pose": {"x", "y", "theta"}, "vision", "ranked_by", "answer", "confidence",
-    "unsure", "unsure_below", "names"}``; ``names`` lists ``{"name", "probability", "score",
-    "score_share"}`` best first (``probability`` = p(name | pose, view) over all words, honest as
-    :mod:`spco.model.confidence` makes it; ``score_share`` = the score over its sum across the usable
-    names); ``answer`` is the best name (``None`` if none is known), ``confidence`` its probability,
-    ``unsure`` whether that is below ``unsure_below``. A pose off the map adds ``"warning"`` (instead
-    of a Python warning: a server answers many such poses); a bad pose raises
-    :class:`ConfigurationError` (:func:`check_pose`).
+    ``request``: a checked :class:`~spco.knowledge.requests.What` (its view: counts, or an image
+    that ``extractor`` turns into counts). Returns ``{"home", "pose": {"x", "y", "theta"},
+    "vision", "ranked_by", "answer", "confidence", "unsure", "unsure_below", "names"}``; ``names``
+    lists ``{"name", "probability", "score", "score_share"}`` best first (``probability`` =
+    p(name | pose, view) over all words, honest as :mod:`spco.model.confidence` makes it;
+    ``score_share`` = the score over its sum across the usable names); ``answer`` is the best name
+    (``None`` if none is known), ``confidence`` its probability, ``unsure`` whether that is below
+    ``unsure_below``. A pose off the map adds ``"warning"`` (instead of a Python warning: a server
+    answers many such poses); one far off it, or a view that does not fit the home, raises
+    :class:`~spco.errors.ConfigurationError`.
     """
-    x, y, theta = check_pose(home, x, y, theta)
-    outside = kn.pose_outside_map(home, x, y)
-    row = None if counts is None else validate_visual_counts(counts, home.knowledge.n_features)
-    if row is not None and row.shape[0] != 1:
-        raise ConfigurationError(f"visual: expected one view's counts, got {row.shape[0]} rows")
-    pose = np.array([[x, y, math.sin(theta), math.cos(theta)]])
-    pred = kn.name_prediction(home, pose, row, top_k=max(len(home.vocabulary), 1), unsure_below=unsure_below)
+    pred, outside = kn.what_request(home, request, extractor=extractor, unsure_below=unsure_below)
+    pose = request.pose
     total = float(pred.scores[0].sum())
+    ranked = zip(pred.words[0], pred.probabilities[0], pred.scores[0], strict=True)
     names = [{"name": str(w), "probability": float(p), "score": float(s),
-              "score_share": float(s) / total if total > 0 else 0.0}
-             for w, p, s in zip(pred.words[0], pred.probabilities[0], pred.scores[0], strict=True)][:top]
-    answer = {"home": home.name, "pose": {"x": x, "y": y, "theta": theta}, "vision": row is not None,
-              "ranked_by": RANKED_BY[pred.weighting], "answer": names[0]["name"] if names else None,
-              "confidence": float(pred.confidence[0]), "unsure": bool(pred.unsure[0]),
-              "unsure_below": float(unsure_below), "names": names}
+              "score_share": float(s) / total if total > 0 else 0.0} for w, p, s in ranked][:request.top]
+    answer = {"home": home.name, "pose": {"x": pose.x, "y": pose.y, "theta": pose.theta},
+              "vision": request.view is not None, "ranked_by": RANKED_BY[pred.weighting],
+              "answer": names[0]["name"] if names else None, "confidence": float(pred.confidence[0]),
+              "unsure": bool(pred.unsure[0]), "unsure_below": float(unsure_below), "names": names}
     if outside is not None:
         answer["warning"] = f"{outside}; the names are extrapolated from the nearest regions"
     return answer
@@ -107,7 +92,7 @@ def ask_answer(home: kn.HomeModel, n: int = 5, criterion: str | None = None,
     the questions worth asking. ``questions`` lists ``n`` (fewer if fewer samples are untaught, or
     worth asking) :meth:`spco.knowledge.Question.to_dict` dicts ``{"id", "x", "y", "theta", "gain",
     "reason", "names", "unknown", "confidence", "worth_asking"}``, best first. Raises
-    :class:`ConfigurationError` for a bad ``n``.
+    :class:`~spco.errors.ConfigurationError` for a bad ``n``.
     """
     from spco.knowledge.asking import DEFAULT_CRITERION
 

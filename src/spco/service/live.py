@@ -36,6 +36,7 @@ import time
 import warnings
 from collections.abc import Callable, Iterator
 from concurrent.futures import Future
+from dataclasses import replace
 from os import PathLike
 from pathlib import Path
 from typing import Any
@@ -58,9 +59,9 @@ from spco.knowledge.requests import (
     What,
     Where,
 )
-from spco.service.answers import ask_answer, check_pose, regions_answer, what_answer, where_answer
+from spco.service.answers import ask_answer, regions_answer, what_answer, where_answer
 from spco.service.journal import TornRecordWarning, journal_path
-from spco.service.teaching import ConflictError, NotFoundError, served_info, view_record
+from spco.service.teaching import ConflictError, NotFoundError, served_info
 from spco.service.writer import ProcessWriter, ThreadWriter, WriterUnavailableError
 
 __all__ = ["MAX_POSES", "MAX_QUESTIONS", "MAX_TOP", "LiveHome", "Subscription"]
@@ -239,9 +240,9 @@ class LiveHome:
                                "positions": answer["positions"][:3]})
             return answer
         if isinstance(request, What):
-            check_pose(home, request.pose)  # on the map, before an image is decoded
-            answer = what_answer(home, request.pose.x, request.pose.y, request.pose.theta,
-                                 self.view_counts(request.view), request.top)
+            knowledge = home.knowledge
+            answer = what_answer(home, self._decoded(request),
+                                 extractor=lambda: self._extractor_of(knowledge))
             if self._listening("answer"):
                 self._publish({"type": "answer", "kind": "what", "pose": answer["pose"],
                                "vision": answer["vision"], "names": answer["names"]})
@@ -250,22 +251,16 @@ class LiveHome:
             return ask_answer(home, request.n, criterion=request.criterion, unsure_only=request.unsure_only)
         raise ConfigurationError(f"not a question: {type(request).__name__} (Where, What or Ask)")
 
-    def view_counts(self, view: View | None) -> Any:
-        """A view's visual counts (:func:`spco.knowledge.view_counts`): its ``visual`` as given, or its
-        image through the knowledge's extractor (:meth:`spco.knowledge.Knowledge.image_extractor`, as
-        ``spco what --image``), or ``None`` for no view. The image is decoded by
-        :func:`spco.features.pixels.decode_image` (its size checked from its header first, against
-        ``max_pixels``)."""
-        if view is None:
-            return None
-        knowledge = self._snapshot.knowledge
-        if view.image is None or not knowledge.fitted_on_images:
-            # the counts as given, or why an image is refused
-            return kn.view_counts(knowledge, view.visual, view.image)
+    def _decoded(self, request: What | Teach) -> Any:
+        """``request`` with its view's image bytes decoded into pixels where it entered, in the caller's
+        thread (:func:`spco.features.pixels.decode_image`: its size checked from its header first,
+        against ``max_pixels``; a bad image raises at once); the home turns the pixels into counts."""
+        view = request.view
+        if view is None or view.image is None:
+            return request
         pixels = decode_image(view.image, view.encoding, width=view.width, height=view.height,
                               max_pixels=self.max_pixels)
-        return kn.view_counts(knowledge, None, pixels, "bgr8",
-                              extractor=lambda: self._extractor_of(knowledge))
+        return replace(request, view=View(image=pixels, encoding="bgr8"))
 
     def _extractor_of(self, knowledge: kn.Knowledge) -> Any:
         """``knowledge``'s extractor, built once and kept while the served knowledge stays the same."""
@@ -333,7 +328,7 @@ class LiveHome:
                 "uptime_seconds": round(time.time() - self.started, 1)}
 
     # ------------------------------------------------------------------ teaching
-    def _submit(self, request: dict[str, Any]) -> Future[dict[str, Any]]:
+    def _submit(self, request: Teach | Undo) -> Future[dict[str, Any]]:
         """Send ``request`` to the writer; the future gets the answer, or the error it raised."""
         answer: Future[dict[str, Any]] = Future()
         if self._closed:
@@ -366,20 +361,17 @@ class LiveHome:
     def submit(self, request: Teach | Undo) -> Future[dict[str, Any]]:
         """Hand a checked teaching or undo (:mod:`spco.knowledge.requests`) to the writer; a future of
         its answer (or of its error). The one way every teacher (HTTP, ROS, the methods below)
-        teaches the home. A new observation's pose is checked against the map and its image turned
-        into counts here, in the caller's thread (errors raise at once)."""
+        teaches the home: the writer teaches it with one call of the home
+        (:func:`spco.service.teaching.teach_batch`, :func:`spco.knowledge.teach_requests`), which
+        checks what needs the home (a known sample, the pose on the map, the view's counts) and
+        turns an image into counts. A view's image bytes are decoded here, in the caller's thread
+        (:func:`spco.features.pixels.decode_image`, its size checked against ``max_pixels``: a bad
+        image raises at once)."""
         if isinstance(request, Undo):
-            return self._submit({"op": "undo", "seq": request.seq})
+            return self._submit(request)
         if not isinstance(request, Teach):
             raise ConfigurationError(f"not a teaching: {type(request).__name__} (Teach or Undo)")
-        if request.id is not None:
-            return self._submit({"op": "sentence", "id": request.id, "sentence": request.sentence})
-        pose = request.pose
-        assert pose is not None  # Teach holds an id or a pose
-        check_pose(self._snapshot, pose)
-        view = view_record(self._snapshot, self.view_counts(request.view))
-        return self._submit({"op": "observation", "x": pose.x, "y": pose.y, "theta": pose.theta,
-                             "sentence": request.sentence, "view": view})
+        return self._submit(self._decoded(request))
 
     def submit_teach(self, *, sentence: str | None = None, id: int | None = None, x: float | None = None,
                      y: float | None = None, theta: float | None = None, image: Any = None,

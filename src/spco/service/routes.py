@@ -117,9 +117,6 @@ async def what(live: Live, x: Annotated[float, Query(allow_inf_nan=False)],
 async def what_with_view(live: Live, request: Request, body: WhatBody) -> Response:
     if body.image is None:
         return _json(live.answer(body.to_request()))
-    from spco.service.answers import check_pose
-
-    check_pose(live.home, Pose(body.x, body.y, body.theta))  # before decoding the image
     return _json(await _decoded(request, lambda: live.answer(body.to_request())))
 
 

@@ -1,15 +1,14 @@
-"""Teachings of a served home as journal records: validated, applied in batches, replayed, undone.
+"""Teachings of a served home as journal records: taught in batches, replayed, undone.
 
 A teaching arrives as a request checked where it entered (a
-:class:`~spco.knowledge.requests.Teach`; its pose on the map and its view's counts checked by
-:meth:`spco.service.LiveHome.submit`, the counts as :func:`view_record`), becomes a record against
-the writer's home (:func:`sentence_record`: the sample must be known; :func:`observation_record`: a
-given id must be new), is given a sequence number, and applied together with the teachings that
-arrived with it by one :func:`spco.knowledge.teach` call (:func:`apply_batch`). The journal
-record (:mod:`spco.service.journal`) holds the request as applied — the sample id an observation
-got, its visual counts (an image is turned into counts before it is recorded), the batch, its seed
-and its sweeps — so that :func:`replay` of the records from the home file gives the same home,
-bit for bit.
+:class:`~spco.knowledge.requests.Teach`), is given a sequence number, and taught together with the
+teachings that arrived with it by one :func:`spco.knowledge.teach_requests` call
+(:func:`teach_batch`), which checks what needs the home (a known sample, a new id, a pose on the
+map, a view's counts, the teaching limits). The journal record (:mod:`spco.service.journal`)
+holds the request as applied (:func:`record_of`) — the sample id an observation got, its visual
+counts (an image is turned into counts by the teaching), the batch, its seed and its sweeps — so
+that :func:`replay` of the records (:func:`request_of`, the same call) gives the same home, bit
+for bit.
 
 Record kinds (``op``), besides ``seq``, ``batch``, ``seed``, ``sweeps`` and ``time``:
 
@@ -57,9 +56,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from spco import knowledge as kn
-from spco.errors import ConfigurationError, SpcoError
-from spco.knowledge.requests import MAX_SENTENCE_CHARS
-from spco.model.prediction import validate_visual_counts
+from spco.errors import ConfigurationError, ConflictError, NotFoundError
+from spco.knowledge.requests import MAX_SENTENCE_CHARS, Pose, Teach, View
 from spco.service.journal import JournalError, journal_path, read_journal
 from spco.timestamps import utc_now
 
@@ -77,16 +75,16 @@ __all__ = [
     "file_digest",
     "history_of",
     "load_current",
-    "observation_record",
     "pending_teachings",
     "plan_undo",
     "rebuild",
+    "record_of",
     "replay",
-    "sentence_record",
+    "request_of",
     "served_info",
+    "teach_batch",
     "undo_base_path",
     "undo_base_seq",
-    "view_record",
     "with_history",
     "without_samples",
 ]
@@ -98,15 +96,6 @@ DEFAULT_UNDO_LIMIT = 100
 #: The writer keeps a checkpoint of the home every this many teachings (what an undo replays from).
 CHECKPOINT_EVERY = 10
 SERVED = "served"
-
-
-class NotFoundError(SpcoError, LookupError):
-    """A sample id or teaching seq the home does not have (HTTP 404)."""
-
-
-class ConflictError(SpcoError):
-    """A request that contradicts the home's current state (HTTP 409): an id taken, an undo of a
-    teaching that a later one changed or that was undone already."""
 
 
 
@@ -140,62 +129,34 @@ def with_history(home: kn.HomeModel, history: dict[int, dict[str, Any]] | None) 
     return replace(home, provenance={**home.provenance, SERVED: served})
 
 
-# ---------------------------------------------------------------------------- requests -> records
+# ---------------------------------------------------------------------------- requests <-> records
 
-def _check_known(home: kn.HomeModel, sample_id: int) -> None:
-    if not (home.ids == sample_id).any():
-        raise NotFoundError(f"home {home.name!r} has no sample with id {sample_id} (its {home.n_samples} "
-                            f"samples have ids {int(home.ids.min())}…{int(home.ids.max())}); teach a new "
-                            "place by its pose instead")
-
-
-def sentence_record(home: kn.HomeModel, sample_id: int, sentence: str | None) -> dict[str, Any]:
-    """The record of a checked sentence (:class:`~spco.knowledge.requests.Teach`: stripped, ``None``
-    forgets the sample's sentence) for the known sample ``sample_id``.
-
-    Raises :class:`NotFoundError` for an id the home does not have.
-    """
-    sample = int(sample_id)
-    _check_known(home, sample)
-    return {"op": "sentence", "id": sample, "sentence": sentence}
+def record_of(request: Teach) -> dict[str, Any]:
+    """The journal record of a teaching as applied (:func:`spco.knowledge.teach_requests`' second
+    result: a new observation with its id and its view as counts), without its seq and batch."""
+    if not request.observation:
+        return {"op": "sentence", "id": int(request.id), "sentence": request.sentence}  # type: ignore[arg-type]
+    pose = request.pose
+    assert pose is not None and request.id is not None  # an applied observation has both
+    view = None
+    if request.view is not None:
+        row = sp.csr_array(request.view.visual)
+        row.sort_indices()
+        view = {"indices": [int(i) for i in row.indices], "counts": [int(c) for c in row.data]}
+    return {"op": "observation", "id": int(request.id), "x": pose.x, "y": pose.y, "theta": pose.theta,
+            "sentence": request.sentence, "view": view}
 
 
-def view_record(home: kn.HomeModel, counts: object) -> dict[str, list[int]] | None:
-    """A view's visual counts as ``{"indices", "counts"}`` (its non-zero entries), ``None`` for none.
-
-    ``counts``: a (D,) vector of whole numbers ≥ 0, D the home's visual dimension (an image is
-    turned into counts by :meth:`spco.service.live.LiveHome.view_counts` first). Raises
-    :class:`ConfigurationError` for anything else."""
-    if counts is None:
-        return None
-    if not sp.issparse(counts) and np.ndim(counts) != 1:
-        raise ConfigurationError(f"visual: expected one view's counts (a vector), got shape "
-                                 f"{np.shape(counts)}")
-    row = validate_visual_counts(counts, home.knowledge.n_features)
-    if row.shape[0] != 1:
-        raise ConfigurationError(f"visual: expected one view's counts, got {row.shape[0]} rows")
-    row.eliminate_zeros()
-    row.sort_indices()
-    return {"indices": [int(i) for i in row.indices], "counts": [int(c) for c in row.data]}
-
-
-def observation_record(home: kn.HomeModel, x: float, y: float, theta: float, sentence: str | None = None,
-                       view: dict[str, list[int]] | None = None, sample_id: int | None = None
-                       ) -> dict[str, Any]:
-    """The record of a checked new observation: its pose (a :class:`~spco.knowledge.requests.Pose` on
-    the home's map), its view (:func:`view_record`, ``None`` for none) and its sentence.
-
-    ``sample_id`` (optional) must be new to the home (:class:`ConflictError` otherwise); without it
-    the writer gives the sample one more than the largest id.
-    """
-    record: dict[str, Any] = {"op": "observation", "id": None, "x": float(x), "y": float(y),
-                              "theta": float(theta), "sentence": sentence, "view": view}
-    if sample_id is not None:
-        sample = int(sample_id)
-        if (home.ids == sample).any():
-            raise ConflictError(f"home {home.name!r} already has a sample with id {sample}")
-        record["id"] = sample
-    return record
+def request_of(record: dict[str, Any], n_features: int) -> Teach:
+    """The :class:`~spco.knowledge.requests.Teach` a journal record holds (what :func:`record_of`
+    wrote): the same teaching, applied again."""
+    if record["op"] == "sentence":
+        return Teach(sentence=record["sentence"], id=int(record["id"]))
+    if record["op"] == "observation":
+        view = None if record["view"] is None else View(visual=_view_row(record["view"], n_features))
+        return Teach(sentence=record["sentence"], id=int(record["id"]),
+                     pose=Pose(float(record["x"]), float(record["y"]), float(record["theta"])), view=view)
+    raise JournalError(f"seq {record['seq']}: unknown record kind {record['op']!r}")
 
 
 def _effective(history: dict[int, dict[str, Any]], after: int = 0) -> list[int]:
@@ -352,53 +313,89 @@ def _view_row(view: dict[str, list[int]] | None, n_features: int) -> sp.csr_arra
                         shape=(1, n_features))
 
 
-def _teach_records(home: kn.HomeModel, records: list[dict[str, Any]]
-                   ) -> tuple[kn.HomeModel, dict[int, dict[str, Any]]]:
-    """One :func:`spco.knowledge.teach` call for teaching records of one batch (its seed and sweeps):
-    the updated home and the history entries of the records."""
-    seed, sweeps = int(records[0]["seed"]), int(records[0]["sweeps"])
+def _entries(home: kn.HomeModel, records: list[dict[str, Any]]) -> dict[int, dict[str, Any]]:
+    """The history entries of teaching ``records`` applied together to ``home`` (a sentence's
+    entry remembers the one it replaced: what an undo restores)."""
     stamp = records[0].get("time") or utc_now()
     entries: dict[int, dict[str, Any]] = {}
-    sentences: dict[int, str | None] = {}
-    observations = []
     current = dict(zip(home.ids.tolist(), home.sentences, strict=True))
     for r in records:
         if r["op"] == "sentence":
             sample = int(r["id"])
-            previous = sentences.get(sample, current.get(sample))
-            sentences[sample] = r["sentence"]
             entries[r["seq"]] = {"op": "sentence", "id": sample, "sentence": r["sentence"],
-                                 "previous": previous, "time": r.get("time", stamp), "record": r}
-        elif r["op"] == "observation":
-            observations.append(kn.Observation(
-                x=float(r["x"]), y=float(r["y"]), theta=float(r["theta"]),
-                visual=None if r["view"] is None else _view_row(r["view"], home.knowledge.n_features),
-                sentence=r["sentence"],  # no view: a sample without one (its likelihood left out)
-                id=int(r["id"])))
+                                 "previous": current.get(sample), "time": r.get("time", stamp), "record": r}
+            current[sample] = r["sentence"]
+        else:
             entries[r["seq"]] = {"op": "observation", "id": int(r["id"]), "sentence": r["sentence"],
                                  "x": r["x"], "y": r["y"], "theta": r["theta"],
                                  "time": r.get("time", stamp), "record": r}
-        else:
-            raise JournalError(f"seq {r['seq']}: unknown record kind {r['op']!r}")
-    # accepted under the writer's limits when they arrived: replayed as they were
-    return kn.teach(home, sentences, observations, n_sweeps=sweeps, random_state=seed, limits=None), entries
+            current[int(r["id"])] = r["sentence"]
+    return entries
+
+
+def _teach_records(home: kn.HomeModel, records: list[dict[str, Any]]
+                   ) -> tuple[kn.HomeModel, dict[int, dict[str, Any]]]:
+    """Teaching records of one batch applied again (its seed and sweeps; accepted under the writer's
+    limits when they arrived, so replayed without them): the home and the records' history entries."""
+    requests = [request_of(r, home.knowledge.n_features) for r in records]
+    taught, _ = kn.teach_requests(home, requests, int(records[0]["sweeps"]), int(records[0]["seed"]),
+                                  limits=None)
+    return taught, _entries(home, records)
+
+
+def teach_batch(home: kn.HomeModel, requests: list[Teach], first_seq: int, seed: int, sweeps: int,
+                limits: kn.TeachingLimits | None, history: dict[int, dict[str, Any]],
+                extractor: Callable[[], Any] | None = None
+                ) -> tuple[kn.HomeModel, list[dict[str, Any]]]:
+    """Teach checked requests as one batch from seq ``first_seq``: the home's one teaching call
+    (:func:`spco.knowledge.teach_requests`, which checks what needs the home: known samples, new
+    ids, poses on the map, views' counts, ``limits``), then the batch's journal records (the
+    requests as applied, with ``seed`` and ``sweeps``). Updates ``history`` in place, as
+    :func:`apply_batch` does; raises what the home refuses, with nothing changed."""
+    stamp = utc_now("milliseconds")
+    with warnings.catch_warnings(record=True) as caught:  # said in the answer (notes), not on stderr
+        warnings.simplefilter("always", kn.OwnNamesSpreadWarning)
+        updated, applied = kn.teach_requests(home, requests, sweeps, seed, limits, on_map=True,
+                                             extractor=extractor)
+    last = first_seq + len(applied) - 1
+    records = [{"seq": first_seq + k, "batch": [first_seq, last], "seed": seed, "sweeps": sweeps,
+                "time": stamp, **record_of(r)} for k, r in enumerate(applied)]
+    entries = _entries(home, records)
+    teachings = int(served_info(home).get("teachings", 0)) + len(records)
+    return _served(updated, home, records, entries, teachings, caught, history), records
+
+
+def _served(updated: kn.HomeModel, home: kn.HomeModel, records: list[dict[str, Any]],
+            entries: dict[int, dict[str, Any]], teachings: int, caught: list[warnings.WarningMessage],
+            history: dict[int, dict[str, Any]] | None) -> kn.HomeModel:
+    """``updated`` (``home`` after ``records``) with its ``provenance["served"]`` (``last_seq``,
+    ``teachings``) and the spreading-name warnings ``caught`` in ``last_teach``; ``history``
+    updated in place with ``entries``."""
+    if history is not None:
+        history.update(entries)
+    served = served_info(home)
+    served.update(last_seq=int(records[-1]["seq"]), teachings=teachings)
+    provenance = {**updated.provenance, SERVED: served}
+    said = [str(w.message) for w in caught if issubclass(w.category, kn.OwnNamesSpreadWarning)]
+    if isinstance(provenance.get("last_teach"), dict):
+        provenance["last_teach"] = {**provenance["last_teach"], "warnings": said}
+    return replace(updated, provenance=provenance)
 
 
 def apply_batch(home: kn.HomeModel, records: list[dict[str, Any]],
                 history: dict[int, dict[str, Any]] | None = None,
                 checkpoints: UndoCheckpoints | None = None) -> kn.HomeModel:
-    """Apply one batch of journal records (all with the same ``batch``, ``seed`` and ``sweeps``).
+    """Apply one batch of journal records (all with the same ``batch``, ``seed`` and ``sweeps``) again.
 
-    Teachings become one :func:`spco.knowledge.teach` call (sentences and observations together).
-    An undo is a batch of its own: the home is rebuilt (:func:`rebuild`) from the latest of
-    ``checkpoints`` before the undone teaching, with the teachings after it replayed; ``history``
-    (the records of the teachings since the checkpoint) and ``checkpoints`` are required for it.
-    Updates ``provenance["served"]`` (``last_seq``, ``teachings``) and ``history`` in place.
+    Teachings become one :func:`spco.knowledge.teach_requests` call (sentences and observations
+    together), as when they were taught (:func:`teach_batch`). An undo is a batch of its own: the
+    home is rebuilt (:func:`rebuild`) from the latest of ``checkpoints`` before the undone teaching,
+    with the teachings after it replayed; ``history`` (the records of the teachings since the
+    checkpoint) and ``checkpoints`` are required for it. Updates ``provenance["served"]``
+    (``last_seq``, ``teachings``) and ``history`` in place.
     """
     first = records[0]
-    served = served_info(home)
-    teachings = int(served.get("teachings", 0))
-    stamp = first.get("time") or utc_now()
+    teachings = int(served_info(home).get("teachings", 0))
     with warnings.catch_warnings(record=True) as caught:  # said in the answer (notes), not on stderr
         warnings.simplefilter("always", kn.OwnNamesSpreadWarning)
         if first["op"] == "undo":
@@ -412,24 +409,17 @@ def apply_batch(home: kn.HomeModel, records: list[dict[str, Any]],
             if undone is None or undone.get("record") is None:
                 raise JournalError(f"seq {first['seq']} undoes teaching {undone_seq}, whose record the home "
                                    "file does not hold")
+            stamp = first.get("time") or utc_now()
             entries = {undone_seq: {**undone, "undone_by": first["seq"]},
                        first["seq"]: {"op": "undo", "undoes": undone_seq, "time": stamp}}
-            after = {**history, **entries}
             start_seq, start = checkpoints.before(undone_seq)
             checkpoints.drop_from(undone_seq)
-            updated = rebuild(start, start_seq, after, checkpoints)
+            updated = rebuild(start, start_seq, {**history, **entries}, checkpoints)
             teachings -= 1
         else:
             updated, entries = _teach_records(home, records)
             teachings += len(records)
-    if history is not None:
-        history.update(entries)
-    served.update(last_seq=int(records[-1]["seq"]), teachings=teachings)
-    provenance = {**updated.provenance, SERVED: served}
-    said = [str(w.message) for w in caught if issubclass(w.category, kn.OwnNamesSpreadWarning)]
-    if isinstance(provenance.get("last_teach"), dict):
-        provenance["last_teach"] = {**provenance["last_teach"], "warnings": said}
-    return replace(updated, provenance=provenance)
+    return _served(updated, home, records, entries, teachings, caught, history)
 
 
 def batches(records: list[dict[str, Any]]) -> list[list[dict[str, Any]]]:

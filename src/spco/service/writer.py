@@ -47,24 +47,22 @@ import numpy as np
 
 from spco import knowledge as kn
 from spco.errors import ConfigurationError, SpcoError, TeachingLimitError, TeachingRateError
-from spco.knowledge.limits import check_sentences
+from spco.knowledge.requests import Teach, Undo
 from spco.service.journal import Journal, journal_path, new_journal_id, read_journal
 from spco.service.snapshots import TRIM_EVERY, SnapshotChannel, trim_heap
 from spco.service.teaching import (
     CHECKPOINT_EVERY,
     DEFAULT_UNDO_LIMIT,
     SERVED,
-    ConflictError,
     UndoCheckpoints,
     apply_batch,
     check_journal_matches,
     file_digest,
     history_of,
-    observation_record,
     plan_undo,
     replay,
-    sentence_record,
     served_info,
+    teach_batch,
     undo_base_path,
     undo_base_seq,
     with_history,
@@ -127,6 +125,8 @@ class HomeWriter:
         self.undo_limit = undo_limit
         self.limits = limits
         self._observed: collections.deque[float] = collections.deque()  # when observations came
+        self._extractor: Any = None
+        self._extractor_key: str | None = None
         self.sweeps = sweeps
         self.compact_records, self.compact_idle, self.max_batch = compact_records, compact_idle, max_batch
         self.journal = Journal(journal_path(path))
@@ -171,9 +171,9 @@ class HomeWriter:
     def _warm_up(self) -> None:
         """Run throw-away teachings of every kind before the home is said to be ready, so that the
         first real one does not wait for the sampler's compiled kernels to load or for anything a
-        teaching needs first (a word never heard, a new observation with and without a view, an
-        undo's rebuild, the snapshot's parameters): the first teaching after start takes as long as
-        any other (``benchmarks/first_teaching.py``)."""
+        teaching needs first (a word never heard, a new observation with and without a view, the
+        image extractor, an undo's rebuild, the snapshot's parameters): the first teaching after
+        start takes as long as any other (``benchmarks/first_teaching.py``)."""
         home = self.home
         with contextlib.suppress(SpcoError), warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -189,6 +189,8 @@ class HomeWriter:
             taught = kn.teach(home, {int(home.ids[0]): f"this is the {word}"}, n_sweeps=self.sweeps,
                               random_state=0)
             taught = kn.teach(taught, observations=observations, n_sweeps=self.sweeps, random_state=1)
+            if home.knowledge.fitted_on_images:  # the extractor built and run once (teach_batch keeps it)
+                self._image_extractor().extract(np.zeros((48, 64, 3), dtype=np.uint8), "bgr8")
             _ = replace(taught, state=replace(taught.state, visual_cache=None)).parameters
 
     # ------------------------------------------------------------------ state
@@ -216,55 +218,39 @@ class HomeWriter:
         return int(state[0] >> np.uint64(1))
 
     # ------------------------------------------------------------------ teaching
-    def handle(self, requests: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    def handle(self, requests: list[Teach | Undo]) -> list[dict[str, Any]]:
         """Apply ``requests`` (in order) and return one result each.
 
-        A request, checked where it entered (:meth:`spco.service.LiveHome.submit`), is ``{"op":
-        "sentence", "id", "sentence"}``, ``{"op": "observation", "x", "y", "theta", "sentence", "id"
-        (optional), "view" (:func:`~spco.service.teaching.view_record`, or None)}`` or ``{"op": "undo",
-        "seq"}``; what is checked here is what needs the writer's home: a known sample, a new id, a
-        teaching that can be undone, the teaching limits. A result is ``{"ok": True, "seq", …}`` once
-        the teaching is in the journal (``fsync``-ed), or :func:`error_result`.
+        A request is checked where it entered (:meth:`spco.service.LiveHome.submit`): a
+        :class:`~spco.knowledge.requests.Teach` or an :class:`~spco.knowledge.requests.Undo`.
+        Teachings that arrive together are taught as batches of up to ``max_batch`` by one call
+        each (:func:`~spco.service.teaching.teach_batch`: the home checks what needs it); an undo is
+        a batch of its own (:func:`~spco.service.teaching.plan_undo`); the rate limit is checked
+        here. A result is ``{"ok": True, "seq", …}`` once the teaching is in the journal
+        (``fsync``-ed), or :func:`error_result`.
         """
         results: list[dict[str, Any] | None] = [None] * len(requests)
-        batch: list[tuple[int, dict[str, Any]]] = []
-        added: set[int] = set()
-        said: list[str] = []  # the batch's sentences so far (its new words count together)
+        batch: list[tuple[int, Teach | dict[str, Any]]] = []
 
         def flush() -> None:
             if batch:
                 self._apply(list(batch), results)
                 batch.clear()
-                added.clear()
-                said.clear()
 
         for index, request in enumerate(requests):
             try:
-                op = request.get("op")
-                if op == "undo":
+                if isinstance(request, Undo):
                     flush()
-                    undo = plan_undo(self.home, self.history, request.get("seq"), self.undo_limit,
+                    undo = plan_undo(self.home, self.history, request.seq, self.undo_limit,
                                      self.checkpoints.base_seq)
                     self._apply([(index, undo)], results)
                     continue
-                if op == "sentence":
-                    if request.get("id") in added:
-                        flush()
-                    record = sentence_record(self.home, request["id"], request.get("sentence"))
-                elif op == "observation":
-                    record = observation_record(self.home, request["x"], request["y"], request["theta"],
-                                                request.get("sentence"), request.get("view"),
-                                                request.get("id"))
-                    if record["id"] is None:
-                        record["id"] = max(int(self.home.ids.max()), *added) + 1 if added \
-                            else int(self.home.ids.max()) + 1
-                    elif record["id"] in added:
-                        raise ConflictError(f"two new observations with id {record['id']}")
-                    added.add(record["id"])
-                else:
-                    raise ConfigurationError(f"op: expected 'sentence', 'observation' or 'undo', got {op!r}")
-                self._check_limits(record, said)
-                batch.append((index, record))
+                if not isinstance(request, Teach):
+                    raise ConfigurationError(f"expected a Teach or an Undo request, got "
+                                             f"{type(request).__name__}")
+                if request.observation:
+                    self._check_rate()
+                batch.append((index, request))
                 if len(batch) >= self.max_batch:
                     flush()
             except Exception as exc:  # SpcoError: the request's fault; anything else: a bug, said as such
@@ -272,48 +258,53 @@ class HomeWriter:
         flush()
         return [r if r is not None else error_result(RuntimeError("no result")) for r in results]
 
-    def _check_limits(self, record: dict[str, Any], said: list[str]) -> None:
-        """Raise :class:`~spco.errors.TeachingLimitError` if ``record`` breaks the limits, counted with
-        the sentences ``said`` earlier in its batch (appended to when it does not)."""
+    def _check_rate(self) -> None:
+        """Count a new observation; raise :class:`~spco.errors.TeachingRateError` if the last minute
+        had the limit's number already (the words' limits are the home's to check: ``teach_batch``)."""
         limits = self.limits
-        if limits is None:
+        if limits is None or limits.max_observations_per_minute is None:
             return
-        if record["op"] == "observation" and limits.max_observations_per_minute is not None:
-            now = time.monotonic()
-            while self._observed and now - self._observed[0] > 60.0:
-                self._observed.popleft()
-            if len(self._observed) >= limits.max_observations_per_minute:
-                raise TeachingRateError(
-                    f"{len(self._observed)} new observations in the last minute; the home takes at most "
-                    f"{limits.max_observations_per_minute} a minute (limit max_observations_per_minute): "
-                    f"try again in {60.0 - (now - self._observed[0]):.0f} s", "max_observations_per_minute",
-                    len(self._observed) + 1, limits.max_observations_per_minute)
-        sentence = record.get("sentence")
-        if sentence:
-            vocabulary = self.home.vocabulary.extended(said) if said else self.home.vocabulary
-            check_sentences(vocabulary, self.home.n_knowledge_words, [sentence], limits)
-            said.append(sentence)
-        if record["op"] == "observation" and limits.max_observations_per_minute is not None:
-            self._observed.append(time.monotonic())
+        now = time.monotonic()
+        while self._observed and now - self._observed[0] > 60.0:
+            self._observed.popleft()
+        if len(self._observed) >= limits.max_observations_per_minute:
+            raise TeachingRateError(
+                f"{len(self._observed)} new observations in the last minute; the home takes at most "
+                f"{limits.max_observations_per_minute} a minute (limit max_observations_per_minute): "
+                f"try again in {60.0 - (now - self._observed[0]):.0f} s", "max_observations_per_minute",
+                len(self._observed) + 1, limits.max_observations_per_minute)
+        self._observed.append(now)
 
-    def _apply(self, batch: list[tuple[int, dict[str, Any]]], results: list[dict[str, Any] | None]) -> None:
-        """Apply a batch, journal it (fsync), then record its results; a batch that fails is
-        retried one teaching at a time, so that one bad teaching does not fail the others."""
+    def _image_extractor(self) -> Any:
+        """The home's image extractor (:meth:`spco.knowledge.Knowledge.image_extractor`), built once and
+        kept while the home's extractor stays the same (teachings never change it)."""
+        knowledge = self.home.knowledge
+        key = json.dumps(knowledge.extractor, sort_keys=True)
+        if self._extractor is None or key != self._extractor_key:
+            self._extractor, self._extractor_key = knowledge.image_extractor(), key
+        return self._extractor
+
+    def _apply(self, batch: list[tuple[int, Any]], results: list[dict[str, Any] | None]) -> None:
+        """Apply a batch (teachings, or one undo record), journal it (fsync), then record its results;
+        a batch that fails is retried one teaching at a time, so that one bad teaching does not fail
+        the others."""
         start = time.perf_counter()
         first = self.last_seq + 1
-        last = first + len(batch) - 1
         seed = self._seed_for(first)
-        stamp = utc_now("milliseconds")
-        records = [{"seq": first + k, "batch": [first, last], "seed": seed, "sweeps": self.sweeps,
-                    "time": stamp, **record} for k, (_, record) in enumerate(batch)]
         history = dict(self.history)
         words_before = self.home.knowledge.n_words
-        undoing = records[0]["op"] == "undo"
+        undoing = isinstance(batch[0][1], dict)
         try:
-            updated = apply_batch(self.home, records, history, self.checkpoints)
+            if undoing:
+                records = [{"seq": first, "batch": [first, first], "seed": seed, "sweeps": self.sweeps,
+                            "time": utc_now("milliseconds"), **batch[0][1]}]
+                updated = apply_batch(self.home, records, history, self.checkpoints)
+            else:
+                updated, records = teach_batch(self.home, [request for _, request in batch], first, seed,
+                                               self.sweeps, self.limits, history, self._image_extractor)
         except Exception as exc:
             if undoing:  # the checkpoints after the undone teaching may be half rebuilt
-                self.checkpoints.drop_from(int(records[0]["undoes"]))
+                self.checkpoints.drop_from(int(batch[0][1]["undoes"]))
             if len(batch) > 1:
                 for item in batch:
                     self._apply([item], results)

@@ -1,0 +1,35 @@
+"""The classes of ``benchmarks/speech_errors.py`` (where the natural-speech errors come from) on
+hand-made inputs: no fit, no data set."""
+
+from __future__ import annotations
+
+import sys
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+from speech_errors import SAID_HERE, classify_answer, classify_miss, share_said
+
+ACCEPTED = {"kitchen": ("kitchen",), "dining": ("dining", "dining room"), "living room": ("living room",)}
+#: 10 sentences at the dining area (2 say "kitchen", 8 "table"), 10 at the kitchen (9 "kitchen")
+SAID = {"dining": Counter({"": 10, "kitchen": 2, "table": 8, "dining room": 1}),
+        "kitchen": Counter({"": 10, "kitchen": 9, "dining room": 3})}
+
+
+def test_a_wrong_answer_is_put_in_one_class() -> None:
+    assert share_said(SAID, "dining", "kitchen") == 0.2 >= SAID_HERE
+    assert classify_answer("dining", "kitchen", ACCEPTED, SAID) == "b"  # another place's name said here
+    assert classify_answer("dining", "living room", ACCEPTED, SAID) == "c"  # never said here
+    assert classify_answer("dining", "table", ACCEPTED, SAID) == "a"  # no place's name
+    assert classify_answer("living room", "livingroom", ACCEPTED, SAID) == "e"  # called so, not accepted
+    assert share_said(SAID, "bath", "bath") == 0.0  # a place nobody spoke at
+
+
+def test_a_missed_where_is_put_in_one_class() -> None:
+    names = np.array([True, False, True])
+    assert classify_miss("dining", "dining", None, names, SAID) == "d"  # never said
+    assert classify_miss("dining", "dining", 1, names, SAID) == "d"  # said, but no name of the home
+    assert classify_miss("dining", "dining room", 2, names, SAID) == "b"  # said most at the kitchen
+    assert classify_miss("kitchen", "kitchen", 0, names, SAID) == "c"  # said most here, found elsewhere
