@@ -39,6 +39,7 @@ from spco.model.hyperparameters import NamePrior
 from spco.model.parameters import ConceptParameters
 from spco.model.position_prediction import PositionMode, PositionPrediction, predict_positions
 from spco.model.prediction import NamePrediction, UnknownNameError, Weighting
+from spco.model.rooms import HomeRooms
 
 __all__ = [
     "HomeScores",
@@ -230,6 +231,7 @@ def evaluate_home(
     name_prior: NamePrior = "off",
     view_counts: float | None = None,
     answer_params: ConceptParameters | None = None,
+    answer_rooms: HomeRooms | None = None,
 ) -> HomeScores:
     """Score name and position prediction in home ``e`` (the paper's A_n and A_p).
 
@@ -251,6 +253,8 @@ def evaluate_home(
     answer_params: the parameters the robot answers names with
         (:func:`spco.model.confidence.model_answer_parameters`); names are then predicted by the
         robot's own function, :func:`spco.model.confidence.answer_names` (``None``: ``params``).
+    answer_rooms: the home's rooms as the robot's answer reads them
+        (:func:`spco.model.rooms.model_rooms`; ``None``: names from each sample's own view and pose).
     name_prior: ``"wordnet"`` orders each concept's words by the name prior when names are
         predicted (opt-in; see :func:`spco.model.prediction.predict_names`).
     position_mode, xy_only: see :func:`spco.model.position_prediction.predict_positions`;
@@ -285,7 +289,7 @@ def evaluate_home(
     visual = environment.visual[rows]
     prediction = answer_names(params if answer_params is None else answer_params, e, vocabulary, positions,
                               visual, top_k=3, weighting=weighting, name_prior=name_prior,
-                              view_counts=view_counts)
+                              view_counts=view_counts, rooms=answer_rooms)
     predicted = tuple(prediction.best)
     accepted = {place: gt.accepted(place) for place in place_list}
     name_scores = name_accuracy(predicted, labels, place_list, accepted)

@@ -232,7 +232,7 @@ def score_rooms(params: Any, e: int, env: Environment, vocabulary: Vocabulary,
                 rooms: Sequence[Room], weighting: str = "mi", n_positions: int = DEFAULT_POSITIONS,
                 rng: np.random.Generator | int | None = None,
                 view_counts: float | None = None,
-                answer_params: Any = None) -> dict[str, RoomScores]:
+                answer_params: Any = None, answer_rooms: Any = None) -> dict[str, RoomScores]:
     """A_n and A_p (both ways) of each room in home ``e`` of a fitted model.
 
     Parameters
@@ -247,6 +247,8 @@ def score_rooms(params: Any, e: int, env: Environment, vocabulary: Vocabulary,
     answer_params: the parameters the robot answers names with
         (:func:`spco.model.confidence.model_answer_parameters`; ``None``: ``params``); names come
         from the robot's own function, :func:`spco.model.confidence.answer_names`.
+    answer_rooms: the home's rooms as the robot's answer reads them
+        (:func:`spco.model.rooms.model_rooms`; ``None``: names from each sample's own view and pose).
 
     Returns
     -------
@@ -264,7 +266,7 @@ def score_rooms(params: Any, e: int, env: Environment, vocabulary: Vocabulary,
         prediction = answer_names(params if answer_params is None else answer_params, e, vocabulary,
                                   env.positions[test], env.visual[test], top_k=1,
                                   weighting=weighting,  # type: ignore[arg-type]
-                                  view_counts=view_counts)
+                                  view_counts=view_counts, rooms=answer_rooms)
         predicted = tuple(str(w) for w in prediction.words[:, 0]) if prediction.words.shape[1] else \
             (None,) * test.size
         correct = np.array([room.is_accepted(w) for w in predicted], dtype=bool)

@@ -244,7 +244,8 @@ def _fit_setup(corpus: Any, model: str, n_iterations: int, random_state: Any,
 class _Chain:
     """What :func:`_sample_chain` keeps of a fit's chain: the run (still open: its shards hold the
     homes), the kept sweeps' (log φ^v, log φ^w, log G_0) and word channels in sweep order, and the
-    last sweep's word mask, candidate words and word-channel tokens (``None`` without channels)."""
+    last sweep's word mask, candidate words and word-channel tokens (the switches' expected counts
+    averaged over the kept sweeps; ``None`` without channels)."""
 
     run: Any
     samples: list[tuple[np.ndarray, np.ndarray, np.ndarray]]
@@ -262,6 +263,7 @@ def _sample_chain(engine: Any, source: Any, hyper: TransferHyperparameters, sett
     bar's label, ``None`` for none."""
     by_iteration: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
     channel_samples: dict[int, WordChannels] = {}
+    expected: dict[int, np.ndarray] = {}  # the kept sweeps' expected switch counts (V, 3)
     bar = None
     if progress is not None:
         from spco.progress import progress_bar
@@ -282,11 +284,16 @@ def _sample_chain(engine: Any, source: Any, hyper: TransferHyperparameters, sett
             by_iteration[iteration] = (shared.log_phi_v.copy(), shared.log_phi_w.copy(), shared.log_g0.copy())
             if shared.channels is not None:
                 channel_samples[iteration] = shared.channels.copy()
+                expected[iteration] = functools.reduce(operator.add, run.call("expected_channel_tokens"))
 
     run.fit(n_iterations, after_sweep)
     word_mask_last, candidate_words = run.shared.word_mask, run.call("candidate_words")[0]
-    tokens = (functools.reduce(operator.add, run.call("channel_counts")).by_word
-              if run.shared.channels is not None else None)
+    # the tokens per word and channel: the switches' expected counts (Rao-Blackwellised: given each
+    # kept sweep's concepts and parameters) averaged over the kept sweeps, not the last sweep's draw
+    tokens = None
+    if run.shared.channels is not None:
+        tokens = (np.mean([expected[i] for i in sorted(expected)], axis=0) if expected else
+                  functools.reduce(operator.add, run.call("expected_channel_tokens")))
     if bar is not None:
         bar.close()
     return _Chain(run, [by_iteration[i] for i in sorted(by_iteration)],
@@ -321,7 +328,8 @@ def _averaged_channels(samples: list[WordChannels], perms: list[np.ndarray],
                        tokens: np.ndarray | None) -> KnowledgeChannels | None:
     """The word channels of the kept sweeps averaged as φ is: ψ relabelled like φ (``perms``), then
     ψ, β and the shares λ averaged as probabilities; the evidence is fixed. ``tokens``: (V, 3) the
-    last sweep's tokens per word and channel (over all homes). ``None`` without channels."""
+    expected tokens per word and channel (over all homes), averaged over the kept sweeps. ``None``
+    without channels."""
     if not samples or tokens is None:
         return None
     n = len(samples)

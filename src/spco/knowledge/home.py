@@ -185,9 +185,9 @@ class HomeModel:
     def name_mask(self) -> np.ndarray:
         """(V,) bool: the words the home answers as place names. With the word channels: the words
         enough of whose uses (the experienced homes' and this home's, :attr:`channel_tokens`) are
-        expected to be names (:func:`spco.model.home_shard.name_words`) — a function word, or an object
-        said once ("the fridge is over here"), is never answered; otherwise the words the naming rule
-        keeps (``state.word_mask``)."""
+        expected to be names (:func:`spco.model.home_shard.name_words`) — a function word, or an
+        object said once ("the fridge is over here"), is never answered; otherwise the words the
+        naming rule keeps (``state.word_mask``)."""
         channels = self.knowledge.channels
         if channels is None:
             return np.asarray(self.state.word_mask, dtype=bool)

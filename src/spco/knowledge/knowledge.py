@@ -62,9 +62,9 @@ class KnowledgeChannels:
     channels: the :class:`~spco.model.word_channels.WordChannels` averaged over the kept sweeps: log ψ
         (L, V) each concept's place words, log β (V,) the background, log λ (3,) the learnt shares and
         the linguistic evidence log e (V, 3) of every word (the switch's prior).
-    tokens: (V, 3) the experienced homes' tokens of each word drawn as name, place word and background
-        word at the fit's last sweep (0 for words first heard in a home): which words are names
-        (:meth:`name_mask`).
+    tokens: (V, 3) the experienced homes' expected tokens of each word as name, place word and
+        background word: the switch probabilities of its tokens summed, averaged over the fit's kept
+        sweeps (0 for words first heard in a home): which words are names (:meth:`name_mask`).
     """
 
     channels: WordChannels
@@ -250,8 +250,8 @@ class Knowledge:
 
     @property
     def name_mask(self) -> np.ndarray:
-        """(V,) bool: the knowledge's place names — with the word channels the words most of whose
-        tokens the fit drew as names (:meth:`KnowledgeChannels.name_mask`), otherwise the words kept
+        """(V,) bool: the knowledge's place names — with the word channels the words enough of whose
+        uses the fit expects to be names (:meth:`KnowledgeChannels.name_mask`), otherwise the words kept
         by pruning (``word_mask``)."""
         return self.word_mask if self.channels is None else self.channels.name_mask() & self.word_mask
 

@@ -26,6 +26,12 @@ counts two kinds of evidence that are not independent as if they were; this modu
    whatever name its θ^w holds at 10^-6 with p ≈ 1 after the answer's normalisation. The mass θ^w
    puts on words the home does not answer is spread evenly over the names it does
    (:func:`answerable_names`): such a concept answers at p ≈ 1 / (number of names), i.e. unsure.
+4. **Opt-in: a room's views as one piece of evidence.** Given the home's rooms (:func:`answer_names`'s
+   ``rooms``; ``spco.knowledge.name_prediction(by_room=True)``), the concept at a pose is judged from
+   the pose's region — its training views pooled, worth w draws — and the observation's view, worth
+   w, against φ^v, not from the home's π and θ^v, which hold each of the room's views as independent
+   evidence (:mod:`spco.model.rooms`; docs/model.md, "A room's evidence", says why it is not the
+   default).
 
 An answer whose probability is below :data:`UNSURE_BELOW` is flagged *unsure*
 (:attr:`spco.model.prediction.NamePrediction.unsure`; ``spco what`` says so, ``--json`` has
@@ -44,6 +50,7 @@ from spco.data.language import Vocabulary
 from spco.errors import ConfigurationError
 from spco.model.parameters import ConceptParameters
 from spco.model.prediction import NamePrediction, Weighting, predict_names
+from spco.model.rooms import HomeRooms, concepts_by_room
 
 __all__ = [
     "UNSURE_BELOW",
@@ -184,6 +191,7 @@ def answer_names(
     top_k: int = 3,
     unsure_below: float = UNSURE_BELOW,
     name_prior: str = "off",
+    rooms: HomeRooms | None = None,
 ) -> NamePrediction:
     """The names the robot answers at ``n`` observations of home ``e`` — the one predictor of
     p(name | pose, view): ``what`` (:func:`spco.knowledge.name_prediction`, the service, the ROS
@@ -194,12 +202,20 @@ def answer_names(
     ``weighting`` the model's name weighting (:func:`answer_weighting`); answers below
     ``unsure_below`` (default :data:`UNSURE_BELOW`) are flagged unsure; ``name_prior``: the opt-in
     ordering of :func:`~spco.model.prediction.predict_names` (off for the robot's answers).
+    ``rooms``: the home's training samples' regions, views and taught names; with them and a pose,
+    the concept is judged from the pose's room — its training views pooled as one piece of evidence
+    — and the observation's view, each worth w draws against φ^v
+    (:func:`spco.model.rooms.concepts_by_room`; docs/model.md, "A room's evidence"), not from the
+    home's π and θ^v, which count each of the room's views as independent evidence.
     """
     if not 0.0 <= unsure_below <= 1.0:
         raise ConfigurationError(f"unsure_below must be within 0..1, got {unsure_below!r}")
+    concepts = None
+    if rooms is not None and positions is not None and weighting != "reference":
+        concepts = concepts_by_room(params, e, positions, visual, rooms, view_counts)
     return predict_names(params, e, vocabulary, positions, visual, top_k=top_k, weighting=weighting,
                          use_vision=visual is not None, view_counts=view_counts, unsure_below=unsure_below,
-                         name_prior=name_prior)  # type: ignore[arg-type]
+                         name_prior=name_prior, concepts=concepts)  # type: ignore[arg-type]
 
 
 def answer_weighting(variant: str, prune_words: bool) -> Weighting:
@@ -219,11 +235,12 @@ def model_answer_parameters(model: object, e: int) -> ConceptParameters:
     its G_0.
 
     With the word channels, the names the home answers are chosen as the robot's home chooses
-    them (:attr:`spco.knowledge.home.HomeModel.name_mask`): the words whose expected uses over the
-    fit's homes are names (:func:`~spco.model.home_shard.name_words` of
-    :func:`~spco.model.home_shard.switch_tokens`), and each concept's names-channel mass on other
-    words spread over them (:func:`answerable_names`), so an experiment scores what the robot would
-    answer (never "the" or "this", which the channels draw as background).
+    them (:attr:`spco.knowledge.home.HomeModel.name_mask`): the words enough of whose uses over the
+    fit's homes are expected to be names (:func:`~spco.model.home_shard.name_words` of
+    ``channel_tokens_``, the switches' expected counts averaged over the averaged sweeps), and each
+    concept's names-channel mass on other words spread over them (:func:`answerable_names`), so an
+    experiment scores what the robot would answer (never "the" or "this", which the channels draw as
+    background).
     """
     from spco.model.home_shard import name_words, switch_tokens
 
@@ -236,5 +253,8 @@ def model_answer_parameters(model: object, e: int) -> ConceptParameters:
     state = model.state_  # type: ignore[attr-defined]
     if state.channels is None:  # (the model's word_channels_ are these)
         return answer
-    names = name_words(switch_tokens(data, state)) & np.asarray(answer.word_mask, dtype=bool)
+    tokens = getattr(model, "channel_tokens_", None)  # averaged over the fit's averaged sweeps
+    if tokens is None:
+        tokens = switch_tokens(data, state)
+    names = name_words(tokens) & np.asarray(answer.word_mask, dtype=bool)
     return answerable_names(answer, e, names)

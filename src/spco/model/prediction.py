@@ -535,6 +535,7 @@ def predict_names(
     view_counts: float | None = None,
     name_prior: NamePrior = "off",
     unsure_below: float | None = None,
+    concepts: np.ndarray | None = None,
 ) -> NamePrediction:
     """Rank the place names of ``n`` observations in home ``e``.
 
@@ -558,6 +559,8 @@ def predict_names(
     unsure_below: stored in the result: an answer whose probability is below it is
         :attr:`NamePrediction.unsure` (``None``: never); ``spco.knowledge.what`` passes
         :data:`spco.model.confidence.UNSURE_BELOW`.
+    concepts: (n, L) P(l | observation) computed by the caller (the room-level answer,
+        :func:`spco.model.rooms.concepts_by_room`) in place of :func:`concept_posterior`.
 
     Words with ``word_mask`` False are never returned. Ties in the score are broken by p(w|x,v),
     then by vocabulary order. A word with I(w) = 0 scores 0 and is ranked after every word with a
@@ -572,8 +575,13 @@ def predict_names(
                                  f"got {name_prior!r}")
     e = _check_home(params, e)
     _check_vocabulary(params, vocabulary)
-    concepts = concept_posterior(params, e, positions, visual, use_position, use_vision,
-                                 active_regions_only=weighting == "reference", view_counts=view_counts)
+    if concepts is None:
+        concepts = concept_posterior(params, e, positions, visual, use_position, use_vision,
+                                     active_regions_only=weighting == "reference", view_counts=view_counts)
+    else:
+        concepts = np.asarray(concepts, dtype=np.float64)
+        if concepts.ndim != 2 or concepts.shape[1] != params.n_concepts:
+            raise ConfigurationError(f"concepts must be (n, {params.n_concepts}), got {concepts.shape}")
     theta_w = _word_matrix(params, e)
     probs = _words_from_concepts(concepts, theta_w)  # (n, V)
     if weighting == "mi" and name_prior == "wordnet" and params.name_prior is not None:

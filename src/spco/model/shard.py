@@ -44,7 +44,7 @@ from spco.model.kernels.dirichlet import log_dirichlet
 from spco.model.observations import HierarchicalMultinomial
 from spco.model.pruning import NAME, NOT_A_NAME, Colocation, colocation, judge_names
 from spco.model.shard_init import ShardInitialisation
-from spco.model.word_channels import ChannelCounts, WordChannels, sample_channels
+from spco.model.word_channels import ChannelCounts, WordChannels, expected_tokens, sample_channels
 
 #: Float statistics a home sends to be summed over homes (the naming rule's expected pairs and
 #: log-likelihoods, the synonyms' overlaps) are rounded to multiples of this grid first: sums of
@@ -260,6 +260,15 @@ class HomeShard(ShardInitialisation):
         if stats.channel is None:
             raise RuntimeError("HomeShard: no word channels in this state")
         return stats.channel
+
+    def expected_channel_tokens(self) -> np.ndarray:
+        """(V, 3) the shard's expected tokens of each word per channel given its state
+        (:func:`spco.model.word_channels.expected_tokens`: the switch probabilities summed)."""
+        state = self.state
+        if state.channels is None:
+            raise RuntimeError("HomeShard: no word channels in this state")
+        return expected_tokens(self.data.words, self.data.homes, state.concepts, state.log_theta_w,
+                               state.channels)
 
     def pooled_counts(self) -> PooledCounts:
         """The shard's visual, word and concept counts summed over its homes (authors' sampler)."""

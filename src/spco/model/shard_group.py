@@ -129,6 +129,10 @@ class ShardGroup:
         """The switches' counts of the homes, summed (integers)."""
         return _sum(self._each_lazily("channel_counts"))
 
+    def expected_channel_tokens(self) -> np.ndarray:
+        """The homes' expected tokens per word and channel, summed (V, 3)."""
+        return _sum(self._each("expected_channel_tokens"))
+
     def tables(self, kind: str) -> np.ndarray:
         """CRT table counts of the homes, summed (integers): the sum of the homes' own
         (:meth:`HomeShard.tables`), the visual and word tables drawn in one call, each home from a

@@ -266,6 +266,9 @@ class SpatialConceptModel:
         self.parameters_ = self._fitted_parameters(averaged_parameters, corpus, data, state, hyper, settings,
                                                    evidence)
         self.word_channels_ = state.channels
+        #: (V, 3) each word's expected tokens as name, place and background word over the fit's homes,
+        #: averaged over the averaged sweeps (``None`` without the word channels): which words are names
+        self.channel_tokens_ = average.expected_tokens()
         if state.channels is not None:
             self.parameters_ = replace(self.parameters_, **channel_parameters(state.channels))
         splits = np.split(np.arange(data.n_samples), data.offsets[1:-1])
@@ -452,17 +455,35 @@ class _SweepAverage:
         self.averaged = set(thinned_sweeps(n_iterations))
         self.average = ParameterAverage(data.homes, data.position_scale)
         self.added: set[int] = set()
+        #: the averaged sweeps' expected switch counts per word and channel (V, 3), with the word channels
+        self.channel_tokens: list[np.ndarray] = []
 
     def after_sweep(self, run, iteration: int) -> None:
         """Add sweep ``iteration``'s state if it is averaged (not the last sweep's: see
         :meth:`add_final`). A restarted engine repeats the sweeps since its checkpoint (the same
         chain): each averaged sweep is added once."""
-        if iteration not in self.averaged or iteration in self.added or iteration == self.n_iterations - 1:
+        if iteration not in self.averaged or iteration in self.added:
             return
-        self.average.add(run.state(visual=False), visual=run.home_visual())
+        if iteration != self.n_iterations - 1:  # (the last sweep's state: add_final, without the workers)
+            self.average.add(run.state(visual=False), visual=run.home_visual())
+        if run.shared.channels is not None:
+            self.channel_tokens.append(_sum_parts(run.call("expected_channel_tokens")))
         self.added.add(iteration)
 
     def add_final(self, state: gibbs.GibbsState) -> None:
-        """Add the last sweep's state (joined: ``run.state()`` after the sweeps); it is always averaged."""
+        """Add the last sweep's state (joined: ``run.state()`` after the sweeps, the workers dropped);
+        it is always averaged (its switch counts were taken by :meth:`after_sweep`)."""
         self.average.add(state)
-        self.added.add(self.n_iterations - 1)
+
+    def expected_tokens(self) -> np.ndarray | None:
+        """(V, 3) the switches' expected counts per word and channel averaged over the averaged
+        sweeps (Rao-Blackwellised), ``None`` without the word channels."""
+        return np.mean(self.channel_tokens, axis=0) if self.channel_tokens else None
+
+
+def _sum_parts(parts: list[np.ndarray]) -> np.ndarray:
+    """The shards' arrays added up in shard order."""
+    total = np.asarray(parts[0], dtype=np.float64)
+    for part in parts[1:]:
+        total = total + part
+    return total

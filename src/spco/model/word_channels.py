@@ -227,6 +227,20 @@ def switch_probabilities(words: sp.csr_array, homes: np.ndarray, concepts: np.nd
     return p
 
 
+def expected_tokens(words: sp.csr_array, homes: np.ndarray, concepts: np.ndarray, log_theta_w: np.ndarray,
+                    channels: WordChannels) -> np.ndarray:
+    """(V, 3) each word's expected tokens per channel (name, place, background) given the concepts:
+    the switch probabilities of its tokens summed (:func:`switch_probabilities`, each token once) —
+    the Rao-Blackwellised counts of the switches, which a drawn switch only estimates."""
+    out = np.zeros((words.shape[1], 3))
+    if not words.nnz:
+        return out
+    p = switch_probabilities(words, homes, concepts, log_theta_w, channels)
+    _, cols, _ = _tokens(words)
+    np.add.at(out, cols, p)
+    return out
+
+
 def sample_switches(words: sp.csr_array, homes: np.ndarray, concepts: np.ndarray, log_theta_w: np.ndarray,
                     channels: WordChannels, rng: np.random.Generator) -> np.ndarray:
     """Draw every token's switch given its sample's concept: (nnz,) int8 in {0, 1, 2}. Fresh channels

@@ -1,0 +1,170 @@
+"""A room's evidence: which concept a home's region is, with the region's views as one piece of evidence.
+
+The sampler decides each sample's concept from its own view (weighted as the model's view weight w,
+:meth:`~spco.model.hyperparameters.TransferHyperparameters.view_weight`) and its region, so a room's
+~20 views count as 20 independent pieces of evidence about which concept the room is. They are not:
+a room's views pooled are worth about as many draws as one view (leave-one-home-out on the
+experienced homes; docs/model.md, "A room's evidence"), and a room that looks like another room's
+concept is put there, and answered, with certainty.
+
+The room account (opt-in: ``spco.knowledge.name_prediction(by_room=True)``,
+:func:`spco.model.confidence.answer_names`'s ``rooms``) judges an observation's concept from two
+pieces of evidence,
+each worth the model's w draws: the room it is in — the region's training views pooled into one
+count vector (:func:`room_concepts`) — and its own view, both against the shared visual
+distributions φ^v (the concepts as the experienced homes taught them, not the home's own θ^v, which
+already holds the room's views), with the prior G_0 and the names taught in the region (each taught
+name token a draw from θ^w of the concept). The observation is in region k with
+p(k | x) ∝ n_k N(x | μ_k, Σ_k) (n_k the region's training samples), so
+
+    P(l | x, v) = Σ_k p(k | x) p(l | room k, v),
+    p(l | room k, v) ∝ G_0,l · exp(ω_k Σ_d V_{k,d} log φ^v_{l,d}) · exp(ω_v Σ_d v_d log φ^v_{l,d})
+                       · Π_{t ∈ k} Π_w θ^w_{e,l,w}^{u_{t,w}},
+
+ω_k = min(1, w / Σ_d V_{k,d}) with V_k the region's pooled counts, ω_v = min(1, w / Σ_d v_d): two
+pieces of evidence where the home's π and θ^v hold twenty-one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.special import logsumexp
+
+from spco.errors import ConfigurationError
+from spco.model.parameters import ConceptParameters
+from spco.model.prediction import _visual_log_likelihood
+
+__all__ = ["HomeRooms", "concepts_by_room", "model_rooms", "room_concepts"]
+
+
+def _log(a: np.ndarray) -> np.ndarray:
+    return np.log(np.maximum(np.asarray(a, dtype=np.float64), np.finfo(np.float64).tiny))
+
+
+@dataclass(frozen=True)
+class HomeRooms:
+    """What the room-level answer needs of a home's training samples.
+
+    Attributes
+    ----------
+    regions: (n,) int, the region of each training sample (the sampler's state).
+    visual: (n, D) the samples' view counts (a missing view: an empty row).
+    words: (n, V) the name tokens taught at each sample (untaught: an empty row).
+    """
+
+    regions: np.ndarray
+    visual: sp.csr_array
+    words: sp.csr_array
+
+    @classmethod
+    def of(cls, regions: object, visual: object, words: object) -> HomeRooms:
+        """Validated :class:`HomeRooms` (sparse copies of ``visual`` and ``words``)."""
+        regions = np.asarray(regions, dtype=np.int64).ravel()
+        visual = sp.csr_array(visual, dtype=np.float64)
+        words = sp.csr_array(words, dtype=np.float64)
+        if visual.shape[0] != regions.size or words.shape[0] != regions.size:
+            raise ConfigurationError(f"rooms: {regions.size} regions but {visual.shape[0]} views and "
+                                     f"{words.shape[0]} word rows")
+        if regions.size and regions.min() < 0:
+            raise ConfigurationError("rooms: a region index is negative")
+        return cls(regions, visual, words)
+
+
+def _room_log_posterior(params: ConceptParameters, rooms: HomeRooms, view_counts: float | None,
+                        e: int = 0) -> np.ndarray:
+    """(K, L) log G_0 + each region's pooled views at w against φ^v + its taught name tokens under θ^w
+    (unnormalised)."""
+    K = int(np.shape(params.region_means)[1])
+    if rooms.regions.size and rooms.regions.max() >= K:
+        raise ConfigurationError(f"rooms: region {int(rooms.regions.max())} but the model has {K}")
+    n = rooms.regions.size
+    onehot = sp.csr_array((np.ones(n), (rooms.regions, np.arange(n))), shape=(K, n))
+    log_post = np.broadcast_to(_log(params.global_concept_weights)[None, :], (K, params.n_concepts)).copy()
+    phi_v = np.asarray(params.shared_visual_probabilities, dtype=np.float64)
+    if phi_v.size and rooms.visual.shape[1] == phi_v.shape[1]:  # the room's views pooled: one view at w
+        log_post += _visual_log_likelihood(phi_v, sp.csr_array(onehot @ rooms.visual), view_counts)
+    names = np.asarray(params.word_mask, dtype=bool)
+    if rooms.words.nnz and names.any() and rooms.words.shape[1] == names.size:
+        theta = np.clip(np.asarray(params.word_probabilities[e], dtype=np.float64), 0.0, None)
+        theta = theta * names[None, :]
+        theta /= np.maximum(theta.sum(axis=1, keepdims=True), np.finfo(np.float64).tiny)
+        said = sp.csr_array(onehot @ (rooms.words @ sp.diags_array(names.astype(np.float64))))
+        log_post += np.asarray(said @ _log(theta).T)
+    return log_post
+
+
+def room_concepts(params: ConceptParameters, e: int, rooms: HomeRooms, view_counts: float | None
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Each region's concept, its views pooled as one piece of evidence (module docstring).
+
+    Parameters
+    ----------
+    params: the answer's parameters (their θ^w and ``word_mask``: the names the home answers).
+    e: the home; rooms: its training samples' regions, views and taught name tokens.
+    view_counts: the model's view weight w (``None``: every count a draw).
+
+    Returns
+    -------
+    counts: (K,) training samples per region; posterior: (K, L) p(l | room k), rows sum to 1 (a
+    region without samples: G_0).
+    """
+    log_post = _room_log_posterior(params, rooms, view_counts, e)
+    counts = np.bincount(rooms.regions, minlength=log_post.shape[0]).astype(np.float64)
+    return counts, np.exp(log_post - logsumexp(log_post, axis=1, keepdims=True))
+
+
+def concepts_by_room(params: ConceptParameters, e: int, positions: np.ndarray, visual: object,
+                     rooms: HomeRooms, view_counts: float | None) -> np.ndarray | None:
+    """(n, L) P(l | x, v) = Σ_k p(k | x) p(l | room k, v) at poses ``positions`` (n, 4) of home ``e``
+    with views ``visual`` (n, D; ``None`` or an empty row: no view), p(k | x) ∝ n_k N(x | μ_k, Σ_k)
+    over the regions with training samples and p(l | room k, v) ∝ G_0,l · (room k's pooled views at
+    w) · (the view at w), both against φ^v (module docstring); ``None`` if no region has a training
+    sample (the caller answers from the view and the pose against the home's parameters instead)."""
+    from spco.model.prediction import gaussian_log_density, validate_poses
+
+    counts, _ = room_concepts(params, e, rooms, view_counts)
+    if not (counts > 0).any():
+        return None
+    x = validate_poses(positions)
+    with np.errstate(over="ignore", invalid="ignore"):
+        log_n = gaussian_log_density(x, params.region_means[e], params.region_covariances[e])  # (n, K)
+    log_k = np.where(counts[None, :] > 0, log_n + _log(counts)[None, :], -np.inf)
+    total = logsumexp(log_k, axis=1, keepdims=True)
+    if not np.isfinite(total).all():
+        i = int(np.flatnonzero(~np.isfinite(total).ravel())[0])
+        raise ConfigurationError(f"observation {i} at {tuple(float(v) for v in x[i, :2])}: every region's "
+                                 f"density is 0 in floating point; is the position on the home's map, in "
+                                 f"metres?")
+    p_k = np.exp(log_k - total)  # (n, K)
+    room_log = _room_log_posterior(params, rooms, view_counts, e)  # (K, L), unnormalised
+    view_log = np.zeros((x.shape[0], params.n_concepts))
+    phi_v = np.asarray(params.shared_visual_probabilities, dtype=np.float64)
+    if visual is not None and phi_v.size:
+        view_log = _visual_log_likelihood(phi_v, visual, view_counts)
+        if view_log.shape[0] != x.shape[0]:
+            raise ConfigurationError(f"{x.shape[0]} positions but {view_log.shape[0]} visual feature rows")
+    out = np.zeros((x.shape[0], params.n_concepts))
+    for k in np.flatnonzero(counts > 0):  # a loop over the home's regions (tens)
+        joint = room_log[k][None, :] + view_log
+        out += p_k[:, [k]] * np.exp(joint - logsumexp(joint, axis=1, keepdims=True))
+    return out
+
+
+def model_rooms(model: object, e: int) -> HomeRooms:
+    """:class:`HomeRooms` of home ``e`` of a fitted joint model
+    (:class:`~spco.model.transfer.SpatialConceptModel`, the experiments' fit): its training samples'
+    regions, views and name tokens (with the word channels the tokens drawn as names), so that an
+    experiment scores the names the robot answers (:func:`spco.model.confidence.answer_names`)."""
+    from spco.model.word_channels import name_tokens
+
+    data = model.data_  # type: ignore[attr-defined]
+    state = model.state_  # type: ignore[attr-defined]
+    rows = slice(int(data.offsets[e]), int(data.offsets[e + 1]))
+    words = data.words
+    if getattr(state, "channels", None) is not None and getattr(state, "switches", None) is not None \
+            and words.nnz:
+        words = name_tokens(words, state.switches)
+    return HomeRooms.of(np.asarray(state.regions)[rows], data.visual[rows], words[rows])

@@ -1,0 +1,145 @@
+"""A room's evidence (spco.model.rooms): a region's views pooled count as one view, taught names count,
+and a room merged into another room's concept is not answered with certainty."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from scipy.special import logsumexp
+
+from spco.data.language import Vocabulary
+from spco.errors import ConfigurationError
+from spco.model.confidence import answer_names
+from spco.model.parameters import ConceptParameters
+from spco.model.rooms import HomeRooms, concepts_by_room, room_concepts
+
+NAMES = ("kitchen", "washroom", "dining")
+D = 16
+
+
+def _world(seed: int = 3) -> tuple[ConceptParameters, np.ndarray]:
+    """Three concepts (one per name) with distinct φ^v; a home of two regions 2 m apart whose
+    samples the sampler put *both* in concept 0 (π, θ^v_e and G_e say "kitchen" for both)."""
+    rng = np.random.default_rng(seed)
+    phi = 0.3 * rng.dirichlet(np.full(D, 5.0)) + 0.7 * rng.dirichlet(np.full(D, 0.8), size=3)
+    means = np.zeros((1, 2, 4))
+    means[0, 1, 0] = 2.0
+    means[0, :, 3] = 1.0
+    cov = np.tile(np.diag([0.3**2, 0.3**2, 0.1, 0.1]), (1, 2, 1, 1))
+    words = np.eye(3)[None]
+    home_theta = np.array([0.5 * phi[0] + 0.5 * phi[1], phi[1], phi[2]])  # concept 0 learnt from both rooms
+    params = ConceptParameters(
+        concept_weights=np.array([[0.98, 0.01, 0.01]]),
+        region_weights=np.array([[[0.5, 0.5], [0.5, 0.5], [0.5, 0.5]]]) * np.array([[[1.0], [1e-6], [1e-6]]]),
+        region_means=means, region_covariances=cov, word_probabilities=words,
+        visual_probabilities=home_theta[None], shared_word_probabilities=words[0],
+        shared_visual_probabilities=phi, global_concept_weights=np.full(3, 1.0 / 3),
+        word_mask=np.ones(3, dtype=bool), region_counts=np.array([[20, 20]]),
+        concept_counts=np.array([[40.0, 0.0, 0.0]]))
+    return params, phi
+
+
+def _room_views(phi: np.ndarray, mix: np.ndarray, n: int, scale: int, seed: int) -> sp.csr_array:
+    """``n`` views of one room: each the room's own proportions (a mixture of the concepts' φ^v) drawn
+    as 8 draws and copied ``scale`` times (an image's counts are not independent draws)."""
+    rng = np.random.default_rng(seed)
+    room = mix @ phi
+    return sp.csr_array(np.stack([rng.multinomial(8, room) * scale for _ in range(n)]).astype(np.int64))
+
+
+def test_a_rooms_views_pooled_count_as_one_view() -> None:
+    """p(l | room) is G_0 · exp(w Σ_d v̂_d log φ^v_l) of the room's pooled proportions: twenty views
+    of the room say as much as their sum seen once, not twenty times as much — and a room of one
+    view is that view at w."""
+    params, phi = _world()
+    views = _room_views(phi, np.array([0.45, 0.55, 0.0]), 20, 200, seed=1)
+    rooms = HomeRooms.of(np.ones(20, dtype=int), views, sp.csr_array((20, 3)))
+    counts, post = room_concepts(params, 0, rooms, view_counts=16.0)
+    assert counts.tolist() == [0.0, 20.0]
+    pooled = np.asarray(views.sum(axis=0), dtype=float).ravel()
+    expected = np.log(1 / 3) + 16.0 / pooled.sum() * (np.log(phi) @ pooled)
+    np.testing.assert_allclose(post[1], np.exp(expected - logsumexp(expected)), rtol=1e-10)
+    np.testing.assert_allclose(post[0], np.full(3, 1 / 3))  # a region without samples: G_0
+    # the same room seen in 20 copies of one view, or the view once: the same posterior
+    one = sp.csr_array(views[[0]])
+    many = sp.csr_array(sp.vstack([one] * 20))
+    once = room_concepts(params, 0, HomeRooms.of([1], one, sp.csr_array((1, 3))), 16.0)[1][1]
+    twenty = room_concepts(params, 0, HomeRooms.of(np.ones(20, int), many, sp.csr_array((20, 3))), 16.0)[1][1]
+    np.testing.assert_allclose(once, twenty, rtol=1e-10)
+    # the sampler's account (each view at w, twenty of them) is far surer than the room's
+    per_view = np.log(1 / 3) + sum(16.0 / views[[t]].sum() * (np.log(phi) @ views[[t]].toarray()[0])
+                                   for t in range(20))
+    assert np.exp(per_view - logsumexp(per_view)).max() > post[1].max()
+
+
+def test_a_merged_room_is_not_answered_with_certainty() -> None:
+    """The washroom (region 1), its views between the kitchen's and the washroom's φ^v, put whole into
+    the kitchen's concept: the home's own π and θ^v answer "kitchen" at p ≥ 0.99 there; the room's
+    evidence counted once, and the observation's view once, leave the answer between the two below
+    0.99, and the real kitchen (region 0) stays "kitchen"."""
+    params, phi = _world()
+    kitchen = _room_views(phi, np.array([1.0, 0.0, 0.0]), 20, 200, seed=2)
+    washroom = _room_views(phi, np.array([0.5, 0.5, 0.0]), 20, 200, seed=3)
+    visual = sp.csr_array(sp.vstack([kitchen, washroom]))
+    rooms = HomeRooms.of(np.repeat([0, 1], 20), visual, sp.csr_array((40, 3)))
+    poses = np.array([[0.0, 0.0, 0.0, 1.0], [2.0, 0.0, 0.0, 1.0]])
+    test_views = sp.csr_array(sp.vstack([kitchen[[0]], washroom[[0]]]))
+    vocabulary = Vocabulary(list(NAMES))
+    before = answer_names(params, 0, vocabulary, poses, test_views, view_counts=16.0, weighting="none")
+    assert before.best == ["kitchen", "kitchen"] and before.confidence[1] >= 0.99
+    after = answer_names(params, 0, vocabulary, poses, test_views, view_counts=16.0, weighting="none",
+                         rooms=rooms)
+    assert after.best[0] == "kitchen" and after.confidence[0] > 0.9
+    assert after.confidence[1] < 0.99
+    # at a pose well inside the washroom: G_0 · (the room pooled at w) · (the view at w), normalised
+    pooled = np.asarray(washroom.sum(axis=0), dtype=float).ravel()
+    view = test_views[[1]].toarray()[0].astype(float)
+    log_p = (np.log(1 / 3) + 16.0 / pooled.sum() * (np.log(phi) @ pooled)
+             + 16.0 / view.sum() * (np.log(phi) @ view))
+    np.testing.assert_allclose(after.word_probabilities[1], np.exp(log_p - logsumexp(log_p)), atol=1e-9)
+    np.testing.assert_allclose(concepts_by_room(params, 0, poses, test_views, rooms, 16.0).sum(axis=1), 1.0)
+
+
+def test_names_taught_in_a_room_decide_it() -> None:
+    """Three samples of the washroom taught "dining" (a home's own name for it): the room is the
+    concept named so, at p ≈ 1, whatever its views look like."""
+    params, phi = _world()
+    visual = sp.csr_array(sp.vstack([_room_views(phi, np.array([1.0, 0.0, 0.0]), 20, 200, seed=4),
+                                     _room_views(phi, np.array([0.5, 0.5, 0.0]), 20, 200, seed=5)]))
+    words = sp.lil_array((40, 3))
+    for t in (20, 25, 30):
+        words[t, 2] = 1
+    rooms = HomeRooms.of(np.repeat([0, 1], 20), visual, sp.csr_array(words))
+    after = answer_names(params, 0, Vocabulary(list(NAMES)), np.array([[2.0, 0.0, 0.0, 1.0]]), None,
+                         view_counts=16.0, weighting="none", rooms=rooms)
+    assert after.best == ["dining"] and after.confidence[0] > 0.99
+
+
+def test_without_samples_the_view_answers() -> None:
+    """No region with a training sample: the answer is the observation's own (its view and pose
+    against the home's parameters), as without rooms."""
+    params, phi = _world()
+    view = _room_views(phi, np.array([0.0, 1.0, 0.0]), 1, 50, seed=6)
+    empty = HomeRooms.of(np.zeros(0, dtype=int), sp.csr_array((0, D)), sp.csr_array((0, 3)))
+    pose = np.array([[2.0, 0.0, 0.0, 1.0]])
+    vocabulary = Vocabulary(list(NAMES))
+    plain = answer_names(params, 0, vocabulary, pose, view, view_counts=16.0, weighting="none")
+    got = answer_names(params, 0, vocabulary, pose, view, view_counts=16.0, weighting="none", rooms=empty)
+    np.testing.assert_allclose(got.word_probabilities, plain.word_probabilities)
+    assert concepts_by_room(params, 0, pose, view, empty, 16.0) is None
+
+
+def test_bad_rooms_are_refused() -> None:
+    params, _ = _world()
+    with pytest.raises(ConfigurationError, match="regions"):
+        HomeRooms.of([0, 1], sp.csr_array((3, D)), sp.csr_array((2, 3)))
+    with pytest.raises(ConfigurationError, match="negative"):
+        HomeRooms.of([-1], sp.csr_array((1, D)), sp.csr_array((1, 3)))
+    with pytest.raises(ConfigurationError, match="region 5"):
+        room_concepts(params, 0, HomeRooms.of([5], sp.csr_array((1, D)), sp.csr_array((1, 3))), 16.0)
+    with pytest.raises(ConfigurationError, match="view_counts"):
+        room_concepts(params, 0, HomeRooms.of([0], sp.csr_array(np.ones((1, D))), sp.csr_array((1, 3))), -1.0)
+    with pytest.raises(ConfigurationError, match="map"):
+        concepts_by_room(params, 0, np.array([[1e300, 1e300, 0.0, 1.0]]), None,
+                         HomeRooms.of([0], sp.csr_array(np.ones((1, D))), sp.csr_array((1, 3))), 16.0)
