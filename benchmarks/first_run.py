@@ -125,8 +125,10 @@ def _strip(result: dict[str, Any]) -> dict[str, Any]:
 
 
 def sweep_runs(trees: dict[str, Path], homes: list[int], features: int, warmup: int, sweeps: int,
-               seed: int) -> list[dict[str, Any]]:
-    """Sweep time per home of every tree for each number of experienced homes."""
+               seed: int, corpora: Path | None = None) -> list[dict[str, Any]]:
+    """Sweep time per home of every tree for each number of experienced homes. With ``corpora`` (a
+    folder) the generated corpora are kept there and read back when present (the 4,096-home corpus
+    takes minutes to generate)."""
     sys.path.insert(0, str(next(iter(trees.values()))))
     from spco import benchmark
 
@@ -134,13 +136,21 @@ def sweep_runs(trees: dict[str, Path], homes: list[int], features: int, warmup: 
     with tempfile.TemporaryDirectory(prefix="spco-sweeps-") as tmp:
         for n in homes:
             start = time.perf_counter()
-            corpus = benchmark.synthetic_corpus(n, 1, n_features=features, seed=seed)
-            path = Path(tmp) / f"corpus-{n}.pickle"
-            with open(path, "wb") as fh:
-                pickle.dump(corpus, fh, protocol=pickle.HIGHEST_PROTOCOL)
-            n_fit = len(corpus)
-            del corpus
-            log(f"{n} + 1 homes (D = {features}): generated in {time.perf_counter() - start:.0f} s")
+            folder = corpora if corpora is not None else Path(tmp)
+            folder.mkdir(parents=True, exist_ok=True)
+            path = folder / f"corpus-{n}-d{features}-seed{seed}.pickle"
+            if path.is_file():
+                n_fit = n + 1
+                log(f"{n} + 1 homes (D = {features}): read from {path}")
+            else:
+                corpus = benchmark.synthetic_corpus(n, 1, n_features=features, seed=seed)
+                partial = path.with_suffix(".partial")
+                with open(partial, "wb") as fh:
+                    pickle.dump(corpus, fh, protocol=pickle.HIGHEST_PROTOCOL)
+                partial.replace(path)
+                n_fit = len(corpus)
+                del corpus
+                log(f"{n} + 1 homes (D = {features}): generated in {time.perf_counter() - start:.0f} s")
             for name, src in trees.items():
                 command = [sys.executable, "-c", _SWEEP_CHILD, str(path), str(warmup), str(sweeps), str(seed)]
                 cache = Path(tmp) / f"cache-{name}"  # compiled by the first size's warm-up sweeps
@@ -216,6 +226,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--skip-demo", action="store_true")
     parser.add_argument("--skip-sweeps", action="store_true")
+    parser.add_argument("--corpora", type=Path, default=None, metavar="DIR",
+                        help="keep the sweep corpora in DIR and reuse them when present")
     parser.add_argument("--json", action="store_true", help="print JSON instead of the tables")
     args = parser.parse_args(argv)
     trees: dict[str, Path] = {}
@@ -227,7 +239,7 @@ def main(argv: list[str] | None = None) -> int:
         trees[name] = path
     demo = [] if args.skip_demo else demo_runs(trees, args.repeats)
     sweeps = [] if args.skip_sweeps else sweep_runs(trees, args.homes, args.features, args.warmup,
-                                                    args.sweeps, args.seed)
+                                                    args.sweeps, args.seed, args.corpora)
     if args.json:
         print(json.dumps({"demo": demo, "sweeps": sweeps, "cores": os.cpu_count(),
                           "trees": {k: str(v) for k, v in trees.items()}}, indent=1))

@@ -34,3 +34,34 @@ def test_per_home_visual_rows_and_release_give_the_same_average() -> None:
                  "region_means", "region_covariances"):
         assert np.array_equal(getattr(expected, name), getattr(got, name)), name
         assert np.array_equal(getattr(expected, name), getattr(again, name)), name
+
+
+def test_a_fit_averages_each_thinned_sweep_once_the_last_after_its_workers_are_dropped(monkeypatch) -> None:
+    """The fit's peak memory: the last sweep's joined state enters the average (whose (E, L, D) sums
+    it may allocate) only after the workers (their states, data views and caches) are dropped; the
+    earlier averaged sweeps are read per home, without a joined θ^v."""
+    from spco.model import driver, transfer
+    from spco.model.posterior import thinned_sweeps
+
+    events: list[tuple[str, object]] = []
+    add, close = ParameterAverage.add, driver.LocalRun.close
+
+    def recording_add(self, state, visual=None):
+        events.append(("add", state.log_theta_v is None))
+        return add(self, state, visual)
+
+    def recording_close(self):
+        events.append(("close", None))
+        return close(self)
+
+    monkeypatch.setattr(ParameterAverage, "add", recording_add)
+    monkeypatch.setattr(driver.LocalRun, "close", recording_close)
+    corpus = generate_homes(3, seed=2, config=SyntheticConfig(n_features=32, n_train=12, n_test=3),
+                            new_homes=1, specific_rooms=False)
+    n = 12
+    model = transfer.SpCoTransfer(n_iterations=n, random_state=2, progress=False).fit(corpus)
+    averaged = thinned_sweeps(n)
+    assert len(averaged) == 3
+    # every averaged sweep but the last per home (no joined θ^v), then the workers dropped, then the last
+    assert events == [("add", True)] * (len(averaged) - 1) + [("close", None), ("add", False)]
+    assert np.isfinite(model.log_joint_).all() and model.log_joint_.shape == (n,)

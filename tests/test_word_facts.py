@@ -121,3 +121,33 @@ def test_stand_ins_from_the_cache_files_equal_the_lexicon_s_and_need_no_wordnet_
     monkeypatch.setenv("SPCO_WORDNET", "off")
     monkeypatch.setattr(unheard, "_STAND_IN_CACHE", {})
     assert unheard.stand_in_names(vocab, mask, prior, asked) == {}
+
+
+_FILL = """
+import json, os, sys, time
+go = sys.argv[1]
+while not os.path.exists(go):
+    time.sleep(0.01)
+from spco.data import lexicon
+facts = lexicon.word_facts(json.loads(sys.argv[2]))
+print(json.dumps({"loaded": lexicon._load.cache_info().currsize == 1,
+                  "facts": {w: [f.known, f.noun_share, f.place_share] for w, f in facts.items()}}))
+"""
+
+
+def test_two_processes_missing_the_same_words_load_wordnet_once(wordnet, tmp_path) -> None:
+    """spco demo's two processes on a first run: one loads WordNet and fills the file, the other
+    waits for it and reads the same facts (the file's lock), whichever starts first."""
+    import os
+    import subprocess
+    import sys
+
+    go = tmp_path / "go"
+    env = {**os.environ, "SPCO_CACHE_DIR": str(tmp_path / "cache")}
+    procs = [subprocess.Popen([sys.executable, "-c", _FILL, str(go), json.dumps(WORDS)], env=env,
+                              stdout=subprocess.PIPE, text=True) for _ in range(2)]
+    go.touch()
+    results = [json.loads(p.communicate(timeout=300)[0].strip().splitlines()[-1]) for p in procs]
+    assert sorted(r["loaded"] for r in results) == [False, True]
+    assert results[0]["facts"] == results[1]["facts"]
+    assert set(results[0]["facts"]) == set(WORDS)

@@ -26,6 +26,7 @@ hierarchy that places fall under, not names of rooms; no room name is listed any
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import importlib.util
@@ -36,7 +37,7 @@ import os
 import shutil
 import threading
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, TypeVar
@@ -640,12 +641,42 @@ def _cached_facts(words: Sequence[str], what: str, fmt: int, memory: dict[str, d
             facts = memory[key] = _read_cache(path, fmt, decode)
         missing = [w for w in dict.fromkeys(words) if w not in facts]
         if missing:
-            lex = _load(str(folder))
-            for word in missing:
-                facts[word] = compute(lex, word)
-            on_file = _read_cache(path, fmt, decode)  # (another process may have added some)
-            _write_cache(path, fmt, {w: encode(f) for w, f in {**on_file, **facts}.items()})
+            # one process at a time fills the file: processes missing the same words at once (spco
+            # demo's two on a first run) load WordNet (seconds of CPU) once, the others read its answers
+            with _file_lock(path):
+                on_file = _read_cache(path, fmt, decode)
+                facts.update({w: f for w, f in on_file.items() if w not in facts})
+                missing = [w for w in missing if w not in facts]
+                if missing:
+                    lex = _load(str(folder))
+                    for word in missing:
+                        facts[word] = compute(lex, word)
+                    _write_cache(path, fmt, {w: encode(f) for w, f in {**on_file, **facts}.items()})
         return {w: facts[w] for w in words}
+
+
+@contextlib.contextmanager
+def _file_lock(path: Path) -> Iterator[None]:
+    """Hold an exclusive lock between processes on a lock file beside ``path`` (POSIX ``flock``);
+    without ``fcntl`` or where the lock file cannot be made (a read-only cache), no lock: each
+    process then computes what it misses, the same answers."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - Windows
+        yield
+        return
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        handle = open(path.with_name(f".{path.name}.lock"), "a")
+    except OSError:
+        yield
+        return
+    with handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
 
 
 def _nan_or(x: float | None) -> float:

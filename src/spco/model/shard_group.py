@@ -14,6 +14,7 @@ workers the homes are split into nor where they run.
 from __future__ import annotations
 
 import time
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,10 +33,12 @@ from spco.model.synonyms import NameOverlaps
 __all__ = ["ShardGroup"]
 
 
-def _sum(parts: list):
-    """Parts added up in order (exact for the statistics shards send)."""
-    total = parts[0]
-    for part in parts[1:]:
+def _sum(parts: Iterable):
+    """Parts added up in order (exact for the statistics shards send); from an iterator, each part
+    is added as it comes and then dropped (no list of every home's part at once)."""
+    parts = iter(parts)
+    total = next(parts)
+    for part in parts:
         total = total + part
     return total
 
@@ -112,6 +115,10 @@ class ShardGroup:
     def _each(self, method: str, *args) -> list:
         return [getattr(h, method)(*args) for h in self.homes]
 
+    def _each_lazily(self, method: str, *args) -> Iterator:
+        """:meth:`_each` one home at a time (for :func:`_sum`)."""
+        return (getattr(h, method)(*args) for h in self.homes)
+
     # ------------------------------------------------------------------ a sweep
     def local_step(self, word_mask: np.ndarray | None = None,
                    name_words: np.ndarray | None = None, channels=None) -> list[float]:
@@ -120,7 +127,7 @@ class ShardGroup:
 
     def channel_counts(self):
         """The switches' counts of the homes, summed (integers)."""
-        return _sum(self._each("channel_counts"))
+        return _sum(self._each_lazily("channel_counts"))
 
     def expected_channel_tokens(self) -> np.ndarray:
         """The homes' expected tokens per word and channel, summed (V, 3)."""
@@ -131,7 +138,7 @@ class ShardGroup:
         (:meth:`HomeShard.tables`), the visual and word tables drawn in one call, each home from a
         seed of its own stream (:func:`~spco.model.kernels.crt.sample_crt_totals_each`)."""
         if kind not in ("visual", "words") or len(self.homes) == 1:
-            return _sum(self._each("tables", kind))
+            return _sum(self._each_lazily("tables", kind))
         first = self.homes[0]
         counts = np.concatenate([getattr(h._stats(), kind) for h in self.homes])
         log_phi, delta = ((first.state.log_phi_v, first.hyper.delta_visual) if kind == "visual"
@@ -141,7 +148,7 @@ class ShardGroup:
 
     def pooled_counts(self) -> PooledCounts:
         """The homes' pooled counts, summed (integers)."""
-        return _sum(self._each("pooled_counts"))
+        return _sum(self._each_lazily("pooled_counts"))
 
     def home_step(self, shared: SharedParameters | None, swaps: bool = False,
                   prune: bool = False) -> HomeStepResult:
@@ -157,7 +164,7 @@ class ShardGroup:
         """The naming rule's statistics of the homes, counted at once: the sum of the homes' own
         (:meth:`HomeShard.colocation`), bit for bit (every home's part on the grid)."""
         if self.words is None:
-            return _sum(self._each("colocation"))
+            return _sum(self._each_lazily("colocation"))
         regions = np.concatenate([h.state.regions for h in self.homes])
         return colocation(self.words, self.home_of_sample, regions, len(self.homes),
                           self.homes[0].hyper.n_regions, grid=shards_api.SUM_GRID)
@@ -172,7 +179,7 @@ class ShardGroup:
 
     def concept_visual_totals(self) -> np.ndarray:
         """Visual counts by concept of the homes, summed, (L,)."""
-        return _sum(self._each("concept_visual_totals"))
+        return _sum(self._each_lazily("concept_visual_totals"))
 
     def held_out_view_fits(self, log_phi_v: np.ndarray, log_g0: np.ndarray,
                            totals: np.ndarray) -> list[float | None]:
@@ -202,7 +209,7 @@ class ShardGroup:
 
     def init_names(self, naming: Colocation) -> NameOverlaps:
         """The homes' names; their region overlaps summed (exact on the grid)."""
-        return _sum(self._each("init_names", naming))
+        return _sum(self._each_lazily("init_names", naming))
 
     def init_places(self, overlaps: NameOverlaps) -> None:
         """Every home starts from the places its names mark."""
@@ -253,7 +260,7 @@ class ShardGroup:
 
     def init_weighted_counts(self, scale: bool) -> PooledCounts:
         """The homes' weighted counts, summed (integers)."""
-        return _sum(self._each("init_weighted_counts", scale))
+        return _sum(self._each_lazily("init_weighted_counts", scale))
 
     def init_reference_weights(self, log_g0: np.ndarray) -> None:
         """Every home draws its G_e given the driver's G_0 (reference variant)."""

@@ -208,6 +208,8 @@ class ShardInitialisation:
             reduced = np.flatnonzero(self._weights < 1.0)
             for name in ("visual", "words", "concepts", "regions_by_concept"):
                 counts = getattr(stats, name)
+                if reduced.size == 0 and counts.dtype == np.int64:
+                    continue  # every home of weight 1: the counts as they are, no copy
                 scaled = np.array(counts, dtype=np.int64)
                 weights = self._weights[reduced].reshape((-1,) + (1,) * (counts.ndim - 1))
                 scaled[reduced] = np.rint(counts[reduced] * weights).astype(np.int64)

@@ -243,13 +243,16 @@ class SpatialConceptModel:
         # each sweep reports the log joint of the state it started from: the previous sweep's
         log_joints = run.fit(int(self.n_iterations), after_sweep)
         trace = list(log_joints[1:]) if self.record_log_joint else []
-        state = average.last_state if average.last_state is not None else run.state()
+        # the final state joined, then the workers (their states, data views and caches) dropped
+        # before the state's log joint and its place in the average allocate: a lower peak
+        state = run.state()
         run.close()
         if bar is not None:
             bar.close()
         if self.record_log_joint:
             trace.append(gibbs.log_joint(data, state, hyper, settings))
             data.__dict__.pop("visual_by_dimension", None)  # (a cache the last log joint built: not kept)
+        average.add_final(state)
         self.fit_seconds_ = time.perf_counter() - start
         self.hyperparameters_, self.settings_, self.view_weight_ = hyper, settings, run.view_weight
         self.vocabulary_: Vocabulary = corpus.vocabulary
@@ -444,30 +447,33 @@ def with_hyperparameters(model: SpatialConceptModel, **changes: Any) -> SpatialC
 class _SweepAverage:
     """The thinned sweeps of a fit averaged (:class:`~spco.model.posterior.ParameterAverage`,
     :func:`~spco.model.posterior.thinned_sweeps`) as the sweeps run, without a joined copy of
-    every home's θ^v but for the last sweep's state, which the fit keeps (``last_state``)."""
+    every home's θ^v; the last sweep's state, which the fit joins and keeps, is added after the
+    sweeps (:meth:`add_final`), once the workers are dropped."""
 
     def __init__(self, n_iterations: int, data: gibbs.PreparedData) -> None:
         self.n_iterations = n_iterations
         self.averaged = set(thinned_sweeps(n_iterations))
         self.average = ParameterAverage(data.homes, data.position_scale)
         self.added: set[int] = set()
-        self.last_state = None
         #: the averaged sweeps' expected switch counts per word and channel (V, 3), with the word channels
         self.channel_tokens: list[np.ndarray] = []
 
     def after_sweep(self, run, iteration: int) -> None:
-        """Add sweep ``iteration``'s state if it is averaged. A restarted engine repeats the sweeps
-        since its checkpoint (the same chain): each averaged sweep is added once."""
+        """Add sweep ``iteration``'s state if it is averaged (not the last sweep's: see
+        :meth:`add_final`). A restarted engine repeats the sweeps since its checkpoint (the same
+        chain): each averaged sweep is added once."""
         if iteration not in self.averaged or iteration in self.added:
             return
-        if iteration == self.n_iterations - 1:  # the fit's final state: joined once, for both
-            self.last_state = run.state()
-            self.average.add(self.last_state)
-        else:
+        if iteration != self.n_iterations - 1:  # (the last sweep's state: add_final, without the workers)
             self.average.add(run.state(visual=False), visual=run.home_visual())
         if run.shared.channels is not None:
             self.channel_tokens.append(_sum_parts(run.call("expected_channel_tokens")))
         self.added.add(iteration)
+
+    def add_final(self, state: gibbs.GibbsState) -> None:
+        """Add the last sweep's state (joined: ``run.state()`` after the sweeps, the workers dropped);
+        it is always averaged (its switch counts were taken by :meth:`after_sweep`)."""
+        self.average.add(state)
 
     def expected_tokens(self) -> np.ndarray | None:
         """(V, 3) the switches' expected counts per word and channel averaged over the averaged
