@@ -35,13 +35,9 @@ from scipy.special import logsumexp
 
 from spco.errors import ConfigurationError
 from spco.model.parameters import ConceptParameters
-from spco.model.prediction import _visual_log_likelihood
+from spco.model.prediction import _safe_log, _visual_log_likelihood
 
 __all__ = ["HomeRooms", "concepts_by_room", "model_rooms", "room_concepts"]
-
-
-def _log(a: np.ndarray) -> np.ndarray:
-    return np.log(np.maximum(np.asarray(a, dtype=np.float64), np.finfo(np.float64).tiny))
 
 
 @dataclass(frozen=True)
@@ -82,7 +78,8 @@ def _room_log_posterior(params: ConceptParameters, rooms: HomeRooms, view_counts
         raise ConfigurationError(f"rooms: region {int(rooms.regions.max())} but the model has {K}")
     n = rooms.regions.size
     onehot = sp.csr_array((np.ones(n), (rooms.regions, np.arange(n))), shape=(K, n))
-    log_post = np.broadcast_to(_log(params.global_concept_weights)[None, :], (K, params.n_concepts)).copy()
+    log_post = np.broadcast_to(_safe_log(params.global_concept_weights)[None, :],
+                               (K, params.n_concepts)).copy()
     phi_v = np.asarray(params.shared_visual_probabilities, dtype=np.float64)
     if phi_v.size and rooms.visual.shape[1] == phi_v.shape[1]:  # the room's views pooled: one view at w
         log_post += _visual_log_likelihood(phi_v, sp.csr_array(onehot @ rooms.visual), view_counts)
@@ -92,7 +89,7 @@ def _room_log_posterior(params: ConceptParameters, rooms: HomeRooms, view_counts
         theta = theta * names[None, :]
         theta /= np.maximum(theta.sum(axis=1, keepdims=True), np.finfo(np.float64).tiny)
         said = sp.csr_array(onehot @ (rooms.words @ sp.diags_array(names.astype(np.float64))))
-        log_post += np.asarray(said @ _log(theta).T)
+        log_post += np.asarray(said @ _safe_log(theta).T)
     return log_post
 
 
@@ -125,13 +122,14 @@ def concepts_by_room(params: ConceptParameters, e: int, positions: np.ndarray, v
     sample (the caller answers from the view and the pose against the home's parameters instead)."""
     from spco.model.prediction import gaussian_log_density, validate_poses
 
-    counts, _ = room_concepts(params, e, rooms, view_counts)
+    room_log = _room_log_posterior(params, rooms, view_counts, e)  # (K, L), unnormalised
+    counts = np.bincount(rooms.regions, minlength=room_log.shape[0]).astype(np.float64)
     if not (counts > 0).any():
         return None
     x = validate_poses(positions)
     with np.errstate(over="ignore", invalid="ignore"):
         log_n = gaussian_log_density(x, params.region_means[e], params.region_covariances[e])  # (n, K)
-    log_k = np.where(counts[None, :] > 0, log_n + _log(counts)[None, :], -np.inf)
+    log_k = np.where(counts[None, :] > 0, log_n + _safe_log(counts)[None, :], -np.inf)
     total = logsumexp(log_k, axis=1, keepdims=True)
     if not np.isfinite(total).all():
         i = int(np.flatnonzero(~np.isfinite(total).ravel())[0])
@@ -139,7 +137,6 @@ def concepts_by_room(params: ConceptParameters, e: int, positions: np.ndarray, v
                                  f"density is 0 in floating point; is the position on the home's map, in "
                                  f"metres?")
     p_k = np.exp(log_k - total)  # (n, K)
-    room_log = _room_log_posterior(params, rooms, view_counts, e)  # (K, L), unnormalised
     view_log = np.zeros((x.shape[0], params.n_concepts))
     phi_v = np.asarray(params.shared_visual_probabilities, dtype=np.float64)
     if visual is not None and phi_v.size:
