@@ -131,7 +131,7 @@ class ShardGroup:
 
     def expected_channel_tokens(self) -> np.ndarray:
         """The homes' expected tokens per word and channel, summed (V, 3)."""
-        return _sum(self._each("expected_channel_tokens"))
+        return _sum(self._each_lazily("expected_channel_tokens"))
 
     def tables(self, kind: str) -> np.ndarray:
         """CRT table counts of the homes, summed (integers): the sum of the homes' own

@@ -30,7 +30,9 @@ Example
 from __future__ import annotations
 
 import copy
+import functools
 import inspect
+import operator
 import time
 from dataclasses import replace
 from typing import Any
@@ -467,7 +469,7 @@ class _SweepAverage:
         if iteration != self.n_iterations - 1:  # (the last sweep's state: add_final, without the workers)
             self.average.add(run.state(visual=False), visual=run.home_visual())
         if run.shared.channels is not None:
-            self.channel_tokens.append(_sum_parts(run.call("expected_channel_tokens")))
+            self.channel_tokens.append(functools.reduce(operator.add, run.call("expected_channel_tokens")))
         self.added.add(iteration)
 
     def add_final(self, state: gibbs.GibbsState) -> None:
@@ -479,11 +481,3 @@ class _SweepAverage:
         """(V, 3) the switches' expected counts per word and channel averaged over the averaged
         sweeps (Rao-Blackwellised), ``None`` without the word channels."""
         return np.mean(self.channel_tokens, axis=0) if self.channel_tokens else None
-
-
-def _sum_parts(parts: list[np.ndarray]) -> np.ndarray:
-    """The shards' arrays added up in shard order."""
-    total = np.asarray(parts[0], dtype=np.float64)
-    for part in parts[1:]:
-        total = total + part
-    return total
