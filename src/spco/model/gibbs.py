@@ -34,6 +34,7 @@ from scipy.cluster.vq import kmeans2
 
 from spco.model import allocation
 from spco.model.alignment import HomeCounts, align_in_order
+from spco.model.blocks import region_block_step
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.kernels.dirichlet import dirichlet_log_density, log_dirichlet
 from spco.model.moves import concept_swap_step
@@ -434,15 +435,24 @@ def kept_word_log_theta(log_theta_w: np.ndarray, mask: np.ndarray) -> np.ndarray
 
 
 def _local_step(data: PreparedData, state: GibbsState, settings: SamplerSettings,
-                rng: np.random.Generator) -> float:
+                rng: np.random.Generator, hyper: TransferHyperparameters | None = None) -> float:
     """Draw the assignments; returns log p(data, C, R | parameters) of the state it started from
-    (computed from the likelihoods the draw needs anyway)."""
+    (computed from the likelihoods the draw needs anyway).
+
+    With ``settings.block_moves`` (exact sampler) and ``hyper`` given, the one-sample draws are
+    followed by a pass of region block moves (:mod:`spco.model.blocks`: a region's samples of one
+    concept change concept together, G_e and π integrated out), before the word switches are drawn;
+    the caller's next home step redraws G_e and π given the result, as the move requires."""
     concept_ll = _concept_loglik(data, state, settings.view_counts)
     region_ll = GaussianRegions.log_likelihood(data.positions, data.homes, state.means, state.covariances)
     before = _conditional_log_joint(data, state, concept_ll, region_ll)
     if settings.joint_assignment:
         state.concepts, state.regions = allocation.sample_assignments_joint(
             state.log_g, state.log_pi, data.homes, concept_ll, region_ll, rng)
+        if settings.block_moves and hyper is not None and settings.variant == "exact":
+            state.concepts = region_block_step(
+                data.homes, state.concepts, state.regions, concept_ll, block_concept_prior(state, hyper, settings),
+                hyper.beta, data.n_homes, state.log_pi.shape[2], rng)
     else:  # the authors' two blocks: R | C, then C | R
         state.regions = allocation.sample_regions_given_concepts(state.log_pi, data.homes, state.concepts,
                                                                  region_ll, rng)
@@ -452,6 +462,16 @@ def _local_step(data: PreparedData, state: GibbsState, settings: SamplerSettings
         state.switches = sample_switches(data.words, data.homes, state.concepts, state.log_theta_w,
                                          state.channels, rng)
     return before
+
+
+def block_concept_prior(state: GibbsState, hyper: TransferHyperparameters,
+                        settings: SamplerSettings) -> np.ndarray:
+    """The Dirichlet concentration of G_e that the block moves integrate over: γ G_0 (transfer
+    model), γ/L (SpCoA)."""
+    n_concepts = state.log_g.shape[1]
+    if settings.hierarchical:
+        return hyper.gamma * np.exp(state.log_g0)
+    return np.full(n_concepts, hyper.gamma / n_concepts)
 
 
 def _conditional_log_joint(data: PreparedData, state: GibbsState, concept_ll: np.ndarray,
@@ -668,7 +688,7 @@ def sweep(data: PreparedData, state: GibbsState, hyper: TransferHyperparameters,
     Returns log p(data, C, R | parameters) of the state the sweep started from (the previous
     sweep's result), which costs nothing extra: the assignment step needs those likelihoods."""
     with _Timed(timer, "assignments"):
-        previous_log_joint = _local_step(data, state, settings, rng)
+        previous_log_joint = _local_step(data, state, settings, rng, hyper)
     with _Timed(timer, "statistics"):
         stats = _statistics(data, state, hyper)
     if settings.variant == "reference":

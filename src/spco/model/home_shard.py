@@ -297,7 +297,7 @@ def sweep_home(data: PreparedData, state: GibbsState, hyper: TransferHyperparame
         gibbs.sweep(data, state, hyper, settings, rng, swaps=False)
         learn_free_concepts(data, state, hyper, settings, rng)
         return
-    gibbs.local_step(data, state, settings, rng)
+    gibbs.local_step(data, state, settings, rng, hyper)
     stats = gibbs.sufficient_statistics(data, state, hyper)
     if settings.variant == "reference":  # the authors' order: home, then shared from pooled counts
         gibbs.home_step_reference(data, state, stats, hyper, settings, rng)
@@ -506,7 +506,8 @@ class NewHomeShard:
         self.data, self.state, self.shared = data, state, shared
         self.n_known, self.rng, self.prior = n_known, rng, prior
         self.settings = SamplerSettings.create(shared.variant, shared.prune_words, learn_shared=False,
-                                               view_counts=shared.hyperparameters.view_counts)
+                                               view_counts=shared.hyperparameters.view_counts,
+                                               block_moves=shared.hyperparameters.block_moves != "off")
         self.average = ParameterAverage(data.homes, data.position_scale)
 
     @classmethod
@@ -515,7 +516,8 @@ class NewHomeShard:
         """A new home's shard from its first state (:func:`initial_state`); with ``prior`` the
         words the knowledge kept are the only candidates among its words."""
         settings = SamplerSettings.create(shared.variant, shared.prune_words, learn_shared=False,
-                                          view_counts=shared.hyperparameters.view_counts)
+                                          view_counts=shared.hyperparameters.view_counts,
+                                          block_moves=shared.hyperparameters.block_moves != "off")
         state = initial_state(data, shared, settings, n_known, rng)
         if prior is not None:
             state.candidate_words = shared.word_mask.copy()

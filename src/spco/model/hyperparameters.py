@@ -25,6 +25,10 @@ DEFAULT_PRUNING_THRESHOLDS = {"kl": 0.1, "mi": 0.01}
 #: by the name prior of sentence positions and WordNet (:mod:`spco.model.name_evidence`).
 NAME_PRIORS = ("off", "wordnet")
 NamePrior = Literal["off", "wordnet"]
+#: Where the region block moves run (:mod:`spco.model.blocks`): not at all, in a home's own sampler
+#: (``adapt`` and ``teach``), or there and in the joint fit too.
+BLOCK_MOVES = ("off", "adapt", "all")
+BlockMoves = Literal["off", "adapt", "all"]
 
 #: The word models of the exact sampler with "+MI": word channels (name / place / background switch per
 #: token, :mod:`spco.model.word_channels`) or the naming rule (words pruned by where they are said,
@@ -115,6 +119,11 @@ class TransferHyperparameters:
         ``"naming-rule"`` — the earlier rule that prunes words by where they are said
         (:mod:`spco.model.pruning`). A dictionary without it (a file from before it) reads as
         ``"naming-rule"``, the model it was learnt with.
+    block_moves: where the exact sampler moves a region's samples of one concept to another concept
+        together after each sweep's one-sample draws (:mod:`spco.model.blocks`, G_e and π integrated
+        out; an exact Gibbs step): ``"adapt"`` (default) in a new home's sampler (``adapt``,
+        ``teach``), ``"all"`` in the joint fit too, ``"off"`` nowhere. Written by :meth:`to_dict`
+        only when not ``"adapt"`` (files and experiment identities from before it are unchanged).
     evidence_weight: η, the weight of the linguistic evidence in the switch's prior (word channels):
         p(z = name | word) ∝ λ_name ν^η, p(z = place or background) ∝ λ_c (1 − ν)^η, ν the name
         evidence of :mod:`spco.model.name_evidence`. Default :data:`EVIDENCE_WEIGHT`, chosen on
@@ -140,6 +149,7 @@ class TransferHyperparameters:
     name_prior: NamePrior = "off"
     word_model: WordModel = "channels"
     evidence_weight: float = EVIDENCE_WEIGHT
+    block_moves: BlockMoves = "adapt"
 
     def __post_init__(self) -> None:
         for name in ("n_concepts", "n_regions"):
@@ -170,6 +180,9 @@ class TransferHyperparameters:
         if self.word_model not in WORD_MODELS:
             raise ConfigurationError(f"word_model must be one of {', '.join(map(repr, WORD_MODELS))}, "
                                      f"got {self.word_model!r}")
+        if self.block_moves not in BLOCK_MOVES:
+            raise ConfigurationError(f"block_moves must be one of {', '.join(map(repr, BLOCK_MOVES))}, "
+                                     f"got {self.block_moves!r}")
         if self.name_prior not in NAME_PRIORS:
             raise ConfigurationError(f"name_prior must be one of {', '.join(map(repr, NAME_PRIORS))}, "
                                      f"got {self.name_prior!r}")
@@ -214,10 +227,13 @@ class TransferHyperparameters:
         return psi
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dictionary (``name_prior`` only when not ``"off"``)."""
+        """JSON-ready dictionary (``name_prior`` only when not ``"off"``, ``block_moves`` only when
+        not ``"adapt"``)."""
         data = asdict(self)
         if data["name_prior"] == "off":
             del data["name_prior"]
+        if data["block_moves"] == "adapt":
+            del data["block_moves"]
         return data
 
     @classmethod
@@ -250,7 +266,7 @@ class TransferHyperparameters:
             if kind is None:
                 raise ConfigurationError(f"hyperparameter setting {setting!r}: no hyperparameter {name!r}; "
                                          f"settable: {', '.join(SETTABLE)}")
-            if kind == "one of channels, naming-rule":
+            if kind in ("one of channels, naming-rule", "one of off, adapt, all"):
                 changes[name] = text
                 continue
             if name == "view_counts" and text.lower() == ESTIMATE:
@@ -279,7 +295,7 @@ SETTABLE: dict[str, str] = {
     "delta_visual": "a number", "delta_word": "a number", "gamma0": "a number", "gamma": "a number",
     "beta": "a number", "kappa0": "a number", "nu0": "a number", "mi_threshold": "number or none",
     "view_counts": "number, none or estimate", "evidence_weight": "a number",
-    "word_model": "one of channels, naming-rule",
+    "word_model": "one of channels, naming-rule", "block_moves": "one of off, adapt, all",
 }
 
 

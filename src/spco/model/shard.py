@@ -235,7 +235,7 @@ class HomeShard(ShardInitialisation):
             self.state.name_words = name_words
         if channels is not None:
             self.state.channels = channels
-        log_joint = gibbs.local_step(self.data, self.state, self.settings, self.rng)
+        log_joint = gibbs.local_step(self.data, self.state, self.settings, self.rng, self.hyper)
         self.stats = gibbs.sufficient_statistics(self.data, self.state, self.hyper)
         return log_joint
 

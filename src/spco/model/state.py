@@ -146,10 +146,13 @@ class SamplerSettings:
     pruning_score: str
     learn_shared: bool = True
     view_counts: float | None = None
+    #: region block moves after each one-sample assignment draw (:mod:`spco.model.blocks`; exact
+    #: sampler only)
+    block_moves: bool = False
 
     @classmethod
     def create(cls, variant: str, prune: bool, learn_shared: bool = True,
-               view_counts: float | str | None = None) -> SamplerSettings:
+               view_counts: float | str | None = None, block_moves: bool = False) -> SamplerSettings:
         """Settings of ``variant`` (``exact``, ``reference`` or ``spcoa``).
 
         ``learn_shared=False`` keeps φ^v, φ^w and G_0 fixed (adapting to a new home with
@@ -158,7 +161,8 @@ class SamplerSettings:
         (:attr:`~spco.model.hyperparameters.TransferHyperparameters.view_counts`; ``"estimate"``:
         the start's :data:`~spco.model.hyperparameters.VIEW_COUNTS` until the driver sets the
         estimate); the exact variant only — the authors' sampler and SpCoA score every count, as
-        published."""
+        published. ``block_moves``: after each sweep's one-sample assignments, move every region's
+        samples of one concept together (:mod:`spco.model.blocks`); the exact variant only."""
         if view_counts == ESTIMATE:
             view_counts = VIEW_COUNTS
         if variant not in VARIANTS:
@@ -166,4 +170,5 @@ class SamplerSettings:
         return cls(variant=variant, prune=prune, hierarchical=variant != "spcoa",
                    joint_assignment=variant != "reference",
                    pruning_score="kl" if variant == "reference" else "mi", learn_shared=learn_shared,
-                   view_counts=view_counts if variant == "exact" else None)
+                   view_counts=view_counts if variant == "exact" else None,
+                   block_moves=bool(block_moves) and variant == "exact")

@@ -152,7 +152,8 @@ class SpatialConceptModel:
             raise ConfigurationError(f"variant must be 'exact' or 'reference', got {self.variant!r}")
         hyper = self.hyperparameters if self.hyperparameters is not None else self._default_hyperparameters()
         return gibbs.SamplerSettings.create(self.variant, bool(self.prune_words),
-                                            view_counts=getattr(hyper, "view_counts", None))
+                                            view_counts=getattr(hyper, "view_counts", None),
+                                            block_moves=getattr(hyper, "block_moves", "off") == "all")
 
     def checked_hyperparameters(self) -> TransferHyperparameters:
         """The hyperparameters this estimator fits with (the paper's when none were given), checked
