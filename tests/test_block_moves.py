@@ -159,8 +159,8 @@ def test_peaked_likelihoods_stay_exact() -> None:
     for c in range(3):
         log_p.append(brute_log_target(np.full(4, c), P["homes"], regions, ll, P["g_prior"], P["beta"], 1, 1))
     probs = softmax(np.array(log_p))
-    outcome = [int(region_block_step(P["homes"], concepts, regions, ll, P["g_prior"], P["beta"], 1, 1, rng)[0])
-               for _ in range(4000)]
+    step = (P["homes"], concepts, regions, ll, P["g_prior"], P["beta"], 1, 1)
+    outcome = [int(region_block_step(*step, rng)[0]) for _ in range(4000)]
     assert chisquare_p(np.bincount(outcome, minlength=3), probs) > P_MIN
 
 
@@ -171,7 +171,7 @@ def test_local_step_moves_blocks_with_the_tempered_view_likelihood() -> None:
     impossible, still reaches concept 1 as a block with the probability the tempered views give."""
     from spco.model.state import GibbsState, PreparedData
 
-    L, K, D = 2, 1, 3
+    L, K = 2, 1
     visual = np.array([[40, 10, 0]] * 4)
     positions = np.zeros((4, 4))
     data = PreparedData(positions=positions, homes=np.zeros(4, dtype=np.int64), visual=csr(visual),

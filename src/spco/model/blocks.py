@@ -44,7 +44,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.special import gammaln
 
-__all__ = ["region_blocks", "region_block_step"]
+__all__ = ["region_block_step", "region_blocks"]
 
 
 def region_blocks(homes: np.ndarray, concepts: np.ndarray, regions: np.ndarray, n_concepts: int,
@@ -93,14 +93,14 @@ def region_block_step(homes: np.ndarray, concepts: np.ndarray, regions: np.ndarr
     columns = np.arange(n_concepts)
     for j in range(int(position.max()) + 1):
         b = np.flatnonzero(position == j)
-        e, k, l, n = block_home[b], block_region[b], block_concept[b], block_size[b][:, None]
-        others = counts[e] - n * (columns[None, :] == l[:, None])  # N_{l'} outside B
+        e, k, now, n = block_home[b], block_region[b], block_concept[b], block_size[b][:, None]
+        others = counts[e] - n * (columns[None, :] == now[:, None])  # N_{l'} outside B
         g = prior[e]
         with np.errstate(divide="ignore", invalid="ignore"):
             weights = np.where(g + others > 0, gammaln(g + others + n) - gammaln(g + others), -np.inf)
         score = block_ll[b] + weights - gammaln(beta + others + n) + gammaln(beta + others)
         allowed = ~occupied[e, k]
-        allowed[np.arange(b.size), l] = True
+        allowed[np.arange(b.size), now] = True
         score = np.where(allowed & ~np.isnan(score), score, -np.inf)
         top = score.max(axis=1, keepdims=True)
         finite = np.isfinite(top[:, 0])
@@ -108,10 +108,10 @@ def region_block_step(homes: np.ndarray, concepts: np.ndarray, regions: np.ndarr
         cumulative = np.cumsum(prob, axis=1)
         target = u[b] * cumulative[:, -1]
         new = np.minimum((cumulative <= target[:, None]).sum(axis=1), n_concepts - 1)
-        new = np.where(finite & allowed[np.arange(b.size), new], new, l)
-        moved = new != l
+        new = np.where(finite & allowed[np.arange(b.size), new], new, now)
+        moved = new != now
         if moved.any():
-            em, km, lm, nm, newm = e[moved], k[moved], l[moved], n[moved, 0], new[moved]
+            em, km, lm, nm, newm = e[moved], k[moved], now[moved], n[moved, 0], new[moved]
             counts[em, lm] -= nm
             counts[em, newm] += nm
             occupied[em, km, lm] = False

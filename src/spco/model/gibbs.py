@@ -450,9 +450,9 @@ def _local_step(data: PreparedData, state: GibbsState, settings: SamplerSettings
         state.concepts, state.regions = allocation.sample_assignments_joint(
             state.log_g, state.log_pi, data.homes, concept_ll, region_ll, rng)
         if settings.block_moves and hyper is not None and settings.variant == "exact":
-            state.concepts = region_block_step(
-                data.homes, state.concepts, state.regions, concept_ll, block_concept_prior(state, hyper, settings),
-                hyper.beta, data.n_homes, state.log_pi.shape[2], rng)
+            prior = block_concept_prior(state, hyper, settings)
+            state.concepts = region_block_step(data.homes, state.concepts, state.regions, concept_ll, prior,
+                                               hyper.beta, data.n_homes, state.log_pi.shape[2], rng)
     else:  # the authors' two blocks: R | C, then C | R
         state.regions = allocation.sample_regions_given_concepts(state.log_pi, data.homes, state.concepts,
                                                                  region_ll, rng)
