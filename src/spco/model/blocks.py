@@ -40,9 +40,10 @@ state like any other.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
-import scipy.sparse as sp
-from scipy.special import gammaln
+from numba import njit
 
 __all__ = ["region_block_step", "region_blocks"]
 
@@ -70,62 +71,83 @@ def region_block_step(homes: np.ndarray, concepts: np.ndarray, regions: np.ndarr
     Shapes: homes, concepts, regions (N,); concept_ll (N, L) the samples' concept log-likelihoods of
     the one-sample conditional (tempered views + words, as the local step computes them);
     concept_prior (L,) or (E, L) the Dirichlet concentration of G_e (γ G_0, or γ/L for SpCoA);
-    ``beta``: the regions' concentration β (π ~ Dir(β/K)). Draws one uniform per block from ``rng``.
-    The homes are independent given the fixed parameters and are moved together, one block of each
-    per step (vectorised over homes and concepts)."""
+    ``beta``: the regions' concentration β (π ~ Dir(β/K)). Draws one uniform per block from ``rng``
+    (the blocks in the order of their lowest samples; the homes' blocks are independent given the
+    fixed parameters, so one loop over all blocks in that order is each home's scan)."""
     n_samples, n_concepts = concept_ll.shape
     if n_samples == 0:
         return concepts.copy()
     block, first = region_blocks(homes, concepts, regions, n_concepts, n_regions)
-    n_blocks = first.size
-    indicator = sp.csr_array((np.ones(n_samples), (block, np.arange(n_samples))), shape=(n_blocks, n_samples))
-    block_ll = indicator @ concept_ll  # (B, L): Σ_{t ∈ B} f_t(l')
-    block_home, block_region = homes[first], regions[first]
-    block_concept = concepts[first].astype(np.int64)
-    block_size = np.bincount(block, minlength=n_blocks)
-    counts = np.zeros((n_homes, n_concepts), dtype=np.int64)
-    np.add.at(counts, (block_home, block_concept), block_size)
-    occupied = np.zeros((n_homes, n_regions, n_concepts), dtype=bool)
-    occupied[block_home, block_region, block_concept] = True
-    prior = np.broadcast_to(np.asarray(concept_prior, dtype=np.float64), (n_homes, n_concepts))
-    position = _rank_within(block_home)  # the j-th block of each home moves at step j
-    u = rng.random(n_blocks)
-    columns = np.arange(n_concepts)
-    for j in range(int(position.max()) + 1):
-        b = np.flatnonzero(position == j)
-        e, k, now, n = block_home[b], block_region[b], block_concept[b], block_size[b][:, None]
-        others = counts[e] - n * (columns[None, :] == now[:, None])  # N_{l'} outside B
-        g = prior[e]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            weights = np.where(g + others > 0, gammaln(g + others + n) - gammaln(g + others), -np.inf)
-        score = block_ll[b] + weights - gammaln(beta + others + n) + gammaln(beta + others)
-        allowed = ~occupied[e, k]
-        allowed[np.arange(b.size), now] = True
-        score = np.where(allowed & ~np.isnan(score), score, -np.inf)
-        top = score.max(axis=1, keepdims=True)
-        finite = np.isfinite(top[:, 0])
-        prob = np.exp(score - np.where(np.isfinite(top), top, 0.0))
-        cumulative = np.cumsum(prob, axis=1)
-        target = u[b] * cumulative[:, -1]
-        new = np.minimum((cumulative <= target[:, None]).sum(axis=1), n_concepts - 1)
-        new = np.where(finite & allowed[np.arange(b.size), new], new, now)
-        moved = new != now
-        if moved.any():
-            em, km, lm, nm, newm = e[moved], k[moved], now[moved], n[moved, 0], new[moved]
-            counts[em, lm] -= nm
-            counts[em, newm] += nm
-            occupied[em, km, lm] = False
-            occupied[em, km, newm] = True
-            block_concept[b[moved]] = newm
+    prior = np.ascontiguousarray(np.broadcast_to(np.asarray(concept_prior, dtype=np.float64),
+                                                 (n_homes, n_concepts)))
+    u = rng.random(first.size)
+    block_concept = _block_pass(np.ascontiguousarray(concept_ll, dtype=np.float64), block.astype(np.int64),
+                                first.astype(np.int64), homes.astype(np.int64), regions.astype(np.int64),
+                                concepts.astype(np.int64), prior, float(beta), n_homes, n_regions, u)
     return block_concept[block].astype(concepts.dtype, copy=False)
 
 
-def _rank_within(groups: np.ndarray) -> np.ndarray:
-    """Each entry's rank among the entries of its group, in array order."""
-    order = np.argsort(groups, kind="stable")
-    sorted_groups = groups[order]
-    starts = np.flatnonzero(np.r_[True, sorted_groups[1:] != sorted_groups[:-1]])
-    run_start = np.repeat(starts, np.diff(np.r_[starts, sorted_groups.size]))
-    rank = np.empty(groups.size, dtype=np.int64)
-    rank[order] = np.arange(groups.size) - run_start
-    return rank
+@njit(cache=True, error_model="numpy")
+def _block_pass(concept_ll: np.ndarray, block: np.ndarray, first: np.ndarray, homes: np.ndarray,
+                regions: np.ndarray, concepts: np.ndarray, prior: np.ndarray, beta: float, n_homes: int,
+                n_regions: int, u: np.ndarray) -> np.ndarray:
+    """The blocks' new concepts (B,): each block in turn drawn from its conditional (module
+    docstring), with the home's concept counts and the region's occupied concepts updated after
+    each move."""
+    n_samples, n_concepts = concept_ll.shape
+    n_blocks = first.size
+    block_ll = np.zeros((n_blocks, n_concepts))
+    size = np.zeros(n_blocks, dtype=np.int64)
+    for t in range(n_samples):
+        b = block[t]
+        size[b] += 1
+        for c in range(n_concepts):
+            block_ll[b, c] += concept_ll[t, c]
+    counts = np.zeros((n_homes, n_concepts), dtype=np.int64)
+    occupied = np.zeros((n_homes, n_regions, n_concepts), dtype=np.bool_)
+    block_concept = np.empty(n_blocks, dtype=np.int64)
+    for b in range(n_blocks):
+        t = first[b]
+        block_concept[b] = concepts[t]
+        counts[homes[t], concepts[t]] += size[b]
+        occupied[homes[t], regions[t], concepts[t]] = True
+    score = np.empty(n_concepts)
+    for b in range(n_blocks):
+        t = first[b]
+        e, k, now, n = homes[t], regions[t], block_concept[b], size[b]
+        top = -np.inf
+        for c in range(n_concepts):
+            others = counts[e, c] - (n if c == now else 0)  # N_{l'} outside the block
+            g = prior[e, c]
+            if (c != now and occupied[e, k, c]) or not g + others > 0.0:
+                score[c] = -np.inf
+                continue
+            value = (block_ll[b, c] + math.lgamma(g + others + n) - math.lgamma(g + others)
+                     - math.lgamma(beta + others + n) + math.lgamma(beta + others))
+            if not value > -np.inf:  # NaN or −inf: not a candidate
+                value = -np.inf
+            score[c] = value
+            if value > top:
+                top = value
+        if not top > -np.inf or top == np.inf:
+            continue
+        total = 0.0
+        for c in range(n_concepts):
+            score[c] = math.exp(score[c] - top) if score[c] > -np.inf else 0.0
+            total += score[c]
+        target = u[b] * total
+        new = now
+        cumulative = 0.0
+        for c in range(n_concepts):
+            if score[c] > 0.0:
+                new = c  # (the last candidate if rounding leaves the target above the sum)
+                cumulative += score[c]
+                if cumulative > target:
+                    break
+        if new != now:
+            counts[e, now] -= n
+            counts[e, new] += n
+            occupied[e, k, now] = False
+            occupied[e, k, new] = True
+            block_concept[b] = new
+    return block_concept
