@@ -205,3 +205,22 @@ def test_local_step_moves_blocks_with_the_tempered_view_likelihood() -> None:
     assert softmax(log_p + 4 * (1 / omega - 1) * view)[1] > 0.9999  # every count a draw: a certain move
     z = (hits / reps - p) / np.sqrt(p * (1 - p) / reps)
     assert abs(z) < 4.0, (hits / reps, p)
+
+
+def test_block_moves_setting_where_it_runs_and_how_it_is_written() -> None:
+    """``block_moves``: "adapt" (default, left out of the written dictionary so files and experiment
+    identities from before are unchanged), "all" (the joint fit too), "off"; anything else refused."""
+    from spco.errors import ConfigurationError
+    from spco.model.transfer import SpCoTransfer
+
+    default = TransferHyperparameters()
+    assert default.block_moves == "adapt" and "block_moves" not in default.to_dict()
+    every = default.with_settings(["block_moves=all"])
+    assert every.to_dict()["block_moves"] == "all"
+    assert TransferHyperparameters.from_dict(every.to_dict()) == every
+    assert TransferHyperparameters.from_dict(default.to_dict()).block_moves == "adapt"
+    with pytest.raises(ConfigurationError, match="block_moves"):
+        default.with_settings(["block_moves=sometimes"])
+    assert not SpCoTransfer(hyperparameters=default).sampler_settings().block_moves
+    assert SpCoTransfer(hyperparameters=every).sampler_settings().block_moves
+    assert not gibbs.SamplerSettings.create("reference", prune=False, block_moves=True).block_moves
