@@ -72,10 +72,10 @@ from spco.model.posterior import ParameterAverage, masked_rows, thinned_sweeps
 from spco.model.state import GibbsState, PreparedData, SamplerSettings
 from spco.model.word_channels import mixture_log_likelihood
 
-__all__ = ["SPLIT_SWEEPS", "splice_posterior", "split_merge_proposal", "teach_locally"]
+__all__ = ["SPLIT_SWEEPS", "place_conditional", "splice_posterior", "teach_locally"]
 
 #: The first sweeps of a teaching that try to give the taught place a region of its own
-#: or give a region it does not need back (:func:`_split_merge_taught_places`).
+#: or give a region it does not need back (:func:`_move_taught_places`).
 SPLIT_SWEEPS = 3
 
 
@@ -295,115 +295,80 @@ def _log_marginal_positions(points: np.ndarray, prior) -> float:
                                (points.T @ points)[None], prior)[0])
 
 
-def _merge_target(x: np.ndarray, regions: np.ndarray, concepts: np.ndarray, c: int, r: int) -> int | None:
-    """The region the samples of region ``r`` (all of concept ``c``) would merge into: of the
-    non-empty regions other than ``r`` that hold no sample of ``c``, the one whose samples' mean
-    (x, y) is nearest to theirs; ``None`` if there is none. A function of the assignments only, so
-    that the split and the merge of :func:`split_merge_proposal` are each other's reverse."""
-    K = int(max(regions.max(), r)) + 1
-    count = np.bincount(regions, minlength=K).astype(float)
-    has_c = np.bincount(regions[concepts == c], minlength=K) > 0
-    eligible = (count > 0) & ~has_c
-    eligible[r] = False
-    if not eligible.any():
-        return None
-    total = np.zeros((K, 2))
-    np.add.at(total, regions, x[:, :2])
-    centre = total[eligible] / count[eligible][:, None]
-    mine = total[r] / max(count[r], 1.0)
-    return int(np.flatnonzero(eligible)[np.argmin(((centre - mine) ** 2).sum(axis=1))])
-
-
-def split_merge_proposal(
+def place_conditional(
     x: np.ndarray, regions: np.ndarray, concepts: np.ndarray, row: int, openable: np.ndarray, prior,
-    split: bool,
-) -> tuple[np.ndarray, float] | None:
-    """One proposal of the split–merge move of sample ``row``'s place, and its log acceptance ratio.
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """The conditional of the region of sample ``row``'s place, as one block: (candidate regions,
+    their log probabilities), or ``None`` when the move does not apply.
 
-    With c the concept of ``row``, r its region and ``openable`` (K,) the regions the move may open
-    and close (a constant of the kernel: those empty before the teaching, so that the move never
-    merges the home's own regions; concepts are held fixed):
+    The block P is concept c's samples of region r (c, r: those of ``row``). Its candidates are the
+    lowest-numbered region e that is empty without P among ``openable`` (the regions the move may
+    open: a constant of the kernel — those empty before the teaching, so that it never moves P into
+    a region the home had kept empty for later), and every region s that holds samples without P
+    but none of c. The move applies when P's region is one of them (it holds other concepts' samples,
+    or it is e) and e exists; then the same P, e and candidates are found from every state the move
+    can reach (P in any candidate), so drawing P's region from
 
-    - **split** (``split`` True): when r also holds samples of other concepts and an openable region
-      is empty, move c's samples of r to the lowest-numbered empty openable region e — the part of a
-      region that the taught place's concept holds becomes a region of its own;
-    - **merge** (``split`` False): when r is openable and holds only c's samples, move them to
-      :func:`_merge_target`'s region s (nearest, holding no sample of c) — provided the split of
-      the merged state gives r back (r is then the lowest-numbered empty openable region).
+        p(R_P = k | the rest, C) ∝ exp(M(x_k ∪ x_P) − M(x_k))    (k = e: exp(M(x_P)))
 
-    Each kind is proposed with probability 1/2 and is deterministic given the assignments; the
-    split of state X gives Y exactly when the merge of Y gives X (for the split: when
-    ``_merge_target`` of Y names r; else the reverse proposal is impossible and the split is not
-    offered). So the Metropolis–Hastings ratio is the posterior ratio alone:
-
-        log α = log p(x, R' | C) − log p(x, R | C)
-              = Σ_{k ∈ {r, e|s}} [log p(x_{R'=k}) − log p(x_{R=k})]          (NIW marginals)
-
-    — the regions' Gaussians and the region weights π integrated out. π's term, the Dirichlet–
-    multinomial log DM(n_c | β/K) of each concept's region counts, cancels: only c's counts change,
-    and all of c's samples of one region move to a region where c has none — a relabelling of c's
-    counts, and DM is symmetric (unlike moving *part* of a concept's samples of a region, which π
-    charges 3–13 nats in the homes of ``benchmarks/teaching.py``). The concepts' G_e and θ, and
-    every other region, cancel too (``tests/test_split_merge.py`` checks the ratio and the
-    kernel's invariance against brute force over every assignment of a tiny problem). ``prior``: the
-    :class:`~spco.model.observations.NIWPrior`. Returns (the proposed regions, log α), or ``None``
-    when the proposal does not apply. The caller redraws π of the concept and the Gaussians of the
-    regions from their conditionals after the step (a partially collapsed Gibbs sampler)."""
-    c, r = int(concepts[row]), int(regions[row])
-    in_r = regions == r
-    part = in_r & (concepts == c)
-    mixed = bool((in_r & ~part).any())
+    — M the NIW log marginal of a region's positions (:func:`_log_marginal`), the Gaussians
+    integrated out — is a blocked Gibbs step of the joint posterior. The region weights π are
+    integrated out too and cancel: only c's region counts change, and P moves between regions where
+    c has no other sample (a relabelling of c's counts; the Dirichlet–multinomial is symmetric),
+    unlike moving *part* of a concept's samples of a region, which π charges 3–13 nats in the homes
+    of ``benchmarks/teaching.py``. G_e, θ and every other region cancel as well
+    (``tests/test_place_move.py`` checks the probabilities and the kernel's invariance against brute
+    force over every assignment of a tiny problem). The place is split off its region (P to e) when
+    the positions prefer it, and taken back when they do not. ``prior``: the
+    :class:`~spco.model.observations.NIWPrior`. The caller redraws π of c and the Gaussians of the
+    regions touched from their conditionals after the step (a partially collapsed Gibbs sampler)."""
     n_regions = openable.size
-    count = np.bincount(regions, minlength=n_regions)
-    if split:
-        empty = np.flatnonzero((count == 0) & openable)
-        if not mixed or empty.size == 0:
-            return None
-        target = int(empty[0])
-        proposed = regions.copy()
-        proposed[part] = target
-        if _merge_target(x, proposed, concepts, c, target) != r:  # the merge of the split must give r back
-            return None
-    else:
-        if mixed or not openable[r]:
-            return None
-        target_or_none = _merge_target(x, regions, concepts, c, r)
-        if target_or_none is None:
-            return None
-        target = target_or_none
-        proposed = regions.copy()
-        proposed[part] = target
-        if np.flatnonzero((np.bincount(proposed, minlength=n_regions) == 0) & openable)[0] != r:
-            return None  # the split of the merged state would open another region, not r
-    log_ratio = 0.0
-    for k in (r, target):
-        after, before = proposed == k, regions == k
-        log_ratio += (_log_marginal_positions(x[after], prior) if after.any() else 0.0) - (
-            _log_marginal_positions(x[before], prior) if before.any() else 0.0)
-    return proposed, float(log_ratio)
+    c, r = int(concepts[row]), int(regions[row])
+    part = (regions == r) & (concepts == c)
+    rest = regions[~part]
+    count = np.bincount(rest, minlength=n_regions)
+    empty = np.flatnonzero((count == 0) & openable)
+    if empty.size == 0:
+        return None
+    has_c = np.bincount(rest[concepts[~part] == c], minlength=n_regions) > 0
+    candidates = np.union1d(np.flatnonzero((count > 0) & ~has_c), empty[:1])
+    if r not in candidates:
+        return None
+    xp = x[part]
+    d = x.shape[1]
+    total = np.zeros((n_regions, d))
+    scatter = np.zeros((n_regions, d, d))
+    np.add.at(total, rest, x[~part])
+    np.add.at(scatter, rest, x[~part][:, :, None] * x[~part][:, None, :])
+    n, t, ss = count[candidates].astype(float), total[candidates], scatter[candidates]
+    with_p = _log_marginal(n + xp.shape[0], t + xp.sum(axis=0), ss + xp.T @ xp, prior)
+    without = np.where(n > 0, _log_marginal(n, t, ss, prior), 0.0)
+    logits = with_p - without
+    return candidates, logits - np.logaddexp.reduce(logits)
 
 
-def _split_merge_taught_places(
+def _move_taught_places(
     data: PreparedData, state: GibbsState, shared: SharedPart, settings: SamplerSettings, taught: np.ndarray,
     openable: np.ndarray, rng: np.random.Generator,
 ) -> np.ndarray:
-    """The split–merge move (:func:`split_merge_proposal`) of each taught sample's place, accepted by
-    Metropolis–Hastings, in place; ``openable``: the regions it may open and close. Returns the
-    regions it touched (their Gaussians are redrawn next)."""
+    """The region of each taught sample's place drawn from :func:`place_conditional`, in place;
+    ``openable``: the regions it may open. Returns the regions it touched (their Gaussians are
+    redrawn next)."""
     prior = gibbs.niw_prior(data, shared.hyperparameters, settings)
     touched: list[int] = []
     for row in taught:
-        split = bool(rng.random() < 0.5)
         u = rng.random()
-        proposal = split_merge_proposal(data.positions, state.regions, state.concepts, int(row), openable,
-                                        prior, split)
-        if proposal is None:
+        conditional = place_conditional(data.positions, state.regions, state.concepts, int(row), openable,
+                                        prior)
+        if conditional is None:
             continue
-        proposed, log_ratio = proposal
-        if np.log(u) < log_ratio:
-            touched.extend(np.unique(np.concatenate([state.regions[proposed != state.regions],
-                                                     proposed[proposed != state.regions]])).tolist())
-            state.regions[:] = proposed
+        candidates, log_p = conditional
+        cdf = np.cumsum(np.exp(log_p))
+        k = int(candidates[min(int(np.searchsorted(cdf, u * cdf[-1], side="right")), candidates.size - 1)])
+        r = int(state.regions[row])
+        if k != r:
+            state.regions[(state.regions == r) & (state.concepts == state.concepts[row])] = k
+            touched.extend((r, k))
     return np.asarray(sorted(set(touched)), dtype=np.int64)
 
 
@@ -546,7 +511,7 @@ def teach_locally(
     movable, concepts, regions = _affected(data, state, taught, moved, settings, n_known)
     concepts = np.union1d(concepts, before[moved]).astype(np.int64)
     _parameters(data, state, shared, settings, concepts, regions, rng)
-    # the regions the split–merge move may open and close: those empty before the sweeps
+    # the regions the move of a taught place may open: those empty before the sweeps
     openable = np.bincount(state.regions, minlength=K) == 0
     average = ParameterAverage(data.homes, data.position_scale)
     averaged = set(thinned_sweeps(int(n_sweeps))) if n_sweeps else set()
@@ -554,7 +519,7 @@ def teach_locally(
         _draw_assignments(data, state, shared, settings, movable, concepts, regions, rng)
         draw_switches(data, state, rng, movable)  # (word channels: the movable samples' tokens)
         if iteration < SPLIT_SWEEPS:  # once the sweeps told the taught place's samples from the others'
-            opened = _split_merge_taught_places(data, state, shared, settings, taught, openable, rng)
+            opened = _move_taught_places(data, state, shared, settings, taught, openable, rng)
             regions = np.union1d(regions, opened)
         _parameters(data, state, shared, settings, concepts, regions, rng)
         if iteration in averaged:

@@ -1,8 +1,8 @@
-"""The split–merge move of a teaching (``spco.model.local_update.split_merge_proposal``) against
-brute force on a tiny problem: its log acceptance ratio is the ratio of the joint posterior
-p(x, R | C) computed independently (each region's points by the chain rule of Student-t posterior
-predictives, each concept's regions by the Pólya urn), and the Metropolis–Hastings kernel it makes
-keeps that posterior, exactly, over every assignment of the points to the regions."""
+"""The move of a taught place's region (``spco.model.local_update.place_conditional``) against brute
+force on a tiny problem: its probabilities are the joint posterior p(x, R | C) of the states it can
+reach, computed independently (each region's points by the chain rule of Student-t posterior
+predictives, each concept's regions by the Pólya urn), and the kernel it makes keeps that posterior,
+exactly, over every assignment of the points to the regions."""
 from __future__ import annotations
 
 import itertools
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy.stats import multivariate_t
 
-from spco.model.local_update import split_merge_proposal
+from spco.model.local_update import place_conditional
 from spco.model.observations import NIWPrior
 
 X = np.array([[0.0, 0.1], [0.3, -0.2], [2.0, 2.2], [2.4, 1.9]])
@@ -57,23 +57,38 @@ STATES = [np.array(s) for s in itertools.product(range(K), repeat=len(X))]
 OPENABLE = [np.ones(K, dtype=bool), np.array([False, True, True]), np.array([False, False, True])]
 
 
+def _moves(regions: np.ndarray, row: int, openable: np.ndarray) -> list[tuple[np.ndarray, float]]:
+    """(next regions, probability) of the move from ``regions``: every candidate of the block."""
+    conditional = place_conditional(X, regions, CONCEPTS, row, openable, PRIOR)
+    if conditional is None:
+        return [(regions, 1.0)]
+    candidates, log_p = conditional
+    part = (regions == regions[row]) & (CONCEPTS == CONCEPTS[row])
+    out = []
+    for k, lp in zip(candidates, log_p, strict=True):
+        moved = regions.copy()
+        moved[part] = k
+        out.append((moved, float(np.exp(lp))))
+    return out
+
+
 @pytest.mark.parametrize("openable", OPENABLE)
 @pytest.mark.parametrize("row", [0, 1])
-def test_the_acceptance_ratio_is_the_posterior_ratio_by_brute_force(row: int, openable: np.ndarray) -> None:
-    offered = 0
+def test_the_block_conditional_is_the_posterior_by_brute_force(row: int, openable: np.ndarray) -> None:
+    applied = 0
     for regions in STATES:
-        for split in (True, False):
-            proposal = split_merge_proposal(X, regions, CONCEPTS, row, openable, PRIOR, split)
-            if proposal is None:
-                continue
-            proposed, log_ratio = proposal
-            offered += 1
-            assert log_ratio == pytest.approx(_log_joint(proposed) - _log_joint(regions), abs=1e-9)
-            # the reverse move exists and gives the state back
-            back = split_merge_proposal(X, proposed, CONCEPTS, row, openable, PRIOR, not split)
-            assert back is not None
-            np.testing.assert_array_equal(back[0], regions)
-    assert offered >= 4  # splits and merges were both offered on this problem
+        moves = _moves(regions, row, openable)
+        if len(moves) == 1:
+            continue
+        applied += 1
+        log_joint = np.array([_log_joint(moved) for moved, _ in moves])
+        expected = np.exp(log_joint - np.logaddexp.reduce(log_joint))
+        np.testing.assert_allclose([p for _, p in moves], expected, rtol=1e-9, atol=0)
+        # from every state the move reaches, it finds the same candidates (a Gibbs step of one block)
+        for moved, _ in moves:
+            again = _moves(moved, row, openable)
+            assert sorted(tuple(m) for m, _ in again) == sorted(tuple(m) for m, _ in moves)
+    assert applied >= 4
 
 
 @pytest.mark.parametrize("openable", OPENABLE)
@@ -85,13 +100,8 @@ def test_the_kernel_keeps_the_posterior_exactly(row: int, openable: np.ndarray) 
     p /= p.sum()
     T = np.zeros((len(STATES), len(STATES)))
     for i, regions in enumerate(STATES):
-        for split in (True, False):
-            proposal = split_merge_proposal(X, regions, CONCEPTS, row, openable, PRIOR, split)
-            if proposal is None:
-                continue
-            proposed, log_ratio = proposal
-            T[i, index[tuple(proposed)]] += 0.5 * min(1.0, float(np.exp(log_ratio)))
-        T[i, i] += 1.0 - T[i].sum()
-    moving = (np.diag(T) < 1.0).sum()
-    assert moving >= 4  # the move changes several of the states
+        for moved, prob in _moves(regions, row, openable):
+            T[i, index[tuple(moved)]] += prob
+    np.testing.assert_allclose(T.sum(axis=1), 1.0, rtol=0, atol=1e-12)
+    assert (np.diag(T) < 1.0 - 1e-9).sum() >= 4  # the move changes several of the states
     np.testing.assert_allclose(p @ T, p, rtol=0, atol=1e-13)
