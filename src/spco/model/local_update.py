@@ -37,7 +37,13 @@ current values (a valid MCMC step of the same posterior, restricted to a block):
    other token keeps its switch), then θ^v, θ^w and π of ``C_A``, the Gaussians of ``R_A``, and
    G_e's share among ``C_A`` given the share of the other concepts (the conditional of a
    Dirichlet's sub-vector);
-   φ of a free concept in ``C_A`` (one the knowledge does not use) as adapting learns it;
+   φ of a free concept in ``C_A`` (one the knowledge does not use) as adapting learns it; in the
+   first :data:`SPLIT_SWEEPS` sweeps, before the parameters, the region of each taught sample's
+   *place* — its concept's samples of its region, as one block — is drawn from its conditional
+   (:func:`place_conditional`): a region of its own (one empty before the teaching) or any region
+   holding no sample of that concept, in proportion to the NIW marginal likelihoods (the Gaussians
+   integrated out; π's term cancels), so that a place told apart from the rest of its region by a
+   teaching gets a region of its own when the positions prefer it, and gives it back when not;
 4. the home's answers come from the posterior average (:class:`~spco.model.posterior.ParameterAverage`)
    of those sweeps for ``C_A`` and ``R_A``, and from the home's previous average for every other
    concept and region (:func:`splice_posterior`): a concept or region the teaching did not touch
