@@ -208,17 +208,20 @@ def test_local_step_moves_blocks_with_the_tempered_view_likelihood() -> None:
 
 
 def test_block_moves_setting_where_it_runs_and_how_it_is_written() -> None:
-    """``block_moves``: "adapt" (default, left out of the written dictionary so files and experiment
-    identities from before are unchanged), "all" (the joint fit too), "off"; anything else refused."""
+    """``block_moves``: "off" (default, left out of the written dictionary so files and experiment
+    identities from before are unchanged), "adapt" (a new home's sampler), "all" (the joint fit too);
+    anything else refused."""
     from spco.errors import ConfigurationError
     from spco.model.transfer import SpCoTransfer
 
     default = TransferHyperparameters()
-    assert default.block_moves == "adapt" and "block_moves" not in default.to_dict()
+    assert default.block_moves == "off" and "block_moves" not in default.to_dict()
     every = default.with_settings(["block_moves=all"])
     assert every.to_dict()["block_moves"] == "all"
     assert TransferHyperparameters.from_dict(every.to_dict()) == every
-    assert TransferHyperparameters.from_dict(default.to_dict()).block_moves == "adapt"
+    assert TransferHyperparameters.from_dict(default.with_settings(["block_moves=adapt"]).to_dict()
+                                             ).block_moves == "adapt"
+    assert TransferHyperparameters.from_dict(default.to_dict()).block_moves == "off"
     with pytest.raises(ConfigurationError, match="block_moves"):
         default.with_settings(["block_moves=sometimes"])
     assert not SpCoTransfer(hyperparameters=default).sampler_settings().block_moves

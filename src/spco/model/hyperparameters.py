@@ -121,9 +121,12 @@ class TransferHyperparameters:
         ``"naming-rule"``, the model it was learnt with.
     block_moves: where the exact sampler moves a region's samples of one concept to another concept
         together after each sweep's one-sample draws (:mod:`spco.model.blocks`, G_e and π integrated
-        out; an exact Gibbs step): ``"adapt"`` (default) in a new home's sampler (``adapt``,
-        ``teach``), ``"all"`` in the joint fit too, ``"off"`` nowhere. Written by :meth:`to_dict`
-        only when not ``"adapt"`` (files and experiment identities from before it are unchanged).
+        out; an exact Gibbs step): ``"off"`` (default) nowhere, ``"adapt"`` in a new home's sampler
+        (``adapt``, ``teach``), ``"all"`` in the joint fit too. Opt-in: on development it helps
+        little and, with the places prior, changes which synonym ``what`` answers first in
+        ``tests/test_knowledge.py`` (benchmarks/README.md, "Issue 29: block moves in adapt"). Written by
+        :meth:`to_dict` only when not ``"off"`` (files and experiment identities from before it are
+        unchanged).
     evidence_weight: η, the weight of the linguistic evidence in the switch's prior (word channels):
         p(z = name | word) ∝ λ_name ν^η, p(z = place or background) ∝ λ_c (1 − ν)^η, ν the name
         evidence of :mod:`spco.model.name_evidence`. Default :data:`EVIDENCE_WEIGHT`, chosen on
@@ -149,7 +152,7 @@ class TransferHyperparameters:
     name_prior: NamePrior = "off"
     word_model: WordModel = "channels"
     evidence_weight: float = EVIDENCE_WEIGHT
-    block_moves: BlockMoves = "adapt"
+    block_moves: BlockMoves = "off"
 
     def __post_init__(self) -> None:
         for name in ("n_concepts", "n_regions"):
@@ -227,12 +230,11 @@ class TransferHyperparameters:
         return psi
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dictionary (``name_prior`` only when not ``"off"``, ``block_moves`` only when
-        not ``"adapt"``)."""
+        """JSON-ready dictionary (``name_prior`` and ``block_moves`` only when not ``"off"``)."""
         data = asdict(self)
         if data["name_prior"] == "off":
             del data["name_prior"]
-        if data["block_moves"] == "adapt":
+        if data["block_moves"] == "off":
             del data["block_moves"]
         return data
 
