@@ -46,14 +46,14 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from free_speech import never_heard, new_home, read_names, read_speech, taught_homes  # noqa: E402
+from free_speech import never_heard, new_home, read_names, read_speech, taught_homes
 
-from spco.data import Corpus  # noqa: E402
-from spco.evaluation.experiments import trial_seed  # noqa: E402
-from spco.evaluation.metrics import position_accuracy  # noqa: E402
-from spco.model import SpCoTransfer  # noqa: E402
-from spco.model.position_prediction import predict_positions  # noqa: E402
-from spco.model.prediction import UnknownNameError  # noqa: E402
+from spco.data import Corpus
+from spco.evaluation.experiments import trial_seed
+from spco.evaluation.metrics import position_accuracy
+from spco.model import SpCoTransfer
+from spco.model.position_prediction import predict_positions
+from spco.model.prediction import UnknownNameError
 
 DEV = Path(__file__).resolve().parent / "development"
 CLASSES = ("right", "refused", "words", "other place", "misplaced")
@@ -153,9 +153,9 @@ def main() -> None:
     print(f"never heard A_p {a_p:.3f} (per seed " + ", ".join(f"{v:.3f}" for v in per_seed.values())
           + f"), refused {classes['refused']} of {total}")
     if args.json:
+        table = {f"{p}/{n}": o for (p, n), o in rows.items()}
         args.json.write_text(json.dumps({"A_p": a_p, "per_seed": per_seed, "classes": dict(classes),
-                                         "queries": total, "rows": {f"{p}/{n}": o for (p, n), o in rows.items()}},
-                                        indent=1), encoding="utf-8")
+                                         "queries": total, "rows": table}, indent=1), encoding="utf-8")
 
 
 if __name__ == "__main__":

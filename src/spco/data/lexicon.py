@@ -506,14 +506,13 @@ class Lexicon:
                 found = self._defined_by(part, known_set)  # "a room used primarily for sleeping"
                 if found is not None:
                     return found
-            for part in parts:
-                found = self._derived(part, known_set)
-                if found is not None:
-                    return found
-            if general:  # the modifier's own compound naming a place: "comfort room" -> "comfort
-                found = self._compound_of(modifier, head, known_set)  # station", a restroom
-                if found is not None:
-                    return found
+            # a derivation, then the modifier's own compound naming a place: "comfort room" ->
+            # "comfort station", a restroom
+            later = itertools.chain((self._derived(part, known_set) for part in parts),
+                                    (self._compound_of(modifier, head, known_set) for _ in range(general)))
+            found = next((f for f in later if f is not None), None)
+            if found is not None:
+                return found
         if not similarity:
             return None
         # similarity of the nouns (the name's, else its words')
