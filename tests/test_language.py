@@ -173,6 +173,21 @@ def test_a_frame_does_not_swallow_the_first_word_of_a_name() -> None:
                                                                                                "now"]
 
 
+def test_a_term_holds_no_function_word_inside_but_and_or_of() -> None:
+    """A possessive opens a name ("my room") but never sits inside one: "wash" + "your hands" is a
+    fragment of a sentence, not a name; "and" may ("mum and dad's room")."""
+    said = ["wash your hands here", "please wash your hands", "wash your hands now", "this is my room",
+            "my room is here", "in my room", "the kitchen", "a bath", "the hall", "this is a toilet"] * 2
+    terms = learn_terms(said)
+    assert "my room" in terms and not any("wash" in t.split() for t in terms), terms
+    family = ["mum and dad's room", "this is mum and dad's room", "mum and dad's room here",
+              "we sleep in mum and dad's room", "the kitchen", "a bath", "the hall", "this is a toilet",
+              "dad's room is here", "the big sofa", "cooking in the kitchen", "shoes at the door", "our toilet"]
+    vocab = Vocabulary.from_sentences(family)
+    assert vocab.terms == ("mum and dad's room",), vocab.terms
+    assert vocab.tokenize("we sleep in Mum and Dad's room") == ["we", "sleep", "in", "mum and dad's room"]
+
+
 def test_a_grown_vocabulary_learns_terms_of_new_words_only() -> None:
     vocab = Vocabulary.from_sentences(["this is the living room", "the kitchen", "a room"] * 2)
     assert "living room" not in vocab.terms and "room" in vocab  # said twice: no term yet

@@ -164,10 +164,18 @@ def _may_end_name(word: str) -> bool:
     return not is_function_word(word)
 
 
+#: The only function words a name holds inside: "mum and dad's room", "cup of tea".
+INNER_FUNCTION_WORDS = frozenset({"and", "of"})
+
+
 def _joinable(a: str, b: str) -> bool:
     """Whether ``a b`` may be a term: it starts and ends as a name may (:func:`_may_start_name`,
-    :func:`_may_end_name`)."""
-    return _may_start_name(a.split()[0]) and _may_end_name(b.split()[-1])
+    :func:`_may_end_name`) and the words where ``a`` and ``b`` meet are no function words but
+    :data:`INNER_FUNCTION_WORDS` ("wash" + "your hands" is a sentence's fragment, not a name)."""
+    first, last = a.split(), b.split()
+    inner = first[1:] + last[:-1]  # ("my" opens "my room": it is no inner word of it)
+    return (_may_start_name(first[0]) and _may_end_name(last[-1])
+            and all(w in INNER_FUNCTION_WORDS or not is_function_word(w) for w in inner))
 
 
 #: Default count added per word occurrence (S^w in the paper).
@@ -469,7 +477,7 @@ def learn_terms(
     neither a frame word) is a term when it is said at least ``min_count`` times counting repeats
     (as :meth:`Vocabulary.from_sentences` learns; the module docstring).
     """
-    streams = [tokenize(s, segmentation) for s in sentences if s]
+    streams = [_coordinated(tokenize(s, segmentation)) for s in sentences if s]
     streams = [s for s in streams if s]
     uses = [1] * len(streams)
     if distinct:  # each distinct sentence once, with how often it was said
@@ -501,6 +509,24 @@ def learn_terms(
         terms |= {f"{a} {b}" for (a, b), n in joined.items() if (a, b) in pairs and n >= min_count}
         terms |= {f"{a} {b}" for (a, b), n in joined_said.items() if (a, b) in together and n >= min_count}
     return sorted(terms)
+
+
+def _coordinated(atoms: list[str]) -> list[str]:
+    """``atoms`` with each coordinated possessive joined into one atom ("mum", "and", "dad's" ->
+    "mum and dad's"), so that "mum and dad's room" can be a term as "dad's room" is (a term is
+    otherwise joined pair by pair, and neither "mum and" nor "and dad's" may be one)."""
+    out: list[str] = []
+    i = 0
+    while i < len(atoms):
+        if (i + 2 < len(atoms) and atoms[i + 1] == "and" and atoms[i + 2].endswith(("'s", "s'"))
+                and len(atoms[i + 2]) > 2 and " " not in atoms[i] + atoms[i + 2]
+                and not is_function_word(atoms[i]) and not is_function_word(atoms[i + 2])):
+            out.append(f"{atoms[i]} and {atoms[i + 2]}")
+            i += 3
+        else:
+            out.append(atoms[i])
+            i += 1
+    return out
 
 
 def _never_apart(counts: _PairCounts, max_sentence_share: float) -> dict[tuple[str, str], float]:
