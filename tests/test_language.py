@@ -180,9 +180,13 @@ def test_a_term_holds_no_function_word_inside_but_and_or_of() -> None:
             "my room is here", "in my room", "the kitchen", "a bath", "the hall", "this is a toilet"] * 2
     terms = learn_terms(said)
     assert "my room" in terms and not any("wash" in t.split() for t in terms), terms
+    closet = ["the walk-in closet", "a walk-in closet here", "my walk-in closet", "the kitchen", "a bath",
+              "the hall", "this is a toilet", "our toilet"]
+    assert "walk in closet" in learn_terms(closet)  # a hyphen keeps its words
     family = ["mum and dad's room", "this is mum and dad's room", "mum and dad's room here",
               "we sleep in mum and dad's room", "the kitchen", "a bath", "the hall", "this is a toilet",
-              "dad's room is here", "the big sofa", "cooking in the kitchen", "shoes at the door", "our toilet"]
+              "dad's room is here", "the big sofa", "cooking in the kitchen", "shoes at the door",
+              "our toilet"]
     vocab = Vocabulary.from_sentences(family)
     assert vocab.terms == ("mum and dad's room",), vocab.terms
     assert vocab.tokenize("we sleep in Mum and Dad's room") == ["we", "sleep", "in", "mum and dad's room"]

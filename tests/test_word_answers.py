@@ -90,8 +90,9 @@ def _answers(model: SpCoTransfer, corpus: Corpus, e: int, rows: np.ndarray,
     robot = model_answer_parameters(model, e) if params is None else params
     for answer, top_k in ((model.parameters_ if params is None else params, 1), (robot, 3)):
         for weighting in ("none", "mi"):
-            names = answer_names(answer, e, vocabulary or corpus.vocabulary, env.positions[rows], env.visual[rows],
-                                 top_k=top_k, weighting=weighting, view_counts=model.settings_.view_counts)
+            names = answer_names(answer, e, vocabulary or corpus.vocabulary, env.positions[rows],
+                                 env.visual[rows], top_k=top_k, weighting=weighting,
+                                 view_counts=model.settings_.view_counts)
             out |= {str(n) for row in names.words for n in row if n is not None}
     return out
 

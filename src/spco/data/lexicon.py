@@ -457,7 +457,9 @@ class Lexicon:
         general head: "washing area" -> "laundry room"): a synonym or definition ("tub room" -> "tub" ->
         "bath"), the one place (or synonyms) defined by the word ("sleeping quarters" -> "bedroom":
         "a room used primarily for sleeping"), a derivation or verb synonym ("bathing room" ->
-        "bathe" -> "bath"); else the known name of highest Wu–Palmer similarity between noun senses (≥
+        "bathe" -> "bath"), a synonym or definition of the one place WordNet names by the words
+        before a general head and another word ("comfort room" -> "comfort station", a restroom;
+        :meth:`_compound_of`); else the known name of highest Wu–Palmer similarity between noun senses (≥
         :data:`MIN_SIMILARITY`) of the name or its words, among near ties (kinds of room are all
         about as similar) the one whose definition shares most words with the name's, and none
         when they share none. ``known``: candidate names (vocabulary tokens, lower case, words

@@ -11,11 +11,13 @@ are names by the model — name prior ≥ :data:`MIN_CANDIDATE_PRIOR` when the m
 largest — or rooms by WordNet, never kinds of place such as "room" or "area"). It asks in four
 steps and keeps the first answer: a lexical relation (synonym, definition, head, modifier,
 derivation) to one of the home's firmly bound names (information ≥ :data:`FIRM_INFORMATION` of the
-largest: one or two per place), the same to any candidate, then WordNet similarity to a firmly bound
-name, then to any candidate. ``where`` answers for that name, saying which one it used ("restroom ->
-toilet": :attr:`spco.model.position_prediction.PositionPrediction.asked`). When nothing is found, the
-name's own known words said together answer ("spare + room"); a name none of whose words is known is
-an unknown name (:class:`spco.model.prediction.UnknownNameError`).
+largest: one or two per place), the same to any candidate, then the name's own words that the home's
+people say, kinds of place left out (:func:`said_words`: "sink area" -> "sink", "soaking room" ->
+"soak"), then WordNet similarity to a firmly bound name, then to any candidate. ``where`` answers
+for that name, saying which one it used ("restroom -> toilet":
+:attr:`spco.model.position_prediction.PositionPrediction.asked`). When nothing is found, the name's
+own known words said together answer ("great + room"); a name none of whose words is known is an
+unknown name (:class:`spco.model.prediction.UnknownNameError`).
 
 Without the lexicon (no NLTK or no WordNet database, see :mod:`spco.data.lexicon`), nothing is
 resolved: a name nobody said is an unknown name, or its known words said together, as before.
