@@ -69,13 +69,9 @@ same), and keeps the place from being answered as "living" or "room".
    its uses, yet each compound is one name or one object. Without the lexicon (no NLTK or WordNet,
    :mod:`spco.data.lexicon`) only rules 1–5 apply.
 
-7. **A term reads as a name**: it starts and ends as a name may (never with a function word or a
-   number, but a possessive may open it: "my room") and a possessive that opened a term does not sit
-   inside a longer one (nor any function word but "and" and "of", :data:`INNER_FUNCTION_WORDS`):
-   "wash" + "your hands" is a fragment of a sentence; a word written with a hyphen keeps its words
-   ("walk-in" + "closet"). A
-   coordinated possessive ("mum and dad's") is one atom before pairs are counted
-   (:func:`_coordinated`), so "mum and dad's room" comes out whole, as "dad's room" would.
+7. **A coordinated possessive is one atom** before pairs are counted (:func:`_coordinated`: "mum",
+   "and", "dad's" -> "mum and dad's"), so "mum and dad's room" comes out whole, as "dad's room" would
+   (pair by pair it cannot: neither "mum and" nor "and dad's" may be a term).
 
 A second pass over the sentences with the learnt pairs joined finds longer terms ("walk in closet").
 The rule also joins set phrases that are not names ("this is", "welcome to" when people say them in
@@ -172,21 +168,10 @@ def _may_end_name(word: str) -> bool:
     return not is_function_word(word)
 
 
-#: The only function words a name holds inside: "mum and dad's room", "cup of tea".
-INNER_FUNCTION_WORDS = frozenset({"and", "of"})
-
-
 def _joinable(a: str, b: str) -> bool:
     """Whether ``a b`` may be a term: it starts and ends as a name may (:func:`_may_start_name`,
-    :func:`_may_end_name`) and ``b`` does not open with a function word but
-    :data:`INNER_FUNCTION_WORDS` ("wash" + "your hands" is a sentence's fragment, not a name)."""
-    first, last = a.split(), b.split()
-    # a term never ends with a function word, so a term ``b`` opening with one opened with a
-    # possessive ("your hands"), which may open a name but not sit inside one; an atom written with
-    # a hyphen keeps its words ("walk-in" + "closet")
-    opener = last[0] if len(last) > 1 else None
-    return (_may_start_name(first[0]) and _may_end_name(last[-1])
-            and (opener is None or opener in INNER_FUNCTION_WORDS or not is_function_word(opener)))
+    :func:`_may_end_name`)."""
+    return _may_start_name(a.split()[0]) and _may_end_name(b.split()[-1])
 
 
 #: Default count added per word occurrence (S^w in the paper).
