@@ -17,8 +17,9 @@ Protocol (docs/model.md "What counts as a name"; benchmarks/README "Free speech 
   (mixture): the same with the positions drawn from the whole mixture p(x | name), the paper's
   text (``HomeScores.position_accuracy_mixture``); A_p (main name): argmax region, for the place's
   *main name* only, its accepted name said in most of the taught sentences (:func:`main_names`);
-- names are predicted with the view weight the model learnt with (``model.settings_.view_counts``,
-  as ``spco experiment``);
+- names are predicted with the view weight the model learnt with (``model.settings_.view_counts``)
+  and answered as the robot answers them (the home's names,
+  :func:`~spco.model.confidence.model_answer_parameters`), as ``spco experiment``;
 - intervals: 95 % percentile bootstrap (2,000 resamples) over the test views (A_n; resampled within
   each home and place) and over the seeds' position scores of each (home, place) (A_p).
 
@@ -73,6 +74,7 @@ from spco.evaluation import evaluate_home
 from spco.evaluation.experiments import PAPER_EXPERIENCED_HOMES, trial_seed
 from spco.evaluation.metrics import position_accuracy
 from spco.model import SpCoTransfer
+from spco.model.confidence import model_answer_parameters
 from spco.model.position_prediction import predict_positions
 from spco.model.prediction import UnknownNameError
 
@@ -201,9 +203,11 @@ def _score_home(tally: _Tally, args: argparse.Namespace, hyper: Any, seed: int, 
     # (code from before the option: no argument)
     view_counts = getattr(getattr(model, "settings_", None), "view_counts", None)
     weight = {} if view_counts is None else {"view_counts": view_counts}
+    answer = model_answer_parameters(model, e)  # the names the robot answers, as ``spco experiment``
     for setting in tally.settings:  # the same draws of positions: only the names can differ
         option = dict(weight) if setting == "off" else {"name_prior": setting, **weight}
-        scores = evaluate_home(model.parameters_, e, env, corpus.vocabulary, rng=seed, **option)
+        scores = evaluate_home(model.parameters_, e, env, corpus.vocabulary, rng=seed, answer_params=answer,
+                               **option)
         tally.per_seed.append({"seed": seed, "home": home, "name_prior": setting,
                                "A_n": scores.mean_name_accuracy, "A_p": scores.mean_position_accuracy,
                                "A_n_places": scores.name_accuracy, "A_p_places": scores.position_accuracy})
