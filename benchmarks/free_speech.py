@@ -134,7 +134,8 @@ def bootstrap(groups: dict[tuple, list[float]], rng: np.random.Generator,
 
 
 def _arguments() -> tuple[argparse.Namespace, Any]:
-    """The command line, and the hyperparameters of ``--view-counts`` (``None``: the model's)."""
+    """The command line, and the hyperparameters of ``--view-counts`` and ``--set`` (``None``: the
+    model's)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sigverse", type=Path, default=Path("../shared/datasets/sigverse"))
     parser.add_argument("--regions", type=Path, default=None,
@@ -152,17 +153,24 @@ def _arguments() -> tuple[argparse.Namespace, Any]:
                         help="a diagnostic: the exact model's view weight (TransferHyperparameters."
                              "view_counts) in the fit and in prediction, a number or 'none' (every count "
                              "a draw); default: the model's default")
+    parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE",
+                        help="hyperparameters of the fit (as spco fit --set), e.g. word_counts=none")
     args = parser.parse_args()
+    from spco.errors import ConfigurationError
+    from spco.model.hyperparameters import TransferHyperparameters
+
     hyper = None
     if args.view_counts is not None:
-        from spco.errors import ConfigurationError
-        from spco.model.hyperparameters import TransferHyperparameters
-
         text = args.view_counts.strip().lower()
         try:
             hyper = TransferHyperparameters(view_counts=None if text == "none" else float(text))
         except (ValueError, ConfigurationError):
             parser.error(f"--view-counts: a positive number or 'none', got {args.view_counts!r}")
+    if args.set:
+        try:
+            hyper = (hyper or TransferHyperparameters()).with_settings(args.set)
+        except ConfigurationError as exc:
+            parser.error(f"--set: {exc}")
     return args, hyper
 
 
