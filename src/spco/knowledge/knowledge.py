@@ -97,7 +97,8 @@ class KnowledgeChannels:
         channels = self.channels.extended(n_words, evidence, content, weight)
         # a word never said is as unlikely a place word of one concept as of another: the same ψ in
         # every concept (the smallest of the knowledge's), so that with its weight in the concept's
-        # likelihood (W^w counts, or S^w for a knowledge without the word weight) it draws no sample to the concept whose ψ happens to be least sparse
+        # likelihood (W^w counts, or S^w for a knowledge without the word weight) it draws no sample
+        # to the concept whose ψ happens to be least sparse
         place = channels.log_place.copy()
         place[:, V:] = float(self.channels.log_place.min()) if self.channels.log_place.size else 0.0
         channels = replace(channels, log_place=place - logsumexp(place, axis=1, keepdims=True))
