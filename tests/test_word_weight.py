@@ -89,3 +89,30 @@ def test_a_fit_uses_the_word_weight_of_its_hyperparameters() -> None:
         assert model.state_.channels is not None
         assert model.state_.channels.token_weight == pytest.approx(expected)
         assert model.hyperparameters_.word_counts == word_counts
+
+
+def test_a_knowledge_file_and_a_home_keep_the_word_weight(tmp_path) -> None:
+    """``fit_knowledge`` learns with W^w / S^w, the file keeps it, a home adapted from it (and its file)
+    weighs its tokens the same."""
+    import warnings
+
+    from spco import knowledge as kn
+    from spco.data import Corpus
+    from spco.data.synthetic import SyntheticConfig, generate_homes
+
+    corpus = generate_homes(3, seed=4, config=SyntheticConfig(n_features=32), new_homes=1,
+                            specific_rooms=False)
+    envs = list(corpus)
+    knowledge = kn.fit_knowledge(Corpus(envs[:2]), n_iterations=3, random_state=0)
+    expected = WORD_COUNTS / corpus.word_increment
+    assert knowledge.hyperparameters.word_counts == WORD_COUNTS
+    assert knowledge.channels.channels.token_weight == pytest.approx(expected)
+    knowledge.save(tmp_path / "k.spco")
+    loaded = kn.load_knowledge(tmp_path / "k.spco")
+    assert loaded.channels.channels.token_weight == pytest.approx(expected)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        home = kn.adapt(loaded, envs[2], n_iterations=2, random_state=0)
+    assert home.state.channels.token_weight == pytest.approx(expected)
+    home.save(tmp_path / "h.spco")
+    assert kn.load_home_model(tmp_path / "h.spco").state.channels.token_weight == pytest.approx(expected)
