@@ -106,7 +106,7 @@ def run_demo(seed: int = 0, out: Path | str = "spco-demo", n_experienced: int = 
 #: kernels the longer part (the transfer fit, the baseline and the figures against the robot's
 #: files). :func:`~spco.model.numba_cache.compile_share` gives the first process that much less to
 #: compile, so that both end at about the same time (benchmarks/README.md, "First run").
-_HEAD_START = (6.0, 0.0)
+_HEAD_START = (3.5, 0.0)
 
 
 def _look_up_words(corpus: Corpus) -> None:
