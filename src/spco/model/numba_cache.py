@@ -141,10 +141,16 @@ def _compile_group(entries: list[dict]) -> float:
 #: process.
 _GAMMA_CALLERS = ("spco.model.kernels.dirichlet", "spco.model.kernels.niw")
 
+#: Modules whose listed kernels call the same compiled helpers of their own (the label-swap pass
+#: and its log-gamma table share ``moves._log_gamma_values``): each module's kernels are compiled
+#: in one process, like the gamma sampler's callers.
+_TOGETHER = ("spco.model.moves",)
+
 
 def _split(entries: list[dict], n_groups: int, head_start: tuple[float, ...] = ()) -> list[list[dict]]:
     """``entries`` in ``n_groups`` groups of about equal compile seconds; the kernels that call the
-    gamma sampler stay together, every other kernel goes alone (longest first, each to the group
+    gamma sampler stay together, as do those of each module of :data:`_TOGETHER`; every other
+    kernel goes alone (longest first, each to the group
     with the least so far). Without ``head_start`` the heaviest group comes first; with it (seconds
     of other work of each group's process, in the units of the file's seconds) group i starts at
     ``head_start[i]``, so that compilation plus that work is about equal, and the groups keep
@@ -152,7 +158,8 @@ def _split(entries: list[dict], n_groups: int, head_start: tuple[float, ...] = (
     clusters: dict[str, list[dict]] = {}
     for entry in entries:
         module = entry["kernel"].rpartition(".")[0]
-        clusters.setdefault("gamma" if module in _GAMMA_CALLERS else entry["kernel"], []).append(entry)
+        key = "gamma" if module in _GAMMA_CALLERS else module if module in _TOGETHER else entry["kernel"]
+        clusters.setdefault(key, []).append(entry)
     groups: list[list[dict]] = [[] for _ in range(n_groups)]
     load = [head_start[g] if g < len(head_start) else 0.0 for g in range(n_groups)]
     for cluster in sorted(clusters.values(), key=lambda c: -sum(e["seconds"] for e in c)):
