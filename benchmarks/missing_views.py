@@ -169,8 +169,8 @@ def main() -> None:
     cc.add_argument("--seeds", type=int, default=5)
     cc.add_argument("--iterations", type=int, default=200)
     cc.add_argument("--adapt-iterations", type=int, default=100)
-    cc.add_argument("--prior", default="scaled", choices=("scaled", "paper"),
-                    help="fit_knowledge's prior (default: scaled, as spco fit)")
+    cc.add_argument("--prior", default="places", choices=("places", "scaled", "paper"),
+                    help="fit_knowledge's prior (default: places, as spco fit)")
     cc.add_argument("--concepts", type=int, default=None, help="L (default: the paper's 15)")
     cc.add_argument("--regions", type=int, default=None, help="K (default: the paper's 20)")
     cc.add_argument("--kappa0", type=float, default=None, help="κ0 (default: the paper's 0.05)")

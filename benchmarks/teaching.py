@@ -65,7 +65,7 @@ NEW_WORDS = (
 
 
 def synthetic_home(seed: int = 3, psi0_xy: float | None = None,
-                   prior: str = "scaled") -> tuple[kn.HomeModel, Environment]:
+                   prior: str = "places") -> tuple[kn.HomeModel, Environment]:
     """A synthetic new home adapted from 6 experienced synthetic homes, and its environment.
     ``psi0_xy``: Ψ0's x and y entries in m² (an experiment with the position prior; default the
     knowledge's own); ``prior``: ``fit_knowledge``'s (``"places"``: Ψ0 from the homes' places)."""
@@ -453,8 +453,9 @@ def main() -> None:
     )
     parser.add_argument("--psi0-xy", type=float, default=None,
                         help="an experiment: the synthetic knowledge fitted with Ψ0's x, y entries in m²")
-    parser.add_argument("--prior", default="scaled", choices=["scaled", "places", "paper"],
-                        help="fit_knowledge's prior of the synthetic knowledge (places: Ψ0 from the places)")
+    parser.add_argument("--prior", default="places", choices=["scaled", "places", "paper"],
+                        help="fit_knowledge's prior of the synthetic knowledge (places, the default: Ψ0 "
+                             "from the places; scaled: the paper's Ψ0)")
     parser.add_argument("--json", type=Path, default=None)
     args = parser.parse_args()
     homes: list[tuple[str, kn.HomeModel, Environment]] = []

@@ -220,10 +220,6 @@ def test_a_place_that_looks_like_nothing_experienced_is_asked_first(world: dict)
     assert "no experienced home" not in plain.reason or world["labels"][plain.id] != "bath"
 
 
-@pytest.mark.xfail(strict=True, reason="the last check fails: the taught home's best question gains 7.53 "
-                   "expected corrections against the untaught home's 7.02 (ratio 1.07; bound 0.7) with this "
-                   "weak knowledge (8 synthetic homes, 40 sweeps); the other checks hold (no own-name doubt, "
-                   "every room under 0.18 of its samples, 0.37 of the untaught home's total)")
 def test_a_home_whose_every_place_is_taught_asks_little(world: dict) -> None:
     """Every second training sample taught its place's name: every room is known, and what is left
     to ask is where the model's own answers still disagree with the room's (a weak knowledge of 8

@@ -171,12 +171,12 @@ def _on_the_prior(training: Any, prior: str, settings: tuple[str, ...], checked:
                    "beta, mi_threshold, view_counts (a view's weight w, default 16; none: every count a "
                    "draw; estimate: learnt from the homes). E.g. a large floor: "
                    "--set n_concepts=30 --set n_regions=30 --set kappa0=0.001. Kept in the knowledge file.")
-@click.option("--prior", default="scaled", show_default=True,
+@click.option("--prior", default="places", show_default=True,
               type=click.Choice(["scaled", "places", "paper"]),
-              help="scaled: the position prior's κ0 and the numbers of concepts and regions follow the "
-                   "homes' spread and place sizes (a flat or a university floor, in any map units); "
-                   "places: Ψ0 from the places' size too (opt-in); paper: the paper's constants "
-                   "(Ψ0 = diag(10 cm², 10 cm², 0.5, 0.5), κ0 = 0.05, L = 15, K = 20), for the "
+              help="places: the position prior's κ0 and the numbers of concepts and regions follow the "
+                   "homes' spread and place sizes (a flat or a university floor, in any map units), "
+                   "and Ψ0 the places' size; scaled: the same with the paper's Ψ0; paper: the paper's "
+                   "constants (Ψ0 = diag(10 cm², 10 cm², 0.5, 0.5), κ0 = 0.05, L = 15, K = 20), for the "
                    "reproduction. --set applies on top (nu0 with places: Ψ0 is scaled with it).")
 @click.option("--text-language", default="auto", show_default=True,
               type=click.Choice(["auto", "ja", "zh", "spaced"]),

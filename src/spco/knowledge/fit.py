@@ -114,7 +114,7 @@ def fit_knowledge(
     provenance: Mapping[str, Any] | None = None,
     extractor: Any = None,
     engine: Any = None,
-    prior: str = "scaled",
+    prior: str = "places",
 ) -> Knowledge:
     """Learn the shared part of the transfer model from the experienced homes of ``corpus``.
 
@@ -145,10 +145,10 @@ def fit_knowledge(
         count vectors given as such.
     engine: where the homes' shards run (:func:`spco.engines.make_engine`): ``None`` in this
         process, ``"ray"`` or an engine object such as ``RayEngine(shards=4, address="auto")``.
-    prior: used when ``hyperparameters`` is ``None``: ``"scaled"`` (default) — κ0, L and K follow
-        the homes' spread and place sizes in their map units (:func:`default_hyperparameters`);
-        ``"places"`` (opt-in) — Ψ0 from the homes' places too; ``"paper"`` — the paper's constants
-        (the reproduction).
+    prior: used when ``hyperparameters`` is ``None``: ``"places"`` (default) — κ0, L and K follow
+        the homes' spread and place sizes in their map units and Ψ0 the size of their places
+        (:func:`default_hyperparameters`); ``"scaled"`` — κ0, L and K so, Ψ0 the paper's;
+        ``"paper"`` — the paper's constants (the reproduction).
 
     Returns
     -------

@@ -306,7 +306,7 @@ class SpCoAHyperparameters(TransferHyperparameters):
 
 #: Where the default position prior and truncations come from (``fit_knowledge(prior=…)``,
 #: ``spco fit --prior``): ``"scaled"`` follows the experienced homes' scale (κ0, L, K:
-#: :func:`scaled_hyperparameters`), ``"places"`` (opt-in) also sets Ψ0 from the homes' places,
+#: :func:`scaled_hyperparameters`), ``"places"`` (the default) also sets Ψ0 from the homes' places,
 #: ``"paper"`` is the paper's constants (the reproduction).
 PRIORS = ("scaled", "places", "paper")
 #: Words said at least this many times in a home measure its place sizes (:func:`scaled_hyperparameters`).
@@ -380,8 +380,8 @@ def scaled_hyperparameters(homes: Sequence[tuple[np.ndarray, Any]],
     samples (:func:`home_scales`). With R the median spread of the homes and s the median size of
     their places (both in map units):
 
-    - with ``psi0`` (``prior="places"``, opt-in): Ψ0 = diag(s², s², 0.5, 0.5) at the paper's
-      ν0 = 10 — the paper's Ψ0 with the places' size s²
+    - with ``psi0`` (``prior="places"``, the default of ``fit_knowledge``): Ψ0 = diag(s², s², 0.5,
+      0.5) at the paper's ν0 = 10 — the paper's Ψ0 with the places' size s²
       for its 10 cm² (:func:`scaled_psi0`): the prior mean of a region's covariance is E[Σ] =
       Ψ0 / (ν0 − d − 1) = diag(s²/5, s²/5, h, h), d = 4, h the paper's heading variance (0.1): a
       region a part of a place, never wider than one (a region of n samples has E[Σ | data] =

@@ -37,7 +37,13 @@ current values (a valid MCMC step of the same posterior, restricted to a block):
    other token keeps its switch), then θ^v, θ^w and π of ``C_A``, the Gaussians of ``R_A``, and
    G_e's share among ``C_A`` given the share of the other concepts (the conditional of a
    Dirichlet's sub-vector);
-   φ of a free concept in ``C_A`` (one the knowledge does not use) as adapting learns it;
+   φ of a free concept in ``C_A`` (one the knowledge does not use) as adapting learns it; in the
+   first :data:`SPLIT_SWEEPS` sweeps, before the parameters, the region of each taught sample's
+   *place* — its concept's samples of its region, as one block — is drawn from its conditional
+   (:func:`place_conditional`): a region of its own (one empty before the teaching) or any region
+   holding no sample of that concept, in proportion to the NIW marginal likelihoods (the Gaussians
+   integrated out; π's term cancels), so that a place told apart from the rest of its region by a
+   teaching gets a region of its own when the positions prefer it, and gives it back when not;
 4. the home's answers come from the posterior average (:class:`~spco.model.posterior.ParameterAverage`)
    of those sweeps for ``C_A`` and ``R_A``, and from the home's previous average for every other
    concept and region (:func:`splice_posterior`): a concept or region the teaching did not touch
@@ -53,7 +59,7 @@ from dataclasses import replace
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.special import gammaln, multigammaln
+from scipy.special import multigammaln
 
 from spco.model import gibbs
 from spco.model.home_shard import (
@@ -72,10 +78,10 @@ from spco.model.posterior import ParameterAverage, masked_rows, thinned_sweeps
 from spco.model.state import GibbsState, PreparedData, SamplerSettings
 from spco.model.word_channels import mixture_log_likelihood
 
-__all__ = ["SPLIT_SWEEPS", "splice_posterior", "teach_locally"]
+__all__ = ["SPLIT_SWEEPS", "place_conditional", "splice_posterior", "teach_locally"]
 
 #: The first sweeps of a teaching that try to give the taught place a region of its own
-#: (:func:`_split_taught_places`).
+#: or give a region it does not need back (:func:`_move_taught_places`).
 SPLIT_SWEEPS = 3
 
 
@@ -295,50 +301,96 @@ def _log_marginal_positions(points: np.ndarray, prior) -> float:
                                (points.T @ points)[None], prior)[0])
 
 
-def _log_regions_given_concept(counts: np.ndarray, beta: float, n_regions: int) -> float:
-    """log p(R of one concept's samples | C), π integrated out (Dirichlet-multinomial)."""
-    a = beta / n_regions
-    return float(gammaln(beta) - gammaln(beta + counts.sum()) + (gammaln(a + counts) - gammaln(a)).sum())
+def place_conditional(
+    x: np.ndarray, regions: np.ndarray, concepts: np.ndarray, row: int, openable: np.ndarray, prior,
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """The conditional of the region of sample ``row``'s place, as one block: (candidate regions,
+    their log probabilities), or ``None`` when the move does not apply.
+
+    The block P is concept c's samples of region r (c, r: those of ``row``). Its candidates are the
+    lowest-numbered region e that is empty without P among ``openable`` (the regions the move may
+    open: a constant of the kernel — those empty before the teaching, so that it never moves P into
+    a region the home had kept empty for later), and every region s that holds samples without P
+    but none of c. The move applies when P's region is one of them (it holds other concepts' samples,
+    or it is e) and e exists; then the same P, e and candidates are found from every state the move
+    can reach (P in any candidate), so drawing P's region from
+
+        p(R_P = k | the rest, C) ∝ exp(M(x_k ∪ x_P) − M(x_k))    (k = e: exp(M(x_P)))
+
+    — M the NIW log marginal of a region's positions (:func:`_log_marginal`), the Gaussians
+    integrated out — is a blocked Gibbs step of the joint posterior. The region weights π are
+    integrated out too and cancel: only c's region counts change, and P moves between regions where
+    c has no other sample (a relabelling of c's counts; the Dirichlet–multinomial is symmetric),
+    unlike moving *part* of a concept's samples of a region, which π charges 3–13 nats in the homes
+    of ``benchmarks/teaching.py``. G_e, θ and every other region cancel as well
+    (``tests/test_place_move.py`` checks the probabilities and the kernel's invariance against brute
+    force over every assignment of a tiny problem). The place is split off its region (P to e) when
+    the positions prefer it, and taken back when they do not. ``prior``: the
+    :class:`~spco.model.observations.NIWPrior`. The caller redraws π of c and the Gaussians of the
+    regions touched from their conditionals after the step (a partially collapsed Gibbs sampler)."""
+    n_regions = openable.size
+    c, r = int(concepts[row]), int(regions[row])
+    part = (regions == r) & (concepts == c)
+    rest = regions[~part]
+    count = np.bincount(rest, minlength=n_regions)
+    empty = np.flatnonzero((count == 0) & openable)
+    if empty.size == 0:
+        return None
+    has_c = np.bincount(rest[concepts[~part] == c], minlength=n_regions) > 0
+    candidates = np.union1d(np.flatnonzero((count > 0) & ~has_c), empty[:1])
+    if r not in candidates:
+        return None
+    xp = x[part]
+    d = x.shape[1]
+    total = np.zeros((n_regions, d))
+    scatter = np.zeros((n_regions, d, d))
+    np.add.at(total, rest, x[~part])
+    np.add.at(scatter, rest, x[~part][:, :, None] * x[~part][:, None, :])
+    n, t, ss = count[candidates].astype(float), total[candidates], scatter[candidates]
+    with_p = _log_marginal(n + xp.shape[0], t + xp.sum(axis=0), ss + xp.T @ xp, prior)
+    without = np.where(n > 0, _log_marginal(n, t, ss, prior), 0.0)
+    logits = with_p - without
+    return candidates, logits - np.logaddexp.reduce(logits)
 
 
-def _split_taught_places(
-    data: PreparedData, state: GibbsState, shared: SharedPart, settings: SamplerSettings, taught: np.ndarray
+def _move_taught_places(
+    data: PreparedData, state: GibbsState, shared: SharedPart, settings: SamplerSettings, taught: np.ndarray,
+    openable: np.ndarray, rng: np.random.Generator,
 ) -> np.ndarray:
-    """For each taught sample's region shared with other concepts: move the taught sample's concept's
-    samples of that region to an empty region when the posterior (Gaussians, π integrated out)
-    prefers it — the region of a place first told apart by a teaching. Returns the regions used."""
-    hyper = shared.hyperparameters
-    prior = gibbs.niw_prior(data, hyper, settings)
-    K = state.log_pi.shape[2]
-    opened = []
+    """The region of each taught sample's place drawn from :func:`place_conditional`, in place;
+    ``openable``: the regions it may open. Returns the regions it touched (their Gaussians are
+    redrawn next)."""
+    prior = gibbs.niw_prior(data, shared.hyperparameters, settings)
+    touched: list[int] = []
     for row in taught:
-        c, r = state.concepts[row], state.regions[row]
-        in_region = state.regions == r
-        part = in_region & (state.concepts == c)
-        if part.all() or part.sum() == in_region.sum():
+        u = rng.random()
+        conditional = place_conditional(data.positions, state.regions, state.concepts, int(row), openable,
+                                        prior)
+        if conditional is None:
             continue
-        empty = np.flatnonzero(np.bincount(state.regions, minlength=K) == 0)
-        if empty.size == 0:
-            break
-        counts = np.bincount(state.regions[state.concepts == c], minlength=K).astype(float)
-        split = counts.copy()
-        split[empty[0]], split[r] = split[r], 0.0
-        x = data.positions
-        gain = (
-            _log_marginal_positions(x[part], prior)
-            + _log_marginal_positions(x[in_region & ~part], prior)
-            - _log_marginal_positions(x[in_region], prior)
-            + _log_regions_given_concept(split, hyper.beta, K)
-            - _log_regions_given_concept(counts, hyper.beta, K)
-        )
-        if gain > 0:
-            state.regions[part] = empty[0]
-            opened.append(empty[0])
-    return np.asarray(opened, dtype=np.int64)
+        candidates, log_p = conditional
+        cdf = np.cumsum(np.exp(log_p))
+        k = int(candidates[min(int(np.searchsorted(cdf, u * cdf[-1], side="right")), candidates.size - 1)])
+        r = int(state.regions[row])
+        if k != r:
+            state.regions[(state.regions == r) & (state.concepts == state.concepts[row])] = k
+            touched.extend((r, k))
+    return np.asarray(sorted(set(touched)), dtype=np.int64)
+
+
+def _named_own_concept(data: PreparedData, state: GibbsState, rows: np.ndarray, n_known: int) -> np.ndarray:
+    """Which of ``rows`` say a word first heard in this home and hold a free concept (one the
+    knowledge does not use): a new name that :func:`own_names_to_free_concepts` gave a concept of
+    its own."""
+    words = sp.csr_array(data.words[rows])
+    new_word = np.asarray((words[:, n_known:] > 0).sum(axis=1)).ravel() > 0 if words.shape[1] > n_known \
+        else np.zeros(rows.size, dtype=bool)
+    return new_word & (np.exp(state.log_g0[state.concepts[rows]]) < FREE_CONCEPT_WEIGHT)
 
 
 def _affected(
-    data: PreparedData, state: GibbsState, taught: np.ndarray, moved: np.ndarray, settings: SamplerSettings
+    data: PreparedData, state: GibbsState, taught: np.ndarray, moved: np.ndarray, settings: SamplerSettings,
+    n_known: int,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(movable samples, affected concepts C_A, affected regions R_A): module docstring, step 2."""
     K = state.log_pi.shape[2]
@@ -350,6 +402,10 @@ def _affected(
     movable = np.union1d(np.flatnonzero(np.isin(state.regions, regions)), touched)
     concepts = np.unique(state.concepts[movable])
     said = taught[np.diff(data.words.indptr)[taught] > 0]
+    # a new name with a concept of its own is explained by that concept: the concept whose other words
+    # ("this is the … room") explain the sentence best would be another name's (it held "this is the
+    # quokka room", and "this is the zephyr room" moved there in 2 of 4 seeds, with Ψ0 from the places)
+    said = said[~_named_own_concept(data, state, said, n_known)]
     if said.size:  # the concept whose words explain a taught sentence best
         if state.channels is not None:
             word_ll = mixture_log_likelihood(sp.csr_array(data.words[said]), data.homes[said],
@@ -458,16 +514,19 @@ def teach_locally(
     said = np.unique(data.words[taught].indices) if taught.size else np.zeros(0, dtype=np.int64)
     own_names_to_free_concepts(data, state, shared, n_known, words=said[said >= n_known])
     moved = np.flatnonzero(before != state.concepts)
-    movable, concepts, regions = _affected(data, state, taught, moved, settings)
+    movable, concepts, regions = _affected(data, state, taught, moved, settings, n_known)
     concepts = np.union1d(concepts, before[moved]).astype(np.int64)
     _parameters(data, state, shared, settings, concepts, regions, rng)
+    # the regions the move of a taught place may open: those empty before the sweeps
+    openable = np.bincount(state.regions, minlength=K) == 0
     average = ParameterAverage(data.homes, data.position_scale)
     averaged = set(thinned_sweeps(int(n_sweeps))) if n_sweeps else set()
     for iteration in range(int(n_sweeps)):
         _draw_assignments(data, state, shared, settings, movable, concepts, regions, rng)
         draw_switches(data, state, rng, movable)  # (word channels: the movable samples' tokens)
         if iteration < SPLIT_SWEEPS:  # once the sweeps told the taught place's samples from the others'
-            regions = np.union1d(regions, _split_taught_places(data, state, shared, settings, taught))
+            opened = _move_taught_places(data, state, shared, settings, taught, openable, rng)
+            regions = np.union1d(regions, opened)
         _parameters(data, state, shared, settings, concepts, regions, rng)
         if iteration in averaged:
             average.add(state)
