@@ -17,8 +17,9 @@ Protocol (docs/model.md "What counts as a name"; benchmarks/README "Free speech 
   (mixture): the same with the positions drawn from the whole mixture p(x | name), the paper's
   text (``HomeScores.position_accuracy_mixture``); A_p (main name): argmax region, for the place's
   *main name* only, its accepted name said in most of the taught sentences (:func:`main_names`);
-- names are predicted with the view weight the model learnt with (``model.settings_.view_counts``,
-  as ``spco experiment``);
+- names are predicted with the view weight the model learnt with (``model.settings_.view_counts``)
+  and answered as the robot answers them (the home's names,
+  :func:`~spco.model.confidence.model_answer_parameters`), as ``spco experiment``;
 - intervals: 95 % percentile bootstrap (2,000 resamples) over the test views (A_n; resampled within
   each home and place) and over the seeds' position scores of each (home, place) (A_p).
 
@@ -73,6 +74,7 @@ from spco.evaluation import evaluate_home
 from spco.evaluation.experiments import PAPER_EXPERIENCED_HOMES, trial_seed
 from spco.evaluation.metrics import position_accuracy
 from spco.model import SpCoTransfer
+from spco.model.confidence import model_answer_parameters
 from spco.model.position_prediction import predict_positions
 from spco.model.prediction import UnknownNameError
 
@@ -132,7 +134,8 @@ def bootstrap(groups: dict[tuple, list[float]], rng: np.random.Generator,
 
 
 def _arguments() -> tuple[argparse.Namespace, Any]:
-    """The command line, and the hyperparameters of ``--view-counts`` (``None``: the model's)."""
+    """The command line, and the hyperparameters of ``--view-counts`` and ``--set`` (``None``: the
+    model's)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sigverse", type=Path, default=Path("../shared/datasets/sigverse"))
     parser.add_argument("--regions", type=Path, default=None,
@@ -150,17 +153,24 @@ def _arguments() -> tuple[argparse.Namespace, Any]:
                         help="a diagnostic: the exact model's view weight (TransferHyperparameters."
                              "view_counts) in the fit and in prediction, a number or 'none' (every count "
                              "a draw); default: the model's default")
+    parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE",
+                        help="hyperparameters of the fit (as spco fit --set), e.g. word_counts=none")
     args = parser.parse_args()
+    from spco.errors import ConfigurationError
+    from spco.model.hyperparameters import TransferHyperparameters
+
     hyper = None
     if args.view_counts is not None:
-        from spco.errors import ConfigurationError
-        from spco.model.hyperparameters import TransferHyperparameters
-
         text = args.view_counts.strip().lower()
         try:
             hyper = TransferHyperparameters(view_counts=None if text == "none" else float(text))
         except (ValueError, ConfigurationError):
             parser.error(f"--view-counts: a positive number or 'none', got {args.view_counts!r}")
+    if args.set:
+        try:
+            hyper = (hyper or TransferHyperparameters()).with_settings(args.set)
+        except ConfigurationError as exc:
+            parser.error(f"--set: {exc}")
     return args, hyper
 
 
@@ -201,9 +211,11 @@ def _score_home(tally: _Tally, args: argparse.Namespace, hyper: Any, seed: int, 
     # (code from before the option: no argument)
     view_counts = getattr(getattr(model, "settings_", None), "view_counts", None)
     weight = {} if view_counts is None else {"view_counts": view_counts}
+    answer = model_answer_parameters(model, e)  # the names the robot answers, as ``spco experiment``
     for setting in tally.settings:  # the same draws of positions: only the names can differ
         option = dict(weight) if setting == "off" else {"name_prior": setting, **weight}
-        scores = evaluate_home(model.parameters_, e, env, corpus.vocabulary, rng=seed, **option)
+        scores = evaluate_home(model.parameters_, e, env, corpus.vocabulary, rng=seed, answer_params=answer,
+                               **option)
         tally.per_seed.append({"seed": seed, "home": home, "name_prior": setting,
                                "A_n": scores.mean_name_accuracy, "A_p": scores.mean_position_accuracy,
                                "A_n_places": scores.name_accuracy, "A_p_places": scores.position_accuracy})

@@ -89,8 +89,15 @@ def new_home(sigverse: Path, regions_file: Path, name: str, every_third: bool) -
     return env
 
 
-def run(sigverse: Path, regions_file: Path, side: str, seeds: list[int], sweeps: int) -> dict[str, Any]:
-    """Fit and score every (seed, new home) of ``side``; returns the figures (see the docstring)."""
+def run(sigverse: Path, regions_file: Path, side: str, seeds: list[int], sweeps: int,
+        answers: tuple[str, ...] = ()) -> dict[str, Any]:
+    """Fit and score every (seed, new home) of ``side``; returns the figures (see the docstring).
+    ``answers``: also score the names each fit's robot answers (``"robot"``:
+    :func:`spco.model.confidence.model_answer_parameters`, the view-by-view answer; ``"rooms"``: the
+    room account, :func:`spco.model.rooms.model_rooms`), from the same fit, as ``A_n_<answer>``."""
+    from spco.model.confidence import model_answer_parameters
+    from spco.model.rooms import model_rooms
+
     spec = MODELS[MODEL]
     conf = SIDES[side]
     knowledge = [load(sigverse / h)[h] for h in PAPER_EXPERIENCED_HOMES]
@@ -113,18 +120,28 @@ def run(sigverse: Path, regions_file: Path, side: str, seeds: list[int], sweeps:
             runs.append({"seed": seed, "home": env.name, "A_n": float(scores.mean_name_accuracy),
                          "A_p": float(a_p), "A_p_mixture": float(a_p_mix),
                          "A_n_places": {p: float(v) for p, v in scores.name_accuracy.items()}})
+            e = len(corpus) - 1
+            for answer in answers:  # the same fit, names as the robot answers them
+                answered = evaluate_home(model.parameters_, e, env, model.vocabulary_,
+                                         rng=np.random.default_rng([run_seed, 1]), weighting=spec.weighting,
+                                         name_prior=model.hyperparameters_.name_prior,
+                                         view_counts=model.settings_.view_counts, n_positions=1,
+                                         answer_params=model_answer_parameters(model, e),
+                                         answer_rooms=model_rooms(model, e) if answer == "rooms" else None)
+                runs[-1][f"A_n_{answer}"] = float(answered.mean_name_accuracy)
             print(f"seed {seed} {env.name}: A_n {scores.mean_name_accuracy:.3f} A_p {a_p:.3f} "
-                  f"({time.perf_counter() - started:.0f} s)", flush=True)
-    return summarise(side, seeds, sweeps, [h.name for h in homes], runs)
+                  + "".join(f"A_n ({a}) {runs[-1][f'A_n_{a}']:.3f} " for a in answers)
+                  + f"({time.perf_counter() - started:.0f} s)", flush=True)
+    return summarise(side, seeds, sweeps, [h.name for h in homes], runs, answers)
 
 
-def summarise(side: str, seeds: list[int], sweeps: int, homes: list[str], runs: list[dict[str, Any]]
-              ) -> dict[str, Any]:
+def summarise(side: str, seeds: list[int], sweeps: int, homes: list[str], runs: list[dict[str, Any]],
+              answers: tuple[str, ...] = ()) -> dict[str, Any]:
     """Means over seeds with 95 % intervals over seeds, per new home and over the new homes (each
     seed's mean over homes is one value)."""
     out: dict[str, Any] = {"format": "spco-general-places/1", "side": side, "seeds": seeds, "sweeps": sweeps,
                            "model": MODEL, "homes": homes, "runs": runs}
-    for key in ("A_n", "A_p", "A_p_mixture"):
+    for key in ("A_n", "A_p", "A_p_mixture", *(f"A_n_{a}" for a in answers)):
         per_seed = [float(np.nanmean([r[key] for r in runs if r["seed"] == s]))
                     if any(np.isfinite(r[key]) for r in runs if r["seed"] == s) else math.nan for s in seeds]
         mean, low, high = seed_interval(per_seed)
@@ -157,7 +174,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     parser.add_argument("--sweeps", type=int, default=200, help="Gibbs sweeps (spco experiment's default)")
     parser.add_argument("--json", type=Path, default=None, help="write every figure to this file")
+    parser.add_argument("--answers", default="", help="also score the robot's answers from the same fits: "
+                        "robot (view by view), rooms (the room account), comma-separated")
     args = parser.parse_args(argv)
+    answers = tuple(a for a in args.answers.split(",") if a)
+    if set(answers) - {"robot", "rooms"}:
+        parser.error(f"--answers: choose from robot, rooms, got {args.answers!r}")
     side = SIDES[args.side]
     bad = [s for s in args.seeds if s not in side["seeds"]]
     if bad:
@@ -170,13 +192,15 @@ def main(argv: list[str] | None = None) -> int:
     if not (args.sigverse / "3LDK_1").is_dir():
         parser.error(f"--sigverse {args.sigverse}: not the SIGVerse data set (no 3LDK_1)")
     regions = args.regions or args.sigverse.parent / "sigverse_regions.json"
-    summary = run(args.sigverse, regions, args.side, args.seeds, args.sweeps)
+    summary = run(args.sigverse, regions, args.side, args.seeds, args.sweeps, answers)
     print("\n| side | new homes | seeds | A_n [95 % over seeds] | A_p [95 % over seeds] |")
     print("|---|---|---:|---|---|")
     print(f"| {args.side} | {', '.join(summary['homes'])} | {len(args.seeds)} | {_cell(summary['A_n'])} | "
           f"{_cell(summary['A_p'])} |")
     for home, figs in summary["per_home"].items():
         print(f"| {args.side}, {home} | | | {_cell(figs['A_n'])} | {_cell(figs['A_p'])} |")
+    for answer in answers:
+        print(f"A_n as the robot answers ({answer}): {_cell(summary[f'A_n_{answer}'])}")
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         tmp = args.json.with_name(args.json.name + ".tmp")

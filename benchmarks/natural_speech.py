@@ -16,9 +16,10 @@ The configurations are fixed in ``benchmarks/SPLIT.md``, "Natural speech (issue 
 
 Each seed fits SpCoTransfer+MI (the default exact model) for ``--sweeps`` sweeps with
 :func:`~spco.evaluation.experiments.trial_seed` (seed, index of the new home); names are predicted
-with the model's own view weight, as ``spco experiment``. Figures: the mean over seeds with a 95 %
-interval over seeds (normal approximation, ``japanese.mean_interval``), A_n per place and the
-wrong answers most often given; ``--json`` writes every figure.
+with the model's own view weight and answered as the robot answers them (the home's names,
+:func:`~spco.model.confidence.model_answer_parameters`), as ``spco experiment``. Figures: the mean
+over seeds with a 95 % interval over seeds (normal approximation, ``japanese.mean_interval``), A_n
+per place and the wrong answers most often given; ``--json`` writes every figure.
 
 Run (development, small)::
 
@@ -49,6 +50,7 @@ from spco.data.sigverse import read_indexed_texts
 from spco.evaluation import evaluate_home
 from spco.evaluation.experiments import trial_seed
 from spco.model import SpCoTransfer
+from spco.model.confidence import model_answer_parameters
 from spco.model.hyperparameters import TransferHyperparameters
 
 SIDES = {
@@ -178,8 +180,9 @@ def main() -> None:
             view_counts = model.settings_.view_counts
             weight = {} if view_counts is None else {"view_counts": view_counts}
             scored = scored_as_test(env) if label.endswith("(out)") else env
-            scores = evaluate_home(model.parameters_, len(corpus) - 1, scored, corpus.vocabulary, rng=seed,
-                                   **weight)
+            e = len(corpus) - 1
+            scores = evaluate_home(model.parameters_, e, scored, corpus.vocabulary, rng=seed,
+                                   answer_params=model_answer_parameters(model, e), **weight)
             gt = env.ground_truth
             for place, name in zip(scores.labels, scores.predicted_names, strict=True):
                 if name not in gt.accepted(place):

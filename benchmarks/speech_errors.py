@@ -2,8 +2,9 @@
 of the development configuration of ``benchmarks/natural_speech.py``, classified.
 
 The fits and the scores are those of ``natural_speech.py`` (same configurations, seeds, trial seeds
-and scoring; development side only: the script has no held-out configuration and refuses seeds
-outside 0–99). Each wrong answer
+and scoring: the names the robot answers, ``model_answer_parameters``; ``--fit-parameters`` scores
+the fit's parameters instead, every word answerable; development side only: the script has no
+held-out configuration and refuses seeds outside 0–99). Each wrong answer
 (A_n: a test view whose top name is not an accepted name of its place) and each missed ``where``
 (A_p: an accepted name the vocabulary holds whose positions fall outside its place's region, score
 below 0.5) is put in one class:
@@ -154,9 +155,10 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--leave-one-out", action="store_true")
     parser.add_argument("--homes", nargs="*", default=None,
                         help="only these configurations (3LDK_9, or a development home held out)")
-    parser.add_argument("--robot-answers", action="store_true",
-                        help="score the names the robot answers (the home's names, model_answer_parameters, "
-                        "as spco experiment) instead of the fit's parameters (as natural_speech.py)")
+    parser.add_argument("--fit-parameters", action="store_true",
+                        help="score the names of the fit's parameters (every word answerable) instead of "
+                        "the names the robot answers (the home's names, model_answer_parameters, as "
+                        "natural_speech.py and spco experiment)")
     parser.add_argument("--json", type=Path, default=None)
     parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE")
     return parser
@@ -273,7 +275,7 @@ def main() -> None:
             weight = {} if view_counts is None else {"view_counts": view_counts}
             e = len(corpus) - 1
             scored = scored_as_test(env) if label.endswith("(out)") else env
-            answer = model_answer_parameters(model, e) if args.robot_answers else None
+            answer = None if args.fit_parameters else model_answer_parameters(model, e)
             scores = evaluate_home(model.parameters_, e, scored, corpus.vocabulary, rng=seed,
                                    answer_params=answer, **weight)
             said = place_speech(knowledge, corpus)  # every development home's people

@@ -12,7 +12,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from spco.data.language import Vocabulary
-from spco.data.lexicon import lexicon, lexicon_unavailable_reason
+from spco.data.lexicon import LexiconMatch, lexicon, lexicon_unavailable_reason
 from spco.errors import ConfigurationError
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.name_evidence import (
@@ -230,6 +230,31 @@ def test_compound_names_never_heard_resolve_through_their_words_or_are_refused(w
         assert resolve_name(vocab, params.word_mask, asked, lexicon=wordnet) is None
         with pytest.raises(UnknownNameError, match=asked):
             predict_positions(params, 0, vocab, asked, n=3, rng=0)
+
+
+def test_a_name_never_heard_is_found_by_its_modifier_s_compound_or_its_words_said_here(wordnet) -> None:
+    """"comfort room" (unknown to WordNet) finds the toilet through "comfort station"; a name the
+    lexicon relates to no name of the home is answered by its own words that the home's people say,
+    kinds of place left out: "sink area" where "sink" is said (with "area", said most at the
+    kitchen, it was the kitchen), "soaking room" where "soak" is said; "great room" ("great hall" is
+    a hall, which says nothing of it) finds nothing."""
+    vocab = Vocabulary(("toilet", "sink", "area", "room", "kitchen", "soak"))
+    theta = np.array([[0.5, 0.2, 0.02, 0.2, 0.0, 0.08],  # concept 0 at x = 0: the toilet
+                      [0.0, 0.1, 0.3, 0.1, 0.3, 0.2]])  # concept 1 at x = 5: the kitchen
+    theta[0, 5], theta[1, 5] = 0.0, 0.2
+    params = replace(_two_place_params(theta), name_prior=np.array([0.6, 0.01, 0.6, 0.6, 0.6, 0.005]))
+    comfort = predict_positions(params, 0, vocab, "comfort room", n=3, rng=0)
+    assert (comfort.name, comfort.via, comfort.region) == ("toilet", "compound gloss", 0), comfort.via
+    sink = predict_positions(params, 0, vocab, "sink area", n=3, rng=0)
+    assert (sink.name, sink.via, sink.region) == ("sink", "its words", 0), (sink.name, sink.via)
+    together = predict_positions(params, 0, vocab, "sink area", n=3, rng=0, unheard=False)
+    assert together.region == 1  # the words said together: "area" takes it to the kitchen
+    soak = predict_positions(params, 0, vocab, "soaking room", n=3, rng=0)
+    assert (soak.name, soak.via, soak.region) == ("soak", "its words", 1)
+    assert resolve_name(vocab, params.word_mask, "great room", params.name_prior, lexicon=wordnet) is None
+    assert wordnet.closest("comfort room", ["restroom", "kitchen"], similarity=False) == \
+        LexiconMatch("restroom", 0.8, "compound synonym")
+    assert wordnet.closest("great room", ["hall", "kitchen"], similarity=False) is None
 
 
 def test_the_lexicon_reads_heads_modifiers_derivations_and_definitions(wordnet) -> None:

@@ -143,3 +143,31 @@ def test_bad_rooms_are_refused() -> None:
     with pytest.raises(ConfigurationError, match="map"):
         concepts_by_room(params, 0, np.array([[1e300, 1e300, 0.0, 1.0]]), None,
                          HomeRooms.of([0], sp.csr_array(np.ones((1, D))), sp.csr_array((1, 3))), 16.0)
+
+
+def test_the_view_weighs_in_on_which_room_the_pose_is_in() -> None:
+    """P(l | x, v) ∝ Σ_k p(k | x) p(l | room k) p(v | l): at a pose between the kitchen and the
+    washroom, nearer the washroom, a view mostly of the kitchen says the robot is in the kitchen (the
+    view is likelier under the kitchen room's concept), so the answer is "kitchen". Judging the room
+    by the pose alone, p(k | x) · p(l | room k, v) (the account as first built), answers "washroom"
+    there at p = 0.91: the washroom's pooled views outvote the view (the synthetic general
+    experiment lost A_n that way, benchmarks/rooms_synthetic.py)."""
+    params, phi = _world()
+    kitchen = _room_views(phi, np.array([1.0, 0.0, 0.0]), 20, 200, seed=7)
+    washroom = _room_views(phi, np.array([0.0, 1.0, 0.0]), 20, 200, seed=8)
+    rooms = HomeRooms.of(np.repeat([0, 1], 20), sp.csr_array(sp.vstack([kitchen, washroom])),
+                         sp.csr_array((40, 3)))
+    pose = np.array([[1.15, 0.0, 0.0, 1.0]])
+    # a view of the kitchen with the washroom's door in it
+    view = sp.csr_array(_room_views(phi, np.array([0.8, 0.2, 0.0]), 1, 200, seed=9))
+    got = concepts_by_room(params, 0, pose, view, rooms, 16.0)
+    # by hand: p(k | x) ∝ n_k N(x | μ_k, Σ_k) (equal n_k and covariances: the squared distances),
+    # p(l | room k) ∝ G_0 Mult(V_k | φ^v)^{w / |V_k|}, p(v | l) = Mult(v | φ^v)^{w / |v|}
+    log_k = -0.5 * np.array([1.15**2, 0.85**2]) / 0.3**2
+    log_room = np.stack([16.0 / r.sum() * (np.log(phi) @ np.asarray(r.sum(axis=0)).ravel())
+                         for r in (kitchen, washroom)])
+    log_room -= logsumexp(log_room, axis=1, keepdims=True)
+    log_view = 16.0 / view.sum() * (np.log(phi) @ view.toarray()[0])
+    joint = logsumexp(log_k[:, None] + log_room + log_view[None, :], axis=0)
+    np.testing.assert_allclose(got[0], np.exp(joint - logsumexp(joint)), rtol=1e-9, atol=1e-12)
+    assert np.exp(log_k[1] - logsumexp(log_k)) > 0.85 and int(np.argmax(got[0])) == 0 and got[0, 0] > 0.9

@@ -8,13 +8,16 @@ speech is never scored here. The closed-class list is the test's own, not spco's
 
 from __future__ import annotations
 
+import csv
 import re
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from spco.data import Corpus
+from spco.data.language import Vocabulary, normalize_name
 from spco.data.loading import load
 from spco.data.sigverse import read_indexed_texts
 from spco.data.synthetic import SyntheticConfig, generate_homes
@@ -33,7 +36,18 @@ and or but so if then than because as while
 is are was were be been being am do does did don't doesn't didn't isn't aren't wasn't weren't
 have has had can can't cannot could will won't would should shall may might must let's
 here there where what which who when how why not yes yeah ok okay um uh oh hey hi hello
+that's there's here's what's where's who's let's ain't haven't hasn't hadn't shouldn't wouldn't couldn't
+mustn't it'll that'll we'd it'd er erm hmm ah well like just gonna wanna
+dont doesnt didnt isnt arent wasnt cant wont im ive youre theyre thats theres whats wheres lets
 """.split())
+#: Numbers written as words: a number is no place's name, in figures ("11", "2am") or in words.
+NUMBER_WORDS = frozenset("""
+zero one two three four five six seven eight nine ten eleven twelve twenty hundred first second third
+""".split())
+#: Verbs of a naming frame ("we always say …", "what we call …"): a name never ends with one.
+FRAME_VERBS = frozenset({"say", "says", "said", "call", "calls", "called", "name", "named"})
+#: The only closed-class words a name holds inside ("mum and dad's room").
+INNER = frozenset({"and", "of"})
 
 DEVELOPMENT_HOMES = ("1LDK_1", "1LDK_3", "1LDK_5", "1LDK_7", "2LDK_1", "2LDK_3", "2LDK_5", "2LDK_7")
 
@@ -43,32 +57,43 @@ def not_a_name(answer: str) -> str | None:
     words = answer.split()
     if not words:
         return "empty"
-    if re.search(r"\d", answer):
+    if re.search(r"\d", answer) or (len(words) == 1 and words[0] in NUMBER_WORDS):
         return "a number"
     if len(words) == 1 and words[0] in CLOSED_CLASS:
         return "a function word"
-    if len(words) > 1 and (words[0] in CLOSED_CLASS - {"my", "our", "your"} or words[-1] in CLOSED_CLASS):
-        return "a fragment of a sentence"
     if all(w in CLOSED_CLASS for w in words):
         return "function words"
+    if len(words) > 1 and (words[0] in CLOSED_CLASS - {"my", "our", "your"} or words[-1] in CLOSED_CLASS
+                           or words[-1] in FRAME_VERBS
+                           or any(w in CLOSED_CLASS - INNER for w in words[1:-1])):
+        return "a fragment of a sentence"
     return None
 
 
 def test_the_checker_knows_what_is_no_name() -> None:
-    for bad in ("to", "don't", "an", "11", "2am", "front of", "you are in", "we always", "is"):
+    for bad in ("to", "don't", "dont", "there's", "an", "11", "2am", "two", "front of", "you are in",
+                "we always", "is", "we always say", "always say", "wash your hands", "kitchen is here",
+                "the", "um"):
         assert not_a_name(bad), bad
-    for good in ("kitchen", "living room", "emma's room", "mum and dad's room", "my room", "front door"):
+    for good in ("kitchen", "living room", "emma's room", "mum and dad's room", "my room", "front door",
+                 "powder room", "tv room", "bed and breakfast room"):
         assert not_a_name(good) is None, good
 
 
-def _answers(model: SpCoTransfer, corpus: Corpus, e: int, rows: np.ndarray) -> set[str]:
+def _answers(model: SpCoTransfer, corpus: Corpus, e: int, rows: np.ndarray,
+             params: object = None, vocabulary: Vocabulary | None = None) -> set[str]:
+    """The names answered at ``rows`` of home ``e``: the best of the fit's parameters (what the
+    benchmarks score) and the robot's three names (what ``what`` says, best first: the experiments'
+    answer parameters, :func:`model_answer_parameters`), each with both name weightings."""
     env = corpus[e]
     out: set[str] = set()
-    for params in (model.parameters_, model_answer_parameters(model, e)):  # the model; what experiments score
+    robot = model_answer_parameters(model, e) if params is None else params
+    for answer, top_k in ((model.parameters_ if params is None else params, 1), (robot, 3)):
         for weighting in ("none", "mi"):
-            names = answer_names(params, e, corpus.vocabulary, env.positions[rows], env.visual[rows], top_k=1,
-                                 weighting=weighting, view_counts=model.settings_.view_counts)
-            out |= {n for n in names.best if n is not None}
+            names = answer_names(answer, e, vocabulary or corpus.vocabulary, env.positions[rows],
+                                 env.visual[rows], top_k=top_k, weighting=weighting,
+                                 view_counts=model.settings_.view_counts)
+            out |= {str(n) for row in names.words for n in row if n is not None}
     return out
 
 
@@ -77,14 +102,82 @@ def _check(answers: set[str]) -> None:
     assert not bad, bad
 
 
-def test_no_function_word_is_answered_in_free_form_homes() -> None:
+def _free_form() -> tuple[Corpus, SpCoTransfer]:
     corpus = generate_homes(9, seed=0, new_homes=1, specific_rooms=False,
                             config=SyntheticConfig(n_features=256, language="free"))
+    return corpus, SpCoTransfer(n_iterations=30, random_state=0, prune_words=True).fit(corpus)
+
+
+def test_no_function_word_is_answered_in_free_form_homes() -> None:
+    corpus, model = _free_form()
+    answers: set[str] = set()
+    for e, env in enumerate(corpus):
+        answers |= _answers(model, corpus, e, np.arange(env.n_samples))
+    _check(answers)
+
+
+@pytest.mark.xfail(strict=True, reason="known failure of the term rule (issue 28, item 3): the free-form "
+                   "homes' speech makes 'wash your hands' a term (a possessive inside a name). Keeping "
+                   "possessives out of terms removed it but cost the synonyms' A_p of these homes 0.79 -> "
+                   "0.59 (tests/test_synonyms.py failed; benchmarks/README, 'Names never heard on "
+                   "development, by class of error'), so the rule was left as it is and this test failing")
+def test_no_term_learnt_from_free_form_speech_is_a_fragment() -> None:
+    corpus = generate_homes(9, seed=0, new_homes=1, specific_rooms=False,
+                            config=SyntheticConfig(n_features=256, language="free"))
+    _check(set(corpus.vocabulary.terms))
+
+
+def test_the_check_fails_on_a_planted_bad_answer() -> None:
+    """The check can fail: a column of the new home made each concept's most probable name, and
+    spelt in turn as a function word, a contraction, a number and a fragment, is found in what the
+    home answers."""
+    corpus, model = _free_form()
+    e = len(corpus) - 1
+    rows = np.arange(corpus[e].n_samples)
+    k = corpus.vocabulary.index("the")
+    assert k is not None
+    params = model_answer_parameters(model, e)
+    theta = np.array(params.word_probabilities, dtype=np.float64)
+    theta[e, :, k] = 10.0 * theta[e].max()
+    theta[e] /= theta[e].sum(axis=-1, keepdims=True)
+    mask = np.array(params.word_mask, dtype=bool)
+    mask[k] = True
+    bad = replace(params, word_probabilities=theta, word_mask=mask)
+    words = list(corpus.vocabulary.words)
+    for planted in ("the", "don't", "11", "two", "we always say", "kitchen is here"):
+        words[k] = planted
+        vocabulary = Vocabulary(tuple(words))
+        with pytest.raises(AssertionError, match=re.escape(planted)):
+            _check(_answers(model, corpus, e, rows, params=bad, vocabulary=vocabulary))
+
+
+@pytest.mark.sigverse
+def test_no_function_word_is_answered_with_the_development_written_speech(sigverse_dir: Path) -> None:
+    """The project's development sentences (benchmarks/development/speech_dev.csv: children, elderly
+    and non-native speakers, a recogniser's errors, sentences naming no place) taught to four of the
+    experienced homes, each sample a sentence of its place; new home 3LDK_9 taught nothing."""
+    speech = Path(__file__).resolve().parents[1] / "benchmarks" / "development" / "speech_dev.csv"
+    by_place: dict[str, list[str]] = {}
+    with open(speech, encoding="utf-8", newline="") as fh:
+        for row in csv.DictReader(fh):
+            by_place.setdefault(normalize_name(row["place"]), []).append(row["sentence"])
+    rng = np.random.default_rng(0)
+    homes = []
+    for name in ("3LDK_1", "1LDK_1", "2LDK_2", "2LDK_3"):
+        env = load(sigverse_dir / name)[name]
+        labels = env.ground_truth.labels  # type: ignore[union-attr]
+        said = [by_place[normalize_name(lab)][rng.integers(len(by_place[normalize_name(lab)]))]
+                if s is not None and lab is not None and normalize_name(lab) in by_place else None
+                for s, lab in zip(env.sentences, labels, strict=True)]
+        homes.append(env.with_sentences(said))
+    new = load(sigverse_dir / "3LDK_9")["3LDK_9"]
+    corpus = Corpus([*homes, new.with_sentences((None,) * new.n_samples)])
     model = SpCoTransfer(n_iterations=30, random_state=0, prune_words=True).fit(corpus)
     answers: set[str] = set()
     for e, env in enumerate(corpus):
         answers |= _answers(model, corpus, e, np.arange(env.n_samples))
     _check(answers)
+    _check(set(corpus.vocabulary.terms))
 
 
 @pytest.mark.sigverse

@@ -3,7 +3,8 @@ problems, and recovery of known structure (names vs background) on synthetic hom
 
 (a) the switch of each token given its concept: enumeration of the joint p(z, w | C) of a sentence;
 (b) the concept's word likelihood with the switches marginalised (counts 1: the token model's
-    marginal; counts S: S times the per-token log marginal);
+    marginal; counts S: S times the per-token log marginal; with the word weight W^w, counts S:
+    the sentence's marginal, enumerated, to the power W^w, whatever S);
 (c) λ | z on the grid against the product of the tokens' prior probabilities;
 (d) the drawn switches follow their conditional; ψ, β follow their Dirichlet posteriors;
 (e) the label swap's place-channel term against the log-likelihood of the place tokens before and
@@ -15,6 +16,7 @@ problems, and recovery of known structure (names vs background) on synthetic hom
 from __future__ import annotations
 
 import itertools
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -37,6 +39,7 @@ from spco.model.word_channels import (
     sample_channels,
     sample_switches,
     switch_probabilities,
+    token_weight,
 )
 
 
@@ -109,6 +112,38 @@ def test_concept_likelihood_marginalises_the_switches(count: float) -> None:
                                       for k, z in zip(ks, zs, strict=True))
                                   for zs in itertools.product(range(3), repeat=ks.size)])
             assert_allclose(got[t, concept], count * marginal, rtol=1e-10)
+
+
+@pytest.mark.parametrize(("count", "word_counts"), [(5000.0, 16.0), (5000.0, 1.0), (3.0, 0.5)])
+def test_concept_likelihood_weighs_each_token_by_the_word_weight(count: float, word_counts: float) -> None:
+    """With the word weight W^w (``TransferHyperparameters.word_counts``) a sentence's words weigh W^w
+    per token in its concept, whatever the word increment S^w: the sentence's marginal over every
+    switch configuration, enumerated, to the power W^w — so that the concept's conditional,
+    p(C_t = l | w_t) ∝ G_l p(w_t | l)^{W^w}, is that of the token model with S^w = 1 tempered by W^w."""
+    words, homes, log_theta, channels = _random_problem(11, count=count)
+    weight = token_weight(word_counts, int(count) if count >= 1 else 1)
+    assert weight == pytest.approx(word_counts / count)
+    channels = replace(channels, token_weight=weight)
+    got = mixture_log_likelihood(words, homes, log_theta, channels)
+    dense = words.toarray()
+    log_g = np.log(np.array([0.5, 0.3, 0.2]))
+    for t in range(words.shape[0]):
+        ks = np.flatnonzero(dense[t])
+        marginal = np.array([logsumexp([sum(_token_joint(k, z, homes[t], concept, log_theta, channels)
+                                            for k, z in zip(ks, zs, strict=True))
+                                        for zs in itertools.product(range(3), repeat=ks.size)])
+                             for concept in range(log_theta.shape[1])])
+        assert_allclose(got[t], word_counts * marginal, rtol=1e-10)
+        # the concept's conditional from the likelihood, against the enumerated one
+        conditional = log_g + got[t]
+        expected = log_g + word_counts * marginal
+        assert_allclose(conditional - logsumexp(conditional), expected - logsumexp(expected), atol=1e-10)
+    # the place tokens of a label swap are weighed as the concept's likelihood weighs them
+    switches = np.full(words.nnz, PLACE, dtype=np.int8)
+    concepts = np.zeros(words.shape[0], dtype=np.int64)
+    plain = place_token_counts(words, homes, concepts, switches, 2, 3)
+    assert_allclose(place_token_counts(words, homes, concepts, switches, 2, 3, weight), plain * weight)
+    assert token_weight(None, 5000) == 1.0  # S^w counts per token, as before the word weight
 
 
 def test_lambda_conditional_matches_the_tokens_prior() -> None:

@@ -69,6 +69,10 @@ same), and keeps the place from being answered as "living" or "room".
    its uses, yet each compound is one name or one object. Without the lexicon (no NLTK or WordNet,
    :mod:`spco.data.lexicon`) only rules 1–5 apply.
 
+7. **A coordinated possessive is one atom** before pairs are counted (:func:`_coordinated`: "mum",
+   "and", "dad's" -> "mum and dad's"), so "mum and dad's room" comes out whole, as "dad's room" would
+   (pair by pair it cannot: neither "mum and" nor "and dad's" may be a term).
+
 A second pass over the sentences with the learnt pairs joined finds longer terms ("walk in closet").
 The rule also joins set phrases that are not names ("this is", "welcome to" when people say them in
 fewer than half of the sentences): they are tokens like any other, spread over all places, and the
@@ -469,7 +473,7 @@ def learn_terms(
     neither a frame word) is a term when it is said at least ``min_count`` times counting repeats
     (as :meth:`Vocabulary.from_sentences` learns; the module docstring).
     """
-    streams = [tokenize(s, segmentation) for s in sentences if s]
+    streams = [_coordinated(tokenize(s, segmentation)) for s in sentences if s]
     streams = [s for s in streams if s]
     uses = [1] * len(streams)
     if distinct:  # each distinct sentence once, with how often it was said
@@ -501,6 +505,24 @@ def learn_terms(
         terms |= {f"{a} {b}" for (a, b), n in joined.items() if (a, b) in pairs and n >= min_count}
         terms |= {f"{a} {b}" for (a, b), n in joined_said.items() if (a, b) in together and n >= min_count}
     return sorted(terms)
+
+
+def _coordinated(atoms: list[str]) -> list[str]:
+    """``atoms`` with each coordinated possessive joined into one atom ("mum", "and", "dad's" ->
+    "mum and dad's"), so that "mum and dad's room" can be a term as "dad's room" is (a term is
+    otherwise joined pair by pair, and neither "mum and" nor "and dad's" may be one)."""
+    out: list[str] = []
+    i = 0
+    while i < len(atoms):
+        if (i + 2 < len(atoms) and atoms[i + 1] == "and" and atoms[i + 2].endswith(("'s", "s'"))
+                and len(atoms[i + 2]) > 2 and " " not in atoms[i] + atoms[i + 2]
+                and not is_function_word(atoms[i]) and not is_function_word(atoms[i + 2])):
+            out.append(f"{atoms[i]} and {atoms[i + 2]}")
+            i += 3
+        else:
+            out.append(atoms[i])
+            i += 1
+    return out
 
 
 def _never_apart(counts: _PairCounts, max_sentence_share: float) -> dict[tuple[str, str], float]:

@@ -322,6 +322,11 @@ class Lexicon:
                 return [head, tail]
         return None
 
+    def base_forms(self, word: str) -> set[str]:
+        """The word and its WordNet base forms as a noun and a verb ("sitting" -> "sit", "soaking" ->
+        "soak")."""
+        return self._base_forms(word)
+
     def _base_forms(self, word: str) -> set[str]:
         """The word and its WordNet base forms as a noun and a verb ("sitting" -> "sit")."""
         forms = {word}
@@ -353,6 +358,41 @@ class Lexicon:
                 hits.append(original)
                 concepts.add(senses[0])  # synonyms ("bedroom", "bedchamber") are one concept
         return LexiconMatch(hits[0], 0.7, "definition") if len(concepts) == 1 else None
+
+    def _compound_of(self, modifier: str, head: str, known: dict[str, str]) -> LexiconMatch | None:
+        """A known name related (:meth:`_by_senses`: a synonym, or in the definition) to the places that
+        WordNet names by ``modifier`` before another head ("comfort room", unknown to WordNet ->
+        "comfort station": "a toilet that is available to the public", a synonym of "restroom"), when
+        those compounds' known names are one (several places named so, or none: None)."""
+        prefix = "_".join(modifier.split()) + "_"
+        found: dict[str, LexiconMatch] = {}
+        for lemma in self._compounds(prefix):
+            if lemma.count("_") != prefix.count("_") or lemma.endswith("_" + head):
+                continue  # the modifier before one other word, not the name asked for itself
+            senses = self.synsets(lemma, pos="n")[:1]
+            with self._lock:
+                if not senses or not self._is_place_synset(senses[0].name()):
+                    continue
+            match = self._by_senses(senses, known)
+            if match is not None and match.name != lemma.rsplit("_", 1)[-1]:  # "great hall": a hall,
+                found.setdefault(match.name, match)  # which says nothing of a "great room"
+        if len(found) != 1:
+            return None
+        match = next(iter(found.values()))
+        return replace(match, score=match.score * 0.8, how=f"compound {match.how}")
+
+    def _compounds(self, prefix: str) -> list[str]:
+        """WordNet's noun lemmas starting with ``prefix`` ("comfort_"), from an index of them built
+        once per lexicon."""
+        with self._lock:
+            if not hasattr(self, "_by_first"):
+                by_first: dict[str, list[str]] = {}
+                for lemma in self._wn.all_lemma_names(pos="n"):
+                    if "_" in lemma:
+                        by_first.setdefault(lemma.split("_", 1)[0], []).append(lemma)
+                self._by_first = by_first
+        return [lemma for lemma in self._by_first.get(prefix.split("_", 1)[0], [])
+                if lemma.startswith(prefix)]
 
     def _general(self, word: str, known: dict[str, str]) -> bool:
         """Whether a head word is more general than the known names ("room", "area": a hypernym of
@@ -417,7 +457,9 @@ class Lexicon:
         general head: "washing area" -> "laundry room"): a synonym or definition ("tub room" -> "tub" ->
         "bath"), the one place (or synonyms) defined by the word ("sleeping quarters" -> "bedroom":
         "a room used primarily for sleeping"), a derivation or verb synonym ("bathing room" ->
-        "bathe" -> "bath"); else the known name of highest Wu–Palmer similarity between noun senses (≥
+        "bathe" -> "bath"), a synonym or definition of the one place WordNet names by the words
+        before a general head and another word ("comfort room" -> "comfort station", a restroom;
+        :meth:`_compound_of`); else the known name of highest Wu–Palmer similarity between noun senses (≥
         :data:`MIN_SIMILARITY`) of the name or its words, among near ties (kinds of room are all
         about as similar) the one whose definition shares most words with the name's, and none
         when they share none. ``known``: candidate names (vocabulary tokens, lower case, words
@@ -466,10 +508,13 @@ class Lexicon:
                 found = self._defined_by(part, known_set)  # "a room used primarily for sleeping"
                 if found is not None:
                     return found
-            for part in parts:
-                found = self._derived(part, known_set)
-                if found is not None:
-                    return found
+            # a derivation, then the modifier's own compound naming a place: "comfort room" ->
+            # "comfort station", a restroom
+            later = itertools.chain((self._derived(part, known_set) for part in parts),
+                                    (self._compound_of(modifier, head, known_set) for _ in range(general)))
+            found = next((f for f in later if f is not None), None)
+            if found is not None:
+                return found
         if not similarity:
             return None
         # similarity of the nouns (the name's, else its words')

@@ -35,6 +35,7 @@ def _put(arrays: dict, name: str, value) -> None:
         for part in _CHANNEL_ARRAYS:
             arrays[f"channels.{part}"] = np.asarray(getattr(value, part))
         arrays["channels.fresh"] = np.asarray(value.fresh)
+        arrays["channels.token_weight"] = np.asarray(value.token_weight)
     else:
         arrays[name] = np.asarray(value)
 
@@ -44,7 +45,9 @@ def _get(arrays, name: str):
         if "channels.log_place" not in arrays:
             return None
         return WordChannels(*(arrays[f"channels.{part}"] for part in _CHANNEL_ARRAYS),
-                            fresh=bool(arrays["channels.fresh"]))
+                            fresh=bool(arrays["channels.fresh"]),
+                            token_weight=float(arrays["channels.token_weight"])
+                            if "channels.token_weight" in arrays else 1.0)
     return arrays[name] if name in arrays else None
 DRIVER_FILE = "driver.npz"
 

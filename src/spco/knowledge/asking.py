@@ -19,7 +19,7 @@ import scipy.sparse as sp
 
 from spco.errors import ConfigurationError
 from spco.knowledge.home import HomeModel
-from spco.knowledge.queries import answer_parameters
+from spco.knowledge.queries import answer_parameters, name_prediction
 from spco.model.confidence import UNSURE_BELOW
 from spco.model.home_shard import FREE_CONCEPT_WEIGHT
 from spco.model.prediction import concept_posterior
@@ -187,8 +187,10 @@ def _kind_name(home: HomeModel, columns: np.ndarray, kind: int) -> str:
     return str(home.vocabulary.words[int(columns[np.argmax(log_phi)])]) if columns.size else f"concept {kind}"
 
 
-def _reason(home: HomeModel, scores: QuestionScores, columns: np.ndarray, row: int) -> str:
-    """Why asking at sample ``row`` teaches what it does, in words."""
+def _reason(home: HomeModel, scores: QuestionScores, columns: np.ndarray, row: int,
+            answered: list[tuple[str, float]] | None = None) -> str:
+    """Why asking at sample ``row`` teaches what it does, in words; ``answered``: the names ``what``
+    answers there with their probabilities, best first (default: the scores' own)."""
     words = home.vocabulary.words
 
     def top(p: np.ndarray) -> list[tuple[str, float]]:
@@ -205,7 +207,8 @@ def _reason(home: HomeModel, scores: QuestionScores, columns: np.ndarray, row: i
     kind = int(scores.room_kinds[room])
     kind_name = _kind_name(home, columns, kind)
     rho = float(scores.own_name[row])
-    here = top(scores.model_probabilities[row])
+    here = top(scores.model_probabilities[row]) if answered is None else \
+        [(w, q) for w, q in answered[:2] if q > 0.005]
     if float(scores.novelty[row]) >= 0.5:
         return (f"no experienced home has a place that looks like this: the knowledge explains this room's "
                 f"views by {float(scores.room_fit[room]):.2f} nats per count better than a uniform guess, "
@@ -280,16 +283,19 @@ def ask(home: HomeModel, n: int = 5, criterion: str = DEFAULT_CRITERION, unsure_
         keep = confidence[rows] < float(unsure_below)
         rows, gains = rows[keep], gains[keep]
     columns = name_columns(home)
-    words = home.vocabulary.words
+    rows, gains = rows[: int(n)], gains[: int(n)]
+    # the names and numbers `what` answers at each asked sample, with its view: the one predictor
+    # (the scores' p(w | x, v) leaves out the concepts they count unnamed, a share of ~1e-7 at times)
+    said = name_prediction(home, home.positions[rows], home.visual[rows], top_k=3) if rows.size else None
     questions = []
-    for row, gain in zip(rows[: int(n)], gains[: int(n)], strict=True):
-        p = scores.model_probabilities[row]
-        top = np.argsort(-p, kind="stable")[:3]
+    for i, (row, gain) in enumerate(zip(rows, gains, strict=True)):
+        answered = [(str(w), float(q)) for w, q in zip(said.words[i], said.probabilities[i], strict=True)
+                    if q > 0]
         x, y, s, c = (float(v) for v in home.positions[row])
         questions.append(Question(
             id=int(home.ids[row]), x=x, y=y, theta=float(np.arctan2(s, c)), gain=float(gain),
-            reason=_reason(home, scores, columns, int(row)),
-            names=tuple((str(words[int(columns[j])]), float(p[j])) for j in top if p[j] > 0),
+            reason=_reason(home, scores, columns, int(row), answered),
+            names=tuple(answered),
             unknown=float(scores.unknown[row]), room=int(scores.rooms[row]),
             confidence=float(confidence[row]), worth_asking=bool(confidence[row] < float(unsure_below)),
             own_name=float(scores.own_name[row])))

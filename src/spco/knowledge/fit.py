@@ -33,7 +33,7 @@ from spco.model.pruning import words_to_keep
 from spco.model.seeds import as_generator, seed_of
 from spco.model.sources import PreparedHomes
 from spco.model.transfer import SpCoTransfer
-from spco.model.word_channels import WordChannels, uses_word_channels
+from spco.model.word_channels import WordChannels, token_weight, uses_word_channels
 from spco.timestamps import utc_now
 
 
@@ -164,7 +164,7 @@ def fit_knowledge(
     keep = set(summary_iterations(n_iterations, summary_fraction, summary_every))
     start = time.perf_counter()
     chain = _sample_chain(engine, source, hyper, settings, rng, evidence, n_iterations, keep,
-                          f"fit ({model})" if progress else None)
+                          f"fit ({model})" if progress else None, corpus.word_increment)
     seconds = time.perf_counter() - start
     run = chain.run
     hyper, settings = run.hyper, run.settings  # (with the view weight estimated from the homes)
@@ -261,10 +261,11 @@ class _Chain:
 
 def _sample_chain(engine: Any, source: Any, hyper: TransferHyperparameters, settings: Any,
                   rng: np.random.Generator, evidence: tuple[np.ndarray, np.ndarray] | None, n_iterations: int,
-                  keep: set[int], progress: str | None) -> _Chain:
+                  keep: set[int], progress: str | None, word_increment: int) -> _Chain:
     """Run the sampler ``n_iterations`` sweeps on the homes of ``source`` (in their shards, on
     ``engine``), keeping the shared parameters of the sweeps in ``keep``; ``progress``: a progress
-    bar's label, ``None`` for none."""
+    bar's label, ``None`` for none; ``word_increment``: S^w of the homes' words (the word channels'
+    token weight, :func:`spco.model.word_channels.token_weight`)."""
     by_iteration: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
     channel_samples: dict[int, WordChannels] = {}
     expected: dict[int, np.ndarray] = {}  # the kept sweeps' expected switch counts (V, 3)
@@ -277,8 +278,9 @@ def _sample_chain(engine: Any, source: Any, hyper: TransferHyperparameters, sett
 
     run = start_source_run(engine, source, hyper, settings, rng)  # the homes stay in the shards
     if evidence is not None:
-        run.use_word_channels(WordChannels.initial(evidence[0], run.hyper.n_concepts,
-                                                   run.hyper.evidence_weight, evidence[1]))
+        run.use_word_channels(WordChannels.initial(
+            evidence[0], run.hyper.n_concepts, run.hyper.evidence_weight, evidence[1],
+            token_weight(run.hyper.word_counts, word_increment)))
 
     def after_sweep(iteration: int, _: float) -> None:  # (a restarted engine repeats sweeps)
         if bar is not None:

@@ -96,8 +96,9 @@ class KnowledgeChannels:
         V = self.tokens.shape[0]
         channels = self.channels.extended(n_words, evidence, content, weight)
         # a word never said is as unlikely a place word of one concept as of another: the same ψ in
-        # every concept (the smallest of the knowledge's), so that with its S^w counts in the concept's
-        # likelihood it draws no sample to the concept whose ψ happens to be least sparse
+        # every concept (the smallest of the knowledge's), so that with its weight in the concept's
+        # likelihood (W^w counts, or S^w for a knowledge without the word weight) it draws no sample
+        # to the concept whose ψ happens to be least sparse
         place = channels.log_place.copy()
         place[:, V:] = float(self.channels.log_place.min()) if self.channels.log_place.size else 0.0
         channels = replace(channels, log_place=place - logsumexp(place, axis=1, keepdims=True))
@@ -122,6 +123,8 @@ class KnowledgeChannels:
                   "channels.tokens": self.tokens}
         if c.prior_only_from is not None:
             arrays["channels.prior_only_from"] = np.array([c.prior_only_from], dtype=np.int64)
+        if c.token_weight != 1.0:  # (a file without it: S^w counts per token, as before the word weight)
+            arrays["channels.token_weight"] = np.array([c.token_weight], dtype=np.float64)
         return arrays
 
     @classmethod
@@ -138,6 +141,12 @@ class KnowledgeChannels:
         first = arrays.get(prefix + "channels.prior_only_from")
         if first is not None:
             channels = replace(channels, prior_only_from=int(np.asarray(first).reshape(-1)[0]))
+        weight = arrays.get(prefix + "channels.token_weight")
+        if weight is not None:
+            value = float(np.asarray(weight, dtype=np.float64).reshape(-1)[0])
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(f"channels.token_weight must be a positive number, got {value!r}")
+            channels = replace(channels, token_weight=value)
         return cls(channels, a["tokens"])
 
 

@@ -292,11 +292,10 @@ def name_prediction(home: HomeModel, poses: np.ndarray, visual: Any = None, top_
     poses: (n, 4) ``(x, y, sin θ, cos θ)`` in metres.
     visual: (n, D) the views' counts (sparse or dense), or ``None`` for the positions alone.
     top_k, unsure_below: as :func:`what`.
-    by_room: opt-in, the room account (:mod:`spco.model.rooms`: the pose's room's training views
-        pooled and the view, each worth w, against φ^v; docs/model.md, "A room's evidence") instead
-        of the view and the pose against the home's parameters. Not the default: on development
-        data it calibrates camera-image homes better but lowers A_n where a room's views are
-        independent draws (synthetic homes) and raises fc7's ECE slightly.
+    by_room: opt-in, the room account (:mod:`spco.model.rooms`: P(l | pose, view) ∝ Σ_k p(k | pose)
+        p(l | room k) p(view | l), room k's training views pooled and the view each worth w, against
+        φ^v; docs/model.md, "A room's evidence") instead of the view and the pose against the home's
+        parameters. Not the default yet: docs/model.md, "A room's evidence", says why.
 
     Returns
     -------

@@ -28,8 +28,9 @@ counts two kinds of evidence that are not independent as if they were; this modu
    (:func:`answerable_names`): such a concept answers at p ≈ 1 / (number of names), i.e. unsure.
 4. **Opt-in: a room's views as one piece of evidence.** Given the home's rooms (:func:`answer_names`'s
    ``rooms``; ``spco.knowledge.name_prediction(by_room=True)``), the concept at a pose is judged from
-   the pose's region — its training views pooled, worth w draws — and the observation's view, worth
-   w, against φ^v, not from the home's π and θ^v, which hold each of the room's views as independent
+   the rooms the pose may be in — each room's training views pooled, worth w draws — and the
+   observation's view, worth w, against φ^v (the view weighs in on which room as well as on its
+   concept), not from the home's π and θ^v, which hold each of the room's views as independent
    evidence (:mod:`spco.model.rooms`; docs/model.md, "A room's evidence", says why it is not the
    default).
 
@@ -203,8 +204,8 @@ def answer_names(
     ``unsure_below`` (default :data:`UNSURE_BELOW`) are flagged unsure; ``name_prior``: the opt-in
     ordering of :func:`~spco.model.prediction.predict_names` (off for the robot's answers).
     ``rooms``: the home's training samples' regions, views and taught names; with them and a pose,
-    the concept is judged from the pose's room — its training views pooled as one piece of evidence
-    — and the observation's view, each worth w draws against φ^v
+    the concept is judged from the rooms the pose may be in — each room's training views pooled as one
+    piece of evidence — and the observation's view, each worth w draws against φ^v
     (:func:`spco.model.rooms.concepts_by_room`; docs/model.md, "A room's evidence"), not from the
     home's π and θ^v, which count each of the room's views as independent evidence.
     """

@@ -346,7 +346,8 @@ def _statistics(data: PreparedData, state: GibbsState, hyper: TransferHyperparam
     if uses_channels(data, state):  # θ^w counts the name tokens only
         words = name_tokens(data.words, state.switches)
         channel = channel_counts(data.words, state.concepts, state.switches, L)
-        place_tokens = place_token_counts(data.words, data.homes, state.concepts, state.switches, E, L)
+        place_tokens = place_token_counts(data.words, data.homes, state.concepts, state.switches, E, L,
+                                          state.channels.token_weight)
     else:
         words = sentence_words(data, state)
     return Statistics(

@@ -46,6 +46,12 @@ VIEW_COUNTS = 16.0
 #: ``TransferHyperparameters.view_counts`` of a model whose view weight is learnt from its homes.
 ESTIMATE = "estimate"
 
+#: The word weight W^w, in counts: the default of ``TransferHyperparameters.word_counts``, the
+#: evidence of one word token in its concept's assignment (word channels; docs/model.md, "A word
+#: token's evidence"): a token weighs as one view (:data:`VIEW_COUNTS`), not as the S^w = 5,000
+#: counts that θ^w counts it with.
+WORD_COUNTS = VIEW_COUNTS
+
 
 #: Largest Dirichlet concentration or NIW κ0 accepted (sums over thousands of dimensions stay finite).
 MAX_CONCENTRATION = 1e100
@@ -115,6 +121,14 @@ class TransferHyperparameters:
         ``"naming-rule"`` — the earlier rule that prunes words by where they are said
         (:mod:`spco.model.pruning`). A dictionary without it (a file from before it) reads as
         ``"naming-rule"``, the model it was learnt with.
+    word_counts: the word weight W^w, the evidence of one word token in its sample's concept
+        assignment, in counts (word channels only): each token's log-likelihood under every concept,
+        log Σ_c p(z = c | k) p(k | c, l), is weighed by ``word_counts`` instead of the token's S^w
+        counts (``Corpus.word_increment``), in the sampler, ``adapt`` and ``teach`` alike — a power
+        likelihood as a view's w. θ^w still counts a name token S^w times (the names' concentration
+        against δ^w φ^w). Default :data:`WORD_COUNTS` (a token weighs as a view), chosen on development
+        data (docs/model.md, "A word token's evidence"); ``None``: S^w, every word's counts (as
+        before it; a dictionary without it, a file from before it, reads as ``None``).
     evidence_weight: η, the weight of the linguistic evidence in the switch's prior (word channels):
         p(z = name | word) ∝ λ_name ν^η, p(z = place or background) ∝ λ_c (1 − ν)^η, ν the name
         evidence of :mod:`spco.model.name_evidence`. Default :data:`EVIDENCE_WEIGHT`, chosen on
@@ -140,6 +154,7 @@ class TransferHyperparameters:
     name_prior: NamePrior = "off"
     word_model: WordModel = "channels"
     evidence_weight: float = EVIDENCE_WEIGHT
+    word_counts: float | None = WORD_COUNTS
 
     def __post_init__(self) -> None:
         for name in ("n_concepts", "n_regions"):
@@ -165,6 +180,11 @@ class TransferHyperparameters:
             if not float(self.view_counts) <= MAX_CONCENTRATION:
                 raise ConfigurationError(f"view_counts must be at most {MAX_CONCENTRATION:g}, "
                                          f"got {self.view_counts!r}")
+        if self.word_counts is not None:
+            _positive("word_counts", float(self.word_counts))
+            if not float(self.word_counts) <= MAX_CONCENTRATION:
+                raise ConfigurationError(f"word_counts must be at most {MAX_CONCENTRATION:g}, "
+                                         f"got {self.word_counts!r}")
         if self.mi_threshold is not None and not (np.isfinite(self.mi_threshold) and self.mi_threshold >= 0):
             raise ConfigurationError(f"mi_threshold must be >= 0, got {self.mi_threshold!r}")
         if self.word_model not in WORD_MODELS:
@@ -225,6 +245,7 @@ class TransferHyperparameters:
         """Inverse of :meth:`to_dict`."""
         data = dict(data)
         data.setdefault("word_model", "naming-rule")  # written before the word channels
+        data.setdefault("word_counts", None)  # written before the word weight: S^w counts per token
         for key in ("psi0", "mu0"):
             if data.get(key) is not None:
                 data[key] = _to_tuple(data[key])
@@ -235,10 +256,10 @@ class TransferHyperparameters:
         ``["n_concepts=30", "kappa0=0.001"]``.
 
         Scalars only (:data:`SETTABLE`): integers for ``n_concepts`` / ``n_regions``, numbers
-        otherwise, ``none`` for ``view_counts`` (every count a draw) or ``mi_threshold`` (the
-        score's default), ``estimate`` for ``view_counts`` (learnt from the homes). Raises
-        :class:`~spco.errors.ConfigurationError` naming the setting for an unknown name, a value of
-        the wrong kind, or one the model refuses (e.g. ``kappa0=-1``).
+        otherwise, ``none`` for ``view_counts`` (every count a draw), ``word_counts`` (S^w per token)
+        or ``mi_threshold`` (the score's default), ``estimate`` for ``view_counts`` (learnt from the
+        homes). Raises :class:`~spco.errors.ConfigurationError` naming the setting for an unknown
+        name, a value of the wrong kind, or one the model refuses (e.g. ``kappa0=-1``).
         """
         changes: dict[str, Any] = {}
         for setting in settings:
@@ -278,7 +299,7 @@ SETTABLE: dict[str, str] = {
     "n_concepts": "integer", "n_regions": "integer", "alpha_visual": "a number", "alpha_word": "a number",
     "delta_visual": "a number", "delta_word": "a number", "gamma0": "a number", "gamma": "a number",
     "beta": "a number", "kappa0": "a number", "nu0": "a number", "mi_threshold": "number or none",
-    "view_counts": "number, none or estimate", "evidence_weight": "a number",
+    "view_counts": "number, none or estimate", "evidence_weight": "a number", "word_counts": "number or none",
     "word_model": "one of channels, naming-rule",
 }
 

@@ -9,20 +9,21 @@ concept is put there, and answered, with certainty.
 
 The room account (opt-in: ``spco.knowledge.name_prediction(by_room=True)``,
 :func:`spco.model.confidence.answer_names`'s ``rooms``) judges an observation's concept from two
-pieces of evidence,
-each worth the model's w draws: the room it is in — the region's training views pooled into one
-count vector (:func:`room_concepts`) — and its own view, both against the shared visual
-distributions φ^v (the concepts as the experienced homes taught them, not the home's own θ^v, which
-already holds the room's views), with the prior G_0 and the names taught in the region (each taught
-name token a draw from θ^w of the concept). The observation is in region k with
-p(k | x) ∝ n_k N(x | μ_k, Σ_k) (n_k the region's training samples), so
+pieces of evidence, each worth the model's w draws: the room it is in — the region's training views
+pooled into one count vector (:func:`room_concepts`) — and its own view, both against the shared
+visual distributions φ^v (the concepts as the experienced homes taught them, not the home's own θ^v,
+which already holds the room's views), with the prior G_0 and the names taught in the region (each
+taught name token a draw from θ^w of the concept). The observation is in region k with prior
+p(k | x) ∝ n_k N(x | μ_k, Σ_k) (n_k the region's training samples); room k is of concept l with
+p(l | room k) ∝ G_0,l · exp(ω_k Σ_d V_{k,d} log φ^v_{l,d}) · Π_{t ∈ k} Π_w θ^w_{e,l,w}^{u_{t,w}}; and
+the view is drawn from the room's concept, p(v | l) = exp(ω_v Σ_d v_d log φ^v_{l,d}). So
 
-    P(l | x, v) = Σ_k p(k | x) p(l | room k, v),
-    p(l | room k, v) ∝ G_0,l · exp(ω_k Σ_d V_{k,d} log φ^v_{l,d}) · exp(ω_v Σ_d v_d log φ^v_{l,d})
-                       · Π_{t ∈ k} Π_w θ^w_{e,l,w}^{u_{t,w}},
+    P(l | x, v) ∝ Σ_k p(k | x) p(l | room k) p(v | l),
 
 ω_k = min(1, w / Σ_d V_{k,d}) with V_k the region's pooled counts, ω_v = min(1, w / Σ_d v_d): two
-pieces of evidence where the home's π and θ^v hold twenty-one.
+pieces of evidence where the home's π and θ^v hold twenty-one. The view weighs in on which room the
+pose is in as well as on the room's concept (the sum over k is normalised jointly): a view unlike
+everything the room at the pose looks like says the robot is in the room next door.
 """
 
 from __future__ import annotations
@@ -115,11 +116,12 @@ def room_concepts(params: ConceptParameters, e: int, rooms: HomeRooms, view_coun
 
 def concepts_by_room(params: ConceptParameters, e: int, positions: np.ndarray, visual: object,
                      rooms: HomeRooms, view_counts: float | None) -> np.ndarray | None:
-    """(n, L) P(l | x, v) = Σ_k p(k | x) p(l | room k, v) at poses ``positions`` (n, 4) of home ``e``
-    with views ``visual`` (n, D; ``None`` or an empty row: no view), p(k | x) ∝ n_k N(x | μ_k, Σ_k)
-    over the regions with training samples and p(l | room k, v) ∝ G_0,l · (room k's pooled views at
-    w) · (the view at w), both against φ^v (module docstring); ``None`` if no region has a training
-    sample (the caller answers from the view and the pose against the home's parameters instead)."""
+    """(n, L) P(l | x, v) ∝ Σ_k p(k | x) p(l | room k) p(v | l) at poses ``positions`` (n, 4) of home
+    ``e`` with views ``visual`` (n, D; ``None`` or an empty row: no view), p(k | x) ∝ n_k N(x | μ_k,
+    Σ_k) over the regions with training samples, p(l | room k) ∝ G_0,l · (room k's pooled views at w)
+    · (its taught names) and p(v | l) the view at w, both against φ^v (module docstring); ``None`` if
+    no region has a training sample (the caller answers from the view and the pose against the home's
+    parameters instead)."""
     from spco.model.prediction import gaussian_log_density, validate_poses
 
     room_log = _room_log_posterior(params, rooms, view_counts, e)  # (K, L), unnormalised
@@ -136,18 +138,19 @@ def concepts_by_room(params: ConceptParameters, e: int, positions: np.ndarray, v
         raise ConfigurationError(f"observation {i} at {tuple(float(v) for v in x[i, :2])}: every region's "
                                  f"density is 0 in floating point; is the position on the home's map, in "
                                  f"metres?")
-    p_k = np.exp(log_k - total)  # (n, K)
     view_log = np.zeros((x.shape[0], params.n_concepts))
     phi_v = np.asarray(params.shared_visual_probabilities, dtype=np.float64)
     if visual is not None and phi_v.size:
         view_log = _visual_log_likelihood(phi_v, visual, view_counts)
         if view_log.shape[0] != x.shape[0]:
             raise ConfigurationError(f"{x.shape[0]} positions but {view_log.shape[0]} visual feature rows")
-    out = np.zeros((x.shape[0], params.n_concepts))
+    # log p(k | x) + log p(l | room k) + log p(v | l): the view weighs in on the room as on its concept
+    # (a view unlike everything room k looks like says the pose is not in room k)
+    room_norm = room_log - logsumexp(room_log, axis=1, keepdims=True)  # (K, L) log p(l | room k)
+    joint = np.full((x.shape[0], params.n_concepts), -np.inf)
     for k in np.flatnonzero(counts > 0):  # a loop over the home's regions (tens)
-        joint = room_log[k][None, :] + view_log
-        out += p_k[:, [k]] * np.exp(joint - logsumexp(joint, axis=1, keepdims=True))
-    return out
+        joint = np.logaddexp(joint, (log_k[:, [k]] - total) + room_norm[k][None, :] + view_log)
+    return np.exp(joint - logsumexp(joint, axis=1, keepdims=True))
 
 
 def model_rooms(model: object, e: int) -> HomeRooms:

@@ -54,7 +54,7 @@ from spco.model.posterior import (
     untaught_concepts_name_nothing,
 )
 from spco.model.seeds import as_generator
-from spco.model.word_channels import WordChannels, channel_parameters, uses_word_channels
+from spco.model.word_channels import WordChannels, channel_parameters, token_weight, uses_word_channels
 
 
 def clone(estimator: SpatialConceptModel) -> SpatialConceptModel:
@@ -296,7 +296,8 @@ class SpatialConceptModel:
             return hyper, None
         evidence, content = channel_evidence(corpus.vocabulary, sentences)
         run.use_word_channels(WordChannels.initial(evidence, hyper.n_concepts, hyper.evidence_weight,
-                                                   content))
+                                                   content, token_weight(hyper.word_counts,
+                                                                         corpus.word_increment)))
         return hyper, evidence
 
     @staticmethod

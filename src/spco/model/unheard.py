@@ -11,11 +11,13 @@ are names by the model — name prior ≥ :data:`MIN_CANDIDATE_PRIOR` when the m
 largest — or rooms by WordNet, never kinds of place such as "room" or "area"). It asks in four
 steps and keeps the first answer: a lexical relation (synonym, definition, head, modifier,
 derivation) to one of the home's firmly bound names (information ≥ :data:`FIRM_INFORMATION` of the
-largest: one or two per place), the same to any candidate, then WordNet similarity to a firmly bound
-name, then to any candidate. ``where`` answers for that name, saying which one it used ("restroom ->
-toilet": :attr:`spco.model.position_prediction.PositionPrediction.asked`). When nothing is found, the
-name's own known words said together answer ("spare + room"); a name none of whose words is known is
-an unknown name (:class:`spco.model.prediction.UnknownNameError`).
+largest: one or two per place), the same to any candidate, then the name's own words that the home's
+people say, kinds of place left out (:func:`said_words`: "sink area" -> "sink", "soaking room" ->
+"soak"), then WordNet similarity to a firmly bound name, then to any candidate. ``where`` answers
+for that name, saying which one it used ("restroom -> toilet":
+:attr:`spco.model.position_prediction.PositionPrediction.asked`). When nothing is found, the name's
+own known words said together answer ("great + room"); a name none of whose words is known is an
+unknown name (:class:`spco.model.prediction.UnknownNameError`).
 
 Without the lexicon (no NLTK or no WordNet database, see :mod:`spco.data.lexicon`), nothing is
 resolved: a name nobody said is an unknown name, or its known words said together, as before.
@@ -35,10 +37,12 @@ __all__ = [
     "MIN_CANDIDATE_PRIOR",
     "OBJECT_BELOW",
     "PLACE_CANDIDATE_SHARE",
+    "SAID_WORDS",
     "STAND_IN_HOW",
     "ResolvedName",
     "candidate_names",
     "resolve_name",
+    "said_words",
     "stand_in_names",
 ]
 
@@ -109,10 +113,16 @@ def resolve_name(vocabulary: Vocabulary, word_mask: np.ndarray, name: str,
         floor = FIRM_INFORMATION * info[mask].max()
         firm = [c for c in candidates if info[vocabulary.index(c)] >= floor]
     match = None
-    for similarity in (False, True):  # a lexical relation before mere similarity,
-        for group in (firm, candidates):  # a firmly bound name before the others
-            if match is None and group:
-                match = lexicon.closest(asked, group, similarity=similarity)  # type: ignore[attr-defined]
+    for group in (firm, candidates):  # a lexical relation, to a firmly bound name before the others
+        if match is None and group:
+            match = lexicon.closest(asked, group, similarity=False)  # type: ignore[attr-defined]
+    if match is None:  # the name's own words that this home's people say ("sink area": "sink")
+        said = said_words(vocabulary, mask, asked, lexicon)
+        if said:
+            return ResolvedName(asked=asked, name=" ".join(said), how=SAID_WORDS, score=0.5)
+    for group in (firm, candidates):  # then mere similarity
+        if match is None and group:
+            match = lexicon.closest(asked, group, similarity=True)  # type: ignore[attr-defined]
     if match is None:
         return None
     name, how = match.name, match.how
@@ -121,6 +131,39 @@ def resolve_name(vocabulary: Vocabulary, word_mask: np.ndarray, name: str,
         if same:
             name, how = same[0], f"{how} synonym"
     return ResolvedName(asked=asked, name=name, how=how, score=float(match.score))
+
+
+#: :attr:`ResolvedName.how` of a name answered by its own words that the home's people say.
+SAID_WORDS = "its words"
+
+
+def said_words(vocabulary: Vocabulary, word_mask: np.ndarray, name: str, lexicon: object) -> list[str]:
+    """The usable tokens of the words of ``name`` (several words, or one WordNet does not know read as
+    two: :meth:`spco.data.lexicon.Lexicon.split_compound`) that say which place is meant: every word
+    but function words and kinds of place (:data:`spco.data.lexicon.KINDS_BELOW` kinds under it:
+    "room", "area"), each as said or, when not said so, as a WordNet base form said ("soaking room":
+    "soak"). Empty for a name of one word, or when only kinds of place are said ("comfort room":
+    "room" names no place, so the caller's answer is the name's own tokens said together, as
+    without the lexicon)."""
+    from spco.data.lexicon import KINDS_BELOW
+
+    words = normalize_name(name).split()
+    if len(words) == 1:
+        words = lexicon.split_compound(words[0]) or words  # type: ignore[attr-defined]
+    if len(words) < 2:
+        return []
+    mask = np.asarray(word_mask, dtype=bool)
+    out: list[str] = []
+    for word in words:
+        if is_function_word(word) or _kinds_below(lexicon, word) >= KINDS_BELOW:
+            continue
+        for form in (word, *sorted(lexicon.base_forms(word) - {word})):  # type: ignore[attr-defined]
+            k = vocabulary.index(form)
+            if k is not None and mask[k] and not is_function_word(vocabulary.words[k]):
+                if vocabulary.words[k] not in out:
+                    out.append(vocabulary.words[k])
+                break
+    return out
 
 
 #: A known word is a candidate whatever its name prior and information when this share of its own noun

@@ -30,19 +30,25 @@ so its prior is weighed against one likelihood, not against the S^w = 5000 count
 weighs in the concept's assignment (raised to the 5000th power, any prior on the switch would be
 swamped). The tokens' channel counts — ψ's, β's and λ's statistics — count each token once.
 
-**Each sentence weighs S^w in its concept.** The concept's conditional marginalises the switches:
+**Each token weighs W^w in its concept.** The concept's conditional marginalises the switches:
 
-    log p(w_t | C_t = l) = Σ_i c_ti · log Σ_c λ̃_{k,c} (θ^w_{e,l,k}, ψ_{l,k}, β_k)_c,
+    log p(w_t | C_t = l) = Σ_i W^w (c_ti / S^w) · log Σ_c λ̃_{k,c} (θ^w_{e,l,k}, ψ_{l,k}, β_k)_c,
     λ̃_{k,c} = λ_c e_{k,c} / Σ_c' λ_c' e_{k,c'}
 
-with c_ti = S^w per token (the word increment, as before): a power likelihood on the words, as
-``view_counts`` is one on the views. A function word (λ̃ background ≈ 1) then says nothing about the
-concept, a name (θ^w large at one concept) as much as before, an object (ψ) as much as a name.
-θ^w | z counts the name tokens with their S^w counts (as the paper's word statistics did), so the
-names' θ^w and φ^w keep their scale.
+with c_ti = S^w per occurrence (the word increment) and W^w the word weight
+(``TransferHyperparameters.word_counts``, by default a view's weight w;
+:attr:`WordChannels.token_weight` = W^w / S^w): a power likelihood on the words, as ``view_counts``
+is one on the views, so that a sentence's words and its view and position are weighed on one scale
+(with S^w counts per token, a sentence of object words weighed tens of thousands of nats more in a
+concept of those objects alone than in the concept of the people who named the same room, against a
+few nats of view and position: docs/model.md, "A word token's evidence"). A function word
+(λ̃ background ≈ 1) then says nothing about the concept, a name (θ^w large at one concept) or an
+object (ψ) says W^w times its per-token log ratio. θ^w | z counts the name tokens with their S^w
+counts (as the paper's word statistics did), so the names' θ^w and φ^w keep their scale.
 
-The two conditionals are not those of one joint distribution when S^w > 1 (the switch at power 1,
-the concept at power S^w): the sampler is a modular ("cut") Gibbs sampler, exact for S^w = 1 (tested
+The two conditionals are not those of one joint distribution unless W^w = S^w = 1 (the switch at
+power 1, the concept at power W^w, θ^w counting S^w): the sampler is a modular ("cut") Gibbs
+sampler, exact for W^w = S^w = 1 (tested
 against enumeration of the joint in ``tests/test_word_channels.py``). λ | z is drawn exactly on a
 grid (:data:`LAMBDA_GRID` steps): its conditional p(λ | z) ∝ Π_c λ_c^{n_c} / Π_k (Σ_c λ_c e_{k,c})^{m_k}
 (c ∈ {place, background}; n_c tokens in channel c, m_k such tokens of word k) is not a Beta.
@@ -101,17 +107,24 @@ class WordChannels:
     #: probable channel is the name: redrawn at every sweep, "study room" (P(name) 0.69) taught once
     #: left its concept's θ^w one sweep in three, and `what` there answered the transferred name
     prior_only_from: int | None = None
+    #: W^w / S^w, the factor on a token's counts in its concept's likelihood (:func:`mixture_log_likelihood`,
+    #: the place tokens of a label swap): the word weight ``TransferHyperparameters.word_counts`` over
+    #: the word increment (1: S^w counts per token, as before the word weight)
+    token_weight: float = 1.0
     #: :meth:`log_prior`, computed once per channels (every field is replaced, never changed in place)
     _log_prior: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
 
     @classmethod
     def initial(cls, evidence: np.ndarray, n_concepts: int, weight: float = 1.0,
-                content: np.ndarray | None = None) -> WordChannels:
+                content: np.ndarray | None = None, token_weight: float = 1.0) -> WordChannels:
         """Uniform ψ and β, equal shares, and the evidence of every word: ``evidence`` (V,) = ν_k in
         (0, 1), P(name | word), with weight η = ``weight``, and ``content`` (V,) = a_k, the share of
         its words that are content words (:func:`spco.model.name_evidence.content_share`; default 1):
         e_k = ((a_k ν_k)^η, (a_k (1 − ν_k))^η, (1 − a_k)^η), a_k kept within [0.05, 0.95]: a content
-        word is a name or a place word as the evidence says, a function word background."""
+        word is a name or a place word as the evidence says, a function word background.
+        ``token_weight``: :attr:`token_weight` (:func:`token_weight` of the hyperparameters)."""
+        if not (np.isfinite(token_weight) and token_weight > 0):
+            raise ValueError(f"token_weight must be a positive number, got {token_weight!r}")
         nu = np.clip(np.asarray(evidence, dtype=np.float64), EVIDENCE_FLOOR, 1.0 - EVIDENCE_FLOOR)
         V = nu.size
         a = np.ones(V) if content is None else np.asarray(content, dtype=np.float64)
@@ -119,12 +132,13 @@ class WordChannels:
         log_e = weight * np.stack([np.log(a) + np.log(nu), np.log(a) + np.log1p(-nu), np.log1p(-a)], axis=1)
         flat = -np.log(max(V, 1))
         shares = np.array([0.0, -np.log(2.0), -np.log(2.0)])  # (the first is unused)
-        return cls(np.full((n_concepts, V), flat), np.full(V, flat), shares, log_e, True)
+        return cls(np.full((n_concepts, V), flat), np.full(V, flat), shares, log_e, True,
+                   token_weight=float(token_weight))
 
     def copy(self) -> WordChannels:
         """A copy of the arrays."""
         return WordChannels(self.log_place.copy(), self.log_background.copy(), self.log_shares.copy(),
-                            self.log_evidence.copy(), self.fresh, self.prior_only_from)
+                            self.log_evidence.copy(), self.fresh, self.prior_only_from, self.token_weight)
 
     @property
     def n_words(self) -> int:
@@ -181,6 +195,12 @@ def uses_word_channels(hyper, settings) -> bool:
             and getattr(hyper, "word_model", "naming-rule") == "channels")
 
 
+def token_weight(word_counts: float | None, word_increment: int) -> float:
+    """:attr:`WordChannels.token_weight` of the word weight W^w = ``word_counts``
+    (``TransferHyperparameters.word_counts``; ``None``: S^w) and the word increment S^w: W^w / S^w."""
+    return 1.0 if word_counts is None else float(word_counts) / float(word_increment)
+
+
 def token_rows(words: sp.csr_array) -> np.ndarray:
     """The sample (row) of every token (stored entry) of ``words``: (nnz,)."""
     return np.repeat(np.arange(words.shape[0]), np.diff(words.indptr))
@@ -195,15 +215,17 @@ def _tokens(words: sp.csr_array) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def mixture_log_likelihood(words: sp.csr_array, homes: np.ndarray, log_theta_w: np.ndarray,
                            channels: WordChannels) -> np.ndarray:
-    """Σ_i c_ti log Σ_c p(z = c | k) p(k | c, l) for every sample and concept of its home: (N, L).
+    """Σ_i ω c_ti log Σ_c p(z = c | k) p(k | c, l) for every sample and concept of its home: (N, L).
 
-    The switches marginalised; each token weighed by its count c_ti (S^w per word)."""
+    The switches marginalised; each token weighed by its count c_ti (S^w per word) times
+    ω = :attr:`WordChannels.token_weight` (W^w / S^w: W^w counts per word)."""
     n_samples, n_concepts = words.shape[0], log_theta_w.shape[1]
     out = np.zeros((n_samples, n_concepts))
     if not words.nnz:
         return out
-    return mixture_rows(words, homes, log_theta_w, channels.log_place, channels.log_background,
-                        channels.log_prior())
+    out = mixture_rows(words, homes, log_theta_w, channels.log_place, channels.log_background,
+                       channels.log_prior())
+    return out if channels.token_weight == 1.0 else out * channels.token_weight
 
 
 def switch_probabilities(words: sp.csr_array, homes: np.ndarray, concepts: np.ndarray,
@@ -291,14 +313,15 @@ def name_tokens(words: sp.csr_array, switches: np.ndarray) -> sp.csr_array:
 
 
 def place_token_counts(words: sp.csr_array, homes: np.ndarray, concepts: np.ndarray, switches: np.ndarray,
-                       n_homes: int, n_concepts: int) -> np.ndarray:
-    """Place tokens per home, concept and word, with their counts c_ti (E, L, V): the place
-    channel's part of a label swap's ratio (the concept's likelihood weighs them as it weighs names)."""
+                       n_homes: int, n_concepts: int, token_weight: float = 1.0) -> np.ndarray:
+    """Place tokens per home, concept and word, with their counts c_ti times ``token_weight``
+    (:attr:`WordChannels.token_weight`) (E, L, V): the place channel's part of a label swap's ratio,
+    weighed as the concept's likelihood weighs them."""
     out = np.zeros((n_homes, n_concepts, words.shape[1]), dtype=np.float64)
     rows, cols, counts = _tokens(words)
     is_place = switches == PLACE
     r = rows[is_place]
-    np.add.at(out, (homes[r], concepts[r], cols[is_place]), counts[is_place])
+    np.add.at(out, (homes[r], concepts[r], cols[is_place]), counts[is_place] * float(token_weight))
     return out
 
 

@@ -1,0 +1,106 @@
+"""Home-specific rooms with the room account and without it, on the same fits (development only).
+
+Issue 29 ("A room's evidence", docs/model.md). Runs the home-specific experiment of
+``benchmarks/development/specific_dev.json`` (``spco experiment specific``'s own run,
+:func:`spco.evaluation.specific_config.execute_configured_run`: fit, then score each configured room)
+and scores every run twice from the one fit: names as the view-by-view answer gives them and as the
+room account gives them (``answer_rooms=spco.model.rooms.model_rooms(model, e)``, what
+``spco.knowledge.name_prediction(by_room=True)`` answers). Prints A_n per run and the mean over the
+rooms of all runs for each. Development only: ``specific_dev.json`` is the development file of
+benchmarks/SPLIT.md.
+
+    nice -n 5 python benchmarks/rooms_specific.py --data D/sigverse --rates 40 --seeds 0 1 2 --jobs 2
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import json
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import spco.evaluation.specific_config as sc
+from spco.evaluation.specific_config import ConfiguredData, ConfiguredRun, load_specific_config
+from spco.model.rooms import model_rooms
+
+CONFIG = Path(__file__).resolve().parent / "development" / "specific_dev.json"
+_MODEL: list[Any] = []  # the run's fitted model, taken where the run asks for its answer parameters
+_ROOMS: list[Any] = []  # the room account's scores of the run
+
+
+def _answer_parameters(model: Any, e: int) -> Any:
+    _MODEL[:] = [(model, e)]
+    return _ANSWER_PARAMETERS(model, e)
+
+
+def _score_both(params: Any, e: int, env: Any, vocabulary: Any, rooms: Any, weighting: Any, n_positions: int,
+                rng: np.random.Generator, view_counts: Any, answer_params: Any = None) -> Any:
+    """The run's own scores (the view-by-view answer), and the room account's from the same fit."""
+    again = copy.deepcopy(rng)
+    plain = _SCORE_ROOMS(params, e, env, vocabulary, rooms, weighting, n_positions, rng, view_counts,
+                         answer_params)
+    model, e_model = _MODEL[0]
+    _ROOMS[:] = [_SCORE_ROOMS(params, e, env, vocabulary, rooms, weighting, n_positions, again, view_counts,
+                              answer_params, model_rooms(model, e_model))]
+    return plain
+
+
+_ANSWER_PARAMETERS = sc.model_answer_parameters
+_SCORE_ROOMS = sc.score_rooms
+
+
+def run(args: tuple[str, str, ConfiguredRun, int]) -> dict[str, Any]:
+    """One configured run, scored both ways."""
+    config, data, key, iterations = args
+    sc.model_answer_parameters = _answer_parameters  # type: ignore[assignment]
+    sc.score_rooms = _score_both  # type: ignore[assignment]
+    file = load_specific_config(config)
+    loaded = ConfiguredData(file, data, file.select([key.configuration]))
+    record = sc.execute_configured_run(loaded, key, iterations, sc.DEFAULT_POSITIONS)
+    record["rooms_account"] = {name: {"correct": [int(c) for c in s.correct], "predicted": list(s.predicted),
+                                      "name_accuracy": round(s.name_accuracy, 6)}
+                               for name, s in _ROOMS[0].items()}
+    return record
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Command line: see the module docstring."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--data", required=True, help="the SIGVerse folder")
+    parser.add_argument("--config", default=str(CONFIG))
+    parser.add_argument("--rates", type=int, nargs="+", default=[40])
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    parser.add_argument("--iterations", type=int, default=200)
+    parser.add_argument("--model", default="spcotransfer+mi")
+    parser.add_argument("--jobs", type=int, default=1)
+    parser.add_argument("--out", type=Path, default=None, help="JSON lines, one record per run")
+    args = parser.parse_args(argv)
+    file = load_specific_config(args.config)
+    keys = [ConfiguredRun(c.id, r, s, args.model) for c in file.configurations for r in args.rates
+            for s in args.seeds]
+    start = time.perf_counter()
+    per_room: dict[str, list[float]] = {"view": [], "rooms": []}
+    with ProcessPoolExecutor(args.jobs) as pool:
+        for record in pool.map(run, [(args.config, args.data, k, args.iterations) for k in keys]):
+            view = {n: r["name_accuracy"] for n, r in record["rooms"].items()}
+            by_room = {n: r["name_accuracy"] for n, r in record["rooms_account"].items()}
+            per_room["view"].extend(view.values())
+            per_room["rooms"].extend(by_room.values())
+            print(f"{record['configuration']} {record['rate']} % seed {record['seed']}: view-by-view "
+                  f"{view} | room account {by_room}", flush=True)
+            if args.out is not None:
+                with args.out.open("a") as fh:
+                    fh.write(json.dumps(record) + "\n")
+    print(f"\n{len(keys)} runs, {len(per_room['view'])} rooms, {time.perf_counter() - start:.0f} s: mean A_n "
+          f"view-by-view {np.mean(per_room['view']):.3f}, room account {np.mean(per_room['rooms']):.3f}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
