@@ -39,6 +39,25 @@ def test_split_keeps_each_kernel_once_and_gamma_callers_together():
     assert loads == sorted(loads, reverse=True)  # this process takes the larger share
 
 
+def test_a_head_start_gives_that_share_less_to_compile():
+    """With seconds of other work for share 0 (the demo's first process looks up WordNet and draws
+    the figures), share 0 compiles less, by about that much: compilation plus the head start differ
+    by no more than the largest single kernel's seconds, and the shares keep their order."""
+    entries = _entries()
+    even = [sum(e["seconds"] for e in group) for group in numba_cache._split(entries, 2)]
+    for head in (2.0, 6.0):
+        groups = numba_cache._split(entries, 2, (head, 0.0))
+        assert sorted(e["kernel"] for g in groups for e in g) == sorted(e["kernel"] for e in entries)
+        loads = [sum(e["seconds"] for e in group) for group in groups]
+        assert loads[0] < min(even)
+        largest = max(e["seconds"] for e in entries if e["kernel"].rpartition(".")[0]
+                      not in numba_cache._GAMMA_CALLERS)
+        assert abs(loads[0] + head - loads[1]) <= largest
+        gamma_groups = {i for i, group in enumerate(groups) for e in group
+                        if e["kernel"].rpartition(".")[0] in numba_cache._GAMMA_CALLERS}
+        assert len(gamma_groups) == 1
+
+
 def test_a_fit_on_an_empty_cache_says_it_compiles_once(tmp_path, monkeypatch, capsys):
     """The notice on stderr when the cache holds no kernel yet, and none when it does."""
     import numba

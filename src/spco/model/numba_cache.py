@@ -141,21 +141,33 @@ def _compile_group(entries: list[dict]) -> float:
 #: process.
 _GAMMA_CALLERS = ("spco.model.kernels.dirichlet", "spco.model.kernels.niw")
 
+#: Modules whose listed kernels call the same compiled helpers of their own (the label-swap pass
+#: and its log-gamma table share ``moves._log_gamma_values``): each module's kernels are compiled
+#: in one process, like the gamma sampler's callers.
+_TOGETHER = ("spco.model.moves",)
 
-def _split(entries: list[dict], n_groups: int) -> list[list[dict]]:
-    """``entries`` in ``n_groups`` groups of about equal compile seconds, the heaviest first; the
-    kernels that call the gamma sampler stay together, every other kernel goes alone (longest
-    first, each to the group with the least so far)."""
+
+def _split(entries: list[dict], n_groups: int, head_start: tuple[float, ...] = ()) -> list[list[dict]]:
+    """``entries`` in ``n_groups`` groups of about equal compile seconds; the kernels that call the
+    gamma sampler stay together, as do those of each module of :data:`_TOGETHER`; every other
+    kernel goes alone (longest first, each to the group
+    with the least so far). Without ``head_start`` the heaviest group comes first; with it (seconds
+    of other work of each group's process, in the units of the file's seconds) group i starts at
+    ``head_start[i]``, so that compilation plus that work is about equal, and the groups keep
+    their order."""
     clusters: dict[str, list[dict]] = {}
     for entry in entries:
         module = entry["kernel"].rpartition(".")[0]
-        clusters.setdefault("gamma" if module in _GAMMA_CALLERS else entry["kernel"], []).append(entry)
+        key = "gamma" if module in _GAMMA_CALLERS else module if module in _TOGETHER else entry["kernel"]
+        clusters.setdefault(key, []).append(entry)
     groups: list[list[dict]] = [[] for _ in range(n_groups)]
-    load = [0.0] * n_groups
+    load = [head_start[g] if g < len(head_start) else 0.0 for g in range(n_groups)]
     for cluster in sorted(clusters.values(), key=lambda c: -sum(e["seconds"] for e in c)):
         g = load.index(min(load))
         groups[g].extend(cluster)
         load[g] += sum(e["seconds"] for e in cluster)
+    if head_start:
+        return groups
     return [groups[g] for g in sorted(range(n_groups), key=lambda g: -load[g])]
 
 
@@ -249,17 +261,18 @@ def precompile(processes: int = 2) -> float:
     return time.perf_counter() - start
 
 
-def compile_share(index: int, processes: int) -> float:
+def compile_share(index: int, processes: int, head_start: tuple[float, ...] = ()) -> float:
     """Compile share ``index`` of ``processes`` of the kernels listed in :data:`SIGNATURES_FILE`
     (the same split as :func:`precompile`: share 0 the largest, the gamma sampler's callers
     together) into the on-disk cache; returns the seconds taken (0 without the file). Each of
     ``processes`` processes compiling its own share fills the cache once, in about 1/``processes``
-    of the time."""
+    of the time. ``head_start``: the seconds of other work each share's process has besides
+    compiling (see :func:`_split`; every process must pass the same)."""
     try:
         entries = json.loads(SIGNATURES_FILE.read_text())["kernels"]
     except (OSError, ValueError, KeyError):
         return 0.0
-    return _compile_group(_split(entries, max(1, processes))[index])
+    return _compile_group(_split(entries, max(1, processes), head_start)[index])
 
 
 def load_kernels() -> float:
