@@ -94,7 +94,7 @@ def _demo_line(monkeypatch: pytest.MonkeyPatch, tmp_path: Path, cold: bool) -> s
 
     calls: list[tuple[int, int]] = []
 
-    def compile_share(index: int, processes: int) -> float:  # this process's share (the other's is real)
+    def compile_share(index: int, processes: int, head_start: float = 0.0) -> float:  # this process's share
         calls.append((index, processes))
         time.sleep(0.3)
         return 0.3
