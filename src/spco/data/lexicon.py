@@ -1,19 +1,14 @@
 """WordNet, read offline: what a word can be (noun, verb, …), whether a noun names a place, and
 which known place name a name nobody said stands for.
 
-The lexicon is the English WordNet 3.0 of the Debian package ``wordnet-base`` (files in
-``/usr/share/wordnet``), read through NLTK's :class:`~nltk.corpus.reader.wordnet.WordNetCorpusReader`
-(the optional extra ``spco[words]``: ``pip install "spco[words]"`` and ``apt-get install
-wordnet-base``). Nothing is downloaded. Debian's package lacks the ``lexnames`` file NLTK's reader
-opens (the table of WordNet's 45 lexicographer files, fixed by the format, lexnames(5WN)), so the
-reader is given a private folder (under ``~/.cache/spco``, or ``SPCO_CACHE_DIR``) holding copies of
-the package's files (NLTK reads no linked file) and that table. ``SPCO_WORDNET`` names another
-folder of WordNet database files; ``SPCO_WORDNET=off`` turns the lexicon off (spco then works as
-without it: see docs/model.md).
-
-Without the lexicon (:func:`lexicon` returns ``None``) every function of spco that uses it falls
-back to what the data alone say: the naming rule weighs words by their place in the sentences only,
-and ``where`` with a name nobody said is an unknown name, as before.
+The lexicon is the English WordNet 3.0 of Debian's ``wordnet-base`` (``/usr/share/wordnet``), read
+through NLTK's :class:`~nltk.corpus.reader.wordnet.WordNetCorpusReader` (``pip install "spco[words]"``,
+``apt-get install wordnet-base``); nothing is downloaded. NLTK's reader also opens ``lexnames`` (the
+table of WordNet's 45 lexicographer files, lexnames(5WN)), which Debian lacks: the reader gets a
+private folder (under ``~/.cache/spco`` or ``SPCO_CACHE_DIR``) with copies of the package's files and
+that table. ``SPCO_WORDNET`` names another folder of WordNet files; ``SPCO_WORDNET=off`` turns the
+lexicon off: every function that uses it (:func:`lexicon` returns ``None``) then falls back to what
+the data alone say, and ``where`` with a name nobody said is an unknown name.
 
 What a *place* noun is (:meth:`Lexicon.place_share`): a sense of the word whose hypernym closure
 holds one of :data:`PLACE_ROOTS` — a room, an area of a building (WordNet's ``area.n.05``), a
@@ -112,7 +107,11 @@ def _wordnet_folder() -> Path | None:
 
 def lexicon_unavailable_reason() -> str | None:
     """Why :func:`lexicon` returns None (a sentence for messages and skips), or None when it works."""
-    chosen = os.environ.get("SPCO_WORDNET", "").strip()
+    return _unavailable(os.environ.get("SPCO_WORDNET", "").strip())
+
+
+@functools.lru_cache(maxsize=8)
+def _unavailable(chosen: str) -> str | None:  # once per process and setting: every `what` asks
     if chosen.lower() in ("off", "0", "none", "no"):
         return "the lexicon is turned off (SPCO_WORDNET=off)"
     if importlib.util.find_spec("nltk") is None:  # (importing NLTK takes seconds: only looked up)
@@ -294,7 +293,7 @@ class Lexicon:
         -> "sleeper"), or a verb of the same synset as the word's verb ("bathing" -> "bathe", whose
         synset holds the verb "bath")."""
         for word in words.split():
-            for base in sorted(self._base_forms(word)):
+            for base in sorted(self.base_forms(word)):
                 for pos in ("v", "n"):
                     for synset in self.synsets(base, pos=pos)[:3]:
                         for lemma in synset.lemmas():
@@ -323,11 +322,6 @@ class Lexicon:
         return None
 
     def base_forms(self, word: str) -> set[str]:
-        """The word and its WordNet base forms as a noun and a verb ("sitting" -> "sit", "soaking" ->
-        "soak")."""
-        return self._base_forms(word)
-
-    def _base_forms(self, word: str) -> set[str]:
         """The word and its WordNet base forms as a noun and a verb ("sitting" -> "sit")."""
         forms = {word}
         with self._lock:
@@ -341,7 +335,7 @@ class Lexicon:
         """The known place name whose commonest sense's definition holds one of ``words`` (in a base
         form) or a synonym of their verbs ("cook": "prepare"), if the names that do are one concept
         (synonyms: "bedroom", "bedchamber")."""
-        wanted = {f for w in words.split() for f in self._base_forms(w)}
+        wanted = {f for w in words.split() for f in self.base_forms(w)}
         for base in list(wanted):  # and the verb's synonyms ("cook": "prepare", as in "preparing meals")
             wanted |= {lemma.name().lower() for synset in self.synsets(base, pos="v")[:3]
                        for lemma in synset.lemmas() if "_" not in lemma.name()}
@@ -351,7 +345,7 @@ class Lexicon:
             if not senses:
                 continue
             terms = {f for t in self._gloss_terms(senses[0].definition()) if " " not in t
-                     for f in self._base_forms(t)}
+                     for f in self.base_forms(t)}
             with self._lock:
                 place = self._is_place_synset(senses[0].name())
             if place and terms & wanted:  # a place defined by the word ("a bed" is no place)
@@ -629,7 +623,12 @@ _F = TypeVar("_F")
 def _facts_file(folder: Path, what: str = "facts") -> Path:
     """The file of word facts (``what``: "facts" or "kinds") for the WordNet files in ``folder``:
     named by a digest of their names, sizes and modification times and of NLTK's version (a changed
-    database or reader is a new file)."""
+    database or reader is a new file), once per process and cache folder: every `what` asks."""
+    return _facts_file_in(folder, what, _cache_root())
+
+
+@functools.lru_cache(maxsize=16)
+def _facts_file_in(folder: Path, what: str, root: Path) -> Path:
     from importlib.metadata import PackageNotFoundError, version
 
     digest = hashlib.sha256(str(folder.resolve()).encode())
@@ -640,7 +639,7 @@ def _facts_file(folder: Path, what: str = "facts") -> Path:
     for name in _DATABASE:
         stat = (folder / name).stat()
         digest.update(f"{name}:{stat.st_size}:{stat.st_mtime_ns}".encode())
-    return _cache_root() / f"wordnet-{what}-{digest.hexdigest()[:16]}.json"
+    return root / f"wordnet-{what}-{digest.hexdigest()[:16]}.json"
 
 
 def _read_cache(path: Path, fmt: int, decode: Callable[[Any], _F]) -> dict[str, _F]:
