@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from hypothesis import settings
+from scipy import stats
 
 # In CI (CI=true, as .ci/run runs) property tests draw the same examples on every run, so a green
 # build stays green; on a developer's machine they keep exploring new examples each run (a failure
@@ -193,3 +194,19 @@ def fit_and_adapt(folders: dict[str, Path], fit_args: Sequence[object], adapt_ar
     run(["fit", "--data", folders["experienced"], *fit_args, "--out", knowledge_file])
     output = run(["adapt", knowledge_file, "--home", folders["new"], *adapt_args, "--out", home_file])
     return knowledge_file, home_file, output
+
+
+def chisquare_p(observed: np.ndarray, probs: np.ndarray, min_expected: float = 5.0) -> float:
+    """Chi-square goodness-of-fit p-value of draws ``observed`` (counts) against ``probs``, with small
+    expected cells pooled; a draw in a cell of (relatively) zero probability fails outright."""
+    observed = np.asarray(observed, dtype=float).ravel()
+    expected = np.asarray(probs, dtype=float).ravel() * observed.sum()
+    assert observed[expected < 1e-12 * observed.sum()].sum() == 0, "draws in a cell of probability 0"
+    keep = expected >= min_expected
+    obs, exp = observed[keep], expected[keep]
+    if expected[~keep].sum() > 0:
+        obs = np.append(obs, observed[~keep].sum())
+        exp = np.append(exp, expected[~keep].sum())
+    if obs.size < 2:
+        return 1.0
+    return float(stats.chisquare(obs, exp * obs.sum() / exp.sum()).pvalue)

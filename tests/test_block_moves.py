@@ -20,6 +20,7 @@ import itertools
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from conftest import chisquare_p
 from scipy import stats
 from scipy.special import gammaln, logsumexp, softmax
 
@@ -63,20 +64,6 @@ def brute_log_target(concepts: np.ndarray, homes: np.ndarray, regions: np.ndarra
             total += log_sequence_dm(np.bincount(regions[cell], minlength=n_regions),
                                      np.full(n_regions, beta / n_regions))
     return total
-
-
-def chisquare_p(observed: np.ndarray, probs: np.ndarray, min_expected: float = 5.0) -> float:
-    observed = np.asarray(observed, dtype=float).ravel()
-    expected = np.asarray(probs, dtype=float).ravel() * observed.sum()
-    assert observed[expected < 1e-12 * observed.sum()].sum() == 0, "draws in a cell of probability 0"
-    keep = expected >= min_expected
-    obs, exp = observed[keep], expected[keep]
-    if expected[~keep].sum() > 0:
-        obs = np.append(obs, observed[~keep].sum())
-        exp = np.append(exp, expected[~keep].sum())
-    if obs.size < 2:
-        return 1.0
-    return float(stats.chisquare(obs, exp * obs.sum() / exp.sum()).pvalue)
 
 
 def problem(seed: int, sizes: tuple[int, ...], L: int, K: int, scale: float = 1.0) -> dict:

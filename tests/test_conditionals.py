@@ -18,6 +18,7 @@ import itertools
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from conftest import chisquare_p
 from numpy.testing import assert_allclose
 from scipy import stats
 from scipy.special import expit, gammaln, logit, logsumexp, softmax
@@ -109,21 +110,6 @@ def assignment_table(state: gibbs.GibbsState, distinct: dict[str, np.ndarray]) -
                    + distinct["words"][t] @ state.log_theta_w[e].T)
         out[t] = state.log_g[e][:, None] + state.log_pi[e] + gauss[None, :] + concept[:, None]
     return out
-
-
-def chisquare_p(observed: np.ndarray, probs: np.ndarray, min_expected: float = 5.0) -> float:
-    """Chi-square goodness-of-fit p-value with small expected cells pooled."""
-    observed = np.asarray(observed, dtype=float).ravel()
-    expected = np.asarray(probs, dtype=float).ravel() * observed.sum()
-    assert observed[expected == 0].sum() == 0, "draws in a cell of probability 0"
-    keep = expected >= min_expected
-    obs, exp = observed[keep], expected[keep]
-    if expected[~keep].sum() > 0:
-        obs = np.append(obs, observed[~keep].sum())
-        exp = np.append(exp, expected[~keep].sum())
-    if obs.size < 2:
-        return 1.0
-    return float(stats.chisquare(obs, exp * obs.sum() / exp.sum()).pvalue)
 
 
 EXACT = gibbs.SamplerSettings.create("exact", prune=False)
