@@ -451,7 +451,7 @@ def _local_step(data: PreparedData, state: GibbsState, settings: SamplerSettings
         state.concepts, state.regions = allocation.sample_assignments_joint(
             state.log_g, state.log_pi, data.homes, concept_ll, region_ll, rng)
         if settings.block_moves and hyper is not None and settings.variant == "exact":
-            prior = block_concept_prior(state, hyper, settings)
+            prior = home_concept_concentration(state, hyper, settings)
             state.concepts = region_block_step(data.homes, state.concepts, state.regions, concept_ll, prior,
                                                hyper.beta, data.n_homes, state.log_pi.shape[2], rng)
     else:  # the authors' two blocks: R | C, then C | R
@@ -465,10 +465,10 @@ def _local_step(data: PreparedData, state: GibbsState, settings: SamplerSettings
     return before
 
 
-def block_concept_prior(state: GibbsState, hyper: TransferHyperparameters,
-                        settings: SamplerSettings) -> np.ndarray:
-    """The Dirichlet concentration of G_e that the block moves integrate over: γ G_0 (transfer
-    model), γ/L (SpCoA)."""
+def home_concept_concentration(state: GibbsState, hyper: TransferHyperparameters,
+                               settings: SamplerSettings) -> np.ndarray:
+    """The Dirichlet concentration of every home's concept weights G_e (L,): γ G_0 (transfer model),
+    γ/L (SpCoA) — G_e's prior in the log joint, integrated over by the block moves."""
     n_concepts = state.log_g.shape[1]
     if settings.hierarchical:
         return hyper.gamma * np.exp(state.log_g0)
@@ -734,6 +734,7 @@ def log_joint(data: PreparedData, state: GibbsState, hyper: TransferHyperparamet
     if not include_parameter_priors:
         return total
     mask = state.word_mask
+    concentration_g = home_concept_concentration(state, hyper, settings)
     if settings.hierarchical:
         total += HierarchicalMultinomial.log_prior_specific(state.log_theta_v, state.log_phi_v,
                                                             hyper.delta_visual)
@@ -742,7 +743,7 @@ def log_joint(data: PreparedData, state: GibbsState, hyper: TransferHyperparamet
                                                                 hyper.delta_word, mask)
             total += HierarchicalMultinomial.log_prior_shared(state.log_phi_w, hyper.alpha_word, mask)
         total += HierarchicalMultinomial.log_prior_shared(state.log_phi_v, hyper.alpha_visual)
-        total += float(dirichlet_log_density(state.log_g, hyper.gamma * np.exp(state.log_g0)).sum())
+        total += float(dirichlet_log_density(state.log_g, concentration_g).sum())
         total += float(dirichlet_log_density(state.log_g0, np.full(L, hyper.gamma0 / L)))
     else:
         total += HierarchicalMultinomial.log_prior_shared(state.log_theta_v.reshape(E * L, -1),
@@ -750,7 +751,7 @@ def log_joint(data: PreparedData, state: GibbsState, hyper: TransferHyperparamet
         if mask.any():
             total += HierarchicalMultinomial.log_prior_shared(state.log_theta_w.reshape(E * L, -1),
                                                               hyper.alpha_word, mask)
-        total += float(dirichlet_log_density(state.log_g, np.full(L, hyper.gamma / L)).sum())
+        total += float(dirichlet_log_density(state.log_g, concentration_g).sum())
     total += float(dirichlet_log_density(state.log_pi, np.full(K, hyper.beta / K)).sum())
     total += GaussianRegions.log_prior(state.means, state.covariances, niw_prior(data, hyper, settings))
     return total
