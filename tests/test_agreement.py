@@ -130,8 +130,12 @@ def test_a_teachings_positions_are_scored_by_the_regions_posterior_predictive(bu
 
     from spco.model import gibbs
     from spco.model.kernels.niw import niw_posterior
-    from spco.model.local_update import _log_marginal_positions, _RegionStatistics
+    from spco.model.local_update import _log_marginal, _RegionStatistics
     from spco.model.state import SamplerSettings
+
+    def _log_marginal_positions(points: np.ndarray, prior) -> float:  # log p(points) of one region
+        return float(_log_marginal(np.array([float(points.shape[0])]), points.sum(axis=0)[None],
+                                   (points.T @ points)[None], prior)[0])
 
     home = kn.load_home_model(built)
     shared = home.knowledge.shared_part()

@@ -295,12 +295,6 @@ def _log_marginal(count: np.ndarray, total: np.ndarray, scatter: np.ndarray, pri
     )
 
 
-def _log_marginal_positions(points: np.ndarray, prior) -> float:
-    """log p(points) of one region (:func:`_log_marginal` of their statistics)."""
-    return float(_log_marginal(np.array([float(points.shape[0])]), points.sum(axis=0)[None],
-                               (points.T @ points)[None], prior)[0])
-
-
 def place_conditional(
     x: np.ndarray, regions: np.ndarray, concepts: np.ndarray, row: int, openable: np.ndarray, prior,
 ) -> tuple[np.ndarray, np.ndarray] | None:
