@@ -88,6 +88,13 @@ class SharedPart:
         """Vocabulary size V."""
         return int(self.log_phi_words.shape[1])
 
+    def sampler_settings(self) -> SamplerSettings:
+        """The sampler of a home with this shared part fixed: its variant and "+MI", the view weight
+        and the block moves of its hyperparameters."""
+        return SamplerSettings.create(self.variant, self.prune_words, learn_shared=False,
+                                      view_counts=self.hyperparameters.view_counts,
+                                      block_moves=self.hyperparameters.block_moves != "off")
+
 
 @dataclass(frozen=True)
 class SharedPrior:
@@ -505,9 +512,7 @@ class NewHomeShard:
                  rng: np.random.Generator, prior: SharedPrior | None = None) -> None:
         self.data, self.state, self.shared = data, state, shared
         self.n_known, self.rng, self.prior = n_known, rng, prior
-        self.settings = SamplerSettings.create(shared.variant, shared.prune_words, learn_shared=False,
-                                               view_counts=shared.hyperparameters.view_counts,
-                                               block_moves=shared.hyperparameters.block_moves != "off")
+        self.settings = shared.sampler_settings()
         self.average = ParameterAverage(data.homes, data.position_scale)
 
     @classmethod
@@ -515,9 +520,7 @@ class NewHomeShard:
               prior: SharedPrior | None = None) -> NewHomeShard:
         """A new home's shard from its first state (:func:`initial_state`); with ``prior`` the
         words the knowledge kept are the only candidates among its words."""
-        settings = SamplerSettings.create(shared.variant, shared.prune_words, learn_shared=False,
-                                          view_counts=shared.hyperparameters.view_counts,
-                                          block_moves=shared.hyperparameters.block_moves != "off")
+        settings = shared.sampler_settings()
         state = initial_state(data, shared, settings, n_known, rng)
         if prior is not None:
             state.candidate_words = shared.word_mask.copy()

@@ -494,9 +494,7 @@ def teach_locally(
     generator; previous: the home's parameters before the teaching (``None``: none averaged);
     home_name: for the warning of :func:`~spco.model.home_shard.warn_if_own_names_spread`.
     """
-    settings = SamplerSettings.create(
-        shared.variant, shared.prune_words, learn_shared=False, view_counts=shared.hyperparameters.view_counts
-    )
+    settings = shared.sampler_settings()
     taught = np.asarray(taught, dtype=np.int64)
     new = np.asarray(new, dtype=np.int64)
     judge_new_words(state, shared, n_known, data)  # a taught name counts at once
