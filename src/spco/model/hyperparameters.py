@@ -25,8 +25,8 @@ DEFAULT_PRUNING_THRESHOLDS = {"kl": 0.1, "mi": 0.01}
 #: by the name prior of sentence positions and WordNet (:mod:`spco.model.name_evidence`).
 NAME_PRIORS = ("off", "wordnet")
 NamePrior = Literal["off", "wordnet"]
-#: Where the region block moves run (:mod:`spco.model.blocks`): not at all, in a home's own sampler
-#: (``adapt`` and ``teach``), or there and in the joint fit too.
+#: Where the region block moves run (:mod:`spco.model.blocks`): not at all, in a new home's sampler
+#: (``adapt``; a teaching's local update does not run them), or there and in the joint fit too.
 BLOCK_MOVES = ("off", "adapt", "all")
 BlockMoves = Literal["off", "adapt", "all"]
 
@@ -136,11 +136,11 @@ class TransferHyperparameters:
     block_moves: where the exact sampler moves a region's samples of one concept to another concept
         together after each sweep's one-sample draws (:mod:`spco.model.blocks`, G_e and π integrated
         out; an exact Gibbs step): ``"off"`` (default) nowhere, ``"adapt"`` in a new home's sampler
-        (``adapt``, ``teach``), ``"all"`` in the joint fit too. Opt-in: on development it helps
-        little and, with the places prior, changes which synonym ``what`` answers first in
-        ``tests/test_knowledge.py`` (benchmarks/README.md, "Issue 29: block moves in adapt"). Written by
-        :meth:`to_dict` only when not ``"off"`` (files and experiment identities from before it are
-        unchanged).
+        (``adapt``; not in a teaching's local update), ``"all"`` in the joint fit too. Opt-in: on
+        development it helps little and, with the places prior, changes which synonym ``what``
+        answers first in ``tests/test_knowledge.py`` (benchmarks/README.md, "Issue 29: block moves
+        in adapt"). Written by :meth:`to_dict` only when not ``"off"`` (files and experiment
+        identities from before it are unchanged).
     evidence_weight: η, the weight of the linguistic evidence in the switch's prior (word channels):
         p(z = name | word) ∝ λ_name ν^η, p(z = place or background) ∝ λ_c (1 − ν)^η, ν the name
         evidence of :mod:`spco.model.name_evidence`. Default :data:`EVIDENCE_WEIGHT`, chosen on
