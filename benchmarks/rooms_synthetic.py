@@ -208,7 +208,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--new-homes", default=None,
                         help="comma-separated (default: every synthetic new home)")
     parser.add_argument("--answers", default="default,rooms",
-                        help="default (view by view), rooms (the room account), by-region (the room account "
+                        help="default (view by view: the robot's answer before the room account was made the "
+                        "default), rooms (the room account, the robot's answer), by-region (the room account "
                              "as first built: the region by the pose alone), region-concept (a room = a "
                              "region and a sampler concept)")
     parser.add_argument("--out", type=Path, default=None, help="write every run's record here (JSON lines)")

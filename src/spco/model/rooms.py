@@ -7,8 +7,9 @@ a room's views pooled are worth about as many draws as one view (leave-one-home-
 experienced homes; docs/model.md, "A room's evidence"), and a room that looks like another room's
 concept is put there, and answered, with certainty.
 
-The room account (opt-in: ``spco.knowledge.name_prediction(by_room=True)``,
-:func:`spco.model.confidence.answer_names`'s ``rooms``) judges an observation's concept from two
+The room account (how the robot answers: :func:`spco.model.confidence.answer_concepts`, through
+:func:`spco.model.confidence.answer_names`'s ``rooms`` for ``what``, ``ask``, the service, the ROS node
+and the experiments) judges an observation's concept from two
 pieces of evidence, each worth the model's w draws: the room it is in — the region's training views
 pooled into one count vector (:func:`room_concepts`) — and its own view, both against the shared
 visual distributions φ^v (the concepts as the experienced homes taught them, not the home's own θ^v,
