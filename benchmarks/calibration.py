@@ -170,11 +170,8 @@ def _answer_left_out(model: Any, sample: int, pose: np.ndarray, view: Any) -> An
     counted twice: the answer a new view at that pose would get."""
     from spco.knowledge.queries import answer_parameters, home_rooms
     from spco.model.confidence import answer_names
-    from spco.model.rooms import HomeRooms
 
-    rooms = home_rooms(model)
-    keep = np.asarray(model.ids) != sample
-    rooms = HomeRooms.of(rooms.regions[keep], rooms.visual[keep], rooms.words[keep])
+    rooms = home_rooms(model).subset(np.asarray(model.ids) != sample)
     return answer_names(answer_parameters(model), 0, model.vocabulary, pose, view, top_k=1,
                         weighting=model.weighting, view_counts=model.hyperparameters.view_weight(),
                         rooms=rooms)

@@ -312,12 +312,17 @@ def name_prediction(home: HomeModel, poses: np.ndarray, visual: Any = None, top_
 
 def home_rooms(home: HomeModel) -> HomeRooms:
     """The home's training samples as the room-level answer reads them (:mod:`spco.model.rooms`):
-    their regions, their views and the name tokens taught at them (with the word channels the
-    tokens drawn as names, as :func:`answer_parameters` counts them)."""
+    their regions and concepts (a room: the samples sharing both), their views and the name tokens
+    taught at them (with the word channels the tokens drawn as names, as :func:`answer_parameters`
+    counts them, each weighing the model's word weight W^w as in the sampler's assignments)."""
     words = home.data.words
-    if home.knowledge.channels is not None and home.state.switches is not None and words.nnz:
+    weight = 1.0
+    channels = home.state.channels if getattr(home.state, "channels", None) is not None \
+        else home.knowledge.channels
+    if channels is not None and home.state.switches is not None and words.nnz:
         words = name_tokens(words, home.state.switches)
-    return HomeRooms.of(home.state.regions, home.data.visual, words)
+        weight = float(channels.token_weight)
+    return HomeRooms.of(home.state.regions, home.data.visual, words, home.state.concepts, weight)
 
 
 def describe_model_file(path: str | PathLike[str]) -> dict[str, Any]:

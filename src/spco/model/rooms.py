@@ -1,4 +1,4 @@
-"""A room's evidence: which concept a home's region is, with the region's views as one piece of evidence.
+"""A room's evidence: which concept a home's room is, with the room's views as one piece of evidence.
 
 The sampler decides each sample's concept from its own view (weighted as the model's view weight w,
 :meth:`~spco.model.hyperparameters.TransferHyperparameters.view_weight`) and its region, so a room's
@@ -9,19 +9,23 @@ concept is put there, and answered, with certainty.
 
 The room account (how the robot answers: :func:`spco.model.confidence.answer_concepts`, through
 :func:`spco.model.confidence.answer_names`'s ``rooms`` for ``what``, ``ask``, the service, the ROS node
-and the experiments) judges an observation's concept from two
-pieces of evidence, each worth the model's w draws: the room it is in — the region's training views
-pooled into one count vector (:func:`room_concepts`) — and its own view, both against the shared
-visual distributions φ^v (the concepts as the experienced homes taught them, not the home's own θ^v,
-which already holds the room's views), with the prior G_0 and the names taught in the region (each
-taught name token a draw from θ^w of the concept). The observation is in region k with prior
-p(k | x) ∝ n_k N(x | μ_k, Σ_k) (n_k the region's training samples); room k is of concept l with
-p(l | room k) ∝ G_0,l · exp(ω_k Σ_d V_{k,d} log φ^v_{l,d}) · Π_{t ∈ k} Π_w θ^w_{e,l,w}^{u_{t,w}}; and
-the view is drawn from the room's concept, p(v | l) = exp(ω_v Σ_d v_d log φ^v_{l,d}). So
+and the experiments) judges an observation's concept from two pieces of evidence, each worth the
+model's w draws: the room it is in — the room's training views pooled into one count vector
+(:func:`room_concepts`) — and its own view, both against the shared visual distributions φ^v (the
+concepts as the experienced homes taught them, not the home's own θ^v, which already holds the room's
+views), with the prior G_0 and the names taught in the room (each taught name token weighing in as in
+the sampler's assignments: W^w draws from θ^w of the concept with the word channels, its S^w counts
+without). A *room* is the training samples sharing a region and a concept in the sampler's state
+(:class:`HomeRooms`): a region holding two places — a room taught two names, a region reaching over
+a wall — holds two rooms, each at the region's Gaussian. The observation is in room k with prior
+p(k | x) ∝ n_k N(x | μ_r(k), Σ_r(k)) (n_k the room's training samples, r(k) its region); room k is of
+concept l with p(l | room k) ∝ G_0,l · exp(ω_k Σ_d V_{k,d} log φ^v_{l,d}) · Π_{t ∈ k} Π_w
+θ^w_{e,l,w}^{s u_{t,w}} (s the token weight); and the view is drawn from the room's concept,
+p(v | l) = exp(ω_v Σ_d v_d log φ^v_{l,d}). So
 
     P(l | x, v) ∝ Σ_k p(k | x) p(l | room k) p(v | l),
 
-ω_k = min(1, w / Σ_d V_{k,d}) with V_k the region's pooled counts, ω_v = min(1, w / Σ_d v_d): two
+ω_k = min(1, w / Σ_d V_{k,d}) with V_k the room's pooled counts, ω_v = min(1, w / Σ_d v_d): two
 pieces of evidence where the home's π and θ^v hold twenty-one. The view weighs in on which room the
 pose is in as well as on the room's concept (the sum over k is normalised jointly): a view unlike
 everything the room at the pose looks like says the robot is in the room next door.
@@ -51,14 +55,24 @@ class HomeRooms:
     regions: (n,) int, the region of each training sample (the sampler's state).
     visual: (n, D) the samples' view counts (a missing view: an empty row).
     words: (n, V) the name tokens taught at each sample (untaught: an empty row).
+    concepts: (n,) int, the concept of each sample (the sampler's state), or ``None``. With them a
+        room is the samples sharing a region *and* a concept (a region that holds two places — a room
+        taught two names, a region reaching over a wall — holds two rooms, each at the region's
+        Gaussian); without them, a region.
+    word_weight: the evidence of one word count in a concept's assignment, as the sampler weighs it:
+        W^w / S^w with the word channels (a token weighs the model's word weight W^w,
+        :func:`spco.model.word_channels.token_weight`), 1 without them (a token weighs its S^w counts).
     """
 
     regions: np.ndarray
     visual: sp.csr_array
     words: sp.csr_array
+    concepts: np.ndarray | None = None
+    word_weight: float = 1.0
 
     @classmethod
-    def of(cls, regions: object, visual: object, words: object) -> HomeRooms:
+    def of(cls, regions: object, visual: object, words: object, concepts: object = None,
+           word_weight: float = 1.0) -> HomeRooms:
         """Validated :class:`HomeRooms` (sparse copies of ``visual`` and ``words``)."""
         regions = np.asarray(regions, dtype=np.int64).ravel()
         visual = sp.csr_array(visual, dtype=np.float64)
@@ -68,20 +82,47 @@ class HomeRooms:
                                      f"{words.shape[0]} word rows")
         if regions.size and regions.min() < 0:
             raise ConfigurationError("rooms: a region index is negative")
-        return cls(regions, visual, words)
+        labels = None
+        if concepts is not None:
+            labels = np.asarray(concepts, dtype=np.int64).ravel()
+            if labels.size != regions.size:
+                raise ConfigurationError(f"rooms: {regions.size} regions but {labels.size} concepts")
+            if labels.size and labels.min() < 0:
+                raise ConfigurationError("rooms: a concept index is negative")
+        if not (np.isfinite(word_weight) and word_weight > 0):
+            raise ConfigurationError(f"rooms: word_weight must be a positive number, got {word_weight!r}")
+        return cls(regions, visual, words, labels, float(word_weight))
+
+    def subset(self, keep: np.ndarray) -> HomeRooms:
+        """The rooms of the samples ``keep`` (a bool mask or indices), e.g. one sample left out."""
+        return HomeRooms.of(self.regions[keep], self.visual[keep], self.words[keep],
+                            None if self.concepts is None else self.concepts[keep], self.word_weight)
+
+    def room_of_samples(self, n_regions: int) -> tuple[np.ndarray, np.ndarray]:
+        """(n,) the room of each sample and (R,) the region of each room: rooms are the regions
+        0..``n_regions``-1 without ``concepts``, else the (region, concept) pairs that hold samples."""
+        if self.concepts is None:
+            return self.regions, np.arange(n_regions)
+        pairs, room = np.unique(np.stack([self.regions, self.concepts]), axis=1, return_inverse=True)
+        return np.asarray(room, dtype=np.int64).ravel(), pairs[0]
 
 
 def _room_log_posterior(params: ConceptParameters, rooms: HomeRooms, view_counts: float | None,
-                        e: int = 0) -> np.ndarray:
-    """(K, L) log G_0 + each region's pooled views at w against φ^v + its taught name tokens under θ^w
-    (unnormalised)."""
+                        e: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(R, L) log G_0 + each room's pooled views at w against φ^v + its taught name tokens under θ^w
+    at the model's token weight (unnormalised); (R,) training samples per room; (R,) each room's
+    region."""
     K = int(np.shape(params.region_means)[1])
     if rooms.regions.size and rooms.regions.max() >= K:
         raise ConfigurationError(f"rooms: region {int(rooms.regions.max())} but the model has {K}")
-    n = rooms.regions.size
-    onehot = sp.csr_array((np.ones(n), (rooms.regions, np.arange(n))), shape=(K, n))
+    if rooms.concepts is not None and rooms.concepts.size and rooms.concepts.max() >= params.n_concepts:
+        raise ConfigurationError(f"rooms: concept {int(rooms.concepts.max())} but the model has "
+                                 f"{params.n_concepts}")
+    room, region_of = rooms.room_of_samples(K)
+    n, R = rooms.regions.size, region_of.size
+    onehot = sp.csr_array((np.ones(n), (room, np.arange(n))), shape=(R, n))
     log_post = np.broadcast_to(_safe_log(params.global_concept_weights)[None, :],
-                               (K, params.n_concepts)).copy()
+                               (R, params.n_concepts)).copy()
     phi_v = np.asarray(params.shared_visual_probabilities, dtype=np.float64)
     if phi_v.size and rooms.visual.shape[1] == phi_v.shape[1]:  # the room's views pooled: one view at w
         log_post += _visual_log_likelihood(phi_v, sp.csr_array(onehot @ rooms.visual), view_counts)
@@ -91,48 +132,47 @@ def _room_log_posterior(params: ConceptParameters, rooms: HomeRooms, view_counts
         theta = theta * names[None, :]
         theta /= np.maximum(theta.sum(axis=1, keepdims=True), np.finfo(np.float64).tiny)
         said = sp.csr_array(onehot @ (rooms.words @ sp.diags_array(names.astype(np.float64))))
-        log_post += np.asarray(said @ _safe_log(theta).T)
-    return log_post
+        log_post += rooms.word_weight * np.asarray(said @ _safe_log(theta).T)
+    counts = np.bincount(room, minlength=R).astype(np.float64)
+    return log_post, counts, region_of
 
 
 def room_concepts(params: ConceptParameters, e: int, rooms: HomeRooms, view_counts: float | None
                   ) -> tuple[np.ndarray, np.ndarray]:
-    """Each region's concept, its views pooled as one piece of evidence (module docstring).
+    """Each room's concept, its views pooled as one piece of evidence (module docstring).
 
     Parameters
     ----------
     params: the answer's parameters (their θ^w and ``word_mask``: the names the home answers).
-    e: the home; rooms: its training samples' regions, views and taught name tokens.
+    e: the home; rooms: its training samples' regions (and concepts), views and taught name tokens.
     view_counts: the model's view weight w (``None``: every count a draw).
 
     Returns
     -------
-    counts: (K,) training samples per region; posterior: (K, L) p(l | room k), rows sum to 1 (a
-    region without samples: G_0).
+    counts: (R,) training samples per room; posterior: (R, L) p(l | room k), rows sum to 1 (a room
+    without samples: G_0). Without ``rooms.concepts`` the rooms are the model's K regions.
     """
-    log_post = _room_log_posterior(params, rooms, view_counts, e)
-    counts = np.bincount(rooms.regions, minlength=log_post.shape[0]).astype(np.float64)
+    log_post, counts, _ = _room_log_posterior(params, rooms, view_counts, e)
     return counts, np.exp(log_post - logsumexp(log_post, axis=1, keepdims=True))
 
 
 def concepts_by_room(params: ConceptParameters, e: int, positions: np.ndarray, visual: object,
                      rooms: HomeRooms, view_counts: float | None) -> np.ndarray | None:
     """(n, L) P(l | x, v) ∝ Σ_k p(k | x) p(l | room k) p(v | l) at poses ``positions`` (n, 4) of home
-    ``e`` with views ``visual`` (n, D; ``None`` or an empty row: no view), p(k | x) ∝ n_k N(x | μ_k,
-    Σ_k) over the regions with training samples, p(l | room k) ∝ G_0,l · (room k's pooled views at w)
-    · (its taught names) and p(v | l) the view at w, both against φ^v (module docstring); ``None`` if
-    no region has a training sample (the caller answers from the view and the pose against the home's
-    parameters instead)."""
+    ``e`` with views ``visual`` (n, D; ``None`` or an empty row: no view), p(k | x) ∝ n_k N(x | μ_r(k),
+    Σ_r(k)) over the rooms with training samples (r(k) the room's region), p(l | room k) ∝ G_0,l ·
+    (room k's pooled views at w) · (its taught names) and p(v | l) the view at w, both against φ^v
+    (module docstring); ``None`` if no room has a training sample (the caller answers from the view
+    and the pose against the home's parameters instead)."""
     from spco.model.prediction import gaussian_log_density, validate_poses
 
-    room_log = _room_log_posterior(params, rooms, view_counts, e)  # (K, L), unnormalised
-    counts = np.bincount(rooms.regions, minlength=room_log.shape[0]).astype(np.float64)
+    room_log, counts, region_of = _room_log_posterior(params, rooms, view_counts, e)  # (R, L) unnormalised
     if not (counts > 0).any():
         return None
     x = validate_poses(positions)
     with np.errstate(over="ignore", invalid="ignore"):
         log_n = gaussian_log_density(x, params.region_means[e], params.region_covariances[e])  # (n, K)
-    log_k = np.where(counts[None, :] > 0, log_n + _safe_log(counts)[None, :], -np.inf)
+    log_k = np.where(counts[None, :] > 0, log_n[:, region_of] + _safe_log(counts)[None, :], -np.inf)
     total = logsumexp(log_k, axis=1, keepdims=True)
     if not np.isfinite(total).all():
         i = int(np.flatnonzero(~np.isfinite(total).ravel())[0])
@@ -147,9 +187,9 @@ def concepts_by_room(params: ConceptParameters, e: int, positions: np.ndarray, v
             raise ConfigurationError(f"{x.shape[0]} positions but {view_log.shape[0]} visual feature rows")
     # log p(k | x) + log p(l | room k) + log p(v | l): the view weighs in on the room as on its concept
     # (a view unlike everything room k looks like says the pose is not in room k)
-    room_norm = room_log - logsumexp(room_log, axis=1, keepdims=True)  # (K, L) log p(l | room k)
+    room_norm = room_log - logsumexp(room_log, axis=1, keepdims=True)  # (R, L) log p(l | room k)
     joint = np.full((x.shape[0], params.n_concepts), -np.inf)
-    for k in np.flatnonzero(counts > 0):  # a loop over the home's regions (tens)
+    for k in np.flatnonzero(counts > 0):  # a loop over the home's rooms (tens)
         joint = np.logaddexp(joint, (log_k[:, [k]] - total) + room_norm[k][None, :] + view_log)
     return np.exp(joint - logsumexp(joint, axis=1, keepdims=True))
 
@@ -157,15 +197,19 @@ def concepts_by_room(params: ConceptParameters, e: int, positions: np.ndarray, v
 def model_rooms(model: object, e: int) -> HomeRooms:
     """:class:`HomeRooms` of home ``e`` of a fitted joint model
     (:class:`~spco.model.transfer.SpatialConceptModel`, the experiments' fit): its training samples'
-    regions, views and name tokens (with the word channels the tokens drawn as names), so that an
-    experiment scores the names the robot answers (:func:`spco.model.confidence.answer_names`)."""
+    regions, concepts, views and name tokens (with the word channels the tokens drawn as names, at the
+    model's token weight), so that an experiment scores the names the robot answers
+    (:func:`spco.model.confidence.answer_names`)."""
     from spco.model.word_channels import name_tokens
 
     data = model.data_  # type: ignore[attr-defined]
     state = model.state_  # type: ignore[attr-defined]
     rows = slice(int(data.offsets[e]), int(data.offsets[e + 1]))
     words = data.words
-    if getattr(state, "channels", None) is not None and getattr(state, "switches", None) is not None \
-            and words.nnz:
+    weight = 1.0
+    channels = getattr(state, "channels", None)
+    if channels is not None and getattr(state, "switches", None) is not None and words.nnz:
         words = name_tokens(words, state.switches)
-    return HomeRooms.of(np.asarray(state.regions)[rows], data.visual[rows], words[rows])
+        weight = float(channels.token_weight)
+    return HomeRooms.of(np.asarray(state.regions)[rows], data.visual[rows], words[rows],
+                        np.asarray(state.concepts)[rows], weight)
