@@ -48,7 +48,7 @@ def _by_regions(rooms: Any) -> Any:
     """``rooms`` with a room = a region (no concepts), as the room account was first built."""
     from spco.model.rooms import HomeRooms
 
-    return HomeRooms.of(rooms.regions, rooms.visual, rooms.words, None, rooms.word_weight)
+    return HomeRooms.of(rooms.regions, rooms.visual, rooms.words, None)
 
 
 def _by_region(params: Any, e: int, positions: np.ndarray, visual: Any, rooms: Any, w: float | None

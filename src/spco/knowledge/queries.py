@@ -312,17 +312,13 @@ def name_prediction(home: HomeModel, poses: np.ndarray, visual: Any = None, top_
 
 def home_rooms(home: HomeModel) -> HomeRooms:
     """The home's training samples as the room-level answer reads them (:mod:`spco.model.rooms`):
-    their regions and concepts (a room: the samples sharing both), their views and the name tokens
-    taught at them (with the word channels the tokens drawn as names, as :func:`answer_parameters`
-    counts them, each weighing the model's word weight W^w as in the sampler's assignments)."""
+    their regions and concepts (a region split by the names taught in it,
+    :meth:`~spco.model.rooms.HomeRooms.membership`), their views and the name tokens taught at them
+    (with the word channels the tokens drawn as names, as :func:`answer_parameters` counts them)."""
     words = home.data.words
-    weight = 1.0
-    channels = home.state.channels if getattr(home.state, "channels", None) is not None \
-        else home.knowledge.channels
-    if channels is not None and home.state.switches is not None and words.nnz:
+    if home.knowledge.channels is not None and home.state.switches is not None and words.nnz:
         words = name_tokens(words, home.state.switches)
-        weight = float(channels.token_weight)
-    return HomeRooms.of(home.state.regions, home.data.visual, words, home.state.concepts, weight)
+    return HomeRooms.of(home.state.regions, home.data.visual, words, home.state.concepts)
 
 
 def describe_model_file(path: str | PathLike[str]) -> dict[str, Any]:

@@ -13,14 +13,14 @@ and the experiments) judges an observation's concept from two pieces of evidence
 model's w draws: the room it is in — the room's training views pooled into one count vector
 (:func:`room_concepts`) — and its own view, both against the shared visual distributions φ^v (the
 concepts as the experienced homes taught them, not the home's own θ^v, which already holds the room's
-views), with the prior G_0 and the names taught in the room (each taught name token weighing in as in
-the sampler's assignments: W^w draws from θ^w of the concept with the word channels, its S^w counts
-without). A *room* is the training samples sharing a region and a concept in the sampler's state
-(:class:`HomeRooms`): a region holding two places — a room taught two names, a region reaching over
-a wall — holds two rooms, each at the region's Gaussian. The observation is in room k with prior
+views), with the prior G_0 and the names taught in the room (each taught name token counted as θ^w
+counts it, S^w draws from θ^w of the concept: a name taught in a room decides the room's concept). A
+*room* is a region of the sampler's state, split by the names taught in it (:class:`HomeRooms`): a
+region where two names were taught into two concepts (a room taught "tub room" and "shower room")
+holds two rooms, each at the region's Gaussian. The observation is in room k with prior
 p(k | x) ∝ n_k N(x | μ_r(k), Σ_r(k)) (n_k the room's training samples, r(k) its region); room k is of
 concept l with p(l | room k) ∝ G_0,l · exp(ω_k Σ_d V_{k,d} log φ^v_{l,d}) · Π_{t ∈ k} Π_w
-θ^w_{e,l,w}^{s u_{t,w}} (s the token weight); and the view is drawn from the room's concept,
+θ^w_{e,l,w}^{u_{t,w}}; and the view is drawn from the room's concept,
 p(v | l) = exp(ω_v Σ_d v_d log φ^v_{l,d}). So
 
     P(l | x, v) ∝ Σ_k p(k | x) p(l | room k) p(v | l),
@@ -56,23 +56,17 @@ class HomeRooms:
     visual: (n, D) the samples' view counts (a missing view: an empty row).
     words: (n, V) the name tokens taught at each sample (untaught: an empty row).
     concepts: (n,) int, the concept of each sample (the sampler's state), or ``None``. With them a
-        room is the samples sharing a region *and* a concept (a region that holds two places — a room
-        taught two names, a region reaching over a wall — holds two rooms, each at the region's
-        Gaussian); without them, a region.
-    word_weight: the evidence of one word count in a concept's assignment, as the sampler weighs it:
-        W^w / S^w with the word channels (a token weighs the model's word weight W^w,
-        :func:`spco.model.word_channels.token_weight`), 1 without them (a token weighs its S^w counts).
+        region is split by the names taught in it (:meth:`membership`); without them a room is a
+        region.
     """
 
     regions: np.ndarray
     visual: sp.csr_array
     words: sp.csr_array
     concepts: np.ndarray | None = None
-    word_weight: float = 1.0
 
     @classmethod
-    def of(cls, regions: object, visual: object, words: object, concepts: object = None,
-           word_weight: float = 1.0) -> HomeRooms:
+    def of(cls, regions: object, visual: object, words: object, concepts: object = None) -> HomeRooms:
         """Validated :class:`HomeRooms` (sparse copies of ``visual`` and ``words``)."""
         regions = np.asarray(regions, dtype=np.int64).ravel()
         visual = sp.csr_array(visual, dtype=np.float64)
@@ -89,38 +83,68 @@ class HomeRooms:
                 raise ConfigurationError(f"rooms: {regions.size} regions but {labels.size} concepts")
             if labels.size and labels.min() < 0:
                 raise ConfigurationError("rooms: a concept index is negative")
-        if not (np.isfinite(word_weight) and word_weight > 0):
-            raise ConfigurationError(f"rooms: word_weight must be a positive number, got {word_weight!r}")
-        return cls(regions, visual, words, labels, float(word_weight))
+        return cls(regions, visual, words, labels)
 
     def subset(self, keep: np.ndarray) -> HomeRooms:
         """The rooms of the samples ``keep`` (a bool mask or indices), e.g. one sample left out."""
         return HomeRooms.of(self.regions[keep], self.visual[keep], self.words[keep],
-                            None if self.concepts is None else self.concepts[keep], self.word_weight)
+                            None if self.concepts is None else self.concepts[keep])
 
-    def room_of_samples(self, n_regions: int) -> tuple[np.ndarray, np.ndarray]:
-        """(n,) the room of each sample and (R,) the region of each room: rooms are the regions
-        0..``n_regions``-1 without ``concepts``, else the (region, concept) pairs that hold samples."""
+    def membership(self, n_regions: int) -> tuple[sp.csr_array, np.ndarray]:
+        """(R, n) each sample's share in each room and (R,) the region of each room.
+
+        Without ``concepts`` the rooms are the regions 0..``n_regions``-1. With them a region is split
+        by the names taught in it: each concept holding taught samples (a name token) of the region is
+        a room, holding those samples and the region's untaught samples (whole in its pooled views, in
+        proportion to its taught samples in its size n_k): a region where "tub room" was said three
+        times and "shower room" once, the sampler giving each name its concept, is two rooms, 3 : 1.
+        A region where nothing was taught, or names of one concept only, is one room."""
+        n = self.regions.size
         if self.concepts is None:
-            return self.regions, np.arange(n_regions)
-        pairs, room = np.unique(np.stack([self.regions, self.concepts]), axis=1, return_inverse=True)
-        return np.asarray(room, dtype=np.int64).ravel(), pairs[0]
+            return sp.csr_array((np.ones(n), (self.regions, np.arange(n))), shape=(n_regions, n)), \
+                np.arange(n_regions)
+        taught = np.diff(self.words.indptr) > 0
+        rows: list[int] = []
+        cols: list[int] = []
+        vals: list[float] = []
+        region_of: list[int] = []
+        for r in np.unique(self.regions):
+            members = np.flatnonzero(self.regions == r)
+            said = members[taught[members]]
+            groups = np.unique(self.concepts[said])
+            if groups.size <= 1:  # one room: the whole region
+                rows += [len(region_of)] * members.size
+                cols += members.tolist()
+                vals += [1.0] * members.size
+                region_of.append(int(r))
+                continue
+            untaught = members[~taught[members]]
+            for c in groups:
+                own = said[self.concepts[said] == c]
+                share = own.size / said.size
+                rows += [len(region_of)] * (own.size + untaught.size)
+                cols += own.tolist() + untaught.tolist()
+                vals += [1.0] * own.size + [share] * untaught.size
+                region_of.append(int(r))
+        R = len(region_of)
+        index = (np.asarray(rows, dtype=np.int64), np.asarray(cols, dtype=np.int64))
+        return sp.csr_array((np.asarray(vals), index), shape=(R, n)), np.asarray(region_of, dtype=np.int64)
 
 
 def _room_log_posterior(params: ConceptParameters, rooms: HomeRooms, view_counts: float | None,
                         e: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(R, L) log G_0 + each room's pooled views at w against φ^v + its taught name tokens under θ^w
-    at the model's token weight (unnormalised); (R,) training samples per room; (R,) each room's
-    region."""
+    (unnormalised); (R,) training samples per room; (R,) each room's region."""
     K = int(np.shape(params.region_means)[1])
     if rooms.regions.size and rooms.regions.max() >= K:
         raise ConfigurationError(f"rooms: region {int(rooms.regions.max())} but the model has {K}")
     if rooms.concepts is not None and rooms.concepts.size and rooms.concepts.max() >= params.n_concepts:
         raise ConfigurationError(f"rooms: concept {int(rooms.concepts.max())} but the model has "
                                  f"{params.n_concepts}")
-    room, region_of = rooms.room_of_samples(K)
-    n, R = rooms.regions.size, region_of.size
-    onehot = sp.csr_array((np.ones(n), (room, np.arange(n))), shape=(R, n))
+    share, region_of = rooms.membership(K)  # (R, n) each sample's share in each room
+    R = region_of.size
+    onehot = share.copy()  # the room's views and names: each member's whole (counts stay counts)
+    onehot.data[:] = 1.0
     log_post = np.broadcast_to(_safe_log(params.global_concept_weights)[None, :],
                                (R, params.n_concepts)).copy()
     phi_v = np.asarray(params.shared_visual_probabilities, dtype=np.float64)
@@ -132,8 +156,8 @@ def _room_log_posterior(params: ConceptParameters, rooms: HomeRooms, view_counts
         theta = theta * names[None, :]
         theta /= np.maximum(theta.sum(axis=1, keepdims=True), np.finfo(np.float64).tiny)
         said = sp.csr_array(onehot @ (rooms.words @ sp.diags_array(names.astype(np.float64))))
-        log_post += rooms.word_weight * np.asarray(said @ _safe_log(theta).T)
-    counts = np.bincount(room, minlength=R).astype(np.float64)
+        log_post += np.asarray(said @ _safe_log(theta).T)
+    counts = np.asarray(share.sum(axis=1), dtype=np.float64).ravel()  # n_k: the shares
     return log_post, counts, region_of
 
 
@@ -197,19 +221,16 @@ def concepts_by_room(params: ConceptParameters, e: int, positions: np.ndarray, v
 def model_rooms(model: object, e: int) -> HomeRooms:
     """:class:`HomeRooms` of home ``e`` of a fitted joint model
     (:class:`~spco.model.transfer.SpatialConceptModel`, the experiments' fit): its training samples'
-    regions, concepts, views and name tokens (with the word channels the tokens drawn as names, at the
-    model's token weight), so that an experiment scores the names the robot answers
-    (:func:`spco.model.confidence.answer_names`)."""
+    regions, concepts, views and name tokens (with the word channels the tokens drawn as names), so
+    that an experiment scores the names the robot answers (:func:`spco.model.confidence.answer_names`)."""
     from spco.model.word_channels import name_tokens
 
     data = model.data_  # type: ignore[attr-defined]
     state = model.state_  # type: ignore[attr-defined]
     rows = slice(int(data.offsets[e]), int(data.offsets[e + 1]))
     words = data.words
-    weight = 1.0
-    channels = getattr(state, "channels", None)
-    if channels is not None and getattr(state, "switches", None) is not None and words.nnz:
+    if getattr(state, "channels", None) is not None and getattr(state, "switches", None) is not None \
+            and words.nnz:
         words = name_tokens(words, state.switches)
-        weight = float(channels.token_weight)
     return HomeRooms.of(np.asarray(state.regions)[rows], data.visual[rows], words[rows],
-                        np.asarray(state.concepts)[rows], weight)
+                        np.asarray(state.concepts)[rows])
