@@ -15,9 +15,10 @@ model's w draws: the room it is in — the room's training views pooled into one
 concepts as the experienced homes taught them, not the home's own θ^v, which already holds the room's
 views), with the prior G_0 and the names taught in the room (each taught name token counted as θ^w
 counts it, S^w draws from θ^w of the concept: a name taught in a room decides the room's concept). A
-*room* is a region of the sampler's state, split by the names taught in it (:class:`HomeRooms`): a
-region where two names were taught into two concepts (a room taught "tub room" and "shower room")
-holds two rooms, each at the region's Gaussian. The observation is in room k with prior
+*room* is a region of the sampler's state, split by the names taught in it, or where nothing was
+taught by the sampler's concepts (:meth:`HomeRooms.membership`): a region where two names were taught
+into two concepts (a room taught "tub room" and "shower room") holds two rooms, each at the region's
+Gaussian; a region where one name was taught is one room. The observation is in room k with prior
 p(k | x) ∝ n_k N(x | μ_r(k), Σ_r(k)) (n_k the room's training samples, r(k) its region); room k is of
 concept l with p(l | room k) ∝ G_0,l · exp(ω_k Σ_d V_{k,d} log φ^v_{l,d}) · Π_{t ∈ k} Π_w
 θ^w_{e,l,w}^{u_{t,w}}; and the view is drawn from the room's concept,
@@ -98,7 +99,9 @@ class HomeRooms:
         a room, holding those samples and the region's untaught samples (whole in its pooled views, in
         proportion to its taught samples in its size n_k): a region where "tub room" was said three
         times and "shower room" once, the sampler giving each name its concept, is two rooms, 3 : 1.
-        A region where nothing was taught, or names of one concept only, is one room."""
+        A region where names of one concept were taught is one room (the name decides it); a region
+        where nothing was taught is a room per concept of its samples (a region reaching over a wall
+        into another place holds two rooms)."""
         n = self.regions.size
         if self.concepts is None:
             return sp.csr_array((np.ones(n), (self.regions, np.arange(n))), shape=(n_regions, n)), \
@@ -112,11 +115,14 @@ class HomeRooms:
             members = np.flatnonzero(self.regions == r)
             said = members[taught[members]]
             groups = np.unique(self.concepts[said])
-            if groups.size <= 1:  # one room: the whole region
-                rows += [len(region_of)] * members.size
-                cols += members.tolist()
-                vals += [1.0] * members.size
-                region_of.append(int(r))
+            if groups.size <= 1:  # nothing taught: a room per concept; one name's concept: the region
+                parts = np.unique(self.concepts[members]) if groups.size == 0 else np.array([-1])
+                for c in parts:
+                    own = members if c < 0 else members[self.concepts[members] == c]
+                    rows += [len(region_of)] * own.size
+                    cols += own.tolist()
+                    vals += [1.0] * own.size
+                    region_of.append(int(r))
                 continue
             untaught = members[~taught[members]]
             for c in groups:
