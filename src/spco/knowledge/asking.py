@@ -115,8 +115,10 @@ def home_question_scores(home: HomeModel, criterion: str = DEFAULT_CRITERION) ->
     params = answer_parameters(home)  # p(name | concept) as what answers
     columns = name_columns(home)
     # P(l | x_i, v_i) as `what` answers it (the room account, spco.model.confidence.answer_concepts)
+    # (the reference sampler's KL-weighted answer is view by view, as in answer_names)
     concepts = answer_concepts(params, 0, home.positions, home.visual,
-                               view_counts=home.hyperparameters.view_weight(), rooms=home_rooms(home))
+                               view_counts=home.hyperparameters.view_weight(),
+                               rooms=None if home.weighting == "reference" else home_rooms(home))
     theta = np.clip(np.asarray(params.word_probabilities[0], dtype=np.float64), 0.0, None)  # (L, V)
     mass = theta[:, columns].sum(axis=1)
     names = np.divide(theta[:, columns], mass[:, None], out=np.zeros((theta.shape[0], columns.size)),
