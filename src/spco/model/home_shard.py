@@ -228,7 +228,8 @@ FREE_CONCEPT_WEIGHT = 1e-3
 
 
 def own_names_to_free_concepts(data: PreparedData, state: GibbsState, shared: SharedPart,
-                                n_known: int, words: np.ndarray | None = None) -> bool:
+                                n_known: int, words: np.ndarray | None = None,
+                                movable: np.ndarray | None = None) -> bool:
     """Give each name first heard in this home a concept of its own, one the knowledge does not use.
 
     The samples standing for such a name (:func:`gibbs.sample_names`: those that say it, and the
@@ -237,7 +238,8 @@ def own_names_to_free_concepts(data: PreparedData, state: GibbsState, shared: Sh
     place (every concept gives an unheard word the same tiny mass), whose visual distribution —
     δ^v = 3·10^5 pseudo-counts of that place's views — then sends the rest of the room's views to the
     transferred concept of its kind ("bedroom"). ``words``: only these names (word ids; a teaching's
-    own words, :func:`spco.model.local_update.teach_locally`), default every new name of the home.
+    own words, :func:`spco.model.local_update.teach_locally`), default every new name of the home;
+    ``movable``: (N,) bool, the only samples that may stand for them (default every sample).
     Returns whether any sample moved."""
     if shared.variant != "exact" or data.words.shape[1] <= n_known:
         return False
@@ -251,6 +253,8 @@ def own_names_to_free_concepts(data: PreparedData, state: GibbsState, shared: Sh
     names = gibbs.sample_names(data, state.regions, hyper, named=candidate)
     if words is not None:  # the names of every sample judged as before, only these names moved
         names = np.where(np.isin(names, np.asarray(words, dtype=np.int64)), names, -1)
+    if movable is not None:
+        names = np.where(movable, names, -1)
     free = np.exp(shared.log_g0) < FREE_CONCEPT_WEIGHT
     moved = False
     for word in np.unique(names[names >= 0]):  # a loop over the home's few new names
