@@ -125,6 +125,8 @@ class KnowledgeChannels:
             arrays["channels.prior_only_from"] = np.array([c.prior_only_from], dtype=np.int64)
         if c.token_weight != 1.0:  # (a file without it: S^w counts per token, as before the word weight)
             arrays["channels.token_weight"] = np.array([c.token_weight], dtype=np.float64)
+        if c.power:  # (a file without it: the cut sampler, as before the power target)
+            arrays["channels.power"] = np.array([True])
         return arrays
 
     @classmethod
@@ -147,6 +149,9 @@ class KnowledgeChannels:
             if not (np.isfinite(value) and value > 0):
                 raise ValueError(f"channels.token_weight must be a positive number, got {value!r}")
             channels = replace(channels, token_weight=value)
+        power = arrays.get(prefix + "channels.power")
+        if power is not None:
+            channels = replace(channels, power=bool(np.asarray(power).reshape(-1)[0]))
         return cls(channels, a["tokens"])
 
 

@@ -17,7 +17,9 @@ ratio is therefore
     + (γ G_{0,a} − γ G_{0,b}) (log G_{e,b} − log G_{e,a}),
 
 with F(i ← data of j) = Σ_k [ln Γ(δ φ_{i,k} + n_{e,j,k}) − ln Γ(δ φ_{i,k})] over visual and word
-dimensions. Every proposal of a pass (the slots paired by a random perfect matching) is a symmetric
+dimensions. With the views' power likelihood (``docs/samplers.md``) n^v holds the weighted counts
+Σ_t s_t v_t, real numbers, and F is the same expression: ∫ Π_k θ_k^{n_k} Dir(θ | δ φ) dθ for real n.
+Every proposal of a pass (the slots paired by a random perfect matching) is a symmetric
 Metropolis–Hastings step on (C, G_e, π_e) with θ_e marginalised, followed by a draw of θ_e from
 its conditional: together an exact block update of (C, G_e, π_e, θ_e), so the sampler stays a
 valid MCMC for the model as written.
@@ -244,7 +246,7 @@ def concept_swap_step(visual_counts: np.ndarray, log_phi_v: np.ndarray, delta_v:
         counts_w = word_counts[:, :, word_mask]
     else:
         alpha_w = np.zeros((n_concepts, 0))
-        counts_w = np.zeros((n_homes, n_concepts, 0), dtype=np.int64)
+        counts_w = np.zeros((n_homes, n_concepts, 0))
     g_term = gamma * np.exp(log_g0)
     order = np.argsort(rng.random((n_homes, n_concepts)), axis=1)  # a random matching per home
     n_pairs = n_concepts // 2
@@ -257,7 +259,9 @@ def concept_swap_step(visual_counts: np.ndarray, log_phi_v: np.ndarray, delta_v:
         diff_counts = counts_p[homes, a_] - counts_p[homes, b_]  # (E, P, V)
         diff_log = log_psi[b_] - log_psi[a_]  # (E, P, V)
         log_u = log_u - np.einsum("epv,epv->ep", diff_counts, diff_log)
-    return _matching_pass(np.ascontiguousarray(alpha_v), np.ascontiguousarray(visual_counts, dtype=np.int64),
-                          np.ascontiguousarray(alpha_w), np.ascontiguousarray(counts_w, dtype=np.int64),
+    # counts as float64, whole or real (the views' weighted counts): one compiled type
+    return _matching_pass(np.ascontiguousarray(alpha_v),
+                          np.ascontiguousarray(visual_counts, dtype=np.float64),
+                          np.ascontiguousarray(alpha_w), np.ascontiguousarray(counts_w, dtype=np.float64),
                           g_term, np.ascontiguousarray(log_g), np.ascontiguousarray(pairs, dtype=np.int64),
                           log_u)
