@@ -27,10 +27,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from conftest import chisquare_p
 from numpy.testing import assert_allclose
 from scipy.special import betaln, gammaln, logsumexp
+from test_tempered import csr, log_integral
 
-from conftest import chisquare_p
 from spco.model import gibbs
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.word_channels import (
@@ -47,7 +48,6 @@ from spco.model.word_channels import (
     switch_probabilities,
     token_scales,
 )
-from test_tempered import csr, log_integral
 
 pytestmark = pytest.mark.usefixtures("single_numba_thread")
 
@@ -128,7 +128,7 @@ def test_concept_likelihood_is_the_power_sentence_marginal(seed: int) -> None:
 
 
 def test_statistics_count_each_token_at_its_power() -> None:
-    words, occurrences, homes, _, channels = _problem(5, increment=50.0, word_counts=3.0)
+    words, occurrences, _, _, channels = _problem(5, increment=50.0, word_counts=3.0)
     rng = np.random.default_rng(1)
     switches = rng.integers(0, 3, size=words.nnz).astype(np.int8)
     concepts = np.array([2, 0, 2])
@@ -262,7 +262,8 @@ def _run_chain(power: bool, n_sweeps: int, seed: int) -> np.ndarray:
     channels = WordChannels.initial(EVIDENCE, L, token_weight=W_WORD / INCREMENT, power=power)
     channels = replace(channels, log_evidence=_log_evidence(), fresh=False)
     state = gibbs.GibbsState(
-        concepts=np.array([0, 1, 0, 1]), regions=np.zeros(n, dtype=np.int64), log_g=np.log(np.full((E, L), 0.5)),
+        concepts=np.array([0, 1, 0, 1]), regions=np.zeros(n, dtype=np.int64),
+        log_g=np.log(np.full((E, L), 0.5)),
         log_g0=np.log([0.5, 0.5]), log_pi=np.zeros((E, L, 1)), means=np.zeros((E, 1, 4)),
         covariances=np.tile(np.eye(4), (E, 1, 1, 1)), log_theta_v=np.log(np.full((E, L, 2), 0.5)),
         log_theta_w=np.log(np.full((E, L, 2), 0.5)), log_phi_v=np.log(np.full((L, 2), 0.5)),

@@ -35,7 +35,7 @@ from scipy.cluster.vq import kmeans2
 from spco.model import allocation
 from spco.model.alignment import HomeCounts, align_in_order
 from spco.model.blocks import region_block_step
-from spco.model.hyperparameters import TransferHyperparameters
+from spco.model.hyperparameters import TransferHyperparameters, view_powers
 from spco.model.kernels.dirichlet import dirichlet_log_density, log_dirichlet
 from spco.model.moves import concept_swap_step
 from spco.model.numba_cache import announce_compilation
@@ -412,7 +412,7 @@ def view_weights(data: PreparedData, view_counts: float | None) -> np.ndarray | 
     a view scored as ``view_counts`` draws (``None``: every count a draw, no weights)."""
     if view_counts is None:
         return None
-    return np.minimum(1.0, float(view_counts) / np.maximum(data.view_totals, 1.0))
+    return view_powers(data.view_totals, float(view_counts))
 
 
 def _concept_loglik(data: PreparedData, state: GibbsState, view_counts: float | None = None) -> np.ndarray:

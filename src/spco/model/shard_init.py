@@ -137,7 +137,8 @@ class ShardInitialisation:
     def init_summary(self) -> HomeSummary:
         """Per-home word totals, names said and taught fractions (see :class:`HomeSummary`)."""
         data, state, hyper = self.data, self.state, self.hyper
-        stats = self._init_stats = gibbs.sufficient_statistics(data, state, hyper, self.settings.learning_view_counts())
+        stats = self._init_stats = gibbs.sufficient_statistics(data, state, hyper,
+                                                               self.settings.learning_view_counts())
         self._name_counts = None
         names_said = None
         names = getattr(self, "_names", None)

@@ -234,7 +234,8 @@ def mixture_log_likelihood(words: sp.csr_array, homes: np.ndarray, log_theta_w: 
     if channels.power:
         terms = _power_token_terms(words, homes, log_theta_w, channels)  # (nnz, L)
         rows = token_rows(words)
-        gather = sp.csr_array((np.ones(rows.size), (rows, np.arange(rows.size))), shape=(n_samples, rows.size))
+        gather = sp.csr_array((np.ones(rows.size), (rows, np.arange(rows.size))),
+                              shape=(n_samples, rows.size))
         return np.asarray(gather @ terms)
     out = mixture_rows(words, homes, log_theta_w, channels.log_place, channels.log_background,
                        channels.log_prior())
