@@ -283,3 +283,21 @@ def test_the_chain_targets_the_stated_power_model_and_the_cut_sampler_does_not()
     assert chisquare_p(seen, exact) > P_MIN, (seen / seen.sum(), exact)
     cut = _run_chain(power=False, n_sweeps=8_000, seed=3)
     assert chisquare_p(cut, exact) < 1e-6, (cut / cut.sum(), exact)
+
+
+def test_the_target_is_a_checked_hyperparameter_that_files_carry() -> None:
+    from spco.errors import ConfigurationError
+
+    assert TransferHyperparameters().target == "cut"
+    assert "target" not in TransferHyperparameters().to_dict()  # files from before it read the same
+    power = TransferHyperparameters().with_settings(["target=power"])
+    assert power.target == "power"
+    assert TransferHyperparameters.from_dict(power.to_dict()) == power
+    with pytest.raises(ConfigurationError, match="target must be one of"):
+        TransferHyperparameters(target="exact")
+    with pytest.raises(ConfigurationError, match="word_counts must be a whole number"):
+        TransferHyperparameters(target="power", word_counts=2.5)
+    settings = gibbs.SamplerSettings.create("exact", prune=True, view_counts=16.0, power=True)
+    assert settings.learning_view_counts() == 16.0
+    assert gibbs.SamplerSettings.create("exact", prune=True, view_counts=16.0).learning_view_counts() is None
+    assert not gibbs.SamplerSettings.create("reference", prune=True, power=True).power
