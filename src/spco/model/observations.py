@@ -212,22 +212,39 @@ class HierarchicalMultinomial:
         Dirichlet–multinomial weight of φ to what the proposal of
         :meth:`sample_shared_given_counts` counts (0 for whole counts). An a that underflows to 0
         where a count is fractional gives −inf (a proposal there is refused)."""
-        out = np.zeros(log_phi.shape[0])
+        return HierarchicalMultinomial.fractional_log_weights(n, (log_phi,), delta)[0]
+
+    @staticmethod
+    def fractional_log_weights(n: np.ndarray, log_phis: tuple[np.ndarray, ...],
+                               delta: float) -> list[np.ndarray]:
+        """:meth:`fractional_log_weight` of the counts ``n`` at each φ of ``log_phis`` (a proposal's
+        old and new φ: the entries, their whole and fractional parts found once)."""
+        outs = [np.zeros(log_phi.shape[0]) for log_phi in log_phis]
         if n.dtype.kind in "iu":
-            return out
+            return outs
         whole = np.floor(n)
         frac = n - whole
         e, c, k = np.nonzero(frac)
         if not c.size:
-            return out
-        log_a = np.log(delta) + log_phi[c, k]
-        a = np.exp(log_a)
-        tilt = np.where(whole[e, c, k] == 0.0, frac[e, c, k], 0.0)  # what the proposal counts
-        with np.errstate(divide="ignore", invalid="ignore"):
-            terms = gammaln(a + n[e, c, k]) - gammaln(a + whole[e, c, k]) - tilt * log_a
-        terms = np.where(a > 0.0, terms, -np.inf)
-        np.add.at(out, c, terms)
-        return out
+            return outs
+        n_at, whole_at = n[e, c, k], whole[e, c, k]
+        tilt = np.where(whole_at == 0.0, frac[e, c, k], 0.0)  # what the proposal counts
+        for i, log_phi in enumerate(log_phis):
+            log_a = np.log(delta) + log_phi[c, k]
+            a = np.exp(log_a)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                terms = gammaln(a + n_at) - gammaln(a + whole_at) - tilt * log_a
+            terms = np.where(a > 0.0, terms, -np.inf)
+            outs[i] = np.bincount(c, weights=terms, minlength=log_phi.shape[0]).astype(np.float64)
+        return outs
+
+    @staticmethod
+    def fractional_log_ratio(n: np.ndarray, log_phi_old: np.ndarray, log_phi_new: np.ndarray,
+                             delta: float) -> np.ndarray:
+        """(L,) w(φ_new) − w(φ_old), w = :meth:`fractional_log_weight`: a proposal's log acceptance
+        ratio from the counts ``n``."""
+        old, new = HierarchicalMultinomial.fractional_log_weights(n, (log_phi_old, log_phi_new), delta)
+        return new - old
 
     @staticmethod
     def sample_shared_given_counts(n: np.ndarray, log_phi: np.ndarray, delta: float, prior,
@@ -239,8 +256,7 @@ class HierarchicalMultinomial:
         w = 0 and this is the CRT step, drawing the same numbers. ``prior``: α, a number or (L, D)."""
         tables, frac, fractional = HierarchicalMultinomial.table_parts(n, log_phi, delta, rng)
         return HierarchicalMultinomial.accept_shared(
-            lambda old, new: (HierarchicalMultinomial.fractional_log_weight(n, new, delta)
-                              - HierarchicalMultinomial.fractional_log_weight(n, old, delta)),
+            lambda old, new: HierarchicalMultinomial.fractional_log_ratio(n, old, new, delta),
             log_phi, prior, tables, frac, rng, bool(fractional.any()))
 
     @staticmethod

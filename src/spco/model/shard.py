@@ -260,8 +260,7 @@ class HomeShard(ShardInitialisation):
         """(L,) the shard's part of the log acceptance ratio of a proposed φ^v (the views' weighted
         counts: :meth:`HierarchicalMultinomial.fractional_log_weight` at the new φ minus the old)."""
         n, delta = self._stats().visual, self.hyper.delta_visual
-        return (HierarchicalMultinomial.fractional_log_weight(n, log_phi_new, delta)
-                - HierarchicalMultinomial.fractional_log_weight(n, log_phi_old, delta))
+        return HierarchicalMultinomial.fractional_log_ratio(n, log_phi_old, log_phi_new, delta)
 
     def channel_counts(self) -> ChannelCounts:
         """The switches' counts of the shard's homes (word channels; each token once)."""
