@@ -216,6 +216,12 @@ def _word_concentration(log_phi_w: np.ndarray, word_mask: np.ndarray, delta_w: f
     return result
 
 
+def _count_type(counts: np.ndarray) -> type:
+    """int64 for whole counts (the cut sampler's, compiled ahead), float64 for the power target's
+    weighted visual counts."""
+    return np.int64 if np.asarray(counts).dtype.kind in "iub" else np.float64
+
+
 def concept_swap_step(visual_counts: np.ndarray, log_phi_v: np.ndarray, delta_v: float,
                       word_counts: np.ndarray, log_phi_w: np.ndarray, delta_w: float,
                       log_g: np.ndarray, log_g0: np.ndarray, gamma: float, word_mask: np.ndarray,
@@ -246,7 +252,7 @@ def concept_swap_step(visual_counts: np.ndarray, log_phi_v: np.ndarray, delta_v:
         counts_w = word_counts[:, :, word_mask]
     else:
         alpha_w = np.zeros((n_concepts, 0))
-        counts_w = np.zeros((n_homes, n_concepts, 0))
+        counts_w = np.zeros((n_homes, n_concepts, 0), dtype=np.int64)
     g_term = gamma * np.exp(log_g0)
     order = np.argsort(rng.random((n_homes, n_concepts)), axis=1)  # a random matching per home
     n_pairs = n_concepts // 2
@@ -259,9 +265,8 @@ def concept_swap_step(visual_counts: np.ndarray, log_phi_v: np.ndarray, delta_v:
         diff_counts = counts_p[homes, a_] - counts_p[homes, b_]  # (E, P, V)
         diff_log = log_psi[b_] - log_psi[a_]  # (E, P, V)
         log_u = log_u - np.einsum("epv,epv->ep", diff_counts, diff_log)
-    # counts as float64, whole or real (the views' weighted counts): one compiled type
     return _matching_pass(np.ascontiguousarray(alpha_v),
-                          np.ascontiguousarray(visual_counts, dtype=np.float64),
-                          np.ascontiguousarray(alpha_w), np.ascontiguousarray(counts_w, dtype=np.float64),
+                          np.ascontiguousarray(visual_counts, dtype=_count_type(visual_counts)),
+                          np.ascontiguousarray(alpha_w), np.ascontiguousarray(counts_w, dtype=np.int64),
                           g_term, np.ascontiguousarray(log_g), np.ascontiguousarray(pairs, dtype=np.int64),
                           log_u)
