@@ -1,8 +1,9 @@
-"""The sampler is exact for the tempered visual likelihood, checked by brute force on tiny problems.
+"""The power target (``target="power"``) is exact for the tempered visual likelihood, checked by brute
+force on tiny problems.
 
-The model (``docs/samplers.md``): a view v_t enters as Mult(v_t | θ^v_{e,C_t})^{s_t},
-s_t = min(1, w / Σ_d v_td) (w = ``view_counts``). Every visual conditional then sees the weighted
-counts n = Σ_t s_t v_t, real numbers:
+The model (docs/model.md, "The model the sampler targets"): a view v_t enters as
+Mult(v_t | θ^v_{e,C_t})^{s_t}, s_t = min(1, w / Σ_d v_td) (w = ``view_counts``). Every visual
+conditional then sees the weighted counts n = Σ_t s_t v_t, real numbers:
 
 (a) the weighted statistics against a loop over the samples;
 (b) θ^v | φ, data against the tempered posterior integrated numerically from its definition
@@ -328,7 +329,7 @@ def exact_partition_probabilities(powers: np.ndarray) -> np.ndarray:
 
 
 def test_chain_targets_the_tempered_posterior() -> None:
-    """The default (exact) sampler with w = 4 on one home of three views: the partition's
+    """The exact sampler with the power target and w = 4 on one home of three views: the partition's
     distribution over 6,000 sweeps (thinned by 3) matches the exact tempered posterior (χ²), and
     that posterior is far from the untempered model's (the test could fail)."""
     w = 4.0
