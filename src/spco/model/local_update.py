@@ -246,15 +246,14 @@ def _parameters(
     """The affected parameters given the assignments (module docstring, step 3), in place."""
     hyper = shared.hyperparameters
     K = state.log_pi.shape[2]
-    stats = gibbs.sufficient_statistics(data, state, hyper)
+    stats = gibbs.sufficient_statistics(data, state, hyper, settings.learning_view_counts())
     free = concepts[
         (np.exp(state.log_g0[concepts]) < FREE_CONCEPT_WEIGHT) & (stats.concepts[0, concepts] > 0)
     ]
     if free.size:  # φ of a concept the knowledge does not use is learnt from this home (as adapting)
-        tables_v = HierarchicalMultinomial.sample_tables(
-            stats.visual[:, free], state.log_phi_v[free], hyper.delta_visual, rng
+        state.log_phi_v[free] = HierarchicalMultinomial.sample_shared_given_counts(
+            stats.visual[:, free], state.log_phi_v[free], hyper.delta_visual, hyper.alpha_visual, rng
         )
-        state.log_phi_v[free] = HierarchicalMultinomial.sample_shared(tables_v, hyper.alpha_visual, rng)
         tables_w = HierarchicalMultinomial.sample_tables(
             stats.words[:, free], state.log_phi_w[free], hyper.delta_word, rng
         )
