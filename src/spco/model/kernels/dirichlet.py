@@ -32,10 +32,10 @@ def _dirichlet_short_rows(shape: np.ndarray, seed: np.uint64, out: np.ndarray) -
     """log Dirichlet rows of ``shape`` (R, W) into ``out`` (both float64, C-contiguous), for many
     short rows (π over K = 20 regions, θ^w over a few words): the gamma variates of all rows in one
     vectorised pass of the compiled :func:`_log_gamma_row` (its eight streams of ``seed``), then each
-    row normalised by a log-sum-exp here (a row of zero shapes stays −inf). Not a kernel of its own:
-    it would compile the gamma row sampler into itself once more (~1.3 s on a first run); the
-    sums are taken left to right (``cumsum``) and the logarithms by the C library's ``log``, as a
-    compiled loop takes them, so the draws are the same."""
+    row normalised by a log-sum-exp here (a row of zero shapes stays −inf). Not a kernel of its own,
+    which would compile the gamma row sampler into itself once more; the sums are taken left to
+    right (``cumsum``) and the logarithms by the C library's ``log``, as a compiled loop takes
+    them."""
     n_rows, width = shape.shape
     flat = shape.reshape(-1)
     if not flat.flags.writeable:  # (one compiled signature of the row sampler)
