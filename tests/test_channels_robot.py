@@ -48,6 +48,13 @@ def test_a_knowledge_is_learnt_with_the_channels_and_says_so(world: dict) -> Non
     assert channels.channels.log_place.shape == (L, V) and channels.tokens.shape == (V, 3)
     np.testing.assert_allclose(np.exp(channels.channels.log_place).sum(axis=1), 1.0)
     np.testing.assert_allclose(np.exp(channels.channels.log_background).sum(), 1.0)
+    # the names said by each concept's samples and at their places (averaged over the kept sweeps)
+    assert channels.place_names is not None and channels.place_names.shape == (L, V)
+    assert (channels.place_names >= 0).all()
+    used = np.exp(knowledge.log_g0) > 0.01
+    assert (channels.place_names[used].sum(axis=1) > 0).all()
+    names = {knowledge.vocabulary.words[k] for k in np.argmax(channels.place_names[used], axis=1)}
+    assert names <= set(knowledge.known_names), names
     # the template's frame words are background, the places' names names
     for word in ("this", "is", "the"):
         assert word not in knowledge.known_names
@@ -63,6 +70,7 @@ def test_knowledge_and_home_files_round_trip_the_channels(world: dict, tmp_path:
         np.testing.assert_array_equal(getattr(again.channels.channels, name),
                                       getattr(knowledge.channels.channels, name))
     np.testing.assert_array_equal(again.channels.tokens, knowledge.channels.tokens)
+    np.testing.assert_array_equal(again.channels.place_names, knowledge.channels.place_names)
     home.save(tmp_path / "h.spco")
     loaded = kn.load_home_model(tmp_path / "h.spco")
     np.testing.assert_array_equal(loaded.state.switches, home.state.switches)
@@ -308,3 +316,37 @@ def test_a_concept_named_with_a_word_the_home_does_not_answer_is_answered_unsure
         on_kept = theta[concept, kept]
         if on_kept.sum() > 1 - 1e-9:
             np.testing.assert_allclose(theta_masked[concept, kept], on_kept / on_kept.sum(), atol=1e-9)
+
+
+def test_a_knowledge_without_place_names_answers_from_its_names_channels(world: dict, tmp_path: Path) -> None:
+    """A knowledge file written before the place names (no ``channels.place_names``) reads, and a home
+    of it answers each concept's names around φ^w as before; with them, a concept the knowledge uses
+    and the untaught home names nothing in answers the name said most by its samples and at their
+    places."""
+    from dataclasses import replace
+
+    from spco.knowledge.queries import answer_parameters
+
+    knowledge, home = world["knowledge"], world["home"]
+    knowledge.save(tmp_path / "k.spco")
+    old = _rewrite_header(tmp_path / "k.spco", tmp_path / "old.spco",
+                          lambda header, arrays: arrays.pop("channels.place_names"))
+    before = kn.load_knowledge(old)
+    assert before.channels is not None and before.channels.place_names is None
+    at_places = home.knowledge.channels.place_names
+    answer = np.asarray(answer_parameters(home).word_probabilities)[0]
+    assert at_places is not None and at_places.shape == answer.shape
+    mask = np.asarray(home.name_mask, dtype=bool)
+    checked = 0
+    for concept in np.flatnonzero(at_places[:, mask].sum(axis=1) > 0):
+        assert np.argmax(answer[concept] * mask) == np.argmax(at_places[concept] * mask)
+        checked += 1
+    assert checked >= 5
+    # the same home with the knowledge's channels without place names: the names channels answer
+    plain = replace(home, knowledge=replace(home.knowledge, channels=replace(home.knowledge.channels,
+                                                                               place_names=None)))
+    theta = np.asarray(home.parameters.word_probabilities)[0]
+    unchanged = np.asarray(answer_parameters(plain).word_probabilities)[0]
+    used = np.exp(home.knowledge.log_g0) >= 1e-3  # (a free concept answers its posterior mean: uniform)
+    for concept in np.flatnonzero(used & (theta[:, mask].sum(axis=1) > 0.5)):
+        assert np.argmax(unchanged[concept] * mask) == np.argmax(theta[concept] * mask)

@@ -8,7 +8,7 @@ import math
 import operator
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -170,7 +170,7 @@ def fit_knowledge(
     hyper, settings = run.hyper, run.settings  # (with the view weight estimated from the homes)
 
     stack_v, stack_w, stack_g, relabelled, used, perms = _aligned_samples(chain.samples)
-    channels = _averaged_channels(chain.channel_samples, perms, chain.tokens)
+    channels = _averaged_channels(chain.channel_samples, perms, chain.tokens, chain.place_names)
     n = stack_v.shape[0]
     log_phi_v = logsumexp(stack_v, axis=0) - math.log(n)
     has_words = stack_w.shape[2] > 0
@@ -249,7 +249,8 @@ class _Chain:
     """What :func:`_sample_chain` keeps of a fit's chain: the run (still open: its shards hold the
     homes), the kept sweeps' (log φ^v, log φ^w, log G_0) and word channels in sweep order, and the
     last sweep's word mask, candidate words and word-channel tokens (the switches' expected counts
-    averaged over the kept sweeps; ``None`` without channels)."""
+    averaged over the kept sweeps; ``None`` without channels), and the kept sweeps' names said at
+    each concept's places (empty without channels)."""
 
     run: Any
     samples: list[tuple[np.ndarray, np.ndarray, np.ndarray]]
@@ -257,6 +258,7 @@ class _Chain:
     word_mask_last: np.ndarray
     candidate_words: np.ndarray | None
     tokens: np.ndarray | None
+    place_names: list[np.ndarray] = field(default_factory=list)
 
 
 def _sample_chain(engine: Any, source: Any, hyper: TransferHyperparameters, settings: Any,
@@ -269,6 +271,7 @@ def _sample_chain(engine: Any, source: Any, hyper: TransferHyperparameters, sett
     by_iteration: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
     channel_samples: dict[int, WordChannels] = {}
     expected: dict[int, np.ndarray] = {}  # the kept sweeps' expected switch counts (V, 3)
+    at_places: dict[int, np.ndarray] = {}  # the kept sweeps' names said at each concept's places (L, V)
     bar = None
     if progress is not None:
         from spco.progress import progress_bar
@@ -291,6 +294,7 @@ def _sample_chain(engine: Any, source: Any, hyper: TransferHyperparameters, sett
             if shared.channels is not None:
                 channel_samples[iteration] = shared.channels.copy()
                 expected[iteration] = functools.reduce(operator.add, run.call("expected_channel_tokens"))
+                at_places[iteration] = functools.reduce(operator.add, run.call("concept_place_names"))
 
     run.fit(n_iterations, after_sweep)
     word_mask_last, candidate_words = run.shared.word_mask, run.call("candidate_words")[0]
@@ -304,7 +308,7 @@ def _sample_chain(engine: Any, source: Any, hyper: TransferHyperparameters, sett
         bar.close()
     return _Chain(run, [by_iteration[i] for i in sorted(by_iteration)],
                   [channel_samples[i] for i in sorted(channel_samples)], word_mask_last, candidate_words,
-                  tokens)
+                  tokens, [at_places[i] for i in sorted(at_places)])
 
 
 def _view_weight_record(estimate: dict | None) -> dict[str, Any]:
@@ -331,11 +335,13 @@ def _channel_evidence(corpus: Any) -> tuple[np.ndarray, np.ndarray] | None:
 
 
 def _averaged_channels(samples: list[WordChannels], perms: list[np.ndarray],
-                       tokens: np.ndarray | None) -> KnowledgeChannels | None:
+                       tokens: np.ndarray | None, at_places: list[np.ndarray] | None = None
+                       ) -> KnowledgeChannels | None:
     """The word channels of the kept sweeps averaged as φ is: ψ relabelled like φ (``perms``), then
     ψ, β and the shares λ averaged as probabilities; the evidence is fixed. ``tokens``: (V, 3) the
-    expected tokens per word and channel (over all homes), averaged over the kept sweeps. ``None``
-    without channels."""
+    expected tokens per word and channel (over all homes), averaged over the kept sweeps;
+    ``at_places``: each kept sweep's names said at each concept's places (L, V), relabelled like φ and
+    averaged. ``None`` without channels."""
     if not samples or tokens is None:
         return None
     n = len(samples)
@@ -345,7 +351,9 @@ def _averaged_channels(samples: list[WordChannels], perms: list[np.ndarray],
     averaged = replace(samples[-1], log_place=log_place - math.log(n),
                        log_background=log_background - math.log(n),
                        log_shares=np.concatenate([[0.0], np.log(shares / shares.sum())]), fresh=False)
-    return KnowledgeChannels(averaged, np.asarray(tokens, dtype=np.float64))
+    place_names = (np.mean([a[p] for a, p in zip(at_places, perms, strict=True)], axis=0)
+                   if at_places and len(at_places) == n else None)
+    return KnowledgeChannels(averaged, np.asarray(tokens, dtype=np.float64), place_names)
 
 
 def _home_source(estimator: SpCoTransfer, corpus: Any, source: Any) -> tuple[Any, int]:

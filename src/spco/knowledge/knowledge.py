@@ -65,13 +65,21 @@ class KnowledgeChannels:
     tokens: (V, 3) the experienced homes' expected tokens of each word as name, place word and
         background word: the switch probabilities of its tokens summed, averaged over the fit's kept
         sweeps (0 for words first heard in a home): which words are names (:meth:`name_mask`).
+    place_names: (L, V) the names said at each concept's places in the experienced homes
+        (:func:`spco.model.word_channels.place_names`), relabelled like φ and averaged over the kept
+        sweeps: the names a home's concept answers around
+        (:func:`spco.model.confidence.place_named_parameters`);
+        ``None`` in a file written before it (the concept's φ^w then).
     """
 
     channels: WordChannels
     tokens: np.ndarray
+    place_names: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "tokens", np.asarray(self.tokens, dtype=np.float64))
+        if self.place_names is not None:
+            object.__setattr__(self, "place_names", np.asarray(self.place_names, dtype=np.float64))
 
     def check(self, n_concepts: int, n_words: int) -> list[str]:
         """Shape problems for ``n_concepts`` concepts and ``n_words`` words (empty if none)."""
@@ -84,6 +92,12 @@ class KnowledgeChannels:
                     for k, v in expected.items() if np.shape(found[k]) != v]
         if not problems and not all(np.isfinite(a).all() for a in found.values() if a is not self.tokens):
             problems.append("the channels hold a NaN or an infinite log-probability")
+        if self.place_names is not None:
+            if self.place_names.shape != (n_concepts, n_words):
+                problems.append(f"channels.place_names has shape {self.place_names.shape}, expected "
+                                f"{(n_concepts, n_words)}")
+            elif not (np.isfinite(self.place_names).all() and (self.place_names >= 0).all()):
+                problems.append("channels.place_names holds a negative, NaN or infinite count")
         return problems
 
     def extended(self, n_words: int, evidence: np.ndarray, content: np.ndarray,
@@ -103,8 +117,10 @@ class KnowledgeChannels:
         place[:, V:] = float(self.channels.log_place.min()) if self.channels.log_place.size else 0.0
         channels = replace(channels, log_place=place - logsumexp(place, axis=1, keepdims=True))
         first = V if self.channels.prior_only_from is None else self.channels.prior_only_from
+        at_places = (None if self.place_names is None else
+                     np.concatenate([self.place_names, np.zeros((self.place_names.shape[0], added))], axis=1))
         return KnowledgeChannels(replace(channels, prior_only_from=first),
-                                 np.concatenate([self.tokens, np.zeros((added, 3))]))
+                                 np.concatenate([self.tokens, np.zeros((added, 3))]), at_places)
 
     def name_mask(self, home_tokens: np.ndarray | None = None) -> np.ndarray:
         """(V,) bool: the words that are names (:func:`spco.model.home_shard.name_words`) by the fit's
@@ -125,6 +141,8 @@ class KnowledgeChannels:
             arrays["channels.prior_only_from"] = np.array([c.prior_only_from], dtype=np.int64)
         if c.token_weight != 1.0:  # (a file without it: S^w counts per token, as before the word weight)
             arrays["channels.token_weight"] = np.array([c.token_weight], dtype=np.float64)
+        if self.place_names is not None:  # (a file without it: the concepts' φ^w answer)
+            arrays["channels.place_names"] = self.place_names
         return arrays
 
     @classmethod
@@ -147,7 +165,9 @@ class KnowledgeChannels:
             if not (np.isfinite(value) and value > 0):
                 raise ValueError(f"channels.token_weight must be a positive number, got {value!r}")
             channels = replace(channels, token_weight=value)
-        return cls(channels, a["tokens"])
+        at_places = arrays.get(prefix + "channels.place_names")
+        return cls(channels, a["tokens"],
+                   None if at_places is None else np.asarray(at_places, dtype=np.float64))
 
 
 def _model_name(variant: str, prune: bool) -> str:
@@ -363,7 +383,9 @@ class Knowledge:
         if channels is not None:
             c = channels.channels
             place = np.concatenate([c.log_place, prior_mean(added, V)])
-            channels = KnowledgeChannels(replace(c, log_place=place), channels.tokens)
+            at_places = (None if channels.place_names is None else
+                         np.concatenate([channels.place_names, np.zeros((added, V))]))  # nothing said there
+            channels = KnowledgeChannels(replace(c, log_place=place), channels.tokens, at_places)
         return replace(
             self, log_g0=log_g0,
             log_phi_visual=np.concatenate([self.log_phi_visual, prior_mean(added, D)]),

@@ -34,7 +34,7 @@ from spco.model.prediction import NamePrediction, UnknownNameError, mutual_infor
 from spco.model.rooms import HomeRooms
 from spco.model.seeds import as_generator
 from spco.model.unheard import resolve_name
-from spco.model.word_channels import name_tokens
+from spco.model.word_channels import concept_name_tokens, name_tokens
 
 #: How many of the home's own teachings the model's p(m | name) weighs as, in :func:`where`.
 WHERE_MODEL_WEIGHT = 1.0
@@ -258,7 +258,10 @@ def answer_parameters(home: HomeModel) -> ConceptParameters:
     The posterior average θ^w of the home (with the word channels: the names channel), with the
     concepts the knowledge does not use at their posterior mean given the home's own taught names
     (:func:`spco.model.confidence.named_parameters`: uniform over the names when nothing was taught
-    there; with the channels the name tokens of the home's switches), and ``word_mask`` the home's
+    there; with the channels the name tokens of the home's switches); with the channels, each concept
+    the knowledge uses at its posterior mean around the names said by its experienced samples and at
+    their places (:func:`spco.model.confidence.place_named_parameters`: a concept of people who named
+    only the furniture answers the room's name said where they stood), and ``word_mask`` the home's
     names (:attr:`~spco.knowledge.home.HomeModel.name_mask`): with the channels, the words most of
     whose tokens are names — never a word said as an object or a background word — and each
     concept's names-channel mass on other words spread evenly over the home's names
@@ -273,6 +276,15 @@ def answer_parameters(home: HomeModel) -> ConceptParameters:
     # the names only (the word channels: a word said as an object or a function word is never a name)
     if home.knowledge.channels is None:
         return replace(params, word_mask=home.name_mask)
+    at_places = home.knowledge.channels.place_names
+    state = home.state
+    if at_places is not None and state.channels is not None:
+        # each concept's names around those said where its experienced samples stand, updated by the
+        # home's own name tokens (spco.model.confidence.place_named_parameters)
+        own = concept_name_tokens(home.data.words, home.data.homes, state.concepts, state.log_theta_w,
+                                  state.channels, params.n_concepts)
+        params = confidence.place_named_parameters(params, 0, at_places, own, home.hyperparameters.delta_word,
+                                                   float(home.knowledge.word_increment))
     # with the channels θ^w is the names channel: its mass on a word the home does not answer says
     # the place's name is none of the home's names (spco.model.confidence.answerable_names)
     return confidence.answerable_names(params, 0, home.name_mask)

@@ -62,6 +62,7 @@ __all__ = [
     "concept_word_counts",
     "model_answer_parameters",
     "named_parameters",
+    "place_named_parameters",
 ]
 
 #: The one "unsure" threshold: an answer whose probability p(name | pose, view) is below this is
@@ -160,6 +161,51 @@ def answerable_names(params: ConceptParameters, e: int, names: np.ndarray) -> Co
     return replace(params, word_probabilities=theta, word_mask=names)
 
 
+def place_named_parameters(params: ConceptParameters, e: int, place_names: np.ndarray,
+                           home_names: np.ndarray, delta_word: float, word_increment: float
+                           ) -> ConceptParameters:
+    """``params`` with home ``e``'s names of each concept at their posterior mean around the names
+    said at the concept's places, instead of around its own names channel φ^w.
+
+    For a concept l with names said at its places (``place_names`` row l, from the experienced
+    homes: :func:`spco.model.word_channels.place_names`), normalised to P̂_l::
+
+        θ^w_{e,l} = (δ^w P̂_l + S^w N_{e,l}) / (δ^w + S^w n_{e,l})
+
+    with N_{e,l} the home's own expected name tokens in l (``home_names``, each S^w counts as θ^w
+    counts them) and n_{e,l} their total: the posterior mean of θ^w_{e,l} ~ Dir(δ^w P̂_l) given the
+    home's names. A home that taught nothing in l answers the names people say where l's samples
+    stand; a home that named it answers its own names as before. Concepts with no such names (free
+    concepts, no experienced sample) keep their row. docs/model.md, "Names said at a concept's
+    places".
+
+    Parameters
+    ----------
+    params: the model; e: the home.
+    place_names: (L, V) names said at each concept's places (expected tokens).
+    home_names: (L, V) the home's expected name tokens by concept.
+    delta_word: δ^w; word_increment: S^w, the counts of one name token in θ^w.
+    """
+    theta = np.asarray(params.word_probabilities, dtype=np.float64)
+    place_names = np.asarray(place_names, dtype=np.float64)
+    home_names = np.asarray(home_names, dtype=np.float64)
+    if place_names.shape != theta.shape[1:] or home_names.shape != theta.shape[1:]:
+        raise ConfigurationError(f"place_names and home_names must have shape {theta.shape[1:]}, got "
+                                 f"{place_names.shape} and {home_names.shape}")
+    if not (delta_word > 0 and word_increment > 0):
+        raise ConfigurationError(f"delta_word and word_increment must be > 0, got {delta_word!r}, "
+                                 f"{word_increment!r}")
+    mass = place_names.sum(axis=1)
+    rows = mass > 0
+    if not rows.any():
+        return params
+    prior = place_names[rows] / mass[rows, None]
+    counts = word_increment * np.clip(home_names[rows], 0.0, None)
+    theta = theta.copy()
+    theta[e, rows] = (delta_word * prior + counts) / (delta_word + counts.sum(axis=1, keepdims=True))
+    return replace(params, word_probabilities=theta)
+
+
 def answer_parameters(params: ConceptParameters, e: int, words: sp.csr_array | np.ndarray,
                       concepts: np.ndarray, log_g0: np.ndarray, alpha_word: float) -> ConceptParameters:
     """``params`` as every answer about home ``e``'s names uses them: its concepts that the shared
@@ -229,7 +275,7 @@ def answer_weighting(variant: str, prune_words: bool) -> Weighting:
     return "none" if prune_words else "mi"
 
 
-def model_answer_parameters(model: object, e: int) -> ConceptParameters:
+def model_answer_parameters(model: object, e: int, place_names: bool = True) -> ConceptParameters:
     """:func:`answer_parameters` of home ``e`` of a fitted joint model
     (:class:`~spco.model.transfer.SpatialConceptModel`: the experiments' fit of the experienced
     and new homes together): its averaged parameters, its concepts of the home's training samples,
@@ -241,7 +287,10 @@ def model_answer_parameters(model: object, e: int) -> ConceptParameters:
     ``channel_tokens_``, the switches' expected counts averaged over the averaged sweeps), and each
     concept's names-channel mass on other words spread over them (:func:`answerable_names`), so an
     experiment scores what the robot would answer (never "the" or "this", which the channels draw as
-    background).
+    background), and each concept's names at their posterior mean around the names said by its
+    samples in the other homes and at their places (:func:`place_named_parameters`, as a home adapted
+    from a knowledge answers; ``place_names=False``: around the concept's own names channel, the
+    answer before it, for comparison).
     """
     from spco.model.home_shard import name_words, switch_tokens
 
@@ -258,4 +307,25 @@ def model_answer_parameters(model: object, e: int) -> ConceptParameters:
     if tokens is None:
         tokens = switch_tokens(data, state)
     names = name_words(tokens) & np.asarray(answer.word_mask, dtype=bool)
+    if place_names:
+        answer = _model_place_names(model, e, answer)
     return answerable_names(answer, e, names)
+
+
+def _model_place_names(model: object, e: int, answer: ConceptParameters) -> ConceptParameters:
+    """:func:`place_named_parameters` of home ``e`` of a joint fit with the word channels: the names
+    said by each concept's samples and at their places over the other homes, at the fit's final state
+    (a knowledge averages them over its kept sweeps)."""
+    from spco.model.word_channels import concept_name_tokens, place_names
+
+    data, state = model.data_, model.state_  # type: ignore[attr-defined]
+    L = state.log_theta_w.shape[1]
+    others = np.flatnonzero(np.asarray(data.homes) != e)
+    at_places = place_names(data.words, data.homes, state.concepts, state.regions, state.log_theta_w,
+                            state.channels, L, rows=others)
+    rows = slice(int(data.offsets[e]), int(data.offsets[e + 1]))
+    own = concept_name_tokens(sp.csr_array(data.words[rows]), data.homes[rows], state.concepts[rows],
+                              state.log_theta_w, state.channels, L)
+    hyper = model.hyperparameters_  # type: ignore[attr-defined]
+    return place_named_parameters(answer, e, at_places, own, hyper.delta_word,
+                                  float(model.word_increment_))  # type: ignore[attr-defined]

@@ -44,7 +44,13 @@ from spco.model.kernels.dirichlet import log_dirichlet
 from spco.model.observations import HierarchicalMultinomial
 from spco.model.pruning import NAME, NOT_A_NAME, Colocation, colocation, judge_names
 from spco.model.shard_init import ShardInitialisation
-from spco.model.word_channels import ChannelCounts, WordChannels, expected_tokens, sample_channels
+from spco.model.word_channels import (
+    ChannelCounts,
+    WordChannels,
+    expected_tokens,
+    place_names,
+    sample_channels,
+)
 
 #: Float statistics a home sends to be summed over homes (the naming rule's expected pairs and
 #: log-likelihoods, the synonyms' overlaps) are rounded to multiples of this grid first: sums of
@@ -269,6 +275,15 @@ class HomeShard(ShardInitialisation):
             raise RuntimeError("HomeShard: no word channels in this state")
         return expected_tokens(self.data.words, self.data.homes, state.concepts, state.log_theta_w,
                                state.channels)
+
+    def concept_place_names(self) -> np.ndarray:
+        """(L, V) the names said at each concept's places over the shard's homes
+        (:func:`spco.model.word_channels.place_names`, each home's regions its own)."""
+        state = self.state
+        if state.channels is None:
+            raise RuntimeError("HomeShard: no word channels in this state")
+        return place_names(self.data.words, self.data.homes, state.concepts, state.regions, state.log_theta_w,
+                           state.channels, state.log_theta_w.shape[1])
 
     def pooled_counts(self) -> PooledCounts:
         """The shard's visual, word and concept counts summed over its homes (authors' sampler)."""

@@ -133,6 +133,10 @@ class ShardGroup:
         """The homes' expected tokens per word and channel, summed (V, 3)."""
         return _sum(self._each_lazily("expected_channel_tokens"))
 
+    def concept_place_names(self) -> np.ndarray:
+        """The names said at each concept's places over the homes, summed (L, V)."""
+        return _sum(self._each_lazily("concept_place_names"))
+
     def tables(self, kind: str) -> np.ndarray:
         """CRT table counts of the homes, summed (integers): the sum of the homes' own
         (:meth:`HomeShard.tables`), the visual and word tables drawn in one call, each home from a

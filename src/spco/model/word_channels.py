@@ -378,3 +378,71 @@ def name_log_probabilities(log_theta_w: np.ndarray) -> np.ndarray:
     if log_theta_w.shape[-1] == 0:
         return log_theta_w
     return log_theta_w - logsumexp(log_theta_w, axis=-1, keepdims=True)
+
+
+def place_names(words: sp.csr_array, homes: np.ndarray, concepts: np.ndarray, regions: np.ndarray,
+                log_theta_w: np.ndarray, channels: WordChannels, n_concepts: int,
+                rows: np.ndarray | None = None) -> np.ndarray:
+    """(L, V) the names said by each concept's samples and at their places: for every sample t (of
+    ``rows``, default all), its own expected name tokens plus the expected name tokens per sample of
+    its region — the names its region's samples say, whatever their concept, summed over the
+    region's samples and divided by their number — added to the row of t's concept (each token's
+    name probability given its sample's concept, :func:`switch_probabilities`, each token once).
+
+    A concept whose people named only what is there ("near the refrigerator") shares its regions
+    with the concept of the people who named the room: its row holds the room's names, in
+    proportion to how often they are said there, where its own names channel θ^w holds the few
+    object tokens drawn as names; a concept whose people named the room holds its own names twice,
+    as its samples' and as its places' (docs/model.md, "Names said at a concept's places"). A region
+    is a (home, region) pair of ``homes`` and ``regions``.
+
+    Parameters
+    ----------
+    words: (N, V) the samples' word counts; homes, concepts, regions: (N,) each sample's home, concept
+        and region (the region's index within its home).
+    log_theta_w, channels: the names channel (E, L, V) and the word channels the switches are drawn with.
+    n_concepts: L.
+    rows: the samples that count (their regions' names and their concepts' rows); default every one.
+
+    Returns
+    -------
+    (L, V) float64, expected name tokens: the concept's own plus, for each of its samples, its
+    region's per sample.
+    """
+    n, n_words = words.shape
+    out = np.zeros((n_concepts, n_words))
+    selected = np.ones(n, dtype=bool) if rows is None else np.isin(np.arange(n), np.asarray(rows, np.int64))
+    if not words.nnz or not selected.any():
+        return out
+    p = switch_probabilities(words, homes, concepts, log_theta_w, channels)
+    token_row, cols, _ = _tokens(words)
+    keep = selected[token_row]
+    homes = np.asarray(homes, dtype=np.int64)
+    regions = np.asarray(regions, dtype=np.int64)
+    _, place = np.unique(np.stack([homes, regions], axis=1), axis=0, return_inverse=True)
+    place = place.reshape(-1)
+    n_places = int(place.max()) + 1
+    by_place = np.zeros((n_places, n_words))
+    np.add.at(by_place, (place[token_row[keep]], cols[keep]), p[keep, NAME])
+    size = np.bincount(place[selected], minlength=n_places).astype(np.float64)
+    per_sample = by_place / np.maximum(size, 1.0)[:, None]
+    concepts = np.asarray(concepts, dtype=np.int64)
+    counted = np.zeros((n_concepts, n_places))
+    np.add.at(counted, (concepts[selected], place[selected]), 1.0)
+    out = counted @ per_sample
+    np.add.at(out, (concepts[token_row[keep]], cols[keep]), p[keep, NAME])  # the samples' own names
+    return out
+
+
+def concept_name_tokens(words: sp.csr_array, homes: np.ndarray, concepts: np.ndarray, log_theta_w: np.ndarray,
+                        channels: WordChannels, n_concepts: int) -> np.ndarray:
+    """(L, V) the expected name tokens of each concept and word over the samples of ``words``: each
+    token's switch probability of being a name given its sample's concept (:func:`switch_probabilities`,
+    each token once), summed by concept."""
+    out = np.zeros((n_concepts, words.shape[1]))
+    if not words.nnz:
+        return out
+    p = switch_probabilities(words, homes, concepts, log_theta_w, channels)
+    token_row, cols, _ = _tokens(words)
+    np.add.at(out, (np.asarray(concepts, dtype=np.int64)[token_row], cols), p[:, NAME])
+    return out
