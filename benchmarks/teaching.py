@@ -12,6 +12,9 @@ After the teaching it measures
   of the 5 nearest training samples, by ground truth); a teaching is effective with ≥ 8 of 10;
 - **local**: the share of the *other* rooms' training samples (pose and view, ``what``) whose top
   name changed;
+- **why not effective** (:func:`failure_class`): the taught pose at a room's edge, the taught
+  sample's region after the teaching mostly another room's or mixed, or ``where``'s best region not
+  the taught sample's;
 - **same seed**: the teaching repeated with the same seed gives the same home (every array of the
   state and of the posterior equal);
 - **undo**: ``--undo`` teachings (each seed its own sequence of 5 teachings through the service's
@@ -211,17 +214,24 @@ def one_teaching(home: kn.HomeModel, env: Environment, t: int, kind: str) -> dic
         taught = kn.teach(home, observations=[obs], random_state=t)
         again = kn.teach(home, observations=[obs], random_state=t)
     seconds = time.perf_counter() - start
+    top_region = -1
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         try:
-            poses = kn.where(taught, f"{word} room", n=10, random_state=t).samples[:, :2]
-            in_room = sum(r == room for r in room_at(poses, train_xy, train_rooms))
+            answer = kn.where(taught, f"{word} room", n=10, random_state=t)
+            in_room = sum(r == room for r in room_at(answer.samples[:, :2], train_xy, train_rooms))
+            top_region = int(answer.region)
         except Exception:
             in_room = 0
     after = top_names(taught)[: home.n_samples]
     rooms_all = np.array(room_at(home.positions[:, :2], train_xy, train_rooms), dtype=object)
     others = rooms_all != room
     changed = float(np.mean(before[others] != after[others])) if others.any() else 0.0
+    taught_row = row if kind == "sample" else taught.n_samples - 1
+    region = int(taught.state.regions[taught_row])
+    mates = rooms_all[taught.state.regions[: home.n_samples] == region]
+    share = float(np.mean(mates == room)) if mates.size else 1.0
+    near = np.argsort(((train_xy - taught.positions[taught_row, :2]) ** 2).sum(axis=1))[:5]
     return {
         "kind": kind,
         "seed": t,
@@ -231,7 +241,28 @@ def one_teaching(home: kn.HomeModel, env: Environment, t: int, kind: str) -> dic
         "changed_elsewhere": changed,
         "same_seed": same_home(taught, again),
         "seconds": seconds / 2,
+        "failure": None if in_room >= 8 else failure_class(top_region, region, share,
+                                                           bool((train_rooms[near] != room).any())),
+        "region": region,
+        "region_share_of_room": share,
     }
+
+
+#: The classes of an ineffective teaching (:func:`failure_class`), in the order the table lists them.
+FAILURES = ("edge", "other room's region", "mixed region", "where elsewhere")
+
+
+def failure_class(top_region: int, region: int, share: float, at_edge: bool) -> str:
+    """Why ``where`` of a taught name left the taught room: ``edge`` — the taught pose's 5 nearest
+    training samples include another room; ``other room's region`` — the taught sample's region
+    after the teaching holds mostly (≥ half) other rooms' samples; ``mixed region`` — it holds the
+    room's and others'; ``where elsewhere`` — ``where``'s best region is not the taught sample's
+    (or ``where`` failed)."""
+    if at_edge:
+        return "edge"
+    if top_region != region:
+        return "where elsewhere"
+    return "other room's region" if share < 0.5 else "mixed region"
 
 
 def _library_teaching(home: kn.HomeModel, record: dict[str, Any]) -> kn.HomeModel:
@@ -426,6 +457,7 @@ def summarise(results: list[dict[str, Any]]) -> dict[str, Any]:
         "same_seed_share": float(np.mean([r["same_seed"] for r in results])),
         "teach_ms_p50": float(np.percentile(seconds, 50)),
         "teach_ms_p99": float(np.percentile(seconds, 99)),
+        "failures": {k: sum(r.get("failure") == k for r in results) for k in FAILURES},
     }
 
 
@@ -469,9 +501,9 @@ def main() -> None:
     report: dict[str, Any] = {}
     print(
         "| home | kind | teachings | effective (≥ 8/10 in room) | mean in room | other places' top name "
-        "changed: mean / p95 / max | same seed | teach ms p50 / p99 |"
+        "changed: mean / p95 / max | same seed | teach ms p50 / p99 | failures: " + ", ".join(FAILURES) + " |"
     )
-    print("|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|")
     for label, home, env in homes:
         for kind in ("sample", "pose") if args.n else ():
             results = [one_teaching(home, env, t, kind) for t in range(args.n)]
@@ -481,7 +513,8 @@ def main() -> None:
                 f"| {label} | {kind} | {s['n']} | {s['effective_share']:.0%} | {s['in_room_mean']:.1f} | "
                 f"{s['changed_elsewhere_mean']:.2%} / {s['changed_elsewhere_p95']:.2%} / "
                 f"{s['changed_elsewhere_max']:.2%} | {s['same_seed_share']:.0%} | "
-                f"{s['teach_ms_p50']:.0f} / {s['teach_ms_p99']:.0f} |",
+                f"{s['teach_ms_p50']:.0f} / {s['teach_ms_p99']:.0f} | "
+                f"{' / '.join(str(s['failures'][k]) for k in FAILURES)} |",
                 flush=True,
             )
         if args.undo:
@@ -495,7 +528,7 @@ def main() -> None:
             worst = max((max(r["max_dp"], r["max_dp_restarted"]) for r in done), default=0.0)
             print(
                 f"| {label} | undo | {len(done)} undone ({len(trials) - len(done)} refused) | max abs dp = 0 "
-                f"in {exact:.0%} (worst {worst:.3g}), also after a restart | | | | |",
+                f"in {exact:.0%} (worst {worst:.3g}), also after a restart | | | | | |",
                 flush=True,
             )
     if args.http and args.sigverse_home:

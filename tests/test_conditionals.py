@@ -351,7 +351,7 @@ def test_home_concept_weights_and_region_weights() -> None:
 def test_count_statistics_match_brute_force() -> None:
     data, state, distinct = make_problem(16, sizes=(3, 2), L=3, K=2, D=4, V=3)
     hyper = TransferHyperparameters(n_concepts=3, n_regions=2)
-    stats_ = gibbs._statistics(data, state, hyper)
+    stats_ = gibbs._statistics(data, state, hyper, None)
     E, L, K = 2, 3, 2
     n_el = np.zeros((E, L), dtype=int)
     n_elm = np.zeros((E, L, K), dtype=int)

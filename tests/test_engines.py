@@ -82,7 +82,7 @@ def test_statistics_add_up_over_shards(corpus) -> None:
     total = parts[0] + parts[1]
     state = run.state()
     model = SpatialConceptModel(random_state=0)
-    stats = gibbs.sufficient_statistics(data, state, model.checked_hyperparameters())
+    stats = gibbs.sufficient_statistics(data, state, model.checked_hyperparameters(), None)
     np.testing.assert_array_equal(total.visual, stats.visual.sum(0))
     np.testing.assert_array_equal(total.concepts, stats.concepts.sum(0))
 

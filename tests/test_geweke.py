@@ -211,7 +211,7 @@ def successive_conditional(rng: np.random.Generator) -> np.ndarray:
         prep = prepared(data)
         # one sweep of the exact sampler, in the order of gibbs.sweep
         gibbs._local_step(prep, state, SETTINGS, rng)
-        suff = gibbs._statistics(prep, state, HYPER)
+        suff = gibbs._statistics(prep, state, HYPER, SETTINGS.learning_view_counts())
         gibbs._global_step(suff, state, HYPER, rng)
         gibbs._home_step(prep, state, suff, HYPER, SETTINGS, rng)
         gibbs._swap_labels(prep, state, suff, HYPER, SETTINGS, rng)

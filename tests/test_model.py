@@ -453,7 +453,7 @@ def test_label_swaps_relabel_state_and_count_cache_consistently(monkeypatch: pyt
     perms = np.tile(np.arange(L), (E, 1))
     perms[1, [0, 1]] = [1, 0]  # home 1: concepts 0 and 1 trade places
     monkeypatch.setattr(gibbs, "concept_swap_step", lambda *args, **kwargs: perms.copy())
-    stats = gibbs._statistics(data, state, hyper)
+    stats = gibbs._statistics(data, state, hyper, None)
     concepts, log_g = state.concepts.copy(), state.log_g.copy()
     theta_v, theta_w = state.log_theta_v.copy(), state.log_theta_w.copy()
     gibbs._swap_labels(data, state, stats, hyper, settings, np.random.default_rng(3))
@@ -466,7 +466,7 @@ def test_label_swaps_relabel_state_and_count_cache_consistently(monkeypatch: pyt
     assert np.array_equal(state.log_theta_v[others], theta_v[others])
     assert np.array_equal(state.log_theta_w[others], theta_w[others])
     assert not np.array_equal(state.log_theta_v[1], theta_v[1]) and np.isfinite(state.log_theta_v[1]).all()
-    counts = gibbs._statistics(data, state, hyper).visual
+    counts = gibbs._statistics(data, state, hyper, None).visual
     recount = HierarchicalMultinomial.statistics(data.visual, data.homes, state.concepts, E, L)
     assert np.array_equal(counts, recount)
     assert not counts.flags.writeable
@@ -488,7 +488,7 @@ def test_visual_counts_follow_the_assignments_exactly() -> None:
         rows = rng.choice(data.n_samples, size=n_changed, replace=False)
         state.concepts = state.concepts.copy()
         state.concepts[rows] = rng.integers(0, L, size=n_changed)
-        counts = gibbs._statistics(data, state, hyper).visual
+        counts = gibbs._statistics(data, state, hyper, None).visual
         assert np.array_equal(counts, HierarchicalMultinomial.statistics(data.visual, data.homes,
                                                                          state.concepts, E, L))
         assert not counts.flags.writeable

@@ -123,6 +123,31 @@ def test_a_teaching_regroups_only_its_own_names_not_the_homes_other_new_names(ho
     np.testing.assert_array_equal(taught.state.concepts[of_a], spread.concepts[of_a])
 
 
+def test_a_new_name_stands_for_its_place_not_for_another_concepts_samples_of_the_region(home: Path) -> None:
+    """A region that spans two places (two concepts): a name taught at one of them takes that place's
+    untaught samples with it, and leaves the other concept's samples of the region as they were."""
+    import copy
+    from dataclasses import replace
+
+    model = kn.load_home_model(home)
+    row = 7
+    region, concept = int(model.state.regions[row]), int(model.state.concepts[row])
+    mates = np.flatnonzero((model.state.regions == region) & (np.arange(model.n_samples) != row))
+    assert mates.size >= 4
+    # half of the region's other samples made another concept's: the region spans two places
+    mixed = copy.deepcopy(model.state)
+    other = int(np.flatnonzero(np.arange(model.posterior.n_concepts) != concept)[0])
+    elsewhere, own = mates[: mates.size // 2], mates[mates.size // 2:]
+    mixed.concepts[elsewhere] = other
+    # no sweeps: what the name stands for, before the sampler weighs the (made-up) other concept
+    taught = _teach(replace(model, state=mixed), {int(model.ids[row]): "this is the quokka room"},
+                    n_sweeps=0, random_state=3)
+    named = int(taught.state.concepts[row])
+    assert named not in (concept, other)
+    assert (taught.state.concepts[own] == named).any()  # its place's untaught samples come with the name
+    assert (taught.state.concepts[elsewhere] == other).all()  # the other place's stay
+
+
 def test_a_new_observation_is_placed_where_it_is_not_in_region_0(home: Path) -> None:
     model = kn.load_home_model(home)
     nonzero = np.flatnonzero(model.state.regions != 0)

@@ -206,7 +206,8 @@ class SweepTimings:
 
 class SpcoRunner:
     """spco's sampler on ``corpus``, initialised and warmed up, timed one sweep at a time
-    (:meth:`sweep`) into :attr:`timings`. No word pruning. The sweeps follow the steady state of a
+    (:meth:`sweep`) into :attr:`timings`. No word pruning; the hyperparameters' view weight and target
+    (the defaults': w = 16, the cut sampler). The sweeps follow the steady state of a
     fit: label swaps on every :data:`~spco.model.gibbs.SWAP_EVERY`-th sweep."""
 
     def __init__(self, corpus: Corpus, variant: str = "exact", warmup: int = 2, seed: int = 0,
@@ -215,7 +216,9 @@ class SpcoRunner:
 
         self.variant = variant
         self.hyper = hyper or TransferHyperparameters()
-        self.settings = gibbs.SamplerSettings.create(variant, prune=False)
+        self.settings = gibbs.SamplerSettings.create(variant, prune=False,
+                                                     view_counts=self.hyper.view_weight(),
+                                                     power=self.hyper.target == "power")
         self.data = SpCoTransfer.prepare_data(corpus, gibbs.CM_PER_M if variant == "reference" else 1.0)
         self.rng = np.random.default_rng(seed)
         start = time.perf_counter()
@@ -255,7 +258,8 @@ class FitSweepRunner:
         from spco.model.transfer import SpCoTransfer
 
         hyper = hyper or TransferHyperparameters()
-        settings = gibbs.SamplerSettings.create("exact", prune=False)
+        settings = gibbs.SamplerSettings.create("exact", prune=False, view_counts=hyper.view_weight(),
+                                                power=hyper.target == "power")
         data = SpCoTransfer.prepare_data(corpus, 1.0)
         start = time.perf_counter()
         self.run = start_run(None, data, len(corpus.vocabulary), hyper, settings, np.random.default_rng(seed))

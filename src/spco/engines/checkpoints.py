@@ -36,6 +36,7 @@ def _put(arrays: dict, name: str, value) -> None:
             arrays[f"channels.{part}"] = np.asarray(getattr(value, part))
         arrays["channels.fresh"] = np.asarray(value.fresh)
         arrays["channels.token_weight"] = np.asarray(value.token_weight)
+        arrays["channels.power"] = np.asarray(value.power)
     else:
         arrays[name] = np.asarray(value)
 
@@ -47,7 +48,8 @@ def _get(arrays, name: str):
         return WordChannels(*(arrays[f"channels.{part}"] for part in _CHANNEL_ARRAYS),
                             fresh=bool(arrays["channels.fresh"]),
                             token_weight=float(arrays["channels.token_weight"])
-                            if "channels.token_weight" in arrays else 1.0)
+                            if "channels.token_weight" in arrays else 1.0,
+                            power=bool(arrays["channels.power"]) if "channels.power" in arrays else False)
     return arrays[name] if name in arrays else None
 DRIVER_FILE = "driver.npz"
 

@@ -283,7 +283,7 @@ def _sample_chain(engine: Any, source: Any, hyper: TransferHyperparameters, sett
     if evidence is not None:
         run.use_word_channels(WordChannels.initial(
             evidence[0], run.hyper.n_concepts, run.hyper.evidence_weight, evidence[1],
-            token_weight(run.hyper.word_counts, word_increment)))
+            token_weight(run.hyper.word_counts, word_increment), power=run.hyper.target == "power"))
 
     def after_sweep(iteration: int, _: float) -> None:  # (a restarted engine repeats sweeps)
         if bar is not None:

@@ -141,6 +141,8 @@ class KnowledgeChannels:
             arrays["channels.prior_only_from"] = np.array([c.prior_only_from], dtype=np.int64)
         if c.token_weight != 1.0:  # (a file without it: S^w counts per token, as before the word weight)
             arrays["channels.token_weight"] = np.array([c.token_weight], dtype=np.float64)
+        if c.power:  # (a file without it: the cut sampler, as before the power target)
+            arrays["channels.power"] = np.array([True])
         if self.place_names is not None:  # (a file without it: the concepts' φ^w answer)
             arrays["channels.place_names"] = self.place_names
         return arrays
@@ -165,6 +167,9 @@ class KnowledgeChannels:
             if not (np.isfinite(value) and value > 0):
                 raise ValueError(f"channels.token_weight must be a positive number, got {value!r}")
             channels = replace(channels, token_weight=value)
+        power = arrays.get(prefix + "channels.power")
+        if power is not None:
+            channels = replace(channels, power=bool(np.asarray(power).reshape(-1)[0]))
         at_places = arrays.get(prefix + "channels.place_names")
         return cls(channels, a["tokens"],
                    None if at_places is None else np.asarray(at_places, dtype=np.float64))

@@ -35,7 +35,7 @@ from scipy.cluster.vq import kmeans2
 from spco.model import allocation
 from spco.model.alignment import HomeCounts, align_in_order
 from spco.model.blocks import region_block_step
-from spco.model.hyperparameters import TransferHyperparameters
+from spco.model.hyperparameters import TransferHyperparameters, view_powers
 from spco.model.kernels.dirichlet import dirichlet_log_density, log_dirichlet
 from spco.model.moves import concept_swap_step
 from spco.model.numba_cache import announce_compilation
@@ -57,6 +57,7 @@ from spco.model.word_channels import (
     place_token_counts,
     sample_channels,
     sample_switches,
+    token_scales,
 )
 
 
@@ -340,13 +341,20 @@ def sentence_words(data: PreparedData, state: GibbsState) -> sp.csr_array:
     return kept
 
 
-def _statistics(data: PreparedData, state: GibbsState, hyper: TransferHyperparameters) -> Statistics:
+def _statistics(data: PreparedData, state: GibbsState, hyper: TransferHyperparameters,
+                view_counts: float | None) -> Statistics:
+    """The statistics of the assignments; the visual counts weighted by the views' powers at
+    ``view_counts`` (:func:`view_weights`; ``None``: every count whole), as the likelihood the
+    assignments were drawn with weighs them."""
     E, L, K = data.n_homes, hyper.n_concepts, hyper.n_regions
     count, total, scatter = GaussianRegions.statistics(data.positions, data.homes, state.regions, E, K)
     channel = place_tokens = None
     if uses_channels(data, state):  # θ^w counts the name tokens only
-        words = name_tokens(data.words, state.switches)
-        channel = channel_counts(data.words, state.concepts, state.switches, L)
+        channels = state.channels
+        power = channels.power  # the power likelihood: θ^w, ψ and β count a token W^w n times
+        words = name_tokens(data.words, state.switches, channels.token_weight if power else 1.0)
+        channel = channel_counts(data.words, state.concepts, state.switches, L,
+                                 token_scales(data.words, channels) if power else None)
         place_tokens = place_token_counts(data.words, data.homes, state.concepts, state.switches, E, L,
                                           state.channels.token_weight)
     else:
@@ -355,15 +363,27 @@ def _statistics(data: PreparedData, state: GibbsState, hyper: TransferHyperparam
         concepts=allocation.concept_counts(data.homes, state.concepts, E, L),
         regions_by_concept=allocation.region_counts(data.homes, state.concepts, state.regions, E, L, K),
         region_count=count, region_total=total, region_scatter=scatter,
-        visual=_visual_counts(data, state, E, L),
+        visual=_visual_counts(data, state, E, L, view_counts),
         words=HierarchicalMultinomial.statistics(words, data.homes, state.concepts, E, L),
         channel=channel, place_tokens=place_tokens,
     )
 
 
-def _visual_counts(data: PreparedData, state: GibbsState, n_homes: int, n_concepts: int) -> np.ndarray:
+def _visual_counts(data: PreparedData, state: GibbsState, n_homes: int, n_concepts: int,
+                   view_counts: float | None = None) -> np.ndarray:
     """n^v (E, L, D), updated from the previous sweep's counts when few samples changed concept
-    (after burn-in most do not), recounted otherwise. Read-only for callers."""
+    (after burn-in most do not), recounted otherwise. Read-only for callers.
+
+    With a view weight (``view_counts``) some view's power s_t is below 1 and n^v holds the
+    weighted counts Σ_t s_t v_t (float64), recounted every sweep in row order (no running sums,
+    which would round differently from a recount)."""
+    weights = view_weights(data, view_counts)
+    if weights is not None and not np.all(weights == 1.0):
+        state.visual_cache = None
+        counts = HierarchicalMultinomial.weighted_statistics(data.visual, weights, data.homes, state.concepts,
+                                                             n_homes, n_concepts)
+        counts.flags.writeable = False
+        return counts
     cache = state.visual_cache
     usable = (cache is not None and cache.visual is data.visual
               and cache.concepts.shape == state.concepts.shape
@@ -392,7 +412,7 @@ def view_weights(data: PreparedData, view_counts: float | None) -> np.ndarray | 
     a view scored as ``view_counts`` draws (``None``: every count a draw, no weights)."""
     if view_counts is None:
         return None
-    return np.minimum(1.0, float(view_counts) / np.maximum(data.view_totals, 1.0))
+    return view_powers(data.view_totals, float(view_counts))
 
 
 def _concept_loglik(data: PreparedData, state: GibbsState, view_counts: float | None = None) -> np.ndarray:
@@ -486,9 +506,10 @@ def _conditional_log_joint(data: PreparedData, state: GibbsState, concept_ll: np
 
 def _global_step(stats: Statistics, state: GibbsState, hyper: TransferHyperparameters,
                  rng: np.random.Generator) -> None:
-    """Exact: φ^v, φ^w and G_0 given CRT table counts (θ and G_e integrated out)."""
-    tables_v = HierarchicalMultinomial.sample_tables(stats.visual, state.log_phi_v, hyper.delta_visual, rng)
-    state.log_phi_v = HierarchicalMultinomial.sample_shared(tables_v, hyper.alpha_visual, rng)
+    """Exact: φ^v, φ^w and G_0 given CRT table counts (θ and G_e integrated out); φ^v from the
+    views' weighted counts (:meth:`HierarchicalMultinomial.sample_shared_given_counts`)."""
+    state.log_phi_v = HierarchicalMultinomial.sample_shared_given_counts(
+        stats.visual, state.log_phi_v, hyper.delta_visual, hyper.alpha_visual, rng)
     tables_w = HierarchicalMultinomial.sample_tables(stats.words, state.log_phi_w, hyper.delta_word, rng)
     state.log_phi_w = HierarchicalMultinomial.sample_shared(tables_w, hyper.alpha_word, rng)
     state.log_g0 = allocation.sample_global_concept_weights(stats.concepts, state.log_g0, hyper.gamma,
@@ -691,7 +712,7 @@ def sweep(data: PreparedData, state: GibbsState, hyper: TransferHyperparameters,
     with _Timed(timer, "assignments"):
         previous_log_joint = _local_step(data, state, settings, rng, hyper)
     with _Timed(timer, "statistics"):
-        stats = _statistics(data, state, hyper)
+        stats = _statistics(data, state, hyper, settings.learning_view_counts())
     if settings.variant == "reference":
         with _Timed(timer, "home parameters"):
             _home_step_reference(data, state, stats, hyper, settings, rng)

@@ -93,7 +93,8 @@ class SharedPart:
         and the block moves of its hyperparameters."""
         return SamplerSettings.create(self.variant, self.prune_words, learn_shared=False,
                                       view_counts=self.hyperparameters.view_counts,
-                                      block_moves=self.hyperparameters.block_moves != "off")
+                                      block_moves=self.hyperparameters.block_moves != "off",
+                                      power=self.hyperparameters.target == "power")
 
 
 @dataclass(frozen=True)
@@ -228,7 +229,8 @@ FREE_CONCEPT_WEIGHT = 1e-3
 
 
 def own_names_to_free_concepts(data: PreparedData, state: GibbsState, shared: SharedPart,
-                                n_known: int, words: np.ndarray | None = None) -> bool:
+                                n_known: int, words: np.ndarray | None = None,
+                                movable: np.ndarray | None = None) -> bool:
     """Give each name first heard in this home a concept of its own, one the knowledge does not use.
 
     The samples standing for such a name (:func:`gibbs.sample_names`: those that say it, and the
@@ -237,7 +239,8 @@ def own_names_to_free_concepts(data: PreparedData, state: GibbsState, shared: Sh
     place (every concept gives an unheard word the same tiny mass), whose visual distribution —
     δ^v = 3·10^5 pseudo-counts of that place's views — then sends the rest of the room's views to the
     transferred concept of its kind ("bedroom"). ``words``: only these names (word ids; a teaching's
-    own words, :func:`spco.model.local_update.teach_locally`), default every new name of the home.
+    own words, :func:`spco.model.local_update.teach_locally`), default every new name of the home;
+    ``movable``: (N,) bool, the only samples that may stand for them (default every sample).
     Returns whether any sample moved."""
     if shared.variant != "exact" or data.words.shape[1] <= n_known:
         return False
@@ -251,6 +254,8 @@ def own_names_to_free_concepts(data: PreparedData, state: GibbsState, shared: Sh
     names = gibbs.sample_names(data, state.regions, hyper, named=candidate)
     if words is not None:  # the names of every sample judged as before, only these names moved
         names = np.where(np.isin(names, np.asarray(words, dtype=np.int64)), names, -1)
+    if movable is not None:
+        names = np.where(movable, names, -1)
     free = np.exp(shared.log_g0) < FREE_CONCEPT_WEIGHT
     moved = False
     for word in np.unique(names[names >= 0]):  # a loop over the home's few new names
@@ -281,11 +286,10 @@ def learn_free_concepts(data: PreparedData, state: GibbsState, hyper: TransferHy
     unused = np.exp(state.log_g0) < FREE_CONCEPT_WEIGHT  # G_0 is the knowledge's: fixed while adapting
     if not unused[state.concepts].any():
         return
-    stats = gibbs.sufficient_statistics(data, state, hyper)
+    stats = gibbs.sufficient_statistics(data, state, hyper, settings.learning_view_counts())
     free = np.flatnonzero(unused & (stats.concepts[0] > 0))
-    tables_v = HierarchicalMultinomial.sample_tables(stats.visual[:, free], state.log_phi_v[free],
-                                                     hyper.delta_visual, rng)
-    state.log_phi_v[free] = HierarchicalMultinomial.sample_shared(tables_v, hyper.alpha_visual, rng)
+    state.log_phi_v[free] = HierarchicalMultinomial.sample_shared_given_counts(
+        stats.visual[:, free], state.log_phi_v[free], hyper.delta_visual, hyper.alpha_visual, rng)
     tables_w = HierarchicalMultinomial.sample_tables(stats.words[:, free], state.log_phi_w[free],
                                                      hyper.delta_word, rng)
     state.log_phi_w[free] = HierarchicalMultinomial.sample_shared(tables_w, hyper.alpha_word, rng)
@@ -305,16 +309,15 @@ def sweep_home(data: PreparedData, state: GibbsState, hyper: TransferHyperparame
         learn_free_concepts(data, state, hyper, settings, rng)
         return
     gibbs.local_step(data, state, settings, rng, hyper)
-    stats = gibbs.sufficient_statistics(data, state, hyper)
+    stats = gibbs.sufficient_statistics(data, state, hyper, settings.learning_view_counts())
     if settings.variant == "reference":  # the authors' order: home, then shared from pooled counts
         gibbs.home_step_reference(data, state, stats, hyper, settings, rng)
         state.log_phi_v = log_dirichlet(prior.visual + stats.visual.sum(0), rng)
         state.log_phi_w = log_dirichlet(prior.words + stats.words.sum(0), rng)
         state.log_g0 = log_dirichlet(prior.g0 + stats.concepts.sum(0), rng)
     else:  # exact: shared given table counts (θ, G_e integrated out), then the home
-        tables_v = HierarchicalMultinomial.sample_tables(stats.visual, state.log_phi_v, hyper.delta_visual,
-                                                         rng)
-        state.log_phi_v = log_dirichlet(prior.visual + tables_v, rng)
+        state.log_phi_v = HierarchicalMultinomial.sample_shared_given_counts(
+            stats.visual, state.log_phi_v, hyper.delta_visual, prior.visual, rng)
         tables_w = HierarchicalMultinomial.sample_tables(stats.words, state.log_phi_w, hyper.delta_word, rng)
         state.log_phi_w = log_dirichlet(prior.words + tables_w, rng)
         tables_g = sample_crt(stats.concepts, hyper.gamma * np.exp(state.log_g0)[None, :], rng).sum(axis=0)
@@ -360,7 +363,7 @@ def initial_state(data: PreparedData, shared: SharedPart, settings: SamplerSetti
         log_phi_v=shared.log_phi_visual.copy(), log_phi_w=shared.log_phi_words.copy(),
         word_mask=shared.word_mask.copy(), channels=shared.channels,
     )
-    stats = gibbs.sufficient_statistics(data, state, hyper)
+    stats = gibbs.sufficient_statistics(data, state, hyper, settings.learning_view_counts())
     for name in ("visual", "words", "concepts", "regions_by_concept"):
         setattr(stats, name, np.zeros_like(getattr(stats, name)))  # new arrays: the sampler caches n^v
     if settings.variant == "reference":

@@ -30,6 +30,14 @@ NamePrior = Literal["off", "wordnet"]
 BLOCK_MOVES = ("off", "adapt", "all")
 BlockMoves = Literal["off", "adapt", "all"]
 
+#: What the exact sampler targets (``TransferHyperparameters.target``; docs/model.md, "The model the
+#: sampler targets"): ``"power"`` — the power likelihood, every step (assignments, θ, φ, switches, label
+#: swaps) weighing a view by its weight w and a word token by W^w, one joint distribution; ``"cut"`` —
+#: the assignments weigh them so, θ^v and φ^v learn from every visual count and θ^w from S^w counts per
+#: name token (a modular, "cut" sampler, no single stationary distribution).
+TARGETS = ("cut", "power")
+Target = Literal["cut", "power"]
+
 #: The word models of the exact sampler with "+MI": word channels (name / place / background switch per
 #: token, :mod:`spco.model.word_channels`) or the naming rule (words pruned by where they are said,
 #: :mod:`spco.model.pruning`).
@@ -47,6 +55,18 @@ PAPER_PSI0_CM = (10.0, 10.0, 0.5, 0.5)
 #: on development configurations. With ``view_counts="estimate"`` also the weight of the start's
 #: sweeps before w is estimated, and of a fit that cannot estimate it.
 VIEW_COUNTS = 16.0
+
+
+def view_powers(totals, view_counts):
+    """ω = min(1, w / Σ_d v_d), the power of each view's multinomial likelihood for the view weight
+    w = ``view_counts`` and the views' total counts ``totals`` (broadcast: a grid of weights against
+    the views gives the grid of powers): the one definition of a view's weight, used by the sampler
+    (:func:`spco.model.gibbs.view_weights`), every answer (:mod:`spco.model.prediction`) and the
+    view-weight estimate (:mod:`spco.model.view_fit`). Views with fewer than one count count whole."""
+    return np.minimum(1.0, np.asarray(view_counts, dtype=np.float64)
+                      / np.maximum(np.asarray(totals, dtype=np.float64), 1.0))
+
+
 #: ``TransferHyperparameters.view_counts`` of a model whose view weight is learnt from its homes.
 ESTIMATE = "estimate"
 
@@ -141,6 +161,15 @@ class TransferHyperparameters:
         answers first in ``tests/test_knowledge.py`` (benchmarks/README.md, "Issue 29: block moves
         in adapt"). Written by :meth:`to_dict` only when not ``"off"`` (files and experiment
         identities from before it are unchanged).
+    target: what the exact sampler's chain targets (:data:`TARGETS`): ``"power"`` — the power
+        likelihood of docs/model.md ("The model the sampler targets"): a view's multinomial raised to
+        ω_t = min(1, w / Σ_d v_d), a word token's channel likelihood to W^w times its occurrences, in
+        every conditional (θ^v, φ^v, θ^w, ψ, β, the switches, the assignments, the label swaps and
+        block moves), so that the chain has one stationary distribution; it needs a whole
+        ``word_counts`` (a word token's counts stay whole: φ^w's CRT tables). ``"cut"`` (default) —
+        the assignments weigh views and tokens so, θ^v and φ^v count every visual count, θ^w a name
+        token's S^w counts and the switch a token once (a modular sampler). Written by :meth:`to_dict`
+        only when not ``"cut"`` (files and experiment identities from before it are unchanged).
     evidence_weight: η, the weight of the linguistic evidence in the switch's prior (word channels):
         p(z = name | word) ∝ λ_name ν^η, p(z = place or background) ∝ λ_c (1 − ν)^η, ν the name
         evidence of :mod:`spco.model.name_evidence`. Default :data:`EVIDENCE_WEIGHT`, chosen on
@@ -168,6 +197,7 @@ class TransferHyperparameters:
     evidence_weight: float = EVIDENCE_WEIGHT
     word_counts: float | None = WORD_COUNTS
     block_moves: BlockMoves = "off"
+    target: Target = "cut"
 
     def __post_init__(self) -> None:
         for name in ("n_concepts", "n_regions"):
@@ -206,6 +236,13 @@ class TransferHyperparameters:
         if self.block_moves not in BLOCK_MOVES:
             raise ConfigurationError(f"block_moves must be one of {', '.join(map(repr, BLOCK_MOVES))}, "
                                      f"got {self.block_moves!r}")
+        if self.target not in TARGETS:
+            raise ConfigurationError(f"target must be one of {', '.join(map(repr, TARGETS))}, "
+                                     f"got {self.target!r}")
+        if (self.target == "power" and self.word_counts is not None
+                and float(self.word_counts) != round(float(self.word_counts))):
+            raise ConfigurationError(f"word_counts must be a whole number with target='power' (a word "
+                                     f"token's counts stay whole), got {self.word_counts!r}")
         if self.name_prior not in NAME_PRIORS:
             raise ConfigurationError(f"name_prior must be one of {', '.join(map(repr, NAME_PRIORS))}, "
                                      f"got {self.name_prior!r}")
@@ -250,8 +287,11 @@ class TransferHyperparameters:
         return psi
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dictionary (``name_prior`` and ``block_moves`` only when not ``"off"``)."""
+        """JSON-ready dictionary (``name_prior`` and ``block_moves`` only when not ``"off"``, ``target``
+        only when not ``"cut"``)."""
         data = asdict(self)
+        if data["target"] == "cut":
+            del data["target"]
         if data["name_prior"] == "off":
             del data["name_prior"]
         if data["block_moves"] == "off":
@@ -289,7 +329,7 @@ class TransferHyperparameters:
             if kind is None:
                 raise ConfigurationError(f"hyperparameter setting {setting!r}: no hyperparameter {name!r}; "
                                          f"settable: {', '.join(SETTABLE)}")
-            if kind in ("one of channels, naming-rule", "one of off, adapt, all"):
+            if kind in ("one of channels, naming-rule", "one of off, adapt, all", "one of cut, power"):
                 changes[name] = text
                 continue
             if name == "view_counts" and text.lower() == ESTIMATE:
@@ -319,6 +359,7 @@ SETTABLE: dict[str, str] = {
     "beta": "a number", "kappa0": "a number", "nu0": "a number", "mi_threshold": "number or none",
     "view_counts": "number, none or estimate", "evidence_weight": "a number", "word_counts": "number or none",
     "word_model": "one of channels, naming-rule", "block_moves": "one of off, adapt, all",
+    "target": "one of cut, power",
 }
 
 

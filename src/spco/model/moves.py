@@ -17,7 +17,9 @@ ratio is therefore
     + (γ G_{0,a} − γ G_{0,b}) (log G_{e,b} − log G_{e,a}),
 
 with F(i ← data of j) = Σ_k [ln Γ(δ φ_{i,k} + n_{e,j,k}) − ln Γ(δ φ_{i,k})] over visual and word
-dimensions. Every proposal of a pass (the slots paired by a random perfect matching) is a symmetric
+dimensions. With the views' power likelihood (``docs/samplers.md``) n^v holds the weighted counts
+Σ_t s_t v_t, real numbers, and F is the same expression: ∫ Π_k θ_k^{n_k} Dir(θ | δ φ) dθ for real n.
+Every proposal of a pass (the slots paired by a random perfect matching) is a symmetric
 Metropolis–Hastings step on (C, G_e, π_e) with θ_e marginalised, followed by a draw of θ_e from
 its conditional: together an exact block update of (C, G_e, π_e, θ_e), so the sampler stays a
 valid MCMC for the model as written.
@@ -214,6 +216,12 @@ def _word_concentration(log_phi_w: np.ndarray, word_mask: np.ndarray, delta_w: f
     return result
 
 
+def _count_type(counts: np.ndarray) -> type:
+    """int64 for whole counts (the cut sampler's, compiled ahead), float64 for the power target's
+    weighted visual counts."""
+    return np.int64 if np.asarray(counts).dtype.kind in "iub" else np.float64
+
+
 def concept_swap_step(visual_counts: np.ndarray, log_phi_v: np.ndarray, delta_v: float,
                       word_counts: np.ndarray, log_phi_w: np.ndarray, delta_w: float,
                       log_g: np.ndarray, log_g0: np.ndarray, gamma: float, word_mask: np.ndarray,
@@ -257,7 +265,8 @@ def concept_swap_step(visual_counts: np.ndarray, log_phi_v: np.ndarray, delta_v:
         diff_counts = counts_p[homes, a_] - counts_p[homes, b_]  # (E, P, V)
         diff_log = log_psi[b_] - log_psi[a_]  # (E, P, V)
         log_u = log_u - np.einsum("epv,epv->ep", diff_counts, diff_log)
-    return _matching_pass(np.ascontiguousarray(alpha_v), np.ascontiguousarray(visual_counts, dtype=np.int64),
+    return _matching_pass(np.ascontiguousarray(alpha_v),
+                          np.ascontiguousarray(visual_counts, dtype=_count_type(visual_counts)),
                           np.ascontiguousarray(alpha_w), np.ascontiguousarray(counts_w, dtype=np.int64),
                           g_term, np.ascontiguousarray(log_g), np.ascontiguousarray(pairs, dtype=np.int64),
                           log_u)

@@ -122,9 +122,21 @@ def shared_concentration(log_phi: np.ndarray, delta: float) -> np.ndarray:
 class HierarchicalMultinomial:
     """Bags of counts: c_t ~ Mult(θ_{e,C_t}), θ_{e,l} ~ Dir(δ φ_l), φ_l ~ Dir(α).
 
-    The conditionals of φ given counts are not conjugate; the exact sampler introduces table
-    counts m_{e,l,k} ~ CRT(n_{e,l,k}, δ φ_{l,k}) (Teh et al. 2006), after which
-    φ_l | m ~ Dir(α + Σ_e m_{e,l,·}).
+    A bag may enter with a power s_t ∈ (0, 1], its likelihood Mult(c_t | θ)^{s_t} (the visual
+    channel's view weight, ``docs/samplers.md``): every conditional then sees the weighted counts
+    n_{e,l,k} = Σ_t s_t c_tk, real numbers (:meth:`weighted_statistics`). θ_{e,l} | n ~
+    Dir(δ φ_l + n_{e,l}) is conjugate for real n as for whole ones, and with θ integrated out
+    the counts weigh Π_k Γ(δ φ_{l,k} + n_{e,l,k}) / Γ(δ φ_{l,k}) (the label swaps' ratio).
+
+    The conditional of φ given counts is not conjugate. For whole counts the exact sampler
+    introduces table counts m_{e,l,k} ~ CRT(n_{e,l,k}, δ φ_{l,k}) (Teh et al. 2006), after which
+    φ_l | m ~ Dir(α + Σ_e m_{e,l,·}). For real counts n = ⌊n⌋ + f, Γ(a + n)/Γ(a) =
+    [Γ(a + ⌊n⌋)/Γ(a)] · [Γ(a + n)/Γ(a + ⌊n⌋)]: the first factor is augmented by CRT(⌊n⌋, a)
+    tables as before, and φ_l is drawn from Dir(α + Σ_e m + Σ_{e: n < 1} n) (the second factor
+    approximated by a^n where ⌊n⌋ = 0, by 1 elsewhere: the importance weights stay bounded as
+    a → 0, so chains do not stick near φ = 0) and accepted by Metropolis–Hastings with the exact
+    remainder (:meth:`sample_shared_given_counts`): a valid step of the augmented chain, the CRT
+    step itself when every count is whole.
     """
 
     @staticmethod
@@ -150,6 +162,19 @@ class HierarchicalMultinomial:
         return sums.reshape(n_homes, n_concepts, counts.shape[1])
 
     @staticmethod
+    def weighted_statistics(counts: sp.csr_array, weights: np.ndarray, homes: np.ndarray,
+                            concepts: np.ndarray,
+                            n_homes: int, n_concepts: int) -> np.ndarray:
+        """n_{e,l,k} = Σ_{t in e: C_t = l} s_t c_tk for the powers ``weights`` s (N,): (E, L, D)
+        float64, each entry summed in row order (the same sums whatever changed before)."""
+        n = int(np.asarray(homes).size)
+        groups = np.asarray(homes, dtype=np.int64) * n_concepts + np.asarray(concepts, dtype=np.int64)
+        onehot = sp.csr_array((np.asarray(weights, dtype=np.float64), (groups, np.arange(n))),
+                              shape=(n_homes * n_concepts, n))
+        sums = (onehot @ sp.csr_array(counts, dtype=np.float64)).toarray()
+        return np.maximum(sums, 0.0).reshape(n_homes, n_concepts, counts.shape[1])
+
+    @staticmethod
     def move_counts(n: np.ndarray, counts: sp.csr_array, rows: np.ndarray, homes: np.ndarray,
                     old: np.ndarray, new: np.ndarray) -> None:
         """Update n (E, L, D) in place for samples ``rows`` (of the CSR ``counts``) that moved from
@@ -166,6 +191,89 @@ class HierarchicalMultinomial:
         return sample_crt_totals(n, shared_concentration(log_phi, delta), rng)
 
     @staticmethod
+    def table_parts(n: np.ndarray, log_phi: np.ndarray, delta: float,
+                    rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(M, F, H), each (L, D), what :meth:`sample_shared_given_counts` needs from a group of homes:
+        M = Σ_e m_{e,l,k}, m ~ CRT(⌊n_{e,l,k}⌋, δ φ_{l,k}); F = Σ_e of the counts below 1 (n − ⌊n⌋ where
+        ⌊n⌋ = 0), the part of the fractions the proposal counts; H = the number of homes whose count
+        has a fractional part (all 0 for whole counts: no Metropolis–Hastings test)."""
+        if n.dtype.kind in "iu":
+            zeros = np.zeros(n.shape[1:])
+            return HierarchicalMultinomial.sample_tables(n, log_phi, delta, rng), zeros, zeros
+        whole = np.floor(n)
+        tables = HierarchicalMultinomial.sample_tables(whole.astype(np.int64), log_phi, delta, rng)
+        return (tables, np.where(whole == 0.0, n, 0.0).sum(axis=0),
+                (n != whole).sum(axis=0).astype(np.float64))
+
+    @staticmethod
+    def fractional_log_weight(n: np.ndarray, log_phi: np.ndarray, delta: float) -> np.ndarray:
+        """(L,) Σ_e Σ_k [ln Γ(a + n) − ln Γ(a + ⌊n⌋) − [⌊n⌋ = 0] n ln a], a = δ φ_{l,k}, over the
+        entries n_{e,l,k} (E, L, D) with a fractional part: the log ratio of the exact
+        Dirichlet–multinomial weight of φ to what the proposal of
+        :meth:`sample_shared_given_counts` counts (0 for whole counts). An a that underflows to 0
+        where a count is fractional gives −inf (a proposal there is refused)."""
+        return HierarchicalMultinomial.fractional_log_weights(n, (log_phi,), delta)[0]
+
+    @staticmethod
+    def fractional_log_weights(n: np.ndarray, log_phis: tuple[np.ndarray, ...],
+                               delta: float) -> list[np.ndarray]:
+        """:meth:`fractional_log_weight` of the counts ``n`` at each φ of ``log_phis`` (a proposal's
+        old and new φ: the entries, their whole and fractional parts found once)."""
+        outs = [np.zeros(log_phi.shape[0]) for log_phi in log_phis]
+        if n.dtype.kind in "iu":
+            return outs
+        whole = np.floor(n)
+        frac = n - whole
+        e, c, k = np.nonzero(frac)
+        if not c.size:
+            return outs
+        n_at, whole_at = n[e, c, k], whole[e, c, k]
+        tilt = np.where(whole_at == 0.0, frac[e, c, k], 0.0)  # what the proposal counts
+        for i, log_phi in enumerate(log_phis):
+            log_a = np.log(delta) + log_phi[c, k]
+            a = np.exp(log_a)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                terms = gammaln(a + n_at) - gammaln(a + whole_at) - tilt * log_a
+            terms = np.where(a > 0.0, terms, -np.inf)
+            outs[i] = np.bincount(c, weights=terms, minlength=log_phi.shape[0]).astype(np.float64)
+        return outs
+
+    @staticmethod
+    def fractional_log_ratio(n: np.ndarray, log_phi_old: np.ndarray, log_phi_new: np.ndarray,
+                             delta: float) -> np.ndarray:
+        """(L,) w(φ_new) − w(φ_old), w = :meth:`fractional_log_weight`: a proposal's log acceptance
+        ratio from the counts ``n``."""
+        old, new = HierarchicalMultinomial.fractional_log_weights(n, (log_phi_old, log_phi_new), delta)
+        return new - old
+
+    @staticmethod
+    def sample_shared_given_counts(n: np.ndarray, log_phi: np.ndarray, delta: float, prior,
+                                   rng: np.random.Generator) -> np.ndarray:
+        """log φ_l | n (θ integrated out) for every concept, from the counts n (E, L, D) of all
+        homes concerned: φ' ~ Dir(prior + M + F) with the table counts M and fractional parts F
+        of :meth:`table_parts`, accepted per concept with probability
+        min(1, exp(w(φ') − w(φ))), w = :meth:`fractional_log_weight`. For whole counts F = 0,
+        w = 0 and this is the CRT step, drawing the same numbers. ``prior``: α, a number or (L, D)."""
+        tables, frac, fractional = HierarchicalMultinomial.table_parts(n, log_phi, delta, rng)
+        return HierarchicalMultinomial.accept_shared(
+            lambda old, new: HierarchicalMultinomial.fractional_log_ratio(n, old, new, delta),
+            log_phi, prior, tables, frac, rng, bool(fractional.any()))
+
+    @staticmethod
+    def accept_shared(log_ratio, log_phi: np.ndarray, prior, tables: np.ndarray, frac: np.ndarray,
+                      rng: np.random.Generator, fractional: bool = True) -> np.ndarray:
+        """The proposal φ' ~ Dir(prior + tables + frac) and its per-concept Metropolis–Hastings test
+        (``log_ratio(old, new)`` → (L,) w(φ') − w(φ), summed over every home concerned): the new
+        log φ (L, D). No fractional count: the proposal itself (the CRT step, no uniform drawn)."""
+        proposal = log_dirichlet(prior + tables + frac, rng)
+        if not fractional:
+            return proposal
+        log_u = np.log(rng.random(log_phi.shape[0]))
+        with np.errstate(invalid="ignore"):
+            accept = log_u < log_ratio(log_phi, proposal)
+        return np.where(accept[:, None], proposal, log_phi)
+
+    @staticmethod
     def sample_shared(pseudo_counts: np.ndarray, alpha: float, rng: np.random.Generator) -> np.ndarray:
         """log φ_l ~ Dir(α + pseudo_counts_l) for every concept; (L, D)."""
         return log_dirichlet(alpha + pseudo_counts, rng)
@@ -173,7 +281,7 @@ class HierarchicalMultinomial:
     @staticmethod
     def sample_specific(n: np.ndarray, log_phi: np.ndarray, delta: float, rng: np.random.Generator,
                         out: np.ndarray | None = None) -> np.ndarray:
-        """log θ_{e,l} ~ Dir(δ φ_l + n_{e,l}) for every home and concept; (E, L, D). ``out``
+        """log θ_{e,l} ~ Dir(δ φ_l + n_{e,l}) for every home and concept (n whole or real); (E, L, D). ``out``
         (optional): an array of that shape to draw into, such as the previous draw."""
         return log_dirichlet_hierarchical(shared_concentration(log_phi, delta), n, rng, out=out)
 

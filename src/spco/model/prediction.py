@@ -51,7 +51,7 @@ from scipy.special import logsumexp
 
 from spco.data.language import Vocabulary, normalize_name
 from spco.errors import ConfigurationError, SpcoError
-from spco.model.hyperparameters import NAME_PRIORS, NamePrior
+from spco.model.hyperparameters import NAME_PRIORS, NamePrior, view_powers
 from spco.model.name_evidence import within_concepts
 from spco.model.parameters import ConceptParameters
 from spco.model.pruning import bernoulli_kl_scores, word_concept_mutual_information
@@ -314,7 +314,7 @@ def _visual_log_likelihood(theta_v: np.ndarray, visual: object, view_counts: flo
     if not view_counts > 0:
         raise ConfigurationError(f"view_counts must be > 0, got {view_counts!r}")
     totals = np.asarray(counts.sum(axis=1), dtype=np.float64).ravel()
-    return loglik * np.minimum(1.0, float(view_counts) / np.maximum(totals, 1.0))[:, None]
+    return loglik * view_powers(totals, float(view_counts))[:, None]
 
 
 def _as_positions(positions: object) -> np.ndarray:

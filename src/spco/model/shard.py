@@ -242,16 +242,18 @@ class HomeShard(ShardInitialisation):
         if channels is not None:
             self.state.channels = channels
         log_joint = gibbs.local_step(self.data, self.state, self.settings, self.rng, self.hyper)
-        self.stats = gibbs.sufficient_statistics(self.data, self.state, self.hyper)
+        self.stats = gibbs.sufficient_statistics(self.data, self.state, self.hyper,
+                                                self.settings.learning_view_counts())
         return log_joint
 
     def tables(self, kind: str) -> np.ndarray:
         """CRT table counts of ``kind`` (``visual`` (L, D), ``words`` (L, V), ``concepts`` (L,)),
         summed over the shard's homes, given the shared parameters the shard holds."""
         stats, state, hyper = self._stats(), self.state, self.hyper
-        if kind == "visual":
-            return HierarchicalMultinomial.sample_tables(stats.visual, state.log_phi_v, hyper.delta_visual,
-                                                         self.rng)
+        if kind == "visual":  # (3, L, D): HierarchicalMultinomial.table_parts
+            parts = HierarchicalMultinomial.table_parts(stats.visual, state.log_phi_v, hyper.delta_visual,
+                                                        self.rng)
+            return np.stack(parts).astype(np.float64)
         if kind == "words":
             return HierarchicalMultinomial.sample_tables(stats.words, state.log_phi_w, hyper.delta_word,
                                                          self.rng)
@@ -259,6 +261,12 @@ class HomeShard(ShardInitialisation):
             concentration = hyper.gamma * np.exp(state.log_g0)[None, :]
             return sample_crt(stats.concepts, concentration, self.rng).sum(axis=0)
         raise ValueError(f"unknown table kind {kind!r}; choose one of {TABLE_KINDS}")
+
+    def visual_log_weight(self, log_phi_old: np.ndarray, log_phi_new: np.ndarray) -> np.ndarray:
+        """(L,) the shard's part of the log acceptance ratio of a proposed φ^v (the views' weighted
+        counts: :meth:`HierarchicalMultinomial.fractional_log_weight` at the new φ minus the old)."""
+        n, delta = self._stats().visual, self.hyper.delta_visual
+        return HierarchicalMultinomial.fractional_log_ratio(n, log_phi_old, log_phi_new, delta)
 
     def channel_counts(self) -> ChannelCounts:
         """The switches' counts of the shard's homes (word channels; each token once)."""
@@ -358,7 +366,13 @@ class GlobalStep:
                                     log_dirichlet(hyper.alpha_word + counts.words, rng),
                                     log_dirichlet(hyper.gamma0 + counts.concepts, rng), shared.word_mask,
                                     shared.name_words, shared.channels)
-        log_phi_v = log_dirichlet(hyper.alpha_visual + self.reduce(call("tables", "visual")), rng)
+        # φ^v: CRT tables of the whole parts of the views' weighted counts, a Dirichlet proposal
+        # with the fractional parts, accepted with the exact remainder summed over the shards
+        # (HierarchicalMultinomial.sample_shared_given_counts; whole counts: the CRT step itself)
+        tables_v, frac_v, fractional = self.reduce(call("tables", "visual"))
+        log_phi_v = HierarchicalMultinomial.accept_shared(
+            lambda old, new: self.reduce(call("visual_log_weight", old, new)), shared.log_phi_v,
+            hyper.alpha_visual, tables_v, frac_v, rng, bool(fractional.any()))
         log_phi_w = log_dirichlet(hyper.alpha_word + self.reduce(call("tables", "words")), rng)
         tables_g = self.reduce(call("tables", "concepts"))
         log_g0 = log_dirichlet(hyper.gamma0 / hyper.n_concepts + tables_g, rng)

@@ -148,7 +148,17 @@ class ShardGroup:
         log_phi, delta = ((first.state.log_phi_v, first.hyper.delta_visual) if kind == "visual"
                           else (first.state.log_phi_w, first.hyper.delta_word))
         seeds = np.array([h.rng.integers(0, 2**63 - 1, dtype=np.int64) for h in self.homes], dtype=np.uint64)
-        return sample_crt_totals_each(counts, scaled_exp(log_phi, delta), seeds)
+        if kind == "words":
+            return sample_crt_totals_each(counts, scaled_exp(log_phi, delta), seeds)
+        # visual: (3, L, D) as HierarchicalMultinomial.table_parts
+        whole = np.floor(counts)
+        tables = sample_crt_totals_each(whole.astype(np.int64), scaled_exp(log_phi, delta), seeds)
+        return np.stack([tables.astype(np.float64), np.where(whole == 0.0, counts, 0.0).sum(axis=0),
+                         (counts != whole).sum(axis=0).astype(np.float64)])
+
+    def visual_log_weight(self, log_phi_old: np.ndarray, log_phi_new: np.ndarray) -> np.ndarray:
+        """(L,) the homes' parts of a proposed φ^v's log acceptance ratio, summed."""
+        return _sum(self._each("visual_log_weight", log_phi_old, log_phi_new))
 
     def pooled_counts(self) -> PooledCounts:
         """The homes' pooled counts, summed (integers)."""

@@ -115,13 +115,15 @@ class ShardInitialisation:
         places = same_place_names(self._names, state.regions, data.offsets, hyper.n_regions,
                                   data.words.shape[1], overlaps=overlaps)
         state.concepts = gibbs.concepts_by_name(data, state.regions, hyper, places)
-        independent_home_step(data, state, gibbs.sufficient_statistics(data, state, hyper), hyper, self.rng)
+        stats = gibbs.sufficient_statistics(data, state, hyper, self.settings.learning_view_counts())
+        independent_home_step(data, state, stats, hyper, self.rng)
 
     def init_local_step(self) -> None:
         """One local step of the independent warm-start sampler (statistics kept)."""
         independent = replace(INDEPENDENT, view_counts=self.settings.view_counts)  # the same view evidence
         gibbs.local_step(self.data, self.state, independent, self.rng)
-        self._init_stats = gibbs.sufficient_statistics(self.data, self.state, self.hyper)
+        self._init_stats = gibbs.sufficient_statistics(self.data, self.state, self.hyper,
+                                                          self.settings.learning_view_counts())
 
     def init_home_step(self, word_mask: np.ndarray | None = None,
                        name_words: np.ndarray | None = None) -> None:
@@ -135,7 +137,8 @@ class ShardInitialisation:
     def init_summary(self) -> HomeSummary:
         """Per-home word totals, names said and taught fractions (see :class:`HomeSummary`)."""
         data, state, hyper = self.data, self.state, self.hyper
-        stats = self._init_stats = gibbs.sufficient_statistics(data, state, hyper)
+        stats = self._init_stats = gibbs.sufficient_statistics(data, state, hyper,
+                                                               self.settings.learning_view_counts())
         self._name_counts = None
         names_said = None
         names = getattr(self, "_names", None)
@@ -159,7 +162,8 @@ class ShardInitialisation:
         """Relabel the homes' concepts by ``perms`` (E_s, L) (slot j takes old concept perms[e, j])."""
         gibbs._apply_permutations(self.data, self.state, perms)
         self._name_counts = None
-        self._init_stats = gibbs.sufficient_statistics(self.data, self.state, self.hyper)
+        self._init_stats = gibbs.sufficient_statistics(self.data, self.state, self.hyper,
+                                                          self.settings.learning_view_counts())
 
     def init_kept(self, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Take the homes' weights (E_s,); return the words said in the kept homes (weight 1), (V,)
@@ -193,7 +197,8 @@ class ShardInitialisation:
                 self.state.concepts[rows[self._names[rows] == word]] = label
             self._own[e] = np.array([label for _, label in pairs], dtype=np.int64)
         if given:
-            self._init_stats = gibbs.sufficient_statistics(self.data, self.state, self.hyper)
+            self._init_stats = gibbs.sufficient_statistics(self.data, self.state, self.hyper,
+                                                          self.settings.learning_view_counts())
 
     def init_weighted_counts(self, scale: bool):
         """The statistics weighted by the homes' weights (with ``scale``; the kept labels of own

@@ -149,10 +149,14 @@ class SamplerSettings:
     #: region block moves after each one-sample assignment draw (:mod:`spco.model.blocks`; exact
     #: sampler only)
     block_moves: bool = False
+    #: the power likelihood in every step (``TransferHyperparameters.target == "power"``; exact
+    #: sampler only): θ^v and φ^v learn from the views' weighted counts as the assignments weigh them
+    power: bool = False
 
     @classmethod
     def create(cls, variant: str, prune: bool, learn_shared: bool = True,
-               view_counts: float | str | None = None, block_moves: bool = False) -> SamplerSettings:
+               view_counts: float | str | None = None, block_moves: bool = False,
+               power: bool = False) -> SamplerSettings:
         """Settings of ``variant`` (``exact``, ``reference`` or ``spcoa``).
 
         ``learn_shared=False`` keeps φ^v, φ^w and G_0 fixed (adapting to a new home with
@@ -162,7 +166,8 @@ class SamplerSettings:
         the start's :data:`~spco.model.hyperparameters.VIEW_COUNTS` until the driver sets the
         estimate); the exact variant only — the authors' sampler and SpCoA score every count, as
         published. ``block_moves``: after each sweep's one-sample assignments, move every region's
-        samples of one concept together (:mod:`spco.model.blocks`); the exact variant only."""
+        samples of one concept together (:mod:`spco.model.blocks`); the exact variant only. ``power``:
+        the chain targets the power likelihood (``TransferHyperparameters.target``); exact variant."""
         if view_counts == ESTIMATE:
             view_counts = VIEW_COUNTS
         if variant not in VARIANTS:
@@ -171,4 +176,11 @@ class SamplerSettings:
                    joint_assignment=variant != "reference",
                    pruning_score="kl" if variant == "reference" else "mi", learn_shared=learn_shared,
                    view_counts=view_counts if variant == "exact" else None,
-                   block_moves=bool(block_moves) and variant == "exact")
+                   block_moves=bool(block_moves) and variant == "exact",
+                   power=bool(power) and variant == "exact")
+
+    def learning_view_counts(self) -> float | None:
+        """The view weight with which θ^v, φ^v and the label swaps count a view: the assignments'
+        :attr:`view_counts` when the chain targets the power likelihood (:attr:`power`), ``None``
+        (every count) in the cut sampler."""
+        return self.view_counts if self.power else None

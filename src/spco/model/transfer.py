@@ -153,7 +153,8 @@ class SpatialConceptModel:
         hyper = self.hyperparameters if self.hyperparameters is not None else self._default_hyperparameters()
         return gibbs.SamplerSettings.create(self.variant, bool(self.prune_words),
                                             view_counts=getattr(hyper, "view_counts", None),
-                                            block_moves=getattr(hyper, "block_moves", "off") == "all")
+                                            block_moves=getattr(hyper, "block_moves", "off") == "all",
+                                            power=getattr(hyper, "target", "cut") == "power")
 
     def checked_hyperparameters(self) -> TransferHyperparameters:
         """The hyperparameters this estimator fits with (the paper's when none were given), checked
@@ -298,7 +299,8 @@ class SpatialConceptModel:
         evidence, content = channel_evidence(corpus.vocabulary, sentences)
         run.use_word_channels(WordChannels.initial(evidence, hyper.n_concepts, hyper.evidence_weight,
                                                    content, token_weight(hyper.word_counts,
-                                                                         corpus.word_increment)))
+                                                                         corpus.word_increment),
+                                                   power=hyper.target == "power"))
         return hyper, evidence
 
     @staticmethod

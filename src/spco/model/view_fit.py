@@ -11,6 +11,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.special import logsumexp
 
+from spco.model.hyperparameters import view_powers
 from spco.model.state import PreparedData
 
 __all__ = [
@@ -158,7 +159,7 @@ def view_weight_losses(data: PreparedData, concepts: np.ndarray, totals: np.ndar
         said = np.asarray(sp.csr_array(data.words[rows], dtype=np.float64) @ log_phi_w.T)  # (n, L)
         visual = sp.csr_array(data.visual[rows], dtype=np.float64)
         loglik = np.asarray(visual @ log_phi.T)  # (n, L)
-        scale = np.minimum(1.0, weights[:, None] / data.view_totals[rows][None, :])  # (G, n)
+        scale = view_powers(data.view_totals[rows][None, :], weights[:, None])  # (G, n)
         scores = scale[:, :, None] * loglik[None] + log_prior[None, None, :]  # (G, n, L)
         given_view = logsumexp(scores + said[None], axis=2) - logsumexp(scores, axis=2)  # log p(u | v)
         without = logsumexp(log_prior[None, :] + said, axis=1)  # log p(u)

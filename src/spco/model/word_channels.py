@@ -111,18 +111,25 @@ class WordChannels:
     #: the place tokens of a label swap): the word weight ``TransferHyperparameters.word_counts`` over
     #: the word increment (1: S^w counts per token, as before the word weight)
     token_weight: float = 1.0
+    #: the power likelihood in every step (``TransferHyperparameters.target == "power"``): a token's
+    #: channel likelihood raised to s_ti = W^w n_ti in its switch and its concept alike, and θ^w, ψ
+    #: and β counting it s_ti times (:func:`token_scales`); ``False``: the cut sampler of the module
+    #: docstring (switch once, concept W^w, θ^w S^w)
+    power: bool = False
     #: :meth:`log_prior`, computed once per channels (every field is replaced, never changed in place)
     _log_prior: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
 
     @classmethod
     def initial(cls, evidence: np.ndarray, n_concepts: int, weight: float = 1.0,
-                content: np.ndarray | None = None, token_weight: float = 1.0) -> WordChannels:
+                content: np.ndarray | None = None, token_weight: float = 1.0,
+                power: bool = False) -> WordChannels:
         """Uniform ψ and β, equal shares, and the evidence of every word: ``evidence`` (V,) = ν_k in
         (0, 1), P(name | word), with weight η = ``weight``, and ``content`` (V,) = a_k, the share of
         its words that are content words (:func:`spco.model.name_evidence.content_share`; default 1):
         e_k = ((a_k ν_k)^η, (a_k (1 − ν_k))^η, (1 − a_k)^η), a_k kept within [0.05, 0.95]: a content
         word is a name or a place word as the evidence says, a function word background.
-        ``token_weight``: :attr:`token_weight` (:func:`token_weight` of the hyperparameters)."""
+        ``token_weight``: :attr:`token_weight` (:func:`token_weight` of the hyperparameters);
+        ``power``: :attr:`power`."""
         if not (np.isfinite(token_weight) and token_weight > 0):
             raise ValueError(f"token_weight must be a positive number, got {token_weight!r}")
         nu = np.clip(np.asarray(evidence, dtype=np.float64), EVIDENCE_FLOOR, 1.0 - EVIDENCE_FLOOR)
@@ -133,12 +140,13 @@ class WordChannels:
         flat = -np.log(max(V, 1))
         shares = np.array([0.0, -np.log(2.0), -np.log(2.0)])  # (the first is unused)
         return cls(np.full((n_concepts, V), flat), np.full(V, flat), shares, log_e, True,
-                   token_weight=float(token_weight))
+                   token_weight=float(token_weight), power=bool(power))
 
     def copy(self) -> WordChannels:
         """A copy of the arrays."""
         return WordChannels(self.log_place.copy(), self.log_background.copy(), self.log_shares.copy(),
-                            self.log_evidence.copy(), self.fresh, self.prior_only_from, self.token_weight)
+                            self.log_evidence.copy(), self.fresh, self.prior_only_from, self.token_weight,
+                            self.power)
 
     @property
     def n_words(self) -> int:
@@ -223,6 +231,12 @@ def mixture_log_likelihood(words: sp.csr_array, homes: np.ndarray, log_theta_w: 
     out = np.zeros((n_samples, n_concepts))
     if not words.nnz:
         return out
+    if channels.power:
+        terms = _power_token_terms(words, homes, log_theta_w, channels)  # (nnz, L)
+        rows = token_rows(words)
+        gather = sp.csr_array((np.ones(rows.size), (rows, np.arange(rows.size))),
+                              shape=(n_samples, rows.size))
+        return np.asarray(gather @ terms)
     out = mixture_rows(words, homes, log_theta_w, channels.log_place, channels.log_background,
                        channels.log_prior())
     return out if channels.token_weight == 1.0 else out * channels.token_weight
@@ -235,8 +249,12 @@ def switch_probabilities(words: sp.csr_array, homes: np.ndarray, concepts: np.nd
     channel alone where it is the prior's most probable (:attr:`WordChannels.prior_only_from`)."""
     if not words.nnz:
         return np.zeros((0, 3))
-    p = switch_rows(words, homes, concepts, log_theta_w, channels.log_place, channels.log_background,
-                    channels.log_prior())
+    if channels.power:
+        logits = _power_channel_logits(words, homes, log_theta_w, channels, concepts)  # (nnz, 3)
+        p = np.exp(logits - logsumexp(logits, axis=1, keepdims=True))
+    else:
+        p = switch_rows(words, homes, concepts, log_theta_w, channels.log_place, channels.log_background,
+                        channels.log_prior())
     if channels.prior_only_from is not None:  # words first heard in a home: the prior (see the field)
         _, cols, _ = _tokens(words)
         new = cols >= channels.prior_only_from
@@ -263,6 +281,41 @@ def expected_tokens(words: sp.csr_array, homes: np.ndarray, concepts: np.ndarray
     return out
 
 
+def token_scales(words: sp.csr_array, channels: WordChannels) -> np.ndarray:
+    """s_ti = c_ti · :attr:`WordChannels.token_weight` = W^w n_ti of every token (n_ti its occurrences
+    in the sentence, c_ti = S^w n_ti its counts): (nnz,), the power of its channel likelihood and its
+    counts in θ^w, ψ and β when the chain targets the power likelihood (:attr:`WordChannels.power`)."""
+    _, _, counts = _tokens(words)
+    return counts.astype(np.float64) * float(channels.token_weight)
+
+
+def _power_channel_logits(words: sp.csr_array, homes: np.ndarray, log_theta_w: np.ndarray,
+                          channels: WordChannels, concepts: np.ndarray | None = None) -> np.ndarray:
+    """log p(z = c | k) + s_ti log p(k | c, l) of every token: (nnz, L, 3) for every concept l of the
+    token's home, or (nnz, 3) at its sample's concept ``concepts`` (power likelihood)."""
+    rows, cols, _ = _tokens(words)
+    scale = token_scales(words, channels)
+    prior = channels.log_prior()[cols]  # (nnz, 3)
+    e = homes[rows]
+    if concepts is None:
+        name = log_theta_w[e, :, cols]  # (nnz, L)
+        place = channels.log_place[:, cols].T
+        background = np.broadcast_to(channels.log_background[cols][:, None], name.shape)
+        stacked = np.stack([name, place, background], axis=-1)  # (nnz, L, 3)
+        return prior[:, None, :] + scale[:, None, None] * stacked
+    c = concepts[rows]
+    stacked = np.column_stack([log_theta_w[e, c, cols], channels.log_place[c, cols],
+                               channels.log_background[cols]])
+    return prior + scale[:, None] * stacked
+
+
+def _power_token_terms(words: sp.csr_array, homes: np.ndarray, log_theta_w: np.ndarray,
+                       channels: WordChannels) -> np.ndarray:
+    """log Σ_c p(z = c | k) p(k | c, l)^{s_ti} of every token and concept (nnz, L): the token's
+    likelihood with its switch marginalised under the power likelihood."""
+    return logsumexp(_power_channel_logits(words, homes, log_theta_w, channels), axis=-1)
+
+
 def sample_switches(words: sp.csr_array, homes: np.ndarray, concepts: np.ndarray, log_theta_w: np.ndarray,
                     channels: WordChannels, rng: np.random.Generator) -> np.ndarray:
     """Draw every token's switch given its sample's concept: (nnz,) int8 in {0, 1, 2}. Fresh channels
@@ -287,27 +340,37 @@ class ChannelCounts(AdditiveCounts):
 
 
 def channel_counts(words: sp.csr_array, concepts: np.ndarray, switches: np.ndarray,
-                   n_concepts: int) -> ChannelCounts:
-    """:class:`ChannelCounts` of the tokens of ``words`` with their switches (nnz,)."""
+                   n_concepts: int, scales: np.ndarray | None = None) -> ChannelCounts:
+    """:class:`ChannelCounts` of the tokens of ``words`` with their switches (nnz,). ``scales``
+    (nnz,), whole numbers: each token's counts in ψ and β (:func:`token_scales`, the power
+    likelihood; default once each); ``by_word``, the switch prior's statistic, counts each token once."""
     V = words.shape[1]
     rows, cols, _ = _tokens(words)
+    weight = (np.ones(rows.size, dtype=np.int64) if scales is None
+              else np.rint(np.asarray(scales, dtype=np.float64)).astype(np.int64))
     place = np.zeros((n_concepts, V), dtype=np.int64)
     is_place = switches == PLACE
-    np.add.at(place, (concepts[rows[is_place]], cols[is_place]), 1)
-    background = np.bincount(cols[switches == BACKGROUND], minlength=V).astype(np.int64)
+    np.add.at(place, (concepts[rows[is_place]], cols[is_place]), weight[is_place])
+    is_background = switches == BACKGROUND
+    background = np.bincount(cols[is_background], weights=weight[is_background],
+                             minlength=V).astype(np.int64)
     by_word = np.zeros((V, 3), dtype=np.int64)
     np.add.at(by_word, (cols, switches.astype(np.int64)), 1)
     return ChannelCounts(place, background, by_word)
 
 
-def name_tokens(words: sp.csr_array, switches: np.ndarray) -> sp.csr_array:
-    """The counts of the name tokens only (N, V): what θ^w | z counts (S^w per token)."""
+def name_tokens(words: sp.csr_array, switches: np.ndarray, scale: float = 1.0) -> sp.csr_array:
+    """The counts of the name tokens only (N, V): what θ^w | z counts (S^w per token; times ``scale``,
+    rounded to whole counts: :attr:`WordChannels.token_weight` under the power likelihood, W^w per
+    occurrence)."""
     first, last = int(words.indptr[0]), int(words.indptr[-1])
     keep = switches == NAME
     kept_before = np.concatenate([[0], np.cumsum(keep)])  # name tokens before each token
     indptr = kept_before[words.indptr - first].astype(words.indptr.dtype)
-    out = sp.csr_array((words.data[first:last][keep], words.indices[first:last][keep], indptr),
-                       shape=words.shape)
+    data = words.data[first:last][keep]
+    if scale != 1.0:
+        data = np.rint(data * float(scale)).astype(np.int64)
+    out = sp.csr_array((data, words.indices[first:last][keep], indptr), shape=words.shape)
     out.sort_indices()  # (a no-op when the words' indices are sorted, as a canonical CSR's are)
     return out
 

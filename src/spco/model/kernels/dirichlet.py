@@ -102,7 +102,8 @@ def log_dirichlet(alpha: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     return out.reshape(alpha.shape)
 
 
-#: The counts' dtype of :func:`_hierarchical_dirichlet_rows` (one compiled signature).
+#: The whole counts' dtype of :func:`_hierarchical_dirichlet_rows` (and of the no counts of
+#: :func:`log_dirichlet`: one compiled signature for both).
 _COUNT_DTYPE = np.int64
 
 
@@ -123,7 +124,7 @@ def log_dirichlet_hierarchical(base: np.ndarray, counts: np.ndarray, rng: np.ran
     Parameters
     ----------
     base: (R, D) non-negative concentrations shared by the groups (δ φ).
-    counts: (G, R, D) non-negative integer counts (n).
+    counts: (G, R, D) non-negative counts n, whole or real (a power likelihood's weighted counts).
     out: optional (G, R, D) float64 C-contiguous array to write into (e.g. the previous draw).
 
     Returns
@@ -131,7 +132,9 @@ def log_dirichlet_hierarchical(base: np.ndarray, counts: np.ndarray, rng: np.ran
     (G, R, D) log-probabilities, the same as :func:`log_dirichlet` of ``base + counts`` in
     distribution.
     """
-    counts = np.ascontiguousarray(counts, dtype=_COUNT_DTYPE)
+    # whole counts as int64 (the cut sampler's, compiled ahead), real ones (the power target's) as float64
+    counts = np.asarray(counts)
+    counts = np.ascontiguousarray(counts, dtype=_COUNT_DTYPE if counts.dtype.kind in "iub" else np.float64)
     base = np.ascontiguousarray(np.broadcast_to(base, counts.shape[1:]), dtype=np.float64)
     if counts.shape[-1] == 0:
         return np.zeros(counts.shape)
