@@ -15,8 +15,9 @@ from spco.model.kernels.categorical import sample_joint_assignment
 from spco.model.kernels.counts import _grouped_row_sums, grouped_row_sums
 from spco.model.kernels.crt import _crt_entries, _crt_totals_rows, sample_crt, sample_crt_totals
 from spco.model.kernels.dirichlet import (
-    _dirichlet_rows,
+    _COUNT_DTYPE,
     _hierarchical_dirichlet_rows,
+    _read_only,
     log_dirichlet_hierarchical,
 )
 from spco.model.kernels.likelihood import (
@@ -27,6 +28,13 @@ from spco.model.kernels.likelihood import (
     likelihood_table,
 )
 from spco.model.kernels.niw import _niw_rows, sample_niw
+
+
+def _rows_args(shape: np.ndarray, seed: np.uint64, out: np.ndarray) -> tuple:
+    """The hierarchical kernel's arguments for plain Dirichlet rows of ``shape`` into ``out`` (no
+    counts), as ``log_dirichlet`` passes them."""
+    counts = np.zeros((1, *shape.shape), dtype=_COUNT_DTYPE)
+    return (_read_only(shape), _read_only(counts), seed, out.reshape(1, *shape.shape))
 
 
 def _both(kernel, args: tuple, n_items: int, out: np.ndarray, vectorised: bool = False) -> tuple:
@@ -44,7 +52,8 @@ def test_dirichlet_rows_same_in_parts(n_rows: int) -> None:
     rng = np.random.default_rng(n_rows)
     shape = rng.gamma(0.3, 1.0, size=(n_rows, 300)) + 1e-3
     out = np.empty(shape.shape)
-    serial, parts = _both(_dirichlet_rows, (shape, np.uint64(5), out), n_rows, out, vectorised=True)
+    serial, parts = _both(_hierarchical_dirichlet_rows, _rows_args(shape, np.uint64(5), out), n_rows, out,
+                          vectorised=True)
     np.testing.assert_array_equal(serial, parts)
     assert np.allclose(np.exp(serial).sum(axis=1), 1.0)
 
@@ -108,14 +117,14 @@ def test_calls_from_several_python_threads_at_once() -> None:
     rng = np.random.default_rng(3)
     shape = rng.gamma(0.3, 1.0, size=(6, 500)) + 1e-3
     expected = np.empty(shape.shape)
-    dispatch._call_in_parts(_dirichlet_rows, (shape, np.uint64(1), expected), 6, parallel=False,
-                            vectorised=True)
+    dispatch._call_in_parts(_hierarchical_dirichlet_rows, _rows_args(shape, np.uint64(1), expected), 6,
+                            parallel=False, vectorised=True)
     results = [np.empty(shape.shape) for _ in range(4)]
 
     def run(out: np.ndarray) -> None:
         for _ in range(20):
-            dispatch._call_in_parts(_dirichlet_rows, (shape, np.uint64(1), out), 6, parallel=True,
-                                    vectorised=True)
+            dispatch._call_in_parts(_hierarchical_dirichlet_rows, _rows_args(shape, np.uint64(1), out), 6,
+                                    parallel=True, vectorised=True)
 
     threads = [threading.Thread(target=run, args=(out,)) for out in results]
     for thread in threads:

@@ -136,10 +136,10 @@ def _compile_group(entries: list[dict]) -> float:
     return time.perf_counter() - start
 
 
-#: Modules whose kernels call the same compiled (not inlined) gamma samplers (``_log_gamma_row``,
-#: ``_stream_gamma``): compiled in one process, they are compiled once (about 5 s), not once per
-#: process.
-_GAMMA_CALLERS = ("spco.model.kernels.dirichlet", "spco.model.kernels.niw")
+#: The gamma samplers' module (``_log_gamma_row`` is called from Python too) and the modules whose
+#: kernels call the same compiled (not inlined) gamma samplers (``_log_gamma_row``,
+#: ``_stream_gamma``): compiled in one process, they are compiled once, not once per process.
+_GAMMA_CALLERS = ("spco.model.kernels.dirichlet", "spco.model.kernels.gamma", "spco.model.kernels.niw")
 
 #: Modules whose listed kernels call the same compiled helpers of their own (the label-swap pass
 #: and its log-gamma table share ``moves._log_gamma_values``): each module's kernels are compiled

@@ -7,6 +7,8 @@ on one thread, many short rows (π over K = 20 regions, θ^w over a few words) a
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
@@ -19,15 +21,6 @@ from spco.model.kernels.special import _scaled_exp
 # type of its own, as is the uint64 index of a prange loop; one type each, one compilation (~5 s).
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def _dirichlet_rows(shape: np.ndarray, seed: np.uint64, out: np.ndarray, first: int, stop: int) -> None:
-    """log Dirichlet rows first..stop−1 of ``shape`` into ``out``, row r on the streams of r: the
-    same draws whichever thread runs which rows (:func:`_call_in_parts`)."""
-    scratch = _row_scratch(shape.shape[1])
-    for r in range(first, stop):
-        _log_gamma_row(shape[r], out[r], seed, r, np.bool_(True), scratch)
-
-
 def _short_rows(n_rows: int, width: int) -> bool:
     """Whether a batch of Dirichlet rows is drawn as one flat batch of gamma variates
     (:func:`_dirichlet_short_rows`): rows short enough for :func:`_log_gamma_row` to take them one
@@ -35,35 +28,30 @@ def _short_rows(n_rows: int, width: int) -> bool:
     return width <= _SHORT_ROW and n_rows * width >= 4 * _SHORT_ROW
 
 
-@njit(cache=True, error_model="numpy")
 def _dirichlet_short_rows(shape: np.ndarray, seed: np.uint64, out: np.ndarray) -> None:
-    """log Dirichlet rows of ``shape`` (R, W) into ``out``, for many short rows (π over K = 20
-    regions, θ^w over a few words): the gamma variates of all rows in one vectorised pass of
-    :func:`_log_gamma_row` (its eight streams of ``seed``), then each row normalised by a
-    log-sum-exp (a row of zero shapes stays −inf)."""
+    """log Dirichlet rows of ``shape`` (R, W) into ``out`` (both float64, C-contiguous), for many
+    short rows (π over K = 20 regions, θ^w over a few words): the gamma variates of all rows in one
+    vectorised pass of the compiled :func:`_log_gamma_row` (its eight streams of ``seed``), then each
+    row normalised by a log-sum-exp here (a row of zero shapes stays −inf). Not a kernel of its own,
+    which would compile the gamma row sampler into itself once more; the sums are taken left to
+    right (``cumsum``) and the logarithms by the C library's ``log``, as a compiled loop takes
+    them."""
     n_rows, width = shape.shape
-    size = n_rows * width
-    _log_gamma_row(shape.reshape(-1), out.reshape(-1), seed, np.int64(0), np.bool_(False), _row_scratch(size))
-    tops = np.empty(n_rows)
-    shifted = np.empty((n_rows, width))
-    for r in range(n_rows):
-        top = -np.inf
-        for j in range(width):
-            top = max(top, out[r, j])
-        tops[r] = top
-        for j in range(width):
-            shifted[r, j] = out[r, j] - top if top > -np.inf else -np.inf
-    weights = np.empty((n_rows, width))
-    _scaled_exp(shifted.reshape(-1), 1.0, weights.reshape(-1), np.empty(size))
-    for r in range(n_rows):
-        if tops[r] == -np.inf:
-            continue
-        acc = 0.0
-        for j in range(width):
-            acc += weights[r, j]
-        log_total = tops[r] + np.log(acc)
-        for j in range(width):
-            out[r, j] -= log_total
+    flat = shape.reshape(-1)
+    if not flat.flags.writeable:  # (one compiled signature of the row sampler)
+        flat = flat.copy()
+    _call_vectorised(_log_gamma_row, (flat, out.reshape(-1), seed, np.int64(0), np.bool_(False),
+                                      _row_scratch(n_rows * width)))
+    tops = out.max(axis=1)
+    live = tops > -np.inf
+    shift = np.where(live, tops, 0.0)  # (a row of −inf stays −inf)
+    weights = np.empty(n_rows * width)
+    _scaled_exp((out - shift[:, None]).reshape(-1), 1.0, weights, np.empty(n_rows * width))
+    sums = np.cumsum(weights.reshape(n_rows, width), axis=1)[:, -1]
+    log_total = np.array([top + math.log(total) if alive else 0.0  # (math.log: the C library's, as compiled)
+                          for top, total, alive in zip(tops.tolist(), sums.tolist(), live.tolist(),
+                                                       strict=True)])
+    out -= log_total[:, None]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -106,10 +94,26 @@ def log_dirichlet(alpha: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     seed = np.uint64(rng.integers(0, 2**63 - 1, dtype=np.int64))
     parallel = rows.size >= _PARALLEL_MIN
     if not parallel and _short_rows(*rows.shape):
-        _call_vectorised(_dirichlet_short_rows, (rows, seed, out))
-    else:
-        _call_in_parts(_dirichlet_rows, (rows, seed, out), rows.shape[0], parallel, vectorised=True)
+        _dirichlet_short_rows(rows, seed, out)
+    else:  # the hierarchical draw with no counts: base + 0 is base, row r on the streams of r
+        base, no_counts = _read_only(rows), _read_only(np.zeros((1, *rows.shape), dtype=_COUNT_DTYPE))
+        _call_in_parts(_hierarchical_dirichlet_rows, (base, no_counts, seed, out.reshape(1, *rows.shape)),
+                       rows.shape[0], parallel, vectorised=True)
     return out.reshape(alpha.shape)
+
+
+#: The whole counts' dtype of :func:`_hierarchical_dirichlet_rows` (and of the no counts of
+#: :func:`log_dirichlet`: one compiled signature for both).
+_COUNT_DTYPE = np.int64
+
+
+def _read_only(array: np.ndarray) -> np.ndarray:
+    """A read-only view of ``array`` (no copy): the kernels' signatures take read-only inputs, so
+    whoever owns an array, one compilation serves."""
+    if array.flags.writeable:
+        array = array.view()
+        array.flags.writeable = False
+    return array
 
 
 def log_dirichlet_hierarchical(base: np.ndarray, counts: np.ndarray, rng: np.random.Generator,
@@ -130,23 +134,20 @@ def log_dirichlet_hierarchical(base: np.ndarray, counts: np.ndarray, rng: np.ran
     """
     # whole counts as int64 (the cut sampler's, compiled ahead), real ones (the power target's) as float64
     counts = np.asarray(counts)
-    counts = np.ascontiguousarray(counts, dtype=np.int64 if counts.dtype.kind in "iub" else np.float64)
+    counts = np.ascontiguousarray(counts, dtype=_COUNT_DTYPE if counts.dtype.kind in "iub" else np.float64)
     base = np.ascontiguousarray(np.broadcast_to(base, counts.shape[1:]), dtype=np.float64)
     if counts.shape[-1] == 0:
         return np.zeros(counts.shape)
     if out is None or out.shape != counts.shape or out.dtype != np.float64 or not out.flags.c_contiguous:
         out = np.empty(counts.shape)
     seed = np.uint64(rng.integers(0, 2**63 - 1, dtype=np.int64))
-    if counts.flags.writeable:  # a read-only view (no copy): one compiled signature, whoever owns counts
-        counts = counts.view()
-        counts.flags.writeable = False
+    counts = _read_only(counts)  # (and base, below: one compiled signature, whoever owns them)
     parallel = counts.size >= _PARALLEL_MIN
     n_rows, width = counts.shape[0] * counts.shape[1], counts.shape[2]
     if not parallel and _short_rows(n_rows, width):  # (the same sums base + counts as the kernel's)
-        _call_vectorised(_dirichlet_short_rows, ((base + counts).reshape(n_rows, width), seed,
-                                                 out.reshape(n_rows, width)))
+        _dirichlet_short_rows((base + counts).reshape(n_rows, width), seed, out.reshape(n_rows, width))
     else:
-        _call_in_parts(_hierarchical_dirichlet_rows, (base, counts, seed, out), n_rows, parallel,
+        _call_in_parts(_hierarchical_dirichlet_rows, (_read_only(base), counts, seed, out), n_rows, parallel,
                        vectorised=True)
     return out
 
