@@ -10,12 +10,13 @@ taught), ``adapt`` each new home (nothing taught; same seed), then the names at 
 
 - ``before``: the model's p(w | x, v) as `what` gave it before the fix (every visual count a draw,
   free concepts' word distributions as averaged);
-- ``after``: ``spco.knowledge.what`` as it is (``spco.model.confidence.answer_names``: a view counts
-  as the model's view weight w); with ``--rooms`` the opt-in room account instead
-  (``spco.knowledge.name_prediction(by_room=True)``, ``spco.model.rooms``: the pose's room, its
-  training views pooled, and the view, each counted as w), where a ``development-new`` view — a
-  training sample of its home — is answered with itself left out of its room's views
-  (:func:`_answer_left_out`), as a new view would be.
+- ``after``: ``spco.knowledge.what`` as it is (``spco.model.confidence.answer_names``, the room
+  account ``spco.model.rooms``: the pose's room, its training views pooled, and the view, each counted
+  as the model's view weight w), where a ``development-new`` view — a training sample of its home —
+  is answered with itself left out of its room's views (:func:`_answer_left_out`), as a new view
+  would be; with ``--view-by-view`` the view and the pose against the home's π and θ^v instead
+  (``spco.knowledge.name_prediction(by_room=False)``: what ``what`` answered before the room account
+  was the default), for a comparison on the same models.
 
 Printed per set and configuration, pooled over new homes and seeds: ECE (10 equal-width bins of
 the answer's probability), accuracy of the answer, mean confidence, the share of wrong answers given
@@ -90,7 +91,7 @@ class Task:
     homes: tuple[str, ...]
     set_name: str
     settings: tuple[str, ...] = ()  # ``--set NAME=VALUE`` of the knowledge's hyperparameters
-    rooms: bool = False  # ``--rooms``: answer with the room account (spco.model.rooms), opt-in
+    view_by_view: bool = False  # ``--view-by-view``: after = name_prediction(by_room=False), to compare
 
 
 def _load(data: Path, images: Path | None, names: Sequence[str], features: str, rate: int) -> list[Any]:
@@ -169,11 +170,8 @@ def _answer_left_out(model: Any, sample: int, pose: np.ndarray, view: Any) -> An
     counted twice: the answer a new view at that pose would get."""
     from spco.knowledge.queries import answer_parameters, home_rooms
     from spco.model.confidence import answer_names
-    from spco.model.rooms import HomeRooms
 
-    rooms = home_rooms(model)
-    keep = np.asarray(model.ids) != sample
-    rooms = HomeRooms.of(rooms.regions[keep], rooms.visual[keep], rooms.words[keep])
+    rooms = home_rooms(model).subset(np.asarray(model.ids) != sample)
     return answer_names(answer_parameters(model), 0, model.vocabulary, pose, view, top_k=1,
                         weighting=model.weighting, view_counts=model.hyperparameters.view_weight(),
                         rooms=rooms)
@@ -193,11 +191,11 @@ def run_task(task: Task, data: Path, images: Path | None, models: Path, force: b
         vocabulary = list(model.vocabulary.words)
         for i, label in enumerate(labels):
             theta = math.atan2(positions[i, 2], positions[i, 3])
-            if not task.rooms:  # what the robot answers
+            if task.view_by_view:  # the comparison: each of a room's views independent evidence
+                after = kn.name_prediction(model, positions[[i]], visual[[i]], top_k=1, by_room=False)
+            elif home.is_test.any():  # what the robot answers (the room account)
                 after = kn.what(model, float(positions[i, 0]), float(positions[i, 1]), theta,
                                 visual=visual[[i]].toarray()[0], top_k=1)
-            elif home.is_test.any():  # the room account at a test view
-                after = kn.name_prediction(model, positions[[i]], visual[[i]], top_k=1, by_room=True)
             else:  # a training sample scored (development-new): left out of its room, as a new view is
                 after = _answer_left_out(model, int(ids[i]), positions[[i]], visual[[i]])
             k = vocabulary.index(label) if label in vocabulary else None
@@ -440,9 +438,10 @@ def _arguments(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument("--first-seeds", type=int, default=None,
                         help="only the first N seeds of each set (a quick development look)")
     parser.add_argument("--sizes", default=None, help="only these experienced-home set sizes, e.g. 4,8")
-    parser.add_argument("--rooms", action="store_true",
-                        help="after = the room account (spco.knowledge.name_prediction(by_room=True); "
-                             "opt-in, docs/model.md, \"A room's evidence\") instead of what")
+    parser.add_argument("--view-by-view", action="store_true",
+                        help="after = the view and the pose against the home's π and θ^v "
+                             "(spco.knowledge.name_prediction(by_room=False), what `what` answered before "
+                             "the room account) instead of what, to compare on the same models")
     parser.add_argument("--set", dest="settings", action="append", default=[], metavar="NAME=VALUE",
                         help="a hyperparameter of the knowledge fits, as `spco fit --set` (e.g. "
                              "view_counts=estimate); use a fresh --out: kept models are not checked")
@@ -483,7 +482,7 @@ def _print_view_counts_fit(args: argparse.Namespace, models: Path) -> None:
 
 def _predictions(args: argparse.Namespace, models: Path, start: float) -> list[dict[str, Any]]:
     """Every configuration's answers (``args.jobs`` processes), also written to predictions.jsonl."""
-    tasks = [Task(f, size, seed, SETS[s]["homes"], s, tuple(args.settings), args.rooms)
+    tasks = [Task(f, size, seed, SETS[s]["homes"], s, tuple(args.settings), args.view_by_view)
              for s in args.sets for f in args.features
              for size in SETS[s]["sizes"] if args.sizes is None or str(size) in args.sizes.split(",")
              for seed in SETS[s]["seeds"][: args.first_seeds]]

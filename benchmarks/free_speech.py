@@ -77,6 +77,7 @@ from spco.model import SpCoTransfer
 from spco.model.confidence import model_answer_parameters
 from spco.model.position_prediction import predict_positions
 from spco.model.prediction import UnknownNameError
+from spco.model.rooms import model_rooms
 
 NEW_HOMES = ("1LDK_9", "2LDK_9", "3LDK_9")
 
@@ -215,7 +216,7 @@ def _score_home(tally: _Tally, args: argparse.Namespace, hyper: Any, seed: int, 
     for setting in tally.settings:  # the same draws of positions: only the names can differ
         option = dict(weight) if setting == "off" else {"name_prior": setting, **weight}
         scores = evaluate_home(model.parameters_, e, env, corpus.vocabulary, rng=seed, answer_params=answer,
-                               **option)
+                               answer_rooms=model_rooms(model, e), **option)
         tally.per_seed.append({"seed": seed, "home": home, "name_prior": setting,
                                "A_n": scores.mean_name_accuracy, "A_p": scores.mean_position_accuracy,
                                "A_n_places": scores.name_accuracy, "A_p_places": scores.position_accuracy})

@@ -92,9 +92,10 @@ def new_home(sigverse: Path, regions_file: Path, name: str, every_third: bool) -
 def run(sigverse: Path, regions_file: Path, side: str, seeds: list[int], sweeps: int,
         answers: tuple[str, ...] = ()) -> dict[str, Any]:
     """Fit and score every (seed, new home) of ``side``; returns the figures (see the docstring).
-    ``answers``: also score the names each fit's robot answers (``"robot"``:
-    :func:`spco.model.confidence.model_answer_parameters`, the view-by-view answer; ``"rooms"``: the
-    room account, :func:`spco.model.rooms.model_rooms`), from the same fit, as ``A_n_<answer>``."""
+    ``answers``: also score names from each fit's answer parameters
+    (:func:`spco.model.confidence.model_answer_parameters`) two ways (``"view"``: the view-by-view answer,
+    the robot's before the room account was the default; ``"rooms"``: the room account,
+    :func:`spco.model.rooms.model_rooms`, what the robot answers), from the same fit, as ``A_n_<answer>``."""
     from spco.model.confidence import model_answer_parameters
     from spco.model.rooms import model_rooms
 
@@ -121,7 +122,7 @@ def run(sigverse: Path, regions_file: Path, side: str, seeds: list[int], sweeps:
                          "A_p": float(a_p), "A_p_mixture": float(a_p_mix),
                          "A_n_places": {p: float(v) for p, v in scores.name_accuracy.items()}})
             e = len(corpus) - 1
-            for answer in answers:  # the same fit, names as the robot answers them
+            for answer in answers:  # the same fit, names from the answer parameters
                 answered = evaluate_home(model.parameters_, e, env, model.vocabulary_,
                                          rng=np.random.default_rng([run_seed, 1]), weighting=spec.weighting,
                                          name_prior=model.hyperparameters_.name_prior,
@@ -174,12 +175,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     parser.add_argument("--sweeps", type=int, default=200, help="Gibbs sweeps (spco experiment's default)")
     parser.add_argument("--json", type=Path, default=None, help="write every figure to this file")
-    parser.add_argument("--answers", default="", help="also score the robot's answers from the same fits: "
-                        "robot (view by view), rooms (the room account), comma-separated")
+    parser.add_argument("--answers", default="", help="also score answers from the same fits: view (view by "
+                        "view), rooms (the room account, the robot's answer), comma-separated")
     args = parser.parse_args(argv)
     answers = tuple(a for a in args.answers.split(",") if a)
-    if set(answers) - {"robot", "rooms"}:
-        parser.error(f"--answers: choose from robot, rooms, got {args.answers!r}")
+    if set(answers) - {"view", "rooms"}:
+        parser.error(f"--answers: choose from view, rooms, got {args.answers!r}")
     side = SIDES[args.side]
     bad = [s for s in args.seeds if s not in side["seeds"]]
     if bad:
@@ -200,7 +201,7 @@ def main(argv: list[str] | None = None) -> int:
     for home, figs in summary["per_home"].items():
         print(f"| {args.side}, {home} | | | {_cell(figs['A_n'])} | {_cell(figs['A_p'])} |")
     for answer in answers:
-        print(f"A_n as the robot answers ({answer}): {_cell(summary[f'A_n_{answer}'])}")
+        print(f"A_n, answer {answer}: {_cell(summary[f'A_n_{answer}'])}")
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         tmp = args.json.with_name(args.json.name + ".tmp")

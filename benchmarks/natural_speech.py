@@ -52,6 +52,7 @@ from spco.evaluation.experiments import trial_seed
 from spco.model import SpCoTransfer
 from spco.model.confidence import model_answer_parameters
 from spco.model.hyperparameters import TransferHyperparameters
+from spco.model.rooms import model_rooms
 
 SIDES = {
     "development": {"knowledge": ("1LDK_1", "1LDK_3", "1LDK_5", "1LDK_7",
@@ -182,7 +183,8 @@ def main() -> None:
             scored = scored_as_test(env) if label.endswith("(out)") else env
             e = len(corpus) - 1
             scores = evaluate_home(model.parameters_, e, scored, corpus.vocabulary, rng=seed,
-                                   answer_params=model_answer_parameters(model, e), **weight)
+                                   answer_params=model_answer_parameters(model, e),
+                                   answer_rooms=model_rooms(model, e), **weight)
             gt = env.ground_truth
             for place, name in zip(scores.labels, scores.predicted_names, strict=True):
                 if name not in gt.accepted(place):

@@ -3,9 +3,10 @@
 Issue 29 ("A room's evidence", docs/model.md). Runs the home-specific experiment of
 ``benchmarks/development/specific_dev.json`` (``spco experiment specific``'s own run,
 :func:`spco.evaluation.specific_config.execute_configured_run`: fit, then score each configured room)
-and scores every run twice from the one fit: names as the view-by-view answer gives them and as the
-room account gives them (``answer_rooms=spco.model.rooms.model_rooms(model, e)``, what
-``spco.knowledge.name_prediction(by_room=True)`` answers). Prints A_n per run and the mean over the
+and scores every run twice from the one fit: names as the view-by-view answer gives them (what
+``spco.knowledge.name_prediction(by_room=False)`` answers; the robot's answer before the room account
+was the default) and as the room account gives them (``answer_rooms=spco.model.rooms.model_rooms(model,
+e)``, the experiment's own score and what ``what`` answers). Prints A_n per run and the mean over the
 rooms of all runs for each. Development only: ``specific_dev.json`` is the development file of
 benchmarks/SPLIT.md.
 
@@ -40,8 +41,11 @@ def _answer_parameters(model: Any, e: int) -> Any:
 
 
 def _score_both(params: Any, e: int, env: Any, vocabulary: Any, rooms: Any, weighting: Any, n_positions: int,
-                rng: np.random.Generator, view_counts: Any, answer_params: Any = None) -> Any:
-    """The run's own scores (the view-by-view answer), and the room account's from the same fit."""
+                rng: np.random.Generator, view_counts: Any, answer_params: Any = None,
+                answer_rooms: Any = None) -> Any:
+    """The view-by-view answer's scores (returned: the record's ``rooms``), and the room account's from
+    the same fit (``_ROOMS``: the record's ``rooms_account``; the run passes ``answer_rooms``, which is
+    the same :func:`~spco.model.rooms.model_rooms`)."""
     again = copy.deepcopy(rng)
     plain = _SCORE_ROOMS(params, e, env, vocabulary, rooms, weighting, n_positions, rng, view_counts,
                          answer_params)

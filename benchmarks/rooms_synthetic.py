@@ -44,10 +44,18 @@ from spco.model.prediction import concept_posterior, predict_names
 from spco.model.rooms import concepts_by_room, model_rooms, room_concepts
 
 
+def _by_regions(rooms: Any) -> Any:
+    """``rooms`` with a room = a region (no concepts), as the room account was first built."""
+    from spco.model.rooms import HomeRooms
+
+    return HomeRooms.of(rooms.regions, rooms.visual, rooms.words, None)
+
+
 def _by_region(params: Any, e: int, positions: np.ndarray, visual: Any, rooms: Any, w: float | None
                ) -> np.ndarray:
     """The room account as first built (calib3, 0db7a18): P(l | x, v) = Σ_k p(k | x) p(l | room k, v),
     the region chosen by the pose alone — the view does not weigh in on which room the pose is in."""
+    rooms = _by_regions(rooms)
     from scipy.special import logsumexp
 
     from spco.model.prediction import _visual_log_likelihood, gaussian_log_density
@@ -68,7 +76,9 @@ def _by_region(params: Any, e: int, positions: np.ndarray, visual: Any, rooms: A
 def _by_region_concept(params: Any, e: int, positions: np.ndarray, visual: Any, rooms: Any, w: float | None,
                        concepts: np.ndarray) -> np.ndarray:
     """The room account with a room = the training samples sharing a region *and* a concept in the
-    sampler's state (a region that holds two places holds two rooms), each at its region's Gaussian."""
+    sampler's state (a region that holds two places holds two rooms), each at its region's Gaussian:
+    built by hand here (each pair as a region of its own), as ``spco.model.rooms`` now builds it."""
+    rooms = _by_regions(rooms)
     from dataclasses import replace
 
     from spco.model.rooms import HomeRooms
@@ -164,7 +174,8 @@ def one_run(data: Any, model_name: str, setting: int, trial: int, home: str, ite
 def _disagreements(model: Any, e: int, env: Any, params: Any, rooms: Any, w: float | None,
                    test: np.ndarray, labels: list[str], default_right: np.ndarray,
                    rooms_right: np.ndarray) -> list[dict[str, Any]]:
-    """Why each test sample answered right by one account and wrong by the other is so."""
+    """Why each test sample answered right by one account and wrong by the other is so (by region)."""
+    rooms = _by_regions(rooms)
     from spco.model.prediction import _visual_log_likelihood, gaussian_log_density
 
     state_regions = rooms.regions
@@ -208,7 +219,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--new-homes", default=None,
                         help="comma-separated (default: every synthetic new home)")
     parser.add_argument("--answers", default="default,rooms",
-                        help="default (view by view), rooms (the room account), by-region (the room account "
+                        help="default (view by view: the robot's answer before the room account was made the "
+                        "default), rooms (the room account, the robot's answer), by-region (the room account "
                              "as first built: the region by the pose alone), region-concept (a room = a "
                              "region and a sampler concept)")
     parser.add_argument("--out", type=Path, default=None, help="write every run's record here (JSON lines)")

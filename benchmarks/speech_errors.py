@@ -63,6 +63,7 @@ from spco.model.home_shard import name_words, switch_tokens
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.position_prediction import predict_positions
 from spco.model.prediction import UnknownNameError, concept_posterior
+from spco.model.rooms import model_rooms
 
 #: A name of another place counts as said here (class b) when at least this share of the place's
 #: sentences (the development homes' people) hold it.
@@ -277,7 +278,9 @@ def main() -> None:
             scored = scored_as_test(env) if label.endswith("(out)") else env
             answer = None if args.fit_parameters else model_answer_parameters(model, e)
             scores = evaluate_home(model.parameters_, e, scored, corpus.vocabulary, rng=seed,
-                                   answer_params=answer, **weight)
+                                   answer_params=answer,
+                                   answer_rooms=None if args.fit_parameters else model_rooms(model, e),
+                                   **weight)
             said = place_speech(knowledge, corpus)  # every development home's people
             home = label.split()[0]
             _answers(model, corpus, e, env, scored, scores, accepted, said, table[home], words, home)

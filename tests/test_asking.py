@@ -352,3 +352,44 @@ def test_the_http_question_is_the_library_question_as_json() -> None:
                            names=(("kitchen", 0.6), ("bath", 0.3)), unknown=0.1, confidence=0.6)
     assert set(QuestionJSON.model_fields) == set(question.to_dict())
     assert QuestionJSON.model_validate(question.to_dict()).model_dump() == question.to_dict()
+
+
+def test_what_and_ask_answer_with_one_predictor(world: dict) -> None:
+    """`what` (name_prediction), its one-pose form and `ask`'s question scores all read P(l | pose, view)
+    from spco.model.confidence.answer_concepts with the home's rooms (the room account): the same
+    numbers, and not the view-by-view posterior of the home's π and θ^v."""
+    from spco.knowledge.asking import home_question_scores, name_columns
+    from spco.knowledge.queries import answer_parameters, home_rooms
+    from spco.model.confidence import answer_concepts
+    from spco.model.prediction import concept_posterior
+    from spco.model.rooms import concepts_by_room
+
+    home = world["home"]
+    w = home.hyperparameters.view_weight()
+    params = answer_parameters(home)
+    concepts = answer_concepts(params, 0, home.positions, home.visual, view_counts=w, rooms=home_rooms(home))
+    np.testing.assert_allclose(concepts, concepts_by_room(params, 0, home.positions, home.visual,
+                                                          home_rooms(home), w))
+    view_by_view = concept_posterior(params, 0, home.positions, home.visual, view_counts=w)
+    assert np.abs(concepts - view_by_view).max() > 1e-3  # a different account, not a relabelling
+    said = kn.name_prediction(home, home.positions, home.visual, top_k=len(home.vocabulary))
+    theta = np.asarray(params.word_probabilities[0], dtype=float) * np.asarray(params.word_mask, bool)
+    expected = concepts @ theta
+    np.testing.assert_allclose(said.word_probabilities, expected / expected.sum(axis=1, keepdims=True),
+                               atol=1e-12)
+    columns = name_columns(home)
+    model = home_question_scores(home).model_probabilities
+    mine = said.word_probabilities[:, columns]
+    # (the scores leave out the concepts they count unnamed: here a share of at most ~1e-5)
+    np.testing.assert_allclose(model, mine / mine.sum(axis=1, keepdims=True), atol=1e-4)
+    assert np.abs(model - concept_posterior_names(view_by_view, theta, columns)).max() > 1e-3
+    i = 7
+    x, y, s, c = (float(v) for v in home.positions[i])  # `what` at one pose: the same answer
+    one = kn.what(home, x, y, float(np.arctan2(s, c)), visual=home.visual[[i]].toarray()[0], top_k=1)
+    assert one.best[0] == said.best[i] and one.confidence[0] == pytest.approx(said.confidence[i])
+
+
+def concept_posterior_names(concepts: np.ndarray, theta: np.ndarray, columns: np.ndarray) -> np.ndarray:
+    """p(name | x, v) over the name ``columns`` from a concept posterior, renormalised."""
+    p = (concepts @ theta)[:, columns]
+    return p / p.sum(axis=1, keepdims=True)

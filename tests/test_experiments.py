@@ -27,7 +27,7 @@ from spco.evaluation.experiments import (
 from spco.evaluation.report import format_cell, summarize
 
 SMALL = {"experiment": "general", "settings": (0, 2), "trials": 2, "iterations": 10,
-         "models": ("spcotransfer", "spcoa")}
+         "models": ("spcotransfer+mi", "spcoa")}
 RUN_KEYS = {"experiment", "model", "setting", "home", "trial", "place", "name_accuracy",
             "position_accuracy", "position_accuracy_mixture",
             "seed", "iterations", "wall_seconds", "reused_from_setting"}
@@ -48,7 +48,7 @@ def general_out(tmp_path_factory: pytest.TempPathFactory, new_home: str) -> Path
     out = tmp_path_factory.mktemp("general") / "out"
     result = CliRunner().invoke(experiment, [
         "general", "--envs", "0,2", "--trials", "2", "--iterations", "10",
-        "--models", "spcotransfer,spcoa", "--new-homes", new_home, "--out", str(out), "--quiet",
+        "--models", "spcotransfer+mi,spcoa", "--new-homes", new_home, "--out", str(out), "--quiet",
     ])
     assert result.exit_code == 0, result.output
     assert "8 runs" in result.output
@@ -84,13 +84,18 @@ def test_results_schema(general_out: Path, new_home: str) -> None:
                                                               for s in (0, 2)}
     assert all(s["n"] == 2 for s in mean_rows)
     # transfer from 2 experienced homes names the new home's places better than from none and than
-    # chance (10 sweeps, seed 0: 0.250 against 0.000, chance 0.067 — at the bound since at least
-    # 73a4e45; over 15 runs of this configuration 0.434: benchmarks/README, "Issue 29: the room
-    # account on synthetic homes"); SpCoA learns the new home alone, which is taught nothing: it
-    # never says a place's name there
+    # chance, with the model the robot ships (spcotransfer+mi) and its answers (the room account).
+    # The bound has a margin: over 10 runs of this configuration (this new home, 2 homes, 10 sweeps,
+    # trials 0-9; benchmarks/rooms_synthetic.py, benchmarks/README "Issue 29: the room account the
+    # default") every run scored >= 0.667, mean 0.850 [0.772, 0.928] with the room account and 0.850
+    # [0.768, 0.932] with the view-by-view answer of main 445a282; this test's two runs (trials 0, 1)
+    # average 0.883 (room account) and 0.875 (view by view). From 0 homes it names nothing (0.000),
+    # chance is 0.067. (Plain spcotransfer, without the naming rule, scored 0.000-1.000 per run, mean
+    # 0.36, and this test's two runs exactly its old bound of 0.25: too noisy for a 2-run bound.)
+    # SpCoA learns the new home alone, which is taught nothing: it never says a place's name there.
     mean_of = {(s["model"], s["setting"]): s["name_accuracy_mean"] for s in mean_rows}
     chance = results["chance"]["name_accuracy"]
-    assert mean_of[("spcotransfer", 2)] >= max(mean_of[("spcotransfer", 0)] + 0.25, 3 * chance)
+    assert mean_of[("spcotransfer+mi", 2)] >= max(mean_of[("spcotransfer+mi", 0)] + 0.5, 6 * chance)
     assert mean_of[("spcoa", 0)] == mean_of[("spcoa", 2)] == 0.0
     # seeds: one per trial, shared by models and settings
     assert {r["seed"] for r in runs} == {trial_seed(0, 0), trial_seed(0, 1)}
@@ -109,10 +114,10 @@ def test_results_schema(general_out: Path, new_home: str) -> None:
 
 def test_tables_and_figures(general_out: Path) -> None:
     tables = (general_out / "tables.md").read_text()
-    assert "## spcotransfer: name accuracy A_n" in tables and "| chance |" in tables
+    assert "## spcotransfer+mi: name accuracy A_n" in tables and "| chance |" in tables
     assert "| experienced homes |" in tables
     pngs = ["general_name_accuracy.png", "general_position_accuracy.png",
-            "general_log_joint_spcotransfer.png", "general_log_joint_spcoa.png"]
+            "general_log_joint_spcotransfer_mi.png", "general_log_joint_spcoa.png"]
     for name in pngs:
         assert (general_out / name).stat().st_size > 1000, name
     maps = sorted((general_out / "maps").glob("*.png"))
@@ -175,12 +180,12 @@ def test_mixing_configurations_is_refused(general_out: Path, tmp_path: Path, new
         run_experiment(other, out)  # not empty, no --resume
     runner = CliRunner()
     res = runner.invoke(experiment, ["general", "--envs", "0,2", "--trials", "2", "--iterations", "10",
-                                     "--models", "spcotransfer", "--new-homes", new_home,
+                                     "--models", "spcotransfer+mi", "--new-homes", new_home,
                                      "--out", str(out), "--resume", "-q"])
     assert res.exit_code == 2 and "models" in res.output and "Traceback" not in res.output
     # the opt-in name prior is another configuration too (the default's identity is the one from before)
     res = runner.invoke(experiment, ["general", "--envs", "0,2", "--trials", "2", "--iterations", "10",
-                                     "--models", "spcotransfer,spcoa", "--new-homes", new_home,
+                                     "--models", "spcotransfer+mi,spcoa", "--new-homes", new_home,
                                      "--out", str(out), "--resume", "-q", "--name-prior", "wordnet"])
     assert res.exit_code == 2 and "name_prior" in res.output and "Traceback" not in res.output
     # --force starts over

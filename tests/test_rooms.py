@@ -1,4 +1,5 @@
-"""A room's evidence (spco.model.rooms): a region's views pooled count as one view, taught names count,
+"""A room's evidence (spco.model.rooms): a room's views pooled count as one view, taught names count, a
+region taught two names into two concepts is two rooms,
 and a room merged into another room's concept is not answered with certainty."""
 
 from __future__ import annotations
@@ -171,3 +172,45 @@ def test_the_view_weighs_in_on_which_room_the_pose_is_in() -> None:
     joint = logsumexp(log_k[:, None] + log_room + log_view[None, :], axis=0)
     np.testing.assert_allclose(got[0], np.exp(joint - logsumexp(joint)), rtol=1e-9, atol=1e-12)
     assert np.exp(log_k[1] - logsumexp(log_k)) > 0.85 and int(np.argmax(got[0])) == 0 and got[0, 0] > 0.9
+
+
+def test_a_region_taught_two_names_holds_two_rooms() -> None:
+    """A region where two names were taught into two concepts — 15 samples "washroom" and 5 "dining"
+    (the sampler gives each name its concept) — is two rooms at the region's Gaussian, each judged by
+    its own names: the answer there keeps both names, 3 : 1 by the rooms' taught samples (one room per
+    region would have to give both names' tokens to one concept). A region with untaught samples and one
+    taught name is one room: the name decides it."""
+    params, phi = _world()
+    visual = sp.csr_array(sp.vstack([_room_views(phi, np.array([1.0, 0.0, 0.0]), 20, 200, seed=10),
+                                     _room_views(phi, np.array([0.0, 1.0, 0.0]), 20, 200, seed=11)]))
+    words = sp.lil_array((40, 3))
+    concepts = np.repeat([0, 1], 20)
+    for t in range(20, 40):
+        words[t, 1 if t < 35 else 2] = 5000  # S^w = 5000 counts per token
+    concepts[35:] = 2
+    rooms = HomeRooms.of(np.repeat([0, 1], 20), visual, sp.csr_array(words), concepts)
+    got = answer_names(params, 0, Vocabulary(list(NAMES)), np.array([[2.0, 0.0, 0.0, 1.0]]), None,
+                       view_counts=16.0, weighting="none", rooms=rooms)
+    p = dict(zip(got.words[0], got.probabilities[0], strict=True))
+    assert got.best == ["washroom"] and p["dining"] == pytest.approx(0.25, abs=0.02)
+    assert p["washroom"] == pytest.approx(0.75, abs=0.02)
+    counts, _ = room_concepts(params, 0, rooms, 16.0)
+    assert sorted(counts.tolist()) == [5.0, 15.0, 20.0]  # rooms (0), (1, washroom), (1, dining)
+    # one name taught once in the kitchen's region, its sample in a concept of its own: one room
+    words = sp.lil_array((40, 3))
+    words[3, 2] = 5000
+    concepts = np.repeat([0, 1], 20)
+    concepts[3] = 2
+    one = HomeRooms.of(np.repeat([0, 1], 20), visual, sp.csr_array(words), concepts)
+    counts, post = room_concepts(params, 0, one, 16.0)
+    assert sorted(counts.tolist()) == [20.0, 20.0] and post[0].argmax() == 2
+
+
+def test_bad_room_concepts_are_refused() -> None:
+    params, _ = _world()
+    with pytest.raises(ConfigurationError, match="concepts"):
+        HomeRooms.of([0, 1], sp.csr_array((2, D)), sp.csr_array((2, 3)), [0])
+    with pytest.raises(ConfigurationError, match="negative"):
+        HomeRooms.of([0], sp.csr_array((1, D)), sp.csr_array((1, 3)), [-2])
+    with pytest.raises(ConfigurationError, match="concept 7"):
+        room_concepts(params, 0, HomeRooms.of([0], sp.csr_array((1, D)), sp.csr_array((1, 3)), [7]), 16.0)

@@ -14,7 +14,6 @@ import scipy.sparse as sp
 import spco.knowledge as kn
 from spco.errors import ConfigurationError
 from spco.model.hyperparameters import ESTIMATE, VIEW_COUNTS, TransferHyperparameters
-from spco.model.prediction import predict_names
 from spco.model.state import PreparedData, SamplerSettings
 from spco.model.view_fit import (
     VIEW_WEIGHT_GRID,
@@ -202,11 +201,15 @@ def test_the_knowledge_carries_the_estimate_and_every_answer_uses_it(fitted) -> 
     pose = home.positions[0]
     view = home.visual[[0]].toarray()[0]
     answer = kn.what(home, float(pose[0]), float(pose[1]), math.atan2(pose[2], pose[3]), visual=view)
+    from spco.knowledge.queries import home_rooms
+    from spco.model.confidence import answer_names
+
     params = kn.answer_parameters(home)
-    same = predict_names(params, 0, home.vocabulary, pose[None], view[None], weighting=home.weighting,
-                         view_counts=w)
-    other = predict_names(params, 0, home.vocabulary, pose[None], view[None], weighting=home.weighting,
-                          view_counts=None)
+    rooms = home_rooms(home)  # the robot's answer: the room account (docs/model.md, "A room's evidence")
+    same = answer_names(params, 0, home.vocabulary, pose[None], view[None], weighting=home.weighting,
+                        view_counts=w, rooms=rooms)
+    other = answer_names(params, 0, home.vocabulary, pose[None], view[None], weighting=home.weighting,
+                         view_counts=None, rooms=rooms)
     assert np.allclose(answer.word_probabilities, same.word_probabilities)
     assert not np.allclose(same.word_probabilities, other.word_probabilities)
 

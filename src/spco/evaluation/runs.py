@@ -30,6 +30,7 @@ from spco.evaluation.metrics import HomeScores, evaluate_home
 from spco.evaluation.models import MODELS
 from spco.model.confidence import model_answer_parameters
 from spco.model.hyperparameters import TransferHyperparameters
+from spco.model.rooms import model_rooms
 from spco.model.transfer import SpatialConceptModel
 
 
@@ -166,8 +167,10 @@ def execute_run(data: ExperimentData, ctx: _RunContext, key: RunKey) -> dict[str
                            n_positions=ctx.n_positions, rng=np.random.default_rng([seed, 1]),
                            weighting=spec.weighting, name_prior=model.hyperparameters_.name_prior,
                            view_counts=model.settings_.view_counts,
-                           # what the robot answers (a home adapted from a knowledge): SpCoA has none
-                           answer_params=None if spec.single_home else model_answer_parameters(model, e))
+                           # what the robot answers (a home adapted from a knowledge, the room account):
+                           # SpCoA has none
+                           answer_params=None if spec.single_home else model_answer_parameters(model, e),
+                           answer_rooms=None if spec.single_home else model_rooms(model, e))
     wall = time.perf_counter() - start
     if traced:
         path = map_path(Path(ctx.out), ctx.experiment, key.model, key.setting, key.home)

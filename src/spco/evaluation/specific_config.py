@@ -76,6 +76,7 @@ from spco.evaluation.specific_file import (
     teaching_sentences,
 )
 from spco.model.confidence import model_answer_parameters
+from spco.model.rooms import model_rooms
 
 __all__ = [
     "CONFIG_FORMAT",
@@ -322,7 +323,8 @@ def execute_configured_run(data: ConfiguredData, key: ConfiguredRun, iterations:
     e = len(corpus) - 1
     scores = score_rooms(model.parameters_, e, new, model.vocabulary_, conf.rooms, spec.weighting,
                          n_positions, np.random.default_rng([key.seed, 1]), model.settings_.view_counts,
-                         None if spec.single_home else model_answer_parameters(model, e))
+                         None if spec.single_home else model_answer_parameters(model, e),
+                         None if spec.single_home else model_rooms(model, e))
     return {
         "fingerprint": fingerprint,
         "configuration": key.configuration,

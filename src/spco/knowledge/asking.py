@@ -19,10 +19,9 @@ import scipy.sparse as sp
 
 from spco.errors import ConfigurationError
 from spco.knowledge.home import HomeModel
-from spco.knowledge.queries import answer_parameters, name_prediction
-from spco.model.confidence import UNSURE_BELOW
+from spco.knowledge.queries import answer_parameters, home_rooms, name_prediction
+from spco.model.confidence import UNSURE_BELOW, answer_concepts
 from spco.model.home_shard import FREE_CONCEPT_WEIGHT
-from spco.model.prediction import concept_posterior
 from spco.model.question_scores import QuestionScores, question_scores, rank_questions
 
 __all__ = ["DEFAULT_CRITERION", "NAMELESS_MASS", "Question", "ask",
@@ -94,8 +93,9 @@ def home_question_scores(home: HomeModel, criterion: str = DEFAULT_CRITERION) ->
     """What an answer at each of the home's samples would teach
     (:func:`spco.model.question_scores.question_scores` on the home's state).
 
-    The inputs: the concept posterior P(l | x_i, v_i) of every sample from the home's averaged
-    parameters (as ``what``); each concept's distribution over the usable names (θ^w of the home);
+    The inputs: the concept posterior P(l | x_i, v_i) of every sample as ``what`` answers it (the room
+    account, :func:`spco.model.confidence.answer_concepts`); each concept's distribution over the
+    usable names (θ^w of the home);
     the *unnamed* concepts — those the knowledge does not use (G_0 below
     :data:`~spco.model.home_shard.FREE_CONCEPT_WEIGHT`) holding no sample taught in this home, and
     those whose usable names hold less than :data:`NAMELESS_MASS` of their words; the *kind* of each
@@ -114,8 +114,11 @@ def home_question_scores(home: HomeModel, criterion: str = DEFAULT_CRITERION) ->
         raise ConfigurationError("ask() expects a HomeModel (from adapt or load_home_model)")
     params = answer_parameters(home)  # p(name | concept) as what answers
     columns = name_columns(home)
-    concepts = concept_posterior(params, 0, home.positions, home.visual,
-                                 view_counts=home.hyperparameters.view_weight())  # as what scores a view
+    # P(l | x_i, v_i) as `what` answers it (the room account, spco.model.confidence.answer_concepts)
+    # (the reference sampler's KL-weighted answer is view by view, as in answer_names)
+    concepts = answer_concepts(params, 0, home.positions, home.visual,
+                               view_counts=home.hyperparameters.view_weight(),
+                               rooms=None if home.weighting == "reference" else home_rooms(home))
     theta = np.clip(np.asarray(params.word_probabilities[0], dtype=np.float64), 0.0, None)  # (L, V)
     mass = theta[:, columns].sum(axis=1)
     names = np.divide(theta[:, columns], mass[:, None], out=np.zeros((theta.shape[0], columns.size)),

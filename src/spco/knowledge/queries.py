@@ -202,7 +202,8 @@ def what(home: HomeModel, x: float, y: float, theta: float, visual: Any = None,
     """The ``top_k`` place names at pose ``(x, y, θ)``, with the view's visual counts if given.
 
     The probabilities are honest (:mod:`spco.model.confidence`): a view counts as the model's view
-    weight w draws (the one the home was learnt with), a concept nobody named has no name;
+    weight w draws (the one the home was learnt with), a room's training views together as one view
+    (the room account, :func:`name_prediction`), a concept nobody named has no name;
     an answer whose probability is below ``unsure_below`` (default
     :data:`~spco.model.confidence.UNSURE_BELOW`) is flagged ``unsure``.
 
@@ -291,12 +292,15 @@ def answer_parameters(home: HomeModel) -> ConceptParameters:
 
 
 def name_prediction(home: HomeModel, poses: np.ndarray, visual: Any = None, top_k: int = 3,
-                    unsure_below: float = UNSURE_BELOW, by_room: bool = False) -> NamePrediction:
+                    unsure_below: float = UNSURE_BELOW, by_room: bool = True) -> NamePrediction:
     """The names :func:`what` answers, for ``n`` poses at once and without its checks of the pose:
     p(name | pose, view) = Σ_l p(name | l) P(l | pose, view), with p(name | l) from
-    :func:`answer_parameters` and P(l | pose, view) scoring a view as the model's view weight w
-    draws (:meth:`~spco.model.hyperparameters.TransferHyperparameters.view_weight`, the weight the
-    home was learnt with; docs/model.md, "A view's evidence").
+    :func:`answer_parameters` and P(l | pose, view) the room account
+    (:func:`spco.model.confidence.answer_concepts`, :mod:`spco.model.rooms`: P(l | pose, view) ∝
+    Σ_k p(k | pose) p(l | room k) p(view | l), room k's training views pooled and the view each worth
+    the model's view weight w draws against φ^v, the weight the home was learnt with,
+    :meth:`~spco.model.hyperparameters.TransferHyperparameters.view_weight`; docs/model.md, "A room's
+    evidence"). ``what``, ``ask``, the service and the ROS node answer through it.
 
     Parameters
     ----------
@@ -304,10 +308,9 @@ def name_prediction(home: HomeModel, poses: np.ndarray, visual: Any = None, top_
     poses: (n, 4) ``(x, y, sin θ, cos θ)`` in metres.
     visual: (n, D) the views' counts (sparse or dense), or ``None`` for the positions alone.
     top_k, unsure_below: as :func:`what`.
-    by_room: opt-in, the room account (:mod:`spco.model.rooms`: P(l | pose, view) ∝ Σ_k p(k | pose)
-        p(l | room k) p(view | l), room k's training views pooled and the view each worth w, against
-        φ^v; docs/model.md, "A room's evidence") instead of the view and the pose against the home's
-        parameters. Not the default yet: docs/model.md, "A room's evidence", says why.
+    by_room: ``False`` only to compare: the view and the pose against the home's π and θ^v, each of
+        a room's views counted as independent evidence (what ``what`` answered before the room
+        account; benchmarks/README.md, "Issue 29: the room account the default").
 
     Returns
     -------
@@ -321,12 +324,13 @@ def name_prediction(home: HomeModel, poses: np.ndarray, visual: Any = None, top_
 
 def home_rooms(home: HomeModel) -> HomeRooms:
     """The home's training samples as the room-level answer reads them (:mod:`spco.model.rooms`):
-    their regions, their views and the name tokens taught at them (with the word channels the
-    tokens drawn as names, as :func:`answer_parameters` counts them)."""
+    their regions and concepts (a region split by the names taught in it,
+    :meth:`~spco.model.rooms.HomeRooms.membership`), their views and the name tokens taught at them
+    (with the word channels the tokens drawn as names, as :func:`answer_parameters` counts them)."""
     words = home.data.words
     if home.knowledge.channels is not None and home.state.switches is not None and words.nnz:
         words = name_tokens(words, home.state.switches)
-    return HomeRooms.of(home.state.regions, home.data.visual, words)
+    return HomeRooms.of(home.state.regions, home.data.visual, words, home.state.concepts)
 
 
 def describe_model_file(path: str | PathLike[str]) -> dict[str, Any]:

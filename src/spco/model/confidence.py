@@ -26,13 +26,14 @@ counts two kinds of evidence that are not independent as if they were; this modu
    whatever name its θ^w holds at 10^-6 with p ≈ 1 after the answer's normalisation. The mass θ^w
    puts on words the home does not answer is spread evenly over the names it does
    (:func:`answerable_names`): such a concept answers at p ≈ 1 / (number of names), i.e. unsure.
-4. **Opt-in: a room's views as one piece of evidence.** Given the home's rooms (:func:`answer_names`'s
-   ``rooms``; ``spco.knowledge.name_prediction(by_room=True)``), the concept at a pose is judged from
-   the rooms the pose may be in — each room's training views pooled, worth w draws — and the
-   observation's view, worth w, against φ^v (the view weighs in on which room as well as on its
-   concept), not from the home's π and θ^v, which hold each of the room's views as independent
-   evidence (:mod:`spco.model.rooms`; docs/model.md, "A room's evidence", says why it is not the
-   default).
+4. **A room's views are one piece of evidence.** Given the home's rooms (:func:`answer_names`'s
+   ``rooms``: the robot's answers, ``what``, ``ask`` and the experiments, always pass them), the
+   concept at a pose is judged from the rooms the pose may be in — each room's training views pooled,
+   worth w draws — and the observation's view, worth w, against φ^v (the view weighs in on which room
+   as well as on its concept), not from the home's π and θ^v, which hold each of the room's views as
+   independent evidence (:func:`answer_concepts`, :mod:`spco.model.rooms`; docs/model.md, "A room's
+   evidence"). Without rooms (a bare :class:`ConceptParameters`, SpCoA's single-home fit, the
+   authors' reference weighting) the view-by-view posterior of :mod:`spco.model.prediction` answers.
 
 An answer whose probability is below :data:`UNSURE_BELOW` is flagged *unsure*
 (:attr:`spco.model.prediction.NamePrediction.unsure`; ``spco what`` says so, ``--json`` has
@@ -50,11 +51,12 @@ import scipy.sparse as sp
 from spco.data.language import Vocabulary
 from spco.errors import ConfigurationError
 from spco.model.parameters import ConceptParameters
-from spco.model.prediction import NamePrediction, Weighting, predict_names
+from spco.model.prediction import NamePrediction, Weighting, concept_posterior, predict_names
 from spco.model.rooms import HomeRooms, concepts_by_room
 
 __all__ = [
     "UNSURE_BELOW",
+    "answer_concepts",
     "answer_names",
     "answer_parameters",
     "answer_weighting",
@@ -226,6 +228,26 @@ def answer_parameters(params: ConceptParameters, e: int, words: sp.csr_array | n
                             counts, alpha_word)
 
 
+def answer_concepts(params: ConceptParameters, e: int, positions: np.ndarray, visual: object, *,
+                    view_counts: float | None, rooms: HomeRooms | None) -> np.ndarray:
+    """(n, L) P(l | pose, view) as the robot answers it: the one concept posterior behind every answer
+    about names (:func:`answer_names`; ``ask``'s question scores).
+
+    With ``rooms`` (the home's training samples' regions, views and taught names) the room account,
+    P(l | x, v) ∝ Σ_k p(k | x) p(l | room k) p(v | l) (:func:`spco.model.rooms.concepts_by_room`;
+    docs/model.md, "A room's evidence"); without them, or if no region holds a training sample, the
+    view-by-view posterior of the home's parameters (:func:`spco.model.prediction.concept_posterior`).
+    A view counts as ``view_counts`` = w draws either way (``visual`` ``None``: the pose alone).
+    """
+    concepts = None
+    if rooms is not None:
+        concepts = concepts_by_room(params, e, positions, visual, rooms, view_counts)
+    if concepts is None:
+        concepts = concept_posterior(params, e, positions, visual, use_vision=visual is not None,
+                                     view_counts=view_counts)
+    return concepts
+
+
 def answer_names(
     params: ConceptParameters,
     e: int,
@@ -242,24 +264,25 @@ def answer_names(
 ) -> NamePrediction:
     """The names the robot answers at ``n`` observations of home ``e`` — the one predictor of
     p(name | pose, view): ``what`` (:func:`spco.knowledge.name_prediction`, the service, the ROS
-    node) and the experiments (:func:`spco.evaluation.metrics.evaluate_home`) call it.
+    node), ``ask`` and the experiments (:func:`spco.evaluation.metrics.evaluate_home`) call it.
 
     ``params`` are the answer's parameters (:func:`answer_parameters`); ``view_counts`` the model's
     view weight w (:meth:`~spco.model.hyperparameters.TransferHyperparameters.view_weight`);
     ``weighting`` the model's name weighting (:func:`answer_weighting`); answers below
     ``unsure_below`` (default :data:`UNSURE_BELOW`) are flagged unsure; ``name_prior``: the opt-in
     ordering of :func:`~spco.model.prediction.predict_names` (off for the robot's answers).
-    ``rooms``: the home's training samples' regions, views and taught names; with them and a pose,
-    the concept is judged from the rooms the pose may be in — each room's training views pooled as one
-    piece of evidence — and the observation's view, each worth w draws against φ^v
-    (:func:`spco.model.rooms.concepts_by_room`; docs/model.md, "A room's evidence"), not from the
-    home's π and θ^v, which count each of the room's views as independent evidence.
+    ``rooms``: the home's training samples' regions, views and taught names (the robot always has
+    them: :func:`spco.knowledge.queries.home_rooms`, :func:`spco.model.rooms.model_rooms`); with them
+    and a pose, the concept is judged by :func:`answer_concepts` — the rooms the pose may be in, each
+    room's training views pooled as one piece of evidence, and the observation's view, each worth w
+    draws against φ^v (docs/model.md, "A room's evidence"). ``None``: view by view against the home's
+    π and θ^v (a bare parameter set, SpCoA's single-home fit).
     """
     if not 0.0 <= unsure_below <= 1.0:
         raise ConfigurationError(f"unsure_below must be within 0..1, got {unsure_below!r}")
     concepts = None
     if rooms is not None and positions is not None and weighting != "reference":
-        concepts = concepts_by_room(params, e, positions, visual, rooms, view_counts)
+        concepts = answer_concepts(params, e, positions, visual, view_counts=view_counts, rooms=rooms)
     return predict_names(params, e, vocabulary, positions, visual, top_k=top_k, weighting=weighting,
                          use_vision=visual is not None, view_counts=view_counts, unsure_below=unsure_below,
                          name_prior=name_prior, concepts=concepts)  # type: ignore[arg-type]

@@ -1,4 +1,4 @@
-"""A room's evidence: which concept a home's region is, with the region's views as one piece of evidence.
+"""A room's evidence: which concept a home's room is, with the room's views as one piece of evidence.
 
 The sampler decides each sample's concept from its own view (weighted as the model's view weight w,
 :meth:`~spco.model.hyperparameters.TransferHyperparameters.view_weight`) and its region, so a room's
@@ -7,20 +7,26 @@ a room's views pooled are worth about as many draws as one view (leave-one-home-
 experienced homes; docs/model.md, "A room's evidence"), and a room that looks like another room's
 concept is put there, and answered, with certainty.
 
-The room account (opt-in: ``spco.knowledge.name_prediction(by_room=True)``,
-:func:`spco.model.confidence.answer_names`'s ``rooms``) judges an observation's concept from two
-pieces of evidence, each worth the model's w draws: the room it is in — the region's training views
-pooled into one count vector (:func:`room_concepts`) — and its own view, both against the shared
-visual distributions φ^v (the concepts as the experienced homes taught them, not the home's own θ^v,
-which already holds the room's views), with the prior G_0 and the names taught in the region (each
-taught name token a draw from θ^w of the concept). The observation is in region k with prior
-p(k | x) ∝ n_k N(x | μ_k, Σ_k) (n_k the region's training samples); room k is of concept l with
-p(l | room k) ∝ G_0,l · exp(ω_k Σ_d V_{k,d} log φ^v_{l,d}) · Π_{t ∈ k} Π_w θ^w_{e,l,w}^{u_{t,w}}; and
-the view is drawn from the room's concept, p(v | l) = exp(ω_v Σ_d v_d log φ^v_{l,d}). So
+The room account (how the robot answers: :func:`spco.model.confidence.answer_concepts`, through
+:func:`spco.model.confidence.answer_names`'s ``rooms`` for ``what``, ``ask``, the service, the ROS node
+and the experiments) judges an observation's concept from two pieces of evidence, each worth the
+model's w draws: the room it is in — the room's training views pooled into one count vector
+(:func:`room_concepts`) — and its own view, both against the shared visual distributions φ^v (the
+concepts as the experienced homes taught them, not the home's own θ^v, which already holds the room's
+views), with the prior G_0 and the names taught in the room (each taught name token counted as θ^w
+counts it, S^w draws from θ^w of the concept: a name taught in a room decides the room's concept). A
+*room* is a region of the sampler's state, split by the names taught in it, or where nothing was
+taught by the sampler's concepts (:meth:`HomeRooms.membership`): a region where two names were taught
+into two concepts (a room taught "tub room" and "shower room") holds two rooms, each at the region's
+Gaussian; a region where one name was taught is one room. The observation is in room k with prior
+p(k | x) ∝ n_k N(x | μ_r(k), Σ_r(k)) (n_k the room's training samples, r(k) its region); room k is of
+concept l with p(l | room k) ∝ G_0,l · exp(ω_k Σ_d V_{k,d} log φ^v_{l,d}) · Π_{t ∈ k} Π_w
+θ^w_{e,l,w}^{u_{t,w}}; and the view is drawn from the room's concept,
+p(v | l) = exp(ω_v Σ_d v_d log φ^v_{l,d}). So
 
     P(l | x, v) ∝ Σ_k p(k | x) p(l | room k) p(v | l),
 
-ω_k = min(1, w / Σ_d V_{k,d}) with V_k the region's pooled counts, ω_v = min(1, w / Σ_d v_d): two
+ω_k = min(1, w / Σ_d V_{k,d}) with V_k the room's pooled counts, ω_v = min(1, w / Σ_d v_d): two
 pieces of evidence where the home's π and θ^v hold twenty-one. The view weighs in on which room the
 pose is in as well as on the room's concept (the sum over k is normalised jointly): a view unlike
 everything the room at the pose looks like says the robot is in the room next door.
@@ -50,14 +56,18 @@ class HomeRooms:
     regions: (n,) int, the region of each training sample (the sampler's state).
     visual: (n, D) the samples' view counts (a missing view: an empty row).
     words: (n, V) the name tokens taught at each sample (untaught: an empty row).
+    concepts: (n,) int, the concept of each sample (the sampler's state), or ``None``. With them a
+        region is split by the names taught in it (:meth:`membership`); without them a room is a
+        region.
     """
 
     regions: np.ndarray
     visual: sp.csr_array
     words: sp.csr_array
+    concepts: np.ndarray | None = None
 
     @classmethod
-    def of(cls, regions: object, visual: object, words: object) -> HomeRooms:
+    def of(cls, regions: object, visual: object, words: object, concepts: object = None) -> HomeRooms:
         """Validated :class:`HomeRooms` (sparse copies of ``visual`` and ``words``)."""
         regions = np.asarray(regions, dtype=np.int64).ravel()
         visual = sp.csr_array(visual, dtype=np.float64)
@@ -67,20 +77,82 @@ class HomeRooms:
                                      f"{words.shape[0]} word rows")
         if regions.size and regions.min() < 0:
             raise ConfigurationError("rooms: a region index is negative")
-        return cls(regions, visual, words)
+        labels = None
+        if concepts is not None:
+            labels = np.asarray(concepts, dtype=np.int64).ravel()
+            if labels.size != regions.size:
+                raise ConfigurationError(f"rooms: {regions.size} regions but {labels.size} concepts")
+            if labels.size and labels.min() < 0:
+                raise ConfigurationError("rooms: a concept index is negative")
+        return cls(regions, visual, words, labels)
+
+    def subset(self, keep: np.ndarray) -> HomeRooms:
+        """The rooms of the samples ``keep`` (a bool mask or indices), e.g. one sample left out."""
+        return HomeRooms.of(self.regions[keep], self.visual[keep], self.words[keep],
+                            None if self.concepts is None else self.concepts[keep])
+
+    def membership(self, n_regions: int) -> tuple[sp.csr_array, np.ndarray]:
+        """(R, n) each sample's share in each room and (R,) the region of each room.
+
+        Without ``concepts`` the rooms are the regions 0..``n_regions``-1. With them a region is split
+        by the names taught in it: each concept holding taught samples (a name token) of the region is
+        a room, holding those samples and the region's untaught samples (whole in its pooled views, in
+        proportion to its taught samples in its size n_k): a region where "tub room" was said three
+        times and "shower room" once, the sampler giving each name its concept, is two rooms, 3 : 1.
+        A region where names of one concept were taught is one room (the name decides it); a region
+        where nothing was taught is a room per concept of its samples (a region reaching over a wall
+        into another place holds two rooms)."""
+        n = self.regions.size
+        if self.concepts is None:
+            return sp.csr_array((np.ones(n), (self.regions, np.arange(n))), shape=(n_regions, n)), \
+                np.arange(n_regions)
+        taught = np.diff(self.words.indptr) > 0
+        rows: list[int] = []
+        cols: list[int] = []
+        vals: list[float] = []
+        region_of: list[int] = []
+        for r in np.unique(self.regions):
+            members = np.flatnonzero(self.regions == r)
+            said = members[taught[members]]
+            groups = np.unique(self.concepts[said])
+            if groups.size <= 1:  # nothing taught: a room per concept; one name's concept: the region
+                parts = np.unique(self.concepts[members]) if groups.size == 0 else np.array([-1])
+                for c in parts:
+                    own = members if c < 0 else members[self.concepts[members] == c]
+                    rows += [len(region_of)] * own.size
+                    cols += own.tolist()
+                    vals += [1.0] * own.size
+                    region_of.append(int(r))
+                continue
+            untaught = members[~taught[members]]
+            for c in groups:
+                own = said[self.concepts[said] == c]
+                share = own.size / said.size
+                rows += [len(region_of)] * (own.size + untaught.size)
+                cols += own.tolist() + untaught.tolist()
+                vals += [1.0] * own.size + [share] * untaught.size
+                region_of.append(int(r))
+        R = len(region_of)
+        index = (np.asarray(rows, dtype=np.int64), np.asarray(cols, dtype=np.int64))
+        return sp.csr_array((np.asarray(vals), index), shape=(R, n)), np.asarray(region_of, dtype=np.int64)
 
 
 def _room_log_posterior(params: ConceptParameters, rooms: HomeRooms, view_counts: float | None,
-                        e: int = 0) -> np.ndarray:
-    """(K, L) log G_0 + each region's pooled views at w against φ^v + its taught name tokens under θ^w
-    (unnormalised)."""
+                        e: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(R, L) log G_0 + each room's pooled views at w against φ^v + its taught name tokens under θ^w
+    (unnormalised); (R,) training samples per room; (R,) each room's region."""
     K = int(np.shape(params.region_means)[1])
     if rooms.regions.size and rooms.regions.max() >= K:
         raise ConfigurationError(f"rooms: region {int(rooms.regions.max())} but the model has {K}")
-    n = rooms.regions.size
-    onehot = sp.csr_array((np.ones(n), (rooms.regions, np.arange(n))), shape=(K, n))
+    if rooms.concepts is not None and rooms.concepts.size and rooms.concepts.max() >= params.n_concepts:
+        raise ConfigurationError(f"rooms: concept {int(rooms.concepts.max())} but the model has "
+                                 f"{params.n_concepts}")
+    share, region_of = rooms.membership(K)  # (R, n) each sample's share in each room
+    R = region_of.size
+    onehot = share.copy()  # the room's views and names: each member's whole (counts stay counts)
+    onehot.data[:] = 1.0
     log_post = np.broadcast_to(_safe_log(params.global_concept_weights)[None, :],
-                               (K, params.n_concepts)).copy()
+                               (R, params.n_concepts)).copy()
     phi_v = np.asarray(params.shared_visual_probabilities, dtype=np.float64)
     if phi_v.size and rooms.visual.shape[1] == phi_v.shape[1]:  # the room's views pooled: one view at w
         log_post += _visual_log_likelihood(phi_v, sp.csr_array(onehot @ rooms.visual), view_counts)
@@ -91,47 +163,46 @@ def _room_log_posterior(params: ConceptParameters, rooms: HomeRooms, view_counts
         theta /= np.maximum(theta.sum(axis=1, keepdims=True), np.finfo(np.float64).tiny)
         said = sp.csr_array(onehot @ (rooms.words @ sp.diags_array(names.astype(np.float64))))
         log_post += np.asarray(said @ _safe_log(theta).T)
-    return log_post
+    counts = np.asarray(share.sum(axis=1), dtype=np.float64).ravel()  # n_k: the shares
+    return log_post, counts, region_of
 
 
 def room_concepts(params: ConceptParameters, e: int, rooms: HomeRooms, view_counts: float | None
                   ) -> tuple[np.ndarray, np.ndarray]:
-    """Each region's concept, its views pooled as one piece of evidence (module docstring).
+    """Each room's concept, its views pooled as one piece of evidence (module docstring).
 
     Parameters
     ----------
     params: the answer's parameters (their θ^w and ``word_mask``: the names the home answers).
-    e: the home; rooms: its training samples' regions, views and taught name tokens.
+    e: the home; rooms: its training samples' regions (and concepts), views and taught name tokens.
     view_counts: the model's view weight w (``None``: every count a draw).
 
     Returns
     -------
-    counts: (K,) training samples per region; posterior: (K, L) p(l | room k), rows sum to 1 (a
-    region without samples: G_0).
+    counts: (R,) training samples per room; posterior: (R, L) p(l | room k), rows sum to 1 (a room
+    without samples: G_0). Without ``rooms.concepts`` the rooms are the model's K regions.
     """
-    log_post = _room_log_posterior(params, rooms, view_counts, e)
-    counts = np.bincount(rooms.regions, minlength=log_post.shape[0]).astype(np.float64)
+    log_post, counts, _ = _room_log_posterior(params, rooms, view_counts, e)
     return counts, np.exp(log_post - logsumexp(log_post, axis=1, keepdims=True))
 
 
 def concepts_by_room(params: ConceptParameters, e: int, positions: np.ndarray, visual: object,
                      rooms: HomeRooms, view_counts: float | None) -> np.ndarray | None:
     """(n, L) P(l | x, v) ∝ Σ_k p(k | x) p(l | room k) p(v | l) at poses ``positions`` (n, 4) of home
-    ``e`` with views ``visual`` (n, D; ``None`` or an empty row: no view), p(k | x) ∝ n_k N(x | μ_k,
-    Σ_k) over the regions with training samples, p(l | room k) ∝ G_0,l · (room k's pooled views at w)
-    · (its taught names) and p(v | l) the view at w, both against φ^v (module docstring); ``None`` if
-    no region has a training sample (the caller answers from the view and the pose against the home's
-    parameters instead)."""
+    ``e`` with views ``visual`` (n, D; ``None`` or an empty row: no view), p(k | x) ∝ n_k N(x | μ_r(k),
+    Σ_r(k)) over the rooms with training samples (r(k) the room's region), p(l | room k) ∝ G_0,l ·
+    (room k's pooled views at w) · (its taught names) and p(v | l) the view at w, both against φ^v
+    (module docstring); ``None`` if no room has a training sample (the caller answers from the view
+    and the pose against the home's parameters instead)."""
     from spco.model.prediction import gaussian_log_density, validate_poses
 
-    room_log = _room_log_posterior(params, rooms, view_counts, e)  # (K, L), unnormalised
-    counts = np.bincount(rooms.regions, minlength=room_log.shape[0]).astype(np.float64)
+    room_log, counts, region_of = _room_log_posterior(params, rooms, view_counts, e)  # (R, L) unnormalised
     if not (counts > 0).any():
         return None
     x = validate_poses(positions)
     with np.errstate(over="ignore", invalid="ignore"):
         log_n = gaussian_log_density(x, params.region_means[e], params.region_covariances[e])  # (n, K)
-    log_k = np.where(counts[None, :] > 0, log_n + _safe_log(counts)[None, :], -np.inf)
+    log_k = np.where(counts[None, :] > 0, log_n[:, region_of] + _safe_log(counts)[None, :], -np.inf)
     total = logsumexp(log_k, axis=1, keepdims=True)
     if not np.isfinite(total).all():
         i = int(np.flatnonzero(~np.isfinite(total).ravel())[0])
@@ -146,9 +217,9 @@ def concepts_by_room(params: ConceptParameters, e: int, positions: np.ndarray, v
             raise ConfigurationError(f"{x.shape[0]} positions but {view_log.shape[0]} visual feature rows")
     # log p(k | x) + log p(l | room k) + log p(v | l): the view weighs in on the room as on its concept
     # (a view unlike everything room k looks like says the pose is not in room k)
-    room_norm = room_log - logsumexp(room_log, axis=1, keepdims=True)  # (K, L) log p(l | room k)
+    room_norm = room_log - logsumexp(room_log, axis=1, keepdims=True)  # (R, L) log p(l | room k)
     joint = np.full((x.shape[0], params.n_concepts), -np.inf)
-    for k in np.flatnonzero(counts > 0):  # a loop over the home's regions (tens)
+    for k in np.flatnonzero(counts > 0):  # a loop over the home's rooms (tens)
         joint = np.logaddexp(joint, (log_k[:, [k]] - total) + room_norm[k][None, :] + view_log)
     return np.exp(joint - logsumexp(joint, axis=1, keepdims=True))
 
@@ -156,8 +227,8 @@ def concepts_by_room(params: ConceptParameters, e: int, positions: np.ndarray, v
 def model_rooms(model: object, e: int) -> HomeRooms:
     """:class:`HomeRooms` of home ``e`` of a fitted joint model
     (:class:`~spco.model.transfer.SpatialConceptModel`, the experiments' fit): its training samples'
-    regions, views and name tokens (with the word channels the tokens drawn as names), so that an
-    experiment scores the names the robot answers (:func:`spco.model.confidence.answer_names`)."""
+    regions, concepts, views and name tokens (with the word channels the tokens drawn as names), so
+    that an experiment scores the names the robot answers (:func:`spco.model.confidence.answer_names`)."""
     from spco.model.word_channels import name_tokens
 
     data = model.data_  # type: ignore[attr-defined]
@@ -167,4 +238,5 @@ def model_rooms(model: object, e: int) -> HomeRooms:
     if getattr(state, "channels", None) is not None and getattr(state, "switches", None) is not None \
             and words.nnz:
         words = name_tokens(words, state.switches)
-    return HomeRooms.of(np.asarray(state.regions)[rows], data.visual[rows], words[rows])
+    return HomeRooms.of(np.asarray(state.regions)[rows], data.visual[rows], words[rows],
+                        np.asarray(state.concepts)[rows])
