@@ -214,3 +214,25 @@ def test_bad_room_concepts_are_refused() -> None:
         HomeRooms.of([0], sp.csr_array((1, D)), sp.csr_array((1, 3)), [-2])
     with pytest.raises(ConfigurationError, match="concept 7"):
         room_concepts(params, 0, HomeRooms.of([0], sp.csr_array((1, D)), sp.csr_array((1, 3)), [7]), 16.0)
+
+
+def test_the_rooms_evidence_is_kept_per_parameters_object_and_weight() -> None:
+    """The rooms' pooled evidence is worked out once per (parameters object, view weight): asked again
+    with the same objects it is the same answer; asked with other parameters (a home after a teaching)
+    or another weight it is worked out anew, never the kept one."""
+    from dataclasses import replace
+
+    params, phi = _world()
+    views = _room_views(phi, np.array([0.45, 0.55, 0.0]), 20, 200, seed=1)
+    rooms = HomeRooms.of(np.ones(20, dtype=int), views, sp.csr_array((20, 3)))
+    first = room_concepts(params, 0, rooms, view_counts=16.0)[1]
+    np.testing.assert_array_equal(room_concepts(params, 0, rooms, view_counts=16.0)[1], first)
+    other = replace(params, shared_visual_probabilities=phi[[1, 0, 2]])  # the concepts' views swapped
+    moved = room_concepts(other, 0, rooms, view_counts=16.0)[1]
+    anew = HomeRooms.of(np.ones(20, dtype=int), views, sp.csr_array((20, 3)))
+    fresh = room_concepts(other, 0, anew, 16.0)[1]
+    np.testing.assert_array_equal(moved, fresh)
+    assert np.abs(moved[1] - first[1]).max() > 0.1
+    np.testing.assert_array_equal(room_concepts(params, 0, rooms, view_counts=4.0)[1],
+                                  room_concepts(params, 0, HomeRooms.of(np.ones(20, dtype=int), views,
+                                                                        sp.csr_array((20, 3))), 4.0)[1])

@@ -12,6 +12,7 @@ in this home).
 from __future__ import annotations
 
 import warnings
+import weakref
 from collections.abc import Callable
 from dataclasses import replace
 from os import PathLike
@@ -316,10 +317,25 @@ def name_prediction(home: HomeModel, poses: np.ndarray, visual: Any = None, top_
     -------
     The :class:`~spco.model.prediction.NamePrediction` with ``confidence`` and ``unsure``.
     """
-    return confidence.answer_names(answer_parameters(home), 0, home.vocabulary, poses, visual, top_k=top_k,
+    params, rooms = _answer_inputs(home)
+    return confidence.answer_names(params, 0, home.vocabulary, poses, visual, top_k=top_k,
                                    weighting=home.weighting,  # type: ignore[arg-type]
                                    view_counts=home.hyperparameters.view_weight(), unsure_below=unsure_below,
-                                   rooms=home_rooms(home) if by_room else None)
+                                   rooms=rooms if by_room else None)
+
+
+#: each home's answer parameters and rooms, worked out once per home object: a home is not changed in
+#: place (a teaching or an undo makes a new :class:`HomeModel`, as its cached ``parameters`` assume)
+_ANSWER_INPUTS: weakref.WeakKeyDictionary[HomeModel, tuple[ConceptParameters, HomeRooms]] = (
+    weakref.WeakKeyDictionary())
+
+
+def _answer_inputs(home: HomeModel) -> tuple[ConceptParameters, HomeRooms]:
+    """(:func:`answer_parameters`, :func:`home_rooms`) of ``home``, kept while the home lives."""
+    known = _ANSWER_INPUTS.get(home)
+    if known is None:
+        known = _ANSWER_INPUTS[home] = (answer_parameters(home), home_rooms(home))
+    return known
 
 
 def home_rooms(home: HomeModel) -> HomeRooms:

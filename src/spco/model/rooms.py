@@ -34,7 +34,7 @@ everything the room at the pose looks like says the robot is in the room next do
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
@@ -65,6 +65,9 @@ class HomeRooms:
     visual: sp.csr_array
     words: sp.csr_array
     concepts: np.ndarray | None = None
+    #: the rooms' evidence already worked out, per answer's parameters (:func:`_room_log_posterior`):
+    #: ``(view_counts, e) -> (params, result)``, kept only while the same ``params`` object is asked
+    _known: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     @classmethod
     def of(cls, regions: object, visual: object, words: object, concepts: object = None) -> HomeRooms:
@@ -140,7 +143,20 @@ class HomeRooms:
 def _room_log_posterior(params: ConceptParameters, rooms: HomeRooms, view_counts: float | None,
                         e: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(R, L) log G_0 + each room's pooled views at w against φ^v + its taught name tokens under θ^w
-    (unnormalised); (R,) training samples per room; (R,) each room's region."""
+    (unnormalised); (R,) training samples per room; (R,) each room's region. Worked out once per
+    ``rooms`` and ``params`` object (both are read, never written, so a live home that answers from the
+    same two objects — :func:`spco.knowledge.queries.name_prediction` — pays for it once per state)."""
+    known = rooms._known.get((view_counts, e))
+    if known is not None and known[0] is params:
+        return known[1]
+    result = _room_evidence(params, rooms, view_counts, e)
+    rooms._known[(view_counts, e)] = (params, result)
+    return result
+
+
+def _room_evidence(params: ConceptParameters, rooms: HomeRooms, view_counts: float | None,
+                   e: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_room_log_posterior` worked out."""
     K = int(np.shape(params.region_means)[1])
     if rooms.regions.size and rooms.regions.max() >= K:
         raise ConfigurationError(f"rooms: region {int(rooms.regions.max())} but the model has {K}")
