@@ -151,6 +151,9 @@ class ShardGroup:
         if kind == "words":
             return sample_crt_totals_each(counts, scaled_exp(log_phi, delta), seeds)
         # visual: (3, L, D) as HierarchicalMultinomial.table_parts
+        if counts.dtype.kind in "iu":  # whole counts (the cut sampler): no fractional parts to find
+            tables = sample_crt_totals_each(counts, scaled_exp(log_phi, delta), seeds).astype(np.float64)
+            return np.stack([tables, np.zeros(tables.shape), np.zeros(tables.shape)])
         whole = np.floor(counts)
         tables = sample_crt_totals_each(whole.astype(np.int64), scaled_exp(log_phi, delta), seeds)
         return np.stack([tables.astype(np.float64), np.where(whole == 0.0, counts, 0.0).sum(axis=0),
