@@ -197,12 +197,19 @@ class HierarchicalMultinomial:
         M = Σ_e m_{e,l,k}, m ~ CRT(⌊n_{e,l,k}⌋, δ φ_{l,k}); F = Σ_e of the counts below 1 (n − ⌊n⌋ where
         ⌊n⌋ = 0), the part of the fractions the proposal counts; H = the number of homes whose count
         has a fractional part (all 0 for whole counts: no Metropolis–Hastings test)."""
+        whole, frac, fractional = HierarchicalMultinomial.whole_parts(n)
+        return HierarchicalMultinomial.sample_tables(whole, log_phi, delta, rng), frac, fractional
+
+    @staticmethod
+    def whole_parts(n: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(⌊n⌋, F, H) of the counts n (E, L, D): ⌊n⌋ (E, L, D) int64, the counts the CRT tables are
+        drawn from; F and H (L, D) as :meth:`table_parts`. Whole counts are returned as they are,
+        with F = H = 0, without looking for fractions."""
         if n.dtype.kind in "iu":
             zeros = np.zeros(n.shape[1:])
-            return HierarchicalMultinomial.sample_tables(n, log_phi, delta, rng), zeros, zeros
+            return n, zeros, zeros
         whole = np.floor(n)
-        tables = HierarchicalMultinomial.sample_tables(whole.astype(np.int64), log_phi, delta, rng)
-        return (tables, np.where(whole == 0.0, n, 0.0).sum(axis=0),
+        return (whole.astype(np.int64), np.where(whole == 0.0, n, 0.0).sum(axis=0),
                 (n != whole).sum(axis=0).astype(np.float64))
 
     @staticmethod

@@ -24,6 +24,7 @@ from spco.model import shard as shards_api
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.kernels.crt import sample_crt_totals_each
 from spco.model.kernels.special import scaled_exp
+from spco.model.observations import HierarchicalMultinomial
 from spco.model.pruning import Colocation, colocation
 from spco.model.shard import HomeShard, HomeStepResult, PooledCounts, SharedParameters
 from spco.model.shard_init import HomeSummary
@@ -151,13 +152,9 @@ class ShardGroup:
         if kind == "words":
             return sample_crt_totals_each(counts, scaled_exp(log_phi, delta), seeds)
         # visual: (3, L, D) as HierarchicalMultinomial.table_parts
-        if counts.dtype.kind in "iu":  # whole counts (the cut sampler): no fractional parts to find
-            tables = sample_crt_totals_each(counts, scaled_exp(log_phi, delta), seeds).astype(np.float64)
-            return np.stack([tables, np.zeros(tables.shape), np.zeros(tables.shape)])
-        whole = np.floor(counts)
-        tables = sample_crt_totals_each(whole.astype(np.int64), scaled_exp(log_phi, delta), seeds)
-        return np.stack([tables.astype(np.float64), np.where(whole == 0.0, counts, 0.0).sum(axis=0),
-                         (counts != whole).sum(axis=0).astype(np.float64)])
+        whole, frac, fractional = HierarchicalMultinomial.whole_parts(counts)
+        tables = sample_crt_totals_each(whole, scaled_exp(log_phi, delta), seeds)
+        return np.stack([tables.astype(np.float64), frac, fractional])
 
     def visual_log_weight(self, log_phi_old: np.ndarray, log_phi_new: np.ndarray) -> np.ndarray:
         """(L,) the homes' parts of a proposed φ^v's log acceptance ratio, summed."""
