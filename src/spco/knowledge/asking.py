@@ -19,7 +19,7 @@ import scipy.sparse as sp
 
 from spco.errors import ConfigurationError
 from spco.knowledge.home import HomeModel
-from spco.knowledge.queries import answer_parameters, home_rooms, name_prediction
+from spco.knowledge.queries import answer_inputs, name_prediction
 from spco.model.confidence import UNSURE_BELOW, answer_concepts
 from spco.model.home_shard import FREE_CONCEPT_WEIGHT
 from spco.model.question_scores import QuestionScores, question_scores, rank_questions
@@ -112,13 +112,13 @@ def home_question_scores(home: HomeModel, criterion: str = DEFAULT_CRITERION) ->
     """
     if not isinstance(home, HomeModel):
         raise ConfigurationError("ask() expects a HomeModel (from adapt or load_home_model)")
-    params = answer_parameters(home)  # p(name | concept) as what answers
+    params, rooms = answer_inputs(home)  # p(name | concept) and the rooms as what answers
     columns = name_columns(home)
     # P(l | x_i, v_i) as `what` answers it (the room account, spco.model.confidence.answer_concepts)
     # (the reference sampler's KL-weighted answer is view by view, as in answer_names)
     concepts = answer_concepts(params, 0, home.positions, home.visual,
                                view_counts=home.hyperparameters.view_weight(),
-                               rooms=None if home.weighting == "reference" else home_rooms(home))
+                               rooms=None if home.weighting == "reference" else rooms)
     theta = np.clip(np.asarray(params.word_probabilities[0], dtype=np.float64), 0.0, None)  # (L, V)
     mass = theta[:, columns].sum(axis=1)
     names = np.divide(theta[:, columns], mass[:, None], out=np.zeros((theta.shape[0], columns.size)),

@@ -317,7 +317,7 @@ def name_prediction(home: HomeModel, poses: np.ndarray, visual: Any = None, top_
     -------
     The :class:`~spco.model.prediction.NamePrediction` with ``confidence`` and ``unsure``.
     """
-    params, rooms = _answer_inputs(home)
+    params, rooms = answer_inputs(home)
     return confidence.answer_names(params, 0, home.vocabulary, poses, visual, top_k=top_k,
                                    weighting=home.weighting,  # type: ignore[arg-type]
                                    view_counts=home.hyperparameters.view_weight(), unsure_below=unsure_below,
@@ -330,8 +330,9 @@ _ANSWER_INPUTS: weakref.WeakKeyDictionary[HomeModel, tuple[ConceptParameters, Ho
     weakref.WeakKeyDictionary())
 
 
-def _answer_inputs(home: HomeModel) -> tuple[ConceptParameters, HomeRooms]:
-    """(:func:`answer_parameters`, :func:`home_rooms`) of ``home``, kept while the home lives."""
+def answer_inputs(home: HomeModel) -> tuple[ConceptParameters, HomeRooms]:
+    """(:func:`answer_parameters`, :func:`home_rooms`) of ``home``, kept while the home lives: what
+    every answer about names (``what``, ``ask``) reads, worked out once per home."""
     known = _ANSWER_INPUTS.get(home)
     if known is None:
         known = _ANSWER_INPUTS[home] = (answer_parameters(home), home_rooms(home))
