@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 from hypothesis import settings
 from scipy import stats
 
@@ -210,3 +211,51 @@ def chisquare_p(observed: np.ndarray, probs: np.ndarray, min_expected: float = 5
     if obs.size < 2:
         return 1.0
     return float(stats.chisquare(obs, exp * obs.sum() / exp.sum()).pvalue)
+
+
+def csr(dense: np.ndarray) -> sp.csr_array:
+    """Counts in the layout the sampler uses (float64 data, int64 indices)."""
+    out = sp.csr_array(np.asarray(dense, dtype=np.float64))
+    out.indices = out.indices.astype(np.int64)
+    out.indptr = out.indptr.astype(np.int64)
+    return out
+
+
+def random_word_channels(rng: np.random.Generator, n_words: int, n_concepts: int):
+    """Word channels of a tiny brute-force problem, drawn from ``rng``: ψ (place words) per concept,
+    the background, the channels' shares (the names' log share 0) and each word's linguistic evidence."""
+    from spco.model.word_channels import WordChannels
+
+    return WordChannels(
+        log_place=np.log(rng.dirichlet(np.ones(n_words), size=n_concepts)),
+        log_background=np.log(rng.dirichlet(np.ones(n_words))),
+        log_shares=np.concatenate([[0.0], np.log(rng.dirichlet(np.ones(2)))]),
+        log_evidence=np.log(np.column_stack([p := rng.uniform(0.05, 0.95, n_words), 1 - p, 1 - p])))
+
+
+#: The development homes whose people's sentences (``sigverse_subject``) teach the knowledge of the
+#: natural-speech tests (benchmarks/SPLIT.md, "Natural speech").
+DEVELOPMENT_SPEECH_HOMES = ("1LDK_1", "1LDK_3", "1LDK_5", "1LDK_7", "2LDK_1", "2LDK_3", "2LDK_5", "2LDK_7")
+
+
+@pytest.fixture(scope="session")
+def development_speech_fit(sigverse_dir: Path):
+    """(corpus, model): the 8 development homes taught with their people's sentences and ``3LDK_9``
+    taught nothing, fitted once per session (SpCoTransfer+MI, 30 sweeps, seed 0); skipped without
+    ``sigverse_subject`` beside the data set."""
+    from spco.data import Corpus
+    from spco.data.loading import load
+    from spco.data.sigverse import read_indexed_texts
+    from spco.model import SpCoTransfer
+
+    subject = sigverse_dir.parent / "sigverse_subject"
+    if not subject.is_dir():
+        pytest.skip(f"people's sentences not found at {subject}")
+    homes = []
+    for name in DEVELOPMENT_SPEECH_HOMES:
+        env = load(sigverse_dir / name)[name]
+        texts = read_indexed_texts(subject / name / "per_100", "sentence", env.n_samples, strict=False)
+        homes.append(env.with_sentences([None if t else s for s, t in zip(texts, env.is_test, strict=True)]))
+    new = load(sigverse_dir / "3LDK_9")["3LDK_9"]
+    corpus = Corpus([*homes, new.with_sentences((None,) * new.n_samples)])
+    return corpus, SpCoTransfer(n_iterations=30, random_state=0, prune_words=True).fit(corpus)

@@ -19,8 +19,7 @@ import itertools
 
 import numpy as np
 import pytest
-import scipy.sparse as sp
-from conftest import chisquare_p
+from conftest import chisquare_p, csr
 from scipy import stats
 from scipy.special import gammaln, logsumexp, softmax
 
@@ -29,14 +28,6 @@ from spco.model.blocks import region_block_step, region_blocks
 from spco.model.hyperparameters import TransferHyperparameters
 
 P_MIN = 1e-3
-
-
-def csr(dense: np.ndarray) -> sp.csr_array:
-    """Counts in the layout the sampler uses (float64 data, int64 indices)."""
-    out = sp.csr_array(np.asarray(dense, dtype=np.float64))
-    out.indices = out.indices.astype(np.int64)
-    out.indptr = out.indptr.astype(np.int64)
-    return out
 
 
 def log_sequence_dm(counts: np.ndarray, alpha: np.ndarray) -> float:

@@ -17,8 +17,7 @@ import itertools
 
 import numpy as np
 import pytest
-import scipy.sparse as sp
-from conftest import chisquare_p
+from conftest import chisquare_p, csr
 from numpy.testing import assert_allclose
 from scipy import stats
 from scipy.special import expit, gammaln, logit, logsumexp, softmax
@@ -42,14 +41,6 @@ pytestmark = pytest.mark.usefixtures("single_numba_thread")
 
 
 # ----------------------------------------------------------------------------- tiny problems
-
-
-def csr(dense: np.ndarray) -> sp.csr_array:
-    """Counts in the layout the sampler uses (float64 data, int64 indices)."""
-    out = sp.csr_array(np.asarray(dense, dtype=np.float64))
-    out.indices = out.indices.astype(np.int64)
-    out.indptr = out.indptr.astype(np.int64)
-    return out
 
 
 def random_spd(rng: np.random.Generator, d: int, scale: float) -> np.ndarray:

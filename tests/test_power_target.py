@@ -27,10 +27,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from conftest import chisquare_p
+from conftest import chisquare_p, csr
 from numpy.testing import assert_allclose
 from scipy.special import betaln, gammaln, logsumexp
-from test_tempered import csr, log_integral
+from test_tempered import log_integral
 
 from spco.model import gibbs
 from spco.model.hyperparameters import TransferHyperparameters

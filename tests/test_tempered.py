@@ -24,7 +24,7 @@ import itertools
 
 import numpy as np
 import pytest
-import scipy.sparse as sp
+from conftest import csr
 from scipy import stats
 from scipy.special import expit, gammaln, logit, logsumexp
 
@@ -35,14 +35,6 @@ from spco.model.observations import HierarchicalMultinomial
 P_MIN = 1e-3
 
 pytestmark = pytest.mark.usefixtures("single_numba_thread")
-
-
-def csr(dense: np.ndarray) -> sp.csr_array:
-    """Counts in the layout the sampler uses (float64 data, int64 indices)."""
-    out = sp.csr_array(np.asarray(dense, dtype=np.float64))
-    out.indices = out.indices.astype(np.int64)
-    out.indptr = out.indptr.astype(np.int64)
-    return out
 
 
 def prepared(visual: np.ndarray, homes: np.ndarray, n_words: int = 1, seed: int = 0) -> gibbs.PreparedData:

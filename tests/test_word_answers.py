@@ -19,7 +19,6 @@ import pytest
 from spco.data import Corpus
 from spco.data.language import Vocabulary, normalize_name
 from spco.data.loading import load
-from spco.data.sigverse import read_indexed_texts
 from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.model import SpCoTransfer
 from spco.model.confidence import answer_names, model_answer_parameters
@@ -48,9 +47,6 @@ zero one two three four five six seven eight nine ten eleven twelve twenty hundr
 FRAME_VERBS = frozenset({"say", "says", "said", "call", "calls", "called", "name", "named"})
 #: The only closed-class words a name holds inside ("mum and dad's room").
 INNER = frozenset({"and", "of"})
-
-DEVELOPMENT_HOMES = ("1LDK_1", "1LDK_3", "1LDK_5", "1LDK_7", "2LDK_1", "2LDK_3", "2LDK_5", "2LDK_7")
-
 
 def not_a_name(answer: str) -> str | None:
     """Why ``answer`` is no name a person would say (None: it may be one)."""
@@ -181,18 +177,8 @@ def test_no_function_word_is_answered_with_the_development_written_speech(sigver
 
 
 @pytest.mark.sigverse
-def test_no_function_word_is_answered_with_development_natural_speech(sigverse_dir: Path) -> None:
-    subject = sigverse_dir.parent / "sigverse_subject"
-    if not subject.is_dir():
-        pytest.skip(f"people's sentences not found at {subject}")
-    homes = []
-    for name in DEVELOPMENT_HOMES:
-        env = load(sigverse_dir / name)[name]
-        texts = read_indexed_texts(subject / name / "per_100", "sentence", env.n_samples, strict=False)
-        homes.append(env.with_sentences([None if t else s for s, t in zip(texts, env.is_test, strict=True)]))
-    new = load(sigverse_dir / "3LDK_9")["3LDK_9"]
-    corpus = Corpus([*homes, new.with_sentences((None,) * new.n_samples)])
-    model = SpCoTransfer(n_iterations=30, random_state=0, prune_words=True).fit(corpus)
+def test_no_function_word_is_answered_with_development_natural_speech(development_speech_fit) -> None:
+    corpus, model = development_speech_fit
     answers: set[str] = set()
     for e, env in enumerate(corpus):
         answers |= _answers(model, corpus, e, np.arange(env.n_samples))

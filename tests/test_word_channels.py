@@ -21,6 +21,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from conftest import random_word_channels
 from numpy.testing import assert_allclose
 from scipy.special import logsumexp
 
@@ -51,11 +52,7 @@ def _random_problem(seed: int, n_samples: int = 3, n_words: int = 4, n_concepts:
     words = sp.csr_array(dense)
     homes = rng.integers(0, n_homes, size=n_samples)
     log_theta = np.log(rng.dirichlet(np.ones(n_words), size=(n_homes, n_concepts)))
-    channels = WordChannels(
-        log_place=np.log(rng.dirichlet(np.ones(n_words), size=n_concepts)),
-        log_background=np.log(rng.dirichlet(np.ones(n_words))),
-        log_shares=np.concatenate([[0.0], np.log(rng.dirichlet(np.ones(2)))]),
-        log_evidence=np.log(np.column_stack([p := rng.uniform(0.05, 0.95, n_words), 1 - p, 1 - p])))
+    channels = random_word_channels(rng, n_words, n_concepts)
     return words, homes, log_theta, channels
 
 
