@@ -38,7 +38,10 @@ Run (development, small)::
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
+import os
+import pickle
 import sys
 import time
 from collections import Counter, defaultdict
@@ -162,7 +165,33 @@ def _parser() -> argparse.ArgumentParser:
                         "natural_speech.py and spco experiment)")
     parser.add_argument("--json", type=Path, default=None)
     parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE")
+    parser.add_argument("--cache", type=Path, default=None,
+                        help="keep each fitted model here (pickled, keyed by the seed, the configuration, "
+                        "the sweeps and --set) and read it back instead of fitting: the answers (what is "
+                        "scored from a fit) can then be changed and measured again without fitting; "
+                        "stale once the fit's code changes")
     return parser
+
+
+def _fitted(args: argparse.Namespace, corpus: Corpus, hyper, seed: int, label: str,
+            labels: list[str]) -> SpCoTransfer:
+    """The fit of one configuration, from ``--cache`` when it holds it."""
+    path = None
+    if args.cache is not None:
+        key = hashlib.sha256(repr((sorted(args.set), args.sweeps)).encode()).hexdigest()[:12]
+        path = args.cache / f"{key}-{label.split()[0]}-s{seed}.pkl"
+        if path.exists():
+            with open(path, "rb") as fh:
+                return pickle.load(fh)
+    model = SpCoTransfer(hyper, variant="exact", prune_words=True, n_iterations=args.sweeps,
+                         random_state=trial_seed(seed, labels.index(label))).fit(corpus)
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(".tmp")
+        with open(tmp, "wb") as fh:
+            pickle.dump(model, fh)
+        os.replace(tmp, path)
+    return model
 
 
 def _configurations(args: argparse.Namespace, accepted: dict) -> tuple[list[Environment], list[tuple]]:
@@ -270,8 +299,7 @@ def main() -> None:
     for seed in args.seeds:
         for label, homes, env in configs:
             corpus = Corpus([*homes, env])
-            model = SpCoTransfer(hyper, variant="exact", prune_words=True, n_iterations=args.sweeps,
-                                 random_state=trial_seed(seed, labels.index(label))).fit(corpus)
+            model = _fitted(args, corpus, hyper, seed, label, labels)
             view_counts = model.settings_.view_counts
             weight = {} if view_counts is None else {"view_counts": view_counts}
             e = len(corpus) - 1

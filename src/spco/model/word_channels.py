@@ -447,17 +447,21 @@ def place_names(words: sp.csr_array, homes: np.ndarray, concepts: np.ndarray, re
                 log_theta_w: np.ndarray, channels: WordChannels, n_concepts: int,
                 rows: np.ndarray | None = None) -> np.ndarray:
     """(L, V) the names said by each concept's samples and at their places: for every sample t (of
-    ``rows``, default all), its own expected name tokens plus the expected name tokens per sample of
-    its region — the names its region's samples say, whatever their concept, summed over the
-    region's samples and divided by their number — added to the row of t's concept (each token's
-    name probability given its sample's concept, :func:`switch_probabilities`, each token once).
+    ``rows``, default all), its own name tokens plus the name tokens per sample of its region — the
+    names its region's samples say, whatever their concept, summed over the region's samples and
+    divided by their number — added to the row of t's concept. A token counts as a name by its
+    switch's posterior name probability given its sample's concept (:func:`switch_probabilities`,
+    each token once) times its switch's prior name probability (the linguistic evidence,
+    :meth:`WordChannels.log_prior`): a name when the fit and the word's evidence agree.
 
     A concept whose people named only what is there ("near the refrigerator") shares its regions
     with the concept of the people who named the room: its row holds the room's names, in
     proportion to how often they are said there, where its own names channel θ^w holds the few
     object tokens drawn as names; a concept whose people named the room holds its own names twice,
-    as its samples' and as its places' (docs/model.md, "Names said at a concept's places"). A region
-    is a (home, region) pair of ``homes`` and ``regions``.
+    as its samples' and as its places'. An object drawn as a name where a concept has no other
+    ("couch", posterior 1, prior 0.1) counts at its evidence, not as a room's name (docs/model.md,
+    "Names said at a concept's places"). A region is a (home, region) pair of ``homes`` and
+    ``regions``.
 
     Parameters
     ----------
@@ -469,16 +473,17 @@ def place_names(words: sp.csr_array, homes: np.ndarray, concepts: np.ndarray, re
 
     Returns
     -------
-    (L, V) float64, expected name tokens: the concept's own plus, for each of its samples, its
-    region's per sample.
+    (L, V) float64, name tokens (posterior times prior name probability): the concept's own plus,
+    for each of its samples, its region's per sample.
     """
     n, n_words = words.shape
     out = np.zeros((n_concepts, n_words))
     selected = np.ones(n, dtype=bool) if rows is None else np.isin(np.arange(n), np.asarray(rows, np.int64))
     if not words.nnz or not selected.any():
         return out
-    p = switch_probabilities(words, homes, concepts, log_theta_w, channels)
     token_row, cols, _ = _tokens(words)
+    named = (switch_probabilities(words, homes, concepts, log_theta_w, channels)[:, NAME]
+             * np.exp(channels.log_prior()[cols, NAME]))
     keep = selected[token_row]
     homes = np.asarray(homes, dtype=np.int64)
     regions = np.asarray(regions, dtype=np.int64)
@@ -486,14 +491,14 @@ def place_names(words: sp.csr_array, homes: np.ndarray, concepts: np.ndarray, re
     place = place.reshape(-1)
     n_places = int(place.max()) + 1
     by_place = np.zeros((n_places, n_words))
-    np.add.at(by_place, (place[token_row[keep]], cols[keep]), p[keep, NAME])
+    np.add.at(by_place, (place[token_row[keep]], cols[keep]), named[keep])
     size = np.bincount(place[selected], minlength=n_places).astype(np.float64)
     per_sample = by_place / np.maximum(size, 1.0)[:, None]
     concepts = np.asarray(concepts, dtype=np.int64)
     counted = np.zeros((n_concepts, n_places))
     np.add.at(counted, (concepts[selected], place[selected]), 1.0)
     out = counted @ per_sample
-    np.add.at(out, (concepts[token_row[keep]], cols[keep]), p[keep, NAME])  # the samples' own names
+    np.add.at(out, (concepts[token_row[keep]], cols[keep]), named[keep])  # the samples' own names
     return out
 
 
