@@ -34,6 +34,11 @@ def _problem(seed: int, n_samples: int = 9, n_words: int = 5, n_concepts: int = 
 
 def _name_probability(k: int, home: int, concept: int, log_theta, channels) -> float:
     """p(z = name | word k, concept), enumerated from the written-out joint of one token."""
+    return _switch_probability(k, home, concept, log_theta, channels, NAME)
+
+
+def _switch_probability(k: int, home: int, concept: int, log_theta, channels, c: int) -> float:
+    """p(z = c | word k, concept), enumerated from the written-out joint of one token."""
     e = np.exp(channels.log_evidence[k])
     e = e / e.sum()
     lam = np.exp(channels.log_shares)
@@ -42,7 +47,7 @@ def _name_probability(k: int, home: int, concept: int, log_theta, channels) -> f
     like = np.array([np.exp(log_theta[home, concept, k]), np.exp(channels.log_place[concept, k]),
                      np.exp(channels.log_background[k])])
     joint = prior * like
-    return float(joint[NAME] / joint.sum())
+    return float(joint[c] / joint.sum())
 
 
 def _counted_as_name(k: int, home: int, concept: int, log_theta, channels) -> float:
@@ -182,6 +187,38 @@ def test_an_object_drawn_as_a_name_counts_at_its_evidence() -> None:
     answer = np.asarray(place_named_parameters(_params(theta), 2, at_places, np.zeros((2, 3)), 1e4, 5e3)
                         .word_probabilities)
     assert np.argmax(answer[2, 1]) == kitchen
+
+
+def test_an_object_said_at_a_place_counts_for_the_name_it_stands_in_for() -> None:
+    """People at the dining area say "by the dining table" (a place word) far more often than its
+    name; with ``stand_ins`` ("dining table" → "dining room") each such token also counts for the
+    name, by its place-word probability times the name's prior name probability; the loop of
+    :func:`test_place_names_match_a_loop_over_samples_and_regions` written out with the extra tokens."""
+    words, homes, concepts, regions, log_theta, channels = _problem(5)
+    n, V = words.shape
+    stand_ins = np.full(V, -1)
+    stand_ins[3], stand_ins[4] = 1, 1  # two objects stand in for word 1
+    dense = words.toarray()
+    e = np.exp(channels.log_evidence)
+    prior = e[:, 0] / e.sum(axis=1)
+    counted = np.zeros((n, V))
+    for t in range(n):
+        for k in np.flatnonzero(dense[t]):
+            counted[t, k] += _counted_as_name(k, homes[t], concepts[t], log_theta, channels)
+            if stand_ins[k] >= 0:
+                place = _switch_probability(k, homes[t], concepts[t], log_theta, channels, 1)
+                counted[t, stand_ins[k]] += place * prior[stand_ins[k]]
+    expected = np.zeros((3, V))
+    for t in range(n):
+        mates = [s for s in range(n) if homes[s] == homes[t] and regions[s] == regions[t]]
+        expected[concepts[t]] += counted[t] + counted[mates].sum(axis=0) / len(mates)
+    got = place_names(words, homes, concepts, regions, log_theta, channels, 3, stand_ins=stand_ins)
+    assert_allclose(got, expected, rtol=1e-10, atol=1e-12)
+    plain = place_names(words, homes, concepts, regions, log_theta, channels, 3)
+    assert (got[:, 1] > plain[:, 1]).any()
+    assert_allclose(np.delete(got, 1, axis=1), np.delete(plain, 1, axis=1))
+    with pytest.raises(ValueError, match="stand_ins"):
+        place_names(words, homes, concepts, regions, log_theta, channels, 3, stand_ins=stand_ins[:2])
 
 
 @pytest.mark.sigverse

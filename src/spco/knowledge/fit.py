@@ -164,7 +164,7 @@ def fit_knowledge(
     keep = set(summary_iterations(n_iterations, summary_fraction, summary_every))
     start = time.perf_counter()
     chain = _sample_chain(engine, source, hyper, settings, rng, evidence, n_iterations, keep,
-                          f"fit ({model})" if progress else None, corpus.word_increment)
+                          f"fit ({model})" if progress else None, corpus.word_increment, corpus.vocabulary)
     seconds = time.perf_counter() - start
     run = chain.run
     hyper, settings = run.hyper, run.settings  # (with the view weight estimated from the homes)
@@ -263,11 +263,14 @@ class _Chain:
 
 def _sample_chain(engine: Any, source: Any, hyper: TransferHyperparameters, settings: Any,
                   rng: np.random.Generator, evidence: tuple[np.ndarray, np.ndarray] | None, n_iterations: int,
-                  keep: set[int], progress: str | None, word_increment: int) -> _Chain:
+                  keep: set[int], progress: str | None, word_increment: int,
+                  vocabulary: Any = None) -> _Chain:
     """Run the sampler ``n_iterations`` sweeps on the homes of ``source`` (in their shards, on
     ``engine``), keeping the shared parameters of the sweeps in ``keep``; ``progress``: a progress
     bar's label, ``None`` for none; ``word_increment``: S^w of the homes' words (the word channels'
-    token weight, :func:`spco.model.word_channels.token_weight`)."""
+    token weight, :func:`spco.model.word_channels.token_weight`); ``vocabulary``: the homes' (the
+    names objects stand in for among the names said at the places,
+    :func:`spco.model.unheard.stand_in_columns`; ``None``: none)."""
     by_iteration: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
     channel_samples: dict[int, WordChannels] = {}
     expected: dict[int, np.ndarray] = {}  # the kept sweeps' expected switch counts (V, 3)
@@ -280,10 +283,17 @@ def _sample_chain(engine: Any, source: Any, hyper: TransferHyperparameters, sett
     from spco.engines import start_source_run
 
     run = start_source_run(engine, source, hyper, settings, rng)  # the homes stay in the shards
+    stand_ins = None
     if evidence is not None:
-        run.use_word_channels(WordChannels.initial(
+        initial = WordChannels.initial(
             evidence[0], run.hyper.n_concepts, run.hyper.evidence_weight, evidence[1],
-            token_weight(run.hyper.word_counts, word_increment), power=run.hyper.target == "power"))
+            token_weight(run.hyper.word_counts, word_increment), power=run.hyper.target == "power")
+        run.use_word_channels(initial)
+        if vocabulary is not None:  # (the prior's name share is the evidence's: λ does not enter it)
+            from spco.model.unheard import stand_in_columns
+            from spco.model.word_channels import NAME
+
+            stand_ins = stand_in_columns(vocabulary, np.exp(initial.log_prior()[:, NAME]))
 
     def after_sweep(iteration: int, _: float) -> None:  # (a restarted engine repeats sweeps)
         if bar is not None:
@@ -294,7 +304,8 @@ def _sample_chain(engine: Any, source: Any, hyper: TransferHyperparameters, sett
             if shared.channels is not None:
                 channel_samples[iteration] = shared.channels.copy()
                 expected[iteration] = functools.reduce(operator.add, run.call("expected_channel_tokens"))
-                at_places[iteration] = functools.reduce(operator.add, run.call("concept_place_names"))
+                at_places[iteration] = functools.reduce(operator.add,
+                                                        run.call("concept_place_names", stand_ins))
 
     run.fit(n_iterations, after_sweep)
     word_mask_last, candidate_words = run.shared.word_mask, run.call("candidate_words")[0]

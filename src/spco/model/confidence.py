@@ -337,15 +337,19 @@ def model_answer_parameters(model: object, e: int, place_names: bool = True) -> 
 
 def _model_place_names(model: object, e: int, answer: ConceptParameters) -> ConceptParameters:
     """:func:`place_named_parameters` of home ``e`` of a joint fit with the word channels: the names
-    said by each concept's samples and at their places over the other homes, at the fit's final state
+    said by each concept's samples and at their places over the other homes, objects counted for the
+    names they stand in for (:func:`spco.model.unheard.stand_in_columns`), at the fit's final state
     (a knowledge averages them over its kept sweeps)."""
-    from spco.model.word_channels import concept_name_tokens, place_names
+    from spco.model.unheard import stand_in_columns
+    from spco.model.word_channels import NAME, concept_name_tokens, place_names
 
     data, state = model.data_, model.state_  # type: ignore[attr-defined]
     L = state.log_theta_w.shape[1]
     others = np.flatnonzero(np.asarray(data.homes) != e)
+    stand_ins = stand_in_columns(model.vocabulary_,  # type: ignore[attr-defined]
+                                 np.exp(state.channels.log_prior()[:, NAME]))
     at_places = place_names(data.words, data.homes, state.concepts, state.regions, state.log_theta_w,
-                            state.channels, L, rows=others)
+                            state.channels, L, rows=others, stand_ins=stand_ins)
     rows = slice(int(data.offsets[e]), int(data.offsets[e + 1]))
     own = concept_name_tokens(sp.csr_array(data.words[rows]), data.homes[rows], state.concepts[rows],
                               state.log_theta_w, state.channels, L)

@@ -284,14 +284,15 @@ class HomeShard(ShardInitialisation):
         return expected_tokens(self.data.words, self.data.homes, state.concepts, state.log_theta_w,
                                state.channels)
 
-    def concept_place_names(self) -> np.ndarray:
+    def concept_place_names(self, stand_ins: np.ndarray | None = None) -> np.ndarray:
         """(L, V) the names said at each concept's places over the shard's homes
-        (:func:`spco.model.word_channels.place_names`, each home's regions its own)."""
+        (:func:`spco.model.word_channels.place_names`, each home's regions its own; ``stand_ins``: the
+        name each object stands in for, −1 none)."""
         state = self.state
         if state.channels is None:
             raise RuntimeError("HomeShard: no word channels in this state")
         return place_names(self.data.words, self.data.homes, state.concepts, state.regions, state.log_theta_w,
-                           state.channels, state.log_theta_w.shape[1])
+                           state.channels, state.log_theta_w.shape[1], stand_ins=stand_ins)
 
     def pooled_counts(self) -> PooledCounts:
         """The shard's visual, word and concept counts summed over its homes (authors' sampler)."""

@@ -134,9 +134,9 @@ class ShardGroup:
         """The homes' expected tokens per word and channel, summed (V, 3)."""
         return _sum(self._each_lazily("expected_channel_tokens"))
 
-    def concept_place_names(self) -> np.ndarray:
+    def concept_place_names(self, stand_ins: np.ndarray | None = None) -> np.ndarray:
         """The names said at each concept's places over the homes, summed (L, V)."""
-        return _sum(self._each_lazily("concept_place_names"))
+        return _sum(self._each_lazily("concept_place_names", stand_ins))
 
     def tables(self, kind: str) -> np.ndarray:
         """CRT table counts of the homes, summed (integers): the sum of the homes' own

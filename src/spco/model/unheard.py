@@ -43,6 +43,7 @@ __all__ = [
     "candidate_names",
     "resolve_name",
     "said_words",
+    "stand_in_columns",
     "stand_in_names",
 ]
 
@@ -281,6 +282,26 @@ def stand_in_names(vocabulary: Vocabulary, word_mask: np.ndarray, name_prior: np
             j = vocabulary.index(match.name)
             if j is not None and j != k:
                 out[k] = j
+    return out
+
+
+def stand_in_columns(vocabulary: Vocabulary, name_prior: np.ndarray, asked: np.ndarray | None = None,
+                     lexicon: object | None = None) -> np.ndarray:
+    """(V,) int: for each word the column of the place name it stands in for (:func:`stand_in_names`
+    over every word of the vocabulary, or of ``asked``, against every word of stronger name evidence:
+    "dining table" → "dining room", "door" → "entrance", "stove" → "kitchen"), −1 for none. Used by
+    :func:`spco.model.word_channels.place_names`: an object said at a place counts for the name it
+    stands in for. All −1 without the lexicon."""
+    out = np.full(len(vocabulary.words), -1, dtype=np.int64)
+    prior = np.asarray(name_prior, dtype=np.float64)
+    if prior.shape != out.shape:
+        raise ValueError(f"name_prior must have shape {out.shape}, got {prior.shape}")
+    candidates = np.flatnonzero(prior < OBJECT_BELOW) if asked is None else np.asarray(asked, dtype=np.int64)
+    if candidates.size == 0:
+        return out
+    for k, j in stand_in_names(vocabulary, np.ones(out.size, dtype=bool), prior, candidates,
+                               lexicon).items():
+        out[k] = j
     return out
 
 

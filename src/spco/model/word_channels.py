@@ -445,14 +445,18 @@ def name_log_probabilities(log_theta_w: np.ndarray) -> np.ndarray:
 
 def place_names(words: sp.csr_array, homes: np.ndarray, concepts: np.ndarray, regions: np.ndarray,
                 log_theta_w: np.ndarray, channels: WordChannels, n_concepts: int,
-                rows: np.ndarray | None = None) -> np.ndarray:
+                rows: np.ndarray | None = None, stand_ins: np.ndarray | None = None) -> np.ndarray:
     """(L, V) the names said by each concept's samples and at their places: for every sample t (of
     ``rows``, default all), its own name tokens plus the name tokens per sample of its region — the
     names its region's samples say, whatever their concept, summed over the region's samples and
     divided by their number — added to the row of t's concept. A token counts as a name by its
     switch's posterior name probability given its sample's concept (:func:`switch_probabilities`,
     each token once) times its switch's prior name probability (the linguistic evidence,
-    :meth:`WordChannels.log_prior`): a name when the fit and the word's evidence agree.
+    :meth:`WordChannels.log_prior`): a name when the fit and the word's evidence agree. With
+    ``stand_ins``, an object said at the place (a token drawn as a place word) also counts for the
+    name it stands in for, by its place-word probability times that name's prior name probability
+    ("by the dining table" counts for "dining room": people name the dining area by its table far
+    more often than by its name).
 
     A concept whose people named only what is there ("near the refrigerator") shares its regions
     with the concept of the people who named the room: its row holds the room's names, in
@@ -470,6 +474,8 @@ def place_names(words: sp.csr_array, homes: np.ndarray, concepts: np.ndarray, re
     log_theta_w, channels: the names channel (E, L, V) and the word channels the switches are drawn with.
     n_concepts: L.
     rows: the samples that count (their regions' names and their concepts' rows); default every one.
+    stand_ins: (V,) int, the column of the name each word stands in for, −1 for none
+        (:func:`spco.model.unheard.stand_in_columns`); ``None``: none.
 
     Returns
     -------
@@ -482,8 +488,17 @@ def place_names(words: sp.csr_array, homes: np.ndarray, concepts: np.ndarray, re
     if not words.nnz or not selected.any():
         return out
     token_row, cols, _ = _tokens(words)
-    named = (switch_probabilities(words, homes, concepts, log_theta_w, channels)[:, NAME]
-             * np.exp(channels.log_prior()[cols, NAME]))
+    p = switch_probabilities(words, homes, concepts, log_theta_w, channels)
+    prior_name = np.exp(channels.log_prior()[:, NAME])
+    named = p[:, NAME] * prior_name[cols]
+    if stand_ins is not None:
+        stand_ins = np.asarray(stand_ins, dtype=np.int64)
+        if stand_ins.shape != (n_words,):
+            raise ValueError(f"stand_ins must have shape ({n_words},), got {stand_ins.shape}")
+        objects = np.flatnonzero(stand_ins[cols] >= 0)  # the objects' tokens, counted for their names
+        token_row = np.concatenate([token_row, token_row[objects]])
+        named = np.concatenate([named, p[objects, PLACE] * prior_name[stand_ins[cols[objects]]]])
+        cols = np.concatenate([cols, stand_ins[cols[objects]]])
     keep = selected[token_row]
     homes = np.asarray(homes, dtype=np.int64)
     regions = np.asarray(regions, dtype=np.int64)
