@@ -50,12 +50,6 @@ def _switch_probability(k: int, home: int, concept: int, log_theta, channels, c:
     return float(joint[c] / joint.sum())
 
 
-def _counted_as_name(k: int, home: int, concept: int, log_theta, channels) -> float:
-    """A token's count among the names said at a place: its posterior name probability times its
-    prior one, p(z = name | word k) = e_{k,0} / Σ_c e_{k,c}, both written out."""
-    e = np.exp(channels.log_evidence[k])
-    return _name_probability(k, home, concept, log_theta, channels) * float(e[0] / e.sum())
-
 
 @pytest.mark.parametrize("seed", range(4))
 def test_place_names_match_a_loop_over_samples_and_regions(seed: int) -> None:
@@ -68,7 +62,7 @@ def test_place_names_match_a_loop_over_samples_and_regions(seed: int) -> None:
     for t in range(n):
         for k in np.flatnonzero(dense[t]):
             names[t, k] = _name_probability(k, homes[t], concepts[t], log_theta, channels)
-            counted[t, k] = _counted_as_name(k, homes[t], concepts[t], log_theta, channels)
+            counted[t, k] = names[t, k]
     expected = np.zeros((3, V))
     for t in rows:
         mates = [s for s in rows if homes[s] == homes[t] and regions[s] == regions[t]]
@@ -151,44 +145,6 @@ def test_a_concept_of_object_talk_answers_the_name_said_where_it_stands() -> Non
     assert answer[2, 1, bedroom] < 1e-3  # nothing from the other region
 
 
-def test_an_object_drawn_as_a_name_counts_at_its_evidence() -> None:
-    """In each of two experienced homes the kitchen region holds two people who say "kitchen"
-    (concept 0) and six who say only "fridge" (concept 1, whose names channel holds the fridge: its
-    tokens are drawn as names with posterior ≈ 1). Counted by the posterior alone the fridge would be
-    the name said most where concept 1 stands (21 tokens against 3); counted with its evidence as a
-    name (prior 0.067 against the kitchen's 0.6) the kitchen is (docs/model.md, "Names said at a
-    concept's places")."""
-    kitchen, fridge = range(2)  # (word 2, never said, holds the place and background channels)
-    rows = [*[(h, 0, (kitchen,)) for h in (0, 1) for _ in range(2)],
-            *[(h, 1, (fridge,)) for h in (0, 1) for _ in range(6)], (2, 1, ())]
-    dense = np.zeros((len(rows), 3))
-    for i, (_, _, said) in enumerate(rows):
-        dense[i, list(said)] = 5e3
-    homes, concepts = (np.array([r[j] for r in rows]) for j in range(2))
-    regions = np.zeros(len(rows), dtype=np.int64)
-    theta = np.full((3, 2, 3), 1e-6)
-    theta[:, 0, kitchen] = theta[:, 1, fridge] = 1.0
-    theta /= theta.sum(-1, keepdims=True)
-    nu = np.array([0.9, 0.1, 0.5])
-    rare = np.array([1e-4, 1e-4, 1.0 - 2e-4])
-    channels = WordChannels(log_place=np.log(np.tile(rare, (2, 1))), log_background=np.log(rare),
-                            log_shares=np.log(np.array([1.0, 0.5, 0.5])),
-                            log_evidence=np.log(np.column_stack([nu, 1 - nu, np.full(3, 0.5)])))
-    others = np.flatnonzero(homes != 2)
-    at_places = place_names(sp.csr_array(dense), homes, concepts, regions, np.log(theta), channels, 2,
-                            rows=others)
-    posterior = np.array([_name_probability(fridge, 0, 1, np.log(theta), channels),
-                          _name_probability(kitchen, 0, 0, np.log(theta), channels)])
-    assert posterior.min() > 0.99  # both drawn as names
-    prior = nu[:2] / 1.5  # e_{k,0} / Σ_c e_{k,c}: 0.6 and 0.067
-    # per home: 6 fridge samples, each its own fridge and the region's 6/8 fridge, 2/8 kitchen
-    assert_allclose(at_places[1, :2], 2 * 6 * np.array([2 / 8, 1 + 6 / 8]) * prior * posterior[::-1],
-                    rtol=1e-9)
-    answer = np.asarray(place_named_parameters(_params(theta), 2, at_places, np.zeros((2, 3)), 1e4, 5e3)
-                        .word_probabilities)
-    assert np.argmax(answer[2, 1]) == kitchen
-
-
 def test_an_object_said_at_a_place_counts_for_the_name_it_stands_in_for() -> None:
     """People at the dining area say "by the dining table" (a place word) far more often than its
     name; with ``stand_ins`` ("dining table" → "dining room") each such token also counts for the
@@ -204,7 +160,7 @@ def test_an_object_said_at_a_place_counts_for_the_name_it_stands_in_for() -> Non
     counted = np.zeros((n, V))
     for t in range(n):
         for k in np.flatnonzero(dense[t]):
-            counted[t, k] += _counted_as_name(k, homes[t], concepts[t], log_theta, channels)
+            counted[t, k] += _name_probability(k, homes[t], concepts[t], log_theta, channels)
             if stand_ins[k] >= 0:
                 place = _switch_probability(k, homes[t], concepts[t], log_theta, channels, 1)
                 counted[t, stand_ins[k]] += place * prior[stand_ins[k]]

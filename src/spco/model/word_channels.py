@@ -451,21 +451,18 @@ def place_names(words: sp.csr_array, homes: np.ndarray, concepts: np.ndarray, re
     names its region's samples say, whatever their concept, summed over the region's samples and
     divided by their number — added to the row of t's concept. A token counts as a name by its
     switch's posterior name probability given its sample's concept (:func:`switch_probabilities`,
-    each token once) times its switch's prior name probability (the linguistic evidence,
-    :meth:`WordChannels.log_prior`): a name when the fit and the word's evidence agree. With
-    ``stand_ins``, an object said at the place (a token drawn as a place word) also counts for the
-    name it stands in for, by its place-word probability times that name's prior name probability
-    ("by the dining table" counts for "dining room": people name the dining area by its table far
-    more often than by its name).
+    each token once). With ``stand_ins``, an object said at the place (a token drawn as a place
+    word) also counts for the name it stands in for, by its place-word probability times that name's
+    prior name probability (the linguistic evidence, :meth:`WordChannels.log_prior`): "by the dining
+    table" counts for "dining room" (people name the dining area by its table far more often than by
+    its name).
 
     A concept whose people named only what is there ("near the refrigerator") shares its regions
     with the concept of the people who named the room: its row holds the room's names, in
     proportion to how often they are said there, where its own names channel θ^w holds the few
     object tokens drawn as names; a concept whose people named the room holds its own names twice,
-    as its samples' and as its places'. An object drawn as a name where a concept has no other
-    ("couch", posterior 1, prior 0.1) counts at its evidence, not as a room's name (docs/model.md,
-    "Names said at a concept's places"). A region is a (home, region) pair of ``homes`` and
-    ``regions``.
+    as its samples' and as its places' (docs/model.md, "Names said at a concept's places"). A region
+    is a (home, region) pair of ``homes`` and ``regions``.
 
     Parameters
     ----------
@@ -479,8 +476,8 @@ def place_names(words: sp.csr_array, homes: np.ndarray, concepts: np.ndarray, re
 
     Returns
     -------
-    (L, V) float64, name tokens (posterior times prior name probability): the concept's own plus,
-    for each of its samples, its region's per sample.
+    (L, V) float64, expected name tokens: the concept's own plus, for each of its samples, its
+    region's per sample.
     """
     n, n_words = words.shape
     out = np.zeros((n_concepts, n_words))
@@ -490,7 +487,7 @@ def place_names(words: sp.csr_array, homes: np.ndarray, concepts: np.ndarray, re
     token_row, cols, _ = _tokens(words)
     p = switch_probabilities(words, homes, concepts, log_theta_w, channels)
     prior_name = np.exp(channels.log_prior()[:, NAME])
-    named = p[:, NAME] * prior_name[cols]
+    named = p[:, NAME].copy()
     if stand_ins is not None:
         stand_ins = np.asarray(stand_ins, dtype=np.int64)
         if stand_ins.shape != (n_words,):
