@@ -9,9 +9,9 @@ concept is put there, and answered, with certainty.
 
 The room account (how the robot answers: :func:`spco.model.confidence.answer_concepts`, through
 :func:`spco.model.confidence.answer_names`'s ``rooms`` for ``what``, ``ask``, the service, the ROS node
-and the experiments) judges an observation's concept from two pieces of evidence, each worth the
-model's w draws: the room it is in — the room's training views pooled into one count vector
-(:func:`room_concepts`) — and its own view, both against the shared visual distributions φ^v (the
+and the experiments) judges an observation's concept from the room it is in: the room's training
+views and the observation's own view pooled into one count vector worth the model's w draws
+(:func:`room_concepts`, :func:`concepts_by_room`), against the shared visual distributions φ^v (the
 concepts as the experienced homes taught them, not the home's own θ^v, which already holds the room's
 views), with the prior G_0 and the names taught in the room (each taught name token counted as θ^w
 counts it, S^w draws from θ^w of the concept: a name taught in a room decides the room's concept). A
