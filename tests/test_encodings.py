@@ -69,11 +69,9 @@ def test_an_rgb_frame_declared_rgb8_gives_the_names_of_the_bgr_frame_and_of_its_
             wrong = _names(home.what(x, y, theta, image=rgb))  # the RGB frame read as BGR
         changed += wrong[0][0] != from_file[0][0]
     # undeclared, the top name changes at many poses: what the issue saw (41 of 60 poses); 32 of these
-    # 48 with the view-by-view answer (main 445a282), 23 with the room account counting the frame
-    # beside its room's pooled views, 8 with the frame one of its room's views (the pose inside the
-    # kitchen, the kitchen's pooled views decide its concept; the frame moves the answer where it
-    # could be in either room: benchmarks/README, "Issue 29: the observation is one of its room's views")
-    assert changed >= len(distances) // 8, changed
+    # 48 with the view-by-view answer (main 445a282), 23 with the room account, where a room's pooled
+    # views weigh as much as the frame (benchmarks/README, "Issue 29: the room account the default")
+    assert changed >= len(distances) // 3, changed
 
 
 def test_teach_with_an_rgb8_frame_learns_the_view_of_its_file(tour_home_file: Path, tmp_path: Path) -> None:

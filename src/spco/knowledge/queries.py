@@ -297,9 +297,9 @@ def name_prediction(home: HomeModel, poses: np.ndarray, visual: Any = None, top_
     """The names :func:`what` answers, for ``n`` poses at once and without its checks of the pose:
     p(name | pose, view) = Σ_l p(name | l) P(l | pose, view), with p(name | l) from
     :func:`answer_parameters` and P(l | pose, view) the room account
-    (:func:`spco.model.confidence.answer_concepts`, :mod:`spco.model.rooms`: P(l | pose, view) =
-    Σ_k p(k | pose, view) p(l | room k with the view), room k's training views and the view pooled,
-    worth the model's view weight w draws against φ^v, the weight the home was learnt with,
+    (:func:`spco.model.confidence.answer_concepts`, :mod:`spco.model.rooms`: P(l | pose, view) ∝
+    Σ_k p(k | pose) p(l | room k) p(view | l), room k's training views pooled and the view each worth
+    the model's view weight w draws against φ^v, the weight the home was learnt with,
     :meth:`~spco.model.hyperparameters.TransferHyperparameters.view_weight`; docs/model.md, "A room's
     evidence"). ``what``, ``ask``, the service and the ROS node answer through it.
 

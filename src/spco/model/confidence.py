@@ -28,10 +28,10 @@ counts two kinds of evidence that are not independent as if they were; this modu
    (:func:`answerable_names`): such a concept answers at p ≈ 1 / (number of names), i.e. unsure.
 4. **A room's views are one piece of evidence.** Given the home's rooms (:func:`answer_names`'s
    ``rooms``: the robot's answers, ``what``, ``ask`` and the experiments, always pass them), the
-   concept at a pose is judged from the rooms the pose may be in — each room's training views and the
-   observation's view pooled, worth w draws, against φ^v (the view says which room the pose is in, and
-   counts as one of that room's views) — not from the home's π and θ^v, which hold each of the room's
-   views as independent evidence (:func:`answer_concepts`, :mod:`spco.model.rooms`; docs/model.md, "A room's
+   concept at a pose is judged from the rooms the pose may be in — each room's training views pooled,
+   worth w draws — and the observation's view, worth w, against φ^v (the view weighs in on which room
+   as well as on its concept), not from the home's π and θ^v, which hold each of the room's views as
+   independent evidence (:func:`answer_concepts`, :mod:`spco.model.rooms`; docs/model.md, "A room's
    evidence"). Without rooms (a bare :class:`ConceptParameters`, SpCoA's single-home fit, the
    authors' reference weighting) the view-by-view posterior of :mod:`spco.model.prediction` answers.
 
@@ -234,10 +234,8 @@ def answer_concepts(params: ConceptParameters, e: int, positions: np.ndarray, vi
     about names (:func:`answer_names`; ``ask``'s question scores).
 
     With ``rooms`` (the home's training samples' regions, views and taught names) the room account,
-    P(l | x, v) = Σ_k p(k | x, v) p(l | room k with v): the view says which room the pose is in and is
-    pooled with that room's training views, one count vector at w, for the room's concept
-    (:func:`spco.model.rooms.concepts_by_room`; docs/model.md, "A room's evidence"); without them, or
-    if no region holds a training sample, the
+    P(l | x, v) ∝ Σ_k p(k | x) p(l | room k) p(v | l) (:func:`spco.model.rooms.concepts_by_room`;
+    docs/model.md, "A room's evidence"); without them, or if no region holds a training sample, the
     view-by-view posterior of the home's parameters (:func:`spco.model.prediction.concept_posterior`).
     A view counts as ``view_counts`` = w draws either way (``visual`` ``None``: the pose alone).
     """
@@ -276,8 +274,8 @@ def answer_names(
     ``rooms``: the home's training samples' regions, views and taught names (the robot always has
     them: :func:`spco.knowledge.queries.home_rooms`, :func:`spco.model.rooms.model_rooms`); with them
     and a pose, the concept is judged by :func:`answer_concepts` — the rooms the pose may be in, each
-    room's training views and the observation's view pooled as one piece of evidence, worth w draws
-    against φ^v (docs/model.md, "A room's evidence"). ``None``: view by view against the home's
+    room's training views pooled as one piece of evidence, and the observation's view, each worth w
+    draws against φ^v (docs/model.md, "A room's evidence"). ``None``: view by view against the home's
     π and θ^v (a bare parameter set, SpCoA's single-home fit).
     """
     if not 0.0 <= unsure_below <= 1.0:

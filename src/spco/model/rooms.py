@@ -9,9 +9,9 @@ concept is put there, and answered, with certainty.
 
 The room account (how the robot answers: :func:`spco.model.confidence.answer_concepts`, through
 :func:`spco.model.confidence.answer_names`'s ``rooms`` for ``what``, ``ask``, the service, the ROS node
-and the experiments) judges an observation's concept from the room it is in: the room's training
-views and the observation's own view pooled into one count vector worth the model's w draws
-(:func:`room_concepts`, :func:`concepts_by_room`), against the shared visual distributions φ^v (the
+and the experiments) judges an observation's concept from two pieces of evidence, each worth the
+model's w draws: the room it is in — the room's training views pooled into one count vector
+(:func:`room_concepts`) — and its own view, both against the shared visual distributions φ^v (the
 concepts as the experienced homes taught them, not the home's own θ^v, which already holds the room's
 views), with the prior G_0 and the names taught in the room (each taught name token counted as θ^w
 counts it, S^w draws from θ^w of the concept: a name taught in a room decides the room's concept). A
@@ -21,20 +21,15 @@ into two concepts (a room taught "tub room" and "shower room") holds two rooms, 
 Gaussian; a region where one name was taught is one room. The observation is in room k with prior
 p(k | x) ∝ n_k N(x | μ_r(k), Σ_r(k)) (n_k the room's training samples, r(k) its region); room k is of
 concept l with p(l | room k) ∝ G_0,l · exp(ω_k Σ_d V_{k,d} log φ^v_{l,d}) · Π_{t ∈ k} Π_w
-θ^w_{e,l,w}^{u_{t,w}}; the view is one more view of the room it was taken in. So
+θ^w_{e,l,w}^{u_{t,w}}; and the view is drawn from the room's concept,
+p(v | l) = exp(ω_v Σ_d v_d log φ^v_{l,d}). So
 
-    P(l | x, v) = Σ_k p(k | x, v) p(l | room k with v),
-    p(k | x, v) ∝ p(k | x) Σ_l' p(l' | room k) p(v | l'),   p(v | l) = exp(ω_v Σ_d v_d log φ^v_{l,d}),
+    P(l | x, v) ∝ Σ_k p(k | x) p(l | room k) p(v | l),
 
-with p(l | room k with v) the room's concept from its views *and the observation's* pooled into one
-count vector V_k + v at w, ω_k = min(1, w / Σ_d V_{k,d}), ω_v = min(1, w / Σ_d v_d): one piece of
-visual evidence about the room's concept where the home's π and θ^v hold twenty-one. The view says
-which room the pose is in (a view unlike everything the room at the pose looks like says the robot is
-in the room next door), and about the room's concept only as one of the room's views: a room's views
-pooled are worth about one view (docs/model.md, "A room's evidence"), and the observation is a view of
-the same room, so counting it once more beside the room's pooled views — as the account first did,
-Σ_k p(k | x) p(l | room k) p(v | l) — counts the room twice (the few-homes knowledges' confident wrong
-rooms; benchmarks/README.md, "Issue 29: the observation is one of its room's views").
+ω_k = min(1, w / Σ_d V_{k,d}) with V_k the room's pooled counts, ω_v = min(1, w / Σ_d v_d): two
+pieces of evidence where the home's π and θ^v hold twenty-one. The view weighs in on which room the
+pose is in as well as on the room's concept (the sum over k is normalised jointly): a view unlike
+everything the room at the pose looks like says the robot is in the room next door.
 """
 
 from __future__ import annotations
@@ -46,7 +41,6 @@ import scipy.sparse as sp
 from scipy.special import logsumexp
 
 from spco.errors import ConfigurationError
-from spco.model.hyperparameters import view_powers
 from spco.model.parameters import ConceptParameters
 from spco.model.prediction import _safe_log, _visual_log_likelihood
 
@@ -72,7 +66,7 @@ class HomeRooms:
     words: sp.csr_array
     concepts: np.ndarray | None = None
     #: the rooms' evidence already worked out, per answer's parameters (:func:`_room_log_posterior`):
-    #: ``e -> (params, result)``, kept only while the same ``params`` object is asked
+    #: ``(view_counts, e) -> (params, result)``, kept only while the same ``params`` object is asked
     _known: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     @classmethod
@@ -146,54 +140,22 @@ class HomeRooms:
         return sp.csr_array((np.asarray(vals), index), shape=(R, n)), np.asarray(region_of, dtype=np.int64)
 
 
-def _room_log_posterior(params: ConceptParameters, rooms: HomeRooms, e: int = 0) -> _RoomEvidence:
-    """Each room's evidence about its concept (:class:`_RoomEvidence`), worked out once per ``rooms``
-    and ``params`` object (both are read, never written, so a live home that answers from the same
-    two objects — :func:`spco.knowledge.queries.name_prediction` — pays for it once per state)."""
-    known = rooms._known.get(e)
+def _room_log_posterior(params: ConceptParameters, rooms: HomeRooms, view_counts: float | None,
+                        e: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(R, L) log G_0 + each room's pooled views at w against φ^v + its taught name tokens under θ^w
+    (unnormalised); (R,) training samples per room; (R,) each room's region. Worked out once per
+    ``rooms`` and ``params`` object (both are read, never written, so a live home that answers from the
+    same two objects — :func:`spco.knowledge.queries.name_prediction` — pays for it once per state)."""
+    known = rooms._known.get((view_counts, e))
     if known is not None and known[0] is params:
         return known[1]
-    result = _room_evidence(params, rooms, e)
-    rooms._known[e] = (params, result)
+    result = _room_evidence(params, rooms, view_counts, e)
+    rooms._known[(view_counts, e)] = (params, result)
     return result
 
 
-@dataclass(frozen=True)
-class _RoomEvidence:
-    """A home's rooms as the answer reads them.
-
-    Attributes
-    ----------
-    prior: (R, L) log G_0 + each room's taught name tokens under θ^w (unnormalised).
-    views: (R, L) each room's pooled view counts against φ^v, ``V_k · log φ^vᵀ``, every count a draw
-        (0 where the knowledge has no φ^v or the views another dimension).
-    totals: (R,) Σ_d V_{k,d}, the pooled views' counts (the view weight's power is taken of them).
-    counts: (R,) training samples per room (n_k, the shares); region_of: (R,) each room's region.
-    """
-
-    prior: np.ndarray
-    views: np.ndarray
-    totals: np.ndarray
-    counts: np.ndarray
-    region_of: np.ndarray
-
-    def log_posterior(self, view_counts: float | None) -> np.ndarray:
-        """(R, L) log p(l | room k), unnormalised: the prior and the pooled views at w draws."""
-        return self.prior + self.views * _powers(self.totals, view_counts)[:, None]
-
-
-def _powers(totals: np.ndarray, view_counts: float | None) -> np.ndarray:
-    """ω = min(1, w / total) of each pooled count vector (:func:`~spco.model.hyperparameters.view_powers`);
-    ``None``: every count a draw (ω = 1)."""
-    totals = np.asarray(totals, dtype=np.float64)
-    if view_counts is None:
-        return np.ones_like(totals)
-    if not view_counts > 0:
-        raise ConfigurationError(f"view_counts must be > 0, got {view_counts!r}")
-    return view_powers(totals, float(view_counts))
-
-
-def _room_evidence(params: ConceptParameters, rooms: HomeRooms, e: int) -> _RoomEvidence:
+def _room_evidence(params: ConceptParameters, rooms: HomeRooms, view_counts: float | None,
+                   e: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`_room_log_posterior` worked out."""
     K = int(np.shape(params.region_means)[1])
     if rooms.regions.size and rooms.regions.max() >= K:
@@ -205,23 +167,20 @@ def _room_evidence(params: ConceptParameters, rooms: HomeRooms, e: int) -> _Room
     R = region_of.size
     onehot = share.copy()  # the room's views and names: each member's whole (counts stay counts)
     onehot.data[:] = 1.0
-    prior = np.broadcast_to(_safe_log(params.global_concept_weights)[None, :], (R, params.n_concepts)).copy()
-    views = np.zeros((R, params.n_concepts))
-    totals = np.zeros(R)
+    log_post = np.broadcast_to(_safe_log(params.global_concept_weights)[None, :],
+                               (R, params.n_concepts)).copy()
     phi_v = np.asarray(params.shared_visual_probabilities, dtype=np.float64)
     if phi_v.size and rooms.visual.shape[1] == phi_v.shape[1]:  # the room's views pooled: one view at w
-        pooled = sp.csr_array(onehot @ rooms.visual)
-        views = _visual_log_likelihood(phi_v, pooled, None)
-        totals = np.asarray(pooled.sum(axis=1), dtype=np.float64).ravel()
+        log_post += _visual_log_likelihood(phi_v, sp.csr_array(onehot @ rooms.visual), view_counts)
     names = np.asarray(params.word_mask, dtype=bool)
     if rooms.words.nnz and names.any() and rooms.words.shape[1] == names.size:
         theta = np.clip(np.asarray(params.word_probabilities[e], dtype=np.float64), 0.0, None)
         theta = theta * names[None, :]
         theta /= np.maximum(theta.sum(axis=1, keepdims=True), np.finfo(np.float64).tiny)
         said = sp.csr_array(onehot @ (rooms.words @ sp.diags_array(names.astype(np.float64))))
-        prior += np.asarray(said @ _safe_log(theta).T)
+        log_post += np.asarray(said @ _safe_log(theta).T)
     counts = np.asarray(share.sum(axis=1), dtype=np.float64).ravel()  # n_k: the shares
-    return _RoomEvidence(prior, views, totals, counts, region_of)
+    return log_post, counts, region_of
 
 
 def room_concepts(params: ConceptParameters, e: int, rooms: HomeRooms, view_counts: float | None
@@ -239,26 +198,21 @@ def room_concepts(params: ConceptParameters, e: int, rooms: HomeRooms, view_coun
     counts: (R,) training samples per room; posterior: (R, L) p(l | room k), rows sum to 1 (a room
     without samples: G_0). Without ``rooms.concepts`` the rooms are the model's K regions.
     """
-    evidence = _room_log_posterior(params, rooms, e)
-    log_post = evidence.log_posterior(view_counts)
-    return evidence.counts, np.exp(log_post - logsumexp(log_post, axis=1, keepdims=True))
+    log_post, counts, _ = _room_log_posterior(params, rooms, view_counts, e)
+    return counts, np.exp(log_post - logsumexp(log_post, axis=1, keepdims=True))
 
 
 def concepts_by_room(params: ConceptParameters, e: int, positions: np.ndarray, visual: object,
                      rooms: HomeRooms, view_counts: float | None) -> np.ndarray | None:
-    """(n, L) P(l | x, v) = Σ_k p(k | x, v) p(l | room k with v) at poses ``positions`` (n, 4) of home
-    ``e`` with views ``visual`` (n, D; ``None`` or an empty row: no view): p(k | x, v) ∝ n_k N(x | μ_r(k),
-    Σ_r(k)) p(v | room k) over the rooms with training samples (r(k) the room's region), p(v | room k) =
-    Σ_l p(l | room k) p(v | l) the view at w under the room's concepts, and p(l | room k with v) ∝
-    G_0,l · (room k's pooled views *and the observation's*, one count vector at w) · (its taught names),
-    against φ^v (module docstring): the view says which room, and is one more view of it, pooled with
-    the room's, not a second piece of evidence about the room's concept. ``None`` if no room has a
-    training sample (the caller answers from the view and the pose against the home's parameters
-    instead)."""
-    from spco.model.prediction import gaussian_log_density, validate_poses, validate_visual_counts
+    """(n, L) P(l | x, v) ∝ Σ_k p(k | x) p(l | room k) p(v | l) at poses ``positions`` (n, 4) of home
+    ``e`` with views ``visual`` (n, D; ``None`` or an empty row: no view), p(k | x) ∝ n_k N(x | μ_r(k),
+    Σ_r(k)) over the rooms with training samples (r(k) the room's region), p(l | room k) ∝ G_0,l ·
+    (room k's pooled views at w) · (its taught names) and p(v | l) the view at w, both against φ^v
+    (module docstring); ``None`` if no room has a training sample (the caller answers from the view
+    and the pose against the home's parameters instead)."""
+    from spco.model.prediction import gaussian_log_density, validate_poses
 
-    evidence = _room_log_posterior(params, rooms, e)
-    counts, region_of = evidence.counts, evidence.region_of
+    room_log, counts, region_of = _room_log_posterior(params, rooms, view_counts, e)  # (R, L) unnormalised
     if not (counts > 0).any():
         return None
     x = validate_poses(positions)
@@ -271,31 +225,18 @@ def concepts_by_room(params: ConceptParameters, e: int, positions: np.ndarray, v
         raise ConfigurationError(f"observation {i} at {tuple(float(v) for v in x[i, :2])}: every region's "
                                  f"density is 0 in floating point; is the position on the home's map, in "
                                  f"metres?")
-    room_log = evidence.log_posterior(view_counts)
-    room_norm = room_log - logsumexp(room_log, axis=1, keepdims=True)  # (R, L) log p(l | room k)
-    n, L = x.shape[0], params.n_concepts
-    view_raw = np.zeros((n, L))  # the view against φ^v, every count a draw
-    view_totals = np.zeros(n)
+    view_log = np.zeros((x.shape[0], params.n_concepts))
     phi_v = np.asarray(params.shared_visual_probabilities, dtype=np.float64)
     if visual is not None and phi_v.size:
-        view_raw = _visual_log_likelihood(phi_v, visual, None)
-        if view_raw.shape[0] != n:
-            raise ConfigurationError(f"{n} positions but {view_raw.shape[0]} visual feature rows")
-        view_totals = np.asarray(validate_visual_counts(visual, phi_v.shape[1]).sum(axis=1),
-                                 dtype=np.float64).ravel()
-    view_log = view_raw * _powers(view_totals, view_counts)[:, None]  # log p(v | l), the view at w
-    pooled_views = evidence.views.shape == room_log.shape and evidence.totals.any()
-    joint = np.full((n, L), -np.inf)
+        view_log = _visual_log_likelihood(phi_v, visual, view_counts)
+        if view_log.shape[0] != x.shape[0]:
+            raise ConfigurationError(f"{x.shape[0]} positions but {view_log.shape[0]} visual feature rows")
+    # log p(k | x) + log p(l | room k) + log p(v | l): the view weighs in on the room as on its concept
+    # (a view unlike everything room k looks like says the pose is not in room k)
+    room_norm = room_log - logsumexp(room_log, axis=1, keepdims=True)  # (R, L) log p(l | room k)
+    joint = np.full((x.shape[0], params.n_concepts), -np.inf)
     for k in np.flatnonzero(counts > 0):  # a loop over the home's rooms (tens)
-        # log p(v | room k): the view weighs in on which room the pose is in
-        says_room = logsumexp(room_norm[k][None, :] + view_log, axis=1, keepdims=True)
-        if pooled_views and view_totals.any():  # the room's views and the observation's, pooled at w
-            with_view = evidence.prior[k][None, :] + (evidence.views[k][None, :] + view_raw) \
-                * _powers(evidence.totals[k] + view_totals, view_counts)[:, None]
-            with_view -= logsumexp(with_view, axis=1, keepdims=True)
-        else:
-            with_view = np.broadcast_to(room_norm[k][None, :], (n, L))
-        joint = np.logaddexp(joint, (log_k[:, [k]] - total) + says_room + with_view)
+        joint = np.logaddexp(joint, (log_k[:, [k]] - total) + room_norm[k][None, :] + view_log)
     return np.exp(joint - logsumexp(joint, axis=1, keepdims=True))
 
 
