@@ -72,9 +72,10 @@ def run(args: tuple[str, str, ConfiguredRun, int]) -> dict[str, Any]:
     loaded = ConfiguredData(file, data, file.select([key.configuration]))
     record = sc.execute_configured_run(loaded, key, iterations, sc.DEFAULT_POSITIONS)
     record["rooms_account"] = {name: {"correct": [int(c) for c in s.correct], "predicted": list(s.predicted),
-                                      "name_accuracy": round(s.name_accuracy, 6), "positions": s.positions}
+                                      "name_accuracy": round(s.name_accuracy, 6),
+                                      "positions": s.position_accuracy}
                                for name, s in _ROOMS[0].items()}
-    record["positions_fit_account"] = {name: s.positions for name, s in _ROOMS[1].items()}
+    record["positions_fit_account"] = {name: s.position_accuracy for name, s in _ROOMS[1].items()}
     return record
 
 
