@@ -9,7 +9,9 @@ from fits it (same corpus, sweeps and trial seed), and A_p is scored twice on th
   no rooms): which concept a name means as ``what`` says, which regions a concept holds as the fit says;
 - **robot**: p(m | w) ∝ Σ_l p(w | l) p(l, m | home), p(w | l) the names ``what`` answers and
   p(l, m | home) the room account (``evaluate_home`` with ``model_answer_parameters`` and
-  ``model_rooms``: what ``spco.knowledge.where`` answers, and the experiments' A_p now).
+  ``model_rooms``: what ``spco.knowledge.where`` answers, and the experiments' A_p now), drawn from the
+  argmax region (the paper's A_p) and, as **robot's draw**, as the robot's ``where`` draws them (every
+  region at least half as probable as the best, ``position_mode="answer"``).
 
 A_n is the robot's (the same both ways). Sets:
 
@@ -48,6 +50,7 @@ from spco.model.confidence import model_answer_parameters
 from spco.model.rooms import model_rooms
 
 HERE = Path(__file__).resolve().parent
+DRAW = "A_p robot's draw"
 
 
 def _score(model, e: int, env, vocabulary, seed: int) -> dict[str, float]:
@@ -59,7 +62,10 @@ def _score(model, e: int, env, vocabulary, seed: int) -> dict[str, float]:
                           answer_params=answer)
     robot = evaluate_home(model.parameters_, e, env, vocabulary, rng=seed, view_counts=view_counts,
                           answer_params=answer, answer_rooms=model_rooms(model, e))
-    return {"A_n": robot.mean_name_accuracy, "A_p fit": fit.mean_position_accuracy,
+    drawn = evaluate_home(model.parameters_, e, env, vocabulary, rng=seed, view_counts=view_counts,
+                          answer_params=answer, answer_rooms=model_rooms(model, e), position_mode="answer")
+    return {"A_p robot's draw": drawn.mean_position_accuracy, "A_n": robot.mean_name_accuracy,
+            "A_p fit": fit.mean_position_accuracy,
             "A_p names": names.mean_position_accuracy, "A_p robot": robot.mean_position_accuracy,
             "places": {p: (fit.position_accuracy.get(p), names.position_accuracy.get(p),
                            robot.position_accuracy.get(p))
@@ -101,11 +107,12 @@ def main() -> None:
             row = _score(model, len(corpus) - 1, scored, corpus.vocabulary, seed)
             runs.append(row)
             print(f"seed {seed} {label}: A_n {row['A_n']:.3f}  A_p fit {row['A_p fit']:.3f}  A_p names "
-                  f"{row['A_p names']:.3f}  A_p robot {row['A_p robot']:.3f}  "
+                  f"{row['A_p names']:.3f}  A_p robot {row['A_p robot']:.3f}  A_p robot's draw "
+                  f"{row[DRAW]:.3f}  "
                   f"({time.perf_counter() - started:.0f} s)", flush=True)
             for place, values in row["places"].items():
                 print(f"    {place}: " + " / ".join(f"{v:.2f}" for v in values))
-    for key in ("A_n", "A_p fit", "A_p names", "A_p robot"):
+    for key in ("A_n", "A_p fit", "A_p names", "A_p robot", "A_p robot's draw"):
         values = np.array([r[key] for r in runs], dtype=float)
         print(f"{key}: mean {np.nanmean(values):.3f} over {values.size} fits")
 
