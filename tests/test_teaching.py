@@ -148,7 +148,7 @@ def test_a_new_name_stands_for_its_place_not_for_another_concepts_samples_of_the
     assert (taught.state.concepts[elsewhere] == other).all()  # the other place's stay
 
 
-def test_a_teaching_answers_with_the_posterior_mean_of_its_regions_gaussians_not_a_few_draws(home: Path) -> None:
+def test_a_teaching_answers_with_the_posterior_mean_of_its_regions_gaussians(home: Path) -> None:
     """The taught regions' Gaussians in the answers are their posterior mean given the sweeps'
     assignments (the NIW posterior predictive's moments), not the average of two draws: with one
     sweep, exactly those of the samples the state holds in each affected region."""
@@ -163,8 +163,8 @@ def test_a_teaching_answers_with_the_posterior_mean_of_its_regions_gaussians_not
     prior = gibbs.niw_prior(data, shared.hyperparameters, shared.sampler_settings())
     region = int(state.regions[row])
     x = data.positions[state.regions == region]
-    means, covariances = expected_gaussians(np.array([float(x.shape[0])]), x.sum(axis=0)[None], (x.T @ x)[None],
-                                            prior)
+    count = np.array([float(x.shape[0])])
+    means, covariances = expected_gaussians(count, x.sum(axis=0)[None], (x.T @ x)[None], prior)
     scale = np.array([model.position_scale, model.position_scale, 1.0, 1.0])
     after = taught.posterior
     np.testing.assert_allclose(after.region_means[0, region], means[0] / scale, rtol=1e-9, atol=1e-12)

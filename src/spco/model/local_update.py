@@ -52,9 +52,10 @@ current values (a valid MCMC step of the same posterior, restricted to a block):
    of those sweeps for ``C_A`` and ``R_A`` — the Gaussians of ``R_A``'s occupied regions averaged as
    their posterior mean given each averaged sweep's assignments (:func:`expected_gaussians`: the
    moments of the NIW posterior predictive, what infinitely many draws average to), not the two draws
-   a teaching's sweeps leave (a Rao–Blackwellised estimate of the same average) — and from the home's previous average for every other
-   concept and region (:func:`splice_posterior`): a concept or region the teaching did not touch
-   answers exactly as before it; G_e moves only by the affected concepts' share.
+   a teaching's sweeps leave (a Rao–Blackwellised estimate of the same average) — and from the
+   home's previous average for every other concept and region (:func:`splice_posterior`): a
+   concept or region the teaching did not touch answers exactly as before it; G_e moves only by
+   the affected concepts' share.
 
 Everything is drawn from the one generator given: the same home, teaching and seed give the same
 home, bit for bit.
