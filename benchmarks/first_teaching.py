@@ -5,7 +5,8 @@ compiled or loaded but what start-up did), waits for the line that says it is re
 one teaching at once — alternately a sentence with a word the home never heard for a recorded
 sample, and a new observation without a view at a recorded sample's pose — and times the answer
 (``spco.service.client.Client``, loopback). Then a second teaching, for comparison. Prints p50/p99 over
-``--rounds`` rounds.
+``--rounds`` rounds. With ``--new-words`` every word is one no run asked about before, so the
+lexicon's facts files lack it (WordNet is asked: it must be loaded before ready).
 
 The home is SIGVerse 3LDK_9 adapted from the 16-home knowledge (built as in
 ``benchmarks/serve_latency.py``: ``--home``).
@@ -35,7 +36,7 @@ WORDS = ("quokka", "zephyr", "marimba", "tundra", "saffron", "obsidian", "lagoon
 
 
 def one_round(
-    home: Path, folder: Path, k: int, health_first: bool = False
+    home: Path, folder: Path, k: int, health_first: bool = False, suffix: str = ""
 ) -> tuple[tuple[float, float], tuple[float, float]]:
     """(first, second) teaching: (latency, the writer's own seconds) after a fresh start."""
     from spco import knowledge as kn
@@ -70,7 +71,7 @@ def one_round(
         times = []
         for n in range(2):
             row = int(rng.integers(0, model.n_samples))
-            sentence = f"this is the {WORDS[(k + n) % len(WORDS)]} room"
+            sentence = f"this is the {WORDS[(k + n) % len(WORDS)]}{suffix} room"
             start = time.perf_counter()
             if (k + n) % 2 == 0:
                 answer = client.teach(id=int(model.ids[row]), sentence=sentence)
@@ -95,12 +96,20 @@ def main() -> None:
         action="store_true",
         help="send GET /health before the first teaching (to tell the HTTP stack's first request apart)",
     )
+    parser.add_argument(
+        "--new-words",
+        action="store_true",
+        help="words no run asked about before (a suffix unique to this run and round): their facts are "
+        "not in the lexicon's files, so a teaching looks them up in WordNet",
+    )
     parser.add_argument("--json", type=Path, default=None)
     args = parser.parse_args()
+    run = f"{os.getpid():x}{int(time.time()) % 100000:x}"
     firsts, seconds, writer_firsts, writer_seconds = [], [], [], []
     with tempfile.TemporaryDirectory() as folder:
         for k in range(args.rounds):
-            first, second = one_round(args.home.resolve(), Path(folder), k, args.health_first)
+            suffix = f"q{run}r{k}" if args.new_words else ""
+            first, second = one_round(args.home.resolve(), Path(folder), k, args.health_first, suffix)
             firsts.append(first[0] * 1000)
             seconds.append(second[0] * 1000)
             writer_firsts.append(first[1] * 1000)

@@ -3,6 +3,7 @@ ready costs what any other does): the warm-up's requests reach every route, and 
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 
 import pytest
@@ -50,3 +51,24 @@ def test_answers_given_while_quiet_publish_no_event(built: Path, tmp_path: Path)
         live.what(0.0, 0.0, 0.0)
         event = events.get(timeout=10)
         assert event["type"] == "answer" and event["kind"] == "what"  # the where above published nothing
+
+
+def test_wordnet_is_loaded_before_ready(built: Path, tmp_path: Path, wordnet: object,
+                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A word that the lexicon's facts files lack is looked up in WordNet: loading it takes seconds,
+    so a served home loads it before it says it is ready, not in the first such teaching or `where`."""
+    from spco.data import lexicon
+    from spco.model.prediction import UnknownNameError
+    from spco.service import LiveHome
+
+    monkeypatch.setenv("SPCO_CACHE_DIR", str(tmp_path / "cache"))  # the lexicon's files only (Numba's is set)
+    home = copy_home(built, tmp_path)
+    with LiveHome(home, writer="thread", seed=0):
+        pass  # the facts of what the start-up itself asks are now on file
+    lexicon._load.cache_clear()
+    with LiveHome(home, writer="thread", seed=0) as live:
+        assert lexicon._load.cache_info().currsize == 1  # loaded while opening, though no word needed it
+        live.teach(sentence="this is the quokka room", id=int(live.home.ids[0]))
+        with contextlib.suppress(UnknownNameError):  # a name nobody said: looked up in WordNet
+            live.where("solarium", n=1)
+        assert lexicon._load.cache_info().misses == 1  # the new word and name: no second load

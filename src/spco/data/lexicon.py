@@ -576,7 +576,11 @@ def lexicon() -> Lexicon | None:
         return None
     folder = _wordnet_folder()
     assert folder is not None
-    return _load(str(folder))
+    with _load_lock:  # threads asking at once (a server loading it at start) load it once
+        return _load(str(folder))
+
+
+_load_lock = threading.Lock()
 
 
 @dataclass(frozen=True)
@@ -692,7 +696,8 @@ def _cached_facts(words: Sequence[str], what: str, fmt: int, memory: dict[str, d
                 facts.update({w: f for w, f in on_file.items() if w not in facts})
                 missing = [w for w in missing if w not in facts]
                 if missing:
-                    lex = _load(str(folder))
+                    with _load_lock:
+                        lex = _load(str(folder))
                     for word in missing:
                         facts[word] = compute(lex, word)
                     _write_cache(path, fmt, {w: encode(f) for w, f in {**on_file, **facts}.items()})

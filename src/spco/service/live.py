@@ -44,6 +44,7 @@ from typing import Any
 import numpy as np
 
 from spco import knowledge as kn
+from spco.data.lexicon import lexicon
 from spco.errors import ConfigurationError, SpcoError, TeachingLimitError, TeachingRateError
 from spco.features.pixels import SERVED_MAX_PIXELS, decode_image
 from spco.knowledge import locking
@@ -189,6 +190,9 @@ class LiveHome:
                    "compact_idle": compact_idle, "undo_limit": undo_limit}
         options = {k: v for k, v in options.items() if v is not None}
         options["limits"] = limits
+        # WordNet, loaded while the writer starts: `where` of a name nobody said looks it up there
+        words = threading.Thread(target=lexicon, name="spco-lexicon", daemon=True)
+        words.start()
         try:
             if writer == "process":
                 self._writer: ProcessWriter | ThreadWriter = ProcessWriter(
@@ -198,6 +202,7 @@ class LiveHome:
         except BaseException:
             self._lock.release()
             raise
+        words.join()
         self._snapshot: kn.HomeModel = self._writer.first_snapshot
         #: what opening found: ``replayed`` journal records, ``torn`` (what was dropped, or None)
         self.startup: dict[str, Any] = dict(self._writer.startup)

@@ -46,6 +46,7 @@ from typing import Any
 import numpy as np
 
 from spco import knowledge as kn
+from spco.data.lexicon import lexicon
 from spco.errors import ConfigurationError, SpcoError, TeachingLimitError, TeachingRateError
 from spco.knowledge.requests import Teach, Undo
 from spco.service.journal import Journal, journal_path, new_journal_id, read_journal
@@ -172,8 +173,9 @@ class HomeWriter:
         """Run throw-away teachings of every kind before the home is said to be ready, so that the
         first real one does not wait for the sampler's compiled kernels to load or for anything a
         teaching needs first (a word never heard, a new observation with and without a view, the
-        image extractor, an undo's rebuild, the snapshot's parameters): the first teaching after
-        start takes as long as any other (``benchmarks/first_teaching.py``)."""
+        image extractor, an undo's rebuild, the snapshot's parameters), and load WordNet (a word
+        that the lexicon's facts files lack is looked up in it: seconds to load): the first teaching
+        after start takes as long as any other (``benchmarks/first_teaching.py``)."""
         home = self.home
         with contextlib.suppress(SpcoError), warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -192,6 +194,7 @@ class HomeWriter:
             if home.knowledge.fitted_on_images:  # the extractor built and run once (teach_batch keeps it)
                 self._image_extractor().extract(np.zeros((48, 64, 3), dtype=np.uint8), "bgr8")
             _ = replace(taught, state=replace(taught.state, visual_cache=None)).parameters
+        lexicon()  # WordNet itself: a word the facts files lack is looked up there, not loaded first
 
     # ------------------------------------------------------------------ state
     @property
