@@ -38,8 +38,7 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 __all__ = ["KINDS_BELOW", "MIN_SIMILARITY", "NOT_PLACE_ROOTS", "PLACE_ROOTS", "Lexicon", "LexiconMatch",
-           "WordFacts",
-           "lexicon", "lexicon_unavailable_reason", "word_facts"]
+           "WordFacts", "lexicon", "lexicon_unavailable_reason", "word_facts"]
 
 #: Where Debian's wordnet-base puts the database files.
 DEBIAN_WORDNET = Path("/usr/share/wordnet")
@@ -580,9 +579,6 @@ def lexicon() -> Lexicon | None:
         return _load(str(folder))
 
 
-_load_lock = threading.Lock()
-
-
 @dataclass(frozen=True)
 class WordFacts:
     """What WordNet says of one word, as :func:`spco.model.name_evidence.lexical_features` uses it:
@@ -619,6 +615,7 @@ _FACTS_FORMAT = 2
 #: Format of the file of :func:`kind_facts`.
 _KINDS_FORMAT = 1
 _facts_lock = threading.Lock()
+_load_lock = threading.Lock()  # (lexicon() and the facts' lookups load WordNet once)
 _facts_memory: dict[str, dict[str, WordFacts]] = {}
 #: The facts kept of each word by a cache file (:class:`WordFacts`, :class:`KindFacts`).
 _F = TypeVar("_F")
