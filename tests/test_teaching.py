@@ -148,6 +148,32 @@ def test_a_new_name_stands_for_its_place_not_for_another_concepts_samples_of_the
     assert (taught.state.concepts[elsewhere] == other).all()  # the other place's stay
 
 
+def test_a_teaching_answers_with_the_posterior_mean_of_its_regions_gaussians(home: Path) -> None:
+    """The taught regions' Gaussians in the answers are their posterior mean given the sweeps'
+    assignments (the NIW posterior predictive's moments), not the average of two draws: with one
+    sweep, exactly those of the samples the state holds in each affected region."""
+    from spco.model import gibbs
+    from spco.model.local_update import expected_gaussians
+
+    model = kn.load_home_model(home)
+    row = 7
+    taught = _teach(model, {int(model.ids[row]): "this is the quokka room"}, n_sweeps=1, random_state=4)
+    data, state = taught.data, taught.state
+    shared = taught.knowledge.shared_part()
+    prior = gibbs.niw_prior(data, shared.hyperparameters, shared.sampler_settings())
+    region = int(state.regions[row])
+    x = data.positions[state.regions == region]
+    count = np.array([float(x.shape[0])])
+    means, covariances = expected_gaussians(count, x.sum(axis=0)[None], (x.T @ x)[None], prior)
+    scale = np.array([model.position_scale, model.position_scale, 1.0, 1.0])
+    after = taught.posterior
+    np.testing.assert_allclose(after.region_means[0, region], means[0] / scale, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(after.region_covariances[0, region], covariances[0] / np.outer(scale, scale),
+                               rtol=1e-9, atol=1e-12)
+    # the state keeps the chain's draw (the next teaching goes on from it)
+    assert not np.allclose(state.means[0, region], means[0])
+
+
 def test_a_new_observation_is_placed_where_it_is_not_in_region_0(home: Path) -> None:
     model = kn.load_home_model(home)
     nonzero = np.flatnonzero(model.state.regions != 0)

@@ -49,9 +49,13 @@ current values (a valid MCMC step of the same posterior, restricted to a block):
    integrated out; π's term cancels), so that a place told apart from the rest of its region by a
    teaching gets a region of its own when the positions prefer it, and gives it back when not;
 4. the home's answers come from the posterior average (:class:`~spco.model.posterior.ParameterAverage`)
-   of those sweeps for ``C_A`` and ``R_A``, and from the home's previous average for every other
-   concept and region (:func:`splice_posterior`): a concept or region the teaching did not touch
-   answers exactly as before it; G_e moves only by the affected concepts' share.
+   of those sweeps for ``C_A`` and ``R_A`` — the Gaussians of ``R_A``'s occupied regions averaged as
+   their posterior mean given each averaged sweep's assignments (:func:`expected_gaussians`: the
+   moments of the NIW posterior predictive, what infinitely many draws average to), not the two draws
+   a teaching's sweeps leave (a Rao–Blackwellised estimate of the same average) — and from the
+   home's previous average for every other concept and region (:func:`splice_posterior`): a
+   concept or region the teaching did not touch answers exactly as before it; G_e moves only by
+   the affected concepts' share.
 
 Everything is drawn from the one generator given: the same home, teaching and seed give the same
 home, bit for bit.
@@ -82,7 +86,7 @@ from spco.model.posterior import ParameterAverage, masked_rows, thinned_sweeps
 from spco.model.state import GibbsState, PreparedData, SamplerSettings
 from spco.model.word_channels import mixture_log_likelihood
 
-__all__ = ["SPLIT_SWEEPS", "place_conditional", "splice_posterior", "teach_locally"]
+__all__ = ["SPLIT_SWEEPS", "expected_gaussians", "place_conditional", "splice_posterior", "teach_locally"]
 
 #: The first sweeps of a teaching that try to give the taught place a region of its own
 #: or give a region it does not need back (:func:`_move_taught_places`).
@@ -278,6 +282,44 @@ def _parameters(
     )
     state.means[:, regions], state.covariances[:, regions] = means, covariances
     state.region_counts = stats.region_count.astype(np.int64)
+
+
+def expected_gaussians(count: np.ndarray, total: np.ndarray, scatter: np.ndarray, prior
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """The posterior mean of m regions' Gaussians given their points' statistics — ``count`` (m,),
+    Σx ``total`` (m, d), Σxxᵀ ``scatter`` (m, d, d) — under the NIW prior, as the moments an average
+    of infinitely many draws of (μ, Σ) gives: (E[μ] = μ_n, E[Σ] + Cov(μ) = Ψ_n (1 + 1/κ_n) / (ν_n − d − 1)),
+    the mean and covariance of the posterior predictive (a Student t). ``(m, d)``, ``(m, d, d)``."""
+    d = total.shape[-1]
+    mu_n, kappa_n, psi_n, nu_n = niw_posterior(count, total, scatter, prior.mu0[0], prior.kappa0, prior.psi0,
+                                               prior.nu0)
+    factor = (1.0 + 1.0 / kappa_n) / (nu_n - d - 1.0)
+    return mu_n, psi_n * factor[:, None, None]
+
+
+def _add_expected_gaussians(average: ParameterAverage, data: PreparedData, state: GibbsState,
+                            shared: SharedPart, settings: SamplerSettings, regions: np.ndarray) -> None:
+    """Add ``state`` to ``average`` with the Gaussians of the occupied ``regions`` (the teaching's) at
+    their posterior mean given the sweep's assignments (:func:`expected_gaussians`) instead of the
+    sweep's draw: the same posterior average (a Rao–Blackwellised estimate of it), without the
+    noise of the few draws a teaching averages — two draws of a 16-sample region's mean moved a
+    taught bedroom's `where` poses 0.25 m towards the entrance (``benchmarks/teaching.py``, synthetic
+    seed 3). The state keeps its draws (the chain goes on from them)."""
+    prior = gibbs.niw_prior(data, shared.hyperparameters, settings)
+    d = data.positions.shape[1]
+    positions = _RegionStatistics(data, state, np.ones(data.n_samples, dtype=bool), regions, prior)
+    keep = (positions.count > 0) & (prior.nu0 + positions.count > d + 1)
+    occupied = regions[keep]
+    if occupied.size == 0:
+        average.add(state)
+        return
+    means, covariances = state.means[:, occupied].copy(), state.covariances[:, occupied].copy()
+    state.means[0, occupied], state.covariances[0, occupied] = expected_gaussians(
+        positions.count[keep], positions.total[keep], positions.scatter[keep], prior)
+    try:
+        average.add(state)
+    finally:
+        state.means[:, occupied], state.covariances[:, occupied] = means, covariances
 
 
 def _log_marginal(count: np.ndarray, total: np.ndarray, scatter: np.ndarray, prior) -> np.ndarray:
@@ -528,7 +570,7 @@ def teach_locally(
             regions = np.union1d(regions, opened)
         _parameters(data, state, shared, settings, concepts, regions, rng)
         if iteration in averaged:
-            average.add(state)
+            _add_expected_gaussians(average, data, state, shared, settings, regions)
     judge_new_words(state, shared, n_known, data)
     warn_if_own_names_spread(data, state, shared, home_name, n_known, stacklevel=5)
     if not average.n_samples:
