@@ -92,19 +92,19 @@ def test_spco_fit_shows_its_sweeps_on_a_terminal(homes: dict[str, Path]) -> None
 def _demo_line(monkeypatch: pytest.MonkeyPatch, tmp_path: Path, cold: bool) -> str:
     import spco.synthetic_transfer
 
-    calls: list[tuple[int, int]] = []
+    calls: list[int] = []
 
-    def compile_share(index: int, processes: int, head_start: float = 0.0) -> float:  # this process's share
-        calls.append((index, processes))
+    def compile_in_turn(turns) -> float:  # this process's turns
+        calls.append(turns.value)
         time.sleep(0.3)
         return 0.3
 
     monkeypatch.setattr(numba_cache, "kernels_compiled", lambda: not cold)
-    monkeypatch.setattr(spco.synthetic_transfer, "compile_share", compile_share)
+    monkeypatch.setattr(spco.synthetic_transfer, "compile_in_turn", compile_in_turn)
     monkeypatch.setattr("os.cpu_count", lambda: 2)
     result = CliRunner().invoke(main, ["demo", "--homes", "2", "--iterations", "3", "--out", str(tmp_path)])
     assert result.exit_code == 0, result.output
-    assert calls == ([(0, 2)] if cold else [])
+    assert len(calls) == (1 if cold else 0)
     return next(line for line in result.stdout.splitlines() if line.startswith("Learnt"))
 
 

@@ -27,35 +27,31 @@ def test_signature_file_names_compiled_kernels_and_numba_types():
             assert [repr(t) for t in types] == signature
 
 
-def test_split_keeps_each_kernel_once_and_gamma_callers_together():
-    entries = _entries()
-    groups = numba_cache._split(entries, 2)
-    names = [e["kernel"] for group in groups for e in group]
-    assert sorted(names) == sorted(e["kernel"] for e in entries)
-    gamma_groups = {i for i, group in enumerate(groups) for e in group
-                    if e["kernel"].rpartition(".")[0] in numba_cache._GAMMA_CALLERS}
-    assert len(gamma_groups) == 1
-    loads = [sum(e["seconds"] for e in group) for group in groups]
-    assert loads == sorted(loads, reverse=True)  # this process takes the larger share
+def test_compiling_in_turn_takes_every_cluster_once_the_largest_first(monkeypatch):
+    """Two callers of ``compile_in_turn`` on one counter (the demo's two processes) compile every
+    listed kernel exactly once between them, the clusters in order of their seconds, the gamma
+    sampler's callers in one cluster."""
+    import multiprocessing
 
-
-def test_a_head_start_gives_that_share_less_to_compile():
-    """With seconds of other work for share 0 (the demo's first process looks up WordNet and draws
-    the figures), share 0 compiles less, by about that much: compilation plus the head start differ
-    by no more than the largest single kernel's seconds, and the shares keep their order."""
-    entries = _entries()
-    even = [sum(e["seconds"] for e in group) for group in numba_cache._split(entries, 2)]
-    for head in (2.0, 6.0):
-        groups = numba_cache._split(entries, 2, (head, 0.0))
-        assert sorted(e["kernel"] for g in groups for e in g) == sorted(e["kernel"] for e in entries)
-        loads = [sum(e["seconds"] for e in group) for group in groups]
-        assert loads[0] < min(even)
-        largest = max(e["seconds"] for e in entries if e["kernel"].rpartition(".")[0]
-                      not in numba_cache._GAMMA_CALLERS)
-        assert abs(loads[0] + head - loads[1]) <= largest
-        gamma_groups = {i for i, group in enumerate(groups) for e in group
-                        if e["kernel"].rpartition(".")[0] in numba_cache._GAMMA_CALLERS}
-        assert len(gamma_groups) == 1
+    compiled: list[list[str]] = []
+    turns = multiprocessing.get_context("spawn").Value("i", 0)
+    monkeypatch.setattr(numba_cache, "_compile_group",
+                        lambda entries: compiled.append([e["kernel"] for e in entries]) or 0.0)
+    with turns.get_lock():
+        turns.value = 1  # the other process took the first (largest) cluster
+    numba_cache.compile_in_turn(turns)
+    clusters = numba_cache._clusters(_entries())
+    assert compiled == [[e["kernel"] for e in c] for c in clusters[1:]]
+    numba_cache.compile_in_turn(turns)  # nothing left: compiles nothing
+    assert len(compiled) == len(clusters) - 1
+    names = [n for group in [[e["kernel"] for e in clusters[0]], *compiled] for n in group]
+    assert sorted(names) == sorted(e["kernel"] for e in _entries())
+    seconds = [sum(e["seconds"] for e in c) for c in clusters]
+    assert seconds == sorted(seconds, reverse=True)
+    gamma = [i for i, c in enumerate(clusters) for e in c
+             if e["kernel"].rpartition(".")[0] in numba_cache._GAMMA_CALLERS]
+    assert len(set(gamma)) == 1
+    assert turns.value == len(clusters) + 2  # one look past the end per call
 
 
 def test_a_fit_on_an_empty_cache_says_it_compiles_once(tmp_path, monkeypatch, capsys):
@@ -102,17 +98,6 @@ def test_demo_on_an_empty_cache_says_it_compiles_in_two_processes(monkeypatch):
     assert numba_cache.precompile_notice(2) in result.stderr
     assert f"about {numba_cache.PRECOMPILE_SECONDS_ESTIMATE} s" in result.stderr
     assert [(c["processes"], c["compile_first"]) for c in calls] == [(2, True)]
-
-
-def test_compile_shares_are_the_split_of_precompile(monkeypatch):
-    """Share i of n compiles exactly group i of the split (each kernel in one share)."""
-    compiled: list[list[str]] = []
-    monkeypatch.setattr(numba_cache, "_compile_group",
-                        lambda entries: compiled.append([e["kernel"] for e in entries]) or 0.0)
-    numba_cache.compile_share(0, 2)
-    numba_cache.compile_share(1, 2)
-    groups = numba_cache._split(_entries(), 2)
-    assert compiled == [[e["kernel"] for e in group] for group in groups]
 
 
 def test_fit_and_adapt_on_an_empty_cache_precompile_in_two_processes(monkeypatch, tmp_path):

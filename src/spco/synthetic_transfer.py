@@ -14,9 +14,10 @@ new home (``adapt``, nothing taught) and writes ``knowledge.spco`` and ``home.sp
 
 With ``processes=2`` (``spco demo`` on a machine of 2 cores or more) the robot's files are made in
 a second process at the same time as the transfer fit, the baseline and the figures, and on a
-cold cache each process first compiles half of the kernels (:func:`~spco.model.numba_cache.compile_share`)
-and loads the other's half from the cache. Each part depends on the seed alone, so the results
-and files are the same as with one process.
+cold cache the two processes first compile the kernels between them, each taking the next kernel
+not yet taken (:func:`~spco.model.numba_cache.compile_in_turn`), and load the other's from the
+cache. Each part depends on the seed alone, so the results and files are the same as with one
+process.
 """
 
 from __future__ import annotations
@@ -37,7 +38,7 @@ from spco.data.environment import Corpus
 from spco.data.synthetic import generate_homes
 from spco.errors import SpcoError
 from spco.evaluation.metrics import HomeScores, evaluate_home
-from spco.model.numba_cache import compile_share, load_kernels
+from spco.model.numba_cache import compile_in_turn, load_kernels
 from spco.model.transfer import SpCoA, SpCoTransfer
 
 
@@ -67,9 +68,10 @@ def run_demo(seed: int = 0, out: Path | str = "spco-demo", n_experienced: int = 
     alone: ``warm_up_seconds``.
 
     ``processes=2`` makes the robot's files (:func:`_robot_files`) in a second (spawned) process
-    while this one fits, evaluates and draws; with ``compile_first`` (a cold cache) each process
-    first compiles its half of the kernels. The same results as one process; a script calling it
-    with 2 needs the ``if __name__ == "__main__":`` guard of :mod:`multiprocessing`.
+    while this one fits, evaluates and draws; with ``compile_first`` (a cold cache) the two
+    processes first compile the kernels between them, taking turns. The same results as one
+    process; a script calling it with 2 needs the ``if __name__ == "__main__":`` guard of
+    :mod:`multiprocessing`.
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -86,7 +88,7 @@ def run_demo(seed: int = 0, out: Path | str = "spco-demo", n_experienced: int = 
             if compile_first:  # (warm: no waiting for the other process to start)
                 corpus, new_index = _demo_homes(seed, n_experienced)
                 _look_up_words(corpus)
-                compile_share(0, 2, _HEAD_START)
+                compile_in_turn(robot.turns)
                 robot.wait_for_its_kernels()
             load_kernels()
             warm_up_seconds = time.perf_counter() - start
@@ -98,15 +100,6 @@ def run_demo(seed: int = 0, out: Path | str = "spco-demo", n_experienced: int = 
     result.warm_up_seconds = warm_up_seconds
     result.home_file, result.knowledge_file, result.robot_seconds = home_file, knowledge_file, robot_seconds
     return result
-
-
-#: On a cold cache, the seconds of work (in the units of ``kernel_signatures.json``) the demo's first
-#: process does besides compiling, more than the second: the homes and looking up their words in
-#: WordNet (:func:`_look_up_words`: NLTK's import and reader) before compiling, and after the
-#: kernels the longer part (the transfer fit, the baseline and the figures against the robot's
-#: files). :func:`~spco.model.numba_cache.compile_share` gives the first process that much less to
-#: compile, so that both end at about the same time (benchmarks/README.md, "First run").
-_HEAD_START = (3.5, 0.0)
 
 
 def _look_up_words(corpus: Corpus) -> None:
@@ -195,17 +188,21 @@ def _learn_and_draw(corpus: Corpus, new_index: int, out: Path, seed: int, n_expe
 
 
 class _RobotProcess:
-    """The demo's second process: on a cold cache it compiles share 1 of 2 of the kernels and waits
-    for this process's share (:meth:`wait_for_its_kernels`); then it makes the robot's files
+    """The demo's second process: on a cold cache it compiles kernels in turn with this process
+    (:func:`~spco.model.numba_cache.compile_in_turn` on the shared counter :attr:`turns`) and waits
+    for this process's last one (:meth:`wait_for_its_kernels`); then it makes the robot's files
     (:func:`_robot_worker`). A context manager: leaving it early ends the process."""
 
     def __init__(self, seed: int, out: Path, n_experienced: int, n_iterations: int, compile_first: bool):
         context = get_context("spawn")
         self._ours, self._theirs = context.Event(), context.Event()
         self._receiver, sender = context.Pipe(duplex=False)
+        #: the next cluster of kernels to compile, shared by both processes on a cold cache
+        self.turns = context.Value("i", 0)
         self._process = context.Process(
             target=_robot_worker, name="spco-demo-robot", daemon=True,
-            args=(sender, self._theirs, self._ours, seed, out, n_experienced, n_iterations, compile_first))
+            args=(sender, self._theirs, self._ours, self.turns, seed, out, n_experienced, n_iterations,
+                  compile_first))
         self._process.start()
         sender.close()
 
@@ -219,7 +216,7 @@ class _RobotProcess:
         self._process.join()
 
     def wait_for_its_kernels(self) -> None:
-        """Say that this process's share of the kernels is in the cache, and wait for the other's."""
+        """Say that this process's kernels are in the cache, and wait for the other's."""
         self._ours.set()
         while not self._theirs.wait(0.2):
             if not self._process.is_alive():
@@ -243,7 +240,7 @@ class _RobotProcess:
         raise RuntimeError(f"the demo's second process ended early (exit code {self._process.exitcode})")
 
 
-def _robot_worker(sender, compiled_here, compiled_there, seed: int, out: Path, n_experienced: int,
+def _robot_worker(sender, compiled_here, compiled_there, turns, seed: int, out: Path, n_experienced: int,
                   n_iterations: int, compile_first: bool) -> None:
     """The second process of :func:`run_demo` (see :class:`_RobotProcess`): sends ``("ok",
     (knowledge file, home file, seconds))`` or ``("error", exception)``."""
@@ -252,7 +249,7 @@ def _robot_worker(sender, compiled_here, compiled_there, seed: int, out: Path, n
 
         numba.set_num_threads(1)  # (see _one_thread)
         if compile_first:
-            compile_share(1, 2, _HEAD_START)
+            compile_in_turn(turns)
             compiled_here.set()
             compiled_there.wait()
         load_kernels()

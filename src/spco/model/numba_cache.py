@@ -26,6 +26,7 @@ import time
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from multiprocessing import get_context
+from multiprocessing.sharedctypes import Synchronized
 from pathlib import Path
 
 import numba
@@ -147,28 +148,38 @@ _GAMMA_CALLERS = ("spco.model.kernels.dirichlet", "spco.model.kernels.gamma", "s
 _TOGETHER = ("spco.model.moves",)
 
 
-def _split(entries: list[dict], n_groups: int, head_start: tuple[float, ...] = ()) -> list[list[dict]]:
-    """``entries`` in ``n_groups`` groups of about equal compile seconds; the kernels that call the
-    gamma sampler stay together, as do those of each module of :data:`_TOGETHER`; every other
-    kernel goes alone (longest first, each to the group
-    with the least so far). Without ``head_start`` the heaviest group comes first; with it (seconds
-    of other work of each group's process, in the units of the file's seconds) group i starts at
-    ``head_start[i]``, so that compilation plus that work is about equal, and the groups keep
-    their order."""
+def _clusters(entries: list[dict]) -> list[list[dict]]:
+    """``entries`` in clusters compiled by one process each: the kernels that call the gamma sampler
+    together, those of each module of :data:`_TOGETHER` together, every other kernel alone; the
+    largest cluster (by the file's seconds) first, ties in the file's order."""
     clusters: dict[str, list[dict]] = {}
     for entry in entries:
         module = entry["kernel"].rpartition(".")[0]
         key = "gamma" if module in _GAMMA_CALLERS else module if module in _TOGETHER else entry["kernel"]
         clusters.setdefault(key, []).append(entry)
-    groups: list[list[dict]] = [[] for _ in range(n_groups)]
-    load = [head_start[g] if g < len(head_start) else 0.0 for g in range(n_groups)]
-    for cluster in sorted(clusters.values(), key=lambda c: -sum(e["seconds"] for e in c)):
-        g = load.index(min(load))
-        groups[g].extend(cluster)
-        load[g] += sum(e["seconds"] for e in cluster)
-    if head_start:
-        return groups
-    return [groups[g] for g in sorted(range(n_groups), key=lambda g: -load[g])]
+    return sorted(clusters.values(), key=lambda c: -sum(e["seconds"] for e in c))
+
+
+def compile_in_turn(turns: Synchronized) -> float:
+    """Compile the kernels listed in :data:`SIGNATURES_FILE` cluster by cluster (:func:`_clusters`,
+    the largest first) into the on-disk cache, taking the next cluster not yet taken from the
+    counter ``turns`` (a ``multiprocessing.Value("i", 0)`` shared by every process doing this), until
+    none is left; returns the seconds taken (0 without the file). Processes that start at different
+    times or do other work besides each compile as much as they have time for, and end within one
+    cluster of each other; every cluster is compiled once."""
+    try:
+        entries = json.loads(SIGNATURES_FILE.read_text())["kernels"]
+    except (OSError, ValueError, KeyError):
+        return 0.0
+    start = time.perf_counter()
+    clusters = _clusters(entries)
+    while True:
+        with turns.get_lock():
+            index = turns.value
+            turns.value = index + 1
+        if index >= len(clusters):
+            return time.perf_counter() - start
+        _compile_group(clusters[index])
 
 
 def kernels_compiled() -> bool | None:
@@ -238,8 +249,8 @@ def precompile_notice(processes: int = 2) -> str:
 
 def precompile(processes: int = 2) -> float:
     """Compile the kernels listed in :data:`SIGNATURES_FILE` in ``processes`` processes at once
-    (this one and ``processes - 1`` others), each a disjoint share, into the on-disk cache; a fit
-    afterwards loads them from there. Returns the seconds taken.
+    (this one and ``processes - 1`` others), taking turns (:func:`compile_in_turn`), into the
+    on-disk cache; a fit afterwards loads them from there. Returns the seconds taken.
 
     Numba compiles one function at a time per process; the kernels are independent, so on a
     multi-core machine the first run takes about 1/``processes`` of the time. A kernel whose
@@ -252,27 +263,29 @@ def precompile(processes: int = 2) -> float:
     if processes <= 1 or not numba.config.CACHE_DIR:
         _compile_group(entries)
         return time.perf_counter() - start
-    with ProcessPoolExecutor(max_workers=processes - 1, mp_context=get_context("spawn")) as pool:
-        others = [pool.submit(compile_share, i, processes) for i in range(1, processes)]
-        compile_share(0, processes)
+    context = get_context("spawn")
+    turns = context.Value("i", 0)
+    with ProcessPoolExecutor(max_workers=processes - 1, mp_context=context, initializer=_share_turns,
+                             initargs=(turns,)) as pool:
+        others = [pool.submit(_compile_in_pool_turn) for _ in range(1, processes)]
+        compile_in_turn(turns)
         for future in others:
             future.result()
     # this process now loads the others' kernels from the cache, on first call
     return time.perf_counter() - start
 
 
-def compile_share(index: int, processes: int, head_start: tuple[float, ...] = ()) -> float:
-    """Compile share ``index`` of ``processes`` of the kernels listed in :data:`SIGNATURES_FILE`
-    (the same split as :func:`precompile`: share 0 the largest, the gamma sampler's callers
-    together) into the on-disk cache; returns the seconds taken (0 without the file). Each of
-    ``processes`` processes compiling its own share fills the cache once, in about 1/``processes``
-    of the time. ``head_start``: the seconds of other work each share's process has besides
-    compiling (see :func:`_split`; every process must pass the same)."""
-    try:
-        entries = json.loads(SIGNATURES_FILE.read_text())["kernels"]
-    except (OSError, ValueError, KeyError):
-        return 0.0
-    return _compile_group(_split(entries, max(1, processes), head_start)[index])
+#: A :func:`precompile` worker's counter of turns (set by :func:`_share_turns` when it starts).
+_pool_turns: Synchronized | None = None
+
+
+def _share_turns(turns: Synchronized) -> None:
+    global _pool_turns
+    _pool_turns = turns
+
+
+def _compile_in_pool_turn() -> float:
+    return compile_in_turn(_pool_turns) if _pool_turns is not None else 0.0
 
 
 def load_kernels() -> float:
