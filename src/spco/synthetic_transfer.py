@@ -87,7 +87,7 @@ def run_demo(seed: int = 0, out: Path | str = "spco-demo", n_experienced: int = 
             start = time.perf_counter()
             if compile_first:  # (warm: no waiting for the other process to start)
                 corpus, new_index = _demo_homes(seed, n_experienced)
-                _look_up_words(corpus)
+                _look_up_words(corpus, new_index)
                 compile_in_turn(robot.turns)
                 robot.wait_for_its_kernels()
             load_kernels()
@@ -102,15 +102,26 @@ def run_demo(seed: int = 0, out: Path | str = "spco-demo", n_experienced: int = 
     return result
 
 
-def _look_up_words(corpus: Corpus) -> None:
-    """Ask WordNet, once, what both processes' fits ask of the homes' words (the word channels'
-    evidence, :func:`~spco.model.name_evidence.channel_evidence`: word and kind facts), so that
-    the lexicon's cache files hold them before either fit starts: the second process reads them
-    from there instead of loading NLTK and WordNet itself (on a first run; later runs read the
-    files in both processes anyway)."""
+def _look_up_words(corpus: Corpus, new_index: int) -> None:
+    """Ask WordNet, once, what both processes' fits ask of the homes' words, so that the lexicon's
+    cache files hold it before either fit starts: the word channels' evidence
+    (:func:`~spco.model.name_evidence.channel_evidence`: word and kind facts) and the names the
+    objects stand in for (:func:`~spco.model.unheard.stand_in_columns`: the transfer fit's of all
+    the homes, the robot's knowledge fit's of the experienced homes). On a first run the other
+    process compiles meanwhile, and then reads the answers from the files instead of loading NLTK
+    and WordNet itself (later runs read the files in both processes anyway)."""
+    from spco.model.hyperparameters import TransferHyperparameters
     from spco.model.name_evidence import channel_evidence
+    from spco.model.unheard import stand_in_columns
+    from spco.model.word_channels import NAME, WordChannels
 
     channel_evidence(corpus.vocabulary, [])
+    weight = TransferHyperparameters().evidence_weight
+    for homes in (corpus, _experienced(corpus, new_index)):
+        sentences = [s for t in homes.training_set() for s in t.sentences]
+        evidence, content = channel_evidence(homes.vocabulary, sentences)
+        name_prior = np.exp(WordChannels.initial(evidence, 1, weight, content).log_prior()[:, NAME])
+        stand_in_columns(homes.vocabulary, name_prior)
 
 
 @contextlib.contextmanager
@@ -269,14 +280,19 @@ def _robot_files(corpus: Corpus, new_index: int, out: Path, seed: int, n_iterati
     files a robot uses, ``out/knowledge.spco`` and ``out/home.spco`` (replaced if there)."""
     from spco.knowledge import adapt, fit_knowledge
 
-    experienced = Corpus([home for i, home in enumerate(corpus) if i != new_index])
-    knowledge = fit_knowledge(experienced, n_iterations=n_iterations, random_state=seed, progress=progress,
+    knowledge = fit_knowledge(_experienced(corpus, new_index), n_iterations=n_iterations,
+                              random_state=seed, progress=progress,
                               provenance={"data": "spco demo (synthetic homes)", "seed": seed})
     knowledge_file = knowledge.save(out / "knowledge.spco", overwrite=True)
     home = adapt(knowledge, corpus[new_index], n_iterations=n_iterations, random_state=seed,
                  progress=progress)
     home_file = home.save(out / "home.spco", overwrite=True)
     return Path(knowledge_file), Path(home_file)
+
+
+def _experienced(corpus: Corpus, new_index: int) -> Corpus:
+    """The homes the robot's knowledge is learnt from: all but the new one."""
+    return Corpus([home for i, home in enumerate(corpus) if i != new_index])
 
 
 def _json_default(value: object) -> object:
