@@ -106,7 +106,7 @@ class TransferHyperparameters:
     psi0: diagonal of Ψ0 (4 values) or a full 4×4 matrix, x and y in cm² when
         ``psi0_in_cm2`` (the paper's convention, default ``diag(10, 10, 0.5, 0.5)``), else metres²
         (the map's units²: the scaled prior of :func:`scaled_hyperparameters` sets it from the homes'
-        places, ``diag(s², s², 0.5, 0.5)``).
+        places, ``(ν0 − 5)·diag(s²/5, s²/5, 0.1, 0.1)`` at ν0 = :data:`PLACES_NU0`).
     mu0: prior mean of the region means in metres (4 values), or ``None`` for the map centre
         with heading (0, 0).
     mi_threshold: ε, words whose score with every concept is below ε are pruned (models "+MI"
