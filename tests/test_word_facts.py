@@ -151,3 +151,34 @@ def test_two_processes_missing_the_same_words_load_wordnet_once(wordnet, tmp_pat
     assert sorted(r["loaded"] for r in results) == [False, True]
     assert results[0]["facts"] == results[1]["facts"]
     assert set(results[0]["facts"]) == set(WORDS)
+
+
+def test_the_reader_s_plain_text_reads_give_nltk_s_own_tables(wordnet, tmp_path) -> None:
+    """The files read through once as plain text (``wordnet_files.READ_THROUGH``) fill the same lemma
+    index, exception lists and lexicographer files as NLTK's own seekable reader; the files read at
+    byte offsets still go through NLTK's reader."""
+    import warnings
+
+    from nltk.corpus.reader.wordnet import WordNetCorpusReader
+
+    from spco.data import wordnet_files
+
+    root = wordnet_files.reader_folder(lexicon_module._wordnet_folder(), tmp_path)
+    ours = wordnet_files.open_reader(root)
+    class Theirs(WordNetCorpusReader):
+        def map_wn(self, version: str = "wordnet") -> None:  # (as ours: no mapping to fetch)
+            return None
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        theirs = Theirs(str(root), None)
+    assert len(ours._lemma_pos_offset_map) > 100_000
+    assert ours._lemma_pos_offset_map == theirs._lemma_pos_offset_map
+    assert ours._exception_map == theirs._exception_map
+    assert ours._lexnames == theirs._lexnames
+    with ours.open("index.noun") as a, theirs.open("index.noun") as b:
+        assert type(a) is not type(b)  # (the plain file)
+    with ours.open("data.noun") as a, theirs.open("data.noun") as b:
+        assert type(a) is type(b)  # (NLTK's seekable reader)
+    assert ours.synset("kitchen.n.01").definition() == theirs.synset("kitchen.n.01").definition()
+    assert ours.morphy("bedrooms", "n") == theirs.morphy("bedrooms", "n") == "bedroom"

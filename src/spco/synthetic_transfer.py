@@ -88,6 +88,9 @@ def run_demo(seed: int = 0, out: Path | str = "spco-demo", n_experienced: int = 
             if compile_first:  # (warm: no waiting for the other process to start)
                 corpus, new_index = _demo_homes(seed, n_experienced)
                 _look_up_words(corpus, new_index)
+                # matplotlib too (what _learn_and_draw imports, ~0.3 s of CPU), before the turns
+                # that balance it: after them the other process waits for nothing of this
+                import spco.plots  # noqa: F401
                 compile_in_turn(robot.turns)
                 robot.wait_for_its_kernels()
             load_kernels()

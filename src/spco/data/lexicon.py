@@ -6,9 +6,10 @@ through NLTK's :class:`~nltk.corpus.reader.wordnet.WordNetCorpusReader` (``pip i
 ``apt-get install wordnet-base``); nothing is downloaded. NLTK's reader also opens ``lexnames`` (the
 table of WordNet's 45 lexicographer files, lexnames(5WN)), which Debian lacks: the reader gets a
 private folder (under ``~/.cache/spco`` or ``SPCO_CACHE_DIR``) with copies of the package's files and
-that table. ``SPCO_WORDNET`` names another folder of WordNet files; ``SPCO_WORDNET=off`` turns the
-lexicon off: every function that uses it (:func:`lexicon` returns ``None``) then falls back to what
-the data alone say, and ``where`` with a name nobody said is an unknown name.
+that table (:mod:`spco.data.wordnet_files`). ``SPCO_WORDNET`` names another folder of WordNet
+files; ``SPCO_WORDNET=off`` turns the lexicon off: every function that uses it (:func:`lexicon`
+returns ``None``) then falls back to what the data alone say, and ``where`` with a name nobody
+said is an unknown name.
 
 What a *place* noun is (:meth:`Lexicon.place_share`): a sense of the word whose hypernym closure
 holds one of :data:`PLACE_ROOTS` — a room, an area of a building (WordNet's ``area.n.05``), a
@@ -29,13 +30,13 @@ import itertools
 import json
 import math
 import os
-import shutil
 import threading
-import warnings
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, TypeVar
+
+from spco.data.wordnet_files import DATABASE, open_reader, reader_folder
 
 __all__ = ["KINDS_BELOW", "MIN_SIMILARITY", "NOT_PLACE_ROOTS", "PLACE_ROOTS", "Lexicon", "LexiconMatch",
            "WordFacts", "lexicon", "lexicon_unavailable_reason", "word_facts"]
@@ -76,21 +77,6 @@ _FUNCTION_WORDS = frozenset({"a", "an", "the", "or", "and", "of", "for", "in", "
                              "by", "as", "that", "which", "where", "is", "are", "be", "can", "used",
                              "usually", "one", "more", "some", "any", "etc", "e.g", "especially"})
 
-#: WordNet 3.0's lexicographer files by number (lexnames(5WN)); written as the ``lexnames`` file
-#: NLTK's reader needs and Debian's package does not ship.
-_LEXNAMES = ("adj.all", "adj.pert", "adv.all", "noun.Tops", "noun.act", "noun.animal", "noun.artifact",
-             "noun.attribute", "noun.body", "noun.cognition", "noun.communication", "noun.event",
-             "noun.feeling", "noun.food", "noun.group", "noun.location", "noun.motive", "noun.object",
-             "noun.person", "noun.phenomenon", "noun.plant", "noun.possession", "noun.process",
-             "noun.quantity", "noun.relation", "noun.shape", "noun.state", "noun.substance", "noun.time",
-             "verb.body", "verb.change", "verb.cognition", "verb.communication", "verb.competition",
-             "verb.consumption", "verb.contact", "verb.creation", "verb.emotion", "verb.motion",
-             "verb.perception", "verb.possession", "verb.social", "verb.stative", "verb.weather", "adj.ppl")
-_CATEGORY = {"adj": 3, "adv": 4, "noun": 1, "verb": 2}
-_DATABASE = ("data.noun", "data.verb", "data.adj", "data.adv", "index.noun", "index.verb", "index.adj",
-             "index.adv", "noun.exc", "verb.exc", "adj.exc", "adv.exc", "cntlist.rev")
-
-
 def _cache_root() -> Path:
     return Path(os.environ.get("SPCO_CACHE_DIR") or Path.home() / ".cache" / "spco")
 
@@ -101,7 +87,7 @@ def _wordnet_folder() -> Path | None:
     if chosen.lower() in ("off", "0", "none", "no"):
         return None
     folder = Path(chosen).expanduser() if chosen else DEBIAN_WORDNET
-    return folder if all((folder / f).is_file() for f in _DATABASE) else None
+    return folder if all((folder / f).is_file() for f in DATABASE) else None
 
 
 def lexicon_unavailable_reason() -> str | None:
@@ -119,28 +105,6 @@ def _unavailable(chosen: str) -> str | None:  # once per process and setting: ev
         where = chosen or str(DEBIAN_WORDNET)
         return f"no WordNet database in {where} (apt-get install wordnet-base)"
     return None
-
-
-def _reader_folder(source: Path) -> Path:
-    """A private folder with links to ``source``'s database files and the ``lexnames`` table."""
-    digest = hashlib.sha256(str(source.resolve()).encode()).hexdigest()[:12]
-    folder = _cache_root() / f"wordnet-{digest}"
-    folder.mkdir(parents=True, exist_ok=True)
-    for name in _DATABASE:
-        target, original = folder / name, (source / name).resolve()
-        if not target.exists() or target.stat().st_size != original.stat().st_size:
-            # NLTK refuses files that resolve outside its root and hard-linked files: a copy (27 MB)
-            tmp = folder / f".{name}.{os.getpid()}"
-            shutil.copyfile(original, tmp)
-            os.replace(tmp, target)
-    lexnames = folder / "lexnames"
-    if not lexnames.exists():
-        text = "".join(f"{i:02d}\t{name}\t{_CATEGORY[name.split('.')[0]]}\n"
-                       for i, name in enumerate(_LEXNAMES))
-        tmp = folder / f".lexnames.{os.getpid()}"
-        tmp.write_text(text, encoding="ascii")
-        os.replace(tmp, lexnames)
-    return folder
 
 
 @dataclass(frozen=True)
@@ -161,21 +125,7 @@ class Lexicon:
     """WordNet through NLTK (use :func:`lexicon`, which caches one per process)."""
 
     def __init__(self, folder: Path) -> None:
-        import nltk.data
-        from nltk.corpus.reader.wordnet import WordNetCorpusReader
-
-        root = _reader_folder(folder)
-        if str(root) not in nltk.data.path:
-            nltk.data.path.append(str(root))  # NLTK reads corpora only under its data path
-        class _Reader(WordNetCorpusReader):  # type: ignore[misc]
-            def map_wn(self, version: str = "wordnet") -> None:
-                """No mapping to another WordNet's synsets (only the Open Multilingual Wordnet,
-                which spco does not read, needs it; NLTK would look for its own download)."""
-                return None
-
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # "the multilingual functions are not available"
-            self._wn = _Reader(str(root), None)
+        self._wn = open_reader(reader_folder(folder, _cache_root()))
         self._roots = [self._wn.synset(name) for name in PLACE_ROOTS]
         self._not_roots = [self._wn.synset(name) for name in NOT_PLACE_ROOTS]
         self._lock = threading.Lock()
@@ -637,7 +587,7 @@ def _facts_file_in(folder: Path, what: str, root: Path) -> Path:
         digest.update(version("nltk").encode())
     except PackageNotFoundError:
         pass
-    for name in _DATABASE:
+    for name in DATABASE:
         stat = (folder / name).stat()
         digest.update(f"{name}:{stat.st_size}:{stat.st_mtime_ns}".encode())
     return root / f"wordnet-{what}-{digest.hexdigest()[:16]}.json"
