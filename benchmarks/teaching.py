@@ -17,8 +17,9 @@ After the teaching it measures
   the taught sample's;
 - **same seed**: the teaching repeated with the same seed gives the same home (every array of the
   state and of the posterior equal);
-- **undo**: ``--undo`` teachings (each seed its own sequence of 5 teachings through the service's
-  journal records, :mod:`spco.service.teaching`), one of them undone: every answer (``what`` at
+- **undo**: ``--undo`` trials (each its own sequence of ``--undo-teachings`` teachings, default 12,
+  through the service's writer and journal, :mod:`spco.service.teaching`, compacted every 5), one of
+  them undone at random: every answer (``what`` at
   every training sample with its view, ``where`` of every name of the vocabulary) and the vocabulary
   compared with the home taught the same sequence without it; max |Δp|.
 
@@ -482,6 +483,9 @@ def main() -> None:
     )
     parser.add_argument("--n", type=int, default=100, help="teachings per home and kind")
     parser.add_argument("--undo", type=int, default=0, help="undo trials per home")
+    parser.add_argument("--undo-teachings", type=int, default=12,
+                        help="teachings in each undo trial's sequence, one of them undone at random (the "
+                             "service keeps the last 100 undoable)")
     parser.add_argument("--sigverse-home", type=Path, nargs="+", default=[],
                         help="adapted SIGVerse 3LDK_9 home files (several: e.g. several adapt seeds)")
     parser.add_argument(
@@ -540,7 +544,8 @@ def main() -> None:
             import tempfile
 
             with tempfile.TemporaryDirectory() as folder:
-                trials = [undo_trial(home, t, Path(folder)) for t in range(args.undo)]
+                trials = [undo_trial(home, t, Path(folder), n_teach=args.undo_teachings)
+                          for t in range(args.undo)]
             report[f"{label} undo"] = trials
             done = [r for r in trials if "max_dp" in r]
             exact = np.mean([r["max_dp"] == 0 and r["max_dp_restarted"] == 0 for r in done]) if done else 0.0
