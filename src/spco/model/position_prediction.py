@@ -1,19 +1,33 @@
-"""Prediction in a learnt home: positions from place names (p(pose | name)).
+"""Prediction in a learnt home: positions from place names (p(pose | name)): the one predictor of
+``where`` (:func:`spco.knowledge.where`, ``HomeModel.where``, the service, the ROS node) and of the
+experiments' A_p (:func:`spco.evaluation.metrics.evaluate_home`, the home-specific rooms).
 
 Pure functions of a :class:`~spco.model.parameters.ConceptParameters` sample, a home index ``e``
 and the corpus :class:`~spco.data.language.Vocabulary`, as :mod:`spco.model.prediction` (names
 from observations), whose validation and helpers they share.
 
-Positions::
+Regions, the posterior predictive of the region of a sample whose sentence says ``w``::
 
-    p(m | w) ∝ Σ_l π_{e,l,m} θ^w_{e,l,w} G_{e,l},   m̂ = argmax_m p(m | w),   x ~ N(μ_{e,m̂}, Σ_{e,m̂}).
+    p(m | w) ∝ Σ_l p(w | l) p(l, m | home),
 
-The sum runs over the concepts that hold training samples of home e (``concept_counts`` ≥ 1): a
-concept with no sample there has π drawn from its sparse prior, which says nothing about the
-home's map. The share of Σ_l θ^w_{e,l,w} G_{e,l} that those concepts hold is the name's
-``support`` in the home; below :data:`LEARNT_SUPPORT` the place is reported as not learnt in this
-home (``PositionPrediction.learnt`` False): its name is explained mostly by concepts of other
-homes, e.g. ``dining`` in a home without a dining room.
+with p(w | l) the names the robot answers (:func:`said_word_matrix` of the answer's parameters:
+θ^w, and with the word channels the place words ψ) and p(l, m | home) the home's concepts by region.
+With the home's rooms (:class:`~spco.model.rooms.HomeRooms`, the robot always has them) that is the
+room account of ``what`` (:mod:`spco.model.rooms`): p(l, m | home) = Σ_{k: r(k) = m} (n_k / n)
+p(l | room k), room k's pooled views, its taught names and G_0 deciding its concept, so ``where`` is
+the Bayes inverse of ``what`` at the pose alone (p(x | w) ∝ p(w | x) p(x)) and the home's own
+teachings enter through the rooms and the answer's θ^w, with no weight of their own. Without rooms
+(a bare parameter set) p(l, m | home) ∝ G_{e,l} π_{e,l,m} over the concepts holding the home's
+samples (:func:`concept_stand_ins` for the others). Poses are drawn from the answer regions
+(:func:`answer_regions`: those at least half as probable as the best, the robot's ``where``), or
+from m̂ = argmax_m p(m | w) (the paper's A_p), or from p(m | w) (``"mixture"``)::
+
+    x ~ N(μ_{e,m}, Σ_{e,m}).
+
+The share of Σ_l G_{e,l} p(w | l) that the concepts holding samples of home e (``concept_counts``
+≥ 1) hold is the name's ``support`` in the home; below :data:`LEARNT_SUPPORT` the place is reported
+as not learnt in this home (``PositionPrediction.learnt`` False): its name is explained mostly by
+concepts of other homes, e.g. ``dining`` in a home without a dining room.
 """
 
 from __future__ import annotations
@@ -38,11 +52,13 @@ from spco.model.prediction import (
     gaussian_log_density,
     mutual_information_weights,
 )
+from spco.model.rooms import HomeRooms
 from spco.model.unheard import resolve_name
 
 __all__ = [
     "LEARNT_SUPPORT",
     "PositionPrediction",
+    "answer_regions",
     "concept_stand_ins",
     "draw_poses",
     "name_support",
@@ -53,7 +69,7 @@ __all__ = [
     "said_word_matrix",
 ]
 
-PositionMode = Literal["argmax", "mixture"]
+PositionMode = Literal["argmax", "mixture", "answer"]
 
 #: A place name is *learnt* in a home when at least this share of its probability there comes
 #: from concepts that hold samples of the home (see :func:`name_support`).
@@ -121,10 +137,14 @@ class PositionPrediction:
 
 
 # ---------------------------------------------------------------------------------- positions
-def query_indices(params: ConceptParameters, vocabulary: Vocabulary, name: str) -> list[int]:
-    """Columns of the usable tokens of a name asked for (see :func:`region_posterior_for_name`)."""
+def query_indices(params: ConceptParameters, vocabulary: Vocabulary, name: str,
+                  lookup: np.ndarray | None = None) -> list[int]:
+    """Columns of the usable tokens of a name asked for (see :func:`region_posterior_for_name`):
+    those of ``lookup`` ((V,) bool, the words a place is looked up by; default ``params.word_mask``)."""
     _check_vocabulary(params, vocabulary)
-    mask = np.asarray(params.word_mask, dtype=bool)
+    mask = np.asarray(params.word_mask if lookup is None else lookup, dtype=bool)
+    if mask.shape != (len(vocabulary),):
+        raise ConfigurationError(f"lookup must be a ({len(vocabulary)},) bool array, got {mask.shape}")
     known = [w for w, keep in zip(vocabulary.words, mask, strict=True) if keep]
     _, indices = vocabulary.query(name)
     usable = list(dict.fromkeys(k for k in indices if mask[k]))
@@ -138,10 +158,11 @@ def query_indices(params: ConceptParameters, vocabulary: Vocabulary, name: str) 
                            f"the words {pruned} were pruned as uninformative (they name no place)")
 
 
-def query_name(vocabulary: Vocabulary, params: ConceptParameters, name: str) -> str:
+def query_name(vocabulary: Vocabulary, params: ConceptParameters, name: str,
+               lookup: np.ndarray | None = None) -> str:
     """How a name asked for is understood: its usable tokens joined by ``" + "`` (``"living room"``,
     or ``"study + room"`` for a name never learnt as one term)."""
-    return " + ".join(vocabulary.words[k] for k in query_indices(params, vocabulary, name))
+    return " + ".join(vocabulary.words[k] for k in query_indices(params, vocabulary, name, lookup))
 
 
 def _occupied_concepts(params: ConceptParameters, e: int) -> np.ndarray:
@@ -170,15 +191,19 @@ def said_word_matrix(params: ConceptParameters, e: int) -> np.ndarray:
     return prior[None, :, 0] * theta + prior[None, :, 1] * psi
 
 
-def _name_concept_weights(params: ConceptParameters, e: int, words: list[int]) -> np.ndarray:
-    """(L,) G_{e,l} Π_i p(w_i | l): how much each concept of home e explains the words said together
+def _name_likelihood(params: ConceptParameters, e: int, words: list[int]) -> np.ndarray:
+    """(L,) Π_i p(w_i | l): how much each concept of home e explains the words said together
     (:func:`said_word_matrix`), scaled by the largest concept's product (several small p multiply);
     a concept in which a word has probability 0 keeps weight 0."""
     log_theta = _safe_log(said_word_matrix(params, e)[:, words]).sum(axis=1)  # (L,)
     top = float(log_theta.max())
-    theta_w = np.exp(log_theta - top) if top > _LOG_FLOOR else np.zeros_like(log_theta)
+    return np.exp(log_theta - top) if top > _LOG_FLOOR else np.zeros_like(log_theta)
+
+
+def _name_concept_weights(params: ConceptParameters, e: int, words: list[int]) -> np.ndarray:
+    """(L,) G_{e,l} Π_i p(w_i | l) (:func:`_name_likelihood`)."""
     g = np.clip(np.asarray(params.concept_weights[e], dtype=np.float64), 0.0, None)
-    return g * theta_w
+    return g * _name_likelihood(params, e, words)
 
 
 def concept_stand_ins(params: ConceptParameters, e: int) -> np.ndarray:
@@ -208,7 +233,8 @@ def concept_stand_ins(params: ConceptParameters, e: int) -> np.ndarray:
     return stand_in
 
 
-def name_support(params: ConceptParameters, e: int, vocabulary: Vocabulary, name: str) -> float:
+def name_support(params: ConceptParameters, e: int, vocabulary: Vocabulary, name: str,
+                 lookup: np.ndarray | None = None) -> float:
     """Share of p(name | home e) = Σ_l G_{e,l} θ^w_{e,l,w} held by concepts with samples of home e.
 
     Near 1: the name belongs to places the home's samples were assigned to. Near 0: the name is
@@ -217,44 +243,96 @@ def name_support(params: ConceptParameters, e: int, vocabulary: Vocabulary, name
     (0 if the name has probability 0 in every concept).
     """
     e = _check_home(params, e)
-    weights = _name_concept_weights(params, e, query_indices(params, vocabulary, name))
+    weights = _name_concept_weights(params, e, query_indices(params, vocabulary, name, lookup))
     total = weights.sum()
     return float(weights[_occupied_concepts(params, e)].sum() / total) if total > 0 else 0.0
 
 
+def _room_joint(params: ConceptParameters, e: int, rooms: HomeRooms, view_counts: float | None
+                ) -> np.ndarray | None:
+    """(L, K) p(l, m | home) = Σ_{k: r(k) = m} (n_k / n) p(l | room k), the room account's concepts by
+    region (:mod:`spco.model.rooms`); ``None`` if no room holds a training sample."""
+    from spco.model.rooms import _room_log_posterior
+
+    log_post, counts, region_of = _room_log_posterior(params, rooms, view_counts, e)  # (R, L), (R,), (R,)
+    if not counts.sum() > 0:
+        return None
+    posterior = np.exp(log_post - logsumexp(log_post, axis=1, keepdims=True))  # p(l | room k)
+    K = int(np.shape(params.region_means)[1])
+    joint = np.zeros((K, params.n_concepts))
+    np.add.at(joint, region_of, counts[:, None] * posterior)
+    return joint.T / counts.sum()
+
+
 def region_posterior_for_name(
-    params: ConceptParameters, e: int, vocabulary: Vocabulary, name: str
+    params: ConceptParameters, e: int, vocabulary: Vocabulary, name: str, *,
+    rooms: HomeRooms | None = None, view_counts: float | None = None, lookup: np.ndarray | None = None,
 ) -> np.ndarray:
-    """p(m | w) ∝ Σ_l π_{e,l,m} θ^w_{e,l,w} G_{e,l} for the place name ``name``.
+    """p(m | w) ∝ Σ_l p(w | l) p(l, m | home) for the place name ``name``: the one p(region | name)
+    (module docstring; ``where``, the service, the ROS node and the experiments' A_p call it).
+
+    ``params`` are the answer's parameters (:func:`spco.model.confidence.answer_parameters`, the
+    names ``what`` answers: one account of which concept a name means): p(w | l) is
+    :func:`said_word_matrix` of them. ``lookup``: (V,) bool, the words a place is looked up by
+    (default ``params.word_mask``; the robot's: the fit's word mask, with the word channels the names
+    and the words said mostly as words of a place, "where is the fridge", found through ψ).
+
+    With ``rooms`` (the home's training samples' regions, concepts, views and taught names:
+    :func:`spco.knowledge.queries.home_rooms`, :func:`spco.model.rooms.model_rooms`),
+    p(l, m | home) is the room account, each room's pooled views worth ``view_counts`` = w draws
+    against φ^v (:func:`spco.model.rooms.room_concepts`). Without them (or no room holding a sample)
+    p(l, m | home) ∝ G_{e,l} π_{e,l,m} over the concepts holding samples of home ``e``
+    (``concept_counts`` ≥ 1), a concept without samples looked for where its stand-in is
+    (:func:`concept_stand_ins`), or over all concepts if the name has no probability in those.
 
     ``name`` is tokenised like a sentence (:meth:`~spco.data.language.Vocabulary.tokenize`:
     ``"Living Room"``, ``"living-room"`` → the token ``"living room"``). A name of several tokens
     (``"study room"`` never learnt as one term) is understood as all its known, unpruned tokens said
-    together: p(m | w_1 … w_n) ∝ Σ_l π_{e,l,m} G_{e,l} Π_i θ^w_{e,l,w_i}; its unknown or pruned tokens
-    are left out. The sum runs over the concepts holding samples of home ``e`` (``concept_counts``
-    ≥ 1), or over all concepts if the name has no probability in those (see :func:`name_support`).
+    together: p(w_1 … w_n | l) = Π_i p(w_i | l); its unknown or pruned tokens are left out.
     Returns (K,) float64 summing to 1. Raises :class:`UnknownNameError` if no token of the name is
     known and unpruned, or the name has probability 0 in every concept of home ``e``.
     """
     e = _check_home(params, e)
-    ws = query_indices(params, vocabulary, name)
-    concept_weights = _name_concept_weights(params, e, ws)  # (L,)
-    # a concept without samples of this home is looked for where its stand-in is (synonyms)
-    concept_weights = np.bincount(concept_stand_ins(params, e), weights=concept_weights,
-                                  minlength=concept_weights.size)
-    occupied = _occupied_concepts(params, e)
-    if (concept_weights[occupied] > 0).any():
-        concept_weights = np.where(occupied, concept_weights, 0.0)
-    pi = np.clip(np.asarray(params.region_weights[e], dtype=np.float64), 0.0, None)  # (L, K)
-    weights = concept_weights @ pi  # (K,)
+    ws = query_indices(params, vocabulary, name, lookup)
+    joint = None if rooms is None else _room_joint(params, e, rooms, view_counts)
+    if joint is not None:
+        weights = _name_likelihood(params, e, ws) @ joint  # (K,)
+    else:
+        concept_weights = _name_concept_weights(params, e, ws)  # (L,)
+        # a concept without samples of this home is looked for where its stand-in is (synonyms)
+        concept_weights = np.bincount(concept_stand_ins(params, e), weights=concept_weights,
+                                      minlength=concept_weights.size)
+        occupied = _occupied_concepts(params, e)
+        if (concept_weights[occupied] > 0).any():
+            concept_weights = np.where(occupied, concept_weights, 0.0)
+        pi = np.clip(np.asarray(params.region_weights[e], dtype=np.float64), 0.0, None)  # (L, K)
+        weights = concept_weights @ pi  # (K,)
     total = weights.sum()
     if not total > 0:
-        mask = np.asarray(params.word_mask, dtype=bool)
+        mask = np.asarray(params.word_mask if lookup is None else lookup, dtype=bool)
         known = [v for v, keep in zip(vocabulary.words, mask, strict=True) if keep]
         shown = " + ".join(vocabulary.words[w] for w in ws)
         raise UnknownNameError(name, known, reason=f"the name {shown!r} has "
                                f"probability 0 in every concept of home {e}")
     return weights / total
+
+
+def answer_regions(region_probabilities: np.ndarray, n: int) -> np.ndarray:
+    """(n,) the regions of ``n`` poses the robot's ``where`` draws: the answer regions — those at least
+    half as probable as the best (a name taught at two places of a home finds both) — in proportion
+    to their probability, at least one pose per region when ``n`` allows, most probable first."""
+    probs = np.asarray(region_probabilities, dtype=np.float64)
+    answer = np.flatnonzero(probs >= 0.5 * probs.max())
+    answer = answer[np.argsort(-probs[answer], kind="stable")]
+    share = probs[answer] / probs[answer].sum()
+    per_region = np.floor(share * n).astype(np.int64)
+    if n >= answer.size:
+        per_region = np.maximum(per_region, 1)
+    while per_region.sum() > n:
+        per_region[np.argmax(per_region)] -= 1
+    while per_region.sum() < n:
+        per_region[np.argmax(share * n - per_region)] += 1
+    return np.repeat(answer, per_region).astype(np.int64)
 
 
 def draw_poses(params: ConceptParameters, e: int, region_probabilities: np.ndarray, regions: np.ndarray,
@@ -290,13 +368,22 @@ def predict_positions(
     mode: PositionMode = "argmax",
     xy_only: bool = False,
     unheard: bool = True,
+    *,
+    rooms: HomeRooms | None = None,
+    view_counts: float | None = None,
+    lookup: np.ndarray | None = None,
 ) -> PositionPrediction:
-    """Sample ``n`` poses where the place ``name`` is, in home ``e``.
+    """Sample ``n`` poses where the place ``name`` is, in home ``e``: the one p(pose | name) of the
+    robot's ``where`` and the experiments' A_p (module docstring).
 
     Parameters
     ----------
-    mode: ``"argmax"`` — draw from N(μ_m̂, Σ_m̂) with m̂ = argmax p(m | w) (the paper);
-        ``"mixture"`` — draw each sample's region from p(m | w) first.
+    params, rooms, view_counts, lookup: as :func:`region_posterior_for_name` (the robot's: the
+        answer's parameters, the home's rooms, the model's view weight w, the fit's word mask).
+    mode: ``"answer"`` — the robot's ``where``: the regions of :func:`answer_regions` (those at
+        least half as probable as the best, in proportion); ``"argmax"`` — draw from N(μ_m̂, Σ_m̂)
+        with m̂ = argmax p(m | w) (the paper's A_p); ``"mixture"`` — draw each sample's region from
+        p(m | w) first.
     xy_only: draw from the x–y marginal only (the authors' code); θ is then NaN.
     rng: a Generator (advanced by the draws) or a seed.
     unheard: a name that is not a usable token is first looked up in the lexicon
@@ -304,30 +391,35 @@ def predict_positions(
         only the name's own known tokens are used.
 
     Returns a :class:`PositionPrediction` with samples (n, 3) = (x, y, θ) (``poses``: the same
-    as (x, y, sin θ, cos θ)), the name's ``support`` in the home and ``learnt`` (see the module
-    docstring: False means no such place was learnt in this home).
+    as (x, y, sin θ, cos θ)), ``region`` the most probable region, the name's ``support`` in the home
+    and ``learnt`` (see the module docstring: False means no such place was learnt in this home).
     """
     if n < 0:
         raise ConfigurationError(f"the number of positions must be >= 0, got {n}")
-    if mode not in ("argmax", "mixture"):
-        raise ConfigurationError(f"mode must be 'argmax' or 'mixture', got {mode!r}")
+    if mode not in ("argmax", "mixture", "answer"):
+        raise ConfigurationError(f"mode must be 'argmax', 'mixture' or 'answer', got {mode!r}")
     e = _check_home(params, e)
-    resolved = (resolve_name(vocabulary, params.word_mask, name, params.name_prior,
+    mask = params.word_mask if lookup is None else lookup
+    resolved = (resolve_name(vocabulary, mask, name, params.name_prior,
                              information=mutual_information_weights(params, e)) if unheard else None)
     if resolved is not None:  # a name nobody said: the known name the lexicon finds for it
-        pred = predict_positions(params, e, vocabulary, resolved.name, n, rng, mode, xy_only, unheard=False)
+        pred = predict_positions(params, e, vocabulary, resolved.name, n, rng, mode, xy_only, unheard=False,
+                                 rooms=rooms, view_counts=view_counts, lookup=lookup)
         return replace(pred, asked=resolved.asked, via=resolved.how)
-    probs = region_posterior_for_name(params, e, vocabulary, name)
-    support = name_support(params, e, vocabulary, name)
+    probs = region_posterior_for_name(params, e, vocabulary, name, rooms=rooms, view_counts=view_counts,
+                                      lookup=lookup)
+    support = name_support(params, e, vocabulary, name, lookup)
     best = int(np.argmax(probs))
-    gen = np.random.default_rng(rng)
+    gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
     if mode == "argmax":
         regions = np.full(n, best, dtype=np.int64)
+    elif mode == "answer":
+        regions = answer_regions(probs, n)
     else:
         regions = gen.choice(probs.size, size=n, p=probs).astype(np.int64)
     samples, log_density, weights = draw_poses(params, e, probs, regions, gen, xy_only)
     return PositionPrediction(
-        name=query_name(vocabulary, params, name),
+        name=query_name(vocabulary, params, name, lookup),
         region=best,
         region_probabilities=probs,
         samples=samples,
