@@ -308,7 +308,8 @@ def home_rooms(home: HomeModel) -> HomeRooms:
     words = home.data.words
     if home.knowledge.channels is not None and home.state.switches is not None and words.nnz:
         words = name_tokens(words, home.state.switches)
-    return HomeRooms.of(home.state.regions, home.data.visual, words, home.state.concepts)
+    return HomeRooms.of(home.state.regions, home.data.visual, words, home.state.concepts, said=home.data.words,
+                        concentration=home.hyperparameters.delta_word)
 
 
 def describe_model_file(path: str | PathLike[str]) -> dict[str, Any]:

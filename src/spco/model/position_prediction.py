@@ -36,6 +36,7 @@ from dataclasses import dataclass, replace
 from typing import Literal
 
 import numpy as np
+import scipy.sparse as sp
 from scipy.special import logsumexp
 
 from spco.data.language import Vocabulary
@@ -66,6 +67,8 @@ __all__ = [
     "query_indices",
     "query_name",
     "region_posterior_for_name",
+    "room_name_log_likelihood",
+    "room_said_counts",
     "said_word_matrix",
 ]
 
@@ -248,20 +251,73 @@ def name_support(params: ConceptParameters, e: int, vocabulary: Vocabulary, name
     return float(weights[_occupied_concepts(params, e)].sum() / total) if total > 0 else 0.0
 
 
-def _room_joint(params: ConceptParameters, e: int, rooms: HomeRooms, view_counts: float | None
-                ) -> np.ndarray | None:
-    """(L, K) p(l, m | home) = Σ_{k: r(k) = m} (n_k / n) p(l | room k), the room account's concepts by
-    region (:mod:`spco.model.rooms`); ``None`` if no room holds a training sample."""
+def room_said_counts(rooms: HomeRooms, n_regions: int) -> tuple[np.ndarray, sp.csr_array]:
+    """(R,) the region of each room and (R, V) the words said in it: each sample's tokens
+    (``rooms.said``) in proportion to its share in the room (:meth:`HomeRooms.membership`: a taught
+    sample wholly in its room, an untaught one shared by the rooms of its region). Kept with ``rooms``."""
+    known = rooms._known.get(("said", n_regions))
+    if known is not None:
+        return known
+    share, region_of = rooms.membership(n_regions)
+    said = rooms.said if rooms.said is not None else sp.csr_array((rooms.regions.size, 0))
+    result = region_of, sp.csr_array(share @ said)
+    rooms._known[("said", n_regions)] = result
+    return result
+
+
+def room_name_log_likelihood(said_probabilities: np.ndarray, room_counts: np.ndarray,
+                             room_totals: np.ndarray, concentration: float | None) -> np.ndarray:
+    """(R, L) log p(w_1 … w_n | room k, concept l): each token w_i of a name drawn from the room's own
+    probability of it, φ_{k,w} ~ Beta(δ s_{l,w}, δ (1 − s_{l,w})) around its concept's s_{l,w}, given
+    the room's X_{k,w} tokens of w among its X_k tokens of the words a place is looked up by (the
+    Dirichlet of the room's words around its concept's, aggregated to w / not w)::
+
+        p(w | room k, l) = (δ s_{l,w} + X_{k,w}) / (δ + X_k).
+
+    ``said_probabilities``: (L, n) s_{l,w_i} in [0, 1]; ``room_counts``: (R, n) X_{k,w_i};
+    ``room_totals``: (R,) X_k ≥ X_{k,w_i}; ``concentration``: δ > 0, or ``None`` (δ → ∞: every room of
+    a concept says its concept's s_l, Π_i s_{l,w_i}). Log space; a probability 0 is the finite floor."""
+    s = np.clip(np.asarray(said_probabilities, dtype=np.float64), 0.0, 1.0)  # (L, n)
+    counts = np.asarray(room_counts, dtype=np.float64)  # (R, n)
+    totals = np.asarray(room_totals, dtype=np.float64)  # (R,)
+    if concentration is None:
+        return np.broadcast_to(_safe_log(s).sum(axis=1)[None, :], (counts.shape[0], s.shape[0])).copy()
+    delta = float(concentration)
+    if not (np.isfinite(delta) and delta > 0):
+        raise ConfigurationError(f"the concentration must be a finite number > 0, got {concentration!r}")
+    if counts.size and (counts.min() < 0 or (counts > totals[:, None] * (1 + 1e-9) + 1e-9).any()):
+        raise ConfigurationError("a room's count of a word must be in [0, the room's total]")
+    numerator = _safe_log(delta * s[None, :, :] + counts[:, None, :]).sum(axis=2)  # (R, L)
+    return numerator - s.shape[1] * np.log(delta + totals)[:, None]
+
+
+def _room_weights(params: ConceptParameters, e: int, rooms: HomeRooms, view_counts: float | None,
+                  words: list[int], lookup: np.ndarray) -> np.ndarray | None:
+    """(K,) Σ_{k: r(k) = m} n_k Σ_l p(l | room k) p(w | room k, l) (up to a constant), the room
+    account's regions for the name's tokens ``words``; ``None`` if no room holds a training sample."""
     from spco.model.rooms import _room_log_posterior
 
     log_post, counts, region_of = _room_log_posterior(params, rooms, view_counts, e)  # (R, L), (R,), (R,)
     if not counts.sum() > 0:
         return None
-    posterior = np.exp(log_post - logsumexp(log_post, axis=1, keepdims=True))  # p(l | room k)
     K = int(np.shape(params.region_means)[1])
-    joint = np.zeros((K, params.n_concepts))
-    np.add.at(joint, region_of, counts[:, None] * posterior)
-    return joint.T / counts.sum()
+    log_concept = log_post - logsumexp(log_post, axis=1, keepdims=True)  # log p(l | room k)
+    s = said_word_matrix(params, e)[:, words]  # (L, n)
+    R = region_of.size
+    concentration = rooms.concentration
+    if rooms.said is not None and concentration is not None and rooms.said.shape[1] == lookup.size:
+        _, said = room_said_counts(rooms, K)  # (R, V)
+        room_counts = said[:, words].toarray()
+        room_totals = np.asarray(said @ lookup.astype(np.float64), dtype=np.float64).ravel()
+    else:  # nothing said in the rooms: each room says its concept's names
+        room_counts, room_totals, concentration = np.zeros((R, len(words))), np.zeros(R), None
+    log_word = room_name_log_likelihood(s, room_counts, room_totals, concentration)  # (R, L)
+    if not log_word.max() > _LOG_FLOOR:  # the name has probability 0 in every room
+        return np.zeros(K)
+    log_room = _safe_log(counts) + logsumexp(log_concept + log_word, axis=1)  # (R,)
+    log_room = np.where(counts > 0, log_room, -np.inf)
+    weights = np.exp(log_room - log_room.max())
+    return np.bincount(region_of, weights=weights, minlength=K)
 
 
 def region_posterior_for_name(
@@ -294,10 +350,9 @@ def region_posterior_for_name(
     """
     e = _check_home(params, e)
     ws = query_indices(params, vocabulary, name, lookup)
-    joint = None if rooms is None else _room_joint(params, e, rooms, view_counts)
-    if joint is not None:
-        weights = _name_likelihood(params, e, ws) @ joint  # (K,)
-    else:
+    mask = np.asarray(params.word_mask if lookup is None else lookup, dtype=bool)
+    weights = None if rooms is None else _room_weights(params, e, rooms, view_counts, ws, mask)
+    if weights is None:
         concept_weights = _name_concept_weights(params, e, ws)  # (L,)
         # a concept without samples of this home is looked for where its stand-in is (synonyms)
         concept_weights = np.bincount(concept_stand_ins(params, e), weights=concept_weights,
@@ -309,7 +364,6 @@ def region_posterior_for_name(
         weights = concept_weights @ pi  # (K,)
     total = weights.sum()
     if not total > 0:
-        mask = np.asarray(params.word_mask if lookup is None else lookup, dtype=bool)
         known = [v for v, keep in zip(vocabulary.words, mask, strict=True) if keep]
         shown = " + ".join(vocabulary.words[w] for w in ws)
         raise UnknownNameError(name, known, reason=f"the name {shown!r} has "

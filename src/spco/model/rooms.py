@@ -59,25 +59,45 @@ class HomeRooms:
     concepts: (n,) int, the concept of each sample (the sampler's state), or ``None``. With them a
         region is split by the names taught in it (:meth:`membership`); without them a room is a
         region.
+    said: (n, V) every word token said at each sample, in the counts θ^w counts a token with (S^w),
+        whatever channel the sampler drew it from, or ``None`` (nothing said): a room's own names,
+        p(w | room) (:func:`room_word_probabilities`, ``where``).
+    concentration: δ, how many of those counts the concept's names weigh as against a room's own
+        (δ^w: a room's names are drawn around its concept's as a home's around the experienced
+        homes'); ``None``: a room's own words are not read.
     """
 
     regions: np.ndarray
     visual: sp.csr_array
     words: sp.csr_array
     concepts: np.ndarray | None = None
+    said: sp.csr_array | None = None
+    concentration: float | None = None
     #: the rooms' evidence already worked out, per answer's parameters (:func:`_room_log_posterior`):
     #: ``(view_counts, e) -> (params, result)``, kept only while the same ``params`` object is asked
     _known: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     @classmethod
-    def of(cls, regions: object, visual: object, words: object, concepts: object = None) -> HomeRooms:
-        """Validated :class:`HomeRooms` (sparse copies of ``visual`` and ``words``)."""
+    def of(cls, regions: object, visual: object, words: object, concepts: object = None, *,
+           said: object = None, concentration: float | None = None) -> HomeRooms:
+        """Validated :class:`HomeRooms` (sparse copies of ``visual``, ``words`` and ``said``)."""
         regions = np.asarray(regions, dtype=np.int64).ravel()
         visual = sp.csr_array(visual, dtype=np.float64)
         words = sp.csr_array(words, dtype=np.float64)
         if visual.shape[0] != regions.size or words.shape[0] != regions.size:
             raise ConfigurationError(f"rooms: {regions.size} regions but {visual.shape[0]} views and "
                                      f"{words.shape[0]} word rows")
+        said_rows = None
+        if said is not None:
+            said_rows = sp.csr_array(said, dtype=np.float64)
+            if said_rows.shape[0] != regions.size:
+                raise ConfigurationError(f"rooms: {regions.size} regions but {said_rows.shape[0]} rows of "
+                                         "words said")
+            if said_rows.nnz and not (np.isfinite(said_rows.data).all() and said_rows.data.min() >= 0):
+                raise ConfigurationError("rooms: the words said must be finite counts >= 0")
+        if concentration is not None and not (np.isfinite(concentration) and concentration > 0):
+            raise ConfigurationError(f"rooms: the concentration must be a finite number > 0, got "
+                                     f"{concentration!r}")
         if regions.size and regions.min() < 0:
             raise ConfigurationError("rooms: a region index is negative")
         labels = None
@@ -87,12 +107,15 @@ class HomeRooms:
                 raise ConfigurationError(f"rooms: {regions.size} regions but {labels.size} concepts")
             if labels.size and labels.min() < 0:
                 raise ConfigurationError("rooms: a concept index is negative")
-        return cls(regions, visual, words, labels)
+        return cls(regions, visual, words, labels, said_rows,
+                   None if concentration is None else float(concentration))
 
     def subset(self, keep: np.ndarray) -> HomeRooms:
         """The rooms of the samples ``keep`` (a bool mask or indices), e.g. one sample left out."""
         return HomeRooms.of(self.regions[keep], self.visual[keep], self.words[keep],
-                            None if self.concepts is None else self.concepts[keep])
+                            None if self.concepts is None else self.concepts[keep],
+                            said=None if self.said is None else self.said[keep],
+                            concentration=self.concentration)
 
     def membership(self, n_regions: int) -> tuple[sp.csr_array, np.ndarray]:
         """(R, n) each sample's share in each room and (R,) the region of each room.
@@ -255,4 +278,5 @@ def model_rooms(model: object, e: int) -> HomeRooms:
             and words.nnz:
         words = name_tokens(words, state.switches)
     return HomeRooms.of(np.asarray(state.regions)[rows], data.visual[rows], words[rows],
-                        np.asarray(state.concepts)[rows])
+                        np.asarray(state.concepts)[rows], said=data.words[rows],
+                        concentration=float(model.hyperparameters_.delta_word))  # type: ignore[attr-defined]
