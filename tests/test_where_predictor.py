@@ -12,6 +12,7 @@ from numpy.testing import assert_allclose
 from serve_helpers import build_home
 
 from spco import knowledge as kn
+from spco.errors import ConfigurationError
 from spco.evaluation import evaluate_home
 from spco.model import SpCoTransfer, position_prediction
 from spco.model.confidence import model_answer_parameters
@@ -46,15 +47,27 @@ class _Spy:
 
 
 def _by_hand(params, rooms, view_counts, vocabulary, name, lookup, e: int = 0) -> np.ndarray:
-    """p(m | w) ∝ Σ_k n_k [r(k) = m] Σ_l p(l | room k) p(w | l), worked out room by room."""
+    """p(m | w) ∝ Σ_k n_k [r(k) = m] Σ_l p(l | room k) Π_i (δ s_{l,w_i} + X_{k,w_i}) / (δ + X_k), worked
+    out room by room and sample by sample (X: the words said at the room's samples, each in its share)."""
     K = int(np.shape(params.region_means)[1])
     counts, posterior = room_concepts(params, e, rooms, view_counts)
-    _, region_of = rooms.membership(K)
+    share, region_of = rooms.membership(K)
+    share = share.toarray()
     columns = position_prediction.query_indices(params, vocabulary, name, lookup)
-    likelihood = np.prod(said_word_matrix(params, e)[:, columns], axis=1)
+    s = said_word_matrix(params, e)[:, columns]
+    said = rooms.said.toarray() if rooms.said is not None else np.zeros((rooms.regions.size, len(lookup)))
+    delta = rooms.concentration
     out = np.zeros(K)
     for k in range(counts.size):
-        out[region_of[k]] += counts[k] * float(posterior[k] @ likelihood)
+        X = np.zeros(len(lookup))
+        for i in range(rooms.regions.size):
+            X += share[k, i] * said[i]
+        total = sum(X[v] for v in range(len(lookup)) if lookup[v])
+        for l in range(params.n_concepts):
+            like = 1.0
+            for j, w in enumerate(columns):
+                like *= s[l, j] if delta is None else (delta * s[l, j] + X[w]) / (delta + total)
+            out[region_of[k]] += counts[k] * posterior[k, l] * like
     return out / out.sum()
 
 
@@ -121,3 +134,61 @@ def test_a_taught_room_is_found_by_its_name_through_the_rooms(home: kn.HomeModel
     assert int(taught.state.regions[row]) in answer.regions.tolist() or \
         kn.queries.answered_at_region(taught, answer.region) == "quokka room"
     assert not hasattr(kn, "WHERE_MODEL_WEIGHT") and not hasattr(kn.queries, "WHERE_ANYWHERE_WEIGHT")
+
+
+def _beta_mean_by_quadrature(a: float, b: float, hits: float, misses: float) -> float:
+    """E[φ | hits of w among hits + misses tokens], φ ~ Beta(a, b): the posterior worked out on a grid
+    (prior density × likelihood, normalised numerically), not from conjugacy."""
+    phi = np.linspace(0.0, 1.0, 400_001)[1:-1]
+    log_post = (a - 1 + hits) * np.log(phi) + (b - 1 + misses) * np.log1p(-phi)
+    post = np.exp(log_post - log_post.max())
+    return float(np.trapezoid(phi * post, phi) / np.trapezoid(post, phi))
+
+
+def test_a_rooms_own_names_against_brute_force() -> None:
+    """p(w_1 w_2 | room k, l) of two tokens, each φ_{k,w} ~ Beta(δ s_{l,w}, δ (1 − s_{l,w})) given the
+    room's counts, and the regions' p(m | w) of three rooms in two regions, against the posterior
+    means worked out by quadrature and summed by enumeration."""
+    delta = 5.0
+    s = np.array([[0.3, 0.6], [0.7, 0.2]])  # (L = 2, n = 2)
+    room_counts = np.array([[0.0, 0.0], [2.0, 1.0], [0.0, 3.0]])  # (R = 3, n)
+    room_totals = np.array([0.0, 4.0, 5.0])
+    log_like = position_prediction.room_name_log_likelihood(s, room_counts, room_totals, delta)
+    expected = np.zeros((3, 2))
+    for k in range(3):
+        for l in range(2):
+            expected[k, l] = np.prod([_beta_mean_by_quadrature(
+                delta * s[l, i], delta * (1 - s[l, i]), room_counts[k, i], room_totals[k] - room_counts[k, i])
+                for i in range(2)])
+    assert_allclose(np.exp(log_like), expected, rtol=1e-4)  # the grid's error: ~1e-5
+    # nothing said in a room: its concept's s_l; no concentration: every room its concept's
+    assert_allclose(np.exp(log_like[0]), s.prod(axis=1), rtol=1e-12)
+    assert_allclose(np.exp(position_prediction.room_name_log_likelihood(s, room_counts, room_totals, None)),
+                    np.tile(s.prod(axis=1), (3, 1)), rtol=1e-12)
+    # the regions, by enumeration over rooms and concepts: room 0 in region 0, rooms 1 and 2 in region 1
+    n_k, p_l = np.array([30.0, 5.0, 2.0]), np.array([[0.9, 0.1], [0.2, 0.8], [0.5, 0.5]])
+    region_of = [0, 1, 1]
+    joint = np.zeros(2)
+    for k in range(3):
+        for l in range(2):
+            joint[region_of[k]] += n_k[k] * p_l[k, l] * expected[k, l]
+    log_room = np.log(n_k) + np.log(np.exp(log_like + np.log(p_l)).sum(axis=1))
+    assert_allclose(np.bincount(region_of, np.exp(log_room)) / np.exp(log_room).sum(), joint / joint.sum(),
+                    rtol=1e-4)
+    with pytest.raises(ConfigurationError, match="concentration"):
+        position_prediction.room_name_log_likelihood(s, room_counts, room_totals, 0.0)
+    with pytest.raises(ConfigurationError, match="room's count"):
+        position_prediction.room_name_log_likelihood(s, room_counts, np.zeros(3), delta)
+
+
+def test_a_name_said_in_one_room_is_found_there_though_no_concept_names_it() -> None:
+    """A name said once in a small room, its concept's p(w | l) near 0 everywhere (the CI home's
+    "pantry": a token the sampler drew as a word of the place, ψ ≈ 5e-8 in every concept): the room
+    that heard it is the answer, 10 times smaller than the others; the said counts off, it is not."""
+    s = np.full((2, 1), 5e-8)
+    room_counts, room_totals = np.array([[0.0], [0.0], [5000.0]]), np.array([0.0, 0.0, 5000.0])
+    n_k, p_l = np.array([30.0, 30.0, 3.0]), np.array([[1.0, 0.0], [0.0, 1.0], [1.0, 0.0]])
+    for delta, found in ((1e4, 2), (None, 0)):
+        log_like = position_prediction.room_name_log_likelihood(s, room_counts, room_totals, delta)
+        weights = n_k * (p_l * np.exp(log_like)).sum(axis=1)
+        assert int(np.argmax(weights)) == found
