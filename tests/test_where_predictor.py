@@ -63,11 +63,11 @@ def _by_hand(params, rooms, view_counts, vocabulary, name, lookup, e: int = 0) -
         for i in range(rooms.regions.size):
             X += share[k, i] * said[i]
         total = sum(X[v] for v in range(len(lookup)) if lookup[v])
-        for l in range(params.n_concepts):
+        for c in range(params.n_concepts):
             like = 1.0
             for j, w in enumerate(columns):
-                like *= s[l, j] if delta is None else (delta * s[l, j] + X[w]) / (delta + total)
-            out[region_of[k]] += counts[k] * posterior[k, l] * like
+                like *= s[c, j] if delta is None else (delta * s[c, j] + X[w]) / (delta + total)
+            out[region_of[k]] += counts[k] * posterior[k, c] * like
     return out / out.sum()
 
 
@@ -156,9 +156,9 @@ def test_a_rooms_own_names_against_brute_force() -> None:
     log_like = position_prediction.room_name_log_likelihood(s, room_counts, room_totals, delta)
     expected = np.zeros((3, 2))
     for k in range(3):
-        for l in range(2):
-            expected[k, l] = np.prod([_beta_mean_by_quadrature(
-                delta * s[l, i], delta * (1 - s[l, i]), room_counts[k, i], room_totals[k] - room_counts[k, i])
+        for c in range(2):
+            expected[k, c] = np.prod([_beta_mean_by_quadrature(
+                delta * s[c, i], delta * (1 - s[c, i]), room_counts[k, i], room_totals[k] - room_counts[k, i])
                 for i in range(2)])
     assert_allclose(np.exp(log_like), expected, rtol=1e-4)  # the grid's error: ~1e-5
     # nothing said in a room: its concept's s_l; no concentration: every room its concept's
@@ -170,8 +170,8 @@ def test_a_rooms_own_names_against_brute_force() -> None:
     region_of = [0, 1, 1]
     joint = np.zeros(2)
     for k in range(3):
-        for l in range(2):
-            joint[region_of[k]] += n_k[k] * p_l[k, l] * expected[k, l]
+        for c in range(2):
+            joint[region_of[k]] += n_k[k] * p_l[k, c] * expected[k, c]
     log_room = np.log(n_k) + np.log(np.exp(log_like + np.log(p_l)).sum(axis=1))
     assert_allclose(np.bincount(region_of, np.exp(log_room)) / np.exp(log_room).sum(), joint / joint.sum(),
                     rtol=1e-4)
