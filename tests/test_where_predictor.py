@@ -122,9 +122,9 @@ def test_answer_regions_draw_the_regions_at_least_half_as_probable_as_the_best()
 
 
 def test_a_taught_room_is_found_by_its_name_through_the_rooms(home: kn.HomeModel) -> None:
-    """The home's teachings enter through the room account (its taught names decide the room's concept)
-    and the answer's θ^w, with no weight of their own: a new name taught at one sample is found in
-    that sample's region, learnt."""
+    """The home's teachings enter through the room account (its taught names decide the room's concept),
+    the answer's θ^w and the room's own names: a new name taught at one sample is found in that sample's
+    region, learnt."""
     row = 3
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

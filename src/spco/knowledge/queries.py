@@ -43,12 +43,13 @@ def where(home: HomeModel, name: str, n: int = 10,
     """Poses ``(x, y, θ)`` to go to for the place ``name`` in ``home``.
 
     The one p(pose | name) (:func:`spco.model.position_prediction.predict_positions`, which the
-    experiments' A_p calls too): p(m | name) ∝ Σ_l p(name | l) p(l, m | home), with p(name | l) the
-    names ``what`` answers (:func:`answer_parameters`, and with the word channels the words of the
-    place ψ: "where is the fridge") and p(l, m | home) the room account of the home's training samples
-    (:func:`home_rooms`: each room's pooled views, its taught names and G_0 decide its concept; docs/model.md,
-    "Where a place is"). The home's own teachings enter through the rooms and the answer's θ^w, with no
-    weight of their own: ``where`` is the Bayes inverse of ``what`` at the pose alone.
+    experiments' A_p calls too): p(m | name) ∝ Σ_{rooms k of m} n_k Σ_l p(l | room k) p(name | room k, l),
+    the rooms those of the room account of the home's training samples (:func:`home_rooms`: each room's
+    pooled views, its taught names and G_0 decide its concept) and each room's names drawn around its
+    concept's — the names ``what`` answers (:func:`answer_parameters`, and with the word channels the
+    words of the place ψ: "where is the fridge") — updated by the words said in the room
+    (docs/model.md, "Where a place is"): a name said in one room is found there, and in a home taught
+    nothing ``where`` is the Bayes inverse of ``what`` at the pose alone.
     The poses are drawn from the answer regions — those at least half as probable as the best
     (a name taught at two places of the home finds both) — in proportion to their probability, at
     least one per region (:func:`~spco.model.position_prediction.answer_regions`); each pose's

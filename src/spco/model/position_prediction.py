@@ -6,19 +6,23 @@ Pure functions of a :class:`~spco.model.parameters.ConceptParameters` sample, a 
 and the corpus :class:`~spco.data.language.Vocabulary`, as :mod:`spco.model.prediction` (names
 from observations), whose validation and helpers they share.
 
-Regions, the posterior predictive of the region of a sample whose sentence says ``w``::
+Regions, the posterior predictive of the region of a sample whose sentence says ``w``. With the
+home's rooms (:class:`~spco.model.rooms.HomeRooms`, the robot always has them: the room account of
+``what``, :mod:`spco.model.rooms`), each room k (n_k samples, region r(k)) has names of its own, drawn
+around its concept's (docs/model.md, "Where a place is")::
 
-    p(m | w) ∝ Σ_l p(w | l) p(l, m | home),
+    p(m | w) ∝ Σ_{k: r(k) = m} n_k Σ_l p(l | room k) p(w | room k, l),
+    p(w | room k, l) = (δ s_{l,w} + X_{k,w}) / (δ + X_k)      (:func:`room_name_log_likelihood`),
 
-with p(w | l) the names the robot answers (:func:`said_word_matrix` of the answer's parameters:
-θ^w, and with the word channels the place words ψ) and p(l, m | home) the home's concepts by region.
-With the home's rooms (:class:`~spco.model.rooms.HomeRooms`, the robot always has them) that is the
-room account of ``what`` (:mod:`spco.model.rooms`): p(l, m | home) = Σ_{k: r(k) = m} (n_k / n)
-p(l | room k), room k's pooled views, its taught names and G_0 deciding its concept, so ``where`` is
-the Bayes inverse of ``what`` at the pose alone (p(x | w) ∝ p(w | x) p(x)) and the home's own
-teachings enter through the rooms and the answer's θ^w, with no weight of their own. Without rooms
-(a bare parameter set) p(l, m | home) ∝ G_{e,l} π_{e,l,m} over the concepts holding the home's
-samples (:func:`concept_stand_ins` for the others). Poses are drawn from the answer regions
+with s_{l,w} = p(w | l) the names the robot answers (:func:`said_word_matrix` of the answer's
+parameters: θ^w, and with the word channels the place words ψ), p(l | room k) room k's pooled views,
+its taught names and G_0 deciding its concept, X_{k,w} the tokens of w said at the room's samples and
+X_k those of every word a place is looked up by (S^w counts each, any channel;
+:func:`room_said_counts`), δ = δ^w (``HomeRooms.concentration``). A room where nothing was said
+says its concept's names, so for a home taught nothing ``where`` is the Bayes inverse of ``what`` at
+the pose alone; a name said in one room is found there. Without rooms
+(a bare parameter set) p(m | w) ∝ Σ_l p(w | l) G_{e,l} π_{e,l,m} over the concepts holding the home's samples
+(:func:`concept_stand_ins` for the others). Poses are drawn from the answer regions
 (:func:`answer_regions`: those at least half as probable as the best, the robot's ``where``), or
 from m̂ = argmax_m p(m | w) (the paper's A_p), or from p(m | w) (``"mixture"``)::
 
