@@ -57,12 +57,16 @@ def _by_hand(params, rooms, view_counts, vocabulary, name, lookup, e: int = 0) -
     s = said_word_matrix(params, e)[:, columns]
     said = rooms.said.toarray() if rooms.said is not None else np.zeros((rooms.regions.size, len(lookup)))
     delta = rooms.concentration
+    prior = params.word_channel_prior  # a token counts as said as a name or a word of the place
+    weight = [float(lookup[v]) * (1.0 if prior is None else min(1.0, prior[v][0] + prior[v][1]))
+              for v in range(len(lookup))]
     out = np.zeros(K)
     for k in range(counts.size):
         X = np.zeros(len(lookup))
         for i in range(rooms.regions.size):
             X += share[k, i] * said[i]
-        total = sum(X[v] for v in range(len(lookup)) if lookup[v])
+        X = X * np.asarray(weight)
+        total = sum(X[v] for v in range(len(lookup)))
         for c in range(params.n_concepts):
             like = 1.0
             for j, w in enumerate(columns):

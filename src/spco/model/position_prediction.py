@@ -17,8 +17,9 @@ around its concept's (docs/model.md, "Where a place is")::
 with s_{l,w} = p(w | l) the names the robot answers (:func:`said_word_matrix` of the answer's
 parameters: θ^w, and with the word channels the place words ψ), p(l | room k) room k's pooled views,
 its taught names and G_0 deciding its concept, X_{k,w} the tokens of w said at the room's samples and
-X_k those of every word a place is looked up by (S^w counts each, any channel;
-:func:`room_said_counts`), δ = δ^w (``HomeRooms.concentration``). A room where nothing was said
+X_k those of every word a place is looked up by (S^w counts each, whatever channel the sampler drew it
+from, weighed by p(name | w) + p(place | w), the share of s's event: :func:`room_said_counts`,
+:func:`said_weights`), δ = δ^w (``HomeRooms.concentration``). A room where nothing was said
 says its concept's names, so for a home taught nothing ``where`` is the Bayes inverse of ``what`` at
 the pose alone; a name said in one room is found there. Without rooms
 (a bare parameter set) p(m | w) ∝ Σ_l p(w | l) G_{e,l} π_{e,l,m} over the concepts holding the home's samples
@@ -73,6 +74,7 @@ __all__ = [
     "region_posterior_for_name",
     "room_name_log_likelihood",
     "room_said_counts",
+    "said_weights",
     "said_word_matrix",
 ]
 
@@ -295,6 +297,19 @@ def room_name_log_likelihood(said_probabilities: np.ndarray, room_counts: np.nda
     return numerator - s.shape[1] * np.log(delta + totals)[:, None]
 
 
+def said_weights(params: ConceptParameters, lookup: np.ndarray) -> np.ndarray:
+    """(V,) how much a token of each word said in a room counts among the room's names: the words a place
+    is looked up by (``lookup``), each as p(name | w) + p(place | w) with the word channels — the
+    share of :func:`said_word_matrix`'s event, a token said as a name or a word of the place ("this",
+    "is": a background word, ~0) — and 1 without them."""
+    mask = np.asarray(lookup, dtype=np.float64)
+    prior = params.word_channel_prior
+    if prior is None or params.place_word_probabilities is None:
+        return mask
+    prior = np.clip(np.asarray(prior, dtype=np.float64), 0.0, 1.0)
+    return mask * np.clip(prior[:, 0] + prior[:, 1], 0.0, 1.0)
+
+
 def _room_weights(params: ConceptParameters, e: int, rooms: HomeRooms, view_counts: float | None,
                   words: list[int], lookup: np.ndarray) -> np.ndarray | None:
     """(K,) Σ_{k: r(k) = m} n_k Σ_l p(l | room k) p(w | room k, l) (up to a constant), the room
@@ -311,8 +326,9 @@ def _room_weights(params: ConceptParameters, e: int, rooms: HomeRooms, view_coun
     concentration = rooms.concentration
     if rooms.said is not None and concentration is not None and rooms.said.shape[1] == lookup.size:
         _, said = room_said_counts(rooms, K)  # (R, V)
-        room_counts = said[:, words].toarray()
-        room_totals = np.asarray(said @ lookup.astype(np.float64), dtype=np.float64).ravel()
+        weight = said_weights(params, lookup)  # a token counts as said as a name or a word of the place
+        room_counts = said[:, words].toarray() * weight[None, words]
+        room_totals = np.asarray(said @ weight, dtype=np.float64).ravel()
     else:  # nothing said in the rooms: each room says its concept's names
         room_counts, room_totals, concentration = np.zeros((R, len(words))), np.zeros(R), None
     log_word = room_name_log_likelihood(s, room_counts, room_totals, concentration)  # (R, L)
