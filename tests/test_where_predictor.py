@@ -17,7 +17,6 @@ from spco.evaluation import evaluate_home
 from spco.model import SpCoTransfer, position_prediction
 from spco.model.confidence import model_answer_parameters
 from spco.model.hyperparameters import TransferHyperparameters
-from spco.model.position_prediction import said_word_matrix
 from spco.model.rooms import model_rooms, room_concepts
 
 SMALL = TransferHyperparameters(n_concepts=6, n_regions=8)
@@ -47,30 +46,37 @@ class _Spy:
 
 
 def _by_hand(params, rooms, view_counts, vocabulary, name, lookup, e: int = 0) -> np.ndarray:
-    """p(m | w) ∝ Σ_k n_k [r(k) = m] Σ_l p(l | room k) Π_i (δ s_{l,w_i} + X_{k,w_i}) / (δ + X_k), worked
-    out room by room and sample by sample (X: the words said at the room's samples, each in its share)."""
+    """p(m | w) ∝ Σ_k n_k [r(k) = m] Σ_l p(l | room k) Π_i Σ_c a_{c,w_i} (δ p_{c,l,w_i} + X_{c,k,w_i}) /
+    (δ + T_{c,k}), worked out room by room and sample by sample (X: the name tokens, c = 0, and the
+    place-word tokens, c = 1, said at the room's samples, each sample in its share)."""
     K = int(np.shape(params.region_means)[1])
     counts, posterior = room_concepts(params, e, rooms, view_counts)
     share, region_of = rooms.membership(K)
     share = share.toarray()
     columns = position_prediction.query_indices(params, vocabulary, name, lookup)
-    s = said_word_matrix(params, e)[:, columns]
-    said = rooms.said.toarray() if rooms.said is not None else np.zeros((rooms.regions.size, len(lookup)))
+    theta = np.asarray(params.word_probabilities[e])
+    psi, prior = params.place_word_probabilities, params.word_channel_prior
+    said = [rooms.words.toarray(), None if rooms.places is None else rooms.places.toarray()]
+    probs = [theta, None if psi is None else np.clip(np.asarray(psi), 0.0, 1.0)]
     delta = rooms.concentration
-    prior = params.word_channel_prior  # a token counts as said as a name or a word of the place
-    weight = [float(lookup[v]) * (1.0 if prior is None else min(1.0, prior[v][0] + prior[v][1]))
-              for v in range(len(lookup))]
     out = np.zeros(K)
     for k in range(counts.size):
-        X = np.zeros(len(lookup))
-        for i in range(rooms.regions.size):
-            X += share[k, i] * said[i]
-        X = X * np.asarray(weight)
-        total = sum(X[v] for v in range(len(lookup)))
         for c in range(params.n_concepts):
             like = 1.0
-            for j, w in enumerate(columns):
-                like *= s[c, j] if delta is None else (delta * s[c, j] + X[w]) / (delta + total)
+            for w in columns:
+                p_w = 0.0
+                for ch in (0, 1):
+                    if probs[ch] is None or (ch == 1 and prior is None):
+                        continue
+                    a = 1.0 if prior is None else prior[w][ch]
+                    X = np.zeros(len(lookup))
+                    if said[ch] is not None:
+                        for i in range(rooms.regions.size):
+                            X += share[k, i] * said[ch][i]
+                    X = X * lookup
+                    p_w += a * (probs[ch][c, w] if delta is None else
+                                (delta * probs[ch][c, w] + X[w]) / (delta + X.sum()))
+                like *= p_w
             out[region_of[k]] += counts[k] * posterior[k, c] * like
     return out / out.sum()
 
@@ -150,49 +156,70 @@ def _beta_mean_by_quadrature(a: float, b: float, hits: float, misses: float) -> 
 
 
 def test_a_rooms_own_names_against_brute_force() -> None:
-    """p(w_1 w_2 | room k, l) of two tokens, each φ_{k,w} ~ Beta(δ s_{l,w}, δ (1 − s_{l,w})) given the
-    room's counts, and the regions' p(m | w) of three rooms in two regions, against the posterior
+    """p(w_1 w_2 | room k, l) of two tokens, each said through the names or the words of the place
+    (shares a) and then φ_{c,k,w} ~ Beta(δ p_{c,l,w}, δ (1 − p_{c,l,w})) given the room's counts in
+    that channel, and the regions' p(m | w) of three rooms in two regions, against the posterior
     means worked out by quadrature and summed by enumeration."""
     delta = 5.0
-    s = np.array([[0.3, 0.6], [0.7, 0.2]])  # (L = 2, n = 2)
-    room_counts = np.array([[0.0, 0.0], [2.0, 1.0], [0.0, 3.0]])  # (R = 3, n)
-    room_totals = np.array([0.0, 4.0, 5.0])
-    log_like = position_prediction.room_name_log_likelihood(s, room_counts, room_totals, delta)
-    expected = np.zeros((3, 2))
+    a = [np.array([0.8, 0.3]), np.array([0.15, 0.6])]  # (n = 2,) per channel
+    p = [np.array([[0.3, 0.6], [0.7, 0.2]]), np.array([[0.5, 0.25], [0.4, 0.8]])]  # (L = 2, n) per channel
+    x = [np.array([[0.0, 0.0], [2.0, 1.0], [0.0, 3.0]]), np.array([[1.0, 0.0], [0.0, 0.0], [2.0, 1.0]])]
+    tot = [np.array([0.0, 4.0, 5.0]), np.array([2.0, 0.0, 3.0])]
+    channels = [(a[c], p[c], x[c], tot[c]) for c in range(2)]
+    log_like = position_prediction.room_name_log_likelihood(channels, delta)
+    expected = np.ones((3, 2))
     for k in range(3):
-        for c in range(2):
-            expected[k, c] = np.prod([_beta_mean_by_quadrature(
-                delta * s[c, i], delta * (1 - s[c, i]), room_counts[k, i], room_totals[k] - room_counts[k, i])
-                for i in range(2)])
+        for concept in range(2):
+            for i in range(2):
+                expected[k, concept] *= sum(a[c][i] * _beta_mean_by_quadrature(
+                    delta * p[c][concept, i], delta * (1 - p[c][concept, i]), x[c][k, i],
+                    tot[c][k] - x[c][k, i]) for c in range(2))
     assert_allclose(np.exp(log_like), expected, rtol=1e-4)  # the grid's error: ~1e-5
-    # nothing said in a room: its concept's s_l; no concentration: every room its concept's
-    assert_allclose(np.exp(log_like[0]), s.prod(axis=1), rtol=1e-12)
-    assert_allclose(np.exp(position_prediction.room_name_log_likelihood(s, room_counts, room_totals, None)),
-                    np.tile(s.prod(axis=1), (3, 1)), rtol=1e-12)
+    # nothing said in a room: its concept's Σ_c a_c p_c; no concentration: every room its concept's
+    said = sum(a[c][None, :] * p[c] for c in range(2)).prod(axis=1)
+    quiet = [(a[c], p[c], np.zeros((1, 2)), np.zeros(1)) for c in range(2)]
+    assert_allclose(np.exp(position_prediction.room_name_log_likelihood(quiet, delta))[0], said, rtol=1e-12)
+    assert_allclose(np.exp(position_prediction.room_name_log_likelihood(channels, None)),
+                    np.tile(said, (3, 1)), rtol=1e-12)
     # the regions, by enumeration over rooms and concepts: room 0 in region 0, rooms 1 and 2 in region 1
     n_k, p_l = np.array([30.0, 5.0, 2.0]), np.array([[0.9, 0.1], [0.2, 0.8], [0.5, 0.5]])
     region_of = [0, 1, 1]
     joint = np.zeros(2)
     for k in range(3):
-        for c in range(2):
-            joint[region_of[k]] += n_k[k] * p_l[k, c] * expected[k, c]
+        for concept in range(2):
+            joint[region_of[k]] += n_k[k] * p_l[k, concept] * expected[k, concept]
     log_room = np.log(n_k) + np.log(np.exp(log_like + np.log(p_l)).sum(axis=1))
     assert_allclose(np.bincount(region_of, np.exp(log_room)) / np.exp(log_room).sum(), joint / joint.sum(),
                     rtol=1e-4)
     with pytest.raises(ConfigurationError, match="concentration"):
-        position_prediction.room_name_log_likelihood(s, room_counts, room_totals, 0.0)
+        position_prediction.room_name_log_likelihood(channels, 0.0)
     with pytest.raises(ConfigurationError, match="room's count"):
-        position_prediction.room_name_log_likelihood(s, room_counts, np.zeros(3), delta)
+        position_prediction.room_name_log_likelihood([(a[0], p[0], x[0], np.zeros(3))], delta)
 
 
 def test_a_name_said_in_one_room_is_found_there_though_no_concept_names_it() -> None:
-    """A name said once in a small room, its concept's p(w | l) near 0 everywhere (the CI home's
-    "pantry": a token the sampler drew as a word of the place, ψ ≈ 5e-8 in every concept): the room
-    that heard it is the answer, 10 times smaller than the others; the said counts off, it is not."""
-    s = np.full((2, 1), 5e-8)
-    room_counts, room_totals = np.array([[0.0], [0.0], [5000.0]]), np.array([0.0, 0.0, 5000.0])
+    """A name said once in a small room as a word of the place, its concepts' θ^w and ψ near 0
+    everywhere (the CI home's "pantry": ψ ≈ 5e-8 in every concept, the sampler's switch the place
+    channel): the room that heard it is the answer, 10 times smaller than the others; without the
+    rooms' own words it is not."""
+    share = [np.array([0.34]), np.array([0.53])]
+    probs = [np.zeros((2, 1)), np.full((2, 1), 5e-8)]
+    said = [(np.zeros((3, 1)), np.zeros(3)),
+            (np.array([[0.0], [0.0], [5000.0]]), np.array([0.0, 0.0, 5000.0]))]
+    channels = [(share[c], probs[c], *said[c]) for c in range(2)]
     n_k, p_l = np.array([30.0, 30.0, 3.0]), np.array([[1.0, 0.0], [0.0, 1.0], [1.0, 0.0]])
     for delta, found in ((1e4, 2), (None, 0)):
-        log_like = position_prediction.room_name_log_likelihood(s, room_counts, room_totals, delta)
+        log_like = position_prediction.room_name_log_likelihood(channels, delta)
         weights = n_k * (p_l * np.exp(log_like)).sum(axis=1)
         assert int(np.argmax(weights)) == found
+
+
+def test_a_name_taught_in_a_room_beats_an_untaught_room_of_its_concept() -> None:
+    """A concept's name (θ^w 0.7) said 5 times in room 1 among 6 name tokens, room 0 of the same concept
+    heard nothing and is larger (18 samples to 16): the taught room's own names make it the answer; with every
+    room at its concept's θ^w the larger room would win."""
+    channels = [(np.ones(1), np.array([[0.7]]), np.array([[0.0], [25000.0]]), np.array([0.0, 30000.0]))]
+    n_k = np.array([18.0, 16.0])
+    own = n_k * np.exp(position_prediction.room_name_log_likelihood(channels, 1e4)).ravel()
+    flat = n_k * np.exp(position_prediction.room_name_log_likelihood(channels, None)).ravel()
+    assert own[1] > own[0] and flat[0] > flat[1]

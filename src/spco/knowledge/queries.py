@@ -35,7 +35,7 @@ from spco.model.prediction import NamePrediction, UnknownNameError, mutual_infor
 from spco.model.rooms import HomeRooms
 from spco.model.seeds import as_generator
 from spco.model.unheard import resolve_name
-from spco.model.word_channels import concept_name_tokens, name_tokens
+from spco.model.word_channels import PLACE, concept_name_tokens, name_tokens
 
 
 def where(home: HomeModel, name: str, n: int = 10,
@@ -305,14 +305,15 @@ def home_rooms(home: HomeModel) -> HomeRooms:
     """The home's training samples as the room-level answer reads them (:mod:`spco.model.rooms`):
     their regions and concepts (a region split by the names taught in it,
     :meth:`~spco.model.rooms.HomeRooms.membership`), their views and the name tokens taught at them
-    (with the word channels the tokens drawn as names, as :func:`answer_parameters` counts them), and
-    every word said at them with δ^w, for a room's own names in ``where``
+    (with the word channels the tokens drawn as names, as :func:`answer_parameters` counts them, and
+    those drawn as words of the place) with δ^w, for a room's own names in ``where``
     (:func:`spco.model.position_prediction.region_posterior_for_name`)."""
-    words = home.data.words
+    words, places = home.data.words, None
     if home.knowledge.channels is not None and home.state.switches is not None and words.nnz:
         words = name_tokens(words, home.state.switches)
-    return HomeRooms.of(home.state.regions, home.data.visual, words, home.state.concepts,
-                        said=home.data.words, concentration=home.hyperparameters.delta_word)
+        places = name_tokens(home.data.words, home.state.switches, channel=PLACE)
+    return HomeRooms.of(home.state.regions, home.data.visual, words, home.state.concepts, places=places,
+                        concentration=home.hyperparameters.delta_word)
 
 
 def describe_model_file(path: str | PathLike[str]) -> dict[str, Any]:

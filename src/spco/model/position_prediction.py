@@ -12,16 +12,17 @@ home's rooms (:class:`~spco.model.rooms.HomeRooms`, the robot always has them: t
 around its concept's (docs/model.md, "Where a place is")::
 
     p(m | w) ∝ Σ_{k: r(k) = m} n_k Σ_l p(l | room k) p(w | room k, l),
-    p(w | room k, l) = (δ s_{l,w} + X_{k,w}) / (δ + X_k)      (:func:`room_name_log_likelihood`),
+    p(w | room k, l) = Σ_c a_{c,w} (δ p_{c,l,w} + X_{c,k,w}) / (δ + T_{c,k})
 
-with s_{l,w} = p(w | l) the names the robot answers (:func:`said_word_matrix` of the answer's
-parameters: θ^w, and with the word channels the place words ψ), p(l | room k) room k's pooled views,
-its taught names and G_0 deciding its concept, X_{k,w} the tokens of w said at the room's samples and
-X_k those of every word a place is looked up by (S^w counts each, whatever channel the sampler drew it
-from, weighed by p(name | w) + p(place | w), the share of s's event: :func:`room_said_counts`,
-:func:`said_weights`), δ = δ^w (``HomeRooms.concentration``). A room where nothing was said
-says its concept's names, so for a home taught nothing ``where`` is the Bayes inverse of ``what`` at
-the pose alone; a name said in one room is found there. Without rooms
+(:func:`room_name_log_likelihood`)
+over the channels c a word is said through — its names, θ^w of the answer's parameters, and with the
+word channels its words of the place, ψ — with a_{c,w} = p(c | w) (1 without the channels: so
+Σ_c a_{c,w} p_{c,l,w} is :func:`said_word_matrix`, the names the robot answers), p(l | room k) room
+k's pooled views, its taught names and G_0 deciding its concept, X_{c,k,w} the tokens of w the sampler
+drew through channel c at the room's samples and T_{c,k} those of every word a place is looked up by
+(S^w counts each: :func:`room_said_counts`), δ = δ^w (``HomeRooms.concentration``). A room where
+nothing was said says its concept's names, so for a home taught nothing ``where`` is the Bayes inverse
+of ``what`` at the pose alone; a name said in one room is found there. Without rooms
 (a bare parameter set) p(m | w) ∝ Σ_l p(w | l) G_{e,l} π_{e,l,m} over the concepts holding the home's samples
 (:func:`concept_stand_ins` for the others). Poses are drawn from the answer regions
 (:func:`answer_regions`: those at least half as probable as the best, the robot's ``where``), or
@@ -74,7 +75,6 @@ __all__ = [
     "region_posterior_for_name",
     "room_name_log_likelihood",
     "room_said_counts",
-    "said_weights",
     "said_word_matrix",
 ]
 
@@ -257,57 +257,59 @@ def name_support(params: ConceptParameters, e: int, vocabulary: Vocabulary, name
     return float(weights[_occupied_concepts(params, e)].sum() / total) if total > 0 else 0.0
 
 
-def room_said_counts(rooms: HomeRooms, n_regions: int) -> tuple[np.ndarray, sp.csr_array]:
-    """(R,) the region of each room and (R, V) the words said in it: each sample's tokens
-    (``rooms.said``) in proportion to its share in the room (:meth:`HomeRooms.membership`: a taught
-    sample wholly in its room, an untaught one shared by the rooms of its region). Kept with ``rooms``."""
+def room_said_counts(rooms: HomeRooms, n_regions: int
+                     ) -> tuple[np.ndarray, sp.csr_array, sp.csr_array | None]:
+    """(R,) the region of each room, (R, V) the name tokens said in it and (R, V) the place-word tokens
+    (``None`` without the word channels): each sample's tokens (``rooms.words``, ``rooms.places``) in
+    proportion to its share in the room (:meth:`HomeRooms.membership`: a taught sample wholly in its
+    room, an untaught one shared by the rooms of its region). Kept with ``rooms``."""
     known = rooms._known.get(("said", n_regions))
     if known is not None:
         return known
     share, region_of = rooms.membership(n_regions)
-    said = rooms.said if rooms.said is not None else sp.csr_array((rooms.regions.size, 0))
-    result = region_of, sp.csr_array(share @ said)
+    places = None if rooms.places is None else sp.csr_array(share @ rooms.places)
+    result = region_of, sp.csr_array(share @ rooms.words), places
     rooms._known[("said", n_regions)] = result
     return result
 
 
-def room_name_log_likelihood(said_probabilities: np.ndarray, room_counts: np.ndarray,
-                             room_totals: np.ndarray, concentration: float | None) -> np.ndarray:
-    """(R, L) log p(w_1 … w_n | room k, concept l): each token w_i of a name drawn from the room's own
-    probability of it, φ_{k,w} ~ Beta(δ s_{l,w}, δ (1 − s_{l,w})) around its concept's s_{l,w}, given
-    the room's X_{k,w} tokens of w among its X_k tokens of the words a place is looked up by (the
-    Dirichlet of the room's words around its concept's, aggregated to w / not w)::
+#: One channel of a room's names for :func:`room_name_log_likelihood`: (a (n,) the share of each token's
+#: probability the channel holds, p (L, n) the concepts' probabilities of the tokens, X (R, n) the
+#: rooms' counts of the tokens, T (R,) the rooms' counts of every word of the channel).
+RoomChannel = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
-        p(w | room k, l) = (δ s_{l,w} + X_{k,w}) / (δ + X_k).
 
-    ``said_probabilities``: (L, n) s_{l,w_i} in [0, 1]; ``room_counts``: (R, n) X_{k,w_i};
-    ``room_totals``: (R,) X_k ≥ X_{k,w_i}; ``concentration``: δ > 0, or ``None`` (δ → ∞: every room of
-    a concept says its concept's s_l, Π_i s_{l,w_i}). Log space; a probability 0 is the finite floor."""
-    s = np.clip(np.asarray(said_probabilities, dtype=np.float64), 0.0, 1.0)  # (L, n)
-    counts = np.asarray(room_counts, dtype=np.float64)  # (R, n)
-    totals = np.asarray(room_totals, dtype=np.float64)  # (R,)
-    if concentration is None:
-        return np.broadcast_to(_safe_log(s).sum(axis=1)[None, :], (counts.shape[0], s.shape[0])).copy()
-    delta = float(concentration)
-    if not (np.isfinite(delta) and delta > 0):
+def room_name_log_likelihood(channels: list[RoomChannel], concentration: float | None) -> np.ndarray:
+    """(R, L) log p(w_1 … w_n | room k, concept l): each token w_i of a name said in room k through a
+    channel c (the names, the words of the place) with probability a_{c,i}, and then drawn from the
+    room's own probability of it in that channel, φ_{c,k,w} ~ Beta(δ p_{c,l,w}, δ (1 − p_{c,l,w}))
+    around its concept's p_{c,l,w}, given the room's X_{c,k,w} tokens of w among its T_{c,k} tokens
+    of the channel (the Dirichlet of the room's words around its concept's, aggregated to w / not w)::
+
+        p(w | room k, l) = Σ_c a_{c,w} (δ p_{c,l,w} + X_{c,k,w}) / (δ + T_{c,k}).
+
+    ``concentration``: δ > 0, or ``None`` (δ → ∞: every room says its concept's Σ_c a_{c,w} p_{c,l,w}).
+    Log space; a probability 0 is the finite floor. Raises :class:`ConfigurationError` for δ ≤ 0 or a
+    count outside [0, the room's total]."""
+    if not channels:
+        raise ConfigurationError("a room's names need at least one channel")
+    if concentration is not None and not (np.isfinite(concentration) and concentration > 0):
         raise ConfigurationError(f"the concentration must be a finite number > 0, got {concentration!r}")
-    if counts.size and (counts.min() < 0 or (counts > totals[:, None] * (1 + 1e-9) + 1e-9).any()):
-        raise ConfigurationError("a room's count of a word must be in [0, the room's total]")
-    numerator = _safe_log(delta * s[None, :, :] + counts[:, None, :]).sum(axis=2)  # (R, L)
-    return numerator - s.shape[1] * np.log(delta + totals)[:, None]
-
-
-def said_weights(params: ConceptParameters, lookup: np.ndarray) -> np.ndarray:
-    """(V,) how much a token of each word said in a room counts among the room's names: the words a place
-    is looked up by (``lookup``), each as p(name | w) + p(place | w) with the word channels — the
-    share of :func:`said_word_matrix`'s event, a token said as a name or a word of the place ("this",
-    "is": a background word, ~0) — and 1 without them."""
-    mask = np.asarray(lookup, dtype=np.float64)
-    prior = params.word_channel_prior
-    if prior is None or params.place_word_probabilities is None:
-        return mask
-    prior = np.clip(np.asarray(prior, dtype=np.float64), 0.0, 1.0)
-    return mask * np.clip(prior[:, 0] + prior[:, 1], 0.0, 1.0)
+    total = None
+    for share, probs, counts, totals in channels:
+        a = np.clip(np.asarray(share, dtype=np.float64), 0.0, 1.0)  # (n,)
+        p = np.clip(np.asarray(probs, dtype=np.float64), 0.0, 1.0)  # (L, n)
+        x = np.asarray(counts, dtype=np.float64)  # (R, n)
+        tot = np.asarray(totals, dtype=np.float64)  # (R,)
+        if concentration is None:
+            part = np.broadcast_to((a[None, :] * p)[None, :, :], (x.shape[0], *p.shape))
+        else:
+            if x.size and (x.min() < 0 or (x > tot[:, None] * (1 + 1e-9) + 1e-9).any()):
+                raise ConfigurationError("a room's count of a word must be in [0, the room's total]")
+            delta = float(concentration)
+            part = a[None, None, :] * (delta * p[None, :, :] + x[:, None, :]) / (delta + tot)[:, None, None]
+        total = part if total is None else total + part  # (R, L, n)
+    return _safe_log(total).sum(axis=2)
 
 
 def _room_weights(params: ConceptParameters, e: int, rooms: HomeRooms, view_counts: float | None,
@@ -321,17 +323,26 @@ def _room_weights(params: ConceptParameters, e: int, rooms: HomeRooms, view_coun
         return None
     K = int(np.shape(params.region_means)[1])
     log_concept = log_post - logsumexp(log_post, axis=1, keepdims=True)  # log p(l | room k)
-    s = said_word_matrix(params, e)[:, words]  # (L, n)
     R = region_of.size
     concentration = rooms.concentration
-    if rooms.said is not None and concentration is not None and rooms.said.shape[1] == lookup.size:
-        _, said = room_said_counts(rooms, K)  # (R, V)
-        weight = said_weights(params, lookup)  # a token counts as said as a name or a word of the place
-        room_counts = said[:, words].toarray() * weight[None, words]
-        room_totals = np.asarray(said @ weight, dtype=np.float64).ravel()
-    else:  # nothing said in the rooms: each room says its concept's names
-        room_counts, room_totals, concentration = np.zeros((R, len(words))), np.zeros(R), None
-    log_word = room_name_log_likelihood(s, room_counts, room_totals, concentration)  # (R, L)
+    theta = _word_matrix(params, e)[:, words]  # (L, n)
+    psi, prior = params.place_word_probabilities, params.word_channel_prior
+    channel_share = (np.ones(len(words)), None) if psi is None or prior is None else \
+        tuple(np.asarray(prior, dtype=np.float64)[words, c] for c in (0, 1))
+    mask = np.asarray(lookup, dtype=np.float64)
+    read = concentration is not None and rooms.words.shape[1] == mask.size
+    _, named, placed = room_said_counts(rooms, K) if read else (None, None, None)
+    channels: list[RoomChannel] = []
+    for c, (said, probs) in enumerate(((named, theta), (placed, None if psi is None else
+                                                         np.asarray(psi, dtype=np.float64)[:, words]))):
+        if probs is None or channel_share[c] is None:
+            continue
+        if said is None:
+            channels.append((channel_share[c], probs, np.zeros((R, len(words))), np.zeros(R)))
+        else:
+            channels.append((channel_share[c], probs, said[:, words].toarray() * mask[None, words],
+                             np.asarray(said @ mask, dtype=np.float64).ravel()))
+    log_word = room_name_log_likelihood(channels, concentration if read else None)  # (R, L)
     if not log_word.max() > _LOG_FLOOR:  # the name has probability 0 in every room
         return np.zeros(K)
     log_room = _safe_log(counts) + logsumexp(log_concept + log_word, axis=1)  # (R,)

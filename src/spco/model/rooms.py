@@ -59,19 +59,20 @@ class HomeRooms:
     concepts: (n,) int, the concept of each sample (the sampler's state), or ``None``. With them a
         region is split by the names taught in it (:meth:`membership`); without them a room is a
         region.
-    said: (n, V) every word token said at each sample, in the counts θ^w counts a token with (S^w),
-        whatever channel the sampler drew it from, or ``None`` (nothing said): a room's own names,
-        p(w | room) (:func:`room_word_probabilities`, ``where``).
-    concentration: δ, how many of those counts the concept's names weigh as against a room's own
-        (δ^w: a room's names are drawn around its concept's as a home's around the experienced
-        homes'); ``None``: a room's own words are not read.
+    places: (n, V) the tokens said at each sample as words of the place (the word channels' place
+        channel), in the counts ψ counts a token with, or ``None`` (no word channels).
+    concentration: δ, how many counts a concept's names (θ^w) and place words (ψ) weigh as against
+        a room's own ``words`` and ``places`` in the room's names (δ^w: a room's names are drawn around
+        its concept's as a home's around the experienced homes';
+        :func:`spco.model.position_prediction.region_posterior_for_name`); ``None``: a room's own
+        words are not read by ``where``.
     """
 
     regions: np.ndarray
     visual: sp.csr_array
     words: sp.csr_array
     concepts: np.ndarray | None = None
-    said: sp.csr_array | None = None
+    places: sp.csr_array | None = None
     concentration: float | None = None
     #: the rooms' evidence already worked out, per answer's parameters (:func:`_room_log_posterior`):
     #: ``(view_counts, e) -> (params, result)``, kept only while the same ``params`` object is asked
@@ -79,22 +80,22 @@ class HomeRooms:
 
     @classmethod
     def of(cls, regions: object, visual: object, words: object, concepts: object = None, *,
-           said: object = None, concentration: float | None = None) -> HomeRooms:
-        """Validated :class:`HomeRooms` (sparse copies of ``visual``, ``words`` and ``said``)."""
+           places: object = None, concentration: float | None = None) -> HomeRooms:
+        """Validated :class:`HomeRooms` (sparse copies of ``visual``, ``words`` and ``places``)."""
         regions = np.asarray(regions, dtype=np.int64).ravel()
         visual = sp.csr_array(visual, dtype=np.float64)
         words = sp.csr_array(words, dtype=np.float64)
         if visual.shape[0] != regions.size or words.shape[0] != regions.size:
             raise ConfigurationError(f"rooms: {regions.size} regions but {visual.shape[0]} views and "
                                      f"{words.shape[0]} word rows")
-        said_rows = None
-        if said is not None:
-            said_rows = sp.csr_array(said, dtype=np.float64)
-            if said_rows.shape[0] != regions.size:
-                raise ConfigurationError(f"rooms: {regions.size} regions but {said_rows.shape[0]} rows of "
-                                         "words said")
-            if said_rows.nnz and not (np.isfinite(said_rows.data).all() and said_rows.data.min() >= 0):
-                raise ConfigurationError("rooms: the words said must be finite counts >= 0")
+        place_rows = None
+        if places is not None:
+            place_rows = sp.csr_array(places, dtype=np.float64)
+            if place_rows.shape != words.shape:
+                raise ConfigurationError(f"rooms: {words.shape} word counts but {place_rows.shape} place "
+                                         "word counts")
+            if place_rows.nnz and not (np.isfinite(place_rows.data).all() and place_rows.data.min() >= 0):
+                raise ConfigurationError("rooms: the place word counts must be finite counts >= 0")
         if concentration is not None and not (np.isfinite(concentration) and concentration > 0):
             raise ConfigurationError(f"rooms: the concentration must be a finite number > 0, got "
                                      f"{concentration!r}")
@@ -107,14 +108,14 @@ class HomeRooms:
                 raise ConfigurationError(f"rooms: {regions.size} regions but {labels.size} concepts")
             if labels.size and labels.min() < 0:
                 raise ConfigurationError("rooms: a concept index is negative")
-        return cls(regions, visual, words, labels, said_rows,
+        return cls(regions, visual, words, labels, place_rows,
                    None if concentration is None else float(concentration))
 
     def subset(self, keep: np.ndarray) -> HomeRooms:
         """The rooms of the samples ``keep`` (a bool mask or indices), e.g. one sample left out."""
         return HomeRooms.of(self.regions[keep], self.visual[keep], self.words[keep],
                             None if self.concepts is None else self.concepts[keep],
-                            said=None if self.said is None else self.said[keep],
+                            places=None if self.places is None else self.places[keep],
                             concentration=self.concentration)
 
     def membership(self, n_regions: int) -> tuple[sp.csr_array, np.ndarray]:
@@ -268,15 +269,15 @@ def model_rooms(model: object, e: int) -> HomeRooms:
     (:class:`~spco.model.transfer.SpatialConceptModel`, the experiments' fit): its training samples'
     regions, concepts, views and name tokens (with the word channels the tokens drawn as names), so
     that an experiment scores the names the robot answers (:func:`spco.model.confidence.answer_names`)."""
-    from spco.model.word_channels import name_tokens
+    from spco.model.word_channels import PLACE, name_tokens
 
     data = model.data_  # type: ignore[attr-defined]
     state = model.state_  # type: ignore[attr-defined]
     rows = slice(int(data.offsets[e]), int(data.offsets[e + 1]))
-    words = data.words
+    words, places = data.words, None
     if getattr(state, "channels", None) is not None and getattr(state, "switches", None) is not None \
             and words.nnz:
-        words = name_tokens(words, state.switches)
+        words, places = name_tokens(words, state.switches), name_tokens(words, state.switches, channel=PLACE)
     return HomeRooms.of(np.asarray(state.regions)[rows], data.visual[rows], words[rows],
-                        np.asarray(state.concepts)[rows], said=data.words[rows],
+                        np.asarray(state.concepts)[rows], places=None if places is None else places[rows],
                         concentration=float(model.hyperparameters_.delta_word))  # type: ignore[attr-defined]

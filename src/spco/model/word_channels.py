@@ -359,12 +359,13 @@ def channel_counts(words: sp.csr_array, concepts: np.ndarray, switches: np.ndarr
     return ChannelCounts(place, background, by_word)
 
 
-def name_tokens(words: sp.csr_array, switches: np.ndarray, scale: float = 1.0) -> sp.csr_array:
+def name_tokens(words: sp.csr_array, switches: np.ndarray, scale: float = 1.0, channel: int = NAME
+                ) -> sp.csr_array:
     """The counts of the name tokens only (N, V): what θ^w | z counts (S^w per token; times ``scale``,
     rounded to whole counts: :attr:`WordChannels.token_weight` under the power likelihood, W^w per
-    occurrence)."""
+    occurrence). ``channel``: :data:`PLACE` for the tokens said as words of the place instead."""
     first, last = int(words.indptr[0]), int(words.indptr[-1])
-    keep = switches == NAME
+    keep = switches == channel
     kept_before = np.concatenate([[0], np.cumsum(keep)])  # name tokens before each token
     indptr = kept_before[words.indptr - first].astype(words.indptr.dtype)
     data = words.data[first:last][keep]
