@@ -35,7 +35,7 @@ from spco.model.prediction import NamePrediction, UnknownNameError, mutual_infor
 from spco.model.rooms import HomeRooms
 from spco.model.seeds import as_generator
 from spco.model.unheard import resolve_name
-from spco.model.word_channels import PLACE, concept_name_tokens, name_tokens
+from spco.model.word_channels import channel_token_counts, concept_name_tokens, name_tokens
 
 
 def where(home: HomeModel, name: str, n: int = 10,
@@ -308,11 +308,14 @@ def home_rooms(home: HomeModel) -> HomeRooms:
     (with the word channels the tokens drawn as names, as :func:`answer_parameters` counts them, and
     those drawn as words of the place) with δ^w, for a room's own names in ``where``
     (:func:`spco.model.position_prediction.region_posterior_for_name`)."""
-    words, places = home.data.words, None
-    if home.knowledge.channels is not None and home.state.switches is not None and words.nnz:
-        words = name_tokens(words, home.state.switches)
-        places = name_tokens(home.data.words, home.state.switches, channel=PLACE)
-    return HomeRooms.of(home.state.regions, home.data.visual, words, home.state.concepts, places=places,
+    words, state = home.data.words, home.state
+    if home.knowledge.channels is not None and state.switches is not None and words.nnz:
+        words = name_tokens(words, state.switches)
+    names = places = None
+    if state.channels is not None:
+        names, places = channel_token_counts(home.data.words, home.data.homes, state.concepts,
+                                             state.log_theta_w, state.channels)
+    return HomeRooms.of(state.regions, home.data.visual, words, state.concepts, names=names, places=places,
                         concentration=home.hyperparameters.delta_word)
 
 

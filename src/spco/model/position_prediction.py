@@ -260,15 +260,17 @@ def name_support(params: ConceptParameters, e: int, vocabulary: Vocabulary, name
 def room_said_counts(rooms: HomeRooms, n_regions: int
                      ) -> tuple[np.ndarray, sp.csr_array, sp.csr_array | None]:
     """(R,) the region of each room, (R, V) the name tokens said in it and (R, V) the place-word tokens
-    (``None`` without the word channels): each sample's tokens (``rooms.words``, ``rooms.places``) in
+    (``None`` without the word channels): each sample's tokens (``rooms.names``, or without the word
+    channels ``rooms.words``; ``rooms.places``) in
     proportion to its share in the room (:meth:`HomeRooms.membership`: a taught sample wholly in its
     room, an untaught one shared by the rooms of its region). Kept with ``rooms``."""
     known = rooms._known.get(("said", n_regions))
     if known is not None:
         return known
     share, region_of = rooms.membership(n_regions)
+    names = rooms.words if rooms.names is None else rooms.names
     places = None if rooms.places is None else sp.csr_array(share @ rooms.places)
-    result = region_of, sp.csr_array(share @ rooms.words), places
+    result = region_of, sp.csr_array(share @ names), places
     rooms._known[("said", n_regions)] = result
     return result
 
