@@ -68,24 +68,39 @@ NEW_WORDS = (
 
 
 def synthetic_home(seed: int = 3, psi0_xy: float | None = None,
-                   prior: str = "places") -> tuple[kn.HomeModel, Environment]:
+                   prior: str = "places", nu0: float | None = None,
+                   n_regions: int | None = None) -> tuple[kn.HomeModel, Environment]:
     """A synthetic new home adapted from 6 experienced synthetic homes, and its environment.
     ``psi0_xy``: Ψ0's x and y entries in m² (an experiment with the position prior; default the
-    knowledge's own); ``prior``: ``fit_knowledge``'s (``"places"``: Ψ0 from the homes' places)."""
+    knowledge's own); ``prior``: ``fit_knowledge``'s (``"places"``: Ψ0 from the homes' places);
+    ``nu0``: an experiment with the prior's weight ν0 (the scaled priors keep E[Σ] and scale Ψ0);
+    ``n_regions``: an experiment with the truncation L of the regions."""
     from dataclasses import replace
 
     from spco.data.synthetic import generate_homes
+    from spco.model.hyperparameters import TransferHyperparameters
 
     corpus = generate_homes(7, seed=seed, new_homes=1, specific_rooms=False)
     envs = list(corpus)
     hyper = None
+    if nu0 is not None:
+        from spco.knowledge.fit import default_hyperparameters
+
+        base = replace(TransferHyperparameters(), nu0=nu0)
+        hyper = (base if prior == "paper"
+                 else default_hyperparameters(Corpus(envs[:6]), base=base, psi0=prior == "places"))
     if psi0_xy is not None:
         from spco.knowledge.fit import default_hyperparameters
 
-        base = default_hyperparameters(Corpus(envs[:6]))
+        base = default_hyperparameters(Corpus(envs[:6])) if hyper is None else hyper
         psi = np.diag(base.psi0_matrix_m2()).copy()
         psi[:2] = psi0_xy
         hyper = replace(base, psi0=tuple(float(v) for v in psi), psi0_in_cm2=False)
+    if n_regions is not None:
+        from spco.knowledge.fit import default_hyperparameters
+
+        base = default_hyperparameters(Corpus(envs[:6]), psi0=prior == "places") if hyper is None else hyper
+        hyper = replace(base, n_regions=n_regions)
     knowledge = kn.fit_knowledge(Corpus(envs[:6]), n_iterations=30, random_state=0, hyperparameters=hyper,
                                  prior=prior)
     with warnings.catch_warnings():
@@ -488,12 +503,16 @@ def main() -> None:
     parser.add_argument("--prior", default="places", choices=["scaled", "places", "paper"],
                         help="fit_knowledge's prior of the synthetic knowledge (places, the default: Ψ0 "
                              "from the places; scaled: the paper's Ψ0)")
+    parser.add_argument("--nu0", type=float, default=None,
+                        help="an experiment: the synthetic knowledge fitted with this ν0 (E[Σ] kept)")
+    parser.add_argument("--n-regions", type=int, default=None,
+                        help="an experiment: the synthetic knowledge fitted with this truncation L (regions)")
     parser.add_argument("--json", type=Path, default=None)
     args = parser.parse_args()
     homes: list[tuple[str, kn.HomeModel, Environment]] = []
     if not args.no_synthetic:
         for seed in args.home_seed:
-            home, env = synthetic_home(seed, args.psi0_xy, args.prior)
+            home, env = synthetic_home(seed, args.psi0_xy, args.prior, args.nu0, args.n_regions)
             homes.append(("synthetic" if seed == 3 else f"synthetic (seed {seed})", home, env))
     for path in args.sigverse_home:
         home = kn.load_home_model(path)

@@ -116,15 +116,15 @@ def test_fit_nu0_weights_the_scaled_prior_and_prior_paper_keeps_the_papers(tmp_p
     """``--set nu0`` with ``--prior places`` scales Ψ0 with it (E[Σ] = Ψ0 / (ν0 − 5) stays the places'
     size); ``--prior paper`` keeps the paper's Ψ0; ν0 ≤ 5 has no scaled prior and is refused."""
     runs = {}
-    for name, args in (("default", ["--prior", "places"]), ("nu0", ["--prior", "places", "--set", "nu0=20"]),
+    for name, args in (("default", ["--prior", "places"]), ("nu0", ["--prior", "places", "--set", "nu0=40"]),
                        ("paper", ["--prior", "paper"])):
         out = tmp_path / f"{name}.spco"
         result = _invoke(fit, ["--data", homes["experienced"], "--iterations", 2, "--out", out, *args])
         assert result.exit_code == 0, result.output
         runs[name] = kn.load_knowledge(out).hyperparameters
-    expected = np.diag(runs["default"].psi0_matrix_m2()) / 5.0
-    np.testing.assert_allclose(np.diag(runs["nu0"].psi0_matrix_m2()) / 15.0, expected)
-    assert runs["nu0"].nu0 == 20.0
+    expected = np.diag(runs["default"].psi0_matrix_m2()) / (runs["default"].nu0 - 5.0)
+    np.testing.assert_allclose(np.diag(runs["nu0"].psi0_matrix_m2()) / 35.0, expected)
+    assert runs["nu0"].nu0 == 40.0 and runs["default"].nu0 == 20.0
     assert runs["paper"].psi0 == (10.0, 10.0, 0.5, 0.5) and runs["paper"].psi0_in_cm2
     assert runs["default"].psi0 != runs["paper"].psi0
     result = _invoke(fit, ["--data", homes["experienced"], "--iterations", 2, "--out", tmp_path / "low.spco",

@@ -16,7 +16,13 @@ from numpy.testing import assert_allclose
 from spco.errors import ConfigurationError
 from spco.model.confidence import place_named_parameters
 from spco.model.parameters import ConceptParameters
-from spco.model.word_channels import NAME, WordChannels, concept_name_tokens, place_names
+from spco.model.word_channels import (
+    NAME,
+    NAME_EVIDENCE_POWER,
+    WordChannels,
+    concept_name_tokens,
+    place_names,
+)
 
 
 def _problem(seed: int, n_samples: int = 9, n_words: int = 5, n_concepts: int = 3, n_homes: int = 2):
@@ -51,23 +57,37 @@ def _switch_probability(k: int, home: int, concept: int, log_theta, channels, c:
 
 
 
-@pytest.mark.parametrize("seed", range(4))
-def test_place_names_match_a_loop_over_samples_and_regions(seed: int) -> None:
+def _prior_name(channels) -> np.ndarray:
+    """p_0(name | k) of every word, from the evidence written out (the switch prior's name channel)."""
+    e = np.exp(channels.log_evidence)
+    return e[:, 0] / e.sum(axis=1)
+
+
+@pytest.mark.parametrize(("seed", "power"), [(0, 0.0), (1, 0.0), (2, NAME_EVIDENCE_POWER), (3, 1.0),
+                                             (4, NAME_EVIDENCE_POWER)])
+def test_place_names_match_a_loop_over_samples_and_regions(seed: int, power: float) -> None:
+    """Each token counts as a name by its enumerated posterior name probability times its prior name
+    probability to the power a (0: the posterior alone; the default :data:`NAME_EVIDENCE_POWER`)."""
     words, homes, concepts, regions, log_theta, channels = _problem(seed)
     n, V = words.shape
     rows = np.arange(n)[np.arange(n) % 4 != 1]  # some samples do not count
     dense = words.toarray()
+    prior = _prior_name(channels)
     names = np.zeros((n, V))
     counted = np.zeros((n, V))
     for t in range(n):
         for k in np.flatnonzero(dense[t]):
             names[t, k] = _name_probability(k, homes[t], concepts[t], log_theta, channels)
-            counted[t, k] = names[t, k]
+            counted[t, k] = names[t, k] * prior[k] ** power
     expected = np.zeros((3, V))
     for t in rows:
         mates = [s for s in rows if homes[s] == homes[t] and regions[s] == regions[t]]
         expected[concepts[t]] += counted[t] + counted[mates].sum(axis=0) / len(mates)
-    got = place_names(words, homes, concepts, regions, log_theta, channels, 3, rows=rows)
+    if power == NAME_EVIDENCE_POWER:
+        got = place_names(words, homes, concepts, regions, log_theta, channels, 3, rows=rows)
+    else:
+        got = place_names(words, homes, concepts, regions, log_theta, channels, 3, rows=rows,
+                          evidence_power=power)
     assert_allclose(got, expected, rtol=1e-10, atol=1e-12)
     own = concept_name_tokens(words, homes, concepts, log_theta, channels, 3)
     by_concept = np.zeros((3, V))
@@ -155,12 +175,12 @@ def test_an_object_said_at_a_place_counts_for_the_name_it_stands_in_for() -> Non
     stand_ins = np.full(V, -1)
     stand_ins[3], stand_ins[4] = 1, 1  # two objects stand in for word 1
     dense = words.toarray()
-    e = np.exp(channels.log_evidence)
-    prior = e[:, 0] / e.sum(axis=1)
+    prior = _prior_name(channels)
     counted = np.zeros((n, V))
     for t in range(n):
         for k in np.flatnonzero(dense[t]):
-            counted[t, k] += _name_probability(k, homes[t], concepts[t], log_theta, channels)
+            counted[t, k] += (_name_probability(k, homes[t], concepts[t], log_theta, channels)
+                              * prior[k] ** NAME_EVIDENCE_POWER)
             if stand_ins[k] >= 0:
                 place = _switch_probability(k, homes[t], concepts[t], log_theta, channels, 1)
                 counted[t, stand_ins[k]] += place * prior[stand_ins[k]]
@@ -175,6 +195,33 @@ def test_an_object_said_at_a_place_counts_for_the_name_it_stands_in_for() -> Non
     assert_allclose(np.delete(got, 1, axis=1), np.delete(plain, 1, axis=1))
     with pytest.raises(ValueError, match="stand_ins"):
         place_names(words, homes, concepts, regions, log_theta, channels, 3, stand_ins=stand_ins[:2])
+
+
+@pytest.mark.parametrize("power", [-0.5, float("nan"), float("inf")])
+def test_a_bad_evidence_power_is_refused(power: float) -> None:
+    words, homes, concepts, regions, log_theta, channels = _problem(0)
+    with pytest.raises(ValueError, match="evidence_power"):
+        place_names(words, homes, concepts, regions, log_theta, channels, 3, evidence_power=power)
+
+
+def test_the_evidence_lowers_an_object_drawn_as_a_concepts_only_name() -> None:
+    """A concept of object talk: its one sample says only "couch", which its own names channel holds
+    (posterior name probability near 1, whatever the word is); another concept's people say "living
+    room". With the evidence (p_0 couch 0.05, living room 0.7) the couch counts as a name at a
+    quarter of its posterior, the living room at 0.84 of it; with a = 0 as before."""
+    words = sp.csr_array(np.array([[7.0, 0.0], [0.0, 7.0]]))  # sample 0 "couch", sample 1 "living room"
+    homes = np.array([0, 0])
+    concepts = np.array([0, 1])
+    regions = np.array([0, 1])
+    log_theta = np.log(np.array([[[0.999, 0.001], [0.001, 0.999]]]))
+    nu = np.array([0.05, 0.7])  # P(name | word): all content words, evidence weight 1
+    channels = WordChannels.initial(nu, 2, content=np.full(2, 0.95))
+    p0 = np.exp(channels.log_prior()[:, NAME])
+    plain = place_names(words, homes, concepts, regions, log_theta, channels, 2, evidence_power=0.0)
+    got = place_names(words, homes, concepts, regions, log_theta, channels, 2)
+    assert_allclose(got[0, 0], plain[0, 0] * np.sqrt(p0[0]))
+    assert_allclose(got[1, 1], plain[1, 1] * np.sqrt(p0[1]))
+    assert got[0, 0] / plain[0, 0] < 0.3 < 0.8 < got[1, 1] / plain[1, 1]
 
 
 @pytest.mark.sigverse

@@ -148,7 +148,8 @@ def test_what_answers_at_the_current_pose_and_view(ros_node) -> None:
 def test_an_rgb_frame_declared_rgb8_gives_the_names_of_the_bgr_frame_and_of_the_file(ros_node,
                                                                                      tmp_path: Path) -> None:
     """The kitchen is orange and the bedroom the same colour with red and blue swapped: read in the
-    wrong order, a kitchen frame is the bedroom (what the issue saw at 41 of 60 poses, at p = 1.0)."""
+    wrong order, a kitchen frame looks like the bedroom (what the issue saw at 41 of 60 poses, at
+    p = 1.0) — at the kitchen's pose the bedroom goes from nothing to about even with the kitchen."""
     robot, home, _ = ros_node
     from ros_harness import tour_pose
 
@@ -179,7 +180,11 @@ def test_an_rgb_frame_declared_rgb8_gives_the_names_of_the_bgr_frame_and_of_the_
         time.sleep(0.03)
     time.sleep(0.1)
     swapped, _ = robot.query({"id": "swapped", "op": "what", "top": 3})
-    assert swapped["names"][0]["name"] == "bedroom"
+
+    def bedroom(answer: dict) -> float:
+        return next((n["probability"] for n in answer["names"] if n["name"] == "bedroom"), 0.0)
+
+    assert bedroom(answers["rgb8"]) < 1e-6 and bedroom(swapped) > 0.25
 
 
 def test_malformed_queries_get_an_error_answer_and_the_node_stays_up(ros_node) -> None:

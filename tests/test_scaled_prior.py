@@ -8,7 +8,12 @@ import pytest
 import scipy.sparse as sp
 
 from spco.errors import ConfigurationError
-from spco.model.hyperparameters import TransferHyperparameters, home_scales, scaled_hyperparameters
+from spco.model.hyperparameters import (
+    PLACES_NU0,
+    TransferHyperparameters,
+    home_scales,
+    scaled_hyperparameters,
+)
 
 
 def _home(n_places: int, spacing: float, size: float, seed: int = 0, per: int = 6
@@ -126,15 +131,20 @@ def _rooms(scale: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def test_psi0_expects_regions_of_the_places_size() -> None:
-    """Ψ0 = diag(s², s², 0.5, 0.5) at ν0 = 10: E[Σ] = Ψ0 / (ν0 − 5) is diag(s²/5, s²/5, h, h), a part
-    of a place in x, y, the paper's heading."""
+    """Ψ0 = (ν0 − 5)·diag(s²/5, s²/5, 0.1, 0.1) at the places prior's ν0 = 20: E[Σ] = Ψ0 / (ν0 − 5) is
+    diag(s²/5, s²/5, h, h), a part of a place in x, y, the paper's heading."""
     floor = [_home(8, 6.0, 0.5, seed=s) for s in range(3)]
     hyper = scaled_hyperparameters(floor, psi0=True)
     size = float(np.median([home_scales(xy, said)[1] for xy, said in floor]))
     expected = np.diag(hyper.psi0_matrix_m2()) / (hyper.nu0 - 5)
     np.testing.assert_allclose(expected, [size**2 / 5, size**2 / 5, 0.1, 0.1], rtol=1e-12)
-    np.testing.assert_allclose(hyper.psi0, [size**2, size**2, 0.5, 0.5], rtol=1e-12)
-    assert hyper.psi0_in_cm2 is False and hyper.nu0 == TransferHyperparameters().nu0
+    np.testing.assert_allclose(hyper.psi0, [3 * size**2, 3 * size**2, 1.5, 1.5], rtol=1e-12)
+    assert hyper.psi0_in_cm2 is False and hyper.nu0 == PLACES_NU0 == 20.0
+    # ν0 given (``spco fit --set nu0=10``): the paper's weight, the same E[Σ]
+    ten = scaled_hyperparameters(floor, base=TransferHyperparameters(nu0=10.0), psi0=True)
+    np.testing.assert_allclose(ten.psi0, [size**2, size**2, 0.5, 0.5], rtol=1e-12)
+    # the scaled prior (Ψ0 the paper's) keeps the paper's ν0
+    assert scaled_hyperparameters(floor).nu0 == TransferHyperparameters().nu0
     # the paper's: (1.4 cm)², whatever the map
     paper = TransferHyperparameters()
     assert np.diag(paper.psi0_matrix_m2())[0] / (paper.nu0 - 5) == pytest.approx(0.0002)
@@ -196,9 +206,11 @@ def test_extreme_place_sizes_are_kept_representable_or_refused() -> None:
 def test_nu0_sets_the_weight_not_the_size() -> None:
     """A larger ν0 scales Ψ0 with it: E[Σ] stays the places' size (``spco fit --set nu0=…``)."""
     homes = [_home(8, 6.0, 0.5, seed=s) for s in range(2)]
-    ten = scaled_hyperparameters(homes, psi0=True)
+    default = scaled_hyperparameters(homes, psi0=True)
     forty = scaled_hyperparameters(homes, base=TransferHyperparameters(nu0=40.0), psi0=True)
-    np.testing.assert_allclose(np.diag(forty.psi0_matrix_m2()) / 35.0, np.diag(ten.psi0_matrix_m2()) / 5.0)
+    np.testing.assert_allclose(np.diag(forty.psi0_matrix_m2()) / 35.0,
+                               np.diag(default.psi0_matrix_m2()) / (default.nu0 - 5))
+    assert forty.nu0 == 40.0
 
 
 def test_every_route_of_a_home_uses_the_knowledge_scaled_prior(tmp_path) -> None:

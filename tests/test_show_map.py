@@ -91,7 +91,12 @@ def test_show_draws_a_ros_map_where_it_belongs_in_grey(tour_home_file: Path, tmp
         px, py = ax.transData.transform((x, y))
         return pixels[pixels.shape[0] - 1 - round(py), round(px)]
 
-    block, wall, free = colour_at(0.5, 4.3), colour_at(4.0, 0.2), colour_at(6.0, 0.2)
+    # free space that no region's (translucent, coloured) ellipse covers
+    patches = [p for p in ax.patches if hasattr(p, "contains_point")]
+    free_points = [(x, y) for x in np.arange(5.0, 12.6, 0.1) for y in (0.2, 2.0, 4.2)
+                   if not any(p.contains_point(ax.transData.transform((x, y)), radius=3) for p in patches)]
+    assert free_points, "every free point of the map is under a region"
+    block, wall, free = colour_at(0.5, 4.3), colour_at(4.0, 0.2), colour_at(*free_points[0])
     assert block.max() < 80 and wall.max() < 80  # dark, where the map puts them
     assert free.min() > 180 and np.ptp(free) < 10  # free space light grey, not viridis' colours
 

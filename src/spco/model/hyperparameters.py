@@ -106,7 +106,7 @@ class TransferHyperparameters:
     psi0: diagonal of Ψ0 (4 values) or a full 4×4 matrix, x and y in cm² when
         ``psi0_in_cm2`` (the paper's convention, default ``diag(10, 10, 0.5, 0.5)``), else metres²
         (the map's units²: the scaled prior of :func:`scaled_hyperparameters` sets it from the homes'
-        places, ``diag(s², s², 0.5, 0.5)``).
+        places, ``(ν0 − 5)·diag(s²/5, s²/5, 0.1, 0.1)`` at ν0 = :data:`PLACES_NU0`).
     mu0: prior mean of the region means in metres (4 values), or ``None`` for the map centre
         with heading (0, 0).
     mi_threshold: ε, words whose score with every concept is below ε are pruned (models "+MI"
@@ -422,6 +422,12 @@ HEADING_VARIANCE = PAPER_PSI0_CM[2] / (10.0 - 4 - 1)
 #: development (``benchmarks/teaching.py``, synthetic homes; docs/samplers.md): with E[Σ] = s² a region
 #: of a small room is as wide as a typical place and `where` draws leave the room.
 REGION_SHARE = 0.2
+#: ν0 of the places prior (``prior="places"``) when none is given: the prior's weight in samples,
+#: ν0 − d − 1 = 15, about a place's samples in the homes it was chosen on (20 per place), so that a
+#: region's covariance is the places' part unless a region's own samples outweigh it: two rooms of
+#: one concept no longer score higher as one region (chosen on development, ``teaching.py``'s
+#: synthetic homes; docs/samplers.md, "Priors that fit the map").
+PLACES_NU0 = 20.0
 #: The scaled prior's x, y variance is kept within this factor of :data:`HEADING_VARIANCE` either way:
 #: Ψ0 must factorise with x, y beside the heading (its condition number at most :data:`MAX_CONDITION`).
 MAX_SCALE_RATIO = 1e10
@@ -460,12 +466,14 @@ def scaled_hyperparameters(homes: Sequence[tuple[np.ndarray, Any]],
     samples (:func:`home_scales`). With R the median spread of the homes and s the median size of
     their places (both in map units):
 
-    - with ``psi0`` (``prior="places"``, the default of ``fit_knowledge``): Ψ0 = diag(s², s², 0.5,
-      0.5) at the paper's ν0 = 10 — the paper's Ψ0 with the places' size s²
-      for its 10 cm² (:func:`scaled_psi0`): the prior mean of a region's covariance is E[Σ] =
-      Ψ0 / (ν0 − d − 1) = diag(s²/5, s²/5, h, h), d = 4, h the paper's heading variance (0.1): a
-      region a part of a place, never wider than one (a region of n samples has E[Σ | data] =
-      (Ψ0 + scatter)/(ν0 + n − 5): a part of a place with few samples, its data's with many).
+    - with ``psi0`` (``prior="places"``, the default of ``fit_knowledge``): ν0 = :data:`PLACES_NU0`
+      (20; ``base.nu0`` when a ``base`` is given) and Ψ0 = (ν0 − 5)·diag(s²/5, s²/5, 0.1, 0.1)
+      (:func:`scaled_psi0`; at the paper's ν0 = 10 the paper's Ψ0 with the places' size s² for its
+      10 cm²): the prior mean of a region's covariance is E[Σ] = Ψ0 / (ν0 − d − 1) = diag(s²/5,
+      s²/5, h, h), d = 4, h the paper's heading variance (0.1): a region a part of a place, never
+      wider than one (a region of n samples has E[Σ | data] = (Ψ0 + scatter)/(ν0 + n − 5): the
+      places' part until its own samples outnumber ν0 − 5 = 15, so that two rooms of one concept
+      score higher as two regions than as one).
       The paper's Ψ0 = diag(10 cm², 10 cm², 0.5, 0.5) expects regions of (1.4 cm)², whatever the
       map: every region must win ν0/2·log|Ψ0| back from its data, and two neighbouring rooms in one
       region are preferred to a split (benchmarks/README.md, "Teaching a live home").
@@ -488,12 +496,14 @@ def scaled_hyperparameters(homes: Sequence[tuple[np.ndarray, Any]],
 def scaled_from(scales: Sequence[tuple[float, float, int]],
                 base: TransferHyperparameters | None = None, psi0: bool = False) -> TransferHyperparameters:
     """:func:`scaled_hyperparameters` from the homes' :func:`home_scales` (R, s, n), computed where
-    the homes are read (a :class:`~spco.model.sources.FolderHomes` keeps them). Ψ0 follows
-    ``base.nu0`` (E[Σ] stays the same whatever ν0); warns when the places' size is beyond
+    the homes are read (a :class:`~spco.model.sources.FolderHomes` keeps them). With ``psi0``, ν0 is
+    ``base.nu0`` when a ``base`` is given, :data:`PLACES_NU0` otherwise, and Ψ0 follows it (E[Σ] stays
+    the same whatever ν0); warns when the places' size is beyond
     what Ψ0 can hold beside the heading (:func:`scaled_psi0`)."""
-    base = TransferHyperparameters() if base is None else base
+    given, base = base, TransferHyperparameters() if base is None else base
     if not scales:
         return base
+    nu0 = PLACES_NU0 if given is None else base.nu0
     spread = float(np.median([r for r, _, _ in scales]))
     sizes = [s for _, s, _ in scales if np.isfinite(s)]
     places = max(n for _, _, n in scales)
@@ -503,12 +513,12 @@ def scaled_from(scales: Sequence[tuple[float, float, int]],
         changes["kappa0"] = float(min(base.kappa0, max((size / (2.0 * spread)) ** 2, 1e-12)))
     if sizes and spread > 0 and psi0:
         size = float(np.median(sizes))
-        psi, clamped = scaled_psi0(size, base.nu0)
+        psi, clamped = scaled_psi0(size, nu0)
         if clamped:
-            taken = psi[0] / (base.nu0 - 5)
+            taken = psi[0] / (nu0 - 5)
             warnings.warn(f"the homes' places measure {size:.3g} map units, beyond what the position prior "
                           f"holds beside the heading: its x, y variance is taken as {taken:.3g} map units² "
                           "(a map in metres, centimetres or millimetres is within)", stacklevel=2)
-        changes.update(psi0=psi, psi0_in_cm2=False)
+        changes.update(psi0=psi, psi0_in_cm2=False, nu0=nu0)
     return replace(base, n_concepts=max(base.n_concepts, 2 * places),
                    n_regions=max(base.n_regions, 2 * places), **changes)
