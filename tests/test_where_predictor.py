@@ -224,3 +224,24 @@ def test_a_name_taught_in_a_room_beats_an_untaught_room_of_its_concept() -> None
     own = n_k * np.exp(position_prediction.room_name_log_likelihood(channels, 1e4)).ravel()
     flat = n_k * np.exp(position_prediction.room_name_log_likelihood(channels, None)).ravel()
     assert own[1] > own[0] and flat[0] > flat[1]
+
+
+def test_a_rooms_words_are_the_expected_tokens_of_each_channel(joint, small_corpus) -> None:
+    """The experiments' rooms count a sample's words as names and as words of the place by each token's
+    switch probabilities given its concept (a joint fit keeps no switches): never more than were
+    said, and a word the channels call background ("the") counts in neither."""
+    from spco.model.word_channels import switch_probabilities
+
+    e = 0  # an experienced home: its samples have sentences
+    rooms = model_rooms(joint, e)
+    data, state = joint.data_, joint.state_
+    if state.channels is None:
+        pytest.skip("the fit has no word channels")
+    rows = slice(int(data.offsets[e]), int(data.offsets[e + 1]))
+    words = data.words[rows]
+    said = rooms.names.toarray() + rooms.places.toarray()
+    assert (said <= words.toarray() * (1 + 1e-12)).all() and said.sum() > 0
+    p = switch_probabilities(words, np.asarray(data.homes)[rows], np.asarray(state.concepts)[rows],
+                             state.log_theta_w, state.channels)
+    assert_allclose(rooms.names.toarray()[words.nonzero()], words.data * p[:, 0])
+    assert_allclose(rooms.places.toarray()[words.nonzero()], words.data * p[:, 1])
