@@ -235,7 +235,9 @@ def _score_home(tally: _Tally, args: argparse.Namespace, hyper: Any, seed: int, 
     for place, name in main_names(experienced, accepted).items():  # A_p of the main name
         if place in gt.regions.places:  # type: ignore[union-attr]
             try:
-                pred = predict_positions(model.parameters_, e, corpus.vocabulary, name, n=10, rng=seed)
+                pred = predict_positions(answer, e, corpus.vocabulary, name, n=10, rng=seed,
+                                         rooms=model_rooms(model, e), view_counts=view_counts,
+                                         lookup=model.parameters_.word_mask)
                 hit = position_accuracy({place: pred.samples}, gt.regions)[place]  # type: ignore
             except UnknownNameError:
                 hit = 0.0

@@ -126,12 +126,16 @@ def run(sigverse: Path, regions_file: Path, side: str, seeds: list[int], sweeps:
                 answered = evaluate_home(model.parameters_, e, env, model.vocabulary_,
                                          rng=np.random.default_rng([run_seed, 1]), weighting=spec.weighting,
                                          name_prior=model.hyperparameters_.name_prior,
-                                         view_counts=model.settings_.view_counts, n_positions=1,
+                                         view_counts=model.settings_.view_counts,
                                          answer_params=model_answer_parameters(model, e),
                                          answer_rooms=model_rooms(model, e) if answer == "rooms" else None)
                 runs[-1][f"A_n_{answer}"] = float(answered.mean_name_accuracy)
+                # positions as the robot's where finds them from the same answer (one p(pose | name))
+                a_p_answer = answered.mean_position_accuracy if has_regions else math.nan
+                runs[-1][f"A_p_{answer}"] = float(a_p_answer)
             print(f"seed {seed} {env.name}: A_n {scores.mean_name_accuracy:.3f} A_p {a_p:.3f} "
-                  + "".join(f"A_n ({a}) {runs[-1][f'A_n_{a}']:.3f} " for a in answers)
+                  + "".join(f"A_n ({a}) {runs[-1][f'A_n_{a}']:.3f} A_p ({a}) {runs[-1][f'A_p_{a}']:.3f} "
+                            for a in answers)
                   + f"({time.perf_counter() - started:.0f} s)", flush=True)
     return summarise(side, seeds, sweeps, [h.name for h in homes], runs, answers)
 
@@ -142,7 +146,7 @@ def summarise(side: str, seeds: list[int], sweeps: int, homes: list[str], runs: 
     seed's mean over homes is one value)."""
     out: dict[str, Any] = {"format": "spco-general-places/1", "side": side, "seeds": seeds, "sweeps": sweeps,
                            "model": MODEL, "homes": homes, "runs": runs}
-    for key in ("A_n", "A_p", "A_p_mixture", *(f"A_n_{a}" for a in answers)):
+    for key in ("A_n", "A_p", "A_p_mixture", *(f"A_{x}_{a}" for a in answers for x in "np")):
         per_seed = [float(np.nanmean([r[key] for r in runs if r["seed"] == s]))
                     if any(np.isfinite(r[key]) for r in runs if r["seed"] == s) else math.nan for s in seeds]
         mean, low, high = seed_interval(per_seed)

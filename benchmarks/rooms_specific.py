@@ -49,9 +49,13 @@ def _score_both(params: Any, e: int, env: Any, vocabulary: Any, rooms: Any, weig
     again = copy.deepcopy(rng)
     plain = _SCORE_ROOMS(params, e, env, vocabulary, rooms, weighting, n_positions, rng, view_counts,
                          answer_params)
+    fit = copy.deepcopy(again)
     model, e_model = _MODEL[0]
     _ROOMS[:] = [_SCORE_ROOMS(params, e, env, vocabulary, rooms, weighting, n_positions, again, view_counts,
-                              answer_params, model_rooms(model, e_model))]
+                              answer_params, model_rooms(model, e_model)),
+                 # positions from the fit's π·G account and its θ^w (the experiments' A_p before issue
+                 # 29's one p(pose | name); the robot's is the room account's above)
+                 _SCORE_ROOMS(params, e, env, vocabulary, rooms, weighting, n_positions, fit, view_counts)]
     return plain
 
 
@@ -68,8 +72,10 @@ def run(args: tuple[str, str, ConfiguredRun, int]) -> dict[str, Any]:
     loaded = ConfiguredData(file, data, file.select([key.configuration]))
     record = sc.execute_configured_run(loaded, key, iterations, sc.DEFAULT_POSITIONS)
     record["rooms_account"] = {name: {"correct": [int(c) for c in s.correct], "predicted": list(s.predicted),
-                                      "name_accuracy": round(s.name_accuracy, 6)}
+                                      "name_accuracy": round(s.name_accuracy, 6),
+                                      "positions": s.position_accuracy}
                                for name, s in _ROOMS[0].items()}
+    record["positions_fit_account"] = {name: s.position_accuracy for name, s in _ROOMS[1].items()}
     return record
 
 
@@ -89,20 +95,27 @@ def main(argv: list[str] | None = None) -> int:
     keys = [ConfiguredRun(c.id, r, s, args.model) for c in file.configurations for r in args.rates
             for s in args.seeds]
     start = time.perf_counter()
-    per_room: dict[str, list[float]] = {"view": [], "rooms": []}
+    per_room: dict[str, list[float]] = {"view": [], "rooms": [], "A_p fit": [], "A_p robot": []}
     with ProcessPoolExecutor(args.jobs) as pool:
         for record in pool.map(run, [(args.config, args.data, k, args.iterations) for k in keys]):
             view = {n: r["name_accuracy"] for n, r in record["rooms"].items()}
             by_room = {n: r["name_accuracy"] for n, r in record["rooms_account"].items()}
             per_room["view"].extend(view.values())
             per_room["rooms"].extend(by_room.values())
+            a_p = {n: (record["positions_fit_account"][n]["argmax"], r["positions"]["argmax"])
+                   for n, r in record["rooms_account"].items()}
+            per_room["A_p fit"].extend(v[0] for v in a_p.values() if v[0] is not None)
+            per_room["A_p robot"].extend(v[1] for v in a_p.values() if v[1] is not None)
             print(f"{record['configuration']} {record['rate']} % seed {record['seed']}: view-by-view "
-                  f"{view} | room account {by_room}", flush=True)
+                  f"{view} | room account {by_room} | A_p (argmax) fit's account -> robot's {a_p}",
+                  flush=True)
             if args.out is not None:
                 with args.out.open("a") as fh:
                     fh.write(json.dumps(record) + "\n")
     print(f"\n{len(keys)} runs, {len(per_room['view'])} rooms, {time.perf_counter() - start:.0f} s: mean A_n "
-          f"view-by-view {np.mean(per_room['view']):.3f}, room account {np.mean(per_room['rooms']):.3f}")
+          f"view-by-view {np.mean(per_room['view']):.3f}, room account {np.mean(per_room['rooms']):.3f}; "
+          f"mean A_p (argmax) the fit's π·G account {np.mean(per_room['A_p fit']):.3f}, the robot's (room "
+          f"account) {np.mean(per_room['A_p robot']):.3f}")
     return 0
 
 

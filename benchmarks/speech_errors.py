@@ -235,6 +235,8 @@ def _misses(model, corpus: Corpus, e: int, env: Environment, scores, said: dict,
     if gt.regions is None:
         return
     mask = name_words(switch_tokens(model.data_, model.state_))
+    # the robot's where, as evaluate_home scores it (one p(pose | name): the answer's names and rooms)
+    answer, rooms = model_answer_parameters(model, e), model_rooms(model, e)
     for place in scores.places:
         if place not in gt.regions.places:
             continue
@@ -244,8 +246,9 @@ def _misses(model, corpus: Corpus, e: int, env: Environment, scores, said: dict,
             names = names[1:]
         for name in names:
             try:
-                pred = predict_positions(model.parameters_, e, corpus.vocabulary, name, n=10, rng=seed,
-                                         unheard=False)
+                pred = predict_positions(answer, e, corpus.vocabulary, name, n=10, rng=seed, unheard=False,
+                                         rooms=rooms, view_counts=model.settings_.view_counts,
+                                         lookup=model.parameters_.word_mask)
                 score = position_accuracy({place: pred.samples}, gt.regions)[place]
             except UnknownNameError:
                 score = 0.0

@@ -252,9 +252,12 @@ def evaluate_home(
         ``None``: every count a draw).
     answer_params: the parameters the robot answers names with
         (:func:`spco.model.confidence.model_answer_parameters`); names are then predicted by the
-        robot's own function, :func:`spco.model.confidence.answer_names` (``None``: ``params``).
+        robot's own function, :func:`spco.model.confidence.answer_names`, and positions by its
+        ``where``'s, :func:`spco.model.position_prediction.predict_positions` with these parameters,
+        ``answer_rooms`` and ``params.word_mask`` as the words looked up (``None``: ``params``).
     answer_rooms: the home's rooms as the robot's answer reads them
-        (:func:`spco.model.rooms.model_rooms`; ``None``: names from each sample's own view and pose).
+        (:func:`spco.model.rooms.model_rooms`; ``None``: names from each sample's own view and pose,
+        regions from the home's π and G).
     name_prior: ``"wordnet"`` orders each concept's words by the name prior when names are
         predicted (opt-in; see :func:`spco.model.prediction.predict_names`).
     position_mode, xy_only: see :func:`spco.model.position_prediction.predict_positions`;
@@ -294,6 +297,8 @@ def evaluate_home(
     accepted = {place: gt.accepted(place) for place in place_list}
     name_scores = name_accuracy(predicted, labels, place_list, accepted)
 
+    # the robot's where (spco.knowledge.where): its answer's parameters and rooms, the fit's word mask
+    where_params = params if answer_params is None else answer_params
     gen = np.random.default_rng(rng)
     gen_mixture = gen.spawn(1)[0]  # a child stream: the argmax draws stay as they were
     pos_scores: dict[str, float] = {}
@@ -311,8 +316,9 @@ def evaluate_home(
             for name in names:
                 try:
                     # A_p scores the names the model learnt: no lexicon look-up of a name never said
-                    pred = predict_positions(params, e, vocabulary, name, n=n_positions, rng=stream,
-                                             mode=mode, xy_only=xy_only, unheard=False)
+                    pred = predict_positions(where_params, e, vocabulary, name, n=n_positions, rng=stream,
+                                             mode=mode, xy_only=xy_only, unheard=False, rooms=answer_rooms,
+                                             view_counts=view_counts, lookup=params.word_mask)
                 except UnknownNameError:
                     scores.append(0.0)
                     continue

@@ -277,8 +277,10 @@ def score_rooms(params: Any, e: int, env: Environment, vocabulary: Vocabulary,
                 positions[mode] = None
                 continue
             try:
-                pred = predict_positions(params, e, vocabulary, room.name, n=n_positions, rng=gen,
-                                         mode=mode)  # type: ignore[arg-type]
+                # the robot's where: its answer's parameters and rooms (as evaluate_home)
+                pred = predict_positions(params if answer_params is None else answer_params, e, vocabulary,
+                                         room.name, n=n_positions, rng=gen, mode=mode,  # type: ignore[arg-type]
+                                         rooms=answer_rooms, view_counts=view_counts, lookup=params.word_mask)
             except UnknownNameError:
                 positions[mode] = 0.0
                 continue

@@ -64,8 +64,6 @@ from spco.knowledge.knowledge import (
 )
 from spco.knowledge.limits import DEFAULT_LIMITS, TeachingLimits
 from spco.knowledge.queries import (
-    WHERE_ANYWHERE_WEIGHT,
-    WHERE_MODEL_WEIGHT,
     answer_parameters,
     describe_model_file,
     name_prediction,
@@ -101,8 +99,6 @@ __all__ = [
     "OWN_NAMES_SPREAD_WARNING",
     "VIEW_FIT_MEASURE",
     "VIEW_FIT_WARN_FRACTION",
-    "WHERE_ANYWHERE_WEIGHT",
-    "WHERE_MODEL_WEIGHT",
     "ExperiencedHomeWarning",
     "HomeModel",
     "Knowledge",

@@ -35,36 +35,31 @@ from spco.model.prediction import NamePrediction, UnknownNameError, mutual_infor
 from spco.model.rooms import HomeRooms
 from spco.model.seeds import as_generator
 from spco.model.unheard import resolve_name
-from spco.model.word_channels import concept_name_tokens, name_tokens
-
-#: How many of the home's own teachings the model's p(m | name) weighs as, in :func:`where`.
-WHERE_MODEL_WEIGHT = 1.0
-#: ... and the home's regions in proportion to their samples (where a place taught a few times
-#: could still be), once the name was taught in the home.
-WHERE_ANYWHERE_WEIGHT = 1.0
+from spco.model.word_channels import channel_token_counts, concept_name_tokens, name_tokens
 
 
 def where(home: HomeModel, name: str, n: int = 10,
           random_state: int | np.random.Generator | None = None) -> PositionPrediction:
     """Poses ``(x, y, θ)`` to go to for the place ``name`` in ``home``.
 
-    The region probabilities combine the model with the home's own teachings of the name:
-    ``p(m | name) = (c_m + κ · p_model(m | name) + λ · u_m) / (c + κ + λ)``, where ``c_m`` counts the
-    home's samples whose sentence holds the name and that sit in region m, ``c`` all of them, κ =
-    :data:`WHERE_MODEL_WEIGHT`, ``p_model(m | name) ∝ Σ_l π_{l,m} θ^w_{l,name} G_l``
-    (:func:`spco.model.position_prediction.region_posterior_for_name`), u_m the share of the home's samples in
-    region m and λ = :data:`WHERE_ANYWHERE_WEIGHT` (0 for a name never taught in this home, which is
-    answered by the model alone). A name taught once is answered with the region of that sample at
-    about 0.6–0.65 (little evidence); each further teaching there makes it firmer.
+    The one p(pose | name) (:func:`spco.model.position_prediction.predict_positions`, which the
+    experiments' A_p calls too): p(m | name) ∝ Σ_{rooms k of m} n_k Σ_l p(l | room k) p(name | room k, l),
+    the rooms those of the room account of the home's training samples (:func:`home_rooms`: each room's
+    pooled views, its taught names and G_0 decide its concept) and each room's names drawn around its
+    concept's — the names ``what`` answers (:func:`answer_parameters`, and with the word channels the
+    words of the place ψ: "where is the fridge") — updated by the words said in the room
+    (docs/model.md, "Where a place is"): a name said in one room is found there, and in a home taught
+    nothing ``where`` is the Bayes inverse of ``what`` at the pose alone.
     The poses are drawn from the answer regions — those at least half as probable as the best
     (a name taught at two places of the home finds both) — in proportion to their probability, at
-    least one per region; each pose's ``weights`` entry is its share of the density p(x | name)
-    among the ``n`` poses. Raises :class:`~spco.model.prediction.UnknownNameError` (with suggestions)
-    for a name the home cannot use: never heard, or pruned as no name.
+    least one per region (:func:`~spco.model.position_prediction.answer_regions`); each pose's
+    ``weights`` entry is its share of the density p(x | name) among the ``n`` poses. Raises
+    :class:`~spco.model.prediction.UnknownNameError` (with suggestions) for a name the home cannot
+    use: never heard, or pruned as no name.
     ``name`` is read like a sentence (``"Living Room"``, ``"living-room"`` → ``living room``); a name
     never learnt as one term is its known words said together (``study + room``). ``learnt`` is
-    False (and ``support`` low) when no such place was learnt in this home: the name is neither
-    taught in the home nor carried by concepts holding its samples, and :func:`what` at the centre
+    False (and ``support`` low) when no such place was learnt in this home: the name is carried
+    mostly by concepts holding none of its samples, and :func:`what` at the centre
     of the answer region does not answer it either (``called``: the name it answers there, the
     home's own name for the place; a name ``what`` answers there counts as learnt, whatever the
     support: ``where`` and ``what`` agree). A name nobody said
@@ -88,51 +83,18 @@ def where(home: HomeModel, name: str, n: int = 10,
 def _where(home: HomeModel, name: str, n: int,
            random_state: int | np.random.Generator | None) -> PositionPrediction:
     """:func:`where` without the hint for unusable names."""
-    from spco.model.position_prediction import (
-        LEARNT_SUPPORT,
-        draw_poses,
-        name_support,
-        query_indices,
-        query_name,
-        region_posterior_for_name,
-    )
+    from spco.model.position_prediction import predict_positions
 
-    if n < 0:
-        raise ConfigurationError(f"the number of positions must be >= 0, got {n}")
-    params, vocabulary = home.parameters, home.vocabulary
-    model = region_posterior_for_name(params, 0, vocabulary, name)
-    columns = query_indices(params, vocabulary, name)
-    words = home.data.words[:, columns]  # type: ignore[index]
-    said = np.asarray((words > 0).sum(axis=1)).ravel() == len(columns)  # every token of the name said
-    counts = np.bincount(home.state.regions[said], minlength=model.size).astype(np.float64)
-    probs = counts + WHERE_MODEL_WEIGHT * model
-    if counts.sum() > 0:  # a place taught a few times could still be anywhere in the home
-        anywhere = np.bincount(home.state.regions, minlength=model.size) / home.state.regions.size
-        probs = probs + WHERE_ANYWHERE_WEIGHT * anywhere
-    probs = probs / probs.sum()
-    support = 1.0 if counts.sum() > 0 else name_support(params, 0, vocabulary, name)
-    answer = np.flatnonzero(probs >= 0.5 * probs.max())
-    answer = answer[np.argsort(-probs[answer], kind="stable")]
-    share = probs[answer] / probs[answer].sum()
-    per_region = np.floor(share * n).astype(np.int64)
-    if n >= answer.size:
-        per_region = np.maximum(per_region, 1)
-    while per_region.sum() > n:
-        per_region[np.argmax(per_region)] -= 1
-    while per_region.sum() < n:
-        per_region[np.argmax(share * n - per_region)] += 1
-    regions = np.repeat(answer, per_region)
-    samples, log_density, weights = draw_poses(params, 0, probs, regions, as_generator(random_state))
-    asked = query_name(vocabulary, params, name)
-    learnt, called = support >= LEARNT_SUPPORT, None
-    if not learnt:  # what `what` answers where the poses are: the name itself (learnt after all) or another
-        called = answered_at_region(home, int(answer[0]))
-        learnt = called == asked
-        called = None if learnt else called
-    return PositionPrediction(name=asked, region=int(answer[0]),
-                              region_probabilities=probs, samples=samples, regions=regions,
-                              log_density=log_density, weights=weights, mode="mixture", xy_only=False,
-                              support=support, learnt=learnt, called=called)
+    params, rooms = answer_inputs(home)
+    pred = predict_positions(params, 0, home.vocabulary, name, n, as_generator(random_state), mode="answer",
+                             unheard=False, rooms=rooms, view_counts=home.hyperparameters.view_weight(),
+                             lookup=home.parameters.word_mask)
+    if pred.learnt:
+        return pred
+    # what `what` answers where the poses are: the name itself (learnt after all) or another
+    called = answered_at_region(home, pred.region)
+    learnt = called == pred.name
+    return replace(pred, learnt=learnt, called=None if learnt else called)
 
 
 def answered_at_region(home: HomeModel, region: int) -> str | None:
@@ -343,11 +305,18 @@ def home_rooms(home: HomeModel) -> HomeRooms:
     """The home's training samples as the room-level answer reads them (:mod:`spco.model.rooms`):
     their regions and concepts (a region split by the names taught in it,
     :meth:`~spco.model.rooms.HomeRooms.membership`), their views and the name tokens taught at them
-    (with the word channels the tokens drawn as names, as :func:`answer_parameters` counts them)."""
-    words = home.data.words
-    if home.knowledge.channels is not None and home.state.switches is not None and words.nnz:
-        words = name_tokens(words, home.state.switches)
-    return HomeRooms.of(home.state.regions, home.data.visual, words, home.state.concepts)
+    (with the word channels the tokens drawn as names, as :func:`answer_parameters` counts them, and
+    those drawn as words of the place) with δ^w, for a room's own names in ``where``
+    (:func:`spco.model.position_prediction.region_posterior_for_name`)."""
+    words, state = home.data.words, home.state
+    if home.knowledge.channels is not None and state.switches is not None and words.nnz:
+        words = name_tokens(words, state.switches)
+    names = places = None
+    if state.channels is not None:
+        names, places = channel_token_counts(home.data.words, home.data.homes, state.concepts,
+                                             state.log_theta_w, state.channels)
+    return HomeRooms.of(state.regions, home.data.visual, words, state.concepts, names=names, places=places,
+                        concentration=home.hyperparameters.delta_word)
 
 
 def describe_model_file(path: str | PathLike[str]) -> dict[str, Any]:

@@ -1,19 +1,39 @@
-"""Prediction in a learnt home: positions from place names (p(pose | name)).
+"""Prediction in a learnt home: positions from place names (p(pose | name)): the one predictor of
+``where`` (:func:`spco.knowledge.where`, ``HomeModel.where``, the service, the ROS node) and of the
+experiments' A_p (:func:`spco.evaluation.metrics.evaluate_home`, the home-specific rooms).
 
 Pure functions of a :class:`~spco.model.parameters.ConceptParameters` sample, a home index ``e``
 and the corpus :class:`~spco.data.language.Vocabulary`, as :mod:`spco.model.prediction` (names
 from observations), whose validation and helpers they share.
 
-Positions::
+Regions, the posterior predictive of the region of a sample whose sentence says ``w``. With the
+home's rooms (:class:`~spco.model.rooms.HomeRooms`, the robot always has them: the room account of
+``what``, :mod:`spco.model.rooms`), each room k (n_k samples, region r(k)) has names of its own, drawn
+around its concept's (docs/model.md, "Where a place is")::
 
-    p(m | w) ∝ Σ_l π_{e,l,m} θ^w_{e,l,w} G_{e,l},   m̂ = argmax_m p(m | w),   x ~ N(μ_{e,m̂}, Σ_{e,m̂}).
+    p(m | w) ∝ Σ_{k: r(k) = m} n_k Σ_l p(l | room k) p(w | room k, l),
+    p(w | room k, l) = Σ_c a_{c,w} (δ p_{c,l,w} + X_{c,k,w}) / (δ + T_{c,k})
 
-The sum runs over the concepts that hold training samples of home e (``concept_counts`` ≥ 1): a
-concept with no sample there has π drawn from its sparse prior, which says nothing about the
-home's map. The share of Σ_l θ^w_{e,l,w} G_{e,l} that those concepts hold is the name's
-``support`` in the home; below :data:`LEARNT_SUPPORT` the place is reported as not learnt in this
-home (``PositionPrediction.learnt`` False): its name is explained mostly by concepts of other
-homes, e.g. ``dining`` in a home without a dining room.
+(:func:`room_name_log_likelihood`)
+over the channels c a word is said through — its names, θ^w of the answer's parameters, and with the
+word channels its words of the place, ψ — with a_{c,w} = p(c | w) (1 without the channels: so
+Σ_c a_{c,w} p_{c,l,w} is :func:`said_word_matrix`, the names the robot answers), p(l | room k) room
+k's pooled views, its taught names and G_0 deciding its concept, X_{c,k,w} the tokens of w the sampler
+drew through channel c at the room's samples and T_{c,k} those of every word a place is looked up by
+(S^w counts each: :func:`room_said_counts`), δ = δ^w (``HomeRooms.concentration``). A room where
+nothing was said says its concept's names, so for a home taught nothing ``where`` is the Bayes inverse
+of ``what`` at the pose alone; a name said in one room is found there. Without rooms
+(a bare parameter set) p(m | w) ∝ Σ_l p(w | l) G_{e,l} π_{e,l,m} over the concepts holding the home's samples
+(:func:`concept_stand_ins` for the others). Poses are drawn from the answer regions
+(:func:`answer_regions`: those at least half as probable as the best, the robot's ``where``), or
+from m̂ = argmax_m p(m | w) (the paper's A_p), or from p(m | w) (``"mixture"``)::
+
+    x ~ N(μ_{e,m}, Σ_{e,m}).
+
+The share of Σ_l G_{e,l} p(w | l) that the concepts holding samples of home e (``concept_counts``
+≥ 1) hold is the name's ``support`` in the home; below :data:`LEARNT_SUPPORT` the place is reported
+as not learnt in this home (``PositionPrediction.learnt`` False): its name is explained mostly by
+concepts of other homes, e.g. ``dining`` in a home without a dining room.
 """
 
 from __future__ import annotations
@@ -22,6 +42,7 @@ from dataclasses import dataclass, replace
 from typing import Literal
 
 import numpy as np
+import scipy.sparse as sp
 from scipy.special import logsumexp
 
 from spco.data.language import Vocabulary
@@ -38,11 +59,13 @@ from spco.model.prediction import (
     gaussian_log_density,
     mutual_information_weights,
 )
+from spco.model.rooms import HomeRooms
 from spco.model.unheard import resolve_name
 
 __all__ = [
     "LEARNT_SUPPORT",
     "PositionPrediction",
+    "answer_regions",
     "concept_stand_ins",
     "draw_poses",
     "name_support",
@@ -50,10 +73,12 @@ __all__ = [
     "query_indices",
     "query_name",
     "region_posterior_for_name",
+    "room_name_log_likelihood",
+    "room_said_counts",
     "said_word_matrix",
 ]
 
-PositionMode = Literal["argmax", "mixture"]
+PositionMode = Literal["argmax", "mixture", "answer"]
 
 #: A place name is *learnt* in a home when at least this share of its probability there comes
 #: from concepts that hold samples of the home (see :func:`name_support`).
@@ -121,10 +146,14 @@ class PositionPrediction:
 
 
 # ---------------------------------------------------------------------------------- positions
-def query_indices(params: ConceptParameters, vocabulary: Vocabulary, name: str) -> list[int]:
-    """Columns of the usable tokens of a name asked for (see :func:`region_posterior_for_name`)."""
+def query_indices(params: ConceptParameters, vocabulary: Vocabulary, name: str,
+                  lookup: np.ndarray | None = None) -> list[int]:
+    """Columns of the usable tokens of a name asked for (see :func:`region_posterior_for_name`):
+    those of ``lookup`` ((V,) bool, the words a place is looked up by; default ``params.word_mask``)."""
     _check_vocabulary(params, vocabulary)
-    mask = np.asarray(params.word_mask, dtype=bool)
+    mask = np.asarray(params.word_mask if lookup is None else lookup, dtype=bool)
+    if mask.shape != (len(vocabulary),):
+        raise ConfigurationError(f"lookup must be a ({len(vocabulary)},) bool array, got {mask.shape}")
     known = [w for w, keep in zip(vocabulary.words, mask, strict=True) if keep]
     _, indices = vocabulary.query(name)
     usable = list(dict.fromkeys(k for k in indices if mask[k]))
@@ -138,10 +167,11 @@ def query_indices(params: ConceptParameters, vocabulary: Vocabulary, name: str) 
                            f"the words {pruned} were pruned as uninformative (they name no place)")
 
 
-def query_name(vocabulary: Vocabulary, params: ConceptParameters, name: str) -> str:
+def query_name(vocabulary: Vocabulary, params: ConceptParameters, name: str,
+               lookup: np.ndarray | None = None) -> str:
     """How a name asked for is understood: its usable tokens joined by ``" + "`` (``"living room"``,
     or ``"study + room"`` for a name never learnt as one term)."""
-    return " + ".join(vocabulary.words[k] for k in query_indices(params, vocabulary, name))
+    return " + ".join(vocabulary.words[k] for k in query_indices(params, vocabulary, name, lookup))
 
 
 def _occupied_concepts(params: ConceptParameters, e: int) -> np.ndarray:
@@ -170,15 +200,19 @@ def said_word_matrix(params: ConceptParameters, e: int) -> np.ndarray:
     return prior[None, :, 0] * theta + prior[None, :, 1] * psi
 
 
-def _name_concept_weights(params: ConceptParameters, e: int, words: list[int]) -> np.ndarray:
-    """(L,) G_{e,l} Π_i p(w_i | l): how much each concept of home e explains the words said together
+def _name_likelihood(params: ConceptParameters, e: int, words: list[int]) -> np.ndarray:
+    """(L,) Π_i p(w_i | l): how much each concept of home e explains the words said together
     (:func:`said_word_matrix`), scaled by the largest concept's product (several small p multiply);
     a concept in which a word has probability 0 keeps weight 0."""
     log_theta = _safe_log(said_word_matrix(params, e)[:, words]).sum(axis=1)  # (L,)
     top = float(log_theta.max())
-    theta_w = np.exp(log_theta - top) if top > _LOG_FLOOR else np.zeros_like(log_theta)
+    return np.exp(log_theta - top) if top > _LOG_FLOOR else np.zeros_like(log_theta)
+
+
+def _name_concept_weights(params: ConceptParameters, e: int, words: list[int]) -> np.ndarray:
+    """(L,) G_{e,l} Π_i p(w_i | l) (:func:`_name_likelihood`)."""
     g = np.clip(np.asarray(params.concept_weights[e], dtype=np.float64), 0.0, None)
-    return g * theta_w
+    return g * _name_likelihood(params, e, words)
 
 
 def concept_stand_ins(params: ConceptParameters, e: int) -> np.ndarray:
@@ -208,7 +242,8 @@ def concept_stand_ins(params: ConceptParameters, e: int) -> np.ndarray:
     return stand_in
 
 
-def name_support(params: ConceptParameters, e: int, vocabulary: Vocabulary, name: str) -> float:
+def name_support(params: ConceptParameters, e: int, vocabulary: Vocabulary, name: str,
+                 lookup: np.ndarray | None = None) -> float:
     """Share of p(name | home e) = Σ_l G_{e,l} θ^w_{e,l,w} held by concepts with samples of home e.
 
     Near 1: the name belongs to places the home's samples were assigned to. Near 0: the name is
@@ -217,44 +252,174 @@ def name_support(params: ConceptParameters, e: int, vocabulary: Vocabulary, name
     (0 if the name has probability 0 in every concept).
     """
     e = _check_home(params, e)
-    weights = _name_concept_weights(params, e, query_indices(params, vocabulary, name))
+    weights = _name_concept_weights(params, e, query_indices(params, vocabulary, name, lookup))
     total = weights.sum()
     return float(weights[_occupied_concepts(params, e)].sum() / total) if total > 0 else 0.0
 
 
+def room_said_counts(rooms: HomeRooms, n_regions: int
+                     ) -> tuple[np.ndarray, sp.csr_array, sp.csr_array | None]:
+    """(R,) the region of each room, (R, V) the name tokens said in it and (R, V) the place-word tokens
+    (``None`` without the word channels): each sample's tokens (``rooms.names``, or without the word
+    channels ``rooms.words``; ``rooms.places``) in
+    proportion to its share in the room (:meth:`HomeRooms.membership`: a taught sample wholly in its
+    room, an untaught one shared by the rooms of its region). Kept with ``rooms``."""
+    known = rooms._known.get(("said", n_regions))
+    if known is not None:
+        return known
+    share, region_of = rooms.membership(n_regions)
+    names = rooms.words if rooms.names is None else rooms.names
+    places = None if rooms.places is None else sp.csr_array(share @ rooms.places)
+    result = region_of, sp.csr_array(share @ names), places
+    rooms._known[("said", n_regions)] = result
+    return result
+
+
+#: One channel of a room's names for :func:`room_name_log_likelihood`: (a (n,) the share of each token's
+#: probability the channel holds, p (L, n) the concepts' probabilities of the tokens, X (R, n) the
+#: rooms' counts of the tokens, T (R,) the rooms' counts of every word of the channel).
+RoomChannel = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
+
+def room_name_log_likelihood(channels: list[RoomChannel], concentration: float | None) -> np.ndarray:
+    """(R, L) log p(w_1 … w_n | room k, concept l): each token w_i of a name said in room k through a
+    channel c (the names, the words of the place) with probability a_{c,i}, and then drawn from the
+    room's own probability of it in that channel, φ_{c,k,w} ~ Beta(δ p_{c,l,w}, δ (1 − p_{c,l,w}))
+    around its concept's p_{c,l,w}, given the room's X_{c,k,w} tokens of w among its T_{c,k} tokens
+    of the channel (the Dirichlet of the room's words around its concept's, aggregated to w / not w)::
+
+        p(w | room k, l) = Σ_c a_{c,w} (δ p_{c,l,w} + X_{c,k,w}) / (δ + T_{c,k}).
+
+    ``concentration``: δ > 0, or ``None`` (δ → ∞: every room says its concept's Σ_c a_{c,w} p_{c,l,w}).
+    Log space; a probability 0 is the finite floor. Raises :class:`ConfigurationError` for δ ≤ 0 or a
+    count outside [0, the room's total]."""
+    if not channels:
+        raise ConfigurationError("a room's names need at least one channel")
+    if concentration is not None and not (np.isfinite(concentration) and concentration > 0):
+        raise ConfigurationError(f"the concentration must be a finite number > 0, got {concentration!r}")
+    total = None
+    for share, probs, counts, totals in channels:
+        a = np.clip(np.asarray(share, dtype=np.float64), 0.0, 1.0)  # (n,)
+        p = np.clip(np.asarray(probs, dtype=np.float64), 0.0, 1.0)  # (L, n)
+        x = np.asarray(counts, dtype=np.float64)  # (R, n)
+        tot = np.asarray(totals, dtype=np.float64)  # (R,)
+        if concentration is None:
+            part = np.broadcast_to((a[None, :] * p)[None, :, :], (x.shape[0], *p.shape))
+        else:
+            if x.size and (x.min() < 0 or (x > tot[:, None] * (1 + 1e-9) + 1e-9).any()):
+                raise ConfigurationError("a room's count of a word must be in [0, the room's total]")
+            delta = float(concentration)
+            part = a[None, None, :] * (delta * p[None, :, :] + x[:, None, :]) / (delta + tot)[:, None, None]
+        total = part if total is None else total + part  # (R, L, n)
+    return _safe_log(total).sum(axis=2)
+
+
+def _room_weights(params: ConceptParameters, e: int, rooms: HomeRooms, view_counts: float | None,
+                  words: list[int], lookup: np.ndarray) -> np.ndarray | None:
+    """(K,) Σ_{k: r(k) = m} n_k Σ_l p(l | room k) p(w | room k, l) (up to a constant), the room
+    account's regions for the name's tokens ``words``; ``None`` if no room holds a training sample."""
+    from spco.model.rooms import _room_log_posterior
+
+    log_post, counts, region_of = _room_log_posterior(params, rooms, view_counts, e)  # (R, L), (R,), (R,)
+    if not counts.sum() > 0:
+        return None
+    K = int(np.shape(params.region_means)[1])
+    log_concept = log_post - logsumexp(log_post, axis=1, keepdims=True)  # log p(l | room k)
+    R = region_of.size
+    concentration = rooms.concentration
+    theta = _word_matrix(params, e)[:, words]  # (L, n)
+    psi, prior = params.place_word_probabilities, params.word_channel_prior
+    channel_share = (np.ones(len(words)), None) if psi is None or prior is None else \
+        tuple(np.asarray(prior, dtype=np.float64)[words, c] for c in (0, 1))
+    mask = np.asarray(lookup, dtype=np.float64)
+    read = concentration is not None and rooms.words.shape[1] == mask.size
+    _, named, placed = room_said_counts(rooms, K) if read else (None, None, None)
+    channels: list[RoomChannel] = []
+    for c, (said, probs) in enumerate(((named, theta), (placed, None if psi is None else
+                                                         np.asarray(psi, dtype=np.float64)[:, words]))):
+        if probs is None or channel_share[c] is None:
+            continue
+        if said is None:
+            channels.append((channel_share[c], probs, np.zeros((R, len(words))), np.zeros(R)))
+        else:
+            channels.append((channel_share[c], probs, said[:, words].toarray() * mask[None, words],
+                             np.asarray(said @ mask, dtype=np.float64).ravel()))
+    log_word = room_name_log_likelihood(channels, concentration if read else None)  # (R, L)
+    if not log_word.max() > _LOG_FLOOR:  # the name has probability 0 in every room
+        return np.zeros(K)
+    log_room = _safe_log(counts) + logsumexp(log_concept + log_word, axis=1)  # (R,)
+    log_room = np.where(counts > 0, log_room, -np.inf)
+    weights = np.exp(log_room - log_room.max())
+    return np.bincount(region_of, weights=weights, minlength=K)
+
+
 def region_posterior_for_name(
-    params: ConceptParameters, e: int, vocabulary: Vocabulary, name: str
+    params: ConceptParameters, e: int, vocabulary: Vocabulary, name: str, *,
+    rooms: HomeRooms | None = None, view_counts: float | None = None, lookup: np.ndarray | None = None,
 ) -> np.ndarray:
-    """p(m | w) ∝ Σ_l π_{e,l,m} θ^w_{e,l,w} G_{e,l} for the place name ``name``.
+    """p(m | w) ∝ Σ_l p(w | l) p(l, m | home) for the place name ``name``: the one p(region | name)
+    (module docstring; ``where``, the service, the ROS node and the experiments' A_p call it).
+
+    ``params`` are the answer's parameters (:func:`spco.model.confidence.answer_parameters`, the
+    names ``what`` answers: one account of which concept a name means): p(w | l) is
+    :func:`said_word_matrix` of them. ``lookup``: (V,) bool, the words a place is looked up by
+    (default ``params.word_mask``; the robot's: the fit's word mask, with the word channels the names
+    and the words said mostly as words of a place, "where is the fridge", found through ψ).
+
+    With ``rooms`` (the home's training samples' regions, concepts, views and taught names:
+    :func:`spco.knowledge.queries.home_rooms`, :func:`spco.model.rooms.model_rooms`),
+    p(l, m | home) is the room account, each room's pooled views worth ``view_counts`` = w draws
+    against φ^v (:func:`spco.model.rooms.room_concepts`). Without them (or no room holding a sample)
+    p(l, m | home) ∝ G_{e,l} π_{e,l,m} over the concepts holding samples of home ``e``
+    (``concept_counts`` ≥ 1), a concept without samples looked for where its stand-in is
+    (:func:`concept_stand_ins`), or over all concepts if the name has no probability in those.
 
     ``name`` is tokenised like a sentence (:meth:`~spco.data.language.Vocabulary.tokenize`:
     ``"Living Room"``, ``"living-room"`` → the token ``"living room"``). A name of several tokens
     (``"study room"`` never learnt as one term) is understood as all its known, unpruned tokens said
-    together: p(m | w_1 … w_n) ∝ Σ_l π_{e,l,m} G_{e,l} Π_i θ^w_{e,l,w_i}; its unknown or pruned tokens
-    are left out. The sum runs over the concepts holding samples of home ``e`` (``concept_counts``
-    ≥ 1), or over all concepts if the name has no probability in those (see :func:`name_support`).
+    together: p(w_1 … w_n | l) = Π_i p(w_i | l); its unknown or pruned tokens are left out.
     Returns (K,) float64 summing to 1. Raises :class:`UnknownNameError` if no token of the name is
     known and unpruned, or the name has probability 0 in every concept of home ``e``.
     """
     e = _check_home(params, e)
-    ws = query_indices(params, vocabulary, name)
-    concept_weights = _name_concept_weights(params, e, ws)  # (L,)
-    # a concept without samples of this home is looked for where its stand-in is (synonyms)
-    concept_weights = np.bincount(concept_stand_ins(params, e), weights=concept_weights,
-                                  minlength=concept_weights.size)
-    occupied = _occupied_concepts(params, e)
-    if (concept_weights[occupied] > 0).any():
-        concept_weights = np.where(occupied, concept_weights, 0.0)
-    pi = np.clip(np.asarray(params.region_weights[e], dtype=np.float64), 0.0, None)  # (L, K)
-    weights = concept_weights @ pi  # (K,)
+    ws = query_indices(params, vocabulary, name, lookup)
+    mask = np.asarray(params.word_mask if lookup is None else lookup, dtype=bool)
+    weights = None if rooms is None else _room_weights(params, e, rooms, view_counts, ws, mask)
+    if weights is None:
+        concept_weights = _name_concept_weights(params, e, ws)  # (L,)
+        # a concept without samples of this home is looked for where its stand-in is (synonyms)
+        concept_weights = np.bincount(concept_stand_ins(params, e), weights=concept_weights,
+                                      minlength=concept_weights.size)
+        occupied = _occupied_concepts(params, e)
+        if (concept_weights[occupied] > 0).any():
+            concept_weights = np.where(occupied, concept_weights, 0.0)
+        pi = np.clip(np.asarray(params.region_weights[e], dtype=np.float64), 0.0, None)  # (L, K)
+        weights = concept_weights @ pi  # (K,)
     total = weights.sum()
     if not total > 0:
-        mask = np.asarray(params.word_mask, dtype=bool)
         known = [v for v, keep in zip(vocabulary.words, mask, strict=True) if keep]
         shown = " + ".join(vocabulary.words[w] for w in ws)
         raise UnknownNameError(name, known, reason=f"the name {shown!r} has "
                                f"probability 0 in every concept of home {e}")
     return weights / total
+
+
+def answer_regions(region_probabilities: np.ndarray, n: int) -> np.ndarray:
+    """(n,) the regions of ``n`` poses the robot's ``where`` draws: the answer regions — those at least
+    half as probable as the best (a name taught at two places of a home finds both) — in proportion
+    to their probability, at least one pose per region when ``n`` allows, most probable first."""
+    probs = np.asarray(region_probabilities, dtype=np.float64)
+    answer = np.flatnonzero(probs >= 0.5 * probs.max())
+    answer = answer[np.argsort(-probs[answer], kind="stable")]
+    share = probs[answer] / probs[answer].sum()
+    per_region = np.floor(share * n).astype(np.int64)
+    if n >= answer.size:
+        per_region = np.maximum(per_region, 1)
+    while per_region.sum() > n:
+        per_region[np.argmax(per_region)] -= 1
+    while per_region.sum() < n:
+        per_region[np.argmax(share * n - per_region)] += 1
+    return np.repeat(answer, per_region).astype(np.int64)
 
 
 def draw_poses(params: ConceptParameters, e: int, region_probabilities: np.ndarray, regions: np.ndarray,
@@ -290,13 +455,22 @@ def predict_positions(
     mode: PositionMode = "argmax",
     xy_only: bool = False,
     unheard: bool = True,
+    *,
+    rooms: HomeRooms | None = None,
+    view_counts: float | None = None,
+    lookup: np.ndarray | None = None,
 ) -> PositionPrediction:
-    """Sample ``n`` poses where the place ``name`` is, in home ``e``.
+    """Sample ``n`` poses where the place ``name`` is, in home ``e``: the one p(pose | name) of the
+    robot's ``where`` and the experiments' A_p (module docstring).
 
     Parameters
     ----------
-    mode: ``"argmax"`` — draw from N(μ_m̂, Σ_m̂) with m̂ = argmax p(m | w) (the paper);
-        ``"mixture"`` — draw each sample's region from p(m | w) first.
+    params, rooms, view_counts, lookup: as :func:`region_posterior_for_name` (the robot's: the
+        answer's parameters, the home's rooms, the model's view weight w, the fit's word mask).
+    mode: ``"answer"`` — the robot's ``where``: the regions of :func:`answer_regions` (those at
+        least half as probable as the best, in proportion); ``"argmax"`` — draw from N(μ_m̂, Σ_m̂)
+        with m̂ = argmax p(m | w) (the paper's A_p); ``"mixture"`` — draw each sample's region from
+        p(m | w) first.
     xy_only: draw from the x–y marginal only (the authors' code); θ is then NaN.
     rng: a Generator (advanced by the draws) or a seed.
     unheard: a name that is not a usable token is first looked up in the lexicon
@@ -304,30 +478,35 @@ def predict_positions(
         only the name's own known tokens are used.
 
     Returns a :class:`PositionPrediction` with samples (n, 3) = (x, y, θ) (``poses``: the same
-    as (x, y, sin θ, cos θ)), the name's ``support`` in the home and ``learnt`` (see the module
-    docstring: False means no such place was learnt in this home).
+    as (x, y, sin θ, cos θ)), ``region`` the most probable region, the name's ``support`` in the home
+    and ``learnt`` (see the module docstring: False means no such place was learnt in this home).
     """
     if n < 0:
         raise ConfigurationError(f"the number of positions must be >= 0, got {n}")
-    if mode not in ("argmax", "mixture"):
-        raise ConfigurationError(f"mode must be 'argmax' or 'mixture', got {mode!r}")
+    if mode not in ("argmax", "mixture", "answer"):
+        raise ConfigurationError(f"mode must be 'argmax', 'mixture' or 'answer', got {mode!r}")
     e = _check_home(params, e)
-    resolved = (resolve_name(vocabulary, params.word_mask, name, params.name_prior,
+    mask = params.word_mask if lookup is None else lookup
+    resolved = (resolve_name(vocabulary, mask, name, params.name_prior,
                              information=mutual_information_weights(params, e)) if unheard else None)
     if resolved is not None:  # a name nobody said: the known name the lexicon finds for it
-        pred = predict_positions(params, e, vocabulary, resolved.name, n, rng, mode, xy_only, unheard=False)
+        pred = predict_positions(params, e, vocabulary, resolved.name, n, rng, mode, xy_only, unheard=False,
+                                 rooms=rooms, view_counts=view_counts, lookup=lookup)
         return replace(pred, asked=resolved.asked, via=resolved.how)
-    probs = region_posterior_for_name(params, e, vocabulary, name)
-    support = name_support(params, e, vocabulary, name)
+    probs = region_posterior_for_name(params, e, vocabulary, name, rooms=rooms, view_counts=view_counts,
+                                      lookup=lookup)
+    support = name_support(params, e, vocabulary, name, lookup)
     best = int(np.argmax(probs))
-    gen = np.random.default_rng(rng)
+    gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
     if mode == "argmax":
         regions = np.full(n, best, dtype=np.int64)
+    elif mode == "answer":
+        regions = answer_regions(probs, n)
     else:
         regions = gen.choice(probs.size, size=n, p=probs).astype(np.int64)
     samples, log_density, weights = draw_poses(params, e, probs, regions, gen, xy_only)
     return PositionPrediction(
-        name=query_name(vocabulary, params, name),
+        name=query_name(vocabulary, params, name, lookup),
         region=best,
         region_probabilities=probs,
         samples=samples,

@@ -59,25 +59,48 @@ class HomeRooms:
     concepts: (n,) int, the concept of each sample (the sampler's state), or ``None``. With them a
         region is split by the names taught in it (:meth:`membership`); without them a room is a
         region.
+    names, places: (n, V) the tokens said at each sample as names and as words of the place (the word
+        channels' expected tokens, :func:`spco.model.word_channels.channel_token_counts`), in the
+        counts θ^w and ψ count a token with, or ``None`` (no word channels: ``words`` are the names).
+    concentration: δ, how many counts a concept's names (θ^w) and place words (ψ) weigh as against
+        a room's own ``names`` and ``places`` in the room's names (δ^w: a room's names are drawn around
+        its concept's as a home's around the experienced homes';
+        :func:`spco.model.position_prediction.region_posterior_for_name`); ``None``: a room's own
+        words are not read by ``where``.
     """
 
     regions: np.ndarray
     visual: sp.csr_array
     words: sp.csr_array
     concepts: np.ndarray | None = None
+    names: sp.csr_array | None = None
+    places: sp.csr_array | None = None
+    concentration: float | None = None
     #: the rooms' evidence already worked out, per answer's parameters (:func:`_room_log_posterior`):
     #: ``(view_counts, e) -> (params, result)``, kept only while the same ``params`` object is asked
     _known: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     @classmethod
-    def of(cls, regions: object, visual: object, words: object, concepts: object = None) -> HomeRooms:
-        """Validated :class:`HomeRooms` (sparse copies of ``visual`` and ``words``)."""
+    def of(cls, regions: object, visual: object, words: object, concepts: object = None, *,
+           names: object = None, places: object = None, concentration: float | None = None) -> HomeRooms:
+        """Validated :class:`HomeRooms` (sparse copies of ``visual``, ``words``, ``names`` and ``places``)."""
         regions = np.asarray(regions, dtype=np.int64).ravel()
         visual = sp.csr_array(visual, dtype=np.float64)
         words = sp.csr_array(words, dtype=np.float64)
         if visual.shape[0] != regions.size or words.shape[0] != regions.size:
             raise ConfigurationError(f"rooms: {regions.size} regions but {visual.shape[0]} views and "
                                      f"{words.shape[0]} word rows")
+        said = []
+        for label, counts in (("name", names), ("place word", places)):
+            rows = None if counts is None else sp.csr_array(counts, dtype=np.float64)
+            if rows is not None and rows.shape != words.shape:
+                raise ConfigurationError(f"rooms: {words.shape} word counts but {rows.shape} {label} counts")
+            if rows is not None and rows.nnz and not (np.isfinite(rows.data).all() and rows.data.min() >= 0):
+                raise ConfigurationError(f"rooms: the {label} counts must be finite counts >= 0")
+            said.append(rows)
+        if concentration is not None and not (np.isfinite(concentration) and concentration > 0):
+            raise ConfigurationError(f"rooms: the concentration must be a finite number > 0, got "
+                                     f"{concentration!r}")
         if regions.size and regions.min() < 0:
             raise ConfigurationError("rooms: a region index is negative")
         labels = None
@@ -87,12 +110,16 @@ class HomeRooms:
                 raise ConfigurationError(f"rooms: {regions.size} regions but {labels.size} concepts")
             if labels.size and labels.min() < 0:
                 raise ConfigurationError("rooms: a concept index is negative")
-        return cls(regions, visual, words, labels)
+        return cls(regions, visual, words, labels, said[0], said[1],
+                   None if concentration is None else float(concentration))
 
     def subset(self, keep: np.ndarray) -> HomeRooms:
         """The rooms of the samples ``keep`` (a bool mask or indices), e.g. one sample left out."""
         return HomeRooms.of(self.regions[keep], self.visual[keep], self.words[keep],
-                            None if self.concepts is None else self.concepts[keep])
+                            None if self.concepts is None else self.concepts[keep],
+                            names=None if self.names is None else self.names[keep],
+                            places=None if self.places is None else self.places[keep],
+                            concentration=self.concentration)
 
     def membership(self, n_regions: int) -> tuple[sp.csr_array, np.ndarray]:
         """(R, n) each sample's share in each room and (R,) the region of each room.
@@ -245,7 +272,7 @@ def model_rooms(model: object, e: int) -> HomeRooms:
     (:class:`~spco.model.transfer.SpatialConceptModel`, the experiments' fit): its training samples'
     regions, concepts, views and name tokens (with the word channels the tokens drawn as names), so
     that an experiment scores the names the robot answers (:func:`spco.model.confidence.answer_names`)."""
-    from spco.model.word_channels import name_tokens
+    from spco.model.word_channels import channel_token_counts, name_tokens
 
     data = model.data_  # type: ignore[attr-defined]
     state = model.state_  # type: ignore[attr-defined]
@@ -254,5 +281,11 @@ def model_rooms(model: object, e: int) -> HomeRooms:
     if getattr(state, "channels", None) is not None and getattr(state, "switches", None) is not None \
             and words.nnz:
         words = name_tokens(words, state.switches)
+    names = places = None
+    if getattr(state, "channels", None) is not None:
+        names, places = channel_token_counts(sp.csr_array(data.words[rows]), np.asarray(data.homes)[rows],
+                                             np.asarray(state.concepts)[rows], state.log_theta_w,
+                                             state.channels)
     return HomeRooms.of(np.asarray(state.regions)[rows], data.visual[rows], words[rows],
-                        np.asarray(state.concepts)[rows])
+                        np.asarray(state.concepts)[rows], names=names, places=places,
+                        concentration=float(model.hyperparameters_.delta_word))  # type: ignore[attr-defined]

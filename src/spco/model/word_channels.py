@@ -359,6 +359,22 @@ def channel_counts(words: sp.csr_array, concepts: np.ndarray, switches: np.ndarr
     return ChannelCounts(place, background, by_word)
 
 
+def channel_token_counts(words: sp.csr_array, homes: np.ndarray, concepts: np.ndarray,
+                         log_theta_w: np.ndarray, channels: WordChannels
+                         ) -> tuple[sp.csr_array, sp.csr_array]:
+    """(N, V) each sample's expected name tokens and (N, V) its expected tokens said as words of the
+    place: every token's counts (S^w) times its switch probabilities given its sample's concept
+    (:func:`switch_probabilities`, Rao-Blackwellised as :func:`expected_tokens`)."""
+    if not words.nnz:
+        empty = sp.csr_array(words.shape, dtype=np.float64)
+        return empty, empty.copy()
+    p = switch_probabilities(words, homes, concepts, log_theta_w, channels)  # (nnz, 3)
+    rows, cols, counts = _tokens(words)
+    counts = np.asarray(counts, dtype=np.float64)
+    return tuple(sp.csr_array((counts * p[:, c], (rows, cols)), shape=words.shape)  # type: ignore[return-value]
+                 for c in (NAME, PLACE))
+
+
 def name_tokens(words: sp.csr_array, switches: np.ndarray, scale: float = 1.0) -> sp.csr_array:
     """The counts of the name tokens only (N, V): what θ^w | z counts (S^w per token; times ``scale``,
     rounded to whole counts: :attr:`WordChannels.token_weight` under the power likelihood, W^w per

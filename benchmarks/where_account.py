@@ -1,0 +1,121 @@
+"""p(pose | name): the robot's ``where`` (the room account) beside the fit's π·G account, on one fit.
+
+Development data only (benchmarks/SPLIT.md). Each configuration is fitted once, as the script it comes
+from fits it (same corpus, sweeps and trial seed), and A_p is scored twice on the same draws' seed:
+
+- **fit**: p(m | w) ∝ Σ_l π_{e,l,m} θ^w_{e,l,w} G_{e,l} of the fit's parameters (``evaluate_home``
+  without the answer's parameters and rooms: the experiments' A_p before issue 29's one predictor);
+- **names**: the same π·G account with the names ``what`` answers (``model_answer_parameters``'s θ^w,
+  no rooms): which concept a name means as ``what`` says, which regions a concept holds as the fit says;
+- **robot**: p(m | w) ∝ Σ_l p(w | l) p(l, m | home), p(w | l) the names ``what`` answers and
+  p(l, m | home) the room account (``evaluate_home`` with ``model_answer_parameters`` and
+  ``model_rooms``: what ``spco.knowledge.where`` answers, and the experiments' A_p now), drawn from the
+  argmax region (the paper's A_p) and, as **robot's draw**, as the robot's ``where`` draws them (every
+  region at least half as probable as the best, ``position_mode="answer"``).
+
+A_n is the robot's (the same both ways). Sets:
+
+- ``natural``: ``speech_errors.py``'s development configurations (the development homes' people's
+  sentences; 3LDK_9 untaught; ``--leave-one-out`` adds each development experienced home held out);
+- ``written``: ``free_speech.py`` with ``--speech`` (e.g. ``benchmarks/development/speech_dev.csv``)
+  on 3LDK_9.
+
+Run::
+
+    nice -n 5 python benchmarks/where_account.py natural --seeds 0 1 --sweeps 60
+    nice -n 5 python benchmarks/where_account.py written --seeds 0 --sweeps 200 \\
+        --speech benchmarks/development/speech_dev.csv
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from free_speech import new_home, read_names, read_speech, taught_homes
+from natural_speech import SIDES, scored_as_test
+from speech_errors import _configurations
+
+from spco.data import Corpus
+from spco.evaluation import evaluate_home
+from spco.evaluation.experiments import trial_seed
+from spco.model import SpCoTransfer
+from spco.model.confidence import model_answer_parameters
+from spco.model.rooms import model_rooms
+
+HERE = Path(__file__).resolve().parent
+DRAW = "A_p robot's draw"
+
+
+def _score(model, e: int, env, vocabulary, seed: int) -> dict[str, float]:
+    """A_n (robot) and A_p both ways (argmax region, as ``spco experiment``) of one fit."""
+    view_counts = model.settings_.view_counts
+    fit = evaluate_home(model.parameters_, e, env, vocabulary, rng=seed, view_counts=view_counts)
+    answer = model_answer_parameters(model, e)
+    names = evaluate_home(model.parameters_, e, env, vocabulary, rng=seed, view_counts=view_counts,
+                          answer_params=answer)
+    robot = evaluate_home(model.parameters_, e, env, vocabulary, rng=seed, view_counts=view_counts,
+                          answer_params=answer, answer_rooms=model_rooms(model, e))
+    drawn = evaluate_home(model.parameters_, e, env, vocabulary, rng=seed, view_counts=view_counts,
+                          answer_params=answer, answer_rooms=model_rooms(model, e), position_mode="answer")
+    return {"A_p robot's draw": drawn.mean_position_accuracy, "A_n": robot.mean_name_accuracy,
+            "A_p fit": fit.mean_position_accuracy,
+            "A_p names": names.mean_position_accuracy, "A_p robot": robot.mean_position_accuracy,
+            "places": {p: (fit.position_accuracy.get(p), names.position_accuracy.get(p),
+                           robot.position_accuracy.get(p))
+                       for p in robot.places}}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("set", choices=("natural", "written"))
+    parser.add_argument("--sigverse", type=Path, default=Path("/work/shared/datasets/sigverse"))
+    parser.add_argument("--accepted", type=Path, default=HERE / "development" / "accepted_names_dev.json")
+    parser.add_argument("--speech", type=Path, default=HERE / "development" / "speech_dev.csv")
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0])
+    parser.add_argument("--sweeps", type=int, default=60)
+    parser.add_argument("--leave-one-out", action="store_true")
+    parser.add_argument("--homes", nargs="*", default=None)
+    args = parser.parse_args()
+    if any(s not in SIDES["development"]["seeds"] for s in args.seeds):
+        parser.error("development seeds are 0-99 (benchmarks/SPLIT.md)")
+    accepted = read_names(args.accepted)
+    runs = []
+    started = time.perf_counter()
+    for seed in args.seeds:
+        if args.set == "natural":
+            _, configs = _configurations(args, accepted)
+            labels = [c[0] for c in configs]
+            chosen = [c for c in configs if not args.homes or c[0].split()[0] in args.homes]
+            jobs = [(label, homes, env, trial_seed(seed, labels.index(label)))
+                    for label, homes, env in chosen]
+        else:
+            experienced = taught_homes(args.sigverse, read_speech(args.speech), seed)
+            env = new_home(args.sigverse, args.sigverse.parent / "sigverse_regions.json", "3LDK_9", accepted)
+            jobs = [("3LDK_9", experienced, env, trial_seed(seed, 0))]
+        for label, homes, env, trial in jobs:
+            corpus = Corpus([*homes, env])
+            model = SpCoTransfer(None, variant="exact", prune_words=True, n_iterations=args.sweeps,
+                                 random_state=trial).fit(corpus)
+            scored = scored_as_test(env) if label.endswith("(out)") else env
+            row = _score(model, len(corpus) - 1, scored, corpus.vocabulary, seed)
+            runs.append(row)
+            print(f"seed {seed} {label}: A_n {row['A_n']:.3f}  A_p fit {row['A_p fit']:.3f}  A_p names "
+                  f"{row['A_p names']:.3f}  A_p robot {row['A_p robot']:.3f}  A_p robot's draw "
+                  f"{row[DRAW]:.3f}  "
+                  f"({time.perf_counter() - started:.0f} s)", flush=True)
+            for place, values in row["places"].items():
+                print(f"    {place}: " + " / ".join(f"{v:.2f}" for v in values))
+    for key in ("A_n", "A_p fit", "A_p names", "A_p robot", "A_p robot's draw"):
+        values = np.array([r[key] for r in runs], dtype=float)
+        print(f"{key}: mean {np.nanmean(values):.3f} over {values.size} fits")
+
+
+if __name__ == "__main__":
+    main()
