@@ -214,6 +214,18 @@ class HomeShard(ShardInitialisation):
         self.hyper = replace(self.hyper, view_counts=view_counts)
         self.settings = replace(self.settings, view_counts=view_counts)
 
+    def visual_prior_moments(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The shard's views by concept as proportions, for the visual prior's estimate
+        (:func:`spco.model.visual_prior.home_view_moments`)."""
+        from spco.model.visual_prior import home_view_moments
+
+        return home_view_moments(self.data, self.state.concepts, self.hyper.n_concepts)
+
+    def set_visual_prior(self, delta_visual: float, alpha_visual: float) -> None:
+        """From the next sweep on, θ^v ~ Dir(δ^v φ^v) and φ^v ~ Dir(α^v) at these values (the
+        driver's estimate)."""
+        self.hyper = replace(self.hyper, delta_visual=float(delta_visual), alpha_visual=float(alpha_visual))
+
     def shared_parameters(self) -> SharedParameters:
         """The shared parameters the shard holds."""
         return SharedParameters.of(self.state)
