@@ -303,7 +303,10 @@ def _sample_chain(engine: Any, source: Any, hyper: TransferHyperparameters, sett
             bar.update(1)
         if iteration in keep:
             shared = run.shared
-            by_iteration[iteration] = (shared.log_phi_v.copy(), shared.log_phi_w.copy(), shared.log_g0.copy())
+            # the power target: φ^v's conditional mean given the sweep's tables (GlobalStep.visual_mean)
+            mean_v = getattr(run.global_step, "visual_mean", None)
+            log_phi_v = shared.log_phi_v if mean_v is None else mean_v
+            by_iteration[iteration] = (log_phi_v.copy(), shared.log_phi_w.copy(), shared.log_g0.copy())
             if shared.channels is not None:
                 channel_samples[iteration] = shared.channels.copy()
                 expected[iteration] = functools.reduce(operator.add, run.call("expected_channel_tokens"))

@@ -369,6 +369,11 @@ class GlobalStep:
                  rng: np.random.Generator) -> None:
         self.hyper, self.settings, self.rng = hyper, settings, rng
         self.bytes_received = 0
+        #: log E[φ^v | the last sweep's tables] (L, D) under the power target: the mean of the φ^v
+        #: step's proposal Dir(α^v + M + F), what a knowledge averages instead of the draws (a
+        #: Dirichlet with parameters far below one draws most of its coordinates near e^(−1/a), so an
+        #: average of a few draws is no estimate of the mean); ``None`` otherwise
+        self.visual_mean: np.ndarray | None = None
 
     def run(self, call, shared: SharedParameters) -> SharedParameters:
         """New shared parameters given the current ones and the shards' statistics."""
@@ -386,6 +391,9 @@ class GlobalStep:
         log_phi_v = HierarchicalMultinomial.accept_shared(
             lambda old, new: self.reduce(call("visual_log_weight", old, new)), shared.log_phi_v,
             hyper.alpha_visual, tables_v, frac_v, rng, bool(fractional.any()))
+        if hyper.target == "power":
+            pseudo = hyper.alpha_visual + tables_v + frac_v
+            self.visual_mean = np.log(pseudo) - np.log(pseudo.sum(axis=-1, keepdims=True))
         log_phi_w = log_dirichlet(hyper.alpha_word + self.reduce(call("tables", "words")), rng)
         tables_g = self.reduce(call("tables", "concepts"))
         log_g0 = log_dirichlet(hyper.gamma0 / hyper.n_concepts + tables_g, rng)

@@ -302,11 +302,11 @@ def _power_channel_logits(words: sp.csr_array, homes: np.ndarray, log_theta_w: n
         place = channels.log_place[:, cols].T
         background = np.broadcast_to(channels.log_background[cols][:, None], name.shape)
         stacked = np.stack([name, place, background], axis=-1)  # (nnz, L, 3)
-        return prior[:, None, :] + scale[:, None, None] * stacked
+        return scale[:, None, None] * (prior[:, None, :] + stacked)
     c = concepts[rows]
     stacked = np.column_stack([log_theta_w[e, c, cols], channels.log_place[c, cols],
                                channels.log_background[cols]])
-    return prior + scale[:, None] * stacked
+    return scale[:, None] * (prior + stacked)
 
 
 def _power_token_terms(words: sp.csr_array, homes: np.ndarray, log_theta_w: np.ndarray,
@@ -355,7 +355,7 @@ def channel_counts(words: sp.csr_array, concepts: np.ndarray, switches: np.ndarr
     background = np.bincount(cols[is_background], weights=weight[is_background],
                              minlength=V).astype(np.int64)
     by_word = np.zeros((V, 3), dtype=np.int64)
-    np.add.at(by_word, (cols, switches.astype(np.int64)), 1)
+    np.add.at(by_word, (cols, switches.astype(np.int64)), weight)
     return ChannelCounts(place, background, by_word)
 
 
