@@ -6,11 +6,11 @@ channel likelihood to s_ti = W^w n_ti (n_ti its occurrences), everywhere. The vi
 (θ^v, φ^v, the label swaps' visual ratio, a chain of views alone) are checked in
 ``tests/test_tempered.py``; here:
 
-(a) a token's switch given its concept: the enumerated joint Π_i (p(z_i | k_i) p(k_i | z_i, l))^{s_i} of a
-    sentence (the token's switch and word together raised to its weight), marginalised to each token;
-(b) the concept's word likelihood, the switches marginalised:
-    log Σ_z Π_i (p(z_i | k_i) p(k_i | z_i, l))^{s_i}, enumerated (a word said twice counts 2 W^w);
-(c) the statistics θ^w, ψ, β and λ are drawn from: s_ti per token;
+(a) a token's switch given its concept: the enumerated joint Π_i p(z_i | k_i) p(k_i | z_i, l)^{s_i} of a
+    sentence, marginalised to each token;
+(b) the concept's word likelihood, the switches marginalised: log Σ_z Π_i p(z_i | k_i) p(k_i | z_i, l)^{s_i},
+    enumerated (a word said twice counts 2 W^w);
+(c) the statistics θ^w, ψ and β are drawn from: s_ti per token; the switch prior's (λ's) once;
 (d) the whole chain (assignments, switches, θ^v, θ^w, φ^v, φ^w, ψ, β, λ, G_0, G_e and the label
     swaps) on two homes of two samples each: the distribution of the assignments over the sweeps
     against the posterior of the stated model with every parameter integrated out (enumerated over
@@ -93,7 +93,7 @@ def _sentence_table(t: int, occurrences, homes, concept: int, log_theta, channel
         total = 0.0
         for k, z in zip(ks, zs, strict=True):
             log_prior, like = _token_terms(k, homes[t], concept, log_theta, channels)
-            total += word_counts * occurrences[t, k] * (log_prior[z] + like[z])
+            total += log_prior[z] + word_counts * occurrences[t, k] * like[z]
         table[zs] = total
     return ks, table
 
@@ -141,7 +141,7 @@ def test_statistics_count_each_token_at_its_power() -> None:
     by_word, expected_names = np.zeros((4, 3)), np.zeros((3, 4))
     for j, (t, k) in enumerate(zip(rows, cols, strict=True)):
         s = 3 * occurrences[t, k]
-        by_word[k, switches[j]] += s  # λ | z: the switch prior, raised with the token
+        by_word[k, switches[j]] += 1  # λ | z: the switch prior, once per token
         if switches[j] == PLACE:
             place[concepts[t], k] += s
         elif switches[j] == BACKGROUND:
@@ -240,7 +240,7 @@ def exact_class_probabilities() -> np.ndarray:
             for k, zi in zip(WORDS, z, strict=True):
                 rest = grid * e[k, 1:]
                 split = rest / rest.sum(1, keepdims=True)
-                prior = prior * ((e[k, 0] if zi == NAME else (1 - e[k, 0]) * split[:, zi - 1]) ** s)
+                prior = prior * (e[k, 0] if zi == NAME else (1 - e[k, 0]) * split[:, zi - 1])
             total += np.log(prior.mean())
             k = _label_class(c)
             log_p[k] = np.logaddexp(log_p[k], total)

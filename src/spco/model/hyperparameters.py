@@ -168,8 +168,7 @@ class TransferHyperparameters:
         identities from before it are unchanged).
     target: what the exact sampler's chain targets (:data:`TARGETS`): ``"power"`` — the power
         likelihood of docs/model.md ("The model the sampler targets"): a view's multinomial raised to
-        ω_t = min(1, w / Σ_d v_d), a word token's switch prior and channel likelihood to W^w times its
-        occurrences, in
+        ω_t = min(1, w / Σ_d v_d), a word token's channel likelihood to W^w times its occurrences, in
         every conditional (θ^v, φ^v, θ^w, ψ, β, the switches, the assignments, the label swaps and
         block moves), so that the chain has one stationary distribution; it needs a whole
         ``word_counts`` (a word token's counts stay whole: φ^w's CRT tables). ``"cut"`` (default) —

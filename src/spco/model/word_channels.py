@@ -112,9 +112,9 @@ class WordChannels:
     #: the word increment (1: S^w counts per token, as before the word weight)
     token_weight: float = 1.0
     #: the power likelihood in every step (``TransferHyperparameters.target == "power"``): a token's
-    #: switch prior and channel likelihood together raised to s_ti = W^w n_ti in its switch and its
-    #: concept alike, and θ^w, ψ, β and λ counting it s_ti times (:func:`token_scales`); ``False``: the
-    #: cut sampler of the module docstring (switch once, concept W^w, θ^w S^w)
+    #: channel likelihood raised to s_ti = W^w n_ti in its switch and its concept alike, and θ^w, ψ
+    #: and β counting it s_ti times (:func:`token_scales`); ``False``: the cut sampler of the module
+    #: docstring (switch once, concept W^w, θ^w S^w)
     power: bool = False
     #: :meth:`log_prior`, computed once per channels (every field is replaced, never changed in place)
     _log_prior: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
@@ -291,9 +291,8 @@ def token_scales(words: sp.csr_array, channels: WordChannels) -> np.ndarray:
 
 def _power_channel_logits(words: sp.csr_array, homes: np.ndarray, log_theta_w: np.ndarray,
                           channels: WordChannels, concepts: np.ndarray | None = None) -> np.ndarray:
-    """s_ti (log p(z = c | k) + log p(k | c, l)) of every token: (nnz, L, 3) for every concept l of the
-    token's home, or (nnz, 3) at its sample's concept ``concepts`` (power likelihood: the switch and
-    the word raised together, so the linguistic prior keeps its weight against the channel's fit)."""
+    """log p(z = c | k) + s_ti log p(k | c, l) of every token: (nnz, L, 3) for every concept l of the
+    token's home, or (nnz, 3) at its sample's concept ``concepts`` (power likelihood)."""
     rows, cols, _ = _tokens(words)
     scale = token_scales(words, channels)
     prior = channels.log_prior()[cols]  # (nnz, 3)
@@ -303,16 +302,16 @@ def _power_channel_logits(words: sp.csr_array, homes: np.ndarray, log_theta_w: n
         place = channels.log_place[:, cols].T
         background = np.broadcast_to(channels.log_background[cols][:, None], name.shape)
         stacked = np.stack([name, place, background], axis=-1)  # (nnz, L, 3)
-        return scale[:, None, None] * (prior[:, None, :] + stacked)
+        return prior[:, None, :] + scale[:, None, None] * stacked
     c = concepts[rows]
     stacked = np.column_stack([log_theta_w[e, c, cols], channels.log_place[c, cols],
                                channels.log_background[cols]])
-    return scale[:, None] * (prior + stacked)
+    return prior + scale[:, None] * stacked
 
 
 def _power_token_terms(words: sp.csr_array, homes: np.ndarray, log_theta_w: np.ndarray,
                        channels: WordChannels) -> np.ndarray:
-    """log Σ_c (p(z = c | k) p(k | c, l))^{s_ti} of every token and concept (nnz, L): the token's
+    """log Σ_c p(z = c | k) p(k | c, l)^{s_ti} of every token and concept (nnz, L): the token's
     likelihood with its switch marginalised under the power likelihood."""
     return logsumexp(_power_channel_logits(words, homes, log_theta_w, channels), axis=-1)
 
@@ -343,8 +342,8 @@ class ChannelCounts(AdditiveCounts):
 def channel_counts(words: sp.csr_array, concepts: np.ndarray, switches: np.ndarray,
                    n_concepts: int, scales: np.ndarray | None = None) -> ChannelCounts:
     """:class:`ChannelCounts` of the tokens of ``words`` with their switches (nnz,). ``scales``
-    (nnz,), whole numbers: each token's counts in ψ, β and ``by_word`` (the switch prior's statistic,
-    λ's) (:func:`token_scales`, the power likelihood; default once each)."""
+    (nnz,), whole numbers: each token's counts in ψ and β (:func:`token_scales`, the power
+    likelihood; default once each); ``by_word``, the switch prior's statistic, counts each token once."""
     V = words.shape[1]
     rows, cols, _ = _tokens(words)
     weight = (np.ones(rows.size, dtype=np.int64) if scales is None
@@ -356,7 +355,7 @@ def channel_counts(words: sp.csr_array, concepts: np.ndarray, switches: np.ndarr
     background = np.bincount(cols[is_background], weights=weight[is_background],
                              minlength=V).astype(np.int64)
     by_word = np.zeros((V, 3), dtype=np.int64)
-    np.add.at(by_word, (cols, switches.astype(np.int64)), weight)
+    np.add.at(by_word, (cols, switches.astype(np.int64)), 1)
     return ChannelCounts(place, background, by_word)
 
 
