@@ -174,7 +174,9 @@ class TransferHyperparameters:
         ``word_counts`` (a word token's counts stay whole: φ^w's CRT tables). ``"cut"`` (default) —
         the assignments weigh views and tokens so, θ^v and φ^v count every visual count, θ^w a name
         token's S^w counts and the switch a token once (a modular sampler). Written by :meth:`to_dict`
-        only when not ``"cut"`` (files and experiment identities from before it are unchanged).
+        only when not ``"cut"`` (files and experiment identities from before it are unchanged). The
+        paper's δ^v and α^v are set for raw counts: with ``"power"`` use ``visual_prior="estimate"``
+        (docs/model.md, "The visual prior in the power target's units").
     visual_prior: ``"given"`` (default): δ^v and α^v as set; ``"estimate"``: both estimated from the
         experienced homes' views by the method of moments, on the concepts of the start, before the
         chain (:func:`spco.model.visual_prior.estimate_visual_prior`; exact variant, two homes or
