@@ -31,7 +31,7 @@ def _homes(rng: np.random.Generator, delta: float, alpha: float, n_homes: int = 
                 concepts.append(c)
     n = len(rows)
     visual = sp.csr_array(np.array(rows, dtype=np.int64))
-    words = sp.csr_array((n, 1), dtype=np.int64)
+    words = sp.csr_array(np.ones((n, 1), dtype=np.int64))  # every view taught
     offsets = np.arange(0, n + 1, L * n_views)
     data = PreparedData(positions=np.zeros((n, 4)), homes=np.array(homes), visual=visual, words=words,
                         n_homes=n_homes, offsets=offsets, position_scale=1.0,
@@ -53,19 +53,20 @@ def test_the_estimate_recovers_the_model_s_concentrations(delta: float, alpha: f
 
 
 def test_the_moments_brute_force() -> None:
-    """:func:`home_view_moments` against a loop over the views of two small homes."""
+    """:func:`home_view_moments` against a loop over the taught views of two small homes."""
     rng = np.random.default_rng(0)
     counts = rng.integers(0, 4, size=(7, 5))
     counts[2] = 0  # a sample without a view is left out
+    said = np.array([1, 1, 1, 1, 0, 1, 1])  # and one without a word (untaught)
     homes = np.array([0, 0, 0, 1, 1, 1, 1])
     concepts = np.array([1, 0, 1, 2, 2, 0, 2])
     data = PreparedData(positions=np.zeros((7, 4)), homes=homes, visual=sp.csr_array(counts),
-                        words=sp.csr_array((7, 1), dtype=np.int64), n_homes=2, offsets=np.array([0, 3, 7]),
+                        words=sp.csr_array(said[:, None]), n_homes=2, offsets=np.array([0, 3, 7]),
                         position_scale=1.0, map_centres=np.zeros((2, 4)))
     m, s, q = home_view_moments(data, concepts, 3)
     m2, s2, q2 = np.zeros((2, 3)), np.zeros((2, 3, 5)), np.zeros((2, 3))
     for t in range(7):
-        if counts[t].sum() == 0:
+        if counts[t].sum() == 0 or not said[t]:
             continue
         p = counts[t] / counts[t].sum()
         m2[homes[t], concepts[t]] += 1

@@ -32,18 +32,20 @@ __all__ = ["estimate_visual_prior", "home_view_moments"]
 
 def home_view_moments(data: PreparedData, concepts: np.ndarray, n_concepts: int
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Each home's views by concept, as proportions: (m (E, L) views, S (E, L, D) the sum of their
-    proportions p_t = v_t / Σ_d v_{t,d}, Q (E, L) the sum of ||p_t||²). Samples without a view
-    (no count) are left out."""
+    """Each home's taught views by concept, as proportions: (m (E, L) views, S (E, L, D) the sum of
+    their proportions p_t = v_t / Σ_d v_{t,d}, Q (E, L) the sum of ||p_t||²). Samples without a view
+    (no count) or without a word are left out: the start's concept of an untaught sample is a guess
+    (a new home in a joint fit: its views spread over the concepts would read as homes that differ)."""
     E, D = data.n_homes, data.visual.shape[1]
     m = np.zeros((E, n_concepts))
     s = np.zeros((E, n_concepts, D))
     q = np.zeros((E, n_concepts))
     visual = sp.csr_array(data.visual, dtype=np.float64)
     totals = np.asarray(visual.sum(axis=1)).ravel()
+    taught = np.diff(sp.csr_array(data.words).indptr) > 0
     for e in range(E):
         rows = np.arange(int(data.offsets[e]), int(data.offsets[e + 1]))
-        rows = rows[totals[rows] > 0]
+        rows = rows[(totals[rows] > 0) & taught[rows]]
         if not rows.size:
             continue
         props = sp.diags_array(1.0 / totals[rows]) @ visual[rows]
