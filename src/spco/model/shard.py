@@ -221,6 +221,16 @@ class HomeShard(ShardInitialisation):
 
         return home_view_moments(self.data, self.state.concepts, self.hyper.n_concepts)
 
+    def visual_means(self) -> np.ndarray:
+        """The shard's log θ^v summary for a fit's average (E, L, D): under the power target its
+        conditional mean log((δ^v φ^v + n^v) / (δ^v + N^v)) given the sweep's counts (a Dirichlet with
+        parameters far below one draws most coordinates near e^(−1/a): no estimate of its mean),
+        otherwise the draw."""
+        if self.hyper.target != "power" or self.stats is None:
+            return self.state.log_theta_v
+        a = self.hyper.delta_visual * np.exp(self.state.log_phi_v)[None] + self._stats().visual
+        return np.log(a) - np.log(a.sum(axis=-1, keepdims=True))
+
     def set_visual_prior(self, delta_visual: float, alpha_visual: float) -> None:
         """From the next sweep on, θ^v ~ Dir(δ^v φ^v) and φ^v ~ Dir(α^v) at these values (the
         driver's estimate)."""

@@ -221,6 +221,10 @@ class ShardGroup:
         in home order."""
         return self._each("visual_prior_moments")
 
+    def visual_means(self) -> list[np.ndarray]:
+        """Every home's log θ^v summary (:meth:`HomeShard.visual_means`), in home order."""
+        return [m for h in self.homes for m in h.visual_means()]
+
     def set_visual_prior(self, delta_visual: float, alpha_visual: float) -> None:
         """Every home draws θ^v at these δ^v and α^v from the next sweep on."""
         self._each("set_visual_prior", delta_visual, alpha_visual)
