@@ -201,7 +201,10 @@ def fit_knowledge(
     fits = [v for part in run.call("held_out_view_fits", log_phi_v, log_g0, totals) for v in part]
     run.close()
     record["view_fit"] = _view_fit_record(dict(zip(corpus.names, fits, strict=True)))
-    record.update({**_view_weight_record(run.view_weight), **(provenance or {})})
+    visual_prior = getattr(run, "visual_prior", None)  # the estimated δ^v, α^v (None: given)
+    record.update({**_view_weight_record(run.view_weight),
+                   **({"visual_prior": visual_prior} if visual_prior is not None else {}),
+                   **(provenance or {})})
     return Knowledge(
         log_phi_visual=log_phi_v, log_phi_words=log_phi_w, log_g0=log_g0, word_mask=word_mask,
         concentration_visual=_concentration(phi_v_samples, hyper.delta_visual),
@@ -300,7 +303,10 @@ def _sample_chain(engine: Any, source: Any, hyper: TransferHyperparameters, sett
             bar.update(1)
         if iteration in keep:
             shared = run.shared
-            by_iteration[iteration] = (shared.log_phi_v.copy(), shared.log_phi_w.copy(), shared.log_g0.copy())
+            # the power target: φ^v's conditional mean given the sweep's tables (GlobalStep.visual_mean)
+            mean_v = getattr(run.global_step, "visual_mean", None)
+            log_phi_v = shared.log_phi_v if mean_v is None else mean_v
+            by_iteration[iteration] = (log_phi_v.copy(), shared.log_phi_w.copy(), shared.log_g0.copy())
             if shared.channels is not None:
                 channel_samples[iteration] = shared.channels.copy()
                 expected[iteration] = functools.reduce(operator.add, run.call("expected_channel_tokens"))

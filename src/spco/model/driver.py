@@ -25,6 +25,7 @@ from spco.model.shard_group import ShardGroup
 from spco.model.sources import HomeSource
 from spco.model.state import GibbsState, PreparedData, SamplerSettings
 from spco.model.view_fit import VIEW_WEIGHT_GRID, estimate_view_weight
+from spco.model.visual_prior import estimate_visual_prior
 
 
 class ShardedRun(ABC):
@@ -59,6 +60,27 @@ class ShardedRun(ABC):
         self.view_weight: dict | None = None
         if hyper.view_counts == ESTIMATE and settings.variant == "exact":
             self._estimate_view_weight()
+        #: the visual prior's estimate (``None``: δ^v and α^v were given)
+        self.visual_prior: dict | None = None
+        if hyper.visual_prior == "estimate" and settings.variant == "exact" and self.n_homes > 1:
+            self._estimate_visual_prior()
+
+    def _estimate_visual_prior(self) -> None:
+        """Estimate δ^v and α^v from the homes' views on the concepts of the start
+        (:func:`spco.model.visual_prior.estimate_visual_prior`) and make every worker, the global
+        step and this run's ``hyper`` use them from the first sweep of the chain on; a value that
+        cannot be estimated stays as given."""
+        parts = [home for part in self.call("visual_prior_moments") for home in part]  # home order
+        m, s, q = (np.concatenate(arrays, axis=0) for arrays in zip(*parts, strict=True))
+        delta, alpha = estimate_visual_prior(m, s, q)
+        self.visual_prior = {"delta_visual_estimated": delta is not None,
+                             "alpha_visual_estimated": alpha is not None}
+        delta = self.hyper.delta_visual if delta is None else delta
+        alpha = self.hyper.alpha_visual if alpha is None else alpha
+        self.visual_prior.update(delta_visual=float(delta), alpha_visual=float(alpha))
+        self.hyper = dataclasses.replace(self.hyper, delta_visual=float(delta), alpha_visual=float(alpha))
+        self.global_step.hyper = self.hyper
+        self.call("set_visual_prior", float(delta), float(alpha))
 
     def _estimate_view_weight(self) -> None:
         """Learn the view weight w from the homes (:func:`spco.model.view_fit.estimate_view_weight`,

@@ -38,6 +38,11 @@ BlockMoves = Literal["off", "adapt", "all"]
 TARGETS = ("cut", "power")
 Target = Literal["cut", "power"]
 
+#: Where the exact sampler's δ^v and α^v come from (``TransferHyperparameters.visual_prior``): as given,
+#: or estimated from the homes' views after the start (:mod:`spco.model.visual_prior`).
+VISUAL_PRIORS = ("given", "estimate")
+VisualPrior = Literal["given", "estimate"]
+
 #: The word models of the exact sampler with "+MI": word channels (name / place / background switch per
 #: token, :mod:`spco.model.word_channels`) or the naming rule (words pruned by where they are said,
 #: :mod:`spco.model.pruning`).
@@ -169,7 +174,18 @@ class TransferHyperparameters:
         ``word_counts`` (a word token's counts stay whole: φ^w's CRT tables). ``"cut"`` (default) —
         the assignments weigh views and tokens so, θ^v and φ^v count every visual count, θ^w a name
         token's S^w counts and the switch a token once (a modular sampler). Written by :meth:`to_dict`
-        only when not ``"cut"`` (files and experiment identities from before it are unchanged).
+        only when not ``"cut"`` (files and experiment identities from before it are unchanged). The
+        paper's δ^v and α^v are set for raw counts: with ``"power"`` use ``visual_prior="estimate"``
+        (docs/model.md, "The visual prior in the power target's units").
+    visual_prior: ``"given"`` (default): δ^v and α^v as set; ``"estimate"``: both estimated from the
+        experienced homes' views by the method of moments, on the concepts of the start, before the
+        chain (:func:`spco.model.visual_prior.estimate_visual_prior`; exact variant, two homes or
+        more): δ^v from the spread of the homes' view proportions around their concept's mean, α^v
+        from the concepts' spread around the uniform — the priors in the units of proportions,
+        which the power target's w draws per view do not swamp (``target="power"``). The fitted
+        model's hyperparameters hold the numbers (a knowledge file, and every home adapted from it,
+        carries them); a quantity that cannot be estimated keeps its given value. Written by
+        :meth:`to_dict` only when not ``"given"``.
     evidence_weight: η, the weight of the linguistic evidence in the switch's prior (word channels):
         p(z = name | word) ∝ λ_name ν^η, p(z = place or background) ∝ λ_c (1 − ν)^η, ν the name
         evidence of :mod:`spco.model.name_evidence`. Default :data:`EVIDENCE_WEIGHT`, chosen on
@@ -198,6 +214,7 @@ class TransferHyperparameters:
     word_counts: float | None = WORD_COUNTS
     block_moves: BlockMoves = "off"
     target: Target = "cut"
+    visual_prior: VisualPrior = "given"
 
     def __post_init__(self) -> None:
         for name in ("n_concepts", "n_regions"):
@@ -239,6 +256,9 @@ class TransferHyperparameters:
         if self.target not in TARGETS:
             raise ConfigurationError(f"target must be one of {', '.join(map(repr, TARGETS))}, "
                                      f"got {self.target!r}")
+        if self.visual_prior not in VISUAL_PRIORS:
+            raise ConfigurationError(f"visual_prior must be one of {', '.join(map(repr, VISUAL_PRIORS))}, "
+                                     f"got {self.visual_prior!r}")
         if (self.target == "power" and self.word_counts is not None
                 and float(self.word_counts) != round(float(self.word_counts))):
             raise ConfigurationError(f"word_counts must be a whole number with target='power' (a word "
@@ -288,10 +308,12 @@ class TransferHyperparameters:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dictionary (``name_prior`` and ``block_moves`` only when not ``"off"``, ``target``
-        only when not ``"cut"``)."""
+        only when not ``"cut"``, ``visual_prior`` only when not ``"given"``)."""
         data = asdict(self)
         if data["target"] == "cut":
             del data["target"]
+        if data["visual_prior"] == "given":
+            del data["visual_prior"]
         if data["name_prior"] == "off":
             del data["name_prior"]
         if data["block_moves"] == "off":
@@ -329,7 +351,8 @@ class TransferHyperparameters:
             if kind is None:
                 raise ConfigurationError(f"hyperparameter setting {setting!r}: no hyperparameter {name!r}; "
                                          f"settable: {', '.join(SETTABLE)}")
-            if kind in ("one of channels, naming-rule", "one of off, adapt, all", "one of cut, power"):
+            if kind in ("one of channels, naming-rule", "one of off, adapt, all", "one of cut, power",
+                        "one of given, estimate"):
                 changes[name] = text
                 continue
             if name == "view_counts" and text.lower() == ESTIMATE:
@@ -359,7 +382,7 @@ SETTABLE: dict[str, str] = {
     "beta": "a number", "kappa0": "a number", "nu0": "a number", "mi_threshold": "number or none",
     "view_counts": "number, none or estimate", "evidence_weight": "a number", "word_counts": "number or none",
     "word_model": "one of channels, naming-rule", "block_moves": "one of off, adapt, all",
-    "target": "one of cut, power",
+    "target": "one of cut, power", "visual_prior": "one of given, estimate",
 }
 
 

@@ -214,6 +214,28 @@ class HomeShard(ShardInitialisation):
         self.hyper = replace(self.hyper, view_counts=view_counts)
         self.settings = replace(self.settings, view_counts=view_counts)
 
+    def visual_prior_moments(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The shard's views by concept as proportions, for the visual prior's estimate
+        (:func:`spco.model.visual_prior.home_view_moments`)."""
+        from spco.model.visual_prior import home_view_moments
+
+        return home_view_moments(self.data, self.state.concepts, self.hyper.n_concepts)
+
+    def visual_means(self) -> np.ndarray:
+        """The shard's log θ^v summary for a fit's average (E, L, D): under the power target its
+        conditional mean log((δ^v φ^v + n^v) / (δ^v + N^v)) given the sweep's counts (a Dirichlet with
+        parameters far below one draws most coordinates near e^(−1/a): no estimate of its mean),
+        otherwise the draw."""
+        if self.hyper.target != "power" or self.stats is None:
+            return self.state.log_theta_v
+        a = self.hyper.delta_visual * np.exp(self.state.log_phi_v)[None] + self._stats().visual
+        return np.log(a) - np.log(a.sum(axis=-1, keepdims=True))
+
+    def set_visual_prior(self, delta_visual: float, alpha_visual: float) -> None:
+        """From the next sweep on, θ^v ~ Dir(δ^v φ^v) and φ^v ~ Dir(α^v) at these values (the
+        driver's estimate)."""
+        self.hyper = replace(self.hyper, delta_visual=float(delta_visual), alpha_visual=float(alpha_visual))
+
     def shared_parameters(self) -> SharedParameters:
         """The shared parameters the shard holds."""
         return SharedParameters.of(self.state)
@@ -357,6 +379,11 @@ class GlobalStep:
                  rng: np.random.Generator) -> None:
         self.hyper, self.settings, self.rng = hyper, settings, rng
         self.bytes_received = 0
+        #: log E[φ^v | the last sweep's tables] (L, D) under the power target: the mean of the φ^v
+        #: step's proposal Dir(α^v + M + F), what a knowledge averages instead of the draws (a
+        #: Dirichlet with parameters far below one draws most of its coordinates near e^(−1/a), so an
+        #: average of a few draws is no estimate of the mean); ``None`` otherwise
+        self.visual_mean: np.ndarray | None = None
 
     def run(self, call, shared: SharedParameters) -> SharedParameters:
         """New shared parameters given the current ones and the shards' statistics."""
@@ -374,6 +401,9 @@ class GlobalStep:
         log_phi_v = HierarchicalMultinomial.accept_shared(
             lambda old, new: self.reduce(call("visual_log_weight", old, new)), shared.log_phi_v,
             hyper.alpha_visual, tables_v, frac_v, rng, bool(fractional.any()))
+        if hyper.target == "power":
+            pseudo = hyper.alpha_visual + tables_v + frac_v
+            self.visual_mean = np.log(pseudo) - np.log(pseudo.sum(axis=-1, keepdims=True))
         log_phi_w = log_dirichlet(hyper.alpha_word + self.reduce(call("tables", "words")), rng)
         tables_g = self.reduce(call("tables", "concepts"))
         log_g0 = log_dirichlet(hyper.gamma0 / hyper.n_concepts + tables_g, rng)

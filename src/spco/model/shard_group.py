@@ -216,6 +216,19 @@ class ShardGroup:
         """Every home weighs a view ``view_counts`` from the next sweep on."""
         self._each("set_view_weight", view_counts)
 
+    def visual_prior_moments(self) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """Every home's view moments by concept (:func:`spco.model.visual_prior.home_view_moments`),
+        in home order."""
+        return self._each("visual_prior_moments")
+
+    def visual_means(self) -> list[np.ndarray]:
+        """Every home's log θ^v summary (:meth:`HomeShard.visual_means`), in home order."""
+        return [m for h in self.homes for m in h.visual_means()]
+
+    def set_visual_prior(self, delta_visual: float, alpha_visual: float) -> None:
+        """Every home draws θ^v at these δ^v and α^v from the next sweep on."""
+        self._each("set_visual_prior", delta_visual, alpha_visual)
+
     # ------------------------------------------------------------------ the start (shard_init)
     def init_has_words(self) -> bool:
         """Whether any home has a sentence."""

@@ -266,7 +266,7 @@ class SpatialConceptModel:
         self.data_ = data
         self.log_joint_ = np.asarray(trace, dtype=float)
         self.n_iter_ = int(self.n_iterations)
-        averaged_parameters = average.average.result(state, release=True)
+        averaged_parameters = average.result(state)
         self.parameters_ = self._fitted_parameters(averaged_parameters, corpus, data, state, hyper, settings,
                                                    evidence)
         self.word_channels_ = state.channels
@@ -463,15 +463,26 @@ class _SweepAverage:
         self.added: set[int] = set()
         #: the averaged sweeps' expected switch counts per word and channel (V, 3), with the word channels
         self.channel_tokens: list[np.ndarray] = []
+        #: log E[φ^v | the last sweep's tables] under the power target (``GlobalStep.visual_mean``),
+        #: exported instead of the last sweep's draw of φ^v (a Dirichlet with parameters far below one
+        #: draws most coordinates near e^(−1/a): no estimate of its mean); ``None`` otherwise
+        self.visual_mean: np.ndarray | None = None
+        #: each home's log θ^v conditional mean at the last sweep under the power target (else ``None``)
+        self.final_visual: list[np.ndarray] | None = None
 
     def after_sweep(self, run, iteration: int) -> None:
         """Add sweep ``iteration``'s state if it is averaged (not the last sweep's: see
         :meth:`add_final`). A restarted engine repeats the sweeps since its checkpoint (the same
         chain): each averaged sweep is added once."""
+        power = run.hyper.target == "power"  # θ^v's and φ^v's conditional means, not their draws
+        if iteration == self.n_iterations - 1:  # the power target: φ^v's mean given the last tables
+            self.visual_mean = getattr(run.global_step, "visual_mean", None)
+            self.final_visual = [m for part in run.call("visual_means") for m in part] if power else None
         if iteration not in self.averaged or iteration in self.added:
             return
         if iteration != self.n_iterations - 1:  # (the last sweep's state: add_final, without the workers)
-            self.average.add(run.state(visual=False), visual=run.home_visual())
+            visual = (m for part in run.call("visual_means") for m in part) if power else run.home_visual()
+            self.average.add(run.state(visual=False), visual=visual)
         if run.shared.channels is not None:
             self.channel_tokens.append(functools.reduce(operator.add, run.call("expected_channel_tokens")))
         self.added.add(iteration)
@@ -479,7 +490,15 @@ class _SweepAverage:
     def add_final(self, state: gibbs.GibbsState) -> None:
         """Add the last sweep's state (joined: ``run.state()`` after the sweeps, the workers dropped);
         it is always averaged (its switch counts were taken by :meth:`after_sweep`)."""
-        self.average.add(state)
+        self.average.add(state, visual=self.final_visual)
+
+    def result(self, state: gibbs.GibbsState):
+        """The averaged parameters (:meth:`ParameterAverage.result`, releasing the sums), with φ^v
+        the last sweep's conditional mean under the power target (:attr:`visual_mean`)."""
+        params = self.average.result(state, release=True)
+        if self.visual_mean is None:
+            return params
+        return replace(params, shared_visual_probabilities=np.exp(self.visual_mean))
 
     def expected_tokens(self) -> np.ndarray | None:
         """(V, 3) the switches' expected counts per word and channel averaged over the averaged
