@@ -51,7 +51,8 @@ from spco.model.transfer import SpCoTransfer
 with open(sys.argv[1], "rb") as fh:
     corpus = pickle.load(fh)
 warmup, sweeps, seed = int(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4])
-hyper = TransferHyperparameters()
+import os
+hyper = TransferHyperparameters(**json.loads(os.environ.get("SPCO_SWEEP_HYPER") or "{}"))
 settings = gibbs.SamplerSettings.create("exact", prune=True)
 prepare = getattr(SpCoTransfer, "prepare_data", None) or SpCoTransfer._prepare  # (8119f5b: _prepare)
 data = prepare(corpus, 1.0)
@@ -90,9 +91,13 @@ def run_process(command: list[str], env: dict[str, str]) -> dict[str, Any]:
             "status": proc.returncode, "load": load, "stdout": stdout}
 
 
-def tree_env(src: Path, cache: Path | None = None) -> dict[str, str]:
-    """The environment of a process running the sources in ``src``."""
+def tree_env(src: Path, cache: Path | None = None, hyper: str | None = None) -> dict[str, str]:
+    """The environment of a process running the sources in ``src`` (``hyper``: JSON of the sweep
+    child's :class:`TransferHyperparameters` fields)."""
     env = dict(os.environ)
+    env.pop("SPCO_SWEEP_HYPER", None)
+    if hyper:
+        env["SPCO_SWEEP_HYPER"] = hyper
     env["PYTHONPATH"] = str(src)
     env.pop("NUMBA_CACHE_DIR", None)
     if cache is not None:
@@ -125,10 +130,12 @@ def _strip(result: dict[str, Any]) -> dict[str, Any]:
 
 
 def sweep_runs(trees: dict[str, Path], homes: list[int], features: int, warmup: int, sweeps: int,
-               seed: int, corpora: Path | None = None) -> list[dict[str, Any]]:
+               seed: int, corpora: Path | None = None,
+               hypers: dict[str, str] | None = None) -> list[dict[str, Any]]:
     """Sweep time per home of every tree for each number of experienced homes. With ``corpora`` (a
     folder) the generated corpora are kept there and read back when present (the 4,096-home corpus
-    takes minutes to generate)."""
+    takes minutes to generate). ``hypers``: per tree, JSON of the sweep's hyperparameters."""
+    hypers = hypers or {}
     sys.path.insert(0, str(next(iter(trees.values()))))
     from spco import benchmark
 
@@ -154,7 +161,7 @@ def sweep_runs(trees: dict[str, Path], homes: list[int], features: int, warmup: 
             for name, src in trees.items():
                 command = [sys.executable, "-c", _SWEEP_CHILD, str(path), str(warmup), str(sweeps), str(seed)]
                 cache = Path(tmp) / f"cache-{name}"  # compiled by the first size's warm-up sweeps
-                result = run_process(command, tree_env(src, cache))
+                result = run_process(command, tree_env(src, cache, hypers.get(name)))
                 if result["status"] != 0:
                     raise RuntimeError(f"the sweep process of {name} ({n} homes) exited with status "
                                        f"{result['status']}")
@@ -228,8 +235,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--skip-sweeps", action="store_true")
     parser.add_argument("--corpora", type=Path, default=None, metavar="DIR",
                         help="keep the sweep corpora in DIR and reuse them when present")
+    parser.add_argument("--hyper", action="append", default=[], metavar="NAME=JSON",
+                        help="the sweeps of tree NAME with these TransferHyperparameters fields, e.g. "
+                             "'rule={\"word_model\": \"naming-rule\"}' (NAME may name a --code tree twice)")
     parser.add_argument("--json", action="store_true", help="print JSON instead of the tables")
     args = parser.parse_args(argv)
+    hypers = dict(item.partition("=")[::2] for item in args.hyper)
     trees: dict[str, Path] = {}
     for item in args.code or ["this=src"]:
         name, _, src = item.partition("=")
@@ -239,7 +250,7 @@ def main(argv: list[str] | None = None) -> int:
         trees[name] = path
     demo = [] if args.skip_demo else demo_runs(trees, args.repeats)
     sweeps = [] if args.skip_sweeps else sweep_runs(trees, args.homes, args.features, args.warmup,
-                                                    args.sweeps, args.seed, args.corpora)
+                                                    args.sweeps, args.seed, args.corpora, hypers)
     if args.json:
         print(json.dumps({"demo": demo, "sweeps": sweeps, "cores": os.cpu_count(),
                           "trees": {k: str(v) for k, v in trees.items()}}, indent=1))
