@@ -116,15 +116,14 @@ def _look_up_words(corpus: Corpus, new_index: int) -> None:
     from spco.model.hyperparameters import TransferHyperparameters
     from spco.model.name_evidence import channel_evidence
     from spco.model.unheard import stand_in_columns
-    from spco.model.word_channels import NAME, WordChannels
+    from spco.model.word_channels import WordChannels
 
     channel_evidence(corpus.vocabulary, [])
     weight = TransferHyperparameters().evidence_weight
     for homes in (corpus, _experienced(corpus, new_index)):
         sentences = [s for t in homes.training_set() for s in t.sentences]
         evidence, content = channel_evidence(homes.vocabulary, sentences)
-        name_prior = np.exp(WordChannels.initial(evidence, 1, weight, content).log_prior()[:, NAME])
-        stand_in_columns(homes.vocabulary, name_prior)
+        stand_in_columns(homes.vocabulary, WordChannels.initial(evidence, 1, weight, content).name_prior())
 
 
 @contextlib.contextmanager

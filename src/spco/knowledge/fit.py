@@ -294,9 +294,8 @@ def _sample_chain(engine: Any, source: Any, hyper: TransferHyperparameters, sett
         run.use_word_channels(initial)
         if vocabulary is not None:  # (the prior's name share is the evidence's: λ does not enter it)
             from spco.model.unheard import stand_in_columns
-            from spco.model.word_channels import NAME
 
-            stand_ins = stand_in_columns(vocabulary, np.exp(initial.log_prior()[:, NAME]))
+            stand_ins = stand_in_columns(vocabulary, initial.name_prior())
 
     def after_sweep(iteration: int, _: float) -> None:  # (a restarted engine repeats sweeps)
         if bar is not None:

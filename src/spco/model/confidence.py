@@ -341,13 +341,12 @@ def _model_place_names(model: object, e: int, answer: ConceptParameters) -> Conc
     names they stand in for (:func:`spco.model.unheard.stand_in_columns`), at the fit's final state
     (a knowledge averages them over its kept sweeps)."""
     from spco.model.unheard import stand_in_columns
-    from spco.model.word_channels import NAME, concept_name_tokens, place_names
+    from spco.model.word_channels import concept_name_tokens, place_names
 
     data, state = model.data_, model.state_  # type: ignore[attr-defined]
     L = state.log_theta_w.shape[1]
     others = np.flatnonzero(np.asarray(data.homes) != e)
-    stand_ins = stand_in_columns(model.vocabulary_,  # type: ignore[attr-defined]
-                                 np.exp(state.channels.log_prior()[:, NAME]))
+    stand_ins = stand_in_columns(model.vocabulary_, state.channels.name_prior())  # type: ignore[attr-defined]
     at_places = place_names(data.words, data.homes, state.concepts, state.regions, state.log_theta_w,
                             state.channels, L, rows=others, stand_ins=stand_ins)
     rows = slice(int(data.offsets[e]), int(data.offsets[e + 1]))

@@ -163,6 +163,12 @@ class WordChannels:
             self._log_prior.flags.writeable = False
         return self._log_prior
 
+    def name_prior(self) -> np.ndarray:
+        """(V,) p(z = name | word k), the linguistic evidence's name share (the names column of
+        :meth:`log_prior`): what the names said at a place and the names objects stand in for weigh
+        a word by."""
+        return np.exp(self.log_prior()[:, NAME])
+
     def _compute_log_prior(self) -> np.ndarray:
         log_e = self.log_evidence - logsumexp(self.log_evidence, axis=1, keepdims=True)
         rest = logsumexp(log_e[:, 1:], axis=1)  # log p(not a name | k)
@@ -520,7 +526,7 @@ def place_names(words: sp.csr_array, homes: np.ndarray, concepts: np.ndarray, re
         return out
     token_row, cols, _ = _tokens(words)
     p = switch_probabilities(words, homes, concepts, log_theta_w, channels)
-    prior_name = np.exp(channels.log_prior()[:, NAME])
+    prior_name = channels.name_prior()
     named = p[:, NAME] * prior_name[cols] ** float(evidence_power)
     if stand_ins is not None:
         stand_ins = np.asarray(stand_ins, dtype=np.int64)
