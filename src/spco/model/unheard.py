@@ -8,12 +8,14 @@ A user may ask for "the restroom", "the lounge" or "the powder room" in a home w
 derivations, similarity) among the home's candidate names (:func:`candidate_names`: usable words that
 are names by the model — name prior ≥ :data:`MIN_CANDIDATE_PRIOR` when the model has a prior,
 :mod:`spco.model.name_evidence`, and mutual information ≥ :data:`MIN_CANDIDATE_INFORMATION` of the
-largest — or rooms by WordNet, never kinds of place such as "room" or "area"). It asks in four
-steps and keeps the first answer: a lexical relation (synonym, definition, head, modifier,
+largest — or rooms by WordNet, never kinds of place such as "room" or "area"). It asks in steps
+and keeps the first answer: a lexical relation (synonym, definition, head, modifier,
 derivation) to one of the home's firmly bound names (information ≥ :data:`FIRM_INFORMATION` of the
 largest: one or two per place), the same to any candidate, then the name's own words that the home's
 people say, kinds of place left out (:func:`said_words`: "sink area" -> "sink", "soaking room" ->
-"soak"), then WordNet similarity to a firmly bound name, then to any candidate. ``where`` answers
+"soak"), then a lexical relation to a word said at a place (:func:`place_words`, by the names θ and
+the words of a place ψ: "telly room" -> "tv", "bathing room" -> "bath" said as a thing), then
+WordNet similarity to a firmly bound name, then to any candidate. ``where`` answers
 for that name, saying which one it used ("restroom -> toilet":
 :attr:`spco.model.position_prediction.PositionPrediction.asked`). When nothing is found, the name's
 own known words said together answer ("great + room"); a name none of whose words is known is an
