@@ -358,6 +358,21 @@ def test_a_name_never_heard_is_found_by_the_words_said_at_a_place(wordnet) -> No
         predict_positions(params, 0, vocab, "garage", n=3, rng=0)
 
 
+def test_a_quality_said_at_a_place_does_not_stand_for_it(wordnet) -> None:
+    """"wet" (WordNet: mostly an adjective) said only at the washroom neither answers "wet room" as its
+    own word nor as a word of a place; "sink" (a noun and a verb, never a quality) answers "sink area"."""
+    from spco.model.unheard import QUALITY_SHARE, place_words, said_words
+
+    assert wordnet.quality_share("wet") > QUALITY_SHARE and wordnet.quality_share("small") > QUALITY_SHARE
+    assert wordnet.quality_share("sink") == 0.0 and wordnet.quality_share("bath") == 0.0
+    vocab = Vocabulary(("living room", "washroom", "wet", "sink", "room"))
+    mask = np.ones(5, dtype=bool)
+    assert said_words(vocab, mask, "wet room", wordnet) == []
+    assert said_words(vocab, mask, "sink area", wordnet) == ["sink"]
+    place = np.array([0.4, 0.4, 0.3, 0.3, 0.0])
+    assert place_words(vocab, mask, place, wordnet, exclude=["living room", "washroom"]) == ["sink"]
+
+
 def test_names_said_are_answered_as_before_whatever_the_lexicon_finds(wordnet) -> None:
     """The look-up acts only on a name that is not one usable token: every word said (names, things
     said at a place, function words) is answered exactly as without it."""

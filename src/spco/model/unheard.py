@@ -41,6 +41,7 @@ __all__ = [
     "PLACE_CANDIDATE_SHARE",
     "PLACE_WORD",
     "PLACE_WORD_HOW",
+    "QUALITY_SHARE",
     "SAID_WORDS",
     "STAND_IN_HOW",
     "ResolvedName",
@@ -148,6 +149,10 @@ def resolve_name(vocabulary: Vocabulary, word_mask: np.ndarray, name: str,
     return ResolvedName(asked=asked, name=name, how=how, score=float(match.score))
 
 
+#: A word whose senses are more than this share adjectives or adverbs in WordNet is a quality ("wet"
+#: 0.78, "small" 0.99, "hot" 1.0), not a thing or an act ("sink", "bath", "eating" 0; "spare" 0.29):
+#: said at a place, it does not say which place a name means (:func:`said_words`, :func:`place_words`).
+QUALITY_SHARE = 0.5
 #: :attr:`ResolvedName.how` of a name answered by its own words that the home's people say.
 SAID_WORDS = "its words"
 #: :attr:`ResolvedName.how` (its first word) of a name answered by a word of a place (:func:`place_words`).
@@ -193,7 +198,7 @@ def place_words(vocabulary: Vocabulary, word_mask: np.ndarray, place_information
     return [vocabulary.words[k] for k in order if info[k] >= floor and vocabulary.words[k] not in skip
             and not is_function_word(vocabulary.words[k])
             and _kinds_below(lexicon, vocabulary.words[k]) < KINDS_BELOW
-            and not _quality_share(lexicon, vocabulary.words[k]) > 0.5]
+            and not _quality_share(lexicon, vocabulary.words[k]) > QUALITY_SHARE]
 
 
 def said_words(vocabulary: Vocabulary, word_mask: np.ndarray, name: str, lexicon: object) -> list[str]:
@@ -214,7 +219,8 @@ def said_words(vocabulary: Vocabulary, word_mask: np.ndarray, name: str, lexicon
     mask = np.asarray(word_mask, dtype=bool)
     out: list[str] = []
     for word in words:
-        if is_function_word(word) or _kinds_below(lexicon, word) >= KINDS_BELOW:
+        if (is_function_word(word) or _kinds_below(lexicon, word) >= KINDS_BELOW
+                or _quality_share(lexicon, word) > QUALITY_SHARE):
             continue
         for form in (word, *sorted(lexicon.base_forms(word) - {word})):  # type: ignore[attr-defined]
             k = vocabulary.index(form)
