@@ -308,6 +308,103 @@ def test_a_weakly_bound_name_found_gives_way_to_its_firmly_bound_synonym(wordnet
     assert found is not None and found.name == "parlour", found
 
 
+def _living_washroom_objects() -> tuple[ConceptParameters, Vocabulary]:
+    """Concept 0 at x = 0 is the living room ("tv", "sofa" said there as words of the place, ψ),
+    concept 1 at x = 5 the washroom ("bath" said there as a thing: "take a bath"). The objects have
+    a low name prior and no name information (θ^w the same at both places): no candidate names."""
+    vocab = Vocabulary(("living room", "tv", "sofa", "washroom", "bath", "is"))
+    theta = np.array([[0.5, 0.05, 0.05, 0.0, 0.05, 0.35],
+                      [0.0, 0.05, 0.05, 0.5, 0.05, 0.35]])
+    psi = np.array([[0.0, 0.45, 0.45, 0.0, 0.0, 0.1],
+                    [0.0, 0.0, 0.0, 0.0, 0.9, 0.1]])
+    prior = np.array([0.7, 0.01, 0.01, 0.7, 0.01, 0.01])
+    channels = np.column_stack([prior, 1.0 - prior, np.zeros(6)])
+    params = replace(_two_place_params(theta), name_prior=prior, place_word_probabilities=psi,
+                     word_channel_prior=channels)
+    return params, vocab
+
+
+def test_a_name_never_heard_is_found_by_the_words_said_at_a_place(wordnet) -> None:
+    """Compositional names whose words nobody said, related by WordNet to a thing said at a place
+    (ψ), not to a name: "television room" and "telly room" (a television set is a "tv") where the
+    tv is, "couch corner" where the sofa is, "bathing room" ("bathe", whose verb holds "bath") where
+    people take a bath. Without the words of a place (``place_information`` None) they are not
+    resolved, or only by WordNet similarity among the home's rooms, as before; a word said
+    everywhere alike is no word of a place."""
+    from spco.model.position_prediction import place_word_information
+    from spco.model.prediction import mutual_information_weights
+    from spco.model.unheard import PLACE_WORD, place_words
+
+    params, vocab = _living_washroom_objects()
+    info = mutual_information_weights(params, 0)
+    place = place_word_information(params, 0)
+    assert info[1] < 1e-3 * info.max() and place[1] > 0.1 * place.max()  # "tv": by ψ only
+    assert place_words(vocab, params.word_mask, place, wordnet, exclude=["living room", "washroom"]) \
+        == ["bath", "tv", "sofa"]  # by information; "is" (said alike everywhere) left out
+    cases = {"television room": ("tv", 0), "telly room": ("tv", 0), "couch corner": ("sofa", 0),
+             "bathing room": ("bath", 1)}
+    for asked, (name, region) in cases.items():
+        pred = predict_positions(params, 0, vocab, asked, n=5, rng=0)
+        assert (pred.asked, pred.name, pred.region) == (asked, name, region), (asked, pred.name, pred.via)
+        assert pred.via is not None and pred.via.startswith(PLACE_WORD)
+        assert np.all(np.abs(pred.samples[:, 0] - 5.0 * region) < 2.0)
+        before = resolve_name(vocab, params.word_mask, asked, params.name_prior, lexicon=wordnet,
+                              information=info)  # no words of a place given: a guess by similarity
+        assert before is None or before.how == "similarity", (asked, before)  # among rooms, or none
+    # a name the lexicon relates to a name of the home keeps that name (a synonym before any thing)
+    sitting = predict_positions(params, 0, vocab, "sitting room", n=3, rng=0)
+    assert (sitting.name, sitting.via, sitting.region) == ("living room", "synonym", 0)
+    with pytest.raises(UnknownNameError):  # related to nothing said here: still unknown
+        predict_positions(params, 0, vocab, "garage", n=3, rng=0)
+
+
+def test_a_quality_said_at_a_place_does_not_stand_for_it(wordnet) -> None:
+    """"wet" (WordNet: mostly an adjective) said only at the washroom neither answers "wet room" as its
+    own word nor as a word of a place; "sink" (a noun and a verb, never a quality) answers "sink area"."""
+    from spco.model.unheard import QUALITY_SHARE, place_words, said_words
+
+    assert wordnet.quality_share("wet") > QUALITY_SHARE and wordnet.quality_share("small") > QUALITY_SHARE
+    assert wordnet.quality_share("sink") == 0.0 and wordnet.quality_share("bath") == 0.0
+    vocab = Vocabulary(("living room", "washroom", "wet", "sink", "room"))
+    mask = np.ones(5, dtype=bool)
+    assert said_words(vocab, mask, "wet room", wordnet) == []
+    assert said_words(vocab, mask, "sink area", wordnet) == ["sink"]
+    place = np.array([0.4, 0.4, 0.3, 0.3, 0.0])
+    assert place_words(vocab, mask, place, wordnet, exclude=["living room", "washroom"]) == ["sink"]
+
+
+def test_names_said_are_answered_as_before_whatever_the_lexicon_finds(wordnet) -> None:
+    """The look-up acts only on a name that is not one usable token: every word said (names, things
+    said at a place, function words) is answered exactly as without it."""
+    for params, vocab in (_living_washroom_objects(), _living_kitchen(), _toilet_kitchen()):
+        for word in vocab.words:
+            looked = predict_positions(params, 0, vocab, word, n=4, rng=3)
+            plain = predict_positions(params, 0, vocab, word, n=4, rng=3, unheard=False)
+            assert looked.asked is None and looked.via is None and looked.name == plain.name
+            np.testing.assert_array_equal(looked.region_probabilities, plain.region_probabilities)
+            np.testing.assert_array_equal(looked.samples, plain.samples)
+
+
+def test_place_word_information_is_the_mutual_information_of_the_words_as_where_reads_them() -> None:
+    """Brute force on a tiny home: I(1[word = w]; C) from the joint table of (concept, said or not)
+    under p(w | l) = p(name | w) θ_{l,w} + p(place | w) ψ_{l,w}; without ψ, the names' information."""
+    from spco.model.position_prediction import place_word_information, said_word_matrix
+    from spco.model.prediction import mutual_information_weights
+
+    params, _ = _living_washroom_objects()
+    said = said_word_matrix(params, 0)
+    g = params.concept_weights[0] / params.concept_weights[0].sum()
+    for w in range(said.shape[1]):
+        joint = np.array([[g[c] * said[c, w], g[c] * (1.0 - said[c, w])] for c in range(2)])
+        px = joint.sum(axis=1, keepdims=True)
+        py = joint.sum(axis=0, keepdims=True)
+        nz = joint > 0
+        brute = float((joint[nz] * np.log(joint[nz] / (px * py)[nz])).sum())
+        assert place_word_information(params, 0)[w] == pytest.approx(brute, abs=1e-12), w
+    plain = replace(params, place_word_probabilities=None, word_channel_prior=None)
+    np.testing.assert_allclose(place_word_information(plain, 0), mutual_information_weights(plain, 0))
+
+
 def test_spco_without_wordnet_works_as_before(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("SPCO_WORDNET", "off")
     assert lexicon() is None and "turned off" in (lexicon_unavailable_reason() or "")

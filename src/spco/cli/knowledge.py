@@ -383,10 +383,12 @@ def where(home_file: Path, name: str, n: int, seed: int, as_json: bool) -> None:
                    f"{answer['support']:.0%} of its probability comes from concepts holding the home's "
                    f"samples; {there} — a guess (teach it to make it sure)", err=True)
     if answer["via"] is not None:  # a name nobody said, found through the lexicon
-        from spco.model.unheard import SAID_WORDS
+        from spco.model.unheard import PLACE_WORD, SAID_WORDS
 
-        how = ("its words this home says, the kinds of place left out" if answer["via"] == SAID_WORDS
-               else f"{answer['via']} in WordNet")
+        via = str(answer["via"])
+        how = ("its words this home says, the kinds of place left out" if via == SAID_WORDS
+               else f"a word said at a place here, {via.removeprefix(PLACE_WORD).strip()} in WordNet"
+               if via.startswith(PLACE_WORD) else f"{via} in WordNet")
         click.echo(f"{answer['asked']} -> {name} (never said in this home; {how})")
     click.echo(f"{name} in home {home.name}: region {answer['region']} of the home's map, "
                f"p(region | {name}) = {answer['region_probability']:.2f} (the most probable "

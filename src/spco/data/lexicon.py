@@ -156,6 +156,18 @@ class Lexicon:
         total = weights["n"] + weights["other"]
         return weights["n"] / total if total else float("nan")
 
+    def quality_share(self, word: str) -> float:
+        """Share of the word's senses (weighted as :meth:`noun_share`) that are adjectives or adverbs:
+        a quality ("wet" 0.78, "small" 0.99), not a thing or an act ("sink", "bath": 0); NaN for a
+        word WordNet does not know."""
+        lemma = self._lemma(word)
+        quality = total = 0.0
+        for synset in self.synsets(word):
+            weight = 1.0 + sum(lem.count() for lem in synset.lemmas() if lem.name().lower() == lemma)
+            total += weight
+            quality += weight if synset.pos() in ("a", "s", "r") else 0.0
+        return quality / total if total else float("nan")
+
     @functools.lru_cache(maxsize=65536)  # noqa: B019 - one lexicon per process
     def _is_place_synset(self, name: str) -> bool:
         synset = self._wn.synset(name)

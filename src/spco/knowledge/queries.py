@@ -30,7 +30,7 @@ from spco.knowledge.views import _visual_row, pose_outside_map, view_counts
 from spco.model import confidence
 from spco.model.confidence import UNSURE_BELOW
 from spco.model.parameters import ConceptParameters
-from spco.model.position_prediction import PositionPrediction
+from spco.model.position_prediction import PositionPrediction, place_word_information
 from spco.model.prediction import NamePrediction, UnknownNameError, mutual_information_weights
 from spco.model.rooms import HomeRooms
 from spco.model.seeds import as_generator
@@ -68,7 +68,8 @@ def where(home: HomeModel, name: str, n: int = 10,
     how).
     """
     resolved = resolve_name(home.vocabulary, home.said_words, name, home.parameters.name_prior,
-                            information=mutual_information_weights(home.parameters, 0))
+                            information=mutual_information_weights(home.parameters, 0),
+                            place_information=place_word_information(home.parameters, 0))
     if resolved is not None:  # a name nobody said: the known name the lexicon finds for it
         return replace(_where(home, resolved.name, n, random_state), asked=resolved.asked, via=resolved.how)
     try:

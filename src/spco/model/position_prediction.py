@@ -69,6 +69,7 @@ __all__ = [
     "concept_stand_ins",
     "draw_poses",
     "name_support",
+    "place_word_information",
     "predict_positions",
     "query_indices",
     "query_name",
@@ -198,6 +199,25 @@ def said_word_matrix(params: ConceptParameters, e: int) -> np.ndarray:
     prior = np.asarray(prior, dtype=np.float64)
     psi = np.clip(np.asarray(psi, dtype=np.float64), 0.0, 1.0)
     return prior[None, :, 0] * theta + prior[None, :, 1] * psi
+
+
+def place_word_information(params: ConceptParameters, e: int) -> np.ndarray:
+    """(V,) I(w): mutual information (nats) between the indicator "word = w" and the concept, as
+    :func:`spco.model.prediction.mutual_information_weights` but with the words as ``where`` reads
+    them (:func:`said_word_matrix`: as a name or as a word of the place, ψ): how much a word said
+    tells which place it is said at, objects and acts included ("tub", "mirror", "bed"). 0 for a
+    pruned word."""
+    from spco.model.pruning import word_concept_mutual_information
+
+    e = _check_home(params, e)
+    said = np.clip(said_word_matrix(params, e), 0.0, 1.0)
+    said = said * np.asarray(params.word_mask, dtype=bool)[None, :]
+    g = np.clip(np.asarray(params.concept_weights[e], dtype=np.float64), 0.0, None)
+    g = g / g.sum() if g.sum() > 0 else np.full_like(g, 1.0 / g.size)
+    info = word_concept_mutual_information(said, g)
+    info[np.ptp(said, axis=0) == 0] = 0.0  # exactly uninformative: avoid round-off residue
+    info[~np.asarray(params.word_mask, dtype=bool)] = 0.0
+    return info
 
 
 def _name_likelihood(params: ConceptParameters, e: int, words: list[int]) -> np.ndarray:
@@ -488,7 +508,8 @@ def predict_positions(
     e = _check_home(params, e)
     mask = params.word_mask if lookup is None else lookup
     resolved = (resolve_name(vocabulary, mask, name, params.name_prior,
-                             information=mutual_information_weights(params, e)) if unheard else None)
+                             information=mutual_information_weights(params, e),
+                             place_information=place_word_information(params, e)) if unheard else None)
     if resolved is not None:  # a name nobody said: the known name the lexicon finds for it
         pred = predict_positions(params, e, vocabulary, resolved.name, n, rng, mode, xy_only, unheard=False,
                                  rooms=rooms, view_counts=view_counts, lookup=lookup)

@@ -8,12 +8,14 @@ A user may ask for "the restroom", "the lounge" or "the powder room" in a home w
 derivations, similarity) among the home's candidate names (:func:`candidate_names`: usable words that
 are names by the model — name prior ≥ :data:`MIN_CANDIDATE_PRIOR` when the model has a prior,
 :mod:`spco.model.name_evidence`, and mutual information ≥ :data:`MIN_CANDIDATE_INFORMATION` of the
-largest — or rooms by WordNet, never kinds of place such as "room" or "area"). It asks in four
-steps and keeps the first answer: a lexical relation (synonym, definition, head, modifier,
+largest — or rooms by WordNet, never kinds of place such as "room" or "area"). It asks in steps
+and keeps the first answer: a lexical relation (synonym, definition, head, modifier,
 derivation) to one of the home's firmly bound names (information ≥ :data:`FIRM_INFORMATION` of the
 largest: one or two per place), the same to any candidate, then the name's own words that the home's
 people say, kinds of place left out (:func:`said_words`: "sink area" -> "sink", "soaking room" ->
-"soak"), then WordNet similarity to a firmly bound name, then to any candidate. ``where`` answers
+"soak"), then a lexical relation to a word said at a place (:func:`place_words`, by the names θ and
+the words of a place ψ: "telly room" -> "tv", "bathing room" -> "bath" said as a thing), then
+WordNet similarity to a firmly bound name, then to any candidate. ``where`` answers
 for that name, saying which one it used ("restroom -> toilet":
 :attr:`spco.model.position_prediction.PositionPrediction.asked`). When nothing is found, the name's
 own known words said together answer ("great + room"); a name none of whose words is known is an
@@ -37,10 +39,14 @@ __all__ = [
     "MIN_CANDIDATE_PRIOR",
     "OBJECT_BELOW",
     "PLACE_CANDIDATE_SHARE",
+    "PLACE_WORD",
+    "PLACE_WORD_HOW",
+    "QUALITY_SHARE",
     "SAID_WORDS",
     "STAND_IN_HOW",
     "ResolvedName",
     "candidate_names",
+    "place_words",
     "resolve_name",
     "said_words",
     "stand_in_columns",
@@ -78,7 +84,8 @@ class ResolvedName:
 
 def resolve_name(vocabulary: Vocabulary, word_mask: np.ndarray, name: str,
                  name_prior: np.ndarray | None = None, lexicon: object | None = None,
-                 information: np.ndarray | None = None) -> ResolvedName | None:
+                 information: np.ndarray | None = None,
+                 place_information: np.ndarray | None = None) -> ResolvedName | None:
     """The known name that ``name`` stands for, when ``name`` is not a usable token; else None.
 
     Parameters
@@ -89,6 +96,10 @@ def resolve_name(vocabulary: Vocabulary, word_mask: np.ndarray, name: str,
     lexicon: a :class:`spco.data.lexicon.Lexicon` (default: the process's, which may be None).
     information: (V,) the words' mutual information with the home's concepts
         (:func:`spco.model.prediction.mutual_information_weights`), or None (no such filter).
+    place_information: (V,) the same for the words as ``where`` reads them, names or words of a
+        place (:func:`spco.model.position_prediction.place_word_information`), or None: the words
+        of a place (:func:`place_words`) the lexicon may relate the name to when no candidate
+        name is related to it; None: no such step.
 
     Returns
     -------
@@ -121,6 +132,10 @@ def resolve_name(vocabulary: Vocabulary, word_mask: np.ndarray, name: str,
         said = said_words(vocabulary, mask, asked, lexicon)
         if said:
             return ResolvedName(asked=asked, name=" ".join(said), how=SAID_WORDS, score=0.5)
+    if match is None and place_information is not None:  # a word said at a place: "telly room" -> "tv"
+        found = _by_place_words(vocabulary, mask, asked, place_information, lexicon, candidates)
+        if found is not None:
+            return found
     for group in (firm, candidates):  # then mere similarity
         if match is None and group:
             match = lexicon.closest(asked, group, similarity=True)  # type: ignore[attr-defined]
@@ -134,8 +149,56 @@ def resolve_name(vocabulary: Vocabulary, word_mask: np.ndarray, name: str,
     return ResolvedName(asked=asked, name=name, how=how, score=float(match.score))
 
 
+#: A word whose senses are more than this share adjectives or adverbs in WordNet is a quality ("wet"
+#: 0.78, "small" 0.99, "hot" 1.0), not a thing or an act ("sink", "bath", "eating" 0; "spare" 0.29):
+#: said at a place, it does not say which place a name means (:func:`said_words`, :func:`place_words`).
+QUALITY_SHARE = 0.5
 #: :attr:`ResolvedName.how` of a name answered by its own words that the home's people say.
 SAID_WORDS = "its words"
+#: :attr:`ResolvedName.how` (its first word) of a name answered by a word of a place (:func:`place_words`).
+PLACE_WORD = "place word"
+#: How the lexicon may relate a name to a word of a place: directly (a synonym, in its definition, a
+#: derivation, its head or modifier), not through other places WordNet names by its modifier
+#: ("compound …": "great room" -> "great hall" -> "dining"), which relates places to places.
+PLACE_WORD_HOW = ("synonym", "gloss", "definition", "derivation", "head", "head synonym", "head gloss")
+
+
+def _by_place_words(vocabulary: Vocabulary, mask: np.ndarray, asked: str, place_information: np.ndarray,
+                    lexicon: object, candidates: list[str]) -> ResolvedName | None:
+    """The word of a place (:func:`place_words`, the candidate names left out: they were asked
+    first) that the lexicon relates ``asked`` to directly (:data:`PLACE_WORD_HOW`), or None."""
+    objects = place_words(vocabulary, mask, place_information, lexicon, exclude=candidates)
+    found = lexicon.closest(asked, objects, similarity=False) if objects else None  # type: ignore[attr-defined]
+    if found is None or found.how not in PLACE_WORD_HOW:
+        return None
+    return ResolvedName(asked=asked, name=found.name, how=f"{PLACE_WORD} {found.how}",
+                        score=float(found.score))
+
+
+def place_words(vocabulary: Vocabulary, word_mask: np.ndarray, place_information: np.ndarray,
+                lexicon: object, exclude: list[str] | tuple[str, ...] = ()) -> list[str]:
+    """The home's words of a place: usable words said at some places more than at others — objects,
+    acts, names — by the model's account of what is said where (names θ and words of a place ψ:
+    ``place_information`` ≥ :data:`MIN_CANDIDATE_INFORMATION` of the largest), most informative
+    first; function words, kinds of place ("room", "area"), qualities (mostly adjectives or adverbs
+    in WordNet: "wet", "small"; :meth:`spco.data.lexicon.Lexicon.quality_share` > 0.5: a quality
+    said at a place does not stand for it) and ``exclude`` left out. A name nobody
+    said that WordNet relates to one of them ("bunk room": a bunk is "a rough bed"; "bathing room":
+    "bathe", whose verb holds "bath") is looked for where that word is said."""
+    from spco.data.lexicon import KINDS_BELOW
+
+    mask = np.asarray(word_mask, dtype=bool)
+    info = np.asarray(place_information, dtype=np.float64)
+    usable = np.flatnonzero(mask)
+    if usable.size == 0 or not info[usable].max() > 0:
+        return []
+    floor = MIN_CANDIDATE_INFORMATION * info[usable].max()
+    order = usable[np.argsort(-info[usable], kind="stable")]
+    skip = set(exclude)
+    return [vocabulary.words[k] for k in order if info[k] >= floor and vocabulary.words[k] not in skip
+            and not is_function_word(vocabulary.words[k])
+            and _kinds_below(lexicon, vocabulary.words[k]) < KINDS_BELOW
+            and not _quality_share(lexicon, vocabulary.words[k]) > QUALITY_SHARE]
 
 
 def said_words(vocabulary: Vocabulary, word_mask: np.ndarray, name: str, lexicon: object) -> list[str]:
@@ -156,7 +219,8 @@ def said_words(vocabulary: Vocabulary, word_mask: np.ndarray, name: str, lexicon
     mask = np.asarray(word_mask, dtype=bool)
     out: list[str] = []
     for word in words:
-        if is_function_word(word) or _kinds_below(lexicon, word) >= KINDS_BELOW:
+        if (is_function_word(word) or _kinds_below(lexicon, word) >= KINDS_BELOW
+                or _quality_share(lexicon, word) > QUALITY_SHARE):
             continue
         for form in (word, *sorted(lexicon.base_forms(word) - {word})):  # type: ignore[attr-defined]
             k = vocabulary.index(form)
@@ -212,6 +276,14 @@ def _room_share(lexicon: object, word: str) -> float:
     key = (id(lexicon), "room", word)
     if key not in _FACTS:
         _FACTS[key] = float(lexicon.room_share(word))  # type: ignore[attr-defined]
+    return _FACTS[key]
+
+
+def _quality_share(lexicon: object, word: str) -> float:
+    """:meth:`Lexicon.quality_share`, remembered for the process."""
+    key = (id(lexicon), "quality", word)
+    if key not in _FACTS:
+        _FACTS[key] = float(lexicon.quality_share(word))  # type: ignore[attr-defined]
     return _FACTS[key]
 
 
