@@ -100,13 +100,36 @@ def _where(home: HomeModel, name: str, n: int,
 def answered_at_region(home: HomeModel, region: int) -> str | None:
     """The name :func:`what` answers (the position alone) at the centre of the home's region
     ``region``: the name the home gives the place there; ``None`` if it knows none."""
-    mean = np.asarray(home.parameters.region_means[0, region], dtype=np.float64)
-    theta = float(np.arctan2(mean[2], mean[3])) if mean.size >= 4 else 0.0
-    pose = np.array([[mean[0], mean[1], np.sin(theta), np.cos(theta)]])
+    words = names_at_regions(home, [region], top_k=1).words[0]
+    return str(words[0]) if len(words) else None
+
+
+def names_at_regions(home: HomeModel, regions: Any, top_k: int = 3) -> NamePrediction:
+    """What :func:`what` answers (the position alone) at the centre of each of the home's regions
+    ``regions`` (indices; its mean pose, the heading from the mean's sin θ and cos θ): one row per
+    region, as :func:`name_prediction` answers them (a centre off the map is still answered)."""
+    means = np.asarray(home.parameters.region_means[0], dtype=np.float64)[np.asarray(regions, dtype=np.int64)]
+    means = means.reshape(-1, means.shape[-1] if means.ndim > 1 else 4)
+    theta = np.arctan2(means[:, 2], means[:, 3]) if means.shape[1] >= 4 else np.zeros(means.shape[0])
+    poses = np.column_stack([means[:, 0], means[:, 1], np.sin(theta), np.cos(theta)])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # a region's centre off the map: still the region's answer
-        words = name_prediction(home, pose, None, top_k=1).words[0]
-    return str(words[0]) if len(words) else None
+        return name_prediction(home, poses, None, top_k=top_k)
+
+
+def places(home: HomeModel) -> dict[str, PositionPrediction]:
+    """:func:`where` of every name the home answers (:attr:`~spco.knowledge.home.HomeModel.known_names`),
+    without poses: where each place is, as ``where`` answers it (``region``, its probability
+    ``region_probabilities[region]``, ``learnt``). What labels the places of a map (the page of
+    ``spco serve``, the ROS markers, Foxglove): a name is labelled at the region ``where`` goes to for
+    it. A name ``where`` cannot use (:class:`~spco.model.prediction.UnknownNameError`) is left out."""
+    found: dict[str, PositionPrediction] = {}
+    for name in home.known_names:
+        try:
+            found[name] = where(home, name, n=0, random_state=0)
+        except UnknownNameError:
+            continue
+    return found
 
 
 def unused_word_hint(home: HomeModel, word: str) -> str | None:
