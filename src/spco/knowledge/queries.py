@@ -32,10 +32,10 @@ from spco.model.confidence import UNSURE_BELOW
 from spco.model.parameters import ConceptParameters
 from spco.model.position_prediction import PositionPrediction
 from spco.model.prediction import NamePrediction, UnknownNameError, mutual_information_weights
-from spco.model.rooms import HomeRooms
+from spco.model.rooms import HomeRooms, sample_rooms
 from spco.model.seeds import as_generator
 from spco.model.unheard import resolve_name
-from spco.model.word_channels import channel_token_counts, concept_name_tokens, name_tokens
+from spco.model.word_channels import concept_name_tokens, name_tokens
 
 
 def where(home: HomeModel, name: str, n: int = 10,
@@ -68,7 +68,7 @@ def where(home: HomeModel, name: str, n: int = 10,
     how).
     """
     resolved = resolve_name(home.vocabulary, home.said_words, name, home.parameters.name_prior,
-                            information=mutual_information_weights(home.parameters, 0))
+                            information=_information(home))
     if resolved is not None:  # a name nobody said: the known name the lexicon finds for it
         return replace(_where(home, resolved.name, n, random_state), asked=resolved.asked, via=resolved.how)
     try:
@@ -78,6 +78,20 @@ def where(home: HomeModel, name: str, n: int = 10,
         if hint is None:
             raise
         raise UnknownNameError(name, home.known_names, reason=hint) from None
+
+
+#: each home's words' mutual information with its concepts, worked out once per home object (as
+#: :data:`_ANSWER_INPUTS`): what ``where`` looks an unheard name up with
+_INFORMATION: weakref.WeakKeyDictionary[HomeModel, np.ndarray] = weakref.WeakKeyDictionary()
+
+
+def _information(home: HomeModel) -> np.ndarray:
+    """(V,) :func:`~spco.model.prediction.mutual_information_weights` of the home's parameters, kept
+    while the home lives."""
+    known = _INFORMATION.get(home)
+    if known is None:
+        known = _INFORMATION[home] = mutual_information_weights(home.parameters, 0)
+    return known
 
 
 def _where(home: HomeModel, name: str, n: int,
@@ -330,16 +344,9 @@ def home_rooms(home: HomeModel) -> HomeRooms:
     :meth:`~spco.model.rooms.HomeRooms.membership`), their views and the name tokens taught at them
     (with the word channels the tokens drawn as names, as :func:`answer_parameters` counts them, and
     those drawn as words of the place) with δ^w, for a room's own names in ``where``
-    (:func:`spco.model.position_prediction.region_posterior_for_name`)."""
-    words, state = home.data.words, home.state
-    if home.knowledge.channels is not None and state.switches is not None and words.nnz:
-        words = name_tokens(words, state.switches)
-    names = places = None
-    if state.channels is not None:
-        names, places = channel_token_counts(home.data.words, home.data.homes, state.concepts,
-                                             state.log_theta_w, state.channels)
-    return HomeRooms.of(state.regions, home.data.visual, words, state.concepts, names=names, places=places,
-                        concentration=home.hyperparameters.delta_word)
+    (:func:`spco.model.position_prediction.region_posterior_for_name`): the rooms' one builder,
+    :func:`spco.model.rooms.sample_rooms`, as the experiments build a joint fit's."""
+    return sample_rooms(home.data, home.state, home.hyperparameters.delta_word)
 
 
 def describe_model_file(path: str | PathLike[str]) -> dict[str, Any]:
