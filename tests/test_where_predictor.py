@@ -365,3 +365,36 @@ def test_where_keeps_what_does_not_depend_on_the_name_and_answers_the_same(home:
     with np.errstate(invalid="ignore"):
         assert_allclose(position_prediction._log_sum_exp(a, axis=1), logsumexp(a, axis=1), rtol=1e-14)
         assert_allclose(position_prediction._log_sum_exp(a[:, 0], axis=0), logsumexp(a[:, 0]), rtol=1e-14)
+
+
+def test_the_librarys_predictions_are_what_the_robot_answers_and_the_experiments_score(joint,
+                                                                                      small_corpus) -> None:
+    """SpCoTransfer.predict_names and predict_positions answer with the robot's predictor (the answer's
+    parameters, the room account, the robot's weighting; unsure below the one threshold), the one the
+    experiments score (before: the bare parameters, the MI weighting, no rooms)."""
+    from spco.model.confidence import UNSURE_BELOW, answer_names, answer_weighting
+    from spco.model.prediction import predict_names
+
+    e = len(small_corpus) - 1
+    env = small_corpus[e]
+    rows = np.flatnonzero(env.is_test)
+    params, rooms, weighting = joint.answer_inputs(e)
+    assert weighting == answer_weighting(joint.variant, joint.prune_words) == "none"
+    assert joint.answer_inputs(env.name)[1] is rooms  # worked out once per fit
+    w = joint.settings_.view_counts
+    pred = joint.predict_names(env.name, env.positions[rows], env.visual[rows], top_k=3)
+    robot = answer_names(model_answer_parameters(joint, e), e, joint.vocabulary_, env.positions[rows],
+                         env.visual[rows], view_counts=w, weighting="none", rooms=model_rooms(joint, e),
+                         name_prior=joint.hyperparameters_.name_prior)
+    assert pred.unsure_below == UNSURE_BELOW
+    assert_allclose(pred.word_probabilities, robot.word_probabilities, rtol=0, atol=1e-15)
+    assert (pred.words == robot.words).all()
+    bare = predict_names(joint.parameters_, e, joint.vocabulary_,
+                                                         env.positions[rows], env.visual[rows], view_counts=w)
+    assert not np.allclose(bare.word_probabilities, pred.word_probabilities)  # (what it answered before)
+    scores = evaluate_home(joint.parameters_, e, env, joint.vocabulary_, rng=0, view_counts=w,
+                           weighting=weighting, answer_params=params, answer_rooms=rooms)
+    assert scores.position_predictions
+    for place, scored in scores.position_predictions.items():
+        mine = joint.predict_positions(e, scored.name, n=3, random_state=0, mode="argmax")
+        assert_allclose(mine.region_probabilities, scored.region_probabilities, rtol=0, atol=0, err_msg=place)
