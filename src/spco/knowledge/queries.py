@@ -122,9 +122,9 @@ def names_at_regions(home: HomeModel, regions: Any, top_k: int = 3) -> NamePredi
     """What :func:`what` answers (the position alone) at the centre of each of the home's regions
     ``regions`` (indices; its mean pose, the heading from the mean's sin θ and cos θ): one row per
     region, as :func:`name_prediction` answers them (a centre off the map is still answered)."""
-    means = np.asarray(home.parameters.region_means[0], dtype=np.float64)[np.asarray(regions, dtype=np.int64)]
-    means = means.reshape(-1, means.shape[-1] if means.ndim > 1 else 4)
-    theta = np.arctan2(means[:, 2], means[:, 3]) if means.shape[1] >= 4 else np.zeros(means.shape[0])
+    rows = np.asarray(regions, dtype=np.int64).reshape(-1)
+    means = np.asarray(home.parameters.region_means[0], dtype=np.float64)[rows]  # (n, 4): x, y, sin θ, cos θ
+    theta = np.arctan2(means[:, 2], means[:, 3])
     poses = np.column_stack([means[:, 0], means[:, 1], np.sin(theta), np.cos(theta)])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # a region's centre off the map: still the region's answer
