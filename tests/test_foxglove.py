@@ -49,7 +49,7 @@ def test_show_mcap_writes_the_regions_names_and_teachings_and_they_read_back(tou
     _need_foxglove()
     from spco.knowledge import HomeModel
     from spco.ros.foxglove import MCAP_FORMAT, read_mcap
-    from spco.ros.messages import concept_colour
+    from spco.ros.messages import concept_colour, places_text
     from spco.service.answers import regions_answer
 
     home = _taught_copy(tour_home_file, tmp_path)
@@ -78,8 +78,12 @@ def test_show_mcap_writes_the_regions_names_and_teachings_and_they_read_back(tou
         colour = entity.lines[0].color
         assert (colour.r, colour.g, colour.b) == pytest.approx(
             concept_colour(region["concept"], model.knowledge.n_concepts))
-        if region["names"]:
-            assert entity.texts[0].text.startswith(region["names"][0]["name"])
+        # labelled with the places `where` finds there (its answer for each name), and only those
+        assert [t.text for t in entity.texts] == ([places_text(region)] if region["places"] else [])
+        assert json.loads(next(m.value for m in entity.metadata if m.key == "places")) == region["places"]
+    for place in regions["places"]:
+        if place["learnt"]:
+            assert place["name"] in entities[f"region/{place['region']}"].texts[0].text
     teachings = by_topic["/spco/teachings"]["message"]
     assert [e.texts[0].text for e in teachings.entities] == ["this is the pantry"]
     # refused without --force; neither --out nor --mcap is a usage error
@@ -177,7 +181,7 @@ async def _sees_the_scene(client: FoxgloveClient) -> None:
     assert client.server_info["name"].startswith("spco ")
     await client.subscribe("/spco/scene", "/spco/teachings", "/spco/answers", "/spco/log")
     scene = await client.next("/spco/scene")  # sent to a client as it subscribes
-    names = "\n".join(e.texts[0].text for e in scene.entities)
+    names = "\n".join(t.text for e in scene.entities for t in e.texts)
     assert len(scene.entities) >= 3 and all(e.frame_id == "map" for e in scene.entities)
     for name in ("kitchen", "living room", "bedroom"):
         assert name in names

@@ -26,6 +26,7 @@ from spco.ros.messages import (
     frame_from_message,
     goal_message,
     marker_array,
+    places_text,
     pose_from_message,
     quaternion_from_yaw,
     stamp_seconds,
@@ -156,20 +157,22 @@ def test_encodings_declared_undeclared_and_refused() -> None:
     assert pixels_from_buffer(bgr.tobytes(), 12, 16, 48, "bgr8").shape == (12, 16, 3)
 
 
-def test_markers_draw_each_region_with_its_names() -> None:
+def test_markers_draw_each_region_and_label_the_places_where_finds_there() -> None:
     regions = [
         {"region": 4, "mean": [1.0, 2.0], "covariance": [[0.5, 0.2], [0.2, 0.3]], "concept": 1,
-         "names": [{"name": "kitchen", "p": 0.81}, {"name": "dining room", "p": 0.12},
-                   {"name": "hall", "p": 0.05}]},
+         "names": [{"name": "kitchen", "p": 0.81}, {"name": "dining room", "p": 0.12}],
+         "places": [{"name": "kitchen", "p": 0.64}, {"name": "dining room", "p": 0.05}]},
         {"region": 7, "mean": [-3.0, 0.5, 0.2, 0.9], "covariance": np.diag([0.1, 0.4, 1.0, 1.0]),
-         "concept": 12, "names": [{"name": "bedroom", "p": 0.04}]},
+         "concept": 12, "names": [{"name": "bedroom", "p": 0.94}], "places": [{"name": "bedroom", "p": 0.2}]},
+        {"region": 9, "mean": [0.0, 0.0], "covariance": np.eye(2), "concept": 3,
+         "names": [{"name": "kitchen", "p": 0.7}], "places": []},  # `where` finds no place here
     ]
     message = marker_array(regions, n_concepts=15, frame="map")
     markers = message["markers"]
-    assert markers[0]["action"] == 3 and len(markers) == 1 + 3 * len(regions)  # DELETEALL first
+    assert markers[0]["action"] == 3 and len(markers) == 1 + 3 * len(regions) - 1  # DELETEALL first
     by_kind = {ns: [m for m in markers[1:] if m["ns"] == ns] for ns in MARKER_NAMESPACES.values()}
-    assert [m["id"] for m in by_kind["spco/regions"]] == [4, 7]
-    for region, outline, fill, text in zip(regions, *by_kind.values(), strict=True):
+    assert [m["id"] for m in by_kind["spco/regions"]] == [4, 7, 9]
+    for region, outline, fill in zip(regions, by_kind["spco/regions"], by_kind["spco/fill"], strict=True):
         cov = np.asarray(region["covariance"], dtype=float)[:2, :2]
         mean = np.asarray(region["mean"], dtype=float)[:2]
         points = np.array([[p["x"], p["y"]] for p in outline["points"]]) - mean
@@ -180,9 +183,11 @@ def test_markers_draw_each_region_with_its_names() -> None:
         assert fill["scale"]["y"] == pytest.approx(2 * minor)
         assert yaw_from_quaternion(fill["pose"]["orientation"]) == pytest.approx(angle)
         assert outline["color"] == {**fill["color"], "a": 1.0} and fill["color"]["a"] == 0.25
-        assert all(m["header"]["frame_id"] == "map" for m in (outline, fill, text))
-    texts = [m["text"] for m in by_kind["spco/names"]]
-    assert texts == ["kitchen 0.81\ndining room 0.12", "bedroom 0.04"]  # p < 0.1 dropped, first kept
+        assert all(m["header"]["frame_id"] == "map" for m in (outline, fill))
+    # the labels are `where`'s places with p(region | name), never the names `what` answers there
+    assert [m["id"] for m in by_kind["spco/names"]] == [4, 7]
+    assert [m["text"] for m in by_kind["spco/names"]] == ["kitchen 0.64\ndining room 0.05", "bedroom 0.20"]
+    assert places_text(regions[0], top=1) == "kitchen 0.64" and places_text(regions[2]) == ""
     assert by_kind["spco/regions"][0]["color"] != by_kind["spco/regions"][1]["color"]
 
 

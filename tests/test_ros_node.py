@@ -93,7 +93,8 @@ def test_markers_are_latched_with_every_region_and_its_names(ros_node) -> None:
     markers = message.markers
     assert markers[0].action == 3  # DELETEALL: regions that are gone disappear
     kinds = {ns: [m for m in markers[1:] if m.ns == ns] for ns in ("spco/regions", "spco/fill", "spco/names")}
-    assert len(kinds["spco/regions"]) == len(kinds["spco/fill"]) == len(kinds["spco/names"]) >= 3
+    # every region drawn; a label (`where`'s places there) only on the regions `where` goes to
+    assert len(kinds["spco/regions"]) == len(kinds["spco/fill"]) >= len(kinds["spco/names"]) >= 1
     assert all(m.header.frame_id == "map" for m in markers)
     assert all(m.type == 4 and len(m.points) == 49 for m in kinds["spco/regions"])  # closed LINE_STRIPs
     text = "\n".join(m.text for m in kinds["spco/names"])

@@ -46,10 +46,13 @@ def browser(tmp_path_factory: pytest.TempPathFactory):
     driver.quit()
 
 
-def _shows_the_map(browser: Any, robot: Any, wait: Any) -> list[Any]:
-    """The map: learnt regions as ellipses, labelled with their names, axes, and the samples as dots;
-    the event stream open. Returns the regions' ellipses."""
+def _shows_the_map(browser: Any, robot: Any, wait: Any, home: Path) -> list[Any]:
+    """The map: learnt regions as ellipses, each place labelled where ``where`` goes for it (``home``: the
+    served file, asked in this process so that the page's log shows only the clicks), axes, and the
+    samples as dots; the event stream open. Returns the regions' ellipses."""
     from selenium.webdriver.common.by import By
+
+    from spco import knowledge as kn
 
     known = robot.regions()["names"]
     wait.until(lambda d: d.find_elements(By.CSS_SELECTOR, "#layer-regions ellipse.region"))
@@ -59,8 +62,17 @@ def _shows_the_map(browser: Any, robot: Any, wait: Any) -> list[Any]:
     drawn = [g for g in regions if g["weight"] >= 0.01 or g["taught"] > 0]  # negligible ones hidden
     assert len(ellipses) == len(drawn) and len(drawn) < len(regions) + 1
     assert labels and any(name in " ".join(labels) for name in known)
-    first_words = [label.split()[0] for label in labels]
-    assert len(first_words) == len(set(first_words)), labels  # one label per place
+    # a place is labelled where `where` goes for it: the label and the answer to "where is …" are one
+    labelled: dict[str, int] = {}
+    for label in browser.find_elements(By.CSS_SELECTOR, "#layer-labels text.region-label"):
+        for name in label.get_attribute("data-places").split("|"):
+            assert name not in labelled, labels  # one label per place
+            labelled[name] = int(label.get_attribute("data-region"))
+    learnt = {p["name"]: p["region"] for p in robot.regions()["places"] if p["learnt"]}
+    assert labelled == learnt
+    served = kn.load_home_model(home)
+    for name, region in labelled.items():
+        assert kn.where(served, name).region == region
     axis_labels = [e.text for e in browser.find_elements(By.CSS_SELECTOR, "#layer-axes text.axis-label")]
     assert "x (m)" in axis_labels and "y (m)" in axis_labels
     assert any(t.endswith(" m") for t in axis_labels)  # the scale bar
@@ -123,7 +135,7 @@ def test_the_page_shows_the_regions_answers_and_teaches_live(browser, tmp_path: 
         # (a list the page redraws between finding an element and reading it: read it again)
         wait = WebDriverWait(browser, 30, ignored_exceptions=(StaleElementReferenceException,))
         browser.get(server.url + "/")
-        ellipses = _shows_the_map(browser, robot, wait)
+        ellipses = _shows_the_map(browser, robot, wait, home)
         before = _answers_what_and_where(browser, wait, ellipses, known[0])
         shots = Path(os.environ.get("SPCO_PAGE_SCREENSHOTS", str(tmp_path)))
         shots.mkdir(parents=True, exist_ok=True)

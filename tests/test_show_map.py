@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from spco import knowledge as kn
 from spco.cli import main
 from spco.data.rosmap import read_ros_map
 from spco.errors import DataFormatError
@@ -74,15 +75,24 @@ def test_show_draws_a_ros_map_where_it_belongs_in_grey(tour_home_file: Path, tmp
     # the figure spco show draws: the map image at its extent, grey, regions labelled with names
     home = load_home_model(tour_home_file)
     ros_map = read_ros_map(yaml)
+    places = {name: (pred.region, float(pred.region_probabilities[pred.region]))
+              for name, pred in kn.places(home).items() if pred.learnt}
     fig = plots.plot_home_map(home.parameters, 0, home.environment(), home.vocabulary,
-                              map_image=ros_map.image, map_extent=ros_map.extent, label_regions=True)
+                              map_image=ros_map.image, map_extent=ros_map.extent, label_regions=True,
+                              place_labels=places)
     ax = fig.axes[0]
     (drawn,) = ax.images
     assert tuple(drawn.get_extent()) == pytest.approx((-1.0, 13.0, -0.5, 4.5))
     assert drawn.get_cmap().name == "gray" and np.array_equal(drawn.get_array(), ros_map.image)
     assert ax.get_xlim() == pytest.approx((-1.0, 13.0)) and ax.get_ylim() == pytest.approx((-0.5, 4.5))
     labels = [t.get_text() for t in ax.texts]
-    assert {"kitchen", "living room", "bedroom"} <= {w for t in labels for w in t.split("\n")}
+    assert {"kitchen", "living room", "bedroom"} <= {line.rsplit(" ", 1)[0] for t in labels
+                                                     for line in t.split("\n")}
+    for text in ax.texts:  # each place at the region `where` goes for it
+        for line in text.get_text().split("\n"):
+            name = line.rsplit(" ", 1)[0]
+            centre = home.parameters.region_means[0, kn.where(home, name).region, :2]
+            assert text.get_position() == pytest.approx(tuple(centre))
     canvas = FigureCanvasAgg(fig)
     canvas.draw()
     pixels = np.asarray(canvas.buffer_rgba())[:, :, :3].astype(int)

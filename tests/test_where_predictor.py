@@ -245,3 +245,156 @@ def test_a_rooms_words_are_the_expected_tokens_of_each_channel(joint, small_corp
                              state.log_theta_w, state.channels)
     assert_allclose(rooms.names.toarray()[words.nonzero()], words.data * p[:, 0])
     assert_allclose(rooms.places.toarray()[words.nonzero()], words.data * p[:, 1])
+
+
+def _rooms_fields(rooms) -> list:
+    return [rooms.regions, rooms.visual.toarray(), rooms.words.toarray(), rooms.concepts,
+            None if rooms.names is None else rooms.names.toarray(),
+            None if rooms.places is None else rooms.places.toarray(), rooms.concentration]
+
+
+def _assert_same_rooms(a, b) -> None:
+    for x, y in zip(_rooms_fields(a), _rooms_fields(b), strict=True):
+        assert (x is None) == (y is None)
+        if x is not None:
+            assert_allclose(x, y, rtol=0, atol=0)
+
+
+def _robot_rooms_before(home: kn.HomeModel):
+    """home_rooms as it was before the one builder: the channels tested on the knowledge."""
+    from spco.model.rooms import HomeRooms
+    from spco.model.word_channels import channel_token_counts, name_tokens
+
+    words, state = home.data.words, home.state
+    if home.knowledge.channels is not None and state.switches is not None and words.nnz:
+        words = name_tokens(words, state.switches)
+    names = places = None
+    if state.channels is not None:
+        names, places = channel_token_counts(home.data.words, home.data.homes, state.concepts,
+                                             state.log_theta_w, state.channels)
+    return HomeRooms.of(state.regions, home.data.visual, words, state.concepts, names=names, places=places,
+                        concentration=home.hyperparameters.delta_word)
+
+
+def test_the_robot_and_the_experiments_build_their_rooms_with_one_builder(home: kn.HomeModel, joint,
+                                                                          small_corpus, tmp_path) -> None:
+    """home_rooms (the robot's: it tested the knowledge's channels) and model_rooms (the experiments':
+    the state's) are sample_rooms of their data and state: a home's state holds the channels exactly
+    when its knowledge does — adapted, loaded, taught, with and without the channels — so the rooms
+    are those of before, field by field."""
+    from spco.data.environment import Corpus
+    from spco.data.synthetic import SyntheticConfig, generate_homes
+    from spco.knowledge.queries import home_rooms
+    from spco.model.rooms import sample_rooms
+
+    corpus = generate_homes(3, seed=6, config=SyntheticConfig(n_features=64), new_homes=1,
+                            specific_rooms=False)
+    envs = list(corpus)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        plain = kn.adapt(kn.fit_knowledge(Corpus(envs[:2]), n_iterations=4, random_state=0,
+                                          model="spcotransfer"), envs[2], n_iterations=3, random_state=0)
+    assert plain.knowledge.channels is None and home.knowledge.channels is not None
+    for robot in (home, plain):
+        taught = kn.teach(robot, {int(robot.ids[3]): "this is the pantry"}, random_state=0)
+        robot.save(tmp_path / "home.spco", overwrite=True)
+        for h in (robot, taught, kn.load_home_model(tmp_path / "home.spco")):
+            assert (h.state.channels is None) == (h.knowledge.channels is None)
+            assert (h.state.switches is None) == (h.knowledge.channels is None)
+            _assert_same_rooms(home_rooms(h), _robot_rooms_before(h))
+            _assert_same_rooms(home_rooms(h), sample_rooms(h.data, h.state, h.hyperparameters.delta_word))
+    # the experiments' joint fit: the rooms model_rooms built before (the channels tested on the state)
+    from spco.model.rooms import HomeRooms
+    from spco.model.word_channels import channel_token_counts, name_tokens
+
+    data, state = joint.data_, joint.state_
+    for e in range(len(small_corpus)):
+        rows = slice(int(data.offsets[e]), int(data.offsets[e + 1]))
+        words = data.words
+        if state.channels is not None and state.switches is not None and words.nnz:
+            words = name_tokens(words, state.switches)
+        names = places = None
+        if state.channels is not None:
+            names, places = channel_token_counts(data.words[rows], np.asarray(data.homes)[rows],
+                                                 np.asarray(state.concepts)[rows], state.log_theta_w,
+                                                 state.channels)
+        before = HomeRooms.of(np.asarray(state.regions)[rows], data.visual[rows], words[rows],
+                              np.asarray(state.concepts)[rows], names=names, places=places,
+                              concentration=float(joint.hyperparameters_.delta_word))
+        _assert_same_rooms(model_rooms(joint, e), before)
+
+
+def test_where_keeps_what_does_not_depend_on_the_name_and_answers_the_same(home: kn.HomeModel) -> None:
+    """The rooms' concepts, membership and said counts are worked out once per rooms and parameters
+    object (the part of `where` that is the same for every name); the answers are those of fresh rooms,
+    and new parameters are not answered from the old ones' rooms."""
+    from dataclasses import replace
+
+    from scipy.special import logsumexp
+
+    from spco.knowledge.queries import answer_inputs, home_rooms
+
+    params, rooms = answer_inputs(home)
+    w = home.hyperparameters.view_weight()
+    for name in home.known_names:
+        warm = position_prediction.region_posterior_for_name(params, 0, home.vocabulary, name, rooms=rooms,
+                                                             view_counts=w, lookup=home.parameters.word_mask)
+        fresh = position_prediction.region_posterior_for_name(params, 0, home.vocabulary, name,
+                                                              rooms=home_rooms(home), view_counts=w,
+                                                              lookup=home.parameters.word_mask)
+        assert_allclose(warm, fresh, rtol=0, atol=1e-15)
+    K = int(np.shape(params.region_means)[1])
+    assert rooms.membership(K) is rooms.membership(K)
+    # other parameters (G_0 changed): worked out again, not read from the rooms' memory
+    other = replace(params, global_concept_weights=np.roll(np.asarray(params.global_concept_weights), 1))
+    name = home.known_names[0]
+    kept = position_prediction.region_posterior_for_name(other, 0, home.vocabulary, name, rooms=rooms,
+                                                         view_counts=w, lookup=home.parameters.word_mask)
+    again = position_prediction.region_posterior_for_name(other, 0, home.vocabulary, name,
+                                                          rooms=home_rooms(home), view_counts=w,
+                                                          lookup=home.parameters.word_mask)
+    base = position_prediction.region_posterior_for_name(params, 0, home.vocabulary, name, rooms=rooms,
+                                                         view_counts=w, lookup=home.parameters.word_mask)
+    assert not np.allclose(kept, base)  # (G_0 moved the answer: a stale memory would be seen)
+    assert_allclose(kept, again, rtol=0, atol=1e-15)
+    # the log-sum-exp `where` uses, against scipy's, with rows of -inf and of huge magnitudes
+    rng = np.random.default_rng(0)
+    a = rng.normal(size=(6, 5)) * np.array([[1.0], [1e3], [1e300], [1.0], [1.0], [1.0]])
+    a[3] = -np.inf
+    a[4, :2] = -np.inf
+    with np.errstate(invalid="ignore"):
+        assert_allclose(position_prediction._log_sum_exp(a, axis=1), logsumexp(a, axis=1), rtol=1e-14)
+        assert_allclose(position_prediction._log_sum_exp(a[:, 0], axis=0), logsumexp(a[:, 0]), rtol=1e-14)
+
+
+def test_the_librarys_predictions_are_what_the_robot_answers_and_the_experiments_score(joint,
+                                                                                      small_corpus) -> None:
+    """SpCoTransfer.predict_names and predict_positions answer with the robot's predictor (the answer's
+    parameters, the room account, the robot's weighting; unsure below the one threshold), the one the
+    experiments score (before: the bare parameters, the MI weighting, no rooms)."""
+    from spco.model.confidence import UNSURE_BELOW, answer_names, answer_weighting
+    from spco.model.prediction import predict_names
+
+    e = len(small_corpus) - 1
+    env = small_corpus[e]
+    rows = np.flatnonzero(env.is_test)
+    params, rooms, weighting = joint.answer_inputs(e)
+    assert weighting == answer_weighting(joint.variant, joint.prune_words) == "none"
+    assert joint.answer_inputs(env.name)[1] is rooms  # worked out once per fit
+    w = joint.settings_.view_counts
+    pred = joint.predict_names(env.name, env.positions[rows], env.visual[rows], top_k=3)
+    robot = answer_names(model_answer_parameters(joint, e), e, joint.vocabulary_, env.positions[rows],
+                         env.visual[rows], view_counts=w, weighting="none", rooms=model_rooms(joint, e),
+                         name_prior=joint.hyperparameters_.name_prior)
+    assert pred.unsure_below == UNSURE_BELOW
+    assert_allclose(pred.word_probabilities, robot.word_probabilities, rtol=0, atol=1e-15)
+    assert (pred.words == robot.words).all()
+    bare = predict_names(joint.parameters_, e, joint.vocabulary_,
+                                                         env.positions[rows], env.visual[rows], view_counts=w)
+    assert not np.allclose(bare.word_probabilities, pred.word_probabilities)  # (what it answered before)
+    scores = evaluate_home(joint.parameters_, e, env, joint.vocabulary_, rng=0, view_counts=w,
+                           weighting=weighting, answer_params=params, answer_rooms=rooms)
+    assert scores.position_predictions
+    for place, scored in scores.position_predictions.items():
+        mine = joint.predict_positions(e, scored.name, n=3, random_state=0, mode="argmax")
+        assert_allclose(mine.region_probabilities, scored.region_probabilities, rtol=0, atol=0, err_msg=place)

@@ -89,6 +89,10 @@ def _save(fig: Figure, path: PathLike | None) -> None:
         fig.savefig(path, dpi=DPI)
 
 
+#: name -> (region, p(region | name)): where the robot's ``where`` goes for each place (a map's labels).
+PlaceLabels = Mapping[str, tuple[int, float]]
+
+
 def concept_labels(params: ConceptParameters, e: int, vocabulary: Vocabulary, n_words: int = 2) -> list[str]:
     """A short label per concept: ``"c3: kitchen, dining"``, with only words that describe it.
 
@@ -157,10 +161,10 @@ def _draw_floor_plan(ax: Any, map_image: Any, extent: Sequence[float] | None) ->
 
 
 def _draw_regions(ax: Any, params: ConceptParameters, e: int, vocabulary: Any, concept_colors: Sequence[Any],
-                  label_regions: bool) -> np.ndarray:
+                  label_regions: bool, place_labels: PlaceLabels | None = None) -> np.ndarray:
     """The home's learnt regions: an ellipse per used region in its concept's colour (the concept's
-    names in the legend, and on the map with ``label_regions``) and its centre (+). Returns the
-    centres (n, 2)."""
+    names in the legend, and on the map with ``label_regions``: each of ``place_labels`` at its region,
+    or without them the concepts' names) and its centre (+). Returns the centres (n, 2)."""
     counts = np.asarray(params.region_counts[e])
     used = np.flatnonzero(counts >= max(NEGLIGIBLE_REGION * counts.sum(), 1e-12))
     hidden = int(np.count_nonzero(counts > 0)) - used.size
@@ -181,7 +185,9 @@ def _draw_regions(ax: Any, params: ConceptParameters, e: int, vocabulary: Any, c
                              facecolor=colour, alpha=0.25, edgecolor=colour, linewidth=2.0,
                              zorder=3, label=labels[c] if c not in shown else "_nolegend_"))
         shown.add(c)
-    if label_regions:
+    if label_regions and place_labels is not None:
+        _label_places(ax, place_labels, means, owner, concept_colors)
+    elif label_regions:
         _label_regions(ax, used, counts, means, owner, labels, concept_colors)
     ax.scatter(means[used, 0], means[used, 1], marker="+", s=60, color="k", linewidths=1.2,
                zorder=4, label="region centres (+)" + (
@@ -259,6 +265,7 @@ def plot_home_map(
     label_regions: bool = False,
     title: str | None = None,
     path: PathLike | None = None,
+    place_labels: PlaceLabels | None = None,
 ) -> Figure:
     """Draw home ``e``: floor plan, learnt regions, predicted positions and named poses.
 
@@ -278,15 +285,20 @@ def plot_home_map(
     concept_colors: one colour per concept (default: ``tab10``, or ``tab20`` for more than 10).
     show_ground_truth: outline and label the ground-truth rectangles (default: when no image).
     show_samples: draw the home's training positions as small grey dots.
-    label_regions: write the names that describe each region's concept on the map, at its centre.
+    label_regions: write the places on the map: each of ``place_labels`` at its region, or without
+        them the names that describe each region's concept, once, at its largest region.
     title: axes title (default: the home's name).
     path: save the figure there as PNG.
+    place_labels: name -> (region, p(region | name)), where the robot's ``where`` goes for each place
+        (``spco show`` passes :func:`spco.knowledge.places`' learnt names: the map's labels and
+        ``where`` are one answer).
 
     Each learnt region that matters — at least :data:`NEGLIGIBLE_REGION` of the home's training
     samples (``region_counts``) — is a 95% ellipse of the x–y marginal of Σ, coloured by its most
     probable concept argmax_l π_{e,l,m} G_{e,l}, with its mean marked ``+``; the regions left out
-    are counted in the legend. With ``label_regions`` each place is named once, at its largest
-    region. The axes cover ``map_extent`` and every room outline drawn, in metres, with a scale bar.
+    are counted in the legend. With ``label_regions`` each place is named once: where ``where`` goes
+    for it (``place_labels``), or at its concept's largest region. The axes cover ``map_extent`` and
+    every room outline drawn, in metres, with a scale bar.
     """
     fig, ax = _new_axes(ax, (8.0, 7.0))
     concept_colors = _concept_colors(concept_colors, params.n_concepts)
@@ -305,7 +317,7 @@ def plot_home_map(
         ax.scatter(xy[:, 0], xy[:, 1], s=4, color="0.6", alpha=0.6, linewidths=0, zorder=2,
                    label="samples (robot positions)")
 
-    centres = _draw_regions(ax, params, e, vocabulary, concept_colors, label_regions)
+    centres = _draw_regions(ax, params, e, vocabulary, concept_colors, label_regions, place_labels)
     marker_points = [centres] if centres.size else []
     if predicted_positions:
         marker_points += _draw_predicted(ax, predicted_positions)
@@ -378,6 +390,21 @@ def _label_regions(ax: Axes, used: np.ndarray, counts: np.ndarray, means: np.nda
         ax.text(centre[0], centre[1], words.replace(", ", "\n"), fontsize=8, ha="center", va="bottom",
                 color="0.1", zorder=4.6, clip_on=True,
                 bbox={"boxstyle": "round,pad=0.2", "fc": "white", "ec": colours[c], "alpha": 0.8})
+
+
+def _label_places(ax: Axes, place_labels: PlaceLabels, means: np.ndarray, owner: np.ndarray,
+                  colours: Sequence[object]) -> None:
+    """Write each place of ``place_labels`` (name -> (region, p(region | name)): where ``where`` goes
+    for it) at the centre of its region, the places of one region together, most probable first."""
+    by_region: dict[int, list[tuple[str, float]]] = {}
+    for name, (region, p) in place_labels.items():
+        by_region.setdefault(int(region), []).append((name, float(p)))
+    for m, here in sorted(by_region.items()):
+        here.sort(key=lambda item: -item[1])
+        text = "\n".join(f"{name} {p:.2f}" for name, p in here)
+        ax.text(means[m, 0], means[m, 1], text, fontsize=8, ha="center", va="bottom", color="0.1", zorder=4.6,
+                clip_on=True, bbox={"boxstyle": "round,pad=0.2", "fc": "white", "ec": colours[int(owner[m])],
+                                    "alpha": 0.8})
 
 
 #: Offsets (points) tried for a callout, nearest first; 8 directions at each distance.

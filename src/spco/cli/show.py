@@ -143,6 +143,7 @@ def _draw_home(home: Any, out: Path, floor_plan: Any, bounds: Any, map_image: Pa
     try:
         fig = plots.plot_home_map(home.parameters, 0, environment, home.vocabulary,
                                   map_image=floor_plan, map_extent=bounds, label_regions=True,
+                                  place_labels=_place_labels(home),
                                   predicted_positions=predicted or None, show_ground_truth=rooms is not None,
                                   title=f"{home.name}: {home.n_samples} samples, {home.n_taught} taught")
     except (OSError, ValueError, SyntaxError) as exc:  # an unreadable image
@@ -150,6 +151,15 @@ def _draw_home(home: Any, out: Path, floor_plan: Any, bounds: Any, map_image: Pa
             raise
         raise ConfigurationError(f"{map_image}: cannot draw the map image ({exc})") from None
     _save_png(fig, out)
+
+
+def _place_labels(home: Any) -> dict[str, tuple[int, float]]:
+    """Each learnt place's label: the region ``where`` goes for it, with p(region | name)
+    (:func:`spco.knowledge.places`), as the page of ``spco serve`` and the ROS markers label it."""
+    from spco.knowledge import places
+
+    return {name: (int(pred.region), float(pred.region_probabilities[pred.region]))
+            for name, pred in places(home).items() if pred.learnt}
 
 
 def _write_mcap(home: Any, path: Path) -> None:

@@ -6,7 +6,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Literal
 
-from spco.model.confidence import answer_weighting
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.transfer import SpatialConceptModel, SpCoA, SpCoTransfer
 
@@ -22,15 +21,19 @@ class ModelSpec:
     build: ``build(n_iterations, random_state, hyperparameters, record_log_joint)`` -> an unfitted
         model; ``hyperparameters`` (``None``: the model's defaults) applies to transfer models.
     single_home: fitted on the new home alone (SpCoA) instead of all homes of the setting.
-    weighting: the name weighting of prediction: for the transfer models the robot's
-        (:func:`spco.model.confidence.answer_weighting`: ``"none"`` with the naming rule, ``"mi"``
-        without, the authors' ``"reference"``).
     """
 
     description: str
     build: Callable[[int, int, TransferHyperparameters | None, bool], SpatialConceptModel]
     single_home: bool = False
-    weighting: Literal["mi", "none", "reference"] = "mi"
+
+    @property
+    def weighting(self) -> Literal["mi", "none", "reference"]:
+        """The name weighting of the model's answers (its
+        :meth:`~spco.model.transfer.SpatialConceptModel.name_weighting`: for the transfer models the
+        robot's, :func:`spco.model.confidence.answer_weighting` — ``"none"`` with the naming rule,
+        ``"mi"`` without, the authors' ``"reference"``; ``"mi"`` for SpCoA)."""
+        return self.build(1, 0, None, False).name_weighting()  # type: ignore[return-value]
 
     def hyperparameters(self, hyper: TransferHyperparameters | None) -> TransferHyperparameters:
         """The hyperparameters the model will use."""
@@ -59,12 +62,11 @@ def _spcoa(prune: bool) -> Callable[..., SpatialConceptModel]:
 #: The models an experiment can compare, by name. Add an entry to extend the comparison.
 MODELS: dict[str, ModelSpec] = {
     "spcotransfer": ModelSpec("SpCoTransfer, exact sampler", _transfer("exact", False)),
-    "spcotransfer+mi": ModelSpec("SpCoTransfer + MI word pruning", _transfer("exact", True),
-                                 weighting=answer_weighting("exact", True)),
+    "spcotransfer+mi": ModelSpec("SpCoTransfer + MI word pruning", _transfer("exact", True)),
     "spcotransfer-ref": ModelSpec("SpCoTransfer, the authors' sampler and KL name scoring",
-                                  _transfer("reference", False), weighting="reference"),
+                                  _transfer("reference", False)),
     "spcotransfer-ref+mi": ModelSpec("SpCoTransfer + word pruning, the authors' sampler and KL "
-                                     "name scoring", _transfer("reference", True), weighting="reference"),
+                                     "name scoring", _transfer("reference", True)),
     "spcoa": ModelSpec("SpCoA on the new home alone", _spcoa(False), single_home=True),
     "spcoa+mi": ModelSpec("SpCoA + MI word pruning on the new home alone", _spcoa(True),
                           single_home=True),

@@ -28,9 +28,7 @@ from spco.evaluation.config import _POSES_ON_MAP, MAPS_DIR, ExperimentConfig, tr
 from spco.evaluation.homes import ExperimentData, _build_data, _DataSpec
 from spco.evaluation.metrics import HomeScores, evaluate_home
 from spco.evaluation.models import MODELS
-from spco.model.confidence import model_answer_parameters
 from spco.model.hyperparameters import TransferHyperparameters
-from spco.model.rooms import model_rooms
 from spco.model.transfer import SpatialConceptModel
 
 
@@ -163,14 +161,14 @@ def execute_run(data: ExperimentData, ctx: _RunContext, key: RunKey) -> dict[str
     e = len(corpus) - 1
     env = homes[-1]
     specific = ctx.experiment == "specific"
+    # what the robot answers (a home adapted from a knowledge: the answer's parameters, the room
+    # account, its weighting), as the model's own predict_names and predict_positions answer
+    answer_params, answer_rooms, weighting = model.answer_inputs(e)
     scores = evaluate_home(model.parameters_, e, env, model.vocabulary_, specific=specific,
                            n_positions=ctx.n_positions, rng=np.random.default_rng([seed, 1]),
-                           weighting=spec.weighting, name_prior=model.hyperparameters_.name_prior,
+                           weighting=weighting, name_prior=model.hyperparameters_.name_prior,
                            view_counts=model.settings_.view_counts,
-                           # what the robot answers (a home adapted from a knowledge, the room account):
-                           # SpCoA has none
-                           answer_params=None if spec.single_home else model_answer_parameters(model, e),
-                           answer_rooms=None if spec.single_home else model_rooms(model, e))
+                           answer_params=answer_params, answer_rooms=answer_rooms)
     wall = time.perf_counter() - start
     if traced:
         path = map_path(Path(ctx.out), ctx.experiment, key.model, key.setting, key.home)

@@ -75,8 +75,6 @@ from spco.evaluation.specific_file import (
     taught_count,
     teaching_sentences,
 )
-from spco.model.confidence import model_answer_parameters
-from spco.model.rooms import model_rooms
 
 __all__ = [
     "CONFIG_FORMAT",
@@ -323,10 +321,10 @@ def execute_configured_run(data: ConfiguredData, key: ConfiguredRun, iterations:
     corpus = Corpus([new] if spec.single_home else homes, vocabulary=vocabulary)
     model.fit(corpus)
     e = len(corpus) - 1
-    scores = score_rooms(model.parameters_, e, new, model.vocabulary_, conf.rooms, spec.weighting,
+    answer_params, answer_rooms, weighting = model.answer_inputs(e)  # what the robot answers with
+    scores = score_rooms(model.parameters_, e, new, model.vocabulary_, conf.rooms, weighting,  # type: ignore[arg-type]
                          n_positions, np.random.default_rng([key.seed, 1]), model.settings_.view_counts,
-                         None if spec.single_home else model_answer_parameters(model, e),
-                         None if spec.single_home else model_rooms(model, e))
+                         answer_params, answer_rooms)
     return {
         "fingerprint": fingerprint,
         "configuration": key.configuration,

@@ -32,10 +32,10 @@ from spco.model.confidence import UNSURE_BELOW
 from spco.model.parameters import ConceptParameters
 from spco.model.position_prediction import PositionPrediction, place_word_information
 from spco.model.prediction import NamePrediction, UnknownNameError, mutual_information_weights
-from spco.model.rooms import HomeRooms
+from spco.model.rooms import HomeRooms, sample_rooms
 from spco.model.seeds import as_generator
 from spco.model.unheard import resolve_name
-from spco.model.word_channels import channel_token_counts, concept_name_tokens, name_tokens
+from spco.model.word_channels import concept_name_tokens, name_tokens
 
 
 def where(home: HomeModel, name: str, n: int = 10,
@@ -68,8 +68,7 @@ def where(home: HomeModel, name: str, n: int = 10,
     how).
     """
     resolved = resolve_name(home.vocabulary, home.said_words, name, home.parameters.name_prior,
-                            information=mutual_information_weights(home.parameters, 0),
-                            place_information=place_word_information(home.parameters, 0))
+                            information=_information(home), place_information=_place_information(home))
     if resolved is not None:  # a name nobody said: the known name the lexicon finds for it
         return replace(_where(home, resolved.name, n, random_state), asked=resolved.asked, via=resolved.how)
     try:
@@ -79,6 +78,32 @@ def where(home: HomeModel, name: str, n: int = 10,
         if hint is None:
             raise
         raise UnknownNameError(name, home.known_names, reason=hint) from None
+
+
+#: each home's words' mutual information with its concepts, worked out once per home object (as
+#: :data:`_ANSWER_INPUTS`): what ``where`` looks an unheard name up with
+_INFORMATION: weakref.WeakKeyDictionary[HomeModel, np.ndarray] = weakref.WeakKeyDictionary()
+
+
+def _information(home: HomeModel) -> np.ndarray:
+    """(V,) :func:`~spco.model.prediction.mutual_information_weights` of the home's parameters, kept
+    while the home lives."""
+    known = _INFORMATION.get(home)
+    if known is None:
+        known = _INFORMATION[home] = mutual_information_weights(home.parameters, 0)
+    return known
+
+
+_PLACE_INFORMATION: weakref.WeakKeyDictionary[HomeModel, np.ndarray] = weakref.WeakKeyDictionary()
+
+
+def _place_information(home: HomeModel) -> np.ndarray:
+    """(V,) :func:`~spco.model.position_prediction.place_word_information` of the home's parameters,
+    kept while the home lives."""
+    known = _PLACE_INFORMATION.get(home)
+    if known is None:
+        known = _PLACE_INFORMATION[home] = place_word_information(home.parameters, 0)
+    return known
 
 
 def _where(home: HomeModel, name: str, n: int,
@@ -101,13 +126,36 @@ def _where(home: HomeModel, name: str, n: int,
 def answered_at_region(home: HomeModel, region: int) -> str | None:
     """The name :func:`what` answers (the position alone) at the centre of the home's region
     ``region``: the name the home gives the place there; ``None`` if it knows none."""
-    mean = np.asarray(home.parameters.region_means[0, region], dtype=np.float64)
-    theta = float(np.arctan2(mean[2], mean[3])) if mean.size >= 4 else 0.0
-    pose = np.array([[mean[0], mean[1], np.sin(theta), np.cos(theta)]])
+    words = names_at_regions(home, [region], top_k=1).words[0]
+    return str(words[0]) if len(words) else None
+
+
+def names_at_regions(home: HomeModel, regions: Any, top_k: int = 3) -> NamePrediction:
+    """What :func:`what` answers (the position alone) at the centre of each of the home's regions
+    ``regions`` (indices; its mean pose, the heading from the mean's sin θ and cos θ): one row per
+    region, as :func:`name_prediction` answers them (a centre off the map is still answered)."""
+    rows = np.asarray(regions, dtype=np.int64).reshape(-1)
+    means = np.asarray(home.parameters.region_means[0], dtype=np.float64)[rows]  # (n, 4): x, y, sin θ, cos θ
+    theta = np.arctan2(means[:, 2], means[:, 3])
+    poses = np.column_stack([means[:, 0], means[:, 1], np.sin(theta), np.cos(theta)])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # a region's centre off the map: still the region's answer
-        words = name_prediction(home, pose, None, top_k=1).words[0]
-    return str(words[0]) if len(words) else None
+        return name_prediction(home, poses, None, top_k=top_k)
+
+
+def places(home: HomeModel) -> dict[str, PositionPrediction]:
+    """:func:`where` of every name the home answers (:attr:`~spco.knowledge.home.HomeModel.known_names`),
+    without poses: where each place is, as ``where`` answers it (``region``, its probability
+    ``region_probabilities[region]``, ``learnt``). What labels the places of a map (the page of
+    ``spco serve``, the ROS markers, Foxglove): a name is labelled at the region ``where`` goes to for
+    it. A name ``where`` cannot use (:class:`~spco.model.prediction.UnknownNameError`) is left out."""
+    found: dict[str, PositionPrediction] = {}
+    for name in home.known_names:
+        try:
+            found[name] = where(home, name, n=0, random_state=0)
+        except UnknownNameError:
+            continue
+    return found
 
 
 def unused_word_hint(home: HomeModel, word: str) -> str | None:
@@ -308,16 +356,9 @@ def home_rooms(home: HomeModel) -> HomeRooms:
     :meth:`~spco.model.rooms.HomeRooms.membership`), their views and the name tokens taught at them
     (with the word channels the tokens drawn as names, as :func:`answer_parameters` counts them, and
     those drawn as words of the place) with δ^w, for a room's own names in ``where``
-    (:func:`spco.model.position_prediction.region_posterior_for_name`)."""
-    words, state = home.data.words, home.state
-    if home.knowledge.channels is not None and state.switches is not None and words.nnz:
-        words = name_tokens(words, state.switches)
-    names = places = None
-    if state.channels is not None:
-        names, places = channel_token_counts(home.data.words, home.data.homes, state.concepts,
-                                             state.log_theta_w, state.channels)
-    return HomeRooms.of(state.regions, home.data.visual, words, state.concepts, names=names, places=places,
-                        concentration=home.hyperparameters.delta_word)
+    (:func:`spco.model.position_prediction.region_posterior_for_name`): the rooms' one builder,
+    :func:`spco.model.rooms.sample_rooms`, as the experiments build a joint fit's."""
+    return sample_rooms(home.data, home.state, home.hyperparameters.delta_word)
 
 
 def describe_model_file(path: str | PathLike[str]) -> dict[str, Any]:

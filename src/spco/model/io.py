@@ -30,9 +30,13 @@ replaced with ``overwrite=True``. Every problem on loading — a missing, trunca
 an edited array (checksum mismatch), a file from a newer spco — raises
 :class:`~spco.errors.ModelFileError` naming the file.
 
-A loaded model predicts exactly like the saved one (same ``parameters_``, vocabulary and home
-names), but it does not hold the sampler state (``state_``, ``data_``): it can predict and be
-evaluated, not continue sampling. To learn more, fit again.
+A loaded model holds the saved one's ``parameters_``, vocabulary and home names, but not the sampler
+state (``state_``, ``data_``): it can be evaluated from its parameters
+(:func:`spco.evaluation.evaluate_home`), not continue sampling. A loaded SpCoA predicts exactly like
+the saved one; a loaded transfer model's ``predict_names`` and ``predict_positions`` refuse with a
+:class:`~spco.errors.ConfigurationError`: they answer as the robot does, from the home's rooms (its
+training samples' regions, views and names), which the file does not keep. To learn more, or to
+predict as the robot does, fit again (or adapt a knowledge to the home: :mod:`spco.knowledge`).
 """
 
 from __future__ import annotations
@@ -320,8 +324,8 @@ def load_model(path: str | PathLike[str]) -> SpatialConceptModel:
     Returns a :class:`~spco.model.transfer.SpCoTransfer` or :class:`~spco.model.transfer.SpCoA`
     with ``parameters_``, ``vocabulary_``, ``word_increment_``, ``home_names_``, ``log_joint_``,
     ``concepts_``, ``regions_``, ``training_ids_``, ``hyperparameters_``, ``settings_`` and
-    ``n_iter_`` restored. It predicts exactly like the saved model; it has no sampler state
-    (``state_``, ``data_``), so it cannot continue sampling.
+    ``n_iter_`` restored. It has no sampler state (``state_``, ``data_``), so it cannot continue
+    sampling, nor (a transfer model) predict as the robot does (module docstring).
 
     Raises
     ------

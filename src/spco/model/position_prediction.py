@@ -295,6 +295,26 @@ def room_said_counts(rooms: HomeRooms, n_regions: int
     return result
 
 
+def _dense_said_counts(rooms: HomeRooms, n_regions: int) -> tuple[np.ndarray, np.ndarray | None]:
+    """:func:`room_said_counts`' (R, V) name and place-word tokens as dense arrays (tens of rooms by
+    hundreds of words), kept with ``rooms``: ``where`` reads a few columns of them per name."""
+    known = rooms._known.get(("said-dense", n_regions))
+    if known is None:
+        _, named, placed = room_said_counts(rooms, n_regions)
+        known = named.toarray(), None if placed is None else placed.toarray()
+        rooms._known[("said-dense", n_regions)] = known
+    return known
+
+
+def _log_sum_exp(a: np.ndarray, axis: int) -> np.ndarray:
+    """log Σ exp(a) along ``axis`` (-inf where every term is -inf): scipy's logsumexp without its
+    per-call overhead, for ``where``'s few small arrays per name."""
+    top = np.max(a, axis=axis, keepdims=True)
+    top = np.where(np.isfinite(top), top, 0.0)
+    with np.errstate(divide="ignore"):
+        return np.log(np.sum(np.exp(a - top), axis=axis)) + np.squeeze(top, axis=axis)
+
+
 #: One channel of a room's names for :func:`room_name_log_likelihood`: (a (n,) the share of each token's
 #: probability the channel holds, p (L, n) the concepts' probabilities of the tokens, X (R, n) the
 #: rooms' counts of the tokens, T (R,) the rooms' counts of every word of the channel).
@@ -334,17 +354,30 @@ def room_name_log_likelihood(channels: list[RoomChannel], concentration: float |
     return _safe_log(total).sum(axis=2)
 
 
+def _room_concepts(params: ConceptParameters, rooms: HomeRooms, view_counts: float | None, e: int
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(R, L) log p(l | room k), (R,) the rooms' samples n_k and (R,) their regions
+    (:func:`spco.model.rooms._room_log_posterior` normalised per room), worked out once per ``rooms``
+    and ``params`` object as that is: the part of ``where`` that does not depend on the name."""
+    from spco.model.rooms import _room_log_posterior
+
+    known = rooms._known.get(("concepts", view_counts, e))
+    if known is not None and known[0] is params:
+        return known[1]
+    log_post, counts, region_of = _room_log_posterior(params, rooms, view_counts, e)
+    result = log_post - logsumexp(log_post, axis=1, keepdims=True), counts, region_of
+    rooms._known[("concepts", view_counts, e)] = (params, result)
+    return result
+
+
 def _room_weights(params: ConceptParameters, e: int, rooms: HomeRooms, view_counts: float | None,
                   words: list[int], lookup: np.ndarray) -> np.ndarray | None:
     """(K,) Σ_{k: r(k) = m} n_k Σ_l p(l | room k) p(w | room k, l) (up to a constant), the room
     account's regions for the name's tokens ``words``; ``None`` if no room holds a training sample."""
-    from spco.model.rooms import _room_log_posterior
-
-    log_post, counts, region_of = _room_log_posterior(params, rooms, view_counts, e)  # (R, L), (R,), (R,)
+    log_concept, counts, region_of = _room_concepts(params, rooms, view_counts, e)  # (R, L), (R,), (R,)
     if not counts.sum() > 0:
         return None
     K = int(np.shape(params.region_means)[1])
-    log_concept = log_post - logsumexp(log_post, axis=1, keepdims=True)  # log p(l | room k)
     R = region_of.size
     concentration = rooms.concentration
     theta = _word_matrix(params, e)[:, words]  # (L, n)
@@ -353,7 +386,7 @@ def _room_weights(params: ConceptParameters, e: int, rooms: HomeRooms, view_coun
         tuple(np.asarray(prior, dtype=np.float64)[words, c] for c in (0, 1))
     mask = np.asarray(lookup, dtype=np.float64)
     read = concentration is not None and rooms.words.shape[1] == mask.size
-    _, named, placed = room_said_counts(rooms, K) if read else (None, None, None)
+    named, placed = _dense_said_counts(rooms, K) if read else (None, None)
     channels: list[RoomChannel] = []
     for c, (said, probs) in enumerate(((named, theta), (placed, None if psi is None else
                                                          np.asarray(psi, dtype=np.float64)[:, words]))):
@@ -362,12 +395,11 @@ def _room_weights(params: ConceptParameters, e: int, rooms: HomeRooms, view_coun
         if said is None:
             channels.append((channel_share[c], probs, np.zeros((R, len(words))), np.zeros(R)))
         else:
-            channels.append((channel_share[c], probs, said[:, words].toarray() * mask[None, words],
-                             np.asarray(said @ mask, dtype=np.float64).ravel()))
+            channels.append((channel_share[c], probs, said[:, words] * mask[None, words], said @ mask))
     log_word = room_name_log_likelihood(channels, concentration if read else None)  # (R, L)
     if not log_word.max() > _LOG_FLOOR:  # the name has probability 0 in every room
         return np.zeros(K)
-    log_room = _safe_log(counts) + logsumexp(log_concept + log_word, axis=1)  # (R,)
+    log_room = _safe_log(counts) + _log_sum_exp(log_concept + log_word, axis=1)  # (R,)
     log_room = np.where(counts > 0, log_room, -np.inf)
     weights = np.exp(log_room - log_room.max())
     return np.bincount(region_of, weights=weights, minlength=K)
@@ -461,8 +493,8 @@ def draw_poses(params: ConceptParameters, e: int, region_probabilities: np.ndarr
     theta = np.full(n, np.nan) if xy_only else np.arctan2(draws[:, 2], draws[:, 3])
     samples = np.column_stack([draws[:, 0], draws[:, 1], theta])
     log_mixture = _safe_log(region_probabilities)[None, :] + gaussian_log_density(draws, means, covs)
-    log_density = logsumexp(log_mixture, axis=1)
-    return samples, log_density, np.exp(log_density - logsumexp(log_density))
+    log_density = _log_sum_exp(log_mixture, axis=1)
+    return samples, log_density, np.exp(log_density - _log_sum_exp(log_density, axis=0))
 
 
 def predict_positions(

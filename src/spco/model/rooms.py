@@ -44,7 +44,7 @@ from spco.errors import ConfigurationError
 from spco.model.parameters import ConceptParameters
 from spco.model.prediction import _safe_log, _visual_log_likelihood
 
-__all__ = ["HomeRooms", "concepts_by_room", "model_rooms", "room_concepts"]
+__all__ = ["HomeRooms", "concepts_by_room", "model_rooms", "room_concepts", "sample_rooms"]
 
 
 @dataclass(frozen=True)
@@ -131,7 +131,14 @@ class HomeRooms:
         times and "shower room" once, the sampler giving each name its concept, is two rooms, 3 : 1.
         A region where names of one concept were taught is one room (the name decides it); a region
         where nothing was taught is a room per concept of its samples (a region reaching over a wall
-        into another place holds two rooms)."""
+        into another place holds two rooms). Worked out once per ``n_regions`` (kept with the rooms)."""
+        known = self._known.get(("membership", n_regions))
+        if known is None:
+            known = self._known[("membership", n_regions)] = self._membership(n_regions)
+        return known
+
+    def _membership(self, n_regions: int) -> tuple[sp.csr_array, np.ndarray]:
+        """:meth:`membership` worked out."""
         n = self.regions.size
         if self.concepts is None:
             return sp.csr_array((np.ones(n), (self.regions, np.arange(n))), shape=(n_regions, n)), \
@@ -267,25 +274,43 @@ def concepts_by_room(params: ConceptParameters, e: int, positions: np.ndarray, v
     return np.exp(joint - logsumexp(joint, axis=1, keepdims=True))
 
 
-def model_rooms(model: object, e: int) -> HomeRooms:
-    """:class:`HomeRooms` of home ``e`` of a fitted joint model
-    (:class:`~spco.model.transfer.SpatialConceptModel`, the experiments' fit): its training samples'
-    regions, concepts, views and name tokens (with the word channels the tokens drawn as names), so
-    that an experiment scores the names the robot answers (:func:`spco.model.confidence.answer_names`)."""
+def sample_rooms(data: object, state: object, concentration: float | None, rows: slice | None = None
+                 ) -> HomeRooms:
+    """:class:`HomeRooms` of the training samples ``rows`` (default: all) of a sampler's data
+    (:class:`~spco.model.gibbs.PreparedData`: ``words``, ``homes``, ``visual``) and state
+    (:class:`~spco.model.gibbs.GibbsState`: ``regions``, ``concepts``, and with the word channels
+    ``channels``, ``switches`` and ``log_theta_w``): the one builder of the rooms every answer reads,
+    a robot's home's (:func:`spco.knowledge.queries.home_rooms`) and a joint fit's home's
+    (:func:`model_rooms`, the experiments').
+
+    The rooms' name tokens are the tokens the sampler drew as names (with the word channels;
+    :func:`~spco.model.word_channels.name_tokens`), and ``names`` and ``places`` each sample's
+    expected tokens per channel (:func:`~spco.model.word_channels.channel_token_counts`), as θ^w and
+    ψ count them; ``concentration``: δ^w (``None``: a room's own words are not read by ``where``)."""
     from spco.model.word_channels import channel_token_counts, name_tokens
 
-    data = model.data_  # type: ignore[attr-defined]
-    state = model.state_  # type: ignore[attr-defined]
-    rows = slice(int(data.offsets[e]), int(data.offsets[e + 1]))
-    words = data.words
-    if getattr(state, "channels", None) is not None and getattr(state, "switches", None) is not None \
-            and words.nnz:
-        words = name_tokens(words, state.switches)
+    rows = slice(None) if rows is None else rows
+    words = data.words  # type: ignore[attr-defined]
+    channels = getattr(state, "channels", None)
+    switches = getattr(state, "switches", None)
+    if channels is not None and switches is not None and words.nnz:
+        words = name_tokens(words, switches)  # (the switches run over every token: slice after)
     names = places = None
-    if getattr(state, "channels", None) is not None:
-        names, places = channel_token_counts(sp.csr_array(data.words[rows]), np.asarray(data.homes)[rows],
-                                             np.asarray(state.concepts)[rows], state.log_theta_w,
-                                             state.channels)
-    return HomeRooms.of(np.asarray(state.regions)[rows], data.visual[rows], words[rows],
-                        np.asarray(state.concepts)[rows], names=names, places=places,
-                        concentration=float(model.hyperparameters_.delta_word))  # type: ignore[attr-defined]
+    concepts = np.asarray(state.concepts)[rows]  # type: ignore[attr-defined]
+    if channels is not None:
+        names, places = channel_token_counts(sp.csr_array(data.words[rows]),  # type: ignore[attr-defined]
+                                             np.asarray(data.homes)[rows], concepts,  # type: ignore[attr-defined]
+                                             state.log_theta_w, channels)  # type: ignore[attr-defined]
+    return HomeRooms.of(np.asarray(state.regions)[rows], data.visual[rows], words[rows],  # type: ignore[attr-defined]
+                        concepts, names=names, places=places, concentration=concentration)
+
+
+def model_rooms(model: object, e: int) -> HomeRooms:
+    """:class:`HomeRooms` of home ``e`` of a fitted joint model
+    (:class:`~spco.model.transfer.SpatialConceptModel`, the experiments' fit): :func:`sample_rooms` of
+    its training samples of the home, with its δ^w, so that an experiment scores the names the robot
+    answers (:func:`spco.model.confidence.answer_names`). Needs the sampler's state (``state_``,
+    ``data_``: a fitted model, not one loaded from a file)."""
+    data = model.data_  # type: ignore[attr-defined]
+    rows = slice(int(data.offsets[e]), int(data.offsets[e + 1]))
+    return sample_rooms(data, model.state_, float(model.hyperparameters_.delta_word), rows)  # type: ignore[attr-defined]

@@ -342,28 +342,71 @@ class SpatialConceptModel:
                 f"the model knows no home {home!r}; it learnt {', '.join(self.home_names_)}")
         return self.home_names_.index(home)
 
-    def predict_names(self, home: str | int, positions: np.ndarray, visual: Any, top_k: int = 3,
-                      weighting: str = "mi"):
-        """Top-``top_k`` place names for observations of ``home`` (see :mod:`spco.model.prediction`;
-        the hyperparameters' ``name_prior`` setting applies)."""
-        from spco.model import prediction
+    def answer_inputs(self, home: str | int) -> tuple[ConceptParameters, Any, str]:
+        """What the robot answers ``home``'s questions with: ``(params, rooms, weighting)``, the answer's
+        parameters (:func:`spco.model.confidence.model_answer_parameters`), the home's rooms
+        (:func:`spco.model.rooms.model_rooms`, the room account) and the name weighting
+        (:func:`spco.model.confidence.answer_weighting`), as a home adapted from a knowledge answers.
+        :meth:`predict_names`, :meth:`predict_positions` and the experiments
+        (:func:`spco.evaluation.runs.execute_run`) read them. Worked out once per fit.
+
+        Raises :class:`~spco.errors.ConfigurationError` for a model loaded from a file: it keeps no
+        training samples, and the rooms are the home's samples' regions, views and names."""
+        from spco.model.confidence import model_answer_parameters
+        from spco.model.rooms import model_rooms
 
         e = self.home_index(home)
-        return prediction.predict_names(self.parameters_, e, self.vocabulary_, np.asarray(positions),
-                                        visual, top_k=top_k, weighting=weighting,
-                                        view_counts=self.settings_.view_counts,
-                                        name_prior=self.hyperparameters_.name_prior)
+        if not (hasattr(self, "state_") and hasattr(self, "data_")):
+            raise ConfigurationError(
+                "this model was loaded from a file, which keeps no training samples: the robot's answers "
+                "read the home's rooms (its samples' regions, views and names); predict with the fitted "
+                "model, or adapt a knowledge to the home (spco.knowledge.adapt) and ask the home")
+        known = self.__dict__.setdefault("_answers", {})
+        if known.get("parameters") is not self.parameters_:  # a new fit: forget the old answers
+            known.clear()
+            known["parameters"] = self.parameters_
+        if e not in known:
+            known[e] = (model_answer_parameters(self, e), model_rooms(self, e), self.name_weighting())
+        return known[e]
+
+    def name_weighting(self) -> str:
+        """The name weighting of this model's answers (:func:`spco.model.confidence.answer_weighting`
+        of its ``variant`` and ``prune_words``: as a home adapted from such a knowledge answers)."""
+        from spco.model.confidence import answer_weighting
+
+        return answer_weighting(self.variant, bool(self.prune_words))
+
+    def predict_names(self, home: str | int, positions: np.ndarray, visual: Any, top_k: int = 3):
+        """Top-``top_k`` place names for observations of ``home``: the names the robot answers there
+        (:func:`spco.model.confidence.answer_names` with :meth:`answer_inputs`, a view worth the
+        model's view weight w, answers below :data:`~spco.model.confidence.UNSURE_BELOW` flagged
+        ``unsure``), what the experiments score (the hyperparameters' ``name_prior`` setting applies)."""
+        from spco.model.confidence import UNSURE_BELOW, answer_names
+
+        e = self.home_index(home)
+        params, rooms, weighting = self.answer_inputs(e)
+        return answer_names(params, e, self.vocabulary_, np.asarray(positions), visual, top_k=top_k,
+                            weighting=weighting, view_counts=self.settings_.view_counts,  # type: ignore[arg-type]
+                            unsure_below=UNSURE_BELOW, name_prior=self.hyperparameters_.name_prior,
+                            rooms=rooms)
 
     def predict_positions(self, home: str | int, name: str, n: int = 10,
-                          random_state: int | np.random.Generator | None = None):
-        """Positions to go to for place ``name`` in ``home`` (see :mod:`spco.model.position_prediction`):
-        the result's ``samples`` are (x, y, θ), its ``poses`` (x, y, sin θ, cos θ); ``learnt`` is False
-        when the name's probability in this home comes from concepts that hold none of its samples."""
+                          random_state: int | np.random.Generator | None = None, mode: str = "answer"):
+        """Positions to go to for place ``name`` in ``home``: the robot's ``where``
+        (:func:`spco.model.position_prediction.predict_positions` with :meth:`answer_inputs`, the
+        model's view weight and its word mask as the words looked up), what the experiments' A_p
+        scores. ``mode``: ``"answer"`` (the robot's: the regions at least half as probable as the
+        best), ``"argmax"`` (the paper's A_p) or ``"mixture"``. The result's ``samples`` are (x, y, θ),
+        its ``poses`` (x, y, sin θ, cos θ); ``learnt`` is False when the name's probability in this
+        home comes from concepts that hold none of its samples."""
         from spco.model import position_prediction
 
         e = self.home_index(home)
-        return position_prediction.predict_positions(self.parameters_, e, self.vocabulary_, name, n=n,
-                                                     rng=as_generator(random_state))
+        params, rooms, _ = self.answer_inputs(e)
+        return position_prediction.predict_positions(params, e, self.vocabulary_, name, n=n,
+                                                     rng=as_generator(random_state), mode=mode,  # type: ignore[arg-type]
+                                                     rooms=rooms, view_counts=self.settings_.view_counts,
+                                                     lookup=self.parameters_.word_mask)
 
     def save(self, path, overwrite: bool = False) -> None:
         """Write the fitted model to ``path`` atomically (see :mod:`spco.model.io`); an existing
@@ -420,6 +463,17 @@ class SpCoA(SpatialConceptModel):
 
     def _default_hyperparameters(self) -> TransferHyperparameters:
         return SpCoAHyperparameters()
+
+    def answer_inputs(self, home: str | int) -> tuple[ConceptParameters, Any, str]:
+        """SpCoA's answers (one home, no knowledge, no room account): its parameters, no rooms, the
+        MI weighting — what the experiments score for SpCoA (a model loaded from a file answers too)."""
+        self.home_index(home)
+        return self.parameters_, None, self.name_weighting()
+
+    def name_weighting(self) -> str:
+        """SpCoA's name weighting: the mutual information, with or without pruning (the baseline as
+        the experiments have always scored it)."""
+        return "mi"
 
     def sampler_settings(self) -> gibbs.SamplerSettings:
         """The SpCoA sampler's settings (``prune_words`` as set)."""

@@ -32,7 +32,7 @@ from pathlib import Path
 from typing import Any
 
 from spco.errors import ConfigurationError, SpcoError
-from spco.ros.messages import concept_colour, ellipse_axes
+from spco.ros.messages import concept_colour, ellipse_axes, places_text
 
 __all__ = ["MCAP_FORMAT", "TOPICS", "FoxgloveStream", "FoxgloveUnavailableError", "answer_update",
            "protobuf_class", "read_mcap", "require_foxglove", "scene_update", "teachings_update",
@@ -91,7 +91,9 @@ def scene_update(regions: Sequence[Mapping[str, Any]], n_concepts: int, frame: s
                  now: float | None = None, top_names: int = 3) -> Any:
     """A ``foxglove.SceneUpdate`` of the learnt regions (``regions`` as
     :func:`spco.service.answers.regions_answer` lists them): first a deletion of every entity, then
-    one entity per region (ellipse outline, translucent fill, names)."""
+    one entity per region (ellipse outline, translucent fill, and the places `where` finds there with
+    p(region | name), :func:`~spco.ros.messages.places_text`; metadata: the names `what` answers at its
+    centre and the places)."""
     require_foxglove()
     from foxglove.messages import (
         CylinderPrimitive,
@@ -118,7 +120,7 @@ def scene_update(regions: Sequence[Mapping[str, Any]], n_concepts: int, frame: s
             ex, ey = major * math.cos(a), minor * math.sin(a)
             points.append(Point3(x=mx + c * ex - s * ey, y=my + s * ex + c * ey, z=0.0))
         names = list(region.get("names") or ())[:top_names]
-        label = "\n".join(f"{n['name']} {float(n.get('p', 0.0)):.2f}" for n in names) or "(no name yet)"
+        label = places_text(region, top_names)  # where `where` goes for a place: its label
         entities.append(SceneEntity(
             timestamp=_stamp(now), frame_id=frame, id=f"region/{int(region['region'])}",
             lines=[LinePrimitive(type=LinePrimitiveLineType.LineLoop, pose=_pose(0.0, 0.0), thickness=0.04,
@@ -127,10 +129,11 @@ def scene_update(regions: Sequence[Mapping[str, Any]], n_concepts: int, frame: s
                                          size=Vector3(x=max(2 * major, 1e-3), y=max(2 * minor, 1e-3), z=0.01),
                                          bottom_scale=1.0, top_scale=1.0, color=_color(rgb, 0.25))],
             texts=[TextPrimitive(pose=_pose(mx, my, 0.3), billboard=True, font_size=14.0,
-                                 scale_invariant=True, color=_color(rgb, 1.0), text=label)],
+                                 scale_invariant=True, color=_color(rgb, 1.0), text=label)] if label else [],
             metadata=[KeyValuePair(key="concept", value=str(int(region["concept"]))),
                       KeyValuePair(key="samples", value=str(int(region.get("samples", 0)))),
-                      KeyValuePair(key="names", value=json.dumps(names))]))
+                      KeyValuePair(key="names", value=json.dumps(names)),
+                      KeyValuePair(key="places", value=json.dumps(list(region.get("places") or ())))]))
     return SceneUpdate(deletions=[_deletion(now)], entities=entities)
 
 

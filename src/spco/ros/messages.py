@@ -39,6 +39,7 @@ __all__ = [
     "frame_from_message",
     "goal_message",
     "marker_array",
+    "places_text",
     "pose_array_message",
     "pose_from_message",
     "quaternion_from_yaw",
@@ -288,27 +289,30 @@ def ellipse_axes(covariance: Sequence[Sequence[float]] | np.ndarray) -> tuple[fl
     return major, minor, math.atan2(vectors[1, 1], vectors[0, 1])
 
 
-def _names_text(names: Sequence[Mapping[str, Any]], top: int, min_p: float) -> str:
-    shown = [n for n in names if float(n.get("p", 0.0)) >= min_p][:top] or list(names[:1])
-    return "\n".join(f"{n['name']} {float(n.get('p', 0.0)):.2f}" for n in shown)
+def places_text(region: Mapping[str, Any], top: int = 3) -> str:
+    """A region's label on a map: the places ``where`` goes to this region for (``region["places"]``,
+    :func:`spco.service.answers.regions_answer`), at most ``top``, one a line, each with p(region |
+    name); ``""`` where ``where`` finds no place."""
+    return "\n".join(f"{n['name']} {float(n['p']):.2f}" for n in list(region.get("places") or ())[:top])
 
 
 def marker_array(regions: Sequence[Mapping[str, Any]], n_concepts: int, frame: str = "map",
-                 top_names: int = 3, min_p: float = 0.1, z: float = 0.0) -> dict[str, Any]:
+                 top_names: int = 3, z: float = 0.0) -> dict[str, Any]:
     """A ``visualization_msgs/MarkerArray`` of learnt regions: for each region an ellipse outline
     (``LINE_STRIP``, namespace ``spco/regions``), a translucent filled ellipse (a flat ``CYLINDER``,
-    ``spco/fill``) and its names with their probabilities (``TEXT_VIEW_FACING``, ``spco/names``),
+    ``spco/fill``) and, for a region where ``where`` finds places, their names with p(region | name)
+    (``TEXT_VIEW_FACING``, ``spco/names``, :func:`places_text`: the label is ``where``'s answer),
     coloured by the region's concept as ``spco show`` colours it. The first marker deletes every
     earlier marker (``DELETEALL``), so regions that are gone disappear.
 
     Parameters
     ----------
     regions: one mapping per region: ``region`` (its index: the markers' id), ``mean`` (x, y, …
-        metres), ``covariance`` (2 × 2 or larger, metres²), ``concept`` (int) and ``names``
-        (``[{"name", "p"}]``, most probable first).
+        metres), ``covariance`` (2 × 2 or larger, metres²), ``concept`` (int) and ``places``
+        (``[{"name", "p"}]``, the places ``where`` finds there, most probable first).
     n_concepts: the number of concepts (chooses the palette).
-    frame: the map frame. top_names, min_p: at most ``top_names`` names with p ≥ ``min_p`` are
-        written (the first one always). z: height of the ellipses (metres).
+    frame: the map frame. top_names: at most ``top_names`` places are written. z: height of the
+        ellipses (metres).
 
     Returns
     -------
@@ -339,11 +343,13 @@ def marker_array(regions: Sequence[Mapping[str, Any]], n_concepts: int, frame: s
                                  "orientation": quaternion_from_yaw(angle)},
                         "scale": {"x": max(2.0 * major, 1e-3), "y": max(2.0 * minor, 1e-3), "z": 0.01},
                         "color": {"r": r, "g": g, "b": b, "a": 0.25}})
+        label = places_text(region, top_names)
+        if not label:
+            continue
         markers.append({"header": header, "ns": MARKER_NAMESPACES["names"], "id": index,
                         "type": _TEXT_VIEW_FACING, "action": _ADD,
                         "pose": {"position": {"x": mx, "y": my, "z": z + 0.3},
                                  "orientation": quaternion_from_yaw(0.0)},
                         "scale": {"x": 0.0, "y": 0.0, "z": 0.25},
-                        "color": {"r": r, "g": g, "b": b, "a": 1.0},
-                        "text": _names_text(list(region.get("names") or ()), top_names, min_p)})
+                        "color": {"r": r, "g": g, "b": b, "a": 1.0}, "text": label})
     return {"markers": markers}

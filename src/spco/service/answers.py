@@ -116,13 +116,23 @@ def regions_answer(home: kn.HomeModel, names_per_region: int = 3) -> dict[str, A
     """The home's learnt regions for a map: what the page at ``/`` and the ROS markers draw.
 
     Returns ``{"home", "extent": [x_min, x_max, y_min, y_max], "names": [usable names],
-    "concepts": [{"concept", "names": [{"name", "p"}]}], "regions": [...], "samples": [...]}``.
+    "places": [...], "concepts": [{"concept", "names": [{"name", "p"}]}], "regions": [...],
+    "samples": [...]}``.
+
+    ``places``: where each usable name is, as ``where`` answers it (:func:`spco.knowledge.places`):
+    ``{"name", "region", "p", "learnt"}``, ``region`` the most probable region given the name and ``p``
+    = p(region | name). A map labels a place there — the label is ``where``'s answer, not a second
+    predictor's (the page, the ROS markers and Foxglove label each region with its ``places``).
+
     Each region in use: ``region``, ``concept`` (the concept it belongs to most, which colours it),
     ``samples`` (its samples), ``weight`` (its share of the home's samples), ``mean`` ``[x, y]``,
-    ``covariance`` (2×2, m²), ``ellipse`` (95 %: ``rx``, ``ry`` in metres, ``angle`` in degrees) and
-    ``names``: the ``names_per_region`` most probable usable names there, ``p`` = p(name | region)
-    = Σ_l p(l | region) θ^w_l(name), renormalised over the usable names, and ``taught``: its
-    samples with a sentence. ``samples`` lists ``{"id", "x", "y", "theta", "sentence", "region"}``.
+    ``covariance`` (2×2, m²), ``ellipse`` (95 %: ``rx``, ``ry`` in metres, ``angle`` in degrees),
+    ``places``: the learnt places ``where`` goes to this region for, ``[{"name", "p"}]`` (p = p(region |
+    name), most probable first; a name not learnt in this home is never a label), ``names``: the
+    ``names_per_region`` names ``what`` answers at the region's centre (the pose alone; ``p`` =
+    p(name | pose), :func:`spco.knowledge.names_at_regions`), and ``taught``: its samples with a
+    sentence. ``concepts`` lists each drawn concept's most probable usable names (θ^w, the legend).
+    ``samples`` lists ``{"id", "x", "y", "theta", "sentence", "region"}``.
     """
     params = home.parameters
     counts = np.asarray(params.region_counts[0], dtype=np.int64)
@@ -147,18 +157,27 @@ def regions_answer(home: kn.HomeModel, names_per_region: int = 3) -> dict[str, A
     assigned = np.asarray(home.state.regions, dtype=np.int64)
     taught = np.bincount(assigned[np.array([s is not None for s in home.sentences], dtype=bool)],
                          minlength=counts.size)
-    for m in np.flatnonzero(counts > 0):
+    in_use = np.flatnonzero(counts > 0)
+    # the names `what` answers at each region's centre, and the places `where` finds in each region
+    said = kn.names_at_regions(home, in_use, top_k=names_per_region)
+    found = [{"name": name, "region": int(pred.region), "p": float(pred.region_probabilities[pred.region]),
+              "learnt": bool(pred.learnt)} for name, pred in kn.places(home).items()]
+    for row, m in enumerate(in_use):
         column = joint[:, m]
-        p_concept = column / column.sum() if column.sum() > 0 else np.full(column.size, 1.0 / column.size)
+        here = sorted((p for p in found if p["region"] == m and p["learnt"]), key=lambda p: -p["p"])
+        names = [{"name": str(w), "p": float(q)} for w, q in zip(said.words[row], said.probabilities[row],
+                                                               strict=True) if q > 0]
         regions.append({"region": int(m), "concept": int(np.argmax(column)), "samples": int(counts[m]),
                         "weight": float(counts[m]) / total,
                         "mean": [float(means[m, 0]), float(means[m, 1])],
                         "covariance": covs[m].tolist(), "ellipse": _ellipse(covs[m]),
-                        "names": top_names(p_concept), "taught": int(taught[m])})
+                        "places": [{"name": p["name"], "p": p["p"]} for p in here],
+                        "names": names, "taught": int(taught[m])})
     concepts = sorted({r["concept"] for r in regions})
     samples = [{"id": int(i), "x": float(p[0]), "y": float(p[1]),
                 "theta": math.atan2(float(p[2]), float(p[3])), "sentence": s, "region": int(r)}
                for i, p, s, r in zip(home.ids, home.positions, home.sentences, assigned, strict=True)]
     return {"home": home.name, "extent": list(kn.map_bounds(home)), "names": list(home.known_names),
+            "places": found,
             "concepts": [{"concept": c, "names": top_names(np.eye(joint.shape[0])[c])} for c in concepts],
             "regions": regions, "samples": samples}

@@ -10,7 +10,8 @@ const COLOURS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b
 
 const state = { extent: [0, 1, 0, 1], unit: 0.05, clicked: null, lastTeaching: null, regions: null,
   lastWhere: null };
-// A region is drawn unless it is negligible: less than this share of the home's samples and none taught.
+// A region is drawn unless it is negligible: less than this share of the home's samples, none taught
+// and no place found there.
 const NEGLIGIBLE = 0.01;
 const $ = (id) => document.getElementById(id);
 
@@ -55,7 +56,7 @@ async function loadRegions() {
   const svg = $("map");
   svg.setAttribute("viewBox", `0 0 ${state.extent[1] - state.extent[0]} ${state.extent[3] - state.extent[2]}`);
   $("home-name").textContent = r.home;
-  const shown = r.regions.filter((g) => g.weight >= NEGLIGIBLE || g.taught > 0);
+  const shown = r.regions.filter((g) => g.weight >= NEGLIGIBLE || g.taught > 0 || g.places.length > 0);
   const hidden = r.regions.length - shown.length;
   $("stats").textContent = `${r.samples.length} samples, ${r.samples.filter((s) => s.sentence).length} taught, ` +
     `${shown.length} regions` + (hidden ? ` (${hidden} of under ${fmt(NEGLIGIBLE)} of the samples not drawn)` : "") +
@@ -86,16 +87,6 @@ async function loadRegions() {
   const labels = $("layer-labels");
   regions.innerHTML = "";
   labels.innerHTML = "";
-  // one label per place: a name labels the region where it is most probable (the larger on a tie)
-  const labelled = new Map();
-  for (const g of shown) {
-    if (!g.names.length) continue;
-    const best = labelled.get(g.names[0].name);
-    if (!best || g.names[0].p > best.names[0].p || (g.names[0].p === best.names[0].p && g.samples > best.samples)) {
-      labelled.set(g.names[0].name, g);
-    }
-  }
-  const labelRegions = new Set(labelled.values());
   for (const g of shown) {
     const colour = COLOURS[g.concept % COLOURS.length];
     const cx = sx(g.mean[0]), cy = sy(g.mean[1]);
@@ -103,18 +94,22 @@ async function loadRegions() {
       transform: `rotate(${-g.ellipse.angle} ${cx} ${cy})`, fill: colour, stroke: colour, class: "region",
       "data-region": g.region, "data-concept": g.concept }, regions);
     el("title", {}, shape).textContent = `region ${g.region} (concept ${g.concept}, ${g.samples} samples): ` +
-      g.names.map((n) => `${n.name} ${fmt(n.p)}`).join(", ");
+      g.names.map((n) => `${n.name} ${fmt(n.p)}`).join(", ") +
+      g.places.map((n) => `; where ${n.name}: here, p ${fmt(n.p)}`).join("");
     el("path", { d: `M ${cx - state.unit * 0.4} ${cy} h ${state.unit * 0.8} M ${cx} ${cy - state.unit * 0.4} ` +
       `v ${state.unit * 0.8}`, class: "region-centre" }, regions);
-    if (!labelRegions.has(g)) continue;
+    // a place is labelled where `where` goes for it (its most probable region; p = p(region | name)):
+    // the label and the answer to "where is …" are one answer
+    if (!g.places.length) continue;
     const label = el("text", { x: cx, y: cy - state.unit * 0.6, "text-anchor": "middle", class: "region-label",
-      "font-size": state.unit * 1.1, "stroke-width": state.unit * 0.25 }, labels);
-    label.textContent = g.names[0].name + " ";
+      "font-size": state.unit * 1.1, "stroke-width": state.unit * 0.25, "data-region": g.region,
+      "data-places": g.places.map((n) => n.name).join("|") }, labels);
+    label.textContent = g.places[0].name + " ";
     const p = el("tspan", { class: "p" }, label);
-    p.textContent = fmt(g.names[0].p);
-    if (g.names.length > 1 && g.names[1].p >= 0.2) {
-      const second = el("tspan", { x: cx, dy: state.unit * 1.1, class: "p", "font-size": state.unit * 0.9 }, label);
-      second.textContent = `${g.names[1].name} ${fmt(g.names[1].p)}`;
+    p.textContent = fmt(g.places[0].p);
+    for (const other of g.places.slice(1)) {
+      const more = el("tspan", { x: cx, dy: state.unit * 1.1, class: "p", "font-size": state.unit * 0.9 }, label);
+      more.textContent = `${other.name} ${fmt(other.p)}`;
     }
   }
   if (state.clicked) drawClick();

@@ -1,0 +1,71 @@
+"""A map labels a place where ``where`` goes for it (issue 29, "one predictor"): the page of ``spco
+serve``, the ROS markers and Foxglove read :func:`spco.service.answers.regions_answer`'s ``places``,
+which is ``where``'s answer for every name, and a region's ``names`` are what ``what`` answers at its
+centre. Before, a name labelled the region where p(name | region) was highest (a second predictor),
+and on the tour home each of its three rooms was labelled in another region than ``where`` answers."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from spco import knowledge as kn
+from spco.ros.messages import marker_array
+from spco.service.answers import regions_answer
+
+
+def _labels(answer: dict) -> dict[str, int]:
+    """name -> the region a map labels it at (each region's ``places``)."""
+    found: dict[str, int] = {}
+    for region in answer["regions"]:
+        for place in region["places"]:
+            assert place["name"] not in found, f"{place['name']} labelled twice"
+            found[place["name"]] = region["region"]
+    return found
+
+
+def _check_labels_are_where(home: kn.HomeModel) -> dict[str, int]:
+    answer = regions_answer(home)
+    labels = _labels(answer)
+    assert [p["name"] for p in answer["places"]] == home.known_names
+    for place in answer["places"]:
+        pred = kn.where(home, place["name"], n=10, random_state=3)
+        assert place["region"] == pred.region == int(np.argmax(pred.region_probabilities))
+        assert place["p"] == float(pred.region_probabilities[pred.region])
+        assert place["learnt"] == pred.learnt
+        # a learnt place is labelled at where's region, with where's p; a name not learnt is no label
+        assert labels.get(place["name"]) == (pred.region if pred.learnt else None)
+    drawn = {r["region"] for r in answer["regions"]}
+    assert set(labels.values()) <= drawn
+    # a region's names: what `what` answers at its centre (the pose alone)
+    said = kn.names_at_regions(home, [r["region"] for r in answer["regions"]], top_k=3)
+    for row, region in enumerate(answer["regions"]):
+        assert [n["name"] for n in region["names"]] == [str(w) for w in said.words[row]]
+        centre = home.parameters.region_means[0, region["region"]]
+        theta = float(np.arctan2(centre[2], centre[3]))
+        at = kn.what(home, float(centre[0]), float(centre[1]), theta) if kn.pose_outside_map(
+            home, float(centre[0]), float(centre[1])) is None else None
+        if at is not None:
+            assert at.words[0][0] == region["names"][0]["name"]
+    # the ROS markers write the same labels
+    markers = marker_array(answer["regions"], home.knowledge.n_concepts)["markers"]
+    texts = {m["id"]: m["text"] for m in markers[1:] if m["ns"] == "spco/names"}
+    for name, region in labels.items():
+        assert name in texts[region].split("\n")[0] or name in texts[region]
+    return labels
+
+
+def test_the_tour_home_labels_each_room_where_where_goes(tour_home_file: Path) -> None:
+    home = kn.load_home_model(tour_home_file)
+    labels = _check_labels_are_where(home)
+    assert set(labels) == {"kitchen", "living room", "bedroom"}  # the three rooms, each learnt
+
+
+def test_a_taught_name_is_labelled_where_where_goes(tour_home_file: Path) -> None:
+    home = kn.load_home_model(tour_home_file)
+    far = int(np.argmax(home.positions[:, 0]))  # a sample at one end of the tour
+    taught = kn.teach(home, {int(home.ids[far]): "this is the pantry"}, random_state=0)
+    labels = _check_labels_are_where(taught)
+    assert "pantry" in taught.known_names
+    assert labels.get("pantry") == kn.where(taught, "pantry").region
