@@ -21,6 +21,7 @@ from scipy.special import gammaln, multigammaln
 from spco.model.kernels.counts import grouped_moments, grouped_row_sums, move_rows
 from spco.model.kernels.crt import sample_crt_totals
 from spco.model.kernels.dirichlet import log_dirichlet, log_dirichlet_hierarchical
+from spco.model.kernels.fractional import fractional_log_weights
 from spco.model.kernels.gaussian import grouped_gaussian_log_density
 from spco.model.kernels.likelihood import (
     DimensionMajorCounts,
@@ -225,25 +226,11 @@ class HierarchicalMultinomial:
     def fractional_log_weights(n: np.ndarray, log_phis: tuple[np.ndarray, ...],
                                delta: float) -> list[np.ndarray]:
         """:meth:`fractional_log_weight` of the counts ``n`` at each φ of ``log_phis`` (a proposal's
-        old and new φ: the entries, their whole and fractional parts found once)."""
-        outs = [np.zeros(log_phi.shape[0]) for log_phi in log_phis]
+        old and new φ), in one compiled pass over the counts
+        (:func:`spco.model.kernels.fractional.fractional_log_weights`)."""
         if n.dtype.kind in "iu":
-            return outs
-        whole = np.floor(n)
-        frac = n - whole
-        e, c, k = np.nonzero(frac)
-        if not c.size:
-            return outs
-        n_at, whole_at = n[e, c, k], whole[e, c, k]
-        tilt = np.where(whole_at == 0.0, frac[e, c, k], 0.0)  # what the proposal counts
-        for i, log_phi in enumerate(log_phis):
-            log_a = np.log(delta) + log_phi[c, k]
-            a = np.exp(log_a)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                terms = gammaln(a + n_at) - gammaln(a + whole_at) - tilt * log_a
-            terms = np.where(a > 0.0, terms, -np.inf)
-            outs[i] = np.bincount(c, weights=terms, minlength=log_phi.shape[0]).astype(np.float64)
-        return outs
+            return [np.zeros(log_phi.shape[0]) for log_phi in log_phis]
+        return fractional_log_weights(n, log_phis, delta)
 
     @staticmethod
     def fractional_log_ratio(n: np.ndarray, log_phi_old: np.ndarray, log_phi_new: np.ndarray,
