@@ -1,5 +1,7 @@
-"""The power target's φ^v acceptance weight (:meth:`HierarchicalMultinomial.fractional_log_weight`,
-a compiled kernel) against its definition, entry by entry with SciPy's ln Γ."""
+"""The power target's compiled sums: φ^v's acceptance weight
+(:meth:`HierarchicalMultinomial.fractional_log_weight`) against its definition, entry by entry with
+SciPy's ln Γ, and the views' weighted counts (:func:`spco.model.kernels.counts.grouped_weighted_row_sums`)
+against SciPy's product of a one-hot weight matrix with the counts, bit for bit."""
 
 from __future__ import annotations
 
@@ -7,8 +9,10 @@ import math
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 from scipy.special import gammaln
 
+from spco.model.kernels.counts import grouped_weighted_row_sums, stack_counts
 from spco.model.observations import HierarchicalMultinomial
 
 
@@ -71,3 +75,23 @@ def test_the_ratio_of_two_proposals_is_the_difference_of_their_weights() -> None
     ratio = HierarchicalMultinomial.fractional_log_ratio(n, old, new, 7.0)
     np.testing.assert_allclose(ratio, brute_force(n, new, 7.0) - brute_force(n, old, 7.0), rtol=1e-11,
                                atol=1e-10)
+
+
+@pytest.mark.parametrize("layout", ["stacked", "float64"])
+def test_weighted_row_sums_are_the_one_hot_product_bit_for_bit(layout: str) -> None:
+    rng = np.random.default_rng(3)
+    n, D, G = 40, 30, 7
+    dense = rng.integers(0, 50, size=(n, D)) * (rng.random((n, D)) < 0.3)
+    dense[5] = 0  # a row without counts
+    counts = stack_counts(dense) if layout == "stacked" else sp.csr_array(dense.astype(np.float64))
+    weights = 16.0 / np.maximum(dense.sum(1), 1) * rng.random(n)
+    groups = rng.integers(0, G, size=n)
+    onehot = sp.csr_array((weights, (groups, np.arange(n))), shape=(G, n))
+    expected = (onehot @ sp.csr_array(counts, dtype=np.float64)).toarray()
+    got = grouped_weighted_row_sums(counts, weights, groups, G)
+    assert got.dtype == np.float64 and got.shape == (G, D)
+    assert np.array_equal(got, expected)
+    loop = np.zeros((G, D))
+    for t in range(n):
+        loop[groups[t]] += weights[t] * dense[t]
+    np.testing.assert_allclose(got, loop, rtol=1e-13, atol=1e-12)

@@ -18,7 +18,12 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.special import gammaln, multigammaln
 
-from spco.model.kernels.counts import grouped_moments, grouped_row_sums, move_rows
+from spco.model.kernels.counts import (
+    grouped_moments,
+    grouped_row_sums,
+    grouped_weighted_row_sums,
+    move_rows,
+)
 from spco.model.kernels.crt import sample_crt_totals
 from spco.model.kernels.dirichlet import log_dirichlet, log_dirichlet_hierarchical
 from spco.model.kernels.fractional import fractional_log_weights
@@ -168,11 +173,8 @@ class HierarchicalMultinomial:
                             n_homes: int, n_concepts: int) -> np.ndarray:
         """n_{e,l,k} = Σ_{t in e: C_t = l} s_t c_tk for the powers ``weights`` s (N,): (E, L, D)
         float64, each entry summed in row order (the same sums whatever changed before)."""
-        n = int(np.asarray(homes).size)
         groups = np.asarray(homes, dtype=np.int64) * n_concepts + np.asarray(concepts, dtype=np.int64)
-        onehot = sp.csr_array((np.asarray(weights, dtype=np.float64), (groups, np.arange(n))),
-                              shape=(n_homes * n_concepts, n))
-        sums = (onehot @ sp.csr_array(counts, dtype=np.float64)).toarray()
+        sums = grouped_weighted_row_sums(sp.csr_array(counts), weights, groups, n_homes * n_concepts)
         return np.maximum(sums, 0.0).reshape(n_homes, n_concepts, counts.shape[1])
 
     @staticmethod
