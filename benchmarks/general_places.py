@@ -23,6 +23,9 @@ seeds; per place the mean over seeds.
 Run (development, small)::
 
     nice -n 5 python benchmarks/general_places.py --seeds 0 1 --sweeps 200
+
+``--set NAME=VALUE`` (repeatable, as ``spco fit --set``) fits with the model's default
+hyperparameters changed, e.g. the power target: ``--set target=power --set visual_prior=estimate``.
 """
 
 from __future__ import annotations
@@ -43,9 +46,11 @@ import numpy as np
 from spco.data import Corpus, Environment
 from spco.data.loading import load
 from spco.data.regions import load_region_file
+from spco.errors import ConfigurationError
 from spco.evaluation import evaluate_home
 from spco.evaluation.config import PAPER_EXPERIENCED_HOMES, trial_seed
 from spco.evaluation.models import MODELS
+from spco.model.hyperparameters import TransferHyperparameters
 
 #: The split of benchmarks/SPLIT.md, "General places from 2026-12-06".
 SIDES: dict[str, dict[str, Any]] = {
@@ -89,17 +94,27 @@ def new_home(sigverse: Path, regions_file: Path, name: str, every_third: bool) -
     return env
 
 
+def model_hyperparameters(settings: list[str] | tuple[str, ...]) -> TransferHyperparameters | None:
+    """The hyperparameters the fits use: ``None`` (the model's own defaults, as ``spco experiment
+    general``) without settings, else :class:`TransferHyperparameters`'s defaults with the
+    ``NAME=VALUE`` settings applied (:meth:`TransferHyperparameters.with_settings`; raises
+    :class:`~spco.errors.ConfigurationError` naming a bad setting)."""
+    return TransferHyperparameters().with_settings(list(settings)) if settings else None
+
+
 def run(sigverse: Path, regions_file: Path, side: str, seeds: list[int], sweeps: int,
-        answers: tuple[str, ...] = ()) -> dict[str, Any]:
+        answers: tuple[str, ...] = (), settings: tuple[str, ...] = ()) -> dict[str, Any]:
     """Fit and score every (seed, new home) of ``side``; returns the figures (see the docstring).
     ``answers``: also score names from each fit's answer parameters
     (:func:`spco.model.confidence.model_answer_parameters`) two ways (``"view"``: the view-by-view answer,
     the robot's before the room account was the default; ``"rooms"``: the room account,
-    :func:`spco.model.rooms.model_rooms`, what the robot answers), from the same fit, as ``A_n_<answer>``."""
+    :func:`spco.model.rooms.model_rooms`, what the robot answers), from the same fit, as ``A_n_<answer>``.
+    ``settings``: ``NAME=VALUE`` hyperparameter settings (:func:`model_hyperparameters`)."""
     from spco.model.confidence import model_answer_parameters
     from spco.model.rooms import model_rooms
 
     spec = MODELS[MODEL]
+    hyper = model_hyperparameters(settings)
     conf = SIDES[side]
     knowledge = [load(sigverse / h)[h] for h in PAPER_EXPERIENCED_HOMES]
     homes = [new_home(sigverse, regions_file, h, conf["every_third"]) for h in conf["new"]]
@@ -108,7 +123,7 @@ def run(sigverse: Path, regions_file: Path, side: str, seeds: list[int], sweeps:
     for seed in seeds:
         for index, env in enumerate(homes):
             run_seed = trial_seed(seed, index)
-            model = spec.build(sweeps, run_seed, None, False)
+            model = spec.build(sweeps, run_seed, hyper, False)
             corpus = Corpus([*knowledge, env])
             model.fit(corpus)
             scores = evaluate_home(model.parameters_, len(corpus) - 1, env, model.vocabulary_,
@@ -137,15 +152,17 @@ def run(sigverse: Path, regions_file: Path, side: str, seeds: list[int], sweeps:
                   + "".join(f"A_n ({a}) {runs[-1][f'A_n_{a}']:.3f} A_p ({a}) {runs[-1][f'A_p_{a}']:.3f} "
                             for a in answers)
                   + f"({time.perf_counter() - started:.0f} s)", flush=True)
-    return summarise(side, seeds, sweeps, [h.name for h in homes], runs, answers)
+    return summarise(side, seeds, sweeps, [h.name for h in homes], runs, answers, settings)
 
 
 def summarise(side: str, seeds: list[int], sweeps: int, homes: list[str], runs: list[dict[str, Any]],
-              answers: tuple[str, ...] = ()) -> dict[str, Any]:
+              answers: tuple[str, ...] = (), settings: tuple[str, ...] = ()) -> dict[str, Any]:
     """Means over seeds with 95 % intervals over seeds, per new home and over the new homes (each
-    seed's mean over homes is one value)."""
+    seed's mean over homes is one value); ``settings`` are recorded (written only when given)."""
     out: dict[str, Any] = {"format": "spco-general-places/1", "side": side, "seeds": seeds, "sweeps": sweeps,
                            "model": MODEL, "homes": homes, "runs": runs}
+    if settings:
+        out["settings"] = list(settings)
     for key in ("A_n", "A_p", "A_p_mixture", *(f"A_{x}_{a}" for a in answers for x in "np")):
         per_seed = [float(np.nanmean([r[key] for r in runs if r["seed"] == s]))
                     if any(np.isfinite(r[key]) for r in runs if r["seed"] == s) else math.nan for s in seeds]
@@ -181,7 +198,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", type=Path, default=None, help="write every figure to this file")
     parser.add_argument("--answers", default="", help="also score answers from the same fits: view (view by "
                         "view), rooms (the room account, the robot's answer), comma-separated")
+    parser.add_argument("--set", dest="settings", action="append", default=[], metavar="NAME=VALUE",
+                        help="a hyperparameter of the fits, as `spco fit --set` (repeatable; e.g. "
+                        "--set target=power --set visual_prior=estimate); default: the model's own")
     args = parser.parse_args(argv)
+    try:
+        model_hyperparameters(args.settings)
+    except (ConfigurationError, ValueError) as err:
+        parser.error(f"--set: {err}")
     answers = tuple(a for a in args.answers.split(",") if a)
     if set(answers) - {"view", "rooms"}:
         parser.error(f"--answers: choose from view, rooms, got {args.answers!r}")
@@ -197,7 +221,7 @@ def main(argv: list[str] | None = None) -> int:
     if not (args.sigverse / "3LDK_1").is_dir():
         parser.error(f"--sigverse {args.sigverse}: not the SIGVerse data set (no 3LDK_1)")
     regions = args.regions or args.sigverse.parent / "sigverse_regions.json"
-    summary = run(args.sigverse, regions, args.side, args.seeds, args.sweeps, answers)
+    summary = run(args.sigverse, regions, args.side, args.seeds, args.sweeps, answers, tuple(args.settings))
     print("\n| side | new homes | seeds | A_n [95 % over seeds] | A_p [95 % over seeds] |")
     print("|---|---|---:|---|---|")
     print(f"| {args.side} | {', '.join(summary['homes'])} | {len(args.seeds)} | {_cell(summary['A_n'])} | "

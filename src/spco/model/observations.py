@@ -18,9 +18,15 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.special import gammaln, multigammaln
 
-from spco.model.kernels.counts import grouped_moments, grouped_row_sums, move_rows
+from spco.model.kernels.counts import (
+    grouped_moments,
+    grouped_row_sums,
+    grouped_weighted_row_sums,
+    move_rows,
+)
 from spco.model.kernels.crt import sample_crt_totals
 from spco.model.kernels.dirichlet import log_dirichlet, log_dirichlet_hierarchical
+from spco.model.kernels.fractional import fractional_log_weights
 from spco.model.kernels.gaussian import grouped_gaussian_log_density
 from spco.model.kernels.likelihood import (
     DimensionMajorCounts,
@@ -167,11 +173,8 @@ class HierarchicalMultinomial:
                             n_homes: int, n_concepts: int) -> np.ndarray:
         """n_{e,l,k} = Σ_{t in e: C_t = l} s_t c_tk for the powers ``weights`` s (N,): (E, L, D)
         float64, each entry summed in row order (the same sums whatever changed before)."""
-        n = int(np.asarray(homes).size)
         groups = np.asarray(homes, dtype=np.int64) * n_concepts + np.asarray(concepts, dtype=np.int64)
-        onehot = sp.csr_array((np.asarray(weights, dtype=np.float64), (groups, np.arange(n))),
-                              shape=(n_homes * n_concepts, n))
-        sums = (onehot @ sp.csr_array(counts, dtype=np.float64)).toarray()
+        sums = grouped_weighted_row_sums(sp.csr_array(counts), weights, groups, n_homes * n_concepts)
         return np.maximum(sums, 0.0).reshape(n_homes, n_concepts, counts.shape[1])
 
     @staticmethod
@@ -225,25 +228,11 @@ class HierarchicalMultinomial:
     def fractional_log_weights(n: np.ndarray, log_phis: tuple[np.ndarray, ...],
                                delta: float) -> list[np.ndarray]:
         """:meth:`fractional_log_weight` of the counts ``n`` at each φ of ``log_phis`` (a proposal's
-        old and new φ: the entries, their whole and fractional parts found once)."""
-        outs = [np.zeros(log_phi.shape[0]) for log_phi in log_phis]
+        old and new φ), in one compiled pass over the counts
+        (:func:`spco.model.kernels.fractional.fractional_log_weights`)."""
         if n.dtype.kind in "iu":
-            return outs
-        whole = np.floor(n)
-        frac = n - whole
-        e, c, k = np.nonzero(frac)
-        if not c.size:
-            return outs
-        n_at, whole_at = n[e, c, k], whole[e, c, k]
-        tilt = np.where(whole_at == 0.0, frac[e, c, k], 0.0)  # what the proposal counts
-        for i, log_phi in enumerate(log_phis):
-            log_a = np.log(delta) + log_phi[c, k]
-            a = np.exp(log_a)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                terms = gammaln(a + n_at) - gammaln(a + whole_at) - tilt * log_a
-            terms = np.where(a > 0.0, terms, -np.inf)
-            outs[i] = np.bincount(c, weights=terms, minlength=log_phi.shape[0]).astype(np.float64)
-        return outs
+            return [np.zeros(log_phi.shape[0]) for log_phi in log_phis]
+        return fractional_log_weights(n, log_phis, delta)
 
     @staticmethod
     def fractional_log_ratio(n: np.ndarray, log_phi_old: np.ndarray, log_phi_new: np.ndarray,

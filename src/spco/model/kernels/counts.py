@@ -123,6 +123,27 @@ def grouped_row_sums(matrix, groups: np.ndarray, n_groups: int,
 
 
 @njit(cache=True)
+def _grouped_weighted_row_sums(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, weights: np.ndarray,
+                               groups: np.ndarray, out: np.ndarray) -> None:
+    for t in range(indptr.size - 1):
+        g = groups[t]
+        w = weights[t]
+        for p in range(indptr[t], indptr[t + 1]):
+            out[g, indices[p]] += w * np.float64(data[p])
+
+
+def grouped_weighted_row_sums(matrix, weights: np.ndarray, groups: np.ndarray, n_groups: int) -> np.ndarray:
+    """Σ_t weights[t] · row t of a CSR ``matrix`` (n, D) within each group (``groups`` (n,) in
+    0..n_groups−1): (n_groups, D) float64, each entry summed in row order (the order of SciPy's
+    product of a one-hot weight matrix with ``matrix``, so the same numbers), one pass, one thread."""
+    out = np.zeros((n_groups, matrix.shape[1]))
+    _grouped_weighted_row_sums(_as(matrix.indptr, np.int64), _index_array(matrix.indices),
+                               _value_array(matrix.data), _as(weights, np.float64), _as(groups, np.int64),
+                               out)
+    return out
+
+
+@njit(cache=True)
 def move_rows(n: np.ndarray, indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, rows: np.ndarray,
               homes: np.ndarray, old: np.ndarray, new: np.ndarray) -> None:
     """n[homes[i], old[i], :] −= row rows[i] of a CSR matrix and n[homes[i], new[i], :] += it, for
