@@ -236,7 +236,8 @@ def plan(args: argparse.Namespace) -> Plan:
     for side, seeds, homes in (("heldout", HELDOUT_SEEDS, 2), ("development", dev, 1)):
         name = f"general_{'heldout' if side == 'heldout' else 'dev'}.json"
         add("general", side, [*_py("general_places.py"), "--sigverse", str(data), "--regions", str(regions),
-                              "--side", side, "--seeds", *_seeds(seeds), "--json", str(out / name)],
+                              "--side", side, "--seeds", *_seeds(seeds), "--answers", "rooms",
+                              "--json", str(out / name)],
             out / name, len(seeds) * homes * c["general_fit_200"],
             f"{len(seeds)} seeds × {homes} new home(s), 200 sweeps")
 
@@ -452,6 +453,9 @@ def summarise_general(out: Path) -> dict[str, Any]:
         if d is not None:
             res[side] = {"A_n": seed_interval(d["A_n"]["seeds"]) if d.get("A_n") else None,
                          "A_p": seed_interval(d["A_p"]["seeds"]) if d.get("A_p") else None,
+                         # what the robot answers (the room account, one predictor), from the same fits
+                         "A_n_answer": seed_interval(d["A_n_rooms"]["seeds"]) if d.get("A_n_rooms") else None,
+                         "A_p_answer": seed_interval(d["A_p_rooms"]["seeds"]) if d.get("A_p_rooms") else None,
                          "homes": d.get("homes"), "per_place": d.get("A_n_per_place")}
     return res
 
@@ -580,6 +584,8 @@ def table(figures: dict[str, Any], budget: bool = False) -> tuple[list[str], str
                 held_p += f"; never heard: {cell(h['unheard_A_p'])}"
             if part == "specific" and h.get("worst_room"):
                 held_n += f"; worst room {h['worst_room']['A_n']:.2f}"
+            if part == "general" and h.get("A_n_answer"):
+                held_n += f"; the robot's answer (room account) {cell(h['A_n_answer'])}"
             where = {"natural": "8 development homes' sentences, 3LDK_9", "speech2": "speech_dev.csv, 3LDK_9",
                      "specific": f"{d.get('rooms', 19)} development rooms", "general": "3LDK_9"}[part]
             dev = (f"development ({where}): A_n {cell(d.get('A_n'))}, A_p {cell(d.get('A_p'))}"
