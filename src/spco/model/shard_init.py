@@ -102,7 +102,9 @@ class ShardInitialisation:
         data, state, hyper = self.data, self.state, self.hyper
         from spco.model.shard import on_sum_grid
 
-        self._names = gibbs.sample_names(data, state.regions, hyper, stats=naming)
+        named = judge_names(naming) == NAME
+        named[list(self.settings.start_not_names)] = False  # objects mark no place (warm_start_settings)
+        self._names = gibbs.sample_names(data, state.regions, hyper, named=named, stats=naming)
         overlaps = name_overlaps(name_region_overlaps(self._names, state.regions, data.offsets,
                                                       hyper.n_regions), data.words.shape[1])
         return NameOverlaps(on_sum_grid(overlaps.weighted), overlaps.weights)
@@ -120,7 +122,9 @@ class ShardInitialisation:
 
     def init_local_step(self) -> None:
         """One local step of the independent warm-start sampler (statistics kept)."""
-        independent = replace(INDEPENDENT, view_counts=self.settings.view_counts)  # the same view evidence
+        # the same view evidence, and a word token's as the chain weighs it (SamplerSettings.word_weight)
+        independent = replace(INDEPENDENT, view_counts=self.settings.view_counts,
+                              word_weight=self.settings.word_weight)
         gibbs.local_step(self.data, self.state, independent, self.rng)
         self._init_stats = gibbs.sufficient_statistics(self.data, self.state, self.hyper,
                                                           self.settings.learning_view_counts())

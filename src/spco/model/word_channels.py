@@ -566,3 +566,23 @@ def concept_name_tokens(words: sp.csr_array, homes: np.ndarray, concepts: np.nda
     token_row, cols, _ = _tokens(words)
     np.add.at(out, (np.asarray(concepts, dtype=np.int64)[token_row], cols), p[:, NAME])
     return out
+
+
+def warm_start_settings(settings, evidence: tuple[np.ndarray, np.ndarray], n_concepts: int,
+                        evidence_weight: float, word_counts: float | None, word_increment: int):
+    """``settings`` (:class:`~spco.model.state.SamplerSettings`) for the warm start of a fit that learns
+    its words with the channels, from the channels' ``evidence`` (ν, a): the start's independent sweeps
+    weigh a word token as the chain does (``word_weight`` W^w / S^w, :func:`token_weight`), and the
+    words whose name evidence p(name | k) (:meth:`WordChannels.name_prior`) is below
+    :data:`spco.model.unheard.OBJECT_BELOW` — objects, acts, kinds of place: "table" 0.06, "sofa"
+    0.04, "room" 0.05 — mark no place at the start (``start_not_names``): a sample that says only
+    such words takes the place of its region, and such a word said in two rooms does not join
+    their names as synonyms (:func:`spco.model.synonyms.same_place_names`)."""
+    from dataclasses import replace
+
+    from spco.model.unheard import OBJECT_BELOW
+
+    prior = WordChannels.initial(evidence[0], n_concepts, evidence_weight, evidence[1]).name_prior()
+    return replace(settings, word_weight=token_weight(word_counts, word_increment),
+                   start_not_names=tuple(int(k) for k in np.flatnonzero(prior < OBJECT_BELOW)))
+
