@@ -13,26 +13,33 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from spco.data.language import normalize_name
+from spco.data.language import Vocabulary, normalize_name
 from spco.model import gibbs
 from spco.model.gibbs import GibbsState, PreparedData
+from spco.model.name_evidence import lexical_features
 from spco.model.state import SamplerSettings
-from spco.model.unheard import OBJECT_BELOW
-from spco.model.word_channels import WordChannels, token_weight, warm_start_settings
+from spco.model.word_channels import token_weight, warm_start_settings
 
 
-def test_the_warm_start_settings_weigh_a_token_and_leave_out_the_objects() -> None:
-    nu = np.array([0.8, 0.05, 0.3, 0.1, 0.6])  # a name, an object, a weak name, an object, a name
-    content = np.array([0.95, 0.95, 0.9, 0.95, 0.5])
+def test_the_warm_start_settings_weigh_a_token_and_leave_out_the_objects(wordnet) -> None:
+    vocabulary = Vocabulary(["this", "is", "the", "table", "sofa", "dining table", "kitchen", "toilet",
+                             "bathroom", "entrance", "genkan", "emma's room"])
     settings = SamplerSettings.create("exact", prune=True, view_counts=16.0)
     assert settings.word_weight == 1.0 and settings.start_not_names == ()  # S^w: as before
-    out = warm_start_settings(settings, (nu, content), 4, 1.0, 16.0, 5000)
+    out = warm_start_settings(settings, vocabulary, 16.0, 5000, wordnet)
     assert out.word_weight == pytest.approx(token_weight(16.0, 5000)) == pytest.approx(16 / 5000)
-    prior = WordChannels.initial(nu, 4, 1.0, content).name_prior()
-    assert out.start_not_names == tuple(np.flatnonzero(prior < OBJECT_BELOW)) == (1, 3)
+    # function words, and words WordNet knows none of whose senses is a place ("dining table" by its
+    # head); a room ("toilet", "bathroom": rooms as well as fixtures), a word WordNet does not know
+    # ("genkan") and a possessive are not left out
+    left_out = {vocabulary.words[k] for k in out.start_not_names}
+    assert left_out == {"this", "is", "the", "table", "sofa", "dining table"}
+    facts = lexical_features(list(vocabulary.words), wordnet)
+    for k in out.start_not_names:
+        assert facts[k, 3] == 1 or (facts[k, 0] == 1 and facts[k, 2] == 0)
     # the rest of the settings as they were; S^w per token when the word weight is none
     assert out.view_counts == 16.0 and out.variant == "exact"
-    assert warm_start_settings(settings, (nu, content), 4, 1.0, None, 5000).word_weight == 1.0
+    assert warm_start_settings(settings, vocabulary, None, 5000, wordnet).word_weight == 1.0
+    assert warm_start_settings(settings, None, 16.0, 5000).start_not_names == ()
 
 
 def _one_home(words: sp.csr_array, n_concepts: int,

@@ -286,8 +286,7 @@ def _sample_chain(engine: Any, source: Any, hyper: TransferHyperparameters, sett
     from spco.engines import start_source_run
 
     if evidence is not None:  # the warm start with the channels' evidence and word weight
-        settings = warm_start_settings(settings, evidence, hyper.n_concepts, hyper.evidence_weight,
-                                       hyper.word_counts, word_increment)
+        settings = warm_start_settings(settings, vocabulary, hyper.word_counts, word_increment)
     run = start_source_run(engine, source, hyper, settings, rng)  # the homes stay in the shards
     stand_ins = None
     if evidence is not None:

@@ -36,9 +36,9 @@ that the transferred knowledge sees alike (Emma's and mother's bedrooms) start a
 Homes taught little (a new home) count little in the initial shared part
 (:func:`~spco.model.gibbs.initial_home_weights`), so their samples are first assigned by the
 knowledge of the taught homes; their own names start in free concepts of their own. A fit with
-the word channels starts with their evidence and weight (``SamplerSettings.start_not_names``,
-``word_weight``: :func:`spco.model.word_channels.warm_start_settings`): objects mark no place, and a
-word token weighs W^w in the start's sweeps, as in the chain.
+the word channels starts as :func:`spco.model.word_channels.warm_start_settings` says
+(``SamplerSettings.start_not_names``, ``word_weight``): words that can denote no place (function
+words, objects) mark none, and a word token weighs W^w in the start's sweeps, as in the chain.
 """
 
 from __future__ import annotations

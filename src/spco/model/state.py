@@ -158,8 +158,8 @@ class SamplerSettings:
     #: token as the chain does; its chain weighs tokens through the channels, not through this
     word_weight: float = 1.0
     #: vocabulary columns that mark no place at the warm start although the naming rule may judge them
-    #: names: the words the channels' linguistic evidence calls objects, acts or kinds of place
-    #: (:func:`spco.model.word_channels.warm_start_settings`); the chain does not read this
+    #: names: words that can denote no place (function words, "table", "sofa";
+    #: :func:`spco.model.word_channels.warm_start_settings`); the chain does not read this
     start_not_names: tuple[int, ...] = ()
 
     @classmethod

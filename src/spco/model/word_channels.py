@@ -568,21 +568,26 @@ def concept_name_tokens(words: sp.csr_array, homes: np.ndarray, concepts: np.nda
     return out
 
 
-def warm_start_settings(settings, evidence: tuple[np.ndarray, np.ndarray], n_concepts: int,
-                        evidence_weight: float, word_counts: float | None, word_increment: int):
+
+def warm_start_settings(settings, vocabulary, word_counts: float | None, word_increment: int,
+                        lexicon: object | None = None):
     """``settings`` (:class:`~spco.model.state.SamplerSettings`) for the warm start of a fit that learns
-    its words with the channels, from the channels' ``evidence`` (ν, a): the start's independent sweeps
-    weigh a word token as the chain does (``word_weight`` W^w / S^w, :func:`token_weight`), and the
-    words whose name evidence p(name | k) (:meth:`WordChannels.name_prior`) is below
-    :data:`spco.model.unheard.OBJECT_BELOW` — objects, acts, kinds of place: "table" 0.06, "sofa"
-    0.04, "room" 0.05 — mark no place at the start (``start_not_names``): a sample that says only
-    such words takes the place of its region, and such a word said in two rooms does not join
-    their names as synonyms (:func:`spco.model.synonyms.same_place_names`)."""
+    its words with the channels: the start's independent sweeps weigh a word token as the chain does
+    (``word_weight`` W^w / S^w, :func:`token_weight`), and the words of ``vocabulary`` that can denote
+    no place — function words, and words WordNet knows none of whose noun senses is a place
+    (:func:`spco.model.name_evidence.lexical_features`: "table", "sofa", "chairs", "refrigerator",
+    "dining table" by its head) — mark no place at the start (``start_not_names``), even where the
+    naming rule judges them place-bound: a sample that says only such words takes the place of its
+    region, and such a word said in two rooms does not join their names as synonyms
+    (:func:`spco.model.synonyms.same_place_names`). ``vocabulary`` ``None``: no word is left out.
+    ``lexicon``: as :func:`~spco.model.name_evidence.lexical_features`."""
     from dataclasses import replace
 
-    from spco.model.unheard import OBJECT_BELOW
+    from spco.model.name_evidence import lexical_features
 
-    prior = WordChannels.initial(evidence[0], n_concepts, evidence_weight, evidence[1]).name_prior()
-    return replace(settings, word_weight=token_weight(word_counts, word_increment),
-                   start_not_names=tuple(int(k) for k in np.flatnonzero(prior < OBJECT_BELOW)))
-
+    objects: tuple[int, ...] = ()
+    if vocabulary is not None and len(vocabulary):
+        facts = lexical_features(list(vocabulary.words), lexicon)
+        known, place_share, function = facts[:, 0] > 0, facts[:, 2], facts[:, 3] > 0
+        objects = tuple(int(k) for k in np.flatnonzero((known & (place_share == 0)) | function))
+    return replace(settings, word_weight=token_weight(word_counts, word_increment), start_not_names=objects)
