@@ -285,8 +285,8 @@ def _sample_chain(engine: Any, source: Any, hyper: TransferHyperparameters, sett
         bar = progress_bar(total=n_iterations, desc=progress, unit="sweep", leave=False)
     from spco.engines import start_source_run
 
-    if evidence is not None:  # the warm start with the channels' evidence and word weight
-        settings = warm_start_settings(settings, vocabulary, hyper.word_counts, word_increment)
+    if evidence is not None:  # the warm start: words that can denote no place mark none
+        settings = warm_start_settings(settings, vocabulary)
     run = start_source_run(engine, source, hyper, settings, rng)  # the homes stay in the shards
     stand_ins = None
     if evidence is not None:

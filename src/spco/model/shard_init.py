@@ -37,8 +37,8 @@ Homes taught little (a new home) count little in the initial shared part
 (:func:`~spco.model.gibbs.initial_home_weights`), so their samples are first assigned by the
 knowledge of the taught homes; their own names start in free concepts of their own. A fit with
 the word channels starts as :func:`spco.model.word_channels.warm_start_settings` says
-(``SamplerSettings.start_not_names``, ``word_weight``): words that can denote no place (function
-words, objects) mark none, and a word token weighs W^w in the start's sweeps, as in the chain.
+(``SamplerSettings.start_not_names``): words that can denote no place (function words, objects)
+mark none.
 """
 
 from __future__ import annotations
@@ -125,9 +125,7 @@ class ShardInitialisation:
 
     def init_local_step(self) -> None:
         """One local step of the independent warm-start sampler (statistics kept)."""
-        # the same view evidence, and a word token's as the chain weighs it (SamplerSettings.word_weight)
-        independent = replace(INDEPENDENT, view_counts=self.settings.view_counts,
-                              word_weight=self.settings.word_weight)
+        independent = replace(INDEPENDENT, view_counts=self.settings.view_counts)  # the same view evidence
         gibbs.local_step(self.data, self.state, independent, self.rng)
         self._init_stats = gibbs.sufficient_statistics(self.data, self.state, self.hyper,
                                                           self.settings.learning_view_counts())

@@ -301,8 +301,7 @@ class SpatialConceptModel:
         if not has_english(corpus.vocabulary, sentences):
             return settings, None
         evidence = channel_evidence(corpus.vocabulary, sentences)
-        return warm_start_settings(settings, corpus.vocabulary, hyper.word_counts,
-                                   corpus.word_increment), evidence
+        return warm_start_settings(settings, corpus.vocabulary), evidence
 
     @staticmethod
     def _start_word_channels(run, corpus: Corpus, data: gibbs.PreparedData, hyper: TransferHyperparameters,

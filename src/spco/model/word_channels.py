@@ -569,12 +569,11 @@ def concept_name_tokens(words: sp.csr_array, homes: np.ndarray, concepts: np.nda
 
 
 
-def warm_start_settings(settings, vocabulary, word_counts: float | None, word_increment: int,
-                        lexicon: object | None = None):
+
+def warm_start_settings(settings, vocabulary, lexicon: object | None = None):
     """``settings`` (:class:`~spco.model.state.SamplerSettings`) for the warm start of a fit that learns
-    its words with the channels: the start's independent sweeps weigh a word token as the chain does
-    (``word_weight`` W^w / S^w, :func:`token_weight`), and the words of ``vocabulary`` that can denote
-    no place — function words, and words WordNet knows none of whose noun senses is a place
+    its words with the channels: the words of ``vocabulary`` that can denote no place — function
+    words, and words WordNet knows none of whose noun senses is a place
     (:func:`spco.model.name_evidence.lexical_features`: "table", "sofa", "chairs", "refrigerator",
     "dining table" by its head) — mark no place at the start (``start_not_names``), even where the
     naming rule judges them place-bound: a sample that says only such words takes the place of its
@@ -590,4 +589,4 @@ def warm_start_settings(settings, vocabulary, word_counts: float | None, word_in
         facts = lexical_features(list(vocabulary.words), lexicon)
         known, place_share, function = facts[:, 0] > 0, facts[:, 2], facts[:, 3] > 0
         objects = tuple(int(k) for k in np.flatnonzero((known & (place_share == 0)) | function))
-    return replace(settings, word_weight=token_weight(word_counts, word_increment), start_not_names=objects)
+    return replace(settings, start_not_names=objects)
