@@ -35,10 +35,7 @@ mark (:func:`~spco.model.gibbs.concepts_by_name`, synonyms as one), so that two 
 that the transferred knowledge sees alike (Emma's and mother's bedrooms) start as two concepts.
 Homes taught little (a new home) count little in the initial shared part
 (:func:`~spco.model.gibbs.initial_home_weights`), so their samples are first assigned by the
-knowledge of the taught homes; their own names start in free concepts of their own. A fit with
-the word channels starts as :func:`spco.model.word_channels.warm_start_settings` says
-(``SamplerSettings.start_not_names``): words that can denote no place (function words, objects)
-mark none.
+knowledge of the taught homes; their own names start in free concepts of their own.
 """
 
 from __future__ import annotations
@@ -105,9 +102,7 @@ class ShardInitialisation:
         data, state, hyper = self.data, self.state, self.hyper
         from spco.model.shard import on_sum_grid
 
-        named = judge_names(naming) == NAME
-        named[list(self.settings.start_not_names)] = False  # objects mark no place (warm_start_settings)
-        self._names = gibbs.sample_names(data, state.regions, hyper, named=named, stats=naming)
+        self._names = gibbs.sample_names(data, state.regions, hyper, stats=naming)
         overlaps = name_overlaps(name_region_overlaps(self._names, state.regions, data.offsets,
                                                       hyper.n_regions), data.words.shape[1])
         return NameOverlaps(on_sum_grid(overlaps.weighted), overlaps.weights)

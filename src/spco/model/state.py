@@ -152,10 +152,6 @@ class SamplerSettings:
     #: the power likelihood in every step (``TransferHyperparameters.target == "power"``; exact
     #: sampler only): θ^v and φ^v learn from the views' weighted counts as the assignments weigh them
     power: bool = False
-    #: vocabulary columns that mark no place at the warm start although the naming rule may judge them
-    #: names: words that can denote no place (function words, "table", "sofa";
-    #: :func:`spco.model.word_channels.warm_start_settings`); the chain does not read this
-    start_not_names: tuple[int, ...] = ()
 
     @classmethod
     def create(cls, variant: str, prune: bool, learn_shared: bool = True,

@@ -54,13 +54,7 @@ from spco.model.posterior import (
     untaught_concepts_name_nothing,
 )
 from spco.model.seeds import as_generator
-from spco.model.word_channels import (
-    WordChannels,
-    channel_parameters,
-    token_weight,
-    uses_word_channels,
-    warm_start_settings,
-)
+from spco.model.word_channels import WordChannels, channel_parameters, token_weight, uses_word_channels
 
 
 def clone(estimator: SpatialConceptModel) -> SpatialConceptModel:
@@ -240,10 +234,9 @@ class SpatialConceptModel:
                                desc=f"{type(self).__name__} ({settings.variant})", unit="sweep", leave=False)
         from spco.model.driver import start_run
 
-        settings, evidence = self._start_settings(corpus, data, hyper, settings)
         run = start_run(engine, data, len(corpus.vocabulary), hyper, settings, rng)
         hyper, settings = run.hyper, run.settings  # with the view weight estimated from the homes
-        hyper, evidence = self._start_word_channels(run, corpus, data, hyper, settings, evidence)
+        hyper, evidence = self._start_word_channels(run, corpus, data, hyper, settings)
 
         def after_sweep(iteration: int, previous: float) -> None:
             average.after_sweep(run, iteration)
@@ -289,29 +282,12 @@ class SpatialConceptModel:
         return self
 
     @staticmethod
-    def _start_settings(corpus: Corpus, data: gibbs.PreparedData, hyper: TransferHyperparameters,
-                        settings: gibbs.SamplerSettings
-                        ) -> tuple[gibbs.SamplerSettings, tuple[np.ndarray, np.ndarray] | None]:
-        """``settings`` for the start and the channels' evidence (ν, a), ``None`` when the fit does
-        not learn its words with the word channels (:meth:`_start_word_channels`); with them, the
-        warm start as :func:`~spco.model.word_channels.warm_start_settings` says."""
-        if not (uses_word_channels(hyper, settings) and bool(data.words.nnz)):
-            return settings, None
-        sentences = [s for t in corpus.training_set() for s in t.sentences]
-        if not has_english(corpus.vocabulary, sentences):
-            return settings, None
-        evidence = channel_evidence(corpus.vocabulary, sentences)
-        return warm_start_settings(settings, corpus.vocabulary), evidence
-
-    @staticmethod
     def _start_word_channels(run, corpus: Corpus, data: gibbs.PreparedData, hyper: TransferHyperparameters,
-                             settings: gibbs.SamplerSettings,
-                             computed: tuple[np.ndarray, np.ndarray] | None = None
+                             settings: gibbs.SamplerSettings
                              ) -> tuple[TransferHyperparameters, np.ndarray | None]:
         """Give ``run`` the word channels (:mod:`spco.model.word_channels`) when the model uses them;
         returns the hyperparameters the fit used (``word_model`` "naming-rule" for speech without any
-        English function word) and the channels' name evidence (or None). ``computed``: the
-        evidence (ν, a) :meth:`_start_settings` computed."""
+        English function word) and the channels' name evidence (or None)."""
         sentences = [s for t in corpus.training_set() for s in t.sentences]
         channels = uses_word_channels(hyper, settings) and bool(data.words.nnz)
         if channels and not has_english(corpus.vocabulary, sentences):
@@ -320,8 +296,7 @@ class SpatialConceptModel:
             return replace(hyper, word_model="naming-rule"), None
         if not channels:
             return hyper, None
-        evidence, content = computed if computed is not None else channel_evidence(corpus.vocabulary,
-                                                                                    sentences)
+        evidence, content = channel_evidence(corpus.vocabulary, sentences)
         run.use_word_channels(WordChannels.initial(evidence, hyper.n_concepts, hyper.evidence_weight,
                                                    content, token_weight(hyper.word_counts,
                                                                          corpus.word_increment),

@@ -566,27 +566,3 @@ def concept_name_tokens(words: sp.csr_array, homes: np.ndarray, concepts: np.nda
     token_row, cols, _ = _tokens(words)
     np.add.at(out, (np.asarray(concepts, dtype=np.int64)[token_row], cols), p[:, NAME])
     return out
-
-
-
-
-def warm_start_settings(settings, vocabulary, lexicon: object | None = None):
-    """``settings`` (:class:`~spco.model.state.SamplerSettings`) for the warm start of a fit that learns
-    its words with the channels: the words of ``vocabulary`` that can denote no place — function
-    words, and words WordNet knows none of whose noun senses is a place
-    (:func:`spco.model.name_evidence.lexical_features`: "table", "sofa", "chairs", "refrigerator",
-    "dining table" by its head) — mark no place at the start (``start_not_names``), even where the
-    naming rule judges them place-bound: a sample that says only such words takes the place of its
-    region, and such a word said in two rooms does not join their names as synonyms
-    (:func:`spco.model.synonyms.same_place_names`). ``vocabulary`` ``None``: no word is left out.
-    ``lexicon``: as :func:`~spco.model.name_evidence.lexical_features`."""
-    from dataclasses import replace
-
-    from spco.model.name_evidence import lexical_features
-
-    objects: tuple[int, ...] = ()
-    if vocabulary is not None and len(vocabulary):
-        facts = lexical_features(list(vocabulary.words), lexicon)
-        known, place_share, function = facts[:, 0] > 0, facts[:, 2], facts[:, 3] > 0
-        objects = tuple(int(k) for k in np.flatnonzero((known & (place_share == 0)) | function))
-    return replace(settings, start_not_names=objects)
