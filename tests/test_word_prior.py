@@ -121,6 +121,34 @@ def test_the_given_delta_in_the_token_s_units() -> None:
     assert given_delta_word(1e4, cut) == 1e4
 
 
+def test_the_answers_count_a_name_token_as_the_chain_did() -> None:
+    """The answers update a concept's names by a home's name tokens in θ^w's units: W^w per token
+    under the power target, S^w under the cut. So the power target with δ^w in its units (× W^w / S^w)
+    answers the cut's names exactly, by :func:`place_named_parameters` as by the rooms' δ."""
+    from spco.model.confidence import place_named_parameters
+    from spco.model.parameters import ConceptParameters
+    from spco.model.word_channels import name_token_counts, rooms_concentration
+
+    cut = TransferHyperparameters()
+    power = TransferHyperparameters(target="power", delta_word=1e4 * 16 / 5000)
+    assert name_token_counts(cut, 5000) == 5000 and name_token_counts(power, 5000) == 16
+    assert rooms_concentration(cut, 5000) == 1e4 and rooms_concentration(power, 5000) == pytest.approx(1e4)
+    rng = np.random.default_rng(3)
+    L, V = 3, 6
+    params = ConceptParameters(
+        concept_weights=np.full((2, L), 1.0 / L), region_weights=np.full((2, L, 1), 1.0),
+        region_means=np.zeros((2, 1, 4)), region_covariances=np.tile(np.eye(4), (2, 1, 1, 1)),
+        word_probabilities=rng.dirichlet(np.ones(V), size=(2, L)),
+        visual_probabilities=np.full((2, L, 2), 0.5),
+        shared_word_probabilities=np.full((L, V), 1.0 / V), shared_visual_probabilities=np.full((L, 2), 0.5),
+        global_concept_weights=np.full(L, 1.0 / L), word_mask=np.ones(V, dtype=bool),
+        region_counts=np.full((2, 1), 20), concept_counts=np.full((2, L), 20.0))
+    at_places, own = rng.random((L, V)), rng.random((L, V)) * 3
+    a = place_named_parameters(params, 1, at_places, own, cut.delta_word, name_token_counts(cut, 5000))
+    b = place_named_parameters(params, 1, at_places, own, power.delta_word, name_token_counts(power, 5000))
+    np.testing.assert_allclose(a.word_probabilities, b.word_probabilities, rtol=1e-12)
+
+
 @pytest.mark.parametrize("target", ["power", "cut"])
 def test_the_knowledge_carries_the_estimate(target: str, tmp_path) -> None:
     """A fit of synthetic English homes with ``word_prior="estimate"``: the knowledge's δ^w and α^w are

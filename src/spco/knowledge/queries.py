@@ -35,7 +35,13 @@ from spco.model.prediction import NamePrediction, UnknownNameError, mutual_infor
 from spco.model.rooms import HomeRooms
 from spco.model.seeds import as_generator
 from spco.model.unheard import resolve_name
-from spco.model.word_channels import channel_token_counts, concept_name_tokens, name_tokens
+from spco.model.word_channels import (
+    channel_token_counts,
+    concept_name_tokens,
+    name_token_counts,
+    name_tokens,
+    rooms_concentration,
+)
 
 
 def where(home: HomeModel, name: str, n: int = 10,
@@ -247,8 +253,9 @@ def answer_parameters(home: HomeModel) -> ConceptParameters:
         # home's own name tokens (spco.model.confidence.place_named_parameters)
         own = concept_name_tokens(home.data.words, home.data.homes, state.concepts, state.log_theta_w,
                                   state.channels, params.n_concepts)
-        params = confidence.place_named_parameters(params, 0, at_places, own, home.hyperparameters.delta_word,
-                                                   float(home.knowledge.word_increment))
+        params = confidence.place_named_parameters(
+            params, 0, at_places, own, home.hyperparameters.delta_word,
+            name_token_counts(home.hyperparameters, float(home.knowledge.word_increment)))
     # with the channels θ^w is the names channel: its mass on a word the home does not answer says
     # the place's name is none of the home's names (spco.model.confidence.answerable_names)
     return confidence.answerable_names(params, 0, home.name_mask)
@@ -316,7 +323,8 @@ def home_rooms(home: HomeModel) -> HomeRooms:
         names, places = channel_token_counts(home.data.words, home.data.homes, state.concepts,
                                              state.log_theta_w, state.channels)
     return HomeRooms.of(state.regions, home.data.visual, words, state.concepts, names=names, places=places,
-                        concentration=home.hyperparameters.delta_word)
+                        concentration=rooms_concentration(home.hyperparameters,
+                                                          float(home.knowledge.word_increment)))
 
 
 def describe_model_file(path: str | PathLike[str]) -> dict[str, Any]:

@@ -272,7 +272,7 @@ def model_rooms(model: object, e: int) -> HomeRooms:
     (:class:`~spco.model.transfer.SpatialConceptModel`, the experiments' fit): its training samples'
     regions, concepts, views and name tokens (with the word channels the tokens drawn as names), so
     that an experiment scores the names the robot answers (:func:`spco.model.confidence.answer_names`)."""
-    from spco.model.word_channels import channel_token_counts, name_tokens
+    from spco.model.word_channels import channel_token_counts, name_tokens, rooms_concentration
 
     data = model.data_  # type: ignore[attr-defined]
     state = model.state_  # type: ignore[attr-defined]
@@ -288,4 +288,5 @@ def model_rooms(model: object, e: int) -> HomeRooms:
                                              state.channels)
     return HomeRooms.of(np.asarray(state.regions)[rows], data.visual[rows], words[rows],
                         np.asarray(state.concepts)[rows], names=names, places=places,
-                        concentration=float(model.hyperparameters_.delta_word))  # type: ignore[attr-defined]
+                        concentration=rooms_concentration(model.hyperparameters_,  # type: ignore[attr-defined]
+                                                          float(model.word_increment_)))  # type: ignore[attr-defined]
