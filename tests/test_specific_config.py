@@ -161,6 +161,37 @@ def test_cli_refuses_options_that_do_not_apply(tmp_path: Path) -> None:
     assert res.exit_code == 2 and "--seed cannot be used with --config" in res.output
     res = CliRunner().invoke(experiment, ["specific", "--seeds", "1", "--out", str(tmp_path / "o")])
     assert res.exit_code == 2 and "only apply with --config" in res.output
+    res = CliRunner().invoke(experiment, ["specific", "--set", "target=power", "--out", str(tmp_path / "o")])
+    assert res.exit_code == 2 and "--set" in res.output and "only apply with --config" in res.output
+    res = CliRunner().invoke(experiment, ["specific", "--config", str(HELDOUT), "--data", str(tmp_path),
+                                          "--set", "visual_prior=sometimes", "--out", str(tmp_path / "o")])
+    assert res.exit_code == 2 and "visual_prior" in res.output
+
+
+def test_set_reaches_the_models_and_the_identity(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``--set`` gives every run the hyperparameters on top of the paper's, and the experiment's
+    identity (config.json) records them: a resume at other settings is refused."""
+    import spco.evaluation.specific_config as sc
+
+    seen = []
+
+    class Stop(Exception):
+        pass
+
+    def fake_run(data, key, iterations, n_positions, fingerprint="", hyperparameters=None):
+        seen.append(hyperparameters)
+        raise Stop
+
+    monkeypatch.setattr(sc, "ConfiguredData", lambda *args, **kwargs: None)
+    monkeypatch.setattr(sc, "execute_configured_run", fake_run)
+    out = tmp_path / "o"
+    res = CliRunner().invoke(experiment, ["specific", "--config", str(_small(tmp_path)),
+                                          "--data", str(tmp_path), "--set", "target=power",
+                                          "--set", "visual_prior=estimate", "--out", str(out)])
+    assert isinstance(res.exception, Stop), res.output
+    assert seen[0].target == "power" and seen[0].visual_prior == "estimate" and seen[0].delta_word == 1e4
+    identity = json.loads((out / "config.json").read_text())["identity"]
+    assert identity["hyperparameters"]["visual_prior"] == "estimate"
 
 
 # ------------------------------------------------------------------------------------ SIGVerse

@@ -177,13 +177,17 @@ def general(data: str, language: str, regions: Path | None, maps: Path | None, t
                    "first --trials).")
 @click.option("--positions", default=None, type=click.IntRange(1),
               help="With --config: positions drawn per room and A_p mode (default 20).")
+@click.option("--set", "settings", multiple=True, metavar="NAME=VALUE",
+              help="With --config: a hyperparameter of the transfer models, on top of their defaults, as "
+                   "`spco fit --set` (repeatable; e.g. --set target=power --set word_prior=estimate). "
+                   "Recorded in results.json and part of the experiment's identity.")
 @_friendly
 def specific(data: str, language: str, regions: Path | None, maps: Path | None, trials: int, models: str,
              iterations: int, seed: int, jobs: int, engine: str, address: str | None, out: Path, resume: bool,
              force: bool, quiet: bool, images: Path | None, extractor: str | None, name_prior: str,
              views_missing: float, text_language: str, rates: str, experienced_homes: str | None,
              new_home: str | None, config_file: Path | None, configurations: str | None, seeds: str | None,
-             positions: int | None) -> None:
+             positions: int | None, settings: tuple[str, ...]) -> None:
     """Home-specific places: accuracy on the new home's own room names vs. their teaching rate."""
     from spco.evaluation.experiments import parse_int_list
 
@@ -200,9 +204,10 @@ def specific(data: str, language: str, regions: Path | None, maps: Path | None, 
                                                           "experienced_homes", "new_home", "images",
                                                           "extractor", "address", "name_prior")
                                                           if given(n)]
-                    + (["--engine ray"] if engine != "local" else []))
+                    + (["--engine ray"] if engine != "local" else []), settings)
         return
-    unused = [f"--{n}" for n in ("configuration", "seeds", "positions") if given(n)]
+    unused = [f"--{n}" for n in ("configuration", "seeds", "positions") if given(n)] + \
+        (["--set"] if settings else [])
     if unused:
         raise click.UsageError(f"{', '.join(unused)} only apply with --config")
     _run({"experiment": "specific", "settings": parse_int_list(rates, "--rates", 0, 100), "data": data,
@@ -218,10 +223,13 @@ def specific(data: str, language: str, regions: Path | None, maps: Path | None, 
 def _run_config(config_file: Path, data: str, out: Path, configurations: str | None, seeds: str | None,
                 rates: str | None, trials: int | None, models: str | None, iterations: int,
                 positions: int | None, jobs: int, resume: bool, force: bool, quiet: bool,
-                unused: list[str]) -> None:
-    """``specific --config``: the home-specific experiment of a configuration file."""
+                unused: list[str], settings: tuple[str, ...] = ()) -> None:
+    """``specific --config``: the home-specific experiment of a configuration file (``settings``:
+    ``--set NAME=VALUE`` of the transfer models' hyperparameters, on the paper's)."""
+    from spco.errors import ConfigurationError
     from spco.evaluation.experiments import parse_int_list
     from spco.evaluation.specific_config import DEFAULT_POSITIONS, load_specific_config, run_specific_config
+    from spco.model.hyperparameters import TransferHyperparameters
 
     if unused:
         raise click.UsageError(f"{', '.join(unused)} cannot be used with --config (the configuration "
@@ -229,6 +237,10 @@ def _run_config(config_file: Path, data: str, out: Path, configurations: str | N
     if data == "synthetic":
         raise click.UsageError("--config needs --data: the data set holding the file's homes "
                                "(e.g. the SIGVerse folder)")
+    try:
+        hyper = TransferHyperparameters().with_settings(list(settings)) if settings else None
+    except ConfigurationError as exc:
+        raise click.BadParameter(str(exc), param_hint="--set") from None
     file = load_specific_config(config_file)
     chosen = _split(configurations)
     if seeds is not None:
@@ -252,7 +264,7 @@ def _run_config(config_file: Path, data: str, out: Path, configurations: str | N
     results = run_specific_config(file, data, out, configurations=chosen, rates=chosen_rates, seeds=picked,
                                   models=names, iterations=iterations,
                                   n_positions=positions or DEFAULT_POSITIONS, jobs=jobs, resume=resume,
-                                  force=force, progress=progress)
+                                  force=force, progress=progress, hyperparameters=hyper)
     if not quiet:
         click.echo((out / "tables.md").read_text(encoding="utf-8"))
     click.echo(f"{len(results['runs'])} runs in {time.perf_counter() - start:.1f} s; wrote "

@@ -303,8 +303,9 @@ def _vocabulary(homes: Iterable[Environment]) -> Vocabulary:
 
 
 def execute_configured_run(data: ConfiguredData, key: ConfiguredRun, iterations: int, n_positions: int,
-                           fingerprint: str = "") -> dict[str, Any]:
-    """Fit and score one run; returns its record (a line of ``runs.jsonl``)."""
+                           fingerprint: str = "", hyperparameters: Any = None) -> dict[str, Any]:
+    """Fit and score one run; returns its record (a line of ``runs.jsonl``). ``hyperparameters``: the
+    transfer models' (``TransferHyperparameters``; ``None``: the model's defaults)."""
     from spco.evaluation.config import trial_seed
     from spco.evaluation.models import MODELS
 
@@ -317,7 +318,7 @@ def execute_configured_run(data: ConfiguredData, key: ConfiguredRun, iterations:
     vocabulary = _vocabulary(homes)  # per run: this rate's (and draw's) sentences only
     spec = MODELS[key.model]
     random_state = trial_seed(key.seed, 0)
-    model = spec.build(iterations, random_state, None, False)
+    model = spec.build(iterations, random_state, hyperparameters, False)
     corpus = Corpus([new] if spec.single_home else homes, vocabulary=vocabulary)
     model.fit(corpus)
     e = len(corpus) - 1
@@ -345,25 +346,25 @@ def execute_configured_run(data: ConfiguredData, key: ConfiguredRun, iterations:
 
 
 # -------------------------------------------------------------------------- worker processes
-_WORKER: tuple[ConfiguredData, int, int, str] | None = None
+_WORKER: tuple[ConfiguredData, int, int, str, Any] | None = None
 
 
 def _init_worker(file: SpecificConfigFile, source: str, names: tuple[str, ...], iterations: int,
-                 n_positions: int, fingerprint: str) -> None:
+                 n_positions: int, fingerprint: str, hyperparameters: Any = None) -> None:
     global _WORKER
     with contextlib.suppress(Exception):  # numba may lack a threading layer; runs still work
         import numba
 
         numba.set_num_threads(1)
     data = ConfiguredData(file, source, file.select(names))
-    _WORKER = (data, iterations, n_positions, fingerprint)
+    _WORKER = (data, iterations, n_positions, fingerprint, hyperparameters)
 
 
 def _worker_run(key: ConfiguredRun) -> dict[str, Any]:
     if _WORKER is None:  # pragma: no cover - the initializer always runs first
         raise RuntimeError("worker not initialised")
-    data, iterations, n_positions, fingerprint = _WORKER
-    return execute_configured_run(data, key, iterations, n_positions, fingerprint)
+    data, iterations, n_positions, fingerprint, hyperparameters = _WORKER
+    return execute_configured_run(data, key, iterations, n_positions, fingerprint, hyperparameters)
 
 
 # ------------------------------------------------------------------------------------ summary
@@ -582,6 +583,7 @@ def run_specific_config(
     resume: bool = False,
     force: bool = False,
     progress: Callable[[dict[str, Any], int, int], None] | None = None,
+    hyperparameters: Any = None,
 ) -> dict[str, Any]:
     """Run the home-specific experiment of a configuration file and write its results in ``out``.
 
@@ -597,6 +599,8 @@ def run_specific_config(
     jobs: worker processes (results do not depend on it).
     resume: continue an experiment in ``out`` with the same configuration; force: start over.
     progress: called with each finished record, the number done and the total.
+    hyperparameters: the transfer models' (a ``TransferHyperparameters``, e.g. of ``--set``; ``None``:
+        each model's defaults); part of the experiment's identity when given.
 
     Returns
     -------
@@ -617,6 +621,8 @@ def run_specific_config(
         raise ConfigurationError(f"{out_dir}: exists and is not a folder (--out)")
     identity = {"config_sha256": file.sha256, "iterations": iterations, "positions": n_positions,
                 "vocabulary": "per run", "format": RESULTS_VERSION}
+    if hyperparameters is not None:  # (identities without it, of runs with the defaults, unchanged)
+        identity["hyperparameters"] = hyperparameters.to_dict()
     fingerprint = hashlib.sha256(json.dumps(identity, sort_keys=True).encode()).hexdigest()
     runs_file = out_dir / _RUNS_FILE
     _prepare_out_dir(out_dir, fingerprint, resume, force)
@@ -641,13 +647,14 @@ def run_specific_config(
         if jobs == 1 or len(pending) == 1:
             loaded = ConfiguredData(file, str(source), chosen)
             for key in pending:
-                store(execute_configured_run(loaded, key, iterations, n_positions, fingerprint))
+                store(execute_configured_run(loaded, key, iterations, n_positions, fingerprint,
+                                             hyperparameters))
         else:
             ids = tuple(c.id for c in chosen)
             with ProcessPoolExecutor(min(jobs, len(pending)), mp_context=multiprocessing.get_context("spawn"),
                                      initializer=_init_worker,
                                      initargs=(file, str(source), ids, iterations, n_positions,
-                                               fingerprint)) as pool:
+                                               fingerprint, hyperparameters)) as pool:
                 futures: set[Future[dict[str, Any]]] = {pool.submit(_worker_run, k) for k in pending}
                 try:
                     while futures:
@@ -663,7 +670,9 @@ def run_specific_config(
                "config": {"file": str(file.path), "sha256": file.sha256,
                           "configurations": [c.id for c in chosen], "rates": list(rates),
                           "seeds": list(seeds), "models": list(model_names), "iterations": iterations,
-                          "positions": n_positions, "data": str(data)},
+                          "positions": n_positions, "data": str(data),
+                          **({"hyperparameters": hyperparameters.to_dict()} if hyperparameters is not None
+                             else {})},
                "runs": finished, **summarise(finished, file)}
     _write_atomic(out_dir / _RESULTS_FILE, json.dumps(results, indent=1, allow_nan=False) + "\n")
     _write_atomic(out_dir / _TABLES_FILE, tables(results))

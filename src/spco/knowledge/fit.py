@@ -202,8 +202,10 @@ def fit_knowledge(
     run.close()
     record["view_fit"] = _view_fit_record(dict(zip(corpus.names, fits, strict=True)))
     visual_prior = getattr(run, "visual_prior", None)  # the estimated δ^v, α^v (None: given)
+    word_prior = getattr(run, "word_prior", None)  # the estimated δ^w, α^w (None: given)
     record.update({**_view_weight_record(run.view_weight),
                    **({"visual_prior": visual_prior} if visual_prior is not None else {}),
+                   **({"word_prior": word_prior} if word_prior is not None else {}),
                    **(provenance or {})})
     return Knowledge(
         log_phi_visual=log_phi_v, log_phi_words=log_phi_w, log_g0=log_g0, word_mask=word_mask,

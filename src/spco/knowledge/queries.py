@@ -35,7 +35,7 @@ from spco.model.prediction import NamePrediction, UnknownNameError, mutual_infor
 from spco.model.rooms import HomeRooms, sample_rooms
 from spco.model.seeds import as_generator
 from spco.model.unheard import resolve_name
-from spco.model.word_channels import concept_name_tokens, name_tokens
+from spco.model.word_channels import concept_name_tokens, name_token_counts, name_tokens, rooms_concentration
 
 
 def where(home: HomeModel, name: str, n: int = 10,
@@ -296,8 +296,9 @@ def answer_parameters(home: HomeModel) -> ConceptParameters:
         # home's own name tokens (spco.model.confidence.place_named_parameters)
         own = concept_name_tokens(home.data.words, home.data.homes, state.concepts, state.log_theta_w,
                                   state.channels, params.n_concepts)
-        params = confidence.place_named_parameters(params, 0, at_places, own, home.hyperparameters.delta_word,
-                                                   float(home.knowledge.word_increment))
+        params = confidence.place_named_parameters(
+            params, 0, at_places, own, home.hyperparameters.delta_word,
+            name_token_counts(home.hyperparameters, float(home.knowledge.word_increment)))
     # with the channels θ^w is the names channel: its mass on a word the home does not answer says
     # the place's name is none of the home's names (spco.model.confidence.answerable_names)
     return confidence.answerable_names(params, 0, home.name_mask)
@@ -358,7 +359,8 @@ def home_rooms(home: HomeModel) -> HomeRooms:
     those drawn as words of the place) with δ^w, for a room's own names in ``where``
     (:func:`spco.model.position_prediction.region_posterior_for_name`): the rooms' one builder,
     :func:`spco.model.rooms.sample_rooms`, as the experiments build a joint fit's."""
-    return sample_rooms(home.data, home.state, home.hyperparameters.delta_word)
+    return sample_rooms(home.data, home.state, rooms_concentration(home.hyperparameters,
+                                                                   float(home.knowledge.word_increment)))
 
 
 def describe_model_file(path: str | PathLike[str]) -> dict[str, Any]:

@@ -341,7 +341,7 @@ def _model_place_names(model: object, e: int, answer: ConceptParameters) -> Conc
     names they stand in for (:func:`spco.model.unheard.stand_in_columns`), at the fit's final state
     (a knowledge averages them over its kept sweeps)."""
     from spco.model.unheard import stand_in_columns
-    from spco.model.word_channels import concept_name_tokens, place_names
+    from spco.model.word_channels import concept_name_tokens, name_token_counts, place_names
 
     data, state = model.data_, model.state_  # type: ignore[attr-defined]
     L = state.log_theta_w.shape[1]
@@ -354,4 +354,4 @@ def _model_place_names(model: object, e: int, answer: ConceptParameters) -> Conc
                               state.log_theta_w, state.channels, L)
     hyper = model.hyperparameters_  # type: ignore[attr-defined]
     return place_named_parameters(answer, e, at_places, own, hyper.delta_word,
-                                  float(model.word_increment_))  # type: ignore[attr-defined]
+                                  name_token_counts(hyper, float(model.word_increment_)))  # type: ignore[attr-defined]

@@ -26,6 +26,7 @@ from spco.model.sources import HomeSource
 from spco.model.state import GibbsState, PreparedData, SamplerSettings
 from spco.model.view_fit import VIEW_WEIGHT_GRID, estimate_view_weight
 from spco.model.visual_prior import estimate_visual_prior
+from spco.model.word_prior import estimate_word_prior, given_delta_word
 
 
 class ShardedRun(ABC):
@@ -62,6 +63,8 @@ class ShardedRun(ABC):
             self._estimate_view_weight()
         #: the visual prior's estimate (``None``: δ^v and α^v were given)
         self.visual_prior: dict | None = None
+        #: the word prior's estimate (``None``: δ^w and α^w were given; made when the channels start)
+        self.word_prior: dict | None = None
         if hyper.visual_prior == "estimate" and settings.variant == "exact" and self.n_homes > 1:
             self._estimate_visual_prior()
 
@@ -174,6 +177,30 @@ class ShardedRun(ABC):
         start (which places the homes by the naming rule's names: a start, valid for any target)."""
         self.shared = dataclasses.replace(self.shared, word_mask=np.ones_like(self.shared.word_mask),
                                           name_words=None, channels=channels)
+        if (self.hyper.word_prior == "estimate" and self.settings.variant == "exact" and self.n_homes > 1
+                and self.word_prior is None):
+            self._estimate_word_prior(channels)
+
+    def _estimate_word_prior(self, channels) -> None:
+        """Estimate δ^w and α^w from the homes' name tokens on the concepts of the start, each token
+        weighed by the switch's prior p(z = name | word) of ``channels``
+        (:func:`spco.model.word_prior.estimate_word_prior`), and make every worker, the global step
+        and this run's ``hyper`` use them from the next sweep on. Where the homes' names do not spread
+        beyond their sampling noise (homes that name alike: template speech) the moments give no
+        finite δ^w, and the given δ^w is put in the units θ^w counts a token in
+        (:func:`spco.model.word_prior.given_delta_word`: times W^w / S^w under the power target); an α^w
+        that cannot be estimated stays as given."""
+        parts = [home for part in self.call("word_prior_moments", channels.name_prior()) for home in part]
+        m, s, q = (np.concatenate(arrays, axis=0) for arrays in zip(*parts, strict=True))
+        delta, alpha = estimate_word_prior(m, s, q)
+        self.word_prior = {"delta_word_estimated": delta is not None,
+                           "alpha_word_estimated": alpha is not None}
+        delta = given_delta_word(self.hyper.delta_word, channels) if delta is None else delta
+        alpha = self.hyper.alpha_word if alpha is None else alpha
+        self.word_prior.update(delta_word=float(delta), alpha_word=float(alpha))
+        self.hyper = dataclasses.replace(self.hyper, delta_word=float(delta), alpha_word=float(alpha))
+        self.global_step.hyper = self.hyper
+        self.call("set_word_prior", float(delta), float(alpha))
 
     @abstractmethod
     def close(self) -> None:

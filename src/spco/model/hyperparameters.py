@@ -43,6 +43,11 @@ Target = Literal["cut", "power"]
 VISUAL_PRIORS = ("given", "estimate")
 VisualPrior = Literal["given", "estimate"]
 
+#: Where the exact sampler's δ^w and α^w come from (``TransferHyperparameters.word_prior``): as given,
+#: or estimated from the homes' name tokens when the word channels start (:mod:`spco.model.word_prior`).
+WORD_PRIORS = ("given", "estimate")
+WordPrior = Literal["given", "estimate"]
+
 #: The word models of the exact sampler with "+MI": word channels (name / place / background switch per
 #: token, :mod:`spco.model.word_channels`) or the naming rule (words pruned by where they are said,
 #: :mod:`spco.model.pruning`).
@@ -186,6 +191,16 @@ class TransferHyperparameters:
         model's hyperparameters hold the numbers (a knowledge file, and every home adapted from it,
         carries them); a quantity that cannot be estimated keeps its given value. Written by
         :meth:`to_dict` only when not ``"given"``.
+    word_prior: ``"given"`` (default): δ^w and α^w as set; ``"estimate"``: both estimated from the
+        experienced homes' name tokens by the same method of moments, on the concepts of the start,
+        each token weighed by the switch's prior p(z = name | word), when the word channels start
+        (:func:`spco.model.word_prior.estimate_word_prior`; exact variant, word channels, two homes or
+        more): δ^w from the spread of the homes' name proportions around their concept's mean, α^w
+        from the concepts' spread around the uniform — the priors in the units of proportions, which
+        the power target's W^w counts per token do not swamp (the given δ^w = 10^4 was set against
+        S^w = 5,000 counts per token). Kept in the fitted hyperparameters (the knowledge file, and
+        every home adapted or taught from it, uses the numbers); a quantity that cannot be estimated
+        keeps its given value. Written by :meth:`to_dict` only when not ``"given"``.
     evidence_weight: η, the weight of the linguistic evidence in the switch's prior (word channels):
         p(z = name | word) ∝ λ_name ν^η, p(z = place or background) ∝ λ_c (1 − ν)^η, ν the name
         evidence of :mod:`spco.model.name_evidence`. Default :data:`EVIDENCE_WEIGHT`, chosen on
@@ -215,6 +230,7 @@ class TransferHyperparameters:
     block_moves: BlockMoves = "off"
     target: Target = "cut"
     visual_prior: VisualPrior = "given"
+    word_prior: WordPrior = "given"
 
     def __post_init__(self) -> None:
         for name in ("n_concepts", "n_regions"):
@@ -259,6 +275,9 @@ class TransferHyperparameters:
         if self.visual_prior not in VISUAL_PRIORS:
             raise ConfigurationError(f"visual_prior must be one of {', '.join(map(repr, VISUAL_PRIORS))}, "
                                      f"got {self.visual_prior!r}")
+        if self.word_prior not in WORD_PRIORS:
+            raise ConfigurationError(f"word_prior must be one of {', '.join(map(repr, WORD_PRIORS))}, "
+                                     f"got {self.word_prior!r}")
         if (self.target == "power" and self.word_counts is not None
                 and float(self.word_counts) != round(float(self.word_counts))):
             raise ConfigurationError(f"word_counts must be a whole number with target='power' (a word "
@@ -308,12 +327,14 @@ class TransferHyperparameters:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dictionary (``name_prior`` and ``block_moves`` only when not ``"off"``, ``target``
-        only when not ``"cut"``, ``visual_prior`` only when not ``"given"``)."""
+        only when not ``"cut"``, ``visual_prior`` and ``word_prior`` only when not ``"given"``)."""
         data = asdict(self)
         if data["target"] == "cut":
             del data["target"]
         if data["visual_prior"] == "given":
             del data["visual_prior"]
+        if data["word_prior"] == "given":
+            del data["word_prior"]
         if data["name_prior"] == "off":
             del data["name_prior"]
         if data["block_moves"] == "off":
@@ -383,6 +404,7 @@ SETTABLE: dict[str, str] = {
     "view_counts": "number, none or estimate", "evidence_weight": "a number", "word_counts": "number or none",
     "word_model": "one of channels, naming-rule", "block_moves": "one of off, adapt, all",
     "target": "one of cut, power", "visual_prior": "one of given, estimate",
+    "word_prior": "one of given, estimate",
 }
 
 

@@ -311,6 +311,9 @@ def model_rooms(model: object, e: int) -> HomeRooms:
     its training samples of the home, with its δ^w, so that an experiment scores the names the robot
     answers (:func:`spco.model.confidence.answer_names`). Needs the sampler's state (``state_``,
     ``data_``: a fitted model, not one loaded from a file)."""
+    from spco.model.word_channels import rooms_concentration
+
     data = model.data_  # type: ignore[attr-defined]
     rows = slice(int(data.offsets[e]), int(data.offsets[e + 1]))
-    return sample_rooms(data, model.state_, float(model.hyperparameters_.delta_word), rows)  # type: ignore[attr-defined]
+    concentration = rooms_concentration(model.hyperparameters_, float(model.word_increment_))  # type: ignore[attr-defined]
+    return sample_rooms(data, model.state_, concentration, rows)  # type: ignore[attr-defined]

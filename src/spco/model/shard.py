@@ -221,6 +221,18 @@ class HomeShard(ShardInitialisation):
 
         return home_view_moments(self.data, self.state.concepts, self.hyper.n_concepts)
 
+    def word_prior_moments(self, name_prior: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The shard's name tokens by concept, each weighed by ``name_prior`` (V,), for the word
+        prior's estimate (:func:`spco.model.word_prior.home_name_moments`)."""
+        from spco.model.word_prior import home_name_moments
+
+        return home_name_moments(self.data, self.state.concepts, self.hyper.n_concepts, name_prior)
+
+    def set_word_prior(self, delta_word: float, alpha_word: float) -> None:
+        """From the next sweep on, θ^w ~ Dir(δ^w φ^w) and φ^w ~ Dir(α^w) at these values (the
+        driver's estimate)."""
+        self.hyper = replace(self.hyper, delta_word=float(delta_word), alpha_word=float(alpha_word))
+
     def visual_means(self) -> np.ndarray:
         """The shard's log θ^v summary for a fit's average (E, L, D): under the power target its
         conditional mean log((δ^v φ^v + n^v) / (δ^v + N^v)) given the sweep's counts (a Dirichlet with

@@ -221,6 +221,15 @@ class ShardGroup:
         in home order."""
         return self._each("visual_prior_moments")
 
+    def word_prior_moments(self, name_prior: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """Every home's name tokens by concept (:func:`spco.model.word_prior.home_name_moments`), in
+        home order."""
+        return self._each("word_prior_moments", name_prior)
+
+    def set_word_prior(self, delta_word: float, alpha_word: float) -> None:
+        """Every home draws θ^w at these δ^w and α^w from the next sweep on."""
+        self._each("set_word_prior", delta_word, alpha_word)
+
     def visual_means(self) -> list[np.ndarray]:
         """Every home's log θ^v summary (:meth:`HomeShard.visual_means`), in home order."""
         return [m for h in self.homes for m in h.visual_means()]

@@ -301,7 +301,7 @@ class SpatialConceptModel:
                                                    content, token_weight(hyper.word_counts,
                                                                          corpus.word_increment),
                                                    power=hyper.target == "power"))
-        return hyper, evidence
+        return run.hyper, evidence  # (δ^w and α^w estimated as the channels start: word_prior)
 
     @staticmethod
     def _fitted_parameters(params: ConceptParameters, corpus: Corpus, data: gibbs.PreparedData,

@@ -215,6 +215,29 @@ def token_weight(word_counts: float | None, word_increment: int) -> float:
     return 1.0 if word_counts is None else float(word_counts) / float(word_increment)
 
 
+def name_token_counts(hyper, word_increment: float) -> float:
+    """The counts θ^w adds for one name token, the unit δ^w is stated in: W^w
+    (``TransferHyperparameters.word_counts``) when the chain targets the power likelihood
+    (``target="power"``), S^w = ``word_increment`` otherwise (the cut sampler). The answers that
+    update a concept's names by a home's or a room's name tokens against δ^w
+    (:func:`spco.model.confidence.place_named_parameters`, :class:`spco.model.rooms.HomeRooms`) count
+    them so, as the chain that learnt δ^w's θ^w did."""
+    word_counts = getattr(hyper, "word_counts", None)
+    if getattr(hyper, "target", "cut") == "power" and word_counts is not None:
+        return float(word_counts)
+    return float(word_increment)
+
+
+def rooms_concentration(hyper, word_increment: float) -> float:
+    """δ^w in the S^w counts per token that a room's name tokens are read in
+    (:func:`spco.model.word_channels.channel_token_counts`, ``HomeRooms.concentration``): δ^w times
+    S^w over :func:`name_token_counts` (δ^w itself under the cut sampler)."""
+    counts = name_token_counts(hyper, word_increment)
+    if counts == float(word_increment):
+        return float(hyper.delta_word)
+    return float(hyper.delta_word) * float(word_increment) / counts
+
+
 def token_rows(words: sp.csr_array) -> np.ndarray:
     """The sample (row) of every token (stored entry) of ``words``: (nnz,)."""
     return np.repeat(np.arange(words.shape[0]), np.diff(words.indptr))
