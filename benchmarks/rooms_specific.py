@@ -29,15 +29,17 @@ import numpy as np
 import spco.evaluation.specific_config as sc
 from spco.evaluation.specific_config import ConfiguredData, ConfiguredRun, load_specific_config
 from spco.model.rooms import model_rooms
+from spco.model.transfer import SpatialConceptModel
 
 CONFIG = Path(__file__).resolve().parent / "development" / "specific_dev.json"
-_MODEL: list[Any] = []  # the run's fitted model, taken where the run asks for its answer parameters
+_MODEL: list[Any] = []  # the run's fitted model, taken where the run asks for what the robot answers with
 _ROOMS: list[Any] = []  # the room account's scores of the run
 
 
-def _answer_parameters(model: Any, e: int) -> Any:
-    _MODEL[:] = [(model, e)]
-    return _ANSWER_PARAMETERS(model, e)
+def _answer_inputs(model: Any, home: str | int) -> Any:
+    """:meth:`SpatialConceptModel.answer_inputs`, keeping the model and home it was asked for."""
+    _MODEL[:] = [(model, model.home_index(home))]
+    return _ANSWER_INPUTS(model, home)
 
 
 def _score_both(params: Any, e: int, env: Any, vocabulary: Any, rooms: Any, weighting: Any, n_positions: int,
@@ -59,14 +61,14 @@ def _score_both(params: Any, e: int, env: Any, vocabulary: Any, rooms: Any, weig
     return plain
 
 
-_ANSWER_PARAMETERS = sc.model_answer_parameters
+_ANSWER_INPUTS = SpatialConceptModel.answer_inputs
 _SCORE_ROOMS = sc.score_rooms
 
 
 def run(args: tuple[str, str, ConfiguredRun, int]) -> dict[str, Any]:
     """One configured run, scored both ways."""
     config, data, key, iterations = args
-    sc.model_answer_parameters = _answer_parameters  # type: ignore[assignment]
+    SpatialConceptModel.answer_inputs = _answer_inputs  # type: ignore[method-assign]
     sc.score_rooms = _score_both  # type: ignore[assignment]
     file = load_specific_config(config)
     loaded = ConfiguredData(file, data, file.select([key.configuration]))
