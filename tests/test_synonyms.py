@@ -118,3 +118,44 @@ def test_synonyms_of_free_speech_find_their_places_in_a_new_home() -> None:
     # A_p 0.32 / 0.42 / 0.46 (mean 0.40), 0.92 accepted names in the top 3
     assert np.mean(positions) >= 0.6, positions
     assert np.mean(accepted_in_top) >= 1.15, np.mean(accepted_in_top)
+
+
+def test_a_name_linked_to_two_names_apart_joins_no_group() -> None:
+    """A bridge (an object said in two rooms whose names are never said in one region) links neither
+    room's names: against brute force on every relation of up to 5 names, and on a home that says
+    "table" at its living room and its dining space."""
+    from itertools import product
+
+    from spco.model.synonyms import _without_bridges
+    for n in range(1, 6):
+        pairs = [(i, j) for i in range(n) for j in range(i + 1, n)]
+        for bits in product((False, True), repeat=len(pairs)):
+            linked = np.zeros((n, n), dtype=bool)
+            for (i, j), bit in zip(pairs, bits, strict=True):
+                linked[i, j] = linked[j, i] = bit
+            # disjoint: a fixed pattern of pairs never said in one region (symmetric)
+            disjoint = np.array([[(i + j) % 2 == 1 for j in range(n)] for i in range(n)],
+                                dtype=bool).reshape(n, n)
+            for given in (None, disjoint):
+                bridge = [any(linked[b, a] and linked[b, c] and not linked[a, c]
+                              and (given is None or given[a, c])
+                              for a in range(n) for c in range(n) if a != c) for b in range(n)]
+                expected = np.array([[linked[i, j] and not bridge[i] and not bridge[j] for j in range(n)]
+                                     for i in range(n)], dtype=bool).reshape(n, n)
+                assert np.array_equal(_without_bridges(linked, given), expected), (linked, given)
+    # columns: 0 livingroom, 1 table, 2 dining; regions 0 (living room), 1 (dining space)
+    names = np.array([0, 0, 0, 0, 1, 1, 1, 1, 2, 2, 2, 2])
+    regions = np.array([0, 0, 0, 0, 0, 0, 1, 1, 1, 1, 1, 1])
+    out = same_place_names(names, regions, np.array([0, 12]), n_regions=2, n_words=3)
+    assert list(out) == list(names)  # three groups: the table's overlap 0.5 with each links neither
+    # with a synonym of the living room said there too, the two still group; the table stays out
+    names = np.append(names, [3, 3, 3])
+    regions = np.append(regions, [0, 0, 0])
+    out = same_place_names(names, regions, np.array([0, 15]), n_regions=2, n_words=4)
+    assert list(out[:4]) == [0] * 4 and list(out[-3:]) == [0] * 3 and list(out[4:12]) == list(names[4:12])
+    # a synonym chain at one place: a - b - c, a and c overlapping by 0.3 (< 0.4, but said in one
+    # region): b is no bridge and the three are one group, named by the lowest column among ties
+    names = np.array([0] * 10 + [1] * 10 + [2] * 10)
+    regions = np.array([0] * 8 + [1] * 2 + [0] * 5 + [1] * 5 + [0] * 1 + [1] * 9)
+    out = same_place_names(names, regions, np.array([0, 30]), n_regions=2, n_words=3)
+    assert (out == 0).all()
