@@ -18,11 +18,7 @@ both, weighted by the fewer uses of the two (:func:`pooled_overlaps`): the start
 k-means clusters, a room spans two or three of them, a name said once overlaps its synonym by
 chance, and an open-plan kitchen-diner puts two places in one region; pooled, a pair is judged on
 every home that says both. Two names said in one home whose pooled overlap exceeds ``min_overlap``
-are one place there; names linked so (transitively) are one group, which starts as one concept,
-except a *bridge*: a name linked to two names that are never said in one region (pooled overlap
-0) joins no group (an object said in two rooms of an open-plan home, "table" at the living room
-and at the dining space, would otherwise make the two rooms' names synonyms;
-:func:`_without_bridges`).
+are one place there; names linked so (transitively) are one group, which starts as one concept.
 Words said at the same spots of the homes are names of the same place; names of different rooms
 are said in different regions and stay apart. No list of synonyms is used; a name said in one home
 only (Emma's room) is judged on that home; homes may group their names differently, and the labels
@@ -125,27 +121,6 @@ def pooled_overlaps(per_home: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
     return name_overlaps(per_home, n_words).pooled()
 
 
-def _without_bridges(linked: np.ndarray, disjoint: np.ndarray | None = None) -> np.ndarray:
-    """The (n, n) bool relation "one place" among a home's names with every *bridge* unlinked: a name
-    linked to two names that are not linked to each other and, where ``disjoint`` (n, n) is given,
-    are marked disjoint there (never said in one region: pooled overlap 0) — an object said in two
-    rooms, "table" at the living room and at the dining space — is evidence that those two are said
-    near it, not that they are one place, so it joins no group and links none; the other names keep
-    their links (the middle of a synonym chain whose ends share a region stays linked)."""
-    linked = np.asarray(linked, dtype=bool) & ~np.eye(linked.shape[0], dtype=bool)
-    # pairs of names linked to a common name: (n, n) count of common neighbours
-    common = linked.astype(np.int64) @ linked.astype(np.int64)
-    apart = (common > 0) & ~linked & ~np.eye(linked.shape[0], dtype=bool)  # a pair two steps apart
-    if disjoint is not None:
-        apart &= disjoint
-    # b is a bridge when two of its neighbours a, c are apart: Σ_a,c L[b,a] L[b,c] apart[a,c] > 0
-    la = linked.astype(np.int64)
-    bridge = ((la @ apart.astype(np.int64)) * la).sum(axis=1) > 0
-    linked[bridge, :] = False
-    linked[:, bridge] = False
-    return linked
-
-
 def same_place_names(names: np.ndarray, regions: np.ndarray, offsets: np.ndarray, n_regions: int,
                      n_words: int, min_overlap: float = MIN_OVERLAP,
                      overlaps: NameOverlaps | None = None) -> np.ndarray:
@@ -159,8 +134,7 @@ def same_place_names(names: np.ndarray, regions: np.ndarray, offsets: np.ndarray
         (the sampler's :class:`~spco.model.gibbs.PreparedData` layout); n_regions K; n_words V.
     min_overlap: two names said in one home are one place there when their region overlap pooled
         over the homes that say both (:func:`pooled_overlaps`) exceeds this; groups are the
-        connected components of that relation among the home's names, a name linked to two names
-        never said in one region (a bridge) left out of every group.
+        connected components of that relation among the home's names.
     overlaps: the sums pooled over every home of the fit (:func:`name_overlaps`, added up over
         the shards) when these are only some of them; default: pooled over these homes.
 
@@ -172,13 +146,12 @@ def same_place_names(names: np.ndarray, regions: np.ndarray, offsets: np.ndarray
     per_home = name_region_overlaps(names, regions, offsets, n_regions)
     if overlaps is None:
         overlaps = name_overlaps(per_home, n_words)
-    pooled = overlaps.pooled()
+    same_place = overlaps.pooled() > min_overlap  # (V, V) sparse bool
     for e, (used, totals, _) in enumerate(per_home):
         if used.size < 2:
             continue
-        pooled_here = pooled[used][:, used].toarray()
-        linked = _without_bridges(pooled_here > min_overlap, pooled_here <= 0.0)
-        n_groups, group = connected_components(sp.csr_array(linked), directed=False)
+        linked = same_place[used][:, used]
+        n_groups, group = connected_components(linked, directed=False)
         if n_groups == used.size:
             continue
         # representative of each group: its most said name, the lowest column among ties
