@@ -56,6 +56,7 @@ from spco.model.prediction import (
     _cholesky,
     _safe_log,
     _word_matrix,
+    concept_information,
     gaussian_log_density,
     mutual_information_weights,
 )
@@ -207,17 +208,9 @@ def place_word_information(params: ConceptParameters, e: int) -> np.ndarray:
     them (:func:`said_word_matrix`: as a name or as a word of the place, ψ): how much a word said
     tells which place it is said at, objects and acts included ("tub", "mirror", "bed"). 0 for a
     pruned word."""
-    from spco.model.pruning import word_concept_mutual_information
-
     e = _check_home(params, e)
     said = np.clip(said_word_matrix(params, e), 0.0, 1.0)
-    said = said * np.asarray(params.word_mask, dtype=bool)[None, :]
-    g = np.clip(np.asarray(params.concept_weights[e], dtype=np.float64), 0.0, None)
-    g = g / g.sum() if g.sum() > 0 else np.full_like(g, 1.0 / g.size)
-    info = word_concept_mutual_information(said, g)
-    info[np.ptp(said, axis=0) == 0] = 0.0  # exactly uninformative: avoid round-off residue
-    info[~np.asarray(params.word_mask, dtype=bool)] = 0.0
-    return info
+    return concept_information(params, e, said * np.asarray(params.word_mask, dtype=bool)[None, :])
 
 
 def _name_likelihood(params: ConceptParameters, e: int, words: list[int]) -> np.ndarray:

@@ -450,11 +450,19 @@ def mutual_information_weights(params: ConceptParameters, e: int) -> np.ndarray:
     Returns (V,) float64 ≥ 0; a word whose θ is the same in every concept, and a pruned word, get 0.
     """
     e = _check_home(params, e)
-    theta = _word_matrix(params, e)  # (L, V)
+    return concept_information(params, e, _word_matrix(params, e))
+
+
+def concept_information(params: ConceptParameters, e: int, words: np.ndarray) -> np.ndarray:
+    """(V,) mutual information (nats) between the indicator "word = w" and the concept of home ``e``
+    (p(c) = G_{e,c}, normalised; uniform if G_e is all zero) with p(word = w | c) = ``words[c, w]``
+    ((L, V), in [0, 1]): :func:`mutual_information_weights` with θ^w, and
+    :func:`spco.model.position_prediction.place_word_information` with the words as ``where`` reads
+    them. A word whose column is the same in every concept, and a pruned word, get 0."""
     g = np.clip(np.asarray(params.concept_weights[e], dtype=np.float64), 0.0, None)
     g = g / g.sum() if g.sum() > 0 else np.full_like(g, 1.0 / g.size)
-    info = word_concept_mutual_information(theta, g)
-    info[np.ptp(theta, axis=0) == 0] = 0.0  # exactly uninformative: avoid round-off residue
+    info = word_concept_mutual_information(words, g)
+    info[np.ptp(words, axis=0) == 0] = 0.0  # exactly uninformative: avoid round-off residue
     info[~np.asarray(params.word_mask, dtype=bool)] = 0.0
     return info
 
