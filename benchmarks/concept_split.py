@@ -35,10 +35,9 @@ from scipy.special import logsumexp
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from free_speech import read_names
-from speech_errors import CALLED_BUT_NOT_ACCEPTED, _configurations
+from speech_errors import _configurations, training_places
 
 from spco.data import Corpus
-from spco.data.language import normalize_name
 from spco.evaluation.experiments import trial_seed
 from spco.model import SpCoTransfer
 from spco.model.gibbs import view_weights
@@ -90,17 +89,9 @@ def main() -> None:
                          random_state=trial_seed(args.seed, 0)).fit(corpus)
     parts = terms(model)
     data, concepts = model.data_, model.state_.concepts
-    place_of, named = [], []
-    for h in corpus:
-        labels = [label for label, test in zip(h.ground_truth.labels, h.is_test, strict=True) if not test]
-        for label, sentence in zip(labels, h.training_data().sentences, strict=True):
-            place = normalize_name(label) if label else None
-            names = (set(accepted.get(place, ())) | CALLED_BUT_NOT_ACCEPTED.get(place, frozenset())
-                     if place else set())
-            place_of.append(place)
-            said = None if sentence is None else set(corpus.vocabulary.tokenize(sentence))
-            named.append(None if said is None else bool(names & said))
-    place_of = np.array(place_of, dtype=object)
+    samples = [sample for h in corpus for sample in training_places(h, corpus.vocabulary, accepted)]
+    place_of = np.array([place for place, _ in samples], dtype=object)
+    named = [said for _, said in samples]
     taught = np.array([n is not None for n in named]) & (data.homes < len(corpus) - 1)
     print(f"word_counts {model.hyperparameters_.word_counts}, token weight "
           f"{model.state_.channels.token_weight:g}; concepts: taught samples, places (share naming it)")

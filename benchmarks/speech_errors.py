@@ -119,12 +119,30 @@ def classify_answer(place: str, word: str, accepted: dict[str, tuple[str, ...]],
 NAMED = 0.1
 
 
+def names_of(place: str, accepted: dict[str, tuple[str, ...]]) -> set[str]:
+    """What people may call ``place`` (normalised): its accepted names and :data:`CALLED_BUT_NOT_ACCEPTED`."""
+    return set(accepted.get(place, ())) | CALLED_BUT_NOT_ACCEPTED.get(place, frozenset())
+
+
+def training_places(env: Environment, vocabulary, accepted: dict[str, tuple[str, ...]]
+                    ) -> list[tuple[str | None, bool | None]]:
+    """(place, whether its sentence says a name of it) of every training sample of ``env``, in the
+    fit's order: the place ``None`` for a sample without a label, the second ``None`` for a sample
+    without a sentence."""
+    labels = [label for label, test in zip(env.ground_truth.labels, env.is_test, strict=True) if not test]
+    out: list[tuple[str | None, bool | None]] = []
+    for label, sentence in zip(labels, env.training_data().sentences, strict=True):
+        place = normalize_name(label) if label else None
+        names = names_of(place, accepted) if place else set()
+        out.append((place, None if sentence is None else bool(names & set(vocabulary.tokenize(sentence)))))
+    return out
+
+
 def named_share(model, corpus: Corpus, e: int, concept: int, place: str,
                 accepted: dict[str, tuple[str, ...]]) -> float:
     """The share of the taught samples of the other homes in ``concept`` whose sentence says a name
     of ``place``."""
-    place = normalize_name(place)
-    names = set(accepted.get(place, ())) | CALLED_BUT_NOT_ACCEPTED.get(place, frozenset())
+    names = names_of(normalize_name(place), accepted)
     said = total = 0
     for h, env in enumerate(corpus):
         if h == e:

@@ -26,10 +26,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from free_speech import read_names
 from natural_speech import SIDES
-from speech_errors import CALLED_BUT_NOT_ACCEPTED, _configurations
+from speech_errors import _configurations, training_places
 
 from spco.data import Corpus
-from spco.data.language import normalize_name
 from spco.evaluation.experiments import trial_seed
 from spco.model import SpCoTransfer
 
@@ -46,20 +45,6 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--sweeps", type=int, nargs="+", default=[1, 60])
     parser.add_argument("--leave-one-out", action="store_true", default=True, help=argparse.SUPPRESS)
     return parser
-
-
-def places_of(corpus: Corpus, e: int, accepted: dict) -> list[tuple[str | None, bool]]:
-    """(place, says a name of it) of every training sample of home ``e``, in the fit's order."""
-    env = corpus[e]
-    labels = [label for label, test in zip(env.ground_truth.labels, env.is_test, strict=True) if not test]
-    out = []
-    for label, sentence in zip(labels, env.training_data().sentences, strict=True):
-        place = normalize_name(label) if label else None
-        names = (set(accepted.get(place, ())) | CALLED_BUT_NOT_ACCEPTED.get(place, frozenset())
-                 if place else set())
-        said = bool(sentence) and bool(names & set(corpus.vocabulary.tokenize(sentence)))
-        out.append((place, said))
-    return out
 
 
 def main() -> None:
@@ -80,19 +65,19 @@ def main() -> None:
     for sweeps in args.sweeps:
         fits[sweeps] = SpCoTransfer(variant="exact", prune_words=True, n_iterations=sweeps,
                                     random_state=trial_seed(args.seed, labels.index(label))).fit(corpus)
+    places = [training_places(corpus[e], corpus.vocabulary, accepted) for e in range(len(corpus) - 1)]
     for sweeps, model in fits.items():
         print(f"\n{label}, seed {args.seed}, {sweeps} sweeps: concept x samples (N: naming the place)")
         for e in range(len(corpus) - 1):
             held: dict[str, Counter] = defaultdict(Counter)
-            for c, (place, said) in zip(model.concepts_[e], places_of(corpus, e, accepted), strict=True):
+            for c, (place, said) in zip(model.concepts_[e], places[e], strict=True):
                 if place is not None:
                     held[place][f"{int(c)}{'N' if said else ''}"] += 1
             rows = [f"{p}: " + " ".join(f"{k}x{n}" for k, n in sorted(c.items()))
                     for p, c in sorted(held.items())]
             print(f"  {corpus.names[e]}: " + "; ".join(rows))
     first, last = fits[args.sweeps[0]], fits[args.sweeps[-1]]
-    taught = [np.array([p is not None for p, _ in places_of(corpus, e, accepted)])
-              for e in range(len(corpus) - 1)]
+    taught = [np.array([p is not None for p, _ in home]) for home in places]
     changed = sum(int((first.concepts_[e][t] != last.concepts_[e][t]).sum()) for e, t in enumerate(taught))
     total = sum(int(t.sum()) for t in taught)
     print(f"\ntaught samples whose concept differs between {args.sweeps[0]} and {args.sweeps[-1]} sweeps: "
