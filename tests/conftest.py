@@ -197,6 +197,28 @@ def fit_and_adapt(folders: dict[str, Path], fit_args: Sequence[object], adapt_ar
     return knowledge_file, home_file, output
 
 
+def fit_twice_and_adapt(hyperparameters):
+    """Knowledge of three synthetic homes (seed 3, D = 64; 4 sweeps, seed 0) fitted twice with
+    ``hyperparameters``, and the fourth home (nothing taught) adapted from the first fit (3 sweeps);
+    returns ``(experienced corpus, [first fit, second fit], adapted home)``: for the priors estimated
+    at the fit (the same seed gives the same numbers; an adapted home keeps them)."""
+    import warnings
+
+    import spco.knowledge as kn
+    from spco.data.environment import Corpus
+    from spco.data.synthetic import SyntheticConfig, generate_homes
+
+    corpus = generate_homes(4, seed=3, config=SyntheticConfig(n_features=64), new_homes=1,
+                            specific_rooms=False)
+    experienced, new = Corpus(list(corpus)[:-1]), list(corpus)[-1]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        fits = [kn.fit_knowledge(experienced, n_iterations=4, random_state=0, hyperparameters=hyperparameters)
+                for _ in range(2)]
+        home = kn.adapt(fits[0], new, n_iterations=3, random_state=0)
+    return experienced, fits, home
+
+
 def chisquare_p(observed: np.ndarray, probs: np.ndarray, min_expected: float = 5.0) -> float:
     """Chi-square goodness-of-fit p-value of draws ``observed`` (counts) against ``probs``, with small
     expected cells pooled; a draw in a cell of (relatively) zero probability fails outright."""

@@ -4,11 +4,10 @@ chain on and carried by the knowledge."""
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from conftest import fit_twice_and_adapt
 
 from spco.errors import ConfigurationError
 from spco.model.hyperparameters import TransferHyperparameters
@@ -99,21 +98,8 @@ def test_the_knowledge_carries_the_estimate() -> None:
     """A fit of synthetic homes with ``visual_prior="estimate"``: the knowledge's δ^v and α^v are the
     estimate the provenance records (not the given ones); the same seed gives the same numbers; a
     home adapted from it keeps them."""
-    import spco.knowledge as kn
-    from spco.data.environment import Corpus
-    from spco.data.synthetic import SyntheticConfig, generate_homes
-
-    corpus = generate_homes(4, seed=3, config=SyntheticConfig(n_features=64), new_homes=1,
-                            specific_rooms=False)
-    experienced, new = list(corpus)[:-1], list(corpus)[-1]
     hyper = TransferHyperparameters(visual_prior="estimate", target="power")
-    fits = []
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        for _ in range(2):
-            fits.append(kn.fit_knowledge(Corpus(experienced), n_iterations=4, random_state=0,
-                                         hyperparameters=hyper))
-        home = kn.adapt(fits[0], new, n_iterations=3, random_state=0)
+    _, fits, home = fit_twice_and_adapt(hyper)
     knowledge = fits[0]
     record = knowledge.provenance["visual_prior"]
     assert record["delta_visual_estimated"] and record["alpha_visual_estimated"]

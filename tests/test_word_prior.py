@@ -5,11 +5,10 @@ knowledge."""
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from conftest import fit_twice_and_adapt
 
 from spco.errors import ConfigurationError
 from spco.model.hyperparameters import TransferHyperparameters
@@ -156,26 +155,15 @@ def test_the_knowledge_carries_the_estimate(target: str, tmp_path) -> None:
     one in θ^w's units (× W^w / S^w under the power target) and α^w is estimated; the same seed gives
     the same numbers; a home adapted from it keeps them."""
     import spco.knowledge as kn
-    from spco.data.environment import Corpus
-    from spco.data.synthetic import SyntheticConfig, generate_homes
 
-    corpus = generate_homes(4, seed=3, config=SyntheticConfig(n_features=64), new_homes=1,
-                            specific_rooms=False)
-    experienced, new = list(corpus)[:-1], list(corpus)[-1]
     hyper = TransferHyperparameters(word_prior="estimate", target=target)  # type: ignore[arg-type]
-    fits = []
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        for _ in range(2):
-            fits.append(kn.fit_knowledge(Corpus(experienced), n_iterations=4, random_state=0,
-                                         hyperparameters=hyper))
-        home = kn.adapt(fits[0], new, n_iterations=3, random_state=0)
+    experienced, fits, home = fit_twice_and_adapt(hyper)
     knowledge = fits[0]
     record = knowledge.provenance["word_prior"]
     assert not record["delta_word_estimated"] and record["alpha_word_estimated"]
     got = knowledge.hyperparameters
     assert (got.delta_word, got.alpha_word) == (record["delta_word"], record["alpha_word"])
-    scale = hyper.word_counts / Corpus(experienced).word_increment if target == "power" else 1.0
+    scale = hyper.word_counts / experienced.word_increment if target == "power" else 1.0
     assert got.delta_word == pytest.approx(hyper.delta_word * scale)
     assert got.alpha_word != hyper.alpha_word
     assert fits[1].provenance["word_prior"] == record
