@@ -67,8 +67,9 @@ def where(home: HomeModel, name: str, n: int = 10,
     answer is then for the known name it found (``name``: "toilet"; ``asked``: "restroom"; ``via``:
     how).
     """
+    information, place_information = _information(home)
     resolved = resolve_name(home.vocabulary, home.said_words, name, home.parameters.name_prior,
-                            information=_information(home), place_information=_place_information(home))
+                            information=information, place_information=place_information)
     if resolved is not None:  # a name nobody said: the known name the lexicon finds for it
         return replace(_where(home, resolved.name, n, random_state), asked=resolved.asked, via=resolved.how)
     try:
@@ -80,29 +81,21 @@ def where(home: HomeModel, name: str, n: int = 10,
         raise UnknownNameError(name, home.known_names, reason=hint) from None
 
 
-#: each home's words' mutual information with its concepts, worked out once per home object (as
-#: :data:`_ANSWER_INPUTS`): what ``where`` looks an unheard name up with
-_INFORMATION: weakref.WeakKeyDictionary[HomeModel, np.ndarray] = weakref.WeakKeyDictionary()
+#: each home's words' mutual information with its concepts, as names (θ^w) and as ``where`` reads
+#: them (names or words of a place, ψ), worked out once per home object (as :data:`_ANSWER_INPUTS`):
+#: what ``where`` looks an unheard name up with
+_INFORMATION: weakref.WeakKeyDictionary[HomeModel, tuple[np.ndarray, np.ndarray]] = (
+    weakref.WeakKeyDictionary())
 
 
-def _information(home: HomeModel) -> np.ndarray:
-    """(V,) :func:`~spco.model.prediction.mutual_information_weights` of the home's parameters, kept
+def _information(home: HomeModel) -> tuple[np.ndarray, np.ndarray]:
+    """(V,) :func:`~spco.model.prediction.mutual_information_weights` and (V,)
+    :func:`~spco.model.position_prediction.place_word_information` of the home's parameters, kept
     while the home lives."""
     known = _INFORMATION.get(home)
     if known is None:
-        known = _INFORMATION[home] = mutual_information_weights(home.parameters, 0)
-    return known
-
-
-_PLACE_INFORMATION: weakref.WeakKeyDictionary[HomeModel, np.ndarray] = weakref.WeakKeyDictionary()
-
-
-def _place_information(home: HomeModel) -> np.ndarray:
-    """(V,) :func:`~spco.model.position_prediction.place_word_information` of the home's parameters,
-    kept while the home lives."""
-    known = _PLACE_INFORMATION.get(home)
-    if known is None:
-        known = _PLACE_INFORMATION[home] = place_word_information(home.parameters, 0)
+        known = _INFORMATION[home] = (mutual_information_weights(home.parameters, 0),
+                                      place_word_information(home.parameters, 0))
     return known
 
 
