@@ -57,6 +57,7 @@ from spco.model.word_channels import (
     place_token_counts,
     sample_channels,
     sample_switches,
+    token_rows,
     token_scales,
 )
 
@@ -332,7 +333,7 @@ def sentence_words(data: PreparedData, state: GibbsState) -> sp.csr_array:
     if cache is not None and cache[0] is words and cache[1] == key:
         return cache[2]
     is_name = names[words.indices]
-    rows = np.repeat(np.arange(words.shape[0]), np.diff(words.indptr))
+    rows = token_rows(words)
     named_row = np.bincount(rows, weights=is_name, minlength=words.shape[0]) > 0
     keep = is_name | ~named_row[rows]
     kept = sp.csr_array((words.data[keep], (rows[keep], words.indices[keep])), shape=words.shape)

@@ -37,7 +37,7 @@ from spco.model.parameters import ConceptParameters
 from spco.model.posterior import ParameterAverage, thinned_sweeps
 from spco.model.pruning import NOT_A_NAME, words_to_keep
 from spco.model.state import GibbsState, PreparedData, SamplerSettings
-from spco.model.word_channels import NAME, WordChannels, expected_tokens, switch_probabilities
+from spco.model.word_channels import NAME, WordChannels, expected_tokens, switch_probabilities, token_rows
 
 __all__ = [
     "FREE_CONCEPT_WEIGHT",
@@ -175,7 +175,7 @@ def draw_switches(data: PreparedData, state: GibbsState, rng: np.random.Generato
         if state.channels is not None:
             state.switches = np.zeros(0, dtype=np.int8)
         return
-    token_row = np.repeat(np.arange(words.shape[0]), np.diff(words.indptr))
+    token_row = token_rows(words)
     if state.switches is None or state.switches.shape != (words.nnz,):
         state.switches = np.full(words.nnz, -1, dtype=np.int8)
     if rows is None:

@@ -243,7 +243,7 @@ def token_rows(words: sp.csr_array) -> np.ndarray:
     return np.repeat(np.arange(words.shape[0]), np.diff(words.indptr))
 
 
-def _tokens(words: sp.csr_array) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def tokens(words: sp.csr_array) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Row, column and count of every token (stored entry): (nnz,) each (a CSR's buffers may be
     longer than its entries: they are cut to ``indptr``)."""
     first, last = int(words.indptr[0]), int(words.indptr[-1])
@@ -285,7 +285,7 @@ def switch_probabilities(words: sp.csr_array, homes: np.ndarray, concepts: np.nd
         p = switch_rows(words, homes, concepts, log_theta_w, channels.log_place, channels.log_background,
                         channels.log_prior())
     if channels.prior_only_from is not None:  # words first heard in a home: the prior (see the field)
-        _, cols, _ = _tokens(words)
+        _, cols, _ = tokens(words)
         new = cols >= channels.prior_only_from
         if new.any():
             p = np.array(p, copy=True)
@@ -305,7 +305,7 @@ def expected_tokens(words: sp.csr_array, homes: np.ndarray, concepts: np.ndarray
     if not words.nnz:
         return out
     p = switch_probabilities(words, homes, concepts, log_theta_w, channels)
-    _, cols, _ = _tokens(words)
+    _, cols, _ = tokens(words)
     np.add.at(out, cols, p)
     return out
 
@@ -314,7 +314,7 @@ def token_scales(words: sp.csr_array, channels: WordChannels) -> np.ndarray:
     """s_ti = c_ti · :attr:`WordChannels.token_weight` = W^w n_ti of every token (n_ti its occurrences
     in the sentence, c_ti = S^w n_ti its counts): (nnz,), the power of its channel likelihood and its
     counts in θ^w, ψ and β when the chain targets the power likelihood (:attr:`WordChannels.power`)."""
-    _, _, counts = _tokens(words)
+    _, _, counts = tokens(words)
     return counts.astype(np.float64) * float(channels.token_weight)
 
 
@@ -322,7 +322,7 @@ def _power_channel_logits(words: sp.csr_array, homes: np.ndarray, log_theta_w: n
                           channels: WordChannels, concepts: np.ndarray | None = None) -> np.ndarray:
     """log p(z = c | k) + s_ti log p(k | c, l) of every token: (nnz, L, 3) for every concept l of the
     token's home, or (nnz, 3) at its sample's concept ``concepts`` (power likelihood)."""
-    rows, cols, _ = _tokens(words)
+    rows, cols, _ = tokens(words)
     scale = token_scales(words, channels)
     prior = channels.log_prior()[cols]  # (nnz, 3)
     e = homes[rows]
@@ -350,7 +350,7 @@ def sample_switches(words: sp.csr_array, homes: np.ndarray, concepts: np.ndarray
     """Draw every token's switch given its sample's concept: (nnz,) int8 in {0, 1, 2}. Fresh channels
     (:attr:`WordChannels.fresh`): from the switch's prior alone (the start)."""
     if channels.fresh:
-        _, cols, _ = _tokens(words)
+        _, cols, _ = tokens(words)
         p = np.exp(channels.log_prior()[cols])
     else:
         p = switch_probabilities(words, homes, concepts, log_theta_w, channels)
@@ -374,7 +374,7 @@ def channel_counts(words: sp.csr_array, concepts: np.ndarray, switches: np.ndarr
     (nnz,), whole numbers: each token's counts in ψ and β (:func:`token_scales`, the power
     likelihood; default once each); ``by_word``, the switch prior's statistic, counts each token once."""
     V = words.shape[1]
-    rows, cols, _ = _tokens(words)
+    rows, cols, _ = tokens(words)
     weight = (np.ones(rows.size, dtype=np.int64) if scales is None
               else np.rint(np.asarray(scales, dtype=np.float64)).astype(np.int64))
     place = np.zeros((n_concepts, V), dtype=np.int64)
@@ -398,7 +398,7 @@ def channel_token_counts(words: sp.csr_array, homes: np.ndarray, concepts: np.nd
         empty = sp.csr_array(words.shape, dtype=np.float64)
         return empty, empty.copy()
     p = switch_probabilities(words, homes, concepts, log_theta_w, channels)  # (nnz, 3)
-    rows, cols, counts = _tokens(words)
+    rows, cols, counts = tokens(words)
     counts = np.asarray(counts, dtype=np.float64)
     return tuple(sp.csr_array((counts * p[:, c], (rows, cols)), shape=words.shape)  # type: ignore[return-value]
                  for c in (NAME, PLACE))
@@ -426,7 +426,7 @@ def place_token_counts(words: sp.csr_array, homes: np.ndarray, concepts: np.ndar
     (:attr:`WordChannels.token_weight`) (E, L, V): the place channel's part of a label swap's ratio,
     weighed as the concept's likelihood weighs them."""
     out = np.zeros((n_homes, n_concepts, words.shape[1]), dtype=np.float64)
-    rows, cols, counts = _tokens(words)
+    rows, cols, counts = tokens(words)
     is_place = switches == PLACE
     r = rows[is_place]
     np.add.at(out, (homes[r], concepts[r], cols[is_place]), counts[is_place] * float(token_weight))
@@ -547,7 +547,7 @@ def place_names(words: sp.csr_array, homes: np.ndarray, concepts: np.ndarray, re
     selected = np.ones(n, dtype=bool) if rows is None else np.isin(np.arange(n), np.asarray(rows, np.int64))
     if not words.nnz or not selected.any():
         return out
-    token_row, cols, _ = _tokens(words)
+    token_row, cols, _ = tokens(words)
     p = switch_probabilities(words, homes, concepts, log_theta_w, channels)
     prior_name = channels.name_prior()
     named = p[:, NAME] * prior_name[cols] ** float(evidence_power)
@@ -586,6 +586,6 @@ def concept_name_tokens(words: sp.csr_array, homes: np.ndarray, concepts: np.nda
     if not words.nnz:
         return out
     p = switch_probabilities(words, homes, concepts, log_theta_w, channels)
-    token_row, cols, _ = _tokens(words)
+    token_row, cols, _ = tokens(words)
     np.add.at(out, (np.asarray(concepts, dtype=np.int64)[token_row], cols), p[:, NAME])
     return out

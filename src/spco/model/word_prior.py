@@ -37,6 +37,7 @@ import scipy.sparse as sp
 
 from spco.model.state import PreparedData
 from spco.model.visual_prior import estimate_visual_prior
+from spco.model.word_channels import tokens
 
 __all__ = ["estimate_word_prior", "given_delta_word", "home_name_moments"]
 
@@ -52,9 +53,7 @@ def home_name_moments(data: PreparedData, concepts: np.ndarray, n_concepts: int,
     prior = np.asarray(name_prior, dtype=np.float64)
     if prior.shape != (V,):
         raise ValueError(f"name_prior must have shape ({V},), got {prior.shape}")
-    first, last = int(words.indptr[0]), int(words.indptr[-1])
-    rows = np.repeat(np.arange(words.shape[0]), np.diff(words.indptr))
-    cols = words.indices[first:last]
+    rows, cols, _ = tokens(words)
     weight = prior[cols]
     c = np.asarray(concepts, dtype=np.int64)[rows]
     e = np.asarray(data.homes, dtype=np.int64)[rows]
