@@ -148,24 +148,28 @@ class Lexicon:
     def noun_share(self, word: str) -> float:
         """Share of the word's senses that are nouns, weighted by the senses' tagged frequency
         (+1 each); NaN for a word WordNet does not know."""
-        lemma = self._lemma(word)
         weights = {"n": 0.0, "other": 0.0}
-        for synset in self.synsets(word):
-            count = sum(lem.count() for lem in synset.lemmas() if lem.name().lower() == lemma)
-            weights["n" if synset.pos() == "n" else "other"] += 1.0 + count
+        for pos, weight in self._sense_weights(word):
+            weights["n" if pos == "n" else "other"] += weight
         total = weights["n"] + weights["other"]
         return weights["n"] / total if total else float("nan")
+
+    def _sense_weights(self, word: str) -> list[tuple[str, float]]:
+        """(part of speech, weight) of each of the word's senses: 1 + the sense's tagged frequency
+        for the word's lemma; what :meth:`noun_share` and :meth:`quality_share` weigh senses by."""
+        lemma = self._lemma(word)
+        return [(synset.pos(),
+                 1.0 + sum(lem.count() for lem in synset.lemmas() if lem.name().lower() == lemma))
+                for synset in self.synsets(word)]
 
     def quality_share(self, word: str) -> float:
         """Share of the word's senses (weighted as :meth:`noun_share`) that are adjectives or adverbs:
         a quality ("wet" 0.78, "small" 0.99), not a thing or an act ("sink", "bath": 0); NaN for a
         word WordNet does not know."""
-        lemma = self._lemma(word)
         quality = total = 0.0
-        for synset in self.synsets(word):
-            weight = 1.0 + sum(lem.count() for lem in synset.lemmas() if lem.name().lower() == lemma)
+        for pos, weight in self._sense_weights(word):
             total += weight
-            quality += weight if synset.pos() in ("a", "s", "r") else 0.0
+            quality += weight if pos in ("a", "s", "r") else 0.0
         return quality / total if total else float("nan")
 
     @functools.lru_cache(maxsize=65536)  # noqa: B019 - one lexicon per process

@@ -185,8 +185,6 @@ def place_words(vocabulary: Vocabulary, word_mask: np.ndarray, place_information
     said at a place does not stand for it) and ``exclude`` left out. A name nobody
     said that WordNet relates to one of them ("bunk room": a bunk is "a rough bed"; "bathing room":
     "bathe", whose verb holds "bath") is looked for where that word is said."""
-    from spco.data.lexicon import KINDS_BELOW
-
     mask = np.asarray(word_mask, dtype=bool)
     info = np.asarray(place_information, dtype=np.float64)
     usable = np.flatnonzero(mask)
@@ -196,9 +194,7 @@ def place_words(vocabulary: Vocabulary, word_mask: np.ndarray, place_information
     order = usable[np.argsort(-info[usable], kind="stable")]
     skip = set(exclude)
     return [vocabulary.words[k] for k in order if info[k] >= floor and vocabulary.words[k] not in skip
-            and not is_function_word(vocabulary.words[k])
-            and _kinds_below(lexicon, vocabulary.words[k]) < KINDS_BELOW
-            and not _quality_share(lexicon, vocabulary.words[k]) > QUALITY_SHARE]
+            and not _stands_for_no_place(lexicon, vocabulary.words[k])]
 
 
 def said_words(vocabulary: Vocabulary, word_mask: np.ndarray, name: str, lexicon: object) -> list[str]:
@@ -209,8 +205,6 @@ def said_words(vocabulary: Vocabulary, word_mask: np.ndarray, name: str, lexicon
     "soak"). Empty for a name of one word, or when only kinds of place are said ("comfort room":
     "room" names no place, so the caller's answer is the name's own tokens said together, as
     without the lexicon)."""
-    from spco.data.lexicon import KINDS_BELOW
-
     words = normalize_name(name).split()
     if len(words) == 1:
         words = lexicon.split_compound(words[0]) or words  # type: ignore[attr-defined]
@@ -219,8 +213,7 @@ def said_words(vocabulary: Vocabulary, word_mask: np.ndarray, name: str, lexicon
     mask = np.asarray(word_mask, dtype=bool)
     out: list[str] = []
     for word in words:
-        if (is_function_word(word) or _kinds_below(lexicon, word) >= KINDS_BELOW
-                or _quality_share(lexicon, word) > QUALITY_SHARE):
+        if _stands_for_no_place(lexicon, word):
             continue
         for form in (word, *sorted(lexicon.base_forms(word) - {word})):  # type: ignore[attr-defined]
             k = vocabulary.index(form)
@@ -277,6 +270,16 @@ def _room_share(lexicon: object, word: str) -> float:
     if key not in _FACTS:
         _FACTS[key] = float(lexicon.room_share(word))  # type: ignore[attr-defined]
     return _FACTS[key]
+
+
+def _stands_for_no_place(lexicon: object, word: str) -> bool:
+    """A word said at a place or in a name that does not say which place is meant: a function word, a
+    kind of place ("room", "area": :data:`~spco.data.lexicon.KINDS_BELOW` kinds below it or more) or a
+    quality (:data:`QUALITY_SHARE`: "wet", "small")."""
+    from spco.data.lexicon import KINDS_BELOW
+
+    return (is_function_word(word) or _kinds_below(lexicon, word) >= KINDS_BELOW
+            or _quality_share(lexicon, word) > QUALITY_SHARE)
 
 
 def _quality_share(lexicon: object, word: str) -> float:
