@@ -158,12 +158,95 @@ def named_share(model, corpus: Corpus, e: int, concept: int, place: str,
 
 def classify_miss(place: str, name: str, k: int | None, names_mask: np.ndarray,
                   said: dict[str, Counter]) -> str:
-    """The class (b, c, d) of the missed ``where name`` of ``place``."""
+    """The coarse class (b, c, d) of the missed ``where name`` of ``place``: d not a name of the home,
+    b people say the name most at another place, c the rest (:func:`where_miss_class` splits them)."""
     if k is None or not names_mask[k]:
         return "d"
     shares = {p: share_said(said, p, name) for p in said}
     best = max(shares, key=shares.get)
     return "b" if best != place and shares[best] > 0 else "c"
+
+
+class NearestAreas:
+    """A home's places as the areas nearest its labelled samples (each point belongs to the place of
+    the nearest training sample, a Voronoi partition of the map): the ``where`` of a development home
+    held out of the knowledge, which has no drawn regions (``--where-out``). Duck-types
+    :class:`spco.data.regions.PlaceRegions` for :func:`spco.evaluation.metrics.position_accuracy`."""
+
+    def __init__(self, xy: np.ndarray, labels: list[str | None]) -> None:
+        keep = np.array([label is not None for label in labels], dtype=bool)
+        self.xy = np.asarray(xy, dtype=np.float64)[keep, :2]
+        self.labels = np.array([normalize_name(label) for label in labels if label is not None], dtype=object)
+        self.places = dict.fromkeys(self.labels.tolist())
+
+    def nearest(self, xy: np.ndarray) -> np.ndarray:
+        """(n,) the place of the labelled sample nearest each point of ``xy`` (n, 2)."""
+        xy = np.asarray(xy, dtype=np.float64)[:, :2]
+        d2 = ((xy[:, None, :] - self.xy[None, :, :]) ** 2).sum(axis=2)
+        return self.labels[np.argmin(d2, axis=1)]
+
+    def contains(self, place: str, xy: np.ndarray) -> np.ndarray:
+        """Whether the labelled sample nearest each point of ``xy`` is of ``place`` (NaN: outside)."""
+        xy = np.asarray(xy, dtype=np.float64)
+        inside = np.zeros(len(xy), dtype=bool)
+        ok = np.isfinite(xy[:, :2]).all(axis=1)
+        if ok.any():
+            inside[ok] = self.nearest(xy[ok]) == normalize_name(place)
+        return inside
+
+
+#: The fine classes of a missed ``where`` (:func:`where_miss_class`), in the table's order.
+WHERE_CLASSES = ("not a name", "shared name", "other concept", "one concept, two places", "region spills",
+                 "empty region")
+
+
+def place_of_samples(regions, place_names: list[str], xy: np.ndarray) -> np.ndarray:
+    """(n,) the place holding each position of ``xy`` (n, 2): the smallest of the places whose area
+    holds it (a room inside "bedroom" is the room), ``""`` for none; with :class:`NearestAreas` the
+    nearest labelled sample's place."""
+    if isinstance(regions, NearestAreas):
+        return regions.nearest(xy)
+    areas = {p: sum((r[1] - r[0]) * (r[3] - r[2]) for r in np.asarray(regions.places[p]).reshape(-1, 4))
+             for p in place_names}
+    out = np.full(len(xy), "", dtype=object)
+    for p in sorted(place_names, key=areas.get, reverse=True):  # smaller places overwrite larger ones
+        out[regions.contains(p, xy)] = p
+    return out
+
+
+def where_miss_class(place: str, name: str, accepted: dict[str, tuple[str, ...]], is_name: bool,
+                     region: int, sample_regions: np.ndarray, sample_concepts: np.ndarray,
+                     sample_places: np.ndarray) -> str:
+    """The fine class of the missed ``where name`` of ``place`` (one of :data:`WHERE_CLASSES`):
+
+    - **not a name**: the name is no name of any concept of the home (never said, or drawn as a
+      place or background word);
+    - **empty region**: the region ``where`` chose holds no training sample of the home;
+    - **shared name**: the accepted names of the place whose samples fill that region hold it too,
+      and that place is not this one;
+    - **other concept**: the region's samples are mostly of a concept other than the one most of the
+      place's samples are in (the name was learnt for another place's concept);
+    - **one concept, two places**: the region's samples are of the place's own concept, but mostly of
+      another place: one concept holds both, and ``where`` chose the other's region;
+    - **region spills**: the region's samples are of the place and its concept, but fewer than half
+      of the poses drawn from its Gaussian fall inside the place's area.
+
+    ``sample_regions``, ``sample_concepts``, ``sample_places``: the home's training samples' region,
+    concept (the sampler's state) and place (:func:`place_of_samples`)."""
+    if not is_name:
+        return "not a name"
+    in_region = sample_regions == region
+    if not in_region.any():
+        return "empty region"
+    region_places = Counter(sample_places[in_region])
+    landed = region_places.most_common(1)[0][0]
+    if landed not in (place, "") and name in accepted.get(landed, ()):
+        return "shared name"
+    here = sample_places == place
+    own = Counter(sample_concepts[here]).most_common(1)[0][0] if here.any() else -1
+    if Counter(sample_concepts[in_region]).most_common(1)[0][0] != own:
+        return "other concept"
+    return "one concept, two places" if landed != place else "region spills"
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -181,6 +264,10 @@ def _parser() -> argparse.ArgumentParser:
                         help="score the names of the fit's parameters (every word answerable) instead of "
                         "the names the robot answers (the home's names, model_answer_parameters, as "
                         "natural_speech.py and spco experiment)")
+    parser.add_argument("--where-out", action="store_true",
+                        help="also score the where of each development home held out of the knowledge "
+                        "(--leave-one-out), which has no drawn regions, against the areas nearest its "
+                        "labelled training samples (NearestAreas); reported apart from 3LDK_9's regions")
     parser.add_argument("--json", type=Path, default=None)
     parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE")
     parser.add_argument("--cache", type=Path, default=None,
@@ -247,34 +334,55 @@ def _answers(model, corpus: Corpus, e: int, env: Environment, scored: Environmen
 
 
 def _misses(model, corpus: Corpus, e: int, env: Environment, scores, said: dict, seed: int, out: Counter,
-            words: Counter, home: str) -> None:
-    """Classify the missed ``where`` of one fit (homes with regions) into ``out`` and ``words``."""
+            words: Counter, home: str, accepted: dict, where_out: bool = False) -> None:
+    """Classify the missed ``where`` of one fit (homes with regions) into ``out`` and ``words``: the
+    coarse classes (d, b, c) and the fine ones (:func:`where_miss_class`). ``where_out``: a home
+    without drawn regions is scored against the areas nearest its labelled samples
+    (:class:`NearestAreas`)."""
     gt = env.ground_truth
-    if gt.regions is None:
+    areas = gt.regions
+    if areas is None and where_out:
+        train = ~env.is_test
+        areas = NearestAreas(env.positions[train], [lab for lab, t in zip(gt.labels, train, strict=True)
+                                                    if t])
+    if areas is None:
         return
     mask = name_words(switch_tokens(model.data_, model.state_))
     # the robot's where, as evaluate_home scores it (one p(pose | name): the answer's names and rooms)
     answer, rooms = model_answer_parameters(model, e), model_rooms(model, e)
+    places = [normalize_name(p) for p in areas.places]
+    sample_places = place_of_samples(areas, places, env.training_data().positions[:, :2])
     for place in scores.places:
-        if place not in gt.regions.places:
+        if place not in areas.places:
             continue
         names = [n for i, n in enumerate(gt.accepted(place))
                  if i == 0 or corpus.vocabulary.index(n) is not None]
         if len(names) > 1 and corpus.vocabulary.index(place) is None:
             names = names[1:]
         for name in names:
+            pred = None
             try:
                 pred = predict_positions(answer, e, corpus.vocabulary, name, n=10, rng=seed, unheard=False,
                                          rooms=rooms, view_counts=model.settings_.view_counts,
                                          lookup=model.parameters_.word_mask)
-                score = position_accuracy({place: pred.samples}, gt.regions)[place]
+                score = position_accuracy({place: pred.samples}, areas)[place]
             except UnknownNameError:
                 score = 0.0
             out["A_p names"] += 1
+            out["A_p hits"] += score >= 0.5
             if score < 0.5:
-                cls = classify_miss(normalize_name(place), name, corpus.vocabulary.index(name), mask, said)
+                k = corpus.vocabulary.index(name)
+                cls = classify_miss(normalize_name(place), name, k, mask, said)
                 out[f"A_p {cls}"] += 1
                 words[f"A_p {cls}"][f"{home}: where {name} ({place})"] += 1
+                is_name = pred is not None and k is not None and bool(mask[k])
+                fine = where_miss_class(normalize_name(place), name, accepted, is_name,
+                                        -1 if pred is None else pred.region, rooms.regions, rooms.concepts,
+                                        sample_places)
+                out[f"where {fine}"] += 1
+                there = Counter() if pred is None else Counter(sample_places[rooms.regions == pred.region])
+                landed = "nothing" if pred is None else (there.most_common(1) or [("no sample",)])[0][0]
+                words[f"where {fine}"][f"{home}: where {name} ({place}) -> {landed or 'no place'}"] += 1
 
 
 CLASSES = ("A_n a1", "A_n a2", "A_n b", "A_n c", "A_n e", "A_p d", "A_p b", "A_p c")
@@ -296,6 +404,22 @@ def _print_table(table: dict[str, Counter], words: dict[str, Counter], runs: lis
     print(f"\nA_n, mean over the configurations, per seed: {np.round(per_seed, 3).tolist()}, "
           f"mean {np.mean(per_seed):.3f}")
     for cls in CLASSES:
+        if words[cls]:
+            print(f"\n{cls}: {dict(words[cls].most_common(25))}")
+    fine = [f"where {c}" for c in WHERE_CLASSES]
+    print("\n| home | A_p names | missed | " + " | ".join(WHERE_CLASSES) + " |")
+    print("|---|---:|---:|" + "---:|" * len(WHERE_CLASSES))
+    out: Counter = Counter()
+    for home, c in table.items():
+        if c["A_p names"]:
+            print(f"| {home} | {c['A_p names']} | {sum(c[k] for k in fine)} | "
+                  + " | ".join(str(c[k]) for k in fine) + " |")
+            if home != "3LDK_9":
+                out.update(c)
+    if out["A_p names"]:
+        print(f"| homes out (nearest-sample areas) | {out['A_p names']} | {sum(out[k] for k in fine)} | "
+              + " | ".join(str(out[k]) for k in fine) + " |")
+    for cls in fine:
         if words[cls]:
             print(f"\n{cls}: {dict(words[cls].most_common(25))}")
 
@@ -332,10 +456,13 @@ def main() -> None:
                                    **weight)
             said = place_speech(knowledge, corpus)  # every development home's people
             home = label.split()[0]
+            hits, asked = table[home]["A_p hits"], table[home]["A_p names"]
             _answers(model, corpus, e, env, scored, scores, accepted, said, table[home], words, home)
-            _misses(model, corpus, e, env, scores, said, seed, table[home], words, home)
+            _misses(model, corpus, e, env, scores, said, seed, table[home], words, home, accepted,
+                    args.where_out)
             runs.append({"seed": seed, "home": label, "A_n": scores.mean_name_accuracy,
-                         "A_p": scores.mean_position_accuracy})
+                         "A_p": scores.mean_position_accuracy,
+                         "where": [table[home]["A_p hits"] - hits, table[home]["A_p names"] - asked]})
             print(f"seed {seed} {label}: A_n {scores.mean_name_accuracy:.3f} "
                   f"A_p {scores.mean_position_accuracy:.3f} ({time.perf_counter() - started:.0f} s)",
                   flush=True)

@@ -39,13 +39,14 @@ concepts of other homes, e.g. ``dining`` in a home without a dining room.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from itertools import pairwise
 from typing import Literal
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.special import logsumexp
 
-from spco.data.language import Vocabulary
+from spco.data.language import Vocabulary, _contains_run
 from spco.errors import ConfigurationError
 from spco.model.parameters import ConceptParameters
 from spco.model.prediction import (
@@ -72,6 +73,7 @@ __all__ = [
     "name_support",
     "place_word_information",
     "predict_positions",
+    "query_forms",
     "query_indices",
     "query_name",
     "region_posterior_for_name",
@@ -169,6 +171,28 @@ def query_indices(params: ConceptParameters, vocabulary: Vocabulary, name: str,
                            f"the words {pruned} were pruned as uninformative (they name no place)")
 
 
+def query_forms(params: ConceptParameters, vocabulary: Vocabulary, name: str,
+                lookup: np.ndarray | None = None) -> list[list[int]]:
+    """The words that say each token of a name asked for (:func:`query_indices`): the token itself,
+    and — for a name of one token — every usable learnt term that holds its words side by side
+    ("dining" → "dining", "dining room", "dining space"; "living" → "living", "living room").
+
+    The bag of words keeps one token per term: a sentence that says "dining room" holds the token
+    "dining room", not "dining". A person asking for "dining" means a place said with that word, so
+    p(dining | l) is the probability that a token of concept l holds it, Σ over its forms (disjoint
+    events). A name of several tokens keeps its own tokens (each token one form): "study room", never
+    learnt, is "study" and "room" said together, not every term that holds "room"."""
+    columns = query_indices(params, vocabulary, name, lookup)
+    if len(columns) != 1:
+        return [[k] for k in columns]
+    mask = np.asarray(params.word_mask if lookup is None else lookup, dtype=bool)
+    k = columns[0]
+    run = vocabulary.words[k].split()
+    holding = [j for j in (vocabulary.index(t) for t in vocabulary.terms)
+               if j is not None and j != k and mask[j] and _contains_run(vocabulary.words[j].split(), run)]
+    return [[k, *holding]]
+
+
 def query_name(vocabulary: Vocabulary, params: ConceptParameters, name: str,
                lookup: np.ndarray | None = None) -> str:
     """How a name asked for is understood: its usable tokens joined by ``" + "`` (``"living room"``,
@@ -213,19 +237,23 @@ def place_word_information(params: ConceptParameters, e: int) -> np.ndarray:
     return concept_information(params, e, said * np.asarray(params.word_mask, dtype=bool)[None, :])
 
 
-def _name_likelihood(params: ConceptParameters, e: int, words: list[int]) -> np.ndarray:
-    """(L,) Π_i p(w_i | l): how much each concept of home e explains the words said together
-    (:func:`said_word_matrix`), scaled by the largest concept's product (several small p multiply);
-    a concept in which a word has probability 0 keeps weight 0."""
-    log_theta = _safe_log(said_word_matrix(params, e)[:, words]).sum(axis=1)  # (L,)
+def _name_likelihood(params: ConceptParameters, e: int, forms: list[list[int]]) -> np.ndarray:
+    """(L,) Π_i Σ_{j ∈ F_i} p(w_j | l): how much each concept of home e explains the tokens said
+    together, each token by the words that say it (its forms F_i, :func:`query_forms`;
+    :func:`said_word_matrix`), scaled by the largest concept's product (several small p multiply);
+    a concept in which a token has probability 0 keeps weight 0."""
+    said = said_word_matrix(params, e)
+    log_theta = np.zeros(said.shape[0])
+    for form in forms:
+        log_theta += _safe_log(said[:, form].sum(axis=1))  # (L,)
     top = float(log_theta.max())
     return np.exp(log_theta - top) if top > _LOG_FLOOR else np.zeros_like(log_theta)
 
 
-def _name_concept_weights(params: ConceptParameters, e: int, words: list[int]) -> np.ndarray:
-    """(L,) G_{e,l} Π_i p(w_i | l) (:func:`_name_likelihood`)."""
+def _name_concept_weights(params: ConceptParameters, e: int, forms: list[list[int]]) -> np.ndarray:
+    """(L,) G_{e,l} Π_i Σ_{j ∈ F_i} p(w_j | l) (:func:`_name_likelihood`)."""
     g = np.clip(np.asarray(params.concept_weights[e], dtype=np.float64), 0.0, None)
-    return g * _name_likelihood(params, e, words)
+    return g * _name_likelihood(params, e, forms)
 
 
 def concept_stand_ins(params: ConceptParameters, e: int) -> np.ndarray:
@@ -265,7 +293,7 @@ def name_support(params: ConceptParameters, e: int, vocabulary: Vocabulary, name
     (0 if the name has probability 0 in every concept).
     """
     e = _check_home(params, e)
-    weights = _name_concept_weights(params, e, query_indices(params, vocabulary, name, lookup))
+    weights = _name_concept_weights(params, e, query_forms(params, vocabulary, name, lookup))
     total = weights.sum()
     return float(weights[_occupied_concepts(params, e)].sum() / total) if total > 0 else 0.0
 
@@ -314,7 +342,8 @@ def _log_sum_exp(a: np.ndarray, axis: int) -> np.ndarray:
 RoomChannel = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 
-def room_name_log_likelihood(channels: list[RoomChannel], concentration: float | None) -> np.ndarray:
+def room_name_log_likelihood(channels: list[RoomChannel], concentration: float | None,
+                             forms: list[list[int]] | None = None) -> np.ndarray:
     """(R, L) log p(w_1 … w_n | room k, concept l): each token w_i of a name said in room k through a
     channel c (the names, the words of the place) with probability a_{c,i}, and then drawn from the
     room's own probability of it in that channel, φ_{c,k,w} ~ Beta(δ p_{c,l,w}, δ (1 − p_{c,l,w}))
@@ -324,6 +353,8 @@ def room_name_log_likelihood(channels: list[RoomChannel], concentration: float |
         p(w | room k, l) = Σ_c a_{c,w} (δ p_{c,l,w} + X_{c,k,w}) / (δ + T_{c,k}).
 
     ``concentration``: δ > 0, or ``None`` (δ → ∞: every room says its concept's Σ_c a_{c,w} p_{c,l,w}).
+    ``forms``: the tokens asked for as groups of the n columns (:func:`query_forms`: the words that say
+    each token), a token's probability the sum of its forms'; ``None``: each column one token.
     Log space; a probability 0 is the finite floor. Raises :class:`ConfigurationError` for δ ≤ 0 or a
     count outside [0, the room's total]."""
     if not channels:
@@ -344,6 +375,8 @@ def room_name_log_likelihood(channels: list[RoomChannel], concentration: float |
             delta = float(concentration)
             part = a[None, None, :] * (delta * p[None, :, :] + x[:, None, :]) / (delta + tot)[:, None, None]
         total = part if total is None else total + part  # (R, L, n)
+    if forms is not None:
+        total = np.stack([total[:, :, form].sum(axis=2) for form in forms], axis=2)
     return _safe_log(total).sum(axis=2)
 
 
@@ -364,14 +397,18 @@ def _room_concepts(params: ConceptParameters, rooms: HomeRooms, view_counts: flo
 
 
 def _room_weights(params: ConceptParameters, e: int, rooms: HomeRooms, view_counts: float | None,
-                  words: list[int], lookup: np.ndarray) -> np.ndarray | None:
+                  forms: list[list[int]], lookup: np.ndarray) -> np.ndarray | None:
     """(K,) Σ_{k: r(k) = m} n_k Σ_l p(l | room k) p(w | room k, l) (up to a constant), the room
-    account's regions for the name's tokens ``words``; ``None`` if no room holds a training sample."""
+    account's regions for the name's tokens, each said by its ``forms`` (:func:`query_forms`); ``None``
+    if no room holds a training sample."""
     log_concept, counts, region_of = _room_concepts(params, rooms, view_counts, e)  # (R, L), (R,), (R,)
     if not counts.sum() > 0:
         return None
     K = int(np.shape(params.region_means)[1])
     R = region_of.size
+    words = [j for form in forms for j in form]
+    starts = np.cumsum([0, *(len(form) for form in forms)]).tolist()
+    groups = [list(range(a, b)) for a, b in pairwise(starts)]
     concentration = rooms.concentration
     theta = _word_matrix(params, e)[:, words]  # (L, n)
     psi, prior = params.place_word_probabilities, params.word_channel_prior
@@ -389,7 +426,7 @@ def _room_weights(params: ConceptParameters, e: int, rooms: HomeRooms, view_coun
             channels.append((channel_share[c], probs, np.zeros((R, len(words))), np.zeros(R)))
         else:
             channels.append((channel_share[c], probs, said[:, words] * mask[None, words], said @ mask))
-    log_word = room_name_log_likelihood(channels, concentration if read else None)  # (R, L)
+    log_word = room_name_log_likelihood(channels, concentration if read else None, groups)  # (R, L)
     if not log_word.max() > _LOG_FLOOR:  # the name has probability 0 in every room
         return np.zeros(K)
     log_room = _safe_log(counts) + _log_sum_exp(log_concept + log_word, axis=1)  # (R,)
@@ -427,11 +464,11 @@ def region_posterior_for_name(
     known and unpruned, or the name has probability 0 in every concept of home ``e``.
     """
     e = _check_home(params, e)
-    ws = query_indices(params, vocabulary, name, lookup)
+    forms = query_forms(params, vocabulary, name, lookup)
     mask = np.asarray(params.word_mask if lookup is None else lookup, dtype=bool)
-    weights = None if rooms is None else _room_weights(params, e, rooms, view_counts, ws, mask)
+    weights = None if rooms is None else _room_weights(params, e, rooms, view_counts, forms, mask)
     if weights is None:
-        concept_weights = _name_concept_weights(params, e, ws)  # (L,)
+        concept_weights = _name_concept_weights(params, e, forms)  # (L,)
         # a concept without samples of this home is looked for where its stand-in is (synonyms)
         concept_weights = np.bincount(concept_stand_ins(params, e), weights=concept_weights,
                                       minlength=concept_weights.size)
@@ -443,7 +480,7 @@ def region_posterior_for_name(
     total = weights.sum()
     if not total > 0:
         known = [v for v, keep in zip(vocabulary.words, mask, strict=True) if keep]
-        shown = " + ".join(vocabulary.words[w] for w in ws)
+        shown = " + ".join(vocabulary.words[form[0]] for form in forms)
         raise UnknownNameError(name, known, reason=f"the name {shown!r} has "
                                f"probability 0 in every concept of home {e}")
     return weights / total
