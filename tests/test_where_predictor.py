@@ -12,11 +12,13 @@ from numpy.testing import assert_allclose
 from serve_helpers import build_home
 
 from spco import knowledge as kn
+from spco.data.language import Vocabulary
 from spco.errors import ConfigurationError
 from spco.evaluation import evaluate_home
 from spco.model import SpCoTransfer, position_prediction
 from spco.model.confidence import model_answer_parameters
 from spco.model.hyperparameters import TransferHyperparameters
+from spco.model.parameters import ConceptParameters
 from spco.model.rooms import model_rooms, room_concepts
 
 SMALL = TransferHyperparameters(n_concepts=6, n_regions=8)
@@ -45,6 +47,18 @@ class _Spy:
         return result
 
 
+def _forms_by_hand(vocabulary, columns: list[int], lookup) -> list[list[int]]:
+    """The words that say each token asked for: a name of one token is said by itself and by every
+    usable word of several words holding it (" dining " inside " dining room "); a name of several
+    tokens by its tokens, one each."""
+    if len(columns) != 1:
+        return [[k] for k in columns]
+    k = columns[0]
+    word = f" {vocabulary.words[k]} "
+    return [[k, *(j for j, w in enumerate(vocabulary.words)
+                  if j != k and lookup[j] and " " in w and word in f" {w} ")]]
+
+
 def _by_hand(params, rooms, view_counts, vocabulary, name, lookup, e: int = 0) -> np.ndarray:
     """p(m | w) ∝ Σ_k n_k [r(k) = m] Σ_l p(l | room k) Π_i Σ_c a_{c,w_i} (δ p_{c,l,w_i} + X_{c,k,w_i}) /
     (δ + T_{c,k}), worked out room by room and sample by sample (X: the name tokens, c = 0, and the
@@ -54,6 +68,7 @@ def _by_hand(params, rooms, view_counts, vocabulary, name, lookup, e: int = 0) -
     share, region_of = rooms.membership(K)
     share = share.toarray()
     columns = position_prediction.query_indices(params, vocabulary, name, lookup)
+    forms = _forms_by_hand(vocabulary, columns, lookup)
     theta = np.asarray(params.word_probabilities[e])
     psi, prior = params.place_word_probabilities, params.word_channel_prior
     names = rooms.words if rooms.names is None else rooms.names
@@ -64,19 +79,20 @@ def _by_hand(params, rooms, view_counts, vocabulary, name, lookup, e: int = 0) -
     for k in range(counts.size):
         for c in range(params.n_concepts):
             like = 1.0
-            for w in columns:
+            for form in forms:
                 p_w = 0.0
-                for ch in (0, 1):
-                    if probs[ch] is None or (ch == 1 and prior is None):
-                        continue
-                    a = 1.0 if prior is None else prior[w][ch]
-                    X = np.zeros(len(lookup))
-                    if said[ch] is not None:
-                        for i in range(rooms.regions.size):
-                            X += share[k, i] * said[ch][i]
-                    X = X * lookup
-                    p_w += a * (probs[ch][c, w] if delta is None else
-                                (delta * probs[ch][c, w] + X[w]) / (delta + X.sum()))
+                for w in form:
+                    for ch in (0, 1):
+                        if probs[ch] is None or (ch == 1 and prior is None):
+                            continue
+                        a = 1.0 if prior is None else prior[w][ch]
+                        X = np.zeros(len(lookup))
+                        if said[ch] is not None:
+                            for i in range(rooms.regions.size):
+                                X += share[k, i] * said[ch][i]
+                        X = X * lookup
+                        p_w += a * (probs[ch][c, w] if delta is None else
+                                    (delta * probs[ch][c, w] + X[w]) / (delta + X.sum()))
                 like *= p_w
             out[region_of[k]] += counts[k] * posterior[k, c] * like
     return out / out.sum()
@@ -154,6 +170,54 @@ def _beta_mean_by_quadrature(a: float, b: float, hits: float, misses: float) -> 
     log_post = (a - 1 + hits) * np.log(phi) + (b - 1 + misses) * np.log1p(-phi)
     post = np.exp(log_post - log_post.max())
     return float(np.trapezoid(phi * post, phi) / np.trapezoid(post, phi))
+
+
+def _tiny_home(mask: list[bool]) -> tuple[ConceptParameters, Vocabulary]:
+    """One home, 3 concepts, 3 regions, the words "dining", "dining room", "dining table", "kitchen"
+    and "kitchen sink": a concept's names, its regions and G drawn at random (fixed seed)."""
+    rng = np.random.default_rng(7)
+    vocabulary = Vocabulary(("dining", "dining room", "dining table", "kitchen", "kitchen sink"))
+    L, K, V, D = 3, 3, len(vocabulary), 2
+    theta = rng.dirichlet(np.ones(V), size=L)[None]
+    params = ConceptParameters(
+        concept_weights=rng.dirichlet(np.ones(L))[None],
+        region_weights=rng.dirichlet(np.ones(K), size=L)[None],
+        region_means=np.column_stack([np.arange(K) * 3.0, np.zeros(K), np.zeros(K), np.ones(K)])[None],
+        region_covariances=np.tile(np.eye(4) * 0.1, (1, K, 1, 1)), word_probabilities=theta,
+        visual_probabilities=np.full((1, L, D), 0.5), shared_word_probabilities=theta[0],
+        shared_visual_probabilities=np.full((L, D), 0.5), global_concept_weights=np.full(L, 1 / L),
+        word_mask=np.array(mask), region_counts=np.ones((1, K), dtype=int))
+    return params, vocabulary
+
+
+@pytest.mark.parametrize("mask", [[True] * 5, [True, True, False, True, True]])
+def test_a_word_asked_alone_is_looked_up_by_every_name_that_holds_it_against_brute_force(mask) -> None:
+    """p(m | "dining") ∝ Σ_l G_l π_{l,m} P(a token of concept l holds the word "dining"), the tokens
+    enumerated one by one (the usable words only); "kitchen" is found by "kitchen" and "kitchen sink";
+    a name of two tokens by its own two tokens said together, not by the words that hold them."""
+    params, vocabulary = _tiny_home(mask)
+    theta, g, pi = params.word_probabilities[0], params.concept_weights[0], params.region_weights[0]
+
+    def brute(word: str) -> np.ndarray:
+        holds = np.array([usable and word in token.split() for token, usable
+                          in zip(vocabulary.words, mask, strict=True)])
+        weights = np.zeros(pi.shape[1])
+        for c in range(pi.shape[0]):
+            said = sum(theta[c, j] for j in range(len(vocabulary)) if holds[j])  # one token at a time
+            weights += g[c] * said * pi[c]
+        return weights / weights.sum()
+
+    for word in ("dining", "kitchen"):
+        forms = position_prediction.query_forms(params, vocabulary, word)
+        assert forms[0][0] == vocabulary.index(word)
+        expected = {w for w, u in zip(vocabulary.words, mask, strict=True) if u and word in w.split()}
+        assert {vocabulary.words[j] for j in forms[0]} == expected
+        got = position_prediction.region_posterior_for_name(params, 0, vocabulary, word)
+        assert_allclose(got, brute(word), rtol=1e-12)
+    both = position_prediction.region_posterior_for_name(params, 0, vocabulary, "dining kitchen")
+    joint_ = g[:, None] * (theta[:, 0] * theta[:, 3])[:, None] * pi
+    assert position_prediction.query_forms(params, vocabulary, "dining kitchen") == [[0], [3]]
+    assert_allclose(both, joint_.sum(axis=0) / joint_.sum(), rtol=1e-12)
 
 
 def test_a_rooms_own_names_against_brute_force() -> None:
