@@ -39,6 +39,7 @@ concepts of other homes, e.g. ``dining`` in a home without a dining room.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import lru_cache
 from itertools import pairwise
 from typing import Literal
 
@@ -187,10 +188,16 @@ def query_forms(params: ConceptParameters, vocabulary: Vocabulary, name: str,
         return [[k] for k in columns]
     mask = np.asarray(params.word_mask if lookup is None else lookup, dtype=bool)
     k = columns[0]
+    return [[k, *(j for j in _holding_terms(vocabulary, k) if mask[j])]]
+
+
+@lru_cache(maxsize=1024)
+def _holding_terms(vocabulary: Vocabulary, k: int) -> tuple[int, ...]:
+    """The columns of the terms of ``vocabulary`` other than ``k`` that hold word ``k``'s words side
+    by side (:func:`query_forms`), kept per vocabulary and word."""
     run = vocabulary.words[k].split()
-    holding = [j for j in (vocabulary.index(t) for t in vocabulary.terms)
-               if j is not None and j != k and mask[j] and _contains_run(vocabulary.words[j].split(), run)]
-    return [[k, *holding]]
+    return tuple(j for j, word in enumerate(vocabulary.words)
+                 if j != k and " " in word and _contains_run(word.split(), run))
 
 
 def query_name(vocabulary: Vocabulary, params: ConceptParameters, name: str,
