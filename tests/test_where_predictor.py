@@ -47,11 +47,11 @@ class _Spy:
         return result
 
 
-def _forms_by_hand(vocabulary, columns: list[int], lookup) -> list[list[int]]:
+def _forms_by_hand(vocabulary, name: str, columns: list[int], lookup) -> list[list[int]]:
     """The words that say each token asked for: a name of one token is said by itself and by every
     usable word of several words holding it (" dining " inside " dining room "); a name of several
-    tokens by its tokens, one each."""
-    if len(columns) != 1:
+    tokens (known or not) by its known tokens, one each."""
+    if len(columns) != 1 or len(vocabulary.query(name)[0]) != 1:
         return [[k] for k in columns]
     k = columns[0]
     word = f" {vocabulary.words[k]} "
@@ -68,7 +68,7 @@ def _by_hand(params, rooms, view_counts, vocabulary, name, lookup, e: int = 0) -
     share, region_of = rooms.membership(K)
     share = share.toarray()
     columns = position_prediction.query_indices(params, vocabulary, name, lookup)
-    forms = _forms_by_hand(vocabulary, columns, lookup)
+    forms = _forms_by_hand(vocabulary, name, columns, lookup)
     theta = np.asarray(params.word_probabilities[e])
     psi, prior = params.place_word_probabilities, params.word_channel_prior
     names = rooms.words if rooms.names is None else rooms.names
@@ -217,6 +217,13 @@ def test_a_word_asked_alone_is_looked_up_by_every_name_that_holds_it_against_bru
     both = position_prediction.region_posterior_for_name(params, 0, vocabulary, "dining kitchen")
     joint_ = g[:, None] * (theta[:, 0] * theta[:, 3])[:, None] * pi
     assert position_prediction.query_forms(params, vocabulary, "dining kitchen") == [[0], [3]]
+    # a longer name whose only known word is "dining" ("bunk" never said), or the words of a name
+    # nobody said that the lexicon answers by them: the word alone
+    assert position_prediction.query_forms(params, vocabulary, "bunk dining") == [[0]]
+    assert position_prediction.query_forms(params, vocabulary, "dining", alone=False) == [[0]]
+    alone = g[:, None] * theta[:, 0][:, None] * pi
+    assert_allclose(position_prediction.region_posterior_for_name(params, 0, vocabulary, "bunk dining"),
+                    alone.sum(axis=0) / alone.sum(), rtol=1e-12)
     assert_allclose(both, joint_.sum(axis=0) / joint_.sum(), rtol=1e-12)
 
 

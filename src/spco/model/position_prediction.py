@@ -63,7 +63,7 @@ from spco.model.prediction import (
     mutual_information_weights,
 )
 from spco.model.rooms import HomeRooms
-from spco.model.unheard import resolve_name
+from spco.model.unheard import SAID_WORDS, resolve_name
 
 __all__ = [
     "LEARNT_SUPPORT",
@@ -173,7 +173,7 @@ def query_indices(params: ConceptParameters, vocabulary: Vocabulary, name: str,
 
 
 def query_forms(params: ConceptParameters, vocabulary: Vocabulary, name: str,
-                lookup: np.ndarray | None = None) -> list[list[int]]:
+                lookup: np.ndarray | None = None, alone: bool = True) -> list[list[int]]:
     """The words that say each token of a name asked for (:func:`query_indices`): the token itself,
     and — for a name of one token — every usable learnt term that holds its words side by side
     ("dining" → "dining", "dining room", "dining space"; "living" → "living", "living room").
@@ -181,10 +181,15 @@ def query_forms(params: ConceptParameters, vocabulary: Vocabulary, name: str,
     The bag of words keeps one token per term: a sentence that says "dining room" holds the token
     "dining room", not "dining". A person asking for "dining" means a place said with that word, so
     p(dining | l) is the probability that a token of concept l holds it, Σ over its forms (disjoint
-    events). A name of several tokens keeps its own tokens (each token one form): "study room", never
-    learnt, is "study" and "room" said together, not every term that holds "room"."""
+    events). A name of several tokens keeps its own tokens (each token one form), known or not: "study
+    room", never learnt, is "study" and "room" said together, and "bunk room" ("bunk" unknown) is its
+    word "room", not every term that holds "room".
+
+    ``alone``: ``name`` is the name as the person asked it. False: it is the known words of a longer
+    name nobody said ("spare room", answered by its word "room": :data:`spco.model.unheard.SAID_WORDS`),
+    which the lexicon found to be none of the home's names, so its word is only itself."""
     columns = query_indices(params, vocabulary, name, lookup)
-    if len(columns) != 1:
+    if len(columns) != 1 or not alone or len(vocabulary.query(name)[0]) != 1:  # "bunk room": "room" known
         return [[k] for k in columns]
     mask = np.asarray(params.word_mask if lookup is None else lookup, dtype=bool)
     k = columns[0]
@@ -291,7 +296,7 @@ def concept_stand_ins(params: ConceptParameters, e: int) -> np.ndarray:
 
 
 def name_support(params: ConceptParameters, e: int, vocabulary: Vocabulary, name: str,
-                 lookup: np.ndarray | None = None) -> float:
+                 lookup: np.ndarray | None = None, alone: bool = True) -> float:
     """Share of p(name | home e) = Σ_l G_{e,l} θ^w_{e,l,w} held by concepts with samples of home e.
 
     Near 1: the name belongs to places the home's samples were assigned to. Near 0: the name is
@@ -300,7 +305,7 @@ def name_support(params: ConceptParameters, e: int, vocabulary: Vocabulary, name
     (0 if the name has probability 0 in every concept).
     """
     e = _check_home(params, e)
-    weights = _name_concept_weights(params, e, query_forms(params, vocabulary, name, lookup))
+    weights = _name_concept_weights(params, e, query_forms(params, vocabulary, name, lookup, alone))
     total = weights.sum()
     return float(weights[_occupied_concepts(params, e)].sum() / total) if total > 0 else 0.0
 
@@ -445,6 +450,7 @@ def _room_weights(params: ConceptParameters, e: int, rooms: HomeRooms, view_coun
 def region_posterior_for_name(
     params: ConceptParameters, e: int, vocabulary: Vocabulary, name: str, *,
     rooms: HomeRooms | None = None, view_counts: float | None = None, lookup: np.ndarray | None = None,
+    alone: bool = True,
 ) -> np.ndarray:
     """p(m | w) ∝ Σ_l p(w | l) p(l, m | home) for the place name ``name``: the one p(region | name)
     (module docstring; ``where``, the service, the ROS node and the experiments' A_p call it).
@@ -466,12 +472,13 @@ def region_posterior_for_name(
     ``name`` is tokenised like a sentence (:meth:`~spco.data.language.Vocabulary.tokenize`:
     ``"Living Room"``, ``"living-room"`` → the token ``"living room"``). A name of several tokens
     (``"study room"`` never learnt as one term) is understood as all its known, unpruned tokens said
-    together: p(w_1 … w_n | l) = Π_i p(w_i | l); its unknown or pruned tokens are left out.
+    together: p(w_1 … w_n | l) = Π_i p(w_i | l); its unknown or pruned tokens are left out. A name of
+    one word is said by every usable learnt term that holds it (:func:`query_forms`; ``alone``).
     Returns (K,) float64 summing to 1. Raises :class:`UnknownNameError` if no token of the name is
     known and unpruned, or the name has probability 0 in every concept of home ``e``.
     """
     e = _check_home(params, e)
-    forms = query_forms(params, vocabulary, name, lookup)
+    forms = query_forms(params, vocabulary, name, lookup, alone)
     mask = np.asarray(params.word_mask if lookup is None else lookup, dtype=bool)
     weights = None if rooms is None else _room_weights(params, e, rooms, view_counts, forms, mask)
     if weights is None:
@@ -548,6 +555,7 @@ def predict_positions(
     rooms: HomeRooms | None = None,
     view_counts: float | None = None,
     lookup: np.ndarray | None = None,
+    alone: bool = True,
 ) -> PositionPrediction:
     """Sample ``n`` poses where the place ``name`` is, in home ``e``: the one p(pose | name) of the
     robot's ``where`` and the experiments' A_p (module docstring).
@@ -565,6 +573,9 @@ def predict_positions(
     unheard: a name that is not a usable token is first looked up in the lexicon
         (:func:`spco.model.unheard.resolve_name`; ``asked`` and ``via`` of the result say so); False:
         only the name's own known tokens are used.
+    alone: ``name`` is the name as asked: a name of one word is read by every learnt term that holds
+        it (:func:`query_forms`); False for the words of a longer name nobody said (set on the
+        lexicon's answer by its own words, :data:`spco.model.unheard.SAID_WORDS`).
 
     Returns a :class:`PositionPrediction` with samples (n, 3) = (x, y, θ) (``poses``: the same
     as (x, y, sin θ, cos θ)), ``region`` the most probable region, the name's ``support`` in the home
@@ -581,11 +592,12 @@ def predict_positions(
                              place_information=place_word_information(params, e)) if unheard else None)
     if resolved is not None:  # a name nobody said: the known name the lexicon finds for it
         pred = predict_positions(params, e, vocabulary, resolved.name, n, rng, mode, xy_only, unheard=False,
-                                 rooms=rooms, view_counts=view_counts, lookup=lookup)
+                                 rooms=rooms, view_counts=view_counts, lookup=lookup,
+                                 alone=resolved.how != SAID_WORDS)
         return replace(pred, asked=resolved.asked, via=resolved.how)
     probs = region_posterior_for_name(params, e, vocabulary, name, rooms=rooms, view_counts=view_counts,
-                                      lookup=lookup)
-    support = name_support(params, e, vocabulary, name, lookup)
+                                      lookup=lookup, alone=alone)
+    support = name_support(params, e, vocabulary, name, lookup, alone)
     best = int(np.argmax(probs))
     gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
     if mode == "argmax":
