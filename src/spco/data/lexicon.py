@@ -420,10 +420,13 @@ class Lexicon:
         before a general head and another word ("comfort room" -> "comfort station", a restroom;
         :meth:`_compound_of`); else the known name of highest Wu–Palmer similarity between noun senses (≥
         :data:`MIN_SIMILARITY`) of the name or its words, among near ties (kinds of room are all
-        about as similar) the one whose definition shares most words with the name's, and none
-        when they share none. ``known``: candidate names (vocabulary tokens, lower case, words
-        separated by spaces), most name-like first. ``similarity=False``: only the relations before
-        similarity (synonym, gloss, head, definition, derivation)."""
+        about as similar) the one whose definition shares most words with the name's or its
+        kinds' (:meth:`_most_similar`: "rec room", "a room equipped for informal entertaining",
+        shares nothing with "living room", its kind "family room", "a recreation room in a
+        private house", does), and none when they share none. ``known``: candidate names
+        (vocabulary tokens, lower case, words separated by spaces), most name-like first.
+        ``similarity=False``: only the relations before similarity (synonym, gloss, head,
+        definition, derivation)."""
         words = name.lower().split()
         if not words or not known:
             return None
@@ -478,13 +481,19 @@ class Lexicon:
             return None
         # similarity of the nouns (the name's, else its words')
         groups = [g for g in ([senses] if senses else [self._variants(p.split()) for p in parts]) if g]
+        return self._most_similar(groups, known_set)
+
+    def _most_similar(self, groups: list[list], known_set: dict[str, str]) -> LexiconMatch | None:
+        """The known name of highest Wu–Palmer similarity (≥ :data:`MIN_SIMILARITY`) between its
+        commonest noun sense and the commonest of each group of ``groups`` (the asked name's senses,
+        or its words'); among near ties (rooms are all siblings under "room"), the one whose
+        definition shares most words with the asked senses' definitions and lemmas and their kinds'
+        (direct hyponyms: extended Lesk), words common to many known names' definitions left out;
+        None when the best shares none."""
         firsts = {text: self.synsets(text, pos="n")[:1] for text in known_set}
         firsts = {text: f[0] for text, f in firsts.items() if f}
         if not groups or not firsts:
             return None
-        # Wu–Palmer similarity of the commonest senses; among near ties (rooms are all siblings
-        # under "room"), the known name whose definition shares most words with the asked name's
-        # definitions (Lesk), words common to many known names' definitions left out
         scores: dict[str, float] = {}
         for text, other in firsts.items():
             with self._lock:
@@ -499,9 +508,13 @@ class Lexicon:
             for term in terms:
                 frequency[term] = frequency.get(term, 0) + 1
         common = {t for t, c in frequency.items() if c > max(2, len(glosses) // 5)} | _FUNCTION_WORDS
-        asked = {w for g in groups for synset in g[:2] for w in self._gloss_terms(synset.definition())}
-        asked |= {w for g in groups for synset in g[:2] for lemma in synset.lemmas()
-                  for w in lemma.name().lower().split("_")}
+        asked: set[str] = set()
+        for synset in (s for g in groups for s in g[:2]):  # the senses and their kinds (extended Lesk:
+            with self._lock:  # "rec room" is "a room equipped for …", a family room "… in a private house")
+                related = [synset, *synset.hyponyms()]
+            for sense in related:
+                asked |= set(self._gloss_terms(sense.definition()))
+                asked |= {w for lemma in sense.lemmas() for w in lemma.name().lower().split("_")}
         overlap = {t: len((glosses[t] & asked) - common) for t in near}
         near.sort(key=lambda t: (-overlap[t], -scores[t]))
         if overlap[near[0]] == 0:  # similar kinds (all rooms), nothing in common said: no answer
