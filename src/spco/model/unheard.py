@@ -238,12 +238,11 @@ def candidate_names(vocabulary: Vocabulary, word_mask: np.ndarray, name_prior: n
 
     A usable word is a candidate when it is a name by the model (name prior ≥
     :data:`MIN_CANDIDATE_PRIOR` and information ≥ :data:`MIN_CANDIDATE_INFORMATION` of the largest,
-    when given) or a place by WordNet (place share ≥ :data:`PLACE_CANDIDATE_SHARE`), and is not a
-    kind of place (:data:`spco.data.lexicon.KINDS_BELOW` kinds under it in WordNet: "room", "area",
-    "house", "home"). The names by the model come first (by prior), then the places by WordNet
-    (by prior)."""
-    from spco.data.lexicon import KINDS_BELOW
-
+    when given) or a place by WordNet (place share ≥ :data:`PLACE_CANDIDATE_SHARE`), and does not
+    stand for no place (the test of the words of a place, :func:`_stands_for_no_place`: not a function
+    word, nor a kind of place with :data:`spco.data.lexicon.KINDS_BELOW` kinds under it in WordNet —
+    "room", "area", "house", "home" — nor a quality). The names by the model come first (by
+    prior), then the places by WordNet (by prior)."""
     mask = np.asarray(word_mask, dtype=bool)
     usable = np.flatnonzero(mask)
     named = np.ones(mask.size, dtype=bool)
@@ -257,8 +256,8 @@ def candidate_names(vocabulary: Vocabulary, word_mask: np.ndarray, name_prior: n
     first = [k for k in order if named[k]]
     then = [k for k in order
             if not named[k] and _room_share(lexicon, vocabulary.words[k]) >= PLACE_CANDIDATE_SHARE]
-    return [vocabulary.words[k] for k in (*first, *then) if not is_function_word(vocabulary.words[k])
-            and _kinds_below(lexicon, vocabulary.words[k]) < KINDS_BELOW]
+    return [vocabulary.words[k] for k in (*first, *then)
+            if not _stands_for_no_place(lexicon, vocabulary.words[k])]
 
 
 _FACTS: dict[tuple[int, str, str], float] = {}
