@@ -358,6 +358,42 @@ def test_a_name_never_heard_is_found_by_the_words_said_at_a_place(wordnet) -> No
         predict_positions(params, 0, vocab, "garage", n=3, rng=0)
 
 
+def test_a_modifier_s_compound_naming_a_place_comes_before_its_derivations(wordnet) -> None:
+    """"dressing area": WordNet names a place by its modifier before another head, the "dressing
+    room", "a room in which you can change clothes"; that place is nearer the name than a word
+    derived from "dressing" ("dresser", a chest of drawers). With "clothes" said at the washroom and
+    "dresser" at the bedroom, "dressing area" is looked for where clothes are said; a name whose
+    modifier names no place so ("bathing room") still finds its derivation."""
+    from spco.model.unheard import PLACE_WORD
+
+    vocab = Vocabulary(("bedroom", "washroom", "dresser", "clothes", "bath", "is"))
+    theta = np.array([[0.5, 0.0, 0.05, 0.05, 0.05, 0.35],
+                      [0.0, 0.5, 0.05, 0.05, 0.05, 0.35]])
+    psi = np.array([[0.0, 0.0, 0.9, 0.0, 0.0, 0.1],
+                    [0.0, 0.0, 0.0, 0.45, 0.45, 0.1]])
+    prior = np.array([0.7, 0.7, 0.01, 0.01, 0.01, 0.01])
+    params = replace(_two_place_params(theta), name_prior=prior, place_word_probabilities=psi,
+                     word_channel_prior=np.column_stack([prior, 1.0 - prior, np.zeros(6)]))
+    pred = predict_positions(params, 0, vocab, "dressing area", n=5, rng=0)
+    assert (pred.name, pred.via, pred.region) == ("clothes", f"{PLACE_WORD} compound gloss", 1), pred.via
+    assert wordnet.closest("dressing area", ["dresser", "clothes"], similarity=False) == \
+        LexiconMatch("clothes", 0.9 * 0.8, "compound gloss")
+    assert wordnet.closest("dressing area", ["dresser"], similarity=False) == \
+        LexiconMatch("dresser", 0.7, "derivation")
+    bathing = predict_positions(params, 0, vocab, "bathing room", n=5, rng=0)
+    assert (bathing.name, bathing.region) == ("bath", 1), bathing.via
+
+
+def test_similar_rooms_are_told_apart_by_the_definitions_of_the_asked_name_s_kinds(wordnet) -> None:
+    """"rec room" ("a room equipped for informal entertaining") is as similar to every room; its own
+    definition shares "equipped" with the kitchen's ("a room equipped for preparing meals"), its
+    kind "family room" ("a recreation room in a private house") shares "private house" with the
+    living room's: the living room (extended Lesk)."""
+    found = wordnet.closest("rec room", ["kitchen", "living room"])
+    assert found is not None and (found.name, found.how) == ("living room", "similarity"), found
+    assert wordnet.closest("rec room", ["kitchen", "living room"], similarity=False) is None
+
+
 def test_a_quality_said_at_a_place_does_not_stand_for_it(wordnet) -> None:
     """"wet" (WordNet: mostly an adjective) said only at the washroom neither answers "wet room" as its
     own word nor as a word of a place; "sink" (a noun and a verb, never a quality) answers "sink area"."""

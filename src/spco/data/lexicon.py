@@ -415,10 +415,11 @@ class Lexicon:
         area" -> "laundry room"), or found so (then also a known term of a synonym before another
         general head: "washing area" -> "laundry room"): a synonym or definition ("tub room" -> "tub" ->
         "bath"), the one place (or synonyms) defined by the word ("sleeping quarters" -> "bedroom":
-        "a room used primarily for sleeping"), a derivation or verb synonym ("bathing room" ->
-        "bathe" -> "bath"), a synonym or definition of the one place WordNet names by the words
-        before a general head and another word ("comfort room" -> "comfort station", a restroom;
-        :meth:`_compound_of`); else the known name of highest Wu–Palmer similarity between noun senses (≥
+        "a room used primarily for sleeping"), a synonym or definition of the one place WordNet
+        names by the words before a general head and another word ("comfort room" -> "comfort
+        station", a restroom; :meth:`_compound_of`: the same construction, nearer the name than a
+        word derived from its modifier), a derivation or verb synonym ("bathing room" -> "bathe" ->
+        "bath"); else the known name of highest Wu–Palmer similarity between noun senses (≥
         :data:`MIN_SIMILARITY`) of the name or its words, among near ties (kinds of room are all
         about as similar) the one whose definition shares most words with the name's or its
         kinds' (:meth:`_most_similar`: "rec room", "a room equipped for informal entertaining",
@@ -470,10 +471,10 @@ class Lexicon:
                 found = self._defined_by(part, known_set)  # "a room used primarily for sleeping"
                 if found is not None:
                     return found
-            # a derivation, then the modifier's own compound naming a place: "comfort room" ->
-            # "comfort station", a restroom
-            later = itertools.chain((self._derived(part, known_set) for part in parts),
-                                    (self._compound_of(modifier, head, known_set) for _ in range(general)))
+            # the modifier's own compound naming a place ("comfort room" -> "comfort station", a
+            # restroom; "dressing area" -> "dressing room"), then a derivation ("bathing" -> "bathe")
+            later = itertools.chain((self._compound_of(modifier, head, known_set) for _ in range(general)),
+                                    (self._derived(part, known_set) for part in parts))
             found = next((f for f in later if f is not None), None)
             if found is not None:
                 return found

@@ -40,7 +40,6 @@ __all__ = [
     "OBJECT_BELOW",
     "PLACE_CANDIDATE_SHARE",
     "PLACE_WORD",
-    "PLACE_WORD_HOW",
     "QUALITY_SHARE",
     "SAID_WORDS",
     "STAND_IN_HOW",
@@ -157,19 +156,19 @@ QUALITY_SHARE = 0.5
 SAID_WORDS = "its words"
 #: :attr:`ResolvedName.how` (its first word) of a name answered by a word of a place (:func:`place_words`).
 PLACE_WORD = "place word"
-#: How the lexicon may relate a name to a word of a place: directly (a synonym, in its definition, a
-#: derivation, its head or modifier), not through other places WordNet names by its modifier
-#: ("compound …": "great room" -> "great hall" -> "dining"), which relates places to places.
-PLACE_WORD_HOW = ("synonym", "gloss", "definition", "derivation", "head", "head synonym", "head gloss")
 
 
 def _by_place_words(vocabulary: Vocabulary, mask: np.ndarray, asked: str, place_information: np.ndarray,
                     lexicon: object, candidates: list[str]) -> ResolvedName | None:
     """The word of a place (:func:`place_words`, the candidate names left out: they were asked
-    first) that the lexicon relates ``asked`` to directly (:data:`PLACE_WORD_HOW`), or None."""
+    first) that the lexicon relates ``asked`` to by a relation of its own
+    (:meth:`spco.data.lexicon.Lexicon.closest` without similarity: a synonym, in its definition, a
+    derivation, its head or modifier, or the place WordNet names by its modifier before another
+    head: "dressing area" -> "dressing room", "a room in which you can change clothes" ->
+    "clothes"), or None."""
     objects = place_words(vocabulary, mask, place_information, lexicon, exclude=candidates)
     found = lexicon.closest(asked, objects, similarity=False) if objects else None  # type: ignore[attr-defined]
-    if found is None or found.how not in PLACE_WORD_HOW:
+    if found is None:
         return None
     return ResolvedName(asked=asked, name=found.name, how=f"{PLACE_WORD} {found.how}",
                         score=float(found.score))
