@@ -394,6 +394,15 @@ def test_similar_rooms_are_told_apart_by_the_definitions_of_the_asked_name_s_kin
     assert wordnet.closest("rec room", ["kitchen", "living room"], similarity=False) is None
 
 
+def test_a_name_wordnet_files_under_a_known_name_is_that_name(wordnet) -> None:
+    """"dining hall" is a kind of dining room in WordNet (its hypernym): the dining room, before its
+    head "hall", a name of this home too; one relation away only: "mudroom" ("mud" + "room") does not
+    reach "parcel" through "mud flat", a tract of land, also called a parcel."""
+    found = wordnet.closest("dining hall", ["hall", "dining room"], similarity=False)
+    assert found is not None and (found.name, found.how) == ("dining room", "hypernym"), found
+    assert wordnet.closest("mudroom", ["parcel"], similarity=False) is None
+
+
 def test_a_quality_said_at_a_place_does_not_stand_for_it(wordnet) -> None:
     """"wet" (WordNet: mostly an adjective) said only at the washroom neither answers "wet room" as its
     own word nor as a word of a place; "sink" (a noun and a verb, never a quality) answers "sink area"."""

@@ -237,9 +237,12 @@ class Lexicon:
                         + [sy for sy, p in zip(senses, places, strict=True) if not p])
         return []
 
-    def _by_senses(self, senses: list, known: dict[str, str]) -> LexiconMatch | None:
+    def _by_senses(self, senses: list, known: dict[str, str], kinds: bool = False) -> LexiconMatch | None:
         """A known name that is a synonym of one of ``senses`` or is in their definitions (or in
-        their hypernyms' definitions)."""
+        their hypernyms' definitions); with ``kinds`` (the asked name's own senses, not those of a
+        word of it or of a compound, one relation away already), before the hypernyms'
+        definitions, a known name that is a hypernym of the commonest sense ("dining hall" is a
+        "dining room")."""
         for synset in senses:
             for lemma in synset.lemmas():
                 text = lemma.name().replace("_", " ").lower()
@@ -251,6 +254,12 @@ class Lexicon:
                     for token in self._gloss_terms(gloss.definition(), skip_located=True):
                         if token in known:
                             return LexiconMatch(known[token], 0.9 - 0.1 * depth, "gloss")
+                if depth == 0 and kinds:
+                    for kind in synset.hypernyms():
+                        for lemma in kind.lemmas():
+                            text = lemma.name().replace("_", " ").lower()
+                            if text in known:
+                                return LexiconMatch(known[text], 0.85, "hypernym")
         return None
 
     def _derived(self, words: str, known: dict[str, str]) -> LexiconMatch | None:
@@ -407,7 +416,8 @@ class Lexicon:
 
         In order: a known name that is a synonym of ``name`` (shares a noun synset; "privy" ->
         "toilet"), or is in a definition of ``name``'s senses or of their hypernyms ("powder room":
-        "a toilet that is available to the public"); for a name of several words (a single word
+        "a toilet that is available to the public") or is a hypernym of its commonest sense ("dining
+        hall", a dining room); for a name of several words (a single word
         WordNet does not know is first read as two nouns it knows, :meth:`split_compound`:
         "mudroom" -> "mud room"), the words before a general head ("room", "area": a hypernym of
         known names, or :data:`KINDS_BELOW` kinds under it) or the head itself, when known ("kitchen
@@ -441,7 +451,7 @@ class Lexicon:
         known_set = {k: v for k, v in known_set.items()
                      if self.synsets(k, pos="n") or (" " in k and self.synsets(k.split()[-1], pos="n"))}
         senses = self._variants(words)
-        found = self._by_senses(senses, known_set)
+        found = self._by_senses(senses, known_set, kinds=True)
         if found is not None:
             return found
         parts: list[str] = []
