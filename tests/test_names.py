@@ -418,6 +418,27 @@ def test_a_quality_said_at_a_place_does_not_stand_for_it(wordnet) -> None:
     assert place_words(vocab, mask, place, wordnet, exclude=["living room", "washroom"]) == ["sink"]
 
 
+def test_a_thing_with_many_kinds_is_a_word_of_a_place_a_kind_of_place_is_not(wordnet) -> None:
+    """"water" has as many kinds below it in WordNet as "room" or "area" (≥ KINDS_BELOW), but none of
+    its senses is a place: said at the bath, it is a word of that place, and "wet room" ("wet", the
+    noun: moisture, "wetness caused by water") is looked for there; "room" and "area" stay out."""
+    from spco.data.lexicon import KINDS_BELOW
+    from spco.model.unheard import PLACE_WORD, place_words
+
+    assert wordnet.kinds_below("water") >= KINDS_BELOW and wordnet.place_share("water") == 0.0
+    vocab = Vocabulary(("living room", "bath", "water", "room", "area", "is"))
+    place = np.array([0.4, 0.4, 0.3, 0.3, 0.3, 0.0])
+    assert place_words(vocab, np.ones(6, dtype=bool), place, wordnet, exclude=["living room", "bath"]) \
+        == ["water"]
+    theta = np.array([[0.5, 0.0, 0.0, 0.15, 0.0, 0.35], [0.0, 0.5, 0.0, 0.0, 0.15, 0.35]])
+    psi = np.array([[0.0, 0.0, 0.0, 0.9, 0.0, 0.1], [0.0, 0.0, 0.9, 0.0, 0.0, 0.1]])
+    prior = np.array([0.7, 0.7, 0.01, 0.3, 0.3, 0.01])
+    params = replace(_two_place_params(theta), name_prior=prior, place_word_probabilities=psi,
+                     word_channel_prior=np.column_stack([prior, 1.0 - prior, np.zeros(6)]))
+    pred = predict_positions(params, 0, vocab, "wet room", n=5, rng=0)
+    assert (pred.name, pred.region) == ("water", 1) and pred.via.startswith(PLACE_WORD), pred.via
+
+
 def test_names_said_are_answered_as_before_whatever_the_lexicon_finds(wordnet) -> None:
     """The look-up acts only on a name that is not one usable token: every word said (names, things
     said at a place, function words) is answered exactly as without it."""

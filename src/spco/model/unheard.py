@@ -179,7 +179,8 @@ def place_words(vocabulary: Vocabulary, word_mask: np.ndarray, place_information
     """The home's words of a place: usable words said at some places more than at others — objects,
     acts, names — by the model's account of what is said where (names θ and words of a place ψ:
     ``place_information`` ≥ :data:`MIN_CANDIDATE_INFORMATION` of the largest), most informative
-    first; function words, kinds of place ("room", "area"), qualities (mostly adjectives or adverbs
+    first; function words, kinds of place ("room", "area"; not "water", a thing with many kinds:
+    :func:`_stands_for_no_place` with ``thing``), qualities (mostly adjectives or adverbs
     in WordNet: "wet", "small"; :meth:`spco.data.lexicon.Lexicon.quality_share` > 0.5: a quality
     said at a place does not stand for it) and ``exclude`` left out. A name nobody
     said that WordNet relates to one of them ("bunk room": a bunk is "a rough bed"; "bathing room":
@@ -193,7 +194,7 @@ def place_words(vocabulary: Vocabulary, word_mask: np.ndarray, place_information
     order = usable[np.argsort(-info[usable], kind="stable")]
     skip = set(exclude)
     return [vocabulary.words[k] for k in order if info[k] >= floor and vocabulary.words[k] not in skip
-            and not _stands_for_no_place(lexicon, vocabulary.words[k])]
+            and not _stands_for_no_place(lexicon, vocabulary.words[k], thing=True)]
 
 
 def said_words(vocabulary: Vocabulary, word_mask: np.ndarray, name: str, lexicon: object) -> list[str]:
@@ -270,14 +271,26 @@ def _room_share(lexicon: object, word: str) -> float:
     return _FACTS[key]
 
 
-def _stands_for_no_place(lexicon: object, word: str) -> bool:
+def _stands_for_no_place(lexicon: object, word: str, thing: bool = False) -> bool:
     """A word said at a place or in a name that does not say which place is meant: a function word, a
     kind of place ("room", "area": :data:`~spco.data.lexicon.KINDS_BELOW` kinds below it or more) or a
-    quality (:data:`QUALITY_SHARE`: "wet", "small")."""
+    quality (:data:`QUALITY_SHARE`: "wet", "small"). ``thing``: the word is said at a place as a
+    thing (:func:`place_words`): with many kinds below it, it is a kind of place only when WordNet
+    has it as a place (:meth:`~spco.data.lexicon.Lexicon.place_share` > 0); "water" (75 kinds) and
+    "food" are no places, and many kinds of water are still water, said where it is."""
     from spco.data.lexicon import KINDS_BELOW
 
-    return (is_function_word(word) or _kinds_below(lexicon, word) >= KINDS_BELOW
-            or _quality_share(lexicon, word) > QUALITY_SHARE)
+    kind = _kinds_below(lexicon, word) >= KINDS_BELOW and (not thing or _place_share(lexicon, word) > 0)
+    return is_function_word(word) or kind or _quality_share(lexicon, word) > QUALITY_SHARE
+
+
+def _place_share(lexicon: object, word: str) -> float:
+    """:meth:`Lexicon.place_share` (0 for a word without noun senses), remembered for the process."""
+    key = (id(lexicon), "place", word)
+    if key not in _FACTS:
+        share = float(lexicon.place_share(word))  # type: ignore[attr-defined]
+        _FACTS[key] = 0.0 if np.isnan(share) else share
+    return _FACTS[key]
 
 
 def _quality_share(lexicon: object, word: str) -> float:
