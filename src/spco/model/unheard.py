@@ -72,8 +72,9 @@ class ResolvedName:
     """A name nobody said, and the known name used for it.
 
     asked: the name asked for (normalised); name: the known vocabulary token used; how: how the
-    lexicon related them (``"synonym"``, ``"gloss"``, ``"definition"``, ``"head"``, ``"head …"``,
-    ``"similarity"``); score: the lexicon's similarity in (0, 1]."""
+    lexicon related them (``"synonym"``, ``"gloss"``, ``"hypernym"``, ``"definition"``, ``"head"``,
+    ``"head …"``, ``"compound …"``, ``"derivation"``, ``"similarity"``; :data:`SAID_WORDS`, or
+    :data:`PLACE_WORD` and the relation); score: the lexicon's similarity in (0, 1]."""
 
     asked: str
     name: str
