@@ -358,6 +358,51 @@ def test_a_name_never_heard_is_found_by_the_words_said_at_a_place(wordnet) -> No
         predict_positions(params, 0, vocab, "garage", n=3, rng=0)
 
 
+def test_a_modifier_s_compound_naming_a_place_comes_before_its_derivations(wordnet) -> None:
+    """"dressing area": WordNet names a place by its modifier before another head, the "dressing
+    room", "a room in which you can change clothes"; that place is nearer the name than a word
+    derived from "dressing" ("dresser", a chest of drawers). With "clothes" said at the washroom and
+    "dresser" at the bedroom, "dressing area" is looked for where clothes are said; a name whose
+    modifier names no place so ("bathing room") still finds its derivation."""
+    from spco.model.unheard import PLACE_WORD
+
+    vocab = Vocabulary(("bedroom", "washroom", "dresser", "clothes", "bath", "is"))
+    theta = np.array([[0.5, 0.0, 0.05, 0.05, 0.05, 0.35],
+                      [0.0, 0.5, 0.05, 0.05, 0.05, 0.35]])
+    psi = np.array([[0.0, 0.0, 0.9, 0.0, 0.0, 0.1],
+                    [0.0, 0.0, 0.0, 0.45, 0.45, 0.1]])
+    prior = np.array([0.7, 0.7, 0.01, 0.01, 0.01, 0.01])
+    params = replace(_two_place_params(theta), name_prior=prior, place_word_probabilities=psi,
+                     word_channel_prior=np.column_stack([prior, 1.0 - prior, np.zeros(6)]))
+    pred = predict_positions(params, 0, vocab, "dressing area", n=5, rng=0)
+    assert (pred.name, pred.via, pred.region) == ("clothes", f"{PLACE_WORD} compound gloss", 1), pred.via
+    assert wordnet.closest("dressing area", ["dresser", "clothes"], similarity=False) == \
+        LexiconMatch("clothes", 0.9 * 0.8, "compound gloss")
+    assert wordnet.closest("dressing area", ["dresser"], similarity=False) == \
+        LexiconMatch("dresser", 0.7, "derivation")
+    bathing = predict_positions(params, 0, vocab, "bathing room", n=5, rng=0)
+    assert (bathing.name, bathing.region) == ("bath", 1), bathing.via
+
+
+def test_similar_rooms_are_told_apart_by_the_definitions_of_the_asked_name_s_kinds(wordnet) -> None:
+    """"rec room" ("a room equipped for informal entertaining") is as similar to every room; its own
+    definition shares "equipped" with the kitchen's ("a room equipped for preparing meals"), its
+    kind "family room" ("a recreation room in a private house") shares "private house" with the
+    living room's: the living room (extended Lesk)."""
+    found = wordnet.closest("rec room", ["kitchen", "living room"])
+    assert found is not None and (found.name, found.how) == ("living room", "similarity"), found
+    assert wordnet.closest("rec room", ["kitchen", "living room"], similarity=False) is None
+
+
+def test_a_name_wordnet_files_under_a_known_name_is_that_name(wordnet) -> None:
+    """"dining hall" is a kind of dining room in WordNet (its hypernym): the dining room, before its
+    head "hall", a name of this home too; one relation away only: "mudroom" ("mud" + "room") does not
+    reach "parcel" through "mud flat", a tract of land, also called a parcel."""
+    found = wordnet.closest("dining hall", ["hall", "dining room"], similarity=False)
+    assert found is not None and (found.name, found.how) == ("dining room", "hypernym"), found
+    assert wordnet.closest("mudroom", ["parcel"], similarity=False) is None
+
+
 def test_a_quality_said_at_a_place_does_not_stand_for_it(wordnet) -> None:
     """"wet" (WordNet: mostly an adjective) said only at the washroom neither answers "wet room" as its
     own word nor as a word of a place; "sink" (a noun and a verb, never a quality) answers "sink area"."""
@@ -371,6 +416,27 @@ def test_a_quality_said_at_a_place_does_not_stand_for_it(wordnet) -> None:
     assert said_words(vocab, mask, "sink area", wordnet) == ["sink"]
     place = np.array([0.4, 0.4, 0.3, 0.3, 0.0])
     assert place_words(vocab, mask, place, wordnet, exclude=["living room", "washroom"]) == ["sink"]
+
+
+def test_a_thing_with_many_kinds_is_a_word_of_a_place_a_kind_of_place_is_not(wordnet) -> None:
+    """"water" has as many kinds below it in WordNet as "room" or "area" (≥ KINDS_BELOW), but none of
+    its senses is a place: said at the bath, it is a word of that place, and "wet room" ("wet", the
+    noun: moisture, "wetness caused by water") is looked for there; "room" and "area" stay out."""
+    from spco.data.lexicon import KINDS_BELOW
+    from spco.model.unheard import PLACE_WORD, place_words
+
+    assert wordnet.kinds_below("water") >= KINDS_BELOW and wordnet.place_share("water") == 0.0
+    vocab = Vocabulary(("living room", "bath", "water", "room", "area", "is"))
+    place = np.array([0.4, 0.4, 0.3, 0.3, 0.3, 0.0])
+    assert place_words(vocab, np.ones(6, dtype=bool), place, wordnet, exclude=["living room", "bath"]) \
+        == ["water"]
+    theta = np.array([[0.5, 0.0, 0.0, 0.15, 0.0, 0.35], [0.0, 0.5, 0.0, 0.0, 0.15, 0.35]])
+    psi = np.array([[0.0, 0.0, 0.0, 0.9, 0.0, 0.1], [0.0, 0.0, 0.9, 0.0, 0.0, 0.1]])
+    prior = np.array([0.7, 0.7, 0.01, 0.3, 0.3, 0.01])
+    params = replace(_two_place_params(theta), name_prior=prior, place_word_probabilities=psi,
+                     word_channel_prior=np.column_stack([prior, 1.0 - prior, np.zeros(6)]))
+    pred = predict_positions(params, 0, vocab, "wet room", n=5, rng=0)
+    assert (pred.name, pred.region) == ("water", 1) and pred.via.startswith(PLACE_WORD), pred.via
 
 
 def test_names_said_are_answered_as_before_whatever_the_lexicon_finds(wordnet) -> None:

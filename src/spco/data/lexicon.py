@@ -237,9 +237,12 @@ class Lexicon:
                         + [sy for sy, p in zip(senses, places, strict=True) if not p])
         return []
 
-    def _by_senses(self, senses: list, known: dict[str, str]) -> LexiconMatch | None:
+    def _by_senses(self, senses: list, known: dict[str, str], kinds: bool = False) -> LexiconMatch | None:
         """A known name that is a synonym of one of ``senses`` or is in their definitions (or in
-        their hypernyms' definitions)."""
+        their hypernyms' definitions); with ``kinds`` (the asked name's own senses, not those of a
+        word of it or of a compound, one relation away already), before the hypernyms'
+        definitions, a known name that is a hypernym of the commonest sense ("dining hall" is a
+        "dining room")."""
         for synset in senses:
             for lemma in synset.lemmas():
                 text = lemma.name().replace("_", " ").lower()
@@ -251,6 +254,12 @@ class Lexicon:
                     for token in self._gloss_terms(gloss.definition(), skip_located=True):
                         if token in known:
                             return LexiconMatch(known[token], 0.9 - 0.1 * depth, "gloss")
+                if depth == 0 and kinds:
+                    for kind in synset.hypernyms():
+                        for lemma in kind.lemmas():
+                            text = lemma.name().replace("_", " ").lower()
+                            if text in known:
+                                return LexiconMatch(known[text], 0.85, "hypernym")
         return None
 
     def _derived(self, words: str, known: dict[str, str]) -> LexiconMatch | None:
@@ -407,7 +416,8 @@ class Lexicon:
 
         In order: a known name that is a synonym of ``name`` (shares a noun synset; "privy" ->
         "toilet"), or is in a definition of ``name``'s senses or of their hypernyms ("powder room":
-        "a toilet that is available to the public"); for a name of several words (a single word
+        "a toilet that is available to the public") or is a hypernym of its commonest sense ("dining
+        hall", a dining room); for a name of several words (a single word
         WordNet does not know is first read as two nouns it knows, :meth:`split_compound`:
         "mudroom" -> "mud room"), the words before a general head ("room", "area": a hypernym of
         known names, or :data:`KINDS_BELOW` kinds under it) or the head itself, when known ("kitchen
@@ -415,15 +425,19 @@ class Lexicon:
         area" -> "laundry room"), or found so (then also a known term of a synonym before another
         general head: "washing area" -> "laundry room"): a synonym or definition ("tub room" -> "tub" ->
         "bath"), the one place (or synonyms) defined by the word ("sleeping quarters" -> "bedroom":
-        "a room used primarily for sleeping"), a derivation or verb synonym ("bathing room" ->
-        "bathe" -> "bath"), a synonym or definition of the one place WordNet names by the words
-        before a general head and another word ("comfort room" -> "comfort station", a restroom;
-        :meth:`_compound_of`); else the known name of highest Wu–Palmer similarity between noun senses (≥
+        "a room used primarily for sleeping"), a synonym or definition of the one place WordNet
+        names by the words before a general head and another word ("comfort room" -> "comfort
+        station", a restroom; :meth:`_compound_of`: the same construction, nearer the name than a
+        word derived from its modifier), a derivation or verb synonym ("bathing room" -> "bathe" ->
+        "bath"); else the known name of highest Wu–Palmer similarity between noun senses (≥
         :data:`MIN_SIMILARITY`) of the name or its words, among near ties (kinds of room are all
-        about as similar) the one whose definition shares most words with the name's, and none
-        when they share none. ``known``: candidate names (vocabulary tokens, lower case, words
-        separated by spaces), most name-like first. ``similarity=False``: only the relations before
-        similarity (synonym, gloss, head, definition, derivation)."""
+        about as similar) the one whose definition shares most words with the name's or its
+        kinds' (:meth:`_most_similar`: "rec room", "a room equipped for informal entertaining",
+        shares nothing with "living room", its kind "family room", "a recreation room in a
+        private house", does), and none when they share none. ``known``: candidate names
+        (vocabulary tokens, lower case, words separated by spaces), most name-like first.
+        ``similarity=False``: only the relations before similarity (synonym, gloss, head,
+        definition, derivation)."""
         words = name.lower().split()
         if not words or not known:
             return None
@@ -437,7 +451,7 @@ class Lexicon:
         known_set = {k: v for k, v in known_set.items()
                      if self.synsets(k, pos="n") or (" " in k and self.synsets(k.split()[-1], pos="n"))}
         senses = self._variants(words)
-        found = self._by_senses(senses, known_set)
+        found = self._by_senses(senses, known_set, kinds=True)
         if found is not None:
             return found
         parts: list[str] = []
@@ -467,10 +481,10 @@ class Lexicon:
                 found = self._defined_by(part, known_set)  # "a room used primarily for sleeping"
                 if found is not None:
                     return found
-            # a derivation, then the modifier's own compound naming a place: "comfort room" ->
-            # "comfort station", a restroom
-            later = itertools.chain((self._derived(part, known_set) for part in parts),
-                                    (self._compound_of(modifier, head, known_set) for _ in range(general)))
+            # the modifier's own compound naming a place ("comfort room" -> "comfort station", a
+            # restroom; "dressing area" -> "dressing room"), then a derivation ("bathing" -> "bathe")
+            later = itertools.chain((self._compound_of(modifier, head, known_set) for _ in range(general)),
+                                    (self._derived(part, known_set) for part in parts))
             found = next((f for f in later if f is not None), None)
             if found is not None:
                 return found
@@ -478,13 +492,19 @@ class Lexicon:
             return None
         # similarity of the nouns (the name's, else its words')
         groups = [g for g in ([senses] if senses else [self._variants(p.split()) for p in parts]) if g]
+        return self._most_similar(groups, known_set)
+
+    def _most_similar(self, groups: list[list], known_set: dict[str, str]) -> LexiconMatch | None:
+        """The known name of highest Wu–Palmer similarity (≥ :data:`MIN_SIMILARITY`) between its
+        commonest noun sense and the commonest of each group of ``groups`` (the asked name's senses,
+        or its words'); among near ties (rooms are all siblings under "room"), the one whose
+        definition shares most words with the asked senses' definitions and lemmas and their kinds'
+        (direct hyponyms: extended Lesk), words common to many known names' definitions left out;
+        None when the best shares none."""
         firsts = {text: self.synsets(text, pos="n")[:1] for text in known_set}
         firsts = {text: f[0] for text, f in firsts.items() if f}
         if not groups or not firsts:
             return None
-        # Wu–Palmer similarity of the commonest senses; among near ties (rooms are all siblings
-        # under "room"), the known name whose definition shares most words with the asked name's
-        # definitions (Lesk), words common to many known names' definitions left out
         scores: dict[str, float] = {}
         for text, other in firsts.items():
             with self._lock:
@@ -499,9 +519,13 @@ class Lexicon:
             for term in terms:
                 frequency[term] = frequency.get(term, 0) + 1
         common = {t for t, c in frequency.items() if c > max(2, len(glosses) // 5)} | _FUNCTION_WORDS
-        asked = {w for g in groups for synset in g[:2] for w in self._gloss_terms(synset.definition())}
-        asked |= {w for g in groups for synset in g[:2] for lemma in synset.lemmas()
-                  for w in lemma.name().lower().split("_")}
+        asked: set[str] = set()
+        for synset in (s for g in groups for s in g[:2]):  # the senses and their kinds (extended Lesk:
+            with self._lock:  # "rec room" is "a room equipped for …", a family room "… in a private house")
+                related = [synset, *synset.hyponyms()]
+            for sense in related:
+                asked |= set(self._gloss_terms(sense.definition()))
+                asked |= {w for lemma in sense.lemmas() for w in lemma.name().lower().split("_")}
         overlap = {t: len((glosses[t] & asked) - common) for t in near}
         near.sort(key=lambda t: (-overlap[t], -scores[t]))
         if overlap[near[0]] == 0:  # similar kinds (all rooms), nothing in common said: no answer

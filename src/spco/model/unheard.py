@@ -40,7 +40,6 @@ __all__ = [
     "OBJECT_BELOW",
     "PLACE_CANDIDATE_SHARE",
     "PLACE_WORD",
-    "PLACE_WORD_HOW",
     "QUALITY_SHARE",
     "SAID_WORDS",
     "STAND_IN_HOW",
@@ -73,8 +72,9 @@ class ResolvedName:
     """A name nobody said, and the known name used for it.
 
     asked: the name asked for (normalised); name: the known vocabulary token used; how: how the
-    lexicon related them (``"synonym"``, ``"gloss"``, ``"definition"``, ``"head"``, ``"head …"``,
-    ``"similarity"``); score: the lexicon's similarity in (0, 1]."""
+    lexicon related them (``"synonym"``, ``"gloss"``, ``"hypernym"``, ``"definition"``, ``"head"``,
+    ``"head …"``, ``"compound …"``, ``"derivation"``, ``"similarity"``; :data:`SAID_WORDS`, or
+    :data:`PLACE_WORD` and the relation); score: the lexicon's similarity in (0, 1]."""
 
     asked: str
     name: str
@@ -157,19 +157,19 @@ QUALITY_SHARE = 0.5
 SAID_WORDS = "its words"
 #: :attr:`ResolvedName.how` (its first word) of a name answered by a word of a place (:func:`place_words`).
 PLACE_WORD = "place word"
-#: How the lexicon may relate a name to a word of a place: directly (a synonym, in its definition, a
-#: derivation, its head or modifier), not through other places WordNet names by its modifier
-#: ("compound …": "great room" -> "great hall" -> "dining"), which relates places to places.
-PLACE_WORD_HOW = ("synonym", "gloss", "definition", "derivation", "head", "head synonym", "head gloss")
 
 
 def _by_place_words(vocabulary: Vocabulary, mask: np.ndarray, asked: str, place_information: np.ndarray,
                     lexicon: object, candidates: list[str]) -> ResolvedName | None:
     """The word of a place (:func:`place_words`, the candidate names left out: they were asked
-    first) that the lexicon relates ``asked`` to directly (:data:`PLACE_WORD_HOW`), or None."""
+    first) that the lexicon relates ``asked`` to by a relation of its own
+    (:meth:`spco.data.lexicon.Lexicon.closest` without similarity: a synonym, in its definition, a
+    derivation, its head or modifier, or the place WordNet names by its modifier before another
+    head: "dressing area" -> "dressing room", "a room in which you can change clothes" ->
+    "clothes"), or None."""
     objects = place_words(vocabulary, mask, place_information, lexicon, exclude=candidates)
     found = lexicon.closest(asked, objects, similarity=False) if objects else None  # type: ignore[attr-defined]
-    if found is None or found.how not in PLACE_WORD_HOW:
+    if found is None:
         return None
     return ResolvedName(asked=asked, name=found.name, how=f"{PLACE_WORD} {found.how}",
                         score=float(found.score))
@@ -180,7 +180,8 @@ def place_words(vocabulary: Vocabulary, word_mask: np.ndarray, place_information
     """The home's words of a place: usable words said at some places more than at others — objects,
     acts, names — by the model's account of what is said where (names θ and words of a place ψ:
     ``place_information`` ≥ :data:`MIN_CANDIDATE_INFORMATION` of the largest), most informative
-    first; function words, kinds of place ("room", "area"), qualities (mostly adjectives or adverbs
+    first; function words, kinds of place ("room", "area"; not "water", a thing with many kinds:
+    :func:`_stands_for_no_place` with ``thing``), qualities (mostly adjectives or adverbs
     in WordNet: "wet", "small"; :meth:`spco.data.lexicon.Lexicon.quality_share` > 0.5: a quality
     said at a place does not stand for it) and ``exclude`` left out. A name nobody
     said that WordNet relates to one of them ("bunk room": a bunk is "a rough bed"; "bathing room":
@@ -194,7 +195,7 @@ def place_words(vocabulary: Vocabulary, word_mask: np.ndarray, place_information
     order = usable[np.argsort(-info[usable], kind="stable")]
     skip = set(exclude)
     return [vocabulary.words[k] for k in order if info[k] >= floor and vocabulary.words[k] not in skip
-            and not _stands_for_no_place(lexicon, vocabulary.words[k])]
+            and not _stands_for_no_place(lexicon, vocabulary.words[k], thing=True)]
 
 
 def said_words(vocabulary: Vocabulary, word_mask: np.ndarray, name: str, lexicon: object) -> list[str]:
@@ -238,12 +239,11 @@ def candidate_names(vocabulary: Vocabulary, word_mask: np.ndarray, name_prior: n
 
     A usable word is a candidate when it is a name by the model (name prior ≥
     :data:`MIN_CANDIDATE_PRIOR` and information ≥ :data:`MIN_CANDIDATE_INFORMATION` of the largest,
-    when given) or a place by WordNet (place share ≥ :data:`PLACE_CANDIDATE_SHARE`), and is not a
-    kind of place (:data:`spco.data.lexicon.KINDS_BELOW` kinds under it in WordNet: "room", "area",
-    "house", "home"). The names by the model come first (by prior), then the places by WordNet
-    (by prior)."""
-    from spco.data.lexicon import KINDS_BELOW
-
+    when given) or a place by WordNet (place share ≥ :data:`PLACE_CANDIDATE_SHARE`), and does not
+    stand for no place (the test of the words of a place, :func:`_stands_for_no_place`: not a function
+    word, nor a kind of place with :data:`spco.data.lexicon.KINDS_BELOW` kinds under it in WordNet —
+    "room", "area", "house", "home" — nor a quality). The names by the model come first (by
+    prior), then the places by WordNet (by prior)."""
     mask = np.asarray(word_mask, dtype=bool)
     usable = np.flatnonzero(mask)
     named = np.ones(mask.size, dtype=bool)
@@ -257,8 +257,8 @@ def candidate_names(vocabulary: Vocabulary, word_mask: np.ndarray, name_prior: n
     first = [k for k in order if named[k]]
     then = [k for k in order
             if not named[k] and _room_share(lexicon, vocabulary.words[k]) >= PLACE_CANDIDATE_SHARE]
-    return [vocabulary.words[k] for k in (*first, *then) if not is_function_word(vocabulary.words[k])
-            and _kinds_below(lexicon, vocabulary.words[k]) < KINDS_BELOW]
+    return [vocabulary.words[k] for k in (*first, *then)
+            if not _stands_for_no_place(lexicon, vocabulary.words[k])]
 
 
 _FACTS: dict[tuple[int, str, str], float] = {}
@@ -272,14 +272,26 @@ def _room_share(lexicon: object, word: str) -> float:
     return _FACTS[key]
 
 
-def _stands_for_no_place(lexicon: object, word: str) -> bool:
+def _stands_for_no_place(lexicon: object, word: str, thing: bool = False) -> bool:
     """A word said at a place or in a name that does not say which place is meant: a function word, a
     kind of place ("room", "area": :data:`~spco.data.lexicon.KINDS_BELOW` kinds below it or more) or a
-    quality (:data:`QUALITY_SHARE`: "wet", "small")."""
+    quality (:data:`QUALITY_SHARE`: "wet", "small"). ``thing``: the word is said at a place as a
+    thing (:func:`place_words`): with many kinds below it, it is a kind of place only when WordNet
+    has it as a place (:meth:`~spco.data.lexicon.Lexicon.place_share` > 0); "water" (75 kinds) and
+    "food" are no places, and many kinds of water are still water, said where it is."""
     from spco.data.lexicon import KINDS_BELOW
 
-    return (is_function_word(word) or _kinds_below(lexicon, word) >= KINDS_BELOW
-            or _quality_share(lexicon, word) > QUALITY_SHARE)
+    kind = _kinds_below(lexicon, word) >= KINDS_BELOW and (not thing or _place_share(lexicon, word) > 0)
+    return is_function_word(word) or kind or _quality_share(lexicon, word) > QUALITY_SHARE
+
+
+def _place_share(lexicon: object, word: str) -> float:
+    """:meth:`Lexicon.place_share` (0 for a word without noun senses), remembered for the process."""
+    key = (id(lexicon), "place", word)
+    if key not in _FACTS:
+        share = float(lexicon.place_share(word))  # type: ignore[attr-defined]
+        _FACTS[key] = 0.0 if np.isnan(share) else share
+    return _FACTS[key]
 
 
 def _quality_share(lexicon: object, word: str) -> float:
