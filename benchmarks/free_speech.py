@@ -17,9 +17,9 @@ Protocol (docs/model.md "What counts as a name"; benchmarks/README "Free speech 
   (mixture): the same with the positions drawn from the whole mixture p(x | name), the paper's
   text (``HomeScores.position_accuracy_mixture``); A_p (main name): argmax region, for the place's
   *main name* only, its accepted name said in most of the taught sentences (:func:`main_names`);
-- names are predicted with the view weight the model learnt with (``model.settings_.view_counts``)
-  and answered as the robot answers them (the home's names,
-  :func:`~spco.model.confidence.model_answer_parameters`), as ``spco experiment``;
+- names are answered as the robot answers them (:func:`spco.evaluation.evaluate_answers`: the
+  model's view weight, its name weighting, the answer's parameters and the home's rooms), as
+  ``spco experiment``;
 - intervals: 95 % percentile bootstrap (2,000 resamples) over the test views (A_n; resampled within
   each home and place) and over the seeds' position scores of each (home, place) (A_p).
 
@@ -70,14 +70,12 @@ from spco.data import Corpus, Environment
 from spco.data.language import normalize_name
 from spco.data.loading import load
 from spco.data.regions import load_region_file
-from spco.evaluation import evaluate_home
+from spco.evaluation import evaluate_answers
 from spco.evaluation.experiments import PAPER_EXPERIENCED_HOMES, trial_seed
 from spco.evaluation.metrics import position_accuracy
 from spco.model import SpCoTransfer
-from spco.model.confidence import model_answer_parameters
 from spco.model.position_prediction import predict_positions
 from spco.model.prediction import UnknownNameError
-from spco.model.rooms import model_rooms
 
 NEW_HOMES = ("1LDK_9", "2LDK_9", "3LDK_9")
 
@@ -208,15 +206,9 @@ def _score_home(tally: _Tally, args: argparse.Namespace, hyper: Any, seed: int, 
                          random_state=trial_seed(seed, h)).fit(corpus)
     e = len(corpus) - 1
     gt = env.ground_truth
-    # names predicted with the view weight the model learnt with, as ``spco experiment``
-    # (code from before the option: no argument)
-    view_counts = getattr(getattr(model, "settings_", None), "view_counts", None)
-    weight = {} if view_counts is None else {"view_counts": view_counts}
-    answer = model_answer_parameters(model, e)  # the names the robot answers, as ``spco experiment``
     for setting in tally.settings:  # the same draws of positions: only the names can differ
-        option = dict(weight) if setting == "off" else {"name_prior": setting, **weight}
-        scores = evaluate_home(model.parameters_, e, env, corpus.vocabulary, rng=seed, answer_params=answer,
-                               answer_rooms=model_rooms(model, e), **option)
+        # as the robot answers (the answer's parameters, rooms, weighting and view weight)
+        scores = evaluate_answers(model, e, env, rng=seed, name_prior=setting)
         tally.per_seed.append({"seed": seed, "home": home, "name_prior": setting,
                                "A_n": scores.mean_name_accuracy, "A_p": scores.mean_position_accuracy,
                                "A_n_places": scores.name_accuracy, "A_p_places": scores.position_accuracy})
@@ -232,11 +224,12 @@ def _score_home(tally: _Tally, args: argparse.Namespace, hyper: Any, seed: int, 
         tally.positions[(home, place)].append(value)
     for place, value in getattr(scores, "position_accuracy_mixture", {}).items():
         tally.positions_mixture[(home, place)].append(value)
+    answer, rooms, _ = model.answer_inputs(e)
     for place, name in main_names(experienced, accepted).items():  # A_p of the main name
         if place in gt.regions.places:  # type: ignore[union-attr]
             try:
                 pred = predict_positions(answer, e, corpus.vocabulary, name, n=10, rng=seed,
-                                         rooms=model_rooms(model, e), view_counts=view_counts,
+                                         rooms=rooms, view_counts=model.settings_.view_counts,
                                          lookup=model.parameters_.word_mask)
                 hit = position_accuracy({place: pred.samples}, gt.regions)[place]  # type: ignore
             except UnknownNameError:

@@ -47,7 +47,7 @@ from spco.data import Corpus, Environment
 from spco.data.loading import load
 from spco.data.regions import load_region_file
 from spco.errors import ConfigurationError
-from spco.evaluation import evaluate_home
+from spco.evaluation import evaluate_answers, evaluate_home
 from spco.evaluation.config import PAPER_EXPERIENCED_HOMES, trial_seed
 from spco.evaluation.models import MODELS
 from spco.model.hyperparameters import TransferHyperparameters
@@ -111,7 +111,6 @@ def run(sigverse: Path, regions_file: Path, side: str, seeds: list[int], sweeps:
     :func:`spco.model.rooms.model_rooms`, what the robot answers), from the same fit, as ``A_n_<answer>``.
     ``settings``: ``NAME=VALUE`` hyperparameter settings (:func:`model_hyperparameters`)."""
     from spco.model.confidence import model_answer_parameters
-    from spco.model.rooms import model_rooms
 
     spec = MODELS[MODEL]
     hyper = model_hyperparameters(settings)
@@ -138,12 +137,15 @@ def run(sigverse: Path, regions_file: Path, side: str, seeds: list[int], sweeps:
                          "A_n_places": {p: float(v) for p, v in scores.name_accuracy.items()}})
             e = len(corpus) - 1
             for answer in answers:  # the same fit, names from the answer parameters
-                answered = evaluate_home(model.parameters_, e, env, model.vocabulary_,
-                                         rng=np.random.default_rng([run_seed, 1]), weighting=spec.weighting,
-                                         name_prior=model.hyperparameters_.name_prior,
-                                         view_counts=model.settings_.view_counts,
-                                         answer_params=model_answer_parameters(model, e),
-                                         answer_rooms=model_rooms(model, e) if answer == "rooms" else None)
+                if answer == "rooms":  # the robot's answer (evaluate_answers: its rooms and weighting)
+                    answered = evaluate_answers(model, e, env, rng=np.random.default_rng([run_seed, 1]))
+                else:
+                    answered = evaluate_home(model.parameters_, e, env, model.vocabulary_,
+                                             rng=np.random.default_rng([run_seed, 1]),
+                                             weighting=spec.weighting,
+                                             name_prior=model.hyperparameters_.name_prior,
+                                             view_counts=model.settings_.view_counts,
+                                             answer_params=model_answer_parameters(model, e))
                 runs[-1][f"A_n_{answer}"] = float(answered.mean_name_accuracy)
                 # positions as the robot's where finds them from the same answer (one p(pose | name))
                 a_p_answer = answered.mean_position_accuracy if has_regions else math.nan

@@ -16,8 +16,8 @@ The configurations are fixed in ``benchmarks/SPLIT.md``, "Natural speech (issue 
 
 Each seed fits SpCoTransfer+MI (the default exact model) for ``--sweeps`` sweeps with
 :func:`~spco.evaluation.experiments.trial_seed` (seed, index of the new home); names are predicted
-with the model's own view weight and answered as the robot answers them (the home's names,
-:func:`~spco.model.confidence.model_answer_parameters`), as ``spco experiment``. Figures: the mean
+as the robot answers them (:func:`spco.evaluation.evaluate_answers`: the model's view weight, its
+name weighting, the answer's parameters and the home's rooms), as ``spco experiment``. Figures: the mean
 over seeds with a 95 % interval over seeds (normal approximation, ``japanese.mean_interval``), A_n
 per place and the wrong answers most often given; ``--json`` writes every figure.
 
@@ -47,12 +47,10 @@ from japanese import mean_interval
 from spco.data import Corpus, Environment
 from spco.data.loading import load
 from spco.data.sigverse import read_indexed_texts
-from spco.evaluation import evaluate_home
+from spco.evaluation import evaluate_answers
 from spco.evaluation.experiments import trial_seed
 from spco.model import SpCoTransfer
-from spco.model.confidence import model_answer_parameters
 from spco.model.hyperparameters import TransferHyperparameters
-from spco.model.rooms import model_rooms
 
 SIDES = {
     "development": {"knowledge": ("1LDK_1", "1LDK_3", "1LDK_5", "1LDK_7",
@@ -178,13 +176,9 @@ def main() -> None:
             corpus = Corpus([*homes, env])
             model = SpCoTransfer(hyper, variant="exact", prune_words=True, n_iterations=args.sweeps,
                                  random_state=trial_seed(seed, index)).fit(corpus)
-            view_counts = model.settings_.view_counts
-            weight = {} if view_counts is None else {"view_counts": view_counts}
             scored = scored_as_test(env) if label.endswith("(out)") else env
             e = len(corpus) - 1
-            scores = evaluate_home(model.parameters_, e, scored, corpus.vocabulary, rng=seed,
-                                   answer_params=model_answer_parameters(model, e),
-                                   answer_rooms=model_rooms(model, e), **weight)
+            scores = evaluate_answers(model, e, scored, rng=seed)  # as the robot answers
             gt = env.ground_truth
             for place, name in zip(scores.labels, scores.predicted_names, strict=True):
                 if name not in gt.accepted(place):

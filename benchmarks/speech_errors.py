@@ -57,16 +57,14 @@ from natural_speech import SIDES, scored_as_test, subject_home, untaught_subject
 
 from spco.data import Corpus, Environment
 from spco.data.language import normalize_name
-from spco.evaluation import evaluate_home
+from spco.evaluation import evaluate_answers, evaluate_home
 from spco.evaluation.experiments import trial_seed
 from spco.evaluation.metrics import position_accuracy
 from spco.model import SpCoTransfer
-from spco.model.confidence import model_answer_parameters
 from spco.model.home_shard import name_words, switch_tokens
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.position_prediction import predict_positions
 from spco.model.prediction import UnknownNameError, concept_posterior
-from spco.model.rooms import model_rooms
 
 #: A name of another place counts as said here (class b) when at least this share of the place's
 #: sentences (the development homes' people) hold it.
@@ -348,8 +346,8 @@ def _misses(model, corpus: Corpus, e: int, env: Environment, scores, said: dict,
     if areas is None:
         return
     mask = name_words(switch_tokens(model.data_, model.state_))
-    # the robot's where, as evaluate_home scores it (one p(pose | name): the answer's names and rooms)
-    answer, rooms = model_answer_parameters(model, e), model_rooms(model, e)
+    # the robot's where, as evaluate_answers scores it (one p(pose | name): the answer's names and rooms)
+    answer, rooms, _ = model.answer_inputs(e)
     places = [normalize_name(p) for p in areas.places]
     sample_places = place_of_samples(areas, places, env.training_data().positions[:, :2])
     for place in scores.places:
@@ -445,15 +443,14 @@ def main() -> None:
         for label, homes, env in configs:
             corpus = Corpus([*homes, env])
             model = _fitted(args, corpus, hyper, seed, label, labels)
-            view_counts = model.settings_.view_counts
-            weight = {} if view_counts is None else {"view_counts": view_counts}
             e = len(corpus) - 1
             scored = scored_as_test(env) if label.endswith("(out)") else env
-            answer = None if args.fit_parameters else model_answer_parameters(model, e)
-            scores = evaluate_home(model.parameters_, e, scored, corpus.vocabulary, rng=seed,
-                                   answer_params=answer,
-                                   answer_rooms=None if args.fit_parameters else model_rooms(model, e),
-                                   **weight)
+            if args.fit_parameters:  # the fit's own parameters, MI weighting (a diagnosis, not an answer)
+                view_counts = model.settings_.view_counts
+                scores = evaluate_home(model.parameters_, e, scored, corpus.vocabulary, rng=seed,
+                                       **({} if view_counts is None else {"view_counts": view_counts}))
+            else:  # as the robot answers
+                scores = evaluate_answers(model, e, scored, rng=seed)
             said = place_speech(knowledge, corpus)  # every development home's people
             home = label.split()[0]
             hits, asked = table[home]["A_p hits"], table[home]["A_p names"]

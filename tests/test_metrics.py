@@ -205,3 +205,20 @@ def test_evaluate_home_without_ground_truth() -> None:
                        sentences=env.sentences, is_test=env.is_test)
     with pytest.raises(DataFormatError):
         evaluate_home(home_params(), 0, bare, Vocabulary(WORDS))
+
+
+def test_evaluate_answers_scores_what_the_robot_answers(small_corpus) -> None:
+    """The experiments' and benchmarks' scoring (evaluate_answers) gives each test view the name the
+    robot answers there (SpCoTransfer.predict_names: the answer's parameters, rooms, weighting and view
+    weight), and A_p from the robot's where."""
+    from spco.evaluation import evaluate_answers
+    from spco.model.transfer import SpCoTransfer
+
+    model = SpCoTransfer(variant="exact", prune_words=True, n_iterations=5, random_state=0).fit(small_corpus)
+    e = len(small_corpus) - 1
+    env = small_corpus[e]
+    scores = evaluate_answers(model, e, env, rng=0)
+    test = env.is_test
+    robot = model.predict_names(e, env.positions[test], env.visual[test])
+    assert list(scores.predicted_names) == list(robot.best)
+    assert model.name_weighting() == model.answer_inputs(e)[2]

@@ -2,6 +2,7 @@
 
 from spco.evaluation.metrics import (
     HomeScores,
+    evaluate_answers,
     evaluate_home,
     mean_over_places,
     name_accuracy,
@@ -12,6 +13,7 @@ from spco.evaluation.metrics import (
 
 __all__ = [
     "HomeScores",
+    "evaluate_answers",
     "evaluate_home",
     "mean_over_places",
     "name_accuracy",

@@ -43,6 +43,7 @@ from spco.model.rooms import HomeRooms
 
 __all__ = [
     "HomeScores",
+    "evaluate_answers",
     "evaluate_home",
     "mean_over_places",
     "name_accuracy",
@@ -345,3 +346,31 @@ def evaluate_home(
         position_predictions=pos_predictions,
         position_accuracy_mixture=mix_scores,
     )
+
+
+def evaluate_answers(
+    model: object,
+    e: int,
+    environment: Environment,
+    places: Sequence[str] | None = None,
+    specific: bool = False,
+    n_positions: int = 10,
+    rng: np.random.Generator | int | None = None,
+    name_prior: NamePrior | None = None,
+) -> HomeScores:
+    """Score home ``e`` of a fitted model as the robot answers it: :func:`evaluate_home` with the
+    model's own answer inputs (``model.answer_inputs(e)``: the answer's parameters, the home's rooms
+    and the name weighting), its view weight and its name prior. The one way the experiments and the
+    benchmarks score a model's answers, so that no caller scores another weighting than the robot's.
+
+    ``model``: a fitted :class:`~spco.model.transfer.SpCoTransfer` (or SpCoA); ``name_prior``
+    overrides the model's ``hyperparameters_.name_prior`` (``None``: the model's)."""
+    answer_params, answer_rooms, weighting = model.answer_inputs(e)  # type: ignore[attr-defined]
+    settings = getattr(model, "settings_", None)
+    hyper = getattr(model, "hyperparameters_", None)
+    prior = name_prior if name_prior is not None else getattr(hyper, "name_prior", "off")
+    return evaluate_home(model.parameters_, e, environment, model.vocabulary_,  # type: ignore[attr-defined]
+                         places=places, specific=specific, n_positions=n_positions, rng=rng,
+                         weighting=weighting, name_prior=prior,
+                         view_counts=getattr(settings, "view_counts", None),
+                         answer_params=answer_params, answer_rooms=answer_rooms)

@@ -26,7 +26,7 @@ from spco.data.regions import PlaceRegions
 from spco.errors import ConfigurationError, DataFormatError
 from spco.evaluation.config import _POSES_ON_MAP, MAPS_DIR, ExperimentConfig, trial_seed
 from spco.evaluation.homes import ExperimentData, _build_data, _DataSpec
-from spco.evaluation.metrics import HomeScores, evaluate_home
+from spco.evaluation.metrics import HomeScores, evaluate_answers
 from spco.evaluation.models import MODELS
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.transfer import SpatialConceptModel
@@ -163,12 +163,8 @@ def execute_run(data: ExperimentData, ctx: _RunContext, key: RunKey) -> dict[str
     specific = ctx.experiment == "specific"
     # what the robot answers (a home adapted from a knowledge: the answer's parameters, the room
     # account, its weighting), as the model's own predict_names and predict_positions answer
-    answer_params, answer_rooms, weighting = model.answer_inputs(e)
-    scores = evaluate_home(model.parameters_, e, env, model.vocabulary_, specific=specific,
-                           n_positions=ctx.n_positions, rng=np.random.default_rng([seed, 1]),
-                           weighting=weighting, name_prior=model.hyperparameters_.name_prior,
-                           view_counts=model.settings_.view_counts,
-                           answer_params=answer_params, answer_rooms=answer_rooms)
+    scores = evaluate_answers(model, e, env, specific=specific, n_positions=ctx.n_positions,
+                              rng=np.random.default_rng([seed, 1]))
     wall = time.perf_counter() - start
     if traced:
         path = map_path(Path(ctx.out), ctx.experiment, key.model, key.setting, key.home)
