@@ -417,11 +417,11 @@ def view_weights(data: PreparedData, view_counts: float | None) -> np.ndarray | 
 
 
 def _concept_loglik(data: PreparedData, state: GibbsState, view_counts: float | None = None,
-                    word_weight: float = 1.0) -> np.ndarray:
+                    word_weight: float | np.ndarray = 1.0) -> np.ndarray:
     """Visual + word log-likelihood of every sample under every concept of its home: (N, L).
 
     ``view_counts``: the evidence of one view in counts (:func:`view_weights`; ``None``: the
-    multinomial of every count); ``word_weight``: without channels, the words' times this."""
+    multinomial of every count); ``word_weight``: without channels, the words' times this (or (N,))."""
     loglik = HierarchicalMultinomial.log_likelihood(data.visual, data.homes, state.log_theta_v,
                                                     by_dimension=data.visual_by_dimension)
     weights = view_weights(data, view_counts)
@@ -433,7 +433,8 @@ def _concept_loglik(data: PreparedData, state: GibbsState, view_counts: float | 
     elif data.words.nnz:
         log_theta_w = kept_word_log_theta(state.log_theta_w, state.word_mask)
         words = HierarchicalMultinomial.log_likelihood(sentence_words(data, state), data.homes, log_theta_w)
-        loglik += words if word_weight == 1.0 else word_weight * words
+        weight = np.asarray(word_weight, dtype=np.float64)
+        loglik += words if np.all(weight == 1.0) else words * weight.reshape(-1, 1)
     return loglik
 
 

@@ -11,7 +11,10 @@ weighted by how much it was taught:
    (:class:`~spco.model.pruning.Colocation`, (V,) × 3) are summed by the driver and sent back;
    each shard starts its homes' concepts from them;
 2. ``n_sweeps`` independent (SpCoA) sweeps of every home, the sweep-0 word mask judged by the
-   driver on the summed naming statistics;
+   driver on the summed naming statistics; a word token weighs
+   :attr:`~spco.model.state.SamplerSettings.word_weight` of its S^w counts in them (W^w / S^w with
+   the word channels), and when that is below 1 the samples of a home taught less than the most
+   taught that stand for a name of its own are held in their concepts (:func:`_hold_own_names`);
 3. the cross-home label alignment: the driver receives per home only its word total, the names it
    says and its taught fraction, and then aligns the homes one by one in the order of
    :func:`~spco.model.gibbs.align_homes` (most words first) against a running pooled reference
@@ -142,12 +145,14 @@ class ShardInitialisation:
         own[own] = ~said_elsewhere[names[own]]
         self._held = np.flatnonzero(own)
         self._held_concepts = self.state.concepts[self._held].copy()
+        if reduced.any():  # a partly taught home's words weigh S^w in the start, as without channels
+            self._word_weight = np.where(reduced, 1.0, self.settings.word_weight)
 
     def init_local_step(self) -> None:
         """One local step of the independent warm-start sampler (statistics kept)."""
         # the same view evidence, and a word token's as the chain weighs it (SamplerSettings.word_weight)
         independent = replace(INDEPENDENT, view_counts=self.settings.view_counts,
-                              word_weight=self.settings.word_weight)
+                              word_weight=getattr(self, "_word_weight", self.settings.word_weight))
         gibbs.local_step(self.data, self.state, independent, self.rng)
         held = getattr(self, "_held", None)
         if held is not None and held.size:
@@ -268,7 +273,8 @@ class ShardInitialisation:
         state.log_g0, state.word_mask = shared.log_g0, shared.word_mask
         state.name_words = shared.name_words
         gibbs.home_step(self.data, state, self._init_stats, self.hyper, self.settings, self.rng)
-        for name in ("_init_stats", "_names", "_name_counts", "_weights", "_own", "_held", "_held_concepts"):
+        for name in ("_init_stats", "_names", "_name_counts", "_weights", "_own", "_held", "_held_concepts",
+                     "_word_weight"):
             self.__dict__.pop(name, None)
 
 

@@ -156,7 +156,7 @@ class SamplerSettings:
     #: as a share of the token's S^w counts (1: S^w per token). A fit that learns its words with the
     #: channels sets W^w / S^w for its warm start's independent sweeps (:mod:`spco.model.shard_init`),
     #: so that the start weighs a token as the chain does; the chain weighs tokens through the channels
-    word_weight: float = 1.0
+    word_weight: float | np.ndarray = 1.0
     #: vocabulary columns that mark no place at the warm start although the naming rule may judge them
     #: names (:func:`spco.model.word_channels.warm_start_settings`); the chain does not read this
     start_not_names: tuple[int, ...] = ()
