@@ -117,7 +117,8 @@ def _partly_taught_corpus():
 def test_a_home_taught_less_holds_its_own_names_through_the_start(monkeypatch, word_weight: float) -> None:
     """With a word weight below S^w the samples of the partly taught home that stand for a name said
     in no fully taught home (brute force over the homes' sentences) keep their starting concepts
-    through every independent sweep; the others move. At S^w (weight 1) nothing is held."""
+    through every independent sweep, and that home's words weigh S^w there; the fully taught homes'
+    weigh W^w and their samples move. At S^w (weight 1) nothing is held."""
     corpus = _partly_taught_corpus()
     model = SpatialConceptModel(variant="exact", random_state=0, prune_words=True)
     hyper, settings = model.checked_hyperparameters(), model.sampler_settings()
@@ -133,10 +134,12 @@ def test_a_home_taught_less_holds_its_own_names_through_the_start(monkeypatch, w
         before = self.state.concepts.copy()
         local_step(self)
         held = getattr(self, "_held", np.zeros(0, dtype=np.int64))
+        weight = np.asarray(getattr(self, "_word_weight", self.settings.word_weight))
         if np.array_equal(self.data.positions, data.positions[rows]):
             seen.append((held, before, self.state.concepts.copy(), self._names.copy()))
+            assert np.all(weight == 1.0)  # the partly taught home's words weigh S^w in the start
         else:
-            assert held.size == 0  # a fully taught home holds nothing
+            assert held.size == 0 and np.all(weight == word_weight)  # a fully taught home: W^w, nothing held
             others_moved.append(bool((before != self.state.concepts).any()))
 
     monkeypatch.setattr(ShardInitialisation, "init_local_step", spy)
