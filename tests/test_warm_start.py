@@ -17,8 +17,10 @@ import scipy.sparse as sp
 from spco.data.lexicon import lexicon
 from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.engines import LocalEngine
+from spco.errors import ConfigurationError
 from spco.model import gibbs
 from spco.model.gibbs import GibbsState, PreparedData
+from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.shard_init import ShardInitialisation
 from spco.model.sources import PreparedHomes
 from spco.model.state import SamplerSettings
@@ -51,7 +53,11 @@ def test_the_warm_start_settings_weigh_a_token_and_leave_out_the_objects() -> No
     words = _Words(["kitchen", "table", "nook", "sofa", "den", "toilet"])
     settings = SamplerSettings.create("exact", prune=True, view_counts=16.0)
     assert settings.word_weight == 1.0 and settings.start_not_names == ()  # S^w: as before
-    out = warm_start_settings(settings, (nu, content), words, 4, 1.0, 16.0, 5000, _Rooms({"toilet"}))
+    hyper = TransferHyperparameters(n_concepts=4, evidence_weight=1.0, word_counts=16.0, warm_start="words")
+    # the default start ("names"): the settings as they are
+    assert warm_start_settings(settings, replace(hyper, warm_start="names"), (nu, content), words, 5000,
+                               _Rooms({"toilet"})) is settings
+    out = warm_start_settings(settings, hyper, (nu, content), words, 5000, _Rooms({"toilet"}))
     assert out.word_weight == pytest.approx(token_weight(16.0, 5000)) == pytest.approx(16 / 5000)
     prior = WordChannels.initial(nu, 4, 1.0, content).name_prior()
     low = tuple(int(k) for k in np.flatnonzero(prior < OBJECT_BELOW))
@@ -59,8 +65,12 @@ def test_the_warm_start_settings_weigh_a_token_and_leave_out_the_objects() -> No
     assert out.start_not_names == (1, 3)  # "toilet" can be a room: it keeps its place
     # the rest of the settings as they were; S^w per token when the word weight is none
     assert out.view_counts == 16.0 and out.variant == "exact"
-    assert warm_start_settings(settings, (nu, content), words, 4, 1.0, None, 5000,
+    assert warm_start_settings(settings, replace(hyper, word_counts=None), (nu, content), words, 5000,
                                _Rooms(set())).word_weight == 1.0
+    with pytest.raises(ConfigurationError, match="warm_start"):
+        TransferHyperparameters(warm_start="sweeps")
+    assert TransferHyperparameters().with_settings(["warm_start=words"]).warm_start == "words"
+    assert "warm_start" not in TransferHyperparameters().to_dict()  # (files from before unchanged)
 
 
 @pytest.mark.skipif(lexicon() is None, reason="WordNet is not installed")
@@ -69,8 +79,9 @@ def test_wordnet_keeps_the_rooms_and_leaves_out_the_furniture() -> None:
     objects) can be rooms; "table", "sofa", "bed" cannot."""
     words = ["toilet", "bathroom", "table", "sofa", "bed"]
     nu, content = np.full(5, 0.05), np.full(5, 0.95)
-    out = warm_start_settings(SamplerSettings.create("exact", prune=True), (nu, content), _Words(words),
-                              4, 1.0, 16.0, 5000)
+    hyper = TransferHyperparameters(n_concepts=4, evidence_weight=1.0, word_counts=16.0, warm_start="words")
+    out = warm_start_settings(SamplerSettings.create("exact", prune=True), hyper, (nu, content),
+                              _Words(words), 5000)
     assert [words[k] for k in out.start_not_names] == ["table", "sofa", "bed"]
 
 

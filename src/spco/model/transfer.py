@@ -293,14 +293,13 @@ class SpatialConceptModel:
                         settings: gibbs.SamplerSettings) -> gibbs.SamplerSettings:
         """``settings`` for the warm start of a fit that learns its words with the word channels
         (:func:`~spco.model.word_channels.warm_start_settings`); ``settings`` as they are otherwise."""
-        if not (uses_word_channels(hyper, settings) and bool(data.words.nnz)):
+        if hyper.warm_start == "names" or not (uses_word_channels(hyper, settings) and bool(data.words.nnz)):
             return settings
         sentences = [s for t in corpus.training_set() for s in t.sentences]
         if not has_english(corpus.vocabulary, sentences):
             return settings
         evidence = channel_evidence(corpus.vocabulary, sentences)
-        return warm_start_settings(settings, evidence, corpus.vocabulary, hyper.n_concepts,
-                                   hyper.evidence_weight, hyper.word_counts, corpus.word_increment)
+        return warm_start_settings(settings, hyper, evidence, corpus.vocabulary, corpus.word_increment)
 
     @staticmethod
     def _start_word_channels(run, corpus: Corpus, data: gibbs.PreparedData, hyper: TransferHyperparameters,

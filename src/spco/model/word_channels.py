@@ -592,15 +592,15 @@ def concept_name_tokens(words: sp.csr_array, homes: np.ndarray, concepts: np.nda
 
 
 
-def warm_start_settings(settings, evidence: tuple[np.ndarray, np.ndarray], vocabulary, n_concepts: int,
-                        evidence_weight: float, word_counts: float | None, word_increment: int,
-                        lexicon: object | None = None):
+def warm_start_settings(settings, hyper, evidence: tuple[np.ndarray, np.ndarray], vocabulary,
+                        word_increment: int, lexicon: object | None = None):
     """``settings`` (:class:`~spco.model.state.SamplerSettings`) for the warm start of a fit that learns
-    its words with the channels, from the channels' ``evidence`` (ν, a) of ``vocabulary``'s words.
-
-    The start's independent sweeps weigh a word token as the chain does (``word_weight`` W^w / S^w,
-    :func:`token_weight`; :func:`spco.model.shard_init.initialise` then holds a partly taught home's
-    own names in place through them), and the words the evidence calls objects (name prior
+    its words with the channels, from the channels' ``evidence`` (ν, a) of ``vocabulary``'s words:
+    as they are unless ``hyper`` (:class:`~spco.model.hyperparameters.TransferHyperparameters`) asks
+    for ``warm_start="words"`` (opt-in). Then the start's independent sweeps weigh a word token as
+    the chain does (``word_weight`` W^w / S^w, :func:`token_weight`;
+    :func:`spco.model.shard_init.initialise` then holds a partly taught home's own names in place
+    through them and weighs its words S^w), and the words the evidence calls objects (name prior
     p(name | k), :meth:`WordChannels.name_prior`, below :data:`spco.model.unheard.OBJECT_BELOW`:
     "table", "sofa", "bed") that cannot denote a room (no noun sense a room or an area of a building
     in WordNet, :meth:`spco.data.lexicon.Lexicon.room_share`; "toilet" and "bathroom" can, whatever
@@ -612,6 +612,9 @@ def warm_start_settings(settings, evidence: tuple[np.ndarray, np.ndarray], vocab
     from spco.data.lexicon import lexicon as default_lexicon
     from spco.model.unheard import OBJECT_BELOW
 
+    if getattr(hyper, "warm_start", "names") != "words":
+        return settings
+    n_concepts, evidence_weight, word_counts = hyper.n_concepts, hyper.evidence_weight, hyper.word_counts
     rooms = default_lexicon() if lexicon is None else lexicon
     objects: tuple[int, ...] = ()
     if rooms is not None and vocabulary is not None and len(vocabulary):
