@@ -33,7 +33,7 @@ from spco.model.pruning import words_to_keep
 from spco.model.seeds import as_generator, seed_of
 from spco.model.sources import PreparedHomes
 from spco.model.transfer import SpCoTransfer
-from spco.model.word_channels import WordChannels, token_weight, uses_word_channels
+from spco.model.word_channels import WordChannels, token_weight, uses_word_channels, warm_start_settings
 from spco.timestamps import utc_now
 
 
@@ -287,6 +287,8 @@ def _sample_chain(engine: Any, source: Any, hyper: TransferHyperparameters, sett
         bar = progress_bar(total=n_iterations, desc=progress, unit="sweep", leave=False)
     from spco.engines import start_source_run
 
+    if evidence is not None:  # the warm start with the channels' evidence (warm_start="words")
+        settings = warm_start_settings(settings, hyper, evidence, vocabulary, word_increment)
     run = start_source_run(engine, source, hyper, settings, rng)  # the homes stay in the shards
     stand_ins = None
     if evidence is not None:

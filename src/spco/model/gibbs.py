@@ -416,11 +416,12 @@ def view_weights(data: PreparedData, view_counts: float | None) -> np.ndarray | 
     return view_powers(data.view_totals, float(view_counts))
 
 
-def _concept_loglik(data: PreparedData, state: GibbsState, view_counts: float | None = None) -> np.ndarray:
+def _concept_loglik(data: PreparedData, state: GibbsState, view_counts: float | None = None,
+                    word_weight: float | np.ndarray = 1.0) -> np.ndarray:
     """Visual + word log-likelihood of every sample under every concept of its home: (N, L).
 
     ``view_counts``: the evidence of one view in counts (:func:`view_weights`; ``None``: the
-    multinomial of every count)."""
+    multinomial of every count); ``word_weight``: without channels, the words' times this (or (N,))."""
     loglik = HierarchicalMultinomial.log_likelihood(data.visual, data.homes, state.log_theta_v,
                                                     by_dimension=data.visual_by_dimension)
     weights = view_weights(data, view_counts)
@@ -431,7 +432,9 @@ def _concept_loglik(data: PreparedData, state: GibbsState, view_counts: float | 
         loglik += mixture_log_likelihood(data.words, data.homes, state.log_theta_w, channels)
     elif data.words.nnz:
         log_theta_w = kept_word_log_theta(state.log_theta_w, state.word_mask)
-        loglik += HierarchicalMultinomial.log_likelihood(sentence_words(data, state), data.homes, log_theta_w)
+        words = HierarchicalMultinomial.log_likelihood(sentence_words(data, state), data.homes, log_theta_w)
+        weight = np.asarray(word_weight, dtype=np.float64)
+        loglik += words if np.all(weight == 1.0) else words * weight.reshape(-1, 1)
     return loglik
 
 
@@ -465,7 +468,7 @@ def _local_step(data: PreparedData, state: GibbsState, settings: SamplerSettings
     followed by a pass of region block moves (:mod:`spco.model.blocks`: a region's samples of one
     concept change concept together, G_e and π integrated out), before the word switches are drawn;
     the caller's next home step redraws G_e and π given the result, as the move requires."""
-    concept_ll = _concept_loglik(data, state, settings.view_counts)
+    concept_ll = _concept_loglik(data, state, settings.view_counts, settings.word_weight)
     region_ll = GaussianRegions.log_likelihood(data.positions, data.homes, state.means, state.covariances)
     before = _conditional_log_joint(data, state, concept_ll, region_ll)
     if settings.joint_assignment:

@@ -29,6 +29,12 @@ NamePrior = Literal["off", "wordnet"]
 #: (``adapt``; a teaching's local update does not run them), or there and in the joint fit too.
 BLOCK_MOVES = ("off", "adapt", "all")
 BlockMoves = Literal["off", "adapt", "all"]
+#: The exact sampler's warm start with the word channels (``TransferHyperparameters.warm_start``):
+#: ``"names"`` — the naming rule's names mark the places and the start's sweeps weigh a token S^w;
+#: ``"words"`` — those sweeps weigh a token W^w, objects mark no place, a partly taught home's own
+#: names are held (:func:`spco.model.word_channels.warm_start_settings`; opt-in, issue 28 class c).
+WARM_STARTS = ("names", "words")
+WarmStart = Literal["names", "words"]
 
 #: What the exact sampler targets (``TransferHyperparameters.target``; docs/model.md, "The model the
 #: sampler targets"): ``"power"`` — the power likelihood, every step (assignments, θ, φ, switches, label
@@ -201,6 +207,13 @@ class TransferHyperparameters:
         S^w = 5,000 counts per token). Kept in the fitted hyperparameters (the knowledge file, and
         every home adapted or taught from it, uses the numbers); a quantity that cannot be estimated
         keeps its given value. Written by :meth:`to_dict` only when not ``"given"``.
+    warm_start: the exact sampler's start with the word channels (:data:`WARM_STARTS`): ``"names"``
+        (default) as without them; ``"words"`` — the start's sweeps weigh a word token W^w
+        (``word_counts``) as the chain does, the words the evidence calls objects that cannot denote a
+        room mark no place, and a partly taught home keeps its own names (docs/model.md, "With the
+        word channels the start can weigh words as the chain does"). Opt-in: on development natural
+        speech it gains, but a home-specific room is lost (benchmarks/README.md, branch start10).
+        Written by :meth:`to_dict` only when not ``"names"``.
     evidence_weight: η, the weight of the linguistic evidence in the switch's prior (word channels):
         p(z = name | word) ∝ λ_name ν^η, p(z = place or background) ∝ λ_c (1 − ν)^η, ν the name
         evidence of :mod:`spco.model.name_evidence`. Default :data:`EVIDENCE_WEIGHT`, chosen on
@@ -231,6 +244,7 @@ class TransferHyperparameters:
     target: Target = "cut"
     visual_prior: VisualPrior = "given"
     word_prior: WordPrior = "given"
+    warm_start: WarmStart = "names"
 
     def __post_init__(self) -> None:
         for name in ("n_concepts", "n_regions"):
@@ -282,6 +296,9 @@ class TransferHyperparameters:
                 and float(self.word_counts) != round(float(self.word_counts))):
             raise ConfigurationError(f"word_counts must be a whole number with target='power' (a word "
                                      f"token's counts stay whole), got {self.word_counts!r}")
+        if self.warm_start not in WARM_STARTS:
+            raise ConfigurationError(f"warm_start must be one of {', '.join(map(repr, WARM_STARTS))}, "
+                                     f"got {self.warm_start!r}")
         if self.name_prior not in NAME_PRIORS:
             raise ConfigurationError(f"name_prior must be one of {', '.join(map(repr, NAME_PRIORS))}, "
                                      f"got {self.name_prior!r}")
@@ -327,7 +344,8 @@ class TransferHyperparameters:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dictionary (``name_prior`` and ``block_moves`` only when not ``"off"``, ``target``
-        only when not ``"cut"``, ``visual_prior`` and ``word_prior`` only when not ``"given"``)."""
+        only when not ``"cut"``, ``visual_prior`` and ``word_prior`` only when not ``"given"``,
+        ``warm_start`` only when not ``"names"``)."""
         data = asdict(self)
         if data["target"] == "cut":
             del data["target"]
@@ -335,6 +353,8 @@ class TransferHyperparameters:
             del data["visual_prior"]
         if data["word_prior"] == "given":
             del data["word_prior"]
+        if data["warm_start"] == "names":
+            del data["warm_start"]
         if data["name_prior"] == "off":
             del data["name_prior"]
         if data["block_moves"] == "off":
@@ -373,7 +393,7 @@ class TransferHyperparameters:
                 raise ConfigurationError(f"hyperparameter setting {setting!r}: no hyperparameter {name!r}; "
                                          f"settable: {', '.join(SETTABLE)}")
             if kind in ("one of channels, naming-rule", "one of off, adapt, all", "one of cut, power",
-                        "one of given, estimate"):
+                        "one of given, estimate", "one of names, words"):
                 changes[name] = text
                 continue
             if name == "view_counts" and text.lower() == ESTIMATE:
@@ -404,7 +424,7 @@ SETTABLE: dict[str, str] = {
     "view_counts": "number, none or estimate", "evidence_weight": "a number", "word_counts": "number or none",
     "word_model": "one of channels, naming-rule", "block_moves": "one of off, adapt, all",
     "target": "one of cut, power", "visual_prior": "one of given, estimate",
-    "word_prior": "one of given, estimate",
+    "word_prior": "one of given, estimate", "warm_start": "one of names, words",
 }
 
 

@@ -251,6 +251,19 @@ class ShardGroup:
         """Every home starts from the places its names mark."""
         self._each("init_places", overlaps)
 
+    def init_taught(self) -> np.ndarray:
+        """The homes' taught fractions, concatenated in home order."""
+        return np.concatenate(self._each("init_taught"))
+
+    def init_said_in_kept(self, weights: np.ndarray) -> np.ndarray:
+        """Words said in the homes of weight 1 (or)."""
+        return np.logical_or.reduce([h.init_said_in_kept(weights[e:e + 1]) for e, h in enumerate(self.homes)])
+
+    def init_hold(self, weights: np.ndarray, said_elsewhere: np.ndarray) -> None:
+        """Every reduced home holds its own names' samples through the independent sweeps."""
+        for e, h in enumerate(self.homes):
+            h.init_hold(weights[e:e + 1], said_elsewhere)
+
     def init_local_step(self) -> None:
         """Every home's independent local step."""
         self._each("init_local_step")

@@ -11,7 +11,10 @@ weighted by how much it was taught:
    (:class:`~spco.model.pruning.Colocation`, (V,) × 3) are summed by the driver and sent back;
    each shard starts its homes' concepts from them;
 2. ``n_sweeps`` independent (SpCoA) sweeps of every home, the sweep-0 word mask judged by the
-   driver on the summed naming statistics;
+   driver on the summed naming statistics; a word token weighs
+   :attr:`~spco.model.state.SamplerSettings.word_weight` of its S^w counts in them (W^w / S^w with
+   the word channels), and when that is below 1 the samples of a home taught less than the most
+   taught that stand for a name of its own are held in their concepts (:func:`_hold_own_names`);
 3. the cross-home label alignment: the driver receives per home only its word total, the names it
    says and its taught fraction, and then aligns the homes one by one in the order of
    :func:`~spco.model.gibbs.align_homes` (most words first) against a running pooled reference
@@ -102,7 +105,9 @@ class ShardInitialisation:
         data, state, hyper = self.data, self.state, self.hyper
         from spco.model.shard import on_sum_grid
 
-        self._names = gibbs.sample_names(data, state.regions, hyper, stats=naming)
+        named = judge_names(naming) == NAME
+        named[list(self.settings.start_not_names)] = False  # (warm_start_settings)
+        self._names = gibbs.sample_names(data, state.regions, hyper, named=named, stats=naming)
         overlaps = name_overlaps(name_region_overlaps(self._names, state.regions, data.offsets,
                                                       hyper.n_regions), data.words.shape[1])
         return NameOverlaps(on_sum_grid(overlaps.weighted), overlaps.weights)
@@ -118,10 +123,40 @@ class ShardInitialisation:
         stats = gibbs.sufficient_statistics(data, state, hyper, self.settings.learning_view_counts())
         independent_home_step(data, state, stats, hyper, self.rng)
 
+    def init_taught(self) -> np.ndarray:
+        """The share of each of the shard's homes' samples with a sentence, (E_s,)."""
+        data = self.data
+        taught = np.bincount(data.homes, weights=np.diff(data.words.indptr) > 0, minlength=data.n_homes)
+        return taught / np.maximum(np.diff(data.offsets), 1)
+
+    def init_said_in_kept(self, weights: np.ndarray) -> np.ndarray:
+        """The words said in the shard's homes of weight 1 (``weights`` (E_s,)): (V,) bool."""
+        said = np.zeros(self.data.words.shape[1], dtype=bool)
+        said[np.unique(self.data.words[np.flatnonzero(weights[self.data.homes] >= 1.0)].indices)] = True
+        return said
+
+    def init_hold(self, weights: np.ndarray, said_elsewhere: np.ndarray) -> None:
+        """Hold the samples of a reduced home (``weights`` < 1) that stand for a name of its own
+        (said in no home of weight 1, ``said_elsewhere``) in their starting concepts through the
+        independent sweeps."""
+        names, data = self._names, self.data
+        reduced = (weights < 1.0)[data.homes]
+        own = (names >= 0) & reduced
+        own[own] = ~said_elsewhere[names[own]]
+        self._held = np.flatnonzero(own)
+        self._held_concepts = self.state.concepts[self._held].copy()
+        if reduced.any():  # a partly taught home's words weigh S^w in the start, as without channels
+            self._word_weight = np.where(reduced, 1.0, self.settings.word_weight)
+
     def init_local_step(self) -> None:
         """One local step of the independent warm-start sampler (statistics kept)."""
-        independent = replace(INDEPENDENT, view_counts=self.settings.view_counts)  # the same view evidence
+        # the same view evidence, and a word token's as the chain weighs it (SamplerSettings.word_weight)
+        independent = replace(INDEPENDENT, view_counts=self.settings.view_counts,
+                              word_weight=getattr(self, "_word_weight", self.settings.word_weight))
         gibbs.local_step(self.data, self.state, independent, self.rng)
+        held = getattr(self, "_held", None)
+        if held is not None and held.size:
+            self.state.concepts[held] = self._held_concepts
         self._init_stats = gibbs.sufficient_statistics(self.data, self.state, self.hyper,
                                                           self.settings.learning_view_counts())
 
@@ -238,7 +273,8 @@ class ShardInitialisation:
         state.log_g0, state.word_mask = shared.log_g0, shared.word_mask
         state.name_words = shared.name_words
         gibbs.home_step(self.data, state, self._init_stats, self.hyper, self.settings, self.rng)
-        for name in ("_init_stats", "_names", "_name_counts", "_weights", "_own"):
+        for name in ("_init_stats", "_names", "_name_counts", "_weights", "_own", "_held", "_held_concepts",
+                     "_word_weight"):
             self.__dict__.pop(name, None)
 
 
@@ -351,6 +387,21 @@ def _first_sweeps(call, total, settings: SamplerSettings, n_words: int, n_sweeps
     return word_mask, name_words
 
 
+def _hold_own_names(call, call_each, gather, bounds: list[tuple[int, int]],
+                    report: InitialisationReport) -> None:
+    """Have the shards hold, through the independent sweeps, the samples of every reduced home (taught
+    less than the most taught: :func:`~spco.model.gibbs.initial_home_weights` < 1) that stand for a
+    name of the home's own (said in no home of weight 1) in the concepts its names start in: what
+    :func:`initialise` later gives free labels. A start that weighs a word token below S^w
+    (:attr:`~spco.model.state.SamplerSettings.word_weight`) would otherwise let a taught room's few
+    samples be drawn by view and position into the home's other concepts before their names get a
+    concept of their own."""
+    weights = gibbs.initial_home_weights(np.concatenate(gather(call("init_taught"))))
+    said = np.logical_or.reduce(gather(call_each("init_said_in_kept", [(weights[a:b],) for a, b in bounds])))
+    call_each("init_hold", [(weights[a:b], said) for a, b in bounds])
+    report.bytes_sent += weights.nbytes + said.nbytes * len(bounds)
+
+
 def _hand_out_labels(owns: list[dict[int, Any]], free: list[int]) -> list[dict[int, list[tuple[int, int]]]]:
     """The free concept labels handed out in home order: per shard, home -> (own word, label) pairs,
     one label per word of the home's own while labels are left (``free`` is used up in place)."""
@@ -405,6 +456,8 @@ def initialise(call, call_each, bounds: list[tuple[int, int]], n_words: int, hyp
         naming = total(call("colocation"))
         overlaps = total(call("init_names", naming))
         call("init_places", overlaps)
+        if settings.word_weight < 1.0:  # a start that weighs words below S^w (warm_start_settings)
+            _hold_own_names(call, call_each, gather, bounds, report)
         report.bytes_sent += overlaps.nbytes * n_shards
         report.bytes_sent += naming.nbytes * n_shards
     word_mask, name_words = _first_sweeps(call, total, settings, n_words, n_sweeps, report, n_shards)

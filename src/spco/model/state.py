@@ -152,6 +152,15 @@ class SamplerSettings:
     #: the power likelihood in every step (``TransferHyperparameters.target == "power"``; exact
     #: sampler only): θ^v and φ^v learn from the views' weighted counts as the assignments weigh them
     power: bool = False
+    #: the evidence of one word token in a sample's concept draw when the state has no word channels,
+    #: as a share of the token's S^w counts (1: S^w per token; or one per sample, (N,)). A fit with
+    #: the word channels and ``TransferHyperparameters.warm_start="words"`` sets W^w / S^w for its warm
+    #: start's independent sweeps (:mod:`spco.model.shard_init`), so that the start weighs a token as
+    #: the chain does; the chain weighs tokens through the channels and does not read this
+    word_weight: float | np.ndarray = 1.0
+    #: vocabulary columns that mark no place at the warm start although the naming rule may judge them
+    #: names (:func:`spco.model.word_channels.warm_start_settings`); the chain does not read this
+    start_not_names: tuple[int, ...] = ()
 
     @classmethod
     def create(cls, variant: str, prune: bool, learn_shared: bool = True,

@@ -54,7 +54,13 @@ from spco.model.posterior import (
     untaught_concepts_name_nothing,
 )
 from spco.model.seeds import as_generator
-from spco.model.word_channels import WordChannels, channel_parameters, token_weight, uses_word_channels
+from spco.model.word_channels import (
+    WordChannels,
+    channel_parameters,
+    token_weight,
+    uses_word_channels,
+    warm_start_settings,
+)
 
 
 def clone(estimator: SpatialConceptModel) -> SpatialConceptModel:
@@ -234,6 +240,7 @@ class SpatialConceptModel:
                                desc=f"{type(self).__name__} ({settings.variant})", unit="sweep", leave=False)
         from spco.model.driver import start_run
 
+        settings = self._start_settings(corpus, data, hyper, settings)
         run = start_run(engine, data, len(corpus.vocabulary), hyper, settings, rng)
         hyper, settings = run.hyper, run.settings  # with the view weight estimated from the homes
         hyper, evidence = self._start_word_channels(run, corpus, data, hyper, settings)
@@ -280,6 +287,19 @@ class SpatialConceptModel:
         self.regions_ = [state.regions[s].copy() for s in splits]
         self.training_ids_ = [t.ids for t in corpus.training_set()]
         return self
+
+    @staticmethod
+    def _start_settings(corpus: Corpus, data: gibbs.PreparedData, hyper: TransferHyperparameters,
+                        settings: gibbs.SamplerSettings) -> gibbs.SamplerSettings:
+        """``settings`` for the warm start of a fit that learns its words with the word channels
+        (:func:`~spco.model.word_channels.warm_start_settings`); ``settings`` as they are otherwise."""
+        if hyper.warm_start == "names" or not (uses_word_channels(hyper, settings) and bool(data.words.nnz)):
+            return settings
+        sentences = [s for t in corpus.training_set() for s in t.sentences]
+        if not has_english(corpus.vocabulary, sentences):
+            return settings
+        evidence = channel_evidence(corpus.vocabulary, sentences)
+        return warm_start_settings(settings, hyper, evidence, corpus.vocabulary, corpus.word_increment)
 
     @staticmethod
     def _start_word_channels(run, corpus: Corpus, data: gibbs.PreparedData, hyper: TransferHyperparameters,

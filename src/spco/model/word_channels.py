@@ -589,3 +589,38 @@ def concept_name_tokens(words: sp.csr_array, homes: np.ndarray, concepts: np.nda
     token_row, cols, _ = tokens(words)
     np.add.at(out, (np.asarray(concepts, dtype=np.int64)[token_row], cols), p[:, NAME])
     return out
+
+
+
+def warm_start_settings(settings, hyper, evidence: tuple[np.ndarray, np.ndarray], vocabulary,
+                        word_increment: int, lexicon: object | None = None):
+    """``settings`` (:class:`~spco.model.state.SamplerSettings`) for the warm start of a fit that learns
+    its words with the channels, from the channels' ``evidence`` (ν, a) of ``vocabulary``'s words:
+    as they are unless ``hyper`` (:class:`~spco.model.hyperparameters.TransferHyperparameters`) asks
+    for ``warm_start="words"`` (opt-in). Then the start's independent sweeps weigh a word token as
+    the chain does (``word_weight`` W^w / S^w, :func:`token_weight`;
+    :func:`spco.model.shard_init.initialise` then holds a partly taught home's own names in place
+    through them and weighs its words S^w), and the words the evidence calls objects (name prior
+    p(name | k), :meth:`WordChannels.name_prior`, below :data:`spco.model.unheard.OBJECT_BELOW`:
+    "table", "sofa", "bed") that cannot denote a room (no noun sense a room or an area of a building
+    in WordNet, :meth:`spco.data.lexicon.Lexicon.room_share`; "toilet" and "bathroom" can, whatever
+    their sentences make them look like) mark no place at the start (``start_not_names``): a sample
+    that says only such words takes the place of its region, and such a word said in two rooms does
+    not join their names as synonyms (:func:`spco.model.synonyms.same_place_names`). ``lexicon``:
+    a :class:`~spco.data.lexicon.Lexicon` (default :func:`spco.data.lexicon.lexicon`); without
+    WordNet no word is left out."""
+    from spco.data.lexicon import lexicon as default_lexicon
+    from spco.model.unheard import OBJECT_BELOW
+
+    if getattr(hyper, "warm_start", "names") != "words":
+        return settings
+    n_concepts, evidence_weight, word_counts = hyper.n_concepts, hyper.evidence_weight, hyper.word_counts
+    rooms = default_lexicon() if lexicon is None else lexicon
+    objects: tuple[int, ...] = ()
+    if rooms is not None and vocabulary is not None and len(vocabulary):
+        prior = WordChannels.initial(evidence[0], n_concepts, evidence_weight, evidence[1]).name_prior()
+        words = list(vocabulary.words)
+        # a term by its head word ("hanako's bed": "bed")
+        objects = tuple(int(k) for k in np.flatnonzero(prior < OBJECT_BELOW)
+                        if not rooms.room_share(words[k].split()[-1]) > 0.0)  # type: ignore[attr-defined]
+    return replace(settings, word_weight=token_weight(word_counts, word_increment), start_not_names=objects)

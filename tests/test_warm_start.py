@@ -1,0 +1,173 @@
+"""The warm start of a fit that learns its words with the word channels (issue 28, class c: concepts
+that hold two rooms): the start's sweeps weigh a word token as the chain does, the words the channels'
+evidence calls objects and that cannot denote a room mark no place
+(:func:`spco.model.word_channels.warm_start_settings`), and a home taught less than the others holds
+the samples of its own names in their concepts through those sweeps
+(:func:`spco.model.shard_init.initialise`). The start is not part of either target: the chain's
+conditionals are those of ``tests/test_word_channels.py`` and ``tests/test_power_target.py``."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from spco.data.lexicon import lexicon
+from spco.data.synthetic import SyntheticConfig, generate_homes
+from spco.engines import LocalEngine
+from spco.errors import ConfigurationError
+from spco.model import gibbs
+from spco.model.gibbs import GibbsState, PreparedData
+from spco.model.hyperparameters import TransferHyperparameters
+from spco.model.shard_init import ShardInitialisation
+from spco.model.sources import PreparedHomes
+from spco.model.state import SamplerSettings
+from spco.model.transfer import SpatialConceptModel
+from spco.model.unheard import OBJECT_BELOW
+from spco.model.word_channels import WordChannels, token_weight, warm_start_settings
+
+
+class _Words:
+    def __init__(self, words: list[str]) -> None:
+        self.words = words
+
+    def __len__(self) -> int:
+        return len(self.words)
+
+
+class _Rooms:
+    """A lexicon that knows which of its words can be a room."""
+
+    def __init__(self, rooms: set[str]) -> None:
+        self.rooms = rooms
+
+    def room_share(self, word: str) -> float:
+        return 1.0 if word in self.rooms else 0.0
+
+
+def test_the_warm_start_settings_weigh_a_token_and_leave_out_the_objects() -> None:
+    nu = np.array([0.8, 0.05, 0.3, 0.1, 0.6, 0.05])  # a name, an object, a weak name, an object, a name,
+    content = np.array([0.95, 0.95, 0.9, 0.95, 0.5, 0.95])  # and a room the sentences call an object
+    words = _Words(["kitchen", "table", "nook", "sofa", "den", "toilet"])
+    settings = SamplerSettings.create("exact", prune=True, view_counts=16.0)
+    assert settings.word_weight == 1.0 and settings.start_not_names == ()  # S^w: as before
+    hyper = TransferHyperparameters(n_concepts=4, evidence_weight=1.0, word_counts=16.0, warm_start="words")
+    # the default start ("names"): the settings as they are
+    assert warm_start_settings(settings, replace(hyper, warm_start="names"), (nu, content), words, 5000,
+                               _Rooms({"toilet"})) is settings
+    out = warm_start_settings(settings, hyper, (nu, content), words, 5000, _Rooms({"toilet"}))
+    assert out.word_weight == pytest.approx(token_weight(16.0, 5000)) == pytest.approx(16 / 5000)
+    prior = WordChannels.initial(nu, 4, 1.0, content).name_prior()
+    low = tuple(int(k) for k in np.flatnonzero(prior < OBJECT_BELOW))
+    assert low == (1, 3, 5)
+    assert out.start_not_names == (1, 3)  # "toilet" can be a room: it keeps its place
+    # the rest of the settings as they were; S^w per token when the word weight is none
+    assert out.view_counts == 16.0 and out.variant == "exact"
+    assert warm_start_settings(settings, replace(hyper, word_counts=None), (nu, content), words, 5000,
+                               _Rooms(set())).word_weight == 1.0
+    with pytest.raises(ConfigurationError, match="warm_start"):
+        TransferHyperparameters(warm_start="sweeps")
+    assert TransferHyperparameters().with_settings(["warm_start=words"]).warm_start == "words"
+    assert "warm_start" not in TransferHyperparameters().to_dict()  # (files from before unchanged)
+
+
+@pytest.mark.skipif(lexicon() is None, reason="WordNet is not installed")
+def test_wordnet_keeps_the_rooms_and_leaves_out_the_furniture() -> None:
+    """With WordNet: "toilet" and "bathroom" (names the free-form homes' sentences make look like
+    objects) can be rooms; "table", "sofa", "bed" cannot."""
+    words = ["toilet", "bathroom", "table", "sofa", "bed"]
+    nu, content = np.full(5, 0.05), np.full(5, 0.95)
+    hyper = TransferHyperparameters(n_concepts=4, evidence_weight=1.0, word_counts=16.0, warm_start="words")
+    out = warm_start_settings(SamplerSettings.create("exact", prune=True), hyper, (nu, content),
+                              _Words(words), 5000)
+    assert [words[k] for k in out.start_not_names] == ["table", "sofa", "bed"]
+
+
+def _one_home(words: sp.csr_array, n_concepts: int,
+              rng: np.random.Generator) -> tuple[PreparedData, GibbsState]:
+    n = words.shape[0]
+    data = PreparedData(positions=rng.normal(size=(n, 4)), homes=np.zeros(n, dtype=np.int64),
+                        visual=sp.csr_array(rng.integers(0, 5, (n, 3))), words=words, n_homes=1,
+                        offsets=np.array([0, n]), position_scale=1.0, map_centres=np.zeros((1, 4)))
+    log_theta_v = np.log(rng.dirichlet(np.ones(3), (1, n_concepts)))
+    log_theta_w = np.log(rng.dirichlet(np.ones(words.shape[1]), (1, n_concepts)))
+    state = GibbsState(concepts=np.zeros(n, dtype=np.int64), regions=np.zeros(n, dtype=np.int64),
+                       log_g=np.zeros((1, n_concepts)), log_g0=np.zeros(n_concepts),
+                       log_pi=np.zeros((1, n_concepts, 1)), means=np.zeros((1, 1, 4)),
+                       covariances=np.tile(np.eye(4), (1, 1, 1, 1)), log_theta_v=log_theta_v,
+                       log_theta_w=log_theta_w, log_phi_v=log_theta_v[0], log_phi_w=log_theta_w[0],
+                       word_mask=np.ones(words.shape[1], dtype=bool))
+    return data, state
+
+
+def test_the_start_weighs_the_words_by_the_word_weight() -> None:
+    """Without channels (the start's sweeps) a sample's word log-likelihood under each concept is
+    ``word_weight`` times that of S^w counts per token; the view's is unchanged."""
+    rng = np.random.default_rng(3)
+    words = sp.csr_array(rng.integers(0, 3, (6, 5)) * 5000)
+    data, state = _one_home(words, 3, rng)
+    full = gibbs._concept_loglik(data, state, 16.0)
+    views = gibbs._concept_loglik(data, state, 16.0, 0.0)  # the words weigh nothing: the views alone
+    weighed = gibbs._concept_loglik(data, state, 16.0, 16 / 5000)
+    assert np.allclose(weighed - views, (full - views) * 16 / 5000)
+    assert not np.allclose(full, views)  # (the words do count)
+
+
+def _partly_taught_corpus():
+    """5 synthetic homes; the last (with the home-specific bedrooms) keeps 2 of every 5 sentences."""
+    corpus = generate_homes(5, seed=4, config=SyntheticConfig(n_features=64, n_train=12))
+    last = corpus[-1]
+    kept = [s if i % 5 < 2 else None for i, s in enumerate(last.sentences)]
+    homes = [*corpus[:-1], last.with_sentences(kept)]
+    return type(corpus)(homes)
+
+
+@pytest.mark.parametrize("word_weight", [16 / 5000, 1.0])
+def test_a_home_taught_less_holds_its_own_names_through_the_start(monkeypatch, word_weight: float) -> None:
+    """With a word weight below S^w the samples of the partly taught home that stand for a name said
+    in no fully taught home (brute force over the homes' sentences) keep their starting concepts
+    through every independent sweep, and that home's words weigh S^w there; the fully taught homes'
+    weigh W^w and their samples move. At S^w (weight 1) nothing is held."""
+    corpus = _partly_taught_corpus()
+    model = SpatialConceptModel(variant="exact", random_state=0, prune_words=True)
+    hyper, settings = model.checked_hyperparameters(), model.sampler_settings()
+    settings = replace(settings, word_weight=word_weight)
+    data = SpatialConceptModel.prepare_data(corpus, 1.0)
+    last = data.n_homes - 1
+    rows = slice(data.offsets[last], data.offsets[last + 1])
+    seen: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []  # the last home's sweeps
+    others_moved: list[bool] = []
+    local_step = ShardInitialisation.init_local_step
+
+    def spy(self) -> None:
+        before = self.state.concepts.copy()
+        local_step(self)
+        held = getattr(self, "_held", np.zeros(0, dtype=np.int64))
+        weight = np.asarray(getattr(self, "_word_weight", self.settings.word_weight))
+        if np.array_equal(self.data.positions, data.positions[rows]):
+            seen.append((held, before, self.state.concepts.copy(), self._names.copy()))
+            assert np.all(weight == 1.0)  # the partly taught home's words weigh S^w in the start
+        else:
+            assert held.size == 0 and np.all(weight == word_weight)  # a fully taught home: W^w, nothing held
+            others_moved.append(bool((before != self.state.concepts).any()))
+
+    monkeypatch.setattr(ShardInitialisation, "init_local_step", spy)
+    run = LocalEngine(1).start_source(PreparedHomes(data, len(corpus.vocabulary)), hyper, settings,
+                                      np.random.default_rng(0))
+    run.close()
+    assert seen and any(others_moved)  # (the sweeps do draw the samples)
+    if word_weight == 1.0:
+        assert all(h.size == 0 for h, *_ in seen)
+        return
+    # brute force: the words said in the fully taught homes; the last home's samples of its own names
+    names = seen[0][3]
+    said_elsewhere = set(np.unique(data.words[np.arange(data.offsets[last])].indices).tolist())
+    expected = [i for i in range(names.size) if names[i] >= 0 and int(names[i]) not in said_elsewhere]
+    assert expected
+    words = {corpus.vocabulary.words[int(names[i])] for i in expected}
+    assert all("'s" in w for w in words), words  # the home-specific rooms' names
+    for held, before, after, _ in seen:
+        assert held.tolist() == expected
+        assert np.array_equal(before[held], after[held])
