@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from spco.data.language import normalize_name
+from spco.data.language import NAME_LEADING_WORDS, normalize_name
 from spco.data.regions import PlaceRegions
 from spco.errors import ConfigurationError, DataFormatError
 
@@ -25,7 +25,7 @@ __all__ = ["CONFIG_FORMAT", "LEADING_WORDS", "Room", "SpecificConfigFile", "Spec
 #: Format of a configuration file (its ``_format`` field).
 CONFIG_FORMAT = "heldout-specific/1"
 #: Words dropped at the start of a phrase before comparing names (the file's normalisation).
-LEADING_WORDS = ("the", "a", "an", "my", "our", "your")
+LEADING_WORDS = NAME_LEADING_WORDS
 
 
 def normalize_phrase(text: str) -> str:
