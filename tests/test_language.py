@@ -284,6 +284,20 @@ def test_a_query_inside_a_longer_term_finds_it() -> None:
     assert grown.query("grandma") == (["grandma"], [])  # not a whole word of the term: unknown
 
 
+def test_a_name_asked_with_its_article_is_the_name() -> None:
+    """`where the kids' bedroom` asks for the term "kids bedroom" (the tokenizer's plural possessive),
+    not for "the" beside it; "the" alone is still a query of its own."""
+    from spco.data.language import Vocabulary
+
+    vocab = Vocabulary(("this", "is", "the", "my")).extended(["this is the kids' bedroom"] * 4
+                                                             + ["we call it the kids' bedroom"] * 3)
+    assert "kids bedroom" in vocab.words
+    k = vocab.words.index("kids bedroom")
+    for asked in ("the kids' bedroom", "The Kids\u2019 bedroom", "my kids' bedroom", "kids' bedroom"):
+        assert vocab.query(asked) == (["kids bedroom"], [k]), asked
+    assert vocab.query("the") == (["the"], [vocab.words.index("the")])
+
+
 def test_compounds_the_lexicon_knows_are_terms_without_the_follow_share(wordnet) -> None:
     """Rule 6: "dining" is said with "table", "room" and "space", followed by none in half of its
     uses (rule 3 fails), yet "dining room" and "dining table" are WordNet nouns, and "bath room" is

@@ -115,6 +115,10 @@ def test_wordnet_tells_places_from_furniture_objects_and_acts(wordnet) -> None:
     for thing in ("table", "sofa", "towel", "fridge", "dining", "sleep"):
         assert wordnet.place_share(thing) == 0.0, thing
     assert wordnet.noun_share("greet") == 0.0 and wordnet.noun_share("kitchen") == 1.0
+    # said of a place, a word names something there: its abstract senses (study as learning, a report)
+    # do not dilute its place senses (the room), and a word whose noun senses are all abstract has none
+    assert wordnet.place_share("study") > 0.5 and wordnet.place_share("music") == 0.0
+    assert wordnet.place_share("desk") == 0.0 and wordnet.place_share("bed") < 0.3
     assert np.isnan(wordnet.noun_share("genkan"))  # unknown to WordNet: neutral
     feats = lexical_features(["kitchen", "emma's room", "the", "genkan"], wordnet)
     assert feats[1, 2] == pytest.approx(wordnet.place_share("room"))  # a term: its head word

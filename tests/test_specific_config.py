@@ -12,6 +12,7 @@ import pytest
 from click.testing import CliRunner
 
 from spco.cli.experiment import experiment
+from spco.data.language import normalize_name
 from spco.errors import DataFormatError
 from spco.evaluation.specific_config import (
     ConfiguredData,
@@ -28,6 +29,8 @@ from spco.evaluation.specific_config import (
 ROOT = Path(__file__).resolve().parents[1]
 HELDOUT = ROOT / "benchmarks" / "heldout" / "specific_heldout.json"
 DEVELOPMENT = ROOT / "benchmarks" / "development" / "specific_dev.json"
+#: the harder development configurations (renamed rooms sharing a concept, names holding the general name)
+DEVELOPMENT_HARD = ROOT / "benchmarks" / "development" / "specific_dev_hard.json"
 
 
 def _small(tmp_path: Path, **changes: object) -> Path:
@@ -56,6 +59,10 @@ def test_the_project_files_read_and_keep_the_split() -> None:
     dev_homes = {c.home for c in dev.configurations}
     assert not held_homes & dev_homes  # no home is on both sides of benchmarks/SPLIT.md
     assert not {"3LDK_9", "3LDK_9_original", "3LDK_9_100data"} & held_homes
+    hard = load_specific_config(DEVELOPMENT_HARD)
+    assert set(hard.seeds) <= set(range(100)) and len(hard.configurations) == 7
+    # development or knowledge homes only: none held out, nor the calibration's held-out 1LDK_9
+    assert not {c.home for c in hard.configurations} & (held_homes | {"1LDK_9"})
 
 
 def test_teaching_draw_follows_the_files_rule(tmp_path: Path) -> None:
@@ -107,6 +114,10 @@ def test_names_are_compared_as_the_files_say() -> None:
     assert normalize_phrase("my  Kim's_room") == "kim's room"
     assert normalize_phrase("the") == "the"  # a lone article stays (and names nothing)
     assert normalize_phrase("piano-room") == "piano room"
+    # a plural possessive as the tokenizer writes it: the robot's "kids bedroom" is "the kids' bedroom"
+    assert normalize_phrase("the kids' bedroom") == normalize_phrase("Kids\u2019 bedroom") == "kids bedroom"
+    assert normalize_phrase("the kids' bedroom") == normalize_name("the kids' bedroom").removeprefix("the ")
+    assert normalize_phrase("grandpa's study") == "grandpa's study"  # a singular possessive keeps its 's
 
 
 def test_bootstrap_interval_covers_the_mean_and_narrows_with_samples() -> None:

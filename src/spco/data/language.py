@@ -114,6 +114,10 @@ if TYPE_CHECKING:
 #: Determiners and possessive pronouns (a word ending in "'s" or "s'" also counts as a possessive).
 DETERMINERS = frozenset({"the", "a", "an", "this", "that", "these", "those", "my", "our", "your", "his",
                          "her", "their", "its", "whose"})
+#: Words that may lead a place name asked for without being part of it ("the kitchen", "my room",
+#: "our study"): an article or a possessive pronoun of the speaker or listener (:meth:`Vocabulary.query`
+#: drops one when other words follow; the configuration files compare names the same way).
+NAME_LEADING_WORDS = ("the", "a", "an", "my", "our", "your")
 #: Prepositions (place and direction phrases: "on the table", "to your left", "next to the bath").
 PREPOSITIONS = frozenset({"to", "in", "on", "at", "by", "from", "into", "onto", "near", "next", "beside",
                           "behind", "under", "over", "across", "through", "after", "before", "for",
@@ -662,10 +666,15 @@ class Vocabulary:
 
         ``"Living Room"`` → ``(["living room"], [k])`` when the term is known; ``"study room"`` →
         ``(["study", "room"], [k_study, k_room])`` when only the words are (also for
-        ``"study-room"``: an unknown compound is split into its words).
+        ``"study-room"``: an unknown compound is split into its words). A leading article or
+        possessive pronoun (:data:`NAME_LEADING_WORDS`) is not part of the name: ``"the kids'
+        bedroom"`` → ``(["kids bedroom"], [k])`` ("the" alone stays).
         """
         tokens: list[str] = []
-        for token in self.tokenize(name):
+        said = self.tokenize(name)
+        if len(said) > 1 and said[0] in NAME_LEADING_WORDS:  # "the kids' bedroom" asks for "kids bedroom"
+            said = said[1:]
+        for token in said:
             if token in self._index or " " not in token:
                 tokens.append(token)
             else:  # an unknown hyphenated compound ("study-room"): its words

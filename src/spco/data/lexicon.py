@@ -128,6 +128,7 @@ class Lexicon:
         self._wn = open_reader(reader_folder(folder, _cache_root()))
         self._roots = [self._wn.synset(name) for name in PLACE_ROOTS]
         self._not_roots = [self._wn.synset(name) for name in NOT_PLACE_ROOTS]
+        self._physical = self._wn.synset("physical_entity.n.01")
         self._lock = threading.Lock()
         self.version = str(self._wn.get_version())
 
@@ -182,18 +183,35 @@ class Lexicon:
             return False
         return any(root in closure for root in self._roots)
 
+    @functools.lru_cache(maxsize=65536)  # noqa: B019 - one lexicon per process
+    def _is_physical_synset(self, name: str) -> bool:
+        synset = self._wn.synset(name)
+        return self._physical in {synset, *synset.closure(lambda s: s.hypernyms() + s.instance_hypernyms())}
+
     def place_share(self, word: str) -> float:
-        """Share of the word's noun senses (weighted as :meth:`noun_share`) that are places (see the
-        module docstring); NaN for a word without noun senses."""
+        """Share of the word's noun senses that can be pointed at — physical entities (WordNet's
+        ``physical_entity.n.01``), weighted as :meth:`noun_share` — that are places (see the module
+        docstring); NaN for a word without noun senses. A word said of a place ("this is the study")
+        is said of something there: its abstract senses (acts, cognition, communication, states:
+        "study" as learning or a report) are not what it can name, so they do not dilute its place
+        senses ("study" 0.64 of its physical senses is the room; 0.05 of all its senses). Objects
+        keep their share ("table", "desk" 0, "door" 0.28). A word whose noun senses are all abstract
+        ("music", "dining" as an act) has no place sense: 0."""
         lemma = self._lemma(word)
         place = total = 0.0
+        seen = False
         for synset in self.synsets(word, pos="n"):
+            seen = True
+            with self._lock:
+                if not self._is_physical_synset(synset.name()):
+                    continue
+                is_place = self._is_place_synset(synset.name())
             weight = 1.0 + sum(lem.count() for lem in synset.lemmas() if lem.name().lower() == lemma)
             total += weight
-            with self._lock:
-                if self._is_place_synset(synset.name()):
-                    place += weight
-        return place / total if total else float("nan")
+            place += weight if is_place else 0.0
+        if not seen:
+            return float("nan")
+        return place / total if total else 0.0
 
     def room_share(self, word: str) -> float:
         """Share of the word's own noun senses (those with the word itself as a lemma, not a base form
@@ -600,8 +618,8 @@ def kinds_of(word: str, facts: dict[str, KindFacts], others: Sequence[str]) -> i
 
 
 #: Format of the file of :func:`word_facts` (a file of another format is computed again; 2: places
-#: without :data:`NOT_PLACE_ROOTS`).
-_FACTS_FORMAT = 2
+#: without :data:`NOT_PLACE_ROOTS`; 3: the place share among the physical senses).
+_FACTS_FORMAT = 3
 #: Format of the file of :func:`kind_facts`.
 _KINDS_FORMAT = 1
 _facts_lock = threading.Lock()

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from spco.data.language import NAME_LEADING_WORDS, normalize_name
 from spco.data.regions import PlaceRegions
 from spco.errors import ConfigurationError, DataFormatError
 
@@ -24,14 +25,17 @@ __all__ = ["CONFIG_FORMAT", "LEADING_WORDS", "Room", "SpecificConfigFile", "Spec
 #: Format of a configuration file (its ``_format`` field).
 CONFIG_FORMAT = "heldout-specific/1"
 #: Words dropped at the start of a phrase before comparing names (the file's normalisation).
-LEADING_WORDS = ("the", "a", "an", "my", "our", "your")
+LEADING_WORDS = NAME_LEADING_WORDS
 
 
 def normalize_phrase(text: str) -> str:
-    """A name as the configuration files compare names: lower case, ``-`` and ``_`` as spaces, runs
-    of spaces collapsed, a leading ``the``/``a``/``an``/``my``/``our``/``your`` dropped (when
-    another word follows); a trailing ``'s`` is kept (``"The Nursery"`` → ``"nursery"``)."""
-    words = str(text).casefold().replace("\u2019", "'").replace("-", " ").replace("_", " ").split()
+    """A name as the configuration files compare names: its words as the model's tokenizer writes
+    them (:func:`spco.data.language.normalize_name`: lower case, ``-`` and ``_`` as spaces, runs of
+    spaces collapsed, a plural possessive's apostrophe dropped as the tokenizer drops it: ``"kids'"``
+    → ``"kids"``, so the name the robot learnt from "the kids' bedroom" compares equal to it), a
+    leading ``the``/``a``/``an``/``my``/``our``/``your`` dropped (when another word follows); a
+    trailing ``'s`` is kept (``"The Nursery"`` → ``"nursery"``)."""
+    words = normalize_name(str(text).replace("_", " ")).split()
     if len(words) > 1 and words[0] in LEADING_WORDS:
         words = words[1:]
     return " ".join(words)

@@ -14,8 +14,9 @@ apart is how they are said and what they are:
   said alone) — while objects and directions come after prepositions ("*on the* table", "to *the*
   left"), greetings and activities after pronouns or verbs ("I'm home", "I sleep here").
 - **What the word is** (:func:`lexical_features`, WordNet through :mod:`spco.data.lexicon`): the
-  share of its senses that are nouns, and the share of its noun senses that are places (rooms,
-  areas, passages, structures, locations) rather than furniture, objects, acts or people. A term
+  share of its senses that are nouns, and the share of its physical noun senses (those that can be
+  pointed at: a word said of a place names something there, not an act or a report) that are
+  places (rooms, areas, passages, structures, locations) rather than furniture, objects or people. A term
   unknown to WordNet ("emma's room", "kids bedroom") is judged by its head word ("room",
   "bedroom"); a word WordNet does not know at all (typos, loanwords such as "genkan") is neutral.
 
@@ -162,7 +163,8 @@ def frame_features(vocabulary: Vocabulary, sentences: Iterable[str | None]) -> n
 def lexical_features(words: Sequence[str], lexicon: object | None = None) -> np.ndarray:
     """What each word is, from WordNet: (V, 5) = known (1: WordNet knows the word, or one of its
     :func:`spelling_variants`, or for a term its head word, tried in that order), share of noun
-    senses, share of noun senses that are places, function word (one of spco's English
+    senses, share of physical noun senses that are places (:meth:`spco.data.lexicon.Lexicon.place_share`),
+    function word (one of spco's English
     function-word lists), spelling variant (1: the facts are those of a word one
     edit away, "kicthen", "bathrooom": a misspelt name is where the name is, but not the name to
     answer; a compound written as one or in two, "bed room", "livingroom", is not a misspelling).
