@@ -1,5 +1,5 @@
-"""The file caches of WordNet's word facts (spco.data.lexicon.word_facts) and kind facts
-(spco.data.lexicon.kind_facts): the same numbers as the lexicon, read without loading WordNet once
+"""The file caches of WordNet's word facts (spco.data.word_facts.word_facts) and kind facts
+(spco.data.word_facts.kind_facts): the same numbers as the lexicon, read without loading WordNet once
 known, rewritten when missing or of another format."""
 
 from __future__ import annotations
@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from spco.data import lexicon as lexicon_module
+from spco.data import word_facts as facts_module
 from spco.data.language import Vocabulary
 from spco.model.name_evidence import channel_evidence, lexical_features
 
@@ -19,9 +20,9 @@ WORDS = ["kitchen", "emma's room", "room", "the", "genkan", "sofa", "living room
 @pytest.fixture()
 def empty_cache(tmp_path, monkeypatch: pytest.MonkeyPatch):
     monkeypatch.setenv("SPCO_CACHE_DIR", str(tmp_path))
-    monkeypatch.setattr(lexicon_module, "_facts_memory", {})
-    monkeypatch.setattr(lexicon_module, "_kinds_memory", {})
-    monkeypatch.setattr(lexicon_module, "_closest_memory", {})
+    monkeypatch.setattr(facts_module, "_facts_memory", {})
+    monkeypatch.setattr(facts_module, "_kinds_memory", {})
+    monkeypatch.setattr(facts_module, "_closest_memory", {})
     return tmp_path
 
 
@@ -33,10 +34,10 @@ def from_files_alone(monkeypatch: pytest.MonkeyPatch):
         def no_wordnet(folder: str):
             raise AssertionError("WordNet loaded although every word's facts are in the cache files")
 
-        monkeypatch.setattr(lexicon_module, "_load", no_wordnet)
-        monkeypatch.setattr(lexicon_module, "_facts_memory", {})
-        monkeypatch.setattr(lexicon_module, "_kinds_memory", {})
-        monkeypatch.setattr(lexicon_module, "_closest_memory", {})
+        monkeypatch.setattr(facts_module, "_load", no_wordnet)
+        monkeypatch.setattr(facts_module, "_facts_memory", {})
+        monkeypatch.setattr(facts_module, "_kinds_memory", {})
+        monkeypatch.setattr(facts_module, "_closest_memory", {})
 
     return forbid_wordnet
 
@@ -47,7 +48,7 @@ def test_cached_features_equal_the_lexicon_s_and_need_no_wordnet_once_known(
     first = lexical_features(WORDS)  # computes and writes the file
     np.testing.assert_array_equal(first, direct)
     files = list(empty_cache.glob("wordnet-facts-*.json"))
-    assert len(files) == 1 and json.loads(files[0].read_text())["format"] == lexicon_module._FACTS_FORMAT
+    assert len(files) == 1 and json.loads(files[0].read_text())["format"] == facts_module._FACTS_FORMAT
     from_files_alone()
     np.testing.assert_array_equal(lexical_features(WORDS), direct)
 
@@ -57,15 +58,15 @@ def test_a_file_of_another_format_or_broken_is_computed_again(wordnet, empty_cac
     path = next(empty_cache.glob("wordnet-facts-*.json"))
     for text in ('{"format": 999, "words": {"kitchen": [false, null, null]}}', "not json"):
         path.write_text(text)
-        lexicon_module._facts_memory.clear()
-        facts = lexicon_module.word_facts(["kitchen"])
+        facts_module._facts_memory.clear()
+        facts = facts_module.word_facts(["kitchen"])
         assert facts is not None and facts["kitchen"].known and facts["kitchen"].place_share >= 0.99
-        assert json.loads(path.read_text())["format"] == lexicon_module._FACTS_FORMAT
+        assert json.loads(path.read_text())["format"] == facts_module._FACTS_FORMAT
 
 
 def test_no_facts_without_the_lexicon(monkeypatch: pytest.MonkeyPatch, empty_cache) -> None:
     monkeypatch.setenv("SPCO_WORDNET", "off")
-    assert lexicon_module.word_facts(["kitchen"]) is None
+    assert facts_module.word_facts(["kitchen"]) is None
     features = lexical_features(["kitchen", "the"])
     assert features[0].tolist() == [0.0, 0.5, 0.0, 0.0, 0.0] and features[1, 3] == 1.0
 
@@ -88,7 +89,7 @@ def test_cached_kind_facts_give_the_lexicon_s_evidence_and_need_no_wordnet_once_
     room = vocabulary.index("room")
     assert room is not None and nu[room] < 0.1 * nu[vocabulary.index("kitchen")]  # a kind of place
     files = list(empty_cache.glob("wordnet-kinds-*.json"))
-    assert len(files) == 1 and json.loads(files[0].read_text())["format"] == lexicon_module._KINDS_FORMAT
+    assert len(files) == 1 and json.loads(files[0].read_text())["format"] == facts_module._KINDS_FORMAT
     from_files_alone()
     again = channel_evidence(vocabulary, KIND_SENTENCES)
     np.testing.assert_array_equal(again[0], direct[0])
@@ -114,7 +115,7 @@ def test_stand_ins_from_the_cache_files_equal_the_lexicon_s_and_need_no_wordnet_
     monkeypatch.setattr(unheard, "_STAND_IN_CACHE", {})
     assert unheard.stand_in_names(vocab, mask, prior, asked) == direct  # computes and writes the files
     files = list(empty_cache.glob("wordnet-closest-*.json"))
-    assert len(files) == 1 and json.loads(files[0].read_text())["format"] == lexicon_module._CLOSEST_FORMAT
+    assert len(files) == 1 and json.loads(files[0].read_text())["format"] == facts_module._CLOSEST_FORMAT
     from_files_alone()
     monkeypatch.setattr(unheard, "_STAND_IN_CACHE", {})
     assert unheard.stand_in_names(vocab, mask, prior, asked) == direct
@@ -128,7 +129,7 @@ import json, os, sys, time
 go = sys.argv[1]
 while not os.path.exists(go):
     time.sleep(0.01)
-from spco.data import lexicon
+from spco.data import word_facts as lexicon
 facts = lexicon.word_facts(json.loads(sys.argv[2]))
 print(json.dumps({"loaded": lexicon._load.cache_info().currsize == 1,
                   "facts": {w: [f.known, f.noun_share, f.place_share] for w, f in facts.items()}}))

@@ -390,11 +390,11 @@ def _term_pass(counts: _PairCounts, min_count: int, min_g2: float, min_follow: f
 def lexicon_compounds(pairs: Iterable[tuple[str, str]]) -> set[tuple[str, str]]:
     """The pairs of single words whose compound is a WordNet noun, written with a space ("dining
     room") or as one word ("bath room" as "bathroom"): rule 6 of the module docstring. Empty when
-    the lexicon is unavailable (:func:`spco.data.lexicon.word_facts`)."""
+    the lexicon is unavailable (:func:`spco.data.word_facts.word_facts`)."""
     asked = [(a, b) for a, b in pairs if " " not in a and " " not in b and a.isalpha() and b.isalpha()]
     if not asked:
         return set()
-    from spco.data.lexicon import word_facts
+    from spco.data.word_facts import word_facts
 
     facts = word_facts(sorted({f for a, b in asked for f in (f"{a} {b}", f"{a}{b}")}))
     if facts is None:

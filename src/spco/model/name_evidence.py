@@ -203,10 +203,10 @@ def lexical_features(words: Sequence[str], lexicon: object | None = None) -> np.
 
 
 def _lookup(texts: Sequence[str], lexicon: object | None) -> dict | None:
-    """:class:`spco.data.lexicon.WordFacts` of ``texts``: from ``lexicon``, or the process's WordNet
+    """:class:`spco.data.word_facts.WordFacts` of ``texts``: from ``lexicon``, or the process's WordNet
     through the cache of word facts (no NLTK if all known); None without a lexicon."""
     if lexicon is None:
-        from spco.data.lexicon import word_facts
+        from spco.data.word_facts import word_facts
 
         return word_facts(list(texts))
     return {c: _facts_of(lexicon, c) for c in texts}
@@ -254,8 +254,8 @@ def spelling_variants(word: str, vocabulary: Sequence[str] = ()) -> list[str]:
 
 
 def _facts_of(lexicon: object, word: str):
-    """:class:`spco.data.lexicon.WordFacts` of ``word`` from a lexicon object."""
-    from spco.data.lexicon import WordFacts
+    """:class:`spco.data.word_facts.WordFacts` of ``word`` from a lexicon object."""
+    from spco.data.word_facts import WordFacts
 
     known = bool(lexicon.knows(word))  # type: ignore[attr-defined]
     return WordFacts(known, lexicon.noun_share(word) if known else float("nan"),  # type: ignore[attr-defined]
@@ -311,7 +311,7 @@ def channel_evidence(vocabulary: Vocabulary, sentences: Iterable[str | None],
     place = features[:, FEATURES.index("place_share")] > 0
     candidates = [words[k] for k in np.flatnonzero(place)]
     if lexicon is None:  # the process's WordNet, through the cache of kind facts (no NLTK if all known)
-        from spco.data.lexicon import kind_facts, kinds_of
+        from spco.data.word_facts import kind_facts, kinds_of
 
         kinds = kind_facts(candidates)
         if kinds is not None:

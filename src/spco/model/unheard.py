@@ -410,20 +410,20 @@ def _spelled(lexicon: object, vocabulary: Vocabulary, mask: np.ndarray, k: int) 
 
 class _FileLexicon:
     """The two questions :func:`stand_in_names` asks the lexicon, answered from the lexicon's cache
-    files (:func:`spco.data.lexicon.word_facts`, :func:`spco.data.lexicon.closest_names`): the same
+    files (:func:`spco.data.word_facts.word_facts`, :func:`spco.data.word_facts.closest_names`): the same
     answers, and WordNet (NLTK's import and reading, seconds) is loaded only for words not asked
     before on this machine."""
 
     @staticmethod
     def knows(word: str) -> bool:
-        from spco.data.lexicon import word_facts
+        from spco.data.word_facts import word_facts
 
         facts = word_facts([word])
         return bool(facts is not None and facts[word].known)
 
     @staticmethod
     def closest(name: str, known: list[str]):
-        from spco.data.lexicon import closest_names
+        from spco.data.word_facts import closest_names
 
         found = closest_names([(name, known)])
         return None if found is None else found[0]
