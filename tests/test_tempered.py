@@ -141,12 +141,13 @@ def test_theta_draws_are_the_tempered_posterior(powers: np.ndarray) -> None:
 # ----------------------------------------------------------------------------- (c) φ^v
 
 
-def log_phi_posterior(p: np.ndarray, counts: np.ndarray, alpha: float, delta: float) -> np.ndarray:
+def log_phi_posterior(p: np.ndarray, counts: np.ndarray, alpha: float | np.ndarray,
+                      delta: float) -> np.ndarray:
     """log [Dir(φ | α) Π_e Γ(δ)/Γ(δ + N_e) Π_k Γ(δ φ_k + n_ek)/Γ(δ φ_k)], φ = (p, 1 − p), n real: the
     tempered likelihood with θ integrated out."""
     phi = np.stack([p, 1.0 - p], axis=-1)
     a = delta * phi
-    out = (alpha - 1.0) * np.log(phi).sum(-1)
+    out = ((np.asarray(alpha) - 1.0) * np.log(phi)).sum(-1)  # α a number or one per dimension
     for n_e in counts:
         out += (gammaln(a + n_e) - gammaln(a)).sum(-1)
     return out
@@ -167,15 +168,17 @@ def test_the_collapsed_weight_is_the_integral_of_the_tempered_likelihood() -> No
     (np.array([[3.6, 7.2], [10.5, 2.25]]), 5.0, 0.5),  # whole and fractional parts
     (np.array([[0.04, 0.02], [0.01, 0.03], [0.2, 0.0]]), 1.5, 1.0),  # a view's evidence spread thin
     (np.array([[60.4, 140.7], [90.5, 35.1]]), 30.0, 1.0),  # the moment-matched CRT tail (n > 40)
+    # a prior with a base measure, Dir(A m) (benchmarks/visual_base_measure.py): one parameter per dimension
+    (np.array([[0.04, 0.9], [1.3, 0.2]]), 3.0, np.array([0.03, 2.5])),
 ])
 def test_phi_step_leaves_the_tempered_posterior_invariant(counts: np.ndarray, delta: float,
-                                                          alpha: float) -> None:
+                                                          alpha: float | np.ndarray) -> None:
     """4,000 independent chains of the φ^v step (the concept axis), 150 steps each, against
     p(φ | n) on a grid (KS test)."""
     chains, steps = 4000, 150
     rng = np.random.default_rng(3)
     n = np.broadcast_to(counts[:, None, :], (counts.shape[0], chains, 2)).copy()
-    log_phi = np.log(rng.dirichlet([alpha, alpha], size=chains))
+    log_phi = np.log(rng.dirichlet(np.broadcast_to(alpha, 2), size=chains))
     accepted = 0.0
     for _ in range(steps):
         new = HierarchicalMultinomial.sample_shared_given_counts(n, log_phi, delta, alpha, rng)
