@@ -542,7 +542,7 @@ def _never_apart(counts: _PairCounts, max_sentence_share: float) -> dict[tuple[s
             and in_sentences[b] <= frame and _joinable(a, b)}
 
 
-def _contains_run(words: list[str], run: list[str]) -> bool:
+def contains_run(words: list[str], run: list[str]) -> bool:
     """Whether ``run`` occurs in ``words`` as adjacent items."""
     n = len(run)
     return 0 < n <= len(words) and any(words[i:i + n] == run for i in range(len(words) - n + 1))
@@ -684,7 +684,7 @@ class Vocabulary:
             # "grandma's room okay", learnt from one sentence): the shortest term holding its words
             # in order, side by side
             words = " ".join(tokens).split()
-            holding = [w for w in self.terms if _contains_run(w.split(), words)]
+            holding = [w for w in self.terms if contains_run(w.split(), words)]
             if holding:
                 best = min(holding, key=lambda w: (len(w.split()), self._index[w]))
                 return [best], [self._index[best]]

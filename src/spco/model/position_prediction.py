@@ -47,7 +47,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.special import logsumexp
 
-from spco.data.language import Vocabulary, _contains_run
+from spco.data.language import Vocabulary, contains_run
 from spco.errors import ConfigurationError
 from spco.model.parameters import ConceptParameters
 from spco.model.prediction import (
@@ -202,7 +202,7 @@ def _holding_terms(vocabulary: Vocabulary, k: int) -> tuple[int, ...]:
     by side (:func:`query_forms`), kept per vocabulary and word."""
     run = vocabulary.words[k].split()
     return tuple(j for j, word in enumerate(vocabulary.words)
-                 if j != k and " " in word and _contains_run(word.split(), run))
+                 if j != k and " " in word and contains_run(word.split(), run))
 
 
 def query_name(vocabulary: Vocabulary, params: ConceptParameters, name: str,
