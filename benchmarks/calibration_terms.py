@@ -164,8 +164,9 @@ def report(rows: list[dict[str, Any]]) -> str:
     for r in rows:
         if r["account"][0] != r["label"]:
             groups[(r["home"], r["label"], r["account"][0])].append(r)
-    out += ["", "| home: place → answered | n | median p | p ≥ 0.99 | p(k | x) | room n | room's places (all answers) | "
-            "p(l* | room) | room margin | view margin | θ^w(answer | l*) |", "|---" * 11 + "|"]
+    out += ["", "| home: place → answered | n | median p | p ≥ 0.99 | p(k | x) | room n | "
+            "room's places (all answers) | p(l* | room) | room margin | view margin | θ^w(answer | l*) |",
+            "|---" * 11 + "|"]
     for (home, label, answer), rs in sorted(groups.items(), key=lambda t: -len(t[1])):
         def med(key: str, rs: list[dict[str, Any]] = rs) -> float:
             return float(np.median([r[key] for r in rs]))
