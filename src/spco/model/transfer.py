@@ -281,8 +281,8 @@ class SpatialConceptModel:
         #: averaged over the averaged sweeps (``None`` without the word channels): which words are names
         self.channel_tokens_ = average.expected_tokens()
         if state.channels is not None:
-            exported = channel_parameters(state.channels, average.place_mean)  # ψ: its mean, not the draw
-            self.parameters_ = replace(self.parameters_, **exported)
+            self.parameters_ = replace(self.parameters_,  # ψ: its mean, not the draw
+                                       **channel_parameters(state.channels, average.place_mean))
         splits = np.split(np.arange(data.n_samples), data.offsets[1:-1])
         self.concepts_ = [state.concepts[s].copy() for s in splits]
         self.regions_ = [state.regions[s].copy() for s in splits]
