@@ -270,3 +270,21 @@ def test_a_fit_recovers_names_and_background_in_free_form_homes() -> None:
     assert (share[function, NAME] <= 0.05).all(), str({words[k]: round(float(share[k, NAME]), 3)
                                                        for k in function})
     assert (share[function, BACKGROUND] + share[function, PLACE] >= 0.95).all()
+
+
+def test_place_mean_is_the_mean_of_the_place_words_draw() -> None:
+    """The exported ψ is E[ψ | place counts]: (α^p + n) / Σ, 1/V for a concept with no place token
+    (a draw of Dir(0.1) there is a spike on one word), and the draws of sample_channels average to it."""
+    from spco.model.word_channels import ALPHA_PLACE, ChannelCounts, channel_parameters, place_mean
+
+    place = np.array([[0.0, 0.0, 0.0, 0.0], [3.0, 0.0, 1.0, 6.0]])
+    counts = ChannelCounts(place, np.zeros(4), np.zeros((4, 3)))
+    expected = (ALPHA_PLACE + place) / (ALPHA_PLACE + place).sum(axis=1, keepdims=True)
+    assert_allclose(np.exp(place_mean(counts)), expected)
+    assert_allclose(np.exp(place_mean(counts))[0], 0.25)
+    channels = WordChannels.initial(np.full(4, 0.5), 2)
+    rng = np.random.default_rng(0)
+    draws = np.mean([np.exp(sample_channels(counts, channels, rng).log_place) for _ in range(4000)], axis=0)
+    assert_allclose(draws, expected, atol=0.03)
+    assert_allclose(channel_parameters(channels, place_mean(counts))["place_word_probabilities"], expected)
+    assert_allclose(channel_parameters(channels)["place_word_probabilities"], np.exp(channels.log_place))

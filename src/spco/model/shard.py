@@ -48,6 +48,7 @@ from spco.model.word_channels import (
     ChannelCounts,
     WordChannels,
     expected_tokens,
+    place_mean,
     place_names,
     sample_channels,
 )
@@ -396,6 +397,11 @@ class GlobalStep:
         #: Dirichlet with parameters far below one draws most of its coordinates near e^(−1/a), so an
         #: average of a few draws is no estimate of the mean); ``None`` otherwise
         self.visual_mean: np.ndarray | None = None
+        #: log E[ψ | the last sweep's place tokens] (L, V) with the word channels: Dir(α^p + counts)'s
+        #: mean, what a fit exports instead of the draw (a concept no taught home holds has no place
+        #: token; Dir(α^p = 0.1) then draws a spike on one word, which ``where`` would read as that
+        #: word's place); ``None`` without the channels
+        self.place_mean: np.ndarray | None = None
 
     def run(self, call, shared: SharedParameters) -> SharedParameters:
         """New shared parameters given the current ones and the shards' statistics."""
@@ -421,7 +427,9 @@ class GlobalStep:
         log_g0 = log_dirichlet(hyper.gamma0 / hyper.n_concepts + tables_g, rng)
         channels = shared.channels
         if channels is not None:  # ψ, β, λ from the switches' counts of every home
-            channels = sample_channels(self.reduce(call("channel_counts")), channels, rng)
+            counts = self.reduce(call("channel_counts"))
+            channels = sample_channels(counts, channels, rng)
+            self.place_mean = place_mean(counts)
         return SharedParameters(log_phi_v, log_phi_w, log_g0, shared.word_mask, shared.name_words, channels)
 
     def reduce(self, parts: list):

@@ -281,7 +281,8 @@ class SpatialConceptModel:
         #: averaged over the averaged sweeps (``None`` without the word channels): which words are names
         self.channel_tokens_ = average.expected_tokens()
         if state.channels is not None:
-            self.parameters_ = replace(self.parameters_, **channel_parameters(state.channels))
+            self.parameters_ = replace(self.parameters_,  # ψ: its mean, not the draw
+                                       **channel_parameters(state.channels, average.place_mean))
         splits = np.split(np.arange(data.n_samples), data.offsets[1:-1])
         self.concepts_ = [state.concepts[s].copy() for s in splits]
         self.regions_ = [state.regions[s].copy() for s in splits]
@@ -543,6 +544,9 @@ class _SweepAverage:
         self.visual_mean: np.ndarray | None = None
         #: each home's log θ^v conditional mean at the last sweep under the power target (else ``None``)
         self.final_visual: list[np.ndarray] | None = None
+        #: log E[ψ | the last sweep's place tokens] with the word channels (``GlobalStep.place_mean``),
+        #: exported instead of the last sweep's draw of ψ; ``None`` otherwise
+        self.place_mean: np.ndarray | None = None
 
     def after_sweep(self, run, iteration: int) -> None:
         """Add sweep ``iteration``'s state if it is averaged (not the last sweep's: see
@@ -551,6 +555,7 @@ class _SweepAverage:
         power = run.hyper.target == "power"  # θ^v's and φ^v's conditional means, not their draws
         if iteration == self.n_iterations - 1:  # the power target: φ^v's mean given the last tables
             self.visual_mean = getattr(run.global_step, "visual_mean", None)
+            self.place_mean = getattr(run.global_step, "place_mean", None)
             self.final_visual = [m for part in run.call("visual_means") for m in part] if power else None
         if iteration not in self.averaged or iteration in self.added:
             return

@@ -469,10 +469,21 @@ def sample_channels(counts: ChannelCounts, channels: WordChannels, rng: np.rando
                    log_shares=np.concatenate([[0.0], np.log(grid[choice])]))
 
 
-def channel_parameters(channels: WordChannels) -> dict[str, np.ndarray]:
+def place_mean(counts: ChannelCounts, alpha_place: float = ALPHA_PLACE) -> np.ndarray:
+    """(L, V) log E[ψ | place counts]: the mean of ψ's conditional Dir(α^p + place counts)
+    (:func:`sample_channels` draws from it); a concept with no place token gets 1/V."""
+    pseudo = alpha_place + np.asarray(counts.place, dtype=np.float64)
+    return np.log(pseudo) - np.log(pseudo.sum(axis=-1, keepdims=True))
+
+
+def channel_parameters(channels: WordChannels,
+                       log_place_mean: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """The channels as fields of :class:`~spco.model.parameters.ConceptParameters`: the place words ψ
-    (L, V) and the switch's prior (V, 3), as probabilities."""
-    return {"place_word_probabilities": np.exp(channels.log_place),
+    (L, V) and the switch's prior (V, 3), as probabilities. ``log_place_mean``: log E[ψ | the last
+    sweep's place tokens] (:func:`place_mean`), exported instead of the draw ``channels.log_place``
+    when given (``None``: the draw)."""
+    log_place = channels.log_place if log_place_mean is None else log_place_mean
+    return {"place_word_probabilities": np.exp(log_place),
             "word_channel_prior": np.exp(channels.log_prior())}
 
 
