@@ -240,10 +240,10 @@ class SpatialConceptModel:
                                desc=f"{type(self).__name__} ({settings.variant})", unit="sweep", leave=False)
         from spco.model.driver import start_run
 
-        settings = self._start_settings(corpus, data, hyper, settings)
+        evidence, settings = self._channel_evidence(corpus, data, hyper, settings)
         run = start_run(engine, data, len(corpus.vocabulary), hyper, settings, rng)
         hyper, settings = run.hyper, run.settings  # with the view weight estimated from the homes
-        hyper, evidence = self._start_word_channels(run, corpus, data, hyper, settings)
+        hyper = self._start_word_channels(run, corpus, data, hyper, settings, evidence)
 
         def after_sweep(iteration: int, previous: float) -> None:
             average.after_sweep(run, iteration)
@@ -275,7 +275,7 @@ class SpatialConceptModel:
         self.n_iter_ = int(self.n_iterations)
         averaged_parameters = average.result(state)
         self.parameters_ = self._fitted_parameters(averaged_parameters, corpus, data, state, hyper, settings,
-                                                   evidence)
+                                                   None if evidence is None else evidence[0])
         self.word_channels_ = state.channels
         #: (V, 3) each word's expected tokens as name, place and background word over the fit's homes,
         #: averaged over the averaged sweeps (``None`` without the word channels): which words are names
@@ -290,39 +290,42 @@ class SpatialConceptModel:
         return self
 
     @staticmethod
-    def _start_settings(corpus: Corpus, data: gibbs.PreparedData, hyper: TransferHyperparameters,
-                        settings: gibbs.SamplerSettings) -> gibbs.SamplerSettings:
-        """``settings`` for the warm start of a fit that learns its words with the word channels
-        (:func:`~spco.model.word_channels.warm_start_settings`); ``settings`` as they are otherwise."""
-        if hyper.warm_start == "names" or not (uses_word_channels(hyper, settings) and bool(data.words.nnz)):
-            return settings
+    def _channel_evidence(corpus: Corpus, data: gibbs.PreparedData, hyper: TransferHyperparameters,
+                          settings: gibbs.SamplerSettings
+                          ) -> tuple[tuple[np.ndarray, np.ndarray] | None, gibbs.SamplerSettings]:
+        """The channels' name evidence (ν, a) of the corpus's words (:func:`channel_evidence`) when the
+        fit learns its words with the word channels (``None`` when it does not — no channels or no words
+        — or its speech has no English function word: learnt with the naming rule), and ``settings``
+        for its warm start (:func:`~spco.model.word_channels.warm_start_settings`: as they are unless
+        ``warm_start="words"``)."""
+        if not (uses_word_channels(hyper, settings) and bool(data.words.nnz)):
+            return None, settings
         sentences = [s for t in corpus.training_set() for s in t.sentences]
         if not has_english(corpus.vocabulary, sentences):
-            return settings
+            return None, settings
         evidence = channel_evidence(corpus.vocabulary, sentences)
-        return warm_start_settings(settings, hyper, evidence, corpus.vocabulary, corpus.word_increment)
+        start = warm_start_settings(settings, hyper, evidence, corpus.vocabulary, corpus.word_increment)
+        return evidence, start
 
     @staticmethod
     def _start_word_channels(run, corpus: Corpus, data: gibbs.PreparedData, hyper: TransferHyperparameters,
-                             settings: gibbs.SamplerSettings
-                             ) -> tuple[TransferHyperparameters, np.ndarray | None]:
-        """Give ``run`` the word channels (:mod:`spco.model.word_channels`) when the model uses them;
-        returns the hyperparameters the fit used (``word_model`` "naming-rule" for speech without any
-        English function word) and the channels' name evidence (or None)."""
-        sentences = [s for t in corpus.training_set() for s in t.sentences]
-        channels = uses_word_channels(hyper, settings) and bool(data.words.nnz)
-        if channels and not has_english(corpus.vocabulary, sentences):
+                             settings: gibbs.SamplerSettings,
+                             evidence: tuple[np.ndarray, np.ndarray] | None) -> TransferHyperparameters:
+        """Give ``run`` the word channels (:mod:`spco.model.word_channels`) when the model uses them,
+        from the channels' ``evidence`` (:meth:`_channel_evidence`); returns the hyperparameters the
+        fit used (``word_model`` "naming-rule" for speech without any English function word)."""
+        if not (uses_word_channels(hyper, settings) and bool(data.words.nnz)):
+            return hyper
+        if evidence is None:
             # the channels' prior is English evidence; speech with no English function word at all
             # (Japanese) is learnt with the naming rule, which measures where words are said
-            return replace(hyper, word_model="naming-rule"), None
-        if not channels:
-            return hyper, None
-        evidence, content = channel_evidence(corpus.vocabulary, sentences)
-        run.use_word_channels(WordChannels.initial(evidence, hyper.n_concepts, hyper.evidence_weight,
+            return replace(hyper, word_model="naming-rule")
+        nu, content = evidence
+        run.use_word_channels(WordChannels.initial(nu, hyper.n_concepts, hyper.evidence_weight,
                                                    content, token_weight(hyper.word_counts,
                                                                          corpus.word_increment),
                                                    power=hyper.target == "power"))
-        return run.hyper, evidence  # (δ^w and α^w estimated as the channels start: word_prior)
+        return run.hyper  # (δ^w and α^w estimated as the channels start: word_prior)
 
     @staticmethod
     def _fitted_parameters(params: ConceptParameters, corpus: Corpus, data: gibbs.PreparedData,
