@@ -150,6 +150,15 @@ def _two_place_params(theta: np.ndarray) -> ConceptParameters:
         region_counts=np.array([[10, 10]]), concept_counts=np.array([[10.0, 10.0]]))
 
 
+def _two_place_params_with_place_words(theta: np.ndarray, psi: np.ndarray,
+                                      prior: np.ndarray) -> ConceptParameters:
+    """:func:`_two_place_params` with the word channels: the words said at each place ``psi`` (2, V)
+    and the switch's prior, name ``prior`` (V,) and place the rest."""
+    prior = np.asarray(prior, dtype=float)
+    return replace(_two_place_params(theta), name_prior=prior, place_word_probabilities=psi,
+                   word_channel_prior=np.column_stack([prior, 1.0 - prior, np.zeros(prior.size)]))
+
+
 def test_a_furniture_word_said_more_often_does_not_name_the_place(wordnet) -> None:
     # the dining area is called "dining room" in 2 sentences of 5 and "the table" is said in 3: the
     # model's θ^w gives "table" the most at the dining area (concept 0), the kitchen (concept 1) says
@@ -322,10 +331,7 @@ def _living_washroom_objects() -> tuple[ConceptParameters, Vocabulary]:
     psi = np.array([[0.0, 0.45, 0.45, 0.0, 0.0, 0.1],
                     [0.0, 0.0, 0.0, 0.0, 0.9, 0.1]])
     prior = np.array([0.7, 0.01, 0.01, 0.7, 0.01, 0.01])
-    channels = np.column_stack([prior, 1.0 - prior, np.zeros(6)])
-    params = replace(_two_place_params(theta), name_prior=prior, place_word_probabilities=psi,
-                     word_channel_prior=channels)
-    return params, vocab
+    return _two_place_params_with_place_words(theta, psi, prior), vocab
 
 
 def test_a_name_never_heard_is_found_by_the_words_said_at_a_place(wordnet) -> None:
@@ -376,8 +382,7 @@ def test_a_modifier_s_compound_naming_a_place_comes_before_its_derivations(wordn
     psi = np.array([[0.0, 0.0, 0.9, 0.0, 0.0, 0.1],
                     [0.0, 0.0, 0.0, 0.45, 0.45, 0.1]])
     prior = np.array([0.7, 0.7, 0.01, 0.01, 0.01, 0.01])
-    params = replace(_two_place_params(theta), name_prior=prior, place_word_probabilities=psi,
-                     word_channel_prior=np.column_stack([prior, 1.0 - prior, np.zeros(6)]))
+    params = _two_place_params_with_place_words(theta, psi, prior)
     pred = predict_positions(params, 0, vocab, "dressing area", n=5, rng=0)
     assert (pred.name, pred.via, pred.region) == ("clothes", f"{PLACE_WORD} compound gloss", 1), pred.via
     assert wordnet.closest("dressing area", ["dresser", "clothes"], similarity=False) == \
@@ -437,8 +442,7 @@ def test_a_thing_with_many_kinds_is_a_word_of_a_place_a_kind_of_place_is_not(wor
     theta = np.array([[0.5, 0.0, 0.0, 0.15, 0.0, 0.35], [0.0, 0.5, 0.0, 0.0, 0.15, 0.35]])
     psi = np.array([[0.0, 0.0, 0.0, 0.9, 0.0, 0.1], [0.0, 0.0, 0.9, 0.0, 0.0, 0.1]])
     prior = np.array([0.7, 0.7, 0.01, 0.3, 0.3, 0.01])
-    params = replace(_two_place_params(theta), name_prior=prior, place_word_probabilities=psi,
-                     word_channel_prior=np.column_stack([prior, 1.0 - prior, np.zeros(6)]))
+    params = _two_place_params_with_place_words(theta, psi, prior)
     pred = predict_positions(params, 0, vocab, "wet room", n=5, rng=0)
     assert (pred.name, pred.region) == ("water", 1) and pred.via.startswith(PLACE_WORD), pred.via
 

@@ -602,7 +602,6 @@ def concept_name_tokens(words: sp.csr_array, homes: np.ndarray, concepts: np.nda
     return out
 
 
-
 def warm_start_settings(settings, hyper, evidence: tuple[np.ndarray, np.ndarray], vocabulary,
                         word_increment: int, lexicon: object | None = None):
     """``settings`` (:class:`~spco.model.state.SamplerSettings`) for the warm start of a fit that learns
