@@ -256,7 +256,7 @@ def candidate_names(vocabulary: Vocabulary, word_mask: np.ndarray, name_prior: n
     order = usable[np.argsort(-prior[usable], kind="stable")]
     first = [k for k in order if named[k]]
     then = [k for k in order
-            if not named[k] and _room_share(lexicon, vocabulary.words[k]) >= PLACE_CANDIDATE_SHARE]
+            if not named[k] and _fact(lexicon, "room_share", vocabulary.words[k]) >= PLACE_CANDIDATE_SHARE]
     return [vocabulary.words[k] for k in (*first, *then)
             if not _stands_for_no_place(lexicon, vocabulary.words[k])]
 
@@ -264,11 +264,14 @@ def candidate_names(vocabulary: Vocabulary, word_mask: np.ndarray, name_prior: n
 _FACTS: dict[tuple[int, str, str], float] = {}
 
 
-def _room_share(lexicon: object, word: str) -> float:
-    """:meth:`Lexicon.room_share`, remembered for the process."""
-    key = (id(lexicon), "room", word)
+def _fact(lexicon: object, fact: str, word: str) -> float:
+    """``lexicon.<fact>(word)`` (:class:`~spco.data.lexicon.Lexicon`'s ``room_share``, ``place_share``,
+    ``quality_share``, ``kinds_below``), remembered for the process; NaN (a word without noun senses)
+    as 0, which every test here reads alike (each asks for a share or count above a positive bound)."""
+    key = (id(lexicon), fact, word)
     if key not in _FACTS:
-        _FACTS[key] = float(lexicon.room_share(word))  # type: ignore[attr-defined]
+        value = float(getattr(lexicon, fact)(word))
+        _FACTS[key] = 0.0 if np.isnan(value) else value
     return _FACTS[key]
 
 
@@ -281,33 +284,9 @@ def _stands_for_no_place(lexicon: object, word: str, thing: bool = False) -> boo
     "food" are no places, and many kinds of water are still water, said where it is."""
     from spco.data.lexicon import KINDS_BELOW
 
-    kind = _kinds_below(lexicon, word) >= KINDS_BELOW and (not thing or _place_share(lexicon, word) > 0)
-    return is_function_word(word) or kind or _quality_share(lexicon, word) > QUALITY_SHARE
-
-
-def _place_share(lexicon: object, word: str) -> float:
-    """:meth:`Lexicon.place_share` (0 for a word without noun senses), remembered for the process."""
-    key = (id(lexicon), "place", word)
-    if key not in _FACTS:
-        share = float(lexicon.place_share(word))  # type: ignore[attr-defined]
-        _FACTS[key] = 0.0 if np.isnan(share) else share
-    return _FACTS[key]
-
-
-def _quality_share(lexicon: object, word: str) -> float:
-    """:meth:`Lexicon.quality_share`, remembered for the process."""
-    key = (id(lexicon), "quality", word)
-    if key not in _FACTS:
-        _FACTS[key] = float(lexicon.quality_share(word))  # type: ignore[attr-defined]
-    return _FACTS[key]
-
-
-def _kinds_below(lexicon: object, word: str) -> float:
-    """:meth:`Lexicon.kinds_below`, remembered for the process."""
-    key = (id(lexicon), "kinds", word)
-    if key not in _FACTS:
-        _FACTS[key] = float(lexicon.kinds_below(word))  # type: ignore[attr-defined]
-    return _FACTS[key]
+    kind = (_fact(lexicon, "kinds_below", word) >= KINDS_BELOW
+            and (not thing or _fact(lexicon, "place_share", word) > 0))
+    return is_function_word(word) or kind or _fact(lexicon, "quality_share", word) > QUALITY_SHARE
 
 
 #: A word whose name evidence p(name | word) is below this is an object, an act or a person said at
