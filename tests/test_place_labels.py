@@ -69,3 +69,31 @@ def test_a_taught_name_is_labelled_where_where_goes(tour_home_file: Path) -> Non
     labels = _check_labels_are_where(taught)
     assert "pantry" in taught.known_names
     assert labels.get("pantry") == kn.where(taught, "pantry").region
+
+
+def test_the_robot_s_where_reads_the_lexicon_s_answer_as_the_experiments_do(tour_home_file: Path,
+                                                                           monkeypatch) -> None:
+    """A name nobody said that the lexicon answers by its own words (``SAID_WORDS``: "spare room" by
+    "room") is looked up in the robot's ``where`` as those words only, as ``predict_positions`` (the
+    experiments' A_p) reads the lexicon's answer (``query_forms`` with ``alone=False``: not every term
+    that holds the word); a name answered by a relation (a synonym) as a name asked alone."""
+    from spco.knowledge import queries
+    from spco.model import position_prediction
+    from spco.model.unheard import SAID_WORDS, ResolvedName
+
+    home = kn.load_home_model(tour_home_file)
+    real = position_prediction.predict_positions
+    seen: list[bool] = []
+
+    def spy(*args, **kwargs):
+        seen.append(kwargs.get("alone", True))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(position_prediction, "predict_positions", spy)
+    for how, alone in ((SAID_WORDS, False), ("synonym", True)):
+        found = ResolvedName(asked="cooking room", name="kitchen", how=how, score=1.0)
+        monkeypatch.setattr(queries, "resolve_name", lambda *args, found=found, **kwargs: found)
+        seen.clear()
+        pred = kn.where(home, "cooking room", n=3, random_state=0)
+        assert (pred.asked, pred.name, pred.via) == ("cooking room", "kitchen", how)
+        assert seen == [alone], (how, seen)

@@ -34,7 +34,7 @@ from spco.model.position_prediction import PositionPrediction, place_word_inform
 from spco.model.prediction import NamePrediction, UnknownNameError, mutual_information_weights
 from spco.model.rooms import HomeRooms, sample_rooms
 from spco.model.seeds import as_generator
-from spco.model.unheard import resolve_name
+from spco.model.unheard import SAID_WORDS, resolve_name
 from spco.model.word_channels import concept_name_tokens, name_token_counts, name_tokens, rooms_concentration
 
 
@@ -71,7 +71,10 @@ def where(home: HomeModel, name: str, n: int = 10,
     resolved = resolve_name(home.vocabulary, home.said_words, name, home.parameters.name_prior,
                             information=information, place_information=place_information)
     if resolved is not None:  # a name nobody said: the known name the lexicon finds for it
-        return replace(_where(home, resolved.name, n, random_state), asked=resolved.asked, via=resolved.how)
+        # the words of a longer name answered by them ("spare room": "room") are only themselves, as
+        # predict_positions reads the lexicon's answer (position_prediction.query_forms, ``alone``)
+        pred = _where(home, resolved.name, n, random_state, alone=resolved.how != SAID_WORDS)
+        return replace(pred, asked=resolved.asked, via=resolved.how)
     try:
         return _where(home, name, n, random_state)
     except UnknownNameError:
@@ -99,15 +102,16 @@ def _information(home: HomeModel) -> tuple[np.ndarray, np.ndarray]:
     return known
 
 
-def _where(home: HomeModel, name: str, n: int,
-           random_state: int | np.random.Generator | None) -> PositionPrediction:
-    """:func:`where` without the hint for unusable names."""
+def _where(home: HomeModel, name: str, n: int, random_state: int | np.random.Generator | None,
+           alone: bool = True) -> PositionPrediction:
+    """:func:`where` without the hint for unusable names (``alone``: see
+    :func:`~spco.model.position_prediction.predict_positions`)."""
     from spco.model.position_prediction import predict_positions
 
     params, rooms = answer_inputs(home)
     pred = predict_positions(params, 0, home.vocabulary, name, n, as_generator(random_state), mode="answer",
                              unheard=False, rooms=rooms, view_counts=home.hyperparameters.view_weight(),
-                             lookup=home.parameters.word_mask)
+                             lookup=home.parameters.word_mask, alone=alone)
     if pred.learnt:
         return pred
     # what `what` answers where the poses are: the name itself (learnt after all) or another
