@@ -12,7 +12,7 @@ import click
 
 from spco.errors import ConfigurationError
 
-__all__ = ["check_out", "load_home", "parse_extent"]
+__all__ = ["check_out", "load_home", "parse_extent", "settings_hyperparameters"]
 
 
 def check_out(path: Path, force: bool) -> None:
@@ -39,6 +39,20 @@ def parse_extent(text: str | None) -> tuple[float, float, float, float] | None:
         raise ConfigurationError(f"--extent must be x_min,x_max,y_min,y_max in metres (increasing), "
                                  f"got {text!r}")
     return values  # type: ignore[return-value]
+
+
+def settings_hyperparameters(settings: tuple[str, ...] | list[str]) -> Any:
+    """The transfer models' hyperparameters of ``--set NAME=VALUE`` options on their defaults
+    (:meth:`~spco.model.hyperparameters.TransferHyperparameters.with_settings`), or ``None`` when none
+    is given; a bad setting is a usage error of ``--set`` naming it."""
+    if not settings:
+        return None
+    from spco.model.hyperparameters import TransferHyperparameters
+
+    try:
+        return TransferHyperparameters().with_settings(list(settings))
+    except ConfigurationError as exc:
+        raise click.BadParameter(str(exc), param_hint="--set") from None
 
 
 def load_home(home_file: Path) -> Any:

@@ -14,6 +14,7 @@ from typing import Any
 
 import click
 
+from spco.cli.common import settings_hyperparameters
 from spco.cli.errors import friendly_errors
 
 __all__ = ["experiment"]
@@ -226,10 +227,8 @@ def _run_config(config_file: Path, data: str, out: Path, configurations: str | N
                 unused: list[str], settings: tuple[str, ...] = ()) -> None:
     """``specific --config``: the home-specific experiment of a configuration file (``settings``:
     ``--set NAME=VALUE`` of the transfer models' hyperparameters, on the paper's)."""
-    from spco.errors import ConfigurationError
     from spco.evaluation.experiments import parse_int_list
     from spco.evaluation.specific_config import DEFAULT_POSITIONS, load_specific_config, run_specific_config
-    from spco.model.hyperparameters import TransferHyperparameters
 
     if unused:
         raise click.UsageError(f"{', '.join(unused)} cannot be used with --config (the configuration "
@@ -237,10 +236,7 @@ def _run_config(config_file: Path, data: str, out: Path, configurations: str | N
     if data == "synthetic":
         raise click.UsageError("--config needs --data: the data set holding the file's homes "
                                "(e.g. the SIGVerse folder)")
-    try:
-        hyper = TransferHyperparameters().with_settings(list(settings)) if settings else None
-    except ConfigurationError as exc:
-        raise click.BadParameter(str(exc), param_hint="--set") from None
+    hyper = settings_hyperparameters(settings)
     file = load_specific_config(config_file)
     chosen = _split(configurations)
     if seeds is not None:

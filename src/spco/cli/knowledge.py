@@ -22,7 +22,7 @@ from typing import Any
 
 import click
 
-from spco.cli.common import check_out, load_home
+from spco.cli.common import check_out, load_home, settings_hyperparameters
 from spco.cli.errors import friendly_errors
 from spco.features.pixels import RAW_ENCODINGS
 
@@ -203,15 +203,7 @@ def fit(data: Path, homes: str | None, teaching_rate: int, model: str, iteration
     from spco.knowledge import fit_knowledge
 
     check_out(out, force)
-    hyperparameters = None
-    if settings:
-        from spco.errors import ConfigurationError
-        from spco.model.hyperparameters import TransferHyperparameters
-
-        try:
-            hyperparameters = TransferHyperparameters().with_settings(settings)
-        except ConfigurationError as exc:
-            raise click.BadParameter(str(exc), param_hint="--set") from None
+    hyperparameters = settings_hyperparameters(settings)
     _precompile_if_cold()
     if engine == "ray":
         try:
