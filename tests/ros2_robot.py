@@ -145,10 +145,13 @@ class Robot:
 
     # ------------------------------------------------------------------ commands
     def wait_connected(self, timeout: float) -> dict[str, Any]:
-        """Wait until the node subscribes the query topic and publishes answers."""
+        """Wait until the node subscribes every topic this robot publishes and its services are ready."""
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
-            if (self.query_pub.get_subscription_count() > 0 and self.speech_pub.get_subscription_count() > 0
+            # every publisher matched: a pose or frame published before its subscription is matched is
+            # lost (volatile QoS), and a later `what` would find no current pose
+            publishers = (self.query_pub, self.speech_pub, self.pose_pub, self.image_pub)
+            if (all(p.get_subscription_count() > 0 for p in publishers)
                     and all(c.service_is_ready() for c in self.clients.values())):
                 return {"connected": True}
             time.sleep(0.05)
