@@ -118,10 +118,11 @@ def _knowledge(task: Task, data: Path, images: Path | None, models: Path, force:
     homes = _load(data, images, experienced, task.features, 100)
     extractor = None if task.features == "fc7" else build_extractor(task.features)
     hyper = None
-    if task.settings:  # the defaults' scaled prior (as without settings), then the settings: `spco fit --set`
+    if task.settings:  # the defaults' prior (fit_knowledge's prior="places", as without settings: κ0, L, K
+        # and Ψ0 from the homes), then the settings, as `spco fit --set` does
         from spco.knowledge.fit import default_hyperparameters
 
-        hyper = default_hyperparameters(Corpus(homes)).with_settings(list(task.settings))
+        hyper = default_hyperparameters(Corpus(homes), psi0=True).with_settings(list(task.settings))
     knowledge = kn.fit_knowledge(Corpus(homes), random_state=task.seed, extractor=extractor,
                                  hyperparameters=hyper)
     knowledge.save(k_file, overwrite=True)
