@@ -42,6 +42,10 @@ list of names (:func:`learn_terms`): two adjacent atoms ``a b`` become the term 
 4. neither atom is a *frame word*: one that occurs in more than ``max_sentence_share`` = 50 % of the
    sentences ("this", "is", "the" in "this is the kitchen"). Names are specific to a place, so none
    is in half of all sentences;
+4b. the term is a noun phrase without its determiner: no closed-class word or number starts it,
+   ends it or comes at a join ("wash your hands" is none, nor "my room": the parent calls the
+   child's "my room" "your room"); inside one atom they stay ("walk-in closet", rule 7's "mum and
+   dad's"), and a possessive *noun* opens a term ("emma's room");
 5. for two words of a script written without spaces (Japanese, Chinese), they *always* come
    together on one side: every use of ``a`` is followed by ``b``, or every use of ``b`` is
    preceded by ``a``. There a name is followed by particles and copulas (台所 です, キッチン だ よ)
@@ -54,7 +58,7 @@ and a pair becomes a term only if it is joined at least ``min_count`` times: a w
 the neighbour it belongs to, so a frame never swallows the first word of a name.
 
 :meth:`Vocabulary.from_sentences` counts each distinct sentence once: a sentence said again word for
-word is one use of its word pairs, so a phrase of one sentence repeated many times ("our bedroom",
+word is one use of its word pairs, so a phrase of one sentence repeated many times ("big bedroom",
 when "bedroom" is also said alone) does not become a term. One exception keeps the terms of a
 speaker who says one sentence per place ("this is the living room" each time, as a robot's teacher
 may): two words that are *never said apart* — every use of ``a`` followed by ``b``, every use of
@@ -155,27 +159,25 @@ def is_function_word(token: str) -> bool:
     return token in CLOSED_CLASS or (any(ch.isdigit() for ch in token) and len(token) <= 6)
 
 
-#: Words a name may start with although they are function words: possessive determiners ("my room",
-#: "our bedroom").
+#: Words a name taught once may start with although they are function words (:meth:`Vocabulary.new_word_runs`;
+#: not a learnt term, rule 4b): possessive determiners ("my room", "our bedroom").
 NAME_OPENERS = frozenset({"my", "our", "your", "his", "her", "their"})
 
 
 def _may_start_name(word: str) -> bool:
-    """Whether a name may start with ``word``: not a function word or a number, but a possessive
-    ("my room")."""
+    """Whether a name may start with ``word``: not a function word, but a possessive ("my room")."""
     return word in NAME_OPENERS or not is_function_word(word)
 
 
 def _may_end_name(word: str) -> bool:
-    """Whether a name may end with ``word``: never a function word or a number ("front of", "you are
-    in", "wash your")."""
+    """Whether a name may end with ``word``: never a function word or a number ("front of")."""
     return not is_function_word(word)
 
 
 def _joinable(a: str, b: str) -> bool:
-    """Whether ``a b`` may be a term: it starts and ends as a name may (:func:`_may_start_name`,
-    :func:`_may_end_name`)."""
-    return _may_start_name(a.split()[0]) and _may_end_name(b.split()[-1])
+    """Whether ``a b`` may be a learnt term: no closed-class word or number starts it, ends it or
+    comes at the join (rule 4b of the module docstring: "wash your hands", "my room" are none)."""
+    return not any(map(is_function_word, (a.split()[0], b.split()[0], b.split()[-1])))
 
 
 #: Default count added per word occurrence (S^w in the paper).
@@ -604,7 +606,7 @@ class Vocabulary:
         texts = [s for s in sentences if s]
         segmentation = resolve(language, texts, learn=learn)
         # terms from the distinct sentences: a sentence said again word for word is one use of its
-        # word pairs, not many ("our bedroom" said 60 times is no term; "living room" in many
+        # word pairs, not many ("big bedroom" said 60 times is no term; "living room" in many
         # different sentences is, and so is "living room" of "this is the living room" said again
         # and again when "living" and "room" are never said apart)
         base = cls(tuple(learn_terms(texts, segmentation=segmentation, distinct=True)), segmentation) \
@@ -737,9 +739,10 @@ class Vocabulary:
         several words said once is one name, and its words alone ("room") would be answered as
         names. A word also said elsewhere ("study" in "the study is here") keeps the run from
         forming; known tokens never join one, so columns learnt before keep their occurrences.
-        A name neither starts with a function word, but a possessive ("my room"), nor ends with one
-        (as :func:`learn_terms`' rule): a run is cut to the words between, so "we call it mum and
-        dad's room", all new words, gives ``"mum and dad's room"``, and "i cook" is no run.
+        A name neither starts with a function word, but a possessive ("my room": a name taught once
+        is kept as it was said, where :func:`learn_terms` leaves the possessive pronoun out), nor ends
+        with one: a run is cut to the words between, so "we call it mum and dad's room", all new
+        words, gives ``"mum and dad's room"``, and "i cook" is no run.
         """
         streams = [self.tokenize(s) for s in sentences if s]
         uses: dict[str, int] = {}
