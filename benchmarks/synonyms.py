@@ -1,7 +1,8 @@
 """Measure the synonym rule's overlap (``spco.model.synonyms``) on synthetic homes.
 
 Runs the exact sampler's start (+MI, one sweep) on the 16 experienced synthetic homes of the general
-experiment and records the names and regions its warm start groups (``same_place_names``). For every
+experiment and records the names and regions its warm start groups (``same_place_names``, called by each
+shard of homes: :mod:`spco.model.shard_init`). For every
 pair of names said in one home it computes their region overlap, per home and pooled over the homes
 that say both, and prints how many pairs of synonyms (names of one place in the generator's lexicon,
 :data:`spco.data.speech.PLACE_WORDS`, used here for the measurement only) and of names of different
@@ -19,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-import spco.model.gibbs as gibbs
+import spco.model.shard_init as shard_init
 from spco.data.environment import Corpus
 from spco.data.language import normalize_name
 from spco.data.speech import PLACE_WORDS
@@ -45,22 +46,28 @@ def _recorded_start(language: str, seed: int) -> tuple[dict[str, Any], list[str]
     config = ExperimentConfig(experiment="general", data="synthetic", language=language, settings=(16,),
                               trials=1, seed=seed, iterations=1).validated()
     data = load_experiment_data(config)
+    calls: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
     seen: dict[str, Any] = {}
-    original = gibbs.same_place_names
+    original = shard_init.same_place_names
 
     def record(names: np.ndarray, regions: np.ndarray, offsets: np.ndarray, n_regions: int,
-               n_words: int, *rest: float) -> np.ndarray:
-        seen.update(names=names.copy(), regions=regions.copy(), offsets=offsets.copy(),
-                    n_regions=n_regions, n_words=n_words)
-        return original(names, regions, offsets, n_regions, n_words, *rest)
+               n_words: int, *rest: Any, **options: Any) -> np.ndarray:
+        calls.append((names.copy(), regions.copy(), offsets.copy()))
+        seen.update(n_regions=n_regions, n_words=n_words)
+        return original(names, regions, offsets, n_regions, n_words, *rest, **options)
 
-    gibbs.same_place_names = record  # the warm start calls it through the module
+    shard_init.same_place_names = record  # each shard's warm start calls it through the module
     try:
         homes = data.homes_for(16, data.new_homes[0])
         SpCoTransfer(n_iterations=1, random_state=seed, prune_words=True).fit(
             Corpus(homes, vocabulary=data.vocabulary))
     finally:
-        gibbs.same_place_names = original
+        shard_init.same_place_names = original
+    # the shards' homes in one layout: names and regions end to end, offsets shifted
+    starts = np.cumsum([0] + [names.size for names, _, _ in calls])
+    shifted = [offsets[1:] + start for (_, _, offsets), start in zip(calls, starts, strict=False)]
+    seen.update(names=np.concatenate([c[0] for c in calls]), regions=np.concatenate([c[1] for c in calls]),
+                offsets=np.concatenate([[0], *shifted]))
     return seen, list(data.vocabulary.words)
 
 
