@@ -62,7 +62,7 @@ from spco.model.prediction import (
     mutual_information_weights,
 )
 from spco.model.rooms import HomeRooms
-from spco.model.unheard import SAID_WORDS, resolve_name
+from spco.model.unheard import SAID_WORDS, ResolvedName, resolve_name, said_as_one
 
 __all__ = [
     "LEARNT_SUPPORT",
@@ -77,6 +77,7 @@ __all__ = [
     "query_indices",
     "query_name",
     "region_posterior_for_name",
+    "resolve_unheard",
     "room_name_log_likelihood",
     "room_said_counts",
     "said_word_matrix",
@@ -550,6 +551,24 @@ def draw_poses(params: ConceptParameters, e: int, region_probabilities: np.ndarr
     return samples, log_density, np.exp(log_density - _log_sum_exp(log_density, axis=0))
 
 
+def resolve_unheard(params: ConceptParameters, e: int, vocabulary: Vocabulary, name: str,
+                    lookup: np.ndarray | None = None) -> ResolvedName | None:
+    """The known name the lexicon finds for ``name`` when it is not one usable token
+    (:func:`spco.model.unheard.resolve_name`), else ``None``: the one look-up of a name nobody said,
+    :func:`predict_positions`' (the robot's ``where`` and the experiments' A_p alike). The candidates
+    are the words of ``lookup`` (default ``params.word_mask``), ranked by their mutual information with
+    home ``e``'s concepts in ``params`` as names (θ^w) and as ``where`` reads them (names or words of a
+    place, ψ), over those same words (worked out only when the name needs the look-up)."""
+    mask = np.asarray(params.word_mask if lookup is None else lookup, dtype=bool)
+    if said_as_one(vocabulary, mask, name):
+        return None
+    looked = params if np.array_equal(mask, np.asarray(params.word_mask, dtype=bool)) else \
+        replace(params, word_mask=mask)
+    return resolve_name(vocabulary, mask, name, params.name_prior,
+                        information=mutual_information_weights(looked, e),
+                        place_information=place_word_information(looked, e))
+
+
 def predict_positions(
     params: ConceptParameters,
     e: int,
@@ -580,8 +599,8 @@ def predict_positions(
     xy_only: draw from the x–y marginal only (the authors' code); θ is then NaN.
     rng: a Generator (advanced by the draws) or a seed.
     unheard: a name that is not a usable token is first looked up in the lexicon
-        (:func:`spco.model.unheard.resolve_name`; ``asked`` and ``via`` of the result say so); False:
-        only the name's own known tokens are used.
+        (:func:`resolve_unheard`; ``asked`` and ``via`` of the result say so); False: only the name's
+        own known tokens are used.
     alone: ``name`` is the name as asked: a name of one word is read by every learnt term that holds
         it (:func:`query_forms`); False for the words of a longer name nobody said (set on the
         lexicon's answer by its own words, :data:`spco.model.unheard.SAID_WORDS`).
@@ -595,10 +614,7 @@ def predict_positions(
     if mode not in ("argmax", "mixture", "answer"):
         raise ConfigurationError(f"mode must be 'argmax', 'mixture' or 'answer', got {mode!r}")
     e = _check_home(params, e)
-    mask = params.word_mask if lookup is None else lookup
-    resolved = (resolve_name(vocabulary, mask, name, params.name_prior,
-                             information=mutual_information_weights(params, e),
-                             place_information=place_word_information(params, e)) if unheard else None)
+    resolved = resolve_unheard(params, e, vocabulary, name, lookup) if unheard else None
     if resolved is not None:  # a name nobody said: the known name the lexicon finds for it
         pred = predict_positions(params, e, vocabulary, resolved.name, n, rng, mode, xy_only, unheard=False,
                                  rooms=rooms, view_counts=view_counts, lookup=lookup,
