@@ -17,7 +17,8 @@ from serve_helpers import build_home
 from spco import knowledge as kn
 from spco.cli.ask import confidence_note
 from spco.cli.main import main
-from spco.knowledge.queries import answered_at_region
+from spco.knowledge.queries import answer_inputs, answered_at_region
+from spco.model import position_prediction
 
 
 @pytest.fixture(scope="module")
@@ -45,13 +46,20 @@ def test_where_is_learnt_exactly_when_what_agrees_or_the_home_holds_it(built: Pa
 
 
 def _unoccupied(home: kn.HomeModel, name: str) -> kn.HomeModel:
-    """The home with the concept that carries ``name`` holding none of its samples (as a transferred
-    name whose place the home keeps under another concept: the tutorial's kitchen, called dining)."""
-    params = home.parameters
-    column = home.vocabulary.index(name)
-    concept = int(np.argmax(np.asarray(params.word_probabilities[0])[:, column]))
-    counts = np.array(params.concept_counts, dtype=np.float64)
-    counts[0, concept] = 0.0
+    """The home with the concepts that carry most of ``name`` — G_l p(name | l) as ``where``'s support
+    reads it, as a name or a word of the place (ψ) — holding none of its samples, most first, until
+    those that still hold samples carry under half of it (as a transferred name whose place the home
+    keeps under another concept: the tutorial's kitchen, called dining). The concept of the name's
+    largest θ^w alone is not enough since a knowledge's ψ is the posterior mean: a name said as a word
+    of a place keeps its support through the occupied concepts' ψ."""
+    params, _ = answer_inputs(home)
+    forms = position_prediction.query_forms(params, home.vocabulary, name, home.parameters.word_mask)
+    weights = position_prediction._name_concept_weights(params, 0, forms)
+    counts = np.array(home.parameters.concept_counts, dtype=np.float64)
+    for concept in np.argsort(-weights, kind="stable"):
+        if weights[counts[0] >= 1].sum() < 0.5 * weights.sum():
+            break
+        counts[0, concept] = 0.0
     posterior = replace(home.posterior, concept_counts=counts)
     moved = replace(home, posterior=posterior)
     moved.__dict__.pop("parameters", None)

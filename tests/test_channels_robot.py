@@ -61,6 +61,62 @@ def test_a_knowledge_is_learnt_with_the_channels_and_says_so(world: dict) -> Non
     assert {"kitchen", "toilet"} <= set(knowledge.known_names)
 
 
+def test_a_knowledge_exports_the_place_words_as_the_kept_sweeps_conditional_means(monkeypatch) -> None:
+    """The knowledge's ψ is the average over the kept sweeps of E[ψ | the sweep's place tokens]
+    (Dir(α^p + n)'s mean, relabelled like φ), not of the sweeps' draws: a concept that holds no place
+    token in any kept sweep gets the prior's mean 1/V exactly (an average of a few Dir(0.1) draws is a
+    spike), and the exported ψ is the mean of the draws the chain makes from the same counts."""
+    from spco.knowledge import fit as fit_module
+    from spco.model import shard
+    from spco.model.word_channels import ALPHA_PLACE, sample_channels
+
+    counts_by_sweep: list = []
+    original_mean = shard.place_mean
+
+    def recording_mean(counts, *args, **kwargs):
+        counts_by_sweep.append(counts)
+        return original_mean(counts, *args, **kwargs)
+
+    seen: dict = {}
+    original_average = fit_module._averaged_channels
+
+    def recording_average(samples, perms, *args, **kwargs):
+        seen["samples"], seen["perms"] = samples, perms
+        return original_average(samples, perms, *args, **kwargs)
+
+    monkeypatch.setattr(shard, "place_mean", recording_mean)
+    monkeypatch.setattr(fit_module, "_averaged_channels", recording_average)
+    corpus = generate_homes(4, seed=7, config=CONFIG, new_homes=0, specific_rooms=False)
+    n_iterations = 12
+    knowledge = _quiet(kn.fit_knowledge, Corpus(list(corpus)), n_iterations=n_iterations, random_state=7)
+    assert len(counts_by_sweep) == n_iterations  # one global step per sweep
+    kept = knowledge.provenance["summary"]["iterations"]
+    assert len(kept) >= 2 and len(seen["samples"]) == len(kept)
+    psi = np.exp(knowledge.channels.channels.log_place)
+    L, V = psi.shape
+    expected = np.zeros((L, V))
+    empty = np.ones(L, dtype=bool)  # no place token in any kept sweep (after relabelling)
+    for sample, perm, sweep in zip(seen["samples"], seen["perms"], kept, strict=True):
+        place = np.asarray(counts_by_sweep[sweep].place, dtype=np.float64)
+        mean = (ALPHA_PLACE + place) / (ALPHA_PLACE + place).sum(axis=1, keepdims=True)
+        np.testing.assert_allclose(np.exp(sample.log_place), mean, rtol=1e-12)
+        expected += mean[perm] / len(kept)
+        empty &= place[perm].sum(axis=1) == 0
+    np.testing.assert_allclose(psi, expected, rtol=1e-10)
+    assert empty.any() and (~empty).any()
+    np.testing.assert_allclose(psi[empty], 1.0 / V, rtol=1e-12)  # the prior's mean, exactly
+    assert (psi[~empty].max(axis=1) > 1.5 / V).all()  # the held concepts keep their words
+    # the mean of the chain's draws from the last kept sweep's counts is that sweep's exported ψ
+    last = counts_by_sweep[kept[-1]]
+    rng = np.random.default_rng(0)
+    draws = np.mean([np.exp(sample_channels(last, seen["samples"][-1], rng).log_place)
+                     for _ in range(2000)], axis=0)
+    np.testing.assert_allclose(draws, np.exp(seen["samples"][-1].log_place), atol=0.03)
+    # a single draw of an empty concept is a spike, which the export no longer is
+    assert draws.shape == (L, V) and np.exp(sample_channels(last, seen["samples"][-1], rng).log_place)[
+        np.flatnonzero(empty)].max() > 2.0 / V
+
+
 def test_knowledge_and_home_files_round_trip_the_channels(world: dict, tmp_path: Path) -> None:
     knowledge, home = world["knowledge"], world["home"]
     knowledge.save(tmp_path / "k.spco")

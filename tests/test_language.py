@@ -333,3 +333,27 @@ def test_compounds_the_lexicon_knows_are_terms_without_the_follow_share(wordnet)
                                                                                lexicon=False))
     # a frame word is no part of a compound, whatever WordNet says ("the" in half the sentences)
     assert not any(t.split()[0] in ("the", "a", "this") for t in terms)
+
+
+def test_the_terms_holding_a_run_of_words_are_those_a_brute_force_finds() -> None:
+    """``Vocabulary.terms_holding`` (what ``query`` falls back on and ``where`` reads a word of one token
+    by) is, for every run of words, the terms holding it side by side in vocabulary order, as a scan
+    of every term finds them; built once per vocabulary, never shared with another."""
+    from spco.data.language import Vocabulary
+
+    rng = np.random.default_rng(3)
+    atoms = ["a", "b", "c", "dining", "room"]
+    for _ in range(20):
+        terms = {" ".join(rng.choice(atoms, size=rng.integers(2, 5))) for _ in range(8)}
+        vocabulary = Vocabulary(tuple(dict.fromkeys([*atoms, *sorted(terms)])))
+        runs = {" ".join(w.split()[i:j]) for w in vocabulary.words for j in range(len(w.split()) + 1)
+                for i in range(j)} | {"x", "a x", "room a b c dining room"}
+        for run in runs:
+            r = run.split()
+            expected = tuple(k for k, w in enumerate(vocabulary.words) if " " in w and any(
+                w.split()[i:i + len(r)] == r for i in range(len(w.split()) - len(r) + 1)))
+            assert vocabulary.terms_holding(run) == expected, run
+            assert vocabulary.terms_holding(f"  {run} ") == expected
+        assert vocabulary.terms_holding("") == ()
+    other = Vocabulary(("dining", "dining room"))
+    assert other.terms_holding("dining") == (1,) and Vocabulary(("dining",)).terms_holding("dining") == ()

@@ -9,8 +9,10 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from spco import knowledge as kn
+from spco.data.lexicon import lexicon
 from spco.ros.messages import marker_array
 from spco.service.answers import regions_answer
 
@@ -77,7 +79,6 @@ def test_the_robot_s_where_reads_the_lexicon_s_answer_as_the_experiments_do(tour
     "room") is looked up in the robot's ``where`` as those words only, as ``predict_positions`` (the
     experiments' A_p) reads the lexicon's answer (``query_forms`` with ``alone=False``: not every term
     that holds the word); a name answered by a relation (a synonym) as a name asked alone."""
-    from spco.knowledge import queries
     from spco.model import position_prediction
     from spco.model.unheard import SAID_WORDS, ResolvedName
 
@@ -92,8 +93,33 @@ def test_the_robot_s_where_reads_the_lexicon_s_answer_as_the_experiments_do(tour
     monkeypatch.setattr(position_prediction, "predict_positions", spy)
     for how, alone in ((SAID_WORDS, False), ("synonym", True)):
         found = ResolvedName(asked="cooking room", name="kitchen", how=how, score=1.0)
-        monkeypatch.setattr(queries, "resolve_name", lambda *args, found=found, **kwargs: found)
+        monkeypatch.setattr(position_prediction, "resolve_name", lambda *args, found=found, **kwargs: found)
         seen.clear()
         pred = kn.where(home, "cooking room", n=3, random_state=0)
         assert (pred.asked, pred.name, pred.via) == ("cooking room", "kitchen", how)
-        assert seen == [alone], (how, seen)
+        assert seen == [True, alone], (how, seen)  # the name asked, then the lexicon's answer
+
+
+@pytest.mark.skipif(lexicon() is None, reason="WordNet is not installed")
+def test_the_robot_s_where_of_a_name_nobody_said_is_the_scored_predictor_s(tour_home_file: Path) -> None:
+    """One look-up of a name nobody said: the robot's ``where`` answers a never-heard name (a synonym,
+    a gloss, a head word) with exactly the positions of ``predict_positions(unheard=True)`` — what the
+    experiments score — called as they call it, on the answer's parameters and rooms with the fit's
+    word mask; before, the robot resolved the name with its own inputs and then asked for the known
+    name without the look-up."""
+    from spco.knowledge.queries import answer_inputs
+    from spco.model.position_prediction import predict_positions
+
+    home = kn.load_home_model(tour_home_file)
+    params, rooms = answer_inputs(home)
+    for name in ("galley", "bedchamber", "spare bedroom", "lounge"):
+        assert name not in home.vocabulary
+        robot = kn.where(home, name, n=5, random_state=4)
+        scored = predict_positions(params, 0, home.vocabulary, name, n=5, rng=np.random.default_rng(4),
+                                   mode="answer", unheard=True, rooms=rooms,
+                                   view_counts=home.hyperparameters.view_weight(),
+                                   lookup=home.parameters.word_mask)
+        assert robot.via is not None and robot.name in home.known_names, name  # the lexicon answered
+        assert (robot.asked, robot.name, robot.via) == (scored.asked, scored.name, scored.via)
+        np.testing.assert_array_equal(robot.samples, scored.samples)
+        np.testing.assert_array_equal(robot.region_probabilities, scored.region_probabilities)

@@ -35,15 +35,16 @@ def joint(small_corpus):
 
 
 class _Spy:
-    """Wraps ``region_posterior_for_name``: records whether each call had the home's rooms."""
+    """Wraps ``_region_posterior`` (the one p(region | name): ``region_posterior_for_name`` and
+    ``predict_positions`` call it): records whether each call had the home's rooms."""
 
     def __init__(self) -> None:
-        self.original = position_prediction.region_posterior_for_name
+        self.original = position_prediction._region_posterior
         self.calls: list[tuple[object, object, np.ndarray]] = []
 
-    def __call__(self, params, e, vocabulary, name, **options):
-        result = self.original(params, e, vocabulary, name, **options)
-        self.calls.append((params, options.get("rooms"), result))
+    def __call__(self, params, e, vocabulary, name, forms, mask, rooms, view_counts):
+        result = self.original(params, e, vocabulary, name, forms, mask, rooms, view_counts)
+        self.calls.append((params, rooms, result))
         return result
 
 
@@ -101,7 +102,7 @@ def _by_hand(params, rooms, view_counts, vocabulary, name, lookup, e: int = 0) -
 def test_where_answers_from_the_one_function_with_the_rooms_and_names_of_what(
         home: kn.HomeModel, monkeypatch: pytest.MonkeyPatch) -> None:
     spy = _Spy()
-    monkeypatch.setattr(position_prediction, "region_posterior_for_name", spy)
+    monkeypatch.setattr(position_prediction, "_region_posterior", spy)
     params, rooms = kn.queries.answer_inputs(home)  # what `what` reads
     assert home.known_names
     for name in home.known_names:
@@ -126,7 +127,7 @@ def test_the_experiments_a_p_draws_from_what_where_answers(joint, small_corpus,
     answer, rooms = model_answer_parameters(joint, e), model_rooms(joint, e)
     w = joint.settings_.view_counts
     spy = _Spy()
-    monkeypatch.setattr(position_prediction, "region_posterior_for_name", spy)
+    monkeypatch.setattr(position_prediction, "_region_posterior", spy)
     scores = evaluate_home(joint.parameters_, e, env, joint.vocabulary_, rng=0, view_counts=w,
                            answer_params=answer, answer_rooms=rooms)
     assert scores.position_predictions, "no place's name was predicted"

@@ -544,12 +544,6 @@ def _never_apart(counts: _PairCounts, max_sentence_share: float) -> dict[tuple[s
             and in_sentences[b] <= frame and _joinable(a, b)}
 
 
-def contains_run(words: list[str], run: list[str]) -> bool:
-    """Whether ``run`` occurs in ``words`` as adjacent items."""
-    n = len(run)
-    return 0 < n <= len(words) and any(words[i:i + n] == run for i in range(len(words) - n + 1))
-
-
 def _canonical(word: str) -> str:
     return " ".join(normalize_text(word).replace("-", " ").split())
 
@@ -577,6 +571,7 @@ class Vocabulary:
     segmentation: Segmentation | None = None
     _index: dict[str, int] = field(init=False, repr=False, compare=False)
     _longest: int = field(init=False, repr=False, compare=False)
+    _holders: dict[str, tuple[int, ...]] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         words = tuple(_canonical(str(w)) for w in self.words)
@@ -622,6 +617,17 @@ class Vocabulary:
 
     def __contains__(self, word: object) -> bool:
         return isinstance(word, str) and word in self._index
+
+    def terms_holding(self, words: str) -> tuple[int, ...]:
+        """Columns of the terms holding ``words`` side by side, in vocabulary order, ``words`` included
+        ("dining" → "dining room", "dining space"); the terms' runs of words are indexed once."""
+        if not hasattr(self, "_holders"):
+            holders: dict[str, tuple[int, ...]] = {}
+            for k, p in ((k, w.split()) for k, w in enumerate(self.words) if " " in w):
+                for run in {" ".join(p[i:j]) for j in range(len(p) + 1) for i in range(j)}:
+                    holders[run] = (*holders.get(run, ()), k)
+            object.__setattr__(self, "_holders", holders)
+        return self._holders.get(" ".join(words.split()), ())
 
     @property
     def terms(self) -> tuple[str, ...]:
@@ -684,12 +690,9 @@ class Vocabulary:
         if tokens and not any(t in self._index for t in tokens):
             # no token known: the name may be part of a longer term ("grandma's room" of the term
             # "grandma's room okay", learnt from one sentence): the shortest term holding its words
-            # in order, side by side
-            words = " ".join(tokens).split()
-            holding = [w for w in self.terms if contains_run(w.split(), words)]
-            if holding:
-                best = min(holding, key=lambda w: (len(w.split()), self._index[w]))
-                return [best], [self._index[best]]
+            if holding := self.terms_holding(" ".join(tokens)):
+                best = min(holding, key=lambda k: (len(self.words[k].split()), k))
+                return [self.words[best]], [best]
         return tokens, [self._index[t] for t in tokens if t in self._index]
 
     def unknown_words(self, sentence: str | None) -> list[str]:

@@ -311,7 +311,14 @@ def _sample_chain(engine: Any, source: Any, hyper: TransferHyperparameters, sett
             log_phi_v = shared.log_phi_v if mean_v is None else mean_v
             by_iteration[iteration] = (log_phi_v.copy(), shared.log_phi_w.copy(), shared.log_g0.copy())
             if shared.channels is not None:
-                channel_samples[iteration] = shared.channels.copy()
+                # ψ's conditional mean given the sweep's place tokens (GlobalStep.place_mean), not its
+                # draw: a concept no home holds has no place token, and a draw of Dir(α^p) is then a
+                # spike on one word (an average of a few such draws is still spiky)
+                mean_p = getattr(run.global_step, "place_mean", None)
+                channels = shared.channels.copy()
+                if mean_p is not None:
+                    channels = replace(channels, log_place=mean_p.copy())
+                channel_samples[iteration] = channels
                 expected[iteration] = functools.reduce(operator.add, run.call("expected_channel_tokens"))
                 at_places[iteration] = functools.reduce(operator.add,
                                                         run.call("concept_place_names", stand_ins))
@@ -358,10 +365,12 @@ def _averaged_channels(samples: list[WordChannels], perms: list[np.ndarray],
                        tokens: np.ndarray | None, at_places: list[np.ndarray] | None = None
                        ) -> KnowledgeChannels | None:
     """The word channels of the kept sweeps averaged as φ is: ψ relabelled like φ (``perms``), then
-    ψ, β and the shares λ averaged as probabilities; the evidence is fixed. ``tokens``: (V, 3) the
-    expected tokens per word and channel (over all homes), averaged over the kept sweeps;
-    ``at_places``: each kept sweep's names said at each concept's places (L, V), relabelled like φ and
-    averaged. ``None`` without channels."""
+    ψ, β and the shares λ averaged as probabilities; the evidence is fixed. Each sample's ψ is the
+    sweep's conditional mean E[ψ | place tokens] (:func:`_sample_chain` keeps it), so the average is a
+    Rao-Blackwellised estimate of ψ's posterior mean: the prior's mean for a concept with no token.
+    ``tokens``: (V, 3) the expected tokens per word and channel (over all homes), averaged over the
+    kept sweeps; ``at_places``: each kept sweep's names said at each concept's places (L, V),
+    relabelled like φ and averaged. ``None`` without channels."""
     if not samples or tokens is None:
         return None
     n = len(samples)

@@ -30,11 +30,10 @@ from spco.knowledge.views import _visual_row, pose_outside_map, view_counts
 from spco.model import confidence
 from spco.model.confidence import UNSURE_BELOW
 from spco.model.parameters import ConceptParameters
-from spco.model.position_prediction import PositionPrediction, place_word_information
-from spco.model.prediction import NamePrediction, UnknownNameError, mutual_information_weights
+from spco.model.position_prediction import PositionPrediction
+from spco.model.prediction import NamePrediction, UnknownNameError
 from spco.model.rooms import HomeRooms, sample_rooms
 from spco.model.seeds import as_generator
-from spco.model.unheard import SAID_WORDS, resolve_name
 from spco.model.word_channels import concept_name_tokens, name_token_counts, name_tokens, rooms_concentration
 
 
@@ -63,18 +62,11 @@ def where(home: HomeModel, name: str, n: int = 10,
     of the answer region does not answer it either (``called``: the name it answers there, the
     home's own name for the place; a name ``what`` answers there counts as learnt, whatever the
     support: ``where`` and ``what`` agree). A name nobody said
-    ("restroom") is first looked up in the lexicon (:func:`spco.model.unheard.resolve_name`): the
+    ("restroom") is first looked up in the lexicon as the experiments' predictor looks it up
+    (:func:`spco.model.position_prediction.resolve_unheard`, with the home's parameters' words): the
     answer is then for the known name it found (``name``: "toilet"; ``asked``: "restroom"; ``via``:
     how).
     """
-    information, place_information = _information(home)
-    resolved = resolve_name(home.vocabulary, home.said_words, name, home.parameters.name_prior,
-                            information=information, place_information=place_information)
-    if resolved is not None:  # a name nobody said: the known name the lexicon finds for it
-        # the words of a longer name answered by them ("spare room": "room") are only themselves, as
-        # predict_positions reads the lexicon's answer (position_prediction.query_forms, ``alone``)
-        pred = _where(home, resolved.name, n, random_state, alone=resolved.how != SAID_WORDS)
-        return replace(pred, asked=resolved.asked, via=resolved.how)
     try:
         return _where(home, name, n, random_state)
     except UnknownNameError:
@@ -84,34 +76,18 @@ def where(home: HomeModel, name: str, n: int = 10,
         raise UnknownNameError(name, home.known_names, reason=hint) from None
 
 
-#: each home's words' mutual information with its concepts, as names (θ^w) and as ``where`` reads
-#: them (names or words of a place, ψ), worked out once per home object (as :data:`_ANSWER_INPUTS`):
-#: what ``where`` looks an unheard name up with
-_INFORMATION: weakref.WeakKeyDictionary[HomeModel, tuple[np.ndarray, np.ndarray]] = (
-    weakref.WeakKeyDictionary())
-
-
-def _information(home: HomeModel) -> tuple[np.ndarray, np.ndarray]:
-    """(V,) :func:`~spco.model.prediction.mutual_information_weights` and (V,)
-    :func:`~spco.model.position_prediction.place_word_information` of the home's parameters, kept
-    while the home lives."""
-    known = _INFORMATION.get(home)
-    if known is None:
-        known = _INFORMATION[home] = (mutual_information_weights(home.parameters, 0),
-                                      place_word_information(home.parameters, 0))
-    return known
-
-
-def _where(home: HomeModel, name: str, n: int, random_state: int | np.random.Generator | None,
-           alone: bool = True) -> PositionPrediction:
-    """:func:`where` without the hint for unusable names (``alone``: see
-    :func:`~spco.model.position_prediction.predict_positions`)."""
+def _where(home: HomeModel, name: str, n: int, random_state: int | np.random.Generator | None
+           ) -> PositionPrediction:
+    """:func:`where` without the hint for unusable names: the scored predictor itself
+    (:func:`~spco.model.position_prediction.predict_positions` with its own look-up of a name nobody
+    said, :func:`~spco.model.position_prediction.resolve_unheard`) on the answer's parameters and rooms,
+    the words a place is looked up by those of the home's parameters (:attr:`HomeModel.said_words`)."""
     from spco.model.position_prediction import predict_positions
 
     params, rooms = answer_inputs(home)
     pred = predict_positions(params, 0, home.vocabulary, name, n, as_generator(random_state), mode="answer",
-                             unheard=False, rooms=rooms, view_counts=home.hyperparameters.view_weight(),
-                             lookup=home.parameters.word_mask, alone=alone)
+                             unheard=True, rooms=rooms, view_counts=home.hyperparameters.view_weight(),
+                             lookup=home.parameters.word_mask)
     if pred.learnt:
         return pred
     # what `what` answers where the poses are: the name itself (learnt after all) or another

@@ -39,7 +39,6 @@ concepts of other homes, e.g. ``dining`` in a home without a dining room.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from functools import lru_cache
 from itertools import pairwise
 from typing import Literal
 
@@ -47,7 +46,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.special import logsumexp
 
-from spco.data.language import Vocabulary, contains_run
+from spco.data.language import Vocabulary
 from spco.errors import ConfigurationError
 from spco.model.parameters import ConceptParameters
 from spco.model.prediction import (
@@ -63,7 +62,7 @@ from spco.model.prediction import (
     mutual_information_weights,
 )
 from spco.model.rooms import HomeRooms
-from spco.model.unheard import SAID_WORDS, resolve_name
+from spco.model.unheard import SAID_WORDS, ResolvedName, resolve_name, said_as_one
 
 __all__ = [
     "LEARNT_SUPPORT",
@@ -78,6 +77,7 @@ __all__ = [
     "query_indices",
     "query_name",
     "region_posterior_for_name",
+    "resolve_unheard",
     "room_name_log_likelihood",
     "room_said_counts",
     "said_word_matrix",
@@ -155,15 +155,22 @@ def query_indices(params: ConceptParameters, vocabulary: Vocabulary, name: str,
                   lookup: np.ndarray | None = None) -> list[int]:
     """Columns of the usable tokens of a name asked for (see :func:`region_posterior_for_name`):
     those of ``lookup`` ((V,) bool, the words a place is looked up by; default ``params.word_mask``)."""
+    return _query(params, vocabulary, name, lookup)[1]
+
+
+def _query(params: ConceptParameters, vocabulary: Vocabulary, name: str, lookup: np.ndarray | None
+           ) -> tuple[list[str], list[int], np.ndarray]:
+    """The name's tokens (:meth:`Vocabulary.query`), the columns of its usable ones
+    (:func:`query_indices`) and the lookup mask (V,) bool; raises :class:`UnknownNameError` if none."""
     _check_vocabulary(params, vocabulary)
     mask = np.asarray(params.word_mask if lookup is None else lookup, dtype=bool)
     if mask.shape != (len(vocabulary),):
         raise ConfigurationError(f"lookup must be a ({len(vocabulary)},) bool array, got {mask.shape}")
-    known = [w for w, keep in zip(vocabulary.words, mask, strict=True) if keep]
-    _, indices = vocabulary.query(name)
+    tokens, indices = vocabulary.query(name)
     usable = list(dict.fromkeys(k for k in indices if mask[k]))
     if usable:
-        return usable
+        return tokens, usable, mask
+    known = [w for w, keep in zip(vocabulary.words, mask, strict=True) if keep]
     if not indices:
         raise UnknownNameError(name, known)
     pruned = ", ".join(repr(vocabulary.words[k]) for k in dict.fromkeys(indices))
@@ -188,21 +195,11 @@ def query_forms(params: ConceptParameters, vocabulary: Vocabulary, name: str,
     ``alone``: ``name`` is the name as the person asked it. False: it is the known words of a longer
     name nobody said ("spare room", answered by its word "room": :data:`spco.model.unheard.SAID_WORDS`),
     which the lexicon found to be none of the home's names, so its word is only itself."""
-    columns = query_indices(params, vocabulary, name, lookup)
-    if len(columns) != 1 or not alone or len(vocabulary.query(name)[0]) != 1:  # "bunk room": "room" known
+    tokens, columns, mask = _query(params, vocabulary, name, lookup)
+    if len(columns) != 1 or not alone or len(tokens) != 1:  # "bunk room": "room" known
         return [[k] for k in columns]
-    mask = np.asarray(params.word_mask if lookup is None else lookup, dtype=bool)
-    k = columns[0]
-    return [[k, *(j for j in _holding_terms(vocabulary, k) if mask[j])]]
-
-
-@lru_cache(maxsize=1024)
-def _holding_terms(vocabulary: Vocabulary, k: int) -> tuple[int, ...]:
-    """The columns of the terms of ``vocabulary`` other than ``k`` that hold word ``k``'s words side
-    by side (:func:`query_forms`), kept per vocabulary and word."""
-    run = vocabulary.words[k].split()
-    return tuple(j for j, word in enumerate(vocabulary.words)
-                 if j != k and " " in word and contains_run(word.split(), run))
+    k = columns[0]  # the terms holding it: Vocabulary.terms_holding, kept with the vocabulary
+    return [[k, *(j for j in vocabulary.terms_holding(vocabulary.words[k]) if j != k and mask[j])]]
 
 
 def query_name(vocabulary: Vocabulary, params: ConceptParameters, name: str,
@@ -305,7 +302,12 @@ def name_support(params: ConceptParameters, e: int, vocabulary: Vocabulary, name
     (0 if the name has probability 0 in every concept).
     """
     e = _check_home(params, e)
-    weights = _name_concept_weights(params, e, query_forms(params, vocabulary, name, lookup, alone))
+    return _name_support(params, e, query_forms(params, vocabulary, name, lookup, alone))
+
+
+def _name_support(params: ConceptParameters, e: int, forms: list[list[int]]) -> float:
+    """:func:`name_support` of the name said by ``forms`` (:func:`query_forms`) in home ``e``."""
+    weights = _name_concept_weights(params, e, forms)
     total = weights.sum()
     return float(weights[_occupied_concepts(params, e)].sum() / total) if total > 0 else 0.0
 
@@ -480,6 +482,14 @@ def region_posterior_for_name(
     e = _check_home(params, e)
     forms = query_forms(params, vocabulary, name, lookup, alone)
     mask = np.asarray(params.word_mask if lookup is None else lookup, dtype=bool)
+    return _region_posterior(params, e, vocabulary, name, forms, mask, rooms, view_counts)
+
+
+def _region_posterior(params: ConceptParameters, e: int, vocabulary: Vocabulary, name: str,
+                      forms: list[list[int]], mask: np.ndarray, rooms: HomeRooms | None,
+                      view_counts: float | None) -> np.ndarray:
+    """:func:`region_posterior_for_name` of the name ``name`` said by ``forms`` (:func:`query_forms`)
+    in home ``e``, ``mask`` the words a place is looked up by."""
     weights = None if rooms is None else _room_weights(params, e, rooms, view_counts, forms, mask)
     if weights is None:
         concept_weights = _name_concept_weights(params, e, forms)  # (L,)
@@ -541,6 +551,24 @@ def draw_poses(params: ConceptParameters, e: int, region_probabilities: np.ndarr
     return samples, log_density, np.exp(log_density - _log_sum_exp(log_density, axis=0))
 
 
+def resolve_unheard(params: ConceptParameters, e: int, vocabulary: Vocabulary, name: str,
+                    lookup: np.ndarray | None = None) -> ResolvedName | None:
+    """The known name the lexicon finds for ``name`` when it is not one usable token
+    (:func:`spco.model.unheard.resolve_name`), else ``None``: the one look-up of a name nobody said,
+    :func:`predict_positions`' (the robot's ``where`` and the experiments' A_p alike). The candidates
+    are the words of ``lookup`` (default ``params.word_mask``), ranked by their mutual information with
+    home ``e``'s concepts in ``params`` as names (θ^w) and as ``where`` reads them (names or words of a
+    place, ψ), over those same words (worked out only when the name needs the look-up)."""
+    mask = np.asarray(params.word_mask if lookup is None else lookup, dtype=bool)
+    if said_as_one(vocabulary, mask, name):
+        return None
+    looked = params if np.array_equal(mask, np.asarray(params.word_mask, dtype=bool)) else \
+        replace(params, word_mask=mask)
+    return resolve_name(vocabulary, mask, name, params.name_prior,
+                        information=mutual_information_weights(looked, e),
+                        place_information=place_word_information(looked, e))
+
+
 def predict_positions(
     params: ConceptParameters,
     e: int,
@@ -571,8 +599,8 @@ def predict_positions(
     xy_only: draw from the x–y marginal only (the authors' code); θ is then NaN.
     rng: a Generator (advanced by the draws) or a seed.
     unheard: a name that is not a usable token is first looked up in the lexicon
-        (:func:`spco.model.unheard.resolve_name`; ``asked`` and ``via`` of the result say so); False:
-        only the name's own known tokens are used.
+        (:func:`resolve_unheard`; ``asked`` and ``via`` of the result say so); False: only the name's
+        own known tokens are used.
     alone: ``name`` is the name as asked: a name of one word is read by every learnt term that holds
         it (:func:`query_forms`); False for the words of a longer name nobody said (set on the
         lexicon's answer by its own words, :data:`spco.model.unheard.SAID_WORDS`).
@@ -586,18 +614,17 @@ def predict_positions(
     if mode not in ("argmax", "mixture", "answer"):
         raise ConfigurationError(f"mode must be 'argmax', 'mixture' or 'answer', got {mode!r}")
     e = _check_home(params, e)
-    mask = params.word_mask if lookup is None else lookup
-    resolved = (resolve_name(vocabulary, mask, name, params.name_prior,
-                             information=mutual_information_weights(params, e),
-                             place_information=place_word_information(params, e)) if unheard else None)
+    resolved = resolve_unheard(params, e, vocabulary, name, lookup) if unheard else None
     if resolved is not None:  # a name nobody said: the known name the lexicon finds for it
         pred = predict_positions(params, e, vocabulary, resolved.name, n, rng, mode, xy_only, unheard=False,
                                  rooms=rooms, view_counts=view_counts, lookup=lookup,
                                  alone=resolved.how != SAID_WORDS)
         return replace(pred, asked=resolved.asked, via=resolved.how)
-    probs = region_posterior_for_name(params, e, vocabulary, name, rooms=rooms, view_counts=view_counts,
-                                      lookup=lookup, alone=alone)
-    support = name_support(params, e, vocabulary, name, lookup, alone)
+    forms = query_forms(params, vocabulary, name, lookup, alone)  # once, for the regions and the support
+    probs = _region_posterior(params, e, vocabulary, name, forms,
+                              np.asarray(params.word_mask if lookup is None else lookup, dtype=bool),
+                              rooms, view_counts)
+    support = _name_support(params, e, forms)
     best = int(np.argmax(probs))
     gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
     if mode == "argmax":
@@ -608,7 +635,7 @@ def predict_positions(
         regions = gen.choice(probs.size, size=n, p=probs).astype(np.int64)
     samples, log_density, weights = draw_poses(params, e, probs, regions, gen, xy_only)
     return PositionPrediction(
-        name=query_name(vocabulary, params, name, lookup),
+        name=" + ".join(vocabulary.words[form[0]] for form in forms),  # query_name: the usable tokens
         region=best,
         region_probabilities=probs,
         samples=samples,

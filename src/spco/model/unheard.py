@@ -67,6 +67,13 @@ MIN_CANDIDATE_INFORMATION = 0.01
 FIRM_INFORMATION = 0.1
 
 
+def said_as_one(vocabulary: Vocabulary, word_mask: np.ndarray, name: str) -> bool:
+    """Whether ``name`` is one usable token of ``vocabulary`` (``word_mask`` (V,) bool): a name said,
+    which :func:`resolve_name` leaves as it is."""
+    tokens, indices = vocabulary.query(name)
+    return len(tokens) == 1 and len(indices) == 1 and bool(np.asarray(word_mask, dtype=bool)[indices[0]])
+
+
 @dataclass(frozen=True)
 class ResolvedName:
     """A name nobody said, and the known name used for it.
@@ -109,8 +116,7 @@ def resolve_name(vocabulary: Vocabulary, word_mask: np.ndarray, name: str,
     """
     mask = np.asarray(word_mask, dtype=bool)
     asked = normalize_name(name)
-    tokens, indices = vocabulary.query(name)
-    if len(tokens) == 1 and len(indices) == 1 and mask[indices[0]]:
+    if said_as_one(vocabulary, mask, name):
         return None  # said, as one token: nothing to resolve
     if lexicon is None:
         from spco.data.lexicon import lexicon as load
