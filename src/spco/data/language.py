@@ -169,11 +169,6 @@ def _may_start_name(word: str) -> bool:
     return word in NAME_OPENERS or not is_function_word(word)
 
 
-def _may_end_name(word: str) -> bool:
-    """Whether a name may end with ``word``: never a function word or a number ("front of")."""
-    return not is_function_word(word)
-
-
 def _joinable(a: str, b: str) -> bool:
     """Whether ``a b`` may be a learnt term: no closed-class word or number starts it, ends it or
     comes at the join (rule 4b of the module docstring: "wash your hands", "my room" are none)."""
@@ -762,7 +757,7 @@ class Vocabulary:
                 a, b = i, j  # the run without its leading and trailing function words
                 while a < b and not _may_start_name(stream[a]):
                     a += 1
-                while b > a and not _may_end_name(stream[b - 1]):
+                while b > a and is_function_word(stream[b - 1]):  # never ends a name ("front of")
                     b -= 1
                 if b - a >= 2 and sum(len(w.split()) for w in stream[a:b]) <= MAX_TERM_WORDS:
                     run = tuple(stream[a:b])
