@@ -244,7 +244,7 @@ class TransferHyperparameters:
     target: Target = "cut"
     visual_prior: VisualPrior = "given"
     word_prior: WordPrior = "given"
-    warm_start: WarmStart = "words"
+    warm_start: WarmStart = "names"
 
     def __post_init__(self) -> None:
         for name in ("n_concepts", "n_regions"):
@@ -353,7 +353,7 @@ class TransferHyperparameters:
             del data["visual_prior"]
         if data["word_prior"] == "given":
             del data["word_prior"]
-        if data["warm_start"] == "words":
+        if data["warm_start"] == "names":
             del data["warm_start"]
         if data["name_prior"] == "off":
             del data["name_prior"]
