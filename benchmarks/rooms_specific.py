@@ -11,6 +11,10 @@ rooms of all runs for each. Development only: ``specific_dev.json`` is the devel
 benchmarks/SPLIT.md.
 
     nice -n 5 python benchmarks/rooms_specific.py --data D/sigverse --rates 40 --seeds 0 1 2 --jobs 2
+
+``--set NAME=VALUE`` (repeatable) fits with those transfer hyperparameters, read as ``spco experiment
+specific --set`` reads them (:func:`spco.cli.common.settings_hyperparameters`), e.g. ``--set
+warm_start=names`` for the start before issue 28's words' start.
 """
 
 from __future__ import annotations
@@ -24,9 +28,11 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
+import click
 import numpy as np
 
 import spco.evaluation.specific_config as sc
+from spco.cli.common import settings_hyperparameters
 from spco.evaluation.specific_config import ConfiguredData, ConfiguredRun, load_specific_config
 from spco.model.rooms import model_rooms
 from spco.model.transfer import SpatialConceptModel
@@ -65,14 +71,15 @@ _ANSWER_INPUTS = SpatialConceptModel.answer_inputs
 _SCORE_ROOMS = sc.score_rooms
 
 
-def run(args: tuple[str, str, ConfiguredRun, int]) -> dict[str, Any]:
-    """One configured run, scored both ways."""
-    config, data, key, iterations = args
+def run(args: tuple[str, str, ConfiguredRun, int, tuple[str, ...]]) -> dict[str, Any]:
+    """One configured run, scored both ways (fitted with the hyperparameters of the ``--set`` options)."""
+    config, data, key, iterations, settings = args
     SpatialConceptModel.answer_inputs = _answer_inputs  # type: ignore[method-assign]
     sc.score_rooms = _score_both  # type: ignore[assignment]
     file = load_specific_config(config)
     loaded = ConfiguredData(file, data, file.select([key.configuration]))
-    record = sc.execute_configured_run(loaded, key, iterations, sc.DEFAULT_POSITIONS)
+    record = sc.execute_configured_run(loaded, key, iterations, sc.DEFAULT_POSITIONS,
+                                       hyperparameters=settings_hyperparameters(settings))
     record["rooms_account"] = {name: {"correct": [int(c) for c in s.correct], "predicted": list(s.predicted),
                                       "name_accuracy": round(s.name_accuracy, 6),
                                       "positions": s.position_accuracy}
@@ -92,14 +99,21 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--model", default="spcotransfer+mi")
     parser.add_argument("--jobs", type=int, default=1)
     parser.add_argument("--out", type=Path, default=None, help="JSON lines, one record per run")
+    parser.add_argument("--set", dest="settings", action="append", default=[], metavar="NAME=VALUE",
+                        help="a transfer hyperparameter on its default (spco experiment's --set), repeatable")
     args = parser.parse_args(argv)
+    try:
+        settings_hyperparameters(args.settings)  # a bad setting fails here, naming it, not in a worker
+    except click.BadParameter as exc:
+        parser.error(exc.format_message())
     file = load_specific_config(args.config)
     keys = [ConfiguredRun(c.id, r, s, args.model) for c in file.configurations for r in args.rates
             for s in args.seeds]
     start = time.perf_counter()
     per_room: dict[str, list[float]] = {"view": [], "rooms": [], "A_p fit": [], "A_p robot": []}
     with ProcessPoolExecutor(args.jobs) as pool:
-        for record in pool.map(run, [(args.config, args.data, k, args.iterations) for k in keys]):
+        for record in pool.map(run, [(args.config, args.data, k, args.iterations, tuple(args.settings))
+                                     for k in keys]):
             view = {n: r["name_accuracy"] for n, r in record["rooms"].items()}
             by_room = {n: r["name_accuracy"] for n, r in record["rooms_account"].items()}
             per_room["view"].extend(view.values())
