@@ -36,6 +36,7 @@ from speech_errors import _configurations, _fitted, place_of_samples
 import spco.model.transfer as transfer
 from spco.data import Corpus
 from spco.data.language import normalize_name
+from spco.evaluation import evaluate_answers
 from spco.evaluation.metrics import position_accuracy
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.position_prediction import predict_positions
@@ -166,7 +167,8 @@ class Home:
 
 
 def main() -> None:
-    """Fit (or read) each seed's 3LDK_9 fit and print its bedroom landings and the seeds' bedroom concepts."""
+    """Fit (or read) each seed's 3LDK_9 fit and print its A_n and A_p (as speech_errors.py), its bedroom
+    landings and the seeds' bedroom concepts."""
     parser = _parser()
     args = parser.parse_args()
     if any(s not in SIDES["development"]["seeds"] for s in args.seeds):
@@ -179,6 +181,8 @@ def main() -> None:
     weights: list[float] = []
     for seed in args.seeds:
         model = _fitted(args, home.corpus, hyper, seed, home.label, home.labels)
+        scores = evaluate_answers(model, home.e, home.env, rng=seed)  # as speech_errors.py scores 3LDK_9
+        print(f"seed {seed}: A_n {scores.mean_name_accuracy:.3f} A_p {scores.mean_position_accuracy:.3f}")
         home.landings(model, seed)
         o, h, w = home.outside(model)
         outside, hazard, weights = outside + o, hazard + h, weights + w
