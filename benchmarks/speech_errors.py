@@ -247,14 +247,26 @@ def where_miss_class(place: str, name: str, accepted: dict[str, tuple[str, ...]]
     return "one concept, two places" if landed != place else "region spills"
 
 
-def _parser() -> argparse.ArgumentParser:
-    """The command line."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def fit_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    """The options that choose and cache the fits (read by :func:`_configurations` and :func:`_fitted`),
+    for this script and the diagnoses that read its fits (``where_landings.py``)."""
     parser.add_argument("--sigverse", type=Path, default=Path("/work/shared/datasets/sigverse"))
     parser.add_argument("--accepted", type=Path,
                         default=Path(__file__).resolve().parent / "development" / "accepted_names_dev.json")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0])
     parser.add_argument("--sweeps", type=int, default=60)
+    parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE")
+    parser.add_argument("--cache", type=Path, default=None,
+                        help="keep each fitted model here (pickled, keyed by the seed, the configuration, "
+                        "the sweeps and --set) and read it back instead of fitting: the answers (what is "
+                        "scored from a fit) can then be changed and measured again without fitting; "
+                        "stale once the fit's code changes")
+    return parser
+
+
+def _parser() -> argparse.ArgumentParser:
+    """The command line."""
+    parser = fit_arguments(argparse.ArgumentParser(description=__doc__.splitlines()[0]))
     parser.add_argument("--leave-one-out", action="store_true")
     parser.add_argument("--homes", nargs="*", default=None,
                         help="only these configurations (3LDK_9, or a development home held out)")
@@ -267,12 +279,6 @@ def _parser() -> argparse.ArgumentParser:
                         "(--leave-one-out), which has no drawn regions, against the areas nearest its "
                         "labelled training samples (NearestAreas); reported apart from 3LDK_9's regions")
     parser.add_argument("--json", type=Path, default=None)
-    parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE")
-    parser.add_argument("--cache", type=Path, default=None,
-                        help="keep each fitted model here (pickled, keyed by the seed, the configuration, "
-                        "the sweeps and --set) and read it back instead of fitting: the answers (what is "
-                        "scored from a fit) can then be changed and measured again without fitting; "
-                        "stale once the fit's code changes")
     return parser
 
 

@@ -31,7 +31,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from free_speech import read_names
 from natural_speech import SIDES
-from speech_errors import _configurations, _fitted, place_of_samples
+from speech_errors import _configurations, _fitted, fit_arguments, place_of_samples
 
 import spco.model.transfer as transfer
 from spco.data import Corpus
@@ -66,17 +66,11 @@ def only_part(part: str):
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sigverse", type=Path, default=Path("/work/shared/datasets/sigverse"))
-    parser.add_argument("--accepted", type=Path,
-                        default=Path(__file__).resolve().parent / "development" / "accepted_names_dev.json")
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0])
-    parser.add_argument("--sweeps", type=int, default=60)
-    parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE")
+    """The command line: speech_errors.py's fit options (the same fits, the same cache) and --start-part."""
+    parser = fit_arguments(argparse.ArgumentParser(description=__doc__.splitlines()[0]))
     parser.add_argument("--start-part", choices=("both", "weight", "objects"), default="both",
-                        help="with --set warm_start=words: keep only one part of the words' start")
-    parser.add_argument("--cache", type=Path, default=None,
-                        help="as speech_errors.py's (a --start-part other than both needs its own directory)")
+                        help="with --set warm_start=words: keep only one part of the words' start (a part "
+                        "other than both needs a --cache directory of its own)")
     return parser
 
 
