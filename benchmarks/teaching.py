@@ -93,7 +93,7 @@ def synthetic_home(seed: int = 3, psi0_xy: float | None = None,
     if psi0_xy is not None:
         from spco.knowledge.fit import default_hyperparameters
 
-        base = default_hyperparameters(Corpus(envs[:6])) if hyper is None else hyper
+        base = default_hyperparameters(Corpus(envs[:6]), psi0=prior == "places") if hyper is None else hyper
         psi = np.diag(base.psi0_matrix_m2()).copy()
         psi[:2] = psi0_xy
         hyper = replace(base, psi0=tuple(float(v) for v in psi), psi0_in_cm2=False)
