@@ -443,10 +443,7 @@ def _room_weights(params: ConceptParameters, e: int, rooms: HomeRooms, view_coun
     log_word = room_name_log_likelihood(channels, concentration if read else None, groups)  # (R, L)
     if not log_word.max() > _LOG_FLOOR:  # the name has probability 0 in every room
         return np.zeros(K)
-    # each place of the home enters once: p(l) ∝ min(1, N_l), N_l = Σ_k n_k p(l | room k) its samples here
-    held = np.asarray(counts, dtype=np.float64) @ np.exp(log_concept)  # (L,)
-    log_place = -np.log(np.maximum(held, 1.0))  # (L,) log p(l) / N_l for a place, 0 below one sample
-    log_room = _safe_log(counts) + _log_sum_exp(log_concept + log_place[None, :] + log_word, axis=1)  # (R,)
+    log_room = _safe_log(counts) + _log_sum_exp(log_concept + log_word, axis=1)  # (R,)
     log_room = np.where(counts > 0, log_room, -np.inf)
     weights = np.exp(log_room - log_room.max())
     return np.bincount(region_of, weights=weights, minlength=K)
