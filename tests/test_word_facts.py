@@ -96,6 +96,41 @@ def test_cached_kind_facts_give_the_lexicon_s_evidence_and_need_no_wordnet_once_
     np.testing.assert_array_equal(again[1], direct[1])
 
 
+#: One household's names of its toilet, of which WordNet has "toilet" and "bathroom" (its sense
+#: toilet.n.01) as the hypernym of three ("loo", "restroom", "washroom"), beside other places and the
+#: kind words "room" and "area".
+SYNONYM_SENTENCES = ["this is the toilet", "the loo is here", "this is the restroom", "the washroom",
+                     "this is the bathroom", "this is the bedroom", "this is the kitchen", "the living room",
+                     "this room is the study", "the area by the window"]
+
+
+@pytest.mark.parametrize("cached", [False, True])
+def test_names_of_one_place_that_are_wordnet_kinds_of_one_another_keep_their_name_evidence(
+        wordnet, empty_cache, cached: bool) -> None:
+    """A place word is a kind of place by the kinds WordNet has under it ("room", "area"), not by
+    being the WordNet hypernym of other names said: "toilet" and "bathroom" are hypernyms of "loo",
+    "restroom" and "washroom", a household's names of the same place, and keep their name evidence
+    (before, they got a tenth of it, and the synthetic free-form homes' and speech_dev_words.csv's
+    bath lost its one name-like word, "bathroom")."""
+    from spco.model.name_evidence import KIND_FACTOR, name_prior
+
+    vocabulary = Vocabulary.from_sentences(SYNONYM_SENTENCES)
+    lexicon = None if cached else wordnet
+    nu, _ = channel_evidence(vocabulary, SYNONYM_SENTENCES, lexicon)
+    prior = name_prior(vocabulary, SYNONYM_SENTENCES, lexicon)
+    hypernyms = {"toilet", "bathroom"}
+    for word in hypernyms:
+        k = vocabulary.index(word)
+        assert k is not None
+        heads = wordnet.kind_heads(word)
+        said = [w for w in ("loo", "restroom", "washroom") if heads & wordnet.kind_ancestors(w)]
+        assert len(said) == 3, (word, said)  # WordNet has it as their kind
+        assert nu[k] == pytest.approx(prior[k]), word  # and it keeps its name evidence
+    for word in ("room", "area"):  # kinds of place
+        k = vocabulary.index(word)
+        assert k is not None and nu[k] == pytest.approx(KIND_FACTOR * prior[k]), word
+
+
 def test_stand_ins_from_the_cache_files_equal_the_lexicon_s_and_need_no_wordnet_once_asked(
         wordnet, empty_cache, from_files_alone, monkeypatch: pytest.MonkeyPatch) -> None:
     """stand_in_names without a lexicon asks the lexicon's cache files (word facts and
