@@ -131,6 +131,27 @@ def test_names_of_one_place_that_are_wordnet_kinds_of_one_another_keep_their_nam
         assert k is not None and nu[k] == pytest.approx(KIND_FACTOR * prior[k]), word
 
 
+@pytest.mark.parametrize("from_files", [False, True])
+def test_an_object_stands_in_only_for_a_place_its_definition_names(wordnet, empty_cache, from_files,
+                                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    """An object whose WordNet definition names a thing, not a place, stands in for nothing through
+    it: "bathtub" ("a relatively large open container that you fill with water …") and "shower"
+    ("a plumbing fixture that sprays water over you") are not counted for "water", a substance whose
+    name evidence is above OBJECT_BELOW (before, every object of a bath counted for "water" and the
+    bath was answered "water"); "door" still stands in for "entrance", a place its definition names,
+    with the lexicon and through its cache files alike."""
+    from spco.model import unheard
+
+    vocab = Vocabulary(("bathtub", "shower", "water", "bathroom", "door", "entrance"))
+    prior = np.array([0.04, 0.04, 0.26, 0.68, 0.08, 0.3])
+    monkeypatch.setattr(unheard, "_STAND_IN_CACHE", {})
+    out = unheard.stand_in_names(vocab, np.ones(len(vocab), dtype=bool), prior, np.arange(len(vocab)),
+                                 None if from_files else wordnet)
+    assert {vocab.words[k]: vocab.words[j] for k, j in out.items()} == {"door": "entrance"}
+    match = wordnet.closest("bathtub", ["water", "bathroom"])  # the relation the test rests on
+    assert match is not None and match.name == "water" and match.how.endswith("gloss")
+
+
 def test_stand_ins_from_the_cache_files_equal_the_lexicon_s_and_need_no_wordnet_once_asked(
         wordnet, empty_cache, from_files_alone, monkeypatch: pytest.MonkeyPatch) -> None:
     """stand_in_names without a lexicon asks the lexicon's cache files (word facts and
