@@ -290,7 +290,7 @@ def name_prior(vocabulary: Vocabulary, sentences: Iterable[str | None], lexicon:
 #: "entrance" 16, "bed" 23, "bedroom" 11, "toilet" 7, "kitchen" 4). Not whether the word is the
 #: WordNet hypernym of other place words said: a household's names for one place are often a
 #: word and its WordNet kinds ("toilet" and "bathroom", whose WordNet sense toilet.n.01 is the
-#: hypernym of "loo", "restroom" and "washroom"; "bedroom" and "guest room"), and that test took
+#: hypernym of "loo", "restroom" and "washroom"; "bedroom" and "master bedroom"), and that test took
 #: those names for kinds of place.
 KINDS_BELOW = 50
 #: The factor of a kind word's name evidence in the word channels' prior.

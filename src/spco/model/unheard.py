@@ -352,7 +352,11 @@ def stand_in_names(vocabulary: Vocabulary, word_mask: np.ndarray, name_prior: np
         known = [vocabulary.words[j] for j in stronger]
         match = _closest(lexicon, vocabulary.words[k], tuple(known))
         while match is not None and match.how.endswith("gloss") and not _is_place(lexicon, match.name):
-            known.remove(match.name)  # a definition names a thing ("water"), not a place: the next
+            rest = [w for w in known if w != match.name]  # a definition names a thing ("water"), not
+            if len(rest) == len(known):  # a place: the next name the lexicon relates it to
+                match = None
+                break
+            known = rest
             match = _closest(lexicon, vocabulary.words[k], tuple(known))
         if match is not None and match.how in STAND_IN_HOW:
             j = vocabulary.index(match.name)
@@ -369,7 +373,7 @@ def _is_place(lexicon: object, word: str) -> bool:
     from spco.model.name_evidence import FEATURES, lexical_features
 
     facts = lexical_features([word], None if lexicon is _FILE_LEXICON else lexicon)
-    return bool(facts[0, FEATURES.index("place_share") - 6] > 0)
+    return bool(facts[0, FEATURES.index("place_share") - FEATURES.index("known")] > 0)
 
 
 def stand_in_columns(vocabulary: Vocabulary, name_prior: np.ndarray, asked: np.ndarray | None = None,
