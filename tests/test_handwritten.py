@@ -19,7 +19,7 @@ import pytest
 from spco.data import Corpus, Environment
 from spco.data.language import normalize_name
 from spco.data.loading import load
-from spco.evaluation import evaluate_home
+from spco.evaluation import evaluate_answers
 from spco.model import SpCoTransfer
 from spco.model.position_prediction import predict_positions, region_posterior_for_name
 
@@ -98,7 +98,12 @@ def test_handwritten_sentences_name_and_find_the_places(sigverse_dir: Path) -> N
         where = predict_positions(params, e, vocab, "Living Room", n=50, rng=0)
         assert where.name == "living room"
         assert regions.contains("living room", where.samples[:, :2]).mean() >= 0.8
-        scores = evaluate_home(params, e, env, vocab, rng=0, view_counts=model.settings_.view_counts)
+        # names as the robot answers them (evaluate_answers, the experiments' one scoring): the fit's own
+        # parameters ranked by MI are no answer, and their best word at a view is an object in some
+        # chains (seed 0 of this fit: "fridge" at the kitchen once "bathroom" and "toilet" kept their
+        # name evidence; main's at seeds 3 and 4: "i", "hot"), where the robot's answers name places
+        # at seeds 0-4 before and after
+        scores = evaluate_answers(model, e, env, rng=0)
         # the living room's test samples are named "living room" (the term), never "room"
         living = [p for p, lab in zip(scores.predicted_names, scores.labels, strict=True)
                   if lab == "living room"]

@@ -285,11 +285,13 @@ def name_prior(vocabulary: Vocabulary, sentences: Iterable[str | None], lexicon:
     return 1.0 / (1.0 + np.exp(-(w[0] + features @ w[1:])))
 
 
-#: A word that is the WordNet kind (a hypernym) of at least this many other place words said is
-#: the name of a kind of place ("room": bedroom, kitchen, bathroom, …), not of one place.
-KIND_OF_PLACES = 3
-#: So is a word with at least this many kinds under one of its two commonest noun senses in WordNet
-#: ("room" 195, "area" 91, "house" 59, "place" 55; "entrance" 16, "bed" 23, "kitchen" 4).
+#: A word with at least this many kinds under one of its two commonest noun senses in WordNet is
+#: the name of a kind of place, not of one place ("room" 195, "area" 91, "house" 59, "place" 55;
+#: "entrance" 16, "bed" 23, "bedroom" 11, "toilet" 7, "kitchen" 4). Not whether the word is the
+#: WordNet hypernym of other place words said: a household's names for one place are often a
+#: word and its WordNet kinds ("toilet" and "bathroom", whose WordNet sense toilet.n.01 is the
+#: hypernym of "loo", "restroom" and "washroom"; "bedroom" and "master bedroom"), and that test took
+#: those names for kinds of place.
 KINDS_BELOW = 50
 #: The factor of a kind word's name evidence in the word channels' prior.
 KIND_FACTOR = 0.1
@@ -298,9 +300,8 @@ KIND_FACTOR = 0.1
 def channel_evidence(vocabulary: Vocabulary, sentences: Iterable[str | None],
                      lexicon: object | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The evidence of the word channels' switch prior (:mod:`spco.model.word_channels`): (ν, a), each
-    (V,). ν: :func:`name_prior`, times :data:`KIND_FACTOR` for a place word that is the kind of
-    :data:`KIND_OF_PLACES` or more other place words of the vocabulary (WordNet hypernyms: "room"),
-    or has :data:`KINDS_BELOW` kinds or more under a commonest sense ("place", "area");
+    (V,). ν: :func:`name_prior`, times :data:`KIND_FACTOR` for a place word with :data:`KINDS_BELOW`
+    kinds or more under a commonest sense in WordNet ("room", "place", "area");
     a: :func:`content_share`. A word without any evidence (unknown to WordNet and never said in a
     sentence holding an English function word: text in another language) gets ν = a = 0.5."""
     sentences = list(sentences)
@@ -311,18 +312,16 @@ def channel_evidence(vocabulary: Vocabulary, sentences: Iterable[str | None],
     place = features[:, FEATURES.index("place_share")] > 0
     candidates = [words[k] for k in np.flatnonzero(place)]
     if lexicon is None:  # the process's WordNet, through the cache of kind facts (no NLTK if all known)
-        from spco.data.word_facts import kind_facts, kinds_of
+        from spco.data.word_facts import kind_facts
 
         kinds = kind_facts(candidates)
         if kinds is not None:
             for k in np.flatnonzero(place):
-                if (kinds[words[k]].kinds_below >= KINDS_BELOW
-                        or kinds_of(words[k], kinds, candidates) >= KIND_OF_PLACES):
+                if kinds[words[k]].kinds_below >= KINDS_BELOW:
                     nu[k] *= KIND_FACTOR
     else:
         for k in np.flatnonzero(place):
-            if (lexicon.kinds_below(words[k]) >= KINDS_BELOW  # type: ignore[attr-defined]
-                    or lexicon.kinds_of(words[k], candidates) >= KIND_OF_PLACES):  # type: ignore[attr-defined]
+            if lexicon.kinds_below(words[k]) >= KINDS_BELOW:  # type: ignore[attr-defined]
                 nu[k] *= KIND_FACTOR
     content = content_share(words)
     # a word with no evidence at all — unknown to WordNet, never said in a sentence with an English

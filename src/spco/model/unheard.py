@@ -349,12 +349,31 @@ def stand_in_names(vocabulary: Vocabulary, word_mask: np.ndarray, name_prior: np
             continue
         stronger = np.flatnonzero(mask & (prior >= OBJECT_BELOW) & (prior > prior[k]))
         stronger = stronger[np.argsort(-prior[stronger], kind="stable")]
-        match = _closest(lexicon, vocabulary.words[k], tuple(vocabulary.words[j] for j in stronger))
+        known = [vocabulary.words[j] for j in stronger]
+        match = _closest(lexicon, vocabulary.words[k], tuple(known))
+        while match is not None and match.how.endswith("gloss") and not _is_place(lexicon, match.name):
+            rest = [w for w in known if w != match.name]  # a definition names a thing ("water"), not
+            if len(rest) == len(known):  # a place: the next name the lexicon relates it to
+                match = None
+                break
+            known = rest
+            match = _closest(lexicon, vocabulary.words[k], tuple(known))
         if match is not None and match.how in STAND_IN_HOW:
             j = vocabulary.index(match.name)
             if j is not None and j != k:
                 out[k] = j
     return out
+
+
+def _is_place(lexicon: object, word: str) -> bool:
+    """Whether WordNet has ``word`` (or, for a term it does not know, its head) as a place: a place
+    share > 0 among its physical noun senses (:func:`spco.model.name_evidence.lexical_features`).
+    What an object's definition must name for the object to stand in for it: "door" ("… the
+    entrance to a room") for "entrance", not "bathtub" ("… fill with water …") for "water"."""
+    from spco.model.name_evidence import FEATURES, lexical_features
+
+    facts = lexical_features([word], None if lexicon is _FILE_LEXICON else lexicon)
+    return bool(facts[0, FEATURES.index("place_share") - FEATURES.index("known")] > 0)
 
 
 def stand_in_columns(vocabulary: Vocabulary, name_prior: np.ndarray, asked: np.ndarray | None = None,
