@@ -33,7 +33,8 @@ from pathlib import Path
 
 from spco.data.wordnet_files import DATABASE, open_reader, reader_folder
 
-__all__ = ["KINDS_BELOW", "MIN_SIMILARITY", "NOT_PLACE_ROOTS", "PLACE_ROOTS", "Lexicon", "LexiconMatch",
+__all__ = ["KINDS_BELOW", "MIN_SIMILARITY", "NOT_PLACE_ROOTS", "PLACE_ROOTS", "THING_FILES", "Lexicon",
+           "LexiconMatch",
            "lexicon", "lexicon_unavailable_reason"]
 
 #: Where Debian's wordnet-base puts the database files.
@@ -60,6 +61,13 @@ MIN_SIMILARITY = 0.8
 #: "entrance" 16, "bedroom" 11, "kitchen" 4): as a head it leaves the choice of place to the words
 #: before it ("laundry area"), and it is never the known name a name nobody said stands for.
 KINDS_BELOW = 50
+
+#: WordNet's lexicographer files (lexnames(5WN)) of things that stand somewhere in a home — objects,
+#: substances, food, plants, animals — as opposed to acts, people, qualities or feelings: a kind of place
+#: named after one of them ("washbasin area", "tub room") is where that thing is
+#: (:meth:`Lexicon.thing_words`).
+THING_FILES = frozenset({"noun.artifact", "noun.object", "noun.substance", "noun.food", "noun.plant",
+                         "noun.animal"})
 
 #: Prepositions of location: a known name after one of them in a definition is where the defined
 #: place is, not what it is.
@@ -388,6 +396,40 @@ class Lexicon:
                 if heads & ancestors:
                     return True
         return False
+
+    def thing_words(self, name: str, known: Sequence[str]) -> list[str]:
+        """The words of the thing a name nobody said is named after, when it is a kind of place after a
+        thing: WordNet does not know the name whole (nor written as one word or hyphenated; a single
+        word it does not know is read as two, :meth:`split_compound`), its head is general (a kind of
+        place, or a hypernym of one of ``known``'s senses: "area", "room") and the commonest noun
+        sense of the words before it is a thing (:data:`THING_FILES`) and none of their senses is a
+        place (:meth:`place_share` 0: "washbasin area", washbasin.n.01, an artifact; not "lounge room"
+        nor "laundry area", whose words can name the place itself). Then: the words before the head,
+        the other lemmas of that sense (its synonyms: "basin", "washbowl", "washstand", "lavatory"),
+        then those of its hypernyms (its kind: "sink"), lower case, words separated by spaces; else
+        []."""
+        words = name.lower().split()
+        if len(words) == 1:
+            words = self.split_compound(words[0]) or words
+        if len(words) < 2 or self._variants(words):
+            return []
+        head, modifier = words[-1], " ".join(words[:-1])
+        if not self._general(head, {k.lower(): k for k in known}):
+            return []
+        senses = self.synsets(modifier, pos="n")[:1]
+        if not senses or self.place_share(modifier) > 0:  # a word that can name a place ("lounge",
+            return []  # "laundry", "bath") before a kind of place names that place, not a thing there
+        with self._lock:
+            if senses[0].lexname() not in THING_FILES or self._is_place_synset(senses[0].name()):
+                return []
+            layers = [senses[0], *senses[0].hypernyms()]
+        out: list[str] = [modifier]  # the thing as asked, then its synonyms, then its kinds
+        for synset in layers:
+            for lemma in synset.lemmas():
+                text = lemma.name().replace("_", " ").lower()
+                if text not in out:
+                    out.append(text)
+        return out
 
     def kinds_below(self, word: str) -> int:
         """The most kinds (hyponyms, at every depth) under one of the word's two commonest noun senses:
