@@ -420,6 +420,24 @@ def test_a_kind_of_place_named_after_a_thing_is_where_this_home_says_the_thing(w
     assert predict_positions(flat, 0, vocab, "sink area", n=3, rng=0).name == "sink"
 
 
+def test_a_phrase_of_location_says_where_a_place_is_but_what_an_act_is_done_with(wordnet) -> None:
+    """"soaking room": nobody says "soak"; WordNet's soak is "… immersed in water" and this home says
+    "water" at the bath: the look-up reads that phrase (it is no place's definition), and the name is
+    looked for where water is said. In a place's definition a phrase of location still says where the
+    place is ("dinette": "a small area off a kitchen" is no kitchen). ``what``'s stand-ins ask without
+    ``located`` and read neither."""
+    vocab = Vocabulary(("living room", "bath", "water", "room", "is"))
+    theta = np.array([[0.5, 0.0, 0.0, 0.15, 0.35], [0.0, 0.5, 0.0, 0.15, 0.35]])
+    psi = np.array([[0.0, 0.0, 0.0, 0.0, 1.0], [0.0, 0.0, 0.9, 0.0, 0.1]])
+    prior = np.array([0.7, 0.7, 0.01, 0.3, 0.01])
+    params = _two_place_params_with_place_words(theta, psi, prior)
+    pred = predict_positions(params, 0, vocab, "soaking room", n=5, rng=0)
+    assert (pred.name, pred.region) == ("water", 1), (pred.name, pred.via)
+    assert wordnet.closest("soaking room", ["water"], similarity=False) is None
+    assert wordnet.closest("soaking room", ["water"], similarity=False, located=True).name == "water"
+    assert wordnet.closest("dinette", ["kitchen"], similarity=False, located=True) is None
+
+
 def test_similar_rooms_are_told_apart_by_the_definitions_of_the_asked_name_s_kinds(wordnet) -> None:
     """"rec room" ("a room equipped for informal entertaining") is as similar to every room; its own
     definition shares "equipped" with the kitchen's ("a room equipped for preparing meals"), its

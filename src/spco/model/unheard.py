@@ -138,7 +138,7 @@ def resolve_name(vocabulary: Vocabulary, word_mask: np.ndarray, name: str,
     match = None
     for group in (firm, candidates):  # a lexical relation, to a firmly bound name before the others
         if match is None and group:
-            match = lexicon.closest(asked, group, similarity=False)  # type: ignore[attr-defined]
+            match = lexicon.closest(asked, group, similarity=False, located=True)  # type: ignore[attr-defined]
     if match is None:  # the name's own words that this home's people say ("sink area": "sink")
         said = said_words(vocabulary, mask, asked, lexicon)
         if said:
@@ -149,7 +149,7 @@ def resolve_name(vocabulary: Vocabulary, word_mask: np.ndarray, name: str,
             return found
     for group in (firm, candidates):  # then mere similarity
         if match is None and group:
-            match = lexicon.closest(asked, group, similarity=True)  # type: ignore[attr-defined]
+            match = lexicon.closest(asked, group, similarity=True, located=True)  # type: ignore[attr-defined]
     if match is None:
         return None
     name, how = match.name, match.how
@@ -182,7 +182,8 @@ def _by_place_words(vocabulary: Vocabulary, mask: np.ndarray, asked: str, place_
     head: "dressing area" -> "dressing room", "a room in which you can change clothes" ->
     "clothes"), or None."""
     objects = place_words(vocabulary, mask, place_information, lexicon, exclude=candidates)
-    found = lexicon.closest(asked, objects, similarity=False) if objects else None  # type: ignore[attr-defined]
+    found = (lexicon.closest(asked, objects, similarity=False, located=True)  # type: ignore[attr-defined]
+             if objects else None)
     if found is None:
         return None
     return ResolvedName(asked=asked, name=found.name, how=f"{PLACE_WORD} {found.how}",
