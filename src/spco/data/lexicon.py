@@ -34,8 +34,7 @@ from pathlib import Path
 from spco.data.wordnet_files import DATABASE, open_reader, reader_folder
 
 __all__ = ["KINDS_BELOW", "MIN_SIMILARITY", "NOT_PLACE_ROOTS", "PLACE_ROOTS", "THING_FILES", "Lexicon",
-           "LexiconMatch",
-           "lexicon", "lexicon_unavailable_reason"]
+           "LexiconMatch", "lexicon", "lexicon_unavailable_reason"]
 
 #: Where Debian's wordnet-base puts the database files.
 DEBIAN_WORDNET = Path("/usr/share/wordnet")

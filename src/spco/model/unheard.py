@@ -9,7 +9,9 @@ derivations, similarity) among the home's candidate names (:func:`candidate_name
 are names by the model — name prior ≥ :data:`MIN_CANDIDATE_PRIOR` when the model has a prior,
 :mod:`spco.model.name_evidence`, and mutual information ≥ :data:`MIN_CANDIDATE_INFORMATION` of the
 largest — or rooms by WordNet, never kinds of place such as "room" or "area"). It asks in steps
-and keeps the first answer: a lexical relation (synonym, definition, head, modifier,
+and keeps the first answer: for a kind of place named after a thing that WordNet does not know whole
+("washbasin area", "tub room"), the word of a place that says the thing, a synonym of it or its kind
+(:func:`_by_thing`: "basin", "sink"); a lexical relation (synonym, definition, head, modifier,
 derivation) to one of the home's firmly bound names (information ≥ :data:`FIRM_INFORMATION` of the
 largest: one or two per place), the same to any candidate, then the name's own words that the home's
 people say, kinds of place left out (:func:`said_words`: "sink area" -> "sink", "soaking room" ->
@@ -197,10 +199,9 @@ def _by_thing(vocabulary: Vocabulary, mask: np.ndarray, asked: str, place_inform
     the washbasin is), as said or in a base form ("boots" for "boot"): the thing's synonyms first,
     then its kind ("washbasin", a "sink"), each the most informative word saying it, or the word
     itself when it is said but no more at some places than at others (as :func:`said_words` reads a
-    name's own words); or None. Where a
-    thing stands differs from home to home (a Japanese home's washbasin is in the washroom, WordNet's
-    in the bathroom: "a bathroom sink …"), so the home's own words of a place are asked before the
-    names WordNet's definitions put it in."""
+    name's own words); or None. Where a thing stands differs from home to home (a Japanese home's
+    washbasin is in the washroom, WordNet's in the bathroom: "a bathroom sink …"), so the home's own
+    words of a place are asked before the names WordNet's definitions put it with."""
     things = lexicon.thing_words(asked, candidates)  # type: ignore[attr-defined]
     if not things:
         return None
