@@ -249,8 +249,9 @@ def test_a_name_never_heard_is_found_by_its_modifier_s_compound_or_its_words_sai
     """"comfort room" (unknown to WordNet) finds the toilet through "comfort station"; a name the
     lexicon relates to no name of the home is answered by its own words that the home's people say,
     kinds of place left out: "sink area" where "sink" is said (with "area", said most at the
-    kitchen, it was the kitchen), "soaking room" where "soak" is said; "great room" ("great hall" is
-    a hall, which says nothing of it) finds nothing."""
+    kitchen, it was the kitchen; a thing before a kind of place, it is read so first), "soaking
+    room" where "soak" is said; "great room" ("great hall" is a hall, which says nothing of it)
+    finds nothing."""
     vocab = Vocabulary(("toilet", "sink", "area", "room", "kitchen", "soak"))
     theta = np.array([[0.5, 0.2, 0.02, 0.2, 0.0, 0.08],  # concept 0 at x = 0: the toilet
                       [0.0, 0.1, 0.3, 0.1, 0.3, 0.2]])  # concept 1 at x = 5: the kitchen
@@ -259,7 +260,7 @@ def test_a_name_never_heard_is_found_by_its_modifier_s_compound_or_its_words_sai
     comfort = predict_positions(params, 0, vocab, "comfort room", n=3, rng=0)
     assert (comfort.name, comfort.via, comfort.region) == ("toilet", "compound gloss", 0), comfort.via
     sink = predict_positions(params, 0, vocab, "sink area", n=3, rng=0)
-    assert (sink.name, sink.via, sink.region) == ("sink", "its words", 0), (sink.name, sink.via)
+    assert (sink.name, sink.via, sink.region) == ("sink", "place word thing", 0), (sink.name, sink.via)
     together = predict_positions(params, 0, vocab, "sink area", n=3, rng=0, unheard=False)
     assert together.region == 1  # the words said together: "area" takes it to the kitchen
     soak = predict_positions(params, 0, vocab, "soaking room", n=3, rng=0)
@@ -391,6 +392,50 @@ def test_a_modifier_s_compound_naming_a_place_comes_before_its_derivations(wordn
         LexiconMatch("dresser", 0.7, "derivation")
     bathing = predict_positions(params, 0, vocab, "bathing room", n=5, rng=0)
     assert (bathing.name, bathing.region) == ("bath", 1), bathing.via
+
+
+def test_a_kind_of_place_named_after_a_thing_is_where_this_home_says_the_thing(wordnet) -> None:
+    """"washbasin area": WordNet's washbasin is also called a "lavatory" (a name of this home's toilet)
+    and is "a bathroom sink"; this home says "sink" at its washroom, so the name is looked for there —
+    the thing as asked, its synonyms, then its kind (a washbasin is a sink) — before the names WordNet
+    relates it to. A word that can name a place ("lounge", "laundry") or a name WordNet knows whole
+    ("powder room") is no thing's place; nor is a person's ("guest area") or an act's."""
+    from spco.model.unheard import PLACE_WORD, THING
+
+    vocab = Vocabulary(("lavatory", "washroom", "bathroom", "sink", "is"))
+    theta = np.array([[0.5, 0.0, 0.1, 0.05, 0.35],  # concept 0 at x = 0: the toilet
+                      [0.0, 0.5, 0.0, 0.05, 0.35]])  # concept 1 at x = 5: the washroom
+    psi = np.array([[0.0, 0.0, 0.0, 0.0, 1.0], [0.0, 0.0, 0.0, 0.9, 0.1]])
+    prior = np.array([0.7, 0.7, 0.7, 0.01, 0.01])
+    params = _two_place_params_with_place_words(theta, psi, prior)
+    pred = predict_positions(params, 0, vocab, "washbasin area", n=5, rng=0)
+    assert (pred.name, pred.via, pred.region) == ("sink", f"{PLACE_WORD} {THING}", 1), (pred.name, pred.via)
+    assert np.all(np.abs(pred.samples[:, 0] - 5.0) < 2.0)
+    things = wordnet.thing_words("washbasin area", ["lavatory", "washroom"])
+    assert things[:2] == ["washbasin", "basin"] and "lavatory" in things and things[-1] == "sink", things
+    for asked in ("lounge room", "laundry area", "powder room", "guest area", "eating area", "kitchen"):
+        assert wordnet.thing_words(asked, ["lavatory", "washroom"]) == [], asked
+    # said nowhere more than elsewhere, the thing is still its own word, as a name's own words are
+    flat = _two_place_params_with_place_words(theta, np.full((2, 5), 0.2), prior)
+    assert predict_positions(flat, 0, vocab, "sink area", n=3, rng=0).name == "sink"
+
+
+def test_a_phrase_of_location_says_where_a_place_is_but_what_an_act_is_done_with(wordnet) -> None:
+    """"soaking room": nobody says "soak"; WordNet's soak is "… immersed in water" and this home says
+    "water" at the bath: the look-up reads that phrase (it is no place's definition), and the name is
+    looked for where water is said. In a place's definition a phrase of location still says where the
+    place is ("dinette": "a small area off a kitchen" is no kitchen). ``what``'s stand-ins ask without
+    ``located`` and read neither."""
+    vocab = Vocabulary(("living room", "bath", "water", "room", "is"))
+    theta = np.array([[0.5, 0.0, 0.0, 0.15, 0.35], [0.0, 0.5, 0.0, 0.15, 0.35]])
+    psi = np.array([[0.0, 0.0, 0.0, 0.0, 1.0], [0.0, 0.0, 0.9, 0.0, 0.1]])
+    prior = np.array([0.7, 0.7, 0.01, 0.3, 0.01])
+    params = _two_place_params_with_place_words(theta, psi, prior)
+    pred = predict_positions(params, 0, vocab, "soaking room", n=5, rng=0)
+    assert (pred.name, pred.region) == ("water", 1), (pred.name, pred.via)
+    assert wordnet.closest("soaking room", ["water"], similarity=False) is None
+    assert wordnet.closest("soaking room", ["water"], similarity=False, located=True).name == "water"
+    assert wordnet.closest("dinette", ["kitchen"], similarity=False, located=True) is None
 
 
 def test_similar_rooms_are_told_apart_by_the_definitions_of_the_asked_name_s_kinds(wordnet) -> None:

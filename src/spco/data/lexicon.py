@@ -33,8 +33,8 @@ from pathlib import Path
 
 from spco.data.wordnet_files import DATABASE, open_reader, reader_folder
 
-__all__ = ["KINDS_BELOW", "MIN_SIMILARITY", "NOT_PLACE_ROOTS", "PLACE_ROOTS", "Lexicon", "LexiconMatch",
-           "lexicon", "lexicon_unavailable_reason"]
+__all__ = ["KINDS_BELOW", "MIN_SIMILARITY", "NOT_PLACE_ROOTS", "PLACE_ROOTS", "THING_FILES", "Lexicon",
+           "LexiconMatch", "lexicon", "lexicon_unavailable_reason"]
 
 #: Where Debian's wordnet-base puts the database files.
 DEBIAN_WORDNET = Path("/usr/share/wordnet")
@@ -60,6 +60,13 @@ MIN_SIMILARITY = 0.8
 #: "entrance" 16, "bedroom" 11, "kitchen" 4): as a head it leaves the choice of place to the words
 #: before it ("laundry area"), and it is never the known name a name nobody said stands for.
 KINDS_BELOW = 50
+
+#: WordNet's lexicographer files (lexnames(5WN)) of things that stand somewhere in a home — objects,
+#: substances, food, plants, animals — as opposed to acts, people, qualities or feelings: a kind of place
+#: named after one of them ("washbasin area", "tub room") is where that thing is
+#: (:meth:`Lexicon.thing_words`).
+THING_FILES = frozenset({"noun.artifact", "noun.object", "noun.substance", "noun.food", "noun.plant",
+                         "noun.animal"})
 
 #: Prepositions of location: a known name after one of them in a definition is where the defined
 #: place is, not what it is.
@@ -250,12 +257,15 @@ class Lexicon:
                         + [sy for sy, p in zip(senses, places, strict=True) if not p])
         return []
 
-    def _by_senses(self, senses: list, known: dict[str, str], kinds: bool = False) -> LexiconMatch | None:
+    def _by_senses(self, senses: list, known: dict[str, str], kinds: bool = False,
+                   located: bool = False) -> LexiconMatch | None:
         """A known name that is a synonym of one of ``senses`` or is in their definitions (or in
         their hypernyms' definitions); with ``kinds`` (the asked name's own senses, not those of a
         word of it or of a compound, one relation away already), before the hypernyms'
         definitions, a known name that is a hypernym of the commonest sense ("dining hall" is a
-        "dining room")."""
+        "dining room"). A phrase of location is skipped in a definition (:meth:`_gloss_terms`); with
+        ``located``, only in a definition of a place: "a small area off *a kitchen*" says where a
+        dinette is, "immersed *in water*" what soaking is done with."""
         for synset in senses:
             for lemma in synset.lemmas():
                 text = lemma.name().replace("_", " ").lower()
@@ -264,7 +274,11 @@ class Lexicon:
         for synset in senses[:1]:  # the commonest sense, then its hypernyms
             for depth, layer in enumerate(([synset], synset.hypernyms())):
                 for gloss in layer:
-                    for token in self._gloss_terms(gloss.definition(), skip_located=True):
+                    skip = True
+                    if located:
+                        with self._lock:
+                            skip = self._is_place_synset(gloss.name())
+                    for token in self._gloss_terms(gloss.definition(), skip_located=skip):
                         if token in known:
                             return LexiconMatch(known[token], 0.9 - 0.1 * depth, "gloss")
                 if depth == 0 and kinds:
@@ -340,7 +354,8 @@ class Lexicon:
                 concepts.add(senses[0])  # synonyms ("bedroom", "bedchamber") are one concept
         return LexiconMatch(hits[0], 0.7, "definition") if len(concepts) == 1 else None
 
-    def _compound_of(self, modifier: str, head: str, known: dict[str, str]) -> LexiconMatch | None:
+    def _compound_of(self, modifier: str, head: str, known: dict[str, str],
+                     located: bool = False) -> LexiconMatch | None:
         """A known name related (:meth:`_by_senses`: a synonym, or in the definition) to the places that
         WordNet names by ``modifier`` before another head ("comfort room", unknown to WordNet ->
         "comfort station": "a toilet that is available to the public", a synonym of "restroom"), when
@@ -354,7 +369,7 @@ class Lexicon:
             with self._lock:
                 if not senses or not self._is_place_synset(senses[0].name()):
                     continue
-            match = self._by_senses(senses, known)
+            match = self._by_senses(senses, known, located=located)
             if match is not None and match.name != lemma.rsplit("_", 1)[-1]:  # "great hall": a hall,
                 found.setdefault(match.name, match)  # which says nothing of a "great room"
         if len(found) != 1:
@@ -388,6 +403,40 @@ class Lexicon:
                 if heads & ancestors:
                     return True
         return False
+
+    def thing_words(self, name: str, known: Sequence[str]) -> list[str]:
+        """The words of the thing a name nobody said is named after, when it is a kind of place after a
+        thing: WordNet does not know the name whole (nor written as one word or hyphenated; a single
+        word it does not know is read as two, :meth:`split_compound`), its head is general (a kind of
+        place, or a hypernym of one of ``known``'s senses: "area", "room") and the commonest noun
+        sense of the words before it is a thing (:data:`THING_FILES`) and none of their senses is a
+        place (:meth:`place_share` 0: "washbasin area", washbasin.n.01, an artifact; not "lounge room"
+        nor "laundry area", whose words can name the place itself). Then: the words before the head,
+        the other lemmas of that sense (its synonyms: "basin", "washbowl", "washstand", "lavatory"),
+        then those of its hypernyms (its kind: "sink"), lower case, words separated by spaces; else
+        []."""
+        words = name.lower().split()
+        if len(words) == 1:
+            words = self.split_compound(words[0]) or words
+        if len(words) < 2 or self._variants(words):
+            return []
+        head, modifier = words[-1], " ".join(words[:-1])
+        if not self._general(head, {k.lower(): k for k in known}):
+            return []
+        senses = self.synsets(modifier, pos="n")[:1]
+        if not senses or self.place_share(modifier) > 0:  # a word that can name a place ("lounge",
+            return []  # "laundry", "bath") before a kind of place names that place, not a thing there
+        with self._lock:
+            if senses[0].lexname() not in THING_FILES or self._is_place_synset(senses[0].name()):
+                return []
+            layers = [senses[0], *senses[0].hypernyms()]
+        out: list[str] = [modifier]  # the thing as asked, then its synonyms, then its kinds
+        for synset in layers:
+            for lemma in synset.lemmas():
+                text = lemma.name().replace("_", " ").lower()
+                if text not in out:
+                    out.append(text)
+        return out
 
     def kinds_below(self, word: str) -> int:
         """The most kinds (hyponyms, at every depth) under one of the word's two commonest noun senses:
@@ -424,7 +473,8 @@ class Lexicon:
             return 0
         return sum(1 for text in others if text != word and heads & self.kind_ancestors(text))
 
-    def closest(self, name: str, known: list[str], similarity: bool = True) -> LexiconMatch | None:
+    def closest(self, name: str, known: list[str], similarity: bool = True,
+                located: bool = False) -> LexiconMatch | None:
         """The known name that stands for ``name`` (a name nobody said), or None.
 
         In order: a known name that is a synonym of ``name`` (shares a noun synset; "privy" ->
@@ -450,7 +500,9 @@ class Lexicon:
         private house", does), and none when they share none. ``known``: candidate names
         (vocabulary tokens, lower case, words separated by spaces), most name-like first.
         ``similarity=False``: only the relations before similarity (synonym, gloss, head,
-        definition, derivation)."""
+        definition, derivation). ``located``: a phrase of location in a definition is read unless the
+        definition is a place's (:meth:`_by_senses`; the look-up of a name nobody said asks so, the
+        stand-ins of ``what`` do not)."""
         words = name.lower().split()
         if not words or not known:
             return None
@@ -464,7 +516,7 @@ class Lexicon:
         known_set = {k: v for k, v in known_set.items()
                      if self.synsets(k, pos="n") or (" " in k and self.synsets(k.split()[-1], pos="n"))}
         senses = self._variants(words)
-        found = self._by_senses(senses, known_set, kinds=True)
+        found = self._by_senses(senses, known_set, kinds=True, located=located)
         if found is not None:
             return found
         parts: list[str] = []
@@ -481,7 +533,7 @@ class Lexicon:
                     if len(kw) > 1 and " ".join(kw[:-1]) == modifier and self._general(kw[-1], known_set):
                         return LexiconMatch(original, 0.8, "head")
             for part in parts:
-                found = self._by_senses(self._variants(part.split()), known_set)
+                found = self._by_senses(self._variants(part.split()), known_set, located=located)
                 if found is not None:
                     return replace(found, score=found.score * 0.8, how=f"head {found.how}")
             mine = set(self.synsets(modifier, pos="n")[:3]) if general else set()
@@ -496,7 +548,8 @@ class Lexicon:
                     return found
             # the modifier's own compound naming a place ("comfort room" -> "comfort station", a
             # restroom; "dressing area" -> "dressing room"), then a derivation ("bathing" -> "bathe")
-            later = itertools.chain((self._compound_of(modifier, head, known_set) for _ in range(general)),
+            later = itertools.chain((self._compound_of(modifier, head, known_set, located)
+                                     for _ in range(general)),
                                     (self._derived(part, known_set) for part in parts))
             found = next((f for f in later if f is not None), None)
             if found is not None:

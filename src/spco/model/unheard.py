@@ -9,7 +9,9 @@ derivations, similarity) among the home's candidate names (:func:`candidate_name
 are names by the model — name prior ≥ :data:`MIN_CANDIDATE_PRIOR` when the model has a prior,
 :mod:`spco.model.name_evidence`, and mutual information ≥ :data:`MIN_CANDIDATE_INFORMATION` of the
 largest — or rooms by WordNet, never kinds of place such as "room" or "area"). It asks in steps
-and keeps the first answer: a lexical relation (synonym, definition, head, modifier,
+and keeps the first answer: for a kind of place named after a thing that WordNet does not know whole
+("washbasin area", "tub room"), the word of a place that says the thing, a synonym of it or its kind
+(:func:`_by_thing`: "basin", "sink"); a lexical relation (synonym, definition, head, modifier,
 derivation) to one of the home's firmly bound names (information ≥ :data:`FIRM_INFORMATION` of the
 largest: one or two per place), the same to any candidate, then the name's own words that the home's
 people say, kinds of place left out (:func:`said_words`: "sink area" -> "sink", "soaking room" ->
@@ -43,6 +45,7 @@ __all__ = [
     "QUALITY_SHARE",
     "SAID_WORDS",
     "STAND_IN_HOW",
+    "THING",
     "ResolvedName",
     "candidate_names",
     "place_words",
@@ -130,10 +133,14 @@ def resolve_name(vocabulary: Vocabulary, word_mask: np.ndarray, name: str,
         info = np.asarray(information, dtype=np.float64)
         floor = FIRM_INFORMATION * info[mask].max()
         firm = [c for c in candidates if info[vocabulary.index(c)] >= floor]
+    if place_information is not None:  # a kind of place named after a thing: where the thing is said
+        found = _by_thing(vocabulary, mask, asked, place_information, lexicon, candidates)
+        if found is not None:
+            return found
     match = None
     for group in (firm, candidates):  # a lexical relation, to a firmly bound name before the others
         if match is None and group:
-            match = lexicon.closest(asked, group, similarity=False)  # type: ignore[attr-defined]
+            match = lexicon.closest(asked, group, similarity=False, located=True)  # type: ignore[attr-defined]
     if match is None:  # the name's own words that this home's people say ("sink area": "sink")
         said = said_words(vocabulary, mask, asked, lexicon)
         if said:
@@ -144,7 +151,7 @@ def resolve_name(vocabulary: Vocabulary, word_mask: np.ndarray, name: str,
             return found
     for group in (firm, candidates):  # then mere similarity
         if match is None and group:
-            match = lexicon.closest(asked, group, similarity=True)  # type: ignore[attr-defined]
+            match = lexicon.closest(asked, group, similarity=True, located=True)  # type: ignore[attr-defined]
     if match is None:
         return None
     name, how = match.name, match.how
@@ -163,6 +170,9 @@ QUALITY_SHARE = 0.5
 SAID_WORDS = "its words"
 #: :attr:`ResolvedName.how` (its first word) of a name answered by a word of a place (:func:`place_words`).
 PLACE_WORD = "place word"
+#: :attr:`ResolvedName.how` (after :data:`PLACE_WORD`) of a kind of place named after a thing, answered
+#: where the thing is said (:func:`_by_thing`).
+THING = "thing"
 
 
 def _by_place_words(vocabulary: Vocabulary, mask: np.ndarray, asked: str, place_information: np.ndarray,
@@ -174,11 +184,39 @@ def _by_place_words(vocabulary: Vocabulary, mask: np.ndarray, asked: str, place_
     head: "dressing area" -> "dressing room", "a room in which you can change clothes" ->
     "clothes"), or None."""
     objects = place_words(vocabulary, mask, place_information, lexicon, exclude=candidates)
-    found = lexicon.closest(asked, objects, similarity=False) if objects else None  # type: ignore[attr-defined]
+    found = (lexicon.closest(asked, objects, similarity=False, located=True)  # type: ignore[attr-defined]
+             if objects else None)
     if found is None:
         return None
     return ResolvedName(asked=asked, name=found.name, how=f"{PLACE_WORD} {found.how}",
                         score=float(found.score))
+
+
+def _by_thing(vocabulary: Vocabulary, mask: np.ndarray, asked: str, place_information: np.ndarray,
+              lexicon: object, candidates: list[str]) -> ResolvedName | None:
+    """The word of a place (:func:`place_words`, the candidate names left out) that says the thing
+    ``asked`` is named after (:meth:`spco.data.lexicon.Lexicon.thing_words`: "washbasin area" is where
+    the washbasin is), as said or in a base form ("boots" for "boot"): the thing's synonyms first,
+    then its kind ("washbasin", a "sink"), each the most informative word saying it, or the word
+    itself when it is said but no more at some places than at others (as :func:`said_words` reads a
+    name's own words); or None. Where a thing stands differs from home to home (a Japanese home's
+    washbasin is in the washroom, WordNet's in the bathroom: "a bathroom sink …"), so the home's own
+    words of a place are asked before the names WordNet's definitions put it with."""
+    things = lexicon.thing_words(asked, candidates)  # type: ignore[attr-defined]
+    if not things:
+        return None
+    objects = place_words(vocabulary, mask, place_information, lexicon, exclude=candidates)
+    forms = {word: lexicon.base_forms(word) for word in objects}  # type: ignore[attr-defined]
+    skip = set(candidates)
+    for thing in things:
+        found = next((word for word in objects if thing in forms[word]), None)
+        if found is None:  # said, but not more at some places than at others: as its own words are read
+            k = vocabulary.index(thing)
+            if k is not None and mask[k] and thing not in skip and not is_function_word(thing):
+                found = vocabulary.words[k]
+        if found is not None:
+            return ResolvedName(asked=asked, name=found, how=f"{PLACE_WORD} {THING}", score=0.7)
+    return None
 
 
 def place_words(vocabulary: Vocabulary, word_mask: np.ndarray, place_information: np.ndarray,
