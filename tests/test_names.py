@@ -26,7 +26,7 @@ from spco.model.name_evidence import (
     within_concepts,
 )
 from spco.model.parameters import ConceptParameters
-from spco.model.position_prediction import LEARNT_SUPPORT, held_words, name_support, predict_positions
+from spco.model.position_prediction import predict_positions
 from spco.model.prediction import UnknownNameError, predict_names
 from spco.model.unheard import resolve_name
 
@@ -222,73 +222,6 @@ def test_where_finds_a_name_nobody_said_and_says_which_name_it_used(wordnet) -> 
     assert found is not None and found.name == "toilet" and found.how in ("synonym", "gloss")
     unusable = resolve_name(vocab, np.array([False, True, True]), "restroom", lexicon=wordnet)
     assert unusable is None or unusable.name != "toilet"  # a pruned word is never the answer
-
-
-def _restroom_held_elsewhere(restroom_count: float = 0.0) -> tuple[ConceptParameters, Vocabulary]:
-    """Concept 0 (region 0) says "toilet", concept 1 (region 1) "kitchen"; concept 2 says "restroom"
-    and "wc" (other homes' names for the toilet) and holds ``restroom_count`` samples of the home; its
-    shared view profile is the kitchen's, so without the lexicon it is looked for there."""
-    theta = np.array([[0.6, 0.4, 0.0, 0.0, 0.0], [0.0, 0.3, 0.7, 0.0, 0.0],
-                      [0.0, 0.3, 0.0, 0.4, 0.3]])[None] + 1e-6
-    theta /= theta.sum(axis=2, keepdims=True)
-    views = np.array([[0.8, 0.1, 0.1], [0.1, 0.8, 0.1], [1 / 3, 1 / 3, 1 / 3]])
-    params = ConceptParameters(
-        concept_weights=np.array([[0.45, 0.45, 0.1]]),
-        region_weights=np.array([[[0.99, 0.01], [0.01, 0.99], [0.5, 0.5]]]),
-        region_means=np.array([[[0.0, 0.0, 0.0, 1.0], [5.0, 0.0, 0.0, 1.0]]]),
-        region_covariances=np.tile(np.eye(4) * 0.1, (1, 2, 1, 1)),
-        word_probabilities=theta, visual_probabilities=views[None],
-        shared_word_probabilities=theta[0], shared_visual_probabilities=views[[0, 1, 1]],
-        global_concept_weights=np.array([0.45, 0.45, 0.1]), word_mask=np.ones(5, dtype=bool),
-        region_counts=np.array([[10, 10]]), concept_counts=np.array([[10.0, 10.0, restroom_count]]))
-    return params, Vocabulary(("toilet", "is", "kitchen", "restroom", "wc"))
-
-
-def test_held_words_are_the_words_whose_own_support_in_the_home_is_learnt() -> None:
-    for count in (0.0, 0.5, 3.0, 10.0):  # brute force: name_support of each word alone
-        params, vocab = _restroom_held_elsewhere(count)
-        brute = [name_support(params, 0, vocab, w) >= LEARNT_SUPPORT for w in vocab.words]
-        assert held_words(params, 0).tolist() == brute, count
-        lookup = np.array([True, True, False, True, True])
-        assert held_words(params, 0, lookup).tolist() == [b and k for b, k in zip(brute, lookup, strict=True)]
-    assert held_words(_restroom_held_elsewhere(0.0)[0], 0).tolist() == [True, True, True, False, False]
-
-
-def test_a_name_learnt_only_in_other_homes_asks_the_lexicon_for_a_name_this_home_holds(wordnet) -> None:
-    """"restroom", said in other homes only (its concept holds no sample of this one), is for this home a
-    name nobody said: `where` answers with "toilet", the home's own name the lexicon relates it to, and
-    says so; before, its concept's stand-in took it to the kitchen."""
-    params, vocab = _restroom_held_elsewhere(0.0)
-    old = predict_positions(params, 0, vocab, "restroom", n=5, rng=0, elsewhere=False)
-    assert (old.name, old.region, old.learnt, old.asked) == ("restroom", 1, False, None)
-    pred = predict_positions(params, 0, vocab, "restroom", n=5, rng=0)
-    assert (pred.asked, pred.name, pred.region, pred.learnt) == ("restroom", "toilet", 0, True), pred.via
-    assert pred.via in ("synonym", "gloss") and np.all(np.abs(pred.samples[:, 0]) < 2.0)
-    toilet = predict_positions(params, 0, vocab, "toilet", n=5, rng=0)  # the same draws as asking for it
-    np.testing.assert_allclose(pred.samples, toilet.samples)
-    assert toilet.asked is None
-    for mode in ("answer", "mixture"):
-        assert predict_positions(params, 0, vocab, "RestRoom", n=4, rng=1, mode=mode).name == "toilet"
-    # names the home holds are untouched, whatever the lexicon says
-    for name in ("toilet", "kitchen"):
-        same = predict_positions(params, 0, vocab, name, n=5, rng=0)
-        before = predict_positions(params, 0, vocab, name, n=5, rng=0, elsewhere=False)
-        assert same.asked is None and same.name == name and _alike(same, before)
-    # held by the home itself (its concept holds samples here): its own answer, not the lexicon's
-    held, _ = _restroom_held_elsewhere(10.0)
-    own = predict_positions(held, 0, vocab, "restroom", n=5, rng=0)
-    assert (own.name, own.asked, own.learnt) == ("restroom", None, True)
-    # the lexicon relates the name to no name the home holds: today's answer, unchanged
-    no_toilet = replace(params, word_mask=np.array([False, True, True, True, True]))
-    kept = predict_positions(no_toilet, 0, vocab, "restroom", n=5, rng=0)
-    assert kept.asked is None
-    assert _alike(kept, predict_positions(no_toilet, 0, vocab, "restroom", n=5, rng=0, elsewhere=False))
-
-
-def _alike(a, b) -> bool:
-    """Two predictions alike: the name, the regions' probabilities and the draws."""
-    return a.name == b.name and np.allclose(a.region_probabilities, b.region_probabilities) and \
-        np.allclose(a.samples, b.samples, equal_nan=True)
 
 
 def _living_kitchen() -> tuple[ConceptParameters, Vocabulary]:

@@ -33,10 +33,7 @@ from m̂ = argmax_m p(m | w) (the paper's A_p), or from p(m | w) (``"mixture"``)
 The share of Σ_l G_{e,l} p(w | l) that the concepts holding samples of home e (``concept_counts``
 ≥ 1) hold is the name's ``support`` in the home; below :data:`LEARNT_SUPPORT` the place is reported
 as not learnt in this home (``PositionPrediction.learnt`` False): its name is explained mostly by
-concepts of other homes, e.g. ``dining`` in a home without a dining room. Such a name is, for the
-home, like a name nobody said here: :func:`predict_positions` asks the lexicon look-up of a name
-nobody said (:func:`resolve_unheard`) for a name the home holds ("wc" → "toilet") and answers with
-it when it finds one (``asked``, ``via``); else with the name's own regions.
+concepts of other homes, e.g. ``dining`` in a home without a dining room.
 """
 
 from __future__ import annotations
@@ -69,12 +66,10 @@ from spco.model.unheard import SAID_WORDS, ResolvedName, resolve_name, said_as_o
 
 __all__ = [
     "LEARNT_SUPPORT",
-    "MERE_SIMILARITY",
     "PositionPrediction",
     "answer_regions",
     "concept_stand_ins",
     "draw_poses",
-    "held_words",
     "name_support",
     "place_word_information",
     "predict_positions",
@@ -93,10 +88,6 @@ PositionMode = Literal["argmax", "mixture", "answer"]
 #: A place name is *learnt* in a home when at least this share of its probability there comes
 #: from concepts that hold samples of the home (see :func:`name_support`).
 LEARNT_SUPPORT = 0.5
-#: :attr:`spco.model.unheard.ResolvedName.how` of the look-up's last step, mere WordNet similarity
-#: ("restroom" ~ "kitchen"): answers a name nobody said, never a known name this home does not hold
-#: (:func:`predict_positions`' ``elsewhere``), whose own regions are the model's evidence.
-MERE_SIMILARITY = "similarity"
 
 
 @dataclass(frozen=True, eq=False)
@@ -126,10 +117,8 @@ class PositionPrediction:
     called: when ``learnt`` is False, the name ``what`` answers at the centre of ``region`` (the
         home's own name for the place the poses were drawn from; ``where`` of a home file sets it),
         else None.
-    asked: the name asked for when nobody said it, or when this home does not hold it (learnt only in
-        other homes: ``elsewhere`` of :func:`predict_positions`), and the lexicon found the known name
-        ``name`` for it (:func:`spco.model.unheard.resolve_name`: "restroom" asked, "toilet" used); else
-        None.
+    asked: the name asked for when nobody said it and the lexicon found the known name ``name``
+        for it (:func:`spco.model.unheard.resolve_name`: "restroom" asked, "toilet" used); else None.
     via: how the lexicon related them (``"synonym"``, ``"gloss"``, …), or None.
     """
 
@@ -580,50 +569,6 @@ def resolve_unheard(params: ConceptParameters, e: int, vocabulary: Vocabulary, n
                         place_information=place_word_information(looked, e))
 
 
-def held_words(params: ConceptParameters, e: int, lookup: np.ndarray | None = None) -> np.ndarray:
-    """(V,) bool: the words of ``lookup`` (default ``params.word_mask``) that home ``e`` holds, each
-    word alone: the share of Σ_l G_{e,l} p(w | l) (:func:`said_word_matrix`) held by the concepts with
-    samples of the home is ≥ :data:`LEARNT_SUPPORT` (:func:`name_support` of the word by its own
-    column)."""
-    e = _check_home(params, e)
-    mask = np.asarray(params.word_mask if lookup is None else lookup, dtype=bool)
-    g = np.clip(np.asarray(params.concept_weights[e], dtype=np.float64), 0.0, None)
-    weights = g[:, None] * np.clip(said_word_matrix(params, e), 0.0, None)  # (L, V)
-    total = weights.sum(axis=0)
-    inside = weights[_occupied_concepts(params, e)].sum(axis=0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        share = np.where(total > 0, inside / np.where(total > 0, total, 1.0), 0.0)
-    return mask & (share >= LEARNT_SUPPORT)
-
-
-def _held_instead(params: ConceptParameters, e: int, vocabulary: Vocabulary, name: str, n: int,
-                  rng: np.random.Generator | int | None, mode: PositionMode, xy_only: bool,
-                  rooms: HomeRooms | None, view_counts: float | None, lookup: np.ndarray | None,
-                  forms: list[list[int]]) -> PositionPrediction | None:
-    """:func:`predict_positions`' answer for a known name home ``e`` does not hold (said by ``forms``):
-    the name the lexicon look-up (:func:`resolve_unheard`) finds for it among the words the home holds
-    (:func:`held_words`, the name's own words left out), when the home holds that name too (support ≥
-    :data:`LEARNT_SUPPORT`), with ``asked`` the name and ``via`` the lexicon's relation; else None."""
-    held = held_words(params, e, lookup)
-    held[[j for form in forms for j in form]] = False
-    if not held.any():
-        return None
-    found = resolve_unheard(params, e, vocabulary, name, held)
-    if found is None or found.how.startswith(MERE_SIMILARITY):  # a guess: the name's own regions stay
-        return None
-    alone = found.how != SAID_WORDS
-    try:  # the home must hold the name found, as a whole (checked before any pose is drawn)
-        found_forms = query_forms(params, vocabulary, found.name, lookup, alone)
-        if _name_support(params, e, found_forms) < LEARNT_SUPPORT:
-            return None
-        pred = predict_positions(params, e, vocabulary, found.name, n, rng, mode, xy_only, unheard=False,
-                                 rooms=rooms, view_counts=view_counts, lookup=lookup, alone=alone,
-                                 elsewhere=False)
-    except UnknownNameError:
-        return None
-    return replace(pred, asked=found.asked, via=found.how)
-
-
 def predict_positions(
     params: ConceptParameters,
     e: int,
@@ -639,7 +584,6 @@ def predict_positions(
     view_counts: float | None = None,
     lookup: np.ndarray | None = None,
     alone: bool = True,
-    elsewhere: bool = True,
 ) -> PositionPrediction:
     """Sample ``n`` poses where the place ``name`` is, in home ``e``: the one p(pose | name) of the
     robot's ``where`` and the experiments' A_p (module docstring).
@@ -660,13 +604,6 @@ def predict_positions(
     alone: ``name`` is the name as asked: a name of one word is read by every learnt term that holds
         it (:func:`query_forms`); False for the words of a longer name nobody said (set on the
         lexicon's answer by its own words, :data:`spco.model.unheard.SAID_WORDS`).
-    elsewhere: a known name this home does not hold (its support below :data:`LEARNT_SUPPORT`:
-        learnt only in other homes, "wc" where the home's people say "toilet") is, for the home, a
-        name nobody said here: the lexicon look-up (:func:`resolve_unheard`) is asked for it among
-        the words the home holds (:func:`held_words`), and the name it finds by a relation of the
-        lexicon (not mere similarity, :data:`MERE_SIMILARITY`) answers when the home holds that name
-        (support ≥ :data:`LEARNT_SUPPORT`; ``asked`` and ``via`` say so); else the name's own answer.
-        False: always the name's own answer.
 
     Returns a :class:`PositionPrediction` with samples (n, 3) = (x, y, θ) (``poses``: the same
     as (x, y, sin θ, cos θ)), ``region`` the most probable region, the name's ``support`` in the home
@@ -681,18 +618,13 @@ def predict_positions(
     if resolved is not None:  # a name nobody said: the known name the lexicon finds for it
         pred = predict_positions(params, e, vocabulary, resolved.name, n, rng, mode, xy_only, unheard=False,
                                  rooms=rooms, view_counts=view_counts, lookup=lookup,
-                                 alone=resolved.how != SAID_WORDS, elsewhere=False)
+                                 alone=resolved.how != SAID_WORDS)
         return replace(pred, asked=resolved.asked, via=resolved.how)
     forms = query_forms(params, vocabulary, name, lookup, alone)  # once, for the regions and the support
     probs = _region_posterior(params, e, vocabulary, name, forms,
                               np.asarray(params.word_mask if lookup is None else lookup, dtype=bool),
                               rooms, view_counts)
     support = _name_support(params, e, forms)
-    if elsewhere and support < LEARNT_SUPPORT:  # learnt only in other homes: a name this home holds?
-        held = _held_instead(params, e, vocabulary, name, n, rng, mode, xy_only, rooms, view_counts,
-                             lookup, forms)
-        if held is not None:
-            return held
     best = int(np.argmax(probs))
     gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
     if mode == "argmax":
