@@ -73,6 +73,60 @@ def test_the_warm_start_settings_weigh_a_token_and_leave_out_the_objects() -> No
     assert "warm_start" not in TransferHyperparameters().to_dict()  # (files from before unchanged)
 
 
+def test_the_objects_start_leaves_out_the_objects_and_keeps_the_token_weight() -> None:
+    """``warm_start="objects"``: the objects part of the words' start alone — the same words mark no
+    place as with ``"words"``, the token weight stays as given (S^w: so no names are held), and the
+    rest of the settings are unchanged."""
+    nu = np.array([0.8, 0.05, 0.3, 0.1, 0.6, 0.05])
+    content = np.array([0.95, 0.95, 0.9, 0.95, 0.5, 0.95])
+    words = _Words(["kitchen", "table", "nook", "sofa", "den", "toilet"])
+    settings = SamplerSettings.create("exact", prune=True, view_counts=16.0)
+    hyper = TransferHyperparameters(n_concepts=4, evidence_weight=1.0, word_counts=16.0, warm_start="objects")
+    out = warm_start_settings(settings, hyper, (nu, content), words, 5000, _Rooms({"toilet"}))
+    both = warm_start_settings(settings, replace(hyper, warm_start="words"), (nu, content), words, 5000,
+                               _Rooms({"toilet"}))
+    assert out.start_not_names == both.start_not_names == (1, 3)
+    assert out.word_weight == settings.word_weight == 1.0 and both.word_weight < 1.0
+    assert out == replace(settings, start_not_names=(1, 3))
+    weighed = replace(settings, word_weight=0.5)  # a weight set before is kept as it is
+    assert warm_start_settings(weighed, hyper, (nu, content), words, 5000, _Rooms(set())).word_weight == 0.5
+    assert TransferHyperparameters().with_settings(["warm_start=objects"]).warm_start == "objects"
+
+
+def test_the_start_is_written_unless_names_and_a_file_without_it_means_names() -> None:
+    """``to_dict`` writes ``warm_start`` whenever it is not ``"names"``, and ``from_dict`` reads a
+    dictionary without it as ``"names"`` (the files written before the option), whatever the default."""
+    for start in ("names", "words", "objects"):
+        hyper = TransferHyperparameters(warm_start=start)  # type: ignore[arg-type]
+        data = hyper.to_dict()
+        assert ("warm_start" in data) == (start != "names")
+        assert TransferHyperparameters.from_dict(data) == hyper
+    old = TransferHyperparameters(warm_start="objects").to_dict()
+    del old["warm_start"]
+    assert TransferHyperparameters.from_dict(old).warm_start == "names"
+
+
+def test_the_objects_start_round_trips_through_the_knowledge_and_home_files(tmp_path) -> None:
+    """``spco fit --set warm_start=objects`` keeps the start in the knowledge file, ``spco adapt``
+    in the home file; a file whose header has no ``warm_start`` reads as ``"names"``."""
+    import json
+
+    from conftest import fit_and_adapt, synthetic_home_folders
+
+    from spco import knowledge as kn
+
+    folders = synthetic_home_folders(tmp_path, 4, seed=3, n_features=64)
+    knowledge_file, home_file, _ = fit_and_adapt(
+        folders, ["--iterations", 2, "--seed", 0, "--set", "warm_start=objects"], ["--iterations", 2])
+    assert kn.load_knowledge(knowledge_file).hyperparameters.warm_start == "objects"
+    assert kn.load_home_model(home_file).hyperparameters.warm_start == "objects"
+    with np.load(knowledge_file, allow_pickle=False) as archive:
+        header = json.loads(archive["header"].tobytes().decode("utf-8"))
+    assert header["hyperparameters"]["warm_start"] == "objects"
+    del header["hyperparameters"]["warm_start"]
+    assert TransferHyperparameters.from_dict(header["hyperparameters"]).warm_start == "names"
+
+
 @pytest.mark.skipif(lexicon() is None, reason="WordNet is not installed")
 def test_wordnet_keeps_the_rooms_and_leaves_out_the_furniture() -> None:
     """With WordNet: "toilet" and "bathroom" (names the free-form homes' sentences make look like

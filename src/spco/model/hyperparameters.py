@@ -32,9 +32,10 @@ BlockMoves = Literal["off", "adapt", "all"]
 #: The exact sampler's warm start with the word channels (``TransferHyperparameters.warm_start``):
 #: ``"names"`` — the naming rule's names mark the places and the start's sweeps weigh a token S^w;
 #: ``"words"`` — those sweeps weigh a token W^w, objects mark no place, a partly taught home's own
-#: names are held (:func:`spco.model.word_channels.warm_start_settings`; opt-in, issue 28 class c).
-WARM_STARTS = ("names", "words")
-WarmStart = Literal["names", "words"]
+#: names are held (:func:`spco.model.word_channels.warm_start_settings`; opt-in, issue 28 class c);
+#: ``"objects"`` — only the objects part of ``"words"``: objects mark no place, a token weighs S^w.
+WARM_STARTS = ("names", "words", "objects")
+WarmStart = Literal["names", "words", "objects"]
 
 #: What the exact sampler targets (``TransferHyperparameters.target``; docs/model.md, "The model the
 #: sampler targets"): ``"power"`` — the power likelihood, every step (assignments, θ, φ, switches, label
@@ -212,8 +213,11 @@ class TransferHyperparameters:
         (``word_counts``) as the chain does, the words the evidence calls objects that cannot denote a
         room mark no place, and a partly taught home keeps its own names (docs/model.md, "With the
         word channels the start can weigh words as the chain does"). Opt-in: on development natural
-        speech it gains, but a home-specific room is lost (benchmarks/README.md, branch start10).
-        Written by :meth:`to_dict` only when not ``"names"``.
+        speech it gains, but a home-specific room is lost (benchmarks/README.md, branch start10);
+        ``"objects"`` — only the second of those: the words the evidence calls objects that cannot
+        denote a room mark no place, while the start's sweeps weigh a token S^w and hold no names as
+        with ``"names"`` (benchmarks/README.md, branches words13 and start14).
+        Written by :meth:`to_dict` only when not ``"names"`` (a file without it means ``"names"``).
     evidence_weight: η, the weight of the linguistic evidence in the switch's prior (word channels):
         p(z = name | word) ∝ λ_name ν^η, p(z = place or background) ∝ λ_c (1 − ν)^η, ν the name
         evidence of :mod:`spco.model.name_evidence`. Default :data:`EVIDENCE_WEIGHT`, chosen on
@@ -367,6 +371,7 @@ class TransferHyperparameters:
         data = dict(data)
         data.setdefault("word_model", "naming-rule")  # written before the word channels
         data.setdefault("word_counts", None)  # written before the word weight: S^w counts per token
+        data.setdefault("warm_start", "names")  # to_dict leaves "names" out, whatever the default
         for key in ("psi0", "mu0"):
             if data.get(key) is not None:
                 data[key] = _to_tuple(data[key])
@@ -393,7 +398,7 @@ class TransferHyperparameters:
                 raise ConfigurationError(f"hyperparameter setting {setting!r}: no hyperparameter {name!r}; "
                                          f"settable: {', '.join(SETTABLE)}")
             if kind in ("one of channels, naming-rule", "one of off, adapt, all", "one of cut, power",
-                        "one of given, estimate", "one of names, words"):
+                        "one of given, estimate", "one of names, words, objects"):
                 changes[name] = text
                 continue
             if name == "view_counts" and text.lower() == ESTIMATE:
@@ -424,7 +429,7 @@ SETTABLE: dict[str, str] = {
     "view_counts": "number, none or estimate", "evidence_weight": "a number", "word_counts": "number or none",
     "word_model": "one of channels, naming-rule", "block_moves": "one of off, adapt, all",
     "target": "one of cut, power", "visual_prior": "one of given, estimate",
-    "word_prior": "one of given, estimate", "warm_start": "one of names, words",
+    "word_prior": "one of given, estimate", "warm_start": "one of names, words, objects",
 }
 
 

@@ -607,8 +607,8 @@ def warm_start_settings(settings, hyper, evidence: tuple[np.ndarray, np.ndarray]
     """``settings`` (:class:`~spco.model.state.SamplerSettings`) for the warm start of a fit that learns
     its words with the channels, from the channels' ``evidence`` (ν, a) of ``vocabulary``'s words:
     as they are unless ``hyper`` (:class:`~spco.model.hyperparameters.TransferHyperparameters`) asks
-    for ``warm_start="words"`` (opt-in). Then the start's independent sweeps weigh a word token as
-    the chain does (``word_weight`` W^w / S^w, :func:`token_weight`;
+    for ``warm_start="words"`` or ``"objects"`` (opt-in). With ``"words"`` the start's independent
+    sweeps weigh a word token as the chain does (``word_weight`` W^w / S^w, :func:`token_weight`;
     :func:`spco.model.shard_init.initialise` then holds a partly taught home's own names in place
     through them and weighs its words S^w), and the words the evidence calls objects (name prior
     p(name | k), :meth:`WordChannels.name_prior`, below :data:`spco.model.unheard.OBJECT_BELOW`:
@@ -618,11 +618,13 @@ def warm_start_settings(settings, hyper, evidence: tuple[np.ndarray, np.ndarray]
     that says only such words takes the place of its region, and such a word said in two rooms does
     not join their names as synonyms (:func:`spco.model.synonyms.same_place_names`). ``lexicon``:
     a :class:`~spco.data.lexicon.Lexicon` (default :func:`spco.data.lexicon.lexicon`); without
-    WordNet no word is left out."""
+    WordNet no word is left out. ``"objects"`` does only the second: the objects mark no place, the
+    token weight stays (``word_weight`` as given, so no names are held)."""
     from spco.data.lexicon import lexicon as default_lexicon
     from spco.model.unheard import OBJECT_BELOW
 
-    if getattr(hyper, "warm_start", "names") != "words":
+    start = getattr(hyper, "warm_start", "names")
+    if start not in ("words", "objects"):
         return settings
     n_concepts, evidence_weight, word_counts = hyper.n_concepts, hyper.evidence_weight, hyper.word_counts
     rooms = default_lexicon() if lexicon is None else lexicon
@@ -633,4 +635,6 @@ def warm_start_settings(settings, hyper, evidence: tuple[np.ndarray, np.ndarray]
         # a term by its head word ("hanako's bed": "bed")
         objects = tuple(int(k) for k in np.flatnonzero(prior < OBJECT_BELOW)
                         if not rooms.room_share(words[k].split()[-1]) > 0.0)  # type: ignore[attr-defined]
+    if start == "objects":
+        return replace(settings, start_not_names=objects)
     return replace(settings, word_weight=token_weight(word_counts, word_increment), start_not_names=objects)
