@@ -424,9 +424,11 @@ def given_phi(n_new: np.ndarray, log_phi: np.ndarray, delta: float) -> float:
     return float(t[used].sum() + (gammaln(delta) - gammaln(delta + n_new.sum(1)))[used].sum())
 
 
-def evidence(out: Path, draws: int, burn: int, seed: int) -> dict:
+def evidence(out: Path, draws: int, burn: int, seed: int, exact_fractions: bool = True) -> dict:
     """The table: every assignment's view evidence with θ^v and φ^v integrated out given the other
-    homes' counts (and, for reference, given the chain's φ^v draw and φ^v's summary)."""
+    homes' counts (and, for reference, given the chain's φ^v draw and φ^v's summary).
+    ``exact_fractions=False``: φ^v's conditional given the tables taken as the proposal Dir(α + M + F)
+    alone (the cheaper form a move could use), to measure what the fractional weight w changes."""
     fit = load_fit(out)
     variants_c, own = assignments(fit)
     variants = {k: new_home_counts(fit, v) for k, v in variants_c.items()}
@@ -440,7 +442,9 @@ def evidence(out: Path, draws: int, burn: int, seed: int) -> dict:
         logf.flush()
 
     est = predictive_estimates(others, fit["log_phi_v"], variants, fit["delta"], alpha,
-                               np.random.default_rng(seed), draws, burn, log=log)
+                               np.random.default_rng(seed), draws, burn, exact_fractions=exact_fractions,
+                               log=log)
+    est["exact_fractions"] = exact_fractions
     est["cpu_seconds"] = time.process_time() - t0
     est["place_concepts"] = own
     est["fit_seed"], est["fit_sweeps"], est["evidence_seed"] = fit["seed"], fit["sweeps"], seed
@@ -566,12 +570,15 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--draws", type=int, default=40, help="table draws of φ^v given the other homes")
     p.add_argument("--burn", type=int, default=30, help="φ^v steps before the first kept draw")
     p.add_argument("--evidence-seed", type=int, default=0, help="seed of the table draws")
+    p.add_argument("--proposal-only", action="store_true",
+                   help="evidence: φ^v given the tables as the proposal Dir(α + M + F), w left out")
     a = p.parse_args(argv)
     if a.what == "fit":
         fit(a.out, a.sweeps, a.seed)
     elif a.what == "evidence":
-        result = evidence(a.out, a.draws, a.burn, a.evidence_seed)
-        (a.out / "evidence.json").write_text(json.dumps(result, indent=1))
+        result = evidence(a.out, a.draws, a.burn, a.evidence_seed, not a.proposal_only)
+        name = "evidence_proposal_only.json" if a.proposal_only else "evidence.json"
+        (a.out / name).write_text(json.dumps(result, indent=1))
         print_table(result)
     elif a.what == "table":
         table(a.out)
