@@ -10,20 +10,23 @@ experienced homes' samples of that place hold), the view evidence
 
     ln p(n_e | n_{−e}) = Σ_l ln E_{φ_l | n_{−e,l}} [ B(δ φ_l + n_{e,l}) / B(δ φ_l) ]
 
-(θ^v_{e,l} ~ Dir(δ φ_l) integrated exactly; the multinomial coefficients, the same for both
-assignments, left out). φ_l's posterior given the other homes' counts is the mixture over table
-counts of Dir(α + M + F) (M = CRT tables of ⌊n_{−e}⌋, F the fractions below one: the proposal of
-the library's φ^v step); it is exact for whole counts and the one approximation here for real
-ones. The tables are drawn by running the library's own φ^v step on the other homes' counts alone
-(``HierarchicalMultinomial.sample_shared_given_counts``, a chain for p(φ | n_{−e})), and each
-Dir(a) expectation of Π_d Γ(δ φ_d + n_d) / Γ(δ φ_d) is computed by a saddlepoint over independent
-gammas conditioned on their sum (:func:`log_dirichlet_expectation`; checked against brute force by
-``--check``). The estimate per concept is the log of the mean over table draws (a Rao–Blackwellised
-Monte Carlo); its standard error by batch means.
+(θ^v_{e,l} ~ Dir(δ φ_l) integrated exactly; the multinomial coefficients, the same for every
+assignment, left out). φ_l's posterior given the other homes' counts is the mixture over table
+counts M (CRT of ⌊n_{−e}⌋) of Dir(α + M + F) · w(φ) / Z_M: F the fractions below one (the proposal
+of the library's φ^v step), w the fractional weight of its Metropolis–Hastings test. So
+E[H | M] = E_q[H w] / E_q[w], q = Dir(α + M + F) (:class:`ConceptGrid`): exact for real counts
+(``--proposal-only`` leaves w out, to measure what it changes). The tables are drawn by running the
+library's own φ^v step on the other homes' counts alone (a chain for p(φ, M | n_{−e})), and each
+Dirichlet expectation of a product over dimensions is computed by a saddlepoint over independent
+gammas conditioned on their sum (:func:`log_dirichlet_expectation`), checked against brute force by
+``check`` and tests/test_phi_marginal_evidence.py. The estimate per concept is the log of the mean
+over table draws (Rao–Blackwellised); its standard error by batch means. ``table`` adds the G_e and π
+terms a block move also sees (:func:`assignment_prior`).
 
-    python benchmarks/phi_marginal_evidence.py fit --out DIR          # the fit, dumped (~1 min CPU)
-    python benchmarks/phi_marginal_evidence.py evidence --out DIR     # the evidence table
-    python benchmarks/phi_marginal_evidence.py check                  # the brute-force checks
+    python benchmarks/phi_marginal_evidence.py fit --out DIR --seed 0   # the fit, dumped (~7 s CPU)
+    python benchmarks/phi_marginal_evidence.py evidence --out DIR --draws 40 --burn 30
+    python benchmarks/phi_marginal_evidence.py table --out DIR          # with the G_e, π terms
+    python benchmarks/phi_marginal_evidence.py check --out DIR          # the brute-force checks
 """
 
 from __future__ import annotations
