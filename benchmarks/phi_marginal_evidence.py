@@ -1,0 +1,606 @@
+"""The power target's lumping with θ^v AND φ^v integrated out: the evidence a block move of the new
+home's places would see (issue 29, branch phimarg15; development only).
+
+General places (benchmarks/general_places.py): the 16 experienced homes' fc7 views, 3LDK_9 taught
+nothing, the power target (``--set target=power --set visual_prior=estimate``), seed
+``trial_seed(0, 0)``, 60 sweeps. After the fit, for the new home e (its training samples' weighted
+counts n_{e,l} = Σ_t ω_t v_t, ω_t = min(1, w / Σ_d v_td)) and two assignments of its samples to
+concepts (the chain's own, "lumped", and the "true rooms": each place in the concept most of the
+experienced homes' samples of that place hold), the view evidence
+
+    ln p(n_e | n_{−e}) = Σ_l ln E_{φ_l | n_{−e,l}} [ B(δ φ_l + n_{e,l}) / B(δ φ_l) ]
+
+(θ^v_{e,l} ~ Dir(δ φ_l) integrated exactly; the multinomial coefficients, the same for every
+assignment, left out). φ_l's posterior given the other homes' counts is the mixture over table
+counts M (CRT of ⌊n_{−e}⌋) of Dir(α + M + F) · w(φ) / Z_M: F the fractions below one (the proposal
+of the library's φ^v step), w the fractional weight of its Metropolis–Hastings test. So
+E[H | M] = E_q[H w] / E_q[w], q = Dir(α + M + F) (:class:`ConceptGrid`): exact for real counts
+(``--proposal-only`` leaves w out, to measure what it changes). The tables are drawn by running the
+library's own φ^v step on the other homes' counts alone (a chain for p(φ, M | n_{−e})), and each
+Dirichlet expectation of a product over dimensions is computed by a saddlepoint over independent
+gammas conditioned on their sum (:func:`log_dirichlet_expectation`), checked against brute force by
+``check`` and tests/test_phi_marginal_evidence.py. The estimate per concept is the log of the mean
+over table draws (Rao–Blackwellised); its standard error by batch means. ``table`` adds the G_e and π
+terms a block move also sees (:func:`assignment_prior`).
+
+    python benchmarks/phi_marginal_evidence.py fit --out DIR --seed 0   # the fit, dumped (~7 s CPU)
+    python benchmarks/phi_marginal_evidence.py evidence --out DIR --draws 40 --burn 30
+    python benchmarks/phi_marginal_evidence.py table --out DIR          # with the G_e, π terms
+    python benchmarks/phi_marginal_evidence.py check --out DIR          # the brute-force checks
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.special import gammaln, logsumexp
+
+FIT_FILE = "fit.npz"
+
+
+def log_h_dm(g: np.ndarray, n: np.ndarray, delta: float) -> np.ndarray:
+    """ln Γ(δ g + n) − ln Γ(δ g): one dimension's Dirichlet–multinomial factor (θ integrated out)."""
+    x = delta * g
+    return gammaln(x + n) - gammaln(x)
+
+
+def log_h_power(g: np.ndarray, n: np.ndarray, delta: float) -> np.ndarray:
+    """n ln g: the factor whose Dirichlet expectation is B(a + n) / B(a) exactly (the check's case)."""
+    return n * np.log(g)
+
+
+def _quadrature_grid(a: np.ndarray, n: np.ndarray, r_lo: float, r_hi: float,
+                     points_per_sd: float = 2.5, max_points: int = 6000) -> tuple[np.ndarray, np.ndarray]:
+    """Per dimension a uniform grid in u = ln g wide enough for the tilted density
+    ∝ g^a e^{−r g} h(g) for every rate r in [r_lo, r_hi]: up to ln g_hi + 0.5,
+    g_hi = (a + n + 1 + 12 √(a + n + 1) + 30) / r_lo, and down 8 + ln(r_hi / r_lo) + 60 / (a + 1)
+    (the left tail decays as e^{(a + 1) u}); spacing at most 1 / (points_per_sd √(a + n + 1))
+    (the density's spread in u). Returns (u (Q, K), step (Q,))."""
+    s = a + n + 1.0
+    top = np.log((s + 12.0 * np.sqrt(s) + 30.0) / r_lo) + 0.5
+    width = 8.5 + np.log(r_hi / r_lo) + 60.0 / (a + 1.0)
+    k = int(min(max_points, max(64, np.ceil(np.max(width * points_per_sd * np.sqrt(s))))))
+    steps = width / (k - 1)
+    u = top[:, None] - width[:, None] + steps[:, None] * np.arange(k)[None, :]
+    return u, steps
+
+
+def _saddle(base: np.ndarray, g: np.ndarray, a_q: np.ndarray, a_0: float, big_a: float, r0: float,
+            tol: float = 1e-12) -> dict[str, float]:
+    """ln E_{Dir(a)} Π_d h_d(φ_d) from the quadrature rows ``base`` (Q, K) = a_d ln g − ln Γ(a_d)
+    + ln h_d(g) + ln(step) at nodes g (Q, K) of the dimensions whose h_d ≠ 1 (the others, of total
+    parameter a_0, are plain gammas): see :func:`log_dirichlet_expectation`."""
+    r = r0
+    for _ in range(200):
+        lf = base - r * g + a_q[:, None] * np.log(r)
+        log_m = logsumexp(lf, axis=1)
+        p = np.exp(lf - log_m[:, None])
+        m1 = (p * g).sum(1)
+        c = g - m1[:, None]
+        m2 = (p * c**2).sum(1)
+        mean = m1.sum() + a_0 / r
+        var = m2.sum() + a_0 / r**2
+        if abs(mean - 1.0) < tol:
+            break
+        r = max(r + (mean - 1.0) / var, 0.5 * r)
+    else:
+        raise RuntimeError(f"saddlepoint did not converge: mean {mean}")
+    m3, m4 = (p * c**3).sum(1), (p * c**4).sum(1)
+    k3 = m3.sum() + 2 * a_0 / r**3
+    k4 = (m4 - 3 * m2**2).sum() + 6 * a_0 / r**4
+    edge = 1.0 + k4 / (8 * var**2) - 5 * k3**2 / (24 * var**3)
+    log_f_tilde = -0.5 * np.log(2 * np.pi * var) + np.log(edge)
+    log_f = big_a * np.log(r) - r - gammaln(big_a)
+    # the largest share of a row's mass at its first or last node: the grid holds the density
+    ends = float(max(p[:, 0].max(), p[:, -1].max())) if p.size else 0.0
+    return {"value": float(log_m.sum() + log_f_tilde - log_f), "edgeworth": float(np.log(edge)),
+            "rate": float(r), "grid_end_mass": ends}
+
+
+def log_dirichlet_expectation(a: np.ndarray, n: np.ndarray, delta: float, log_h=log_h_dm,
+                              points_per_sd: float = 2.5) -> dict[str, float]:
+    """ln E_{φ ~ Dir(a)} [Π_d h_d(φ_d)], h_d = exp(log_h(φ_d, n_d, δ)) (h_d = 1 where n_d = 0).
+
+    φ = g / Σ g with g_d ~ Gamma(a_d, rate r) independent and φ independent of S = Σ g, so
+    E_Dir[Π h] = E_r[Π h(g) | S = 1] = Π_d m_d(r) · f̃_S(1) / f_S(1) for every r: m_d(r) = E_r h_d(g_d)
+    (one-dimensional quadrature in ln g), f̃_S the density of S when each g_d is tilted by h_d,
+    f_S = Gamma(A, r). At the saddle r̂ (Σ_d Ẽ g_d = 1) f̃_S(1) is its normal density at the mean with
+    the Edgeworth term 1 + κ4/(8V²) − 5κ3²/(24V³). Returns the value, the Edgeworth term's log, r̂,
+    the grid's largest end mass."""
+    a = np.asarray(a, dtype=float)
+    n = np.asarray(n, dtype=float)
+    q = n > 0
+    a_q, n_q = a[q], n[q]
+    big_a = a.sum()
+    u, step = _quadrature_grid(a_q, n_q, big_a, big_a + n_q.sum() + 1.0, points_per_sd)
+    g = np.exp(u)
+    base = a_q[:, None] * u - gammaln(a_q)[:, None] + log_h(g, n_q[:, None], delta) + np.log(step)[:, None]
+    return _saddle(base, g, a_q, float(a[~q].sum()), big_a, big_a)
+
+
+class ConceptGrid:
+    """E_{φ | M, n_{−e}}[Π_d h_d(φ_d)] for one concept and one table draw, exactly for real counts.
+
+    Given the tables M, φ's conditional is Dir(α + M + F) · w(φ) / Z (F the proposal's fractions,
+    ln w = Σ_{e'} Σ_d [ln Γ(δφ_d + n) − ln Γ(δφ_d + ⌊n⌋) − [⌊n⌋ = 0] n ln(δφ_d)] over the other homes'
+    fractional counts: the library's ``fractional_log_weight``), so E[H | M] = E_q[H w] / E_q[w] with
+    q = Dir(α + M + F); both by the saddlepoint on one grid (w is a product over dimensions too)."""
+
+    def __init__(self, a: np.ndarray, others: np.ndarray, delta: float, n_bound: np.ndarray,
+                 points_per_sd: float = 2.5) -> None:
+        self.a, self.delta = a, delta
+        whole = np.floor(others)
+        fractional = others != whole
+        self.big_a = a.sum()
+        self.q = np.ones(a.shape[0], dtype=bool)
+        spread = n_bound + fractional.sum(0)
+        r_hi = self.big_a + n_bound.sum() + 1.0 + spread.sum()
+        u, step = _quadrature_grid(a, spread, self.big_a, r_hi, points_per_sd)
+        self.g = np.exp(u)
+        x = delta * self.g
+        log_w = np.zeros_like(u)
+        with np.errstate(divide="ignore"):
+            log_x = np.log(x)
+        for e in range(others.shape[0]):
+            cols = np.flatnonzero(fractional[e])
+            if cols.size == 0:
+                continue
+            n_e, w_e = others[e, cols][:, None], whole[e, cols][:, None]
+            log_w[cols] += (gammaln(x[cols] + n_e) - gammaln(x[cols] + w_e)
+                            - np.where(w_e == 0, n_e, 0.0) * log_x[cols])
+        self.base = a[:, None] * u - gammaln(a)[:, None] + log_w + np.log(step)[:, None]
+        self.denominator = _saddle(self.base, self.g, a, 0.0, self.big_a, self.big_a)
+
+    def log_expectation(self, n: np.ndarray) -> dict[str, float]:
+        """ln E[Π_d Γ(δφ_d + n_d)/Γ(δφ_d) | M, n_{−e}] for the new home's counts n (D,)."""
+        if n.sum() == 0:
+            return {"value": 0.0, "grid_end_mass": 0.0}
+        cols = np.flatnonzero(n > 0)
+        base = self.base.copy()
+        base[cols] += log_h_dm(self.g[cols], n[cols][:, None], self.delta)
+        num = _saddle(base, self.g, self.a, 0.0, self.big_a, self.big_a)
+        return {"value": num["value"] - self.denominator["value"],
+                "grid_end_mass": max(num["grid_end_mass"], self.denominator["grid_end_mass"])}
+
+
+# ----------------------------------------------------------------------------- brute force (checks)
+
+def _simplex3_rule(a: np.ndarray, points: int = 400) -> tuple[np.ndarray, np.ndarray]:
+    """Nodes φ (P, 3) and weights (P,) integrating over Dir(a) on the 3-simplex: stick-breaking
+    φ1 = v1, φ2 = (1 − v1) v2 with v1 ~ Beta(a1, a2 + a3), v2 ~ Beta(a2, a3) independent, integrated
+    in their quantiles by Gauss–Legendre (the singular corners of a < 1 become smooth there)."""
+    from scipy.stats import beta
+
+    x, wt = np.polynomial.legendre.leggauss(points)
+    qs, ws = (x + 1) / 2, wt / 2
+    v1 = beta.ppf(qs, a[0], a[1] + a[2])
+    v2 = beta.ppf(qs, a[1], a[2])
+    p1 = np.repeat(v1, points)
+    p2 = (1 - p1) * np.tile(v2, points)
+    phi = np.stack([p1, p2, np.maximum(1 - p1 - p2, 0.0)], axis=1)
+    return phi, np.outer(ws, ws).ravel()
+
+
+def _log_ratio(phi: np.ndarray, n: np.ndarray, delta: float) -> np.ndarray:
+    """ln B(δ φ + n) / B(δ φ) for rows φ (P, D) and counts n (D,)."""
+    x = delta * phi
+    return (gammaln(x + n) - gammaln(x)).sum(1) + gammaln(delta) - gammaln(delta + n.sum())
+
+
+def brute_log_expectation(a: np.ndarray, n: np.ndarray, delta: float) -> float:
+    """ln E_{Dir(a)} Π_d Γ(δ φ_d + n_d)/Γ(δ φ_d) on the 3-simplex by quadrature."""
+    phi, wt = _simplex3_rule(a)
+    x = delta * phi
+    with np.errstate(divide="ignore"):
+        lh = (gammaln(x + n) - gammaln(x)).sum(1)
+    return float(logsumexp(lh, b=wt))
+
+
+def brute_predictive(alpha: float, delta: float, others: np.ndarray, new: np.ndarray) -> float:
+    """ln p(n_new | n_others) = ln ∫ Dir(φ|α) Π_e R_e R_new / ∫ Dir(φ|α) Π_e R_e, R = B(δφ + n)/B(δφ),
+    on the 3-simplex by quadrature: the exact value the table mixture approximates."""
+    phi, wt = _simplex3_rule(np.full(3, alpha))
+    base = sum(_log_ratio(phi, o, delta) for o in others)
+    return float(logsumexp(base + _log_ratio(phi, new, delta), b=wt) - logsumexp(base, b=wt))
+
+
+def check(seed: int = 0) -> dict:
+    """The checks: (1) the saddlepoint against exact B(a + n)/B(a) at D = 4,096; (2) against
+    quadrature on the 3-simplex and Monte Carlo at D = 20 for the Dirichlet–multinomial factor;
+    (3) the whole estimate (table chain + saddlepoint) against the exact predictive on the
+    3-simplex, whole and real counts."""
+    rng = np.random.default_rng(seed)
+    out: dict = {"power_D4096": [], "dm_D3": [], "dm_D20_mc": [], "predictive_D3": []}
+    for alpha in (0.23, 3.0):
+        a = alpha + rng.poisson(2.0, 4096) * (rng.random(4096) < 0.3)
+        n = rng.random(4096) * 3 * (rng.random(4096) < 0.5)
+        sp_ = log_dirichlet_expectation(a, n, 1.0, log_h_power)["value"]
+        exact = gammaln(a + n).sum() - gammaln((a + n).sum()) - gammaln(a).sum() + gammaln(a.sum())
+        out["power_D4096"].append({"alpha": alpha, "saddle": sp_, "exact": float(exact),
+                                   "error": sp_ - exact})
+    for a, n, delta in ((np.array([0.3, 1.2, 2.5]), np.array([1.7, 0.0, 3.2]), 5.0),
+                        (np.array([0.23, 0.23, 4.0]), np.array([0.4, 2.0, 6.0]), 50.0),
+                        (np.array([2.0, 3.0, 1.0]), np.array([12.5, 0.3, 0.0]), 20.0)):
+        sp_ = log_dirichlet_expectation(a, n, delta)["value"]
+        bf = brute_log_expectation(a, n, delta)
+        out["dm_D3"].append({"a": a.tolist(), "n": n.tolist(), "delta": delta, "saddle": sp_, "brute": bf,
+                             "error": sp_ - bf})
+    for alpha, delta in ((0.3, 20.0), (1.0, 100.0)):
+        a = alpha + rng.poisson(3.0, 20).astype(float)
+        n = rng.random(20) * 2 * (rng.random(20) < 0.6)
+        sp_ = log_dirichlet_expectation(a, n, delta)["value"]
+        phi = rng.dirichlet(a, size=2_000_000)
+        lh = _log_ratio(phi, n, delta) - gammaln(delta) + gammaln(delta + n.sum())
+        m = logsumexp(lh) - np.log(lh.size)
+        w = np.exp(lh - lh.max())
+        se = float(w.std() / np.sqrt(w.size) / w.mean())
+        out["dm_D20_mc"].append({"alpha": alpha, "delta": delta, "saddle": sp_, "mc": float(m), "mc_se": se,
+                                 "error": sp_ - float(m)})
+    # at larger D, by importance sampling from Dir(a + n) (weights H(φ) B(a + n)/B(a) / Π φ^n; plain
+    # Monte Carlo from Dir(a) fails here: a view's ln H spreads by tens of nats over φ draws)
+    out["dm_large_D_is"] = []
+    for d, k, delta, size in ((300, 60, 500.0, 400_000), (4096, 400, 4990.0, 20_000)):
+        a = 0.23 + rng.poisson(4.0, d) * (rng.random(d) < 0.4)
+        n = np.zeros(d)
+        n[rng.choice(np.flatnonzero(a > 1), k, replace=False)] = rng.random(k) * 3
+        sp_ = log_dirichlet_expectation(a, n, delta)["value"]
+        lb = gammaln(a + n).sum() - gammaln((a + n).sum()) - gammaln(a).sum() + gammaln(a.sum())
+        parts = []
+        for _ in range(10):
+            phi = rng.dirichlet(a + n, size=size // 10)
+            parts.append(_log_ratio(phi, n, delta) - gammaln(delta) + gammaln(delta + n.sum())
+                         - (n * np.log(phi)).sum(1) + lb)
+        lw = np.concatenate(parts)
+        w = np.exp(lw - lw.max())
+        est = float(logsumexp(lw) - np.log(lw.size))
+        out["dm_large_D_is"].append({"D": d, "active": k, "saddle": sp_, "importance": est,
+                                     "se": float(w.std() / np.sqrt(w.size) / w.mean()),
+                                     "spread_of_log_weight": float(lw.std()), "error": sp_ - est})
+    for frac in (False, True):
+        alpha, delta = 0.4, 6.0
+        others = rng.integers(0, 5, size=(2, 3)).astype(float)
+        new = rng.integers(0, 4, size=3).astype(float)
+        if frac:
+            others = others + np.round(rng.random((2, 3)), 2)
+            new = new + np.round(rng.random(3), 2)
+        exact = brute_predictive(alpha, delta, list(others), new)
+        row = {"fractional": frac, "others": others.tolist(), "new": new.tolist(), "exact": exact}
+        for exact_fractions in (True, False):
+            est = predictive_estimates(others[:, None, :], np.zeros((1, 3)), {"x": new[None, :]}, delta,
+                                       alpha,
+                                       np.random.default_rng(seed), 3000, 200,
+                                       exact_fractions=exact_fractions)["variants"]["x"]
+            key = "estimate" if exact_fractions else "proposal_only"
+            row[key], row[key + "_se"], row[key + "_error"] = est["value"], est["se"], est["value"] - exact
+        out["predictive_D3"].append(row)
+    return out
+
+
+# ----------------------------------------------------------------------------- the estimate
+
+def table_draws(n_others: np.ndarray, log_phi: np.ndarray, delta: float, alpha,
+                rng: np.random.Generator, draws: int, burn: int) -> np.ndarray:
+    """Dirichlet parameters α + M + F (draws, L, D) of φ's posterior given the other homes' counts
+    n_others (E', L, D): the library's φ^v step run on those counts alone from ``log_phi``, each
+    step's table counts M (CRT of ⌊n⌋) and fractions F recorded after ``burn`` steps."""
+    from spco.model.observations import HierarchicalMultinomial as HM
+
+    out = np.empty((draws, *log_phi.shape))
+    for i in range(burn + draws):
+        tables, frac, fractional = HM.table_parts(n_others, log_phi, delta, rng)
+        if i >= burn:
+            out[i - burn] = alpha + tables + frac
+        log_phi = HM.accept_shared(lambda old, new: HM.fractional_log_ratio(n_others, old, new, delta),
+                                   log_phi, alpha, tables, frac, rng, bool(fractional.any()))
+    return out
+
+
+def log_mean_with_se(values: np.ndarray, batches: int = 10) -> tuple[float, float]:
+    """ln mean exp(values) and its standard error by batch means (delta method)."""
+    m = values.max()
+    w = np.exp(values - m)
+    mean = w.mean()
+    k = len(w) // batches
+    if k < 1:
+        return float(m + np.log(mean)), float("nan")
+    bm = w[: k * batches].reshape(batches, k).mean(1)
+    return float(m + np.log(mean)), float(bm.std(ddof=1) / np.sqrt(batches) / mean)
+
+
+def predictive_estimates(n_others: np.ndarray, log_phi: np.ndarray, variants: dict[str, np.ndarray],
+                         delta: float, alpha, rng: np.random.Generator, draws: int, burn: int,
+                         exact_fractions: bool = True, log=None) -> dict:
+    """ln p(n_new | n_others) = Σ_l ln E_{φ_l | n_others}[B(δ φ_l + n_new,l)/B(δ φ_l)] for each
+    assignment of ``variants`` (name → n_new (L, D)), on the same table draws (:func:`table_draws`):
+    per concept the log of the mean over draws of E[· | M] (:class:`ConceptGrid`, exact for real counts;
+    ``exact_fractions=False``: the proposal Dir(α + M + F) alone, w left out), its standard error by
+    batch means (concepts independent). Also the paired differences of every variant to the first."""
+    params = table_draws(n_others, np.array(log_phi, dtype=float), delta, alpha, rng, draws, burn)
+    names = list(variants)
+    concepts = sorted({int(c) for v in variants.values() for c in np.flatnonzero(v.sum(1) > 0)})
+    vals = {name: {} for name in names}
+    worst_end = 0.0
+    for c in concepts:
+        bound = np.max([v[c] for v in variants.values()], axis=0)
+        per = {name: [] for name in names}
+        for j, p in enumerate(params):
+            others = n_others[:, c] if exact_fractions else np.floor(n_others[:, c])
+            grid = ConceptGrid(p[c], others, delta, bound)
+            cache: dict[bytes, float] = {}
+            for name in names:
+                key = variants[name][c].tobytes()
+                if key not in cache:
+                    r = grid.log_expectation(variants[name][c])
+                    cache[key] = r["value"]
+                    worst_end = max(worst_end, r["grid_end_mass"])
+                per[name].append(cache[key])
+            if log:
+                log(f"concept {c} draw {j}: " + " ".join(f"{k} {per[k][-1]:.2f}" for k in names))
+        for name in names:
+            vals[name][c] = np.asarray(per[name])
+    out: dict = {"draws": draws, "burn": burn, "grid_end_mass": worst_end, "variants": {}}
+    for name in names:
+        total, var, per_c = 0.0, 0.0, {}
+        for c in concepts:
+            n_l = variants[name][c]
+            if n_l.sum() == 0:
+                continue
+            v, se = log_mean_with_se(vals[name][c])
+            v += gammaln(delta) - gammaln(delta + n_l.sum())
+            per_c[c] = {"value": v, "se": se, "spread_over_draws": float(vals[name][c].std())}
+            total += v
+            var += se**2
+        out["variants"][name] = {"value": total, "se": float(np.sqrt(var)), "per_concept": per_c}
+    return out
+
+
+def predictive_estimate(n_others: np.ndarray, log_phi: np.ndarray, n_new: np.ndarray, delta: float,
+                        alpha, rng: np.random.Generator, draws: int, burn: int) -> dict:
+    """:func:`predictive_estimates` of one assignment: its value and standard error."""
+    r = predictive_estimates(n_others, log_phi, {"x": n_new}, delta, alpha, rng, draws, burn)
+    r = r["variants"]["x"]
+    return {"value": r["value"], "se": r["se"]}
+
+def load_fit(out: Path) -> dict:
+    """The dumped fit: counts, the new home's samples, the statistics of every home."""
+    from spco.model.observations import HierarchicalMultinomial as HM
+
+    f = np.load(out / FIT_FILE, allow_pickle=False)
+    visual = sp.csr_array((f["data"], f["indices"], f["indptr"]), shape=tuple(f["shape"]))
+    homes, concepts, weights = f["homes"], f["concepts"], f["weights"]
+    n_homes, n_concepts = int(homes.max()) + 1, int(f["log_phi_v"].shape[0])
+    stats = HM.weighted_statistics(visual, weights, homes, concepts, n_homes, n_concepts)
+    return {"visual": visual, "homes": homes, "concepts": concepts, "weights": weights,
+            "labels": f["labels"].astype(str), "delta": float(f["delta"]), "alpha": f["alpha"],
+            "log_phi_v": f["log_phi_v"], "phi_summary": f["phi_summary"], "stats": stats,
+            "n_homes": n_homes, "n_concepts": n_concepts, "seed": int(f["seed"]), "sweeps": int(f["sweeps"])}
+
+
+MOVED = ("bath", "dining", "living room")
+
+
+def assignments(fit: dict) -> tuple[dict[str, np.ndarray], dict[str, int]]:
+    """The new home's assignments compared: "lumped" (the chain's concepts), "true rooms" (every
+    labelled place in the concept most of the experienced homes' samples of that place hold; the
+    unlabelled samples where the chain has them), "lumped, X own" (one place of :data:`MOVED` moved
+    from the lump to its own concept) and "true, X lumped" (the reverse: one place moved into the
+    concept holding most of the new home's samples). Returns {name: concepts of the new home's
+    samples} and the place → concept map."""
+    new = fit["homes"] == fit["n_homes"] - 1
+    labels, chain = fit["labels"], fit["concepts"]
+    own = {}
+    for place in sorted(set(labels[new]) - {"None"}):
+        exp = (~new) & (labels == place)
+        own[place] = int(Counter(chain[exp].tolist()).most_common(1)[0][0])
+    lumped = chain[new].copy()
+    lump = int(Counter(lumped.tolist()).most_common(1)[0][0])
+    true = lumped.copy()
+    for place, c in own.items():
+        true[labels[new] == place] = c
+    out = {"lumped": lumped, "true rooms": true}
+    for place in MOVED:
+        moved = lumped.copy()
+        moved[labels[new] == place] = own[place]
+        out[f"lumped, {place} own"] = moved
+    for place in MOVED:
+        back = true.copy()
+        back[labels[new] == place] = lump
+        out[f"true, {place} lumped"] = back
+    return out, own
+
+
+def new_home_counts(fit: dict, concepts_new: np.ndarray) -> np.ndarray:
+    """n^v of the new home (L, D) for its samples in ``concepts_new``."""
+    from spco.model.observations import HierarchicalMultinomial as HM
+
+    new = np.flatnonzero(fit["homes"] == fit["n_homes"] - 1)
+    return HM.weighted_statistics(fit["visual"][new], fit["weights"][new], np.zeros(new.size, dtype=np.int64),
+                                  concepts_new, 1, fit["n_concepts"])[0]
+
+
+def given_phi(n_new: np.ndarray, log_phi: np.ndarray, delta: float) -> float:
+    """collapse9's evidence: θ^v integrated out, φ^v given: Σ_l ln B(δφ_l + n_l) − ln B(δφ_l)."""
+    x = delta * np.exp(log_phi)
+    used = n_new.sum(1) > 0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(n_new > 0, gammaln(x + n_new) - gammaln(np.where(x > 0, x, 1.0)), 0.0)
+        t = np.where((n_new > 0) & (x == 0), -np.inf, t)
+    return float(t[used].sum() + (gammaln(delta) - gammaln(delta + n_new.sum(1)))[used].sum())
+
+
+def evidence(out: Path, draws: int, burn: int, seed: int, exact_fractions: bool = True) -> dict:
+    """The table: every assignment's view evidence with θ^v and φ^v integrated out given the other
+    homes' counts (and, for reference, given the chain's φ^v draw and φ^v's summary).
+    ``exact_fractions=False``: φ^v's conditional given the tables taken as the proposal Dir(α + M + F)
+    alone (the cheaper form a move could use), to measure what the fractional weight w changes."""
+    fit = load_fit(out)
+    variants_c, own = assignments(fit)
+    variants = {k: new_home_counts(fit, v) for k, v in variants_c.items()}
+    others = np.ascontiguousarray(fit["stats"][:-1])
+    alpha = fit["alpha"] if fit["alpha"].ndim else float(fit["alpha"])
+    t0 = time.process_time()
+    logf = open(out / "evidence.log", "a", encoding="utf-8")
+
+    def log(msg: str) -> None:
+        logf.write(f"{time.strftime('%H:%M:%S', time.gmtime())} {msg}\n")
+        logf.flush()
+
+    est = predictive_estimates(others, fit["log_phi_v"], variants, fit["delta"], alpha,
+                               np.random.default_rng(seed), draws, burn, exact_fractions=exact_fractions,
+                               log=log)
+    est["exact_fractions"] = exact_fractions
+    est["cpu_seconds"] = time.process_time() - t0
+    est["place_concepts"] = own
+    est["fit_seed"], est["fit_sweeps"], est["evidence_seed"] = fit["seed"], fit["sweeps"], seed
+    est["delta"], est["alpha"] = fit["delta"], float(np.mean(fit["alpha"]))
+    base = est["variants"]["lumped"]
+    for name, v in est["variants"].items():
+        v["concepts_used"] = dict(Counter(variants_c[name].tolist()))
+        v["given_phi_draw"] = given_phi(variants[name], fit["log_phi_v"], fit["delta"])
+        with np.errstate(divide="ignore"):
+            v["given_phi_summary"] = given_phi(variants[name], np.log(fit["phi_summary"]), fit["delta"])
+        v["minus_lumped"] = v["value"] - base["value"]
+    return est
+
+def fit(out: Path, sweeps: int, seed_index: int) -> None:
+    """Fit general places as benchmarks/general_places.py does (power target) and dump what the
+    evidence needs: the weighted view counts of every home and concept, the new home's training
+    views and weights, the chain's concepts, every training sample's place, δ^v, α^v, log φ^v."""
+    sys.path.insert(0, str(Path(__file__).parent))
+    from general_places import MODEL, new_home
+
+    from spco.data import Corpus
+    from spco.data.loading import load
+    from spco.evaluation.config import PAPER_EXPERIENCED_HOMES, trial_seed
+    from spco.evaluation.models import MODELS
+    from spco.model.gibbs import view_weights
+    from spco.model.hyperparameters import TransferHyperparameters
+
+    sig = Path("/work/shared/datasets/sigverse")
+    hyper = TransferHyperparameters().with_settings(["target=power", "visual_prior=estimate"])
+    knowledge = [load(sig / h)[h] for h in PAPER_EXPERIENCED_HOMES]
+    env = new_home(sig, sig.parent / "sigverse_regions.json", "3LDK_9", False)
+    run_seed = trial_seed(seed_index, 0)
+    model = MODELS[MODEL].build(sweeps, run_seed, hyper, False)
+    corpus = Corpus([*knowledge, env])
+    t0 = time.process_time()
+    model.fit(corpus)
+    print(f"fit: {time.process_time() - t0:.1f} s CPU", flush=True)
+    data, state, h = model.data_, model.state_, model.hyperparameters_
+    labels = []
+    for e in corpus:
+        lab = np.asarray(e.ground_truth.labels, dtype=object)[~np.asarray(e.is_test, dtype=bool)]
+        labels.extend(str(x) for x in lab)
+    labels = np.asarray(labels)
+    if labels.shape[0] != data.n_samples:
+        raise SystemExit(f"labels {labels.shape[0]} != training samples {data.n_samples}")
+    weights = view_weights(data, model.settings_.view_counts)
+    visual = sp.csr_array(data.visual)
+    out.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(
+        out / FIT_FILE, data=visual.data, indices=visual.indices, indptr=visual.indptr,
+        shape=np.asarray(visual.shape), weights=weights, homes=data.homes, concepts=state.concepts,
+        labels=labels, delta=float(h.delta_visual), alpha=np.asarray(h.alpha_visual, dtype=float),
+        log_phi_v=state.log_phi_v, phi_summary=model.parameters_.shared_visual_probabilities,
+        seed=run_seed, sweeps=sweeps, regions=state.regions, log_g0=state.log_g0, gamma=float(h.gamma),
+        beta=float(h.beta), n_regions=int(h.n_regions))
+    print(f"dumped {out / FIT_FILE}: delta {h.delta_visual:.1f}, alpha {np.mean(h.alpha_visual):.4f}, "
+          f"new home's concepts {Counter(state.concepts[data.homes == data.homes.max()].tolist())}")
+
+
+def assignment_prior(fit_file: Path, concepts_new: np.ndarray) -> dict[str, float]:
+    """The rest of what a block move of the new home's samples sees (regions held): G_e ~ Dir(γ G_0)
+    and π_{e,l} ~ Dir(β/K) integrated out, ln Γ(γ)/Γ(γ + N) Π_l Γ(γG_0l + n_l)/Γ(γG_0l) and
+    Σ_l ln Γ(β)/Γ(β + n_l) Π_k Γ(β/K + n_lk)/Γ(β/K); the Gaussians and words do not change
+    (regions held, the new home untaught)."""
+    f = np.load(fit_file)
+    new = f["homes"] == f["homes"].max()
+    regions = f["regions"][new]
+    g0 = np.exp(f["log_g0"])
+    gamma, beta, k = float(f["gamma"]), float(f["beta"]), int(f["n_regions"])
+    n_l = np.bincount(concepts_new, minlength=g0.size)
+    used = n_l > 0
+    g_term = gammaln(gamma) - gammaln(gamma + n_l.sum()) + float(
+        (gammaln(gamma * g0[used] + n_l[used]) - gammaln(gamma * g0[used])).sum())
+    pi_term = 0.0
+    for c in np.flatnonzero(used):
+        n_lk = np.bincount(regions[concepts_new == c], minlength=k)
+        pi_term += gammaln(beta) - gammaln(beta + n_lk.sum()) + float(
+            (gammaln(beta / k + n_lk) - gammaln(beta / k)).sum())
+    return {"G_e": float(g_term), "pi": float(pi_term)}
+
+
+def table(out: Path) -> None:
+    """Print evidence.json with the assignment prior's terms (:func:`assignment_prior`)."""
+    r = json.loads((out / "evidence.json").read_text())
+    fit = load_fit(out)
+    variants_c, _ = assignments(fit)
+    if "regions" in np.load(out / FIT_FILE).files:
+        base = assignment_prior(out / FIT_FILE, variants_c["lumped"])
+        for name, v in r["variants"].items():
+            terms = assignment_prior(out / FIT_FILE, variants_c[name])
+            v["assignment_prior_minus_lumped"] = {k: terms[k] - base[k] for k in terms}
+        (out / "evidence.json").write_text(json.dumps(r, indent=1))
+    print_table(r)
+
+
+def print_table(r: dict) -> None:
+    """The evidence as a markdown table (nats; ± one standard error)."""
+    print(f"draws {r['draws']} (burn {r['burn']}), CPU {r['cpu_seconds']:.0f} s, grid end mass "
+          f"{r['grid_end_mass']:.1e}, place concepts {r['place_concepts']}")
+    print("| assignment | concepts used | ln p(n_e | n_-e), θ^v and φ^v integrated | − lumped "
+          "| given φ^v draw (− lumped) | given φ^v summary (− lumped) | G_e, π terms (− lumped) |")
+    print("|---|---|---|---|---|---|---|")
+    b = r["variants"]["lumped"]
+    for name, v in r["variants"].items():
+        print(f"| {name} | {len(v['concepts_used'])} | {v['value']:.1f} ± {v['se']:.2f} | "
+              f"{v['minus_lumped']:+.1f} | {v['given_phi_draw'] - b['given_phi_draw']:+.1f} | "
+              f"{v['given_phi_summary'] - b['given_phi_summary']:+.1f} | "
+              + (f"{v['assignment_prior_minus_lumped']['G_e']:+.1f}, "
+                 f"{v['assignment_prior_minus_lumped']['pi']:+.1f} |"
+                 if "assignment_prior_minus_lumped" in v else "– |"))
+    for name, v in r["variants"].items():
+        print(name, {k: (round(x["value"], 2), round(x["se"], 3), round(x["spread_over_draws"], 2))
+                     for k, x in v["per_concept"].items()})
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Command line: ``fit``, ``evidence`` or ``check``."""
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("what", choices=("fit", "evidence", "check", "table"))
+    p.add_argument("--out", type=Path, default=Path("phimarg"))
+    p.add_argument("--sweeps", type=int, default=60)
+    p.add_argument("--seed", type=int, default=0, help="development seed (trial_seed(seed, 0))")
+    p.add_argument("--draws", type=int, default=40, help="table draws of φ^v given the other homes")
+    p.add_argument("--burn", type=int, default=30, help="φ^v steps before the first kept draw")
+    p.add_argument("--evidence-seed", type=int, default=0, help="seed of the table draws")
+    p.add_argument("--proposal-only", action="store_true",
+                   help="evidence: φ^v given the tables as the proposal Dir(α + M + F), w left out")
+    a = p.parse_args(argv)
+    if a.what == "fit":
+        fit(a.out, a.sweeps, a.seed)
+    elif a.what == "evidence":
+        result = evidence(a.out, a.draws, a.burn, a.evidence_seed, not a.proposal_only)
+        name = "evidence_proposal_only.json" if a.proposal_only else "evidence.json"
+        (a.out / name).write_text(json.dumps(result, indent=1))
+        print_table(result)
+    elif a.what == "table":
+        table(a.out)
+    elif a.what == "check":
+        result = check()
+        print(json.dumps(result, indent=1))
+        if a.out:
+            a.out.mkdir(parents=True, exist_ok=True)
+            (a.out / "check.json").write_text(json.dumps(result, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
