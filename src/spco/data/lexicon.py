@@ -449,29 +449,19 @@ class Lexicon:
         return best
 
     def kind_heads(self, word: str) -> frozenset[str]:
-        """The names of the word's three commonest noun senses: what :meth:`kinds_of` asks to be a
-        hypernym of another word's sense."""
+        """The names of the word's three commonest noun senses (a word is a WordNet kind of another when
+        one of them is among the other's :meth:`kind_ancestors`)."""
         return frozenset(synset.name() for synset in self.synsets(word, pos="n")[:3])
 
     def kind_ancestors(self, text: str) -> frozenset[str]:
         """The names of the hypernyms (at every depth) of the two commonest noun senses of ``text``
-        (or, when it has none, of the commonest of its head word): what :meth:`kinds_of` looks for
-        a word's :meth:`kind_heads` in."""
+        (or, when it has none, of the commonest of its head word): where another word's
+        :meth:`kind_heads` are looked for."""
         ancestors: set[str] = set()
         for synset in self.synsets(text, pos="n")[:2] or self.synsets(text.split()[-1], pos="n")[:1]:
             with self._lock:
                 ancestors.update(s.name() for s in synset.closure(lambda s: s.hypernyms()))
         return frozenset(ancestors)
-
-    def kinds_of(self, word: str, others: list[str]) -> int:
-        """How many of ``others`` have a commonest noun sense (of their first two) of which a noun
-        sense of ``word`` (of its first three) is a hypernym: "room" of "bedroom", "kitchen",
-        "bathroom". A word that is the kind of several other words said names a kind of place, not
-        a place. A term is judged by its head word; ``word`` itself is not counted."""
-        heads = self.kind_heads(word)
-        if not heads:
-            return 0
-        return sum(1 for text in others if text != word and heads & self.kind_ancestors(text))
 
     def closest(self, name: str, known: list[str], similarity: bool = True,
                 located: bool = False) -> LexiconMatch | None:

@@ -29,7 +29,7 @@ from spco.data.lexicon import (
 )
 from spco.data.wordnet_files import DATABASE
 
-__all__ = ["KindFacts", "WordFacts", "closest_names", "kind_facts", "kinds_of", "word_facts"]
+__all__ = ["KindFacts", "WordFacts", "closest_names", "kind_facts", "word_facts"]
 
 
 @dataclass(frozen=True)
@@ -46,27 +46,17 @@ class WordFacts:
 @dataclass(frozen=True)
 class KindFacts:
     """What WordNet says of one word's kinds, as :func:`spco.model.name_evidence.channel_evidence`
-    uses them: ``kinds_below`` (:meth:`Lexicon.kinds_below`), ``heads`` (:meth:`Lexicon.kind_heads`)
-    and ``ancestors`` (:meth:`Lexicon.kind_ancestors`)."""
+    uses them: ``kinds_below`` (:meth:`Lexicon.kinds_below`)."""
 
     kinds_below: int
-    heads: frozenset[str]
-    ancestors: frozenset[str]
-
-
-def kinds_of(word: str, facts: dict[str, KindFacts], others: Sequence[str]) -> int:
-    """:meth:`Lexicon.kinds_of` from :class:`KindFacts` (``facts`` holding ``word`` and ``others``)."""
-    heads = facts[word].heads
-    if not heads:
-        return 0
-    return sum(1 for text in others if text != word and heads & facts[text].ancestors)
 
 
 #: Format of the file of :func:`word_facts` (a file of another format is computed again; 2: places
 #: without :data:`NOT_PLACE_ROOTS`; 3: the place share among the physical senses).
 _FACTS_FORMAT = 3
-#: Format of the file of :func:`kind_facts`.
-_KINDS_FORMAT = 1
+#: Format of the file of :func:`kind_facts` (2: only the kinds below a word, which is all the
+#: evidence reads).
+_KINDS_FORMAT = 2
 _facts_lock = threading.Lock()
 _facts_memory: dict[str, dict[str, WordFacts]] = {}
 #: The facts kept of each word by a cache file (:class:`WordFacts`, :class:`KindFacts`).
@@ -214,9 +204,9 @@ def kind_facts(words: Sequence[str]) -> dict[str, KindFacts] | None:
     (WordNet is loaded only for words not in it yet). The same numbers as asking :func:`lexicon`."""
     return _cached_facts(
         words, "kinds", _KINDS_FORMAT, _kinds_memory,
-        lambda lex, word: KindFacts(lex.kinds_below(word), lex.kind_heads(word), lex.kind_ancestors(word)),
-        lambda f: [f.kinds_below, sorted(f.heads), sorted(f.ancestors)],
-        lambda row: KindFacts(int(row[0]), frozenset(map(str, row[1])), frozenset(map(str, row[2]))))
+        lambda lex, word: KindFacts(lex.kinds_below(word)),
+        lambda f: [f.kinds_below],
+        lambda row: KindFacts(int(row[0])))
 
 
 #: Format of the file of :func:`closest_names`.
