@@ -195,15 +195,24 @@ class _Tally:
         self.wrong = {s: Counter() for s in self.settings}
 
 
+def fit_new_home(experienced: list[Environment], env: Environment, hyper: Any, sweeps: int, seed: int,
+                 h: int) -> tuple[SpCoTransfer, Corpus]:
+    """The fit this script scores: SpCoTransfer+MI (the exact variant) of the experienced homes and
+    the new home ``env`` (the last home of the returned corpus), ``sweeps`` sweeps, the trial seed of
+    ``seed`` and the new home's index ``h``."""
+    corpus = Corpus([*experienced, env])
+    model = SpCoTransfer(hyper, variant="exact", prune_words=True, n_iterations=sweeps,
+                         random_state=trial_seed(seed, h)).fit(corpus)
+    return model, corpus
+
+
 def _score_home(tally: _Tally, args: argparse.Namespace, hyper: Any, seed: int, h: int, home: str,
                 experienced: list[Environment], env: Environment, accepted: dict[str, tuple[str, ...]],
                 unheard: dict[str, tuple[str, ...]], seed_unheard: dict[tuple, list[float]],
                 started: float) -> None:
     """Fit the new home ``env`` with the experienced homes; its names, positions, main names' and
     unheard names' positions into ``tally``."""
-    corpus = Corpus([*experienced, env])
-    model = SpCoTransfer(hyper, variant="exact", prune_words=True, n_iterations=args.sweeps,
-                         random_state=trial_seed(seed, h)).fit(corpus)
+    model, corpus = fit_new_home(experienced, env, hyper, args.sweeps, seed, h)
     e = len(corpus) - 1
     gt = env.ground_truth
     for setting in tally.settings:  # the same draws of positions: only the names can differ

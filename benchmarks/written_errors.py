@@ -32,14 +32,12 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from free_speech import new_home, read_names, read_speech, taught_homes
+from free_speech import fit_new_home, new_home, read_names, read_speech, taught_homes
 from speech_errors import _answers, _misses, place_speech
 
 from spco.data import Corpus
 from spco.data.language import normalize_name
 from spco.evaluation import evaluate_answers
-from spco.evaluation.experiments import trial_seed
-from spco.model import SpCoTransfer
 from spco.model.confidence import answer_names
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.prediction import concept_posterior
@@ -105,9 +103,7 @@ def main() -> None:
     for seed in args.seeds:
         experienced = taught_homes(args.sigverse, speech, seed)
         env = new_home(args.sigverse, regions_file, args.home, accepted)
-        corpus = Corpus([*experienced, env])
-        model = SpCoTransfer(hyper, variant="exact", prune_words=True, n_iterations=args.sweeps,
-                             random_state=trial_seed(seed, 0)).fit(corpus)
+        model, corpus = fit_new_home(experienced, env, hyper, args.sweeps, seed, 0)
         e = len(corpus) - 1
         scores = evaluate_answers(model, e, env, rng=seed)
         said = place_speech(experienced, corpus)
