@@ -322,6 +322,28 @@ def test_a_weakly_bound_name_found_gives_way_to_its_firmly_bound_synonym(wordnet
     assert found is not None and found.name == "parlour", found
 
 
+
+def test_a_name_stands_for_a_sense_only_if_it_is_used_in_it(wordnet) -> None:
+    # WordNet files "bathroom" under a toilet too (its second sense), but its tagged uses are all of the
+    # room with the bathtub; "hall" is used as an anteroom in 10 of its 46 uses
+    assert wordnet.seldom_in("bathroom", "privy") and wordnet.seldom_in("bathroom", "toilet")
+    assert not wordnet.seldom_in("hall", "foyer") and not wordnet.seldom_in("toilet", "privy")
+    assert not wordnet.seldom_in("parlour", "living room")  # no tagged use at all: no evidence
+    assert not wordnet.seldom_in("kitchen", "privy")  # no shared sense
+    # a home binding "bathroom" (its bath) firmly and "toilet" weakly: a "privy", a "latrine" ("a public
+    # toilet …") and a "men's room" are the toilet, not the bathroom
+    vocab = Vocabulary(("bathroom", "toilet", "kitchen"))
+    mask, prior = np.ones(3, dtype=bool), np.array([0.8, 0.3, 0.7])
+    info = np.array([0.4, 0.001, 0.4])
+    for asked in ("privy", "latrine", "men's room"):
+        found = resolve_name(vocab, mask, asked, prior, lexicon=wordnet, information=info)
+        assert found is not None and found.name == "toilet", (asked, found)
+    # a synonym in a sense the name is used in is kept, firmly bound first: "foyer" -> "hall"
+    vocab = Vocabulary(("hall", "lobby", "kitchen"))
+    found = resolve_name(vocab, mask, "foyer", prior, lexicon=wordnet, information=info)
+    assert found is not None and (found.name, found.how) == ("hall", "synonym"), found
+
+
 def _living_washroom_objects() -> tuple[ConceptParameters, Vocabulary]:
     """Concept 0 at x = 0 is the living room ("tv", "sofa" said there as words of the place, ψ),
     concept 1 at x = 5 the washroom ("bath" said there as a thing: "take a bath"). The objects have

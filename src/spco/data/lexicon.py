@@ -608,6 +608,19 @@ class Lexicon:
             words = kept
         return [*(" ".join(p) for p in itertools.pairwise(words)), *words]
 
+    def seldom_in(self, word: str, other: str) -> bool:
+        """Whether ``word`` shares noun senses with ``other`` only in senses WordNet's tagged texts never
+        use ``word`` in, while they use it in another of its noun senses: "bathroom" for "privy" (6 uses
+        as the room with the bathtub, none as a toilet), not "hall" for "foyer" (10 of its 46 uses in
+        the sense of an anteroom) nor "parlour" for "living room" (no tagged use at all)."""
+        lemma = self._lemma(word)
+        shared = set(self.synsets(other, pos="n"))
+        uses = {synset: sum(lem.count() for lem in synset.lemmas() if lem.name().lower() == lemma)
+                for synset in self.synsets(word, pos="n")}
+        common = [synset for synset in uses if synset in shared]
+        return (bool(common) and all(uses[synset] == 0 for synset in common)
+                and any(n > 0 for synset, n in uses.items() if synset not in shared))
+
 
 _load_lock = threading.Lock()  # (lexicon() and the facts' lookups load WordNet once)
 

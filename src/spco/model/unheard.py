@@ -155,11 +155,24 @@ def resolve_name(vocabulary: Vocabulary, word_mask: np.ndarray, name: str,
     if match is None:
         return None
     name, how = match.name, match.how
+    if how == "synonym" and lexicon.seldom_in(name, asked):  # type: ignore[attr-defined]
+        # a synonym only in a sense the name is never used in ("privy" and "bathroom", whose uses are
+        # all of the room with the bathtub): a candidate used in that sense, when the home says one
+        name = next((c for c in candidates if _synonym_in_use(lexicon, c, asked)), name)
     if name not in firm:  # a synonym of it that this home binds firmly names the same place
-        same = lexicon.synonyms_among(name, firm)  # type: ignore[attr-defined]
+        same = [f for f in lexicon.synonyms_among(name, firm)  # type: ignore[attr-defined]
+                if not lexicon.seldom_in(f, name)]  # type: ignore[attr-defined]
         if same:
             name, how = same[0], f"{how} synonym"
     return ResolvedName(asked=asked, name=name, how=how, score=float(match.score))
+
+
+def _synonym_in_use(lexicon: object, known: str, asked: str) -> bool:
+    """Whether the known name shares a noun sense with ``asked`` and is used in one of the shared
+    senses (:meth:`spco.data.lexicon.Lexicon.seldom_in`: "toilet" or "lavatory" for "privy", not
+    "bathroom")."""
+    shared = set(lexicon.synsets(known, pos="n")) & set(lexicon.synsets(asked, pos="n"))  # type: ignore[attr-defined]
+    return bool(shared) and not lexicon.seldom_in(known, asked)  # type: ignore[attr-defined]
 
 
 #: A word whose senses are more than this share adjectives or adverbs in WordNet is a quality ("wet"
