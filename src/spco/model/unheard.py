@@ -29,6 +29,8 @@ resolved: a name nobody said is an unknown name, or its known words said togethe
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -133,8 +135,11 @@ def resolve_name(vocabulary: Vocabulary, word_mask: np.ndarray, name: str,
         info = np.asarray(information, dtype=np.float64)
         floor = FIRM_INFORMATION * info[mask].max()
         firm = [c for c in candidates if info[vocabulary.index(c)] >= floor]
+    # the words of a place (the candidates left out: they are asked first), worked out once, when needed
+    words_of_places = functools.cache(lambda: place_words(vocabulary, mask, place_information, lexicon,
+                                                          exclude=candidates))
     if place_information is not None:  # a kind of place named after a thing: where the thing is said
-        found = _by_thing(vocabulary, mask, asked, place_information, lexicon, candidates)
+        found = _by_thing(vocabulary, mask, asked, lexicon, candidates, words_of_places)
         if found is not None:
             return found
     match = None
@@ -146,7 +151,7 @@ def resolve_name(vocabulary: Vocabulary, word_mask: np.ndarray, name: str,
         if said:
             return ResolvedName(asked=asked, name=" ".join(said), how=SAID_WORDS, score=0.5)
     if match is None and place_information is not None:  # a word said at a place: "telly room" -> "tv"
-        found = _by_place_words(vocabulary, mask, asked, place_information, lexicon, candidates)
+        found = _by_place_words(asked, lexicon, words_of_places())
         if found is not None:
             return found
     for group in (firm, candidates):  # then mere similarity
@@ -188,15 +193,13 @@ PLACE_WORD = "place word"
 THING = "thing"
 
 
-def _by_place_words(vocabulary: Vocabulary, mask: np.ndarray, asked: str, place_information: np.ndarray,
-                    lexicon: object, candidates: list[str]) -> ResolvedName | None:
-    """The word of a place (:func:`place_words`, the candidate names left out: they were asked
-    first) that the lexicon relates ``asked`` to by a relation of its own
+def _by_place_words(asked: str, lexicon: object, objects: list[str]) -> ResolvedName | None:
+    """The word of a place among ``objects`` (:func:`place_words`, the candidate names left out: they
+    were asked first) that the lexicon relates ``asked`` to by a relation of its own
     (:meth:`spco.data.lexicon.Lexicon.closest` without similarity: a synonym, in its definition, a
     derivation, its head or modifier, or the place WordNet names by its modifier before another
     head: "dressing area" -> "dressing room", "a room in which you can change clothes" ->
     "clothes"), or None."""
-    objects = place_words(vocabulary, mask, place_information, lexicon, exclude=candidates)
     found = (lexicon.closest(asked, objects, similarity=False, located=True)  # type: ignore[attr-defined]
              if objects else None)
     if found is None:
@@ -205,8 +208,8 @@ def _by_place_words(vocabulary: Vocabulary, mask: np.ndarray, asked: str, place_
                         score=float(found.score))
 
 
-def _by_thing(vocabulary: Vocabulary, mask: np.ndarray, asked: str, place_information: np.ndarray,
-              lexicon: object, candidates: list[str]) -> ResolvedName | None:
+def _by_thing(vocabulary: Vocabulary, mask: np.ndarray, asked: str, lexicon: object, candidates: list[str],
+              words_of_places: Callable[[], list[str]]) -> ResolvedName | None:
     """The word of a place (:func:`place_words`, the candidate names left out) that says the thing
     ``asked`` is named after (:meth:`spco.data.lexicon.Lexicon.thing_words`: "washbasin area" is where
     the washbasin is), as said or in a base form ("boots" for "boot"): the thing's synonyms first,
@@ -218,7 +221,7 @@ def _by_thing(vocabulary: Vocabulary, mask: np.ndarray, asked: str, place_inform
     things = lexicon.thing_words(asked, candidates)  # type: ignore[attr-defined]
     if not things:
         return None
-    objects = place_words(vocabulary, mask, place_information, lexicon, exclude=candidates)
+    objects = words_of_places()  # place_words, the candidates left out
     forms = {word: lexicon.base_forms(word) for word in objects}  # type: ignore[attr-defined]
     skip = set(candidates)
     for thing in things:
