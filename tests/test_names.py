@@ -344,6 +344,35 @@ def test_a_name_stands_for_a_sense_only_if_it_is_used_in_it(wordnet) -> None:
     assert found is not None and (found.name, found.how) == ("hall", "synonym"), found
 
 
+
+def test_a_kind_of_place_after_a_thing_reads_every_sense_of_the_thing(wordnet) -> None:
+    # "bunk" is first a feeding trough, then a bed (three senses under bed.n.01): with nothing else
+    # found, "bunk room" is where this home says "bed"; the commonest thing sense said comes first
+    from spco.model.unheard import THING_SENSE
+
+    assert wordnet.thing_sense_words("bunk")[:4] == ["bunk", "feed bunk", "manger", "trough"]
+    assert "bed" in wordnet.thing_sense_words("bunk")
+    assert wordnet.thing_sense_words("lounge") == []  # a place: "lounge room" is the lounge
+    assert wordnet.thing_sense_words("wet") == []  # no thing sense (moisture is a state)
+    vocab = Vocabulary(("bed", "kitchen", "sofa"))
+    mask, prior = np.ones(3, dtype=bool), np.array([0.3, 0.7, 0.1])
+    info, place = np.array([0.2, 0.4, 0.1]), np.array([0.3, 0.4, 0.2])
+    for asked in ("bunk room", "bunk area", "bunkroom"):
+        found = resolve_name(vocab, mask, asked, prior, lexicon=wordnet, information=info,
+                             place_information=place)
+        assert found is not None and (found.name, found.how) == ("bed", THING_SENSE), (asked, found)
+    # without the words of a place (ψ), as the other steps through them: not asked
+    assert resolve_name(vocab, mask, "bunk room", prior, lexicon=wordnet, information=info) is None
+    vocab = Vocabulary(("trough", "bed", "kitchen"))
+    found = resolve_name(vocab, mask, "bunk room", prior, lexicon=wordnet, information=info,
+                         place_information=place)
+    assert found is not None and found.name == "trough", found
+    # a name whose words are not a thing before a kind of place: nothing ("great room": a great is a person)
+    vocab = Vocabulary(("bed", "kitchen", "sofa"))
+    assert resolve_name(vocab, mask, "great room", prior, lexicon=wordnet, information=info,
+                        place_information=place) is None
+
+
 def _living_washroom_objects() -> tuple[ConceptParameters, Vocabulary]:
     """Concept 0 at x = 0 is the living room ("tv", "sofa" said there as words of the place, ψ),
     concept 1 at x = 5 the washroom ("bath" said there as a thing: "take a bath"). The objects have

@@ -621,6 +621,27 @@ class Lexicon:
         return (bool(common) and all(uses[synset] == 0 for synset in common)
                 and any(n > 0 for synset, n in uses.items() if synset not in shared))
 
+    def thing_sense_words(self, word: str) -> list[str]:
+        """The words of every sense of ``word`` that is a thing (:data:`THING_FILES`), in WordNet's order
+        (commonest first): each sense's lemmas, then its kinds' (direct hypernyms'), lower case, words
+        separated by spaces, each once ("bunk": "bunk", "feed bunk", "manger", "trough" — a feeding
+        trough, its commonest sense —, then "berth", "built in bed", "bed", …); [] when one of its senses
+        is a place (:meth:`place_share` > 0: "lounge", "bath" name the place, not a thing there)."""
+        if self.place_share(word) > 0:
+            return []
+        out: list[str] = []
+        for synset in self.synsets(word, pos="n"):
+            with self._lock:
+                if synset.lexname() not in THING_FILES:
+                    continue
+                layers = [synset, *synset.hypernyms()]
+            for layer in layers:
+                for lemma in layer.lemmas():
+                    text = lemma.name().replace("_", " ").replace("-", " ").lower()
+                    if text not in out:
+                        out.append(text)
+        return out
+
 
 _load_lock = threading.Lock()  # (lexicon() and the facts' lookups load WordNet once)
 

@@ -48,6 +48,7 @@ __all__ = [
     "SAID_WORDS",
     "STAND_IN_HOW",
     "THING",
+    "THING_SENSE",
     "ResolvedName",
     "candidate_names",
     "place_words",
@@ -157,8 +158,8 @@ def resolve_name(vocabulary: Vocabulary, word_mask: np.ndarray, name: str,
     for group in (firm, candidates):  # then mere similarity
         if match is None and group:
             match = lexicon.closest(asked, group, similarity=True, located=True)  # type: ignore[attr-defined]
-    if match is None:
-        return None
+    if match is None:  # a kind of place after a thing of a rarer sense: "bunk room", where beds are
+        return None if place_information is None else _by_thing_senses(vocabulary, mask, asked, lexicon)
     name, how = match.name, match.how
     if how == "synonym" and lexicon.seldom_in(name, asked):  # type: ignore[attr-defined]
         # a synonym only in a sense the name is never used in ("privy" and "bathroom", whose uses are
@@ -170,6 +171,32 @@ def resolve_name(vocabulary: Vocabulary, word_mask: np.ndarray, name: str,
         if same:
             name, how = same[0], f"{how} synonym"
     return ResolvedName(asked=asked, name=name, how=how, score=float(match.score))
+
+
+#: :attr:`ResolvedName.how` of a kind of place after a thing, answered by a word of one of the thing's
+#: senses or of its kind (:func:`_by_thing_senses`).
+THING_SENSE = "thing sense"
+
+
+def _by_thing_senses(vocabulary: Vocabulary, mask: np.ndarray, asked: str,
+                     lexicon: object) -> ResolvedName | None:
+    """For a kind of place named after a thing ("bunk room": the words before a kind of place, "room",
+    "area", that name no place), the first word said in this home among the lemmas of every sense of
+    the thing and of its kinds, commonest sense first (:meth:`spco.data.lexicon.Lexicon.thing_sense_words`:
+    "bunk" is first a feeding trough, then a bed: "bed"); or None. The last step of the look-up, when
+    no relation of the name and no word of it said answered (:func:`_by_thing` reads the commonest
+    sense only; like it and the other steps through the words of a place, asked only when
+    :func:`resolve_name` is given ``place_information``)."""
+    words = asked.split()
+    if len(words) == 1:
+        words = lexicon.split_compound(words[0]) or words  # type: ignore[attr-defined]
+    if len(words) < 2 or not _stands_for_no_place(lexicon, words[-1]):
+        return None
+    for text in lexicon.thing_sense_words(" ".join(words[:-1])):  # type: ignore[attr-defined]
+        k = vocabulary.index(text)
+        if k is not None and mask[k] and not _stands_for_no_place(lexicon, vocabulary.words[k], thing=True):
+            return ResolvedName(asked=asked, name=vocabulary.words[k], how=THING_SENSE, score=0.5)
+    return None
 
 
 def _synonym_in_use(lexicon: object, known: str, asked: str) -> bool:
