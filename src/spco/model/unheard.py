@@ -17,7 +17,10 @@ largest: one or two per place), the same to any candidate, then the name's own w
 people say, kinds of place left out (:func:`said_words`: "sink area" -> "sink", "soaking room" ->
 "soak"), then a lexical relation to a word said at a place (:func:`place_words`, by the names θ and
 the words of a place ψ: "telly room" -> "tv", "bathing room" -> "bath" said as a thing), then
-WordNet similarity to a firmly bound name, then to any candidate. ``where`` answers
+WordNet similarity to a firmly bound name, then to any candidate, last a word said among those of
+every sense of the thing a kind of place is named after (:func:`_by_thing_senses`: "bunk room" ->
+"bed"). A synonym only in a sense WordNet never uses it in ("bathroom" for "privy") gives way to a
+candidate used in it (:meth:`spco.data.lexicon.Lexicon.seldom_in`). ``where`` answers
 for that name, saying which one it used ("restroom -> toilet":
 :attr:`spco.model.position_prediction.PositionPrediction.asked`). When nothing is found, the name's
 own known words said together answer ("great + room"); a name none of whose words is known is an
