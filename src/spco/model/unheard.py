@@ -89,8 +89,9 @@ class ResolvedName:
 
     asked: the name asked for (normalised); name: the known vocabulary token used; how: how the
     lexicon related them (``"synonym"``, ``"gloss"``, ``"hypernym"``, ``"definition"``, ``"head"``,
-    ``"head …"``, ``"compound …"``, ``"derivation"``, ``"similarity"``; :data:`SAID_WORDS`, or
-    :data:`PLACE_WORD` and the relation); score: the lexicon's similarity in (0, 1]."""
+    ``"head …"``, ``"compound …"``, ``"derivation"``, ``"similarity"``; :data:`SAID_WORDS`,
+    :data:`PLACE_WORD` and the relation, or :data:`THING_SENSE`); score: the lexicon's similarity in
+    (0, 1]."""
 
     asked: str
     name: str
