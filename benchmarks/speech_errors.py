@@ -9,7 +9,8 @@ held-out configuration and refuses seeds outside 0–99). Each wrong answer
 (A_p: an accepted name the vocabulary holds whose positions fall outside its place's region, score
 below 0.5) is put in one class:
 
-- **a** the answer is not a name of any place (an object, an activity, a function word, a fragment):
+- **a** the answer is not a name of any place (an object, an activity, a function word, a fragment;
+  what people call another place, :data:`CALLED_BUT_NOT_ACCEPTED`, is that place's name):
   the word model; split by the concept the view is drawn to (its most probable): **a1** its taught
   samples say the place's name (at least :data:`NAMED` of them: the names channel chose another
   word over the name people said), **a2** they do not (a *nameless* concept: the sampler put the
@@ -106,7 +107,9 @@ def classify_answer(place: str, word: str, accepted: dict[str, tuple[str, ...]],
     """The class (a, b, c, e) of the wrong answer ``word`` at a view of ``place``."""
     if word in CALLED_BUT_NOT_ACCEPTED.get(place, frozenset()):
         return "e"
-    others = [p for p, names in accepted.items() if p != place and word in names]
+    # what people call another place counts as its name ("taro's room" is the bedroom's, class b or c)
+    places = {*accepted, *CALLED_BUT_NOT_ACCEPTED}
+    others = [p for p in places if p != place and word in names_of(p, accepted)]
     if not others:
         return "a"
     return "b" if share_said(said, place, word) >= SAID_HERE else "c"

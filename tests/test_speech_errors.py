@@ -24,6 +24,10 @@ def test_a_wrong_answer_is_put_in_one_class() -> None:
     assert classify_answer("dining", "living room", ACCEPTED, SAID) == "c"  # never said here
     assert classify_answer("dining", "table", ACCEPTED, SAID) == "a"  # no place's name
     assert classify_answer("living room", "livingroom", ACCEPTED, SAID) == "e"  # called so, not accepted
+    # what people call another place (an owner's room, not in the accepted file) is that place's name
+    with_bedroom = {**ACCEPTED, "bedroom": ("bedroom",)}
+    assert classify_answer("dining", "taro's room", with_bedroom, SAID) == "c"
+    assert classify_answer("dining", "livingroom", ACCEPTED, SAID) == "c"  # the living room's, by its table
     assert share_said(SAID, "bath", "bath") == 0.0  # a place nobody spoke at
 
 
