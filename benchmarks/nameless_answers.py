@@ -47,6 +47,7 @@ from speech_errors import (
     classify_answer,
     fit_arguments,
     named_share,
+    names_of,
     place_speech,
 )
 
@@ -77,6 +78,27 @@ def _home_tokens(model, e: int, stand_ins: np.ndarray, n_concepts: int) -> tuple
                                      state.channels, n_concepts, rows=np.flatnonzero(homes == h),
                                      stand_ins=stand_ins) for h in range(e)])
     return own, elsewhere, per_home
+
+
+def concept_places(model, corpus: Corpus, e: int, concept: int, accepted: dict) -> tuple[str, float]:
+    """The places of the other homes' taught samples in ``concept`` (the three most frequent, with
+    their counts) and the share of those samples whose sentence says a name of its own place."""
+    places: Counter = Counter()
+    named = total = 0
+    for h, env in enumerate(corpus):
+        if h == e:
+            continue
+        labels = [lab for lab, test in zip(env.ground_truth.labels, env.is_test, strict=True) if not test]
+        sentences = env.training_data().sentences
+        for c, label, sentence in zip(model.concepts_[h], labels, sentences, strict=True):
+            if c != concept or sentence is None or label is None:
+                continue
+            place = normalize_name(label)
+            places[place] += 1
+            total += 1
+            named += bool(names_of(place, accepted) & set(corpus.vocabulary.tokenize(sentence)))
+    top = ", ".join(f"{p} {n}" for p, n in places.most_common(3))
+    return top, named / total if total else 0.0
 
 
 def diagnose(model, corpus: Corpus, e: int, env, scored, seed: int, accepted: dict, said: dict,
@@ -110,6 +132,7 @@ def diagnose(model, corpus: Corpus, e: int, env, scored, seed: int, accepted: di
             continue
         concept = int(np.argmax(posterior[i]))
         share = named_share(model, corpus, e, concept, place, accepted)
+        held, named = concept_places(model, corpus, e, concept, accepted)
         names = [k for k in (vocabulary.index(n) for n in env.ground_truth.accepted(place))
                  if k is not None and mask[k]]
         word = vocabulary.index(name)
@@ -126,6 +149,7 @@ def diagnose(model, corpus: Corpus, e: int, env, scored, seed: int, accepted: di
             "p_accepted": 0.0 if best is None else float(probs[i, best]),
             "accepted_rank": None if best is None else int(np.flatnonzero(order == best)[0]) + 1,
             "concept": concept, "p_concept": float(posterior[i, concept]), "named_share": share,
+            "concept_places": held, "concept_named": named,
             "tokens_here": float(own[concept].sum()), "tokens_elsewhere": float(elsewhere[concept].sum()),
             "places_tokens": float(at_places[concept].sum()), "places_word": float(at_places[concept, word]),
             "places_accepted": float(at_places[concept, names].sum()) if names else 0.0,
@@ -149,8 +173,9 @@ def _print(rows: list[dict]) -> None:
         groups.setdefault(key, []).append(r)
     print("| seed | home | place | cls | views | answer (p) | 2nd (p) | accepted (p, rank) | concept (p) | "
           "name tokens here / own elsewhere / at its places | word / accepted at its places (homes) | "
-          "right concepts (p) | place's samples in concept / in right | room's in right |")
-    print("|---|---|---|---|---:|---|---|---|---|---|---|---|---|---|")
+          "right concepts (p) | place's samples in concept / in right | room's in right | "
+          "concept's samples elsewhere (named own place) |")
+    print("|---|---|---|---|---:|---|---|---|---|---|---|---|---|---|---|")
     for (seed, home, place, cls, word, concept), group in groups.items():
         r = group[0]
         p_word = np.mean([g["p_word"] for g in group])
@@ -164,7 +189,8 @@ def _print(rows: list[dict]) -> None:
               f"{r['places_word']:.1f} ({r['homes_word']}) / "
               f"{r['places_accepted']:.1f} ({r['homes_accepted']}) | {r['right_concepts']} ({p_right:.2f}) | "
               f"{r['place_in_concept']}/{r['place_samples']} / {r['place_in_right']} | "
-              f"{r['room_in_right']}/{r['room_samples']} |")
+              f"{r['room_in_right']}/{r['room_samples']} | "
+              f"{r['concept_places']} ({r['concept_named']:.2f}) |")
     print(f"\nviews: {len(rows)} ({dict(Counter(r['class'] for r in rows))})")
 
 
