@@ -28,6 +28,7 @@ terms a block move also sees (:func:`assignment_prior`).
     python benchmarks/phi_marginal_evidence.py table --out DIR          # with the G_e, π terms
     python benchmarks/phi_marginal_evidence.py check --out DIR          # the brute-force checks
     python benchmarks/phi_marginal_evidence.py move --out DIR --passes 3  # the library's move on the fit
+    python benchmarks/phi_marginal_evidence.py chain --out DIR --seed 0 --more 20 --every 1  # sweeps after
 """
 
 from __future__ import annotations
@@ -352,10 +353,9 @@ def evidence(out: Path, draws: int, burn: int, seed: int, exact_fractions: bool 
         v["minus_lumped"] = v["value"] - base["value"]
     return est
 
-def fit(out: Path, sweeps: int, seed_index: int) -> None:
-    """Fit general places as benchmarks/general_places.py does (power target) and dump what the
-    evidence needs: the weighted view counts of every home and concept, the new home's training
-    views and weights, the chain's concepts, every training sample's place, δ^v, α^v, log φ^v."""
+def _fitted(sweeps: int, seed_index: int):
+    """General places fitted as benchmarks/general_places.py fits them (power target, 3LDK_9 taught
+    nothing, seed ``trial_seed(seed_index, 0)``): the model, every training sample's place, the seed."""
     sys.path.insert(0, str(Path(__file__).parent))
     from general_places import MODEL, new_home
 
@@ -363,7 +363,6 @@ def fit(out: Path, sweeps: int, seed_index: int) -> None:
     from spco.data.loading import load
     from spco.evaluation.config import PAPER_EXPERIENCED_HOMES, trial_seed
     from spco.evaluation.models import MODELS
-    from spco.model.gibbs import view_weights
     from spco.model.hyperparameters import TransferHyperparameters
 
     sig = Path("/work/shared/datasets/sigverse")
@@ -376,7 +375,7 @@ def fit(out: Path, sweeps: int, seed_index: int) -> None:
     t0 = time.process_time()
     model.fit(corpus)
     print(f"fit: {time.process_time() - t0:.1f} s CPU", flush=True)
-    data, state, h = model.data_, model.state_, model.hyperparameters_
+    data = model.data_
     labels = []
     for e in corpus:
         lab = np.asarray(e.ground_truth.labels, dtype=object)[~np.asarray(e.is_test, dtype=bool)]
@@ -384,6 +383,17 @@ def fit(out: Path, sweeps: int, seed_index: int) -> None:
     labels = np.asarray(labels)
     if labels.shape[0] != data.n_samples:
         raise SystemExit(f"labels {labels.shape[0]} != training samples {data.n_samples}")
+    return model, labels, run_seed
+
+
+def fit(out: Path, sweeps: int, seed_index: int) -> None:
+    """Fit general places (:func:`_fitted`) and dump what the evidence needs: the weighted view counts
+    of every home and concept, the new home's training views and weights, the chain's concepts, every
+    training sample's place, δ^v, α^v, log φ^v."""
+    from spco.model.gibbs import view_weights
+
+    model, labels, run_seed = _fitted(sweeps, seed_index)
+    data, state, h = model.data_, model.state_, model.hyperparameters_
     weights = view_weights(data, model.settings_.view_counts)
     visual = sp.csr_array(data.visual)
     out.mkdir(parents=True, exist_ok=True)
@@ -494,10 +504,49 @@ def move(out: Path, passes: int, seed: int) -> dict:
             "concepts_used_after": len(set(concepts.tolist())), "cpu_seconds": time.process_time() - t0}
 
 
+def chain(sweeps: int, seed_index: int, more: int, every: int, seed: int) -> dict:
+    """The fit (:func:`_fitted`), then ``more`` sweeps of the library's single-process sweep
+    (:func:`spco.model.gibbs.sweep`) from its final state, twice from the same state and seed: without
+    the φ^v-marginal block move, and with it every ``every`` sweeps (on the new home, the one taught
+    nothing). Per sweep: the new home's labelled samples' adjusted Rand index against their places,
+    the concepts its samples use, the CPU seconds."""
+    import copy
+    from dataclasses import replace
+
+    from sklearn.metrics import adjusted_rand_score
+
+    from spco.model import gibbs
+
+    model, labels, run_seed = _fitted(sweeps, seed_index)
+    data, h = model.data_, model.hyperparameters_
+    new = data.homes == data.n_homes - 1
+    labelled = new & (labels != "None")
+    out: dict = {"fit_seed": run_seed, "sweeps": sweeps, "more": more, "every": every, "seed": seed,
+                 "start": {"ari": adjusted_rand_score(labels[labelled], model.state_.concepts[labelled]),
+                           "concepts_used": len(set(model.state_.concepts[new].tolist()))}}
+    for variant in ("without", "with"):
+        state = copy.deepcopy(model.state_)
+        rng = np.random.default_rng(seed)
+        trace = []
+        for i in range(more):
+            settings = replace(model.settings_, phi_moves=variant == "with" and i % every == 0)
+            t0 = time.process_time()
+            gibbs.sweep(data, state, h, settings, rng, swaps=gibbs.swaps_due(sweeps + i))
+            trace.append({"sweep": sweeps + i, "move": settings.phi_moves, "cpu": time.process_time() - t0,
+                          "ari": adjusted_rand_score(labels[labelled], state.concepts[labelled]),
+                          "concepts_used": len(set(state.concepts[new].tolist()))})
+            print(variant, trace[-1], flush=True)
+        by_place = {p: dict(Counter(state.concepts[new & (labels == p)].tolist()))
+                    for p in sorted(set(labels[new]))}
+        out[variant] = {"trace": trace, "final_by_place": by_place,
+                        "cpu_seconds": float(sum(t["cpu"] for t in trace))}
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     """Command line: ``fit``, ``evidence``, ``table``, ``check`` or ``move``."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("what", choices=("fit", "evidence", "check", "table", "move"))
+    p.add_argument("what", choices=("fit", "evidence", "check", "table", "move", "chain"))
     p.add_argument("--out", type=Path, default=Path("phimarg"))
     p.add_argument("--sweeps", type=int, default=60)
     p.add_argument("--seed", type=int, default=0, help="development seed (trial_seed(seed, 0))")
@@ -505,6 +554,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--burn", type=int, default=30, help="φ^v steps before the first kept draw")
     p.add_argument("--evidence-seed", type=int, default=0, help="seed of the table draws")
     p.add_argument("--passes", type=int, default=3, help="move: passes over the new home's blocks")
+    p.add_argument("--more", type=int, default=20, help="chain: sweeps after the fit, each variant")
+    p.add_argument("--every", type=int, default=1, help="chain: the move every this many sweeps")
     p.add_argument("--proposal-only", action="store_true",
                    help="evidence: φ^v given the tables as the proposal Dir(α + M + F), w left out")
     a = p.parse_args(argv)
@@ -517,6 +568,14 @@ def main(argv: list[str] | None = None) -> int:
         print_table(result)
     elif a.what == "table":
         table(a.out)
+    elif a.what == "chain":
+        result = chain(a.sweeps, a.seed, a.more, a.every, a.evidence_seed)
+        a.out.mkdir(parents=True, exist_ok=True)
+        (a.out / f"chain_{a.seed}_every{a.every}.json").write_text(json.dumps(result, indent=1))
+        for variant in ("without", "with"):
+            last = result[variant]["trace"][-1]
+            print(variant, f"ARI {last['ari']:.3f}", f"concepts {last['concepts_used']}",
+                  f"CPU {result[variant]['cpu_seconds']:.1f} s", result[variant]["final_by_place"])
     elif a.what == "move":
         result = move(a.out, a.passes, a.evidence_seed)
         (a.out / f"move_{a.evidence_seed}.json").write_text(json.dumps(result, indent=1))

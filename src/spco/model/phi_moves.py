@@ -8,7 +8,8 @@ a concept's tables are thin, so moving a place there costs hundreds of nats, whi
 and φ^v integrated out prefers the true rooms by +1,073 to +1,415 nats on development data
 (benchmarks/README.md, "Issue 29: the power target's lump with θ^v and φ^v integrated out").
 
-The move, for one home e (chosen uniformly at random each sweep), after the sweep's statistics:
+The move, for one home e each sweep (drawn uniformly from the homes taught nothing, or from every
+home if each is taught: :func:`moved_homes`), after the sweep's statistics:
 
 1. the other homes' tables M_{−e} (CRT of ⌊n_{−e}⌋ given the current φ^v) and fractions F_{−e}
    are drawn as the φ^v step draws them (:meth:`HierarchicalMultinomial.table_parts`);
@@ -191,14 +192,23 @@ def _logsumexp(x: np.ndarray) -> float:
     return top + math.log(float(np.exp(x - top).sum()))
 
 
+def moved_homes(data) -> np.ndarray:
+    """The homes the move draws from: those taught nothing (no sample with a word: a new home, whose
+    places only its views tell apart, where the lump forms), or every home if each is taught."""
+    has_words = np.diff(data.words.indptr) > 0
+    taught = np.array([has_words[data.offsets[e]:data.offsets[e + 1]].any() for e in range(data.n_homes)])
+    untaught = np.flatnonzero(~taught)
+    return untaught if untaught.size else np.arange(data.n_homes)
+
+
 def phi_block_step(data, state, stats, hyper, settings, rng: np.random.Generator, statistics):
-    """Steps 1–3 of the module docstring on one home drawn uniformly: returns the statistics (recounted
-    if a block moved) and the other homes' tables (M_{−e}, F_{−e}, H_{−e}, e) for :func:`phi_after_move`.
+    """Steps 1–3 of the module docstring on one home drawn uniformly from :func:`moved_homes`: returns
+    the statistics (recounted if a block moved) and the other homes' tables (M_{−e}, F_{−e}, H_{−e}, e)
+    for :func:`phi_after_move`.
     ``statistics``: the sampler's statistics function (:func:`spco.model.gibbs.sufficient_statistics`)."""
     from spco.model import gibbs  # the sampler's own likelihoods (gibbs imports this module)
 
-    n_homes = data.n_homes
-    e = int(rng.integers(n_homes))
+    e = int(rng.choice(moved_homes(data)))
     rows = slice(int(data.offsets[e]), int(data.offsets[e + 1]))
     others = np.ascontiguousarray(np.delete(np.asarray(stats.visual), e, axis=0))
     tables = HierarchicalMultinomial.table_parts(others, state.log_phi_v, hyper.delta_visual, rng)
