@@ -29,6 +29,7 @@ terms a block move also sees (:func:`assignment_prior`).
     python benchmarks/phi_marginal_evidence.py check --out DIR          # the brute-force checks
     python benchmarks/phi_marginal_evidence.py move --out DIR --passes 3  # the library's move on the fit
     python benchmarks/phi_marginal_evidence.py chain --out DIR --seed 0 --more 20 --every 1  # sweeps after
+    python benchmarks/phi_marginal_evidence.py phi-accept --seed 0     # the φ^v step's acceptance in the fit
 """
 
 from __future__ import annotations
@@ -543,10 +544,43 @@ def chain(sweeps: int, seed_index: int, more: int, every: int, seed: int) -> dic
     return out
 
 
+def phi_acceptance(sweeps: int, seed_index: int) -> dict:
+    """The power target's φ^v step during the fit (:func:`_fitted`): per sweep and concept whether its
+    proposal Dir(α + M + F) was accepted and its log acceptance ratio w(φ') − w(φ), recorded by wrapping
+    :meth:`HierarchicalMultinomial.accept_shared` (the sharded fit's global step calls it)."""
+    from spco.model.observations import HierarchicalMultinomial as HM
+
+    original = HM.accept_shared
+    accepted, ratios, used = [], [], []
+
+    def recorded(log_ratio, log_phi, prior, tables, frac, rng, fractional=True):
+        def ratio(old, new):
+            value = log_ratio(old, new)
+            ratios.append(np.asarray(value, dtype=float).copy())
+            return value
+        out = original(ratio, log_phi, prior, tables, frac, rng, fractional)
+        accepted.append((out != log_phi).any(axis=1))
+        used.append((np.asarray(tables) + frac).sum(axis=1) > 0)
+        return out
+
+    HM.accept_shared = staticmethod(recorded)
+    try:
+        _fitted(sweeps, seed_index)
+    finally:
+        HM.accept_shared = staticmethod(original)
+    acc, use, lr = np.array(accepted), np.array(used), np.array(ratios)
+    cols = np.flatnonzero(use.all(axis=0))
+    return {"sweeps": len(acc), "concepts_with_tables": cols.tolist(),
+            "accepted_per_concept": acc[:, cols].sum(axis=0).tolist(),
+            "log_ratio_first_sweep": np.round(lr[0, cols]).tolist() if lr.size else [],
+            "median_log_ratio_last_40": (np.round(np.median(lr[-40:, cols], axis=0)).tolist()
+                                         if lr.size else [])}
+
+
 def main(argv: list[str] | None = None) -> int:
     """Command line: ``fit``, ``evidence``, ``table``, ``check`` or ``move``."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("what", choices=("fit", "evidence", "check", "table", "move", "chain"))
+    p.add_argument("what", choices=("fit", "evidence", "check", "table", "move", "chain", "phi-accept"))
     p.add_argument("--out", type=Path, default=Path("phimarg"))
     p.add_argument("--sweeps", type=int, default=60)
     p.add_argument("--seed", type=int, default=0, help="development seed (trial_seed(seed, 0))")
@@ -576,6 +610,8 @@ def main(argv: list[str] | None = None) -> int:
             last = result[variant]["trace"][-1]
             print(variant, f"ARI {last['ari']:.3f}", f"concepts {last['concepts_used']}",
                   f"CPU {result[variant]['cpu_seconds']:.1f} s", result[variant]["final_by_place"])
+    elif a.what == "phi-accept":
+        print(json.dumps(phi_acceptance(a.sweeps, a.seed), indent=1))
     elif a.what == "move":
         result = move(a.out, a.passes, a.evidence_seed)
         (a.out / f"move_{a.evidence_seed}.json").write_text(json.dumps(result, indent=1))
