@@ -114,6 +114,8 @@ class HomeMove:
 
     def _prior(self, c: int, outside: int, size: int) -> float:
         g = self.g[c]
+        if not g + outside > 0.0:  # G_{e,c} ~ Dir(γ G_0) puts no mass on an empty concept with G_0,c = 0
+            return -math.inf
         return (math.lgamma(g + outside + size) - math.lgamma(g + outside)
                 - math.lgamma(self.beta + outside + size) + math.lgamma(self.beta + outside))
 
