@@ -27,6 +27,9 @@ terms a block move also sees (:func:`assignment_prior`).
     python benchmarks/phi_marginal_evidence.py evidence --out DIR --draws 40 --burn 30
     python benchmarks/phi_marginal_evidence.py table --out DIR          # with the G_e, π terms
     python benchmarks/phi_marginal_evidence.py check --out DIR          # the brute-force checks
+    python benchmarks/phi_marginal_evidence.py move --out DIR --passes 3  # the library's move on the fit
+    python benchmarks/phi_marginal_evidence.py chain --out DIR --seed 0 --more 20 --every 1  # sweeps after
+    python benchmarks/phi_marginal_evidence.py phi-accept --seed 0     # the φ^v step's acceptance in the fit
 """
 
 from __future__ import annotations
@@ -42,132 +45,14 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.special import gammaln, logsumexp
 
+from spco.model.phi_evidence import (  # noqa: F401  (the one implementation, used here and by the tests)
+    ConceptGrid,
+    log_dirichlet_expectation,
+    log_h_dm,
+    log_h_power,
+)
+
 FIT_FILE = "fit.npz"
-
-
-def log_h_dm(g: np.ndarray, n: np.ndarray, delta: float) -> np.ndarray:
-    """ln Γ(δ g + n) − ln Γ(δ g): one dimension's Dirichlet–multinomial factor (θ integrated out)."""
-    x = delta * g
-    return gammaln(x + n) - gammaln(x)
-
-
-def log_h_power(g: np.ndarray, n: np.ndarray, delta: float) -> np.ndarray:
-    """n ln g: the factor whose Dirichlet expectation is B(a + n) / B(a) exactly (the check's case)."""
-    return n * np.log(g)
-
-
-def _quadrature_grid(a: np.ndarray, n: np.ndarray, r_lo: float, r_hi: float,
-                     points_per_sd: float = 2.5, max_points: int = 6000) -> tuple[np.ndarray, np.ndarray]:
-    """Per dimension a uniform grid in u = ln g wide enough for the tilted density
-    ∝ g^a e^{−r g} h(g) for every rate r in [r_lo, r_hi]: up to ln g_hi + 0.5,
-    g_hi = (a + n + 1 + 12 √(a + n + 1) + 30) / r_lo, and down 8 + ln(r_hi / r_lo) + 60 / (a + 1)
-    (the left tail decays as e^{(a + 1) u}); spacing at most 1 / (points_per_sd √(a + n + 1))
-    (the density's spread in u). Returns (u (Q, K), step (Q,))."""
-    s = a + n + 1.0
-    top = np.log((s + 12.0 * np.sqrt(s) + 30.0) / r_lo) + 0.5
-    width = 8.5 + np.log(r_hi / r_lo) + 60.0 / (a + 1.0)
-    k = int(min(max_points, max(64, np.ceil(np.max(width * points_per_sd * np.sqrt(s))))))
-    steps = width / (k - 1)
-    u = top[:, None] - width[:, None] + steps[:, None] * np.arange(k)[None, :]
-    return u, steps
-
-
-def _saddle(base: np.ndarray, g: np.ndarray, a_q: np.ndarray, a_0: float, big_a: float, r0: float,
-            tol: float = 1e-12) -> dict[str, float]:
-    """ln E_{Dir(a)} Π_d h_d(φ_d) from the quadrature rows ``base`` (Q, K) = a_d ln g − ln Γ(a_d)
-    + ln h_d(g) + ln(step) at nodes g (Q, K) of the dimensions whose h_d ≠ 1 (the others, of total
-    parameter a_0, are plain gammas): see :func:`log_dirichlet_expectation`."""
-    r = r0
-    for _ in range(200):
-        lf = base - r * g + a_q[:, None] * np.log(r)
-        log_m = logsumexp(lf, axis=1)
-        p = np.exp(lf - log_m[:, None])
-        m1 = (p * g).sum(1)
-        c = g - m1[:, None]
-        m2 = (p * c**2).sum(1)
-        mean = m1.sum() + a_0 / r
-        var = m2.sum() + a_0 / r**2
-        if abs(mean - 1.0) < tol:
-            break
-        r = max(r + (mean - 1.0) / var, 0.5 * r)
-    else:
-        raise RuntimeError(f"saddlepoint did not converge: mean {mean}")
-    m3, m4 = (p * c**3).sum(1), (p * c**4).sum(1)
-    k3 = m3.sum() + 2 * a_0 / r**3
-    k4 = (m4 - 3 * m2**2).sum() + 6 * a_0 / r**4
-    edge = 1.0 + k4 / (8 * var**2) - 5 * k3**2 / (24 * var**3)
-    log_f_tilde = -0.5 * np.log(2 * np.pi * var) + np.log(edge)
-    log_f = big_a * np.log(r) - r - gammaln(big_a)
-    # the largest share of a row's mass at its first or last node: the grid holds the density
-    ends = float(max(p[:, 0].max(), p[:, -1].max())) if p.size else 0.0
-    return {"value": float(log_m.sum() + log_f_tilde - log_f), "edgeworth": float(np.log(edge)),
-            "rate": float(r), "grid_end_mass": ends}
-
-
-def log_dirichlet_expectation(a: np.ndarray, n: np.ndarray, delta: float, log_h=log_h_dm,
-                              points_per_sd: float = 2.5) -> dict[str, float]:
-    """ln E_{φ ~ Dir(a)} [Π_d h_d(φ_d)], h_d = exp(log_h(φ_d, n_d, δ)) (h_d = 1 where n_d = 0).
-
-    φ = g / Σ g with g_d ~ Gamma(a_d, rate r) independent and φ independent of S = Σ g, so
-    E_Dir[Π h] = E_r[Π h(g) | S = 1] = Π_d m_d(r) · f̃_S(1) / f_S(1) for every r: m_d(r) = E_r h_d(g_d)
-    (one-dimensional quadrature in ln g), f̃_S the density of S when each g_d is tilted by h_d,
-    f_S = Gamma(A, r). At the saddle r̂ (Σ_d Ẽ g_d = 1) f̃_S(1) is its normal density at the mean with
-    the Edgeworth term 1 + κ4/(8V²) − 5κ3²/(24V³). Returns the value, the Edgeworth term's log, r̂,
-    the grid's largest end mass."""
-    a = np.asarray(a, dtype=float)
-    n = np.asarray(n, dtype=float)
-    q = n > 0
-    a_q, n_q = a[q], n[q]
-    big_a = a.sum()
-    u, step = _quadrature_grid(a_q, n_q, big_a, big_a + n_q.sum() + 1.0, points_per_sd)
-    g = np.exp(u)
-    base = a_q[:, None] * u - gammaln(a_q)[:, None] + log_h(g, n_q[:, None], delta) + np.log(step)[:, None]
-    return _saddle(base, g, a_q, float(a[~q].sum()), big_a, big_a)
-
-
-class ConceptGrid:
-    """E_{φ | M, n_{−e}}[Π_d h_d(φ_d)] for one concept and one table draw, exactly for real counts.
-
-    Given the tables M, φ's conditional is Dir(α + M + F) · w(φ) / Z (F the proposal's fractions,
-    ln w = Σ_{e'} Σ_d [ln Γ(δφ_d + n) − ln Γ(δφ_d + ⌊n⌋) − [⌊n⌋ = 0] n ln(δφ_d)] over the other homes'
-    fractional counts: the library's ``fractional_log_weight``), so E[H | M] = E_q[H w] / E_q[w] with
-    q = Dir(α + M + F); both by the saddlepoint on one grid (w is a product over dimensions too)."""
-
-    def __init__(self, a: np.ndarray, others: np.ndarray, delta: float, n_bound: np.ndarray,
-                 points_per_sd: float = 2.5) -> None:
-        self.a, self.delta = a, delta
-        whole = np.floor(others)
-        fractional = others != whole
-        self.big_a = a.sum()
-        self.q = np.ones(a.shape[0], dtype=bool)
-        spread = n_bound + fractional.sum(0)
-        r_hi = self.big_a + n_bound.sum() + 1.0 + spread.sum()
-        u, step = _quadrature_grid(a, spread, self.big_a, r_hi, points_per_sd)
-        self.g = np.exp(u)
-        x = delta * self.g
-        log_w = np.zeros_like(u)
-        with np.errstate(divide="ignore"):
-            log_x = np.log(x)
-        for e in range(others.shape[0]):
-            cols = np.flatnonzero(fractional[e])
-            if cols.size == 0:
-                continue
-            n_e, w_e = others[e, cols][:, None], whole[e, cols][:, None]
-            log_w[cols] += (gammaln(x[cols] + n_e) - gammaln(x[cols] + w_e)
-                            - np.where(w_e == 0, n_e, 0.0) * log_x[cols])
-        self.base = a[:, None] * u - gammaln(a)[:, None] + log_w + np.log(step)[:, None]
-        self.denominator = _saddle(self.base, self.g, a, 0.0, self.big_a, self.big_a)
-
-    def log_expectation(self, n: np.ndarray) -> dict[str, float]:
-        """ln E[Π_d Γ(δφ_d + n_d)/Γ(δφ_d) | M, n_{−e}] for the new home's counts n (D,)."""
-        if n.sum() == 0:
-            return {"value": 0.0, "grid_end_mass": 0.0}
-        cols = np.flatnonzero(n > 0)
-        base = self.base.copy()
-        base[cols] += log_h_dm(self.g[cols], n[cols][:, None], self.delta)
-        num = _saddle(base, self.g, self.a, 0.0, self.big_a, self.big_a)
-        return {"value": num["value"] - self.denominator["value"],
-                "grid_end_mass": max(num["grid_end_mass"], self.denominator["grid_end_mass"])}
 
 
 # ----------------------------------------------------------------------------- brute force (checks)
@@ -469,10 +354,9 @@ def evidence(out: Path, draws: int, burn: int, seed: int, exact_fractions: bool 
         v["minus_lumped"] = v["value"] - base["value"]
     return est
 
-def fit(out: Path, sweeps: int, seed_index: int) -> None:
-    """Fit general places as benchmarks/general_places.py does (power target) and dump what the
-    evidence needs: the weighted view counts of every home and concept, the new home's training
-    views and weights, the chain's concepts, every training sample's place, δ^v, α^v, log φ^v."""
+def _fitted(sweeps: int, seed_index: int):
+    """General places fitted as benchmarks/general_places.py fits them (power target, 3LDK_9 taught
+    nothing, seed ``trial_seed(seed_index, 0)``): the model, every training sample's place, the seed."""
     sys.path.insert(0, str(Path(__file__).parent))
     from general_places import MODEL, new_home
 
@@ -480,7 +364,6 @@ def fit(out: Path, sweeps: int, seed_index: int) -> None:
     from spco.data.loading import load
     from spco.evaluation.config import PAPER_EXPERIENCED_HOMES, trial_seed
     from spco.evaluation.models import MODELS
-    from spco.model.gibbs import view_weights
     from spco.model.hyperparameters import TransferHyperparameters
 
     sig = Path("/work/shared/datasets/sigverse")
@@ -493,7 +376,7 @@ def fit(out: Path, sweeps: int, seed_index: int) -> None:
     t0 = time.process_time()
     model.fit(corpus)
     print(f"fit: {time.process_time() - t0:.1f} s CPU", flush=True)
-    data, state, h = model.data_, model.state_, model.hyperparameters_
+    data = model.data_
     labels = []
     for e in corpus:
         lab = np.asarray(e.ground_truth.labels, dtype=object)[~np.asarray(e.is_test, dtype=bool)]
@@ -501,6 +384,17 @@ def fit(out: Path, sweeps: int, seed_index: int) -> None:
     labels = np.asarray(labels)
     if labels.shape[0] != data.n_samples:
         raise SystemExit(f"labels {labels.shape[0]} != training samples {data.n_samples}")
+    return model, labels, run_seed
+
+
+def fit(out: Path, sweeps: int, seed_index: int) -> None:
+    """Fit general places (:func:`_fitted`) and dump what the evidence needs: the weighted view counts
+    of every home and concept, the new home's training views and weights, the chain's concepts, every
+    training sample's place, δ^v, α^v, log φ^v."""
+    from spco.model.gibbs import view_weights
+
+    model, labels, run_seed = _fitted(sweeps, seed_index)
+    data, state, h = model.data_, model.state_, model.hyperparameters_
     weights = view_weights(data, model.settings_.view_counts)
     visual = sp.csr_array(data.visual)
     out.mkdir(parents=True, exist_ok=True)
@@ -571,16 +465,131 @@ def print_table(r: dict) -> None:
                      for k, x in v["per_concept"].items()})
 
 
+def move(out: Path, passes: int, seed: int) -> dict:
+    """The library's φ^v-marginal block move (:mod:`spco.model.phi_moves`) on the dumped fit's new
+    home: the other homes' tables drawn once given the fit's φ^v (seed ``seed``), then ``passes``
+    passes over the new home's blocks given them (each an exact Metropolis–Hastings pass for
+    p(C_e | M_{−e}), the regions and the other homes held); the new home's places' concepts before and
+    after, the moves accepted and the CPU seconds."""
+    from spco.model.observations import HierarchicalMultinomial as HM
+    from spco.model.phi_moves import HomeMove, home_pass
+
+    fit_ = load_fit(out)
+    f = np.load(out / FIT_FILE)
+    rng = np.random.default_rng(seed)
+    e = fit_["n_homes"] - 1
+    new = np.flatnonzero(fit_["homes"] == e)
+    stats = fit_["stats"]
+    others = np.ascontiguousarray(stats[:-1])
+    alpha = fit_["alpha"] if fit_["alpha"].ndim else float(fit_["alpha"])
+    t0 = time.process_time()
+    tables = HM.table_parts(others, fit_["log_phi_v"], fit_["delta"], rng)
+    g = float(f["gamma"]) * np.exp(f["log_g0"])
+    concepts = fit_["concepts"][new].copy()
+    regions = f["regions"][new]
+    labels = fit_["labels"][new]
+    before = {p: dict(Counter(concepts[labels == p].tolist())) for p in sorted(set(labels))}
+    move_ = HomeMove(stats[e], others, alpha + tables[0] + tables[1], fit_["delta"],
+                     np.bincount(concepts, minlength=fit_["n_concepts"]), g, float(f["beta"]))
+    history = []
+    for i in range(passes):
+        t1 = time.process_time()
+        concepts, accepted = home_pass(move_, fit_["visual"][new], fit_["weights"][new], concepts, regions,
+                                       np.zeros((new.size, fit_["n_concepts"])), int(f["n_regions"]), rng)
+        history.append({"pass": i, "accepted": accepted, "cpu_seconds": time.process_time() - t1,
+                        "concepts_used": len(set(concepts.tolist())), "grids": len(move_.grids)})
+        print(history[-1], flush=True)
+    after = {p: dict(Counter(concepts[labels == p].tolist())) for p in sorted(set(labels))}
+    return {"seed": seed, "fit_seed": fit_["seed"], "passes": history, "before": before, "after": after,
+            "concepts_used_before": len(set(fit_["concepts"][new].tolist())),
+            "concepts_used_after": len(set(concepts.tolist())), "cpu_seconds": time.process_time() - t0}
+
+
+def chain(sweeps: int, seed_index: int, more: int, every: int, seed: int) -> dict:
+    """The fit (:func:`_fitted`), then ``more`` sweeps of the library's single-process sweep
+    (:func:`spco.model.gibbs.sweep`) from its final state, twice from the same state and seed: without
+    the φ^v-marginal block move, and with it every ``every`` sweeps (on the new home, the one taught
+    nothing). Per sweep: the new home's labelled samples' adjusted Rand index against their places,
+    the concepts its samples use, the CPU seconds."""
+    import copy
+    from dataclasses import replace
+
+    from sklearn.metrics import adjusted_rand_score
+
+    from spco.model import gibbs
+
+    model, labels, run_seed = _fitted(sweeps, seed_index)
+    data, h = model.data_, model.hyperparameters_
+    new = data.homes == data.n_homes - 1
+    labelled = new & (labels != "None")
+    out: dict = {"fit_seed": run_seed, "sweeps": sweeps, "more": more, "every": every, "seed": seed,
+                 "start": {"ari": adjusted_rand_score(labels[labelled], model.state_.concepts[labelled]),
+                           "concepts_used": len(set(model.state_.concepts[new].tolist()))}}
+    for variant in ("without", "with"):
+        state = copy.deepcopy(model.state_)
+        rng = np.random.default_rng(seed)
+        trace = []
+        for i in range(more):
+            settings = replace(model.settings_, phi_moves=variant == "with" and i % every == 0)
+            t0 = time.process_time()
+            gibbs.sweep(data, state, h, settings, rng, swaps=gibbs.swaps_due(sweeps + i))
+            trace.append({"sweep": sweeps + i, "move": settings.phi_moves, "cpu": time.process_time() - t0,
+                          "ari": adjusted_rand_score(labels[labelled], state.concepts[labelled]),
+                          "concepts_used": len(set(state.concepts[new].tolist()))})
+            print(variant, trace[-1], flush=True)
+        by_place = {p: dict(Counter(state.concepts[new & (labels == p)].tolist()))
+                    for p in sorted(set(labels[new]))}
+        out[variant] = {"trace": trace, "final_by_place": by_place,
+                        "cpu_seconds": float(sum(t["cpu"] for t in trace))}
+    return out
+
+
+def phi_acceptance(sweeps: int, seed_index: int) -> dict:
+    """The power target's φ^v step during the fit (:func:`_fitted`): per sweep and concept whether its
+    proposal Dir(α + M + F) was accepted and its log acceptance ratio w(φ') − w(φ), recorded by wrapping
+    :meth:`HierarchicalMultinomial.accept_shared` (the sharded fit's global step calls it)."""
+    from spco.model.observations import HierarchicalMultinomial as HM
+
+    original = HM.accept_shared
+    accepted, ratios, used = [], [], []
+
+    def recorded(log_ratio, log_phi, prior, tables, frac, rng, fractional=True):
+        def ratio(old, new):
+            value = log_ratio(old, new)
+            ratios.append(np.asarray(value, dtype=float).copy())
+            return value
+        out = original(ratio, log_phi, prior, tables, frac, rng, fractional)
+        accepted.append((out != log_phi).any(axis=1))
+        used.append((np.asarray(tables) + frac).sum(axis=1) > 0)
+        return out
+
+    HM.accept_shared = staticmethod(recorded)
+    try:
+        _fitted(sweeps, seed_index)
+    finally:
+        HM.accept_shared = staticmethod(original)
+    acc, use, lr = np.array(accepted), np.array(used), np.array(ratios)
+    cols = np.flatnonzero(use.all(axis=0))
+    return {"sweeps": len(acc), "concepts_with_tables": cols.tolist(),
+            "accepted_per_concept": acc[:, cols].sum(axis=0).tolist(),
+            "log_ratio_first_sweep": np.round(lr[0, cols]).tolist() if lr.size else [],
+            "median_log_ratio_last_40": (np.round(np.median(lr[-40:, cols], axis=0)).tolist()
+                                         if lr.size else [])}
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Command line: ``fit``, ``evidence`` or ``check``."""
+    """Command line: ``fit``, ``evidence``, ``table``, ``check`` or ``move``."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("what", choices=("fit", "evidence", "check", "table"))
+    p.add_argument("what", choices=("fit", "evidence", "check", "table", "move", "chain", "phi-accept"))
     p.add_argument("--out", type=Path, default=Path("phimarg"))
     p.add_argument("--sweeps", type=int, default=60)
     p.add_argument("--seed", type=int, default=0, help="development seed (trial_seed(seed, 0))")
     p.add_argument("--draws", type=int, default=40, help="table draws of φ^v given the other homes")
     p.add_argument("--burn", type=int, default=30, help="φ^v steps before the first kept draw")
     p.add_argument("--evidence-seed", type=int, default=0, help="seed of the table draws")
+    p.add_argument("--passes", type=int, default=3, help="move: passes over the new home's blocks")
+    p.add_argument("--more", type=int, default=20, help="chain: sweeps after the fit, each variant")
+    p.add_argument("--every", type=int, default=1, help="chain: the move every this many sweeps")
     p.add_argument("--proposal-only", action="store_true",
                    help="evidence: φ^v given the tables as the proposal Dir(α + M + F), w left out")
     a = p.parse_args(argv)
@@ -593,6 +602,21 @@ def main(argv: list[str] | None = None) -> int:
         print_table(result)
     elif a.what == "table":
         table(a.out)
+    elif a.what == "chain":
+        result = chain(a.sweeps, a.seed, a.more, a.every, a.evidence_seed)
+        a.out.mkdir(parents=True, exist_ok=True)
+        (a.out / f"chain_{a.seed}_every{a.every}.json").write_text(json.dumps(result, indent=1))
+        for variant in ("without", "with"):
+            last = result[variant]["trace"][-1]
+            print(variant, f"ARI {last['ari']:.3f}", f"concepts {last['concepts_used']}",
+                  f"CPU {result[variant]['cpu_seconds']:.1f} s", result[variant]["final_by_place"])
+    elif a.what == "phi-accept":
+        print(json.dumps(phi_acceptance(a.sweeps, a.seed), indent=1))
+    elif a.what == "move":
+        result = move(a.out, a.passes, a.evidence_seed)
+        (a.out / f"move_{a.evidence_seed}.json").write_text(json.dumps(result, indent=1))
+        print(json.dumps({k: result[k] for k in ("before", "after", "concepts_used_before",
+                                                  "concepts_used_after", "cpu_seconds")}, indent=1))
     elif a.what == "check":
         result = check()
         print(json.dumps(result, indent=1))

@@ -247,9 +247,10 @@ def exact_class_probabilities() -> np.ndarray:
     return np.exp(log_p - logsumexp(log_p))
 
 
-def _run_chain(power: bool, n_sweeps: int, seed: int) -> np.ndarray:
+def _run_chain(power: bool, n_sweeps: int, seed: int, phi_moves: bool = False) -> np.ndarray:
     """Counts of the label classes over ``n_sweeps`` sweeps (thinned by 2, after 200) of the exact
-    sampler on the two homes, with label swaps on every sweep: the power target or the cut sampler."""
+    sampler on the two homes, with label swaps on every sweep: the power target or the cut sampler;
+    ``phi_moves``: with the power target's φ^v-marginal block moves (``block_moves="phi"``)."""
     n, E, L = 4, 2, 2
     rng = np.random.default_rng(seed)
     words = np.zeros((n, 2))
@@ -258,7 +259,10 @@ def _run_chain(power: bool, n_sweeps: int, seed: int) -> np.ndarray:
         positions=rng.normal(size=(n, 4)) * 0.3, homes=HOMES, visual=csr(VIEWS), words=csr(words),
         n_homes=E, offsets=np.array([0, 2, 4]), position_scale=1.0, map_centres=np.zeros((E, 4)))
     hyper = HYPER if power else replace(HYPER, target="cut")
-    settings = gibbs.SamplerSettings.create("exact", prune=True, view_counts=W_VIEW, power=power)
+    if phi_moves:
+        hyper = replace(hyper, block_moves="phi")
+    settings = gibbs.SamplerSettings.create("exact", prune=True, view_counts=W_VIEW, power=power,
+                                            phi_moves=phi_moves)
     channels = WordChannels.initial(EVIDENCE, L, token_weight=W_WORD / INCREMENT, power=power)
     channels = replace(channels, log_evidence=_log_evidence(), fresh=False)
     state = gibbs.GibbsState(
@@ -283,6 +287,29 @@ def test_the_chain_targets_the_stated_power_model_and_the_cut_sampler_does_not()
     assert chisquare_p(seen, exact) > P_MIN, (seen / seen.sum(), exact)
     cut = _run_chain(power=False, n_sweeps=8_000, seed=3)
     assert chisquare_p(cut, exact) < 1e-6, (cut / cut.sum(), exact)
+
+
+def test_the_chain_with_the_phi_marginal_block_moves_keeps_the_stated_power_model(monkeypatch) -> None:
+    """The power target's chain with the φ^v-marginal block moves (:mod:`spco.model.phi_moves`: the
+    other homes' tables, a home's blocks moved with θ^v and φ^v integrated out, then φ^v's step with
+    those tables) against the same enumerated posterior; the moves are proposed and accepted often."""
+    from spco.model import phi_moves
+
+    calls = {"passes": 0, "accepted": 0}
+    original = phi_moves.home_pass
+
+    def counted(*args, **kwargs):
+        concepts, accepted = original(*args, **kwargs)
+        calls["passes"] += 1
+        calls["accepted"] += accepted
+        return concepts, accepted
+
+    monkeypatch.setattr(phi_moves, "home_pass", counted)
+    exact = exact_class_probabilities()
+    seen = _run_chain(power=True, n_sweeps=8_000, seed=4, phi_moves=True)
+    assert chisquare_p(seen, exact) > P_MIN, (seen / seen.sum(), exact)
+    assert calls["passes"] == 8_200
+    assert calls["accepted"] > 500, calls
 
 
 def test_the_target_is_a_checked_hyperparameter_that_files_carry() -> None:

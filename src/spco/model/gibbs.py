@@ -25,7 +25,6 @@ Three samplers share this machinery:
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -40,6 +39,7 @@ from spco.model.kernels.dirichlet import dirichlet_log_density, log_dirichlet
 from spco.model.moves import concept_swap_step
 from spco.model.numba_cache import announce_compilation
 from spco.model.observations import GaussianRegions, HierarchicalMultinomial, NIWPrior
+from spco.model.phi_moves import phi_after_move, phi_block_step
 from spco.model.pruning import NAME, NOT_A_NAME, Colocation, colocation, judge_names, words_to_keep
 from spco.model.state import (  # noqa: F401  (the sampler's data and state, re-exported)
     CM_PER_M,
@@ -49,6 +49,7 @@ from spco.model.state import (  # noqa: F401  (the sampler's data and state, re-
     SamplerSettings,
     VisualCountCache,
 )
+from spco.model.timing import StepTimer, _Timed
 from spco.model.word_channels import (
     ChannelCounts,
     channel_counts,
@@ -509,11 +510,16 @@ def _conditional_log_joint(data: PreparedData, state: GibbsState, concept_ll: np
 
 
 def _global_step(stats: Statistics, state: GibbsState, hyper: TransferHyperparameters,
-                 rng: np.random.Generator) -> None:
+                 rng: np.random.Generator, moved: tuple | None = None) -> None:
     """Exact: φ^v, φ^w and G_0 given CRT table counts (θ and G_e integrated out); φ^v from the
-    views' weighted counts (:meth:`HierarchicalMultinomial.sample_shared_given_counts`)."""
-    state.log_phi_v = HierarchicalMultinomial.sample_shared_given_counts(
-        stats.visual, state.log_phi_v, hyper.delta_visual, hyper.alpha_visual, rng)
+    views' weighted counts (:meth:`HierarchicalMultinomial.sample_shared_given_counts`), or after a
+    φ^v-marginal block move with the other homes' tables it drew (``moved``: :mod:`spco.model.phi_moves`)."""
+    if moved is not None:
+        state.log_phi_v = phi_after_move(stats.visual, state.log_phi_v, hyper.delta_visual,
+                                         hyper.alpha_visual, moved, rng)
+    else:
+        state.log_phi_v = HierarchicalMultinomial.sample_shared_given_counts(
+            stats.visual, state.log_phi_v, hyper.delta_visual, hyper.alpha_visual, rng)
     tables_w = HierarchicalMultinomial.sample_tables(stats.words, state.log_phi_w, hyper.delta_word, rng)
     state.log_phi_w = HierarchicalMultinomial.sample_shared(tables_w, hyper.alpha_word, rng)
     state.log_g0 = allocation.sample_global_concept_weights(stats.concepts, state.log_g0, hyper.gamma,
@@ -670,29 +676,6 @@ def _prune(state: GibbsState, hyper: TransferHyperparameters, settings: SamplerS
     state.word_mask = keep
 
 
-class StepTimer:
-    """Accumulates wall time per sampler step (for ``spco bench``): ``timer.seconds[name]``."""
-
-    def __init__(self) -> None:
-        self.seconds: dict[str, float] = {}
-
-    def __call__(self, name: str):
-        return _Timed(self, name)
-
-
-class _Timed:
-    def __init__(self, timer: StepTimer | None, name: str) -> None:
-        self.timer, self.name = timer, name
-
-    def __enter__(self) -> None:
-        self.start = time.perf_counter()
-
-    def __exit__(self, *exc: object) -> None:
-        if self.timer is not None:
-            elapsed = time.perf_counter() - self.start
-            self.timer.seconds[self.name] = self.timer.seconds.get(self.name, 0.0) + elapsed
-
-
 #: Label swaps run on every one of the first sweeps, then on every SWAP_EVERY-th sweep.
 SWAP_BURN_IN = 20
 SWAP_EVERY = 10
@@ -725,8 +708,12 @@ def sweep(data: PreparedData, state: GibbsState, hyper: TransferHyperparameters,
                 _global_step_reference(stats, state, hyper, rng)
     else:
         if settings.hierarchical and settings.learn_shared:
+            moved = None
+            if settings.phi_moves and data.n_homes > 1:  # power target (spco.model.phi_moves)
+                with _Timed(timer, "phi block moves"):
+                    stats, moved = phi_block_step(data, state, stats, hyper, settings, rng, _statistics)
             with _Timed(timer, "shared parameters"):
-                _global_step(stats, state, hyper, rng)
+                _global_step(stats, state, hyper, rng, moved)
         with _Timed(timer, "home parameters"):
             _home_step(data, state, stats, hyper, settings, rng)
         if swaps and settings.hierarchical and data.n_homes > 1:

@@ -34,6 +34,7 @@ from spco.model.kernels.crt import sample_crt
 from spco.model.kernels.dirichlet import log_dirichlet
 from spco.model.observations import HierarchicalMultinomial
 from spco.model.parameters import ConceptParameters
+from spco.model.phi_moves import refuse_phi_moves
 from spco.model.posterior import ParameterAverage, thinned_sweeps
 from spco.model.pruning import NOT_A_NAME, words_to_keep
 from spco.model.state import GibbsState, PreparedData, SamplerSettings
@@ -91,9 +92,10 @@ class SharedPart:
     def sampler_settings(self) -> SamplerSettings:
         """The sampler of a home with this shared part fixed: its variant and "+MI", the view weight
         and the block moves of its hyperparameters."""
+        refuse_phi_moves(self.hyperparameters)
         return SamplerSettings.create(self.variant, self.prune_words, learn_shared=False,
                                       view_counts=self.hyperparameters.view_counts,
-                                      block_moves=self.hyperparameters.block_moves != "off",
+                                      block_moves=self.hyperparameters.block_moves in ("adapt", "all"),
                                       power=self.hyperparameters.target == "power")
 
 

@@ -26,9 +26,11 @@ DEFAULT_PRUNING_THRESHOLDS = {"kl": 0.1, "mi": 0.01}
 NAME_PRIORS = ("off", "wordnet")
 NamePrior = Literal["off", "wordnet"]
 #: Where the region block moves run (:mod:`spco.model.blocks`): not at all, in a new home's sampler
-#: (``adapt``; a teaching's local update does not run them), or there and in the joint fit too.
-BLOCK_MOVES = ("off", "adapt", "all")
-BlockMoves = Literal["off", "adapt", "all"]
+#: (``adapt``; a teaching's local update does not run them), or there and in the joint fit too;
+#: ``phi``: the power target's φ^v-marginal block moves instead (:mod:`spco.model.phi_moves`), in the
+#: single-process sweep (:func:`spco.model.gibbs.sweep`) only.
+BLOCK_MOVES = ("off", "adapt", "all", "phi")
+BlockMoves = Literal["off", "adapt", "all", "phi"]
 #: The exact sampler's warm start with the word channels (``TransferHyperparameters.warm_start``):
 #: ``"names"`` — the naming rule's names mark the places and the start's sweeps weigh a token S^w;
 #: ``"words"`` — those sweeps weigh a token W^w, objects mark no place, a partly taught home's own
@@ -176,8 +178,12 @@ class TransferHyperparameters:
         (``adapt``; not in a teaching's local update), ``"all"`` in the joint fit too. Opt-in: on
         development it helps little and, with the places prior, changes which synonym ``what``
         answers first in ``tests/test_knowledge.py`` (benchmarks/README.md, "Issue 29: block moves
-        in adapt"). Written by :meth:`to_dict` only when not ``"off"`` (files and experiment
-        identities from before it are unchanged).
+        in adapt"). ``"phi"`` (``target="power"`` only): the φ^v-marginal block moves instead — a
+        home's (region, concept) blocks move with θ^v and φ^v integrated out given the other homes
+        (:mod:`spco.model.phi_moves`, issue 29), run by the single-process sweep
+        (:func:`spco.model.gibbs.sweep`); the sharded fit (``spco fit``, ``adapt``) refuses it for now.
+        Written by :meth:`to_dict` only when not ``"off"`` (files and experiment identities from
+        before it are unchanged).
     target: what the exact sampler's chain targets (:data:`TARGETS`): ``"power"`` — the power
         likelihood of docs/model.md ("The model the sampler targets"): a view's multinomial raised to
         ω_t = min(1, w / Σ_d v_d), a word token's channel likelihood to W^w times its occurrences, in
@@ -287,6 +293,9 @@ class TransferHyperparameters:
         if self.block_moves not in BLOCK_MOVES:
             raise ConfigurationError(f"block_moves must be one of {', '.join(map(repr, BLOCK_MOVES))}, "
                                      f"got {self.block_moves!r}")
+        if self.block_moves == "phi" and self.target != "power":
+            raise ConfigurationError(f"block_moves='phi' needs target='power' (the moves integrate the "
+                                     f"power target's φ^v out), got target={self.target!r}")
         if self.target not in TARGETS:
             raise ConfigurationError(f"target must be one of {', '.join(map(repr, TARGETS))}, "
                                      f"got {self.target!r}")
@@ -397,7 +406,7 @@ class TransferHyperparameters:
             if kind is None:
                 raise ConfigurationError(f"hyperparameter setting {setting!r}: no hyperparameter {name!r}; "
                                          f"settable: {', '.join(SETTABLE)}")
-            if kind in ("one of channels, naming-rule", "one of off, adapt, all", "one of cut, power",
+            if kind in ("one of channels, naming-rule", "one of off, adapt, all, phi", "one of cut, power",
                         "one of given, estimate", "one of names, words, objects"):
                 changes[name] = text
                 continue
@@ -427,7 +436,7 @@ SETTABLE: dict[str, str] = {
     "delta_visual": "a number", "delta_word": "a number", "gamma0": "a number", "gamma": "a number",
     "beta": "a number", "kappa0": "a number", "nu0": "a number", "mi_threshold": "number or none",
     "view_counts": "number, none or estimate", "evidence_weight": "a number", "word_counts": "number or none",
-    "word_model": "one of channels, naming-rule", "block_moves": "one of off, adapt, all",
+    "word_model": "one of channels, naming-rule", "block_moves": "one of off, adapt, all, phi",
     "target": "one of cut, power", "visual_prior": "one of given, estimate",
     "word_prior": "one of given, estimate", "warm_start": "one of names, words, objects",
 }

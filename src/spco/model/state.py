@@ -149,6 +149,10 @@ class SamplerSettings:
     #: region block moves after each one-sample assignment draw (:mod:`spco.model.blocks`; exact
     #: sampler only)
     block_moves: bool = False
+    #: the φ^v-marginal block moves of the power target after each sweep's statistics
+    #: (:mod:`spco.model.phi_moves`; ``TransferHyperparameters.block_moves == "phi"``, exact sampler,
+    #: :func:`spco.model.gibbs.sweep`)
+    phi_moves: bool = False
     #: the power likelihood in every step (``TransferHyperparameters.target == "power"``; exact
     #: sampler only): θ^v and φ^v learn from the views' weighted counts as the assignments weigh them
     power: bool = False
@@ -165,7 +169,7 @@ class SamplerSettings:
     @classmethod
     def create(cls, variant: str, prune: bool, learn_shared: bool = True,
                view_counts: float | str | None = None, block_moves: bool = False,
-               power: bool = False) -> SamplerSettings:
+               power: bool = False, phi_moves: bool = False) -> SamplerSettings:
         """Settings of ``variant`` (``exact``, ``reference`` or ``spcoa``).
 
         ``learn_shared=False`` keeps φ^v, φ^w and G_0 fixed (adapting to a new home with
@@ -176,7 +180,9 @@ class SamplerSettings:
         estimate); the exact variant only — the authors' sampler and SpCoA score every count, as
         published. ``block_moves``: after each sweep's one-sample assignments, move every region's
         samples of one concept together (:mod:`spco.model.blocks`); the exact variant only. ``power``:
-        the chain targets the power likelihood (``TransferHyperparameters.target``); exact variant."""
+        the chain targets the power likelihood (``TransferHyperparameters.target``); exact variant.
+        ``phi_moves``: the power target's φ^v-marginal block moves (:mod:`spco.model.phi_moves`); exact
+        variant with ``power`` only."""
         if view_counts == ESTIMATE:
             view_counts = VIEW_COUNTS
         if variant not in VARIANTS:
@@ -186,7 +192,8 @@ class SamplerSettings:
                    pruning_score="kl" if variant == "reference" else "mi", learn_shared=learn_shared,
                    view_counts=view_counts if variant == "exact" else None,
                    block_moves=bool(block_moves) and variant == "exact",
-                   power=bool(power) and variant == "exact")
+                   power=bool(power) and variant == "exact",
+                   phi_moves=bool(phi_moves) and bool(power) and variant == "exact")
 
     def learning_view_counts(self) -> float | None:
         """The view weight with which θ^v, φ^v and the label swaps count a view: the assignments'

@@ -47,6 +47,7 @@ from spco.model.hyperparameters import SpCoAHyperparameters, TransferHyperparame
 from spco.model.kernels.counts import stack_counts
 from spco.model.name_evidence import channel_evidence, has_english, name_prior
 from spco.model.parameters import ConceptParameters
+from spco.model.phi_moves import refuse_phi_moves
 from spco.model.posterior import (
     ParameterAverage,
     masked_rows,
@@ -157,6 +158,7 @@ class SpatialConceptModel:
         if self.variant not in ("exact", "reference"):
             raise ConfigurationError(f"variant must be 'exact' or 'reference', got {self.variant!r}")
         hyper = self.hyperparameters if self.hyperparameters is not None else self._default_hyperparameters()
+        refuse_phi_moves(hyper)
         return gibbs.SamplerSettings.create(self.variant, bool(self.prune_words),
                                             view_counts=getattr(hyper, "view_counts", None),
                                             block_moves=getattr(hyper, "block_moves", "off") == "all",
