@@ -252,6 +252,10 @@ def compare(model, nameless: int, named: int) -> dict:
         f"x{scale:g}": place_evidence(refit_merge["place_counts_home"], scale)
         - place_evidence(refit_split["place_counts_home"], scale) for scale in (1.0, weight)}
     out["place_plugin_once"] = out["refit"]["place"] / weight
+    counts = refit_split["place_counts"]
+    for key, concept in (("words_nameless", nameless), ("words_named", named)):  # its place words
+        top = np.argsort(-counts[concept], kind="stable")[:5]
+        out[key] = [(model.vocabulary_.words[k], round(float(counts[concept, k]), 1)) for k in top]
     homes = model.data_.homes
     out["homes_nameless"] = np.bincount(homes[concepts == nameless], minlength=model.data_.n_homes).tolist()
     out["homes_named"] = np.bincount(homes[concepts == named], minlength=model.data_.n_homes).tolist()
@@ -282,6 +286,11 @@ def _print(rows: list[dict]) -> None:
               f"{heavy:+.0f} | {home_once:+.1f} | {home_heavy:+.0f} | "
               f"{' '.join(map(str, r['homes_nameless']))} | "
               f"{' '.join(map(str, r['homes_named']))} |")
+    print("\nplace words (expected place tokens, each once) of A and of B, the split's refit\n")
+    print("| seed | home | place | A | B |\n|---|---|---|---|---|")
+    for r in rows:
+        a, b = (", ".join(f"{w} {n:g}" for w, n in r[k]) for k in ("words_nameless", "words_named"))
+        print(f"| {r['seed']} | {r['home']} | {r['place']} | {a} | {b} |")
 
 
 def main() -> None:
