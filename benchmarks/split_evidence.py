@@ -17,7 +17,13 @@ Mult(v | θ^v_{e,C}) + W^w Σ_i n_ti log Σ_c p(c | k) f_c(k | C)), in two accou
   each place token once, the chain's switches), with G_e and π integrated out (Dirichlet-multinomial, G_0
   and β/K the priors), every sample scored. The shared φ^v, φ^w, G_0, β, λ and the region Gaussians are the
   chain's. This is the merge's own equilibrium of the cut's alternation (assign given parameters, learn
-  given assignments), so it is the comparison a merge move with the parameters redrawn would see.
+  given assignments), so it is the comparison a merge move with the parameters redrawn would see. (G_0 is
+  the chain's: the emptied A keeps its share, which costs the merge a little. ψ, θ^v and θ^w are plug-in
+  means, with no Occam factor, which favours the split.)
+
+Then the place channel alone with ψ integrated out (at tokens once, as ψ learns, and at W^w, as the
+assignment weighs a token; and, as a what-if, one ψ per home and concept), the samples of A and B by home,
+and the place words of A and B.
 
 The cut sampler has no joint distribution (docs/model.md, "The model the sampler targets"), so no account
 is *the* posterior ratio; these two are the sampler's own conditionals. The word term is split exactly by
