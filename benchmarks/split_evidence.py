@@ -57,6 +57,9 @@ REFIT_ROUNDS = 3
 #: The terms, in the order of the table.
 TERMS = ("concept prior", "regions", "positions", "view", "names", "place", "background", "switches")
 
+#: The word channels' terms (each token weighed W^w n_ti by the assignment).
+WORD_TERMS = ("names", "place", "background", "switches")
+
 
 def dirichlet_multinomial(counts: np.ndarray, alpha: np.ndarray) -> float:
     """Σ over rows of log ∫ Π_k p_k^{n_k} Dir(p | α) dp = log B(α + n) − log B(α) (one sequence, no
@@ -258,6 +261,7 @@ def compare(model, nameless: int, named: int) -> dict:
         f"x{scale:g}": place_evidence(refit_merge["place_counts_home"], scale)
         - place_evidence(refit_split["place_counts_home"], scale) for scale in (1.0, weight)}
     out["place_plugin_once"] = out["refit"]["place"] / weight
+    out["refit_words_once"] = sum(v / weight if k in WORD_TERMS else v for k, v in out["refit"].items())
     counts = refit_split["place_counts"]
     for key, concept in (("words_nameless", nameless), ("words_named", named)):  # its place words
         top = np.argsort(-counts[concept], kind="stable")[:5]
@@ -272,14 +276,16 @@ def _print(rows: list[dict]) -> None:
     """The two accounts' tables, then the place channel with ψ integrated and the homes of A and B."""
     for account in ("conditional", "refit"):
         print(f"\n{account}: merge − split, nats (positive: the merge wins)\n")
+        once = account == "refit"  # and the total with each token once (the word terms over W^w)
         print("| seed | home | place | A → B (B's named samples) | moved (here) | " + " | ".join(TERMS)
-              + " | total |")
-        print("|---|---|---|---|---:|" + "---:|" * (len(TERMS) + 1))
+              + " | total |" + (" words once |" if once else ""))
+        print("|---|---|---|---|---:|" + "---:|" * (len(TERMS) + 1 + once))
         for r in rows:
             d = r[account]
             print(f"| {r['seed']} | {r['home']} | {r['place']} | {r['nameless']} → {r['named']} "
                   f"({r['named_votes']}) | {r['moved']} ({r['moved_here']}) | "
-                  + " | ".join(f"{d[k]:+.0f}" for k in TERMS) + f" | {sum(d.values()):+.0f} |")
+                  + " | ".join(f"{d[k]:+.0f}" for k in TERMS) + f" | {sum(d.values()):+.0f} |"
+                  + (f" {r['refit_words_once']:+.0f} |" if once else ""))
     print("\nplace channel, merge − split: plug-in at tokens once (refit / W^w), ψ integrated at tokens once "
           "and at W^w; samples of A and B by home (the new home last)\n")
     print("| seed | home | place | plug-in once | integrated once | integrated W^w | per home once | "
