@@ -38,13 +38,17 @@ class _Words:
 
 
 class _Rooms:
-    """A lexicon that knows which of its words can be a room."""
+    """A lexicon that knows which of its words can be a room and which are things."""
 
-    def __init__(self, rooms: set[str]) -> None:
+    def __init__(self, rooms: set[str], things: set[str] = frozenset()) -> None:
         self.rooms = rooms
+        self.things = things
 
     def room_share(self, word: str) -> float:
         return 1.0 if word in self.rooms else 0.0
+
+    def is_thing(self, word: str) -> bool:
+        return word in self.things
 
 
 def test_the_warm_start_settings_weigh_a_token_and_leave_out_the_objects() -> None:
@@ -93,10 +97,58 @@ def test_the_objects_start_leaves_out_the_objects_and_keeps_the_token_weight() -
     assert TransferHyperparameters().with_settings(["warm_start=objects"]).warm_start == "objects"
 
 
+def test_the_things_start_leaves_out_only_the_objects_wordnet_calls_things() -> None:
+    """``warm_start="things"``: of the words the evidence calls objects (name prior below
+    OBJECT_BELOW), only those whose head word the lexicon calls a thing mark no place — brute force
+    over the words — a word the lexicon does not know stays a name (the "objects" start left it out);
+    the token weight stays as given."""
+    nu = np.array([0.8, 0.05, 0.3, 0.1, 0.6, 0.05, 0.05, 0.05])
+    content = np.array([0.95, 0.95, 0.9, 0.95, 0.5, 0.95, 0.95, 0.95])
+    words = _Words(["kitchen", "table", "fridge", "sofa", "den", "toilet", "dormitorio", "hanako's towel"])
+    lexicon_ = _Rooms({"toilet", "kitchen"}, {"sofa", "towel", "fridge", "table"})
+    settings = SamplerSettings.create("exact", prune=True, view_counts=16.0)
+    hyper = TransferHyperparameters(n_concepts=4, evidence_weight=1.0, word_counts=16.0, warm_start="things")
+    out = warm_start_settings(settings, hyper, (nu, content), words, 5000, lexicon_)
+    prior = WordChannels.initial(nu, 4, 1.0, content).name_prior()
+    expected = tuple(k for k in range(len(words)) if prior[k] < OBJECT_BELOW
+                     and words.words[k].split()[-1] in lexicon_.things)
+    assert out.start_not_names == expected == (1, 3, 7)  # "fridge" has a name prior: it stays
+    assert out == replace(settings, start_not_names=expected)  # S^w per token, as given
+    objects = warm_start_settings(settings, replace(hyper, warm_start="objects"), (nu, content), words,
+                                  5000, lexicon_)
+    assert objects.start_not_names == (1, 3, 6, 7)  # the absence of a room sense leaves "dormitorio" out
+    assert TransferHyperparameters().with_settings(["warm_start=things"]).warm_start == "things"
+
+
+@pytest.mark.skipif(lexicon() is None, reason="WordNet is not installed")
+def test_wordnet_calls_fridge_sofa_towel_things_but_not_unknown_words_or_dining() -> None:
+    """With WordNet, positive evidence of a thing: "fridge", "sofa", "towel", "bed" are things; a word
+    WordNet does not know ("dormitorio"), "dining" and "living" (mostly not nouns), rooms ("toilet",
+    "bathroom", "kitchen"), "laundry" (often a room) and "table" (mostly a table of data) are not; the
+    things start leaves out exactly the things."""
+    lex = lexicon()
+    assert lex is not None
+    things = ["fridge", "sofa", "towel", "bed"]
+    not_things = ["dormitorio", "dining", "living", "toilet", "bathroom", "kitchen", "laundry", "table",
+                  "comedor", "wc"]
+    assert all(lex.is_thing(w) for w in things)
+    assert not any(lex.is_thing(w) for w in not_things)
+    assert lex.thing_share("sofa") == 1.0 and np.isnan(lex.thing_share("dormitorio"))
+    words = things + not_things
+    nu, content = np.full(len(words), 0.05), np.full(len(words), 0.95)
+    hyper = TransferHyperparameters(n_concepts=4, evidence_weight=1.0, word_counts=16.0, warm_start="things")
+    out = warm_start_settings(SamplerSettings.create("exact", prune=True), hyper, (nu, content),
+                              _Words(words), 5000)
+    assert [words[k] for k in out.start_not_names] == things
+    objects = warm_start_settings(SamplerSettings.create("exact", prune=True),
+                                  replace(hyper, warm_start="objects"), (nu, content), _Words(words), 5000)
+    assert {"dormitorio", "dining", "living"} <= {words[k] for k in objects.start_not_names}
+
+
 def test_the_start_is_written_unless_names_and_a_file_without_it_means_names() -> None:
     """``to_dict`` writes ``warm_start`` whenever it is not ``"names"``, and ``from_dict`` reads a
     dictionary without it as ``"names"`` (the files written before the option), whatever the default."""
-    for start in ("names", "words", "objects"):
+    for start in ("names", "words", "objects", "things"):
         hyper = TransferHyperparameters(warm_start=start)  # type: ignore[arg-type]
         data = hyper.to_dict()
         assert ("warm_start" in data) == (start != "names")

@@ -33,9 +33,11 @@ BlockMoves = Literal["off", "adapt", "all"]
 #: ``"names"`` — the naming rule's names mark the places and the start's sweeps weigh a token S^w;
 #: ``"words"`` — those sweeps weigh a token W^w, objects mark no place, a partly taught home's own
 #: names are held (:func:`spco.model.word_channels.warm_start_settings`; opt-in, issue 28 class c);
-#: ``"objects"`` — only the objects part of ``"words"``: objects mark no place, a token weighs S^w.
-WARM_STARTS = ("names", "words", "objects")
-WarmStart = Literal["names", "words", "objects"]
+#: ``"objects"`` — only the objects part of ``"words"``: objects mark no place, a token weighs S^w;
+#: ``"things"`` — ``"objects"`` with WordNet's positive evidence of a thing (``Lexicon.is_thing``)
+#: instead of the absence of a room sense (opt-in, branch objfilter15).
+WARM_STARTS = ("names", "words", "objects", "things")
+WarmStart = Literal["names", "words", "objects", "things"]
 
 #: What the exact sampler targets (``TransferHyperparameters.target``; docs/model.md, "The model the
 #: sampler targets"): ``"power"`` — the power likelihood, every step (assignments, θ, φ, switches, label
@@ -216,7 +218,11 @@ class TransferHyperparameters:
         speech it gains, but a home-specific room is lost (benchmarks/README.md, branch start10);
         ``"objects"`` — only the second of those: the words the evidence calls objects that cannot
         denote a room mark no place, while the start's sweeps weigh a token S^w and hold no names as
-        with ``"names"`` (benchmarks/README.md, branches words13 and start14).
+        with ``"names"`` (benchmarks/README.md, branches words13 and start14); ``"things"`` — as
+        ``"objects"``, but a word the evidence calls an object marks no place only when WordNet gives
+        positive evidence that its head word is a thing (:meth:`spco.data.lexicon.Lexicon.is_thing`),
+        so the room names WordNet does not know ("dormitorio", "wc") or knows mostly as acts
+        ("dining") keep marking places (benchmarks/README.md, branch objfilter15).
         Written by :meth:`to_dict` only when not ``"names"`` (a file without it means ``"names"``).
     evidence_weight: η, the weight of the linguistic evidence in the switch's prior (word channels):
         p(z = name | word) ∝ λ_name ν^η, p(z = place or background) ∝ λ_c (1 − ν)^η, ν the name
@@ -398,7 +404,7 @@ class TransferHyperparameters:
                 raise ConfigurationError(f"hyperparameter setting {setting!r}: no hyperparameter {name!r}; "
                                          f"settable: {', '.join(SETTABLE)}")
             if kind in ("one of channels, naming-rule", "one of off, adapt, all", "one of cut, power",
-                        "one of given, estimate", "one of names, words, objects"):
+                        "one of given, estimate", "one of names, words, objects, things"):
                 changes[name] = text
                 continue
             if name == "view_counts" and text.lower() == ESTIMATE:
@@ -429,7 +435,7 @@ SETTABLE: dict[str, str] = {
     "view_counts": "number, none or estimate", "evidence_weight": "a number", "word_counts": "number or none",
     "word_model": "one of channels, naming-rule", "block_moves": "one of off, adapt, all",
     "target": "one of cut, power", "visual_prior": "one of given, estimate",
-    "word_prior": "one of given, estimate", "warm_start": "one of names, words, objects",
+    "word_prior": "one of given, estimate", "warm_start": "one of names, words, objects, things",
 }
 
 

@@ -619,12 +619,15 @@ def warm_start_settings(settings, hyper, evidence: tuple[np.ndarray, np.ndarray]
     not join their names as synonyms (:func:`spco.model.synonyms.same_place_names`). ``lexicon``:
     a :class:`~spco.data.lexicon.Lexicon` (default :func:`spco.data.lexicon.lexicon`); without
     WordNet no word is left out. ``"objects"`` does only the second: the objects mark no place, the
-    token weight stays (``word_weight`` as given, so no names are held)."""
+    token weight stays (``word_weight`` as given, so no names are held). ``"things"`` is ``"objects"``
+    with positive evidence instead of the absence of a room sense: a word the evidence calls an object
+    marks no place only when WordNet calls its head word a thing (:meth:`spco.data.lexicon.Lexicon.is_thing`:
+    "fridge", "sofa", "towel"; not a word WordNet does not know, "dormitorio", nor "dining")."""
     from spco.data.lexicon import lexicon as default_lexicon
     from spco.model.unheard import OBJECT_BELOW
 
     start = getattr(hyper, "warm_start", "names")
-    if start not in ("words", "objects"):
+    if start not in ("words", "objects", "things"):
         return settings
     n_concepts, evidence_weight, word_counts = hyper.n_concepts, hyper.evidence_weight, hyper.word_counts
     rooms = default_lexicon() if lexicon is None else lexicon
@@ -633,8 +636,12 @@ def warm_start_settings(settings, hyper, evidence: tuple[np.ndarray, np.ndarray]
         prior = WordChannels.initial(evidence[0], n_concepts, evidence_weight, evidence[1]).name_prior()
         words = list(vocabulary.words)
         # a term by its head word ("hanako's bed": "bed")
-        objects = tuple(int(k) for k in np.flatnonzero(prior < OBJECT_BELOW)
-                        if not rooms.room_share(words[k].split()[-1]) > 0.0)  # type: ignore[attr-defined]
-    if start == "objects":
+        if start == "things":
+            objects = tuple(int(k) for k in np.flatnonzero(prior < OBJECT_BELOW)
+                            if rooms.is_thing(words[k].split()[-1]))  # type: ignore[attr-defined]
+        else:
+            objects = tuple(int(k) for k in np.flatnonzero(prior < OBJECT_BELOW)
+                            if not rooms.room_share(words[k].split()[-1]) > 0.0)  # type: ignore[attr-defined]
+    if start in ("objects", "things"):
         return replace(settings, start_not_names=objects)
     return replace(settings, word_weight=token_weight(word_counts, word_increment), start_not_names=objects)
