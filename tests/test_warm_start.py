@@ -121,16 +121,17 @@ def test_the_things_start_leaves_out_only_the_objects_wordnet_calls_things() -> 
 
 
 @pytest.mark.skipif(lexicon() is None, reason="WordNet is not installed")
-def test_wordnet_calls_fridge_sofa_towel_things_but_not_unknown_words_or_dining() -> None:
-    """With WordNet, positive evidence of a thing: "fridge", "sofa", "towel", "bed" are things; a word
+def test_wordnet_calls_fridge_kettle_towel_things_but_not_unknown_words_or_dining() -> None:
+    """With WordNet, positive evidence of a thing: "fridge", "kettle", "towel", "bed" are things; a word
     WordNet does not know ("dormitorio"), "dining" and "living" (mostly not nouns), rooms ("toilet",
-    "bathroom", "kitchen"), "laundry" (often a room) and "table" (mostly a table of data) are not; the
-    things start leaves out exactly the things."""
+    "bathroom", "kitchen"), "laundry" (often a room), "table" (mostly a table of data) and the things
+    WordNet also calls by a room's word ("tub" and "bathtub": bathtub.n.01 is also "bath"; "sofa":
+    "lounge") are not; the things start leaves out exactly the things."""
     lex = lexicon()
     assert lex is not None
-    things = ["fridge", "sofa", "towel", "bed"]
+    things = ["fridge", "kettle", "towel", "bed"]
     not_things = ["dormitorio", "dining", "living", "toilet", "bathroom", "kitchen", "laundry", "table",
-                  "comedor", "wc"]
+                  "comedor", "wc", "tub", "bathtub", "sofa"]
     assert all(lex.is_thing(w) for w in things)
     assert not any(lex.is_thing(w) for w in not_things)
     assert lex.thing_share("sofa") == 1.0 and np.isnan(lex.thing_share("dormitorio"))
@@ -143,6 +144,28 @@ def test_wordnet_calls_fridge_sofa_towel_things_but_not_unknown_words_or_dining(
     objects = warm_start_settings(SamplerSettings.create("exact", prune=True),
                                   replace(hyper, warm_start="objects"), (nu, content), _Words(words), 5000)
     assert {"dormitorio", "dining", "living"} <= {words[k] for k in objects.start_not_names}
+
+
+@pytest.mark.skipif(lexicon() is None, reason="WordNet is not installed")
+def test_a_things_room_namesakes_are_the_words_of_its_senses_with_a_room_sense() -> None:
+    """``Lexicon.room_namesakes`` against brute force over WordNet: the lemmas of the word's noun senses,
+    other than the word and its base form, whose own senses include a room (``room_share`` > 0); a thing
+    with such a namesake is no thing for ``is_thing``, whatever else WordNet says of it."""
+    lex = lexicon()
+    assert lex is not None
+    assert lex.room_namesakes("tub") == lex.room_namesakes("bathtub") == ["bath"]
+    assert lex.room_namesakes("fridge") == lex.room_namesakes("towels") == []
+    for word in ("tub", "couch", "wardrobe", "kettle", "stool", "fridge", "towels", "bed"):
+        forms = {word, lex._wn.morphy(word, "n")}
+        brute = []
+        for synset in lex.synsets(word, pos="n"):
+            for name in synset.lemma_names():
+                text = name.lower().replace("_", " ")
+                if name.lower() not in forms and text not in brute and lex.room_share(text) > 0:
+                    brute.append(text)
+        assert lex.room_namesakes(word) == brute, word
+        if brute:
+            assert not lex.is_thing(word)
 
 
 def test_the_start_is_written_unless_names_and_a_file_without_it_means_names() -> None:

@@ -271,16 +271,33 @@ class Lexicon:
         place); at least :data:`THING_SHARE` of its noun senses are things (:meth:`thing_share`: not
         "table", mostly a table of data, nor "shower"); it is rarely a place (:meth:`place_share` below
         :data:`THING_PLACE_BELOW`: not "laundry"); and none of its own noun senses is a room or an area
-        of a building (:meth:`room_share` 0: not "toilet", "closet"). "fridge", "sofa", "towel", "bed":
-        yes; a word WordNet does not know ("dormitorio", "wc"): no — the absence of a room sense is no
-        evidence of an object. "tub" and "bathtub" are things (vessels), whatever a home calls them."""
+        of a building (:meth:`room_share` 0: not "toilet", "closet"), nor is a word that shares one of
+        its noun senses (:meth:`room_namesakes` empty: a thing WordNet also calls by a room's word is
+        what people name the room after — bathtub.n.01 is also "bath", so "tub" and "bathtub" are no
+        evidence of an object rather than the bath's name; sofa.n.01 is also "lounge"; the toilet bowl,
+        "stool" and "pot", is also "toilet"). "fridge", "towel", "bed", "kettle": yes; a word WordNet
+        does not know ("dormitorio", "wc"): no — the absence of a room sense is no evidence of an object."""
         senses = self.synsets(word, pos="n")
         if not senses or not self.noun_share(word) >= 0.5:
             return False
         with self._lock:
             first = senses[0].lexname() in THING_FILES and not self._is_place_synset(senses[0].name())
         return (first and self.thing_share(word) >= THING_SHARE and self.place_share(word) < THING_PLACE_BELOW
-                and not self.room_share(word) > 0.0)
+                and not self.room_share(word) > 0.0 and not self.room_namesakes(word))
+
+    def room_namesakes(self, word: str) -> list[str]:
+        """The other words of the word's noun senses (their WordNet lemmas, not the word or its noun base
+        form) that have a room sense of their own (:meth:`room_share` above 0), in WordNet's order:
+        "tub" → ["bath"] (bathtub.n.01: bathtub, bathing tub, bath, tub), "couch" → ["lounge"],
+        "wardrobe" → ["closet"], "fridge" → []. Words of a lemma are joined by spaces."""
+        lemma = self._lemma(word)
+        with self._lock:
+            base = self._wn.morphy(lemma, "n")
+            others = [name.lower() for synset in self._wn.synsets(lemma, pos="n")
+                      for name in synset.lemma_names()]
+        own = {lemma, base} if base else {lemma}
+        candidates = dict.fromkeys(o for o in others if o not in own)
+        return [c.replace("_", " ") for c in candidates if self.room_share(c) > 0.0]
 
     def synonyms_among(self, word: str, others: Sequence[str]) -> list[str]:
         """Those of ``others`` that share one of the two commonest noun senses of ``word`` as one of

@@ -222,7 +222,8 @@ class TransferHyperparameters:
         ``"objects"``, but a word the evidence calls an object marks no place only when WordNet gives
         positive evidence that its head word is a thing (:meth:`spco.data.lexicon.Lexicon.is_thing`),
         so the room names WordNet does not know ("dormitorio", "wc") or knows mostly as acts
-        ("dining") keep marking places (benchmarks/README.md, branch objfilter15).
+        ("dining") keep marking places (benchmarks/README.md, branch objfilter15), and so do the things
+        WordNet also calls by a room's word ("tub", "bathtub": also "bath"; branch things16).
         Written by :meth:`to_dict` only when not ``"names"`` (a file without it means ``"names"``).
     evidence_weight: η, the weight of the linguistic evidence in the switch's prior (word channels):
         p(z = name | word) ∝ λ_name ν^η, p(z = place or background) ∝ λ_c (1 − ν)^η, ν the name

@@ -622,7 +622,8 @@ def warm_start_settings(settings, hyper, evidence: tuple[np.ndarray, np.ndarray]
     token weight stays (``word_weight`` as given, so no names are held). ``"things"`` is ``"objects"``
     with positive evidence instead of the absence of a room sense: a word the evidence calls an object
     marks no place only when WordNet calls its head word a thing (:meth:`spco.data.lexicon.Lexicon.is_thing`:
-    "fridge", "sofa", "towel"; not a word WordNet does not know, "dormitorio", nor "dining")."""
+    "fridge", "kettle", "towel"; not a word WordNet does not know, "dormitorio", nor "dining", nor a thing
+    WordNet also calls by a room's word, "tub" and "bathtub" — bathtub.n.01 is also "bath")."""
     from spco.data.lexicon import lexicon as default_lexicon
     from spco.model.unheard import OBJECT_BELOW
 
