@@ -1,6 +1,6 @@
 """The warm start of a fit that learns its words with the word channels (issue 28, class c: concepts
 that hold two rooms): the start's sweeps weigh a word token as the chain does, the words the channels'
-evidence calls objects and that cannot denote a room mark no place
+evidence calls objects and WordNet calls things mark no place
 (:func:`spco.model.word_channels.warm_start_settings`), and a home taught less than the others holds
 the samples of its own names in their concepts through those sweeps
 (:func:`spco.model.shard_init.initialise`). The start is not part of either target: the chain's
@@ -38,13 +38,17 @@ class _Words:
 
 
 class _Rooms:
-    """A lexicon that knows which of its words can be a room."""
+    """A lexicon that knows which of its words can be a room and which are things."""
 
-    def __init__(self, rooms: set[str]) -> None:
+    def __init__(self, rooms: set[str], things: set[str] = frozenset()) -> None:
         self.rooms = rooms
+        self.things = things
 
     def room_share(self, word: str) -> float:
         return 1.0 if word in self.rooms else 0.0
+
+    def is_thing(self, word: str) -> bool:
+        return word in self.things
 
 
 def test_the_warm_start_settings_weigh_a_token_and_leave_out_the_objects() -> None:
@@ -70,61 +74,132 @@ def test_the_warm_start_settings_weigh_a_token_and_leave_out_the_objects() -> No
     with pytest.raises(ConfigurationError, match="warm_start"):
         TransferHyperparameters(warm_start="sweeps")
     assert TransferHyperparameters().with_settings(["warm_start=words"]).warm_start == "words"
-    assert "warm_start" not in TransferHyperparameters().to_dict()  # (files from before unchanged)
+    assert TransferHyperparameters().warm_start == "things"  # the default (branch things16)
 
 
-def test_the_objects_start_leaves_out_the_objects_and_keeps_the_token_weight() -> None:
-    """``warm_start="objects"``: the objects part of the words' start alone — the same words mark no
-    place as with ``"words"``, the token weight stays as given (S^w: so no names are held), and the
-    rest of the settings are unchanged."""
-    nu = np.array([0.8, 0.05, 0.3, 0.1, 0.6, 0.05])
-    content = np.array([0.95, 0.95, 0.9, 0.95, 0.5, 0.95])
-    words = _Words(["kitchen", "table", "nook", "sofa", "den", "toilet"])
+def test_the_objects_start_is_no_option_and_a_file_that_says_it_reads_as_things() -> None:
+    """start14's ``"objects"`` is gone: asking for it (``--set``, the constructor) is an error naming the
+    field and the options; a file that says it loads, as ``"things"``, with a FutureWarning naming it."""
+    with pytest.raises(ConfigurationError, match=r"warm_start.*'names', 'words', 'things'"):
+        TransferHyperparameters(warm_start="objects")  # type: ignore[arg-type]
+    with pytest.raises(ConfigurationError, match="warm_start"):
+        TransferHyperparameters().with_settings(["warm_start=objects"])
+    data = TransferHyperparameters(warm_start="names").to_dict()
+    data["warm_start"] = "objects"
+    with pytest.warns(FutureWarning, match="warm_start='objects' is no longer an option: read as 'things'"):
+        hyper = TransferHyperparameters.from_dict(data)
+    assert hyper == TransferHyperparameters(warm_start="things")
+
+
+def test_the_things_start_leaves_out_only_the_objects_wordnet_calls_things() -> None:
+    """``warm_start="things"``: of the words the evidence calls objects (name prior below
+    OBJECT_BELOW), only those whose head word the lexicon calls a thing mark no place — brute force
+    over the words — a word the lexicon does not know stays a name (the "objects" start left it out);
+    the token weight stays as given."""
+    nu = np.array([0.8, 0.05, 0.3, 0.1, 0.6, 0.05, 0.05, 0.05])
+    content = np.array([0.95, 0.95, 0.9, 0.95, 0.5, 0.95, 0.95, 0.95])
+    words = _Words(["kitchen", "table", "fridge", "sofa", "den", "toilet", "dormitorio", "hanako's towel"])
+    lexicon_ = _Rooms({"toilet", "kitchen"}, {"sofa", "towel", "fridge", "table"})
     settings = SamplerSettings.create("exact", prune=True, view_counts=16.0)
-    hyper = TransferHyperparameters(n_concepts=4, evidence_weight=1.0, word_counts=16.0, warm_start="objects")
-    out = warm_start_settings(settings, hyper, (nu, content), words, 5000, _Rooms({"toilet"}))
-    both = warm_start_settings(settings, replace(hyper, warm_start="words"), (nu, content), words, 5000,
-                               _Rooms({"toilet"}))
-    assert out.start_not_names == both.start_not_names == (1, 3)
-    assert out.word_weight == settings.word_weight == 1.0 and both.word_weight < 1.0
-    assert out == replace(settings, start_not_names=(1, 3))
-    weighed = replace(settings, word_weight=0.5)  # a weight set before is kept as it is
-    assert warm_start_settings(weighed, hyper, (nu, content), words, 5000, _Rooms(set())).word_weight == 0.5
-    assert TransferHyperparameters().with_settings(["warm_start=objects"]).warm_start == "objects"
+    hyper = TransferHyperparameters(n_concepts=4, evidence_weight=1.0, word_counts=16.0, warm_start="things")
+    out = warm_start_settings(settings, hyper, (nu, content), words, 5000, lexicon_)
+    prior = WordChannels.initial(nu, 4, 1.0, content).name_prior()
+    expected = tuple(k for k in range(len(words)) if prior[k] < OBJECT_BELOW
+                     and words.words[k].split()[-1] in lexicon_.things)
+    assert out.start_not_names == expected == (1, 3, 7)  # "fridge" has a name prior: it stays
+    assert out == replace(settings, start_not_names=expected)  # S^w per token, as given
+    absent = warm_start_settings(settings, replace(hyper, warm_start="words"), (nu, content), words,
+                                 5000, lexicon_)
+    assert absent.start_not_names == (1, 3, 6, 7)  # the absence of a room sense leaves "dormitorio" out
+    assert TransferHyperparameters().with_settings(["warm_start=names"]).warm_start == "names"
+    names = TransferHyperparameters(warm_start="names")
+    assert names.with_settings(["warm_start=things"]).warm_start == "things"
 
 
-def test_the_start_is_written_unless_names_and_a_file_without_it_means_names() -> None:
-    """``to_dict`` writes ``warm_start`` whenever it is not ``"names"``, and ``from_dict`` reads a
-    dictionary without it as ``"names"`` (the files written before the option), whatever the default."""
-    for start in ("names", "words", "objects"):
+@pytest.mark.skipif(lexicon() is None, reason="WordNet is not installed")
+def test_wordnet_calls_fridge_kettle_towel_things_but_not_unknown_words_or_dining() -> None:
+    """With WordNet, positive evidence of a thing: "fridge", "kettle", "towel", "bed" are things; a word
+    WordNet does not know ("dormitorio"), "dining" and "living" (mostly not nouns), rooms ("toilet",
+    "bathroom", "kitchen"), "laundry" (often a room), "table" (mostly a table of data) and the things
+    WordNet also calls by a room's word ("tub" and "bathtub": bathtub.n.01 is also "bath"; "sofa":
+    "lounge") are not; the things start leaves out exactly the things."""
+    lex = lexicon()
+    assert lex is not None
+    things = ["fridge", "kettle", "towel", "bed"]
+    not_things = ["dormitorio", "dining", "living", "toilet", "bathroom", "kitchen", "laundry", "table",
+                  "comedor", "wc", "tub", "bathtub", "sofa"]
+    assert all(lex.is_thing(w) for w in things)
+    assert not any(lex.is_thing(w) for w in not_things)
+    assert lex.thing_share("sofa") == 1.0 and np.isnan(lex.thing_share("dormitorio"))
+    words = things + not_things
+    nu, content = np.full(len(words), 0.05), np.full(len(words), 0.95)
+    hyper = TransferHyperparameters(n_concepts=4, evidence_weight=1.0, word_counts=16.0, warm_start="things")
+    out = warm_start_settings(SamplerSettings.create("exact", prune=True), hyper, (nu, content),
+                              _Words(words), 5000)
+    assert [words[k] for k in out.start_not_names] == things
+    absent = warm_start_settings(SamplerSettings.create("exact", prune=True),
+                                 replace(hyper, warm_start="words"), (nu, content), _Words(words), 5000)
+    assert {"dormitorio", "dining", "living"} <= {words[k] for k in absent.start_not_names}
+
+
+@pytest.mark.skipif(lexicon() is None, reason="WordNet is not installed")
+def test_a_things_room_namesakes_are_the_words_of_its_senses_with_a_room_sense() -> None:
+    """``Lexicon.room_namesakes`` against brute force over WordNet: the lemmas of the word's noun senses,
+    other than the word and its base form, whose own senses include a room (``room_share`` > 0); a thing
+    with such a namesake is no thing for ``is_thing``, whatever else WordNet says of it."""
+    lex = lexicon()
+    assert lex is not None
+    assert lex.room_namesakes("tub") == lex.room_namesakes("bathtub") == ["bath"]
+    assert lex.room_namesakes("fridge") == lex.room_namesakes("towels") == []
+    for word in ("tub", "couch", "wardrobe", "kettle", "stool", "fridge", "towels", "bed"):
+        forms = {word, lex._wn.morphy(word, "n")}
+        brute = []
+        for synset in lex.synsets(word, pos="n"):
+            for name in synset.lemma_names():
+                text = name.lower().replace("_", " ")
+                if name.lower() not in forms and text not in brute and lex.room_share(text) > 0:
+                    brute.append(text)
+        assert lex.room_namesakes(word) == brute, word
+        if brute:
+            assert not lex.is_thing(word)
+
+
+def test_the_start_is_always_written_and_a_file_without_it_means_names() -> None:
+    """``to_dict`` writes ``warm_start`` whatever it is (``"names"`` too: it is no longer the default),
+    and ``from_dict`` reads a dictionary without it as ``"names"`` (the files written before things16,
+    whose default was ``"names"``), not as the default ``"things"``."""
+    for start in ("names", "words", "things"):
         hyper = TransferHyperparameters(warm_start=start)  # type: ignore[arg-type]
         data = hyper.to_dict()
-        assert ("warm_start" in data) == (start != "names")
+        assert data["warm_start"] == start
         assert TransferHyperparameters.from_dict(data) == hyper
-    old = TransferHyperparameters(warm_start="objects").to_dict()
+    old = TransferHyperparameters().to_dict()
     del old["warm_start"]
     assert TransferHyperparameters.from_dict(old).warm_start == "names"
+    assert TransferHyperparameters.from_dict(old) == TransferHyperparameters(warm_start="names")
 
 
-def test_the_objects_start_round_trips_through_the_knowledge_and_home_files(tmp_path) -> None:
-    """``spco fit --set warm_start=objects`` keeps the start in the knowledge file, ``spco adapt``
-    in the home file; a file whose header has no ``warm_start`` reads as ``"names"``."""
+def test_the_start_round_trips_through_the_knowledge_and_home_files(tmp_path) -> None:
+    """``spco fit`` keeps the start in the knowledge file (the default ``"things"``, and
+    ``--set warm_start=names``), ``spco adapt`` in the home file; a file whose header has no
+    ``warm_start`` reads as ``"names"``."""
     import json
 
     from conftest import fit_and_adapt, synthetic_home_folders
 
     from spco import knowledge as kn
 
-    folders = synthetic_home_folders(tmp_path, 4, seed=3, n_features=64)
-    knowledge_file, home_file, _ = fit_and_adapt(
-        folders, ["--iterations", 2, "--seed", 0, "--set", "warm_start=objects"], ["--iterations", 2])
-    assert kn.load_knowledge(knowledge_file).hyperparameters.warm_start == "objects"
-    assert kn.load_home_model(home_file).hyperparameters.warm_start == "objects"
-    with np.load(knowledge_file, allow_pickle=False) as archive:
-        header = json.loads(archive["header"].tobytes().decode("utf-8"))
-    assert header["hyperparameters"]["warm_start"] == "objects"
-    del header["hyperparameters"]["warm_start"]
-    assert TransferHyperparameters.from_dict(header["hyperparameters"]).warm_start == "names"
+    for given, start in (((), "things"), (("--set", "warm_start=names"), "names")):
+        folders = synthetic_home_folders(tmp_path / start, 4, seed=3, n_features=64)
+        knowledge_file, home_file, _ = fit_and_adapt(
+            folders, ["--iterations", 2, "--seed", 0, *given], ["--iterations", 2])
+        assert kn.load_knowledge(knowledge_file).hyperparameters.warm_start == start
+        assert kn.load_home_model(home_file).hyperparameters.warm_start == start
+        with np.load(knowledge_file, allow_pickle=False) as archive:
+            header = json.loads(archive["header"].tobytes().decode("utf-8"))
+        assert header["hyperparameters"]["warm_start"] == start
+        del header["hyperparameters"]["warm_start"]
+        assert TransferHyperparameters.from_dict(header["hyperparameters"]).warm_start == "names"
 
 
 @pytest.mark.skipif(lexicon() is None, reason="WordNet is not installed")

@@ -33,8 +33,9 @@ from pathlib import Path
 
 from spco.data.wordnet_files import DATABASE, open_reader, reader_folder
 
-__all__ = ["KINDS_BELOW", "MIN_SIMILARITY", "NOT_PLACE_ROOTS", "PLACE_ROOTS", "THING_FILES", "Lexicon",
-           "LexiconMatch", "lexicon", "lexicon_unavailable_reason"]
+__all__ = ["KINDS_BELOW", "MIN_SIMILARITY", "NOT_PLACE_ROOTS", "PLACE_ROOTS", "THING_FILES",
+           "THING_PLACE_BELOW", "THING_SHARE", "Lexicon", "LexiconMatch", "lexicon",
+           "lexicon_unavailable_reason"]
 
 #: Where Debian's wordnet-base puts the database files.
 DEBIAN_WORDNET = Path("/usr/share/wordnet")
@@ -67,6 +68,16 @@ KINDS_BELOW = 50
 #: (:meth:`Lexicon.thing_words`).
 THING_FILES = frozenset({"noun.artifact", "noun.object", "noun.substance", "noun.food", "noun.plant",
                          "noun.animal"})
+
+#: Least share of a word's noun senses (weighted by tagged frequency) that are things for the word to be
+#: one (:meth:`Lexicon.is_thing`): most of what the word means as a noun is an object, a substance or
+#: food, not an act, a group or a quality ("table" as furniture, not as a table of data).
+THING_SHARE = 0.5
+
+#: A thing (:meth:`Lexicon.is_thing`) is a place in less than this share of the senses it can be pointed
+#: at in (:meth:`Lexicon.place_share`): "bed" (0.09, a flower bed), "window" (0.02) are things;
+#: "laundry" (0.33, a laundry room) is not.
+THING_PLACE_BELOW = 0.2
 
 #: Prepositions of location: a known name after one of them in a definition is where the defined
 #: place is, not what it is.
@@ -234,6 +245,59 @@ class Lexicon:
             if rooms and not any(r in closure for r in self._not_roots):
                 room += weight
         return room / total if total else 0.0
+
+    def thing_share(self, word: str) -> float:
+        """Share of the word's noun senses, weighted as :meth:`noun_share` (1 + the tagged frequency of the
+        word or of its noun base form: "shoes" weighs by "shoe"), that are things: in one of
+        :data:`THING_FILES` and not a place (see the module docstring: "bath" as a room is an
+        artifact of WordNet, but a place); NaN for a word without noun senses."""
+        lemma = self._lemma(word)
+        with self._lock:
+            base = self._wn.morphy(lemma, "n")
+        forms = {lemma, base} if base else {lemma}
+        thing = total = 0.0
+        for synset in self.synsets(word, pos="n"):
+            weight = 1.0 + sum(lem.count() for lem in synset.lemmas() if lem.name().lower() in forms)
+            total += weight
+            with self._lock:
+                is_thing = synset.lexname() in THING_FILES and not self._is_place_synset(synset.name())
+            thing += weight if is_thing else 0.0
+        return thing / total if total else float("nan")
+
+    def is_thing(self, word: str) -> bool:
+        """Whether WordNet gives positive evidence that the word names a thing and never a room: it knows
+        the word; the word is mostly a noun (:meth:`noun_share` at least 0.5: not "dining" or "living",
+        mostly an act or a verb's form); its commonest noun sense is a thing (:data:`THING_FILES`, not a
+        place); at least :data:`THING_SHARE` of its noun senses are things (:meth:`thing_share`: not
+        "table", mostly a table of data, nor "shower"); it is rarely a place (:meth:`place_share` below
+        :data:`THING_PLACE_BELOW`: not "laundry"); and none of its own noun senses is a room or an area
+        of a building (:meth:`room_share` 0: not "toilet", "closet"), nor is a word that shares one of
+        its noun senses (:meth:`room_namesakes` empty: a thing WordNet also calls by a room's word is
+        what people name the room after — bathtub.n.01 is also "bath", so "tub" and "bathtub" are no
+        evidence of an object rather than the bath's name; sofa.n.01 is also "lounge"; the toilet bowl,
+        "stool" and "pot", is also "toilet"). "fridge", "towel", "bed", "kettle": yes; a word WordNet
+        does not know ("dormitorio", "wc"): no — the absence of a room sense is no evidence of an object."""
+        senses = self.synsets(word, pos="n")
+        if not senses or not self.noun_share(word) >= 0.5:
+            return False
+        with self._lock:
+            first = senses[0].lexname() in THING_FILES and not self._is_place_synset(senses[0].name())
+        return (first and self.thing_share(word) >= THING_SHARE and self.place_share(word) < THING_PLACE_BELOW
+                and not self.room_share(word) > 0.0 and not self.room_namesakes(word))
+
+    def room_namesakes(self, word: str) -> list[str]:
+        """The other words of the word's noun senses (their WordNet lemmas, not the word or its noun base
+        form) that have a room sense of their own (:meth:`room_share` above 0), in WordNet's order:
+        "tub" → ["bath"] (bathtub.n.01: bathtub, bathing tub, bath, tub), "couch" → ["lounge"],
+        "wardrobe" → ["closet"], "fridge" → []. Words of a lemma are joined by spaces."""
+        lemma = self._lemma(word)
+        with self._lock:
+            base = self._wn.morphy(lemma, "n")
+            others = [name.lower() for synset in self._wn.synsets(lemma, pos="n")
+                      for name in synset.lemma_names()]
+        own = {lemma, base} if base else {lemma}
+        candidates = dict.fromkeys(o for o in others if o not in own)
+        return [c.replace("_", " ") for c in candidates if self.room_share(c) > 0.0]
 
     def synonyms_among(self, word: str, others: Sequence[str]) -> list[str]:
         """Those of ``others`` that share one of the two commonest noun senses of ``word`` as one of

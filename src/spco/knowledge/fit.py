@@ -287,7 +287,7 @@ def _sample_chain(engine: Any, source: Any, hyper: TransferHyperparameters, sett
         bar = progress_bar(total=n_iterations, desc=progress, unit="sweep", leave=False)
     from spco.engines import start_source_run
 
-    if evidence is not None:  # the warm start with the channels' evidence (warm_start="words" or "objects")
+    if evidence is not None:  # the warm start with the channels' evidence (warm_start="things" or "words")
         settings = warm_start_settings(settings, hyper, evidence, vocabulary, word_increment)
     run = start_source_run(engine, source, hyper, settings, rng)  # the homes stay in the shards
     stand_ins = None

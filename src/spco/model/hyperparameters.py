@@ -32,12 +32,17 @@ NamePrior = Literal["off", "wordnet"]
 BLOCK_MOVES = ("off", "adapt", "all", "phi")
 BlockMoves = Literal["off", "adapt", "all", "phi"]
 #: The exact sampler's warm start with the word channels (``TransferHyperparameters.warm_start``):
-#: ``"names"`` — the naming rule's names mark the places and the start's sweeps weigh a token S^w;
-#: ``"words"`` — those sweeps weigh a token W^w, objects mark no place, a partly taught home's own
-#: names are held (:func:`spco.model.word_channels.warm_start_settings`; opt-in, issue 28 class c);
-#: ``"objects"`` — only the objects part of ``"words"``: objects mark no place, a token weighs S^w.
-WARM_STARTS = ("names", "words", "objects")
-WarmStart = Literal["names", "words", "objects"]
+#: ``"things"`` (the default) — the words the evidence calls objects and WordNet calls things
+#: (``Lexicon.is_thing``) mark no place, the start's sweeps weigh a token S^w;
+#: ``"names"`` — the naming rule's names mark the places, a token weighs S^w (the start before things16);
+#: ``"words"`` — the sweeps weigh a token W^w, the objects WordNet knows no room sense of mark no place,
+#: a partly taught home's own names are held (:func:`spco.model.word_channels.warm_start_settings`;
+#: opt-in, issue 28 class c). start14's ``"objects"`` is gone: a file that says it is read as
+#: ``"things"`` (:data:`OLD_WARM_STARTS`).
+WARM_STARTS = ("names", "words", "things")
+WarmStart = Literal["names", "words", "things"]
+#: Warm starts that are no longer options, and the start a file that says one is read as.
+OLD_WARM_STARTS = {"objects": "things"}
 
 #: What the exact sampler targets (``TransferHyperparameters.target``; docs/model.md, "The model the
 #: sampler targets"): ``"power"`` — the power likelihood, every step (assignments, θ, φ, switches, label
@@ -214,16 +219,23 @@ class TransferHyperparameters:
         S^w = 5,000 counts per token). Kept in the fitted hyperparameters (the knowledge file, and
         every home adapted or taught from it, uses the numbers); a quantity that cannot be estimated
         keeps its given value. Written by :meth:`to_dict` only when not ``"given"``.
-    warm_start: the exact sampler's start with the word channels (:data:`WARM_STARTS`): ``"names"``
-        (default) as without them; ``"words"`` — the start's sweeps weigh a word token W^w
-        (``word_counts``) as the chain does, the words the evidence calls objects that cannot denote a
-        room mark no place, and a partly taught home keeps its own names (docs/model.md, "With the
-        word channels the start can weigh words as the chain does"). Opt-in: on development natural
-        speech it gains, but a home-specific room is lost (benchmarks/README.md, branch start10);
-        ``"objects"`` — only the second of those: the words the evidence calls objects that cannot
-        denote a room mark no place, while the start's sweeps weigh a token S^w and hold no names as
-        with ``"names"`` (benchmarks/README.md, branches words13 and start14).
-        Written by :meth:`to_dict` only when not ``"names"`` (a file without it means ``"names"``).
+    warm_start: the exact sampler's start with the word channels (:data:`WARM_STARTS`; docs/model.md,
+        "With the word channels the start can weigh words as the chain does"). ``"things"`` (default):
+        a word the evidence calls an object (name prior below
+        :data:`spco.model.unheard.OBJECT_BELOW`) marks no place when WordNet gives positive evidence
+        that its head word is a thing (:meth:`spco.data.lexicon.Lexicon.is_thing`: "fridge", "bed",
+        "towel"; not a word WordNet does not know, "dormitorio", nor one it knows mostly as an act,
+        "dining", nor a thing it also calls by a room's word, "tub": also "bath"), so such a word said
+        in two rooms does not join their places at the chain's start; the start's sweeps weigh a token
+        S^w. It is the default because on development data it holds every guard of its rule and
+        gains on natural speech (benchmarks/README.md, branches objfilter15 and things16).
+        ``"names"`` — the naming rule's names mark the places, objects too (the start before).
+        ``"words"`` — the start's sweeps weigh a word token W^w (``word_counts``) as the chain does,
+        the words the evidence calls objects that WordNet knows no room sense of mark no place, and a
+        partly taught home keeps its own names; opt-in (benchmarks/README.md, branches start10 and
+        start12). A file that says start14's ``"objects"`` (no longer an option) is read as
+        ``"things"`` with a :class:`FutureWarning`. Written by :meth:`to_dict` always (a file without
+        it, written before things16, means ``"names"``).
     evidence_weight: η, the weight of the linguistic evidence in the switch's prior (word channels):
         p(z = name | word) ∝ λ_name ν^η, p(z = place or background) ∝ λ_c (1 − ν)^η, ν the name
         evidence of :mod:`spco.model.name_evidence`. Default :data:`EVIDENCE_WEIGHT`, chosen on
@@ -254,7 +266,7 @@ class TransferHyperparameters:
     target: Target = "cut"
     visual_prior: VisualPrior = "given"
     word_prior: WordPrior = "given"
-    warm_start: WarmStart = "names"
+    warm_start: WarmStart = "things"
 
     def __post_init__(self) -> None:
         for name in ("n_concepts", "n_regions"):
@@ -358,7 +370,7 @@ class TransferHyperparameters:
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dictionary (``name_prior`` and ``block_moves`` only when not ``"off"``, ``target``
         only when not ``"cut"``, ``visual_prior`` and ``word_prior`` only when not ``"given"``,
-        ``warm_start`` only when not ``"names"``)."""
+        ``warm_start`` always: a file without it means ``"names"``, the default before things16)."""
         data = asdict(self)
         if data["target"] == "cut":
             del data["target"]
@@ -366,8 +378,6 @@ class TransferHyperparameters:
             del data["visual_prior"]
         if data["word_prior"] == "given":
             del data["word_prior"]
-        if data["warm_start"] == "names":
-            del data["warm_start"]
         if data["name_prior"] == "off":
             del data["name_prior"]
         if data["block_moves"] == "off":
@@ -380,7 +390,13 @@ class TransferHyperparameters:
         data = dict(data)
         data.setdefault("word_model", "naming-rule")  # written before the word channels
         data.setdefault("word_counts", None)  # written before the word weight: S^w counts per token
-        data.setdefault("warm_start", "names")  # to_dict leaves "names" out, whatever the default
+        data.setdefault("warm_start", "names")  # written before things16, whose default is "things"
+        if data["warm_start"] in OLD_WARM_STARTS:
+            new = OLD_WARM_STARTS[data["warm_start"]]
+            warnings.warn(f"hyperparameter warm_start={data['warm_start']!r} is no longer an option: read as "
+                          f"{new!r} (the start whose objects are what WordNet calls things; "
+                          "benchmarks/README.md, branch things16)", FutureWarning, stacklevel=2)
+            data["warm_start"] = new
         for key in ("psi0", "mu0"):
             if data.get(key) is not None:
                 data[key] = _to_tuple(data[key])
@@ -406,8 +422,7 @@ class TransferHyperparameters:
             if kind is None:
                 raise ConfigurationError(f"hyperparameter setting {setting!r}: no hyperparameter {name!r}; "
                                          f"settable: {', '.join(SETTABLE)}")
-            if kind in ("one of channels, naming-rule", "one of off, adapt, all, phi", "one of cut, power",
-                        "one of given, estimate", "one of names, words, objects"):
+            if kind.startswith("one of "):  # a choice: checked by the constructor, which names them
                 changes[name] = text
                 continue
             if name == "view_counts" and text.lower() == ESTIMATE:
@@ -438,7 +453,7 @@ SETTABLE: dict[str, str] = {
     "view_counts": "number, none or estimate", "evidence_weight": "a number", "word_counts": "number or none",
     "word_model": "one of channels, naming-rule", "block_moves": "one of off, adapt, all, phi",
     "target": "one of cut, power", "visual_prior": "one of given, estimate",
-    "word_prior": "one of given, estimate", "warm_start": "one of names, words, objects",
+    "word_prior": "one of given, estimate", "warm_start": "one of names, words, things",
 }
 
 

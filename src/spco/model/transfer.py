@@ -298,8 +298,8 @@ class SpatialConceptModel:
         """The channels' name evidence (ν, a) of the corpus's words (:func:`channel_evidence`) when the
         fit learns its words with the word channels (``None`` when it does not — no channels or no words
         — or its speech has no English function word: learnt with the naming rule), and ``settings``
-        for its warm start (:func:`~spco.model.word_channels.warm_start_settings`: as they are unless
-        ``warm_start="words"`` or ``"objects"``)."""
+        for its warm start (:func:`~spco.model.word_channels.warm_start_settings`: as they are with
+        ``warm_start="names"``)."""
         if not (uses_word_channels(hyper, settings) and bool(data.words.nnz)):
             return None, settings
         sentences = [s for t in corpus.training_set() for s in t.sentences]
