@@ -147,8 +147,8 @@ class HierarchicalMultinomial:
     tables as before, and φ_l is drawn from Dir(α + Σ_e m + Σ_{e: n < 1} n) (the second factor
     approximated by a^n where ⌊n⌋ = 0, by 1 elsewhere: the importance weights stay bounded as
     a → 0, so chains do not stick near φ = 0) and accepted by Metropolis–Hastings with the exact
-    remainder (:meth:`sample_shared_given_counts`): a valid step of the augmented chain, the CRT
-    step itself when every count is whole.
+    remainder, in blocks of dimensions (:meth:`accept_shared`): a valid step of the augmented chain,
+    the CRT step itself when every count is whole.
     """
 
     @staticmethod
