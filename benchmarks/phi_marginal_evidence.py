@@ -182,8 +182,8 @@ def table_draws(n_others: np.ndarray, log_phi: np.ndarray, delta: float, alpha,
         tables, frac, fractional = HM.table_parts(n_others, log_phi, delta, rng)
         if i >= burn:
             out[i - burn] = alpha + tables + frac
-        log_phi = HM.accept_shared(lambda old, new: HM.fractional_log_ratio(n_others, old, new, delta),
-                                   log_phi, alpha, tables, frac, rng, bool(fractional.any()))
+        log_phi = HM.accept_shared(lambda phi: HM.fractional_log_weight_terms(n_others, phi, delta),
+                                   log_phi, alpha, tables, frac, rng, fractional > 0)
     return out
 
 
@@ -545,21 +545,23 @@ def chain(sweeps: int, seed_index: int, more: int, every: int, seed: int) -> dic
 
 
 def phi_acceptance(sweeps: int, seed_index: int) -> dict:
-    """The power target's φ^v step during the fit (:func:`_fitted`): per sweep and concept whether its
-    proposal Dir(α + M + F) was accepted and its log acceptance ratio w(φ') − w(φ), recorded by wrapping
-    :meth:`HierarchicalMultinomial.accept_shared` (the sharded fit's global step calls it)."""
+    """The power target's φ^v step during the fit (:func:`_fitted`): per sweep and concept the share of
+    dimensions the step moved (:meth:`HierarchicalMultinomial.accept_shared`, blocked: a block is moved
+    when its proposal is accepted, so this is the blocks' acceptance rate over the step's passes, each
+    dimension counted once), recorded by wrapping it (the sharded fit's global step calls it), and the
+    CPU seconds of the wrapped steps."""
+    import time
+
     from spco.model.observations import HierarchicalMultinomial as HM
 
     original = HM.accept_shared
-    accepted, ratios, used = [], [], []
+    moved, used, cpu = [], [], []
 
-    def recorded(log_ratio, log_phi, prior, tables, frac, rng, fractional=True):
-        def ratio(old, new):
-            value = log_ratio(old, new)
-            ratios.append(np.asarray(value, dtype=float).copy())
-            return value
-        out = original(ratio, log_phi, prior, tables, frac, rng, fractional)
-        accepted.append((out != log_phi).any(axis=1))
+    def recorded(log_weights, log_phi, prior, tables, frac, rng, fractional=True, **kw):
+        start = time.process_time()
+        out = original(log_weights, log_phi, prior, tables, frac, rng, fractional, **kw)
+        cpu.append(time.process_time() - start)
+        moved.append((out != log_phi).mean(axis=1))
         used.append((np.asarray(tables) + frac).sum(axis=1) > 0)
         return out
 
@@ -568,13 +570,13 @@ def phi_acceptance(sweeps: int, seed_index: int) -> dict:
         _fitted(sweeps, seed_index)
     finally:
         HM.accept_shared = staticmethod(original)
-    acc, use, lr = np.array(accepted), np.array(used), np.array(ratios)
+    mv, use = np.array(moved), np.array(used)
     cols = np.flatnonzero(use.all(axis=0))
-    return {"sweeps": len(acc), "concepts_with_tables": cols.tolist(),
-            "accepted_per_concept": acc[:, cols].sum(axis=0).tolist(),
-            "log_ratio_first_sweep": np.round(lr[0, cols]).tolist() if lr.size else [],
-            "median_log_ratio_last_40": (np.round(np.median(lr[-40:, cols], axis=0)).tolist()
-                                         if lr.size else [])}
+    return {"sweeps": len(mv), "concepts_with_tables": cols.tolist(),
+            "share_moved_per_concept_mean": np.round(mv[:, cols].mean(axis=0), 3).tolist(),
+            "share_moved_per_concept_last_40": np.round(mv[-40:, cols].mean(axis=0), 3).tolist(),
+            "steps_moving_nothing_per_concept": (mv[:, cols] == 0).sum(axis=0).tolist(),
+            "phi_step_cpu_seconds_total": round(float(sum(cpu)), 2)}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -26,7 +26,7 @@ from spco.model.kernels.counts import (
 )
 from spco.model.kernels.crt import sample_crt_totals
 from spco.model.kernels.dirichlet import log_dirichlet, log_dirichlet_hierarchical
-from spco.model.kernels.fractional import fractional_log_weights
+from spco.model.kernels.fractional import fractional_log_weights, fractional_log_weights_by_dimension
 from spco.model.kernels.gaussian import grouped_gaussian_log_density
 from spco.model.kernels.likelihood import (
     DimensionMajorCounts,
@@ -104,6 +104,12 @@ class GaussianRegions:
         return float((log_iw + log_normal).sum())
 
 
+#: The power target's φ^v step (:meth:`HierarchicalMultinomial.accept_shared`): dimensions per block
+#: and passes (each over a fresh random partition) per step; benchmarks/README.md, "Issue 29: an exact
+#: φ^v step at fc7's size".
+PHI_BLOCK_SIZE = 8
+PHI_PASSES = 4
+
 #: The last concentrations δ φ computed by :func:`shared_concentration`: (log φ, δ, a copy of
 #: log φ, δ φ), most recent first.
 _CONCENTRATIONS: list[tuple[np.ndarray, float, np.ndarray, np.ndarray]] = []
@@ -141,8 +147,8 @@ class HierarchicalMultinomial:
     tables as before, and φ_l is drawn from Dir(α + Σ_e m + Σ_{e: n < 1} n) (the second factor
     approximated by a^n where ⌊n⌋ = 0, by 1 elsewhere: the importance weights stay bounded as
     a → 0, so chains do not stick near φ = 0) and accepted by Metropolis–Hastings with the exact
-    remainder (:meth:`sample_shared_given_counts`): a valid step of the augmented chain, the CRT
-    step itself when every count is whole.
+    remainder, in blocks of dimensions (:meth:`accept_shared`): a valid step of the augmented chain,
+    the CRT step itself when every count is whole.
     """
 
     @staticmethod
@@ -243,31 +249,103 @@ class HierarchicalMultinomial:
         return new - old
 
     @staticmethod
+    def fractional_log_weight_terms(n: np.ndarray, log_phi: np.ndarray, delta: float) -> np.ndarray:
+        """(L, D): the terms of :meth:`fractional_log_weight` at ``log_phi`` summed over the homes of the
+        counts ``n`` (E, L, D) but kept per dimension, w_{l,k}; Σ_k w_{l,k} is the weight (all 0 for
+        whole counts)."""
+        if n.dtype.kind in "iu":
+            return np.zeros(np.shape(log_phi))
+        return fractional_log_weights_by_dimension(n, log_phi, delta)
+
+    @staticmethod
     def sample_shared_given_counts(n: np.ndarray, log_phi: np.ndarray, delta: float, prior,
                                    rng: np.random.Generator) -> np.ndarray:
         """log φ_l | n (θ integrated out) for every concept, from the counts n (E, L, D) of all
-        homes concerned: φ' ~ Dir(prior + M + F) with the table counts M and fractional parts F
-        of :meth:`table_parts`, accepted per concept with probability
-        min(1, exp(w(φ') − w(φ))), w = :meth:`fractional_log_weight`. For whole counts F = 0,
+        homes concerned: the table counts M and fractional parts F of :meth:`table_parts`, then
+        :meth:`accept_shared` (the blocked Metropolis–Hastings step for φ with target
+        ∝ Dir(φ | prior + M + F) exp(w(φ)), w = :meth:`fractional_log_weight`). For whole counts F = 0,
         w = 0 and this is the CRT step, drawing the same numbers. ``prior``: α, a number or (L, D)."""
         tables, frac, fractional = HierarchicalMultinomial.table_parts(n, log_phi, delta, rng)
         return HierarchicalMultinomial.accept_shared(
-            lambda old, new: HierarchicalMultinomial.fractional_log_ratio(n, old, new, delta),
-            log_phi, prior, tables, frac, rng, bool(fractional.any()))
+            lambda phi: HierarchicalMultinomial.fractional_log_weight_terms(n, phi, delta),
+            log_phi, prior, tables, frac, rng, fractional)
 
     @staticmethod
-    def accept_shared(log_ratio, log_phi: np.ndarray, prior, tables: np.ndarray, frac: np.ndarray,
-                      rng: np.random.Generator, fractional: bool = True) -> np.ndarray:
-        """The proposal φ' ~ Dir(prior + tables + frac) and its per-concept Metropolis–Hastings test
-        (``log_ratio(old, new)`` → (L,) w(φ') − w(φ), summed over every home concerned): the new
-        log φ (L, D). No fractional count: the proposal itself (the CRT step, no uniform drawn)."""
-        proposal = log_dirichlet(prior + tables + frac, rng)
-        if not fractional:
+    def accept_shared(log_weights, log_phi: np.ndarray, prior, tables: np.ndarray, frac: np.ndarray,
+                      rng: np.random.Generator, fractional=True, block_size: int | None = None,
+                      passes: int | None = None) -> np.ndarray:
+        """log φ (L, D) given the tables: a draw of Dir(c), c = prior + tables + frac, for every concept
+        without a fractional count (the CRT step: exact), and for the others the blocked
+        Metropolis–Hastings step below, which leaves their target
+        p(φ) ∝ Π_k φ_k^{c_k − 1} exp(w_k(φ_k)) on the simplex invariant. No fractional count at all:
+        the proposal itself (the CRT step, nothing else drawn).
+
+        ``log_weights(log φ)`` → (L, D): the weight's terms w_{l,k}(φ_{l,k}) per dimension, summed over
+        every home concerned (:meth:`fractional_log_weight_terms`): the target over the proposal's
+        density, which factors over dimensions. ``fractional``: which entries have a fractional part
+        (an array (L, D) or (L,), or a bool for every concept).
+
+        The step. One draw of the whole vector, accepted with exp(Σ_k w_k(φ'_k) − w_k(φ_k)), is never
+        accepted at D = 4,096 (the sum over dimensions spreads over thousands of nats). The density
+        factors over dimensions given the simplex, so φ moves in blocks: each of ``passes`` passes
+        splits the dimensions into blocks B of ``block_size`` (a fresh uniform random partition each
+        pass, drawn independently of φ), keeps each block's total S_B = Σ_{k∈B} φ_k and proposes its
+        proportions u'_B = φ'_B / S_B ~ Dir(c_B). Given the totals, φ_B = S_B u_B has density
+        ∝ Π_{k∈B} u_k^{c_k − 1} exp(w_k(S_B u_k)) (the Jacobian S_B^{|B|−1} and S_B^{c_k − 1} are
+        constants), the blocks are independent, and the proposal is the first factor, so the
+        independence-sampler ratio of block B is
+
+            r_B = exp(Σ_{k∈B} w_k(S_B u'_k) − w_k(S_B u_k)),
+
+        accepted with probability min(1, r_B), each block on its own uniform. Each pass is
+        Metropolis–Hastings for p(φ | the totals) and so leaves p(φ) invariant; the totals move
+        between passes because the partitions change (a mixture over partitions chosen independently
+        of φ is invariant too). The proportions of a block are drawn from one Dir(c) draw of the whole
+        vector renormalised within the block (the Dirichlet's aggregation property: the blocks'
+        proportions are independent Dir(c_B)). One block of every dimension is the independence
+        sampler of the whole vector."""
+        concentration = prior + tables + frac
+        proposal = log_dirichlet(concentration, rng)
+        n_concepts, n_dims = log_phi.shape
+        if isinstance(fractional, bool | np.bool_):
+            rows = np.full(n_concepts, bool(fractional))
+        else:
+            rows = np.asarray(fractional).reshape(n_concepts, -1).any(axis=1)
+        if not rows.any():
             return proposal
-        log_u = np.log(rng.random(log_phi.shape[0]))
-        with np.errstate(invalid="ignore"):
-            accept = log_u < log_ratio(log_phi, proposal)
-        return np.where(accept[:, None], proposal, log_phi)
+        size = PHI_BLOCK_SIZE if block_size is None else block_size
+        passes = PHI_PASSES if passes is None else passes
+        if size < 2 or passes < 1:
+            raise ValueError(f"accept_shared: block_size must be at least 2 and passes at least 1, "
+                             f"got block_size={size}, passes={passes}")
+        concentration = np.broadcast_to(concentration, log_phi.shape)
+        current = np.where(rows[:, None], log_phi, proposal)
+        weights = log_weights(current)
+        n_blocks = max(1, n_dims // size)
+        starts = np.linspace(0, n_dims, n_blocks + 1).astype(np.int64)[:-1]
+        sizes = np.diff(np.append(starts, n_dims))
+        chosen = np.flatnonzero(rows)
+        for step in range(passes):
+            draw = proposal if step == 0 else log_dirichlet(concentration[chosen], rng)
+            if step == 0:
+                draw = draw[chosen]
+            order = rng.permutation(n_dims)
+            old = current[np.ix_(chosen, order)]
+            moved = draw[:, order] + np.repeat(_block_logsumexp(old, starts)
+                                               - _block_logsumexp(draw[:, order], starts), sizes, axis=1)
+            candidate = current.copy()
+            candidate[np.ix_(chosen, order)] = moved
+            new_weights = log_weights(candidate)
+            delta_w = (new_weights - weights)[np.ix_(chosen, order)]
+            with np.errstate(invalid="ignore"):
+                ratio = np.add.reduceat(delta_w, starts, axis=1)
+                accept = np.log(rng.random(ratio.shape)) < ratio
+            take = np.zeros(log_phi.shape, dtype=bool)
+            take[np.ix_(chosen, order)] = np.repeat(accept, sizes, axis=1)
+            current = np.where(take, candidate, current)
+            weights = np.where(take, new_weights, weights)
+        current[chosen] -= _logsumexp_last(current[chosen])  # rounding of the blocks' totals
+        return current
 
     @staticmethod
     def sample_shared(pseudo_counts: np.ndarray, alpha: float, rng: np.random.Generator) -> np.ndarray:
@@ -304,6 +382,14 @@ class HierarchicalMultinomial:
         d = log_phi.shape[-1]
         return float(log_phi.shape[0] * (gammaln(alpha * d) - d * gammaln(alpha))
                      + (alpha - 1.0) * np.maximum(log_phi, LOG_FLOOR).sum())
+
+
+def _block_logsumexp(x: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """(L, J) ln Σ exp over the column blocks of x (L, D) that begin at ``starts`` (J,)."""
+    top = np.maximum.reduceat(x, starts, axis=1)
+    top = np.where(np.isfinite(top), top, 0.0)
+    sizes = np.diff(np.append(starts, x.shape[1]))
+    return top + np.log(np.add.reduceat(np.exp(x - np.repeat(top, sizes, axis=1)), starts, axis=1))
 
 
 def _logsumexp_last(x: np.ndarray) -> np.ndarray:

@@ -297,11 +297,12 @@ class HomeShard(ShardInitialisation):
             return sample_crt(stats.concepts, concentration, self.rng).sum(axis=0)
         raise ValueError(f"unknown table kind {kind!r}; choose one of {TABLE_KINDS}")
 
-    def visual_log_weight(self, log_phi_old: np.ndarray, log_phi_new: np.ndarray) -> np.ndarray:
-        """(L,) the shard's part of the log acceptance ratio of a proposed φ^v (the views' weighted
-        counts: :meth:`HierarchicalMultinomial.fractional_log_weight` at the new φ minus the old)."""
+    def visual_log_weight(self, log_phi: np.ndarray) -> np.ndarray:
+        """(L, D) the shard's part of φ^v's fractional weight per dimension (the views' weighted
+        counts: :meth:`HierarchicalMultinomial.fractional_log_weight_terms`), what the blocked φ^v
+        step's acceptance ratios are summed from."""
         n, delta = self._stats().visual, self.hyper.delta_visual
-        return HierarchicalMultinomial.fractional_log_ratio(n, log_phi_old, log_phi_new, delta)
+        return HierarchicalMultinomial.fractional_log_weight_terms(n, log_phi, delta)
 
     def channel_counts(self) -> ChannelCounts:
         """The switches' counts of the shard's homes (word channels; each token once)."""
@@ -412,13 +413,13 @@ class GlobalStep:
                                     log_dirichlet(hyper.alpha_word + counts.words, rng),
                                     log_dirichlet(hyper.gamma0 + counts.concepts, rng), shared.word_mask,
                                     shared.name_words, shared.channels)
-        # φ^v: CRT tables of the whole parts of the views' weighted counts, a Dirichlet proposal
-        # with the fractional parts, accepted with the exact remainder summed over the shards
+        # φ^v: CRT tables of the whole parts of the views' weighted counts, Dirichlet proposals
+        # with the fractional parts, blocks accepted with the exact remainder summed over the shards
         # (HierarchicalMultinomial.sample_shared_given_counts; whole counts: the CRT step itself)
         tables_v, frac_v, fractional = self.reduce(call("tables", "visual"))
         log_phi_v = HierarchicalMultinomial.accept_shared(
-            lambda old, new: self.reduce(call("visual_log_weight", old, new)), shared.log_phi_v,
-            hyper.alpha_visual, tables_v, frac_v, rng, bool(fractional.any()))
+            lambda phi: self.reduce(call("visual_log_weight", phi)), shared.log_phi_v,
+            hyper.alpha_visual, tables_v, frac_v, rng, fractional > 0)
         if hyper.target == "power":
             pseudo = hyper.alpha_visual + tables_v + frac_v
             self.visual_mean = np.log(pseudo) - np.log(pseudo.sum(axis=-1, keepdims=True))

@@ -156,9 +156,9 @@ class ShardGroup:
         tables = sample_crt_totals_each(whole, scaled_exp(log_phi, delta), seeds)
         return np.stack([tables.astype(np.float64), frac, fractional])
 
-    def visual_log_weight(self, log_phi_old: np.ndarray, log_phi_new: np.ndarray) -> np.ndarray:
-        """(L,) the homes' parts of a proposed φ^v's log acceptance ratio, summed."""
-        return _sum(self._each("visual_log_weight", log_phi_old, log_phi_new))
+    def visual_log_weight(self, log_phi: np.ndarray) -> np.ndarray:
+        """(L, D) the homes' parts of φ^v's fractional weight per dimension, summed."""
+        return _sum(self._each_lazily("visual_log_weight", log_phi))
 
     def pooled_counts(self) -> PooledCounts:
         """The homes' pooled counts, summed (integers)."""

@@ -46,3 +46,38 @@ def fractional_log_weights(n: np.ndarray, log_phis: tuple[np.ndarray, ...], delt
     out = np.empty(stacked.shape[:2])
     _fractional_log_weights(np.ascontiguousarray(n, dtype=np.float64), stacked, math.log(delta), out)
     return list(out)
+
+
+@njit(cache=True, error_model="numpy")
+def _fractional_log_weights_by_dimension(n: np.ndarray, log_phi: np.ndarray, log_delta: float,
+                                         out: np.ndarray) -> None:
+    """out[l, k] = Σ_e over the homes whose n[e, l, k] (E, L, D) has a fractional part of
+    ln Γ(a + n) − ln Γ(a + ⌊n⌋) − [⌊n⌋ = 0] n ln a, a = exp(log_delta + log_phi[l, k]); −inf where
+    such an entry's a underflows to 0. Each sum runs over the homes in order."""
+    n_homes, n_concepts, n_dims = n.shape
+    for c in range(n_concepts):
+        for k in range(n_dims):
+            out[c, k] = 0.0
+        for e in range(n_homes):
+            for k in range(n_dims):
+                x = n[e, c, k]
+                whole = math.floor(x)
+                if x == whole:
+                    continue
+                tilt = x if whole == 0.0 else 0.0
+                log_a = log_delta + log_phi[c, k]
+                a = math.exp(log_a)
+                if a > 0.0:
+                    out[c, k] += math.lgamma(a + x) - math.lgamma(a + whole) - tilt * log_a
+                else:
+                    out[c, k] = -math.inf
+
+
+def fractional_log_weights_by_dimension(n: np.ndarray, log_phi: np.ndarray, delta: float) -> np.ndarray:
+    """(L, D): the terms of :func:`fractional_log_weights` at one φ (L, D), summed over homes but kept
+    per dimension (what the blocked φ^v step needs: a block's weight is the sum over its dimensions)."""
+    out = np.empty(np.shape(log_phi))
+    _fractional_log_weights_by_dimension(np.ascontiguousarray(n, dtype=np.float64),
+                                         np.ascontiguousarray(log_phi, dtype=np.float64), math.log(delta),
+                                         out)
+    return out
