@@ -53,7 +53,7 @@ def _parser() -> argparse.ArgumentParser:
                         default=Path(__file__).resolve().parent / "development" / "accepted_names_dev.json")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--sweeps", type=int, default=60)
-    parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE")
+    parser.add_argument("--set", nargs="+", action="extend", default=[], metavar="NAME=VALUE")
     parser.add_argument("--leave-one-out", action="store_true", help=argparse.SUPPRESS)  # (configurations)
     return parser
 

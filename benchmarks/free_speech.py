@@ -152,7 +152,7 @@ def _arguments() -> tuple[argparse.Namespace, Any]:
                         help="a diagnostic: the exact model's view weight (TransferHyperparameters."
                              "view_counts) in the fit and in prediction, a number or 'none' (every count "
                              "a draw); default: the model's default")
-    parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE",
+    parser.add_argument("--set", nargs="+", action="extend", default=[], metavar="NAME=VALUE",
                         help="hyperparameters of the fit (as spco fit --set), e.g. word_counts=none")
     args = parser.parse_args()
     from spco.errors import ConfigurationError

@@ -110,7 +110,7 @@ def _parser() -> argparse.ArgumentParser:
                         help="development: also hold each development home out of the knowledge in turn")
     parser.add_argument("--i-know-the-method-is-frozen", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--json", type=Path, default=None)
-    parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE",
+    parser.add_argument("--set", nargs="+", action="extend", default=[], metavar="NAME=VALUE",
                         help="hyperparameter settings, as spco fit --set (development runs of the ablation)")
     return parser
 

@@ -258,7 +258,7 @@ def fit_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
                         default=Path(__file__).resolve().parent / "development" / "accepted_names_dev.json")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0])
     parser.add_argument("--sweeps", type=int, default=60)
-    parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE")
+    parser.add_argument("--set", nargs="+", action="extend", default=[], metavar="NAME=VALUE")
     parser.add_argument("--cache", type=Path, default=None,
                         help="keep each fitted model here (pickled, keyed by the seed, the configuration, "
                         "the sweeps and --set) and read it back instead of fitting: the answers (what is "

@@ -52,7 +52,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--cache", type=Path, required=True, help="speech_errors.py's --cache")
     p.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4])
     p.add_argument("--sweeps", type=int, default=60, help="the fits' --sweeps (part of the cache key)")
-    p.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE",
+    p.add_argument("--set", nargs="+", action="extend", default=[], metavar="NAME=VALUE",
                    help="the fits' --set, all after one --set (the cache key)")
     p.add_argument("--json", type=Path, default=None)
     a = p.parse_args(argv)

@@ -84,7 +84,7 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, nargs="+", default=[0])
     parser.add_argument("--sweeps", type=int, default=60)
     parser.add_argument("--home", default="3LDK_9")
-    parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE")
+    parser.add_argument("--set", nargs="+", action="extend", default=[], metavar="NAME=VALUE")
     parser.add_argument("--json", type=Path, default=None)
     args = parser.parse_args()
     if any(not 0 <= s <= 99 for s in args.seeds):

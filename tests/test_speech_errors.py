@@ -37,3 +37,16 @@ def test_a_missed_where_is_put_in_one_class() -> None:
     assert classify_miss("dining", "dining", 1, names, SAID) == "d"  # said, but no name of the home
     assert classify_miss("dining", "dining room", 2, names, SAID) == "b"  # said most at the kitchen
     assert classify_miss("kitchen", "kitchen", 0, names, SAID) == "c"  # said most here, found elsewhere
+
+
+def test_repeated_set_options_are_all_kept() -> None:
+    """``--set a --set b`` keeps both settings (with ``nargs="*"`` argparse kept only the last one, so
+    ``--set target=power --set visual_prior=estimate`` silently fitted the cut sampler), and
+    ``--set a b`` still works."""
+    from speech_errors import _parser
+
+    repeated = _parser().parse_args(["--set", "target=power", "--set", "visual_prior=estimate"])
+    assert repeated.set == ["target=power", "visual_prior=estimate"]
+    together = _parser().parse_args(["--set", "target=power", "visual_prior=estimate"])
+    assert together.set == ["target=power", "visual_prior=estimate"]
+    assert _parser().parse_args([]).set == []
