@@ -26,7 +26,7 @@ from spco.model.kernels.counts import (
 )
 from spco.model.kernels.crt import sample_crt_totals
 from spco.model.kernels.dirichlet import log_dirichlet, log_dirichlet_hierarchical
-from spco.model.kernels.fractional import fractional_log_weights, fractional_log_weights_by_dimension
+from spco.model.kernels.fractional import fractional_log_weights_by_dimension
 from spco.model.kernels.gaussian import grouped_gaussian_log_density
 from spco.model.kernels.likelihood import (
     DimensionMajorCounts,
@@ -228,25 +228,15 @@ class HierarchicalMultinomial:
         Dirichlet–multinomial weight of φ to what the proposal of
         :meth:`sample_shared_given_counts` counts (0 for whole counts). An a that underflows to 0
         where a count is fractional gives −inf (a proposal there is refused)."""
-        return HierarchicalMultinomial.fractional_log_weights(n, (log_phi,), delta)[0]
-
-    @staticmethod
-    def fractional_log_weights(n: np.ndarray, log_phis: tuple[np.ndarray, ...],
-                               delta: float) -> list[np.ndarray]:
-        """:meth:`fractional_log_weight` of the counts ``n`` at each φ of ``log_phis`` (a proposal's
-        old and new φ), in one compiled pass over the counts
-        (:func:`spco.model.kernels.fractional.fractional_log_weights`)."""
-        if n.dtype.kind in "iu":
-            return [np.zeros(log_phi.shape[0]) for log_phi in log_phis]
-        return fractional_log_weights(n, log_phis, delta)
+        return HierarchicalMultinomial.fractional_log_weight_terms(n, log_phi, delta).sum(axis=1)
 
     @staticmethod
     def fractional_log_ratio(n: np.ndarray, log_phi_old: np.ndarray, log_phi_new: np.ndarray,
                              delta: float) -> np.ndarray:
         """(L,) w(φ_new) − w(φ_old), w = :meth:`fractional_log_weight`: a proposal's log acceptance
         ratio from the counts ``n``."""
-        old, new = HierarchicalMultinomial.fractional_log_weights(n, (log_phi_old, log_phi_new), delta)
-        return new - old
+        return (HierarchicalMultinomial.fractional_log_weight(n, log_phi_new, delta)
+                - HierarchicalMultinomial.fractional_log_weight(n, log_phi_old, delta))
 
     @staticmethod
     def fractional_log_weight_terms(n: np.ndarray, log_phi: np.ndarray, delta: float) -> np.ndarray:

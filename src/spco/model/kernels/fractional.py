@@ -1,7 +1,8 @@
 """The exact remainder of the power target's φ^v proposal: Σ over fractional counts of
 ln Γ(a + n) − ln Γ(a + ⌊n⌋) − [⌊n⌋ = 0] n ln a, a = δ φ (see
-:meth:`spco.model.observations.HierarchicalMultinomial.fractional_log_weight`), for a proposal's
-old and new φ in one pass over the counts, without temporaries.
+:meth:`spco.model.observations.HierarchicalMultinomial.fractional_log_weight`), per concept and
+dimension, in one pass over the counts without temporaries (the blocked φ^v step weighs a block by
+the sum over its dimensions, the whole weight is the sum over all of them).
 """
 
 from __future__ import annotations
@@ -10,42 +11,6 @@ import math
 
 import numpy as np
 from numba import njit
-
-
-@njit(cache=True, error_model="numpy")
-def _fractional_log_weights(n: np.ndarray, log_phis: np.ndarray, log_delta: float, out: np.ndarray) -> None:
-    """out[p, l] = Σ_e Σ_k over the entries n[e, l, k] (E, L, D) with a fractional part of
-    ln Γ(a + n) − ln Γ(a + ⌊n⌋) − [⌊n⌋ = 0] n ln a, a = exp(log_delta + log_phis[p, l, k]); −inf
-    where such an entry's a underflows to 0. Each sum runs over the entries in (e, k) order."""
-    n_homes, n_concepts, n_dims = n.shape
-    n_phis = log_phis.shape[0]
-    for c in range(n_concepts):
-        for p in range(n_phis):
-            out[p, c] = 0.0
-        for e in range(n_homes):
-            for k in range(n_dims):
-                x = n[e, c, k]
-                whole = math.floor(x)
-                frac = x - whole
-                if frac == 0.0:
-                    continue
-                tilt = frac if whole == 0.0 else 0.0  # what the proposal counts
-                for p in range(n_phis):
-                    log_a = log_delta + log_phis[p, c, k]
-                    a = math.exp(log_a)
-                    if a > 0.0:
-                        out[p, c] += math.lgamma(a + x) - math.lgamma(a + whole) - tilt * log_a
-                    else:
-                        out[p, c] = -math.inf
-
-
-def fractional_log_weights(n: np.ndarray, log_phis: tuple[np.ndarray, ...], delta: float) -> list[np.ndarray]:
-    """(L,) per φ of ``log_phis`` (each (L, D)): the compiled sums of :func:`_fractional_log_weights`
-    for the real counts ``n`` (E, L, D) and concentration ``delta`` > 0."""
-    stacked = np.ascontiguousarray(np.stack(log_phis), dtype=np.float64)
-    out = np.empty(stacked.shape[:2])
-    _fractional_log_weights(np.ascontiguousarray(n, dtype=np.float64), stacked, math.log(delta), out)
-    return list(out)
 
 
 @njit(cache=True, error_model="numpy")
@@ -74,8 +39,9 @@ def _fractional_log_weights_by_dimension(n: np.ndarray, log_phi: np.ndarray, log
 
 
 def fractional_log_weights_by_dimension(n: np.ndarray, log_phi: np.ndarray, delta: float) -> np.ndarray:
-    """(L, D): the terms of :func:`fractional_log_weights` at one φ (L, D), summed over homes but kept
-    per dimension (what the blocked φ^v step needs: a block's weight is the sum over its dimensions)."""
+    """(L, D): the terms of the weight at one φ (L, D) for the real counts ``n`` (E, L, D) and
+    concentration ``delta`` > 0, summed over homes but kept per dimension (what the blocked φ^v step
+    needs: a block's weight is the sum over its dimensions; the whole weight, the sum over all)."""
     out = np.empty(np.shape(log_phi))
     _fractional_log_weights_by_dimension(np.ascontiguousarray(n, dtype=np.float64),
                                          np.ascontiguousarray(log_phi, dtype=np.float64), math.log(delta),
