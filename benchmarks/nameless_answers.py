@@ -39,13 +39,13 @@ import scipy.sparse as sp
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from free_speech import read_names
-from natural_speech import SIDES, scored_as_test
+from natural_speech import SIDES
 from speech_errors import (
     NAMED,
     _configurations,
-    _fitted,
     classify_answer,
     fit_arguments,
+    fitted_runs,
     named_share,
     names_of,
     place_speech,
@@ -55,7 +55,6 @@ from spco.data import Corpus
 from spco.data.language import normalize_name
 from spco.evaluation import evaluate_answers
 from spco.model.confidence import answer_concepts
-from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.unheard import stand_in_columns
 from spco.model.word_channels import concept_name_tokens, place_names
 
@@ -205,17 +204,11 @@ def main() -> None:
     accepted = read_names(args.accepted)
     knowledge, configs = _configurations(args, accepted)
     labels = [c[0] for c in configs]
-    hyper = TransferHyperparameters().with_settings(args.set) if args.set else None
     rows: list[dict] = []
-    for seed in args.seeds:
-        for label, homes, env in configs:
-            corpus = Corpus([*homes, env])
-            model = _fitted(args, corpus, hyper, seed, label, labels)
-            e = len(corpus) - 1
-            scored = scored_as_test(env) if label.endswith("(out)") else env
-            rows += diagnose(model, corpus, e, env, scored, seed, accepted, place_speech(knowledge, corpus),
-                             label.split()[0])
-            print(f"seed {seed} {label}: {len(rows)} class-a views so far", flush=True)
+    for seed, label, env, corpus, model, e, scored in fitted_runs(args, configs, labels):
+        rows += diagnose(model, corpus, e, env, scored, seed, accepted, place_speech(knowledge, corpus),
+                         label.split()[0])
+        print(f"seed {seed} {label}: {len(rows)} class-a views so far", flush=True)
     _print(rows)
     if args.json:
         args.json.write_text(json.dumps(rows, indent=0), encoding="utf-8")

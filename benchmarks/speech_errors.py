@@ -46,6 +46,7 @@ import pickle
 import sys
 import time
 from collections import Counter, defaultdict
+from collections.abc import Iterator
 from dataclasses import replace
 from pathlib import Path
 
@@ -285,9 +286,10 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _fitted(args: argparse.Namespace, corpus: Corpus, hyper, seed: int, label: str,
+def _fitted(args: argparse.Namespace, corpus: Corpus, seed: int, label: str,
             labels: list[str]) -> SpCoTransfer:
-    """The fit of one configuration, from ``--cache`` when it holds it."""
+    """The fit of one configuration with the hyperparameters of ``--set`` (the model's own without it),
+    from ``--cache`` when it holds it (keyed by the same settings)."""
     path = None
     if args.cache is not None:
         key = hashlib.sha256(repr((sorted(args.set), args.sweeps)).encode()).hexdigest()[:12]
@@ -295,6 +297,7 @@ def _fitted(args: argparse.Namespace, corpus: Corpus, hyper, seed: int, label: s
         if path.exists():
             with open(path, "rb") as fh:
                 return pickle.load(fh)
+    hyper = TransferHyperparameters().with_settings(args.set) if args.set else None
     model = SpCoTransfer(hyper, variant="exact", prune_words=True, n_iterations=args.sweeps,
                          random_state=trial_seed(seed, labels.index(label))).fit(corpus)
     if path is not None:
@@ -319,6 +322,18 @@ def _configurations(args: argparse.Namespace, accepted: dict) -> tuple[list[Envi
             env = replace(env, ground_truth=replace(env.ground_truth, accepted_names=accepted))
             configs.append((f"{h} (out)", knowledge[:i] + knowledge[i + 1:], env))
     return knowledge, configs
+
+
+def fitted_runs(args: argparse.Namespace, configs: list[tuple], labels: list[str]) -> Iterator[tuple]:
+    """Each seed's fit of each configuration (:func:`_fitted`), in the seeds' and then the
+    configurations' order: (seed, label, new home, corpus, model, the new home's index, what is scored —
+    a knowledge home held out is scored on its training samples, :func:`natural_speech.scored_as_test`)."""
+    for seed in args.seeds:
+        for label, homes, env in configs:
+            corpus = Corpus([*homes, env])
+            model = _fitted(args, corpus, seed, label, labels)
+            scored = scored_as_test(env) if label.endswith("(out)") else env
+            yield seed, label, env, corpus, model, len(corpus) - 1, scored
 
 
 def _answers(model, corpus: Corpus, e: int, env: Environment, scored: Environment, scores,
@@ -443,35 +458,29 @@ def main() -> None:
     labels = [c[0] for c in configs]  # natural_speech.py's order: the trial seed's index
     if args.homes:
         configs = [c for c in configs if c[0].split()[0] in args.homes]
-    hyper = TransferHyperparameters().with_settings(args.set) if args.set else None
     table: dict[str, Counter] = defaultdict(Counter)
     words: dict[str, Counter] = defaultdict(Counter)
     runs = []
     started = time.perf_counter()
-    for seed in args.seeds:
-        for label, homes, env in configs:
-            corpus = Corpus([*homes, env])
-            model = _fitted(args, corpus, hyper, seed, label, labels)
-            e = len(corpus) - 1
-            scored = scored_as_test(env) if label.endswith("(out)") else env
-            if args.fit_parameters:  # the fit's own parameters, MI weighting (a diagnosis, not an answer)
-                view_counts = model.settings_.view_counts
-                scores = evaluate_home(model.parameters_, e, scored, corpus.vocabulary, rng=seed,
-                                       **({} if view_counts is None else {"view_counts": view_counts}))
-            else:  # as the robot answers
-                scores = evaluate_answers(model, e, scored, rng=seed)
-            said = place_speech(knowledge, corpus)  # every development home's people
-            home = label.split()[0]
-            hits, asked = table[home]["A_p hits"], table[home]["A_p names"]
-            _answers(model, corpus, e, env, scored, scores, accepted, said, table[home], words, home)
-            _misses(model, corpus, e, env, scores, said, seed, table[home], words, home, accepted,
-                    args.where_out)
-            runs.append({"seed": seed, "home": label, "A_n": scores.mean_name_accuracy,
-                         "A_p": scores.mean_position_accuracy,
-                         "where": [table[home]["A_p hits"] - hits, table[home]["A_p names"] - asked]})
-            print(f"seed {seed} {label}: A_n {scores.mean_name_accuracy:.3f} "
-                  f"A_p {scores.mean_position_accuracy:.3f} ({time.perf_counter() - started:.0f} s)",
-                  flush=True)
+    for seed, label, env, corpus, model, e, scored in fitted_runs(args, configs, labels):
+        if args.fit_parameters:  # the fit's own parameters, MI weighting (a diagnosis, not an answer)
+            view_counts = model.settings_.view_counts
+            scores = evaluate_home(model.parameters_, e, scored, corpus.vocabulary, rng=seed,
+                                   **({} if view_counts is None else {"view_counts": view_counts}))
+        else:  # as the robot answers
+            scores = evaluate_answers(model, e, scored, rng=seed)
+        said = place_speech(knowledge, corpus)  # every development home's people
+        home = label.split()[0]
+        hits, asked = table[home]["A_p hits"], table[home]["A_p names"]
+        _answers(model, corpus, e, env, scored, scores, accepted, said, table[home], words, home)
+        _misses(model, corpus, e, env, scores, said, seed, table[home], words, home, accepted,
+                args.where_out)
+        runs.append({"seed": seed, "home": label, "A_n": scores.mean_name_accuracy,
+                     "A_p": scores.mean_position_accuracy,
+                     "where": [table[home]["A_p hits"] - hits, table[home]["A_p names"] - asked]})
+        print(f"seed {seed} {label}: A_n {scores.mean_name_accuracy:.3f} "
+              f"A_p {scores.mean_position_accuracy:.3f} ({time.perf_counter() - started:.0f} s)",
+              flush=True)
     _print_table(table, words, runs, args.seeds)
     if args.json:
         args.json.write_text(json.dumps({"seeds": args.seeds, "sweeps": args.sweeps, "runs": runs,

@@ -330,7 +330,7 @@ def main() -> None:
     for seed, home, place, nameless in cases:
         label, homes, env = next(c for c in configs if c[0].split()[0] == home)
         corpus = Corpus([*homes, env])
-        model = _fitted(args, corpus, None, seed, label, labels)
+        model = _fitted(args, corpus, seed, label, labels)
         e = len(corpus) - 1
         named, votes = named_concept(model, corpus, e, place, nameless, accepted)
         row = {"seed": seed, "home": home, "place": place, "nameless": nameless, "named": named,

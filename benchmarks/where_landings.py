@@ -38,7 +38,6 @@ from spco.data import Corpus
 from spco.data.language import normalize_name
 from spco.evaluation import evaluate_answers
 from spco.evaluation.metrics import position_accuracy
-from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.position_prediction import predict_positions
 from spco.model.prediction import UnknownNameError
 
@@ -170,11 +169,10 @@ def main() -> None:
     if args.start_part != "both":
         transfer.warm_start_settings = only_part(args.start_part)
     home = Home(args, read_names(args.accepted))
-    hyper = TransferHyperparameters().with_settings(args.set) if args.set else None
     outside = hazard = 0
     weights: list[float] = []
     for seed in args.seeds:
-        model = _fitted(args, home.corpus, hyper, seed, home.label, home.labels)
+        model = _fitted(args, home.corpus, seed, home.label, home.labels)
         scores = evaluate_answers(model, home.e, home.env, rng=seed)  # as speech_errors.py scores 3LDK_9
         print(f"seed {seed}: A_n {scores.mean_name_accuracy:.3f} A_p {scores.mean_position_accuracy:.3f}")
         home.landings(model, seed)
