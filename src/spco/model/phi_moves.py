@@ -52,7 +52,7 @@ import math
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.special import gammaln
+from scipy.special import gammaln, logsumexp
 
 from spco.errors import ConfigurationError
 from spco.model.blocks import region_blocks
@@ -175,8 +175,8 @@ def home_pass(move: HomeMove, visual: sp.csr_array, weights: np.ndarray, concept
         target = int(free[min(int(np.searchsorted(np.cumsum(p), rng.random() * p.sum(), side="right")),
                               free.size - 1)])
         back = np.append(free[free != target], source)  # the free concepts seen from the target
-        log_q = ((score[b, source] - _logsumexp(score[b, back]))
-                 - (score[b, target] - _logsumexp(score[b, free])))
+        log_q = ((score[b, source] - logsumexp(score[b, back]))
+                 - (score[b, target] - logsumexp(score[b, free])))
         log_u = math.log(rng.random())
         delta, moved_to, left = move.log_ratio(block_counts[b], int(size[b]), int(source), target,
                                                float(block_words[b, target] - block_words[b, source]))
@@ -187,11 +187,6 @@ def home_pass(move: HomeMove, visual: sp.csr_array, weights: np.ndarray, concept
             block_concept[b] = target
             accepted += 1
     return block_concept[block], accepted
-
-
-def _logsumexp(x: np.ndarray) -> float:
-    top = float(x.max())
-    return top + math.log(float(np.exp(x - top).sum()))
 
 
 def moved_homes(data) -> np.ndarray:
