@@ -552,6 +552,9 @@ def state_of_homes(data: PreparedData, state: GibbsState, first: int, last: int)
     fields.update({name: getattr(state, name)[rows].copy() for name in SAMPLE_FIELDS})
     fields.update({name: None if getattr(state, name) is None else getattr(state, name).copy()
                    for name in SHARED_FIELDS})
+    channels = fields["channels"]
+    if channels is not None and channels.log_place_home is not None and channels.log_place_home.shape[0] > 1:
+        fields["channels"] = replace(channels, log_place_home=channels.log_place_home[first:last].copy())
     return GibbsState(**fields)
 
 
@@ -564,6 +567,9 @@ def join_states(states: list[GibbsState], without: tuple[str, ...] = ()) -> Gibb
     fields = {name: None if name in without else np.concatenate([getattr(s, name) for s in states])
               for name in HOME_FIELDS + SAMPLE_FIELDS}
     fields.update({name: getattr(states[0], name) for name in SHARED_FIELDS})
+    homes_place = [None if s.channels is None else s.channels.log_place_home for s in states]
+    if all(h is not None for h in homes_place):  # the place channel's home level: every home's own
+        fields["channels"] = replace(states[0].channels, log_place_home=np.concatenate(homes_place))
     return GibbsState(**fields)
 
 
