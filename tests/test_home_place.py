@@ -300,3 +300,24 @@ def test_the_single_process_sampler_holds_each_homes_place_words() -> None:
                                home_psi.shape[1])
     tables = place_tables(counts, state.channels.log_place, 10.0, np.random.default_rng(1))
     assert (tables <= counts.sum(axis=0)).all() and (tables >= (counts > 0).sum(axis=0)).all()
+
+
+def test_a_new_home_draws_its_own_place_words_around_the_knowledge() -> None:
+    """``adapt`` (one home's shard, the shared part fixed): the new home's state holds its own ψ_{e,l}
+    (one row), drawn around the knowledge's ψ_l; both adapt modes run with the setting."""
+    from spco.data.synthetic import SyntheticConfig, generate_homes
+    from spco.knowledge.adapting import adapt
+    from spco.knowledge.fit import fit_knowledge
+
+    corpus = generate_homes(4, seed=1, new_homes=1, specific_rooms=False,
+                            config=SyntheticConfig(n_features=32, language="free"))
+    hyper = TransferHyperparameters().with_settings(["place_channel=home"])
+    knowledge = fit_knowledge(corpus, n_iterations=6, random_state=2, hyperparameters=hyper)
+    env = list(corpus)[-1]
+    for joint in (False, True):
+        home = adapt(knowledge, env, n_iterations=3, random_state=0, joint=joint)
+        channels = home.state.channels
+        assert channels is not None and channels.log_place_home is not None
+        assert channels.log_place_home.shape == (1, *channels.log_place.shape)
+        assert_allclose(np.exp(channels.log_place_home).sum(axis=-1), 1.0, atol=1e-9)
+        assert not np.allclose(channels.log_place_home[0], channels.log_place)
