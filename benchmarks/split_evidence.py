@@ -85,7 +85,7 @@ def word_terms(words: sp.csr_array, homes: np.ndarray, concepts: np.ndarray, log
     cols = words.indices[first:last]
     scale = words.data[first:last].astype(np.float64) * float(token_weight)
     e, c = homes[rows], concepts[rows]
-    f = np.column_stack([log_theta_w[e, c, cols], log_place[c, cols], log_background[cols]])
+    f = np.column_stack([log_theta_w[e, c, cols], _place_at(log_place, e, c, cols), log_background[cols]])
     prior = log_prior[cols]
     logits = prior + f
     log_r = logits - logsumexp(logits, axis=1, keepdims=True)
@@ -95,6 +95,13 @@ def word_terms(words: sp.csr_array, homes: np.ndarray, concepts: np.ndarray, log
                  "switches": np.where(r > 0, r * (prior - log_r), 0.0).sum(axis=1)}
     n = words.shape[0]
     return {k: np.bincount(rows, weights=scale * np.nan_to_num(v), minlength=n) for k, v in parts.items()}
+
+
+def _place_at(log_place: np.ndarray, homes: np.ndarray, concepts: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """log ψ of each token: ψ_l (L, V), or with the place channel's home level ψ_{e,l} (E, L, V)."""
+    if log_place.ndim == 3:
+        return log_place[homes, concepts, cols]
+    return log_place[concepts, cols]
 
 
 def view_term(visual: sp.csr_array, homes: np.ndarray, concepts: np.ndarray, log_theta_v: np.ndarray,
@@ -149,7 +156,7 @@ def chain_parameters(model) -> dict:
     """The end-of-chain state's concept parameters."""
     state = model.state_
     return {"log_theta_v": state.log_theta_v, "log_theta_w": state.log_theta_w,
-            "log_place": state.channels.log_place, "log_g": state.log_g, "log_pi": state.log_pi}
+            "log_place": state.channels.token_place(), "log_g": state.log_g, "log_pi": state.log_pi}
 
 
 def refit_parameters(model, concepts: np.ndarray, rounds: int = REFIT_ROUNDS) -> dict:
@@ -158,7 +165,9 @@ def refit_parameters(model, concepts: np.ndarray, rounds: int = REFIT_ROUNDS) ->
     with δ^w, φ^w and S^w per expected name token; ψ_l with α^p and each expected place token once. The
     kept fit holds no switches, so the tokens' channels are their switch posteriors (Rao-Blackwellised):
     first at the chain's θ^w and ψ, then ``rounds`` − 1 times at the parameters they gave (the cut's
-    alternation of learning and switching, to its mean)."""
+    alternation of learning and switching, to its mean). With the place channel's home level
+    (``place_channel="home"``) ψ_{e,l} = (δ^p ψ_l + its home's expected place tokens, once) / Σ around the
+    chain's ψ_l (ψ_l itself not re-learnt), and the chain's account reads the chain's ψ_{e,l}."""
     from spco.model.observations import HierarchicalMultinomial
     from spco.model.word_channels import ALPHA_PLACE
 
@@ -178,10 +187,11 @@ def refit_parameters(model, concepts: np.ndarray, rounds: int = REFIT_ROUNDS) ->
 
     n_v = HierarchicalMultinomial.statistics(data.visual, data.homes, concepts, E, L).astype(np.float64)
     params = {"log_theta_v": mean(n_v, state.log_phi_v, hyper.delta_visual),
-              "log_theta_w": state.log_theta_w, "log_place": channels.log_place}
+              "log_theta_w": state.log_theta_w, "log_place": channels.token_place()}
+    home_level = getattr(hyper, "place_channel", "shared") == "home"
     e, c = data.homes[rows], concepts[rows]
     for _ in range(rounds):
-        f = np.column_stack([params["log_theta_w"][e, c, cols], params["log_place"][c, cols],
+        f = np.column_stack([params["log_theta_w"][e, c, cols], _place_at(params["log_place"], e, c, cols),
                              channels.log_background[cols]])
         logits = channels.log_prior()[cols] + f
         r = np.exp(logits - logsumexp(logits, axis=1, keepdims=True))
@@ -191,6 +201,10 @@ def refit_parameters(model, concepts: np.ndarray, rounds: int = REFIT_ROUNDS) ->
         np.add.at(place, (c, cols), occurrences * r[:, 1])
         params["log_theta_w"] = mean(u, state.log_phi_w, hyper.delta_word)
         params["log_place"] = np.log(place) - np.log(place.sum(axis=1, keepdims=True))
+        if home_level:  # ψ_{e,l}'s conditional mean around the chain's ψ_l (δ^p, each token once)
+            own = np.zeros((E, L, words.shape[1]))
+            np.add.at(own, (e, c, cols), occurrences * r[:, 1])
+            params["log_place"] = mean(own, channels.log_place, hyper.delta_place)
     params["place_counts"] = place - ALPHA_PLACE
     by_home = np.zeros((E, L, words.shape[1]))
     np.add.at(by_home, (e, c, cols), occurrences * r[:, 1])

@@ -171,8 +171,10 @@ def _on_the_prior(training: Any, prior: str, settings: tuple[str, ...], checked:
                    "beta, mi_threshold, view_counts (a view's weight w, default 16; none: every count a "
                    "draw; estimate: learnt from the homes), warm_start (things, the "
                    "default; names or words: the start of a fit that learns its words with the word "
-                   "channels). E.g. a large floor: "
-                   "--set n_concepts=30 --set n_regions=30 --set kappa0=0.001. Kept in the knowledge file.")
+                   "channels), place_channel (shared or home: the place words one vocabulary per "
+                   "concept, or each home's own around it; delta_place its concentration). "
+                   "E.g. a large floor: --set n_concepts=30 --set n_regions=30 --set kappa0=0.001. "
+                   "Kept in the knowledge file.")
 @click.option("--prior", default="places", show_default=True,
               type=click.Choice(["scaled", "places", "paper"]),
               help="places: the position prior's κ0 and the numbers of concepts and regions follow the "

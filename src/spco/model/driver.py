@@ -167,7 +167,10 @@ class ShardedRun(ABC):
             state = shards_api.join_states(self.home_states(), without=("log_theta_v",))
         state.word_mask = self.shared.word_mask
         state.name_words = self.shared.name_words
-        state.channels = self.shared.channels
+        joined, state.channels = state.channels, self.shared.channels
+        if joined is not None and joined.log_place_home is not None and state.channels is not None:
+            # the place channel's home level: the shared part with every home's own ψ_{e,l}
+            state.channels = dataclasses.replace(state.channels, log_place_home=joined.log_place_home)
         return state
 
     def use_word_channels(self, channels) -> None:

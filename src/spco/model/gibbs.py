@@ -34,6 +34,7 @@ from scipy.cluster.vq import kmeans2
 from spco.model import allocation
 from spco.model.alignment import HomeCounts, align_in_order
 from spco.model.blocks import region_block_step
+from spco.model.home_place import draw_home_place, home_place_statistics, shared_place_counts
 from spco.model.hyperparameters import TransferHyperparameters, view_powers
 from spco.model.kernels.dirichlet import dirichlet_log_density, log_dirichlet
 from spco.model.moves import concept_swap_step
@@ -303,6 +304,8 @@ class Statistics:
     #: concept with their counts (E, L, V), for the label swaps
     channel: ChannelCounts | None = None
     place_tokens: np.ndarray | None = None
+    #: the place channel's home level: place tokens per home, concept and word in ψ's units (E, L, V)
+    home_place: np.ndarray | None = None
 
 
 def uses_channels(data: PreparedData, state: GibbsState) -> bool:
@@ -350,7 +353,7 @@ def _statistics(data: PreparedData, state: GibbsState, hyper: TransferHyperparam
     assignments were drawn with weighs them."""
     E, L, K = data.n_homes, hyper.n_concepts, hyper.n_regions
     count, total, scatter = GaussianRegions.statistics(data.positions, data.homes, state.regions, E, K)
-    channel = place_tokens = None
+    channel = place_tokens = home_place = None
     if uses_channels(data, state):  # θ^w counts the name tokens only
         channels = state.channels
         power = channels.power  # the power likelihood: θ^w, ψ and β count a token W^w n times
@@ -359,6 +362,7 @@ def _statistics(data: PreparedData, state: GibbsState, hyper: TransferHyperparam
                                  token_scales(data.words, channels) if power else None)
         place_tokens = place_token_counts(data.words, data.homes, state.concepts, state.switches, E, L,
                                           state.channels.token_weight)
+        home_place = home_place_statistics(data, state, hyper, E, L)
     else:
         words = sentence_words(data, state)
     return Statistics(
@@ -367,7 +371,7 @@ def _statistics(data: PreparedData, state: GibbsState, hyper: TransferHyperparam
         region_count=count, region_total=total, region_scatter=scatter,
         visual=_visual_counts(data, state, E, L, view_counts),
         words=HierarchicalMultinomial.statistics(words, data.homes, state.concepts, E, L),
-        channel=channel, place_tokens=place_tokens,
+        channel=channel, place_tokens=place_tokens, home_place=home_place,
     )
 
 
@@ -525,7 +529,8 @@ def _global_step(stats: Statistics, state: GibbsState, hyper: TransferHyperparam
     state.log_g0 = allocation.sample_global_concept_weights(stats.concepts, state.log_g0, hyper.gamma,
                                                             hyper.gamma0, rng)
     if stats.channel is not None and state.channels is not None:
-        state.channels = sample_channels(stats.channel, state.channels, rng)
+        counts = shared_place_counts(stats, state.channels, hyper, rng)  # (the home level: ψ_l's tables)
+        state.channels = sample_channels(counts, state.channels, rng)
 
 
 def _home_step(data: PreparedData, state: GibbsState, stats: Statistics, hyper: TransferHyperparameters,
@@ -546,6 +551,8 @@ def _home_step(data: PreparedData, state: GibbsState, stats: Statistics, hyper: 
         state.log_phi_v = _log_mean(state.log_theta_v)  # exported as the shared part
         state.log_phi_w = _log_mean(state.log_theta_w)
         state.log_g0 = _log_mean(state.log_g)
+    if stats.home_place is not None and state.channels is not None:  # ψ_{e,l} | ψ_l, tokens
+        state.channels = draw_home_place(state.channels, stats.home_place, hyper.delta_place, rng)
     state.log_pi = allocation.sample_region_weights(stats.regions_by_concept, hyper.beta / K, rng)
     state.means, state.covariances = GaussianRegions.sample_posterior(
         stats.region_count, stats.region_total, stats.region_scatter, niw_prior(data, hyper, settings), rng)
@@ -556,12 +563,14 @@ def _swap_labels(data: PreparedData, state: GibbsState, stats: Statistics, hyper
                  settings: SamplerSettings, rng: np.random.Generator) -> None:
     """Metropolis–Hastings label swaps within each home, θ marginalised (see
     :mod:`spco.model.moves`), then θ of the homes that changed redrawn from its conditional."""
-    place = None
-    if stats.place_tokens is not None and state.channels is not None:
+    place = place_home = None
+    if stats.home_place is not None and state.channels is not None:  # ψ_{e,l} integrated out
+        place_home = (stats.home_place, state.channels.log_place, hyper.delta_place)
+    elif stats.place_tokens is not None and state.channels is not None:
         place = (stats.place_tokens, state.channels.log_place)
     perms = concept_swap_step(stats.visual, state.log_phi_v, hyper.delta_visual, stats.words,
                               state.log_phi_w, hyper.delta_word, state.log_g, state.log_g0, hyper.gamma,
-                              state.word_mask, rng, place=place)
+                              state.word_mask, rng, place=place, place_home=place_home)
     changed = np.flatnonzero((perms != np.arange(perms.shape[1])).any(axis=1))
     if changed.size == 0:
         return
@@ -574,6 +583,9 @@ def _swap_labels(data: PreparedData, state: GibbsState, stats: Statistics, hyper
                                                                          hyper.delta_visual, rng)
     state.log_theta_w[changed] = HierarchicalMultinomial.sample_specific(words, state.log_phi_w,
                                                                          hyper.delta_word, rng)
+    if place_home is not None:  # the changed homes' ψ_{e,l} redrawn, as θ^w (their tokens relabelled)
+        relabelled = stats.home_place[np.arange(perms.shape[0])[:, None], perms]
+        state.channels = draw_home_place(state.channels, relabelled, hyper.delta_place, rng, changed)
 
 
 def _relabel_visual_cache(data: PreparedData, state: GibbsState, perms: np.ndarray, changed: np.ndarray,

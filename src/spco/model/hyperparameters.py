@@ -52,6 +52,14 @@ OLD_WARM_STARTS = {"objects": "things"}
 TARGETS = ("cut", "power")
 Target = Literal["cut", "power"]
 
+#: The place channel of the word channels (``TransferHyperparameters.place_channel``): ``"shared"`` —
+#: one ψ_l ~ Dir(α^p) per concept for every home; ``"home"`` — a home level, ψ_{e,l} ~ Dir(δ^p ψ_l)
+#: around it, as θ^w around φ^w (:mod:`spco.model.home_place`; opt-in, issue 28 class a).
+PLACE_CHANNELS = ("shared", "home")
+PlaceChannel = Literal["shared", "home"]
+#: δ^p, the concentration of a home's place words ψ_{e,l} around ψ_l (in place tokens, each once).
+DELTA_PLACE = 10.0
+
 #: Where the exact sampler's δ^v and α^v come from (``TransferHyperparameters.visual_prior``): as given,
 #: or estimated from the homes' views after the start (:mod:`spco.model.visual_prior`).
 VISUAL_PRIORS = ("given", "estimate")
@@ -237,6 +245,14 @@ class TransferHyperparameters:
         start12). A file that says start14's ``"objects"`` (no longer an option) is read as
         ``"things"`` with a :class:`FutureWarning`. Written by :meth:`to_dict` always (a file without
         it, written before things16, means ``"names"``).
+    place_channel: the place channel ψ of the word channels (:data:`PLACE_CHANNELS`): ``"shared"``
+        (default) — one ψ_l ~ Dir(α^p) per concept, the same in every home; ``"home"`` — a home level,
+        ψ_{e,l} ~ Dir(δ^p ψ_l), so that one home's objects and its people's object words do not make
+        a concept of their own (:mod:`spco.model.home_place`; opt-in, benchmarks/README.md, branch
+        psi16). Written by :meth:`to_dict` only when not ``"shared"``.
+    delta_place: δ^p, the concentration of ψ_{e,l} around ψ_l, in place tokens (each token once, as
+        ψ learns; default :data:`DELTA_PLACE`). Used with ``place_channel="home"``; written by
+        :meth:`to_dict` only when not the default or with ``place_channel="home"``.
     evidence_weight: η, the weight of the linguistic evidence in the switch's prior (word channels):
         p(z = name | word) ∝ λ_name ν^η, p(z = place or background) ∝ λ_c (1 − ν)^η, ν the name
         evidence of :mod:`spco.model.name_evidence`. Default :data:`EVIDENCE_WEIGHT`, chosen on
@@ -268,6 +284,8 @@ class TransferHyperparameters:
     visual_prior: VisualPrior = "given"
     word_prior: WordPrior = "given"
     warm_start: WarmStart = "things"
+    place_channel: PlaceChannel = "shared"
+    delta_place: float = DELTA_PLACE
 
     def __post_init__(self) -> None:
         for name in ("n_concepts", "n_regions"):
@@ -325,6 +343,7 @@ class TransferHyperparameters:
         if self.warm_start not in WARM_STARTS:
             raise ConfigurationError(f"warm_start must be one of {', '.join(map(repr, WARM_STARTS))}, "
                                      f"got {self.warm_start!r}")
+        self._check_place_channel()
         if self.name_prior not in NAME_PRIORS:
             raise ConfigurationError(f"name_prior must be one of {', '.join(map(repr, NAME_PRIORS))}, "
                                      f"got {self.name_prior!r}")
@@ -341,6 +360,16 @@ class TransferHyperparameters:
                                      f"{self.psi0!r}")
         if self.mu0 is not None and (len(self.mu0) != 4 or not np.isfinite(self.mu0).all()):
             raise ConfigurationError(f"mu0 must be 4 finite numbers (x, y, sin θ, cos θ), got {self.mu0!r}")
+
+    def _check_place_channel(self) -> None:
+        """Raise :class:`~spco.errors.ConfigurationError` naming ``place_channel`` or ``delta_place``."""
+        if self.place_channel not in PLACE_CHANNELS:
+            raise ConfigurationError(f"place_channel must be one of {', '.join(map(repr, PLACE_CHANNELS))}, "
+                                     f"got {self.place_channel!r}")
+        if not (isinstance(self.delta_place, int | float | np.number) and np.isfinite(self.delta_place)
+                and 0 < self.delta_place <= MAX_CONCENTRATION):
+            raise ConfigurationError(f"delta_place must be a positive number at most {MAX_CONCENTRATION:g}, "
+                                     f"got {self.delta_place!r}")
 
     def pruning_threshold(self, score: str) -> float:
         """ε for the pruning score ``"mi"`` (exact variant) or ``"kl"`` (reference variant)."""
@@ -371,8 +400,14 @@ class TransferHyperparameters:
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dictionary (``name_prior`` and ``block_moves`` only when not ``"off"``, ``target``
         only when not ``"cut"``, ``visual_prior`` and ``word_prior`` only when not ``"given"``,
-        ``warm_start`` always: a file without it means ``"names"``, the default before things16)."""
+        ``warm_start`` always: a file without it means ``"names"``, the default before things16;
+        ``place_channel`` only when not ``"shared"`` and ``delta_place`` only with it or when not the
+        default)."""
         data = asdict(self)
+        if data["place_channel"] == "shared":
+            del data["place_channel"]
+            if data["delta_place"] == DELTA_PLACE:
+                del data["delta_place"]
         if data["target"] == "cut":
             del data["target"]
         if data["visual_prior"] == "given":
@@ -455,6 +490,7 @@ SETTABLE: dict[str, str] = {
     "word_model": "one of channels, naming-rule", "block_moves": "one of off, adapt, all, phi",
     "target": "one of cut, power", "visual_prior": "one of given, estimate",
     "word_prior": "one of given, estimate", "warm_start": "one of names, words, things",
+    "place_channel": "one of shared, home", "delta_place": "a number",
 }
 
 

@@ -226,7 +226,8 @@ def concept_swap_step(visual_counts: np.ndarray, log_phi_v: np.ndarray, delta_v:
                       word_counts: np.ndarray, log_phi_w: np.ndarray, delta_w: float,
                       log_g: np.ndarray, log_g0: np.ndarray, gamma: float, word_mask: np.ndarray,
                       rng: np.random.Generator,
-                      place: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+                      place: tuple[np.ndarray, np.ndarray] | None = None,
+                      place_home: tuple[np.ndarray, np.ndarray, float] | None = None) -> np.ndarray:
     """One pass of label-swap proposals in every home (θ marginalised).
 
     The proposals of a pass pair the home's concept slots by a uniformly random perfect matching,
@@ -240,6 +241,9 @@ def concept_swap_step(visual_counts: np.ndarray, log_phi_v: np.ndarray, delta_v:
     counts (E, L, V) and log ψ (L, V) (:mod:`spco.model.word_channels`). ψ is shared and held fixed, so
     swapping concepts a and b of home e adds Σ_k (P_{e,a,k} − P_{e,b,k})(log ψ_{b,k} − log ψ_{a,k}) to
     the log acceptance ratio (subtracted from log u here: each pair's test is log u < ratio).
+    ``place_home`` (the place channel's home level, instead of ``place``): the home's place tokens
+    (E, L, V) in ψ's units, log ψ_l (L, V) and δ^p; ψ_{e,l} integrated out
+    (:func:`spco.model.home_place.swap_place_terms`).
 
     Returns
     -------
@@ -265,6 +269,10 @@ def concept_swap_step(visual_counts: np.ndarray, log_phi_v: np.ndarray, delta_v:
         diff_counts = counts_p[homes, a_] - counts_p[homes, b_]  # (E, P, V)
         diff_log = log_psi[b_] - log_psi[a_]  # (E, P, V)
         log_u = log_u - np.einsum("epv,epv->ep", diff_counts, diff_log)
+    if place_home is not None and n_pairs:
+        from spco.model.home_place import swap_place_terms
+
+        log_u = log_u - swap_place_terms(place_home[0], place_home[1], place_home[2], pairs)
     return _matching_pass(np.ascontiguousarray(alpha_v),
                           np.ascontiguousarray(visual_counts, dtype=_count_type(visual_counts)),
                           np.ascontiguousarray(alpha_w), np.ascontiguousarray(counts_w, dtype=np.int64),

@@ -37,6 +37,7 @@ import scipy.sparse as sp
 from spco.model import gibbs
 from spco.model.additive import AdditiveCounts
 from spco.model.gibbs import GibbsState, PreparedData, SamplerSettings
+from spco.model.home_place import shared_place_counts, uses_home_place
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.kernels.counts import csr_rows
 from spco.model.kernels.crt import sample_crt
@@ -275,6 +276,9 @@ class HomeShard(ShardInitialisation):
         if name_words is not None:
             self.state.name_words = name_words
         if channels is not None:
+            if uses_home_place(self.hyper):  # the shared part received, the homes' own ψ_{e,l} kept
+                held = self.state.channels
+                channels = replace(channels, log_place_home=None if held is None else held.log_place_home)
             self.state.channels = channels
         log_joint = gibbs.local_step(self.data, self.state, self.settings, self.rng, self.hyper)
         self.stats = gibbs.sufficient_statistics(self.data, self.state, self.hyper,
@@ -305,11 +309,14 @@ class HomeShard(ShardInitialisation):
         return HierarchicalMultinomial.fractional_log_weight_terms(n, log_phi, delta)
 
     def channel_counts(self) -> ChannelCounts:
-        """The switches' counts of the shard's homes (word channels; each token once)."""
+        """The switches' counts of the shard's homes (word channels; each token once). With the place
+        channel's home level (``place_channel="home"``) ``place`` holds the homes' CRT tables given ψ_l
+        instead of their place tokens (:func:`spco.model.home_place.shared_place_counts`): what ψ_l's
+        step needs, adding up over homes as the counts do."""
         stats = self._stats()
         if stats.channel is None:
             raise RuntimeError("HomeShard: no word channels in this state")
-        return stats.channel
+        return shared_place_counts(stats, self.state.channels, self.hyper, self.rng)
 
     def expected_channel_tokens(self) -> np.ndarray:
         """(V, 3) the shard's expected tokens of each word per channel given its state
@@ -546,6 +553,9 @@ def state_of_homes(data: PreparedData, state: GibbsState, first: int, last: int)
     fields.update({name: getattr(state, name)[rows].copy() for name in SAMPLE_FIELDS})
     fields.update({name: None if getattr(state, name) is None else getattr(state, name).copy()
                    for name in SHARED_FIELDS})
+    channels = fields["channels"]
+    if channels is not None and channels.log_place_home is not None and channels.log_place_home.shape[0] > 1:
+        fields["channels"] = replace(channels, log_place_home=channels.log_place_home[first:last].copy())
     return GibbsState(**fields)
 
 
@@ -558,6 +568,9 @@ def join_states(states: list[GibbsState], without: tuple[str, ...] = ()) -> Gibb
     fields = {name: None if name in without else np.concatenate([getattr(s, name) for s in states])
               for name in HOME_FIELDS + SAMPLE_FIELDS}
     fields.update({name: getattr(states[0], name) for name in SHARED_FIELDS})
+    homes_place = [None if s.channels is None else s.channels.log_place_home for s in states]
+    if all(h is not None for h in homes_place):  # the place channel's home level: every home's own
+        fields["channels"] = replace(states[0].channels, log_place_home=np.concatenate(homes_place))
     return GibbsState(**fields)
 
 

@@ -7,7 +7,8 @@ z_ti ∈ {name, place, background} (``docs/model.md``, "Words that are not names
 - **name** (z = 0): the word is drawn from the concept's *names*, θ^w_{e,C_t} ~ Dir(δ^w φ^w_{C_t})
   (the paper's word distribution, now of names only);
 - **place** (z = 1): from the words *associated with the place* — objects, activities, people said
-  there ("fridge", "cook", "guests") — ψ_{C_t} ~ Dir(α^p), one per concept, shared by all homes;
+  there ("fridge", "cook", "guests") — ψ_{C_t} ~ Dir(α^p), one per concept, shared by all homes
+  (with ``place_channel="home"``, a home level ψ_{e,C_t} ~ Dir(δ^p ψ_{C_t}): :mod:`spco.model.home_place`);
 - **background** (z = 2): from a **background** β ~ Dir(α^b) shared by every place and home
   (function words, fillers, greetings).
 
@@ -116,6 +117,11 @@ class WordChannels:
     #: and β counting it s_ti times (:func:`token_scales`); ``False``: the cut sampler of the module
     #: docstring (switch once, concept W^w, θ^w S^w)
     power: bool = False
+    #: the home level of the place channel (``place_channel="home"``, :mod:`spco.model.home_place`):
+    #: log ψ_{e,l} (E, L, V) of the homes of the state that holds it (home indices as its data's), used
+    #: wherever ψ is read for a token; ``None``: ψ_l (``log_place``) for every home (the default model,
+    #: and a home whose ψ_{e,l} is not drawn yet: ψ_l is its prior mean)
+    log_place_home: np.ndarray | None = None
     #: :meth:`log_prior`, computed once per channels (every field is replaced, never changed in place)
     _log_prior: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
 
@@ -146,7 +152,17 @@ class WordChannels:
         """A copy of the arrays."""
         return WordChannels(self.log_place.copy(), self.log_background.copy(), self.log_shares.copy(),
                             self.log_evidence.copy(), self.fresh, self.prior_only_from, self.token_weight,
-                            self.power)
+                            self.power,
+                            None if self.log_place_home is None else self.log_place_home.copy())
+
+    def token_place(self) -> np.ndarray:
+        """log ψ as a token reads it: ψ_{e,l} (E, L, V) with the home level, else ψ_l (L, V)."""
+        if self.log_place_home is None:
+            return self.log_place
+        if self.log_place_home.shape[1:] != self.log_place.shape:
+            raise ValueError(f"log_place_home has shape {self.log_place_home.shape}, not (E, "
+                             f"{', '.join(map(str, self.log_place.shape))}) as log_place")
+        return self.log_place_home
 
     @property
     def n_words(self) -> int:
@@ -196,7 +212,7 @@ class WordChannels:
         low_b = self.log_background.min() if V else 0.0
         place = np.concatenate([self.log_place, np.repeat(low_p, added, axis=1)], axis=1)
         background = np.concatenate([self.log_background, np.full(added, low_b)])
-        return replace(self, log_place=place - logsumexp(place, axis=1, keepdims=True),
+        return replace(self, log_place=place - logsumexp(place, axis=1, keepdims=True), log_place_home=None,
                        log_background=background - logsumexp(background),
                        log_evidence=np.concatenate([self.log_evidence, log_e]))
 
@@ -266,7 +282,7 @@ def mixture_log_likelihood(words: sp.csr_array, homes: np.ndarray, log_theta_w: 
         gather = sp.csr_array((np.ones(rows.size), (rows, np.arange(rows.size))),
                               shape=(n_samples, rows.size))
         return np.asarray(gather @ terms)
-    out = mixture_rows(words, homes, log_theta_w, channels.log_place, channels.log_background,
+    out = mixture_rows(words, homes, log_theta_w, channels.token_place(), channels.log_background,
                        channels.log_prior())
     return out if channels.token_weight == 1.0 else out * channels.token_weight
 
@@ -282,7 +298,7 @@ def switch_probabilities(words: sp.csr_array, homes: np.ndarray, concepts: np.nd
         logits = _power_channel_logits(words, homes, log_theta_w, channels, concepts)  # (nnz, 3)
         p = np.exp(logits - logsumexp(logits, axis=1, keepdims=True))
     else:
-        p = switch_rows(words, homes, concepts, log_theta_w, channels.log_place, channels.log_background,
+        p = switch_rows(words, homes, concepts, log_theta_w, channels.token_place(), channels.log_background,
                         channels.log_prior())
     if channels.prior_only_from is not None:  # words first heard in a home: the prior (see the field)
         _, cols, _ = tokens(words)
@@ -326,16 +342,24 @@ def _power_channel_logits(words: sp.csr_array, homes: np.ndarray, log_theta_w: n
     scale = token_scales(words, channels)
     prior = channels.log_prior()[cols]  # (nnz, 3)
     e = homes[rows]
+    home_place = channels.log_place_home
+    pe = None if home_place is None else _place_homes(home_place, e)
     if concepts is None:
         name = log_theta_w[e, :, cols]  # (nnz, L)
-        place = channels.log_place[:, cols].T
+        place = channels.log_place[:, cols].T if home_place is None else home_place[pe, :, cols]
         background = np.broadcast_to(channels.log_background[cols][:, None], name.shape)
         stacked = np.stack([name, place, background], axis=-1)  # (nnz, L, 3)
         return prior[:, None, :] + scale[:, None, None] * stacked
     c = concepts[rows]
-    stacked = np.column_stack([log_theta_w[e, c, cols], channels.log_place[c, cols],
+    place_c = channels.log_place[c, cols] if home_place is None else home_place[pe, c, cols]
+    stacked = np.column_stack([log_theta_w[e, c, cols], place_c,
                                channels.log_background[cols]])
     return prior + scale[:, None] * stacked
+
+
+def _place_homes(home_place: np.ndarray, homes: np.ndarray) -> np.ndarray:
+    """The rows of a home-level ψ_{e,l} (E, L, V) that the homes ``homes`` read (one row: every home)."""
+    return homes if home_place.shape[0] > 1 else np.zeros_like(homes)
 
 
 def _power_token_terms(words: sp.csr_array, homes: np.ndarray, log_theta_w: np.ndarray,
@@ -458,12 +482,14 @@ def lambda_log_posterior(by_word: np.ndarray, log_evidence: np.ndarray, grid: np
 def sample_channels(counts: ChannelCounts, channels: WordChannels, rng: np.random.Generator,
                     alpha_place: float = ALPHA_PLACE,
                     alpha_background: float = ALPHA_BACKGROUND) -> WordChannels:
-    """ψ ~ Dir(α^p + place counts), β ~ Dir(α^b + background counts), λ | z on the grid."""
+    """ψ ~ Dir(α^p + place counts), β ~ Dir(α^b + background counts), λ | z on the grid. With the
+    home level (:mod:`spco.model.home_place`) ``counts.place`` holds the homes' CRT tables, and the
+    result is the shared part alone (no ψ_{e,l}: each home draws its own)."""
     grid = lambda_grid()
     log_post = lambda_log_posterior(counts.by_word, channels.log_evidence, grid)
     p = np.exp(log_post - log_post.max())
     choice = rng.choice(grid.shape[0], p=p / p.sum())
-    return replace(channels, fresh=False,
+    return replace(channels, fresh=False, log_place_home=None,
                    log_place=log_dirichlet(alpha_place + counts.place.astype(np.float64), rng),
                    log_background=log_dirichlet(alpha_background + counts.background.astype(np.float64), rng),
                    log_shares=np.concatenate([[0.0], np.log(grid[choice])]))
