@@ -34,14 +34,11 @@ import numpy as np
 from scipy.special import logsumexp
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from free_speech import read_names
-from speech_errors import _configurations, training_places
+from free_speech import fit_new_home, read_names, settings_hyperparameters
+from natural_speech import configurations
+from speech_errors import training_places
 
-from spco.data import Corpus
-from spco.evaluation.experiments import trial_seed
-from spco.model import SpCoTransfer
 from spco.model.gibbs import view_weights
-from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.observations import GaussianRegions, HierarchicalMultinomial
 from spco.model.word_channels import mixture_log_likelihood
 
@@ -54,7 +51,6 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--sweeps", type=int, default=60)
     parser.add_argument("--set", nargs="+", action="extend", default=[], metavar="NAME=VALUE")
-    parser.add_argument("--leave-one-out", action="store_true", help=argparse.SUPPRESS)  # (configurations)
     return parser
 
 
@@ -81,12 +77,9 @@ def main() -> None:
     if not 0 <= args.seed <= 99:
         parser.error("development seeds are 0-99 (benchmarks/SPLIT.md)")
     accepted = read_names(args.accepted)
-    _, configs = _configurations(args, accepted)
+    _, configs = configurations(args.sigverse, accepted)
     _, homes, env = configs[0]
-    corpus = Corpus([*homes, env])
-    hyper = TransferHyperparameters().with_settings(args.set) if args.set else None
-    model = SpCoTransfer(hyper, variant="exact", prune_words=True, n_iterations=args.sweeps,
-                         random_state=trial_seed(args.seed, 0)).fit(corpus)
+    model, corpus = fit_new_home(homes, env, settings_hyperparameters(args.set), args.sweeps, args.seed, 0)
     parts = terms(model)
     data, concepts = model.data_, model.state_.concepts
     samples = [sample for h in corpus for sample in training_places(h, corpus.vocabulary, accepted)]

@@ -60,6 +60,7 @@ import csv
 import json
 import time
 from collections import Counter, defaultdict
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -74,6 +75,7 @@ from spco.evaluation import evaluate_answers
 from spco.evaluation.experiments import PAPER_EXPERIENCED_HOMES, trial_seed
 from spco.evaluation.metrics import position_accuracy
 from spco.model import SpCoTransfer
+from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.position_prediction import predict_positions
 from spco.model.prediction import UnknownNameError
 
@@ -156,7 +158,6 @@ def _arguments() -> tuple[argparse.Namespace, Any]:
                         help="hyperparameters of the fit (as spco fit --set), e.g. word_counts=none")
     args = parser.parse_args()
     from spco.errors import ConfigurationError
-    from spco.model.hyperparameters import TransferHyperparameters
 
     hyper = None
     if args.view_counts is not None:
@@ -165,11 +166,10 @@ def _arguments() -> tuple[argparse.Namespace, Any]:
             hyper = TransferHyperparameters(view_counts=None if text == "none" else float(text))
         except (ValueError, ConfigurationError):
             parser.error(f"--view-counts: a positive number or 'none', got {args.view_counts!r}")
-    if args.set:
-        try:
-            hyper = (hyper or TransferHyperparameters()).with_settings(args.set)
-        except ConfigurationError as exc:
-            parser.error(f"--set: {exc}")
+    try:
+        hyper = settings_hyperparameters(args.set, hyper)
+    except ConfigurationError as exc:
+        parser.error(f"--set: {exc}")
     return args, hyper
 
 
@@ -195,15 +195,29 @@ class _Tally:
         self.wrong = {s: Counter() for s in self.settings}
 
 
+def settings_hyperparameters(settings: Sequence[str], hyper: TransferHyperparameters | None = None
+                             ) -> TransferHyperparameters | None:
+    """The hyperparameters of ``--set NAME=VALUE ...`` (as ``spco fit --set``) over ``hyper`` (default:
+    the model's own); without settings ``hyper`` itself (``None``: the model's own)."""
+    if not settings:
+        return hyper
+    return (hyper or TransferHyperparameters()).with_settings(list(settings))
+
+
+def fit_speech(corpus: Corpus, hyper: Any, sweeps: int, random_state: int) -> SpCoTransfer:
+    """The fit the speech benchmarks score: SpCoTransfer+MI (the exact variant, words pruned by their
+    mutual information) of ``corpus`` (the new home last) for ``sweeps`` sweeps."""
+    return SpCoTransfer(hyper, variant="exact", prune_words=True, n_iterations=sweeps,
+                        random_state=random_state).fit(corpus)
+
+
 def fit_new_home(experienced: list[Environment], env: Environment, hyper: Any, sweeps: int, seed: int,
                  h: int) -> tuple[SpCoTransfer, Corpus]:
-    """The fit this script scores: SpCoTransfer+MI (the exact variant) of the experienced homes and
-    the new home ``env`` (the last home of the returned corpus), ``sweeps`` sweeps, the trial seed of
-    ``seed`` and the new home's index ``h``."""
+    """The fit this script scores (:func:`fit_speech`) of the experienced homes and the new home
+    ``env`` (the last home of the returned corpus), ``sweeps`` sweeps, the trial seed of ``seed`` and
+    the new home's index ``h``."""
     corpus = Corpus([*experienced, env])
-    model = SpCoTransfer(hyper, variant="exact", prune_words=True, n_iterations=sweeps,
-                         random_state=trial_seed(seed, h)).fit(corpus)
-    return model, corpus
+    return fit_speech(corpus, hyper, sweeps, trial_seed(seed, h)), corpus
 
 
 def _score_home(tally: _Tally, args: argparse.Namespace, hyper: Any, seed: int, h: int, home: str,

@@ -39,13 +39,10 @@ import scipy.sparse as sp
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from free_speech import read_names
-from natural_speech import SIDES
+from natural_speech import SIDES, configurations, fit_arguments, fitted_runs
 from speech_errors import (
     NAMED,
-    _configurations,
     classify_answer,
-    fit_arguments,
-    fitted_runs,
     named_share,
     names_of,
     place_speech,
@@ -202,10 +199,11 @@ def main() -> None:
     if any(s not in SIDES["development"]["seeds"] for s in args.seeds):
         parser.error("development seeds are 0-99 (benchmarks/SPLIT.md)")
     accepted = read_names(args.accepted)
-    knowledge, configs = _configurations(args, accepted)
+    knowledge, configs = configurations(args.sigverse, accepted, args.leave_one_out)
     labels = [c[0] for c in configs]
     rows: list[dict] = []
-    for seed, label, env, corpus, model, e, scored in fitted_runs(args, configs, labels):
+    fits = fitted_runs(configs, labels, args.seeds, settings=args.set, sweeps=args.sweeps, cache=args.cache)
+    for seed, label, env, corpus, model, e, scored in fits:
         rows += diagnose(model, corpus, e, env, scored, seed, accepted, place_speech(knowledge, corpus),
                          label.split()[0])
         print(f"seed {seed} {label}: {len(rows)} class-a views so far", flush=True)

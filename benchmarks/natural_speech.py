@@ -29,11 +29,15 @@ Run (development, small)::
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
+import os
+import pickle
 import subprocess
 import sys
 import time
 from collections import Counter, defaultdict
+from collections.abc import Iterator, Sequence
 from dataclasses import replace
 from pathlib import Path
 
@@ -41,7 +45,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from free_speech import new_home, read_names
+from free_speech import fit_speech, new_home, read_names, settings_hyperparameters
 from japanese import mean_interval
 
 from spco.data import Corpus, Environment
@@ -50,7 +54,6 @@ from spco.data.sigverse import read_indexed_texts
 from spco.evaluation import evaluate_answers
 from spco.evaluation.experiments import trial_seed
 from spco.model import SpCoTransfer
-from spco.model.hyperparameters import TransferHyperparameters
 
 SIDES = {
     "development": {"knowledge": ("1LDK_1", "1LDK_3", "1LDK_5", "1LDK_7",
@@ -93,25 +96,103 @@ def frozen() -> bool:
     return message.startswith("WORDS FROZEN:")
 
 
+def configurations(sigverse: Path, accepted: dict[str, tuple[str, ...]], leave_one_out: bool = False,
+                   side: str = "development", subject: Path | None = None, regions: Path | None = None
+                   ) -> tuple[list[Environment], list[tuple[str, list[Environment], Environment]]]:
+    """The knowledge homes of ``side`` (taught with their subjects' sentences) and its (label, knowledge,
+    new home) configurations: each new home with every knowledge home, then (``leave_one_out``, the
+    development side) each knowledge home held out in turn, labelled ``"<home> (out)"``, untaught. A
+    configuration's index in this list is its trial seed's (:func:`fitted`). ``subject`` and
+    ``regions`` default to ``sigverse_subject`` and ``sigverse_regions.json`` beside ``sigverse``."""
+    homes = SIDES[side]
+    subject = subject or sigverse.parent / "sigverse_subject"
+    regions = regions or sigverse.parent / "sigverse_regions.json"
+    knowledge = [subject_home(sigverse, subject, h) for h in homes["knowledge"]]
+    configs = [(h, knowledge, new_home(sigverse, regions, h, accepted)) for h in homes["new"]]
+    if leave_one_out:
+        for i, h in enumerate(homes["knowledge"]):
+            env = untaught_subject_home(sigverse, h)
+            env = replace(env, ground_truth=replace(env.ground_truth, accepted_names=accepted))
+            configs.append((f"{h} (out)", knowledge[:i] + knowledge[i + 1:], env))
+    return knowledge, configs
+
+
+def fit_arguments(parser: argparse.ArgumentParser, seeds: Sequence[int] = (0,), sweeps: int = 60,
+                  cache: bool = True) -> argparse.ArgumentParser:
+    """The options that choose (and, with ``cache``, keep) the fits: ``--sigverse``, ``--accepted``,
+    ``--seeds`` (default ``seeds``), ``--sweeps`` (default ``sweeps``), ``--set`` and ``--cache``; for
+    this script, ``speech_errors.py`` and the diagnoses that read its fits."""
+    parser.add_argument("--sigverse", type=Path, default=Path("/work/shared/datasets/sigverse"))
+    parser.add_argument("--accepted", type=Path,
+                        default=Path(__file__).resolve().parent / "development" / "accepted_names_dev.json")
+    parser.add_argument("--seeds", type=int, nargs="+", default=list(seeds))
+    parser.add_argument("--sweeps", type=int, default=sweeps)
+    parser.add_argument("--set", nargs="+", action="extend", default=[], metavar="NAME=VALUE",
+                        help="hyperparameters of the fit, as spco fit --set (development runs of the "
+                        "ablation)")
+    if cache:
+        parser.add_argument("--cache", type=Path, default=None,
+                            help="keep each fitted model here (pickled, keyed by the seed, the "
+                            "configuration, the sweeps and --set) and read it back instead of fitting: the "
+                            "answers (what is scored from a fit) can then be changed and measured again "
+                            "without fitting; stale once the fit's code changes")
+    return parser
+
+
+def cache_path(cache: Path, settings: Sequence[str], sweeps: int, label: str, seed: int) -> Path:
+    """Where ``--cache`` keeps the fit of the configuration ``label`` for ``seed`` with ``--set``
+    ``settings`` and ``sweeps`` sweeps."""
+    key = hashlib.sha256(repr((sorted(settings), sweeps)).encode()).hexdigest()[:12]
+    return cache / f"{key}-{label.split()[0]}-s{seed}.pkl"
+
+
+def fitted(corpus: Corpus, seed: int, label: str, labels: list[str], *, settings: Sequence[str] = (),
+           sweeps: int, cache: Path | None = None) -> SpCoTransfer:
+    """The fit (:func:`free_speech.fit_speech`) of the configuration ``label`` (its corpus) for
+    ``seed``: the hyperparameters of ``--set`` ``settings`` (the model's own without any), the trial
+    seed of ``seed`` and the configuration's index in ``labels``; read from ``cache`` when it holds it
+    (:func:`cache_path`), and kept there once fitted."""
+    path = None if cache is None else cache_path(cache, settings, sweeps, label, seed)
+    if path is not None and path.exists():
+        with open(path, "rb") as fh:
+            return pickle.load(fh)
+    model = fit_speech(corpus, settings_hyperparameters(settings), sweeps,
+                       trial_seed(seed, labels.index(label)))
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(".tmp")
+        with open(tmp, "wb") as fh:
+            pickle.dump(model, fh)
+        os.replace(tmp, path)
+    return model
+
+
+def fitted_runs(configs: list[tuple], labels: list[str], seeds: Sequence[int], *,
+                settings: Sequence[str] = (), sweeps: int, cache: Path | None = None) -> Iterator[tuple]:
+    """Each seed's fit of each configuration (:func:`fitted`), in the seeds' and then the
+    configurations' order: (seed, label, new home, corpus, model, the new home's index, what is scored —
+    a knowledge home held out is scored on its training samples, :func:`scored_as_test`)."""
+    for seed in seeds:
+        for label, homes, env in configs:
+            corpus = Corpus([*homes, env])
+            model = fitted(corpus, seed, label, labels, settings=settings, sweeps=sweeps, cache=cache)
+            scored = scored_as_test(env) if label.endswith("(out)") else env
+            yield seed, label, env, corpus, model, len(corpus) - 1, scored
+
+
 def _parser() -> argparse.ArgumentParser:
     """The command line."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sigverse", type=Path, default=Path("/work/shared/datasets/sigverse"))
+    parser = fit_arguments(argparse.ArgumentParser(description=__doc__.splitlines()[0]), seeds=(0, 1, 2),
+                           sweeps=200, cache=False)
     parser.add_argument("--subject", type=Path, default=None,
                         help="subject speech (default: sigverse_subject beside --sigverse)")
     parser.add_argument("--regions", type=Path, default=None,
                         help="region file (default: sigverse_regions.json beside --sigverse)")
-    parser.add_argument("--accepted", type=Path,
-                        default=Path(__file__).resolve().parent / "development" / "accepted_names_dev.json")
     parser.add_argument("--side", choices=tuple(SIDES), default="development")
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
-    parser.add_argument("--sweeps", type=int, default=200)
     parser.add_argument("--leave-one-out", action="store_true",
                         help="development: also hold each development home out of the knowledge in turn")
     parser.add_argument("--i-know-the-method-is-frozen", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--json", type=Path, default=None)
-    parser.add_argument("--set", nargs="+", action="extend", default=[], metavar="NAME=VALUE",
-                        help="hyperparameter settings, as spco fit --set (development runs of the ablation)")
     return parser
 
 
@@ -154,43 +235,28 @@ def main() -> None:
                      "starts with 'WORDS FROZEN:'), once; see benchmarks/SPLIT.md")
     if args.side == "heldout" and args.leave_one_out:
         parser.error("--leave-one-out is a development configuration")
-    subject = args.subject or args.sigverse.parent / "sigverse_subject"
-    regions_file = args.regions or args.sigverse.parent / "sigverse_regions.json"
-    accepted = read_names(args.accepted)
-    knowledge = [subject_home(args.sigverse, subject, h) for h in side["knowledge"]]
-    configs: list[tuple[str, list[Environment], Environment]] = [
-        (h, knowledge, new_home(args.sigverse, regions_file, h, accepted)) for h in side["new"]]
-    if args.leave_one_out:
-        for i, h in enumerate(side["knowledge"]):
-            env = untaught_subject_home(args.sigverse, h)
-            gt = env.ground_truth
-            env = replace(env, ground_truth=replace(gt, accepted_names=accepted))
-            configs.append((f"{h} (out)", knowledge[:i] + knowledge[i + 1:], env))
-    hyper = TransferHyperparameters().with_settings(args.set) if args.set else None
+    _, configs = configurations(args.sigverse, read_names(args.accepted), args.leave_one_out, args.side,
+                                args.subject, args.regions)
     runs: list[dict] = []
     wrong: dict[str, Counter] = defaultdict(Counter)
     per_place: dict[tuple[str, str], list[float]] = defaultdict(list)
     started = time.perf_counter()
-    for seed in args.seeds:
-        for index, (label, homes, env) in enumerate(configs):
-            corpus = Corpus([*homes, env])
-            model = SpCoTransfer(hyper, variant="exact", prune_words=True, n_iterations=args.sweeps,
-                                 random_state=trial_seed(seed, index)).fit(corpus)
-            scored = scored_as_test(env) if label.endswith("(out)") else env
-            e = len(corpus) - 1
-            scores = evaluate_answers(model, e, scored, rng=seed)  # as the robot answers
-            gt = env.ground_truth
-            for place, name in zip(scores.labels, scores.predicted_names, strict=True):
-                if name not in gt.accepted(place):
-                    wrong[label][f"{place} -> {name}"] += 1
-            for place, value in scores.name_accuracy.items():
-                per_place[(label, place)].append(value)
-            a_p = scores.mean_position_accuracy if gt.regions is not None else float("nan")
-            runs.append({"seed": seed, "home": label, "A_n": scores.mean_name_accuracy, "A_p": a_p,
-                         "A_n_places": scores.name_accuracy,
-                         "A_p_places": scores.position_accuracy if gt.regions is not None else {}})
-            print(f"seed {seed} {label}: A_n {scores.mean_name_accuracy:.3f} A_p {a_p:.3f} "
-                  f"({time.perf_counter() - started:.0f} s)", flush=True)
+    labels = [c[0] for c in configs]
+    for seed, label, env, _, model, e, scored in fitted_runs(configs, labels, args.seeds, settings=args.set,
+                                                            sweeps=args.sweeps):
+        scores = evaluate_answers(model, e, scored, rng=seed)  # as the robot answers
+        gt = env.ground_truth
+        for place, name in zip(scores.labels, scores.predicted_names, strict=True):
+            if name not in gt.accepted(place):
+                wrong[label][f"{place} -> {name}"] += 1
+        for place, value in scores.name_accuracy.items():
+            per_place[(label, place)].append(value)
+        a_p = scores.mean_position_accuracy if gt.regions is not None else float("nan")
+        runs.append({"seed": seed, "home": label, "A_n": scores.mean_name_accuracy, "A_p": a_p,
+                     "A_n_places": scores.name_accuracy,
+                     "A_p_places": scores.position_accuracy if gt.regions is not None else {}})
+        print(f"seed {seed} {label}: A_n {scores.mean_name_accuracy:.3f} A_p {a_p:.3f} "
+              f"({time.perf_counter() - started:.0f} s)", flush=True)
     summary = _summarise(args, configs, runs, wrong, per_place)
     summary["runs"] = runs
     if args.json:

@@ -39,32 +39,24 @@ Run (development, small)::
 from __future__ import annotations
 
 import argparse
-import hashlib
 import json
-import os
-import pickle
 import sys
 import time
 from collections import Counter, defaultdict
-from collections.abc import Iterator
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from free_speech import new_home, read_names
-from natural_speech import SIDES, scored_as_test, subject_home, untaught_subject_home
+from free_speech import read_names
+from natural_speech import SIDES, configurations, fit_arguments, fitted_runs
 
 from spco.data import Corpus, Environment
 from spco.data.language import normalize_name
 from spco.evaluation import evaluate_answers, evaluate_home
-from spco.evaluation.experiments import trial_seed
 from spco.evaluation.metrics import position_accuracy
-from spco.model import SpCoTransfer
 from spco.model.home_shard import name_words, switch_tokens
-from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.position_prediction import predict_positions
 from spco.model.prediction import UnknownNameError, concept_posterior
 
@@ -251,23 +243,6 @@ def where_miss_class(place: str, name: str, accepted: dict[str, tuple[str, ...]]
     return "one concept, two places" if landed != place else "region spills"
 
 
-def fit_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    """The options that choose and cache the fits (read by :func:`_configurations` and :func:`_fitted`),
-    for this script and the diagnoses that read its fits (``where_landings.py``)."""
-    parser.add_argument("--sigverse", type=Path, default=Path("/work/shared/datasets/sigverse"))
-    parser.add_argument("--accepted", type=Path,
-                        default=Path(__file__).resolve().parent / "development" / "accepted_names_dev.json")
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0])
-    parser.add_argument("--sweeps", type=int, default=60)
-    parser.add_argument("--set", nargs="+", action="extend", default=[], metavar="NAME=VALUE")
-    parser.add_argument("--cache", type=Path, default=None,
-                        help="keep each fitted model here (pickled, keyed by the seed, the configuration, "
-                        "the sweeps and --set) and read it back instead of fitting: the answers (what is "
-                        "scored from a fit) can then be changed and measured again without fitting; "
-                        "stale once the fit's code changes")
-    return parser
-
-
 def _parser() -> argparse.ArgumentParser:
     """The command line."""
     parser = fit_arguments(argparse.ArgumentParser(description=__doc__.splitlines()[0]))
@@ -284,56 +259,6 @@ def _parser() -> argparse.ArgumentParser:
                         "labelled training samples (NearestAreas); reported apart from 3LDK_9's regions")
     parser.add_argument("--json", type=Path, default=None)
     return parser
-
-
-def _fitted(args: argparse.Namespace, corpus: Corpus, seed: int, label: str,
-            labels: list[str]) -> SpCoTransfer:
-    """The fit of one configuration with the hyperparameters of ``--set`` (the model's own without it),
-    from ``--cache`` when it holds it (keyed by the same settings)."""
-    path = None
-    if args.cache is not None:
-        key = hashlib.sha256(repr((sorted(args.set), args.sweeps)).encode()).hexdigest()[:12]
-        path = args.cache / f"{key}-{label.split()[0]}-s{seed}.pkl"
-        if path.exists():
-            with open(path, "rb") as fh:
-                return pickle.load(fh)
-    hyper = TransferHyperparameters().with_settings(args.set) if args.set else None
-    model = SpCoTransfer(hyper, variant="exact", prune_words=True, n_iterations=args.sweeps,
-                         random_state=trial_seed(seed, labels.index(label))).fit(corpus)
-    if path is not None:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(".tmp")
-        with open(tmp, "wb") as fh:
-            pickle.dump(model, fh)
-        os.replace(tmp, path)
-    return model
-
-
-def _configurations(args: argparse.Namespace, accepted: dict) -> tuple[list[Environment], list[tuple]]:
-    """The knowledge homes and the (label, knowledge, new home) configurations of natural_speech.py."""
-    side = SIDES["development"]
-    subject = args.sigverse.parent / "sigverse_subject"
-    regions_file = args.sigverse.parent / "sigverse_regions.json"
-    knowledge = [subject_home(args.sigverse, subject, h) for h in side["knowledge"]]
-    configs = [(h, knowledge, new_home(args.sigverse, regions_file, h, accepted)) for h in side["new"]]
-    if args.leave_one_out:
-        for i, h in enumerate(side["knowledge"]):
-            env = untaught_subject_home(args.sigverse, h)
-            env = replace(env, ground_truth=replace(env.ground_truth, accepted_names=accepted))
-            configs.append((f"{h} (out)", knowledge[:i] + knowledge[i + 1:], env))
-    return knowledge, configs
-
-
-def fitted_runs(args: argparse.Namespace, configs: list[tuple], labels: list[str]) -> Iterator[tuple]:
-    """Each seed's fit of each configuration (:func:`_fitted`), in the seeds' and then the
-    configurations' order: (seed, label, new home, corpus, model, the new home's index, what is scored —
-    a knowledge home held out is scored on its training samples, :func:`natural_speech.scored_as_test`)."""
-    for seed in args.seeds:
-        for label, homes, env in configs:
-            corpus = Corpus([*homes, env])
-            model = _fitted(args, corpus, seed, label, labels)
-            scored = scored_as_test(env) if label.endswith("(out)") else env
-            yield seed, label, env, corpus, model, len(corpus) - 1, scored
 
 
 def _answers(model, corpus: Corpus, e: int, env: Environment, scored: Environment, scores,
@@ -454,7 +379,7 @@ def main() -> None:
     if any(s not in side["seeds"] for s in args.seeds):
         parser.error("development seeds are 0-99 (benchmarks/SPLIT.md)")
     accepted = read_names(args.accepted)
-    knowledge, configs = _configurations(args, accepted)
+    knowledge, configs = configurations(args.sigverse, accepted, args.leave_one_out)
     labels = [c[0] for c in configs]  # natural_speech.py's order: the trial seed's index
     if args.homes:
         configs = [c for c in configs if c[0].split()[0] in args.homes]
@@ -462,7 +387,8 @@ def main() -> None:
     words: dict[str, Counter] = defaultdict(Counter)
     runs = []
     started = time.perf_counter()
-    for seed, label, env, corpus, model, e, scored in fitted_runs(args, configs, labels):
+    fits = fitted_runs(configs, labels, args.seeds, settings=args.set, sweeps=args.sweeps, cache=args.cache)
+    for seed, label, env, corpus, model, e, scored in fits:
         if args.fit_parameters:  # the fit's own parameters, MI weighting (a diagnosis, not an answer)
             view_counts = model.settings_.view_counts
             scores = evaluate_home(model.parameters_, e, scored, corpus.vocabulary, rng=seed,

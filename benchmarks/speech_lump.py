@@ -14,7 +14,6 @@ development side); it fits nothing.
 from __future__ import annotations
 
 import argparse
-import hashlib
 import json
 import pickle
 import sys
@@ -26,7 +25,7 @@ from sklearn.metrics import adjusted_rand_score
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from free_speech import read_names
-from speech_errors import _configurations
+from natural_speech import cache_path, configurations
 
 HERE = Path(__file__).resolve().parent
 
@@ -56,14 +55,11 @@ def main(argv: list[str] | None = None) -> int:
                    help="the fits' --set, all after one --set (the cache key)")
     p.add_argument("--json", type=Path, default=None)
     a = p.parse_args(argv)
-    ns = argparse.Namespace(sigverse=a.sigverse, leave_one_out=True)
-    _, configs = _configurations(ns, read_names(a.accepted))
-    key = hashlib.sha256(repr((sorted(a.set), a.sweeps)).encode()).hexdigest()[:12]
+    _, configs = configurations(a.sigverse, read_names(a.accepted), leave_one_out=True)
     out: dict[str, dict[int, dict]] = {}
     for label, _, env in configs:
-        home = label.split()[0]
         for seed in a.seeds:
-            path = a.cache / f"{key}-{home}-s{seed}.pkl"
+            path = cache_path(a.cache, a.set, a.sweeps, label, seed)
             if not path.exists():
                 print(f"{label} seed {seed}: no cached fit {path.name}", file=sys.stderr)
                 continue

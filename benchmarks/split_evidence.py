@@ -322,8 +322,7 @@ def _print(rows: list[dict]) -> None:
 def main() -> None:
     """Read the fits of ``nameless_answers.py``'s cases, compare split and merge, print, write ``--json``."""
     from free_speech import read_names
-    from natural_speech import SIDES
-    from speech_errors import _configurations, _fitted, fit_arguments
+    from natural_speech import SIDES, configurations, fit_arguments, fitted
 
     from spco.data import Corpus
 
@@ -331,20 +330,19 @@ def main() -> None:
     parser.add_argument("--nameless", type=Path, required=True, help="nameless_answers.py's --json")
     parser.add_argument("--json", type=Path, default=None)
     args = parser.parse_args()
-    args.leave_one_out = True
     cases = sorted({(r["seed"], r["home"], r["place"], r["concept"])
                     for r in json.loads(args.nameless.read_text(encoding="utf-8"))},
                    key=lambda c: (c[0], c[1], c[2], c[3]))
     if any(s not in SIDES["development"]["seeds"] for s, *_ in cases):
         parser.error("development seeds are 0-99 (benchmarks/SPLIT.md)")
     accepted = read_names(args.accepted)
-    _, configs = _configurations(args, accepted)
+    _, configs = configurations(args.sigverse, accepted, leave_one_out=True)
     labels = [c[0] for c in configs]
     rows = []
     for seed, home, place, nameless in cases:
         label, homes, env = next(c for c in configs if c[0].split()[0] == home)
         corpus = Corpus([*homes, env])
-        model = _fitted(args, corpus, seed, label, labels)
+        model = fitted(corpus, seed, label, labels, settings=args.set, sweeps=args.sweeps, cache=args.cache)
         e = len(corpus) - 1
         named, votes = named_concept(model, corpus, e, place, nameless, accepted)
         row = {"seed": seed, "home": home, "place": place, "nameless": nameless, "named": named,

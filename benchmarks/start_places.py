@@ -24,13 +24,12 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from free_speech import read_names
-from natural_speech import SIDES
-from speech_errors import _configurations, training_places
+from free_speech import fit_speech, read_names
+from natural_speech import SIDES, configurations
+from speech_errors import training_places
 
 from spco.data import Corpus
 from spco.evaluation.experiments import trial_seed
-from spco.model import SpCoTransfer
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -43,7 +42,6 @@ def _parser() -> argparse.ArgumentParser:
                         "held out")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--sweeps", type=int, nargs="+", default=[1, 60])
-    parser.add_argument("--leave-one-out", action="store_true", default=True, help=argparse.SUPPRESS)
     return parser
 
 
@@ -54,17 +52,15 @@ def main() -> None:
     if args.seed not in SIDES["development"]["seeds"]:
         parser.error("development seeds are 0-99 (benchmarks/SPLIT.md)")
     accepted = read_names(args.accepted)
-    _, configs = _configurations(args, accepted)
+    _, configs = configurations(args.sigverse, accepted, leave_one_out=True)
     labels = [c[0] for c in configs]
     found = [c for c in configs if c[0].split()[0] == args.home]
     if not found:
         parser.error(f"--home must be one of {', '.join(label.split()[0] for label in labels)}")
     label, homes, env = found[0]
     corpus = Corpus([*homes, env])
-    fits = {}
-    for sweeps in args.sweeps:
-        fits[sweeps] = SpCoTransfer(variant="exact", prune_words=True, n_iterations=sweeps,
-                                    random_state=trial_seed(args.seed, labels.index(label))).fit(corpus)
+    fits = {sweeps: fit_speech(corpus, None, sweeps, trial_seed(args.seed, labels.index(label)))
+            for sweeps in args.sweeps}
     places = [training_places(corpus[e], corpus.vocabulary, accepted) for e in range(len(corpus) - 1)]
     for sweeps, model in fits.items():
         print(f"\n{label}, seed {args.seed}, {sweeps} sweeps: concept x samples (N: naming the place)")

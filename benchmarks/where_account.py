@@ -32,20 +32,17 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from free_speech import new_home, read_names, read_speech, taught_homes
-from natural_speech import SIDES, scored_as_test
-from speech_errors import _configurations
+from free_speech import fit_new_home, new_home, read_names, read_speech, taught_homes
+from natural_speech import SIDES, configurations, fitted_runs
 
-from spco.data import Corpus
 from spco.evaluation import evaluate_home
-from spco.evaluation.experiments import trial_seed
-from spco.model import SpCoTransfer
 from spco.model.confidence import model_answer_parameters
 from spco.model.rooms import model_rooms
 
@@ -72,6 +69,23 @@ def _score(model, e: int, env, vocabulary, seed: int) -> dict[str, float]:
                        for p in robot.places}}
 
 
+def _fits(args: argparse.Namespace, accepted: dict[str, tuple[str, ...]]) -> Iterator[tuple]:
+    """Each seed's fits of the set, as the script it comes from fits them, in the seeds' and then the
+    configurations' order: (seed, label, new home, corpus, model, the new home's index, what is scored),
+    as :func:`natural_speech.fitted_runs`."""
+    if args.set == "natural":
+        _, configs = configurations(args.sigverse, accepted, args.leave_one_out)
+        labels = [c[0] for c in configs]
+        chosen = [c for c in configs if not args.homes or c[0].split()[0] in args.homes]
+        yield from fitted_runs(chosen, labels, args.seeds, sweeps=args.sweeps)
+        return
+    env = new_home(args.sigverse, args.sigverse.parent / "sigverse_regions.json", "3LDK_9", accepted)
+    for seed in args.seeds:
+        experienced = taught_homes(args.sigverse, read_speech(args.speech), seed)
+        model, corpus = fit_new_home(experienced, env, None, args.sweeps, seed, 0)
+        yield seed, "3LDK_9", env, corpus, model, len(corpus) - 1, env
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("set", choices=("natural", "written"))
@@ -88,30 +102,15 @@ def main() -> None:
     accepted = read_names(args.accepted)
     runs = []
     started = time.perf_counter()
-    for seed in args.seeds:
-        if args.set == "natural":
-            _, configs = _configurations(args, accepted)
-            labels = [c[0] for c in configs]
-            chosen = [c for c in configs if not args.homes or c[0].split()[0] in args.homes]
-            jobs = [(label, homes, env, trial_seed(seed, labels.index(label)))
-                    for label, homes, env in chosen]
-        else:
-            experienced = taught_homes(args.sigverse, read_speech(args.speech), seed)
-            env = new_home(args.sigverse, args.sigverse.parent / "sigverse_regions.json", "3LDK_9", accepted)
-            jobs = [("3LDK_9", experienced, env, trial_seed(seed, 0))]
-        for label, homes, env, trial in jobs:
-            corpus = Corpus([*homes, env])
-            model = SpCoTransfer(None, variant="exact", prune_words=True, n_iterations=args.sweeps,
-                                 random_state=trial).fit(corpus)
-            scored = scored_as_test(env) if label.endswith("(out)") else env
-            row = _score(model, len(corpus) - 1, scored, corpus.vocabulary, seed)
-            runs.append(row)
-            print(f"seed {seed} {label}: A_n {row['A_n']:.3f}  A_p fit {row['A_p fit']:.3f}  A_p names "
-                  f"{row['A_p names']:.3f}  A_p robot {row['A_p robot']:.3f}  A_p robot's draw "
-                  f"{row[DRAW]:.3f}  "
-                  f"({time.perf_counter() - started:.0f} s)", flush=True)
-            for place, values in row["places"].items():
-                print(f"    {place}: " + " / ".join(f"{v:.2f}" for v in values))
+    for seed, label, _, corpus, model, e, scored in _fits(args, accepted):
+        row = _score(model, e, scored, corpus.vocabulary, seed)
+        runs.append(row)
+        print(f"seed {seed} {label}: A_n {row['A_n']:.3f}  A_p fit {row['A_p fit']:.3f}  A_p names "
+              f"{row['A_p names']:.3f}  A_p robot {row['A_p robot']:.3f}  A_p robot's draw "
+              f"{row[DRAW]:.3f}  "
+              f"({time.perf_counter() - started:.0f} s)", flush=True)
+        for place, values in row["places"].items():
+            print(f"    {place}: " + " / ".join(f"{v:.2f}" for v in values))
     for key in ("A_n", "A_p fit", "A_p names", "A_p robot", "A_p robot's draw"):
         values = np.array([r[key] for r in runs], dtype=float)
         print(f"{key}: mean {np.nanmean(values):.3f} over {values.size} fits")

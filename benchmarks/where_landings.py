@@ -30,8 +30,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from free_speech import read_names
-from natural_speech import SIDES
-from speech_errors import _configurations, _fitted, fit_arguments, place_of_samples
+from natural_speech import SIDES, configurations, fit_arguments, fitted
+from speech_errors import place_of_samples
 
 import spco.model.transfer as transfer
 from spco.data import Corpus
@@ -84,8 +84,8 @@ class Home:
     """3LDK_9's configuration: the corpus, the places of its training samples, the knowledge homes' labels."""
 
     def __init__(self, args: argparse.Namespace, accepted: dict) -> None:
-        args.leave_one_out = True  # natural_speech.py's labels: 3LDK_9's trial seed index is 0 either way
-        _, configs = _configurations(args, accepted)
+        # natural_speech.py's labels with the homes held out: 3LDK_9's trial seed index is 0 either way
+        _, configs = configurations(args.sigverse, accepted, leave_one_out=True)
         self.labels = [c[0] for c in configs]
         self.label, homes, self.env = configs[0]
         self.corpus = Corpus([*homes, self.env])
@@ -172,7 +172,8 @@ def main() -> None:
     outside = hazard = 0
     weights: list[float] = []
     for seed in args.seeds:
-        model = _fitted(args, home.corpus, seed, home.label, home.labels)
+        model = fitted(home.corpus, seed, home.label, home.labels, settings=args.set, sweeps=args.sweeps,
+                       cache=args.cache)
         scores = evaluate_answers(model, home.e, home.env, rng=seed)  # as speech_errors.py scores 3LDK_9
         print(f"seed {seed}: A_n {scores.mean_name_accuracy:.3f} A_p {scores.mean_position_accuracy:.3f}")
         home.landings(model, seed)

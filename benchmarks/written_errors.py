@@ -32,14 +32,20 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from free_speech import fit_new_home, new_home, read_names, read_speech, taught_homes
+from free_speech import (
+    fit_new_home,
+    new_home,
+    read_names,
+    read_speech,
+    settings_hyperparameters,
+    taught_homes,
+)
 from speech_errors import _answers, _misses, place_speech
 
 from spco.data import Corpus
 from spco.data.language import normalize_name
 from spco.evaluation import evaluate_answers
 from spco.model.confidence import answer_names
-from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.prediction import concept_posterior
 
 
@@ -91,7 +97,7 @@ def main() -> None:
         parser.error("development seeds are 0-99 (benchmarks/SPLIT.md)")
     if args.home in ("1LDK_9", "2LDK_9") or "heldout" in str(args.speech):
         parser.error("held-out homes and sets are not scored here (benchmarks/SPLIT.md)")
-    hyper = TransferHyperparameters().with_settings(args.set) if args.set else None
+    hyper = settings_hyperparameters(args.set)
     speech = read_speech(args.speech)
     accepted = read_names(args.accepted)
     regions_file = args.sigverse.parent / "sigverse_regions.json"

@@ -10,12 +10,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from spco.data.function_words import is_function_word
 from spco.data.language import (
     MAX_SENTENCE_TOKENS,
     MAX_TOKEN_CHARS,
     LanguageWarning,
     Vocabulary,
-    is_function_word,
     learn_terms,
     normalize_name,
     tokenize,

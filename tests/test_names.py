@@ -11,14 +11,13 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from spco.data.function_words import DETERMINERS, PREPOSITIONS
 from spco.data.language import Vocabulary
 from spco.data.lexicon import LexiconMatch, lexicon, lexicon_unavailable_reason
 from spco.errors import ConfigurationError
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.name_evidence import (
-    DETERMINERS,
     FEATURES,
-    PREPOSITIONS,
     frame_features,
     holds_determiner,
     lexical_features,

@@ -19,6 +19,7 @@ from spco.model import SpCoTransfer, position_prediction
 from spco.model.confidence import model_answer_parameters
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.parameters import ConceptParameters
+from spco.model.prediction import UnknownNameError
 from spco.model.rooms import model_rooms, room_concepts
 
 SMALL = TransferHyperparameters(n_concepts=6, n_regions=8)
@@ -226,6 +227,27 @@ def test_a_word_asked_alone_is_looked_up_by_every_name_that_holds_it_against_bru
     assert_allclose(position_prediction.region_posterior_for_name(params, 0, vocabulary, "bunk dining"),
                     alone.sum(axis=0) / alone.sum(), rtol=1e-12)
     assert_allclose(both, joint_.sum(axis=0) / joint_.sum(), rtol=1e-12)
+
+
+@pytest.mark.parametrize("mask", [[True] * 5, [True, True, False, True, True],
+                                  [False, True, True, True, True]])
+def test_a_positions_name_is_how_query_name_understands_the_name_asked(mask) -> None:
+    """``PositionPrediction.name`` is :func:`query_name` of the name asked: its usable tokens, each
+    once, joined by " + " (not the learnt terms that hold a word asked alone); written out by hand."""
+    params, vocabulary = _tiny_home(mask)
+    usable = {w for w, u in zip(vocabulary.words, mask, strict=True) if u}
+    known = {"dining": ["dining"], "kitchen": ["kitchen"], "dining kitchen": ["dining", "kitchen"],
+             "kitchen dining kitchen": ["kitchen", "dining", "kitchen"], "bunk dining": ["dining"],
+             "dining table": ["dining table"]}  # the known tokens of each name asked, in order
+    for asked, tokens in known.items():
+        expected = " + ".join(dict.fromkeys(t for t in tokens if t in usable))
+        if not expected:
+            with pytest.raises(UnknownNameError):
+                position_prediction.query_name(vocabulary, params, asked)
+            continue
+        assert position_prediction.query_name(vocabulary, params, asked) == expected
+        pred = position_prediction.predict_positions(params, 0, vocabulary, asked, n=2, rng=0, unheard=False)
+        assert pred.name == expected
 
 
 def test_a_rooms_own_names_against_brute_force() -> None:

@@ -15,7 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from spco.data.language import NAME_LEADING_WORDS, normalize_name
+from spco.data.function_words import NAME_LEADING_WORDS
+from spco.data.language import normalize_name
 from spco.data.regions import PlaceRegions
 from spco.errors import ConfigurationError, DataFormatError
 

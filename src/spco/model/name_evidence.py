@@ -35,8 +35,8 @@ only name is weak evidence ("dining") lost the views of a concept it shared with
 Without the lexicon (no NLTK or no WordNet database) the lexical features take their "unknown word"
 values, so the prior rests on the sentence frames alone.
 
-The frames use English function words (:data:`DETERMINERS`, :data:`PREPOSITIONS`, :data:`COPULAS`,
-:data:`PRONOUNS`): grammar, not names. In another language none of them occurs and every word gets
+The frames use English function words (:mod:`spco.data.function_words`: determiners, prepositions,
+copulas, pronouns): grammar, not names. In another language none of them occurs and every word gets
 the same frame features: the prior then only scales all words alike (and the lexicon, English
 WordNet, knows none of the words either).
 """
@@ -47,25 +47,19 @@ from collections.abc import Iterable, Sequence
 
 import numpy as np
 
-from spco.data.language import (  # noqa: F401  (re-exported)
+from spco.data.function_words import (
     CLOSED_CLASS,
     COPULAS,
     DETERMINERS,
     NAME_OPENERS,
-    OTHER_FUNCTION_WORDS,
     PREPOSITIONS,
     PRONOUNS,
-    Vocabulary,
     is_function_word,
 )
+from spco.data.language import Vocabulary
 
 __all__ = [
-    "CLOSED_CLASS",
-    "COPULAS",
-    "DETERMINERS",
     "FEATURES",
-    "PREPOSITIONS",
-    "PRONOUNS",
     "WEIGHTS",
     "channel_evidence",
     "content_share",
@@ -73,14 +67,13 @@ __all__ = [
     "frame_features",
     "has_english",
     "holds_determiner",
-    "is_function_word",
     "lexical_features",
     "name_prior",
     "within_concepts",
 ]
 
-# The English function-word lists live with the tokeniser (:mod:`spco.data.language`, whose term
-# rule uses them too); re-exported here, where the frames read them.
+# The English function-word lists: :mod:`spco.data.function_words` (the tokeniser's term rule reads
+# them too).
 #: Words after a name in "X is here", "X here", "X's here".
 AFTER_NAME = frozenset({"is", "are", "here", "'s"})
 

@@ -96,7 +96,8 @@ class PositionPrediction:
 
     Attributes
     ----------
-    name: the normalised name (a vocabulary word).
+    name: how the name asked for is understood (:func:`query_name`): its usable tokens joined by
+        ``" + "`` (``"living room"``; ``"study + room"`` for a name never learnt as one term).
     region: m̂ = argmax_m p(m | w).
     region_probabilities: (K,) p(m | w).
     samples: (n, 3) sampled poses ``(x, y, θ)``, metres and radians; ``θ = atan2(sin, cos)`` of
@@ -205,8 +206,13 @@ def query_forms(params: ConceptParameters, vocabulary: Vocabulary, name: str,
 def query_name(vocabulary: Vocabulary, params: ConceptParameters, name: str,
                lookup: np.ndarray | None = None) -> str:
     """How a name asked for is understood: its usable tokens joined by ``" + "`` (``"living room"``,
-    or ``"study + room"`` for a name never learnt as one term)."""
-    return " + ".join(vocabulary.words[k] for k in query_indices(params, vocabulary, name, lookup))
+    or ``"study + room"`` for a name never learnt as one term); :attr:`PositionPrediction.name`."""
+    return _understood_as(vocabulary, query_indices(params, vocabulary, name, lookup))
+
+
+def _understood_as(vocabulary: Vocabulary, columns: list[int]) -> str:
+    """The words of the usable tokens' ``columns`` joined by ``" + "`` (:func:`query_name`)."""
+    return " + ".join(vocabulary.words[k] for k in columns)
 
 
 def _occupied_concepts(params: ConceptParameters, e: int) -> np.ndarray:
@@ -635,7 +641,7 @@ def predict_positions(
         regions = gen.choice(probs.size, size=n, p=probs).astype(np.int64)
     samples, log_density, weights = draw_poses(params, e, probs, regions, gen, xy_only)
     return PositionPrediction(
-        name=" + ".join(vocabulary.words[form[0]] for form in forms),  # query_name: the usable tokens
+        name=_understood_as(vocabulary, [form[0] for form in forms]),  # a form's first word is its token
         region=best,
         region_probabilities=probs,
         samples=samples,

@@ -38,7 +38,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from spco.data.language import Vocabulary, is_function_word, normalize_name
+from spco.data.function_words import is_function_word
+from spco.data.language import Vocabulary, normalize_name
 
 __all__ = [
     "FIRM_INFORMATION",
