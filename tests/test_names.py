@@ -344,25 +344,6 @@ def test_a_name_stands_for_a_sense_only_if_it_is_used_in_it(wordnet) -> None:
     assert found is not None and (found.name, found.how) == ("hall", "synonym"), found
 
 
-def test_a_name_found_gives_way_to_a_firm_synonym_only_in_a_sense_both_are_used_in(wordnet) -> None:
-    # "shower stall" and "shower room" find "bathroom" by its definition ("a room … containing a bathtub
-    # or shower …"); WordNet files "bathroom" under the toilet too (its second sense), where it is never
-    # used: a home binding "toilet" firmly and "bathroom" weakly answers "bathroom", not the toilet
-    vocab = Vocabulary(("toilet", "bathroom", "kitchen"))
-    mask, prior = np.ones(3, dtype=bool), np.array([0.8, 0.3, 0.7])
-    info = np.array([0.4, 0.001, 0.4])
-    for asked in ("shower stall", "shower room"):
-        found = resolve_name(vocab, mask, asked, prior, lexicon=wordnet, information=info)
-        assert found is not None and (found.name, found.how) == ("bathroom", "definition"), (asked, found)
-    found = resolve_name(vocab, mask, "bath area", prior, lexicon=wordnet, information=info)
-    assert found is not None and found.name == "bathroom", found
-    # a synonym both are used in still gives way: "parlour" (no tagged use: no evidence against it)
-    # found for a "drawing room" is the firmly bound "living room"
-    vocab = Vocabulary(("living room", "parlour", "kitchen"))
-    found = resolve_name(vocab, mask, "drawing room", prior, lexicon=wordnet, information=info)
-    assert found is not None and found.name == "living room", found
-
-
 
 def test_a_kind_of_place_after_a_thing_reads_every_sense_of_the_thing(wordnet) -> None:
     # "bunk" is first a feeding trough, then a bed (three senses under bed.n.01): with nothing else

@@ -20,9 +20,7 @@ the words of a place ψ: "telly room" -> "tv", "bathing room" -> "bath" said as 
 WordNet similarity to a firmly bound name, then to any candidate, last a word said among those of
 every sense of the thing a kind of place is named after (:func:`_by_thing_senses`: "bunk room" ->
 "bed"). A synonym only in a sense WordNet never uses it in ("bathroom" for "privy") gives way to a
-candidate used in it (:meth:`spco.data.lexicon.Lexicon.seldom_in`), and a name found gives way to
-a firmly bound synonym only when both are used in a sense they share ("shower stall", by its definition
-"bathroom", stays "bathroom", not the "toilet" that WordNet files "bathroom" under too). ``where`` answers
+candidate used in it (:meth:`spco.data.lexicon.Lexicon.seldom_in`). ``where`` answers
 for that name, saying which one it used ("restroom -> toilet":
 :attr:`spco.model.position_prediction.PositionPrediction.asked`). When nothing is found, the name's
 own known words said together answer ("great + room"); a name none of whose words is known is an
@@ -171,11 +169,9 @@ def resolve_name(vocabulary: Vocabulary, word_mask: np.ndarray, name: str,
         # a synonym only in a sense the name is never used in ("privy" and "bathroom", whose uses are
         # all of the room with the bathtub): a candidate used in that sense, when the home says one
         name = next((c for c in candidates if _synonym_in_use(lexicon, c, asked)), name)
-    if name not in firm:  # a synonym of it that this home binds firmly names the same place, when
-        # both are used in a sense they share ("toilet" is no stand-in for a "bathroom" found by its
-        # definition: "bathroom" is never used as the toilet, its second sense)
+    if name not in firm:  # a synonym of it that this home binds firmly names the same place
         same = [f for f in lexicon.synonyms_among(name, firm)  # type: ignore[attr-defined]
-                if not lexicon.seldom_in(f, name) and not lexicon.seldom_in(name, f)]  # type: ignore[attr-defined]
+                if not lexicon.seldom_in(f, name)]  # type: ignore[attr-defined]
         if same:
             name, how = same[0], f"{how} synonym"
     return ResolvedName(asked=asked, name=name, how=how, score=float(match.score))
