@@ -543,28 +543,6 @@ def test_a_thing_with_many_kinds_is_a_word_of_a_place_a_kind_of_place_is_not(wor
     assert (pred.name, pred.region) == ("water", 1) and pred.via.startswith(PLACE_WORD), pred.via
 
 
-def test_a_word_of_a_name_with_many_kinds_and_no_place_sense_says_the_place(wordnet) -> None:
-    """"food" has more kinds below it in WordNet than "room" or "area" (≥ KINDS_BELOW), but no place sense:
-    in "food prep area" it is the word that says the place (as "water" is a word of a place), not a kind
-    of place like "area", so the name is looked for where "food" is said, not where "food" and "area"
-    are said together ("prep" is homework in WordNet 3.0, and not said)."""
-    from spco.data.lexicon import KINDS_BELOW
-    from spco.model.unheard import SAID_WORDS, said_words
-
-    assert wordnet.kinds_below("food") >= KINDS_BELOW and wordnet.place_share("food") == 0.0
-    vocab = Vocabulary(("living room", "kitchen", "food", "room", "area", "is"))
-    mask = np.ones(6, dtype=bool)
-    assert said_words(vocab, mask, "food prep area", wordnet) == ["food"]
-    assert said_words(vocab, mask, "room area", wordnet) == []  # kinds of place stay out
-    # "area" said mostly at the living room, "food" at the kitchen as a word of the place (ψ)
-    theta = np.array([[0.5, 0.0, 0.0, 0.0, 0.15, 0.35], [0.0, 0.5, 0.0, 0.0, 0.05, 0.45]])
-    psi = np.array([[0.0, 0.0, 0.0, 0.45, 0.45, 0.1], [0.0, 0.0, 0.9, 0.0, 0.0, 0.1]])
-    prior = np.array([0.7, 0.7, 0.01, 0.3, 0.3, 0.01])
-    params = _two_place_params_with_place_words(theta, psi, prior)
-    pred = predict_positions(params, 0, vocab, "food prep area", n=5, rng=0)
-    assert (pred.name, pred.via, pred.region) == ("food", SAID_WORDS, 1), (pred.name, pred.via, pred.region)
-
-
 def test_names_said_are_answered_as_before_whatever_the_lexicon_finds(wordnet) -> None:
     """The look-up acts only on a name that is not one usable token: every word said (names, things
     said at a place, function words) is answered exactly as without it."""

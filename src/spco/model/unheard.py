@@ -293,9 +293,7 @@ def said_words(vocabulary: Vocabulary, word_mask: np.ndarray, name: str, lexicon
     """The usable tokens of the words of ``name`` (several words, or one WordNet does not know read as
     two: :meth:`spco.data.lexicon.Lexicon.split_compound`) that say which place is meant: every word
     but function words and kinds of place (:data:`spco.data.lexicon.KINDS_BELOW` kinds under it:
-    "room", "area"; as for the words of a place, a word with many kinds and no place sense is a thing,
-    :func:`_stands_for_no_place` with ``thing``: "food" in "food prep area"), each as said or, when not
-    said so, as a WordNet base form said ("soaking room":
+    "room", "area"), each as said or, when not said so, as a WordNet base form said ("soaking room":
     "soak"). Empty for a name of one word, or when only kinds of place are said ("comfort room":
     "room" names no place, so the caller's answer is the name's own tokens said together, as
     without the lexicon)."""
@@ -307,7 +305,7 @@ def said_words(vocabulary: Vocabulary, word_mask: np.ndarray, name: str, lexicon
     mask = np.asarray(word_mask, dtype=bool)
     out: list[str] = []
     for word in words:
-        if _stands_for_no_place(lexicon, word, thing=True):
+        if _stands_for_no_place(lexicon, word):
             continue
         for form in (word, *sorted(lexicon.base_forms(word) - {word})):  # type: ignore[attr-defined]
             k = vocabulary.index(form)
