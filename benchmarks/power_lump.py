@@ -194,7 +194,8 @@ def one_sample_odds(model, lump: np.ndarray, rooms: np.ndarray, e: int, grids: d
     np.add.at(m, (lump[home], state.regions[home]), 1.0)
     phi, delta = np.exp(state.log_phi_v), hyper.delta_visual
     chain_ll = HierarchicalMultinomial.log_likelihood(data.visual[home], data.homes[home], state.log_theta_v)
-    out: dict[str, list[float]] = {"chain θ": [], "θ integrated": [], "θ, φ integrated": []}
+    out: dict[str, list[float]] = {"chain θ": [], "θ integrated": [], "θ, φ integrated": [],
+                                   "prior (G_e, π)": []}
     taken: Counter = Counter()
     for i, t in enumerate(home):
         a, b = int(lump[t]), int(rooms[t])
@@ -217,6 +218,7 @@ def one_sample_odds(model, lump: np.ndarray, rooms: np.ndarray, e: int, grids: d
         view = (grid_b.log_predictive(n_v[b] + x) - grid_b.log_predictive(n_v[b])
                 - grid_a.log_predictive(n_v[a]) + grid_a.log_predictive(np.maximum(n_v[a] - x, 0.0)))
         out["θ, φ integrated"].append(float(prior + view))
+        out["prior (G_e, π)"].append(float(prior))
         if len(out["chain θ"]) == 1:  # the one-sample odds are the collapsed joint's difference of two states
             moved = lump.copy()
             moved[t] = b
@@ -253,6 +255,7 @@ def diagnose(model, corpus, tables: int, seed: int, n_odds: int = 3) -> dict:
     mean = {k: {t: float(np.mean([d[t] for d in v])) for t in TERMS} for k, v in integrated.items()}
     out["integrated"] = {t: mean["rooms"][t] - mean["lump"][t] for t in TERMS}
     pairs = zip(integrated["rooms"], integrated["lump"], strict=True)
+    out["phi_fit"] = {k: mean[k]["view | φ chain"] - mean[k]["view | φ integrated"] for k in mean}
     key = "view | φ integrated"
     out["integrated_sd"] = float(np.std([r[key] - m[key] for r, m in pairs]))
     out["one_sample"] = one_sample_odds(model, lump, rooms, e, grids, n_odds, labels)
@@ -305,8 +308,35 @@ def main() -> None:
             for ell, mk in r["makeup"].items():
                 print(f"  concept {ell}: {mk}")
             sys.stdout.flush()
+    _table(rows)
     if args.json:
         args.json.write_text(json.dumps(rows, indent=0), encoding="utf-8")
+
+
+def _table(rows: list[dict]) -> None:
+    """One line a fit: rooms − lump by term (integrated), the totals, the one-sample odds."""
+    print("\n| seed | configuration | places → concepts (lump) | ARI lump → rooms | concept prior | "
+          "regions | "
+          "view, φ chain | view, φ integrated | total, φ chain | total, φ integrated | φ fit to the lump "
+          "(chain − integrated, lump / rooms) | one-sample odds, median: chain θ / θ int. / θ, φ int. "
+          "(positive of n) | of which G_e, π (median) |")
+    print("|---|---|---|---|---:|---:|---:|---:|---:|---:|---|---|---:|")
+    for r in rows:
+        d = r["integrated"]
+        base = d["concept prior"] + d["regions"]
+        used = len({c for p in r["places_lump"].values() for c in p})
+        odds = r["one_sample"]
+        views = [odds[k] for k in ("chain θ", "θ integrated", "θ, φ integrated")]
+        cells = " / ".join(f"{np.median(v):.0f}" if v else "–" for v in views)
+        pos = sum(int(np.sum(np.asarray(v) > 0)) for v in views)
+        prior = f"{np.median(odds['prior (G_e, π)']):.1f}" if odds["prior (G_e, π)"] else "–"
+        n = len(odds["θ, φ integrated"])
+        print(f"| {r['seed']} | {r['home']} | {len(r['places_lump'])} → {used} | {r['ari_lump']:.2f} → "
+              f"{r['ari_rooms']:.2f} | {d['concept prior']:+.0f} | {d['regions']:+.0f} | "
+              f"{d['view | φ chain']:+.0f} | {d['view | φ integrated']:+.0f} | "
+              f"{base + d['view | φ chain']:+.0f} | {base + d['view | φ integrated']:+.0f} | "
+              f"{r['phi_fit']['lump']:+.0f} / {r['phi_fit']['rooms']:+.0f} | "
+              f"{cells} ({pos} of {3 * n}) | {prior} |")
 
 
 if __name__ == "__main__":
