@@ -259,6 +259,8 @@ def diagnose(model, corpus, tables: int, seed: int, n_odds: int = 3) -> dict:
     key = "view | φ integrated"
     out["integrated_sd"] = float(np.std([r[key] - m[key] for r, m in pairs]))
     out["one_sample"] = one_sample_odds(model, lump, rooms, e, grids, n_odds, labels)
+    # and back: from the rooms state, one sample into its lump concept ("chain θ" is not the chain's here)
+    out["one_sample_back"] = one_sample_odds(model, rooms, lump, e, grids, n_odds, labels)
     cl, cr = conditional_terms(model, lump, e), conditional_terms(model, rooms, e)
     out["conditional"] = {t: cr[t] - cl[t] for t in cl}
     used = sorted(set(lump[rows].tolist()) | set(rooms[rows].tolist()))
@@ -301,7 +303,8 @@ def main() -> None:
             print("rooms − lump, integrated:", {k: round(v, 1) for k, v in r["integrated"].items()},
                   f"(sd over table draws {r['integrated_sd']:.1f})")
             print("rooms − lump, conditional:", {k: round(v, 1) for k, v in r["conditional"].items()})
-            for k, v in r["one_sample"].items():
+            back = ("back, θ, φ integrated", r["one_sample_back"]["θ, φ integrated"])
+            for k, v in [*r["one_sample"].items(), back]:
                 if v:
                     print(f"one-sample log-odds room vs lump, {k}: median {np.median(v):.1f}, "
                           f"max {np.max(v):.1f}, positive {int(np.sum(np.asarray(v) > 0))} of {len(v)}")
@@ -319,8 +322,8 @@ def _table(rows: list[dict]) -> None:
           "regions | "
           "view, φ chain | view, φ integrated | total, φ chain | total, φ integrated | φ fit to the lump "
           "(chain − integrated, lump / rooms) | one-sample odds, median: chain θ / θ int. / θ, φ int. "
-          "(positive of n) | of which G_e, π (median) |")
-    print("|---|---|---|---|---:|---:|---:|---:|---:|---:|---|---|---:|")
+          "(positive of n) | of which G_e, π (median) | back from the rooms, θ, φ int. (positive) |")
+    print("|---|---|---|---|---:|---:|---:|---:|---:|---:|---|---|---:|---|")
     for r in rows:
         d = r["integrated"]
         base = d["concept prior"] + d["regions"]
@@ -330,13 +333,15 @@ def _table(rows: list[dict]) -> None:
         cells = " / ".join(f"{np.median(v):.0f}" if v else "–" for v in views)
         pos = sum(int(np.sum(np.asarray(v) > 0)) for v in views)
         prior = f"{np.median(odds['prior (G_e, π)']):.1f}" if odds["prior (G_e, π)"] else "–"
+        back = np.asarray(r["one_sample_back"]["θ, φ integrated"])
+        back_cell = f"{np.median(back):+.0f} ({int(np.sum(back > 0))} of {back.size})" if back.size else "–"
         n = len(odds["θ, φ integrated"])
         print(f"| {r['seed']} | {r['home']} | {len(r['places_lump'])} → {used} | {r['ari_lump']:.2f} → "
               f"{r['ari_rooms']:.2f} | {d['concept prior']:+.0f} | {d['regions']:+.0f} | "
               f"{d['view | φ chain']:+.0f} | {d['view | φ integrated']:+.0f} | "
               f"{base + d['view | φ chain']:+.0f} | {base + d['view | φ integrated']:+.0f} | "
               f"{r['phi_fit']['lump']:+.0f} / {r['phi_fit']['rooms']:+.0f} | "
-              f"{cells} ({pos} of {3 * n}) | {prior} |")
+              f"{cells} ({pos} of {3 * n}) | {prior} | {back_cell} |")
 
 
 if __name__ == "__main__":
