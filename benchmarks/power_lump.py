@@ -268,6 +268,19 @@ def diagnose(model, corpus, tables: int, seed: int, n_odds: int = 3) -> dict:
     return out
 
 
+def clusters(model, corpus, seed: int, label: str) -> dict:
+    """The new home's ARI and concepts used, each experienced home's ARI (printed)."""
+    e = len(corpus) - 1
+    labels = training_labels(corpus[e])
+    ok = labels != "None"
+    concepts = np.asarray(model.state_.concepts)[model.data_.homes == e][ok]
+    r = {"seed": seed, "home": label, "new_ari": float(adjusted_rand_score(labels[ok], concepts)),
+         "new_used": len(set(concepts.tolist())), "experienced_ari": experienced_ari(model, corpus, e)}
+    print(f"seed {seed} {label}: new home ARI {r['new_ari']:.2f} ({r['new_used']} concepts), experienced "
+          f"{np.round(r['experienced_ari'], 2).tolist()}", flush=True)
+    return r
+
+
 def main() -> None:
     """Read the fits, diagnose, print, write ``--json``."""
     from free_speech import read_names
@@ -279,6 +292,9 @@ def main() -> None:
     parser = fit_arguments(argparse.ArgumentParser(description=__doc__.splitlines()[0]))
     parser.add_argument("--homes", nargs="*", default=None, help="only these configurations (e.g. 1LDK_1)")
     parser.add_argument("--tables", type=int, default=3, help="CRT table draws for φ^v integrated")
+    parser.add_argument("--clusters-only", action="store_true",
+                        help="only the adjusted Rand indices (new home, each experienced home): for any fit, "
+                        "the cut's too")
     parser.add_argument("--json", type=Path, default=None)
     args = parser.parse_args()
     args.leave_one_out = True
@@ -293,6 +309,9 @@ def main() -> None:
                 continue
             corpus = Corpus([*homes, env])
             model = _fitted(args, corpus, seed, label, labels)
+            if args.clusters_only:
+                rows.append(clusters(model, corpus, seed, label))
+                continue
             r = {"seed": seed, "home": label, **diagnose(model, corpus, args.tables, seed)}
             if "ari_lump" not in r:
                 continue
@@ -311,7 +330,14 @@ def main() -> None:
             for ell, mk in r["makeup"].items():
                 print(f"  concept {ell}: {mk}")
             sys.stdout.flush()
-    _table(rows)
+    if args.clusters_only:
+        new = [r["new_ari"] for r in rows]
+        old = [np.mean(r["experienced_ari"]) for r in rows]
+        print(f"\nover {len(rows)} fits: the new home's ARI {np.mean(new):.3f}, the experienced homes' "
+              f"mean ARI "
+              f"{np.mean(old):.3f} (min of a home {np.min([min(r['experienced_ari']) for r in rows]):.2f})")
+    else:
+        _table(rows)
     if args.json:
         args.json.write_text(json.dumps(rows, indent=0), encoding="utf-8")
 
