@@ -23,7 +23,7 @@ from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.engines import LocalEngine, checkpoints
 from spco.knowledge.requests import Teach, Undo
 from spco.model.home_place import draw_home_place_of, grown_home_place, home_place_mean
-from spco.model.hyperparameters import TransferHyperparameters
+from spco.model.hyperparameters import DELTA_PLACE, TransferHyperparameters
 from spco.model.sources import SyntheticHomes
 from spco.model.transfer import SpatialConceptModel
 from spco.model.word_channels import WordChannels
@@ -228,6 +228,7 @@ def test_the_home_file_keeps_the_place_words_and_an_older_file_loads(homes, tmp_
     with np.load(path) as f:
         header = json.loads(bytes(f["header"]).decode())
         assert header["format_version"] == 5 and "state.log_place_home" in f.files
+    assert home.hyperparameters.place_channel == "home" and home.hyperparameters.delta_place == DELTA_PLACE
     copy = home.save(tmp_path / "copy.spco")
     again = kn.load_home_model(copy)
     assert _state_digest(again) == _state_digest(home)
