@@ -151,16 +151,18 @@ def test_a_shard_checkpoint_keeps_the_homes_place_words(tmp_path) -> None:
         run.close()
 
 
-def test_ray_resumes_the_home_level_chain_from_checkpoints_on_disk(tmp_path, ray_session) -> None:
-    """place_channel="home", checkpoints in a directory: killing an actor after sweep 7 restarts the
-    shards from the files of sweep 5, and the fit ends where the fault-free local fit ends — its trace,
-    concepts and every home's ψ_{e,l} hashed."""
+@pytest.mark.parametrize("on_disk", [True, False])
+def test_ray_resumes_the_home_level_chain_from_its_checkpoint(tmp_path, ray_session, on_disk: bool) -> None:
+    """place_channel="home", checkpoints in a directory (each actor's file) or in memory: killing an
+    actor after sweep 7 restarts the shards from the checkpoint of sweep 5, and the fit ends where the
+    fault-free local fit ends — its trace, concepts, regions, θ^w, ψ_l and every home's ψ_{e,l} hashed."""
     from spco.engines.ray import RayEngine
 
     source = SyntheticHomes.create(3, seed=2, config=CONFIG, new_homes=1)
     model = SpatialConceptModel(HOME, random_state=0, prune_words=True)
     hyper, settings = model.checked_hyperparameters(), model.sampler_settings()
-    run = _channels_run(RayEngine(2, checkpoint_every=5, checkpoint_dir=tmp_path), source, hyper, settings)
+    engine = RayEngine(2, checkpoint_every=5, checkpoint_dir=tmp_path if on_disk else None)
+    run = _channels_run(engine, source, hyper, settings)
     killed = []
 
     def kill_once(iteration: int, _: float) -> None:
