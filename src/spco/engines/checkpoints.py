@@ -6,7 +6,9 @@ A checkpoint of sweep i is the files ``shard-<s>-<i>.npz`` (each worker's
 and ``driver.npz`` (the sweep i, the driver's generator, the shared parameters and the log-joint
 trace so far). Every file is written to a temporary name in the same directory and renamed into
 place (atomic on POSIX); the driver file is written last, so it always names a complete set of
-shard files. Files carry a format name and version and are read without pickle.
+shard files. Files carry a format name and version and are read without pickle. With the place
+channel's home level (``place_channel="home"``) a shard's file holds its homes' own ψ_{e,l} beside
+their θ^w, so that a fit resumed from it continues the same chain.
 """
 
 from __future__ import annotations
@@ -24,10 +26,19 @@ from spco.model.shard import SharedParameters
 from spco.model.word_channels import WordChannels
 
 FORMAT = "spco-checkpoint"
-VERSION = 3  # 2: a generator state per home; 3: the word channels
+#: 2: a generator state per home; 3: the word channels; 4: the homes' own place words ψ_{e,l}
+#: (``channels.log_place_home``, ``place_channel="home"``). A file without ψ_{e,l} is written as
+#: version 3 (what it is: the default model's checkpoints are unchanged), one with it as version 4,
+#: which an spco that would drop ψ_{e,l} refuses; both are read.
+VERSION = 4
+#: The versions this spco reads.
+READABLE_VERSIONS = (3, 4)
 
 #: The arrays of a :class:`~spco.model.word_channels.WordChannels`, stored as ``channels.<name>``.
 _CHANNEL_ARRAYS = ("log_place", "log_background", "log_shares", "log_evidence")
+#: The array of the homes' own ψ_{e,l} (:attr:`~spco.model.word_channels.WordChannels.log_place_home`),
+#: present only when the state holds it.
+_HOME_PLACE = "channels.log_place_home"
 
 
 def _put(arrays: dict, name: str, value) -> None:
@@ -37,6 +48,8 @@ def _put(arrays: dict, name: str, value) -> None:
         arrays["channels.fresh"] = np.asarray(value.fresh)
         arrays["channels.token_weight"] = np.asarray(value.token_weight)
         arrays["channels.power"] = np.asarray(value.power)
+        if value.log_place_home is not None:  # the place channel's home level: every home's own ψ_{e,l}
+            arrays[_HOME_PLACE] = np.asarray(value.log_place_home)
     else:
         arrays[name] = np.asarray(value)
 
@@ -49,7 +62,8 @@ def _get(arrays, name: str):
                             fresh=bool(arrays["channels.fresh"]),
                             token_weight=float(arrays["channels.token_weight"])
                             if "channels.token_weight" in arrays else 1.0,
-                            power=bool(arrays["channels.power"]) if "channels.power" in arrays else False)
+                            power=bool(arrays["channels.power"]) if "channels.power" in arrays else False,
+                            log_place_home=arrays.get(_HOME_PLACE))
     return arrays[name] if name in arrays else None
 DRIVER_FILE = "driver.npz"
 
@@ -65,7 +79,8 @@ def shard_path(directory: str | os.PathLike, shard: int, iteration: int) -> Path
 
 def _write_atomically(path: Path, arrays: dict[str, np.ndarray], meta: dict) -> int:
     path.parent.mkdir(parents=True, exist_ok=True)
-    arrays = dict(arrays, meta=np.array(json.dumps({"format": FORMAT, "version": VERSION, **meta})))
+    version = VERSION if _HOME_PLACE in arrays else 3  # (module: the lowest version that holds the file)
+    arrays = dict(arrays, meta=np.array(json.dumps({"format": FORMAT, "version": version, **meta})))
     descriptor, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
         with os.fdopen(descriptor, "wb") as f:
@@ -91,9 +106,9 @@ def _read(path: Path, kind: str) -> tuple[dict[str, np.ndarray], dict]:
         raise CheckpointError(f"{path}: no checkpoint header") from error
     if meta.get("format") != FORMAT or meta.get("kind") != kind:
         raise CheckpointError(f"{path}: not a {kind} checkpoint of spco")
-    if meta.get("version") != VERSION:
+    if meta.get("version") not in READABLE_VERSIONS:
         raise CheckpointError(f"{path}: checkpoint format version {meta.get('version')}, this spco reads "
-                              f"version {VERSION}")
+                              f"versions {', '.join(map(str, READABLE_VERSIONS))}")
     return arrays, meta
 
 

@@ -4,7 +4,8 @@ Knowledge (``.spco``, format ``spco-knowledge``) and home (``.spco``, format ``s
 are NumPy ``.npz`` archives read with ``allow_pickle=False``: arrays plus a ``header`` array holding
 a UTF-8 JSON document with the format name, ``format_version`` (2; 3 when the vocabulary segments
 text written without spaces; 4 for the ``spcotransfer+mi`` model, whose word channels the file
-carries as ``channels.*`` arrays, :data:`FORMAT_VERSION`), the spco version, the hyperparameters,
+carries as ``channels.*`` arrays; 5 for a home file holding the home's own place words ψ_{e,l},
+:data:`FORMAT_VERSION`), the spco version, the hyperparameters,
 the vocabulary, its
 ``segmentation`` (``null``, or how Japanese or Chinese text is cut into words:
 :meth:`spco.data.segmentation.Segmentation.to_dict`), provenance, the image extractor
@@ -49,9 +50,17 @@ HOME_FORMAT = "spco-home"
 #: and a home's ``state.switches``), or with the naming rule for speech without English function words
 #: (``hyperparameters.word_model``). Such files of an earlier version were learnt with the naming rule
 #: for every language and are refused (:func:`check_word_model`): fit the knowledge again.
-FORMAT_VERSION = 4
+#: Version 5 is a home file that holds the home's own place words ψ_{e,l} (``state.log_place_home``:
+#: the place channel's home level, ``place_channel="home"``, :mod:`spco.model.home_place`), written only
+#: for such a home (an older spco would drop ψ_{e,l}); other files keep their version. A home file of
+#: ``place_channel="home"`` written before (version 4, no ψ_{e,l}) loads with none held: the home reads
+#: ψ_l, ψ_{e,l}'s prior mean — what a new home reads before its first home step — until a teaching
+#: draws ψ_{e,l} of the concepts it updates.
+FORMAT_VERSION = 5
 #: The first version whose ``spcotransfer+mi`` files carry the word channels.
 CHANNELS_FORMAT_VERSION = 4
+#: The version of a home file holding its ψ_{e,l}.
+HOME_PLACE_FORMAT_VERSION = 5
 
 
 def format_version(vocabulary: Any, word_model: bool = False) -> int:

@@ -18,6 +18,7 @@ from spco.data.language import Vocabulary
 from spco.errors import ModelFileError
 from spco.knowledge.files import (
     HOME_FORMAT,
+    HOME_PLACE_FORMAT_VERSION,
     _read_archive,
     _require,
     _version,
@@ -27,6 +28,7 @@ from spco.knowledge.files import (
 from spco.knowledge.knowledge import Knowledge
 from spco.model import gibbs
 from spco.model.confidence import UNSURE_BELOW
+from spco.model.home_place import home_place_mean, home_place_statistics, uses_home_place
 from spco.model.home_shard import name_words, prepare_home, switch_tokens
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.name_evidence import extend_prior
@@ -169,8 +171,19 @@ class HomeModel:
             params = replace(params, name_prior=prior)
         if self.knowledge.channels is not None:
             params = replace(params, word_mask=self.said_words,
-                             **channel_parameters(self.knowledge.channels.channels))
+                             **channel_parameters(self.knowledge.channels.channels, self._place_mean()))
         return params
+
+    def _place_mean(self) -> np.ndarray | None:
+        """(L, V) log E[ψ_{e,l} | ψ_l, the home's place tokens] with the place channel's home level
+        (:func:`spco.model.home_place.home_place_mean`: the home's own place words, their conditional
+        mean given the state's switches, as a fit exports ψ_l's mean given its last sweep); ``None``
+        without it (ψ_l, the knowledge's)."""
+        hyper, state = self.hyperparameters, self.state
+        if not uses_home_place(hyper) or state.channels is None or state.switches is None:
+            return None
+        counts = home_place_statistics(self.data, state, hyper, 1, self.knowledge.n_concepts)
+        return home_place_mean(counts, state.channels.log_place, hyper.delta_place)[0]
 
     @functools.cached_property
     def channel_tokens(self) -> np.ndarray | None:
@@ -254,12 +267,15 @@ class HomeModel:
             arrays["state." + name] = np.asarray(getattr(s, name))
         if s.switches is not None:  # the word channels' switch of every token
             arrays["state.switches"] = np.asarray(s.switches, dtype=np.int8)
+        place_home = None if s.channels is None else s.channels.log_place_home
+        if place_home is not None:  # the place channel's home level: the home's own ψ_{e,l}
+            arrays["state.log_place_home"] = np.asarray(place_home, dtype=np.float64)
         if self.posterior is not None:
             arrays.update({"posterior." + k: np.asarray(v) for k, v in self.posterior.arrays().items()})
         header = {
             "format": HOME_FORMAT,
-            "format_version": format_version(self.vocabulary, self.knowledge.variant == "exact"
-                                             and self.knowledge.prune_words),
+            "format_version": HOME_PLACE_FORMAT_VERSION if place_home is not None else format_version(
+                self.vocabulary, self.knowledge.variant == "exact" and self.knowledge.prune_words),
             "spco_version": _version(),
             "name": self.name,
             "sentences": list(self.sentences),
@@ -296,7 +312,8 @@ class HomeModel:
                                   shape=(n, int(header["n_features"])))
             state = gibbs.GibbsState(**{name: arrays["state." + name] for name in _STATE_ARRAYS})
             if knowledge.channels is not None:
-                state.channels = knowledge.channels.channels
+                state.channels = replace(knowledge.channels.channels,  # (absent: none held, ψ_l read)
+                                         log_place_home=arrays.get("state.log_place_home"))
                 state.switches = arrays.get("state.switches")
             sentences = tuple(None if s is None else str(s) for s in header["sentences"])
             extent = None if header["extent"] is None else tuple(float(v) for v in header["extent"])
@@ -369,6 +386,15 @@ def _check_home(home: HomeModel) -> list[str]:
         elif np.shape(s.switches) != (nnz,) or (nnz and (s.switches.min() < 0 or s.switches.max() > 2)):
             problems.append(f"state.switches has shape {np.shape(s.switches)} (expected ({nnz},), one switch "
                             "0, 1 or 2 per word token of the sentences)")
+    place_home = None if s.channels is None else s.channels.log_place_home
+    if place_home is not None:
+        if not uses_home_place(k.hyperparameters):
+            problems.append("state.log_place_home (a home's own place words) in a home whose hyperparameters "
+                            "have place_channel 'shared'")
+        elif np.shape(place_home) != (1, L, V):
+            problems.append(f"state.log_place_home has shape {np.shape(place_home)}, expected {(1, L, V)}")
+        elif np.isnan(place_home).any() or (place_home == np.inf).any():
+            problems.append("state.log_place_home holds a NaN or +inf log-probability")
     if n and ((s.concepts < 0).any() or (s.concepts >= L).any()
               or (s.regions < 0).any() or (s.regions >= K).any()):
         problems.append("assignments out of range")

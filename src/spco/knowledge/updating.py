@@ -21,6 +21,7 @@ from spco.knowledge.knowledge import DEFAULT_TEACH_SWEEPS
 from spco.knowledge.limits import DEFAULT_LIMITS, TeachingLimits, check_sentences
 from spco.knowledge.requests import Pose, Teach, View
 from spco.knowledge.views import _visual_row, pose_outside_map, view_counts
+from spco.model.home_place import grown_home_place
 from spco.model.home_shard import NewHomeShard, init_new_words, prepare_home
 from spco.model.local_update import teach_locally
 from spco.model.seeds import as_generator, seed_of
@@ -213,8 +214,10 @@ def _grown_state(home: HomeModel, knowledge, local: bool, n_new_samples: int):
     θ^w entries at the prior, the knowledge's φ^w for a home that does not learn its own) and to
     ``n_new_samples`` new samples (concept and region 0 until the sweeps draw them)."""
     state = _copy_state(home.state)
-    if knowledge.channels is not None:  # the channels of the grown vocabulary (fixed, like φ)
-        state.channels = knowledge.channels.channels
+    if knowledge.channels is not None:  # the channels of the grown vocabulary (fixed, like φ), with the
+        channels = knowledge.channels.channels  # home's own ψ_{e,l} kept (place_channel="home"), grown
+        held = None if home.state.channels is None else home.state.channels.log_place_home
+        state.channels = replace(channels, log_place_home=grown_home_place(held, channels.log_place))
     added = knowledge.n_words - home.knowledge.n_words
     if added:
         hyper = knowledge.hyperparameters

@@ -39,7 +39,7 @@ from dataclasses import replace
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.special import gammaln
+from scipy.special import gammaln, logsumexp
 
 from spco.model.observations import HierarchicalMultinomial
 from spco.model.word_channels import PLACE, ChannelCounts, WordChannels, token_scales, tokens
@@ -133,3 +133,48 @@ def shared_place_counts(stats, channels: WordChannels, hyper, rng: np.random.Gen
         return stats.channel
     tables = place_tables(stats.home_place, channels.log_place, hyper.delta_place, rng)
     return replace(stats.channel, place=tables)
+
+
+def draw_home_place_of(channels: WordChannels, counts: np.ndarray, delta: float, concepts: np.ndarray,
+                       rng: np.random.Generator) -> WordChannels:
+    """``channels`` with log ψ_{e,l} ~ Dir(δ^p ψ_l + n_{e,l}) drawn for the ``concepts`` of every home of
+    ``counts`` n (E, L, V) and kept for the others (a teaching's affected concepts, as θ^w:
+    :mod:`spco.model.local_update`); a state that holds no ψ_{e,l} yet has ψ_l, its prior mean, for the
+    others. A new array: ``channels`` is not changed."""
+    concepts = np.asarray(concepts, dtype=np.int64)
+    E = counts.shape[0]
+    held = channels.log_place_home
+    base = np.repeat(channels.log_place[None], E, axis=0) if held is None else held.copy()
+    if concepts.size:
+        base[:, concepts] = HierarchicalMultinomial.sample_specific(counts[:, concepts],
+                                                                    channels.log_place[concepts],
+                                                                    float(delta), rng)
+    return replace(channels, log_place_home=base)
+
+
+def grown_home_place(log_place_home: np.ndarray | None, log_place: np.ndarray) -> np.ndarray | None:
+    """log ψ_{e,l} (E, L, V_old) grown to the vocabulary of ``log_place`` (L, V) — ψ_l of the grown
+    vocabulary (:meth:`spco.knowledge.KnowledgeChannels.extended`): a word never said in the home takes
+    ψ_l's value (ψ_{e,l}'s prior mean given ψ_l) and the old words share the rest in their proportions,
+    as ψ_l's old words do. ``None`` stays ``None``; an array of the full width is returned as it is."""
+    if log_place_home is None:
+        return None
+    V_old, V = log_place_home.shape[2], log_place.shape[1]
+    if V_old == V:
+        return log_place_home
+    if V_old > V:
+        raise ValueError(f"log_place_home has {V_old} words, more than log_place's {V}")
+    old_mass = logsumexp(log_place[:, :V_old], axis=1)  # (L,) log(1 − ψ_l's new words)
+    E = log_place_home.shape[0]
+    return np.concatenate([log_place_home + old_mass[None, :, None],
+                           np.broadcast_to(log_place[None, :, V_old:], (E, *log_place[:, V_old:].shape))],
+                          axis=2)
+
+
+def home_place_mean(counts: np.ndarray, log_place: np.ndarray, delta: float) -> np.ndarray:
+    """(E, L, V) log E[ψ_{e,l} | ψ_l, n_{e,l}] = log (δ^p ψ_l + n_{e,l}) − log (δ^p + N_{e,l}): the mean of
+    ψ_{e,l}'s conditional (:func:`draw_home_place`) given the homes' place tokens ``counts`` n
+    (E, L, V) and log ψ_l ``log_place`` (L, V)."""
+    a = float(delta) * np.exp(np.asarray(log_place, dtype=np.float64))[None] + np.asarray(counts, np.float64)
+    with np.errstate(divide="ignore"):
+        return np.log(a) - np.log(a.sum(axis=-1, keepdims=True))

@@ -38,7 +38,10 @@ current values (a valid MCMC step of the same posterior, restricted to a block):
    them into one — the uncollapsed sampler's slow mixing between region configurations is what
    keeps a teaching local), with the word channels the switch of each of their word tokens given
    its new concept (the taught tokens' switches are first drawn given their sample's concept; every
-   other token keeps its switch), then θ^v, θ^w and π of ``C_A``, the Gaussians of ``R_A``, and
+   other token keeps its switch), then θ^v, θ^w and π of ``C_A`` (and with the place channel's home
+   level the home's ψ_{e,l} of ``C_A``, right after θ^w as the home step draws it:
+   :func:`~spco.model.home_place.draw_home_place_of`; the other concepts keep theirs), the
+   Gaussians of ``R_A``, and
    G_e's share among ``C_A`` given the share of the other concepts (the conditional of a
    Dirichlet's sub-vector);
    φ of a free concept in ``C_A`` (one the knowledge does not use) as adapting learns it; in the
@@ -70,6 +73,7 @@ import scipy.sparse as sp
 from scipy.special import multigammaln
 
 from spco.model import gibbs
+from spco.model.home_place import draw_home_place_of
 from spco.model.home_shard import (
     FREE_CONCEPT_WEIGHT,
     SharedPart,
@@ -268,6 +272,9 @@ def _parameters(
     state.log_theta_w[:, concepts] = HierarchicalMultinomial.sample_specific(
         stats.words[:, concepts], state.log_phi_w[concepts], hyper.delta_word, rng
     )
+    if stats.home_place is not None and state.channels is not None:  # ψ_{e,l} of C_A, as θ^w's
+        state.channels = draw_home_place_of(state.channels, stats.home_place, hyper.delta_place, concepts,
+                                            rng)
     # G_e restricted to C_A: its share among them ~ Dir(γ G_0 + n), their total mass kept
     log_mass = np.logaddexp.reduce(state.log_g[0, concepts])
     alpha = hyper.gamma * np.exp(state.log_g0[concepts]) + stats.concepts[0, concepts]
