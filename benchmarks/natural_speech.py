@@ -55,7 +55,7 @@ from spco.model.hyperparameters import TransferHyperparameters
 SIDES = {
     "development": {"knowledge": ("1LDK_1", "1LDK_3", "1LDK_5", "1LDK_7",
                                   "2LDK_1", "2LDK_3", "2LDK_5", "2LDK_7"),
-                    "new": ("3LDK_9",), "seeds": range(0, 100)},
+                    "new": ("3LDK_9",), "seeds": (*range(0, 100), *range(200, 300))},  # SPLIT.md
     "heldout": {"knowledge": ("1LDK_2", "1LDK_4", "1LDK_6", "1LDK_8",
                               "2LDK_2", "2LDK_4", "2LDK_6", "2LDK_8"),
                 "new": ("1LDK_9", "2LDK_9", "3LDK_9"), "seeds": range(100, 120)},
