@@ -291,12 +291,14 @@ def _fitted(args: argparse.Namespace, corpus: Corpus, seed: int, label: str,
     """The fit of one configuration with the hyperparameters of ``--set`` (the model's own without it),
     from ``--cache`` when it holds it (keyed by the same settings)."""
     path = None
-    if args.cache is not None:
-        key = hashlib.sha256(repr((sorted(args.set), args.sweeps)).encode()).hexdigest()[:12]
+    answer = [s for s in args.set if s.partition("=")[0].strip() in ANSWER_SETTINGS]
+    fit = [s for s in args.set if s not in answer]
+    if args.cache is not None:  # keyed by the settings the fit reads: answers of one fit can be compared
+        key = hashlib.sha256(repr((sorted(fit), args.sweeps)).encode()).hexdigest()[:12]
         path = args.cache / f"{key}-{label.split()[0]}-s{seed}.pkl"
         if path.exists():
             with open(path, "rb") as fh:
-                return pickle.load(fh)
+                return _answering(pickle.load(fh), answer)
     hyper = TransferHyperparameters().with_settings(args.set) if args.set else None
     model = SpCoTransfer(hyper, variant="exact", prune_words=True, n_iterations=args.sweeps,
                          random_state=trial_seed(seed, labels.index(label))).fit(corpus)
@@ -306,6 +308,20 @@ def _fitted(args: argparse.Namespace, corpus: Corpus, seed: int, label: str,
         with open(tmp, "wb") as fh:
             pickle.dump(model, fh)
         os.replace(tmp, path)
+    return model
+
+
+#: Hyperparameters only the answers read, not the fit (a cached fit is read for them and they are set on it).
+ANSWER_SETTINGS = frozenset({"name_answer"})
+
+
+def _answering(model: SpCoTransfer, settings: list[str]) -> SpCoTransfer:
+    """``model`` (a cached fit) answering with the answer-only ``settings`` (:data:`ANSWER_SETTINGS`; the
+    defaults for those not given, whatever the fit was cached with)."""
+    default = TransferHyperparameters()
+    hyper = replace(model.hyperparameters_, **{k: getattr(default, k) for k in ANSWER_SETTINGS})
+    model.hyperparameters_ = hyper.with_settings(settings) if settings else hyper
+    model.__dict__.pop("_answers", None)
     return model
 
 

@@ -46,7 +46,8 @@ def fitted():
     from spco.data.synthetic import SyntheticConfig, generate_homes
     from spco.model import SpCoTransfer
 
-    corpus = generate_homes(4, seed=2, config=SyntheticConfig(n_features=64), new_homes=1, specific_rooms=False)
+    corpus = generate_homes(4, seed=2, config=SyntheticConfig(n_features=64), new_homes=1,
+                            specific_rooms=False)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         model = SpCoTransfer(variant="exact", prune_words=True, n_iterations=6, random_state=0).fit(corpus)
