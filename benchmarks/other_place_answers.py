@@ -8,7 +8,8 @@ of class b or c (the answer is a name of another place) one row per view gives:
 - the answer, the place(s) it names, its probability, and the best accepted name's probability and rank;
 - the concept the view is drawn to (``l*``, the most probable of the answer's concept posterior,
   :func:`spco.model.confidence.answer_concepts`) and what it holds: its taught samples in the other homes
-  by place (the share of the scored place and of the answer's place), its top answerable name;
+  by place (the share of the scored place and of the answer's place), its top answerable name (the
+  answer's θ^w, names said at its places) and its names channel's own top name (``place_names=False``);
 - the concept that names the place (``l_r``): of the concepts whose top answerable name is an accepted
   name of the place, the one holding most of the other homes' taught samples of the place (``None``: no
   concept's top name is one of the place's);
@@ -71,7 +72,7 @@ from speech_errors import (
 from spco.data import Corpus
 from spco.data.language import normalize_name
 from spco.evaluation import evaluate_answers
-from spco.model.confidence import answer_concepts
+from spco.model.confidence import answer_concepts, model_answer_parameters
 from spco.model.prediction import _safe_log, _visual_log_likelihood, gaussian_log_density, validate_poses
 from spco.model.rooms import _room_log_posterior
 
@@ -125,6 +126,11 @@ def _room_terms(answer, rooms, e: int, positions: np.ndarray, visual, view_count
     return log_k, region_of, room_log - prior[None, :], view, prior
 
 
+def _tops(theta: object, mask: np.ndarray) -> np.ndarray:
+    """(L,) each concept's most probable answerable name (``theta`` (L, V), ``mask`` (V,) answerable)."""
+    return np.argmax(np.where(mask[None, :], np.asarray(theta, dtype=np.float64), -1.0), axis=1)
+
+
 def diagnose(model, corpus: Corpus, e: int, env, scored, seed: int, accepted: dict, said: dict,
              home: str) -> list[dict]:
     """One row per wrong class-b or class-c answer (a view) of home ``e`` (the module's docstring)."""
@@ -138,7 +144,8 @@ def diagnose(model, corpus: Corpus, e: int, env, scored, seed: int, accepted: di
     theta = np.asarray(answer.word_probabilities, dtype=np.float64)[e]
     mask = np.asarray(answer.word_mask, dtype=bool)
     probs = np.where(mask[None, :], posterior @ theta, -1.0)
-    tops = np.argmax(np.where(mask[None, :], theta, -1.0), axis=1)
+    tops = _tops(theta, mask)
+    own_tops = _tops(model_answer_parameters(model, e, place_names=False).word_probabilities[e], mask)
     held = concept_holdings(model, corpus, e)
     log_k, region_of, room_views, view_term, prior = _room_terms(answer, rooms, e, positions, visual,
                                                                  view_counts)
@@ -188,6 +195,7 @@ def diagnose(model, corpus: Corpus, e: int, env, scored, seed: int, accepted: di
             "accepted_rank": None if best is None else int(np.flatnonzero(order == best)[0]) + 1,
             "concept": concept, "p_concept": float(posterior[i, concept]),
             "concept_top": vocabulary.words[int(tops[concept])],
+            "concept_own_top": vocabulary.words[int(own_tops[concept])],
             "concept_places": ", ".join(f"{p} {n}" for p, n in holds.most_common(3)),
             "true_share": true_share, "answer_share": answer_share,
             "named": named, "p_named": 0.0 if named is None else float(posterior[i, named]),
@@ -222,8 +230,9 @@ def _print(rows: list[dict]) -> None:
     for r in rows:
         key = (r["seed"], r["home"], r["place"], r["word"], r["concept"], r["cause"])
         groups.setdefault(key, []).append(r)
-    print("| seed | home | place | cls | views | answer (p) | accepted (p, rank) | concept (p) [top] | "
-          "its samples elsewhere | naming concept (p) | room at pose (p): its samples | "
+    print("| seed | home | place | cls | views | answer (p) | accepted (p, rank) | "
+          "concept (p) [top; own top] | its samples elsewhere | naming concept (p) | "
+          "room at pose (p): its samples | "
           "place's samples in concept / naming | prior / room views / view (nats) | "
           "said answer / accepted | cause |")
     print("|---|---|---|---|---:|---|---|---|---|---|---|---|---|---|---|")
@@ -233,7 +242,8 @@ def _print(rows: list[dict]) -> None:
         print(f"| {seed} | {home} | {place} | {r['class']} | {len(group)} | "
               f"{word} ({np.mean([g['p_word'] for g in group]):.2f}) | "
               f"{r['accepted']} ({r['p_accepted']:.2f}, {r['accepted_rank']}) | "
-              f"{concept} ({np.mean([g['p_concept'] for g in group]):.2f}) [{r['concept_top']}] | "
+              f"{concept} ({np.mean([g['p_concept'] for g in group]):.2f}) [{r['concept_top']}; "
+              f"{r['concept_own_top']}] | "
               f"{r['concept_places']} | {r['named']} ({max(g['p_named'] for g in group):.2f}) | "
               f"{r['room']} ({np.mean([g['p_room'] for g in group]):.2f}): {r['room_places']} | "
               f"{r['place_in_concept']}/{r['place_samples']} / {r['place_in_named']} | "
