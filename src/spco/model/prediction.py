@@ -62,6 +62,7 @@ __all__ = [
     "concept_posterior",
     "gaussian_log_density",
     "kl_scores_reference",
+    "listener_weights",
     "mutual_information_weights",
     "predict_names",
     "reference_kl_weights",
