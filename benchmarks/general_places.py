@@ -139,6 +139,8 @@ def run(sigverse: Path, regions_file: Path, side: str, seeds: list[int], sweeps:
             for answer in answers:  # the same fit, names from the answer parameters
                 if answer == "rooms":  # the robot's answer (evaluate_answers: its rooms and weighting)
                     answered = evaluate_answers(model, e, env, rng=np.random.default_rng([run_seed, 1]))
+                elif answer == "listener":  # the robot's answer with name_answer="listener", same fit
+                    answered = _listener_answers(model, e, env, np.random.default_rng([run_seed, 1]))
                 else:
                     answered = evaluate_home(model.parameters_, e, env, model.vocabulary_,
                                              rng=np.random.default_rng([run_seed, 1]),
@@ -155,6 +157,19 @@ def run(sigverse: Path, regions_file: Path, side: str, seeds: list[int], sweeps:
                             for a in answers)
                   + f"({time.perf_counter() - started:.0f} s)", flush=True)
     return summarise(side, seeds, sweeps, [h.name for h in homes], runs, answers, settings)
+
+
+def _listener_answers(model: Any, e: int, env: Environment, rng: np.random.Generator) -> Any:
+    """``evaluate_answers`` of ``model`` answering with ``name_answer="listener"`` (the fit does not read
+    it: the same fit, its hyperparameters restored after)."""
+    fitted = model.hyperparameters_
+    model.hyperparameters_ = replace(fitted, name_answer="listener")
+    model.__dict__.pop("_answers", None)
+    try:
+        return evaluate_answers(model, e, env, rng=rng)
+    finally:
+        model.hyperparameters_ = fitted
+        model.__dict__.pop("_answers", None)
 
 
 def summarise(side: str, seeds: list[int], sweeps: int, homes: list[str], runs: list[dict[str, Any]],
@@ -199,7 +214,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sweeps", type=int, default=200, help="Gibbs sweeps (spco experiment's default)")
     parser.add_argument("--json", type=Path, default=None, help="write every figure to this file")
     parser.add_argument("--answers", default="", help="also score answers from the same fits: view (view by "
-                        "view), rooms (the room account, the robot's answer), comma-separated")
+                        "view), rooms (the room account, the robot's answer), listener (rooms with "
+                        "name_answer=listener), comma-separated")
     parser.add_argument("--set", dest="settings", action="append", default=[], metavar="NAME=VALUE",
                         help="a hyperparameter of the fits, as `spco fit --set` (repeatable; e.g. "
                         "--set target=power --set visual_prior=estimate); default: the model's own")
@@ -209,8 +225,8 @@ def main(argv: list[str] | None = None) -> int:
     except (ConfigurationError, ValueError) as err:
         parser.error(f"--set: {err}")
     answers = tuple(a for a in args.answers.split(",") if a)
-    if set(answers) - {"view", "rooms"}:
-        parser.error(f"--answers: choose from view, rooms, got {args.answers!r}")
+    if set(answers) - {"view", "rooms", "listener"}:
+        parser.error(f"--answers: choose from view, rooms, listener, got {args.answers!r}")
     side = SIDES[args.side]
     bad = [s for s in args.seeds if s not in side["seeds"]]
     if bad:

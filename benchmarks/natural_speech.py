@@ -53,12 +53,12 @@ from spco.data.loading import load
 from spco.data.sigverse import read_indexed_texts
 from spco.evaluation import evaluate_answers
 from spco.evaluation.experiments import trial_seed
-from spco.model import SpCoTransfer
+from spco.model import SpCoTransfer, TransferHyperparameters
 
 SIDES = {
     "development": {"knowledge": ("1LDK_1", "1LDK_3", "1LDK_5", "1LDK_7",
                                   "2LDK_1", "2LDK_3", "2LDK_5", "2LDK_7"),
-                    "new": ("3LDK_9",), "seeds": range(0, 100)},
+                    "new": ("3LDK_9",), "seeds": (*range(0, 100), *range(200, 300))},  # SPLIT.md
     "heldout": {"knowledge": ("1LDK_2", "1LDK_4", "1LDK_6", "1LDK_8",
                               "2LDK_2", "2LDK_4", "2LDK_6", "2LDK_8"),
                 "new": ("1LDK_9", "2LDK_9", "3LDK_9"), "seeds": range(100, 120)},
@@ -139,11 +139,32 @@ def fit_arguments(parser: argparse.ArgumentParser, seeds: Sequence[int] = (0,), 
     return parser
 
 
+#: Hyperparameters only the answers read, not the fit: a cached fit is read for them and they are set
+#: on it, so the answers of one fit can be compared.
+ANSWER_SETTINGS = frozenset({"name_answer"})
+
+
+def _fit_settings(settings: Sequence[str]) -> list[str]:
+    """The ``--set`` settings the fit reads (those not in :data:`ANSWER_SETTINGS`)."""
+    return [s for s in settings if s.partition("=")[0].strip() not in ANSWER_SETTINGS]
+
+
 def cache_path(cache: Path, settings: Sequence[str], sweeps: int, label: str, seed: int) -> Path:
     """Where ``--cache`` keeps the fit of the configuration ``label`` for ``seed`` with ``--set``
-    ``settings`` and ``sweeps`` sweeps."""
-    key = hashlib.sha256(repr((sorted(settings), sweeps)).encode()).hexdigest()[:12]
+    ``settings`` (keyed by those the fit reads) and ``sweeps`` sweeps."""
+    key = hashlib.sha256(repr((sorted(_fit_settings(settings)), sweeps)).encode()).hexdigest()[:12]
     return cache / f"{key}-{label.split()[0]}-s{seed}.pkl"
+
+
+def answering(model: SpCoTransfer, settings: Sequence[str]) -> SpCoTransfer:
+    """``model`` answering with the answer-only ``settings`` among ``settings`` (:data:`ANSWER_SETTINGS`;
+    the defaults for those not given, whatever the fit was made or cached with)."""
+    answer = [s for s in settings if s not in _fit_settings(settings)]
+    default = TransferHyperparameters()
+    hyper = replace(model.hyperparameters_, **{k: getattr(default, k) for k in ANSWER_SETTINGS})
+    model.hyperparameters_ = hyper.with_settings(answer) if answer else hyper
+    model.__dict__.pop("_answers", None)
+    return model
 
 
 def fitted(corpus: Corpus, seed: int, label: str, labels: list[str], *, settings: Sequence[str] = (),
@@ -151,12 +172,13 @@ def fitted(corpus: Corpus, seed: int, label: str, labels: list[str], *, settings
     """The fit (:func:`free_speech.fit_speech`) of the configuration ``label`` (its corpus) for
     ``seed``: the hyperparameters of ``--set`` ``settings`` (the model's own without any), the trial
     seed of ``seed`` and the configuration's index in ``labels``; read from ``cache`` when it holds it
-    (:func:`cache_path`), and kept there once fitted."""
+    (:func:`cache_path`), and kept there once fitted; answering with the answer-only settings
+    (:func:`answering`)."""
     path = None if cache is None else cache_path(cache, settings, sweeps, label, seed)
     if path is not None and path.exists():
         with open(path, "rb") as fh:
-            return pickle.load(fh)
-    model = fit_speech(corpus, settings_hyperparameters(settings), sweeps,
+            return answering(pickle.load(fh), settings)
+    model = fit_speech(corpus, settings_hyperparameters(_fit_settings(settings)), sweeps,
                        trial_seed(seed, labels.index(label)))
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -164,7 +186,7 @@ def fitted(corpus: Corpus, seed: int, label: str, labels: list[str], *, settings
         with open(tmp, "wb") as fh:
             pickle.dump(model, fh)
         os.replace(tmp, path)
-    return model
+    return answering(model, settings)
 
 
 def fitted_runs(configs: list[tuple], labels: list[str], seeds: Sequence[int], *,

@@ -284,8 +284,7 @@ def clusters(model, corpus, seed: int, label: str) -> dict:
 def main() -> None:
     """Read the fits, diagnose, print, write ``--json``."""
     from free_speech import read_names
-    from natural_speech import SIDES
-    from speech_errors import _configurations, _fitted, fit_arguments
+    from natural_speech import SIDES, configurations, fit_arguments, fitted
 
     from spco.data import Corpus
 
@@ -297,10 +296,9 @@ def main() -> None:
                         "the cut's too")
     parser.add_argument("--json", type=Path, default=None)
     args = parser.parse_args()
-    args.leave_one_out = True
     if any(s not in SIDES["development"]["seeds"] for s in args.seeds):
         parser.error("development seeds only (benchmarks/SPLIT.md)")
-    _, configs = _configurations(args, read_names(args.accepted))
+    _, configs = configurations(args.sigverse, read_names(args.accepted), leave_one_out=True)
     labels = [c[0] for c in configs]
     rows = []
     for seed in args.seeds:
@@ -308,7 +306,8 @@ def main() -> None:
             if args.homes and label.split()[0] not in args.homes:
                 continue
             corpus = Corpus([*homes, env])
-            model = _fitted(args, corpus, seed, label, labels)
+            model = fitted(corpus, seed, label, labels, settings=args.set, sweeps=args.sweeps,
+                           cache=args.cache)
             if args.clusters_only:
                 rows.append(clusters(model, corpus, seed, label))
                 continue

@@ -377,7 +377,7 @@ def main() -> None:
     args = parser.parse_args()
     side = SIDES["development"]
     if any(s not in side["seeds"] for s in args.seeds):
-        parser.error("development seeds are 0-99 (benchmarks/SPLIT.md)")
+        parser.error("development seeds are 0-99 and 200-299 (benchmarks/SPLIT.md)")
     accepted = read_names(args.accepted)
     knowledge, configs = configurations(args.sigverse, accepted, args.leave_one_out)
     labels = [c[0] for c in configs]  # natural_speech.py's order: the trial seed's index

@@ -144,7 +144,8 @@ class HomeModel:
         the places around); MI without pruning (it keeps "this" and "is" from being answered)."""
         from spco.model.confidence import answer_weighting
 
-        return answer_weighting(self.knowledge.variant, self.knowledge.prune_words)
+        return answer_weighting(self.knowledge.variant, self.knowledge.prune_words,
+                                self.knowledge.hyperparameters.name_answer)
 
     @property
     def position_scale(self) -> float:

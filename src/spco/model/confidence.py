@@ -288,14 +288,18 @@ def answer_names(
                          name_prior=name_prior, concepts=concepts)  # type: ignore[arg-type]
 
 
-def answer_weighting(variant: str, prune_words: bool) -> Weighting:
+def answer_weighting(variant: str, prune_words: bool, name_answer: str = "said") -> Weighting:
     """The name weighting of a model's answers: the authors' KL score for the reference sampler;
     none with the naming rule (exact sampler with pruning: only names are kept, and the name people
     say most at a place comes first — the MI weight would put a name taught once behind names of
-    the places around); MI without pruning (it keeps "this" and "is" from being answered)."""
+    the places around), or the pragmatic speaker's ``"listener"`` with ``name_answer="listener"``
+    (:attr:`~spco.model.hyperparameters.TransferHyperparameters.name_answer`); MI without pruning (it
+    keeps "this" and "is" from being answered)."""
     if variant == "reference":
         return "reference"
-    return "none" if prune_words else "mi"
+    if not prune_words:
+        return "mi"
+    return "listener" if name_answer == "listener" else "none"
 
 
 def model_answer_parameters(model: object, e: int, place_names: bool = True) -> ConceptParameters:

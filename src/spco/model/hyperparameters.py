@@ -60,6 +60,12 @@ PlaceChannel = Literal["shared", "home"]
 #: δ^p, the concentration of a home's place words ψ_{e,l} around ψ_l (in place tokens, each once).
 DELTA_PLACE = 10.0
 
+#: Which name the robot answers at an observation (``TransferHyperparameters.name_answer``): ``"said"`` —
+#: the name people say most there, p(w | x, v); ``"listener"`` — the name a listener would take to mean
+#: the concept it is in (:func:`spco.model.prediction.listener_weights`; opt-in, issue 28 class b).
+NAME_ANSWERS = ("said", "listener")
+NameAnswer = Literal["said", "listener"]
+
 #: Where the exact sampler's δ^v and α^v come from (``TransferHyperparameters.visual_prior``): as given,
 #: or estimated from the homes' views after the start (:mod:`spco.model.visual_prior`).
 VISUAL_PRIORS = ("given", "estimate")
@@ -253,6 +259,13 @@ class TransferHyperparameters:
     delta_place: δ^p, the concentration of ψ_{e,l} around ψ_l, in place tokens (each token once, as
         ψ learns; default :data:`DELTA_PLACE`). Used with ``place_channel="home"``; written by
         :meth:`to_dict` only when not the default or with ``place_channel="home"``.
+    name_answer: which name the robot answers with the naming rule's pruning or the word channels
+        (:data:`NAME_ANSWERS`): ``"said"`` (default) — the name people say most at the observation,
+        p(w | x, v); ``"listener"`` — a pragmatic speaker's, Σ_l P(l | x, v) θ^w_{e,l,w} L(l | w) with the
+        listener L(l | w) ∝ G_0,l θ^w_{e,l,w}, so a name said here that is mostly another concept's
+        ("kitchen" said at the washroom) comes behind a name of this concept's own (opt-in,
+        benchmarks/README.md, branch classc18). Read by the answers only, not by the fit. Written by
+        :meth:`to_dict` only when not ``"said"``.
     evidence_weight: η, the weight of the linguistic evidence in the switch's prior (word channels):
         p(z = name | word) ∝ λ_name ν^η, p(z = place or background) ∝ λ_c (1 − ν)^η, ν the name
         evidence of :mod:`spco.model.name_evidence`. Default :data:`EVIDENCE_WEIGHT`, chosen on
@@ -286,6 +299,7 @@ class TransferHyperparameters:
     warm_start: WarmStart = "things"
     place_channel: PlaceChannel = "shared"
     delta_place: float = DELTA_PLACE
+    name_answer: NameAnswer = "said"
 
     def __post_init__(self) -> None:
         for name in ("n_concepts", "n_regions"):
@@ -327,15 +341,11 @@ class TransferHyperparameters:
         if self.block_moves == "phi" and self.target != "power":
             raise ConfigurationError(f"block_moves='phi' needs target='power' (the moves integrate the "
                                      f"power target's φ^v out), got target={self.target!r}")
-        if self.target not in TARGETS:
-            raise ConfigurationError(f"target must be one of {', '.join(map(repr, TARGETS))}, "
-                                     f"got {self.target!r}")
-        if self.visual_prior not in VISUAL_PRIORS:
-            raise ConfigurationError(f"visual_prior must be one of {', '.join(map(repr, VISUAL_PRIORS))}, "
-                                     f"got {self.visual_prior!r}")
-        if self.word_prior not in WORD_PRIORS:
-            raise ConfigurationError(f"word_prior must be one of {', '.join(map(repr, WORD_PRIORS))}, "
-                                     f"got {self.word_prior!r}")
+        for name, choices in (("target", TARGETS), ("visual_prior", VISUAL_PRIORS),
+                              ("word_prior", WORD_PRIORS), ("name_answer", NAME_ANSWERS)):
+            if getattr(self, name) not in choices:
+                raise ConfigurationError(f"{name} must be one of {', '.join(map(repr, choices))}, "
+                                         f"got {getattr(self, name)!r}")
         if (self.target == "power" and self.word_counts is not None
                 and float(self.word_counts) != round(float(self.word_counts))):
             raise ConfigurationError(f"word_counts must be a whole number with target='power' (a word "
@@ -402,12 +412,14 @@ class TransferHyperparameters:
         only when not ``"cut"``, ``visual_prior`` and ``word_prior`` only when not ``"given"``,
         ``warm_start`` always: a file without it means ``"names"``, the default before things16;
         ``place_channel`` only when not ``"shared"`` and ``delta_place`` only with it or when not the
-        default)."""
+        default, ``name_answer`` only when not ``"said"``)."""
         data = asdict(self)
         if data["place_channel"] == "shared":
             del data["place_channel"]
             if data["delta_place"] == DELTA_PLACE:
                 del data["delta_place"]
+        if data["name_answer"] == "said":
+            del data["name_answer"]
         if data["target"] == "cut":
             del data["target"]
         if data["visual_prior"] == "given":
@@ -491,6 +503,7 @@ SETTABLE: dict[str, str] = {
     "target": "one of cut, power", "visual_prior": "one of given, estimate",
     "word_prior": "one of given, estimate", "warm_start": "one of names, words, things",
     "place_channel": "one of shared, home", "delta_place": "a number",
+    "name_answer": "one of said, listener",
 }
 
 

@@ -62,6 +62,7 @@ __all__ = [
     "concept_posterior",
     "gaussian_log_density",
     "kl_scores_reference",
+    "listener_weights",
     "mutual_information_weights",
     "predict_names",
     "reference_kl_weights",
@@ -70,7 +71,7 @@ __all__ = [
     "word_posterior",
 ]
 
-Weighting = Literal["mi", "none", "reference"]
+Weighting = Literal["mi", "none", "reference", "listener"]
 
 _TINY = np.finfo(np.float64).tiny
 _LOG_FLOOR = float(np.log(_TINY))  # ≈ -708.4: the log of "zero", finite on purpose
@@ -415,6 +416,22 @@ def _word_matrix(params: ConceptParameters, e: int) -> np.ndarray:
     return theta * np.asarray(params.word_mask, dtype=bool)[None, :]
 
 
+def listener_weights(theta_w: np.ndarray, concept_weights: np.ndarray) -> np.ndarray:
+    """(L, V) L(l | w) ∝ G_l θ^w_{l,w}: the concept a listener takes word w to mean (each column sums to
+    1; a word no concept says: 0), in log space. ``theta_w`` (L, V) a home's θ^w, ``concept_weights``
+    (L,) the concepts' prior G. The pragmatic speaker's weight of ``weighting="listener"``
+    (:func:`predict_names`): S(w | x, v) ∝ Σ_l P(l | x, v) θ^w_{l,w} L(l | w)."""
+    theta_w = np.asarray(theta_w, dtype=np.float64)
+    with np.errstate(divide="ignore"):
+        log_joint = np.log(np.clip(np.asarray(concept_weights, dtype=np.float64), 0.0, None))[:, None] \
+            + np.log(np.clip(theta_w, 0.0, None))
+    total = logsumexp(log_joint, axis=0, keepdims=True)
+    out = np.zeros_like(theta_w)
+    said = np.isfinite(total).ravel()
+    out[:, said] = np.exp(log_joint[:, said] - total[:, said])
+    return out
+
+
 def _words_from_concepts(concepts: np.ndarray, theta_w: np.ndarray) -> np.ndarray:
     probs = concepts @ theta_w  # (n, V)
     total = probs.sum(axis=1, keepdims=True)
@@ -552,7 +569,9 @@ def predict_names(
     params, e, vocabulary: the model, the home and the corpus vocabulary (length V).
     positions: (n, 4) poses in metres; visual: (n, D) counts (sparse or dense).
     top_k: how many words to return per observation (fewer if fewer words survive pruning).
-    weighting: ``"mi"`` — p(w|x,v)·I(w) (the paper); ``"none"`` — p(w|x,v);
+    weighting: ``"mi"`` — p(w|x,v)·I(w) (the paper); ``"none"`` — p(w|x,v); ``"listener"`` — the
+        pragmatic speaker Σ_l P(l|x,v) θ^w_{e,l,w} L(l|w), L(l|w) ∝ G_0,l θ^w_{e,l,w}
+        (:func:`listener_weights`: a name said here that mostly means another concept ranks lower);
         ``"reference"`` — the authors' KL-weighted score (:func:`kl_scores_reference`), with the
         concept posterior over used regions only.
     use_position, use_vision: drop a modality.
@@ -576,8 +595,9 @@ def predict_names(
     """
     if top_k < 1:
         raise ConfigurationError(f"top_k must be >= 1, got {top_k}")
-    if weighting not in ("mi", "none", "reference"):
-        raise ConfigurationError(f"weighting must be 'mi', 'none' or 'reference', got {weighting!r}")
+    if weighting not in ("mi", "none", "reference", "listener"):
+        raise ConfigurationError(f"weighting must be 'mi', 'none', 'reference' or 'listener', "
+                                 f"got {weighting!r}")
     if name_prior not in NAME_PRIORS:
         raise ConfigurationError(f"name_prior must be one of {', '.join(map(repr, NAME_PRIORS))}, "
                                  f"got {name_prior!r}")
@@ -600,6 +620,8 @@ def predict_names(
         scores = probs * mutual_information_weights(params, e)[None, :]
     elif weighting == "none":
         scores = probs.copy()
+    elif weighting == "listener":
+        scores = concepts @ (theta_w * listener_weights(theta_w, params.global_concept_weights))
     else:
         scores = concepts @ (theta_w * reference_kl_weights(params, e))
     mask = np.asarray(params.word_mask, dtype=bool)

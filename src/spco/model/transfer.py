@@ -400,7 +400,8 @@ class SpatialConceptModel:
         of its ``variant`` and ``prune_words``: as a home adapted from such a knowledge answers)."""
         from spco.model.confidence import answer_weighting
 
-        return answer_weighting(self.variant, bool(self.prune_words))
+        hyper = getattr(self, "hyperparameters_", None) or self.hyperparameters
+        return answer_weighting(self.variant, bool(self.prune_words), getattr(hyper, "name_answer", "said"))
 
     def predict_names(self, home: str | int, positions: np.ndarray, visual: Any, top_k: int = 3):
         """Top-``top_k`` place names for observations of ``home``: the names the robot answers there

@@ -19,6 +19,8 @@ __all__ = ["GAIN_MEANS", "RANKED_BY", "ask_answer", "regions_answer", "what_answ
 #: What ``what``'s score is, per weighting of the home's model.
 RANKED_BY = {"mi": "p(name | pose, view) × I(name), I = the name's mutual information with the concepts",
              "none": "p(name | pose, view)",
+             "listener": "Σ_l p(l | pose, view) θ^w_l(name) L(l | name), L(l | name) ∝ G_0,l θ^w_l(name): "
+                         "the name a listener takes to mean the place's concept",
              "reference": "the authors' score Σ_l p(l | pose, view) θ^w_l(name) KL_l(name)"}
 
 #: χ² quantile of 95 % in two dimensions: the regions' ellipses hold 95 % of their Gaussian.
