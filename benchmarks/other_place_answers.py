@@ -256,7 +256,7 @@ def main() -> None:
     parser.add_argument("--json", type=Path, default=None)
     args = parser.parse_args()
     if any(s not in SIDES["development"]["seeds"] for s in args.seeds):
-        parser.error("development seeds are 0-99 and 200-299 (benchmarks/SPLIT.md)")
+        parser.error(f"development seeds are {SIDES['development']['seed_text']} (benchmarks/SPLIT.md)")
     accepted = read_names(args.accepted)
     knowledge, configs = configurations(args.sigverse, accepted, args.leave_one_out)
     labels = [c[0] for c in configs]

@@ -334,7 +334,7 @@ def main() -> None:
                     for r in json.loads(args.nameless.read_text(encoding="utf-8"))},
                    key=lambda c: (c[0], c[1], c[2], c[3]))
     if any(s not in SIDES["development"]["seeds"] for s, *_ in cases):
-        parser.error("development seeds are 0-99 (benchmarks/SPLIT.md)")
+        parser.error(f"development seeds are {SIDES['development']['seed_text']} (benchmarks/SPLIT.md)")
     accepted = read_names(args.accepted)
     _, configs = configurations(args.sigverse, accepted, leave_one_out=True)
     labels = [c[0] for c in configs]

@@ -50,7 +50,7 @@ def main() -> None:
     parser = _parser()
     args = parser.parse_args()
     if args.seed not in SIDES["development"]["seeds"]:
-        parser.error("development seeds are 0-99 (benchmarks/SPLIT.md)")
+        parser.error(f"development seeds are {SIDES['development']['seed_text']} (benchmarks/SPLIT.md)")
     accepted = read_names(args.accepted)
     _, configs = configurations(args.sigverse, accepted, leave_one_out=True)
     labels = [c[0] for c in configs]

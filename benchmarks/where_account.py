@@ -98,7 +98,7 @@ def main() -> None:
     parser.add_argument("--homes", nargs="*", default=None)
     args = parser.parse_args()
     if any(s not in SIDES["development"]["seeds"] for s in args.seeds):
-        parser.error("development seeds are 0-99 (benchmarks/SPLIT.md)")
+        parser.error(f"development seeds are {SIDES['development']['seed_text']} (benchmarks/SPLIT.md)")
     accepted = read_names(args.accepted)
     runs = []
     started = time.perf_counter()

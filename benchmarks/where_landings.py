@@ -165,7 +165,7 @@ def main() -> None:
     parser = _parser()
     args = parser.parse_args()
     if any(s not in SIDES["development"]["seeds"] for s in args.seeds):
-        parser.error("development seeds are 0-99 (benchmarks/SPLIT.md)")
+        parser.error(f"development seeds are {SIDES['development']['seed_text']} (benchmarks/SPLIT.md)")
     if args.start_part != "both":
         transfer.warm_start_settings = only_part(args.start_part)
     home = Home(args, read_names(args.accepted))
