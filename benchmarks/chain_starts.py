@@ -30,6 +30,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from data_paths import SIGVERSE
 from sklearn.metrics import adjusted_rand_score
 
 from spco.data.environment import Corpus
@@ -91,7 +92,7 @@ def _pooled(homes: np.ndarray, concepts: np.ndarray, n_concepts: int) -> np.ndar
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--data", type=Path, default=Path("../shared/datasets/sigverse"))
+    parser.add_argument("--data", type=Path, default=SIGVERSE)
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
     parser.add_argument("--rate", type=int, default=40)
     parser.add_argument("--sweeps", type=int, default=200)

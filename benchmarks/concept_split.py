@@ -34,6 +34,7 @@ import numpy as np
 from scipy.special import logsumexp
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from data_paths import SIGVERSE
 from free_speech import fit_new_home, read_names, settings_hyperparameters
 from natural_speech import SIDES, configurations
 from speech_errors import training_places
@@ -45,7 +46,7 @@ from spco.model.word_channels import mixture_log_likelihood
 
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sigverse", type=Path, default=Path("/work/shared/datasets/sigverse"))
+    parser.add_argument("--sigverse", type=Path, default=SIGVERSE)
     parser.add_argument("--accepted", type=Path,
                         default=Path(__file__).resolve().parent / "development" / "accepted_names_dev.json")
     parser.add_argument("--seed", type=int, default=0)

@@ -12,15 +12,14 @@ from __future__ import annotations
 
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
+from data_paths import DATASETS
 
 from spco.data.sigverse import read_sigverse_home
 from spco.features import ExtractorSpec, build_extractor, read_image
 
-DATA = Path(__file__).resolve().parents[1] / ".." / ".." / "shared" / "datasets"
-DATA = Path("/work/shared/datasets") if not DATA.exists() else DATA
+DATA = DATASETS
 EXPERIENCED = ["3LDK_1", "1LDK_8", "2LDK_8", "1LDK_7", "2LDK_7", "1LDK_6", "2LDK_6", "1LDK_5",
                "2LDK_5", "1LDK_4", "2LDK_4", "1LDK_3", "2LDK_3", "1LDK_2", "2LDK_2", "1LDK_1"]
 NEW = ["1LDK_9", "2LDK_9", "3LDK_9"]

@@ -66,6 +66,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from data_paths import SIGVERSE
 
 from spco.data import Corpus, Environment
 from spco.data.language import normalize_name
@@ -138,7 +139,7 @@ def _arguments() -> tuple[argparse.Namespace, Any]:
     """The command line, and the hyperparameters of ``--view-counts`` and ``--set`` (``None``: the
     model's)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sigverse", type=Path, default=Path("../shared/datasets/sigverse"))
+    parser.add_argument("--sigverse", type=Path, default=SIGVERSE)
     parser.add_argument("--regions", type=Path, default=None,
                         help="region file (default: sigverse_regions.json beside --sigverse)")
     parser.add_argument("--speech", type=Path, required=True)

@@ -42,6 +42,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from data_paths import SIGVERSE
 
 from spco.data import Corpus, Environment
 from spco.data.loading import load
@@ -208,7 +209,7 @@ def _cell(fig: dict[str, float] | None) -> str:
 def main(argv: list[str] | None = None) -> int:
     """Parse the command line, run, print the table and write ``--json``."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sigverse", type=Path, default=Path("/work/shared/datasets/sigverse"))
+    parser.add_argument("--sigverse", type=Path, default=SIGVERSE)
     parser.add_argument("--regions", type=Path, default=None,
                         help="region file (default: sigverse_regions.json beside --sigverse)")
     parser.add_argument("--side", choices=tuple(SIDES), default="development")

@@ -21,6 +21,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
+from data_paths import SIGVERSE
 from test_handwritten import handwritten_homes
 
 from spco.data import Corpus
@@ -31,7 +32,7 @@ from spco.model import SpCoTransfer
 def main() -> None:
     """Print A_n, A_p and the wrong names per seed and home, then the means."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sigverse", default="../shared/datasets/sigverse")
+    parser.add_argument("--sigverse", type=Path, default=SIGVERSE)
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4, 5])
     parser.add_argument("--sweeps", type=int, default=40)
     parser.add_argument("--weighting", default="mi", choices=("mi", "none", "reference"))

@@ -34,6 +34,8 @@ from scipy.optimize import minimize
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
+from data_paths import SIGVERSE
+
 from spco.data.language import Vocabulary, learn_terms, normalize_name
 from spco.data.loading import load
 from spco.data.speech import accepted_names
@@ -103,7 +105,7 @@ def fit(x: np.ndarray, y: np.ndarray, penalty: float) -> np.ndarray:
 def main() -> None:
     """Fit and print."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sigverse", type=Path, default=Path("../shared/datasets/sigverse"))
+    parser.add_argument("--sigverse", type=Path, default=SIGVERSE)
     parser.add_argument("--penalty", type=float, default=1.0)
     parser.add_argument("--subject", type=Path, default=None,
                         help="sigverse_subject: also fit on people's sentences of the development homes")

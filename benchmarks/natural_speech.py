@@ -45,6 +45,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from data_paths import SIGVERSE
 from free_speech import fit_speech, new_home, read_names, settings_hyperparameters
 from japanese import mean_interval
 
@@ -123,7 +124,7 @@ def fit_arguments(parser: argparse.ArgumentParser, seeds: Sequence[int] = (0,), 
     """The options that choose (and, with ``cache``, keep) the fits: ``--sigverse``, ``--accepted``,
     ``--seeds`` (default ``seeds``), ``--sweeps`` (default ``sweeps``), ``--set`` and ``--cache``; for
     this script, ``speech_errors.py`` and the diagnoses that read its fits."""
-    parser.add_argument("--sigverse", type=Path, default=Path("/work/shared/datasets/sigverse"))
+    parser.add_argument("--sigverse", type=Path, default=SIGVERSE)
     parser.add_argument("--accepted", type=Path,
                         default=Path(__file__).resolve().parent / "development" / "accepted_names_dev.json")
     parser.add_argument("--seeds", type=int, nargs="+", default=list(seeds))

@@ -43,6 +43,7 @@ from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
+from data_paths import SIGVERSE
 from scipy.special import gammaln, logsumexp
 
 from spco.model.phi_evidence import (  # noqa: F401  (the one implementation, used here and by the tests)
@@ -366,7 +367,7 @@ def _fitted(sweeps: int, seed_index: int):
     from spco.evaluation.models import MODELS
     from spco.model.hyperparameters import TransferHyperparameters
 
-    sig = Path("/work/shared/datasets/sigverse")
+    sig = SIGVERSE
     hyper = TransferHyperparameters().with_settings(["target=power", "visual_prior=estimate"])
     knowledge = [load(sig / h)[h] for h in PAPER_EXPERIENCED_HOMES]
     env = new_home(sig, sig.parent / "sigverse_regions.json", "3LDK_9", False)

@@ -24,6 +24,7 @@ from sklearn.metrics import adjusted_rand_score
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from data_paths import SIGVERSE
 from free_speech import read_names
 from natural_speech import cache_path, configurations
 
@@ -46,7 +47,7 @@ def new_home_clusters(model, env) -> dict[str, float | int]:
 def main(argv: list[str] | None = None) -> int:
     """Command line: read the cached fits, print the table, write ``--json``."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--sigverse", type=Path, default=Path("/work/shared/datasets/sigverse"))
+    p.add_argument("--sigverse", type=Path, default=SIGVERSE)
     p.add_argument("--accepted", type=Path, default=HERE / "development" / "accepted_names_dev.json")
     p.add_argument("--cache", type=Path, required=True, help="speech_errors.py's --cache")
     p.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4])

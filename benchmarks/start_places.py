@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from data_paths import SIGVERSE
 from free_speech import fit_speech, read_names
 from natural_speech import SIDES, configurations
 from speech_errors import training_places
@@ -35,7 +36,7 @@ from spco.evaluation.experiments import trial_seed
 def _parser() -> argparse.ArgumentParser:
     """The command line."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sigverse", type=Path, default=Path("/work/shared/datasets/sigverse"))
+    parser.add_argument("--sigverse", type=Path, default=SIGVERSE)
     parser.add_argument("--accepted", type=Path,
                         default=Path(__file__).resolve().parent / "development" / "accepted_names_dev.json")
     parser.add_argument("--home", default="1LDK_5", help="the configuration: 3LDK_9, or a development home "

@@ -44,6 +44,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from data_paths import SIGVERSE
 
 from spco import knowledge as kn
 from spco.data.environment import Corpus, Environment
@@ -114,7 +115,7 @@ def sigverse_env(name: str = "3LDK_9") -> Environment:
     """The SIGVerse home ``name`` as the adapted home saw it (its ground truth for scoring)."""
     from spco.data import load
 
-    root = Path(os.environ.get("SPCO_DATASETS", "/work/shared/datasets")) / "sigverse"
+    root = Path(os.environ["SPCO_DATASETS"]) / "sigverse" if os.environ.get("SPCO_DATASETS") else SIGVERSE
     return next(iter(load(root / name)))
 
 

@@ -46,6 +46,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from data_paths import SIGVERSE
 from free_speech import never_heard, new_home, read_names, read_speech, taught_homes
 
 from spco.data import Corpus
@@ -107,7 +108,7 @@ def classify(params, e, vocabulary, env, place: str, name: str, seed: int,
 def main() -> None:
     """Fit (or load) each seed's model, ask for every unheard name, print the classes and the figure."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sigverse", type=Path, default=Path("../shared/datasets/sigverse"))
+    parser.add_argument("--sigverse", type=Path, default=SIGVERSE)
     parser.add_argument("--speech", type=Path, default=DEV / "speech_dev.csv")
     parser.add_argument("--accepted", type=Path, default=DEV / "accepted_names_dev.json")
     parser.add_argument("--unheard", type=Path, default=DEV / "unheard_names_dev.json")

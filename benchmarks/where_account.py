@@ -39,6 +39,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from data_paths import SIGVERSE
 from free_speech import fit_new_home, new_home, read_names, read_speech, taught_homes
 from natural_speech import SIDES, configurations, fitted_runs
 
@@ -89,7 +90,7 @@ def _fits(args: argparse.Namespace, accepted: dict[str, tuple[str, ...]]) -> Ite
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("set", choices=("natural", "written"))
-    parser.add_argument("--sigverse", type=Path, default=Path("/work/shared/datasets/sigverse"))
+    parser.add_argument("--sigverse", type=Path, default=SIGVERSE)
     parser.add_argument("--accepted", type=Path, default=HERE / "development" / "accepted_names_dev.json")
     parser.add_argument("--speech", type=Path, default=HERE / "development" / "speech_dev.csv")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0])

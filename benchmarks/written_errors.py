@@ -32,6 +32,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from data_paths import SIGVERSE
 from free_speech import (
     fit_new_home,
     new_home,
@@ -83,7 +84,7 @@ def _views(model, corpus: Corpus, e: int, env, accepted: dict, out: list[dict], 
 def main() -> None:
     """Fit, score, classify; print the classes and every wrong view."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sigverse", type=Path, default=Path("/work/shared/datasets/sigverse"))
+    parser.add_argument("--sigverse", type=Path, default=SIGVERSE)
     parser.add_argument("--speech", type=Path, required=True)
     parser.add_argument("--accepted", type=Path,
                         default=Path(__file__).resolve().parent / "development" / "accepted_names_dev.json")
