@@ -28,7 +28,7 @@ NamePrior = Literal["off", "wordnet"]
 #: Where the region block moves run (:mod:`spco.model.blocks`): not at all, in a new home's sampler
 #: (``adapt``; a teaching's local update does not run them), or there and in the joint fit too;
 #: ``phi``: the power target's φ^v-marginal block moves instead (:mod:`spco.model.phi_moves`), in the
-#: single-process sweep (:func:`spco.model.gibbs.sweep`) only.
+#: joint fit (single-process and sharded), not in a new home's sampler.
 BLOCK_MOVES = ("off", "adapt", "all", "phi")
 BlockMoves = Literal["off", "adapt", "all", "phi"]
 #: The exact sampler's warm start with the word channels (``TransferHyperparameters.warm_start``):
@@ -213,8 +213,9 @@ class TransferHyperparameters:
         answers first in ``tests/test_knowledge.py`` (benchmarks/README.md, "Issue 29: block moves
         in adapt"). ``"phi"`` (``target="power"`` only): the φ^v-marginal block moves instead — a
         home's (region, concept) blocks move with θ^v and φ^v integrated out given the other homes
-        (:mod:`spco.model.phi_moves`, issue 29), run by the single-process sweep
-        (:func:`spco.model.gibbs.sweep`); the sharded fit (``spco fit``, ``adapt``) refuses it for now.
+        (:mod:`spco.model.phi_moves`, issue 29), run by the joint fit (:func:`spco.model.gibbs.sweep`
+        and the sharded fit of ``SpCoTransfer.fit``, ``spco fit``; scheduled by ``phi_every`` and
+        ``phi_until``); a new home's sampler (``adapt``, a teaching), whose φ^v is fixed, refuses it.
         Written by :meth:`to_dict` only when not ``"off"`` (files and experiment identities from
         before it are unchanged).
     target: what the exact sampler's chain targets (:data:`TARGETS`): ``"power"`` — the power
