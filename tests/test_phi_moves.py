@@ -126,8 +126,9 @@ def test_a_pass_visits_the_blocks_and_keeps_them_whole() -> None:
     assert len(seen) > 1  # the move does move
 
 
-def test_the_setting_needs_the_power_target_and_the_sharded_fit_refuses_it() -> None:
+def test_the_setting_needs_the_power_target_and_a_new_home_s_sampler_refuses_it() -> None:
     from spco.model import gibbs
+    from spco.model.phi_moves import refuse_phi_moves
     from spco.model.transfer import SpCoTransfer
 
     hyper = TransferHyperparameters().with_settings(["target=power", "block_moves=phi"])
@@ -135,12 +136,94 @@ def test_the_setting_needs_the_power_target_and_the_sharded_fit_refuses_it() -> 
     assert TransferHyperparameters.from_dict(hyper.to_dict()) == hyper
     with pytest.raises(ConfigurationError, match="block_moves='phi' needs target='power'"):
         TransferHyperparameters(block_moves="phi")
-    with pytest.raises(ConfigurationError, match="single-process sweep"):
-        SpCoTransfer(hyperparameters=hyper).sampler_settings()
+    assert SpCoTransfer(hyperparameters=hyper).sampler_settings().phi_moves  # the joint fit runs them
+    plain = TransferHyperparameters(target="power")
+    assert not SpCoTransfer(hyperparameters=plain).sampler_settings().phi_moves
+    with pytest.raises(ConfigurationError, match="a new home's sampler"):  # adapt, teach: φ^v fixed
+        refuse_phi_moves(hyper)
     assert gibbs.SamplerSettings.create("exact", prune=True, power=True, phi_moves=True).phi_moves
     assert not gibbs.SamplerSettings.create("exact", prune=True, phi_moves=True).phi_moves  # cut target
     assert not gibbs.SamplerSettings.create("reference", prune=True, power=True, phi_moves=True).phi_moves
 
+
+def test_the_schedule_runs_the_moves_on_the_sweeps_it_names_and_is_checked() -> None:
+    from spco.model.phi_moves import phi_moves_due
+
+    base = TransferHyperparameters(target="power", block_moves="phi")
+    assert base.phi_every == 1 and base.phi_until is None
+    assert all(phi_moves_due(i, base) for i in range(50))
+    every = base.with_settings(["phi_every=5"])
+    assert [i for i in range(23) if phi_moves_due(i, every)] == [0, 5, 10, 15, 20]
+    first = base.with_settings(["phi_until=20"])
+    assert [i for i in range(30) if phi_moves_due(i, first)] == list(range(20))
+    both = base.with_settings(["phi_every=3", "phi_until=7"])
+    assert [i for i in range(30) if phi_moves_due(i, both)] == [0, 3, 6]
+    assert not any(phi_moves_due(i, base.with_settings(["phi_until=0"])) for i in range(10))
+    assert base.with_settings(["phi_until=20", "phi_until=none"]).phi_until is None
+    # written only when set: files and experiment identities from before the schedule are unchanged
+    assert "phi_every" not in base.to_dict() and "phi_until" not in base.to_dict()
+    assert TransferHyperparameters.from_dict(both.to_dict()) == both
+    with pytest.raises(ConfigurationError, match="phi_every must be an integer >= 1"):
+        base.with_settings(["phi_every=0"])
+    with pytest.raises(ConfigurationError, match="phi_until must be none or an integer >= 0"):
+        TransferHyperparameters(target="power", block_moves="phi", phi_until=-1)
+    with pytest.raises(ConfigurationError, match="phi_every needs integer"):
+        base.with_settings(["phi_every=2.5"])
+    with pytest.raises(ConfigurationError, match="they need block_moves='phi'"):
+        TransferHyperparameters(target="power", phi_every=5)
+
+
+def _fit_digest(settings: list[str], shards: int = 1, sweeps: int = 7) -> str:
+    """SHA-256 of a short synthetic fit's state, averaged parameters and log-joint trace."""
+    import hashlib
+    import warnings
+
+    from spco.data.synthetic import SyntheticConfig, generate_homes
+    from spco.engines import LocalEngine
+    from spco.model.transfer import SpCoTransfer
+
+    corpus = generate_homes(4, seed=3, config=SyntheticConfig(n_features=32, n_train=12, language="free"),
+                            new_homes=1)
+    hyper = TransferHyperparameters().with_settings(settings)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model = SpCoTransfer(hyperparameters=hyper, n_iterations=sweeps, random_state=7,
+                             record_log_joint=True).fit(corpus, engine=LocalEngine(shards))
+    digest = hashlib.sha256()
+    for part in (model.state_, model.parameters_):
+        for name, value in sorted(vars(part).items()):
+            if isinstance(value, np.ndarray):
+                digest.update(name.encode() + np.ascontiguousarray(value).tobytes())
+    digest.update(np.ascontiguousarray(model.log_joint_).tobytes())
+    return digest.hexdigest()
+
+
+def test_the_sharded_fit_runs_the_moves_on_its_schedule_the_same_for_any_workers(monkeypatch) -> None:
+    """``SpCoTransfer.fit`` (the experiments' fit) runs the move on the sweeps the schedule names, one
+    pass each; the chain is the same for one worker and three; a schedule that never runs it
+    (``phi_until=0``) leaves the power target's fit byte for byte as without the setting (the move
+    draws nothing when it does not run)."""
+    from spco.model import phi_moves
+
+    passes: list[int] = []
+    original = phi_moves.home_pass
+
+    def counted(*args, **kwargs):
+        concepts, accepted = original(*args, **kwargs)
+        passes.append(accepted)
+        return concepts, accepted
+
+    monkeypatch.setattr(phi_moves, "home_pass", counted)
+    power = ["target=power", "visual_prior=estimate"]
+    scheduled = [*power, "block_moves=phi", "phi_every=3", "phi_until=7"]
+    one = _fit_digest(scheduled)
+    assert len(passes) == 3  # sweeps 0, 3, 6 of 7
+    assert _fit_digest(scheduled, shards=3) == one
+    passes.clear()
+    assert _fit_digest([*power, "block_moves=phi", "phi_until=0"]) == _fit_digest(power)
+    assert passes == []
+    assert _fit_digest([*power, "block_moves=phi"]) != _fit_digest(power)
+    assert len(passes) == 7
 
 
 # ----------------------------------------------------------------------------- the move alone

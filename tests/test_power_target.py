@@ -247,10 +247,8 @@ def exact_class_probabilities() -> np.ndarray:
     return np.exp(log_p - logsumexp(log_p))
 
 
-def _run_chain(power: bool, n_sweeps: int, seed: int, phi_moves: bool = False) -> np.ndarray:
-    """Counts of the label classes over ``n_sweeps`` sweeps (thinned by 2, after 200) of the exact
-    sampler on the two homes, with label swaps on every sweep: the power target or the cut sampler;
-    ``phi_moves``: with the power target's φ^v-marginal block moves (``block_moves="phi"``)."""
+def _chain_start(power: bool, seed: int, phi_moves: bool = False, hyper_changes: dict | None = None):
+    """The two homes' data, start state, hyperparameters, settings and generator of :func:`_run_chain`."""
     n, E, L = 4, 2, 2
     rng = np.random.default_rng(seed)
     words = np.zeros((n, 2))
@@ -260,7 +258,7 @@ def _run_chain(power: bool, n_sweeps: int, seed: int, phi_moves: bool = False) -
         n_homes=E, offsets=np.array([0, 2, 4]), position_scale=1.0, map_centres=np.zeros((E, 4)))
     hyper = HYPER if power else replace(HYPER, target="cut")
     if phi_moves:
-        hyper = replace(hyper, block_moves="phi")
+        hyper = replace(hyper, block_moves="phi", **(hyper_changes or {}))
     settings = gibbs.SamplerSettings.create("exact", prune=True, view_counts=W_VIEW, power=power,
                                             phi_moves=phi_moves)
     channels = WordChannels.initial(EVIDENCE, L, token_weight=W_WORD / INCREMENT, power=power)
@@ -273,11 +271,45 @@ def _run_chain(power: bool, n_sweeps: int, seed: int, phi_moves: bool = False) -
         log_theta_w=np.log(np.full((E, L, 2), 0.5)), log_phi_v=np.log(np.full((L, 2), 0.5)),
         log_phi_w=np.log(np.full((L, 2), 0.5)), word_mask=np.ones(2, dtype=bool), channels=channels,
         switches=np.zeros(n, dtype=np.int8))
+    return data, state, hyper, settings, rng
+
+
+def _run_chain(power: bool, n_sweeps: int, seed: int, phi_moves: bool = False) -> np.ndarray:
+    """Counts of the label classes over ``n_sweeps`` sweeps (thinned by 2, after 200) of the exact
+    sampler on the two homes, with label swaps on every sweep: the power target or the cut sampler;
+    ``phi_moves``: with the power target's φ^v-marginal block moves (``block_moves="phi"``)."""
+    data, state, hyper, settings, rng = _chain_start(power, seed, phi_moves)
     seen = np.zeros(8)
     for i in range(n_sweeps + 200):
         gibbs.sweep(data, state, hyper, settings, rng, swaps=True)
         if i >= 200 and i % 2 == 0:
             seen[_label_class(state.concepts)] += 1
+    return seen
+
+
+def _run_sharded_chain(n_sweeps: int, seed: int, hyper_changes: dict | None = None) -> np.ndarray:
+    """:func:`_run_chain` of the power target with the φ^v-marginal block moves, run as the fits run it:
+    one worker per home (:class:`~spco.model.shard_group.ShardGroup`, each home with its own generator)
+    and the driver's sweep (:func:`spco.model.shard.sweep`: the driver draws the moved home and the other
+    homes' tables, the home's shard runs the pass); label swaps on the fits' schedule."""
+    from spco.model import shard as shards_api
+    from spco.model.shard_group import ShardGroup
+
+    data, state, hyper, settings, rng = _chain_start(True, seed, True, hyper_changes)
+    homes = [shards_api.HomeShard(d, s, hyper, settings, np.random.default_rng([seed, e]), n_fit_homes=2)
+             for e, (d, s) in enumerate(shards_api.split(data, state, 2))]
+    groups = [ShardGroup([h], first=e) for e, h in enumerate(homes)]  # the workers, one home each
+
+    def call(method, *args):
+        return [getattr(g, method)(*args) for g in groups]
+
+    step = shards_api.GlobalStep(hyper, settings, rng)
+    shared = shards_api.SharedParameters.of(state)
+    seen = np.zeros(8)
+    for i in range(n_sweeps + 200):
+        _, shared = shards_api.sweep(call, step, shared, i, shared.word_mask, shared.name_words)
+        if i >= 200 and i % 2 == 0:
+            seen[_label_class(np.concatenate([h.state.concepts for h in homes]))] += 1
     return seen
 
 
@@ -310,6 +342,31 @@ def test_the_chain_with_the_phi_marginal_block_moves_keeps_the_stated_power_mode
     assert chisquare_p(seen, exact) > P_MIN, (seen / seen.sum(), exact)
     assert calls["passes"] == 8_200
     assert calls["accepted"] > 500, calls
+
+
+def test_the_sharded_fit_s_phi_marginal_block_moves_keep_the_stated_power_model(monkeypatch) -> None:
+    """The sharded fit's move (:func:`spco.model.phi_moves.sharded_phi_move`, what ``SpCoTransfer.fit``
+    and the experiments run) against the same enumerated posterior, on every sweep and on a schedule
+    (every 3rd sweep): exact either way; the schedule runs the pass on the sweeps it names only."""
+    from spco.model import phi_moves
+
+    passes: list[int] = []
+    original = phi_moves.home_pass
+
+    def counted(*args, **kwargs):
+        concepts, accepted = original(*args, **kwargs)
+        passes.append(accepted)
+        return concepts, accepted
+
+    monkeypatch.setattr(phi_moves, "home_pass", counted)
+    exact = exact_class_probabilities()
+    seen = _run_sharded_chain(8_000, seed=5)
+    assert chisquare_p(seen, exact) > P_MIN, (seen / seen.sum(), exact)
+    assert len(passes) == 8_200 and sum(passes) > 500, (len(passes), sum(passes))
+    passes.clear()
+    seen = _run_sharded_chain(8_000, seed=6, hyper_changes={"phi_every": 3})
+    assert chisquare_p(seen, exact) > P_MIN, (seen / seen.sum(), exact)
+    assert len(passes) == len(range(0, 8_200, 3))
 
 
 def test_the_target_is_a_checked_hyperparameter_that_files_carry() -> None:

@@ -28,7 +28,7 @@ NamePrior = Literal["off", "wordnet"]
 #: Where the region block moves run (:mod:`spco.model.blocks`): not at all, in a new home's sampler
 #: (``adapt``; a teaching's local update does not run them), or there and in the joint fit too;
 #: ``phi``: the power target's φ^v-marginal block moves instead (:mod:`spco.model.phi_moves`), in the
-#: single-process sweep (:func:`spco.model.gibbs.sweep`) only.
+#: joint fit (single-process and sharded), not in a new home's sampler.
 BLOCK_MOVES = ("off", "adapt", "all", "phi")
 BlockMoves = Literal["off", "adapt", "all", "phi"]
 #: The exact sampler's warm start with the word channels (``TransferHyperparameters.warm_start``):
@@ -122,6 +122,20 @@ MAX_CONCENTRATION = 1e100
 MAX_CONDITION = 1e12
 
 
+def _check_phi_schedule(every: int, until: int | None, block_moves: str) -> None:
+    """Raise :class:`ConfigurationError` naming the field for a schedule of the φ^v-marginal block
+    moves that is not an integer ≥ 1 (``phi_every``) or ≥ 0 (``phi_until``), or that is set without
+    ``block_moves="phi"`` (a fit must not ignore it)."""
+    if isinstance(every, bool) or not isinstance(every, int | np.integer) or every < 1:
+        raise ConfigurationError(f"phi_every must be an integer >= 1, got {every!r}")
+    if until is not None and (isinstance(until, bool) or not isinstance(until, int | np.integer)
+                              or until < 0):
+        raise ConfigurationError(f"phi_until must be none or an integer >= 0, got {until!r}")
+    if (every != 1 or until is not None) and block_moves != "phi":
+        raise ConfigurationError(f"phi_every and phi_until schedule the φ^v-marginal block moves: they need "
+                                 f"block_moves='phi', got block_moves={block_moves!r}")
+
+
 def _positive(name: str, value: float) -> None:
     if not (np.isfinite(value) and value > 0):
         raise ConfigurationError(f"{name} must be a positive number, got {value!r}")
@@ -199,8 +213,9 @@ class TransferHyperparameters:
         answers first in ``tests/test_knowledge.py`` (benchmarks/README.md, "Issue 29: block moves
         in adapt"). ``"phi"`` (``target="power"`` only): the φ^v-marginal block moves instead — a
         home's (region, concept) blocks move with θ^v and φ^v integrated out given the other homes
-        (:mod:`spco.model.phi_moves`, issue 29), run by the single-process sweep
-        (:func:`spco.model.gibbs.sweep`); the sharded fit (``spco fit``, ``adapt``) refuses it for now.
+        (:mod:`spco.model.phi_moves`, issue 29), run by the joint fit (:func:`spco.model.gibbs.sweep`
+        and the sharded fit of ``SpCoTransfer.fit``, ``spco fit``; scheduled by ``phi_every`` and
+        ``phi_until``); a new home's sampler (``adapt``, a teaching), whose φ^v is fixed, refuses it.
         Written by :meth:`to_dict` only when not ``"off"`` (files and experiment identities from
         before it are unchanged).
     target: what the exact sampler's chain targets (:data:`TARGETS`): ``"power"`` — the power
@@ -272,6 +287,11 @@ class TransferHyperparameters:
         p(z = name | word) ∝ λ_name ν^η, p(z = place or background) ∝ λ_c (1 − ν)^η, ν the name
         evidence of :mod:`spco.model.name_evidence`. Default :data:`EVIDENCE_WEIGHT`, chosen on
         development data (docs/model.md, "Words that are not names").
+    phi_every, phi_until: the schedule of the φ^v-marginal block moves (``block_moves="phi"``): they
+        run on sweep i (0-based) when i is a multiple of ``phi_every`` (default 1: every sweep) and, if
+        ``phi_until`` is set, i < ``phi_until`` (the first sweeps, where a new home's places gather).
+        A move on a fixed schedule keeps the chain's target (:func:`spco.model.phi_moves.phi_moves_due`).
+        Only with ``block_moves="phi"``; written by :meth:`to_dict` only when not the default.
     """
 
     n_concepts: int = 15
@@ -302,6 +322,8 @@ class TransferHyperparameters:
     place_channel: PlaceChannel = "shared"
     delta_place: float = DELTA_PLACE
     name_answer: NameAnswer = "said"
+    phi_every: int = 1
+    phi_until: int | None = None
 
     def __post_init__(self) -> None:
         for name in ("n_concepts", "n_regions"):
@@ -343,6 +365,7 @@ class TransferHyperparameters:
         if self.block_moves == "phi" and self.target != "power":
             raise ConfigurationError(f"block_moves='phi' needs target='power' (the moves integrate the "
                                      f"power target's φ^v out), got target={self.target!r}")
+        _check_phi_schedule(self.phi_every, self.phi_until, self.block_moves)
         for name, choices in (("target", TARGETS), ("visual_prior", VISUAL_PRIORS),
                               ("word_prior", WORD_PRIORS), ("name_answer", NAME_ANSWERS)):
             if getattr(self, name) not in choices:
@@ -414,7 +437,8 @@ class TransferHyperparameters:
         only when not ``"cut"``, ``visual_prior`` and ``word_prior`` only when not ``"given"``,
         ``warm_start`` always: a file without it means ``"names"``, the default before things16;
         ``place_channel`` only when not ``"shared"`` and ``delta_place`` only with it or when not the
-        default, ``name_answer`` only when not ``"said"``)."""
+        default, ``name_answer`` only when not ``"said"``, ``phi_every`` only when not 1 and
+        ``phi_until`` only when not ``None``)."""
         data = asdict(self)
         if data["place_channel"] == "shared":
             del data["place_channel"]
@@ -432,6 +456,10 @@ class TransferHyperparameters:
             del data["name_prior"]
         if data["block_moves"] == "off":
             del data["block_moves"]
+        if data["phi_every"] == 1:
+            del data["phi_every"]
+        if data["phi_until"] is None:
+            del data["phi_until"]
         return data
 
     @classmethod
@@ -479,12 +507,12 @@ class TransferHyperparameters:
                 changes[name] = ESTIMATE
                 continue
             if text.lower() == "none":
-                if kind not in ("number or none", "number, none or estimate"):
+                if kind not in ("number or none", "number, none or estimate", "integer or none"):
                     raise ConfigurationError(f"hyperparameter setting {setting!r}: {name} needs {kind}")
                 changes[name] = None
                 continue
             try:
-                value: float | int = int(text) if kind == "integer" else float(text)
+                value: float | int = int(text) if kind.startswith("integer") else float(text)
             except ValueError:
                 raise ConfigurationError(f"hyperparameter setting {setting!r}: {name} needs {kind}, "
                                          f"got {text!r}") from None
@@ -505,7 +533,7 @@ SETTABLE: dict[str, str] = {
     "target": "one of cut, power", "visual_prior": "one of given, estimate",
     "word_prior": "one of given, estimate", "warm_start": "one of names, words, things",
     "place_channel": "one of shared, home", "delta_place": "a number",
-    "name_answer": "one of said, listener",
+    "name_answer": "one of said, listener", "phi_every": "integer", "phi_until": "integer or none",
 }
 
 

@@ -8,8 +8,9 @@ a concept's tables are thin, so moving a place there costs hundreds of nats, whi
 and φ^v integrated out prefers the true rooms by +1,073 to +1,415 nats on development data
 (benchmarks/README.md, "Issue 29: the power target's lump with θ^v and φ^v integrated out").
 
-The move, for one home e each sweep (drawn uniformly from the homes taught nothing, or from every
-home if each is taught: :func:`moved_homes`), after the sweep's statistics:
+The move, for one home e on each sweep its schedule names (:func:`phi_moves_due`; e drawn uniformly
+from the homes taught nothing, or from every home if each is taught: :func:`moved_homes`), after the
+sweep's statistics:
 
 1. the other homes' tables M_{−e} (CRT of ⌊n_{−e}⌋ given the current φ^v) and fractions F_{−e}
    are drawn as the φ^v step draws them (:meth:`HierarchicalMultinomial.table_parts`);
@@ -59,17 +60,21 @@ from spco.model.blocks import region_blocks
 from spco.model.observations import HierarchicalMultinomial
 from spco.model.phi_evidence import ConceptGrid
 
-__all__ = ["HomeMove", "phi_after_move", "phi_block_step", "refuse_phi_moves"]
+__all__ = ["HomeMove", "move_home", "phi_after_move", "phi_block_step", "phi_moves_due", "refuse_phi_moves",
+           "sharded_phi_move"]
 
 
 def refuse_phi_moves(hyper) -> None:
-    """Raise :class:`~spco.errors.ConfigurationError` for ``block_moves="phi"``: the sharded fit
-    (``spco fit``, ``adapt``, the experiments) does not run the φ^v-marginal moves yet, only the
-    single-process sweep (:func:`spco.model.gibbs.sweep`) does; a fit must not ignore the setting."""
+    """Raise :class:`~spco.errors.ConfigurationError` for ``block_moves="phi"`` in a new home's
+    sampler (``adapt``, a teaching's local update): it keeps φ^v fixed at the knowledge, so a move
+    that integrates φ^v out is not one of its steps; the moves run in the joint fit (the single-process
+    sweep :func:`spco.model.gibbs.sweep` and the sharded fit of ``SpCoTransfer.fit``, ``spco fit``
+    and the experiments: :func:`sharded_phi_move`). A sampler must not ignore the setting."""
     if getattr(hyper, "block_moves", "off") == "phi":
-        raise ConfigurationError("block_moves='phi': the φ^v-marginal block moves run in the "
-                                 "single-process sweep (spco.model.gibbs.sweep) only; the sharded fit "
-                                 "(spco fit, adapt) does not run them yet")
+        raise ConfigurationError("block_moves='phi': a new home's sampler (adapt, teach) keeps φ^v fixed "
+                                 "at the knowledge, and the φ^v-marginal block moves integrate φ^v out; "
+                                 "they run in the joint fit only (SpCoTransfer.fit, spco fit): adapt "
+                                 "with a knowledge whose block_moves is not 'phi'")
 
 
 #: τ of the proposal: a block proposes a free concept c with probability ∝ exp(τ s_c), s_c its
@@ -192,10 +197,31 @@ def home_pass(move: HomeMove, visual: sp.csr_array, weights: np.ndarray, concept
 def moved_homes(data) -> np.ndarray:
     """The homes the move draws from: those taught nothing (no sample with a word: a new home, whose
     places only its views tell apart, where the lump forms), or every home if each is taught."""
+    return move_candidates(taught_homes(data))
+
+
+def taught_homes(data) -> np.ndarray:
+    """(E,) whether each home of ``data`` has a sample with a word."""
     has_words = np.diff(data.words.indptr) > 0
-    taught = np.array([has_words[data.offsets[e]:data.offsets[e + 1]].any() for e in range(data.n_homes)])
-    untaught = np.flatnonzero(~taught)
-    return untaught if untaught.size else np.arange(data.n_homes)
+    return np.array([has_words[data.offsets[e]:data.offsets[e + 1]].any() for e in range(data.n_homes)],
+                    dtype=bool)
+
+
+def move_candidates(taught: np.ndarray) -> np.ndarray:
+    """The homes the move draws from, given which homes are taught (E,): the untaught, or every home
+    if each is taught."""
+    untaught = np.flatnonzero(~np.asarray(taught, dtype=bool))
+    return untaught if untaught.size else np.arange(len(taught))
+
+
+def phi_moves_due(iteration: int, hyper) -> bool:
+    """Whether sweep number ``iteration`` (0-based) runs the φ^v-marginal block moves: a multiple of
+    ``hyper.phi_every``, and below ``hyper.phi_until`` when it is set. The schedule is fixed in
+    advance (it depends on the sweep's number only, never on the state), so each sweep is a
+    composition of steps that each keep the target, and the chain keeps it."""
+    every = int(getattr(hyper, "phi_every", 1))
+    until = getattr(hyper, "phi_until", None)
+    return iteration % every == 0 and (until is None or iteration < int(until))
 
 
 def phi_block_step(data, state, stats, hyper, settings, rng: np.random.Generator, statistics):
@@ -203,12 +229,24 @@ def phi_block_step(data, state, stats, hyper, settings, rng: np.random.Generator
     the statistics (recounted if a block moved) and the other homes' tables (M_{−e}, F_{−e}, H_{−e}, e)
     for :func:`phi_after_move`.
     ``statistics``: the sampler's statistics function (:func:`spco.model.gibbs.sufficient_statistics`)."""
-    from spco.model import gibbs  # the sampler's own likelihoods (gibbs imports this module)
-
     e = int(rng.choice(moved_homes(data)))
-    rows = slice(int(data.offsets[e]), int(data.offsets[e + 1]))
     others = np.ascontiguousarray(np.delete(np.asarray(stats.visual), e, axis=0))
     tables = HierarchicalMultinomial.table_parts(others, state.log_phi_v, hyper.delta_visual, rng)
+    stats, _ = move_home(data, state, stats, hyper, settings, e, others, tables, rng, statistics)
+    return stats, (*tables, e)
+
+
+def move_home(data, state, stats, hyper, settings, e: int, others: np.ndarray, tables,
+              rng: np.random.Generator, statistics):
+    """Steps 2–3 of the module docstring for home ``e`` of ``data``, given the other homes' real
+    counts ``others`` (E', L, D) and their tables ``tables`` (M_{−e}, F_{−e}, H_{−e}) drawn given
+    the state's φ^v: one pass over the home's blocks, then (if a block moved) its word switches
+    redrawn and the statistics recounted. Returns the statistics and the number of accepted moves.
+    The single-process sweep (:func:`phi_block_step`) and a home's shard in the sharded fit
+    (:meth:`spco.model.shard.HomeShard.phi_move`) both run it."""
+    from spco.model import gibbs  # the sampler's own likelihoods (gibbs imports this module)
+
+    rows = slice(int(data.offsets[e]), int(data.offsets[e + 1]))
     pseudo = hyper.alpha_visual + tables[0] + tables[1]
     prior = gibbs.home_concept_concentration(state, hyper, settings)
     move = HomeMove(stats.visual[e], others, pseudo, hyper.delta_visual, stats.concepts[e], prior, hyper.beta)
@@ -226,7 +264,29 @@ def phi_block_step(data, state, stats, hyper, settings, rng: np.random.Generator
             state.switches = sample_switches(data.words, data.homes, state.concepts, state.log_theta_w,
                                              state.channels, rng)
         stats = statistics(data, state, hyper, settings.learning_view_counts())
-    return stats, (*tables, e)
+    return stats, accepted
+
+
+def sharded_phi_move(call, log_phi_v: np.ndarray, hyper, rng: np.random.Generator):
+    """The driver's side of the move in the sharded fit (:func:`spco.model.shard.sweep`), after the
+    local steps: every home's real counts (E, L, D) and whether it is taught from the workers
+    (``call``: :class:`~spco.model.shard_group.ShardGroup` methods), home e drawn uniformly from
+    :func:`move_candidates` and the other homes' tables given φ^v (``rng``: the driver's), the pass
+    run by home e's shard with its own generator (:meth:`spco.model.shard.HomeShard.phi_move`), then
+    home e's tables given its new counts. Returns (M, F, H) of every home — what the φ^v step
+    proposes from, as :func:`phi_after_move` has them — or ``None`` for a fit of one home."""
+    taught = np.concatenate([np.asarray(t, dtype=bool) for t in call("taught_homes")])
+    if taught.size < 2:
+        return None
+    counts = np.concatenate(call("visual_counts"), axis=0)
+    e = int(rng.choice(move_candidates(taught)))
+    others = np.ascontiguousarray(np.delete(counts, e, axis=0))
+    tables = HierarchicalMultinomial.table_parts(others, log_phi_v, hyper.delta_visual, rng)
+    new = [c for c in call("phi_move", e, others, tables) if c is not None]
+    if len(new) != 1:
+        raise RuntimeError(f"the φ^v-marginal move: {len(new)} workers hold home {e}, not one")
+    own = HierarchicalMultinomial.table_parts(np.asarray(new[0])[None], log_phi_v, hyper.delta_visual, rng)
+    return tables[0] + own[0], tables[1] + own[1], (tables[2] + own[2]) > 0
 
 
 def _word_log_likelihood(data, state, settings, rows: slice) -> np.ndarray:

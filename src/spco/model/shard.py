@@ -43,6 +43,7 @@ from spco.model.kernels.counts import csr_rows
 from spco.model.kernels.crt import sample_crt
 from spco.model.kernels.dirichlet import log_dirichlet
 from spco.model.observations import HierarchicalMultinomial
+from spco.model.phi_moves import move_home, phi_moves_due, sharded_phi_move, taught_homes
 from spco.model.pruning import NAME, NOT_A_NAME, Colocation, colocation, judge_names
 from spco.model.shard_init import ShardInitialisation
 from spco.model.word_channels import (
@@ -301,6 +302,26 @@ class HomeShard(ShardInitialisation):
             return sample_crt(stats.concepts, concentration, self.rng).sum(axis=0)
         raise ValueError(f"unknown table kind {kind!r}; choose one of {TABLE_KINDS}")
 
+    def visual_counts(self) -> np.ndarray:
+        """(E_s, L, D) the shard's homes' real view counts per concept (the views' weighted counts
+        under the power target), the other homes of the φ^v-marginal move (:mod:`spco.model.phi_moves`)."""
+        return np.asarray(self._stats().visual)
+
+    def taught_homes(self) -> np.ndarray:
+        """(E_s,) whether each of the shard's homes has a sample with a word."""
+        return taught_homes(self.data)
+
+    def phi_move(self, others: np.ndarray, tables) -> np.ndarray:
+        """The φ^v-marginal block move's pass over the shard's one home
+        (:func:`spco.model.phi_moves.move_home`, the shard's generator) given the other homes' real
+        counts ``others`` (E − 1, L, D) and their tables (M, F, H) given the shard's φ^v; the statistics
+        recounted. Returns the home's counts per concept after the pass (L, D)."""
+        if self.data.n_homes != 1:
+            raise RuntimeError(f"HomeShard.phi_move: a shard of one home moves, not {self.data.n_homes}")
+        self.stats, _ = move_home(self.data, self.state, self._stats(), self.hyper, self.settings, 0, others,
+                                  tables, self.rng, gibbs.sufficient_statistics)
+        return np.asarray(self.stats.visual[0])
+
     def visual_log_weight(self, log_phi: np.ndarray) -> np.ndarray:
         """(L, D) the shard's part of φ^v's fractional weight per dimension (the views' weighted
         counts: :meth:`HierarchicalMultinomial.fractional_log_weight_terms`), what the blocked φ^v
@@ -411,8 +432,10 @@ class GlobalStep:
         #: word's place); ``None`` without the channels
         self.place_mean: np.ndarray | None = None
 
-    def run(self, call, shared: SharedParameters) -> SharedParameters:
-        """New shared parameters given the current ones and the shards' statistics."""
+    def run(self, call, shared: SharedParameters, moved: tuple | None = None) -> SharedParameters:
+        """New shared parameters given the current ones and the shards' statistics; ``moved``: the
+        visual tables (M, F, H) of every home drawn by a φ^v-marginal block move this sweep
+        (:func:`spco.model.phi_moves.sharded_phi_move`), which the φ^v step then proposes from."""
         hyper, rng = self.hyper, self.rng
         if self.settings.variant == "reference":
             counts = self.reduce(call("pooled_counts"))
@@ -423,7 +446,7 @@ class GlobalStep:
         # φ^v: CRT tables of the whole parts of the views' weighted counts, Dirichlet proposals
         # with the fractional parts, blocks accepted with the exact remainder summed over the shards
         # (HierarchicalMultinomial.sample_shared_given_counts; whole counts: the CRT step itself)
-        tables_v, frac_v, fractional = self.reduce(call("tables", "visual"))
+        tables_v, frac_v, fractional = self.reduce(call("tables", "visual")) if moved is None else moved
         log_phi_v = HierarchicalMultinomial.accept_shared(
             lambda phi: self.reduce(call("visual_log_weight", phi)), shared.log_phi_v,
             hyper.alpha_visual, tables_v, frac_v, rng, fractional > 0)
@@ -480,7 +503,10 @@ def sweep(call, global_step: GlobalStep, shared: SharedParameters, iteration: in
             results = call("receive", shared, prune)
     elif settings.hierarchical:
         if settings.learn_shared:
-            shared = global_step.run(call, shared)
+            moved = None
+            if settings.phi_moves and phi_moves_due(iteration, global_step.hyper):  # power target
+                moved = sharded_phi_move(call, shared.log_phi_v, global_step.hyper, global_step.rng)
+            shared = global_step.run(call, shared, moved)
         results = call("home_step", shared, swaps, prune)
     else:  # SpCoA: no shared part; its one shard exports the mean of its homes' parameters
         results = call("home_step", None, swaps, prune)

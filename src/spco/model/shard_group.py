@@ -156,6 +156,21 @@ class ShardGroup:
         tables = sample_crt_totals_each(whole, scaled_exp(log_phi, delta), seeds)
         return np.stack([tables.astype(np.float64), frac, fractional])
 
+    def visual_counts(self) -> np.ndarray:
+        """(E_g, L, D) the homes' real view counts per concept, in home order."""
+        return np.concatenate(self._each("visual_counts"), axis=0)
+
+    def taught_homes(self) -> np.ndarray:
+        """(E_g,) whether each home has a sample with a word, in home order."""
+        return np.concatenate(self._each("taught_homes"))
+
+    def phi_move(self, home: int, others: np.ndarray, tables) -> np.ndarray | None:
+        """The φ^v-marginal move's pass over fit home ``home`` if this group holds it
+        (:meth:`HomeShard.phi_move`: its counts per concept after the pass), else ``None``."""
+        if not self.first <= home < self.first + len(self.homes):
+            return None
+        return self.homes[home - self.first].phi_move(others, tables)
+
     def visual_log_weight(self, log_phi: np.ndarray) -> np.ndarray:
         """(L, D) the homes' parts of φ^v's fractional weight per dimension, summed."""
         return _sum(self._each_lazily("visual_log_weight", log_phi))

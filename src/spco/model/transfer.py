@@ -47,7 +47,6 @@ from spco.model.hyperparameters import SpCoAHyperparameters, TransferHyperparame
 from spco.model.kernels.counts import stack_counts
 from spco.model.name_evidence import channel_evidence, has_english, name_prior
 from spco.model.parameters import ConceptParameters
-from spco.model.phi_moves import refuse_phi_moves
 from spco.model.posterior import (
     ParameterAverage,
     masked_rows,
@@ -158,11 +157,11 @@ class SpatialConceptModel:
         if self.variant not in ("exact", "reference"):
             raise ConfigurationError(f"variant must be 'exact' or 'reference', got {self.variant!r}")
         hyper = self.hyperparameters if self.hyperparameters is not None else self._default_hyperparameters()
-        refuse_phi_moves(hyper)
         return gibbs.SamplerSettings.create(self.variant, bool(self.prune_words),
                                             view_counts=getattr(hyper, "view_counts", None),
                                             block_moves=getattr(hyper, "block_moves", "off") == "all",
-                                            power=getattr(hyper, "target", "cut") == "power")
+                                            power=getattr(hyper, "target", "cut") == "power",
+                                            phi_moves=getattr(hyper, "block_moves", "off") == "phi")
 
     def checked_hyperparameters(self) -> TransferHyperparameters:
         """The hyperparameters this estimator fits with (the paper's when none were given), checked
