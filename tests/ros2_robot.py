@@ -89,6 +89,7 @@ class Robot:
         n.create_subscription(PoseStamped, args.goal_topic, self._on_goal, 10)
         n.create_subscription(PoseArray, args.where_topic, self._on_where, LATCHED)
         node_name = args.node
+        self.target = node_name
         self.clients = {"get": n.create_client(GetParameters, f"{node_name}/get_parameters"),
                         "set": n.create_client(SetParameters, f"{node_name}/set_parameters"),
                         "describe": n.create_client(DescribeParameters, f"{node_name}/describe_parameters")}
@@ -150,12 +151,21 @@ class Robot:
         while time.monotonic() < deadline:
             # every publisher matched: a pose or frame published before its subscription is matched is
             # lost (volatile QoS), and a later `what` would find no current pose
+            # — matched by the node under test itself: a shared topic (/pose, /camera/image, /speech) may
+            # already be matched by another node, which says nothing about this one's subscription
             publishers = (self.query_pub, self.speech_pub, self.pose_pub, self.image_pub)
-            if (all(p.get_subscription_count() > 0 for p in publishers)
+            if (all(p.get_subscription_count() > 0 and self._target_subscribes(p.topic_name)
+                    for p in publishers)
                     and all(c.service_is_ready() for c in self.clients.values())):
                 return {"connected": True}
             time.sleep(0.05)
         return {"connected": False}
+
+    def _target_subscribes(self, topic: str) -> bool:
+        """Whether the node under test (``--node``) has a subscription on ``topic`` in the ROS graph."""
+        names = {f"{info.node_namespace.rstrip('/')}/{info.node_name}"
+                 for info in self.node.get_subscriptions_info_by_topic(topic)}
+        return self.target in names
 
     def pose(self, x: float, y: float, theta: float, frame: str = "map", kind: str | None = None) -> dict:
         kind = kind or self.pose_kind
