@@ -36,8 +36,9 @@ from scipy.special import logsumexp
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from data_paths import SIGVERSE
 from free_speech import fit_new_home, read_names, settings_hyperparameters
-from natural_speech import SIDES, configurations
+from natural_speech import configurations
 from speech_errors import training_places
+from split_seeds import refuse_other_seeds
 
 from spco.model.gibbs import view_weights
 from spco.model.observations import GaussianRegions, HierarchicalMultinomial
@@ -75,8 +76,7 @@ def main() -> None:
     """Fit the 3LDK_9 configuration once and print the terms that split the namers from the others."""
     parser = _parser()
     args = parser.parse_args()
-    if args.seed not in SIDES["development"]["seeds"]:
-        parser.error(f"development seeds are {SIDES['development']['seed_text']} (benchmarks/SPLIT.md)")
+    refuse_other_seeds(parser, [args.seed])
     accepted = read_names(args.accepted)
     _, configs = configurations(args.sigverse, accepted)
     _, homes, env = configs[0]

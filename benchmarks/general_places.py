@@ -43,6 +43,7 @@ from typing import Any
 
 import numpy as np
 from data_paths import SIGVERSE
+from split_seeds import SEEDS, refuse_other_seeds
 
 from spco.data import Corpus, Environment
 from spco.data.loading import load
@@ -55,9 +56,9 @@ from spco.model.hyperparameters import TransferHyperparameters
 
 #: The split of benchmarks/SPLIT.md, "General places from 2026-12-06".
 SIDES: dict[str, dict[str, Any]] = {
-    "development": {"new": ("3LDK_9",), "seeds": (*range(0, 100), *range(200, 300)),
-                    "seed_text": "0-99 and 200-299", "every_third": False},
-    "heldout": {"new": ("2LDK_10", "1LDK_10"), "seeds": range(100, 120), "seed_text": "100-119",
+    "development": {"new": ("3LDK_9",), "seeds": SEEDS["development"],
+                    "every_third": False},
+    "heldout": {"new": ("2LDK_10", "1LDK_10"), "seeds": SEEDS["heldout"],
                 "every_third": True},
 }
 MODEL = "spcotransfer+mi"
@@ -230,11 +231,7 @@ def main(argv: list[str] | None = None) -> int:
     answers = tuple(a for a in args.answers.split(",") if a)
     if set(answers) - {"view", "rooms", "listener"}:
         parser.error(f"--answers: choose from view, rooms, listener, got {args.answers!r}")
-    side = SIDES[args.side]
-    bad = [s for s in args.seeds if s not in side["seeds"]]
-    if bad:
-        parser.error(f"--seeds {bad}: the {args.side} side's seeds are {side['seed_text']} "
-                     "(benchmarks/SPLIT.md)")
+    refuse_other_seeds(parser, args.seeds, args.side)
     if len(set(args.seeds)) != len(args.seeds):
         parser.error("--seeds: each seed once")
     if args.sweeps < 1:

@@ -44,10 +44,10 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-
 from data_paths import SIGVERSE
 from free_speech import fit_speech, new_home, read_names, settings_hyperparameters
 from japanese import mean_interval
+from split_seeds import SEEDS, refuse_other_seeds
 
 from spco.data import Corpus, Environment
 from spco.data.loading import load
@@ -59,11 +59,10 @@ from spco.model import SpCoTransfer, TransferHyperparameters
 SIDES = {
     "development": {"knowledge": ("1LDK_1", "1LDK_3", "1LDK_5", "1LDK_7",
                                   "2LDK_1", "2LDK_3", "2LDK_5", "2LDK_7"),
-                    "new": ("3LDK_9",), "seeds": (*range(0, 100), *range(200, 300)),
-                    "seed_text": "0-99 and 200-299"},
+                    "new": ("3LDK_9",), "seeds": SEEDS["development"]},
     "heldout": {"knowledge": ("1LDK_2", "1LDK_4", "1LDK_6", "1LDK_8",
                               "2LDK_2", "2LDK_4", "2LDK_6", "2LDK_8"),
-                "new": ("1LDK_9", "2LDK_9", "3LDK_9"), "seeds": range(100, 120), "seed_text": "100-119"},
+                "new": ("1LDK_9", "2LDK_9", "3LDK_9"), "seeds": SEEDS["heldout"]},
 }
 
 
@@ -249,11 +248,7 @@ def main() -> None:
     """Fit, score and print per seed and home, then the means over seeds with intervals."""
     parser = _parser()
     args = parser.parse_args()
-    side = SIDES[args.side]
-    bad = [s for s in args.seeds if s not in side["seeds"]]
-    if bad:
-        parser.error(f"--seeds {bad}: the {args.side} side's seeds are {side['seed_text']} "
-                     "(benchmarks/SPLIT.md)")
+    refuse_other_seeds(parser, args.seeds, args.side)
     if args.side == "heldout" and not (frozen() or args.i_know_the_method_is_frozen):
         parser.error("the held-out configuration runs only on a frozen method (a commit whose message "
                      "starts with 'WORDS FROZEN:'), once; see benchmarks/SPLIT.md")

@@ -55,9 +55,8 @@ import numpy as np
 from scipy.special import logsumexp
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-
 from free_speech import read_names
-from natural_speech import SIDES, configurations, fit_arguments, fitted_runs
+from natural_speech import configurations, fit_arguments, fitted_runs
 from speech_errors import (
     CALLED_BUT_NOT_ACCEPTED,
     classify_answer,
@@ -65,6 +64,7 @@ from speech_errors import (
     place_speech,
     share_said,
 )
+from split_seeds import refuse_other_seeds
 
 from spco.data import Corpus
 from spco.data.language import normalize_name
@@ -255,8 +255,7 @@ def main() -> None:
     parser.add_argument("--leave-one-out", action="store_true")
     parser.add_argument("--json", type=Path, default=None)
     args = parser.parse_args()
-    if any(s not in SIDES["development"]["seeds"] for s in args.seeds):
-        parser.error(f"development seeds are {SIDES['development']['seed_text']} (benchmarks/SPLIT.md)")
+    refuse_other_seeds(parser, args.seeds)
     accepted = read_names(args.accepted)
     knowledge, configs = configurations(args.sigverse, accepted, args.leave_one_out)
     labels = [c[0] for c in configs]

@@ -284,7 +284,8 @@ def clusters(model, corpus, seed: int, label: str) -> dict:
 def main() -> None:
     """Read the fits, diagnose, print, write ``--json``."""
     from free_speech import read_names
-    from natural_speech import SIDES, configurations, fit_arguments, fitted
+    from natural_speech import configurations, fit_arguments, fitted
+    from split_seeds import refuse_other_seeds
 
     from spco.data import Corpus
 
@@ -296,8 +297,7 @@ def main() -> None:
                         "the cut's too")
     parser.add_argument("--json", type=Path, default=None)
     args = parser.parse_args()
-    if any(s not in SIDES["development"]["seeds"] for s in args.seeds):
-        parser.error("development seeds only (benchmarks/SPLIT.md)")
+    refuse_other_seeds(parser, args.seeds)
     _, configs = configurations(args.sigverse, read_names(args.accepted), leave_one_out=True)
     labels = [c[0] for c in configs]
     rows = []

@@ -48,9 +48,9 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-
 from free_speech import read_names
-from natural_speech import SIDES, configurations, fit_arguments, fitted_runs
+from natural_speech import configurations, fit_arguments, fitted_runs
+from split_seeds import refuse_other_seeds
 
 from spco.data import Corpus, Environment
 from spco.data.language import normalize_name
@@ -375,9 +375,7 @@ def main() -> None:
     """Fit, score, classify; print the table per home and the errors with their words."""
     parser = _parser()
     args = parser.parse_args()
-    side = SIDES["development"]
-    if any(s not in side["seeds"] for s in args.seeds):
-        parser.error(f"development seeds are {side['seed_text']} (benchmarks/SPLIT.md)")
+    refuse_other_seeds(parser, args.seeds)
     accepted = read_names(args.accepted)
     knowledge, configs = configurations(args.sigverse, accepted, args.leave_one_out)
     labels = [c[0] for c in configs]  # natural_speech.py's order: the trial seed's index

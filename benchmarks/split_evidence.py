@@ -322,7 +322,8 @@ def _print(rows: list[dict]) -> None:
 def main() -> None:
     """Read the fits of ``nameless_answers.py``'s cases, compare split and merge, print, write ``--json``."""
     from free_speech import read_names
-    from natural_speech import SIDES, configurations, fit_arguments, fitted
+    from natural_speech import configurations, fit_arguments, fitted
+    from split_seeds import refuse_other_seeds
 
     from spco.data import Corpus
 
@@ -333,8 +334,7 @@ def main() -> None:
     cases = sorted({(r["seed"], r["home"], r["place"], r["concept"])
                     for r in json.loads(args.nameless.read_text(encoding="utf-8"))},
                    key=lambda c: (c[0], c[1], c[2], c[3]))
-    if any(s not in SIDES["development"]["seeds"] for s, *_ in cases):
-        parser.error(f"development seeds are {SIDES['development']['seed_text']} (benchmarks/SPLIT.md)")
+    refuse_other_seeds(parser, [s for s, *_ in cases])
     accepted = read_names(args.accepted)
     _, configs = configurations(args.sigverse, accepted, leave_one_out=True)
     labels = [c[0] for c in configs]

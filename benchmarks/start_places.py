@@ -26,8 +26,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from data_paths import SIGVERSE
 from free_speech import fit_speech, read_names
-from natural_speech import SIDES, configurations
+from natural_speech import configurations
 from speech_errors import training_places
+from split_seeds import refuse_other_seeds
 
 from spco.data import Corpus
 from spco.evaluation.experiments import trial_seed
@@ -50,8 +51,7 @@ def main() -> None:
     """Fit the configuration once per number of sweeps; print the taught samples' concepts."""
     parser = _parser()
     args = parser.parse_args()
-    if args.seed not in SIDES["development"]["seeds"]:
-        parser.error(f"development seeds are {SIDES['development']['seed_text']} (benchmarks/SPLIT.md)")
+    refuse_other_seeds(parser, [args.seed])
     accepted = read_names(args.accepted)
     _, configs = configurations(args.sigverse, accepted, leave_one_out=True)
     labels = [c[0] for c in configs]

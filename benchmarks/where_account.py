@@ -38,10 +38,10 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-
 from data_paths import SIGVERSE
 from free_speech import fit_new_home, new_home, read_names, read_speech, taught_homes
-from natural_speech import SIDES, configurations, fitted_runs
+from natural_speech import configurations, fitted_runs
+from split_seeds import refuse_other_seeds
 
 from spco.evaluation import evaluate_home
 from spco.model.confidence import model_answer_parameters
@@ -98,8 +98,7 @@ def main() -> None:
     parser.add_argument("--leave-one-out", action="store_true")
     parser.add_argument("--homes", nargs="*", default=None)
     args = parser.parse_args()
-    if any(s not in SIDES["development"]["seeds"] for s in args.seeds):
-        parser.error(f"development seeds are {SIDES['development']['seed_text']} (benchmarks/SPLIT.md)")
+    refuse_other_seeds(parser, args.seeds)
     accepted = read_names(args.accepted)
     runs = []
     started = time.perf_counter()

@@ -28,10 +28,10 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-
 from free_speech import read_names
-from natural_speech import SIDES, configurations, fit_arguments, fitted
+from natural_speech import configurations, fit_arguments, fitted
 from speech_errors import place_of_samples
+from split_seeds import refuse_other_seeds
 
 import spco.model.transfer as transfer
 from spco.data import Corpus
@@ -164,8 +164,7 @@ def main() -> None:
     landings and the seeds' bedroom concepts."""
     parser = _parser()
     args = parser.parse_args()
-    if any(s not in SIDES["development"]["seeds"] for s in args.seeds):
-        parser.error(f"development seeds are {SIDES['development']['seed_text']} (benchmarks/SPLIT.md)")
+    refuse_other_seeds(parser, args.seeds)
     if args.start_part != "both":
         transfer.warm_start_settings = only_part(args.start_part)
     home = Home(args, read_names(args.accepted))
