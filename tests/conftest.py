@@ -141,6 +141,24 @@ def wordnet():
 
 
 @pytest.fixture
+def phi_passes(monkeypatch) -> list[int]:
+    """Each pass of the φ^v-marginal block moves (:func:`spco.model.phi_moves.home_pass`) the test runs,
+    as its number of accepted moves, in order (the list fills while the test runs)."""
+    from spco.model import phi_moves
+
+    passes: list[int] = []
+    original = phi_moves.home_pass
+
+    def counted(*args, **kwargs):
+        concepts, accepted = original(*args, **kwargs)
+        passes.append(accepted)
+        return concepts, accepted
+
+    monkeypatch.setattr(phi_moves, "home_pass", counted)
+    return passes
+
+
+@pytest.fixture
 def single_numba_thread() -> Iterator[None]:
     """One Numba thread for a test (``pytestmark = pytest.mark.usefixtures("single_numba_thread")``):
     tiny problems call the compiled kernels thousands of times, and one thread avoids the OpenMP

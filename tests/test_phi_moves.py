@@ -198,32 +198,21 @@ def _fit_digest(settings: list[str], shards: int = 1, sweeps: int = 7) -> str:
     return digest.hexdigest()
 
 
-def test_the_sharded_fit_runs_the_moves_on_its_schedule_the_same_for_any_workers(monkeypatch) -> None:
+def test_the_sharded_fit_runs_the_moves_on_its_schedule_the_same_for_any_workers(phi_passes) -> None:
     """``SpCoTransfer.fit`` (the experiments' fit) runs the move on the sweeps the schedule names, one
     pass each; the chain is the same for one worker and three; a schedule that never runs it
     (``phi_until=0``) leaves the power target's fit byte for byte as without the setting (the move
     draws nothing when it does not run)."""
-    from spco.model import phi_moves
-
-    passes: list[int] = []
-    original = phi_moves.home_pass
-
-    def counted(*args, **kwargs):
-        concepts, accepted = original(*args, **kwargs)
-        passes.append(accepted)
-        return concepts, accepted
-
-    monkeypatch.setattr(phi_moves, "home_pass", counted)
     power = ["target=power", "visual_prior=estimate"]
     scheduled = [*power, "block_moves=phi", "phi_every=3", "phi_until=7"]
     one = _fit_digest(scheduled)
-    assert len(passes) == 3  # sweeps 0, 3, 6 of 7
+    assert len(phi_passes) == 3  # sweeps 0, 3, 6 of 7
     assert _fit_digest(scheduled, shards=3) == one
-    passes.clear()
+    phi_passes.clear()
     assert _fit_digest([*power, "block_moves=phi", "phi_until=0"]) == _fit_digest(power)
-    assert passes == []
+    assert phi_passes == []
     assert _fit_digest([*power, "block_moves=phi"]) != _fit_digest(power)
-    assert len(passes) == 7
+    assert len(phi_passes) == 7
 
 
 # ----------------------------------------------------------------------------- the move alone

@@ -321,52 +321,29 @@ def test_the_chain_targets_the_stated_power_model_and_the_cut_sampler_does_not()
     assert chisquare_p(cut, exact) < 1e-6, (cut / cut.sum(), exact)
 
 
-def test_the_chain_with_the_phi_marginal_block_moves_keeps_the_stated_power_model(monkeypatch) -> None:
+def test_the_chain_with_the_phi_marginal_block_moves_keeps_the_stated_power_model(phi_passes) -> None:
     """The power target's chain with the φ^v-marginal block moves (:mod:`spco.model.phi_moves`: the
     other homes' tables, a home's blocks moved with θ^v and φ^v integrated out, then φ^v's step with
     those tables) against the same enumerated posterior; the moves are proposed and accepted often."""
-    from spco.model import phi_moves
-
-    calls = {"passes": 0, "accepted": 0}
-    original = phi_moves.home_pass
-
-    def counted(*args, **kwargs):
-        concepts, accepted = original(*args, **kwargs)
-        calls["passes"] += 1
-        calls["accepted"] += accepted
-        return concepts, accepted
-
-    monkeypatch.setattr(phi_moves, "home_pass", counted)
     exact = exact_class_probabilities()
     seen = _run_chain(power=True, n_sweeps=8_000, seed=4, phi_moves=True)
     assert chisquare_p(seen, exact) > P_MIN, (seen / seen.sum(), exact)
-    assert calls["passes"] == 8_200
-    assert calls["accepted"] > 500, calls
+    assert len(phi_passes) == 8_200
+    assert sum(phi_passes) > 500, (len(phi_passes), sum(phi_passes))
 
 
-def test_the_sharded_fit_s_phi_marginal_block_moves_keep_the_stated_power_model(monkeypatch) -> None:
+def test_the_sharded_fit_s_phi_marginal_block_moves_keep_the_stated_power_model(phi_passes) -> None:
     """The sharded fit's move (:func:`spco.model.phi_moves.sharded_phi_move`, what ``SpCoTransfer.fit``
     and the experiments run) against the same enumerated posterior, on every sweep and on a schedule
     (every 3rd sweep): exact either way; the schedule runs the pass on the sweeps it names only."""
-    from spco.model import phi_moves
-
-    passes: list[int] = []
-    original = phi_moves.home_pass
-
-    def counted(*args, **kwargs):
-        concepts, accepted = original(*args, **kwargs)
-        passes.append(accepted)
-        return concepts, accepted
-
-    monkeypatch.setattr(phi_moves, "home_pass", counted)
     exact = exact_class_probabilities()
     seen = _run_sharded_chain(8_000, seed=5)
     assert chisquare_p(seen, exact) > P_MIN, (seen / seen.sum(), exact)
-    assert len(passes) == 8_200 and sum(passes) > 500, (len(passes), sum(passes))
-    passes.clear()
+    assert len(phi_passes) == 8_200 and sum(phi_passes) > 500, (len(phi_passes), sum(phi_passes))
+    phi_passes.clear()
     seen = _run_sharded_chain(8_000, seed=6, hyper_changes={"phi_every": 3})
     assert chisquare_p(seen, exact) > P_MIN, (seen / seen.sum(), exact)
-    assert len(passes) == len(range(0, 8_200, 3))
+    assert len(phi_passes) == len(range(0, 8_200, 3))
 
 
 def test_the_target_is_a_checked_hyperparameter_that_files_carry() -> None:
