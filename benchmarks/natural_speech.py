@@ -145,9 +145,14 @@ def fit_arguments(parser: argparse.ArgumentParser, seeds: Sequence[int] = (0,), 
 ANSWER_SETTINGS = frozenset({"name_answer"})
 
 
+def _answer_only(setting: str) -> bool:
+    """Whether the ``--set`` ``setting`` (NAME=VALUE) is read by the answers only (ANSWER_SETTINGS)."""
+    return setting.partition("=")[0].strip() in ANSWER_SETTINGS
+
+
 def _fit_settings(settings: Sequence[str]) -> list[str]:
     """The ``--set`` settings the fit reads (those not in :data:`ANSWER_SETTINGS`)."""
-    return [s for s in settings if s.partition("=")[0].strip() not in ANSWER_SETTINGS]
+    return [s for s in settings if not _answer_only(s)]
 
 
 def cache_path(cache: Path, settings: Sequence[str], sweeps: int, label: str, seed: int) -> Path:
@@ -160,7 +165,7 @@ def cache_path(cache: Path, settings: Sequence[str], sweeps: int, label: str, se
 def answering(model: SpCoTransfer, settings: Sequence[str]) -> SpCoTransfer:
     """``model`` answering with the answer-only ``settings`` among ``settings`` (:data:`ANSWER_SETTINGS`;
     the defaults for those not given, whatever the fit was made or cached with)."""
-    answer = [s for s in settings if s not in _fit_settings(settings)]
+    answer = [s for s in settings if _answer_only(s)]
     default = TransferHyperparameters()
     hyper = replace(model.hyperparameters_, **{k: getattr(default, k) for k in ANSWER_SETTINGS})
     model.hyperparameters_ = hyper.with_settings(answer) if answer else hyper
