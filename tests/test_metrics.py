@@ -170,7 +170,8 @@ def test_one_rounding_of_the_scores_the_summary_and_the_experiments_records() ->
     from spco.evaluation import runs
     from spco.evaluation.metrics import json_score
 
-    assert json_score(float("nan")) is None and json_score(None) is None and json_score(np.float64(0.5)) == 0.5
+    assert json_score(float("nan")) is None and json_score(None) is None
+    assert json_score(np.float64(0.5)) == 0.5
     scores = evaluate_home(home_params(), 0, home(), Vocabulary(WORDS), n_positions=50, rng=0)
     summary = scores.summary()
     assert summary["name_accuracy"]["kitchen"] == scores.name_accuracy["kitchen"] == 2 / 3
