@@ -1,0 +1,68 @@
+"""One way to do each thing in the benchmarks and the tests (issue 33): the development seeds refused
+in one function (``split_seeds.refuse_other_seeds``), the SIGVerse data set's default in one
+(``data_paths.sigverse_path``), the diagnoses' loop over the natural-speech fits in one
+(``natural_speech.diagnosed``), and ``spco serve`` started and its address read in one
+(:class:`spco.service.client.ServeProcess`)."""
+
+from __future__ import annotations
+
+import ast
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+
+def _sources(*folders: str) -> dict[str, str]:
+    """The Python files of ``folders`` (but this one), by their path in the project."""
+    return {str(p.relative_to(ROOT)): p.read_text(encoding="utf-8")
+            for folder in folders for p in sorted((ROOT / folder).glob("*.py"))
+            if p != Path(__file__).resolve()}
+
+
+class _Stop(Exception):
+    """Raised by a patched step after the seed check: the script got past it."""
+
+
+def _stop(*_args, **_kwargs):
+    raise _Stop
+
+
+@pytest.mark.parametrize(("script", "patched", "argv"), [
+    ("unheard_errors", "never_heard", []),
+    ("written_errors", "settings_hyperparameters", ["--speech", "speech.csv"]),
+])
+def test_the_error_scripts_refuse_every_seed_outside_the_development_sets(script, patched, argv, monkeypatch,
+                                                                          capsys) -> None:
+    """Held-out seeds (100–119), the unassigned 120–199 and seeds from 300 are refused before anything
+    is read; 0–99 and 200–299 pass the check."""
+    module = __import__(script)
+    monkeypatch.setattr(module, patched, _stop)
+    if script == "unheard_errors":
+        monkeypatch.setattr(module, "read_names", lambda path: {})
+    for seed in (100, 150, 300):
+        monkeypatch.setattr(sys, "argv", [script, *argv, "--seeds", "0", str(seed)])
+        with pytest.raises(SystemExit):
+            module.main()
+        assert "0-99 and 200-299" in capsys.readouterr().err
+    for seed in (99, 200, 299):
+        monkeypatch.setattr(sys, "argv", [script, *argv, "--seeds", str(seed)])
+        with pytest.raises(_Stop):
+            module.main()
+
+
+def test_no_script_writes_its_own_seed_ranges() -> None:
+    """A comparison with the split's bounds (100 and 200) is split_seeds.py's alone."""
+    found = []
+    for name, text in _sources("benchmarks").items():
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, ast.Compare):
+                numbers = {c.value for c in ast.walk(node) if isinstance(c, ast.Constant)}
+                if {100, 200} <= numbers:
+                    found.append(name)
+    assert found == []
+
+
