@@ -42,7 +42,8 @@ from free_speech import (
     settings_hyperparameters,
     taught_homes,
 )
-from speech_errors import _answers, _misses, place_speech
+from natural_speech import place_speech
+from speech_errors import _answers, _misses
 from split_seeds import refuse_other_seeds
 
 from spco.data import Corpus

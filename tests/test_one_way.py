@@ -6,6 +6,7 @@ in one function (``split_seeds.refuse_other_seeds``), the SIGVerse data set's de
 
 from __future__ import annotations
 
+import argparse
 import ast
 import sys
 from pathlib import Path
@@ -64,5 +65,45 @@ def test_no_script_writes_its_own_seed_ranges() -> None:
                 if {100, 200} <= numbers:
                     found.append(name)
     assert found == []
+
+
+def test_the_diagnoses_share_one_loop_over_the_fits(monkeypatch, capsys) -> None:
+    """``natural_speech.diagnosed``: the seed check, the configurations, each fit's rows with the
+    knowledge homes' speech and the configuration's home, a line of progress; both diagnoses use it."""
+    import nameless_answers
+    import natural_speech
+    import other_place_answers
+
+    calls = []
+    monkeypatch.setattr(natural_speech, "read_names", lambda path: {"kitchen": ("kitchen",)})
+    monkeypatch.setattr(natural_speech, "configurations",
+                        lambda sigverse, accepted, leave_one_out: (["K"], [("3LDK_9", ["K"], "env"),
+                                                                          ("1LDK_1 (out)", ["K"], "env")]))
+    monkeypatch.setattr(natural_speech, "place_speech", lambda homes, corpus: {"said": corpus})
+
+    def runs(configs, labels, seeds, **kwargs):
+        assert labels == ["3LDK_9", "1LDK_1 (out)"] and kwargs["settings"] == ["name_answer=listener"]
+        for seed in seeds:
+            for label, _, env in configs:
+                yield seed, label, env, f"corpus {seed}", "model", 1, "scored"
+
+    def diagnose(model, corpus, e, env, scored, seed, accepted, said, home):
+        calls.append((seed, home, said["said"]))
+        return [{"seed": seed}]
+
+    monkeypatch.setattr(natural_speech, "fitted_runs", runs)
+    monkeypatch.setattr(sys, "argv", ["x", "--seeds", "3", "204", "--set", "name_answer=listener"])
+    parser = natural_speech.fit_arguments(argparse.ArgumentParser())
+    args, rows = natural_speech.diagnosed(parser, diagnose, "test")
+    assert args.json is None and not args.leave_one_out and len(rows) == 4
+    assert calls == [(3, "3LDK_9", "corpus 3"), (3, "1LDK_1", "corpus 3"), (204, "3LDK_9", "corpus 204"),
+                     (204, "1LDK_1", "corpus 204")]
+    assert "seed 204 1LDK_1 (out): 4 test views so far" in capsys.readouterr().out
+    monkeypatch.setattr(sys, "argv", ["x", "--seeds", "100"])
+    with pytest.raises(SystemExit):
+        natural_speech.diagnosed(natural_speech.fit_arguments(argparse.ArgumentParser()), diagnose, "test")
+    for script in (nameless_answers, other_place_answers):
+        names = script.main.__code__.co_names
+        assert "diagnosed" in names and "fitted_runs" not in names and "refuse_other_seeds" not in names
 
 
