@@ -67,6 +67,20 @@ def test_no_script_writes_its_own_seed_ranges() -> None:
     assert found == []
 
 
+def test_one_definition_of_where_the_sigverse_data_is(monkeypatch, tmp_path: Path) -> None:
+    import conftest
+    import data_paths
+
+    assert conftest.sigverse_path is data_paths.sigverse_path
+    monkeypatch.setenv("SPCO_SIGVERSE", str(tmp_path))
+    assert data_paths.sigverse_path() == tmp_path  # read when asked, as the tests' fixture asks
+    monkeypatch.delenv("SPCO_SIGVERSE")
+    assert data_paths.sigverse_path() == ROOT.parent / "shared" / "datasets" / "sigverse"
+    readers = [name for name, text in _sources("benchmarks", "tests").items()
+               if "environ" in text and '"SPCO_SIGVERSE"' in text]
+    assert readers == ["benchmarks/data_paths.py"]
+
+
 def test_the_diagnoses_share_one_loop_over_the_fits(monkeypatch, capsys) -> None:
     """``natural_speech.diagnosed``: the seed check, the configurations, each fit's rows with the
     knowledge homes' speech and the configuration's home, a line of progress; both diagnoses use it."""
