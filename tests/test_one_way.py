@@ -121,3 +121,13 @@ def test_the_diagnoses_share_one_loop_over_the_fits(monkeypatch, capsys) -> None
         assert "diagnosed" in names and "fitted_runs" not in names and "refuse_other_seeds" not in names
 
 
+def test_spco_serve_is_started_and_its_address_read_in_one_place(tmp_path: Path) -> None:
+    """Only :class:`ServeProcess` reads the line ``spco serve`` prints when it listens; a server that
+    exits before it listens is a ClientError with what it printed."""
+    from spco.service.client import ClientError, ServeProcess
+
+    readers = [name for name, text in _sources("benchmarks", "tests", "src/spco/service").items()
+               if r"\(page\)" in text]
+    assert readers == ["src/spco/service/client.py"]
+    with pytest.raises(ClientError, match=r"spco serve did not start:(.|\n)*no-such-home"):
+        ServeProcess(tmp_path / "no-such-home.spco", "--port", "0", timeout=120)
