@@ -48,6 +48,8 @@ def phi_knowledge():
 
 
 def test_which_block_moves_a_new_home_runs(phi_knowledge) -> None:
+    """The region block moves run in a new home for "adapt" and "all"; "phi" (the joint fit's move)
+    and "off" run none; the power target of the knowledge is kept."""
     assert [new_home_block_moves(s) for s in ("off", "adapt", "all", "phi")] == [False, True, True, False]
     knowledge, _ = phi_knowledge
     settings = knowledge.shared_part().sampler_settings()
