@@ -19,19 +19,14 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import re
 import shutil
 import signal
-import subprocess
-import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
 
 import numpy as np
 
-_ADDRESS = re.compile(r" at (http://[^ /]+)/ \(page\)")
 WORDS = ("quokka", "zephyr", "marimba", "tundra", "saffron", "obsidian", "lagoon", "juniper")
 
 
@@ -40,29 +35,15 @@ def one_round(
 ) -> tuple[tuple[float, float], tuple[float, float]]:
     """(first, second) teaching: (latency, the writer's own seconds) after a fresh start."""
     from spco import knowledge as kn
-    from spco.service.client import Client
+    from spco.service.client import Client, ServeProcess
 
     served = folder / "served.spco"
     for suffix in ("", ".journal", ".lock", ".undo"):
         Path(str(served) + suffix).unlink(missing_ok=True)
     shutil.copyfile(home, served)
     model = kn.load_home_model(served)
-    process = subprocess.Popen(
-        [sys.executable, "-m", "spco", "serve", str(served), "--port", "0", "--seed", "0"],
-        stdin=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    assert process.stderr is not None
-    url = None
-    for line in process.stderr:
-        match = _ADDRESS.search(line)
-        if match:
-            url = match.group(1)
-            break
-    if url is None:
-        raise SystemExit("spco serve did not start")
-    threading.Thread(target=lambda: [None for _ in process.stderr], daemon=True).start()  # type: ignore[union-attr]
+    server = ServeProcess(served, "--port", "0", "--seed", "0")
+    process, url = server.process, server.url
     try:
         client = Client(url)
         if health_first:  # a request before the teaching: what is first-request cost of the HTTP stack

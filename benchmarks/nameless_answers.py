@@ -37,16 +37,13 @@ import numpy as np
 import scipy.sparse as sp
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from free_speech import read_names
-from natural_speech import configurations, fit_arguments, fitted_runs
+from natural_speech import diagnosed, fit_arguments
 from speech_errors import (
     NAMED,
     classify_answer,
     named_share,
     names_of,
-    place_speech,
 )
-from split_seeds import refuse_other_seeds
 
 from spco.data import Corpus
 from spco.data.language import normalize_name
@@ -193,19 +190,7 @@ def _print(rows: list[dict]) -> None:
 def main() -> None:
     """Read (or fit) the fits, diagnose every class-a answer, print the table, write ``--json``."""
     parser = fit_arguments(argparse.ArgumentParser(description=__doc__.splitlines()[0]))
-    parser.add_argument("--leave-one-out", action="store_true")
-    parser.add_argument("--json", type=Path, default=None)
-    args = parser.parse_args()
-    refuse_other_seeds(parser, args.seeds)
-    accepted = read_names(args.accepted)
-    knowledge, configs = configurations(args.sigverse, accepted, args.leave_one_out)
-    labels = [c[0] for c in configs]
-    rows: list[dict] = []
-    fits = fitted_runs(configs, labels, args.seeds, settings=args.set, sweeps=args.sweeps, cache=args.cache)
-    for seed, label, env, corpus, model, e, scored in fits:
-        rows += diagnose(model, corpus, e, env, scored, seed, accepted, place_speech(knowledge, corpus),
-                         label.split()[0])
-        print(f"seed {seed} {label}: {len(rows)} class-a views so far", flush=True)
+    args, rows = diagnosed(parser, diagnose, "class-a")
     _print(rows)
     if args.json:
         args.json.write_text(json.dumps(rows, indent=0), encoding="utf-8")

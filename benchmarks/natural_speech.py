@@ -37,7 +37,7 @@ import subprocess
 import sys
 import time
 from collections import Counter, defaultdict
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import replace
 from pathlib import Path
 
@@ -50,6 +50,7 @@ from japanese import mean_interval
 from split_seeds import SEEDS, refuse_other_seeds
 
 from spco.data import Corpus, Environment
+from spco.data.language import normalize_name
 from spco.data.loading import load
 from spco.data.sigverse import read_indexed_texts
 from spco.evaluation import evaluate_answers
@@ -116,6 +117,46 @@ def configurations(sigverse: Path, accepted: dict[str, tuple[str, ...]], leave_o
             env = replace(env, ground_truth=replace(env.ground_truth, accepted_names=accepted))
             configs.append((f"{h} (out)", knowledge[:i] + knowledge[i + 1:], env))
     return knowledge, configs
+
+
+def place_speech(homes: list[Environment], corpus: Corpus) -> dict[str, Counter]:
+    """place (normalised) -> Counter of tokens over the place's sentences, with the number of
+    sentences under the key ``""``."""
+    said: dict[str, Counter] = defaultdict(Counter)
+    for env in homes:
+        labels = env.ground_truth.labels  # type: ignore[union-attr]
+        for label, sentence in zip(labels, env.sentences, strict=True):
+            if label is None or sentence is None:
+                continue
+            place = normalize_name(label)
+            said[place][""] += 1
+            said[place].update(set(corpus.vocabulary.tokenize(sentence)))
+    return said
+
+
+def diagnosed(parser: argparse.ArgumentParser, diagnose: Callable[..., list[dict]], what: str
+              ) -> tuple[argparse.Namespace, list[dict]]:
+    """The loop of the diagnoses that read this script's fits (``nameless_answers.py``,
+    ``other_place_answers.py``): ``parser`` (with :func:`fit_arguments`) gains ``--leave-one-out`` and
+    ``--json`` and is parsed, seeds outside the development sets refused
+    (:func:`split_seeds.refuse_other_seeds`); each seed's fit of each development configuration
+    (:func:`fitted_runs`) gives ``diagnose(model, corpus, e, env, scored, seed, accepted, said, home)``
+    its rows (``said``: :func:`place_speech` of the knowledge homes; ``home``: the configuration's
+    home), with a line of progress naming ``what`` is counted. Returns the arguments and every row."""
+    parser.add_argument("--leave-one-out", action="store_true")
+    parser.add_argument("--json", type=Path, default=None)
+    args = parser.parse_args()
+    refuse_other_seeds(parser, args.seeds)
+    accepted = read_names(args.accepted)
+    knowledge, configs = configurations(args.sigverse, accepted, args.leave_one_out)
+    labels = [c[0] for c in configs]
+    rows: list[dict] = []
+    fits = fitted_runs(configs, labels, args.seeds, settings=args.set, sweeps=args.sweeps, cache=args.cache)
+    for seed, label, env, corpus, model, e, scored in fits:
+        rows += diagnose(model, corpus, e, env, scored, seed, accepted, place_speech(knowledge, corpus),
+                         label.split()[0])
+        print(f"seed {seed} {label}: {len(rows)} {what} views so far", flush=True)
+    return args, rows
 
 
 def fit_arguments(parser: argparse.ArgumentParser, seeds: Sequence[int] = (0,), sweeps: int = 60,

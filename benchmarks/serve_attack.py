@@ -48,7 +48,6 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 from serve_latency import DATA, build, load  # noqa: E402
 
-_ADDRESS = re.compile(r" at (http://[^ /]+)/ \(page\)")
 SERVER_NOFILE = 1024
 
 
@@ -64,18 +63,10 @@ class Served:
         for suffix in ("", ".journal", ".lock"):
             Path(str(self.file) + suffix).unlink(missing_ok=True)
         shutil.copyfile(home, self.file)
-        self.process = subprocess.Popen([sys.executable, "-m", "spco", "serve", str(self.file), "--port", "0",
-                                         "--seed", "0", *args], stderr=subprocess.PIPE, text=True,
-                                        preexec_fn=_limit_files)
-        assert self.process.stderr is not None
-        for line in self.process.stderr:
-            match = _ADDRESS.search(line)
-            if match:
-                self.url = match.group(1)
-                break
-        else:
-            raise SystemExit("spco serve did not start")
-        threading.Thread(target=lambda: [None for _ in self.process.stderr or ()], daemon=True).start()
+        from spco.service.client import ServeProcess
+
+        server = ServeProcess(self.file, "--port", "0", "--seed", "0", *args, preexec_fn=_limit_files)
+        self.process, self.url = server.process, server.url
         host, port = self.url[len("http://"):].rsplit(":", 1)
         self.address = (host, int(port))
         limit = Path(f"/proc/{self.process.pid}/limits").read_text()

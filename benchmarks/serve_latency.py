@@ -38,7 +38,6 @@ import re
 import shutil
 import signal
 import subprocess
-import sys
 import threading
 import time
 from pathlib import Path
@@ -49,7 +48,6 @@ import numpy as np
 HOMES16 = ("3LDK_1,1LDK_8,2LDK_8,1LDK_7,2LDK_7,1LDK_6,2LDK_6,1LDK_5,2LDK_5,1LDK_4,2LDK_4,1LDK_3,2LDK_3,"
            "1LDK_2,2LDK_2,1LDK_1")
 DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "datasets"
-_ADDRESS = re.compile(r" at (http://[^ /]+)/ \(page\)")
 
 
 def load() -> str:
@@ -82,25 +80,11 @@ class Served:
         for suffix in ("", ".journal", ".lock"):
             Path(str(self.file) + suffix).unlink(missing_ok=True)
         shutil.copyfile(home, self.file)
-        self.process = subprocess.Popen([sys.executable, "-m", "spco", "serve", str(self.file), "--port", "0",
-                                         "--seed", "0", "--writer", writer],
-                                        stderr=subprocess.PIPE, text=True)
-        assert self.process.stderr is not None
-        for line in self.process.stderr:
-            match = _ADDRESS.search(line)
-            if match:
-                self.url = match.group(1)
-                break
-        else:
-            raise SystemExit("spco serve did not start")
-        threading.Thread(target=self._drain, daemon=True).start()
-        from spco.service.client import Client
+        from spco.service.client import Client, ServeProcess
 
+        server = ServeProcess(self.file, "--port", "0", "--seed", "0", "--writer", writer)
+        self.process, self.url = server.process, server.url
         self.writer_pid = Client(self.url).health()["writer"]["pid"]
-
-    def _drain(self) -> None:
-        for _ in self.process.stderr:  # type: ignore[union-attr]
-            pass
 
     def rss_mb(self) -> tuple[float, float]:
         """Resident memory of the server process and of its writer process, MB."""

@@ -49,7 +49,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from free_speech import read_names
-from natural_speech import configurations, fit_arguments, fitted_runs
+from natural_speech import configurations, fit_arguments, fitted_runs, place_speech
 from split_seeds import refuse_other_seeds
 
 from spco.data import Corpus, Environment
@@ -72,21 +72,6 @@ CALLED_BUT_NOT_ACCEPTED: dict[str, frozenset[str]] = {
     "bath": frozenset({"bath tub"}),  # "bathtub" in two words (12 sentences)
     "toilet": frozenset({"toiklet", "toiket"}),
 }
-
-
-def place_speech(homes: list[Environment], corpus: Corpus) -> dict[str, Counter]:
-    """place (normalised) -> Counter of tokens over the place's sentences, with the number of
-    sentences under the key ``""``."""
-    said: dict[str, Counter] = defaultdict(Counter)
-    for env in homes:
-        labels = env.ground_truth.labels  # type: ignore[union-attr]
-        for label, sentence in zip(labels, env.sentences, strict=True):
-            if label is None or sentence is None:
-                continue
-            place = normalize_name(label)
-            said[place][""] += 1
-            said[place].update(set(corpus.vocabulary.tokenize(sentence)))
-    return said
 
 
 def share_said(said: dict[str, Counter], place: str, word: str) -> float:

@@ -344,31 +344,14 @@ def undo_trial(home: kn.HomeModel, t: int, folder: Path, n_teach: int = 12, comp
 
 def _start_serving(home_file: Path, folder: Path) -> tuple[Any, str, Path]:
     """``spco serve`` on a fresh copy of ``home_file`` in ``folder``: the process, its URL, the copy."""
-    import re
-    import subprocess
-    import sys
-    import threading
+    from spco.service.client import ServeProcess
 
     served = folder / "served.spco"
     for suffix in ("", ".journal", ".lock", ".undo"):
         Path(str(served) + suffix).unlink(missing_ok=True)
     shutil.copyfile(home_file, served)
-    process = subprocess.Popen(
-        [sys.executable, "-m", "spco", "serve", str(served), "--port", "0", "--seed", "0"],
-        stdin=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    url = None
-    for line in process.stderr:  # type: ignore[union-attr]
-        match = re.search(r" at (http://[^ /]+)/ \(page\)", line)
-        if match:
-            url = match.group(1)
-            break
-    if url is None:
-        raise SystemExit("spco serve did not start")
-    threading.Thread(target=lambda: [None for _ in process.stderr], daemon=True).start()  # type: ignore[union-attr]
-    return process, url, served
+    server = ServeProcess(served, "--port", "0", "--seed", "0")
+    return server.process, server.url, served
 
 
 def _served_answers(client: Any, home: Any) -> dict[str, Any]:

@@ -48,6 +48,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from data_paths import SIGVERSE
 from free_speech import never_heard, new_home, read_names, read_speech, taught_homes
+from split_seeds import refuse_other_seeds
 
 from spco.data import Corpus
 from spco.evaluation.experiments import trial_seed
@@ -120,8 +121,9 @@ def main() -> None:
     parser.add_argument("--refit", action="store_true", help="fit again even when the cache holds the fit")
     parser.add_argument("--json", type=Path, default=None)
     args = parser.parse_args()
-    if any(100 <= s < 200 for s in args.seeds) or "heldout" in str(args.speech) + str(args.unheard):
-        parser.error("development only: seeds 0-99 and 200-299 and development sets (benchmarks/SPLIT.md)")
+    refuse_other_seeds(parser, args.seeds)
+    if "heldout" in str(args.speech) + str(args.unheard):
+        parser.error("development only: development sets, not held-out ones (benchmarks/SPLIT.md)")
     accepted = read_names(args.accepted)
     unheard, left_out = never_heard(read_names(args.unheard), read_speech(args.speech))
     if left_out:

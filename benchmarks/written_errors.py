@@ -7,7 +7,8 @@ The fits and scores are ``free_speech.py``'s (the paper's 16 experienced homes t
 :func:`~spco.evaluation.evaluate_answers`); the classes are ``speech_errors.py``'s
 (:func:`speech_errors.classify_answer`, :func:`speech_errors.where_miss_class`), with "said here"
 read from the taught sentences of this set. Development only: the new home is 3LDK_9 by default
-(1LDK_9 and 2LDK_9 are held out, benchmarks/SPLIT.md) and seeds outside 0–99 are refused.
+(1LDK_9 and 2LDK_9 are held out, benchmarks/SPLIT.md) and seeds outside the development seeds
+(0–99 and 200–299) are refused.
 
 Each wrong answer is printed with the view's top three names and their probabilities, the concept the view
 is drawn to, and the places of that concept's taught samples; each missed ``where`` with the place its
@@ -41,7 +42,9 @@ from free_speech import (
     settings_hyperparameters,
     taught_homes,
 )
-from speech_errors import _answers, _misses, place_speech
+from natural_speech import place_speech
+from speech_errors import _answers, _misses
+from split_seeds import refuse_other_seeds
 
 from spco.data import Corpus
 from spco.data.language import normalize_name
@@ -94,8 +97,7 @@ def main() -> None:
     parser.add_argument("--set", nargs="+", action="extend", default=[], metavar="NAME=VALUE")
     parser.add_argument("--json", type=Path, default=None)
     args = parser.parse_args()
-    if any(100 <= s < 200 for s in args.seeds):
-        parser.error("development seeds are 0-99 and 200-299 (benchmarks/SPLIT.md)")
+    refuse_other_seeds(parser, args.seeds)
     if args.home in ("1LDK_9", "2LDK_9") or "heldout" in str(args.speech):
         parser.error("held-out homes and sets are not scored here (benchmarks/SPLIT.md)")
     hyper = settings_hyperparameters(args.set)

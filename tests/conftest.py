@@ -4,6 +4,7 @@ local Ray instance."""
 from __future__ import annotations
 
 import os
+import sys
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
@@ -21,12 +22,8 @@ settings.register_profile("ci", derandomize=True, print_blob=True, deadline=None
 settings.register_profile("dev", deadline=None)
 settings.load_profile("ci" if os.environ.get("CI") else "dev")
 
-SIGVERSE_DEFAULT = Path(__file__).resolve().parents[1] / ".." / "shared" / "datasets" / "sigverse"
-
-
-def sigverse_path() -> Path:
-    """The SIGVerse data set: ``$SPCO_SIGVERSE``, else ``../shared/datasets/sigverse``."""
-    return Path(os.environ.get("SPCO_SIGVERSE") or SIGVERSE_DEFAULT)
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+from data_paths import sigverse_path  # noqa: E402  (the benchmarks' and the tests' one definition)
 
 
 @pytest.fixture(scope="session")

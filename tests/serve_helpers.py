@@ -3,19 +3,16 @@
 from __future__ import annotations
 
 import os
-import re
 import shutil
 import signal
 import subprocess
-import sys
-import threading
 import time
 from pathlib import Path
 
 from spco import knowledge as kn
+from spco.service.client import ClientError, ServeProcess
 
 SRC = str(Path(kn.__file__).resolve().parents[1])
-_ADDRESS = re.compile(r" at (http://[^ /]+)/ \(page\)")
 
 
 def env(**extra: str) -> dict[str, str]:
@@ -52,53 +49,25 @@ def copy_home(source: Path, folder: Path, name: str = "home.spco") -> Path:
     return target
 
 
-class Server:
-    """A real ``spco serve`` process on a free loopback port (``python -m spco serve``)."""
+class Server(ServeProcess):
+    """A real ``spco serve`` process on a free loopback port (``python -m spco serve``, this checkout's
+    spco, seed 0; :class:`spco.service.client.ServeProcess`)."""
 
     def __init__(self, home: Path, *args: str, timeout: float = 120.0) -> None:
         self.home = home
-        self.process = subprocess.Popen([sys.executable, "-m", "spco", "serve", str(home), "--port", "0",
-                                         "--seed", "0", *args], stdin=subprocess.DEVNULL,
-                                        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env())
-        self.lines: list[str] = []
-        found = threading.Event()
-        self.url = ""
-
-        def read() -> None:
-            assert self.process.stderr is not None
-            for line in self.process.stderr:
-                self.lines.append(line)
-                match = _ADDRESS.search(line)
-                if match and not found.is_set():
-                    self.url = match.group(1)
-                    found.set()
-            found.set()
-
-        self._reader = threading.Thread(target=read, daemon=True)
-        self._reader.start()
-        if not found.wait(timeout) or not self.url:
-            self.kill()
-            raise AssertionError("spco serve did not start:\n" + "".join(self.lines))
-
-    @property
-    def output(self) -> str:
-        """What the server printed on standard error so far."""
-        return "".join(self.lines)
+        try:
+            super().__init__(home, "--port", "0", "--seed", "0", *args, timeout=timeout,
+                             stdout=subprocess.PIPE, env=env())
+        except ClientError as error:
+            raise AssertionError(str(error)) from None
 
     def stop(self, timeout: float = 60.0) -> int:
         """Ctrl-C, and wait for the orderly stop; the exit status."""
         if self.process.poll() is None:
             self.process.send_signal(signal.SIGINT)
         code = self.process.wait(timeout)
-        self._reader.join(5)
+        self.join()
         return code
-
-    def kill(self) -> None:
-        """``kill -9``: no chance to clean up."""
-        if self.process.poll() is None:
-            self.process.kill()
-        self.process.wait(30)
-        self._reader.join(5)
 
 
 def wait_unlocked(home: Path, timeout: float = 20.0) -> None:

@@ -164,6 +164,21 @@ def test_evaluate_home_general() -> None:
     assert scores.summary()["name_accuracy"]["toilet"] is None
 
 
+def test_one_rounding_of_the_scores_the_summary_and_the_experiments_records() -> None:
+    """The scores as measured, NaN and None written as None (metrics.json_score): the summary keeps
+    2/3 unrounded, and an experiment's record takes its score fields from the summary."""
+    from spco.evaluation import runs
+    from spco.evaluation.metrics import json_score
+
+    assert json_score(float("nan")) is None and json_score(None) is None
+    assert json_score(np.float64(0.5)) == 0.5
+    scores = evaluate_home(home_params(), 0, home(), Vocabulary(WORDS), n_positions=50, rng=0)
+    summary = scores.summary()
+    assert summary["name_accuracy"]["kitchen"] == scores.name_accuracy["kitchen"] == 2 / 3
+    assert summary["mean_name_accuracy"] == scores.mean_name_accuracy
+    assert "summary" in runs.execute_run.__code__.co_names  # the records' scores are the summary's
+
+
 def test_position_accuracy_both_ways() -> None:
     """A_p from the most probable region (the authors' code) against A_p sampled from the whole
     mixture p(x | name) (the paper's text): a name whose region probability is split 0.55 / 0.45

@@ -82,3 +82,35 @@ def test_the_command_lines_say_the_threshold_they_use() -> None:
         result = CliRunner().invoke(main, command, terminal_width=200)
         assert result.exit_code == 0, result.output
         assert f"below {said}" in " ".join(result.output.split()) or f"default {said}" in result.output
+
+
+def test_the_docs_state_the_targets_as_the_code_runs_them() -> None:
+    """README's power target states a view's power as view_powers computes it (min(1, w/Σv), w and W^w
+    the code's defaults); the exact "+MI" sampler's words are the word channels (no pruning) unless
+    the speech has no English, as docs/samplers.md's table says."""
+    import numpy as np
+
+    from spco.model.hyperparameters import WORD_COUNTS, TransferHyperparameters, view_powers
+    from spco.model.state import SamplerSettings
+    from spco.model.word_channels import uses_word_channels
+
+    root = SRC.parents[1]
+    readme = " ".join((root / "README.md").read_text(encoding="utf-8").split())
+    assert f"raised to min(1, w/Σv) (w = {VIEW_COUNTS:g} counts)" in readme
+    assert f"W^w = {WORD_COUNTS:g} times its occurrences" in readme
+    assert np.allclose(view_powers(np.array([8.0, 16.0, 64.0]), VIEW_COUNTS), [1.0, 1.0, 0.25])
+    assert uses_word_channels(TransferHyperparameters(), SamplerSettings.create("exact", True))
+    samplers = (root / "docs" / "samplers.md").read_text(encoding="utf-8")
+    assert "the word channels ([names](model.md): no word pruned)" in samplers
+
+
+def test_the_held_out_definitions_say_which_views_were_spent() -> None:
+    """1DK_8's test views helped choose how sure `what` is (benchmarks/SPLIT.md): README's and
+    docs/results.md's definitions of held-out say so where they list specific_heldout.json."""
+    root = SRC.parents[1]
+    split = " ".join((root / "benchmarks" / "SPLIT.md").read_text(encoding="utf-8").split())
+    assert "its home-specific test views (ids 160–179) are among the views that choice was made on" in split
+    for page in ("README.md", "docs/results.md"):
+        text = " ".join((root / page).read_text(encoding="utf-8").split())
+        listed = text.index("specific_heldout.json`")
+        assert "but for the two in `1DK_8`" in text[listed:listed + 200], page

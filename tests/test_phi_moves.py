@@ -126,9 +126,9 @@ def test_a_pass_visits_the_blocks_and_keeps_them_whole() -> None:
     assert len(seen) > 1  # the move does move
 
 
-def test_the_setting_needs_the_power_target_and_a_new_home_s_sampler_refuses_it() -> None:
+def test_the_setting_needs_the_power_target_and_runs_in_the_joint_fit() -> None:
+    """(A new home's sampler runs no block moves with it: tests/test_fit_only_settings.py.)"""
     from spco.model import gibbs
-    from spco.model.phi_moves import refuse_phi_moves
     from spco.model.transfer import SpCoTransfer
 
     hyper = TransferHyperparameters().with_settings(["target=power", "block_moves=phi"])
@@ -139,8 +139,6 @@ def test_the_setting_needs_the_power_target_and_a_new_home_s_sampler_refuses_it(
     assert SpCoTransfer(hyperparameters=hyper).sampler_settings().phi_moves  # the joint fit runs them
     plain = TransferHyperparameters(target="power")
     assert not SpCoTransfer(hyperparameters=plain).sampler_settings().phi_moves
-    with pytest.raises(ConfigurationError, match="a new home's sampler"):  # adapt, teach: φ^v fixed
-        refuse_phi_moves(hyper)
     assert gibbs.SamplerSettings.create("exact", prune=True, power=True, phi_moves=True).phi_moves
     assert not gibbs.SamplerSettings.create("exact", prune=True, phi_moves=True).phi_moves  # cut target
     assert not gibbs.SamplerSettings.create("reference", prune=True, power=True, phi_moves=True).phi_moves

@@ -45,6 +45,7 @@ __all__ = [
     "HomeScores",
     "evaluate_answers",
     "evaluate_home",
+    "json_score",
     "mean_over_places",
     "name_accuracy",
     "name_chance",
@@ -148,6 +149,13 @@ def position_chance(n_places: int) -> float:
     return 1.0 / n_places
 
 
+def json_score(value: float | None) -> float | None:
+    """A score as JSON writes it: ``None`` for a missing (``None``) or undefined (NaN) one, else the
+    float as measured, unrounded (the one rule of :meth:`HomeScores.summary` and the experiments'
+    records; a table rounds when it prints)."""
+    return None if value is None or math.isnan(value) else float(value)
+
+
 @dataclass(frozen=True, eq=False)
 class HomeScores:
     """Name and position accuracy of one home.
@@ -199,11 +207,9 @@ class HomeScores:
         return {name: pred.samples for name, pred in self.position_predictions.items()}
 
     def summary(self) -> dict[str, object]:
-        """A JSON-ready summary (NaN written as ``None``)."""
-
-        def clean(v: float) -> float | None:
-            return None if math.isnan(v) else round(float(v), 6)
-
+        """A JSON-ready summary: the scores as measured, NaN written as ``None`` (:func:`json_score`);
+        the experiments' records hold the same fields (:mod:`spco.evaluation.runs`)."""
+        clean = json_score
         return {
             "home": self.home,
             "name_accuracy": {k: clean(v) for k, v in self.name_accuracy.items()},

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import math
 import multiprocessing
 import os
 import shutil
@@ -172,9 +171,6 @@ def execute_run(data: ExperimentData, ctx: _RunContext, key: RunKey) -> dict[str
         _draw_map(model, e, env, scores, path, ctx.maps,
                   f"{key.home}: {key.model}, {key.setting} {what}, trial 0")
 
-    def clean(v: float) -> float | None:
-        return None if v is None or math.isnan(v) else float(v)
-
     return {
         "fingerprint": ctx.fingerprint,
         "experiment": ctx.experiment,
@@ -185,14 +181,7 @@ def execute_run(data: ExperimentData, ctx: _RunContext, key: RunKey) -> dict[str
         "seed": seed,
         "iterations": ctx.iterations,
         "wall_seconds": round(wall, 4),
-        "name_accuracy": {p: clean(v) for p, v in scores.name_accuracy.items()},
-        "position_accuracy": {p: clean(v) for p, v in scores.position_accuracy.items()},
-        "mean_name_accuracy": clean(scores.mean_name_accuracy),
-        "mean_position_accuracy": clean(scores.mean_position_accuracy),
-        "position_accuracy_mixture": {p: clean(v) for p, v in scores.position_accuracy_mixture.items()},
-        "mean_position_accuracy_mixture": clean(scores.mean_position_accuracy_mixture),
-        "name_chance": clean(scores.name_chance),
-        "position_chance": clean(scores.position_chance),
+        **{k: v for k, v in scores.summary().items() if k != "home"},  # the scores (metrics.json_score)
         "log_joint": [round(float(v), 3) for v in model.log_joint_] if traced else None,
     }
 

@@ -34,7 +34,6 @@ from spco.model.kernels.crt import sample_crt
 from spco.model.kernels.dirichlet import log_dirichlet
 from spco.model.observations import HierarchicalMultinomial
 from spco.model.parameters import ConceptParameters
-from spco.model.phi_moves import refuse_phi_moves
 from spco.model.posterior import ParameterAverage, thinned_sweeps
 from spco.model.pruning import NOT_A_NAME, words_to_keep
 from spco.model.state import GibbsState, PreparedData, SamplerSettings
@@ -49,6 +48,7 @@ __all__ = [
     "OwnNamesSpreadWarning",
     "SharedPart",
     "SharedPrior",
+    "new_home_block_moves",
     "prepare_home",
 ]
 
@@ -91,12 +91,24 @@ class SharedPart:
 
     def sampler_settings(self) -> SamplerSettings:
         """The sampler of a home with this shared part fixed: its variant and "+MI", the view weight
-        and the block moves of its hyperparameters."""
-        refuse_phi_moves(self.hyperparameters)
+        and the block moves of its hyperparameters (:func:`new_home_block_moves`)."""
         return SamplerSettings.create(self.variant, self.prune_words, learn_shared=False,
                                       view_counts=self.hyperparameters.view_counts,
-                                      block_moves=self.hyperparameters.block_moves in ("adapt", "all"),
+                                      block_moves=new_home_block_moves(self.hyperparameters.block_moves),
                                       power=self.hyperparameters.target == "power")
+
+
+def new_home_block_moves(block_moves: str) -> bool:
+    """Whether a new home's sampler (``adapt``, ``adapt --joint``, a teaching's local update) runs the
+    region block moves of :mod:`spco.model.blocks`, given the knowledge's ``block_moves``: ``"adapt"``
+    and ``"all"`` run them; ``"off"`` and ``"phi"`` do not. ``"phi"`` names the φ^v-marginal block
+    moves of the joint fit (:mod:`spco.model.phi_moves`: a home's blocks move with θ^v and φ^v
+    integrated out given the other homes' tables), a setting of the fit: a new home's sampler holds
+    φ^v at the knowledge (or, with ``joint``, draws it under the knowledge as its prior, with no other
+    homes' tables), so that move has nothing to integrate and is not one of its steps. Knowledge
+    fitted with ``"phi"`` therefore adapts and teaches as knowledge fitted with ``"off"`` would
+    (the same draws); ``spco fit --set block_moves=adapt`` is the setting for block moves in new homes."""
+    return block_moves in ("adapt", "all")
 
 
 @dataclass(frozen=True)

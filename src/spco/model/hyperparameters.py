@@ -215,7 +215,9 @@ class TransferHyperparameters:
         home's (region, concept) blocks move with θ^v and φ^v integrated out given the other homes
         (:mod:`spco.model.phi_moves`, issue 29), run by the joint fit (:func:`spco.model.gibbs.sweep`
         and the sharded fit of ``SpCoTransfer.fit``, ``spco fit``; scheduled by ``phi_every`` and
-        ``phi_until``); a new home's sampler (``adapt``, a teaching), whose φ^v is fixed, refuses it.
+        ``phi_until``) — a setting of the fit: a new home's sampler (``adapt``, a teaching), which
+        holds φ^v at the knowledge, runs no block moves with it, as with ``"off"``
+        (:func:`spco.model.home_shard.new_home_block_moves`).
         Written by :meth:`to_dict` only when not ``"off"`` (files and experiment identities from
         before it are unchanged).
     target: what the exact sampler's chain targets (:data:`TARGETS`): ``"power"`` — the power

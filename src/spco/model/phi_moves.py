@@ -55,26 +55,11 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.special import gammaln, logsumexp
 
-from spco.errors import ConfigurationError
 from spco.model.blocks import region_blocks
 from spco.model.observations import HierarchicalMultinomial
 from spco.model.phi_evidence import ConceptGrid
 
-__all__ = ["HomeMove", "move_home", "phi_after_move", "phi_block_step", "phi_moves_due", "refuse_phi_moves",
-           "sharded_phi_move"]
-
-
-def refuse_phi_moves(hyper) -> None:
-    """Raise :class:`~spco.errors.ConfigurationError` for ``block_moves="phi"`` in a new home's
-    sampler (``adapt``, a teaching's local update): it keeps φ^v fixed at the knowledge, so a move
-    that integrates φ^v out is not one of its steps; the moves run in the joint fit (the single-process
-    sweep :func:`spco.model.gibbs.sweep` and the sharded fit of ``SpCoTransfer.fit``, ``spco fit``
-    and the experiments: :func:`sharded_phi_move`). A sampler must not ignore the setting."""
-    if getattr(hyper, "block_moves", "off") == "phi":
-        raise ConfigurationError("block_moves='phi': a new home's sampler (adapt, teach) keeps φ^v fixed "
-                                 "at the knowledge, and the φ^v-marginal block moves integrate φ^v out; "
-                                 "they run in the joint fit only (SpCoTransfer.fit, spco fit): adapt "
-                                 "with a knowledge whose block_moves is not 'phi'")
+__all__ = ["HomeMove", "move_home", "phi_after_move", "phi_block_step", "phi_moves_due", "sharded_phi_move"]
 
 
 #: τ of the proposal: a block proposes a free concept c with probability ∝ exp(τ s_c), s_c its

@@ -21,7 +21,11 @@ import base64
 import http.client
 import json
 import os
+import re
 import ssl
+import subprocess
+import sys
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -29,7 +33,7 @@ from urllib.parse import quote, urlencode, urlsplit
 
 from spco.errors import SpcoError
 
-__all__ = ["DEFAULT_URL", "Client", "ClientError"]
+__all__ = ["DEFAULT_URL", "Client", "ClientError", "ServeProcess"]
 
 DEFAULT_URL = "http://127.0.0.1:8765"
 
@@ -252,3 +256,61 @@ class Client:
                     data.append(line[5:].strip())
         finally:
             connection.close()
+
+
+#: What ``spco serve`` prints on standard error once it listens: "… at <address>/ (page), …".
+_LISTENING = re.compile(r" at (https?://[^ /]+)/ \(page\)")
+
+
+class ServeProcess:
+    """``python -m spco serve HOME ARGS`` as a child process, started and its address read: for a
+    program (a test, a benchmark, a robot's launcher) that runs a server and talks to it.
+
+    ``args`` follow the home (e.g. ``"--port", "0", "--seed", "0"``: a free port, chosen by the
+    server); ``popen`` goes to :class:`subprocess.Popen` (``env``, ``stdout``, ``preexec_fn``, …;
+    standard input is closed unless given, standard error is this object's). Its standard error is
+    read on a thread so the pipe never fills: :attr:`lines` holds what it printed, :attr:`url` the
+    address of the line that says it listens (``http://127.0.0.1:PORT``). Raises
+    :class:`ClientError` (status 0) with what it printed if it exits or ``timeout`` seconds pass
+    before that line (the process is killed then).
+    """
+
+    def __init__(self, home: str | os.PathLike[str], *args: str, timeout: float = 120.0,
+                 **popen: Any) -> None:
+        popen.setdefault("stdin", subprocess.DEVNULL)
+        self.process = subprocess.Popen([sys.executable, "-m", "spco", "serve", os.fspath(home), *args],
+                                        stderr=subprocess.PIPE, text=True, **popen)
+        self.lines: list[str] = []
+        self.url = ""
+        listening = threading.Event()
+
+        def read() -> None:
+            for line in self.process.stderr or ():
+                self.lines.append(line)
+                match = _LISTENING.search(line)
+                if match and not listening.is_set():
+                    self.url = match.group(1)
+                    listening.set()
+            listening.set()  # it exited before it listened
+
+        self._reader = threading.Thread(target=read, daemon=True)
+        self._reader.start()
+        if not listening.wait(timeout) or not self.url:
+            self.kill()
+            raise ClientError(0, "spco serve did not start:\n" + self.output)
+
+    @property
+    def output(self) -> str:
+        """What the server printed on standard error so far."""
+        return "".join(self.lines)
+
+    def join(self, timeout: float = 5.0) -> None:
+        """Wait (at most ``timeout`` seconds) for the reader of its standard error, once it exited."""
+        self._reader.join(timeout)
+
+    def kill(self) -> None:
+        """``kill -9`` if it still runs, and wait for it: no chance to clean up."""
+        if self.process.poll() is None:
+            self.process.kill()
+        self.process.wait(30)
+        self.join()
