@@ -93,7 +93,7 @@ def test_plain_format_writes_and_reads_missing_views(tmp_path: Path) -> None:
 
 def test_cache_keeps_the_mask(tmp_path: Path) -> None:
     from spco.data.cache import read_cache, write_records
-    from spco.data.loading import HomeRecord
+    from spco.data.records import HomeRecord
 
     home = _home()
     mask = np.arange(home.n_samples) % 5 == 1
