@@ -344,5 +344,5 @@ def test_demo_leaves_the_files_a_robot_serves(tmp_path: Path) -> None:
     home = kn.load_home_model(out / "home.spco")
     experienced = kn.load_knowledge(out / "knowledge.spco").provenance["homes"]
     assert len(experienced) == 4 and home.name not in experienced  # learnt without the new home
-    answer = home.where(home.known_names[0], 3, random_state=0)
+    answer = kn.where(home, home.known_names[0], 3, random_state=0)
     assert answer.samples.shape == (3, 3) and np.isfinite(answer.samples[:, :2]).all()
