@@ -277,7 +277,7 @@ def test_synth_with_another_seed_does_not_reuse_names(tmp_path: Path) -> None:
 
 
 def test_demo_knows_whether_its_kernels_are_compiled() -> None:
-    from spco.model.numba_cache import kernels_compiled
+    from spco.model.precompile import kernels_compiled
     from spco.synthetic_transfer import load_kernels
 
     load_kernels()  # what the demo does first: the kernels are in memory now
