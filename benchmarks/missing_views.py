@@ -76,7 +76,7 @@ def run_cc4f(args: argparse.Namespace) -> None:
     """CC4F learnt on its own; A_p by nearest sample's place."""
     from spco.data.environment import Corpus
     from spco.data.loading import load_home
-    from spco.knowledge import adapt, fit_knowledge
+    from spco.knowledge import adapt, fit_knowledge, where
     from spco.model.hyperparameters import TransferHyperparameters
     from spco.model.prediction import UnknownNameError
 
@@ -105,7 +105,7 @@ def run_cc4f(args: argparse.Namespace) -> None:
         per_name = {}
         for name in asked:
             try:
-                drawn = model.where(name, n=10, random_state=seed).samples[:, :2]
+                drawn = where(model, name, n=10, random_state=seed).samples[:, :2]
             except UnknownNameError:
                 per_name[name] = 0.0
                 continue

@@ -18,7 +18,7 @@ from test_plain_format import tiny_env
 
 from spco.cli import main
 from spco.data import load
-from spco.data.cache import write_cache
+from spco.data.loading import write_cache
 from spco.data.plain import write_home
 from spco.errors import DataFormatError
 

@@ -15,10 +15,11 @@ from hypothesis import strategies as st
 from test_plain_format import assert_same_home, tiny_env
 
 from spco.data import load
-from spco.data.cache import is_cache_file, read_cache, read_cache_records, write_cache, write_records
+from spco.data.cache import is_cache_file, read_cache, read_cache_records, write_records
 from spco.data.environment import Environment, make_ground_truth
-from spco.data.loading import HomeRecord, load_homes
+from spco.data.loading import load_homes, write_cache
 from spco.data.plain import write_corpus
+from spco.data.records import HomeRecord
 from spco.data.regions import PlaceRegions
 from spco.errors import ConfigurationError, DataFormatError
 

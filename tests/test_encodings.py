@@ -61,12 +61,12 @@ def test_an_rgb_frame_declared_rgb8_gives_the_names_of_the_bgr_frame_and_of_its_
         rgb = np.ascontiguousarray(bgr[:, :, ::-1])
         png = tmp_path / f"{k}.png"
         cv2.imwrite(str(png), bgr)
-        from_file = _names(home.what(x, y, theta, image=png))
-        assert _names(home.what(x, y, theta, image=rgb, encoding="rgb8")) == from_file
-        assert _names(home.what(x, y, theta, image=bgr, encoding="bgr8")) == from_file
+        from_file = _names(kn.what(home, x, y, theta, image=png))
+        assert _names(kn.what(home, x, y, theta, image=rgb, encoding="rgb8")) == from_file
+        assert _names(kn.what(home, x, y, theta, image=bgr, encoding="bgr8")) == from_file
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UndeclaredEncodingWarning)
-            wrong = _names(home.what(x, y, theta, image=rgb))  # the RGB frame read as BGR
+            wrong = _names(kn.what(home, x, y, theta, image=rgb))  # the RGB frame read as BGR
         changed += wrong[0][0] != from_file[0][0]
     # undeclared, the top name changes at many poses: what the issue saw (41 of 60 poses); 32 of these
     # 48 with the view-by-view answer (main 445a282), 23 with the room account, where a room's pooled
@@ -109,7 +109,7 @@ def test_the_resident_home_takes_the_encoding_too(tour_home_file: Path, tmp_path
     png = tmp_path / "view.png"
     cv2.imwrite(str(png), bgr)
     home = kn.load_home_model(tour_home_file)
-    from_file = [(n, p) for n, p in _names(home.what(x, y, theta, image=png))][:3]
+    from_file = [(n, p) for n, p in _names(kn.what(home, x, y, theta, image=png))][:3]
     with LiveHome(tour_home_file, writer="thread") as live:
         for pixels, encoding in ((bgr[:, :, ::-1].copy(), "rgb8"), (bgr, "bgr8"), (png.read_bytes(), None)):
             answer = live.what(x, y, theta, image=pixels, encoding=encoding)

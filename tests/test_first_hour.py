@@ -277,7 +277,7 @@ def test_synth_with_another_seed_does_not_reuse_names(tmp_path: Path) -> None:
 
 
 def test_demo_knows_whether_its_kernels_are_compiled() -> None:
-    from spco.model.numba_cache import kernels_compiled
+    from spco.model.precompile import kernels_compiled
     from spco.synthetic_transfer import load_kernels
 
     load_kernels()  # what the demo does first: the kernels are in memory now
@@ -344,5 +344,5 @@ def test_demo_leaves_the_files_a_robot_serves(tmp_path: Path) -> None:
     home = kn.load_home_model(out / "home.spco")
     experienced = kn.load_knowledge(out / "knowledge.spco").provenance["homes"]
     assert len(experienced) == 4 and home.name not in experienced  # learnt without the new home
-    answer = home.where(home.known_names[0], 3, random_state=0)
+    answer = kn.where(home, home.known_names[0], 3, random_state=0)
     assert answer.samples.shape == (3, 3) and np.isfinite(answer.samples[:, :2]).all()

@@ -25,7 +25,7 @@ from spco.cli.knowledge import _where_drawn_from
 from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.engines import LocalEngine
 from spco.knowledge import fit_knowledge, load_knowledge
-from spco.model import numba_cache
+from spco.model import precompile
 from spco.model.sources import SyntheticHomes
 from spco.progress import progress_bar
 
@@ -99,7 +99,7 @@ def _demo_line(monkeypatch: pytest.MonkeyPatch, tmp_path: Path, cold: bool) -> s
         time.sleep(0.3)
         return 0.3
 
-    monkeypatch.setattr(numba_cache, "kernels_compiled", lambda: not cold)
+    monkeypatch.setattr(precompile, "kernels_compiled", lambda: not cold)
     monkeypatch.setattr(spco.synthetic_transfer, "compile_in_turn", compile_in_turn)
     monkeypatch.setattr("os.cpu_count", lambda: 2)
     result = CliRunner().invoke(main, ["demo", "--homes", "2", "--iterations", "3", "--out", str(tmp_path)])

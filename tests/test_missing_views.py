@@ -93,7 +93,7 @@ def test_plain_format_writes_and_reads_missing_views(tmp_path: Path) -> None:
 
 def test_cache_keeps_the_mask(tmp_path: Path) -> None:
     from spco.data.cache import read_cache, write_records
-    from spco.data.loading import HomeRecord
+    from spco.data.records import HomeRecord
 
     home = _home()
     mask = np.arange(home.n_samples) % 5 == 1
@@ -190,7 +190,7 @@ def test_a_home_with_every_view_missing_runs_the_chain_of_the_home_without_a_vis
 
 
 def test_knowledge_with_views_adapts_to_a_home_partly_without(tmp_path: Path) -> None:
-    from spco.knowledge import Observation, adapt, fit_knowledge, load_home_model, teach
+    from spco.knowledge import Observation, adapt, fit_knowledge, load_home_model, teach, what
 
     knowledge = fit_knowledge(Corpus([_home(seed=1, name="old"), _home(seed=2, name="older")]),
                               n_iterations=10, random_state=0)
@@ -202,7 +202,7 @@ def test_knowledge_with_views_adapts_to_a_home_partly_without(tmp_path: Path) ->
     assert back.view_missing.tolist() == model.view_missing.tolist()
     taught = teach(back, observations=[Observation(4.0, 0.0, 0.0, sentence="this is the bath")], n_sweeps=3)
     assert taught.view_missing[-1] and taught.n_samples == 25
-    assert taught.what(4.0, 0.0, 0.0).words.shape[0] == 1  # a pose alone, no view
+    assert what(taught, 4.0, 0.0, 0.0).words.shape[0] == 1  # a pose alone, no view
 
 
 # ------------------------------------------------------------------------------ command line, experiments

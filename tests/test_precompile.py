@@ -8,11 +8,11 @@ import json
 
 from numba.core.registry import CPUDispatcher
 
-from spco.model import numba_cache
+from spco.model import numba_cache, precompile
 
 
 def _entries() -> list[dict]:
-    return json.loads(numba_cache.SIGNATURES_FILE.read_text())["kernels"]
+    return json.loads(precompile.SIGNATURES_FILE.read_text())["kernels"]
 
 
 def test_signature_file_names_compiled_kernels_and_numba_types():
@@ -23,7 +23,7 @@ def test_signature_file_names_compiled_kernels_and_numba_types():
         kernel = getattr(__import__(module_name, fromlist=[name]), name)
         assert isinstance(kernel, CPUDispatcher), entry["kernel"]
         for signature in entry["signatures"]:
-            types = [numba_cache._numba_type(text) for text in signature]
+            types = [precompile._numba_type(text) for text in signature]
             assert [repr(t) for t in types] == signature
 
 
@@ -35,21 +35,21 @@ def test_compiling_in_turn_takes_every_cluster_once_the_largest_first(monkeypatc
 
     compiled: list[list[str]] = []
     turns = multiprocessing.get_context("spawn").Value("i", 0)
-    monkeypatch.setattr(numba_cache, "_compile_group",
+    monkeypatch.setattr(precompile, "_compile_group",
                         lambda entries: compiled.append([e["kernel"] for e in entries]) or 0.0)
     with turns.get_lock():
         turns.value = 1  # the other process took the first (largest) cluster
-    numba_cache.compile_in_turn(turns)
-    clusters = numba_cache._clusters(_entries())
+    precompile.compile_in_turn(turns)
+    clusters = precompile._clusters(_entries())
     assert compiled == [[e["kernel"] for e in c] for c in clusters[1:]]
-    numba_cache.compile_in_turn(turns)  # nothing left: compiles nothing
+    precompile.compile_in_turn(turns)  # nothing left: compiles nothing
     assert len(compiled) == len(clusters) - 1
     names = [n for group in [[e["kernel"] for e in clusters[0]], *compiled] for n in group]
     assert sorted(names) == sorted(e["kernel"] for e in _entries())
     seconds = [sum(e["seconds"] for e in c) for c in clusters]
     assert seconds == sorted(seconds, reverse=True)
     gamma = [i for i, c in enumerate(clusters) for e in c
-             if e["kernel"].rpartition(".")[0] in numba_cache._GAMMA_CALLERS]
+             if e["kernel"].rpartition(".")[0] in precompile._GAMMA_CALLERS]
     assert len(set(gamma)) == 1
     assert turns.value == len(clusters) + 2  # one look past the end per call
 
@@ -90,13 +90,13 @@ def test_demo_on_an_empty_cache_says_it_compiles_in_two_processes(monkeypatch):
         calls.append(kwargs)
         raise Stop
 
-    monkeypatch.setattr(numba_cache, "kernels_compiled", lambda: False)
+    monkeypatch.setattr(precompile, "kernels_compiled", lambda: False)
     monkeypatch.setattr(spco.synthetic_transfer, "run_demo", stop)
     monkeypatch.setattr("os.cpu_count", lambda: 2)
     result = CliRunner().invoke(main, ["demo", "--out", "unused"])
     assert isinstance(result.exception, Stop)
-    assert numba_cache.precompile_notice(2) in result.stderr
-    assert f"about {numba_cache.PRECOMPILE_SECONDS_ESTIMATE} s" in result.stderr
+    assert precompile.precompile_notice(2) in result.stderr
+    assert f"about {precompile.PRECOMPILE_SECONDS_ESTIMATE} s" in result.stderr
     assert [(c["processes"], c["compile_first"]) for c in calls] == [(2, True)]
 
 
@@ -114,19 +114,19 @@ def test_fit_and_adapt_on_an_empty_cache_precompile_in_two_processes(monkeypatch
     write_corpus(list(corpus)[:2], tmp_path / "experienced")
     write_corpus(list(corpus)[2:], tmp_path / "new")
     calls: list[int] = []
-    monkeypatch.setattr(numba_cache, "precompile", lambda processes: calls.append(processes) or 0.0)
-    monkeypatch.setattr(numba_cache, "kernels_compiled", lambda: False)
+    monkeypatch.setattr(precompile, "precompile", lambda processes: calls.append(processes) or 0.0)
+    monkeypatch.setattr(precompile, "kernels_compiled", lambda: False)
     kfile = tmp_path / "k.spco"
     result = CliRunner().invoke(fit, ["--data", str(tmp_path / "experienced"), "--iterations", "2",
                                       "--out", str(kfile)])
     assert result.exit_code == 0, result.output
-    assert numba_cache.precompile_notice(2) in result.stderr and calls == [2]
+    assert precompile.precompile_notice(2) in result.stderr and calls == [2]
     home = next((tmp_path / "new").iterdir())
     result = CliRunner().invoke(adapt, [str(kfile), "--home", str(home), "--iterations", "2",
                                         "--out", str(tmp_path / "h.spco")])
     assert result.exit_code == 0, result.output
     assert calls == [2, 2]
-    monkeypatch.setattr(numba_cache, "kernels_compiled", lambda: True)
+    monkeypatch.setattr(precompile, "kernels_compiled", lambda: True)
     result = CliRunner().invoke(adapt, [str(kfile), "--home", str(home), "--iterations", "2",
                                         "--out", str(tmp_path / "h2.spco")])
     assert result.exit_code == 0 and calls == [2, 2] and "Compiling" not in result.stderr
@@ -137,8 +137,8 @@ def test_signature_file_lists_exactly_what_the_demo_s_warm_up_calls():
     (else a first run compiles it after the 2-process compilation, alone), and nothing else (else
     the first run compiles what no fit calls). Checked in a fresh process: kernels loaded from the
     on-disk cache load no callee, so its compiled signatures are the ones called from Python."""
-    used = numba_cache.called_signatures()
+    used = precompile.called_signatures()
     listed = {e["kernel"]: {tuple(s) for s in e["signatures"]} for e in _entries()}
-    hint = "regenerate it: SPCO_CACHE_DIR=$(mktemp -d) python -m spco.model.numba_cache"
+    hint = "regenerate it: SPCO_CACHE_DIR=$(mktemp -d) python -m spco.model.precompile"
     assert {k: v - listed.get(k, set()) for k, v in used.items() if v - listed.get(k, set())} == {}, hint
     assert {k: v - used.get(k, set()) for k, v in listed.items() if v - used.get(k, set())} == {}, hint

@@ -15,7 +15,7 @@ new home (``adapt``, nothing taught) and writes ``knowledge.spco`` and ``home.sp
 With ``processes=2`` (``spco demo`` on a machine of 2 cores or more) the robot's files are made in
 a second process at the same time as the transfer fit, the baseline and the figures, and on a
 cold cache the two processes first compile the kernels between them, each taking the next kernel
-not yet taken (:func:`~spco.model.numba_cache.compile_in_turn`), and load the other's from the
+not yet taken (:func:`~spco.model.precompile.compile_in_turn`), and load the other's from the
 cache. Each part depends on the seed alone, so the results and files are the same as with one
 process.
 """
@@ -38,7 +38,7 @@ from spco.data.environment import Corpus
 from spco.data.synthetic import generate_homes
 from spco.errors import SpcoError
 from spco.evaluation.metrics import HomeScores, evaluate_home
-from spco.model.numba_cache import compile_in_turn, load_kernels
+from spco.model.precompile import compile_in_turn, load_kernels
 from spco.model.transfer import SpCoA, SpCoTransfer
 
 
@@ -64,7 +64,7 @@ def run_demo(seed: int = 0, out: Path | str = "spco-demo", n_experienced: int = 
     """Run the demo and write its figures and ``results.json`` into ``out``.
 
     The kernels are loaded from Numba's cache (or compiled) first
-    (:func:`~spco.model.numba_cache.load_kernels`), so that ``fit_seconds`` times the learning
+    (:func:`~spco.model.precompile.load_kernels`), so that ``fit_seconds`` times the learning
     alone: ``warm_up_seconds``.
 
     ``processes=2`` makes the robot's files (:func:`_robot_files`) in a second (spawned) process
@@ -202,7 +202,7 @@ def _learn_and_draw(corpus: Corpus, new_index: int, out: Path, seed: int, n_expe
 
 class _RobotProcess:
     """The demo's second process: on a cold cache it compiles kernels in turn with this process
-    (:func:`~spco.model.numba_cache.compile_in_turn` on the shared counter :attr:`turns`) and waits
+    (:func:`~spco.model.precompile.compile_in_turn` on the shared counter :attr:`turns`) and waits
     for this process's last one (:meth:`wait_for_its_kernels`); then it makes the robot's files
     (:func:`_robot_worker`). A context manager: leaving it early ends the process."""
 

@@ -70,7 +70,7 @@ def active(data: Path, regions: Path, homes: str, heldout: Path | None, heldout_
     """
     from spco.errors import ConfigurationError
     from spco.evaluation.active import ActiveConfig, run_active_experiment
-    from spco.model.numba_cache import precompile_if_cold
+    from spco.model.precompile import precompile_if_cold
 
     try:
         rate_list = tuple(int(r) for r in _split(rates))

@@ -153,7 +153,7 @@ def _home_vocabulary(env: Any) -> set[str]:
 @friendly_errors
 def import_(src: Path, out: Path, teaching_rate: int | None, force: bool) -> None:
     """Convert the homes in SRC (either layout) into one compact cache file OUT."""
-    from spco.data.cache import write_cache
+    from spco.data.loading import write_cache
 
     summary = write_cache(src, out, teaching_rate=teaching_rate, overwrite=force, progress=True)
     click.echo(summary)

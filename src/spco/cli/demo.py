@@ -25,13 +25,13 @@ __all__ = ["demo", "kernel_time"]
 @friendly_errors
 def demo(seed: int, out: Path, homes: int, iterations: int) -> None:
     """Learn from synthetic homes and transfer to a new home taught nothing (no dataset needed)."""
-    from spco.model import numba_cache
+    from spco.model import numba_cache, precompile
     from spco.synthetic_transfer import format_table, run_demo
 
     processes = 2 if (os.cpu_count() or 1) >= 2 else 1
-    cold = numba_cache.kernels_compiled() is False
+    cold = precompile.kernels_compiled() is False
     if cold:
-        click.echo(numba_cache.precompile_notice(processes), err=True)
+        click.echo(precompile.precompile_notice(processes), err=True)
         numba_cache.mark_announced()
     click.echo(f"Generating {homes} experienced synthetic homes and 1 new home (seed {seed})...", err=True)
     result = run_demo(seed=seed, out=out, n_experienced=homes, n_iterations=iterations,

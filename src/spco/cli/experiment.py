@@ -105,7 +105,7 @@ def _split(text: str | None) -> tuple[str, ...] | None:
 
 def _run(config_kwargs: dict[str, Any], out: Path, resume: bool, force: bool, quiet: bool) -> None:
     from spco.evaluation.experiments import ExperimentConfig, run_experiment
-    from spco.model.numba_cache import precompile_if_cold
+    from spco.model.precompile import precompile_if_cold
 
     kwargs = dict(config_kwargs)
     name_prior = kwargs.pop("name_prior", "off")

@@ -40,8 +40,8 @@ def _progress() -> bool:
 
 def _precompile_if_cold() -> None:
     """On an empty kernel cache, say so and compile the kernels in 2 processes at once
-    (:func:`spco.model.numba_cache.precompile_if_cold`): about 20 s instead of 30 on 2 cores."""
-    from spco.model.numba_cache import precompile_if_cold
+    (:func:`spco.model.precompile.precompile_if_cold`): about 20 s instead of 30 on 2 cores."""
+    from spco.model.precompile import precompile_if_cold
 
     precompile_if_cold(lambda text: click.echo(text, err=True))
 

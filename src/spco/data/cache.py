@@ -1,4 +1,5 @@
-"""A compact single-file cache of many homes: ``spco import SRC cache.npz``, then load in a blink.
+"""A compact single-file cache of many homes: ``spco import SRC cache.npz``
+(:func:`spco.data.loading.write_cache`), then load in a blink.
 
 The file is a compressed ``.npz`` (a zip of ``.npy`` arrays, read with ``allow_pickle=False``):
 
@@ -28,7 +29,6 @@ from __future__ import annotations
 
 import json
 import os
-import time
 import uuid
 import zipfile
 import zlib
@@ -39,7 +39,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from spco.data.environment import Environment, make_ground_truth
-from spco.data.loading import HomeRecord, read_records
+from spco.data.records import HomeRecord
 from spco.data.regions import PlaceRegions
 from spco.errors import ConfigurationError, DataFormatError
 
@@ -138,63 +138,6 @@ def write_records(records: list[HomeRecord], out: str | os.PathLike[str],
             tmp.unlink()
 
 
-def write_cache(
-    src: str | os.PathLike[str],
-    out: str | os.PathLike[str],
-    teaching_rate: int | None = None,
-    overwrite: bool = False,
-    progress: bool = False,
-) -> str:
-    """Read the homes at ``src`` (any layout :func:`spco.data.load` accepts) into one cache file.
-
-    Parameters
-    ----------
-    src:
-        A home, a folder of homes, or another cache file.
-    out:
-        The cache file to write (the name is kept as given; ``.npz`` is customary).
-    teaching_rate:
-        ``None`` (default) stores every teaching rate the homes have (all ``sentence/per_XX`` folders
-        of SIGVerse homes; plain homes keep all their sentences and are subsampled when read). A
-        number stores only the sentences of that rate, and the cache then only serves that rate.
-    overwrite:
-        Replace ``out`` if it exists (otherwise :class:`~spco.errors.ConfigurationError`).
-    progress:
-        Show a progress bar on standard error while reading.
-
-    Returns a one-line human summary of what was written.
-    """
-    start = time.perf_counter()
-    target = Path(out)
-    if target.is_dir():
-        raise ConfigurationError(f"{target} is a folder; give the path of the cache file to write")
-    if target.exists() and not overwrite:
-        raise ConfigurationError(f"{target} already exists; use --force (overwrite=True) to replace it")
-    if teaching_rate is not None and (isinstance(teaching_rate, bool) or not isinstance(teaching_rate, int)
-                                      or not 0 <= teaching_rate <= 100):
-        raise ConfigurationError(f"teaching rate must be an integer within 0..100, got {teaching_rate!r}")
-    if not target.parent.is_dir():
-        raise ConfigurationError(f"folder {target.parent} does not exist")
-    records = read_records(src, progress=progress)
-    names = [r.environment.name for r in records]
-    repeated = sorted({n for n in names if names.count(n) > 1})
-    if repeated:
-        raise ConfigurationError(f"home names must be unique in a cache; repeated: {', '.join(repeated)}")
-    write_records(records, target, teaching_rate)
-    n = sum(r.environment.n_samples for r in records)
-    if teaching_rate is not None:
-        rates = f"teaching rate {teaching_rate}%"
-    else:
-        stored = sorted({rate for r in records if r.rates for rate in r.rates})
-        parts = ["teaching rates " + ", ".join(map(str, stored)) + "%"] if stored else []
-        if any(r.rates is None for r in records):
-            parts.append("plain homes at any teaching rate")
-        rates = "; ".join(parts) or "nothing taught"
-    size = target.stat().st_size / 1e6
-    return (f"wrote {len(records)} homes ({n} samples, {rates}) to {target} ({size:.1f} MB) in "
-            f"{time.perf_counter() - start:.1f} s")
-
-
 # ------------------------------------------------------------------------------------------ reading
 def _damaged(path: Path, problem: str) -> DataFormatError:
     return DataFormatError(path, f"damaged or edited spco cache: {problem} (rebuild it with spco import)")
@@ -236,7 +179,7 @@ def _check(path: Path, ok: bool, problem: str) -> None:
 
 
 def read_cache_records(path: str | os.PathLike[str]) -> list[HomeRecord]:
-    """Read a cache file into :class:`~spco.data.loading.HomeRecord` objects (every stored rate)."""
+    """Read a cache file into :class:`~spco.data.records.HomeRecord` objects (every stored rate)."""
     src = Path(path)
     if not src.is_file():
         raise DataFormatError(src, "no such file" if not src.exists() else "not a file")

@@ -100,21 +100,19 @@ import functools
 import itertools
 import math
 import re
-import unicodedata
 import warnings
 from collections import Counter
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
 
+from spco.data.atoms import NO_SPACE, LanguageWarning, found_atoms, normalize_text
 from spco.data.function_words import NAME_LEADING_WORDS, NAME_OPENERS, is_function_word
+from spco.data.segmentation import Segmentation, resolve
 from spco.errors import ConfigurationError
 
-if TYPE_CHECKING:
-    from spco.data.segmentation import Segmentation
 
 def _may_start_name(word: str) -> bool:
     """Whether a name may start with ``word``: not a function word, but a possessive ("my room")."""
@@ -144,72 +142,6 @@ TERM_MIN_FOLLOW = 0.5
 TERM_MAX_SENTENCE_SHARE = 0.5
 
 
-class LanguageWarning(UserWarning):
-    """Text that spco can learn from only in part (cut, or written without spaces)."""
-
-
-_PUNCTUATION = str.maketrans({"\u2019": "'", "\u2018": "'", "\u02bc": "'", "`": "'", "\u00b4": "'",
-                              "\u2010": "-", "\u2011": "-", "\u2013": "-", "\u2012": "-"})
-_EMOJI_CHARS = "\u2600-\u27bf\U0001f000-\U0001faff"
-_EMOJI_TAIL = "\ufe0f\U0001f3fb-\U0001f3ff"
-# scripts usually written without spaces between words
-_NO_SPACE = re.compile("[\u0e00-\u0eff\u1000-\u109f\u1780-\u17ff\u3040-\u30ff\u3400-\u4dbf"
-                       "\u4e00-\u9fff\uf900-\ufaff\uff66-\uff9f]")
-
-
-def _ranges(codes: list[int]) -> str:
-    out, start, prev = [], None, None
-    for c in codes:
-        if start is None:
-            start = prev = c
-        elif c == prev + 1:
-            prev = c
-        else:
-            out.append((start, prev))
-            start = prev = c
-    if start is not None:
-        out.append((start, prev))
-    return "".join(re.escape(chr(a)) if a == b else f"{re.escape(chr(a))}-{re.escape(chr(b))}"
-                   for a, b in out)
-
-
-def _pattern(marks: str) -> re.Pattern[str]:
-    letter = rf"(?:[^\W_]|[{marks}])" if marks else r"[^\W_]"
-    word = rf"{letter}+(?:['\-]{letter}+)*"
-    emoji = rf"[{_EMOJI_CHARS}][{_EMOJI_TAIL}]*(?:\u200d[{_EMOJI_CHARS}][{_EMOJI_TAIL}]*)*"
-    return re.compile(f"{emoji}|{word}")
-
-
-_PLAIN_ATOMS = _pattern("")
-
-
-@functools.cache
-def _atoms_with_marks() -> re.Pattern[str]:
-    """Like ``_PLAIN_ATOMS``, with combining marks (Unicode categories M*) as letters; built on first
-    need (a scan of the code points with marks, under a second)."""
-    codes = [c for r in (range(0x300, 0x1E950), range(0xE0100, 0xE01F0)) for c in r
-             if unicodedata.category(chr(c))[0] == "M"]
-    return _pattern(_ranges(codes))
-
-
-def _atom_pattern(text: str) -> re.Pattern[str]:
-    if text.isascii() or not any(unicodedata.category(c)[0] == "M" for c in text):
-        return _PLAIN_ATOMS
-    return _atoms_with_marks()
-
-
-def normalize_text(text: str) -> str:
-    """NFKC, case-folded, with typographic apostrophes and hyphens made plain."""
-    return unicodedata.normalize("NFKC", text).casefold().translate(_PUNCTUATION)
-
-
-@functools.lru_cache(maxsize=1 << 16)
-def _chunks(sentence: str) -> tuple[str, ...]:
-    """The atoms of a sentence as found, before any cut (cached: sentences and labels repeat)."""
-    text = normalize_text(sentence)
-    return tuple(a.replace("-", " ") for a in _atom_pattern(text).findall(text))
-
-
 def _cut(atoms: Sequence[str]) -> tuple[tuple[str, ...], bool, bool]:
     """Atoms with over-long words and sentences cut, and whether a word, the sentence was cut."""
     long_word = any(len(a) > MAX_TOKEN_CHARS for a in atoms)
@@ -222,8 +154,8 @@ def _cut(atoms: Sequence[str]) -> tuple[tuple[str, ...], bool, bool]:
 def _atoms(sentence: str) -> tuple[tuple[str, ...], bool, bool, bool]:
     """Atoms of a sentence, and whether a word was cut, text without spaces was seen, the sentence was
     cut (cached; the warnings are issued by :func:`tokenize`)."""
-    found = _chunks(sentence)
-    no_space = any(len(a) > 1 and _NO_SPACE.search(a) for a in found)
+    found = found_atoms(sentence)
+    no_space = any(len(a) > 1 and NO_SPACE.search(a) for a in found)
     atoms, long_word, long_sentence = _cut(found)
     return atoms, long_word, no_space, long_sentence
 
@@ -243,7 +175,7 @@ def tokenize(sentence: str | None, segmentation: Segmentation | None = None) -> 
     if segmentation is None:
         atoms, long_word, no_space, long_sentence = _atoms(str(sentence))
     else:
-        atoms, long_word, long_sentence = _cut(segmentation.split_atoms(_chunks(str(sentence))))
+        atoms, long_word, long_sentence = _cut(segmentation.split_atoms(found_atoms(str(sentence))))
         no_space = False
     if long_word:
         warnings.warn(f"a word longer than {MAX_TOKEN_CHARS} characters was cut to its first "
@@ -261,7 +193,7 @@ def tokenize(sentence: str | None, segmentation: Segmentation | None = None) -> 
     return list(atoms)
 
 
-_SPACE_IN_NO_SPACE = re.compile(f"(?<={_NO_SPACE.pattern}) (?={_NO_SPACE.pattern})")
+_SPACE_IN_NO_SPACE = re.compile(f"(?<={NO_SPACE.pattern}) (?={NO_SPACE.pattern})")
 
 
 def normalize_name(name: str) -> str:
@@ -324,7 +256,7 @@ def _term_pass(counts: _PairCounts, min_count: int, min_g2: float, min_follow: f
             continue
         if k11 / occurrences[a] < min_follow:
             continue
-        if k11 < occurrences[a] and k11 < occurrences[b] and _NO_SPACE.search(a) and _NO_SPACE.search(b):
+        if k11 < occurrences[a] and k11 < occurrences[b] and NO_SPACE.search(a) and NO_SPACE.search(b):
             continue  # in Japanese, Chinese: only words that always come together (not "台所 です")
         k12, k21 = first[a] - k11, second[b] - k11
         k22 = n_pairs - k11 - k12 - k21
@@ -366,7 +298,7 @@ def _lexicon_pass(counts: _PairCounts, min_count: int, min_g2: float, max_senten
     frame = max_sentence_share * counts.n_sentences
     candidates = [(a, b) for (a, b), k11 in pairs.items()
                   if (a, b) not in found and k11 >= min_count and a != b and counts.in_sentences[a] <= frame
-                  and counts.in_sentences[b] <= frame and _joinable(a, b) and not _NO_SPACE.search(a + b)
+                  and counts.in_sentences[b] <= frame and _joinable(a, b) and not NO_SPACE.search(a + b)
                   and k11 * n_pairs > first[a] * second[b]]
     out: dict[tuple[str, str], float] = {}
     for a, b in lexicon_compounds(candidates):
@@ -543,8 +475,6 @@ class Vocabulary:
         without spaces is segmented into words, and how (:func:`spco.data.segmentation.resolve`;
         ``"auto"`` decides from the text itself).
         """
-        from spco.data.segmentation import resolve
-
         texts = [s for s in sentences if s]
         segmentation = resolve(language, texts, learn=learn)
         # terms from the distinct sentences: a sentence said again word for word is one use of its
@@ -659,9 +589,8 @@ class Vocabulary:
         grown = self
         if learn and self.segmentation is not None:  # units for the new text written without spaces
             grown = Vocabulary(self.words, self.segmentation.extended(texts))
-        elif learn and not any(_NO_SPACE.search(w) for w in self.words):
-            from spco.data.segmentation import resolve  # the first text of such a script: as a fit would
-
+        elif learn and not any(NO_SPACE.search(w) for w in self.words):
+            # the first text of such a script: as a fit would
             found = resolve("auto", texts)
             if found is not None:
                 grown = Vocabulary(self.words, found)

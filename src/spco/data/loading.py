@@ -2,7 +2,7 @@
 
 A path may be
 
-- an spco cache file (a ``.npz`` written by :func:`spco.data.cache.write_cache` / ``spco import``);
+- an spco cache file (a ``.npz`` written by :func:`write_cache` / ``spco import``);
 - one home in the authors' SIGVerse layout (a folder with ``position/``);
 - one home in spco's plain format (a folder with ``samples.csv`` or ``samples.jsonl``);
 - a folder of homes in either layout (mixed is fine): every subfolder that is a home, sorted by
@@ -18,41 +18,22 @@ a seeded random ``rate`` percent of their taught samples (:meth:`Environment.wit
 from __future__ import annotations
 
 import os
+import time
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
 
+from spco.data.cache import read_cache_records, write_records
 from spco.data.environment import Corpus, Environment
 from spco.data.plain import VISUAL_NPY, VISUAL_NPZ, has_images, is_plain_home, plain_home_name, read_home
-from spco.data.sigverse import RatesMap, is_sigverse_home, read_sigverse_home, select_rate
+from spco.data.records import HomeRecord
+from spco.data.sigverse import is_sigverse_home, read_sigverse_home
 from spco.errors import ConfigurationError, DataFormatError
 
 T = TypeVar("T")
 _EXPECTED = ("expected an spco cache file (.npz), a SIGVerse home (a folder with position/ and "
              "vision_fc7_normalized/), a plain home (a folder with samples.csv or samples.jsonl and "
              "visual.npz), or a folder of such homes")
-
-
-@dataclass(frozen=True)
-class HomeRecord:
-    """A home with the sentences of every teaching rate it can give (used by loaders and the cache).
-
-    ``rates`` maps a teaching rate to the sentences taught at that rate (SIGVerse homes; empty when
-    nothing was taught at all); ``None`` means the home has one set of sentences, ``environment``'s,
-    of which :meth:`at_rate` keeps a seeded random subset.
-    """
-
-    environment: Environment
-    rates: RatesMap | None
-    where: str
-
-    def at_rate(self, teaching_rate: int) -> Environment:
-        """The home as taught at ``teaching_rate`` percent."""
-        if self.rates is None:
-            env = self.environment
-            return env if teaching_rate == 100 else env.with_teaching_rate(teaching_rate, seed=0)
-        return select_rate(self.environment, self.rates, teaching_rate, self.where)
 
 
 def _check_rate(teaching_rate: int) -> None:
@@ -194,7 +175,6 @@ def read_records(
     With ``extractor`` the views are images (a plain home's ``images/``, else
     ``images/<home name>/<id>.jpg|png``) turned into counts by it.
     """
-    from spco.data.cache import read_cache_records
     from spco.progress import progress_bar
 
     src = Path(path)
@@ -274,3 +254,60 @@ def load(path: str | os.PathLike[str], teaching_rate: int = 100, progress: bool 
     or malformed, and :class:`~spco.errors.ConfigurationError` for a teaching rate outside 0..100.
     """
     return Corpus(load_homes(path, teaching_rate=teaching_rate, progress=progress))
+
+
+def write_cache(
+    src: str | os.PathLike[str],
+    out: str | os.PathLike[str],
+    teaching_rate: int | None = None,
+    overwrite: bool = False,
+    progress: bool = False,
+) -> str:
+    """Read the homes at ``src`` (any layout :func:`spco.data.load` accepts) into one cache file.
+
+    Parameters
+    ----------
+    src:
+        A home, a folder of homes, or another cache file.
+    out:
+        The cache file to write (the name is kept as given; ``.npz`` is customary).
+    teaching_rate:
+        ``None`` (default) stores every teaching rate the homes have (all ``sentence/per_XX`` folders
+        of SIGVerse homes; plain homes keep all their sentences and are subsampled when read). A
+        number stores only the sentences of that rate, and the cache then only serves that rate.
+    overwrite:
+        Replace ``out`` if it exists (otherwise :class:`~spco.errors.ConfigurationError`).
+    progress:
+        Show a progress bar on standard error while reading.
+
+    Returns a one-line human summary of what was written.
+    """
+    start = time.perf_counter()
+    target = Path(out)
+    if target.is_dir():
+        raise ConfigurationError(f"{target} is a folder; give the path of the cache file to write")
+    if target.exists() and not overwrite:
+        raise ConfigurationError(f"{target} already exists; use --force (overwrite=True) to replace it")
+    if teaching_rate is not None and (isinstance(teaching_rate, bool) or not isinstance(teaching_rate, int)
+                                      or not 0 <= teaching_rate <= 100):
+        raise ConfigurationError(f"teaching rate must be an integer within 0..100, got {teaching_rate!r}")
+    if not target.parent.is_dir():
+        raise ConfigurationError(f"folder {target.parent} does not exist")
+    records = read_records(src, progress=progress)
+    names = [r.environment.name for r in records]
+    repeated = sorted({n for n in names if names.count(n) > 1})
+    if repeated:
+        raise ConfigurationError(f"home names must be unique in a cache; repeated: {', '.join(repeated)}")
+    write_records(records, target, teaching_rate)
+    n = sum(r.environment.n_samples for r in records)
+    if teaching_rate is not None:
+        rates = f"teaching rate {teaching_rate}%"
+    else:
+        stored = sorted({rate for r in records if r.rates for rate in r.rates})
+        parts = ["teaching rates " + ", ".join(map(str, stored)) + "%"] if stored else []
+        if any(r.rates is None for r in records):
+            parts.append("plain homes at any teaching rate")
+        rates = "; ".join(parts) or "nothing taught"
+    size = target.stat().st_size / 1e6
+    return (f"wrote {len(records)} homes ({n} samples, {rates}) to {target} ({size:.1f} MB) in "
+            f"{time.perf_counter() - start:.1f} s")

@@ -20,7 +20,7 @@ Which text is segmented
   least half of the sentences holding such text already separate it into two or more
   space-separated runs (:func:`written_with_spaces`: ``"ここ わ といれ です"``), the spaces are the
   word boundaries and nothing is segmented; otherwise the text is segmented. Without the
-  language's segmenter installed, a :class:`~spco.data.language.LanguageWarning` says which extra
+  language's segmenter installed, a :class:`~spco.data.atoms.LanguageWarning` says which extra
   to install and each run stays one token (spco's behaviour before segmenters).
 - ``"ja"``, ``"zh"``: segment every run of such text with that language's segmenter (an error
   naming the extra if it is not installed).
@@ -84,11 +84,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from spco.data.language import (
-    _NO_SPACE,
-    LanguageWarning,
-    _chunks,
-)
+from spco.data.atoms import NO_SPACE, LanguageWarning, found_atoms
 from spco.errors import ConfigurationError
 
 __all__ = [
@@ -135,7 +131,7 @@ def _runs(sentences: Iterable[str | None]) -> list[list[str]]:
     out = []
     for sentence in sentences:
         if sentence:
-            runs = [part for atom in _chunks(str(sentence)) if _NO_SPACE.search(atom)
+            runs = [part for atom in found_atoms(str(sentence)) if NO_SPACE.search(atom)
                     for part in atom.split(" ") if part]
             if runs:
                 out.append(runs)
@@ -458,7 +454,7 @@ class Segmentation:
         script written without spaces replaced by its words (:meth:`split`)."""
         out: list[str] = []
         for atom in atoms:
-            if self.segmenter is not None and _NO_SPACE.search(atom):
+            if self.segmenter is not None and NO_SPACE.search(atom):
                 for part in atom.split(" "):
                     out.extend(self.split(part))
             else:
@@ -542,7 +538,7 @@ def resolve(language: str, sentences: Iterable[str | None], learn: bool = True) 
     """The segmentation of a fit's training ``sentences`` under the ``language`` option
     (:data:`TEXT_LANGUAGES`; module docstring), or ``None`` (text separated by spaces, or in no
     script written without spaces, or no segmenter installed for it under ``"auto"``, with a
-    :class:`~spco.data.language.LanguageWarning`).
+    :class:`~spco.data.atoms.LanguageWarning`).
 
     With ``learn`` the lexicon is learnt from ``sentences`` (:meth:`Segmentation.learn`); without,
     the segmenter's cut is used as it is.

@@ -15,11 +15,10 @@ from spco.features.base import (
     ExtractorSpec,
     ImageInput,
     array_checksum,
-    build_extractor,
     read_image,
     register,
-    registered_extractors,
 )
+from spco.features.extractors import build_extractor, registered_extractors
 
 #: The extractor used when none is named.
 DEFAULT_EXTRACTOR = "colour-hog"

@@ -4,8 +4,10 @@ An :class:`Extractor` has a ``name`` and a ``version`` (of its algorithm; a chan
 means other counts), ``settings`` (JSON values that fix what it computes) and, if it carries
 learnt or downloaded weights (a codebook, a network), their sha256 ``checksum``. Together they
 form its :class:`ExtractorSpec`, which knowledge and home files store so that ``adapt``, ``teach``
-and ``what`` compute a view's counts exactly as ``fit`` did; :func:`build_extractor` rebuilds an
-extractor from a spec (and the arrays stored with it), and refuses one whose weights do not match.
+and ``what`` compute a view's counts exactly as ``fit`` did. :func:`register` makes an extractor
+buildable by name; :func:`~spco.features.extractors.build_extractor` (over the built-in extractors,
+which register themselves here) rebuilds one from a spec (and the arrays stored with it), and
+refuses one whose weights do not match.
 """
 
 from __future__ import annotations
@@ -34,14 +36,13 @@ from spco.features.pixels import (
 
 __all__ = [
     "IMAGE_SUFFIXES",
+    "REGISTRY",
     "Extractor",
     "ExtractorSpec",
     "ImageInput",
     "array_checksum",
-    "build_extractor",
     "read_image",
     "register",
-    "registered_extractors",
 ]
 
 #: File name endings read as images.
@@ -151,7 +152,7 @@ class Extractor(ABC):
 
     @classmethod
     def from_parts(cls, settings: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> Extractor:
-        """Rebuild from stored settings and weights (:func:`build_extractor`)."""
+        """Rebuild from stored settings and weights (:func:`~spco.features.extractors.build_extractor`)."""
         return cls(**settings)
 
     # ------------------------------------------------------------------ description
@@ -228,49 +229,12 @@ class Extractor(ABC):
         return f"<extractor {self.spec().describe()}>"
 
 
-_REGISTRY: dict[str, type[Extractor]] = {}
+#: Name -> extractor class of every extractor made buildable by name (:func:`register`).
+REGISTRY: dict[str, type[Extractor]] = {}
 
 
 def register(cls: type[Extractor]) -> type[Extractor]:
-    """Class decorator: make an extractor buildable by name (:func:`build_extractor`)."""
-    _REGISTRY[cls.name] = cls
+    """Class decorator: make an extractor buildable by name
+    (:func:`~spco.features.extractors.build_extractor`)."""
+    REGISTRY[cls.name] = cls
     return cls
-
-
-def registered_extractors() -> dict[str, type[Extractor]]:
-    """Name -> extractor class of every registered extractor."""
-    from spco.features import classic, cnn  # noqa: F401  (register the built-in extractors)
-
-    return dict(_REGISTRY)
-
-
-def build_extractor(spec: ExtractorSpec | Mapping[str, Any] | str,
-                    arrays: Mapping[str, np.ndarray] | None = None, **overrides: Any) -> Extractor:
-    """Rebuild an extractor from its description (and stored weights); refuse a mismatch.
-
-    ``spec`` may be a name (default settings), a dict (:meth:`ExtractorSpec.to_dict`) or a spec.
-    ``arrays``: the weights stored with it (a codebook). ``overrides``: settings that may differ
-    from the stored ones without changing the counts (e.g. where the ONNX model file now is).
-    Raises ConfigurationError for an unknown name, a newer version, or weights whose checksum
-    differs from the description's.
-    """
-    if isinstance(spec, str):
-        spec = ExtractorSpec(spec)
-    elif not isinstance(spec, ExtractorSpec):
-        spec = ExtractorSpec.from_dict(spec)
-    known = registered_extractors()
-    if spec.name not in known:
-        raise ConfigurationError(f"unknown image extractor {spec.name!r}; known: {', '.join(sorted(known))}")
-    cls = known[spec.name]
-    if spec.version is not None and spec.version != cls.version:
-        raise ConfigurationError(f"the extractor {spec.name!r} was version {spec.version}, this spco has "
-                                 f"version {cls.version}: its counts would differ; fit the knowledge again")
-    settings = {**spec.settings, **{k: v for k, v in overrides.items() if v is not None}}
-    extractor = cls.from_parts(settings, dict(arrays or {}))  # type: ignore[attr-defined]
-    if spec.checksum is not None and extractor.checksum is None:
-        raise ConfigurationError(f"the weights (codebook) of extractor {spec.name!r} are missing")
-    if spec.checksum is not None and extractor.checksum != spec.checksum:
-        raise ConfigurationError(f"the weights of extractor {spec.name!r} do not match its description "
-                                 f"(sha256 {str(extractor.checksum)[:12]}…, expected {spec.checksum[:12]}…): "
-                                 "another codebook or model file than the one the knowledge was fitted with")
-    return extractor

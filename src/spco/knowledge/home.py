@@ -27,14 +27,11 @@ from spco.knowledge.files import (
 )
 from spco.knowledge.knowledge import Knowledge
 from spco.model import gibbs
-from spco.model.confidence import UNSURE_BELOW
 from spco.model.home_place import home_place_mean, home_place_statistics, uses_home_place
 from spco.model.home_shard import name_words, prepare_home, switch_tokens
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.name_evidence import extend_prior
 from spco.model.parameters import ConceptParameters
-from spco.model.position_prediction import PositionPrediction
-from spco.model.prediction import NamePrediction
 from spco.model.transfer import export_parameters
 from spco.model.word_channels import channel_parameters
 
@@ -229,23 +226,6 @@ class HomeModel:
         return Environment(name=self.name, ids=self.ids, positions=self.positions, visual=self.visual,
                            sentences=self.sentences, is_test=np.zeros(self.n_samples, dtype=bool),
                            extent=self.extent)
-
-    # ------------------------------------------------------------------ questions
-    def where(self, name: str, n: int = 10, random_state: int | np.random.Generator | None = None
-              ) -> PositionPrediction:
-        """Positions for the place ``name``; see :func:`spco.knowledge.where`."""
-        from spco.knowledge.queries import where
-
-        return where(self, name, n=n, random_state=random_state)
-
-    def what(self, x: float, y: float, theta: float, visual: Any = None, top_k: int = 3,
-             image: Any = None, encoding: str | None = None,
-             unsure_below: float = UNSURE_BELOW) -> NamePrediction:
-        """Place names at a pose, with honest probabilities; see :func:`spco.knowledge.what`."""
-        from spco.knowledge.queries import what
-
-        return what(self, x, y, theta, visual=visual, top_k=top_k, image=image, encoding=encoding,
-                    unsure_below=unsure_below)
 
     # ------------------------------------------------------------------ files
     def save(self, path: str | PathLike[str], overwrite: bool = False) -> Path:

@@ -11,6 +11,7 @@
 - :mod:`spco.model.shard` — a sweep as map (home shards' local steps) → reduce (summed
   statistics) → global step; the engines of :mod:`spco.engines` run the shards in process or on Ray;
 - :mod:`spco.model.numba_cache` — where the compiled kernels are cached;
+- :mod:`spco.model.precompile` — the kernels compiled ahead of a fit (``spco demo`` on a cold cache);
 - :mod:`spco.model.transfer` — the estimators :class:`SpCoTransfer` and :class:`SpCoA`;
 - :mod:`spco.model.io` — saving and loading fitted models.
 """

@@ -1,5 +1,5 @@
 """Prediction in a learnt home: positions from place names (p(pose | name)): the one predictor of
-``where`` (:func:`spco.knowledge.where`, ``HomeModel.where``, the service, the ROS node) and of the
+``where`` (:func:`spco.knowledge.where`, the service, the ROS node) and of the
 experiments' A_p (:func:`spco.evaluation.metrics.evaluate_home`, the home-specific rooms).
 
 Pure functions of a :class:`~spco.model.parameters.ConceptParameters` sample, a home index ``e``
