@@ -236,3 +236,65 @@ def test_the_rooms_evidence_is_kept_per_parameters_object_and_weight() -> None:
     np.testing.assert_array_equal(room_concepts(params, 0, rooms, view_counts=4.0)[1],
                                   room_concepts(params, 0, HomeRooms.of(np.ones(20, dtype=int), views,
                                                                         sp.csr_array((20, 3))), 4.0)[1])
+
+
+def _by_hand_in_room(phi: np.ndarray, log_k: np.ndarray, rooms_views: list[sp.csr_array], view: sp.csr_array,
+                     w: float) -> np.ndarray:
+    """P(l | x, v) of ``view_in_room`` by brute force: Σ_k p(k | x) p(l | room k) p(v | room k, l), each
+    term written out with loops, η̂_{k,l} = (w φ_l + Σ_{t ∈ k} (w / |v_t|) v_t) / (w + Σ_t w)."""
+    L = phi.shape[0]
+    joint = np.full(L, -np.inf)
+    v = view.toarray()[0].astype(float)
+    for k, views in enumerate(rooms_views):
+        dense = views.toarray().astype(float)
+        pooled = dense.sum(axis=0)
+        log_room = np.array([w / pooled.sum() * float(np.log(phi[c]) @ pooled) for c in range(L)])
+        log_room -= logsumexp(log_room)
+        own = sum(w / row.sum() * row for row in dense)
+        for c in range(L):
+            eta = (w * phi[c] + own) / (w + w * dense.shape[0])
+            joint[c] = np.logaddexp(joint[c], log_k[k] + log_room[c] + w / v.sum() * float(np.log(eta) @ v))
+    return np.exp(joint - logsumexp(joint))
+
+
+def test_view_in_room_against_brute_force() -> None:
+    """``view_in_room``: the view a draw of its room's own distribution around the room's concept —
+    equal to the sum over rooms and concepts written out by hand, at a pose between two rooms."""
+    params, phi = _world()
+    kitchen = _room_views(phi, np.array([1.0, 0.0, 0.0]), 6, 200, seed=7)
+    washroom = _room_views(phi, np.array([0.0, 1.0, 0.0]), 4, 150, seed=8)
+    rooms = HomeRooms.of(np.repeat([0, 1], [6, 4]), sp.csr_array(sp.vstack([kitchen, washroom])),
+                         sp.csr_array((10, 3)))
+    pose = np.array([[1.15, 0.0, 0.0, 1.0]])
+    view = sp.csr_array(_room_views(phi, np.array([0.8, 0.2, 0.0]), 1, 200, seed=9))
+    got = concepts_by_room(params, 0, pose, view, rooms, 16.0, view_in_room=True)
+    log_k = -0.5 * np.array([1.15**2, 0.85**2]) / 0.3**2 + np.log([6.0, 4.0])
+    log_k -= logsumexp(log_k)
+    np.testing.assert_allclose(got[0], _by_hand_in_room(phi, log_k, [kitchen, washroom], view, 16.0),
+                               rtol=1e-9, atol=1e-12)
+    assert int(np.argmax(got[0])) == 0  # the kitchen's view still says the robot is in the kitchen
+
+
+def test_view_in_room_does_not_lift_a_rooms_answer() -> None:
+    """A merged washroom (its views between the kitchen's and the washroom's φ^v): by default the
+    observation's view, counted against φ^v beside its room, lifts the room's answer; drawn from the
+    room's own distribution it hardly moves it (the room's 20 views, each worth w, against the prior's
+    w), so the answer is the room's p(l | room k). A room with no views: the view against φ^v."""
+    params, phi = _world()
+    kitchen = _room_views(phi, np.array([1.0, 0.0, 0.0]), 20, 200, seed=2)
+    washroom = _room_views(phi, np.array([0.5, 0.5, 0.0]), 20, 200, seed=3)
+    rooms = HomeRooms.of(np.repeat([0, 1], 20), sp.csr_array(sp.vstack([kitchen, washroom])),
+                         sp.csr_array((40, 3)))
+    pose = np.array([[2.0, 0.0, 0.0, 1.0]])
+    view = sp.csr_array(_room_views(phi, np.array([0.3, 0.7, 0.0]), 1, 200, seed=10))
+    room_alone = room_concepts(params, 0, rooms, 16.0)[1][1]
+    lifted = concepts_by_room(params, 0, pose, view, rooms, 16.0)[0]
+    in_room = concepts_by_room(params, 0, pose, view, rooms, 16.0, view_in_room=True)[0]
+    assert np.abs(in_room - room_alone).max() < 0.5 * np.abs(lifted - room_alone).max()
+    np.testing.assert_allclose(in_room.sum(), 1.0)
+    # no views in the rooms: η̂ = φ^v, the default account
+    blind = HomeRooms.of(np.repeat([0, 1], 20), sp.csr_array((40, D)), sp.csr_array((40, 3)))
+    np.testing.assert_allclose(concepts_by_room(params, 0, pose, view, blind, 16.0, view_in_room=True),
+                               concepts_by_room(params, 0, pose, view, blind, 16.0), rtol=1e-12)
+    with pytest.raises(ConfigurationError, match="view_in_room"):
+        concepts_by_room(params, 0, pose, view, rooms, None, view_in_room=True)

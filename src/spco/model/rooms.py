@@ -41,6 +41,7 @@ import scipy.sparse as sp
 from scipy.special import logsumexp
 
 from spco.errors import ConfigurationError
+from spco.model.hyperparameters import view_powers
 from spco.model.parameters import ConceptParameters
 from spco.model.prediction import _safe_log, _visual_log_likelihood
 
@@ -237,13 +238,22 @@ def room_concepts(params: ConceptParameters, e: int, rooms: HomeRooms, view_coun
 
 
 def concepts_by_room(params: ConceptParameters, e: int, positions: np.ndarray, visual: object,
-                     rooms: HomeRooms, view_counts: float | None) -> np.ndarray | None:
+                     rooms: HomeRooms, view_counts: float | None, view_in_room: bool = False
+                     ) -> np.ndarray | None:
     """(n, L) P(l | x, v) ∝ Σ_k p(k | x) p(l | room k) p(v | l) at poses ``positions`` (n, 4) of home
     ``e`` with views ``visual`` (n, D; ``None`` or an empty row: no view), p(k | x) ∝ n_k N(x | μ_r(k),
     Σ_r(k)) over the rooms with training samples (r(k) the room's region), p(l | room k) ∝ G_0,l ·
     (room k's pooled views at w) · (its taught names) and p(v | l) the view at w, both against φ^v
     (module docstring); ``None`` if no room has a training sample (the caller answers from the view
-    and the pose against the home's parameters instead)."""
+    and the pose against the home's parameters instead).
+
+    ``view_in_room`` (opt-in, measured on development views: docs/model.md, "A room's evidence"): the
+    view is drawn from its room's own visual distribution η_k rather than from the concept's φ^v,
+    η_k ~ Dir(w φ^v_l) — the room about as informative of its concept as the w draws its pooled views
+    count as — so p(v | k, l) = Mult(v | η̂_{k,l})^{ω_v} with η̂_{k,l} = (w φ^v_l + Ñ_k) / (w + |Ñ_k|)
+    its posterior mean given the room's training views Ñ_k, each worth w (:func:`_room_view_log`):
+    the view says which room the pose is in, and little more about the room's concept than its
+    room's views already said. Needs a view weight w."""
     from spco.model.prediction import gaussian_log_density, validate_poses
 
     room_log, counts, region_of = _room_log_posterior(params, rooms, view_counts, e)  # (R, L) unnormalised
@@ -261,17 +271,46 @@ def concepts_by_room(params: ConceptParameters, e: int, positions: np.ndarray, v
                                  f"metres?")
     view_log = np.zeros((x.shape[0], params.n_concepts))
     phi_v = np.asarray(params.shared_visual_probabilities, dtype=np.float64)
-    if visual is not None and phi_v.size:
+    has_view = visual is not None and phi_v.size > 0
+    if has_view:
         view_log = _visual_log_likelihood(phi_v, visual, view_counts)
         if view_log.shape[0] != x.shape[0]:
             raise ConfigurationError(f"{x.shape[0]} positions but {view_log.shape[0]} visual feature rows")
+    if view_in_room and view_counts is None:
+        raise ConfigurationError("view_in_room needs the model's view weight w (view_counts), got None")
     # log p(k | x) + log p(l | room k) + log p(v | l): the view weighs in on the room as on its concept
     # (a view unlike everything room k looks like says the pose is not in room k)
     room_norm = room_log - logsumexp(room_log, axis=1, keepdims=True)  # (R, L) log p(l | room k)
     joint = np.full((x.shape[0], params.n_concepts), -np.inf)
     for k in np.flatnonzero(counts > 0):  # a loop over the home's rooms (tens)
+        if has_view and view_in_room:
+            view_log = _room_view_log(phi_v, rooms, k, visual, float(view_counts),  # type: ignore[arg-type]
+                                      int(np.shape(params.region_means)[1]))
         joint = np.logaddexp(joint, (log_k[:, [k]] - total) + room_norm[k][None, :] + view_log)
     return np.exp(joint - logsumexp(joint, axis=1, keepdims=True))
+
+
+def _room_view_log(phi_v: np.ndarray, rooms: HomeRooms, k: int, visual: object, view_counts: float,
+                   n_regions: int) -> np.ndarray:
+    """(n, L) log p(v | room k, l) = ω_v Σ_d v_d log η̂_{k,l,d}: each view of ``visual`` (n, D) as a draw
+    of room k's own distribution, η̂_{k,l} = (w φ^v_l + Ñ_k) / (w + |Ñ_k|), the posterior mean of
+    η_k ~ Dir(w φ^v_l) given the room's training views Ñ_k = Σ_{t ∈ k} ω_t v_t (each worth w; a room
+    without views: φ^v_l), with w = ``view_counts``; k a room of :meth:`HomeRooms.membership` of
+    ``n_regions`` (:func:`concepts_by_room`, ``view_in_room``)."""
+    weighted = rooms._known.get(("view_in_room", view_counts, n_regions))
+    if weighted is None:  # (R, D) each room's training views, each worth w draws
+        share, _ = rooms.membership(n_regions)
+        onehot = share.copy()
+        onehot.data[:] = 1.0
+        totals = np.asarray(rooms.visual.sum(axis=1), dtype=np.float64).ravel()
+        powers = np.zeros_like(totals)
+        seen = totals > 0
+        powers[seen] = view_powers(totals[seen], view_counts)
+        weighted = np.asarray((onehot @ (sp.diags_array(powers) @ rooms.visual)).toarray(), dtype=np.float64)
+        rooms._known[("view_in_room", view_counts, n_regions)] = weighted
+    own = weighted[k] if k < weighted.shape[0] else np.zeros(phi_v.shape[1])
+    eta = (view_counts * phi_v + own[None, :]) / (view_counts + own.sum())
+    return _visual_log_likelihood(eta, visual, view_counts)
 
 
 def sample_rooms(data: object, state: object, concentration: float | None, rows: slice | None = None
