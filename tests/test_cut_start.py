@@ -234,3 +234,40 @@ def test_started_from_the_cut_the_kept_sweeps_target_the_stated_power_model() ->
             seen[_label_class(np.concatenate([h.state.concepts for h in homes]))] += 1
     assert run.settings.power and homes[1].state.channels.power and run.shared.channels.power
     assert chisquare_p(seen, exact) > 1e-3, (seen / seen.sum(), exact)
+
+
+def _engine_chain(engine, after_sweep=None, n_sweeps: int = 12):
+    """(log-joint trace, concepts, log φ^v, run) of 12 sweeps with ``cut_start=6`` started on ``engine``."""
+    from spco.model import gibbs
+    from spco.model.driver import start_run
+
+    corpus = generate_homes(5, seed=2, new_homes=1, config=SyntheticConfig(n_features=64, n_train=12))
+    model = SpCoTransfer(replace(POWER, cut_start=6), random_state=5, prune_words=True)
+    data = SpCoTransfer.prepare_data(corpus, 1.0)
+    run = start_run(engine, data, len(corpus.vocabulary), model.checked_hyperparameters(),
+                    model.sampler_settings(), np.random.default_rng(5))
+    trace = run.fit(n_sweeps, None if after_sweep is None else lambda i, v: after_sweep(run, i))
+    state = run.state()
+    run.close()
+    assert isinstance(state, gibbs.GibbsState)
+    return trace, state.concepts, run.shared.log_phi_v, run
+
+
+def test_ray_restarts_before_the_switch_rewind_to_the_cut(ray_session) -> None:
+    """Ray, checkpoints every 5 sweeps, an actor killed after sweep 7 (the power target's from sweep 6
+    on): the fit restarts at sweep 5, runs sweep 5 as the cut again, switches again before sweep 6 and
+    ends where the fault-free local fit ends."""
+    from spco.engines.ray import RayEngine
+
+    local = _engine_chain(LocalEngine(2))
+    killed: list[bool] = []
+
+    def kill_once(run, iteration: int) -> None:
+        if iteration == 7 and not killed:
+            killed.append(True)
+            ray_session.kill(run.actors[1])
+
+    remote = _engine_chain(RayEngine(2, checkpoint_every=5), kill_once)
+    assert remote[3].restarts == 1 and not remote[3].cutting and remote[3].settings.power
+    for a, b in zip(local[:3], remote[:3], strict=True):
+        np.testing.assert_array_equal(a, b)
