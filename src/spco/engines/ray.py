@@ -222,6 +222,7 @@ class RayRun(ShardedRun):
             snapshots = checkpoint.shards
         self.rng.bit_generator.state = copy.deepcopy(driver_rng)
         self.shared = shared
+        self.rewind_cut_start(iteration)  # (a checkpoint from before the power target's first sweep)
         trace[:iteration] = saved
         self._launch(snapshots)
         return iteration

@@ -26,6 +26,7 @@ from spco.knowledge.knowledge import (
     Knowledge,
     KnowledgeChannels,
 )
+from spco.model.cut_start import check_cut_start
 from spco.model.hyperparameters import PRIORS, TransferHyperparameters, scaled_from, scaled_hyperparameters
 from spco.model.name_evidence import channel_evidence, has_english, name_prior
 from spco.model.posterior import thinned_sweeps
@@ -162,6 +163,7 @@ def fit_knowledge(
     rng = as_generator(random_state)
     source, n_samples = _home_source(estimator, corpus, source)
     keep = set(summary_iterations(n_iterations, summary_fraction, summary_every))
+    check_cut_start(hyper, keep)
     start = time.perf_counter()
     chain = _sample_chain(engine, source, hyper, settings, rng, evidence, n_iterations, keep,
                           f"fit ({model})" if progress else None, corpus.word_increment, corpus.vocabulary)

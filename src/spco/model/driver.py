@@ -19,6 +19,7 @@ import numpy as np
 from spco.errors import ConfigurationError
 from spco.model import shard as shards_api
 from spco.model import shard_init
+from spco.model.cut_start import cut_phase, cut_sweeps
 from spco.model.hyperparameters import ESTIMATE, VIEW_COUNTS, TransferHyperparameters
 from spco.model.shard import GlobalStep
 from spco.model.shard_group import ShardGroup
@@ -44,6 +45,13 @@ class ShardedRun(ABC):
                  rng: np.random.Generator, n_shards: int) -> None:
         if not settings.hierarchical and source.n_homes > 1:
             raise ValueError("the SpCoA sampler learns one home: it has no shared part to reduce")
+        #: what the kept sweeps target; with a cut start (:mod:`spco.model.cut_start`) the first
+        #: ``cut_start`` sweeps run as the cut sampler (``hyper``, ``settings`` until then)
+        self.target_hyper, self.target_settings = hyper, settings
+        self.cut_start = cut_sweeps(hyper)
+        self.cutting = self.cut_start > 0
+        if self.cutting:
+            hyper, settings = cut_phase(hyper, settings)
         self.hyper, self.settings, self.rng = hyper, settings, rng
         self.n_shards = n_shards
         self.n_homes = source.n_homes
@@ -65,7 +73,7 @@ class ShardedRun(ABC):
         self.visual_prior: dict | None = None
         #: the word prior's estimate (``None``: δ^w and α^w were given; made when the channels start)
         self.word_prior: dict | None = None
-        if hyper.visual_prior == "estimate" and settings.variant == "exact" and self.n_homes > 1:
+        if self.target_hyper.visual_prior == "estimate" and settings.variant == "exact" and self.n_homes > 1:
             self._estimate_visual_prior()
 
     def _estimate_visual_prior(self) -> None:
@@ -81,6 +89,10 @@ class ShardedRun(ABC):
         delta = self.hyper.delta_visual if delta is None else delta
         alpha = self.hyper.alpha_visual if alpha is None else alpha
         self.visual_prior.update(delta_visual=float(delta), alpha_visual=float(alpha))
+        self.target_hyper = dataclasses.replace(self.target_hyper, delta_visual=float(delta),
+                                                alpha_visual=float(alpha))
+        if self.cutting:  # (the power target's, from its first sweep: _start_power)
+            return
         self.hyper = dataclasses.replace(self.hyper, delta_visual=float(delta), alpha_visual=float(alpha))
         self.global_step.hyper = self.hyper
         self.call("set_visual_prior", float(delta), float(alpha))
@@ -104,6 +116,8 @@ class ShardedRun(ABC):
         self.view_weight["view_counts"] = w
         self.hyper = dataclasses.replace(self.hyper, view_counts=w)
         self.settings = dataclasses.replace(self.settings, view_counts=w)
+        self.target_hyper = dataclasses.replace(self.target_hyper, view_counts=w)
+        self.target_settings = dataclasses.replace(self.target_settings, view_counts=w)
         self.global_step.hyper, self.global_step.settings = self.hyper, self.settings
         self.call("set_view_weight", w)
 
@@ -125,10 +139,42 @@ class ShardedRun(ABC):
         results in worker order."""
 
     def sweep(self, iteration: int) -> float:
-        """Sweep number ``iteration`` (0-based); returns the log joint of the state it started from."""
+        """Sweep number ``iteration`` (0-based); returns the log joint of the state it started from.
+        With a cut start, the power target's chain takes over before sweep ``cut_start``
+        (:meth:`_start_power`)."""
+        if self.cutting and iteration >= self.cut_start:
+            self._start_power()
         log_joint, self.shared = shards_api.sweep(self.call, self.global_step, self.shared, iteration,
                                                   self.shared.word_mask, self.shared.name_words)
         return log_joint
+
+    def _start_power(self) -> None:
+        """The cut start's end (:mod:`spco.model.cut_start`): the assignments, regions and switches
+        kept, every worker recounts its statistics as the power target weighs views and tokens, and
+        every parameter is drawn from the power target's conditionals — the shared ones from the
+        homes' tables (:class:`~spco.model.shard.GlobalStep`), then each home's θ, G_e, π, μ, Σ — before
+        the power target's first sweep."""
+        self._cut_phase = (self.hyper, self.settings)  # (what rewind_cut_start restores)
+        hyper, settings = self.target_hyper, self.target_settings
+        channels = self.shared.channels
+        if channels is not None:
+            channels = dataclasses.replace(channels, power=True)
+        self.hyper, self.settings, self.cutting = hyper, settings, False
+        self.global_step.hyper, self.global_step.settings = hyper, settings
+        self.call("start_power", hyper, settings, channels)
+        shared = dataclasses.replace(self.shared, channels=channels)
+        if settings.learn_shared and settings.hierarchical:
+            shared = self.global_step.run(self.call, shared)
+        self.call("home_step", shared, False, False)
+        self.shared = shared
+
+    def rewind_cut_start(self, iteration: int) -> None:
+        """Back to the cut start's sweeps when a restarted engine resumes at sweep ``iteration``
+        (0-based) before the power target's first sweep (:meth:`_start_power` runs again then)."""
+        if self.cut_start and not self.cutting and iteration <= self.cut_start:
+            self.hyper, self.settings = self._cut_phase
+            self.global_step.hyper, self.global_step.settings = self.hyper, self.settings
+            self.cutting = True
 
     def fit(self, n_iterations: int, after_sweep=None) -> np.ndarray:
         """Run sweeps 0..n_iterations − 1; returns their log joints (entry i: the state sweep i
@@ -180,9 +226,10 @@ class ShardedRun(ABC):
         start (which places the homes by the naming rule's names: a start, valid for any target)."""
         self.shared = dataclasses.replace(self.shared, word_mask=np.ones_like(self.shared.word_mask),
                                           name_words=None, channels=channels)
-        if (self.hyper.word_prior == "estimate" and self.settings.variant == "exact" and self.n_homes > 1
-                and self.word_prior is None):
-            self._estimate_word_prior(channels)
+        if (self.target_hyper.word_prior == "estimate" and self.settings.variant == "exact"
+                and self.n_homes > 1 and self.word_prior is None):
+            # (with a cut start: weighed as the power target's channels, used from its first sweep)
+            self._estimate_word_prior(dataclasses.replace(channels, power=True) if self.cutting else channels)
 
     def _estimate_word_prior(self, channels) -> None:
         """Estimate δ^w and α^w from the homes' name tokens on the concepts of the start, each token
@@ -198,9 +245,13 @@ class ShardedRun(ABC):
         delta, alpha = estimate_word_prior(m, s, q)
         self.word_prior = {"delta_word_estimated": delta is not None,
                            "alpha_word_estimated": alpha is not None}
-        delta = given_delta_word(self.hyper.delta_word, channels) if delta is None else delta
-        alpha = self.hyper.alpha_word if alpha is None else alpha
+        delta = given_delta_word(self.target_hyper.delta_word, channels) if delta is None else delta
+        alpha = self.target_hyper.alpha_word if alpha is None else alpha
         self.word_prior.update(delta_word=float(delta), alpha_word=float(alpha))
+        self.target_hyper = dataclasses.replace(self.target_hyper, delta_word=float(delta),
+                                                alpha_word=float(alpha))
+        if self.cutting:  # (the power target's, from its first sweep: _start_power)
+            return
         self.hyper = dataclasses.replace(self.hyper, delta_word=float(delta), alpha_word=float(alpha))
         self.global_step.hyper = self.hyper
         self.call("set_word_prior", float(delta), float(alpha))

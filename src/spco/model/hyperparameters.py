@@ -122,6 +122,16 @@ MAX_CONCENTRATION = 1e100
 MAX_CONDITION = 1e12
 
 
+def _check_cut_start(cut_start: Any, target: str) -> None:
+    """Raise :class:`~spco.errors.ConfigurationError` naming ``cut_start`` unless it is a whole number
+    of sweeps >= 0, and positive only with ``target="power"``."""
+    if isinstance(cut_start, bool) or not isinstance(cut_start, int | np.integer) or cut_start < 0:
+        raise ConfigurationError(f"cut_start must be a whole number of sweeps >= 0, got {cut_start!r}")
+    if cut_start > 0 and target != "power":
+        raise ConfigurationError(f"cut_start={cut_start} needs target='power' (the cut's sweeps start the "
+                                 f"power target's chain), got target={target!r}")
+
+
 def _check_phi_schedule(every: int, until: int | None, block_moves: str) -> None:
     """Raise :class:`ConfigurationError` naming the field for a schedule of the φ^v-marginal block
     moves that is not an integer ≥ 1 (``phi_every``) or ≥ 0 (``phi_until``), or that is set without
@@ -294,6 +304,16 @@ class TransferHyperparameters:
         ``phi_until`` is set, i < ``phi_until`` (the first sweeps, where a new home's places gather).
         A move on a fixed schedule keeps the chain's target (:func:`spco.model.phi_moves.phi_moves_due`).
         Only with ``block_moves="phi"``; written by :meth:`to_dict` only when not the default.
+    cut_start: sweeps of the cut sampler before the power target's chain (``target="power"`` only;
+        default 0: the power target from the start). The joint fit starts and runs its first
+        ``cut_start`` sweeps as ``target="cut"`` with the given δ^v, α^v would (the same chain for the
+        same seed), then keeps the assignments, regions and switches, redraws every parameter from
+        the power target's conditionals and continues with the power target's sweeps
+        (:mod:`spco.model.cut_start`; the estimates of ``visual_prior``/``word_prior="estimate"``
+        made as the power target makes them). It must end before the first averaged sweep, so every
+        kept draw is a power sweep: exact MCMC with a cut start. A new home's sampler (``adapt``,
+        a teaching) runs the power target from its start. Written by :meth:`to_dict` only when not 0
+        (a file without it reads as 0).
     """
 
     n_concepts: int = 15
@@ -326,6 +346,7 @@ class TransferHyperparameters:
     name_answer: NameAnswer = "said"
     phi_every: int = 1
     phi_until: int | None = None
+    cut_start: int = 0
 
     def __post_init__(self) -> None:
         for name in ("n_concepts", "n_regions"):
@@ -377,6 +398,7 @@ class TransferHyperparameters:
                 and float(self.word_counts) != round(float(self.word_counts))):
             raise ConfigurationError(f"word_counts must be a whole number with target='power' (a word "
                                      f"token's counts stay whole), got {self.word_counts!r}")
+        _check_cut_start(self.cut_start, self.target)
         if self.warm_start not in WARM_STARTS:
             raise ConfigurationError(f"warm_start must be one of {', '.join(map(repr, WARM_STARTS))}, "
                                      f"got {self.warm_start!r}")
@@ -440,7 +462,7 @@ class TransferHyperparameters:
         ``warm_start`` always: a file without it means ``"names"``, the default before things16;
         ``place_channel`` only when not ``"shared"`` and ``delta_place`` only with it or when not the
         default, ``name_answer`` only when not ``"said"``, ``phi_every`` only when not 1 and
-        ``phi_until`` only when not ``None``)."""
+        ``phi_until`` only when not ``None``, ``cut_start`` only when not 0)."""
         data = asdict(self)
         if data["place_channel"] == "shared":
             del data["place_channel"]
@@ -462,6 +484,10 @@ class TransferHyperparameters:
             del data["phi_every"]
         if data["phi_until"] is None:
             del data["phi_until"]
+        if data["cut_start"] == 0:
+            del data["cut_start"]
+        else:
+            data["cut_start"] = int(data["cut_start"])
         return data
 
     @classmethod
@@ -536,6 +562,7 @@ SETTABLE: dict[str, str] = {
     "word_prior": "one of given, estimate", "warm_start": "one of names, words, things",
     "place_channel": "one of shared, home", "delta_place": "a number",
     "name_answer": "one of said, listener", "phi_every": "integer", "phi_until": "integer or none",
+    "cut_start": "integer",
 }
 
 

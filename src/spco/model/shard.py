@@ -286,6 +286,20 @@ class HomeShard(ShardInitialisation):
                                                 self.settings.learning_view_counts())
         return log_joint
 
+    def start_power(self, hyper: TransferHyperparameters, settings: SamplerSettings,
+                    channels: WordChannels | None) -> None:
+        """The end of a cut start (:mod:`spco.model.cut_start`): from now on the power target's
+        ``hyper``, ``settings`` and word ``channels`` (``None``: none); the statistics recounted from
+        the kept assignments, regions and switches as the power target weighs views and tokens."""
+        self.hyper, self.settings = hyper, settings
+        if channels is not None:
+            if uses_home_place(hyper):  # the shared part received, the homes' own ψ_{e,l} kept
+                held = self.state.channels
+                channels = replace(channels, log_place_home=None if held is None else held.log_place_home)
+            self.state.channels = channels
+        self.stats = gibbs.sufficient_statistics(self.data, self.state, hyper,
+                                                settings.learning_view_counts())
+
     def tables(self, kind: str) -> np.ndarray:
         """CRT table counts of ``kind`` (``visual`` (L, D), ``words`` (L, V), ``concepts`` (L,)),
         summed over the shard's homes, given the shared parameters the shard holds."""

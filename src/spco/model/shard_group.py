@@ -249,6 +249,10 @@ class ShardGroup:
         """Every home's log θ^v summary (:meth:`HomeShard.visual_means`), in home order."""
         return [m for h in self.homes for m in h.visual_means()]
 
+    def start_power(self, hyper: TransferHyperparameters, settings: SamplerSettings, channels) -> None:
+        """Every home ends its cut start (:meth:`spco.model.shard.HomeShard.start_power`)."""
+        self._each("start_power", hyper, settings, channels)
+
     def set_visual_prior(self, delta_visual: float, alpha_visual: float) -> None:
         """Every home draws θ^v at these δ^v and α^v from the next sweep on."""
         self._each("set_visual_prior", delta_visual, alpha_visual)

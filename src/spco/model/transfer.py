@@ -43,6 +43,7 @@ from spco.data.environment import Corpus
 from spco.data.language import Vocabulary
 from spco.errors import ConfigurationError
 from spco.model import gibbs
+from spco.model.cut_start import check_cut_start
 from spco.model.hyperparameters import SpCoAHyperparameters, TransferHyperparameters
 from spco.model.kernels.counts import stack_counts
 from spco.model.name_evidence import channel_evidence, has_english, name_prior
@@ -171,6 +172,7 @@ class SpatialConceptModel:
             raise ConfigurationError("hyperparameters must be a TransferHyperparameters instance")
         if not isinstance(self.n_iterations, int | np.integer) or self.n_iterations < 1:
             raise ConfigurationError(f"n_iterations must be an integer >= 1, got {self.n_iterations!r}")
+        check_cut_start(hyper, thinned_sweeps(int(self.n_iterations)))  # (every kept sweep a power sweep)
         return hyper
 
     # ------------------------------------------------------------------ data
@@ -233,12 +235,7 @@ class SpatialConceptModel:
         data = self.prepare_data(corpus, self.position_scale)
         start = time.perf_counter()
         average = _SweepAverage(int(self.n_iterations), data)
-        bar = None
-        if self.progress:
-            from spco.progress import progress_bar
-
-            bar = progress_bar(total=int(self.n_iterations),
-                               desc=f"{type(self).__name__} ({settings.variant})", unit="sweep", leave=False)
+        bar = self._progress_bar(settings)
         from spco.model.driver import start_run
 
         evidence, settings = self._channel_evidence(corpus, data, hyper, settings)
@@ -254,6 +251,8 @@ class SpatialConceptModel:
 
         # each sweep reports the log joint of the state it started from: the previous sweep's
         log_joints = run.fit(int(self.n_iterations), after_sweep)
+        # (a cut start: the power target's, from its first sweep on; the word model as chosen above)
+        hyper, settings = replace(run.hyper, word_model=hyper.word_model), run.settings
         trace = list(log_joints[1:]) if self.record_log_joint else []
         # the final state joined, then the workers (their states, data views and caches) dropped
         # before the state's log joint and its place in the average allocate: a lower peak
@@ -289,6 +288,15 @@ class SpatialConceptModel:
         self.regions_ = [state.regions[s].copy() for s in splits]
         self.training_ids_ = [t.ids for t in corpus.training_set()]
         return self
+
+    def _progress_bar(self, settings: gibbs.SamplerSettings):
+        """The fit's progress bar (``None`` without ``progress``)."""
+        if not self.progress:
+            return None
+        from spco.progress import progress_bar
+
+        return progress_bar(total=int(self.n_iterations), desc=f"{type(self).__name__} ({settings.variant})",
+                            unit="sweep", leave=False)
 
     @staticmethod
     def _channel_evidence(corpus: Corpus, data: gibbs.PreparedData, hyper: TransferHyperparameters,
