@@ -7,6 +7,8 @@
   zeros and a dimension whose a underflows to 0;
 - a worker's answer (:meth:`ShardGroup.visual_log_weight`) is its homes' own answers summed, to the bit,
   at every call of a short power fit;
+- the power likelihood's tokens' log-sum-exp (:func:`spco.model.word_channels._logsumexp_last`) is
+  SciPy's, to the bit, on random logits and on ties, infinities and NaN;
 - short synthetic fits (the cut, the power target, the power target from the cut's state, one worker
   and two) are the chains of branch cutstart20 011610d, to the bit (hashes made with that code).
 """
@@ -21,6 +23,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from numba import njit
+from scipy.special import logsumexp
 
 from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.model.driver import LocalEngine
@@ -28,6 +31,7 @@ from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.kernels.fractional import fractional_log_weights_by_dimension, fractional_log_weights_grouped
 from spco.model.shard_group import ShardGroup, _sum
 from spco.model.transfer import SpCoTransfer
+from spco.model.word_channels import _logsumexp_last
 
 POWER = TransferHyperparameters(target="power", visual_prior="estimate")
 
@@ -158,3 +162,21 @@ def test_a_worker_s_weight_is_its_homes_summed_bit_for_bit(monkeypatch) -> None:
     _fit(replace(POWER, cut_start=2), 1, n_iterations=4)
     assert calls and all(same for _, same, _ in calls)
     assert any(homes > 1 and weighed for homes, _, weighed in calls)  # the grouped path ran on real weights
+
+
+@pytest.mark.parametrize("scale", [0.1, 5.0, 400.0])
+def test_the_tokens_log_sum_exp_is_scipy_s_bit_for_bit(scale: float) -> None:
+    rng = np.random.default_rng(8)
+    a = rng.normal(size=(300, 7, 3)) * scale
+    a[0, 0] = -np.inf  # every channel impossible
+    a[1, 0, :2] = 3.0  # a tie at the top
+    a[2, 0, 1] = -np.inf
+    a[3, 0] = [np.inf, 1.0, 2.0]
+    a[4, 0] = [np.nan, 1.0, 2.0]
+    a[5, 0] = 2.0  # three ties
+    a[6, 0] = [800.0, 800.0, -1.0]  # e^a overflows
+    a[7, 0] = [-800.0, -745.0, -1e308]  # e^a underflows
+    a[8, :, 2] = np.round(a[8, :, 0], 1)
+    expected = logsumexp(a, axis=-1)
+    got = _logsumexp_last(a)
+    assert got.shape == expected.shape and got.tobytes() == expected.tobytes()
