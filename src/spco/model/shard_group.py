@@ -23,6 +23,7 @@ import scipy.sparse as sp
 from spco.model import shard as shards_api
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.kernels.crt import sample_crt_totals_each
+from spco.model.kernels.fractional import fractional_log_weights_grouped
 from spco.model.kernels.special import scaled_exp
 from spco.model.observations import HierarchicalMultinomial
 from spco.model.pruning import Colocation, colocation
@@ -172,8 +173,14 @@ class ShardGroup:
         return self.homes[home - self.first].phi_move(others, tables)
 
     def visual_log_weight(self, log_phi: np.ndarray) -> np.ndarray:
-        """(L, D) the homes' parts of φ^v's fractional weight per dimension, summed."""
-        return _sum(self._each_lazily("visual_log_weight", log_phi))
+        """(L, D) the homes' parts of φ^v's fractional weight per dimension, summed: bit for bit the
+        sum of the homes' own (:meth:`HomeShard.visual_log_weight`) in home order, computed in one
+        call (:func:`~spco.model.kernels.fractional.fractional_log_weights_grouped`: what depends on
+        φ^v alone computed once for every home)."""
+        deltas = {h.hyper.delta_visual for h in self.homes}
+        if len(self.homes) == 1 or len(deltas) != 1:
+            return _sum(self._each_lazily("visual_log_weight", log_phi))
+        return fractional_log_weights_grouped([h._stats().visual for h in self.homes], log_phi, deltas.pop())
 
     def pooled_counts(self) -> PooledCounts:
         """The homes' pooled counts, summed (integers)."""
