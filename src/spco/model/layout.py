@@ -37,9 +37,9 @@ __all__ = ["MAX_LAYOUT_STATES", "NEGLIGIBLE", "LayoutPrior", "layout_prior", "ro
 #: the largest R · 2^L (rooms × sets of concepts present) :func:`room_marginals` works through
 #: (2^22 ≈ 4·10^6 log values per table, ~34 MB); above it the layout is refused with the reason
 MAX_LAYOUT_STATES = 2**22
-#: nats below every room's best beyond which a concept is not worked through by the dynamic programme
-#: but enters to first order (:func:`room_marginals`)
-NEGLIGIBLE = 60.0
+#: the largest bound ε on the neglected share of the joint with which :func:`room_marginals` leaves
+#: concepts out of its dynamic programme (they enter to first order)
+NEGLIGIBLE = 1e-12
 
 
 @dataclass(frozen=True)
@@ -132,7 +132,7 @@ def room_marginals(room_log: np.ndarray, prior: LayoutPrior) -> np.ndarray:
     if np.isnan(E).any() or not np.isfinite(E.max(axis=1)).all():
         raise ConfigurationError("layout: room_log holds NaN or a room without a finite concept weight")
     E = E - E.max(axis=1, keepdims=True)  # each room's scale (cancels in its marginal)
-    near = np.flatnonzero(E.max(axis=0) >= -NEGLIGIBLE)  # the concepts the DP works through
+    near = _concepts_in_play(E, prior)  # the concepts the DP works through
     L = near.size
     if R * 2**L > MAX_LAYOUT_STATES:
         raise ConfigurationError(f"layout: {R} rooms and {L} concepts in play need R·2^L = {R * 2**L:,} "
@@ -170,3 +170,17 @@ def room_marginals(room_log: np.ndarray, prior: LayoutPrior) -> np.ndarray:
             new_beta = np.logaddexp(new_beta, ahead)
         beta = new_beta
     return out - logsumexp(out, axis=1, keepdims=True)
+
+
+def _concepts_in_play(E: np.ndarray, prior: LayoutPrior) -> np.ndarray:
+    """The concepts :func:`room_marginals` works through exactly: all but the least weighty, left out
+    while ε = M Σ_{k, c left out} e^{E[k, c]} g_c(1)/g_c(0) stays ≤ :data:`NEGLIGIBLE` (``E``: each row's
+    best 0)."""
+    odds = prior.log_present - prior.log_absent
+    log_m = max(0.0, float(np.max(-odds)))
+    with np.errstate(divide="ignore"):
+        weight = logsumexp(E, axis=0) + odds + log_m  # (L,) log of each concept's share of ε
+    order = np.argsort(weight)  # least weighty first
+    spent = np.logaddexp.accumulate(weight[order])
+    dropped = order[spent <= np.log(NEGLIGIBLE)]
+    return np.setdiff1d(np.arange(E.shape[1]), dropped)
