@@ -100,6 +100,7 @@ class Task:
     settings: tuple[str, ...] = ()  # ``--set NAME=VALUE`` of the knowledge's hyperparameters
     view_by_view: bool = False  # ``--view-by-view``: after = name_prediction(by_room=False), to compare
     view_in_room: bool = False  # ``--view-in-room``: after = the room account, the view drawn from its room
+    layout: bool = False  # ``--layout``: after = the room account with the home's layout prior
 
 
 def _load(data: Path, images: Path | None, names: Sequence[str], features: str, rate: int) -> list[Any]:
@@ -173,17 +174,33 @@ def _view_weight(hyper: Any) -> float | None:
     return weight() if callable(weight) else hyper.view_counts
 
 
-def _answer_left_out(model: Any, sample: int, pose: np.ndarray, view: Any, view_in_room: bool = False) -> Any:
+def _answer_left_out(model: Any, sample: int, pose: np.ndarray, view: Any, view_in_room: bool = False,
+                     layout: Any = None) -> Any:
     """``what``'s answer (:func:`spco.knowledge.name_prediction`) at a training sample of ``model``
     with the sample left out of its room's views (:mod:`spco.model.rooms`), so that its view is not
-    counted twice: the answer a new view at that pose would get."""
+    counted twice: the answer a new view at that pose would get (``layout``: the opt-in layout prior,
+    :func:`layout_of`)."""
     from spco.knowledge.queries import answer_parameters, home_rooms
     from spco.model.confidence import answer_names
 
     rooms = home_rooms(model).subset(np.asarray(model.ids) != sample)
     return answer_names(answer_parameters(model), 0, model.vocabulary, pose, view, top_k=1,
                         weighting=model.weighting, view_counts=model.hyperparameters.view_weight(),
-                        rooms=rooms, view_in_room=view_in_room)
+                        rooms=rooms, view_in_room=view_in_room, layout=layout)
+
+
+def layout_of(model: Any, data: Path) -> Any:
+    """The layout prior of a home model (opt-in, ``--layout``; :func:`spco.model.layout.layout_prior`):
+    which concepts a home holds, learnt from the experienced homes of its knowledge (the provenance's
+    ``homes``) — each home's place names (its labels, the names taught there) — with the knowledge's
+    G_0 and φ^w."""
+    from spco.data.loading import load_homes
+    from spco.model.layout import layout_prior
+
+    knowledge = model.knowledge
+    homes = load_homes(data, names=list(knowledge.provenance["homes"]), teaching_rate=100)
+    return layout_prior(knowledge.log_phi_words, knowledge.log_g0, list(knowledge.vocabulary.words),
+                        [sorted(set(h.labels())) for h in homes])
 
 
 def run_task(task: Task, data: Path, images: Path | None, models: Path, force: bool) -> list[dict[str, Any]]:
@@ -194,6 +211,7 @@ def run_task(task: Task, data: Path, images: Path | None, models: Path, force: b
     rows = []
     for home, model in home_models(task, data, images, models, force):
         name = home.name
+        layout = layout_of(model, data) if task.layout else None
         positions, visual, labels, ids = scored_views(home)
         before = predict_names(model.parameters, 0, model.vocabulary, positions, visual, top_k=1,
                                weighting=model.weighting)  # type: ignore[arg-type]
@@ -202,13 +220,14 @@ def run_task(task: Task, data: Path, images: Path | None, models: Path, force: b
             theta = math.atan2(positions[i, 2], positions[i, 3])
             if task.view_by_view:  # the comparison: each of a room's views independent evidence
                 after = kn.name_prediction(model, positions[[i]], visual[[i]], top_k=1, by_room=False)
-            elif task.view_in_room and home.is_test.any():  # the opt-in account, as what answers
-                after = _answer_left_out(model, -1, positions[[i]], visual[[i]], True)
+            elif (task.view_in_room or task.layout) and home.is_test.any():  # an opt-in, as what answers
+                after = _answer_left_out(model, -1, positions[[i]], visual[[i]], task.view_in_room, layout)
             elif home.is_test.any():  # what the robot answers (the room account)
                 after = kn.what(model, float(positions[i, 0]), float(positions[i, 1]), theta,
                                 visual=visual[[i]].toarray()[0], top_k=1)
             else:  # a training sample scored (development-new): left out of its room, as a new view is
-                after = _answer_left_out(model, int(ids[i]), positions[[i]], visual[[i]], task.view_in_room)
+                after = _answer_left_out(model, int(ids[i]), positions[[i]], visual[[i]], task.view_in_room,
+                                         layout)
             k = vocabulary.index(label) if label in vocabulary else None
             rows.append({
                 "set": task.set_name, "features": task.features, "size": task.size, "seed": task.seed,
@@ -459,6 +478,9 @@ def _arguments(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument("--view-in-room", action="store_true",
                         help="after = the room account with the observation's view drawn from its room's "
                              "own distribution (opt-in: spco.model.rooms.concepts_by_room(view_in_room))")
+    parser.add_argument("--layout", action="store_true",
+                        help="after = the room account with the home's layout prior, which concepts a home "
+                             "holds learnt from the experienced homes (opt-in: spco.model.layout)")
     parser.add_argument("--set", dest="settings", action="append", default=[], metavar="NAME=VALUE",
                         help="a hyperparameter of the knowledge fits, as `spco fit --set` (e.g. "
                              "view_counts=estimate); use a fresh --out: kept models are not checked")
@@ -504,7 +526,7 @@ def _print_view_counts_fit(args: argparse.Namespace, models: Path) -> None:
 def _predictions(args: argparse.Namespace, models: Path, start: float) -> list[dict[str, Any]]:
     """Every configuration's answers (``args.jobs`` processes), also written to predictions.jsonl."""
     tasks = [Task(f, size, seed, SETS[s]["homes"], s, tuple(args.settings), args.view_by_view,
-                  args.view_in_room)
+                  args.view_in_room, args.layout)
              for s in args.sets for f in args.features
              for size in SETS[s]["sizes"] if args.sizes is None or str(size) in args.sizes.split(",")
              for seed in (SETS[s]["seeds"] if args.seeds is None else args.seeds)[: args.first_seeds]]

@@ -42,6 +42,7 @@ from scipy.special import logsumexp
 
 from spco.errors import ConfigurationError
 from spco.model.hyperparameters import view_powers
+from spco.model.layout import LayoutPrior, room_marginals
 from spco.model.parameters import ConceptParameters
 from spco.model.prediction import _safe_log, _visual_log_likelihood
 
@@ -238,8 +239,8 @@ def room_concepts(params: ConceptParameters, e: int, rooms: HomeRooms, view_coun
 
 
 def concepts_by_room(params: ConceptParameters, e: int, positions: np.ndarray, visual: object,
-                     rooms: HomeRooms, view_counts: float | None, view_in_room: bool = False
-                     ) -> np.ndarray | None:
+                     rooms: HomeRooms, view_counts: float | None, view_in_room: bool = False,
+                     layout: LayoutPrior | None = None) -> np.ndarray | None:
     """(n, L) P(l | x, v) ∝ Σ_k p(k | x) p(l | room k) p(v | l) at poses ``positions`` (n, 4) of home
     ``e`` with views ``visual`` (n, D; ``None`` or an empty row: no view), p(k | x) ∝ n_k N(x | μ_r(k),
     Σ_r(k)) over the rooms with training samples (r(k) the room's region), p(l | room k) ∝ G_0,l ·
@@ -253,7 +254,11 @@ def concepts_by_room(params: ConceptParameters, e: int, positions: np.ndarray, v
     count as — so p(v | k, l) = Mult(v | η̂_{k,l})^{ω_v} with η̂_{k,l} = (w φ^v_l + Ñ_k) / (w + |Ñ_k|)
     its posterior mean given the room's training views Ñ_k, each worth w (:func:`_room_view_log`):
     the view says which room the pose is in, and little more about the room's concept than its
-    room's views already said. Needs a view weight w."""
+    room's views already said. Needs a view weight w.
+
+    ``layout`` (opt-in, :mod:`spco.model.layout`): p(l | room k) is each room's marginal under the
+    home's layout prior — the rooms' concepts judged jointly, with how likely a home is to hold each
+    concept at all (:func:`spco.model.layout.room_marginals`) — instead of each room on its own."""
     from spco.model.prediction import gaussian_log_density, validate_poses
 
     room_log, counts, region_of = _room_log_posterior(params, rooms, view_counts, e)  # (R, L) unnormalised
@@ -281,6 +286,9 @@ def concepts_by_room(params: ConceptParameters, e: int, positions: np.ndarray, v
     # log p(k | x) + log p(l | room k) + log p(v | l): the view weighs in on the room as on its concept
     # (a view unlike everything room k looks like says the pose is not in room k)
     room_norm = room_log - logsumexp(room_log, axis=1, keepdims=True)  # (R, L) log p(l | room k)
+    if layout is not None:  # the rooms with samples judged jointly (the others are never weighed)
+        live = np.flatnonzero(counts > 0)
+        room_norm[live] = room_marginals(room_log[live], layout)
     joint = np.full((x.shape[0], params.n_concepts), -np.inf)
     for k in np.flatnonzero(counts > 0):  # a loop over the home's rooms (tens)
         if has_view and view_in_room:
