@@ -16,7 +16,7 @@ from spco.errors import ConfigurationError
 from spco.model.confidence import answer_names
 from spco.model.layout import MAX_LAYOUT_STATES, LayoutPrior, layout_prior, room_marginals
 from spco.model.rooms import HomeRooms, concepts_by_room, room_concepts
-from tests.test_rooms import NAMES, _room_views, _world
+from test_rooms import NAMES, _room_views, _world
 
 
 def _brute_marginals(E: np.ndarray, prior: LayoutPrior) -> np.ndarray:
