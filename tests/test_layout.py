@@ -10,13 +10,13 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 from scipy.special import logsumexp
+from test_rooms import NAMES, _room_views, _world
 
 from spco.data.language import Vocabulary
 from spco.errors import ConfigurationError
 from spco.model.confidence import answer_names
 from spco.model.layout import MAX_LAYOUT_STATES, LayoutPrior, layout_prior, room_marginals
 from spco.model.rooms import HomeRooms, concepts_by_room, room_concepts
-from test_rooms import NAMES, _room_views, _world
 
 
 def _brute_marginals(E: np.ndarray, prior: LayoutPrior) -> np.ndarray:
