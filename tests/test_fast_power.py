@@ -15,22 +15,18 @@
 
 from __future__ import annotations
 
-import hashlib
 import math
-import warnings
 from dataclasses import replace
 
 import numpy as np
 import pytest
 from numba import njit
 from scipy.special import logsumexp
+from test_cut_start import _fit, _hash
 
-from spco.data.synthetic import SyntheticConfig, generate_homes
-from spco.model.driver import LocalEngine
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.kernels.fractional import fractional_log_weights_by_dimension, fractional_log_weights_grouped
 from spco.model.shard_group import ShardGroup, _sum
-from spco.model.transfer import SpCoTransfer
 from spco.model.word_channels import _logsumexp_last
 
 POWER = TransferHyperparameters(target="power", visual_prior="estimate")
@@ -119,26 +115,6 @@ def test_counts_of_the_wrong_shape_are_refused() -> None:
         fractional_log_weights_grouped([np.zeros((1, 2, 3))], np.zeros((2, 4)), 1.0)
     with pytest.raises(ValueError, match="no group"):
         fractional_log_weights_grouped([], np.zeros((2, 4)), 1.0)
-
-
-def _fit(hyper: TransferHyperparameters, shards: int, n_iterations: int = 12) -> SpCoTransfer:
-    """tests/test_cut_start.py's short fit: three synthetic English homes (one new), word channels on,
-    seed 5."""
-    corpus = generate_homes(3, seed=4, new_homes=1, config=SyntheticConfig(n_features=64, n_train=8),
-                            specific_rooms=False)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        return SpCoTransfer(hyper, n_iterations=n_iterations, random_state=5, prune_words=True).fit(
-            corpus, engine=LocalEngine(shards))
-
-
-def _hash(model: SpCoTransfer) -> str:
-    p = model.parameters_
-    h = hashlib.sha256()
-    for a in (np.concatenate(model.concepts_), np.concatenate(model.regions_), model.log_joint_,
-              p.shared_visual_probabilities, p.shared_word_probabilities):
-        h.update(np.ascontiguousarray(a).tobytes())
-    return h.hexdigest()
 
 
 @pytest.mark.parametrize("key", sorted(BEFORE))
