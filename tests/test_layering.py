@@ -35,6 +35,17 @@ def _run(config: Path) -> subprocess.CompletedProcess[str]:
                           cwd=ROOT, timeout=120)
 
 
+def _one_contract(tmp_path: Path, contract: str) -> Path:
+    """A pyproject.toml in ``tmp_path`` with spco's root package and the one ``contract`` (its TOML lines)."""
+    config = tmp_path / "pyproject.toml"
+    config.write_text(f"""[tool.importlinter]
+root_package = "spco"
+
+[[tool.importlinter.contracts]]
+{contract}""")
+    return config
+
+
 def _layers() -> list[str]:
     options = tomllib.loads(PYPROJECT.read_text())["tool"]["importlinter"]
     (contract,) = [c for c in options["contracts"] if c["id"] == "floors"]
@@ -70,12 +81,7 @@ def test_the_rooms_of_the_top_floors_have_contracts() -> None:
 def test_a_transport_imported_by_the_node_core_breaks_the_ros_contract(tmp_path: Path) -> None:
     """The ROS room's contract fails when its layers are turned over: the core above the ROS 1 node
     (which imports it) is reported broken, naming the import."""
-    config = tmp_path / "pyproject.toml"
-    config.write_text("""[tool.importlinter]
-root_package = "spco"
-
-[[tool.importlinter.contracts]]
-id = "ros"
+    config = _one_contract(tmp_path, """id = "ros"
 name = "ros, turned over"
 type = "layers"
 containers = ["spco.ros"]
@@ -93,13 +99,8 @@ def test_a_climbing_import_breaks_the_contract(tmp_path: Path) -> None:
     model, knowledge = layers.index("model"), next(i for i, s in enumerate(layers) if "knowledge" in s)
     assert knowledge < model
     layers[knowledge], layers[model] = "model", layers[knowledge]
-    config = tmp_path / "pyproject.toml"
     shown = ",\n".join(f'    "{layer}"' for layer in layers)
-    config.write_text(f"""[tool.importlinter]
-root_package = "spco"
-
-[[tool.importlinter.contracts]]
-id = "floors"
+    config = _one_contract(tmp_path, f"""id = "floors"
 name = "floors, swapped"
 type = "layers"
 containers = ["spco"]
@@ -133,19 +134,13 @@ def test_no_package_imports_in_a_loop() -> None:
 
 
 def _acyclic_config(tmp_path: Path, ignored: set[str]) -> Path:
-    config = tmp_path / "pyproject.toml"
     shown = ", ".join(f'"{i}"' for i in sorted(ignored))
-    config.write_text(f"""[tool.importlinter]
-root_package = "spco"
-
-[[tool.importlinter.contracts]]
-id = "acyclic"
+    return _one_contract(tmp_path, f"""id = "acyclic"
 name = "acyclic, fewer ignored"
 type = "acyclic_siblings"
 ancestors = ["spco"]
 ignore_imports = [{shown}]
 """)
-    return config
 
 
 @pytest.mark.parametrize("loop", sorted(LOOPS_LEFT))
