@@ -203,6 +203,7 @@ def _sharded_run_from_cut(seed: int, k: int):
 
     from spco.model import shard as shards_api
     from spco.model.shard_group import ShardGroup
+    from spco.model.state import SharedParameters
 
     data, state, hyper, settings, rng = _chain_start(True, seed)
     hyper = replace(hyper, cut_start=k)
@@ -216,7 +217,7 @@ def _sharded_run_from_cut(seed: int, k: int):
     run.hyper, run.settings, run.rng = cut_hyper, cut_settings, rng
     run.cut_start, run.cutting = k, True
     run.global_step = shards_api.GlobalStep(cut_hyper, cut_settings, rng)
-    run.shared = shards_api.SharedParameters.of(state)
+    run.shared = SharedParameters.of(state)
     return run, homes
 
 

@@ -13,6 +13,7 @@ import pytest
 from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.engines import LocalEngine, start_run
 from spco.model import gibbs, shard
+from spco.model.additive import SUM_GRID
 from spco.model.transfer import SpatialConceptModel
 
 N_SWEEPS = 12
@@ -101,7 +102,7 @@ def test_naming_rule_adds_up_over_shards(corpus) -> None:
     fields = ("pairs", "same", "expected", "log_likelihood")
     for field in fields:  # (each home's floats are rounded to SUM_GRID, so that they add up exactly)
         np.testing.assert_allclose(sum(getattr(c, field) for c in parts), getattr(whole, field), rtol=0,
-                                   atol=shard.SUM_GRID * data.n_homes)
+                                   atol=SUM_GRID * data.n_homes)
     summed = type(whole)(*(sum(getattr(c, f) for c in parts) for f in fields))
     np.testing.assert_array_equal(judge_names(summed), gibbs.naming_verdicts(data, state, hyper))
     assert (whole.pairs > 0).any()  # the corpus has words said twice in a home: the test has teeth

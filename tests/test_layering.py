@@ -118,7 +118,6 @@ layers = [
 #: any package is mended, not added here.
 LOOPS_LEFT = {
     "spco.model.phi_moves -> spco.model.gibbs",
-    "spco.model.shard_init -> spco.model.shard",
     "spco.model.sources -> spco.model.transfer",
     "spco.model.transfer -> spco.model.io",
 }

@@ -52,12 +52,14 @@ import numpy as np
 import scipy.sparse as sp
 
 from spco.model import allocation, gibbs
+from spco.model.additive import PooledCounts, on_sum_grid
 from spco.model.alignment import ALIGNMENT_BATCH, HomeCounts, align_in_order
 from spco.model.gibbs import GibbsState, PreparedData, SamplerSettings
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.kernels.dirichlet import log_dirichlet
 from spco.model.observations import GaussianRegions
 from spco.model.pruning import NAME, NOT_A_NAME, Colocation, judge_names
+from spco.model.state import SharedParameters
 from spco.model.synonyms import NameOverlaps, name_overlaps, name_region_overlaps, same_place_names
 
 #: The per-home sampler of the warm start (θ_{e,l} ~ Dir(α + n), the SpCoA conditionals).
@@ -103,8 +105,6 @@ class ShardInitialisation:
         the shard's sums of the names' region overlaps (:class:`~spco.model.synonyms.NameOverlaps`),
         to be pooled over all homes."""
         data, state, hyper = self.data, self.state, self.hyper
-        from spco.model.shard import on_sum_grid
-
         named = judge_names(naming) == NAME
         named[list(self.settings.start_not_names)] = False  # (warm_start_settings)
         self._names = gibbs.sample_names(data, state.regions, hyper, named=named, stats=naming)
@@ -237,9 +237,7 @@ class ShardInitialisation:
 
     def init_weighted_counts(self, scale: bool):
         """The statistics weighted by the homes' weights (with ``scale``; the kept labels of own
-        names in full), summed over the shard's homes (a :class:`~spco.model.shard.PooledCounts`)."""
-        from spco.model.shard import PooledCounts
-
+        names in full), summed over the shard's homes (a :class:`~spco.model.additive.PooledCounts`)."""
         stats, own = self._init_stats, getattr(self, "_own", {})
         if scale:
             # rint(n · w), computed for the homes with w < 1 only: a
@@ -425,13 +423,11 @@ def initialise(call, call_each, bounds: list[tuple[int, int]], n_words: int, hyp
                batch: int = ALIGNMENT_BATCH):
     """Finish the shards' initialisation (their homes already started with
     :func:`spco.model.gibbs.initialize`) and return the initial
-    :class:`~spco.model.shard.SharedParameters` and an :class:`InitialisationReport`.
+    :class:`~spco.model.state.SharedParameters` and an :class:`InitialisationReport`.
 
     ``call(method, *args)`` runs a shard method on every shard (results in shard order);
     ``call_each(method, args)`` runs it on shard i with ``args[i]``; ``bounds`` are the shards'
     home ranges [first, last). ``rng`` is the driver's generator (the shared draws)."""
-    from spco.model.shard import SharedParameters
-
     report = InitialisationReport()
     started = time.perf_counter()
 

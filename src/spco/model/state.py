@@ -12,6 +12,7 @@ import scipy.sparse as sp
 
 from spco.model.hyperparameters import ESTIMATE, VIEW_COUNTS
 from spco.model.kernels.likelihood import DimensionMajorCounts, dimension_major
+from spco.model.word_channels import WordChannels
 
 VARIANTS = ("exact", "reference", "spcoa")
 
@@ -122,6 +123,36 @@ class GibbsState:
     #: every token's switch (:mod:`spco.model.word_channels`): (nnz of ``data.words``,) int8, drawn in
     #: the local step after the concepts (``None`` before the first draw or without channels)
     switches: np.ndarray | None = field(default=None, repr=False)
+
+
+@dataclass
+class SharedParameters:
+    """The parameters every home shares (log-probabilities): φ^v (L, D), φ^w (L, V), G_0 (L,), the
+    word-pruning mask (V,) bool and the words judged names (V,) bool or ``None``
+    (:func:`spco.model.gibbs.sentence_words`)."""
+
+    log_phi_v: np.ndarray
+    log_phi_w: np.ndarray
+    log_g0: np.ndarray
+    word_mask: np.ndarray
+    name_words: np.ndarray | None = None
+    #: the word channels (:mod:`spco.model.word_channels`; ``None``: the naming rule's word model)
+    channels: WordChannels | None = None
+
+    @classmethod
+    def of(cls, state: GibbsState) -> SharedParameters:
+        """The shared parameters held in ``state``."""
+        return cls(state.log_phi_v, state.log_phi_w, state.log_g0, state.word_mask, state.name_words,
+                   state.channels)
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of the arrays (what a broadcast sends)."""
+        arrays = (self.log_phi_v, self.log_phi_w, self.log_g0, self.word_mask, self.name_words)
+        if self.channels is not None:
+            c = self.channels
+            arrays += (c.log_place, c.log_background, c.log_shares, c.log_evidence)
+        return sum(a.nbytes for a in arrays if a is not None)
 
 
 @dataclass
