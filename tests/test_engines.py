@@ -12,7 +12,7 @@ import pytest
 
 from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.engines import LocalEngine, start_run
-from spco.model import gibbs, shard
+from spco.model import gibbs, shard, sweep_statistics
 from spco.model.additive import SUM_GRID
 from spco.model.transfer import SpatialConceptModel
 
@@ -83,7 +83,7 @@ def test_statistics_add_up_over_shards(corpus) -> None:
     total = parts[0] + parts[1]
     state = run.state()
     model = SpatialConceptModel(random_state=0)
-    stats = gibbs.sufficient_statistics(data, state, model.checked_hyperparameters(), None)
+    stats = sweep_statistics.sufficient_statistics(data, state, model.checked_hyperparameters(), None)
     np.testing.assert_array_equal(total.visual, stats.visual.sum(0))
     np.testing.assert_array_equal(total.concepts, stats.concepts.sum(0))
 

@@ -17,7 +17,7 @@ from scipy.special import softmax
 from spco.data.environment import Corpus, Environment
 from spco.data.plain import read_home, write_home
 from spco.errors import ConfigurationError, DataFormatError
-from spco.model import gibbs
+from spco.model import assignments, gibbs
 from spco.model.home_shard import prepare_home
 from spco.model.observations import HierarchicalMultinomial
 
@@ -132,7 +132,7 @@ def test_assignments_leave_the_missing_views_out_brute_force() -> None:
         log_phi_v=np.log(np.full((L, D), 1 / D)), log_phi_w=np.log(np.full((L, V), 1 / V)),
         word_mask=np.ones(V, dtype=bool))
     exact = gibbs.SamplerSettings.create("exact", prune=False)
-    gibbs._local_step(data, state, exact, np.random.default_rng(1))
+    assignments.local_step(data, state, exact, np.random.default_rng(1))
     flat = (state.concepts * K + state.regions).reshape(n_distinct, copies)
     for t in range(n_distinct):
         gauss = np.array([stats.multivariate_normal.logpdf(positions[t], state.means[0, m],

@@ -11,7 +11,7 @@ import scipy.sparse as sp
 
 from spco.data import Corpus
 from spco.data.synthetic import SyntheticConfig, generate_homes, teach
-from spco.model import SpCoTransfer, TransferHyperparameters, gibbs
+from spco.model import SpCoTransfer, TransferHyperparameters, assignments, gibbs
 from spco.model.driver import start_run
 from spco.model.pruning import (
     EXCESS_GRID,
@@ -227,5 +227,5 @@ def test_a_home_where_every_word_is_pruned_still_samples() -> None:
     """Names said at random positions are spread: the rule may prune every word; the sampler's word
     term is then empty (no word says anything), not a reduction over zero words."""
     log_theta = np.log(np.full((1, 2, 3), 1 / 3))
-    kept = gibbs.kept_word_log_theta(log_theta, np.zeros(3, dtype=bool))
+    kept = assignments.kept_word_log_theta(log_theta, np.zeros(3, dtype=bool))
     assert np.array_equal(kept, np.zeros_like(log_theta))

@@ -7,7 +7,11 @@
 - :mod:`spco.model.observations` — positions (Gaussian–NIW), words and vision (hierarchical
   Dirichlet–multinomial);
 - :mod:`spco.model.pruning` — mutual-information word pruning;
-- :mod:`spco.model.gibbs` — state, sweeps (exact, reference, SpCoA) and the log joint;
+- :mod:`spco.model.state` — the sampler's data, state and settings, and the parameters all homes share;
+- :mod:`spco.model.gibbs` — initialisation, sweeps (exact, reference, SpCoA), word pruning and the log
+  joint; a sweep's steps: :mod:`spco.model.assignments` (the local step),
+  :mod:`spco.model.sweep_statistics` (its statistics), :mod:`spco.model.parameter_steps` (the global
+  and home steps);
 - :mod:`spco.model.shard` — a sweep as map (home shards' local steps) → reduce (summed
   statistics) → global step; the engines of :mod:`spco.engines` run the shards in process or on Ray;
 - :mod:`spco.model.numba_cache` — where the compiled kernels are cached;

@@ -34,7 +34,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import scipy.sparse as sp
 
-from spco.model import gibbs
+from spco.model import assignments, gibbs, parameter_steps, sweep_statistics
 from spco.model.additive import SUM_GRID, PooledCounts
 from spco.model.gibbs import GibbsState, PreparedData, SamplerSettings
 from spco.model.home_place import shared_place_counts, uses_home_place
@@ -110,7 +110,7 @@ class HomeShard(ShardInitialisation):
                  settings: SamplerSettings, rng: np.random.Generator, n_fit_homes: int | None = None) -> None:
         self.data, self.state, self.hyper, self.settings, self.rng = data, state, hyper, settings, rng
         self.n_fit_homes = data.n_homes if n_fit_homes is None else int(n_fit_homes)
-        self.stats: gibbs.Statistics | None = None
+        self.stats: sweep_statistics.Statistics | None = None
         self.setup_seconds: dict[str, float] = {}
 
     @classmethod
@@ -227,8 +227,8 @@ class HomeShard(ShardInitialisation):
                 held = self.state.channels
                 channels = replace(channels, log_place_home=None if held is None else held.log_place_home)
             self.state.channels = channels
-        log_joint = gibbs.local_step(self.data, self.state, self.settings, self.rng, self.hyper)
-        self.stats = gibbs.sufficient_statistics(self.data, self.state, self.hyper,
+        log_joint = assignments.local_step(self.data, self.state, self.settings, self.rng, self.hyper)
+        self.stats = sweep_statistics.sufficient_statistics(self.data, self.state, self.hyper,
                                                 self.settings.learning_view_counts())
         return log_joint
 
@@ -243,7 +243,7 @@ class HomeShard(ShardInitialisation):
                 held = self.state.channels
                 channels = replace(channels, log_place_home=None if held is None else held.log_place_home)
             self.state.channels = channels
-        self.stats = gibbs.sufficient_statistics(self.data, self.state, hyper,
+        self.stats = sweep_statistics.sufficient_statistics(self.data, self.state, hyper,
                                                 settings.learning_view_counts())
 
     def tables(self, kind: str) -> np.ndarray:
@@ -279,7 +279,7 @@ class HomeShard(ShardInitialisation):
         if self.data.n_homes != 1:
             raise RuntimeError(f"HomeShard.phi_move: a shard of one home moves, not {self.data.n_homes}")
         self.stats, _ = move_home(self.data, self.state, self._stats(), self.hyper, self.settings, 0, others,
-                                  tables, self.rng, gibbs.sufficient_statistics)
+                                  tables, self.rng)
         return np.asarray(self.stats.visual[0])
 
     def visual_log_weight(self, log_phi: np.ndarray) -> np.ndarray:
@@ -333,11 +333,11 @@ class HomeShard(ShardInitialisation):
         if shared is not None:
             self.receive(shared)
         if settings.variant == "reference":
-            gibbs.home_step_reference(data, state, stats, hyper, settings, rng)
+            parameter_steps.home_step_reference(data, state, stats, hyper, settings, rng)
         else:
-            gibbs.home_step(data, state, stats, hyper, settings, rng)
+            parameter_steps.home_step(data, state, stats, hyper, settings, rng)
             if swaps and settings.hierarchical and self.n_fit_homes > 1:
-                gibbs.swap_labels(data, state, stats, hyper, settings, rng)
+                parameter_steps.swap_labels(data, state, stats, hyper, settings, rng)
         if prune and not uses_naming_rule(settings):  # (the naming rule is judged over all shards)
             gibbs.prune(state, hyper, settings)
         exported = None if settings.hierarchical else SharedParameters.of(state)
@@ -364,7 +364,7 @@ class HomeShard(ShardInitialisation):
         return colocation(data.words, data.homes, self.state.regions, data.n_homes, self.hyper.n_regions,
                           grid=SUM_GRID)
 
-    def _stats(self) -> gibbs.Statistics:
+    def _stats(self) -> sweep_statistics.Statistics:
         if self.stats is None:
             raise RuntimeError("HomeShard: call local_step() before this step")
         return self.stats

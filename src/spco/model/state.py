@@ -77,7 +77,7 @@ class PreparedData:
 
     @cached_property
     def niw_priors(self) -> dict:
-        """The NIW priors already built for this data (:func:`spco.model.gibbs.niw_prior`), by
+        """The NIW priors already built for this data (:func:`spco.model.parameter_steps.niw_prior`), by
         hyperparameters and variant: built once per fit instead of once per sweep."""
         return {}
 
@@ -93,7 +93,7 @@ class GibbsState:
     home_specific_words (V,) candidates it never prunes (the exact variant uses neither: see
     :func:`naming_verdicts`); name_words (V,) the words the naming rule judges names (exact variant
     with pruning; ``None``: none judged yet): a taught sample whose sentence holds one is scored by
-    its name words only (:func:`spco.model.gibbs.sentence_words`); channels and switches: the word
+    its name words only (:func:`spco.model.assignments.sentence_words`); channels and switches: the word
     channels (:mod:`spco.model.word_channels`), which replace the naming rule where set.
     """
 
@@ -114,7 +114,7 @@ class GibbsState:
     home_specific_words: np.ndarray | None = None
     visual_cache: VisualCountCache | None = field(default=None, repr=False)
     name_words: np.ndarray | None = None
-    #: the words matrix :func:`spco.model.gibbs.sentence_words` last built: (data.words, name_words
+    #: the words matrix :func:`spco.model.assignments.sentence_words` last built: (data.words, name_words
     #: bytes, matrix)
     words_cache: tuple | None = field(default=None, repr=False)
     #: the word channels' parameters (:class:`spco.model.word_channels.WordChannels`, shared by all
@@ -129,7 +129,7 @@ class GibbsState:
 class SharedParameters:
     """The parameters every home shares (log-probabilities): φ^v (L, D), φ^w (L, V), G_0 (L,), the
     word-pruning mask (V,) bool and the words judged names (V,) bool or ``None``
-    (:func:`spco.model.gibbs.sentence_words`)."""
+    (:func:`spco.model.assignments.sentence_words`)."""
 
     log_phi_v: np.ndarray
     log_phi_w: np.ndarray

@@ -87,7 +87,7 @@ class SpatialConceptModel:
     prune_words:
         Mutual-information word pruning after every sweep (the "+MI" models). A heuristic outside
         the model: with it the chain has no stated stationary distribution and ``log_joint_``
-        jumps when the mask changes (see :func:`spco.model.gibbs._prune`); without it the exact
+        jumps when the mask changes (see :func:`spco.model.gibbs.prune`); without it the exact
         sampler is an MCMC for the model's posterior.
     n_iterations:
         Gibbs sweeps (200 in the paper).
