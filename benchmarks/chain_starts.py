@@ -40,6 +40,7 @@ from spco.evaluation.metrics import evaluate_home
 from spco.model import gibbs, parameter_steps, sweep_statistics
 from spco.model.driver import start_run
 from spco.model.posterior import ParameterAverage, thinned_sweeps, untaught_concepts_name_nothing
+from spco.model.state import PreparedData
 from spco.model.transfer import SpCoTransfer
 
 STARTS = ("names", "regions", "random")
@@ -50,7 +51,7 @@ def _chain(corpus: Corpus, variant: str, start: str, seed: int, sweeps: int) -> 
     model = SpCoTransfer(variant=variant, prune_words=True, n_iterations=sweeps, random_state=seed)
     hyper = model.checked_hyperparameters()
     settings = model.sampler_settings()
-    data = model.prepare_data(corpus, gibbs.CM_PER_M if variant == "reference" else 1.0)
+    data = PreparedData.from_corpus(corpus, gibbs.CM_PER_M if variant == "reference" else 1.0)
     rng = np.random.default_rng(seed)
     average = ParameterAverage(data.homes, data.position_scale)
     averaged = set(thinned_sweeps(sweeps))

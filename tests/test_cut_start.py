@@ -29,6 +29,7 @@ from spco.model import driver
 from spco.model.cut_start import check_cut_start, cut_phase, cut_sweeps
 from spco.model.driver import LocalEngine
 from spco.model.hyperparameters import TransferHyperparameters
+from spco.model.state import PreparedData
 from spco.model.transfer import SpCoTransfer
 
 POWER = TransferHyperparameters(target="power", visual_prior="estimate")
@@ -244,7 +245,7 @@ def _engine_chain(engine, after_sweep=None, n_sweeps: int = 12):
 
     corpus = generate_homes(5, seed=2, new_homes=1, config=SyntheticConfig(n_features=64, n_train=12))
     model = SpCoTransfer(replace(POWER, cut_start=6), random_state=5, prune_words=True)
-    data = SpCoTransfer.prepare_data(corpus, 1.0)
+    data = PreparedData.from_corpus(corpus, 1.0)
     run = start_run(engine, data, len(corpus.vocabulary), model.checked_hyperparameters(),
                     model.sampler_settings(), np.random.default_rng(5))
     trace = run.fit(n_sweeps, None if after_sweep is None else lambda i, v: after_sweep(run, i))

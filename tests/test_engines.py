@@ -14,6 +14,7 @@ from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.engines import LocalEngine, start_run
 from spco.model import gibbs, shard, sweep_statistics
 from spco.model.additive import SUM_GRID
+from spco.model.state import PreparedData
 from spco.model.transfer import SpatialConceptModel
 
 N_SWEEPS = 12
@@ -29,7 +30,7 @@ def start(corpus, engine, variant: str = "exact", seed: int = 5):
     model = SpatialConceptModel(variant=variant, random_state=seed, prune_words=True)
     hyper, settings = model.checked_hyperparameters(), model.sampler_settings()
     rng = np.random.default_rng(seed)
-    data = SpatialConceptModel.prepare_data(corpus, gibbs.CM_PER_M if variant == "reference" else 1.0)
+    data = PreparedData.from_corpus(corpus, gibbs.CM_PER_M if variant == "reference" else 1.0)
     return data, start_run(engine, data, len(corpus.vocabulary), hyper, settings, rng)
 
 
@@ -45,7 +46,7 @@ def chain(corpus, engine, variant: str = "exact", after_sweep=None):
 def test_split_and_join_round_trip(corpus) -> None:
     """Cutting homes into shards and joining their states gives back every array unchanged."""
     model = SpatialConceptModel(random_state=0, prune_words=True)
-    data = SpatialConceptModel.prepare_data(corpus, 1.0)
+    data = PreparedData.from_corpus(corpus, 1.0)
     state = gibbs.initialize(data, len(corpus.vocabulary), model.checked_hyperparameters(),
                              model.sampler_settings(), np.random.default_rng(0))
     bounds = shard.shard_bounds(data, 3)

@@ -117,7 +117,6 @@ layers = [
 #: The imports that close the loops left in the sampler (spco.model), and nothing else: a new loop in
 #: any package is mended, not added here.
 LOOPS_LEFT = {
-    "spco.model.sources -> spco.model.transfer",
     "spco.model.transfer -> spco.model.io",
 }
 

@@ -20,6 +20,7 @@ from spco.errors import ConfigurationError, DataFormatError
 from spco.model import assignments, gibbs
 from spco.model.home_shard import prepare_home
 from spco.model.observations import HierarchicalMultinomial
+from spco.model.state import PreparedData
 
 P_MIN = 1e-3
 
@@ -295,9 +296,8 @@ def test_homes_read_in_the_shards_agree_on_the_visual_dimension(tmp_path: Path) 
 def test_the_ray_engine_hands_the_mask_to_its_actors() -> None:
     pytest.importorskip("ray", reason="Ray is not installed (pip install -e '.[ray]')")
     from spco.engines.ray import _writable_data
-    from spco.model.transfer import SpatialConceptModel
 
     home = _home().with_views_missing(np.arange(24) % 2 == 0)
-    data = SpatialConceptModel.prepare_data(Corpus([home]), 1.0)
+    data = PreparedData.from_corpus(Corpus([home]), 1.0)
     sent = _writable_data(data)
     assert sent.view_missing.tolist() == data.view_missing.tolist() == home.view_missing.tolist()

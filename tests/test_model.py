@@ -25,6 +25,7 @@ from spco.model import (
     sweep_statistics,
 )
 from spco.model.pruning import colocation
+from spco.model.state import PreparedData
 
 
 def adjusted_rand_index(a: np.ndarray, b: np.ndarray) -> float:
@@ -174,7 +175,7 @@ def test_naming_rule_leaves_the_word_counts_alone() -> None:
     """The naming rule works on word presence; an earlier G-test set the data array it shared with
     the (float64) word counts to 1, i.e. S^w = 1 instead of 5000 for the rest of every +MI run."""
     corpus = generate_homes(4, seed=0, new_homes=1, config=SyntheticConfig(n_features=32, n_train=6))
-    data = SpCoTransfer.prepare_data(corpus, 1.0)
+    data = PreparedData.from_corpus(corpus, 1.0)
     before = data.words.copy()
     assert before.data.min() == corpus.word_increment == 5000
     regions = np.arange(data.n_samples) % 3

@@ -22,6 +22,7 @@ from spco.model.pruning import (
     colocation,
     judge_names,
 )
+from spco.model.state import PreparedData
 
 
 def _brute_colocation(words: np.ndarray, homes: np.ndarray, regions: np.ndarray) -> tuple:
@@ -175,7 +176,7 @@ def test_a_new_homes_own_names_start_in_free_concepts() -> None:
     assert places, "the synthetic new home has home-specific rooms"
     taught = teach(new, 40, places=places, seed=0)
     homes = Corpus([*list(corpus)[:-1], taught])
-    data = SpCoTransfer.prepare_data(homes, 1.0)
+    data = PreparedData.from_corpus(homes, 1.0)
     hyper = TransferHyperparameters()
     settings = gibbs.SamplerSettings.create("exact", prune=True)
     run = start_run(None, data, len(homes.vocabulary), hyper, settings, np.random.default_rng(0))

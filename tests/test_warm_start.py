@@ -263,7 +263,7 @@ def test_a_home_taught_less_holds_its_own_names_through_the_start(monkeypatch, w
     model = SpatialConceptModel(variant="exact", random_state=0, prune_words=True)
     hyper, settings = model.checked_hyperparameters(), model.sampler_settings()
     settings = replace(settings, word_weight=word_weight)
-    data = SpatialConceptModel.prepare_data(corpus, 1.0)
+    data = PreparedData.from_corpus(corpus, 1.0)
     last = data.n_homes - 1
     rows = slice(data.offsets[last], data.offsets[last + 1])
     seen: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []  # the last home's sweeps

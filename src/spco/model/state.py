@@ -10,7 +10,10 @@ from functools import cached_property
 import numpy as np
 import scipy.sparse as sp
 
+from spco.data.environment import Corpus
+from spco.errors import ConfigurationError
 from spco.model.hyperparameters import ESTIMATE, VIEW_COUNTS
+from spco.model.kernels.counts import stack_counts
 from spco.model.kernels.likelihood import DimensionMajorCounts, dimension_major
 from spco.model.word_channels import WordChannels
 
@@ -52,6 +55,39 @@ class PreparedData:
         if missing.any() and self.visual[np.flatnonzero(missing)].nnz:
             raise ValueError("a sample without a view must have an empty visual row")
         object.__setattr__(self, "view_missing", missing)
+
+    @classmethod
+    def from_corpus(cls, corpus: Corpus, position_scale: float) -> PreparedData:
+        """The training samples of every home of ``corpus`` stacked as the sampler reads them, positions
+        multiplied by ``position_scale`` (1 for metres, :data:`CM_PER_M` for the reference variant's
+        centimetres: :attr:`spco.model.transfer.SpatialConceptModel.position_scale`); raises
+        :class:`~spco.errors.ConfigurationError` for a home without training samples."""
+        if not isinstance(corpus, Corpus):
+            raise ConfigurationError("fit() expects a spco.data.Corpus")
+        training = corpus.training_set()
+        for env, train in zip(corpus, training, strict=True):
+            if train.n_samples == 0:
+                raise ConfigurationError(
+                    f"home {env.name!r} has no training samples: all {env.n_samples} samples are in its "
+                    "test split, and test samples are never used for training")
+        positions = np.concatenate([t.positions for t in training]) * np.array(
+            [position_scale, position_scale, 1.0, 1.0])
+        sizes = np.array([t.n_samples for t in training])
+        offsets = np.concatenate([[0], np.cumsum(sizes)])
+        homes = np.repeat(np.arange(len(training)), sizes)
+        visual = stack_counts(*(t.visual for t in training))  # stacked once, in the kernels' layout
+        words = stack_counts(corpus.word_counts([s for t in training for s in t.sentences]))
+        centres = np.zeros((len(training), 4))
+        for e, t in enumerate(training):
+            if t.extent is not None:
+                x0, x1, y0, y1 = t.extent
+                centres[e, :2] = ((x0 + x1) / 2, (y0 + y1) / 2)
+            else:
+                centres[e, :2] = t.positions[:, :2].mean(0)
+        centres[:, :2] *= position_scale
+        missing = np.concatenate([t.view_missing for t in training])
+        return cls(positions=positions, homes=homes, visual=visual, view_missing=missing, words=words,
+                   n_homes=len(training), offsets=offsets, position_scale=position_scale, map_centres=centres)
 
     @property
     def n_views(self) -> np.ndarray:

@@ -45,7 +45,6 @@ from spco.errors import ConfigurationError
 from spco.model import gibbs
 from spco.model.cut_start import check_cut_start
 from spco.model.hyperparameters import SpCoAHyperparameters, TransferHyperparameters
-from spco.model.kernels.counts import stack_counts
 from spco.model.name_evidence import channel_evidence, has_english, name_prior
 from spco.model.parameters import ConceptParameters
 from spco.model.posterior import (
@@ -182,39 +181,6 @@ class SpatialConceptModel:
         for the ``reference`` variant, as the authors' code has them; metres otherwise."""
         return gibbs.CM_PER_M if self.variant == "reference" else 1.0
 
-    @staticmethod
-    def prepare_data(corpus: Corpus, position_scale: float) -> gibbs.PreparedData:
-        """The training samples of every home of ``corpus`` stacked as the sampler reads them, positions
-        multiplied by ``position_scale`` (see :attr:`position_scale`); raises
-        :class:`~spco.errors.ConfigurationError` for a home without training samples."""
-        if not isinstance(corpus, Corpus):
-            raise ConfigurationError("fit() expects a spco.data.Corpus")
-        training = corpus.training_set()
-        for env, train in zip(corpus, training, strict=True):
-            if train.n_samples == 0:
-                raise ConfigurationError(
-                    f"home {env.name!r} has no training samples: all {env.n_samples} samples are in its "
-                    "test split, and test samples are never used for training")
-        positions = np.concatenate([t.positions for t in training]) * np.array(
-            [position_scale, position_scale, 1.0, 1.0])
-        sizes = np.array([t.n_samples for t in training])
-        offsets = np.concatenate([[0], np.cumsum(sizes)])
-        homes = np.repeat(np.arange(len(training)), sizes)
-        visual = stack_counts(*(t.visual for t in training))  # stacked once, in the kernels' layout
-        words = stack_counts(corpus.word_counts([s for t in training for s in t.sentences]))
-        centres = np.zeros((len(training), 4))
-        for e, t in enumerate(training):
-            if t.extent is not None:
-                x0, x1, y0, y1 = t.extent
-                centres[e, :2] = ((x0 + x1) / 2, (y0 + y1) / 2)
-            else:
-                centres[e, :2] = t.positions[:, :2].mean(0)
-        centres[:, :2] *= position_scale
-        missing = np.concatenate([t.view_missing for t in training])
-        return gibbs.PreparedData(positions=positions, homes=homes, visual=visual, view_missing=missing,
-                                  words=words, n_homes=len(training), offsets=offsets,
-                                  position_scale=position_scale, map_centres=centres)
-
     # ------------------------------------------------------------------ fitting
     def fit(self, corpus: Corpus, engine=None) -> SpatialConceptModel:
         """Learn from every home of ``corpus`` (their training samples) and return ``self``.
@@ -232,7 +198,7 @@ class SpatialConceptModel:
         hyper = self.checked_hyperparameters()
         settings = self.sampler_settings()
         rng = as_generator(self.random_state)
-        data = self.prepare_data(corpus, self.position_scale)
+        data = gibbs.PreparedData.from_corpus(corpus, self.position_scale)
         start = time.perf_counter()
         average = _SweepAverage(int(self.n_iterations), data)
         bar = self._progress_bar(settings)
