@@ -17,14 +17,16 @@
 - :mod:`spco.model.numba_cache` — where the compiled kernels are cached;
 - :mod:`spco.model.precompile` — the kernels compiled ahead of a fit (``spco demo`` on a cold cache);
 - :mod:`spco.model.transfer` — the estimators :class:`SpCoTransfer` and :class:`SpCoA`;
-- :mod:`spco.model.io` — saving and loading fitted models.
+- :mod:`spco.model.io` — loading fitted models (and their file format; a model saves itself:
+  :func:`spco.model.transfer.save_model`);
+- :mod:`spco.model.archive` — the archive every spco file is (``.npz``, JSON header, checksums).
 """
 
 import spco.model.numba_cache  # noqa: F401 - first: where Numba caches the kernels
 from spco.model.hyperparameters import SpCoAHyperparameters, TransferHyperparameters
-from spco.model.io import load_model, save_model
+from spco.model.io import load_model
 from spco.model.parameters import ConceptParameters
-from spco.model.transfer import SpatialConceptModel, SpCoA, SpCoTransfer
+from spco.model.transfer import SpatialConceptModel, SpCoA, SpCoTransfer, save_model
 
 __all__ = [
     "ConceptParameters",
