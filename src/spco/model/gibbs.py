@@ -241,6 +241,9 @@ def align_homes(visual: np.ndarray, words: np.ndarray, alpha_visual: float, alph
                           batch=max(n_homes, 1))
 
 
+# ----------------------------------------------------------------------------- the sweep
+
+
 def prune(state: GibbsState, hyper: TransferHyperparameters, settings: SamplerSettings,
           data: PreparedData | None = None) -> None:
     """Recompute which words are informative enough to keep (``state.word_mask``).
