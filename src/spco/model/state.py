@@ -1,6 +1,8 @@
 """The sampler's data and state: all homes' samples stacked in the sampler's units
-(:class:`PreparedData`), the assignments and parameters after a sweep (:class:`GibbsState`) and
-what distinguishes the samplers (:class:`SamplerSettings`). The sweeps are in :mod:`spco.model.gibbs`."""
+(:class:`PreparedData`, made from a corpus by :meth:`PreparedData.from_corpus`), the assignments and
+parameters after a sweep (:class:`GibbsState`), the part of them every home shares
+(:class:`SharedParameters`, what the driver sends the shards) and what distinguishes the samplers
+(:class:`SamplerSettings`). The sweeps are in :mod:`spco.model.gibbs`."""
 
 from __future__ import annotations
 
