@@ -38,7 +38,7 @@ def _load(data: Path, images: Path | None, name: str, features: str):
 def measure(knowledge_file: Path, home, iterations: int, seed: int) -> dict:
     """CPU seconds of `adapt` without and with the moves; the block passes' seconds and moves."""
     import spco.knowledge as kn
-    from spco.model import blocks, gibbs
+    from spco.model import assignments, blocks
 
     knowledge = kn.load_knowledge(knowledge_file)
     off = dataclasses.replace(knowledge, hyperparameters=dataclasses.replace(knowledge.hyperparameters,
@@ -64,13 +64,13 @@ def measure(knowledge_file: Path, home, iterations: int, seed: int) -> dict:
         spent["counting"] += time.process_time() - t1  # this script's counting: not the sampler's
         return new
 
-    gibbs.region_block_step = timed
+    assignments.region_block_step = timed
     try:
         start = time.process_time()
         kn.adapt(on, home, n_iterations=iterations, random_state=seed)
         seconds_on = time.process_time() - start - spent["counting"]
     finally:
-        gibbs.region_block_step = real
+        assignments.region_block_step = real
     return {"off": seconds_off / iterations, "on": seconds_on / iterations,
             "block": spent["seconds"] / max(spent["calls"], 1), "moved": spent["moved"],
             "blocks": spent["blocks"]}

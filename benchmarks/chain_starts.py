@@ -37,9 +37,10 @@ from spco.data.environment import Corpus
 from spco.evaluation.config import trial_seed
 from spco.evaluation.experiments import ExperimentConfig, load_experiment_data
 from spco.evaluation.metrics import evaluate_home
-from spco.model import gibbs
+from spco.model import gibbs, parameter_steps, sweep_statistics
 from spco.model.driver import start_run
 from spco.model.posterior import ParameterAverage, thinned_sweeps, untaught_concepts_name_nothing
+from spco.model.state import PreparedData
 from spco.model.transfer import SpCoTransfer
 
 STARTS = ("names", "regions", "random")
@@ -50,7 +51,7 @@ def _chain(corpus: Corpus, variant: str, start: str, seed: int, sweeps: int) -> 
     model = SpCoTransfer(variant=variant, prune_words=True, n_iterations=sweeps, random_state=seed)
     hyper = model.checked_hyperparameters()
     settings = model.sampler_settings()
-    data = model.prepare_data(corpus, gibbs.CM_PER_M if variant == "reference" else 1.0)
+    data = PreparedData.from_corpus(corpus, gibbs.CM_PER_M if variant == "reference" else 1.0)
     rng = np.random.default_rng(seed)
     average = ParameterAverage(data.homes, data.position_scale)
     averaged = set(thinned_sweeps(sweeps))
@@ -69,8 +70,8 @@ def _chain(corpus: Corpus, variant: str, start: str, seed: int, sweeps: int) -> 
         state = gibbs.initialize(data, len(corpus.vocabulary), hyper, settings, rng)
         if start == "random":  # θ, G, π from the counts of a random partition
             state.concepts = rng.integers(0, hyper.n_concepts, size=data.n_samples)
-            gibbs.home_step(data, state, gibbs.sufficient_statistics(data, state, hyper), hyper, settings,
-                            rng)
+            stats = sweep_statistics.sufficient_statistics(data, state, hyper)
+            parameter_steps.home_step(data, state, stats, hyper, settings, rng)
         for it in range(sweeps):
             gibbs.sweep(data, state, hyper, settings, rng, swaps=gibbs.swaps_due(it))
             if it == 0:

@@ -40,7 +40,7 @@ from natural_speech import configurations
 from speech_errors import training_places
 from split_seeds import refuse_other_seeds
 
-from spco.model.gibbs import view_weights
+from spco.model.assignments import view_weights
 from spco.model.observations import GaussianRegions, HierarchicalMultinomial
 from spco.model.word_channels import mixture_log_likelihood
 

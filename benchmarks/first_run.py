@@ -54,7 +54,8 @@ warmup, sweeps, seed = int(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4])
 import os
 hyper = TransferHyperparameters(**json.loads(os.environ.get("SPCO_SWEEP_HYPER") or "{}"))
 settings = gibbs.SamplerSettings.create("exact", prune=True)
-prepare = getattr(SpCoTransfer, "prepare_data", None) or SpCoTransfer._prepare  # (8119f5b: _prepare)
+prepare = (getattr(gibbs.PreparedData, "from_corpus", None)  # (before: SpCoTransfer.prepare_data,
+           or getattr(SpCoTransfer, "prepare_data", None) or SpCoTransfer._prepare)  # 8119f5b: _prepare)
 data = prepare(corpus, 1.0)
 run = start_run(None, data, len(corpus.vocabulary), hyper, settings, np.random.default_rng(seed))
 for i in range(warmup):

@@ -21,7 +21,8 @@ import numpy as np
 
 from spco.evaluation.experiments import ExperimentConfig, load_experiment_data
 from spco.model.pruning import colocation, judge_names
-from spco.model.transfer import SpatialConceptModel, SpCoTransfer
+from spco.model.state import PreparedData
+from spco.model.transfer import SpCoTransfer
 
 
 def main() -> None:
@@ -53,7 +54,7 @@ def main() -> None:
     model = SpCoTransfer(prune_words=False, n_iterations=args.sweeps, random_state=args.seed,
                          record_log_joint=False)
     model.fit(corpus)
-    prepared = SpatialConceptModel.prepare_data(corpus, 1.0)
+    prepared = PreparedData.from_corpus(corpus, 1.0)
     state = model.state_
     stats = colocation(prepared.words, prepared.homes, state.regions, prepared.n_homes,
                        model.hyperparameters_.n_regions)

@@ -392,7 +392,7 @@ def fit(out: Path, sweeps: int, seed_index: int) -> None:
     """Fit general places (:func:`_fitted`) and dump what the evidence needs: the weighted view counts
     of every home and concept, the new home's training views and weights, the chain's concepts, every
     training sample's place, δ^v, α^v, log φ^v."""
-    from spco.model.gibbs import view_weights
+    from spco.model.assignments import view_weights
 
     model, labels, run_seed = _fitted(sweeps, seed_index)
     data, state, h = model.data_, model.state_, model.hyperparameters_

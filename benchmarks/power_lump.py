@@ -74,7 +74,7 @@ def rooms_state(model, corpus, e: int) -> tuple[np.ndarray, dict[str, int]]:
 
 def weighted_counts(model, concepts: np.ndarray) -> np.ndarray:
     """n^v (E, L, D): Σ ω_t v_t per home and concept, the power target's real counts."""
-    from spco.model.gibbs import view_weights
+    from spco.model.assignments import view_weights
     from spco.model.observations import HierarchicalMultinomial
 
     data, L = model.data_, model.state_.log_g.shape[1]
@@ -112,7 +112,7 @@ def home_terms(model, concepts: np.ndarray, e: int, grids: dict | None) -> dict[
 def conditional_terms(model, concepts: np.ndarray, e: int) -> dict[str, float]:
     """Home e's terms at the chain's G_e, π and θ^v (the assignment step's own log joint, the words
     left out: home e has none)."""
-    from spco.model.gibbs import view_weights
+    from spco.model.assignments import view_weights
     from spco.model.observations import HierarchicalMultinomial
 
     data, state = model.data_, model.state_
@@ -179,7 +179,7 @@ def one_sample_odds(model, lump: np.ndarray, rooms: np.ndarray, e: int, grids: d
     else held at the lump (G_e and π integrated: the counts of the home's other samples), with the view
     (1) at the chain's θ^v_{e,l} (what the sampler's step sees), (2) with θ^v integrated given the chain's
     φ^v, (3) with θ^v and φ^v integrated given the other homes' tables (``grids``)."""
-    from spco.model.gibbs import view_weights
+    from spco.model.assignments import view_weights
     from spco.model.observations import HierarchicalMultinomial
 
     data, state, hyper = model.data_, model.state_, model.hyperparameters_

@@ -37,6 +37,7 @@ from spco import benchmark
 from spco.data.environment import Corpus
 from spco.model import gibbs
 from spco.model.hyperparameters import TransferHyperparameters
+from spco.model.state import PreparedData
 
 Log = benchmark.Log
 
@@ -311,10 +312,9 @@ class ReferenceRunner:
 
     def __init__(self, corpus: Corpus, warmup: int = 1, seed: int = 0,
                  hyper: TransferHyperparameters | None = None, log: Log = _quiet) -> None:
-        from spco.model.transfer import SpCoTransfer
 
         self.hyper = hyper or TransferHyperparameters()
-        self.data = ReferenceData.from_prepared(SpCoTransfer.prepare_data(corpus, 1.0))
+        self.data = ReferenceData.from_prepared(PreparedData.from_corpus(corpus, 1.0))
         self.random_state = np.random.RandomState(seed)
         self.state = reference_initialize(self.data, self.hyper, self.random_state)
         for i in range(warmup):

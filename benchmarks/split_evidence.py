@@ -7,7 +7,7 @@ its views are drawn to) the named concept B of the same kind of place is the con
 the most of the other homes' taught samples of that place whose sentence says one of its accepted names. The
 *merge* moves every sample of A (in every home) to B, regions kept; the *split* is the fit's end-of-chain
 state. Both are scored, term by term, by the log of what the cut sampler's assignment step weighs a sample by
-(``spco.model.gibbs._conditional_log_joint``: log G_{e,C} + log π_{e,C,R} + log N(x | R) + ω_t log
+(``spco.model.assignments.conditional_log_joint``: log G_{e,C} + log π_{e,C,R} + log N(x | R) + ω_t log
 Mult(v | θ^v_{e,C}) + W^w Σ_i n_ti log Σ_c p(c | k) f_c(k | C)), in two accounts:
 
 - ``conditional``: the chain's parameters at the end of the chain, fixed. The difference merge − split is the
@@ -124,7 +124,7 @@ def terms(model, concepts: np.ndarray, params: dict, integrated: bool) -> dict[s
     """The terms of the cut sampler's conditional log joint at ``concepts`` (regions and switches the
     chain's), with the concept parameters ``params`` (log_theta_v, log_theta_w, log_place, log_g, log_pi);
     ``integrated``: G_e and π integrated out instead of read from ``params``."""
-    from spco.model.gibbs import view_weights
+    from spco.model.assignments import view_weights
     from spco.model.observations import GaussianRegions
 
     data, state, hyper, settings = model.data_, model.state_, model.hyperparameters_, model.settings_

@@ -12,7 +12,7 @@ from pathlib import Path
 from spco import knowledge as kn
 from spco.service.client import ClientError, ServeProcess
 
-SRC = str(Path(kn.__file__).resolve().parents[1])
+SRC = str(Path(kn.__file__).resolve().parents[2])  # src/spco/knowledge/__init__.py -> src
 
 
 def env(**extra: str) -> dict[str, str]:

@@ -136,7 +136,7 @@ def test_a_teachings_positions_are_scored_by_the_regions_posterior_predictive(bu
     that is the Student t of the NIW posterior (scipy's multivariate_t, an independent form)."""
     from scipy.stats import multivariate_t
 
-    from spco.model import gibbs
+    from spco.model import parameter_steps
     from spco.model.kernels.niw import niw_posterior
     from spco.model.local_update import _log_marginal, _RegionStatistics
     from spco.model.state import SamplerSettings
@@ -149,7 +149,7 @@ def test_a_teachings_positions_are_scored_by_the_regions_posterior_predictive(bu
     shared = home.knowledge.shared_part()
     settings = SamplerSettings.create(shared.variant, shared.prune_words, learn_shared=False,
                                       view_counts=shared.hyperparameters.view_counts)
-    prior = gibbs.niw_prior(home.data, shared.hyperparameters, settings)
+    prior = parameter_steps.niw_prior(home.data, shared.hyperparameters, settings)
     state, x = home.state, home.data.positions
     regions = np.unique(state.regions)
     counted = np.ones(home.n_samples, dtype=bool)

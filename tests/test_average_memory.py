@@ -8,6 +8,7 @@ import numpy as np
 from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.model.driver import start_run
 from spco.model.posterior import ParameterAverage
+from spco.model.state import PreparedData
 from spco.model.transfer import SpCoTransfer
 
 
@@ -15,7 +16,7 @@ def test_per_home_visual_rows_and_release_give_the_same_average() -> None:
     corpus = generate_homes(4, seed=5, config=SyntheticConfig(n_features=64, n_train=30, n_test=5),
                             new_homes=1, specific_rooms=False)
     model = SpCoTransfer(n_iterations=1, random_state=5, progress=False)
-    data = model.prepare_data(corpus, model.position_scale)
+    data = PreparedData.from_corpus(corpus, model.position_scale)
     run = start_run(None, data, len(corpus.vocabulary), model.checked_hyperparameters(),
                     model.sampler_settings(), np.random.default_rng(5))
     plain = ParameterAverage(data.homes, data.position_scale)

@@ -16,7 +16,7 @@ from spco.cli.bench import bench, format_result
 from spco.model import gibbs
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.kernels.niw import niw_posterior
-from spco.model.transfer import SpCoTransfer
+from spco.model.state import PreparedData
 
 # the authors' sampler re-implemented: a benchmark, not part of the package
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
@@ -54,7 +54,7 @@ def _random_covariances(rng: np.random.Generator, k: int, scale: float = 1.0) ->
 
 
 def test_reference_sweep_keeps_a_valid_state(corpus) -> None:
-    data = reference.ReferenceData.from_prepared(SpCoTransfer.prepare_data(corpus, 1.0))
+    data = reference.ReferenceData.from_prepared(PreparedData.from_corpus(corpus, 1.0))
     sizes = [t.n_samples for t in corpus.training_set()]
     assert [x.shape[0] for x in data.positions] == sizes
     assert data.vision[0].shape[1] == 32 and data.names[0].shape[1] == len(corpus.vocabulary)

@@ -23,7 +23,7 @@ from conftest import chisquare_p, csr
 from scipy import stats
 from scipy.special import gammaln, logsumexp, softmax
 
-from spco.model import gibbs
+from spco.model import assignments, gibbs
 from spco.model.blocks import region_block_step, region_blocks
 from spco.model.hyperparameters import TransferHyperparameters
 
@@ -170,7 +170,7 @@ def test_local_step_moves_blocks_with_the_tempered_view_likelihood() -> None:
             means=np.zeros((1, K, 4)), covariances=np.eye(4)[None, None].repeat(K, axis=1),
             log_theta_v=theta_v, log_theta_w=np.log(np.full((1, L, 2), 0.5)),
             log_phi_v=theta_v[0], log_phi_w=np.log(np.full((L, 2), 0.5)), word_mask=np.ones(2, dtype=bool))
-        gibbs.local_step(data, state, settings, rng, hyper)
+        assignments.local_step(data, state, settings, rng, hyper)
         assert len(set(state.concepts.tolist())) == 1  # G_{e,1} = 1e-12: only the block move reaches 1
         hits += int(state.concepts[0] == 1)
     # the block's conditional: 4 views, each worth w of its 50 counts, G_e ~ Dir(γ G_0) integrated out

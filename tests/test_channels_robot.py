@@ -146,9 +146,9 @@ def _rewrite_header(src: Path, dst: Path, change) -> Path:
         arrays = {k: archive[k] for k in archive.files}
     header = json.loads(arrays.pop("header").tobytes().decode())
     change(header, arrays)
-    from spco.model.io import _checksum
+    from spco.model.archive import checksum
 
-    header["array_checksums"] = {n: _checksum(a) for n, a in arrays.items()}
+    header["array_checksums"] = {n: checksum(a) for n, a in arrays.items()}
     header["checksum"] = _content_checksum(header)
     raw = np.frombuffer(json.dumps(header).encode(), dtype=np.uint8)
     with open(dst, "wb") as handle:

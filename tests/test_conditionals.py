@@ -22,7 +22,7 @@ from numpy.testing import assert_allclose
 from scipy import stats
 from scipy.special import expit, gammaln, logit, logsumexp, softmax
 
-from spco.model import allocation, gibbs, moves
+from spco.model import allocation, assignments, gibbs, moves, sweep_statistics
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.observations import GaussianRegions, HierarchicalMultinomial, NIWPrior
 from spco.model.pruning import (
@@ -114,7 +114,7 @@ def test_joint_assignment_marginals_match_enumeration() -> None:
     copies = 6000
     data, state, distinct = make_problem(1, sizes=(2, 2), L=3, K=2, D=4, V=3, copies=copies)
     table = assignment_table(state, distinct)
-    gibbs._local_step(data, state, EXACT, np.random.default_rng(2))
+    assignments.local_step(data, state, EXACT, np.random.default_rng(2))
     flat = (state.concepts * 2 + state.regions).reshape(-1, copies)
     for t in range(table.shape[0]):
         probs = softmax(table[t].ravel())
@@ -140,7 +140,7 @@ def test_joint_assignment_whole_configuration_matches_enumeration() -> None:
     rng = np.random.default_rng(4)
     index = np.empty(4000, dtype=np.int64)
     for i in range(index.size):
-        gibbs._local_step(data, state, EXACT, rng)
+        assignments.local_step(data, state, EXACT, rng)
         flat = state.concepts * 2 + state.regions
         index[i] = int(np.ravel_multi_index(tuple(flat), (4,) * n))
     assert chisquare_p(np.bincount(index, minlength=4**n), probs) > P_MIN
@@ -165,7 +165,7 @@ def test_joint_assignment_with_peaked_likelihoods() -> None:
         map_centres=data.map_centres)
     table = assignment_table(state, distinct)
     assert np.ptp(table[0]) > 1000  # thousands of nats between the best and the worst
-    gibbs._local_step(data, state, EXACT, rng)
+    assignments.local_step(data, state, EXACT, rng)
     flat = (state.concepts * 2 + state.regions).reshape(-1, copies)
     for t in range(3):
         assert chisquare_p(np.bincount(flat[t], minlength=6), softmax(table[t].ravel())) > P_MIN
@@ -180,7 +180,7 @@ def test_reference_blocks_r_given_c_then_c_given_r() -> None:
     table = assignment_table(state, distinct)
     old = np.array([0, 2, 1, 2])  # C of each distinct sample before the step
     state.concepts = np.repeat(old, copies)
-    gibbs._local_step(data, state, REFERENCE, np.random.default_rng(8))
+    assignments.local_step(data, state, REFERENCE, np.random.default_rng(8))
     regions = state.regions.reshape(-1, copies)
     concepts = state.concepts.reshape(-1, copies)
     for t in range(4):
@@ -199,7 +199,7 @@ def test_block_functions_match_brute_force() -> None:
     table = assignment_table(state, distinct)
     rng = np.random.default_rng(10)
     region_ll = GaussianRegions.log_likelihood(data.positions, data.homes, state.means, state.covariances)
-    concept_ll = gibbs._concept_loglik(data, state)
+    concept_ll = assignments.concept_loglik(data, state)
     fixed = np.repeat(np.array([1, 0, 2]), copies)
     c_given = np.repeat(np.array([0, 1, 1]), copies)
     r = allocation.sample_regions_given_concepts(state.log_pi, data.homes, c_given, region_ll, rng)
@@ -342,7 +342,7 @@ def test_home_concept_weights_and_region_weights() -> None:
 def test_count_statistics_match_brute_force() -> None:
     data, state, distinct = make_problem(16, sizes=(3, 2), L=3, K=2, D=4, V=3)
     hyper = TransferHyperparameters(n_concepts=3, n_regions=2)
-    stats_ = gibbs._statistics(data, state, hyper, None)
+    stats_ = sweep_statistics.sufficient_statistics(data, state, hyper, None)
     E, L, K = 2, 3, 2
     n_el = np.zeros((E, L), dtype=int)
     n_elm = np.zeros((E, L, K), dtype=int)

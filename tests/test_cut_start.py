@@ -29,6 +29,7 @@ from spco.model import driver
 from spco.model.cut_start import check_cut_start, cut_phase, cut_sweeps
 from spco.model.driver import LocalEngine
 from spco.model.hyperparameters import TransferHyperparameters
+from spco.model.state import PreparedData
 from spco.model.transfer import SpCoTransfer
 
 POWER = TransferHyperparameters(target="power", visual_prior="estimate")
@@ -203,6 +204,7 @@ def _sharded_run_from_cut(seed: int, k: int):
 
     from spco.model import shard as shards_api
     from spco.model.shard_group import ShardGroup
+    from spco.model.state import SharedParameters
 
     data, state, hyper, settings, rng = _chain_start(True, seed)
     hyper = replace(hyper, cut_start=k)
@@ -216,7 +218,7 @@ def _sharded_run_from_cut(seed: int, k: int):
     run.hyper, run.settings, run.rng = cut_hyper, cut_settings, rng
     run.cut_start, run.cutting = k, True
     run.global_step = shards_api.GlobalStep(cut_hyper, cut_settings, rng)
-    run.shared = shards_api.SharedParameters.of(state)
+    run.shared = SharedParameters.of(state)
     return run, homes
 
 
@@ -243,7 +245,7 @@ def _engine_chain(engine, after_sweep=None, n_sweeps: int = 12):
 
     corpus = generate_homes(5, seed=2, new_homes=1, config=SyntheticConfig(n_features=64, n_train=12))
     model = SpCoTransfer(replace(POWER, cut_start=6), random_state=5, prune_words=True)
-    data = SpCoTransfer.prepare_data(corpus, 1.0)
+    data = PreparedData.from_corpus(corpus, 1.0)
     run = start_run(engine, data, len(corpus.vocabulary), model.checked_hyperparameters(),
                     model.sampler_settings(), np.random.default_rng(5))
     trace = run.fit(n_sweeps, None if after_sweep is None else lambda i, v: after_sweep(run, i))

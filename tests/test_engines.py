@@ -12,7 +12,9 @@ import pytest
 
 from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.engines import LocalEngine, start_run
-from spco.model import gibbs, shard
+from spco.model import gibbs, shard, sweep_statistics
+from spco.model.additive import SUM_GRID
+from spco.model.state import PreparedData
 from spco.model.transfer import SpatialConceptModel
 
 N_SWEEPS = 12
@@ -28,7 +30,7 @@ def start(corpus, engine, variant: str = "exact", seed: int = 5):
     model = SpatialConceptModel(variant=variant, random_state=seed, prune_words=True)
     hyper, settings = model.checked_hyperparameters(), model.sampler_settings()
     rng = np.random.default_rng(seed)
-    data = SpatialConceptModel.prepare_data(corpus, gibbs.CM_PER_M if variant == "reference" else 1.0)
+    data = PreparedData.from_corpus(corpus, gibbs.CM_PER_M if variant == "reference" else 1.0)
     return data, start_run(engine, data, len(corpus.vocabulary), hyper, settings, rng)
 
 
@@ -44,7 +46,7 @@ def chain(corpus, engine, variant: str = "exact", after_sweep=None):
 def test_split_and_join_round_trip(corpus) -> None:
     """Cutting homes into shards and joining their states gives back every array unchanged."""
     model = SpatialConceptModel(random_state=0, prune_words=True)
-    data = SpatialConceptModel.prepare_data(corpus, 1.0)
+    data = PreparedData.from_corpus(corpus, 1.0)
     state = gibbs.initialize(data, len(corpus.vocabulary), model.checked_hyperparameters(),
                              model.sampler_settings(), np.random.default_rng(0))
     bounds = shard.shard_bounds(data, 3)
@@ -82,7 +84,7 @@ def test_statistics_add_up_over_shards(corpus) -> None:
     total = parts[0] + parts[1]
     state = run.state()
     model = SpatialConceptModel(random_state=0)
-    stats = gibbs.sufficient_statistics(data, state, model.checked_hyperparameters(), None)
+    stats = sweep_statistics.sufficient_statistics(data, state, model.checked_hyperparameters(), None)
     np.testing.assert_array_equal(total.visual, stats.visual.sum(0))
     np.testing.assert_array_equal(total.concepts, stats.concepts.sum(0))
 
@@ -101,7 +103,7 @@ def test_naming_rule_adds_up_over_shards(corpus) -> None:
     fields = ("pairs", "same", "expected", "log_likelihood")
     for field in fields:  # (each home's floats are rounded to SUM_GRID, so that they add up exactly)
         np.testing.assert_allclose(sum(getattr(c, field) for c in parts), getattr(whole, field), rtol=0,
-                                   atol=shard.SUM_GRID * data.n_homes)
+                                   atol=SUM_GRID * data.n_homes)
     summed = type(whole)(*(sum(getattr(c, f) for c in parts) for f in fields))
     np.testing.assert_array_equal(judge_names(summed), gibbs.naming_verdicts(data, state, hyper))
     assert (whole.pairs > 0).any()  # the corpus has words said twice in a home: the test has teeth

@@ -16,6 +16,7 @@ from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.engines import LocalEngine
 from spco.errors import DataFormatError
 from spco.model.sources import FolderHomes, PreparedHomes
+from spco.model.state import PreparedData
 from spco.model.transfer import SpatialConceptModel
 
 N_SWEEPS = 8
@@ -46,7 +47,7 @@ def chain(source, engine, seed: int = 4):
 
 def driver_source(folder) -> PreparedHomes:
     corpus = Corpus(load_homes(folder))
-    return PreparedHomes(SpatialConceptModel.prepare_data(corpus, 1.0), len(corpus.vocabulary))
+    return PreparedHomes(PreparedData.from_corpus(corpus, 1.0), len(corpus.vocabulary))
 
 
 def test_folder_source_matches_the_corpus_loaded_in_the_driver(folder) -> None:
@@ -57,7 +58,7 @@ def test_folder_source_matches_the_corpus_loaded_in_the_driver(folder) -> None:
     assert source.vocabulary == corpus.vocabulary
     assert source.n_samples == sum(e.training_data().n_samples for e in corpus)
     whole = source.parts(1)[0].prepare()
-    expected = SpatialConceptModel.prepare_data(corpus, 1.0)
+    expected = PreparedData.from_corpus(corpus, 1.0)
     for name in ("positions", "homes", "offsets", "map_centres"):
         np.testing.assert_array_equal(getattr(whole, name), getattr(expected, name))
     for name in ("visual", "words"):
@@ -174,6 +175,6 @@ def test_folder_source_reads_sigverse_homes_as_the_driver_does(sigverse_dir) -> 
     source = FolderHomes.create(sigverse_dir, names=names)
     corpus = Corpus(load_homes(sigverse_dir, names=names))
     assert source.names == names and source.vocabulary == corpus.vocabulary
-    whole, expected = source.parts(1)[0].prepare(), SpatialConceptModel.prepare_data(corpus, 1.0)
+    whole, expected = source.parts(1)[0].prepare(), PreparedData.from_corpus(corpus, 1.0)
     np.testing.assert_array_equal(whole.positions, expected.positions)
     assert (whole.visual != expected.visual).nnz == 0 and (whole.words != expected.words).nnz == 0

@@ -8,11 +8,8 @@ from __future__ import annotations
 import asyncio
 import base64
 import json
-import os
 import shutil
 import struct
-import subprocess
-import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -20,6 +17,7 @@ from typing import Any
 import pytest
 from click.testing import CliRunner
 from conftest import missing_tool
+from serve_helpers import Server
 
 from spco.cli.main import main
 
@@ -157,22 +155,6 @@ class FoxgloveClient:
                 self.received.setdefault(on, []).append(message)
 
 
-def _wait_until_healthy(server: subprocess.Popen, base: str, log: Path) -> None:
-    """Wait (at most 120 s) for ``spco serve`` at ``base`` to answer ``/health``."""
-    import httpx
-
-    deadline = time.monotonic() + 120
-    while True:
-        assert server.poll() is None, log.read_text()
-        try:
-            if httpx.get(f"{base}/health", timeout=2).status_code == 200:
-                return
-        except httpx.HTTPError:
-            pass
-        assert time.monotonic() < deadline, log.read_text()
-        time.sleep(0.3)
-
-
 async def _sees_the_scene(client: FoxgloveClient) -> None:
     """The four channels are advertised, and the scene (the regions' names) comes on subscribing."""
     await client.handshake()
@@ -224,16 +206,11 @@ def test_serve_foxglove_streams_the_scene_teachings_and_answers(tour_home_file: 
     import websockets
 
     home = Path(shutil.copy2(tour_home_file, tmp_path / "served.spco"))
-    port, fox = _free_port(), _free_port()
-    log = tmp_path / "serve.log"
-    with log.open("w") as out:
-        server = subprocess.Popen([sys.executable, "-m", "spco", "serve", str(home), "--port", str(port),
-                                   "--foxglove", str(fox), "--writer", "thread"], stdout=out,
-                                  stderr=subprocess.STDOUT, env=dict(os.environ))
+    fox = _free_port()
+    server = Server(home, "--foxglove", str(fox), "--writer", "thread")
     try:
-        base = f"http://127.0.0.1:{port}"
-        _wait_until_healthy(server, base, log)
-        assert f"Foxglove: ws://127.0.0.1:{fox}" in log.read_text()
+        base = server.url
+        assert f"Foxglove: ws://127.0.0.1:{fox}" in server.output
         samples = httpx.get(f"{base}/regions", timeout=10).json()["samples"]
 
         async def scenario() -> None:
@@ -246,12 +223,7 @@ def test_serve_foxglove_streams_the_scene_teachings_and_answers(tour_home_file: 
 
         asyncio.run(scenario())
     finally:
-        server.terminate()
-        try:
-            server.wait(30)
-        except subprocess.TimeoutExpired:
-            server.kill()
-            server.wait()
+        server.stop()
 
 
 def test_serve_refuses_foxglove_on_its_own_port(tmp_path: Path) -> None:

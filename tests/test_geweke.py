@@ -26,7 +26,7 @@ import scipy.sparse as sp
 from scipy import stats
 from scipy.special import logsumexp
 
-from spco.model import gibbs
+from spco.model import assignments, gibbs, parameter_steps, sweep_statistics
 from spco.model.hyperparameters import TransferHyperparameters
 
 E, L, K, D, V = 2, 2, 2, 3, 3
@@ -210,11 +210,11 @@ def successive_conditional(rng: np.random.Generator) -> np.ndarray:
         data = draw_data(params, c, r, rng)  # data | parameters, assignments
         prep = prepared(data)
         # one sweep of the exact sampler, in the order of gibbs.sweep
-        gibbs._local_step(prep, state, SETTINGS, rng)
-        suff = gibbs._statistics(prep, state, HYPER, SETTINGS.learning_view_counts())
-        gibbs._global_step(suff, state, HYPER, rng)
-        gibbs._home_step(prep, state, suff, HYPER, SETTINGS, rng)
-        gibbs._swap_labels(prep, state, suff, HYPER, SETTINGS, rng)
+        assignments.local_step(prep, state, SETTINGS, rng)
+        suff = sweep_statistics.sufficient_statistics(prep, state, HYPER, SETTINGS.learning_view_counts())
+        parameter_steps.global_step(suff, state, HYPER, rng)
+        parameter_steps.home_step(prep, state, suff, HYPER, SETTINGS, rng)
+        parameter_steps.swap_labels(prep, state, suff, HYPER, SETTINGS, rng)
         params = {name: getattr(state, name)[None] for name in PARAMETER_NAMES}
         # (new parameters, data they were drawn from) is a draw from the joint distribution
         out[i] = statistics(params, state.concepts[None], state.regions[None], data)[0]

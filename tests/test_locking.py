@@ -17,18 +17,10 @@ from pathlib import Path
 
 import pytest
 from conftest import fit_and_adapt, synthetic_home_folders
+from serve_helpers import env as _env
 
 from spco import knowledge as kn
 from spco.knowledge.locking import LockTimeoutError, lock_path, locked
-
-SRC = str(Path(kn.__file__).resolve().parents[2])
-
-
-def _env(**extra: str) -> dict[str, str]:
-    env = dict(os.environ)
-    env["PYTHONPATH"] = SRC + os.pathsep + env.get("PYTHONPATH", "")
-    env.update(extra)
-    return env
 
 
 @pytest.fixture(scope="module")

@@ -17,9 +17,10 @@ from scipy.special import softmax
 from spco.data.environment import Corpus, Environment
 from spco.data.plain import read_home, write_home
 from spco.errors import ConfigurationError, DataFormatError
-from spco.model import gibbs
+from spco.model import assignments, gibbs
 from spco.model.home_shard import prepare_home
 from spco.model.observations import HierarchicalMultinomial
+from spco.model.state import PreparedData
 
 P_MIN = 1e-3
 
@@ -132,7 +133,7 @@ def test_assignments_leave_the_missing_views_out_brute_force() -> None:
         log_phi_v=np.log(np.full((L, D), 1 / D)), log_phi_w=np.log(np.full((L, V), 1 / V)),
         word_mask=np.ones(V, dtype=bool))
     exact = gibbs.SamplerSettings.create("exact", prune=False)
-    gibbs._local_step(data, state, exact, np.random.default_rng(1))
+    assignments.local_step(data, state, exact, np.random.default_rng(1))
     flat = (state.concepts * K + state.regions).reshape(n_distinct, copies)
     for t in range(n_distinct):
         gauss = np.array([stats.multivariate_normal.logpdf(positions[t], state.means[0, m],
@@ -295,9 +296,8 @@ def test_homes_read_in_the_shards_agree_on_the_visual_dimension(tmp_path: Path) 
 def test_the_ray_engine_hands_the_mask_to_its_actors() -> None:
     pytest.importorskip("ray", reason="Ray is not installed (pip install -e '.[ray]')")
     from spco.engines.ray import _writable_data
-    from spco.model.transfer import SpatialConceptModel
 
     home = _home().with_views_missing(np.arange(24) % 2 == 0)
-    data = SpatialConceptModel.prepare_data(Corpus([home]), 1.0)
+    data = PreparedData.from_corpus(Corpus([home]), 1.0)
     sent = _writable_data(data)
     assert sent.view_missing.tolist() == data.view_missing.tolist() == home.view_missing.tolist()

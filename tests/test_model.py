@@ -21,8 +21,11 @@ from spco.model import (
     SpCoTransfer,
     TransferHyperparameters,
     gibbs,
+    parameter_steps,
+    sweep_statistics,
 )
 from spco.model.pruning import colocation
+from spco.model.state import PreparedData
 
 
 def adjusted_rand_index(a: np.ndarray, b: np.ndarray) -> float:
@@ -172,7 +175,7 @@ def test_naming_rule_leaves_the_word_counts_alone() -> None:
     """The naming rule works on word presence; an earlier G-test set the data array it shared with
     the (float64) word counts to 1, i.e. S^w = 1 instead of 5000 for the rest of every +MI run."""
     corpus = generate_homes(4, seed=0, new_homes=1, config=SyntheticConfig(n_features=32, n_train=6))
-    data = SpCoTransfer.prepare_data(corpus, 1.0)
+    data = PreparedData.from_corpus(corpus, 1.0)
     before = data.words.copy()
     assert before.data.min() == corpus.word_increment == 5000
     regions = np.arange(data.n_samples) % 3
@@ -240,7 +243,7 @@ def test_pruned_words_leave_the_kept_words_renormalised() -> None:
 
     import scipy.sparse as sp
 
-    from spco.model.gibbs import _concept_loglik
+    from spco.model.assignments import concept_loglik
     from spco.model.kernels.likelihood import dimension_major
 
     words = sp.csr_array(np.array([[5000.0, 5000.0]]))  # "kitchen", "this": S^w = 5000 each
@@ -251,11 +254,11 @@ def test_pruned_words_leave_the_kept_words_renormalised() -> None:
     log_theta_v = np.log(np.full((1, 2, 2), 0.5))
     state = SimpleNamespace(log_theta_v=log_theta_v, log_theta_w=log_theta_w,
                             word_mask=np.array([True, False]))
-    loglik = _concept_loglik(data, state)
+    loglik = concept_loglik(data, state)
     assert loglik.shape == (1, 2)
     assert abs(loglik[0, 0] - loglik[0, 1]) < 1e-6, loglik
     state.word_mask = np.array([True, True])  # nothing pruned: the full θ^w, unchanged
-    loglik = _concept_loglik(data, state)
+    loglik = concept_loglik(data, state)
     expected = 4.0 * np.log(0.5) + 5000.0 * log_theta_w[0].sum(axis=1)
     np.testing.assert_allclose(loglik[0], expected, rtol=1e-9)
 
@@ -452,11 +455,11 @@ def test_label_swaps_relabel_state_and_count_cache_consistently(monkeypatch: pyt
     settings = gibbs.SamplerSettings.create("exact", prune=False)
     perms = np.tile(np.arange(L), (E, 1))
     perms[1, [0, 1]] = [1, 0]  # home 1: concepts 0 and 1 trade places
-    monkeypatch.setattr(gibbs, "concept_swap_step", lambda *args, **kwargs: perms.copy())
-    stats = gibbs._statistics(data, state, hyper, None)
+    monkeypatch.setattr(parameter_steps, "concept_swap_step", lambda *args, **kwargs: perms.copy())
+    stats = sweep_statistics.sufficient_statistics(data, state, hyper, None)
     concepts, log_g = state.concepts.copy(), state.log_g.copy()
     theta_v, theta_w = state.log_theta_v.copy(), state.log_theta_w.copy()
-    gibbs._swap_labels(data, state, stats, hyper, settings, np.random.default_rng(3))
+    parameter_steps.swap_labels(data, state, stats, hyper, settings, np.random.default_rng(3))
     home1 = data.homes == 1
     swapped = {0: 1, 1: 0}
     expected = np.array([swapped.get(c, c) if h else c for c, h in zip(concepts, home1, strict=True)])
@@ -466,11 +469,11 @@ def test_label_swaps_relabel_state_and_count_cache_consistently(monkeypatch: pyt
     assert np.array_equal(state.log_theta_v[others], theta_v[others])
     assert np.array_equal(state.log_theta_w[others], theta_w[others])
     assert not np.array_equal(state.log_theta_v[1], theta_v[1]) and np.isfinite(state.log_theta_v[1]).all()
-    counts = gibbs._statistics(data, state, hyper, None).visual
+    counts = sweep_statistics.sufficient_statistics(data, state, hyper, None).visual
     recount = HierarchicalMultinomial.statistics(data.visual, data.homes, state.concepts, E, L)
     assert np.array_equal(counts, recount)
     assert not counts.flags.writeable
-    assert moves.concept_swap_step is not gibbs.concept_swap_step  # (only the sampler's reference patched)
+    assert moves.concept_swap_step is not parameter_steps.concept_swap_step  # (only the sampler's patched)
 
 
 def test_visual_counts_follow_the_assignments_exactly() -> None:
@@ -488,7 +491,7 @@ def test_visual_counts_follow_the_assignments_exactly() -> None:
         rows = rng.choice(data.n_samples, size=n_changed, replace=False)
         state.concepts = state.concepts.copy()
         state.concepts[rows] = rng.integers(0, L, size=n_changed)
-        counts = gibbs._statistics(data, state, hyper, None).visual
+        counts = sweep_statistics.sufficient_statistics(data, state, hyper, None).visual
         assert np.array_equal(counts, HierarchicalMultinomial.statistics(data.visual, data.homes,
                                                                          state.concepts, E, L))
         assert not counts.flags.writeable

@@ -12,9 +12,9 @@ from numpy.testing import assert_array_equal
 
 from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.errors import ConfigurationError, ModelFileError
-from spco.model import SpCoA, SpCoAHyperparameters, SpCoTransfer, TransferHyperparameters
-from spco.model import io as model_io
-from spco.model.io import FORMAT_VERSION, load, load_model, save_model
+from spco.model import SpCoA, SpCoAHyperparameters, SpCoTransfer, TransferHyperparameters, archive
+from spco.model.io import FORMAT_VERSION, load, load_model
+from spco.model.transfer import save_model
 
 HYPER = TransferHyperparameters(n_concepts=6, n_regions=8)
 
@@ -169,7 +169,7 @@ def test_failed_write_leaves_nothing_behind(fitted, tmp_path, monkeypatch) -> No
         file.write(b"PK\x03\x04 partial")
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(model_io.np, "savez", broken_savez)
+    monkeypatch.setattr(archive.np, "savez", broken_savez)
     with pytest.raises(ModelFileError, match="No space left") as info:
         save_model(fitted, target, overwrite=True)
     assert str(target) in str(info.value)
@@ -180,7 +180,7 @@ def test_failed_write_leaves_nothing_behind(fitted, tmp_path, monkeypatch) -> No
         file.write(b"PK partial")
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(model_io.np, "savez", interrupted)
+    monkeypatch.setattr(archive.np, "savez", interrupted)
     with pytest.raises(KeyboardInterrupt):
         save_model(fitted, tmp_path / "other.npz")
     assert [p.name for p in tmp_path.iterdir()] == ["m.npz"]

@@ -11,7 +11,7 @@ import scipy.sparse as sp
 
 from spco.data import Corpus
 from spco.data.synthetic import SyntheticConfig, generate_homes, teach
-from spco.model import SpCoTransfer, TransferHyperparameters, gibbs
+from spco.model import SpCoTransfer, TransferHyperparameters, assignments, gibbs
 from spco.model.driver import start_run
 from spco.model.pruning import (
     EXCESS_GRID,
@@ -22,6 +22,7 @@ from spco.model.pruning import (
     colocation,
     judge_names,
 )
+from spco.model.state import PreparedData
 
 
 def _brute_colocation(words: np.ndarray, homes: np.ndarray, regions: np.ndarray) -> tuple:
@@ -175,7 +176,7 @@ def test_a_new_homes_own_names_start_in_free_concepts() -> None:
     assert places, "the synthetic new home has home-specific rooms"
     taught = teach(new, 40, places=places, seed=0)
     homes = Corpus([*list(corpus)[:-1], taught])
-    data = SpCoTransfer.prepare_data(homes, 1.0)
+    data = PreparedData.from_corpus(homes, 1.0)
     hyper = TransferHyperparameters()
     settings = gibbs.SamplerSettings.create("exact", prune=True)
     run = start_run(None, data, len(homes.vocabulary), hyper, settings, np.random.default_rng(0))
@@ -227,5 +228,5 @@ def test_a_home_where_every_word_is_pruned_still_samples() -> None:
     """Names said at random positions are spread: the rule may prune every word; the sampler's word
     term is then empty (no word says anything), not a reduction over zero words."""
     log_theta = np.log(np.full((1, 2, 3), 1 / 3))
-    kept = gibbs.kept_word_log_theta(log_theta, np.zeros(3, dtype=bool))
+    kept = assignments.kept_word_log_theta(log_theta, np.zeros(3, dtype=bool))
     assert np.array_equal(kept, np.zeros_like(log_theta))

@@ -256,7 +256,7 @@ def test_the_move_and_phi_s_step_alone_keep_the_posterior() -> None:
     keeps the target here."""
     from conftest import csr
 
-    from spco.model import gibbs
+    from spco.model import gibbs, sweep_statistics
     from spco.model.phi_moves import phi_after_move, phi_block_step
 
     h, n = MOVE_HYPER, 4
@@ -273,8 +273,8 @@ def test_the_move_and_phi_s_step_alone_keep_the_posterior() -> None:
         word_mask=np.ones(1, dtype=bool))
     classes = []
     for i in range(15_200):
-        stats = gibbs.sufficient_statistics(data, state, h, settings.learning_view_counts())
-        stats, moved = phi_block_step(data, state, stats, h, settings, rng, gibbs.sufficient_statistics)
+        stats = sweep_statistics.sufficient_statistics(data, state, h, settings.learning_view_counts())
+        stats, moved = phi_block_step(data, state, stats, h, settings, rng)
         state.log_phi_v = phi_after_move(stats.visual, state.log_phi_v, h.delta_visual, h.alpha_visual, moved,
                                          rng)
         if i >= 200:

@@ -294,6 +294,7 @@ def _run_sharded_chain(n_sweeps: int, seed: int, hyper_changes: dict | None = No
     homes' tables, the home's shard runs the pass); label swaps on the fits' schedule."""
     from spco.model import shard as shards_api
     from spco.model.shard_group import ShardGroup
+    from spco.model.state import SharedParameters
 
     data, state, hyper, settings, rng = _chain_start(True, seed, True, hyper_changes)
     homes = [shards_api.HomeShard(d, s, hyper, settings, np.random.default_rng([seed, e]), n_fit_homes=2)
@@ -304,7 +305,7 @@ def _run_sharded_chain(n_sweeps: int, seed: int, hyper_changes: dict | None = No
         return [getattr(g, method)(*args) for g in groups]
 
     step = shards_api.GlobalStep(hyper, settings, rng)
-    shared = shards_api.SharedParameters.of(state)
+    shared = SharedParameters.of(state)
     seen = np.zeros(8)
     for i in range(n_sweeps + 200):
         _, shared = shards_api.sweep(call, step, shared, i, shared.word_mask, shared.name_words)

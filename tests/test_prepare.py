@@ -14,7 +14,7 @@ from spco.data.environment import Corpus
 from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.model.kernels.counts import grouped_row_sums, stack_counts
 from spco.model.kernels.likelihood import grouped_sparse_dot
-from spco.model.transfer import SpCoTransfer
+from spco.model.state import PreparedData
 
 
 @pytest.fixture(scope="module")
@@ -85,7 +85,7 @@ def test_compact_layout_gives_the_same_kernel_results_bit_for_bit() -> None:
 
 def test_prepared_visual_counts_are_the_training_rows(corpus: Corpus) -> None:
     assert corpus[-1].n_test > 0  # one home has held-out samples, the others none
-    data = SpCoTransfer.prepare_data(corpus, 1.0)
+    data = PreparedData.from_corpus(corpus, 1.0)
     training = corpus.training_set()
     expected = sp.vstack([t.visual for t in training], format="csr")
     np.testing.assert_array_equal(data.visual.toarray(), expected.toarray())

@@ -16,6 +16,7 @@ from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.engines import LocalEngine
 from spco.model import alignment, gibbs
 from spco.model.sources import PreparedHomes, SyntheticHomes, concatenate_data
+from spco.model.state import PreparedData
 from spco.model.transfer import SpatialConceptModel
 
 N_SWEEPS = 12
@@ -50,7 +51,7 @@ def test_synthetic_source_makes_the_homes_generate_homes_makes(source) -> None:
     """Each part generates its homes alone, from the seed and their indices: joined, the parts are
     the data of generate_homes' corpus (same vocabulary, counts, positions, map centres)."""
     corpus = generate_homes(5, seed=2, new_homes=1, config=CONFIG, specific_rooms=False)
-    whole = SpatialConceptModel.prepare_data(corpus, 1.0)
+    whole = PreparedData.from_corpus(corpus, 1.0)
     assert source.vocabulary.words == corpus.vocabulary.words
     parts = [p.prepare() for p in source.parts(2)]
     assert [p.n_homes for p in parts] == [2, 3]
@@ -123,7 +124,7 @@ def test_sharded_start_aligns_the_homes(source) -> None:
 
     run = LocalEngine(2).start_source(source, hyper, settings, np.random.default_rng(5))
     sharded = agreement(run.state(), 5)
-    data = SpatialConceptModel.prepare_data(corpus, 1.0)
+    data = PreparedData.from_corpus(corpus, 1.0)
     alone = gibbs.initialize(data, len(corpus.vocabulary), hyper, settings, np.random.default_rng(5))
     assert agreement(alone, 5) < 0.3
     assert sharded > 0.8

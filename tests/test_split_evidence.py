@@ -101,7 +101,7 @@ def small_fit(small_corpus):
 def test_the_conditional_account_is_the_assignment_log_odds(small_fit) -> None:
     """With the chain's parameters, merge − split is the sum over the moved samples of the assignment
     step's log-odds of B against A (regions kept); merging a concept into itself changes nothing."""
-    from spco.model.gibbs import _concept_loglik
+    from spco.model.assignments import concept_loglik
 
     model = small_fit
     data, state = model.data_, model.state_
@@ -109,7 +109,7 @@ def test_the_conditional_account_is_the_assignment_log_odds(small_fit) -> None:
     used = np.unique(state.concepts)
     nameless, named = int(used[0]), int(used[1])
     out = compare(model, nameless, named)
-    ll = _concept_loglik(data, state, model.settings_.view_counts)
+    ll = concept_loglik(data, state, model.settings_.view_counts)
     moved = np.flatnonzero(state.concepts == nameless)
     h, r = data.homes[moved], state.regions[moved]
     odds = (state.log_g[h, named] - state.log_g[h, nameless] + state.log_pi[h, named, r]

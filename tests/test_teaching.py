@@ -152,7 +152,7 @@ def test_a_teaching_answers_with_the_posterior_mean_of_its_regions_gaussians(hom
     """The taught regions' Gaussians in the answers are their posterior mean given the sweeps'
     assignments (the NIW posterior predictive's moments), not the average of two draws: with one
     sweep, exactly those of the samples the state holds in each affected region."""
-    from spco.model import gibbs
+    from spco.model import parameter_steps
     from spco.model.local_update import expected_gaussians
 
     model = kn.load_home_model(home)
@@ -160,7 +160,7 @@ def test_a_teaching_answers_with_the_posterior_mean_of_its_regions_gaussians(hom
     taught = _teach(model, {int(model.ids[row]): "this is the quokka room"}, n_sweeps=1, random_state=4)
     data, state = taught.data, taught.state
     shared = taught.knowledge.shared_part()
-    prior = gibbs.niw_prior(data, shared.hyperparameters, shared.sampler_settings())
+    prior = parameter_steps.niw_prior(data, shared.hyperparameters, shared.sampler_settings())
     region = int(state.regions[row])
     x = data.positions[state.regions == region]
     count = np.array([float(x.shape[0])])

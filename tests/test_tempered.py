@@ -28,7 +28,7 @@ from conftest import csr
 from scipy import stats
 from scipy.special import expit, gammaln, logit, logsumexp
 
-from spco.model import gibbs, moves
+from spco.model import assignments, gibbs, moves, sweep_statistics
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.observations import HierarchicalMultinomial
 
@@ -99,11 +99,11 @@ def test_weighted_statistics_match_a_loop() -> None:
     expected = np.zeros((E, L, D))
     for t in range(n):
         expected[homes[t], concepts[t]] += powers[t] * visual[t]
-    assert np.array_equal(gibbs.view_weights(data, w), powers)
-    counts = gibbs._statistics(data, state, hyper, w).visual
+    assert np.array_equal(assignments.view_weights(data, w), powers)
+    counts = sweep_statistics.sufficient_statistics(data, state, hyper, w).visual
     np.testing.assert_allclose(counts, expected, rtol=1e-13, atol=1e-13)
     assert (counts - np.floor(counts)).any()  # real counts indeed
-    whole = gibbs._statistics(data, state, hyper, None).visual  # w = None: every count whole
+    whole = sweep_statistics.sufficient_statistics(data, state, hyper, None).visual  # None: every count whole
     expected_whole = np.zeros((E, L, D))
     np.add.at(expected_whole, (homes, concepts), visual)
     assert np.array_equal(whole, expected_whole)

@@ -18,7 +18,7 @@ from spco.data.lexicon import lexicon
 from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.engines import LocalEngine
 from spco.errors import ConfigurationError
-from spco.model import gibbs
+from spco.model import assignments
 from spco.model.gibbs import GibbsState, PreparedData
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.shard_init import ShardInitialisation
@@ -237,9 +237,9 @@ def test_the_start_weighs_the_words_by_the_word_weight() -> None:
     rng = np.random.default_rng(3)
     words = sp.csr_array(rng.integers(0, 3, (6, 5)) * 5000)
     data, state = _one_home(words, 3, rng)
-    full = gibbs._concept_loglik(data, state, 16.0)
-    views = gibbs._concept_loglik(data, state, 16.0, 0.0)  # the words weigh nothing: the views alone
-    weighed = gibbs._concept_loglik(data, state, 16.0, 16 / 5000)
+    full = assignments.concept_loglik(data, state, 16.0)
+    views = assignments.concept_loglik(data, state, 16.0, 0.0)  # the words weigh nothing: the views alone
+    weighed = assignments.concept_loglik(data, state, 16.0, 16 / 5000)
     assert np.allclose(weighed - views, (full - views) * 16 / 5000)
     assert not np.allclose(full, views)  # (the words do count)
 
@@ -263,7 +263,7 @@ def test_a_home_taught_less_holds_its_own_names_through_the_start(monkeypatch, w
     model = SpatialConceptModel(variant="exact", random_state=0, prune_words=True)
     hyper, settings = model.checked_hyperparameters(), model.sampler_settings()
     settings = replace(settings, word_weight=word_weight)
-    data = SpatialConceptModel.prepare_data(corpus, 1.0)
+    data = PreparedData.from_corpus(corpus, 1.0)
     last = data.n_homes - 1
     rows = slice(data.offsets[last], data.offsets[last + 1])
     seen: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []  # the last home's sweeps

@@ -15,7 +15,7 @@ from spco.engines.checkpoints import load_driver, save_driver
 from spco.errors import ConfigurationError
 from spco.knowledge.knowledge import KnowledgeChannels
 from spco.model.hyperparameters import VIEW_COUNTS, WORD_COUNTS, TransferHyperparameters
-from spco.model.shard import SharedParameters
+from spco.model.state import SharedParameters
 from spco.model.word_channels import WordChannels, mixture_log_likelihood, token_weight
 
 

@@ -42,6 +42,7 @@ import numpy as np
 from spco.data.environment import Corpus
 from spco.model import gibbs
 from spco.model.hyperparameters import TransferHyperparameters
+from spco.model.state import PreparedData
 
 __all__ = [
     "PAPER_EXPERIENCED_HOMES",
@@ -212,14 +213,12 @@ class SpcoRunner:
 
     def __init__(self, corpus: Corpus, variant: str = "exact", warmup: int = 2, seed: int = 0,
                  hyper: TransferHyperparameters | None = None, log: Log = _quiet) -> None:
-        from spco.model.transfer import SpCoTransfer
-
         self.variant = variant
         self.hyper = hyper or TransferHyperparameters()
         self.settings = gibbs.SamplerSettings.create(variant, prune=False,
                                                      view_counts=self.hyper.view_weight(),
                                                      power=self.hyper.target == "power")
-        self.data = SpCoTransfer.prepare_data(corpus, gibbs.CM_PER_M if variant == "reference" else 1.0)
+        self.data = PreparedData.from_corpus(corpus, gibbs.CM_PER_M if variant == "reference" else 1.0)
         self.rng = np.random.default_rng(seed)
         start = time.perf_counter()
         from spco.model.driver import start_run
@@ -255,12 +254,11 @@ class FitSweepRunner:
     def __init__(self, corpus: Corpus, warmup: int = 2, seed: int = 0,
                  hyper: TransferHyperparameters | None = None, log: Log = _quiet) -> None:
         from spco.model.driver import start_run
-        from spco.model.transfer import SpCoTransfer
 
         hyper = hyper or TransferHyperparameters()
         settings = gibbs.SamplerSettings.create("exact", prune=False, view_counts=hyper.view_weight(),
                                                 power=hyper.target == "power")
-        data = SpCoTransfer.prepare_data(corpus, 1.0)
+        data = PreparedData.from_corpus(corpus, 1.0)
         start = time.perf_counter()
         self.run = start_run(None, data, len(corpus.vocabulary), hyper, settings, np.random.default_rng(seed))
         self.iteration = max(0, gibbs.SWAP_BURN_IN - warmup)

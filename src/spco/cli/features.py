@@ -96,7 +96,7 @@ def features(images: Sequence[Path], out: Path, extractor: str | None, model: Pa
     from spco.cli.common import check_out
     from spco.errors import ConfigurationError
     from spco.features import DEFAULT_EXTRACTOR, ExtractorSpec, build_extractor
-    from spco.model.io import _file_mode
+    from spco.model.archive import file_mode
 
     check_out(out, force)
     if out.suffix != ".npz":
@@ -126,7 +126,7 @@ def features(images: Sequence[Path], out: Path, extractor: str | None, model: Pa
     os.close(fd)
     try:
         sp.save_npz(tmp, sp.csr_matrix(counts), compressed=True)
-        os.chmod(tmp, _file_mode(out))
+        os.chmod(tmp, file_mode(out))
         os.replace(tmp, out)
     finally:
         if os.path.exists(tmp):

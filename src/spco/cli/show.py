@@ -218,9 +218,9 @@ def _save_png(fig: Any, out: Path) -> None:
     os.close(fd)
     try:
         fig.savefig(tmp, dpi=120, format="png")
-        from spco.model.io import _file_mode
+        from spco.model.archive import file_mode
 
-        os.chmod(tmp, _file_mode(out))
+        os.chmod(tmp, file_mode(out))
         os.replace(tmp, out)
         tmp = ""
     finally:

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from spco.model.gibbs import GibbsState
-from spco.model.shard import SharedParameters
+from spco.model.state import SharedParameters
 from spco.model.word_channels import WordChannels
 
 FORMAT = "spco-checkpoint"

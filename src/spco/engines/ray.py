@@ -26,9 +26,9 @@ from spco.engines import checkpoints
 from spco.model.driver import ShardedRun
 from spco.model.gibbs import GibbsState, PreparedData, SamplerSettings
 from spco.model.hyperparameters import TransferHyperparameters
-from spco.model.shard import SharedParameters
 from spco.model.shard_group import ShardGroup
 from spco.model.sources import HomeSource, HomesPart
+from spco.model.state import SharedParameters
 
 
 def _require_ray():

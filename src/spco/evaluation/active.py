@@ -76,7 +76,7 @@ from spco.evaluation.active_report import (
     tables,
 )
 from spco.evaluation.config import PAPER_EXPERIENCED_HOMES, PAPER_NEW_HOMES, trial_seed
-from spco.evaluation.metrics import mean_over_places, name_accuracy
+from spco.evaluation.metrics import json_score, mean_over_places, name_accuracy
 from spco.evaluation.results import _append_run, _prepare_out, _write_json_atomic, _write_text_atomic
 
 __all__ = [
@@ -458,8 +458,8 @@ def score_home(home: Any, ah: ActiveHome, rng: np.random.Generator) -> dict[str,
     """A_n and A_p of a learnt home on ``ah``'s test samples and places.
 
     Returns ``{"name": {place: A_n}, "position": {place: A_p}, "specific_n", "specific_p",
-    "general_n", "general_p", "all_n", "all_p"}`` (means over places; ``None`` where nothing is
-    scored).
+    "general_n", "general_p", "all_n", "all_p"}`` (means over places), each score as
+    :func:`~spco.evaluation.metrics.json_score` writes it: unrounded, ``None`` where nothing is scored.
     """
     from spco import knowledge as kn
     from spco.model.prediction import UnknownNameError
@@ -484,11 +484,10 @@ def score_home(home: Any, ah: ActiveHome, rng: np.random.Generator) -> dict[str,
         positions[place] = float(np.mean(scores))
 
     def mean(values: Mapping[str, float], places: Sequence[str]) -> float | None:
-        m = mean_over_places({p: values[p] for p in places})
-        return None if math.isnan(m) else round(m, 6)
+        return json_score(mean_over_places({p: values[p] for p in places}))
 
-    return {"name": {p: (None if math.isnan(v) else round(v, 6)) for p, v in names.items()},
-            "position": {p: round(v, 6) for p, v in positions.items()},
+    return {"name": {p: json_score(v) for p, v in names.items()},
+            "position": {p: json_score(v) for p, v in positions.items()},
             "specific_n": mean(names, ah.specific), "specific_p": mean(positions, ah.specific),
             "general_n": mean(names, ah.general), "general_p": mean(positions, ah.general),
             "all_n": mean(names, ah.places), "all_p": mean(positions, ah.places)}

@@ -35,7 +35,7 @@ import numpy as np
 
 from spco.errors import ModelFileError
 from spco.knowledge.locking import locked
-from spco.model.io import _checksum, check_format_version, write_npz_atomic
+from spco.model.archive import check_format_version, checksum, write_npz_atomic
 
 #: Header ``format`` of knowledge files and home files.
 KNOWLEDGE_FORMAT = "spco-knowledge"
@@ -173,7 +173,7 @@ def _read_archive(path: str | PathLike[str],
         raise ModelFileError(file, "the arrays do not match the header (missing: "
                              f"{', '.join(missing) or '-'}; unexpected: {', '.join(extra) or '-'})")
     for name, expected_sum in checksums.items():
-        if _checksum(arrays[name]) != expected_sum:
+        if checksum(arrays[name]) != expected_sum:
             raise ModelFileError(file, f"checksum mismatch for array {name!r}: the file was modified or "
                                  "corrupted after it was written")
     if header.get("checksum") != _content_checksum(header):

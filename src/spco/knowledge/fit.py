@@ -33,6 +33,7 @@ from spco.model.posterior import thinned_sweeps
 from spco.model.pruning import words_to_keep
 from spco.model.seeds import as_generator, seed_of
 from spco.model.sources import PreparedHomes
+from spco.model.state import PreparedData
 from spco.model.transfer import SpCoTransfer
 from spco.model.word_channels import WordChannels, token_weight, uses_word_channels, warm_start_settings
 from spco.timestamps import utc_now
@@ -394,7 +395,7 @@ def _home_source(estimator: SpCoTransfer, corpus: Any, source: Any) -> tuple[Any
     if source is not None:
         source = replace(source, position_scale=scale)
         return source, source.n_samples
-    data = estimator.prepare_data(corpus, scale)
+    data = PreparedData.from_corpus(corpus, scale)
     return PreparedHomes(data, len(corpus.vocabulary)), data.n_samples
 
 

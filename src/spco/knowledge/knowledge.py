@@ -26,9 +26,9 @@ from spco.knowledge.files import (
     format_version,
     segmentation_of,
 )
+from spco.model.archive import checksum
 from spco.model.home_shard import FREE_CONCEPT_WEIGHT, SharedPart, SharedPrior, name_words
 from spco.model.hyperparameters import TransferHyperparameters
-from spco.model.io import _checksum
 from spco.model.word_channels import WordChannels
 
 #: The transfer models whose shared part can be learnt: name -> (sampler variant, word pruning).
@@ -299,7 +299,7 @@ class Knowledge:
         """sha256 identifying this knowledge's content (the ``checksum`` of its file)."""
         arrays, header = self._arrays_and_header()
         header = dict(header)
-        header["array_checksums"] = {n: _checksum(np.asarray(a)) for n, a in arrays.items()}
+        header["array_checksums"] = {n: checksum(np.asarray(a)) for n, a in arrays.items()}
         return _content_checksum(header)
 
     @property

@@ -84,18 +84,26 @@ class ShardedRun(ABC):
         parts = [home for part in self.call("visual_prior_moments") for home in part]  # home order
         m, s, q = (np.concatenate(arrays, axis=0) for arrays in zip(*parts, strict=True))
         delta, alpha = estimate_visual_prior(m, s, q)
-        self.visual_prior = {"delta_visual_estimated": delta is not None,
-                             "alpha_visual_estimated": alpha is not None}
-        delta = self.hyper.delta_visual if delta is None else delta
-        alpha = self.hyper.alpha_visual if alpha is None else alpha
-        self.visual_prior.update(delta_visual=float(delta), alpha_visual=float(alpha))
-        self.target_hyper = dataclasses.replace(self.target_hyper, delta_visual=float(delta),
-                                                alpha_visual=float(alpha))
-        if self.cutting:  # (the power target's, from its first sweep: _start_power)
-            return
-        self.hyper = dataclasses.replace(self.hyper, delta_visual=float(delta), alpha_visual=float(alpha))
-        self.global_step.hyper = self.hyper
-        self.call("set_visual_prior", float(delta), float(alpha))
+        self.visual_prior = self._use_prior("visual", delta, alpha, self.hyper.delta_visual,
+                                            self.hyper.alpha_visual)
+
+    def _use_prior(self, kind: str, delta: float | None, alpha: float | None, given_delta: float,
+                   given_alpha: float) -> dict:
+        """Use the estimated δ and α of the ``kind`` prior ("visual", "word"; ``None``: not estimated,
+        ``given_delta`` or ``given_alpha`` stays) in the target's hyperparameters and, unless the cut
+        still runs (then the power target's, from its first sweep: :meth:`_start_power`), in this run's
+        ``hyper``, the global step's and every worker's (``set_<kind>_prior``). Returns the record of
+        the estimate: which were estimated, and the values used."""
+        record = {f"delta_{kind}_estimated": delta is not None, f"alpha_{kind}_estimated": alpha is not None}
+        values = {f"delta_{kind}": float(given_delta if delta is None else delta),
+                  f"alpha_{kind}": float(given_alpha if alpha is None else alpha)}
+        record.update(values)
+        self.target_hyper = dataclasses.replace(self.target_hyper, **values)
+        if not self.cutting:
+            self.hyper = dataclasses.replace(self.hyper, **values)
+            self.global_step.hyper = self.hyper
+            self.call(f"set_{kind}_prior", *values.values())
+        return record
 
     def _estimate_view_weight(self) -> None:
         """Learn the view weight w from the homes (:func:`spco.model.view_fit.estimate_view_weight`,
@@ -243,18 +251,9 @@ class ShardedRun(ABC):
         parts = [home for part in self.call("word_prior_moments", channels.name_prior()) for home in part]
         m, s, q = (np.concatenate(arrays, axis=0) for arrays in zip(*parts, strict=True))
         delta, alpha = estimate_word_prior(m, s, q)
-        self.word_prior = {"delta_word_estimated": delta is not None,
-                           "alpha_word_estimated": alpha is not None}
-        delta = given_delta_word(self.target_hyper.delta_word, channels) if delta is None else delta
-        alpha = self.target_hyper.alpha_word if alpha is None else alpha
-        self.word_prior.update(delta_word=float(delta), alpha_word=float(alpha))
-        self.target_hyper = dataclasses.replace(self.target_hyper, delta_word=float(delta),
-                                                alpha_word=float(alpha))
-        if self.cutting:  # (the power target's, from its first sweep: _start_power)
-            return
-        self.hyper = dataclasses.replace(self.hyper, delta_word=float(delta), alpha_word=float(alpha))
-        self.global_step.hyper = self.hyper
-        self.call("set_word_prior", float(delta), float(alpha))
+        self.word_prior = self._use_prior("word", delta, alpha,
+                                          given_delta_word(self.target_hyper.delta_word, channels),
+                                          self.target_hyper.alpha_word)
 
     @abstractmethod
     def close(self) -> None:

@@ -1,15 +1,16 @@
-"""The blocked Gibbs sampler: prepared data, sampler state, initialisation, sweeps, log joint.
+"""The blocked Gibbs sampler: initialisation, sweeps, word pruning, log joint.
 
-One sweep follows bnpy's cycle: a **local step** (per-sample assignments C_t, R_t, all homes at
-once) → **sufficient statistics** → a **global step** (shared φ^v, φ^w, G_0) → the **home step**
-(θ, G_e, π, μ, Σ of every home). The conditionals themselves live in
-:mod:`spco.model.allocation` (concepts and regions) and :mod:`spco.model.observations`
-(positions, words, vision).
+One sweep (:func:`sweep`) follows bnpy's cycle, one module a step: a **local step** (per-sample
+assignments C_t, R_t, all homes at once: :mod:`spco.model.assignments`) → **sufficient statistics**
+(:mod:`spco.model.sweep_statistics`) → a **global step** (shared φ^v, φ^w, G_0) → the **home step**
+(θ, G_e, π, μ, Σ of every home; both in :mod:`spco.model.parameter_steps`). The sampler's data and
+state are in :mod:`spco.model.state`; the conditionals themselves in :mod:`spco.model.allocation`
+(concepts and regions) and :mod:`spco.model.observations` (positions, words, vision).
 
 Three samplers share this machinery:
 
 ``exact`` — the generative model as written (``../docs/model.md`` of the project), an MCMC for
-    its posterior without word pruning (with pruning, see :func:`_prune`: a heuristic, the chain
+    its posterior without word pruning (with pruning, see :func:`prune`: a heuristic, the chain
     then has no stated target); joint (C, R) draw; φ | table counts (CRT auxiliary variables)
     then θ | φ (partially collapsed Gibbs, in that order); G_0 | concept table counts;
     G_e ~ Dir(γ G_0 + n); π ~ Dir(β/K + n); NIW regions; positions in metres with μ0 = map
@@ -25,22 +26,31 @@ Three samplers share this machinery:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import scipy.sparse as sp
 from scipy.cluster.vq import kmeans2
 
 from spco.model import allocation
 from spco.model.alignment import HomeCounts, align_in_order
-from spco.model.blocks import region_block_step
-from spco.model.home_place import draw_home_place, home_place_statistics, shared_place_counts
-from spco.model.hyperparameters import TransferHyperparameters, view_powers
+from spco.model.assignments import (
+    concept_loglik,
+    conditional_log_joint,
+    home_concept_concentration,
+    local_step,
+)
+from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.kernels.dirichlet import dirichlet_log_density, log_dirichlet
-from spco.model.moves import concept_swap_step
 from spco.model.numba_cache import announce_compilation
-from spco.model.observations import GaussianRegions, HierarchicalMultinomial, NIWPrior
-from spco.model.phi_moves import phi_after_move, phi_block_step
+from spco.model.observations import GaussianRegions, HierarchicalMultinomial
+from spco.model.parameter_steps import (
+    global_step,
+    global_step_reference,
+    home_step,
+    home_step_reference,
+    niw_prior,
+    swap_labels,
+)
+from spco.model.phi_moves import phi_block_step
 from spco.model.pruning import NAME, NOT_A_NAME, Colocation, colocation, judge_names, words_to_keep
 from spco.model.state import (  # noqa: F401  (the sampler's data and state, re-exported)
     CM_PER_M,
@@ -50,47 +60,8 @@ from spco.model.state import (  # noqa: F401  (the sampler's data and state, re-
     SamplerSettings,
     VisualCountCache,
 )
+from spco.model.sweep_statistics import sufficient_statistics
 from spco.model.timing import StepTimer, _Timed
-from spco.model.word_channels import (
-    ChannelCounts,
-    channel_counts,
-    mixture_log_likelihood,
-    name_tokens,
-    place_token_counts,
-    sample_channels,
-    sample_switches,
-    token_rows,
-    token_scales,
-)
-
-
-def niw_prior(data: PreparedData, hyper: TransferHyperparameters, settings: SamplerSettings) -> NIWPrior:
-    """The NIW prior in the sampler's units (μ0 = map centre, or 0 in the reference variant);
-    its arrays are read-only."""
-    key = (hyper, settings.variant)
-    try:
-        prior = data.niw_priors.get(key)
-    except TypeError:  # hyperparameters holding lists (unhashable): no cache
-        return _build_niw_prior(data, hyper, settings)
-    if prior is None:
-        prior = data.niw_priors[key] = _build_niw_prior(data, hyper, settings)
-    return prior
-
-
-def _build_niw_prior(data: PreparedData, hyper: TransferHyperparameters,
-                     settings: SamplerSettings) -> NIWPrior:
-    scale = np.array([data.position_scale, data.position_scale, 1.0, 1.0])
-    psi0 = hyper.psi0_matrix_m2() * np.outer(scale, scale)
-    if settings.variant == "reference":
-        mu0 = np.zeros((data.n_homes, 4))
-    elif hyper.mu0 is not None:
-        mu0 = np.tile(np.asarray(hyper.mu0, dtype=float) * scale, (data.n_homes, 1))
-    else:
-        mu0 = data.map_centres.copy()
-    mu0.flags.writeable = False
-    psi0.flags.writeable = False
-    return NIWPrior(mu0=mu0, kappa0=hyper.kappa0, psi0=psi0, nu0=hyper.nu0)
-
 
 # ----------------------------------------------------------------------------- initialisation
 
@@ -270,382 +241,11 @@ def align_homes(visual: np.ndarray, words: np.ndarray, alpha_visual: float, alph
                           batch=max(n_homes, 1))
 
 
-def _apply_permutations(data: PreparedData, state: GibbsState, perms: np.ndarray, theta: bool = True) -> None:
-    """Relabel concepts within each home: slot j of home e takes its old concept perms[e, j].
-    ``theta=False`` leaves θ^v, θ^w as they are (for a caller that redraws them)."""
-    if (perms == np.arange(perms.shape[1])).all():
-        return
-    homes = np.arange(perms.shape[0])[:, None]
-    if theta:
-        state.log_theta_v = state.log_theta_v[homes, perms]
-        state.log_theta_w = state.log_theta_w[homes, perms]
-    state.log_g = state.log_g[homes, perms]
-    state.log_pi = state.log_pi[homes, perms]
-    inverse = np.argsort(perms, axis=1)  # old concept -> new slot
-    state.concepts = inverse[data.homes, state.concepts]
+# ----------------------------------------------------------------------------- the sweep
 
 
-# ----------------------------------------------------------------------------- statistics
-
-
-@dataclass
-class Statistics:
-    """Sufficient statistics of the assignments: concept counts (E, L), region-by-concept counts
-    (E, L, K), Gaussian statistics per region, and visual/word counts per concept (E, L, D/V)."""
-
-    concepts: np.ndarray
-    regions_by_concept: np.ndarray
-    region_count: np.ndarray
-    region_total: np.ndarray
-    region_scatter: np.ndarray
-    visual: np.ndarray
-    words: np.ndarray
-    #: with word channels: the switches' counts (each token once) and the place tokens per home and
-    #: concept with their counts (E, L, V), for the label swaps
-    channel: ChannelCounts | None = None
-    place_tokens: np.ndarray | None = None
-    #: the place channel's home level: place tokens per home, concept and word in ψ's units (E, L, V)
-    home_place: np.ndarray | None = None
-
-
-def uses_channels(data: PreparedData, state: GibbsState) -> bool:
-    """Whether ``state`` has word channels whose switches are drawn for ``data``'s tokens."""
-    switches = state.switches
-    return state.channels is not None and switches is not None and switches.shape == (data.words.nnz,)
-
-
-def sentence_words(data: PreparedData, state: GibbsState) -> sp.csr_array:
-    """The word counts (N, V) that the word likelihood and the word statistics count: one sentence
-    names one place.
-
-    A taught sentence whose words include one the naming rule judges a *name*
-    (``state.name_words``) is counted by its name words only; its other words — a frame the home's
-    people say around names ("look robot, this is …", "we call this …"), undecided because it was
-    heard too rarely to judge — tell nothing about the place the name does not already tell. Left
-    in, each would weigh S^w counts: a frame said in two sentences at two rooms would pull their
-    samples into a concept of its own (one concept per sentence frame), and the room's name would
-    be split over those concepts. A sentence without a judged name keeps all its words (a name
-    taught once is undecided, and usable at once). The naming rule itself still judges every word
-    on all its uses (``data.words``). Without judged names this is ``data.words`` itself.
-    """
-    names = getattr(state, "name_words", None)
-    words = data.words
-    if names is None or not words.nnz or not names[words.indices].any():
-        return words
-    key = names.tobytes()
-    cache = state.words_cache
-    if cache is not None and cache[0] is words and cache[1] == key:
-        return cache[2]
-    is_name = names[words.indices]
-    rows = token_rows(words)
-    named_row = np.bincount(rows, weights=is_name, minlength=words.shape[0]) > 0
-    keep = is_name | ~named_row[rows]
-    kept = sp.csr_array((words.data[keep], (rows[keep], words.indices[keep])), shape=words.shape)
-    kept.sort_indices()
-    state.words_cache = (words, key, kept)
-    return kept
-
-
-def _statistics(data: PreparedData, state: GibbsState, hyper: TransferHyperparameters,
-                view_counts: float | None) -> Statistics:
-    """The statistics of the assignments; the visual counts weighted by the views' powers at
-    ``view_counts`` (:func:`view_weights`; ``None``: every count whole), as the likelihood the
-    assignments were drawn with weighs them."""
-    E, L, K = data.n_homes, hyper.n_concepts, hyper.n_regions
-    count, total, scatter = GaussianRegions.statistics(data.positions, data.homes, state.regions, E, K)
-    channel = place_tokens = home_place = None
-    if uses_channels(data, state):  # θ^w counts the name tokens only
-        channels = state.channels
-        power = channels.power  # the power likelihood: θ^w, ψ and β count a token W^w n times
-        words = name_tokens(data.words, state.switches, channels.token_weight if power else 1.0)
-        channel = channel_counts(data.words, state.concepts, state.switches, L,
-                                 token_scales(data.words, channels) if power else None)
-        place_tokens = place_token_counts(data.words, data.homes, state.concepts, state.switches, E, L,
-                                          state.channels.token_weight)
-        home_place = home_place_statistics(data, state, hyper, E, L)
-    else:
-        words = sentence_words(data, state)
-    return Statistics(
-        concepts=allocation.concept_counts(data.homes, state.concepts, E, L),
-        regions_by_concept=allocation.region_counts(data.homes, state.concepts, state.regions, E, L, K),
-        region_count=count, region_total=total, region_scatter=scatter,
-        visual=_visual_counts(data, state, E, L, view_counts),
-        words=HierarchicalMultinomial.statistics(words, data.homes, state.concepts, E, L),
-        channel=channel, place_tokens=place_tokens, home_place=home_place,
-    )
-
-
-def _visual_counts(data: PreparedData, state: GibbsState, n_homes: int, n_concepts: int,
-                   view_counts: float | None = None) -> np.ndarray:
-    """n^v (E, L, D), updated from the previous sweep's counts when few samples changed concept
-    (after burn-in most do not), recounted otherwise. Read-only for callers.
-
-    With a view weight (``view_counts``) some view's power s_t is below 1 and n^v holds the
-    weighted counts Σ_t s_t v_t (float64), recounted every sweep in row order (no running sums,
-    which would round differently from a recount)."""
-    weights = view_weights(data, view_counts)
-    if weights is not None and not np.all(weights == 1.0):
-        state.visual_cache = None
-        counts = HierarchicalMultinomial.weighted_statistics(data.visual, weights, data.homes, state.concepts,
-                                                             n_homes, n_concepts)
-        counts.flags.writeable = False
-        return counts
-    cache = state.visual_cache
-    usable = (cache is not None and cache.visual is data.visual
-              and cache.concepts.shape == state.concepts.shape
-              and cache.counts.shape == (n_homes, n_concepts, data.visual.shape[1]))
-    if usable:
-        changed = np.flatnonzero(cache.concepts != state.concepts)
-        if changed.size <= data.n_samples // 4:
-            counts = cache.counts
-            counts.flags.writeable = True
-            HierarchicalMultinomial.move_counts(counts, data.visual, changed, data.homes[changed],
-                                                cache.concepts[changed], state.concepts[changed])
-            counts.flags.writeable = False
-            cache.concepts = state.concepts.copy()
-            return counts
-    counts = HierarchicalMultinomial.statistics(data.visual, data.homes, state.concepts, n_homes, n_concepts)
-    counts.flags.writeable = False
-    state.visual_cache = VisualCountCache(visual=data.visual, concepts=state.concepts.copy(), counts=counts)
-    return counts
-
-
-# ----------------------------------------------------------------------------- the steps
-
-
-def view_weights(data: PreparedData, view_counts: float | None) -> np.ndarray | None:
-    """(N,) the weight of each sample's visual log-likelihood, ``min(1, view_counts / Σ_d v_d)``:
-    a view scored as ``view_counts`` draws (``None``: every count a draw, no weights)."""
-    if view_counts is None:
-        return None
-    return view_powers(data.view_totals, float(view_counts))
-
-
-def _concept_loglik(data: PreparedData, state: GibbsState, view_counts: float | None = None,
-                    word_weight: float | np.ndarray = 1.0) -> np.ndarray:
-    """Visual + word log-likelihood of every sample under every concept of its home: (N, L).
-
-    ``view_counts``: the evidence of one view in counts (:func:`view_weights`; ``None``: the
-    multinomial of every count); ``word_weight``: without channels, the words' times this (or (N,))."""
-    loglik = HierarchicalMultinomial.log_likelihood(data.visual, data.homes, state.log_theta_v,
-                                                    by_dimension=data.visual_by_dimension)
-    weights = view_weights(data, view_counts)
-    if weights is not None:
-        loglik *= weights[:, None]
-    channels = getattr(state, "channels", None)
-    if data.words.nnz and channels is not None:  # the switches marginalised
-        loglik += mixture_log_likelihood(data.words, data.homes, state.log_theta_w, channels)
-    elif data.words.nnz:
-        log_theta_w = kept_word_log_theta(state.log_theta_w, state.word_mask)
-        words = HierarchicalMultinomial.log_likelihood(sentence_words(data, state), data.homes, log_theta_w)
-        weight = np.asarray(word_weight, dtype=np.float64)
-        loglik += words if np.all(weight == 1.0) else words * weight.reshape(-1, 1)
-    return loglik
-
-
-def kept_word_log_theta(log_theta_w: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """log θ^w with the pruned words removed: rows renormalised over the kept words, 0 (ignored)
-    at the pruned ones; shape as ``log_theta_w`` (…, V).
-
-    Pruning removes word k from every θ^w and renormalises the rows (``docs/model.md``, as in the
-    exported parameters and the label-swap moves). Leaving the rows unnormalised instead would
-    score a kept word by its share of *all* words: a place name holds ~0.2 of its concept's θ^w
-    (the sentence templates hold the rest), while a concept empty in a home, whose θ^w is a draw
-    around a sparse prior φ^w, can hold ~1.0 of it — with S^w = 5000 counts per word that is
-    5000 · log 5 ≈ 8,000 nats in favour of the empty concept, so whole places jumped into empty
-    concepts sweep after sweep and nothing stayed aligned across homes."""
-    if mask.all():
-        return log_theta_w
-    if not mask.any():  # every word pruned (no word names a place): the words say nothing
-        return np.zeros_like(log_theta_w)
-    kept = log_theta_w[..., mask]
-    top = kept.max(axis=-1, keepdims=True)
-    log_norm = np.log(np.exp(kept - top).sum(axis=-1, keepdims=True)) + top
-    return np.where(mask, log_theta_w - log_norm, 0.0)
-
-
-def _local_step(data: PreparedData, state: GibbsState, settings: SamplerSettings,
-                rng: np.random.Generator, hyper: TransferHyperparameters | None = None) -> float:
-    """Draw the assignments; returns log p(data, C, R | parameters) of the state it started from
-    (computed from the likelihoods the draw needs anyway).
-
-    With ``settings.block_moves`` (exact sampler) and ``hyper`` given, the one-sample draws are
-    followed by a pass of region block moves (:mod:`spco.model.blocks`: a region's samples of one
-    concept change concept together, G_e and π integrated out), before the word switches are drawn;
-    the caller's next home step redraws G_e and π given the result, as the move requires."""
-    concept_ll = _concept_loglik(data, state, settings.view_counts, settings.word_weight)
-    region_ll = GaussianRegions.log_likelihood(data.positions, data.homes, state.means, state.covariances)
-    before = _conditional_log_joint(data, state, concept_ll, region_ll)
-    if settings.joint_assignment:
-        state.concepts, state.regions = allocation.sample_assignments_joint(
-            state.log_g, state.log_pi, data.homes, concept_ll, region_ll, rng)
-        if settings.block_moves and hyper is not None and settings.variant == "exact":
-            prior = home_concept_concentration(state, hyper, settings)
-            state.concepts = region_block_step(data.homes, state.concepts, state.regions, concept_ll, prior,
-                                               hyper.beta, data.n_homes, state.log_pi.shape[2], rng)
-    else:  # the authors' two blocks: R | C, then C | R
-        state.regions = allocation.sample_regions_given_concepts(state.log_pi, data.homes, state.concepts,
-                                                                 region_ll, rng)
-        state.concepts = allocation.sample_concepts_given_regions(state.log_g, state.log_pi, data.homes,
-                                                                  state.regions, concept_ll, rng)
-    if state.channels is not None:  # each token's switch given its sample's new concept
-        state.switches = sample_switches(data.words, data.homes, state.concepts, state.log_theta_w,
-                                         state.channels, rng)
-    return before
-
-
-def home_concept_concentration(state: GibbsState, hyper: TransferHyperparameters,
-                               settings: SamplerSettings) -> np.ndarray:
-    """The Dirichlet concentration of every home's concept weights G_e (L,): γ G_0 (transfer model),
-    γ/L (SpCoA) — G_e's prior in the log joint, integrated over by the block moves."""
-    n_concepts = state.log_g.shape[1]
-    if settings.hierarchical:
-        return hyper.gamma * np.exp(state.log_g0)
-    return np.full(n_concepts, hyper.gamma / n_concepts)
-
-
-def _conditional_log_joint(data: PreparedData, state: GibbsState, concept_ll: np.ndarray,
-                           region_ll: np.ndarray) -> float:
-    """Σ_t log G_{e,C_t} + log π_{e,C_t,R_t} + log N(x_t | R_t) + log p(v_t, w_t | C_t)."""
-    homes, c, r = data.homes, state.concepts, state.regions
-    rows = np.arange(data.n_samples)
-    return float((state.log_g[homes, c] + state.log_pi[homes, c, r] + region_ll[rows, r]
-                  + concept_ll[rows, c]).sum())
-
-
-def _global_step(stats: Statistics, state: GibbsState, hyper: TransferHyperparameters,
-                 rng: np.random.Generator, moved: tuple | None = None) -> None:
-    """Exact: φ^v, φ^w and G_0 given CRT table counts (θ and G_e integrated out); φ^v from the
-    views' weighted counts (:meth:`HierarchicalMultinomial.sample_shared_given_counts`), or after a
-    φ^v-marginal block move with the other homes' tables it drew (``moved``: :mod:`spco.model.phi_moves`)."""
-    if moved is not None:
-        state.log_phi_v = phi_after_move(stats.visual, state.log_phi_v, hyper.delta_visual,
-                                         hyper.alpha_visual, moved, rng)
-    else:
-        state.log_phi_v = HierarchicalMultinomial.sample_shared_given_counts(
-            stats.visual, state.log_phi_v, hyper.delta_visual, hyper.alpha_visual, rng)
-    tables_w = HierarchicalMultinomial.sample_tables(stats.words, state.log_phi_w, hyper.delta_word, rng)
-    state.log_phi_w = HierarchicalMultinomial.sample_shared(tables_w, hyper.alpha_word, rng)
-    state.log_g0 = allocation.sample_global_concept_weights(stats.concepts, state.log_g0, hyper.gamma,
-                                                            hyper.gamma0, rng)
-    if stats.channel is not None and state.channels is not None:
-        counts = shared_place_counts(stats, state.channels, hyper, rng)  # (the home level: ψ_l's tables)
-        state.channels = sample_channels(counts, state.channels, rng)
-
-
-def _home_step(data: PreparedData, state: GibbsState, stats: Statistics, hyper: TransferHyperparameters,
-               settings: SamplerSettings, rng: np.random.Generator) -> None:
-    """θ^v, θ^w, G_e, π and the region Gaussians of every home, given φ, G_0 and the assignments."""
-    K, L = hyper.n_regions, hyper.n_concepts
-    if settings.hierarchical:
-        # drawn into the previous θ^v's memory: no new (E, L, D) array per sweep
-        state.log_theta_v = HierarchicalMultinomial.sample_specific(
-            stats.visual, state.log_phi_v, hyper.delta_visual, rng, out=state.log_theta_v)
-        state.log_theta_w = HierarchicalMultinomial.sample_specific(stats.words, state.log_phi_w,
-                                                                    hyper.delta_word, rng)
-        state.log_g = allocation.sample_home_concept_weights(stats.concepts, state.log_g0, hyper.gamma, rng)
-    else:  # SpCoA: θ_l ~ Dir(α + n), G ~ Dir(γ/L + n)
-        state.log_theta_v = log_dirichlet(hyper.alpha_visual + stats.visual, rng)
-        state.log_theta_w = log_dirichlet(hyper.alpha_word + stats.words, rng)
-        state.log_g = log_dirichlet(hyper.gamma / L + stats.concepts, rng)
-        state.log_phi_v = _log_mean(state.log_theta_v)  # exported as the shared part
-        state.log_phi_w = _log_mean(state.log_theta_w)
-        state.log_g0 = _log_mean(state.log_g)
-    if stats.home_place is not None and state.channels is not None:  # ψ_{e,l} | ψ_l, tokens
-        state.channels = draw_home_place(state.channels, stats.home_place, hyper.delta_place, rng)
-    state.log_pi = allocation.sample_region_weights(stats.regions_by_concept, hyper.beta / K, rng)
-    state.means, state.covariances = GaussianRegions.sample_posterior(
-        stats.region_count, stats.region_total, stats.region_scatter, niw_prior(data, hyper, settings), rng)
-    state.region_counts = stats.region_count.astype(np.int64)
-
-
-def _swap_labels(data: PreparedData, state: GibbsState, stats: Statistics, hyper: TransferHyperparameters,
-                 settings: SamplerSettings, rng: np.random.Generator) -> None:
-    """Metropolis–Hastings label swaps within each home, θ marginalised (see
-    :mod:`spco.model.moves`), then θ of the homes that changed redrawn from its conditional."""
-    place = place_home = None
-    if stats.home_place is not None and state.channels is not None:  # ψ_{e,l} integrated out
-        place_home = (stats.home_place, state.channels.log_place, hyper.delta_place)
-    elif stats.place_tokens is not None and state.channels is not None:
-        place = (stats.place_tokens, state.channels.log_place)
-    perms = concept_swap_step(stats.visual, state.log_phi_v, hyper.delta_visual, stats.words,
-                              state.log_phi_w, hyper.delta_word, state.log_g, state.log_g0, hyper.gamma,
-                              state.word_mask, rng, place=place, place_home=place_home)
-    changed = np.flatnonzero((perms != np.arange(perms.shape[1])).any(axis=1))
-    if changed.size == 0:
-        return
-    # θ of the homes that changed is redrawn below and the others keep theirs: no need to permute it
-    _apply_permutations(data, state, perms, theta=False)
-    slots = (changed[:, None], perms[changed])
-    visual, words = stats.visual[slots], stats.words[slots]
-    _relabel_visual_cache(data, state, perms, changed, visual)
-    state.log_theta_v[changed] = HierarchicalMultinomial.sample_specific(visual, state.log_phi_v,
-                                                                         hyper.delta_visual, rng)
-    state.log_theta_w[changed] = HierarchicalMultinomial.sample_specific(words, state.log_phi_w,
-                                                                         hyper.delta_word, rng)
-    if place_home is not None:  # the changed homes' ψ_{e,l} redrawn, as θ^w (their tokens relabelled)
-        relabelled = stats.home_place[np.arange(perms.shape[0])[:, None], perms]
-        state.channels = draw_home_place(state.channels, relabelled, hyper.delta_place, rng, changed)
-
-
-def _relabel_visual_cache(data: PreparedData, state: GibbsState, perms: np.ndarray, changed: np.ndarray,
-                          visual: np.ndarray) -> None:
-    """Carry the visual count cache through a relabelling (``visual``: the changed homes' counts in
-    their new slot order), so that the next sweep moves only the rows of samples that change
-    concept again instead of recounting the relabelled homes."""
-    cache = state.visual_cache
-    if cache is None or cache.visual is not data.visual or cache.concepts.shape != state.concepts.shape:
-        return
-    inverse = np.argsort(perms, axis=1)
-    cache.concepts = inverse[data.homes, cache.concepts]
-    cache.counts.flags.writeable = True
-    cache.counts[changed] = visual
-    cache.counts.flags.writeable = False
-
-
-def _log_mean(log_p: np.ndarray) -> np.ndarray:
-    """log of the mean over the first axis of exp(log_p)."""
-    if log_p.shape[0] == 1:
-        return log_p[0].copy()
-    top = log_p.max(axis=0)
-    return np.log(np.exp(log_p - top).mean(axis=0)) + top
-
-
-def _home_step_reference(data: PreparedData, state: GibbsState, stats: Statistics,
-                         hyper: TransferHyperparameters, settings: SamplerSettings,
-                         rng: np.random.Generator, regions_too: bool = True) -> None:
-    """The authors' per-home updates: NIW (empty regions re-seeded), θ | previous φ, π, G_e."""
-    if regions_too:
-        means, covs = GaussianRegions.sample_posterior(stats.region_count, stats.region_total,
-                                                       stats.region_scatter, niw_prior(data, hyper, settings),
-                                                       rng)
-        empty = stats.region_count == 0
-        n_empty = int(empty.sum())
-        if n_empty:
-            box = np.array([6.0, 6.0, 1.0, 1.0])
-            means[empty] = rng.uniform(-box, box, size=(n_empty, 4))
-            covs[empty] = 100.0 * np.eye(4)
-        state.means, state.covariances = means, covs
-    state.log_theta_v = HierarchicalMultinomial.sample_specific(
-        stats.visual, state.log_phi_v, hyper.delta_visual, rng, out=state.log_theta_v)
-    state.log_theta_w = HierarchicalMultinomial.sample_specific(stats.words, state.log_phi_w,
-                                                                hyper.delta_word, rng)
-    state.log_pi = allocation.sample_region_weights(stats.regions_by_concept, hyper.beta, rng)
-    state.log_g = allocation.sample_home_concept_weights(stats.concepts, state.log_g0, hyper.gamma, rng,
-                                                         extra=50.0)
-    state.region_counts = stats.region_count.astype(np.int64)
-
-
-def _global_step_reference(stats: Statistics, state: GibbsState, hyper: TransferHyperparameters,
-                           rng: np.random.Generator) -> None:
-    """The authors' shared updates: φ ~ Dir(α + pooled counts), G_0 ~ Dir(γ0 + Σ_e n_e)."""
-    state.log_phi_v = log_dirichlet(hyper.alpha_visual + stats.visual.sum(0), rng)
-    state.log_phi_w = log_dirichlet(hyper.alpha_word + stats.words.sum(0), rng)
-    state.log_g0 = log_dirichlet(hyper.gamma0 + stats.concepts.sum(0), rng)
-
-
-def _prune(state: GibbsState, hyper: TransferHyperparameters, settings: SamplerSettings,
-           data: PreparedData | None = None) -> None:
+def prune(state: GibbsState, hyper: TransferHyperparameters, settings: SamplerSettings,
+          data: PreparedData | None = None) -> None:
     """Recompute which words are informative enough to keep (``state.word_mask``).
 
     Exact variant (given ``data``): the naming rule (:func:`naming_verdicts`): a word is pruned
@@ -709,31 +309,31 @@ def sweep(data: PreparedData, state: GibbsState, hyper: TransferHyperparameters,
     Returns log p(data, C, R | parameters) of the state the sweep started from (the previous
     sweep's result), which costs nothing extra: the assignment step needs those likelihoods."""
     with _Timed(timer, "assignments"):
-        previous_log_joint = _local_step(data, state, settings, rng, hyper)
+        previous_log_joint = local_step(data, state, settings, rng, hyper)
     with _Timed(timer, "statistics"):
-        stats = _statistics(data, state, hyper, settings.learning_view_counts())
+        stats = sufficient_statistics(data, state, hyper, settings.learning_view_counts())
     if settings.variant == "reference":
         with _Timed(timer, "home parameters"):
-            _home_step_reference(data, state, stats, hyper, settings, rng)
+            home_step_reference(data, state, stats, hyper, settings, rng)
         if settings.learn_shared:
             with _Timed(timer, "shared parameters"):
-                _global_step_reference(stats, state, hyper, rng)
+                global_step_reference(stats, state, hyper, rng)
     else:
         if settings.hierarchical and settings.learn_shared:
             moved = None
             if settings.phi_moves and data.n_homes > 1:  # power target (spco.model.phi_moves)
                 with _Timed(timer, "phi block moves"):
-                    stats, moved = phi_block_step(data, state, stats, hyper, settings, rng, _statistics)
+                    stats, moved = phi_block_step(data, state, stats, hyper, settings, rng)
             with _Timed(timer, "shared parameters"):
-                _global_step(stats, state, hyper, rng, moved)
+                global_step(stats, state, hyper, rng, moved)
         with _Timed(timer, "home parameters"):
-            _home_step(data, state, stats, hyper, settings, rng)
+            home_step(data, state, stats, hyper, settings, rng)
         if swaps and settings.hierarchical and data.n_homes > 1:
             with _Timed(timer, "label swaps"):
-                _swap_labels(data, state, stats, hyper, settings, rng)
+                swap_labels(data, state, stats, hyper, settings, rng)
     if settings.prune and settings.learn_shared:
         with _Timed(timer, "word pruning"):
-            _prune(state, hyper, settings, data)
+            prune(state, hyper, settings, data)
     return previous_log_joint
 
 
@@ -746,7 +346,7 @@ def log_joint(data: PreparedData, state: GibbsState, hyper: TransferHyperparamet
     log p(data, C, R, parameters), in the sampler's units, up to the multinomial coefficients
     (which do not depend on the state). With word pruning, pruned words are left out, so the
     value jumps when the mask changes between sweeps (the "+MI" chain has no stated target; see
-    :func:`_prune`).
+    :func:`prune`).
 
     The default leaves out the parameters' prior densities because, with α^w = 0.01 and
     δ^w φ^w ≪ 1, the Dirichlet density of a word distribution with near-zero entries reaches
@@ -754,7 +354,7 @@ def log_joint(data: PreparedData, state: GibbsState, hyper: TransferHyperparamet
     trace to watch for convergence."""
     E, L, K = data.n_homes, hyper.n_concepts, hyper.n_regions
     region_ll = GaussianRegions.log_likelihood(data.positions, data.homes, state.means, state.covariances)
-    total = _conditional_log_joint(data, state, _concept_loglik(data, state, settings.view_counts), region_ll)
+    total = conditional_log_joint(data, state, concept_loglik(data, state, settings.view_counts), region_ll)
     if not include_parameter_priors:
         return total
     mask = state.word_mask
@@ -779,17 +379,3 @@ def log_joint(data: PreparedData, state: GibbsState, hyper: TransferHyperparamet
     total += float(dirichlet_log_density(state.log_pi, np.full(K, hyper.beta / K)).sum())
     total += GaussianRegions.log_prior(state.means, state.covariances, niw_prior(data, hyper, settings))
     return total
-
-
-# ----------------------------------------------------------------------------- public step names
-# The per-home steps under public names, for :mod:`spco.model.shard` and for the callers outside
-# ``spco.model`` (adapting knowledge to a home): nothing outside the package calls a private one.
-
-local_step = _local_step
-sufficient_statistics = _statistics
-global_step = _global_step
-home_step = _home_step
-home_step_reference = _home_step_reference
-global_step_reference = _global_step_reference
-prune = _prune
-swap_labels = _swap_labels

@@ -13,7 +13,7 @@ and a place token of home e at concept l is drawn from ψ_{e,l}. The steps:
 - **the switch and the concept** read ψ_{e,l} wherever they read ψ (:attr:`WordChannels.log_place_home`);
 - **ψ_{e,l} | ψ_l, tokens** ~ Dir(δ^p ψ_l + n_{e,l}), n_{e,l} home e's place tokens at l counted as ψ
   learns them (each token once; the power target: s_ti times) — :func:`draw_home_place`, in the home
-  step (:func:`spco.model.gibbs.home_step`), so every sampler that runs it (the fit's shards, a new
+  step (:func:`spco.model.parameter_steps.home_step`), so every sampler that runs it (the fit's shards, a new
   home's shard in ``adapt`` and ``teach``'s learnt homes) draws its homes' own;
 - **ψ_l | the homes' tokens, ψ_{e,l} integrated out**: table counts m_{e,l,k} ~ CRT(n_{e,l,k}, δ^p ψ_{l,k})
   (Teh et al. 2006), then ψ_l ~ Dir(α^p + Σ_e m_{e,l}) — :func:`place_tables`, the same step the

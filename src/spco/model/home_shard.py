@@ -27,7 +27,7 @@ import scipy.sparse as sp
 from scipy.cluster.vq import kmeans2
 
 from spco.data.language import Vocabulary
-from spco.model import gibbs
+from spco.model import assignments, gibbs, parameter_steps, sweep_statistics
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.kernels.counts import stack_counts
 from spco.model.kernels.crt import sample_crt
@@ -300,14 +300,14 @@ def learn_free_concepts(data: PreparedData, state: GibbsState, hyper: TransferHy
     unused = np.exp(state.log_g0) < FREE_CONCEPT_WEIGHT  # G_0 is the knowledge's: fixed while adapting
     if not unused[state.concepts].any():
         return
-    stats = gibbs.sufficient_statistics(data, state, hyper, settings.learning_view_counts())
+    stats = sweep_statistics.sufficient_statistics(data, state, hyper, settings.learning_view_counts())
     free = np.flatnonzero(unused & (stats.concepts[0] > 0))
     state.log_phi_v[free] = HierarchicalMultinomial.sample_shared_given_counts(
         stats.visual[:, free], state.log_phi_v[free], hyper.delta_visual, hyper.alpha_visual, rng)
     tables_w = HierarchicalMultinomial.sample_tables(stats.words[:, free], state.log_phi_w[free],
                                                      hyper.delta_word, rng)
     state.log_phi_w[free] = HierarchicalMultinomial.sample_shared(tables_w, hyper.alpha_word, rng)
-    gibbs.home_step(data, state, stats, hyper, settings, rng)
+    parameter_steps.home_step(data, state, stats, hyper, settings, rng)
 
 
 def sweep_home(data: PreparedData, state: GibbsState, hyper: TransferHyperparameters,
@@ -322,10 +322,10 @@ def sweep_home(data: PreparedData, state: GibbsState, hyper: TransferHyperparame
         gibbs.sweep(data, state, hyper, settings, rng, swaps=False)
         learn_free_concepts(data, state, hyper, settings, rng)
         return
-    gibbs.local_step(data, state, settings, rng, hyper)
-    stats = gibbs.sufficient_statistics(data, state, hyper, settings.learning_view_counts())
+    assignments.local_step(data, state, settings, rng, hyper)
+    stats = sweep_statistics.sufficient_statistics(data, state, hyper, settings.learning_view_counts())
     if settings.variant == "reference":  # the authors' order: home, then shared from pooled counts
-        gibbs.home_step_reference(data, state, stats, hyper, settings, rng)
+        parameter_steps.home_step_reference(data, state, stats, hyper, settings, rng)
         state.log_phi_v = log_dirichlet(prior.visual + stats.visual.sum(0), rng)
         state.log_phi_w = log_dirichlet(prior.words + stats.words.sum(0), rng)
         state.log_g0 = log_dirichlet(prior.g0 + stats.concepts.sum(0), rng)
@@ -336,7 +336,7 @@ def sweep_home(data: PreparedData, state: GibbsState, hyper: TransferHyperparame
         state.log_phi_w = log_dirichlet(prior.words + tables_w, rng)
         tables_g = sample_crt(stats.concepts, hyper.gamma * np.exp(state.log_g0)[None, :], rng).sum(axis=0)
         state.log_g0 = log_dirichlet(prior.g0 + tables_g, rng)
-        gibbs.home_step(data, state, stats, hyper, settings, rng)
+        parameter_steps.home_step(data, state, stats, hyper, settings, rng)
     if state.channels is not None:  # the word channels: no word is pruned
         return
     if settings.prune and settings.variant == "exact":
@@ -377,13 +377,13 @@ def initial_state(data: PreparedData, shared: SharedPart, settings: SamplerSetti
         log_phi_v=shared.log_phi_visual.copy(), log_phi_w=shared.log_phi_words.copy(),
         word_mask=shared.word_mask.copy(), channels=shared.channels,
     )
-    stats = gibbs.sufficient_statistics(data, state, hyper, settings.learning_view_counts())
+    stats = sweep_statistics.sufficient_statistics(data, state, hyper, settings.learning_view_counts())
     for name in ("visual", "words", "concepts", "regions_by_concept"):
         setattr(stats, name, np.zeros_like(getattr(stats, name)))  # new arrays: the sampler caches n^v
     if settings.variant == "reference":
-        gibbs.home_step_reference(data, state, stats, hyper, settings, rng)
+        parameter_steps.home_step_reference(data, state, stats, hyper, settings, rng)
     else:
-        gibbs.home_step(data, state, stats, hyper, settings, rng)
+        parameter_steps.home_step(data, state, stats, hyper, settings, rng)
     state.log_pi = np.full((1, L, K), -math.log(K))
     init_new_words(state, n_known, np.zeros(L), hyper.delta_word)
     return state

@@ -99,7 +99,7 @@ def view_powers(totals, view_counts):
     """ω = min(1, w / Σ_d v_d), the power of each view's multinomial likelihood for the view weight
     w = ``view_counts`` and the views' total counts ``totals`` (broadcast: a grid of weights against
     the views gives the grid of powers): the one definition of a view's weight, used by the sampler
-    (:func:`spco.model.gibbs.view_weights`), every answer (:mod:`spco.model.prediction`) and the
+    (:func:`spco.model.assignments.view_weights`), every answer (:mod:`spco.model.prediction`) and the
     view-weight estimate (:mod:`spco.model.view_fit`). Views with fewer than one count count whole."""
     return np.minimum(1.0, np.asarray(view_counts, dtype=np.float64)
                       / np.maximum(np.asarray(totals, dtype=np.float64), 1.0))

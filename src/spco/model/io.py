@@ -1,4 +1,5 @@
-"""Saving and loading fitted models: one ``.npz`` file, no pickle.
+"""Loading fitted models, and their file: one ``.npz`` file, no pickle (written by
+:func:`spco.model.transfer.save_model`, or a model's ``save``).
 
 Format (``format_version`` 1)
 -----------------------------
@@ -41,12 +42,7 @@ predict as the robot does, fit again (or adapt a knowledge to the home: :mod:`sp
 
 from __future__ import annotations
 
-import contextlib
-import hashlib
 import json
-import os
-import tempfile
-from collections.abc import Callable, Mapping
 from os import PathLike
 from pathlib import Path
 from typing import Any
@@ -55,190 +51,19 @@ import numpy as np
 
 from spco.data.language import Vocabulary
 from spco.errors import ConfigurationError, ModelFileError
+from spco.model.archive import check_format_version, checksum
 from spco.model.hyperparameters import SpCoAHyperparameters, TransferHyperparameters
 from spco.model.parameters import ConceptParameters
-from spco.model.transfer import SpatialConceptModel, SpCoA, SpCoTransfer
-from spco.timestamps import utc_now
+from spco.model.transfer import FORMAT_NAME, PARAM_PREFIX, SpatialConceptModel, SpCoA, SpCoTransfer
 
-__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "load", "load_model", "save_model"]
+__all__ = ["FORMAT_VERSION", "load", "load_model"]
 
-#: Value of the header's ``"format"`` field.
-FORMAT_NAME = "spco-model"
-#: Version of the file layout written by this module; files of a newer version are refused.
+#: The newest version of the file layout this spco reads; files of a newer version are refused
+#: (:func:`spco.model.transfer.save_model` writes 2 only where version 1 would be read otherwise).
 FORMAT_VERSION = 2
 
-_PARAM_PREFIX = "param."
 _UNREADABLE = "not a readable spco model file (truncated or corrupted?)"
 _MODEL_CLASSES: dict[str, type[SpatialConceptModel]] = {"SpCoTransfer": SpCoTransfer, "SpCoA": SpCoA}
-
-
-def _checksum(array: np.ndarray) -> str:
-    """sha256 of an array's dtype, shape and bytes (C order)."""
-    digest = hashlib.sha256()
-    digest.update(array.dtype.str.encode())
-    digest.update(repr(tuple(int(s) for s in array.shape)).encode())
-    digest.update(np.ascontiguousarray(array).tobytes())
-    return digest.hexdigest()
-
-
-def _model_class_name(model: SpatialConceptModel) -> str:
-    if isinstance(model, SpCoA):
-        return "SpCoA"
-    if isinstance(model, SpatialConceptModel):
-        return "SpCoTransfer"
-    raise ConfigurationError(f"save_model() expects a fitted SpCoTransfer or SpCoA, "
-                             f"got {type(model).__name__}")
-
-
-def _concatenate(per_home: list[np.ndarray], dtype: type) -> np.ndarray:
-    if not per_home:
-        return np.zeros(0, dtype=dtype)
-    return np.concatenate([np.asarray(a, dtype=dtype).ravel() for a in per_home])
-
-
-def _arrays_and_header(model: SpatialConceptModel) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
-    """The arrays to store and the header (without its checksums)."""
-    if not hasattr(model, "parameters_"):
-        raise ConfigurationError(f"this {type(model).__name__} is not fitted yet: "
-                                 "call fit(corpus) before saving")
-    arrays: dict[str, np.ndarray] = {}
-    for name, value in model.parameters_.arrays().items():
-        arrays[_PARAM_PREFIX + name] = np.asarray(value)
-    arrays["log_joint"] = np.asarray(model.log_joint_, dtype=np.float64)
-    concepts = list(model.concepts_)
-    sizes = [np.asarray(c).size for c in concepts]
-    for name, values in (("regions", model.regions_), ("training_ids", model.training_ids_)):
-        if [np.asarray(v).size for v in values] != sizes:
-            raise ConfigurationError(f"the model's {name}_ do not match its concepts_ (one entry per "
-                                     "training sample of each home)")
-    arrays["home_offsets"] = np.concatenate([[0], np.cumsum(sizes, dtype=np.int64)]).astype(np.int64)
-    arrays["concepts"] = _concatenate(concepts, np.int64)
-    arrays["regions"] = _concatenate(list(model.regions_), np.int64)
-    arrays["training_ids"] = _concatenate(list(model.training_ids_), np.int64)
-
-    from spco import __version__
-
-    random_state = model.random_state
-    if isinstance(random_state, bool) or not isinstance(random_state, int | np.integer):
-        random_state = None  # a Generator (or None) cannot be written down
-    hyper: TransferHyperparameters = model.hyperparameters_
-    segmentation = model.vocabulary_.segmentation
-    header: dict[str, Any] = {
-        "format": FORMAT_NAME,
-        # version 2 only for a vocabulary that segments text written without spaces (``segmentation``)
-        "format_version": 2 if segmentation is not None and segmentation.segments else 1,
-        "spco_version": __version__,
-        "model_class": _model_class_name(model),
-        "hyperparameters_class": type(hyper).__name__,
-        "variant": model.variant,
-        "prune_words": bool(model.prune_words),
-        "n_iterations": int(model.n_iterations),
-        "n_iter": int(getattr(model, "n_iter_", model.n_iterations)),
-        "random_state": None if random_state is None else int(random_state),
-        "hyperparameters": hyper.to_dict(),
-        "vocabulary": list(model.vocabulary_.words),
-        "segmentation": None if segmentation is None else segmentation.to_dict(),
-        "word_increment": int(model.word_increment_),
-        "home_names": list(model.home_names_),
-        "fit_seconds": float(getattr(model, "fit_seconds_", float("nan"))),
-        "created": utc_now(),
-    }
-    return arrays, header
-
-
-def save_model(model: SpatialConceptModel, path: str | PathLike[str], overwrite: bool = False) -> Path:
-    """Write a fitted model to ``path`` (a ``.npz`` file), atomically.
-
-    Parameters
-    ----------
-    model: a fitted :class:`~spco.model.transfer.SpCoTransfer` or :class:`~spco.model.transfer.SpCoA`.
-    path: the file to write (used as given: no suffix is added).
-    overwrite: replace an existing file; without it an existing ``path`` raises
-        :class:`~spco.errors.ModelFileError`.
-
-    Returns
-    -------
-    The path written.
-
-    The file is first written to a temporary file in the same folder, flushed to disk, then renamed
-    over ``path``; on any error the temporary file is removed and ``path`` is left as it was.
-    """
-    arrays, header = _arrays_and_header(model)
-    return write_npz_atomic(path, header, arrays, overwrite, "model file")
-
-
-def write_npz_atomic(path: str | PathLike[str], header: dict[str, Any], arrays: Mapping[str, np.ndarray],
-                     overwrite: bool, what: str,
-                     seal: Callable[[dict[str, Any]], str] | None = None) -> Path:
-    """Write ``arrays`` and a JSON ``header`` as one ``.npz`` (no pickle), atomically.
-
-    Adds ``header["array_checksums"]`` (sha256 per array) and, with ``seal``, ``header["checksum"]
-    = seal(header)``. The data go to a temporary file in the same folder, flushed to disk, then
-    renamed over ``path`` (permissions: those of the file replaced, else the usual ones); on any
-    error the temporary file is removed and ``path`` is left as it was. An existing ``path`` is
-    replaced only with ``overwrite``; problems raise :class:`~spco.errors.ModelFileError` naming
-    the ``what`` ("model file", "knowledge file", …).
-    """
-    target = Path(path).expanduser()
-    if target.is_dir():
-        raise ModelFileError(target, f"is a folder; give the name of the {what} to write")
-    folder = target.parent
-    if not folder.is_dir():
-        raise ModelFileError(target, f"cannot write the {what}: the folder {str(folder)!r} does not exist")
-    if target.exists() and not overwrite:
-        raise ModelFileError(target, "the file already exists; pass overwrite=True (or --force on the "
-                             "command line) to replace it")
-    arrays = {name: np.asarray(a) for name, a in arrays.items()}
-    header = dict(header)
-    header["array_checksums"] = {name: _checksum(a) for name, a in arrays.items()}
-    if seal is not None:
-        header["checksum"] = seal(header)
-    encoded = np.frombuffer(json.dumps(header, ensure_ascii=False, allow_nan=True).encode("utf-8"),
-                            dtype=np.uint8)
-    tmp_name: str | None = None
-    try:
-        with tempfile.NamedTemporaryFile(mode="wb", delete=False, dir=folder, prefix=f".{target.name}.",
-                                         suffix=".tmp") as handle:
-            tmp_name = handle.name
-            np.savez(handle, header=encoded, **arrays)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.chmod(tmp_name, _file_mode(target))
-        os.replace(tmp_name, target)
-        tmp_name = None
-    except OSError as exc:
-        raise ModelFileError(target, f"cannot write the {what}: {exc.strerror or exc}") from exc
-    finally:
-        if tmp_name is not None:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp_name)
-    _fsync_folder(folder)
-    return target
-
-
-def _file_mode(target: Path) -> int:
-    """Permissions for a file written to ``target``: those of the file it replaces, else the
-    usual ones (0o666 less the umask; temporary files are created 0o600)."""
-    try:
-        return target.stat().st_mode & 0o777
-    except OSError:
-        mask = os.umask(0)
-        os.umask(mask)
-        return 0o666 & ~mask
-
-
-def _fsync_folder(folder: Path) -> None:
-    """Make the rename durable (POSIX); a no-op where folders cannot be opened."""
-    try:
-        fd = os.open(folder, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
 
 
 # ----------------------------------------------------------------------------- loading
@@ -284,20 +109,6 @@ def _decode_header(path: Path, raw: np.ndarray) -> dict[str, Any]:
     return header
 
 
-def check_format_version(path: Path, header: Mapping[str, Any], what: str, newest: int) -> int:
-    """The ``format_version`` of a file's ``header``; :class:`~spco.errors.ModelFileError` naming
-    ``path`` when it is not a whole number ≥ 1, or newer than ``newest`` (written by a newer spco: the
-    ``what`` file format's version that this spco reads up to)."""
-    version = header.get("format_version")
-    if not isinstance(version, int) or isinstance(version, bool) or version < 1:
-        raise ModelFileError(path, f"invalid format_version {version!r}")
-    if version > newest:
-        raise ModelFileError(path, f"written by a newer spco ({what} format version {version}, spco "
-                             f"{header.get('spco_version', '?')}); this spco reads up to version "
-                             f"{newest} — upgrade spco to read it")
-    return version
-
-
 def _verify(path: Path, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
     checksums = header.get("array_checksums")
     if not isinstance(checksums, dict):
@@ -309,7 +120,7 @@ def _verify(path: Path, header: dict[str, Any], arrays: dict[str, np.ndarray]) -
     if extra:
         raise ModelFileError(path, f"unexpected arrays in the model file: {', '.join(extra)}")
     for name, expected in checksums.items():
-        if _checksum(arrays[name]) != expected:
+        if checksum(arrays[name]) != expected:
             raise ModelFileError(path, f"checksum mismatch for array {name!r}: the file was modified or "
                                  "corrupted after it was written")
 
@@ -319,7 +130,7 @@ _REQUIRED_KEYS = ("model_class", "variant", "prune_words", "n_iterations", "hype
 
 
 def load_model(path: str | PathLike[str]) -> SpatialConceptModel:
-    """Read a model written by :func:`save_model`.
+    """Read a model written by :func:`~spco.model.transfer.save_model`.
 
     Returns a :class:`~spco.model.transfer.SpCoTransfer` or :class:`~spco.model.transfer.SpCoA`
     with ``parameters_``, ``vocabulary_``, ``word_increment_``, ``home_names_``, ``log_joint_``,
@@ -346,8 +157,8 @@ def load_model(path: str | PathLike[str]) -> SpatialConceptModel:
         hyper_cls = SpCoAHyperparameters if header.get("hyperparameters_class") == "SpCoAHyperparameters" \
             else TransferHyperparameters
         hyper = hyper_cls.from_dict(header["hyperparameters"])
-        params = ConceptParameters(**{name[len(_PARAM_PREFIX):]: arrays[name] for name in arrays
-                                      if name.startswith(_PARAM_PREFIX)})
+        params = ConceptParameters(**{name[len(PARAM_PREFIX):]: arrays[name] for name in arrays
+                                      if name.startswith(PARAM_PREFIX)})
         segmentation = None
         if header.get("segmentation") is not None:
             from spco.data.segmentation import Segmentation

@@ -72,7 +72,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.special import multigammaln
 
-from spco.model import gibbs
+from spco.model import assignments, parameter_steps, sweep_statistics
 from spco.model.home_place import draw_home_place_of
 from spco.model.home_shard import (
     FREE_CONCEPT_WEIGHT,
@@ -111,11 +111,11 @@ def _likelihoods(
 ) -> tuple[np.ndarray, np.ndarray]:
     """(concept log-likelihood (n, L) of their views and words, region log-likelihood (n, K) of
     their positions under the regions' current Gaussians) of the samples ``rows``: the sampler's
-    (:func:`spco.model.gibbs._concept_loglik`, :meth:`GaussianRegions.log_likelihood`) for these rows
+    (:func:`spco.model.assignments.concept_loglik`, :meth:`GaussianRegions.log_likelihood`) for these rows
     only — a teaching's few samples, not the home's hundreds."""
     visual = sp.csr_array(data.visual[rows], dtype=np.float64)
     concept_ll = visual @ np.maximum(state.log_theta_v[0], LOG_FLOOR).T
-    weights = gibbs.view_weights(data, settings.view_counts)
+    weights = assignments.view_weights(data, settings.view_counts)
     if weights is not None:
         concept_ll *= weights[rows][:, None]
     if state.channels is not None:  # the word channels: the switches marginalised, as the sampler
@@ -124,9 +124,9 @@ def _likelihoods(
             concept_ll = concept_ll + mixture_log_likelihood(words, data.homes[rows], state.log_theta_w,
                                                              state.channels)
     else:
-        words = gibbs.sentence_words(data, state)[rows]
+        words = assignments.sentence_words(data, state)[rows]
         if words.nnz:
-            log_theta_w = gibbs.kept_word_log_theta(state.log_theta_w, state.word_mask)[0]
+            log_theta_w = assignments.kept_word_log_theta(state.log_theta_w, state.word_mask)[0]
             theta = np.maximum(log_theta_w, LOG_FLOOR).T
             concept_ll = concept_ll + sp.csr_array(words, dtype=np.float64) @ theta
     chol = np.linalg.cholesky(state.covariances[0])  # (K, d, d)
@@ -188,8 +188,8 @@ def _draw_assignments(
     pair_counts = np.zeros((L, K))
     np.add.at(pair_counts, (state.concepts[counted], state.regions[counted]), 1.0)
     concept_counts = pair_counts.sum(axis=1)
-    positions = (_RegionStatistics(data, state, counted, regions, gibbs.niw_prior(data, hyper, settings))
-                 if collapsed else None)
+    positions = (_RegionStatistics(data, state, counted, regions,
+                                   parameter_steps.niw_prior(data, hyper, settings)) if collapsed else None)
     for k, row in enumerate(rows):  # a loop over the teaching's few movable samples
         if positions is not None:
             region_ll[k, regions] = positions.log_predictive(data.positions[row])
@@ -254,7 +254,7 @@ def _parameters(
     """The affected parameters given the assignments (module docstring, step 3), in place."""
     hyper = shared.hyperparameters
     K = state.log_pi.shape[2]
-    stats = gibbs.sufficient_statistics(data, state, hyper, settings.learning_view_counts())
+    stats = sweep_statistics.sufficient_statistics(data, state, hyper, settings.learning_view_counts())
     free = concepts[
         (np.exp(state.log_g0[concepts]) < FREE_CONCEPT_WEIGHT) & (stats.concepts[0, concepts] > 0)
     ]
@@ -284,7 +284,7 @@ def _parameters(
         stats.region_count[:, regions],
         stats.region_total[:, regions],
         stats.region_scatter[:, regions],
-        gibbs.niw_prior(data, hyper, settings),
+        parameter_steps.niw_prior(data, hyper, settings),
         rng,
     )
     state.means[:, regions], state.covariances[:, regions] = means, covariances
@@ -312,7 +312,7 @@ def _add_expected_gaussians(average: ParameterAverage, data: PreparedData, state
     noise of the few draws a teaching averages — two draws of a 16-sample region's mean moved a
     taught bedroom's `where` poses 0.25 m towards the entrance (``benchmarks/teaching.py``, synthetic
     seed 3). The state keeps its draws (the chain goes on from them)."""
-    prior = gibbs.niw_prior(data, shared.hyperparameters, settings)
+    prior = parameter_steps.niw_prior(data, shared.hyperparameters, settings)
     d = data.positions.shape[1]
     positions = _RegionStatistics(data, state, np.ones(data.n_samples, dtype=bool), regions, prior)
     keep = (positions.count > 0) & (prior.nu0 + positions.count > d + 1)
@@ -406,7 +406,7 @@ def _move_taught_places(
     """The region of each taught sample's place drawn from :func:`place_conditional`, in place;
     ``openable``: the regions it may open. Returns the regions it touched (their Gaussians are
     redrawn next)."""
-    prior = gibbs.niw_prior(data, shared.hyperparameters, settings)
+    prior = parameter_steps.niw_prior(data, shared.hyperparameters, settings)
     touched: list[int] = []
     for row in taught:
         u = rng.random()
@@ -457,8 +457,8 @@ def _affected(
             word_ll = mixture_log_likelihood(sp.csr_array(data.words[said]), data.homes[said],
                                              state.log_theta_w, state.channels)
         else:
-            words = gibbs.sentence_words(data, state)[said]
-            log_theta_w = gibbs.kept_word_log_theta(state.log_theta_w, state.word_mask)
+            words = assignments.sentence_words(data, state)[said]
+            log_theta_w = assignments.kept_word_log_theta(state.log_theta_w, state.word_mask)
             word_ll = HierarchicalMultinomial.log_likelihood(words, data.homes[said], log_theta_w)
         concepts = np.union1d(concepts, np.argmax(word_ll + state.log_g[0][None, :], axis=1))
     return movable.astype(np.int64), concepts.astype(np.int64), regions.astype(np.int64)

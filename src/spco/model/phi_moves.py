@@ -55,9 +55,12 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.special import gammaln, logsumexp
 
+from spco.model.assignments import concept_loglik, home_concept_concentration, view_weights
 from spco.model.blocks import region_blocks
 from spco.model.observations import HierarchicalMultinomial
 from spco.model.phi_evidence import ConceptGrid
+from spco.model.sweep_statistics import sufficient_statistics
+from spco.model.word_channels import sample_switches
 
 __all__ = ["HomeMove", "move_home", "phi_after_move", "phi_block_step", "phi_moves_due", "sharded_phi_move"]
 
@@ -209,33 +212,30 @@ def phi_moves_due(iteration: int, hyper) -> bool:
     return iteration % every == 0 and (until is None or iteration < int(until))
 
 
-def phi_block_step(data, state, stats, hyper, settings, rng: np.random.Generator, statistics):
+def phi_block_step(data, state, stats, hyper, settings, rng: np.random.Generator):
     """Steps 1–3 of the module docstring on one home drawn uniformly from :func:`moved_homes`: returns
     the statistics (recounted if a block moved) and the other homes' tables (M_{−e}, F_{−e}, H_{−e}, e)
-    for :func:`phi_after_move`.
-    ``statistics``: the sampler's statistics function (:func:`spco.model.gibbs.sufficient_statistics`)."""
+    for :func:`phi_after_move`."""
     e = int(rng.choice(moved_homes(data)))
     others = np.ascontiguousarray(np.delete(np.asarray(stats.visual), e, axis=0))
     tables = HierarchicalMultinomial.table_parts(others, state.log_phi_v, hyper.delta_visual, rng)
-    stats, _ = move_home(data, state, stats, hyper, settings, e, others, tables, rng, statistics)
+    stats, _ = move_home(data, state, stats, hyper, settings, e, others, tables, rng)
     return stats, (*tables, e)
 
 
 def move_home(data, state, stats, hyper, settings, e: int, others: np.ndarray, tables,
-              rng: np.random.Generator, statistics):
+              rng: np.random.Generator):
     """Steps 2–3 of the module docstring for home ``e`` of ``data``, given the other homes' real
     counts ``others`` (E', L, D) and their tables ``tables`` (M_{−e}, F_{−e}, H_{−e}) drawn given
     the state's φ^v: one pass over the home's blocks, then (if a block moved) its word switches
     redrawn and the statistics recounted. Returns the statistics and the number of accepted moves.
     The single-process sweep (:func:`phi_block_step`) and a home's shard in the sharded fit
     (:meth:`spco.model.shard.HomeShard.phi_move`) both run it."""
-    from spco.model import gibbs  # the sampler's own likelihoods (gibbs imports this module)
-
     rows = slice(int(data.offsets[e]), int(data.offsets[e + 1]))
     pseudo = hyper.alpha_visual + tables[0] + tables[1]
-    prior = gibbs.home_concept_concentration(state, hyper, settings)
+    prior = home_concept_concentration(state, hyper, settings)
     move = HomeMove(stats.visual[e], others, pseudo, hyper.delta_visual, stats.concepts[e], prior, hyper.beta)
-    weights = gibbs.view_weights(data, settings.learning_view_counts())
+    weights = view_weights(data, settings.learning_view_counts())
     weights = np.ones(data.n_samples) if weights is None else weights
     word_ll = _word_log_likelihood(data, state, settings, rows)
     concepts, accepted = home_pass(move, sp.csr_array(data.visual[rows]), weights[rows], state.concepts[rows],
@@ -244,11 +244,9 @@ def move_home(data, state, stats, hyper, settings, e: int, others: np.ndarray, t
         state.concepts = state.concepts.copy()
         state.concepts[rows] = concepts
         if state.channels is not None:  # each token's switch given its sample's new concept
-            from spco.model.word_channels import sample_switches
-
             state.switches = sample_switches(data.words, data.homes, state.concepts, state.log_theta_w,
                                              state.channels, rng)
-        stats = statistics(data, state, hyper, settings.learning_view_counts())
+        stats = sufficient_statistics(data, state, hyper, settings.learning_view_counts())
     return stats, accepted
 
 
@@ -277,12 +275,10 @@ def sharded_phi_move(call, log_phi_v: np.ndarray, hyper, rng: np.random.Generato
 def _word_log_likelihood(data, state, settings, rows: slice) -> np.ndarray:
     """(n, L) the words' part of the home's samples' concept log-likelihoods (the sampler's own,
     without the views): 0 for untaught samples."""
-    from spco.model import gibbs
-
     n_concepts = state.log_g.shape[1]
     if not data.words.nnz:
         return np.zeros((rows.stop - rows.start, n_concepts))
-    full = gibbs._concept_loglik(data, state, None, settings.word_weight)[rows]
+    full = concept_loglik(data, state, None, settings.word_weight)[rows]
     visual = HierarchicalMultinomial.log_likelihood(data.visual, data.homes, state.log_theta_v,
                                                     by_dimension=data.visual_by_dimension)[rows]
     return full - visual

@@ -189,7 +189,7 @@ def colocation(words: sp.csr_array, homes: np.ndarray, regions: np.ndarray, n_ho
     ``grid``: round every home's part of ``expected`` and ``log_likelihood`` (each (home, word)) to
     a multiple of ``grid`` before summing over homes; sums of such values are exact, so any set of
     homes gives the sum of its homes' own statistics, bit for bit (the shards' statistics then add
-    up to the same whatever the grouping; :data:`spco.model.shard.SUM_GRID`)."""
+    up to the same whatever the grouping; :data:`spco.model.additive.SUM_GRID`)."""
 
     def on_grid(values: np.ndarray) -> np.ndarray:
         return values if grid is None else np.round(values / grid) * grid

@@ -9,8 +9,8 @@ A :class:`HomeShard` holds some homes' data and sampler state. One sweep is
    (:meth:`HomeShard.pooled_counts`, the authors' sampler), (L, D), (L, V) and (L,) arrays whose
    size does not grow with the homes; the driver adds them up;
 3. **global step** — :class:`GlobalStep` draws φ^v, φ^w and G_0 from the sums
-   (:class:`SharedParameters`), which every shard then receives in :meth:`HomeShard.home_step`
-   (θ, G_e, π, μ, Σ of its homes, label swaps, and the word-pruning mask).
+   (:class:`~spco.model.state.SharedParameters`), which every shard then receives in
+   :meth:`HomeShard.home_step` (θ, G_e, π, μ, Σ of its homes, label swaps, and the word-pruning mask).
 4. **naming rule** (exact sampler with pruning) — every shard counts how often pairs of each word's
    uses fall in the same region of its homes and the log-likelihood of their regions on a grid of
    excess values (:meth:`HomeShard.colocation`, three (V,) arrays and one (V, 50), all adding up
@@ -22,8 +22,8 @@ Only statistics and shared parameters travel, so shards can live in other proces
 random generator (:func:`home_generator`: seeded from the fit's seed and the home's index); the
 homes a worker runs are a :class:`~spco.model.shard_group.ShardGroup`, and the driver draws from
 its own generator. The statistics that travel add up exactly (integer counts, and per-home float
-statistics rounded to :data:`SUM_GRID`), so the chain depends on the seed only: the same for any
-number of workers and any engine.
+statistics rounded to :data:`~spco.model.additive.SUM_GRID`), so the chain depends on the seed only:
+the same for any number of workers and any engine.
 """
 
 from __future__ import annotations
@@ -34,8 +34,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 import scipy.sparse as sp
 
-from spco.model import gibbs
-from spco.model.additive import AdditiveCounts
+from spco.model import assignments, gibbs, parameter_steps, sweep_statistics
+from spco.model.additive import SUM_GRID, PooledCounts
 from spco.model.gibbs import GibbsState, PreparedData, SamplerSettings
 from spco.model.home_place import shared_place_counts, uses_home_place
 from spco.model.hyperparameters import TransferHyperparameters
@@ -46,6 +46,7 @@ from spco.model.observations import HierarchicalMultinomial
 from spco.model.phi_moves import move_home, phi_moves_due, sharded_phi_move, taught_homes
 from spco.model.pruning import NAME, NOT_A_NAME, Colocation, colocation, judge_names
 from spco.model.shard_init import ShardInitialisation
+from spco.model.state import SharedParameters
 from spco.model.word_channels import (
     ChannelCounts,
     WordChannels,
@@ -54,21 +55,6 @@ from spco.model.word_channels import (
     place_names,
     sample_channels,
 )
-
-#: Float statistics a home sends to be summed over homes (the naming rule's expected pairs and
-#: log-likelihoods, the synonyms' overlaps) are rounded to multiples of this grid first: sums of
-#: such values are exact, hence the same whatever the order and grouping of the homes, as long as
-#: every partial sum stays below 2^33 in magnitude (8.6·10^9; a home contributes tens to thousands).
-SUM_GRID = 2.0 ** -20
-
-
-def on_sum_grid(values):
-    """``values`` (an array, or a sparse matrix) rounded to multiples of :data:`SUM_GRID`."""
-    if sp.issparse(values):
-        out = sp.csr_array(values, dtype=np.float64, copy=True)
-        out.data = np.round(out.data / SUM_GRID) * SUM_GRID
-        return out
-    return np.round(np.asarray(values, dtype=np.float64) / SUM_GRID) * SUM_GRID
 
 
 def home_generator(entropy: list[int], home: int) -> np.random.Generator:
@@ -84,46 +70,6 @@ def home_entropy(rng: np.random.Generator) -> list[int]:
 
 #: What a shard's :meth:`HomeShard.tables` can count.
 TABLE_KINDS = ("visual", "words", "concepts")
-
-
-@dataclass
-class SharedParameters:
-    """The parameters every home shares (log-probabilities): φ^v (L, D), φ^w (L, V), G_0 (L,), the
-    word-pruning mask (V,) bool and the words judged names (V,) bool or ``None``
-    (:func:`spco.model.gibbs.sentence_words`)."""
-
-    log_phi_v: np.ndarray
-    log_phi_w: np.ndarray
-    log_g0: np.ndarray
-    word_mask: np.ndarray
-    name_words: np.ndarray | None = None
-    #: the word channels (:mod:`spco.model.word_channels`; ``None``: the naming rule's word model)
-    channels: WordChannels | None = None
-
-    @classmethod
-    def of(cls, state: GibbsState) -> SharedParameters:
-        """The shared parameters held in ``state``."""
-        return cls(state.log_phi_v, state.log_phi_w, state.log_g0, state.word_mask, state.name_words,
-                   state.channels)
-
-    @property
-    def nbytes(self) -> int:
-        """Bytes of the arrays (what a broadcast sends)."""
-        arrays = (self.log_phi_v, self.log_phi_w, self.log_g0, self.word_mask, self.name_words)
-        if self.channels is not None:
-            c = self.channels
-            arrays += (c.log_place, c.log_background, c.log_shares, c.log_evidence)
-        return sum(a.nbytes for a in arrays if a is not None)
-
-
-@dataclass
-class PooledCounts(AdditiveCounts):
-    """The authors' sampler's statistics of a shard, summed over its homes: visual (L, D) and word
-    (L, V) counts per concept, concept counts (L,)."""
-
-    visual: np.ndarray
-    words: np.ndarray
-    concepts: np.ndarray
 
 
 @dataclass
@@ -164,7 +110,7 @@ class HomeShard(ShardInitialisation):
                  settings: SamplerSettings, rng: np.random.Generator, n_fit_homes: int | None = None) -> None:
         self.data, self.state, self.hyper, self.settings, self.rng = data, state, hyper, settings, rng
         self.n_fit_homes = data.n_homes if n_fit_homes is None else int(n_fit_homes)
-        self.stats: gibbs.Statistics | None = None
+        self.stats: sweep_statistics.Statistics | None = None
         self.setup_seconds: dict[str, float] = {}
 
     @classmethod
@@ -281,8 +227,8 @@ class HomeShard(ShardInitialisation):
                 held = self.state.channels
                 channels = replace(channels, log_place_home=None if held is None else held.log_place_home)
             self.state.channels = channels
-        log_joint = gibbs.local_step(self.data, self.state, self.settings, self.rng, self.hyper)
-        self.stats = gibbs.sufficient_statistics(self.data, self.state, self.hyper,
+        log_joint = assignments.local_step(self.data, self.state, self.settings, self.rng, self.hyper)
+        self.stats = sweep_statistics.sufficient_statistics(self.data, self.state, self.hyper,
                                                 self.settings.learning_view_counts())
         return log_joint
 
@@ -297,7 +243,7 @@ class HomeShard(ShardInitialisation):
                 held = self.state.channels
                 channels = replace(channels, log_place_home=None if held is None else held.log_place_home)
             self.state.channels = channels
-        self.stats = gibbs.sufficient_statistics(self.data, self.state, hyper,
+        self.stats = sweep_statistics.sufficient_statistics(self.data, self.state, hyper,
                                                 settings.learning_view_counts())
 
     def tables(self, kind: str) -> np.ndarray:
@@ -333,7 +279,7 @@ class HomeShard(ShardInitialisation):
         if self.data.n_homes != 1:
             raise RuntimeError(f"HomeShard.phi_move: a shard of one home moves, not {self.data.n_homes}")
         self.stats, _ = move_home(self.data, self.state, self._stats(), self.hyper, self.settings, 0, others,
-                                  tables, self.rng, gibbs.sufficient_statistics)
+                                  tables, self.rng)
         return np.asarray(self.stats.visual[0])
 
     def visual_log_weight(self, log_phi: np.ndarray) -> np.ndarray:
@@ -387,11 +333,11 @@ class HomeShard(ShardInitialisation):
         if shared is not None:
             self.receive(shared)
         if settings.variant == "reference":
-            gibbs.home_step_reference(data, state, stats, hyper, settings, rng)
+            parameter_steps.home_step_reference(data, state, stats, hyper, settings, rng)
         else:
-            gibbs.home_step(data, state, stats, hyper, settings, rng)
+            parameter_steps.home_step(data, state, stats, hyper, settings, rng)
             if swaps and settings.hierarchical and self.n_fit_homes > 1:
-                gibbs.swap_labels(data, state, stats, hyper, settings, rng)
+                parameter_steps.swap_labels(data, state, stats, hyper, settings, rng)
         if prune and not uses_naming_rule(settings):  # (the naming rule is judged over all shards)
             gibbs.prune(state, hyper, settings)
         exported = None if settings.hierarchical else SharedParameters.of(state)
@@ -418,7 +364,7 @@ class HomeShard(ShardInitialisation):
         return colocation(data.words, data.homes, self.state.regions, data.n_homes, self.hyper.n_regions,
                           grid=SUM_GRID)
 
-    def _stats(self) -> gibbs.Statistics:
+    def _stats(self) -> sweep_statistics.Statistics:
         if self.stats is None:
             raise RuntimeError("HomeShard: call local_step() before this step")
         return self.stats

@@ -5,7 +5,7 @@ seeded from the fit's seed and e), in a :class:`~spco.model.shard.HomeShard` of 
 worker — the one in-process run, or a Ray actor — holds consecutive homes as a :class:`ShardGroup`,
 which answers the driver's calls (:mod:`spco.model.driver`, :mod:`spco.model.shard_init`) with the
 same methods as a shard and combines its homes' answers in home order: statistics that add up are
-summed (exact: integer counts, floats on :data:`~spco.model.shard.SUM_GRID`), per-home answers are
+summed (exact: integer counts, floats on :data:`~spco.model.additive.SUM_GRID`), per-home answers are
 concatenated, and what every home answers alike (the shared parameters, the pruning mask of a
 shared score) is taken from the first. So the chain depends on the seed only, not on how many
 workers the homes are split into nor where they run.
@@ -21,15 +21,16 @@ import numpy as np
 import scipy.sparse as sp
 
 from spco.model import shard as shards_api
+from spco.model.additive import SUM_GRID, PooledCounts
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.kernels.crt import sample_crt_totals_each
 from spco.model.kernels.fractional import fractional_log_weights_grouped
 from spco.model.kernels.special import scaled_exp
 from spco.model.observations import HierarchicalMultinomial
 from spco.model.pruning import Colocation, colocation
-from spco.model.shard import HomeShard, HomeStepResult, PooledCounts, SharedParameters
+from spco.model.shard import HomeShard, HomeStepResult
 from spco.model.shard_init import HomeSummary
-from spco.model.state import GibbsState, PreparedData, SamplerSettings
+from spco.model.state import GibbsState, PreparedData, SamplerSettings, SharedParameters
 from spco.model.synonyms import NameOverlaps
 
 __all__ = ["ShardGroup"]
@@ -203,7 +204,7 @@ class ShardGroup:
             return _sum(self._each_lazily("colocation"))
         regions = np.concatenate([h.state.regions for h in self.homes])
         return colocation(self.words, self.home_of_sample, regions, len(self.homes),
-                          self.homes[0].hyper.n_regions, grid=shards_api.SUM_GRID)
+                          self.homes[0].hyper.n_regions, grid=SUM_GRID)
 
     def candidate_words(self) -> np.ndarray | None:
         """The candidate words (a shared part of the state)."""

@@ -51,13 +51,15 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from spco.model import allocation, gibbs
+from spco.model import allocation, assignments, gibbs, parameter_steps, sweep_statistics
+from spco.model.additive import PooledCounts, on_sum_grid
 from spco.model.alignment import ALIGNMENT_BATCH, HomeCounts, align_in_order
 from spco.model.gibbs import GibbsState, PreparedData, SamplerSettings
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.kernels.dirichlet import log_dirichlet
 from spco.model.observations import GaussianRegions
 from spco.model.pruning import NAME, NOT_A_NAME, Colocation, judge_names
+from spco.model.state import SharedParameters
 from spco.model.synonyms import NameOverlaps, name_overlaps, name_region_overlaps, same_place_names
 
 #: The per-home sampler of the warm start (θ_{e,l} ~ Dir(α + n), the SpCoA conditionals).
@@ -103,8 +105,6 @@ class ShardInitialisation:
         the shard's sums of the names' region overlaps (:class:`~spco.model.synonyms.NameOverlaps`),
         to be pooled over all homes."""
         data, state, hyper = self.data, self.state, self.hyper
-        from spco.model.shard import on_sum_grid
-
         named = judge_names(naming) == NAME
         named[list(self.settings.start_not_names)] = False  # (warm_start_settings)
         self._names = gibbs.sample_names(data, state.regions, hyper, named=named, stats=naming)
@@ -120,7 +120,8 @@ class ShardInitialisation:
         places = same_place_names(self._names, state.regions, data.offsets, hyper.n_regions,
                                   data.words.shape[1], overlaps=overlaps)
         state.concepts = gibbs.concepts_by_name(data, state.regions, hyper, places)
-        stats = gibbs.sufficient_statistics(data, state, hyper, self.settings.learning_view_counts())
+        stats = sweep_statistics.sufficient_statistics(data, state, hyper,
+                                                       self.settings.learning_view_counts())
         independent_home_step(data, state, stats, hyper, self.rng)
 
     def init_taught(self) -> np.ndarray:
@@ -153,11 +154,11 @@ class ShardInitialisation:
         # the same view evidence, and a word token's as the chain weighs it (SamplerSettings.word_weight)
         independent = replace(INDEPENDENT, view_counts=self.settings.view_counts,
                               word_weight=getattr(self, "_word_weight", self.settings.word_weight))
-        gibbs.local_step(self.data, self.state, independent, self.rng)
+        assignments.local_step(self.data, self.state, independent, self.rng)
         held = getattr(self, "_held", None)
         if held is not None and held.size:
             self.state.concepts[held] = self._held_concepts
-        self._init_stats = gibbs.sufficient_statistics(self.data, self.state, self.hyper,
+        self._init_stats = sweep_statistics.sufficient_statistics(self.data, self.state, self.hyper,
                                                           self.settings.learning_view_counts())
 
     def init_home_step(self, word_mask: np.ndarray | None = None,
@@ -172,7 +173,7 @@ class ShardInitialisation:
     def init_summary(self) -> HomeSummary:
         """Per-home word totals, names said and taught fractions (see :class:`HomeSummary`)."""
         data, state, hyper = self.data, self.state, self.hyper
-        stats = self._init_stats = gibbs.sufficient_statistics(data, state, hyper,
+        stats = self._init_stats = sweep_statistics.sufficient_statistics(data, state, hyper,
                                                                self.settings.learning_view_counts())
         self._name_counts = None
         names_said = None
@@ -195,9 +196,9 @@ class ShardInitialisation:
 
     def init_align(self, perms: np.ndarray) -> None:
         """Relabel the homes' concepts by ``perms`` (E_s, L) (slot j takes old concept perms[e, j])."""
-        gibbs._apply_permutations(self.data, self.state, perms)
+        parameter_steps.apply_permutations(self.data, self.state, perms)
         self._name_counts = None
-        self._init_stats = gibbs.sufficient_statistics(self.data, self.state, self.hyper,
+        self._init_stats = sweep_statistics.sufficient_statistics(self.data, self.state, self.hyper,
                                                           self.settings.learning_view_counts())
 
     def init_kept(self, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -232,14 +233,12 @@ class ShardInitialisation:
                 self.state.concepts[rows[self._names[rows] == word]] = label
             self._own[e] = np.array([label for _, label in pairs], dtype=np.int64)
         if given:
-            self._init_stats = gibbs.sufficient_statistics(self.data, self.state, self.hyper,
+            self._init_stats = sweep_statistics.sufficient_statistics(self.data, self.state, self.hyper,
                                                           self.settings.learning_view_counts())
 
     def init_weighted_counts(self, scale: bool):
         """The statistics weighted by the homes' weights (with ``scale``; the kept labels of own
-        names in full), summed over the shard's homes (a :class:`~spco.model.shard.PooledCounts`)."""
-        from spco.model.shard import PooledCounts
-
+        names in full), summed over the shard's homes (a :class:`~spco.model.additive.PooledCounts`)."""
         stats, own = self._init_stats, getattr(self, "_own", {})
         if scale:
             # rint(n · w), computed for the homes with w < 1 only: a
@@ -272,7 +271,7 @@ class ShardInitialisation:
         state.log_phi_v, state.log_phi_w = shared.log_phi_v, shared.log_phi_w
         state.log_g0, state.word_mask = shared.log_g0, shared.word_mask
         state.name_words = shared.name_words
-        gibbs.home_step(self.data, state, self._init_stats, self.hyper, self.settings, self.rng)
+        parameter_steps.home_step(self.data, state, self._init_stats, self.hyper, self.settings, self.rng)
         for name in ("_init_stats", "_names", "_name_counts", "_weights", "_own", "_held", "_held_concepts",
                      "_word_weight"):
             self.__dict__.pop(name, None)
@@ -282,14 +281,14 @@ class ShardInitialisation:
 THETA_CHUNK = 64
 
 
-def independent_home_step(data: PreparedData, state: GibbsState, stats: gibbs.Statistics,
+def independent_home_step(data: PreparedData, state: GibbsState, stats: sweep_statistics.Statistics,
                           hyper: TransferHyperparameters, rng: np.random.Generator) -> None:
-    """The warm start's per-home step (the SpCoA conditionals of ``gibbs.home_step``): θ^v_{e,l} ~
+    """The warm start's per-home step (the SpCoA conditionals of ``parameter_steps.home_step``): θ^v_{e,l} ~
     Dir(α^v + n^v_{e,l}), θ^w likewise, G_e ~ Dir(γ/L + n_e), π, μ, Σ. θ^v is drawn
     :data:`THETA_CHUNK` homes at a time into one (E, L, D) array, the old θ^v freed first (the
     step does not read it), and the SpCoA export of the homes' mean as φ, G_0 is left out (the
     warm start sets those from the aligned counts): two (E, L, D) arrays fewer at a shard's peak
-    memory than ``gibbs.home_step`` with the SpCoA settings."""
+    memory than ``parameter_steps.home_step`` with the SpCoA settings."""
     E, L, K = data.n_homes, hyper.n_concepts, hyper.n_regions
     state.log_theta_v = None
     theta_v = np.empty(stats.visual.shape)
@@ -302,7 +301,7 @@ def independent_home_step(data: PreparedData, state: GibbsState, stats: gibbs.St
     state.log_pi = allocation.sample_region_weights(stats.regions_by_concept, hyper.beta / K, rng)
     state.means, state.covariances = GaussianRegions.sample_posterior(
         stats.region_count, stats.region_total, stats.region_scatter,
-        gibbs.niw_prior(data, hyper, INDEPENDENT), rng)
+        parameter_steps.niw_prior(data, hyper, INDEPENDENT), rng)
     state.region_counts = stats.region_count.astype(np.int64)
 
 
@@ -425,13 +424,11 @@ def initialise(call, call_each, bounds: list[tuple[int, int]], n_words: int, hyp
                batch: int = ALIGNMENT_BATCH):
     """Finish the shards' initialisation (their homes already started with
     :func:`spco.model.gibbs.initialize`) and return the initial
-    :class:`~spco.model.shard.SharedParameters` and an :class:`InitialisationReport`.
+    :class:`~spco.model.state.SharedParameters` and an :class:`InitialisationReport`.
 
     ``call(method, *args)`` runs a shard method on every shard (results in shard order);
     ``call_each(method, args)`` runs it on shard i with ``args[i]``; ``bounds`` are the shards'
     home ranges [first, last). ``rng`` is the driver's generator (the shared draws)."""
-    from spco.model.shard import SharedParameters
-
     report = InitialisationReport()
     started = time.perf_counter()
 

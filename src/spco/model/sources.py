@@ -2,7 +2,7 @@
 
 A :class:`HomeSource` describes all homes of a fit and cuts them into parts
 (:meth:`HomeSource.parts`), one per shard; a part is small to send and its :meth:`HomesPart.prepare`
-builds the shard's :class:`~spco.model.gibbs.PreparedData` (home indices 0..E_s − 1) where the
+builds the shard's :class:`~spco.model.state.PreparedData` (home indices 0..E_s − 1) where the
 shard runs. So the driver never holds every home's data:
 
 - :class:`PreparedHomes`: data already prepared in the driver (a corpus loaded there), cut into
@@ -23,8 +23,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from spco.model.gibbs import PreparedData
 from spco.model.kernels.counts import stack_counts
+from spco.model.state import PreparedData
 
 
 class HomesPart(ABC):
@@ -34,7 +34,7 @@ class HomesPart(ABC):
 
     @abstractmethod
     def prepare(self) -> PreparedData:
-        """The part's homes as :class:`~spco.model.gibbs.PreparedData` (homes numbered from 0)."""
+        """The part's homes as :class:`~spco.model.state.PreparedData` (homes numbered from 0)."""
 
 
 class HomeSource(ABC):
@@ -86,7 +86,7 @@ class RangeSource(HomeSource):
 
     @abstractmethod
     def prepare_homes(self, first: int, last: int) -> PreparedData:
-        """Homes first..last − 1 as :class:`~spco.model.gibbs.PreparedData` (numbered from 0)."""
+        """Homes first..last − 1 as :class:`~spco.model.state.PreparedData` (numbered from 0)."""
 
 
 @dataclass
@@ -259,11 +259,10 @@ class SyntheticHomes(RangeSource):
     def prepare_homes(self, first: int, last: int) -> PreparedData:
         """Homes first..last − 1 generated and prepared (homes numbered from 0)."""
         from spco.data.environment import Corpus
-        from spco.model.transfer import SpatialConceptModel
 
         corpus = Corpus([self.home(i) for i in range(first, last)], vocabulary=self.vocabulary,
                         word_increment=self.word_increment)
-        return SpatialConceptModel.prepare_data(corpus, self.position_scale)
+        return PreparedData.from_corpus(corpus, self.position_scale)
 
     def parts(self, n_shards: int) -> list[HomesPart]:
         return [RangePart(self, a, b) for a, b in even_bounds(self.n_homes, n_shards)]
@@ -368,12 +367,11 @@ class FolderHomes(RangeSource):
         """Homes first..last − 1 read and prepared (homes numbered from 0)."""
         from spco.data.environment import Corpus
         from spco.data.loading import load_homes
-        from spco.model.transfer import SpatialConceptModel
 
         envs = [load_homes(p, teaching_rate=self.teaching_rate)[0] for p in self.paths[first:last]]
         corpus = Corpus(envs, vocabulary=self.vocabulary, word_increment=self.word_increment,
                         n_features=self.n_features)
-        return SpatialConceptModel.prepare_data(corpus, self.position_scale)
+        return PreparedData.from_corpus(corpus, self.position_scale)
 
     def parts(self, n_shards: int) -> list[HomesPart]:
         from types import SimpleNamespace

@@ -1,6 +1,8 @@
 """The sampler's data and state: all homes' samples stacked in the sampler's units
-(:class:`PreparedData`), the assignments and parameters after a sweep (:class:`GibbsState`) and
-what distinguishes the samplers (:class:`SamplerSettings`). The sweeps are in :mod:`spco.model.gibbs`."""
+(:class:`PreparedData`, made from a corpus by :meth:`PreparedData.from_corpus`), the assignments and
+parameters after a sweep (:class:`GibbsState`), the part of them every home shares
+(:class:`SharedParameters`, what the driver sends the shards) and what distinguishes the samplers
+(:class:`SamplerSettings`). The sweeps are in :mod:`spco.model.gibbs`."""
 
 from __future__ import annotations
 
@@ -10,8 +12,12 @@ from functools import cached_property
 import numpy as np
 import scipy.sparse as sp
 
+from spco.data.environment import Corpus
+from spco.errors import ConfigurationError
 from spco.model.hyperparameters import ESTIMATE, VIEW_COUNTS
+from spco.model.kernels.counts import stack_counts
 from spco.model.kernels.likelihood import DimensionMajorCounts, dimension_major
+from spco.model.word_channels import WordChannels
 
 VARIANTS = ("exact", "reference", "spcoa")
 
@@ -52,6 +58,39 @@ class PreparedData:
             raise ValueError("a sample without a view must have an empty visual row")
         object.__setattr__(self, "view_missing", missing)
 
+    @classmethod
+    def from_corpus(cls, corpus: Corpus, position_scale: float) -> PreparedData:
+        """The training samples of every home of ``corpus`` stacked as the sampler reads them, positions
+        multiplied by ``position_scale`` (1 for metres, :data:`CM_PER_M` for the reference variant's
+        centimetres: :attr:`spco.model.transfer.SpatialConceptModel.position_scale`); raises
+        :class:`~spco.errors.ConfigurationError` for a home without training samples."""
+        if not isinstance(corpus, Corpus):
+            raise ConfigurationError("fit() expects a spco.data.Corpus")
+        training = corpus.training_set()
+        for env, train in zip(corpus, training, strict=True):
+            if train.n_samples == 0:
+                raise ConfigurationError(
+                    f"home {env.name!r} has no training samples: all {env.n_samples} samples are in its "
+                    "test split, and test samples are never used for training")
+        positions = np.concatenate([t.positions for t in training]) * np.array(
+            [position_scale, position_scale, 1.0, 1.0])
+        sizes = np.array([t.n_samples for t in training])
+        offsets = np.concatenate([[0], np.cumsum(sizes)])
+        homes = np.repeat(np.arange(len(training)), sizes)
+        visual = stack_counts(*(t.visual for t in training))  # stacked once, in the kernels' layout
+        words = stack_counts(corpus.word_counts([s for t in training for s in t.sentences]))
+        centres = np.zeros((len(training), 4))
+        for e, t in enumerate(training):
+            if t.extent is not None:
+                x0, x1, y0, y1 = t.extent
+                centres[e, :2] = ((x0 + x1) / 2, (y0 + y1) / 2)
+            else:
+                centres[e, :2] = t.positions[:, :2].mean(0)
+        centres[:, :2] *= position_scale
+        missing = np.concatenate([t.view_missing for t in training])
+        return cls(positions=positions, homes=homes, visual=visual, view_missing=missing, words=words,
+                   n_homes=len(training), offsets=offsets, position_scale=position_scale, map_centres=centres)
+
     @property
     def n_views(self) -> np.ndarray:
         """(E,) samples with a view in each home."""
@@ -76,7 +115,7 @@ class PreparedData:
 
     @cached_property
     def niw_priors(self) -> dict:
-        """The NIW priors already built for this data (:func:`spco.model.gibbs.niw_prior`), by
+        """The NIW priors already built for this data (:func:`spco.model.parameter_steps.niw_prior`), by
         hyperparameters and variant: built once per fit instead of once per sweep."""
         return {}
 
@@ -92,7 +131,7 @@ class GibbsState:
     home_specific_words (V,) candidates it never prunes (the exact variant uses neither: see
     :func:`naming_verdicts`); name_words (V,) the words the naming rule judges names (exact variant
     with pruning; ``None``: none judged yet): a taught sample whose sentence holds one is scored by
-    its name words only (:func:`spco.model.gibbs.sentence_words`); channels and switches: the word
+    its name words only (:func:`spco.model.assignments.sentence_words`); channels and switches: the word
     channels (:mod:`spco.model.word_channels`), which replace the naming rule where set.
     """
 
@@ -113,7 +152,7 @@ class GibbsState:
     home_specific_words: np.ndarray | None = None
     visual_cache: VisualCountCache | None = field(default=None, repr=False)
     name_words: np.ndarray | None = None
-    #: the words matrix :func:`spco.model.gibbs.sentence_words` last built: (data.words, name_words
+    #: the words matrix :func:`spco.model.assignments.sentence_words` last built: (data.words, name_words
     #: bytes, matrix)
     words_cache: tuple | None = field(default=None, repr=False)
     #: the word channels' parameters (:class:`spco.model.word_channels.WordChannels`, shared by all
@@ -122,6 +161,36 @@ class GibbsState:
     #: every token's switch (:mod:`spco.model.word_channels`): (nnz of ``data.words``,) int8, drawn in
     #: the local step after the concepts (``None`` before the first draw or without channels)
     switches: np.ndarray | None = field(default=None, repr=False)
+
+
+@dataclass
+class SharedParameters:
+    """The parameters every home shares (log-probabilities): φ^v (L, D), φ^w (L, V), G_0 (L,), the
+    word-pruning mask (V,) bool and the words judged names (V,) bool or ``None``
+    (:func:`spco.model.assignments.sentence_words`)."""
+
+    log_phi_v: np.ndarray
+    log_phi_w: np.ndarray
+    log_g0: np.ndarray
+    word_mask: np.ndarray
+    name_words: np.ndarray | None = None
+    #: the word channels (:mod:`spco.model.word_channels`; ``None``: the naming rule's word model)
+    channels: WordChannels | None = None
+
+    @classmethod
+    def of(cls, state: GibbsState) -> SharedParameters:
+        """The shared parameters held in ``state``."""
+        return cls(state.log_phi_v, state.log_phi_w, state.log_g0, state.word_mask, state.name_words,
+                   state.channels)
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of the arrays (what a broadcast sends)."""
+        arrays = (self.log_phi_v, self.log_phi_w, self.log_g0, self.word_mask, self.name_words)
+        if self.channels is not None:
+            c = self.channels
+            arrays += (c.log_place, c.log_background, c.log_shares, c.log_evidence)
+        return sum(a.nbytes for a in arrays if a is not None)
 
 
 @dataclass

@@ -35,6 +35,8 @@ import inspect
 import operator
 import time
 from dataclasses import replace
+from os import PathLike
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -43,9 +45,9 @@ from spco.data.environment import Corpus
 from spco.data.language import Vocabulary
 from spco.errors import ConfigurationError
 from spco.model import gibbs
+from spco.model.archive import write_npz_atomic
 from spco.model.cut_start import check_cut_start
 from spco.model.hyperparameters import SpCoAHyperparameters, TransferHyperparameters
-from spco.model.kernels.counts import stack_counts
 from spco.model.name_evidence import channel_evidence, has_english, name_prior
 from spco.model.parameters import ConceptParameters
 from spco.model.posterior import (
@@ -62,6 +64,7 @@ from spco.model.word_channels import (
     uses_word_channels,
     warm_start_settings,
 )
+from spco.timestamps import utc_now
 
 
 def clone(estimator: SpatialConceptModel) -> SpatialConceptModel:
@@ -87,7 +90,7 @@ class SpatialConceptModel:
     prune_words:
         Mutual-information word pruning after every sweep (the "+MI" models). A heuristic outside
         the model: with it the chain has no stated stationary distribution and ``log_joint_``
-        jumps when the mask changes (see :func:`spco.model.gibbs._prune`); without it the exact
+        jumps when the mask changes (see :func:`spco.model.gibbs.prune`); without it the exact
         sampler is an MCMC for the model's posterior.
     n_iterations:
         Gibbs sweeps (200 in the paper).
@@ -182,39 +185,6 @@ class SpatialConceptModel:
         for the ``reference`` variant, as the authors' code has them; metres otherwise."""
         return gibbs.CM_PER_M if self.variant == "reference" else 1.0
 
-    @staticmethod
-    def prepare_data(corpus: Corpus, position_scale: float) -> gibbs.PreparedData:
-        """The training samples of every home of ``corpus`` stacked as the sampler reads them, positions
-        multiplied by ``position_scale`` (see :attr:`position_scale`); raises
-        :class:`~spco.errors.ConfigurationError` for a home without training samples."""
-        if not isinstance(corpus, Corpus):
-            raise ConfigurationError("fit() expects a spco.data.Corpus")
-        training = corpus.training_set()
-        for env, train in zip(corpus, training, strict=True):
-            if train.n_samples == 0:
-                raise ConfigurationError(
-                    f"home {env.name!r} has no training samples: all {env.n_samples} samples are in its "
-                    "test split, and test samples are never used for training")
-        positions = np.concatenate([t.positions for t in training]) * np.array(
-            [position_scale, position_scale, 1.0, 1.0])
-        sizes = np.array([t.n_samples for t in training])
-        offsets = np.concatenate([[0], np.cumsum(sizes)])
-        homes = np.repeat(np.arange(len(training)), sizes)
-        visual = stack_counts(*(t.visual for t in training))  # stacked once, in the kernels' layout
-        words = stack_counts(corpus.word_counts([s for t in training for s in t.sentences]))
-        centres = np.zeros((len(training), 4))
-        for e, t in enumerate(training):
-            if t.extent is not None:
-                x0, x1, y0, y1 = t.extent
-                centres[e, :2] = ((x0 + x1) / 2, (y0 + y1) / 2)
-            else:
-                centres[e, :2] = t.positions[:, :2].mean(0)
-        centres[:, :2] *= position_scale
-        missing = np.concatenate([t.view_missing for t in training])
-        return gibbs.PreparedData(positions=positions, homes=homes, visual=visual, view_missing=missing,
-                                  words=words, n_homes=len(training), offsets=offsets,
-                                  position_scale=position_scale, map_centres=centres)
-
     # ------------------------------------------------------------------ fitting
     def fit(self, corpus: Corpus, engine=None) -> SpatialConceptModel:
         """Learn from every home of ``corpus`` (their training samples) and return ``self``.
@@ -232,7 +202,7 @@ class SpatialConceptModel:
         hyper = self.checked_hyperparameters()
         settings = self.sampler_settings()
         rng = as_generator(self.random_state)
-        data = self.prepare_data(corpus, self.position_scale)
+        data = gibbs.PreparedData.from_corpus(corpus, self.position_scale)
         start = time.perf_counter()
         average = _SweepAverage(int(self.n_iterations), data)
         bar = self._progress_bar(settings)
@@ -443,10 +413,8 @@ class SpatialConceptModel:
                                                      lookup=self.parameters_.word_mask)
 
     def save(self, path, overwrite: bool = False) -> None:
-        """Write the fitted model to ``path`` atomically (see :mod:`spco.model.io`); an existing
+        """Write the fitted model to ``path`` atomically (:func:`save_model`); an existing
         file is replaced only with ``overwrite=True``."""
-        from spco.model.io import save_model
-
         self._check_fitted()
         save_model(self, path, overwrite=overwrite)
 
@@ -596,3 +564,98 @@ class _SweepAverage:
         """(V, 3) the switches' expected counts per word and channel averaged over the averaged
         sweeps (Rao-Blackwellised), ``None`` without the word channels."""
         return np.mean(self.channel_tokens, axis=0) if self.channel_tokens else None
+
+
+# ----------------------------------------------------------------------------- the model file
+# (its format: :mod:`spco.model.io`, which reads it)
+
+#: Value of the model file header's ``"format"`` field.
+FORMAT_NAME = "spco-model"
+#: The model file's arrays of the :class:`ConceptParameters` are named ``param.<name>``.
+PARAM_PREFIX = "param."
+
+
+def _model_class_name(model: SpatialConceptModel) -> str:
+    if isinstance(model, SpCoA):
+        return "SpCoA"
+    if isinstance(model, SpatialConceptModel):
+        return "SpCoTransfer"
+    raise ConfigurationError(f"save_model() expects a fitted SpCoTransfer or SpCoA, "
+                             f"got {type(model).__name__}")
+
+
+def _concatenate(per_home: list[np.ndarray], dtype: type) -> np.ndarray:
+    if not per_home:
+        return np.zeros(0, dtype=dtype)
+    return np.concatenate([np.asarray(a, dtype=dtype).ravel() for a in per_home])
+
+
+def _arrays_and_header(model: SpatialConceptModel) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    """The arrays to store and the header (without its checksums)."""
+    if not hasattr(model, "parameters_"):
+        raise ConfigurationError(f"this {type(model).__name__} is not fitted yet: "
+                                 "call fit(corpus) before saving")
+    arrays: dict[str, np.ndarray] = {}
+    for name, value in model.parameters_.arrays().items():
+        arrays[PARAM_PREFIX + name] = np.asarray(value)
+    arrays["log_joint"] = np.asarray(model.log_joint_, dtype=np.float64)
+    concepts = list(model.concepts_)
+    sizes = [np.asarray(c).size for c in concepts]
+    for name, values in (("regions", model.regions_), ("training_ids", model.training_ids_)):
+        if [np.asarray(v).size for v in values] != sizes:
+            raise ConfigurationError(f"the model's {name}_ do not match its concepts_ (one entry per "
+                                     "training sample of each home)")
+    arrays["home_offsets"] = np.concatenate([[0], np.cumsum(sizes, dtype=np.int64)]).astype(np.int64)
+    arrays["concepts"] = _concatenate(concepts, np.int64)
+    arrays["regions"] = _concatenate(list(model.regions_), np.int64)
+    arrays["training_ids"] = _concatenate(list(model.training_ids_), np.int64)
+
+    from spco import __version__
+
+    random_state = model.random_state
+    if isinstance(random_state, bool) or not isinstance(random_state, int | np.integer):
+        random_state = None  # a Generator (or None) cannot be written down
+    hyper: TransferHyperparameters = model.hyperparameters_
+    segmentation = model.vocabulary_.segmentation
+    header: dict[str, Any] = {
+        "format": FORMAT_NAME,
+        # version 2 only for a vocabulary that segments text written without spaces (``segmentation``)
+        "format_version": 2 if segmentation is not None and segmentation.segments else 1,
+        "spco_version": __version__,
+        "model_class": _model_class_name(model),
+        "hyperparameters_class": type(hyper).__name__,
+        "variant": model.variant,
+        "prune_words": bool(model.prune_words),
+        "n_iterations": int(model.n_iterations),
+        "n_iter": int(getattr(model, "n_iter_", model.n_iterations)),
+        "random_state": None if random_state is None else int(random_state),
+        "hyperparameters": hyper.to_dict(),
+        "vocabulary": list(model.vocabulary_.words),
+        "segmentation": None if segmentation is None else segmentation.to_dict(),
+        "word_increment": int(model.word_increment_),
+        "home_names": list(model.home_names_),
+        "fit_seconds": float(getattr(model, "fit_seconds_", float("nan"))),
+        "created": utc_now(),
+    }
+    return arrays, header
+
+
+def save_model(model: SpatialConceptModel, path: str | PathLike[str], overwrite: bool = False) -> Path:
+    """Write a fitted model to ``path`` (a ``.npz`` file), atomically.
+
+    Parameters
+    ----------
+    model: a fitted :class:`~spco.model.transfer.SpCoTransfer` or :class:`~spco.model.transfer.SpCoA`.
+    path: the file to write (used as given: no suffix is added).
+    overwrite: replace an existing file; without it an existing ``path`` raises
+        :class:`~spco.errors.ModelFileError`.
+
+    Returns
+    -------
+    The path written.
+
+    The file is first written to a temporary file in the same folder, flushed to disk, then renamed
+    over ``path``; on any error the temporary file is removed and ``path`` is left as it was.
+    """
+    arrays, header = _arrays_and_header(model)
+    return write_npz_atomic(path, header, arrays, overwrite, "model file")
