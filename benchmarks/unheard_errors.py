@@ -19,6 +19,10 @@ Each query is put in one class:
 - **misplaced**: the known name used is an accepted name of the place, but the model places that
   name elsewhere in this home (a weakly bound synonym: "hall").
 
+``--own-names`` also asks, for each failed query, ``where`` for the place's own accepted names that the
+vocabulary holds as one usable token (as said, ``unheard=False``), and counts the failures whose place
+has one placed right: the look-up's answer lost them, not ``where`` given a right word.
+
 The fitted parameters are kept in ``--cache`` (default ``$SPCO_CACHE_DIR/unheard_errors``), keyed by
 the speech file's content, the seed, the home and the sweeps, so that the look-up
 (:mod:`spco.model.unheard`, the lexicon) can be changed and measured again without fitting::
@@ -110,8 +114,28 @@ def classify(params, e, vocabulary, env, place: str, name: str, seed: int,
     return kind, value, pred.name, pred.via or ""
 
 
-def main() -> None:
-    """Fit (or load) each seed's model, ask for every unheard name, print the classes and the figure."""
+def own_names_placed(params, e, vocabulary, env, place: str, seed: int,
+                     accepted: tuple[str, ...]) -> tuple[int, int]:
+    """(placed right, asked): the place's accepted names that the vocabulary holds as one usable token,
+    asked with ``where`` as said (``unheard=False``, the same draws as :func:`classify`), and how many
+    of them land in the place (A_p ≥ 0.5): whether ``where`` given a right word finds the place."""
+    mask = np.asarray(params.word_mask, dtype=bool)
+    right = asked = 0
+    for name in accepted:
+        k = vocabulary.index(name)
+        if k is None or not mask[k]:
+            continue
+        asked += 1
+        try:
+            pred = predict_positions(params, e, vocabulary, name, n=10, rng=seed, unheard=False)
+        except UnknownNameError:
+            continue
+        right += float(position_accuracy({place: pred.samples}, env.ground_truth.regions)[place]) >= 0.5
+    return right, asked
+
+
+def _arguments() -> argparse.Namespace:
+    """The command line, checked (development seeds and sets only)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sigverse", type=Path, default=SIGVERSE)
     parser.add_argument("--speech", type=Path, default=DEV / "speech_dev.csv")
@@ -124,12 +148,20 @@ def main() -> None:
                         default=Path(os.environ.get("SPCO_CACHE_DIR", ".")) / "unheard_errors")
     parser.add_argument("--refit", action="store_true", help="fit again even when the cache holds the fit")
     parser.add_argument("--json", type=Path, default=None)
+    parser.add_argument("--own-names", action="store_true",
+                        help="for each failed query, also ask where the place's own names are")
     parser.add_argument("--swap", choices=("any", "used"), default="any",
                         help="how a name found gives way to a firmly bound synonym (spco.model.unheard)")
     args = parser.parse_args()
     refuse_other_seeds(parser, args.seeds)
     if "heldout" in str(args.speech) + str(args.unheard):
         parser.error("development only: development sets, not held-out ones (benchmarks/SPLIT.md)")
+    return args
+
+
+def main() -> None:
+    """Fit (or load) each seed's model, ask for every unheard name, print the classes and the figure."""
+    args = _arguments()
     accepted = read_names(args.accepted)
     unheard, left_out = never_heard(read_names(args.unheard), read_speech(args.speech))
     if left_out:
@@ -138,6 +170,7 @@ def main() -> None:
     classes: Counter = Counter()
     rows: dict[tuple[str, str], list[str]] = defaultdict(list)
     per_seed: dict[int, float] = {}
+    own: Counter = Counter()  # failed queries, and those whose place has an own known name placed right
     for seed in args.seeds:
         seed_scores: dict[tuple, list[float]] = defaultdict(list)
         for index, home in enumerate(args.homes):
@@ -151,6 +184,11 @@ def main() -> None:
                     seed_scores[(home, place)].append(value)
                     classes[kind] += 1
                     rows[(place, name)].append(f"{used} ({how or '-'}) {value:.1f} {kind}")
+                    if args.own_names and kind != "right":
+                        placed, _ = own_names_placed(params, e, vocabulary, env, place, seed,
+                                                     accepted.get(place, ()))
+                        own["failed"] += 1
+                        own["an own name placed right"] += placed > 0
         for k, v in seed_scores.items():
             scores[k].extend(v)
         per_seed[seed] = float(np.mean([np.mean(v) for v in seed_scores.values()]))
@@ -161,10 +199,15 @@ def main() -> None:
     print(f"classes of {total} queries: " + ", ".join(f"{c} {classes[c]}" for c in CLASSES))
     print(f"never heard A_p {a_p:.3f} (per seed " + ", ".join(f"{v:.3f}" for v in per_seed.values())
           + f"), refused {classes['refused']} of {total}")
+    if args.own_names:
+        print(f"failed queries whose place has an own known name that where places right: "
+              f"{own['an own name placed right']} of {own['failed']}")
     if args.json:
         table = {f"{p}/{n}": o for (p, n), o in rows.items()}
-        args.json.write_text(json.dumps({"A_p": a_p, "per_seed": per_seed, "classes": dict(classes),
-                                         "queries": total, "rows": table}, indent=1), encoding="utf-8")
+        out = {"A_p": a_p, "per_seed": per_seed, "classes": dict(classes), "queries": total, "rows": table}
+        if args.own_names:
+            out["own_names"] = dict(own)
+        args.json.write_text(json.dumps(out, indent=1), encoding="utf-8")
 
 
 if __name__ == "__main__":
