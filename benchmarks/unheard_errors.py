@@ -21,7 +21,8 @@ Each query is put in one class:
 
 ``--own-names`` also asks, for each failed query, ``where`` for the place's own accepted names that the
 vocabulary holds as one usable token (as said, ``unheard=False``), and counts the failures whose place
-has one placed right: the look-up's answer lost them, not ``where`` given a right word.
+has one placed right (the look-up's answer lost them, not ``where`` given a right word) and those with one
+among the look-up's candidates (the lexicon had the place's own name to find).
 
 The fitted parameters are kept in ``--cache`` (default ``$SPCO_CACHE_DIR/unheard_errors``), keyed by
 the speech file's content, the seed, the home and the sweeps, so that the look-up
@@ -115,23 +116,33 @@ def classify(params, e, vocabulary, env, place: str, name: str, seed: int,
 
 
 def own_names_placed(params, e, vocabulary, env, place: str, seed: int,
-                     accepted: tuple[str, ...]) -> tuple[int, int]:
-    """(placed right, asked): the place's accepted names that the vocabulary holds as one usable token,
-    asked with ``where`` as said (``unheard=False``, the same draws as :func:`classify`), and how many
-    of them land in the place (A_p ≥ 0.5): whether ``where`` given a right word finds the place."""
+                     accepted: tuple[str, ...]) -> tuple[int, int, int]:
+    """(placed right, candidates, asked): the place's accepted names that the vocabulary holds as one
+    usable token, asked with ``where`` as said (``unheard=False``, the same draws as :func:`classify`);
+    how many of them land in the place (A_p ≥ 0.5: whether ``where`` given a right word finds the
+    place), and how many are among the look-up's candidates (:func:`spco.model.unheard.candidate_names`
+    with the information :func:`spco.model.position_prediction.resolve_unheard` gives it: whether the
+    lexicon had the place's own name to relate the name asked to)."""
+    from spco.data.lexicon import lexicon
+    from spco.model.prediction import mutual_information_weights
+    from spco.model.unheard import candidate_names
+
     mask = np.asarray(params.word_mask, dtype=bool)
-    right = asked = 0
+    candidates = set(candidate_names(vocabulary, mask, params.name_prior, lexicon(),
+                                     mutual_information_weights(params, e)))
+    right = asked = among = 0
     for name in accepted:
         k = vocabulary.index(name)
         if k is None or not mask[k]:
             continue
         asked += 1
+        among += vocabulary.words[k] in candidates
         try:
             pred = predict_positions(params, e, vocabulary, name, n=10, rng=seed, unheard=False)
         except UnknownNameError:
             continue
         right += float(position_accuracy({place: pred.samples}, env.ground_truth.regions)[place]) >= 0.5
-    return right, asked
+    return right, among, asked
 
 
 def _arguments() -> argparse.Namespace:
@@ -185,10 +196,11 @@ def main() -> None:
                     classes[kind] += 1
                     rows[(place, name)].append(f"{used} ({how or '-'}) {value:.1f} {kind}")
                     if args.own_names and kind != "right":
-                        placed, _ = own_names_placed(params, e, vocabulary, env, place, seed,
-                                                     accepted.get(place, ()))
+                        placed, among, _ = own_names_placed(params, e, vocabulary, env, place, seed,
+                                                            accepted.get(place, ()))
                         own["failed"] += 1
                         own["an own name placed right"] += placed > 0
+                        own["an own name among the candidates"] += among > 0
         for k, v in seed_scores.items():
             scores[k].extend(v)
         per_seed[seed] = float(np.mean([np.mean(v) for v in seed_scores.values()]))
@@ -201,7 +213,8 @@ def main() -> None:
           + f"), refused {classes['refused']} of {total}")
     if args.own_names:
         print(f"failed queries whose place has an own known name that where places right: "
-              f"{own['an own name placed right']} of {own['failed']}")
+              f"{own['an own name placed right']} of {own['failed']}; one among the look-up's candidates: "
+              f"{own['an own name among the candidates']} of {own['failed']}")
     if args.json:
         table = {f"{p}/{n}": o for (p, n), o in rows.items()}
         out = {"A_p": a_p, "per_seed": per_seed, "classes": dict(classes), "queries": total, "rows": table}
