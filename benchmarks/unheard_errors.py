@@ -19,12 +19,18 @@ Each query is put in one class:
 - **misplaced**: the known name used is an accepted name of the place, but the model places that
   name elsewhere in this home (a weakly bound synonym: "hall").
 
+``--own-names`` also asks, for each failed query, ``where`` for the place's own accepted names that the
+vocabulary holds as one usable token (as said, ``unheard=False``), and counts the failures whose place
+has one placed right (the look-up's answer lost them, not ``where`` given a right word) and those with one
+among the look-up's candidates (the lexicon had the place's own name to find).
+
 The fitted parameters are kept in ``--cache`` (default ``$SPCO_CACHE_DIR/unheard_errors``), keyed by
 the speech file's content, the seed, the home and the sweeps, so that the look-up
 (:mod:`spco.model.unheard`, the lexicon) can be changed and measured again without fitting::
 
     nice -n 5 python benchmarks/unheard_errors.py --seeds 0 1 2 --sweeps 200
     nice -n 5 python benchmarks/unheard_errors.py --speech benchmarks/development/speech_dev_words.csv
+    nice -n 5 python benchmarks/unheard_errors.py --seeds 0 1 2 --swap used   # the opt-in look-up rule
 
 The cache holds fits only: change the code of the fit (the sampler, the word model) and the cache is
 stale (``--refit`` fits again).
@@ -87,11 +93,14 @@ def fitted(args: argparse.Namespace, speech_path: Path, seed: int, home: str, in
 
 
 def classify(params, e, vocabulary, env, place: str, name: str, seed: int,
-             accepted: tuple[str, ...]) -> tuple[str, float, str, str]:
-    """(class, A_p, the known name used, how) of ``where name`` in the new home."""
+             accepted: tuple[str, ...], swap: str = "any") -> tuple[str, float, str, str]:
+    """(class, A_p, the known name used, how) of ``where name`` in the new home (``swap``: the
+    look-up's rule, :data:`spco.model.unheard.SWAPS`, passed only when not the default, so that the
+    script runs on code from before the option with ``PYTHONPATH=<its src>``)."""
     regions = env.ground_truth.regions
+    rule = {} if swap == "any" else {"swap": swap}
     try:
-        pred = predict_positions(params, e, vocabulary, name, n=10, rng=seed, unheard=True)
+        pred = predict_positions(params, e, vocabulary, name, n=10, rng=seed, unheard=True, **rule)
     except UnknownNameError:
         return "refused", 0.0, "(none)", ""
     value = float(position_accuracy({place: pred.samples}, regions)[place])
@@ -106,8 +115,38 @@ def classify(params, e, vocabulary, env, place: str, name: str, seed: int,
     return kind, value, pred.name, pred.via or ""
 
 
-def main() -> None:
-    """Fit (or load) each seed's model, ask for every unheard name, print the classes and the figure."""
+def own_names_placed(params, e, vocabulary, env, place: str, seed: int,
+                     accepted: tuple[str, ...]) -> tuple[int, int, int]:
+    """(placed right, candidates, asked): the place's accepted names that the vocabulary holds as one
+    usable token, asked with ``where`` as said (``unheard=False``, the same draws as :func:`classify`);
+    how many of them land in the place (A_p ≥ 0.5: whether ``where`` given a right word finds the
+    place), and how many are among the look-up's candidates (:func:`spco.model.unheard.candidate_names`
+    with the information :func:`spco.model.position_prediction.resolve_unheard` gives it: whether the
+    lexicon had the place's own name to relate the name asked to)."""
+    from spco.data.lexicon import lexicon
+    from spco.model.prediction import mutual_information_weights
+    from spco.model.unheard import candidate_names
+
+    mask = np.asarray(params.word_mask, dtype=bool)
+    candidates = set(candidate_names(vocabulary, mask, params.name_prior, lexicon(),
+                                     mutual_information_weights(params, e)))
+    right = asked = among = 0
+    for name in accepted:
+        k = vocabulary.index(name)
+        if k is None or not mask[k]:
+            continue
+        asked += 1
+        among += vocabulary.words[k] in candidates
+        try:
+            pred = predict_positions(params, e, vocabulary, name, n=10, rng=seed, unheard=False)
+        except UnknownNameError:
+            continue
+        right += float(position_accuracy({place: pred.samples}, env.ground_truth.regions)[place]) >= 0.5
+    return right, among, asked
+
+
+def _arguments() -> argparse.Namespace:
+    """The command line, checked (development seeds and sets only)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sigverse", type=Path, default=SIGVERSE)
     parser.add_argument("--speech", type=Path, default=DEV / "speech_dev.csv")
@@ -120,10 +159,20 @@ def main() -> None:
                         default=Path(os.environ.get("SPCO_CACHE_DIR", ".")) / "unheard_errors")
     parser.add_argument("--refit", action="store_true", help="fit again even when the cache holds the fit")
     parser.add_argument("--json", type=Path, default=None)
+    parser.add_argument("--own-names", action="store_true",
+                        help="for each failed query, also ask where the place's own names are")
+    parser.add_argument("--swap", choices=("any", "used"), default="any",
+                        help="how a name found gives way to a firmly bound synonym (spco.model.unheard)")
     args = parser.parse_args()
     refuse_other_seeds(parser, args.seeds)
     if "heldout" in str(args.speech) + str(args.unheard):
         parser.error("development only: development sets, not held-out ones (benchmarks/SPLIT.md)")
+    return args
+
+
+def main() -> None:
+    """Fit (or load) each seed's model, ask for every unheard name, print the classes and the figure."""
+    args = _arguments()
     accepted = read_names(args.accepted)
     unheard, left_out = never_heard(read_names(args.unheard), read_speech(args.speech))
     if left_out:
@@ -132,6 +181,7 @@ def main() -> None:
     classes: Counter = Counter()
     rows: dict[tuple[str, str], list[str]] = defaultdict(list)
     per_seed: dict[int, float] = {}
+    own: Counter = Counter()  # failed queries, and those whose place has an own known name placed right
     for seed in args.seeds:
         seed_scores: dict[tuple, list[float]] = defaultdict(list)
         for index, home in enumerate(args.homes):
@@ -141,10 +191,16 @@ def main() -> None:
                     continue
                 for name in names:
                     kind, value, used, how = classify(params, e, vocabulary, env, place, name, seed,
-                                                      accepted.get(place, ()))
+                                                      accepted.get(place, ()), args.swap)
                     seed_scores[(home, place)].append(value)
                     classes[kind] += 1
                     rows[(place, name)].append(f"{used} ({how or '-'}) {value:.1f} {kind}")
+                    if args.own_names and kind != "right":
+                        placed, among, _ = own_names_placed(params, e, vocabulary, env, place, seed,
+                                                            accepted.get(place, ()))
+                        own["failed"] += 1
+                        own["an own name placed right"] += placed > 0
+                        own["an own name among the candidates"] += among > 0
         for k, v in seed_scores.items():
             scores[k].extend(v)
         per_seed[seed] = float(np.mean([np.mean(v) for v in seed_scores.values()]))
@@ -155,10 +211,16 @@ def main() -> None:
     print(f"classes of {total} queries: " + ", ".join(f"{c} {classes[c]}" for c in CLASSES))
     print(f"never heard A_p {a_p:.3f} (per seed " + ", ".join(f"{v:.3f}" for v in per_seed.values())
           + f"), refused {classes['refused']} of {total}")
+    if args.own_names:
+        print(f"failed queries whose place has an own known name that where places right: "
+              f"{own['an own name placed right']} of {own['failed']}; one among the look-up's candidates: "
+              f"{own['an own name among the candidates']} of {own['failed']}")
     if args.json:
         table = {f"{p}/{n}": o for (p, n), o in rows.items()}
-        args.json.write_text(json.dumps({"A_p": a_p, "per_seed": per_seed, "classes": dict(classes),
-                                         "queries": total, "rows": table}, indent=1), encoding="utf-8")
+        out = {"A_p": a_p, "per_seed": per_seed, "classes": dict(classes), "queries": total, "rows": table}
+        if args.own_names:
+            out["own_names"] = dict(own)
+        args.json.write_text(json.dumps(out, indent=1), encoding="utf-8")
 
 
 if __name__ == "__main__":
