@@ -228,10 +228,12 @@ def run_task(task: Task, data: Path, images: Path | None, models: Path, force: b
     from spco.model.prediction import predict_names
 
     rows = []
+    weight = None  # --room-weight: learnt once per knowledge (every home of the task shares it)
     for home, model in home_models(task, data, images, models, force):
         name = home.name
         layout = layout_of(model, data) if task.layout else None
-        weight = room_weight_of(model, data, images, task.features) if task.room_weight else None
+        if task.room_weight and weight is None:
+            weight = room_weight_of(model, data, images, task.features)
         positions, visual, labels, ids = scored_views(home)
         before = predict_names(model.parameters, 0, model.vocabulary, positions, visual, top_k=1,
                                weighting=model.weighting)  # type: ignore[arg-type]
