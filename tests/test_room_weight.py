@@ -155,7 +155,8 @@ def test_room_view_weight_is_the_loss_of_its_places() -> None:
     keep = [np.array([p in vocabulary for p in labels]) for labels in places]
     rows = np.vstack([v[k] for v, k in zip(visual, keep, strict=True)]).astype(np.float64)
     homes = np.concatenate([np.full(int(k.sum()), e) for e, k in enumerate(keep)])
-    labels = [p for labels, k in zip(places, keep, strict=True) for p, kk in zip(labels, k, strict=True) if kk]
+    labels = [p for labels, k in zip(places, keep, strict=True)
+              for p, kk in zip(labels, k, strict=True) if kk]
     names = np.array([vocabulary.index(p) for p in labels])
     place_ids = np.array([int(p[1]) for p in labels])
     data = _data(rows, homes, names, len(vocabulary))
