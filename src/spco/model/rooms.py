@@ -322,8 +322,10 @@ def concepts_by_room(params: ConceptParameters, e: int, positions: np.ndarray, v
         if has_view and view_in_room:
             view_log = _room_view_log(phi_v, rooms, k, visual, float(view_counts),  # type: ignore[arg-type]
                                       int(np.shape(params.region_means)[1]))
-        term = room_norm[k][None, :] + view_log if typical is None else room_terms(k)
-        joint = np.logaddexp(joint, (log_k[:, [k]] - total) + term)
+        if typical is None:
+            joint = np.logaddexp(joint, (log_k[:, [k]] - total) + room_norm[k][None, :] + view_log)
+        else:
+            joint = np.logaddexp(joint, (log_k[:, [k]] - total) + room_terms(k))
     return np.exp(joint - logsumexp(joint, axis=1, keepdims=True))
 
 
