@@ -231,7 +231,7 @@ def answer_parameters(params: ConceptParameters, e: int, words: sp.csr_array | n
 
 def answer_concepts(params: ConceptParameters, e: int, positions: np.ndarray, visual: object, *,
                     view_counts: float | None, rooms: HomeRooms | None, view_in_room: bool = False,
-                    layout: LayoutPrior | None = None) -> np.ndarray:
+                    layout: LayoutPrior | None = None, typical: float | None = None) -> np.ndarray:
     """(n, L) P(l | pose, view) as the robot answers it: the one concept posterior behind every answer
     about names (:func:`answer_names`; ``ask``'s question scores).
 
@@ -242,11 +242,13 @@ def answer_concepts(params: ConceptParameters, e: int, positions: np.ndarray, vi
     A view counts as ``view_counts`` = w draws either way (``visual`` ``None``: the pose alone).
     ``view_in_room`` (opt-in): the view as a draw of its room's own distribution
     (:func:`spco.model.rooms.concepts_by_room`). ``layout`` (opt-in): the rooms' concepts judged
-    jointly under the home's layout prior (:mod:`spco.model.layout`).
+    jointly under the home's layout prior (:mod:`spco.model.layout`). ``typical`` (opt-in): how often
+    a room looks like its concept (:func:`spco.model.rooms.concepts_by_room`).
     """
     concepts = None
     if rooms is not None:
-        concepts = concepts_by_room(params, e, positions, visual, rooms, view_counts, view_in_room, layout)
+        concepts = concepts_by_room(params, e, positions, visual, rooms, view_counts, view_in_room, layout,
+                                    typical)
     if concepts is None:
         concepts = concept_posterior(params, e, positions, visual, use_vision=visual is not None,
                                      view_counts=view_counts)
@@ -268,6 +270,7 @@ def answer_names(
     rooms: HomeRooms | None = None,
     view_in_room: bool = False,
     layout: LayoutPrior | None = None,
+    typical: float | None = None,
 ) -> NamePrediction:
     """The names the robot answers at ``n`` observations of home ``e`` — the one predictor of
     p(name | pose, view): ``what`` (:func:`spco.knowledge.name_prediction`, the service, the ROS
@@ -286,14 +289,16 @@ def answer_names(
     π and θ^v (a bare parameter set, SpCoA's single-home fit). ``view_in_room`` (opt-in, off for the
     robot's answers): the observation's view as a draw of its room's own distribution around the
     room's concept (:func:`spco.model.rooms.concepts_by_room`); ``layout`` (opt-in, off for the robot's
-    answers): the rooms judged jointly under the home's layout prior (:mod:`spco.model.layout`).
+    answers): the rooms judged jointly under the home's layout prior (:mod:`spco.model.layout`);
+    ``typical`` (opt-in, off for the robot's answers): ρ, how often a room looks like its concept
+    (:func:`spco.model.rooms.concepts_by_room`, :func:`spco.model.view_fit.room_typicality`).
     """
     if not 0.0 <= unsure_below <= 1.0:
         raise ConfigurationError(f"unsure_below must be within 0..1, got {unsure_below!r}")
     concepts = None
     if rooms is not None and positions is not None and weighting != "reference":
         concepts = answer_concepts(params, e, positions, visual, view_counts=view_counts, rooms=rooms,
-                                   view_in_room=view_in_room, layout=layout)
+                                   view_in_room=view_in_room, layout=layout, typical=typical)
     return predict_names(params, e, vocabulary, positions, visual, top_k=top_k, weighting=weighting,
                          use_vision=visual is not None, view_counts=view_counts, unsure_below=unsure_below,
                          name_prior=name_prior, concepts=concepts)  # type: ignore[arg-type]

@@ -35,6 +35,7 @@ everything the room at the pose looks like says the robot is in the room next do
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -207,7 +208,7 @@ def _room_evidence(params: ConceptParameters, rooms: HomeRooms, view_counts: flo
                                (R, params.n_concepts)).copy()
     phi_v = np.asarray(params.shared_visual_probabilities, dtype=np.float64)
     if phi_v.size and rooms.visual.shape[1] == phi_v.shape[1]:  # the room's views pooled: one view at w
-        log_post += _visual_log_likelihood(phi_v, sp.csr_array(onehot @ rooms.visual), view_counts)
+        log_post += _pooled_views_log(phi_v, onehot, rooms, view_counts)
     names = np.asarray(params.word_mask, dtype=bool)
     if rooms.words.nnz and names.any() and rooms.words.shape[1] == names.size:
         theta = np.clip(np.asarray(params.word_probabilities[e], dtype=np.float64), 0.0, None)
@@ -217,6 +218,13 @@ def _room_evidence(params: ConceptParameters, rooms: HomeRooms, view_counts: flo
         log_post += np.asarray(said @ _safe_log(theta).T)
     counts = np.asarray(share.sum(axis=1), dtype=np.float64).ravel()  # n_k: the shares
     return log_post, counts, region_of
+
+
+def _pooled_views_log(phi_v: np.ndarray, onehot: sp.csr_array, rooms: HomeRooms, view_counts: float | None
+                      ) -> np.ndarray:
+    """(R, L) each room's training views pooled into one count vector (``onehot`` (R, n): the rooms'
+    members) against φ^v, worth w = ``view_counts`` draws."""
+    return _visual_log_likelihood(phi_v, sp.csr_array(onehot @ rooms.visual), view_counts)
 
 
 def room_concepts(params: ConceptParameters, e: int, rooms: HomeRooms, view_counts: float | None
@@ -240,7 +248,7 @@ def room_concepts(params: ConceptParameters, e: int, rooms: HomeRooms, view_coun
 
 def concepts_by_room(params: ConceptParameters, e: int, positions: np.ndarray, visual: object,
                      rooms: HomeRooms, view_counts: float | None, view_in_room: bool = False,
-                     layout: LayoutPrior | None = None) -> np.ndarray | None:
+                     layout: LayoutPrior | None = None, typical: float | None = None) -> np.ndarray | None:
     """(n, L) P(l | x, v) ∝ Σ_k p(k | x) p(l | room k) p(v | l) at poses ``positions`` (n, 4) of home
     ``e`` with views ``visual`` (n, D; ``None`` or an empty row: no view), p(k | x) ∝ n_k N(x | μ_r(k),
     Σ_r(k)) over the rooms with training samples (r(k) the room's region), p(l | room k) ∝ G_0,l ·
@@ -258,8 +266,26 @@ def concepts_by_room(params: ConceptParameters, e: int, positions: np.ndarray, v
 
     ``layout`` (opt-in, :mod:`spco.model.layout`): p(l | room k) is each room's marginal under the
     home's layout prior — the rooms' concepts judged jointly, with how likely a home is to hold each
-    concept at all (:func:`spco.model.layout.room_marginals`) — instead of each room on its own."""
+    concept at all (:func:`spco.model.layout.room_marginals`) — instead of each room on its own.
+
+    ``typical`` (opt-in, ρ within (0, 1]; docs/model.md, "Opt-in: a room that looks like another
+    concept"): a room looks like its concept with probability ρ; otherwise its views — its pooled
+    views and the observation's view — are those of a concept l' ~ G_0 drawn whatever its own concept
+    is, and say nothing of it. Room k's term p(l | room k) p(v | l) becomes
+
+        π_k(l) [ρ S_k(l) p(v | l) + (1 − ρ) Σ_l' G_0,l' S_k(l') p(v | l')] / Z_k,
+
+    π_k(l) ∝ G_0,l (its taught names) the room's evidence but its views, S_k(l) its pooled views at w
+    against φ^v_l, Z_k = Σ_l π_k(l) [ρ S_k(l) + (1 − ρ) Σ_l' G_0,l' S_k(l')] (the room's own views'
+    likelihood, as the room account normalises p(l | room k)); ρ = 1 is the room account. Learnt
+    from the experienced homes by :func:`spco.model.view_fit.room_typicality`."""
     from spco.model.prediction import gaussian_log_density, validate_poses
+
+    if typical is not None:
+        if not (isinstance(typical, float | int) and 0.0 < float(typical) <= 1.0):
+            raise ConfigurationError(f"typical must be a number within (0, 1], got {typical!r}")
+        if view_in_room or layout is not None:
+            raise ConfigurationError("typical: not with view_in_room or layout (one opt-in at a time)")
 
     room_log, counts, region_of = _room_log_posterior(params, rooms, view_counts, e)  # (R, L) unnormalised
     if not (counts > 0).any():
@@ -290,12 +316,42 @@ def concepts_by_room(params: ConceptParameters, e: int, positions: np.ndarray, v
         live = np.flatnonzero(counts > 0)
         room_norm[live] = room_marginals(room_log[live], layout)
     joint = np.full((x.shape[0], params.n_concepts), -np.inf)
+    if typical is not None:
+        room_terms = _atypical_rooms(params, rooms, room_log, view_log, view_counts, float(typical))
     for k in np.flatnonzero(counts > 0):  # a loop over the home's rooms (tens)
         if has_view and view_in_room:
             view_log = _room_view_log(phi_v, rooms, k, visual, float(view_counts),  # type: ignore[arg-type]
                                       int(np.shape(params.region_means)[1]))
-        joint = np.logaddexp(joint, (log_k[:, [k]] - total) + room_norm[k][None, :] + view_log)
+        if typical is None:
+            joint = np.logaddexp(joint, (log_k[:, [k]] - total) + room_norm[k][None, :] + view_log)
+        else:
+            joint = np.logaddexp(joint, (log_k[:, [k]] - total) + room_terms(k))
     return np.exp(joint - logsumexp(joint, axis=1, keepdims=True))
+
+
+def _atypical_rooms(params: ConceptParameters, rooms: HomeRooms, room_log: np.ndarray, view_log: np.ndarray,
+                    view_counts: float | None, typical: float) -> Any:
+    """k -> (n, L) log of room k's term under :func:`concepts_by_room`'s ``typical`` = ρ, given
+    ``room_log`` (R, L) the rooms' unnormalised log p(l | room k) and ``view_log`` (n, L) log p(v | l)."""
+    phi_v = np.asarray(params.shared_visual_probabilities, dtype=np.float64)
+    views = np.zeros_like(room_log)
+    if phi_v.size and rooms.visual.shape[1] == phi_v.shape[1]:
+        share, _ = rooms.membership(int(np.shape(params.region_means)[1]))
+        onehot = share.copy()
+        onehot.data[:] = 1.0
+        views = _pooled_views_log(phi_v, onehot, rooms, view_counts)  # (R, L) log S_k(l)
+    rest = room_log - views  # log π_k(l), unnormalised
+    log_g0 = _safe_log(params.global_concept_weights)
+    with np.errstate(divide="ignore"):
+        log_rho, log_other = np.log(typical), np.log1p(-typical)
+
+    def term(k: int) -> np.ndarray:
+        seen = views[k][None, :] + view_log  # (n, L) log S_k(l) p(v | l)
+        other = logsumexp(log_g0[None, :] + seen, axis=1, keepdims=True)  # a concept l' ~ G_0's
+        alone = np.logaddexp(log_rho + views[k], log_other + logsumexp(log_g0 + views[k]))
+        return rest[k][None, :] + np.logaddexp(log_rho + seen, log_other + other) \
+            - logsumexp(rest[k] + alone)
+    return term
 
 
 def _room_view_log(phi_v: np.ndarray, rooms: HomeRooms, k: int, visual: object, view_counts: float,

@@ -5,6 +5,7 @@ knowledge's view-fit diagnostics (:mod:`spco.knowledge.diagnostics`), computed w
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -15,11 +16,14 @@ from spco.model.hyperparameters import view_powers
 from spco.model.state import PreparedData
 
 __all__ = [
+    "TYPICALITY_GRID",
     "VIEW_WEIGHT_GRID",
     "concept_visual_totals",
     "estimate_view_weight",
     "held_out_view_fits",
     "home_concept_totals",
+    "room_typicality",
+    "room_view_weight",
     "view_fit",
     "view_weight_losses",
 ]
@@ -119,9 +123,17 @@ def _labelled(data: PreparedData) -> np.ndarray:
 
 def view_weight_losses(data: PreparedData, concepts: np.ndarray, totals: np.ndarray, taught: np.ndarray,
                        words: np.ndarray, alpha_visual: float, alpha_word: float,
-                       grid: tuple[float, ...] = VIEW_WEIGHT_GRID) -> tuple[np.ndarray, int]:
+                       grid: tuple[float, ...] = VIEW_WEIGHT_GRID, places: np.ndarray | None = None
+                       ) -> tuple[np.ndarray, int]:
     """The leave-one-home-out log loss of what was taught at each of ``data``'s taught views given
     the view, for every view weight w of ``grid``: summed over the views, and how many views.
+
+    ``places`` (N,) int, optional: each sample's place within its home (a room; ``-1``: none). With
+    them a view is predicted as the room account answers it (:mod:`spco.model.rooms`): from its
+    place's *other* views pooled into one count vector, worth w draws, and the view itself, worth w
+    draws, p(l | room, v) ∝ p(l) exp(ω_R Σ_d R_d log φ^v_{l,d} + ω Σ_d v_d log φ^v_{l,d}) with R the
+    place's views without v and ω_R = min(1, w / Σ_d R_d) — the weight at which a room's evidence
+    predicts a home the weight's choice did not see (:func:`room_view_weight`).
 
     Each home e is predicted from the other homes only: φ^v_l ∝ α^v + N_l − n_{e,l} (the visual
     counts of concept l in all homes, ``totals`` (L, D), without e's own), φ^w_l ∝ α^w + W_l − w_{e,l}
@@ -139,10 +151,22 @@ def view_weight_losses(data: PreparedData, concepts: np.ndarray, totals: np.ndar
     leaves the words' predictive, and so the estimate, as it is. Homes of another shard contribute
     through ``totals``, ``taught`` and ``words`` only.
     """
-    L = totals.shape[0]
-    labelled = _labelled(data)
     losses = np.zeros(len(grid))
     used = 0
+    for given_view, without in _held_out_answers(data, concepts, totals, taught, words, alpha_visual,
+                                                 alpha_word, grid, places):
+        losses += (without[None, :] - given_view).sum(axis=1)
+        used += without.size
+    return losses, used
+
+
+def _held_out_answers(data: PreparedData, concepts: np.ndarray, totals: np.ndarray, taught: np.ndarray,
+                      words: np.ndarray, alpha_visual: float, alpha_word: float, grid: tuple[float, ...],
+                      places: np.ndarray | None) -> Any:
+    """Per home with taught views, (G, n) log p(u | v) at each weight of ``grid`` and (n,) log p(u)
+    of its taught views, the home left out (:func:`view_weight_losses`, which sums them)."""
+    L = totals.shape[0]
+    labelled = _labelled(data)
     weights = np.asarray(grid, dtype=np.float64)
     for e in range(data.n_homes):  # a loop over homes, each left out in turn
         rows = np.flatnonzero(labelled & (data.homes == e))
@@ -161,11 +185,37 @@ def view_weight_losses(data: PreparedData, concepts: np.ndarray, totals: np.ndar
         loglik = np.asarray(visual @ log_phi.T)  # (n, L)
         scale = view_powers(data.view_totals[rows][None, :], weights[:, None])  # (G, n)
         scores = scale[:, :, None] * loglik[None] + log_prior[None, None, :]  # (G, n, L)
+        if places is not None:  # the view's place's other views pooled, one piece of evidence at w
+            rest, rest_totals = _place_rest(data, places, e, rows, log_phi, loglik)
+            scores += view_powers(rest_totals[None, :], weights[:, None])[:, :, None] * rest[None]
         given_view = logsumexp(scores + said[None], axis=2) - logsumexp(scores, axis=2)  # log p(u | v)
         without = logsumexp(log_prior[None, :] + said, axis=1)  # log p(u)
-        losses += (without[None, :] - given_view).sum(axis=1)
-        used += rows.size
-    return losses, used
+        yield given_view, without
+
+
+def _place_rest(data: PreparedData, places: np.ndarray, e: int, rows: np.ndarray, log_phi: np.ndarray,
+                loglik: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(n, L) Σ_d R_d log φ^v_{l,d} and (n,) Σ_d R_d for the samples ``rows`` of home ``e``, R the
+    pooled views of the sample's place without its own view (:func:`view_weight_losses`' ``places``;
+    ``loglik`` (n, L): the rows' own Σ_d v_d log φ^v_{l,d}). A sample without a place: R = 0."""
+    home = np.arange(int(data.offsets[e]), int(data.offsets[e + 1]))
+    own = np.asarray(places, dtype=np.int64)[home]
+    if own.size == 0 or own.max() < 0:
+        return np.zeros_like(loglik), np.zeros(rows.size)
+    kept = own >= 0
+    n_places = int(own.max()) + 1
+    onehot = sp.csr_array((np.ones(int(kept.sum())), (own[kept], home[kept] - home[0])),
+                          shape=(n_places, home.size))
+    visual = sp.csr_array(data.visual[home], dtype=np.float64)
+    pooled = np.asarray(onehot @ visual @ log_phi.T)  # (P, L)
+    pooled_totals = np.asarray(onehot @ data.view_totals[home], dtype=np.float64).ravel()  # (P,)
+    place = np.asarray(places, dtype=np.int64)[rows]
+    has = place >= 0
+    rest = np.zeros_like(loglik)
+    rest[has] = pooled[place[has]] - loglik[has]
+    rest_totals = np.zeros(rows.size)
+    rest_totals[has] = pooled_totals[place[has]] - data.view_totals[rows][has]
+    return rest, np.maximum(rest_totals, 0.0)
 
 
 def estimate_view_weight(losses: np.ndarray, used: int, grid: tuple[float, ...] = VIEW_WEIGHT_GRID
@@ -179,3 +229,131 @@ def estimate_view_weight(losses: np.ndarray, used: int, grid: tuple[float, ...] 
         return None
     least = np.flatnonzero(losses <= losses.min() + 1e-3 * used)
     return float(grid[int(least[0])])
+
+
+def room_view_weight(visual: Sequence[Any], places: Sequence[Sequence[str]], log_phi_words: np.ndarray,
+                     log_g0: np.ndarray, vocabulary: Sequence[str], alpha_visual: float, alpha_word: float,
+                     grid: tuple[float, ...] = VIEW_WEIGHT_GRID) -> tuple[float | None, np.ndarray, int]:
+    """The view weight of the room account learnt from the experienced homes (opt-in; docs/model.md,
+    "A room's evidence learnt from the experienced homes"): how many draws a room's pooled views and
+    an observation's view are worth against φ^v when the room is in a home φ^v did not see.
+
+    Each experienced home e is left out in turn (:func:`view_weight_losses` with ``places``): its
+    samples' place names are predicted from their place's other views pooled and their own view, each
+    worth w draws, against φ^v_l ∝ α^v + the other homes' visual counts of concept l, with p(l) ∝ the
+    other homes' samples of l + 1/L and p(name | l) ∝ α^w + the other homes' names of l; the weight of
+    least summed log loss is chosen (:func:`estimate_view_weight`). A place's concept is its name's,
+    argmax_l G_0,l φ^w_{l,name} (the knowledge's G_0 and φ^w); a sample whose place name is not in
+    the vocabulary is left out.
+
+    Parameters
+    ----------
+    visual: per experienced home, its samples' views (n_e, D) (counts, sparse or dense).
+    places: per experienced home, its samples' place names (n_e,) (a SIGVerse home's labels).
+    log_phi_words: (L, V) log φ^w; log_g0: (L,) log G_0; vocabulary: the V words of φ^w's columns.
+    alpha_visual, alpha_word: α^v and α^w, the knowledge's.
+    grid: the weights w to choose from.
+
+    Returns
+    -------
+    (w, losses, used): the chosen weight (``None``: no sample to learn from), (G,) the summed
+    leave-one-home-out log loss at each weight of ``grid``, and how many samples were predicted.
+    """
+    data, concepts, place_ids = _experienced_rooms(visual, places, log_phi_words, log_g0, vocabulary)
+    if data is None:
+        return None, np.full(len(grid), np.nan), 0
+    totals, taught, words = home_concept_totals(data, concepts, np.asarray(log_g0).size)
+    losses, used = view_weight_losses(data, concepts, totals, taught, words, alpha_visual, alpha_word, grid,
+                                      places=place_ids)
+    return estimate_view_weight(losses, used, grid), losses, used
+
+
+#: The typicalities ρ :func:`room_typicality` chooses from: 1 − ρ in √2 steps from 2^−½ to 2^−20, and 1.
+TYPICALITY_GRID = tuple([1.0 - 2.0 ** (-k / 2) for k in range(1, 41)] + [1.0])
+
+
+def room_typicality(visual: Sequence[Any], places: Sequence[Sequence[str]], log_phi_words: np.ndarray,
+                    log_g0: np.ndarray, vocabulary: Sequence[str], alpha_visual: float, alpha_word: float,
+                    view_weight: float, grid: tuple[float, ...] = TYPICALITY_GRID
+                    ) -> tuple[float | None, np.ndarray, int]:
+    """ρ, how often a room looks like its concept, learnt from the experienced homes (opt-in;
+    docs/model.md, "Opt-in: a room that looks like another concept"): a room is *typical* with
+    probability ρ — its pooled views and a view in it are evidence at ``view_weight`` w against its
+    concept's φ^v — and otherwise looks like a concept drawn from the prior, unrelated to what it is.
+
+    Each experienced home is left out in turn, as :func:`room_view_weight` does (the same φ^v_{−e},
+    p_{−e}(l), p_{−e}(name | l), a place's concept its name's), and its samples' names are predicted
+    from their place's other views pooled and their own view, each at w: under the mixture
+
+        p(name | R, v) = ρ Σ_l p_{−e}(l | R, v) p_{−e}(name | l) + (1 − ρ) Σ_l p_{−e}(l) p_{−e}(name | l)
+
+    (the atypical room's views are a draw of a concept l' ~ p(l'), whatever its own concept: they say
+    nothing of it). ρ is the value of ``grid`` of least summed log loss.
+
+    Returns (ρ, losses, used): ρ (``None``: no sample to learn from), (G,) the summed loss
+    −log p(name | R, v) + log p(name) at each ρ, and how many samples were predicted.
+    """
+    data, concepts, place_ids = _experienced_rooms(visual, places, log_phi_words, log_g0, vocabulary)
+    rho = np.asarray(grid, dtype=np.float64)
+    if data is None:
+        return None, np.full(rho.size, np.nan), 0
+    if not (np.isfinite(rho).all() and (rho > 0).all() and (rho <= 1).all()):
+        from spco.errors import ConfigurationError
+
+        raise ConfigurationError("room typicality: every ρ of the grid must be within (0, 1]")
+    totals, taught, words = home_concept_totals(data, concepts, np.asarray(log_g0).size)
+    losses = np.zeros(rho.size)
+    used = 0
+    with np.errstate(divide="ignore"):
+        log_rho, log_rest = np.log(rho), np.log1p(-rho)
+    for given_view, without in _held_out_answers(data, concepts, totals, taught, words, alpha_visual,
+                                                 alpha_word, (float(view_weight),), place_ids):
+        mixed = np.logaddexp(log_rho[:, None] + given_view, log_rest[:, None] + without[None, :])
+        losses += (without[None, :] - mixed).sum(axis=1)
+        used += without.size
+    if used == 0:
+        return None, losses, 0
+    return float(rho[int(np.argmin(losses))]), losses, used
+
+
+def _experienced_rooms(visual: Sequence[Any], places: Sequence[Sequence[str]], log_phi_words: np.ndarray,
+                       log_g0: np.ndarray, vocabulary: Sequence[str]
+                       ) -> tuple[PreparedData | None, np.ndarray, np.ndarray]:
+    """The experienced homes' samples with a known place name as (data, concepts, places): one name
+    token each, its concept argmax_l G_0,l φ^w_{l,name}, its place's index within its home
+    (:func:`room_view_weight`, :func:`room_typicality`); data ``None`` when no name is known."""
+    from spco.errors import ConfigurationError
+
+    phi = np.asarray(log_phi_words, dtype=np.float64)
+    g0 = np.asarray(log_g0, dtype=np.float64).ravel()
+    if phi.ndim != 2 or phi.shape[0] != g0.size or phi.shape[1] != len(vocabulary):
+        raise ConfigurationError(f"the experienced rooms: log_phi_words {phi.shape} does not match log_g0 "
+                                 f"({g0.size},) and a vocabulary of {len(vocabulary)} words")
+    if len(visual) != len(places) or not visual:
+        raise ConfigurationError(f"the experienced rooms: {len(visual)} homes' views but {len(places)} "
+                                 "homes' "
+                                 "places (one entry per experienced home, at least one)")
+    index = {w: i for i, w in enumerate(vocabulary)}
+    rows_v, names, place_ids, homes = [], [], [], []
+    for e, (views, labels) in enumerate(zip(visual, places, strict=True)):
+        views = sp.csr_array(views, dtype=np.float64)
+        if views.shape[0] != len(labels):
+            raise ConfigurationError(f"the experienced rooms: home {e} has {views.shape[0]} views but "
+                                     f"{len(labels)} place names")
+        known = np.array([label in index for label in labels], dtype=bool)
+        own = sorted({label for label in labels if label in index})
+        rows_v.append(views[np.flatnonzero(known)])
+        names += [index[label] for label in labels if label in index]
+        place_ids += [own.index(label) for label in labels if label in index]
+        homes += [e] * int(known.sum())
+    name = np.asarray(names, dtype=np.int64)
+    if name.size == 0:
+        return None, name, name
+    E, N = len(visual), name.size
+    homes_a = np.asarray(homes, dtype=np.int64)
+    concepts = np.argmax(g0[:, None] + phi[:, name], axis=0)  # (N,) each place name's concept
+    data = PreparedData(positions=np.zeros((N, 4)), homes=homes_a, visual=sp.csr_array(sp.vstack(rows_v)),
+                        words=sp.csr_array((np.ones(N), (np.arange(N), name)), shape=(N, len(vocabulary))),
+                        n_homes=E, offsets=np.searchsorted(homes_a, np.arange(E + 1)), position_scale=1.0,
+                        map_centres=np.zeros((E, 4)))
+    return data, concepts, np.asarray(place_ids, dtype=np.int64)
