@@ -18,6 +18,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.special import gammaln, multigammaln
 
+from spco.model.hyperparameters import PHI_PASSES
 from spco.model.kernels.counts import (
     grouped_moments,
     grouped_row_sums,
@@ -105,10 +106,10 @@ class GaussianRegions:
 
 
 #: The power target's φ^v step (:meth:`HierarchicalMultinomial.accept_shared`): dimensions per block
-#: and passes (each over a fresh random partition) per step; benchmarks/README.md, "Issue 29: an exact
-#: φ^v step at fc7's size".
+#: (its passes per step: ``TransferHyperparameters.phi_passes``, default
+#: :data:`~spco.model.hyperparameters.PHI_PASSES`); benchmarks/README.md, "Issue 29: an exact φ^v
+#: step at fc7's size".
 PHI_BLOCK_SIZE = 8
-PHI_PASSES = 4
 
 #: The last concentrations δ φ computed by :func:`shared_concentration`: (log φ, δ, a copy of
 #: log φ, δ φ), most recent first.
@@ -249,16 +250,18 @@ class HierarchicalMultinomial:
 
     @staticmethod
     def sample_shared_given_counts(n: np.ndarray, log_phi: np.ndarray, delta: float, prior,
-                                   rng: np.random.Generator) -> np.ndarray:
+                                   rng: np.random.Generator, passes: int | None = None) -> np.ndarray:
         """log φ_l | n (θ integrated out) for every concept, from the counts n (E, L, D) of all
         homes concerned: the table counts M and fractional parts F of :meth:`table_parts`, then
         :meth:`accept_shared` (the blocked Metropolis–Hastings step for φ with target
         ∝ Dir(φ | prior + M + F) exp(w(φ)), w = :meth:`fractional_log_weight`). For whole counts F = 0,
-        w = 0 and this is the CRT step, drawing the same numbers. ``prior``: α, a number or (L, D)."""
+        w = 0 and this is the CRT step, drawing the same numbers. ``prior``: α, a number or (L, D);
+        ``passes``: the blocked step's passes (``TransferHyperparameters.phi_passes``; ``None``:
+        :data:`~spco.model.hyperparameters.PHI_PASSES`)."""
         tables, frac, fractional = HierarchicalMultinomial.table_parts(n, log_phi, delta, rng)
         return HierarchicalMultinomial.accept_shared(
             lambda phi: HierarchicalMultinomial.fractional_log_weight_terms(n, phi, delta),
-            log_phi, prior, tables, frac, rng, fractional)
+            log_phi, prior, tables, frac, rng, fractional, passes=passes)
 
     @staticmethod
     def accept_shared(log_weights, log_phi: np.ndarray, prior, tables: np.ndarray, frac: np.ndarray,

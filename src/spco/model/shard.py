@@ -463,7 +463,7 @@ class GlobalStep:
         tables_v, frac_v, fractional = self.reduce(call("tables", "visual")) if moved is None else moved
         log_phi_v = HierarchicalMultinomial.accept_shared(
             lambda phi: self.reduce(call("visual_log_weight", phi)), shared.log_phi_v,
-            hyper.alpha_visual, tables_v, frac_v, rng, fractional > 0)
+            hyper.alpha_visual, tables_v, frac_v, rng, fractional > 0, passes=hyper.phi_passes)
         if hyper.target == "power":
             pseudo = hyper.alpha_visual + tables_v + frac_v
             self.visual_mean = np.log(pseudo) - np.log(pseudo.sum(axis=-1, keepdims=True))
