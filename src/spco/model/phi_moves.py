@@ -297,7 +297,7 @@ def phi_after_move(n: np.ndarray, log_phi: np.ndarray, delta: float, alpha, tabl
     tables_o, frac_o, fractional_o, e = tables
     own = HierarchicalMultinomial.table_parts(np.asarray(n)[e:e + 1], log_phi, delta, rng)
     return HierarchicalMultinomial.accept_shared(
-        lambda phi: HierarchicalMultinomial.fractional_log_weight_terms(n, phi, delta), log_phi, alpha,
+        HierarchicalMultinomial.fractional_log_weight_evaluator(np.asarray(n), delta), log_phi, alpha,
         tables_o + own[0], frac_o + own[1], rng, (fractional_o + own[2]) > 0, passes=passes)
 
 
