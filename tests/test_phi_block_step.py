@@ -173,3 +173,18 @@ def test_the_terms_per_dimension_are_the_weight_s_definition(delta: float) -> No
     np.testing.assert_allclose(got.sum(1), HierarchicalMultinomial.fractional_log_weight(n, log_phi, delta),
                                rtol=1e-12, atol=1e-9)
     assert not HierarchicalMultinomial.fractional_log_weight_terms(n.astype(np.int64), log_phi, delta).any()
+
+
+@pytest.mark.parametrize("passes", [1, 2])
+def test_the_library_s_step_keeps_the_exact_posterior_with_fewer_passes(monkeypatch: pytest.MonkeyPatch,
+                                                                        passes: int) -> None:
+    """:meth:`HierarchicalMultinomial.sample_shared_given_counts` with ``passes`` (the fit's
+    ``TransferHyperparameters.phi_passes``, branch powercost21), the block size made 2."""
+    monkeypatch.setattr(observations, "PHI_BLOCK_SIZE", 2)
+
+    def step(n, log_phi, rng):
+        return HierarchicalMultinomial.sample_shared_given_counts(n, log_phi, DELTA, ALPHA, rng,
+                                                                  passes=passes)
+    value, limit = _chi_square(_run(step, 6 + passes))
+    print(f"chi-square {value:.1f} (0.999 quantile {limit:.1f})")
+    assert value < limit, (value, limit)

@@ -26,7 +26,7 @@ from collections.abc import Iterable
 from dataclasses import replace
 
 from spco.errors import ConfigurationError
-from spco.model.hyperparameters import TransferHyperparameters
+from spco.model.hyperparameters import PHI_PASSES, TransferHyperparameters
 from spco.model.state import SamplerSettings
 
 __all__ = ["check_cut_start", "cut_phase", "cut_sweeps"]
@@ -44,10 +44,11 @@ def cut_phase(hyper: TransferHyperparameters, settings: SamplerSettings
               ) -> tuple[TransferHyperparameters, SamplerSettings]:
     """The hyperparameters and sampler settings of a cut start's first sweeps: ``hyper`` and
     ``settings`` as the cut sampler has them (``target="cut"``, δ^v, α^v, δ^w and α^w as given, no
-    φ^v-marginal moves), everything else as they are."""
+    φ^v-marginal moves, the default passes of the φ^v step, which the cut's whole counts do not
+    run), everything else as they are."""
     cut = replace(hyper, target="cut", visual_prior="given", word_prior="given", cut_start=0,
                   block_moves="off" if hyper.block_moves == "phi" else hyper.block_moves,
-                  phi_every=1, phi_until=None)
+                  phi_every=1, phi_until=None, phi_passes=PHI_PASSES)
     return cut, replace(settings, power=False, phi_moves=False)
 
 

@@ -303,7 +303,8 @@ def learn_free_concepts(data: PreparedData, state: GibbsState, hyper: TransferHy
     stats = sweep_statistics.sufficient_statistics(data, state, hyper, settings.learning_view_counts())
     free = np.flatnonzero(unused & (stats.concepts[0] > 0))
     state.log_phi_v[free] = HierarchicalMultinomial.sample_shared_given_counts(
-        stats.visual[:, free], state.log_phi_v[free], hyper.delta_visual, hyper.alpha_visual, rng)
+        stats.visual[:, free], state.log_phi_v[free], hyper.delta_visual, hyper.alpha_visual, rng,
+        passes=hyper.phi_passes)
     tables_w = HierarchicalMultinomial.sample_tables(stats.words[:, free], state.log_phi_w[free],
                                                      hyper.delta_word, rng)
     state.log_phi_w[free] = HierarchicalMultinomial.sample_shared(tables_w, hyper.alpha_word, rng)
@@ -331,7 +332,7 @@ def sweep_home(data: PreparedData, state: GibbsState, hyper: TransferHyperparame
         state.log_g0 = log_dirichlet(prior.g0 + stats.concepts.sum(0), rng)
     else:  # exact: shared given table counts (θ, G_e integrated out), then the home
         state.log_phi_v = HierarchicalMultinomial.sample_shared_given_counts(
-            stats.visual, state.log_phi_v, hyper.delta_visual, prior.visual, rng)
+            stats.visual, state.log_phi_v, hyper.delta_visual, prior.visual, rng, passes=hyper.phi_passes)
         tables_w = HierarchicalMultinomial.sample_tables(stats.words, state.log_phi_w, hyper.delta_word, rng)
         state.log_phi_w = log_dirichlet(prior.words + tables_w, rng)
         tables_g = sample_crt(stats.concepts, hyper.gamma * np.exp(state.log_g0)[None, :], rng).sum(axis=0)

@@ -115,6 +115,12 @@ ESTIMATE = "estimate"
 WORD_COUNTS = VIEW_COUNTS
 
 
+#: The passes of the power target's blocked φ^v step (``TransferHyperparameters.phi_passes``,
+#: :meth:`spco.model.observations.HierarchicalMultinomial.accept_shared`), each over a fresh random
+#: partition of the dimensions; benchmarks/README.md, "Issue 29: an exact φ^v step at fc7's size".
+PHI_PASSES = 4
+
+
 #: Largest Dirichlet concentration or NIW κ0 accepted (sums over thousands of dimensions stay finite).
 MAX_CONCENTRATION = 1e100
 #: Largest condition number of Ψ0 (its smallest eigenvalue must be representable beside its largest
@@ -130,6 +136,17 @@ def _check_cut_start(cut_start: Any, target: str) -> None:
     if cut_start > 0 and target != "power":
         raise ConfigurationError(f"cut_start={cut_start} needs target='power' (the cut's sweeps start the "
                                  f"power target's chain), got target={target!r}")
+
+
+def _check_phi_passes(passes: Any, target: str) -> None:
+    """Raise :class:`~spco.errors.ConfigurationError` naming ``phi_passes`` unless it is an integer
+    >= 1, and other than :data:`PHI_PASSES` only with ``target="power"`` (the cut's φ^v counts are
+    whole: its φ^v step is the CRT step's draw, which has no passes, and a fit must not ignore it)."""
+    if isinstance(passes, bool) or not isinstance(passes, int | np.integer) or passes < 1:
+        raise ConfigurationError(f"phi_passes must be an integer >= 1, got {passes!r}")
+    if passes != PHI_PASSES and target != "power":
+        raise ConfigurationError(f"phi_passes={passes} needs target='power' (the passes of the power "
+                                 f"target's blocked φ^v step), got target={target!r}")
 
 
 def _check_phi_schedule(every: int, until: int | None, block_moves: str) -> None:
@@ -314,6 +331,14 @@ class TransferHyperparameters:
         kept draw is a power sweep: exact MCMC with a cut start. A new home's sampler (``adapt``,
         a teaching) runs the power target from its start. Written by :meth:`to_dict` only when not 0
         (a file without it reads as 0).
+    phi_passes: the passes of the power target's blocked Metropolis–Hastings step for φ^v
+        (:meth:`spco.model.observations.HierarchicalMultinomial.accept_shared`; default
+        :data:`PHI_PASSES` = 4), each over a fresh random partition of the dimensions into blocks; in
+        the joint fit, ``adapt`` and a teaching alike. Every pass leaves the power target's φ^v
+        conditional invariant, so any number ≥ 1 targets the same model and only changes how far φ^v
+        moves in a sweep (and its CPU: one evaluation of the fractional weight a pass). Other than 4
+        only with ``target="power"``; written by :meth:`to_dict` only when not 4 (a file without it
+        reads as 4).
     """
 
     n_concepts: int = 15
@@ -347,6 +372,7 @@ class TransferHyperparameters:
     phi_every: int = 1
     phi_until: int | None = None
     cut_start: int = 0
+    phi_passes: int = PHI_PASSES
 
     def __post_init__(self) -> None:
         for name in ("n_concepts", "n_regions"):
@@ -399,6 +425,7 @@ class TransferHyperparameters:
             raise ConfigurationError(f"word_counts must be a whole number with target='power' (a word "
                                      f"token's counts stay whole), got {self.word_counts!r}")
         _check_cut_start(self.cut_start, self.target)
+        _check_phi_passes(self.phi_passes, self.target)
         if self.warm_start not in WARM_STARTS:
             raise ConfigurationError(f"warm_start must be one of {', '.join(map(repr, WARM_STARTS))}, "
                                      f"got {self.warm_start!r}")
@@ -462,7 +489,8 @@ class TransferHyperparameters:
         ``warm_start`` always: a file without it means ``"names"``, the default before things16;
         ``place_channel`` only when not ``"shared"`` and ``delta_place`` only with it or when not the
         default, ``name_answer`` only when not ``"said"``, ``phi_every`` only when not 1 and
-        ``phi_until`` only when not ``None``, ``cut_start`` only when not 0)."""
+        ``phi_until`` only when not ``None``, ``cut_start`` only when not 0, ``phi_passes`` only when not
+        :data:`PHI_PASSES`)."""
         data = asdict(self)
         if data["place_channel"] == "shared":
             del data["place_channel"]
@@ -488,6 +516,10 @@ class TransferHyperparameters:
             del data["cut_start"]
         else:
             data["cut_start"] = int(data["cut_start"])
+        if data["phi_passes"] == PHI_PASSES:
+            del data["phi_passes"]
+        else:
+            data["phi_passes"] = int(data["phi_passes"])
         return data
 
     @classmethod
@@ -562,7 +594,7 @@ SETTABLE: dict[str, str] = {
     "word_prior": "one of given, estimate", "warm_start": "one of names, words, things",
     "place_channel": "one of shared, home", "delta_place": "a number",
     "name_answer": "one of said, listener", "phi_every": "integer", "phi_until": "integer or none",
-    "cut_start": "integer",
+    "cut_start": "integer", "phi_passes": "integer",
 }
 
 

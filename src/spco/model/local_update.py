@@ -260,7 +260,8 @@ def _parameters(
     ]
     if free.size:  # φ of a concept the knowledge does not use is learnt from this home (as adapting)
         state.log_phi_v[free] = HierarchicalMultinomial.sample_shared_given_counts(
-            stats.visual[:, free], state.log_phi_v[free], hyper.delta_visual, hyper.alpha_visual, rng
+            stats.visual[:, free], state.log_phi_v[free], hyper.delta_visual, hyper.alpha_visual, rng,
+            passes=hyper.phi_passes,
         )
         tables_w = HierarchicalMultinomial.sample_tables(
             stats.words[:, free], state.log_phi_w[free], hyper.delta_word, rng

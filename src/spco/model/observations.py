@@ -12,12 +12,14 @@ L concepts, K regions and D dimensions (words or visual features).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.special import gammaln, multigammaln
 
+from spco.model.hyperparameters import PHI_PASSES
 from spco.model.kernels.counts import (
     grouped_moments,
     grouped_row_sums,
@@ -26,7 +28,7 @@ from spco.model.kernels.counts import (
 )
 from spco.model.kernels.crt import sample_crt_totals
 from spco.model.kernels.dirichlet import log_dirichlet, log_dirichlet_hierarchical
-from spco.model.kernels.fractional import fractional_log_weights_by_dimension
+from spco.model.kernels.fractional import FractionalCounts, fractional_log_weights_by_dimension
 from spco.model.kernels.gaussian import grouped_gaussian_log_density
 from spco.model.kernels.likelihood import (
     DimensionMajorCounts,
@@ -105,10 +107,10 @@ class GaussianRegions:
 
 
 #: The power target's φ^v step (:meth:`HierarchicalMultinomial.accept_shared`): dimensions per block
-#: and passes (each over a fresh random partition) per step; benchmarks/README.md, "Issue 29: an exact
-#: φ^v step at fc7's size".
+#: (its passes per step: ``TransferHyperparameters.phi_passes``, default
+#: :data:`~spco.model.hyperparameters.PHI_PASSES`); benchmarks/README.md, "Issue 29: an exact φ^v
+#: step at fc7's size".
 PHI_BLOCK_SIZE = 8
-PHI_PASSES = 4
 
 #: The last concentrations δ φ computed by :func:`shared_concentration`: (log φ, δ, a copy of
 #: log φ, δ φ), most recent first.
@@ -248,17 +250,36 @@ class HierarchicalMultinomial:
         return fractional_log_weights_by_dimension(n, log_phi, delta)
 
     @staticmethod
+    def fractional_log_weight_evaluator(n: np.ndarray, delta: float) -> Callable[[np.ndarray], np.ndarray]:
+        """log φ (L, D) ↦ :meth:`fractional_log_weight_terms` (n, log φ, δ) (L, D), to the bit, with the
+        fractional entries of the counts n (E, L, D) gathered once
+        (:class:`~spco.model.kernels.fractional.FractionalCounts`) at the first evaluation: what the
+        blocked φ^v step evaluates at its start and once a pass. The counts must not change while it
+        is used."""
+        if n.dtype.kind in "iu":
+            return lambda log_phi: np.zeros(np.shape(log_phi))
+        gathered: list[FractionalCounts] = []
+
+        def evaluate(log_phi: np.ndarray) -> np.ndarray:
+            if not gathered:
+                gathered.append(FractionalCounts([n]))
+            return gathered[0].log_weights(log_phi, delta)
+        return evaluate
+
+    @staticmethod
     def sample_shared_given_counts(n: np.ndarray, log_phi: np.ndarray, delta: float, prior,
-                                   rng: np.random.Generator) -> np.ndarray:
+                                   rng: np.random.Generator, passes: int | None = None) -> np.ndarray:
         """log φ_l | n (θ integrated out) for every concept, from the counts n (E, L, D) of all
         homes concerned: the table counts M and fractional parts F of :meth:`table_parts`, then
         :meth:`accept_shared` (the blocked Metropolis–Hastings step for φ with target
         ∝ Dir(φ | prior + M + F) exp(w(φ)), w = :meth:`fractional_log_weight`). For whole counts F = 0,
-        w = 0 and this is the CRT step, drawing the same numbers. ``prior``: α, a number or (L, D)."""
+        w = 0 and this is the CRT step, drawing the same numbers. ``prior``: α, a number or (L, D);
+        ``passes``: the blocked step's passes (``TransferHyperparameters.phi_passes``; ``None``:
+        :data:`~spco.model.hyperparameters.PHI_PASSES`)."""
         tables, frac, fractional = HierarchicalMultinomial.table_parts(n, log_phi, delta, rng)
         return HierarchicalMultinomial.accept_shared(
-            lambda phi: HierarchicalMultinomial.fractional_log_weight_terms(n, phi, delta),
-            log_phi, prior, tables, frac, rng, fractional)
+            HierarchicalMultinomial.fractional_log_weight_evaluator(n, delta),
+            log_phi, prior, tables, frac, rng, fractional, passes=passes)
 
     @staticmethod
     def accept_shared(log_weights, log_phi: np.ndarray, prior, tables: np.ndarray, frac: np.ndarray,
@@ -315,23 +336,30 @@ class HierarchicalMultinomial:
         starts = np.linspace(0, n_dims, n_blocks + 1).astype(np.int64)[:-1]
         sizes = np.diff(np.append(starts, n_dims))
         chosen = np.flatnonzero(rows)
+        every = chosen.size == n_concepts  # every row moves: the pass gathers columns only
+
+        def gather(x: np.ndarray, order: np.ndarray) -> np.ndarray:
+            """x's chosen rows, columns in ``order`` (C order, as the blocks' sums read them)."""
+            return np.take(x, order, axis=1) if every else x[np.ix_(chosen, order)]
+
         for step in range(passes):
             draw = proposal if step == 0 else log_dirichlet(concentration[chosen], rng)
-            if step == 0:
+            if step == 0 and not every:
                 draw = draw[chosen]
             order = rng.permutation(n_dims)
-            old = current[np.ix_(chosen, order)]
-            moved = draw[:, order] + np.repeat(_block_logsumexp(old, starts)
-                                               - _block_logsumexp(draw[:, order], starts), sizes, axis=1)
+            draw = np.take(draw, order, axis=1)
+            moved = draw + np.repeat(_block_logsumexp(gather(current, order), starts)
+                                     - _block_logsumexp(draw, starts), sizes, axis=1)
+            at = (slice(None), order) if every else np.ix_(chosen, order)
             candidate = current.copy()
-            candidate[np.ix_(chosen, order)] = moved
+            candidate[at] = moved
             new_weights = log_weights(candidate)
-            delta_w = (new_weights - weights)[np.ix_(chosen, order)]
+            delta_w = gather(new_weights, order) - gather(weights, order)
             with np.errstate(invalid="ignore"):
                 ratio = np.add.reduceat(delta_w, starts, axis=1)
                 accept = np.log(rng.random(ratio.shape)) < ratio
             take = np.zeros(log_phi.shape, dtype=bool)
-            take[np.ix_(chosen, order)] = np.repeat(accept, sizes, axis=1)
+            take[at] = np.repeat(accept, sizes, axis=1)
             current = np.where(take, candidate, current)
             weights = np.where(take, new_weights, weights)
         current[chosen] -= _logsumexp_last(current[chosen])  # rounding of the blocks' totals

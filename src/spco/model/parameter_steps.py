@@ -55,10 +55,11 @@ def global_step(stats: Statistics, state: GibbsState, hyper: TransferHyperparame
     φ^v-marginal block move with the other homes' tables it drew (``moved``: :mod:`spco.model.phi_moves`)."""
     if moved is not None:
         state.log_phi_v = phi_after_move(stats.visual, state.log_phi_v, hyper.delta_visual,
-                                         hyper.alpha_visual, moved, rng)
+                                         hyper.alpha_visual, moved, rng, passes=hyper.phi_passes)
     else:
         state.log_phi_v = HierarchicalMultinomial.sample_shared_given_counts(
-            stats.visual, state.log_phi_v, hyper.delta_visual, hyper.alpha_visual, rng)
+            stats.visual, state.log_phi_v, hyper.delta_visual, hyper.alpha_visual, rng,
+            passes=hyper.phi_passes)
     tables_w = HierarchicalMultinomial.sample_tables(stats.words, state.log_phi_w, hyper.delta_word, rng)
     state.log_phi_w = HierarchicalMultinomial.sample_shared(tables_w, hyper.alpha_word, rng)
     state.log_g0 = allocation.sample_global_concept_weights(stats.concepts, state.log_g0, hyper.gamma,

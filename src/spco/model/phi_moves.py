@@ -285,16 +285,16 @@ def _word_log_likelihood(data, state, settings, rows: slice) -> np.ndarray:
 
 
 def phi_after_move(n: np.ndarray, log_phi: np.ndarray, delta: float, alpha, tables,
-                   rng: np.random.Generator) -> np.ndarray:
+                   rng: np.random.Generator, passes: int | None = None) -> np.ndarray:
     """Step 4: φ^v given the other homes' tables of :func:`phi_block_step` (M_{−e}, F_{−e}, H_{−e}, e)
     and the moved home's tables M_e (drawn here given φ^v), then the blocked step of
     :meth:`HierarchicalMultinomial.accept_shared` with the fractional weight of every home's real
-    counts ``n`` (E, L, D)."""
+    counts ``n`` (E, L, D); ``passes``: its passes (``TransferHyperparameters.phi_passes``)."""
     tables_o, frac_o, fractional_o, e = tables
     own = HierarchicalMultinomial.table_parts(np.asarray(n)[e:e + 1], log_phi, delta, rng)
     return HierarchicalMultinomial.accept_shared(
-        lambda phi: HierarchicalMultinomial.fractional_log_weight_terms(n, phi, delta), log_phi, alpha,
-        tables_o + own[0], frac_o + own[1], rng, (fractional_o + own[2]) > 0)
+        HierarchicalMultinomial.fractional_log_weight_evaluator(np.asarray(n), delta), log_phi, alpha,
+        tables_o + own[0], frac_o + own[1], rng, (fractional_o + own[2]) > 0, passes=passes)
 
 
 def log_assignment_prior(counts: np.ndarray, region_counts: np.ndarray, g: np.ndarray, beta: float) -> float:

@@ -29,6 +29,7 @@ the same for any number of workers and any engine.
 from __future__ import annotations
 
 import itertools
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -112,6 +113,8 @@ class HomeShard(ShardInitialisation):
         self.n_fit_homes = data.n_homes if n_fit_homes is None else int(n_fit_homes)
         self.stats: sweep_statistics.Statistics | None = None
         self.setup_seconds: dict[str, float] = {}
+        #: (the statistics, δ^v, φ^v's weight at them: :meth:`visual_log_weight`)
+        self._weight: tuple[sweep_statistics.Statistics, float, Callable[[np.ndarray], np.ndarray]] | None = None
 
     @classmethod
     def start(cls, data: PreparedData, n_words: int, hyper: TransferHyperparameters,
@@ -286,8 +289,13 @@ class HomeShard(ShardInitialisation):
         """(L, D) the shard's part of φ^v's fractional weight per dimension (the views' weighted
         counts: :meth:`HierarchicalMultinomial.fractional_log_weight_terms`), what the blocked φ^v
         step's acceptance ratios are summed from."""
-        n, delta = self._stats().visual, self.hyper.delta_visual
-        return HierarchicalMultinomial.fractional_log_weight_terms(n, log_phi, delta)
+        stats, delta = self._stats(), self.hyper.delta_visual
+        if self._weight is None or self._weight[0] is not stats or self._weight[1] != delta:
+            # the same statistics in every evaluation of a sweep's φ^v step: their fractional
+            # counts gathered once (a local step or a recount makes new statistics)
+            weight = HierarchicalMultinomial.fractional_log_weight_evaluator(stats.visual, delta)
+            self._weight = (stats, delta, weight)
+        return self._weight[2](log_phi)
 
     def channel_counts(self) -> ChannelCounts:
         """The switches' counts of the shard's homes (word channels; each token once). With the place
@@ -409,7 +417,7 @@ class GlobalStep:
         tables_v, frac_v, fractional = self.reduce(call("tables", "visual")) if moved is None else moved
         log_phi_v = HierarchicalMultinomial.accept_shared(
             lambda phi: self.reduce(call("visual_log_weight", phi)), shared.log_phi_v,
-            hyper.alpha_visual, tables_v, frac_v, rng, fractional > 0)
+            hyper.alpha_visual, tables_v, frac_v, rng, fractional > 0, passes=hyper.phi_passes)
         if hyper.target == "power":
             pseudo = hyper.alpha_visual + tables_v + frac_v
             self.visual_mean = np.log(pseudo) - np.log(pseudo.sum(axis=-1, keepdims=True))

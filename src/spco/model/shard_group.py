@@ -24,7 +24,7 @@ from spco.model import shard as shards_api
 from spco.model.additive import SUM_GRID, PooledCounts
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.kernels.crt import sample_crt_totals_each
-from spco.model.kernels.fractional import fractional_log_weights_grouped
+from spco.model.kernels.fractional import FractionalCounts
 from spco.model.kernels.special import scaled_exp
 from spco.model.observations import HierarchicalMultinomial
 from spco.model.pruning import Colocation, colocation
@@ -97,6 +97,8 @@ class ShardGroup:
 
     def __post_init__(self) -> None:
         self.setup_seconds: dict[str, float] = {}
+        #: (the homes' statistics, their visual counts' fractional entries: :meth:`visual_log_weight`)
+        self._fractional: tuple[tuple, FractionalCounts] | None = None
 
     # ------------------------------------------------------------------ the group as a whole
     @property
@@ -176,12 +178,17 @@ class ShardGroup:
     def visual_log_weight(self, log_phi: np.ndarray) -> np.ndarray:
         """(L, D) the homes' parts of φ^v's fractional weight per dimension, summed: bit for bit the
         sum of the homes' own (:meth:`HomeShard.visual_log_weight`) in home order, computed in one
-        call (:func:`~spco.model.kernels.fractional.fractional_log_weights_grouped`: what depends on
-        φ^v alone computed once for every home)."""
+        call (:class:`~spco.model.kernels.fractional.FractionalCounts`: what depends on φ^v alone
+        computed once for every home; the homes' fractional counts gathered once for the statistics
+        of a sweep, which every evaluation of its φ^v step reads)."""
         deltas = {h.hyper.delta_visual for h in self.homes}
         if len(self.homes) == 1 or len(deltas) != 1:
             return _sum(self._each_lazily("visual_log_weight", log_phi))
-        return fractional_log_weights_grouped([h._stats().visual for h in self.homes], log_phi, deltas.pop())
+        stats = tuple(h._stats() for h in self.homes)
+        held = self._fractional
+        if held is None or any(a is not b for a, b in zip(held[0], stats, strict=True)):
+            self._fractional = (stats, FractionalCounts([s.visual for s in stats]))
+        return self._fractional[1].log_weights(log_phi, deltas.pop())
 
     def pooled_counts(self) -> PooledCounts:
         """The homes' pooled counts, summed (integers)."""
