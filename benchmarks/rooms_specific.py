@@ -19,8 +19,9 @@ warm_start=names`` for the start before issue 28's words' start.
 ``--diagnose`` adds to each record (``--out``) where each room is in the fit (:func:`diagnose`): the
 concepts of its taught and untaught training samples, the concept the view-by-view answer puts each test
 sample in and the name that concept says, the room account's concept and p(l | room k) at each test
-sample, and p(name | room) of the room's best accepted name and of the answer. A diagnosis: the scores
-are the same with it and without it.
+sample, p(name | room) of the room's best accepted name each way, and the room account's answer with the
+view as a draw of its room (``view_in_room``, opt-in). A diagnosis: the scores are the same with it and
+without it.
 """
 
 from __future__ import annotations
@@ -93,7 +94,9 @@ def diagnose(model: Any, e: int, env: Any, rooms: Any, weighting: Any) -> dict[s
     account's most probable concept at each test sample
     (:func:`spco.model.confidence.answer_concepts` with the rooms) and its probability;
     ``room_p_accepted``/``view_p_accepted``: the mean over test samples of p(name | pose, view) of the
-    room's best accepted word, each way; ``theta_accepted``: the answer's θ^w_{e,l} of the room's
+    room's best accepted word, each way; ``view_in_room``/``view_in_room_correct``: the room account's
+    answer with the observation's view as a draw of its room (``answer_names(..., view_in_room=True)``,
+    opt-in) and whether each is the room's name; ``theta_accepted``: the answer's θ^w_{e,l} of the room's
     best accepted word in each concept holding its taught samples."""
     from spco.model.confidence import answer_concepts, answer_names
     from spco.model.prediction import concept_posterior
@@ -123,6 +126,8 @@ def diagnose(model: Any, e: int, env: Any, rooms: Any, weighting: Any) -> dict[s
                                 weighting=weighting, view_counts=w, rooms=r)
             probs = pred.word_probabilities[:, accepted] if accepted.size else np.zeros((test.size, 1))
             p[label] = round(float(probs.max(axis=1).mean()), 4)
+        in_room = answer_names(params, e, model.vocabulary_, env.positions[test], env.visual[test], top_k=1,
+                               weighting=weighting, view_counts=w, rooms=answer_rooms, view_in_room=True)
         best_view = view.argmax(axis=1)
         out[room.name] = {
             "taught": t.tolist(), "untaught": u.tolist(),
@@ -133,6 +138,8 @@ def diagnose(model: Any, e: int, env: Any, rooms: Any, weighting: Any) -> dict[s
             "room_concepts": by_room.argmax(axis=1).tolist(),
             "room_concept_p": np.round(by_room.max(axis=1), 4).tolist(),
             "view_p_accepted": p["view"], "room_p_accepted": p["room"],
+            "view_in_room": [str(x) for x in in_room.words[:, 0]],
+            "view_in_room_correct": [int(room.is_accepted(str(x))) for x in in_room.words[:, 0]],
             "theta_accepted": {int(c): round(float(theta[c, accepted].max()), 4) if accepted.size else None
                                for c in np.unique(t)},
         }
