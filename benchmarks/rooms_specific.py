@@ -202,6 +202,9 @@ def main(argv: list[str] | None = None) -> int:
             by_room = {n: r["name_accuracy"] for n, r in record["rooms_account"].items()}
             per_room["view"].extend(view.values())
             per_room["rooms"].extend(by_room.values())
+            if "diagnosis" in record:
+                per_room.setdefault("view in room", []).extend(
+                    float(np.mean(d["view_in_room_correct"])) for d in record["diagnosis"].values())
             a_p = {n: (record["positions_fit_account"][n]["argmax"], r["positions"]["argmax"])
                    for n, r in record["rooms_account"].items()}
             per_room["A_p fit"].extend(v[0] for v in a_p.values() if v[0] is not None)
@@ -216,6 +219,9 @@ def main(argv: list[str] | None = None) -> int:
           f"view-by-view {np.mean(per_room['view']):.3f}, room account {np.mean(per_room['rooms']):.3f}; "
           f"mean A_p (argmax) the fit's π·G account {np.mean(per_room['A_p fit']):.3f}, the robot's (room "
           f"account) {np.mean(per_room['A_p robot']):.3f}")
+    if "view in room" in per_room:
+        print(f"mean A_n room account with the view as a draw of its room (view_in_room) "
+              f"{np.mean(per_room['view in room']):.3f}")
     return 0
 
 
