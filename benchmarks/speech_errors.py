@@ -230,6 +230,12 @@ def where_miss_class(place: str, name: str, accepted: dict[str, tuple[str, ...]]
     return "one concept, two places" if landed != place else "region spills"
 
 
+def answer_with_view_in_room() -> None:
+    """``--view-in-room``: the scores' one answer function (:func:`spco.evaluation.metrics.evaluate_home`'s
+    :func:`~spco.model.confidence.answer_names`) with the observation's view as a draw of its room."""
+    metrics.answer_names = functools.partial(answer_names, view_in_room=True)
+
+
 def _parser() -> argparse.ArgumentParser:
     """The command line."""
     parser = fit_arguments(argparse.ArgumentParser(description=__doc__.splitlines()[0]))
@@ -367,8 +373,8 @@ def main() -> None:
     parser = _parser()
     args = parser.parse_args()
     refuse_other_seeds(parser, args.seeds)
-    if args.view_in_room:  # the scores' one answer function (evaluate_home's), with the view in its room
-        metrics.answer_names = functools.partial(answer_names, view_in_room=True)
+    if args.view_in_room:
+        answer_with_view_in_room()
     accepted = read_names(args.accepted)
     knowledge, configs = configurations(args.sigverse, accepted, args.leave_one_out)
     labels = [c[0] for c in configs]  # natural_speech.py's order: the trial seed's index
