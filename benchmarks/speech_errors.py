@@ -39,6 +39,7 @@ Run (development, small)::
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import sys
 import time
@@ -54,8 +55,9 @@ from split_seeds import refuse_other_seeds
 
 from spco.data import Corpus, Environment
 from spco.data.language import normalize_name
-from spco.evaluation import evaluate_answers, evaluate_home
+from spco.evaluation import evaluate_answers, evaluate_home, metrics
 from spco.evaluation.metrics import position_accuracy
+from spco.model.confidence import answer_names
 from spco.model.home_shard import name_words, switch_tokens
 from spco.model.position_prediction import predict_positions
 from spco.model.prediction import UnknownNameError, concept_posterior
@@ -228,6 +230,12 @@ def where_miss_class(place: str, name: str, accepted: dict[str, tuple[str, ...]]
     return "one concept, two places" if landed != place else "region spills"
 
 
+def answer_with_view_in_room() -> None:
+    """``--view-in-room``: the scores' one answer function (:func:`spco.evaluation.metrics.evaluate_home`'s
+    :func:`~spco.model.confidence.answer_names`) with the observation's view as a draw of its room."""
+    metrics.answer_names = functools.partial(answer_names, view_in_room=True)
+
+
 def _parser() -> argparse.ArgumentParser:
     """The command line."""
     parser = fit_arguments(argparse.ArgumentParser(description=__doc__.splitlines()[0]))
@@ -242,6 +250,10 @@ def _parser() -> argparse.ArgumentParser:
                         help="also score the where of each development home held out of the knowledge "
                         "(--leave-one-out), which has no drawn regions, against the areas nearest its "
                         "labelled training samples (NearestAreas); reported apart from 3LDK_9's regions")
+    parser.add_argument("--view-in-room", action="store_true",
+                        help="answer names with the room account's view as a draw of its room "
+                        "(answer_names(view_in_room=True), the opt-in of docs/model.md, \"Opt-in: the view "
+                        "as a draw of its room\"); the fits and the where are unchanged")
     parser.add_argument("--json", type=Path, default=None)
     return parser
 
@@ -361,6 +373,8 @@ def main() -> None:
     parser = _parser()
     args = parser.parse_args()
     refuse_other_seeds(parser, args.seeds)
+    if args.view_in_room:
+        answer_with_view_in_room()
     accepted = read_names(args.accepted)
     knowledge, configs = configurations(args.sigverse, accepted, args.leave_one_out)
     labels = [c[0] for c in configs]  # natural_speech.py's order: the trial seed's index

@@ -55,7 +55,7 @@ def test_settings_reach_the_fit(settings: tuple[str, ...], monkeypatch: pytest.M
     monkeypatch.setattr(rooms_specific, "ConfiguredData", lambda file, data, selected: None)
     monkeypatch.setattr(sc, "execute_configured_run", execute)
     key = ConfiguredRun("c", 40, 3, "spcotransfer+mi")
-    record = rooms_specific.run(("config.json", "data", key, 7, settings))
+    record = rooms_specific.run(("config.json", "data", key, 7, settings, False))
     assert record == {"rooms_account": {}, "positions_fit_account": {}}
     assert seen["key"] == key and seen["iterations"] == 7
     if not settings:

@@ -61,3 +61,20 @@ def test_the_development_seeds_are_0_to_99_and_200_to_299() -> None:
     assert all(s in development for s in (0, 99, 200, 229, 299))
     assert not any(s in development for s in (100, 119, 120, 199, 300, -1))
     assert list(SIDES["heldout"]["seeds"]) == list(range(100, 120))
+
+
+def test_view_in_room_answers_with_the_view_in_its_room(monkeypatch) -> None:
+    """``--view-in-room`` is parsed, and the scores' answer function then passes ``view_in_room=True`` to
+    the robot's ``answer_names`` (every other argument as given)."""
+    import speech_errors
+
+    from spco.evaluation import metrics
+
+    assert speech_errors._parser().parse_args(["--view-in-room"]).view_in_room
+    assert not speech_errors._parser().parse_args([]).view_in_room
+    seen: dict = {}
+    monkeypatch.setattr(speech_errors, "answer_names", lambda *a, **k: seen.update(args=a, kwargs=k))
+    monkeypatch.setattr(metrics, "answer_names", metrics.answer_names)  # restored after the test
+    speech_errors.answer_with_view_in_room()
+    metrics.answer_names("params", 3, rooms="rooms")
+    assert seen == {"args": ("params", 3), "kwargs": {"rooms": "rooms", "view_in_room": True}}
