@@ -114,7 +114,8 @@ class HomeShard(ShardInitialisation):
         self.stats: sweep_statistics.Statistics | None = None
         self.setup_seconds: dict[str, float] = {}
         #: (the statistics, δ^v, φ^v's weight at them: :meth:`visual_log_weight`)
-        self._weight: tuple[sweep_statistics.Statistics, float, Callable[[np.ndarray], np.ndarray]] | None = None
+        self._weight: (tuple[sweep_statistics.Statistics, float, Callable[[np.ndarray], np.ndarray]]
+                       | None) = None
 
     @classmethod
     def start(cls, data: PreparedData, n_words: int, hyper: TransferHyperparameters,
