@@ -4,7 +4,7 @@ of the development configuration of ``benchmarks/natural_speech.py``, classified
 The fits and the scores are those of ``natural_speech.py`` (same configurations, seeds, trial seeds
 and scoring: the names the robot answers, ``model_answer_parameters``; ``--fit-parameters`` scores
 the fit's parameters instead, every word answerable; development side only: the script has no
-held-out configuration and refuses seeds outside 0–99 and 200–299). Each wrong answer
+held-out configuration and refuses seeds outside 0–99 and 200–399). Each wrong answer
 (A_n: a test view whose top name is not an accepted name of its place) and each missed ``where``
 (A_p: an accepted name the vocabulary holds whose positions fall outside its place's region, score
 below 0.5) is put in one class:

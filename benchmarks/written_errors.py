@@ -8,7 +8,7 @@ The fits and scores are ``free_speech.py``'s (the paper's 16 experienced homes t
 (:func:`speech_errors.classify_answer`, :func:`speech_errors.where_miss_class`), with "said here"
 read from the taught sentences of this set. Development only: the new home is 3LDK_9 by default
 (1LDK_9 and 2LDK_9 are held out, benchmarks/SPLIT.md) and seeds outside the development seeds
-(0–99 and 200–299) are refused.
+(0–99 and 200–399) are refused.
 
 Each wrong answer is printed with the view's top three names and their probabilities, the concept the view
 is drawn to, and the places of that concept's taught samples; each missed ``where`` with the place its

@@ -38,18 +38,18 @@ def _stop(*_args, **_kwargs):
 ])
 def test_the_error_scripts_refuse_every_seed_outside_the_development_sets(script, patched, argv, monkeypatch,
                                                                           capsys) -> None:
-    """Held-out seeds (100–119), the unassigned 120–199 and seeds from 300 are refused before anything
-    is read; 0–99 and 200–299 pass the check."""
+    """Held-out seeds (100–119), the unassigned 120–199 and seeds from 400 are refused before anything
+    is read; 0–99 and 200–399 pass the check."""
     module = __import__(script)
     monkeypatch.setattr(module, patched, _stop)
     if script == "unheard_errors":
         monkeypatch.setattr(module, "read_names", lambda path: {})
-    for seed in (100, 150, 300):
+    for seed in (100, 150, 400):
         monkeypatch.setattr(sys, "argv", [script, *argv, "--seeds", "0", str(seed)])
         with pytest.raises(SystemExit):
             module.main()
-        assert "0-99 and 200-299" in capsys.readouterr().err
-    for seed in (99, 200, 299):
+        assert "0-99 and 200-399" in capsys.readouterr().err
+    for seed in (99, 200, 299, 300, 399):
         monkeypatch.setattr(sys, "argv", [script, *argv, "--seeds", str(seed)])
         with pytest.raises(_Stop):
             module.main()

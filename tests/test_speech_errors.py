@@ -52,14 +52,14 @@ def test_repeated_set_options_are_all_kept() -> None:
     assert _parser().parse_args([]).set == []
 
 
-def test_the_development_seeds_are_0_to_99_and_200_to_299() -> None:
-    """benchmarks/SPLIT.md (2026-12-07 14:55 UTC): seeds 200–299 are development too; 100–119 stay
-    held-out and 120–199 are not used, so the natural-speech scripts refuse them."""
+def test_the_development_seeds_are_0_to_99_and_200_to_399() -> None:
+    """benchmarks/SPLIT.md (2026-12-07 14:55 and 22:47 UTC): seeds 200–299 and 300–399 are development too;
+    100–119 stay held-out and 120–199 are not used, so the natural-speech scripts refuse them."""
     from natural_speech import SIDES
 
     development = SIDES["development"]["seeds"]
-    assert all(s in development for s in (0, 99, 200, 229, 299))
-    assert not any(s in development for s in (100, 119, 120, 199, 300, -1))
+    assert all(s in development for s in (0, 99, 200, 229, 299, 300, 399))
+    assert not any(s in development for s in (100, 119, 120, 199, 400, -1))
     assert list(SIDES["heldout"]["seeds"]) == list(range(100, 120))
 
 
