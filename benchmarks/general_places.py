@@ -112,7 +112,9 @@ def run(sigverse: Path, regions_file: Path, side: str, seeds: list[int], sweeps:
     ``answers``: also score names from each fit's answer parameters
     (:func:`spco.model.confidence.model_answer_parameters`) two ways (``"view"``: the view-by-view answer,
     the robot's before the room account was the default; ``"rooms"``: the room account,
-    :func:`spco.model.rooms.model_rooms`, what the robot answers), from the same fit, as ``A_n_<answer>``.
+    :func:`spco.model.rooms.model_rooms`, what the robot answers; ``"view_in_room"``: the room account
+    with the observation's view as a draw of its room, the opt-in of docs/model.md; ``"listener"``), from
+    the same fit, as ``A_n_<answer>`` and ``A_p_<answer>``.
     ``settings``: ``NAME=VALUE`` hyperparameter settings (:func:`model_hyperparameters`)."""
     from spco.model.confidence import model_answer_parameters
 
@@ -143,6 +145,9 @@ def run(sigverse: Path, regions_file: Path, side: str, seeds: list[int], sweeps:
             for answer in answers:  # the same fit, names from the answer parameters
                 if answer == "rooms":  # the robot's answer (evaluate_answers: its rooms and weighting)
                     answered = evaluate_answers(model, e, env, rng=np.random.default_rng([run_seed, 1]))
+                elif answer == "view_in_room":  # the room account, the view as a draw of its room
+                    answered = evaluate_answers(model, e, env, rng=np.random.default_rng([run_seed, 1]),
+                                                view_in_room=True)
                 elif answer == "listener":  # the robot's answer with name_answer="listener", same fit
                     answered = _listener_answers(model, e, env, np.random.default_rng([run_seed, 1]))
                 else:
@@ -218,7 +223,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sweeps", type=int, default=200, help="Gibbs sweeps (spco experiment's default)")
     parser.add_argument("--json", type=Path, default=None, help="write every figure to this file")
     parser.add_argument("--answers", default="", help="also score answers from the same fits: view (view by "
-                        "view), rooms (the room account, the robot's answer), listener (rooms with "
+                        "view), rooms (the room account, the robot's answer), view_in_room (rooms with "
+                        "the view as a draw of its room, opt-in), listener (rooms with "
                         "name_answer=listener), comma-separated")
     parser.add_argument("--set", dest="settings", action="append", default=[], metavar="NAME=VALUE",
                         help="a hyperparameter of the fits, as `spco fit --set` (repeatable; e.g. "
@@ -229,8 +235,8 @@ def main(argv: list[str] | None = None) -> int:
     except (ConfigurationError, ValueError) as err:
         parser.error(f"--set: {err}")
     answers = tuple(a for a in args.answers.split(",") if a)
-    if set(answers) - {"view", "rooms", "listener"}:
-        parser.error(f"--answers: choose from view, rooms, listener, got {args.answers!r}")
+    if set(answers) - {"view", "rooms", "view_in_room", "listener"}:
+        parser.error(f"--answers: choose from view, rooms, view_in_room, listener, got {args.answers!r}")
     refuse_other_seeds(parser, args.seeds, args.side)
     if len(set(args.seeds)) != len(args.seeds):
         parser.error("--seeds: each seed once")

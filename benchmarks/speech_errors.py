@@ -39,7 +39,6 @@ Run (development, small)::
 from __future__ import annotations
 
 import argparse
-import functools
 import json
 import sys
 import time
@@ -55,9 +54,8 @@ from split_seeds import refuse_other_seeds
 
 from spco.data import Corpus, Environment
 from spco.data.language import normalize_name
-from spco.evaluation import evaluate_answers, evaluate_home, metrics
+from spco.evaluation import evaluate_answers, evaluate_home
 from spco.evaluation.metrics import position_accuracy
-from spco.model.confidence import answer_names
 from spco.model.home_shard import name_words, switch_tokens
 from spco.model.position_prediction import predict_positions
 from spco.model.prediction import UnknownNameError, concept_posterior
@@ -230,12 +228,6 @@ def where_miss_class(place: str, name: str, accepted: dict[str, tuple[str, ...]]
     return "one concept, two places" if landed != place else "region spills"
 
 
-def answer_with_view_in_room() -> None:
-    """``--view-in-room``: the scores' one answer function (:func:`spco.evaluation.metrics.evaluate_home`'s
-    :func:`~spco.model.confidence.answer_names`) with the observation's view as a draw of its room."""
-    metrics.answer_names = functools.partial(answer_names, view_in_room=True)
-
-
 def _parser() -> argparse.ArgumentParser:
     """The command line."""
     parser = fit_arguments(argparse.ArgumentParser(description=__doc__.splitlines()[0]))
@@ -373,8 +365,8 @@ def main() -> None:
     parser = _parser()
     args = parser.parse_args()
     refuse_other_seeds(parser, args.seeds)
-    if args.view_in_room:
-        answer_with_view_in_room()
+    if args.view_in_room and args.fit_parameters:
+        parser.error("--view-in-room: the room account's answer, not with --fit-parameters (no rooms)")
     accepted = read_names(args.accepted)
     knowledge, configs = configurations(args.sigverse, accepted, args.leave_one_out)
     labels = [c[0] for c in configs]  # natural_speech.py's order: the trial seed's index
@@ -391,7 +383,7 @@ def main() -> None:
             scores = evaluate_home(model.parameters_, e, scored, corpus.vocabulary, rng=seed,
                                    **({} if view_counts is None else {"view_counts": view_counts}))
         else:  # as the robot answers
-            scores = evaluate_answers(model, e, scored, rng=seed)
+            scores = evaluate_answers(model, e, scored, rng=seed, view_in_room=args.view_in_room)
         said = place_speech(knowledge, corpus)  # every development home's people
         home = label.split()[0]
         hits, asked = table[home]["A_p hits"], table[home]["A_p names"]

@@ -56,3 +56,18 @@ def test_the_summary_records_settings_only_when_given() -> None:
     power = summarise("development", [0, 1], 10, ["3LDK_9"], runs, settings=("target=power",))
     assert power["settings"] == ["target=power"]
     assert power["A_n"] == plain["A_n"]
+
+
+def test_the_command_line_knows_the_view_in_room_answer(tmp_path: Path,
+                                                         capsys: pytest.CaptureFixture) -> None:
+    """``--answers view_in_room`` is accepted (the run stops at the missing data set, after the answers
+    are checked); an unknown answer is refused naming ``--answers`` and the choices."""
+    with pytest.raises(SystemExit) as exit_info:
+        main(["--sigverse", str(tmp_path), "--seeds", "0", "--answers", "rooms,view_in_room"])
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert "error: --sigverse" in err and "error: --answers" not in err
+    with pytest.raises(SystemExit) as exit_info:
+        main(["--sigverse", str(tmp_path), "--seeds", "0", "--answers", "rooms,in_room"])
+    assert exit_info.value.code == 2
+    assert "--answers: choose from view, rooms, view_in_room, listener" in capsys.readouterr().err

@@ -8,6 +8,7 @@ from collections import Counter
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from speech_errors import SAID_HERE, classify_answer, classify_miss, share_said
@@ -64,17 +65,31 @@ def test_the_development_seeds_are_0_to_99_and_200_to_399() -> None:
 
 
 def test_view_in_room_answers_with_the_view_in_its_room(monkeypatch) -> None:
-    """``--view-in-room`` is parsed, and the scores' answer function then passes ``view_in_room=True`` to
-    the robot's ``answer_names`` (every other argument as given)."""
+    """``--view-in-room`` is parsed and the scores are the robot's answers with ``view_in_room=True``
+    (``evaluate_answers``; without the flag ``False``); with ``--fit-parameters`` (no rooms) it is refused."""
     import speech_errors
-
-    from spco.evaluation import metrics
 
     assert speech_errors._parser().parse_args(["--view-in-room"]).view_in_room
     assert not speech_errors._parser().parse_args([]).view_in_room
-    seen: dict = {}
-    monkeypatch.setattr(speech_errors, "answer_names", lambda *a, **k: seen.update(args=a, kwargs=k))
-    monkeypatch.setattr(metrics, "answer_names", metrics.answer_names)  # restored after the test
-    speech_errors.answer_with_view_in_room()
-    metrics.answer_names("params", 3, rooms="rooms")
-    assert seen == {"args": ("params", 3), "kwargs": {"rooms": "rooms", "view_in_room": True}}
+
+    class Scored(Exception):
+        pass
+
+    def spy(model, e, scored, rng, view_in_room):
+        raise Scored(view_in_room)
+
+    monkeypatch.setattr(speech_errors, "read_names", lambda path: {})
+    monkeypatch.setattr(speech_errors, "configurations", lambda *a: (None, [("3LDK_9", None)]))
+    monkeypatch.setattr(speech_errors, "fitted_runs",
+                        lambda *a, **k: iter([(0, "3LDK_9", None, None, None, 1, None)]))
+    monkeypatch.setattr(speech_errors, "evaluate_answers", spy)
+    for flags, expected in (([], False), (["--view-in-room"], True)):
+        monkeypatch.setattr(sys, "argv", ["speech_errors.py", "--seeds", "0", *flags])
+        with pytest.raises(Scored) as scored:
+            speech_errors.main()
+        assert scored.value.args == (expected,)
+    monkeypatch.setattr(sys, "argv", ["speech_errors.py", "--seeds", "0", "--view-in-room",
+                                      "--fit-parameters"])
+    with pytest.raises(SystemExit) as exit_info:
+        speech_errors.main()
+    assert exit_info.value.code == 2

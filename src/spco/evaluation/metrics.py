@@ -239,6 +239,7 @@ def evaluate_home(
     view_counts: float | None = None,
     answer_params: ConceptParameters | None = None,
     answer_rooms: HomeRooms | None = None,
+    view_in_room: bool = False,
 ) -> HomeScores:
     """Score name and position prediction in home ``e`` (the paper's A_n and A_p).
 
@@ -265,6 +266,9 @@ def evaluate_home(
     answer_rooms: the home's rooms as the robot's answer reads them
         (:func:`spco.model.rooms.model_rooms`; ``None``: names from each sample's own view and pose,
         regions from the home's π and G).
+    view_in_room: names answered with the observation's view as a draw of its room (opt-in, off for
+        the robot's answers: :func:`spco.model.confidence.answer_names`); needs ``answer_rooms``.
+        Positions are unchanged (``where`` reads no view).
     name_prior: ``"wordnet"`` orders each concept's words by the name prior when names are
         predicted (opt-in; see :func:`spco.model.prediction.predict_names`).
     position_mode, xy_only: see :func:`spco.model.position_prediction.predict_positions`;
@@ -276,6 +280,8 @@ def evaluate_home(
     and A_p = 0 (no position can be proposed). A place without a ground-truth area has A_p = NaN,
     and if the home has no regions at all every A_p is NaN.
     """
+    if view_in_room and answer_rooms is None:
+        raise ConfigurationError("view_in_room needs the home's rooms (answer_rooms), got None")
     gt = environment.ground_truth
     if gt is None:
         raise DataFormatError(environment.source or environment.name, "this home has no ground truth "
@@ -299,7 +305,7 @@ def evaluate_home(
     visual = environment.visual[rows]
     prediction = answer_names(params if answer_params is None else answer_params, e, vocabulary, positions,
                               visual, top_k=3, weighting=weighting, name_prior=name_prior,
-                              view_counts=view_counts, rooms=answer_rooms)
+                              view_counts=view_counts, rooms=answer_rooms, view_in_room=view_in_room)
     predicted = tuple(prediction.best)
     accepted = {place: gt.accepted(place) for place in place_list}
     name_scores = name_accuracy(predicted, labels, place_list, accepted)
@@ -363,6 +369,7 @@ def evaluate_answers(
     n_positions: int = 10,
     rng: np.random.Generator | int | None = None,
     name_prior: NamePrior | None = None,
+    view_in_room: bool = False,
 ) -> HomeScores:
     """Score home ``e`` of a fitted model as the robot answers it: :func:`evaluate_home` with the
     model's own answer inputs (``model.answer_inputs(e)``: the answer's parameters, the home's rooms
@@ -370,7 +377,9 @@ def evaluate_answers(
     benchmarks score a model's answers, so that no caller scores another weighting than the robot's.
 
     ``model``: a fitted :class:`~spco.model.transfer.SpCoTransfer` (or SpCoA); ``name_prior``
-    overrides the model's ``hyperparameters_.name_prior`` (``None``: the model's)."""
+    overrides the model's ``hyperparameters_.name_prior`` (``None``: the model's); ``view_in_room``
+    (opt-in, off as the robot answers): the observation's view as a draw of its room
+    (:func:`evaluate_home`)."""
     answer_params, answer_rooms, weighting = model.answer_inputs(e)  # type: ignore[attr-defined]
     settings = getattr(model, "settings_", None)
     hyper = getattr(model, "hyperparameters_", None)
@@ -379,4 +388,4 @@ def evaluate_answers(
                          places=places, specific=specific, n_positions=n_positions, rng=rng,
                          weighting=weighting, name_prior=prior,
                          view_counts=getattr(settings, "view_counts", None),
-                         answer_params=answer_params, answer_rooms=answer_rooms)
+                         answer_params=answer_params, answer_rooms=answer_rooms, view_in_room=view_in_room)
