@@ -70,7 +70,8 @@ def _chain(corpus: Corpus, variant: str, start: str, seed: int, sweeps: int) -> 
         state = gibbs.initialize(data, len(corpus.vocabulary), hyper, settings, rng)
         if start == "random":  # θ, G, π from the counts of a random partition
             state.concepts = rng.integers(0, hyper.n_concepts, size=data.n_samples)
-            stats = sweep_statistics.sufficient_statistics(data, state, hyper)
+            stats = sweep_statistics.sufficient_statistics(data, state, hyper,
+                                                           settings.learning_view_counts())
             parameter_steps.home_step(data, state, stats, hyper, settings, rng)
         for it in range(sweeps):
             gibbs.sweep(data, state, hyper, settings, rng, swaps=gibbs.swaps_due(it))
