@@ -128,25 +128,29 @@ MAX_CONCENTRATION = 1e100
 MAX_CONDITION = 1e12
 
 
+def _check_power_count(name: str, value: Any, minimum: int, default: int, kind: str, why: str,
+                       target: str) -> None:
+    """Raise :class:`~spco.errors.ConfigurationError` naming ``name`` unless ``value`` is an integer
+    >= ``minimum`` (said as ``kind``), and other than ``default`` only with ``target="power"``
+    (``why``: what the setting is to the power target)."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
+        raise ConfigurationError(f"{name} must be {kind} >= {minimum}, got {value!r}")
+    if value != default and target != "power":
+        raise ConfigurationError(f"{name}={value} needs target='power' ({why}), got target={target!r}")
+
+
 def _check_cut_start(cut_start: Any, target: str) -> None:
-    """Raise :class:`~spco.errors.ConfigurationError` naming ``cut_start`` unless it is a whole number
-    of sweeps >= 0, and positive only with ``target="power"``."""
-    if isinstance(cut_start, bool) or not isinstance(cut_start, int | np.integer) or cut_start < 0:
-        raise ConfigurationError(f"cut_start must be a whole number of sweeps >= 0, got {cut_start!r}")
-    if cut_start > 0 and target != "power":
-        raise ConfigurationError(f"cut_start={cut_start} needs target='power' (the cut's sweeps start the "
-                                 f"power target's chain), got target={target!r}")
+    """``cut_start``: a whole number of sweeps >= 0, positive only with ``target="power"``."""
+    _check_power_count("cut_start", cut_start, 0, 0, "a whole number of sweeps",
+                       "the cut's sweeps start the power target's chain", target)
 
 
 def _check_phi_passes(passes: Any, target: str) -> None:
-    """Raise :class:`~spco.errors.ConfigurationError` naming ``phi_passes`` unless it is an integer
-    >= 1, and other than :data:`PHI_PASSES` only with ``target="power"`` (the cut's φ^v counts are
-    whole: its φ^v step is the CRT step's draw, which has no passes, and a fit must not ignore it)."""
-    if isinstance(passes, bool) or not isinstance(passes, int | np.integer) or passes < 1:
-        raise ConfigurationError(f"phi_passes must be an integer >= 1, got {passes!r}")
-    if passes != PHI_PASSES and target != "power":
-        raise ConfigurationError(f"phi_passes={passes} needs target='power' (the passes of the power "
-                                 f"target's blocked φ^v step), got target={target!r}")
+    """``phi_passes``: an integer >= 1, other than :data:`PHI_PASSES` only with ``target="power"``
+    (the cut's φ^v counts are whole: its φ^v step is the CRT step's draw, which has no passes, and a
+    fit must not ignore it)."""
+    _check_power_count("phi_passes", passes, 1, PHI_PASSES, "an integer",
+                       "the passes of the power target's blocked φ^v step", target)
 
 
 def _check_phi_schedule(every: int, until: int | None, block_moves: str) -> None:
@@ -512,14 +516,11 @@ class TransferHyperparameters:
             del data["phi_every"]
         if data["phi_until"] is None:
             del data["phi_until"]
-        if data["cut_start"] == 0:
-            del data["cut_start"]
-        else:
-            data["cut_start"] = int(data["cut_start"])
-        if data["phi_passes"] == PHI_PASSES:
-            del data["phi_passes"]
-        else:
-            data["phi_passes"] = int(data["phi_passes"])
+        for name, default in (("cut_start", 0), ("phi_passes", PHI_PASSES)):
+            if data[name] == default:
+                del data[name]
+            else:
+                data[name] = int(data[name])
         return data
 
     @classmethod
