@@ -140,6 +140,16 @@ class HomeRooms:
             known = self._known[("membership", n_regions)] = self._membership(n_regions)
         return known
 
+    def members(self, n_regions: int) -> sp.csr_array:
+        """(R, n) 1 where a sample is in a room (:meth:`membership`'s shares made whole: a room's views
+        and names are each member's whole counts). Worked out once per ``n_regions``."""
+        known = self._known.get(("members", n_regions))
+        if known is None:
+            known = self.membership(n_regions)[0].copy()
+            known.data[:] = 1.0
+            self._known[("members", n_regions)] = known
+        return known
+
     def _membership(self, n_regions: int) -> tuple[sp.csr_array, np.ndarray]:
         """:meth:`membership` worked out."""
         n = self.regions.size
@@ -202,8 +212,7 @@ def _room_evidence(params: ConceptParameters, rooms: HomeRooms, view_counts: flo
                                  f"{params.n_concepts}")
     share, region_of = rooms.membership(K)  # (R, n) each sample's share in each room
     R = region_of.size
-    onehot = share.copy()  # the room's views and names: each member's whole (counts stay counts)
-    onehot.data[:] = 1.0
+    onehot = rooms.members(K)  # the room's views and names: each member's whole (counts stay counts)
     log_post = np.broadcast_to(_safe_log(params.global_concept_weights)[None, :],
                                (R, params.n_concepts)).copy()
     phi_v = np.asarray(params.shared_visual_probabilities, dtype=np.float64)
@@ -336,9 +345,7 @@ def _atypical_rooms(params: ConceptParameters, rooms: HomeRooms, room_log: np.nd
     phi_v = np.asarray(params.shared_visual_probabilities, dtype=np.float64)
     views = np.zeros_like(room_log)
     if phi_v.size and rooms.visual.shape[1] == phi_v.shape[1]:
-        share, _ = rooms.membership(int(np.shape(params.region_means)[1]))
-        onehot = share.copy()
-        onehot.data[:] = 1.0
+        onehot = rooms.members(int(np.shape(params.region_means)[1]))
         views = _pooled_views_log(phi_v, onehot, rooms, view_counts)  # (R, L) log S_k(l)
     rest = room_log - views  # log π_k(l), unnormalised
     log_g0 = _safe_log(params.global_concept_weights)
@@ -363,9 +370,7 @@ def _room_view_log(phi_v: np.ndarray, rooms: HomeRooms, k: int, visual: object, 
     ``n_regions`` (:func:`concepts_by_room`, ``view_in_room``)."""
     weighted = rooms._known.get(("view_in_room", view_counts, n_regions))
     if weighted is None:  # (R, D) each room's training views, each worth w draws
-        share, _ = rooms.membership(n_regions)
-        onehot = share.copy()
-        onehot.data[:] = 1.0
+        onehot = rooms.members(n_regions)
         totals = np.asarray(rooms.visual.sum(axis=1), dtype=np.float64).ravel()
         powers = np.zeros_like(totals)
         seen = totals > 0
