@@ -29,6 +29,7 @@ from spco.model.confidence import (
     concept_word_counts,
     named_parameters,
 )
+from spco.model.hyperparameters import AnswerSettings
 from spco.model.parameters import ConceptParameters
 from spco.model.prediction import predict_names
 
@@ -74,7 +75,7 @@ def _honest(params: ConceptParameters, poses: np.ndarray, views: object, *, free
     named = named_parameters(params, 0, np.zeros(L, dtype=bool) if free is None else free, np.zeros((L, V)),
                              0.01)
     return answer_names(named, 0, Vocabulary(list(NAMES)), poses, views, view_counts=view_counts,
-                        weighting="none", top_k=3, unsure_below=unsure_below)
+                        weighting="none", top_k=3, unsure_below=unsure_below, settings=AnswerSettings())
 
 
 def test_probability_of_the_answer_matches_its_frequency() -> None:

@@ -66,6 +66,53 @@ DELTA_PLACE = 10.0
 NAME_ANSWERS = ("said", "listener")
 NameAnswer = Literal["said", "listener"]
 
+#: ``TransferHyperparameters.typical`` of a model whose ρ is learnt from its experienced homes at fit time
+#: (:func:`spco.knowledge.fit.learnt_typicality`); the fitted model holds the number.
+LEARN = "learn"
+
+
+def _check_answer_settings(view_in_room: Any, typical: Any, learn: bool) -> None:
+    """Raise :class:`~spco.errors.ConfigurationError` naming the field unless ``view_in_room`` is a
+    bool and ``typical`` is ``None``, a number within (0, 1] or (with ``learn``) :data:`LEARN`."""
+    if not isinstance(view_in_room, bool | np.bool_):
+        raise ConfigurationError(f"view_in_room must be true or false, got {view_in_room!r}")
+    if typical is None:
+        return
+    if view_in_room:  # (spco.model.rooms.concepts_by_room answers one opt-in at a time)
+        raise ConfigurationError(f"typical={typical!r} is not with view_in_room=true (one opt-in at a time)")
+    if learn and typical == LEARN:
+        return
+    if isinstance(typical, bool | np.bool_) or not isinstance(typical, int | float | np.number) \
+            or not 0.0 < float(typical) <= 1.0:
+        allowed = "off, a number within (0, 1] or 'learn'" if learn else "off or a number within (0, 1]"
+        raise ConfigurationError(f"typical must be {allowed}, got {typical!r}")
+
+
+@dataclass(frozen=True)
+class AnswerSettings:
+    """The answer's opt-in settings, read from the model (:meth:`TransferHyperparameters.answer_settings`)
+    by every answer about names — ``what``, ``ask``'s question scores, the service, the ROS node and the
+    experiments (:func:`spco.model.confidence.answer_names`); an experiment that scores one fit two
+    ways passes one explicitly (the override of :func:`spco.evaluation.metrics.evaluate_answers`).
+
+    Attributes
+    ----------
+    view_in_room: the observation's view as a draw of its room's own distribution
+        (:func:`spco.model.rooms.concepts_by_room`'s ``view_in_room``); default ``False``.
+    typical: ρ within (0, 1], how often a room looks like its concept
+        (:func:`spco.model.rooms.concepts_by_room`'s ``typical``); ``None`` (default): off.
+    """
+
+    view_in_room: bool = False
+    typical: float | None = None
+
+    def __post_init__(self) -> None:
+        _check_answer_settings(self.view_in_room, self.typical, learn=False)
+        object.__setattr__(self, "view_in_room", bool(self.view_in_room))
+        if self.typical is not None:
+            object.__setattr__(self, "typical", float(self.typical))
+
+
 #: Where the exact sampler's δ^v and α^v come from (``TransferHyperparameters.visual_prior``): as given,
 #: or estimated from the homes' views after the start (:mod:`spco.model.visual_prior`).
 VISUAL_PRIORS = ("given", "estimate")
@@ -316,6 +363,20 @@ class TransferHyperparameters:
         ("kitchen" said at the washroom) comes behind a name of this concept's own (opt-in,
         benchmarks/README.md, branch classc18). Read by the answers only, not by the fit. Written by
         :meth:`to_dict` only when not ``"said"``.
+    view_in_room: ``False`` (default) or ``True``: the robot's answer takes the observation's view as a
+        draw of its room's own distribution around the room's concept
+        (:func:`spco.model.rooms.concepts_by_room`; opt-in, benchmarks/README.md, the calibration's
+        ``--view-in-room``). Read by the answers only (:meth:`answer_settings`), not by the fit.
+        Written by :meth:`to_dict` only when ``True`` (an older spco refuses such a file rather than
+        answer without it).
+    typical: ρ, how often a room looks like its concept (:func:`spco.model.rooms.concepts_by_room`,
+        docs/model.md, "Opt-in: a room that looks like another concept"): ``None`` (default, off), a
+        number within (0, 1], or ``"learn"`` (:data:`LEARN`): ρ learnt from the experienced homes'
+        views and place labels when a knowledge is fitted
+        (:func:`spco.knowledge.fit.learnt_typicality`, :func:`spco.model.view_fit.room_typicality`),
+        after the chain, and held as the number in the knowledge's hyperparameters (the robot
+        answers with the ρ the experiments use). Read by the answers only. Written by :meth:`to_dict`
+        only when not ``None``.
     evidence_weight: η, the weight of the linguistic evidence in the switch's prior (word channels):
         p(z = name | word) ∝ λ_name ν^η, p(z = place or background) ∝ λ_c (1 − ν)^η, ν the name
         evidence of :mod:`spco.model.name_evidence`. Default :data:`EVIDENCE_WEIGHT`, chosen on
@@ -373,6 +434,8 @@ class TransferHyperparameters:
     place_channel: PlaceChannel = "shared"
     delta_place: float = DELTA_PLACE
     name_answer: NameAnswer = "said"
+    view_in_room: bool = False
+    typical: float | str | None = None
     phi_every: int = 1
     phi_until: int | None = None
     cut_start: int = 0
@@ -434,6 +497,7 @@ class TransferHyperparameters:
             raise ConfigurationError(f"warm_start must be one of {', '.join(map(repr, WARM_STARTS))}, "
                                      f"got {self.warm_start!r}")
         self._check_place_channel()
+        _check_answer_settings(self.view_in_room, self.typical, learn=True)
         if self.name_prior not in NAME_PRIORS:
             raise ConfigurationError(f"name_prior must be one of {', '.join(map(repr, NAME_PRIORS))}, "
                                      f"got {self.name_prior!r}")
@@ -460,6 +524,31 @@ class TransferHyperparameters:
                 and 0 < self.delta_place <= MAX_CONCENTRATION):
             raise ConfigurationError(f"delta_place must be a positive number at most {MAX_CONCENTRATION:g}, "
                                      f"got {self.delta_place!r}")
+
+    def answer_settings(self) -> AnswerSettings:
+        """The answer's opt-in settings (``view_in_room``, ``typical``) as every answer reads them.
+        Raises :class:`~spco.errors.ConfigurationError` for ``typical="learn"`` not yet learnt (a
+        knowledge's fit learns it: :func:`spco.knowledge.fit.fit_knowledge`)."""
+        if self.typical == LEARN:
+            raise ConfigurationError("typical='learn' is learnt when a knowledge is fitted (spco fit); "
+                                     "this model holds no ρ: give typical a number within (0, 1]")
+        return AnswerSettings(view_in_room=bool(self.view_in_room),
+                              typical=None if self.typical is None else float(self.typical))
+
+    def with_answer_settings(self, settings: Sequence[str]) -> TransferHyperparameters:
+        """A copy with ``NAME=VALUE`` settings of the answer only (:data:`ANSWER_ONLY`: ``spco adapt
+        --set``; :meth:`with_settings`), which change no fit; ``typical=learn`` is learnt at fit time.
+        Raises :class:`~spco.errors.ConfigurationError` naming the setting otherwise."""
+        for setting in settings:
+            name, _, text = (part.strip() for part in setting.partition("="))
+            if name not in ANSWER_ONLY:
+                raise ConfigurationError(f"hyperparameter setting {setting!r}: only the answer's settings "
+                                         f"({', '.join(ANSWER_ONLY)}) are set after the fit")
+            if name == "typical" and text.lower() == LEARN:
+                raise ConfigurationError(f"hyperparameter setting {setting!r}: ρ is learnt from the "
+                                         "experienced homes when the knowledge is fitted (spco fit --set "
+                                         "typical=learn)")
+        return self.with_settings(settings)
 
     def pruning_threshold(self, score: str) -> float:
         """ε for the pruning score ``"mi"`` (exact variant) or ``"kl"`` (reference variant)."""
@@ -492,7 +581,8 @@ class TransferHyperparameters:
         only when not ``"cut"``, ``visual_prior`` and ``word_prior`` only when not ``"given"``,
         ``warm_start`` always: a file without it means ``"names"``, the default before things16;
         ``place_channel`` only when not ``"shared"`` and ``delta_place`` only with it or when not the
-        default, ``name_answer`` only when not ``"said"``, ``phi_every`` only when not 1 and
+        default, ``name_answer`` only when not ``"said"``, ``view_in_room`` only when ``True``,
+        ``typical`` only when not ``None``, ``phi_every`` only when not 1 and
         ``phi_until`` only when not ``None``, ``cut_start`` only when not 0, ``phi_passes`` only when not
         :data:`PHI_PASSES`)."""
         data = asdict(self)
@@ -502,6 +592,14 @@ class TransferHyperparameters:
                 del data["delta_place"]
         if data["name_answer"] == "said":
             del data["name_answer"]
+        if not data["view_in_room"]:
+            del data["view_in_room"]
+        else:
+            data["view_in_room"] = True
+        if data["typical"] is None:
+            del data["typical"]
+        elif data["typical"] != LEARN:
+            data["typical"] = float(data["typical"])
         if data["target"] == "cut":
             del data["target"]
         if data["visual_prior"] == "given":
@@ -548,8 +646,9 @@ class TransferHyperparameters:
         Scalars only (:data:`SETTABLE`): integers for ``n_concepts`` / ``n_regions``, numbers
         otherwise, ``none`` for ``view_counts`` (every count a draw), ``word_counts`` (S^w per token)
         or ``mi_threshold`` (the score's default), ``estimate`` for ``view_counts`` (learnt from the
-        homes). Raises :class:`~spco.errors.ConfigurationError` naming the setting for an unknown
-        name, a value of the wrong kind, or one the model refuses (e.g. ``kappa0=-1``).
+        homes), ``true``/``false`` for ``view_in_room``, ``off``, a number or ``learn`` for ``typical``.
+        Raises :class:`~spco.errors.ConfigurationError` naming the setting for an unknown name, a value
+        of the wrong kind, or one the model refuses (e.g. ``kappa0=-1``).
         """
         changes: dict[str, Any] = {}
         for setting in settings:
@@ -563,6 +662,15 @@ class TransferHyperparameters:
                                          f"settable: {', '.join(SETTABLE)}")
             if kind.startswith("one of "):  # a choice: checked by the constructor, which names them
                 changes[name] = text
+                continue
+            if kind == "true or false":
+                if text.lower() not in ("true", "false"):
+                    raise ConfigurationError(f"hyperparameter setting {setting!r}: {name} needs {kind}, "
+                                             f"got {text!r}")
+                changes[name] = text.lower() == "true"
+                continue
+            if name == "typical" and text.lower() in ("off", LEARN):
+                changes[name] = None if text.lower() == "off" else LEARN
                 continue
             if name == "view_counts" and text.lower() == ESTIMATE:
                 changes[name] = ESTIMATE
@@ -594,9 +702,15 @@ SETTABLE: dict[str, str] = {
     "target": "one of cut, power", "visual_prior": "one of given, estimate",
     "word_prior": "one of given, estimate", "warm_start": "one of names, words, things",
     "place_channel": "one of shared, home", "delta_place": "a number",
-    "name_answer": "one of said, listener", "phi_every": "integer", "phi_until": "integer or none",
+    "name_answer": "one of said, listener", "view_in_room": "true or false",
+    "typical": "off, a number within (0, 1] or learn", "phi_every": "integer", "phi_until": "integer or none",
     "cut_start": "integer", "phi_passes": "integer",
 }
+
+
+#: The hyperparameters read by the answers only, never by a fit: set on a fitted knowledge's home
+#: (``spco adapt --set``, :meth:`TransferHyperparameters.with_answer_settings`).
+ANSWER_ONLY = ("name_answer", "view_in_room", "typical")
 
 
 def _to_tuple(value: Any) -> Any:
