@@ -385,7 +385,7 @@ def evaluate_answers(
     one override of the answer settings, for an experiment that scores one fit two ways (``None``:
     the model's)."""
     answer_params, answer_rooms, weighting = model.answer_inputs(e)  # type: ignore[attr-defined]
-    settings = getattr(model, "settings_", None)
+    sampler = getattr(model, "settings_", None)
     hyper = getattr(model, "hyperparameters_", None)
     prior = name_prior if name_prior is not None else getattr(hyper, "name_prior", "off")
     if settings is None:
@@ -393,5 +393,5 @@ def evaluate_answers(
     return evaluate_home(model.parameters_, e, environment, model.vocabulary_,  # type: ignore[attr-defined]
                          places=places, specific=specific, n_positions=n_positions, rng=rng,
                          weighting=weighting, name_prior=prior,
-                         view_counts=getattr(settings, "view_counts", None),
+                         view_counts=getattr(sampler, "view_counts", None),
                          answer_params=answer_params, answer_rooms=answer_rooms, settings=settings)
