@@ -38,8 +38,7 @@ def confidence_note(question: dict) -> str:
               help='Print a JSON object {"questions": [{"id", "x", "y", "theta", "gain", "reason", …}]}.')
 @click.option("--unsure-only", is_flag=True,
               help="Only the questions worth asking: where the robot's confidence in the answer it "
-                   "expects is below spco.model.confidence.UNSURE_BELOW, the one threshold of what and ask "
-                   "(none listed: nothing is "
+                   "expects is below 0.7, spco.model.confidence.UNSURE_BELOW (none listed: nothing is "
                    "worth asking).")
 @friendly_errors
 def ask(home_file: Path, n: int, as_json: bool, unsure_only: bool) -> None:

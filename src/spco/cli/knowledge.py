@@ -449,7 +449,7 @@ def _where_drawn_from(regions: Sequence[int], name: str) -> str:
 @click.option("--top", default=3, show_default=True, type=click.IntRange(1, 100), help="Names to list.")
 @click.option("--unsure-below", default=None, type=click.FloatRange(0.0, 1.0),
               help="Say the robot is unsure when the best name's probability p is below this "
-                   "(default: spco.model.confidence.UNSURE_BELOW, the one threshold of what and ask).")
+                   "(default 0.7, spco.model.confidence.UNSURE_BELOW).")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON object.")
 @_friendly
 def what(home_file: Path, x: float, y: float, theta: float, visual: Path | None, visual_scale: float | None,
@@ -469,8 +469,8 @@ def what(home_file: Path, x: float, y: float, theta: float, visual: Path | None,
 
     p is honest: a view counts as a few independent draws, not as its thousands of counts, and a
     concept nobody named has no name (docs/model.md, "Confidence"). When the best name's p is below
-    --unsure-below (default: spco.model.confidence.UNSURE_BELOW, the one threshold of what and ask) the
-    answer says the robot is unsure (JSON: "unsure": true).
+    --unsure-below (default 0.7, the one threshold of what and ask) the answer says the robot is unsure
+    (JSON: "unsure": true).
     """
     from spco.knowledge.requests import Pose, View, What
     from spco.model.confidence import UNSURE_BELOW
