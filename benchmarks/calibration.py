@@ -208,7 +208,7 @@ def typicality_of(model: Any, data: Path, images: Path | None, features: str) ->
 def run_task(task: Task, data: Path, images: Path | None, models: Path, force: bool) -> list[dict[str, Any]]:
     """Fit (or reuse) the knowledge of ``task``, adapt its homes, and score every test view."""
     import spco.knowledge as kn
-    from spco.model.hyperparameters import AnswerSettings
+    from spco.model.answer_settings import AnswerSettings
     from spco.model.prediction import predict_names
 
     rows = []

@@ -52,7 +52,8 @@ from spco.errors import ConfigurationError
 from spco.evaluation import evaluate_answers, evaluate_home
 from spco.evaluation.config import PAPER_EXPERIENCED_HOMES, trial_seed
 from spco.evaluation.models import MODELS
-from spco.model.hyperparameters import AnswerSettings, TransferHyperparameters
+from spco.model.answer_settings import AnswerSettings
+from spco.model.hyperparameters import TransferHyperparameters
 
 #: The split of benchmarks/SPLIT.md, "General places from 2026-12-06".
 SIDES: dict[str, dict[str, Any]] = {

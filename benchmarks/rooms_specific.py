@@ -100,8 +100,8 @@ def diagnose(model: Any, e: int, env: Any, rooms: Any, weighting: Any) -> dict[s
     (``answer_names(..., settings=AnswerSettings(view_in_room=True))``,
     opt-in) and whether each is the room's name; ``theta_accepted``: the answer's θ^w_{e,l} of the room's
     best accepted word in each concept holding its taught samples."""
+    from spco.model.answer_settings import AnswerSettings
     from spco.model.confidence import answer_concepts, answer_names
-    from spco.model.hyperparameters import AnswerSettings
     from spco.model.prediction import concept_posterior
 
     params, answer_rooms, _ = model.answer_inputs(e)

@@ -56,8 +56,8 @@ from spco.data import Corpus, Environment
 from spco.data.language import normalize_name
 from spco.evaluation import evaluate_answers, evaluate_home
 from spco.evaluation.metrics import position_accuracy
+from spco.model.answer_settings import AnswerSettings
 from spco.model.home_shard import name_words, switch_tokens
-from spco.model.hyperparameters import AnswerSettings
 from spco.model.position_prediction import predict_positions
 from spco.model.prediction import UnknownNameError, concept_posterior
 

@@ -1,5 +1,5 @@
 """The answer's settings carried by the model (issue 29, item 3 "One predictor"): ``view_in_room`` and
-``typical`` are hyperparameters (:class:`~spco.model.hyperparameters.AnswerSettings`), written by
+``typical`` are hyperparameters (:class:`~spco.model.answer_settings.AnswerSettings`), written by
 ``to_dict`` only when not default, set by ``spco fit --set`` / ``spco adapt --set``, and read from the
 model by every answer — ``spco what``, the service's predictor, ``name_prediction``, ``evaluate_home``
 and ``evaluate_answers`` — which give the same probabilities; ``typical="learn"`` is learnt when a
@@ -24,8 +24,9 @@ from spco.data.environment import Corpus
 from spco.data.loading import load_home
 from spco.errors import ConfigurationError
 from spco.evaluation.metrics import evaluate_answers, evaluate_home
+from spco.model.answer_settings import AnswerSettings, with_answer_settings
 from spco.model.confidence import answer_names
-from spco.model.hyperparameters import AnswerSettings, TransferHyperparameters
+from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.transfer import SpCoTransfer
 
 #: file digests (arrays, and the header without times, checksums, versions and provenance) of the default
@@ -221,11 +222,15 @@ def test_settings_are_checked_once_naming_the_field() -> None:
     ρ = TransferHyperparameters(typical=0.5)
     assert ρ.to_dict()["typical"] == 0.5 and TransferHyperparameters.from_dict(ρ.to_dict()) == ρ
     # after the fit only the answer's settings are set (spco adapt --set), ρ given as a number
-    assert hyper.with_answer_settings(["name_answer=listener", "typical=0.5"]).typical == 0.5
+    assert with_answer_settings(hyper, ["name_answer=listener", "typical=0.5"]).typical == 0.5
     with pytest.raises(ConfigurationError, match="only the answer's settings"):
-        hyper.with_answer_settings(["n_concepts=3"])
+        with_answer_settings(hyper, ["n_concepts=3"])
     with pytest.raises(ConfigurationError, match="learnt"):
-        hyper.with_answer_settings(["typical=learn"])
+        with_answer_settings(hyper, ["typical=learn"])
+    # the model's numbers are plain Python (JSON-ready) whatever they were given as
+    numpy = TransferHyperparameters(view_in_room=np.bool_(True))
+    assert numpy.view_in_room is True and json.dumps(numpy.to_dict())
+    assert type(TransferHyperparameters(typical=np.float32(0.5)).typical) is float
 
 
 def test_adapt_set_refuses_a_fit_setting(cli: dict[str, Path]) -> None:

@@ -23,13 +23,13 @@ from spco import knowledge as kn
 from spco.cli.knowledge import what
 from spco.data.language import Vocabulary
 from spco.errors import ConfigurationError
+from spco.model.answer_settings import AnswerSettings
 from spco.model.confidence import (
     UNSURE_BELOW,
     answer_names,
     concept_word_counts,
     named_parameters,
 )
-from spco.model.hyperparameters import AnswerSettings
 from spco.model.parameters import ConceptParameters
 from spco.model.prediction import predict_names
 

@@ -20,7 +20,7 @@ from spco.evaluation import (
     position_accuracy,
     position_chance,
 )
-from spco.model.hyperparameters import AnswerSettings
+from spco.model.answer_settings import AnswerSettings
 from spco.model.parameters import ConceptParameters
 from spco.model.position_prediction import predict_positions
 

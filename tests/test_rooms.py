@@ -11,8 +11,8 @@ from scipy.special import logsumexp
 
 from spco.data.language import Vocabulary
 from spco.errors import ConfigurationError
+from spco.model.answer_settings import AnswerSettings
 from spco.model.confidence import answer_names
-from spco.model.hyperparameters import AnswerSettings
 from spco.model.parameters import ConceptParameters
 from spco.model.rooms import HomeRooms, concepts_by_room, room_concepts
 

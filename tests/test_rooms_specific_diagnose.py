@@ -24,9 +24,10 @@ import rooms_specific
 from spco.data.environment import Corpus
 from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.evaluation.specific_file import Room
+from spco.model.answer_settings import AnswerSettings
 from spco.model.confidence import answer_names
 from spco.model.driver import LocalEngine
-from spco.model.hyperparameters import AnswerSettings, TransferHyperparameters
+from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.prediction import concept_posterior
 from spco.model.transfer import SpCoTransfer
 

@@ -70,7 +70,7 @@ def test_view_in_room_answers_with_the_view_in_its_room(monkeypatch) -> None:
     with ``--fit-parameters`` (no rooms) it is refused."""
     import speech_errors
 
-    from spco.model.hyperparameters import AnswerSettings
+    from spco.model.answer_settings import AnswerSettings
 
     assert speech_errors._parser().parse_args(["--view-in-room"]).view_in_room
     assert not speech_errors._parser().parse_args([]).view_in_room

@@ -13,7 +13,8 @@ import scipy.sparse as sp
 
 import spco.knowledge as kn
 from spco.errors import ConfigurationError
-from spco.model.hyperparameters import ESTIMATE, VIEW_COUNTS, AnswerSettings, TransferHyperparameters
+from spco.model.answer_settings import AnswerSettings
+from spco.model.hyperparameters import ESTIMATE, VIEW_COUNTS, TransferHyperparameters
 from spco.model.state import PreparedData, SamplerSettings
 from spco.model.view_fit import (
     VIEW_WEIGHT_GRID,

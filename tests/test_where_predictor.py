@@ -16,8 +16,9 @@ from spco.data.language import Vocabulary
 from spco.errors import ConfigurationError
 from spco.evaluation import evaluate_home
 from spco.model import SpCoTransfer, position_prediction
+from spco.model.answer_settings import AnswerSettings
 from spco.model.confidence import model_answer_parameters
-from spco.model.hyperparameters import AnswerSettings, TransferHyperparameters
+from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.parameters import ConceptParameters
 from spco.model.prediction import UnknownNameError
 from spco.model.rooms import model_rooms, room_concepts

@@ -21,8 +21,8 @@ from spco.data.language import Vocabulary, normalize_name
 from spco.data.loading import load
 from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.model import SpCoTransfer
+from spco.model.answer_settings import AnswerSettings
 from spco.model.confidence import answer_names, model_answer_parameters
-from spco.model.hyperparameters import AnswerSettings
 
 #: Closed-class English words: articles and determiners, pronouns, prepositions, conjunctions,
 #: auxiliaries and copulas, and their contractions. None of them is ever a place's name.

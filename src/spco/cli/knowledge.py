@@ -316,8 +316,10 @@ def adapt(knowledge_file: Path, home_path: Path, name: str | None, teaching_rate
     if settings:
         from dataclasses import replace
 
+        from spco.model.answer_settings import with_answer_settings
+
         try:
-            hyper = knowledge.hyperparameters.with_answer_settings(list(settings))
+            hyper = with_answer_settings(knowledge.hyperparameters, list(settings))
         except ConfigurationError as exc:
             raise click.BadParameter(str(exc), param_hint="--set") from None
         knowledge = replace(knowledge, hyperparameters=hyper)

@@ -34,8 +34,9 @@ from spco.data.environment import Environment
 from spco.data.language import Vocabulary, normalize_name
 from spco.data.regions import PlaceRegions
 from spco.errors import ConfigurationError, DataFormatError
+from spco.model.answer_settings import AnswerSettings
 from spco.model.confidence import answer_names
-from spco.model.hyperparameters import AnswerSettings, NamePrior
+from spco.model.hyperparameters import NamePrior
 from spco.model.parameters import ConceptParameters
 from spco.model.position_prediction import PositionMode, PositionPrediction, predict_positions
 from spco.model.prediction import NamePrediction, UnknownNameError, Weighting

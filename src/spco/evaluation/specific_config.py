@@ -257,8 +257,8 @@ def score_rooms(params: Any, e: int, env: Environment, vocabulary: Vocabulary,
     -------
     room name -> :class:`RoomScores`. A room whose name has no usable word gets A_p 0.
     """
+    from spco.model.answer_settings import AnswerSettings
     from spco.model.confidence import answer_names
-    from spco.model.hyperparameters import AnswerSettings
     from spco.model.position_prediction import predict_positions
     from spco.model.prediction import UnknownNameError
 

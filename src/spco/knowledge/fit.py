@@ -26,14 +26,9 @@ from spco.knowledge.knowledge import (
     Knowledge,
     KnowledgeChannels,
 )
+from spco.model.answer_settings import LEARN
 from spco.model.cut_start import check_cut_start
-from spco.model.hyperparameters import (
-    LEARN,
-    PRIORS,
-    TransferHyperparameters,
-    scaled_from,
-    scaled_hyperparameters,
-)
+from spco.model.hyperparameters import PRIORS, TransferHyperparameters, scaled_from, scaled_hyperparameters
 from spco.model.name_evidence import channel_evidence, has_english, name_prior
 from spco.model.posterior import thinned_sweeps
 from spco.model.pruning import words_to_keep

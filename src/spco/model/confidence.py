@@ -50,7 +50,7 @@ import scipy.sparse as sp
 
 from spco.data.language import Vocabulary
 from spco.errors import ConfigurationError
-from spco.model.hyperparameters import AnswerSettings
+from spco.model.answer_settings import AnswerSettings
 from spco.model.parameters import ConceptParameters
 from spco.model.prediction import NamePrediction, Weighting, concept_posterior, predict_names
 from spco.model.rooms import HomeRooms, concepts_by_room

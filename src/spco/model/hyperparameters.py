@@ -17,6 +17,7 @@ from typing import Any, Literal
 import numpy as np
 
 from spco.errors import ConfigurationError
+from spco.model.answer_settings import LEARN, AnswerSettings, check_answer_settings
 
 #: Default ε per pruning score (see ``TransferHyperparameters.mi_threshold``).
 DEFAULT_PRUNING_THRESHOLDS = {"kl": 0.1, "mi": 0.01}
@@ -65,53 +66,6 @@ DELTA_PLACE = 10.0
 #: the concept it is in (:func:`spco.model.prediction.listener_weights`; opt-in, issue 28 class b).
 NAME_ANSWERS = ("said", "listener")
 NameAnswer = Literal["said", "listener"]
-
-#: ``TransferHyperparameters.typical`` of a model whose ρ is learnt from its experienced homes at fit time
-#: (:func:`spco.knowledge.fit.learnt_typicality`); the fitted model holds the number.
-LEARN = "learn"
-
-
-def _check_answer_settings(view_in_room: Any, typical: Any, learn: bool) -> None:
-    """Raise :class:`~spco.errors.ConfigurationError` naming the field unless ``view_in_room`` is a
-    bool and ``typical`` is ``None``, a number within (0, 1] or (with ``learn``) :data:`LEARN`."""
-    if not isinstance(view_in_room, bool | np.bool_):
-        raise ConfigurationError(f"view_in_room must be true or false, got {view_in_room!r}")
-    if typical is None:
-        return
-    if view_in_room:  # (spco.model.rooms.concepts_by_room answers one opt-in at a time)
-        raise ConfigurationError(f"typical={typical!r} is not with view_in_room=true (one opt-in at a time)")
-    if learn and typical == LEARN:
-        return
-    if isinstance(typical, bool | np.bool_) or not isinstance(typical, int | float | np.number) \
-            or not 0.0 < float(typical) <= 1.0:
-        allowed = "off, a number within (0, 1] or 'learn'" if learn else "off or a number within (0, 1]"
-        raise ConfigurationError(f"typical must be {allowed}, got {typical!r}")
-
-
-@dataclass(frozen=True)
-class AnswerSettings:
-    """The answer's opt-in settings, read from the model (:meth:`TransferHyperparameters.answer_settings`)
-    by every answer about names — ``what``, ``ask``'s question scores, the service, the ROS node and the
-    experiments (:func:`spco.model.confidence.answer_names`); an experiment that scores one fit two
-    ways passes one explicitly (the override of :func:`spco.evaluation.metrics.evaluate_answers`).
-
-    Attributes
-    ----------
-    view_in_room: the observation's view as a draw of its room's own distribution
-        (:func:`spco.model.rooms.concepts_by_room`'s ``view_in_room``); default ``False``.
-    typical: ρ within (0, 1], how often a room looks like its concept
-        (:func:`spco.model.rooms.concepts_by_room`'s ``typical``); ``None`` (default): off.
-    """
-
-    view_in_room: bool = False
-    typical: float | None = None
-
-    def __post_init__(self) -> None:
-        _check_answer_settings(self.view_in_room, self.typical, learn=False)
-        object.__setattr__(self, "view_in_room", bool(self.view_in_room))
-        if self.typical is not None:
-            object.__setattr__(self, "typical", float(self.typical))
-
 
 #: Where the exact sampler's δ^v and α^v come from (``TransferHyperparameters.visual_prior``): as given,
 #: or estimated from the homes' views after the start (:mod:`spco.model.visual_prior`).
@@ -363,20 +317,13 @@ class TransferHyperparameters:
         ("kitchen" said at the washroom) comes behind a name of this concept's own (opt-in,
         benchmarks/README.md, branch classc18). Read by the answers only, not by the fit. Written by
         :meth:`to_dict` only when not ``"said"``.
-    view_in_room: ``False`` (default) or ``True``: the robot's answer takes the observation's view as a
-        draw of its room's own distribution around the room's concept
-        (:func:`spco.model.rooms.concepts_by_room`; opt-in, benchmarks/README.md, the calibration's
-        ``--view-in-room``). Read by the answers only (:meth:`answer_settings`), not by the fit.
-        Written by :meth:`to_dict` only when ``True`` (an older spco refuses such a file rather than
-        answer without it).
-    typical: ρ, how often a room looks like its concept (:func:`spco.model.rooms.concepts_by_room`,
-        docs/model.md, "Opt-in: a room that looks like another concept"): ``None`` (default, off), a
-        number within (0, 1], or ``"learn"`` (:data:`LEARN`): ρ learnt from the experienced homes'
-        views and place labels when a knowledge is fitted
-        (:func:`spco.knowledge.fit.learnt_typicality`, :func:`spco.model.view_fit.room_typicality`),
-        after the chain, and held as the number in the knowledge's hyperparameters (the robot
-        answers with the ρ the experiments use). Read by the answers only. Written by :meth:`to_dict`
-        only when not ``None``.
+    view_in_room, typical: the answer's opt-ins (:mod:`spco.model.answer_settings`, read by the answers
+        only, :meth:`answer_settings`; docs/model.md, "The answer's settings are the model's"):
+        ``view_in_room`` (default ``False``) the observation's view as a draw of its room; ``typical``
+        ρ, how often a room looks like its concept: ``None`` (default, off), a number within (0, 1] or
+        ``"learn"``, learnt from the experienced homes' views and place labels when a knowledge is
+        fitted and held as the number (:func:`spco.knowledge.fit.learnt_typicality`). Written by
+        :meth:`to_dict` only when not default (an older spco refuses such a file).
     evidence_weight: η, the weight of the linguistic evidence in the switch's prior (word channels):
         p(z = name | word) ∝ λ_name ν^η, p(z = place or background) ∝ λ_c (1 − ν)^η, ν the name
         evidence of :mod:`spco.model.name_evidence`. Default :data:`EVIDENCE_WEIGHT`, chosen on
@@ -497,7 +444,7 @@ class TransferHyperparameters:
             raise ConfigurationError(f"warm_start must be one of {', '.join(map(repr, WARM_STARTS))}, "
                                      f"got {self.warm_start!r}")
         self._check_place_channel()
-        _check_answer_settings(self.view_in_room, self.typical, learn=True)
+        self._check_answer_settings()
         if self.name_prior not in NAME_PRIORS:
             raise ConfigurationError(f"name_prior must be one of {', '.join(map(repr, NAME_PRIORS))}, "
                                      f"got {self.name_prior!r}")
@@ -514,6 +461,13 @@ class TransferHyperparameters:
                                      f"{self.psi0!r}")
         if self.mu0 is not None and (len(self.mu0) != 4 or not np.isfinite(self.mu0).all()):
             raise ConfigurationError(f"mu0 must be 4 finite numbers (x, y, sin θ, cos θ), got {self.mu0!r}")
+
+    def _check_answer_settings(self) -> None:
+        """:func:`~spco.model.answer_settings.check_answer_settings`; a bool and a float (JSON-ready)."""
+        check_answer_settings(self.view_in_room, self.typical, learn=True)
+        object.__setattr__(self, "view_in_room", bool(self.view_in_room))
+        if self.typical not in (None, LEARN):
+            object.__setattr__(self, "typical", float(self.typical))  # type: ignore[arg-type]
 
     def _check_place_channel(self) -> None:
         """Raise :class:`~spco.errors.ConfigurationError` naming ``place_channel`` or ``delta_place``."""
@@ -534,21 +488,6 @@ class TransferHyperparameters:
                                      "this model holds no ρ: give typical a number within (0, 1]")
         return AnswerSettings(view_in_room=bool(self.view_in_room),
                               typical=None if self.typical is None else float(self.typical))
-
-    def with_answer_settings(self, settings: Sequence[str]) -> TransferHyperparameters:
-        """A copy with ``NAME=VALUE`` settings of the answer only (:data:`ANSWER_ONLY`: ``spco adapt
-        --set``; :meth:`with_settings`), which change no fit; ``typical=learn`` is learnt at fit time.
-        Raises :class:`~spco.errors.ConfigurationError` naming the setting otherwise."""
-        for setting in settings:
-            name, _, text = (part.strip() for part in setting.partition("="))
-            if name not in ANSWER_ONLY:
-                raise ConfigurationError(f"hyperparameter setting {setting!r}: only the answer's settings "
-                                         f"({', '.join(ANSWER_ONLY)}) are set after the fit")
-            if name == "typical" and text.lower() == LEARN:
-                raise ConfigurationError(f"hyperparameter setting {setting!r}: ρ is learnt from the "
-                                         "experienced homes when the knowledge is fitted (spco fit --set "
-                                         "typical=learn)")
-        return self.with_settings(settings)
 
     def pruning_threshold(self, score: str) -> float:
         """ε for the pruning score ``"mi"`` (exact variant) or ``"kl"`` (reference variant)."""
@@ -592,14 +531,9 @@ class TransferHyperparameters:
                 del data["delta_place"]
         if data["name_answer"] == "said":
             del data["name_answer"]
-        if not data["view_in_room"]:
-            del data["view_in_room"]
-        else:
-            data["view_in_room"] = True
-        if data["typical"] is None:
-            del data["typical"]
-        elif data["typical"] != LEARN:
-            data["typical"] = float(data["typical"])
+        for name, default in (("view_in_room", False), ("typical", None)):
+            if data[name] == default:
+                del data[name]
         if data["target"] == "cut":
             del data["target"]
         if data["visual_prior"] == "given":
@@ -663,10 +597,7 @@ class TransferHyperparameters:
             if kind.startswith("one of "):  # a choice: checked by the constructor, which names them
                 changes[name] = text
                 continue
-            if kind == "true or false":
-                if text.lower() not in ("true", "false"):
-                    raise ConfigurationError(f"hyperparameter setting {setting!r}: {name} needs {kind}, "
-                                             f"got {text!r}")
+            if kind == "true or false" and text.lower() in ("true", "false"):  # else refused below
                 changes[name] = text.lower() == "true"
                 continue
             if name == "typical" and text.lower() in ("off", LEARN):
@@ -706,11 +637,6 @@ SETTABLE: dict[str, str] = {
     "typical": "off, a number within (0, 1] or learn", "phi_every": "integer", "phi_until": "integer or none",
     "cut_start": "integer", "phi_passes": "integer",
 }
-
-
-#: The hyperparameters read by the answers only, never by a fit: set on a fitted knowledge's home
-#: (``spco adapt --set``, :meth:`TransferHyperparameters.with_answer_settings`).
-ANSWER_ONLY = ("name_answer", "view_in_room", "typical")
 
 
 def _to_tuple(value: Any) -> Any:

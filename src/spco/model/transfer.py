@@ -45,9 +45,10 @@ from spco.data.environment import Corpus
 from spco.data.language import Vocabulary
 from spco.errors import ConfigurationError
 from spco.model import gibbs
+from spco.model.answer_settings import LEARN
 from spco.model.archive import write_npz_atomic
 from spco.model.cut_start import check_cut_start
-from spco.model.hyperparameters import LEARN, SpCoAHyperparameters, TransferHyperparameters
+from spco.model.hyperparameters import SpCoAHyperparameters, TransferHyperparameters
 from spco.model.name_evidence import channel_evidence, has_english, name_prior
 from spco.model.parameters import ConceptParameters
 from spco.model.posterior import (
