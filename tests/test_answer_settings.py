@@ -184,6 +184,8 @@ def test_typical_learn_is_learnt_at_fit_time_and_held(small_corpus, tmp_path: Pa
     assert learnt.hyperparameters.typical == rho and used > 0
     assert learnt.provenance["typical"] == {"learnt": rho, "samples": used}
     assert "typical" not in plain.provenance
+    assert f"answers: rooms typical with ρ = {rho:g} (learnt from {used} samples)" in learnt.describe()
+    assert "answers:" not in plain.describe()
     again = kn.load_knowledge(learnt.save(tmp_path / "k.spco"))
     assert again.hyperparameters.typical == rho
     home = kn.adapt(again, small_corpus[2], n_iterations=3, random_state=0)

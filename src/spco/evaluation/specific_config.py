@@ -75,6 +75,7 @@ from spco.evaluation.specific_file import (
     taught_count,
     teaching_sentences,
 )
+from spco.model.answer_settings import AnswerSettings
 
 __all__ = [
     "CONFIG_FORMAT",
@@ -232,7 +233,7 @@ def score_rooms(params: Any, e: int, env: Environment, vocabulary: Vocabulary,
                 rng: np.random.Generator | int | None = None,
                 view_counts: float | None = None,
                 answer_params: Any = None, answer_rooms: Any = None,
-                settings: Any = None) -> dict[str, RoomScores]:
+                settings: AnswerSettings | None = None) -> dict[str, RoomScores]:
     """A_n and A_p (both ways) of each room in home ``e`` of a fitted model.
 
     Parameters
@@ -257,7 +258,6 @@ def score_rooms(params: Any, e: int, env: Environment, vocabulary: Vocabulary,
     -------
     room name -> :class:`RoomScores`. A room whose name has no usable word gets A_p 0.
     """
-    from spco.model.answer_settings import AnswerSettings
     from spco.model.confidence import answer_names
     from spco.model.position_prediction import predict_positions
     from spco.model.prediction import UnknownNameError
