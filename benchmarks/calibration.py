@@ -100,8 +100,6 @@ class Task:
     settings: tuple[str, ...] = ()  # ``--set NAME=VALUE`` of the knowledge's hyperparameters
     view_by_view: bool = False  # ``--view-by-view``: after = name_prediction(by_room=False), to compare
     view_in_room: bool = False  # ``--view-in-room``: after = the room account, the view drawn from its room
-    layout: bool = False  # ``--layout``: after = the room account with the home's layout prior
-    room_weight: bool = False  # ``--room-weight``: after = the room account at a weight learnt from homes
     room_typical: bool = False  # ``--room-typical``: after = the room account, rooms atypical now and then
 
 
@@ -176,83 +174,52 @@ def _view_weight(hyper: Any) -> float | None:
     return weight() if callable(weight) else hyper.view_counts
 
 
-def _answer_left_out(model: Any, sample: int, pose: np.ndarray, view: Any, view_in_room: bool = False,
-                     layout: Any = None, view_counts: float | None = None, typical: float | None = None
-                     ) -> Any:
-    """``what``'s answer (:func:`spco.knowledge.name_prediction`) at a training sample of ``model``
-    with the sample left out of its room's views (:mod:`spco.model.rooms`), so that its view is not
-    counted twice: the answer a new view at that pose would get (``layout``: the opt-in layout prior,
-    :func:`layout_of`; ``view_counts``: the opt-in view weight learnt from the experienced homes,
-    :func:`room_weight_of`, instead of the model's w; ``typical``: the opt-in ρ, :func:`typicality_of`)."""
+def _answer_left_out(model: Any, sample: int, pose: np.ndarray, view: Any, settings: Any = None) -> Any:
+    """The answer at ``pose`` with ``view`` with training sample ``sample`` (an id; ``-1``: none) left
+    out of its room's views, so that a development-new view (a training sample of its home) is not
+    counted twice: the answer a new view at that pose would get, with the model's answer settings or
+    the override ``settings`` (an :class:`~spco.model.hyperparameters.AnswerSettings`: ``--view-in-room``,
+    ``--room-typical``)."""
     from spco.knowledge.queries import answer_parameters, home_rooms
     from spco.model.confidence import answer_names
 
-    rooms = home_rooms(model).subset(np.asarray(model.ids) != sample)
-    weight = model.hyperparameters.view_weight() if view_counts is None else view_counts
+    rooms = home_rooms(model)
+    keep = np.asarray(model.ids) != sample
     return answer_names(answer_parameters(model), 0, model.vocabulary, pose, view, top_k=1,
-                        weighting=model.weighting, view_counts=weight,
-                        rooms=rooms, view_in_room=view_in_room, layout=layout, typical=typical)
+                        weighting=model.weighting, view_counts=model.hyperparameters.view_weight(),
+                        rooms=rooms.subset(keep),
+                        settings=model.hyperparameters.answer_settings() if settings is None else settings)
 
 
 def typicality_of(model: Any, data: Path, images: Path | None, features: str) -> float:
     """ρ, how often a room looks like its concept, learnt from the experienced homes of ``model``'s
-    knowledge at the model's w (opt-in, ``--room-typical``; :func:`spco.model.view_fit.room_typicality`);
-    1 (the room account) when there is nothing to learn from."""
-    from spco.model.view_fit import room_typicality
+    knowledge at the model's w (opt-in, ``--room-typical``): :func:`spco.knowledge.fit.learnt_typicality`,
+    as ``spco fit --set typical=learn`` learns it; 1 (the room account) when there is nothing to learn
+    from."""
+    from spco.knowledge.fit import learnt_typicality
 
     knowledge = model.knowledge
     homes = _load(data, images, list(knowledge.provenance["homes"]), features, 100)
-    hyper = model.hyperparameters
-    rho, _, _ = room_typicality([h.visual for h in homes], [h.labels() for h in homes],
-                                knowledge.log_phi_words, knowledge.log_g0, list(knowledge.vocabulary.words),
-                                hyper.alpha_visual, hyper.alpha_word, hyper.view_weight())
-    return 1.0 if rho is None else rho
-
-
-def room_weight_of(model: Any, data: Path, images: Path | None, features: str) -> float:
-    """The room account's view weight learnt from the experienced homes of ``model``'s knowledge
-    (opt-in, ``--room-weight``; :func:`spco.model.view_fit.room_view_weight`): their views (the same
-    extractor) and place names (their labels) left out home by home, with the knowledge's G_0 and φ^w.
-    The model's own w when there is nothing to learn from."""
-    from spco.model.view_fit import room_view_weight
-
-    knowledge = model.knowledge
-    homes = _load(data, images, list(knowledge.provenance["homes"]), features, 100)
-    hyper = model.hyperparameters
-    weight, _, _ = room_view_weight([h.visual for h in homes], [h.labels() for h in homes],
-                                    knowledge.log_phi_words, knowledge.log_g0,
-                                    list(knowledge.vocabulary.words), hyper.alpha_visual, hyper.alpha_word)
-    return hyper.view_weight() if weight is None else weight
-
-
-def layout_of(model: Any, data: Path) -> Any:
-    """The layout prior of a home model (opt-in, ``--layout``; :func:`spco.model.layout.layout_prior`):
-    which concepts a home holds, learnt from the experienced homes of its knowledge (the provenance's
-    ``homes``) — each home's place names (its labels, the names taught there) — with the knowledge's
-    G_0 and φ^w."""
-    from spco.data.loading import load_homes
-    from spco.model.layout import layout_prior
-
-    knowledge = model.knowledge
-    homes = load_homes(data, names=list(knowledge.provenance["homes"]), teaching_rate=100)
-    return layout_prior(knowledge.log_phi_words, knowledge.log_g0, list(knowledge.vocabulary.words),
-                        [sorted(set(h.labels())) for h in homes])
+    rho, _ = learnt_typicality(homes, knowledge.log_phi_words, knowledge.log_g0,
+                               list(knowledge.vocabulary.words), model.hyperparameters)
+    return rho
 
 
 def run_task(task: Task, data: Path, images: Path | None, models: Path, force: bool) -> list[dict[str, Any]]:
     """Fit (or reuse) the knowledge of ``task``, adapt its homes, and score every test view."""
     import spco.knowledge as kn
+    from spco.model.answer_settings import AnswerSettings
     from spco.model.prediction import predict_names
 
     rows = []
-    weight = typical = None  # --room-weight, --room-typical: learnt once per knowledge (homes share it)
+    typical = None  # --room-typical: learnt once per knowledge (homes share it)
+    override = None  # --view-in-room, --room-typical: the answer settings the opt-in scores with
     for home, model in home_models(task, data, images, models, force):
         name = home.name
-        layout = layout_of(model, data) if task.layout else None
-        if task.room_weight and weight is None:
-            weight = room_weight_of(model, data, images, task.features)
         if task.room_typical and typical is None:
             typical = typicality_of(model, data, images, task.features)
+        if task.view_in_room or task.room_typical:
+            override = AnswerSettings(view_in_room=task.view_in_room, typical=typical)
         positions, visual, labels, ids = scored_views(home)
         before = predict_names(model.parameters, 0, model.vocabulary, positions, visual, top_k=1,
                                weighting=model.weighting)  # type: ignore[arg-type]
@@ -261,16 +228,13 @@ def run_task(task: Task, data: Path, images: Path | None, models: Path, force: b
             theta = math.atan2(positions[i, 2], positions[i, 3])
             if task.view_by_view:  # the comparison: each of a room's views independent evidence
                 after = kn.name_prediction(model, positions[[i]], visual[[i]], top_k=1, by_room=False)
-            elif (task.view_in_room or task.layout or task.room_weight or task.room_typical) \
-                    and home.is_test.any():  # an opt-in
-                after = _answer_left_out(model, -1, positions[[i]], visual[[i]], task.view_in_room, layout,
-                                         weight, typical)
+            elif override is not None and home.is_test.any():  # an opt-in
+                after = _answer_left_out(model, -1, positions[[i]], visual[[i]], override)
             elif home.is_test.any():  # what the robot answers (the room account)
                 after = kn.what(model, float(positions[i, 0]), float(positions[i, 1]), theta,
                                 visual=visual[[i]].toarray()[0], top_k=1)
             else:  # a training sample scored (development-new): left out of its room, as a new view is
-                after = _answer_left_out(model, int(ids[i]), positions[[i]], visual[[i]], task.view_in_room,
-                                         layout, weight, typical)
+                after = _answer_left_out(model, int(ids[i]), positions[[i]], visual[[i]], override)
             k = vocabulary.index(label) if label in vocabulary else None
             rows.append({
                 "set": task.set_name, "features": task.features, "size": task.size, "seed": task.seed,
@@ -280,7 +244,7 @@ def run_task(task: Task, data: Path, images: Path | None, models: Path, force: b
                 "after": after.best[0], "p_after": float(after.confidence[0]),
                 "p_true_after": float(after.word_probabilities[0, k]) if k is not None else 0.0,
                 "unsure": bool(after.unsure[0]),
-                "view_counts": _view_weight(model.hyperparameters) if weight is None else weight,
+                "view_counts": _view_weight(model.hyperparameters),
                 **({} if typical is None else {"typical": typical}),
             })
     return rows
@@ -317,7 +281,8 @@ def view_counts_log_loss(data: Path, images: Path | None, models: Path, features
                     for j, value in enumerate(grid):
                         pred = answer_names(named, 0, model.vocabulary, positions, visual, top_k=1,
                                             weighting=model.weighting,  # type: ignore[arg-type]
-                                            view_counts=float(value))
+                                            view_counts=float(value),
+                                            settings=model.hyperparameters.answer_settings())
                         mine[:, j] = -np.log(np.maximum(pred.word_probabilities[rows, columns], 1e-12))
                     losses.append(mine)
                     views += [(home.name, int(i)) for i in home.ids[home.is_test]]
@@ -522,12 +487,6 @@ def _arguments(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument("--view-in-room", action="store_true",
                         help="after = the room account with the observation's view drawn from its room's "
                              "own distribution (opt-in: spco.model.rooms.concepts_by_room(view_in_room))")
-    parser.add_argument("--layout", action="store_true",
-                        help="after = the room account with the home's layout prior, which concepts a home "
-                             "holds learnt from the experienced homes (opt-in: spco.model.layout)")
-    parser.add_argument("--room-weight", action="store_true",
-                        help="after = the room account with its view weight learnt from the experienced "
-                             "homes, each left out in turn (opt-in: spco.model.view_fit.room_view_weight)")
     parser.add_argument("--room-typical", action="store_true",
                         help="after = the room account with rooms that look like another concept now and "
                              "then, how often learnt from the experienced homes (opt-in: "
@@ -577,7 +536,7 @@ def _print_view_counts_fit(args: argparse.Namespace, models: Path) -> None:
 def _predictions(args: argparse.Namespace, models: Path, start: float) -> list[dict[str, Any]]:
     """Every configuration's answers (``args.jobs`` processes), also written to predictions.jsonl."""
     tasks = [Task(f, size, seed, SETS[s]["homes"], s, tuple(args.settings), args.view_by_view,
-                  args.view_in_room, args.layout, args.room_weight, args.room_typical)
+                  args.view_in_room, args.room_typical)
              for s in args.sets for f in args.features
              for size in SETS[s]["sizes"] if args.sizes is None or str(size) in args.sizes.split(",")
              for seed in (SETS[s]["seeds"] if args.seeds is None else args.seeds)[: args.first_seeds]]

@@ -52,6 +52,7 @@ from spco.errors import ConfigurationError
 from spco.evaluation import evaluate_answers, evaluate_home
 from spco.evaluation.config import PAPER_EXPERIENCED_HOMES, trial_seed
 from spco.evaluation.models import MODELS
+from spco.model.answer_settings import AnswerSettings
 from spco.model.hyperparameters import TransferHyperparameters
 
 #: The split of benchmarks/SPLIT.md, "General places from 2026-12-06".
@@ -147,7 +148,7 @@ def run(sigverse: Path, regions_file: Path, side: str, seeds: list[int], sweeps:
                     answered = evaluate_answers(model, e, env, rng=np.random.default_rng([run_seed, 1]))
                 elif answer == "view_in_room":  # the room account, the view as a draw of its room
                     answered = evaluate_answers(model, e, env, rng=np.random.default_rng([run_seed, 1]),
-                                                view_in_room=True)
+                                                settings=AnswerSettings(view_in_room=True))
                 elif answer == "listener":  # the robot's answer with name_answer="listener", same fit
                     answered = _listener_answers(model, e, env, np.random.default_rng([run_seed, 1]))
                 else:

@@ -102,7 +102,8 @@ def diagnose(model, corpus: Corpus, e: int, env, scored, seed: int, accepted: di
     vocabulary = corpus.vocabulary
     rows = np.flatnonzero(scored.is_test)
     posterior = answer_concepts(answer, e, env.positions[rows], env.visual[rows],
-                                view_counts=model.settings_.view_counts, rooms=rooms)
+                                view_counts=model.settings_.view_counts, rooms=rooms,
+                                settings=model.hyperparameters_.answer_settings())
     theta = np.asarray(answer.word_probabilities, dtype=np.float64)[e]
     mask = np.asarray(answer.word_mask, dtype=bool)
     probs = np.where(mask[None, :], posterior @ theta, -1.0)

@@ -134,7 +134,8 @@ def diagnose(model, corpus: Corpus, e: int, env, scored, seed: int, accepted: di
     view_counts = model.settings_.view_counts
     rows = np.flatnonzero(scored.is_test)
     positions, visual = env.positions[rows], env.visual[rows]
-    posterior = answer_concepts(answer, e, positions, visual, view_counts=view_counts, rooms=rooms)
+    posterior = answer_concepts(answer, e, positions, visual, view_counts=view_counts, rooms=rooms,
+                                settings=model.hyperparameters_.answer_settings())
     theta = np.asarray(answer.word_probabilities, dtype=np.float64)[e]
     mask = np.asarray(answer.word_mask, dtype=bool)
     probs = np.where(mask[None, :], posterior @ theta, -1.0)

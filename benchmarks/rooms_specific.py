@@ -58,20 +58,21 @@ def _answer_inputs(model: Any, home: str | int) -> Any:
 
 def _score_both(params: Any, e: int, env: Any, vocabulary: Any, rooms: Any, weighting: Any, n_positions: int,
                 rng: np.random.Generator, view_counts: Any, answer_params: Any = None,
-                answer_rooms: Any = None) -> Any:
+                answer_rooms: Any = None, settings: Any = None) -> Any:
     """The view-by-view answer's scores (returned: the record's ``rooms``), and the room account's from
     the same fit (``_ROOMS``: the record's ``rooms_account``; the run passes ``answer_rooms``, which is
     the same :func:`~spco.model.rooms.model_rooms`)."""
     again = copy.deepcopy(rng)
     plain = _SCORE_ROOMS(params, e, env, vocabulary, rooms, weighting, n_positions, rng, view_counts,
-                         answer_params)
+                         answer_params, settings=settings)
     fit = copy.deepcopy(again)
     model, e_model = _MODEL[0]
     _ROOMS[:] = [_SCORE_ROOMS(params, e, env, vocabulary, rooms, weighting, n_positions, again, view_counts,
-                              answer_params, model_rooms(model, e_model)),
+                              answer_params, model_rooms(model, e_model), settings=settings),
                  # positions from the fit's π·G account and its θ^w (the experiments' A_p before issue
                  # 29's one p(pose | name); the robot's is the room account's above)
-                 _SCORE_ROOMS(params, e, env, vocabulary, rooms, weighting, n_positions, fit, view_counts)]
+                 _SCORE_ROOMS(params, e, env, vocabulary, rooms, weighting, n_positions, fit, view_counts,
+                              settings=settings)]
     if _DIAGNOSIS:
         _DIAGNOSIS[:] = [diagnose(model, e_model, env, rooms, weighting)]
     return plain
@@ -95,14 +96,17 @@ def diagnose(model: Any, e: int, env: Any, rooms: Any, weighting: Any) -> dict[s
     (:func:`spco.model.confidence.answer_concepts` with the rooms) and its probability;
     ``room_p_accepted``/``view_p_accepted``: the mean over test samples of p(name | pose, view) of the
     room's best accepted word, each way; ``view_in_room``/``view_in_room_correct``: the room account's
-    answer with the observation's view as a draw of its room (``answer_names(..., view_in_room=True)``,
+    answer with the observation's view as a draw of its room
+    (``answer_names(..., settings=AnswerSettings(view_in_room=True))``,
     opt-in) and whether each is the room's name; ``theta_accepted``: the answer's θ^w_{e,l} of the room's
     best accepted word in each concept holding its taught samples."""
+    from spco.model.answer_settings import AnswerSettings
     from spco.model.confidence import answer_concepts, answer_names
     from spco.model.prediction import concept_posterior
 
     params, answer_rooms, _ = model.answer_inputs(e)
     w = model.settings_.view_counts
+    answer = model.hyperparameters_.answer_settings()  # the model's (the diagnosis's view_in_room: its own)
     data = model.data_
     concepts = np.asarray(model.concepts_[e])
     words = data.words[int(data.offsets[e]):int(data.offsets[e + 1])]
@@ -118,16 +122,17 @@ def diagnose(model: Any, e: int, env: Any, rooms: Any, weighting: Any) -> dict[s
         t, u = concepts[rows[taught[rows]]], concepts[rows[~taught[rows]]]
         view = concept_posterior(params, e, env.positions[test], env.visual[test], view_counts=w)
         by_room = answer_concepts(params, e, env.positions[test], env.visual[test], view_counts=w,
-                                  rooms=answer_rooms)
+                                  rooms=answer_rooms, settings=answer)
         accepted = _accepted_columns(model.vocabulary_, room)
         p = {}
         for label, r in (("view", None), ("room", answer_rooms)):
             pred = answer_names(params, e, model.vocabulary_, env.positions[test], env.visual[test], top_k=1,
-                                weighting=weighting, view_counts=w, rooms=r)
+                                weighting=weighting, view_counts=w, rooms=r, settings=answer)
             probs = pred.word_probabilities[:, accepted] if accepted.size else np.zeros((test.size, 1))
             p[label] = round(float(probs.max(axis=1).mean()), 4)
         in_room = answer_names(params, e, model.vocabulary_, env.positions[test], env.visual[test], top_k=1,
-                               weighting=weighting, view_counts=w, rooms=answer_rooms, view_in_room=True)
+                               weighting=weighting, view_counts=w, rooms=answer_rooms,
+                               settings=AnswerSettings(view_in_room=True))
         best_view = view.argmax(axis=1)
         out[room.name] = {
             "taught": t.tolist(), "untaught": u.tolist(),

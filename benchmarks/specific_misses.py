@@ -77,7 +77,8 @@ def _diagnose_room(model: Any, e: int, env: Any, room: Any, scores: Any, answer:
     train_concepts = Counter(int(concepts[train_rows[i]]) for i in room.train_ids if i in train_rows)
     test = np.array([ids[i] for i in room.test_ids], dtype=np.int64)
     post = answer_concepts(answer, e, env.positions[test], env.visual[test],
-                           view_counts=model.settings_.view_counts, rooms=rooms)
+                           view_counts=model.settings_.view_counts, rooms=rooms,
+                           settings=model.hyperparameters_.answer_settings())
     test_concepts = np.argmax(post, axis=1)
     classes = []
     for j, ok in enumerate(scores.correct):

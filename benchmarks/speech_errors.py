@@ -56,6 +56,7 @@ from spco.data import Corpus, Environment
 from spco.data.language import normalize_name
 from spco.evaluation import evaluate_answers, evaluate_home
 from spco.evaluation.metrics import position_accuracy
+from spco.model.answer_settings import AnswerSettings
 from spco.model.home_shard import name_words, switch_tokens
 from spco.model.position_prediction import predict_positions
 from spco.model.prediction import UnknownNameError, concept_posterior
@@ -244,7 +245,8 @@ def _parser() -> argparse.ArgumentParser:
                         "labelled training samples (NearestAreas); reported apart from 3LDK_9's regions")
     parser.add_argument("--view-in-room", action="store_true",
                         help="answer names with the room account's view as a draw of its room "
-                        "(answer_names(view_in_room=True), the opt-in of docs/model.md, \"Opt-in: the view "
+                        "(AnswerSettings(view_in_room=True), evaluate_answers' override; the opt-in of "
+                        "docs/model.md, \"Opt-in: the view "
                         "as a draw of its room\"); the fits and the where are unchanged")
     parser.add_argument("--json", type=Path, default=None)
     return parser
@@ -383,7 +385,8 @@ def main() -> None:
             scores = evaluate_home(model.parameters_, e, scored, corpus.vocabulary, rng=seed,
                                    **({} if view_counts is None else {"view_counts": view_counts}))
         else:  # as the robot answers
-            scores = evaluate_answers(model, e, scored, rng=seed, view_in_room=args.view_in_room)
+            override = AnswerSettings(view_in_room=True) if args.view_in_room else None
+            scores = evaluate_answers(model, e, scored, rng=seed, settings=override)
         said = place_speech(knowledge, corpus)  # every development home's people
         home = label.split()[0]
         hits, asked = table[home]["A_p hits"], table[home]["A_p names"]

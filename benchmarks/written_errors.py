@@ -59,7 +59,8 @@ def _views(model, corpus: Corpus, e: int, env, accepted: dict, out: list[dict], 
     rows = np.flatnonzero(env.is_test)
     answer, rooms, weighting = model.answer_inputs(e)
     pred = answer_names(answer, e, corpus.vocabulary, env.positions[rows], env.visual[rows], top_k=3,
-                        weighting=weighting, view_counts=model.settings_.view_counts, rooms=rooms)
+                        weighting=weighting, view_counts=model.settings_.view_counts, rooms=rooms,
+                        settings=model.hyperparameters_.answer_settings())
     post = concept_posterior(model.parameters_, e, env.positions[rows], env.visual[rows], True, True,
                              view_counts=model.settings_.view_counts)
     labels = [env.ground_truth.labels[i] for i in rows]

@@ -370,7 +370,8 @@ def test_what_and_ask_answer_with_one_predictor(world: dict) -> None:
     home = world["home"]
     w = home.hyperparameters.view_weight()
     params = answer_parameters(home)
-    concepts = answer_concepts(params, 0, home.positions, home.visual, view_counts=w, rooms=home_rooms(home))
+    concepts = answer_concepts(params, 0, home.positions, home.visual, view_counts=w, rooms=home_rooms(home),
+                               settings=home.hyperparameters.answer_settings())
     np.testing.assert_allclose(concepts, concepts_by_room(params, 0, home.positions, home.visual,
                                                           home_rooms(home), w))
     view_by_view = concept_posterior(params, 0, home.positions, home.visual, view_counts=w)

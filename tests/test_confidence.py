@@ -23,6 +23,7 @@ from spco import knowledge as kn
 from spco.cli.knowledge import what
 from spco.data.language import Vocabulary
 from spco.errors import ConfigurationError
+from spco.model.answer_settings import AnswerSettings
 from spco.model.confidence import (
     UNSURE_BELOW,
     answer_names,
@@ -74,7 +75,7 @@ def _honest(params: ConceptParameters, poses: np.ndarray, views: object, *, free
     named = named_parameters(params, 0, np.zeros(L, dtype=bool) if free is None else free, np.zeros((L, V)),
                              0.01)
     return answer_names(named, 0, Vocabulary(list(NAMES)), poses, views, view_counts=view_counts,
-                        weighting="none", top_k=3, unsure_below=unsure_below)
+                        weighting="none", top_k=3, unsure_below=unsure_below, settings=AnswerSettings())
 
 
 def test_probability_of_the_answer_matches_its_frequency() -> None:

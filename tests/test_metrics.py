@@ -20,6 +20,7 @@ from spco.evaluation import (
     position_accuracy,
     position_chance,
 )
+from spco.model.answer_settings import AnswerSettings
 from spco.model.parameters import ConceptParameters
 from spco.model.position_prediction import predict_positions
 
@@ -241,9 +242,10 @@ def test_evaluate_answers_scores_what_the_robot_answers(small_corpus) -> None:
 
 def test_evaluate_answers_view_in_room_is_the_robots_answer_with_the_view_in_its_room(small_corpus,
                                                                                        monkeypatch) -> None:
-    """``view_in_room=True`` (opt-in) scores the names ``answer_names(…, view_in_room=True)`` gives with the
-    model's own answer inputs and view weight; the default passes ``view_in_room=False`` and scores the
-    robot's answer; positions (A_p) are the same either way (``where`` reads no view)."""
+    """The override ``settings=AnswerSettings(view_in_room=True)`` (opt-in) scores the names
+    ``answer_names(…, settings=…)`` gives with the model's own answer inputs and view weight; without
+    it evaluate_answers passes the model's settings (the defaults here) and scores the robot's answer;
+    positions (A_p) are the same either way (``where`` reads no view)."""
     from spco.evaluation import evaluate_answers, metrics
     from spco.model.confidence import answer_names
     from spco.model.transfer import SpCoTransfer
@@ -256,17 +258,18 @@ def test_evaluate_answers_view_in_room_is_the_robots_answer_with_the_view_in_its
     assert rooms is not None
     expected = answer_names(params, e, model.vocabulary_, env.positions[test], env.visual[test], top_k=3,
                             weighting=weighting, name_prior=model.hyperparameters_.name_prior,
-                            view_counts=model.settings_.view_counts, rooms=rooms, view_in_room=True)
-    seen: list[bool] = []
+                            view_counts=model.settings_.view_counts, rooms=rooms,
+                            settings=AnswerSettings(view_in_room=True))
+    seen: list[AnswerSettings] = []
 
     def spy(*args, **kwargs):
-        seen.append(kwargs["view_in_room"])
+        seen.append(kwargs["settings"])
         return answer_names(*args, **kwargs)
 
     monkeypatch.setattr(metrics, "answer_names", spy)
-    in_room = evaluate_answers(model, e, env, rng=0, view_in_room=True)
+    in_room = evaluate_answers(model, e, env, rng=0, settings=AnswerSettings(view_in_room=True))
     plain = evaluate_answers(model, e, env, rng=0)
-    assert seen == [True, False]
+    assert seen == [AnswerSettings(view_in_room=True), AnswerSettings()]
     assert list(in_room.predicted_names) == list(expected.best)
     robot = model.predict_names(e, env.positions[test], env.visual[test])
     assert list(plain.predicted_names) == list(robot.best)
@@ -275,4 +278,4 @@ def test_evaluate_answers_view_in_room_is_the_robots_answer_with_the_view_in_its
 
 def test_evaluate_home_view_in_room_needs_rooms() -> None:
     with pytest.raises(ConfigurationError, match="view_in_room"):
-        evaluate_home(home_params(), 0, home(), Vocabulary(WORDS), view_in_room=True)
+        evaluate_home(home_params(), 0, home(), Vocabulary(WORDS), settings=AnswerSettings(view_in_room=True))

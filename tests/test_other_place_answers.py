@@ -67,7 +67,8 @@ def test_the_terms_put_back_together_are_the_robots_concept_posterior(fitted) ->
     rows = np.flatnonzero(env.is_test)
     positions, visual = env.positions[rows], env.visual[rows]
     view_counts = model.settings_.view_counts
-    want = answer_concepts(answer, e, positions, visual, view_counts=view_counts, rooms=rooms)
+    want = answer_concepts(answer, e, positions, visual, view_counts=view_counts, rooms=rooms,
+                           settings=model.hyperparameters_.answer_settings())
     log_k, region_of, room_views, view, prior = _room_terms(answer, rooms, e, positions, visual, view_counts)
     assert np.allclose(logsumexp(log_k, axis=1), 0.0)
     assert region_of.size == room_views.shape[0] == log_k.shape[1]

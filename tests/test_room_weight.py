@@ -1,6 +1,6 @@
 """The room account's view weight learnt from the experienced homes (``spco.model.view_fit``:
-``view_weight_losses(places=…)`` and ``room_view_weight``; docs/model.md, "A room's evidence learnt
-from the experienced homes")."""
+``view_weight_losses(places=…)``) and the typicality ρ learnt from them (``room_typicality``;
+docs/model.md, "Opt-in: a room that looks like another concept")."""
 
 from __future__ import annotations
 
@@ -16,11 +16,8 @@ from spco.errors import ConfigurationError
 from spco.model.rooms import HomeRooms, concepts_by_room
 from spco.model.state import PreparedData
 from spco.model.view_fit import (
-    VIEW_WEIGHT_GRID,
-    estimate_view_weight,
     home_concept_totals,
     room_typicality,
-    room_view_weight,
     view_weight_losses,
 )
 
@@ -141,57 +138,6 @@ def _names(L: int) -> tuple[np.ndarray, np.ndarray, list[str]]:
     phi[np.arange(L), np.arange(L)] = 1.0
     phi /= phi.sum(1, keepdims=True)
     return np.log(phi), np.full(L, -np.log(L)), [f"p{c}" for c in range(L)] + ["x"]
-
-
-def test_the_weight_follows_how_far_rooms_depart_from_their_concept() -> None:
-    """Rooms that look their own way (η far from θ) get a small weight, rooms close to their
-    concept a large one: the weight is learnt from the homes, not a constant (and a grid value)."""
-    log_phi_w, log_g0, vocabulary = _names(3)
-    chosen = {}
-    for spread in (30.0, 3000.0):
-        visual, places = _homes(np.random.default_rng(7), spread)
-        w, losses, used = room_view_weight(visual, places, log_phi_w, log_g0, vocabulary, 3.0, 0.01)
-        assert used == 5 * 3 * 10 and np.isfinite(losses).all()
-        chosen[spread] = w
-    assert set(chosen.values()) <= set(VIEW_WEIGHT_GRID)
-    assert chosen[30.0] < chosen[3000.0]
-
-
-def test_room_view_weight_is_the_loss_of_its_places() -> None:
-    """room_view_weight: the place names decide the concepts (argmax G_0 φ^w), a name not in the
-    vocabulary leaves its samples out, and the loss is view_weight_losses' with the places."""
-    log_phi_w, log_g0, vocabulary = _names(3)
-    visual, places = _homes(np.random.default_rng(11), 100.0, n_homes=3)
-    places[1] = ["?" if p == "p2" else p for p in places[1]]  # home 1's third place has no known name
-    w, losses, used = room_view_weight(visual, places, log_phi_w, log_g0, vocabulary, 3.0, 0.01)
-    keep = [np.array([p in vocabulary for p in labels]) for labels in places]
-    rows = np.vstack([v[k] for v, k in zip(visual, keep, strict=True)]).astype(np.float64)
-    homes = np.concatenate([np.full(int(k.sum()), e) for e, k in enumerate(keep)])
-    labels = [p for labels, k in zip(places, keep, strict=True)
-              for p, kk in zip(labels, k, strict=True) if kk]
-    names = np.array([vocabulary.index(p) for p in labels])
-    place_ids = np.array([int(p[1]) for p in labels])
-    data = _data(rows, homes, names, len(vocabulary))
-    concepts = names.copy()
-    totals, taught, words = home_concept_totals(data, concepts, 3)
-    expected, n = view_weight_losses(data, concepts, totals, taught, words, 3.0, 0.01, places=place_ids)
-    assert used == n == 3 * 3 * 10 - 10
-    np.testing.assert_allclose(losses, expected, rtol=1e-12)
-    assert w == estimate_view_weight(expected, n)
-
-
-def test_room_view_weight_errors_name_the_field() -> None:
-    log_phi_w, log_g0, vocabulary = _names(3)
-    visual, places = _homes(np.random.default_rng(1), 100.0, n_homes=2)
-    with pytest.raises(ConfigurationError, match="places"):
-        room_view_weight(visual, places[:1], log_phi_w, log_g0, vocabulary, 3.0, 0.01)
-    with pytest.raises(ConfigurationError, match="place names"):
-        room_view_weight(visual, [places[0], places[1][:-1]], log_phi_w, log_g0, vocabulary, 3.0, 0.01)
-    with pytest.raises(ConfigurationError, match="log_phi_words"):
-        room_view_weight(visual, places, log_phi_w, log_g0, vocabulary[:-1], 3.0, 0.01)
-    w, _, used = room_view_weight(visual, [["?"] * len(p) for p in places], log_phi_w, log_g0, vocabulary,
-                                  3.0, 0.01)
-    assert w is None and used == 0
 
 
 def test_the_typicality_loss_is_the_brute_force_mixture() -> None:

@@ -11,6 +11,7 @@ from scipy.special import logsumexp
 
 from spco.data.language import Vocabulary
 from spco.errors import ConfigurationError
+from spco.model.answer_settings import AnswerSettings
 from spco.model.confidence import answer_names
 from spco.model.parameters import ConceptParameters
 from spco.model.rooms import HomeRooms, concepts_by_room, room_concepts
@@ -87,10 +88,11 @@ def test_a_merged_room_is_not_answered_with_certainty() -> None:
     poses = np.array([[0.0, 0.0, 0.0, 1.0], [2.0, 0.0, 0.0, 1.0]])
     test_views = sp.csr_array(sp.vstack([kitchen[[0]], washroom[[0]]]))
     vocabulary = Vocabulary(list(NAMES))
-    before = answer_names(params, 0, vocabulary, poses, test_views, view_counts=16.0, weighting="none")
+    before = answer_names(params, 0, vocabulary, poses, test_views, view_counts=16.0, weighting="none",
+                          settings=AnswerSettings())
     assert before.best == ["kitchen", "kitchen"] and before.confidence[1] >= 0.99
     after = answer_names(params, 0, vocabulary, poses, test_views, view_counts=16.0, weighting="none",
-                         rooms=rooms)
+                         rooms=rooms, settings=AnswerSettings())
     assert after.best[0] == "kitchen" and after.confidence[0] > 0.9
     assert after.confidence[1] < 0.99
     # at a pose well inside the washroom: G_0 · (the room pooled at w) · (the view at w), normalised
@@ -113,7 +115,7 @@ def test_names_taught_in_a_room_decide_it() -> None:
         words[t, 2] = 1
     rooms = HomeRooms.of(np.repeat([0, 1], 20), visual, sp.csr_array(words))
     after = answer_names(params, 0, Vocabulary(list(NAMES)), np.array([[2.0, 0.0, 0.0, 1.0]]), None,
-                         view_counts=16.0, weighting="none", rooms=rooms)
+                         view_counts=16.0, weighting="none", rooms=rooms, settings=AnswerSettings())
     assert after.best == ["dining"] and after.confidence[0] > 0.99
 
 
@@ -125,8 +127,10 @@ def test_without_samples_the_view_answers() -> None:
     empty = HomeRooms.of(np.zeros(0, dtype=int), sp.csr_array((0, D)), sp.csr_array((0, 3)))
     pose = np.array([[2.0, 0.0, 0.0, 1.0]])
     vocabulary = Vocabulary(list(NAMES))
-    plain = answer_names(params, 0, vocabulary, pose, view, view_counts=16.0, weighting="none")
-    got = answer_names(params, 0, vocabulary, pose, view, view_counts=16.0, weighting="none", rooms=empty)
+    plain = answer_names(params, 0, vocabulary, pose, view, view_counts=16.0, weighting="none",
+                         settings=AnswerSettings())
+    got = answer_names(params, 0, vocabulary, pose, view, view_counts=16.0, weighting="none", rooms=empty,
+                       settings=AnswerSettings())
     np.testing.assert_allclose(got.word_probabilities, plain.word_probabilities)
     assert concepts_by_room(params, 0, pose, view, empty, 16.0) is None
 
@@ -190,7 +194,7 @@ def test_a_region_taught_two_names_holds_two_rooms() -> None:
     concepts[35:] = 2
     rooms = HomeRooms.of(np.repeat([0, 1], 20), visual, sp.csr_array(words), concepts)
     got = answer_names(params, 0, Vocabulary(list(NAMES)), np.array([[2.0, 0.0, 0.0, 1.0]]), None,
-                       view_counts=16.0, weighting="none", rooms=rooms)
+                       view_counts=16.0, weighting="none", rooms=rooms, settings=AnswerSettings())
     p = dict(zip(got.words[0], got.probabilities[0], strict=True))
     assert got.best == ["washroom"] and p["dining"] == pytest.approx(0.25, abs=0.02)
     assert p["washroom"] == pytest.approx(0.75, abs=0.02)

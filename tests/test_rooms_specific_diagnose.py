@@ -24,6 +24,7 @@ import rooms_specific
 from spco.data.environment import Corpus
 from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.evaluation.specific_file import Room
+from spco.model.answer_settings import AnswerSettings
 from spco.model.confidence import answer_names
 from spco.model.driver import LocalEngine
 from spco.model.hyperparameters import TransferHyperparameters
@@ -71,7 +72,8 @@ def test_diagnose_reads_the_fit_and_the_answers(fitted) -> None:
     view = concept_posterior(params, e, new.positions[test], new.visual[test], view_counts=w)
     assert d["view_concepts"] == view.argmax(axis=1).tolist()
     in_room = answer_names(params, e, model.vocabulary_, new.positions[test], new.visual[test], top_k=1,
-                           weighting=weighting, view_counts=w, rooms=rooms, view_in_room=True)
+                           weighting=weighting, view_counts=w, rooms=rooms,
+                           settings=AnswerSettings(view_in_room=True))
     assert d["view_in_room"] == [str(x) for x in in_room.words[:, 0]]
     assert d["view_in_room_correct"] == [int(room.is_accepted(str(x))) for x in in_room.words[:, 0]]
     assert set(d["theta_accepted"]) == set(np.unique(said).tolist())

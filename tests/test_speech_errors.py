@@ -65,9 +65,12 @@ def test_the_development_seeds_are_0_to_99_and_200_to_399() -> None:
 
 
 def test_view_in_room_answers_with_the_view_in_its_room(monkeypatch) -> None:
-    """``--view-in-room`` is parsed and the scores are the robot's answers with ``view_in_room=True``
-    (``evaluate_answers``; without the flag ``False``); with ``--fit-parameters`` (no rooms) it is refused."""
+    """``--view-in-room`` is parsed and the scores are the robot's answers with the override
+    ``AnswerSettings(view_in_room=True)`` (``evaluate_answers``; without the flag none: the model's own);
+    with ``--fit-parameters`` (no rooms) it is refused."""
     import speech_errors
+
+    from spco.model.answer_settings import AnswerSettings
 
     assert speech_errors._parser().parse_args(["--view-in-room"]).view_in_room
     assert not speech_errors._parser().parse_args([]).view_in_room
@@ -75,15 +78,15 @@ def test_view_in_room_answers_with_the_view_in_its_room(monkeypatch) -> None:
     class Scored(Exception):
         pass
 
-    def spy(model, e, scored, rng, view_in_room):
-        raise Scored(view_in_room)
+    def spy(model, e, scored, rng, settings):
+        raise Scored(settings)
 
     monkeypatch.setattr(speech_errors, "read_names", lambda path: {})
     monkeypatch.setattr(speech_errors, "configurations", lambda *a: (None, [("3LDK_9", None)]))
     monkeypatch.setattr(speech_errors, "fitted_runs",
                         lambda *a, **k: iter([(0, "3LDK_9", None, None, None, 1, None)]))
     monkeypatch.setattr(speech_errors, "evaluate_answers", spy)
-    for flags, expected in (([], False), (["--view-in-room"], True)):
+    for flags, expected in (([], None), (["--view-in-room"], AnswerSettings(view_in_room=True))):
         monkeypatch.setattr(sys, "argv", ["speech_errors.py", "--seeds", "0", *flags])
         with pytest.raises(Scored) as scored:
             speech_errors.main()

@@ -13,6 +13,7 @@ import scipy.sparse as sp
 
 import spco.knowledge as kn
 from spco.errors import ConfigurationError
+from spco.model.answer_settings import AnswerSettings
 from spco.model.hyperparameters import ESTIMATE, VIEW_COUNTS, TransferHyperparameters
 from spco.model.state import PreparedData, SamplerSettings
 from spco.model.view_fit import (
@@ -207,9 +208,9 @@ def test_the_knowledge_carries_the_estimate_and_every_answer_uses_it(fitted) -> 
     params = kn.answer_parameters(home)
     rooms = home_rooms(home)  # the robot's answer: the room account (docs/model.md, "A room's evidence")
     same = answer_names(params, 0, home.vocabulary, pose[None], view[None], weighting=home.weighting,
-                        view_counts=w, rooms=rooms)
+                        view_counts=w, rooms=rooms, settings=AnswerSettings())
     other = answer_names(params, 0, home.vocabulary, pose[None], view[None], weighting=home.weighting,
-                         view_counts=None, rooms=rooms)
+                         view_counts=None, rooms=rooms, settings=AnswerSettings())
     assert np.allclose(answer.word_probabilities, same.word_probabilities)
     assert not np.allclose(same.word_probabilities, other.word_probabilities)
 

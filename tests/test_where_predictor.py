@@ -16,6 +16,7 @@ from spco.data.language import Vocabulary
 from spco.errors import ConfigurationError
 from spco.evaluation import evaluate_home
 from spco.model import SpCoTransfer, position_prediction
+from spco.model.answer_settings import AnswerSettings
 from spco.model.confidence import model_answer_parameters
 from spco.model.hyperparameters import TransferHyperparameters
 from spco.model.parameters import ConceptParameters
@@ -479,7 +480,7 @@ def test_the_librarys_predictions_are_what_the_robot_answers_and_the_experiments
     pred = joint.predict_names(env.name, env.positions[rows], env.visual[rows], top_k=3)
     robot = answer_names(model_answer_parameters(joint, e), e, joint.vocabulary_, env.positions[rows],
                          env.visual[rows], view_counts=w, weighting="none", rooms=model_rooms(joint, e),
-                         name_prior=joint.hyperparameters_.name_prior)
+                         name_prior=joint.hyperparameters_.name_prior, settings=AnswerSettings())
     assert pred.unsure_below == UNSURE_BELOW
     assert_allclose(pred.word_probabilities, robot.word_probabilities, rtol=0, atol=1e-15)
     assert (pred.words == robot.words).all()

@@ -21,6 +21,7 @@ from spco.data.language import Vocabulary, normalize_name
 from spco.data.loading import load
 from spco.data.synthetic import SyntheticConfig, generate_homes
 from spco.model import SpCoTransfer
+from spco.model.answer_settings import AnswerSettings
 from spco.model.confidence import answer_names, model_answer_parameters
 
 #: Closed-class English words: articles and determiners, pronouns, prepositions, conjunctions,
@@ -88,7 +89,7 @@ def _answers(model: SpCoTransfer, corpus: Corpus, e: int, rows: np.ndarray,
         for weighting in ("none", "mi"):
             names = answer_names(answer, e, vocabulary or corpus.vocabulary, env.positions[rows],
                                  env.visual[rows], top_k=top_k, weighting=weighting,
-                                 view_counts=model.settings_.view_counts)
+                                 view_counts=model.settings_.view_counts, settings=AnswerSettings())
             out |= {str(n) for row in names.words for n in row if n is not None}
     return out
 

@@ -10,7 +10,9 @@ room" at its fourth sample, seed 1), its home file and that file loaded; with th
 checkpoint after 3 sweeps. Each digest is the first 16 hex digits of a SHA-256: of a state (concepts,
 regions, θ^w, θ^v, G, means, switches, ψ_l, β, shares, the homes' ψ_{e,l}), of every array of a
 :class:`~spco.model.parameters.ConceptParameters`, or of a file's arrays and its header without times,
-checksums, versions of spco and provenance (``/v<n>``: the file's format version).
+checksums, versions of spco and provenance (``/v<n>``: the file's format version); and of the
+answers (the joint fit's ``predict_names`` and ``evaluate_answers`` in its fourth home, the taught
+home's ``what`` at every sample and ``ask``'s question scores).
 
     PYTHONPATH=src python tools/state_digests.py --folder /tmp/digests > branch.json
 """
@@ -65,6 +67,29 @@ def file_digest(path: Path) -> str:
     return f"{_digest(*(arrays[k] for k in sorted(arrays)))}/{text}/v{header.get('format_version')}"
 
 
+def answers_digest(model, env) -> str:
+    """The digest of a joint fit's answers in its fourth home: ``predict_names`` at every sample (its
+    probabilities) and ``evaluate_answers``' names and positions (seed 0)."""
+    from spco.evaluation.metrics import evaluate_answers
+
+    pred = model.predict_names(3, env.positions, env.visual, top_k=3)
+    scores = evaluate_answers(model, 3, env, rng=0)
+    samples = [scores.position_predictions[p].samples for p in sorted(scores.position_predictions)]
+    return _digest(pred.word_probabilities, pred.confidence, scores.name_predictions.word_probabilities,
+                   np.array([scores.position_accuracy[p] for p in scores.places]), *samples)
+
+
+def home_answers_digest(home) -> str:
+    """The digest of a home's answers: ``what`` at every sample (``name_prediction``, its
+    probabilities and unsure flags) and ``ask``'s question scores (the concept posterior it ranks by)."""
+    from spco.knowledge.asking import home_question_scores
+
+    pred = kn.name_prediction(home, home.positions, home.visual, top_k=3)
+    scores = home_question_scores(home)
+    return _digest(pred.word_probabilities, pred.unsure, scores.gain, scores.model_probabilities,
+                   scores.errors)
+
+
 def digests(folder: Path) -> dict[str, str]:
     """Every digest of the module docstring; the files are written to ``folder``."""
     warnings.simplefilter("ignore")
@@ -77,6 +102,7 @@ def digests(folder: Path) -> dict[str, str]:
         model = SpCoTransfer(hyper, n_iterations=8, random_state=0, prune_words=True).fit(Corpus(envs[:4]))
         out[f"{label} fit state"] = state_digest(model.state_)
         out[f"{label} fit parameters"] = _digest(*model.parameters_.arrays().values())
+        out[f"{label} fit answers"] = answers_digest(model, envs[3])
         knowledge = kn.fit_knowledge(Corpus(envs[:4]), n_iterations=8, random_state=0, hyperparameters=hyper)
         out[f"{label} knowledge file"] = file_digest(knowledge.save(folder / f"{label}.knowledge.spco",
                                                                     overwrite=True))
@@ -87,6 +113,7 @@ def digests(folder: Path) -> dict[str, str]:
         taught = kn.teach(home, {int(home.ids[3]): "this is the quokka room"}, random_state=1)
         out[f"{label} teach state"] = state_digest(taught.state)
         out[f"{label} teach parameters"] = _digest(*taught.parameters.arrays().values())
+        out[f"{label} teach answers"] = home_answers_digest(taught)
         path = taught.save(folder / f"{label}.home.spco", overwrite=True)
         out[f"{label} home file"] = file_digest(path)
         loaded = kn.load_home_model(path)

@@ -172,7 +172,9 @@ def _on_the_prior(training: Any, prior: str, settings: tuple[str, ...], checked:
                    "draw; estimate: learnt from the homes), warm_start (things, the "
                    "default; names or words: the start of a fit that learns its words with the word "
                    "channels), place_channel (shared or home: the place words one vocabulary per "
-                   "concept, or each home's own around it; delta_place its concentration). "
+                   "concept, or each home's own around it; delta_place its concentration), and the answer's "
+                   "name_answer (said or listener), view_in_room (true: the view as a draw of its room) "
+                   "and typical (off, ρ within (0, 1] or learn: ρ learnt from the homes' place labels). "
                    "E.g. a large floor: --set n_concepts=30 --set n_regions=30 --set kappa0=0.001. "
                    "Kept in the knowledge file.")
 @click.option("--prior", default="places", show_default=True,
@@ -290,10 +292,14 @@ def _fit_extractor(data: Path, names: list[str] | None, images: Path | None, nam
 @click.option("--out", "-o", required=True, type=click.Path(path_type=Path),
               help="The home file to write (e.g. home.spco).")
 @click.option("--force", is_flag=True, help="Replace --out if it exists.")
+@click.option("--set", "settings", multiple=True, metavar="NAME=VALUE",
+              help="Set an answer's hyperparameter for this home (repeatable): name_answer, view_in_room "
+                   "(true/false) or typical (off or ρ within (0, 1]); they change how the home answers, not "
+                   "its fit. The fit's settings are the knowledge's (spco fit --set).")
 @_image_options
 @_friendly
 def adapt(knowledge_file: Path, home_path: Path, name: str | None, teaching_rate: int, iterations: int,
-          seed: int, joint: bool, out: Path, force: bool, images: Path | None,
+          seed: int, joint: bool, out: Path, force: bool, settings: tuple[str, ...], images: Path | None,
           model_file: Path | None) -> None:
     """Learn a new home with the knowledge of KNOWLEDGE as its prior; write a home file.
 
@@ -307,6 +313,16 @@ def adapt(knowledge_file: Path, home_path: Path, name: str | None, teaching_rate
 
     check_out(out, force)
     knowledge = load_knowledge(knowledge_file)
+    if settings:
+        from dataclasses import replace
+
+        from spco.model.answer_settings import with_answer_settings
+
+        try:
+            hyper = with_answer_settings(knowledge.hyperparameters, list(settings))
+        except ConfigurationError as exc:
+            raise click.BadParameter(str(exc), param_hint="--set") from None
+        knowledge = replace(knowledge, hyperparameters=hyper)
     _precompile_if_cold()
     extractor = None
     if knowledge.fitted_on_images:

@@ -34,6 +34,7 @@ from spco.data.environment import Environment
 from spco.data.language import Vocabulary, normalize_name
 from spco.data.regions import PlaceRegions
 from spco.errors import ConfigurationError, DataFormatError
+from spco.model.answer_settings import AnswerSettings
 from spco.model.confidence import answer_names
 from spco.model.hyperparameters import NamePrior
 from spco.model.parameters import ConceptParameters
@@ -239,7 +240,7 @@ def evaluate_home(
     view_counts: float | None = None,
     answer_params: ConceptParameters | None = None,
     answer_rooms: HomeRooms | None = None,
-    view_in_room: bool = False,
+    settings: AnswerSettings | None = None,
 ) -> HomeScores:
     """Score name and position prediction in home ``e`` (the paper's A_n and A_p).
 
@@ -266,9 +267,10 @@ def evaluate_home(
     answer_rooms: the home's rooms as the robot's answer reads them
         (:func:`spco.model.rooms.model_rooms`; ``None``: names from each sample's own view and pose,
         regions from the home's π and G).
-    view_in_room: names answered with the observation's view as a draw of its room (opt-in, off for
-        the robot's answers: :func:`spco.model.confidence.answer_names`); needs ``answer_rooms``.
-        Positions are unchanged (``where`` reads no view).
+    settings: the answer's settings, the model's
+        (:meth:`~spco.model.hyperparameters.TransferHyperparameters.answer_settings`; ``None``: the
+        defaults, no opt-in): read by :func:`spco.model.confidence.answer_names` with ``answer_rooms``
+        (``view_in_room`` needs them). Positions are unchanged (``where`` reads no view).
     name_prior: ``"wordnet"`` orders each concept's words by the name prior when names are
         predicted (opt-in; see :func:`spco.model.prediction.predict_names`).
     position_mode, xy_only: see :func:`spco.model.position_prediction.predict_positions`;
@@ -280,7 +282,8 @@ def evaluate_home(
     and A_p = 0 (no position can be proposed). A place without a ground-truth area has A_p = NaN,
     and if the home has no regions at all every A_p is NaN.
     """
-    if view_in_room and answer_rooms is None:
+    settings = AnswerSettings() if settings is None else settings
+    if settings.view_in_room and answer_rooms is None:
         raise ConfigurationError("view_in_room needs the home's rooms (answer_rooms), got None")
     gt = environment.ground_truth
     if gt is None:
@@ -305,7 +308,7 @@ def evaluate_home(
     visual = environment.visual[rows]
     prediction = answer_names(params if answer_params is None else answer_params, e, vocabulary, positions,
                               visual, top_k=3, weighting=weighting, name_prior=name_prior,
-                              view_counts=view_counts, rooms=answer_rooms, view_in_room=view_in_room)
+                              view_counts=view_counts, rooms=answer_rooms, settings=settings)
     predicted = tuple(prediction.best)
     accepted = {place: gt.accepted(place) for place in place_list}
     name_scores = name_accuracy(predicted, labels, place_list, accepted)
@@ -369,23 +372,27 @@ def evaluate_answers(
     n_positions: int = 10,
     rng: np.random.Generator | int | None = None,
     name_prior: NamePrior | None = None,
-    view_in_room: bool = False,
+    settings: AnswerSettings | None = None,
 ) -> HomeScores:
     """Score home ``e`` of a fitted model as the robot answers it: :func:`evaluate_home` with the
     model's own answer inputs (``model.answer_inputs(e)``: the answer's parameters, the home's rooms
-    and the name weighting), its view weight and its name prior. The one way the experiments and the
-    benchmarks score a model's answers, so that no caller scores another weighting than the robot's.
+    and the name weighting), its view weight, its name prior and its answer settings
+    (``hyperparameters_.answer_settings()``: ``view_in_room``, ``typical``). The one way the experiments
+    and the benchmarks score a model's answers, so that no caller scores another weighting than the
+    robot's.
 
     ``model``: a fitted :class:`~spco.model.transfer.SpCoTransfer` (or SpCoA); ``name_prior``
-    overrides the model's ``hyperparameters_.name_prior`` (``None``: the model's); ``view_in_room``
-    (opt-in, off as the robot answers): the observation's view as a draw of its room
-    (:func:`evaluate_home`)."""
+    overrides the model's ``hyperparameters_.name_prior`` (``None``: the model's); ``settings``: the
+    one override of the answer settings, for an experiment that scores one fit two ways (``None``:
+    the model's)."""
     answer_params, answer_rooms, weighting = model.answer_inputs(e)  # type: ignore[attr-defined]
-    settings = getattr(model, "settings_", None)
+    sampler = getattr(model, "settings_", None)
     hyper = getattr(model, "hyperparameters_", None)
     prior = name_prior if name_prior is not None else getattr(hyper, "name_prior", "off")
+    if settings is None:
+        settings = hyper.answer_settings() if hyper is not None else AnswerSettings()
     return evaluate_home(model.parameters_, e, environment, model.vocabulary_,  # type: ignore[attr-defined]
                          places=places, specific=specific, n_positions=n_positions, rng=rng,
                          weighting=weighting, name_prior=prior,
-                         view_counts=getattr(settings, "view_counts", None),
-                         answer_params=answer_params, answer_rooms=answer_rooms, view_in_room=view_in_room)
+                         view_counts=getattr(sampler, "view_counts", None),
+                         answer_params=answer_params, answer_rooms=answer_rooms, settings=settings)

@@ -75,6 +75,7 @@ from spco.evaluation.specific_file import (
     taught_count,
     teaching_sentences,
 )
+from spco.model.answer_settings import AnswerSettings
 
 __all__ = [
     "CONFIG_FORMAT",
@@ -231,7 +232,8 @@ def score_rooms(params: Any, e: int, env: Environment, vocabulary: Vocabulary,
                 rooms: Sequence[Room], weighting: str = "mi", n_positions: int = DEFAULT_POSITIONS,
                 rng: np.random.Generator | int | None = None,
                 view_counts: float | None = None,
-                answer_params: Any = None, answer_rooms: Any = None) -> dict[str, RoomScores]:
+                answer_params: Any = None, answer_rooms: Any = None,
+                settings: AnswerSettings | None = None) -> dict[str, RoomScores]:
     """A_n and A_p (both ways) of each room in home ``e`` of a fitted model.
 
     Parameters
@@ -248,6 +250,9 @@ def score_rooms(params: Any, e: int, env: Environment, vocabulary: Vocabulary,
         from the robot's own function, :func:`spco.model.confidence.answer_names`.
     answer_rooms: the home's rooms as the robot's answer reads them
         (:func:`spco.model.rooms.model_rooms`; ``None``: names from each sample's own view and pose).
+    settings: the model's answer settings
+        (:meth:`~spco.model.hyperparameters.TransferHyperparameters.answer_settings`; ``None``: the
+        defaults).
 
     Returns
     -------
@@ -265,7 +270,8 @@ def score_rooms(params: Any, e: int, env: Environment, vocabulary: Vocabulary,
         prediction = answer_names(params if answer_params is None else answer_params, e, vocabulary,
                                   env.positions[test], env.visual[test], top_k=1,
                                   weighting=weighting,  # type: ignore[arg-type]
-                                  view_counts=view_counts, rooms=answer_rooms)
+                                  view_counts=view_counts, rooms=answer_rooms,
+                                  settings=AnswerSettings() if settings is None else settings)
         predicted = tuple(str(w) for w in prediction.words[:, 0]) if prediction.words.shape[1] else \
             (None,) * test.size
         correct = np.array([room.is_accepted(w) for w in predicted], dtype=bool)
@@ -325,7 +331,7 @@ def execute_configured_run(data: ConfiguredData, key: ConfiguredRun, iterations:
     answer_params, answer_rooms, weighting = model.answer_inputs(e)  # what the robot answers with
     scores = score_rooms(model.parameters_, e, new, model.vocabulary_, conf.rooms, weighting,  # type: ignore[arg-type]
                          n_positions, np.random.default_rng([key.seed, 1]), model.settings_.view_counts,
-                         answer_params, answer_rooms)
+                         answer_params, answer_rooms, settings=model.hyperparameters_.answer_settings())
     return {
         "fingerprint": fingerprint,
         "configuration": key.configuration,

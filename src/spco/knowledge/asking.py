@@ -118,7 +118,8 @@ def home_question_scores(home: HomeModel, criterion: str = DEFAULT_CRITERION) ->
     # (the reference sampler's KL-weighted answer is view by view, as in answer_names)
     concepts = answer_concepts(params, 0, home.positions, home.visual,
                                view_counts=home.hyperparameters.view_weight(),
-                               rooms=None if home.weighting == "reference" else rooms)
+                               rooms=None if home.weighting == "reference" else rooms,
+                               settings=home.hyperparameters.answer_settings())
     theta = np.clip(np.asarray(params.word_probabilities[0], dtype=np.float64), 0.0, None)  # (L, V)
     mass = theta[:, columns].sum(axis=1)
     names = np.divide(theta[:, columns], mass[:, None], out=np.zeros((theta.shape[0], columns.size)),

@@ -7,7 +7,7 @@ import functools
 import math
 import operator
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -26,6 +26,7 @@ from spco.knowledge.knowledge import (
     Knowledge,
     KnowledgeChannels,
 )
+from spco.model.answer_settings import LEARN
 from spco.model.cut_start import check_cut_start
 from spco.model.hyperparameters import PRIORS, TransferHyperparameters, scaled_from, scaled_hyperparameters
 from spco.model.name_evidence import channel_evidence, has_english, name_prior
@@ -158,6 +159,10 @@ def fit_knowledge(
     samples averaged, the fit time and the spco version.
     """
     source = _check_fit_arguments(corpus, model, summary_fraction, summary_every, extractor)
+    if getattr(hyperparameters, "typical", None) == LEARN and not isinstance(corpus, Corpus):
+        raise ConfigurationError("typical='learn' learns ρ from the experienced homes' views and place "
+                                 "labels, read here: give the homes as a Corpus (spco fit with one shard and "
+                                 "no Ray), or give typical a number within (0, 1]")
     estimator, hyper, settings, evidence = _fit_setup(corpus, model, n_iterations, random_state,
                                                       hyperparameters, prior)
     variant, prune = estimator.variant, estimator.prune_words  # the model's (MODELS), set up once
@@ -206,6 +211,10 @@ def fit_knowledge(
     record["view_fit"] = _view_fit_record(dict(zip(corpus.names, fits, strict=True)))
     visual_prior = getattr(run, "visual_prior", None)  # the estimated δ^v, α^v (None: given)
     word_prior = getattr(run, "word_prior", None)  # the estimated δ^w, α^w (None: given)
+    if hyper.typical == LEARN:  # ρ from the homes with the knowledge's φ^w, G_0, α's and w
+        rho, used = learnt_typicality(list(corpus), log_phi_w, log_g0, list(corpus.vocabulary.words), hyper)
+        hyper = replace(hyper, typical=rho)
+        record["typical"] = {"learnt": rho, "samples": used}
     record.update({**_view_weight_record(run.view_weight),
                    **({"visual_prior": visual_prior} if visual_prior is not None else {}),
                    **({"word_prior": word_prior} if word_prior is not None else {}),
@@ -222,6 +231,36 @@ def fit_knowledge(
         extractor_arrays={} if extractor is None else dict(extractor.arrays),
         channels=channels,
     )
+
+
+def learnt_typicality(homes: Sequence[Any], log_phi_words: np.ndarray, log_g0: np.ndarray,
+                      vocabulary: Sequence[str], hyperparameters: TransferHyperparameters
+                      ) -> tuple[float, int]:
+    """(ρ, samples): ``typical="learn"``'s ρ, how often a room looks like its concept, learnt from the
+    experienced ``homes`` (their views, (n_e, D) each, and place labels, their ground truth) with a
+    knowledge's φ^w (``log_phi_words`` (L, V) over ``vocabulary``), G_0 (``log_g0`` (L,)), α^v, α^w and
+    view weight w (:func:`spco.model.view_fit.room_typicality`); ρ = 1 (the room account) when no
+    sample's label is a word of the vocabulary; ``samples``: how many samples were predicted. The one
+    way ρ is learnt: :func:`fit_knowledge` with ``typical="learn"`` and the benchmarks that score it.
+
+    Raises :class:`~spco.errors.ConfigurationError` naming the home for a home without place labels."""
+    from spco.model.view_fit import room_typicality
+
+    weight = hyperparameters.view_weight()
+    if weight is None:
+        raise ConfigurationError("typical='learn' weighs a room's views at the view weight w: it needs "
+                                 "view_counts a number or 'estimate', got none")
+    labels = []
+    for home in homes:
+        try:
+            labels.append(home.labels())
+        except DataFormatError:
+            raise ConfigurationError(f"typical='learn' learns ρ from the experienced homes' place labels: "
+                                     f"home {home.name!r} has none; give typical a number within "
+                                     "(0, 1]") from None
+    rho, _, used = room_typicality([home.visual for home in homes], labels, log_phi_words, log_g0, vocabulary,
+                                   hyperparameters.alpha_visual, hyperparameters.alpha_word, weight)
+    return (1.0 if rho is None else rho), int(used)
 
 
 def _fit_setup(corpus: Any, model: str, n_iterations: int, random_state: Any,

@@ -508,6 +508,13 @@ class Knowledge:
             lines.append(f"views: images, extractor {ExtractorSpec.from_dict(self.extractor).describe()}")
         if self.vocabulary.segmentation is not None:
             lines.append(f"text written without spaces: {self.vocabulary.segmentation.describe()}")
+        hyper = self.hyperparameters  # the answer's opt-ins (spco.model.answer_settings)
+        if hyper.view_in_room:
+            lines.append("answers: the view as a draw of its room (view_in_room)")
+        if hyper.typical is not None:
+            learnt = p.get("typical")
+            lines.append(f"answers: rooms typical with ρ = {hyper.typical:g}"
+                         + (f" (learnt from {learnt['samples']} samples)" if learnt else ""))
         return "\n".join(lines)
 
 

@@ -286,7 +286,9 @@ def name_prediction(home: HomeModel, poses: np.ndarray, visual: Any = None, top_
     Σ_k p(k | pose) p(l | room k) p(view | l), room k's training views pooled and the view each worth
     the model's view weight w draws against φ^v, the weight the home was learnt with,
     :meth:`~spco.model.hyperparameters.TransferHyperparameters.view_weight`; docs/model.md, "A room's
-    evidence"). ``what``, ``ask``, the service and the ROS node answer through it.
+    evidence"), with the model's answer settings
+    (:meth:`~spco.model.hyperparameters.TransferHyperparameters.answer_settings`: ``view_in_room``,
+    ``typical``). ``what``, ``ask``, the service and the ROS node answer through it.
 
     Parameters
     ----------
@@ -306,7 +308,8 @@ def name_prediction(home: HomeModel, poses: np.ndarray, visual: Any = None, top_
     return confidence.answer_names(params, 0, home.vocabulary, poses, visual, top_k=top_k,
                                    weighting=home.weighting,  # type: ignore[arg-type]
                                    view_counts=home.hyperparameters.view_weight(), unsure_below=unsure_below,
-                                   rooms=rooms if by_room else None)
+                                   rooms=rooms if by_room else None,
+                                   settings=home.hyperparameters.answer_settings())
 
 
 #: each home's answer parameters and rooms, worked out once per home object: a home is not changed in

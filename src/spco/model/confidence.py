@@ -50,7 +50,7 @@ import scipy.sparse as sp
 
 from spco.data.language import Vocabulary
 from spco.errors import ConfigurationError
-from spco.model.layout import LayoutPrior
+from spco.model.answer_settings import AnswerSettings
 from spco.model.parameters import ConceptParameters
 from spco.model.prediction import NamePrediction, Weighting, concept_posterior, predict_names
 from spco.model.rooms import HomeRooms, concepts_by_room
@@ -230,8 +230,8 @@ def answer_parameters(params: ConceptParameters, e: int, words: sp.csr_array | n
 
 
 def answer_concepts(params: ConceptParameters, e: int, positions: np.ndarray, visual: object, *,
-                    view_counts: float | None, rooms: HomeRooms | None, view_in_room: bool = False,
-                    layout: LayoutPrior | None = None, typical: float | None = None) -> np.ndarray:
+                    view_counts: float | None, rooms: HomeRooms | None, settings: AnswerSettings
+                    ) -> np.ndarray:
     """(n, L) P(l | pose, view) as the robot answers it: the one concept posterior behind every answer
     about names (:func:`answer_names`; ``ask``'s question scores).
 
@@ -240,15 +240,15 @@ def answer_concepts(params: ConceptParameters, e: int, positions: np.ndarray, vi
     docs/model.md, "A room's evidence"); without them, or if no region holds a training sample, the
     view-by-view posterior of the home's parameters (:func:`spco.model.prediction.concept_posterior`).
     A view counts as ``view_counts`` = w draws either way (``visual`` ``None``: the pose alone).
-    ``view_in_room`` (opt-in): the view as a draw of its room's own distribution
-    (:func:`spco.model.rooms.concepts_by_room`). ``layout`` (opt-in): the rooms' concepts judged
-    jointly under the home's layout prior (:mod:`spco.model.layout`). ``typical`` (opt-in): how often
-    a room looks like its concept (:func:`spco.model.rooms.concepts_by_room`).
+    ``settings``: the model's answer settings
+    (:meth:`~spco.model.hyperparameters.TransferHyperparameters.answer_settings`): ``view_in_room``, the
+    view as a draw of its room's own distribution, and ``typical``, how often a room looks like its
+    concept (:func:`spco.model.rooms.concepts_by_room`; both opt-in, read with the room account only).
     """
     concepts = None
     if rooms is not None:
-        concepts = concepts_by_room(params, e, positions, visual, rooms, view_counts, view_in_room, layout,
-                                    typical)
+        concepts = concepts_by_room(params, e, positions, visual, rooms, view_counts,
+                                    view_in_room=settings.view_in_room, typical=settings.typical)
     if concepts is None:
         concepts = concept_posterior(params, e, positions, visual, use_vision=visual is not None,
                                      view_counts=view_counts)
@@ -268,9 +268,7 @@ def answer_names(
     unsure_below: float = UNSURE_BELOW,
     name_prior: str = "off",
     rooms: HomeRooms | None = None,
-    view_in_room: bool = False,
-    layout: LayoutPrior | None = None,
-    typical: float | None = None,
+    settings: AnswerSettings,
 ) -> NamePrediction:
     """The names the robot answers at ``n`` observations of home ``e`` — the one predictor of
     p(name | pose, view): ``what`` (:func:`spco.knowledge.name_prediction`, the service, the ROS
@@ -286,19 +284,16 @@ def answer_names(
     and a pose, the concept is judged by :func:`answer_concepts` — the rooms the pose may be in, each
     room's training views pooled as one piece of evidence, and the observation's view, each worth w
     draws against φ^v (docs/model.md, "A room's evidence"). ``None``: view by view against the home's
-    π and θ^v (a bare parameter set, SpCoA's single-home fit). ``view_in_room`` (opt-in, off for the
-    robot's answers): the observation's view as a draw of its room's own distribution around the
-    room's concept (:func:`spco.model.rooms.concepts_by_room`); ``layout`` (opt-in, off for the robot's
-    answers): the rooms judged jointly under the home's layout prior (:mod:`spco.model.layout`);
-    ``typical`` (opt-in, off for the robot's answers): ρ, how often a room looks like its concept
-    (:func:`spco.model.rooms.concepts_by_room`, :func:`spco.model.view_fit.room_typicality`).
+    π and θ^v (a bare parameter set, SpCoA's single-home fit). ``settings``: the model's answer
+    settings, :meth:`~spco.model.hyperparameters.TransferHyperparameters.answer_settings` (the home's,
+    the fit's; opt-in ``view_in_room`` and ``typical``, read by :func:`answer_concepts`).
     """
     if not 0.0 <= unsure_below <= 1.0:
         raise ConfigurationError(f"unsure_below must be within 0..1, got {unsure_below!r}")
     concepts = None
     if rooms is not None and positions is not None and weighting != "reference":
         concepts = answer_concepts(params, e, positions, visual, view_counts=view_counts, rooms=rooms,
-                                   view_in_room=view_in_room, layout=layout, typical=typical)
+                                   settings=settings)
     return predict_names(params, e, vocabulary, positions, visual, top_k=top_k, weighting=weighting,
                          use_vision=visual is not None, view_counts=view_counts, unsure_below=unsure_below,
                          name_prior=name_prior, concepts=concepts)  # type: ignore[arg-type]

@@ -17,6 +17,7 @@ from typing import Any, Literal
 import numpy as np
 
 from spco.errors import ConfigurationError
+from spco.model.answer_settings import LEARN, AnswerSettings, check_answer_settings
 
 #: Default ε per pruning score (see ``TransferHyperparameters.mi_threshold``).
 DEFAULT_PRUNING_THRESHOLDS = {"kl": 0.1, "mi": 0.01}
@@ -316,6 +317,13 @@ class TransferHyperparameters:
         ("kitchen" said at the washroom) comes behind a name of this concept's own (opt-in,
         benchmarks/README.md, branch classc18). Read by the answers only, not by the fit. Written by
         :meth:`to_dict` only when not ``"said"``.
+    view_in_room, typical: the answer's opt-ins (:mod:`spco.model.answer_settings`, read by the answers
+        only, :meth:`answer_settings`; docs/model.md, "The answer's settings are the model's"):
+        ``view_in_room`` (default ``False``) the observation's view as a draw of its room; ``typical``
+        ρ, how often a room looks like its concept: ``None`` (default, off), a number within (0, 1] or
+        ``"learn"``, learnt from the experienced homes' views and place labels when a knowledge is
+        fitted and held as the number (:func:`spco.knowledge.fit.learnt_typicality`). Written by
+        :meth:`to_dict` only when not default (an older spco refuses such a file).
     evidence_weight: η, the weight of the linguistic evidence in the switch's prior (word channels):
         p(z = name | word) ∝ λ_name ν^η, p(z = place or background) ∝ λ_c (1 − ν)^η, ν the name
         evidence of :mod:`spco.model.name_evidence`. Default :data:`EVIDENCE_WEIGHT`, chosen on
@@ -373,6 +381,8 @@ class TransferHyperparameters:
     place_channel: PlaceChannel = "shared"
     delta_place: float = DELTA_PLACE
     name_answer: NameAnswer = "said"
+    view_in_room: bool = False
+    typical: float | str | None = None
     phi_every: int = 1
     phi_until: int | None = None
     cut_start: int = 0
@@ -434,6 +444,7 @@ class TransferHyperparameters:
             raise ConfigurationError(f"warm_start must be one of {', '.join(map(repr, WARM_STARTS))}, "
                                      f"got {self.warm_start!r}")
         self._check_place_channel()
+        self._check_answer_settings()
         if self.name_prior not in NAME_PRIORS:
             raise ConfigurationError(f"name_prior must be one of {', '.join(map(repr, NAME_PRIORS))}, "
                                      f"got {self.name_prior!r}")
@@ -451,6 +462,13 @@ class TransferHyperparameters:
         if self.mu0 is not None and (len(self.mu0) != 4 or not np.isfinite(self.mu0).all()):
             raise ConfigurationError(f"mu0 must be 4 finite numbers (x, y, sin θ, cos θ), got {self.mu0!r}")
 
+    def _check_answer_settings(self) -> None:
+        """:func:`~spco.model.answer_settings.check_answer_settings`; a bool and a float (JSON-ready)."""
+        check_answer_settings(self.view_in_room, self.typical, learn=True)
+        object.__setattr__(self, "view_in_room", bool(self.view_in_room))
+        if self.typical not in (None, LEARN):
+            object.__setattr__(self, "typical", float(self.typical))  # type: ignore[arg-type]
+
     def _check_place_channel(self) -> None:
         """Raise :class:`~spco.errors.ConfigurationError` naming ``place_channel`` or ``delta_place``."""
         if self.place_channel not in PLACE_CHANNELS:
@@ -460,6 +478,16 @@ class TransferHyperparameters:
                 and 0 < self.delta_place <= MAX_CONCENTRATION):
             raise ConfigurationError(f"delta_place must be a positive number at most {MAX_CONCENTRATION:g}, "
                                      f"got {self.delta_place!r}")
+
+    def answer_settings(self) -> AnswerSettings:
+        """The answer's opt-in settings (``view_in_room``, ``typical``) as every answer reads them.
+        Raises :class:`~spco.errors.ConfigurationError` for ``typical="learn"`` not yet learnt (a
+        knowledge's fit learns it: :func:`spco.knowledge.fit.fit_knowledge`)."""
+        if self.typical == LEARN:
+            raise ConfigurationError("typical='learn' is learnt when a knowledge is fitted (spco fit); "
+                                     "this model holds no ρ: give typical a number within (0, 1]")
+        return AnswerSettings(view_in_room=bool(self.view_in_room),
+                              typical=None if self.typical is None else float(self.typical))
 
     def pruning_threshold(self, score: str) -> float:
         """ε for the pruning score ``"mi"`` (exact variant) or ``"kl"`` (reference variant)."""
@@ -492,7 +520,8 @@ class TransferHyperparameters:
         only when not ``"cut"``, ``visual_prior`` and ``word_prior`` only when not ``"given"``,
         ``warm_start`` always: a file without it means ``"names"``, the default before things16;
         ``place_channel`` only when not ``"shared"`` and ``delta_place`` only with it or when not the
-        default, ``name_answer`` only when not ``"said"``, ``phi_every`` only when not 1 and
+        default, ``name_answer`` only when not ``"said"``, ``view_in_room`` only when ``True``,
+        ``typical`` only when not ``None``, ``phi_every`` only when not 1 and
         ``phi_until`` only when not ``None``, ``cut_start`` only when not 0, ``phi_passes`` only when not
         :data:`PHI_PASSES`)."""
         data = asdict(self)
@@ -502,6 +531,9 @@ class TransferHyperparameters:
                 del data["delta_place"]
         if data["name_answer"] == "said":
             del data["name_answer"]
+        for name, default in (("view_in_room", False), ("typical", None)):
+            if data[name] == default:
+                del data[name]
         if data["target"] == "cut":
             del data["target"]
         if data["visual_prior"] == "given":
@@ -548,8 +580,9 @@ class TransferHyperparameters:
         Scalars only (:data:`SETTABLE`): integers for ``n_concepts`` / ``n_regions``, numbers
         otherwise, ``none`` for ``view_counts`` (every count a draw), ``word_counts`` (S^w per token)
         or ``mi_threshold`` (the score's default), ``estimate`` for ``view_counts`` (learnt from the
-        homes). Raises :class:`~spco.errors.ConfigurationError` naming the setting for an unknown
-        name, a value of the wrong kind, or one the model refuses (e.g. ``kappa0=-1``).
+        homes), ``true``/``false`` for ``view_in_room``, ``off``, a number or ``learn`` for ``typical``.
+        Raises :class:`~spco.errors.ConfigurationError` naming the setting for an unknown name, a value
+        of the wrong kind, or one the model refuses (e.g. ``kappa0=-1``).
         """
         changes: dict[str, Any] = {}
         for setting in settings:
@@ -563,6 +596,12 @@ class TransferHyperparameters:
                                          f"settable: {', '.join(SETTABLE)}")
             if kind.startswith("one of "):  # a choice: checked by the constructor, which names them
                 changes[name] = text
+                continue
+            if kind == "true or false" and text.lower() in ("true", "false"):  # else refused below
+                changes[name] = text.lower() == "true"
+                continue
+            if name == "typical" and text.lower() in ("off", LEARN):
+                changes[name] = None if text.lower() == "off" else LEARN
                 continue
             if name == "view_counts" and text.lower() == ESTIMATE:
                 changes[name] = ESTIMATE
@@ -594,7 +633,8 @@ SETTABLE: dict[str, str] = {
     "target": "one of cut, power", "visual_prior": "one of given, estimate",
     "word_prior": "one of given, estimate", "warm_start": "one of names, words, things",
     "place_channel": "one of shared, home", "delta_place": "a number",
-    "name_answer": "one of said, listener", "phi_every": "integer", "phi_until": "integer or none",
+    "name_answer": "one of said, listener", "view_in_room": "true or false",
+    "typical": "off, a number within (0, 1] or learn", "phi_every": "integer", "phi_until": "integer or none",
     "cut_start": "integer", "phi_passes": "integer",
 }
 

@@ -43,7 +43,6 @@ from scipy.special import logsumexp
 
 from spco.errors import ConfigurationError
 from spco.model.hyperparameters import view_powers
-from spco.model.layout import LayoutPrior, room_marginals
 from spco.model.parameters import ConceptParameters
 from spco.model.prediction import _safe_log, _visual_log_likelihood
 
@@ -257,7 +256,7 @@ def room_concepts(params: ConceptParameters, e: int, rooms: HomeRooms, view_coun
 
 def concepts_by_room(params: ConceptParameters, e: int, positions: np.ndarray, visual: object,
                      rooms: HomeRooms, view_counts: float | None, view_in_room: bool = False,
-                     layout: LayoutPrior | None = None, typical: float | None = None) -> np.ndarray | None:
+                     typical: float | None = None) -> np.ndarray | None:
     """(n, L) P(l | x, v) ∝ Σ_k p(k | x) p(l | room k) p(v | l) at poses ``positions`` (n, 4) of home
     ``e`` with views ``visual`` (n, D; ``None`` or an empty row: no view), p(k | x) ∝ n_k N(x | μ_r(k),
     Σ_r(k)) over the rooms with training samples (r(k) the room's region), p(l | room k) ∝ G_0,l ·
@@ -272,10 +271,6 @@ def concepts_by_room(params: ConceptParameters, e: int, positions: np.ndarray, v
     its posterior mean given the room's training views Ñ_k, each worth w (:func:`_room_view_log`):
     the view says which room the pose is in, and little more about the room's concept than its
     room's views already said. Needs a view weight w.
-
-    ``layout`` (opt-in, :mod:`spco.model.layout`): p(l | room k) is each room's marginal under the
-    home's layout prior — the rooms' concepts judged jointly, with how likely a home is to hold each
-    concept at all (:func:`spco.model.layout.room_marginals`) — instead of each room on its own.
 
     ``typical`` (opt-in, ρ within (0, 1]; docs/model.md, "Opt-in: a room that looks like another
     concept"): a room looks like its concept with probability ρ; otherwise its views — its pooled
@@ -293,8 +288,8 @@ def concepts_by_room(params: ConceptParameters, e: int, positions: np.ndarray, v
     if typical is not None:
         if not (isinstance(typical, float | int) and 0.0 < float(typical) <= 1.0):
             raise ConfigurationError(f"typical must be a number within (0, 1], got {typical!r}")
-        if view_in_room or layout is not None:
-            raise ConfigurationError("typical: not with view_in_room or layout (one opt-in at a time)")
+        if view_in_room:
+            raise ConfigurationError("typical: not with view_in_room (one opt-in at a time)")
 
     room_log, counts, region_of = _room_log_posterior(params, rooms, view_counts, e)  # (R, L) unnormalised
     if not (counts > 0).any():
@@ -321,9 +316,6 @@ def concepts_by_room(params: ConceptParameters, e: int, positions: np.ndarray, v
     # log p(k | x) + log p(l | room k) + log p(v | l): the view weighs in on the room as on its concept
     # (a view unlike everything room k looks like says the pose is not in room k)
     room_norm = room_log - logsumexp(room_log, axis=1, keepdims=True)  # (R, L) log p(l | room k)
-    if layout is not None:  # the rooms with samples judged jointly (the others are never weighed)
-        live = np.flatnonzero(counts > 0)
-        room_norm[live] = room_marginals(room_log[live], layout)
     joint = np.full((x.shape[0], params.n_concepts), -np.inf)
     if typical is not None:
         room_terms = _atypical_rooms(params, rooms, room_log, view_log, view_counts, float(typical))

@@ -45,6 +45,7 @@ from spco.data.environment import Corpus
 from spco.data.language import Vocabulary
 from spco.errors import ConfigurationError
 from spco.model import gibbs
+from spco.model.answer_settings import LEARN
 from spco.model.archive import write_npz_atomic
 from spco.model.cut_start import check_cut_start
 from spco.model.hyperparameters import SpCoAHyperparameters, TransferHyperparameters
@@ -200,6 +201,11 @@ class SpatialConceptModel:
         ``log_joint_`` (per sweep), ``n_iter_`` and ``fit_seconds_``.
         """
         hyper = self.checked_hyperparameters()
+        if getattr(hyper, "typical", None) == LEARN:
+            raise ConfigurationError("typical='learn': ρ is learnt from the experienced homes when a "
+                                     "knowledge is fitted (spco fit, fit_knowledge); a joint fit takes a "
+                                     "number within (0, 1] (spco.knowledge.fit.learnt_typicality of a "
+                                     "knowledge)")
         settings = self.sampler_settings()
         rng = as_generator(self.random_state)
         data = gibbs.PreparedData.from_corpus(corpus, self.position_scale)
@@ -385,14 +391,14 @@ class SpatialConceptModel:
         (:func:`spco.model.confidence.answer_names` with :meth:`answer_inputs`, a view worth the
         model's view weight w, answers below :data:`~spco.model.confidence.UNSURE_BELOW` flagged
         ``unsure``), what the experiments score (the hyperparameters' ``name_prior`` setting applies)."""
-        from spco.model.confidence import UNSURE_BELOW, answer_names
+        from spco.model.confidence import answer_names
 
         e = self.home_index(home)
         params, rooms, weighting = self.answer_inputs(e)
         return answer_names(params, e, self.vocabulary_, np.asarray(positions), visual, top_k=top_k,
                             weighting=weighting, view_counts=self.settings_.view_counts,  # type: ignore[arg-type]
-                            unsure_below=UNSURE_BELOW, name_prior=self.hyperparameters_.name_prior,
-                            rooms=rooms)
+                            name_prior=self.hyperparameters_.name_prior, rooms=rooms,
+                            settings=self.hyperparameters_.answer_settings())
 
     def predict_positions(self, home: str | int, name: str, n: int = 10,
                           random_state: int | np.random.Generator | None = None, mode: str = "answer"):

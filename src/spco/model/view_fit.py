@@ -23,7 +23,6 @@ __all__ = [
     "held_out_view_fits",
     "home_concept_totals",
     "room_typicality",
-    "room_view_weight",
     "view_fit",
     "view_weight_losses",
 ]
@@ -133,7 +132,7 @@ def view_weight_losses(data: PreparedData, concepts: np.ndarray, totals: np.ndar
     place's *other* views pooled into one count vector, worth w draws, and the view itself, worth w
     draws, p(l | room, v) ∝ p(l) exp(ω_R Σ_d R_d log φ^v_{l,d} + ω Σ_d v_d log φ^v_{l,d}) with R the
     place's views without v and ω_R = min(1, w / Σ_d R_d) — the weight at which a room's evidence
-    predicts a home the weight's choice did not see (:func:`room_view_weight`).
+    predicts a home the weight's choice did not see.
 
     Each home e is predicted from the other homes only: φ^v_l ∝ α^v + N_l − n_{e,l} (the visual
     counts of concept l in all homes, ``totals`` (L, D), without e's own), φ^w_l ∝ α^w + W_l − w_{e,l}
@@ -231,43 +230,6 @@ def estimate_view_weight(losses: np.ndarray, used: int, grid: tuple[float, ...] 
     return float(grid[int(least[0])])
 
 
-def room_view_weight(visual: Sequence[Any], places: Sequence[Sequence[str]], log_phi_words: np.ndarray,
-                     log_g0: np.ndarray, vocabulary: Sequence[str], alpha_visual: float, alpha_word: float,
-                     grid: tuple[float, ...] = VIEW_WEIGHT_GRID) -> tuple[float | None, np.ndarray, int]:
-    """The view weight of the room account learnt from the experienced homes (opt-in; docs/model.md,
-    "A room's evidence learnt from the experienced homes"): how many draws a room's pooled views and
-    an observation's view are worth against φ^v when the room is in a home φ^v did not see.
-
-    Each experienced home e is left out in turn (:func:`view_weight_losses` with ``places``): its
-    samples' place names are predicted from their place's other views pooled and their own view, each
-    worth w draws, against φ^v_l ∝ α^v + the other homes' visual counts of concept l, with p(l) ∝ the
-    other homes' samples of l + 1/L and p(name | l) ∝ α^w + the other homes' names of l; the weight of
-    least summed log loss is chosen (:func:`estimate_view_weight`). A place's concept is its name's,
-    argmax_l G_0,l φ^w_{l,name} (the knowledge's G_0 and φ^w); a sample whose place name is not in
-    the vocabulary is left out.
-
-    Parameters
-    ----------
-    visual: per experienced home, its samples' views (n_e, D) (counts, sparse or dense).
-    places: per experienced home, its samples' place names (n_e,) (a SIGVerse home's labels).
-    log_phi_words: (L, V) log φ^w; log_g0: (L,) log G_0; vocabulary: the V words of φ^w's columns.
-    alpha_visual, alpha_word: α^v and α^w, the knowledge's.
-    grid: the weights w to choose from.
-
-    Returns
-    -------
-    (w, losses, used): the chosen weight (``None``: no sample to learn from), (G,) the summed
-    leave-one-home-out log loss at each weight of ``grid``, and how many samples were predicted.
-    """
-    data, concepts, place_ids = _experienced_rooms(visual, places, log_phi_words, log_g0, vocabulary)
-    if data is None:
-        return None, np.full(len(grid), np.nan), 0
-    totals, taught, words = home_concept_totals(data, concepts, np.asarray(log_g0).size)
-    losses, used = view_weight_losses(data, concepts, totals, taught, words, alpha_visual, alpha_word, grid,
-                                      places=place_ids)
-    return estimate_view_weight(losses, used, grid), losses, used
-
-
 #: The typicalities ρ :func:`room_typicality` chooses from: 1 − ρ in √2 steps from 2^−½ to 2^−20, and 1.
 TYPICALITY_GRID = tuple([1.0 - 2.0 ** (-k / 2) for k in range(1, 41)] + [1.0])
 
@@ -281,7 +243,7 @@ def room_typicality(visual: Sequence[Any], places: Sequence[Sequence[str]], log_
     probability ρ — its pooled views and a view in it are evidence at ``view_weight`` w against its
     concept's φ^v — and otherwise looks like a concept drawn from the prior, unrelated to what it is.
 
-    Each experienced home is left out in turn, as :func:`room_view_weight` does (the same φ^v_{−e},
+    Each experienced home is left out in turn, as the room account's answers are (the same φ^v_{−e},
     p_{−e}(l), p_{−e}(name | l), a place's concept its name's), and its samples' names are predicted
     from their place's other views pooled and their own view, each at w: under the mixture
 
@@ -321,7 +283,7 @@ def _experienced_rooms(visual: Sequence[Any], places: Sequence[Sequence[str]], l
                        ) -> tuple[PreparedData | None, np.ndarray, np.ndarray]:
     """The experienced homes' samples with a known place name as (data, concepts, places): one name
     token each, its concept argmax_l G_0,l φ^w_{l,name}, its place's index within its home
-    (:func:`room_view_weight`, :func:`room_typicality`); data ``None`` when no name is known."""
+    (:func:`room_typicality`); data ``None`` when no name is known."""
     from spco.errors import ConfigurationError
 
     phi = np.asarray(log_phi_words, dtype=np.float64)
