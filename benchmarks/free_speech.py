@@ -155,9 +155,6 @@ def _arguments() -> tuple[argparse.Namespace, Any]:
                         help="a diagnostic: the exact model's view weight (TransferHyperparameters."
                              "view_counts) in the fit and in prediction, a number or 'none' (every count "
                              "a draw); default: the model's default")
-    parser.add_argument("--swap", choices=("any", "used"), default="any",
-                        help="the unheard names' look-up: how a name found gives way to a firmly bound "
-                             "synonym (spco.model.unheard.SWAPS; passed only when not the default)")
     parser.add_argument("--set", nargs="+", action="extend", default=[], metavar="NAME=VALUE",
                         help="hyperparameters of the fit (as spco fit --set), e.g. word_counts=none")
     args = parser.parse_args()
@@ -264,7 +261,7 @@ def _score_home(tally: _Tally, args: argparse.Namespace, hyper: Any, seed: int, 
             tally.main_positions[(home, place)].append(hit)
     if unheard:
         _score_unheard(model.parameters_, e, corpus.vocabulary, env, unheard, seed, seed_unheard,
-                       tally.resolved_as, args.swap)
+                       tally.resolved_as)
 
 
 def _summary(args: argparse.Namespace, tally: _Tally, unheard: bool) -> dict[str, object]:
@@ -378,17 +375,15 @@ def _per_place(groups: dict[tuple, list[float]]) -> dict[str, float]:
     return {p: round(float(np.mean(v)), 3) for p, v in sorted(by_place.items())}
 
 
-def _score_unheard(params, e, vocabulary, env, unheard, seed, out, resolved_as, swap: str = "any") -> None:
-    """A_p of ``where`` for every unheard name of the home's places (through the lexicon; ``swap`` its
-    rule, passed only when not the default, so that the script runs on code from before the option)."""
+def _score_unheard(params, e, vocabulary, env, unheard, seed, out, resolved_as) -> None:
+    """A_p of ``where`` for every unheard name of the home's places (through the lexicon)."""
     regions = env.ground_truth.regions
-    rule = {} if swap == "any" else {"swap": swap}
     for place, names in unheard.items():
         if place not in regions.places:
             continue
         for name in names:
             try:
-                pred = predict_positions(params, e, vocabulary, name, n=10, rng=seed, unheard=True, **rule)
+                pred = predict_positions(params, e, vocabulary, name, n=10, rng=seed, unheard=True)
             except UnknownNameError:
                 out[(env.name, place)].append(0.0)
                 resolved_as[name]["(none)"] += 1

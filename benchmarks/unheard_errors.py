@@ -30,7 +30,6 @@ the speech file's content, the seed, the home and the sweeps, so that the look-u
 
     nice -n 5 python benchmarks/unheard_errors.py --seeds 0 1 2 --sweeps 200
     nice -n 5 python benchmarks/unheard_errors.py --speech benchmarks/development/speech_dev_words.csv
-    nice -n 5 python benchmarks/unheard_errors.py --seeds 0 1 2 --swap used   # the opt-in look-up rule
 
 The cache holds fits only: change the code of the fit (the sampler, the word model) and the cache is
 stale (``--refit`` fits again).
@@ -93,14 +92,11 @@ def fitted(args: argparse.Namespace, speech_path: Path, seed: int, home: str, in
 
 
 def classify(params, e, vocabulary, env, place: str, name: str, seed: int,
-             accepted: tuple[str, ...], swap: str = "any") -> tuple[str, float, str, str]:
-    """(class, A_p, the known name used, how) of ``where name`` in the new home (``swap``: the
-    look-up's rule, :data:`spco.model.unheard.SWAPS`, passed only when not the default, so that the
-    script runs on code from before the option with ``PYTHONPATH=<its src>``)."""
+             accepted: tuple[str, ...]) -> tuple[str, float, str, str]:
+    """(class, A_p, the known name used, how) of ``where name`` in the new home."""
     regions = env.ground_truth.regions
-    rule = {} if swap == "any" else {"swap": swap}
     try:
-        pred = predict_positions(params, e, vocabulary, name, n=10, rng=seed, unheard=True, **rule)
+        pred = predict_positions(params, e, vocabulary, name, n=10, rng=seed, unheard=True)
     except UnknownNameError:
         return "refused", 0.0, "(none)", ""
     value = float(position_accuracy({place: pred.samples}, regions)[place])
@@ -161,8 +157,6 @@ def _arguments() -> argparse.Namespace:
     parser.add_argument("--json", type=Path, default=None)
     parser.add_argument("--own-names", action="store_true",
                         help="for each failed query, also ask where the place's own names are")
-    parser.add_argument("--swap", choices=("any", "used"), default="any",
-                        help="how a name found gives way to a firmly bound synonym (spco.model.unheard)")
     args = parser.parse_args()
     refuse_other_seeds(parser, args.seeds)
     if "heldout" in str(args.speech) + str(args.unheard):
@@ -191,7 +185,7 @@ def main() -> None:
                     continue
                 for name in names:
                     kind, value, used, how = classify(params, e, vocabulary, env, place, name, seed,
-                                                      accepted.get(place, ()), args.swap)
+                                                      accepted.get(place, ()))
                     seed_scores[(home, place)].append(value)
                     classes[kind] += 1
                     rows[(place, name)].append(f"{used} ({how or '-'}) {value:.1f} {kind}")

@@ -163,6 +163,8 @@ plain_case("bad jsonl", "samples.jsonl")(lambda h: [
 plain_case("bad home.json", "home.json")(_write("home.json", json.dumps({"extent": [1, 0, 0, 1]})))
 plain_case("labels of missing samples", "labels.csv")(_write("labels.csv", "id,label\n100,kitchen\n5,bath\n"))
 plain_case("bad regions", "regions.json")(_write("regions.json", '{"kitchen": [[1, 0, 0, 1]]}'))
+plain_case("home.json not JSON", "home.json: not valid JSON")(_write("home.json", '{"name": "flat",'))
+plain_case("regions.json not JSON", "regions.json: not valid JSON")(_write("regions.json", "{'kitchen': []}"))
 
 
 def _file(path: Path, data: bytes) -> Path:

@@ -145,16 +145,27 @@ def test_the_word_prior_estimate_is_the_power_target_s() -> None:
     assert started.hyperparameters_.alpha_word != hyper.alpha_word
 
 
-def test_a_setting_the_fit_cannot_honour_names_cut_start() -> None:
-    for bad in (-1, 2.5, True, "10"):
-        with pytest.raises(ConfigurationError, match="cut_start must be a whole number"):
-            replace(POWER, cut_start=bad)
-    with pytest.raises(ConfigurationError, match="cut_start=10 needs target='power'"):
-        TransferHyperparameters(cut_start=10)
-    with pytest.raises(ConfigurationError, match="cut_start=10 needs target='power'"):
-        TransferHyperparameters().with_settings(["cut_start=10"])
-    with pytest.raises(ConfigurationError, match="cut_start needs integer"):
-        POWER.with_settings(["cut_start=ten"])
+@pytest.mark.parametrize(("field", "value", "bad", "message"), [
+    ("cut_start", 10, (-1, 2.5, True, "10"), "cut_start must be a whole number"),
+    ("phi_passes", 2, (0, -1, 2.5, True, "2", None), "phi_passes must be an integer >= 1"),
+])
+def test_a_power_sweep_count_the_fit_cannot_honour_names_itself(field: str, value: int, bad: tuple,
+                                                                 message: str) -> None:
+    """``cut_start`` and ``phi_passes``: a value that is not a count, or one other than the default
+    without the power target (made or set with ``--set``), or a ``--set`` value that is not a
+    number, is refused naming the field."""
+    for v in bad:
+        with pytest.raises(ConfigurationError, match=message):
+            replace(POWER, **{field: v})
+    with pytest.raises(ConfigurationError, match=f"{field}={value} needs target='power'"):
+        TransferHyperparameters(**{field: value})
+    with pytest.raises(ConfigurationError, match=f"{field}={value} needs target='power'"):
+        TransferHyperparameters().with_settings([f"{field}={value}"])
+    with pytest.raises(ConfigurationError, match=f"{field} needs integer"):
+        POWER.with_settings([f"{field}=ten"])
+
+
+def test_cut_start_must_leave_every_kept_sweep_a_power_sweep() -> None:
     # every kept sweep must be a power sweep: 12 sweeps average 9, 10, 11 (0-based)
     check_cut_start(replace(POWER, cut_start=9), [9, 10, 11])
     first_kept = r"cut_start=10 must be at most the first averaged sweep \(9"

@@ -344,38 +344,21 @@ def test_a_name_stands_for_a_sense_only_if_it_is_used_in_it(wordnet) -> None:
 
 
 
-def test_a_name_found_gives_way_to_a_firm_synonym_only_in_a_sense_it_is_used_in_when_asked(wordnet) -> None:
+def test_a_name_found_gives_way_to_a_firm_synonym(wordnet) -> None:
     # "shower stall" and "shower room" find "bathroom" by its definition; WordNet files "bathroom" under
-    # the toilet too (its second sense), a sense none of its tagged uses is in. A home binding "toilet"
-    # firmly and "bathroom" weakly: by default the firm "toilet" stands in for it, with swap="used"
-    # the answer stays "bathroom"
+    # the toilet too (its second sense). A home binding "toilet" firmly and "bathroom" weakly: the firm
+    # "toilet" stands in for it
     vocab = Vocabulary(("toilet", "bathroom", "kitchen"))
     mask, prior = np.ones(3, dtype=bool), np.array([0.8, 0.3, 0.7])
     info = np.array([0.4, 0.001, 0.4])
     for asked in ("shower stall", "shower room"):
-        default = resolve_name(vocab, mask, asked, prior, lexicon=wordnet, information=info)
-        assert default is not None and (default.name, default.how) == ("toilet", "definition synonym")
-        used = resolve_name(vocab, mask, asked, prior, lexicon=wordnet, information=info, swap="used")
-        assert used is not None and (used.name, used.how) == ("bathroom", "definition"), (asked, used)
-    # a synonym both are used in still gives way: "parlour" (no tagged use: no evidence against it),
-    # found for "reception room" by its definition, is the firmly bound "living room"
+        found = resolve_name(vocab, mask, asked, prior, lexicon=wordnet, information=info)
+        assert found is not None and (found.name, found.how) == ("toilet", "definition synonym"), found
+    # "parlour" (no tagged use: no evidence against it), found for "reception room" by its definition,
+    # is the firmly bound "living room"
     vocab = Vocabulary(("living room", "parlour", "kitchen"))
-    for swap in ("any", "used"):
-        found = resolve_name(vocab, mask, "reception room", prior, lexicon=wordnet, information=info,
-                             swap=swap)
-        assert found is not None and found.name == "living room", (swap, found)
-
-
-def test_the_swap_rule_is_checked_and_leaves_names_said_alone(wordnet) -> None:
-    params, vocab = _toilet_kitchen()
-    with pytest.raises(ConfigurationError, match="swap must be one of"):
-        resolve_name(vocab, params.word_mask, "restroom", lexicon=wordnet, swap="always")
-    with pytest.raises(ConfigurationError, match="swap must be one of"):
-        predict_positions(params, 0, vocab, "toilet", n=3, rng=0, swap="Used")
-    for asked in ("toilet", "kitchen"):  # a name said: the same draws whatever the rule
-        a = predict_positions(params, 0, vocab, asked, n=5, rng=3)
-        b = predict_positions(params, 0, vocab, asked, n=5, rng=3, swap="used")
-        assert np.array_equal(a.samples, b.samples) and (a.name, a.via) == (b.name, b.via)
+    found = resolve_name(vocab, mask, "reception room", prior, lexicon=wordnet, information=info)
+    assert found is not None and found.name == "living room", found
 
 
 def test_a_kind_of_place_after_a_thing_reads_every_sense_of_the_thing(wordnet) -> None:

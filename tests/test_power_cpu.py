@@ -73,9 +73,9 @@ def test_a_worker_gathers_once_a_sweep(monkeypatch) -> None:
     made = []
     gather = fractional._gather_fractional
 
-    def counting(groups, n_concepts, n_dims):
-        made.append(len(groups))
-        return gather(groups, n_concepts, n_dims)
+    def counting(n, home_group):
+        made.append(len(np.unique(home_group)))
+        return gather(n, home_group)
 
     monkeypatch.setattr(fractional, "_gather_fractional", counting)
     evaluations = []

@@ -142,3 +142,64 @@ def test_signature_file_lists_exactly_what_the_demo_s_warm_up_calls():
     hint = "regenerate it: SPCO_CACHE_DIR=$(mktemp -d) python -m spco.model.precompile"
     assert {k: v - listed.get(k, set()) for k, v in used.items() if v - listed.get(k, set())} == {}, hint
     assert {k: v - used.get(k, set()) for k, v in listed.items() if v - used.get(k, set())} == {}, hint
+
+
+def _kernel_modules() -> dict[str, list[CPUDispatcher]]:
+    """Every module of ``spco.model`` that defines Numba kernels cached on disk and compiled on their
+    own (not ``inline="always"``), with those kernels."""
+    import importlib
+    import pkgutil
+
+    import spco.model
+
+    found: dict[str, list[CPUDispatcher]] = {}
+    for info in pkgutil.walk_packages(spco.model.__path__, "spco.model."):
+        module = importlib.import_module(info.name)
+        kernels = [v for v in vars(module).values() if isinstance(v, CPUDispatcher)
+                   and v.py_func.__module__ == info.name and v.targetoptions.get("inline") != "always"]
+        if kernels:
+            found[info.name] = kernels
+    return found
+
+
+#: The kernel modules whose kernels no fit with the default settings calls from Python, so that
+#: ``kernels_compiled`` does not read them (see its docstring): called only from other kernels, or
+#: only with an opt-in setting (the region block move, the power target, φ^v's quadrature).
+_NOT_READ = {"spco.model.kernels.normal", "spco.model.blocks", "spco.model.kernels.fractional",
+             "spco.model.kernels.phi_quadrature"}
+
+
+def test_kernels_compiled_reads_every_kernel_module_a_fit_calls(monkeypatch):
+    """``kernels_compiled`` is False as soon as the kernels of any one module a fit calls are neither
+    in memory nor in the cache, for every such module; a new kernel module fails here until the
+    signature file lists it (regenerated) or it is added to the modules not read, with its reason."""
+    listed = {e["kernel"].rpartition(".")[0] for e in _entries()}
+    modules = _kernel_modules()
+    assert set(modules) - listed == _NOT_READ, "a kernel module neither checked nor known to be opt-in"
+    assert listed <= set(modules)
+    import pathlib
+
+    source = pathlib.Path(precompile.__file__).resolve().parents[1]  # src/spco: no kernel outside model
+    outside = [p for p in source.rglob("*.py") if "@njit" in p.read_text(encoding="utf-8")
+               and "model" not in p.relative_to(source).parts[:1]]
+    assert outside == []
+    for module in sorted(listed):
+        monkeypatch.setattr(precompile, "_kernel_compiled", lambda k, m=module: k.py_func.__module__ != m)
+        assert precompile.kernels_compiled() is False, module
+    monkeypatch.setattr(precompile, "_kernel_compiled", lambda k: True)
+    assert precompile.kernels_compiled() is True
+    monkeypatch.setattr(precompile, "SIGNATURES_FILE", precompile.SIGNATURES_FILE.with_name("missing.json"))
+    assert precompile.kernels_compiled() is None
+
+
+def test_kernels_compiled_is_false_on_an_empty_cache(tmp_path):
+    """A fresh process with an empty cache holds no kernel: ``kernels_compiled`` says so."""
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "SPCO_CACHE_DIR": str(tmp_path)}
+    env.pop("NUMBA_CACHE_DIR", None)
+    proc = subprocess.run([sys.executable, "-c", "from spco.model.precompile import kernels_compiled; "
+                           "print(kernels_compiled())"], capture_output=True, text=True, env=env, check=True)
+    assert proc.stdout.strip() == "False"

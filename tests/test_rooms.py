@@ -50,6 +50,19 @@ def _room_views(phi: np.ndarray, mix: np.ndarray, n: int, scale: int, seed: int)
     return sp.csr_array(np.stack([rng.multinomial(8, room) * scale for _ in range(n)]).astype(np.int64))
 
 
+def _kitchen_and_washroom(phi: np.ndarray, washroom_mix: list[float], n: tuple[int, int] = (20, 20),
+                          scale: tuple[int, int] = (200, 200),
+                          seeds: tuple[int, int] = (2, 3)) -> tuple[HomeRooms, sp.csr_array, sp.csr_array]:
+    """Rooms 0 and 1 of a home without names: the kitchen, ``n[0]`` views of concept 0, and the washroom,
+    ``n[1]`` views of the mixture ``washroom_mix`` of the concepts (:func:`_room_views`, ``scale`` and
+    ``seeds`` each); the rooms, then the kitchen's and the washroom's views."""
+    kitchen = _room_views(phi, np.array([1.0, 0.0, 0.0]), n[0], scale[0], seed=seeds[0])
+    washroom = _room_views(phi, np.array(washroom_mix), n[1], scale[1], seed=seeds[1])
+    rooms = HomeRooms.of(np.repeat([0, 1], n), sp.csr_array(sp.vstack([kitchen, washroom])),
+                         sp.csr_array((sum(n), 3)))
+    return rooms, kitchen, washroom
+
+
 def test_a_rooms_views_pooled_count_as_one_view() -> None:
     """p(l | room) is G_0 · exp(w Σ_d v̂_d log φ^v_l) of the room's pooled proportions: twenty views
     of the room say as much as their sum seen once, not twenty times as much — and a room of one
@@ -81,10 +94,7 @@ def test_a_merged_room_is_not_answered_with_certainty() -> None:
     evidence counted once, and the observation's view once, leave the answer between the two below
     0.99, and the real kitchen (region 0) stays "kitchen"."""
     params, phi = _world()
-    kitchen = _room_views(phi, np.array([1.0, 0.0, 0.0]), 20, 200, seed=2)
-    washroom = _room_views(phi, np.array([0.5, 0.5, 0.0]), 20, 200, seed=3)
-    visual = sp.csr_array(sp.vstack([kitchen, washroom]))
-    rooms = HomeRooms.of(np.repeat([0, 1], 20), visual, sp.csr_array((40, 3)))
+    rooms, kitchen, washroom = _kitchen_and_washroom(phi, [0.5, 0.5, 0.0])
     poses = np.array([[0.0, 0.0, 0.0, 1.0], [2.0, 0.0, 0.0, 1.0]])
     test_views = sp.csr_array(sp.vstack([kitchen[[0]], washroom[[0]]]))
     vocabulary = Vocabulary(list(NAMES))
@@ -158,10 +168,7 @@ def test_the_view_weighs_in_on_which_room_the_pose_is_in() -> None:
     there at p = 0.91: the washroom's pooled views outvote the view (the synthetic general
     experiment lost A_n that way, benchmarks/rooms_synthetic.py)."""
     params, phi = _world()
-    kitchen = _room_views(phi, np.array([1.0, 0.0, 0.0]), 20, 200, seed=7)
-    washroom = _room_views(phi, np.array([0.0, 1.0, 0.0]), 20, 200, seed=8)
-    rooms = HomeRooms.of(np.repeat([0, 1], 20), sp.csr_array(sp.vstack([kitchen, washroom])),
-                         sp.csr_array((40, 3)))
+    rooms, kitchen, washroom = _kitchen_and_washroom(phi, [0.0, 1.0, 0.0], seeds=(7, 8))
     pose = np.array([[1.15, 0.0, 0.0, 1.0]])
     # a view of the kitchen with the washroom's door in it
     view = sp.csr_array(_room_views(phi, np.array([0.8, 0.2, 0.0]), 1, 200, seed=9))
@@ -265,10 +272,7 @@ def test_view_in_room_against_brute_force() -> None:
     """``view_in_room``: the view a draw of its room's own distribution around the room's concept —
     equal to the sum over rooms and concepts written out by hand, at a pose between two rooms."""
     params, phi = _world()
-    kitchen = _room_views(phi, np.array([1.0, 0.0, 0.0]), 6, 200, seed=7)
-    washroom = _room_views(phi, np.array([0.0, 1.0, 0.0]), 4, 150, seed=8)
-    rooms = HomeRooms.of(np.repeat([0, 1], [6, 4]), sp.csr_array(sp.vstack([kitchen, washroom])),
-                         sp.csr_array((10, 3)))
+    rooms, kitchen, washroom = _kitchen_and_washroom(phi, [0.0, 1.0, 0.0], (6, 4), (200, 150), (7, 8))
     pose = np.array([[1.15, 0.0, 0.0, 1.0]])
     view = sp.csr_array(_room_views(phi, np.array([0.8, 0.2, 0.0]), 1, 200, seed=9))
     got = concepts_by_room(params, 0, pose, view, rooms, 16.0, view_in_room=True)
@@ -285,10 +289,7 @@ def test_view_in_room_does_not_lift_a_rooms_answer() -> None:
     room's own distribution it hardly moves it (the room's 20 views, each worth w, against the prior's
     w), so the answer is the room's p(l | room k). A room with no views: the view against φ^v."""
     params, phi = _world()
-    kitchen = _room_views(phi, np.array([1.0, 0.0, 0.0]), 20, 200, seed=2)
-    washroom = _room_views(phi, np.array([0.5, 0.5, 0.0]), 20, 200, seed=3)
-    rooms = HomeRooms.of(np.repeat([0, 1], 20), sp.csr_array(sp.vstack([kitchen, washroom])),
-                         sp.csr_array((40, 3)))
+    rooms = _kitchen_and_washroom(phi, [0.5, 0.5, 0.0])[0]
     pose = np.array([[2.0, 0.0, 0.0, 1.0]])
     view = sp.csr_array(_room_views(phi, np.array([0.3, 0.7, 0.0]), 1, 200, seed=10))
     room_alone = room_concepts(params, 0, rooms, 16.0)[1][1]

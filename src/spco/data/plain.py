@@ -178,6 +178,14 @@ def _read_text(path: Path) -> str:
         raise DataFormatError(path, f"cannot be read ({exc.strerror})") from None
 
 
+def _read_json(path: Path) -> Any:
+    """The file's JSON value (:class:`DataFormatError` naming the file when it is not valid JSON)."""
+    try:
+        return json.loads(_read_text(path))
+    except json.JSONDecodeError as exc:
+        raise DataFormatError(path, f"not valid JSON ({exc.msg}, line {exc.lineno})") from None
+
+
 def _number(path: Path, where: str, column: str, value: Any) -> float:
     if isinstance(value, bool) or value is None or value == "":
         raise DataFormatError(path, f"{where}: {column} is missing")
@@ -253,10 +261,7 @@ def _read_samples_jsonl(path: Path) -> tuple[list[int], list[tuple[float, float,
 def _read_home_json(path: Path) -> dict[str, Any]:
     if not path.is_file():
         return {}
-    try:
-        meta = json.loads(_read_text(path))
-    except json.JSONDecodeError as exc:
-        raise DataFormatError(path, f"not valid JSON ({exc.msg}, line {exc.lineno})") from None
+    meta = _read_json(path)
     if not isinstance(meta, dict):
         raise DataFormatError(path, 'expected an object such as {"name": "my_home"}')
     unknown = sorted(set(meta) - set(_HOME_KEYS))
@@ -458,10 +463,7 @@ def _read_labels(path: Path, index: dict[int, int]) -> tuple[tuple[str | None, .
 
 
 def _read_regions(path: Path) -> PlaceRegions:
-    try:
-        raw = json.loads(_read_text(path))
-    except json.JSONDecodeError as exc:
-        raise DataFormatError(path, f"not valid JSON ({exc.msg}, line {exc.lineno})") from None
+    raw = _read_json(path)
     if not isinstance(raw, dict):
         raise DataFormatError(path, "expected an object place -> list of [x_min, x_max, y_min, y_max]")
     try:
@@ -473,10 +475,7 @@ def _read_regions(path: Path) -> PlaceRegions:
 
 
 def _read_accepted_names(path: Path) -> dict[str, list[str]]:
-    try:
-        raw = json.loads(_read_text(path))
-    except json.JSONDecodeError as exc:
-        raise DataFormatError(path, f"not valid JSON ({exc.msg}, line {exc.lineno})") from None
+    raw = _read_json(path)
     if not isinstance(raw, dict) or not all(isinstance(v, list) and all(isinstance(n, str) for n in v)
                                             for v in raw.values()):
         raise DataFormatError(path, "expected an object place -> list of accepted names (strings)")

@@ -62,7 +62,7 @@ from spco.model.prediction import (
     mutual_information_weights,
 )
 from spco.model.rooms import HomeRooms
-from spco.model.unheard import SAID_WORDS, ResolvedName, check_swap, resolve_name, said_as_one
+from spco.model.unheard import SAID_WORDS, ResolvedName, resolve_name, said_as_one
 
 __all__ = [
     "LEARNT_SUPPORT",
@@ -558,14 +558,13 @@ def draw_poses(params: ConceptParameters, e: int, region_probabilities: np.ndarr
 
 
 def resolve_unheard(params: ConceptParameters, e: int, vocabulary: Vocabulary, name: str,
-                    lookup: np.ndarray | None = None, swap: str = "any") -> ResolvedName | None:
+                    lookup: np.ndarray | None = None) -> ResolvedName | None:
     """The known name the lexicon finds for ``name`` when it is not one usable token
     (:func:`spco.model.unheard.resolve_name`), else ``None``: the one look-up of a name nobody said,
     :func:`predict_positions`' (the robot's ``where`` and the experiments' A_p alike). The candidates
     are the words of ``lookup`` (default ``params.word_mask``), ranked by their mutual information with
     home ``e``'s concepts in ``params`` as names (θ^w) and as ``where`` reads them (names or words of a
-    place, ψ), over those same words (worked out only when the name needs the look-up). ``swap``: as
-    :func:`~spco.model.unheard.resolve_name` (:data:`spco.model.unheard.SWAPS`)."""
+    place, ψ), over those same words (worked out only when the name needs the look-up)."""
     mask = np.asarray(params.word_mask if lookup is None else lookup, dtype=bool)
     if said_as_one(vocabulary, mask, name):
         return None
@@ -573,7 +572,7 @@ def resolve_unheard(params: ConceptParameters, e: int, vocabulary: Vocabulary, n
         replace(params, word_mask=mask)
     return resolve_name(vocabulary, mask, name, params.name_prior,
                         information=mutual_information_weights(looked, e),
-                        place_information=place_word_information(looked, e), swap=swap)
+                        place_information=place_word_information(looked, e))
 
 
 def predict_positions(
@@ -591,7 +590,6 @@ def predict_positions(
     view_counts: float | None = None,
     lookup: np.ndarray | None = None,
     alone: bool = True,
-    swap: str = "any",
 ) -> PositionPrediction:
     """Sample ``n`` poses where the place ``name`` is, in home ``e``: the one p(pose | name) of the
     robot's ``where`` and the experiments' A_p (module docstring).
@@ -612,9 +610,6 @@ def predict_positions(
     alone: ``name`` is the name as asked: a name of one word is read by every learnt term that holds
         it (:func:`query_forms`); False for the words of a longer name nobody said (set on the
         lexicon's answer by its own words, :data:`spco.model.unheard.SAID_WORDS`).
-    swap: how the look-up of a name nobody said lets a name found give way to a firmly bound synonym
-        (:data:`spco.model.unheard.SWAPS`: ``"any"``, the default; ``"used"``, opt-in: only in a sense
-        the found name is used in); only read with ``unheard``.
 
     Returns a :class:`PositionPrediction` with samples (n, 3) = (x, y, θ) (``poses``: the same
     as (x, y, sin θ, cos θ)), ``region`` the most probable region, the name's ``support`` in the home
@@ -625,8 +620,7 @@ def predict_positions(
     if mode not in ("argmax", "mixture", "answer"):
         raise ConfigurationError(f"mode must be 'argmax', 'mixture' or 'answer', got {mode!r}")
     e = _check_home(params, e)
-    check_swap(swap)
-    resolved = resolve_unheard(params, e, vocabulary, name, lookup, swap) if unheard else None
+    resolved = resolve_unheard(params, e, vocabulary, name, lookup) if unheard else None
     if resolved is not None:  # a name nobody said: the known name the lexicon finds for it
         pred = predict_positions(params, e, vocabulary, resolved.name, n, rng, mode, xy_only, unheard=False,
                                  rooms=rooms, view_counts=view_counts, lookup=lookup,

@@ -22,21 +22,7 @@ from pathlib import Path
 import numba
 
 from spco.data.synthetic import generate_homes
-from spco.model import allocation, gibbs, moves, observations
-from spco.model.kernels import (
-    categorical,
-    counts,
-    crt,
-    dirichlet,
-    dispatch,
-    gamma,
-    gaussian,
-    likelihood,
-    niw,
-    normal,
-    rng,
-    special,
-)
+from spco.model.kernels import dispatch
 from spco.model.numba_cache import mark_announced
 from spco.model.transfer import SpCoA, SpCoTransfer
 
@@ -126,30 +112,32 @@ def compile_in_turn(turns: Synchronized) -> float:
         _compile_group(clusters[index])
 
 
-def kernels_compiled() -> bool | None:
-    """Whether Numba's on-disk cache holds spco's sampler kernels for this source (``None``: unknown).
+def _listed_kernels() -> list:
+    """The kernels of :data:`SIGNATURES_FILE` (Numba dispatchers, in the file's order)."""
+    entries = json.loads(SIGNATURES_FILE.read_text())["kernels"]
+    return [getattr(importlib.import_module(module), name)
+            for module, _, name in (entry["kernel"].rpartition(".") for entry in entries)]
 
-    ``False`` means the next fit compiles them first (about half a minute on 2 cores).
+
+def _kernel_compiled(kernel) -> bool:
+    """Whether ``kernel`` (a Numba dispatcher) is compiled in this process or has an entry in Numba's
+    on-disk cache valid for its source."""
+    return bool(kernel.signatures) or bool(kernel._cache._cache_file._load_index())
+
+
+def kernels_compiled() -> bool | None:
+    """Whether Numba's on-disk cache (or this process) holds spco's sampler kernels for this source:
+    every kernel of :data:`SIGNATURES_FILE`, the kernels a fit calls from Python, which
+    :func:`precompile` compiles (``None``: unknown, the file or the cache unreadable).
+
+    ``False`` means the next fit compiles them first (about half a minute on 2 cores). The kernels they
+    call are compiled into them, so a kernel loaded from the cache needs none of its own (the modules
+    holding only such kernels, ``kernels.normal`` and ``kernels.rng``, are not read), and the kernels only
+    an opt-in setting calls (``blocks``, ``kernels.fractional``, ``kernels.phi_quadrature``) are compiled
+    by the fit that needs them, not ahead.
     """
     try:
-        from numba.core.registry import CPUDispatcher
-
-        # the kernels' modules count as one: some (rng) hold only helpers of the others
-        groups = [(allocation,), (gibbs,), (moves,), (observations,),
-                  (categorical, counts, crt, dirichlet, dispatch, gamma, gaussian, likelihood, niw, normal,
-                   rng, special)]
-        found = False
-        for group in groups:
-            kernels = [v for module in group for v in vars(module).values()
-                       if isinstance(v, CPUDispatcher) and getattr(v, "_cache", None) is not None]
-            if not kernels:
-                continue
-            found = True
-            # helpers only called from other kernels have no cache entry of their own: a module
-            # counts as compiled when any of its kernels is in memory or in a cache valid for its source
-            if not any(k.signatures or k._cache._cache_file._load_index() for k in kernels):
-                return False
-        return True if found else None
+        return all(_kernel_compiled(kernel) for kernel in _listed_kernels())
     except Exception:
         return None
 

@@ -21,9 +21,9 @@ WordNet similarity to a firmly bound name, then to any candidate, last a word sa
 every sense of the thing a kind of place is named after (:func:`_by_thing_senses`: "bunk room" ->
 "bed"). A synonym only in a sense WordNet never uses it in ("bathroom" for "privy") gives way to a
 candidate used in it (:meth:`spco.data.lexicon.Lexicon.seldom_in`). A name found that the home binds
-weakly gives way to a firmly bound WordNet synonym of it; with ``swap="used"`` (opt-in,
-:data:`SWAPS`) only in a sense the found name is used in too ("shower stall", by its definition
-"bathroom", stays "bathroom", not the "toilet" WordNet files "bathroom" under as well). ``where`` answers
+weakly gives way to a firmly bound WordNet synonym of it (one sharing one of its two commonest noun
+senses), unless the firm name is never used in the senses they share ("shower stall", by its definition
+"bathroom", is the firmly bound "toilet", WordNet's second sense of "bathroom"). ``where`` answers
 for that name, saying which one it used ("restroom -> toilet":
 :attr:`spco.model.position_prediction.PositionPrediction.asked`). When nothing is found, the name's
 own known words said together answer ("great + room"); a name none of whose words is known is an
@@ -43,7 +43,6 @@ import numpy as np
 
 from spco.data.function_words import is_function_word
 from spco.data.language import Vocabulary, normalize_name
-from spco.errors import ConfigurationError
 
 __all__ = [
     "FIRM_INFORMATION",
@@ -55,12 +54,10 @@ __all__ = [
     "QUALITY_SHARE",
     "SAID_WORDS",
     "STAND_IN_HOW",
-    "SWAPS",
     "THING",
     "THING_SENSE",
     "ResolvedName",
     "candidate_names",
-    "check_swap",
     "place_words",
     "resolve_name",
     "said_words",
@@ -81,21 +78,6 @@ MIN_CANDIDATE_INFORMATION = 0.01
 #: (one per place: "kitchen" 0.48, "entrance" 0.43, "washroom" 0.35 against "hall" 0.02): the lexicon
 #: looks for the name asked among them first, then among all candidates.
 FIRM_INFORMATION = 0.1
-#: How a name found that the home binds weakly gives way to a firmly bound WordNet synonym of it
-#: (:func:`resolve_name`'s ``swap``): ``"any"`` (the default) — a firmly bound name sharing one of its
-#: two commonest noun senses, unless the firm name is never used in the senses they share
-#: (:meth:`spco.data.lexicon.Lexicon.seldom_in`); ``"used"`` — the same, and unless the found name is
-#: never used in them either: "bathroom", found for "shower stall" by its definition ("booth for
-#: washing yourself, usually in a bathroom"), shares only its second sense, the toilet, with "toilet",
-#: a sense none of its tagged uses is in, so it stays "bathroom".
-SWAPS = ("any", "used")
-
-
-def check_swap(swap: str) -> str:
-    """``swap`` if it is one of :data:`SWAPS`; else :class:`spco.errors.ConfigurationError` naming it."""
-    if swap not in SWAPS:
-        raise ConfigurationError(f"swap must be one of {', '.join(map(repr, SWAPS))}, got {swap!r}")
-    return swap
 
 
 def said_as_one(vocabulary: Vocabulary, word_mask: np.ndarray, name: str) -> bool:
@@ -124,7 +106,7 @@ class ResolvedName:
 def resolve_name(vocabulary: Vocabulary, word_mask: np.ndarray, name: str,
                  name_prior: np.ndarray | None = None, lexicon: object | None = None,
                  information: np.ndarray | None = None,
-                 place_information: np.ndarray | None = None, swap: str = "any") -> ResolvedName | None:
+                 place_information: np.ndarray | None = None) -> ResolvedName | None:
     """The known name that ``name`` stands for, when ``name`` is not a usable token; else None.
 
     Parameters
@@ -139,8 +121,6 @@ def resolve_name(vocabulary: Vocabulary, word_mask: np.ndarray, name: str,
         place (:func:`spco.model.position_prediction.place_word_information`), or None: the words
         of a place (:func:`place_words`) the lexicon may relate the name to when no candidate
         name is related to it; None: no such step.
-    swap: how a name found that the home binds weakly gives way to a firmly bound synonym
-        (:data:`SWAPS`: ``"any"``, the default, or ``"used"``, only in a sense the found name is used in).
 
     Returns
     -------
@@ -148,7 +128,6 @@ def resolve_name(vocabulary: Vocabulary, word_mask: np.ndarray, name: str,
     it finds no known name for ``name`` (the caller then uses the name's own known tokens said
     together, as without the lexicon: "study + room").
     """
-    check_swap(swap)
     mask = np.asarray(word_mask, dtype=bool)
     asked = normalize_name(name)
     if said_as_one(vocabulary, mask, name):
@@ -196,8 +175,7 @@ def resolve_name(vocabulary: Vocabulary, word_mask: np.ndarray, name: str,
         name = next((c for c in candidates if _synonym_in_use(lexicon, c, asked)), name)
     if name not in firm:  # a synonym of it that this home binds firmly names the same place
         same = [f for f in lexicon.synonyms_among(name, firm)  # type: ignore[attr-defined]
-                if not lexicon.seldom_in(f, name)  # type: ignore[attr-defined]
-                and (swap == "any" or not lexicon.seldom_in(name, f))]  # type: ignore[attr-defined]
+                if not lexicon.seldom_in(f, name)]  # type: ignore[attr-defined]
         if same:
             name, how = same[0], f"{how} synonym"
     return ResolvedName(asked=asked, name=name, how=how, score=float(match.score))

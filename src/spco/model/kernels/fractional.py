@@ -23,40 +23,37 @@ import math
 
 import numpy as np
 from numba import njit
-from numba.typed import List
 
 
 @njit(cache=True, error_model="numpy")
-def _gather_fractional(groups, n_concepts: int, n_dims: int):  # pragma: no cover - compiled
-    """The fractional entries of the counts ``groups`` (each (E_g, L, D)) by pair p = l·D + k:
-    (starts (L·D + 1,) int64: pair p's entries are starts[p]:starts[p + 1]; their counts (F,)
-    float64 and groups (F,) int32), each pair's entries in group and then home order."""
+def _gather_fractional(n: np.ndarray, home_group: np.ndarray):  # pragma: no cover - compiled
+    """The fractional entries of the counts ``n`` (E, L, D) of homes in groups ``home_group`` (E,)
+    int32 (non-decreasing: the groups' homes one after another) by pair p = l·D + k: (starts
+    (L·D + 1,) int64: pair p's entries are starts[p]:starts[p + 1]; their counts (F,) float64 and
+    groups (F,) int32), each pair's entries in group and then home order."""
+    n_homes, n_concepts, n_dims = n.shape
     n_pairs = n_concepts * n_dims
     starts = np.zeros(n_pairs + 1, dtype=np.int64)
-    for g in range(len(groups)):
-        n = groups[g]
-        for e in range(n.shape[0]):
-            for c in range(n_concepts):
-                for k in range(n_dims):
-                    x = n[e, c, k]
-                    if x != math.floor(x):
-                        starts[c * n_dims + k + 1] += 1
+    for e in range(n_homes):
+        for c in range(n_concepts):
+            for k in range(n_dims):
+                x = n[e, c, k]
+                if x != math.floor(x):
+                    starts[c * n_dims + k + 1] += 1
     for p in range(n_pairs):
         starts[p + 1] += starts[p]
     counts = np.empty(starts[n_pairs])
     group = np.empty(starts[n_pairs], dtype=np.int32)
     fill = starts[:-1].copy()
-    for g in range(len(groups)):
-        n = groups[g]
-        for e in range(n.shape[0]):
-            for c in range(n_concepts):
-                for k in range(n_dims):
-                    x = n[e, c, k]
-                    if x != math.floor(x):
-                        p = c * n_dims + k
-                        counts[fill[p]] = x
-                        group[fill[p]] = g
-                        fill[p] += 1
+    for e in range(n_homes):
+        for c in range(n_concepts):
+            for k in range(n_dims):
+                x = n[e, c, k]
+                if x != math.floor(x):
+                    p = c * n_dims + k
+                    counts[fill[p]] = x
+                    group[fill[p]] = home_group[e]
+                    fill[p] += 1
     return starts, counts, group
 
 
@@ -107,17 +104,19 @@ class FractionalCounts:
 
     def __init__(self, groups: list[np.ndarray]) -> None:
         if not groups:
-            raise ValueError("fractional_log_weights_grouped: no group of counts")
-        typed = List()
-        for n in groups:
-            n = np.ascontiguousarray(n, dtype=np.float64)
-            if n.ndim != 3 or (len(typed) and n.shape[1:] != typed[0].shape[1:]):
-                raise ValueError(f"fractional_log_weights_grouped: counts of shape {n.shape}; (E, L, D) "
-                                 f"expected, the same L and D in every group")
-            typed.append(n)
+            raise ValueError("FractionalCounts: no group of counts")
+        arrays = [np.asarray(n, dtype=np.float64) for n in groups]
+        for n in arrays:
+            if n.ndim != 3 or n.shape[1:] != arrays[0].shape[1:]:
+                raise ValueError(f"FractionalCounts: counts of shape {n.shape}; (E, L, D) expected, the same "
+                                 f"L and D in every group")
         #: (L, D) of the counts
-        self.shape: tuple[int, int] = (int(typed[0].shape[1]), int(typed[0].shape[2]))
-        self._starts, self._counts, self._group = _gather_fractional(typed, *self.shape)
+        self.shape: tuple[int, int] = (int(arrays[0].shape[1]), int(arrays[0].shape[2]))
+        # the groups' homes one after another, each home's group beside it (one array: a typed list
+        # of the groups would compile Numba's list code in every process, about 1.7 s)
+        homes = np.ascontiguousarray(arrays[0] if len(arrays) == 1 else np.concatenate(arrays))
+        home_group = np.repeat(np.arange(len(arrays), dtype=np.int32), [n.shape[0] for n in arrays])
+        self._starts, self._counts, self._group = _gather_fractional(homes, home_group)
 
     @property
     def n_fractional(self) -> int:
@@ -130,7 +129,7 @@ class FractionalCounts:
         count is fractional)."""
         log_phi = np.ascontiguousarray(log_phi, dtype=np.float64)
         if log_phi.shape != self.shape:
-            raise ValueError(f"fractional_log_weights_grouped: counts of shape (E, {self.shape[0]}, "
+            raise ValueError(f"FractionalCounts.log_weights: counts of shape (E, {self.shape[0]}, "
                              f"{self.shape[1]}) for φ of shape {log_phi.shape}; (E, L, D) expected")
         out = np.empty(self.shape)
         _fractional_log_weights(self._starts, self._counts, self._group, log_phi, math.log(delta), out)
