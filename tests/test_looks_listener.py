@@ -133,3 +133,28 @@ def test_the_setting() -> None:
     with pytest.raises(ConfigurationError, match="weighting"):
         predict_names(with_looks(np.full((2, 5), 0.2), np.array([0.5, 0.5]), np.full((2, 4), 0.25)), 0, VOCAB,
                       np.zeros((1, 4)), None, weighting="alike", use_vision=False)  # type: ignore[arg-type]
+
+
+def test_a_fit_answers_with_looks() -> None:
+    """The fit does not read the setting (the same seed, the same parameters as ``"said"``); the model
+    answers with the weighting ``"looks"``, its probabilities those of ``"said"``."""
+    import warnings
+
+    from spco.data.synthetic import SyntheticConfig, generate_homes
+    from spco.model import SpCoTransfer
+
+    corpus = generate_homes(3, seed=4, new_homes=1, specific_rooms=False,
+                            config=SyntheticConfig(n_features=64, n_train=5, n_test=2))
+    fits = []
+    for setting in ("said", "looks"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            fits.append(SpCoTransfer(TransferHyperparameters(name_answer=setting), variant="exact",
+                                     prune_words=True, n_iterations=3, random_state=0).fit(corpus))
+    assert [f.name_weighting() for f in fits] == ["none", "looks"]
+    assert np.array_equal(fits[0].parameters_.word_probabilities, fits[1].parameters_.word_probabilities)
+    env = list(corpus)[-1]
+    rows = np.flatnonzero(env.is_test)
+    names = [f.predict_names(len(corpus) - 1, env.positions[rows], env.visual[rows], top_k=3) for f in fits]
+    assert names[1].weighting == "looks"
+    assert np.allclose(names[0].word_probabilities, names[1].word_probabilities)
