@@ -158,3 +158,20 @@ def test_a_fit_answers_with_looks() -> None:
     names = [f.predict_names(len(corpus) - 1, env.positions[rows], env.visual[rows], top_k=3) for f in fits]
     assert names[1].weighting == "looks"
     assert np.allclose(names[0].word_probabilities, names[1].word_probabilities)
+
+
+def test_a_home_adapted_from_a_knowledge_answers_with_looks() -> None:
+    """A knowledge keeps φ^v and the setting, so its adapted home answers ``what`` with ``"looks"``; the
+    probabilities are those of the same home answering ``"said"``."""
+    from conftest import fit_twice_and_adapt
+
+    import spco.knowledge as kn
+
+    _, fits, home = fit_twice_and_adapt(TransferHyperparameters(name_answer="looks"))
+    assert fits[0].hyperparameters.name_answer == "looks" and home.weighting == "looks"
+    x, y = map(float, home.positions[0, :2])
+    looks = kn.what(home, x, y, 0.0, top_k=3)
+    assert looks.weighting == "looks"
+    params = home.parameters
+    kernel = looks_kernel(params.shared_visual_probabilities, home.knowledge.hyperparameters.view_counts)
+    assert kernel.shape == (params.n_concepts,) * 2 and np.allclose(np.diag(kernel), 1.0)
