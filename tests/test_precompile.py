@@ -144,9 +144,9 @@ def test_signature_file_lists_exactly_what_the_demo_s_warm_up_calls():
     assert {k: v - used.get(k, set()) for k, v in listed.items() if v - used.get(k, set())} == {}, hint
 
 
-def _kernel_modules() -> dict[str, list[CPUDispatcher]]:
+def _kernel_modules(inlined: bool = False) -> dict[str, list[CPUDispatcher]]:
     """Every module of ``spco.model`` that defines Numba kernels cached on disk and compiled on their
-    own (not ``inline="always"``), with those kernels."""
+    own (not ``inline="always"``; ``inlined``: those too), with those kernels."""
     import importlib
     import pkgutil
 
@@ -156,7 +156,8 @@ def _kernel_modules() -> dict[str, list[CPUDispatcher]]:
     for info in pkgutil.walk_packages(spco.model.__path__, "spco.model."):
         module = importlib.import_module(info.name)
         kernels = [v for v in vars(module).values() if isinstance(v, CPUDispatcher)
-                   and v.py_func.__module__ == info.name and v.targetoptions.get("inline") != "always"]
+                   and v.py_func.__module__ == info.name
+                   and (inlined or v.targetoptions.get("inline") != "always")]
         if kernels:
             found[info.name] = kernels
     return found
@@ -203,3 +204,18 @@ def test_kernels_compiled_is_false_on_an_empty_cache(tmp_path):
     proc = subprocess.run([sys.executable, "-c", "from spco.model.precompile import kernels_compiled; "
                            "print(kernels_compiled())"], capture_output=True, text=True, env=env, check=True)
     assert proc.stdout.strip() == "False"
+
+
+def test_kernel_sources_hold_every_kernel_module():
+    """The cache's digest (``numba_cache.kernel_sources``) reads every module that defines a kernel,
+    found here by importing them (inlined kernels too), and besides them only ``spco.model.kernels``'
+    ``__init__`` and ``dispatch`` (how the kernels are compiled)."""
+    import importlib
+    from pathlib import Path
+
+    modules = _kernel_modules(inlined=True)
+    defining = {Path(importlib.import_module(name).__file__).resolve() for name in modules}
+    sources = set(numba_cache.kernel_sources())
+    assert defining - sources == set(), "a kernel module the cache's digest does not read"
+    kernels = Path(numba_cache.__file__).resolve().parent / "kernels"
+    assert sources - defining == {kernels / "__init__.py", kernels / "dispatch.py"}

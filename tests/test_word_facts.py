@@ -239,3 +239,35 @@ def test_the_reader_s_plain_text_reads_give_nltk_s_own_tables(wordnet, tmp_path)
         assert type(a) is type(b)  # (NLTK's seekable reader)
     assert ours.synset("kitchen.n.01").definition() == theirs.synset("kitchen.n.01").definition()
     assert ours.morphy("bedrooms", "n") == theirs.morphy("bedrooms", "n") == "bedroom"
+
+
+@pytest.mark.parametrize("collecting", [True, False])
+def test_the_reader_builds_its_index_without_the_garbage_collector_and_restores_it(
+        wordnet, monkeypatch: pytest.MonkeyPatch, collecting: bool) -> None:
+    """NLTK's index of WordNet is built with the cyclic garbage collector paused (its full passes walk
+    every object of a loaded server: seconds), and the collector is left as it was; the index is NLTK's."""
+    import gc
+    from pathlib import Path
+
+    from nltk.corpus.reader.wordnet import WordNetCorpusReader
+
+    from spco.data.wordnet_files import open_reader
+
+    seen: list[bool] = []
+    build = WordNetCorpusReader._load_lemma_pos_offset_map
+
+    def spy(self) -> None:
+        seen.append(gc.isenabled())
+        build(self)
+
+    monkeypatch.setattr(WordNetCorpusReader, "_load_lemma_pos_offset_map", spy)
+    was = gc.isenabled()
+    try:
+        (gc.enable if collecting else gc.disable)()
+        reader = open_reader(Path(wordnet._wn.root.path))
+        assert gc.isenabled() is collecting
+    finally:
+        (gc.enable if was else gc.disable)()
+    assert seen == [False]
+    assert reader._lemma_pos_offset_map == wordnet._wn._lemma_pos_offset_map
+    assert reader.synset("kitchen.n.01").definition() == wordnet._wn.synset("kitchen.n.01").definition()

@@ -24,7 +24,6 @@ import click
 
 from spco.cli.common import check_out, load_home, settings_hyperparameters
 from spco.cli.errors import friendly_errors
-from spco.features.pixels import RAW_ENCODINGS
 
 __all__ = ["KNOWLEDGE_COMMANDS", "adapt", "fit", "teach", "what", "where"]
 
@@ -68,8 +67,46 @@ def _image_options(func: Any) -> Any:
                              "used as the views in place of the homes' visual counts.")(func)
 
 
-#: Colour orders of a pixel array given with --image (spco.features.pixels).
-_ENCODINGS = tuple(RAW_ENCODINGS)
+class _Encodings(click.Choice):
+    """The colour orders of a pixel array given with --image (:data:`spco.features.pixels.RAW_ENCODINGS`),
+    read when the command's help is shown or it runs, not when it is registered (``spco --help``
+    imports no array library)."""
+
+    def __init__(self) -> None:  # the choices are a property: nothing to store
+        self.case_sensitive = True
+
+    @property  # type: ignore[override]
+    def choices(self) -> tuple[str, ...]:
+        from spco.features.pixels import RAW_ENCODINGS
+
+        return tuple(RAW_ENCODINGS)
+
+
+def _view_options(view: str) -> Any:
+    """--visual, --visual-scale, --image, --encoding and --onnx-model: the view of what and teach
+    (``view``: what the view is, e.g. "The current view"), read by :func:`_view_counts`."""
+    options = [
+        click.option("--visual", type=click.Path(path_type=Path), default=None,
+                     help=f"{view}'s features (.csv/.txt numbers, .npy or .npz); default: position only."),
+        click.option("--visual-scale", type=float, default=None,
+                     help="Turn real-valued CNN features into counts: floor(max(f, 0) × scale) (the "
+                          "authors: 5)."),
+        click.option("--image", type=click.Path(path_type=Path), default=None,
+                     help=f"{view} as a camera image (PNG/JPEG, or a .npy array of pixels: see --encoding), "
+                          "for knowledge fitted on images."),
+        click.option("--encoding", type=_Encodings(), default=None,
+                     help="The colour order of an --image .npy array: rgb8 (PIL, matplotlib, cv_bridge "
+                          "rgb8), bgr8 (OpenCV; the default), mono8, rgba8, bgra8."),
+        click.option("--onnx-model", "model_file", type=click.Path(path_type=Path), default=None,
+                     help="Where the knowledge's .onnx model file is now (onnx extractor), if it moved."),
+    ]
+
+    def add(command: Any) -> Any:
+        for option in reversed(options):
+            command = option(command)
+        return command
+
+    return add
 
 
 def _pixels(image: Path, encoding: str | None) -> Any:
@@ -436,18 +473,7 @@ def _where_drawn_from(regions: Sequence[int], name: str) -> str:
 @click.option("--x", "x", required=True, type=float, help="x on the map, metres.")
 @click.option("--y", "y", required=True, type=float, help="y on the map, metres.")
 @click.option("--theta", "theta", required=True, type=float, help="Heading, radians.")
-@click.option("--visual", type=click.Path(path_type=Path), default=None,
-              help="The current view's features (.csv/.txt numbers, .npy or .npz); default: position only.")
-@click.option("--visual-scale", type=float, default=None,
-              help="Turn real-valued CNN features into counts: floor(max(f, 0) × scale) (the authors: 5).")
-@click.option("--image", type=click.Path(path_type=Path), default=None,
-              help="The current view as a camera image (PNG/JPEG, or a .npy array of pixels: see "
-                   "--encoding), for knowledge fitted on images.")
-@click.option("--encoding", type=click.Choice(_ENCODINGS), default=None,
-              help="The colour order of an --image .npy array: rgb8 (PIL, matplotlib, cv_bridge rgb8), "
-                   "bgr8 (OpenCV; the default), mono8, rgba8, bgra8.")
-@click.option("--onnx-model", "model_file", type=click.Path(path_type=Path), default=None,
-              help="Where the knowledge's .onnx model file is now (onnx extractor), if it moved.")
+@_view_options("The current view")
 @click.option("--top", default=3, show_default=True, type=click.IntRange(1, 100), help="Names to list.")
 @click.option("--unsure-below", default=None, type=click.FloatRange(0.0, 1.0),
               help="Say the robot is unsure when the best name's probability p is below this "
@@ -526,18 +552,7 @@ def _warn_if_knowledge_does_not_fit(home: Any) -> None:
 @click.option("--x", "x", type=float, default=None, help="New observation: x on the map, metres.")
 @click.option("--y", "y", type=float, default=None, help="New observation: y, metres.")
 @click.option("--theta", "theta", type=float, default=None, help="New observation: heading, radians.")
-@click.option("--visual", type=click.Path(path_type=Path), default=None,
-              help="New observation: the view's features (.csv/.txt numbers, .npy or .npz).")
-@click.option("--visual-scale", type=float, default=None,
-              help="Turn real-valued CNN features into counts: floor(max(f, 0) × scale).")
-@click.option("--image", type=click.Path(path_type=Path), default=None,
-              help="New observation: the view as a camera image (PNG/JPEG, or a .npy array of pixels: see "
-                   "--encoding), for knowledge fitted on images.")
-@click.option("--encoding", type=click.Choice(_ENCODINGS), default=None,
-              help="The colour order of an --image .npy array: rgb8, bgr8 (the default), mono8, rgba8, "
-                   "bgra8.")
-@click.option("--onnx-model", "model_file", type=click.Path(path_type=Path), default=None,
-              help="Where the knowledge's .onnx model file is now (onnx extractor), if it moved.")
+@_view_options("New observation: the view")
 @click.option("--sweeps", default=10, show_default=True, type=click.IntRange(0, 10000),
               help="Gibbs sweeps from the home's current state.")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(0), help="Random seed.")

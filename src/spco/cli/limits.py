@@ -7,28 +7,61 @@ from typing import Any
 
 import click
 
-__all__ = ["limits_from_options", "teaching_limit_options"]
+__all__ = ["LibraryDefault", "limits_from_options", "teaching_limit_options"]
+
+
+class LibraryDefault(click.Option):
+    """An option whose default is a constant of the library, read (importing its module) when the
+    command's help is shown or the command runs, not when the command is registered: registering
+    ``spco serve`` and ``spco ros`` imports neither :mod:`spco.knowledge` nor Numba.
+
+    ``library_default``: returns the default (called each time it is needed; the module is imported
+    once)."""
+
+    def __init__(self, *args: Any, library_default: Callable[[], Any], **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.library_default = library_default
+
+    def get_default(self, ctx: click.Context, call: bool = True) -> Any:
+        """The library's default (``ctx`` and ``call`` as :meth:`click.Option.get_default`'s)."""
+        return self.library_default()
+
+
+def _undo_limit() -> int:
+    from spco.service.teaching import DEFAULT_UNDO_LIMIT
+
+    return DEFAULT_UNDO_LIMIT
+
+
+def _limit(name: str) -> Callable[[], int | None]:
+    def default() -> int | None:
+        from spco.knowledge.limits import DEFAULT_LIMITS
+
+        return getattr(DEFAULT_LIMITS, name)
+
+    return default
 
 
 def teaching_limit_options(command: Callable[..., Any]) -> Callable[..., Any]:
-    """Add ``--undo-limit`` and the :class:`spco.knowledge.TeachingLimits` options to ``command``."""
-    from spco.knowledge.limits import DEFAULT_LIMITS
-    from spco.service.teaching import DEFAULT_UNDO_LIMIT
-
+    """Add ``--undo-limit`` and the :class:`spco.knowledge.TeachingLimits` options to ``command``
+    (their defaults the library's: :data:`spco.service.teaching.DEFAULT_UNDO_LIMIT`,
+    :data:`spco.knowledge.DEFAULT_LIMITS`)."""
     options = [
-        click.option("--undo-limit", default=DEFAULT_UNDO_LIMIT, show_default=True, type=click.IntRange(0),
+        click.option("--undo-limit", cls=LibraryDefault, library_default=_undo_limit, show_default=True,
+                     type=click.IntRange(0),
                      help="How many of the last teachings can be undone exactly (the home before them is "
                           "kept in HOME.undo)."),
-        click.option("--max-sentence-words", default=DEFAULT_LIMITS.max_sentence_words, show_default=True,
-                     type=click.IntRange(1), help="Words one taught sentence may have."),
-        click.option("--max-new-words", default=DEFAULT_LIMITS.max_new_words, show_default=True,
-                     type=click.IntRange(0), help="Words the home never heard that one teaching may bring."),
-        click.option("--max-home-words", default=DEFAULT_LIMITS.max_home_words, show_default=True,
-                     type=click.IntRange(0),
-                     help="Words of its own (beyond the knowledge's) the home may hold."),
-        click.option("--max-observations-per-minute", default=DEFAULT_LIMITS.max_observations_per_minute,
+        click.option("--max-sentence-words", cls=LibraryDefault, library_default=_limit("max_sentence_words"),
+                     show_default=True, type=click.IntRange(1), help="Words one taught sentence may have."),
+        click.option("--max-new-words", cls=LibraryDefault, library_default=_limit("max_new_words"),
                      show_default=True, type=click.IntRange(0),
-                     help="New observations (poses taught) the home takes a minute."),
+                     help="Words the home never heard that one teaching may bring."),
+        click.option("--max-home-words", cls=LibraryDefault, library_default=_limit("max_home_words"),
+                     show_default=True, type=click.IntRange(0),
+                     help="Words of its own (beyond the knowledge's) the home may hold."),
+        click.option("--max-observations-per-minute", cls=LibraryDefault,
+                     library_default=_limit("max_observations_per_minute"), show_default=True,
+                     type=click.IntRange(0), help="New observations (poses taught) the home takes a minute."),
     ]
     for option in reversed(options):
         command = option(command)

@@ -9,6 +9,7 @@ table of WordNet's 45 lexicographer files, lexnames(5WN)), which Debian's ``word
 
 from __future__ import annotations
 
+import gc
 import hashlib
 import os
 import shutil
@@ -82,6 +83,15 @@ def open_reader(root: Path) -> Any:
                 return (root / fileid).open(encoding=self._encoding)
             return super().open(fileid)
 
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # "the multilingual functions are not available"
-        return _Reader(str(root), None)
+    collecting = gc.isenabled()
+    # The reader's index is ~150,000 small dicts and lists made at once, in no reference cycle: every
+    # few hundred of them the cyclic garbage collector would run, and its full passes walk every object
+    # of the process (a server's or writer's NumPy, SciPy, Numba and home: 3-4 s there instead of 1).
+    gc.disable()
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # "the multilingual functions are not available"
+            return _Reader(str(root), None)
+    finally:
+        if collecting:
+            gc.enable()

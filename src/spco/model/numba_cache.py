@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import re
 import sys
 from pathlib import Path
 
@@ -33,16 +34,24 @@ COMPILE_SECONDS_ESTIMATE = 30
 _MODEL_DIR = Path(__file__).resolve().parent
 
 
+#: A compiled kernel's decorator at the start of a line (the kernels are ``@njit`` functions).
+_KERNEL_DECORATOR = re.compile(r"^[ \t]*@(?:numba\.)?n?jit\b", re.MULTILINE)
+
+
 def kernel_sources() -> list[Path]:
-    """The source files that hold compiled kernels."""
-    return sorted([*(_MODEL_DIR / "kernels").glob("*.py"), _MODEL_DIR / "moves.py"])
+    """The source files of the compiled kernels, sorted: every module of :mod:`spco.model` (any depth)
+    that defines an ``@njit`` kernel, found by reading the sources (no import), and every module of
+    :mod:`spco.model.kernels` (its ``dispatch`` decides how kernels are compiled)."""
+    found = {path for path in _MODEL_DIR.rglob("*.py")
+             if _KERNEL_DECORATOR.search(path.read_text(encoding="utf-8"))}
+    return sorted(found | set((_MODEL_DIR / "kernels").glob("*.py")))
 
 
 def source_digest() -> str:
     """A digest of the kernels' sources (16 hex digits)."""
     digest = hashlib.sha256()
     for path in kernel_sources():
-        digest.update(path.name.encode())
+        digest.update(path.relative_to(_MODEL_DIR).as_posix().encode())
         digest.update(path.read_bytes())
     return digest.hexdigest()[:16]
 

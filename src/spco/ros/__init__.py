@@ -62,6 +62,19 @@ class RosUnavailableError(SpcoError, ImportError):
     """rospy or a message package cannot be imported."""
 
 
+def _import_messages(modules: tuple[str, ...], ros: str, install: str) -> None:
+    """Import the message modules ``modules`` (``"std_msgs.msg"``, ...) of ``ros`` ("ROS", "ROS 2");
+    raise :class:`RosUnavailableError` naming the first missing package and how to install it
+    (``install`` followed by the package's name with dashes, e.g. ``std-msgs``)."""
+    for name in modules:
+        package = name.split(".")[0]
+        try:
+            importlib.import_module(name)
+        except ImportError as exc:
+            raise RosUnavailableError(f"the {ros} message package {package} is missing ({exc}); "
+                                      f"{install}{package.replace('_', '-')}") from None
+
+
 def import_rospy() -> ModuleType:
     """Import rospy and the message packages the node uses; return the ``rospy`` module.
 
@@ -88,13 +101,7 @@ def import_rospy() -> ModuleType:
                 f"rospy is not installed ({exc}); on Debian 12: sudo apt-get install "
                 f"{' '.join(DEBIAN_PACKAGES)} (or point SPCO_ROS_PYTHONPATH at a ROS installation's "
                 "lib/python3/dist-packages)") from None
-    for name in _MESSAGE_MODULES:
-        try:
-            importlib.import_module(name)
-        except ImportError as exc:
-            package = "python3-" + name.split(".")[0].replace("_", "-")
-            raise RosUnavailableError(f"the ROS message package {name.split('.')[0]} is missing ({exc}); "
-                                      f"on Debian 12: sudo apt-get install {package}") from None
+    _import_messages(_MESSAGE_MODULES, "ROS", "on Debian 12: sudo apt-get install python3-")
     return rospy
 
 
@@ -116,11 +123,5 @@ def import_rclpy() -> ModuleType:
             "Python 3.12, so run spco from a Python 3.12 environment made with --system-site-packages); "
             "on Humble (Python 3.10) give spco ros2 --ros-python /usr/bin/python3 to run the ROS 2 side "
             "with the robot's Python (docs/ros.md)") from None
-    for name in ROS2_MESSAGE_MODULES:
-        try:
-            importlib.import_module(name)
-        except ImportError as exc:
-            package = "ros-<distro>-" + name.split(".")[0].replace("_", "-")
-            raise RosUnavailableError(f"the ROS 2 message package {name.split('.')[0]} is missing ({exc}); "
-                                      f"install {package}") from None
+    _import_messages(ROS2_MESSAGE_MODULES, "ROS 2", "install ros-<distro>-")
     return rclpy

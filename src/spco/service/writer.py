@@ -170,12 +170,12 @@ class HomeWriter:
         self._warm_up()
 
     def _warm_up(self) -> None:
-        """Run throw-away teachings of every kind before the home is said to be ready, so that the
-        first real one does not wait for the sampler's compiled kernels to load or for anything a
-        teaching needs first (a word never heard, a new observation with and without a view, the
-        image extractor, an undo's rebuild, the snapshot's parameters), and load WordNet (a word
-        that the lexicon's facts files lack is looked up in it: seconds to load): the first teaching
-        after start takes as long as any other (``benchmarks/first_teaching.py``)."""
+        """Run one throw-away teaching holding every kind (a sentence with a word never heard, new
+        observations with and without a view) before the home is said to be ready, so that the first
+        real one does not wait for the sampler's compiled kernels to load or for anything a teaching
+        needs first (the image extractor, the snapshot's parameters), and load WordNet (a word that the
+        lexicon's facts files lack is looked up in it: seconds to load): the first teaching after start
+        takes as long as any other (``benchmarks/first_teaching.py``)."""
         home = self.home
         with contextlib.suppress(SpcoError), warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -188,9 +188,9 @@ class HomeWriter:
             if not home.view_missing[0] and home.knowledge.n_features:
                 observations.append(kn.Observation(x=x, y=y, theta=theta, visual=home.visual[[0]],
                                                    sentence=f"the {word} room"))
-            taught = kn.teach(home, {int(home.ids[0]): f"this is the {word}"}, n_sweeps=self.sweeps,
-                              random_state=0)
-            taught = kn.teach(taught, observations=observations, n_sweeps=self.sweeps, random_state=1)
+            # one teaching of every kind at once, as a batch of teachings is taught (``teach_batch``)
+            taught = kn.teach(home, {int(home.ids[0]): f"this is the {word}"}, observations=observations,
+                              n_sweeps=self.sweeps, random_state=0)
             if home.knowledge.fitted_on_images:  # the extractor built and run once (teach_batch keeps it)
                 self._image_extractor().extract(np.zeros((48, 64, 3), dtype=np.uint8), "bgr8")
             _ = replace(taught, state=replace(taught.state, visual_cache=None)).parameters
