@@ -305,25 +305,17 @@ class TransferHyperparameters:
     place_channel: the place channel ψ of the word channels (:data:`PLACE_CHANNELS`): ``"shared"``
         (default) — one ψ_l ~ Dir(α^p) per concept, the same in every home; ``"home"`` — a home level,
         ψ_{e,l} ~ Dir(δ^p ψ_l), so that one home's objects and its people's object words do not make
-        a concept of their own (:mod:`spco.model.home_place`; opt-in, benchmarks/README.md, branch
-        psi16: it halves the views answered with an object word, but as the default it did not raise
-        development natural speech's mean A_n beyond noise, +0.006 ± 0.010 over 20 fresh seeds,
-        branch psidef18). Written by :meth:`to_dict` only when not ``"shared"``.
+        a concept of their own (:mod:`spco.model.home_place`; opt-in, benchmarks/README.md, branches
+        psi16, psidef18). Written by :meth:`to_dict` only when not ``"shared"``.
     delta_place: δ^p, the concentration of ψ_{e,l} around ψ_l, in place tokens (each token once, as
         ψ learns; default :data:`DELTA_PLACE`). Used with ``place_channel="home"``; written by
         :meth:`to_dict` only when not the default or with ``place_channel="home"``.
-    name_answer: which name the robot answers with the naming rule's pruning or the word channels
-        (:data:`NAME_ANSWERS`): ``"said"`` (default) — the name people say most at the observation,
-        p(w | x, v); ``"listener"`` — a pragmatic speaker's, Σ_l P(l | x, v) θ^w_{e,l,w} L(l | w) with the
-        listener L(l | w) ∝ G_0,l θ^w_{e,l,w}, so a name said here that is mostly another concept's
-        ("kitchen" said at the washroom) comes behind a name of this concept's own (opt-in,
-        benchmarks/README.md, branch classc18); ``"looks"`` — the same speaker with a listener that takes
-        concepts that look alike as one referent, Σ_l' s(l, l') L(l' | w) with s(l, l') the
-        Bhattacharyya coefficient of φ^v_l and φ^v_l' to the power of the view weight
-        (:func:`spco.model.prediction.looks_kernel`: a name shared by concepts of one kind of place,
-        "bedroom", is not taken as another concept's; opt-in, branch natural22). Read by the answers
-        only, not by the fit. Written by
-        :meth:`to_dict` only when not ``"said"``.
+    name_answer: which name the robot answers (:data:`NAME_ANSWERS`): ``"said"`` (default) — the name
+        people say most at the observation, p(w | x, v); ``"listener"`` — a pragmatic speaker's, whose
+        listener L(l | w) ∝ G_0,l θ^w_{e,l,w} puts a name mostly said at another concept behind this one's
+        (opt-in, branch classc18); ``"looks"`` — the same with concepts that look alike taken as one
+        referent (:func:`spco.model.prediction.looks_kernel`; opt-in, branch natural22). Read by the
+        answers only (docs/model.md). Written by :meth:`to_dict` only when not ``"said"``.
     view_in_room, typical: the answer's opt-ins (:mod:`spco.model.answer_settings`, read by the answers
         only, :meth:`answer_settings`; docs/model.md, "The answer's settings are the model's"):
         ``view_in_room`` (default ``False``) the observation's view as a draw of its room; ``typical``
