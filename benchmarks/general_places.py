@@ -149,8 +149,8 @@ def run(sigverse: Path, regions_file: Path, side: str, seeds: list[int], sweeps:
                 elif answer == "view_in_room":  # the room account, the view as a draw of its room
                     answered = evaluate_answers(model, e, env, rng=np.random.default_rng([run_seed, 1]),
                                                 settings=AnswerSettings(view_in_room=True))
-                elif answer == "listener":  # the robot's answer with name_answer="listener", same fit
-                    answered = _listener_answers(model, e, env, np.random.default_rng([run_seed, 1]))
+                elif answer in ("listener", "looks"):  # the robot's answer with name_answer=answer, same fit
+                    answered = _listener_answers(model, e, env, np.random.default_rng([run_seed, 1]), answer)
                 else:
                     answered = evaluate_home(model.parameters_, e, env, model.vocabulary_,
                                              rng=np.random.default_rng([run_seed, 1]),
@@ -169,11 +169,12 @@ def run(sigverse: Path, regions_file: Path, side: str, seeds: list[int], sweeps:
     return summarise(side, seeds, sweeps, [h.name for h in homes], runs, answers, settings)
 
 
-def _listener_answers(model: Any, e: int, env: Environment, rng: np.random.Generator) -> Any:
-    """``evaluate_answers`` of ``model`` answering with ``name_answer="listener"`` (the fit does not read
-    it: the same fit, its hyperparameters restored after)."""
+def _listener_answers(model: Any, e: int, env: Environment, rng: np.random.Generator,
+                      name_answer: str = "listener") -> Any:
+    """``evaluate_answers`` of ``model`` answering with ``name_answer`` (``"listener"`` or ``"looks"``;
+    the fit does not read it: the same fit, its hyperparameters restored after)."""
     fitted = model.hyperparameters_
-    model.hyperparameters_ = replace(fitted, name_answer="listener")
+    model.hyperparameters_ = replace(fitted, name_answer=name_answer)
     model.__dict__.pop("_answers", None)
     try:
         return evaluate_answers(model, e, env, rng=rng)
@@ -226,7 +227,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--answers", default="", help="also score answers from the same fits: view (view by "
                         "view), rooms (the room account, the robot's answer), view_in_room (rooms with "
                         "the view as a draw of its room, opt-in), listener (rooms with "
-                        "name_answer=listener), comma-separated")
+                        "name_answer=listener), looks (rooms with name_answer=looks), comma-separated")
     parser.add_argument("--set", dest="settings", action="append", default=[], metavar="NAME=VALUE",
                         help="a hyperparameter of the fits, as `spco fit --set` (repeatable; e.g. "
                         "--set target=power --set visual_prior=estimate); default: the model's own")
@@ -236,8 +237,9 @@ def main(argv: list[str] | None = None) -> int:
     except (ConfigurationError, ValueError) as err:
         parser.error(f"--set: {err}")
     answers = tuple(a for a in args.answers.split(",") if a)
-    if set(answers) - {"view", "rooms", "view_in_room", "listener"}:
-        parser.error(f"--answers: choose from view, rooms, view_in_room, listener, got {args.answers!r}")
+    if set(answers) - {"view", "rooms", "view_in_room", "listener", "looks"}:
+        parser.error(f"--answers: choose from view, rooms, view_in_room, listener, looks, "
+                     f"got {args.answers!r}")
     refuse_other_seeds(parser, args.seeds, args.side)
     if len(set(args.seeds)) != len(args.seeds):
         parser.error("--seeds: each seed once")

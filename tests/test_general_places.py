@@ -63,11 +63,11 @@ def test_the_command_line_knows_the_view_in_room_answer(tmp_path: Path,
     """``--answers view_in_room`` is accepted (the run stops at the missing data set, after the answers
     are checked); an unknown answer is refused naming ``--answers`` and the choices."""
     with pytest.raises(SystemExit) as exit_info:
-        main(["--sigverse", str(tmp_path), "--seeds", "0", "--answers", "rooms,view_in_room"])
+        main(["--sigverse", str(tmp_path), "--seeds", "0", "--answers", "rooms,view_in_room,looks"])
     assert exit_info.value.code == 2
     err = capsys.readouterr().err
     assert "error: --sigverse" in err and "error: --answers" not in err
     with pytest.raises(SystemExit) as exit_info:
         main(["--sigverse", str(tmp_path), "--seeds", "0", "--answers", "rooms,in_room"])
     assert exit_info.value.code == 2
-    assert "--answers: choose from view, rooms, view_in_room, listener" in capsys.readouterr().err
+    assert "--answers: choose from view, rooms, view_in_room, listener, looks" in capsys.readouterr().err

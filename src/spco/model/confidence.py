@@ -303,14 +303,15 @@ def answer_weighting(variant: str, prune_words: bool, name_answer: str = "said")
     """The name weighting of a model's answers: the authors' KL score for the reference sampler;
     none with the naming rule (exact sampler with pruning: only names are kept, and the name people
     say most at a place comes first — the MI weight would put a name taught once behind names of
-    the places around), or the pragmatic speaker's ``"listener"`` with ``name_answer="listener"``
+    the places around), or the pragmatic speaker's ``"listener"`` with ``name_answer="listener"`` (and
+    ``"looks"``, its listener taking concepts that look alike as one referent, with ``name_answer="looks"``)
     (:attr:`~spco.model.hyperparameters.TransferHyperparameters.name_answer`); MI without pruning (it
     keeps "this" and "is" from being answered)."""
     if variant == "reference":
         return "reference"
     if not prune_words:
         return "mi"
-    return "listener" if name_answer == "listener" else "none"
+    return name_answer if name_answer in ("listener", "looks") else "none"
 
 
 def model_answer_parameters(model: object, e: int, place_names: bool = True) -> ConceptParameters:

@@ -63,9 +63,11 @@ DELTA_PLACE = 10.0
 
 #: Which name the robot answers at an observation (``TransferHyperparameters.name_answer``): ``"said"`` —
 #: the name people say most there, p(w | x, v); ``"listener"`` — the name a listener would take to mean
-#: the concept it is in (:func:`spco.model.prediction.listener_weights`; opt-in, issue 28 class b).
-NAME_ANSWERS = ("said", "listener")
-NameAnswer = Literal["said", "listener"]
+#: the concept it is in (:func:`spco.model.prediction.listener_weights`; opt-in, issue 28 class b);
+#: ``"looks"`` — the same, with a listener that takes concepts that look alike as one referent
+#: (:func:`spco.model.prediction.looks_kernel`; opt-in, branch natural22).
+NAME_ANSWERS = ("said", "listener", "looks")
+NameAnswer = Literal["said", "listener", "looks"]
 
 #: Where the exact sampler's δ^v and α^v come from (``TransferHyperparameters.visual_prior``): as given,
 #: or estimated from the homes' views after the start (:mod:`spco.model.visual_prior`).
@@ -315,7 +317,12 @@ class TransferHyperparameters:
         p(w | x, v); ``"listener"`` — a pragmatic speaker's, Σ_l P(l | x, v) θ^w_{e,l,w} L(l | w) with the
         listener L(l | w) ∝ G_0,l θ^w_{e,l,w}, so a name said here that is mostly another concept's
         ("kitchen" said at the washroom) comes behind a name of this concept's own (opt-in,
-        benchmarks/README.md, branch classc18). Read by the answers only, not by the fit. Written by
+        benchmarks/README.md, branch classc18); ``"looks"`` — the same speaker with a listener that takes
+        concepts that look alike as one referent, Σ_l' s(l, l') L(l' | w) with s(l, l') the
+        Bhattacharyya coefficient of φ^v_l and φ^v_l' to the power of the view weight
+        (:func:`spco.model.prediction.looks_kernel`: a name shared by concepts of one kind of place,
+        "bedroom", is not taken as another concept's; opt-in, branch natural22). Read by the answers
+        only, not by the fit. Written by
         :meth:`to_dict` only when not ``"said"``.
     view_in_room, typical: the answer's opt-ins (:mod:`spco.model.answer_settings`, read by the answers
         only, :meth:`answer_settings`; docs/model.md, "The answer's settings are the model's"):
@@ -633,7 +640,7 @@ SETTABLE: dict[str, str] = {
     "target": "one of cut, power", "visual_prior": "one of given, estimate",
     "word_prior": "one of given, estimate", "warm_start": "one of names, words, things",
     "place_channel": "one of shared, home", "delta_place": "a number",
-    "name_answer": "one of said, listener", "view_in_room": "true or false",
+    "name_answer": "one of said, listener, looks", "view_in_room": "true or false",
     "typical": "off, a number within (0, 1] or learn", "phi_every": "integer", "phi_until": "integer or none",
     "cut_start": "integer", "phi_passes": "integer",
 }

@@ -63,6 +63,7 @@ __all__ = [
     "gaussian_log_density",
     "kl_scores_reference",
     "listener_weights",
+    "looks_kernel",
     "mutual_information_weights",
     "predict_names",
     "reference_kl_weights",
@@ -71,7 +72,7 @@ __all__ = [
     "word_posterior",
 ]
 
-Weighting = Literal["mi", "none", "reference", "listener"]
+Weighting = Literal["mi", "none", "reference", "listener", "looks"]
 
 _TINY = np.finfo(np.float64).tiny
 _LOG_FLOOR = float(np.log(_TINY))  # ≈ -708.4: the log of "zero", finite on purpose
@@ -432,6 +433,28 @@ def listener_weights(theta_w: np.ndarray, concept_weights: np.ndarray) -> np.nda
     return out
 
 
+def looks_kernel(shared_visual: np.ndarray, view_counts: float | None) -> np.ndarray:
+    """(L, L) s(l, l') = BC(φ^v_l, φ^v_l')^n: how alike two concepts look, the Bhattacharyya coefficient
+    BC = Σ_d sqrt(φ^v_{l,d} φ^v_{l',d}) of their views' distributions (``shared_visual`` (L, D) φ^v,
+    rows summing to 1) raised to n = ``view_counts``, the evidence of one view in counts (``None``: 1),
+    so s is the coefficient of two views of n draws each (1 on the diagonal, in (0, 1] elsewhere,
+    symmetric), in log space. The listener of ``weighting="looks"`` (:func:`predict_names`) takes two
+    concepts that look alike as one referent:
+    S(w | x, v) ∝ Σ_l P(l | x, v) θ^w_{l,w} Σ_l' s(l, l') L(l' | w)."""
+    phi = np.asarray(shared_visual, dtype=np.float64)
+    if phi.ndim != 2:
+        raise ConfigurationError(f"shared_visual must be (L, D), got shape {phi.shape}")
+    n = 1.0 if view_counts is None else float(view_counts)
+    if not (np.isfinite(n) and n > 0):
+        raise ConfigurationError(f"view_counts must be a positive number or None, got {view_counts!r}")
+    with np.errstate(divide="ignore"):
+        half = 0.5 * np.log(np.clip(phi, 0.0, None))
+    log_bc = logsumexp(half[:, None, :] + half[None, :, :], axis=-1)  # (L, L)
+    log_bc = np.minimum(log_bc, 0.0)  # rounding: BC ≤ 1
+    np.fill_diagonal(log_bc, 0.0)
+    return np.exp(n * log_bc)
+
+
 def _words_from_concepts(concepts: np.ndarray, theta_w: np.ndarray) -> np.ndarray:
     probs = concepts @ theta_w  # (n, V)
     total = probs.sum(axis=1, keepdims=True)
@@ -572,6 +595,9 @@ def predict_names(
     weighting: ``"mi"`` — p(w|x,v)·I(w) (the paper); ``"none"`` — p(w|x,v); ``"listener"`` — the
         pragmatic speaker Σ_l P(l|x,v) θ^w_{e,l,w} L(l|w), L(l|w) ∝ G_0,l θ^w_{e,l,w}
         (:func:`listener_weights`: a name said here that mostly means another concept ranks lower);
+        ``"looks"`` — the same speaker with a listener that takes concepts that look alike as one
+        referent, Σ_l P(l|x,v) θ^w_{e,l,w} Σ_l' s(l, l') L(l'|w) (:func:`looks_kernel`, with
+        ``view_counts``);
         ``"reference"`` — the authors' KL-weighted score (:func:`kl_scores_reference`), with the
         concept posterior over used regions only.
     use_position, use_vision: drop a modality.
@@ -595,8 +621,8 @@ def predict_names(
     """
     if top_k < 1:
         raise ConfigurationError(f"top_k must be >= 1, got {top_k}")
-    if weighting not in ("mi", "none", "reference", "listener"):
-        raise ConfigurationError(f"weighting must be 'mi', 'none', 'reference' or 'listener', "
+    if weighting not in ("mi", "none", "reference", "listener", "looks"):
+        raise ConfigurationError(f"weighting must be 'mi', 'none', 'reference', 'listener' or 'looks', "
                                  f"got {weighting!r}")
     if name_prior not in NAME_PRIORS:
         raise ConfigurationError(f"name_prior must be one of {', '.join(map(repr, NAME_PRIORS))}, "
@@ -622,6 +648,9 @@ def predict_names(
         scores = probs.copy()
     elif weighting == "listener":
         scores = concepts @ (theta_w * listener_weights(theta_w, params.global_concept_weights))
+    elif weighting == "looks":
+        kernel = looks_kernel(params.shared_visual_probabilities, view_counts)
+        scores = concepts @ (theta_w * (kernel @ listener_weights(theta_w, params.global_concept_weights)))
     else:
         scores = concepts @ (theta_w * reference_kl_weights(params, e))
     mask = np.asarray(params.word_mask, dtype=bool)

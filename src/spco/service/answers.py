@@ -21,6 +21,9 @@ RANKED_BY = {"mi": "p(name | pose, view) × I(name), I = the name's mutual infor
              "none": "p(name | pose, view)",
              "listener": "Σ_l p(l | pose, view) θ^w_l(name) L(l | name), L(l | name) ∝ G_0,l θ^w_l(name): "
                          "the name a listener takes to mean the place's concept",
+             "looks": "Σ_l p(l | pose, view) θ^w_l(name) Σ_l' s(l, l') L(l' | name), s(l, l') how alike "
+                      "the concepts look (the Bhattacharyya coefficient of their views to the view "
+                      "weight's power)",
              "reference": "the authors' score Σ_l p(l | pose, view) θ^w_l(name) KL_l(name)"}
 
 #: χ² quantile of 95 % in two dimensions: the regions' ellipses hold 95 % of their Gaussian.
