@@ -39,6 +39,7 @@ import time
 import zlib
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -210,8 +211,12 @@ def cc4f_answers(folder: Path) -> tuple[np.ndarray, list[set[str]]]:
 
 
 def cc4f_scores(env: Environment, places: np.ndarray, names: list[set[str]], fold: int, seed: int,
-                iterations: int, said: set[str]) -> tuple[float, float]:
-    """A_n and A_p of one fold (test samples: every 5th sample of each place, from ``fold``)."""
+                iterations: int, said: set[str], hyper: Any = None,
+                model_answer: bool = False) -> tuple[float, float]:
+    """A_n and A_p of one fold (test samples: every 5th sample of each place, from ``fold``).
+    ``hyper``: the fit's transfer hyperparameters (default the model's own); ``model_answer``: names
+    with the model's own weighting (:meth:`~spco.model.transfer.SpatialConceptModel.name_weighting`,
+    e.g. ``name_answer=looks``) instead of :func:`~spco.model.prediction.predict_names`' default MI."""
     from spco.data.environment import Corpus
     from spco.model.position_prediction import predict_positions
     from spco.model.prediction import UnknownNameError, predict_names
@@ -224,11 +229,14 @@ def cc4f_scores(env: Environment, places: np.ndarray, names: list[set[str]], fol
     is_test = rank % 5 == fold
     home = replace(env, is_test=is_test).without_test_sentences()
     corpus = Corpus([home])
-    model = SpCoTransfer(prune_words=True, n_iterations=iterations, random_state=seed,
+    model = SpCoTransfer(hyper, prune_words=True, n_iterations=iterations, random_state=seed,
                          record_log_joint=False).fit(corpus)
     params, vocabulary = model.parameters_, corpus.vocabulary
     rows = np.flatnonzero(is_test)
-    predicted = predict_names(params, 0, vocabulary, home.positions[rows], home.visual[rows], top_k=1).best
+    weighting = ({"weighting": model.name_weighting(), "view_counts": model.settings_.view_counts}
+                 if model_answer else {})
+    predicted = predict_names(params, 0, vocabulary, home.positions[rows], home.visual[rows], top_k=1,
+                              **weighting).best
     right: dict[int, list[bool]] = {}
     for row, word in zip(rows, predicted, strict=True):
         right.setdefault(int(places[row]), []).append(word is not None and normalize_name(word)
@@ -259,7 +267,8 @@ def run_cc4f(args: argparse.Namespace) -> None:
         a_n, a_p = [], []
         for trial in range(args.trials):
             for fold in range(5):
-                n, p = cc4f_scores(env, places, names, fold, args.seed + trial, args.iterations, said)
+                n, p = cc4f_scores(env, places, names, fold, args.seed + trial, args.iterations, said,
+                                   args.hyper, args.model_answer)
                 a_n.append(n)
                 a_p.append(p)
         from spco.data.language import Vocabulary
@@ -313,7 +322,19 @@ def main() -> None:
     cc.add_argument("--trials", type=int, default=4)
     cc.add_argument("--iterations", type=int, default=200)
     cc.add_argument("--seed", type=int, default=0)
+    cc.add_argument("--set", nargs="+", action="extend", default=[], metavar="NAME=VALUE",
+                    help="transfer hyperparameters of the fit (as spco fit --set), e.g. place_channel=home")
+    cc.add_argument("--model-answer", action="store_true",
+                    help="names with the model's own weighting (e.g. name_answer=looks) instead of MI")
     args = parser.parse_args()
+    if args.which == "cc4f":
+        from spco.errors import ConfigurationError
+        from spco.model.hyperparameters import TransferHyperparameters
+
+        try:
+            args.hyper = TransferHyperparameters().with_settings(list(args.set)) if args.set else None
+        except ConfigurationError as exc:
+            parser.error(f"--set: {exc}")
     (run_sigverse if args.which == "sigverse" else run_cc4f)(args)
 
 

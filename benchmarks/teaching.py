@@ -71,12 +71,14 @@ NEW_WORDS = (
 
 def synthetic_home(seed: int = 3, psi0_xy: float | None = None,
                    prior: str = "places", nu0: float | None = None,
-                   n_regions: int | None = None) -> tuple[kn.HomeModel, Environment]:
+                   n_regions: int | None = None,
+                   settings: tuple[str, ...] = ()) -> tuple[kn.HomeModel, Environment]:
     """A synthetic new home adapted from 6 experienced synthetic homes, and its environment.
     ``psi0_xy``: Ψ0's x and y entries in m² (an experiment with the position prior; default the
     knowledge's own); ``prior``: ``fit_knowledge``'s (``"places"``: Ψ0 from the homes' places);
     ``nu0``: an experiment with the prior's weight ν0 (the scaled priors keep E[Σ] and scale Ψ0);
-    ``n_regions``: an experiment with the truncation L of the regions."""
+    ``n_regions``: an experiment with the truncation L of the regions; ``settings``: ``NAME=VALUE``
+    transfer hyperparameters (as ``spco fit --set``) over the knowledge's own."""
     from dataclasses import replace
 
     from spco.data.synthetic import generate_homes
@@ -103,6 +105,11 @@ def synthetic_home(seed: int = 3, psi0_xy: float | None = None,
 
         base = default_hyperparameters(Corpus(envs[:6]), psi0=prior == "places") if hyper is None else hyper
         hyper = replace(base, n_regions=n_regions)
+    if settings:
+        from spco.knowledge.fit import default_hyperparameters
+
+        base = default_hyperparameters(Corpus(envs[:6]), psi0=prior == "places") if hyper is None else hyper
+        hyper = base.with_settings(list(settings))
     knowledge = kn.fit_knowledge(Corpus(envs[:6]), n_iterations=30, random_state=0, hyperparameters=hyper,
                                  prior=prior)
     with warnings.catch_warnings():
@@ -461,6 +468,17 @@ def summarise(results: list[dict[str, Any]]) -> dict[str, Any]:
     }
 
 
+def _check_settings(parser: argparse.ArgumentParser, settings: list[str]) -> None:
+    """``parser.error`` naming ``--set`` when ``settings`` are not transfer hyperparameters."""
+    from spco.errors import ConfigurationError
+    from spco.model.hyperparameters import TransferHyperparameters
+
+    try:
+        TransferHyperparameters().with_settings(list(settings))
+    except ConfigurationError as exc:
+        parser.error(f"--set: {exc}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -495,12 +513,17 @@ def main() -> None:
                         help="an experiment: the synthetic knowledge fitted with this ν0 (E[Σ] kept)")
     parser.add_argument("--n-regions", type=int, default=None,
                         help="an experiment: the synthetic knowledge fitted with this truncation L (regions)")
+    parser.add_argument("--set", nargs="+", action="extend", default=[], metavar="NAME=VALUE",
+                        help="an experiment: the synthetic knowledge fitted (and its homes answering) with "
+                             "these transfer hyperparameters, as spco fit --set, e.g. name_answer=looks")
     parser.add_argument("--json", type=Path, default=None)
     args = parser.parse_args()
+    _check_settings(parser, args.set)
     homes: list[tuple[str, kn.HomeModel, Environment]] = []
     if not args.no_synthetic:
         for seed in args.home_seed:
-            home, env = synthetic_home(seed, args.psi0_xy, args.prior, args.nu0, args.n_regions)
+            home, env = synthetic_home(seed, args.psi0_xy, args.prior, args.nu0, args.n_regions,
+                                       tuple(args.set))
             homes.append(("synthetic" if seed == 3 else f"synthetic (seed {seed})", home, env))
     for path in args.sigverse_home:
         home = kn.load_home_model(path)

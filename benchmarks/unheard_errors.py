@@ -66,11 +66,19 @@ DEV = Path(__file__).resolve().parent / "development"
 CLASSES = ("right", "refused", "words", "other place", "misplaced")
 
 
+def cache_path(args: argparse.Namespace, speech_path: Path, seed: int, home: str) -> Path:
+    """The cache file of a fit: keyed by the speech file's content, ``--set`` (only when given: the
+    default's key is unchanged), the home, the seed and the sweeps."""
+    key = hashlib.sha256(speech_path.read_bytes()).hexdigest()[:16]
+    if args.set:  # a fit with other hyperparameters is another fit
+        key += "-" + hashlib.sha256(" ".join(sorted(args.set)).encode()).hexdigest()[:8]
+    return args.cache / f"{key}-{home}-s{seed}-w{args.sweeps}.pkl"
+
+
 def fitted(args: argparse.Namespace, speech_path: Path, seed: int, home: str, index: int,
            accepted: dict[str, tuple[str, ...]]) -> tuple[object, int, object, object]:
     """(parameters, home index, vocabulary, new home) of the fit, from the cache when there."""
-    key = hashlib.sha256(speech_path.read_bytes()).hexdigest()[:16]
-    path = args.cache / f"{key}-{home}-s{seed}-w{args.sweeps}.pkl"
+    path = cache_path(args, speech_path, seed, home)
     env = new_home(args.sigverse, args.sigverse.parent / "sigverse_regions.json", home, accepted)
     if path.exists() and not args.refit:
         with open(path, "rb") as fh:
@@ -79,7 +87,7 @@ def fitted(args: argparse.Namespace, speech_path: Path, seed: int, home: str, in
     experienced = taught_homes(args.sigverse, read_speech(speech_path), seed)
     corpus = Corpus([*experienced, env])
     started = time.process_time()
-    model = SpCoTransfer(None, variant="exact", prune_words=True, n_iterations=args.sweeps,
+    model = SpCoTransfer(args.hyper, variant="exact", prune_words=True, n_iterations=args.sweeps,
                          random_state=trial_seed(seed, index)).fit(corpus)
     print(f"fitted seed {seed} {home}: {time.process_time() - started:.0f} s CPU", flush=True)
     e = len(corpus) - 1
@@ -157,7 +165,17 @@ def _arguments() -> argparse.Namespace:
     parser.add_argument("--json", type=Path, default=None)
     parser.add_argument("--own-names", action="store_true",
                         help="for each failed query, also ask where the place's own names are")
+    parser.add_argument("--set", nargs="+", action="extend", default=[], metavar="NAME=VALUE",
+                        help="transfer hyperparameters of the fit (as spco fit --set), e.g. "
+                             "place_channel=home")
     args = parser.parse_args()
+    from spco.errors import ConfigurationError
+    from spco.model.hyperparameters import TransferHyperparameters
+
+    try:
+        args.hyper = TransferHyperparameters().with_settings(list(args.set)) if args.set else None
+    except ConfigurationError as exc:
+        parser.error(f"--set: {exc}")
     refuse_other_seeds(parser, args.seeds)
     if "heldout" in str(args.speech) + str(args.unheard):
         parser.error("development only: development sets, not held-out ones (benchmarks/SPLIT.md)")
