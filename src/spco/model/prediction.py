@@ -437,9 +437,9 @@ def looks_kernel(shared_visual: np.ndarray, view_counts: float | None) -> np.nda
     """(L, L) s(l, l') = BC(φ^v_l, φ^v_l')^n: how alike two concepts look, the Bhattacharyya coefficient
     BC = Σ_d sqrt(φ^v_{l,d} φ^v_{l',d}) of their views' distributions (``shared_visual`` (L, D) φ^v,
     rows summing to 1) raised to n = ``view_counts``, the evidence of one view in counts (``None``: 1),
-    so s is the coefficient of two views of n draws each (1 on the diagonal, in (0, 1] elsewhere,
-    symmetric), in log space. The listener of ``weighting="looks"`` (:func:`predict_names`) takes two
-    concepts that look alike as one referent:
+    so s is the coefficient of two views of n draws each (1 on the diagonal, in [0, 1] elsewhere,
+    symmetric; the power taken in log space). The listener of ``weighting="looks"``
+    (:func:`predict_names`) takes two concepts that look alike as one referent:
     S(w | x, v) ∝ Σ_l P(l | x, v) θ^w_{l,w} Σ_l' s(l, l') L(l' | w)."""
     phi = np.asarray(shared_visual, dtype=np.float64)
     if phi.ndim != 2:
@@ -447,12 +447,12 @@ def looks_kernel(shared_visual: np.ndarray, view_counts: float | None) -> np.nda
     n = 1.0 if view_counts is None else float(view_counts)
     if not (np.isfinite(n) and n > 0):
         raise ConfigurationError(f"view_counts must be a positive number or None, got {view_counts!r}")
+    root = np.sqrt(np.clip(phi, 0.0, None))
+    bc = root @ root.T  # (L, L): sums of products ≥ 0, no cancellation; O(L² D) time, O(L²) memory
     with np.errstate(divide="ignore"):
-        half = 0.5 * np.log(np.clip(phi, 0.0, None))
-    log_bc = logsumexp(half[:, None, :] + half[None, :, :], axis=-1)  # (L, L)
-    log_bc = np.minimum(log_bc, 0.0)  # rounding: BC ≤ 1
+        log_bc = np.minimum(np.log(bc), 0.0)  # rounding: BC ≤ 1; a coefficient of 0 stays 0 (log −∞)
     np.fill_diagonal(log_bc, 0.0)
-    return np.exp(n * log_bc)
+    return np.exp(n * log_bc)  # the power in log space: BC^n underflows to 0, never overflows
 
 
 def _words_from_concepts(concepts: np.ndarray, theta_w: np.ndarray) -> np.ndarray:
