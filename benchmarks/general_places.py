@@ -148,7 +148,7 @@ def run(sigverse: Path, regions_file: Path, side: str, seeds: list[int], sweeps:
                     answered = evaluate_answers(model, e, env, rng=np.random.default_rng([run_seed, 1]))
                 elif answer == "view_in_room":  # the room account, the view as a draw of its room
                     answered = evaluate_answers(model, e, env, rng=np.random.default_rng([run_seed, 1]),
-                                               settings=AnswerSettings(view_in_room=True))
+                                                settings=AnswerSettings(view_in_room=True))
                 elif answer in ("listener", "looks"):  # the robot's answer with name_answer=answer, same fit
                     answered = _listener_answers(model, e, env, np.random.default_rng([run_seed, 1]), answer)
                 else:
