@@ -8,7 +8,7 @@ knowledge is fitted. A default knowledge and home file are the bytes main gave."
 from __future__ import annotations
 
 import dataclasses
-import hashlib
+import importlib.util
 import json
 import math
 from pathlib import Path
@@ -33,21 +33,15 @@ from spco.model.transfer import SpCoTransfer
 #: knowledge and home files of the ``cli`` fixture, made with main 08373cf's ``src`` (the fixture's
 #: commands run by /work/out/onepred22/pin.py of branch onepred22): the defaults stay byte-identical
 PINNED = {"knowledge": "65c992cf1dab158e/b6b55e8004d8e56d", "home": "46bf8d294551fce8/807a3b40140236f9"}
-_VOLATILE = ("created", "updated", "checksum", "array_checksums", "provenance", "knowledge_provenance",
-             "spco_version")
+_TOOL = Path(__file__).resolve().parents[1] / "tools" / "state_digests.py"
 
 
 def _file_digest(path: Path) -> str:
-    with np.load(path) as f:
-        arrays = {k: f[k] for k in f.files if k != "header"}
-        header = json.loads(bytes(f["header"]).decode())
-    for k in _VOLATILE:
-        header.pop(k, None)
-    d = hashlib.sha256()
-    for k in sorted(arrays):
-        d.update(np.ascontiguousarray(arrays[k]).tobytes())
-    text = hashlib.sha256(json.dumps(header, sort_keys=True).encode()).hexdigest()[:16]
-    return f"{d.hexdigest()[:16]}/{text}"
+    """The file digest of ``tools/state_digests.py`` (one definition) without its ``/v<version>``."""
+    spec = importlib.util.spec_from_file_location("_state_digests", _TOOL)
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    return tool.file_digest(path).rsplit("/v", 1)[0]
 
 
 def _run(args: list[object]) -> str:
